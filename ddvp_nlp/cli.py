@@ -1,0 +1,124 @@
+"""The ``ddvp`` command. Exit codes: 0 success, 1 the solve failed (partial results written),
+2 bad usage (the message names the argument)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .errors import InputError
+from .scenes import STATE_SETTINGS, list_scenes, load_scene
+from .scheme import CLOCKS, RULES, Scheme
+
+
+def _parse_settings(items: list[str]) -> dict:
+    """``NAME=VALUE`` pairs; ``q0``/``p0`` take comma-separated lists."""
+    settings = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise InputError(f"--set expects NAME=VALUE, got {item!r}")
+        try:
+            if name in STATE_SETTINGS:
+                value = [float(v) for v in text.split(",")]
+            else:
+                value = float(text)
+        except ValueError:
+            raise InputError(f"--set {name}: value {text!r} is not a number") from None
+        settings[name] = value
+    return settings
+
+
+def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    parser.add_argument("--scheme", default="vddvp", choices=RULES,
+                        help="energy rule: vddvp (the paper), lee, fixed (default: vddvp)")
+    parser.add_argument("--alpha", type=float, default=0.5,
+                        help="weight alpha of the scheme, beta = 1 - alpha (default: 0.5)")
+    parser.add_argument("--clock", default="midpoint", choices=CLOCKS,
+                        help="time at which H is evaluated on an interval (default: midpoint)")
+    parser.add_argument("--set", dest="settings", action="append", default=[],
+                        metavar="NAME=VALUE",
+                        help="override a scene parameter or t0, tau0, t_end, q0, p0 "
+                             "(q0/p0 as comma lists); repeatable")
+    parser.add_argument("--out", default=None, help="output folder (default: runs/SCENE-SCHEME)")
+    parser.add_argument("--tol", type=float, default=1e-10,
+                        help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
+                                 "variational principle) on CasADi.")
+    commands = parser.add_subparsers(dest="command", required=True)
+    commands.add_parser("scenes", help="list the built-in scenes with their parameters")
+    march = commands.add_parser("march", help="solve an initial-value problem step by step")
+    _scheme_arguments(march)
+    march.add_argument("--max-steps", type=int, default=10_000_000)
+    march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
+    march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
+    march.add_argument("--max-step-ratio", type=float, default=None,
+                       help="largest accepted ratio between consecutive steps")
+    march.add_argument("--no-progress", action="store_true", help="no progress bar")
+    march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    return parser
+
+
+def _describe(name: str) -> str:
+    scene = load_scene(name)
+    params = ", ".join(f"{k}={v:g}" for k, v in scene.params.items())
+    defaults = f"t0={scene.t0:g} tau0={scene.tau0:g} t_end={scene.t_end:g}"
+    return (f"{name:16s} n={scene.n}  {params + '  ' if params else ''}{defaults}\n"
+            f"{'':16s} {scene.description}")
+
+
+def run_march(args) -> int:
+    from .march import march
+    from .output import prepare_folder, write_run
+
+    scene = load_scene(args.scene)
+    scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
+    config = scene.resolve(_parse_settings(args.settings))
+    out = prepare_folder(args.out or f"runs/{scene.name}-{scheme.rule}")
+    solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
+                     t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
+                     max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
+                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress)
+    meta = write_run(out, command="march", scene=scene, config=config, scheme=scheme,
+                     solution=solution, plot=not args.no_plot)
+    _summary(meta, out)
+    return 0 if solution.success else 1
+
+
+def _summary(meta: dict, out) -> None:
+    lines = [f"{meta['scene']} [{meta['scheme']}]: {meta['status']} - {meta['message']}",
+             f"  steps {meta['steps']}, t reached {meta['t_reached']:.10g}"]
+    if meta.get("tau_min") is not None:
+        lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
+    lines.append(f"  energy error {meta['energy_error']:.3e} ({meta['energy_error_kind']})")
+    if "error_vs_exact" in meta:
+        lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e}")
+    lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
+                 f" s; written to {out}/")
+    print("\n".join(lines))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "scenes":
+            print("\n".join(_describe(name) for name in list_scenes()))
+            return 0
+        if args.command == "march":
+            return run_march(args)
+    except InputError as exc:
+        print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    parser.error(f"unknown command {args.command!r}")
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

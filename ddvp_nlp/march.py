@@ -1,0 +1,344 @@
+"""Initial-value problems: march node by node with a CasADi rootfinder (THEORY.md section 4).
+
+Step 0 is a plain implicit step of length ``tau0``: the ``2n`` canonical equations of interval 0
+are solved for ``z_1``. Every later step ``k`` solves ``2n + 1`` equations, the canonical equations
+of interval ``k`` and the energy equation at node ``k``, for ``(z_{k+1}, tau_k)``. ``tau0`` thus
+fixes the discrete energy level and every later step. With ``rule="fixed"`` every step solves the
+canonical equations only, on uniform steps that end on ``t_end``.
+
+A step is accepted only if Newton converged, every value is finite, ``tau_k > 0`` (the
+time-reversed root ``(z_{k-1}, -tau_{k-1})`` solves the midpoint step equations for every state),
+the step's own unscaled residuals are below ``tol`` (relative to ``max(1, |z|)`` and
+``max(1, |H|)``) and the optional step bounds hold. The first step that fails ends the march
+with a status; every accepted node is kept.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+
+import casadi as ca
+import numpy as np
+
+from . import equations
+from .errors import InputError
+from .scheme import Scheme
+from .solution import Solution, Status
+from .system import HamiltonianSystem
+
+NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
+# Starting guesses for tau, as multiples of the previous step, tried in order when Newton from the
+# predictor fails or lands on tau <= 0. The spurious root sits at -tau_{k-1}; these start far
+# from it.
+RETRY_FACTORS = (1.0, 0.5, 2.0, 0.25)
+
+
+class _StepFunctions:
+    """The CasADi functions of one march step, built once per system and scheme."""
+
+    def __init__(self, system: HamiltonianSystem, scheme: Scheme):
+        n = system.n
+        theta = system.theta
+        canonical = equations.canonical_function(system, scheme)
+        derivatives = equations._derivatives(system)
+
+        def flow(z, t):
+            _, H_q, H_p, _ = derivatives(z[:n], z[n:], t, theta)
+            return ca.vertcat(H_p, -H_q)
+
+        # Fixed-length step (also step 0 of every rule): unknown z_b; parameters t_a, t_b, z_a.
+        t_a, t_b = ca.SX.sym("t_a"), ca.SX.sym("t_b")
+        z_a, z_b = ca.SX.sym("z_a", 2 * n), ca.SX.sym("z_b", 2 * n)
+        w = ca.vertcat(t_a, t_b, z_a, theta)
+        g = canonical(t_a, t_b, z_a[:n], z_a[n:], z_b[:n], z_b[n:], theta)
+        self.fixed_root = ca.rootfinder("fixed_step", "newton",
+                                        ca.Function("g", [z_b, w], [g]), NEWTON_OPTIONS)
+        tau = t_b - t_a
+        z_half = z_a + tau / 2 * flow(z_a, t_a)
+        self.fixed_predict = ca.Function("predict", [w], [z_a + tau * flow(z_half, t_a + tau / 2)])
+        self.fixed_check = ca.Function("check", [z_b, w], [ca.norm_inf(g), ca.norm_inf(z_a)])
+
+        if not scheme.variable_steps:
+            return
+        # Energy-determined step k >= 1: unknowns (z_next, tau); parameters t_prev, t_mid,
+        # z_prev, z_mid.
+        energy = equations.energy_function(system, scheme)
+        interval_energy = equations.midpoint_energy_function(system, scheme)
+        t_prev, t_mid = ca.SX.sym("t_prev"), ca.SX.sym("t_mid")
+        z_prev, z_mid, z_next = (ca.SX.sym(s, 2 * n) for s in ("z_prev", "z_mid", "z_next"))
+        tau = ca.SX.sym("tau")
+        x = ca.vertcat(z_next, tau)
+        # drift: the sum of the energy residuals accepted so far. Solving for
+        # residual_k = -drift keeps that sum at round-off, so the round-off of single steps
+        # (seen biased, about 3e-16 per step on fpu) does not add up to a drift of the energy
+        # level; every node still satisfies its own equation to round-off.
+        drift = ca.SX.sym("drift")
+        w = ca.vertcat(t_prev, t_mid, z_prev, z_mid, theta, drift)
+        t_next = t_mid + tau
+        g_canonical = canonical(t_mid, t_next, z_mid[:n], z_mid[n:], z_next[:n], z_next[n:], theta)
+        g_energy = energy(t_prev, t_mid, t_next, z_prev[:n], z_prev[n:], z_mid[:n], z_mid[n:],
+                          z_next[:n], z_next[n:], theta)
+        # The energy equation's derivative in tau is O(tau) (THEORY.md section 5); dividing by the
+        # previous step makes its Newton tolerance an absolute tolerance on tau.
+        g = ca.vertcat(g_canonical, (g_energy + drift) / (t_mid - t_prev))
+        self.energy_root = ca.rootfinder("energy_step", "newton", ca.Function("g", [x, w], [g]),
+                                         NEWTON_OPTIONS)
+        guess = ca.SX.sym("tau_guess")
+        z_half = z_mid + guess / 2 * flow(z_mid, t_mid)
+        self.energy_predict = ca.Function(
+            "predict", [w, guess], [ca.vertcat(z_mid + guess * flow(z_half, t_mid + guess / 2),
+                                               guess)])
+        H_k = interval_energy(t_mid, t_next, z_mid[:n], z_mid[n:], z_next[:n], z_next[n:], theta)
+        self.energy_check = ca.Function(
+            "check", [x, w], [ca.norm_inf(g_canonical), g_energy, ca.norm_inf(z_mid),
+                              ca.fabs(H_k)])
+
+
+def _step_functions(system: HamiltonianSystem, scheme: Scheme) -> _StepFunctions:
+    return system.cached(("march", scheme), lambda: _StepFunctions(system, scheme))
+
+
+def _check_state(name: str, value, n: int) -> np.ndarray:
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of {n} real numbers, got {value!r}") from None
+    if array.ndim == 0 and n == 1:
+        array = array.reshape(1)
+    if array.shape != (n,):
+        raise InputError(f"{name} must have shape ({n},), got shape {array.shape}: {value!r}")
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return array
+
+
+def _check_real(name: str, value, *, positive: bool = False, allow_none: bool = False):
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a real number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    if positive and value <= 0:
+        raise InputError(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: float = 0.0,
+          scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
+          tol: float = 1e-10, max_steps: int = 10_000_000, tau_min: float | None = None,
+          tau_max: float | None = None, max_step_ratio: float | None = None,
+          progress: bool = False) -> Solution:
+    """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
+
+    Args:
+        system: the Hamiltonian system.
+        q0, p0: initial state, each of shape ``(n,)``.
+        tau0: first step; for energy rules it sets the discrete energy level, for ``fixed`` the
+            step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
+        t_end: end time; energy rules stop at the first node with ``t >= t_end``.
+        t0: initial time.
+        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
+        params: values of the system's parameters (defaults filled in).
+        tol: acceptance tolerance of each step's unscaled residuals, relative to ``max(1, |z|)``
+            (canonical) and ``max(1, |H|)`` (energy).
+        max_steps: bound on the number of steps.
+        tau_min, tau_max: optional bounds on every step length.
+        max_step_ratio: optional bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)``.
+        progress: show a progress bar on stderr.
+
+    Returns:
+        A :class:`Solution`; failures are a status on it, never an exception.
+    """
+    scheme = Scheme.coerce(scheme)
+    if not isinstance(system, HamiltonianSystem):
+        raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    q0 = _check_state("q0", q0, system.n)
+    p0 = _check_state("p0", p0, system.n)
+    t0 = _check_real("t0", t0)
+    t_end = _check_real("t_end", t_end)
+    if t_end <= t0:
+        raise InputError(f"t_end must be > t0 = {t0!r}, got {t_end!r}")
+    tau0 = _check_real("tau0", tau0, positive=True)
+    if tau0 > t_end - t0:
+        raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
+    tol = _check_real("tol", tol, positive=True)
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) \
+            or max_steps < 1:
+        raise InputError(f"max_steps must be a positive integer, got {max_steps!r}")
+    tau_min = _check_real("tau_min", tau_min, positive=True, allow_none=True)
+    tau_max = _check_real("tau_max", tau_max, positive=True, allow_none=True)
+    if tau_min is not None and tau_max is not None and tau_min >= tau_max:
+        raise InputError(f"tau_min must be < tau_max = {tau_max!r}, got {tau_min!r}")
+    if (tau_min is not None and tau0 < tau_min) or (tau_max is not None and tau0 > tau_max):
+        raise InputError(f"tau0 must lie in [tau_min, tau_max] = [{tau_min}, {tau_max}], "
+                         f"got {tau0!r}")
+    max_step_ratio = _check_real("max_step_ratio", max_step_ratio, positive=True,
+                                 allow_none=True)
+    if max_step_ratio is not None and max_step_ratio <= 1:
+        raise InputError(f"max_step_ratio must be > 1, got {max_step_ratio!r}")
+    theta = system.parameter_vector(params)
+    H0 = float(system.energy(q0[None, :], p0[None, :], np.array([t0]), theta)[0])
+    if not math.isfinite(H0):
+        raise InputError(f"H is not finite at the initial state q0={q0.tolist()}, "
+                         f"p0={p0.tolist()}, t0={t0!r}: H = {H0!r}")
+
+    started = time.perf_counter()
+    functions = _step_functions(system, scheme)
+    built = time.perf_counter()
+    stepper = _Marcher(system, scheme, functions, theta, tol=tol, tau_min=tau_min,
+                       tau_max=tau_max, max_step_ratio=max_step_ratio)
+    nodes = stepper.run(np.concatenate([q0, p0]), t0=t0, tau0=tau0, t_end=t_end,
+                        max_steps=int(max_steps), progress=progress)
+    solved = time.perf_counter()
+    t, z, status, message = nodes
+    n = system.n
+    canonical, energy = equations.grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta)
+    return Solution(
+        t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
+        scheme=scheme.rule, energy_residual=energy,
+        canonical_residual=np.max(np.abs(canonical), axis=1) if canonical.size else np.zeros(0),
+        newton_iterations=stepper.newton_iterations,
+        timing={"build_s": built - started, "solve_s": solved - built},
+        stats={"retries": stepper.retries, "theta": theta.tolist()})
+
+
+class _Marcher:
+    """The step loop: state, acceptance checks and the grown node arrays."""
+
+    def __init__(self, system, scheme, functions, theta, *, tol, tau_min, tau_max,
+                 max_step_ratio):
+        self.system = system
+        self.scheme = scheme
+        self.functions = functions
+        self.theta = theta
+        self.tol = tol
+        self.tau_min = tau_min
+        self.tau_max = tau_max
+        self.max_step_ratio = max_step_ratio
+        self.newton_iterations = 0
+        self.retries = 0
+        self.drift = 0.0
+
+    def _solve(self, root, guess, w):
+        x = np.asarray(root(guess, w)).ravel()
+        stats = root.stats()
+        self.newton_iterations += int(stats.get("iter_count", 0))
+        # Read return_status: CasADi's "success" flag was seen False on converged calls.
+        return x, stats.get("return_status") == "success"
+
+    def _fixed_step(self, t_a, t_b, z_a):
+        f = self.functions
+        w = np.concatenate([[t_a, t_b], z_a, self.theta])
+        z_b, converged = self._solve(f.fixed_root, f.fixed_predict(w), w)
+        if not np.all(np.isfinite(z_b)):
+            return None, Status.NON_FINITE, f"z = {z_b.tolist()}"
+        if not converged:
+            return None, Status.NEWTON_FAILED, ""
+        residual, size = (float(v) for v in f.fixed_check(z_b, w))
+        if residual > self.tol * max(1.0, size):
+            return None, Status.RESIDUAL_TOO_LARGE, f"canonical residual {residual:.3e}"
+        return z_b, Status.SUCCESS, ""
+
+    def _energy_step(self, t_prev, t_mid, z_prev, z_mid, tau_prev):
+        f = self.functions
+        w = np.concatenate([[t_prev, t_mid], z_prev, z_mid, self.theta, [self.drift]])
+        detail = ""
+        worst = Status.NEWTON_FAILED
+        for attempt, factor in enumerate(RETRY_FACTORS):
+            if attempt:
+                self.retries += 1
+            x, converged = self._solve(f.energy_root, f.energy_predict(w, factor * tau_prev), w)
+            if not np.all(np.isfinite(x)):
+                worst, detail = Status.NON_FINITE, f"(z, tau) = {x.tolist()}"
+                continue
+            if not converged:
+                continue
+            tau = x[-1]
+            if tau <= 0:
+                if worst is not Status.RESIDUAL_TOO_LARGE:
+                    worst, detail = Status.NO_ADMISSIBLE_STEP, f"Newton found tau = {tau:.6g}"
+                continue
+            canonical, energy, size, H = (float(v) for v in f.energy_check(x, w))
+            if canonical > self.tol * max(1.0, size) or abs(energy) > self.tol * max(1.0, H):
+                worst, detail = Status.RESIDUAL_TOO_LARGE, (
+                    f"canonical residual {canonical:.3e}, energy residual {energy:.3e}")
+                continue
+            self.drift += energy
+            return x[:-1], tau, Status.SUCCESS, ""
+        return None, None, worst, detail
+
+    def _bounds(self, tau, tau_prev):
+        if self.tau_min is not None and tau < self.tau_min:
+            return Status.STEP_BELOW_MIN, f"tau = {tau:.6g} < tau_min = {self.tau_min:.6g}"
+        if self.tau_max is not None and tau > self.tau_max:
+            return Status.STEP_ABOVE_MAX, f"tau = {tau:.6g} > tau_max = {self.tau_max:.6g}"
+        if self.max_step_ratio is not None and tau_prev is not None:
+            ratio = max(tau / tau_prev, tau_prev / tau)
+            if ratio > self.max_step_ratio:
+                return Status.STEP_RATIO, (f"tau = {tau:.6g} after {tau_prev:.6g} (ratio "
+                                           f"{ratio:.4g} > max_step_ratio {self.max_step_ratio})")
+        return Status.SUCCESS, ""
+
+    def run(self, z0, *, t0, tau0, t_end, max_steps, progress):
+        from tqdm import tqdm
+
+        n2 = z0.size
+        capacity = 1024
+        t = np.empty(capacity)
+        z = np.empty((capacity, n2))
+        t[0], z[0] = t0, z0
+        count = 1
+        status, detail = Status.SUCCESS, ""
+        fixed = not self.scheme.variable_steps
+        if fixed:
+            steps_total = max(1, math.ceil((t_end - t0) / tau0 - 1e-9))
+            tau_fixed = (t_end - t0) / steps_total
+        bar = tqdm(total=t_end - t0, disable=not progress, unit="t", leave=False,
+                   bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
+        reported = t0
+        try:
+            while True:
+                k = count - 1  # the newest node
+                if (fixed and k == steps_total) or (not fixed and t[k] >= t_end):
+                    break
+                if k >= max_steps:
+                    status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
+                    break
+                tau_prev = t[k] - t[k - 1] if k else None
+                if k == 0 or fixed:
+                    t_next = t0 + tau0 if not fixed else (
+                        t_end if k + 1 == steps_total else t0 + (k + 1) * tau_fixed)
+                    z_next, status, detail = self._fixed_step(t[k], t_next, z[k])
+                else:
+                    z_next, tau, status, detail = self._energy_step(t[k - 1], t[k], z[k - 1],
+                                                                    z[k], tau_prev)
+                    t_next = t[k] + tau if tau is not None else None
+                if status is Status.SUCCESS and not fixed:
+                    status, detail = self._bounds(t_next - t[k], tau_prev)
+                if status is not Status.SUCCESS:
+                    break
+                if count == capacity:
+                    capacity *= 2
+                    t = np.resize(t, capacity)
+                    z = np.resize(z, (capacity, n2))
+                t[count], z[count] = t_next, z_next
+                count += 1
+                if progress and count % 256 == 0:
+                    bar.update(min(t_next, t_end) - reported)
+                    reported = min(t_next, t_end)
+        except KeyboardInterrupt:
+            status, detail = Status.INTERRUPTED, ""
+        finally:
+            bar.close()
+        t, z = t[:count].copy(), z[:count].copy()
+        if status is Status.SUCCESS:
+            message = f"{status.value} = {t_end:.6g} in {count - 1} steps"
+        else:
+            k = count - 1
+            message = (f"{status.value}: step {k} from t = {t[k]:.10g}, q = {z[k, :n2 // 2]}, "
+                       f"p = {z[k, n2 // 2:]}" + (f"; {detail}" if detail else ""))
+        return t, z, status, message

@@ -1,0 +1,156 @@
+"""Scenes: a system plus the data to run it, declared in a small Python file.
+
+A scene file defines ``scene = Scene(...)`` with only what it needs::
+
+    import casadi as ca
+    from ddvp_nlp import Scene
+
+    def hamiltonian(q, p, t, w):
+        return (p[0]**2 + w**2 * q[0]**2) / 2
+
+    scene = Scene(hamiltonian, n=1, params={"w": 1.0}, q0=[1.0], p0=[0.0], tau0=0.1, t_end=10)
+
+The built-in scenes are the files of the top-level ``problems/`` folder (installed as
+``ddvp_nlp.problems``); any other path to a ``.py`` file works the same way.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .system import HamiltonianSystem, check_parameter_values
+
+RUN_SETTINGS = ("t0", "tau0", "t_end")
+STATE_SETTINGS = ("q0", "p0")
+
+
+@dataclass(eq=False)
+class Scene:
+    """A Hamiltonian system with its defaults.
+
+    Attributes:
+        hamiltonian: ``H(q, p, t, **params)`` on CasADi symbols.
+        n: degrees of freedom.
+        q0, p0: initial state, or a function of the parameters returning it.
+        tau0: default first step.
+        t_end: default end time.
+        t0: default start time.
+        params: parameter names and defaults.
+        exact: optional exact solution ``exact(t, q0, p0, t0, **params) -> (q, p)`` with ``t`` of
+            shape ``(N,)`` and ``q``, ``p`` of shape ``(N, n)``.
+        invariants: optional named first integrals besides ``H``, ``f(q, p, **params) -> (N,)``.
+        boundary: optional default fixed-endpoint data
+            ``{"q_start": ..., "q_end": ..., "t_span": (t0, t1), "nodes": N}``.
+        name, description: set from the file name and docstring when loaded.
+    """
+
+    hamiltonian: Callable[..., object]
+    n: int
+    q0: object
+    p0: object
+    tau0: float
+    t_end: float
+    t0: float = 0.0
+    params: Mapping[str, float] = field(default_factory=dict)
+    exact: Callable[..., tuple] | None = None
+    invariants: Mapping[str, Callable[..., np.ndarray]] = field(default_factory=dict)
+    boundary: Mapping[str, object] | None = None
+    name: str = "scene"
+    description: str = ""
+
+    @cached_property
+    def system(self) -> HamiltonianSystem:
+        return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name)
+
+    def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
+        """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
+        ``p0``. Unknown names are an error that lists the known ones."""
+        overrides = dict(overrides or {})
+        settings = {k: overrides.pop(k) for k in (*RUN_SETTINGS, *STATE_SETTINGS)
+                    if k in overrides}
+        unknown = sorted(set(overrides) - set(self.params))
+        if unknown:
+            known = ", ".join([*self.params, *RUN_SETTINGS, *STATE_SETTINGS])
+            raise InputError(f"scene {self.name!r} has no parameter {unknown[0]!r} "
+                             f"(it has: {known})")
+        params = check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}")
+        q0 = settings.get("q0", self.q0)
+        p0 = settings.get("p0", self.p0)
+        q0 = q0(**params) if callable(q0) else q0
+        p0 = p0(**params) if callable(p0) else p0
+        values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
+        for k, v in values.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InputError(f"{k} must be a finite real number, got {v!r}")
+        return RunConfig(params=params, q0=np.atleast_1d(np.asarray(q0, dtype=float)),
+                         p0=np.atleast_1d(np.asarray(p0, dtype=float)),
+                         **{k: float(v) for k, v in values.items()})
+
+
+@dataclass
+class RunConfig:
+    """Resolved values of one run of a scene."""
+
+    params: dict[str, float]
+    q0: np.ndarray
+    p0: np.ndarray
+    t0: float
+    tau0: float
+    t_end: float
+
+    def as_dict(self) -> dict:
+        return {**self.params, "q0": self.q0.tolist(), "p0": self.p0.tolist(), "t0": self.t0,
+                "tau0": self.tau0, "t_end": self.t_end}
+
+
+def scene_folder() -> Path:
+    """The folder of the built-in scenes: installed package data, or the source tree's
+    ``problems/`` when running from a checkout."""
+    try:
+        import ddvp_nlp.problems as installed
+        return Path(installed.__file__).parent
+    except ImportError:
+        return Path(__file__).resolve().parent.parent / "problems"
+
+
+def list_scenes() -> list[str]:
+    return sorted(p.stem for p in scene_folder().glob("*.py") if not p.stem.startswith("_"))
+
+
+def load_scene(name_or_path: str) -> Scene:
+    """A built-in scene by name, or the scene defined in a Python file."""
+    if not isinstance(name_or_path, str) or not name_or_path:
+        raise InputError(f"scene must be a name or a path, got {name_or_path!r}")
+    looks_like_path = name_or_path.endswith(".py") or "/" in name_or_path or "\\" in name_or_path
+    if looks_like_path:
+        path = Path(name_or_path)
+        if not path.is_file():
+            raise InputError(f"scene file {name_or_path!r} does not exist")
+        name = path.stem
+    else:
+        if name_or_path not in list_scenes():
+            raise InputError(f"unknown scene {name_or_path!r} (built-in scenes: "
+                             f"{', '.join(list_scenes())})")
+        path = scene_folder() / f"{name_or_path}.py"
+        name = name_or_path
+    spec = importlib.util.spec_from_file_location(f"ddvp_scene_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        raise InputError(f"scene file {str(path)!r} does not load: "
+                         f"{type(exc).__name__}: {exc}") from exc
+    scene = getattr(module, "scene", None)
+    if not isinstance(scene, Scene):
+        raise InputError(f"scene file {str(path)!r} defines no `scene = Scene(...)`")
+    scene.name = name
+    scene.description = (module.__doc__ or "").strip().splitlines()[0] if module.__doc__ else ""
+    return scene

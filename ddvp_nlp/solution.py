@@ -1,0 +1,78 @@
+"""The result of every solve: nodes, status and the checks that were made on them."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class Status(enum.Enum):
+    """How a solve ended. Every value but ``SUCCESS`` is a failure; its text says what happened
+    in words a person can act on (the message of the result adds step, time and state)."""
+
+    SUCCESS = "reached t_end"
+    NO_ADMISSIBLE_STEP = "the step equations have no root with tau > 0 from this node"
+    NEWTON_FAILED = "Newton's method did not converge on the step equations"
+    NON_FINITE = "a step produced a non-finite value"
+    RESIDUAL_TOO_LARGE = "a step's own unscaled residual is above the tolerance"
+    STEP_BELOW_MIN = "the step length fell below tau_min"
+    STEP_ABOVE_MAX = "the step length rose above tau_max"
+    STEP_RATIO = "the step length changed by more than max_step_ratio in one step"
+    MAX_STEPS = "max_steps was reached before t_end"
+    INTERRUPTED = "interrupted by the user"
+    SOLVER_FAILED = "the NLP solver did not converge"
+    NOT_VERIFIED = "the solver's point does not satisfy the equations to the tolerance"
+
+    @property
+    def code(self) -> str:
+        return self.name.lower()
+
+    @classmethod
+    def from_code(cls, code: str) -> Status:
+        return cls[code.upper()]
+
+
+@dataclass
+class Solution:
+    """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
+
+    Every accepted node is kept, also when ``status`` is a failure.
+
+    Attributes:
+        energy_residual: residual of the energy equation at each interior node (N-2,), in the
+            units of ``H`` (``fixed`` steps: the ``lee`` balance they do not enforce).
+        canonical_residual: largest canonical residual of each interval (N-1,), increment form.
+        newton_iterations: Newton iterations in total (march) or solver iterations (NLP).
+        timing: ``build_s`` and ``solve_s`` in seconds.
+        stats: solver-specific statistics (IPOPT's, the march's retries, ...).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    p: np.ndarray
+    status: Status
+    message: str
+    scheme: str
+    energy_residual: np.ndarray
+    canonical_residual: np.ndarray
+    newton_iterations: int = 0
+    timing: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status is Status.SUCCESS
+
+    @property
+    def tau(self) -> np.ndarray:
+        return np.diff(self.t)
+
+    @property
+    def steps(self) -> int:
+        return max(self.t.size - 1, 0)
+
+    def __repr__(self) -> str:
+        return (f"Solution(status={self.status.code}, steps={self.steps}, "
+                f"t=[{self.t[0]:.6g}, {self.t[-1]:.6g}], message={self.message!r})")

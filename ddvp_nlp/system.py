@@ -1,0 +1,123 @@
+"""A mechanical system declared by its Hamiltonian ``H(q, p, t)``.
+
+The user writes ``H`` as a plain Python function on CasADi symbols::
+
+    def hamiltonian(q, p, t, eps, omega):
+        return p[0]**2 / 2 + (1 - ca.cos(q[0])) * (1 - eps * ca.sin(omega * t))
+
+``q`` and ``p`` are column vectors of length ``n``, ``t`` a scalar and every named parameter a
+scalar symbol. The function is called once, symbolically, when the system is made; whether ``H``
+depends on ``t`` is read off the expression, not declared.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .errors import InputError
+
+
+def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, float],
+                           *, owner: str) -> dict[str, float]:
+    """Merge ``values`` into ``defaults``; each name must be known, each value a finite real."""
+    resolved = dict(defaults)
+    for name, value in values.items():
+        if name not in defaults:
+            known = ", ".join(sorted(defaults)) or "none"
+            raise InputError(f"{owner} has no parameter {name!r} (its parameters: {known})")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise InputError(
+                f"parameter {name!r} must be a real number, got {value!r} "
+                f"of type {type(value).__name__}")
+        if not math.isfinite(float(value)):
+            raise InputError(f"parameter {name!r} must be finite, got {value!r}")
+        resolved[name] = float(value)
+    return resolved
+
+
+@dataclass(eq=False)
+class HamiltonianSystem:
+    """``H(q, p, t; params)`` on ``R^n x R^n x R``.
+
+    Attributes:
+        hamiltonian: ``H(q, p, t, **params)`` returning a scalar CasADi expression.
+        n: number of degrees of freedom.
+        params: parameter names and default values.
+        name: a label for reports.
+    """
+
+    hamiltonian: Callable[..., object]
+    n: int
+    params: Mapping[str, float] = field(default_factory=dict)
+    name: str = "system"
+
+    def __post_init__(self):
+        if isinstance(self.n, bool) or not isinstance(self.n, (int, np.integer)) or self.n < 1:
+            raise InputError(f"n must be a positive integer, got {self.n!r}")
+        self.n = int(self.n)
+        self.params = check_parameter_values(self.params, {k: 0.0 for k in self.params},
+                                             owner=f"system {self.name!r}")
+        self.q = ca.SX.sym("q", self.n)
+        self.p = ca.SX.sym("p", self.n)
+        self.t = ca.SX.sym("t")
+        self.theta = ca.SX.sym("theta", len(self.params))
+        symbols = {name: self.theta[i] for i, name in enumerate(self.params)}
+        try:
+            value = self.hamiltonian(self.q, self.p, self.t, **symbols)
+        except InputError:
+            raise
+        except Exception as exc:  # the user's function; say whose it was
+            raise InputError(
+                f"hamiltonian of {self.name!r} failed on symbolic input: "
+                f"{type(exc).__name__}: {exc}") from exc
+        self.H = _as_scalar_expression(value, self.name)
+        given = ca.vertcat(self.q, self.p, self.t, self.theta)
+        stray = [s.name() for s in ca.symvar(self.H) if not ca.depends_on(s, given)]
+        if stray:
+            raise InputError(
+                f"hamiltonian of {self.name!r} depends on symbols it was not given: "
+                f"{', '.join(stray)}")
+        self.time_dependent = bool(ca.depends_on(self.H, self.t))
+        self._functions: dict[object, ca.Function] = {}
+        self.H_function = ca.Function("H", [self.q, self.p, self.t, self.theta], [self.H],
+                                      ["q", "p", "t", "theta"], ["H"])
+
+    def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:
+        """Numeric ``theta`` in declaration order, defaults filled in, names checked."""
+        resolved = check_parameter_values(values or {}, self.params,
+                                          owner=f"system {self.name!r}")
+        return np.array([resolved[k] for k in self.params], dtype=float)
+
+    def energy(self, q, p, t, theta) -> np.ndarray:
+        """``H`` at each row of ``q``, ``p`` (shape ``(N, n)``) and ``t`` (shape ``(N,)``)."""
+        q = np.atleast_2d(q)
+        f = self.H_function.map(q.shape[0])
+        return np.asarray(f(q.T, np.atleast_2d(p).T, np.atleast_1d(t)[None, :],
+                            np.asarray(theta, float)[:, None])).ravel()
+
+    def cached(self, key, build: Callable[[], ca.Function]) -> ca.Function:
+        """Build a CasADi function once per system and ``key``."""
+        if key not in self._functions:
+            self._functions[key] = build()
+        return self._functions[key]
+
+
+def _as_scalar_expression(value, name: str) -> ca.SX:
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        value = ca.SX(float(value))
+    if isinstance(value, ca.MX):
+        raise InputError(f"hamiltonian of {name!r} returned an MX expression; use the SX "
+                         "symbols it is given (ca.sin, ca.cos, ... work on them)")
+    if not isinstance(value, (ca.SX, ca.DM)):
+        raise InputError(f"hamiltonian of {name!r} must return a CasADi expression, got "
+                         f"{type(value).__name__}")
+    value = ca.SX(value)
+    if value.shape != (1, 1):
+        raise InputError(f"hamiltonian of {name!r} must be scalar, got shape "
+                         f"{value.shape[0]}x{value.shape[1]}")
+    return value

@@ -1,0 +1,20 @@
+"""Harmonic oscillator H = (p^2 + w^2 q^2)/2, with its exact solution."""
+
+import numpy as np
+
+from ddvp_nlp import Scene
+
+
+def hamiltonian(q, p, t, w):
+    return (p[0] ** 2 + w**2 * q[0] ** 2) / 2
+
+
+def exact(t, q0, p0, t0, w):
+    phase = w * (np.asarray(t) - t0)
+    q = q0[0] * np.cos(phase) + p0[0] / w * np.sin(phase)
+    p = -q0[0] * w * np.sin(phase) + p0[0] * np.cos(phase)
+    return q[:, None], p[:, None]
+
+
+scene = Scene(hamiltonian, n=1, params={"w": 1.0}, q0=[1.0], p0=[0.0], tau0=0.1, t_end=20.0,
+              exact=exact)

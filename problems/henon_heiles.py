@@ -1,0 +1,12 @@
+"""Henon-Heiles H = |p|^2/2 + (q1^2 + q2^2)/2 + q1^2 q2 - q2^3/3 (escape energy 1/6)."""
+
+import casadi as ca
+
+from ddvp_nlp import Scene
+
+
+def hamiltonian(q, p, t):
+    return ca.sumsqr(p) / 2 + ca.sumsqr(q) / 2 + q[0] ** 2 * q[1] - q[1] ** 3 / 3
+
+
+scene = Scene(hamiltonian, n=2, q0=[0.0, 0.1], p0=[0.35, 0.0], tau0=0.05, t_end=200.0)

@@ -1,0 +1,23 @@
+import numpy as np
+import pytest
+
+from ddvp_nlp import load_scene, march
+
+
+def run_scene(name, overrides=None, **kwargs):
+    """March a built-in scene with its defaults, ``overrides`` applied to them."""
+    scene = load_scene(name)
+    config = scene.resolve(overrides or {})
+    options = {"tau0": config.tau0, "t_end": config.t_end, "t0": config.t0,
+               "params": config.params, **kwargs}
+    return scene, config, march(scene.system, config.q0, config.p0, **options)
+
+
+def fitted_order(steps, errors):
+    """Slope of log(error) against log(step) by least squares."""
+    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+
+
+@pytest.fixture
+def paper():
+    return load_scene("paper_pendulum")

@@ -1,0 +1,104 @@
+"""Bad input: a clear error naming the argument and the value, before anything is built."""
+
+import re
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from ddvp_nlp import HamiltonianSystem, InputError, Scheme, load_scene, march
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return load_scene("pendulum").system
+
+
+def expect(message):
+    return pytest.raises(InputError, match="^" + re.escape(message) + "$")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"q0": [np.nan]}, "q0 must be finite, got [nan]"),
+    ({"p0": [np.inf]}, "p0 must be finite, got [inf]"),
+    ({"q0": [0.1, 0.2]}, "q0 must have shape (1,), got shape (2,): [0.1, 0.2]"),
+    ({"p0": []}, "p0 must have shape (1,), got shape (0,): []"),
+    ({"q0": "abc"}, "q0 must be an array of 1 real numbers, got 'abc'"),
+    ({"tau0": 0.0}, "tau0 must be > 0, got 0.0"),
+    ({"tau0": -0.1}, "tau0 must be > 0, got -0.1"),
+    ({"tau0": float("nan")}, "tau0 must be finite, got nan"),
+    ({"tau0": 20.0}, "tau0 must not exceed t_end - t0 = 10.0, got 20.0"),
+    ({"t_end": 0.0}, "t_end must be > t0 = 0.0, got 0.0"),
+    ({"t_end": -1.0}, "t_end must be > t0 = 0.0, got -1.0"),
+    ({"scheme": "euler"}, "unknown scheme 'euler' (choose from vddvp, lee, fixed)"),
+    ({"tol": 0.0}, "tol must be > 0, got 0.0"),
+    ({"max_steps": 0}, "max_steps must be a positive integer, got 0"),
+    ({"tau_min": 0.2, "tau_max": 0.1}, "tau_min must be < tau_max = 0.1, got 0.2"),
+    ({"tau_min": -1.0}, "tau_min must be > 0, got -1.0"),
+    ({"params": {"g": 9.81}}, "system 'pendulum' has no parameter 'g' (its parameters: none)"),
+])
+def test_march_rejects_bad_input(pendulum, kwargs, message):
+    options = {"q0": [0.5], "p0": [0.5], "tau0": 0.05, "t_end": 10.0, **kwargs}
+    with expect(message):
+        march(pendulum, options.pop("q0"), options.pop("p0"), **options)
+
+
+def test_parameter_of_wrong_type():
+    system = load_scene("harmonic").system
+    with expect("parameter 'w' must be a real number, got 'fast' of type str"):
+        march(system, [1.0], [0.0], tau0=0.1, t_end=1.0, params={"w": "fast"})
+
+
+def test_hamiltonian_not_scalar():
+    with expect("hamiltonian of 'vector' must be scalar, got shape 2x1"):
+        HamiltonianSystem(lambda q, p, t: p**2 / 2, n=2, name="vector")
+
+
+def test_hamiltonian_with_a_foreign_symbol():
+    stray = ca.SX.sym("k")
+    with expect("hamiltonian of 'leaky' depends on symbols it was not given: k"):
+        HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 + stray * q[0] ** 2, n=1, name="leaky")
+
+
+def test_hamiltonian_that_raises():
+    def broken(q, p, t):
+        return q[5]
+    with pytest.raises(InputError, match="^hamiltonian of 'broken' failed on symbolic input: "):
+        HamiltonianSystem(broken, n=1, name="broken")
+
+
+def test_hamiltonian_not_finite_at_the_initial_state():
+    system = HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 - 1 / q[0], n=1, name="coulomb")
+    with expect("H is not finite at the initial state q0=[0.0], p0=[1.0], t0=0.0: H = -inf"):
+        march(system, [0.0], [1.0], tau0=0.1, t_end=1.0)
+
+
+def test_alpha_out_of_range():
+    with expect("alpha must be a number in [0, 1], got 1.5"):
+        Scheme("vddvp", alpha=1.5)
+
+
+def test_unknown_scene_names_the_built_in_ones():
+    with expect("unknown scene 'pendulm' (built-in scenes: fpu, harmonic, henon_heiles, "
+                "kepler, paper_pendulum, pendulum)"):
+        load_scene("pendulm")
+
+
+def test_scene_parameter_unknown():
+    with expect("scene 'kepler' has no parameter 'mass' (it has: e, t0, tau0, t_end, q0, p0)"):
+        load_scene("kepler").resolve({"mass": 1.0})
+
+
+def test_scene_file_that_does_not_load(tmp_path):
+    path = tmp_path / "bad.py"
+    path.write_text("import nonexistent_module_xyz\n")
+    with expect(f"scene file {str(path)!r} does not load: ModuleNotFoundError: "
+                "No module named 'nonexistent_module_xyz'"):
+        load_scene(str(path))
+
+
+def test_scene_file_without_scene(tmp_path):
+    path = tmp_path / "empty.py"
+    path.write_text("x = 1\n")
+    with expect(f"scene file {str(path)!r} defines no `scene = Scene(...)`"):
+        load_scene(str(path))
