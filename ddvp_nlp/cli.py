@@ -7,12 +7,12 @@ import argparse
 import sys
 
 from .errors import InputError
-from .scenes import STATE_SETTINGS, list_scenes, load_scene
+from .scenes import VECTOR_SETTINGS, list_scenes, load_scene
 from .scheme import CLOCKS, RULES, Scheme
 
 
 def _parse_settings(items: list[str]) -> dict:
-    """``NAME=VALUE`` pairs; ``q0``/``p0`` take comma-separated lists."""
+    """``NAME=VALUE`` pairs; ``q0``, ``p0``, ``q_start``, ``q_end`` take comma-separated lists."""
     settings = {}
     for item in items:
         name, sep, text = item.partition("=")
@@ -20,7 +20,7 @@ def _parse_settings(items: list[str]) -> dict:
         if not sep or not name:
             raise InputError(f"--set expects NAME=VALUE, got {item!r}")
         try:
-            if name in STATE_SETTINGS:
+            if name in VECTOR_SETTINGS:
                 value = [float(v) for v in text.split(",")]
             else:
                 value = float(text)
@@ -40,9 +40,10 @@ def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
                         help="time at which H is evaluated on an interval (default: midpoint)")
     parser.add_argument("--set", dest="settings", action="append", default=[],
                         metavar="NAME=VALUE",
-                        help="override a scene parameter or t0, tau0, t_end, q0, p0 "
-                             "(q0/p0 as comma lists); repeatable")
-    parser.add_argument("--out", default=None, help="output folder (default: runs/SCENE-SCHEME)")
+                        help="override a scene parameter or t0, tau0, t_end, q0, p0 (march), "
+                             "q_start, q_end, t0, t_end (bvp); vectors as comma lists; repeatable")
+    parser.add_argument("--out", default=None,
+                        help="output folder (default: runs/SCENE-SCHEME or runs/SCENE-bvp-SCHEME)")
     parser.add_argument("--tol", type=float, default=1e-10,
                         help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
 
@@ -62,6 +63,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="largest accepted ratio between consecutive steps")
     march.add_argument("--no-progress", action="store_true", help="no progress bar")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem as one IPOPT NLP")
+    _scheme_arguments(bvp)
+    bvp.add_argument("--nodes", type=int, default=None,
+                     help="number of nodes (default: the scene's, else 101)")
+    bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
+    bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
     return parser
 
 
@@ -91,8 +98,27 @@ def run_march(args) -> int:
     return 0 if solution.success else 1
 
 
+def run_bvp(args) -> int:
+    from .bvp import solve_bvp
+    from .output import prepare_folder, write_run
+
+    scene = load_scene(args.scene)
+    scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
+    config = scene.resolve_boundary(_parse_settings(args.settings), nodes=args.nodes)
+    out = prepare_folder(args.out or f"runs/{scene.name}-bvp-{scheme.rule}")
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
+                         nodes=config.nodes, scheme=scheme, params=config.params, tol=args.tol,
+                         verbose=args.verbose)
+    meta = write_run(out, command="bvp", scene=scene, config=config, scheme=scheme,
+                     solution=solution, extra={"solver": solution.stats},
+                     plot=not args.no_plot)
+    _summary(meta, out)
+    return 0 if solution.success else 1
+
+
 def _summary(meta: dict, out) -> None:
-    lines = [f"{meta['scene']} [{meta['scheme']}]: {meta['status']} - {meta['message']}",
+    lines = [f"{meta['scene']} {meta['command']} [{meta['scheme']}]: {meta['status']} - "
+             f"{meta['message']}",
              f"  steps {meta['steps']}, t reached {meta['t_reached']:.10g}"]
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
@@ -113,6 +139,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "march":
             return run_march(args)
+        if args.command == "bvp":
+            return run_bvp(args)
     except InputError as exc:
         print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
         return 2

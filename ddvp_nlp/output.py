@@ -10,7 +10,7 @@ import numpy as np
 
 from . import equations
 from .errors import InputError
-from .scenes import RunConfig, Scene
+from .scenes import BoundaryConfig, RunConfig, Scene
 from .scheme import Scheme
 from .solution import Solution, Status
 
@@ -57,7 +57,8 @@ def _max_abs(values) -> float:
     return float(np.max(np.abs(values))) if values.size else 0.0
 
 
-def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig, scheme: Scheme,
+def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | BoundaryConfig,
+              scheme: Scheme,
               solution: Solution, extra: dict | None = None, plot: bool = True) -> dict:
     """Write ``result.npz``, ``meta.json`` and ``trajectory.png``; return the metadata."""
     theta = scene.system.parameter_vector(config.params)
@@ -90,7 +91,10 @@ def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig, schem
                            - f(solution.q[:1], solution.p[:1], **config.params)[0])
             for name, f in scene.invariants.items()}
     if scene.exact is not None and solution.t.size:
-        q, p = scene.exact(solution.t, config.q0, config.p0, config.t0, **config.params)
+        # The exact solution through the result's own first node (for a march: its initial
+        # state; for a fixed-endpoint problem: the computed initial momentum).
+        q, p = scene.exact(solution.t, solution.q[0], solution.p[0], solution.t[0],
+                           **config.params)
         meta["error_vs_exact"] = float(max(_max_abs(solution.q - q), _max_abs(solution.p - p)))
     meta.update(extra or {})
     (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")

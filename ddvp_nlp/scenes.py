@@ -30,6 +30,8 @@ from .system import HamiltonianSystem, check_parameter_values
 
 RUN_SETTINGS = ("t0", "tau0", "t_end")
 STATE_SETTINGS = ("q0", "p0")
+BOUNDARY_SETTINGS = ("q_start", "q_end", "t0", "t_end")
+VECTOR_SETTINGS = ("q0", "p0", "q_start", "q_end")
 
 
 @dataclass(eq=False)
@@ -70,18 +72,41 @@ class Scene:
     def system(self) -> HamiltonianSystem:
         return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name)
 
+    def _split_parameters(self, overrides, settings_names):
+        overrides = dict(overrides or {})
+        settings = {k: overrides.pop(k) for k in settings_names if k in overrides}
+        unknown = sorted(set(overrides) - set(self.params))
+        if unknown:
+            known = ", ".join([*self.params, *settings_names])
+            raise InputError(f"scene {self.name!r} has no parameter {unknown[0]!r} "
+                             f"(it has: {known})")
+        return check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}"), \
+            settings
+
+    def resolve_boundary(self, overrides: Mapping[str, object] | None = None,
+                         nodes: int | None = None) -> BoundaryConfig:
+        """Fixed-endpoint data: the scene's ``boundary`` with ``overrides`` (parameters,
+        ``q_start``, ``q_end``, ``t0``, ``t_end``) and ``nodes`` applied."""
+        params, settings = self._split_parameters(overrides, BOUNDARY_SETTINGS)
+        data = dict(self.boundary or {})
+        if not data and not {"q_start", "q_end"} <= set(settings):
+            raise InputError(f"scene {self.name!r} declares no fixed-endpoint data: give "
+                             "q_start, q_end, t0 and t_end (--set NAME=VALUE) and --nodes")
+        t_span = data.get("t_span", (self.t0, self.t_end))
+        t0 = settings.get("t0", t_span[0])
+        t1 = settings.get("t_end", t_span[1])
+        return BoundaryConfig(params=params,
+                              q_start=np.atleast_1d(np.asarray(settings.get(
+                                  "q_start", data.get("q_start")), dtype=float)),
+                              q_end=np.atleast_1d(np.asarray(settings.get(
+                                  "q_end", data.get("q_end")), dtype=float)),
+                              t_span=(float(t0), float(t1)),
+                              nodes=nodes if nodes is not None else data.get("nodes", 101))
+
     def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
         """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
         ``p0``. Unknown names are an error that lists the known ones."""
-        overrides = dict(overrides or {})
-        settings = {k: overrides.pop(k) for k in (*RUN_SETTINGS, *STATE_SETTINGS)
-                    if k in overrides}
-        unknown = sorted(set(overrides) - set(self.params))
-        if unknown:
-            known = ", ".join([*self.params, *RUN_SETTINGS, *STATE_SETTINGS])
-            raise InputError(f"scene {self.name!r} has no parameter {unknown[0]!r} "
-                             f"(it has: {known})")
-        params = check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}")
+        params, settings = self._split_parameters(overrides, (*RUN_SETTINGS, *STATE_SETTINGS))
         q0 = settings.get("q0", self.q0)
         p0 = settings.get("p0", self.p0)
         q0 = q0(**params) if callable(q0) else q0
@@ -109,6 +134,21 @@ class RunConfig:
     def as_dict(self) -> dict:
         return {**self.params, "q0": self.q0.tolist(), "p0": self.p0.tolist(), "t0": self.t0,
                 "tau0": self.tau0, "t_end": self.t_end}
+
+
+@dataclass
+class BoundaryConfig:
+    """Resolved fixed-endpoint data of a scene."""
+
+    params: dict[str, float]
+    q_start: np.ndarray
+    q_end: np.ndarray
+    t_span: tuple[float, float]
+    nodes: int
+
+    def as_dict(self) -> dict:
+        return {**self.params, "q_start": self.q_start.tolist(), "q_end": self.q_end.tolist(),
+                "t0": self.t_span[0], "t_end": self.t_span[1], "nodes": self.nodes}
 
 
 def scene_folder() -> Path:

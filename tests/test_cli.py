@@ -37,7 +37,7 @@ def test_march_writes_result_meta_and_plot(tmp_path, capsys):
     assert result["t"].shape == (n_nodes,) and result["q"].shape == (n_nodes, 1)
     assert result["p"].shape == (n_nodes, 1)
     assert (out / "trajectory.png").stat().st_size > 10_000
-    assert "harmonic [vddvp]: success" in capsys.readouterr().out
+    assert "harmonic march [vddvp]: success" in capsys.readouterr().out
 
 
 def test_failed_march_exits_1_and_keeps_partial_results(tmp_path):
