@@ -61,6 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
     march.add_argument("--max-step-ratio", type=float, default=None,
                        help="largest accepted ratio between consecutive steps")
+    march.add_argument("--careful", action="store_true",
+                       help="force the careful per-step path (default: compiled chunks of steps, "
+                            "checked step by step; both accept the same steps)")
     march.add_argument("--no-progress", action="store_true", help="no progress bar")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
     bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem as one IPOPT NLP")
@@ -91,9 +94,13 @@ def run_march(args) -> int:
     solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
                      t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
                      max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
-                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress)
+                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
+                     fast=not args.careful)
     meta = write_run(out, command="march", scene=scene, config=config, scheme=scheme,
-                     solution=solution, plot=not args.no_plot)
+                     solution=solution, plot=not args.no_plot,
+                     extra={"path": solution.stats["path"],
+                            "fast_steps": solution.stats["fast_steps"],
+                            "careful_steps": solution.stats["careful_steps"]})
     _summary(meta, out)
     return 0 if solution.success else 1
 
@@ -125,8 +132,9 @@ def _summary(meta: dict, out) -> None:
     lines.append(f"  energy error {meta['energy_error']:.3e} ({meta['energy_error_kind']})")
     if "error_vs_exact" in meta:
         lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e}")
+    path = f" ({meta['path']} path)" if "path" in meta else ""
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
-                 f" s; written to {out}/")
+                 f" s{path}; written to {out}/")
     print("\n".join(lines))
 
 

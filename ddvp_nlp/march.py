@@ -53,11 +53,10 @@ class _StepFunctions:
         z_a, z_b = ca.SX.sym("z_a", 2 * n), ca.SX.sym("z_b", 2 * n)
         w = ca.vertcat(t_a, t_b, z_a, theta)
         g = canonical(t_a, t_b, z_a[:n], z_a[n:], z_b[:n], z_b[n:], theta)
-        self.fixed_root = ca.rootfinder("fixed_step", "newton",
-                                        ca.Function("g", [z_b, w], [g]), NEWTON_OPTIONS)
-        tau = t_b - t_a
-        z_half = z_a + tau / 2 * flow(z_a, t_a)
-        self.fixed_predict = ca.Function("predict", [w], [z_a + tau * flow(z_half, t_a + tau / 2)])
+        self.fixed_residual = ca.Function("g", [z_b, w], [g])
+        self.fixed_root = ca.rootfinder("fixed_step", "newton", self.fixed_residual,
+                                        NEWTON_OPTIONS)
+        self.fixed_predict = ca.Function("predict", [w], [_rk4(flow, z_a, t_a, t_b - t_a)])
         self.fixed_check = ca.Function("check", [z_b, w], [ca.norm_inf(g), ca.norm_inf(z_a)])
 
         if not scheme.variable_steps:
@@ -83,17 +82,26 @@ class _StepFunctions:
         # The energy equation's derivative in tau is O(tau) (THEORY.md section 5); dividing by the
         # previous step makes its Newton tolerance an absolute tolerance on tau.
         g = ca.vertcat(g_canonical, (g_energy + drift) / (t_mid - t_prev))
-        self.energy_root = ca.rootfinder("energy_step", "newton", ca.Function("g", [x, w], [g]),
+        self.energy_residual = ca.Function("g", [x, w], [g])
+        self.energy_root = ca.rootfinder("energy_step", "newton", self.energy_residual,
                                          NEWTON_OPTIONS)
         guess = ca.SX.sym("tau_guess")
-        z_half = z_mid + guess / 2 * flow(z_mid, t_mid)
         self.energy_predict = ca.Function(
-            "predict", [w, guess], [ca.vertcat(z_mid + guess * flow(z_half, t_mid + guess / 2),
-                                               guess)])
+            "predict", [w, guess], [ca.vertcat(_rk4(flow, z_mid, t_mid, guess), guess)])
         H_k = interval_energy(t_mid, t_next, z_mid[:n], z_mid[n:], z_next[:n], z_next[n:], theta)
         self.energy_check = ca.Function(
             "check", [x, w], [ca.norm_inf(g_canonical), g_energy, ca.norm_inf(z_mid),
                               ca.fabs(H_k)])
+
+
+def _rk4(flow, z, t, tau):
+    """Predictor: one classical Runge-Kutta step (cheaper than the Newton iterations it saves:
+    about 5 per step with an explicit midpoint predictor on paper_pendulum)."""
+    k1 = flow(z, t)
+    k2 = flow(z + tau / 2 * k1, t + tau / 2)
+    k3 = flow(z + tau / 2 * k2, t + tau / 2)
+    k4 = flow(z + tau * k3, t + tau)
+    return z + tau / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 def _step_functions(system: HamiltonianSystem, scheme: Scheme) -> _StepFunctions:
@@ -131,7 +139,8 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           tol: float = 1e-10, max_steps: int = 10_000_000, tau_min: float | None = None,
           tau_max: float | None = None, max_step_ratio: float | None = None,
-          progress: bool = False) -> Solution:
+          progress: bool = False, fast: bool = True, chunk: int = 1024,
+          compiler: str | None = "auto", cache_dir=None) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -149,6 +158,13 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
         tau_min, tau_max: optional bounds on every step length.
         max_step_ratio: optional bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)``.
         progress: show a progress bar on stderr.
+        fast: run the steps in compiled chunks (``fast.py``); ``False`` forces the careful
+            per-step path. Both accept exactly the same steps.
+        chunk: steps per compiled call.
+        compiler: C compiler for the fast path: ``"auto"`` (``$CC``, ``gcc``, ``cc``), a
+            command, or ``None`` for CasADi's virtual machine.
+        cache_dir: folder of compiled chunks (default ``$DDVP_NLP_CACHE`` or
+            ``~/.cache/ddvp_nlp``).
 
     Returns:
         A :class:`Solution`; failures are a status on it, never an exception.
@@ -180,6 +196,11 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
                                  allow_none=True)
     if max_step_ratio is not None and max_step_ratio <= 1:
         raise InputError(f"max_step_ratio must be > 1, got {max_step_ratio!r}")
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise InputError(f"chunk must be a positive integer, got {chunk!r}")
+    if fast:
+        from .fast import find_compiler
+        compiler = find_compiler(compiler)
     theta = system.parameter_vector(params)
     H0 = float(system.energy(q0[None, :], p0[None, :], np.array([t0]), theta)[0])
     if not math.isfinite(H0):
@@ -188,29 +209,41 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
 
     started = time.perf_counter()
     functions = _step_functions(system, scheme)
+    fast_chunk = None
+    if fast:
+        from .fast import FastChunk
+        fast_chunk = system.cached(
+            ("fast", scheme, int(chunk), compiler, str(cache_dir)),
+            lambda: FastChunk(system, scheme, functions, chunk=int(chunk), compiler=compiler,
+                              cache_dir=cache_dir))
     built = time.perf_counter()
     stepper = _Marcher(system, scheme, functions, theta, tol=tol, tau_min=tau_min,
-                       tau_max=tau_max, max_step_ratio=max_step_ratio)
+                       tau_max=tau_max, max_step_ratio=max_step_ratio, fast=fast_chunk)
     nodes = stepper.run(np.concatenate([q0, p0]), t0=t0, tau0=tau0, t_end=t_end,
                         max_steps=int(max_steps), progress=progress)
     solved = time.perf_counter()
     t, z, status, message = nodes
     n = system.n
     canonical, energy = equations.grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta)
+    verified = time.perf_counter()
     return Solution(
         t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
         scheme=scheme.rule, energy_residual=energy,
         canonical_residual=np.max(np.abs(canonical), axis=1) if canonical.size else np.zeros(0),
         newton_iterations=stepper.newton_iterations,
-        timing={"build_s": built - started, "solve_s": solved - built},
-        stats={"retries": stepper.retries, "theta": theta.tolist()})
+        timing={"build_s": built - started, "solve_s": solved - built,
+                "compile_s": fast_chunk.compile_s if fast_chunk else 0.0,
+                "verify_s": verified - solved},
+        stats={"retries": stepper.retries, "theta": theta.tolist(),
+               "path": fast_chunk.path if fast_chunk else "careful",
+               "fast_steps": stepper.fast_steps, "careful_steps": stepper.careful_steps})
 
 
 class _Marcher:
     """The step loop: state, acceptance checks and the grown node arrays."""
 
     def __init__(self, system, scheme, functions, theta, *, tol, tau_min, tau_max,
-                 max_step_ratio):
+                 max_step_ratio, fast=None):
         self.system = system
         self.scheme = scheme
         self.functions = functions
@@ -222,6 +255,9 @@ class _Marcher:
         self.newton_iterations = 0
         self.retries = 0
         self.drift = 0.0
+        self.fast = fast
+        self.fast_steps = 0
+        self.careful_steps = 0
 
     def _solve(self, root, guess, w):
         x = np.asarray(root(guess, w)).ravel()
@@ -286,28 +322,37 @@ class _Marcher:
     def run(self, z0, *, t0, tau0, t_end, max_steps, progress):
         from tqdm import tqdm
 
-        n2 = z0.size
-        capacity = 1024
-        t = np.empty(capacity)
-        z = np.empty((capacity, n2))
-        t[0], z[0] = t0, z0
-        count = 1
+        nodes = _Nodes(t0, z0)
         status, detail = Status.SUCCESS, ""
         fixed = not self.scheme.variable_steps
-        if fixed:
-            steps_total = max(1, math.ceil((t_end - t0) / tau0 - 1e-9))
-            tau_fixed = (t_end - t0) / steps_total
+        steps_total = max(1, math.ceil((t_end - t0) / tau0 - 1e-9)) if fixed else None
+        tau_fixed = (t_end - t0) / steps_total if fixed else None
+        careful_left = 0  # steps the careful path owes after a fast step failed its checks
         bar = tqdm(total=t_end - t0, disable=not progress, unit="t", leave=False,
                    bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
         reported = t0
         try:
             while True:
-                k = count - 1  # the newest node
+                k = nodes.count - 1  # the newest node
+                t, z = nodes.t, nodes.z
                 if (fixed and k == steps_total) or (not fixed and t[k] >= t_end):
                     break
                 if k >= max_steps:
                     status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
                     break
+                if self.fast is not None and careful_left == 0 and (fixed or k >= 1):
+                    accepted, failed = self._fast_chunk(
+                        nodes, t_end=t_end, max_steps=max_steps, t0=t0, tau_fixed=tau_fixed,
+                        steps_total=steps_total)
+                    if failed:  # redo from the last good node on the careful path
+                        careful_left = self.fast.chunk - accepted
+                    if accepted:
+                        if progress:
+                            bar.update(min(nodes.t[nodes.count - 1], t_end) - reported)
+                            reported = min(nodes.t[nodes.count - 1], t_end)
+                        continue
+                careful_left = max(careful_left - 1, 0)
+                self.careful_steps += 1
                 tau_prev = t[k] - t[k - 1] if k else None
                 if k == 0 or fixed:
                     t_next = t0 + tau0 if not fixed else (
@@ -321,20 +366,17 @@ class _Marcher:
                     status, detail = self._bounds(t_next - t[k], tau_prev)
                 if status is not Status.SUCCESS:
                     break
-                if count == capacity:
-                    capacity *= 2
-                    t = np.resize(t, capacity)
-                    z = np.resize(z, (capacity, n2))
-                t[count], z[count] = t_next, z_next
-                count += 1
-                if progress and count % 256 == 0:
+                nodes.append(t_next, z_next)
+                if progress and nodes.count % 256 == 0:
                     bar.update(min(t_next, t_end) - reported)
                     reported = min(t_next, t_end)
         except KeyboardInterrupt:
             status, detail = Status.INTERRUPTED, ""
         finally:
             bar.close()
-        t, z = t[:count].copy(), z[:count].copy()
+        t, z = nodes.t[:nodes.count].copy(), nodes.z[:nodes.count].copy()
+        count = nodes.count
+        n2 = z.shape[1]
         if status is Status.SUCCESS:
             message = f"{status.value} = {t_end:.6g} in {count - 1} steps"
         else:
@@ -342,3 +384,77 @@ class _Marcher:
             message = (f"{status.value}: step {k} from t = {t[k]:.10g}, q = {z[k, :n2 // 2]}, "
                        f"p = {z[k, n2 // 2:]}" + (f"; {detail}" if detail else ""))
         return t, z, status, message
+
+    def _fast_chunk(self, nodes, *, t_end, max_steps, t0, tau_fixed, steps_total):
+        """Run one compiled chunk from the newest node; keep its steps up to the first that fails
+        a check (or reaches the end). Returns (steps kept, whether a step failed)."""
+        k = nodes.count - 1
+        t, z = nodes.t, nodes.z
+        n2 = z.shape[1]
+        if self.scheme.variable_steps:
+            state = np.concatenate([[t[k - 1], t[k]], z[k - 1], z[k], [self.drift]])
+            states, out = self.fast(state, self.theta)
+            t_next, z_next = out[:, 0], out[:, 1:1 + n2]
+            canonical, energy, size, H = out[:, 1 + n2], out[:, 2 + n2], out[:, 3 + n2], \
+                out[:, 4 + n2]
+            t_mid = np.concatenate([[t[k]], t_next[:-1]])
+            tau = t_next - t_mid
+            tau_prev = np.concatenate([[t[k] - t[k - 1]], tau[:-1]])
+            with np.errstate(invalid="ignore", divide="ignore"):
+                good = (np.all(np.isfinite(out), axis=1) & (tau > 0)
+                        & (canonical <= self.tol * np.maximum(1.0, size))
+                        & (np.abs(energy) <= self.tol * np.maximum(1.0, H)))
+                if self.tau_min is not None:
+                    good &= tau >= self.tau_min
+                if self.tau_max is not None:
+                    good &= tau <= self.tau_max
+                if self.max_step_ratio is not None:
+                    good &= np.maximum(tau / tau_prev, tau_prev / tau) <= self.max_step_ratio
+            ends = np.flatnonzero(t_next >= t_end)
+        else:
+            parameters = np.concatenate([self.theta, [t0, tau_fixed, t_end, steps_total]])
+            states, out = self.fast(np.concatenate([[k], z[k]]), parameters)
+            t_next, z_next = out[:, 0], out[:, 1:1 + n2]
+            canonical, size = out[:, 1 + n2], out[:, 2 + n2]
+            with np.errstate(invalid="ignore"):
+                good = np.all(np.isfinite(out), axis=1) & (
+                    canonical <= self.tol * np.maximum(1.0, size))
+            ends = np.flatnonzero(k + 1 + np.arange(self.fast.chunk) == steps_total)
+        limit = min(self.fast.chunk, max_steps - k)
+        if ends.size:
+            limit = min(limit, int(ends[0]) + 1)
+        bad = np.flatnonzero(~good[:limit])
+        kept = int(bad[0]) if bad.size else limit
+        if kept:
+            nodes.extend(t_next[:kept], z_next[:kept])
+            if self.scheme.variable_steps:
+                self.drift = float(states[kept - 1, -1])
+            self.fast_steps += kept
+        return kept, bool(bad.size)
+
+
+class _Nodes:
+    """The accepted nodes, in arrays that grow by doubling."""
+
+    def __init__(self, t0, z0):
+        self.t = np.empty(1024)
+        self.z = np.empty((1024, z0.size))
+        self.t[0], self.z[0] = t0, z0
+        self.count = 1
+
+    def _reserve(self, extra):
+        if self.count + extra > self.t.size:
+            size = max(2 * self.t.size, self.count + extra)
+            self.t = np.resize(self.t, size)
+            self.z = np.resize(self.z, (size, self.z.shape[1]))
+
+    def append(self, t, z):
+        self._reserve(1)
+        self.t[self.count], self.z[self.count] = t, z
+        self.count += 1
+
+    def extend(self, t, z):
+        self._reserve(t.size)
+        self.t[self.count:self.count + t.size] = t
+        self.z[self.count:self.count + t.size] = z
+        self.count += t.size

@@ -1,0 +1,159 @@
+"""March speed: careful per-step path, fast path on CasADi's virtual machine, fast path compiled,
+and scipy's DOP853, measured side by side in one run (the machine is shared: compare ratios).
+
+paper_pendulum (the paper's example, about 20150 steps to t = 10000) and fpu (omega = 50, six
+degrees of freedom, 20000 steps) show how the cost grows with the dimension. Each timing is the
+best of several repeats after one warm-up. "stepping" is the march's own solve time
+(``timing["solve_s"]``); the recomputation of every equation on the returned grid
+(``timing["verify_s"]``) and build/compile times are reported apart. DOP853 gets a hand-written
+numpy right-hand side, as a user would write it.
+
+    python scripts/bench_march.py [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import tempfile
+import time
+
+import casadi
+import numpy as np
+import scipy
+from scipy.integrate import solve_ivp
+
+from ddvp_nlp import load_scene, march
+
+
+def best_of(repeats, run):
+    run()  # warm-up
+    times, result = [], None
+    for _ in range(repeats):
+        started = time.perf_counter()
+        result = run()
+        times.append(time.perf_counter() - started)
+    return min(times), result
+
+
+def paper_pendulum_field(eps, omega):
+    def f(t, y):
+        return [y[1], -np.sin(y[0]) * (1 - eps * np.sin(omega * t))]
+    return f
+
+
+def fpu_field(omega):
+    def f(t, y):
+        q, p = y[:6], y[6:]
+        x = np.concatenate([[0.0], q, [0.0]])
+        force = np.zeros(8)
+        stiff = omega**2 / 2 * (x[2:8:2] - x[1:7:2])  # springs (2i-1, 2i), i = 1..3
+        force[2:8:2] -= stiff
+        force[1:7:2] += stiff
+        soft = 4 * (x[1:8:2] - x[0:8:2]) ** 3  # springs (2i, 2i+1), i = 0..3
+        force[1:8:2] -= soft
+        force[0:8:2] += soft
+        return np.concatenate([p, force[1:7]])
+    return f
+
+
+FIELDS = {"paper_pendulum": lambda params: paper_pendulum_field(**params),
+          "fpu": lambda params: fpu_field(**params)}
+
+
+def vector_field_check(system, theta, config):
+    """A state and its Hamiltonian vector field by CasADi, to check the hand-written one."""
+    import casadi as ca
+    z = ca.vertcat(system.q, system.p)
+    field = ca.Function("f", [system.t, z, system.theta],
+                        [ca.vertcat(ca.gradient(system.H, system.p),
+                                    -ca.gradient(system.H, system.q))])
+    state = np.concatenate([config.q0, config.p0]) + 0.1
+    return state, np.asarray(field(config.t0 + 0.3, state, theta)).ravel()
+
+
+def bench(name, overrides, repeats):
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+    system = scene.system
+    theta = system.parameter_vector(config.params)
+    rows = {}
+    with tempfile.TemporaryDirectory() as cache:
+        def run(**options):
+            return march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
+                         params=config.params, cache_dir=cache, **options)
+
+        first = run()  # builds and compiles into the empty cache: the build/compile figures
+        build = {"build_s": first.timing["build_s"], "compile_s": first.timing["compile_s"]}
+        for label, options in (("careful path", {"fast": False}),
+                               ("fast path, virtual machine", {"compiler": None}),
+                               ("fast path, compiled", {})):
+            best = None
+            for _ in range(1 + (repeats if options.get("fast", True) else max(1, repeats // 2))):
+                solution = run(**options)  # the first is the warm-up
+                if best is not None and solution.timing["solve_s"] < best.timing["solve_s"]:
+                    best = solution
+                best = best or solution
+            rows[label] = (best.timing["solve_s"], best)
+    careful = rows["careful path"][1]
+    compiled = rows["fast path, compiled"][1]
+    agreement = max(np.max(np.abs(compiled.t - careful.t)), np.max(np.abs(compiled.q - careful.q)),
+                    np.max(np.abs(compiled.p - careful.p))) if compiled.steps == careful.steps \
+        else float("nan")
+
+    f = FIELDS[name](config.params)
+    check = np.asarray(vector_field_check(system, theta, config))
+    assert np.allclose(f(config.t0 + 0.3, check[0]), check[1]), "hand-written field is wrong"
+    y0 = np.concatenate([config.q0, config.p0])
+    span = (config.t0, compiled.t[-1])
+    reference = solve_ivp(f, span, y0, method="DOP853", rtol=1e-13, atol=1e-13,
+                          dense_output=True)
+    seconds, dop = best_of(max(1, repeats // 2), lambda: solve_ivp(
+        f, span, y0, method="DOP853", rtol=1e-10, atol=1e-10))
+    n = system.n
+    H = system.energy(dop.y[:n].T, dop.y[n:].T, dop.t, theta)
+    ref = reference.sol(dop.t)
+    H_ref = system.energy(ref[:n].T, ref[n:].T, dop.t, theta)
+    dop_energy = float(np.max(np.abs(H - H_ref)))
+    dop_error = float(np.max(np.abs(dop.y - ref)))
+    ours_ref = reference.sol(compiled.t)
+    ours_error = float(max(np.max(np.abs(compiled.q - ours_ref[:n].T)),
+                           np.max(np.abs(compiled.p - ours_ref[n:].T))))
+
+    steps = compiled.steps
+    params = ", ".join(f"{k}={v:g}" for k, v in config.params.items())
+    print(f"\n## {name} ({params}; n = {n}; {steps} steps of vddvp to t = "
+          f"{compiled.t[-1]:.6g})\n")
+    print("| method | stepping s | us / step | ratio to compiled fast path |")
+    print("|---|---|---|---|")
+    fastest = rows["fast path, compiled"][0]
+    for label, (sec, _) in rows.items():
+        print(f"| {label} | {sec:.4f} | {sec / steps * 1e6:.2f} | {sec / fastest:.1f} |")
+    print(f"| scipy DOP853, rtol = atol = 1e-10 ({dop.t.size - 1} steps) | {seconds:.4f} | "
+          f"{seconds / (dop.t.size - 1) * 1e6:.2f} per DOP853 step | {seconds / fastest:.1f} |")
+    print(f"\n- build {build['build_s']:.3f} s, of which C compile {build['compile_s']:.3f} s "
+          f"(once per system, scheme and options; cached afterwards)")
+    verify = compiled.timing["verify_s"]
+    print(f"- recomputing every equation on the returned grid: {verify:.4f} s "
+          f"({verify / steps * 1e6:.2f} us per node, on CasADi's virtual machine)")
+    print(f"- compiled fast path vs careful path: largest difference of t, q, p over {steps} "
+          f"steps {agreement:.2e}; speed-up {rows['careful path'][0] / fastest:.1f}x")
+    worst = np.max(np.abs(compiled.energy_residual))
+    print(f"- vddvp largest energy residual per step {worst:.2e}; state error against DOP853 at "
+          f"rtol 1e-13 {ours_error:.2e}")
+    print(f"- DOP853 at 1e-10: energy error |H(z,t) - H(z_ref,t)| {dop_energy:.2e}, "
+          f"state error {dop_error:.2e}")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    bench("paper_pendulum", {}, args.repeats)
+    bench("fpu", {"t_end": 200.0}, args.repeats)
+    print(f"\nmachine: {platform.machine()}, python {platform.python_version()}, casadi "
+          f"{casadi.__version__}, numpy {np.__version__}, scipy {scipy.__version__}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""The fast march path accepts exactly what the careful path accepts."""
+
+import numpy as np
+import pytest
+from conftest import run_scene
+
+from ddvp_nlp import Status, load_scene, march
+from ddvp_nlp.fast import find_compiler
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("chunks")
+
+
+@pytest.mark.parametrize("name, rule, overrides", [
+    ("paper_pendulum", "vddvp", {"t_end": 2000.0}),
+    ("kepler", "lee", {"e": 0.6, "t_end": 30.0}),
+    ("fpu", "vddvp", {"t_end": 10.0}),
+    ("henon_heiles", "fixed", {"t_end": 50.0}),
+])
+@pytest.mark.parametrize("compiler", ["auto", None])
+def test_fast_and_careful_paths_give_the_same_trajectory(name, rule, overrides, compiler, cache):
+    _, _, careful = run_scene(name, overrides, scheme=rule, fast=False)
+    _, _, fast = run_scene(name, overrides, scheme=rule, chunk=64, compiler=compiler,
+                           cache_dir=cache)
+    assert careful.success and fast.success
+    assert fast.stats["path"] == ("vm" if compiler is None or find_compiler() is None
+                                  else "compiled")
+    assert fast.stats["fast_steps"] >= fast.steps - 1
+    assert fast.steps == careful.steps
+    # Both paths solve every step to round-off but stop Newton at different iterates. Bound the
+    # difference by how much the careful path itself moves when its initial state is perturbed
+    # by 1e-15 (Kepler near pericentre amplifies round-off most), and by 1e-9 in any case.
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+    nudged = march(scene.system, config.q0 + 1e-15, config.p0, tau0=config.tau0,
+                   t_end=config.t_end, params=config.params, scheme=rule, fast=False)
+    n = min(nudged.t.size, careful.t.size)
+    for field in ("t", "q", "p"):
+        sensitivity = np.max(np.abs(getattr(nudged, field)[:n] - getattr(careful, field)[:n]))
+        difference = np.max(np.abs(getattr(fast, field) - getattr(careful, field)))
+        assert difference <= max(1e-9, 10 * sensitivity), (field, difference, sensitivity)
+
+
+@pytest.mark.parametrize("compiler", ["auto", None])
+def test_a_failing_step_inside_a_chunk_is_handled_as_on_the_careful_path(compiler, cache):
+    """The rotating pendulum has no positive step after 15 steps: the fast chunk (64 steps) fails
+    inside; the careful path takes over from the last good node and ends the same way."""
+    system = load_scene("pendulum").system
+    options = {"tau0": 0.05, "t_end": 100.0}
+    careful = march(system, [0.0], [np.sqrt(5.0)], fast=False, **options)
+    fast = march(system, [0.0], [np.sqrt(5.0)], chunk=64, compiler=compiler, cache_dir=cache,
+                 **options)
+    assert careful.status in (Status.NEWTON_FAILED, Status.NO_ADMISSIBLE_STEP)
+    assert fast.status is careful.status and fast.message == careful.message
+    assert fast.steps == careful.steps
+    np.testing.assert_allclose(fast.t, careful.t, rtol=0, atol=1e-12)
+    assert fast.stats["fast_steps"] >= 1 and fast.stats["careful_steps"] >= 2
+
+
+def test_step_bounds_inside_a_chunk(cache):
+    _, _, careful = run_scene("paper_pendulum", {"t_end": 500.0}, max_step_ratio=1.02,
+                              fast=False)
+    _, _, fast = run_scene("paper_pendulum", {"t_end": 500.0}, max_step_ratio=1.02,
+                           chunk=64, cache_dir=cache)
+    assert careful.status is Status.STEP_RATIO and fast.status is Status.STEP_RATIO
+    assert fast.steps == careful.steps and fast.message == careful.message
+
+
+def test_max_steps_inside_a_chunk(cache):
+    _, _, fast = run_scene("pendulum", {"t_end": 1e9}, max_steps=1000, chunk=64,
+                           cache_dir=cache)
+    assert fast.status is Status.MAX_STEPS and fast.steps == 1000
+
+
+def test_compiled_chunks_are_cached(tmp_path):
+    system = load_scene("harmonic").system
+    if find_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    march(system, [1.0], [0.0], tau0=0.1, t_end=5.0, cache_dir=tmp_path)
+    libraries = list(tmp_path.glob("chunk_*.so"))
+    assert len(libraries) == 1
+    built = libraries[0].stat().st_mtime_ns
+    # a fresh system (new in-memory functions) loads the compiled file instead of rebuilding it
+    again = load_scene("harmonic").system
+    solution = march(again, [1.0], [0.0], tau0=0.1, t_end=5.0, cache_dir=tmp_path)
+    assert solution.success and solution.stats["path"] == "compiled"
+    assert list(tmp_path.glob("chunk_*.so")) == libraries
+    assert libraries[0].stat().st_mtime_ns == built
