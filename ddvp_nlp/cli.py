@@ -70,6 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
     _scheme_arguments(bvp)
     bvp.add_argument("--nodes", type=int, default=None,
                      help="number of nodes (default: the scene's, else 101)")
+    bvp.add_argument("--solver", default="ipopt", choices=("ipopt", "newton"),
+                     help="IPOPT (default) or CasADi's Newton rootfinder on the same square system")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
     return parser
@@ -115,7 +117,7 @@ def run_bvp(args) -> int:
     out = prepare_folder(args.out or f"runs/{scene.name}-bvp-{scheme.rule}")
     solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
                          nodes=config.nodes, scheme=scheme, params=config.params, tol=args.tol,
-                         verbose=args.verbose)
+                         solver=args.solver, verbose=args.verbose)
     meta = write_run(out, command="bvp", scene=scene, config=config, scheme=scheme,
                      solution=solution, extra={"solver": solution.stats},
                      plot=not args.no_plot)
