@@ -44,8 +44,8 @@ import casadi as ca
 import numpy as np
 
 from . import equations
+from .checks import check_integer, check_real, check_state
 from .errors import InputError
-from .march import _check_real, _check_state
 from .scheme import Scheme
 from .solution import Solution, Status
 from .system import HamiltonianSystem
@@ -259,27 +259,23 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
     n = system.n
-    q_start = _check_state("q_start", q_start, n)
-    q_end = _check_state("q_end", q_end, n)
+    q_start = check_state("q_start", q_start, n)
+    q_end = check_state("q_end", q_end, n)
     try:
         t0, t1 = (float(v) for v in t_span)
     except (TypeError, ValueError):
         raise InputError(f"t_span must be a pair (t_0, t_end), got {t_span!r}") from None
-    _check_real("t_span[0]", t0)
-    _check_real("t_span[1]", t1)
+    check_real("t_span[0]", t0)
+    check_real("t_span[1]", t1)
     if t1 <= t0:
         raise InputError(f"t_span must have t_end > t_0, got {t_span!r}")
-    if isinstance(nodes, bool) or not isinstance(nodes, (int, np.integer)) or nodes < 3:
-        raise InputError(f"nodes must be an integer >= 3, got {nodes!r}")
-    nodes = int(nodes)
-    tol = _check_real("tol", tol, positive=True)
+    nodes = check_integer("nodes", nodes, minimum=3)
+    tol = check_real("tol", tol, positive=True)
     if solver not in SOLVERS:
         raise InputError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) \
-            or max_iter < 1:
-        raise InputError(f"max_iter must be a positive integer, got {max_iter!r}")
+    max_iter = check_integer("max_iter", max_iter)
     mean_step = (t1 - t0) / (nodes - 1)
-    tau_floor = _check_real("tau_floor", 1e-3 * mean_step if tau_floor is None else tau_floor,
+    tau_floor = check_real("tau_floor", 1e-3 * mean_step if tau_floor is None else tau_floor,
                             positive=True)
     if tau_floor >= mean_step:
         raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean_step!r}, "

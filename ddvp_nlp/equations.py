@@ -44,7 +44,7 @@ def _node_symbols(system: HamiltonianSystem, suffix: str):
             ca.SX.sym(f"p_{suffix}", system.n))
 
 
-def _derivatives(system: HamiltonianSystem) -> ca.Function:
+def derivatives_function(system: HamiltonianSystem) -> ca.Function:
     """``(q, p, t, theta) -> (H, dH/dq, dH/dp, dH/dt)``."""
     def build():
         H = system.H
@@ -73,7 +73,7 @@ def interval_action_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, the
 def canonical_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, theta):
     """Increment-form canonical equations of one interval (2n entries, ``q`` rows first)."""
     Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
-    _, H_q, H_p, _ = _derivatives(system)(Q, P, s, theta)
+    _, H_q, H_p, _ = derivatives_function(system)(Q, P, s, theta)
     return ca.vertcat(q_b - q_a - tau * H_p, p_b - p_a + tau * H_q)
 
 

@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 
 from . import equations
+from .checks import check_integer, check_real, check_state
 from .errors import InputError
 from .scheme import Scheme
 from .solution import Solution, Status
@@ -42,7 +43,7 @@ class _StepFunctions:
         n = system.n
         theta = system.theta
         canonical = equations.canonical_function(system, scheme)
-        derivatives = equations._derivatives(system)
+        derivatives = equations.derivatives_function(system)
 
         def flow(z, t):
             _, H_q, H_p, _ = derivatives(z[:n], z[n:], t, theta)
@@ -108,33 +109,6 @@ def _step_functions(system: HamiltonianSystem, scheme: Scheme) -> _StepFunctions
     return system.cached(("march", scheme), lambda: _StepFunctions(system, scheme))
 
 
-def _check_state(name: str, value, n: int) -> np.ndarray:
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be an array of {n} real numbers, got {value!r}") from None
-    if array.ndim == 0 and n == 1:
-        array = array.reshape(1)
-    if array.shape != (n,):
-        raise InputError(f"{name} must have shape ({n},), got shape {array.shape}: {value!r}")
-    if not np.all(np.isfinite(array)):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    return array
-
-
-def _check_real(name: str, value, *, positive: bool = False, allow_none: bool = False):
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputError(f"{name} must be a real number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    if positive and value <= 0:
-        raise InputError(f"{name} must be > 0, got {value!r}")
-    return value
-
-
 def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: float = 0.0,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           tol: float = 1e-10, max_steps: int = 10_000_000, tau_min: float | None = None,
@@ -172,32 +146,29 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
-    q0 = _check_state("q0", q0, system.n)
-    p0 = _check_state("p0", p0, system.n)
-    t0 = _check_real("t0", t0)
-    t_end = _check_real("t_end", t_end)
+    q0 = check_state("q0", q0, system.n)
+    p0 = check_state("p0", p0, system.n)
+    t0 = check_real("t0", t0)
+    t_end = check_real("t_end", t_end)
     if t_end <= t0:
         raise InputError(f"t_end must be > t0 = {t0!r}, got {t_end!r}")
-    tau0 = _check_real("tau0", tau0, positive=True)
+    tau0 = check_real("tau0", tau0, positive=True)
     if tau0 > t_end - t0:
         raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
-    tol = _check_real("tol", tol, positive=True)
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) \
-            or max_steps < 1:
-        raise InputError(f"max_steps must be a positive integer, got {max_steps!r}")
-    tau_min = _check_real("tau_min", tau_min, positive=True, allow_none=True)
-    tau_max = _check_real("tau_max", tau_max, positive=True, allow_none=True)
+    tol = check_real("tol", tol, positive=True)
+    max_steps = check_integer("max_steps", max_steps)
+    tau_min = check_real("tau_min", tau_min, positive=True, allow_none=True)
+    tau_max = check_real("tau_max", tau_max, positive=True, allow_none=True)
     if tau_min is not None and tau_max is not None and tau_min >= tau_max:
         raise InputError(f"tau_min must be < tau_max = {tau_max!r}, got {tau_min!r}")
     if (tau_min is not None and tau0 < tau_min) or (tau_max is not None and tau0 > tau_max):
         raise InputError(f"tau0 must lie in [tau_min, tau_max] = [{tau_min}, {tau_max}], "
                          f"got {tau0!r}")
-    max_step_ratio = _check_real("max_step_ratio", max_step_ratio, positive=True,
+    max_step_ratio = check_real("max_step_ratio", max_step_ratio, positive=True,
                                  allow_none=True)
     if max_step_ratio is not None and max_step_ratio <= 1:
         raise InputError(f"max_step_ratio must be > 1, got {max_step_ratio!r}")
-    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
-        raise InputError(f"chunk must be a positive integer, got {chunk!r}")
+    chunk = check_integer("chunk", chunk)
     if fast:
         from .fast import find_compiler
         compiler = find_compiler(compiler)
@@ -213,14 +184,14 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
     if fast:
         from .fast import FastChunk
         fast_chunk = system.cached(
-            ("fast", scheme, int(chunk), compiler, str(cache_dir)),
-            lambda: FastChunk(system, scheme, functions, chunk=int(chunk), compiler=compiler,
+            ("fast", scheme, chunk, compiler, str(cache_dir)),
+            lambda: FastChunk(system, scheme, functions, chunk=chunk, compiler=compiler,
                               cache_dir=cache_dir))
     built = time.perf_counter()
     stepper = _Marcher(system, scheme, functions, theta, tol=tol, tau_min=tau_min,
                        tau_max=tau_max, max_step_ratio=max_step_ratio, fast=fast_chunk)
     nodes = stepper.run(np.concatenate([q0, p0]), t0=t0, tau0=tau0, t_end=t_end,
-                        max_steps=int(max_steps), progress=progress)
+                        max_steps=max_steps, progress=progress)
     solved = time.perf_counter()
     t, z, status, message = nodes
     n = system.n

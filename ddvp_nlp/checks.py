@@ -1,0 +1,47 @@
+"""Checks of user input, shared by every entry point. Each raises InputError naming the argument
+and the value, before anything is built."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InputError
+
+
+def check_state(name: str, value, n: int) -> np.ndarray:
+    """A finite real vector of shape ``(n,)`` (a scalar is accepted when ``n == 1``)."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of {n} real numbers, got {value!r}") from None
+    if array.ndim == 0 and n == 1:
+        array = array.reshape(1)
+    if array.shape != (n,):
+        raise InputError(f"{name} must have shape ({n},), got shape {array.shape}: {value!r}")
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return array
+
+
+def check_real(name: str, value, *, positive: bool = False, allow_none: bool = False):
+    """A finite real number (``> 0`` if ``positive``; ``None`` passes if ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a real number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    if positive and value <= 0:
+        raise InputError(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def check_integer(name: str, value, *, minimum: int = 1) -> int:
+    """An integer ``>= minimum`` (booleans are refused)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        wanted = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
+        raise InputError(f"{name} must be {wanted}, got {value!r}")
+    return int(value)
