@@ -88,3 +88,31 @@ def test_compiled_chunks_are_cached(tmp_path):
     assert solution.success and solution.stats["path"] == "compiled"
     assert list(tmp_path.glob("chunk_*.so")) == libraries
     assert libraries[0].stat().st_mtime_ns == built
+
+
+def test_without_a_compiler_the_virtual_machine_is_used(monkeypatch, tmp_path):
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path))  # no gcc, no cc
+    assert find_compiler("auto") is None
+    _, _, fast = run_scene("harmonic", {"t_end": 5.0}, cache_dir=tmp_path)
+    _, _, careful = run_scene("harmonic", {"t_end": 5.0}, fast=False)
+    assert fast.stats["path"] == "vm" and not list(tmp_path.glob("*.so"))
+    np.testing.assert_allclose(fast.q, careful.q, rtol=0, atol=1e-12)
+
+
+def test_two_processes_building_one_cache_entry_at_once(tmp_path):
+    import subprocess
+    import sys
+    if find_compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    script = ("from ddvp_nlp import load_scene, march; import sys; "
+              "s = march(load_scene('pendulum').system, [0.5], [0.5], tau0=0.05, t_end=20.0, "
+              f"cache_dir={str(tmp_path)!r}); "
+              "print(s.status.code, s.stats['path'], s.steps)")
+    runs = [subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+            for _ in range(2)]
+    outputs = [run.communicate(timeout=300)[0].split() for run in runs]
+    assert all(run.returncode == 0 for run in runs)
+    assert outputs[0] == outputs[1] and outputs[0][:2] == ["success", "compiled"]
+    assert len(list(tmp_path.glob("chunk_*.so"))) == 1
+    assert not [p for p in tmp_path.iterdir() if p.is_dir()]  # no scratch folder left behind
