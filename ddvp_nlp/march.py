@@ -11,6 +11,10 @@ time-reversed root ``(z_{k-1}, -tau_{k-1})`` solves the midpoint step equations 
 the step's own unscaled residuals are below ``tol`` (relative to ``max(1, |z|)`` and
 ``max(1, |H|)``) and the optional step bounds hold. The first step that fails ends the march
 with a status; every accepted node is kept.
+
+By default the steps run in compiled chunks (``fast.py``); each step of a chunk goes through the
+same checks (``_Marcher._residuals_ok``, ``_bounds_ok``), and the first that fails is redone here,
+on the careful path, so both paths accept the same steps.
 """
 
 from __future__ import annotations
@@ -246,7 +250,7 @@ class _Marcher:
         if not converged:
             return None, Status.NEWTON_FAILED, ""
         residual, size = (float(v) for v in f.fixed_check(z_b, w))
-        if residual > self.tol * max(1.0, size):
+        if not self._residuals_ok(residual, size):
             return None, Status.RESIDUAL_TOO_LARGE, f"canonical residual {residual:.3e}"
         return z_b, Status.SUCCESS, ""
 
@@ -270,7 +274,7 @@ class _Marcher:
                     worst, detail = Status.NO_ADMISSIBLE_STEP, f"Newton found tau = {tau:.6g}"
                 continue
             canonical, energy, size, H = (float(v) for v in f.energy_check(x, w))
-            if canonical > self.tol * max(1.0, size) or abs(energy) > self.tol * max(1.0, H):
+            if not self._residuals_ok(canonical, size, energy, H):
                 worst, detail = Status.RESIDUAL_TOO_LARGE, (
                     f"canonical residual {canonical:.3e}, energy residual {energy:.3e}")
                 continue
@@ -278,17 +282,35 @@ class _Marcher:
             return x[:-1], tau, Status.SUCCESS, ""
         return None, None, worst, detail
 
+    def _residuals_ok(self, canonical, size, energy=0.0, H=0.0):
+        """The acceptance test on a step's unscaled residuals (arrays or scalars): canonical
+        relative to ``max(1, |z|)``, energy relative to ``max(1, |H|)``."""
+        return ((canonical <= self.tol * np.maximum(1.0, size))
+                & (np.abs(energy) <= self.tol * np.maximum(1.0, H)))
+
+    def _bounds_ok(self, tau, tau_prev):
+        """Which steps keep tau_min, tau_max and max_step_ratio (arrays or scalars)."""
+        ok = np.ones(np.shape(tau), dtype=bool)
+        if self.tau_min is not None:
+            ok &= tau >= self.tau_min
+        if self.tau_max is not None:
+            ok &= tau <= self.tau_max
+        if self.max_step_ratio is not None and tau_prev is not None:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ok &= np.maximum(tau / tau_prev, tau_prev / tau) <= self.max_step_ratio
+        return ok
+
     def _bounds(self, tau, tau_prev):
+        """Status and detail of the first bound a step breaks."""
+        if self._bounds_ok(tau, tau_prev):
+            return Status.SUCCESS, ""
         if self.tau_min is not None and tau < self.tau_min:
             return Status.STEP_BELOW_MIN, f"tau = {tau:.6g} < tau_min = {self.tau_min:.6g}"
         if self.tau_max is not None and tau > self.tau_max:
             return Status.STEP_ABOVE_MAX, f"tau = {tau:.6g} > tau_max = {self.tau_max:.6g}"
-        if self.max_step_ratio is not None and tau_prev is not None:
-            ratio = max(tau / tau_prev, tau_prev / tau)
-            if ratio > self.max_step_ratio:
-                return Status.STEP_RATIO, (f"tau = {tau:.6g} after {tau_prev:.6g} (ratio "
-                                           f"{ratio:.4g} > max_step_ratio {self.max_step_ratio})")
-        return Status.SUCCESS, ""
+        ratio = max(tau / tau_prev, tau_prev / tau)
+        return Status.STEP_RATIO, (f"tau = {tau:.6g} after {tau_prev:.6g} (ratio "
+                                   f"{ratio:.4g} > max_step_ratio {self.max_step_ratio})")
 
     def run(self, z0, *, t0, tau0, t_end, max_steps, progress):
         from tqdm import tqdm
@@ -371,16 +393,10 @@ class _Marcher:
             t_mid = np.concatenate([[t[k]], t_next[:-1]])
             tau = t_next - t_mid
             tau_prev = np.concatenate([[t[k] - t[k - 1]], tau[:-1]])
-            with np.errstate(invalid="ignore", divide="ignore"):
+            with np.errstate(invalid="ignore"):
                 good = (np.all(np.isfinite(out), axis=1) & (tau > 0)
-                        & (canonical <= self.tol * np.maximum(1.0, size))
-                        & (np.abs(energy) <= self.tol * np.maximum(1.0, H)))
-                if self.tau_min is not None:
-                    good &= tau >= self.tau_min
-                if self.tau_max is not None:
-                    good &= tau <= self.tau_max
-                if self.max_step_ratio is not None:
-                    good &= np.maximum(tau / tau_prev, tau_prev / tau) <= self.max_step_ratio
+                        & self._residuals_ok(canonical, size, energy, H)
+                        & self._bounds_ok(tau, tau_prev))
             ends = np.flatnonzero(t_next >= t_end)
         else:
             parameters = np.concatenate([self.theta, [t0, tau_fixed, t_end, steps_total]])
@@ -388,8 +404,7 @@ class _Marcher:
             t_next, z_next = out[:, 0], out[:, 1:1 + n2]
             canonical, size = out[:, 1 + n2], out[:, 2 + n2]
             with np.errstate(invalid="ignore"):
-                good = np.all(np.isfinite(out), axis=1) & (
-                    canonical <= self.tol * np.maximum(1.0, size))
+                good = np.all(np.isfinite(out), axis=1) & self._residuals_ok(canonical, size)
             ends = np.flatnonzero(k + 1 + np.arange(self.fast.chunk) == steps_total)
         limit = min(self.fast.chunk, max_steps - k)
         if ends.size:

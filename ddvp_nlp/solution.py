@@ -44,7 +44,8 @@ class Solution:
         energy_residual: residual of the energy equation at each interior node (N-2,), in the
             units of ``H`` (``fixed`` steps: the ``lee`` balance they do not enforce).
         canonical_residual: largest canonical residual of each interval (N-1,), increment form.
-        newton_iterations: Newton iterations in total (march) or solver iterations (NLP).
+        newton_iterations: Newton iterations of the march's careful steps (compiled fast steps
+            do not report theirs; see ``stats["fast_steps"]``), or the NLP solver's iterations.
         timing: ``build_s`` and ``solve_s`` in seconds.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...).
     """
