@@ -192,23 +192,11 @@ class _Problem:
             "iterations": int(stats.get("iter_count", 0))}
 
 
-def _site_density_weight(system: HamiltonianSystem) -> ca.Function:
-    """``w(q, p, t) = f' H_zz f`` with ``f = (H_p, -H_q)``: the predicted steps are
-    ``tau ~ w^(-1/3)``."""
-    def build():
-        z = ca.vertcat(system.q, system.p)
-        f = ca.vertcat(ca.gradient(system.H, system.p), -ca.gradient(system.H, system.q))
-        w = ca.mtimes([f.T, ca.hessian(system.H, z)[0], f])
-        return ca.Function("site_density_weight", [system.q, system.p, system.t, system.theta],
-                           [w])
-    return system.cached("site_density_weight", build)
-
-
 def predicted_times(system: HamiltonianSystem, t, q, p, theta) -> np.ndarray:
     """Node times with the site density of the energy rules, ``tau_k ~ w^(-1/3)`` evaluated at
     the interval midpoints of the grid ``t``, ``q``, ``p``; same first and last time."""
     N = t.size
-    w = np.asarray(_site_density_weight(system).map(N - 1)(
+    w = np.asarray(equations.site_density_weight_function(system).map(N - 1)(
         ((q[:-1] + q[1:]) / 2).T, ((p[:-1] + p[1:]) / 2).T, ((t[:-1] + t[1:]) / 2)[None, :],
         np.asarray(theta, float)[:, None])).ravel()
     # Where w <= 0 the energy rules have no positive step anyway (THEORY.md section 5); keep the

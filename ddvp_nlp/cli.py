@@ -74,6 +74,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="IPOPT (default) or CasADi's Newton rootfinder on the same square system")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    reproduce = commands.add_parser(
+        "reproduce", help="figures and report.md comparing the paper's claims with measurements")
+    reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
+    reproduce.add_argument("--quick", action="store_true",
+                           help="shorter runs and fewer step sizes (about 10 s)")
     return parser
 
 
@@ -151,6 +156,13 @@ def main(argv: list[str] | None = None) -> int:
             return run_march(args)
         if args.command == "bvp":
             return run_bvp(args)
+        if args.command == "reproduce":
+            from .output import prepare_folder
+            from .report import reproduce
+            out = prepare_folder(args.out)
+            reproduce(out, quick=args.quick)
+            print(f"report written to {out / 'report.md'}")
+            return 0
     except InputError as exc:
         print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -55,6 +55,22 @@ def derivatives_function(system: HamiltonianSystem) -> ca.Function:
     return system.cached("dH", build)
 
 
+def site_density_weight_function(system: HamiltonianSystem) -> ca.Function:
+    """``w(q, p, t, theta) = f' H_zz f`` with ``f = (H_p, -H_q)``.
+
+    Expanding the midpoint energy of a step of length ``tau`` from ``z`` along the flow gives
+    ``H(z_mid) = H(z) - tau^2 w / 8 + O(tau^3)``; for ``H = p^2/2 + V`` it is the paper's
+    ``V'' p^2 + V'^2`` (section 4), and the energy rules' steps follow ``tau ~ w^(-1/3)``.
+    """
+    def build():
+        z = ca.vertcat(system.q, system.p)
+        f = ca.vertcat(ca.gradient(system.H, system.p), -ca.gradient(system.H, system.q))
+        w = ca.mtimes([f.T, ca.hessian(system.H, z)[0], f])
+        return ca.Function("site_density_weight", [system.q, system.p, system.t, system.theta],
+                           [w], ["q", "p", "t", "theta"], ["w"])
+    return system.cached("site_density_weight", build)
+
+
 def interval_arguments(scheme: Scheme, t_a, t_b, q_a, p_a, q_b, p_b):
     """``(Q, P, s, tau)`` of the interval from node ``a`` to node ``b``."""
     tau = t_b - t_a

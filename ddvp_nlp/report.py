@@ -1,0 +1,171 @@
+"""``ddvp reproduce``: figures and ``report.md`` setting each claim of the paper beside what the
+code measures (``paper.py``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from . import paper  # noqa: E402
+from .scenes import load_scene  # noqa: E402
+
+FULL = {"t_end": 10000.0, "site_tau0": (0.05, 0.025, 0.0125, 0.005),
+        "sweep_tau0": (0.5, 0.05, 0.005, 0.0005)}
+QUICK = {"t_end": 2000.0, "site_tau0": (0.05, 0.025, 0.0125),
+         "sweep_tau0": (0.5, 0.05, 0.005)}
+
+
+def reproduce(out: Path, *, quick: bool = False) -> dict:
+    """Measure, plot and write ``report.md`` into ``out``; return the measurements."""
+    sizes = QUICK if quick else FULL
+    example = paper.paper_example(sizes["t_end"])
+    pendulum = load_scene("pendulum").system
+    site = {"pendulum": paper.site_density_spread(pendulum, [0.5], [0.5], sizes["site_tau0"],
+                                                  t_end=20.0),
+            "quartic": paper.site_density_spread(paper.quartic_system(), [1.0], [0.0],
+                                                 sizes["site_tau0"], t_end=20.0)}
+    gauge = paper.gauge_differences()
+    sweep = paper.step_ratio_sweep(sizes["sweep_tau0"])
+    _figures(out, example, site, sweep)
+    (out / "report.md").write_text(_report(example, site, gauge, sweep, quick))
+    return {"example": example, "site": site, "gauge": gauge, "sweep": sweep}
+
+
+def _figures(out, example, site, sweep):
+    solution = example["solution"]
+    t, q, tau = solution.t, solution.q[:, 0], solution.tau
+    fig, axes = plt.subplots(4, 1, figsize=(8, 10))
+    for ax, t_max, title in ((axes[0], t[-1], "figure 1"), (axes[1], 350.0, "figure 2")):
+        sel = t[:-1] <= t_max
+        ax.plot(t[:-1][sel], tau[sel], lw=0.6)
+        ax.set_ylabel("tau_k")
+        ax.set_title(f"{title}: step length against time, 0 <= t <= {t_max:.0f}", fontsize=9)
+    sel = t <= 16.0
+    axes[2].plot(t[sel], q[sel], "o-", ms=3)
+    axes[2].set_ylabel("theta_k")
+    axes[2].set_title("figure 3: angle and step length, 0 <= t <= 16", fontsize=9)
+    axes[3].plot(t[:-1][sel[:-1]], tau[sel[:-1]], "o-", ms=3)
+    axes[3].set_ylabel("tau_k")
+    axes[3].set_xlabel("t")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "paper_figures.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for name, data in site.items():
+        for key, style in (("node", "o-"), ("midpoint", "s--")):
+            ax.loglog(data["tau0"], data[key], style,
+                      label=f"{name}, weight at the {key} (slope {data[f'slope_{key}']:.2f})")
+    ax.set_xlabel("tau0")
+    ax.set_ylabel("max/min - 1 of tau_k (V'' p^2 + V'^2)^(1/3)")
+    ax.set_title("site density (section 4)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(out / "site_density.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for rule, color in (("vddvp", "C0"), ("lee", "C1")):
+        rows = [r for r in sweep["rows"] if r["rule"] == rule]
+        tau0 = [r["tau0"] for r in rows]
+        ax.loglog(tau0, [r["ratio_min"] for r in rows], "v-", color=color, label=f"{rule}: min")
+        ax.loglog(tau0, [r["ratio_max"] for r in rows], "^-", color=color, label=f"{rule}: max")
+    ax.set_xlabel("tau0")
+    ax.set_ylabel("tau_k / tau0")
+    ax.set_title("paper's example to t = 16: range of the steps (section 4)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(out / "step_ratios.png", dpi=110)
+    plt.close(fig)
+
+
+def _report(example, site, gauge, sweep, quick):
+    expected = 2 * np.pi / 0.02
+    extremes = example["extremes"]
+    lines = ["# The paper's claims against what ddvp_nlp measures", ""]
+    if quick:
+        lines += ["*Quick run (`--quick`): shorter runs and fewer step sizes than the full "
+                  "report.*", ""]
+    lines += [
+        "## 1. Section 5: the perturbed pendulum (figures 1-3)", "",
+        "![figures 1-3](paper_figures.png)", "",
+        f"- {example['steps']} steps to t = {example['solution'].t[-1]:.6g}; step length in "
+        f"[{example['tau_range'][0]:.4f}, {example['tau_range'][1]:.4f}].",
+    ]
+    if "long_period" in example:
+        lines.append(f"- Long period of the step length (paper: 2 pi/0.02 = {expected:.2f}): "
+                     f"**{example['long_period']:.2f}** (strongest spectral line above period 50).")
+    lines += [
+        f"- Short period of the step length: **{example['short_period']:.3f}**; the pendulum's "
+        f"own period (zero crossings of the angle) is {example['pendulum_period']:.3f}, so the "
+        f"step length oscillates twice per swing (ratio "
+        f"{example['short_period'] / example['pendulum_period']:.3f}): once per passage through "
+        "theta = 0.",
+        f"- Where the extreme steps fall (0 <= t <= 16, |theta| over the amplitude at the "
+        f"interval): locally smallest steps at **{extremes['at_smallest_steps']:.2f}** (mean "
+        f"over {extremes['minima']} minima), locally largest at "
+        f"**{extremes['at_largest_steps']:.2f}** ({extremes['maxima']} maxima). The paper: "
+        "smallest near theta = 0, largest near the turning points. Confirmed.", "",
+        "## 2. Section 4: site density", "",
+        "![site density](site_density.png)", "",
+        "| potential | tau0 | spread of tau (max/min - 1) | spread of the product, weight at "
+        "node k | weight at the interval midpoint |", "|---|---|---|---|---|"]
+    for name, data in site.items():
+        for i, tau0 in enumerate(data["tau0"]):
+            lines.append(f"| {name} | {tau0:g} | {data['tau_spread'][i]:.3e} | "
+                         f"{data['node'][i]:.3e} | {data['midpoint'][i]:.3e} |")
+    lines += ["",
+              *(f"- {name}: fitted slope of log(spread) against log(tau0): "
+                f"**{data['slope_node']:.2f}** with the weight at the node, "
+                f"**{data['slope_midpoint']:.2f}** at the interval midpoint."
+                for name, data in site.items()),
+              "- The paper says the product is constant up to O(tau): confirmed, and the O(tau) "
+              "part is only where the weight is taken (node k against the interval it starts). "
+              "Taken at the interval's midpoint the spread falls like tau0^2, while the steps "
+              "themselves keep varying by the same fraction at every tau0.", "",
+              "## 3. Section 3: the gauge remark", "",
+              "Adding f(t) = 0.05 sin(t/2) + 0.01 t to the paper's H, t <= 100, tau0 = 0.5:", "",
+              "| rule | largest change of the node times | of the angles |", "|---|---|---|"]
+    for rule, data in gauge.items():
+        lines.append(f"| {rule} | {data['t']:.2e} | {data['q']:.2e} |")
+    lines += ["", "The paper's scheme is unchanged up to round-off; the `lee` rule changes. "
+              "Confirmed.", "",
+              "## 4. Section 4: step lengths with explicit time dependence", "",
+              "![step ratios](step_ratios.png)", "",
+              "| rule | tau0 | status | steps | tau/tau0 min | tau/tau0 max |",
+              "|---|---|---|---|---|---|"]
+    for r in sweep["rows"]:
+        lines.append(f"| {r['rule']} | {r['tau0']:g} | {r['status']} | {r['steps']} | "
+                     f"{r['ratio_min']:.3g} | {r['ratio_max']:.3g} |")
+    vddvp = [r for r in sweep["rows"] if r["rule"] == "vddvp"]
+    lee = [r for r in sweep["rows"] if r["rule"] == "lee"]
+    lines += ["",
+              f"- `vddvp`: the range of tau/tau0 widens as tau0 shrinks, from "
+              f"[{vddvp[0]['ratio_min']:.3g}, {vddvp[0]['ratio_max']:.3g}] at tau0 = "
+              f"{vddvp[0]['tau0']:g} to [{vddvp[-1]['ratio_min']:.3g}, "
+              f"{vddvp[-1]['ratio_max']:.3g}] at tau0 = {vddvp[-1]['tau0']:g}. `lee`: within "
+              f"[{min(r['ratio_min'] for r in lee):.3g}, {max(r['ratio_max'] for r in lee):.3g}] "
+              "at every tau0. Confirmed.",
+              "- What this means for a user: with an explicitly time-dependent H the paper's "
+              "scheme has no continuous limit for its steps. Refining tau0 gives a wilder step "
+              f"sequence, not a smoother one, and more steps than 1/tau0 suggests: "
+              f"{vddvp[-1]['steps']} steps to t = 16 at tau0 = {vddvp[-1]['tau0']:g}, where "
+              f"16/tau0 = {16 / vddvp[-1]['tau0']:.0f} (`lee`: {lee[-1]['steps']}). For "
+              "time-dependent problems at small steps use `--scheme lee` or fixed steps.", "",
+              "## 5. Symplecticity and energy", "",
+              "Pending: not measured yet (the one-step map's Jacobian by automatic "
+              "differentiation, the extended phase space (q, t; p, -E), and the growth of the "
+              "energy residual with the number of steps).", "",
+              "## 6. Discrete Legendre transform (section 3)", "",
+              "Pending: needs the Lagrangian forms (the Lagrangian issue), which have not "
+              "landed.", ""]
+    return "\n".join(lines)

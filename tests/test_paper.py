@@ -1,0 +1,67 @@
+"""The paper's claims, measured at sizes that fit CI (issue 5, items 1-4)."""
+
+import numpy as np
+import pytest
+
+from ddvp_nlp import load_scene, paper
+from ddvp_nlp.cli import main
+
+
+@pytest.fixture(scope="module")
+def example():
+    return paper.paper_example(t_end=2000.0)
+
+
+def test_step_length_periods_and_extremes(example):
+    """Section 5: the step length's long period is the perturbation's 2 pi/0.02; its short one is
+    half the pendulum's (a minimum at each passage through theta = 0); the smallest steps fall
+    near theta = 0 and the largest near the turning points."""
+    assert abs(example["long_period"] / (2 * np.pi / 0.02) - 1) < 0.02
+    assert abs(example["short_period"] / example["pendulum_period"] - 0.5) < 0.05
+    assert example["extremes"]["at_smallest_steps"] < 0.3
+    assert example["extremes"]["at_largest_steps"] > 0.8
+    assert example["extremes"]["minima"] >= 4 and example["extremes"]["maxima"] >= 4
+
+
+def test_dominant_period_of_a_known_signal():
+    t = np.sort(np.random.default_rng(1).uniform(0, 1000, 5000))
+    values = np.sin(2 * np.pi * t / 97.0) + 0.3 * np.sin(2 * np.pi * t / 3.1)
+    assert abs(paper.dominant_period(t, values, longer_than=20) - 97.0) < 0.5
+    assert abs(paper.dominant_period(t, values, shorter_than=20) - 3.1) < 0.01
+
+
+@pytest.mark.parametrize("system, q0, p0", [(load_scene("pendulum").system, [0.5], [0.5]),
+                                            (paper.quartic_system(), [1.0], [0.0])])
+def test_site_density_is_constant_up_to_order_tau(system, q0, p0):
+    data = paper.site_density_spread(system, q0, p0, (0.05, 0.025, 0.0125), t_end=10.0)
+    assert 0.9 < data["slope_node"] < 1.1
+    assert 1.8 < data["slope_midpoint"] < 2.2
+    # the steps themselves do not settle: their spread stays put while the product's shrinks
+    assert min(data["tau_spread"]) > 10 * max(data["node"])
+
+
+def test_gauge_term():
+    data = paper.gauge_differences(t_end=50.0)
+    assert data["vddvp"]["success"] and data["lee"]["success"]
+    assert data["vddvp"]["t"] < 1e-10 and data["vddvp"]["q"] < 1e-10
+    assert data["lee"]["t"] > 1e-3
+
+
+def test_time_dependent_steps_spread_under_vddvp_not_lee():
+    rows = paper.step_ratio_sweep((0.5, 0.05, 0.005))["rows"]
+    assert all(r["status"] == "success" for r in rows)
+    spread = {(r["rule"], r["tau0"]): r["ratio_max"] / r["ratio_min"] for r in rows}
+    assert spread["vddvp", 0.005] > spread["vddvp", 0.05] > 1.0
+    assert spread["vddvp", 0.005] > 1.5
+    assert all(spread["lee", tau0] < 1.07 for tau0 in (0.5, 0.05, 0.005))
+
+
+def test_reproduce_writes_report_and_figures(tmp_path, capsys):
+    assert main(["reproduce", "--quick", "--out", str(tmp_path)]) == 0
+    report = (tmp_path / "report.md").read_text()
+    for heading in ("## 1. Section 5", "## 2. Section 4: site density", "## 3. Section 3",
+                    "## 4. Section 4: step lengths", "## 5. Symplecticity", "## 6. Discrete"):
+        assert heading in report
+    assert "Pending" in report
+    for figure in ("paper_figures.png", "site_density.png", "step_ratios.png"):
+        assert (tmp_path / figure).stat().st_size > 10_000
