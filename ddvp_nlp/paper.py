@@ -13,6 +13,7 @@ import numpy as np
 from . import equations
 from .march import march
 from .scenes import load_scene
+from .scheme import Scheme
 from .system import HamiltonianSystem
 
 
@@ -139,4 +140,135 @@ def step_ratio_sweep(tau0s, *, t_end: float = 16.0) -> dict:
             rows.append({"rule": rule, "tau0": tau0, "status": solution.status.code,
                          "steps": solution.steps, "t_reached": float(solution.t[-1]),
                          "ratio_min": float(ratio.min()), "ratio_max": float(ratio.max())})
+    return {"rows": rows}
+
+
+def _symplectic_defect(M, n_coordinates):
+    """``max |M' J M - J| / max(1, |M|^2)`` with ``J = [[0, I], [-I, 0]]`` on ``n_coordinates``
+    pairs: relative to the size of the products it is made of, so round-off reads ~1e-16 even
+    where the map stretches (the energy equation's O(tau) conditioning makes ``dt'/dE`` large)."""
+    m = n_coordinates
+    J = np.block([[np.zeros((m, m)), np.eye(m)], [-np.eye(m), np.zeros((m, m))]])
+    scale = max(1.0, float(np.max(np.abs(M))) ** 2)
+    return float(np.max(np.abs(M.T @ J @ M - J)) / scale)
+
+
+def fixed_step_map(system: HamiltonianSystem, scheme: Scheme):
+    """``(z, t, tau, theta) -> z'``: one step of the canonical equations with a given step, through
+    CasADi's Newton rootfinder (differentiable by the implicit function theorem)."""
+    n = system.n
+    z, z_next = ca.MX.sym("z", 2 * n), ca.MX.sym("z_next", 2 * n)
+    t, tau = ca.MX.sym("t"), ca.MX.sym("tau")
+    theta = ca.MX.sym("theta", system.theta.numel())
+    canonical = equations.canonical_function(system, scheme)
+    g = ca.Function("g", [z_next, ca.vertcat(z, t, tau, theta)],
+                    [canonical(t, t + tau, z[:n], z[n:], z_next[:n], z_next[n:], theta)])
+    root = ca.rootfinder("step", "newton", g, {"abstol": 1e-15})
+    z_out = root(z, ca.vertcat(z, t, tau, theta))
+    return ca.Function("fixed_step_map", [z, t, tau, theta],
+                       [z_out, ca.jacobian(z_out, z)])
+
+
+def extended_lee_map(system: HamiltonianSystem, scheme: Scheme):
+    """``(q, t, p, -E, theta) -> (q', t', p', -E')``: one ``lee`` step as a map of the extended
+    phase space. ``E_k = -dS_{k-1}/dt_k`` is the energy that step k must match
+    (``dS_k/dt_k = E_k``, the node equation ``dS_D/dt_k = 0``); the step hands on
+    ``E_{k+1} = -dS_k/dt_{k+1}``. Both derivatives by automatic differentiation of the interval
+    action."""
+    n = system.n
+    x = ca.SX.sym("x", 2 * n + 2)  # (q, t, p, -E)
+    q, t, p, minus_E = x[:n], x[n], x[n + 1:2 * n + 1], x[2 * n + 1]
+    unknown = ca.SX.sym("unknown", 2 * n + 1)  # (q', p', tau)
+    q_next, p_next, tau = unknown[:n], unknown[n:2 * n], unknown[2 * n]
+    t_a, t_b = ca.SX.sym("t_a"), ca.SX.sym("t_b")
+    theta = ca.SX.sym("theta", system.theta.numel())
+    action = equations.interval_action_expression(system, scheme, t_a, t_b, q, p, q_next, p_next,
+                                                  theta)
+    dS = ca.Function("dS", [t_a, t_b, x, unknown, theta],
+                     [ca.gradient(action, t_a), ca.gradient(action, t_b)])
+    dS_left, dS_right = dS(t, t + tau, x, unknown, theta)
+    canonical = equations.canonical_function(system, scheme)(
+        t, t + tau, q, p, q_next, p_next, theta)
+    g = ca.Function("g", [unknown, ca.vertcat(x, theta)],
+                    [ca.vertcat(canonical, dS_left + minus_E)])
+    root = ca.rootfinder("lee_step", "newton", g, {"abstol": 1e-15})
+    X = ca.MX.sym("X", 2 * n + 2)
+    Theta = ca.MX.sym("Theta", system.theta.numel())
+    Guess = ca.MX.sym("Guess", 2 * n + 1)
+    solved = root(Guess, ca.vertcat(X, Theta))
+    after = ca.Function("after", [x, unknown, theta],
+                        [ca.vertcat(q_next, t + tau, p_next, dS_right)])(X, solved, Theta)
+    return ca.Function("extended_lee_map", [X, Guess, Theta], [after, ca.jacobian(after, X)])
+
+
+def symplecticity(samples: int = 5) -> dict:
+    """Section 3's claim: the schemes are symplectic. ``max |M' J M - J|`` of the one-step map's
+    Jacobian (automatic differentiation through the rootfinder) at ``samples`` nodes of a march,
+    for fixed steps in phase space and for the ``lee`` step in the extended phase space
+    ``(q, t; p, -E)``, on the autonomous pendulum and the paper's time-dependent example."""
+    scheme = Scheme()
+    result = {}
+    for name in ("pendulum", "paper_pendulum"):
+        scene = load_scene(name)
+        system = scene.system
+        theta = system.parameter_vector()
+        run = march(system, [0.5], [0.5], tau0=0.1, t_end=20.0, scheme="lee")
+        picks = np.linspace(1, run.steps - 1, samples).astype(int)
+        fixed = fixed_step_map(system, scheme)
+        extended = extended_lee_map(system, scheme)
+        defects_fixed, defects_extended = [], []
+        for k in picks:
+            z = np.concatenate([run.q[k], run.p[k]])
+            _, M = fixed(z, run.t[k], 0.1, theta)
+            defects_fixed.append(_symplectic_defect(np.asarray(M), system.n))
+            # E_k from the previous interval: -dS_{k-1}/dt_k, by the same map one step back
+            x_prev = np.concatenate([run.q[k - 1], [run.t[k - 1]], run.p[k - 1], [0.0]])
+            guess = np.concatenate([run.q[k], run.p[k], [run.t[k] - run.t[k - 1]]])
+            back = _energy_handed_on(system, scheme, x_prev, guess, theta)
+            x = np.concatenate([run.q[k], [run.t[k]], run.p[k], [-back]])
+            guess = np.concatenate([run.q[k + 1], run.p[k + 1], [run.t[k + 1] - run.t[k]]])
+            after, M = extended(x, guess, theta)
+            after = np.asarray(after).ravel()
+            assert abs(after[system.n] - run.t[k + 1]) < 1e-9, "the map is not the march's step"
+            defects_extended.append(_symplectic_defect(np.asarray(M), system.n + 1))
+        # Negative control: explicit Euler, z' = z + tau f(z, t), is not symplectic.
+        zs = ca.SX.sym("z", 2 * system.n)
+        flow = ca.vertcat(ca.gradient(system.H, system.p), -ca.gradient(system.H, system.q))
+        flow = ca.substitute(flow, ca.vertcat(system.q, system.p), zs)
+        euler = ca.Function("euler", [zs, system.t, system.theta],
+                            [ca.jacobian(zs + 0.1 * flow, zs)])
+        z = np.concatenate([run.q[picks[0]], run.p[picks[0]]])
+        control = _symplectic_defect(np.asarray(euler(z, run.t[picks[0]], theta)), system.n)
+        result[name] = {"time_dependent": system.time_dependent,
+                        "fixed_phase_space": max(defects_fixed),
+                        "lee_extended": max(defects_extended),
+                        "explicit_euler_control": control}
+    return result
+
+
+def _energy_handed_on(system, scheme, x_prev, step, theta) -> float:
+    """``E_k = -dS_{k-1}/dt_k`` of the interval from ``x_prev`` with the march's own step."""
+    n = system.n
+    t_a, t_b = ca.SX.sym("t_a"), ca.SX.sym("t_b")
+    q_a, p_a, q_b, p_b = (ca.SX.sym(s, n) for s in ("q_a", "p_a", "q_b", "p_b"))
+    S = equations.interval_action_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b,
+                                             system.theta)
+    f = ca.Function("dS_dt_b", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta],
+                    [ca.gradient(S, t_b)])
+    t_prev = x_prev[n]
+    value = f(t_prev, t_prev + step[2 * n], x_prev[:n], x_prev[n + 1:2 * n + 1], step[:n],
+              step[n:2 * n], theta)
+    return float(-value)
+
+
+def energy_residual_growth(steps=(1000, 10_000, 100_000)) -> dict:
+    """The energy equation's residual along long ``vddvp`` runs of the paper's example: its
+    largest value and the size of its running sum (what a drift of the energy level would be)
+    after each number of steps."""
+    scene = load_scene("paper_pendulum")
+    run = march(scene.system, [0.5], [0.5], tau0=0.5, t_end=1e12, max_steps=max(steps))
+    running = np.cumsum(run.energy_residual)
+    rows = [{"steps": N, "t": float(run.t[N]),
+             "max_residual": float(np.max(np.abs(run.energy_residual[:N - 1]))),
+             "running_sum": float(np.max(np.abs(running[:N - 1])))} for N in steps]
     return {"rows": rows}
