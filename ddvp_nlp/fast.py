@@ -90,7 +90,6 @@ class FastChunk:
             outputs = ca.vertcat(t_next, x[:-1], canonical, energy, size, H)
             step = ca.Function("step", [state, theta], [
                 ca.vertcat(t_mid, t_next, z_mid, x[:-1], drift + energy), outputs])
-            self.constants = 0
         else:
             state = ca.SX.sym("state", 1 + n2)
             constants = ca.SX.sym("constants", 4)
@@ -105,7 +104,6 @@ class FastChunk:
             canonical, size = functions.fixed_check(z_b, w)
             step = ca.Function("step", [state, ca.vertcat(theta, constants)], [
                 ca.vertcat(k + 1, z_b), ca.vertcat(t_b, z_b, canonical, size)])
-            self.constants = 4
         self.chunk = chunk
         function = step.mapaccum("chunk", chunk)
         self.path = "vm"
