@@ -68,14 +68,8 @@ def _figures(out, example, site, sweep):
         for key, style in (("node", "o-"), ("midpoint", "s--")):
             ax.loglog(data["tau0"], data[key], style,
                       label=f"{name}, weight at the {key} (slope {data[f'slope_{key}']:.2f})")
-    ax.set_xlabel("tau0")
-    ax.set_ylabel("max/min - 1 of tau_k (V'' p^2 + V'^2)^(1/3)")
-    ax.set_title("site density (section 4)", fontsize=9)
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.savefig(out / "site_density.png", dpi=110)
-    plt.close(fig)
+    _finish(fig, ax, out / "site_density.png", "max/min - 1 of tau_k (V'' p^2 + V'^2)^(1/3)",
+            "site density (section 4)")
 
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for rule, color in (("vddvp", "C0"), ("lee", "C1")):
@@ -83,13 +77,19 @@ def _figures(out, example, site, sweep):
         tau0 = [r["tau0"] for r in rows]
         ax.loglog(tau0, [r["ratio_min"] for r in rows], "v-", color=color, label=f"{rule}: min")
         ax.loglog(tau0, [r["ratio_max"] for r in rows], "^-", color=color, label=f"{rule}: max")
+    _finish(fig, ax, out / "step_ratios.png", "tau_k / tau0",
+            "paper's example to t = 16: range of the steps (section 4)")
+
+
+def _finish(fig, ax, path, ylabel, title):
+    """Labels, legend and grid of a log-log panel against tau0; save and close."""
     ax.set_xlabel("tau0")
-    ax.set_ylabel("tau_k / tau0")
-    ax.set_title("paper's example to t = 16: range of the steps (section 4)", fontsize=9)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
-    fig.savefig(out / "step_ratios.png", dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
