@@ -170,11 +170,12 @@ def fixed_step_map(system: HamiltonianSystem, scheme: Scheme):
 
 
 def extended_lee_map(system: HamiltonianSystem, scheme: Scheme):
-    """``(q, t, p, -E, theta) -> (q', t', p', -E')``: one ``lee`` step as a map of the extended
-    phase space. ``E_k = -dS_{k-1}/dt_k`` is the energy that step k must match
-    (``dS_k/dt_k = E_k``, the node equation ``dS_D/dt_k = 0``); the step hands on
-    ``E_{k+1} = -dS_k/dt_{k+1}``. Both derivatives by automatic differentiation of the interval
-    action."""
+    """``(q, t, p, -E, guess, theta) -> (q', t', p', -E')`` and its Jacobian: one ``lee`` step as
+    a map of the extended phase space; also ``after(x, step, theta)``, the image of ``x`` for a
+    given step ``(q', p', tau)`` (it does not depend on ``E``). ``E_k = -dS_{k-1}/dt_k`` is the
+    energy that step k must match (``dS_k/dt_k = E_k``, the node equation ``dS_D/dt_k = 0``);
+    the step hands on ``E_{k+1} = -dS_k/dt_{k+1}``. Both derivatives by automatic
+    differentiation of the interval action."""
     n = system.n
     x = ca.SX.sym("x", 2 * n + 2)  # (q, t, p, -E)
     q, t, p, minus_E = x[:n], x[n], x[n + 1:2 * n + 1], x[2 * n + 1]
@@ -197,8 +198,10 @@ def extended_lee_map(system: HamiltonianSystem, scheme: Scheme):
     Guess = ca.MX.sym("Guess", 2 * n + 1)
     solved = root(Guess, ca.vertcat(X, Theta))
     after = ca.Function("after", [x, unknown, theta],
-                        [ca.vertcat(q_next, t + tau, p_next, dS_right)])(X, solved, Theta)
-    return ca.Function("extended_lee_map", [X, Guess, Theta], [after, ca.jacobian(after, X)])
+                        [ca.vertcat(q_next, t + tau, p_next, dS_right)])
+    image = after(X, solved, Theta)
+    return (ca.Function("extended_lee_map", [X, Guess, Theta], [image, ca.jacobian(image, X)]),
+            after)
 
 
 def symplecticity(samples: int = 5) -> dict:
@@ -215,17 +218,17 @@ def symplecticity(samples: int = 5) -> dict:
         run = march(system, [0.5], [0.5], tau0=0.1, t_end=20.0, scheme="lee")
         picks = np.linspace(1, run.steps - 1, samples).astype(int)
         fixed = fixed_step_map(system, scheme)
-        extended = extended_lee_map(system, scheme)
+        extended, after_step = extended_lee_map(system, scheme)
         defects_fixed, defects_extended = [], []
         for k in picks:
             z = np.concatenate([run.q[k], run.p[k]])
             _, M = fixed(z, run.t[k], 0.1, theta)
             defects_fixed.append(_symplectic_defect(np.asarray(M), system.n))
-            # E_k from the previous interval: -dS_{k-1}/dt_k, by the same map one step back
+            # -E_k = dS_{k-1}/dt_k: what the march's previous step hands on
             x_prev = np.concatenate([run.q[k - 1], [run.t[k - 1]], run.p[k - 1], [0.0]])
-            guess = np.concatenate([run.q[k], run.p[k], [run.t[k] - run.t[k - 1]]])
-            back = _energy_handed_on(system, scheme, x_prev, guess, theta)
-            x = np.concatenate([run.q[k], [run.t[k]], run.p[k], [-back]])
+            step = np.concatenate([run.q[k], run.p[k], [run.t[k] - run.t[k - 1]]])
+            minus_E = float(np.asarray(after_step(x_prev, step, theta)).ravel()[-1])
+            x = np.concatenate([run.q[k], [run.t[k]], run.p[k], [minus_E]])
             guess = np.concatenate([run.q[k + 1], run.p[k + 1], [run.t[k + 1] - run.t[k]]])
             after, M = extended(x, guess, theta)
             after = np.asarray(after).ravel()
@@ -244,21 +247,6 @@ def symplecticity(samples: int = 5) -> dict:
                         "lee_extended": max(defects_extended),
                         "explicit_euler_control": control}
     return result
-
-
-def _energy_handed_on(system, scheme, x_prev, step, theta) -> float:
-    """``E_k = -dS_{k-1}/dt_k`` of the interval from ``x_prev`` with the march's own step."""
-    n = system.n
-    t_a, t_b = ca.SX.sym("t_a"), ca.SX.sym("t_b")
-    q_a, p_a, q_b, p_b = (ca.SX.sym(s, n) for s in ("q_a", "p_a", "q_b", "p_b"))
-    S = equations.interval_action_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b,
-                                             system.theta)
-    f = ca.Function("dS_dt_b", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta],
-                    [ca.gradient(S, t_b)])
-    t_prev = x_prev[n]
-    value = f(t_prev, t_prev + step[2 * n], x_prev[:n], x_prev[n + 1:2 * n + 1], step[:n],
-              step[n:2 * n], theta)
-    return float(-value)
 
 
 def energy_residual_growth(steps=(1000, 10_000, 100_000)) -> dict:
