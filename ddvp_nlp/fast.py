@@ -69,6 +69,9 @@ class FastChunk:
     ``[t_next, z_next, canonical residual, energy residual, |z_mid|, |H_k|]``.
     Fixed rule: state ``[k, z]`` with constants ``[t0, tau, t_end, steps_total]``; outputs
     ``[t_next, z_next, canonical residual, |z_a|]``.
+
+    ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
+    machine.
     """
 
     def __init__(self, system, scheme, functions, *, chunk: int, compiler, cache_dir):
@@ -108,7 +111,6 @@ class FastChunk:
         function = step.mapaccum("chunk", chunk)
         self.path = "vm"
         self.compile_s = 0.0
-        compiler = find_compiler(compiler)
         if compiler is not None:
             compiled_at = time.perf_counter()
             function = _compiled(function, compiler, cache_folder(cache_dir))
