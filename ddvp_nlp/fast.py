@@ -113,7 +113,7 @@ class FastChunk:
         self.compile_s = 0.0
         if compiler is not None:
             compiled_at = time.perf_counter()
-            function = _compiled(function, compiler, cache_folder(cache_dir))
+            function = compile_function(function, compiler, cache_folder(cache_dir))
             self.compile_s = time.perf_counter() - compiled_at
             self.path = "compiled"
         self.function = function
@@ -125,7 +125,7 @@ class FastChunk:
         return np.asarray(states).T, np.asarray(outputs).T
 
 
-def _compiled(function: ca.Function, compiler: str, folder: Path) -> ca.Function:
+def compile_function(function: ca.Function, compiler: str, folder: Path) -> ca.Function:
     """Generate, compile (once per hash) and load ``function``."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
@@ -142,6 +142,6 @@ def _compiled(function: ca.Function, compiler: str, folder: Path) -> ca.Function
             result = subprocess.run([compiler, *COMPILE_FLAGS, str(c_file), "-o", str(built)],
                                     capture_output=True, text=True)
             if result.returncode != 0:
-                raise RuntimeError(f"compiling the march chunk failed:\n{result.stderr[-2000:]}")
+                raise RuntimeError(f"compiling {function.name()} failed:\n{result.stderr[-2000:]}")
             os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
     return ca.external(function.name(), str(library))
