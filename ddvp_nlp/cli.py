@@ -74,6 +74,26 @@ def build_parser() -> argparse.ArgumentParser:
                      help="IPOPT (default) or CasADi's Newton rootfinder on the same square system")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    compare = commands.add_parser(
+        "compare", help="work-precision: error against run time for every method on a scene")
+    compare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    compare.add_argument("--methods", default=None,
+                         help="comma-separated methods (default: every one that applies); "
+                              "known: vddvp, lee, midpoint, stormer_verlet, rk4, dop853, "
+                              "lee_left")
+    compare.add_argument("--set", dest="settings", action="append", default=[],
+                         metavar="NAME=VALUE",
+                         help="override a scene parameter or t0, tau0, t_end, q0, p0; repeatable")
+    compare.add_argument("--out", default=None,
+                         help="output folder (default: runs/SCENE-compare)")
+    compare.add_argument("--halvings", type=int, default=6,
+                         help="step sweeps go from 2 tau0 down by this many halvings "
+                              "(default: 6)")
+    compare.add_argument("--repeats", type=int, default=3,
+                         help="timed calls per run after one warm-up; best is kept (default: 3)")
+    compare.add_argument("--no-compile", action="store_true",
+                         help="run the compiled methods on CasADi's virtual machine instead")
+    compare.add_argument("--no-progress", action="store_true", help="no progress bar")
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")
     reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
@@ -130,6 +150,28 @@ def run_bvp(args) -> int:
     return 0 if solution.success else 1
 
 
+def run_compare(args) -> int:
+    from .compare import ERROR_KINDS, cheapest, work_precision
+
+    scene = load_scene(args.scene)
+    out = args.out or f"runs/{scene.name}-compare"
+    rows = work_precision(scene, overrides=_parse_settings(args.settings), methods=args.methods,
+                          out=out, halvings=args.halvings, repeats=args.repeats,
+                          compiler=None if args.no_compile else "auto",
+                          progress=not args.no_progress)
+    failed = sum(r["status"] != "success" for r in rows)
+    print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
+    for kind, label in ERROR_KINDS.items():
+        for level in (1e-4, 1e-8):
+            ranking = cheapest(rows, kind, level)
+            if ranking:
+                name, seconds, bound = ranking[0]
+                print(f"  {label.split(' max')[0]} <= {level:.0e}: cheapest {name} "
+                      f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
+    print(f"  written to {out}/ (work_precision.csv, work_precision.png, summary.md)")
+    return 0
+
+
 def _summary(meta: dict, out) -> None:
     lines = [f"{meta['scene']} {meta['command']} [{meta['scheme']}]: {meta['status']} - "
              f"{meta['message']}",
@@ -156,6 +198,8 @@ def main(argv: list[str] | None = None) -> int:
             return run_march(args)
         if args.command == "bvp":
             return run_bvp(args)
+        if args.command == "compare":
+            return run_compare(args)
         if args.command == "reproduce":
             from .output import prepare_folder
             from .report import reproduce
