@@ -320,8 +320,8 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
             if not np.all(np.isfinite(rows[i])):
                 status, detail = Status.NON_FINITE, ""
             elif t_next[i] <= t_mid[i]:
-                status, detail = Status.NO_ADMISSIBLE_STEP, f"Newton found tau = " \
-                    f"{t_next[i] - t_mid[i]:.6g}"
+                status, detail = Status.NO_ADMISSIBLE_STEP, (
+                    f"Newton from the previous step found tau = {t_next[i] - t_mid[i]:.6g}")
             else:
                 status, detail = Status.NEWTON_FAILED, (
                     f"Euler-Lagrange residual {el[i]:.3e}, energy residual {en[i]:.3e}")

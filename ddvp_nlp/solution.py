@@ -13,7 +13,7 @@ class Status(enum.Enum):
     in words a person can act on (the message of the result adds step, time and state)."""
 
     SUCCESS = "reached t_end"
-    NO_ADMISSIBLE_STEP = "the step equations have no root with tau > 0 from this node"
+    NO_ADMISSIBLE_STEP = "the step equations have no root with tau > 0 near the previous step"
     NEWTON_FAILED = "Newton's method did not converge on the step equations"
     NON_FINITE = "a step produced a non-finite value"
     RESIDUAL_TOO_LARGE = "a step's own unscaled residual is above the tolerance"
