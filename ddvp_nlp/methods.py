@@ -127,31 +127,54 @@ def flow_callable(system: HamiltonianSystem, theta) -> Callable[[float, np.ndarr
 
 
 def dop853(system, config, value, *, compiler=None, cache_dir=None, max_steps=None,
-           dense_output=False):
-    """scipy's DOP853 at ``rtol = atol = value``; its own accepted steps are the nodes."""
-    from scipy.integrate import solve_ivp
+           time_limit=None, dense_output=False):
+    """scipy's DOP853 at ``rtol = atol = value``; its own accepted steps are the nodes.
+
+    The steps are taken one by one (scipy's ``OdeSolver`` interface, the loop ``solve_ivp`` runs)
+    so that ``max_steps`` and ``time_limit`` (seconds) bound the run.
+    """
+    from scipy.integrate import DOP853, OdeSolution
 
     started = time.perf_counter()
     theta = system.parameter_vector(config.params)
     flow = flow_callable(system, theta)
     built = time.perf_counter()
-    result = solve_ivp(flow, (config.t0, config.t_end), np.concatenate([config.q0, config.p0]),
-                       method="DOP853", rtol=value, atol=value, dense_output=dense_output)
+    solver = DOP853(flow, config.t0, np.concatenate([config.q0, config.p0]), config.t_end,
+                    rtol=value, atol=value)
+    times, states, pieces = [config.t0], [solver.y.copy()], []
+    status, detail = Status.SUCCESS, ""
+    while solver.status == "running":
+        if max_steps is not None and len(times) > max_steps:
+            status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
+            break
+        if time_limit is not None and time.perf_counter() - built > time_limit:
+            status, detail = Status.TIME_LIMIT, f"time_limit = {time_limit:g} s"
+            break
+        scipy_message = solver.step()
+        if solver.status == "failed":
+            status, detail = Status.SOLVER_FAILED, f"scipy says {scipy_message!r}"
+            break
+        if not np.all(np.isfinite(solver.y)):
+            status = Status.NON_FINITE
+            break
+        times.append(solver.t)
+        states.append(solver.y.copy())
+        if dense_output:
+            pieces.append(solver.dense_output())
     solved = time.perf_counter()
     n = system.n
-    z = result.y.T
-    if result.status == 0 and np.all(np.isfinite(z)):
-        status, message = Status.SUCCESS, (f"{Status.SUCCESS.value} = {config.t_end:.6g} in "
-                                            f"{z.shape[0] - 1} steps")
+    z = np.array(states)
+    if status is Status.SUCCESS:
+        message = f"{status.value} = {config.t_end:.6g} in {z.shape[0] - 1} steps"
     else:
-        status = Status.SOLVER_FAILED if np.all(np.isfinite(z)) else Status.NON_FINITE
-        message = f"{status.value}: scipy says {result.message!r} at t = {result.t[-1]:.10g}"
-    solution = Solution(t=result.t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status,
+        message = (f"{status.value}: step {z.shape[0] - 1} from t = {times[-1]:.10g}, "
+                   f"q = {z[-1, :n]}, p = {z[-1, n:]}" + (f"; {detail}" if detail else ""))
+    solution = Solution(t=np.array(times), q=z[:, :n].copy(), p=z[:, n:].copy(), status=status,
                         message=message, scheme="dop853", energy_residual=np.zeros(0),
                         canonical_residual=np.zeros(0),
                         timing={"build_s": built - started, "solve_s": solved - built},
-                        stats={"nfev": int(result.nfev)})
-    solution.dense = result.sol
+                        stats={"nfev": int(solver.nfev)})
+    solution.dense = OdeSolution(times, pieces) if dense_output and pieces else None
     return solution
 
 

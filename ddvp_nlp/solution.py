@@ -21,6 +21,7 @@ class Status(enum.Enum):
     STEP_ABOVE_MAX = "the step length rose above tau_max"
     STEP_RATIO = "the step length changed by more than max_step_ratio in one step"
     MAX_STEPS = "max_steps was reached before t_end"
+    TIME_LIMIT = "the time limit was reached before t_end"
     INTERRUPTED = "interrupted by the user"
     SOLVER_FAILED = "the NLP solver did not converge"
     NOT_VERIFIED = "the solver's point does not satisfy the equations to the tolerance"
