@@ -61,6 +61,14 @@ def build_parser() -> argparse.ArgumentParser:
     march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
     march.add_argument("--max-step-ratio", type=float, default=None,
                        help="largest accepted ratio between consecutive steps")
+    march.add_argument("--time-limit", type=float, default=None,
+                       help="stop after this many seconds of stepping (status time_limit)")
+    march.add_argument("--energy-guard", type=float, default=None,
+                       help="stop when |H - H0| / max(1, |H0|) exceeds this at a node")
+    march.add_argument("--least-squares", action="store_true",
+                       help="where the energy step has no admissible root, take the least-squares "
+                            "step (Kane-Marsden-Ortiz) within [tau-min, tau-max] and go on; each "
+                            "such step is flagged in meta.json and result.npz")
     march.add_argument("--careful", action="store_true",
                        help="force the careful per-step path (default: compiled chunks of steps, "
                             "checked step by step; both accept the same steps)")
@@ -122,7 +130,9 @@ def run_march(args) -> int:
                      t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
                      max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
                      max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
-                     fast=not args.careful)
+                     fast=not args.careful, time_limit=args.time_limit,
+                     energy_guard=args.energy_guard,
+                     breakdown="least_squares" if args.least_squares else "stop")
     meta = write_run(out, command="march", scene=scene, config=config, scheme=scheme,
                      solution=solution, plot=not args.no_plot,
                      extra={"path": solution.stats["path"],
@@ -179,6 +189,13 @@ def _summary(meta: dict, out) -> None:
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
     lines.append(f"  energy error {meta['energy_error']:.3e} ({meta['energy_error_kind']})")
+    if "solvability_warning" in meta:
+        warning = meta["solvability_warning"]
+        lines.append(f"  solvability warning at step {warning['step']}, t = {warning['t']:.6g}: "
+                     f"{warning['reason']}")
+    if "least_squares_steps" in meta:
+        lines.append(f"  {meta['least_squares_steps']} least-squares steps, largest energy "
+                     f"defect {meta['least_squares_defect_max']:.3e}")
     if "error_vs_exact" in meta:
         lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e}")
     path = f" ({meta['path']} path)" if "path" in meta else ""
@@ -187,7 +204,14 @@ def _summary(meta: dict, out) -> None:
     print("\n".join(lines))
 
 
+def _format_warning(message, category, filename, lineno, line=None):
+    return f"ddvp: warning: {message}\n"
+
+
 def main(argv: list[str] | None = None) -> int:
+    import warnings
+
+    warnings.formatwarning = _format_warning  # one line, no source echo
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -66,9 +66,10 @@ class FastChunk:
     """``chunk`` march steps per call, compiled or on the virtual machine.
 
     Energy rules: state ``[t_prev, t_mid, z_prev, z_mid, drift]``; per step the outputs
-    ``[t_next, z_next, canonical residual, energy residual, |z_mid|, |H_k|]``.
+    ``[t_next, z_next, canonical residual, energy residual, |z_mid|, |H_k|, H, w]``.
     Fixed rule: state ``[k, z]`` with constants ``[t0, tau, t_end, steps_total]``; outputs
-    ``[t_next, z_next, canonical residual, |z_a|]``.
+    ``[t_next, z_next, canonical residual, |z_a|, H, w]``. ``H`` and the site-density weight
+    ``w`` are those of the new node (energy guard, solvability monitor).
 
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
@@ -90,7 +91,8 @@ class FastChunk:
             x = newton(functions.energy_predict(w, t_mid - t_prev), w)
             canonical, energy, size, H = functions.energy_check(x, w)
             t_next = t_mid + x[-1]
-            outputs = ca.vertcat(t_next, x[:-1], canonical, energy, size, H)
+            H_node, w_node = functions.node_monitor(x[:-1], t_next, theta)
+            outputs = ca.vertcat(t_next, x[:-1], canonical, energy, size, H, H_node, w_node)
             step = ca.Function("step", [state, theta], [
                 ca.vertcat(t_mid, t_next, z_mid, x[:-1], drift + energy), outputs])
         else:
@@ -105,8 +107,9 @@ class FastChunk:
                                    FAST_NEWTON_OPTIONS)
             z_b = newton(functions.fixed_predict(w), w)
             canonical, size = functions.fixed_check(z_b, w)
+            H_node, w_node = functions.node_monitor(z_b, t_b, theta)
             step = ca.Function("step", [state, ca.vertcat(theta, constants)], [
-                ca.vertcat(k + 1, z_b), ca.vertcat(t_b, z_b, canonical, size)])
+                ca.vertcat(k + 1, z_b), ca.vertcat(t_b, z_b, canonical, size, H_node, w_node)])
         self.chunk = chunk
         function = step.mapaccum("chunk", chunk)
         self.path = "vm"

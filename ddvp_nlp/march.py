@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping
 
 import casadi as ca
@@ -38,6 +39,14 @@ NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_o
 # predictor fails or lands on tau <= 0. The spurious root sits at -tau_{k-1}; these start far
 # from it.
 RETRY_FACTORS = (1.0, 0.5, 2.0, 0.25)
+BREAKDOWNS = ("stop", "least_squares")
+LEAST_SQUARES_CASES = (Status.NO_ADMISSIBLE_STEP, Status.NEWTON_FAILED,
+                       Status.RESIDUAL_TOO_LARGE, Status.STEP_BELOW_MIN, Status.STEP_ABOVE_MAX,
+                       Status.STEP_RATIO)
+# The solvability monitor warns once |ln(w_k / w_{k-1})| passes this. Measured on kepler
+# (tau0 = 0.01): at most 0.36 per step for e = 0.7 (which runs), 0.6-0.9 in the 3-4 steps before
+# the breakdown at e = 0.78 and 0.8; rotating pendulum (p0 = 2): 0.74 two steps before.
+MONITOR_LIMIT = 0.5
 
 
 class _StepFunctions:
@@ -63,6 +72,13 @@ class _StepFunctions:
                                         NEWTON_OPTIONS)
         self.fixed_predict = ca.Function("predict", [w], [_rk4(flow, z_a, t_a, t_b - t_a)])
         self.fixed_check = ca.Function("check", [z_b, w], [ca.norm_inf(g), ca.norm_inf(z_a)])
+        # H and the site-density weight w = f' H_zz f = -8 c(z) at a node: the energy guard and
+        # the solvability monitor.
+        weight = equations.site_density_weight_function(system)
+        z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
+        self.node_monitor = ca.Function(
+            "node_monitor", [z, t, theta],
+            [system.H_function(z[:n], z[n:], t, theta), weight(z[:n], z[n:], t, theta)])
 
         if not scheme.variable_steps:
             return
@@ -118,7 +134,8 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
           tol: float = 1e-10, max_steps: int = 10_000_000, tau_min: float | None = None,
           tau_max: float | None = None, max_step_ratio: float | None = None,
           progress: bool = False, fast: bool = True, chunk: int = 1024,
-          compiler: str | None = "auto", cache_dir=None) -> Solution:
+          compiler: str | None = "auto", cache_dir=None, time_limit: float | None = None,
+          energy_guard: float | None = None, breakdown: str = "stop") -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -143,6 +160,22 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
             command, or ``None`` for CasADi's virtual machine.
         cache_dir: folder of compiled chunks (default ``$DDVP_NLP_CACHE`` or
             ``~/.cache/ddvp_nlp``).
+        time_limit: optional bound in seconds on the stepping (status ``time_limit``).
+        energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(1, |H(z_0, t_0)|)``
+            at every node (status ``energy_guard``).
+        breakdown: what an energy rule does when a step has no admissible root: ``"stop"``
+            (default) or ``"least_squares"``, the step of Kane, Marsden and Ortiz: the ``tau`` in
+            ``[tau_min, tau_max]`` (default ``[tau_prev/10, 10 tau_prev]``) that minimises the
+            energy residual subject to the canonical equations (a bounded scalar search). Each
+            such step is listed in ``stats["least_squares"]`` with its energy defect, and the
+            march goes on.
+
+    The solvability monitor (energy rules): at every node the site-density weight
+    ``w = f' H_zz f = -8 c(z)`` (THEORY.md section 5). A positive step needs ``c`` to keep its
+    sign and the step to be short against the change of ``w``; the march warns (a
+    ``RuntimeWarning`` and ``stats["solvability_warning"]``) at the first node where ``w``
+    changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``. ``Solution.solvability``
+    holds ``c(z_k)`` at every node.
 
     Returns:
         A :class:`Solution`; failures are a status on it, never an exception.
@@ -173,6 +206,13 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
     if max_step_ratio is not None and max_step_ratio <= 1:
         raise InputError(f"max_step_ratio must be > 1, got {max_step_ratio!r}")
     chunk = check_integer("chunk", chunk)
+    time_limit = check_real("time_limit", time_limit, positive=True, allow_none=True)
+    energy_guard = check_real("energy_guard", energy_guard, positive=True, allow_none=True)
+    if breakdown not in BREAKDOWNS:
+        raise InputError(f"breakdown must be one of {', '.join(BREAKDOWNS)}, got {breakdown!r}")
+    if breakdown == "least_squares" and not scheme.variable_steps:
+        raise InputError("breakdown='least_squares' needs an energy rule (vddvp or lee), got "
+                         f"scheme {scheme.rule!r}")
     if fast:
         from .fast import find_compiler
         compiler = find_compiler(compiler)
@@ -193,9 +233,10 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
                               cache_dir=cache_dir))
     built = time.perf_counter()
     stepper = _Marcher(system, scheme, functions, theta, tol=tol, tau_min=tau_min,
-                       tau_max=tau_max, max_step_ratio=max_step_ratio, fast=fast_chunk)
+                       tau_max=tau_max, max_step_ratio=max_step_ratio, fast=fast_chunk,
+                       energy_guard=energy_guard, H0=H0, breakdown=breakdown)
     nodes = stepper.run(np.concatenate([q0, p0]), t0=t0, tau0=tau0, t_end=t_end,
-                        max_steps=max_steps, progress=progress)
+                        max_steps=max_steps, progress=progress, time_limit=time_limit)
     solved = time.perf_counter()
     t, z, status, message = nodes
     n = system.n
@@ -209,16 +250,18 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
         timing={"build_s": built - started, "solve_s": solved - built,
                 "compile_s": fast_chunk.compile_s if fast_chunk else 0.0,
                 "verify_s": verified - solved},
+        solvability=stepper.solvability(t.size),
         stats={"retries": stepper.retries, "theta": theta.tolist(),
                "path": fast_chunk.path if fast_chunk else "careful",
-               "fast_steps": stepper.fast_steps, "careful_steps": stepper.careful_steps})
+               "fast_steps": stepper.fast_steps, "careful_steps": stepper.careful_steps,
+               "solvability_warning": stepper.warning, "least_squares": stepper.least_squares})
 
 
 class _Marcher:
     """The step loop: state, acceptance checks and the grown node arrays."""
 
     def __init__(self, system, scheme, functions, theta, *, tol, tau_min, tau_max,
-                 max_step_ratio, fast=None):
+                 max_step_ratio, fast=None, energy_guard=None, H0=0.0, breakdown="stop"):
         self.system = system
         self.scheme = scheme
         self.functions = functions
@@ -233,6 +276,12 @@ class _Marcher:
         self.fast = fast
         self.fast_steps = 0
         self.careful_steps = 0
+        self.energy_guard = energy_guard
+        self.H0 = H0
+        self.breakdown = breakdown
+        self.least_squares = []  # one dict per least-squares step
+        self.warning = None  # the first solvability warning
+        self._w = []  # site-density weight at every accepted node (energy rules)
 
     def _solve(self, root, guess, w):
         x = np.asarray(root(guess, w)).ravel()
@@ -282,6 +331,104 @@ class _Marcher:
             return x[:-1], tau, Status.SUCCESS, ""
         return None, None, worst, detail
 
+    def _least_squares_step(self, t_prev, t_mid, z_prev, z_mid, tau_prev, status, detail):
+        """Kane, Marsden and Ortiz's step: the tau in the bounds that minimises the energy
+        residual subject to the canonical equations. ``z_next(tau)`` solves the canonical
+        equations (the fixed-step Newton solve); ``|r(tau)|`` is sampled on a log grid over the
+        bounds and its best sample refined by Brent's bounded search (scipy). The step is recorded
+        with its energy defect; if none is found, the failure it replaces stands."""
+        from scipy.optimize import minimize_scalar
+
+        f = self.functions
+        low = self.tau_min if self.tau_min is not None else tau_prev / 10
+        high = self.tau_max if self.tau_max is not None else 10 * tau_prev
+        if self.max_step_ratio is not None:
+            low = max(low, tau_prev / self.max_step_ratio)
+            high = min(high, tau_prev * self.max_step_ratio)
+        w = np.concatenate([[t_prev, t_mid], z_prev, z_mid, self.theta, [self.drift]])
+        if not 0 < low < high:
+            return None, None, status, (f"{detail}; " if detail else "") + (
+                f"least-squares step: empty step range [{low:.3g}, {high:.3g}]")
+
+        def solve(tau):
+            z_next, status, _ = self._fixed_step(t_mid, t_mid + tau, z_mid)
+            if status is not Status.SUCCESS:
+                return None, math.inf
+            x = np.concatenate([z_next, [tau]])
+            return x, abs(float(np.asarray(f.energy_residual(x, w)).ravel()[-1]))
+
+        grid = np.geomspace(low, high, 16)
+        values = [solve(tau)[1] for tau in grid]
+        best = int(np.argmin(values))
+        if not math.isfinite(values[best]):
+            return None, None, status, (f"{detail}; " if detail else "") + (
+                f"least-squares step: no step in [{low:.3g}, {high:.3g}] solves the canonical "
+                "equations")
+        bracket = (grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)])
+        refined = minimize_scalar(lambda tau: solve(tau)[1], bounds=bracket, method="bounded",
+                                  options={"xatol": 1e-14 * bracket[1]})
+        tau = float(refined.x) if refined.fun <= values[best] else float(grid[best])
+        x, _ = solve(tau)
+        _, energy, _, _ = (float(v) for v in f.energy_check(x, w))
+        # The defect stays out of the compensated sum: the shifted level is the new one. (Aiming
+        # the next steps back at the old level was tried: on the rotating pendulum the nodal H
+        # then sat on the wrong side of the level and the steps shrank to zero.)
+        # Step k goes from node k to k + 1; its energy equation, at node k, has the defect.
+        self.least_squares.append({"step": len(self._w) - 1, "t": t_mid, "tau": tau,
+                                   "energy_defect": energy, "replaced": status.code})
+        return x[:-1], tau, Status.SUCCESS, ""
+
+    def _monitor_nodes(self, nodes, first):
+        """H and w at nodes ``first ..``, evaluated one by one (careful path)."""
+        H, w = [], []
+        for i in range(first, nodes.count):
+            h, weight = self.functions.node_monitor(nodes.z[i], nodes.t[i], self.theta)
+            H.append(float(h))
+            w.append(float(weight))
+        return np.array(H), np.array(w)
+
+    def _watch(self, nodes, first, H, w):
+        """Energy guard and solvability monitor on the nodes accepted from ``first`` on
+        (``H``, ``w`` of those nodes). A node beyond the guard is dropped with everything after
+        it."""
+        status, detail = Status.SUCCESS, ""
+        if self.energy_guard is not None:
+            limit = self.energy_guard * max(1.0, abs(self.H0))
+            over = np.flatnonzero(np.abs(H - self.H0) > limit)
+            if over.size:
+                i = int(over[0])
+                status, detail = Status.ENERGY_GUARD, (
+                    f"at t = {nodes.t[first + i]:.10g} |H - H0| = {abs(H[i] - self.H0):.3e} > "
+                    f"energy_guard * max(1, |H0|) = {limit:.3e}")
+                nodes.count = first + i
+                w = w[:i]
+        if not self.scheme.variable_steps:
+            return status, detail
+        if self.warning is None and w.size:
+            previous = np.concatenate([[self._w[-1] if self._w else w[0]], w[:-1]])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
+            sign = np.sign(w) != np.sign(previous)
+            alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
+            if alarm.size:
+                i = int(alarm[0])
+                reason = ("the site-density weight w = -8 c(z) changed sign" if sign[i] else
+                          f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is long "
+                          "against the change of c(z)")
+                self.warning = {"step": len(self._w) + i, "t": float(nodes.t[first + i]),
+                                "c": float(-w[i] / 8), "reason": reason}
+                warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
+                              f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy "
+                              "step may follow", RuntimeWarning, stacklevel=4)
+        self._w.extend(w.tolist())
+        return status, detail
+
+    def solvability(self, count):
+        """``c(z_k) = -w_k / 8`` at every kept node (energy rules), else empty."""
+        if not self.scheme.variable_steps:
+            return np.zeros(0)
+        return -np.asarray(self._w[:count], dtype=float) / 8
+
     def _residuals_ok(self, canonical, size, energy=0.0, H=0.0):
         """The acceptance test on a step's unscaled residuals (arrays or scalars): canonical
         relative to ``max(1, |z|)``, energy relative to ``max(1, |H|)``."""
@@ -312,10 +459,12 @@ class _Marcher:
         return Status.STEP_RATIO, (f"tau = {tau:.6g} after {tau_prev:.6g} (ratio "
                                    f"{ratio:.4g} > max_step_ratio {self.max_step_ratio})")
 
-    def run(self, z0, *, t0, tau0, t_end, max_steps, progress):
+    def run(self, z0, *, t0, tau0, t_end, max_steps, progress, time_limit=None):
         from tqdm import tqdm
 
+        started = time.perf_counter()
         nodes = _Nodes(t0, z0)
+        self._watch(nodes, 0, *self._monitor_nodes(nodes, 0))
         status, detail = Status.SUCCESS, ""
         fixed = not self.scheme.variable_steps
         steps_total = max(1, math.ceil((t_end - t0) / tau0 - 1e-9)) if fixed else None
@@ -333,6 +482,9 @@ class _Marcher:
                 if k >= max_steps:
                     status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
                     break
+                if time_limit is not None and time.perf_counter() - started > time_limit:
+                    status, detail = Status.TIME_LIMIT, f"time_limit = {time_limit:g} s"
+                    break
                 if self.fast is not None and careful_left == 0 and (fixed or k >= 1):
                     accepted, failed = self._fast_chunk(
                         nodes, t_end=t_end, max_steps=max_steps, t0=t0, tau_fixed=tau_fixed,
@@ -340,6 +492,10 @@ class _Marcher:
                     if failed:  # redo from the last good node on the careful path
                         careful_left = self.fast.chunk - accepted
                     if accepted:
+                        status, detail = self._watch(nodes, nodes.count - accepted,
+                                                     *self._chunk_monitor)
+                        if status is not Status.SUCCESS:
+                            break
                         if progress:
                             bar.update(min(nodes.t[nodes.count - 1], t_end) - reported)
                             reported = min(nodes.t[nodes.count - 1], t_end)
@@ -354,12 +510,19 @@ class _Marcher:
                 else:
                     z_next, tau, status, detail = self._energy_step(t[k - 1], t[k], z[k - 1],
                                                                     z[k], tau_prev)
+                    if status is Status.SUCCESS:
+                        status, detail = self._bounds(tau, tau_prev)
+                    if status in LEAST_SQUARES_CASES and self.breakdown == "least_squares":
+                        z_next, tau, status, detail = self._least_squares_step(
+                            t[k - 1], t[k], z[k - 1], z[k], tau_prev, status, detail)
                     t_next = t[k] + tau if tau is not None else None
-                if status is Status.SUCCESS and not fixed:
-                    status, detail = self._bounds(t_next - t[k], tau_prev)
                 if status is not Status.SUCCESS:
                     break
                 nodes.append(t_next, z_next)
+                status, detail = self._watch(nodes, nodes.count - 1,
+                                             *self._monitor_nodes(nodes, nodes.count - 1))
+                if status is not Status.SUCCESS:
+                    break
                 if progress and nodes.count % 256 == 0:
                     bar.update(min(t_next, t_end) - reported)
                     reported = min(t_next, t_end)
@@ -391,9 +554,9 @@ class _Marcher:
             canonical, energy, size, H = out[:, 1 + n2], out[:, 2 + n2], out[:, 3 + n2], \
                 out[:, 4 + n2]
             t_mid = np.concatenate([[t[k]], t_next[:-1]])
-            tau = t_next - t_mid
-            tau_prev = np.concatenate([[t[k] - t[k - 1]], tau[:-1]])
-            with np.errstate(invalid="ignore"):
+            with np.errstate(invalid="ignore"):  # a diverged step is NaN; it fails the checks
+                tau = t_next - t_mid
+                tau_prev = np.concatenate([[t[k] - t[k - 1]], tau[:-1]])
                 good = (np.all(np.isfinite(out), axis=1) & (tau > 0)
                         & self._residuals_ok(canonical, size, energy, H)
                         & self._bounds_ok(tau, tau_prev))
@@ -411,6 +574,7 @@ class _Marcher:
             limit = min(limit, int(ends[0]) + 1)
         bad = np.flatnonzero(~good[:limit])
         kept = int(bad[0]) if bad.size else limit
+        self._chunk_monitor = (out[:kept, -2], out[:kept, -1])
         if kept:
             nodes.extend(t_next[:kept], z_next[:kept])
             if self.scheme.variable_steps:

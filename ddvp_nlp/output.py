@@ -62,9 +62,16 @@ def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | Boun
               solution: Solution, extra: dict | None = None, plot: bool = True) -> dict:
     """Write ``result.npz``, ``meta.json`` and ``trajectory.png``; return the metadata."""
     theta = scene.system.parameter_vector(config.params)
-    np.savez(out / "result.npz", t=solution.t, q=solution.q, p=solution.p,
-             energy_residual=solution.energy_residual,
-             canonical_residual=solution.canonical_residual)
+    arrays = {"t": solution.t, "q": solution.q, "p": solution.p,
+              "energy_residual": solution.energy_residual,
+              "canonical_residual": solution.canonical_residual}
+    if solution.solvability.size:
+        arrays["solvability"] = solution.solvability
+    flagged = solution.stats.get("least_squares") or []
+    if flagged:
+        arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)
+        arrays["least_squares_defect"] = np.array([e["energy_defect"] for e in flagged])
+    np.savez(out / "result.npz", **arrays)
     tau = solution.tau
     meta = {
         "command": command,
@@ -96,6 +103,11 @@ def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | Boun
         q, p = scene.exact(solution.t, solution.q[0], solution.p[0], solution.t[0],
                            **config.params)
         meta["error_vs_exact"] = float(max(_max_abs(solution.q - q), _max_abs(solution.p - p)))
+    if solution.stats.get("solvability_warning"):
+        meta["solvability_warning"] = solution.stats["solvability_warning"]
+    if flagged:
+        meta["least_squares_steps"] = len(flagged)
+        meta["least_squares_defect_max"] = _max_abs([e["energy_defect"] for e in flagged])
     meta.update(extra or {})
     (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
     if plot and solution.t.size >= 2:

@@ -22,6 +22,7 @@ class Status(enum.Enum):
     STEP_RATIO = "the step length changed by more than max_step_ratio in one step"
     MAX_STEPS = "max_steps was reached before t_end"
     TIME_LIMIT = "the time limit was reached before t_end"
+    ENERGY_GUARD = "H left the band energy_guard allows around its initial value"
     INTERRUPTED = "interrupted by the user"
     SOLVER_FAILED = "the NLP solver did not converge"
     NOT_VERIFIED = "the solver's point does not satisfy the equations to the tolerance"
@@ -47,6 +48,8 @@ class Solution:
         canonical_residual: largest canonical residual of each interval (N-1,), increment form.
         newton_iterations: Newton iterations of the march's careful steps (compiled fast steps
             do not report theirs; see ``stats["fast_steps"]``), or the NLP solver's iterations.
+        solvability: ``c(z_k) = -(f' H_zz f)/8`` at every node for the energy rules (a positive
+            step needs it to keep its sign; THEORY.md section 5), else empty.
         timing: ``build_s`` and ``solve_s`` in seconds.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...).
     """
@@ -60,6 +63,7 @@ class Solution:
     energy_residual: np.ndarray
     canonical_residual: np.ndarray
     newton_iterations: int = 0
+    solvability: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
 

@@ -1,0 +1,175 @@
+"""Every way a march can end early, forced with small cases: its status, its message, and a
+result that keeps every accepted node, no NaN and no step tau <= 0."""
+
+import importlib
+import json
+import warnings
+
+import casadi as ca
+import numpy as np
+import pytest
+from conftest import run_scene
+
+from ddvp_nlp import HamiltonianSystem, InputError, Status, load_scene, march
+from ddvp_nlp.cli import main
+
+
+def _clean(solution):
+    """What every returned result must satisfy, failed or not."""
+    assert np.all(np.isfinite(solution.t))
+    assert np.all(np.isfinite(solution.q)) and np.all(np.isfinite(solution.p))
+    assert np.all(solution.tau > 0)
+    assert solution.t.size == solution.q.shape[0] == solution.p.shape[0]
+
+
+@pytest.fixture(scope="module")
+def square_root():
+    return HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 - ca.sqrt(q[0]), 1, name="root")
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_non_finite_step(square_root, fast):
+    solution = march(square_root, [1.0], [-3.0], tau0=0.5, t_end=5.0, scheme="fixed", fast=fast)
+    assert solution.status is Status.NON_FINITE
+    assert solution.message.startswith("a step produced a non-finite value: step 0 from t = 0, "
+                                       "q = [1.], p = [-3.]; z = [")
+    _clean(solution)
+
+
+def test_residual_above_the_tolerance(square_root):
+    solution = march(square_root, [1.0], [-1.0], tau0=0.1, t_end=5.0, tol=1e-18)
+    assert solution.status is Status.RESIDUAL_TOO_LARGE
+    assert "canonical residual" in solution.message
+    _clean(solution)
+
+
+def test_max_steps():
+    _, _, solution = run_scene("harmonic", max_steps=7)
+    assert solution.status is Status.MAX_STEPS and solution.steps == 7
+    assert solution.message.endswith("; max_steps = 7")
+    _clean(solution)
+
+
+def test_time_limit_keeps_what_was_done():
+    _, _, solution = run_scene("harmonic", time_limit=1e-12)
+    assert solution.status is Status.TIME_LIMIT
+    assert solution.message.endswith("; time_limit = 1e-12 s")
+    assert solution.steps >= 0
+    _clean(solution)
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_energy_guard_stops_before_the_first_node_outside_the_band(fast):
+    scene, config, solution = run_scene("pendulum", {"tau0": 0.5}, scheme="fixed",
+                                        energy_guard=1e-4, fast=fast)
+    assert solution.status is Status.ENERGY_GUARD
+    H = scene.system.energy(solution.q, solution.p, solution.t, [])
+    assert np.max(np.abs(H - H[0])) <= 1e-4 * max(1, abs(H[0]))
+    assert "|H - H0| = " in solution.message and "> energy_guard * max(1, |H0|) = 1.000e-04" \
+        in solution.message
+    # the node it refused is the next fixed step: one step further breaks the band
+    longer = march(scene.system, config.q0, config.p0, tau0=0.5, t_end=config.t_end,
+                   scheme="fixed", max_steps=solution.steps + 1)
+    H_next = scene.system.energy(longer.q[-1:], longer.p[-1:], longer.t[-1:], [])[0]
+    assert abs(H_next - H[0]) > 1e-4
+    _clean(solution)
+
+
+def test_fast_and_careful_paths_stop_at_the_same_node_under_the_guard():
+    _, _, fast = run_scene("pendulum", {"tau0": 0.5}, scheme="fixed", energy_guard=1e-4)
+    _, _, careful = run_scene("pendulum", {"tau0": 0.5}, scheme="fixed", energy_guard=1e-4,
+                              fast=False)
+    assert fast.steps == careful.steps and fast.message == careful.message
+
+
+def test_solvability_monitor_warns_before_the_kepler_breakdown():
+    """e = 0.8 > sqrt(5/8): the energy step breaks down in the first pass from perihelion."""
+    with pytest.warns(RuntimeWarning, match="solvability monitor at step"):
+        _, _, solution = run_scene("kepler", {"e": 0.8})
+    assert solution.status in (Status.NEWTON_FAILED, Status.NO_ADMISSIBLE_STEP,
+                               Status.RESIDUAL_TOO_LARGE)
+    warning = solution.stats["solvability_warning"]
+    assert 0 < warning["step"] < solution.steps
+    assert warning["t"] == solution.t[warning["step"]]
+    assert solution.solvability.shape == solution.t.shape
+    assert warning["c"] == solution.solvability[warning["step"]]
+    _clean(solution)
+
+
+def test_solvability_monitor_is_quiet_where_the_scheme_is_fine():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _, _, solution = run_scene("kepler", {"e": 0.6})
+    assert solution.success and solution.stats["solvability_warning"] is None
+    assert np.all(solution.solvability < 0)  # c = -(p.V''p + |V'|^2)/8 keeps its sign
+    _, _, fixed = run_scene("harmonic", scheme="fixed")
+    assert fixed.solvability.size == 0  # no energy equation, nothing to monitor
+
+
+def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged():
+    scene = load_scene("pendulum")
+    common = {"tau0": 0.05, "t_end": 10.0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        stopped = march(scene.system, [0.5], [2.0], **common)  # H = 2.12 > 2: rotation
+        carried = march(scene.system, [0.5], [2.0], **common, breakdown="least_squares",
+                        tau_min=0.02)
+    assert not stopped.success
+    assert carried.success, carried.message
+    _clean(carried)
+    flagged = carried.stats["least_squares"]
+    assert len(flagged) > 0
+    assert np.all(carried.tau >= 0.02 * (1 - 1e-9))  # t_k differences round
+    # the march is the same as the plain one up to the breakdown
+    k = stopped.steps
+    np.testing.assert_allclose(carried.t[:k + 1], stopped.t, rtol=0, atol=1e-12)
+    steps = np.array([entry["step"] for entry in flagged])
+    assert steps[0] == k  # the step that had no admissible root
+    assert flagged[0]["replaced"] == stopped.status.code
+    # the energy equation of each flagged step (at its first node) has the recorded defect;
+    # every other node holds its equation
+    residual = carried.energy_residual  # node j -> residual[j - 1]
+    np.testing.assert_allclose(residual[steps - 1], [e["energy_defect"] for e in flagged],
+                               rtol=1e-8, atol=1e-15)
+    others = np.delete(residual, steps - 1)
+    assert np.max(np.abs(others)) < 1e-10
+    assert np.max(carried.canonical_residual) < 1e-10
+
+
+def test_interrupted_march_writes_a_readable_partial_result(tmp_path, monkeypatch):
+    march_module = importlib.import_module("ddvp_nlp.march")  # the package exports the function
+
+    original = march_module._Marcher._watch
+    calls = {"n": 0}
+
+    def interrupt_later(self, nodes, first, H, w):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return original(self, nodes, first, H, w)
+
+    monkeypatch.setattr(march_module._Marcher, "_watch", interrupt_later)
+    out = tmp_path / "cut"
+    code = main(["march", "harmonic", "--set", "t_end=1000", "--out", str(out), "--no-progress",
+                 "--no-plot"])
+    assert code == 1
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["status"] == "interrupted"
+    result = np.load(out / "result.npz")
+    assert result["t"].size == meta["steps"] + 1 > 1
+    assert np.all(np.diff(result["t"]) > 0) and np.all(np.isfinite(result["q"]))
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"time_limit": 0.0}, "time_limit must be > 0, got 0.0"),
+    ({"energy_guard": float("nan")}, "energy_guard must be finite, got nan"),
+    ({"breakdown": "skip"}, "breakdown must be one of stop, least_squares, got 'skip'"),
+    ({"breakdown": "least_squares", "scheme": "fixed"},
+     "breakdown='least_squares' needs an energy rule (vddvp or lee), got scheme 'fixed'"),
+    ({"tol": float("nan")}, "tol must be finite, got nan"),
+])
+def test_bad_breakdown_options(kwargs, message):
+    scene = load_scene("harmonic")
+    with pytest.raises(InputError, match="^" + message.replace("(", r"\(").replace(")", r"\)")
+                       + "$"):
+        march(scene.system, [1.0], [0.0], tau0=0.1, t_end=1.0, **kwargs)
