@@ -142,9 +142,11 @@ def _failure_message(status, k, t, z, n, detail=""):
 
 
 def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float, t_end: float,
-                   t0: float, theta, compiler, cache_dir=None) -> Solution:
+                   t0: float, theta, compiler, cache_dir=None,
+                   time_limit: float | None = None) -> Solution:
     """March ``method`` (``"stormer_verlet"`` or ``"rk4"``) on uniform steps that end on
-    ``t_end`` (the step is ``(t_end - t0)/ceil((t_end - t0)/tau)``)."""
+    ``t_end`` (the step is ``(t_end - t0)/ceil((t_end - t0)/tau)``); ``time_limit`` (seconds)
+    is checked between chunks."""
     started = time.perf_counter()
     n = system.n
     total = max(1, math.ceil((t_end - t0) / tau - 1e-9))
@@ -171,6 +173,10 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
     k = 0
     status, message = Status.SUCCESS, f"{Status.SUCCESS.value} = {t_end:.6g} in {total} steps"
     while k < total:
+        if time_limit is not None and time.perf_counter() - built > time_limit:
+            status = Status.TIME_LIMIT
+            message = _failure_message(status, k, t[k], z[k], n, f"time_limit = {time_limit:g} s")
+            break
         states, rows = function(np.concatenate([[k], z[k]]), constants)
         rows = np.asarray(rows).T[:min(chunk, total - k)]
         finite = np.all(np.isfinite(rows), axis=1)
@@ -248,7 +254,7 @@ class _LeeLeftPoint:
 
 def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: float,
                    theta, tol: float = 1e-10, max_steps: int = 10_000_000, compiler=None,
-                   cache_dir=None) -> Solution:
+                   cache_dir=None, time_limit: float | None = None) -> Solution:
     """March T.D. Lee's original left-point scheme until the first node at or past ``t_end``."""
     started = time.perf_counter()
     n = system.n
@@ -293,6 +299,9 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     while status is Status.SUCCESS and state[1] < t_end:
         if count >= max_steps:
             status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
+            break
+        if time_limit is not None and time.perf_counter() - built > time_limit:
+            status, detail = Status.TIME_LIMIT, f"time_limit = {time_limit:g} s"
             break
         states, rows = function(state, thetas)
         states, rows = np.asarray(states).T, np.asarray(rows).T

@@ -59,8 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
     march.add_argument("--max-steps", type=int, default=10_000_000)
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
     march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
-    march.add_argument("--max-step-ratio", type=float, default=None,
-                       help="largest accepted ratio between consecutive steps")
+    march.add_argument("--max-step-ratio", type=float, default=10.0,
+                       help="largest accepted ratio between consecutive steps (default: 10)")
     march.add_argument("--time-limit", type=float, default=None,
                        help="stop after this many seconds of stepping (status time_limit)")
     march.add_argument("--energy-guard", type=float, default=None,
@@ -102,6 +102,18 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
     compare.add_argument("--no-progress", action="store_true", help="no progress bar")
+    stress = commands.add_parser(
+        "stress", help="run every method on the stiff and extreme cases; say where each breaks")
+    stress.add_argument("--out", default="runs/stress", help="output folder")
+    stress.add_argument("--quick", action="store_true",
+                        help="a few cases on short horizons (seconds)")
+    stress.add_argument("--max-steps", type=int, default=2_000_000,
+                        help="bound on the steps of each run (default: 2000000)")
+    stress.add_argument("--time-limit", type=float, default=60.0,
+                        help="bound in seconds on each run (default: 60)")
+    stress.add_argument("--no-compile", action="store_true",
+                        help="run the compiled methods on CasADi's virtual machine instead")
+    stress.add_argument("--no-progress", action="store_true", help="no progress bar")
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")
     reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
@@ -182,6 +194,26 @@ def run_compare(args) -> int:
     return 0
 
 
+def run_stress(args) -> int:
+    import warnings
+
+    from .stress import status_counts, stress
+
+    with warnings.catch_warnings():
+        # the solvability warnings of breaking cases are expected here; stress.md reports them
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rows = stress(args.out, quick=args.quick, compiler=None if args.no_compile else "auto",
+                      max_steps=args.max_steps, time_limit=args.time_limit,
+                      progress=not args.no_progress)
+    print(f"stress: {len(rows)} runs")
+    for method, counts in status_counts(rows).items():
+        failed = ", ".join(f"{k} {v}" for k, v in counts.items() if k != "success")
+        print(f"  {method:15s} {counts.get('success', 0)} reached t_end"
+              + (f"; {failed}" if failed else ""))
+    print(f"  written to {args.out}/ (stress.csv, stress.md, stress.png)")
+    return 0
+
+
 def _summary(meta: dict, out) -> None:
     lines = [f"{meta['scene']} {meta['command']} [{meta['scheme']}]: {meta['status']} - "
              f"{meta['message']}",
@@ -211,9 +243,10 @@ def _format_warning(message, category, filename, lineno, line=None):
 def main(argv: list[str] | None = None) -> int:
     import warnings
 
-    warnings.formatwarning = _format_warning  # one line, no source echo
     parser = build_parser()
     args = parser.parse_args(argv)
+    original_format = warnings.formatwarning
+    warnings.formatwarning = _format_warning  # one line, no source echo
     try:
         if args.command == "scenes":
             print("\n".join(_describe(name) for name in list_scenes()))
@@ -224,6 +257,8 @@ def main(argv: list[str] | None = None) -> int:
             return run_bvp(args)
         if args.command == "compare":
             return run_compare(args)
+        if args.command == "stress":
+            return run_stress(args)
         if args.command == "reproduce":
             from .output import prepare_folder
             from .report import reproduce
@@ -234,6 +269,8 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        warnings.formatwarning = original_format
     parser.error(f"unknown command {args.command!r}")
     return 2
 

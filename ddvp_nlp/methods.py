@@ -44,7 +44,8 @@ class Method:
         order: order of accuracy.
         symplectic, energy_conserving: traits.
         knob: the accuracy setting swept (``"tau0"``, ``"tau"`` or ``"rtol"``).
-        run: ``run(system, config, value, *, compiler, cache_dir, max_steps) -> Solution``.
+        run: ``run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None)
+            -> Solution``.
         applies: ``applies(system) -> None`` or the reason the method does not apply.
         redundant: ``redundant(system) -> None`` or why, on this system, the method repeats
             another one exactly (left out of default comparisons, run when asked for by name).
@@ -70,21 +71,22 @@ class Method:
 
 
 def _march(rule):
-    def run(system, config, value, *, compiler, cache_dir, max_steps):
+    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
         return march(system, config.q0, config.p0, tau0=value, t_end=config.t_end, t0=config.t0,
                      scheme=rule, params=config.params, max_steps=max_steps, compiler=compiler,
-                     cache_dir=cache_dir,
+                     cache_dir=cache_dir, time_limit=time_limit,
                      chunk=baselines.chunk_for((config.t_end - config.t0) / value))
     return run
 
 
 def _fixed_step(name):
-    def run(system, config, value, *, compiler, cache_dir, max_steps):
+    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
         _check_steps(config, value, max_steps)
         return baselines.fixed_step_run(system, name, config.q0, config.p0, tau=value,
                                         t_end=config.t_end, t0=config.t0,
                                         theta=system.parameter_vector(config.params),
-                                        compiler=compiler, cache_dir=cache_dir)
+                                        compiler=compiler, cache_dir=cache_dir,
+                                        time_limit=time_limit)
     return run
 
 
@@ -95,11 +97,12 @@ def _check_steps(config, tau, max_steps):
                          f"max_steps = {max_steps}")
 
 
-def _lee_left(system, config, value, *, compiler, cache_dir, max_steps):
+def _lee_left(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
     return baselines.lee_left_march(system, config.q0, config.p0, tau0=value,
                                     t_end=config.t_end, t0=config.t0,
                                     theta=system.parameter_vector(config.params),
-                                    max_steps=max_steps, compiler=compiler, cache_dir=cache_dir)
+                                    max_steps=max_steps, compiler=compiler, cache_dir=cache_dir,
+                                    time_limit=time_limit)
 
 
 def flow_callable(system: HamiltonianSystem, theta) -> Callable[[float, np.ndarray], np.ndarray]:
