@@ -89,9 +89,8 @@ class FastChunk:
             newton = ca.rootfinder("fast_energy_step", "fast_newton",
                                    functions.energy_residual, FAST_NEWTON_OPTIONS)
             x = newton(functions.energy_predict(w, t_mid - t_prev), w)
-            canonical, energy, size, H = functions.energy_check(x, w)
+            canonical, energy, size, H, H_node, w_node = functions.energy_check(x, w)
             t_next = t_mid + x[-1]
-            H_node, w_node = functions.node_monitor(x[:-1], t_next, theta)
             outputs = ca.vertcat(t_next, x[:-1], canonical, energy, size, H, H_node, w_node)
             step = ca.Function("step", [state, theta], [
                 ca.vertcat(t_mid, t_next, z_mid, x[:-1], drift + energy), outputs])
@@ -106,8 +105,7 @@ class FastChunk:
             newton = ca.rootfinder("fast_fixed_step", "fast_newton", functions.fixed_residual,
                                    FAST_NEWTON_OPTIONS)
             z_b = newton(functions.fixed_predict(w), w)
-            canonical, size = functions.fixed_check(z_b, w)
-            H_node, w_node = functions.node_monitor(z_b, t_b, theta)
+            canonical, size, H_node, w_node = functions.fixed_check(z_b, w)
             step = ca.Function("step", [state, ca.vertcat(theta, constants)], [
                 ca.vertcat(k + 1, z_b), ca.vertcat(t_b, z_b, canonical, size, H_node, w_node)])
         self.chunk = chunk

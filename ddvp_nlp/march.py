@@ -71,14 +71,16 @@ class _StepFunctions:
         self.fixed_root = ca.rootfinder("fixed_step", "newton", self.fixed_residual,
                                         NEWTON_OPTIONS)
         self.fixed_predict = ca.Function("predict", [w], [_rk4(flow, z_a, t_a, t_b - t_a)])
-        self.fixed_check = ca.Function("check", [z_b, w], [ca.norm_inf(g), ca.norm_inf(z_a)])
         # H and the site-density weight w = f' H_zz f = -8 c(z) at a node: the energy guard and
-        # the solvability monitor.
+        # the solvability monitor. The step checks return them for the new node too, so neither
+        # path pays an extra call.
         weight = equations.site_density_weight_function(system)
         z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
         self.node_monitor = ca.Function(
             "node_monitor", [z, t, theta],
             [system.H_function(z[:n], z[n:], t, theta), weight(z[:n], z[n:], t, theta)])
+        self.fixed_check = ca.Function("check", [z_b, w], [
+            ca.norm_inf(g), ca.norm_inf(z_a), *self.node_monitor(z_b, t_b, theta)])
 
         if not scheme.variable_steps:
             return
@@ -112,7 +114,7 @@ class _StepFunctions:
         H_k = interval_energy(t_mid, t_next, z_mid[:n], z_mid[n:], z_next[:n], z_next[n:], theta)
         self.energy_check = ca.Function(
             "check", [x, w], [ca.norm_inf(g_canonical), g_energy, ca.norm_inf(z_mid),
-                              ca.fabs(H_k)])
+                              ca.fabs(H_k), *self.node_monitor(z_next, t_next, theta)])
 
 
 def _rk4(flow, z, t, tau):
@@ -153,8 +155,8 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
         tau_min, tau_max: optional bounds on every step length.
         max_step_ratio: bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)`` (``None``: none).
             The default 10 stops a march whose energy equation jumped to a far root: on
-            ``kepler`` with ``e = 0.99`` and ``tau0 = 0.01`` the third step was 235 time units,
-            past the whole horizon, and every equation held.
+            ``kepler`` with ``e = 0.99`` and ``tau0 = 0.01``, without it, the fourth step was 235
+            time units, past the whole horizon, and every equation held.
         progress: show a progress bar on stderr.
         fast: run the steps in compiled chunks (``fast.py``); ``False`` forces the careful
             per-step path. Both accept exactly the same steps.
@@ -301,9 +303,10 @@ class _Marcher:
             return None, Status.NON_FINITE, f"z = {z_b.tolist()}"
         if not converged:
             return None, Status.NEWTON_FAILED, ""
-        residual, size = (float(v) for v in f.fixed_check(z_b, w))
+        residual, size, *monitor = (float(v) for v in f.fixed_check(z_b, w))
         if not self._residuals_ok(residual, size):
             return None, Status.RESIDUAL_TOO_LARGE, f"canonical residual {residual:.3e}"
+        self._last_monitor = monitor  # H and w of the new node
         return z_b, Status.SUCCESS, ""
 
     def _energy_step(self, t_prev, t_mid, z_prev, z_mid, tau_prev):
@@ -325,12 +328,13 @@ class _Marcher:
                 if worst is not Status.RESIDUAL_TOO_LARGE:
                     worst, detail = Status.NO_ADMISSIBLE_STEP, f"Newton found tau = {tau:.6g}"
                 continue
-            canonical, energy, size, H = (float(v) for v in f.energy_check(x, w))
+            canonical, energy, size, H, *monitor = (float(v) for v in f.energy_check(x, w))
             if not self._residuals_ok(canonical, size, energy, H):
                 worst, detail = Status.RESIDUAL_TOO_LARGE, (
                     f"canonical residual {canonical:.3e}, energy residual {energy:.3e}")
                 continue
             self.drift += energy
+            self._last_monitor = monitor
             return x[:-1], tau, Status.SUCCESS, ""
         return None, None, worst, detail
 
@@ -372,7 +376,7 @@ class _Marcher:
                                   options={"xatol": 1e-14 * bracket[1]})
         tau = float(refined.x) if refined.fun <= values[best] else float(grid[best])
         x, _ = solve(tau)
-        _, energy, _, _ = (float(v) for v in f.energy_check(x, w))
+        _, energy, _, _, *self._last_monitor = (float(v) for v in f.energy_check(x, w))
         # The defect stays out of the compensated sum: the shifted level is the new one. (Aiming
         # the next steps back at the old level was tried: on the rotating pendulum the nodal H
         # then sat on the wrong side of the level and the steps shrank to zero.)
@@ -381,14 +385,9 @@ class _Marcher:
                                    "energy_defect": energy, "replaced": status.code})
         return x[:-1], tau, Status.SUCCESS, ""
 
-    def _monitor_nodes(self, nodes, first):
-        """H and w at nodes ``first ..``, evaluated one by one (careful path)."""
-        H, w = [], []
-        for i in range(first, nodes.count):
-            h, weight = self.functions.node_monitor(nodes.z[i], nodes.t[i], self.theta)
-            H.append(float(h))
-            w.append(float(weight))
-        return np.array(H), np.array(w)
+    def _monitor_first_node(self, nodes):
+        H, w = self.functions.node_monitor(nodes.z[0], nodes.t[0], self.theta)
+        return np.array([float(H)]), np.array([float(w)])
 
     def _watch(self, nodes, first, H, w):
         """Energy guard and solvability monitor on the nodes accepted from ``first`` on
@@ -407,22 +406,29 @@ class _Marcher:
                 w = w[:i]
         if not self.scheme.variable_steps:
             return status, detail
-        if self.warning is None and w.size:
-            previous = np.concatenate([[self._w[-1] if self._w else w[0]], w[:-1]])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
-            sign = np.sign(w) != np.sign(previous)
-            alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
-            if alarm.size:
-                i = int(alarm[0])
-                reason = ("the site-density weight w = -8 c(z) changed sign" if sign[i] else
-                          f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is long "
-                          "against the change of c(z)")
-                self.warning = {"step": len(self._w) + i, "t": float(nodes.t[first + i]),
-                                "c": float(-w[i] / 8), "reason": reason}
-                warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
-                              f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy "
-                              "step may follow", RuntimeWarning, stacklevel=4)
+        if self.warning is not None or not w.size:
+            self._w.extend(w.tolist())
+            return status, detail
+        if w.size == 1 and self._w:  # the careful path's single node: plain floats are cheaper
+            last, now = self._w[-1], float(w[0])
+            if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
+                self._w.append(now)
+                return status, detail
+        previous = np.concatenate([[self._w[-1] if self._w else w[0]], w[:-1]])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
+        sign = np.sign(w) != np.sign(previous)
+        alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
+        if alarm.size:
+            i = int(alarm[0])
+            reason = ("the site-density weight w = -8 c(z) changed sign" if sign[i] else
+                      f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is long "
+                      "against the change of c(z)")
+            self.warning = {"step": len(self._w) + i, "t": float(nodes.t[first + i]),
+                            "c": float(-w[i] / 8), "reason": reason}
+            warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
+                          f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy "
+                          "step may follow", RuntimeWarning, stacklevel=4)
         self._w.extend(w.tolist())
         return status, detail
 
@@ -467,7 +473,7 @@ class _Marcher:
 
         started = time.perf_counter()
         nodes = _Nodes(t0, z0)
-        self._watch(nodes, 0, *self._monitor_nodes(nodes, 0))
+        self._watch(nodes, 0, *self._monitor_first_node(nodes))
         status, detail = Status.SUCCESS, ""
         fixed = not self.scheme.variable_steps
         steps_total = max(1, math.ceil((t_end - t0) / tau0 - 1e-9)) if fixed else None
@@ -522,8 +528,9 @@ class _Marcher:
                 if status is not Status.SUCCESS:
                     break
                 nodes.append(t_next, z_next)
-                status, detail = self._watch(nodes, nodes.count - 1,
-                                             *self._monitor_nodes(nodes, nodes.count - 1))
+                H, w = self._last_monitor
+                status, detail = self._watch(nodes, nodes.count - 1, np.array([H]),
+                                             np.array([w]))
                 if status is not Status.SUCCESS:
                     break
                 if progress and nodes.count % 256 == 0:

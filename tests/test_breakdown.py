@@ -173,3 +173,15 @@ def test_bad_breakdown_options(kwargs, message):
     with pytest.raises(InputError, match="^" + message.replace("(", r"\(").replace(")", r"\)")
                        + "$"):
         march(scene.system, [1.0], [0.0], tau0=0.1, t_end=1.0, **kwargs)
+
+
+def test_default_step_ratio_refuses_a_jump_to_a_far_root():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        _, _, guarded = run_scene("kepler", {"e": 0.99})
+        _, _, unguarded = run_scene("kepler", {"e": 0.99}, max_step_ratio=None)
+    assert guarded.status is Status.STEP_RATIO
+    assert "> max_step_ratio 10.0" in guarded.message
+    _clean(guarded)
+    # without the bound the march "succeeds" with a step longer than the whole horizon
+    assert unguarded.success and unguarded.tau.max() > 20 * np.pi
