@@ -48,6 +48,14 @@ def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
                         help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
 
 
+def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> None:
+    parser.add_argument("--workers", type=int, default=None,
+                        help=f"local worker processes (default: {workers_default})")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run the tasks on this Dask scheduler, e.g. tcp://host:8786 "
+                             "(default: $DDVP_SCHEDULER, else local)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
@@ -102,6 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
     compare.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _grid_arguments(compare, "1: the run times are what is compared")
     stress = commands.add_parser(
         "stress", help="run every method on the stiff and extreme cases; say where each breaks")
     stress.add_argument("--out", default="runs/stress", help="output folder")
@@ -114,11 +123,39 @@ def build_parser() -> argparse.ArgumentParser:
     stress.add_argument("--no-compile", action="store_true",
                         help="run the compiled methods on CasADi's virtual machine instead")
     stress.add_argument("--no-progress", action="store_true", help="no progress bar")
+    stress.add_argument("--resume", action="store_true",
+                        help="keep the rows already in OUT/stress.csv; run only the missing ones")
+    _grid_arguments(stress, "one per core")
+    sweep = commands.add_parser(
+        "sweep", help="run your own grid of settings x methods, locally or on a Dask cluster")
+    sweep.add_argument("scene", nargs="?", default=None,
+                       help="a built-in scene name or a .py file (or give --file)")
+    sweep.add_argument("--grid", action="append", default=[], metavar="NAME=SPEC",
+                       help="an axis: NAME=FROM:TO:COUNT or NAME=V1,V2,...; NAME is a scene "
+                            "parameter, t_end, t0, tau0 (the step) or rtol (DOP853); repeatable")
+    sweep.add_argument("--file", default=None, help="a TOML grid file (see `ddvp_nlp.sweep`)")
+    sweep.add_argument("--methods", default=None,
+                       help="comma-separated methods (default: vddvp, lee, midpoint, "
+                            "stormer_verlet, rk4, dop853 where they apply)")
+    sweep.add_argument("--set", dest="settings", action="append", default=[],
+                       metavar="NAME=VALUE", help="a fixed scene parameter or setting")
+    sweep.add_argument("--out", default=None, help="output folder (default: runs/SCENE-sweep)")
+    sweep.add_argument("--fresh", action="store_true",
+                       help="start afresh instead of resuming from OUT/sweep.csv")
+    sweep.add_argument("--max-steps", type=int, default=None,
+                       help="bound on the steps of each run (default: 2000000)")
+    sweep.add_argument("--time-limit", type=float, default=None,
+                       help="bound in seconds on each run (default: 60)")
+    sweep.add_argument("--no-compile", action="store_true",
+                       help="run the compiled methods on CasADi's virtual machine instead")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _grid_arguments(sweep, "one per core")
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")
     reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
     reproduce.add_argument("--quick", action="store_true",
                            help="shorter runs and fewer step sizes (about 10 s)")
+    _grid_arguments(reproduce, "1")
     return parser
 
 
@@ -180,7 +217,8 @@ def run_compare(args) -> int:
     rows = work_precision(scene, overrides=_parse_settings(args.settings), methods=args.methods,
                           out=out, halvings=args.halvings, repeats=args.repeats,
                           compiler=None if args.no_compile else "auto",
-                          progress=not args.no_progress)
+                          progress=not args.no_progress, workers=args.workers or 1,
+                          scheduler=args.scheduler)
     failed = sum(r["status"] != "success" for r in rows)
     print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
     for kind, label in ERROR_KINDS.items():
@@ -197,21 +235,69 @@ def run_compare(args) -> int:
 def run_stress(args) -> int:
     import warnings
 
-    from .stress import status_counts, stress
+    from .stress import stress
 
     with warnings.catch_warnings():
         # the solvability warnings of breaking cases are expected here; stress.md reports them
         warnings.simplefilter("ignore", RuntimeWarning)
         rows = stress(args.out, quick=args.quick, compiler=None if args.no_compile else "auto",
                       max_steps=args.max_steps, time_limit=args.time_limit,
-                      progress=not args.no_progress)
-    print(f"stress: {len(rows)} runs")
+                      progress=not args.no_progress, workers=args.workers,
+                      scheduler=args.scheduler, resume=args.resume)
+    _status_summary("stress", rows, args.out, "stress")
+    return 0
+
+
+def run_sweep(args) -> int:
+    import warnings
+
+    from .stress import stress
+    from .sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
+
+    if args.file:
+        if args.scene or args.grid:
+            raise InputError("give either --file or SCENE with --grid, not both")
+        spec = load_grid_file(args.file)
+    else:
+        if not args.scene or not args.grid:
+            raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
+        axes = {}
+        for item in args.grid:
+            name, sep, text = item.partition("=")
+            if not sep or not name.strip():
+                raise InputError(f"--grid expects NAME=SPEC, got {item!r}")
+            axes[name.strip()] = parse_axis(name.strip(), text)
+        spec = SweepSpec(scene=args.scene, axes=axes)
+    if args.methods:
+        from .methods import get_methods
+        spec.methods = tuple(m.name for m in get_methods(args.methods))
+    spec.settings = {**spec.settings, **_parse_settings(args.settings)}
+    if args.max_steps is not None:
+        spec.max_steps = args.max_steps
+    if args.time_limit is not None:
+        spec.time_limit = args.time_limit
+    cases = sweep_cases(spec)
+    out = args.out or f"runs/{load_scene(spec.scene).name}-sweep"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rows = stress(out, cases=cases, compiler=None if args.no_compile else "auto",
+                      max_steps=spec.max_steps, time_limit=spec.time_limit,
+                      progress=not args.no_progress, workers=args.workers,
+                      scheduler=args.scheduler, resume=not args.fresh, name="sweep",
+                      title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}")
+    _status_summary("sweep", rows, out, "sweep")
+    return 0
+
+
+def _status_summary(command, rows, out, name) -> None:
+    from .stress import status_counts
+
+    print(f"{command}: {len(rows)} runs")
     for method, counts in status_counts(rows).items():
         failed = ", ".join(f"{k} {v}" for k, v in counts.items() if k != "success")
         print(f"  {method:15s} {counts.get('success', 0)} reached t_end"
               + (f"; {failed}" if failed else ""))
-    print(f"  written to {args.out}/ (stress.csv, stress.md, stress.png)")
-    return 0
+    print(f"  written to {out}/ ({name}.csv, {name}.md, {name}.png)")
 
 
 def _summary(meta: dict, out) -> None:
@@ -259,11 +345,14 @@ def main(argv: list[str] | None = None) -> int:
             return run_compare(args)
         if args.command == "stress":
             return run_stress(args)
+        if args.command == "sweep":
+            return run_sweep(args)
         if args.command == "reproduce":
             from .output import prepare_folder
             from .report import reproduce
             out = prepare_folder(args.out)
-            reproduce(out, quick=args.quick)
+            reproduce(out, quick=args.quick, workers=args.workers or 1,
+                      scheduler=args.scheduler)
             print(f"report written to {out / 'report.md'}")
             return 0
     except InputError as exc:

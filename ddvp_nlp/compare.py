@@ -30,11 +30,12 @@ import numpy as np
 
 from .errors import InputError
 from .fast import find_compiler
+from .grid import Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS, Method, dop853, get_methods
-from .scenes import RunConfig, Scene
+from .scenes import RunConfig, Scene, load_scene
 from .solution import Status
 
-COLUMNS = ["scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
+COLUMNS = ["key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
            "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
            "order", "symplectic", "energy_conserving", "reference", "message"]
 ERROR_KINDS = {"trajectory_error": "trajectory error max |z - z_ref|",
@@ -123,7 +124,8 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
                    halvings: int = 6, repeats: int = 3, budget_s: float = 3.0,
                    compiler: str | None = "auto", cache_dir=None, max_steps: int = 5_000_000,
                    knobs: Mapping[str, Sequence[float]] | None = None,
-                   progress: bool = False) -> list[dict]:
+                   progress: bool = False, workers: int | None = 1,
+                   scheduler: str | None = None) -> list[dict]:
     """Run the comparison and write ``work_precision.csv``, ``.png`` and ``summary.md`` in
     ``out`` (created). Returns the rows.
 
@@ -137,9 +139,10 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
         compiler: for the compiled methods, as in :func:`ddvp_nlp.march`.
         knobs: per-method knob values replacing the default sweep.
         max_steps: bound on the steps of each run.
+        workers, scheduler: where the runs go (:func:`ddvp_nlp.grid.run_tasks`). The default
+            runs them one after the other in this process, because the run times are what is
+            compared: two runs at once on a 2-core machine slow each other down.
     """
-    from tqdm import tqdm
-
     from .output import prepare_folder
 
     config = scene.resolve(overrides)
@@ -166,22 +169,25 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
         if method.knob != "rtol" and value > config.t_end - config.t0:
             raise InputError(f"{method.knob} of method {method.name!r} must not exceed "
                              f"t_end - t0 = {config.t_end - config.t0!r}, got {value!r}")
+    workers = check_workers(workers)
+    scheduler = resolve_scheduler(scheduler)
+    if (scheduler is not None or workers != 1) and not scene.source:
+        raise InputError(f"scene {scene.name!r} was made in Python, not loaded from a file: "
+                         "other processes cannot load it (use workers=1)")
     compiler = find_compiler(compiler)
     out = prepare_folder(out)
 
-    reference = Reference(scene, config)
-    rows = []
-    csv_path = out / "work_precision.csv"
-    with open(csv_path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, COLUMNS)
-        writer.writeheader()
-        for method, value in tqdm(plan, disable=not progress, unit="run", leave=False):
-            row = _measure(scene, config, method, value, reference, repeats=repeats,
-                           budget_s=budget_s, compiler=compiler, cache_dir=cache_dir,
-                           max_steps=max_steps)
-            rows.append(row)
-            writer.writerow(row)
-            handle.flush()
+    reference = reference_for(scene, overrides or {})
+    where = scene.source or scene  # a scene made in Python runs in this process only
+    tasks = [Task(key=f"{method.name}|{value!r}", function="ddvp_nlp.compare:run_one",
+                  kwargs={"scene": where, "overrides": dict(overrides or {}),
+                          "method": method.name, "value": value, "repeats": repeats,
+                          "budget_s": budget_s, "compiler": compiler, "cache_dir": cache_dir,
+                          "max_steps": max_steps})
+             for method, value in plan]
+    rows, _ = run_grid(tasks, out / "work_precision.csv", COLUMNS, failure_row=failure_row,
+                       parse=parse_row, resume=False, workers=workers, scheduler=scheduler,
+                       progress=progress)
     context = {"scene": scene, "config": config, "reference": reference, "left_out": left_out,
                "compiler": compiler, "repeats": repeats, "budget_s": budget_s}
     plot_work_precision(rows, out / "work_precision.png",
@@ -194,6 +200,40 @@ def _count(name, value, minimum=1):
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return value
+
+
+_REFERENCES: dict = {}
+
+
+def reference_for(scene: Scene, overrides: Mapping[str, object]) -> Reference:
+    """The reference of a scene and its overrides, computed once per process."""
+    key = (scene.source or id(scene), scene.name, repr(sorted(dict(overrides).items())))
+    if key not in _REFERENCES:
+        _REFERENCES[key] = Reference(scene, scene.resolve(overrides))
+    return _REFERENCES[key]
+
+
+def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
+            max_steps) -> dict:
+    """One run of the comparison, timed and measured: its row (a grid task)."""
+    scene = load_scene(scene) if isinstance(scene, str) else scene
+    config = scene.resolve(overrides)
+    return _measure(scene, config, METHODS[method], value, reference_for(scene, overrides),
+                    repeats=repeats, budget_s=budget_s, compiler=compiler,
+                    cache_dir=cache_dir, max_steps=max_steps)
+
+
+def failure_row(task: Task, error: str) -> dict:
+    """The row of a run whose task raised or whose worker died."""
+    status, message = describe_error(error)
+    method = METHODS[task.kwargs["method"]]
+    return {"method": method.name, "knob": method.knob, "value": task.kwargs["value"],
+            "status": status, "message": message, "steps": 0, "t_reached": math.nan,
+            "run_s": math.nan, "build_s": math.nan, "repeats": 0,
+            "trajectory_error": math.nan, "energy_error": math.nan,
+            "scheme_energy_residual": math.nan, "order": method.order,
+            "symplectic": method.symplectic, "energy_conserving": method.energy_conserving,
+            "reference": "", "scene": ""}
 
 
 def _measure(scene, config, method, value, reference, *, repeats, budget_s, compiler,
@@ -225,21 +265,23 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
             "scheme_energy_residual": residual}
 
 
+def parse_row(row: dict) -> dict:
+    """A row read back from ``work_precision.csv``, with numbers as numbers."""
+    row = dict(row)
+    for key in ("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
+                "scheme_energy_residual"):
+        row[key] = float(row[key])
+    for key in ("steps", "repeats", "order"):
+        row[key] = int(row[key])
+    for key in ("symplectic", "energy_conserving"):
+        row[key] = row[key] == "True"
+    return row
+
+
 def read_rows(path) -> list[dict]:
     """Rows of a ``work_precision.csv`` with numbers as numbers."""
-    numeric = {"value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
-               "scheme_energy_residual"}
-    rows = []
     with open(path, newline="") as handle:
-        for row in csv.DictReader(handle):
-            for key in numeric:
-                row[key] = float(row[key])
-            for key in ("steps", "repeats", "order"):
-                row[key] = int(row[key])
-            for key in ("symplectic", "energy_conserving"):
-                row[key] = row[key] == "True"
-            rows.append(row)
-    return rows
+        return [parse_row(row) for row in csv.DictReader(handle)]
 
 
 def _succeeded(rows, method):

@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import paper  # noqa: E402
+from .grid import Task, run_tasks  # noqa: E402
 from .scenes import load_scene  # noqa: E402
 
 FULL = {"t_end": 10000.0, "site_tau0": (0.05, 0.025, 0.0125, 0.005),
@@ -21,24 +22,51 @@ QUICK = {"t_end": 2000.0, "site_tau0": (0.05, 0.025, 0.0125),
          "sweep_tau0": (0.5, 0.05, 0.005), "energy_steps": (1000, 10_000)}
 
 
-def reproduce(out: Path, *, quick: bool = False) -> dict:
-    """Measure, plot and write ``report.md`` into ``out``; return the measurements."""
+def reproduce(out: Path, *, quick: bool = False, workers: int | None = 1,
+              scheduler: str | None = None) -> dict:
+    """Measure, plot and write ``report.md`` into ``out``; return the measurements.
+
+    Each measurement is one grid task (:mod:`ddvp_nlp.grid`): ``workers``/``scheduler`` say where
+    they run (default: one after the other in this process).
+    """
     sizes = QUICK if quick else FULL
-    example = paper.paper_example(sizes["t_end"])
-    pendulum = load_scene("pendulum").system
-    site = {"pendulum": paper.site_density_spread(pendulum, [0.5], [0.5], sizes["site_tau0"],
-                                                  t_end=20.0),
-            "quartic": paper.site_density_spread(paper.quartic_system(), [1.0], [0.0],
-                                                 sizes["site_tau0"], t_end=20.0)}
-    gauge = paper.gauge_differences()
-    sweep = paper.step_ratio_sweep(sizes["sweep_tau0"])
-    symplectic = paper.symplecticity()
-    growth = paper.energy_residual_growth(sizes["energy_steps"])
+    tasks = [Task("example", "ddvp_nlp.paper:paper_example", args=(sizes["t_end"],)),
+             Task("site_pendulum", "ddvp_nlp.report:site_density", priority=1,
+                  kwargs={"name": "pendulum", "tau0": sizes["site_tau0"]}),
+             Task("site_quartic", "ddvp_nlp.report:site_density", priority=1,
+                  kwargs={"name": "quartic", "tau0": sizes["site_tau0"]}),
+             Task("gauge", "ddvp_nlp.paper:gauge_differences"),
+             Task("sweep", "ddvp_nlp.paper:step_ratio_sweep", args=(sizes["sweep_tau0"],),
+                  priority=2),
+             Task("symplectic", "ddvp_nlp.paper:symplecticity"),
+             Task("growth", "ddvp_nlp.paper:energy_residual_growth",
+                  args=(sizes["energy_steps"],), priority=3)]
+    results, failed = {}, []
+    for task, result, error in run_tasks(tasks, workers=workers, scheduler=scheduler):
+        if error is None:
+            results[task.key] = result
+        else:
+            failed.append(f"{task.key}: {error}")
+    if failed:
+        raise RuntimeError("measurements failed, no report written: " + "; ".join(failed))
+    example = results["example"]
+    site = {"pendulum": results["site_pendulum"], "quartic": results["site_quartic"]}
+    gauge, sweep = results["gauge"], results["sweep"]
+    symplectic, growth = results["symplectic"], results["growth"]
     _figures(out, example, site, sweep)
     (out / "report.md").write_text(_report(example, site, gauge, sweep, symplectic, growth,
                                            quick))
     return {"example": example, "site": site, "gauge": gauge, "sweep": sweep,
             "symplectic": symplectic, "growth": growth}
+
+
+def site_density(*, name: str, tau0) -> dict:
+    """The site-density measurement of section 4 on ``pendulum`` or the quartic oscillator (a
+    grid task: the system is built in the worker)."""
+    if name == "pendulum":
+        return paper.site_density_spread(load_scene("pendulum").system, [0.5], [0.5], tau0,
+                                         t_end=20.0)
+    return paper.site_density_spread(paper.quartic_system(), [1.0], [0.0], tau0, t_end=20.0)
 
 
 def _figures(out, example, site, sweep):

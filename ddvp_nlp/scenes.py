@@ -52,6 +52,8 @@ class Scene:
         boundary: optional default fixed-endpoint data
             ``{"q_start": ..., "q_end": ..., "t_span": (t0, t1), "nodes": N}``.
         name, description: set from the file name and docstring when loaded.
+        source: the name or path it was loaded from (empty for a scene made in Python); grid
+            tasks reload the scene from it in their own process.
     """
 
     hamiltonian: Callable[..., object]
@@ -66,6 +68,7 @@ class Scene:
     invariants: Mapping[str, Callable[..., np.ndarray]] = field(default_factory=dict)
     boundary: Mapping[str, object] | None = None
     name: str = "scene"
+    source: str = ""
     description: str = ""
 
     @cached_property
@@ -192,5 +195,6 @@ def load_scene(name_or_path: str) -> Scene:
     if not isinstance(scene, Scene):
         raise InputError(f"scene file {str(path)!r} defines no `scene = Scene(...)`")
     scene.name = name
+    scene.source = name_or_path  # how another process loads the same scene
     scene.description = (module.__doc__ or "").strip().splitlines()[0] if module.__doc__ else ""
     return scene

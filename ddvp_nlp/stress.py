@@ -19,20 +19,23 @@ from __future__ import annotations
 import csv
 import math
 import os
+import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compare import REFERENCE_RTOL, Reference, _machine
+from .compare import REFERENCE_RTOL, _machine, reference_for
 from .equations import site_density_weight_function
 from .errors import InputError
 from .fast import find_compiler
+from .grid import Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS
 from .scenes import load_scene
-from .solution import Status
 
-COLUMNS = ["group", "case", "scene", "settings", "method", "knob", "value", "status", "steps",
-           "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds", "message"]
+COLUMNS = ["key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
+           "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
+           "predicted_breaks", "w_ratio", "message"]
 STRESS_METHODS = ("vddvp", "lee", "midpoint", "stormer_verlet", "rk4", "dop853")
 DOP853_RTOL = 1e-10
 SHORT = {"success": "ok", "no_admissible_step": "no root", "newton_failed": "Newton",
@@ -54,6 +57,7 @@ class Case:
     tau: float
     note: str = ""
     methods: tuple = field(default=STRESS_METHODS)
+    rtol: float = DOP853_RTOL
 
 
 def default_cases(quick: bool = False) -> list[Case]:
@@ -121,49 +125,75 @@ def predicted(system, config, dop853_solution) -> dict:
             "sampled_to": float(solution.t[-1])}
 
 
-def run_case(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_000,
-             time_limit: float = 60.0) -> tuple[list[dict], dict]:
-    """Every method on one case: the rows, and the prediction for the energy step."""
-    import time
-
-    scene = load_scene(case.scene)
-    config = scene.resolve(case.settings)
-    system = scene.system
-    reference = None
-    rows = []
-    prediction = None
+def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_000,
+               time_limit: float = 60.0) -> list[Task]:
+    """One task per method that applies to the case (``lee`` only where H depends on t)."""
+    system = load_scene(case.scene).system
+    tasks = []
     for name in case.methods:
         method = METHODS[name]
         if method.applies(system) or method.redundant(system):
             continue
-        value = DOP853_RTOL if method.knob == "rtol" else case.tau
-        row = {"group": case.group, "case": case.name, "scene": case.scene,
-               "settings": _settings_text(case.settings), "method": name, "knob": method.knob,
-               "value": value, "t_end": config.t_end}
-        started = time.perf_counter()
-        try:
-            solution = method.run(system, config, value, compiler=compiler,
-                                  cache_dir=cache_dir, max_steps=max_steps,
-                                  time_limit=time_limit)
-        except InputError as exc:  # e.g. more fixed steps than max_steps
-            rows.append({**row, "status": "not_run", "steps": 0, "t_reached": config.t0,
-                         "energy_error": math.nan, "tau_min": math.nan, "tau_max": math.nan,
-                         "seconds": 0.0, "message": str(exc)})
-            continue
-        seconds = time.perf_counter() - started
-        if system.time_dependent and reference is None:
-            reference = Reference(scene, config)
-        tau = solution.tau
-        rows.append({**row, "status": solution.status.code, "steps": solution.steps,
-                     "t_reached": float(solution.t[-1]),
-                     "energy_error": _energy_error(system, config, solution, reference),
-                     "tau_min": float(tau.min()) if tau.size else math.nan,
-                     "tau_max": float(tau.max()) if tau.size else math.nan,
-                     "seconds": seconds,
-                     "message": "" if solution.success else solution.message})
-        if name == "dop853":
-            prediction = predicted(system, config, solution)
-    return rows, prediction
+        value = case.rtol if method.knob == "rtol" else case.tau
+        config = load_scene(case.scene).resolve(case.settings)
+        # Larger first: the longest runs start early, so the workers finish together.
+        cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
+        tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
+                          function="ddvp_nlp.stress:run_one",
+                          kwargs={"group": case.group, "case": case.name, "scene": case.scene,
+                                  "settings": case.settings, "method": name, "value": value,
+                                  "compiler": compiler, "cache_dir": cache_dir,
+                                  "max_steps": max_steps, "time_limit": time_limit},
+                          priority=cost))
+    return tasks
+
+
+def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
+            time_limit) -> dict:
+    """One method on one case: its row (a grid task; runs in any process)."""
+    loaded = load_scene(scene)
+    config = loaded.resolve(settings)
+    system = loaded.system
+    row = {"group": group, "case": case, "scene": scene, "settings": _settings_text(settings),
+           "method": method, "knob": METHODS[method].knob, "value": value,
+           "t_end": config.t_end, "predicted_breaks": "", "w_ratio": math.nan}
+    started = time.perf_counter()
+    try:
+        with warnings.catch_warnings():  # breakdowns are what this grid is for; its report
+            warnings.simplefilter("ignore", RuntimeWarning)  # says where they happen
+            solution = METHODS[method].run(system, config, value, compiler=compiler,
+                                           cache_dir=cache_dir, max_steps=max_steps,
+                                           time_limit=time_limit)
+    except InputError as exc:  # e.g. more fixed steps than max_steps
+        return {**row, "status": "not_run", "steps": 0, "t_reached": config.t0,
+                "energy_error": math.nan, "tau_min": math.nan, "tau_max": math.nan,
+                "seconds": 0.0, "message": str(exc)}
+    seconds = time.perf_counter() - started
+    reference = reference_for(loaded, settings) if system.time_dependent else None
+    tau = solution.tau
+    row.update({"status": solution.status.code, "steps": solution.steps,
+                "t_reached": float(solution.t[-1]),
+                "energy_error": _energy_error(system, config, solution, reference),
+                "tau_min": float(tau.min()) if tau.size else math.nan,
+                "tau_max": float(tau.max()) if tau.size else math.nan,
+                "seconds": seconds, "message": "" if solution.success else solution.message})
+    if method == "dop853":
+        prediction = predicted(system, config, solution)
+        row["predicted_breaks"] = prediction["breaks"]
+        row["w_ratio"] = prediction["w_ratio"]
+    return row
+
+
+def failure_row(task: Task, error: str) -> dict:
+    """The row of a task that raised or whose worker died."""
+    status, message = describe_error(error)
+    k = task.kwargs
+    return {"group": k["group"], "case": k["case"], "scene": k["scene"],
+            "settings": _settings_text(k["settings"]), "method": k["method"],
+            "knob": METHODS[k["method"]].knob, "value": k["value"], "status": status,
+            "steps": 0, "t_reached": math.nan, "t_end": math.nan, "energy_error": math.nan,
+            "tau_min": math.nan, "tau_max": math.nan, "seconds": math.nan,
+            "message": message, "predicted_breaks": "", "w_ratio": math.nan}
 
 
 def _settings_text(settings: dict) -> str:
@@ -173,34 +203,38 @@ def _settings_text(settings: dict) -> str:
 
 def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None = "auto",
            cache_dir=None, max_steps: int = 2_000_000, time_limit: float = 60.0,
-           cases: list[Case] | None = None, progress: bool = False) -> list[dict]:
-    """Run the grid and write ``stress.csv``, ``stress.md`` and ``stress.png`` in ``out``."""
-    from tqdm import tqdm
+           cases: list[Case] | None = None, progress: bool = False, workers: int | None = 1,
+           scheduler: str | None = None, resume: bool = False, name: str = "stress",
+           title: str = "Stress cases: where each scheme breaks") -> list[dict]:
+    """Run the grid and write ``NAME.csv``, ``NAME.md`` and ``NAME.png`` in ``out``.
 
+    ``workers``/``scheduler``: see :func:`ddvp_nlp.grid.run_tasks` (default: in this process).
+    ``resume``: keep the rows already in ``NAME.csv`` and run only the missing tasks.
+    """
     from .checks import check_integer, check_real
     from .output import prepare_folder
 
     max_steps = check_integer("max_steps", max_steps)
     time_limit = check_real("time_limit", time_limit, positive=True)
+    workers = check_workers(workers)
+    scheduler = resolve_scheduler(scheduler)
     compiler = find_compiler(compiler)
     cases = default_cases(quick) if cases is None else cases
+    tasks = [task for case in cases for task in case_tasks(
+        case, compiler=compiler, cache_dir=cache_dir, max_steps=max_steps,
+        time_limit=time_limit)]
     out = prepare_folder(out)
-    rows, predictions = [], {}
-    with open(out / "stress.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, COLUMNS)
-        writer.writeheader()
-        for case in tqdm(cases, disable=not progress, unit="case", leave=False):
-            case_rows, prediction = run_case(case, compiler=compiler, cache_dir=cache_dir,
-                                             max_steps=max_steps, time_limit=time_limit)
-            predictions[case.name, case.group] = prediction
-            for row in case_rows:
-                writer.writerow(row)
-            handle.flush()
-            rows += case_rows
+    rows, _ = run_grid(tasks, out / f"{name}.csv", COLUMNS, failure_row=failure_row,
+                       parse=parse_row, resume=resume, workers=workers, scheduler=scheduler,
+                       progress=progress)
+    predictions = {(r["case"], r["group"]): {"breaks": r["predicted_breaks"],
+                                             "w_ratio": r["w_ratio"]}
+                   for r in rows if r["method"] == "dop853" and r["status"] == "success"}
     context = {"cases": cases, "predictions": predictions, "compiler": compiler,
-               "max_steps": max_steps, "time_limit": time_limit, "quick": quick}
-    plot_stress(rows, cases, out / "stress.png")
-    (out / "stress.md").write_text(report(rows, context))
+               "max_steps": max_steps, "time_limit": time_limit, "quick": quick,
+               "title": title}
+    plot_stress(rows, cases, out / f"{name}.png")
+    (out / f"{name}.md").write_text(report(rows, context))
     return rows
 
 
@@ -216,7 +250,7 @@ def _cell(row, method="") -> str:
 
 def report(rows, context) -> str:
     methods = [m for m in STRESS_METHODS if any(r["method"] == m for r in rows)]
-    lines = ["# Stress cases: where each scheme breaks", "",
+    lines = [f"# {context.get('title', 'Stress cases: where each scheme breaks')}", "",
              "Each cell: `ok` and the largest relative energy error "
              "max |H - H_ref| / max(1, |H0|), or the failure and the time it was reached "
              "(details below). Bounds per run: "
@@ -336,16 +370,20 @@ def plot_stress(rows, cases, path):
     plt.close(fig)
 
 
+def parse_row(row: dict) -> dict:
+    """A row read back from the CSV, with its numbers and flags typed."""
+    row = dict(row)
+    for key in ("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
+                "w_ratio"):
+        row[key] = float(row[key])
+    row["steps"] = int(row["steps"])
+    row["predicted_breaks"] = {"True": True, "False": False}.get(row["predicted_breaks"], "")
+    return row
+
+
 def read_rows(path) -> list[dict]:
-    numeric = ("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds")
-    rows = []
     with open(path, newline="") as handle:
-        for row in csv.DictReader(handle):
-            for key in numeric:
-                row[key] = float(row[key])
-            row["steps"] = int(row["steps"])
-            rows.append(row)
-    return rows
+        return [parse_row(row) for row in csv.DictReader(handle)]
 
 
 def status_counts(rows) -> dict:
@@ -356,4 +394,4 @@ def status_counts(rows) -> dict:
     return counts
 
 
-__all__ = ["COLUMNS", "Case", "Status", "default_cases", "read_rows", "run_case", "stress"]
+__all__ = ["COLUMNS", "Case", "case_tasks", "default_cases", "read_rows", "run_one", "stress"]

@@ -1,0 +1,199 @@
+"""Grids of independent runs on a Dask cluster: same rows as in-process, failures recorded,
+nothing lost when a worker dies, resume without redoing finished rows."""
+
+import csv
+
+import dask
+import numpy as np
+import pytest
+
+from ddvp_nlp import InputError
+from ddvp_nlp.cli import main
+from ddvp_nlp.fast import find_compiler
+from ddvp_nlp.grid import Task, describe_error, run_grid, run_tasks
+from ddvp_nlp.stress import stress
+from ddvp_nlp.sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
+
+CLUSTER_CONFIG = {"distributed.scheduler.allowed-failures": 1,
+                  "distributed.scheduler.worker-saturation": 1.0}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    from distributed import LocalCluster
+
+    with dask.config.set(CLUSTER_CONFIG):
+        local = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                             dashboard_address=None)
+    yield local
+    local.close()
+
+
+def _without_timing(rows):
+    return [{k: v for k, v in r.items() if k != "seconds"} for r in rows]
+
+
+def _harmonic_cases():
+    return sweep_cases(SweepSpec(scene="harmonic", axes={"w": [1.0, 2.0]},
+                                 methods=("vddvp", "midpoint", "rk4", "dop853"),
+                                 settings={"t_end": 5.0}))
+
+
+def test_the_same_grid_gives_the_same_rows_wherever_it_runs(tmp_path, cluster):
+    cases = _harmonic_cases()
+    here = stress(tmp_path / "here", cases=cases, compiler=None, workers=1, name="sweep")
+    remote = stress(tmp_path / "remote", cases=cases, compiler=None,
+                    scheduler=cluster.scheduler_address, name="sweep")
+    embedded = stress(tmp_path / "embedded", cases=cases, compiler=None, workers=2,
+                      name="sweep")
+    assert len(here) == 8 and all(r["status"] == "success" for r in here)
+    np.testing.assert_equal(_without_timing(remote), _without_timing(here))  # NaN == NaN
+    np.testing.assert_equal(_without_timing(embedded), _without_timing(here))
+    with open(tmp_path / "remote" / "sweep.csv", newline="") as handle:
+        assert [r["key"] for r in csv.DictReader(handle)] == [r["key"] for r in here]
+
+
+def test_a_task_that_raises_is_retried_once_and_recorded(tmp_path, cluster):
+    tasks = [Task("a", "builtins:dict", kwargs={"x": "1"}),
+             Task("bad", "math:sqrt", args=(-1.0,)),
+             Task("b", "builtins:dict", kwargs={"x": "2"})]
+    for where in ({"workers": 1}, {"scheduler": cluster.scheduler_address}):
+        rows, ran = run_grid(tasks, tmp_path / "grid.csv", ["key", "x", "error"],
+                             failure_row=lambda task, error: {"x": "", "error": error},
+                             parse=dict, resume=False, **where)
+        assert ran == 3
+        assert [r["x"] for r in rows] == ["1", "", "2"]
+        assert rows[1]["error"] == "task_failed: ValueError: math domain error"
+        assert describe_error(rows[1]["error"]) == ("task_failed", "ValueError: math domain "
+                                                    "error")
+
+
+def test_killing_a_worker_loses_no_finished_row(tmp_path, cluster):
+    path = tmp_path / "grid.csv"
+    tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i)}) for i in range(6)]
+    tasks.insert(3, Task("kill", "os:_exit", args=(3,)))  # the worker process dies
+    rows, ran = run_grid(tasks, path, ["key", "x", "error"],
+                         failure_row=lambda task, error: {"x": "", "error": error},
+                         parse=dict, resume=False, scheduler=cluster.scheduler_address)
+    assert ran == 7
+    killed = [r for r in rows if r["key"] == "kill"]
+    assert killed[0]["error"].startswith("worker_died")
+    with open(path, newline="") as handle:
+        written = {r["key"]: r for r in csv.DictReader(handle)}
+    assert set(written) == {t.key for t in tasks}
+    assert [written[f"t{i}"]["x"] for i in range(6)] == [str(i) for i in range(6)]
+
+
+def test_resume_skips_finished_rows(tmp_path):
+    path = tmp_path / "grid.csv"
+    calls = []
+    tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i)}) for i in range(4)]
+    kwargs = {"failure_row": lambda task, error: {"x": error}, "parse": dict, "workers": 1}
+    first, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
+    assert ran == 4
+    again, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
+    assert ran == 0 and again == first
+    # an interrupted grid: only two rows made it to the file
+    with open(path, newline="") as handle:
+        kept = list(csv.DictReader(handle))[:2]
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, ["key", "x"])
+        writer.writeheader()
+        writer.writerows(kept)
+    resumed, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
+    assert ran == 2 and resumed == first
+    del calls
+
+
+def test_workers_share_the_compiled_cache(tmp_path, cluster):
+    """Two workers compiling the same march chunk into one empty cache folder at once."""
+    # both runs use the same chunk of 64 steps, so both need the same library
+    cases = sweep_cases(SweepSpec(scene="pendulum", axes={"t_end": [3.0, 3.1]},
+                                  methods=("vddvp",)))
+    cache = tmp_path / "cache"
+    rows = stress(tmp_path / "out", cases=cases, compiler=find_compiler("auto"),
+                  cache_dir=str(cache), scheduler=cluster.scheduler_address, name="sweep")
+    assert [r["status"] for r in rows] == ["success", "success"]
+    if find_compiler("auto"):
+        libraries = list(cache.glob("*.so"))
+        assert len(libraries) == 1 and not list(cache.glob("tmp*"))
+
+
+def test_grid_axes_from_the_command_line():
+    assert parse_axis("e", "0.5:0.9:5") == pytest.approx([0.5, 0.6, 0.7, 0.8, 0.9])
+    assert parse_axis("tau0", "0.01,0.005") == [0.01, 0.005]
+    with pytest.raises(InputError, match=r"^--grid e: expected FROM:TO:COUNT or V1,V2,..., "
+                                         r"got '0.5:x'$"):
+        parse_axis("e", "0.5:x")
+
+
+GRID = """
+scene = "kepler"
+methods = ["vddvp", "rk4"]
+[settings]
+t_end = 6.0
+[grid]
+e = { from = 0.5, to = 0.6, count = 2 }
+tau0 = [0.01]
+[bounds]
+max_steps = 100000
+"""
+
+
+def test_grid_file(tmp_path):
+    path = tmp_path / "grid.toml"
+    path.write_text(GRID)
+    spec = load_grid_file(path)
+    assert spec.axes == {"e": [0.5, 0.6], "tau0": [0.01]} and spec.max_steps == 100000
+    cases = sweep_cases(spec)
+    assert [c.name for c in cases] == ["e=0.5, tau0=0.01", "e=0.6, tau0=0.01"]
+    assert cases[0].settings == {"t_end": 6.0, "e": 0.5} and cases[0].tau == 0.01
+
+
+@pytest.mark.parametrize("text, message", [
+    (GRID.replace("max_steps", "max_step"),
+     "unknown key 'bounds.max_step' (known: max_steps, time_limit)"),
+    (GRID.replace("count = 2", "count = 2, step = 1"),
+     "unknown key 'grid.e.step' (known: from, to, count)"),
+    ("seed = 3\n" + GRID, "unknown key 'seed' (known: scene, methods, settings, grid, "
+                          "bounds)"),
+    (GRID.replace("tau0 = [0.01]", "tau0 = 'fast'"),
+     "'grid.tau0' must be a list of numbers or {from, to, count}, got 'fast'"),
+    (GRID.replace('"rk4"', '"euler"'), "unknown method 'euler'"),
+    (GRID.replace("e = {", "eccentricity = {"), "scene 'kepler' has no parameter "
+                                                "'eccentricity'"),
+])
+def test_bad_grid_files_name_the_key(tmp_path, text, message):
+    path = tmp_path / "grid.toml"
+    path.write_text(text)
+    with pytest.raises(InputError) as error:
+        sweep_cases(load_grid_file(path))
+    assert message in str(error.value)
+
+
+def test_sweep_command_resumes(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    command = ["sweep", "harmonic", "--grid", "w=1,2", "--methods", "rk4,dop853", "--set",
+               "t_end=3", "--workers", "1", "--no-compile", "--no-progress", "--out", str(out)]
+    assert main(command) == 0
+    assert capsys.readouterr().out.startswith("sweep: 4 runs")
+    first = (out / "sweep.csv").read_text()
+    assert main(command) == 0
+    assert (out / "sweep.csv").read_text().splitlines()[1:] == first.splitlines()[1:]
+    assert main(["sweep", "harmonic"]) == 2
+    assert "sweep needs SCENE and at least one --grid" in capsys.readouterr().err
+
+
+def test_run_tasks_in_process_yields_each_outcome():
+    outcomes = list(run_tasks([Task("a", "math:sqrt", args=(4.0,)),
+                               Task("b", "math:sqrt", args=(-4.0,))], workers=1))
+    assert outcomes[0][1:] == (2.0, None)
+    assert outcomes[1][1] is None and outcomes[1][2].startswith("task_failed: ValueError")
+
+
+def test_bad_scheduler_and_workers():
+    with pytest.raises(InputError, match="^scheduler must be an address like tcp://host:8786, "
+                                         "got 'localhost'$"):
+        list(run_tasks([], scheduler="localhost"))
+    with pytest.raises(InputError, match="^workers must be a positive integer, got 0$"):
+        list(run_tasks([], workers=0))
