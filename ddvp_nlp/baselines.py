@@ -31,7 +31,7 @@ import numpy as np
 from . import equations
 from .errors import InputError
 from .fast import FAST_NEWTON_OPTIONS, cache_folder, compile_function
-from .solution import Solution, Status
+from .solution import Solution, Status, bound_reached
 from .system import HamiltonianSystem
 
 CHUNK = 1024
@@ -297,11 +297,9 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     if not np.all(np.isfinite(z_list[0])):
         status = Status.NON_FINITE
     while status is Status.SUCCESS and state[1] < t_end:
-        if count >= max_steps:
-            status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
-            break
-        if time_limit is not None and time.perf_counter() - built > time_limit:
-            status, detail = Status.TIME_LIMIT, f"time_limit = {time_limit:g} s"
+        reached = bound_reached(count, max_steps, built, time_limit)
+        if reached:
+            status, detail = reached
             break
         states, rows = function(state, thetas)
         states, rows = np.asarray(states).T, np.asarray(rows).T

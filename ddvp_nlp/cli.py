@@ -48,6 +48,18 @@ def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
                         help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
 
 
+def _run_bounds(parser: argparse.ArgumentParser, *, defaults: bool) -> None:
+    """Per-run bounds and options shared by the grid commands (``defaults=False``: ``None``,
+    so a grid file's bounds apply unless given here)."""
+    parser.add_argument("--max-steps", type=int, default=2_000_000 if defaults else None,
+                        help="bound on the steps of each run (default: 2000000)")
+    parser.add_argument("--time-limit", type=float, default=60.0 if defaults else None,
+                        help="bound in seconds on each run (default: 60)")
+    parser.add_argument("--no-compile", action="store_true",
+                        help="run the compiled methods on CasADi's virtual machine instead")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help=f"local worker processes (default: {workers_default})")
@@ -116,13 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
     stress.add_argument("--out", default="runs/stress", help="output folder")
     stress.add_argument("--quick", action="store_true",
                         help="a few cases on short horizons (seconds)")
-    stress.add_argument("--max-steps", type=int, default=2_000_000,
-                        help="bound on the steps of each run (default: 2000000)")
-    stress.add_argument("--time-limit", type=float, default=60.0,
-                        help="bound in seconds on each run (default: 60)")
-    stress.add_argument("--no-compile", action="store_true",
-                        help="run the compiled methods on CasADi's virtual machine instead")
-    stress.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _run_bounds(stress, defaults=True)
     stress.add_argument("--resume", action="store_true",
                         help="keep the rows already in OUT/stress.csv; run only the missing ones")
     _grid_arguments(stress, "one per core")
@@ -142,13 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", default=None, help="output folder (default: runs/SCENE-sweep)")
     sweep.add_argument("--fresh", action="store_true",
                        help="start afresh instead of resuming from OUT/sweep.csv")
-    sweep.add_argument("--max-steps", type=int, default=None,
-                       help="bound on the steps of each run (default: 2000000)")
-    sweep.add_argument("--time-limit", type=float, default=None,
-                       help="bound in seconds on each run (default: 60)")
-    sweep.add_argument("--no-compile", action="store_true",
-                       help="run the compiled methods on CasADi's virtual machine instead")
-    sweep.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _run_bounds(sweep, defaults=False)
     _grid_arguments(sweep, "one per core")
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")

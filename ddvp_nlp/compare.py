@@ -420,13 +420,9 @@ def summary(rows, context) -> str:
                          f" {ratio_text} |")
         lines += ["", _in_words(rows, kind, methods)]
     lines += ["", "## vddvp against DOP853 at equal energy error", "", _ratio_text(rows)]
-    failures = [r for r in rows if r["status"] != "success"]
-    if failures:
-        lines += ["", "## Runs that did not reach t_end", "",
-                  "| method | knob | status | where and why |", "|---|---|---|---|"]
-        for r in failures:
-            lines.append(f"| `{r['method']}` | {r['knob']} = {r['value']:.3g} | {r['status']} | "
-                         f"{r['message'].replace('|', '/')} |")
+    lines += failure_table(rows, "Runs that did not reach t_end",
+                           ("method", lambda r: f"`{r['method']}`"),
+                           ("knob", lambda r: f"{r['knob']} = {r['value']:.3g}"))
     residuals = [r for r in rows if r["status"] == "success"
                  and math.isfinite(r["scheme_energy_residual"])]
     if residuals:
@@ -437,6 +433,22 @@ def summary(rows, context) -> str:
                   f"nodes, which these schemes keep within O(tau^2) without drift."]
     lines += ["", "## Machine", "", _machine(context["compiler"]), ""]
     return "\n".join(lines)
+
+
+def failure_table(rows, title, *columns) -> list[str]:
+    """Markdown lines: a section ``title`` with one row per failed run: the given
+    ``(header, cell)`` columns, then its status and message."""
+    failures = [r for r in rows if r["status"] != "success"]
+    if not failures:
+        return []
+    headers = [h for h, _ in columns] + ["status", "where and why"]
+    lines = ["", f"## {title}", "", "| " + " | ".join(headers) + " |",
+             "|" + "---|" * len(headers)]
+    for r in failures:
+        cells = [cell(r) for _, cell in columns] + [r["status"],
+                                                    r["message"].replace("|", "/")]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
 
 
 def _in_words(rows, kind, methods) -> str:

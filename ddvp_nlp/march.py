@@ -31,7 +31,7 @@ from . import equations
 from .checks import check_integer, check_real, check_state
 from .errors import InputError
 from .scheme import Scheme
-from .solution import Solution, Status
+from .solution import Solution, Status, bound_reached
 from .system import HamiltonianSystem
 
 NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
@@ -488,11 +488,9 @@ class _Marcher:
                 t, z = nodes.t, nodes.z
                 if (fixed and k == steps_total) or (not fixed and t[k] >= t_end):
                     break
-                if k >= max_steps:
-                    status, detail = Status.MAX_STEPS, f"max_steps = {max_steps}"
-                    break
-                if time_limit is not None and time.perf_counter() - started > time_limit:
-                    status, detail = Status.TIME_LIMIT, f"time_limit = {time_limit:g} s"
+                reached = bound_reached(k, max_steps, started, time_limit)
+                if reached:
+                    status, detail = reached
                     break
                 if self.fast is not None and careful_left == 0 and (fixed or k >= 1):
                     accepted, failed = self._fast_chunk(

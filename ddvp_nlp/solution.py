@@ -36,6 +36,18 @@ class Status(enum.Enum):
         return cls[code.upper()]
 
 
+def bound_reached(steps: int, max_steps: int, started: float, time_limit: float | None):
+    """``(status, detail)`` if a run has used its steps or its seconds (``started`` from
+    ``time.perf_counter()``), else ``None``."""
+    import time
+
+    if steps >= max_steps:
+        return Status.MAX_STEPS, f"max_steps = {max_steps}"
+    if time_limit is not None and time.perf_counter() - started > time_limit:
+        return Status.TIME_LIMIT, f"time_limit = {time_limit:g} s"
+    return None
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.

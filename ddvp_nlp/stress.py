@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compare import REFERENCE_RTOL, _machine, reference_for
+from .compare import REFERENCE_RTOL, _machine, failure_table, reference_for
 from .equations import site_density_weight_function
 from .errors import InputError
 from .fast import find_compiler
@@ -304,13 +304,9 @@ def report(rows, context) -> str:
                     "reached t_end although c changes sign along the orbit")
             lines.append(f"- {case.group}: {case.name}: {what}; steps from {row['tau_min']:.3g}"
                          f" to {row['tau_max']:.3g}.")
-    failures = [r for r in rows if r["status"] != "success"]
-    if failures:
-        lines += ["", "## Where and why each failed run stopped", "",
-                  "| case | method | status | message |", "|---|---|---|---|"]
-        for r in failures:
-            lines.append(f"| {r['group']}: {r['case']} | `{r['method']}` | {r['status']} | "
-                         f"{r['message'].replace('|', '/')} |")
+    lines += failure_table(rows, "Where and why each failed run stopped",
+                           ("case", lambda r: f"{r['group']}: {r['case']}"),
+                           ("method", lambda r: f"`{r['method']}`"))
     lines += ["", "## Machine", "", _machine(context["compiler"]), ""]
     return "\n".join(lines)
 
