@@ -358,6 +358,10 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # a march keeps its own partial result; a grid keeps its rows
+        print(f"ddvp {args.command}: interrupted; the rows finished so far are in the output "
+              "folder (ddvp sweep, and ddvp stress --resume, go on from them)", file=sys.stderr)
+        return 1
     finally:
         warnings.formatwarning = original_format
     parser.error(f"unknown command {args.command!r}")

@@ -185,3 +185,22 @@ def test_default_step_ratio_refuses_a_jump_to_a_far_root():
     _clean(guarded)
     # without the bound the march "succeeds" with a step longer than the whole horizon
     assert unguarded.success and unguarded.tau.max() > 20 * np.pi
+
+
+@pytest.mark.parametrize("tau0, status, steps, prefix", [
+    (0.05, Status.NEWTON_FAILED, 15, "Newton's method did not converge on the step equations: "
+                                     "step 15 from t = "),
+    (0.02, Status.NO_ADMISSIBLE_STEP, 37, "the step equations have no root with tau > 0 near "
+                                          "the previous step: step 37 from t = "),
+])
+@pytest.mark.parametrize("fast", [True, False])
+def test_rotating_pendulum_breakdowns_by_status(tau0, status, steps, prefix, fast):
+    """H = 2.12 > 2: c(z) changes sign each turn; where the march stops depends on tau0."""
+    scene = load_scene("pendulum")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        solution = march(scene.system, [0.5], [2.0], tau0=tau0, t_end=30.0, fast=fast)
+    assert solution.status is status and solution.steps == steps
+    assert solution.message.startswith(prefix)
+    assert solution.stats["solvability_warning"]["step"] < steps
+    _clean(solution)
