@@ -5,11 +5,12 @@ symplectic and conserve energy. See THEORY.md for the equations in this code's n
 """
 
 from .errors import InputError
+from .lagrangian import Lagrangian, LagrangianSystem
 from .march import march
 from .scenes import Scene, list_scenes, load_scene
 from .scheme import Scheme
 from .solution import Solution, Status
 from .system import HamiltonianSystem
 
-__all__ = ["HamiltonianSystem", "InputError", "Scene", "Scheme", "Solution", "Status",
-           "list_scenes", "load_scene", "march"]
+__all__ = ["HamiltonianSystem", "InputError", "Lagrangian", "LagrangianSystem", "Scene",
+           "Scheme", "Solution", "Status", "list_scenes", "load_scene", "march"]

@@ -175,7 +175,8 @@ def run_march(args) -> int:
     scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
     config = scene.resolve(_parse_settings(args.settings))
     out = prepare_folder(args.out or f"runs/{scene.name}-{scheme.rule}")
-    solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
+    solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
+                     t_end=config.t_end,
                      t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
                      max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
                      max_step_ratio=args.max_step_ratio, progress=not args.no_progress,

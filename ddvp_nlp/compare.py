@@ -147,6 +147,7 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
 
     config = scene.resolve(overrides)
     system = scene.system
+    _needs_p0(scene, config)
     halvings = _count("halvings", halvings, minimum=0)
     repeats = _count("repeats", repeats)
     if methods is None:
@@ -194,6 +195,13 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
                         title=f"{scene.name}: error against run time")
     (out / "summary.md").write_text(summary(rows, context))
     return rows
+
+
+def _needs_p0(scene, config) -> None:
+    """The compared methods all start from (q0, p0); a march from v0 has a p0 of its own."""
+    if config.p0 is None:
+        raise InputError(f"scene {scene.name!r} starts from v0; the comparison needs p0 "
+                         "(--set p0=...)")
 
 
 def _count(name, value, minimum=1):

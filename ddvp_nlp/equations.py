@@ -81,13 +81,25 @@ def interval_arguments(scheme: Scheme, t_a, t_b, q_a, p_a, q_b, p_b):
 
 
 def interval_action_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, theta):
-    """``S_k = P . (q_b - q_a) - tau H(Q, P, s)``."""
+    """``S_k = P . (q_b - q_a) - tau H(Q, P, s)``; for a Lagrangian system
+    ``S_k = tau L(Q, (q_b - q_a)/tau, s)``."""
     Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
+    if system.lagrangian_form:
+        return tau * system.L_function(Q, (q_b - q_a) / tau, s, theta)
     return ca.dot(P, q_b - q_a) - tau * system.H_function(Q, P, s, theta)
 
 
 def canonical_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, theta):
-    """Increment-form canonical equations of one interval (2n entries, ``q`` rows first)."""
+    """Increment-form canonical equations of one interval (2n entries, ``q`` rows first).
+
+    For a Lagrangian system: the discrete Legendre transform of the interval,
+    ``p_a - (dL/dv - tau alpha dL/dq)`` and ``p_b - (dL/dv + tau beta dL/dq)`` (``lagrangian.py``).
+    """
+    if system.lagrangian_form:
+        from .lagrangian import discrete_momenta
+
+        p_left, p_right = discrete_momenta(system, scheme, t_a, t_b, q_a, q_b, theta)
+        return ca.vertcat(p_a - p_left, p_b - p_right)
     Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
     _, H_q, H_p, _ = derivatives_function(system)(Q, P, s, theta)
     return ca.vertcat(q_b - q_a - tau * H_p, p_b - p_a + tau * H_q)
@@ -97,8 +109,14 @@ def energy_expression(system, scheme, rule, t_prev, t_mid, t_next, q_prev, p_pre
                       q_next, p_next, theta):
     """Energy equation at the node between interval ``k-1`` (prev, mid) and ``k`` (mid, next)."""
     if rule == "vddvp":
-        Q0, P0, s0, _ = interval_arguments(scheme, t_prev, t_mid, q_prev, p_prev, q_mid, p_mid)
-        Q1, P1, _, _ = interval_arguments(scheme, t_mid, t_next, q_mid, p_mid, q_next, p_next)
+        Q0, P0, s0, tau0 = interval_arguments(scheme, t_prev, t_mid, q_prev, p_prev, q_mid,
+                                              p_mid)
+        Q1, P1, _, tau1 = interval_arguments(scheme, t_mid, t_next, q_mid, p_mid, q_next, p_next)
+        if system.lagrangian_form:  # E = v . dL/dv - L of each interval, both at clock s0
+            from .lagrangian import interval_energy
+
+            return (interval_energy(system, Q1, (q_next - q_mid) / tau1, s0, theta)
+                    - interval_energy(system, Q0, (q_mid - q_prev) / tau0, s0, theta))
         return system.H_function(Q1, P1, s0, theta) - system.H_function(Q0, P0, s0, theta)
     if rule == "lee":
         # Differentiate with respect to a fresh symbol standing in for t_mid, so that t_mid
@@ -150,9 +168,15 @@ def midpoint_energy_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Fu
     def build():
         t_a, q_a, p_a = _node_symbols(system, "a")
         t_b, q_b, p_b = _node_symbols(system, "b")
-        Q, P, s, _ = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
+        Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
+        if system.lagrangian_form:
+            from .lagrangian import interval_energy
+
+            energy = interval_energy(system, Q, (q_b - q_a) / tau, s, system.theta)
+        else:
+            energy = system.H_function(Q, P, s, system.theta)
         return ca.Function("interval_energy", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta],
-                           [system.H_function(Q, P, s, system.theta)], CANONICAL_INPUTS, ["H"])
+                           [energy], CANONICAL_INPUTS, ["H"])
     return system.cached(("interval_energy", scheme), build)
 
 

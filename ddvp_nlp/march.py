@@ -131,7 +131,8 @@ def _step_functions(system: HamiltonianSystem, scheme: Scheme) -> _StepFunctions
     return system.cached(("march", scheme), lambda: _StepFunctions(system, scheme))
 
 
-def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: float = 0.0,
+def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end: float,
+          t0: float = 0.0,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           tol: float = 1e-10, max_steps: int = 10_000_000, tau_min: float | None = None,
           tau_max: float | None = None, max_step_ratio: float | None = 10.0,
@@ -141,8 +142,10 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
-        system: the Hamiltonian system.
+        system: the Hamiltonian or Lagrangian system.
         q0, p0: initial state, each of shape ``(n,)``.
+        v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
+            march takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform.
         tau0: first step; for energy rules it sets the discrete energy level, for ``fixed`` the
             step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
         t_end: end time; energy rules stop at the first node with ``t >= t_end``.
@@ -189,7 +192,13 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
     q0 = check_state("q0", q0, system.n)
-    p0 = check_state("p0", p0, system.n)
+    if (p0 is None) == (v0 is None):
+        raise InputError("give exactly one of p0 and v0")
+    if v0 is not None and not system.lagrangian_form:
+        raise InputError(f"v0 needs a Lagrangian system; {system.name!r} is Hamiltonian: "
+                         "give p0")
+    p0 = check_state("p0", p0, system.n) if p0 is not None else None
+    v0 = check_state("v0", v0, system.n) if v0 is not None else None
     t0 = check_real("t0", t0)
     t_end = check_real("t_end", t_end)
     if t_end <= t0:
@@ -222,6 +231,12 @@ def march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: f
         from .fast import find_compiler
         compiler = find_compiler(compiler)
     theta = system.parameter_vector(params)
+    if v0 is not None:
+        from .lagrangian import start_momentum
+
+        p0 = start_momentum(system, scheme, q0, v0, t0=t0, tau0=tau0, theta=theta)
+        if not np.all(np.isfinite(p0)):
+            raise InputError(f"p0 from v0 = {v0.tolist()} is not finite: {p0.tolist()}")
     H0 = float(system.energy(q0[None, :], p0[None, :], np.array([t0]), theta)[0])
     if not math.isfinite(H0):
         raise InputError(f"H is not finite at the initial state q0={q0.tolist()}, "

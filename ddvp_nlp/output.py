@@ -47,7 +47,9 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta) -> di
                                            theta)
     nodes = system.energy(solution.q, solution.p, solution.t, theta)
     report["energy_error"] = _max_abs(interval - interval[0]) if interval.size else 0.0
-    report["energy_error_kind"] = "largest drift of the interval energy H(Q_k, P_k)"
+    report["energy_error_kind"] = ("largest drift of the interval energy E_k = v_k.dL/dv - L_k"
+                                   if system.lagrangian_form else
+                                   "largest drift of the interval energy H(Q_k, P_k)")
     report["node_energy_drift"] = _max_abs(nodes - nodes[0])
     return report
 

@@ -26,22 +26,26 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .lagrangian import Lagrangian, LagrangianSystem
 from .system import HamiltonianSystem, check_parameter_values
 
 RUN_SETTINGS = ("t0", "tau0", "t_end")
-STATE_SETTINGS = ("q0", "p0")
+STATE_SETTINGS = ("q0", "p0", "v0")
 BOUNDARY_SETTINGS = ("q_start", "q_end", "t0", "t_end")
-VECTOR_SETTINGS = ("q0", "p0", "q_start", "q_end")
+VECTOR_SETTINGS = ("q0", "p0", "v0", "q_start", "q_end")
 
 
 @dataclass(eq=False)
 class Scene:
-    """A Hamiltonian system with its defaults.
+    """A mechanical system with its defaults.
 
     Attributes:
-        hamiltonian: ``H(q, p, t, **params)`` on CasADi symbols.
+        hamiltonian: ``H(q, p, t, **params)`` on CasADi symbols, or ``Lagrangian(L)`` with
+            ``L(q, v, t, **params)`` (``ddvp_nlp.lagrangian``).
         n: degrees of freedom.
         q0, p0: initial state, or a function of the parameters returning it.
+        v0: for a Lagrangian scene, the first interval's velocity instead of ``p0`` (the march
+            takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform).
         tau0: default first step.
         t_end: default end time.
         t0: default start time.
@@ -58,10 +62,10 @@ class Scene:
 
     hamiltonian: Callable[..., object]
     n: int
-    q0: object
-    p0: object
-    tau0: float
-    t_end: float
+    q0: object = None
+    p0: object = None
+    tau0: float | None = None
+    t_end: float | None = None
     t0: float = 0.0
     params: Mapping[str, float] = field(default_factory=dict)
     exact: Callable[..., tuple] | None = None
@@ -70,9 +74,22 @@ class Scene:
     name: str = "scene"
     source: str = ""
     description: str = ""
+    v0: object = None
+
+    def __post_init__(self):
+        for key in ("q0", "tau0", "t_end"):
+            if getattr(self, key) is None:
+                raise InputError(f"scene needs {key}")
+        if (self.p0 is None) == (self.v0 is None):
+            raise InputError("scene needs exactly one of p0 and v0")
+        if self.v0 is not None and not isinstance(self.hamiltonian, Lagrangian):
+            raise InputError("v0 is for a scene declared by Lagrangian(L); give p0")
 
     @cached_property
     def system(self) -> HamiltonianSystem:
+        if isinstance(self.hamiltonian, Lagrangian):
+            return LagrangianSystem(self.hamiltonian.function, self.n, dict(self.params),
+                                    name=self.name)
         return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name)
 
     def _split_parameters(self, overrides, settings_names):
@@ -109,17 +126,24 @@ class Scene:
     def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
         """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
         ``p0``. Unknown names are an error that lists the known ones."""
-        params, settings = self._split_parameters(overrides, (*RUN_SETTINGS, *STATE_SETTINGS))
+        lagrangian = isinstance(self.hamiltonian, Lagrangian)
+        names = (*RUN_SETTINGS, *(STATE_SETTINGS if lagrangian else STATE_SETTINGS[:2]))
+        params, settings = self._split_parameters(overrides, names)
         q0 = settings.get("q0", self.q0)
-        p0 = settings.get("p0", self.p0)
-        q0 = q0(**params) if callable(q0) else q0
-        p0 = p0(**params) if callable(p0) else p0
+        if "p0" in settings and "v0" in settings:
+            raise InputError("give p0 or v0, not both")
+        p0 = settings.get("p0", None if "v0" in settings else self.p0)
+        v0 = settings.get("v0", None if "p0" in settings else self.v0)
+        q0, p0, v0 = (x(**params) if callable(x) else x for x in (q0, p0, v0))
         values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
         for k, v in values.items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise InputError(f"{k} must be a finite real number, got {v!r}")
-        return RunConfig(params=params, q0=np.atleast_1d(np.asarray(q0, dtype=float)),
-                         p0=np.atleast_1d(np.asarray(p0, dtype=float)),
+
+        def vector(x):
+            return None if x is None else np.atleast_1d(np.asarray(x, dtype=float))
+
+        return RunConfig(params=params, q0=vector(q0), p0=vector(p0), v0=vector(v0),
                          **{k: float(v) for k, v in values.items()})
 
 
@@ -129,13 +153,15 @@ class RunConfig:
 
     params: dict[str, float]
     q0: np.ndarray
-    p0: np.ndarray
+    p0: np.ndarray | None
     t0: float
     tau0: float
     t_end: float
+    v0: np.ndarray | None = None
 
     def as_dict(self) -> dict:
-        return {**self.params, "q0": self.q0.tolist(), "p0": self.p0.tolist(), "t0": self.t0,
+        start = {"p0": self.p0.tolist()} if self.p0 is not None else {"v0": self.v0.tolist()}
+        return {**self.params, "q0": self.q0.tolist(), **start, "t0": self.t0,
                 "tau0": self.tau0, "t_end": self.t_end}
 
 

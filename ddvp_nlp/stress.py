@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compare import REFERENCE_RTOL, _machine, failure_table, reference_for
+from .compare import REFERENCE_RTOL, _machine, _needs_p0, failure_table, reference_for
 from .equations import site_density_weight_function
 from .errors import InputError
 from .fast import find_compiler
@@ -128,7 +128,9 @@ def predicted(system, config, dop853_solution) -> dict:
 def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_000,
                time_limit: float = 60.0) -> list[Task]:
     """One task per method that applies to the case (``lee`` only where H depends on t)."""
-    system = load_scene(case.scene).system
+    scene = load_scene(case.scene)
+    system = scene.system
+    _needs_p0(scene, scene.resolve(case.settings))
     tasks = []
     for name in case.methods:
         method = METHODS[name]

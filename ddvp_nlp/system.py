@@ -56,7 +56,14 @@ class HamiltonianSystem:
     params: Mapping[str, float] = field(default_factory=dict)
     name: str = "system"
 
+    lagrangian_form = False  # the discrete equations come from H (LagrangianSystem: from L)
+
     def __post_init__(self):
+        self._symbols()
+        self.H = self._user_expression("hamiltonian", self.hamiltonian, self.p)
+        self._finish()
+
+    def _symbols(self):
         if isinstance(self.n, bool) or not isinstance(self.n, (int, np.integer)) or self.n < 1:
             raise InputError(f"n must be a positive integer, got {self.n!r}")
         self.n = int(self.n)
@@ -66,22 +73,29 @@ class HamiltonianSystem:
         self.p = ca.SX.sym("p", self.n)
         self.t = ca.SX.sym("t")
         self.theta = ca.SX.sym("theta", len(self.params))
+
+    def _user_expression(self, kind: str, function, second) -> ca.SX:
+        """``function(q, second, t, **params)`` on the symbols, checked: scalar, SX, and using
+        no symbol it was not given."""
         symbols = {name: self.theta[i] for i, name in enumerate(self.params)}
         try:
-            value = self.hamiltonian(self.q, self.p, self.t, **symbols)
+            value = function(self.q, second, self.t, **symbols)
         except InputError:
             raise
         except Exception as exc:  # the user's function; say whose it was
             raise InputError(
-                f"hamiltonian of {self.name!r} failed on symbolic input: "
+                f"{kind} of {self.name!r} failed on symbolic input: "
                 f"{type(exc).__name__}: {exc}") from exc
-        self.H = _as_scalar_expression(value, self.name)
-        given = ca.vertcat(self.q, self.p, self.t, self.theta)
-        stray = [s.name() for s in ca.symvar(self.H) if not ca.depends_on(s, given)]
+        expression = _as_scalar_expression(value, self.name, kind)
+        given = ca.vertcat(self.q, second, self.t, self.theta)
+        stray = [s.name() for s in ca.symvar(expression) if not ca.depends_on(s, given)]
         if stray:
             raise InputError(
-                f"hamiltonian of {self.name!r} depends on symbols it was not given: "
+                f"{kind} of {self.name!r} depends on symbols it was not given: "
                 f"{', '.join(stray)}")
+        return expression
+
+    def _finish(self):
         self.time_dependent = bool(ca.depends_on(self.H, self.t))
         self._functions: dict[object, ca.Function] = {}
         self.H_function = ca.Function("H", [self.q, self.p, self.t, self.theta], [self.H],
@@ -107,17 +121,17 @@ class HamiltonianSystem:
         return self._functions[key]
 
 
-def _as_scalar_expression(value, name: str) -> ca.SX:
+def _as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
     if isinstance(value, (int, float, np.integer, np.floating)):
         value = ca.SX(float(value))
     if isinstance(value, ca.MX):
-        raise InputError(f"hamiltonian of {name!r} returned an MX expression; use the SX "
+        raise InputError(f"{kind} of {name!r} returned an MX expression; use the SX "
                          "symbols it is given (ca.sin, ca.cos, ... work on them)")
     if not isinstance(value, (ca.SX, ca.DM)):
-        raise InputError(f"hamiltonian of {name!r} must return a CasADi expression, got "
+        raise InputError(f"{kind} of {name!r} must return a CasADi expression, got "
                          f"{type(value).__name__}")
     value = ca.SX(value)
     if value.shape != (1, 1):
-        raise InputError(f"hamiltonian of {name!r} must be scalar, got shape "
+        raise InputError(f"{kind} of {name!r} must be scalar, got shape "
                          f"{value.shape[0]}x{value.shape[1]}")
     return value

@@ -1,0 +1,146 @@
+"""A mechanical system declared by its Lagrangian ``L(q, v, t)`` (the paper's case 2).
+
+Interval ``k`` (THEORY.md section 3): ``Q_k = alpha q_k + beta q_{k+1}``,
+``v_k = (q_{k+1} - q_k)/tau_k``, clock ``s_k``, ``L_k = L(Q_k, v_k, s_k)``; action
+``S_D = sum_k tau_k L_k``. Its stationarity in the interior ``q`` (the discrete Euler-Lagrange
+equations) is written with the discrete Legendre transform, one pair of equations per interval,
+in the node momenta ``p``:
+
+    p_k     = dL/dv(k) - tau_k alpha dL/dq(k),
+    p_{k+1} = dL/dv(k) + tau_k beta  dL/dq(k),
+
+so that ``p_k`` of interval ``k`` and of interval ``k-1`` agree exactly when the Euler-Lagrange
+equation at node ``k`` holds. Every solver keeps its ``(q, p)`` unknowns and every result reports
+``p``. The energy of an interval is ``E_k = v_k . dL/dv(k) - L_k``; the ``vddvp`` rule sets ``E``
+of interval ``k`` at clock ``s_{k-1}`` equal to ``E_{k-1}``, ``lee`` sets ``dS_D/dt_k = 0``.
+
+``H(q, p, t)`` is also built, by the Legendre transform ``p = dL/dv``: exactly where ``L`` is
+quadratic in ``v``, else by six Newton iterations from ``v = 0``. The discrete equations never use
+it; the march's predictor, the solvability monitor and the energy guard do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import casadi as ca
+import numpy as np
+
+from .errors import InputError
+from .system import HamiltonianSystem
+
+LEGENDRE_NEWTON_STEPS = 6
+
+
+class Lagrangian:
+    """Marks a scene's function as ``L(q, v, t, **params)`` rather than ``H(q, p, t, ...)``::
+
+        scene = Scene(Lagrangian(lagrangian), n=1, q0=[0.5], v0=[0.5], tau0=0.05, t_end=10)
+    """
+
+    def __init__(self, function: Callable[..., object]):
+        if not callable(function):
+            raise InputError(f"Lagrangian needs a function L(q, v, t, ...), got {function!r}")
+        self.function = function
+
+
+class LagrangianSystem(HamiltonianSystem):
+    """``L(q, v, t; params)`` on ``R^n x R^n x R``, regular in ``v`` (``d2L/dv2`` invertible).
+
+    Attributes:
+        lagrangian: ``L(q, v, t, **params)`` returning a scalar CasADi expression.
+        n, params, name: as for :class:`HamiltonianSystem`.
+        v: the velocity symbols; ``L`` the expression.
+    """
+
+    lagrangian_form = True
+
+    def __init__(self, lagrangian: Callable[..., object], n: int,
+                 params: Mapping[str, float] | None = None, name: str = "system"):
+        self.lagrangian = lagrangian
+        self.hamiltonian = None
+        self.n = n
+        self.params = dict(params or {})
+        self.name = name
+        self._symbols()
+        self.v = ca.SX.sym("v", self.n)
+        self.L = self._user_expression("lagrangian", lagrangian, self.v)
+        L_v = ca.gradient(self.L, self.v)
+        L_vv = ca.jacobian(L_v, self.v)
+        _check_regular(self, L_vv)
+        # Legendre transform p = dL/dv solved for v: one Newton step from v = 0 is exact when
+        # L is quadratic in v.
+        steps = 1 if not ca.depends_on(L_vv, self.v) else LEGENDRE_NEWTON_STEPS
+        velocity = ca.SX.zeros(self.n)
+        for _ in range(steps):
+            residual = self.p - ca.substitute(L_v, self.v, velocity)
+            velocity = velocity + ca.solve(ca.substitute(L_vv, self.v, velocity), residual)
+        self.H = ca.dot(self.p, velocity) - ca.substitute(self.L, self.v, velocity)
+        self._finish()
+        self.L_function = ca.Function("L", [self.q, self.v, self.t, self.theta], [self.L],
+                                      ["q", "v", "t", "theta"], ["L"])
+
+    def __repr__(self):
+        return f"LagrangianSystem(name={self.name!r}, n={self.n}, params={self.params})"
+
+
+def _check_regular(system: LagrangianSystem, L_vv) -> None:
+    """``d2L/dv2`` must be invertible: checked at three fixed pseudo-random points (and at the
+    parameters' defaults)."""
+    function = ca.Function("L_vv", [system.q, system.v, system.t, system.theta], [L_vv])
+    generator = np.random.default_rng(20261121)
+    theta = np.array([system.params[k] for k in system.params], dtype=float)
+    worst = np.inf
+    for _ in range(3):
+        q, v = generator.uniform(-1, 1, system.n), generator.uniform(-1, 1, system.n)
+        t = float(generator.uniform(0, 1))
+        matrix = np.asarray(function(q, v, t, theta), dtype=float).reshape(system.n, system.n)
+        if np.all(np.isfinite(matrix)):
+            worst = min(worst, np.linalg.svd(matrix, compute_uv=False)[-1]
+                        / max(1.0, np.abs(matrix).max()))
+    if not worst > 1e-12:
+        raise InputError(
+            f"lagrangian of {system.name!r} is singular in v: d2L/dv2 is not invertible "
+            "(its smallest singular value is 0 at test points), so there is no Legendre "
+            "transform and the discrete equations do not determine the motion")
+
+
+def discrete_momenta(system: LagrangianSystem, scheme, t_a, t_b, q_a, q_b, theta):
+    """``(p_a, p_b)`` of one interval by the discrete Legendre transform (THEORY.md section 3)."""
+    from .equations import interval_arguments
+
+    Q, _, s, tau = interval_arguments(scheme, t_a, t_b, q_a, q_a, q_b, q_b)
+    L_q, L_v = _partials(system, Q, (q_b - q_a) / tau, s, theta)
+    return L_v - tau * scheme.alpha * L_q, L_v + tau * scheme.beta * L_q
+
+
+def _partials(system: LagrangianSystem, Q, v, s, theta):
+    """``dL/dq`` and ``dL/dv`` at ``(Q, v, s)`` (any expressions)."""
+    def build():
+        L_q = ca.gradient(system.L, system.q)
+        L_v = ca.gradient(system.L, system.v)
+        return ca.Function("L_partials", [system.q, system.v, system.t, system.theta],
+                           [L_q, L_v])
+    return system.cached("L_partials", build)(Q, v, s, theta)
+
+
+def interval_energy(system: LagrangianSystem, Q, v, s, theta):
+    """``E = v . dL/dv - L`` at ``(Q, v, s)``."""
+    _, L_v = _partials(system, Q, v, s, theta)
+    return ca.dot(v, L_v) - system.L_function(Q, v, s, theta)
+
+
+def start_momentum(system: LagrangianSystem, scheme, q0, v0, *, t0, tau0, theta) -> np.ndarray:
+    """``p_0`` of a march that starts from ``(q0, v0)``: the first interval has velocity ``v0``
+    (``q_1 = q_0 + tau0 v0``) and ``p_0 = dL/dv - tau0 alpha dL/dq`` on it."""
+    from .equations import interval_arguments
+
+    q0 = np.asarray(q0, float)
+    q1 = q0 + tau0 * np.asarray(v0, float)
+    Q, _, s, tau = interval_arguments(scheme, t0, t0 + tau0, q0, q0, q1, q1)
+    L_q, L_v = _partials(system, ca.DM(Q), ca.DM(np.asarray(v0, float)), s, ca.DM(theta))
+    return np.asarray(L_v - tau * scheme.alpha * L_q, dtype=float).ravel()
+
+
+__all__ = ["Lagrangian", "LagrangianSystem", "discrete_momenta", "interval_energy",
+           "start_momentum"]
