@@ -5,6 +5,7 @@ symplectic and conserve energy. See THEORY.md for the equations in this code's n
 """
 
 from .errors import InputError
+from .higher import HigherOrderScene, HigherOrderSystem
 from .lagrangian import Lagrangian, LagrangianSystem
 from .march import march
 from .scenes import Scene, list_scenes, load_scene
@@ -12,5 +13,6 @@ from .scheme import Scheme
 from .solution import Solution, Status
 from .system import HamiltonianSystem
 
-__all__ = ["HamiltonianSystem", "InputError", "Lagrangian", "LagrangianSystem", "Scene",
+__all__ = ["HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+           "Lagrangian", "LagrangianSystem", "Scene",
            "Scheme", "Solution", "Status", "list_scenes", "load_scene", "march"]

@@ -172,6 +172,8 @@ def run_march(args) -> int:
     from .output import prepare_folder, write_run
 
     scene = load_scene(args.scene)
+    if _higher(scene):
+        return _run_higher("march", args, scene)
     scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
     config = scene.resolve(_parse_settings(args.settings))
     out = prepare_folder(args.out or f"runs/{scene.name}-{scheme.rule}")
@@ -197,6 +199,8 @@ def run_bvp(args) -> int:
     from .output import prepare_folder, write_run
 
     scene = load_scene(args.scene)
+    if _higher(scene):
+        return _run_higher("bvp", args, scene)
     scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
     config = scene.resolve_boundary(_parse_settings(args.settings), nodes=args.nodes)
     out = prepare_folder(args.out or f"runs/{scene.name}-bvp-{scheme.rule}")
@@ -206,6 +210,42 @@ def run_bvp(args) -> int:
     meta = write_run(out, command="bvp", scene=scene, config=config, scheme=scheme,
                      solution=solution, extra={"solver": solution.stats},
                      plot=not args.no_plot)
+    _summary(meta, out)
+    return 0 if solution.success else 1
+
+
+def _higher(scene) -> bool:
+    from .higher import HigherOrderScene
+
+    return isinstance(scene, HigherOrderScene)
+
+
+def _run_higher(command, args, scene) -> int:
+    """``ddvp march`` / ``ddvp bvp`` on a scene with higher derivatives (``higher.py``)."""
+    from .higher import march_higher, solve_bvp_higher
+    from .output import prepare_folder, write_higher_run
+
+    if args.alpha != 0.5 or args.clock != "midpoint":
+        raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
+                         "(differences are taken at the left node)")
+    settings = _parse_settings(args.settings)
+    config = scene.resolve(settings)
+    out = prepare_folder(args.out or f"runs/{scene.name}-{command}-{args.scheme}"
+                         if command == "bvp" else args.out or f"runs/{scene.name}-{args.scheme}")
+    if command == "march":
+        t_init, q_init = scene.start(config)
+        solution = march_higher(scene.system, t_init, q_init, t_end=config["t_end"],
+                                scheme=args.scheme, params=config["params"], tol=args.tol,
+                                max_steps=args.max_steps, time_limit=args.time_limit)
+    else:
+        boundary = dict(scene.boundary or {})
+        nodes = args.nodes or boundary.get("nodes", 41)
+        t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
+        t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
+        solution = solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
+                                    scheme=args.scheme, params=config["params"], tol=args.tol)
+    meta = write_higher_run(out, command=command, scene=scene, config=config,
+                            solution=solution, plot=not args.no_plot)
     _summary(meta, out)
     return 0 if solution.success else 1
 

@@ -118,6 +118,53 @@ def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | Boun
     return meta
 
 
+def write_higher_run(out: Path, *, command: str, scene, config: dict, solution: Solution,
+                     plot: bool = True) -> dict:
+    """``result.npz``, ``meta.json`` and ``trajectory.png`` of a higher-order run: ``p`` is the
+    multiplier ``lambda_1``, ``energy`` the energy ``E^(k)`` where the recursion defines it."""
+    energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
+    np.savez(out / "result.npz", t=solution.t, q=solution.q, p=solution.p, energy=energy)
+    tau = solution.tau
+    exact = scene._exact(solution.t, config["params"])
+    meta = {"command": command, "scene": scene.name, "scheme": solution.scheme,
+            "order": scene.order, "params": {**config["params"], "t0": config["t0"],
+                                             "tau0": config["tau0"], "t_end": config["t_end"]},
+            "status": solution.status.code, "success": solution.success,
+            "message": solution.message, "steps": solution.steps,
+            "t_reached": float(solution.t[-1]),
+            "tau_min": float(tau.min()) if tau.size else None,
+            "tau_max": float(tau.max()) if tau.size else None,
+            "energy_error": float(np.ptp(energy)) if energy.size else 0.0,
+            "energy_error_kind": "spread of E^(k) = sum_m lambda_m . v_m - L over the run",
+            "error_vs_exact": float(np.max(np.abs(solution.q - exact))),
+            "timing": solution.timing}
+    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
+    if plot and solution.t.size >= 2:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        panels = 3 if energy.size else 2
+        fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels), sharex=True)
+        axes[0].plot(solution.t, solution.q, ".-", ms=3, label="nodes")
+        axes[0].plot(solution.t, exact, "k--", lw=0.8, label="exact")
+        axes[0].set_ylabel("q")
+        axes[0].legend(fontsize=8)
+        axes[1].plot(solution.t[:-1], tau, ".-", ms=3)
+        axes[1].set_ylabel("tau_k")
+        if energy.size:
+            lo = scene.order - 1
+            axes[2].plot(solution.t[lo:lo + energy.size], energy - energy[0], ".-", ms=3)
+            axes[2].set_ylabel("E^(k) - E^(l-1)")
+        axes[-1].set_xlabel("t")
+        fig.suptitle(f"{scene.name} {command} [{solution.scheme}]: {solution.status.code}")
+        fig.tight_layout()
+        fig.savefig(out / "trajectory.png", dpi=110)
+        plt.close(fig)
+    return meta
+
+
 def _json_default(value):
     if isinstance(value, (np.floating, np.integer)):
         return value.item()

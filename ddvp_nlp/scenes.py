@@ -218,7 +218,9 @@ def load_scene(name_or_path: str) -> Scene:
         raise InputError(f"scene file {str(path)!r} does not load: "
                          f"{type(exc).__name__}: {exc}") from exc
     scene = getattr(module, "scene", None)
-    if not isinstance(scene, Scene):
+    from .higher import HigherOrderScene
+
+    if not isinstance(scene, (Scene, HigherOrderScene)):
         raise InputError(f"scene file {str(path)!r} defines no `scene = Scene(...)`")
     scene.name = name
     scene.source = name_or_path  # how another process loads the same scene
