@@ -22,9 +22,11 @@ its Jacobian's condition number grows like N^2, so the start must be close):
 Released directly from uniform times, Newton diverged at N = 1e5 on the pendulum; from the
 predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
 
-The discrete action ``S_D = sum_k [P_k . (q_{k+1} - q_k) - tau_k H_k]`` is assembled over the
-grid and reported; the ``lee`` energy equations are its gradient in the interior node times
-(computed per node by automatic differentiation in ``equations.py``).
+The discrete action ``S_D = sum_k [P_k . (q_{k+1} - q_k) - tau_k H_k]`` (for a Lagrangian system
+``sum_k tau_k L_k``, whose Euler-Lagrange equations enter as each interval's discrete Legendre
+transform; ``lagrangian.py``) is assembled over the grid and reported; the ``lee`` energy
+equations are its gradient in the interior node times (computed per node by automatic
+differentiation in ``equations.py``).
 
 Every returned point is verified by its own unscaled residuals (IPOPT's default ``constr_viol_tol``
 once accepted node times off by 3e-2): success means the solver converged, the largest canonical
