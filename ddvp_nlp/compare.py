@@ -145,6 +145,7 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
     """
     from .output import prepare_folder
 
+    _comparable(scene)
     config = scene.resolve(overrides)
     system = scene.system
     _needs_p0(scene, config)
@@ -195,6 +196,13 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
                         title=f"{scene.name}: error against run time")
     (out / "summary.md").write_text(summary(rows, context))
     return rows
+
+
+def _comparable(scene) -> None:
+    """The compared methods need H (or a first-order L): not a higher-order scene."""
+    if not isinstance(scene, Scene):
+        raise InputError(f"scene {scene.name!r} has higher derivatives; compare, stress and "
+                         "sweep take Hamiltonian and first-order Lagrangian scenes")
 
 
 def _needs_p0(scene, config) -> None:

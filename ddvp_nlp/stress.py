@@ -25,7 +25,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compare import REFERENCE_RTOL, _machine, _needs_p0, failure_table, reference_for
+from .compare import (
+    REFERENCE_RTOL,
+    _comparable,
+    _machine,
+    _needs_p0,
+    failure_table,
+    reference_for,
+)
 from .equations import site_density_weight_function
 from .errors import InputError
 from .fast import find_compiler
@@ -129,6 +136,7 @@ def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_0
                time_limit: float = 60.0) -> list[Task]:
     """One task per method that applies to the case (``lee`` only where H depends on t)."""
     scene = load_scene(case.scene)
+    _comparable(scene)
     system = scene.system
     _needs_p0(scene, scene.resolve(case.settings))
     tasks = []

@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .compare import _comparable
 from .errors import InputError
 from .methods import METHODS, get_methods
 from .scenes import load_scene
@@ -145,6 +146,7 @@ def sweep_cases(spec: SweepSpec) -> list[Case]:
     """The product of the axes, one :class:`Case` per point; every point's settings are
     checked against the scene before anything runs."""
     scene = load_scene(spec.scene)
+    _comparable(scene)
     names = list(spec.axes)
     cases = []
     for point in itertools.product(*(spec.axes[n] for n in names)):

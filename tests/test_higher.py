@@ -113,3 +113,7 @@ def test_command_line_on_higher_order_scenes(tmp_path, capsys):
     assert (tmp_path / "p" / "trajectory.png").exists()
     assert main(["march", "spline", "--alpha", "0.3"]) == 2
     assert "--alpha and --clock do not apply" in capsys.readouterr().err
+    for command in (["compare", "spline"], ["sweep", "spline", "--grid", "t_end=1,2"]):
+        assert main(command) == 2
+        assert "scene 'spline' has higher derivatives; compare, stress and sweep take" in \
+            capsys.readouterr().err
