@@ -91,18 +91,13 @@ class HigherOrderSystem:
         self._cache: dict = {}
 
     def _check_regular(self):
+        from .lagrangian import is_regular
+
         top = self.v[-1]
         hessian = ca.Function("L_top", [self.q, *self.v, self.t, self.theta],
                               [ca.jacobian(ca.gradient(self.L, top), top)])
-        generator = np.random.default_rng(20261121)
-        theta = np.array(list(self.params.values()), dtype=float)
-        worst = np.inf
-        for _ in range(3):
-            args = [generator.uniform(-1, 1, self.n) for _ in range(self.order + 1)]
-            matrix = np.asarray(hessian(*args, float(generator.uniform()), theta), float)
-            worst = min(worst, np.linalg.svd(matrix.reshape(self.n, self.n),
-                                             compute_uv=False)[-1] / max(1.0, abs(matrix).max()))
-        if not worst > 1e-12:
+        if not is_regular(hessian, vectors=self.order + 1, n=self.n,
+                          theta=list(self.params.values())):
             raise InputError(
                 f"lagrangian of {self.name!r} is singular in its highest derivative v{self.order}"
                 f": d2L/dv{self.order}^2 is not invertible, so the discrete Euler-Lagrange "

@@ -85,24 +85,31 @@ class LagrangianSystem(HamiltonianSystem):
 
 
 def _check_regular(system: LagrangianSystem, L_vv) -> None:
-    """``d2L/dv2`` must be invertible: checked at three fixed pseudo-random points (and at the
-    parameters' defaults)."""
+    """``d2L/dv2`` must be invertible (:func:`is_regular`)."""
     function = ca.Function("L_vv", [system.q, system.v, system.t, system.theta], [L_vv])
-    generator = np.random.default_rng(20261121)
-    theta = np.array([system.params[k] for k in system.params], dtype=float)
-    worst = np.inf
-    for _ in range(3):
-        q, v = generator.uniform(-1, 1, system.n), generator.uniform(-1, 1, system.n)
-        t = float(generator.uniform(0, 1))
-        matrix = np.asarray(function(q, v, t, theta), dtype=float).reshape(system.n, system.n)
-        if np.all(np.isfinite(matrix)):
-            worst = min(worst, np.linalg.svd(matrix, compute_uv=False)[-1]
-                        / max(1.0, np.abs(matrix).max()))
-    if not worst > 1e-12:
+    if not is_regular(function, vectors=2, n=system.n, theta=list(system.params.values())):
         raise InputError(
             f"lagrangian of {system.name!r} is singular in v: d2L/dv2 is not invertible "
             "(its smallest singular value is 0 at test points), so there is no Legendre "
             "transform and the discrete equations do not determine the motion")
+
+
+def is_regular(hessian: ca.Function, *, vectors: int, n: int, theta) -> bool:
+    """Whether ``hessian(x_1, .., x_vectors, t, theta)`` (an ``n x n`` matrix) is invertible at
+    three fixed pseudo-random points (``x_i`` in ``[-1, 1]^n``, ``t`` in ``[0, 1]``, ``theta``
+    the parameters' defaults): its smallest singular value, relative to ``max(1, max |entry|)``,
+    above 1e-12 at every finite point."""
+    generator = np.random.default_rng(20261121)
+    theta = np.asarray(theta, dtype=float)
+    worst = np.inf
+    for _ in range(3):
+        args = [generator.uniform(-1, 1, n) for _ in range(vectors)]
+        t = float(generator.uniform(0, 1))
+        matrix = np.asarray(hessian(*args, t, theta), dtype=float).reshape(n, n)
+        if np.all(np.isfinite(matrix)):
+            worst = min(worst, np.linalg.svd(matrix, compute_uv=False)[-1]
+                        / max(1.0, np.abs(matrix).max()))
+    return worst > 1e-12
 
 
 def discrete_momenta(system: LagrangianSystem, scheme, t_a, t_b, q_a, q_b, theta):

@@ -138,14 +138,14 @@ def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_0
     scene = load_scene(case.scene)
     _comparable(scene)
     system = scene.system
-    _needs_p0(scene, scene.resolve(case.settings))
+    config = scene.resolve(case.settings)
+    _needs_p0(scene, config)
     tasks = []
     for name in case.methods:
         method = METHODS[name]
         if method.applies(system) or method.redundant(system):
             continue
         value = case.rtol if method.knob == "rtol" else case.tau
-        config = load_scene(case.scene).resolve(case.settings)
         # Larger first: the longest runs start early, so the workers finish together.
         cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
         tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
