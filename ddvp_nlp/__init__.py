@@ -4,14 +4,14 @@ Node times are unknowns; varying them gives a discrete energy equation, so the s
 symplectic and conserve energy. See THEORY.md for the equations in this code's notation.
 """
 
+from .discrete.scheme import Scheme
 from .errors import InputError
-from .higher import HigherOrderScene, HigherOrderSystem
-from .lagrangian import Lagrangian, LagrangianSystem
-from .march import march
-from .scenes import Scene, list_scenes, load_scene
-from .scheme import Scheme
+from .physics.hamiltonian import HamiltonianSystem
+from .physics.higher import HigherOrderSystem
+from .physics.lagrangian import Lagrangian, LagrangianSystem
+from .scenes import HigherOrderScene, Scene, list_scenes, load_scene
 from .solution import Solution, Status
-from .system import HamiltonianSystem
+from .solvers.march import march
 
 __all__ = ["HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
            "Lagrangian", "LagrangianSystem", "Scene",

@@ -6,9 +6,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .discrete.scheme import CLOCKS, RULES, Scheme
 from .errors import InputError
 from .scenes import VECTOR_SETTINGS, list_scenes, load_scene
-from .scheme import CLOCKS, RULES, Scheme
 
 
 def _parse_settings(items: list[str]) -> dict:
@@ -168,8 +168,8 @@ def _describe(name: str) -> str:
 
 
 def run_march(args) -> int:
-    from .march import march
-    from .output import prepare_folder, write_run
+    from .io.runs import prepare_folder, write_run
+    from .solvers.march import march
 
     scene = load_scene(args.scene)
     if _higher(scene):
@@ -195,8 +195,8 @@ def run_march(args) -> int:
 
 
 def run_bvp(args) -> int:
-    from .bvp import solve_bvp
-    from .output import prepare_folder, write_run
+    from .io.runs import prepare_folder, write_run
+    from .solvers.bvp import solve_bvp
 
     scene = load_scene(args.scene)
     if _higher(scene):
@@ -215,15 +215,15 @@ def run_bvp(args) -> int:
 
 
 def _higher(scene) -> bool:
-    from .higher import HigherOrderScene
+    from .scenes import HigherOrderScene
 
     return isinstance(scene, HigherOrderScene)
 
 
 def _run_higher(command, args, scene) -> int:
     """``ddvp march`` / ``ddvp bvp`` on a scene with higher derivatives (``higher.py``)."""
-    from .higher import march_higher, solve_bvp_higher
-    from .output import prepare_folder, write_higher_run
+    from .io.runs import prepare_folder, write_higher_run
+    from .solvers.higher import march_higher, solve_bvp_higher
 
     if args.alpha != 0.5 or args.clock != "midpoint":
         raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
@@ -251,7 +251,7 @@ def _run_higher(command, args, scene) -> int:
 
 
 def run_compare(args) -> int:
-    from .compare import ERROR_KINDS, cheapest, work_precision
+    from .studies.compare import ERROR_KINDS, cheapest, work_precision
 
     scene = load_scene(args.scene)
     out = args.out or f"runs/{scene.name}-compare"
@@ -276,7 +276,7 @@ def run_compare(args) -> int:
 def run_stress(args) -> int:
     import warnings
 
-    from .stress import stress
+    from .studies.stress import stress
 
     with warnings.catch_warnings():
         # the solvability warnings of breaking cases are expected here; stress.md reports them
@@ -292,8 +292,8 @@ def run_stress(args) -> int:
 def run_sweep(args) -> int:
     import warnings
 
-    from .stress import stress
-    from .sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
+    from .studies.stress import stress
+    from .studies.sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
 
     if args.file:
         if args.scene or args.grid:
@@ -310,7 +310,7 @@ def run_sweep(args) -> int:
             axes[name.strip()] = parse_axis(name.strip(), text)
         spec = SweepSpec(scene=args.scene, axes=axes)
     if args.methods:
-        from .methods import get_methods
+        from .studies.methods import get_methods
         spec.methods = tuple(m.name for m in get_methods(args.methods))
     spec.settings = {**spec.settings, **_parse_settings(args.settings)}
     if args.max_steps is not None:
@@ -331,7 +331,7 @@ def run_sweep(args) -> int:
 
 
 def _status_summary(command, rows, out, name) -> None:
-    from .stress import status_counts
+    from .studies.stress import status_counts
 
     print(f"{command}: {len(rows)} runs")
     for method, counts in status_counts(rows).items():
@@ -389,8 +389,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sweep":
             return run_sweep(args)
         if args.command == "reproduce":
-            from .output import prepare_folder
-            from .report import reproduce
+            from .io.reproduce import reproduce
+            from .io.runs import prepare_folder
             out = prepare_folder(args.out)
             reproduce(out, quick=args.quick, workers=args.workers or 1,
                       scheduler=args.scheduler)

@@ -26,8 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .lagrangian import Lagrangian, LagrangianSystem
-from .system import HamiltonianSystem, check_parameter_values
+from .physics.hamiltonian import HamiltonianSystem
+from .physics.higher import HigherOrderSystem
+from .physics.lagrangian import Lagrangian, LagrangianSystem
+from .validation import check_parameter_values, check_real
 
 RUN_SETTINGS = ("t0", "tau0", "t_end")
 STATE_SETTINGS = ("q0", "p0", "v0")
@@ -218,11 +220,66 @@ def load_scene(name_or_path: str) -> Scene:
         raise InputError(f"scene file {str(path)!r} does not load: "
                          f"{type(exc).__name__}: {exc}") from exc
     scene = getattr(module, "scene", None)
-    from .higher import HigherOrderScene
-
     if not isinstance(scene, (Scene, HigherOrderScene)):
         raise InputError(f"scene file {str(path)!r} defines no `scene = Scene(...)`")
     scene.name = name
     scene.source = name_or_path  # how another process loads the same scene
     scene.description = (module.__doc__ or "").strip().splitlines()[0] if module.__doc__ else ""
     return scene
+
+
+@dataclass(eq=False)
+class HigherOrderScene:
+    """A scene declared by ``L(q, v, t, **params)`` with ``v[m-1]`` the ``m``-th difference.
+
+    Attributes:
+        lagrangian, n, order, params: the system.
+        exact: ``exact(t, **params) -> q`` of shape ``(N, n)``: the motion the scene follows. The
+            march starts from ``2 * order`` of its nodes spaced ``tau0`` from ``t0``; the
+            fixed-endpoint problem takes ``order`` of its nodes at each end of ``t_span`` on the
+            uniform grid of ``nodes`` nodes.
+        tau0, t_end, t0: march defaults; ``boundary``: ``{"t_span": (t0, t1), "nodes": N}``.
+    """
+
+    lagrangian: Callable[..., object]
+    n: int
+    order: int
+    exact: Callable[..., np.ndarray]
+    tau0: float
+    t_end: float
+    t0: float = 0.0
+    params: Mapping[str, float] = field(default_factory=dict)
+    boundary: Mapping[str, object] | None = None
+    name: str = "scene"
+    source: str = ""
+    description: str = ""
+
+    @cached_property
+    def system(self) -> HigherOrderSystem:
+        return HigherOrderSystem(self.lagrangian, self.n, self.order, dict(self.params),
+                                 name=self.name)
+
+    def resolve(self, overrides=None) -> dict:
+        """Parameters, ``t0``, ``tau0``, ``t_end``, ``nodes`` with ``overrides`` applied."""
+        overrides = dict(overrides or {})
+        settings = {k: overrides.pop(k) for k in ("t0", "tau0", "t_end") if k in overrides}
+        params = check_parameter_values(overrides, dict(self.params),
+                                        owner=f"scene {self.name!r}")
+        values = {"t0": self.t0, "tau0": self.tau0, "t_end": self.t_end, **settings}
+        for key, value in values.items():
+            check_real(key, value)
+        return {"params": params, **{k: float(v) for k, v in values.items()}}
+
+    def start(self, config) -> tuple[np.ndarray, np.ndarray]:
+        t = config["t0"] + config["tau0"] * np.arange(2 * self.order)
+        return t, self._exact(t, config["params"])
+
+    def ends(self, config, nodes: int, t_span):
+        grid = np.linspace(t_span[0], t_span[1], nodes)
+        l = self.order  # noqa: E741 (l is the order, as in the paper)
+        q = self._exact(grid, config["params"])
+        return grid[:l], q[:l], grid[-l:], q[-l:]
+
+    def _exact(self, t, params):
+        return np.asarray(self.exact(np.asarray(t, float), **params), float).reshape(
+            np.size(t), self.n)

@@ -20,7 +20,7 @@ import numpy as np
 
 def one(nodes: int, solver: str) -> dict:
     from ddvp_nlp import load_scene, march
-    from ddvp_nlp.bvp import solve_bvp
+    from ddvp_nlp.solvers.bvp import solve_bvp
 
     system = load_scene("pendulum").system
     reference = march(system, [0.5], [0.5], tau0=0.01, t_end=18.0, scheme="fixed")

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.compare import ERROR_KINDS, cheapest, work_precision
+from ddvp_nlp.studies.compare import ERROR_KINDS, cheapest, work_precision
 
 SCENES = {
     "paper_pendulum": {},

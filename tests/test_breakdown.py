@@ -137,7 +137,8 @@ def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged
 
 
 def test_interrupted_march_writes_a_readable_partial_result(tmp_path, monkeypatch):
-    march_module = importlib.import_module("ddvp_nlp.march")  # the package exports the function
+    # the package exports the function of the same name
+    march_module = importlib.import_module("ddvp_nlp.solvers.march")
 
     original = march_module._Marcher._watch
     calls = {"n": 0}

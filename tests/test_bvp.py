@@ -10,8 +10,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from ddvp_nlp import InputError, Scheme, Status, load_scene, march
-from ddvp_nlp.bvp import solve_bvp
 from ddvp_nlp.cli import main
+from ddvp_nlp.solvers.bvp import solve_bvp
 
 
 @pytest.mark.parametrize("name, tau0, t_end", [("paper_pendulum", 0.5, 9.0),
@@ -104,7 +104,7 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
     solution = solve_bvp(scene.system, data.q_start, data.q_end, data.t_span, nodes=data.nodes,
                          tol=1e-9)
     assert solution.success
-    from ddvp_nlp.bvp import _verify
+    from ddvp_nlp.solvers.bvp import _verify
     phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3}
     canonical = np.zeros((data.nodes - 1, 2))
     canonical[17, 1] = 2e-9

@@ -9,9 +9,9 @@ import pytest
 from conftest import fitted_order
 
 from ddvp_nlp import HamiltonianSystem, InputError, Scene, load_scene
-from ddvp_nlp.baselines import fixed_step_run, lee_left_march
 from ddvp_nlp.cli import main
-from ddvp_nlp.compare import (
+from ddvp_nlp.solvers.baselines import fixed_step_run, lee_left_march
+from ddvp_nlp.studies.compare import (
     COLUMNS,
     Reference,
     default_methods,
@@ -21,7 +21,7 @@ from ddvp_nlp.compare import (
     time_to_reach,
     work_precision,
 )
-from ddvp_nlp.methods import METHODS, flow_callable, get_methods
+from ddvp_nlp.studies.methods import METHODS, flow_callable, get_methods
 
 
 def _run(name, scene_name, value, overrides=None):

@@ -5,7 +5,7 @@ import pytest
 from conftest import run_scene
 
 from ddvp_nlp import Status, load_scene, march
-from ddvp_nlp.fast import find_compiler
+from ddvp_nlp.solvers.compiler import find_compiler
 
 
 @pytest.fixture(scope="module")

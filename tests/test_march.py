@@ -95,7 +95,7 @@ def test_midpoint_rule_is_second_order_on_harmonic(rule):
 def test_midpoint_energy_conserved_over_ten_thousand_steps(name, rule):
     scene, config, solution = run_scene(name, {"t_end": 1e9}, scheme=rule, max_steps=10_000)
     assert solution.status is Status.MAX_STEPS and solution.steps == 10_000
-    from ddvp_nlp.equations import interval_energies
+    from ddvp_nlp.discrete.equations import interval_energies
     H = interval_energies(scene.system, Scheme(rule), solution.t, solution.q, solution.p,
                           scene.system.parameter_vector(config.params))
     assert np.max(np.abs(H - H[0])) <= 1e-12 * max(1.0, abs(H[0]))

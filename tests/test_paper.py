@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, paper
+from ddvp_nlp import load_scene
 from ddvp_nlp.cli import main
+from ddvp_nlp.studies import paper
 
 
 @pytest.fixture(scope="module")

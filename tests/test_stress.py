@@ -8,7 +8,7 @@ import warnings
 import pytest
 
 from ddvp_nlp.cli import main
-from ddvp_nlp.stress import COLUMNS, default_cases, read_rows, stress
+from ddvp_nlp.studies.stress import COLUMNS, default_cases, read_rows, stress
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +84,7 @@ def test_long_run_separates_symplectic_from_dissipative_energy_error(quick):
 
 
 def test_stress_command(tmp_path, capsys):
-    from ddvp_nlp import stress as stress_module
+    from ddvp_nlp.studies import stress as stress_module
 
     cases = [c for c in stress_module.default_cases(quick=True) if c.group == "pendulum"]
     original = stress_module.default_cases

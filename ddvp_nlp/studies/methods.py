@@ -26,12 +26,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from . import baselines, equations
-from .errors import InputError
-from .march import march
-from .scenes import RunConfig
-from .solution import Solution, Status
-from .system import HamiltonianSystem
+from ..discrete import equations
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem
+from ..scenes import RunConfig
+from ..solution import Solution, Status
+from ..solvers import baselines
+from ..solvers.march import march
 
 
 @dataclass(frozen=True)

@@ -29,10 +29,10 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import InputError
+from ..scenes import load_scene
 from .compare import _comparable
-from .errors import InputError
 from .methods import METHODS, get_methods
-from .scenes import load_scene
 from .stress import DOP853_RTOL, STRESS_METHODS, Case
 
 TOP_KEYS = ("scene", "methods", "settings", "grid", "bounds")

@@ -4,6 +4,7 @@ and the value, before anything is built."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -45,3 +46,21 @@ def check_integer(name: str, value, *, minimum: int = 1) -> int:
         wanted = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         raise InputError(f"{name} must be {wanted}, got {value!r}")
     return int(value)
+
+
+def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, float],
+                           *, owner: str) -> dict[str, float]:
+    """Merge ``values`` into ``defaults``; each name must be known, each value a finite real."""
+    resolved = dict(defaults)
+    for name, value in values.items():
+        if name not in defaults:
+            known = ", ".join(sorted(defaults)) or "none"
+            raise InputError(f"{owner} has no parameter {name!r} (its parameters: {known})")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise InputError(
+                f"parameter {name!r} must be a real number, got {value!r} "
+                f"of type {type(value).__name__}")
+        if not math.isfinite(float(value)):
+            raise InputError(f"parameter {name!r} must be finite, got {value!r}")
+        resolved[name] = float(value)
+    return resolved

@@ -19,47 +19,20 @@ entry at once both end with a complete library.
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 import time
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from .errors import InputError
+from .compiler import cache_folder, compile_function
 
 # error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
 # Either way a step that did not converge fails its residual check and is redone carefully.
 FAST_NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
-COMPILE_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
 
 
-def find_compiler(compiler: str | None = "auto") -> str | None:
-    """The C compiler to use: ``"auto"`` looks for ``$CC``, ``gcc``, ``cc``; ``None`` means none
-    (the virtual machine); anything else is a command that must exist."""
-    if compiler is None:
-        return None
-    if compiler == "auto":
-        for candidate in (os.environ.get("CC"), "gcc", "cc"):
-            if candidate and shutil.which(candidate):
-                return shutil.which(candidate)
-        return None
-    found = shutil.which(compiler)
-    if found is None:
-        raise InputError(f"compiler {compiler!r} was not found")
-    return found
 
 
-def cache_folder(cache_dir: str | os.PathLike | None = None) -> Path:
-    if cache_dir is not None:
-        return Path(cache_dir)
-    if os.environ.get("DDVP_NLP_CACHE"):
-        return Path(os.environ["DDVP_NLP_CACHE"])
-    return Path.home() / ".cache" / "ddvp_nlp"
 
 
 class FastChunk:
@@ -126,23 +99,3 @@ class FastChunk:
         return np.asarray(states).T, np.asarray(outputs).T
 
 
-def compile_function(function: ca.Function, compiler: str, folder: Path) -> ca.Function:
-    """Generate, compile (once per hash) and load ``function``."""
-    source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
-    source.add(function)
-    code = source.dump()
-    key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, ca.__version__])
-                         .encode()).hexdigest()[:24]
-    folder.mkdir(parents=True, exist_ok=True)
-    library = folder / f"chunk_{key}.so"
-    if not library.exists():
-        with tempfile.TemporaryDirectory(dir=folder) as scratch:
-            c_file = Path(scratch) / "chunk.c"
-            c_file.write_text(code)
-            built = Path(scratch) / "chunk.so"
-            result = subprocess.run([compiler, *COMPILE_FLAGS, str(c_file), "-o", str(built)],
-                                    capture_output=True, text=True)
-            if result.returncode != 0:
-                raise RuntimeError(f"compiling {function.name()} failed:\n{result.stderr[-2000:]}")
-            os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
-    return ca.external(function.name(), str(library))

@@ -31,8 +31,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ..physics.hamiltonian import HamiltonianSystem
 from .scheme import Scheme
-from .system import HamiltonianSystem
 
 CANONICAL_INPUTS = ["t_a", "t_b", "q_a", "p_a", "q_b", "p_b", "theta"]
 ENERGY_INPUTS = ["t_prev", "t_mid", "t_next", "q_prev", "p_prev", "q_mid", "p_mid",

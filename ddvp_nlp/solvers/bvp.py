@@ -45,12 +45,12 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from . import equations
-from .checks import check_integer, check_real, check_state
-from .errors import InputError
-from .scheme import Scheme
-from .solution import Solution, Status
-from .system import HamiltonianSystem
+from ..discrete import equations
+from ..discrete.scheme import Scheme
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem
+from ..solution import Solution, Status
+from ..validation import check_integer, check_real, check_state
 
 SOLVERS = ("ipopt", "newton")
 

@@ -12,32 +12,14 @@ depends on ``t`` is read off the expression, not declared.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
-from .errors import InputError
-
-
-def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, float],
-                           *, owner: str) -> dict[str, float]:
-    """Merge ``values`` into ``defaults``; each name must be known, each value a finite real."""
-    resolved = dict(defaults)
-    for name, value in values.items():
-        if name not in defaults:
-            known = ", ".join(sorted(defaults)) or "none"
-            raise InputError(f"{owner} has no parameter {name!r} (its parameters: {known})")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise InputError(
-                f"parameter {name!r} must be a real number, got {value!r} "
-                f"of type {type(value).__name__}")
-        if not math.isfinite(float(value)):
-            raise InputError(f"parameter {name!r} must be finite, got {value!r}")
-        resolved[name] = float(value)
-    return resolved
+from ..errors import InputError
+from ..validation import check_parameter_values
 
 
 @dataclass(eq=False)

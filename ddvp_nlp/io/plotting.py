@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import equations  # noqa: E402
+from ..discrete import equations  # noqa: E402
 
 # Long runs get a second column that zooms on the start, where single swings can be seen
 # (the paper's figures 2-3 are such zooms of figure 1).

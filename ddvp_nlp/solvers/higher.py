@@ -1,170 +1,20 @@
-"""Lagrangians with higher derivatives, ``L(q, v_1, ..., v_l, t)``: the paper's case 1.
-
-Forward differences on the variable grid, evaluated at the left node (THEORY.md section 3)::
-
-    v_1^(k) = (q_{k+1} - q_k) / tau_k,   v_m^(k) = (v_{m-1}^(k+1) - v_{m-1}^(k)) / tau_k,
-    L^(k) = L(q_k, v_1^(k), ..., v_l^(k), t_k),   S_D = sum_k tau_k L^(k),
-
-the sum running over the intervals whose differences the grid defines (``k <= N - 1 - l``).
-
-The paper introduces the ``v_m`` as independent variables with Lagrange multipliers for
-``v_m = Delta v_{m-1}``; eliminating the multipliers (its eq. n-order) leaves the stationarity of
-``S_D`` in the free node positions (the discrete Euler-Lagrange equations, here the gradient of
-the assembled action by automatic differentiation) and, for the energy rule, in the free node
-times. The multipliers are recovered on a solution from the recursion
-
-    lambda_l^(k) = dL/dv_l^(k),
-    lambda_m^(k) = dL/dv_m^(k) - (lambda_{m+1}^(k) - lambda_{m+1}^(k-1)) / tau_k,
-
-that is ``lambda_m = sum_h (-Delta R^-1)^h dL/dv_{m+h}``, and the energy is
-``E^(k) = sum_m lambda_m^(k) . v_m^(k) - L^(k)``. For an autonomous ``L`` the node-time
-stationarity keeps ``E^(k)`` constant: the tests measure it to round-off along variable-step
-solutions, which checks the recursion and the equations against each other. The energy rule
-here is that stationarity (``lee``); ``vddvp`` differs from it only through the paper's hatted
-time derivative of a time-dependent ``L``, which is not implemented: it is accepted for
-autonomous ``L`` (where the two coincide) and refused otherwise.
-
-Fixed-endpoint problems fix ``l`` nodes (times and positions) at each end; marches start from
-``2l`` given nodes and solve, per step, the Euler-Lagrange equation at node ``k`` (and the energy
-equation at node ``k``) for node ``k + l``.
+"""Fixed-endpoint problems and marches for higher-derivative Lagrangians (``discrete/higher.py``).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from functools import cached_property
 
 import casadi as ca
 import numpy as np
 
-from .checks import check_integer, check_real
-from .errors import InputError
-from .solution import Solution, Status, bound_reached
-from .system import check_parameter_values
+from ..discrete.higher import _check_rule, action, energies
+from ..errors import InputError
+from ..physics.higher import HigherOrderSystem
+from ..solution import Solution, Status, bound_reached
+from ..validation import check_integer, check_real
 
-RULES = ("vddvp", "lee", "fixed")
 NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50, "error_on_fail": False}
-
-
-class HigherOrderSystem:
-    """``L(q, v, t, **params)`` with ``v[m-1]`` the ``m``-th difference, ``m = 1 .. order``.
-
-    Attributes:
-        lagrangian, n, order, params, name: as given.
-        time_dependent: whether ``L`` depends on ``t`` (read off the expression).
-    """
-
-    def __init__(self, lagrangian: Callable[..., object], n: int, order: int,
-                 params: Mapping[str, float] | None = None, name: str = "system"):
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise InputError(f"n must be a positive integer, got {n!r}")
-        self.order = check_integer("order", order)
-        self.n, self.name, self.lagrangian = int(n), name, lagrangian
-        self.params = check_parameter_values(dict(params or {}),
-                                             {k: 0.0 for k in dict(params or {})},
-                                             owner=f"system {name!r}")
-        self.q = ca.SX.sym("q", self.n)
-        self.v = [ca.SX.sym(f"v{m}", self.n) for m in range(1, self.order + 1)]
-        self.t = ca.SX.sym("t")
-        self.theta = ca.SX.sym("theta", len(self.params))
-        symbols = {k: self.theta[i] for i, k in enumerate(self.params)}
-        try:
-            value = lagrangian(self.q, self.v, self.t, **symbols)
-        except Exception as exc:
-            raise InputError(f"lagrangian of {name!r} failed on symbolic input: "
-                             f"{type(exc).__name__}: {exc}") from exc
-        from .system import _as_scalar_expression
-
-        self.L = _as_scalar_expression(value, name, "lagrangian")
-        given = ca.vertcat(self.q, *self.v, self.t, self.theta)
-        stray = [s.name() for s in ca.symvar(self.L) if not ca.depends_on(s, given)]
-        if stray:
-            raise InputError(f"lagrangian of {name!r} depends on symbols it was not given: "
-                             f"{', '.join(stray)}")
-        self.time_dependent = bool(ca.depends_on(self.L, self.t))
-        inputs = [self.q, *self.v, self.t, self.theta]
-        self.L_function = ca.Function("L", inputs, [self.L])
-        self.L_v_function = ca.Function("L_v", inputs, [ca.gradient(self.L, v) for v in self.v])
-        self._check_regular()
-        self._cache: dict = {}
-
-    def _check_regular(self):
-        from .lagrangian import is_regular
-
-        top = self.v[-1]
-        hessian = ca.Function("L_top", [self.q, *self.v, self.t, self.theta],
-                              [ca.jacobian(ca.gradient(self.L, top), top)])
-        if not is_regular(hessian, vectors=self.order + 1, n=self.n,
-                          theta=list(self.params.values())):
-            raise InputError(
-                f"lagrangian of {self.name!r} is singular in its highest derivative v{self.order}"
-                f": d2L/dv{self.order}^2 is not invertible, so the discrete Euler-Lagrange "
-                "equations do not determine the next node")
-
-    def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:
-        resolved = check_parameter_values(dict(values or {}), self.params,
-                                          owner=f"system {self.name!r}")
-        return np.array([resolved[k] for k in self.params], dtype=float)
-
-
-def differences(order: int, q_nodes: list, t_nodes: list) -> list[list]:
-    """``[[v_1^(k), ..., v_l^(k)] for each k]`` over the intervals the nodes define."""
-    levels = [q_nodes]
-    for _ in range(order):
-        previous = levels[-1]
-        levels.append([(previous[k + 1] - previous[k]) / (t_nodes[k + 1] - t_nodes[k])
-                       for k in range(len(previous) - 1)])
-    count = len(q_nodes) - order
-    return [[levels[m][k] for m in range(1, order + 1)] for k in range(count)]
-
-
-def action(system: HigherOrderSystem, q_nodes: list, t_nodes: list, theta) -> ca.SX:
-    """``S_D = sum_k tau_k L(q_k, v^(k), t_k)`` over the given nodes."""
-    total = 0
-    for k, v in enumerate(differences(system.order, q_nodes, t_nodes)):
-        total += (t_nodes[k + 1] - t_nodes[k]) * system.L_function(q_nodes[k], *v, t_nodes[k],
-                                                                    theta)
-    return total
-
-
-def _check_rule(system: HigherOrderSystem, rule: str) -> str:
-    if rule not in RULES:
-        raise InputError(f"unknown scheme {rule!r} (choose from {', '.join(RULES)})")
-    if rule == "vddvp" and system.time_dependent:
-        raise InputError("the vddvp rule for a time-dependent higher-order Lagrangian (the "
-                         "paper's hatted time derivative) is not implemented; use lee or fixed")
-    return rule
-
-
-def energies(system: HigherOrderSystem, t, q, theta) -> tuple[np.ndarray, np.ndarray]:
-    """Multipliers ``lambda_1^(k)`` (shape ``(K, n)``) and energies ``E^(k)`` (``(K,)``) on a
-    grid, for ``k = l-1 .. N-1-l`` (where the recursion has what it needs)."""
-    l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
-    t = np.asarray(t, float)
-    q = np.asarray(q, float).reshape(t.size, n)
-    v = differences(l, list(q), list(t))
-    partials = [[np.asarray(d, float).ravel() for d in system.L_v_function(q[k], *v[k], t[k],
-                                                                          theta)]
-                for k in range(len(v))]
-    lam = [[None] * l for _ in range(len(v))]
-    for k in range(len(v)):
-        lam[k][l - 1] = partials[k][l - 1]
-    for m in range(l - 2, -1, -1):  # lambda_m from lambda_{m+1} at k and k - 1
-        for k in range(len(v)):
-            if k == 0 or lam[k - 1][m + 1] is None or lam[k][m + 1] is None:
-                continue
-            lam[k][m] = partials[k][m] - (lam[k][m + 1] - lam[k - 1][m + 1]) / (t[k + 1] - t[k])
-    first, E = [], []
-    for k in range(len(v)):
-        if any(x is None for x in lam[k]):
-            continue
-        L = float(system.L_function(q[k], *v[k], t[k], theta))
-        E.append(sum(float(np.dot(lam[k][m], np.asarray(v[k][m], float))) for m in range(l))
-                 - L)
-        first.append(lam[k][0])
-    return np.array(first).reshape(-1, n), np.array(E)
 
 
 def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *,
@@ -408,64 +258,3 @@ def _step_functions(system: HigherOrderSystem, rule: str):
                                          energy if variable else ca.SX(0), ca.norm_inf(qw)])
     system._cache[key] = (root, check)
     return root, check
-
-
-@dataclass(eq=False)
-class HigherOrderScene:
-    """A scene declared by ``L(q, v, t, **params)`` with ``v[m-1]`` the ``m``-th difference.
-
-    Attributes:
-        lagrangian, n, order, params: the system.
-        exact: ``exact(t, **params) -> q`` of shape ``(N, n)``: the motion the scene follows. The
-            march starts from ``2 * order`` of its nodes spaced ``tau0`` from ``t0``; the
-            fixed-endpoint problem takes ``order`` of its nodes at each end of ``t_span`` on the
-            uniform grid of ``nodes`` nodes.
-        tau0, t_end, t0: march defaults; ``boundary``: ``{"t_span": (t0, t1), "nodes": N}``.
-    """
-
-    lagrangian: Callable[..., object]
-    n: int
-    order: int
-    exact: Callable[..., np.ndarray]
-    tau0: float
-    t_end: float
-    t0: float = 0.0
-    params: Mapping[str, float] = field(default_factory=dict)
-    boundary: Mapping[str, object] | None = None
-    name: str = "scene"
-    source: str = ""
-    description: str = ""
-
-    @cached_property
-    def system(self) -> HigherOrderSystem:
-        return HigherOrderSystem(self.lagrangian, self.n, self.order, dict(self.params),
-                                 name=self.name)
-
-    def resolve(self, overrides=None) -> dict:
-        """Parameters, ``t0``, ``tau0``, ``t_end``, ``nodes`` with ``overrides`` applied."""
-        overrides = dict(overrides or {})
-        settings = {k: overrides.pop(k) for k in ("t0", "tau0", "t_end") if k in overrides}
-        params = check_parameter_values(overrides, dict(self.params),
-                                        owner=f"scene {self.name!r}")
-        values = {"t0": self.t0, "tau0": self.tau0, "t_end": self.t_end, **settings}
-        for key, value in values.items():
-            check_real(key, value)
-        return {"params": params, **{k: float(v) for k, v in values.items()}}
-
-    def start(self, config) -> tuple[np.ndarray, np.ndarray]:
-        t = config["t0"] + config["tau0"] * np.arange(2 * self.order)
-        return t, self._exact(t, config["params"])
-
-    def ends(self, config, nodes: int, t_span):
-        grid = np.linspace(t_span[0], t_span[1], nodes)
-        l = self.order  # noqa: E741 (l is the order, as in the paper)
-        q = self._exact(grid, config["params"])
-        return grid[:l], q[:l], grid[-l:], q[-l:]
-
-    def _exact(self, t, params):
-        return np.asarray(self.exact(np.asarray(t, float), **params), float).reshape(
-            np.size(t), self.n)
-
-
-__all__ = ["HigherOrderScene", "HigherOrderSystem", "action", "differences", "energies",
-           "march_higher", "solve_bvp_higher"]

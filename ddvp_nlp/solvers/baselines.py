@@ -28,11 +28,12 @@ import time
 import casadi as ca
 import numpy as np
 
-from . import equations
-from .errors import InputError
-from .fast import FAST_NEWTON_OPTIONS, cache_folder, compile_function
-from .solution import Solution, Status, bound_reached
-from .system import HamiltonianSystem
+from ..discrete import equations
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem
+from ..solution import Solution, Status, bound_reached
+from .chunk import FAST_NEWTON_OPTIONS
+from .compiler import cache_folder, compile_function
 
 CHUNK = 1024
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from . import equations
-from .march import march
-from .scenes import load_scene
-from .scheme import Scheme
-from .system import HamiltonianSystem
+from ..discrete import equations
+from ..discrete.scheme import Scheme
+from ..physics.hamiltonian import HamiltonianSystem
+from ..scenes import load_scene
+from ..solvers.march import march
 
 
 def dominant_period(t, values, *, longer_than=None, shorter_than=None) -> float:

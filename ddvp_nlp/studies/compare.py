@@ -28,12 +28,12 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .errors import InputError
-from .fast import find_compiler
+from ..errors import InputError
+from ..scenes import RunConfig, Scene, load_scene
+from ..solution import Status
+from ..solvers.compiler import find_compiler
 from .grid import Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS, Method, dop853, get_methods
-from .scenes import RunConfig, Scene, load_scene
-from .solution import Status
 
 COLUMNS = ["key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
            "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
@@ -143,7 +143,7 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
             runs them one after the other in this process, because the run times are what is
             compared: two runs at once on a 2-core machine slow each other down.
     """
-    from .output import prepare_folder
+    from ..io.runs import prepare_folder
 
     _comparable(scene)
     config = scene.resolve(overrides)
@@ -181,7 +181,7 @@ def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = Non
 
     reference = reference_for(scene, overrides or {})
     where = scene.source or scene  # a scene made in Python runs in this process only
-    tasks = [Task(key=f"{method.name}|{value!r}", function="ddvp_nlp.compare:run_one",
+    tasks = [Task(key=f"{method.name}|{value!r}", function="ddvp_nlp.studies.compare:run_one",
                   kwargs={"scene": where, "overrides": dict(overrides or {}),
                           "method": method.name, "value": value, "repeats": repeats,
                           "budget_s": budget_s, "compiler": compiler, "cache_dir": cache_dir,

@@ -11,9 +11,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import paper  # noqa: E402
-from .grid import Task, run_tasks  # noqa: E402
-from .scenes import load_scene  # noqa: E402
+from ..scenes import load_scene  # noqa: E402
+from ..studies import paper  # noqa: E402
+from ..studies.grid import Task, run_tasks  # noqa: E402
 
 FULL = {"t_end": 10000.0, "site_tau0": (0.05, 0.025, 0.0125, 0.005),
         "sweep_tau0": (0.5, 0.05, 0.005, 0.0005),
@@ -30,16 +30,16 @@ def reproduce(out: Path, *, quick: bool = False, workers: int | None = 1,
     they run (default: one after the other in this process).
     """
     sizes = QUICK if quick else FULL
-    tasks = [Task("example", "ddvp_nlp.paper:paper_example", args=(sizes["t_end"],)),
-             Task("site_pendulum", "ddvp_nlp.report:site_density", priority=1,
+    tasks = [Task("example", "ddvp_nlp.studies.paper:paper_example", args=(sizes["t_end"],)),
+             Task("site_pendulum", "ddvp_nlp.io.reproduce:site_density", priority=1,
                   kwargs={"name": "pendulum", "tau0": sizes["site_tau0"]}),
-             Task("site_quartic", "ddvp_nlp.report:site_density", priority=1,
+             Task("site_quartic", "ddvp_nlp.io.reproduce:site_density", priority=1,
                   kwargs={"name": "quartic", "tau0": sizes["site_tau0"]}),
-             Task("gauge", "ddvp_nlp.paper:gauge_differences"),
-             Task("sweep", "ddvp_nlp.paper:step_ratio_sweep", args=(sizes["sweep_tau0"],),
+             Task("gauge", "ddvp_nlp.studies.paper:gauge_differences"),
+             Task("sweep", "ddvp_nlp.studies.paper:step_ratio_sweep", args=(sizes["sweep_tau0"],),
                   priority=2),
-             Task("symplectic", "ddvp_nlp.paper:symplecticity"),
-             Task("growth", "ddvp_nlp.paper:energy_residual_growth",
+             Task("symplectic", "ddvp_nlp.studies.paper:symplecticity"),
+             Task("growth", "ddvp_nlp.studies.paper:energy_residual_growth",
                   args=(sizes["energy_steps"],), priority=3)]
     results, failed = {}, []
     for task, result, error in run_tasks(tasks, workers=workers, scheduler=scheduler):

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import equations
-from .errors import InputError
-from .scenes import BoundaryConfig, RunConfig, Scene
-from .scheme import Scheme
-from .solution import Solution, Status
+from ..discrete import equations
+from ..discrete.scheme import Scheme
+from ..errors import InputError
+from ..scenes import BoundaryConfig, RunConfig, Scene
+from ..solution import Solution, Status
 
 
 def prepare_folder(out: str | os.PathLike) -> Path:

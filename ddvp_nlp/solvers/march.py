@@ -27,12 +27,12 @@ from collections.abc import Mapping
 import casadi as ca
 import numpy as np
 
-from . import equations
-from .checks import check_integer, check_real, check_state
-from .errors import InputError
-from .scheme import Scheme
-from .solution import Solution, Status, bound_reached
-from .system import HamiltonianSystem
+from ..discrete import equations
+from ..discrete.scheme import Scheme
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem
+from ..solution import Solution, Status, bound_reached
+from ..validation import check_integer, check_real, check_state
 
 NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
 # Starting guesses for tau, as multiples of the previous step, tried in order when Newton from the
@@ -228,11 +228,11 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
         raise InputError("breakdown='least_squares' needs an energy rule (vddvp or lee), got "
                          f"scheme {scheme.rule!r}")
     if fast:
-        from .fast import find_compiler
+        from .compiler import find_compiler
         compiler = find_compiler(compiler)
     theta = system.parameter_vector(params)
     if v0 is not None:
-        from .lagrangian import start_momentum
+        from ..discrete.lagrangian import start_momentum
 
         p0 = start_momentum(system, scheme, q0, v0, t0=t0, tau0=tau0, theta=theta)
         if not np.all(np.isfinite(p0)):
@@ -246,7 +246,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     functions = _step_functions(system, scheme)
     fast_chunk = None
     if fast:
-        from .fast import FastChunk
+        from .chunk import FastChunk
         fast_chunk = system.cached(
             ("fast", scheme, chunk, compiler, str(cache_dir)),
             lambda: FastChunk(system, scheme, functions, chunk=chunk, compiler=compiler,

@@ -25,20 +25,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compare import (
-    REFERENCE_RTOL,
-    _comparable,
-    _machine,
-    _needs_p0,
-    failure_table,
-    reference_for,
-)
-from .equations import site_density_weight_function
-from .errors import InputError
-from .fast import find_compiler
+from ..discrete.equations import site_density_weight_function
+from ..errors import InputError
+from ..scenes import load_scene
+from ..solvers.compiler import find_compiler
+from .compare import REFERENCE_RTOL, _comparable, _machine, _needs_p0, failure_table, reference_for
 from .grid import Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS
-from .scenes import load_scene
 
 COLUMNS = ["key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
            "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
@@ -149,7 +142,7 @@ def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_0
         # Larger first: the longest runs start early, so the workers finish together.
         cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
         tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
-                          function="ddvp_nlp.stress:run_one",
+                          function="ddvp_nlp.studies.stress:run_one",
                           kwargs={"group": case.group, "case": case.name, "scene": case.scene,
                                   "settings": case.settings, "method": name, "value": value,
                                   "compiler": compiler, "cache_dir": cache_dir,
@@ -221,8 +214,8 @@ def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None 
     ``workers``/``scheduler``: see :func:`ddvp_nlp.grid.run_tasks` (default: in this process).
     ``resume``: keep the rows already in ``NAME.csv`` and run only the missing tasks.
     """
-    from .checks import check_integer, check_real
-    from .output import prepare_folder
+    from ..io.runs import prepare_folder
+    from ..validation import check_integer, check_real
 
     max_steps = check_integer("max_steps", max_steps)
     time_limit = check_real("time_limit", time_limit, positive=True)

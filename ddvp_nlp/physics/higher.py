@@ -1,0 +1,124 @@
+"""Lagrangians with higher derivatives, ``L(q, v_1, ..., v_l, t)``: the paper's case 1.
+
+Forward differences on the variable grid, evaluated at the left node (THEORY.md section 3)::
+
+    v_1^(k) = (q_{k+1} - q_k) / tau_k,   v_m^(k) = (v_{m-1}^(k+1) - v_{m-1}^(k)) / tau_k,
+    L^(k) = L(q_k, v_1^(k), ..., v_l^(k), t_k),   S_D = sum_k tau_k L^(k),
+
+the sum running over the intervals whose differences the grid defines (``k <= N - 1 - l``).
+
+The paper introduces the ``v_m`` as independent variables with Lagrange multipliers for
+``v_m = Delta v_{m-1}``; eliminating the multipliers (its eq. n-order) leaves the stationarity of
+``S_D`` in the free node positions (the discrete Euler-Lagrange equations, here the gradient of
+the assembled action by automatic differentiation) and, for the energy rule, in the free node
+times. The multipliers are recovered on a solution from the recursion
+
+    lambda_l^(k) = dL/dv_l^(k),
+    lambda_m^(k) = dL/dv_m^(k) - (lambda_{m+1}^(k) - lambda_{m+1}^(k-1)) / tau_k,
+
+that is ``lambda_m = sum_h (-Delta R^-1)^h dL/dv_{m+h}``, and the energy is
+``E^(k) = sum_m lambda_m^(k) . v_m^(k) - L^(k)``. For an autonomous ``L`` the node-time
+stationarity keeps ``E^(k)`` constant: the tests measure it to round-off along variable-step
+solutions, which checks the recursion and the equations against each other. The energy rule
+here is that stationarity (``lee``); ``vddvp`` differs from it only through the paper's hatted
+time derivative of a time-dependent ``L``, which is not implemented: it is accepted for
+autonomous ``L`` (where the two coincide) and refused otherwise.
+
+Fixed-endpoint problems fix ``l`` nodes (times and positions) at each end; marches start from
+``2l`` given nodes and solve, per step, the Euler-Lagrange equation at node ``k`` (and the energy
+equation at node ``k``) for node ``k + l``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import casadi as ca
+import numpy as np
+
+from ..errors import InputError
+from ..validation import check_integer, check_parameter_values
+
+
+class HigherOrderSystem:
+    """``L(q, v, t, **params)`` with ``v[m-1]`` the ``m``-th difference, ``m = 1 .. order``.
+
+    Attributes:
+        lagrangian, n, order, params, name: as given.
+        time_dependent: whether ``L`` depends on ``t`` (read off the expression).
+    """
+
+    def __init__(self, lagrangian: Callable[..., object], n: int, order: int,
+                 params: Mapping[str, float] | None = None, name: str = "system"):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise InputError(f"n must be a positive integer, got {n!r}")
+        self.order = check_integer("order", order)
+        self.n, self.name, self.lagrangian = int(n), name, lagrangian
+        self.params = check_parameter_values(dict(params or {}),
+                                             {k: 0.0 for k in dict(params or {})},
+                                             owner=f"system {name!r}")
+        self.q = ca.SX.sym("q", self.n)
+        self.v = [ca.SX.sym(f"v{m}", self.n) for m in range(1, self.order + 1)]
+        self.t = ca.SX.sym("t")
+        self.theta = ca.SX.sym("theta", len(self.params))
+        symbols = {k: self.theta[i] for i, k in enumerate(self.params)}
+        try:
+            value = lagrangian(self.q, self.v, self.t, **symbols)
+        except Exception as exc:
+            raise InputError(f"lagrangian of {name!r} failed on symbolic input: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        from .hamiltonian import _as_scalar_expression
+
+        self.L = _as_scalar_expression(value, name, "lagrangian")
+        given = ca.vertcat(self.q, *self.v, self.t, self.theta)
+        stray = [s.name() for s in ca.symvar(self.L) if not ca.depends_on(s, given)]
+        if stray:
+            raise InputError(f"lagrangian of {name!r} depends on symbols it was not given: "
+                             f"{', '.join(stray)}")
+        self.time_dependent = bool(ca.depends_on(self.L, self.t))
+        inputs = [self.q, *self.v, self.t, self.theta]
+        self.L_function = ca.Function("L", inputs, [self.L])
+        self.L_v_function = ca.Function("L_v", inputs, [ca.gradient(self.L, v) for v in self.v])
+        self._check_regular()
+        self._cache: dict = {}
+
+    def _check_regular(self):
+        from .lagrangian import is_regular
+
+        top = self.v[-1]
+        hessian = ca.Function("L_top", [self.q, *self.v, self.t, self.theta],
+                              [ca.jacobian(ca.gradient(self.L, top), top)])
+        if not is_regular(hessian, vectors=self.order + 1, n=self.n,
+                          theta=list(self.params.values())):
+            raise InputError(
+                f"lagrangian of {self.name!r} is singular in its highest derivative v{self.order}"
+                f": d2L/dv{self.order}^2 is not invertible, so the discrete Euler-Lagrange "
+                "equations do not determine the next node")
+
+    def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:
+        resolved = check_parameter_values(dict(values or {}), self.params,
+                                          owner=f"system {self.name!r}")
+        return np.array([resolved[k] for k in self.params], dtype=float)
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+
+__all__ = ["HigherOrderSystem"]

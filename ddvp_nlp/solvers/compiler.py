@@ -1,0 +1,68 @@
+"""Finding a C compiler and compiling CasADi functions once per content hash.
+
+Compiled libraries are cached in ``cache_dir`` (argument, else ``$DDVP_NLP_CACHE``, else
+``~/.cache/ddvp_nlp``) under a hash of the generated code, the compiler and its flags. Each build
+compiles to a temporary file and renames it into place, so two processes building the same entry
+at once both end with a complete library.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+
+from ..errors import InputError
+
+COMPILE_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
+
+
+def find_compiler(compiler: str | None = "auto") -> str | None:
+    """The C compiler to use: ``"auto"`` looks for ``$CC``, ``gcc``, ``cc``; ``None`` means none
+    (the virtual machine); anything else is a command that must exist."""
+    if compiler is None:
+        return None
+    if compiler == "auto":
+        for candidate in (os.environ.get("CC"), "gcc", "cc"):
+            if candidate and shutil.which(candidate):
+                return shutil.which(candidate)
+        return None
+    found = shutil.which(compiler)
+    if found is None:
+        raise InputError(f"compiler {compiler!r} was not found")
+    return found
+
+
+def cache_folder(cache_dir: str | os.PathLike | None = None) -> Path:
+    if cache_dir is not None:
+        return Path(cache_dir)
+    if os.environ.get("DDVP_NLP_CACHE"):
+        return Path(os.environ["DDVP_NLP_CACHE"])
+    return Path.home() / ".cache" / "ddvp_nlp"
+
+
+def compile_function(function: ca.Function, compiler: str, folder: Path) -> ca.Function:
+    """Generate, compile (once per hash) and load ``function``."""
+    source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
+    source.add(function)
+    code = source.dump()
+    key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, ca.__version__])
+                         .encode()).hexdigest()[:24]
+    folder.mkdir(parents=True, exist_ok=True)
+    library = folder / f"chunk_{key}.so"
+    if not library.exists():
+        with tempfile.TemporaryDirectory(dir=folder) as scratch:
+            c_file = Path(scratch) / "chunk.c"
+            c_file.write_text(code)
+            built = Path(scratch) / "chunk.so"
+            result = subprocess.run([compiler, *COMPILE_FLAGS, str(c_file), "-o", str(built)],
+                                    capture_output=True, text=True)
+            if result.returncode != 0:
+                raise RuntimeError(f"compiling {function.name()} failed:\n{result.stderr[-2000:]}")
+            os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
+    return ca.external(function.name(), str(library))
