@@ -31,7 +31,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..physics.hamiltonian import HamiltonianSystem
+from ..cache import cached
+from ..physics.hamiltonian import HamiltonianSystem, derivatives_function
 from .scheme import Scheme
 
 CANONICAL_INPUTS = ["t_a", "t_b", "q_a", "p_a", "q_b", "p_b", "theta"]
@@ -44,31 +45,8 @@ def _node_symbols(system: HamiltonianSystem, suffix: str):
             ca.SX.sym(f"p_{suffix}", system.n))
 
 
-def derivatives_function(system: HamiltonianSystem) -> ca.Function:
-    """``(q, p, t, theta) -> (H, dH/dq, dH/dp, dH/dt)``."""
-    def build():
-        H = system.H
-        return ca.Function(
-            "dH", [system.q, system.p, system.t, system.theta],
-            [H, ca.gradient(H, system.q), ca.gradient(H, system.p), ca.gradient(H, system.t)],
-            ["q", "p", "t", "theta"], ["H", "H_q", "H_p", "H_t"])
-    return system.cached("dH", build)
 
 
-def site_density_weight_function(system: HamiltonianSystem) -> ca.Function:
-    """``w(q, p, t, theta) = f' H_zz f`` with ``f = (H_p, -H_q)``.
-
-    Expanding the midpoint energy of a step of length ``tau`` from ``z`` along the flow gives
-    ``H(z_mid) = H(z) - tau^2 w / 8 + O(tau^3)``; for ``H = p^2/2 + V`` it is the paper's
-    ``V'' p^2 + V'^2`` (section 4), and the energy rules' steps follow ``tau ~ w^(-1/3)``.
-    """
-    def build():
-        z = ca.vertcat(system.q, system.p)
-        f = ca.vertcat(ca.gradient(system.H, system.p), -ca.gradient(system.H, system.q))
-        w = ca.mtimes([f.T, ca.hessian(system.H, z)[0], f])
-        return ca.Function("site_density_weight", [system.q, system.p, system.t, system.theta],
-                           [w], ["q", "p", "t", "theta"], ["w"])
-    return system.cached("site_density_weight", build)
 
 
 def interval_arguments(scheme: Scheme, t_a, t_b, q_a, p_a, q_b, p_b):
@@ -145,7 +123,7 @@ def canonical_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Function
         r = canonical_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, system.theta)
         return ca.Function("canonical", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta], [r],
                            CANONICAL_INPUTS, ["residual"])
-    return system.cached(("canonical", scheme), build)
+    return cached(system, ("canonical", scheme), build)
 
 
 def energy_function(system: HamiltonianSystem, scheme: Scheme, rule: str | None = None):
@@ -160,7 +138,7 @@ def energy_function(system: HamiltonianSystem, scheme: Scheme, rule: str | None 
                               system.theta)
         return ca.Function(f"energy_{rule}", [t0, t1, t2, q0, p0, q1, p1, q2, p2, system.theta],
                            [r], ENERGY_INPUTS, ["residual"])
-    return system.cached(("energy", rule, scheme), build)
+    return cached(system, ("energy", rule, scheme), build)
 
 
 def midpoint_energy_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Function:
@@ -177,7 +155,7 @@ def midpoint_energy_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Fu
             energy = system.H_function(Q, P, s, system.theta)
         return ca.Function("interval_energy", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta],
                            [energy], CANONICAL_INPUTS, ["H"])
-    return system.cached(("interval_energy", scheme), build)
+    return cached(system, ("interval_energy", scheme), build)
 
 
 def grid_residuals(system: HamiltonianSystem, scheme: Scheme, t, q, p, theta):

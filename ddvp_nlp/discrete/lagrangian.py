@@ -5,6 +5,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ..cache import cached
 from ..physics.lagrangian import LagrangianSystem
 
 
@@ -24,7 +25,7 @@ def _partials(system: LagrangianSystem, Q, v, s, theta):
         L_v = ca.gradient(system.L, system.v)
         return ca.Function("L_partials", [system.q, system.v, system.t, system.theta],
                            [L_q, L_v])
-    return system.cached("L_partials", build)(Q, v, s, theta)
+    return cached(system, "L_partials", build)(Q, v, s, theta)
 
 
 def interval_energy(system: LagrangianSystem, Q, v, s, theta):

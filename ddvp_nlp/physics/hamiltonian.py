@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from ..cache import cached
 from ..errors import InputError
 from ..validation import check_parameter_values
 
@@ -79,7 +80,6 @@ class HamiltonianSystem:
 
     def _finish(self):
         self.time_dependent = bool(ca.depends_on(self.H, self.t))
-        self._functions: dict[object, ca.Function] = {}
         self.H_function = ca.Function("H", [self.q, self.p, self.t, self.theta], [self.H],
                                       ["q", "p", "t", "theta"], ["H"])
 
@@ -96,11 +96,6 @@ class HamiltonianSystem:
         return np.asarray(f(q.T, np.atleast_2d(p).T, np.atleast_1d(t)[None, :],
                             np.asarray(theta, float)[:, None])).ravel()
 
-    def cached(self, key, build: Callable[[], ca.Function]) -> ca.Function:
-        """Build a CasADi function once per system and ``key``."""
-        if key not in self._functions:
-            self._functions[key] = build()
-        return self._functions[key]
 
 
 def _as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
@@ -117,3 +112,44 @@ def _as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
         raise InputError(f"{kind} of {name!r} must be scalar, got shape "
                          f"{value.shape[0]}x{value.shape[1]}")
     return value
+
+
+def derivatives_function(system: HamiltonianSystem) -> ca.Function:
+    """``(q, p, t, theta) -> (H, dH/dq, dH/dp, dH/dt)``."""
+    def build():
+        H = system.H
+        return ca.Function(
+            "dH", [system.q, system.p, system.t, system.theta],
+            [H, ca.gradient(H, system.q), ca.gradient(H, system.p), ca.gradient(H, system.t)],
+            ["q", "p", "t", "theta"], ["H", "H_q", "H_p", "H_t"])
+    return cached(system, "dH", build)
+
+
+def site_density_weight_function(system: HamiltonianSystem) -> ca.Function:
+    """``w(q, p, t, theta) = f' H_zz f`` with ``f = (H_p, -H_q)``.
+
+    Expanding the midpoint energy of a step of length ``tau`` from ``z`` along the flow gives
+    ``H(z_mid) = H(z) - tau^2 w / 8 + O(tau^3)``; for ``H = p^2/2 + V`` it is the paper's
+    ``V'' p^2 + V'^2`` (section 4), and the energy rules' steps follow ``tau ~ w^(-1/3)``.
+    """
+    def build():
+        z = ca.vertcat(system.q, system.p)
+        f = ca.vertcat(ca.gradient(system.H, system.p), -ca.gradient(system.H, system.q))
+        w = ca.mtimes([f.T, ca.hessian(system.H, z)[0], f])
+        return ca.Function("site_density_weight", [system.q, system.p, system.t, system.theta],
+                           [w], ["q", "p", "t", "theta"], ["w"])
+    return cached(system, "site_density_weight", build)
+
+
+def vector_field_function(system: HamiltonianSystem) -> ca.Function:
+    """``f(z, t, theta) = (H_p, -H_q)`` with ``z = (q, p)``: Hamilton's equations ``z' = f``.
+
+    Written here once; the march's predictor, the explicit baselines, scipy's right-hand side
+    and the site-density weight all use it."""
+    def build():
+        n = system.n
+        z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
+        _, H_q, H_p, _ = derivatives_function(system)(z[:n], z[n:], t, system.theta)
+        return ca.Function("f", [z, t, system.theta], [ca.vertcat(H_p, -H_q)],
+                           ["z", "t", "theta"], ["f"])
+    return cached(system, "vector_field", build)

@@ -80,7 +80,6 @@ class HigherOrderSystem:
         self.L_function = ca.Function("L", inputs, [self.L])
         self.L_v_function = ca.Function("L_v", inputs, [ca.gradient(self.L, v) for v in self.v])
         self._check_regular()
-        self._cache: dict = {}
 
     def _check_regular(self):
         from .lagrangian import is_regular

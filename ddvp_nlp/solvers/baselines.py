@@ -28,9 +28,10 @@ import time
 import casadi as ca
 import numpy as np
 
-from ..discrete import equations
+from ..cache import cached
+from ..discrete.runge_kutta import rk4
 from ..errors import InputError
-from ..physics.hamiltonian import HamiltonianSystem
+from ..physics.hamiltonian import HamiltonianSystem, vector_field_function
 from ..solution import Solution, Status, bound_reached
 from .chunk import FAST_NEWTON_OPTIONS
 from .compiler import cache_folder, compile_function
@@ -94,27 +95,20 @@ def stormer_verlet_step(system: HamiltonianSystem) -> ca.Function:
         p_next = p_half - tau / 2 * V_q(q_next, t + tau, system.theta)
         return ca.Function("stormer_verlet", [z, t, tau, system.theta],
                            [ca.vertcat(q_next, p_next)])
-    return system.cached("stormer_verlet_step", build)
+    return cached(system, "stormer_verlet_step", build)
 
 
 def rk4_step(system: HamiltonianSystem) -> ca.Function:
     """``(z, t, tau, theta) -> z_next`` by the classical Runge-Kutta method."""
     def build():
-        n = system.n
-        derivatives = equations.derivatives_function(system)
+        field = vector_field_function(system)
 
         def flow(z, t):
-            _, H_q, H_p, _ = derivatives(z[:n], z[n:], t, system.theta)
-            return ca.vertcat(H_p, -H_q)
+            return field(z, t, system.theta)
 
-        z, t, tau = ca.SX.sym("z", 2 * n), ca.SX.sym("t"), ca.SX.sym("tau")
-        k1 = flow(z, t)
-        k2 = flow(z + tau / 2 * k1, t + tau / 2)
-        k3 = flow(z + tau / 2 * k2, t + tau / 2)
-        k4 = flow(z + tau * k3, t + tau)
-        return ca.Function("rk4", [z, t, tau, system.theta],
-                           [z + tau / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
-    return system.cached("rk4_step", build)
+        z, t, tau = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t"), ca.SX.sym("tau")
+        return ca.Function("rk4", [z, t, tau, system.theta], [rk4(flow, z, t, tau)])
+    return cached(system, "rk4_step", build)
 
 
 def _load(function: ca.Function, compiler, cache_dir):
@@ -165,7 +159,7 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
                           [ca.vertcat(k + 1, z_next), ca.vertcat(first + (k + 1) * h, z_next)])
         return _load(one.mapaccum(f"{method}_chunk", chunk), compiler, cache_dir)
 
-    function, compile_s = system.cached((method, chunk, compiler, str(cache_dir)), build)
+    function, compile_s = cached(system, (method, chunk, compiler, str(cache_dir)), build)
     built = time.perf_counter()
     t = np.empty(total + 1)
     z = np.empty((total + 1, 2 * n))
@@ -259,7 +253,7 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     """March T.D. Lee's original left-point scheme until the first node at or past ``t_end``."""
     started = time.perf_counter()
     n = system.n
-    functions = system.cached("lee_left", lambda: _LeeLeftPoint(system))
+    functions = cached(system, "lee_left", lambda: _LeeLeftPoint(system))
     chunk = chunk_for((t_end - t0) / tau0)
 
     def build():
@@ -282,7 +276,7 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
                           [ca.vertcat(t_mid, t_mid + tau, q_mid, q_next), row])
         return _load(one.mapaccum("lee_left_chunk", chunk), compiler, cache_dir)
 
-    function, compile_s = system.cached(("lee_left", chunk, compiler, str(cache_dir)), build)
+    function, compile_s = cached(system, ("lee_left", chunk, compiler, str(cache_dir)), build)
     built = time.perf_counter()
     start = np.concatenate([[t0, tau0], q0, p0, theta])
     v0 = np.asarray(functions.first_velocity(start)).ravel()

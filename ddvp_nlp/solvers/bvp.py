@@ -45,10 +45,11 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ..cache import PROBLEMS, cached
 from ..discrete import equations
 from ..discrete.scheme import Scheme
 from ..errors import InputError
-from ..physics.hamiltonian import HamiltonianSystem
+from ..physics.hamiltonian import HamiltonianSystem, site_density_weight_function
 from ..solution import Solution, Status
 from ..validation import check_integer, check_real, check_state
 
@@ -124,7 +125,7 @@ def _action_function(system, scheme):
         S = equations.interval_action_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b,
                                                  system.theta)
         return ca.Function("action", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta], [S])
-    return system.cached(("action", scheme), build)
+    return cached(system, ("action", scheme), build)
 
 
 def _straight_line_guess(q_start, q_end, times):
@@ -198,7 +199,7 @@ def predicted_times(system: HamiltonianSystem, t, q, p, theta) -> np.ndarray:
     """Node times with the site density of the energy rules, ``tau_k ~ w^(-1/3)`` evaluated at
     the interval midpoints of the grid ``t``, ``q``, ``p``; same first and last time."""
     N = t.size
-    w = np.asarray(equations.site_density_weight_function(system).map(N - 1)(
+    w = np.asarray(site_density_weight_function(system).map(N - 1)(
         ((q[:-1] + q[1:]) / 2).T, ((p[:-1] + p[1:]) / 2).T, ((t[:-1] + t[1:]) / 2)[None, :],
         np.asarray(theta, float)[:, None])).ravel()
     # Where w <= 0 the energy rules have no positive step anyway (THEORY.md section 5); keep the
@@ -213,8 +214,8 @@ def predicted_times(system: HamiltonianSystem, t, q, p, theta) -> np.ndarray:
 
 def _problem(system, scheme, nodes, solver, verbose, max_iter, tol):
     key = ("bvp", scheme, nodes, solver, verbose, max_iter, tol)
-    return system.cached(key, lambda: _Problem(system, scheme, nodes, solver, verbose, max_iter,
-                                               tol))
+    return PROBLEMS.get(system, key, lambda: _Problem(system, scheme, nodes, solver, verbose,
+                                                      max_iter, tol))
 
 
 def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,

@@ -8,6 +8,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from ..cache import cached
 from ..discrete.higher import _check_rule, action, energies
 from ..errors import InputError
 from ..physics.higher import HigherOrderSystem
@@ -222,9 +223,10 @@ def _extrapolate(t, q, t_new):
 
 def _step_functions(system: HigherOrderSystem, rule: str):
     """Newton for one march step (see :func:`march_higher`) and its residual check."""
-    key = ("march", rule)
-    if key in system._cache:
-        return system._cache[key]
+    return cached(system, ("higher_march", rule), lambda: _build_step_functions(system, rule))
+
+
+def _build_step_functions(system: HigherOrderSystem, rule: str):
     l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
     theta = ca.SX.sym("theta", system.theta.numel())
     variable = rule != "fixed"
@@ -256,5 +258,4 @@ def _step_functions(system: HigherOrderSystem, rule: str):
     root = ca.rootfinder("higher_step", "newton", ca.Function("g", [x, w], [g]), NEWTON_OPTIONS)
     check = ca.Function("check", [x, w], [ca.norm_inf(scaled),
                                          energy if variable else ca.SX(0), ca.norm_inf(qw)])
-    system._cache[key] = (root, check)
     return root, check

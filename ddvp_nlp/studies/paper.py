@@ -12,7 +12,11 @@ import numpy as np
 
 from ..discrete import equations
 from ..discrete.scheme import Scheme
-from ..physics.hamiltonian import HamiltonianSystem
+from ..physics.hamiltonian import (
+    HamiltonianSystem,
+    site_density_weight_function,
+    vector_field_function,
+)
 from ..scenes import load_scene
 from ..solvers.march import march
 
@@ -91,7 +95,7 @@ def site_density_spread(system: HamiltonianSystem, q0, p0, tau0s, *, t_end: floa
     marches, its spread ``max/min - 1`` for each ``tau0`` and the fitted slope of log(spread)
     against log(tau0). The weight is taken at node ``k`` (``"node"``) and at the midpoint of
     interval ``k`` (``"midpoint"``); the paper says constant up to O(tau)."""
-    weight = equations.site_density_weight_function(system)
+    weight = site_density_weight_function(system)
     result = {"tau0": list(tau0s), "tau_spread": [], "node": [], "midpoint": []}
     for tau0 in tau0s:
         solution = march(system, q0, p0, tau0=tau0, t_end=t_end)
@@ -236,8 +240,7 @@ def symplecticity(samples: int = 5) -> dict:
             defects_extended.append(_symplectic_defect(np.asarray(M), system.n + 1))
         # Negative control: explicit Euler, z' = z + tau f(z, t), is not symplectic.
         zs = ca.SX.sym("z", 2 * system.n)
-        flow = ca.vertcat(ca.gradient(system.H, system.p), -ca.gradient(system.H, system.q))
-        flow = ca.substitute(flow, ca.vertcat(system.q, system.p), zs)
+        flow = vector_field_function(system)(zs, system.t, system.theta)
         euler = ca.Function("euler", [zs, system.t, system.theta],
                             [ca.jacobian(zs + 0.1 * flow, zs)])
         z = np.concatenate([run.q[picks[0]], run.p[picks[0]]])

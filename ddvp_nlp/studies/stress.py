@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..discrete.equations import site_density_weight_function
 from ..errors import InputError
+from ..physics.hamiltonian import site_density_weight_function
 from ..scenes import load_scene
 from ..solvers.compiler import find_compiler
 from .compare import REFERENCE_RTOL, _comparable, _machine, _needs_p0, failure_table, reference_for
