@@ -1,29 +1,10 @@
-"""The discrete equations of one interval and one node, written once (THEORY.md section 2).
+"""The discrete equations of one interval and one node, as CasADi functions every solver uses.
 
-Every solver uses exactly these functions: the march stacks them for one step, the
-fixed-endpoint solver maps them over the whole grid, and the checks evaluate them on results.
-
-Interval ``k`` joins node ``a = k`` and node ``b = k + 1``:
-
-    Q = alpha q_a + beta q_b,   P = alpha p_b + beta p_a,   tau = t_b - t_a,
-    s = t_a + tau/2 (midpoint clock) or t_a (left clock).
-
-Discrete action of the interval (the paper's case 3):
-
-    S_k = P . (q_b - q_a) - tau H(Q, P, s).
-
-Canonical equations, in increment form (the paper's eq. cneqd3 multiplied by ``tau``, so they stay
-well scaled as ``tau -> 0``):
-
-    q_b - q_a - tau dH/dp(Q, P, s) = 0,   p_b - p_a + tau dH/dq(Q, P, s) = 0.
-
-Energy equation at node ``k`` (joining intervals ``k-1`` and ``k``):
-
-    vddvp:  H(Q_k, P_k, s_{k-1}) - H(Q_{k-1}, P_{k-1}, s_{k-1}) = 0
-    lee:    dS_D/dt_k = d(S_{k-1} + S_k)/dt_k = 0   (by automatic differentiation)
-
-Both are differences of energies and have the units of ``H``. With the midpoint clock the
-``lee`` residual is ``H_k - H_{k-1} - (tau_k dH/dt_k + tau_{k-1} dH/dt_{k-1})/2``.
+The march stacks them for one step, the fixed-endpoint solver maps them over the whole grid, and
+the checks evaluate them on results (``grid_residuals``, ``interval_energies``). Each comes from
+the interval action of the system's form (``action.py``): the form is looked up once, in
+``FORMS``, and no equation depends on it otherwise. Adding a form of system means one action
+class and one line of ``FORMS``.
 """
 
 from __future__ import annotations
@@ -32,10 +13,17 @@ import casadi as ca
 import numpy as np
 
 from ..cache import cached
-from ..physics.hamiltonian import HamiltonianSystem, derivatives_function
+from ..physics.hamiltonian import HamiltonianSystem
+from ..physics.lagrangian import LagrangianSystem
+from .action import IntervalAction
+from .hamiltonian import HamiltonianAction
+from .lagrangian import LagrangianAction
 from .scheme import Scheme
 
 CANONICAL_INPUTS = ["t_a", "t_b", "q_a", "p_a", "q_b", "p_b", "theta"]
+# System forms and their interval actions, most specific first (a LagrangianSystem is also a
+# HamiltonianSystem: it carries H by the Legendre transform for the monitors).
+FORMS = ((LagrangianSystem, LagrangianAction), (HamiltonianSystem, HamiltonianAction))
 ENERGY_INPUTS = ["t_prev", "t_mid", "t_next", "q_prev", "p_prev", "q_mid", "p_mid",
                  "q_next", "p_next", "theta"]
 
@@ -45,67 +33,32 @@ def _node_symbols(system: HamiltonianSystem, suffix: str):
             ca.SX.sym(f"p_{suffix}", system.n))
 
 
-
-
-
-
-def interval_arguments(scheme: Scheme, t_a, t_b, q_a, p_a, q_b, p_b):
-    """``(Q, P, s, tau)`` of the interval from node ``a`` to node ``b``."""
-    tau = t_b - t_a
-    Q = scheme.alpha * q_a + scheme.beta * q_b
-    P = scheme.alpha * p_b + scheme.beta * p_a
-    s = t_a + tau / 2 if scheme.clock == "midpoint" else t_a
-    return Q, P, s, tau
+def action_for(system, scheme: Scheme) -> IntervalAction:
+    """The interval action of ``system``'s form (the first entry of ``FORMS`` it is an instance
+    of)."""
+    for form, action in FORMS:
+        if isinstance(system, form):
+            return action(system, scheme)
+    raise TypeError(f"no discrete action for a {type(system).__name__}")
 
 
 def interval_action_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, theta):
-    """``S_k = P . (q_b - q_a) - tau H(Q, P, s)``; for a Lagrangian system
-    ``S_k = tau L(Q, (q_b - q_a)/tau, s)``."""
-    Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
-    if system.lagrangian_form:
-        return tau * system.L_function(Q, (q_b - q_a) / tau, s, theta)
-    return ca.dot(P, q_b - q_a) - tau * system.H_function(Q, P, s, theta)
+    """``S_k`` of one interval (``hamiltonian.py``, ``lagrangian.py``)."""
+    return action_for(system, scheme).action(t_a, t_b, q_a, p_a, q_b, p_b, theta)
 
 
 def canonical_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, theta):
-    """Increment-form canonical equations of one interval (2n entries, ``q`` rows first).
-
-    For a Lagrangian system: the discrete Legendre transform of the interval,
-    ``p_a - (dL/dv - tau alpha dL/dq)`` and ``p_b - (dL/dv + tau beta dL/dq)`` (``lagrangian.py``).
-    """
-    if system.lagrangian_form:
-        from .lagrangian import discrete_momenta
-
-        p_left, p_right = discrete_momenta(system, scheme, t_a, t_b, q_a, q_b, theta)
-        return ca.vertcat(p_a - p_left, p_b - p_right)
-    Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
-    _, H_q, H_p, _ = derivatives_function(system)(Q, P, s, theta)
-    return ca.vertcat(q_b - q_a - tau * H_p, p_b - p_a + tau * H_q)
+    """The ``2n`` interval equations of one interval: the increment-form canonical equations
+    (``q`` rows first), or for a Lagrangian system its discrete Legendre transform."""
+    return action_for(system, scheme).interval_equations(t_a, t_b, q_a, p_a, q_b, p_b, theta)
 
 
 def energy_expression(system, scheme, rule, t_prev, t_mid, t_next, q_prev, p_prev, q_mid, p_mid,
                       q_next, p_next, theta):
     """Energy equation at the node between interval ``k-1`` (prev, mid) and ``k`` (mid, next)."""
-    if rule == "vddvp":
-        Q0, P0, s0, tau0 = interval_arguments(scheme, t_prev, t_mid, q_prev, p_prev, q_mid,
-                                              p_mid)
-        Q1, P1, _, tau1 = interval_arguments(scheme, t_mid, t_next, q_mid, p_mid, q_next, p_next)
-        if system.lagrangian_form:  # E = v . dL/dv - L of each interval, both at clock s0
-            from .lagrangian import interval_energy
-
-            return (interval_energy(system, Q1, (q_next - q_mid) / tau1, s0, theta)
-                    - interval_energy(system, Q0, (q_mid - q_prev) / tau0, s0, theta))
-        return system.H_function(Q1, P1, s0, theta) - system.H_function(Q0, P0, s0, theta)
-    if rule == "lee":
-        # Differentiate with respect to a fresh symbol standing in for t_mid, so that t_mid
-        # may itself be an expression (for example t_next - tau in the march).
-        t_k = ca.SX.sym("t_k")
-        action = (interval_action_expression(system, scheme, t_prev, t_k, q_prev, p_prev,
-                                             q_mid, p_mid, theta)
-                  + interval_action_expression(system, scheme, t_k, t_next, q_mid, p_mid,
-                                               q_next, p_next, theta))
-        return ca.substitute(ca.gradient(action, t_k), t_k, t_mid)
-    raise ValueError(f"rule {rule!r} has no energy equation")
+    return action_for(system, scheme).energy_equation(rule, t_prev, t_mid, t_next, q_prev,
+                                                      p_prev, q_mid, p_mid, q_next, p_next,
+                                                      theta)
 
 
 def diagnostic_rule(scheme: Scheme) -> str:
@@ -142,17 +95,13 @@ def energy_function(system: HamiltonianSystem, scheme: Scheme, rule: str | None 
 
 
 def midpoint_energy_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Function:
-    """``H_k = H(Q_k, P_k, s_k)`` of one interval: the energy the scheme conserves."""
+    """``E_k`` of one interval at its own clock (``H(Q_k, P_k, s_k)`` for a Hamiltonian): the
+    energy the scheme conserves."""
     def build():
         t_a, q_a, p_a = _node_symbols(system, "a")
         t_b, q_b, p_b = _node_symbols(system, "b")
-        Q, P, s, tau = interval_arguments(scheme, t_a, t_b, q_a, p_a, q_b, p_b)
-        if system.lagrangian_form:
-            from .lagrangian import interval_energy
-
-            energy = interval_energy(system, Q, (q_b - q_a) / tau, s, system.theta)
-        else:
-            energy = system.H_function(Q, P, s, system.theta)
+        energy = action_for(system, scheme).interval_energy(t_a, t_b, q_a, p_a, q_b, p_b,
+                                                            system.theta)
         return ca.Function("interval_energy", [t_a, t_b, q_a, p_a, q_b, p_b, system.theta],
                            [energy], CANONICAL_INPUTS, ["H"])
     return cached(system, ("interval_energy", scheme), build)

@@ -1,14 +1,32 @@
-"""The discrete action of a higher-derivative Lagrangian (the paper's case 1) and its energies.
+"""The discrete action of a higher-derivative Lagrangian ``L(q, v_1, ..., v_l, t)`` (case 1).
 
-Forward differences on the variable grid, evaluated at the left node::
+Forward differences on the variable grid, evaluated at the left node (THEORY.md section 3)::
 
     v_1^(k) = (q_{k+1} - q_k) / tau_k,   v_m^(k) = (v_{m-1}^(k+1) - v_{m-1}^(k)) / tau_k,
-    L^(k) = L(q_k, v_1^(k), ..., v_l^(k), t_k),   S_D = sum_k tau_k L^(k).
+    L^(k) = L(q_k, v_1^(k), ..., v_l^(k), t_k),   S_D = sum_k tau_k L^(k),
 
-The discrete Euler-Lagrange equations are the gradient of ``S_D`` in the free node positions, the
-energy equations its gradient in the free node times (both by automatic differentiation, in
-``solvers/higher.py``). ``energies`` recovers the multipliers and the energy
-``E^(k) = sum_m lambda_m^(k) . v_m^(k) - L^(k)`` on a solution (see ``physics/higher.py``).
+the sum running over the intervals whose differences the grid defines (``k <= N - 1 - l``).
+
+The paper introduces the ``v_m`` as independent variables with Lagrange multipliers for
+``v_m = Delta v_{m-1}``; eliminating the multipliers (its eq. n-order) leaves the stationarity of
+``S_D`` in the free node positions (the discrete Euler-Lagrange equations, here the gradient of
+the assembled action by automatic differentiation) and, for the energy rule, in the free node
+times. The multipliers are recovered on a solution from the recursion
+
+    lambda_l^(k) = dL/dv_l^(k),
+    lambda_m^(k) = dL/dv_m^(k) - (lambda_{m+1}^(k) - lambda_{m+1}^(k-1)) / tau_k,
+
+that is ``lambda_m = sum_h (-Delta R^-1)^h dL/dv_{m+h}``, and the energy is
+``E^(k) = sum_m lambda_m^(k) . v_m^(k) - L^(k)``. For an autonomous ``L`` the node-time
+stationarity keeps ``E^(k)`` constant: the tests measure it to round-off along variable-step
+solutions, which checks the recursion and the equations against each other. The energy rule
+here is that stationarity (``lee``); ``vddvp`` differs from it only through the paper's hatted
+time derivative of a time-dependent ``L``, which is not implemented: it is accepted for
+autonomous ``L`` (where the two coincide) and refused otherwise.
+
+Fixed-endpoint problems fix ``l`` nodes (times and positions) at each end; marches start from
+``2l`` given nodes and solve, per step, the Euler-Lagrange equation at node ``k`` (and the energy
+equation at node ``k``) for node ``k + l``.
 """
 
 from __future__ import annotations

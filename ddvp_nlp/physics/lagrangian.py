@@ -1,22 +1,9 @@
-"""A mechanical system declared by its Lagrangian ``L(q, v, t)`` (the paper's case 2).
-
-Interval ``k`` (THEORY.md section 3): ``Q_k = alpha q_k + beta q_{k+1}``,
-``v_k = (q_{k+1} - q_k)/tau_k``, clock ``s_k``, ``L_k = L(Q_k, v_k, s_k)``; action
-``S_D = sum_k tau_k L_k``. Its stationarity in the interior ``q`` (the discrete Euler-Lagrange
-equations) is written with the discrete Legendre transform, one pair of equations per interval,
-in the node momenta ``p``:
-
-    p_k     = dL/dv(k) - tau_k alpha dL/dq(k),
-    p_{k+1} = dL/dv(k) + tau_k beta  dL/dq(k),
-
-so that ``p_k`` of interval ``k`` and of interval ``k-1`` agree exactly when the Euler-Lagrange
-equation at node ``k`` holds. Every solver keeps its ``(q, p)`` unknowns and every result reports
-``p``. The energy of an interval is ``E_k = v_k . dL/dv(k) - L_k``; the ``vddvp`` rule sets ``E``
-of interval ``k`` at clock ``s_{k-1}`` equal to ``E_{k-1}``, ``lee`` sets ``dS_D/dt_k = 0``.
+"""A mechanical system declared by its Lagrangian ``L(q, v, t)``, regular in ``v``.
 
 ``H(q, p, t)`` is also built, by the Legendre transform ``p = dL/dv``: exactly where ``L`` is
-quadratic in ``v``, else by six Newton iterations from ``v = 0``. The discrete equations never use
-it; the march's predictor, the solvability monitor and the energy guard do.
+quadratic in ``v``, else by six Newton iterations from ``v = 0``. The discrete equations never
+use it (they come from ``L``: ``discrete/lagrangian.py``); the march's predictor, the
+solvability monitor and the energy guard do.
 """
 
 from __future__ import annotations
