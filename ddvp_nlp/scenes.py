@@ -17,7 +17,6 @@ The built-in scenes are the files of the top-level ``problems/`` folder (install
 from __future__ import annotations
 
 import importlib.util
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -139,8 +138,7 @@ class Scene:
         q0, p0, v0 = (x(**params) if callable(x) else x for x in (q0, p0, v0))
         values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
         for k, v in values.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise InputError(f"{k} must be a finite real number, got {v!r}")
+            check_real(k, v)
 
         def vector(x):
             return None if x is None else np.atleast_1d(np.asarray(x, dtype=float))

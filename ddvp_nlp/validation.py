@@ -1,5 +1,6 @@
-"""Checks of user input, shared by every entry point. Each raises InputError naming the argument
-and the value, before anything is built."""
+"""Checks of user input, shared by every entry point: the one module that says what a valid
+argument is. Each check raises InputError naming the argument and the value, before anything is
+built, and returns the value in the type the library uses."""
 
 from __future__ import annotations
 
@@ -64,3 +65,28 @@ def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, 
             raise InputError(f"parameter {name!r} must be finite, got {value!r}")
         resolved[name] = float(value)
     return resolved
+
+
+def check_in_range(name: str, value, low: float, high: float) -> float:
+    """A finite real number in ``[low, high]``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or not low <= value <= high:
+        raise InputError(f"{name} must be a number in [{low:g}, {high:g}], got {value!r}")
+    return float(value)
+
+
+def check_finite_array(name: str, value, shape: tuple | None = None) -> np.ndarray:
+    """A finite real array (of ``shape``, if given)."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of real numbers, got {value!r}") from None
+    if shape is not None and array.shape != tuple(shape):
+        raise InputError(f"{name} must have shape {tuple(shape)}, got {array.shape}")
+    bad = np.flatnonzero(~np.isfinite(array.ravel()))
+    if bad.size:
+        shown = (array.tolist() if array.size <= 10 else
+                 f"{bad.size} non-finite entries, the first {array.ravel()[bad[0]]!r} at flat "
+                 f"index {bad[0]}")
+        raise InputError(f"{name} must be finite, got {shown}")
+    return array

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from ..errors import InputError
+from ..validation import check_in_range
 
 RULES = ("vddvp", "lee", "fixed")
 CLOCKS = ("midpoint", "left")
@@ -34,9 +34,7 @@ class Scheme:
     def __post_init__(self):
         if self.rule not in RULES:
             raise InputError(f"unknown scheme {self.rule!r} (choose from {', '.join(RULES)})")
-        if isinstance(self.alpha, bool) or not isinstance(self.alpha, (int, float)) \
-                or not math.isfinite(self.alpha) or not 0.0 <= self.alpha <= 1.0:
-            raise InputError(f"alpha must be a number in [0, 1], got {self.alpha!r}")
+        check_in_range("alpha", self.alpha, 0.0, 1.0)
         if self.clock not in CLOCKS:
             raise InputError(f"unknown clock {self.clock!r} (choose from {', '.join(CLOCKS)})")
         object.__setattr__(self, "alpha", float(self.alpha))

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..cache import cached
 from ..errors import InputError
-from ..validation import check_parameter_values
+from ..validation import check_integer, check_parameter_values
 
 
 @dataclass(eq=False)
@@ -47,9 +47,7 @@ class HamiltonianSystem:
         self._finish()
 
     def _symbols(self):
-        if isinstance(self.n, bool) or not isinstance(self.n, (int, np.integer)) or self.n < 1:
-            raise InputError(f"n must be a positive integer, got {self.n!r}")
-        self.n = int(self.n)
+        self.n = check_integer("n", self.n)
         self.params = check_parameter_values(self.params, {k: 0.0 for k in self.params},
                                              owner=f"system {self.name!r}")
         self.q = ca.SX.sym("q", self.n)

@@ -26,8 +26,7 @@ class HigherOrderSystem:
 
     def __init__(self, lagrangian: Callable[..., object], n: int, order: int,
                  params: Mapping[str, float] | None = None, name: str = "system"):
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise InputError(f"n must be a positive integer, got {n!r}")
+        n = check_integer("n", n)
         self.order = check_integer("order", order)
         self.n, self.name, self.lagrangian = int(n), name, lagrangian
         self.params = check_parameter_values(dict(params or {}),

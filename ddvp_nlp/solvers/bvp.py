@@ -51,7 +51,7 @@ from ..discrete.scheme import Scheme
 from ..errors import InputError
 from ..physics.hamiltonian import HamiltonianSystem, site_density_weight_function
 from ..solution import Solution, Status
-from ..validation import check_integer, check_real, check_state
+from ..validation import check_finite_array, check_integer, check_real, check_state
 
 SOLVERS = ("ipopt", "newton")
 
@@ -386,10 +386,5 @@ def _check_guess(guess, nodes, n):
     shapes = {"t": (nodes,), "q": (nodes, n), "p": (nodes, n)}
     result = {}
     for key, shape in shapes.items():
-        value = np.asarray(guess[key], float)
-        if value.shape != shape:
-            raise InputError(f"guess[{key!r}] must have shape {shape}, got {value.shape}")
-        if not np.all(np.isfinite(value)):
-            raise InputError(f"guess[{key!r}] must be finite")
-        result[key] = value
+        result[key] = check_finite_array(f"guess[{key!r}]", guess[key], shape)
     return result
