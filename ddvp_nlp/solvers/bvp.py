@@ -252,14 +252,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
     n = system.n
     q_start = check_state("q_start", q_start, n)
     q_end = check_state("q_end", q_end, n)
-    try:
-        t0, t1 = (float(v) for v in t_span)
-    except (TypeError, ValueError):
-        raise InputError(f"t_span must be a pair (t_0, t_end), got {t_span!r}") from None
-    check_real("t_span[0]", t0)
-    check_real("t_span[1]", t1)
-    if t1 <= t0:
-        raise InputError(f"t_span must have t_end > t_0, got {t_span!r}")
+    t0, t1 = _check_span(t_span)
     nodes = check_integer("nodes", nodes, minimum=3)
     tol = check_real("tol", tol, positive=True)
     if solver not in SOLVERS:
@@ -271,14 +264,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
     if tau_floor >= mean_step:
         raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean_step!r}, "
                          f"got {tau_floor!r}")
-    if times is None:
-        grid_times = np.linspace(t0, t1, nodes)
-    else:
-        grid_times = np.asarray(times, float)
-        if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
-                or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
-            raise InputError(f"times must be {nodes} increasing finite values from t_0 to "
-                             f"t_end, got {times!r}")
+    grid_times = _check_times(times, nodes, t0, t1)
     start = _check_guess(guess, nodes, n) if guess is not None else None
     theta = system.parameter_vector(params)
 
@@ -289,29 +275,9 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
         max_iter, tol)
     built = time.perf_counter()
     stats: dict = {"solver": solver, "phases": []}
-
-    def solve_fixed(times, q, p, phase_name):
-        par = np.concatenate([q_start, q_end, times, theta, [1.0]])
-        x, phase = fixed.solve(fixed.layout.pack(times, q, p), par, tau_floor)
-        phase["phase"] = phase_name
-        stats["phases"].append(phase)
-        if phase["converged"] and np.all(np.isfinite(x)):
-            return fixed.layout.unpack(x, times, q_start, q_end)
-        return None
-
+    ends_fixed = (q_start, q_end, theta, tau_floor)
     if start is None:
-        q, p = _straight_line_guess(q_start, q_end, grid_times)
-        start = {"t": grid_times, "q": q, "p": p}
-        if scheme.variable_steps:
-            first = solve_fixed(grid_times, q, p, "fixed steps, uniform times")
-            if first is not None:
-                t, q, p = first
-                start = {"t": t, "q": q, "p": p}
-                times = predicted_times(system, t, q, p, theta)
-                second = solve_fixed(times, _interpolate(times, t, q), _interpolate(times, t, p),
-                                     "fixed steps, predicted times")
-                if second is not None:
-                    start = dict(zip(("t", "q", "p"), second, strict=True))
+        start = _three_phase_start(system, scheme, fixed, grid_times, ends_fixed, stats)
     ends = np.array([t0, t1]) if scheme.variable_steps else grid_times
     par = np.concatenate([q_start, q_end, ends, theta, [mean_step]])
     layout = problem.layout
@@ -334,6 +300,63 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
         energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
         newton_iterations=stats["iterations_total"],
         timing={"build_s": built - started, "solve_s": solved - built}, stats=stats)
+
+
+def _check_span(t_span) -> tuple[float, float]:
+    try:
+        t0, t1 = (float(v) for v in t_span)
+    except (TypeError, ValueError):
+        raise InputError(f"t_span must be a pair (t_0, t_end), got {t_span!r}") from None
+    check_real("t_span[0]", t0)
+    check_real("t_span[1]", t1)
+    if t1 <= t0:
+        raise InputError(f"t_span must have t_end > t_0, got {t_span!r}")
+    return t0, t1
+
+
+def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
+    """The fixed rule's node times: uniform by default, else ``nodes`` increasing values from
+    ``t0`` to ``t1``."""
+    if times is None:
+        return np.linspace(t0, t1, nodes)
+    grid_times = np.asarray(times, float)
+    if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
+            or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
+        raise InputError(f"times must be {nodes} increasing finite values from t_0 to "
+                         f"t_end, got {times!r}")
+    return grid_times
+
+
+def _three_phase_start(system, scheme, fixed, grid_times, ends_fixed, stats) -> dict:
+    """The default starting point (module docstring): the straight line; for an energy rule
+    then the fixed-step solution on uniform times, then on the times the site density predicts
+    from it. Each phase that fails leaves the previous one's point."""
+    q_start, q_end, theta, tau_floor = ends_fixed
+
+    def solve_fixed(times, q, p, phase_name):
+        par = np.concatenate([q_start, q_end, times, theta, [1.0]])
+        x, phase = fixed.solve(fixed.layout.pack(times, q, p), par, tau_floor)
+        phase["phase"] = phase_name
+        stats["phases"].append(phase)
+        if phase["converged"] and np.all(np.isfinite(x)):
+            return fixed.layout.unpack(x, times, q_start, q_end)
+        return None
+
+    q, p = _straight_line_guess(q_start, q_end, grid_times)
+    start = {"t": grid_times, "q": q, "p": p}
+    if not scheme.variable_steps:
+        return start
+    first = solve_fixed(grid_times, q, p, "fixed steps, uniform times")
+    if first is None:
+        return start
+    t, q, p = first
+    start = {"t": t, "q": q, "p": p}
+    times = predicted_times(system, t, q, p, theta)
+    second = solve_fixed(times, _interpolate(times, t, q), _interpolate(times, t, p),
+                         "fixed steps, predicted times")
+    if second is not None:
+        start = dict(zip(("t", "q", "p"), second, strict=True))
+    return start
 
 
 def _verify(phase, t, canonical, energy, scheme, tol, mean_step, stats):
