@@ -162,7 +162,8 @@ def _fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, c
         state = ca.SX.sym("state", 1 + 2 * system.n)
         constants = ca.SX.sym("constants", system.theta.numel() + 2)
         theta, first, h = constants[:-2], constants[-2], constants[-1]
-        k, z = state_layout.split(state).values()
+        parts = state_layout.split(state)
+        k, z = parts["k"], parts["z"]
         z_next = step(z, first + k * h, h, theta)
         one = ca.Function(f"{method}_step", [state, constants],
                           [state_layout.pack(k=k + 1, z=z_next),
