@@ -10,7 +10,9 @@ from conftest import fitted_order
 
 from ddvp_nlp import HamiltonianSystem, InputError, Scene, load_scene
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.baselines import fixed_step_run, lee_left_march
+from ddvp_nlp.solvers.baselines import fixed_step_run
+from ddvp_nlp.solvers.lee_left import lee_left_march
+from ddvp_nlp.solvers.scipy_dop853 import flow_callable
 from ddvp_nlp.studies.compare import (
     COLUMNS,
     Reference,
@@ -21,7 +23,7 @@ from ddvp_nlp.studies.compare import (
     time_to_reach,
     work_precision,
 )
-from ddvp_nlp.studies.methods import METHODS, flow_callable, get_methods
+from ddvp_nlp.studies.methods import METHODS, get_methods
 
 
 def _run(name, scene_name, value, overrides=None):

@@ -1,4 +1,4 @@
-"""The schemes users would pick instead, run the same way as the march: compiled chunks of steps.
+"""The explicit schemes users would pick instead, run the same way as the march: compiled chunks.
 
 - Stormer-Verlet (leapfrog) for separable ``H = T(p) + V(q, t)``: the Strang splitting of the
   autonomous extended system (time advances with ``q``), order 2, symplectic::
@@ -8,16 +8,10 @@
 
 - Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
   energy-conserving.
-- T.D. Lee's original discretisation (THEORY.md section 2): for ``H = p.A p/2 + V(q, t)`` with a
-  constant matrix ``A``, the left-point discrete Lagrangian
-  ``L_d = tau_k [v_k.A^{-1} v_k/2 - V(q_k, t_k)]``, ``v_k = (q_{k+1} - q_k)/tau_k``. Each step
-  solves the discrete Euler-Lagrange equation ``dS_D/dq_k = 0`` and the energy equation
-  ``dS_D/dt_k = 0``, both taken from the two-interval action by automatic differentiation, for
-  ``(v_k, tau_k)``. Order 1; it has no real step once a step overshoots a turning point.
 
-The fixed-step methods are explicit; each chunk's steps are checked for finite values. Lee's
-scheme is implicit (``fast_newton``); each of its steps is accepted only if finite, ``tau > 0``
-and its own unscaled residuals are under ``tol``, exactly like a march step.
+Both march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite.
+Also here, for every compiled baseline (``lee_left.py`` too): :func:`chunk_for`, the named
+columns of a chunk's rows (:class:`Columns`), :func:`load` and :func:`solution_of`.
 """
 
 from __future__ import annotations
@@ -32,9 +26,10 @@ from ..cache import cached
 from ..discrete.runge_kutta import rk4
 from ..errors import InputError
 from ..physics.hamiltonian import HamiltonianSystem, vector_field_function
-from ..solution import Solution, Status, bound_reached
-from .chunk import FAST_NEWTON_OPTIONS
+from ..solution import Solution, Status
 from .compiler import cache_folder, compile_function
+from .driver import Advance, Nodes, describe_phase_space, drive
+from .integrator import Integrator
 
 CHUNK = 1024
 
@@ -43,6 +38,63 @@ def chunk_for(steps: float) -> int:
     """Steps per compiled call for a run of about ``steps`` steps: the next power of two, between
     64 and 1024, so short runs do not pay for 1024 steps they throw away."""
     return int(min(CHUNK, max(64, 2 ** math.ceil(math.log2(max(steps, 1))))))
+
+
+class Columns:
+    """Named columns of a compiled chunk's state or output rows, in order: the one place where a
+    row is both written (:meth:`pack`, CasADi) and read (:meth:`split`, :meth:`unpack`)."""
+
+    def __init__(self, **widths: int):
+        self.widths = widths
+
+    def _slices(self):
+        start = 0
+        for name, width in self.widths.items():
+            yield name, width, slice(start, start + width)
+            start += width
+
+    def pack(self, **parts) -> ca.SX:
+        """The row as one CasADi column, from its parts by name."""
+        if parts.keys() != self.widths.keys():
+            raise ValueError(f"a row has the columns {list(self.widths)}, got {list(parts)}")
+        return ca.vertcat(*(parts[name] for name in self.widths))
+
+    def join(self, **parts) -> np.ndarray:
+        """The row as one numpy vector, from its parts by name."""
+        return np.concatenate([np.atleast_1d(np.asarray(parts[name], float))
+                               for name in self.widths])
+
+    def split(self, row) -> dict:
+        """The parts of one row (a CasADi or numpy vector) by name."""
+        return {name: row[part.start] if width == 1 else row[part]
+                for name, width, part in self._slices()}
+
+    def unpack(self, rows: np.ndarray) -> dict[str, np.ndarray]:
+        """The columns of ``rows`` (one row per step) by name: ``(m,)`` for a width of one, else
+        ``(m, width)``."""
+        return {name: rows[:, part.start] if width == 1 else rows[:, part]
+                for name, width, part in self._slices()}
+
+
+def load(function: ca.Function, compiler, cache_dir):
+    """``function`` compiled (cached) where a compiler is given, else as it is; and the seconds
+    spent compiling."""
+    if compiler is None:
+        return function, 0.0
+    started = time.perf_counter()
+    return compile_function(function, compiler, cache_folder(cache_dir)), \
+        time.perf_counter() - started
+
+
+def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=None,
+                canonical_residual=None, stats=None) -> Solution:
+    """A baseline's :class:`Solution` from its nodes ``t``, ``z = (q, p)``."""
+    return Solution(t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
+                    scheme=scheme,
+                    energy_residual=np.zeros(0) if energy_residual is None else energy_residual,
+                    canonical_residual=(np.zeros(0) if canonical_residual is None
+                                        else canonical_residual),
+                    timing=timing, stats=stats or {})
 
 
 def separable_parts(system: HamiltonianSystem):
@@ -58,24 +110,6 @@ def separable_parts(system: HamiltonianSystem):
         return "dH/dq depends on p, so H is not T(p) + V(q, t)"
     return (ca.Function("T_p", [system.p, system.theta], [H_p]),
             ca.Function("V_q", [system.q, system.t, system.theta], [H_q]))
-
-
-def quadratic_kinetic_matrix(system: HamiltonianSystem):
-    """``A(theta)`` if ``H = p.A p/2 + V(q, t)`` with ``A`` constant in ``q, p, t``, else a reason
-    string. Lee's original scheme needs the Lagrangian ``v.A^{-1} v/2 - V``."""
-    parts = separable_parts(system)
-    if isinstance(parts, str):
-        return parts
-    H_p = ca.gradient(system.H, system.p)
-    A = ca.jacobian(H_p, system.p)
-    if ca.depends_on(A, ca.vertcat(system.q, system.p, system.t)):
-        return "H is not quadratic in p (d2H/dp2 is not constant)"
-    if ca.depends_on(ca.substitute(H_p, system.p, ca.DM.zeros(system.n)),
-                     ca.vertcat(system.q, system.t)) or \
-            not ca.is_equal(ca.simplify(ca.substitute(H_p, system.p, ca.DM.zeros(system.n))),
-                            ca.SX.zeros(system.n), 2):
-        return "H has a term linear in p"
-    return A
 
 
 def stormer_verlet_step(system: HamiltonianSystem) -> ca.Function:
@@ -111,29 +145,56 @@ def rk4_step(system: HamiltonianSystem) -> ca.Function:
     return cached(system, "rk4_step", build)
 
 
-def _load(function: ca.Function, compiler, cache_dir):
-    """``function`` compiled (cached) where a compiler is given, else as it is; and the seconds
-    spent compiling."""
-    if compiler is None:
-        return function, 0.0
-    started = time.perf_counter()
-    return compile_function(function, compiler, cache_folder(cache_dir)), \
-        time.perf_counter() - started
+FIXED_STEPS = {"stormer_verlet": stormer_verlet_step, "rk4": rk4_step}
 
 
-def _solution(t, z, n, status, message, scheme, timing, *, energy_residual=None,
-              canonical_residual=None, stats=None):
-    return Solution(t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
-                    scheme=scheme,
-                    energy_residual=np.zeros(0) if energy_residual is None else energy_residual,
-                    canonical_residual=(np.zeros(0) if canonical_residual is None
-                                        else canonical_residual),
-                    timing=timing, stats=stats or {})
+def _fixed_layout(n: int) -> tuple[Columns, Columns]:
+    """A fixed-step chunk's state (step index, ``z``) and output row (``t``, ``z``)."""
+    return Columns(k=1, z=2 * n), Columns(t=1, z=2 * n)
 
 
-def _failure_message(status, k, t, z, n, detail=""):
-    return (f"{status.value}: step {k} from t = {t:.10g}, q = {z[:n]}, p = {z[n:]}"
-            + (f"; {detail}" if detail else ""))
+def _fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, cache_dir):
+    """``chunk`` steps of ``method`` per call: ``(state, constants) -> (states, rows)``, the
+    constants ``(theta, t0, h)``, so that step ``k`` starts at ``t0 + k h``."""
+    def build():
+        step = FIXED_STEPS[method](system)
+        state_layout, row = _fixed_layout(system.n)
+        state = ca.SX.sym("state", 1 + 2 * system.n)
+        constants = ca.SX.sym("constants", system.theta.numel() + 2)
+        theta, first, h = constants[:-2], constants[-2], constants[-1]
+        parts = state_layout.split(state)
+        k, z = parts["k"], parts["z"]
+        z_next = step(z, first + k * h, h, theta)
+        one = ca.Function(f"{method}_step", [state, constants],
+                          [state_layout.pack(k=k + 1, z=z_next),
+                           row.pack(t=first + (k + 1) * h, z=z_next)])
+        return load(one.mapaccum(f"{method}_chunk", chunk), compiler, cache_dir)
+    return cached(system, (method, chunk, compiler, str(cache_dir)), build)
+
+
+class _FixedSteps:
+    """Stepper (``driver.py``) of a compiled fixed-step chunk on the grid ``t0 + k h``, whose
+    step ``total`` lands on ``t_end`` exactly."""
+
+    describe = staticmethod(describe_phase_space)
+
+    def __init__(self, function, chunk: int, constants, total: int, t_end: float, n: int):
+        self.function, self.chunk, self.constants = function, chunk, constants
+        self.total, self.t_end = total, t_end
+        self.state, self.row = _fixed_layout(n)
+
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
+        k = nodes.count - 1
+        _, rows = self.function(self.state.join(k=k, z=nodes.z[k]), self.constants)
+        rows = np.asarray(rows).T[:min(self.chunk, budget)]
+        finite = np.all(np.isfinite(rows), axis=1)
+        kept = int(np.argmin(finite)) if not finite.all() else rows.shape[0]
+        columns = self.row.unpack(rows[:kept])
+        t = columns["t"].copy()
+        if k + kept == self.total:
+            t[-1] = self.t_end  # k h may differ from t_end by round-off
+        return Advance(t, columns["z"],
+                       Status.NON_FINITE if kept < rows.shape[0] else Status.SUCCESS)
 
 
 def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float, t_end: float,
@@ -143,200 +204,41 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
     ``t_end`` (the step is ``(t_end - t0)/ceil((t_end - t0)/tau)``); ``time_limit`` (seconds)
     is checked between chunks."""
     started = time.perf_counter()
-    n = system.n
     total = max(1, math.ceil((t_end - t0) / tau - 1e-9))
-    step_length = (t_end - t0) / total
     chunk = chunk_for(total)
-
-    def build():
-        step = {"stormer_verlet": stormer_verlet_step, "rk4": rk4_step}[method](system)
-        state = ca.SX.sym("state", 1 + 2 * n)
-        constants = ca.SX.sym("constants", system.theta.numel() + 2)
-        theta, first, h = constants[:-2], constants[-2], constants[-1]
-        k, z = state[0], state[1:]
-        z_next = step(z, first + k * h, h, theta)
-        one = ca.Function(f"{method}_step", [state, constants],
-                          [ca.vertcat(k + 1, z_next), ca.vertcat(first + (k + 1) * h, z_next)])
-        return _load(one.mapaccum(f"{method}_chunk", chunk), compiler, cache_dir)
-
-    function, compile_s = cached(system, (method, chunk, compiler, str(cache_dir)), build)
+    function, compile_s = _fixed_chunk(system, method, chunk, compiler, cache_dir)
     built = time.perf_counter()
-    t = np.empty(total + 1)
-    z = np.empty((total + 1, 2 * n))
-    t[0], z[0] = t0, np.concatenate([q0, p0])
-    constants = np.tile(np.concatenate([theta, [t0, step_length]])[:, None], (1, chunk))
-    k = 0
-    status, message = Status.SUCCESS, f"{Status.SUCCESS.value} = {t_end:.6g} in {total} steps"
-    while k < total:
-        if time_limit is not None and time.perf_counter() - built > time_limit:
-            status = Status.TIME_LIMIT
-            message = _failure_message(status, k, t[k], z[k], n, f"time_limit = {time_limit:g} s")
-            break
-        states, rows = function(np.concatenate([[k], z[k]]), constants)
-        rows = np.asarray(rows).T[:min(chunk, total - k)]
-        finite = np.all(np.isfinite(rows), axis=1)
-        kept = int(np.argmin(finite)) if not finite.all() else rows.shape[0]
-        t[k + 1:k + 1 + kept], z[k + 1:k + 1 + kept] = rows[:kept, 0], rows[:kept, 1:]
-        k += kept
-        if kept < rows.shape[0]:
-            status = Status.NON_FINITE
-            message = _failure_message(status, k, t[k], z[k], n)
-            break
-    t, z = t[:k + 1], z[:k + 1]
-    if status is Status.SUCCESS:
-        t[-1] = t_end  # k*h may differ from t_end by round-off
-    solved = time.perf_counter()
-    return _solution(t, z, n, status, message, method,
-                     {"build_s": built - started, "solve_s": solved - built,
-                      "compile_s": compile_s},
-                     stats={"path": "vm" if compiler is None else "compiled"})
+    constants = np.tile(np.concatenate([theta, [t0, (t_end - t0) / total]])[:, None], (1, chunk))
+    stepper = _FixedSteps(function, chunk, constants, total, t_end, system.n)
+    outcome = drive(stepper, Nodes(t0, np.concatenate([q0, p0])), t_end=t_end, max_steps=total,
+                    time_limit=time_limit)
+    return solution_of(outcome.t, outcome.z, system.n, outcome.status, outcome.message, method,
+                       {"build_s": built - started, "solve_s": time.perf_counter() - built,
+                        "compile_s": compile_s},
+                       stats={"path": "vm" if compiler is None else "compiled"})
 
 
-class _LeeLeftPoint:
-    """Step functions of T.D. Lee's original left-point scheme (see the module docstring)."""
-
-    def __init__(self, system: HamiltonianSystem):
-        A = quadratic_kinetic_matrix(system)
-        if isinstance(A, str):
-            raise InputError(f"method 'lee_left' needs H = p.A p/2 + V(q, t) on "
-                             f"{system.name!r}: {A}")
-        n, theta = system.n, system.theta
-        zero = ca.DM.zeros(n)
-        potential = ca.Function("V", [system.q, system.t, theta],
-                                [ca.substitute(system.H, system.p, zero)])
-        A_function = ca.Function("A", [theta], [A])
-
-        def interval_action(t_a, t_b, q_a, q_b):
-            tau = t_b - t_a
-            v = (q_b - q_a) / tau
-            return tau * (ca.dot(v, ca.solve(A_function(theta), v)) / 2
-                          - potential(q_a, t_a, theta))
-
-        t0, t1, t2 = ca.SX.sym("t_prev"), ca.SX.sym("t_mid"), ca.SX.sym("t_next")
-        q0, q1, q2 = ca.SX.sym("q_prev", n), ca.SX.sym("q_mid", n), ca.SX.sym("q_next", n)
-        action = interval_action(t0, t1, q0, q1) + interval_action(t1, t2, q1, q2)
-        euler_lagrange = ca.gradient(action, q1)
-        energy = ca.gradient(action, t1)
-        # Unknowns (v, tau) of the step: q_next = q_mid + tau v keeps both equations O(1) as
-        # tau -> 0 (in q_next they carry 1/tau).
-        v, tau = ca.SX.sym("v", n), ca.SX.sym("tau")
-        x = ca.vertcat(v, tau)
-        w = ca.vertcat(t0, t1, q0, q1, theta)
-        g = ca.substitute(ca.vertcat(euler_lagrange, energy), ca.vertcat(q2, t2),
-                          ca.vertcat(q1 + tau * v, t1 + tau))
-        self.residual = ca.Function("lee_left_step", [x, w], [g])
-        tau_prev = t1 - t0
-        v_prev = (q1 - q0) / tau_prev
-        V_q = ca.gradient(potential(q1, t1, theta), q1)
-        guess = ca.vertcat(v_prev - tau_prev * ca.mtimes(A_function(theta), V_q), tau_prev)
-        self.predict = ca.Function("lee_left_predict", [w], [guess])
-        # Momentum at the new node, p_{k+1} = dS_k/dq_{k+1} = A^{-1} v_k.
-        self.momentum = ca.Function("lee_left_momentum", [v, theta],
-                                    [ca.solve(A_function(theta), v)])
-        # First step from (q0, p0): p0 = -d(tau0 L_0)/dq_0, linear in v0, so one Newton step
-        # from v0 = 0 solves it.
-        p_start, tau0 = ca.SX.sym("p0", n), ca.SX.sym("tau0")
-        first = ca.substitute(p_start + ca.gradient(interval_action(t0, t1, q0, q1), q0),
-                              ca.vertcat(t1, q1), ca.vertcat(t0 + tau0, q0 + tau0 * v))
-        start = ca.vertcat(t0, tau0, q0, p_start, theta)
-        self.first_residual = ca.Function("lee_left_first_residual", [v, start], [first])
-        v_first = ca.substitute(-ca.solve(ca.jacobian(first, v), first), v, zero)
-        self.first_velocity = ca.Function("lee_left_first", [start], [v_first])
-        self.node_energy = ca.Function(
-            "lee_left_energy", [v, q0, t0, theta],
-            [ca.dot(v, ca.solve(A_function(theta), v)) / 2 + potential(q0, t0, theta)])
+def _fixed_step(name: str):
+    """``Integrator.run`` of the fixed-step method ``name``, knob ``tau``."""
+    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
+        steps = math.ceil((config.t_end - config.t0) / value - 1e-9)
+        if steps > max_steps:
+            raise InputError(f"tau = {value!r} needs {steps} steps to reach t_end, more than "
+                             f"max_steps = {max_steps}")
+        return fixed_step_run(system, name, config.q0, config.p0, tau=value,
+                              t_end=config.t_end, t0=config.t0,
+                              theta=system.parameter_vector(config.params),
+                              compiler=compiler, cache_dir=cache_dir, time_limit=time_limit)
+    return run
 
 
-def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: float,
-                   theta, tol: float = 1e-10, max_steps: int = 10_000_000, compiler=None,
-                   cache_dir=None, time_limit: float | None = None) -> Solution:
-    """March T.D. Lee's original left-point scheme until the first node at or past ``t_end``."""
-    started = time.perf_counter()
-    n = system.n
-    functions = cached(system, "lee_left", lambda: _LeeLeftPoint(system))
-    chunk = chunk_for((t_end - t0) / tau0)
+def _needs_separable(system) -> str | None:
+    parts = separable_parts(system)
+    return parts if isinstance(parts, str) else None
 
-    def build():
-        size = 2 + 2 * n
-        state = ca.SX.sym("state", size)
-        theta_symbol = ca.SX.sym("theta", system.theta.numel())
-        w = ca.vertcat(state, theta_symbol)
-        newton = ca.rootfinder("lee_left_newton", "fast_newton", functions.residual,
-                               FAST_NEWTON_OPTIONS)
-        x = newton(functions.predict(w), w)
-        v, tau = x[:n], x[n]
-        t_mid, q_mid = state[1], state[2 + n:]
-        q_next = q_mid + tau * v
-        residual = functions.residual(x, w)
-        row = ca.vertcat(t_mid + tau, q_next, functions.momentum(v, theta_symbol),
-                         ca.norm_inf(residual[:n]), residual[n],
-                         ca.norm_inf(q_mid), ca.fabs(functions.node_energy(v, q_mid, t_mid,
-                                                                           theta_symbol)))
-        one = ca.Function("lee_left_step", [state, theta_symbol],
-                          [ca.vertcat(t_mid, t_mid + tau, q_mid, q_next), row])
-        return _load(one.mapaccum("lee_left_chunk", chunk), compiler, cache_dir)
 
-    function, compile_s = cached(system, ("lee_left", chunk, compiler, str(cache_dir)), build)
-    built = time.perf_counter()
-    start = np.concatenate([[t0, tau0], q0, p0, theta])
-    v0 = np.asarray(functions.first_velocity(start)).ravel()
-    q1 = q0 + tau0 * v0
-    p1 = np.asarray(functions.momentum(v0, theta)).ravel()
-    first_residual = float(np.max(np.abs(np.asarray(functions.first_residual(v0, start)))))
-    t_list = [np.array([t0, t0 + tau0])]
-    z_list = [np.array([np.concatenate([q0, p0]), np.concatenate([q1, p1])])]
-    euler_lagrange, energy = [np.array([first_residual])], [np.zeros(0)]
-    state = np.concatenate([[t0, t0 + tau0], q0, q1])
-    thetas = np.tile(np.asarray(theta, float)[:, None], (1, chunk))
-    count, status, detail = 1, Status.SUCCESS, ""
-    if not np.all(np.isfinite(z_list[0])):
-        status = Status.NON_FINITE
-    while status is Status.SUCCESS and state[1] < t_end:
-        reached = bound_reached(count, max_steps, built, time_limit)
-        if reached:
-            status, detail = reached
-            break
-        states, rows = function(state, thetas)
-        states, rows = np.asarray(states).T, np.asarray(rows).T
-        t_next, z_next = rows[:, 0], rows[:, 1:1 + 2 * n]
-        el, en, size, E = (rows[:, 1 + 2 * n + i] for i in range(4))
-        t_mid = np.concatenate([[state[1]], t_next[:-1]])
-        with np.errstate(invalid="ignore"):
-            good = (np.all(np.isfinite(rows), axis=1) & (t_next > t_mid)
-                    & (el <= tol * np.maximum(1.0, size)) & (np.abs(en) <= tol * np.maximum(1, E)))
-        limit = min(chunk, max_steps - count)
-        ends = np.flatnonzero(t_next >= t_end)
-        if ends.size:
-            limit = min(limit, int(ends[0]) + 1)
-        bad = np.flatnonzero(~good[:limit])
-        kept = int(bad[0]) if bad.size else limit
-        t_list.append(t_next[:kept])
-        z_list.append(z_next[:kept])
-        euler_lagrange.append(el[:kept])
-        energy.append(en[:kept])
-        count += kept
-        if kept:
-            state = states[kept - 1]
-        if bad.size:
-            i = int(bad[0])
-            if not np.all(np.isfinite(rows[i])):
-                status, detail = Status.NON_FINITE, ""
-            elif t_next[i] <= t_mid[i]:
-                status, detail = Status.NO_ADMISSIBLE_STEP, (
-                    f"Newton from the previous step found tau = {t_next[i] - t_mid[i]:.6g}")
-            else:
-                status, detail = Status.NEWTON_FAILED, (
-                    f"Euler-Lagrange residual {el[i]:.3e}, energy residual {en[i]:.3e}")
-    t = np.concatenate(t_list)
-    z = np.concatenate(z_list)
-    if status is Status.SUCCESS:
-        message = f"{status.value} = {t_end:.6g} in {t.size - 1} steps"
-    else:
-        message = _failure_message(status, t.size - 1, t[-1], z[-1], n, detail)
-    solved = time.perf_counter()
-    return _solution(t, z, n, status, message, "lee_left",
-                     {"build_s": built - started, "solve_s": solved - built,
-                      "compile_s": compile_s},
-                     energy_residual=np.concatenate(energy),
-                     canonical_residual=np.concatenate(euler_lagrange),
-                     stats={"path": "vm" if compiler is None else "compiled"})
+STORMER_VERLET = Integrator("stormer_verlet", "Stormer-Verlet leapfrog (separable H)", order=2,
+                            symplectic=True, energy_conserving=False, knob="tau",
+                            run=_fixed_step("stormer_verlet"), applies=_needs_separable)
+RK4 = Integrator("rk4", "classical Runge-Kutta", order=4, symplectic=False,
+                 energy_conserving=False, knob="tau", run=_fixed_step("rk4"))

@@ -1,0 +1,254 @@
+"""T.D. Lee's original discretisation (THEORY.md section 2), run in compiled chunks like the march.
+
+For ``H = p.A p/2 + V(q, t)`` with a constant matrix ``A``, the left-point discrete Lagrangian
+``L_d = tau_k [v_k.A^{-1} v_k/2 - V(q_k, t_k)]``, ``v_k = (q_{k+1} - q_k)/tau_k``. Each step
+solves the discrete Euler-Lagrange equation ``dS_D/dq_k = 0`` and the energy equation
+``dS_D/dt_k = 0``, both taken from the two-interval action by automatic differentiation, for
+``(v_k, tau_k)``. Order 1; it has no real step once a step overshoots a turning point.
+
+The first step is special: from ``(q_0, p_0)`` it solves ``p_0 = -d(tau_0 L_0)/dq_0`` for
+``v_0`` on the given ``tau_0``, so a march starts from two nodes. The scheme is implicit
+(``fast_newton``); each step is accepted only if finite, ``tau > 0`` and its own unscaled
+residuals are under ``tol``, exactly like a march step.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from ..cache import cached
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem
+from ..solution import Solution, Status
+from .baselines import Columns, chunk_for, load, separable_parts, solution_of
+from .chunk import FAST_NEWTON_OPTIONS
+from .driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
+from .integrator import Integrator
+
+
+def quadratic_kinetic_matrix(system: HamiltonianSystem):
+    """``A(theta)`` if ``H = p.A p/2 + V(q, t)`` with ``A`` constant in ``q, p, t``, else a reason
+    string. Lee's original scheme needs the Lagrangian ``v.A^{-1} v/2 - V``."""
+    parts = separable_parts(system)
+    if isinstance(parts, str):
+        return parts
+    H_p = ca.gradient(system.H, system.p)
+    A = ca.jacobian(H_p, system.p)
+    if ca.depends_on(A, ca.vertcat(system.q, system.p, system.t)):
+        return "H is not quadratic in p (d2H/dp2 is not constant)"
+    if ca.depends_on(ca.substitute(H_p, system.p, ca.DM.zeros(system.n)),
+                     ca.vertcat(system.q, system.t)) or \
+            not ca.is_equal(ca.simplify(ca.substitute(H_p, system.p, ca.DM.zeros(system.n))),
+                            ca.SX.zeros(system.n), 2):
+        return "H has a term linear in p"
+    return A
+
+
+class _LeeLeftPoint:
+    """Step functions of T.D. Lee's original left-point scheme (see the module docstring)."""
+
+    def __init__(self, system: HamiltonianSystem):
+        A = quadratic_kinetic_matrix(system)
+        if isinstance(A, str):
+            raise InputError(f"method 'lee_left' needs H = p.A p/2 + V(q, t) on "
+                             f"{system.name!r}: {A}")
+        n, theta = system.n, system.theta
+        zero = ca.DM.zeros(n)
+        potential = ca.Function("V", [system.q, system.t, theta],
+                                [ca.substitute(system.H, system.p, zero)])
+        A_function = ca.Function("A", [theta], [A])
+
+        def interval_action(t_a, t_b, q_a, q_b):
+            tau = t_b - t_a
+            v = (q_b - q_a) / tau
+            return tau * (ca.dot(v, ca.solve(A_function(theta), v)) / 2
+                          - potential(q_a, t_a, theta))
+
+        t0, t1, t2 = ca.SX.sym("t_prev"), ca.SX.sym("t_mid"), ca.SX.sym("t_next")
+        q0, q1, q2 = ca.SX.sym("q_prev", n), ca.SX.sym("q_mid", n), ca.SX.sym("q_next", n)
+        action = interval_action(t0, t1, q0, q1) + interval_action(t1, t2, q1, q2)
+        euler_lagrange = ca.gradient(action, q1)
+        energy = ca.gradient(action, t1)
+        # Unknowns (v, tau) of the step: q_next = q_mid + tau v keeps both equations O(1) as
+        # tau -> 0 (in q_next they carry 1/tau).
+        v, tau = ca.SX.sym("v", n), ca.SX.sym("tau")
+        x = ca.vertcat(v, tau)
+        w = ca.vertcat(t0, t1, q0, q1, theta)
+        g = ca.substitute(ca.vertcat(euler_lagrange, energy), ca.vertcat(q2, t2),
+                          ca.vertcat(q1 + tau * v, t1 + tau))
+        self.residual = ca.Function("lee_left_step", [x, w], [g])
+        tau_prev = t1 - t0
+        v_prev = (q1 - q0) / tau_prev
+        V_q = ca.gradient(potential(q1, t1, theta), q1)
+        guess = ca.vertcat(v_prev - tau_prev * ca.mtimes(A_function(theta), V_q), tau_prev)
+        self.predict = ca.Function("lee_left_predict", [w], [guess])
+        # Momentum at the new node, p_{k+1} = dS_k/dq_{k+1} = A^{-1} v_k.
+        self.momentum = ca.Function("lee_left_momentum", [v, theta],
+                                    [ca.solve(A_function(theta), v)])
+        # First step from (q0, p0): p0 = -d(tau0 L_0)/dq_0, linear in v0, so one Newton step
+        # from v0 = 0 solves it.
+        p_start, tau0 = ca.SX.sym("p0", n), ca.SX.sym("tau0")
+        first = ca.substitute(p_start + ca.gradient(interval_action(t0, t1, q0, q1), q0),
+                              ca.vertcat(t1, q1), ca.vertcat(t0 + tau0, q0 + tau0 * v))
+        start = ca.vertcat(t0, tau0, q0, p_start, theta)
+        self.first_residual = ca.Function("lee_left_first_residual", [v, start], [first])
+        v_first = ca.substitute(-ca.solve(ca.jacobian(first, v), first), v, zero)
+        self.first_velocity = ca.Function("lee_left_first", [start], [v_first])
+        self.node_energy = ca.Function(
+            "lee_left_energy", [v, q0, t0, theta],
+            [ca.dot(v, ca.solve(A_function(theta), v)) / 2 + potential(q0, t0, theta)])
+
+
+
+def _layout(n: int) -> tuple[Columns, Columns]:
+    """A chunk's state: the last two nodes (in the order of ``_LeeLeftPoint``'s ``w``, which
+    appends ``theta``); its output row: the new node, its residuals and their scales."""
+    state = Columns(t_prev=1, t_mid=1, q_prev=n, q_mid=n)
+    row = Columns(t=1, z=2 * n, euler_lagrange=1, energy=1, q_scale=1, energy_scale=1)
+    return state, row
+
+
+def _chunk(system: HamiltonianSystem, functions: _LeeLeftPoint, chunk: int, compiler, cache_dir):
+    """``chunk`` Newton steps per call: ``(state, theta) -> (states, rows)``."""
+    def build():
+        n = system.n
+        state_layout, row = _layout(n)
+        state = ca.SX.sym("state", 2 + 2 * n)
+        theta_symbol = ca.SX.sym("theta", system.theta.numel())
+        w = ca.vertcat(state, theta_symbol)
+        newton = ca.rootfinder("lee_left_newton", "fast_newton", functions.residual,
+                               FAST_NEWTON_OPTIONS)
+        x = newton(functions.predict(w), w)
+        v, tau = x[:n], x[n]
+        now = state_layout.split(state)
+        t_mid, q_mid = now["t_mid"], now["q_mid"]
+        q_next = q_mid + tau * v
+        residual = functions.residual(x, w)
+        energy = functions.node_energy(v, q_mid, t_mid, theta_symbol)
+        out = row.pack(t=t_mid + tau, z=ca.vertcat(q_next, functions.momentum(v, theta_symbol)),
+                       euler_lagrange=ca.norm_inf(residual[:n]), energy=residual[n],
+                       q_scale=ca.norm_inf(q_mid), energy_scale=ca.fabs(energy))
+        one = ca.Function("lee_left_step", [state, theta_symbol],
+                          [state_layout.pack(t_prev=t_mid, t_mid=t_mid + tau, q_prev=q_mid,
+                                             q_mid=q_next), out])
+        return load(one.mapaccum("lee_left_chunk", chunk), compiler, cache_dir)
+    return cached(system, ("lee_left", chunk, compiler, str(cache_dir)), build)
+
+
+class _LeeLeftSteps:
+    """Stepper (``driver.py``) of Lee's scheme in compiled chunks, from the last two nodes.
+
+    A step is accepted if its row is finite, ``tau > 0``, the Euler-Lagrange residual is under
+    ``tol max(1, |q|_inf)`` and the energy residual under ``tol max(1, |E|)``; the first step that
+    is not ends the call with the status that says why. ``values`` carries each accepted step's
+    two residuals."""
+
+    describe = staticmethod(describe_phase_space)
+
+    def __init__(self, function, chunk: int, theta, n: int, tol: float):
+        self.function, self.chunk, self.n, self.tol = function, chunk, n, tol
+        self.thetas = np.tile(np.asarray(theta, float)[:, None], (1, chunk))
+        self.state, self.row = _layout(n)
+
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
+        n, last = self.n, nodes.count - 1
+        state = self.state.join(t_prev=nodes.t[last - 1], t_mid=nodes.t[last],
+                                q_prev=nodes.z[last - 1, :n], q_mid=nodes.z[last, :n])
+        _, rows = self.function(state, self.thetas)
+        rows = np.asarray(rows).T[:min(self.chunk, budget)]
+        row = self.row.unpack(rows)
+        t_mid = np.concatenate([[nodes.t[last]], row["t"][:-1]])
+        el, en = row["euler_lagrange"], row["energy"]
+        with np.errstate(invalid="ignore"):
+            good = (np.all(np.isfinite(rows), axis=1) & (row["t"] > t_mid)
+                    & (el <= self.tol * np.maximum(1.0, row["q_scale"]))
+                    & (np.abs(en) <= self.tol * np.maximum(1, row["energy_scale"])))
+        bad = np.flatnonzero(~good)
+        kept = int(bad[0]) if bad.size else rows.shape[0]
+        status, detail = self._why(rows, row, t_mid, int(bad[0])) if bad.size else \
+            (Status.SUCCESS, "")
+        return Advance(row["t"][:kept], row["z"][:kept], status, detail,
+                       {"euler_lagrange": el[:kept], "energy": en[:kept]})
+
+    @staticmethod
+    def _why(rows, row, t_mid, i: int) -> tuple[Status, str]:
+        """The status and detail of the rejected step ``i``."""
+        if not np.all(np.isfinite(rows[i])):
+            return Status.NON_FINITE, ""
+        if row["t"][i] <= t_mid[i]:
+            return Status.NO_ADMISSIBLE_STEP, (
+                f"Newton from the previous step found tau = {row['t'][i] - t_mid[i]:.6g}")
+        return Status.NEWTON_FAILED, (f"Euler-Lagrange residual {row['euler_lagrange'][i]:.3e}, "
+                                      f"energy residual {row['energy'][i]:.3e}")
+
+
+class _Record:
+    """Monitor (``driver.py``, rule 5) that keeps the named ``values`` of every kept node."""
+
+    def __init__(self, *keys: str):
+        self.kept = {key: [] for key in keys}
+
+    def watch(self, nodes: Nodes, first: int, advance: Advance):
+        for key, parts in self.kept.items():
+            parts.append(advance.values[key])
+
+    def array(self, key: str, before=()) -> np.ndarray:
+        return np.concatenate([np.asarray(before, float), *self.kept[key]])
+
+
+def _first_step(functions: _LeeLeftPoint, q0, p0, tau0: float, t0: float, theta):
+    """The two start nodes ``(t, z)`` from ``(q0, p0)`` and the first step's residual."""
+    start = np.concatenate([[t0, tau0], q0, p0, theta])
+    v0 = np.asarray(functions.first_velocity(start)).ravel()
+    q1 = q0 + tau0 * v0
+    p1 = np.asarray(functions.momentum(v0, theta)).ravel()
+    residual = float(np.max(np.abs(np.asarray(functions.first_residual(v0, start)))))
+    z = np.array([np.concatenate([q0, p0]), np.concatenate([q1, p1])])
+    return np.array([t0, t0 + tau0]), z, residual
+
+
+def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: float, t0: float,
+                   theta, tol: float = 1e-10, max_steps: int = 10_000_000, compiler=None,
+                   cache_dir=None, time_limit: float | None = None) -> Solution:
+    """March T.D. Lee's original left-point scheme until the first node at or past ``t_end``."""
+    started = time.perf_counter()
+    n = system.n
+    functions = cached(system, "lee_left", lambda: _LeeLeftPoint(system))
+    chunk = chunk_for((t_end - t0) / tau0)
+    function, compile_s = _chunk(system, functions, chunk, compiler, cache_dir)
+    built = time.perf_counter()
+    t, z, first_residual = _first_step(functions, q0, p0, tau0, t0, theta)
+    record = _Record("euler_lagrange", "energy")
+    if np.all(np.isfinite(z)):
+        outcome = drive(_LeeLeftSteps(function, chunk, theta, n, tol), Nodes(t, z), t_end=t_end,
+                        max_steps=max_steps, time_limit=time_limit, monitors=[record])
+    else:  # the first step is not a driven step: the run ends before the driver starts
+        outcome = Outcome(t, z, Status.NON_FINITE,
+                          message(Status.NON_FINITE, steps=1, t_end=t_end, t=t[-1],
+                                  state=describe_phase_space(z[-1])))
+    return solution_of(outcome.t, outcome.z, n, outcome.status, outcome.message, "lee_left",
+                       {"build_s": built - started, "solve_s": time.perf_counter() - built,
+                        "compile_s": compile_s},
+                       energy_residual=record.array("energy"),
+                       canonical_residual=record.array("euler_lagrange", [first_residual]),
+                       stats={"path": "vm" if compiler is None else "compiled"})
+
+
+def _lee_left(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
+    return lee_left_march(system, config.q0, config.p0, tau0=value, t_end=config.t_end,
+                          t0=config.t0, theta=system.parameter_vector(config.params),
+                          max_steps=max_steps, compiler=compiler, cache_dir=cache_dir,
+                          time_limit=time_limit)
+
+
+def _needs_quadratic_kinetic(system) -> str | None:
+    A = quadratic_kinetic_matrix(system)
+    return A if isinstance(A, str) else None
+
+
+LEE_LEFT = Integrator("lee_left", "T.D. Lee's original left-point scheme with the node-time "
+                      "variation", order=1, symplectic=True, energy_conserving=True, knob="tau0",
+                      run=_lee_left, applies=_needs_quadratic_kinetic)
