@@ -151,3 +151,36 @@ def vector_field_function(system: HamiltonianSystem) -> ca.Function:
         return ca.Function("f", [z, t, system.theta], [ca.vertcat(H_p, -H_q)],
                            ["z", "t", "theta"], ["f"])
     return cached(system, "vector_field", build)
+
+
+def separable_parts(system: HamiltonianSystem):
+    """``(T_p, V_q)`` as functions if ``H = T(p) + V(q, t)``, else a reason string.
+
+    Read off the expression: ``H_p`` must not depend on ``q`` or ``t``, ``H_q`` not on ``p``.
+    """
+    H_p = ca.gradient(system.H, system.p)
+    H_q = ca.gradient(system.H, system.q)
+    if ca.depends_on(H_p, ca.vertcat(system.q, system.t)):
+        return "dH/dp depends on q or t, so H is not T(p) + V(q, t)"
+    if ca.depends_on(H_q, system.p):
+        return "dH/dq depends on p, so H is not T(p) + V(q, t)"
+    return (ca.Function("T_p", [system.p, system.theta], [H_p]),
+            ca.Function("V_q", [system.q, system.t, system.theta], [H_q]))
+
+
+def quadratic_kinetic_matrix(system: HamiltonianSystem):
+    """``A(theta)`` if ``H = p.A p/2 + V(q, t)`` with ``A`` constant in ``q, p, t``, else a reason
+    string. Lee's original scheme needs the Lagrangian ``v.A^{-1} v/2 - V``."""
+    parts = separable_parts(system)
+    if isinstance(parts, str):
+        return parts
+    H_p = ca.gradient(system.H, system.p)
+    A = ca.jacobian(H_p, system.p)
+    if ca.depends_on(A, ca.vertcat(system.q, system.p, system.t)):
+        return "H is not quadratic in p (d2H/dp2 is not constant)"
+    if ca.depends_on(ca.substitute(H_p, system.p, ca.DM.zeros(system.n)),
+                     ca.vertcat(system.q, system.t)) or \
+            not ca.is_equal(ca.simplify(ca.substitute(H_p, system.p, ca.DM.zeros(system.n))),
+                            ca.SX.zeros(system.n), 2):
+        return "H has a term linear in p"
+    return A

@@ -23,9 +23,9 @@ import casadi as ca
 import numpy as np
 
 from ..cache import cached
-from ..discrete.runge_kutta import rk4
+from ..discrete.explicit import FIXED_STEPS
 from ..errors import InputError
-from ..physics.hamiltonian import HamiltonianSystem, vector_field_function
+from ..physics.hamiltonian import HamiltonianSystem, separable_parts
 from ..solution import Solution, Status
 from .compiler import cache_folder, compile_function
 from .driver import Advance, Nodes, describe_phase_space, drive
@@ -97,55 +97,12 @@ def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=Non
                     timing=timing, stats=stats or {})
 
 
-def separable_parts(system: HamiltonianSystem):
-    """``(T_p, V_q)`` as functions if ``H = T(p) + V(q, t)``, else a reason string.
-
-    Read off the expression: ``H_p`` must not depend on ``q`` or ``t``, ``H_q`` not on ``p``.
-    """
-    H_p = ca.gradient(system.H, system.p)
-    H_q = ca.gradient(system.H, system.q)
-    if ca.depends_on(H_p, ca.vertcat(system.q, system.t)):
-        return "dH/dp depends on q or t, so H is not T(p) + V(q, t)"
-    if ca.depends_on(H_q, system.p):
-        return "dH/dq depends on p, so H is not T(p) + V(q, t)"
-    return (ca.Function("T_p", [system.p, system.theta], [H_p]),
-            ca.Function("V_q", [system.q, system.t, system.theta], [H_q]))
 
 
-def stormer_verlet_step(system: HamiltonianSystem) -> ca.Function:
-    """``(z, t, tau, theta) -> z_next`` by Stormer-Verlet; ``InputError`` if ``H`` is not
-    separable."""
-    def build():
-        parts = separable_parts(system)
-        if isinstance(parts, str):
-            raise InputError(f"method 'stormer_verlet' needs a separable H on {system.name!r}: "
-                             f"{parts}")
-        T_p, V_q = parts
-        n = system.n
-        z, t, tau = ca.SX.sym("z", 2 * n), ca.SX.sym("t"), ca.SX.sym("tau")
-        q, p = z[:n], z[n:]
-        p_half = p - tau / 2 * V_q(q, t, system.theta)
-        q_next = q + tau * T_p(p_half, system.theta)
-        p_next = p_half - tau / 2 * V_q(q_next, t + tau, system.theta)
-        return ca.Function("stormer_verlet", [z, t, tau, system.theta],
-                           [ca.vertcat(q_next, p_next)])
-    return cached(system, "stormer_verlet_step", build)
 
 
-def rk4_step(system: HamiltonianSystem) -> ca.Function:
-    """``(z, t, tau, theta) -> z_next`` by the classical Runge-Kutta method."""
-    def build():
-        field = vector_field_function(system)
-
-        def flow(z, t):
-            return field(z, t, system.theta)
-
-        z, t, tau = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t"), ca.SX.sym("tau")
-        return ca.Function("rk4", [z, t, tau, system.theta], [rk4(flow, z, t, tau)])
-    return cached(system, "rk4_step", build)
 
 
-FIXED_STEPS = {"stormer_verlet": stormer_verlet_step, "rk4": rk4_step}
 
 
 def _fixed_layout(n: int) -> tuple[Columns, Columns]:

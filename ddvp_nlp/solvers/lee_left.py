@@ -20,98 +20,25 @@ import casadi as ca
 import numpy as np
 
 from ..cache import cached
-from ..errors import InputError
-from ..physics.hamiltonian import HamiltonianSystem
+from ..discrete.lee_left import LeeLeftPointEquations
+from ..physics.hamiltonian import HamiltonianSystem, quadratic_kinetic_matrix
 from ..solution import Solution, Status
-from .baselines import Columns, chunk_for, load, separable_parts, solution_of
+from .baselines import Columns, chunk_for, load, solution_of
 from .chunk import FAST_NEWTON_OPTIONS
 from .driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
 from .integrator import Integrator
 
 
-def quadratic_kinetic_matrix(system: HamiltonianSystem):
-    """``A(theta)`` if ``H = p.A p/2 + V(q, t)`` with ``A`` constant in ``q, p, t``, else a reason
-    string. Lee's original scheme needs the Lagrangian ``v.A^{-1} v/2 - V``."""
-    parts = separable_parts(system)
-    if isinstance(parts, str):
-        return parts
-    H_p = ca.gradient(system.H, system.p)
-    A = ca.jacobian(H_p, system.p)
-    if ca.depends_on(A, ca.vertcat(system.q, system.p, system.t)):
-        return "H is not quadratic in p (d2H/dp2 is not constant)"
-    if ca.depends_on(ca.substitute(H_p, system.p, ca.DM.zeros(system.n)),
-                     ca.vertcat(system.q, system.t)) or \
-            not ca.is_equal(ca.simplify(ca.substitute(H_p, system.p, ca.DM.zeros(system.n))),
-                            ca.SX.zeros(system.n), 2):
-        return "H has a term linear in p"
-    return A
-
-
-class _LeeLeftPoint:
-    """Step functions of T.D. Lee's original left-point scheme (see the module docstring)."""
-
-    def __init__(self, system: HamiltonianSystem):
-        A = quadratic_kinetic_matrix(system)
-        if isinstance(A, str):
-            raise InputError(f"method 'lee_left' needs H = p.A p/2 + V(q, t) on "
-                             f"{system.name!r}: {A}")
-        n, theta = system.n, system.theta
-        zero = ca.DM.zeros(n)
-        potential = ca.Function("V", [system.q, system.t, theta],
-                                [ca.substitute(system.H, system.p, zero)])
-        A_function = ca.Function("A", [theta], [A])
-
-        def interval_action(t_a, t_b, q_a, q_b):
-            tau = t_b - t_a
-            v = (q_b - q_a) / tau
-            return tau * (ca.dot(v, ca.solve(A_function(theta), v)) / 2
-                          - potential(q_a, t_a, theta))
-
-        t0, t1, t2 = ca.SX.sym("t_prev"), ca.SX.sym("t_mid"), ca.SX.sym("t_next")
-        q0, q1, q2 = ca.SX.sym("q_prev", n), ca.SX.sym("q_mid", n), ca.SX.sym("q_next", n)
-        action = interval_action(t0, t1, q0, q1) + interval_action(t1, t2, q1, q2)
-        euler_lagrange = ca.gradient(action, q1)
-        energy = ca.gradient(action, t1)
-        # Unknowns (v, tau) of the step: q_next = q_mid + tau v keeps both equations O(1) as
-        # tau -> 0 (in q_next they carry 1/tau).
-        v, tau = ca.SX.sym("v", n), ca.SX.sym("tau")
-        x = ca.vertcat(v, tau)
-        w = ca.vertcat(t0, t1, q0, q1, theta)
-        g = ca.substitute(ca.vertcat(euler_lagrange, energy), ca.vertcat(q2, t2),
-                          ca.vertcat(q1 + tau * v, t1 + tau))
-        self.residual = ca.Function("lee_left_step", [x, w], [g])
-        tau_prev = t1 - t0
-        v_prev = (q1 - q0) / tau_prev
-        V_q = ca.gradient(potential(q1, t1, theta), q1)
-        guess = ca.vertcat(v_prev - tau_prev * ca.mtimes(A_function(theta), V_q), tau_prev)
-        self.predict = ca.Function("lee_left_predict", [w], [guess])
-        # Momentum at the new node, p_{k+1} = dS_k/dq_{k+1} = A^{-1} v_k.
-        self.momentum = ca.Function("lee_left_momentum", [v, theta],
-                                    [ca.solve(A_function(theta), v)])
-        # First step from (q0, p0): p0 = -d(tau0 L_0)/dq_0, linear in v0, so one Newton step
-        # from v0 = 0 solves it.
-        p_start, tau0 = ca.SX.sym("p0", n), ca.SX.sym("tau0")
-        first = ca.substitute(p_start + ca.gradient(interval_action(t0, t1, q0, q1), q0),
-                              ca.vertcat(t1, q1), ca.vertcat(t0 + tau0, q0 + tau0 * v))
-        start = ca.vertcat(t0, tau0, q0, p_start, theta)
-        self.first_residual = ca.Function("lee_left_first_residual", [v, start], [first])
-        v_first = ca.substitute(-ca.solve(ca.jacobian(first, v), first), v, zero)
-        self.first_velocity = ca.Function("lee_left_first", [start], [v_first])
-        self.node_energy = ca.Function(
-            "lee_left_energy", [v, q0, t0, theta],
-            [ca.dot(v, ca.solve(A_function(theta), v)) / 2 + potential(q0, t0, theta)])
-
-
-
 def _layout(n: int) -> tuple[Columns, Columns]:
-    """A chunk's state: the last two nodes (in the order of ``_LeeLeftPoint``'s ``w``, which
+    """A chunk's state: the last two nodes (in the order of ``LeeLeftPointEquations``'s ``w``, which
     appends ``theta``); its output row: the new node, its residuals and their scales."""
     state = Columns(t_prev=1, t_mid=1, q_prev=n, q_mid=n)
     row = Columns(t=1, z=2 * n, euler_lagrange=1, energy=1, q_scale=1, energy_scale=1)
     return state, row
 
 
-def _chunk(system: HamiltonianSystem, functions: _LeeLeftPoint, chunk: int, compiler, cache_dir):
+def _chunk(system: HamiltonianSystem, functions: LeeLeftPointEquations, chunk: int, compiler,
+           cache_dir):
     """``chunk`` Newton steps per call: ``(state, theta) -> (states, rows)``."""
     def build():
         n = system.n
@@ -199,7 +126,7 @@ class _Record:
         return np.concatenate([np.asarray(before, float), *self.kept[key]])
 
 
-def _first_step(functions: _LeeLeftPoint, q0, p0, tau0: float, t0: float, theta):
+def _first_step(functions: LeeLeftPointEquations, q0, p0, tau0: float, t0: float, theta):
     """The two start nodes ``(t, z)`` from ``(q0, p0)`` and the first step's residual."""
     start = np.concatenate([[t0, tau0], q0, p0, theta])
     v0 = np.asarray(functions.first_velocity(start)).ravel()
@@ -216,7 +143,7 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     """March T.D. Lee's original left-point scheme until the first node at or past ``t_end``."""
     started = time.perf_counter()
     n = system.n
-    functions = cached(system, "lee_left", lambda: _LeeLeftPoint(system))
+    functions = cached(system, "lee_left", lambda: LeeLeftPointEquations(system))
     chunk = chunk_for((t_end - t0) / tau0)
     function, compile_s = _chunk(system, functions, chunk, compiler, cache_dir)
     built = time.perf_counter()

@@ -1,0 +1,56 @@
+"""The step maps of the explicit schemes users would pick instead (``solvers/baselines.py``).
+
+- Stormer-Verlet (leapfrog) for separable ``H = T(p) + V(q, t)``: the Strang splitting of the
+  autonomous extended system (time advances with ``q``), order 2, symplectic::
+
+      p_h = p_k - tau/2 V_q(q_k, t_k),   q_{k+1} = q_k + tau T_p(p_h),
+      p_{k+1} = p_h - tau/2 V_q(q_{k+1}, t_k + tau).
+
+- Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
+  energy-conserving.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from ..cache import cached
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem, separable_parts, vector_field_function
+from .runge_kutta import rk4
+
+
+def stormer_verlet_step(system: HamiltonianSystem) -> ca.Function:
+    """``(z, t, tau, theta) -> z_next`` by Stormer-Verlet; ``InputError`` if ``H`` is not
+    separable."""
+    def build():
+        parts = separable_parts(system)
+        if isinstance(parts, str):
+            raise InputError(f"method 'stormer_verlet' needs a separable H on {system.name!r}: "
+                             f"{parts}")
+        T_p, V_q = parts
+        n = system.n
+        z, t, tau = ca.SX.sym("z", 2 * n), ca.SX.sym("t"), ca.SX.sym("tau")
+        q, p = z[:n], z[n:]
+        p_half = p - tau / 2 * V_q(q, t, system.theta)
+        q_next = q + tau * T_p(p_half, system.theta)
+        p_next = p_half - tau / 2 * V_q(q_next, t + tau, system.theta)
+        return ca.Function("stormer_verlet", [z, t, tau, system.theta],
+                           [ca.vertcat(q_next, p_next)])
+    return cached(system, "stormer_verlet_step", build)
+
+
+def rk4_step(system: HamiltonianSystem) -> ca.Function:
+    """``(z, t, tau, theta) -> z_next`` by the classical Runge-Kutta method."""
+    def build():
+        field = vector_field_function(system)
+
+        def flow(z, t):
+            return field(z, t, system.theta)
+
+        z, t, tau = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t"), ca.SX.sym("tau")
+        return ca.Function("rk4", [z, t, tau, system.theta], [rk4(flow, z, t, tau)])
+    return cached(system, "rk4_step", build)
+
+
+FIXED_STEPS = {"stormer_verlet": stormer_verlet_step, "rk4": rk4_step}
