@@ -251,7 +251,8 @@ def _run_higher(command, args, scene) -> int:
 
 
 def run_compare(args) -> int:
-    from .studies.compare import ERROR_KINDS, cheapest, work_precision
+    from .io.work_precision import work_precision
+    from .studies.compare import ERROR_KINDS, cheapest
 
     scene = load_scene(args.scene)
     out = args.out or f"runs/{scene.name}-compare"
@@ -276,7 +277,7 @@ def run_compare(args) -> int:
 def run_stress(args) -> int:
     import warnings
 
-    from .studies.stress import stress
+    from .io.stress_report import stress
 
     with warnings.catch_warnings():
         # the solvability warnings of breaking cases are expected here; stress.md reports them
@@ -292,8 +293,9 @@ def run_stress(args) -> int:
 def run_sweep(args) -> int:
     import warnings
 
-    from .studies.stress import stress
-    from .studies.sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
+    from .io.grid_file import load_grid_file
+    from .io.stress_report import stress
+    from .studies.sweep import SweepSpec, parse_axis, sweep_cases
 
     if args.file:
         if args.scene or args.grid:

@@ -64,3 +64,12 @@ def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, 
             raise InputError(f"parameter {name!r} must be finite, got {value!r}")
         resolved[name] = float(value)
     return resolved
+
+
+def check_count(name: str, value, *, minimum: int = 0) -> int:
+    """An integer ``>= minimum``, as :func:`check_integer`, but the message always states the
+    minimum (``an integer >= 1``): the comparison's counts have said so since they were added."""
+    try:
+        return check_integer(name, value, minimum=minimum)
+    except InputError:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
