@@ -70,14 +70,21 @@ def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> No
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .studies.methods import METHODS
-    from .studies.stress import DEFAULT_METHODS
-
     parser = argparse.ArgumentParser(
         prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
                                  "variational principle) on CasADi.")
     commands = parser.add_subparsers(dest="command", required=True)
     commands.add_parser("scenes", help="list the built-in scenes with their parameters")
+    _march_command(commands)
+    _bvp_command(commands)
+    _compare_command(commands)
+    _stress_command(commands)
+    _sweep_command(commands)
+    _reproduce_command(commands)
+    return parser
+
+
+def _march_command(commands) -> None:
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
     _scheme_arguments(march)
     march.add_argument("--max-steps", type=int, default=10_000_000)
@@ -98,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "checked step by step; both accept the same steps)")
     march.add_argument("--no-progress", action="store_true", help="no progress bar")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _bvp_command(commands) -> None:
     bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem as one IPOPT NLP")
     _scheme_arguments(bvp)
     bvp.add_argument("--nodes", type=int, default=None,
@@ -106,6 +116,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="IPOPT (default) or CasADi's Newton rootfinder on the same square system")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _compare_command(commands) -> None:
+    from .studies.methods import METHODS
+
     compare = commands.add_parser(
         "compare", help="work-precision: error against run time for every method on a scene")
     compare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
@@ -126,6 +141,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="run the compiled methods on CasADi's virtual machine instead")
     compare.add_argument("--no-progress", action="store_true", help="no progress bar")
     _grid_arguments(compare, "1: the run times are what is compared")
+
+
+def _stress_command(commands) -> None:
     stress = commands.add_parser(
         "stress", help="run every method on the stiff and extreme cases; say where each breaks")
     stress.add_argument("--out", default="runs/stress", help="output folder")
@@ -135,6 +153,11 @@ def build_parser() -> argparse.ArgumentParser:
     stress.add_argument("--resume", action="store_true",
                         help="keep the rows already in OUT/stress.csv; run only the missing ones")
     _grid_arguments(stress, "one per core")
+
+
+def _sweep_command(commands) -> None:
+    from .studies.stress import DEFAULT_METHODS
+
     sweep = commands.add_parser(
         "sweep", help="run your own grid of settings x methods, locally or on a Dask cluster")
     sweep.add_argument("scene", nargs="?", default=None,
@@ -153,13 +176,15 @@ def build_parser() -> argparse.ArgumentParser:
                        help="start afresh instead of resuming from OUT/sweep.csv")
     _run_bounds(sweep, defaults=False)
     _grid_arguments(sweep, "one per core")
+
+
+def _reproduce_command(commands) -> None:
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")
     reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
     reproduce.add_argument("--quick", action="store_true",
                            help="shorter runs and fewer step sizes (about 10 s)")
     _grid_arguments(reproduce, "1")
-    return parser
 
 
 def _describe(name: str) -> str:

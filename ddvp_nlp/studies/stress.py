@@ -72,33 +72,45 @@ class Case:
 def default_cases(quick: bool = False) -> list[Case]:
     """The grid of the issue; ``quick`` keeps one or two cases per group on short horizons (for
     the tests)."""
-    cases = []
+    return [case for group in (_fpu_cases, _kepler_cases, _pendulum_cases, _long_cases,
+                               _paper_cases) for case in group(quick)]
+
+
+def _fpu_cases(quick):
     omegas = (50.0,) if quick else (50.0, 100.0, 300.0, 1000.0)
     products = (0.5, 4.0) if quick else (0.5, 1.0, 2.0, 4.0)
-    for omega in omegas:
-        for product in products:
-            cases.append(Case("fpu", f"omega={omega:g}, omega*tau={product:g}", "fpu",
-                              {"omega": omega, **({"t_end": 2.0} if quick else {})},
-                              product / omega))
-    for e in ((0.5, 0.9) if quick else (0.5, 0.7, 0.8, 0.9, 0.99)):
-        cases.append(Case("kepler", f"e={e:g}", "kepler",
-                          {"e": e, "t_end": (2 if quick else 20) * math.pi}, 0.01,
-                          "ten periods" if not quick else "one period"))
+    return [Case("fpu", f"omega={omega:g}, omega*tau={product:g}", "fpu",
+                 {"omega": omega, **({"t_end": 2.0} if quick else {})}, product / omega)
+            for omega in omegas for product in products]
+
+
+def _kepler_cases(quick):
+    return [Case("kepler", f"e={e:g}", "kepler", {"e": e, "t_end": (2 if quick else 20) * math.pi},
+                 0.01, "ten periods" if not quick else "one period")
+            for e in ((0.5, 0.9) if quick else (0.5, 0.7, 0.8, 0.9, 0.99))]
+
+
+def _pendulum_cases(quick):
     energies = [("H=2-1e-2", 2 - 1e-2), ("H=2.5 (rotation)", 2.5)] if quick else [
         ("H=2-1e-2", 2 - 1e-2), ("H=2-1e-4", 2 - 1e-4), ("H=2-1e-6", 2 - 1e-6),
         ("H=2.5 (rotation)", 2.5)]
-    for label, H in energies:
-        settings = {"q0": [0.0], "p0": [math.sqrt(2 * H)], "t_end": 10.0 if quick else 100.0}
-        cases.append(Case("pendulum", label, "pendulum", settings, 0.05))
+    return [Case("pendulum", label, "pendulum",
+                 {"q0": [0.0], "p0": [math.sqrt(2 * H)], "t_end": 10.0 if quick else 100.0},
+                 0.05) for label, H in energies]
+
+
+def _long_cases(quick):
     periods = 10 if quick else 10_000
-    cases.append(Case("long", f"harmonic, {periods} periods", "harmonic",
-                      {"t_end": 2 * math.pi * periods}, 0.1))
-    cases.append(Case("long", f"pendulum, {periods} periods", "pendulum",
-                      {"t_end": _pendulum_period(0.5, 0.5) * periods}, 0.05))
-    for tau0 in ((0.5, 5e-3) if quick else (0.5, 0.05, 5e-3, 5e-4)):
-        cases.append(Case("paper_pendulum", f"tau0={tau0:g}", "paper_pendulum",
-                          {"t_end": 20.0 if quick else 100.0}, tau0))
-    return cases
+    return [Case("long", f"harmonic, {periods} periods", "harmonic",
+                 {"t_end": 2 * math.pi * periods}, 0.1),
+            Case("long", f"pendulum, {periods} periods", "pendulum",
+                 {"t_end": _pendulum_period(0.5, 0.5) * periods}, 0.05)]
+
+
+def _paper_cases(quick):
+    return [Case("paper_pendulum", f"tau0={tau0:g}", "paper_pendulum",
+                 {"t_end": 20.0 if quick else 100.0}, tau0)
+            for tau0 in ((0.5, 5e-3) if quick else (0.5, 0.05, 5e-3, 5e-4))]
 
 
 def _pendulum_period(q0, p0):
