@@ -32,8 +32,9 @@ def _parse_settings(items: list[str]) -> dict:
 
 def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
-    parser.add_argument("--scheme", default="vddvp", choices=RULES,
-                        help="energy rule: vddvp (the paper), lee, fixed (default: vddvp)")
+    default = Scheme().rule
+    parser.add_argument("--scheme", default=default, choices=RULES,
+                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)")
     parser.add_argument("--alpha", type=float, default=0.5,
                         help="weight alpha of the scheme, beta = 1 - alpha (default: 0.5)")
     parser.add_argument("--clock", default="midpoint", choices=CLOCKS,
@@ -74,6 +75,16 @@ def build_parser() -> argparse.ArgumentParser:
                                  "variational principle) on CasADi.")
     commands = parser.add_subparsers(dest="command", required=True)
     commands.add_parser("scenes", help="list the built-in scenes with their parameters")
+    _march_command(commands)
+    _bvp_command(commands)
+    _compare_command(commands)
+    _stress_command(commands)
+    _sweep_command(commands)
+    _reproduce_command(commands)
+    return parser
+
+
+def _march_command(commands) -> None:
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
     _scheme_arguments(march)
     march.add_argument("--max-steps", type=int, default=10_000_000)
@@ -94,6 +105,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "checked step by step; both accept the same steps)")
     march.add_argument("--no-progress", action="store_true", help="no progress bar")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _bvp_command(commands) -> None:
     bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem as one IPOPT NLP")
     _scheme_arguments(bvp)
     bvp.add_argument("--nodes", type=int, default=None,
@@ -102,13 +116,17 @@ def build_parser() -> argparse.ArgumentParser:
                      help="IPOPT (default) or CasADi's Newton rootfinder on the same square system")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _compare_command(commands) -> None:
+    from .studies.methods import METHODS
+
     compare = commands.add_parser(
         "compare", help="work-precision: error against run time for every method on a scene")
     compare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     compare.add_argument("--methods", default=None,
                          help="comma-separated methods (default: every one that applies); "
-                              "known: vddvp, lee, midpoint, stormer_verlet, rk4, dop853, "
-                              "lee_left")
+                              f"known: {', '.join(METHODS)}")
     compare.add_argument("--set", dest="settings", action="append", default=[],
                          metavar="NAME=VALUE",
                          help="override a scene parameter or t0, tau0, t_end, q0, p0; repeatable")
@@ -123,6 +141,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="run the compiled methods on CasADi's virtual machine instead")
     compare.add_argument("--no-progress", action="store_true", help="no progress bar")
     _grid_arguments(compare, "1: the run times are what is compared")
+
+
+def _stress_command(commands) -> None:
     stress = commands.add_parser(
         "stress", help="run every method on the stiff and extreme cases; say where each breaks")
     stress.add_argument("--out", default="runs/stress", help="output folder")
@@ -132,6 +153,11 @@ def build_parser() -> argparse.ArgumentParser:
     stress.add_argument("--resume", action="store_true",
                         help="keep the rows already in OUT/stress.csv; run only the missing ones")
     _grid_arguments(stress, "one per core")
+
+
+def _sweep_command(commands) -> None:
+    from .studies.stress import DEFAULT_METHODS
+
     sweep = commands.add_parser(
         "sweep", help="run your own grid of settings x methods, locally or on a Dask cluster")
     sweep.add_argument("scene", nargs="?", default=None,
@@ -141,8 +167,8 @@ def build_parser() -> argparse.ArgumentParser:
                             "parameter, t_end, t0, tau0 (the step) or rtol (DOP853); repeatable")
     sweep.add_argument("--file", default=None, help="a TOML grid file (see `ddvp_nlp.sweep`)")
     sweep.add_argument("--methods", default=None,
-                       help="comma-separated methods (default: vddvp, lee, midpoint, "
-                            "stormer_verlet, rk4, dop853 where they apply)")
+                       help=f"comma-separated methods (default: {', '.join(DEFAULT_METHODS)} "
+                            "where they apply)")
     sweep.add_argument("--set", dest="settings", action="append", default=[],
                        metavar="NAME=VALUE", help="a fixed scene parameter or setting")
     sweep.add_argument("--out", default=None, help="output folder (default: runs/SCENE-sweep)")
@@ -150,13 +176,15 @@ def build_parser() -> argparse.ArgumentParser:
                        help="start afresh instead of resuming from OUT/sweep.csv")
     _run_bounds(sweep, defaults=False)
     _grid_arguments(sweep, "one per core")
+
+
+def _reproduce_command(commands) -> None:
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")
     reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
     reproduce.add_argument("--quick", action="store_true",
                            help="shorter runs and fewer step sizes (about 10 s)")
     _grid_arguments(reproduce, "1")
-    return parser
 
 
 def _describe(name: str) -> str:
@@ -167,49 +195,21 @@ def _describe(name: str) -> str:
             f"{'':16s} {scene.description}")
 
 
-def run_march(args) -> int:
+def run_solve(args) -> int:
+    """``ddvp march`` and ``ddvp bvp`` on any scene: resolve, solve, write the run folder and
+    print its summary."""
     from .io.runs import prepare_folder, write_run
-    from .solvers.march import march
 
     scene = load_scene(args.scene)
-    if _higher(scene):
-        return _run_higher("march", args, scene)
-    scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
-    config = scene.resolve(_parse_settings(args.settings))
-    out = prepare_folder(args.out or f"runs/{scene.name}-{scheme.rule}")
-    solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
-                     t_end=config.t_end,
-                     t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
-                     max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
-                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
-                     fast=not args.careful, time_limit=args.time_limit,
-                     energy_guard=args.energy_guard,
-                     breakdown="least_squares" if args.least_squares else "stop")
-    meta = write_run(out, command="march", scene=scene, config=config, scheme=scheme,
-                     solution=solution, plot=not args.no_plot,
-                     extra={"path": solution.stats["path"],
-                            "fast_steps": solution.stats["fast_steps"],
-                            "careful_steps": solution.stats["careful_steps"]})
-    _summary(meta, out)
-    return 0 if solution.success else 1
-
-
-def run_bvp(args) -> int:
-    from .io.runs import prepare_folder, write_run
-    from .solvers.bvp import solve_bvp
-
-    scene = load_scene(args.scene)
-    if _higher(scene):
-        return _run_higher("bvp", args, scene)
-    scheme = Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
-    config = scene.resolve_boundary(_parse_settings(args.settings), nodes=args.nodes)
-    out = prepare_folder(args.out or f"runs/{scene.name}-bvp-{scheme.rule}")
-    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
-                         nodes=config.nodes, scheme=scheme, params=config.params, tol=args.tol,
-                         solver=args.solver, verbose=args.verbose)
-    meta = write_run(out, command="bvp", scene=scene, config=config, scheme=scheme,
-                     solution=solution, extra={"solver": solution.stats},
-                     plot=not args.no_plot)
+    higher = _higher(scene)
+    scheme = _scheme(args, higher)
+    config = _resolve(args, scene, higher)
+    infix = "-bvp" if args.command == "bvp" else ""
+    out = prepare_folder(args.out or f"runs/{scene.name}{infix}-{scheme.rule}")
+    solve = _SOLVERS[args.command, higher]
+    solution, extra = solve(args, scene, config, scheme)
+    meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
+                     solution=solution, extra=extra, plot=not args.no_plot)
     _summary(meta, out)
     return 0 if solution.success else 1
 
@@ -220,38 +220,72 @@ def _higher(scene) -> bool:
     return isinstance(scene, HigherOrderScene)
 
 
-def _run_higher(command, args, scene) -> int:
-    """``ddvp march`` / ``ddvp bvp`` on a scene with higher derivatives (``higher.py``)."""
-    from .io.runs import prepare_folder, write_higher_run
-    from .solvers.higher import march_higher, solve_bvp_higher
-
-    if args.alpha != 0.5 or args.clock != "midpoint":
+def _scheme(args, higher: bool) -> Scheme:
+    if higher and (args.alpha != 0.5 or args.clock != "midpoint"):
         raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
                          "(differences are taken at the left node)")
+    return Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
+
+
+def _resolve(args, scene, higher: bool):
     settings = _parse_settings(args.settings)
-    config = scene.resolve(settings)
-    out = prepare_folder(args.out or f"runs/{scene.name}-{command}-{args.scheme}"
-                         if command == "bvp" else args.out or f"runs/{scene.name}-{args.scheme}")
-    if command == "march":
-        t_init, q_init = scene.start(config)
-        solution = march_higher(scene.system, t_init, q_init, t_end=config["t_end"],
-                                scheme=args.scheme, params=config["params"], tol=args.tol,
-                                max_steps=args.max_steps, time_limit=args.time_limit)
-    else:
-        boundary = dict(scene.boundary or {})
-        nodes = args.nodes or boundary.get("nodes", 41)
-        t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
-        t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
-        solution = solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
-                                    scheme=args.scheme, params=config["params"], tol=args.tol)
-    meta = write_higher_run(out, command=command, scene=scene, config=config,
-                            solution=solution, plot=not args.no_plot)
-    _summary(meta, out)
-    return 0 if solution.success else 1
+    if args.command == "bvp" and not higher:
+        return scene.resolve_boundary(settings, nodes=args.nodes)
+    return scene.resolve(settings)
+
+
+def _march(args, scene, config, scheme):
+    from .solvers.march import march
+
+    solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
+                     t_end=config.t_end,
+                     t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
+                     max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
+                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
+                     fast=not args.careful, time_limit=args.time_limit,
+                     energy_guard=args.energy_guard,
+                     breakdown="least_squares" if args.least_squares else "stop")
+    stats = solution.stats
+    return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps")}
+
+
+def _bvp(args, scene, config, scheme):
+    from .solvers.bvp import solve_bvp
+
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
+                         nodes=config.nodes, scheme=scheme, params=config.params, tol=args.tol,
+                         solver=args.solver, verbose=args.verbose)
+    return solution, {"solver": solution.stats}
+
+
+def _march_higher(args, scene, config, scheme):
+    from .solvers.higher import march_higher
+
+    t_init, q_init = scene.start(config)
+    return march_higher(scene.system, t_init, q_init, t_end=config["t_end"],
+                        scheme=scheme.rule, params=config["params"], tol=args.tol,
+                        max_steps=args.max_steps, time_limit=args.time_limit), None
+
+
+def _bvp_higher(args, scene, config, scheme):
+    from .solvers.higher import solve_bvp_higher
+
+    boundary = dict(scene.boundary or {})
+    nodes = args.nodes or boundary.get("nodes", 41)
+    t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
+    t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
+    return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
+                            scheme=scheme.rule, params=config["params"], tol=args.tol), None
+
+
+# (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)
+_SOLVERS = {("march", False): _march, ("bvp", False): _bvp,
+            ("march", True): _march_higher, ("bvp", True): _bvp_higher}
 
 
 def run_compare(args) -> int:
-    from .studies.compare import ERROR_KINDS, cheapest, work_precision
+    from .io.work_precision import work_precision
+    from .studies.compare import ERROR_KINDS, cheapest
 
     scene = load_scene(args.scene)
     out = args.out or f"runs/{scene.name}-compare"
@@ -276,7 +310,7 @@ def run_compare(args) -> int:
 def run_stress(args) -> int:
     import warnings
 
-    from .studies.stress import stress
+    from .io.stress_report import stress
 
     with warnings.catch_warnings():
         # the solvability warnings of breaking cases are expected here; stress.md reports them
@@ -292,31 +326,10 @@ def run_stress(args) -> int:
 def run_sweep(args) -> int:
     import warnings
 
-    from .studies.stress import stress
-    from .studies.sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
+    from .io.stress_report import stress
+    from .studies.sweep import sweep_cases
 
-    if args.file:
-        if args.scene or args.grid:
-            raise InputError("give either --file or SCENE with --grid, not both")
-        spec = load_grid_file(args.file)
-    else:
-        if not args.scene or not args.grid:
-            raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
-        axes = {}
-        for item in args.grid:
-            name, sep, text = item.partition("=")
-            if not sep or not name.strip():
-                raise InputError(f"--grid expects NAME=SPEC, got {item!r}")
-            axes[name.strip()] = parse_axis(name.strip(), text)
-        spec = SweepSpec(scene=args.scene, axes=axes)
-    if args.methods:
-        from .studies.methods import get_methods
-        spec.methods = tuple(m.name for m in get_methods(args.methods))
-    spec.settings = {**spec.settings, **_parse_settings(args.settings)}
-    if args.max_steps is not None:
-        spec.max_steps = args.max_steps
-    if args.time_limit is not None:
-        spec.time_limit = args.time_limit
+    spec = _sweep_spec(args)
     cases = sweep_cases(spec)
     out = args.out or f"runs/{load_scene(spec.scene).name}-sweep"
     with warnings.catch_warnings():
@@ -327,6 +340,59 @@ def run_sweep(args) -> int:
                       scheduler=args.scheduler, resume=not args.fresh, name="sweep",
                       title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}")
     _status_summary("sweep", rows, out, "sweep")
+    return 0
+
+
+def _sweep_spec(args):
+    """The sweep of a grid file or of SCENE with --grid axes, with the command line's methods,
+    settings and bounds on top."""
+    from .io.grid_file import load_grid_file
+    from .studies.methods import get_methods
+    from .studies.sweep import SweepSpec
+
+    if args.file:
+        if args.scene or args.grid:
+            raise InputError("give either --file or SCENE with --grid, not both")
+        spec = load_grid_file(args.file)
+    else:
+        if not args.scene or not args.grid:
+            raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
+        spec = SweepSpec(scene=args.scene, axes=_grid_axes(args.grid))
+    if args.methods:
+        spec.methods = tuple(m.name for m in get_methods(args.methods))
+    spec.settings = {**spec.settings, **_parse_settings(args.settings)}
+    if args.max_steps is not None:
+        spec.max_steps = args.max_steps
+    if args.time_limit is not None:
+        spec.time_limit = args.time_limit
+    return spec
+
+
+def _grid_axes(items: list[str]) -> dict:
+    """``NAME=SPEC`` items of --grid, as axes."""
+    from .studies.sweep import parse_axis
+
+    axes = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--grid expects NAME=SPEC, got {item!r}")
+        axes[name.strip()] = parse_axis(name.strip(), text)
+    return axes
+
+
+def run_reproduce(args) -> int:
+    from .io.reproduce import reproduce
+    from .io.runs import prepare_folder
+
+    out = prepare_folder(args.out)
+    reproduce(out, quick=args.quick, workers=args.workers or 1, scheduler=args.scheduler)
+    print(f"report written to {out / 'report.md'}")
+    return 0
+
+
+def run_scenes(args) -> int:
+    print("\n".join(_describe(name) for name in list_scenes()))
     return 0
 
 
@@ -367,35 +433,22 @@ def _format_warning(message, category, filename, lineno, line=None):
     return f"ddvp: warning: {message}\n"
 
 
+COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
+            "compare": run_compare, "stress": run_stress, "sweep": run_sweep,
+            "reproduce": run_reproduce}
+
+
 def main(argv: list[str] | None = None) -> int:
     import warnings
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command not in COMMANDS:
+        parser.error(f"unknown command {args.command!r}")
     original_format = warnings.formatwarning
     warnings.formatwarning = _format_warning  # one line, no source echo
     try:
-        if args.command == "scenes":
-            print("\n".join(_describe(name) for name in list_scenes()))
-            return 0
-        if args.command == "march":
-            return run_march(args)
-        if args.command == "bvp":
-            return run_bvp(args)
-        if args.command == "compare":
-            return run_compare(args)
-        if args.command == "stress":
-            return run_stress(args)
-        if args.command == "sweep":
-            return run_sweep(args)
-        if args.command == "reproduce":
-            from .io.reproduce import reproduce
-            from .io.runs import prepare_folder
-            out = prepare_folder(args.out)
-            reproduce(out, quick=args.quick, workers=args.workers or 1,
-                      scheduler=args.scheduler)
-            print(f"report written to {out / 'report.md'}")
-            return 0
+        return COMMANDS[args.command](args)
     except InputError as exc:
         print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -405,8 +458,6 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     finally:
         warnings.formatwarning = original_format
-    parser.error(f"unknown command {args.command!r}")
-    return 2
 
 
 if __name__ == "__main__":

@@ -90,3 +90,12 @@ def check_finite_array(name: str, value, shape: tuple | None = None) -> np.ndarr
                  f"index {bad[0]}")
         raise InputError(f"{name} must be finite, got {shown}")
     return array
+
+
+def check_count(name: str, value, *, minimum: int = 0) -> int:
+    """An integer ``>= minimum``, as :func:`check_integer`, but the message always states the
+    minimum (``an integer >= 1``): the comparison's counts have said so since they were added."""
+    try:
+        return check_integer(name, value, minimum=minimum)
+    except InputError:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}") from None

@@ -19,7 +19,7 @@ import warnings
 import dask
 from distributed import LocalCluster
 
-from ddvp_nlp.studies.stress import stress
+from ddvp_nlp.io.stress_report import stress
 
 
 def _equal(x, y) -> bool:

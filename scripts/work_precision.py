@@ -15,7 +15,8 @@ import time
 from pathlib import Path
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.studies.compare import ERROR_KINDS, cheapest, work_precision
+from ddvp_nlp.io.work_precision import work_precision
+from ddvp_nlp.studies.compare import ERROR_KINDS, cheapest
 
 SCENES = {
     "paper_pendulum": {},

@@ -9,10 +9,11 @@ import pytest
 
 from ddvp_nlp import InputError
 from ddvp_nlp.cli import main
+from ddvp_nlp.io.grid_file import load_grid_file
+from ddvp_nlp.io.stress_report import stress
 from ddvp_nlp.solvers.compiler import find_compiler
 from ddvp_nlp.studies.grid import Task, describe_error, run_grid, run_tasks
-from ddvp_nlp.studies.stress import stress
-from ddvp_nlp.studies.sweep import SweepSpec, load_grid_file, parse_axis, sweep_cases
+from ddvp_nlp.studies.sweep import SweepSpec, parse_axis, sweep_cases
 
 CLUSTER_CONFIG = {"distributed.scheduler.allowed-failures": 1,
                   "distributed.scheduler.worker-saturation": 1.0}

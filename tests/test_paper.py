@@ -5,6 +5,7 @@ import pytest
 
 from ddvp_nlp import load_scene
 from ddvp_nlp.cli import main
+from ddvp_nlp.io.reproduce import report as reproduce_report
 from ddvp_nlp.studies import paper
 
 
@@ -77,7 +78,50 @@ def test_reproduce_writes_report_and_figures(tmp_path, capsys):
     for heading in ("## 1. Section 5", "## 2. Section 4: site density", "## 3. Section 3",
                     "## 4. Section 4: step lengths", "## 5. Symplecticity", "## 6. Discrete"):
         assert heading in report
-    assert "Pending: needs the Lagrangian forms" in report
+    assert "have not landed" not in report and "`pendulum_lagrangian`" in report
     assert "## 5. Symplecticity and energy" in report and "explicit Euler" in report
     for figure in ("paper_figures.png", "site_density.png", "step_ratios.png"):
         assert (tmp_path / figure).stat().st_size > 10_000
+
+
+def _measurements(good: bool) -> dict:
+    """Fabricated measurements: every claim holds (``good``) or every claim fails."""
+    solution = type("Nodes", (), {"t": np.array([0.0, 2000.0])})()
+    bad = not good
+    sweep_rows = [{"rule": rule, "tau0": tau0, "status": "success", "steps": 40,
+                   "t_reached": 16.0, "ratio_min": 1.0,
+                   "ratio_max": {("vddvp", 0.5): 1.2, ("vddvp", 0.05): 1.1 if bad else 1.9,
+                                 ("lee", 0.5): 1.01, ("lee", 0.05): 1.3 if bad else 1.02}
+                   [rule, tau0]} for rule in ("vddvp", "lee") for tau0 in (0.5, 0.05)]
+    site = {"tau0": [0.05, 0.025], "tau_spread": [0.3, 0.3], "node": [1e-2, 5e-3],
+            "midpoint": [1e-3, 2.5e-4], "slope_node": 0.2 if bad else 1.0,
+            "slope_midpoint": 2.0}
+    return {
+        "example": {"solution": solution, "steps": 4000, "tau_range": (0.45, 0.53),
+                    "long_period": 250.0 if bad else 314.5, "short_period": 3.3,
+                    "pendulum_period": 3.3 if bad else 6.6,
+                    "extremes": {"at_smallest_steps": 0.9 if bad else 0.1,
+                                 "at_largest_steps": 0.95, "minima": 5, "maxima": 5}},
+        "site": {"pendulum": site, "quartic": site},
+        "gauge": {"vddvp": {"t": 1e-2 if bad else 1e-14, "q": 1e-14},
+                  "lee": {"t": 1e-2, "q": 1e-2}},
+        "sweep": {"rows": sweep_rows},
+        "symplectic": {"pendulum": {"time_dependent": False,
+                                    "fixed_phase_space": 1e-6 if bad else 1e-16,
+                                    "lee_extended": 1e-6 if bad else 1e-16,
+                                    "explicit_euler_control": 1e-2}},
+        "growth": {"rows": [{"steps": 1000, "t": 500.0, "max_residual": 1e-16,
+                             "running_sum": 1e-9 if bad else 1e-16}]},
+        "legendre": {rule: {"t": 1e-3 if bad else 1e-10, "q": 1e-10, "p": 1e-10,
+                            "steps": (400, 400), "success": True}
+                     for rule in ("vddvp", "lee", "fixed")},
+    }
+
+
+def test_report_verdicts_follow_the_measurements():
+    good, bad = reproduce_report(_measurements(True)), reproduce_report(_measurements(False))
+    assert "Not confirmed" not in good
+    verdicts = 10  # periods 2, extremes, site, gauge, sweep, symplectic 2, growth, legendre
+    assert good.count("Confirmed (threshold:") == verdicts
+    assert bad.count("**Not confirmed** (threshold:") == verdicts
+    assert "(threshold: vddvp changes at most 1e-10, lee's node times at least 0.001)" in bad

@@ -8,7 +8,8 @@ import warnings
 import pytest
 
 from ddvp_nlp.cli import main
-from ddvp_nlp.studies.stress import COLUMNS, default_cases, read_rows, stress
+from ddvp_nlp.io.stress_report import read_rows, stress
+from ddvp_nlp.studies.stress import COLUMNS, default_cases
 
 
 @pytest.fixture(scope="module")
@@ -100,3 +101,16 @@ def test_stress_command(tmp_path, capsys):
     assert "vddvp           1 reached t_end; newton_failed 1" in out
     assert main(["stress", "--time-limit", "0", "--out", str(tmp_path / "x")]) == 2
     assert "ddvp stress: error: time_limit must be > 0, got 0.0" in capsys.readouterr().err
+
+
+def test_a_sweep_reports_every_method_it_ran(tmp_path, capsys):
+    """The report's columns are the methods that ran: lee_left is in no default grid, but a
+    sweep that asks for it gets its column."""
+    out = tmp_path / "sweep"
+    assert main(["sweep", "harmonic", "--grid", "w=1", "--methods", "lee_left,rk4", "--set",
+                 "t_end=2", "--workers", "1", "--no-compile", "--no-progress",
+                 "--out", str(out)]) == 0
+    assert "lee_left" in capsys.readouterr().out
+    table = (out / "sweep.md").read_text().split("## harmonic")[1]
+    header = table.strip().splitlines()[0]
+    assert header == "| case | tau | predicted for vddvp | `rk4` | `lee_left` |"

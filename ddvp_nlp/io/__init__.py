@@ -1,8 +1,15 @@
-"""Input and output: run folders, figures and Markdown reports.
+"""Input and output: run folders, figures, Markdown reports and input files.
 
-- ``runs.py``: writing a run's ``result.npz`` and ``meta.json``.
+- ``runs.py``: writing a run's ``result.npz``, ``meta.json`` and figure (every kind of scene).
 - ``plotting.py``: the trajectory figure of a run.
-- ``reproduce.py``: ``ddvp reproduce``'s figures and report.
+- ``row_file.py``: a grid's CSV result file, appended row by row.
+- ``markdown.py``: pieces the grid reports share (failure table, machine line).
+- ``work_precision.py``: ``ddvp compare``: runs the comparison, writes its CSV, figure, summary.
+- ``stress_report.py``: ``ddvp stress`` and ``ddvp sweep``: runs the grid, writes its table and
+  figure.
+- ``grid_file.py``: reading a sweep's TOML grid file.
+- ``reproduce.py``: ``ddvp reproduce``'s figures and report, verdicts against stated thresholds.
 
-May import everything but ``cli``; nothing but ``cli`` and ``studies`` imports from here.
+May import everything but ``cli``; nothing but ``cli`` imports from here, except
+``studies.grid``, which uses ``row_file`` (a leaf: it imports nothing of the package).
 """

@@ -79,3 +79,25 @@ def _semilog(ax, t, values, label):
     # Exact zeros (the first node, exactly conserved steps) cannot be drawn on a log axis.
     shown = np.where(values > 0, values, np.nan)
     ax.semilogy(t, shown, lw=0.8, label=label)
+
+
+def plot_higher_trajectory(solution, scene, command, exact, energy, path: Path) -> None:
+    """A higher-order run: nodes against the exact solution, the steps, and the energy
+    ``E^(k)`` where the recursion defines it."""
+    panels = 3 if energy.size else 2
+    fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels), sharex=True)
+    axes[0].plot(solution.t, solution.q, ".-", ms=3, label="nodes")
+    axes[0].plot(solution.t, exact, "k--", lw=0.8, label="exact")
+    axes[0].set_ylabel("q")
+    axes[0].legend(fontsize=8)
+    axes[1].plot(solution.t[:-1], solution.tau, ".-", ms=3)
+    axes[1].set_ylabel("tau_k")
+    if energy.size:
+        lo = scene.order - 1
+        axes[2].plot(solution.t[lo:lo + energy.size], energy - energy[0], ".-", ms=3)
+        axes[2].set_ylabel("E^(k) - E^(l-1)")
+    axes[-1].set_xlabel("t")
+    fig.suptitle(f"{scene.name} {command} [{solution.scheme}]: {solution.status.code}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

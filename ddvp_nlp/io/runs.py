@@ -1,4 +1,5 @@
-"""Writing a run to a folder: ``result.npz``, ``meta.json`` and a plot."""
+"""Writing a run to a folder: ``result.npz``, ``meta.json`` and a plot, for every kind of scene
+(Hamiltonian, first-order Lagrangian, higher-order Lagrangian)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 from ..discrete import equations
 from ..discrete.scheme import Scheme
 from ..errors import InputError
-from ..scenes import BoundaryConfig, RunConfig, Scene
+from ..scenes import BoundaryConfig, HigherOrderScene, RunConfig, Scene
 from ..solution import Solution, Status
 
 
@@ -59,10 +60,39 @@ def _max_abs(values) -> float:
     return float(np.max(np.abs(values))) if values.size else 0.0
 
 
-def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | BoundaryConfig,
-              scheme: Scheme,
-              solution: Solution, extra: dict | None = None, plot: bool = True) -> dict:
-    """Write ``result.npz``, ``meta.json`` and ``trajectory.png``; return the metadata."""
+def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
+              config: RunConfig | BoundaryConfig | dict, solution: Solution,
+              scheme: Scheme | None = None, extra: dict | None = None,
+              plot: bool = True) -> dict:
+    """Write ``result.npz``, ``meta.json`` and ``trajectory.png`` of a run of any scene; return
+    the metadata.
+
+    A scene with ``H`` or a first-order ``L`` needs its ``scheme``. A higher-order scene's run
+    (``config`` the dict of :meth:`HigherOrderScene.resolve`) stores ``p`` as the multiplier
+    ``lambda_1`` and ``energy``, the energy ``E^(k)`` where the recursion defines it.
+    """
+    record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
+    arrays, meta, draw = record(command, scene, config, scheme, solution)
+    np.savez(out / "result.npz", **arrays)
+    meta.update(extra or {})
+    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
+    if plot and solution.t.size >= 2:
+        draw(out / "trajectory.png")
+    return meta
+
+
+def _steps_meta(solution: Solution) -> dict:
+    """Status, steps and step range: the part of ``meta.json`` every kind of run has."""
+    tau = solution.tau
+    return {"status": solution.status.code, "success": solution.success,
+            "message": solution.message, "steps": solution.steps,
+            "t_reached": float(solution.t[-1]),
+            "tau_min": float(tau.min()) if tau.size else None,
+            "tau_max": float(tau.max()) if tau.size else None}
+
+
+def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution):
+    """Arrays, metadata and figure of a run of a scene with ``H`` or a first-order ``L``."""
     theta = scene.system.parameter_vector(config.params)
     arrays = {"t": solution.t, "q": solution.q, "p": solution.p,
               "energy_residual": solution.energy_residual,
@@ -73,29 +103,30 @@ def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | Boun
     if flagged:
         arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)
         arrays["least_squares_defect"] = np.array([e["energy_defect"] for e in flagged])
-    np.savez(out / "result.npz", **arrays)
-    tau = solution.tau
-    meta = {
-        "command": command,
-        "scene": scene.name,
-        "scheme": scheme.rule,
-        "alpha": scheme.alpha,
-        "clock": scheme.clock,
-        "params": config.as_dict(),
-        "status": solution.status.code,
-        "success": solution.success,
-        "message": solution.message,
-        "steps": solution.steps,
-        "t_reached": float(solution.t[-1]),
-        "tau_min": float(tau.min()) if tau.size else None,
-        "tau_max": float(tau.max()) if tau.size else None,
-        "newton_iterations": solution.newton_iterations,
-        "canonical_residual_max": _max_abs(solution.canonical_residual),
-        "timing": solution.timing,
-        **energy_report(scene, scheme, solution, theta),
-    }
+    meta = {"command": command, "scene": scene.name, "scheme": scheme.rule,
+            "alpha": scheme.alpha, "clock": scheme.clock, "params": config.as_dict(),
+            **_steps_meta(solution),
+            "newton_iterations": solution.newton_iterations,
+            "canonical_residual_max": _max_abs(solution.canonical_residual),
+            "timing": solution.timing,
+            **energy_report(scene, scheme, solution, theta),
+            **_checks(scene, config, solution)}
+    if flagged:
+        meta["least_squares_steps"] = len(flagged)
+        meta["least_squares_defect_max"] = _max_abs([e["energy_defect"] for e in flagged])
+
+    def draw(path):
+        from .plotting import plot_trajectory
+        plot_trajectory(solution, scene, scheme, theta, path)
+
+    return arrays, meta, draw
+
+
+def _checks(scene: Scene, config, solution: Solution) -> dict:
+    """Invariant drifts, the error against an exact solution, a solvability warning."""
+    found = {}
     if scene.invariants and solution.t.size:
-        meta["invariant_drift"] = {
+        found["invariant_drift"] = {
             name: _max_abs(f(solution.q, solution.p, **config.params)
                            - f(solution.q[:1], solution.p[:1], **config.params)[0])
             for name, f in scene.invariants.items()}
@@ -104,65 +135,30 @@ def write_run(out: Path, *, command: str, scene: Scene, config: RunConfig | Boun
         # state; for a fixed-endpoint problem: the computed initial momentum).
         q, p = scene.exact(solution.t, solution.q[0], solution.p[0], solution.t[0],
                            **config.params)
-        meta["error_vs_exact"] = float(max(_max_abs(solution.q - q), _max_abs(solution.p - p)))
+        found["error_vs_exact"] = float(max(_max_abs(solution.q - q), _max_abs(solution.p - p)))
     if solution.stats.get("solvability_warning"):
-        meta["solvability_warning"] = solution.stats["solvability_warning"]
-    if flagged:
-        meta["least_squares_steps"] = len(flagged)
-        meta["least_squares_defect_max"] = _max_abs([e["energy_defect"] for e in flagged])
-    meta.update(extra or {})
-    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
-    if plot and solution.t.size >= 2:
-        from .plotting import plot_trajectory
-        plot_trajectory(solution, scene, scheme, theta, out / "trajectory.png")
-    return meta
+        found["solvability_warning"] = solution.stats["solvability_warning"]
+    return found
 
 
-def write_higher_run(out: Path, *, command: str, scene, config: dict, solution: Solution,
-                     plot: bool = True) -> dict:
-    """``result.npz``, ``meta.json`` and ``trajectory.png`` of a higher-order run: ``p`` is the
-    multiplier ``lambda_1``, ``energy`` the energy ``E^(k)`` where the recursion defines it."""
+def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution):
+    """Arrays, metadata and figure of a run of a scene with higher derivatives."""
     energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
-    np.savez(out / "result.npz", t=solution.t, q=solution.q, p=solution.p, energy=energy)
-    tau = solution.tau
     exact = scene._exact(solution.t, config["params"])
     meta = {"command": command, "scene": scene.name, "scheme": solution.scheme,
             "order": scene.order, "params": {**config["params"], "t0": config["t0"],
                                              "tau0": config["tau0"], "t_end": config["t_end"]},
-            "status": solution.status.code, "success": solution.success,
-            "message": solution.message, "steps": solution.steps,
-            "t_reached": float(solution.t[-1]),
-            "tau_min": float(tau.min()) if tau.size else None,
-            "tau_max": float(tau.max()) if tau.size else None,
+            **_steps_meta(solution),
             "energy_error": float(np.ptp(energy)) if energy.size else 0.0,
             "energy_error_kind": "spread of E^(k) = sum_m lambda_m . v_m - L over the run",
             "error_vs_exact": float(np.max(np.abs(solution.q - exact))),
             "timing": solution.timing}
-    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
-    if plot and solution.t.size >= 2:
-        import matplotlib
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+    def draw(path):
+        from .plotting import plot_higher_trajectory
+        plot_higher_trajectory(solution, scene, command, exact, energy, path)
 
-        panels = 3 if energy.size else 2
-        fig, axes = plt.subplots(panels, 1, figsize=(8, 2.6 * panels), sharex=True)
-        axes[0].plot(solution.t, solution.q, ".-", ms=3, label="nodes")
-        axes[0].plot(solution.t, exact, "k--", lw=0.8, label="exact")
-        axes[0].set_ylabel("q")
-        axes[0].legend(fontsize=8)
-        axes[1].plot(solution.t[:-1], tau, ".-", ms=3)
-        axes[1].set_ylabel("tau_k")
-        if energy.size:
-            lo = scene.order - 1
-            axes[2].plot(solution.t[lo:lo + energy.size], energy - energy[0], ".-", ms=3)
-            axes[2].set_ylabel("E^(k) - E^(l-1)")
-        axes[-1].set_xlabel("t")
-        fig.suptitle(f"{scene.name} {command} [{solution.scheme}]: {solution.status.code}")
-        fig.tight_layout()
-        fig.savefig(out / "trajectory.png", dpi=110)
-        plt.close(fig)
-    return meta
+    return {"t": solution.t, "q": solution.q, "p": solution.p, "energy": energy}, meta, draw
 
 
 def _json_default(value):

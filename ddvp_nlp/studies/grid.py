@@ -18,23 +18,23 @@ A task that raises is retried once, then reported with the error. A task whose w
 run again on another worker once (local clusters run with ``allowed-failures = 1``), then
 reported as ``worker_died``.
 
-:func:`run_grid` adds the result file: each row is appended to a CSV as it arrives, so an
-interrupted grid keeps every finished row, and a second call with the same tasks skips the keys
-already in the file (resume). At the end the file is rewritten in task order, holding exactly
-the rows of this grid.
+:func:`run_grid` adds the result file (:mod:`ddvp_nlp.io.row_file`): each row is appended to a
+CSV as it arrives, so an interrupted grid keeps every finished row, and a second call with the
+same tasks skips the keys already in the file (resume). At the end the file is rewritten in task
+order, holding exactly the rows of this grid. A :class:`RowSchema` types the rows read back.
 """
 
 from __future__ import annotations
 
-import csv
 import importlib
 import os
 import uuid
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from ..errors import InputError
+from ..io.row_file import appending, read_csv, rewrite_csv
+from ..validation import check_integer
 
 SCHEDULER_VARIABLE = "DDVP_SCHEDULER"
 
@@ -67,11 +67,8 @@ def resolve_scheduler(scheduler: str | None) -> str | None:
 
 
 def check_workers(workers) -> int | None:
-    if workers is None:
-        return None
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InputError(f"workers must be a positive integer, got {workers!r}")
-    return workers
+    """``None`` (as many as there are cores) or a positive integer."""
+    return None if workers is None else check_integer("workers", workers)
 
 
 def run_tasks(tasks: Sequence[Task], *, workers: int | None = None,
@@ -152,11 +149,30 @@ def _run_on_dask(tasks, *, workers, scheduler, retries):
             cluster.close()
 
 
-def read_csv(path: Path) -> list[dict]:
-    if not path.exists():
-        return []
-    with open(path, newline="") as handle:
-        return list(csv.DictReader(handle))
+@dataclass(frozen=True)
+class RowSchema:
+    """A grid's table: its columns and which of them hold numbers or flags. :meth:`parse` is
+    the one place a row read back from the result file gets its types again."""
+
+    columns: tuple[str, ...]
+    floats: tuple[str, ...] = ()
+    integers: tuple[str, ...] = ()
+    flags: tuple[str, ...] = ()
+
+    def parse(self, row: dict) -> dict:
+        """``row`` with numbers as numbers and flags as ``True``/``False`` (``""`` if unset)."""
+        row = dict(row)
+        for key in self.floats:
+            row[key] = float(row[key])
+        for key in self.integers:
+            row[key] = int(row[key])
+        for key in self.flags:
+            row[key] = {"True": True, "False": False}.get(row[key], "")
+        return row
+
+    def read(self, path) -> list[dict]:
+        """The typed rows of a result file written with this schema."""
+        return [self.parse(row) for row in read_csv(path, missing_ok=False)]
 
 
 def run_grid(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequence[str], *,
@@ -170,39 +186,21 @@ def run_grid(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequence[s
     ``failure_row(task, error)`` instead. ``parse`` turns a row read back from the file into
     typed values. ``resume=False`` starts the file afresh.
     """
-    path = Path(path)
     keys = [task.key for task in tasks]
     if len(set(keys)) != len(keys):
         raise InputError("the grid has two tasks with the same key")
     done = {row["key"]: parse(row) for row in read_csv(path)} if resume else {}
     todo = [task for task in tasks if task.key not in done]
-    fresh = not done
-    with open(path, "w" if fresh else "a", newline="") as handle:
-        writer = csv.DictWriter(handle, columns, extrasaction="ignore")
-        if fresh:
-            writer.writeheader()
-            handle.flush()
+    with appending(path, columns, fresh=not done) as append:
         for task, result, error in run_tasks(todo, workers=workers, scheduler=scheduler,
                                              progress=progress):
             row = result if error is None else failure_row(task, error)
             row = {**row, "key": task.key}
-            writer.writerow(row)
-            handle.flush()
+            append(row)
             done[task.key] = parse({k: str(v) for k, v in row.items()})
     rows = [done[key] for key in keys]
-    _rewrite(path, columns, rows)
+    rewrite_csv(path, columns, rows)
     return rows, len(todo)
-
-
-def _rewrite(path: Path, columns, rows: Iterable[dict]):
-    """The grid's rows, in task order, replacing the file atomically."""
-    scratch = path.with_suffix(path.suffix + ".tmp")
-    with open(scratch, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, columns, extrasaction="ignore")
-        writer.writeheader()
-        for row in rows:
-            writer.writerow(row)
-    os.replace(scratch, path)
 
 
 def describe_error(error: str) -> tuple[str, str]:
@@ -211,4 +209,4 @@ def describe_error(error: str) -> tuple[str, str]:
     return status, message.strip().splitlines()[-1] if message.strip() else status
 
 
-__all__ = ["Task", "describe_error", "execute", "run_grid", "run_tasks"]
+__all__ = ["RowSchema", "Task", "describe_error", "execute", "run_grid", "run_tasks"]

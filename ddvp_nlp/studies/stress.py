@@ -12,13 +12,16 @@ Predicted breakdown of the energy-determined step (THEORY.md section 5): a posit
 only while ``c(z) = -(f' H_zz f)/8`` keeps its sign along the orbit. ``w = f' H_zz f`` is sampled
 at the nodes of the case's DOP853 run (rtol 1e-10); a sign change predicts a breakdown, and the
 smallest ``|w|/max|w|`` says how close the orbit comes to one.
+
+:func:`plan_stress` checks the bounds and makes the tasks, :func:`run_stress` runs them into the
+result file and returns a :class:`StressResult` (rows, cases, predictions); the Markdown table
+and figure are written by :mod:`ddvp_nlp.io.stress_report`. The methods are the registry's
+(:data:`ddvp_nlp.studies.methods.METHODS`), and a report's columns are the methods that ran.
 """
 
 from __future__ import annotations
 
-import csv
 import math
-import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -29,20 +32,26 @@ from ..errors import InputError
 from ..physics.hamiltonian import site_density_weight_function
 from ..scenes import load_scene
 from ..solvers.compiler import find_compiler
-from .compare import REFERENCE_RTOL, _comparable, _machine, _needs_p0, failure_table, reference_for
-from .grid import Task, check_workers, describe_error, resolve_scheduler, run_grid
+from ..validation import check_integer, check_real
+from .grid import RowSchema, Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS
+from .reference import check_comparable, check_starts_from_p0, reference_for
 
-COLUMNS = ["key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
-           "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-           "predicted_breaks", "w_ratio", "message"]
-STRESS_METHODS = ("vddvp", "lee", "midpoint", "stormer_verlet", "rk4", "dop853")
+ROWS = RowSchema(
+    columns=("key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
+             "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
+             "predicted_breaks", "w_ratio", "message"),
+    floats=("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
+            "w_ratio"),
+    integers=("steps",),
+    flags=("predicted_breaks",))
+COLUMNS = list(ROWS.columns)
+# Methods of the registry a case leaves out unless asked for by name, and why.
+NOT_BY_DEFAULT = {"lee_left": "joined the registry after the stress grid was laid out; kept out "
+                              "of the default grid so its cost and table stay as they were "
+                              "(ask for it with --methods)"}
+DEFAULT_METHODS = tuple(name for name in METHODS if name not in NOT_BY_DEFAULT)
 DOP853_RTOL = 1e-10
-SHORT = {"success": "ok", "no_admissible_step": "no root", "newton_failed": "Newton",
-         "non_finite": "NaN", "residual_too_large": "residual", "step_below_min": "tau<min",
-         "step_above_max": "tau>max", "step_ratio": "ratio", "max_steps": "max steps",
-         "time_limit": "time", "solver_failed": "failed", "energy_guard": "guard",
-         "not_run": "not run"}
 
 
 @dataclass
@@ -56,40 +65,52 @@ class Case:
     settings: dict
     tau: float
     note: str = ""
-    methods: tuple = field(default=STRESS_METHODS)
+    methods: tuple = field(default=DEFAULT_METHODS)
     rtol: float = DOP853_RTOL
 
 
 def default_cases(quick: bool = False) -> list[Case]:
     """The grid of the issue; ``quick`` keeps one or two cases per group on short horizons (for
     the tests)."""
-    cases = []
+    return [case for group in (_fpu_cases, _kepler_cases, _pendulum_cases, _long_cases,
+                               _paper_cases) for case in group(quick)]
+
+
+def _fpu_cases(quick):
     omegas = (50.0,) if quick else (50.0, 100.0, 300.0, 1000.0)
     products = (0.5, 4.0) if quick else (0.5, 1.0, 2.0, 4.0)
-    for omega in omegas:
-        for product in products:
-            cases.append(Case("fpu", f"omega={omega:g}, omega*tau={product:g}", "fpu",
-                              {"omega": omega, **({"t_end": 2.0} if quick else {})},
-                              product / omega))
-    for e in ((0.5, 0.9) if quick else (0.5, 0.7, 0.8, 0.9, 0.99)):
-        cases.append(Case("kepler", f"e={e:g}", "kepler",
-                          {"e": e, "t_end": (2 if quick else 20) * math.pi}, 0.01,
-                          "ten periods" if not quick else "one period"))
+    return [Case("fpu", f"omega={omega:g}, omega*tau={product:g}", "fpu",
+                 {"omega": omega, **({"t_end": 2.0} if quick else {})}, product / omega)
+            for omega in omegas for product in products]
+
+
+def _kepler_cases(quick):
+    return [Case("kepler", f"e={e:g}", "kepler", {"e": e, "t_end": (2 if quick else 20) * math.pi},
+                 0.01, "ten periods" if not quick else "one period")
+            for e in ((0.5, 0.9) if quick else (0.5, 0.7, 0.8, 0.9, 0.99))]
+
+
+def _pendulum_cases(quick):
     energies = [("H=2-1e-2", 2 - 1e-2), ("H=2.5 (rotation)", 2.5)] if quick else [
         ("H=2-1e-2", 2 - 1e-2), ("H=2-1e-4", 2 - 1e-4), ("H=2-1e-6", 2 - 1e-6),
         ("H=2.5 (rotation)", 2.5)]
-    for label, H in energies:
-        settings = {"q0": [0.0], "p0": [math.sqrt(2 * H)], "t_end": 10.0 if quick else 100.0}
-        cases.append(Case("pendulum", label, "pendulum", settings, 0.05))
+    return [Case("pendulum", label, "pendulum",
+                 {"q0": [0.0], "p0": [math.sqrt(2 * H)], "t_end": 10.0 if quick else 100.0},
+                 0.05) for label, H in energies]
+
+
+def _long_cases(quick):
     periods = 10 if quick else 10_000
-    cases.append(Case("long", f"harmonic, {periods} periods", "harmonic",
-                      {"t_end": 2 * math.pi * periods}, 0.1))
-    cases.append(Case("long", f"pendulum, {periods} periods", "pendulum",
-                      {"t_end": _pendulum_period(0.5, 0.5) * periods}, 0.05))
-    for tau0 in ((0.5, 5e-3) if quick else (0.5, 0.05, 5e-3, 5e-4)):
-        cases.append(Case("paper_pendulum", f"tau0={tau0:g}", "paper_pendulum",
-                          {"t_end": 20.0 if quick else 100.0}, tau0))
-    return cases
+    return [Case("long", f"harmonic, {periods} periods", "harmonic",
+                 {"t_end": 2 * math.pi * periods}, 0.1),
+            Case("long", f"pendulum, {periods} periods", "pendulum",
+                 {"t_end": _pendulum_period(0.5, 0.5) * periods}, 0.05)]
+
+
+def _paper_cases(quick):
+    return [Case("paper_pendulum", f"tau0={tau0:g}", "paper_pendulum",
+                 {"t_end": 20.0 if quick else 100.0}, tau0)
+            for tau0 in ((0.5, 5e-3) if quick else (0.5, 0.05, 5e-3, 5e-4))]
 
 
 def _pendulum_period(q0, p0):
@@ -129,10 +150,10 @@ def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_0
                time_limit: float = 60.0) -> list[Task]:
     """One task per method that applies to the case (``lee`` only where H depends on t)."""
     scene = load_scene(case.scene)
-    _comparable(scene)
+    check_comparable(scene)
     system = scene.system
     config = scene.resolve(case.settings)
-    _needs_p0(scene, config)
+    check_starts_from_p0(scene, config)
     tasks = []
     for name in case.methods:
         method = METHODS[name]
@@ -204,19 +225,69 @@ def _settings_text(settings: dict) -> str:
                      for k, v in settings.items())
 
 
-def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None = "auto",
-           cache_dir=None, max_steps: int = 2_000_000, time_limit: float = 60.0,
-           cases: list[Case] | None = None, progress: bool = False, workers: int | None = 1,
-           scheduler: str | None = None, resume: bool = False, name: str = "stress",
-           title: str = "Stress cases: where each scheme breaks") -> list[dict]:
-    """Run the grid and write ``NAME.csv``, ``NAME.md`` and ``NAME.png`` in ``out``.
+@dataclass
+class StressPlan:
+    """A checked grid, ready to run: its cases, their tasks and the bounds of each run."""
 
-    ``workers``/``scheduler``: see :func:`ddvp_nlp.grid.run_tasks` (default: in this process).
-    ``resume``: keep the rows already in ``NAME.csv`` and run only the missing tasks.
-    """
-    from ..io.runs import prepare_folder
-    from ..validation import check_integer, check_real
+    cases: list[Case]
+    tasks: list[Task]
+    compiler: str | None
+    max_steps: int
+    time_limit: float
+    quick: bool
+    workers: int | None
+    scheduler: str | None
 
+
+@dataclass
+class StressResult:
+    """What a grid measured: one row per run (:data:`COLUMNS`), the cases, the breakdown each
+    case's DOP853 run predicts, and the bounds the runs had."""
+
+    rows: list[dict]
+    cases: list[Case]
+    predictions: dict
+    compiler: str | None
+    max_steps: int
+    time_limit: float
+    quick: bool
+
+    @property
+    def methods(self) -> list[str]:
+        """The methods that ran, in the registry's order: a report's columns."""
+        return [m for m in METHODS if any(r["method"] == m for r in self.rows)]
+
+    def row(self, case: Case, method: str) -> dict | None:
+        """The row of ``method`` on ``case``, or ``None`` if it did not run there."""
+        for r in self.rows:
+            if r["case"] == case.name and r["group"] == case.group and r["method"] == method:
+                return r
+        return None
+
+
+@dataclass
+class Breakdown:
+    """The energy step on one case: predicted (sign of ``c(z)``) against observed (``vddvp``)."""
+
+    case: Case
+    prediction: dict
+    row: dict
+
+    @property
+    def broke(self) -> bool:
+        return self.row["status"] != "success"
+
+    @property
+    def agrees(self) -> bool:
+        return self.broke == self.prediction["breaks"]
+
+
+def plan_stress(*, quick: bool = False, compiler: str | None = "auto", cache_dir=None,
+                max_steps: int = 2_000_000, time_limit: float = 60.0,
+                cases: list[Case] | None = None, workers: int | None = 1,
+                scheduler: str | None = None) -> StressPlan:
+    """Check the bounds and make every case's tasks (arguments as
+    :func:`ddvp_nlp.io.stress_report.stress`)."""
     max_steps = check_integer("max_steps", max_steps)
     time_limit = check_real("time_limit", time_limit, positive=True)
     workers = check_workers(workers)
@@ -226,166 +297,40 @@ def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None 
     tasks = [task for case in cases for task in case_tasks(
         case, compiler=compiler, cache_dir=cache_dir, max_steps=max_steps,
         time_limit=time_limit)]
-    out = prepare_folder(out)
-    rows, _ = run_grid(tasks, out / f"{name}.csv", COLUMNS, failure_row=failure_row,
-                       parse=parse_row, resume=resume, workers=workers, scheduler=scheduler,
-                       progress=progress)
+    return StressPlan(cases, tasks, compiler, max_steps, time_limit, quick, workers, scheduler)
+
+
+def run_stress(plan: StressPlan, rows_path, *, resume: bool = False,
+               progress: bool = False) -> StressResult:
+    """Run a planned grid; its rows go to the result file ``rows_path`` as they finish
+    (``resume``: keep the rows already there and run only the missing tasks)."""
+    rows, _ = run_grid(plan.tasks, rows_path, COLUMNS, failure_row=failure_row,
+                       parse=ROWS.parse, resume=resume, workers=plan.workers,
+                       scheduler=plan.scheduler, progress=progress)
     predictions = {(r["case"], r["group"]): {"breaks": r["predicted_breaks"],
                                              "w_ratio": r["w_ratio"]}
                    for r in rows if r["method"] == "dop853" and r["status"] == "success"}
-    context = {"cases": cases, "predictions": predictions, "compiler": compiler,
-               "max_steps": max_steps, "time_limit": time_limit, "quick": quick,
-               "title": title}
-    plot_stress(rows, cases, out / f"{name}.png")
-    (out / f"{name}.md").write_text(report(rows, context))
-    return rows
+    return StressResult(rows, plan.cases, predictions, plan.compiler, plan.max_steps,
+                        plan.time_limit, plan.quick)
 
 
-def _cell(row, method="") -> str:
-    if row is None:
-        return "= vddvp" if method == "lee" else "n/a"
-    error = row["energy_error"]
-    error_text = f"{error:.0e}" if math.isfinite(error) else "-"
-    if row["status"] == "success":
-        return f"ok {error_text}"
-    return f"**{SHORT.get(row['status'], row['status'])}** t={row['t_reached']:.3g}"
+def prediction_for(result: StressResult, case: Case) -> dict | None:
+    """What the sign of ``c(z)`` along the case's DOP853 orbit predicts, if DOP853 succeeded."""
+    return result.predictions.get((case.name, case.group))
 
 
-def report(rows, context) -> str:
-    methods = [m for m in STRESS_METHODS if any(r["method"] == m for r in rows)]
-    lines = [f"# {context.get('title', 'Stress cases: where each scheme breaks')}", "",
-             "Each cell: `ok` and the largest relative energy error "
-             "max |H - H_ref| / max(1, |H0|), or the failure and the time it was reached "
-             "(details below). Bounds per run: "
-             f"{context['max_steps']} steps, {context['time_limit']:g} s. Steps: the case's tau "
-             f"for every step method (for `vddvp`/`lee` the first step); DOP853 at rtol = atol = "
-             f"{DOP853_RTOL:g}. Energy reference for time-dependent H: DOP853 at "
-             f"{REFERENCE_RTOL:g}. `lee` runs only where H depends on t (elsewhere its equations"
-             " are `vddvp`'s).", ""]
-    if context["quick"]:
-        lines += ["*Quick grid (tests): short horizons, fewer cases.*", ""]
-    header = "| case | tau | predicted for vddvp | " + " | ".join(f"`{m}`" for m in methods) + " |"
-    rule = "|---|---|---|" + "---|" * len(methods)
-    groups = list(dict.fromkeys(c.group for c in context["cases"]))
-    for group in groups:
-        lines += ["", f"## {group}", "", header, rule]
-        for case in [c for c in context["cases"] if c.group == group]:
-            prediction = context["predictions"].get((case.name, case.group))
-            cells = []
-            for m in methods:
-                match = [r for r in rows if r["case"] == case.name and r["group"] == group
-                         and r["method"] == m]
-                cells.append(_cell(match[0] if match else None, m))
-            lines.append(f"| {case.name} | {case.tau:.3g} | {_prediction_text(prediction)} | "
-                         + " | ".join(cells) + " |")
-    lines += ["", "## Predicted and observed breakdowns of the energy step", "",
-              "Prediction: a positive step needs c(z) to keep its sign along the orbit (sampled "
-              "at DOP853's nodes).", "",
-              "| case | c(z) changes sign along the orbit | smallest abs(w)/max abs(w) | vddvp "
-              "observed | vddvp steps | agrees |", "|---|---|---|---|---|---|"]
-    unexplained = []
-    for case in context["cases"]:
-        prediction = context["predictions"].get((case.name, case.group))
-        observed = [r for r in rows if r["case"] == case.name and r["group"] == case.group
-                    and r["method"] == "vddvp"]
-        if prediction is None or not observed:
-            continue
-        row = observed[0]
-        broke = row["status"] != "success"
-        agrees = broke == prediction["breaks"]
-        if not agrees:
-            unexplained.append((case, row))
-        lines.append(f"| {case.group}: {case.name} | {'yes' if prediction['breaks'] else 'no'} | "
-                     f"{prediction['w_ratio']:.1e} | {_cell(row)} | "
-                     f"{row['tau_min']:.3g} .. {row['tau_max']:.3g} | "
-                     f"{'yes' if agrees else '**no**'} |")
-    if unexplained:
-        lines += ["", "Where the sign of c(z) did not tell:", ""]
-        for case, row in unexplained:
-            what = (f"broke ({row['status']}) although c keeps its sign"
-                    if row["status"] != "success" else
-                    "reached t_end although c changes sign along the orbit")
-            lines.append(f"- {case.group}: {case.name}: {what}; steps from {row['tau_min']:.3g}"
-                         f" to {row['tau_max']:.3g}.")
-    lines += failure_table(rows, "Where and why each failed run stopped",
-                           ("case", lambda r: f"{r['group']}: {r['case']}"),
-                           ("method", lambda r: f"`{r['method']}`"))
-    lines += ["", "## Machine", "", _machine(context["compiler"]), ""]
-    return "\n".join(lines)
-
-
-def _prediction_text(prediction) -> str:
-    if prediction is None:
-        return "-"
-    if prediction["breaks"]:
-        return "breaks (c changes sign)"
-    return f"runs (min abs(w)/max = {prediction['w_ratio']:.0e})"
-
-
-def plot_stress(rows, cases, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import Normalize
-
-    methods = [m for m in STRESS_METHODS if any(r["method"] == m for r in rows)]
-    labels = [f"{c.group}: {c.name}" for c in cases]
-    values = np.full((len(cases), len(methods)), np.nan)
-    texts = [["" for _ in methods] for _ in cases]
-    for i, case in enumerate(cases):
-        for j, m in enumerate(methods):
-            match = [r for r in rows if r["case"] == case.name and r["group"] == case.group
-                     and r["method"] == m]
-            if not match:
-                texts[i][j] = "= vddvp" if m == "lee" else "n/a"
-                continue
-            r = match[0]
-            if r["status"] == "success":
-                values[i, j] = math.log10(max(r["energy_error"], 1e-16))
-                texts[i][j] = f"{r['energy_error']:.0e}"
-            else:
-                texts[i][j] = SHORT.get(r["status"], r["status"])
-    fig, ax = plt.subplots(figsize=(2.0 + 1.3 * len(methods), 1.2 + 0.32 * len(cases)),
-                           constrained_layout=True)
-    cmap = plt.get_cmap("viridis").with_extremes(bad="#d62728")
-    image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, norm=Normalize(-16, 0),
-                      aspect="auto")
-    from matplotlib.patches import Rectangle
-
-    for i in range(len(cases)):
-        for j in range(len(methods)):
-            skipped = texts[i][j] in ("= vddvp", "n/a")  # not run: grey, not failed red
-            if skipped:
-                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, color="#dddddd"))
-            dark = np.isnan(values[i, j]) and not skipped or values[i, j] < -8
-            ax.text(j, i, texts[i][j], ha="center", va="center", fontsize=7,
-                    color="white" if dark else "black")
-    ax.set_xticks(range(len(methods)), methods, rotation=20)
-    ax.set_yticks(range(len(cases)), labels, fontsize=8)
-    fig.colorbar(image, ax=ax, label="log10 relative energy error (red: failed; grey: not run)")
-    ax.set_title("stress grid: status and energy error")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def parse_row(row: dict) -> dict:
-    """A row read back from the CSV, with its numbers and flags typed."""
-    row = dict(row)
-    for key in ("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-                "w_ratio"):
-        row[key] = float(row[key])
-    row["steps"] = int(row["steps"])
-    row["predicted_breaks"] = {"True": True, "False": False}.get(row["predicted_breaks"], "")
-    return row
-
-
-def read_rows(path) -> list[dict]:
-    with open(path, newline="") as handle:
-        return [parse_row(row) for row in csv.DictReader(handle)]
+def breakdowns(result: StressResult) -> list[Breakdown]:
+    """Each case with both a prediction and a ``vddvp`` run, in the order of the cases."""
+    found = []
+    for case in result.cases:
+        prediction, row = prediction_for(result, case), result.row(case, "vddvp")
+        if prediction is not None and row is not None:
+            found.append(Breakdown(case, prediction, row))
+    return found
 
 
 def status_counts(rows) -> dict:
+    """``{method: {status: number of runs}}``."""
     counts = {}
     for r in rows:
         counts.setdefault(r["method"], {}).setdefault(r["status"], 0)
@@ -393,4 +338,6 @@ def status_counts(rows) -> dict:
     return counts
 
 
-__all__ = ["COLUMNS", "Case", "case_tasks", "default_cases", "read_rows", "run_one", "stress"]
+__all__ = ["COLUMNS", "DEFAULT_METHODS", "ROWS", "Breakdown", "Case", "StressPlan",
+           "StressResult", "breakdowns", "case_tasks", "default_cases", "plan_stress",
+           "run_one", "run_stress", "status_counts"]

@@ -1,0 +1,205 @@
+"""Stress and sweep output: ``NAME.csv``, ``NAME.md`` and ``NAME.png``.
+
+:func:`stress` is the entry point of ``ddvp stress`` and ``ddvp sweep``: it checks the bounds,
+creates the folder, runs the grid of :mod:`ddvp_nlp.studies.stress` (its rows go to the CSV as
+they finish, which is what resume reads back), then writes the Markdown table and the figure
+from what the study returned. The table's columns are the methods that ran.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from ..studies.reference import REFERENCE_RTOL
+from ..studies.stress import (
+    DOP853_RTOL,
+    ROWS,
+    Case,
+    StressResult,
+    breakdowns,
+    plan_stress,
+    prediction_for,
+    run_stress,
+)
+from .markdown import failure_table, machine
+from .runs import prepare_folder
+
+DEFAULT_TITLE = "Stress cases: where each scheme breaks"
+SHORT = {"success": "ok", "no_admissible_step": "no root", "newton_failed": "Newton",
+         "non_finite": "NaN", "residual_too_large": "residual", "step_below_min": "tau<min",
+         "step_above_max": "tau>max", "step_ratio": "ratio", "max_steps": "max steps",
+         "time_limit": "time", "solver_failed": "failed", "energy_guard": "guard",
+         "not_run": "not run"}
+NOT_RUN = ("= vddvp", "n/a")  # cells of a method that did not run on a case
+
+
+def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None = "auto",
+           cache_dir=None, max_steps: int = 2_000_000, time_limit: float = 60.0,
+           cases: list[Case] | None = None, progress: bool = False, workers: int | None = 1,
+           scheduler: str | None = None, resume: bool = False, name: str = "stress",
+           title: str = DEFAULT_TITLE) -> list[dict]:
+    """Run the grid and write ``NAME.csv``, ``NAME.md`` and ``NAME.png`` in ``out``.
+
+    ``workers``/``scheduler``: see :func:`ddvp_nlp.studies.grid.run_tasks` (default: in this
+    process). ``resume``: keep the rows already in ``NAME.csv`` and run only the missing tasks.
+    """
+    plan = plan_stress(quick=quick, compiler=compiler, cache_dir=cache_dir,
+                       max_steps=max_steps, time_limit=time_limit, cases=cases,
+                       workers=workers, scheduler=scheduler)
+    out = prepare_folder(out)  # only once the input is known to be good
+    result = run_stress(plan, out / f"{name}.csv", resume=resume, progress=progress)
+    plot_stress(result, out / f"{name}.png")
+    (out / f"{name}.md").write_text(report(result, title=title))
+    return result.rows
+
+
+def read_rows(path) -> list[dict]:
+    """Rows of a ``stress.csv`` or ``sweep.csv`` with numbers and flags typed."""
+    return ROWS.read(path)
+
+
+def _missing_cell(method) -> str:
+    # lee is left out where H does not depend on t: there its equations are vddvp's
+    return NOT_RUN[0] if method == "lee" else NOT_RUN[1]
+
+
+def _cell(row, method="") -> str:
+    if row is None:
+        return _missing_cell(method)
+    error = row["energy_error"]
+    error_text = f"{error:.0e}" if math.isfinite(error) else "-"
+    if row["status"] == "success":
+        return f"ok {error_text}"
+    return f"**{SHORT.get(row['status'], row['status'])}** t={row['t_reached']:.3g}"
+
+
+def report(result: StressResult, *, title: str = DEFAULT_TITLE) -> str:
+    """``NAME.md``: per group a table of cases by methods, predicted against observed
+    breakdowns, where and why each failed run stopped, and the machine."""
+    lines = [f"# {title}", "", _legend(result), ""]
+    if result.quick:
+        lines += ["*Quick grid (tests): short horizons, fewer cases.*", ""]
+    lines += _case_tables(result)
+    lines += _breakdown_section(result)
+    lines += failure_table(result.rows, "Where and why each failed run stopped",
+                           ("case", lambda r: f"{r['group']}: {r['case']}"),
+                           ("method", lambda r: f"`{r['method']}`"))
+    lines += ["", "## Machine", "", machine(result.compiler), ""]
+    return "\n".join(lines)
+
+
+def _legend(result: StressResult) -> str:
+    return ("Each cell: `ok` and the largest relative energy error "
+            "max |H - H_ref| / max(1, |H0|), or the failure and the time it was reached "
+            "(details below). Bounds per run: "
+            f"{result.max_steps} steps, {result.time_limit:g} s. Steps: the case's tau "
+            f"for every step method (for `vddvp`/`lee` the first step); DOP853 at rtol = atol = "
+            f"{DOP853_RTOL:g}. Energy reference for time-dependent H: DOP853 at "
+            f"{REFERENCE_RTOL:g}. `lee` runs only where H depends on t (elsewhere its equations"
+            " are `vddvp`'s).")
+
+
+def _case_tables(result: StressResult) -> list[str]:
+    methods = result.methods
+    header = "| case | tau | predicted for vddvp | " + " | ".join(f"`{m}`" for m in methods) + " |"
+    rule = "|---|---|---|" + "---|" * len(methods)
+    lines = []
+    for group in dict.fromkeys(c.group for c in result.cases):
+        lines += ["", f"## {group}", "", header, rule]
+        for case in [c for c in result.cases if c.group == group]:
+            cells = [_cell(result.row(case, m), m) for m in methods]
+            lines.append(f"| {case.name} | {case.tau:.3g} | "
+                         f"{_prediction_text(prediction_for(result, case))} | "
+                         + " | ".join(cells) + " |")
+    return lines
+
+
+def _breakdown_section(result: StressResult) -> list[str]:
+    lines = ["", "## Predicted and observed breakdowns of the energy step", "",
+             "Prediction: a positive step needs c(z) to keep its sign along the orbit (sampled "
+             "at DOP853's nodes).", "",
+             "| case | c(z) changes sign along the orbit | smallest abs(w)/max abs(w) | vddvp "
+             "observed | vddvp steps | agrees |", "|---|---|---|---|---|---|"]
+    found = breakdowns(result)
+    for b in found:
+        lines.append(f"| {b.case.group}: {b.case.name} | "
+                     f"{'yes' if b.prediction['breaks'] else 'no'} | "
+                     f"{b.prediction['w_ratio']:.1e} | {_cell(b.row)} | "
+                     f"{b.row['tau_min']:.3g} .. {b.row['tau_max']:.3g} | "
+                     f"{'yes' if b.agrees else '**no**'} |")
+    unexplained = [b for b in found if not b.agrees]
+    if unexplained:
+        lines += ["", "Where the sign of c(z) did not tell:", ""]
+    for b in unexplained:
+        what = (f"broke ({b.row['status']}) although c keeps its sign" if b.broke else
+                "reached t_end although c changes sign along the orbit")
+        lines.append(f"- {b.case.group}: {b.case.name}: {what}; steps from "
+                     f"{b.row['tau_min']:.3g} to {b.row['tau_max']:.3g}.")
+    return lines
+
+
+def _prediction_text(prediction) -> str:
+    if prediction is None:
+        return "-"
+    if prediction["breaks"]:
+        return "breaks (c changes sign)"
+    return f"runs (min abs(w)/max = {prediction['w_ratio']:.0e})"
+
+
+def _grid_cells(result: StressResult):
+    """``log10`` of each cell's energy error (NaN unless it succeeded) and its text."""
+    cases, methods = result.cases, result.methods
+    values = np.full((len(cases), len(methods)), np.nan)
+    texts = [["" for _ in methods] for _ in cases]
+    for i, case in enumerate(cases):
+        for j, m in enumerate(methods):
+            r = result.row(case, m)
+            if r is None:
+                texts[i][j] = _missing_cell(m)
+            elif r["status"] == "success":
+                values[i, j] = math.log10(max(r["energy_error"], 1e-16))
+                texts[i][j] = f"{r['energy_error']:.0e}"
+            else:
+                texts[i][j] = SHORT.get(r["status"], r["status"])
+    return values, texts
+
+
+def plot_stress(result: StressResult, path):
+    """The grid as a picture: cases by methods, coloured by energy error; failed red, not run
+    grey."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import Normalize
+
+    cases, methods = result.cases, result.methods
+    values, texts = _grid_cells(result)
+    fig, ax = plt.subplots(figsize=(2.0 + 1.3 * len(methods), 1.2 + 0.32 * len(cases)),
+                           constrained_layout=True)
+    cmap = plt.get_cmap("viridis").with_extremes(bad="#d62728")
+    image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, norm=Normalize(-16, 0),
+                      aspect="auto")
+    _label_cells(ax, values, texts)
+    ax.set_xticks(range(len(methods)), methods, rotation=20)
+    ax.set_yticks(range(len(cases)), [f"{c.group}: {c.name}" for c in cases], fontsize=8)
+    fig.colorbar(image, ax=ax, label="log10 relative energy error (red: failed; grey: not run)")
+    ax.set_title("stress grid: status and energy error")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _label_cells(ax, values, texts):
+    from matplotlib.patches import Rectangle
+
+    for i, row in enumerate(texts):
+        for j, text in enumerate(row):
+            skipped = text in NOT_RUN  # not run: grey, not failed red
+            if skipped:
+                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, color="#dddddd"))
+            dark = np.isnan(values[i, j]) and not skipped or values[i, j] < -8
+            ax.text(j, i, text, ha="center", va="center", fontsize=7,
+                    color="white" if dark else "black")

@@ -1,0 +1,214 @@
+"""Work-precision output: ``work_precision.csv``, ``work_precision.png`` and ``summary.md``.
+
+:func:`work_precision` is the entry point: it checks the input, creates the folder, runs the
+comparison of :mod:`ddvp_nlp.studies.compare` (its rows go to the CSV as they finish), then
+draws the figure and writes the summary from what the study returned.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+
+from ..scenes import Scene
+from ..studies.compare import (
+    ERROR_KINDS,
+    ROWS,
+    WorkPrecision,
+    methods_in,
+    pareto,
+    plan_work_precision,
+    rankings,
+    run_work_precision,
+    succeeded,
+    time_ratios,
+    winner_spans,
+)
+from ..studies.methods import METHODS
+from .markdown import failure_table, machine, seconds, yes_no
+from .runs import prepare_folder
+
+
+def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = None,
+                   methods: Sequence[str] | str | None = None, out: str | os.PathLike,
+                   halvings: int = 6, repeats: int = 3, budget_s: float = 3.0,
+                   compiler: str | None = "auto", cache_dir=None, max_steps: int = 5_000_000,
+                   knobs: Mapping[str, Sequence[float]] | None = None,
+                   progress: bool = False, workers: int | None = 1,
+                   scheduler: str | None = None) -> list[dict]:
+    """Run the comparison and write ``work_precision.csv``, ``.png`` and ``summary.md`` in
+    ``out`` (created). Returns the rows.
+
+    Args:
+        scene: the scene; ``overrides`` as for :meth:`Scene.resolve` (parameters, ``t_end``, ...).
+        methods: names (list or comma-separated); default every method that applies and is not
+            the same as another on this scene.
+        halvings: number of halvings of the step in the default sweeps (``2 tau0`` down).
+        repeats, budget_s: timed calls per run after the warm-up, and the time after which the
+            repeats stop early.
+        compiler: for the compiled methods, as in :func:`ddvp_nlp.march`.
+        knobs: per-method knob values replacing the default sweep.
+        max_steps: bound on the steps of each run.
+        workers, scheduler: where the runs go (:func:`ddvp_nlp.studies.grid.run_tasks`). The
+            default runs them one after the other in this process, because the run times are
+            what is compared: two runs at once on a 2-core machine slow each other down.
+    """
+    plan = plan_work_precision(scene, overrides=overrides, methods=methods, halvings=halvings,
+                               repeats=repeats, budget_s=budget_s, compiler=compiler,
+                               cache_dir=cache_dir, max_steps=max_steps, knobs=knobs,
+                               workers=workers, scheduler=scheduler)
+    out = prepare_folder(out)  # only once the input is known to be good
+    result = run_work_precision(plan, out / "work_precision.csv", progress=progress)
+    plot_work_precision(result.rows, out / "work_precision.png",
+                        title=f"{scene.name}: error against run time")
+    (out / "summary.md").write_text(summary(result))
+    return result.rows
+
+
+def read_rows(path) -> list[dict]:
+    """Rows of a ``work_precision.csv`` with numbers as numbers."""
+    return ROWS.read(path)
+
+
+def plot_work_precision(rows, path, *, title):
+    """Error against run time, one panel per error kind: each method's successful runs as a
+    line, its failed ones as crosses."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(ERROR_KINDS), figsize=(12, 4.6), constrained_layout=True)
+    for ax, (kind, label) in zip(axes, ERROR_KINDS.items(), strict=True):
+        for i, method in enumerate(methods_in(rows)):
+            _plot_method(ax, rows, method, kind, i)
+        ax.set_xlabel("run time [s] (best of repeats, build excluded)")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_method(ax, rows, method, kind, index):
+    markers = "os^vD<>ph*"
+    good = [r for r in succeeded(rows, method) if r[kind] > 0]
+    failed = [r for r in rows if r["method"] == method and r["status"] != "success"
+              and r["run_s"] > 0 and r[kind] > 0]
+    colour = f"C{index}"
+    if good:
+        line, = ax.loglog([r["run_s"] for r in good], [r[kind] for r in good],
+                          marker=markers[index % len(markers)], label=method)
+        colour = line.get_color()  # the failures of a method in its own line's colour
+    if failed:
+        ax.loglog([r["run_s"] for r in failed], [r[kind] for r in failed], "x",
+                  color=colour, label=f"{method} (failed before t_end)")
+
+
+def summary(result: WorkPrecision) -> str:
+    """``summary.md``: the run, the methods, the cheapest method at each error level, vddvp
+    against DOP853, the failed runs and the machine."""
+    rows = result.rows
+    methods = methods_in(rows)
+    lines = [*_header(result), *_methods_table(rows, methods)]
+    if result.left_out:
+        lines += ["", "Left out on this scene: " + "; ".join(result.left_out) + "."]
+    for kind, label in ERROR_KINDS.items():
+        lines += _ranking_section(rows, kind, label.split(" max")[0])
+        lines += ["", _in_words(rows, kind, methods)]
+    lines += ["", "## vddvp against DOP853 at equal energy error", "", _ratio_text(rows)]
+    lines += failure_table(rows, "Runs that did not reach t_end",
+                           ("method", lambda r: f"`{r['method']}`"),
+                           ("knob", lambda r: f"{r['knob']} = {r['value']:.3g}"))
+    lines += _residual_note(rows)
+    lines += ["", "## Machine", "", machine(result.compiler), ""]
+    return "\n".join(lines)
+
+
+def _header(result: WorkPrecision) -> list[str]:
+    scene, config, reference = result.scene, result.config, result.reference
+    params = (", " + ", ".join(f"{k} = {v:g}" for k, v in config.params.items())
+              if config.params else "")
+    reference_cost = (f" ({reference.steps} steps, {reference.seconds:.1f} s)."
+                      if reference.kind != "exact solution" else ".")
+    energy = ("the deviation of H(z_k, t_k) from the reference's H(z_ref(t_k), t_k) (H depends "
+              "on t)." if scene.system.time_dependent else
+              "the largest drift of H at the nodes, max |H(z_k) - H(z_0)|.")
+    return [f"# Work-precision: `{scene.name}`", "", f"{scene.description}", "",
+            f"Run: t from {config.t0:g} to {config.t_end:g}, q0 = {config.q0.tolist()}, "
+            f"p0 = {config.p0.tolist()}" + params + ".",
+            f"Reference: {reference.kind}" + reference_cost,
+            "Energy error: " + energy,
+            f"Run time: best of up to {result.repeats} calls after one warm-up (repeats stop "
+            f"after {result.budget_s:g} s); build and compile time excluded.", ""]
+
+
+def _methods_table(rows, methods) -> list[str]:
+    lines = ["| method | order | symplectic | energy-conserving | knob | runs | failed |",
+             "|---|---|---|---|---|---|---|"]
+    for method in methods:
+        m = METHODS[method]
+        mine = [r for r in rows if r["method"] == method]
+        failed = sum(r["status"] != "success" for r in mine)
+        lines.append(f"| `{method}` | {m.order} | {yes_no(m.symplectic)} | "
+                     f"{yes_no(m.energy_conserving)} | {m.knob} | {len(mine)} | {failed} |")
+    return lines
+
+
+def _ranking_section(rows, kind, name) -> list[str]:
+    lines = ["", f"## Cheapest method at each {name} level", "",
+             "| error at most | cheapest | run time | next | ratio |", "|---|---|---|---|---|"]
+    for level, ranking in rankings(rows, kind):
+        winner, time, bound = ranking[0]
+        upper = "at most " if bound else ""
+        next_text, ratio_text = "none reaches it", "-"
+        if len(ranking) > 1:
+            other, other_time, other_bound = ranking[1]
+            next_text = f"`{other}`"
+            # An "at most" time makes the ratio a bound (winner) or unknown (both).
+            ratio_text = ("-" if bound else
+                          f"{'<= ' if other_bound else ''}{other_time / time:.2g}x")
+        lines.append(f"| {level:.0e} | `{winner}` | {upper}{seconds(time)} | {next_text} |"
+                     f" {ratio_text} |")
+    return lines
+
+
+def _in_words(rows, kind, methods) -> str:
+    """Which method to use, per range of error levels, in one sentence each."""
+    spans = winner_spans(rows, kind)
+    if not spans:
+        return "No method reached any error level in this sweep."
+    parts = [f"`{w}` from {hi:.0e} down to {lo:.0e}" if hi != lo else f"`{w}` at {hi:.0e}"
+             for w, hi, lo in spans]
+    missing = [m for m in methods if not pareto(rows, m, kind)]
+    text = "In words: cheapest is " + "; then ".join(parts) + "."
+    if missing:
+        text += " No successful run: " + ", ".join(f"`{m}`" for m in missing) + "."
+    return text
+
+
+def _ratio_text(rows) -> str:
+    found = time_ratios(rows, "vddvp", "dop853", "energy_error")
+    if found is None:
+        return "Not measured here (both `vddvp` and `dop853` need successful runs)."
+    if not found:
+        return ("The two sweeps do not overlap in energy error (interpolated levels only), so no "
+                "ratio at equal error is measured.")
+    return "\n".join(["| energy error | vddvp | DOP853 | time ratio vddvp / DOP853 |",
+                      "|---|---|---|---|",
+                      *(f"| {level:.0e} | {seconds(a)} | {seconds(b)} | {a / b:.3g} |"
+                        for level, a, b in found)])
+
+
+def _residual_note(rows) -> list[str]:
+    residuals = [r for r in rows if r["status"] == "success"
+                 and math.isfinite(r["scheme_energy_residual"])]
+    if not residuals:
+        return []
+    worst = max(residuals, key=lambda r: r["scheme_energy_residual"])
+    return ["", f"The energy-conserving schemes' own energy equations held to "
+            f"{worst['scheme_energy_residual']:.1e} at worst (`{worst['method']}`, "
+            f"{worst['knob']} = {worst['value']:.3g}); the energy error above is H at the "
+            f"nodes, which these schemes keep within O(tau^2) without drift."]
