@@ -100,11 +100,30 @@ def _march_command(commands) -> None:
                        help="where the energy step has no admissible root, take the least-squares "
                             "step (Kane-Marsden-Ortiz) within [tau-min, tau-max] and go on; each "
                             "such step is flagged in meta.json and result.npz")
+    _accuracy_arguments(march)
     march.add_argument("--careful", action="store_true",
                        help="force the careful per-step path (default: compiled chunks of steps, "
                             "checked step by step; both accept the same steps)")
     march.add_argument("--no-progress", action="store_true", help="no progress bar")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
+    """The accuracy check (``solvers/accuracy.py``): estimates that do not trust the scheme."""
+    group = parser.add_argument_group(
+        "accuracy check", "every step against one RK4 step of the exact flow, and the energy "
+        "against H(z0); a run that fails ends with status inaccurate")
+    group.add_argument("--rtol", type=float, default=1e-2,
+                       help="local error test: delta_k <= atol + rtol |z| (default: 1e-2)")
+    group.add_argument("--atol", type=float, default=1e-2, help="see --rtol (default: 1e-2)")
+    group.add_argument("--energy-tol", type=float, default=0.1,
+                       help="bound on the first step's energy level error and the nodal energy "
+                            "drift, relative to max(1, |H0|) (default: 0.1)")
+    group.add_argument("--global-tol", type=float, default=None,
+                       help="bound on the global error estimate relative to max(1, |z|) "
+                            "(default: none, reported only)")
+    group.add_argument("--accept-inaccurate", action="store_true",
+                       help="record the estimates and go on past a failed check")
 
 
 def _bvp_command(commands) -> None:
@@ -244,7 +263,9 @@ def _march(args, scene, config, scheme):
                      max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
                      fast=not args.careful, time_limit=args.time_limit,
                      energy_guard=args.energy_guard,
-                     breakdown="least_squares" if args.least_squares else "stop")
+                     breakdown="least_squares" if args.least_squares else "stop",
+                     rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
+                     global_tol=args.global_tol, accept_inaccurate=args.accept_inaccurate)
     stats = solution.stats
     return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps")}
 
@@ -413,7 +434,9 @@ def _summary(meta: dict, out) -> None:
              f"  steps {meta['steps']}, t reached {meta['t_reached']:.10g}"]
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
-    lines.append(f"  energy error {meta['energy_error']:.3e} ({meta['energy_error_kind']})")
+    lines.extend(_accuracy_lines(meta))
+    lines.append(f"  scheme's energy residual {meta['energy_error']:.3e} "
+                 f"({meta['energy_error_kind']})")
     if "solvability_warning" in meta:
         warning = meta["solvability_warning"]
         lines.append(f"  solvability warning at step {warning['step']}, t = {warning['t']:.6g}: "
@@ -427,6 +450,25 @@ def _summary(meta: dict, out) -> None:
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
                  f" s{path}; written to {out}/")
     print("\n".join(lines))
+
+
+def _accuracy_lines(meta: dict) -> list[str]:
+    """The estimates that do not trust the scheme, before the scheme's own residual."""
+    accuracy = meta.get("accuracy")
+    if not accuracy:
+        return []
+    lines = []
+    if "node_energy_error" in meta:
+        lines.append(f"  energy error {meta['node_energy_error']:.3e} (largest |H(z_k) - H0| / "
+                     "max(1, |H0|) at the nodes)")
+    if accuracy.get("level") is not None:
+        lines.append(f"  energy level of the first step {accuracy['level']:.10g} against "
+                     f"H0 = {meta['H0']:.10g} (error {accuracy['level_error']:.3e} of "
+                     "max(1, |H0|))")
+    lines.append(f"  estimated error: local <= {accuracy['local_error_max']:.3e} per step, "
+                 f"global {accuracy['global_error_estimate']:.3e} (sum of local errors); "
+                 f"{accuracy['verdict']}")
+    return lines
 
 
 def _format_warning(message, category, filename, lineno, line=None):

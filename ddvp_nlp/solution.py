@@ -23,6 +23,8 @@ class Status(enum.Enum):
     MAX_STEPS = "max_steps was reached before t_end"
     TIME_LIMIT = "the time limit was reached before t_end"
     ENERGY_GUARD = "H left the band energy_guard allows around its initial value"
+    INACCURATE = ("the steps satisfy the scheme's equations but do not follow the motion: an "
+                  "accuracy estimate passed its tolerance")
     INTERRUPTED = "interrupted by the user"
     SOLVER_FAILED = "the NLP solver did not converge"
     NOT_VERIFIED = "the solver's point does not satisfy the equations to the tolerance"
@@ -62,6 +64,8 @@ class Solution:
             do not report theirs; see ``stats["fast_steps"]``), or the NLP solver's iterations.
         solvability: ``c(z_k) = -(f' H_zz f)/8`` at every node for the energy rules (a positive
             step needs it to keep its sign; THEORY.md section 5), else empty.
+        local_error: the accuracy check's local error estimate of each step (N-1,), against one
+            RK4 step of the exact flow (``solvers/accuracy.py``), where it was made.
         timing: ``build_s`` and ``solve_s`` in seconds.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...).
     """
@@ -76,6 +80,7 @@ class Solution:
     canonical_residual: np.ndarray
     newton_iterations: int = 0
     solvability: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    local_error: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
 

@@ -40,6 +40,8 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta) -> di
     system = scene.system
     report = {"energy_residual_max": _max_abs(solution.energy_residual)}
     if system.time_dependent:
+        report["H0"] = float(system.energy(solution.q[:1], solution.p[:1], solution.t[:1],
+                                           theta)[0]) if solution.t.size else float("nan")
         report["energy_error"] = report["energy_residual_max"]
         rule = equations.diagnostic_rule(scheme)
         report["energy_error_kind"] = f"largest residual of the {rule} energy equation"
@@ -47,6 +49,8 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta) -> di
     interval = equations.interval_energies(system, scheme, solution.t, solution.q, solution.p,
                                            theta)
     nodes = system.energy(solution.q, solution.p, solution.t, theta)
+    report["H0"] = float(nodes[0])
+    report["node_energy_error"] = _max_abs(nodes - nodes[0]) / max(1.0, abs(float(nodes[0])))
     report["energy_error"] = _max_abs(interval - interval[0]) if interval.size else 0.0
     report["energy_error_kind"] = ("largest drift of the interval energy E_k = v_k.dL/dv - L_k"
                                    if system.lagrangian_form else
@@ -111,6 +115,10 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
             "timing": solution.timing,
             **energy_report(scene, scheme, solution, theta),
             **_checks(scene, config, solution)}
+    accuracy = solution.stats.get("accuracy")
+    if accuracy:
+        meta["accuracy"] = accuracy
+        arrays["local_error"] = solution.local_error
     if flagged:
         meta["least_squares_steps"] = len(flagged)
         meta["least_squares_defect_max"] = _max_abs([e["energy_defect"] for e in flagged])
