@@ -171,9 +171,9 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
 
 def _accept(nodes: Nodes, advance: Advance, t_end: float, monitors) -> tuple[Status, str]:
     """Rules 2, 3 and 5 on one stepper call: cut at the end, keep, let the monitors look."""
-    ends = np.flatnonzero(advance.t >= t_end)
-    if ends.size:  # what the stepper did after the end does not count, failures included
-        advance = advance.head(int(ends[0]) + 1)
+    if advance.count and advance.t[-1] >= t_end:  # the nodes are in order (rule 1)
+        # what the stepper did after the end does not count, failures included
+        advance = advance.head(int(np.flatnonzero(advance.t >= t_end)[0]) + 1)
         advance.status, advance.detail = Status.SUCCESS, ""
     first = nodes.count
     nodes.extend(advance.t, advance.z)
