@@ -13,8 +13,12 @@
   - ``monitors.py``: the energy guard and the solvability monitor.
 - ``bvp.py``: fixed-endpoint problems as one NLP (IPOPT) or one Newton system.
 - ``higher.py``: the same two for higher-derivative Lagrangians.
-- ``baselines.py``: the integrators users would pick instead (Stormer-Verlet, RK4, Lee's
-  left-point scheme), compiled the same way.
+- The integrators users would pick instead, each a stepper of the driver, compiled like the
+  march: ``baselines.py`` (Stormer-Verlet, RK4, and what every compiled baseline shares),
+  ``lee_left.py`` (T.D. Lee's left-point scheme), ``scipy_dop853.py`` (scipy's DOP853).
+- ``integrator.py``: what a method of the comparison declares about itself (order, symplectic,
+  energy-conserving, knob, where it applies), beside its implementation; ``paper_schemes.py``
+  declares the paper's own three (vddvp, lee, midpoint).
 
 Every solver returns a ``Solution`` whose failures are a status, never an exception. May import:
 ``discrete``, ``physics``, ``solution``, ``errors``, ``validation``, ``cache``.
