@@ -137,19 +137,19 @@ def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged
 
 
 def test_interrupted_march_writes_a_readable_partial_result(tmp_path, monkeypatch):
-    # the package exports the function of the same name
-    march_module = importlib.import_module("ddvp_nlp.solvers.march")
+    # a Ctrl-C while the driver's monitors look at new nodes
+    monitors_module = importlib.import_module("ddvp_nlp.solvers.monitors")
 
-    original = march_module._Marcher._watch
+    original = monitors_module.SolvabilityMonitor.watch
     calls = {"n": 0}
 
-    def interrupt_later(self, nodes, first, H, w):
+    def interrupt_later(self, nodes, first, advance):
         calls["n"] += 1
         if calls["n"] == 3:
             raise KeyboardInterrupt
-        return original(self, nodes, first, H, w)
+        return original(self, nodes, first, advance)
 
-    monkeypatch.setattr(march_module._Marcher, "_watch", interrupt_later)
+    monkeypatch.setattr(monitors_module.SolvabilityMonitor, "watch", interrupt_later)
     out = tmp_path / "cut"
     code = main(["march", "harmonic", "--set", "t_end=1000", "--out", str(out), "--no-progress",
                  "--no-plot"])

@@ -1,15 +1,19 @@
 """The fast march path: many steps per call inside compiled CasADi code.
 
-One march step (predictor, Newton on the step equations, residuals) is one CasADi ``Function``
-built from the same pieces as the careful path (``march._StepFunctions``), with CasADi's
-``fast_newton`` in place of ``newton`` because it can be code-generated. ``mapaccum`` repeats it
-``chunk`` times per call. Where a C compiler is present the chunk is generated as C, compiled and
-cached; elsewhere CasADi's virtual machine runs the same function.
+One march step (predictor, Newton on the step equations, its check) is one CasADi ``Function``
+built from the public step functions of the careful path (``steps.StepFunctions``), with
+CasADi's ``fast_newton`` in place of ``newton`` because it can be code-generated. ``mapaccum``
+repeats it ``chunk`` times per call. Where a C compiler is present the chunk is generated as C,
+compiled and cached; elsewhere CasADi's virtual machine runs the same function.
 
 ``fast_newton`` never raises and never says whether it converged, so every step of a chunk is
 checked afterwards by the march (finite values, ``tau > 0``, its unscaled residuals against the
 tolerance, the step bounds); the first step that fails a check is redone by the careful path
 from the last good state, so the fast path never changes what is accepted.
+
+What goes into a chunk and what comes out of it is named in one place, the layouts below: the
+chunk's ``vertcat`` is built from named parts and its output matrix is read back by the same
+names (:class:`ChunkSteps`).
 
 Compiled chunks are cached in ``cache_dir`` (argument, else ``$DDVP_NLP_CACHE``, else
 ``~/.cache/ddvp_nlp``) under a hash of the generated function, the compiler and its flags. Each
@@ -20,67 +24,115 @@ entry at once both end with a complete library.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from .compiler import cache_folder, compile_function
+from .steps import EnergyCheck, FixedCheck, StepFunctions
 
 # error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
 # Either way a step that did not converge fails its residual check and is redone carefully.
 FAST_NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
 
 
+class Layout:
+    """A column vector made of named parts of given widths, in order.
+
+    The same object stacks the parts (symbolic, :meth:`stack`; numeric, :meth:`pack`), splits a
+    symbolic vector into them (:meth:`split`) and reads them back as columns of a matrix with
+    one row per step (:meth:`columns`): a part of width 1 is a vector, wider parts a matrix."""
+
+    def __init__(self, *parts: tuple[str, int]):
+        self.names = tuple(name for name, _ in parts)
+        self.slices = {}
+        start = 0
+        for name, width in parts:
+            self.slices[name] = start if width == 1 else slice(start, start + width)
+            start += width
+        self.size = start
+
+    def _ordered(self, parts: dict) -> list:
+        if set(parts) != set(self.names):
+            raise ValueError(f"layout needs {self.names}, got {tuple(parts)}")
+        return [parts[name] for name in self.names]
+
+    def stack(self, **parts) -> ca.SX:
+        return ca.vertcat(*self._ordered(parts))
+
+    def pack(self, **parts) -> np.ndarray:
+        return np.concatenate([np.atleast_1d(part) for part in self._ordered(parts)])
+
+    def split(self, vector) -> dict:
+        return {name: vector[self.slices[name]] for name in self.names}
+
+    def columns(self, matrix: np.ndarray) -> dict:
+        return {name: matrix[:, self.slices[name]] for name in self.names}
 
 
+def energy_layouts(n2: int) -> tuple[Layout, Layout]:
+    """State and per-step output of a chunk of energy steps (``n2 = 2n``)."""
+    state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1))
+    output = Layout(("t_next", 1), ("z_next", n2),
+                    *((name, 1) for name in EnergyCheck._fields))
+    return state, output
+
+
+def fixed_layouts(n2: int) -> tuple[Layout, Layout, Layout]:
+    """State, constants and per-step output of a chunk of fixed-length steps."""
+    state = Layout(("k", 1), ("z", n2))
+    constants = Layout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
+    output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields))
+    return state, constants, output
+
+
+@dataclass
+class ChunkSteps:
+    """The ``chunk`` steps of one call, by name; one entry (row) per step.
+
+    ``t_next`` ``(chunk,)``, ``z_next`` ``(chunk, 2n)``, the check of each step (``canonical``,
+    ``size``, ``H_node``, ``w_node``; energy steps also ``energy``, ``H_interval`` and ``drift``,
+    the compensated sum after the step; see ``steps.EnergyCheck``) and ``finite``: whether every
+    output of the step is finite. A diverged step is NaN and fails its checks."""
+
+    t_next: np.ndarray
+    z_next: np.ndarray
+    canonical: np.ndarray
+    size: np.ndarray
+    H_node: np.ndarray
+    w_node: np.ndarray
+    finite: np.ndarray
+    energy: np.ndarray | None = None
+    H_interval: np.ndarray | None = None
+    drift: np.ndarray | None = None
 
 
 class FastChunk:
     """``chunk`` march steps per call, compiled or on the virtual machine.
 
-    Energy rules: state ``[t_prev, t_mid, z_prev, z_mid, drift]``; per step the outputs
-    ``[t_next, z_next, canonical residual, energy residual, |z_mid|, |H_k|, H, w]``.
-    Fixed rule: state ``[k, z]`` with constants ``[t0, tau, t_end, steps_total]``; outputs
-    ``[t_next, z_next, canonical residual, |z_a|, H, w]``. ``H`` and the site-density weight
-    ``w`` are those of the new node (energy guard, solvability monitor).
+    Energy rules: the state is ``energy_layouts``' first layout; :meth:`energy_steps` runs from
+    ``(t_prev, t_mid, z_prev, z_mid, drift)``. Fixed rule: state ``[k, z]`` and constants
+    ``[t0, tau, t_end, total]``; :meth:`fixed_steps` runs from node ``k``. ``H_node`` and the
+    site-density weight ``w_node`` are those of each new node (energy guard, solvability monitor).
 
+    ``functions`` are the careful path's :class:`~ddvp_nlp.solvers.steps.StepFunctions`;
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
     """
 
-    def __init__(self, system, scheme, functions, *, chunk: int, compiler, cache_dir):
+    def __init__(self, system, scheme, functions: StepFunctions, *, chunk: int, compiler,
+                 cache_dir):
         started = time.perf_counter()
         n2 = 2 * system.n
         theta = ca.SX.sym("theta", system.theta.numel())
         self.variable = scheme.variable_steps
         if self.variable:
-            state = ca.SX.sym("state", 2 + 2 * n2 + 1)
-            t_prev, t_mid = state[0], state[1]
-            z_prev, z_mid = state[2:2 + n2], state[2 + n2:2 + 2 * n2]
-            drift = state[-1]
-            w = ca.vertcat(t_prev, t_mid, z_prev, z_mid, theta, drift)
-            newton = ca.rootfinder("fast_energy_step", "fast_newton",
-                                   functions.energy_residual, FAST_NEWTON_OPTIONS)
-            x = newton(functions.energy_predict(w, t_mid - t_prev), w)
-            canonical, energy, size, H, H_node, w_node = functions.energy_check(x, w)
-            t_next = t_mid + x[-1]
-            outputs = ca.vertcat(t_next, x[:-1], canonical, energy, size, H, H_node, w_node)
-            step = ca.Function("step", [state, theta], [
-                ca.vertcat(t_mid, t_next, z_mid, x[:-1], drift + energy), outputs])
+            self.state, self.output = energy_layouts(n2)
+            step = self._energy_step(functions, theta)
         else:
-            state = ca.SX.sym("state", 1 + n2)
-            constants = ca.SX.sym("constants", 4)
-            k, z_a = state[0], state[1:]
-            t0, tau, t_end, total = (constants[i] for i in range(4))
-            t_a = ca.if_else(k == 0, t0, t0 + k * tau)
-            t_b = ca.if_else(k + 1 == total, t_end, t0 + (k + 1) * tau)
-            w = ca.vertcat(t_a, t_b, z_a, theta)
-            newton = ca.rootfinder("fast_fixed_step", "fast_newton", functions.fixed_residual,
-                                   FAST_NEWTON_OPTIONS)
-            z_b = newton(functions.fixed_predict(w), w)
-            canonical, size, H_node, w_node = functions.fixed_check(z_b, w)
-            step = ca.Function("step", [state, ca.vertcat(theta, constants)], [
-                ca.vertcat(k + 1, z_b), ca.vertcat(t_b, z_b, canonical, size, H_node, w_node)])
+            self.state, self.constants, self.output = fixed_layouts(n2)
+            step = self._fixed_step(functions, theta)
         self.chunk = chunk
         function = step.mapaccum("chunk", chunk)
         self.path = "vm"
@@ -93,9 +145,55 @@ class FastChunk:
         self.function = function
         self.build_s = time.perf_counter() - started
 
-    def __call__(self, state: np.ndarray, parameters: np.ndarray):
-        """States after each step ``(chunk, size)`` and outputs ``(chunk, size)``."""
+    def _energy_step(self, functions, theta):
+        state = ca.SX.sym("state", self.state.size)
+        s = self.state.split(state)
+        w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
+        newton = ca.rootfinder("fast_energy_step", "fast_newton", functions.energy_residual,
+                               FAST_NEWTON_OPTIONS)
+        x = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
+        check = EnergyCheck(*functions.energy_check(x, w))
+        t_next = s["t_mid"] + x[-1]
+        after = self.state.stack(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"],
+                                 z_mid=x[:-1], drift=s["drift"] + check.energy)
+        outputs = self.output.stack(t_next=t_next, z_next=x[:-1], **check._asdict())
+        return ca.Function("step", [state, theta], [after, outputs])
+
+    def _fixed_step(self, functions, theta):
+        state = ca.SX.sym("state", self.state.size)
+        constants = ca.SX.sym("constants", self.constants.size)
+        s, c = self.state.split(state), self.constants.split(constants)
+        k = s["k"]
+        t_a = ca.if_else(k == 0, c["t0"], c["t0"] + k * c["tau"])
+        t_b = ca.if_else(k + 1 == c["total"], c["t_end"], c["t0"] + (k + 1) * c["tau"])
+        w = ca.vertcat(t_a, t_b, s["z"], theta)
+        newton = ca.rootfinder("fast_fixed_step", "fast_newton", functions.fixed_residual,
+                               FAST_NEWTON_OPTIONS)
+        z_b = newton(functions.fixed_predict(w), w)
+        check = FixedCheck(*functions.fixed_check(z_b, w))
+        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict())
+        return ca.Function("step", [state, ca.vertcat(theta, constants)],
+                           [self.state.stack(k=k + 1, z=z_b), outputs])
+
+    def _call(self, state: np.ndarray, parameters: np.ndarray):
         states, outputs = self.function(state, np.tile(parameters[:, None], (1, self.chunk)))
         return np.asarray(states).T, np.asarray(outputs).T
 
+    def _decode(self, outputs: np.ndarray, **extra) -> ChunkSteps:
+        finite = np.all(np.isfinite(outputs), axis=1)
+        return ChunkSteps(**self.output.columns(outputs), finite=finite, **extra)
 
+    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta) -> ChunkSteps:
+        """``chunk`` energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``."""
+        state = self.state.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
+                                drift=drift)
+        states, outputs = self._call(state, theta)
+        return self._decode(outputs, drift=self.state.columns(states)["drift"])
+
+    def fixed_steps(self, k: int, z, theta, *, t0, tau, t_end, total) -> ChunkSteps:
+        """``chunk`` fixed-length steps from node ``k`` (state ``z``) of a uniform grid of
+        ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
+        parameters = np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
+                                                                total=total)])
+        _, outputs = self._call(self.state.pack(k=k, z=z), parameters)
+        return self._decode(outputs)

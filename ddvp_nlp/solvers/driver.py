@@ -20,7 +20,7 @@ monitors, the progress bar and the message. The contract, rule by rule:
 5. Monitors see every accepted node once, in order (``monitor.watch(nodes, first, advance)``,
    with the new nodes at ``first ..``). A monitor returns ``None`` to go on, or
    ``(status, detail, keep)``: the run ends with ``status`` and only the first ``keep`` new nodes
-   stay.
+   stay; the monitors after it in ``monitors`` see only those (and may cut further).
 6. The message of the result is written here and only here (:func:`message`): on success
    ``"reached t_end = ... in N steps"``, on failure the status's own text, the step, the time and
    state of the last kept node (``stepper.describe(z)``), and the detail.
@@ -171,19 +171,20 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
 
 def _accept(nodes: Nodes, advance: Advance, t_end: float, monitors) -> tuple[Status, str]:
     """Rules 2, 3 and 5 on one stepper call: cut at the end, keep, let the monitors look."""
-    ends = np.flatnonzero(advance.t >= t_end)
-    if ends.size:  # what the stepper did after the end does not count, failures included
-        advance = advance.head(int(ends[0]) + 1)
+    if advance.count and advance.t[-1] >= t_end:  # the nodes are in order (rule 1)
+        # what the stepper did after the end does not count, failures included
+        advance = advance.head(int(np.flatnonzero(advance.t >= t_end)[0]) + 1)
         advance.status, advance.detail = Status.SUCCESS, ""
     first = nodes.count
     nodes.extend(advance.t, advance.z)
+    status, detail = advance.status, advance.detail
     for monitor in monitors:
         verdict = monitor.watch(nodes, first, advance)
         if verdict is not None:
             status, detail, keep = verdict
             nodes.truncate(first + keep)
-            return status, detail
-    return advance.status, advance.detail
+            advance = advance.head(keep)
+    return status, detail
 
 
 class _ProgressBar:

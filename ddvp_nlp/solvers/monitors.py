@@ -1,0 +1,109 @@
+"""The march's monitors (driver rule 5): the energy guard and the solvability monitor.
+
+Both read per-node values the steppers computed with each step (``Advance.values``): ``"H"``,
+the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H_zz f = -8 c(z)``
+(THEORY.md section 5), so watching costs no extra CasADi call.
+
+- :class:`EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
+  ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are
+  dropped.
+- :class:`SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
+  sign and the step to be short against the change of ``w``, so it warns once, at the first node
+  where ``w`` changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import warnings
+
+import numpy as np
+
+from ..solution import Status
+
+# The solvability monitor warns once |ln(w_k / w_{k-1})| passes this. Measured on kepler
+# (tau0 = 0.01): at most 0.36 per step for e = 0.7 (which runs), 0.6-0.9 in the 3-4 steps before
+# the breakdown at e = 0.78 and 0.8; rotating pendulum (p0 = 2): 0.74 two steps before.
+MONITOR_LIMIT = 0.5
+
+
+class EnergyGuard:
+    """Ends the run at the first node whose ``H`` leaves ``H0 +- guard * max(1, |H0|)``."""
+
+    def __init__(self, guard: float, H0: float):
+        self.H0 = H0
+        self.limit = guard * max(1.0, abs(H0))
+
+    def watch(self, nodes, first, advance):
+        if not advance.count:  # a failed step brings no node
+            return None
+        H = advance.values["H"]
+        over = np.flatnonzero(np.abs(H - self.H0) > self.limit)
+        if not over.size:
+            return None
+        i = int(over[0])
+        return Status.ENERGY_GUARD, (
+            f"at t = {nodes.t[first + i]:.10g} |H - H0| = {abs(H[i] - self.H0):.3e} > "
+            f"energy_guard * max(1, |H0|) = {self.limit:.3e}"), i
+
+
+class SolvabilityMonitor:
+    """Keeps ``w`` at every node and warns (``RuntimeWarning``) at the first alarming node.
+
+    ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; :meth:`solvability` gives
+    ``c(z_k) = -w_k / 8`` at the kept nodes. The warning points at the first caller outside
+    this folder (the code that called the march)."""
+
+    def __init__(self, t0: float, w0: float):
+        self.weights: list[float] = []
+        self.warning: dict | None = None
+        self._observe(np.array([w0]), np.array([t0]))
+
+    def watch(self, nodes, first, advance):
+        if not advance.count:  # a failed step brings no node
+            return None
+        w = advance.values["w"]
+        self._observe(w, nodes.t[first:first + w.size])
+        return None
+
+    def solvability(self, count: int) -> np.ndarray:
+        return -np.asarray(self.weights[:count], dtype=float) / 8
+
+    def _observe(self, w, t):
+        if self.warning is not None or not w.size:
+            self.weights.extend(w.tolist())
+            return
+        if w.size == 1 and self.weights:  # one careful node: plain floats are cheaper
+            last, now = self.weights[-1], float(w[0])
+            if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
+                self.weights.append(now)
+                return
+        previous = np.concatenate([[self.weights[-1] if self.weights else w[0]], w[:-1]])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
+        sign = np.sign(w) != np.sign(previous)
+        alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
+        if alarm.size:
+            i = int(alarm[0])
+            reason = ("the site-density weight w = -8 c(z) changed sign" if sign[i] else
+                      f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is long "
+                      "against the change of c(z)")
+            self.warning = {"step": len(self.weights) + i, "t": float(t[i]),
+                            "c": float(-w[i] / 8), "reason": reason}
+            warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
+                          f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy step "
+                          "may follow", RuntimeWarning, stacklevel=_caller_level())
+        self.weights.extend(w.tolist())
+
+
+_HERE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def _caller_level() -> int:
+    """``stacklevel`` of the first frame outside this folder, seen from the caller."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_code.co_filename.startswith(_HERE):
+        frame, level = frame.f_back, level + 1
+    return level

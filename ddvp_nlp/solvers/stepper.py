@@ -1,0 +1,194 @@
+"""The march's steppers for the one-step-loop driver (``driver.py``).
+
+- :class:`CarefulStepper`: one step per call with CasADi's ``newton`` (``steps.py``). Step 0 of
+  the energy rules and every step of the ``fixed`` rule is a fixed-length step on the times of
+  the :class:`Clock`; every other step is an energy step, then the step bounds; where an energy
+  step fails with a status in ``LEAST_SQUARES_CASES`` and ``breakdown == "least_squares"``, the
+  least-squares step (``least_squares.py``) replaces it.
+- :class:`CompiledStepper`: one compiled chunk per call (``chunk.py``), kept up to the first step
+  that fails the same :class:`~ddvp_nlp.solvers.acceptance.Acceptance`.
+- :class:`MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
+  check, the careful path redoes the rest of that chunk's window (``careful_left`` steps), then
+  the chunks resume. So both paths accept exactly the same steps.
+
+:class:`Tally` holds what the steppers carry from step to step: the compensated energy drift and
+the counts the ``Solution`` reports.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..solution import Status
+from .acceptance import Acceptance
+from .chunk import FastChunk
+from .driver import Advance, Nodes, describe_phase_space
+from .least_squares import least_squares_step
+from .steps import NewtonSteps, StepResult
+
+BREAKDOWNS = ("stop", "least_squares")
+LEAST_SQUARES_CASES = (Status.NO_ADMISSIBLE_STEP, Status.NEWTON_FAILED,
+                       Status.RESIDUAL_TOO_LARGE, Status.STEP_BELOW_MIN, Status.STEP_ABOVE_MAX,
+                       Status.STEP_RATIO)
+
+
+@dataclass
+class Tally:
+    """``drift``: the sum of the energy residuals accepted so far (each energy step solves for
+    ``residual_k = -drift``); the counts of fast and careful steps; one record per least-squares
+    step."""
+
+    drift: float = 0.0
+    fast_steps: int = 0
+    careful_steps: int = 0
+    least_squares: list = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Clock:
+    """The node times a rule fixes in advance: ``t_k = t0 + k tau``, and ``t_total = t_end``.
+
+    Fixed rule: ``total = ceil((t_end - t0) / tau0)`` uniform steps of
+    ``tau = (t_end - t0) / total``. Energy rules: only ``t_1 = t0 + tau0`` (``total`` is
+    ``None``)."""
+
+    t0: float
+    t_end: float
+    tau: float
+    total: int | None = None
+
+    @classmethod
+    def for_rule(cls, variable_steps: bool, t0: float, t_end: float, tau0: float) -> Clock:
+        if variable_steps:
+            return cls(t0, t_end, tau0)
+        total = max(1, math.ceil((t_end - t0) / tau0 - 1e-9))
+        return cls(t0, t_end, (t_end - t0) / total, total)
+
+    def time(self, k: int) -> float:
+        return self.t_end if k == self.total else self.t0 + k * self.tau
+
+
+class CarefulStepper:
+    """One careful step per call (a driver ``Stepper``)."""
+
+    def __init__(self, steps: NewtonSteps, clock: Clock, tally: Tally, *, variable: bool,
+                 breakdown: str):
+        self.steps = steps
+        self.clock = clock
+        self.tally = tally
+        self.variable = variable
+        self.least_squares = breakdown == "least_squares"
+
+    describe = staticmethod(describe_phase_space)
+
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
+        k = nodes.count - 1
+        t, z = nodes.t, nodes.z
+        self.tally.careful_steps += 1
+        if k == 0 or not self.variable:
+            result = self.steps.fixed_step(t[k], self.clock.time(k + 1), z[k])
+        else:
+            result = self._energy_step(t, z, k)
+        if result.status is not Status.SUCCESS:
+            return Advance.failed(result.status, result.detail, nodes.width)
+        return Advance(np.array([result.t_next]), result.z_next[None, :],
+                       values={"H": np.array([result.H_node]), "w": np.array([result.w_node])})
+
+    def _energy_step(self, t, z, k) -> StepResult:
+        result = self.steps.energy_step(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift)
+        if result.status is Status.SUCCESS:
+            # The residual joins the drift before the bounds are checked, so a least-squares
+            # step after a broken bound aims at the level that includes it (kept as it was).
+            self.tally.drift += result.energy
+            status, detail = self.steps.acceptance.broken_bound(result.tau, t[k] - t[k - 1])
+            if status is not Status.SUCCESS:
+                result = StepResult.failed(status, detail)
+        if result.status in LEAST_SQUARES_CASES and self.least_squares:
+            result, record = least_squares_step(self.steps, t[k - 1], t[k], z[k - 1], z[k],
+                                                self.tally.drift, result, k)
+            if record is not None:
+                self.tally.least_squares.append(record)
+        return result
+
+
+class CompiledStepper:
+    """One compiled chunk per call, kept up to its first step that fails a check."""
+
+    def __init__(self, chunk: FastChunk, theta: np.ndarray, acceptance: Acceptance,
+                 clock: Clock, tally: Tally):
+        self.chunk = chunk
+        self.theta = theta
+        self.acceptance = acceptance
+        self.clock = clock
+        self.tally = tally
+
+    def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
+        """The steps kept (up to the first that fails a check, the end or ``budget``) and
+        whether a step failed."""
+        k = nodes.count - 1
+        if self.chunk.variable:
+            steps, good, ends = self._energy_chunk(nodes, k)
+        else:
+            steps, good, ends = self._fixed_chunk(nodes, k)
+        limit = min(self.chunk.chunk, budget)
+        if ends.size:  # steps after the end are not counted, failures included
+            limit = min(limit, int(ends[0]) + 1)
+        bad = np.flatnonzero(~good[:limit])
+        kept = int(bad[0]) if bad.size else limit
+        if kept and self.chunk.variable:
+            self.tally.drift = float(steps.drift[kept - 1])
+        self.tally.fast_steps += kept
+        advance = Advance(steps.t_next[:kept], steps.z_next[:kept],
+                          values={"H": steps.H_node[:kept], "w": steps.w_node[:kept]})
+        return advance, bool(bad.size)
+
+    def _energy_chunk(self, nodes, k):
+        t, z = nodes.t, nodes.z
+        steps = self.chunk.energy_steps(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
+                                        self.theta)
+        t_mid = np.concatenate([[t[k]], steps.t_next[:-1]])
+        with np.errstate(invalid="ignore"):  # a diverged step is NaN; it fails the checks
+            tau = steps.t_next - t_mid
+            tau_prev = np.concatenate([[t[k] - t[k - 1]], tau[:-1]])
+            good = (steps.finite & (tau > 0)
+                    & self.acceptance.residuals_ok(steps.canonical, steps.size, steps.energy,
+                                                   steps.H_interval)
+                    & self.acceptance.bounds_ok(tau, tau_prev))
+        return steps, good, np.flatnonzero(steps.t_next >= self.clock.t_end)
+
+    def _fixed_chunk(self, nodes, k):
+        clock = self.clock
+        steps = self.chunk.fixed_steps(k, nodes.z[k], self.theta, t0=clock.t0, tau=clock.tau,
+                                       t_end=clock.t_end, total=clock.total)
+        with np.errstate(invalid="ignore"):
+            good = steps.finite & self.acceptance.residuals_ok(steps.canonical, steps.size)
+        return steps, good, np.flatnonzero(k + 1 + np.arange(self.chunk.chunk) == clock.total)
+
+
+class MarchStepper:
+    """Compiled chunks with the careful path as fallback (a driver ``Stepper``).
+
+    The energy rules' step 0 is always careful (a chunk needs two nodes). When a chunk's step
+    fails a check, the careful path takes the rest of that chunk's window from the last good
+    node: it may pass (Newton's retries, the least-squares step) or end the run with the
+    careful path's status and message."""
+
+    def __init__(self, careful: CarefulStepper, compiled: CompiledStepper):
+        self.careful = careful
+        self.compiled = compiled
+        self.careful_left = 0  # steps the careful path owes after a chunk step failed
+
+    describe = staticmethod(describe_phase_space)
+
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
+        if self.careful_left == 0 and (not self.careful.variable or nodes.count > 1):
+            advance, failed = self.compiled.run(nodes, budget)
+            if failed:
+                self.careful_left = self.compiled.chunk.chunk - advance.count
+            if advance.count:
+                return advance
+        self.careful_left = max(self.careful_left - 1, 0)
+        return self.careful.advance(nodes, budget)
