@@ -465,9 +465,9 @@ def _accuracy_lines(meta: dict) -> list[str]:
         lines.append(f"  energy level of the first step {accuracy['level']:.10g} against "
                      f"H0 = {meta['H0']:.10g} (error {accuracy['level_error']:.3e} of "
                      "max(1, |H0|))")
-    lines.append(f"  estimated error: local <= {accuracy['local_error_max']:.3e} per step, "
-                 f"global {accuracy['global_error_estimate']:.3e} (sum of local errors); "
-                 f"{accuracy['verdict']}")
+    lines.append(f"  estimated error (against the exact flow): local <= "
+                 f"{accuracy['local_error_max']:.3e} per step, global "
+                 f"{accuracy['global_error_estimate']:.3e} at the end; {accuracy['verdict']}")
     return lines
 
 

@@ -23,8 +23,8 @@ class Status(enum.Enum):
     MAX_STEPS = "max_steps was reached before t_end"
     TIME_LIMIT = "the time limit was reached before t_end"
     ENERGY_GUARD = "H left the band energy_guard allows around its initial value"
-    INACCURATE = ("the steps satisfy the scheme's equations but do not follow the motion: an "
-                  "accuracy estimate passed its tolerance")
+    INACCURATE = ("an accuracy estimate passed its tolerance: the steps satisfy the scheme's "
+                  "equations but do not follow the motion")
     INTERRUPTED = "interrupted by the user"
     SOLVER_FAILED = "the NLP solver did not converge"
     NOT_VERIFIED = "the solver's point does not satisfy the equations to the tolerance"

@@ -46,6 +46,7 @@ from ..validation import check_real
 from .compiler import cache_folder, compile_function
 
 BLOCK = 1024  # nodes per call of the compiled estimate (the last block is padded)
+SMALL = 16  # fewer steps than this go one by one, unpadded
 ADVICE = ("try a smaller tau0, fixed steps (scheme 'fixed'), or the least-squares step; "
           "accept_inaccurate records the estimates and goes on")
 
@@ -123,6 +124,7 @@ class ErrorEstimates:
         self.system = system
         self.e = np.zeros(2 * system.n)
         single = local_error_function(system, substeps)
+        self.single = single
         function = single.mapaccum("error_block", BLOCK)
         if compiler is not None:
             key = ("error_block", substeps, compiler, str(cache_dir))
@@ -135,6 +137,8 @@ class ErrorEstimates:
         propagation from the previous call: ``delta``, ``scale``, ``H`` of the new node and the
         global error estimate ``|e_{k+1}|_inf``, four arrays of shape (M,)."""
         steps = t.size - 1
+        if steps < SMALL:
+            return self._one_by_one(t, z, theta)
         out = np.empty((4, max(steps, 0)))
         theta_block = np.tile(np.asarray(theta, float)[:, None], (1, BLOCK))
         for start in range(0, steps, BLOCK):
@@ -151,6 +155,18 @@ class ErrorEstimates:
             out[1, start:stop] = np.asarray(scale).ravel()[:count]
             out[2, start:stop] = np.asarray(H_b).ravel()[:count]
             out[3, start:stop] = np.max(np.abs(e[:, :count]), axis=0)
+        return out[0], out[1], out[2], out[3]
+
+
+    def _one_by_one(self, t, z, theta):
+        """Few steps (the careful path's one at a time): the single-step function, no padding."""
+        steps = t.size - 1
+        out = np.empty((4, steps))
+        for k in range(steps):
+            e, delta, scale, H_b = self.single(self.e, z[k], z[k + 1], t[k], t[k + 1] - t[k],
+                                               theta)
+            self.e = np.asarray(e).ravel()
+            out[:, k] = (float(delta), float(scale), float(H_b), np.max(np.abs(self.e)))
         return out[0], out[1], out[2], out[3]
 
 

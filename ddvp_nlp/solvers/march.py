@@ -36,6 +36,7 @@ from ..physics.hamiltonian import HamiltonianSystem
 from ..solution import Solution
 from ..validation import check_integer, check_real, check_state
 from .acceptance import Acceptance
+from .accuracy import AccuracyMonitor, Tolerance
 from .chunk import FastChunk
 from .driver import Nodes, drive
 from .monitors import MONITOR_LIMIT, EnergyGuard, SolvabilityMonitor
@@ -62,7 +63,9 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
           tau_max: float | None = None, max_step_ratio: float | None = 10.0,
           progress: bool = False, fast: bool = True, chunk: int = 1024,
           compiler: str | None = "auto", cache_dir=None, time_limit: float | None = None,
-          energy_guard: float | None = None, breakdown: str = "stop") -> Solution:
+          energy_guard: float | None = None, breakdown: str = "stop", rtol: float = 1e-2,
+          atol: float = 1e-2, energy_tol: float = 0.1, global_tol: float | None = None,
+          accept_inaccurate: bool = False) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -101,6 +104,14 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
             energy residual subject to the canonical equations (a bounded scalar search). Each
             such step is listed in ``stats["least_squares"]`` with its energy defect, and the
             march goes on.
+        rtol, atol, energy_tol, global_tol: the accuracy check (``accuracy.py``), which does not
+            trust the scheme's own equations: every step against one RK4 step of the exact flow
+            (``delta_k <= atol + rtol |z|``), the first step's energy level and (autonomous
+            ``H``) the nodal energy drift against ``H(z_0, t_0)`` (``energy_tol``, relative to
+            ``max(1, |H0|)``), and optionally the propagated global error estimate. The first
+            failure ends the march with status ``inaccurate``; ``stats["accuracy"]`` and
+            ``Solution.local_error`` hold the estimates.
+        accept_inaccurate: record the first failure of the accuracy check and go on.
 
     The solvability monitor (energy rules): at every node the site-density weight
     ``w = f' H_zz f = -8 c(z)`` (THEORY.md section 5). A positive step needs ``c`` to keep its
@@ -118,6 +129,8 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
                              max_steps=max_steps, tau_min=tau_min, tau_max=tau_max,
                              max_step_ratio=max_step_ratio, chunk=chunk, time_limit=time_limit,
                              energy_guard=energy_guard, breakdown=breakdown)
+    accuracy = Tolerance(rtol=rtol, atol=atol, energy_tol=energy_tol, global_tol=global_tol,
+                         stop=not accept_inaccurate)
     if fast:
         from .compiler import find_compiler
         compiler = find_compiler(compiler)
@@ -130,12 +143,18 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     built = time.perf_counter()
     nodes = Nodes(options.t0, np.concatenate([q0, p0]))
     monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
+    checker = _accuracy_monitor(system, scheme, theta, accuracy, H0,
+                                compiler=compiler if fast else None, cache_dir=cache_dir)
+    monitors.append(checker)
     outcome = drive(parts.stepper, nodes, t_end=options.t_end, max_steps=options.max_steps,
                     time_limit=options.time_limit, monitors=monitors, progress=progress,
                     catch_interrupt=True)
     solved = time.perf_counter()
-    return _solution(system, scheme, theta, outcome, parts, solvability,
-                     timing={"build_s": built - started, "solve_s": solved - built})
+    solution = _solution(system, scheme, theta, outcome, parts, solvability,
+                         timing={"build_s": built - started, "solve_s": solved - built})
+    solution.local_error = checker.local_errors(solution.steps)
+    solution.stats["accuracy"] = checker.report(solution.steps)
+    return solution
 
 
 @dataclass(frozen=True)
@@ -273,6 +292,21 @@ def _monitors(parts: _Parts, scheme, options: _Options, H0, nodes, theta):
         solvability = SolvabilityMonitor(float(nodes.t[0]), float(w_first))
         monitors.append(solvability)
     return monitors, solvability
+
+
+def _accuracy_monitor(system, scheme, theta, tolerance, H0, *, compiler, cache_dir):
+    """The accuracy check of the march; for the energy rules it also compares the level the
+    first step sets, the first interval's energy, with ``H0``."""
+    level = None
+    if scheme.variable_steps:
+        interval_energy = equations.midpoint_energy_function(system, scheme)
+        n = system.n
+
+        def level(t, z):
+            return float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
+                                         theta))
+    return AccuracyMonitor(system, theta, tolerance, H0=H0, level=level, compiler=compiler,
+                           cache_dir=cache_dir)
 
 
 def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, timing):
