@@ -52,7 +52,10 @@ def numpy_residuals(solution, scheme):
                                     Scheme("vddvp", clock="left")])
 def test_equations_hold_when_recomputed_with_numpy(paper, scheme):
     config = paper.resolve({"t_end": 300.0})
-    solution = march(paper.system, config.q0, config.p0, tau0=0.5, t_end=300.0, scheme=scheme)
+    # alpha = 0.3 at tau0 = 0.5 is beyond the accuracy check's default tolerance (accuracy.py);
+    # the equations, which this test is about, hold all the same
+    solution = march(paper.system, config.q0, config.p0, tau0=0.5, t_end=300.0, scheme=scheme,
+                     accept_inaccurate=True)
     assert solution.success, solution.message
     canonical, energy = numpy_residuals(solution, scheme)
     assert np.max(np.abs(canonical)) < 1e-10

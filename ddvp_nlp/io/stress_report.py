@@ -87,8 +87,28 @@ def report(result: StressResult, *, title: str = DEFAULT_TITLE) -> str:
     lines += failure_table(result.rows, "Where and why each failed run stopped",
                            ("case", lambda r: f"{r['group']}: {r['case']}"),
                            ("method", lambda r: f"`{r['method']}`"))
+    lines += _inaccurate_table(result.rows)
     lines += ["", "## Machine", "", machine(result.compiler), ""]
     return "\n".join(lines)
+
+
+def _inaccurate_table(rows) -> list[str]:
+    """The runs the accuracy check (``solvers/accuracy.py``) refuses, whatever their status:
+    which method was inaccurate where, and the estimated global error at the end."""
+    flagged = [r for r in rows if str(r.get("accuracy", "")).startswith("inaccurate")]
+    if not flagged:
+        return []
+    lines = ["", "## Where each method was inaccurate", "",
+             "The accuracy check on the returned nodes (one RK4 step of the exact flow per step, "
+             "the first step's energy level, the nodal energy drift; default tolerances), "
+             "whether or not the run reached t_end.", "",
+             "| case | method | status | first failed test | global error estimate |",
+             "|---|---|---|---|---|"]
+    for r in flagged:
+        lines.append(f"| {r['group']}: {r['case']} | `{r['method']}` | {r['status']} | "
+                     f"{r['accuracy'].removeprefix('inaccurate: ')} | "
+                     f"{r['error_estimate']:.2e} |")
+    return lines
 
 
 def _legend(result: StressResult) -> str:

@@ -33,7 +33,8 @@ mapped over blocks of nodes, like the march's chunks.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -129,7 +130,7 @@ class ErrorEstimates:
         if compiler is not None:
             key = ("error_block", substeps, compiler, str(cache_dir))
             function = cached(system, key, lambda: compile_function(
-                function, compiler, cache_folder(cache_dir)))
+                function, compiler, cache_folder(cache_dir), prefix="accuracy"))
         self.block = function
 
     def __call__(self, t: np.ndarray, z: np.ndarray, theta: np.ndarray):
@@ -285,3 +286,19 @@ class AccuracyMonitor:
                 "global_error_estimate_max": float(propagated.max()) if propagated.size else 0.0,
                 "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
                 "global_tol": tol.global_tol}
+
+
+def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, substeps: int = 1,
+           compiler=None, cache_dir=None) -> tuple[dict, np.ndarray]:
+    """The accuracy check on a finished trajectory of any method (``t`` (N,), ``z`` (N, 2n)),
+    without stopping it: the report of :meth:`AccuracyMonitor.report` and the local errors.
+    ``level`` is the energy level the method keeps, if it keeps one (a number)."""
+    H0 = float(system.energy(z[:1, :system.n], z[:1, system.n:], t[:1], theta)[0])
+    monitor = AccuracyMonitor(system, theta, replace(tolerance, stop=False), H0=H0,
+                              level=None if level is None else (lambda t, z: level),
+                              substeps=substeps, compiler=compiler, cache_dir=cache_dir)
+
+    if t.size >= 2:  # the finished trajectory, seen by the monitor as one call's new nodes
+        monitor.watch(SimpleNamespace(t=t, z=z, count=t.size), 1, None)
+    steps = t.size - 1
+    return monitor.report(steps), monitor.local_errors(steps)

@@ -46,15 +46,16 @@ def cache_folder(cache_dir: str | os.PathLike | None = None) -> Path:
     return Path.home() / ".cache" / "ddvp_nlp"
 
 
-def compile_function(function: ca.Function, compiler: str, folder: Path) -> ca.Function:
-    """Generate, compile (once per hash) and load ``function``."""
+def compile_function(function: ca.Function, compiler: str, folder: Path, *,
+                     prefix: str = "chunk") -> ca.Function:
+    """Generate, compile (once per hash) and load ``function`` (``PREFIX_HASH.so``)."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
     code = source.dump()
     key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, ca.__version__])
                          .encode()).hexdigest()[:24]
     folder.mkdir(parents=True, exist_ok=True)
-    library = folder / f"chunk_{key}.so"
+    library = folder / f"{prefix}_{key}.so"
     if not library.exists():
         with tempfile.TemporaryDirectory(dir=folder) as scratch:
             c_file = Path(scratch) / "chunk.c"

@@ -65,7 +65,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
           compiler: str | None = "auto", cache_dir=None, time_limit: float | None = None,
           energy_guard: float | None = None, breakdown: str = "stop", rtol: float = 1e-2,
           atol: float = 1e-2, energy_tol: float = 0.1, global_tol: float | None = None,
-          accept_inaccurate: bool = False) -> Solution:
+          accept_inaccurate: bool = False, check_accuracy: bool = True) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -112,6 +112,8 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
             failure ends the march with status ``inaccurate``; ``stats["accuracy"]`` and
             ``Solution.local_error`` hold the estimates.
         accept_inaccurate: record the first failure of the accuracy check and go on.
+        check_accuracy: ``False`` leaves the check out (the comparison does, so that run times
+            compare like with like, and makes it afterwards with ``accuracy.assess``).
 
     The solvability monitor (energy rules): at every node the site-density weight
     ``w = f' H_zz f = -8 c(z)`` (THEORY.md section 5). A positive step needs ``c`` to keep its
@@ -143,17 +145,20 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     built = time.perf_counter()
     nodes = Nodes(options.t0, np.concatenate([q0, p0]))
     monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
-    checker = _accuracy_monitor(system, scheme, theta, accuracy, H0,
-                                compiler=compiler if fast else None, cache_dir=cache_dir)
-    monitors.append(checker)
+    checker = None
+    if check_accuracy:
+        checker = _accuracy_monitor(system, scheme, theta, accuracy, H0,
+                                    compiler=compiler if fast else None, cache_dir=cache_dir)
+        monitors.append(checker)
     outcome = drive(parts.stepper, nodes, t_end=options.t_end, max_steps=options.max_steps,
                     time_limit=options.time_limit, monitors=monitors, progress=progress,
                     catch_interrupt=True)
     solved = time.perf_counter()
     solution = _solution(system, scheme, theta, outcome, parts, solvability,
                          timing={"build_s": built - started, "solve_s": solved - built})
-    solution.local_error = checker.local_errors(solution.steps)
-    solution.stats["accuracy"] = checker.report(solution.steps)
+    if checker is not None:
+        solution.local_error = checker.local_errors(solution.steps)
+        solution.stats["accuracy"] = checker.report(solution.steps)
     return solution
 
 

@@ -33,6 +33,8 @@ from ..scenes import RunConfig, Scene, load_scene
 from ..solution import Status
 from ..solvers.compiler import find_compiler
 from ..validation import check_count, check_real
+from .accuracy import COLUMNS as ACCURACY_COLUMNS
+from .accuracy import NOT_MADE, accuracy_columns
 from .grid import RowSchema, Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS, Method, get_methods
 from .reference import (
@@ -46,9 +48,10 @@ from .reference import (
 ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
-             "order", "symplectic", "energy_conserving", "reference", "message"),
+             "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
+             "message"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
-            "scheme_energy_residual"),
+            "scheme_energy_residual", "error_estimate"),
     integers=("steps", "repeats", "order"),
     flags=("symplectic", "energy_conserving"))
 COLUMNS = list(ROWS.columns)
@@ -225,7 +228,7 @@ def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cac
 
 _NOT_MEASURED = {"trajectory_error": math.nan, "energy_error": math.nan,
                  "scheme_energy_residual": math.nan, "run_s": math.nan, "build_s": math.nan,
-                 "repeats": 0, "steps": 0}
+                 "repeats": 0, "steps": 0, **NOT_MADE}
 
 
 def _traits(method: Method) -> dict:
@@ -262,7 +265,9 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
             "steps": solution.steps, "t_reached": float(solution.t[-1]), "run_s": best,
             "build_s": solution.timing.get("build_s", 0.0), "repeats": count,
             "trajectory_error": trajectory, "energy_error": energy,
-            "scheme_energy_residual": residual}
+            "scheme_energy_residual": residual,
+            **accuracy_columns(system, config, method, solution, compiler=compiler,
+                               cache_dir=cache_dir)}
 
 
 def succeeded(rows, method) -> list[dict]:

@@ -33,6 +33,8 @@ from ..physics.hamiltonian import site_density_weight_function
 from ..scenes import load_scene
 from ..solvers.compiler import find_compiler
 from ..validation import check_integer, check_real
+from .accuracy import COLUMNS as ACCURACY_COLUMNS
+from .accuracy import NOT_MADE, accuracy_columns
 from .grid import RowSchema, Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS
 from .reference import check_comparable, check_starts_from_p0, reference_for
@@ -40,9 +42,9 @@ from .reference import check_comparable, check_starts_from_p0, reference_for
 ROWS = RowSchema(
     columns=("key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
              "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-             "predicted_breaks", "w_ratio", "message"),
+             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message"),
     floats=("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-            "w_ratio"),
+            "w_ratio", "error_estimate"),
     integers=("steps",),
     flags=("predicted_breaks",))
 COLUMNS = list(ROWS.columns)
@@ -191,7 +193,7 @@ def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir,
     except InputError as exc:  # e.g. more fixed steps than max_steps
         return {**row, "status": "not_run", "steps": 0, "t_reached": config.t0,
                 "energy_error": math.nan, "tau_min": math.nan, "tau_max": math.nan,
-                "seconds": 0.0, "message": str(exc)}
+                "seconds": 0.0, "message": str(exc), **NOT_MADE}
     seconds = time.perf_counter() - started
     reference = reference_for(loaded, settings) if system.time_dependent else None
     tau = solution.tau
@@ -200,7 +202,9 @@ def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir,
                 "energy_error": _energy_error(system, config, solution, reference),
                 "tau_min": float(tau.min()) if tau.size else math.nan,
                 "tau_max": float(tau.max()) if tau.size else math.nan,
-                "seconds": seconds, "message": "" if solution.success else solution.message})
+                "seconds": seconds, "message": "" if solution.success else solution.message,
+                **accuracy_columns(system, config, METHODS[method], solution,
+                                   compiler=compiler, cache_dir=cache_dir)})
     if method == "dop853":
         prediction = predicted(system, config, solution)
         row["predicted_breaks"] = prediction["breaks"]
@@ -217,7 +221,7 @@ def failure_row(task: Task, error: str) -> dict:
             "knob": METHODS[k["method"]].knob, "value": k["value"], "status": status,
             "steps": 0, "t_reached": math.nan, "t_end": math.nan, "energy_error": math.nan,
             "tau_min": math.nan, "tau_max": math.nan, "seconds": math.nan,
-            "message": message, "predicted_breaks": "", "w_ratio": math.nan}
+            "message": message, "predicted_breaks": "", "w_ratio": math.nan, **NOT_MADE}
 
 
 def _settings_text(settings: dict) -> str:
