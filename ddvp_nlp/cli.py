@@ -465,9 +465,13 @@ def _accuracy_lines(meta: dict) -> list[str]:
         lines.append(f"  energy level of the first step {accuracy['level']:.10g} against "
                      f"H0 = {meta['H0']:.10g} (error {accuracy['level_error']:.3e} of "
                      "max(1, |H0|))")
+    estimate = f"{accuracy['global_error_estimate']:.3e} at the end"
+    if accuracy.get("global_error_saturated"):
+        estimate = (f">= {accuracy['global_error_estimate']:.3g} at the end (as large as the "
+                    "orbit: the phase is lost over this horizon; checked only with --global-tol)")
     lines.append(f"  estimated error (against the exact flow): local <= "
-                 f"{accuracy['local_error_max']:.3e} per step, global "
-                 f"{accuracy['global_error_estimate']:.3e} at the end; {accuracy['verdict']}")
+                 f"{accuracy['local_error_max']:.3e} per step, global {estimate}; "
+                 f"{accuracy['verdict']}")
     return lines
 
 

@@ -171,3 +171,16 @@ def test_global_estimate_tracks_the_true_error(name, overrides):
     estimate = solution.stats["accuracy"]["global_error_estimate"]
     assert 1e-4 < true < 0.5
     assert 1 / 3 < estimate / true < 3
+
+
+DUFFING = QUARTIC.replace("ca.sumsqr(p) / 2 + k * q[0] ** 4 / 4",
+                          "ca.sumsqr(p) / 2 + q[0] ** 2 / 2 + k * q[0] ** 4 / 4")
+
+
+def test_the_readme_example_scene_is_accurate(tmp_path):
+    scene_file = tmp_path / "duffing.py"
+    scene_file.write_text(DUFFING)
+    assert "q[0] ** 2 / 2" in scene_file.read_text()
+    out = tmp_path / "run"
+    assert main(["march", str(scene_file), "--no-plot", "--no-progress", "--out", str(out)]) == 0
+    assert json.loads((out / "meta.json").read_text())["accuracy"]["verdict"] == "accurate"

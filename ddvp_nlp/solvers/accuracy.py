@@ -284,6 +284,9 @@ class AccuracyMonitor:
                 "local_error_sum": float(delta.sum()),
                 "global_error_estimate": float(propagated[-1]) if propagated.size else 0.0,
                 "global_error_estimate_max": float(propagated.max()) if propagated.size else 0.0,
+                # at its cap: the estimate only says the error is as large as the orbit
+                "global_error_saturated": bool(propagated.size and propagated[-1]
+                                               >= 2 * max(1.0, self.size) * (1 - 1e-9)),
                 "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
                 "global_tol": tol.global_tol}
 
