@@ -127,12 +127,20 @@ def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _bvp_command(commands) -> None:
-    bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem as one IPOPT NLP")
+    bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem on the whole grid")
     _scheme_arguments(bvp)
     bvp.add_argument("--nodes", type=int, default=None,
                      help="number of nodes (default: the scene's, else 101)")
-    bvp.add_argument("--solver", default="ipopt", choices=("ipopt", "newton"),
-                     help="IPOPT (default) or CasADi's Newton rootfinder on the same square system")
+    bvp.add_argument("--solver", default="auto", choices=("auto", "newton", "ipopt"),
+                     help="auto (default: banded Newton, then IPOPT if its point fails the "
+                          "verification), newton or ipopt")
+    bvp.add_argument("--guess", default="straight", metavar="straight|march|FILE",
+                     help="start: straight line (default), march (shooting from q_start), or "
+                          "a run folder / result.npz whose t, q, p have --nodes rows")
+    bvp.add_argument("--time-limit", type=float, default=None,
+                     help="stop after this many seconds (status time_limit)")
+    bvp.add_argument("--progress", action="store_true",
+                     help="report each solver iteration on stderr")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
 
@@ -275,8 +283,32 @@ def _bvp(args, scene, config, scheme):
 
     solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
                          nodes=config.nodes, scheme=scheme, params=config.params, tol=args.tol,
-                         solver=args.solver, verbose=args.verbose)
+                         solver=args.solver, verbose=args.verbose,
+                         guess=_bvp_guess(args.guess), time_limit=args.time_limit,
+                         progress=args.progress)
     return solution, {"solver": solution.stats}
+
+
+def _bvp_guess(value: str):
+    """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a ``result.npz`` (or of the one in
+    a run folder); ``InputError`` if the file is missing or lacks them."""
+    from pathlib import Path
+
+    import numpy as np
+
+    if value in ("straight", "march"):
+        return value
+    path = Path(value)
+    path = path / "result.npz" if path.is_dir() else path
+    if not path.is_file():
+        raise InputError(f"--guess must be straight, march or a result.npz (or run folder), "
+                         f"got {value!r}: no such file")
+    try:
+        with np.load(path) as data:
+            return {key: data[key] for key in ("t", "q", "p")}
+    except (OSError, ValueError, KeyError) as error:
+        raise InputError(f"--guess {value!r}: cannot read t, q and p from {path} "
+                         f"({error})") from None
 
 
 def _march_higher(args, scene, config, scheme):

@@ -1,10 +1,19 @@
-"""Fixed-endpoint solver at growing N: build and solve time, iterations, residuals, peak memory.
+"""Fixed-endpoint solver at growing N: build and solve time (wall and CPU), iterations, residuals,
+peak memory, for each solver path, measured side by side in one run.
 
-The autonomous pendulum over about 2.7 periods (t in [0, 18], q(0) = 0.5, q(18) from a march
-with p(0) = 0.5), solved from the default start (fixed steps from uniform motion, then the times
-released) with the vddvp rule. Each N runs in its own process so that its peak memory is its own.
+Cases (issue 16's targets):
 
-    python scripts/bench_bvp.py [N ...]        (default: 1000 10000 100000)
+- ``pendulum``: the autonomous pendulum over about 2.7 periods (t in [0, 18], q(0) = 0.5,
+  q(18) from a fixed-step march with p(0) = 0.5), vddvp, default start;
+- ``kepler``: e = 0.5 over 3 periods from the pericentre, q(6 pi) from a fixed-step march,
+  vddvp, default start.
+
+Each run is its own process (so that its peak memory, ``ru_maxrss``, is its own) with a time
+limit. Every (case, solver, N) runs ``--repeat`` times (default 3) to show that the iteration
+counts repeat; the table gives the best wall time.
+
+    python scripts/bench_bvp.py                  (the full table: about 10 minutes)
+    python scripts/bench_bvp.py --quick          (N = 1e3, 1e4 only)
 """
 
 from __future__ import annotations
@@ -14,64 +23,133 @@ import platform
 import resource
 import subprocess
 import sys
+import time
 
 import numpy as np
 
+PLAN = {  # (case, solver): sizes
+    ("pendulum", "newton"): [1_000, 10_000, 100_000, 1_000_000],
+    ("pendulum", "ipopt"): [1_000, 10_000, 100_000],
+    ("kepler", "auto"): [1_000, 10_000],
+}
+TARGETS = {("pendulum", "newton"): {10_000: 0.2, 100_000: 1.5, 1_000_000: 20.0},
+           ("pendulum", "ipopt"): {10_000: 2.0, 100_000: 20.0},
+           ("kepler", "auto"): {10_000: 0.5, 100_000: 5.0}}
+TIME_LIMIT = 150.0
+# Runs per (case, solver, N): 3 where a run takes seconds, to show the iteration counts repeat.
+REPEATS = {("pendulum", "newton"): 3, ("pendulum", "ipopt"): 3, ("kepler", "auto"): 1}
 
-def one(nodes: int, solver: str) -> dict:
+
+def endpoints(case: str):
     from ddvp_nlp import load_scene, march
+
+    system = load_scene(case).system
+    if case == "pendulum":
+        reference = march(system, [0.5], [0.5], tau0=0.01, t_end=18.0, scheme="fixed")
+        return system, [0.5], reference.q[-1], (0.0, 18.0), {}
+    e, T = 0.5, 6 * np.pi
+    q0, p0 = [1 - e, 0.0], [0.0, np.sqrt((1 + e) / (1 - e))]
+    reference = march(system, q0, p0, tau0=T / 20000, t_end=T, scheme="fixed", params={"e": e})
+    return system, q0, reference.q[-1], (0.0, T), {"e": e}
+
+
+def one(case: str, nodes: int, solver: str) -> dict:
     from ddvp_nlp.solvers.bvp import solve_bvp
 
-    system = load_scene("pendulum").system
-    reference = march(system, [0.5], [0.5], tau0=0.01, t_end=18.0, scheme="fixed")
-    solution = solve_bvp(system, [0.5], reference.q[-1], (0.0, 18.0), nodes=nodes,
-                         solver=solver)
+    system, q_start, q_end, span, params = endpoints(case)
+    cpu = time.process_time()
+    solution = solve_bvp(system, q_start, q_end, span, nodes=nodes, solver=solver,
+                         params=params, time_limit=TIME_LIMIT)
     phases = solution.stats["phases"]
-    return {"N": nodes, "solver": solver, "status": solution.status.code,
+    return {"case": case, "N": nodes, "solver": solver, "status": solution.status.code,
+            "path": solution.stats["solver"],
             "build_s": solution.timing["build_s"], "solve_s": solution.timing["solve_s"],
+            "cpu_s": time.process_time() - cpu,
             "iterations": [ph["iterations"] for ph in phases],
-            "canonical": solution.stats["canonical_residual_max"],
-            "energy": solution.stats["energy_residual_max"],
+            "canonical": solution.stats.get("canonical_residual_max", float("nan")),
+            "energy": solution.stats.get("energy_residual_max", float("nan")),
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def run(case, nodes, solver, repeat) -> dict:
+    runs = []
+    for _ in range(repeat):
+        try:
+            out = subprocess.run([sys.executable, __file__, "--one", case, str(nodes), solver],
+                                 check=True, capture_output=True, text=True,
+                                 timeout=TIME_LIMIT + 120).stdout
+            runs.append(json.loads(out.strip().splitlines()[-1]))
+        except subprocess.TimeoutExpired:
+            runs.append({"case": case, "N": nodes, "solver": solver, "status": "timeout",
+                         "path": solver, "build_s": np.nan, "solve_s": np.nan, "cpu_s": np.nan,
+                         "iterations": [], "canonical": np.nan, "energy": np.nan,
+                         "peak_mb": np.nan})
+        print(f"{case} {solver} N={nodes}: {runs[-1]['status']} "
+              f"{runs[-1]['build_s'] + runs[-1]['solve_s']:.2f} s", file=sys.stderr, flush=True)
+    best = min(runs, key=lambda r: r["build_s"] + r["solve_s"]
+               if np.isfinite(r["build_s"]) else np.inf)
+    best["repeat_iterations"] = [r["iterations"] for r in runs]
+    return best
+
+
+def table(rows) -> None:
+    print("| case | solver (path) | N | status | build s | solve s | total s | CPU s | "
+          "iterations per phase | same in every run | s / iteration | canonical | energy | "
+          "peak MB | target |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        total = r["build_s"] + r["solve_s"]
+        r["per_iteration"] = r["solve_s"] / max(1, sum(r["iterations"]))
+        target = TARGETS.get((r["case"], r["solver"]), {}).get(r["N"])
+        met = r["status"] == "success" and total <= (target or 0)
+        verdict = "" if target is None else f"<= {target:g} s: {'met' if met else 'MISSED'}"
+        same = len({tuple(i) for i in r["repeat_iterations"]}) == 1
+        print(f"| {r['case']} | {r['solver']} ({r['path']}) | {r['N']:.0e} | {r['status']} | "
+              f"{r['build_s']:.3f} | {r['solve_s']:.3f} | {total:.3f} | {r['cpu_s']:.3f} | "
+              f"{' + '.join(map(str, r['iterations']))} | {'yes' if same else 'NO'} | "
+              f"{r['per_iteration']:.2e} | {r['canonical']:.1e} | {r['energy']:.1e} | "
+              f"{r['peak_mb']:.0f} | {verdict} |")
+
+
+def summary(rows) -> None:
+    print()
+    for (case, solver) in PLAN:
+        mine = [r for r in rows if r["case"] == case and r["solver"] == solver
+                and r["status"] == "success" and r["N"] >= 10_000]
+        if len(mine) >= 2:
+            slope = np.polyfit(np.log([r["N"] for r in mine]),
+                               np.log([r["per_iteration"] for r in mine]), 1)[0]
+            print(f"{case} {solver}: time per iteration grows like N^{slope:.2f} "
+                  f"(N = {mine[0]['N']:.0e} .. {mine[-1]['N']:.0e}; target: at most N^1.1)")
+    for nodes in sorted({r["N"] for r in rows}):
+        pair = {r["solver"]: r for r in rows if r["N"] == nodes and r["case"] == "pendulum"}
+        if {"ipopt", "newton"} <= set(pair):
+            ratio = ((pair["ipopt"]["build_s"] + pair["ipopt"]["solve_s"])
+                     / (pair["newton"]["build_s"] + pair["newton"]["solve_s"]))
+            print(f"pendulum N = {nodes:.0e}: build + solve, ipopt / newton = {ratio:.1f}")
+    import casadi
+    import scipy
+    print(f"\nmachine: {platform.machine()}, {platform.processor() or 'cpu'}, "
+          f"python {platform.python_version()}, casadi {casadi.__version__}, "
+          f"numpy {np.__version__}, scipy {scipy.__version__}")
 
 
 def main(argv: list[str]) -> None:
     if argv and argv[0] == "--one":
-        print(json.dumps(one(int(argv[1]), argv[2])))
+        print(json.dumps(one(argv[1], int(argv[2]), argv[3])))
         return
-    sizes = [int(a) for a in argv] or [1000, 10_000, 100_000]
+    quick = "--quick" in argv
+    repeat = 1 if quick else 3
     rows = []
-    for solver in ("ipopt", "newton"):
+    for (case, solver), sizes in PLAN.items():
         for nodes in sizes:
-            out = subprocess.run([sys.executable, __file__, "--one", str(nodes), solver],
-                                 check=True, capture_output=True, text=True).stdout
-            rows.append(json.loads(out.strip().splitlines()[-1]))
-            print(f"{solver} N={nodes}: {rows[-1]['status']}", file=sys.stderr, flush=True)
-    print("| solver | N | status | build s | solve s | iterations (3 phases) | s / iteration "
-          "| max canonical residual | max energy residual | peak MB |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for r in rows:
-        r["per_iteration"] = r["solve_s"] / max(1, sum(r["iterations"]))
-        print(f"| {r['solver']} | {r['N']} | {r['status']} | {r['build_s']:.2f} | "
-              f"{r['solve_s']:.3f} | {' + '.join(map(str, r['iterations']))} | "
-              f"{r['per_iteration']:.4f} | {r['canonical']:.1e} | {r['energy']:.1e} | "
-              f"{r['peak_mb']:.0f} |")
-    print()
-    for solver in ("ipopt", "newton"):
-        mine = [r for r in rows if r["solver"] == solver]
-        if len(mine) >= 2:
-            exponent = np.polyfit(np.log([r["N"] for r in mine]),
-                                  np.log([r["per_iteration"] for r in mine]), 1)[0]
-            print(f"{solver}: time per iteration grows like N^{exponent:.2f} "
-                  f"(N = {mine[0]['N']} .. {mine[-1]['N']}; target: at most N^1.2)")
-    for nodes in sizes:
-        pair = {r["solver"]: r for r in rows if r["N"] == nodes}
-        print(f"N = {nodes}: solve time ipopt / newton = "
-              f"{pair['ipopt']['solve_s'] / pair['newton']['solve_s']:.1f}")
-    import casadi
-    print(f"\nmachine: {platform.machine()}, {platform.processor() or 'cpu'}, "
-          f"python {platform.python_version()}, casadi {casadi.__version__}, "
-          f"numpy {np.__version__}")
+            if quick and nodes > 10_000:
+                continue
+            count = min(repeat, REPEATS[case, solver]) if nodes <= 10_000 or solver == "newton" \
+                else 1
+            rows.append(run(case, nodes, solver, count if nodes < 1_000_000 else 1))
+    table(rows)
+    summary(rows)
 
 
 if __name__ == "__main__":

@@ -85,13 +85,16 @@ def test_unreachable_endpoints_end_with_a_status_and_residuals(rule, solver):
     assert solution.canonical_residual.shape == (M,)
 
 
-def test_solver_failure_keeps_the_last_iterate_and_says_why():
+@pytest.mark.parametrize("solver, said", [("ipopt", r"ipopt: Maximum_Iterations_Exceeded"),
+                                         ("newton", r"newton: max_iter = 1 reached, residual "
+                                                    r"norm \S+")])
+def test_solver_failure_keeps_the_last_iterate_and_says_why(solver, said):
     scene = load_scene("pendulum")
     data = scene.resolve_boundary()
     solution = solve_bvp(scene.system, data.q_start, data.q_end, data.t_span, nodes=data.nodes,
-                         max_iter=1)
+                         max_iter=1, solver=solver)
     assert solution.status is Status.SOLVER_FAILED
-    assert re.match(r"the NLP solver did not converge \(Maximum_Iterations_Exceeded\); "
+    assert re.match(r"the NLP solver did not converge \(" + said + r"\); "
                     r"canonical residual \S+ on interval \d+", solution.message)
     assert solution.t.size == data.nodes and np.all(np.isfinite(solution.q))
 
@@ -105,14 +108,16 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
                          tol=1e-9)
     assert solution.success
     from ddvp_nlp.solvers.bvp import _verify
-    phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3}
+    phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3,
+             "solver": "ipopt"}
     canonical = np.zeros((data.nodes - 1, 2))
     canonical[17, 1] = 2e-9
     status, message = _verify(phase, solution.t, canonical, solution.energy_residual,
-                              Scheme("vddvp"), 1e-9, 0.05, {})
+                              Scheme("vddvp"), (1e-9, 0.05e-9), {})
     assert status is Status.NOT_VERIFIED
     assert message.startswith("the solver's point does not satisfy the equations to the "
                               "tolerance: canonical residual 2.000e-09 on interval 17")
+    assert message.endswith("(ipopt: Solve_Succeeded)")
 
 
 def test_bad_input_is_refused_before_building():
@@ -123,7 +128,8 @@ def test_bad_input_is_refused_before_building():
         solve_bvp(system, [0.5], [0.1], (1.0, 0.0), nodes=10)
     with pytest.raises(InputError, match=r"^q_end must be finite, got \[nan\]$"):
         solve_bvp(system, [0.5], [np.nan], (0.0, 1.0), nodes=10)
-    with pytest.raises(InputError, match=r"^unknown solver 'snopt' \(choose from ipopt, newton\)$"):
+    with pytest.raises(InputError,
+                       match=r"^unknown solver 'snopt' \(choose from auto, newton, ipopt\)$"):
         solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, solver="snopt")
     with pytest.raises(InputError, match=r"^guess\['q'\] must have shape \(10, 1\), got \(9, 1\)$"):
         solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10,
@@ -136,7 +142,7 @@ def test_cli_bvp_writes_the_same_outputs(tmp_path, capsys):
     assert main(["bvp", "paper_pendulum", "--nodes", "61", "--out", str(out)]) == 0
     meta = json.loads((out / "meta.json").read_text())
     assert meta["command"] == "bvp" and meta["success"] and meta["steps"] == 60
-    assert meta["params"]["nodes"] == 61 and meta["solver"]["solver"] == "ipopt"
+    assert meta["params"]["nodes"] == 61 and meta["solver"]["solver"] == "newton"
     assert np.load(out / "result.npz")["t"].shape == (61,)
     assert (out / "trajectory.png").exists()
     assert "paper_pendulum bvp [vddvp]: success" in capsys.readouterr().out
