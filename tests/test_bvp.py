@@ -153,4 +153,4 @@ def test_cli_bvp_without_endpoint_data_says_what_to_give(tmp_path, capsys):
     assert ("scene 'kepler' declares no fixed-endpoint data: give q_start, q_end, t0 and t_end "
             "(--set NAME=VALUE) and --nodes") in capsys.readouterr().err
     assert main(["bvp", "kepler", "--set", "q_start=0.5,0", "--set", "q_end=-0.5,0.5",
-                 "--set", "t_end=2", "--nodes", "41", "--out", str(tmp_path), "--no-plot"]) == 0
+                 "--set", "t_end=2", "--nodes", "201", "--out", str(tmp_path), "--no-plot"]) == 0

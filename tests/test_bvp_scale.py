@@ -13,7 +13,9 @@ CASES = {  # scene: (q_start, q_end, t_span, nodes, params); None: the scene's b
     "pendulum": None,
     "paper_pendulum": None,
     "pendulum_lagrangian": None,
-    "kepler": ([0.5, 0.0], [-0.5, 0.5], (0.0, 2.0), 41, {}),
+    # 201 nodes: at 41 the verified discrete solution is a spurious branch through a
+    # near-collision, which the accuracy check refuses (local error 3.1 at step 16)
+    "kepler": ([0.5, 0.0], [-0.5, 0.5], (0.0, 2.0), 201, {}),
 }
 
 

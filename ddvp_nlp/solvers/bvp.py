@@ -46,6 +46,7 @@ from ..errors import InputError
 from ..physics.hamiltonian import HamiltonianSystem
 from ..solution import Solution, Status
 from ..validation import check_finite_array, check_integer, check_real, check_state
+from .accuracy import AccuracyMonitor, Tolerance, assess
 from .bvp_assembly import NodeLayout
 from .bvp_phase import EPS, ROUND_OFF_ALLOWANCE, Request, assembly, round_off_scales, run_phase
 from .bvp_start import predicted_times, start_point
@@ -246,12 +247,33 @@ def _solution(request: Request, x, phase, outcome, started) -> Solution:
              if finite else math.nan,
              "energy_scale": request.mean_step, "tau_floor": request.tau_floor,
              "p_sign_changes": sign_changes, **checks}
+    local_error = np.zeros(0)
+    if finite:
+        stats["accuracy"], local_error = _accuracy(request, t, q, p)
+        failure = stats["accuracy"]["first_failure"]
+        if status is Status.SUCCESS and failure is not None:
+            status = Status.INACCURATE
+            message = (f"{status.value}: {AccuracyMonitor.describe(failure)}; the discrete "
+                       f"equations hold: {message}")
     total = time.perf_counter() - started
     return Solution(
         t=t, q=q, p=p, status=status, message=message, scheme=request.scheme.rule,
         energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
-        newton_iterations=stats["iterations_total"],
+        newton_iterations=stats["iterations_total"], local_error=local_error,
         timing={"build_s": request.build_s, "solve_s": total - request.build_s}, stats=stats)
+
+
+def _accuracy(request: Request, t, q, p):
+    """The accuracy check (``accuracy.py``) on the grid: each interval against one RK4 step of
+    the exact flow, the energy level of the first interval (energy rules) and the nodal drift
+    against ``H`` at the first node. A verified discrete solution can still be far from the
+    motion when the grid is coarse."""
+    system, scheme = request.system, request.scheme
+    level = None
+    if scheme.variable_steps:
+        level = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
+                                                  request.theta)[0])
+    return assess(system, t, np.hstack([q, p]), request.theta, Tolerance(), level=level)
 
 
 def _check_span(t_span) -> tuple[float, float]:
