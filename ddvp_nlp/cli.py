@@ -10,9 +10,15 @@ from .discrete.scheme import CLOCKS, RULES, Scheme
 from .errors import InputError
 from .scenes import VECTOR_SETTINGS, list_scenes, load_scene
 
+# Seconds of marching between two checkpoints of `ddvp march` (a kill loses at most this).
+CHECKPOINT_SECONDS = 5.0
+
 
 def _parse_settings(items: list[str]) -> dict:
     """``NAME=VALUE`` pairs; ``q0``, ``p0``, ``q_start``, ``q_end`` take comma-separated lists."""
+    from .validation import check_unique_settings
+
+    check_unique_settings(items)
     settings = {}
     for item in items:
         name, sep, text = item.partition("=")
@@ -104,6 +110,11 @@ def _march_command(commands) -> None:
     march.add_argument("--careful", action="store_true",
                        help="force the careful per-step path (default: compiled chunks of steps, "
                             "checked step by step; both accept the same steps)")
+    march.add_argument("--checkpoint-every", type=float, default=CHECKPOINT_SECONDS,
+                       metavar="SECONDS",
+                       help="write the run so far to the output folder this often while "
+                            f"marching, so a kill loses at most this much (default: "
+                            f"{CHECKPOINT_SECONDS:g})")
     march.add_argument("--no-progress", action="store_true", help="no progress bar")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
 
@@ -232,13 +243,39 @@ def run_solve(args) -> int:
     scheme = _scheme(args, higher)
     config = _resolve(args, scene, higher)
     infix = "-bvp" if args.command == "bvp" else ""
-    out = prepare_folder(args.out or f"runs/{scene.name}{infix}-{scheme.rule}")
+    out = prepare_folder(args.out if args.out is not None
+                         else f"runs/{scene.name}{infix}-{scheme.rule}")
+    args.checkpoint = _checkpoint_saver(args, scene, out)
+    if args.command == "march" and not higher:
+        _INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
     solve = _SOLVERS[args.command, higher]
-    solution, extra = solve(args, scene, config, scheme)
-    meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
-                     solution=solution, extra=extra, plot=not args.no_plot)
+    try:
+        solution, extra = solve(args, scene, config, scheme)
+    except KeyboardInterrupt:
+        raise _Stopped(f"interrupted before the run had a result; nothing new was written to "
+                       f"{out}/") from None
+    with _INTERRUPTS.saving():  # a second Ctrl-C or a SIGTERM waits until the set is written
+        meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
+                         solution=solution, extra=extra, plot=not args.no_plot)
     _summary(meta, out)
-    return 0 if solution.success else 1
+    if _INTERRUPTS.pending:
+        print(f"ddvp {args.command}: interrupted while saving; the run above was written whole "
+              f"to {out}/", file=sys.stderr)
+    return 0 if solution.success and not _INTERRUPTS.pending else 1
+
+
+def _checkpoint_saver(args, scene, out):
+    """For a march of a scene with ``H`` or ``L``: ``save(t, z)`` writing the run so far to
+    ``out`` (a checkpoint), interrupts held off while it writes."""
+    if args.command != "march" or _higher(scene):
+        return None
+    from .io.runs import write_checkpoint
+
+    def save(t, z):
+        with _INTERRUPTS.saving():
+            write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
+                             n=scene.system.n)
+    return save
 
 
 def _higher(scene) -> bool:
@@ -273,9 +310,12 @@ def _march(args, scene, config, scheme):
                      energy_guard=args.energy_guard,
                      breakdown="least_squares" if args.least_squares else "stop",
                      rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
-                     global_tol=args.global_tol, accept_inaccurate=args.accept_inaccurate)
+                     global_tol=args.global_tol, accept_inaccurate=args.accept_inaccurate,
+                     checkpoint=args.checkpoint, checkpoint_interval=args.checkpoint_every,
+                     stop=_INTERRUPTS.stop_requested)
     stats = solution.stats
-    return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps")}
+    return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
+                                                  "checkpoints")}
 
 
 def _bvp(args, scene, config, scheme):
@@ -476,6 +516,8 @@ def _summary(meta: dict, out) -> None:
     if "least_squares_steps" in meta:
         lines.append(f"  {meta['least_squares_steps']} least-squares steps, largest energy "
                      f"defect {meta['least_squares_defect_max']:.3e}")
+    if "note" in meta:
+        lines.append(f"  {meta['note']}")
     if "error_vs_exact" in meta:
         lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e}")
     path = f" ({meta['path']} path)" if "path" in meta else ""
@@ -516,8 +558,84 @@ COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
             "reproduce": run_reproduce}
 
 
+class _Stopped(Exception):
+    """The command was interrupted; the message says what was written."""
+
+
+class _Interrupts:
+    """SIGINT and SIGTERM, handled alike. During a march (``mode="flag"``) the first one only
+    asks the march to stop: it ends after its current chunk of steps with status
+    ``interrupted`` and every accepted node (raising inside a CasADi call could tear it). With
+    ``mode="raise"`` the first one raises ``KeyboardInterrupt`` (a grid keeps its rows). Once a
+    run is stopping or being saved (:meth:`saving`), later ones are only noted, so a second
+    Ctrl-C cannot cut the files of a run short; a second one before the march polled the
+    first (during its build) raises."""
+
+    def __init__(self):
+        self.mode = "raise"
+        self.requested = False
+        self.stopping = False
+        self.pending = False
+        self.holding = 0
+
+    def install(self, mode: str):
+        import signal
+        import threading
+
+        self.__init__()
+        self.mode = mode
+        if threading.current_thread() is not threading.main_thread():
+            return lambda: None  # handlers can only be set from the main thread
+        previous = {sig: signal.signal(sig, self.handle)
+                    for sig in (signal.SIGINT, signal.SIGTERM)}
+        return lambda: [signal.signal(sig, handler) for sig, handler in previous.items()]
+
+    def handle(self, signum, frame):
+        if self.holding or self.stopping:
+            self.pending = True
+            print("ddvp: still saving the run; it stops once the files are written",
+                  file=sys.stderr)
+            return
+        if self.mode == "flag" and not self.requested:
+            self.requested = True
+            return
+        raise KeyboardInterrupt
+
+    def stop_requested(self) -> bool:
+        """Polled by the march after each chunk: whether to stop (and from then on hold)."""
+        if self.requested:
+            self.stopping = True
+        return self.requested
+
+    def saving(self):
+        import contextlib
+
+        @contextlib.contextmanager
+        def held():
+            self.holding += 1
+            try:
+                yield
+            finally:
+                self.holding -= 1
+        return held()
+
+
+_INTERRUPTS = _Interrupts()
+
+
+def _check_common(args) -> None:
+    """Options several commands share, checked before anything is loaded: ``--workers`` (0 was
+    silently taken as 1)."""
+    from .validation import check_integer
+
+    if getattr(args, "workers", None) is not None:
+        check_integer("--workers", args.workers)
+
+
 def main(argv: list[str] | None = None) -> int:
     import warnings
+
+    from .errors import OutputError
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -525,16 +643,26 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown command {args.command!r}")
     original_format = warnings.formatwarning
     warnings.formatwarning = _format_warning  # one line, no source echo
+    restore = _INTERRUPTS.install("raise")
     try:
+        _check_common(args)
         return COMMANDS[args.command](args)
     except InputError as exc:
         print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # a march keeps its own partial result; a grid keeps its rows
+    except OutputError as exc:
+        print(f"ddvp {args.command}: error: {exc}; the run was not saved (the folder keeps "
+              "what it held before)", file=sys.stderr)
+        return 1
+    except _Stopped as exc:
+        print(f"ddvp {args.command}: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:  # a grid keeps its rows
         print(f"ddvp {args.command}: interrupted; the rows finished so far are in the output "
               "folder (ddvp sweep, and ddvp stress --resume, go on from them)", file=sys.stderr)
         return 1
     finally:
+        restore()
         warnings.formatwarning = original_format
 
 

@@ -28,7 +28,7 @@ from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem
 from .physics.higher import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
-from .validation import check_parameter_values, check_real
+from .validation import check_parameter_values, check_real, check_state
 
 RUN_SETTINGS = ("t0", "tau0", "t_end")
 STATE_SETTINGS = ("q0", "p0", "v0")
@@ -135,16 +135,27 @@ class Scene:
             raise InputError("give p0 or v0, not both")
         p0 = settings.get("p0", None if "v0" in settings else self.p0)
         v0 = settings.get("v0", None if "p0" in settings else self.v0)
-        q0, p0, v0 = (x(**params) if callable(x) else x for x in (q0, p0, v0))
         values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
         for k, v in values.items():
             check_real(k, v)
-
-        def vector(x):
-            return None if x is None else np.atleast_1d(np.asarray(x, dtype=float))
-
-        return RunConfig(params=params, q0=vector(q0), p0=vector(p0), v0=vector(v0),
+        check_real("tau0", values["tau0"], positive=True)
+        if values["t_end"] <= values["t0"]:
+            raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        q0, p0, v0 = (None if x is None else self._start_value(name, x, params)
+                      for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))
+        return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
                          **{k: float(v) for k, v in values.items()})
+
+    def _start_value(self, name: str, value, params: dict) -> np.ndarray:
+        """The scene's ``q0``, ``p0`` or ``v0`` (a function of the parameters, or a value) as a
+        finite real vector of length ``n``; a function that raises is named with the values."""
+        if callable(value):
+            try:
+                value = value(**params)
+            except Exception as exc:
+                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
+                                 f"{_shown(params)}: {type(exc).__name__}: {exc}") from None
+        return check_state(f"scene {self.name!r}: {name}", value, self.n)
 
 
 @dataclass
@@ -203,6 +214,8 @@ def load_scene(name_or_path: str) -> Scene:
         path = Path(name_or_path)
         if not path.is_file():
             raise InputError(f"scene file {name_or_path!r} does not exist")
+        if path.suffix != ".py":
+            raise InputError(f"scene file {name_or_path!r} is not a Python file (.py)")
         name = path.stem
     else:
         if name_or_path not in list_scenes():
@@ -214,6 +227,9 @@ def load_scene(name_or_path: str) -> Scene:
     module = importlib.util.module_from_spec(spec)
     try:
         spec.loader.exec_module(module)
+    except SystemExit as exc:  # a scene file that exits would end the command with its code
+        raise InputError(f"scene file {str(path)!r} does not load: it called "
+                         f"sys.exit({exc.code!r})") from None
     except Exception as exc:
         raise InputError(f"scene file {str(path)!r} does not load: "
                          f"{type(exc).__name__}: {exc}") from exc
@@ -281,3 +297,7 @@ class HigherOrderScene:
     def _exact(self, t, params):
         return np.asarray(self.exact(np.asarray(t, float), **params), float).reshape(
             np.size(t), self.n)
+
+
+def _shown(params: dict) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in params.items()) or "the defaults"

@@ -41,17 +41,22 @@ def check_real(name: str, value, *, positive: bool = False, allow_none: bool = F
     return value
 
 
-def check_integer(name: str, value, *, minimum: int = 1) -> int:
-    """An integer ``>= minimum`` (booleans are refused)."""
+def check_integer(name: str, value, *, minimum: int = 1, maximum: int | None = None) -> int:
+    """An integer ``>= minimum`` (and ``<= maximum``, if given; booleans are refused)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         wanted = "a positive integer" if minimum == 1 else f"an integer >= {minimum}"
         raise InputError(f"{name} must be {wanted}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise InputError(f"{name} must be at most {maximum}, got {value!r}")
     return int(value)
 
 
 def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, float],
                            *, owner: str) -> dict[str, float]:
     """Merge ``values`` into ``defaults``; each name must be known, each value a finite real."""
+    if not isinstance(values, Mapping):
+        raise InputError(f"params of {owner} must be a mapping of names to numbers, "
+                         f"got {values!r}")
     resolved = dict(defaults)
     for name, value in values.items():
         if name not in defaults:
@@ -92,10 +97,35 @@ def check_finite_array(name: str, value, shape: tuple | None = None) -> np.ndarr
     return array
 
 
-def check_count(name: str, value, *, minimum: int = 0) -> int:
-    """An integer ``>= minimum``, as :func:`check_integer`, but the message always states the
-    minimum (``an integer >= 1``): the comparison's counts have said so since they were added."""
+def check_count(name: str, value, *, minimum: int = 0, maximum: int | None = None) -> int:
+    """An integer ``>= minimum`` (and ``<= maximum``), as :func:`check_integer`, but the message
+    always states the minimum (``an integer >= 1``): the comparison's counts have said so since
+    they were added."""
     try:
-        return check_integer(name, value, minimum=minimum)
+        check_integer(name, value, minimum=minimum)
     except InputError:
         raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
+    return check_integer(name, value, minimum=minimum, maximum=maximum)
+
+
+def check_cache_folder(value) -> None:
+    """``None`` or a path that is not an existing file (the compiled-code cache folder)."""
+    import os
+
+    if value is None:
+        return
+    if not isinstance(value, (str, os.PathLike)) or not str(value).strip():
+        raise InputError(f"cache_dir must be a folder path, got {value!r}")
+    if os.path.exists(value) and not os.path.isdir(value):
+        raise InputError(f"cache_dir must be a folder, got the file {str(value)!r}")
+
+
+def check_unique_settings(items) -> None:
+    """``NAME=VALUE`` items name each setting at most once (a repeat would silently win)."""
+    seen = {}
+    for item in items:
+        name = item.partition("=")[0].strip()
+        if name in seen:
+            raise InputError(f"--set {name} is given twice ({seen[name]!r} and {item!r}); "
+                             "give each setting once")
+        seen[name] = item

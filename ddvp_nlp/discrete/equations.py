@@ -12,7 +12,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..cache import cached
+from ..cache import cached, evaluate_columns
 from ..physics.hamiltonian import HamiltonianSystem
 from ..physics.lagrangian import LagrangianSystem
 from .action import IntervalAction
@@ -107,24 +107,27 @@ def midpoint_energy_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Fu
     return cached(system, ("interval_energy", scheme), build)
 
 
-def grid_residuals(system: HamiltonianSystem, scheme: Scheme, t, q, p, theta):
+def grid_residuals(system: HamiltonianSystem, scheme: Scheme, t, q, p, theta, *,
+                   compile=None):
     """All equations of a grid: canonical residuals ``(N-1, 2n)`` and energy residuals ``(N-2,)``
-    of the scheme's diagnostic rule, unscaled."""
+    of the scheme's diagnostic rule, unscaled. ``compile`` (``Function -> Function``, e.g. a
+    C compiler's) runs the block-mapped equations compiled; see :func:`evaluate_columns`."""
     t = np.asarray(t, float)
     q = np.asarray(q, float)
     p = np.asarray(p, float)
     N = t.size
-    theta = np.asarray(theta, float)[:, None]
+    theta = np.asarray(theta, float)
     canonical = np.zeros((max(N - 1, 0), 2 * system.n))
     energy = np.zeros(max(N - 2, 0))
     if N >= 2:
-        f = canonical_function(system, scheme).map(N - 1)
-        canonical = np.asarray(f(t[None, :-1], t[None, 1:], q[:-1].T, p[:-1].T, q[1:].T,
-                                 p[1:].T, theta)).T
+        f = canonical_function(system, scheme)
+        canonical = evaluate_columns(system, f, [t[None, :-1], t[None, 1:], q[:-1].T, p[:-1].T,
+                                                 q[1:].T, p[1:].T], theta, compile=compile).T
     if N >= 3:
-        g = energy_function(system, scheme).map(N - 2)
-        energy = np.asarray(g(t[None, :-2], t[None, 1:-1], t[None, 2:], q[:-2].T, p[:-2].T,
-                              q[1:-1].T, p[1:-1].T, q[2:].T, p[2:].T, theta)).ravel()
+        g = energy_function(system, scheme)
+        energy = evaluate_columns(system, g, [t[None, :-2], t[None, 1:-1], t[None, 2:],
+                                              q[:-2].T, p[:-2].T, q[1:-1].T, p[1:-1].T,
+                                              q[2:].T, p[2:].T], theta, compile=compile).ravel()
     return canonical, energy
 
 
@@ -135,6 +138,6 @@ def interval_energies(system: HamiltonianSystem, scheme: Scheme, t, q, p, theta)
     p = np.asarray(p, float)
     if t.size < 2:
         return np.zeros(0)
-    f = midpoint_energy_function(system, scheme).map(t.size - 1)
-    return np.asarray(f(t[None, :-1], t[None, 1:], q[:-1].T, p[:-1].T, q[1:].T, p[1:].T,
-                        np.asarray(theta, float)[:, None])).ravel()
+    f = midpoint_energy_function(system, scheme)
+    return evaluate_columns(system, f, [t[None, :-1], t[None, 1:], q[:-1].T, p[:-1].T,
+                                        q[1:].T, p[1:].T], theta).ravel()

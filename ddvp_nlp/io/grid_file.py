@@ -64,7 +64,9 @@ def _read_toml(path: Path) -> dict:
         import tomli as tomllib
 
     try:
-        return tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"grid file {str(path)!r} is not UTF-8 text (byte {exc.start})") from None
     except OSError as exc:
         raise InputError(f"grid file {str(path)!r} cannot be read: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:

@@ -1,5 +1,12 @@
 """Writing a run to a folder: ``result.npz``, ``meta.json`` and a plot, for every kind of scene
-(Hamiltonian, first-order Lagrangian, higher-order Lagrangian)."""
+(Hamiltonian, first-order Lagrangian, higher-order Lagrangian), and reading it back.
+
+The files are written to temporary names and renamed into place under the folder's lock
+(:mod:`ddvp_nlp.io.atomic`), ``meta.json`` last; ``meta.json`` records what it describes (the
+node count and the SHA-256 of ``result.npz``), so :func:`read_run` refuses a pair that a kill
+between two renames, or an older tool, left mismatched. A long march also writes the same pair
+as a checkpoint at intervals (:func:`write_checkpoint`), with status ``running``.
+"""
 
 from __future__ import annotations
 
@@ -14,10 +21,13 @@ from ..discrete.scheme import Scheme
 from ..errors import InputError
 from ..scenes import BoundaryConfig, HigherOrderScene, RunConfig, Scene
 from ..solution import Solution, Status
+from . import atomic
 
 
 def prepare_folder(out: str | os.PathLike) -> Path:
     """Create ``out`` and check that it can be written, before any solve starts."""
+    if not isinstance(out, (str, os.PathLike)) or not str(out).strip():
+        raise InputError(f"output folder must be a non-empty path, got {out!r}")
     path = Path(out)
     try:
         path.mkdir(parents=True, exist_ok=True)
@@ -77,12 +87,78 @@ def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
     """
     record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
     arrays, meta, draw = record(command, scene, config, scheme, solution)
-    np.savez(out / "result.npz", **arrays)
     meta.update(extra or {})
-    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n")
-    if plot and solution.t.size >= 2:
-        draw(out / "trajectory.png")
+    if command == "bvp" and not solution.success:
+        meta["note"] = NOT_A_SOLUTION
+    figure = draw if plot and solution.t.size >= 2 else None
+    return save_run(out, arrays, meta, figure)
+
+
+RESULT, META, FIGURE = "result.npz", "meta.json", "trajectory.png"
+NOT_A_SOLUTION = ("NOT A SOLUTION: the nodes are the last iterate of the failed solve, kept for "
+                  "diagnosis; they do not satisfy the equations")
+
+
+def save_run(out: Path, arrays: dict, meta: dict, draw=None) -> dict:
+    """Write ``result.npz`` (``arrays``), ``trajectory.png`` (``draw(path)``, if given; else an
+    older figure is removed) and ``meta.json`` (``meta`` with ``nodes`` and ``result_sha256``)
+    as one set: all of them or none, ``meta.json`` last. Return the metadata written.
+
+    Raises :class:`~ddvp_nlp.errors.OutputError` naming the file that could not be written;
+    the folder then still holds the earlier set whole (or nothing)."""
+    out = Path(out)
+    scratches = {RESULT: atomic.write_scratch(out, RESULT, lambda path: _save_npz(path, arrays))}
+    try:
+        scratches[FIGURE] = atomic.write_scratch(out, FIGURE, draw) if draw else None
+        meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size),
+                "result_sha256": atomic.sha256_of(scratches[RESULT])}
+        text = json.dumps(meta, indent=2, default=_json_default) + "\n"
+        scratches[META] = atomic.write_scratch(out, META, lambda path: path.write_text(text))
+    except BaseException:  # an OutputError, or an interrupt while drawing: leave no scratch
+        atomic.discard(scratches.values())
+        raise
+    atomic.commit(out, scratches)
     return meta
+
+
+def _save_npz(path: Path, arrays: dict) -> None:
+    with open(path, "wb") as handle:  # a file object: np.savez would append ".npz" to a name
+        np.savez(handle, **arrays)
+
+
+def write_checkpoint(out: Path, *, command: str, scene_name: str, t, z, n: int,
+                     extra: dict | None = None) -> dict:
+    """The run so far, as a set like a finished run's (``t``, ``q``, ``p`` only; no figure),
+    with status ``running``: what a kill of a long march leaves behind."""
+    t = np.asarray(t)
+    steps = max(t.size - 1, 0)
+    meta = {"command": command, "scene": scene_name, "status": "running", "success": False,
+            "message": f"checkpoint of a run still going (or killed) at step {steps}, "
+                       f"t = {float(t[-1]):.10g}; not a solution of the whole problem",
+            "steps": steps, "t_reached": float(t[-1]), **(extra or {})}
+    return save_run(out, {"t": t, "q": z[:, :n], "p": z[:, n:]}, meta)
+
+
+def read_run(folder: str | os.PathLike) -> tuple[dict, dict]:
+    """``(arrays, meta)`` of a run folder, after checking that ``meta.json`` describes the
+    ``result.npz`` beside it (checksum and node count). Raises :class:`InputError` when a file
+    is missing or the pair does not match."""
+    folder = Path(folder)
+    try:
+        meta = json.loads((folder / META).read_text())
+        digest = atomic.sha256_of(folder / RESULT)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{folder} holds no readable run: {exc}") from None
+    if meta.get("result_sha256") != digest:
+        raise InputError(f"{folder / RESULT} is not the file {folder / META} describes (its "
+                         "checksum differs): the run was cut while writing, or written by "
+                         "another tool")
+    with np.load(folder / RESULT) as data:
+        arrays = {name: data[name] for name in data.files}
+    if arrays["t"].size != meta.get("nodes"):
+        raise InputError(f"{folder / RESULT} holds {arrays['t'].size} nodes, {folder / META} "
+                         f"says {meta.get('nodes')}")
+    return arrays, meta
 
 
 def _steps_meta(solution: Solution) -> dict:

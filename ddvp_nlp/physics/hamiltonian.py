@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..cache import cached
+from ..cache import cached, evaluate_columns
 from ..errors import InputError
 from ..validation import check_integer, check_parameter_values
 
@@ -89,10 +89,12 @@ class HamiltonianSystem:
 
     def energy(self, q, p, t, theta) -> np.ndarray:
         """``H`` at each row of ``q``, ``p`` (shape ``(N, n)``) and ``t`` (shape ``(N,)``)."""
-        q = np.atleast_2d(q)
-        f = self.H_function.map(q.shape[0])
-        return np.asarray(f(q.T, np.atleast_2d(p).T, np.atleast_1d(t)[None, :],
-                            np.asarray(theta, float)[:, None])).ravel()
+        q = np.atleast_2d(np.asarray(q, float))
+        p = np.atleast_2d(np.asarray(p, float))
+        t = np.atleast_1d(np.asarray(t, float))
+        if not q.shape[0]:
+            return np.zeros(0)
+        return evaluate_columns(self, self.H_function, [q.T, p.T, t[None, :]], theta).ravel()
 
 
 

@@ -44,7 +44,7 @@ from ..discrete.runge_kutta import rk4
 from ..physics.hamiltonian import vector_field_function
 from ..solution import Status
 from ..validation import check_real
-from .compiler import cache_folder, compile_function
+from .compiler import CompileUnavailable, cache_folder, compile_function, warn_once
 
 BLOCK = 1024  # nodes per call of the compiled estimate (the last block is padded)
 SMALL = 16  # fewer steps than this go one by one, unpadded
@@ -129,8 +129,11 @@ class ErrorEstimates:
         function = single.mapaccum("error_block", BLOCK)
         if compiler is not None:
             key = ("error_block", substeps, compiler, str(cache_dir))
-            function = cached(system, key, lambda: compile_function(
-                function, compiler, cache_folder(cache_dir), prefix="accuracy"))
+            try:
+                function = cached(system, key, lambda: compile_function(
+                    function, compiler, cache_folder(cache_dir), prefix="accuracy"))
+            except CompileUnavailable as reason:  # the virtual machine computes the same
+                warn_once(reason)
         self.block = function
 
     def __call__(self, t: np.ndarray, z: np.ndarray, theta: np.ndarray):

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .compiler import cache_folder, compile_function
+from ..cache import use_compiler
+from .compiler import CompileUnavailable, cache_folder, compile_function, warn_once
 from .steps import EnergyCheck, FixedCheck, StepFunctions
 
 # error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
@@ -137,11 +138,18 @@ class FastChunk:
         function = step.mapaccum("chunk", chunk)
         self.path = "vm"
         self.compile_s = 0.0
+        self.compile = None
         if compiler is not None:
             compiled_at = time.perf_counter()
-            function = compile_function(function, compiler, cache_folder(cache_dir))
+            folder = cache_folder(cache_dir)
+            try:
+                function = compile_function(function, compiler, folder)
+                self.compile = lambda f: _compiled_or_vm(f, compiler, folder)
+                use_compiler(system, self.compile)
+                self.path = "compiled"
+            except CompileUnavailable as exc:
+                warn_once(exc)  # the virtual machine runs the same function, slower
             self.compile_s = time.perf_counter() - compiled_at
-            self.path = "compiled"
         self.function = function
         self.build_s = time.perf_counter() - started
 
@@ -197,3 +205,12 @@ class FastChunk:
                                                                 total=total)])
         _, outputs = self._call(self.state.pack(k=k, z=z), parameters)
         return self._decode(outputs)
+
+
+def _compiled_or_vm(function, compiler, folder):
+    """``function`` compiled, or itself (on the virtual machine) if it cannot be."""
+    try:
+        return compile_function(function, compiler, folder)
+    except CompileUnavailable as exc:
+        warn_once(exc)
+        return function

@@ -4,6 +4,12 @@ Compiled libraries are cached in ``cache_dir`` (argument, else ``$DDVP_NLP_CACHE
 ``~/.cache/ddvp_nlp``) under a hash of the generated code, the compiler and its flags. Each build
 compiles to a temporary file and renames it into place, so two processes building the same entry
 at once both end with a complete library.
+
+The cache heals: beside each library ``chunk_KEY.so`` its SHA-256 is written at build time
+(``chunk_KEY.so.sha256``), and a library is loaded only when its bytes match; a truncated,
+empty or foreign file (which crashed every later run with a bus error) is rebuilt. When the cache
+folder cannot be used or the compiler fails, :class:`CompileUnavailable` says why, and the
+callers run CasADi's virtual machine instead, with one warning (:func:`warn_once`).
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import warnings
 from pathlib import Path
 
 import casadi as ca
@@ -46,24 +53,73 @@ def cache_folder(cache_dir: str | os.PathLike | None = None) -> Path:
     return Path.home() / ".cache" / "ddvp_nlp"
 
 
+class CompileUnavailable(RuntimeError):
+    """The compiled path cannot be used here (cache folder or compiler); the message says why."""
+
+
+_WARNED: set[str] = set()
+
+
+def warn_once(reason: Exception) -> None:
+    """One warning per distinct reason in this process: the virtual machine takes over."""
+    text = f"{reason}; running on CasADi's virtual machine instead (slower, same steps)"
+    if text not in _WARNED:
+        _WARNED.add(text)
+        warnings.warn(text, RuntimeWarning, stacklevel=3)
+
+
 def compile_function(function: ca.Function, compiler: str, folder: Path, *,
                      prefix: str = "chunk") -> ca.Function:
-    """Generate, compile (once per hash) and load ``function`` (``PREFIX_HASH.so``)."""
+    """Generate, compile (once per hash; again if the cached library fails its checksum) and
+    load ``function`` as ``PREFIX_HASH.so``. Raises :class:`CompileUnavailable` if the folder or
+    compiler fails."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
     code = source.dump()
     key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, ca.__version__])
                          .encode()).hexdigest()[:24]
-    folder.mkdir(parents=True, exist_ok=True)
-    library = folder / f"{prefix}_{key}.so"
-    if not library.exists():
-        with tempfile.TemporaryDirectory(dir=folder) as scratch:
-            c_file = Path(scratch) / "chunk.c"
-            c_file.write_text(code)
-            built = Path(scratch) / "chunk.so"
+    library = Path(folder) / f"{prefix}_{key}.so"
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        if not _intact(library):
+            _build(code, function.name(), compiler, library)
+    except OSError as exc:
+        raise CompileUnavailable(f"the compiled-code cache {str(folder)!r} cannot be used: "
+                                 f"{exc.strerror or exc}") from None
+    return ca.external(function.name(), str(library))
+
+
+def _intact(library: Path) -> bool:
+    """The library exists and its bytes match the checksum written when it was built."""
+    stamp = library.with_name(library.name + ".sha256")
+    try:
+        return stamp.read_text().strip() == _sha256(library)
+    except OSError:
+        return False
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _build(code: str, name: str, compiler: str, library: Path) -> None:
+    """Compile ``code`` to ``library`` and its checksum, each renamed into place complete."""
+    folder = library.parent
+    with tempfile.TemporaryDirectory(dir=folder) as scratch:
+        c_file = Path(scratch) / "chunk.c"
+        c_file.write_text(code)
+        built = Path(scratch) / "chunk.so"
+        try:
             result = subprocess.run([compiler, *COMPILE_FLAGS, str(c_file), "-o", str(built)],
                                     capture_output=True, text=True)
-            if result.returncode != 0:
-                raise RuntimeError(f"compiling {function.name()} failed:\n{result.stderr[-2000:]}")
-            os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
-    return ca.external(function.name(), str(library))
+        except OSError as exc:
+            raise CompileUnavailable(f"the C compiler {compiler!r} cannot run: "
+                                     f"{exc.strerror or exc}") from None
+        if result.returncode != 0 or not built.exists():
+            raise CompileUnavailable(f"the C compiler {compiler!r} failed on {name} "
+                                     f"(exit {result.returncode}): "
+                                     f"{result.stderr.strip()[-300:] or 'no message'}")
+        stamp = Path(scratch) / "chunk.sha256"
+        stamp.write_text(_sha256(built) + "\n")
+        os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
+        os.replace(stamp, library.with_name(library.name + ".sha256"))

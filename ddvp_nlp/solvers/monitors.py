@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -107,3 +108,49 @@ def _caller_level() -> int:
     while frame is not None and frame.f_code.co_filename.startswith(_HERE):
         frame, level = frame.f_back, level + 1
     return level
+
+
+class Checkpoint:
+    """Never ends the run: every ``interval`` seconds of stepping it hands the nodes kept so far
+    to ``save(t, z)`` (views, to be written before it returns), so a killed march loses at most
+    one interval. Its cost is held to about ``budget`` of the stepping time: after a save of
+    ``s`` seconds the next one waits at least ``s / budget``. ``seconds`` and ``saves`` record
+    the cost. A save that raises ``OSError`` stops the checkpoints (the final write will say
+    what cannot be written) with one warning."""
+
+    def __init__(self, save, interval: float, budget: float = 0.05):
+        self.save = save
+        self.interval = interval
+        self.budget = budget
+        self.seconds = 0.0
+        self.saves = 0
+        self.due = time.perf_counter() + interval
+
+    def watch(self, nodes, first, advance):
+        now = time.perf_counter()
+        if self.save is None or now < self.due:
+            return None
+        try:
+            self.save(nodes.t[:nodes.count], nodes.z[:nodes.count])
+        except OSError as exc:
+            warnings.warn(f"checkpoints stopped: {exc}", RuntimeWarning, stacklevel=2)
+            self.save = None
+            return None
+        spent = time.perf_counter() - now
+        self.seconds += spent
+        self.saves += 1
+        self.due = time.perf_counter() + max(self.interval, spent / self.budget)
+        return None
+
+
+class StopRequest:
+    """Ends the run (status ``INTERRUPTED``, every new node kept) once ``stop()`` is true: an
+    interrupt noted by a signal handler, acted on between two stepper calls."""
+
+    def __init__(self, stop):
+        self.stop = stop
+
+    def watch(self, nodes, first, advance):
+        if self.stop():
+            return Status.INTERRUPTED, "", advance.count
+        return None

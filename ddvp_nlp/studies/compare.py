@@ -155,6 +155,11 @@ def _chosen_methods(scene, methods) -> tuple[list[Method], list[str]]:
     return chosen, []
 
 
+# Halvings of the step past this reach steps of 2 tau0 / 2**40, where round-off has long taken
+# over and a single run would take days; 100000 overflowed a float.
+MAX_HALVINGS = 40
+
+
 def _runs(chosen, knobs, config, halvings) -> list[tuple[Method, float]]:
     """``(method, knob value)`` of every run: the given knob values, else the method's sweep."""
     knobs = dict(knobs or {})
@@ -183,7 +188,7 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
     check_comparable(scene)
     config = scene.resolve(overrides)
     check_starts_from_p0(scene, config)
-    halvings = check_count("halvings", halvings, minimum=0)
+    halvings = check_count("halvings", halvings, minimum=0, maximum=MAX_HALVINGS)
     repeats = check_count("repeats", repeats, minimum=1)
     chosen, left_out = _chosen_methods(scene, methods)
     runs = _runs(chosen, knobs, config, halvings)

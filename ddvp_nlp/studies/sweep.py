@@ -12,6 +12,7 @@ step method (the first step of ``vddvp``/``lee``) and ``rtol`` the tolerance of 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 from ..errors import InputError
@@ -50,6 +51,8 @@ def evenly_spaced(where, start, stop, count) -> list[float]:
     """``count`` values from ``start`` to ``stop``, both ends included."""
     if count < 1:
         raise InputError(f"{where}: count must be >= 1, got {count}")
+    if count > MAX_POINTS:
+        raise InputError(f"{where}: count must be at most {MAX_POINTS}, got {count}")
     if count == 1:
         return [start]
     return [start + (stop - start) * i / (count - 1) for i in range(count)]
@@ -61,6 +64,10 @@ def sweep_cases(spec: SweepSpec) -> list[Case]:
     scene = load_scene(spec.scene)
     check_comparable(scene)
     names = list(spec.axes)
+    size = math.prod(len(spec.axes[n]) for n in names)
+    if size > MAX_POINTS:
+        raise InputError(f"the grid has {size} points, more than {MAX_POINTS}; split it into "
+                         "several sweeps")
     cases = [_case_at(scene, spec, dict(zip(names, point, strict=True)))
              for point in itertools.product(*(spec.axes[n] for n in names))]
     for method in spec.methods:
@@ -69,6 +76,10 @@ def sweep_cases(spec: SweepSpec) -> list[Case]:
             raise InputError(f"method {method!r} does not apply to scene {scene.name!r}: "
                              f"{reason}")
     return cases
+
+
+# Points of one grid: a grid of 10**8 ran for minutes with no output before any task started.
+MAX_POINTS = 100_000
 
 
 def _case_at(scene, spec: SweepSpec, values: dict) -> Case:

@@ -1,0 +1,159 @@
+"""Crash safety of a run folder: the real command in a subprocess, killed, interrupted, starved
+of disk or raced by other writers; then the folder is read back with the checking reader.
+
+No test has a wall-clock bound: waiting is a bounded number of polls for a file to appear.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from ddvp_nlp.errors import InputError
+from ddvp_nlp.io.runs import read_run
+
+# A march far longer than any test waits for: it is always stopped from outside.
+ENDLESS = ["march", "pendulum", "--set", "t_end=1e7", "--no-progress", "--no-plot",
+           "--checkpoint-every", "0.2"]
+POLLS = 3000  # of 0.05 s each: how long a test waits for a checkpoint, at most
+
+
+def ddvp(args, **kwargs) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "ddvp_nlp.cli", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def wait_for_checkpoint(out, process, *, after: float = 0.0) -> dict:
+    """The metadata of the first checkpoint written after ``after`` (a ``meta.json`` mtime)."""
+    meta = out / "meta.json"
+    for _ in range(POLLS):
+        if meta.exists() and meta.stat().st_mtime > after:
+            data = json.loads(meta.read_text())
+            if data["status"] == "running":
+                return data
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.05)
+    process.kill()
+    raise AssertionError("no checkpoint was written")
+
+
+def test_sigkill_mid_run_keeps_the_last_checkpoint_whole(tmp_path):
+    out = tmp_path / "run"
+    process = ddvp([*ENDLESS, "--out", str(out)])
+    first = wait_for_checkpoint(out, process)
+    wait_for_checkpoint(out, process, after=(out / "meta.json").stat().st_mtime)
+    process.kill()
+    process.wait()
+    arrays, meta = read_run(out)
+    assert meta["status"] == "running" and meta["nodes"] == arrays["t"].size
+    assert arrays["t"].size > first["nodes"] > 1
+    assert np.all(np.diff(arrays["t"]) > 0) and arrays["q"].shape == (arrays["t"].size, 1)
+
+
+def test_sigkill_over_an_earlier_run_leaves_one_whole_run(tmp_path):
+    out = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-m", "ddvp_nlp.cli", "march", "pendulum",
+                           "--no-progress", "--no-plot", "--out", str(out)], capture_output=True)
+    assert done.returncode == 0
+    process = ddvp([*ENDLESS, "--out", str(out)])
+    wait_for_checkpoint(out, process)
+    process.kill()
+    process.wait()
+    arrays, meta = read_run(out)  # the checkpoint, whole, never the old meta with a new npz
+    assert meta["status"] == "running" and arrays["t"].size == meta["nodes"]
+
+
+@pytest.mark.parametrize("signals", [[signal.SIGINT, signal.SIGINT], [signal.SIGTERM]],
+                         ids=["two-ctrl-c", "sigterm"])
+def test_interrupts_end_with_the_run_written(tmp_path, signals):
+    out = tmp_path / "run"
+    process = ddvp([*ENDLESS, "--out", str(out)])
+    wait_for_checkpoint(out, process)
+    for sig in signals:
+        process.send_signal(sig)
+    _, stderr = process.communicate()
+    assert process.returncode == 1
+    assert "Traceback" not in stderr
+    arrays, meta = read_run(out)
+    assert meta["status"] == "interrupted" and meta["nodes"] == arrays["t"].size > 1
+    assert meta["message"].startswith("interrupted by the user")
+
+
+def test_concurrent_writers_leave_one_whole_run(tmp_path):
+    out = tmp_path / "run"
+    ends = ["3", "4", "5", "6"]
+    processes = [ddvp(["march", "harmonic", "--set", f"t_end={end}", "--no-progress",
+                       "--out", str(out)]) for end in ends]
+    for process in processes:
+        process.communicate()
+        assert process.returncode == 0
+    arrays, meta = read_run(out)
+    assert meta["params"]["t_end"] in {float(e) for e in ends}
+    assert arrays["t"][-1] >= meta["params"]["t_end"] and meta["nodes"] == arrays["t"].size
+    assert not [p for p in out.iterdir() if ".tmp" in p.name]
+
+
+def test_a_full_disk_ends_with_exit_1_naming_the_file(tmp_path):
+    out = tmp_path / "run"
+
+    def small_files():  # files past 64 kB fail with EFBIG, as on a full disk
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64_000, 64_000))
+
+    done = subprocess.run([sys.executable, "-m", "ddvp_nlp.cli", "march", "pendulum",
+                           "--set", "t_end=200", "--no-progress", "--no-plot", "--out", str(out)],
+                          capture_output=True, text=True, preexec_fn=small_files)
+    assert done.returncode == 1
+    assert done.stderr.startswith(f"ddvp march: error: cannot write {out / 'result.npz'}: "
+                                  "File too large; the run was not saved")
+    assert "Traceback" not in done.stderr
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".ddvp")) == []
+
+
+def test_a_folder_gone_mid_run_ends_with_exit_1_naming_the_path(tmp_path):
+    out = tmp_path / "run"
+    process = ddvp([*ENDLESS, "--out", str(out)])
+    wait_for_checkpoint(out, process)
+    shutil.rmtree(out)
+    out.write_text("not a folder any more")
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate()
+    assert process.returncode == 1
+    assert "Traceback" not in stderr
+    assert f"ddvp march: error: cannot write {out}/" in stderr
+    assert "the run was not saved" in stderr
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes to read-only folders")
+def test_a_read_only_folder_is_refused_before_the_march(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    out.chmod(0o555)
+    done = subprocess.run([sys.executable, "-m", "ddvp_nlp.cli", "march", "harmonic",
+                           "--no-progress", "--out", str(out)], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert f"output folder {str(out)!r} cannot be written" in done.stderr
+
+
+def test_reader_refuses_a_result_beside_another_runs_meta(tmp_path):
+    from ddvp_nlp.cli import main
+
+    for name, end in (("a", "3"), ("b", "4")):
+        assert main(["march", "harmonic", "--set", f"t_end={end}", "--no-progress",
+                     "--no-plot", "--out", str(tmp_path / name)]) == 0
+    shutil.copy(tmp_path / "a" / "meta.json", tmp_path / "b" / "meta.json")
+    with pytest.raises(InputError) as info:
+        read_run(tmp_path / "b")
+    assert str(info.value) == (
+        f"{tmp_path / 'b' / 'result.npz'} is not the file {tmp_path / 'b' / 'meta.json'} "
+        "describes (its checksum differs): the run was cut while writing, or written by "
+        "another tool")
