@@ -167,8 +167,10 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
     checker = None
     if check_accuracy:
+        # compiled where the march's own chunk is (one fallback warning, not two)
+        compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
         checker = _accuracy_monitor(system, scheme, theta, accuracy, H0,
-                                    compiler=compiler if fast else None, cache_dir=cache_dir)
+                                    compiler=compiler if compiled else None, cache_dir=cache_dir)
         monitors.append(checker)
     monitors += [StopRequest(stop)] if stop else []
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
