@@ -16,6 +16,7 @@ The built-in scenes are the files of the top-level ``problems/`` folder (install
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -205,8 +206,8 @@ def list_scenes() -> list[str]:
     return sorted(p.stem for p in scene_folder().glob("*.py") if not p.stem.startswith("_"))
 
 
-def load_scene(name_or_path: str) -> Scene:
-    """A built-in scene by name, or the scene defined in a Python file."""
+def scene_file(name_or_path: str) -> Path:
+    """The file of a built-in scene (by name) or of a scene file (by path), checked."""
     if not isinstance(name_or_path, str) or not name_or_path:
         raise InputError(f"scene must be a name or a path, got {name_or_path!r}")
     looks_like_path = name_or_path.endswith(".py") or "/" in name_or_path or "\\" in name_or_path
@@ -216,13 +217,28 @@ def load_scene(name_or_path: str) -> Scene:
             raise InputError(f"scene file {name_or_path!r} does not exist")
         if path.suffix != ".py":
             raise InputError(f"scene file {name_or_path!r} is not a Python file (.py)")
-        name = path.stem
-    else:
-        if name_or_path not in list_scenes():
-            raise InputError(f"unknown scene {name_or_path!r} (built-in scenes: "
-                             f"{', '.join(list_scenes())})")
-        path = scene_folder() / f"{name_or_path}.py"
-        name = name_or_path
+        return path
+    if name_or_path not in list_scenes():
+        raise InputError(f"unknown scene {name_or_path!r} (built-in scenes: "
+                         f"{', '.join(list_scenes())})")
+    return scene_folder() / f"{name_or_path}.py"
+
+
+def scene_digest(name_or_path: str) -> str:
+    """SHA-256 of the scene's file: what a grid row was computed from, so that a resumed grid
+    reuses a row only for the same file, and a worker refuses a different one."""
+    return hashlib.sha256(scene_file(name_or_path).read_bytes()).hexdigest()
+
+
+def load_scene(name_or_path: str, *, digest: str | None = None) -> Scene:
+    """A built-in scene by name, or the scene defined in a Python file; with ``digest``, only
+    if the file's SHA-256 is that (a worker of a grid loads the file the grid was planned on)."""
+    path = scene_file(name_or_path)
+    name = path.stem
+    if digest is not None and scene_digest(name_or_path) != digest:
+        raise InputError(f"scene file {str(path)!r} is not the one this grid was planned with "
+                         "(its content differs): a worker has another file of that name, or it "
+                         "changed since")
     spec = importlib.util.spec_from_file_location(f"ddvp_scene_{name}", path)
     module = importlib.util.module_from_spec(spec)
     try:

@@ -2,6 +2,7 @@
 nothing lost when a worker dies, resume without redoing finished rows."""
 
 import csv
+from pathlib import Path
 
 import dask
 import numpy as np
@@ -97,8 +98,8 @@ def test_resume_skips_finished_rows(tmp_path):
     # an interrupted grid: only two rows made it to the file
     with open(path, newline="") as handle:
         kept = list(csv.DictReader(handle))[:2]
-    with open(path, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, ["key", "x"])
+    with open(path, "w", newline="") as handle:  # the file's own columns (fingerprint too)
+        writer = csv.DictWriter(handle, list(kept[0]))
         writer.writeheader()
         writer.writerows(kept)
     resumed, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
@@ -198,3 +199,47 @@ def test_bad_scheduler_and_workers():
         list(run_tasks([], scheduler="localhost"))
     with pytest.raises(InputError, match="^workers must be a positive integer, got 0$"):
         list(run_tasks([], workers=0))
+
+
+def _grid(path, tasks, **kwargs):
+    return run_grid(tasks, path, ["key", "x", "status"], parse=dict, workers=1,
+                    failure_row=lambda task, error: {"x": "", "status": "task_failed"}, **kwargs)
+
+
+def test_resume_reruns_a_row_whose_settings_changed(tmp_path):
+    path = tmp_path / "grid.csv"
+    _grid(path, [Task("a", "builtins:dict", kwargs={"x": "1", "status": "success"})])
+    rows, ran = _grid(path, [Task("a", "builtins:dict", kwargs={"x": "2", "status": "success"})])
+    assert ran == 1 and rows[0]["x"] == "2"  # same key, other settings: not reused
+
+
+def test_resume_retries_failed_rows_and_skips_a_torn_line(tmp_path):
+    path = tmp_path / "grid.csv"
+    tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i), "status": "success"})
+             for i in range(3)]
+    _grid(path, tasks)
+    text = path.read_text().splitlines()
+    text[1] = text[1].replace("success", "task_failed")  # a task that failed last time
+    path.write_text("\n".join(text[:-1]) + "\n" + text[-1][:4])  # and a torn last line
+    with pytest.warns(RuntimeWarning, match="line 4 is incomplete"):
+        rows, ran = _grid(path, tasks)
+    assert ran == 2 and [r["status"] for r in rows] == ["success"] * 3
+
+
+def test_a_worker_refuses_a_scene_file_other_than_the_planned_one(tmp_path):
+    from ddvp_nlp.scenes import load_scene, scene_digest
+
+    scene = tmp_path / "mine.py"
+    scene.write_text((Path(__file__).parent.parent / "problems" / "harmonic.py").read_text())
+    digest = scene_digest(str(scene))
+    load_scene(str(scene), digest=digest)
+    scene.write_text(scene.read_text().replace("w**2", "2 * w**2"))
+    with pytest.raises(InputError, match="is not the one this grid was planned with"):
+        load_scene(str(scene), digest=digest)
+
+
+def test_an_unreachable_scheduler_is_refused_quickly():
+    from ddvp_nlp.studies.grid import resolve_scheduler
+
+    with pytest.raises(InputError, match="no Dask scheduler answers at 'tcp://127.0.0.1:9'"):
+        resolve_scheduler("tcp://127.0.0.1:9")

@@ -49,7 +49,7 @@ ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
              "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
-             "message"),
+             "message", "fingerprint"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
             "scheme_energy_residual", "error_estimate"),
     integers=("steps", "repeats", "order"),

@@ -26,9 +26,13 @@ order, holding exactly the rows of this grid. A :class:`RowSchema` types the row
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import json
 import os
+import socket
 import uuid
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
@@ -50,6 +54,14 @@ class Task:
     kwargs: dict = field(default_factory=dict)
     priority: float = 0.0
 
+    def fingerprint(self) -> str:
+        """A hash of everything the task's row depends on: the function and every argument
+        (for a stress or sweep run: scene and the scene file's digest, settings, method, knob,
+        bounds). A resumed grid reuses a row only under the same fingerprint."""
+        text = json.dumps([self.function, list(self.args), self.kwargs], sort_keys=True,
+                          default=repr)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
 
 def execute(task: Task):
     """Run one task (in whatever process it landed)."""
@@ -63,7 +75,24 @@ def resolve_scheduler(scheduler: str | None) -> str | None:
         scheduler = os.environ.get(SCHEDULER_VARIABLE) or None
     if scheduler is not None and (not isinstance(scheduler, str) or "://" not in scheduler):
         raise InputError(f"scheduler must be an address like tcp://host:8786, got {scheduler!r}")
+    if scheduler is not None:
+        _reachable(scheduler)
     return scheduler
+
+
+def _reachable(scheduler: str, timeout: float = 3.0) -> None:
+    """Refuse, quickly and with a message, a scheduler nobody answers at (Dask would wait 30 s
+    and end in a traceback)."""
+    host, _, port = scheduler.split("://", 1)[1].rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]") or "localhost", int(port)),
+                                      timeout=timeout):
+            pass
+    except ValueError:
+        raise InputError(f"scheduler {scheduler!r} has no port (like tcp://host:8786)") from None
+    except OSError as exc:
+        raise InputError(f"no Dask scheduler answers at {scheduler!r} within {timeout:g} s: "
+                         f"{exc.strerror or exc}") from None
 
 
 def check_workers(workers) -> int | None:
@@ -189,18 +218,47 @@ def run_grid(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequence[s
     keys = [task.key for task in tasks]
     if len(set(keys)) != len(keys):
         raise InputError("the grid has two tasks with the same key")
-    done = {row["key"]: parse(row) for row in read_csv(path)} if resume else {}
+    columns = [*columns, *(["fingerprint"] if "fingerprint" not in columns else [])]
+    done = _reusable(path, tasks, columns, parse) if resume else {}
     todo = [task for task in tasks if task.key not in done]
+    # the rows kept are rewritten first, so a retried row is never read twice
+    rewrite_csv(path, columns, done.values())
     with appending(path, columns, fresh=not done) as append:
         for task, result, error in run_tasks(todo, workers=workers, scheduler=scheduler,
                                              progress=progress):
             row = result if error is None else failure_row(task, error)
-            row = {**row, "key": task.key}
+            row = {**row, "key": task.key, "fingerprint": task.fingerprint()}
             append(row)
             done[task.key] = parse({k: str(v) for k, v in row.items()})
     rows = [done[key] for key in keys]
     rewrite_csv(path, columns, rows)
     return rows, len(todo)
+
+
+RETRIED = ("task_failed", "worker_died", "not_run")  # statuses a resumed grid runs again
+
+
+def _reusable(path, tasks, columns, parse) -> dict:
+    """The rows of the result file that a resumed grid keeps: same key, same fingerprint, a
+    status that is not a failure of the task itself (``RETRIED``). A row cut short by a crash,
+    or that does not parse, is skipped with a warning and its task runs again."""
+    fingerprints = {task.key: task.fingerprint() for task in tasks}
+    kept = {}
+    for number, row in enumerate(read_csv(path), start=2):
+        if None in row.values() or None in row or any(row.get(c) is None for c in columns):
+            warnings.warn(f"{path}: line {number} is incomplete (a run cut short?); its task "
+                          "runs again", RuntimeWarning, stacklevel=3)
+            continue
+        try:
+            parsed = parse(row)
+        except (KeyError, ValueError) as exc:
+            warnings.warn(f"{path}: line {number} does not parse ({exc}); its task runs again",
+                          RuntimeWarning, stacklevel=3)
+            continue
+        key = row.get("key")
+        if fingerprints.get(key) == row.get("fingerprint") and row.get("status") not in RETRIED:
+            kept[key] = parsed
+    return kept
 
 
 def describe_error(error: str) -> tuple[str, str]:

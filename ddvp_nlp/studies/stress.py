@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..physics.hamiltonian import site_density_weight_function
-from ..scenes import load_scene
+from ..scenes import load_scene, scene_digest, scene_file
 from ..solvers.compiler import find_compiler
 from ..validation import check_integer, check_real
 from .accuracy import COLUMNS as ACCURACY_COLUMNS
@@ -42,7 +42,7 @@ from .reference import check_comparable, check_starts_from_p0, reference_for
 ROWS = RowSchema(
     columns=("key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
              "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message"),
+             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message", "fingerprint"),
     floats=("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
             "w_ratio", "error_estimate"),
     integers=("steps",),
@@ -166,7 +166,9 @@ def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_0
         cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
         tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
                           function="ddvp_nlp.studies.stress:run_one",
-                          kwargs={"group": case.group, "case": case.name, "scene": case.scene,
+                          kwargs={"group": case.group, "case": case.name,
+                                  "scene": _portable(case.scene),
+                                  "scene_digest": scene_digest(case.scene),
                                   "settings": case.settings, "method": name, "value": value,
                                   "compiler": compiler, "cache_dir": cache_dir,
                                   "max_steps": max_steps, "time_limit": time_limit},
@@ -174,10 +176,17 @@ def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_0
     return tasks
 
 
+def _portable(scene: str) -> str:
+    """A scene name as it is, a scene path made absolute: a worker must not resolve a relative
+    path in its own folder."""
+    return str(scene_file(scene).resolve()) if scene.endswith(".py") or "/" in scene else scene
+
+
 def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
-            time_limit) -> dict:
-    """One method on one case: its row (a grid task; runs in any process)."""
-    loaded = load_scene(scene)
+            time_limit, scene_digest=None) -> dict:
+    """One method on one case: its row (a grid task; runs in any process). ``scene_digest``:
+    the file this process loads must be the one the grid was planned with."""
+    loaded = load_scene(scene, digest=scene_digest)
     config = loaded.resolve(settings)
     system = loaded.system
     row = {"group": group, "case": case, "scene": scene, "settings": _settings_text(settings),
