@@ -40,6 +40,7 @@ from .accuracy import AccuracyMonitor, Tolerance
 from .chunk import FastChunk
 from .driver import Nodes, drive
 from .monitors import MONITOR_LIMIT, EnergyGuard, SolvabilityMonitor
+from .recheck import grid_residuals
 from .stepper import (
     BREAKDOWNS,
     LEAST_SQUARES_CASES,
@@ -155,6 +156,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
                     catch_interrupt=True)
     solved = time.perf_counter()
     solution = _solution(system, scheme, theta, outcome, parts, solvability,
+                         compiler=compiler if fast else None, cache_dir=cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
     if checker is not None:
         solution.local_error = checker.local_errors(solution.steps)
@@ -314,12 +316,15 @@ def _accuracy_monitor(system, scheme, theta, tolerance, H0, *, compiler, cache_d
                            cache_dir=cache_dir)
 
 
-def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, timing):
-    """The :class:`Solution`, with every equation recomputed on the returned grid."""
+def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, compiler,
+              cache_dir, timing):
+    """The :class:`Solution`, with every equation recomputed on the returned grid (compiled
+    with ``compiler``, else on CasADi's virtual machine)."""
     started = time.perf_counter()
     t, z = outcome.t, outcome.z
     n = system.n
-    canonical, energy = equations.grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta)
+    canonical, energy = grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta,
+                                       compiler=compiler, cache_dir=cache_dir)
     verified = time.perf_counter()
     fast_chunk, tally = parts.fast_chunk, parts.tally
     return Solution(
