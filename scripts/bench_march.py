@@ -14,9 +14,12 @@ numpy right-hand side, as a user would write it.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import platform
+import subprocess
 import tempfile
 import time
+from pathlib import Path
 
 import casadi
 import numpy as np
@@ -145,10 +148,87 @@ def bench(name, overrides, repeats):
           f"state error {dop_error:.2e}")
 
 
+C_SOURCE = Path(__file__).with_name("c_march.c")
+C_KINDS = {"paper_pendulum": 0, "fpu": 1}
+
+
+def c_march_library(folder):
+    """``scripts/c_march.c`` compiled with the library's own flags (``-ffp-contract=off``)."""
+    library = Path(folder) / "c_march.so"
+    subprocess.run(["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", str(C_SOURCE), "-o",
+                    str(library), "-lm"], check=True)
+    lib = ctypes.CDLL(str(library))
+    pointer = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
+    lib.c_march.argtypes = [ctypes.c_int, ctypes.c_int, pointer, pointer, ctypes.c_double,
+                            ctypes.c_double, ctypes.c_double, ctypes.c_int, ctypes.c_double,
+                            pointer, pointer, pointer]
+    lib.c_march.restype = ctypes.c_int
+    return lib
+
+
+def timed(repeats, run):
+    """Best CPU and best wall time of ``repeats`` runs after one warm-up, and the last result."""
+    run()
+    cpu, wall, result = [], [], None
+    for _ in range(repeats):
+        c0, w0 = time.process_time(), time.perf_counter()
+        result = run()
+        cpu.append(time.process_time() - c0)
+        wall.append(time.perf_counter() - w0)
+    return min(cpu), min(wall), result
+
+
+def bench_against_c(name, overrides, repeats, folder):
+    """march() (the whole call, with and without the accuracy check) against the C march."""
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+    system = scene.system
+    theta = np.zeros(4)
+    values = system.parameter_vector(config.params)
+    theta[:values.size] = values
+    n = system.n
+    lib = c_march_library(folder)
+    capacity = 400_000
+    t, z, H = np.empty(capacity + 1), np.empty((capacity + 1, 2 * n)), np.empty(capacity + 1)
+    z0 = np.concatenate([config.q0, config.p0])
+
+    def c_run():
+        return lib.c_march(C_KINDS[name], n, theta, z0, config.t0, config.tau0, config.t_end,
+                           capacity, 1e-10, t, z, H)
+
+    def run(**options):
+        return march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
+                     params=config.params, cache_dir=folder, **options)
+
+    c_cpu, c_wall, c_steps = timed(repeats * 4, c_run)
+    rows = [("C march (scripts/c_march.c)", c_cpu, c_wall, c_steps)]
+    for label, options in (("march(), accuracy check on (default)", {}),
+                           ("march(), check_accuracy=False", {"check_accuracy": False})):
+        cpu, wall, solution = timed(repeats, lambda options=options: run(**options))
+        rows.append((label, cpu, wall, solution.steps))
+    steps = rows[1][3]
+    same = c_steps == steps
+    difference = float(np.max(np.abs(t[:c_steps + 1] - solution.t))) if same else float("nan")
+    print(f"\n## {name} against the C march (n = {n}, {steps} steps, whole call)\n")
+    print("| method | CPU s | wall s | CPU us / step | CPU ratio to C | wall ratio to C |")
+    print("|---|---|---|---|---|---|")
+    for label, cpu, wall, count in rows:
+        print(f"| {label} | {cpu:.4f} | {wall:.4f} | {cpu / count * 1e6:.3f} | "
+              f"{cpu / c_cpu:.2f} | {wall / c_wall:.2f} |")
+    print(f"\n- C march: {c_steps} steps; largest |t_C - t_march| over the nodes {difference:.2e}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--c-only", action="store_true",
+                        help="only the comparison with the C march")
     args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        bench_against_c("paper_pendulum", {}, args.repeats, folder)
+        bench_against_c("fpu", {"t_end": 200.0}, args.repeats, folder)
+    if args.c_only:
+        return
     bench("paper_pendulum", {}, args.repeats)
     bench("fpu", {"t_end": 200.0}, args.repeats)
     print(f"\nmachine: {platform.machine()}, python {platform.python_version()}, casadi "

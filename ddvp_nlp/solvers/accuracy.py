@@ -44,7 +44,13 @@ from ..discrete.runge_kutta import rk4
 from ..physics.hamiltonian import vector_field_function
 from ..solution import Status
 from ..validation import check_real
-from .compiler import CompileUnavailable, cache_folder, compile_function, warn_once
+from .compiler import (
+    CompileUnavailable,
+    FunctionBuffer,
+    cache_folder,
+    compile_function,
+    warn_once,
+)
 
 BLOCK = 1024  # nodes per call of the compiled estimate (the last block is padded)
 SMALL = 16  # fewer steps than this go one by one, unpadded
@@ -135,6 +141,7 @@ class ErrorEstimates:
             except CompileUnavailable as reason:  # the virtual machine computes the same
                 warn_once(reason)
         self.block = function
+        self.buffer = FunctionBuffer(function)
 
     def __call__(self, t: np.ndarray, z: np.ndarray, theta: np.ndarray):
         """For the steps between the rows of ``t`` (M+1,) and ``z`` (M+1, 2n), continuing the
@@ -144,23 +151,20 @@ class ErrorEstimates:
         if steps < SMALL:
             return self._one_by_one(t, z, theta)
         out = np.empty((4, max(steps, 0)))
-        theta_block = np.tile(np.asarray(theta, float)[:, None], (1, BLOCK))
+        theta_block = np.broadcast_to(np.asarray(theta, float), (BLOCK, np.size(theta)))
         for start in range(0, steps, BLOCK):
             stop = min(start + BLOCK, steps)
             count = stop - start
             z_a, z_b = _padded(z[start:stop]), _padded(z[start + 1:stop + 1])
             t_a = _padded(t[start:stop])
             tau = _padded(np.diff(t[start:stop + 1]))
-            e, delta, scale, H_b = self.block(self.e, z_a.T, z_b.T, t_a[None, :],
-                                              tau[None, :], theta_block)
-            e = np.asarray(e)
-            self.e = e[:, count - 1].copy()
-            out[0, start:stop] = np.asarray(delta).ravel()[:count]
-            out[1, start:stop] = np.asarray(scale).ravel()[:count]
-            out[2, start:stop] = np.asarray(H_b).ravel()[:count]
-            out[3, start:stop] = np.max(np.abs(e[:, :count]), axis=0)
+            e, delta, scale, H_b = self.buffer(self.e, z_a, z_b, t_a, tau, theta_block)
+            self.e = e[count - 1].copy()
+            out[0, start:stop] = delta[:count, 0]
+            out[1, start:stop] = scale[:count, 0]
+            out[2, start:stop] = H_b[:count, 0]
+            out[3, start:stop] = np.max(np.abs(e[:count]), axis=1)
         return out[0], out[1], out[2], out[3]
-
 
     def _one_by_one(self, t, z, theta):
         """Few steps (the careful path's one at a time): the single-step function, no padding."""

@@ -19,10 +19,12 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 import warnings
 from pathlib import Path
 
 import casadi as ca
+import numpy as np
 
 from ..errors import InputError
 
@@ -123,3 +125,42 @@ def _build(code: str, name: str, compiler: str, library: Path) -> None:
         stamp.write_text(_sha256(built) + "\n")
         os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
         os.replace(stamp, library.with_name(library.name + ".sha256"))
+
+
+class FunctionBuffer:
+    """Calls of ``function`` through ``Function.buffer``: CasADi reads and writes numpy arrays
+    in place, without the conversions of a call with DM arguments (about 1 us per column of a
+    mapped call, more than a compiled march step).
+
+    Each dense input or output of shape ``(rows, columns)`` is a C-ordered array of shape
+    ``(columns, rows)`` (CasADi's column-major order): a mapped function's columns are its rows.
+    :meth:`__call__` copies the inputs in and returns the output arrays, which the next call of
+    the same thread overwrites (one set of arrays per thread: cached functions are shared)."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._local = threading.local()
+
+    def _arrays(self):
+        arrays = getattr(self._local, "arrays", None)
+        if arrays is None:
+            f = self.function
+            buffer, trigger = f.buffer()
+            inputs = [np.zeros((f.sparsity_in(i).size2(), f.sparsity_in(i).size1()))
+                      for i in range(f.n_in())]
+            outputs = [np.zeros((f.sparsity_out(i).size2(), f.sparsity_out(i).size1()))
+                       for i in range(f.n_out())]
+            for i, array in enumerate(inputs):
+                buffer.set_arg(i, memoryview(array.reshape(-1)))
+            for i, array in enumerate(outputs):
+                buffer.set_res(i, memoryview(array.reshape(-1)))
+            arrays = self._local.arrays = (buffer, trigger, inputs, outputs)
+        return arrays
+
+    def __call__(self, *values) -> list[np.ndarray]:
+        _, trigger, inputs, outputs = self._arrays()
+        for array, value in zip(inputs, values, strict=False):
+            if value is not None:  # None: keep what the previous call put there
+                array.reshape(-1)[:] = np.ravel(value)
+        trigger()
+        return outputs

@@ -46,6 +46,7 @@ from .monitors import (
     SolvabilityMonitor,
     StopRequest,
 )
+from .recheck import grid_residuals
 from .stepper import (
     BREAKDOWNS,
     LEAST_SQUARES_CASES,
@@ -165,10 +166,11 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     built = time.perf_counter()
     nodes = Nodes(options.t0, np.concatenate([q0, p0]))
     monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
+    # the check and the recheck are compiled where the march's own chunk is (one fallback
+    # warning, not three)
+    compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
     checker = None
     if check_accuracy:
-        # compiled where the march's own chunk is (one fallback warning, not two)
-        compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
         checker = _accuracy_monitor(system, scheme, theta, accuracy, H0,
                                     compiler=compiler if compiled else None, cache_dir=cache_dir)
         monitors.append(checker)
@@ -179,6 +181,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
                     catch_interrupt=True)
     solved = time.perf_counter()
     solution = _solution(system, scheme, theta, outcome, parts, solvability,
+                         compiler=compiler if compiled else None, cache_dir=cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
     if checker is not None:
         solution.local_error = checker.local_errors(solution.steps)
@@ -350,17 +353,17 @@ def _accuracy_monitor(system, scheme, theta, tolerance, H0, *, compiler, cache_d
                            cache_dir=cache_dir)
 
 
-def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, timing):
-    """The :class:`Solution`, with every equation recomputed on the returned grid."""
+def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, compiler,
+              cache_dir, timing):
+    """The :class:`Solution`, with every equation recomputed on the returned grid (compiled
+    with ``compiler``, else on CasADi's virtual machine)."""
     started = time.perf_counter()
     t, z = outcome.t, outcome.z
     n = system.n
-    fast_chunk = parts.fast_chunk
-    canonical, energy = equations.grid_residuals(
-        system, scheme, t, z[:, :n], z[:, n:], theta,
-        compile=fast_chunk.compile if fast_chunk and fast_chunk.path == "compiled" else None)
+    canonical, energy = grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta,
+                                       compiler=compiler, cache_dir=cache_dir)
     verified = time.perf_counter()
-    tally = parts.tally
+    fast_chunk, tally = parts.fast_chunk, parts.tally
     return Solution(
         t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=outcome.status,
         message=outcome.message, scheme=scheme.rule, energy_residual=energy,

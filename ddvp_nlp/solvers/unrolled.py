@@ -1,0 +1,156 @@
+"""CasADi's ``fast_newton``, unrolled: a fixed number of its iterations as straight-line SX.
+
+``fast_newton`` (the rootfinder of the compiled chunk) iterates, at most ``max_iter`` times:
+evaluate ``g(x)`` and ``J = dg/dx``; stop if ``|g|_inf <= abstol``; else factor ``J = QR``
+(Householder, CasADi's sparse ``casadi_qr``), ``dx = J^-1 g``, ``x <- x - dx``; stop if
+``|dx|_inf <= abstol_step``. Its loop and its generic sparse QR cost more than the arithmetic of
+a small step. :func:`unrolled_newton` writes the first ``iterations`` of that loop as one SX
+expression: the same Jacobian function, the same QR in the same order of operations (specialised
+to the Jacobian's sparsity pattern), each update masked once the loop would have stopped. It
+returns the iterate and whether the loop would have stopped; where it would not, the caller
+goes on with ``fast_newton`` from that iterate, so the result is the one ``fast_newton`` gives,
+to the last bit (the chunk compiles with ``-ffp-contract=off``).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+
+def norm_inf(values) -> ca.SX:
+    """``casadi_norm_inf``: ``fmax`` from 0 over ``|v_i|`` (``fmax`` ignores a NaN)."""
+    result = ca.SX(0)
+    for value in values:
+        result = ca.fmax(result, ca.fabs(value))
+    return result
+
+
+def _house(v: list, count: int):
+    """``casadi_house`` on ``v[:count]`` (in place): returns ``(s, beta)``."""
+    v0 = v[0]
+    sigma = ca.SX(0)
+    for i in range(1, count):
+        sigma = sigma + v[i] * v[i]
+    s = ca.sqrt(v0 * v0 + sigma)
+    sigma_is_zero = sigma == 0
+    v0_nonpos = v0 <= 0
+    v[0] = ca.if_else(sigma_is_zero, 1, ca.if_else(v0_nonpos, v0 - s, -sigma / (v0 + s)))
+    beta = ca.if_else(sigma_is_zero, 2 * v0_nonpos, -1 / (s * v[0]))
+    return s, beta
+
+
+class SparseQR:
+    """``casadi_qr`` and ``casadi_qr_solve`` for one sparsity pattern, on SX scalars."""
+
+    def __init__(self, pattern: ca.Sparsity):
+        self.pattern = pattern
+        sp_v, sp_r, self.prinv, self.pc = pattern.qr_sparse(True)
+        self.nrow = sp_v.size1()
+        self.ncol = pattern.size2()
+        self.a_colind, self.a_row = pattern.colind(), pattern.row()
+        self.v_colind, self.v_row = sp_v.colind(), sp_v.row()
+        self.r_colind, self.r_row = sp_r.colind(), sp_r.row()
+
+    def factor(self, nz_a: list):
+        """The nonzeros of ``V``, ``R`` and ``beta`` of ``A`` (its nonzeros ``nz_a``)."""
+        x = [ca.SX(0)] * self.nrow
+        nz_v = [None] * len(self.v_row)
+        nz_r, beta = [], [None] * self.ncol
+        vc, vr = self.v_colind, self.v_row
+        for c in range(self.ncol):
+            column = self.pc[c]
+            for k in range(self.a_colind[column], self.a_colind[column + 1]):
+                x[self.prinv[self.a_row[k]]] = nz_a[k]
+            for k in range(self.r_colind[c], self.r_colind[c + 1]):
+                r = self.r_row[k]
+                if r >= c:
+                    break
+                alpha = ca.SX(0)
+                for k1 in range(vc[r], vc[r + 1]):
+                    alpha = alpha + nz_v[k1] * x[vr[k1]]
+                alpha = alpha * beta[r]
+                for k1 in range(vc[r], vc[r + 1]):
+                    x[vr[k1]] = x[vr[k1]] - alpha * nz_v[k1]
+                nz_r.append(x[r])
+                x[r] = ca.SX(0)
+            for k in range(vc[c], vc[c + 1]):
+                nz_v[k] = x[vr[k]]
+                x[vr[k]] = ca.SX(0)
+            house = nz_v[vc[c]:vc[c + 1]]
+            s, beta[c] = _house(house, len(house))
+            nz_v[vc[c]:vc[c + 1]] = house
+            nz_r.append(s)
+        return nz_v, nz_r, beta
+
+    def solve(self, factors, b: list) -> list:
+        """``casadi_qr_solve`` (one right-hand side, not transposed): ``A^-1 b``."""
+        nz_v, nz_r, beta = factors
+        w = [ca.SX(0)] * self.nrow
+        for c in range(self.ncol):
+            w[self.prinv[c]] = b[c]
+        vc, vr = self.v_colind, self.v_row
+        for c in range(self.ncol):  # casadi_qr_mv, transposed: Q' w
+            alpha = ca.SX(0)
+            for k in range(vc[c], vc[c + 1]):
+                alpha = alpha + nz_v[k] * w[vr[k]]
+            alpha = alpha * beta[c]
+            for k in range(vc[c], vc[c + 1]):
+                w[vr[k]] = w[vr[k]] - alpha * nz_v[k]
+        for c in range(self.ncol - 1, -1, -1):  # casadi_qr_trs: R w = Q' b, backwards
+            for k in range(self.r_colind[c + 1] - 1, self.r_colind[c] - 1, -1):
+                r = self.r_row[k]
+                if r == c:
+                    w[r] = w[r] / nz_r[k]
+                else:
+                    w[r] = w[r] - nz_r[k] * w[c]
+        x = [None] * self.ncol
+        for c in range(self.ncol):
+            x[self.pc[c]] = w[c]
+        return x
+
+
+def newton_iteration(qr: SparseQR, *, abstol: float, abstol_step: float) -> ca.Function:
+    """One iteration of ``fast_newton`` as an SX function of symbols (so that no simplification
+    reaches across into the Jacobian's expression):
+    ``(J, g, x, stopped) -> (x_next, stopped_next)``."""
+    n = qr.ncol
+    J, g = ca.SX.sym("J", qr.pattern), ca.SX.sym("g", n)
+    x, stopped = ca.SX.sym("x", n), ca.SX.sym("stopped")
+    small_residual = norm_inf([g[i] for i in range(n)]) <= abstol
+    dx = qr.solve(qr.factor([J.nz[k] for k in range(J.nnz())]), [g[i] for i in range(n)])
+    update = ca.logic_and(ca.logic_not(stopped), ca.logic_not(small_residual))
+    x_next = [ca.if_else(update, x[i] + (-1.0) * dx[i], x[i]) for i in range(n)]
+    small_step = norm_inf(dx) <= abstol_step
+    stopped_next = ca.logic_or(stopped, ca.logic_or(small_residual, small_step))
+    return ca.Function("newton_iteration", [J, g, x, stopped],
+                       [ca.vertcat(*x_next), stopped_next])
+
+
+def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
+                    iterations: int) -> ca.Function:
+    """``fast_newton`` on ``residual(x, w)`` with ``options`` (``abstol``, ``abstolStep``,
+    ``max_iter``) as ``iterations`` unrolled iterations, then, only where those did not stop,
+    ``fast_newton`` itself for the iterations left: ``(x0, w) -> x``, the same result.
+
+    The Jacobian is ``fast_newton``'s own ``jac_g_x``, called as a function of its own exactly
+    as ``fast_newton`` calls it."""
+    jacobian = ca.rootfinder(name, "fast_newton", residual, options).get_function("jac_g_x")
+    qr = SparseQR(jacobian.sparsity_out(0))
+    iteration = newton_iteration(qr, abstol=options["abstol"],
+                                 abstol_step=options["abstolStep"])
+    x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
+    w = ca.MX.sym("w", jacobian.sparsity_in(1))
+    x, stopped = x0, ca.MX(0)
+    for _ in range(iterations):
+        J, g = jacobian(x, w)
+        x, stopped = iteration(J, g, x, stopped)
+    rest = ca.rootfinder(name + "_rest", "fast_newton", residual,
+                         {**options, "max_iter": options["max_iter"] - iterations})
+    x_sym, w_sym = ca.MX.sym("x", x0.sparsity()), ca.MX.sym("w", w.sparsity())
+    done = ca.Function("done", [x_sym, w_sym], [x_sym])
+    # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
+    # both branches. The rest runs only where the unrolled iterations did not stop.
+    finish = ca.Function.if_else(name + "_finish", done,
+                                 ca.Function("go_on", [x_sym, w_sym], [rest(x_sym, w_sym)]))
+    solved = finish(stopped, x, w)
+    return ca.Function(name, [x0, w], [solved], {"never_inline": True})

@@ -1,0 +1,180 @@
+/* A hand-written C march of the vddvp scheme (midpoint clock, alpha = 1/2) for separable
+ * H = |p|^2/2 + V(q, t): the reference that scripts/bench_march.py times the library against.
+ *
+ * Interval k: Q = (q_k + q_k+1)/2, P = (p_k + p_k+1)/2, s_k = t_k + tau_k/2,
+ *   q_k+1 - q_k - tau_k P = 0,   p_k+1 - p_k + tau_k V_q(Q, s_k) = 0,
+ * node k >= 1 (energy equation, at the previous interval's clock s_k-1, plus the drift):
+ *   (H(Q_k, P_k, s_k-1) - H(Q_k-1, P_k-1, s_k-1) + drift) / tau_k-1 = 0.
+ * Step 0 solves the canonical equations with tau_0 given. Each step: RK4 predictor over the
+ * previous step, Newton (|g| <= 1e-14 or |dx| <= 1e-14, at most 30 iterations, dense Gauss
+ * elimination with partial pivoting), then the checks the library makes: finite, tau > 0, the
+ * unscaled residuals against tol, H at the new node. Compiled by bench_march.py. */
+#include <math.h>
+#include <string.h>
+
+#define MAXN 8
+#define MAXU (2 * MAXN + 1)
+
+typedef struct { int kind; int n; double theta[4]; } System;  /* 0 paper_pendulum, 1 fpu */
+
+static void potential(const System* s, const double* q, double t, double* V, double* Vq,
+                      double* Vqq, double* Vqt) {
+  int n = s->n, i, j;
+  for (i = 0; i < n; ++i) { Vq[i] = 0; Vqt[i] = 0; for (j = 0; j < n; ++j) Vqq[i * n + j] = 0; }
+  if (s->kind == 0) {
+    double eps = s->theta[0], omega = s->theta[1], f = 1 - eps * sin(omega * t);
+    *V = (1 - cos(q[0])) * f;
+    Vq[0] = sin(q[0]) * f;
+    Vqq[0] = cos(q[0]) * f;
+    Vqt[0] = sin(q[0]) * (-eps * omega * cos(omega * t));
+  } else {  /* fpu: stiff springs (2i-1, 2i), soft quartic springs (2i, 2i+1), fixed ends */
+    double omega = s->theta[0], x[MAXN + 2];
+    x[0] = 0; x[n + 1] = 0;
+    for (i = 0; i < n; ++i) x[i + 1] = q[i];
+    *V = 0;
+    for (i = 0; i <= n; ++i) {  /* spring between x[i] and x[i+1] */
+      double d = x[i + 1] - x[i], force, stiffness;
+      if (i % 2 == 1) { *V += omega * omega / 4 * d * d; force = omega * omega / 2 * d;
+                        stiffness = omega * omega / 2; }
+      else { *V += d * d * d * d; force = 4 * d * d * d; stiffness = 12 * d * d; }
+      if (i >= 1) { Vq[i - 1] -= force; Vqq[(i - 1) * n + i - 1] += stiffness; }
+      if (i + 1 <= n) { Vq[i] += force; Vqq[i * n + i] += stiffness; }
+      if (i >= 1 && i + 1 <= n) { Vqq[(i - 1) * n + i] -= stiffness;
+                                   Vqq[i * n + i - 1] -= stiffness; }
+    }
+  }
+}
+
+static double hamiltonian(const System* s, const double* q, const double* p, double t) {
+  double V, Vq[MAXN], Vqq[MAXN * MAXN], Vqt[MAXN], T = 0;
+  int i;
+  potential(s, q, t, &V, Vq, Vqq, Vqt);
+  for (i = 0; i < s->n; ++i) T += p[i] * p[i] / 2;
+  return T + V;
+}
+
+static void field(const System* s, const double* z, double t, double* dz) {
+  double V, Vq[MAXN], Vqq[MAXN * MAXN], Vqt[MAXN];
+  int i, n = s->n;
+  potential(s, z, t, &V, Vq, Vqq, Vqt);
+  for (i = 0; i < n; ++i) { dz[i] = z[n + i]; dz[n + i] = -Vq[i]; }
+}
+
+static void rk4(const System* s, const double* z, double t, double h, double* out) {
+  double k1[2 * MAXN], k2[2 * MAXN], k3[2 * MAXN], k4[2 * MAXN], y[2 * MAXN];
+  int i, m = 2 * s->n;
+  field(s, z, t, k1);
+  for (i = 0; i < m; ++i) y[i] = z[i] + h / 2 * k1[i];
+  field(s, y, t + h / 2, k2);
+  for (i = 0; i < m; ++i) y[i] = z[i] + h / 2 * k2[i];
+  field(s, y, t + h / 2, k3);
+  for (i = 0; i < m; ++i) y[i] = z[i] + h * k3[i];
+  field(s, y, t + h, k4);
+  for (i = 0; i < m; ++i) out[i] = z[i] + h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+}
+
+/* Residual and Jacobian of the step from z_a at t_a; x = (z_b, tau) (energy) or z_b (fixed). */
+static void residual(const System* s, const double* za, double ta, const double* x, double tau,
+                     int energy, double E_prev, double s_prev, double tau_prev, double drift,
+                     double* g, double* J) {
+  int n = s->n, m = 2 * n + (energy ? 1 : 0), i, j;
+  double Q[MAXN], P[MAXN], V, Vq[MAXN], Vqq[MAXN * MAXN], Vqt[MAXN], clock;
+  if (energy) tau = x[2 * n];
+  for (i = 0; i < n; ++i) { Q[i] = (za[i] + x[i]) / 2; P[i] = (za[n + i] + x[n + i]) / 2; }
+  clock = ta + tau / 2;
+  potential(s, Q, clock, &V, Vq, Vqq, Vqt);
+  memset(J, 0, sizeof(double) * m * m);
+  for (i = 0; i < n; ++i) {
+    g[i] = x[i] - za[i] - tau * P[i];
+    g[n + i] = x[n + i] - za[n + i] + tau * Vq[i];
+    J[i * m + i] = 1;
+    J[i * m + n + i] = -tau / 2;
+    J[(n + i) * m + n + i] = 1;
+    for (j = 0; j < n; ++j) J[(n + i) * m + j] = tau / 2 * Vqq[i * n + j];
+    if (energy) { J[i * m + 2 * n] = -P[i]; J[(n + i) * m + 2 * n] = Vq[i] + tau / 2 * Vqt[i]; }
+  }
+  if (energy) {
+    double Vs, T = 0;
+    potential(s, Q, s_prev, &Vs, Vq, Vqq, Vqt);
+    for (i = 0; i < n; ++i) T += P[i] * P[i] / 2;
+    g[2 * n] = (T + Vs - E_prev + drift) / tau_prev;
+    for (i = 0; i < n; ++i) {
+      J[2 * n * m + i] = Vq[i] / 2 / tau_prev;
+      J[2 * n * m + n + i] = P[i] / 2 / tau_prev;
+    }
+  }
+}
+
+static void solve(int m, double* J, double* g) {  /* g <- J^-1 g, partial pivoting */
+  int c, r, k, best;
+  for (c = 0; c < m; ++c) {
+    best = c;
+    for (r = c + 1; r < m; ++r) if (fabs(J[r * m + c]) > fabs(J[best * m + c])) best = r;
+    if (best != c) {
+      for (k = 0; k < m; ++k) { double tmp = J[c * m + k]; J[c * m + k] = J[best * m + k];
+                                J[best * m + k] = tmp; }
+      double tmp = g[c]; g[c] = g[best]; g[best] = tmp;
+    }
+    for (r = c + 1; r < m; ++r) {
+      double f = J[r * m + c] / J[c * m + c];
+      if (f == 0) continue;
+      for (k = c; k < m; ++k) J[r * m + k] -= f * J[c * m + k];
+      g[r] -= f * g[c];
+    }
+  }
+  for (c = m - 1; c >= 0; --c) {
+    for (k = c + 1; k < m; ++k) g[c] -= J[c * m + k] * g[k];
+    g[c] /= J[c * m + c];
+  }
+}
+
+static double norm_inf(int m, const double* v) {
+  double r = 0; int i;
+  for (i = 0; i < m; ++i) r = fmax(r, fabs(v[i]));
+  return r;
+}
+
+/* March from (t0, z0) until t >= t_end or max_steps; t (max_steps+1), z ((max_steps+1) x 2n),
+ * H (max_steps+1). Returns the number of steps taken, or -(step + 1) where a step failed. */
+int c_march(int kind, int n, const double* theta, const double* z0, double t0, double tau0,
+            double t_end, int max_steps, double tol, double* t, double* z, double* H) {
+  System s; int k, i, it, m2 = 2 * n;
+  double g[MAXU], J[MAXU * MAXU], x[MAXU], drift = 0;
+  s.kind = kind; s.n = n;
+  for (i = 0; i < 4; ++i) s.theta[i] = theta[i];
+  t[0] = t0; memcpy(z, z0, sizeof(double) * m2);
+  H[0] = hamiltonian(&s, z, z + n, t0);
+  for (k = 0; k < max_steps && t[k] < t_end; ++k) {
+    const double* za = z + k * m2;
+    int energy = k > 0, m = m2 + (energy ? 1 : 0);
+    double tau_prev = energy ? t[k] - t[k - 1] : tau0, s_prev = 0, E_prev = 0;
+    if (energy) {  /* the previous interval's energy at its clock */
+      const double* zp = z + (k - 1) * m2;
+      double Q[MAXN], P[MAXN];
+      s_prev = t[k - 1] + tau_prev / 2;
+      for (i = 0; i < n; ++i) { Q[i] = (zp[i] + za[i]) / 2; P[i] = (zp[n + i] + za[n + i]) / 2; }
+      E_prev = hamiltonian(&s, Q, P, s_prev);
+    }
+    rk4(&s, za, t[k], tau_prev, x);
+    x[m2] = tau_prev;
+    for (it = 0; it < 30; ++it) {
+      residual(&s, za, t[k], x, tau0, energy, E_prev, s_prev, tau_prev, drift, g, J);
+      if (norm_inf(m, g) <= 1e-14) break;
+      solve(m, J, g);
+      for (i = 0; i < m; ++i) x[i] -= g[i];
+      if (norm_inf(m, g) <= 1e-14) break;
+    }
+    residual(&s, za, t[k], x, tau0, energy, E_prev, s_prev, tau_prev, drift, g, J);
+    double tau = energy ? x[m2] : tau0, size = fmax(1.0, norm_inf(m2, za));
+    for (i = 0; i < m; ++i) if (!isfinite(x[i])) return -(k + 1);
+    if (tau <= 0 || norm_inf(m2, g) > tol * size) return -(k + 1);
+    if (energy) {
+      if (fabs(g[m2]) * tau_prev > tol * fmax(1.0, fabs(E_prev))) return -(k + 1);
+      drift += g[m2] * tau_prev;
+    }
+    t[k + 1] = t[k] + tau;
+    memcpy(z + (k + 1) * m2, x, sizeof(double) * m2);
+    H[k + 1] = hamiltonian(&s, x, x + n, t[k + 1]);
+  }
+  return k;
+}
