@@ -100,3 +100,28 @@ def test_no_orbit_found_is_a_failure_status_with_residuals():
                               section="q1=0")
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED)
     assert "canonical" in solution.message and solution.stats["residuals"]["canonical"] > 1e-6
+
+
+def test_figure_eight_closes_with_simos_period_and_one_curve():
+    """Three equal masses at Simo's energy: the period within 1e-3 of 6.32591398 at N = 600,
+    and each body's orbit is the next one's shifted by a third of the period (to the
+    discretisation error)."""
+    scene = load_scene("figure_eight")
+    data = scene.periodic
+    solution = solve_periodic(scene.system, energy=data["energy"], nodes=600,
+                              section=data["section"], start=data["start"],
+                              integrals=data["integrals"])
+    assert solution.success, solution.message
+    period = solution.stats["period"]
+    assert abs(period - 6.32591398) < 1e-3
+    assert np.max(np.abs(solution.stats["integral_unfoldings"])) < 1e-12
+    # The choreography, node by node (600 intervals: a third is 200 of them): body i + 1 is
+    # where body i was a third of the period earlier, and a third of the nodes spans T / 3.
+    t, q = solution.t[:-1], solution.q[:-1]
+    third = 200
+    later = np.roll(np.arange(600), -third)
+    assert np.max(np.abs((t[later] - t) % period - period / 3)) < 1e-8
+    for body in range(3):
+        following = 2 * ((body + 1) % 3)
+        assert np.max(np.abs(q[later, following:following + 2] - q[:, 2 * body:2 * body + 2])) \
+            < 1e-8

@@ -39,7 +39,15 @@ many, and the count is made square as follows.
    ``lambda`` above round-off fails its verification.
 
 Square count: ``(N+1)(2n+1) + 1`` unknowns (nodes and ``lambda``); equations ``2nN``
-(canonical) ``+ N`` (``H_k = E``) ``+ 2n`` (closure) ``+ 2`` (``t_0``, section). The Jacobian
+(canonical) ``+ N`` (``H_k = E``) ``+ 2n`` (closure) ``+ 2`` (``t_0``, section).
+
+3. Continuous symmetries besides the time shift (translations and rotations of the three-body
+   problem) are exact symmetries of the discrete equations too, and the midpoint rule conserves
+   their integrals (linear and quadratic) exactly: each adds a direction of solutions and a
+   dependent closure equation. Each integral ``I_i`` given in ``integrals`` gets the same
+   treatment as ``H``: a phase condition ``g_i . (z_0 - z_0^ref) = 0`` (``g_i = J grad I_i`` at
+   the start's node 0) and an unfolding parameter ``mu_i`` (``+ tau_k mu_i grad I_i`` in the
+   canonical equations); the count stays square with ``r`` more rows and unknowns. The Jacobian
 (``periodic_assembly.py``) is the fixed-endpoint solver's band plus corner entries (closure) and a
 full column (``lambda``): sparse LU (SuperLU), in the Newton iteration of ``bvp_newton.py`` (its
 ``tau_floor`` safeguard and Deuflhard's monotonicity line search).
@@ -64,7 +72,7 @@ from ..physics.hamiltonian import HamiltonianSystem
 from ..solution import Solution, Status
 from ..validation import check_integer, check_real, check_state
 from .bvp_newton import newton
-from .periodic_assembly import Closure, PeriodicAssembly
+from .periodic_assembly import Closure, PeriodicAssembly, integral_gradients
 from .periodic_start import guess_nodes, march_to_return, resample, section_point
 
 EPS = float(np.finfo(float).eps)
@@ -99,7 +107,8 @@ def parse_section(section, n: int) -> tuple[int, float, str]:
 def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
-                   start=None, tol: float = 1e-10, max_iter: int = 50) -> Solution:
+                   start=None, integrals=(), tol: float = 1e-10,
+                   max_iter: int = 50) -> Solution:
     """A periodic orbit of ``system`` at energy ``E`` on ``N = nodes`` intervals (module
     docstring).
 
@@ -116,6 +125,12 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         params: the system's parameter values.
         start: ``(q, p)``: the direction along which the section's point at ``E`` is looked for
             (``periodic_start.section_point``); default all ones.
+        integrals: first integrals ``I(q, p)`` (functions on CasADi symbols) besides ``H``
+            whose flows are symmetries of ``H`` (total momentum: translations; angular
+            momentum: rotations). Each makes one more direction of solutions and one more
+            dependent closure equation; each gets a phase condition ``g . (z_0 - z_0^ref) = 0``
+            (``g = J grad I`` at the start's node 0) and an unfolding parameter ``mu``, as
+            ``H`` gets the section and ``lambda`` (module docstring).
         tol: verification tolerance of the unscaled residuals (above their round-off).
         max_iter: Newton iterations.
 
@@ -129,15 +144,28 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                        max_iter)
     started = time.perf_counter()
     t, z = _start_nodes(request)
-    layout_n = system.n
-    assembly = PeriodicAssembly(system, request["scheme"], nodes, request["index"])
-    x0 = assembly.layout.pack(t, z[:, :layout_n], z[:, layout_n:])
-    closure = Closure(request["energy"], request["index"], request["value"], request["theta"])
+    integrals = tuple(integrals)
+    closure = _closure(request, z[0], integrals)
+    assembly = PeriodicAssembly(system, request["scheme"], nodes, closure, integrals)
+    x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
     scale = max(1.0, float(np.max(np.abs(x0))), abs(request["energy"]))
     target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
     result = newton(assembly, x0, closure, target, tau_floor=1e-3 * t[-1] / nodes,
                     max_iter=max_iter, linear="sparse")
     return _solution(request, assembly, result, scale, started)
+
+
+def _closure(request, reference: np.ndarray, integrals) -> Closure:
+    """The problem's data; the phase conditions of the integrals at the start's node 0."""
+    system = request["system"]
+    n = system.n
+    generators = np.zeros((len(integrals), 2 * n))
+    if integrals:
+        gradients = np.asarray(integral_gradients(system, integrals)(
+            reference[:n], reference[n:], request["theta"]))[:, 1:].T
+        generators = np.hstack([gradients[:, n:], -gradients[:, :n]])  # J grad I
+    return Closure(request["energy"], request["index"], request["value"], request["theta"],
+                   reference.copy(), generators)
 
 
 def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, max_iter):
@@ -221,7 +249,8 @@ def _solution(request, assembly, result, scale, started) -> Solution:
     limit = max(request["tol"], ALLOWANCE_ROUND_OFFS * EPS * scale)
     status, message = _verdict(result, worst, limit, np.diff(t), request.get("start_note"))
     stats = {"period": float(t[-1] - t[0]), "energy": request["energy"],
-             "section": request["label"], "unfolding": unfolding, "limit": limit,
+             "section": request["label"], "unfolding": float(unfolding[0]),
+             "integral_unfoldings": unfolding[1:].tolist(), "limit": limit,
              "residuals": worst, "iterations": result.iterations, "newton": result.outcome,
              "tau_min": float(np.min(np.diff(t))), "tau_max": float(np.max(np.diff(t)))}
     return Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
