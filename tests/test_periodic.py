@@ -125,3 +125,37 @@ def test_figure_eight_closes_with_simos_period_and_one_curve():
         following = 2 * ((body + 1) % 3)
         assert np.max(np.abs(q[later, following:following + 2] - q[:, 2 * body:2 * body + 2])) \
             < 1e-8
+
+
+def test_cli_writes_an_orbit_and_a_family(tmp_path, capsys):
+    from ddvp_nlp.cli import main
+
+    assert main(["periodic", "pendulum", "--energy", "0.5", "--nodes", "60", "--out",
+                 str(tmp_path / "one"), "--no-plot"]) == 0
+    data = np.load(tmp_path / "one" / "result.npz")
+    assert data["t"].shape == (61,) and np.array_equal(data["q"][-1], data["q"][0])
+    import json
+    meta = json.loads((tmp_path / "one" / "meta.json").read_text())
+    assert meta["status"] == "success" and meta["period"] == pytest.approx(6.75, abs=0.01)
+    assert set(meta["residuals"]) >= {"closure", "canonical", "energy"}
+    assert main(["periodic", "harmonic", "--family", "0.1:0.5:3", "--nodes", "40", "--out",
+                 str(tmp_path / "family")]) == 0
+    lines = (tmp_path / "family" / "family.csv").read_text().splitlines()
+    assert len(lines) == 4 and (tmp_path / "family" / "family.png").exists()
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--energy", "2.5"], "energy 2.5 is outside the range"),
+    (["--energy", "0.5", "--nodes", "2"], "nodes must be an integer >= 3, got 2"),
+    (["--energy", "0.5", "--section", "q3=0"], "section names no coordinate: q3"),
+    (["--family", "0.5:3:4"], "energy 3.0 is outside the range"),
+    (["--family", "0.5:1"], "--family must be E1:E2:COUNT, got '0.5:1'"),
+])
+def test_cli_bad_input_exits_2_before_any_output(tmp_path, capsys, arguments, message):
+    from ddvp_nlp.cli import main
+
+    out = tmp_path / "out"
+    assert main(["periodic", "pendulum", *arguments, "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert message in error and "Traceback" not in error
+    assert not out.exists()

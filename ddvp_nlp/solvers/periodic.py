@@ -155,6 +155,13 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
     return _solution(request, assembly, result, scale, started)
 
 
+def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", params=None,
+                   start=None, integrals=(), tol=1e-10, max_iter=50) -> None:
+    """Raise the ``InputError`` :func:`solve_periodic` would raise for these arguments without
+    a guess (the section's point at ``energy`` included), and build nothing."""
+    _checked(system, energy, nodes, section, None, scheme, params, start, tol, max_iter)
+
+
 def _closure(request, reference: np.ndarray, integrals) -> Closure:
     """The problem's data; the phase conditions of the integrals at the start's node 0."""
     system = request["system"]
