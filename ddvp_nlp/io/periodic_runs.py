@@ -93,9 +93,10 @@ def family_row(energy: float, solution: Solution) -> dict:
 
 
 def write_family(out: Path, scene, family: list, params: dict, plot: bool = True,
-                 reference=None) -> list[dict]:
+                 reference=None, folders: bool = True) -> list[dict]:
     """``family.csv`` (one row per energy, failed ones included), ``family.png`` (period
-    against energy, beside ``reference(E)`` if given) and a run folder ``E=<energy>`` each."""
+    against energy, beside ``reference(E)`` if given) and, if ``folders``, a run folder
+    ``E=<energy>`` each."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = [family_row(energy, solution) for energy, solution in family]
@@ -103,7 +104,7 @@ def write_family(out: Path, scene, family: list, params: dict, plot: bool = True
         writer = csv.DictWriter(handle, fieldnames=FAMILY_COLUMNS)
         writer.writeheader()
         writer.writerows(rows)
-    for energy, solution in family:
+    for energy, solution in family if folders else ():
         write_periodic(out / f"E={energy:.6g}", scene, solution, params, plot=False)
     if plot:
         plot_family(rows, f"{scene.name}: period against energy", out / "family.png",
