@@ -87,7 +87,31 @@ def build_parser() -> argparse.ArgumentParser:
     _stress_command(commands)
     _sweep_command(commands)
     _reproduce_command(commands)
+    _periodic_command(commands)
     return parser
+
+
+def _periodic_command(commands) -> None:
+    periodic = commands.add_parser(
+        "periodic", help="find a periodic orbit at a prescribed energy (or a family of them)")
+    periodic.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    periodic.add_argument("--energy", type=float, default=None,
+                          help="the prescribed energy E (default: the scene's)")
+    periodic.add_argument("--nodes", type=int, default=None,
+                          help="number of intervals N (default: the scene's, else 200)")
+    periodic.add_argument("--section", default=None, metavar="NAME=VALUE",
+                          help="phase condition on node 0, NAME in q1..qn, p1..pn "
+                               "(default: the scene's, else p1=0)")
+    periodic.add_argument("--family", default=None, metavar="E1:E2:COUNT",
+                          help="continue the orbit over COUNT energies from E1 to E2")
+    periodic.add_argument("--scheme", default="vddvp", choices=("vddvp", "lee"),
+                          help="energy rule (the same equations for autonomous H)")
+    periodic.add_argument("--guess", default=None, metavar="FILE",
+                          help="start from a run folder / result.npz (t, q, p over one period)")
+    periodic.add_argument("--set", dest="settings", action="append", default=[],
+                          metavar="NAME=VALUE", help="a parameter of the scene")
+    periodic.add_argument("--out", default=None, help="output folder")
+    periodic.add_argument("--no-plot", action="store_true", help="do not write the figures")
 
 
 def _march_command(commands) -> None:
@@ -484,6 +508,64 @@ def run_reproduce(args) -> int:
     return 0
 
 
+def run_periodic(args) -> int:
+    """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
+    energy); every input checked before anything is built."""
+    from .io.periodic_runs import write_family, write_periodic
+    from .io.runs import prepare_folder
+    from .solvers.periodic import check_periodic, solve_periodic
+    from .solvers.periodic_family import solve_periodic_family
+
+    scene = load_scene(args.scene)
+    defaults = dict(getattr(scene, "periodic", None) or {})
+    params = _parse_settings(args.settings)
+    options = {"section": args.section or defaults.get("section", "p1=0"),
+               "scheme": args.scheme, "params": params, "start": defaults.get("start"),
+               "integrals": defaults.get("integrals", ())}
+    nodes = args.nodes if args.nodes is not None else defaults.get("nodes", 200)
+    guess = _bvp_guess(args.guess) if args.guess else None
+    if args.family is not None:
+        energies = _family_energies(args.family)
+        for energy in (energies[0], energies[-1]):
+            check_periodic(scene.system, energy=energy, nodes=nodes, **options)
+        out = prepare_folder(args.out or f"runs/{scene.name}-family")
+        family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
+                                       **options)
+        rows = write_family(out, scene, family, params, plot=not args.no_plot)
+        for row in rows:
+            print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
+                  f"residuals canonical {row['canonical']:.2e}, closure {row['closure']:.2e}")
+        print(f"  written to {out}/ (family.csv, family.png, E=... folders)")
+        return 0 if all(row["status"] == "success" for row in rows) else 1
+    energy = args.energy if args.energy is not None else defaults.get("energy")
+    if energy is None:
+        raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
+    check_periodic(scene.system, energy=energy, nodes=nodes, **options)
+    out = prepare_folder(args.out or f"runs/{scene.name}-periodic")
+    solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess, **options)
+    meta = write_periodic(out, scene, solution, params, plot=not args.no_plot)
+    print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
+          f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
+          f"written to {out}/")
+    return 0 if solution.success else 1
+
+
+def _family_energies(text: str):
+    """``E1:E2:COUNT`` as ``COUNT`` energies from ``E1`` to ``E2``."""
+    import numpy as np
+
+    parts = text.split(":")
+    try:
+        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
+        if len(parts) != 3:
+            raise ValueError
+    except (ValueError, IndexError):
+        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
+    if count < 2 or not np.isfinite(first) or not np.isfinite(last):
+        raise InputError(f"--family needs finite E1, E2 and COUNT >= 2, got {text!r}")
+    return np.linspace(first, last, count)
+
+
 def run_scenes(args) -> int:
     print("\n".join(_describe(name) for name in list_scenes()))
     return 0
@@ -555,7 +637,7 @@ def _format_warning(message, category, filename, lineno, line=None):
 
 COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
             "compare": run_compare, "stress": run_stress, "sweep": run_sweep,
-            "reproduce": run_reproduce}
+            "reproduce": run_reproduce, "periodic": run_periodic}
 
 
 class _Stopped(Exception):

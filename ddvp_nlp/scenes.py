@@ -60,6 +60,9 @@ class Scene:
         name, description: set from the file name and docstring when loaded.
         source: the name or path it was loaded from (empty for a scene made in Python); grid
             tasks reload the scene from it in their own process.
+        periodic: optional defaults of ``ddvp periodic`` (``solvers/periodic.py``):
+            ``{"section": "p1=0", "energy": E, "nodes": N, "start": (q, p)}``, any subset;
+            ``start`` is the direction along which the section's point at ``E`` is looked for.
     """
 
     hamiltonian: Callable[..., object]
@@ -77,6 +80,7 @@ class Scene:
     source: str = ""
     description: str = ""
     v0: object = None
+    periodic: Mapping[str, object] | None = None
 
     def __post_init__(self):
         for key in ("q0", "tau0", "t_end"):

@@ -9,4 +9,8 @@ def hamiltonian(q, p, t):
     return ca.sumsqr(p) / 2 + ca.sumsqr(q) / 2 + q[0] ** 2 * q[1] - q[1] ** 3 / 3
 
 
-scene = Scene(hamiltonian, n=2, q0=[0.0, 0.1], p0=[0.35, 0.0], tau0=0.05, t_end=200.0)
+# Periodic orbits (ddvp periodic): the family on the axis x = p_x = 0 (an invariant plane),
+# through its turning point p_y = 0, up to the escape energy 1/6.
+scene = Scene(hamiltonian, n=2, q0=[0.0, 0.1], p0=[0.35, 0.0], tau0=0.05, t_end=200.0,
+              periodic={"section": "p2=0", "energy": 0.1, "nodes": 200,
+                        "start": ([0.0, 1.0], [0.0, 0.0])})

@@ -9,8 +9,12 @@ def hamiltonian(q, p, t):
     return p[0] ** 2 / 2 + 1 - ca.cos(q[0])
 
 
+# Periodic orbits (ddvp periodic): librations through the turning point p = 0; exact period
+# 4 K(k), k = sin(theta_max / 2), cos(theta_max) = 1 - E, for 0 < E < 2 (refused above).
+
 # Fixed-endpoint data: about where the motion from (0.5, 0.5) is at t = 9 (1.4 swings), where
 # q(9) depends strongly on p(0) (at t = 10 it has a fold near p(0) = 0.5).
 scene = Scene(hamiltonian, n=1, q0=[0.5], p0=[0.5], tau0=0.05, t_end=100.0,
               boundary={"q_start": [0.5], "q_end": [-0.036], "t_span": (0.0, 9.0),
-                        "nodes": 181})
+                        "nodes": 181},
+              periodic={"section": "p1=0", "energy": 0.5, "nodes": 200})

@@ -2,6 +2,8 @@
 
 - ``runs.py``: writing a run's ``result.npz``, ``meta.json`` and figure (every kind of scene).
 - ``plotting.py``: the trajectory figure of a run.
+- ``periodic_runs.py``: ``ddvp periodic``'s run folder (orbit and step-length figure) and a
+  family's ``family.csv`` and period-against-energy figure.
 - ``row_file.py``: a grid's CSV result file, appended row by row.
 - ``markdown.py``: pieces the grid reports share (failure table, machine line).
 - ``work_precision.py``: ``ddvp compare``: runs the comparison, writes its CSV, figure, summary.

@@ -12,6 +12,10 @@
   - ``stepper.py``: the careful, compiled and composite steppers the driver runs.
   - ``monitors.py``: the energy guard and the solvability monitor.
 - ``bvp.py``: fixed-endpoint problems as one NLP (IPOPT) or one Newton system.
+- ``periodic.py``: periodic orbits at a prescribed energy on a closed grid (node times free,
+  an unfolding parameter; the equation count in its docstring); ``periodic_assembly.py`` its
+  residual and sparse Jacobian, ``periodic_start.py`` its starts (a march from the section to
+  its return, or a user's guess resampled).
 - ``higher.py``: the same two for higher-derivative Lagrangians.
 - The integrators users would pick instead, each a stepper of the driver, compiled like the
   march: ``baselines.py`` (Stormer-Verlet, RK4, and what every compiled baseline shares),

@@ -1,0 +1,134 @@
+"""Writing periodic orbits: a run folder (``result.npz``, ``meta.json``, ``orbit.png``) and a
+family (``family.csv``, ``family.png``, one run folder per energy)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..solution import Solution  # noqa: E402
+from .runs import _json_default  # noqa: E402
+
+FAMILY_COLUMNS = ("energy", "status", "period", "nodes", "canonical", "energy_equation",
+                  "closure", "unfolding", "iterations")
+
+
+def periodic_meta(scene, solution: Solution, params: dict) -> dict:
+    """What ``meta.json`` holds: the orbit's period and energy, the residuals, the status."""
+    stats = solution.stats
+    return {"command": "periodic", "scene": scene.name, "scheme": solution.scheme,
+            "status": solution.status.code, "message": solution.message,
+            "period": stats["period"], "energy": stats["energy"], "section": stats["section"],
+            "nodes": solution.steps, "params": params, "residuals": stats["residuals"],
+            "residual_limit": stats["limit"], "unfolding": stats["unfolding"],
+            "integral_unfoldings": stats["integral_unfoldings"],
+            "newton": stats["newton"], "iterations": stats["iterations"],
+            "tau_min": stats["tau_min"], "tau_max": stats["tau_max"],
+            "timing": solution.timing}
+
+
+def write_periodic(out: Path, scene, solution: Solution, params: dict, plot: bool = True):
+    """``result.npz`` (``t``, ``q``, ``p`` of the ``N + 1`` nodes, the last equal to the
+    first), ``meta.json`` and, if ``plot``, ``orbit.png``; returns the meta."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    np.savez(out / "result.npz", t=solution.t, q=solution.q, p=solution.p,
+             canonical_residual=solution.canonical_residual,
+             energy_residual=solution.energy_residual)
+    meta = periodic_meta(scene, solution, params)
+    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default))
+    if plot:
+        plot_orbit(solution, f"{scene.name}: E = {meta['energy']:.6g}, "
+                             f"T = {meta['period']:.8g} ({meta['status']})", out / "orbit.png")
+    return meta
+
+
+def configuration_curves(solution: Solution):
+    """``[(x, y, label), ...]``: the phase plane for one degree of freedom, the plane ``(q1,
+    q2)`` for two, and for more (an even number) one curve per body ``(q_{2i+1}, q_{2i+2})``."""
+    q, p, n = solution.q, solution.p, solution.q.shape[1]
+    if n == 1:
+        return [(q[:, 0], p[:, 0], "(q, p)")]
+    if n == 2 or n % 2:
+        return [(q[:, 0], q[:, 1], "(q1, q2)")]
+    return [(q[:, 2 * i], q[:, 2 * i + 1], f"body {i + 1}") for i in range(n // 2)]
+
+
+def plot_orbit(solution: Solution, title: str, path: Path) -> None:
+    """The orbit (``configuration_curves``) with its nodes, and the step length along it."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.5))
+    curves = configuration_curves(solution)
+    for x, y, label in curves:
+        left.plot(x, y, ".-", ms=2, lw=0.8, label=label)
+    left.set_aspect("equal", adjustable="datalim")
+    left.set_xlabel("q1" if len(curves) > 1 or solution.q.shape[1] > 1 else "q")
+    left.set_ylabel("p" if solution.q.shape[1] == 1 else "q2")
+    if len(curves) > 1:
+        left.legend()
+    left.set_title("orbit")
+    right.plot(solution.t[:-1], np.diff(solution.t), ".-", ms=2, lw=0.8)
+    right.set_xlabel("t_k")
+    right.set_ylabel("tau_k")
+    right.set_title("step length along the orbit")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def family_row(energy: float, solution: Solution) -> dict:
+    stats = solution.stats
+    residuals = stats["residuals"]
+    return {"energy": energy, "status": solution.status.code, "period": stats["period"],
+            "nodes": solution.steps, "canonical": residuals["canonical"],
+            "energy_equation": residuals["energy"], "closure": residuals["closure"],
+            "unfolding": stats["unfolding"], "iterations": stats["iterations"]}
+
+
+def write_family(out: Path, scene, family: list, params: dict, plot: bool = True,
+                 reference=None, folders: bool = True) -> list[dict]:
+    """``family.csv`` (one row per energy, failed ones included), ``family.png`` (period
+    against energy, beside ``reference(E)`` if given) and, if ``folders``, a run folder
+    ``E=<energy>`` each."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [family_row(energy, solution) for energy, solution in family]
+    with open(out / "family.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=FAMILY_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    for energy, solution in family if folders else ():
+        write_periodic(out / f"E={energy:.6g}", scene, solution, params, plot=False)
+    if plot:
+        plot_family(rows, f"{scene.name}: period against energy", out / "family.png",
+                    reference)
+    return rows
+
+
+def plot_family(rows: list[dict], title: str, path: Path, reference=None) -> None:
+    ok = [r for r in rows if r["status"] == "success"]
+    failed = [r for r in rows if r["status"] != "success"]
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    if reference is not None and rows:
+        energies = np.linspace(min(r["energy"] for r in rows), max(r["energy"] for r in rows),
+                               400)
+        ax.plot(energies, reference(energies), "-", color="0.6", label="exact")
+    ax.plot([r["energy"] for r in ok], [r["period"] for r in ok], "o", ms=4,
+            label=f"discrete, N = {rows[0]['nodes']}" if rows else "discrete")
+    if failed:
+        ax.plot([r["energy"] for r in failed], [r["period"] for r in failed], "x", color="r",
+                label="failed")
+    ax.set_xlabel("energy E")
+    ax.set_ylabel("period T")
+    ax.set_title(title)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
