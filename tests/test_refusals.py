@@ -203,3 +203,20 @@ def test_fuzz_grid_files(tmp_path):
             sweep_cases(spec)
         except InputError:
             pass
+
+
+@pytest.mark.parametrize("expression", ["p[0]", "0 * p[0]"])
+def test_a_hamiltonian_with_no_well_posed_energy_step_is_refused_by_name(tmp_path, capsys,
+                                                                         expression):
+    scene = tmp_path / "flat.py"
+    scene.write_text("from ddvp_nlp import Scene\n\n\ndef hamiltonian(q, p, t):\n"
+                     f"    return {expression}\n\n\n"
+                     "scene = Scene(hamiltonian, n=1, q0=[0.0], p0=[1.0], tau0=0.1, t_end=1.0)\n")
+    assert main(["march", str(scene), "--no-plot", "--no-progress",
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert ("H of 'flat' has no well-posed vddvp step: the step equations do not determine "
+            "(z_next, tau) (their Jacobian is structurally singular: rank 2 of 3)") in err
+    assert "Traceback" not in err
+    assert main(["march", str(scene), "--scheme", "fixed", "--no-plot", "--no-progress",
+                 "--out", str(tmp_path / "fixed")]) in (0, 1)

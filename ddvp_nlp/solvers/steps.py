@@ -27,6 +27,7 @@ from ..cache import cached
 from ..discrete import equations
 from ..discrete.runge_kutta import rk4
 from ..discrete.scheme import Scheme
+from ..errors import InputError
 from ..physics.hamiltonian import (
     HamiltonianSystem,
     site_density_weight_function,
@@ -61,6 +62,25 @@ class EnergyCheck(NamedTuple):
     w_node: object  # site-density weight at (z_{k+1}, t_{k+1})
 
 
+def _rootfinder(name: str, residual: ca.Function, system, scheme: Scheme) -> ca.Function:
+    """CasADi's Newton rootfinder on ``residual``; a step whose equations cannot determine it
+    (a structurally singular Jacobian, for example ``H = p[0]`` or a constant ``H`` under an
+    energy rule, whose energy equation does not depend on the step) is refused by name."""
+    rows = residual.size1_out(0)
+    rank = residual.sparsity_jac(0, 0)
+    if ca.sprank(rank) < rows:
+        unknowns = "(z_next, tau)" if name == "energy_step" else "z_next"
+        raise InputError(
+            f"H of {system.name!r} has no well-posed {scheme.rule} step: the step equations do "
+            f"not determine {unknowns} (their Jacobian is structurally singular: rank "
+            f"{ca.sprank(rank)} of {rows}). Under an energy rule the energy of an interval must "
+            "depend on its length, which it does not for H linear in p or constant; use "
+            "--scheme fixed" if name == "energy_step" else
+            f"H of {system.name!r} has no well-posed step: the canonical equations do not "
+            f"determine z_next (rank {ca.sprank(rank)} of {rows})")
+    return ca.rootfinder(name, "newton", residual, NEWTON_OPTIONS)
+
+
 class StepFunctions:
     """The CasADi functions of one march step, built once per system and scheme.
 
@@ -90,8 +110,7 @@ class StepFunctions:
         w = ca.vertcat(t_a, t_b, z_a, theta)
         g = canonical(t_a, t_b, z_a[:n], z_a[n:], z_b[:n], z_b[n:], theta)
         self.fixed_residual = ca.Function("g", [z_b, w], [g])
-        self.fixed_root = ca.rootfinder("fixed_step", "newton", self.fixed_residual,
-                                        NEWTON_OPTIONS)
+        self.fixed_root = _rootfinder("fixed_step", self.fixed_residual, system, scheme)
         self.fixed_predict = ca.Function("predict", [w], [rk4(flow, z_a, t_a, t_b - t_a)])
         # The checks return H and w of the new node for the energy guard and the solvability
         # monitor, so neither path pays an extra call per node.
@@ -127,8 +146,7 @@ class StepFunctions:
         # previous step makes its Newton tolerance an absolute tolerance on tau.
         g = ca.vertcat(g_canonical, (g_energy + drift) / (t_mid - t_prev))
         self.energy_residual = ca.Function("g", [x, w], [g])
-        self.energy_root = ca.rootfinder("energy_step", "newton", self.energy_residual,
-                                         NEWTON_OPTIONS)
+        self.energy_root = _rootfinder("energy_step", self.energy_residual, system, scheme)
         guess = ca.SX.sym("tau_guess")
         self.energy_predict = ca.Function(
             "predict", [w, guess], [ca.vertcat(rk4(flow, z_mid, t_mid, guess), guess)])
