@@ -127,6 +127,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     q_end = check_state("q_end", q_end, n)
     t0, t1 = _check_span(t_span)
     nodes = check_integer("nodes", nodes, minimum=3)
+    _check_memory(nodes, n, solver)
     tol = check_real("tol", tol, positive=True)
     for name, value, choices in (("solver", solver, SOLVERS), ("linear", linear, LINEAR_SOLVERS)):
         if value not in choices:
@@ -151,6 +152,35 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
                       system.parameter_vector(params), tol, tau_floor, solver, max_iter,
                       verbose=verbose, linear=linear, progress=progress)
     return request, start
+
+
+# Peak memory per node, measured (docs/benchmarks/bench_bvp.md): Newton 1.06 GB at 1e6 nodes of
+# the pendulum (n = 1), IPOPT 2.8 GB at 1e5; the blocks grow like (2n + 1)^2.
+BYTES_PER_NODE = {"newton": 1.1e3, "auto": 1.1e3, "ipopt": 2.8e4}
+
+
+def _check_memory(nodes: int, n: int, solver: str) -> None:
+    """Refuse a grid whose estimated peak memory exceeds what this machine has available."""
+    per_node = BYTES_PER_NODE.get(solver, BYTES_PER_NODE["ipopt"]) * ((2 * n + 1) / 3) ** 2
+    needed = nodes * per_node
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise InputError(
+            f"nodes = {nodes} needs about {needed / 1e9:.3g} GB with solver {solver!r} "
+            f"(measured {per_node / 1e3:.3g} kB per node for n = {n}), more than the "
+            f"{available / 1e9:.3g} GB this machine has available")
+
+
+def _available_memory() -> float | None:
+    """Bytes of memory available (``MemAvailable`` of /proc/meminfo), or None if unknown."""
+    try:
+        with open("/proc/meminfo") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        return None
+    return None
 
 
 def _residuals(request: Request, x: np.ndarray):
