@@ -227,3 +227,43 @@ def test_a_fixed_endpoint_grid_too_large_for_the_machine_is_refused(capsys):
     err = capsys.readouterr().err
     assert "nodes = 1000000000 needs about 1.1e+03 GB with solver 'auto'" in err
     assert "this machine has available" in err and "Traceback" not in err
+
+
+def fuzz_other_argv(rng: random.Random, out) -> list[str]:
+    """One bad value in one option of bvp, compare or sweep; the rest keeps a valid run short."""
+    command = rng.choice(["bvp", "compare", "sweep"])
+    bad = rng.choice(BAD_VALUES)
+    if command == "bvp":
+        option = rng.choice([["--nodes", bad], ["--tol", bad], ["--time-limit", bad],
+                             ["--set", f"q_end={bad}"], ["--set", f"t_end={bad}"],
+                             ["--solver", bad], ["--guess", bad]])
+        return ["bvp", "pendulum", "--no-plot", "--nodes", "21", *option, "--out", str(out)]
+    if command == "compare":
+        option = rng.choice([["--halvings", bad], ["--repeats", bad], ["--workers", bad],
+                             ["--methods", bad], ["--set", f"tau0={bad}"]])
+        return ["compare", "harmonic", "--methods", "rk4", "--halvings", "0", "--repeats", "1",
+                "--set", "t_end=1", "--no-progress", *option, "--out", str(out)]
+    option = rng.choice([["--grid", f"w={bad}"], ["--grid", f"{bad}=1,2"],
+                         ["--grid", f"tau0={bad}"], ["--methods", bad], ["--workers", bad]])
+    return ["sweep", "harmonic", "--methods", "rk4", "--set", "t_end=1", "--grid", "w=1",
+            *option, "--workers", "1", "--no-progress", "--out", str(out)]
+
+
+def test_fuzz_other_commands(tmp_path, capsys):
+    """bvp, compare and sweep over random bad values: exit 2 with a message, or (a value that
+    happens to be valid) a short run; never a traceback or another exit code."""
+    rng = random.Random(18)
+    clean = 0
+    for i in range(FUZZ_COUNT // 2):
+        argv = fuzz_other_argv(rng, tmp_path / f"o{i}")
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+        err = capsys.readouterr().err
+        assert "Traceback" not in err, argv
+        if code == 2:
+            clean += 1
+        else:
+            assert code in (0, 1), (argv, code, err)
+    assert clean >= FUZZ_COUNT // 4
