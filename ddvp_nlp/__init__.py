@@ -1,7 +1,12 @@
 """ddvp_nlp: the difference discrete variational principle with variable time steps, on CasADi.
 
 Node times are unknowns; varying them gives a discrete energy equation, so the schemes are
-symplectic and conserve energy. See THEORY.md for the equations in this code's notation.
+symplectic and conserve energy. See docs/theory.md for the equations in this code's notation and
+docs/guide.md for a user guide.
+
+The public interface is ``__all__``: solvers (``march``, ``solve_bvp``, ``march_higher``,
+``solve_bvp_higher``), their result (``Solution``, ``Status``), systems and schemes, and scenes.
+Everything else is reached through its module and may change.
 """
 
 from .discrete.scheme import Scheme
@@ -11,8 +16,23 @@ from .physics.higher import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
 from .scenes import HigherOrderScene, Scene, list_scenes, load_scene
 from .solution import Solution, Status
+from .solvers.bvp import solve_bvp
+from .solvers.higher import march_higher, solve_bvp_higher
 from .solvers.march import march
 
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("ddvp-nlp")
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "unknown"
+
+
+__version__ = _version()
+
 __all__ = ["HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
-           "Lagrangian", "LagrangianSystem", "Scene",
-           "Scheme", "Solution", "Status", "list_scenes", "load_scene", "march"]
+           "Lagrangian", "LagrangianSystem", "Scene", "Scheme", "Solution", "Status",
+           "__version__", "list_scenes", "load_scene", "march", "march_higher", "solve_bvp",
+           "solve_bvp_higher"]

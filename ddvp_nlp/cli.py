@@ -75,10 +75,21 @@ def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> No
                              "(default: $DDVP_SCHEDULER, else local)")
 
 
+def _version() -> str:
+    """The installed distribution's version (``pyproject.toml``)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("ddvp-nlp")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
                                  "variational principle) on CasADi.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", required=True)
     commands.add_parser("scenes", help="list the built-in scenes with their parameters")
     _march_command(commands)
@@ -345,8 +356,9 @@ def _march(args, scene, config, scheme):
 def _bvp(args, scene, config, scheme):
     from .solvers.bvp import solve_bvp
 
-    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
-                         nodes=config.nodes, scheme=scheme, params=config.params, tol=args.tol,
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, t0=config.t_span[0],
+                         t_end=config.t_span[1], nodes=config.nodes, scheme=scheme,
+                         params=config.params, tol=args.tol,
                          solver=args.solver, verbose=args.verbose,
                          guess=_bvp_guess(args.guess), time_limit=args.time_limit,
                          progress=args.progress)

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .errors import InputError
 
 
 class Status(enum.Enum):
@@ -63,11 +66,16 @@ class Solution:
         newton_iterations: Newton iterations of the march's careful steps (compiled fast steps
             do not report theirs; see ``stats["fast_steps"]``), or the NLP solver's iterations.
         solvability: ``c(z_k) = -(f' H_zz f)/8`` at every node for the energy rules (a positive
-            step needs it to keep its sign; THEORY.md section 5), else empty.
+            step needs it to keep its sign; docs/theory.md section 7), else empty.
         local_error: the accuracy check's local error estimate of each step (N-1,), against one
             RK4 step of the exact flow (``solvers/accuracy.py``), where it was made.
         timing: ``build_s`` and ``solve_s`` in seconds.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...).
+        t_end: the end time the run was asked for (a march's last node lies up to one step past
+            it); ``at_end()`` interpolates there.
+        vector_field: ``f(t, z) -> z'`` on rows (``(M,)``, ``(M, 2n)``), the exact flow's vector
+            field ``(H_p, -H_q)`` of the solved system; set by ``march`` and ``solve_bvp`` for
+            ``at``. Not pickled (a copy sent to another process interpolates without it).
     """
 
     t: np.ndarray
@@ -83,6 +91,8 @@ class Solution:
     local_error: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    t_end: float | None = None
+    vector_field: Callable | None = field(default=None, repr=False, compare=False)
 
     @property
     def success(self) -> bool:
@@ -96,6 +106,83 @@ class Solution:
     def steps(self) -> int:
         return max(self.t.size - 1, 0)
 
+    def at(self, t):
+        """``(q, p)`` at time ``t`` (a number or an array of shape ``(M,)``) in ``[t_0, t_N-1]``.
+
+        Cubic Hermite interpolation on the interval ``t_k <= t <= t_k+1`` with the node values
+        ``z_k``, ``z_k+1`` and the slopes ``f_k = f(t_k, z_k)``, ``f_k+1``
+        (``theta = (t - t_k)/tau_k``):
+
+            z(t) = h00 z_k + h10 tau_k f_k + h01 z_k+1 + h11 tau_k f_k+1
+
+        with the Hermite basis ``h00 = 2 theta^3 - 3 theta^2 + 1``, ``h10 = theta^3 - 2 theta^2
+        + theta``, ``h01 = 3 theta^2 - 2 theta^3``, ``h11 = theta^3 - theta^2``. The slopes are the
+        exact vector field where the solver set ``vector_field``, else second-order finite
+        differences of the nodes (``numpy.gradient``). The interpolant's own error is
+        ``O(tau^4)``, so between the nodes the error is the scheme's, ``O(tau^2)``, and at a node
+        ``at`` returns the node (docs/theory.md section 10).
+
+        Returns:
+            ``q``, ``p`` of shape ``(n,)`` for a number ``t``, ``(M, n)`` for an array.
+
+        Raises:
+            InputError: a time outside the run's nodes (no extrapolation).
+        """
+        times = np.asarray(t, dtype=float)
+        rows = np.atleast_1d(times)
+        if self.t.size == 0:
+            raise InputError("the solution has no nodes to interpolate")
+        slack = 1e-12 * max(1.0, abs(self.t[0]), abs(self.t[-1]))
+        outside = ~((rows >= self.t[0] - slack) & (rows <= self.t[-1] + slack))
+        if np.any(outside) or rows.ndim != 1:
+            raise InputError(f"t must lie in the run's span [{self.t[0]!r}, {self.t[-1]!r}], "
+                             f"got {rows[outside][:3].tolist() if rows.ndim == 1 else t!r}")
+        z = np.hstack([self.q, self.p])
+        if self.t.size == 1:
+            values = np.repeat(z, rows.size, axis=0)
+        else:
+            values = _hermite(self.t, z, self._slopes(z), np.clip(rows, self.t[0], self.t[-1]))
+        n = self.q.shape[1]
+        if times.ndim == 0:
+            return values[0, :n], values[0, n:]
+        return values[:, :n], values[:, n:]
+
+    def at_end(self):
+        """``(q, p)`` exactly at the requested ``t_end`` (``at(t_end)``), or at the last node
+        if the run did not say what it was asked for or stopped before ``t_end``."""
+        end = self.t_end if self.t_end is not None else self.t[-1]
+        return self.at(min(end, self.t[-1]))
+
+    def energy(self, system, params=None) -> np.ndarray:
+        """``H(q_k, p_k, t_k)`` at every node, for the ``system`` that was solved (``params``:
+        its parameter values; default the values the solve used, ``stats["theta"]``, else the
+        system's defaults)."""
+        if params is not None or "theta" not in self.stats:
+            theta = system.parameter_vector(params)
+        else:
+            theta = np.asarray(self.stats["theta"], dtype=float)
+        return system.energy(self.q, self.p, self.t, theta)
+
+    def _slopes(self, z: np.ndarray) -> np.ndarray:
+        if self.vector_field is not None:
+            return np.asarray(self.vector_field(self.t, z), dtype=float).reshape(z.shape)
+        return np.gradient(z, self.t, axis=0)
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["vector_field"] = None  # holds compiled CasADi functions of this process
+        return state
+
     def __repr__(self) -> str:
         return (f"Solution(status={self.status.code}, steps={self.steps}, "
                 f"t=[{self.t[0]:.6g}, {self.t[-1]:.6g}], message={self.message!r})")
+
+
+def _hermite(t: np.ndarray, z: np.ndarray, slopes: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of the rows ``z`` (slopes ``slopes``) at ``times``."""
+    k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
+    tau = (t[k + 1] - t[k])[:, None]
+    theta = ((times - t[k]) / (t[k + 1] - t[k]))[:, None]
+    theta2, theta3 = theta**2, theta**3
+    return ((2 * theta3 - 3 * theta2 + 1) * z[k] + (theta3 - 2 * theta2 + theta) * tau * slopes[k]
+            + (3 * theta2 - 2 * theta3) * z[k + 1] + (theta3 - theta2) * tau * slopes[k + 1])

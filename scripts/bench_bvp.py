@@ -58,8 +58,8 @@ def one(case: str, nodes: int, solver: str) -> dict:
 
     system, q_start, q_end, span, params = endpoints(case)
     cpu = time.process_time()
-    solution = solve_bvp(system, q_start, q_end, span, nodes=nodes, solver=solver,
-                         params=params, time_limit=TIME_LIMIT)
+    solution = solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
+                         solver=solver, params=params, time_limit=TIME_LIMIT)
     phases = solution.stats["phases"]
     return {"case": case, "N": nodes, "solver": solver, "status": solution.status.code,
             "path": solution.stats["solver"],

@@ -70,7 +70,7 @@ def test_equations_hold_when_recomputed_with_numpy(paper, scheme):
 
 
 def test_paper_example_to_t_10000(paper):
-    """THEORY.md section 5: about 20150 steps, tau between 0.458 and 0.535."""
+    """docs/theory.md section 8: about 20150 steps, tau between 0.458 and 0.535."""
     _, _, solution = run_scene("paper_pendulum")
     assert solution.success
     assert 20100 <= solution.steps <= 20200
@@ -116,7 +116,7 @@ def test_lee_and_vddvp_agree_on_autonomous_scenes(name):
 
 def test_gauge_term_changes_lee_but_not_vddvp():
     """Adding f(t) to H leaves the paper's equations unchanged (its energy equation compares both
-    intervals at one clock) but not the lee rule (THEORY.md section 5)."""
+    intervals at one clock) but not the lee rule (docs/theory.md sections 3 and 8)."""
     import casadi as ca
 
     base = load_scene("paper_pendulum")

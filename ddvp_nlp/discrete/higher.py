@@ -1,6 +1,6 @@
 """The discrete action of a higher-derivative Lagrangian ``L(q, v_1, ..., v_l, t)`` (case 1).
 
-Forward differences on the variable grid, evaluated at the left node (THEORY.md section 3)::
+Forward differences on the variable grid, evaluated at the left node (docs/theory.md section 4)::
 
     v_1^(k) = (q_{k+1} - q_k) / tau_k,   v_m^(k) = (v_{m-1}^(k+1) - v_{m-1}^(k)) / tau_k,
     L^(k) = L(q_k, v_1^(k), ..., v_l^(k), t_k),   S_D = sum_k tau_k L^(k),

@@ -1,4 +1,5 @@
-"""T.D. Lee's original left-point discretisation (THEORY.md section 2): a further interval action.
+"""T.D. Lee's original left-point discretisation (docs/theory.md section 3):
+another interval action.
 
 For ``H = p.A p/2 + V(q, t)`` with a constant matrix ``A``, the left-point discrete Lagrangian of
 interval ``k`` is ``tau_k [v_k.A^{-1} v_k/2 - V(q_k, t_k)]``, ``v_k = (q_{k+1} - q_k)/tau_k``.

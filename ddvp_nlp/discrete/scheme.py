@@ -1,4 +1,4 @@
-"""Which discrete equations to use: energy rule, weights and clock (THEORY.md sections 1-2)."""
+"""Which discrete equations to use: energy rule, weights and clock (docs/theory.md sections 1-3)."""
 
 from __future__ import annotations
 

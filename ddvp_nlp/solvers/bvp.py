@@ -1,4 +1,4 @@
-"""Fixed-endpoint problems: the whole discrete action's equations on one grid (THEORY.md
+"""Fixed-endpoint problems: the whole discrete action's equations on one grid (docs/theory.md
 sections 2, 4, 5).
 
 Given ``q(t_0)``, ``q(t_end)``, ``t_0``, ``t_end`` and ``N`` nodes, the unknowns are the interior
@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
@@ -50,6 +51,7 @@ from .accuracy import AccuracyMonitor, Tolerance, assess
 from .bvp_assembly import NodeLayout
 from .bvp_phase import EPS, ROUND_OFF_ALLOWANCE, Request, assembly, round_off_scales, run_phase
 from .bvp_start import predicted_times, start_point
+from .dense import attach
 
 SOLVERS = ("auto", "newton", "ipopt")
 GUESSES = ("straight", "march")
@@ -57,7 +59,8 @@ LINEAR_SOLVERS = ("auto", "banded", "sparse")
 __all__ = ["solve_bvp", "predicted_times", "SOLVERS", "GUESSES"]
 
 
-def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
+def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
+              t0: float | None = None, t_end: float | None = None,
               scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
               guess: Solution | Mapping | str | None = None, times=None, tol: float = 1e-9,
               tau_floor: float | None = None, solver: str = "auto", max_iter: int = 200,
@@ -68,7 +71,8 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
     Args:
         system: the Hamiltonian (or Lagrangian) system.
         q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
-        t_span: ``(t_0, t_end)``.
+        t0, t_end: the two end times, keywords as in ``march`` (one convention for both).
+        t_span: deprecated, ``(t0, t_end)``; still accepted with a ``DeprecationWarning``.
         nodes: number of nodes ``N >= 3``.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
         params: the system's parameter values.
@@ -90,6 +94,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
         residuals, the action and the number of sign changes of each ``p`` component (which of
         several solutions it is); failures are a status on it.
     """
+    t_span = _time_span(t_span, t0, t_end)
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
                               params=params, guess=guess, times=times, tol=tol,
                               tau_floor=tau_floor, solver=solver, max_iter=max_iter,
@@ -112,7 +117,21 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span, *, nodes: int,
         fallback = _outcome(request, x_ipopt, phase_ipopt)
         if fallback[0] is Status.SUCCESS:
             x, phase, outcome = x_ipopt, phase_ipopt, fallback
-    return _solution(request, x, phase, outcome, started)
+    solution = _solution(request, x, phase, outcome, started)
+    return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
+
+
+def _time_span(t_span, t0, t_end):
+    """``(t0, t_end)`` from the keywords, or from the deprecated ``t_span``."""
+    if t_span is not None:
+        if t0 is not None or t_end is not None:
+            raise InputError("give t0 and t_end, not t_span as well")
+        warnings.warn("solve_bvp(..., t_span) is deprecated: pass t0=... and t_end=... as "
+                      "march does", DeprecationWarning, stacklevel=3)
+        return t_span
+    if t_end is None:
+        raise InputError("solve_bvp needs t_end (and t0, default 0.0)")
+    return (0.0 if t0 is None else t0, t_end)
 
 
 def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times, tol,

@@ -9,11 +9,11 @@ equations). Equations, in the same order, ``N m`` of them::
                        time row of node k+1                        (1 row)
     q_{N-1} - q_end                                                 (n rows)
 
-where the time row of an interior node is its energy equation divided by ``energy_scale`` (the
-mean step, so that it is ``O(1)`` in the node times; THEORY.md section 5), for the ``fixed`` rule
+where the time row of an interior node is its energy equation divided by ``energy_scale`` (the mean
+step, so that it is ``O(1)`` in the node times; docs/theory.md section 7), for the ``fixed`` rule
 ``t_k - t_k(given)``, and for node ``N-1`` ``t_{N-1} - t_end``. Row ``r`` depends only on node
-values ``z_j`` with ``|r - j m| <= 3n + 1``: the Jacobian is banded with lower and upper
-bandwidth ``3n + 1`` (4 for ``n = 1``), whatever ``N``.
+values ``z_j`` with ``|r - j m| <= 3n + 1``: the Jacobian is banded with lower and upper bandwidth
+``3n + 1`` (4 for ``n = 1``), whatever ``N``.
 
 The equations are the ones written once in ``discrete/`` (``canonical_expression``,
 ``energy_expression``); here each becomes a per-interval (per-node) CasADi function returning

@@ -5,8 +5,8 @@ Each iteration solves ``F'(x) dx = -F(x)`` by LU factorisation of the banded Jac
 LU (SuperLU) when the band is wide, then takes ``x + alpha dx`` with:
 
 - a safeguard: ``alpha <= 0.99 alpha_max``, where ``alpha_max`` is the largest step that keeps
-  every ``t_{k+1} - t_k >= tau_floor`` (the time-reversed root ``tau < 0`` of THEORY.md section 5
-  is never approached);
+  every ``t_{k+1} - t_k >= tau_floor`` (the time-reversed root ``tau < 0`` of docs/theory.md
+  section 7 is never approached);
 - a backtracking line search with Deuflhard's natural monotonicity test: ``alpha`` halves
   until the simplified Newton correction ``|F'(x)^-1 F(x + alpha dx)|`` is at most
   ``(1 - alpha/2) |dx|`` (the residual norm in the units of ``x``, so that no row's scale

@@ -1,4 +1,4 @@
-"""Starting points of the fixed-endpoint solve (THEORY.md section 5: the Jacobian's condition
+"""Starting points of the fixed-endpoint solve (docs/theory.md section 6: the Jacobian's condition
 number grows like ``N^2``, so the start must be close).
 
 Default (``guess="straight"``), for grids of any length:
@@ -150,8 +150,8 @@ def predicted_times(system, t, q, p, theta) -> np.ndarray:
     w = np.asarray(site_density_weight_function(system).map(N - 1)(
         ((q[:-1] + q[1:]) / 2).T, ((p[:-1] + p[1:]) / 2).T, ((t[:-1] + t[1:]) / 2)[None, :],
         np.asarray(theta, float)[:, None])).ravel()
-    # Where w <= 0 the energy rules have no positive step anyway (THEORY.md section 5); keep the
-    # prediction finite there and let the solve report it.
+    # Where w <= 0 the energy rules have no positive step anyway (docs/theory.md
+    # section 7); keep the prediction finite there and let the solve report it.
     floor = 1e-3 * np.median(np.abs(w)) if np.any(w != 0) else 1.0
     tau = np.maximum(w, floor) ** (-1 / 3)
     tau *= (t[-1] - t[0]) / tau.sum()

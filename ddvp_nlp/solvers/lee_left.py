@@ -1,4 +1,5 @@
-"""T.D. Lee's original discretisation (THEORY.md section 2), run in compiled chunks like the march.
+"""T.D. Lee's original discretisation (docs/theory.md section 3), run in compiled chunks
+like the march.
 
 For ``H = p.A p/2 + V(q, t)`` with a constant matrix ``A``, the left-point discrete Lagrangian
 ``L_d = tau_k [v_k.A^{-1} v_k/2 - V(q_k, t_k)]``, ``v_k = (q_{k+1} - q_k)/tau_k``. Each step

@@ -1,4 +1,4 @@
-"""Initial-value problems: march node by node with a CasADi rootfinder (THEORY.md section 4).
+"""Initial-value problems: march node by node with a CasADi rootfinder (docs/theory.md section 5).
 
 Step 0 is a plain implicit step of length ``tau0``: the ``2n`` canonical equations of interval 0
 are solved for ``z_1``. Every later step ``k`` solves ``2n + 1`` equations, the canonical equations
@@ -38,6 +38,7 @@ from ..validation import check_cache_folder, check_integer, check_real, check_st
 from .acceptance import Acceptance
 from .accuracy import AccuracyMonitor, Tolerance
 from .chunk import FastChunk
+from .dense import attach
 from .driver import Nodes, drive
 from .monitors import (
     MONITOR_LIMIT,
@@ -135,7 +136,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
             turns Ctrl-C and SIGTERM into a clean end, never an exception inside CasADi).
 
     The solvability monitor (energy rules): at every node the site-density weight
-    ``w = f' H_zz f = -8 c(z)`` (THEORY.md section 5). A positive step needs ``c`` to keep its
+    ``w = f' H_zz f = -8 c(z)`` (docs/theory.md section 7). A positive step needs ``c`` to keep its
     sign and the step to be short against the change of ``w``; the march warns (a
     ``RuntimeWarning`` and ``stats["solvability_warning"]``) at the first node where ``w``
     changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT`` (``monitors.py``).
@@ -189,7 +190,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
-    return solution
+    return attach(solution, system, theta, options.t_end)
 
 
 def _checkpoint(save, interval) -> Checkpoint | None:

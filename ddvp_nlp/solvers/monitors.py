@@ -2,7 +2,7 @@
 
 Both read per-node values the steppers computed with each step (``Advance.values``): ``"H"``,
 the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H_zz f = -8 c(z)``
-(THEORY.md section 5), so watching costs no extra CasADi call.
+(docs/theory.md section 7), so watching costs no extra CasADi call.
 
 - :class:`EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
   ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are

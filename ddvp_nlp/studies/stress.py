@@ -8,7 +8,7 @@ row: status, steps, time reached, largest relative energy error
 ``H``, else ``H`` along the DOP853 reference at rtol 1e-13), step-length range, and for failures
 where and why (the result's message).
 
-Predicted breakdown of the energy-determined step (THEORY.md section 5): a positive step exists
+Predicted breakdown of the energy-determined step (docs/theory.md section 7): a positive step exists
 only while ``c(z) = -(f' H_zz f)/8`` keeps its sign along the orbit. ``w = f' H_zz f`` is sampled
 at the nodes of the case's DOP853 run (rtol 1e-10); a sign change predicts a breakdown, and the
 smallest ``|w|/max|w|`` says how close the orbit comes to one.

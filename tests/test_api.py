@@ -1,0 +1,102 @@
+"""The public interface: what ``import ddvp_nlp`` offers, dense output, the time keywords."""
+
+import pickle
+
+import numpy as np
+import pytest
+
+import ddvp_nlp
+from ddvp_nlp import InputError, load_scene, march, solve_bvp
+
+PUBLIC = {"HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError", "Lagrangian",
+          "LagrangianSystem", "Scene", "Scheme", "Solution", "Status", "__version__",
+          "list_scenes", "load_scene", "march", "march_higher", "solve_bvp", "solve_bvp_higher"}
+
+
+def test_public_names_are_stable_and_importable():
+    assert set(ddvp_nlp.__all__) == PUBLIC
+    for name in PUBLIC:
+        assert getattr(ddvp_nlp, name) is not None
+
+
+def _harmonic_march(tau0, scheme="vddvp", t_end=5.0):
+    scene = load_scene("harmonic")
+    return scene, march(scene.system, [1.0], [0.0], tau0=tau0, t_end=t_end, scheme=scheme)
+
+
+def _dense_error(scene, solution, times):
+    q, p = solution.at(times)
+    q_exact, p_exact = scene.exact(times, np.array([1.0]), np.array([0.0]), 0.0, 1.0)
+    return np.max(np.abs(np.hstack([q - q_exact, p - p_exact])))
+
+
+@pytest.mark.parametrize("scheme", ["vddvp", "fixed"])
+def test_dense_output_has_the_schemes_order(scheme):
+    """Between the nodes (at every interval's quarter and midpoint) the interpolant's error
+    against the exact motion of ``harmonic`` falls like tau^2, the order of the scheme: the fitted
+    slope of log(error) against log(tau0) over four halvings is 2 within 0.15."""
+    taus = np.array([0.1, 0.05, 0.025, 0.0125])
+    errors = []
+    for tau0 in taus:
+        scene, solution = _harmonic_march(tau0, scheme)
+        assert solution.success, solution.message
+        t = solution.t
+        between = np.concatenate([t[:-1] + 0.25 * np.diff(t), t[:-1] + 0.5 * np.diff(t)])
+        errors.append(_dense_error(scene, solution, between[between <= 5.0]))
+    slope = np.polyfit(np.log(taus), np.log(errors), 1)[0]
+    assert abs(slope - 2.0) < 0.15, (slope, errors)
+
+
+def test_dense_output_returns_the_nodes_and_the_state_at_t_end():
+    """The march stops at the first node past t_end (here 5.0 for t_end = 4.98); ``at_end``
+    gives the state at 4.98 with the scheme's error, the last node is a step's motion away."""
+    scene, solution = _harmonic_march(0.05, t_end=4.98)
+    q, p = solution.at(solution.t)
+    assert np.array_equal(q, solution.q) and np.allclose(p, solution.p, rtol=0, atol=1e-15)
+    assert solution.t[-1] > 4.99 and solution.t_end == 4.98
+    q_end, p_end = solution.at_end()
+    assert q_end.shape == (1,) and p_end.shape == (1,)
+    q_exact, _ = scene.exact(np.array([4.98]), np.array([1.0]), np.array([0.0]), 0.0, 1.0)
+    last_node_error = abs(solution.q[-1, 0] - q_exact[0, 0])
+    assert abs(q_end[0] - q_exact[0, 0]) < 2e-3 < last_node_error
+
+
+def test_dense_output_refuses_times_outside_the_run():
+    _, solution = _harmonic_march(0.1)
+    with pytest.raises(InputError, match="t must lie in the run's span"):
+        solution.at(-0.5)
+
+
+def test_a_pickled_solution_interpolates_from_its_nodes():
+    """The vector field holds this process's CasADi functions and is not pickled; the copy falls
+    back to finite-difference slopes, still second order and close to the original."""
+    scene, solution = _harmonic_march(0.025)
+    copy = pickle.loads(pickle.dumps(solution))
+    assert copy.vector_field is None
+    times = np.linspace(0.0, 5.0, 301)
+    assert _dense_error(scene, copy, times) < 5e-3
+    assert np.max(np.abs(copy.at(times)[0] - solution.at(times)[0])) < 1e-3
+
+
+def test_energy_at_the_nodes():
+    _, solution = _harmonic_march(0.1)
+    system = load_scene("harmonic").system
+    energy = solution.energy(system)
+    assert energy.shape == solution.t.shape
+    assert np.allclose(energy, 0.5 * (solution.p[:, 0] ** 2 + solution.q[:, 0] ** 2))
+    assert np.allclose(solution.energy(system, {"w": 2.0}),
+                       0.5 * (solution.p[:, 0] ** 2 + 4 * solution.q[:, 0] ** 2))
+
+
+def test_solve_bvp_takes_march_time_keywords_and_still_t_span():
+    system = load_scene("pendulum").system
+    new = solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=21)
+    with pytest.warns(DeprecationWarning, match=r"t_span\) is deprecated"):
+        old = solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=21)
+    assert new.success and np.array_equal(new.t, old.t) and np.array_equal(new.q, old.q)
+    q, _ = new.at(0.5)
+    assert q.shape == (1,) and new.at_end()[0][0] == pytest.approx(0.1, abs=1e-12)
+    with pytest.raises(InputError, match="not t_span as well"):
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), t_end=1.0, nodes=21)
+    with pytest.raises(InputError, match="needs t_end"):
+        solve_bvp(system, [0.5], [0.1], nodes=21)
