@@ -181,6 +181,8 @@ class ErrorEstimates:
 def _padded(values: np.ndarray) -> np.ndarray:
     """``values`` (rows) repeated from its last row up to ``BLOCK`` rows."""
     extra = BLOCK - values.shape[0]
+    if extra == 0:  # a full block as it is (np.pad copies even when it adds nothing)
+        return values
     return np.pad(values, [(0, extra)] + [(0, 0)] * (values.ndim - 1), mode="edge")
 
 
