@@ -1,17 +1,10 @@
 """The explicit schemes users would pick instead, run the same way as the march: compiled chunks.
 
-- Stormer-Verlet (leapfrog) for separable ``H = T(p) + V(q, t)``: the Strang splitting of the
-  autonomous extended system (time advances with ``q``), order 2, symplectic::
-
-      p_h = p_k - tau/2 V_q(q_k, t_k),   q_{k+1} = q_k + tau T_p(p_h),
-      p_{k+1} = p_h - tau/2 V_q(q_{k+1}, t_k + tau).
-
-- Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
-  energy-conserving.
-
-Both march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite.
-Also here, for every compiled baseline (``lee_left.py`` too): :func:`chunk_for`, the named
-columns of a chunk's rows (:class:`Columns`), :func:`load` and :func:`solution_of`.
+Stormer-Verlet (separable ``H``, order 2, symplectic) and classical RK4 (order 4), whose step maps
+are written in ``discrete/explicit.py``, march on uniform steps that end on ``t_end``; each
+chunk's steps are accepted while finite. Also here, for every compiled baseline (``lee_left.py``
+too): :func:`chunk_for`, the named columns of a chunk's rows (:class:`Columns`), :func:`load`
+and :func:`solution_of`.
 """
 
 from __future__ import annotations
