@@ -27,6 +27,7 @@ from .acceptance import Acceptance
 from .chunk import FastChunk
 from .driver import Advance, Nodes, describe_phase_space
 from .least_squares import least_squares_step
+from .accuracy import ACCURACY_VALUES
 from .steps import NewtonSteps, StepResult
 
 BREAKDOWNS = ("stop", "least_squares")
@@ -115,15 +116,21 @@ class CarefulStepper:
 
 
 class CompiledStepper:
-    """One compiled chunk per call, kept up to its first step that fails a check."""
+    """One compiled chunk per call, kept up to its first step that fails a check.
+
+    A chunk that carries the accuracy check starts from ``errors.e`` (the check's
+    :class:`~ddvp_nlp.solvers.accuracy.ErrorEstimates`, which the monitor keeps up to date) and
+    returns the check's estimates of every kept step in ``Advance.values``
+    (``ACCURACY_VALUES``)."""
 
     def __init__(self, chunk: FastChunk, theta: np.ndarray, acceptance: Acceptance,
-                 clock: Clock, tally: Tally):
+                 clock: Clock, tally: Tally, *, errors=None):
         self.chunk = chunk
         self.theta = theta
         self.acceptance = acceptance
         self.clock = clock
         self.tally = tally
+        self.errors = errors if chunk.accuracy is not None else None
 
     def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
         """The steps kept (up to the first that fails a check, the end or ``budget``) and
@@ -141,14 +148,18 @@ class CompiledStepper:
         if kept and self.chunk.variable:
             self.tally.drift = float(steps.drift[kept - 1])
         self.tally.fast_steps += kept
-        advance = Advance(steps.t_next[:kept], steps.z_next[:kept],
-                          values={"H": steps.H_node[:kept], "w": steps.w_node[:kept]})
-        return advance, bool(bad.size)
+        values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept]}
+        if self.errors is not None:
+            values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
+        return Advance(steps.t_next[:kept], steps.z_next[:kept], values=values), bool(bad.size)
+
+    def _error(self):
+        return None if self.errors is None else self.errors.e
 
     def _energy_chunk(self, nodes, k):
         t, z = nodes.t, nodes.z
         steps = self.chunk.energy_steps(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
-                                        self.theta)
+                                        self.theta, error=self._error())
         t_mid = np.concatenate([[t[k]], steps.t_next[:-1]])
         with np.errstate(invalid="ignore"):  # a diverged step is NaN; it fails the checks
             tau = steps.t_next - t_mid
@@ -162,7 +173,8 @@ class CompiledStepper:
     def _fixed_chunk(self, nodes, k):
         clock = self.clock
         steps = self.chunk.fixed_steps(k, nodes.z[k], self.theta, t0=clock.t0, tau=clock.tau,
-                                       t_end=clock.t_end, total=clock.total)
+                                       t_end=clock.t_end, total=clock.total,
+                                       error=self._error())
         with np.errstate(invalid="ignore"):
             good = steps.finite & self.acceptance.residuals_ok(steps.canonical, steps.size)
         return steps, good, np.flatnonzero(k + 1 + np.arange(self.chunk.chunk) == clock.total)
