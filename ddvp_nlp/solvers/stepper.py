@@ -24,10 +24,10 @@ import numpy as np
 
 from ..solution import Status
 from .acceptance import Acceptance
+from .accuracy import ACCURACY_VALUES
 from .chunk import FastChunk
 from .driver import Advance, Nodes, describe_phase_space
 from .least_squares import least_squares_step
-from .accuracy import ACCURACY_VALUES
 from .steps import NewtonSteps, StepResult
 
 BREAKDOWNS = ("stop", "least_squares")
