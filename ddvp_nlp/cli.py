@@ -99,7 +99,27 @@ def build_parser() -> argparse.ArgumentParser:
     _sweep_command(commands)
     _reproduce_command(commands)
     _periodic_command(commands)
+    _poincare_command(commands)
     return parser
+
+
+def _poincare_command(commands) -> None:
+    poincare = commands.add_parser(
+        "poincare", help="a Poincare section at a fixed energy: many orbits marched together")
+    poincare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    poincare.add_argument("--energy", type=float, required=True, help="the energy E")
+    poincare.add_argument("--orbits", type=int, default=20, help="number of orbits M")
+    poincare.add_argument("--section", default="q1=0", metavar="NAME=VALUE",
+                          help="the section, NAME in q1..qn (default q1=0)")
+    poincare.add_argument("--direction", default="+", choices=("+", "-"),
+                          help="crossings with the section coordinate increasing (+)")
+    poincare.add_argument("--t-end", type=float, default=None, help="end time of every orbit")
+    poincare.add_argument("--tau0", type=float, default=None, help="first step")
+    poincare.add_argument("--seed", type=int, default=0, help="seed of the starts")
+    poincare.add_argument("--set", dest="settings", action="append", default=[],
+                          metavar="NAME=VALUE", help="a parameter of the scene")
+    poincare.add_argument("--out", default=None, help="output folder")
+    poincare.add_argument("--no-plot", action="store_true", help="do not write the figure")
 
 
 def _periodic_command(commands) -> None:
@@ -650,6 +670,35 @@ def _format_warning(message, category, filename, lineno, line=None):
 COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
             "compare": run_compare, "stress": run_stress, "sweep": run_sweep,
             "reproduce": run_reproduce, "periodic": run_periodic}
+
+
+def run_poincare(args) -> int:
+    """``ddvp poincare``: the starts on the section, one ensemble, its crossings written."""
+    from pathlib import Path
+
+    from .io.poincare_runs import write_section
+    from .studies.poincare import poincare_section
+    from .validation import check_integer
+
+    scene = load_scene(args.scene)
+    config = scene.resolve({})
+    orbits = check_integer("--orbits", args.orbits)
+    section = poincare_section(scene.system, args.energy, section=args.section, orbits=orbits,
+                               direction=args.direction,
+                               tau0=args.tau0 if args.tau0 is not None else config.tau0,
+                               t_end=args.t_end if args.t_end is not None else config.t_end,
+                               params=_parse_settings(args.settings), seed=args.seed)
+    out = Path(args.out or f"runs/{scene.name}-poincare-E{args.energy:g}")
+    write_section(out, section, plot=not args.no_plot)
+    failed = sum(status != "reached t_end" for status in section.statuses)
+    print(f"{len(section.statuses)} orbits, {section.points.shape[0]} crossings of "
+          f"{args.section}; {failed} orbits failed; largest nodal energy error "
+          f"{section.energy_errors.max():.2e}")
+    print(f"  written to {out}/ (section.npz, section.csv, orbits.csv, section.png)")
+    return 0 if failed == 0 else 1
+
+
+COMMANDS["poincare"] = run_poincare
 
 
 class _Stopped(Exception):

@@ -4,6 +4,8 @@
 - ``plotting.py``: the trajectory figure of a run.
 - ``periodic_runs.py``: ``ddvp periodic``'s run folder (orbit and step-length figure) and a
   family's ``family.csv`` and period-against-energy figure.
+- ``poincare_runs.py``: ``ddvp poincare``'s ``section.npz``, ``section.csv``, ``orbits.csv`` and
+  figure.
 - ``row_file.py``: a grid's CSV result file, appended row by row.
 - ``markdown.py``: pieces the grid reports share (failure table, machine line).
 - ``work_precision.py``: ``ddvp compare``: runs the comparison, writes its CSV, figure, summary.

@@ -26,8 +26,11 @@ also measured against the exact flow ``z' = f(z, t) = (H_p, -H_q)``, with three 
 
 The check runs as a monitor of the step loop (``driver.py``), on the nodes each call of the
 stepper accepted, so it stops a march at the first step that fails (or, with ``stop=False``,
-records the first failure and lets the march go on). The estimates are a compiled CasADi function
-mapped over blocks of nodes, like the march's chunks.
+records the first failure and lets the march go on). The march's compiled chunk computes the
+estimates with its steps (``chunk.py``: the same :func:`local_error_function`, the error vector
+in the chunk's state) and hands them over in ``Advance.values`` (``ACCURACY_VALUES``); where they
+are absent (the careful path, a finished trajectory) the monitor computes them itself, with a
+compiled CasADi function mapped over blocks of nodes.
 """
 
 from __future__ import annotations
@@ -54,6 +57,10 @@ from .compiler import (
 
 BLOCK = 1024  # nodes per call of the compiled estimate (the last block is padded)
 SMALL = 16  # fewer steps than this go one by one, unpadded
+# The per-step estimates a stepper may hand the monitor in ``Advance.values``: ``delta``,
+# ``scale``, ``H_new``, ``global_error`` (each (m,)) and ``error`` (m, 2n), the error vector
+# after each step.
+ACCURACY_VALUES = ("delta", "scale", "H_new", "global_error", "error")
 ADVICE = ("try a smaller tau0, fixed steps (scheme 'fixed'), or the least-squares step; "
           "accept_inaccurate records the estimates and goes on")
 
@@ -130,18 +137,27 @@ class ErrorEstimates:
     def __init__(self, system, substeps: int = 1, *, compiler=None, cache_dir=None):
         self.system = system
         self.e = np.zeros(2 * system.n)
-        single = local_error_function(system, substeps)
-        self.single = single
-        function = single.mapaccum("error_block", BLOCK)
-        if compiler is not None:
-            key = ("error_block", substeps, compiler, str(cache_dir))
-            try:
-                function = cached(system, key, lambda: compile_function(
-                    function, compiler, cache_folder(cache_dir), prefix="accuracy"))
-            except CompileUnavailable as reason:  # the virtual machine computes the same
-                warn_once(reason)
-        self.block = function
-        self.buffer = FunctionBuffer(function)
+        self.single = local_error_function(system, substeps)
+        self.substeps = substeps
+        self.compiler, self.cache_dir = compiler, cache_dir
+        self._buffer = None
+
+    @property
+    def buffer(self) -> FunctionBuffer:
+        """The block function, built (and compiled) at its first use: a march whose chunk
+        computes the estimates never needs it."""
+        if self._buffer is None:
+            function = self.single.mapaccum("error_block", BLOCK)
+            if self.compiler is not None:
+                key = ("error_block", self.substeps, self.compiler, str(self.cache_dir))
+                try:
+                    function = cached(self.system, key, lambda: compile_function(
+                        function, self.compiler, cache_folder(self.cache_dir),
+                        prefix="accuracy"))
+                except CompileUnavailable as reason:  # the virtual machine computes the same
+                    warn_once(reason)
+            self._buffer = FunctionBuffer(function)
+        return self._buffer
 
     def __call__(self, t: np.ndarray, z: np.ndarray, theta: np.ndarray):
         """For the steps between the rows of ``t`` (M+1,) and ``z`` (M+1, 2n), continuing the
@@ -181,7 +197,7 @@ class ErrorEstimates:
 def _padded(values: np.ndarray) -> np.ndarray:
     """``values`` (rows) repeated from its last row up to ``BLOCK`` rows."""
     extra = BLOCK - values.shape[0]
-    if extra == 0:  # a full block as it is (np.pad copies even when it adds nothing)
+    if extra == 0:  # a full block: no copy (np.pad cost 80 us a call)
         return values
     return np.pad(values, [(0, extra)] + [(0, 0)] * (values.ndim - 1), mode="edge")
 
@@ -193,7 +209,7 @@ class AccuracyMonitor:
     the first two nodes ``(t, z)`` giving the level the first step sets."""
 
     def __init__(self, system, theta, tolerance: Tolerance, *, H0: float, level=None,
-                 substeps: int = 1, compiler=None, cache_dir=None):
+                 substeps: int = 1, compiler=None, cache_dir=None, errors=None):
         self.system = system
         self.theta = np.asarray(theta, float)
         self.tolerance = tolerance
@@ -201,7 +217,9 @@ class AccuracyMonitor:
         self.energy_scale = max(1.0, abs(H0))
         self.level_of = level
         self.autonomous = not system.time_dependent
-        self.errors = ErrorEstimates(system, substeps, compiler=compiler, cache_dir=cache_dir)
+        if errors is None:
+            errors = ErrorEstimates(system, substeps, compiler=compiler, cache_dir=cache_dir)
+        self.errors = errors
         self.delta: list[np.ndarray] = []
         self.global_errors: list[np.ndarray] = []
         self.level = None
@@ -219,7 +237,7 @@ class AccuracyMonitor:
         if start == 0 and self.level_of is not None:
             self.level = float(self.level_of(t[:2], z[:2]))
             self.level_error = abs(self.level - self.H0) / self.energy_scale
-        delta, scale, H, globals_ = self.errors(t, z, self.theta)
+        delta, scale, H, globals_ = self._estimates(t, z, advance)
         self.delta.append(delta)
         self.global_errors.append(globals_)
         self.size = max(self.size, float(np.max(scale)))
@@ -231,6 +249,15 @@ class AccuracyMonitor:
             return None
         keep = failure["step"] + 1 - first + 1  # the nodes up to the end of the failing step
         return Status.INACCURATE, self.describe(failure), max(keep, 0)
+
+    def _estimates(self, t, z, advance):
+        """The stepper's own estimates of these steps if it computed them (a compiled chunk),
+        else this check's; either way ``errors.e`` ends at the newest node."""
+        values = advance.values if advance is not None else {}
+        if "delta" in values and values["delta"].size == t.size - 1:
+            self.errors.e = values["error"][-1].copy()
+            return values["delta"], values["scale"], values["H_new"], values["global_error"]
+        return self.errors(t, z, self.theta)
 
     def _first_failure(self, start, t, delta, scale, H, globals_):
         """The first step among these that fails a test, as a dict, or None."""

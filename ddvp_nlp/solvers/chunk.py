@@ -30,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from ..cache import use_compiler
+from .accuracy import local_error_function
 from .compiler import (
     CompileUnavailable,
     FunctionBuffer,
@@ -84,19 +85,41 @@ class Layout:
         return {name: matrix[:, self.slices[name]] for name in self.names}
 
 
-def energy_layouts(n2: int) -> tuple[Layout, Layout]:
-    """State and per-step output of a chunk of energy steps (``n2 = 2n``)."""
-    state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1))
+# The accuracy check's estimates of each step (``accuracy.local_error_function``), computed in
+# the chunk when it carries the check: local error, scale, H of the new node, |e|_inf.
+ACCURACY_OUTPUTS = (("delta", 1), ("scale", 1), ("H_new", 1), ("global_error", 1))
+
+
+def _step_length() -> ca.Function:
+    """``t_b - t_a`` as a call of its own: inline, CasADi would simplify
+    ``(t_mid + tau) - t_mid`` to ``tau``, which differs from the difference of the node times
+    (what the accuracy check uses) by round-off."""
+    t_b, t_a = ca.SX.sym("t_b"), ca.SX.sym("t_a")
+    return ca.Function("step_length", [t_b, t_a], [t_b - t_a], {"never_inline": True})
+
+
+_STEP_LENGTH = _step_length()
+
+
+def energy_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout]:
+    """State and per-step output of a chunk of energy steps (``n2 = 2n``); with ``accuracy``
+    the state also carries the propagated global error ``error`` and the output the check's
+    estimates (``ACCURACY_OUTPUTS``)."""
+    state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1),
+                   *((("error", n2),) if accuracy else ()))
     output = Layout(("t_next", 1), ("z_next", n2),
-                    *((name, 1) for name in EnergyCheck._fields))
+                    *((name, 1) for name in EnergyCheck._fields),
+                    *(ACCURACY_OUTPUTS if accuracy else ()))
     return state, output
 
 
-def fixed_layouts(n2: int) -> tuple[Layout, Layout, Layout]:
-    """State, constants and per-step output of a chunk of fixed-length steps."""
-    state = Layout(("k", 1), ("z", n2))
+def fixed_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout, Layout]:
+    """State, constants and per-step output of a chunk of fixed-length steps (``accuracy``:
+    as in :func:`energy_layouts`)."""
+    state = Layout(("k", 1), ("z", n2), *((("error", n2),) if accuracy else ()))
     constants = Layout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
-    output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields))
+    output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields),
+                    *(ACCURACY_OUTPUTS if accuracy else ()))
     return state, constants, output
 
 
@@ -107,7 +130,11 @@ class ChunkSteps:
     ``t_next`` ``(chunk,)``, ``z_next`` ``(chunk, 2n)``, the check of each step (``canonical``,
     ``size``, ``H_node``, ``w_node``; energy steps also ``energy``, ``H_interval`` and ``drift``,
     the compensated sum after the step; see ``steps.EnergyCheck``) and ``finite``: whether every
-    output of the step is finite. A diverged step is NaN and fails its checks."""
+    output of the step is finite. A diverged step is NaN and fails its checks.
+
+    A chunk that carries the accuracy check also gives, per step, ``delta``, ``scale``,
+    ``H_new`` and ``global_error`` (``accuracy.ErrorEstimates``' four estimates) and ``error``
+    ``(chunk, 2n)``, the propagated global error vector after the step."""
 
     t_next: np.ndarray
     z_next: np.ndarray
@@ -119,6 +146,11 @@ class ChunkSteps:
     energy: np.ndarray | None = None
     H_interval: np.ndarray | None = None
     drift: np.ndarray | None = None
+    delta: np.ndarray | None = None
+    scale: np.ndarray | None = None
+    H_new: np.ndarray | None = None
+    global_error: np.ndarray | None = None
+    error: np.ndarray | None = None
 
 
 class FastChunk:
@@ -132,22 +164,35 @@ class FastChunk:
     ``functions`` are the careful path's :class:`~ddvp_nlp.solvers.steps.StepFunctions`;
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
+
+    With ``orbits`` > 1 one call runs the chunk from each of ``orbits`` states (an ensemble,
+    ``ensemble.py``): :meth:`steps` takes one state per row and returns each orbit's steps.
+
+    With ``accuracy`` each step also runs the accuracy check's estimates
+    (``accuracy.local_error_function``: one RK4 step of the exact flow from the step's first
+    node over ``t_next - t_a``, and the forward-mode propagation of the global error ``error``,
+    carried in the state), so the check costs no call of its own; the nodes are the same to
+    the bit.
     """
 
     def __init__(self, system, scheme, functions: StepFunctions, *, chunk: int, compiler,
-                 cache_dir):
+                 cache_dir, accuracy: bool = False, orbits: int = 1):
         started = time.perf_counter()
         n2 = 2 * system.n
         theta = ca.SX.sym("theta", system.theta.numel())
         self.variable = scheme.variable_steps
+        self.accuracy = local_error_function(system) if accuracy else None
         if self.variable:
-            self.state, self.output = energy_layouts(n2)
+            self.state, self.output = energy_layouts(n2, accuracy)
             step = self._energy_step(functions, theta)
         else:
-            self.state, self.constants, self.output = fixed_layouts(n2)
+            self.state, self.constants, self.output = fixed_layouts(n2, accuracy)
             step = self._fixed_step(functions, theta)
         self.chunk = chunk
+        self.orbits = orbits
         function = step.mapaccum("chunk", chunk)
+        if orbits > 1:  # an ensemble: the same chunk from each orbit's state, in one call
+            function = function.map(orbits)
         self.path = "vm"
         self.compile_s = 0.0
         self.compile = None
@@ -175,10 +220,23 @@ class FastChunk:
         x = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
         check = EnergyCheck(*functions.energy_check(x, w))
         t_next = s["t_mid"] + x[-1]
+        carried, estimates = self._estimates(s, s["t_mid"], t_next, s["z_mid"], x[:-1], theta)
         after = self.state.stack(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"],
-                                 z_mid=x[:-1], drift=s["drift"] + check.energy)
-        outputs = self.output.stack(t_next=t_next, z_next=x[:-1], **check._asdict())
+                                 z_mid=x[:-1], drift=s["drift"] + check.energy, **carried)
+        outputs = self.output.stack(t_next=t_next, z_next=x[:-1], **check._asdict(),
+                                    **estimates)
         return ca.Function("step", [state, theta], [after, outputs])
+
+    def _estimates(self, s, t_a, t_b, z_a, z_b, theta) -> tuple[dict, dict]:
+        """The accuracy check's part of one step (nothing without it): the carried error
+        vector and the per-step estimates, by layout name. The step length is ``t_b - t_a``
+        of the node times, as the check computes it from the nodes."""
+        if self.accuracy is None:
+            return {}, {}
+        e_next, delta, scale, H_b = self.accuracy(s["error"], z_a, z_b, t_a,
+                                                  _STEP_LENGTH(t_b, t_a), theta)
+        return {"error": e_next}, {"delta": delta, "scale": scale, "H_new": H_b,
+                                   "global_error": ca.norm_inf(e_next)}
 
     def _fixed_step(self, functions, theta):
         state = ca.SX.sym("state", self.state.size)
@@ -192,36 +250,67 @@ class FastChunk:
                                  FAST_NEWTON_OPTIONS, iterations=UNROLLED_ITERATIONS)
         z_b = newton(functions.fixed_predict(w), w)
         check = FixedCheck(*functions.fixed_check(z_b, w))
-        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict())
+        carried, estimates = self._estimates(s, t_a, t_b, s["z"], z_b, theta)
+        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict(), **estimates)
         return ca.Function("step", [state, ca.vertcat(theta, constants)],
-                           [self.state.stack(k=k + 1, z=z_b), outputs])
+                           [self.state.stack(k=k + 1, z=z_b, **carried), outputs])
 
     def _call(self, state: np.ndarray, parameters: np.ndarray):
         """One call through a :class:`~ddvp_nlp.solvers.compiler.FunctionBuffer` (numpy arrays
-        in place of DM). Returns ``(states, outputs)``, one row per step, overwritten by the
-        next call."""
-        tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
+        in place of DM). Returns ``(states, outputs)``, one row per step (orbit after orbit),
+        overwritten by the next call."""
+        tiled = np.broadcast_to(parameters, (self.chunk * self.orbits, parameters.size))
         return self._buffer(state, tiled)
 
-    def _decode(self, outputs: np.ndarray, **extra) -> ChunkSteps:
-        outputs = outputs.copy()  # the buffer is overwritten by the next call
-        finite = np.all(np.isfinite(outputs), axis=1)
+    def _decode(self, outputs: np.ndarray, states: np.ndarray) -> ChunkSteps:
+        outputs = outputs.copy()  # the buffers are overwritten by the next call
+        # the estimates do not decide whether a step is good: a step's own outputs do
+        checked = self.output.size - (len(ACCURACY_OUTPUTS) if self.accuracy else 0)
+        finite = np.all(np.isfinite(outputs[:, :checked]), axis=1)
+        carried = self.state.columns(states)
+        extra = {name: carried[name].copy() for name in ("drift", "error") if name in carried}
         return ChunkSteps(**self.output.columns(outputs), finite=finite, **extra)
 
-    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta) -> ChunkSteps:
-        """``chunk`` energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``."""
-        state = self.state.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
-                                drift=drift)
-        states, outputs = self._call(state, theta)
-        return self._decode(outputs, drift=self.state.columns(states)["drift"].copy())
+    def _carried(self, error) -> dict:
+        """The error vector of the accuracy check's state part (zeros if none is given)."""
+        if self.accuracy is None:
+            return {}
+        return {"error": np.zeros(self.accuracy.size1_in(0)) if error is None else error}
 
-    def fixed_steps(self, k: int, z, theta, *, t0, tau, t_end, total) -> ChunkSteps:
-        """``chunk`` fixed-length steps from node ``k`` (state ``z``) of a uniform grid of
-        ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
-        parameters = np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
-                                                                total=total)])
-        _, outputs = self._call(self.state.pack(k=k, z=z), parameters)
-        return self._decode(outputs)
+    def energy_state(self, t_prev, t_mid, z_prev, z_mid, drift, *, error=None) -> np.ndarray:
+        """The state of energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``;
+        ``error``: the accuracy check's global error vector at node ``k``."""
+        return self.state.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
+                               drift=drift, **self._carried(error))
+
+    def fixed_state(self, k: int, z, *, error=None) -> np.ndarray:
+        """The state of fixed-length steps from node ``k`` (state ``z``)."""
+        return self.state.pack(k=k, z=z, **self._carried(error))
+
+    def fixed_parameters(self, theta, *, t0, tau, t_end, total) -> np.ndarray:
+        """``theta`` and the grid: ``total`` steps of ``tau`` from ``t0`` that end on
+        ``t_end``."""
+        return np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
+                                                          total=total)])
+
+    def steps(self, states: np.ndarray, parameters: np.ndarray) -> list[ChunkSteps]:
+        """``chunk`` steps from each of the ``orbits`` rows of ``states``, one call."""
+        after, outputs = self._call(states, parameters)
+        c = self.chunk
+        return [self._decode(outputs[i * c:(i + 1) * c], after[i * c:(i + 1) * c])
+                for i in range(self.orbits)]
+
+    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, *,
+                     error=None) -> ChunkSteps:
+        """``chunk`` energy steps of one orbit (:meth:`energy_state`)."""
+        return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift, error=error),
+                          theta)[0]
+
+    def fixed_steps(self, k: int, z, theta, *, t0, tau, t_end, total, error=None) -> ChunkSteps:
+        """``chunk`` fixed-length steps of one orbit from node ``k`` (state ``z``) of a uniform
+        grid of ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
+        parameters = self.fixed_parameters(theta, t0=t0, tau=tau, t_end=t_end, total=total)
+        return self.steps(self.fixed_state(k, z, error=error), parameters)[0]
 
 
 def _compiled_or_vm(function, compiler, folder):

@@ -153,7 +153,7 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
                 status, detail = reached
                 break
             advance = stepper.advance(nodes, max_steps - steps)
-            status, detail = _accept(nodes, advance, t_end, monitors)
+            status, detail = accept(nodes, advance, t_end, monitors)
             bar.update(float(nodes.t[nodes.count - 1]))
             if status is not Status.SUCCESS:
                 break
@@ -169,7 +169,7 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
     return Outcome(t, z, status, text)
 
 
-def _accept(nodes: Nodes, advance: Advance, t_end: float, monitors) -> tuple[Status, str]:
+def accept(nodes: Nodes, advance: Advance, t_end: float, monitors) -> tuple[Status, str]:
     """Rules 2, 3 and 5 on one stepper call: cut at the end, keep, let the monitors look."""
     if advance.count and advance.t[-1] >= t_end:  # the nodes are in order (rule 1)
         # what the stepper did after the end does not count, failures included

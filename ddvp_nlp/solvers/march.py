@@ -36,7 +36,7 @@ from ..physics.hamiltonian import HamiltonianSystem
 from ..solution import Solution
 from ..validation import check_cache_folder, check_integer, check_real, check_state
 from .acceptance import Acceptance
-from .accuracy import AccuracyMonitor, Tolerance
+from .accuracy import AccuracyMonitor, ErrorEstimates, Tolerance
 from .chunk import FastChunk
 from .dense import attach
 from .driver import Nodes, drive
@@ -163,7 +163,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
 
     started = time.perf_counter()
     parts = _build(system, scheme, theta, options, fast=fast, compiler=compiler,
-                   cache_dir=cache_dir)
+                   cache_dir=cache_dir, check_accuracy=check_accuracy)
     built = time.perf_counter()
     nodes = Nodes(options.t0, np.concatenate([q0, p0]))
     monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
@@ -172,8 +172,7 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
     checker = None
     if check_accuracy:
-        checker = _accuracy_monitor(system, scheme, theta, accuracy, H0,
-                                    compiler=compiler if compiled else None, cache_dir=cache_dir)
+        checker = _accuracy_monitor(system, scheme, theta, accuracy, H0, parts.errors)
         monitors.append(checker)
     monitors += [StopRequest(stop)] if stop else []
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
@@ -304,26 +303,35 @@ class _Parts:
     tally: Tally
     fast_chunk: FastChunk | None
     stepper: CarefulStepper | MarchStepper
+    errors: ErrorEstimates | None
 
 
-def _build(system, scheme, theta, options: _Options, *, fast, compiler, cache_dir) -> _Parts:
-    """The step functions (cached on the system), the compiled chunk if ``fast`` (cached too)
-    and the stepper."""
+def _build(system, scheme, theta, options: _Options, *, fast, compiler, cache_dir,
+           check_accuracy=True) -> _Parts:
+    """The step functions (cached on the system), the compiled chunk if ``fast`` (cached too;
+    with ``check_accuracy`` it computes the accuracy check's estimates too), the stepper and the
+    accuracy check's error state (compiled where the chunk is: one fallback warning, not
+    two)."""
     functions = step_functions(system, scheme)
     newton = NewtonSteps(functions, theta, options.acceptance)
     tally = Tally()
     clock = Clock.for_rule(scheme.variable_steps, options.t0, options.t_end, options.tau0)
     stepper = CarefulStepper(newton, clock, tally, variable=scheme.variable_steps,
                              breakdown=options.breakdown)
-    fast_chunk = None
+    fast_chunk = errors = None
     if fast:
         fast_chunk = cached(system,
-            ("fast", scheme, options.chunk, compiler, str(cache_dir)),
+            ("fast", scheme, options.chunk, compiler, str(cache_dir), check_accuracy),
             lambda: FastChunk(system, scheme, functions, chunk=options.chunk, compiler=compiler,
-                              cache_dir=cache_dir))
+                              cache_dir=cache_dir, accuracy=check_accuracy))
+    if check_accuracy:
+        compiled = fast_chunk is not None and fast_chunk.path == "compiled"
+        errors = ErrorEstimates(system, compiler=compiler if compiled else None,
+                                cache_dir=cache_dir)
+    if fast_chunk is not None:
         stepper = MarchStepper(stepper, CompiledStepper(fast_chunk, theta, options.acceptance,
-                                                        clock, tally))
-    return _Parts(functions, newton, tally, fast_chunk, stepper)
+                                                        clock, tally, errors=errors))
+    return _Parts(functions, newton, tally, fast_chunk, stepper, errors)
 
 
 def _monitors(parts: _Parts, scheme, options: _Options, H0, nodes, theta):
@@ -339,9 +347,10 @@ def _monitors(parts: _Parts, scheme, options: _Options, H0, nodes, theta):
     return monitors, solvability
 
 
-def _accuracy_monitor(system, scheme, theta, tolerance, H0, *, compiler, cache_dir):
-    """The accuracy check of the march; for the energy rules it also compares the level the
-    first step sets, the first interval's energy, with ``H0``."""
+def _accuracy_monitor(system, scheme, theta, tolerance, H0, errors):
+    """The accuracy check of the march (its error state ``errors`` shared with the compiled
+    chunk); for the energy rules it also compares the level the first step sets, the first
+    interval's energy, with ``H0``."""
     level = None
     if scheme.variable_steps:
         interval_energy = equations.midpoint_energy_function(system, scheme)
@@ -350,8 +359,7 @@ def _accuracy_monitor(system, scheme, theta, tolerance, H0, *, compiler, cache_d
         def level(t, z):
             return float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
                                          theta))
-    return AccuracyMonitor(system, theta, tolerance, H0=H0, level=level, compiler=compiler,
-                           cache_dir=cache_dir)
+    return AccuracyMonitor(system, theta, tolerance, H0=H0, level=level, errors=errors)
 
 
 def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, compiler,

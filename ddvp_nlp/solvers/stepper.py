@@ -24,7 +24,8 @@ import numpy as np
 
 from ..solution import Status
 from .acceptance import Acceptance
-from .chunk import FastChunk
+from .accuracy import ACCURACY_VALUES
+from .chunk import ChunkSteps, FastChunk
 from .driver import Advance, Nodes, describe_phase_space
 from .least_squares import least_squares_step
 from .steps import NewtonSteps, StepResult
@@ -115,24 +116,47 @@ class CarefulStepper:
 
 
 class CompiledStepper:
-    """One compiled chunk per call, kept up to its first step that fails a check."""
+    """One compiled chunk per call, kept up to its first step that fails a check.
+
+    A chunk that carries the accuracy check starts from ``errors.e`` (the check's
+    :class:`~ddvp_nlp.solvers.accuracy.ErrorEstimates`, which the monitor keeps up to date) and
+    returns the check's estimates of every kept step in ``Advance.values``
+    (``ACCURACY_VALUES``)."""
 
     def __init__(self, chunk: FastChunk, theta: np.ndarray, acceptance: Acceptance,
-                 clock: Clock, tally: Tally):
+                 clock: Clock, tally: Tally, *, errors=None):
         self.chunk = chunk
         self.theta = theta
         self.acceptance = acceptance
         self.clock = clock
         self.tally = tally
+        self.errors = errors if chunk.accuracy is not None else None
 
-    def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
-        """The steps kept (up to the first that fails a check, the end or ``budget``) and
-        whether a step failed."""
+    def inputs(self, nodes: Nodes) -> tuple[np.ndarray, np.ndarray]:
+        """The chunk's state from the newest nodes and its parameters."""
         k = nodes.count - 1
+        error = None if self.errors is None else self.errors.e
         if self.chunk.variable:
-            steps, good, ends = self._energy_chunk(nodes, k)
+            t, z = nodes.t, nodes.z
+            return (self.chunk.energy_state(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
+                                            error=error), self.theta)
+        clock = self.clock
+        return (self.chunk.fixed_state(k, nodes.z[k], error=error),
+                self.chunk.fixed_parameters(self.theta, t0=clock.t0, tau=clock.tau,
+                                            t_end=clock.t_end, total=clock.total))
+
+    def run(self, nodes: Nodes, budget: int, steps: ChunkSteps | None = None
+            ) -> tuple[Advance, bool]:
+        """The steps kept (up to the first that fails a check, the end or ``budget``) and
+        whether a step failed. ``steps``: the chunk's steps from these nodes if already
+        computed (an ensemble's call for all orbits), else one call now."""
+        k = nodes.count - 1
+        if steps is None:
+            steps = self.chunk.steps(*self.inputs(nodes))[0]
+        if self.chunk.variable:
+            good, ends = self._energy_checks(nodes, k, steps)
         else:
-            steps, good, ends = self._fixed_chunk(nodes, k)
+            good, ends = self._fixed_checks(k, steps)
         limit = min(self.chunk.chunk, budget)
         if ends.size:  # steps after the end are not counted, failures included
             limit = min(limit, int(ends[0]) + 1)
@@ -141,14 +165,13 @@ class CompiledStepper:
         if kept and self.chunk.variable:
             self.tally.drift = float(steps.drift[kept - 1])
         self.tally.fast_steps += kept
-        advance = Advance(steps.t_next[:kept], steps.z_next[:kept],
-                          values={"H": steps.H_node[:kept], "w": steps.w_node[:kept]})
-        return advance, bool(bad.size)
+        values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept]}
+        if self.errors is not None:
+            values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
+        return Advance(steps.t_next[:kept], steps.z_next[:kept], values=values), bool(bad.size)
 
-    def _energy_chunk(self, nodes, k):
-        t, z = nodes.t, nodes.z
-        steps = self.chunk.energy_steps(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
-                                        self.theta)
+    def _energy_checks(self, nodes, k, steps):
+        t = nodes.t
         t_mid = np.concatenate([[t[k]], steps.t_next[:-1]])
         with np.errstate(invalid="ignore"):  # a diverged step is NaN; it fails the checks
             tau = steps.t_next - t_mid
@@ -157,15 +180,12 @@ class CompiledStepper:
                     & self.acceptance.residuals_ok(steps.canonical, steps.size, steps.energy,
                                                    steps.H_interval)
                     & self.acceptance.bounds_ok(tau, tau_prev))
-        return steps, good, np.flatnonzero(steps.t_next >= self.clock.t_end)
+        return good, np.flatnonzero(steps.t_next >= self.clock.t_end)
 
-    def _fixed_chunk(self, nodes, k):
-        clock = self.clock
-        steps = self.chunk.fixed_steps(k, nodes.z[k], self.theta, t0=clock.t0, tau=clock.tau,
-                                       t_end=clock.t_end, total=clock.total)
+    def _fixed_checks(self, k, steps):
         with np.errstate(invalid="ignore"):
             good = steps.finite & self.acceptance.residuals_ok(steps.canonical, steps.size)
-        return steps, good, np.flatnonzero(k + 1 + np.arange(self.chunk.chunk) == clock.total)
+        return good, np.flatnonzero(k + 1 + np.arange(self.chunk.chunk) == self.clock.total)
 
 
 class MarchStepper:
@@ -183,9 +203,14 @@ class MarchStepper:
 
     describe = staticmethod(describe_phase_space)
 
-    def advance(self, nodes: Nodes, budget: int) -> Advance:
-        if self.careful_left == 0 and (not self.careful.variable or nodes.count > 1):
-            advance, failed = self.compiled.run(nodes, budget)
+    def wants_chunk(self, nodes: Nodes) -> bool:
+        """Whether the next call runs a compiled chunk (else one careful step)."""
+        return self.careful_left == 0 and (not self.careful.variable or nodes.count > 1)
+
+    def advance(self, nodes: Nodes, budget: int, steps: ChunkSteps | None = None) -> Advance:
+        """``steps``: the chunk's steps from these nodes if already computed (ensembles)."""
+        if self.wants_chunk(nodes):
+            advance, failed = self.compiled.run(nodes, budget, steps)
             if failed:
                 self.careful_left = self.compiled.chunk.chunk - advance.count
             if advance.count:

@@ -7,6 +7,8 @@
 - ``compare.py``: work-precision (error against run time) on one scene, and its rankings.
 - ``stress.py``: stiff and extreme cases, predicted breakdowns beside observed ones.
 - ``sweep.py``: a user's own grid of runs, as stress cases.
+- ``poincare.py``: Poincare sections at a fixed energy (starts on the section, one ensemble,
+  crossings on the dense output).
 - ``paper.py``: measurements of the paper's claims.
 - ``grid.py``: running grids of independent tasks, here, on local workers or on Dask; a grid's
   rows go to its result file as they finish (that is how resume works).

@@ -1,0 +1,59 @@
+"""``ddvp poincare``'s output: ``section.npz`` and ``section.csv`` (every crossing and its orbit),
+``orbits.csv`` (each orbit's start, status, steps and nodal energy error) and ``section.png``."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def write_section(out: Path, section, *, plot: bool = True) -> None:
+    """The files of a Poincare section (module docstring) in the folder ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    n = section.points.shape[1] // 2
+    names = [f"q{i + 1}" for i in range(n)] + [f"p{i + 1}" for i in range(n)]
+    np.savez(out / "section.npz", points=section.points, times=section.times,
+             orbit=section.orbit, starts=section.starts, energy_errors=section.energy_errors,
+             steps=section.steps, energy=section.energy)
+    with open(out / "section.csv", "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["orbit", "t", *names])
+        for k, t, z in zip(section.orbit, section.times, section.points, strict=True):
+            writer.writerow([int(k), repr(float(t)), *(repr(float(v)) for v in z)])
+    with open(out / "orbits.csv", "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["orbit", "status", "steps", "nodal_energy_error",
+                         *(f"start_{name}" for name in names)])
+        for k, start in enumerate(section.starts):
+            writer.writerow([k, section.statuses[k], int(section.steps[k]),
+                             f"{section.energy_errors[k]:.3e}", *(repr(float(v)) for v in start)])
+    if plot:
+        plot_section(section, out / "section.png")
+
+
+def plot_section(section, path: Path) -> None:
+    """The crossings in the plane of the first free coordinate and its momentum, one colour per
+    orbit."""
+    n = section.points.shape[1] // 2
+    fixed = int(section.section[1:].split("=")[0]) - 1
+    free = next(i for i in range(n) if i != fixed) if n > 1 else fixed
+    fig, ax = plt.subplots(figsize=(6, 6))
+    colours = plt.cm.tab20(np.linspace(0, 1, max(section.starts.shape[0], 1)))
+    for k in range(section.starts.shape[0]):
+        mine = section.orbit == k
+        ax.plot(section.points[mine, free], section.points[mine, n + free], ".", ms=1.5,
+                color=colours[k % len(colours)])
+    ax.set_xlabel(f"q{free + 1}")
+    ax.set_ylabel(f"p{free + 1}")
+    ax.set_title(f"Poincare section {section.section} ({section.direction}), E = "
+                 f"{section.energy:g}, {section.starts.shape[0]} orbits")
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)

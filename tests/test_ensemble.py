@@ -1,0 +1,42 @@
+"""Ensembles: many orbits marched together, each as march() would, and Poincare sections."""
+
+import numpy as np
+
+from ddvp_nlp import load_scene, march
+from ddvp_nlp.cli import main
+from ddvp_nlp.solution import Status
+from ddvp_nlp.solvers.ensemble import march_ensemble
+from ddvp_nlp.studies.poincare import poincare_section
+
+
+def test_ensemble_is_each_march_alone_and_a_failing_orbit_does_not_stop_the_others():
+    scene = load_scene("henon_heiles")
+    q0s = np.array([[0.0, 0.1], [0.0, 0.0], [0.0, -0.2]])
+    p0s = np.array([[0.35, 0.0], [0.0, 1.2], [0.3, 0.1]])  # the second: E = 0.72, escapes
+    solutions = march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=60.0)
+    assert [s.success for s in solutions] == [True, False, True]
+    assert solutions[1].status is Status.NEWTON_FAILED and solutions[1].steps < 20
+    for solution, q0, p0 in zip(solutions, q0s, p0s, strict=True):
+        alone = march(scene.system, q0, p0, tau0=0.05, t_end=60.0)
+        assert alone.status is solution.status and alone.steps == solution.steps
+        assert np.array_equal(alone.t, solution.t) and np.array_equal(alone.q, solution.q)
+        assert np.array_equal(alone.local_error, solution.local_error)
+    assert solutions[0].stats["fast_steps"] == solutions[0].steps - 1  # one call per chunk
+
+
+def test_section_points_lie_on_the_section_and_the_energy_surface(tmp_path):
+    scene = load_scene("henon_heiles")
+    energy = 1 / 12
+    section = poincare_section(scene.system, energy, orbits=4, tau0=0.05, t_end=150.0)
+    assert section.statuses == ["reached t_end"] * 4 and section.points.shape[0] > 40
+    assert np.max(np.abs(section.points[:, 0])) < 1e-12
+    assert np.all(section.points[:, 2] > 0)  # crossing in the + direction
+    theta = scene.system.parameter_vector(None)
+    H = scene.system.energy(section.points[:, :2], section.points[:, 2:], section.times, theta)
+    # on the surface to the scheme's own nodal accuracy (O(tau^2)), not that of the crossing
+    assert np.max(np.abs(H - energy)) <= 1.5 * section.energy_errors.max()
+    assert section.energy_errors.max() < 1e-4
+    out = tmp_path / "section"
+    code = main(["poincare", "henon_heiles", "--energy", "0.0833", "--orbits", "2",
+                 "--t-end", "30", "--out", str(out), "--no-plot"])
+    assert code == 0 and (out / "section.csv").exists() and (out / "orbits.csv").exists()
