@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..scenes import RunConfig
-from ..solvers import baselines, lee_left, paper_schemes, scipy_dop853
+from ..solvers import avf, baselines, lee_left, paper_schemes, scipy_dop853, verlet_adaptive
 from ..solvers.integrator import Integrator
 from ..solvers.scipy_dop853 import dop853  # noqa: F401 (the reference solution of the studies)
 
@@ -34,6 +34,9 @@ METHODS: dict[str, Method] = {m.name: Method(**m.traits()) for m in (
     paper_schemes.LEE,
     paper_schemes.MIDPOINT,
     baselines.STORMER_VERLET,
+    baselines.LEAPFROG,
+    verlet_adaptive.VERLET_ADAPTIVE,
+    avf.AVF,
     baselines.RK4,
     scipy_dop853.DOP853,
     lee_left.LEE_LEFT,
