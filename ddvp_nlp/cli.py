@@ -36,11 +36,13 @@ def _parse_settings(items: list[str]) -> dict:
     return settings
 
 
-def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
+def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> None:
     parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     default = Scheme().rule
-    parser.add_argument("--scheme", default=default, choices=RULES,
-                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)")
+    parser.add_argument("--scheme", default=default, choices=RULES + methods,
+                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)"
+                        + (f"; or a compared method, its knob tau0 (dop853: rtol = atol = "
+                           f"--tol): {', '.join(methods)}" if methods else ""))
     parser.add_argument("--alpha", type=float, default=0.5,
                         help="weight alpha of the scheme, beta = 1 - alpha (default: 0.5)")
     parser.add_argument("--clock", default="midpoint", choices=CLOCKS,
@@ -115,8 +117,10 @@ def _periodic_command(commands) -> None:
 
 
 def _march_command(commands) -> None:
+    from .studies.methods import METHODS
+
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
-    _scheme_arguments(march)
+    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES))
     march.add_argument("--max-steps", type=int, default=10_000_000)
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
     march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
@@ -268,7 +272,7 @@ def run_solve(args) -> int:
     config = _resolve(args, scene, higher)
     infix = "-bvp" if args.command == "bvp" else ""
     out = prepare_folder(args.out if args.out is not None
-                         else f"runs/{scene.name}{infix}-{scheme.rule}")
+                         else f"runs/{scene.name}{infix}-{args.scheme}")
     args.checkpoint = _checkpoint_saver(args, scene, out)
     if args.command == "march" and not higher:
         _INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
@@ -312,6 +316,8 @@ def _scheme(args, higher: bool) -> Scheme:
     if higher and (args.alpha != 0.5 or args.clock != "midpoint"):
         raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
                          "(differences are taken at the left node)")
+    if args.scheme not in RULES:  # a compared method: its interval energies as fixed steps'
+        return Scheme(rule="fixed")
     return Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
 
 
@@ -324,6 +330,9 @@ def _resolve(args, scene, higher: bool):
 
 def _march(args, scene, config, scheme):
     from .solvers.march import march
+
+    if args.scheme not in RULES:
+        return _march_method(args, scene, config)
 
     solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
                      t_end=config.t_end,
@@ -340,6 +349,31 @@ def _march(args, scene, config, scheme):
     stats = solution.stats
     return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                   "checkpoints")}
+
+
+def _march_method(args, scene, config):
+    """``ddvp march --scheme NAME`` for a compared method (``studies/methods.py``): its run at
+    the knob ``tau0`` (``rtol = atol = --tol`` for DOP853), then its own residual check."""
+    import numpy as np
+
+    from .solvers.compiler import find_compiler
+    from .studies.methods import METHODS, run_method
+
+    method = METHODS[args.scheme]
+    value = args.tol if method.knob == "rtol" else config.tau0
+    solution = run_method(scene, config, args.scheme, value,
+                          compiler=None if args.careful else find_compiler("auto"),
+                          max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol)
+    extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
+             "own_residual_max": solution.stats.get("own_residual_max"),
+             "path": solution.stats.get("path")}
+    if not scene.system.time_dependent and solution.t.size:
+        # a compared method keeps no interval energy: its energy error is H's drift at the nodes
+        H = scene.system.energy(solution.q, solution.p, solution.t,
+                                scene.system.parameter_vector(config.params))
+        extra.update(energy_error=float(np.max(np.abs(H - H[0]))),
+                     energy_error_kind="largest drift of H at the nodes, max |H(z_k) - H(z_0)|")
+    return solution, extra
 
 
 def _bvp(args, scene, config, scheme):
@@ -589,6 +623,10 @@ def _summary(meta: dict, out) -> None:
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
     lines.extend(_accuracy_lines(meta))
+    if "own_residual_max" in meta:
+        own = meta["own_residual_max"]
+        lines.append("  own residual check: " + ("none (no equation on its nodes)" if own is None
+                                                 else f"largest step residual {own:.3e}"))
     lines.append(f"  scheme's energy residual {meta['energy_error']:.3e} "
                  f"({meta['energy_error_kind']})")
     if "solvability_warning" in meta:

@@ -111,3 +111,36 @@ def test_kick_drift_kick_is_not_sundials_leapfrog():
                               compiler=find_compiler("auto"))
     H = float(scene.system.energy(solution.q[-1:], solution.p[-1:], solution.t[-1:], theta)[0])
     assert H + 0.5 > 0 > ARK_KEPLER[1e-3]
+
+
+@pytest.mark.parametrize("name", list(METHODS))
+def test_every_compared_method_marches_from_the_command_line(name, tmp_path, capsys):
+    import json
+
+    from ddvp_nlp.cli import main
+
+    out = tmp_path / name
+    code = main(["march", "harmonic", "--scheme", name, "--set", "t_end=3", "--out", str(out),
+                 "--no-progress", "--no-plot"])
+    meta = json.loads((out / "meta.json").read_text())
+    assert (out / "result.npz").is_file()
+    assert meta["scheme"] == name
+    assert f"harmonic march [{name}]" in capsys.readouterr().out
+    if name != "lee_left":  # Lee's left-point scheme breaks down on harmonic (README)
+        assert code == 0 and meta["status"] == "success", meta["message"]
+    residual = meta.get("own_residual_max", meta["canonical_residual_max"])
+    if name == "dop853":
+        assert residual is None  # no equation on its nodes: nothing to recheck
+    else:
+        assert residual <= 1e-10 and meta["canonical_residual_max"] <= 1e-10
+
+
+def test_a_step_that_fails_its_own_equation_turns_the_run_into_a_failure():
+    from ddvp_nlp.solution import Status
+    from ddvp_nlp.studies.methods import run_method
+
+    scene = load_scene("harmonic")
+    config = scene.resolve({"t_end": 1.0})
+    solution = run_method(scene, config, "rk4", 0.1, compiler=None, max_steps=100, tol=0.0)
+    # rk4's own recheck is round-off, not zero: a tolerance of zero must catch it
+    assert solution.status is Status.RESIDUAL_TOO_LARGE and "max(1, |z|)" in solution.message
