@@ -206,6 +206,16 @@ def _compare_command(commands) -> None:
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
     compare.add_argument("--no-progress", action="store_true", help="no progress bar")
+    compare.add_argument("--horizons", default=None, metavar="T1,T2,...",
+                         help="compare at each horizon t_end = t0 + T * --time-unit (e.g. "
+                              "10,1000,100000): horizons.png, growth.png, horizons.md and a "
+                              "report per horizon")
+    compare.add_argument("--time-unit", type=float, default=1.0,
+                         help="unit of --horizons, e.g. 6.283185307 for Kepler's period "
+                              "(default: 1, the scene's time unit)")
+    compare.add_argument("--max-steps", type=int, default=2_000_000,
+                         help="with --horizons: runs needing more steps are left out "
+                              "(default: 2000000)")
     _grid_arguments(compare, "1: the run times are what is compared")
 
 
@@ -440,6 +450,8 @@ def run_compare(args) -> int:
 
     scene = load_scene(args.scene)
     out = args.out or f"runs/{scene.name}-compare"
+    if args.horizons:
+        return _compare_horizons(args, scene, out)
     rows = work_precision(scene, overrides=_parse_settings(args.settings), methods=args.methods,
                           out=out, halvings=args.halvings, repeats=args.repeats,
                           compiler=None if args.no_compile else "auto",
@@ -455,6 +467,22 @@ def run_compare(args) -> int:
                 print(f"  {label.split(' max')[0]} <= {level:.0e}: cheapest {name} "
                       f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
     print(f"  written to {out}/ (work_precision.csv, work_precision.png, summary.md)")
+    return 0
+
+
+def _compare_horizons(args, scene, out) -> int:
+    from .io.horizons import work_precision_horizons
+
+    results = work_precision_horizons(
+        scene, args.horizons, unit=args.time_unit, overrides=_parse_settings(args.settings),
+        methods=args.methods, out=out, halvings=args.halvings, repeats=args.repeats,
+        compiler=None if args.no_compile else "auto", max_steps=args.max_steps,
+        progress=not args.no_progress, workers=args.workers or 1, scheduler=args.scheduler)
+    for horizon, rows in results.items():
+        failed = sum(r["status"] != "success" for r in rows)
+        print(f"{scene.name} compare, T = {horizon:g}: {len(rows)} runs, {failed} did not reach "
+              "t_end")
+    print(f"  written to {out}/ (horizons.png, growth.png, horizons.md, horizon_T/)")
     return 0
 
 

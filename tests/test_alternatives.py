@@ -144,3 +144,22 @@ def test_a_step_that_fails_its_own_equation_turns_the_run_into_a_failure():
     solution = run_method(scene, config, "rk4", 0.1, compiler=None, max_steps=100, tol=0.0)
     # rk4's own recheck is round-off, not zero: a tolerance of zero must catch it
     assert solution.status is Status.RESIDUAL_TOO_LARGE and "max(1, |z|)" in solution.message
+
+
+def test_compare_over_horizons_writes_a_panel_per_horizon_and_the_growth(tmp_path, capsys):
+    from ddvp_nlp.cli import main
+
+    out = tmp_path / "hz"
+    assert main(["compare", "harmonic", "--horizons", "2,4", "--time-unit", "3.14159",
+                 "--methods", "rk4,avf,stormer_verlet", "--halvings", "1", "--repeats", "1",
+                 "--max-steps", "200", "--out", str(out), "--no-progress"]) == 0
+    for name in ("horizons.png", "growth.png", "horizons.md", "horizon_2/summary.md",
+                 "horizon_4/work_precision.csv"):
+        assert (out / name).is_file(), name
+    text = (out / "horizons.md").read_text()
+    assert "## T = 2" in text and "## T = 4" in text and "| `avf` |" in text
+    # at T = 4 (t_end = 12.6) tau = 0.1 needs 126 steps, 0.2 needs 63: both fit 200;
+    # the growth table's avf keeps H to round-off
+    growth_row = next(line for line in text.splitlines() if line.startswith("| `avf` |"))
+    assert float(growth_row.split("|")[5]) < 1e-13
+    assert "compare, T = 4: 6 runs" in capsys.readouterr().out
