@@ -36,11 +36,13 @@ def _parse_settings(items: list[str]) -> dict:
     return settings
 
 
-def _scheme_arguments(parser: argparse.ArgumentParser) -> None:
+def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> None:
     parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     default = Scheme().rule
-    parser.add_argument("--scheme", default=default, choices=RULES,
-                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)")
+    parser.add_argument("--scheme", default=default, choices=RULES + methods,
+                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)"
+                        + (f"; or a compared method, its knob tau0 (dop853: rtol = atol = "
+                           f"--tol): {', '.join(methods)}" if methods else ""))
     parser.add_argument("--alpha", type=float, default=0.5,
                         help="weight alpha of the scheme, beta = 1 - alpha (default: 0.5)")
     parser.add_argument("--clock", default="midpoint", choices=CLOCKS,
@@ -146,8 +148,10 @@ def _periodic_command(commands) -> None:
 
 
 def _march_command(commands) -> None:
+    from .studies.methods import METHODS
+
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
-    _scheme_arguments(march)
+    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES))
     march.add_argument("--max-steps", type=int, default=10_000_000)
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
     march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
@@ -233,6 +237,16 @@ def _compare_command(commands) -> None:
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
     compare.add_argument("--no-progress", action="store_true", help="no progress bar")
+    compare.add_argument("--horizons", default=None, metavar="T1,T2,...",
+                         help="compare at each horizon t_end = t0 + T * --time-unit (e.g. "
+                              "10,1000,100000): horizons.png, growth.png, horizons.md and a "
+                              "report per horizon")
+    compare.add_argument("--time-unit", type=float, default=1.0,
+                         help="unit of --horizons, e.g. 6.283185307 for Kepler's period "
+                              "(default: 1, the scene's time unit)")
+    compare.add_argument("--max-steps", type=int, default=2_000_000,
+                         help="with --horizons: runs needing more steps are left out "
+                              "(default: 2000000)")
     _grid_arguments(compare, "1: the run times are what is compared")
 
 
@@ -299,7 +313,7 @@ def run_solve(args) -> int:
     config = _resolve(args, scene, higher)
     infix = "-bvp" if args.command == "bvp" else ""
     out = prepare_folder(args.out if args.out is not None
-                         else f"runs/{scene.name}{infix}-{scheme.rule}")
+                         else f"runs/{scene.name}{infix}-{args.scheme}")
     args.checkpoint = _checkpoint_saver(args, scene, out)
     if args.command == "march" and not higher:
         _INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
@@ -343,6 +357,8 @@ def _scheme(args, higher: bool) -> Scheme:
     if higher and (args.alpha != 0.5 or args.clock != "midpoint"):
         raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
                          "(differences are taken at the left node)")
+    if args.scheme not in RULES:  # a compared method: its interval energies as fixed steps'
+        return Scheme(rule="fixed")
     return Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
 
 
@@ -355,6 +371,9 @@ def _resolve(args, scene, higher: bool):
 
 def _march(args, scene, config, scheme):
     from .solvers.march import march
+
+    if args.scheme not in RULES:
+        return _march_method(args, scene, config)
 
     solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
                      t_end=config.t_end,
@@ -371,6 +390,31 @@ def _march(args, scene, config, scheme):
     stats = solution.stats
     return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                   "checkpoints")}
+
+
+def _march_method(args, scene, config):
+    """``ddvp march --scheme NAME`` for a compared method (``studies/methods.py``): its run at
+    the knob ``tau0`` (``rtol = atol = --tol`` for DOP853), then its own residual check."""
+    import numpy as np
+
+    from .solvers.compiler import find_compiler
+    from .studies.methods import METHODS, run_method
+
+    method = METHODS[args.scheme]
+    value = args.tol if method.knob == "rtol" else config.tau0
+    solution = run_method(scene, config, args.scheme, value,
+                          compiler=None if args.careful else find_compiler("auto"),
+                          max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol)
+    extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
+             "own_residual_max": solution.stats.get("own_residual_max"),
+             "path": solution.stats.get("path")}
+    if not scene.system.time_dependent and solution.t.size:
+        # a compared method keeps no interval energy: its energy error is H's drift at the nodes
+        H = scene.system.energy(solution.q, solution.p, solution.t,
+                                scene.system.parameter_vector(config.params))
+        extra.update(energy_error=float(np.max(np.abs(H - H[0]))),
+                     energy_error_kind="largest drift of H at the nodes, max |H(z_k) - H(z_0)|")
+    return solution, extra
 
 
 def _bvp(args, scene, config, scheme):
@@ -438,6 +482,8 @@ def run_compare(args) -> int:
 
     scene = load_scene(args.scene)
     out = args.out or f"runs/{scene.name}-compare"
+    if args.horizons:
+        return _compare_horizons(args, scene, out)
     rows = work_precision(scene, overrides=_parse_settings(args.settings), methods=args.methods,
                           out=out, halvings=args.halvings, repeats=args.repeats,
                           compiler=None if args.no_compile else "auto",
@@ -453,6 +499,22 @@ def run_compare(args) -> int:
                 print(f"  {label.split(' max')[0]} <= {level:.0e}: cheapest {name} "
                       f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
     print(f"  written to {out}/ (work_precision.csv, work_precision.png, summary.md)")
+    return 0
+
+
+def _compare_horizons(args, scene, out) -> int:
+    from .io.horizons import work_precision_horizons
+
+    results = work_precision_horizons(
+        scene, args.horizons, unit=args.time_unit, overrides=_parse_settings(args.settings),
+        methods=args.methods, out=out, halvings=args.halvings, repeats=args.repeats,
+        compiler=None if args.no_compile else "auto", max_steps=args.max_steps,
+        progress=not args.no_progress, workers=args.workers or 1, scheduler=args.scheduler)
+    for horizon, rows in results.items():
+        failed = sum(r["status"] != "success" for r in rows)
+        print(f"{scene.name} compare, T = {horizon:g}: {len(rows)} runs, {failed} did not reach "
+              "t_end")
+    print(f"  written to {out}/ (horizons.png, growth.png, horizons.md, horizon_T/)")
     return 0
 
 
@@ -621,6 +683,10 @@ def _summary(meta: dict, out) -> None:
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
     lines.extend(_accuracy_lines(meta))
+    if "own_residual_max" in meta:
+        own = meta["own_residual_max"]
+        lines.append("  own residual check: " + ("none (no equation on its nodes)" if own is None
+                                                 else f"largest step residual {own:.3e}"))
     lines.append(f"  scheme's energy residual {meta['energy_error']:.3e} "
                  f"({meta['energy_error_kind']})")
     if "solvability_warning" in meta:

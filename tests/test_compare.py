@@ -175,11 +175,12 @@ def _nonseparable(q, p, t):
 def test_methods_that_do_not_apply_are_left_out_with_the_reason():
     scene = Scene(_nonseparable, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=5.0, name="bent")
     chosen, left_out = default_methods(scene.system)
-    assert [m.name for m in chosen] == ["vddvp", "midpoint", "rk4", "dop853"]
+    assert [m.name for m in chosen] == ["vddvp", "midpoint", "avf", "rk4", "dop853"]
+    not_separable = "dH/dp depends on q or t, so H is not T(p) + V(q, t)"
     assert left_out == [
         "`lee`: for autonomous H its energy equation is the vddvp one (H_k = H_{k-1})",
-        "`stormer_verlet`: dH/dp depends on q or t, so H is not T(p) + V(q, t)",
-        "`lee_left`: dH/dp depends on q or t, so H is not T(p) + V(q, t)"]
+        f"`stormer_verlet`: {not_separable}", f"`leapfrog`: {not_separable}",
+        f"`verlet_adaptive`: {not_separable}", f"`lee_left`: {not_separable}"]
     paper = load_scene("paper_pendulum").system
     assert [m.name for m in default_methods(paper)[0]] == list(METHODS)
     with pytest.raises(InputError, match="method 'stormer_verlet' does not apply to scene "
@@ -196,7 +197,8 @@ def test_quartic_kinetic_energy_is_refused_by_lee_left_only():
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"methods": "rk4,euler"}, "unknown method 'euler' (choose from vddvp, lee, midpoint, "
-                               "stormer_verlet, rk4, dop853, lee_left)"),
+                               "stormer_verlet, leapfrog, verlet_adaptive, avf, rk4, dop853, "
+                               "lee_left)"),
     ({"methods": []}, "methods must name at least one method"),
     ({"methods": "rk4", "knobs": {"vddvp": [0.1]}},
      "knobs given for method 'vddvp', which is not compared"),

@@ -9,7 +9,9 @@
   every solver and every check uses; the form of a system is looked up once, in ``FORMS``.
 - ``higher.py``: the discrete action of a higher-derivative Lagrangian and its energies.
 - ``lee_left.py``: T.D. Lee's left-point action and its step equations.
-- ``explicit.py``, ``runge_kutta.py``: the step maps of Stormer-Verlet and RK4.
+- ``explicit.py``, ``runge_kutta.py``: the step maps of Stormer-Verlet (both forms) and RK4.
+- ``avf.py``: the averaged vector field equation (Gauss-Legendre segment integral).
+- ``adaptive_verlet.py``: reversible adaptive Stormer-Verlet (Sundman ``g(q)``, step density).
 
 The march and the fixed-endpoint solver both take their equations from here. May import:
 ``physics``, ``errors``, ``validation``, ``cache``.

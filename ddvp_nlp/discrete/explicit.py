@@ -1,10 +1,16 @@
 """The step maps of the explicit schemes users would pick instead (``solvers/baselines.py``).
 
-- Stormer-Verlet (leapfrog) for separable ``H = T(p) + V(q, t)``: the Strang splitting of the
-  autonomous extended system (time advances with ``q``), order 2, symplectic::
+- Stormer-Verlet for separable ``H = T(p) + V(q, t)`` in its two Strang splittings of the
+  autonomous extended system (time advances with ``q``), both order 2, symplectic, symmetric.
+  ``stormer_verlet`` is kick-drift-kick (velocity Verlet)::
 
       p_h = p_k - tau/2 V_q(q_k, t_k),   q_{k+1} = q_k + tau T_p(p_h),
-      p_{k+1} = p_h - tau/2 V_q(q_{k+1}, t_k + tau).
+      p_{k+1} = p_h - tau/2 V_q(q_{k+1}, t_k + tau);
+
+  ``leapfrog`` is drift-kick-drift (position Verlet; SUNDIALS' ``ARKODE_SPRK_LEAPFROG_2_2``)::
+
+      q_h = q_k + tau/2 T_p(p_k),   p_{k+1} = p_k - tau V_q(q_h, t_k + tau/2),
+      q_{k+1} = q_h + tau/2 T_p(p_{k+1}).
 
 - Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
   energy-conserving.
@@ -24,11 +30,7 @@ def stormer_verlet_step(system: HamiltonianSystem) -> ca.Function:
     """``(z, t, tau, theta) -> z_next`` by Stormer-Verlet; ``InputError`` if ``H`` is not
     separable."""
     def build():
-        parts = separable_parts(system)
-        if isinstance(parts, str):
-            raise InputError(f"method 'stormer_verlet' needs a separable H on {system.name!r}: "
-                             f"{parts}")
-        T_p, V_q = parts
+        T_p, V_q = separable_or_raise(system, "stormer_verlet")
         n = system.n
         z, t, tau = ca.SX.sym("z", 2 * n), ca.SX.sym("t"), ca.SX.sym("tau")
         q, p = z[:n], z[n:]
@@ -38,6 +40,29 @@ def stormer_verlet_step(system: HamiltonianSystem) -> ca.Function:
         return ca.Function("stormer_verlet", [z, t, tau, system.theta],
                            [ca.vertcat(q_next, p_next)])
     return cached(system, "stormer_verlet_step", build)
+
+
+def leapfrog_step(system: HamiltonianSystem) -> ca.Function:
+    """``(z, t, tau, theta) -> z_next`` by drift-kick-drift Stormer-Verlet; ``InputError`` if
+    ``H`` is not separable."""
+    def build():
+        T_p, V_q = separable_or_raise(system, "leapfrog")
+        n = system.n
+        z, t, tau = ca.SX.sym("z", 2 * n), ca.SX.sym("t"), ca.SX.sym("tau")
+        q, p = z[:n], z[n:]
+        q_half = q + tau / 2 * T_p(p, system.theta)
+        p_next = p - tau * V_q(q_half, t + tau / 2, system.theta)
+        q_next = q_half + tau / 2 * T_p(p_next, system.theta)
+        return ca.Function("leapfrog", [z, t, tau, system.theta], [ca.vertcat(q_next, p_next)])
+    return cached(system, "leapfrog_step", build)
+
+
+def separable_or_raise(system: HamiltonianSystem, method: str):
+    """``(T_p, V_q)`` of a separable ``H``; ``InputError`` naming ``method`` otherwise."""
+    parts = separable_parts(system)
+    if isinstance(parts, str):
+        raise InputError(f"method {method!r} needs a separable H on {system.name!r}: {parts}")
+    return parts
 
 
 def rk4_step(system: HamiltonianSystem) -> ca.Function:
@@ -53,4 +78,5 @@ def rk4_step(system: HamiltonianSystem) -> ca.Function:
     return cached(system, "rk4_step", build)
 
 
-FIXED_STEPS = {"stormer_verlet": stormer_verlet_step, "rk4": rk4_step}
+FIXED_STEPS = {"stormer_verlet": stormer_verlet_step, "leapfrog": leapfrog_step,
+               "rk4": rk4_step}

@@ -20,8 +20,10 @@
   its return, or a user's guess resampled).
 - ``higher.py``: the same two for higher-derivative Lagrangians.
 - The integrators users would pick instead, each a stepper of the driver, compiled like the
-  march: ``baselines.py`` (Stormer-Verlet, RK4, and what every compiled baseline shares),
-  ``lee_left.py`` (T.D. Lee's left-point scheme), ``scipy_dop853.py`` (scipy's DOP853).
+  march: ``baselines.py`` (Stormer-Verlet kick-drift-kick and drift-kick-drift (``leapfrog``),
+  RK4, and what every compiled baseline shares), ``avf.py`` (the averaged vector field method),
+  ``verlet_adaptive.py`` (reversible adaptive Stormer-Verlet), ``lee_left.py`` (T.D. Lee's
+  left-point scheme), ``scipy_dop853.py`` (scipy's DOP853).
 - ``integrator.py``: what a method of the comparison declares about itself (order, symplectic,
   energy-conserving, knob, where it applies), beside its implementation; ``paper_schemes.py``
   declares the paper's own three (vddvp, lee, midpoint).

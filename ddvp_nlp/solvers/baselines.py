@@ -1,10 +1,15 @@
 """The explicit schemes users would pick instead, run the same way as the march: compiled chunks.
 
-Stormer-Verlet (separable ``H``, order 2, symplectic) and classical RK4 (order 4), whose step maps
-are written in ``discrete/explicit.py``, march on uniform steps that end on ``t_end``; each
-chunk's steps are accepted while finite. Also here, for every compiled baseline (``lee_left.py``
-too): :func:`chunk_for`, the named columns of a chunk's rows (:class:`Columns`), :func:`load`
-and :func:`solution_of`.
+- Stormer-Verlet for separable ``H = T(p) + V(q, t)``, order 2, symplectic, in both forms
+  (``discrete/explicit.py``): ``stormer_verlet`` kick-drift-kick, ``leapfrog`` drift-kick-drift.
+
+- Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
+  energy-conserving.
+
+They march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite
+and, for an implicit step map (``avf.py``), while its own residual is under the tolerance. Also
+here, for every compiled baseline (``lee_left.py`` too): :func:`chunk_for`, the named
+columns of a chunk's rows (:class:`Columns`), :func:`load` and :func:`solution_of`.
 """
 
 from __future__ import annotations
@@ -90,41 +95,76 @@ def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=Non
                     timing=timing, stats=stats or {})
 
 
-
-
-
-
-
-
-
-
 def _fixed_layout(n: int) -> tuple[Columns, Columns]:
-    """A fixed-step chunk's state (step index, ``z``) and output row (``t``, ``z``)."""
-    return Columns(k=1, z=2 * n), Columns(t=1, z=2 * n)
+    """A fixed-step chunk's state (step index, ``z``) and output row (``t``, ``z``, the step's
+    own residual ``|r|_inf``, zero for an explicit map)."""
+    return Columns(k=1, z=2 * n), Columns(t=1, z=2 * n, residual=1)
+
+
+def step_map(system: HamiltonianSystem, method: str) -> ca.Function:
+    """``(z, t, tau, theta) -> (z_next, residual)`` of a fixed-step method: an explicit map of
+    ``discrete/explicit.py`` (residual 0), or an implicit one registered in
+    :data:`IMPLICIT_STEPS` (its equation's residual at the returned ``z_next``)."""
+    if method in IMPLICIT_STEPS:
+        return IMPLICIT_STEPS[method][0](system)
+    explicit = FIXED_STEPS[method](system)
+    z, t, tau = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t"), ca.SX.sym("tau")
+    return ca.Function(f"{method}_with_residual", [z, t, tau, system.theta],
+                       [explicit(z, t, tau, system.theta), ca.SX(0)])
+
+
+# Implicit fixed-step methods: name -> (the map as in :func:`step_map`, the equation as in
+# :func:`step_equation`), each ``(system) -> Function``, filled in by their own modules
+# (``avf.py``), which import this one.
+IMPLICIT_STEPS: dict = {}
+
+
+def step_equation(system: HamiltonianSystem, method: str) -> ca.Function:
+    """``(z_next, z, t, tau, theta) -> r``: the equation a fixed-step method's nodes satisfy,
+    ``z_next - Phi(z)`` for an explicit map ``Phi``."""
+    if method in IMPLICIT_STEPS:
+        return IMPLICIT_STEPS[method][1](system)
+    explicit = FIXED_STEPS[method](system)
+    z, z_next = ca.SX.sym("z", 2 * system.n), ca.SX.sym("z_next", 2 * system.n)
+    t, tau = ca.SX.sym("t"), ca.SX.sym("tau")
+    return ca.Function(f"{method}_equation", [z_next, z, t, tau, system.theta],
+                       [z_next - explicit(z, t, tau, system.theta)])
+
+
+def step_residuals(system: HamiltonianSystem, method: str, t, z, theta) -> np.ndarray:
+    """``|r_k|_inf`` of every step of a returned fixed-step trajectory (``t`` ``(N+1,)``, ``z``
+    ``(N+1, 2n)``): the method's own equation recomputed on its nodes."""
+    if t.size < 2:
+        return np.zeros(0)
+    equation = step_equation(system, method).map(t.size - 1)
+    r = np.asarray(equation(z[1:].T, z[:-1].T, t[:-1], np.diff(t),
+                            np.tile(np.asarray(theta, float)[:, None], (1, t.size - 1))))
+    return np.max(np.abs(r), axis=0)
 
 
 def _fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, cache_dir):
     """``chunk`` steps of ``method`` per call: ``(state, constants) -> (states, rows)``, the
     constants ``(theta, t0, h)``, so that step ``k`` starts at ``t0 + k h``."""
     def build():
-        step = FIXED_STEPS[method](system)
+        step = step_map(system, method)
         state_layout, row = _fixed_layout(system.n)
         state = ca.SX.sym("state", 1 + 2 * system.n)
         constants = ca.SX.sym("constants", system.theta.numel() + 2)
         theta, first, h = constants[:-2], constants[-2], constants[-1]
         parts = state_layout.split(state)
         k, z = parts["k"], parts["z"]
-        z_next = step(z, first + k * h, h, theta)
+        z_next, residual = step(z, first + k * h, h, theta)
         one = ca.Function(f"{method}_step", [state, constants],
                           [state_layout.pack(k=k + 1, z=z_next),
-                           row.pack(t=first + (k + 1) * h, z=z_next)])
+                           row.pack(t=first + (k + 1) * h, z=z_next, residual=residual)])
         return load(one.mapaccum(f"{method}_chunk", chunk), compiler, cache_dir)
     return cached(system, (method, chunk, compiler, str(cache_dir)), build)
 
 
 class _FixedSteps:
     """Stepper (``driver.py``) of a compiled fixed-step chunk on the grid ``t0 + k h``, whose
-    step ``total`` lands on ``t_end`` exactly."""
+    step ``total`` lands on ``t_end`` exactly. A step is kept while its row is finite and its
+    residual at most ``tol max(1, |z_k+1|_inf)``."""
 
     describe = staticmethod(describe_phase_space)
 
@@ -137,14 +177,32 @@ class _FixedSteps:
         k = nodes.count - 1
         _, rows = self.function(self.state.join(k=k, z=nodes.z[k]), self.constants)
         rows = np.asarray(rows).T[:min(self.chunk, budget)]
-        finite = np.all(np.isfinite(rows), axis=1)
-        kept = int(np.argmin(finite)) if not finite.all() else rows.shape[0]
-        columns = self.row.unpack(rows[:kept])
-        t = columns["t"].copy()
-        if k + kept == self.total:
-            t[-1] = self.t_end  # k h may differ from t_end by round-off
-        return Advance(t, columns["z"],
-                       Status.NON_FINITE if kept < rows.shape[0] else Status.SUCCESS)
+        return _kept(self.row, rows, self.total - k, self.t_end)
+
+
+def _kept(row: Columns, rows: np.ndarray, left: int, t_end: float) -> Advance:
+    """The leading rows that are finite and whose residual is small (``left``: steps to
+    ``t_end``, whose last node is put on ``t_end`` exactly)."""
+    finite = np.all(np.isfinite(rows), axis=1)
+    columns = row.unpack(rows)
+    scale = np.maximum(1.0, np.max(np.abs(np.where(np.isfinite(columns["z"]), columns["z"], 0)),
+                                   axis=1))
+    solved = columns["residual"] <= RESIDUAL_TOL * scale
+    good = finite & solved
+    kept = int(np.argmin(good)) if not good.all() else rows.shape[0]
+    t = columns["t"][:kept].copy()
+    if kept == left:
+        t[-1] = t_end  # k h may differ from t_end by round-off
+    if kept == rows.shape[0]:
+        return Advance(t, columns["z"][:kept])
+    status = Status.NON_FINITE if not finite[kept] else Status.RESIDUAL_TOO_LARGE
+    detail = ("" if not finite[kept] else
+              f"residual {columns['residual'][kept]:.3g} > {RESIDUAL_TOL:g} max(1, |z|)")
+    return Advance(t, columns["z"][:kept], status, detail)
+
+
+# An implicit step is accepted when its equation holds to this, relative to max(1, |z|).
+RESIDUAL_TOL = 1e-10
 
 
 def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float, t_end: float,
@@ -168,7 +226,7 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
                        stats={"path": "vm" if compiler is None else "compiled"})
 
 
-def _fixed_step(name: str):
+def fixed_step_run_of(name: str):
     """``Integrator.run`` of the fixed-step method ``name``, knob ``tau``."""
     def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
         steps = math.ceil((config.t_end - config.t0) / value - 1e-9)
@@ -187,8 +245,13 @@ def _needs_separable(system) -> str | None:
     return parts if isinstance(parts, str) else None
 
 
-STORMER_VERLET = Integrator("stormer_verlet", "Stormer-Verlet leapfrog (separable H)", order=2,
-                            symplectic=True, energy_conserving=False, knob="tau",
-                            run=_fixed_step("stormer_verlet"), applies=_needs_separable)
+STORMER_VERLET = Integrator("stormer_verlet", "Stormer-Verlet kick-drift-kick (velocity Verlet; "
+                            "separable H)", order=2, symplectic=True, energy_conserving=False,
+                            knob="tau", run=fixed_step_run_of("stormer_verlet"),
+                            applies=_needs_separable)
+LEAPFROG = Integrator("leapfrog", "Stormer-Verlet drift-kick-drift (position Verlet, SUNDIALS' "
+                      "leapfrog; separable H)", order=2, symplectic=True,
+                      energy_conserving=False, knob="tau", run=fixed_step_run_of("leapfrog"),
+                      applies=_needs_separable)
 RK4 = Integrator("rk4", "classical Runge-Kutta", order=4, symplectic=False,
-                 energy_conserving=False, knob="tau", run=_fixed_step("rk4"))
+                 energy_conserving=False, knob="tau", run=fixed_step_run_of("rk4"))

@@ -10,9 +10,12 @@ implementation module, then add one line to ``METHODS`` below.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import InputError
 from ..scenes import RunConfig
-from ..solvers import baselines, lee_left, paper_schemes, scipy_dop853
+from ..solution import Status
+from ..solvers import avf, baselines, lee_left, paper_schemes, scipy_dop853, verlet_adaptive
 from ..solvers.integrator import Integrator
 from ..solvers.scipy_dop853 import dop853  # noqa: F401 (the reference solution of the studies)
 
@@ -34,6 +37,9 @@ METHODS: dict[str, Method] = {m.name: Method(**m.traits()) for m in (
     paper_schemes.LEE,
     paper_schemes.MIDPOINT,
     baselines.STORMER_VERLET,
+    baselines.LEAPFROG,
+    verlet_adaptive.VERLET_ADAPTIVE,
+    avf.AVF,
     baselines.RK4,
     scipy_dop853.DOP853,
     lee_left.LEE_LEFT,
@@ -54,3 +60,52 @@ def get_methods(names) -> list[Method]:
         if METHODS[name] not in chosen:
             chosen.append(METHODS[name])
     return chosen
+
+
+# Methods whose nodes satisfy a fixed-step map's equation (``baselines.step_equation``), and
+# the map: their own residual check. The march's schemes check their equations themselves.
+_STEP_EQUATIONS = {"stormer_verlet": "stormer_verlet", "leapfrog": "leapfrog", "rk4": "rk4",
+                   "avf": "avf", "verlet_adaptive": "stormer_verlet"}
+MARCHED = ("vddvp", "lee", "midpoint", "lee_left")
+
+
+def own_residuals(system, name: str, solution, theta) -> np.ndarray | None:
+    """Each step's residual of the equation method ``name`` solves, recomputed on its returned
+    nodes (``|r_k|_inf``): the step map (explicit: ``z_k+1 - Phi(z_k)``; AVF: its equation;
+    adaptive Verlet: Stormer-Verlet over the step taken); ``None`` for DOP853, which has no
+    equation on its nodes; the march's schemes report their own (``canonical_residual``)."""
+    if name in _STEP_EQUATIONS:
+        z = np.hstack([solution.q, solution.p])
+        return baselines.step_residuals(system, _STEP_EQUATIONS[name], solution.t, z, theta)
+    if name in MARCHED:
+        return solution.canonical_residual
+    return None
+
+
+def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, cache_dir=None,
+               max_steps: int, time_limit: float | None = None, tol: float = 1e-10):
+    """Method ``name`` of the registry on ``scene`` at knob ``value``, then its own residual
+    check: a step whose residual passes ``tol max(1, |z_k+1|_inf)`` turns a success into
+    ``RESIDUAL_TOO_LARGE``. Returns the solution, with ``canonical_residual`` the per-step
+    residuals (empty where the method has no equation) and ``stats["own_residual_max"]``."""
+    method = get_methods([name])[0]
+    reason = method.applies(scene.system)
+    if reason:
+        raise InputError(f"method {name!r} does not apply to scene {scene.name!r}: {reason}")
+    solution = method.run(scene.system, config, value, compiler=compiler, cache_dir=cache_dir,
+                          max_steps=max_steps, time_limit=time_limit)
+    theta = scene.system.parameter_vector(config.params)
+    residual = own_residuals(scene.system, name, solution, theta)
+    if residual is None:
+        solution.stats["own_residual_max"] = None
+        return solution
+    solution.canonical_residual = residual
+    scale = np.maximum(1.0, np.max(np.abs(np.hstack([solution.q, solution.p])[1:]), axis=1))
+    worst = float(np.max(residual / scale[:residual.size])) if residual.size else 0.0
+    solution.stats["own_residual_max"] = float(np.max(residual)) if residual.size else 0.0
+    if solution.success and worst > tol:
+        step = int(np.argmax(residual / scale[:residual.size]))
+        solution.status = Status.RESIDUAL_TOO_LARGE
+        solution.message = (f"{Status.RESIDUAL_TOO_LARGE.value}: step {step + 1}, residual "
+                            f"{residual[step]:.3g} > {tol:g} max(1, |z|)")
+    return solution

@@ -1,0 +1,137 @@
+"""Work-precision at several horizons and the error-growth figure: ``horizons.png``,
+``growth.png``, ``horizons.md``, and each horizon's own report in ``horizon_T/``.
+
+:func:`work_precision_horizons` runs :func:`~ddvp_nlp.io.work_precision.work_precision` once per
+horizon (``t_end = t0 + T unit``), with the sweeps cut to what ``max_steps`` affords
+(:func:`~ddvp_nlp.studies.horizons.affordable_knobs`), then reruns each method at about equal
+cost over the longest horizon and draws its errors against time.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+
+from ..scenes import Scene
+from ..solvers.compiler import find_compiler
+from ..studies.compare import ERROR_KINDS, default_methods, methods_in
+from ..studies.horizons import affordable_knobs, error_growth, parse_horizons
+from ..studies.methods import get_methods
+from .runs import prepare_folder
+from .work_precision import _in_words, _plot_method, work_precision
+
+
+def work_precision_horizons(scene: Scene, horizons, *, unit: float = 1.0,
+                            overrides: Mapping[str, object] | None = None,
+                            methods: Sequence[str] | str | None = None,
+                            out: str | os.PathLike, halvings: int = 6, repeats: int = 3,
+                            compiler: str | None = "auto", max_steps: int = 2_000_000,
+                            progress: bool = False, **options) -> dict[float, list[dict]]:
+    """Compare at each horizon ``T`` (to ``t_end = t0 + T unit``); write ``out/horizon_T/``
+    (the usual report), ``horizons.png`` (a column per horizon, a row per error kind),
+    ``growth.png`` (errors against time at equal cost, longest horizon) and ``horizons.md``.
+    Returns the rows per horizon."""
+    horizons = parse_horizons(horizons)
+    overrides = dict(overrides or {})
+    config = scene.resolve(overrides)
+    chosen = default_methods(scene.system)[0] if methods is None else get_methods(methods)
+    out = prepare_folder(out)
+    results, notes = {}, {}
+    for horizon in horizons:
+        t_end = config.t0 + horizon * unit
+        knobs, left_out = affordable_knobs(chosen, config, t_end, halvings, max_steps)
+        results[horizon] = work_precision(
+            scene, overrides={**overrides, "t_end": t_end}, methods=list(knobs),
+            out=out / f"horizon_{horizon:g}", knobs=knobs, repeats=repeats, compiler=compiler,
+            max_steps=max_steps, progress=progress, **options)
+        notes[horizon] = left_out
+    plot_horizons(results, out / "horizons.png", title=f"{scene.name}: error against run time",
+                  unit=unit)
+    longest = horizons[-1]
+    target, growth = error_growth(scene, {**overrides, "t_end": config.t0 + longest * unit},
+                                  results[longest], compiler=find_compiler(compiler),
+                                  max_steps=max_steps)
+    plot_growth(growth, out / "growth.png",
+                title=f"{scene.name}: errors against time at about {target:.2g} s each")
+    (out / "horizons.md").write_text(horizons_summary(scene, results, notes, growth, target,
+                                                      unit))
+    return results
+
+
+def plot_horizons(results: dict, path, *, title: str, unit: float) -> None:
+    """A column per horizon, a row per error kind, every method's runs as in the single
+    report."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    kinds = list(ERROR_KINDS.items())
+    fig, axes = plt.subplots(len(kinds), len(results), squeeze=False,
+                             figsize=(4.2 * len(results) + 1, 7.5), constrained_layout=True)
+    names = list(dict.fromkeys(m for rows in results.values() for m in methods_in(rows)))
+    for column, (horizon, rows) in enumerate(results.items()):
+        for row_index, (kind, label) in enumerate(kinds):
+            ax = axes[row_index][column]
+            for method in methods_in(rows):
+                _plot_method(ax, rows, method, kind, names.index(method))
+            ax.set_title(f"T = {horizon:g}" + (f" x {unit:.4g}" if unit != 1 else ""),
+                         fontsize=10)
+            ax.set_xlabel("run time [s]")
+            ax.set_ylabel(label.split(" max")[0])
+            ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def plot_growth(growth, path, *, title: str) -> None:
+    """Energy and trajectory error against ``t - t0``, log-log, one line per method."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
+    for ax, kind in zip(axes, ("energy_error", "trajectory_error"), strict=True):
+        for item in growth:
+            values = getattr(item, kind)
+            positive = values > 0
+            ax.loglog(item.t[positive], values[positive],
+                      label=f"{item.method} ({item.knob} = {item.value:.3g})")
+        ax.set_xlabel("t - t0")
+        ax.set_ylabel("|H(z_k) - H(z_0)|" if kind == "energy_error" else "max |z_k - z_ref|")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def horizons_summary(scene, results, notes, growth, target, unit) -> str:
+    """``horizons.md``: per horizon the cheapest method at each error level in words, what was
+    left out, and the equal-cost error growth."""
+    lines = [f"# Work-precision over horizons: `{scene.name}`", "",
+             f"Horizons in units of {unit:g}; each has its own report in `horizon_T/`.", ""]
+    for horizon, rows in results.items():
+        lines += [f"## T = {horizon:g}", ""]
+        for kind, label in ERROR_KINDS.items():
+            lines += [f"- {label.split(' max')[0]}: "
+                      + _in_words(rows, kind, methods_in(rows)).removeprefix("In words: ")]
+        if notes[horizon]:
+            lines += ["- Left out (too many steps): " + "; ".join(notes[horizon]) + "."]
+        lines.append("")
+    lines += [f"## Error growth at about equal cost ({target:.3g} s), longest horizon", "",
+              "| method | knob | run time | final energy error | largest energy error | "
+              "final trajectory error |", "|---|---|---|---|---|---|"]
+    for item in growth:
+        lines.append(f"| `{item.method}` | {item.knob} = {item.value:.3g} | {item.run_s:.3g} s | "
+                     f"{item.energy_error[-1]:.2e} | {item.energy_error.max():.2e} | "
+                     f"{item.trajectory_error[-1]:.2e} |")
+    lines += ["", "![horizons](horizons.png)", "", "![growth](growth.png)", ""]
+    return "\n".join(lines)
+
+
+__all__ = ["horizons_summary", "plot_growth", "plot_horizons",
+           "work_precision_horizons"]
