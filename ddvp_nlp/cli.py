@@ -402,9 +402,14 @@ def _march_method(args, scene, config):
 
     method = METHODS[args.scheme]
     value = args.tol if method.knob == "rtol" else config.tau0
+    from .solvers.accuracy import Tolerance
+
+    tolerance = Tolerance(rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
+                          global_tol=args.global_tol, stop=not args.accept_inaccurate)
     solution = run_method(scene, config, args.scheme, value,
                           compiler=None if args.careful else find_compiler("auto"),
-                          max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol)
+                          max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
+                          tolerance=tolerance)
     extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
              "own_residual_max": solution.stats.get("own_residual_max"),
              "path": solution.stats.get("path")}

@@ -82,8 +82,28 @@ def own_residuals(system, name: str, solution, theta) -> np.ndarray | None:
     return None
 
 
+def _check_accuracy(system, config, method, solution, tolerance) -> None:
+    """The accuracy check (``solvers/accuracy.py``) on the method's nodes, as for a march: a
+    success whose check fails becomes ``INACCURATE`` unless ``tolerance.stop`` is off (methods
+    of order above 4 have no reference step and are left as they are)."""
+    from ..solvers.accuracy import AccuracyMonitor, Tolerance, assess
+
+    tolerance = tolerance or Tolerance()
+    if method.order > 4 or solution.t.size < 2:
+        return
+    theta = system.parameter_vector(config.params)
+    report, local = assess(system, solution.t, np.hstack([solution.q, solution.p]), theta,
+                           tolerance, substeps=1 if method.order <= 2 else 2)
+    solution.stats["accuracy"], solution.local_error = report, local
+    failure = report["first_failure"]
+    if solution.success and failure is not None and tolerance.stop:
+        solution.status = Status.INACCURATE
+        solution.message = f"{Status.INACCURATE.value}: {AccuracyMonitor.describe(failure)}"
+
+
 def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, cache_dir=None,
-               max_steps: int, time_limit: float | None = None, tol: float = 1e-10):
+               max_steps: int, time_limit: float | None = None, tol: float = 1e-10,
+               tolerance=None):
     """Method ``name`` of the registry on ``scene`` at knob ``value``, then its own residual
     check: a step whose residual passes ``tol max(1, |z_k+1|_inf)`` turns a success into
     ``RESIDUAL_TOO_LARGE``. Returns the solution, with ``canonical_residual`` the per-step
@@ -95,6 +115,7 @@ def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, c
     solution = method.run(scene.system, config, value, compiler=compiler, cache_dir=cache_dir,
                           max_steps=max_steps, time_limit=time_limit)
     theta = scene.system.parameter_vector(config.params)
+    _check_accuracy(scene.system, config, method, solution, tolerance)
     residual = own_residuals(scene.system, name, solution, theta)
     if residual is None:
         solution.stats["own_residual_max"] = None
