@@ -61,8 +61,9 @@ SMALL = 16  # fewer steps than this go one by one, unpadded
 # ``scale``, ``H_new``, ``global_error`` (each (m,)) and ``error`` (m, 2n), the error vector
 # after each step.
 ACCURACY_VALUES = ("delta", "scale", "H_new", "global_error", "error")
-ADVICE = ("try a smaller tau0, fixed steps (scheme 'fixed'), or the least-squares step; "
-          "accept_inaccurate records the estimates and goes on")
+ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-squares step "
+          "(--least-squares); --accept-inaccurate (accept_inaccurate=True) records the estimates "
+          "and goes on")
 
 
 @dataclass(frozen=True)
@@ -194,6 +195,10 @@ class ErrorEstimates:
         return out[0], out[1], out[2], out[3]
 
 
+def _finite_or_none(value: float) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
 def _padded(values: np.ndarray) -> np.ndarray:
     """``values`` (rows) repeated from its last row up to ``BLOCK`` rows."""
     extra = BLOCK - values.shape[0]
@@ -314,8 +319,9 @@ class AccuracyMonitor:
         tol = self.tolerance
         return {"verdict": "inaccurate" if self.failure else "accurate",
                 "first_failure": self.failure,
-                "level": self.level, "level_error": self.level_error,
-                "energy_drift": self.energy_drift,
+                # None, not NaN, where a figure does not apply (strict JSON has no NaN)
+                "level": self.level, "level_error": _finite_or_none(self.level_error),
+                "energy_drift": _finite_or_none(self.energy_drift),
                 "local_error_max": float(delta.max()) if delta.size else 0.0,
                 "local_error_sum": float(delta.sum()),
                 "global_error_estimate": float(propagated[-1]) if propagated.size else 0.0,
