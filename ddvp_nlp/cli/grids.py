@@ -1,0 +1,148 @@
+"""``ddvp compare``, ``stress``, ``sweep``, ``reproduce`` and ``scenes``: the commands that run
+many solves (through ``studies/``) and write their reports (through ``io/``)."""
+
+from __future__ import annotations
+
+import warnings
+
+from ..errors import InputError
+from ..scenes import list_scenes, load_scene
+from .parser import parse_settings
+from .summary import status_summary
+
+
+def _describe(name: str) -> str:
+    scene = load_scene(name)
+    params = ", ".join(f"{k}={v:g}" for k, v in scene.params.items())
+    defaults = f"t0={scene.t0:g} tau0={scene.tau0:g} t_end={scene.t_end:g}"
+    return (f"{name:16s} n={scene.n}  {params + '  ' if params else ''}{defaults}\n"
+            f"{'':16s} {scene.description}")
+
+
+def run_compare(args) -> int:
+    from ..io.work_precision import work_precision
+    from ..studies.compare import ERROR_KINDS, cheapest
+
+    scene = load_scene(args.scene)
+    out = args.out or f"runs/{scene.name}-compare"
+    if args.horizons:
+        return _compare_horizons(args, scene, out)
+    rows = work_precision(scene, overrides=parse_settings(args.settings), methods=args.methods,
+                          out=out, halvings=args.halvings, repeats=args.repeats,
+                          compiler=None if args.no_compile else "auto",
+                          progress=not args.no_progress, workers=args.workers or 1,
+                          scheduler=args.scheduler)
+    failed = sum(r["status"] != "success" for r in rows)
+    print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
+    for kind, label in ERROR_KINDS.items():
+        for level in (1e-4, 1e-8):
+            ranking = cheapest(rows, kind, level)
+            if ranking:
+                name, seconds, bound = ranking[0]
+                print(f"  {label.split(' max')[0]} <= {level:.0e}: cheapest {name} "
+                      f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
+    print(f"  written to {out}/ (work_precision.csv, work_precision.png, summary.md)")
+    return 0
+
+
+def _compare_horizons(args, scene, out) -> int:
+    from ..io.horizons import work_precision_horizons
+
+    results = work_precision_horizons(
+        scene, args.horizons, unit=args.time_unit, overrides=parse_settings(args.settings),
+        methods=args.methods, out=out, halvings=args.halvings, repeats=args.repeats,
+        compiler=None if args.no_compile else "auto", max_steps=args.max_steps,
+        progress=not args.no_progress, workers=args.workers or 1, scheduler=args.scheduler)
+    for horizon, rows in results.items():
+        failed = sum(r["status"] != "success" for r in rows)
+        print(f"{scene.name} compare, T = {horizon:g}: {len(rows)} runs, {failed} did not reach "
+              "t_end")
+    print(f"  written to {out}/ (horizons.png, growth.png, horizons.md, horizon_T/)")
+    return 0
+
+
+def run_stress(args) -> int:
+
+    from ..io.stress_report import stress
+
+    with warnings.catch_warnings():
+        # the solvability warnings of breaking cases are expected here; stress.md reports them
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rows = stress(args.out, quick=args.quick, compiler=None if args.no_compile else "auto",
+                      max_steps=args.max_steps, time_limit=args.time_limit,
+                      progress=not args.no_progress, workers=args.workers,
+                      scheduler=args.scheduler, resume=args.resume)
+    status_summary("stress", rows, args.out, "stress")
+    return 0
+
+
+def run_sweep(args) -> int:
+
+    from ..io.stress_report import stress
+    from ..studies.sweep import sweep_cases
+
+    spec = _sweep_spec(args)
+    cases = sweep_cases(spec)
+    out = args.out or f"runs/{load_scene(spec.scene).name}-sweep"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rows = stress(out, cases=cases, compiler=None if args.no_compile else "auto",
+                      max_steps=spec.max_steps, time_limit=spec.time_limit,
+                      progress=not args.no_progress, workers=args.workers,
+                      scheduler=args.scheduler, resume=not args.fresh, name="sweep",
+                      title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}")
+    status_summary("sweep", rows, out, "sweep")
+    return 0
+
+
+def _sweep_spec(args):
+    """The sweep of a grid file or of SCENE with --grid axes, with the command line's methods,
+    settings and bounds on top."""
+    from ..io.grid_file import load_grid_file
+    from ..studies.methods import get_methods
+    from ..studies.sweep import SweepSpec
+
+    if args.file:
+        if args.scene or args.grid:
+            raise InputError("give either --file or SCENE with --grid, not both")
+        spec = load_grid_file(args.file)
+    else:
+        if not args.scene or not args.grid:
+            raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
+        spec = SweepSpec(scene=args.scene, axes=_grid_axes(args.grid))
+    if args.methods:
+        spec.methods = tuple(m.name for m in get_methods(args.methods))
+    spec.settings = {**spec.settings, **parse_settings(args.settings)}
+    if args.max_steps is not None:
+        spec.max_steps = args.max_steps
+    if args.time_limit is not None:
+        spec.time_limit = args.time_limit
+    return spec
+
+
+def _grid_axes(items: list[str]) -> dict:
+    """``NAME=SPEC`` items of --grid, as axes."""
+    from ..studies.sweep import parse_axis
+
+    axes = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--grid expects NAME=SPEC, got {item!r}")
+        axes[name.strip()] = parse_axis(name.strip(), text)
+    return axes
+
+
+def run_reproduce(args) -> int:
+    from ..io.reproduce import reproduce
+    from ..io.runs import prepare_folder
+
+    out = prepare_folder(args.out)
+    reproduce(out, quick=args.quick, workers=args.workers or 1, scheduler=args.scheduler)
+    print(f"report written to {out / 'report.md'}")
+    return 0
+
+
+def run_scenes(args) -> int:
+    print("\n".join(_describe(name) for name in list_scenes()))
+    return 0

@@ -1,0 +1,292 @@
+"""The ``ddvp`` command line: one parser per command; method lists and scheme names come from
+the registries, not typed in."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..discrete.scheme import CLOCKS, RULES, Scheme
+from ..errors import InputError
+from ..scenes import VECTOR_SETTINGS
+
+CHECKPOINT_SECONDS = 5.0
+
+
+def parse_settings(items: list[str]) -> dict:
+    """``NAME=VALUE`` pairs; ``q0``, ``p0``, ``q_start``, ``q_end`` take comma-separated lists."""
+    from ..validation import check_unique_settings
+
+    check_unique_settings(items)
+    settings = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise InputError(f"--set expects NAME=VALUE, got {item!r}")
+        try:
+            if name in VECTOR_SETTINGS:
+                value = [float(v) for v in text.split(",")]
+            else:
+                value = float(text)
+        except ValueError:
+            raise InputError(f"--set {name}: value {text!r} is not a number") from None
+        settings[name] = value
+    return settings
+
+
+def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> None:
+    parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    default = Scheme().rule
+    parser.add_argument("--scheme", default=default, choices=RULES + methods,
+                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)"
+                        + (f"; or a compared method, its knob tau0 (dop853: rtol = atol = "
+                           f"--tol): {', '.join(methods)}" if methods else ""))
+    parser.add_argument("--alpha", type=float, default=0.5,
+                        help="weight alpha of the scheme, beta = 1 - alpha (default: 0.5)")
+    parser.add_argument("--clock", default="midpoint", choices=CLOCKS,
+                        help="time at which H is evaluated on an interval (default: midpoint)")
+    parser.add_argument("--set", dest="settings", action="append", default=[],
+                        metavar="NAME=VALUE",
+                        help="override a scene parameter or t0, tau0, t_end, q0, p0 (march), "
+                             "q_start, q_end, t0, t_end (bvp); vectors as comma lists; repeatable")
+    parser.add_argument("--out", default=None,
+                        help="output folder (default: runs/SCENE-SCHEME or runs/SCENE-bvp-SCHEME)")
+    parser.add_argument("--tol", type=float, default=1e-10,
+                        help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
+
+
+def _run_bounds(parser: argparse.ArgumentParser, *, defaults: bool) -> None:
+    """Per-run bounds and options shared by the grid commands (``defaults=False``: ``None``,
+    so a grid file's bounds apply unless given here)."""
+    parser.add_argument("--max-steps", type=int, default=2_000_000 if defaults else None,
+                        help="bound on the steps of each run (default: 2000000)")
+    parser.add_argument("--time-limit", type=float, default=60.0 if defaults else None,
+                        help="bound in seconds on each run (default: 60)")
+    parser.add_argument("--no-compile", action="store_true",
+                        help="run the compiled methods on CasADi's virtual machine instead")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> None:
+    parser.add_argument("--workers", type=int, default=None,
+                        help=f"local worker processes (default: {workers_default})")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run the tasks on this Dask scheduler, e.g. tcp://host:8786 "
+                             "(default: $DDVP_SCHEDULER, else local)")
+
+
+def _version() -> str:
+    """The installed distribution's version (``pyproject.toml``)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("ddvp-nlp")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
+                                 "variational principle) on CasADi.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    commands = parser.add_subparsers(dest="command", required=True)
+    commands.add_parser("scenes", help="list the built-in scenes with their parameters")
+    _march_command(commands)
+    _bvp_command(commands)
+    _compare_command(commands)
+    _stress_command(commands)
+    _sweep_command(commands)
+    _reproduce_command(commands)
+    _periodic_command(commands)
+    _poincare_command(commands)
+    return parser
+
+
+def _poincare_command(commands) -> None:
+    poincare = commands.add_parser(
+        "poincare", help="a Poincare section at a fixed energy: many orbits marched together")
+    poincare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    poincare.add_argument("--energy", type=float, required=True, help="the energy E")
+    poincare.add_argument("--orbits", type=int, default=20, help="number of orbits M")
+    poincare.add_argument("--section", default="q1=0", metavar="NAME=VALUE",
+                          help="the section, NAME in q1..qn (default q1=0)")
+    poincare.add_argument("--direction", default="+", choices=("+", "-"),
+                          help="crossings with the section coordinate increasing (+)")
+    poincare.add_argument("--t-end", type=float, default=None, help="end time of every orbit")
+    poincare.add_argument("--tau0", type=float, default=None, help="first step")
+    poincare.add_argument("--seed", type=int, default=0, help="seed of the starts")
+    poincare.add_argument("--set", dest="settings", action="append", default=[],
+                          metavar="NAME=VALUE", help="a parameter of the scene")
+    poincare.add_argument("--out", default=None, help="output folder")
+    poincare.add_argument("--no-plot", action="store_true", help="do not write the figure")
+
+
+def _periodic_command(commands) -> None:
+    periodic = commands.add_parser(
+        "periodic", help="find a periodic orbit at a prescribed energy (or a family of them)")
+    periodic.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    periodic.add_argument("--energy", type=float, default=None,
+                          help="the prescribed energy E (default: the scene's)")
+    periodic.add_argument("--nodes", type=int, default=None,
+                          help="number of intervals N (default: the scene's, else 200)")
+    periodic.add_argument("--section", default=None, metavar="NAME=VALUE",
+                          help="phase condition on node 0, NAME in q1..qn, p1..pn "
+                               "(default: the scene's, else p1=0)")
+    periodic.add_argument("--family", default=None, metavar="E1:E2:COUNT",
+                          help="continue the orbit over COUNT energies from E1 to E2")
+    periodic.add_argument("--scheme", default="vddvp", choices=("vddvp", "lee"),
+                          help="energy rule (the same equations for autonomous H)")
+    periodic.add_argument("--guess", default=None, metavar="FILE",
+                          help="start from a run folder / result.npz (t, q, p over one period)")
+    periodic.add_argument("--set", dest="settings", action="append", default=[],
+                          metavar="NAME=VALUE", help="a parameter of the scene")
+    periodic.add_argument("--out", default=None, help="output folder")
+    periodic.add_argument("--no-plot", action="store_true", help="do not write the figures")
+
+
+def _march_command(commands) -> None:
+    from ..studies.methods import METHODS
+
+    march = commands.add_parser("march", help="solve an initial-value problem step by step")
+    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES))
+    march.add_argument("--max-steps", type=int, default=10_000_000)
+    march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
+    march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
+    march.add_argument("--max-step-ratio", type=float, default=10.0,
+                       help="largest accepted ratio between consecutive steps (default: 10)")
+    march.add_argument("--time-limit", type=float, default=None,
+                       help="stop after this many seconds of stepping (status time_limit)")
+    march.add_argument("--energy-guard", type=float, default=None,
+                       help="stop when |H - H0| / max(1, |H0|) exceeds this at a node")
+    march.add_argument("--least-squares", action="store_true",
+                       help="where the energy step has no admissible root, take the least-squares "
+                            "step (Kane-Marsden-Ortiz) within [tau-min, tau-max] and go on; each "
+                            "such step is flagged in meta.json and result.npz")
+    _accuracy_arguments(march)
+    march.add_argument("--careful", action="store_true",
+                       help="force the careful per-step path (default: compiled chunks of steps, "
+                            "checked step by step; both accept the same steps)")
+    march.add_argument("--checkpoint-every", type=float, default=CHECKPOINT_SECONDS,
+                       metavar="SECONDS",
+                       help="write the run so far to the output folder this often while "
+                            f"marching, so a kill loses at most this much (default: "
+                            f"{CHECKPOINT_SECONDS:g})")
+    march.add_argument("--no-progress", action="store_true", help="no progress bar")
+    march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
+    """The accuracy check (``solvers/accuracy.py``): estimates that do not trust the scheme."""
+    group = parser.add_argument_group(
+        "accuracy check", "every step against one RK4 step of the exact flow, and the energy "
+        "against H(z0); a run that fails ends with status inaccurate")
+    group.add_argument("--rtol", type=float, default=1e-2,
+                       help="local error test: delta_k <= atol + rtol |z| (default: 1e-2)")
+    group.add_argument("--atol", type=float, default=1e-2, help="see --rtol (default: 1e-2)")
+    group.add_argument("--energy-tol", type=float, default=0.1,
+                       help="bound on the first step's energy level error and the nodal energy "
+                            "drift, relative to max(1, |H0|) (default: 0.1)")
+    group.add_argument("--global-tol", type=float, default=None,
+                       help="bound on the global error estimate relative to max(1, |z|) "
+                            "(default: none, reported only)")
+    group.add_argument("--accept-inaccurate", action="store_true",
+                       help="record the estimates and go on past a failed check")
+
+
+def _bvp_command(commands) -> None:
+    bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem on the whole grid")
+    _scheme_arguments(bvp)
+    bvp.add_argument("--nodes", type=int, default=None,
+                     help="number of nodes (default: the scene's, else 101)")
+    bvp.add_argument("--solver", default="auto", choices=("auto", "newton", "ipopt"),
+                     help="auto (default: banded Newton, then IPOPT if its point fails the "
+                          "verification), newton or ipopt")
+    bvp.add_argument("--guess", default="straight", metavar="straight|march|FILE",
+                     help="start: straight line (default), march (shooting from q_start), or "
+                          "a run folder / result.npz whose t, q, p have --nodes rows")
+    bvp.add_argument("--time-limit", type=float, default=None,
+                     help="stop after this many seconds (status time_limit)")
+    bvp.add_argument("--progress", action="store_true",
+                     help="report each solver iteration on stderr")
+    bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
+    bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+
+
+def _compare_command(commands) -> None:
+    from ..studies.methods import METHODS
+
+    compare = commands.add_parser(
+        "compare", help="work-precision: error against run time for every method on a scene")
+    compare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+    compare.add_argument("--methods", default=None,
+                         help="comma-separated methods (default: every one that applies); "
+                              f"known: {', '.join(METHODS)}")
+    compare.add_argument("--set", dest="settings", action="append", default=[],
+                         metavar="NAME=VALUE",
+                         help="override a scene parameter or t0, tau0, t_end, q0, p0; repeatable")
+    compare.add_argument("--out", default=None,
+                         help="output folder (default: runs/SCENE-compare)")
+    compare.add_argument("--halvings", type=int, default=6,
+                         help="step sweeps go from 2 tau0 down by this many halvings "
+                              "(default: 6)")
+    compare.add_argument("--repeats", type=int, default=3,
+                         help="timed calls per run after one warm-up; best is kept (default: 3)")
+    compare.add_argument("--no-compile", action="store_true",
+                         help="run the compiled methods on CasADi's virtual machine instead")
+    compare.add_argument("--no-progress", action="store_true", help="no progress bar")
+    compare.add_argument("--horizons", default=None, metavar="T1,T2,...",
+                         help="compare at each horizon t_end = t0 + T * --time-unit (e.g. "
+                              "10,1000,100000): horizons.png, growth.png, horizons.md and a "
+                              "report per horizon")
+    compare.add_argument("--time-unit", type=float, default=1.0,
+                         help="unit of --horizons, e.g. 6.283185307 for Kepler's period "
+                              "(default: 1, the scene's time unit)")
+    compare.add_argument("--max-steps", type=int, default=2_000_000,
+                         help="with --horizons: runs needing more steps are left out "
+                              "(default: 2000000)")
+    _grid_arguments(compare, "1: the run times are what is compared")
+
+
+def _stress_command(commands) -> None:
+    stress = commands.add_parser(
+        "stress", help="run every method on the stiff and extreme cases; say where each breaks")
+    stress.add_argument("--out", default="runs/stress", help="output folder")
+    stress.add_argument("--quick", action="store_true",
+                        help="a few cases on short horizons (seconds)")
+    _run_bounds(stress, defaults=True)
+    stress.add_argument("--resume", action="store_true",
+                        help="keep the rows already in OUT/stress.csv; run only the missing ones")
+    _grid_arguments(stress, "one per core")
+
+
+def _sweep_command(commands) -> None:
+    from ..studies.stress import DEFAULT_METHODS
+
+    sweep = commands.add_parser(
+        "sweep", help="run your own grid of settings x methods, locally or on a Dask cluster")
+    sweep.add_argument("scene", nargs="?", default=None,
+                       help="a built-in scene name or a .py file (or give --file)")
+    sweep.add_argument("--grid", action="append", default=[], metavar="NAME=SPEC",
+                       help="an axis: NAME=FROM:TO:COUNT or NAME=V1,V2,...; NAME is a scene "
+                            "parameter, t_end, t0, tau0 (the step) or rtol (DOP853); repeatable")
+    sweep.add_argument("--file", default=None, help="a TOML grid file (see `ddvp_nlp.sweep`)")
+    sweep.add_argument("--methods", default=None,
+                       help=f"comma-separated methods (default: {', '.join(DEFAULT_METHODS)} "
+                            "where they apply)")
+    sweep.add_argument("--set", dest="settings", action="append", default=[],
+                       metavar="NAME=VALUE", help="a fixed scene parameter or setting")
+    sweep.add_argument("--out", default=None, help="output folder (default: runs/SCENE-sweep)")
+    sweep.add_argument("--fresh", action="store_true",
+                       help="start afresh instead of resuming from OUT/sweep.csv")
+    _run_bounds(sweep, defaults=False)
+    _grid_arguments(sweep, "one per core")
+
+
+def _reproduce_command(commands) -> None:
+    reproduce = commands.add_parser(
+        "reproduce", help="figures and report.md comparing the paper's claims with measurements")
+    reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
+    reproduce.add_argument("--quick", action="store_true",
+                           help="shorter runs and fewer step sizes (about 10 s)")
+    _grid_arguments(reproduce, "1")

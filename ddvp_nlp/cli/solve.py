@@ -1,0 +1,276 @@
+"""``ddvp march``, ``bvp``, ``periodic`` and ``poincare``: resolve the scene, solve, write the
+run folder, print its summary."""
+
+from __future__ import annotations
+
+import sys
+
+from ..discrete.scheme import RULES, Scheme
+from ..errors import InputError
+from ..scenes import load_scene
+from .interrupts import INTERRUPTS, Stopped
+from .parser import parse_settings
+from .summary import print_summary
+
+
+def run_solve(args) -> int:
+    """``ddvp march`` and ``ddvp bvp`` on any scene: resolve, solve, write the run folder and
+    print its summary."""
+    from ..io.runs import prepare_folder, write_run
+
+    scene = load_scene(args.scene)
+    higher = _higher(scene)
+    scheme = _scheme(args, higher)
+    config = _resolve(args, scene, higher)
+    infix = "-bvp" if args.command == "bvp" else ""
+    out = prepare_folder(args.out if args.out is not None
+                         else f"runs/{scene.name}{infix}-{args.scheme}")
+    args.checkpoint = _checkpoint_saver(args, scene, out)
+    if args.command == "march" and not higher:
+        INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
+    solve = _SOLVERS[args.command, higher]
+    try:
+        solution, extra = solve(args, scene, config, scheme)
+    except KeyboardInterrupt:
+        raise Stopped(f"interrupted before the run had a result; nothing new was written to "
+                       f"{out}/") from None
+    with INTERRUPTS.saving():  # a second Ctrl-C or a SIGTERM waits until the set is written
+        meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
+                         solution=solution, extra=extra, plot=not args.no_plot)
+    print_summary(meta, out)
+    if INTERRUPTS.pending:
+        print(f"ddvp {args.command}: interrupted while saving; the run above was written whole "
+              f"to {out}/", file=sys.stderr)
+    return 0 if solution.success and not INTERRUPTS.pending else 1
+
+
+def _checkpoint_saver(args, scene, out):
+    """For a march of a scene with ``H`` or ``L``: ``save(t, z)`` writing the run so far to
+    ``out`` (a checkpoint), interrupts held off while it writes."""
+    if args.command != "march" or _higher(scene):
+        return None
+    from ..io.runs import write_checkpoint
+
+    def save(t, z):
+        with INTERRUPTS.saving():
+            write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
+                             n=scene.system.n)
+    return save
+
+
+def _higher(scene) -> bool:
+    from ..scenes import HigherOrderScene
+
+    return isinstance(scene, HigherOrderScene)
+
+
+def _scheme(args, higher: bool) -> Scheme:
+    if higher and (args.alpha != 0.5 or args.clock != "midpoint"):
+        raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
+                         "(differences are taken at the left node)")
+    if args.scheme not in RULES:  # a compared method: its interval energies as fixed steps'
+        return Scheme(rule="fixed")
+    return Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
+
+
+def _resolve(args, scene, higher: bool):
+    settings = parse_settings(args.settings)
+    if args.command == "bvp" and not higher:
+        return scene.resolve_boundary(settings, nodes=args.nodes)
+    return scene.resolve(settings)
+
+
+def _march(args, scene, config, scheme):
+    from ..solvers.march import march
+
+    if args.scheme not in RULES:
+        return _march_method(args, scene, config)
+
+    solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
+                     t_end=config.t_end,
+                     t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
+                     max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
+                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
+                     fast=not args.careful, time_limit=args.time_limit,
+                     energy_guard=args.energy_guard,
+                     breakdown="least_squares" if args.least_squares else "stop",
+                     rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
+                     global_tol=args.global_tol, accept_inaccurate=args.accept_inaccurate,
+                     checkpoint=args.checkpoint, checkpoint_interval=args.checkpoint_every,
+                     stop=INTERRUPTS.stop_requested)
+    stats = solution.stats
+    return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
+                                                  "checkpoints")}
+
+
+def _march_method(args, scene, config):
+    """``ddvp march --scheme NAME`` for a compared method (``studies/methods.py``): its run at
+    the knob ``tau0`` (``rtol = atol = --tol`` for DOP853), then its own residual check."""
+    import numpy as np
+
+    from ..solvers.compiler import find_compiler
+    from ..studies.methods import METHODS, run_method
+
+    method = METHODS[args.scheme]
+    value = args.tol if method.knob == "rtol" else config.tau0
+    from ..solvers.accuracy import Tolerance
+
+    tolerance = Tolerance(rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
+                          global_tol=args.global_tol, stop=not args.accept_inaccurate)
+    solution = run_method(scene, config, args.scheme, value,
+                          compiler=None if args.careful else find_compiler("auto"),
+                          max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
+                          tolerance=tolerance)
+    extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
+             "own_residual_max": solution.stats.get("own_residual_max"),
+             "path": solution.stats.get("path")}
+    if not scene.system.time_dependent and solution.t.size:
+        # a compared method keeps no interval energy: its energy error is H's drift at the nodes
+        H = scene.system.energy(solution.q, solution.p, solution.t,
+                                scene.system.parameter_vector(config.params))
+        extra.update(energy_error=float(np.max(np.abs(H - H[0]))),
+                     energy_error_kind="largest drift of H at the nodes, max |H(z_k) - H(z_0)|")
+    return solution, extra
+
+
+def _bvp(args, scene, config, scheme):
+    from ..solvers.bvp import solve_bvp
+
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, t0=config.t_span[0],
+                         t_end=config.t_span[1], nodes=config.nodes, scheme=scheme,
+                         params=config.params, tol=args.tol,
+                         solver=args.solver, verbose=args.verbose,
+                         guess=_bvp_guess(args.guess), time_limit=args.time_limit,
+                         progress=args.progress)
+    return solution, {"solver": solution.stats}
+
+
+def _bvp_guess(value: str):
+    """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a ``result.npz`` (or of the one in
+    a run folder); ``InputError`` if the file is missing or lacks them."""
+    from pathlib import Path
+
+    import numpy as np
+
+    if value in ("straight", "march"):
+        return value
+    path = Path(value)
+    path = path / "result.npz" if path.is_dir() else path
+    if not path.is_file():
+        raise InputError(f"--guess must be straight, march or a result.npz (or run folder), "
+                         f"got {value!r}: no such file")
+    try:
+        with np.load(path) as data:
+            return {key: data[key] for key in ("t", "q", "p")}
+    except (OSError, ValueError, KeyError) as error:
+        raise InputError(f"--guess {value!r}: cannot read t, q and p from {path} "
+                         f"({error})") from None
+
+
+def _march_higher(args, scene, config, scheme):
+    from ..solvers.higher import march_higher
+
+    t_init, q_init = scene.start(config)
+    return march_higher(scene.system, t_init, q_init, t_end=config["t_end"],
+                        scheme=scheme.rule, params=config["params"], tol=args.tol,
+                        max_steps=args.max_steps, time_limit=args.time_limit), None
+
+
+def _bvp_higher(args, scene, config, scheme):
+    from ..solvers.higher import solve_bvp_higher
+
+    boundary = dict(scene.boundary or {})
+    nodes = args.nodes or boundary.get("nodes", 41)
+    t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
+    t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
+    return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
+                            scheme=scheme.rule, params=config["params"], tol=args.tol), None
+
+
+# (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)
+_SOLVERS = {("march", False): _march, ("bvp", False): _bvp,
+            ("march", True): _march_higher, ("bvp", True): _bvp_higher}
+
+
+def run_periodic(args) -> int:
+    """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
+    energy); every input checked before anything is built."""
+    from ..io.periodic_runs import write_family, write_periodic
+    from ..io.runs import prepare_folder
+    from ..solvers.periodic import check_periodic, solve_periodic
+    from ..solvers.periodic_family import solve_periodic_family
+
+    scene = load_scene(args.scene)
+    defaults = dict(getattr(scene, "periodic", None) or {})
+    params = parse_settings(args.settings)
+    options = {"section": args.section or defaults.get("section", "p1=0"),
+               "scheme": args.scheme, "params": params, "start": defaults.get("start"),
+               "integrals": defaults.get("integrals", ())}
+    nodes = args.nodes if args.nodes is not None else defaults.get("nodes", 200)
+    guess = _bvp_guess(args.guess) if args.guess else None
+    if args.family is not None:
+        energies = _family_energies(args.family)
+        for energy in (energies[0], energies[-1]):
+            check_periodic(scene.system, energy=energy, nodes=nodes, **options)
+        out = prepare_folder(args.out or f"runs/{scene.name}-family")
+        family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
+                                       **options)
+        rows = write_family(out, scene, family, params, plot=not args.no_plot)
+        for row in rows:
+            print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
+                  f"residuals canonical {row['canonical']:.2e}, closure {row['closure']:.2e}")
+        print(f"  written to {out}/ (family.csv, family.png, E=... folders)")
+        return 0 if all(row["status"] == "success" for row in rows) else 1
+    energy = args.energy if args.energy is not None else defaults.get("energy")
+    if energy is None:
+        raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
+    check_periodic(scene.system, energy=energy, nodes=nodes, **options)
+    out = prepare_folder(args.out or f"runs/{scene.name}-periodic")
+    solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess, **options)
+    meta = write_periodic(out, scene, solution, params, plot=not args.no_plot)
+    print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
+          f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
+          f"written to {out}/")
+    return 0 if solution.success else 1
+
+
+def _family_energies(text: str):
+    """``E1:E2:COUNT`` as ``COUNT`` energies from ``E1`` to ``E2``."""
+    import numpy as np
+
+    parts = text.split(":")
+    try:
+        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
+        if len(parts) != 3:
+            raise ValueError
+    except (ValueError, IndexError):
+        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
+    if count < 2 or not np.isfinite(first) or not np.isfinite(last):
+        raise InputError(f"--family needs finite E1, E2 and COUNT >= 2, got {text!r}")
+    return np.linspace(first, last, count)
+
+
+def run_poincare(args) -> int:
+    """``ddvp poincare``: the starts on the section, one ensemble, its crossings written."""
+    from pathlib import Path
+
+    from ..io.poincare_runs import write_section
+    from ..studies.poincare import poincare_section
+    from ..validation import check_integer
+
+    scene = load_scene(args.scene)
+    config = scene.resolve({})
+    orbits = check_integer("--orbits", args.orbits)
+    section = poincare_section(scene.system, args.energy, section=args.section, orbits=orbits,
+                               direction=args.direction,
+                               tau0=args.tau0 if args.tau0 is not None else config.tau0,
+                               t_end=args.t_end if args.t_end is not None else config.t_end,
+                               params=parse_settings(args.settings), seed=args.seed)
+    out = Path(args.out or f"runs/{scene.name}-poincare-E{args.energy:g}")
+    write_section(out, section, plot=not args.no_plot)
+    failed = sum(status != "reached t_end" for status in section.statuses)
+    print(f"{len(section.statuses)} orbits, {section.points.shape[0]} crossings of "
+          f"{args.section}; {failed} orbits failed; largest nodal energy error "
+          f"{section.energy_errors.max():.2e}")
+    print(f"  written to {out}/ (section.npz, section.csv, orbits.csv, section.png)")
+    return 0 if failed == 0 else 1
