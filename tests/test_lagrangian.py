@@ -31,7 +31,7 @@ def _same(a, b, tol):
 
 @pytest.mark.parametrize("alpha", [0.0, 0.25, 0.5, 1.0])
 def test_fixed_steps_match_the_hamiltonian_scheme_for_every_alpha(alpha):
-    """L = v^2/2 - V and H = p^2/2 + V: the same discrete trajectory (THEORY.md section 3)."""
+    """L = v^2/2 - V and H = p^2/2 + V: the same discrete trajectory (docs/theory.md section 4)."""
     hamiltonian = load_scene("pendulum").system
     lagrangian = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
     scheme = Scheme(rule="fixed", alpha=alpha)

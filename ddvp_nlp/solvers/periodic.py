@@ -1,5 +1,5 @@
 """Periodic orbits at a prescribed energy: the discrete action with free node times, closed on
-itself (THEORY.md sections 2, 4; issue 17).
+itself (docs/theory.md sections 2, 3, 6).
 
 For autonomous ``H`` and ``N`` intervals the unknowns are the node states ``z_0 .. z_N`` and the
 node times ``t_0 .. t_N``; ``t_N - t_0`` is the period. The scheme's equations:

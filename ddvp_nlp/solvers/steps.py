@@ -1,6 +1,6 @@
 """One march step as CasADi functions, and its careful solve: Newton with retries.
 
-Two kinds of step (THEORY.md section 4):
+Two kinds of step (docs/theory.md section 5):
 
 - *fixed-length*: given ``t_a, t_b, z_a``, solve the ``2n`` canonical equations of the interval
   ``[t_a, t_b]`` for ``z_b``. Every step of the ``fixed`` rule, and step 0 of the energy rules.
@@ -142,7 +142,7 @@ class StepFunctions:
         g_canonical = canonical(t_mid, t_next, z_mid[:n], z_mid[n:], z_next[:n], z_next[n:], theta)
         g_energy = energy(t_prev, t_mid, t_next, z_prev[:n], z_prev[n:], z_mid[:n], z_mid[n:],
                           z_next[:n], z_next[n:], theta)
-        # The energy equation's derivative in tau is O(tau) (THEORY.md section 5); dividing by the
+        # The energy equation's derivative in tau is O(tau) (docs/theory.md section 7); dividing by the
         # previous step makes its Newton tolerance an absolute tolerance on tau.
         g = ca.vertcat(g_canonical, (g_energy + drift) / (t_mid - t_prev))
         self.energy_residual = ca.Function("g", [x, w], [g])
