@@ -142,8 +142,8 @@ class StepFunctions:
         g_canonical = canonical(t_mid, t_next, z_mid[:n], z_mid[n:], z_next[:n], z_next[n:], theta)
         g_energy = energy(t_prev, t_mid, t_next, z_prev[:n], z_prev[n:], z_mid[:n], z_mid[n:],
                           z_next[:n], z_next[n:], theta)
-        # The energy equation's derivative in tau is O(tau) (docs/theory.md section 7); dividing by the
-        # previous step makes its Newton tolerance an absolute tolerance on tau.
+        # The energy equation's derivative in tau is O(tau) (docs/theory.md section 7); dividing
+        # by the previous step makes its Newton tolerance an absolute tolerance on tau.
         g = ca.vertcat(g_canonical, (g_energy + drift) / (t_mid - t_prev))
         self.energy_residual = ca.Function("g", [x, w], [g])
         self.energy_root = _rootfinder("energy_step", self.energy_residual, system, scheme)
