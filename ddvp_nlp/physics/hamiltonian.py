@@ -170,6 +170,13 @@ def separable_parts(system: HamiltonianSystem):
             ca.Function("V_q", [system.q, system.t, system.theta], [H_q]))
 
 
+def not_separable(system: HamiltonianSystem) -> str | None:
+    """Why ``H`` is not ``T(p) + V(q, t)``, or ``None`` if it is (the ``applies`` of the methods
+    that need a separable ``H``)."""
+    parts = separable_parts(system)
+    return parts if isinstance(parts, str) else None
+
+
 def quadratic_kinetic_matrix(system: HamiltonianSystem):
     """``A(theta)`` if ``H = p.A p/2 + V(q, t)`` with ``A`` constant in ``q, p, t``, else a reason
     string. Lee's original scheme needs the Lagrangian ``v.A^{-1} v/2 - V``."""

@@ -23,7 +23,7 @@ import numpy as np
 from ..cache import cached
 from ..discrete.explicit import FIXED_STEPS
 from ..errors import InputError
-from ..physics.hamiltonian import HamiltonianSystem, separable_parts
+from ..physics.hamiltonian import HamiltonianSystem, not_separable
 from ..solution import Solution, Status
 from .compiler import cache_folder, compile_function
 from .driver import Advance, Nodes, describe_phase_space, drive
@@ -240,18 +240,13 @@ def fixed_step_run_of(name: str):
     return run
 
 
-def _needs_separable(system) -> str | None:
-    parts = separable_parts(system)
-    return parts if isinstance(parts, str) else None
-
-
 STORMER_VERLET = Integrator("stormer_verlet", "Stormer-Verlet kick-drift-kick (velocity Verlet; "
                             "separable H)", order=2, symplectic=True, energy_conserving=False,
                             knob="tau", run=fixed_step_run_of("stormer_verlet"),
-                            applies=_needs_separable)
+                            applies=not_separable)
 LEAPFROG = Integrator("leapfrog", "Stormer-Verlet drift-kick-drift (position Verlet, SUNDIALS' "
                       "leapfrog; separable H)", order=2, symplectic=True,
                       energy_conserving=False, knob="tau", run=fixed_step_run_of("leapfrog"),
-                      applies=_needs_separable)
+                      applies=not_separable)
 RK4 = Integrator("rk4", "classical Runge-Kutta", order=4, symplectic=False,
                  energy_conserving=False, knob="tau", run=fixed_step_run_of("rk4"))

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..cache import cached
 from ..discrete.adaptive_verlet import adaptive_verlet_step, density_parts
-from ..physics.hamiltonian import HamiltonianSystem
+from ..physics.hamiltonian import HamiltonianSystem, not_separable
 from ..solution import Status
 from .baselines import Columns, chunk_for, load, solution_of
 from .driver import Advance, Nodes, describe_phase_space, drive
@@ -115,14 +115,7 @@ def _run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=No
                                time_limit=time_limit)
 
 
-def _needs_separable(system) -> str | None:
-    from ..physics.hamiltonian import separable_parts
-
-    parts = separable_parts(system)
-    return parts if isinstance(parts, str) else None
-
-
 VERLET_ADAPTIVE = Integrator("verlet_adaptive", "reversible adaptive Stormer-Verlet (Sundman "
                              "g(q) by Hairer-Soderlind step-density control; separable H)",
                              order=2, symplectic=False, energy_conserving=False, knob="tau0",
-                             run=_run, applies=_needs_separable)
+                             run=_run, applies=not_separable)
