@@ -25,6 +25,17 @@ def norm_inf(values) -> ca.SX:
     return result
 
 
+def _reflect(x: list, nz_v: list, rows: list, entries: range, beta) -> None:
+    """``x -= beta (v . x) v`` for the Householder vector ``v`` stored in ``nz_v[entries]`` at
+    rows ``rows[entries]`` (in place), in ``casadi_qr``'s order of operations."""
+    alpha = ca.SX(0)
+    for k in entries:
+        alpha = alpha + nz_v[k] * x[rows[k]]
+    alpha = alpha * beta
+    for k in entries:
+        x[rows[k]] = x[rows[k]] - alpha * nz_v[k]
+
+
 def _house(v: list, count: int):
     """``casadi_house`` on ``v[:count]`` (in place): returns ``(s, beta)``."""
     v0 = v[0]
@@ -65,12 +76,7 @@ class SparseQR:
                 r = self.r_row[k]
                 if r >= c:
                     break
-                alpha = ca.SX(0)
-                for k1 in range(vc[r], vc[r + 1]):
-                    alpha = alpha + nz_v[k1] * x[vr[k1]]
-                alpha = alpha * beta[r]
-                for k1 in range(vc[r], vc[r + 1]):
-                    x[vr[k1]] = x[vr[k1]] - alpha * nz_v[k1]
+                _reflect(x, nz_v, vr, range(vc[r], vc[r + 1]), beta[r])
                 nz_r.append(x[r])
                 x[r] = ca.SX(0)
             for k in range(vc[c], vc[c + 1]):
@@ -90,12 +96,7 @@ class SparseQR:
             w[self.prinv[c]] = b[c]
         vc, vr = self.v_colind, self.v_row
         for c in range(self.ncol):  # casadi_qr_mv, transposed: Q' w
-            alpha = ca.SX(0)
-            for k in range(vc[c], vc[c + 1]):
-                alpha = alpha + nz_v[k] * w[vr[k]]
-            alpha = alpha * beta[c]
-            for k in range(vc[c], vc[c + 1]):
-                w[vr[k]] = w[vr[k]] - alpha * nz_v[k]
+            _reflect(w, nz_v, vr, range(vc[c], vc[c + 1]), beta[c])
         for c in range(self.ncol - 1, -1, -1):  # casadi_qr_trs: R w = Q' b, backwards
             for k in range(self.r_colind[c + 1] - 1, self.r_colind[c] - 1, -1):
                 r = self.r_row[k]
