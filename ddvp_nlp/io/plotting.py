@@ -48,14 +48,15 @@ def envelope(t: np.ndarray, values: np.ndarray, columns: int = COLUMNS):
     return mids, np.column_stack(shown).reshape(-1, *values.shape[1:])
 
 
-def plot_trajectory(solution, scene, scheme, theta, path: Path) -> None:
+def plot_trajectory(solution, scene, scheme, path: Path, *, energies) -> None:
     """``trajectory.png``: ``q``, ``p``, the step (energy rules) and the relative energy error
-    against ``t`` (a zoom on the start beside them for long runs) and the phase portrait."""
+    against ``t`` (a zoom on the start beside them for long runs) and the phase portrait.
+    ``energies``: the run's node and interval energies (``runs.run_energies``)."""
     t, q, p = solution.t, solution.q, solution.p
     panels = [("q", q), ("p", p)]
     if scheme.variable_steps:
         panels.append(("step length tau_k", (t[:-1], solution.tau)))
-    panels.append(_energy_panel(solution, scene.system, scheme, theta))
+    panels.append(_energy_panel(solution, scene.system, scheme, energies))
     zoom = t.size >= ZOOM_FROM_NODES
     columns = 3 if zoom else 2
     fig = Figure(figsize=(4.4 * columns, 1.7 * len(panels) + 0.6), dpi=DPI)
@@ -91,18 +92,17 @@ def _few_ticks(axes, *, y: bool = True):
         axes.yaxis.set_major_locator(MaxNLocator(3))
 
 
-def _energy_panel(solution, system, scheme, theta):
+def _energy_panel(solution, system, scheme, energies):
     """The energy panel's label and curves: relative drifts of the interval and node energies
     for autonomous ``H``, the relative residual of the energy equation for a time-dependent one;
     both relative to ``max(1, |H0|)``."""
-    t, q, p = solution.t, solution.q, solution.p
-    nodes = system.energy(q, p, t, theta)
+    t = solution.t
+    nodes, interval = energies
     scale = max(1.0, abs(float(nodes[0])))
     if system.time_dependent:
         rule = equations.diagnostic_rule(scheme)
         residual = np.abs(solution.energy_residual) / scale
         return (f"|{rule} residual| / max(1,|H0|)", [("", t[1:-1], residual)])
-    interval = equations.interval_energies(system, scheme, t, q, p, theta)
     return ("|H - H0| / max(1,|H0|)",
             [("interval energy H(Q_k, P_k)", t[:-1], np.abs(interval - interval[0]) / scale),
              ("node energy H(q_k, p_k)", t, np.abs(nodes - nodes[0]) / scale)])

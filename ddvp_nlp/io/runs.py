@@ -39,7 +39,18 @@ def prepare_folder(out: str | os.PathLike) -> Path:
     return path
 
 
-def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta) -> dict:
+def run_energies(system, scheme: Scheme, solution: Solution, theta):
+    """For autonomous ``H``: ``H(z_k)`` at every node and the interval energies; for a
+    time-dependent one only ``H(z_0, t_0)`` (what its reports use). Computed once per run, for
+    ``meta.json``'s figures and for the figure's energy panel."""
+    if system.time_dependent:
+        return system.energy(solution.q[:1], solution.p[:1], solution.t[:1], theta), None
+    nodes = system.energy(solution.q, solution.p, solution.t, theta)
+    return nodes, equations.interval_energies(system, scheme, solution.t, solution.q,
+                                              solution.p, theta)
+
+
+def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta, energies) -> dict:
     """The energy figures of a run.
 
     Autonomous ``H``: ``energy_error`` is the largest drift of the interval energy
@@ -49,16 +60,13 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta) -> di
     """
     system = scene.system
     report = {"energy_residual_max": _max_abs(solution.energy_residual)}
+    nodes, interval = energies  # run_energies
     if system.time_dependent:
-        report["H0"] = float(system.energy(solution.q[:1], solution.p[:1], solution.t[:1],
-                                           theta)[0]) if solution.t.size else float("nan")
+        report["H0"] = float(nodes[0]) if solution.t.size else float("nan")
         report["energy_error"] = report["energy_residual_max"]
         rule = equations.diagnostic_rule(scheme)
         report["energy_error_kind"] = f"largest residual of the {rule} energy equation"
         return report
-    interval = equations.interval_energies(system, scheme, solution.t, solution.q, solution.p,
-                                           theta)
-    nodes = system.energy(solution.q, solution.p, solution.t, theta)
     report["H0"] = float(nodes[0])
     report["node_energy_error"] = _max_abs(nodes - nodes[0]) / max(1.0, abs(float(nodes[0])))
     report["energy_error"] = _max_abs(interval - interval[0]) if interval.size else 0.0
@@ -183,13 +191,14 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
     if flagged:
         arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)
         arrays["least_squares_defect"] = np.array([e["energy_defect"] for e in flagged])
+    energies = run_energies(scene.system, scheme, solution, theta)
     meta = {"command": command, "scene": scene.name, "scheme": scheme.rule,
             "alpha": scheme.alpha, "clock": scheme.clock, "params": config.as_dict(),
             **_steps_meta(solution),
             "newton_iterations": solution.newton_iterations,
             "canonical_residual_max": _max_abs(solution.canonical_residual),
             "timing": solution.timing,
-            **energy_report(scene, scheme, solution, theta),
+            **energy_report(scene, scheme, solution, theta, energies),
             **_checks(scene, config, solution)}
     accuracy = solution.stats.get("accuracy")
     if accuracy:
@@ -201,7 +210,7 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
 
     def draw(path):
         from .plotting import plot_trajectory
-        plot_trajectory(solution, scene, scheme, theta, path)
+        plot_trajectory(solution, scene, scheme, path, energies=energies)
 
     return arrays, meta, draw
 
