@@ -1,6 +1,8 @@
-"""Autonomous pendulum H = p^2/2 + 1 - cos q (separatrix at H = 2)."""
+"""Autonomous pendulum H = p^2/2 + 1 - cos q (separatrix at H = 2), with its exact librations."""
 
 import casadi as ca
+import numpy as np
+from scipy.special import ellipj, ellipk, ellipkinc
 
 from ddvp_nlp import Scene
 
@@ -9,12 +11,30 @@ def hamiltonian(q, p, t):
     return p[0] ** 2 / 2 + 1 - ca.cos(q[0])
 
 
+def exact(t, q0, p0, t0):
+    """The exact libration from (q0, p0) (0 < H < 2) by Jacobi's elliptic functions:
+    ``sin(q/2) = k sn(u, k^2)``, ``p = 2 k cn(u, k^2)``, ``u = t - t0 + u0``, ``k^2 = H/2``.
+    ``ValueError`` at or above the separatrix (the studies then use DOP853)."""
+    q0, p0 = float(np.ravel(q0)[0]), float(np.ravel(p0)[0])
+    energy = p0**2 / 2 + 1 - np.cos(q0)
+    if not 0 < energy < 2 or abs(q0) >= np.pi:
+        raise ValueError(f"the exact solution covers librations (0 < H < 2, |q| < pi); "
+                         f"H = {energy:g}, q0 = {q0:g}")
+    m = energy / 2
+    k = np.sqrt(m)
+    amplitude0 = np.arctan2(np.sin(q0 / 2) / k, p0 / (2 * k))  # am(u0): sn = sin, cn = cos
+    quarter = ellipk(m)
+    u = np.mod(ellipkinc(amplitude0, m) + np.asarray(t, float) - t0, 4 * quarter)
+    sn, cn, _, _ = ellipj(u, m)
+    return (2 * np.arcsin(np.clip(k * sn, -1, 1)))[:, None], (2 * k * cn)[:, None]
+
+
 # Periodic orbits (ddvp periodic): librations through the turning point p = 0; exact period
 # 4 K(k), k = sin(theta_max / 2), cos(theta_max) = 1 - E, for 0 < E < 2 (refused above).
 
 # Fixed-endpoint data: about where the motion from (0.5, 0.5) is at t = 9 (1.4 swings), where
 # q(9) depends strongly on p(0) (at t = 10 it has a fold near p(0) = 0.5).
-scene = Scene(hamiltonian, n=1, q0=[0.5], p0=[0.5], tau0=0.05, t_end=100.0,
+scene = Scene(hamiltonian, n=1, q0=[0.5], p0=[0.5], tau0=0.05, t_end=100.0, exact=exact,
               boundary={"q_start": [0.5], "q_end": [-0.036], "t_span": (0.0, 9.0),
                         "nodes": 181},
               periodic={"section": "p1=0", "energy": 0.5, "nodes": 200})

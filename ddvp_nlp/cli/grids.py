@@ -7,6 +7,7 @@ import warnings
 
 from ..errors import InputError
 from ..scenes import list_scenes, load_scene
+from ..validation import check_real
 from .parser import parse_settings
 from .summary import status_summary
 
@@ -52,6 +53,8 @@ def _compare_horizons(args, scene, out) -> int:
         scene, args.horizons, unit=args.time_unit, overrides=parse_settings(args.settings),
         methods=args.methods, out=out, halvings=args.halvings, repeats=args.repeats,
         compiler=None if args.no_compile else "auto", max_steps=args.max_steps,
+        run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
+        reference_span=check_real("--reference-span", args.reference_span, positive=True),
         progress=not args.no_progress, workers=args.workers or 1, scheduler=args.scheduler)
     for horizon, rows in results.items():
         failed = sum(r["status"] != "success" for r in rows)

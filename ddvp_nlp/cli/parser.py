@@ -243,8 +243,15 @@ def _compare_command(commands) -> None:
                          help="unit of --horizons, e.g. 6.283185307 for Kepler's period "
                               "(default: 1, the scene's time unit)")
     compare.add_argument("--max-steps", type=int, default=2_000_000,
-                         help="with --horizons: runs needing more steps are left out "
-                              "(default: 2000000)")
+                         help="with --horizons: runs needing more steps give way to coarser "
+                              "steps (default: 2000000)")
+    compare.add_argument("--run-budget", type=float, default=120.0, metavar="SECONDS",
+                         help="with --horizons: runs predicted from the shorter horizon to "
+                              "take longer are left out (default: 120)")
+    compare.add_argument("--reference-span", type=float, default=10_000.0, metavar="T",
+                         help="with --horizons, scenes without an exact solution: beyond this "
+                              "span of time the DOP853 reference is not computed and only the "
+                              "energy error is measured (default: 10000)")
     _grid_arguments(compare, "1: the run times are what is compared")
 
 

@@ -15,7 +15,12 @@ from collections.abc import Mapping, Sequence
 from ..scenes import Scene
 from ..solvers.compiler import find_compiler
 from ..studies.compare import ERROR_KINDS, default_methods, methods_in
-from ..studies.horizons import affordable_knobs, error_growth, parse_horizons
+from ..studies.horizons import (
+    affordable_knobs,
+    error_growth,
+    parse_horizons,
+    reference_kind,
+)
 from ..studies.methods import get_methods
 from .runs import prepare_folder
 from .work_precision import _in_words, _plot_method, work_precision
@@ -26,31 +31,46 @@ def work_precision_horizons(scene: Scene, horizons, *, unit: float = 1.0,
                             methods: Sequence[str] | str | None = None,
                             out: str | os.PathLike, halvings: int = 6, repeats: int = 3,
                             compiler: str | None = "auto", max_steps: int = 2_000_000,
+                            run_budget_s: float | None = 120.0,
+                            reference_span: float = 10_000.0,
                             progress: bool = False, **options) -> dict[float, list[dict]]:
     """Compare at each horizon ``T`` (to ``t_end = t0 + T unit``); write ``out/horizon_T/``
     (the usual report), ``horizons.png`` (a column per horizon, a row per error kind),
     ``growth.png`` (errors against time at equal cost, longest horizon) and ``horizons.md``.
-    Returns the rows per horizon."""
+    Returns the rows per horizon.
+
+    ``max_steps`` and ``run_budget_s`` cut each horizon's sweeps
+    (:func:`~ddvp_nlp.studies.horizons.affordable_knobs`); a scene without an exact solution
+    gets no trajectory reference beyond ``reference_span`` time units
+    (:func:`~ddvp_nlp.studies.horizons.reference_kind`)."""
     horizons = parse_horizons(horizons)
     overrides = dict(overrides or {})
     config = scene.resolve(overrides)
     chosen = default_methods(scene.system)[0] if methods is None else get_methods(methods)
     out = prepare_folder(out)
-    results, notes = {}, {}
+    results, notes, previous = {}, {}, None
     for horizon in horizons:
         t_end = config.t0 + horizon * unit
-        knobs, left_out = affordable_knobs(chosen, config, t_end, halvings, max_steps)
+        knobs, left_out = affordable_knobs(chosen, config, t_end, halvings, max_steps,
+                                           previous=previous, run_budget_s=run_budget_s)
+        kind = reference_kind(scene, t_end - config.t0, reference_span)
         results[horizon] = work_precision(
             scene, overrides={**overrides, "t_end": t_end}, methods=list(knobs),
             out=out / f"horizon_{horizon:g}", knobs=knobs, repeats=repeats, compiler=compiler,
-            max_steps=max_steps, progress=progress, **options)
-        notes[horizon] = left_out
+            max_steps=max_steps, progress=progress, reference=kind, **options)
+        notes[horizon] = left_out + ([f"the trajectory error (no exact solution, and the "
+                                      f"DOP853 reference is computed only up to "
+                                      f"{reference_span:g} time units)"]
+                                     if kind == "none" else [])
+        previous = (t_end - config.t0, results[horizon])
     plot_horizons(results, out / "horizons.png", title=f"{scene.name}: error against run time",
                   unit=unit)
     longest = horizons[-1]
-    target, growth = error_growth(scene, {**overrides, "t_end": config.t0 + longest * unit},
+    span = longest * unit
+    target, growth = error_growth(scene, {**overrides, "t_end": config.t0 + span},
                                   results[longest], compiler=find_compiler(compiler),
-                                  max_steps=max_steps)
+                                  max_steps=max_steps,
+                                  reference=reference_kind(scene, span, reference_span))
     plot_growth(growth, out / "growth.png",
                 title=f"{scene.name}: errors against time at about {target:.2g} s each")
     (out / "horizons.md").write_text(horizons_summary(scene, results, notes, growth, target,
@@ -120,7 +140,7 @@ def horizons_summary(scene, results, notes, growth, target, unit) -> str:
             lines += [f"- {label.split(' max')[0]}: "
                       + _in_words(rows, kind, methods_in(rows)).removeprefix("In words: ")]
         if notes[horizon]:
-            lines += ["- Left out (too many steps): " + "; ".join(notes[horizon]) + "."]
+            lines += ["- Left out: " + "; ".join(notes[horizon]) + "."]
         lines.append("")
     lines += [f"## Error growth at about equal cost ({target:.3g} s), longest horizon", "",
               "| method | knob | run time | final energy error | largest energy error | "

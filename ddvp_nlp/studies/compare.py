@@ -38,6 +38,7 @@ from .accuracy import NOT_MADE, accuracy_columns
 from .grid import RowSchema, Task, check_workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS, Method, get_methods
 from .reference import (
+    REFERENCE_KINDS,
     REFERENCE_RTOL,
     Reference,
     check_comparable,
@@ -82,6 +83,7 @@ class WorkPrecisionPlan:
     max_steps: int
     workers: int | None
     scheduler: str | None
+    reference: str = "auto"
 
 
 @dataclass
@@ -181,8 +183,8 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
                         repeats: int = 3, budget_s: float = 3.0, compiler: str | None = "auto",
                         cache_dir=None, max_steps: int = 5_000_000,
                         knobs: Mapping[str, Sequence[float]] | None = None,
-                        workers: int | None = 1,
-                        scheduler: str | None = None) -> WorkPrecisionPlan:
+                        workers: int | None = 1, scheduler: str | None = None,
+                        reference: str = "auto") -> WorkPrecisionPlan:
     """Check a comparison's input before anything runs (arguments as
     :func:`ddvp_nlp.io.work_precision.work_precision`)."""
     check_comparable(scene)
@@ -194,25 +196,29 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
     runs = _runs(chosen, knobs, config, halvings)
     workers = check_workers(workers)
     scheduler = resolve_scheduler(scheduler)
+    if reference not in REFERENCE_KINDS:
+        raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
+                         f"got {reference!r}")
     if (scheduler is not None or workers != 1) and not scene.source:
         raise InputError(f"scene {scene.name!r} was made in Python, not loaded from a file: "
                          "other processes cannot load it (use workers=1)")
     return WorkPrecisionPlan(scene, dict(overrides or {}), config, runs, left_out, repeats,
                              budget_s, find_compiler(compiler), cache_dir, max_steps, workers,
-                             scheduler)
+                             scheduler, reference)
 
 
 def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
                        progress: bool = False) -> WorkPrecision:
     """Run a planned comparison; its rows go to the result file ``rows_path`` as they finish."""
     scene = plan.scene
-    reference = reference_for(scene, plan.overrides)
+    reference = reference_for(scene, plan.overrides, plan.reference)
     where = scene.source or scene  # a scene made in Python runs in this process only
     tasks = [Task(key=f"{method.name}|{value!r}", function="ddvp_nlp.studies.compare:run_one",
                   kwargs={"scene": where, "overrides": plan.overrides,
                           "method": method.name, "value": value, "repeats": plan.repeats,
                           "budget_s": plan.budget_s, "compiler": plan.compiler,
-                          "cache_dir": plan.cache_dir, "max_steps": plan.max_steps})
+                          "cache_dir": plan.cache_dir, "max_steps": plan.max_steps,
+                          "reference": plan.reference})
              for method, value in plan.runs]
     rows, _ = run_grid(tasks, rows_path, COLUMNS, failure_row=failure_row, parse=ROWS.parse,
                        resume=False, workers=plan.workers, scheduler=plan.scheduler,
@@ -222,11 +228,12 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
 
 
 def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
-            max_steps) -> dict:
+            max_steps, reference: str = "auto") -> dict:
     """One run of the comparison, timed and measured: its row (a grid task)."""
     scene = load_scene(scene) if isinstance(scene, str) else scene
     config = scene.resolve(overrides)
-    return _measure(scene, config, METHODS[method], value, reference_for(scene, overrides),
+    return _measure(scene, config, METHODS[method], value,
+                    reference_for(scene, overrides, reference),
                     repeats=repeats, budget_s=budget_s, compiler=compiler,
                     cache_dir=cache_dir, max_steps=max_steps)
 

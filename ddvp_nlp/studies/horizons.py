@@ -1,9 +1,13 @@
 """Work-precision over several horizons, and the growth of each method's error with time.
 
 A horizon ``T`` runs the comparison of :mod:`.compare` to ``t_end = t0 + T unit`` (``unit``: a
-period, or the scene's own time unit). Long horizons cost what their steps cost, so a run whose
-steps (``(t_end - t0) / knob``) would pass ``max_steps`` is left out of the sweep before it
-runs (named in the plan's ``left_out``); DOP853's tolerance sweep is bounded by ``max_steps``.
+period, or the scene's own time unit). Long horizons cost what their steps cost, so the sweeps
+are cut before they run (:func:`affordable_knobs`, each cut named in the report): steps that
+would pass ``max_steps`` give way to coarser ones, and runs predicted from the shorter horizon
+to take longer than a budget are left out. The reference of a long horizon is the scene's exact
+solution where it has one (Kepler, pendulum, harmonic); otherwise DOP853 at 1e-13 up to
+:func:`reference_kind`'s span, and beyond it none: the energy error is still measured, the
+trajectory error is not (over 10^5 time units of a chaotic orbit it would measure nothing).
 
 Error growth (:func:`error_growth`): for each method one run at about equal cost (the run of
 its sweep whose time is nearest, in log, to the common cost: the largest of the methods'
@@ -44,24 +48,72 @@ def parse_horizons(text: str | list) -> list[float]:
     return horizons
 
 
-def affordable_knobs(methods, config, t_end: float, halvings: int, max_steps: int):
-    """Per method, the knob values of its sweep whose step count fits ``max_steps`` (the
-    sweep of the default horizon, so the same steps are compared at every horizon), and the
-    runs left out with why."""
+def affordable_knobs(methods, config, t_end: float, halvings: int, max_steps: int, *,
+                     previous: tuple[float, list[dict]] | None = None,
+                     run_budget_s: float | None = None, coarsenings: int = 4):
+    """Per method, the knob values to run to ``t_end``, and the runs left out with why.
+
+    A step method takes its default sweep (that of the scene's own horizon, so the same steps
+    are compared at every horizon) without the steps that would pass ``max_steps``; where that
+    leaves fewer than ``halvings + 1`` values, coarser steps (twice, four times, ... the
+    coarsest, at most ``coarsenings`` doublings) fill the sweep up, so that a long horizon
+    still has a front to draw. With ``previous = (span, rows)``, a shorter horizon's
+    measured runs, a run whose time scaled by the span (run time is linear in it) would pass
+    ``run_budget_s`` is left out too; that is what bounds DOP853's tolerance sweep."""
     knobs, left_out = {}, []
     span = t_end - config.t0
     for method in methods:
         values = method.sweep(config, halvings)
-        if method.knob == "rtol":
-            knobs[method.name] = values
-            continue
-        kept = [v for v in values if span / v <= max_steps and v <= span]
-        if len(kept) < len(values):
-            left_out.append(f"`{method.name}` at {len(values) - len(kept)} of its steps (more "
-                            f"than max_steps = {max_steps} to reach t = {t_end:g})")
+        kept = values
+        if method.knob != "rtol":
+            kept = [v for v in values if span / v <= max_steps and v <= span]
+            coarsest = max(values)
+            for _ in range(coarsenings):
+                if len(kept) >= len(values):
+                    break
+                coarsest *= 2
+                if span / coarsest <= max_steps and coarsest <= span / 4:
+                    kept.insert(0, coarsest)
+            dropped = [v for v in values if v not in kept]
+            if dropped:
+                left_out.append(f"`{method.name}` at {method.knob} <= {max(dropped):.3g} "
+                                f"(more than max_steps = {max_steps} to reach t = {t_end:g})")
+        kept, slow = _within_budget(method, kept, span, previous, run_budget_s)
+        if slow:
+            left_out.append(f"`{method.name}` at {method.knob} = "
+                            + ", ".join(f"{v:.3g}" for v in slow)
+                            + f" (predicted from the shorter horizon to take more than "
+                              f"{run_budget_s:g} s)")
         if kept:
             knobs[method.name] = kept
     return knobs, left_out
+
+
+def _within_budget(method, values, span, previous, budget_s):
+    """``values`` split into those predicted to fit ``budget_s`` and those that do not: a
+    value's run time at the shorter horizon, times ``span / previous span``; a value not run
+    there is kept if a coarser one fitted (a sweep is run coarse to fine)."""
+    if previous is None or budget_s is None:
+        return list(values), []
+    short_span, rows = previous
+    measured = {r["value"]: r["run_s"] for r in rows
+                if r["method"] == method.name and r["run_s"] == r["run_s"]}
+    kept, slow = [], []
+    for value in values:
+        predicted = measured.get(value)
+        if predicted is not None and predicted * span / short_span > budget_s:
+            slow.append(value)
+        elif predicted is None and slow:
+            slow.append(value)
+        else:
+            kept.append(value)
+    return kept, slow
+
+
+def reference_kind(scene, span: float, reference_span: float) -> str:
+    """``auto`` (exact, or DOP853) for a horizon of ``span`` time units up to
+    ``reference_span``, or when the scene has an exact solution; beyond it ``none``."""
+    return "auto" if scene.exact is not None or span <= reference_span else "none"
 
 
 @dataclass
@@ -100,10 +152,10 @@ def _thin(t: np.ndarray, points: int) -> np.ndarray:
 
 
 def error_growth(scene, overrides, rows, *, compiler, cache_dir=None, max_steps: int,
-                 points: int = 400) -> tuple[float, list[Growth]]:
+                 points: int = 400, reference: str = "auto") -> tuple[float, list[Growth]]:
     """The common cost and each method's :class:`Growth` (see the module docstring)."""
     config = scene.resolve(overrides)
-    reference = reference_for(scene, overrides)
+    reference = reference_for(scene, overrides, reference)
     system = scene.system
     target, chosen = equal_cost_runs(rows)
     found = []

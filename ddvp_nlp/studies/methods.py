@@ -82,7 +82,8 @@ def own_residuals(system, name: str, solution, theta) -> np.ndarray | None:
     return None
 
 
-def _check_accuracy(system, config, method, solution, tolerance) -> None:
+def _check_accuracy(system, config, method, solution, tolerance, *, compiler=None,
+                    cache_dir=None) -> None:
     """The accuracy check (``solvers/accuracy.py``) on the method's nodes, as for a march: a
     success whose check fails becomes ``INACCURATE`` unless ``tolerance.stop`` is off (methods
     of order above 4 have no reference step and are left as they are)."""
@@ -93,7 +94,8 @@ def _check_accuracy(system, config, method, solution, tolerance) -> None:
         return
     theta = system.parameter_vector(config.params)
     report, local = assess(system, solution.t, np.hstack([solution.q, solution.p]), theta,
-                           tolerance, substeps=1 if method.order <= 2 else 2)
+                           tolerance, substeps=1 if method.order <= 2 else 2,
+                           compiler=compiler, cache_dir=cache_dir)
     solution.stats["accuracy"], solution.local_error = report, local
     failure = report["first_failure"]
     if solution.success and failure is not None and tolerance.stop:
@@ -115,7 +117,8 @@ def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, c
     solution = method.run(scene.system, config, value, compiler=compiler, cache_dir=cache_dir,
                           max_steps=max_steps, time_limit=time_limit)
     theta = scene.system.parameter_vector(config.params)
-    _check_accuracy(scene.system, config, method, solution, tolerance)
+    _check_accuracy(scene.system, config, method, solution, tolerance, compiler=compiler,
+                    cache_dir=cache_dir)
     residual = own_residuals(scene.system, name, solution, theta)
     if residual is None:
         solution.stats["own_residual_max"] = None

@@ -29,18 +29,35 @@ def check_starts_from_p0(scene, config: RunConfig) -> None:
                          "(--set p0=...)")
 
 
-class Reference:
-    """``z_ref(t)`` of a run configuration: the scene's exact solution or a DOP853 solution."""
+REFERENCE_KINDS = ("auto", "exact", "dop853", "none")
 
-    def __init__(self, scene: Scene, config: RunConfig):
+
+class Reference:
+    """``z_ref(t)`` of a run configuration: the scene's exact solution, a DOP853 solution, or
+    none (``kind="none"``: the trajectory error is not measured, the energy error of an
+    autonomous ``H`` still is).
+
+    ``kind="auto"`` takes the exact solution where the scene has one that covers the start
+    (an exact function raises ``ValueError`` for a start it does not cover, e.g. an unbound
+    Kepler orbit), else DOP853 at ``rtol = atol = 1e-13``."""
+
+    def __init__(self, scene: Scene, config: RunConfig, kind: str = "auto"):
+        if kind not in REFERENCE_KINDS:
+            raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
+                             f"got {kind!r}")
         self.system = scene.system
         self.config = config
         self.theta = scene.system.parameter_vector(config.params)
+        self._exact = self._dense = None
+        self.steps = 0
         started = time.perf_counter()
-        if scene.exact is not None:
+        if kind in ("auto", "exact") and self._exact_covers(scene, config):
             self.kind = "exact solution"
             self._exact = scene.exact
-            self._dense = None
+        elif kind == "exact":
+            raise InputError(f"scene {scene.name!r} has no exact solution for this start")
+        elif kind == "none":
+            self.kind = "none (trajectory error not measured)"
         else:
             self.kind = f"DOP853 at rtol = atol = {REFERENCE_RTOL:g}"
             solution = dop853(scene.system, config, REFERENCE_RTOL, dense_output=True)
@@ -50,22 +67,39 @@ class Reference:
             self.steps = solution.steps
         self.seconds = time.perf_counter() - started
 
+    @property
+    def measures_trajectory(self) -> bool:
+        return self._exact is not None or self._dense is not None
+
+    @staticmethod
+    def _exact_covers(scene: Scene, config: RunConfig) -> bool:
+        if scene.exact is None:
+            return False
+        try:
+            scene.exact(np.array([config.t0]), config.q0, config.p0, config.t0, **config.params)
+        except ValueError:
+            return False
+        return True
+
     def __call__(self, t: np.ndarray) -> np.ndarray:
-        """Reference states at times ``t``, shape ``(N, 2n)``."""
+        """Reference states at times ``t``, shape ``(N, 2n)`` (NaN where there is none)."""
         c = self.config
-        if self._dense is None:
+        if self._exact is not None:
             q, p = self._exact(t, c.q0, c.p0, c.t0, **c.params)
             return np.hstack([np.reshape(q, (t.size, -1)), np.reshape(p, (t.size, -1))])
+        if self._dense is None:
+            return np.full((t.size, 2 * self.system.n), np.nan)
         return self._dense(t).T
 
 
 _REFERENCES: dict = {}
 
 
-def reference_for(scene: Scene, overrides: Mapping[str, object]) -> Reference:
+def reference_for(scene: Scene, overrides: Mapping[str, object],
+                  kind: str = "auto") -> Reference:
     """The reference of a scene and its overrides, computed once per process (every run of a
     grid on one worker shares it)."""
-    key = (scene.source or id(scene), scene.name, repr(sorted(dict(overrides).items())))
+    key = (scene.source or id(scene), scene.name, repr(sorted(dict(overrides).items())), kind)
     if key not in _REFERENCES:
-        _REFERENCES[key] = Reference(scene, scene.resolve(overrides))
+        _REFERENCES[key] = Reference(scene, scene.resolve(overrides), kind)
     return _REFERENCES[key]
