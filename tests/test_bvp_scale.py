@@ -27,26 +27,52 @@ def boundary(name):
     return (scene.system, *CASES[name])
 
 
-KEPLER_RELEASED = pytest.mark.xfail(
-    strict=True, reason="known shortfall (issue 16): Newton stalls on kepler's released times "
-                        "where IPOPT converges; solver='auto' falls back to IPOPT")
-
-
-@pytest.mark.parametrize("name, rule", [
-    *[(name, rule) for name in sorted(CASES) for rule in ("vddvp", "fixed")
-      if name != "kepler"],
-    pytest.param("kepler", "vddvp", marks=KEPLER_RELEASED),
-    pytest.param("kepler", "fixed", marks=pytest.mark.xfail(
-        strict=True, reason="several solutions: from the straight line Newton lands on another "
-                            "verified one than IPOPT (p changes sign twice, not once)"))])
+@pytest.mark.parametrize("name, rule", [(name, rule) for name in sorted(CASES)
+                                        for rule in ("vddvp", "fixed") if name != "kepler"])
 def test_newton_and_ipopt_return_the_same_nodes(name, rule):
     system, q_start, q_end, span, nodes, params = boundary(name)
-    solved = [solve_bvp(system, q_start, q_end, span, nodes=nodes, scheme=rule, params=params,
-                        solver=solver) for solver in ("newton", "ipopt")]
+    solved = [solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
+                        scheme=rule, params=params, solver=solver)
+              for solver in ("newton", "ipopt")]
     assert all(s.success for s in solved), [s.message for s in solved]
     assert [s.stats["solver"] for s in solved] == ["newton", "ipopt"]
     for key in ("t", "q", "p"):
         assert np.max(np.abs(getattr(solved[0], key) - getattr(solved[1], key))) < 1e-10, key
+
+
+def _kepler_miss(solution) -> float:
+    """``|q(t_end) - q_end|`` of the exact Kepler flow from the discrete ``(q_0, p_0)``: how
+    far the discrete solution is from a solution of the continuous problem."""
+    from ddvp_nlp.problems.kepler import kepler_motion
+
+    q, _ = kepler_motion(np.array([2.0]), solution.q[0], solution.p[0])
+    return float(np.max(np.abs(q[0] - np.array([-0.5, 0.5]))))
+
+
+def _swept_angle(solution) -> float:
+    return float(np.diff(np.unwrap(np.arctan2(solution.q[:, 1], solution.q[:, 0]))[[0, -1]])[0])
+
+
+@pytest.mark.parametrize("rule", ["vddvp", "fixed"])
+def test_kepler_has_two_branches_and_each_solver_lands_on_a_true_one(rule):
+    """Lambert's problem (Kepler, two positions, a transfer time) has two solutions, the short
+    way round and the long way round. From the straight-line start Newton lands on the
+    clockwise one (-5 pi / 4) and IPOPT on the counter-clockwise one (3 pi / 4): both verified,
+    both solutions of the continuous problem to the discretisation error (the exact flow from
+    their own (q_0, p_0) ends within 2e-3 of q_end). Started from Newton's point, IPOPT stays
+    on it: the two solvers agree on a branch once they are given the same one."""
+    system, q_start, q_end, span, nodes, params = boundary("kepler")
+    newton, ipopt = [solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
+                               scheme=rule, solver=solver) for solver in ("newton", "ipopt")]
+    assert newton.success and ipopt.success, (newton.message, ipopt.message)
+    assert _swept_angle(newton) == pytest.approx(-5 * np.pi / 4, abs=1e-9)
+    assert _swept_angle(ipopt) == pytest.approx(3 * np.pi / 4, abs=1e-9)
+    assert _kepler_miss(newton) < 2e-3 and _kepler_miss(ipopt) < 2e-3
+    again = solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
+                      scheme=rule, solver="ipopt", guess=newton)
+    assert again.success and again.stats["solver"] == "ipopt"
+    for key in ("t", "q", "p"):
+        assert np.max(np.abs(getattr(again, key) - getattr(newton, key))) < 1e-9, key
 
 
 @pytest.mark.parametrize("name, rule", [("pendulum", "vddvp"), ("kepler", "lee"),
