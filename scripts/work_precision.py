@@ -1,22 +1,34 @@
-"""Regenerate the work-precision reports the README shows, into docs/work_precision/SCENE/.
+"""Regenerate the work-precision reports the README shows, into docs/work_precision/.
 
-Each scene runs every method that applies (``ddvp compare`` with its defaults) on its default
-horizon, Kepler at e = 0.6 and FPU at omega = 50. A scene takes from seconds (harmonic) to about
-three minutes (paper_pendulum, to t = 10000). Run it with nothing else busy on the machine:
-the run times are what is compared.
+Default horizons (``docs/work_precision/SCENE/``): each scene runs every method that applies
+(``ddvp compare`` with its defaults) on its default horizon, Kepler at e = 0.6 and FPU at
+omega = 50; from seconds (harmonic) to about three minutes (paper_pendulum, to t = 10000).
+
+Long horizons (``--horizons``, ``docs/work_precision/horizons/CASE/``): Kepler at e = 0.6 and
+0.9, the pendulum, Henon-Heiles and FPU at 10, 10^3 and 10^5 periods (FPU: time units), each
+a ``ddvp compare --horizons`` run with its error-growth figure, then
+``docs/work_precision/horizons/README.md``, the summary in words computed from the rows
+(``--summary-only`` rewrites it from the runs already on disk). Tens of minutes per case.
+
+Run it with nothing else busy on the machine: the run times are what is compared.
 
     python scripts/work_precision.py [--scenes paper_pendulum,harmonic] [--out docs/work_precision]
+    python scripts/work_precision.py --horizons [--cases kepler_e0.6,fpu] [--summary-only]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
+from scipy.special import ellipk
+
 from ddvp_nlp import load_scene
-from ddvp_nlp.io.work_precision import work_precision
-from ddvp_nlp.studies.compare import ERROR_KINDS, cheapest
+from ddvp_nlp.io.horizons import work_precision_horizons
+from ddvp_nlp.io.work_precision import _in_words, read_rows, work_precision
+from ddvp_nlp.studies.compare import ERROR_KINDS, cheapest, methods_in, winner_spans
 
 SCENES = {
     "paper_pendulum": {},
@@ -28,13 +40,133 @@ SCENES = {
 }
 
 
+def _pendulum_period() -> float:
+    """The period of the pendulum scene's default libration, 4 K(k), k^2 = H/2."""
+    config = load_scene("pendulum").resolve({})
+    energy = config.p0[0] ** 2 / 2 + 1 - math.cos(config.q0[0])
+    return 4 * float(ellipk(energy / 2))
+
+
+TWO_PI = 2 * math.pi
+HORIZONS = "10,1000,100000"
+# case: (scene, overrides, time unit and its name)
+HORIZON_CASES = {
+    "kepler_e0.6": ("kepler", {"e": 0.6}, TWO_PI, "periods"),
+    "kepler_e0.9": ("kepler", {"e": 0.9}, TWO_PI, "periods"),
+    "pendulum": ("pendulum", {}, None, "periods"),
+    "henon_heiles": ("henon_heiles", {}, TWO_PI, "linear periods (2 pi)"),
+    "fpu": ("fpu", {"omega": 50.0}, 1.0, "time units"),
+}
+
+
+def run_horizons(cases, out: Path, args) -> None:
+    for case in cases:
+        name, overrides, unit, _ = HORIZON_CASES[case]
+        unit = unit or _pendulum_period()
+        started = time.perf_counter()
+        work_precision_horizons(load_scene(name), args.horizon_list, unit=unit, overrides=overrides,
+                                out=out / case, halvings=args.halvings, repeats=args.repeats,
+                                max_steps=args.max_steps, run_budget_s=args.run_budget,
+                                progress=True)
+        print(f"{case}: {time.perf_counter() - started:.0f} s -> {out / case}/horizons.md",
+              flush=True)
+
+
+def _wins(rows, method) -> list[str]:
+    """Where ``method`` is the cheapest, as ``kind from A down to B`` phrases."""
+    found = []
+    for kind, label in ERROR_KINDS.items():
+        for winner, high, low in winner_spans(rows, kind):
+            if winner == method:
+                found.append(f"{label.split(' max')[0]} {high:.0e}"
+                             + (f" to {low:.0e}" if low != high else ""))
+    return found
+
+
+def _verdicts(rows) -> list[str]:
+    """The cheapest method per error range, per error kind, and where the paper's schemes
+    win, as indented list items (computed from the rows)."""
+    methods, lines = methods_in(rows), []
+    for kind, label in ERROR_KINDS.items():
+        text = _in_words(rows, kind, methods).removeprefix("In words: ")
+        lines.append(f"  - {label.split(' max')[0]}: {text}")
+    for method in ("vddvp", "lee"):
+        if method in methods:
+            wins = _wins(rows, method)
+            lines.append(f"  - `{method}` is the cheapest " + (
+                "at: " + "; ".join(wins) if wins else "nowhere on these runs") + ".")
+    return lines
+
+
+def default_summary(out: Path) -> str:
+    """``docs/work_precision/README.md``: every scene's verdicts on its default horizon."""
+    lines = ["# Work-precision on each scene's default horizon", "",
+             "Regenerate: `python scripts/work_precision.py` (the runs and this page); the long "
+             "horizons are in [horizons/](horizons/README.md). Each scene's full report is "
+             "`SCENE/summary.md`.", ""]
+    for name, overrides in SCENES.items():
+        path = out / name / "work_precision.csv"
+        if not path.exists():
+            continue
+        settings = ", ".join(f"{k} = {v:g}" for k, v in overrides.items())
+        lines.append(f"- **`{name}`**" + (f" ({settings})" if settings else "")
+                     + f", [report]({name}/summary.md):")
+        lines += _verdicts(read_rows(path))
+    lines += [""] + [f"![{name}]({name}/work_precision.png)" for name in SCENES
+                     if (out / name / "work_precision.png").exists()] + [""]
+    return "\n".join(lines)
+
+
+def horizons_summary(out: Path) -> str:
+    """The summary in words of every case on disk, computed from its rows."""
+    lines = ["# Long horizons: which method, at which error level", "",
+             "Regenerate: `python scripts/work_precision.py --horizons` (the runs), or "
+             "`--horizons --summary-only` (this page from the runs on disk). Each case's own "
+             "page (`CASE/horizons.md`) has the error-growth table at equal cost and the runs "
+             "left out; each horizon's full report is in `CASE/horizon_T/summary.md`.", ""]
+    for case, (name, overrides, _, unit_name) in HORIZON_CASES.items():
+        folder = out / case
+        horizons = sorted((float(p.name.removeprefix("horizon_")), p)
+                          for p in folder.glob("horizon_*") if (p / "work_precision.csv").exists())
+        if not horizons:
+            continue
+        settings = ", ".join(f"{k} = {v:g}" for k, v in overrides.items())
+        lines += [f"## {case}: `{name}`" + (f" ({settings})" if settings else ""), ""]
+        for horizon, path in horizons:
+            lines.append(f"- **{horizon:g} {unit_name}.**")
+            lines += _verdicts(read_rows(path / "work_precision.csv"))
+        lines += ["", f"![{case}]({case}/horizons.png)", f"![{case} growth]({case}/growth.png)",
+                  ""]
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", default=",".join(SCENES))
     parser.add_argument("--out", default="docs/work_precision")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="timed calls per run (default: 3; 1 with --horizons)")
+    parser.add_argument("--horizons", action="store_true",
+                        help="the long-horizon cases instead of the default horizons")
+    parser.add_argument("--cases", default=",".join(HORIZON_CASES))
+    parser.add_argument("--horizon-list", default=HORIZONS)
+    parser.add_argument("--summary-only", action="store_true",
+                        help="rewrite the summary page from the runs on disk")
+    parser.add_argument("--halvings", type=int, default=2)
+    parser.add_argument("--max-steps", type=int, default=10_000_000)
+    parser.add_argument("--run-budget", type=float, default=60.0)
     args = parser.parse_args()
-    for name in args.scenes.split(","):
+    if args.repeats is None:
+        args.repeats = 1 if args.horizons else 3
+    if args.horizons:
+        out = Path(args.out) / "horizons"
+        if not args.summary_only:
+            run_horizons([c for c in args.cases.split(",") if c], out, args)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "README.md").write_text(horizons_summary(out))
+        print(f"summary -> {out}/README.md")
+        return
+    for name in [] if args.summary_only else args.scenes.split(","):
         started = time.perf_counter()
         folder = Path(args.out) / name
         rows = work_precision(load_scene(name), overrides=SCENES[name], out=folder,
@@ -49,6 +181,9 @@ def main() -> None:
                 if ranking:
                     winners.append(f"{level:.0e}: {ranking[0][0]}")
             print(f"  {label.split(' max')[0]}: " + ", ".join(winners))
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    (Path(args.out) / "README.md").write_text(default_summary(Path(args.out)))
+    print(f"summary -> {args.out}/README.md")
 
 
 if __name__ == "__main__":
