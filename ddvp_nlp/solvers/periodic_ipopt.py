@@ -34,7 +34,7 @@ import numpy as np
 from ..cache import PROBLEMS
 from .bvp_ipopt import DEFAULT_OPTIONS
 from .bvp_newton import NewtonResult
-from .periodic_assembly import Closure, ClosedLayout, interval_rows
+from .periodic_assembly import ClosedLayout, Closure, interval_rows
 
 
 class PeriodicIpopt:
