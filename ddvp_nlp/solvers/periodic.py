@@ -117,7 +117,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
                    start=None, integrals=(), angles=(), solver: str = "auto",
-                   tol: float = 1e-10, max_iter: int = 50, verbose: bool = False) -> Solution:
+                   tol: float = 1e-10, max_iter: int = 100, verbose: bool = False) -> Solution:
     """A periodic orbit of ``system`` at energy ``E`` on ``N = nodes`` intervals (module
     docstring).
 
@@ -214,7 +214,7 @@ def _noted(solution: Solution, attempts: list) -> Solution:
 
 def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", params=None,
                    start=None, integrals=(), angles=(), solver="auto", tol=1e-10,
-                   max_iter=50, verbose=False) -> None:
+                   max_iter=100, verbose=False) -> None:
     """Raise the ``InputError`` :func:`solve_periodic` would raise for these arguments without
     a guess (the section's point at ``energy`` included), and build nothing."""
     _checked(system, energy, nodes, section, None, scheme, params, start, tol, max_iter,
@@ -270,8 +270,15 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, 
                "tol": check_real("tol", tol, positive=True),
                "max_iter": check_integer("max_iter", max_iter)}
     if guess is None:
-        request["point"] = section_point(system, request["theta"], energy, index, value,
-                                         direction, label)
+        try:
+            request["point"] = section_point(system, request["theta"], energy, index, value,
+                                             direction, label)
+        except InputError as error:
+            if angle_indices and index - 1 not in angle_indices:
+                raise InputError(f"{error}; a rotation of the angle q{angle_indices[0] + 1} "
+                                 f"has a section on it, e.g. q{angle_indices[0] + 1}=0") \
+                    from None
+            raise
     else:
         request["guess"] = guess_nodes(guess, n, nodes, angle_indices)
     return request

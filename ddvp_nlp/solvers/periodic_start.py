@@ -9,7 +9,10 @@ section, along that ray, meets the energy surface: an input error.
 
 The march: ``solvers/march.py`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
-in the direction it left it; the crossing time, interpolated linearly between the two nodes, is
+in the direction it left it (on an angle coordinate, its value plus any whole turns). Where the
+energy rule's march stops before the return (its energy step breaks down on the pendulum's
+rotations near q = 1.95 whatever tau0), the fixed-step midpoint rule is marched instead: the
+start only has to be near the orbit; the crossing time, interpolated linearly between the two nodes, is
 the period of the guess. The guess is the march resampled on ``N + 1`` equally spaced times with
 the last node equal to the first; Newton moves the node times to where the energy equations put
 them.
@@ -70,7 +73,8 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
 def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, scheme,
                     angle: bool = False):
     """``(t, z)`` of a march from ``z0`` up to its first return to the section, the last row
-    the interpolated crossing, or ``None`` if it does not return within the horizons. On an
+    the interpolated crossing, or ``None`` if it does not return within the horizons (with
+    ``scheme``, then with fixed steps: module docstring). On an
     ``angle`` coordinate the section is met at ``value + 2 pi k`` for any ``k`` (a rotation
     returns one turn on)."""
     n = system.n
@@ -79,6 +83,17 @@ def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, sch
     if heading == 0:
         return None  # the flow is tangent to the section here: no crossing to look for
     tau0 = MARCH_FRACTION * max(np.linalg.norm(z0), 1e-3) / max(np.linalg.norm(f), 1e-12)
+    for rule in dict.fromkeys((scheme, "fixed")):
+        traced = _march_until_return(system, theta, z0, index, value, rule, angle, heading,
+                                     tau0)
+        if traced is not None:
+            return traced
+    return None
+
+
+def _march_until_return(system, theta, z0, index, value, scheme, angle, heading, tau0):
+    """The march of :func:`march_to_return` with one rule, horizon after horizon."""
+    n = system.n
     horizon = FIRST_HORIZON * tau0
     for _ in range(MAX_HORIZONS):
         run = march(system, z0[:n], z0[n:], tau0=tau0, t_end=horizon, scheme=scheme,
