@@ -52,9 +52,27 @@ Square count: ``(N+1)(2n+1) + 1`` unknowns (nodes and ``lambda``); equations ``2
 full column (``lambda``): sparse LU (SuperLU), in the Newton iteration of ``bvp_newton.py`` (its
 ``tau_floor`` safeguard and Deuflhard's monotonicity line search).
 
-Every returned point is verified by its own unscaled residuals (closure, canonical, the scheme's
-energy equations, the prescribed energy, the section, every step positive). The start:
-``periodic_start.py``.
+The same rows are also handed to IPOPT (``periodic_ipopt.py``: objective 0, the rows as
+equality constraints, the steps bounded below, exact Hessian). ``solver="auto"`` runs Newton and,
+when its point fails the verification, IPOPT from the same start. They differ where the grid is
+far from the start: on the pendulum's rotations the solution's steps have a spike (4x the
+others at N = 100) where the level curve ``p(q)`` has an inflection: there the ``tau_k^2`` term
+of the interval energy ``H(Q_k, P_k)`` (the chord's midpoint against the curve, proportional to
+its curvature) changes sign, and the energy equation barely fixes ``tau_k``. From the march's
+uniform times Newton's monotone line search stalls with a step at its floor, and IPOPT's filter
+line search gets there (13-69 iterations for N = 100-400).
+
+Rotations: a coordinate named in ``angles`` is an angle (``H`` is ``2 pi``-periodic in it); the
+closure rows read ``q_N - q_0 = 2 pi w`` with the number of turns ``w`` taken from the start (a
+march returns to a section on an angle one turn on), and the wrap-around energy equation uses
+node 1 shifted by ``2 pi w``.
+
+Every returned point, whichever solver found it, is verified by its own unscaled residuals
+(closure, canonical, the scheme's energy equations, the prescribed energy, the section, every
+step positive), then by the accuracy check of ``accuracy.py``, which does not trust the
+scheme's equations: each interval against one RK4 step of the exact flow, the level against
+``E``, and the propagated global error estimate (status ``inaccurate`` when a local error
+passes its tolerance). The start: ``periodic_start.py``.
 """
 
 from __future__ import annotations

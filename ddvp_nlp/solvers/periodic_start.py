@@ -20,6 +20,8 @@ them.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
@@ -84,8 +86,10 @@ def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, sch
         return None  # the flow is tangent to the section here: no crossing to look for
     tau0 = MARCH_FRACTION * max(np.linalg.norm(z0), 1e-3) / max(np.linalg.norm(f), 1e-12)
     for rule in dict.fromkeys((scheme, "fixed")):
-        traced = _march_until_return(system, theta, z0, index, value, rule, angle, heading,
-                                     tau0)
+        with warnings.catch_warnings():  # a breakdown of the start's march is handled here
+            warnings.simplefilter("ignore", RuntimeWarning)
+            traced = _march_until_return(system, theta, z0, index, value, rule, angle,
+                                         heading, tau0)
         if traced is not None:
             return traced
     return None
