@@ -12,8 +12,8 @@ energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosse
 in the direction it left it (on an angle coordinate, its value plus any whole turns). Where the
 energy rule's march stops before the return (its energy step breaks down on the pendulum's
 rotations near q = 1.95 whatever tau0), the fixed-step midpoint rule is marched instead: the
-start only has to be near the orbit; the crossing time, interpolated linearly between the two nodes, is
-the period of the guess. The guess is the march resampled on ``N + 1`` equally spaced times with
+start only has to be near the orbit. The crossing time, interpolated linearly between the two
+nodes, is the period of the guess. The guess is the march resampled on ``N + 1`` equally spaced times with
 the last node equal to the first; Newton moves the node times to where the energy equations put
 them.
 """
@@ -79,7 +79,6 @@ def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, sch
     ``scheme``, then with fixed steps: module docstring). On an
     ``angle`` coordinate the section is met at ``value + 2 pi k`` for any ``k`` (a rotation
     returns one turn on)."""
-    n = system.n
     f = np.asarray(vector_field_function(system)(z0, 0.0, theta)).ravel()
     heading = np.sign(f[index - 1])
     if heading == 0:
