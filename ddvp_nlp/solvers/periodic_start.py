@@ -13,9 +13,9 @@ in the direction it left it (on an angle coordinate, its value plus any whole tu
 energy rule's march stops before the return (its energy step breaks down on the pendulum's
 rotations near q = 1.95 whatever tau0), the fixed-step midpoint rule is marched instead: the
 start only has to be near the orbit. The crossing time, interpolated linearly between the two
-nodes, is the period of the guess. The guess is the march resampled on ``N + 1`` equally spaced times with
-the last node equal to the first; Newton moves the node times to where the energy equations put
-them.
+nodes, is the period of the guess. The guess is the march resampled on ``N + 1`` equally
+spaced times with the last node equal to the first (plus the whole turns of angle
+coordinates); the solver moves the node times to where the energy equations put them.
 """
 
 from __future__ import annotations
