@@ -97,8 +97,9 @@ def henon_heiles_rows(out: Path):
                                            "start": scene.periodic["start"]}
     found, rows = {}, []
     for name, data in families.items():
-        coarse, fine = (solve_periodic_family(scene.system, energies, nodes=N, **data)
-                        for N in (200, 400))
+        coarse = solve_periodic_family(scene.system, energies, nodes=200, **data)
+        fine = solve_periodic_family(scene.system, energies, nodes=400, guess=coarse[0][1],
+                                     **data)
         found[name] = fine
         for (energy, a), (_, b) in zip(coarse, fine, strict=True):
             if name.startswith("x = 0"):
@@ -178,7 +179,7 @@ def main() -> None:
                                energy=0.5, section="p1=0"),
              *convergence_rows("pendulum", (100, 200, 400, 800), rotation_period(2.5),
                                label="pendulum rotation", energy=2.5, section="q1=0",
-                               angles=("q1",)),
+                               angles=("q1",), max_iter=400),
              *convergence_rows("harmonic", (40, 80, 160, 320), np.pi, energy=0.3,
                                params={"w": 2.0}),
              *convergence_rows("figure_eight", (150, 300, 600, 1200), FIGURE_EIGHT_PERIOD,
@@ -226,7 +227,7 @@ prescribed energy, closure, section) and by the accuracy check that does not tru
 (`solvers/accuracy.py`: every interval against an RK4 step of the exact flow, and the
 propagated global error estimate).
 
-An angle coordinate (a scene's `periodic={"angles": ("q1",)}`, as `problems/pendulum.py`
+An angle coordinate (a scene's `periodic={{"angles": ("q1",)}}`, as `problems/pendulum.py`
 declares; `solve_periodic(..., angles=("q1",))`) may close with whole turns, `q_N = q_0 + 2 pi w`;
 `w` is taken from the start, whose march returns to a section on the angle one turn on.
 
@@ -244,13 +245,19 @@ E = 0.1, the default start (a march from the turning point to its return).
 ## Pendulum: rotations against 4 K(2/E) / sqrt(2E)
 
 Above the separatrix (`E > 2`), on the section `q1 = 0`. One turn takes
-`T = int_0^{2 pi} dq / p(q)`, `p = sqrt(2 (E - 1 + cos q))`; with `q = 2 phi`,
+`T = int_0^{{2 pi}} dq / p(q)`, `p = sqrt(2 (E - 1 + cos q))`; with `q = 2 phi`,
 `E - 1 + cos q = E (1 - (2/E) sin^2 phi)`, so `T = 4 K(m) / sqrt(2E)` with the parameter
 `m = 2/E` (`2 K(1/k) / k` in the librations' modulus `k^2 = E/2`); `tests/test_periodic_solvers.py`
 checks it against a quadrature. N = 200, continuation from E = 2.2. Newton's monotone line
 search stalls on these orbits from the march's start (the steps of the discrete orbit have a
 spike, 4x the others at N = 100, where the level curve `p(q)` has an inflection and the energy
-equation barely fixes the step), so `auto` hands them to IPOPT: the last column.
+equation barely fixes the step), so `auto` hands them to IPOPT: the last column. Continued from
+the previous orbit, Newton does converge from E = 2.6 on. The discrete problem is the reason: the
+midpoints `(Q_k, P_k)` lie on the level curve and each node is where the tangent steps of two
+neighbouring midpoints meet, which is well posed where the curve is convex; across an inflection
+one long step is needed, and the system gets worse conditioned as `N` grows. IPOPT took 13, 28,
+69 and 296 iterations for N = 100, 200, 400, 800 at E = 2.5 (the convergence table below runs
+the rotations with `max_iter=400`; the default 100 stops N = 800).
 
 ![pendulum rotations](pendulum_rotations/family.png)
 
@@ -264,7 +271,9 @@ Besides the family on the invariant line `x = 0` (green), two families whose orb
 both coordinates, through the section `x = 0` (`problems/henon_heiles.py`, `periodic["families"]`):
 the *loop* (from the circular motion of the linearised 1:1 oscillator; it crosses `x = 0` at
 `y > 0` moving in `-x`) and the orbit *across* the axis `x = 0` (from the normal mode along `x`;
-it crosses at `y < 0`). Each is continued in `E` from 0.02 at N = 200 and N = 400. Checks that do
+it crosses at `y < 0`). Each is continued in `E` from 0.02 at N = 200 (from the march's start)
+and at N = 400 (from the N = 200 orbit at E = 0.02: from the march's start, N = 400 failed on
+the orbit across at E = 0.02, close to the 1:1 resonance where the orbits separate). Checks that do
 not use the scheme's equations: the accuracy check's largest local error (RK4 step of the exact
 flow over each interval) and propagated global error estimate, and the return of the exact flow
 (DOP853, rtol 1e-12) from the N = 400 orbit's node 0 after the extrapolated period
