@@ -165,7 +165,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             ``2 pi``.
         solver: ``"newton"`` (SuperLU inside the fixed-endpoint solver's Newton iteration),
             ``"ipopt"`` (``periodic_ipopt.py``) or ``"auto"`` (Newton, then IPOPT from the same
-            start when Newton's point fails its verification).
+            start when Newton's point fails the verification of its residuals).
         tol: verification tolerance of the unscaled residuals (above their round-off).
         max_iter: iterations of either solver.
         verbose: IPOPT's iteration log.
