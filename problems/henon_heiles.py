@@ -10,7 +10,16 @@ def hamiltonian(q, p, t):
 
 
 # Periodic orbits (ddvp periodic): the family on the axis x = p_x = 0 (an invariant plane),
-# through its turning point p_y = 0, up to the escape energy 1/6.
+# through its turning point p_y = 0, up to the escape energy 1/6. "families" (read by
+# scripts/periodic_page.py; `ddvp periodic henon_heiles --section q1=0` takes the section, not
+# the start) names two two-dimensional families through the section x = 0, each by the start
+# direction along which the section's point at E is looked for: the loop orbit (born from the
+# circular motion of the linearised 1:1 oscillator, crossing x = 0 at y > 0 moving in -x) and
+# the orbit across the axis x = 0 (born from the normal mode along x, crossing x = 0 at y < 0).
 scene = Scene(hamiltonian, n=2, q0=[0.0, 0.1], p0=[0.35, 0.0], tau0=0.05, t_end=200.0,
               periodic={"section": "p2=0", "energy": 0.1, "nodes": 200,
-                        "start": ([0.0, 1.0], [0.0, 0.0])})
+                        "start": ([0.0, 1.0], [0.0, 0.0]),
+                        "families": {
+                            "loop": {"section": "q1=0", "start": ([0.0, 1.0], [-1.0, 0.0])},
+                            "across": {"section": "q1=0",
+                                       "start": ([0.0, -0.1], [1.0, 0.0])}}})

@@ -2,24 +2,33 @@
 
     python scripts/periodic_page.py [--out docs/periodic]
 
-The pendulum's family against 4 K(k), the figure-eight orbit, and the convergence table of the
-period (pendulum, harmonic oscillator, figure-eight), with the residuals of every orbit.
+The pendulum's family against 4 K(k), its rotations against 4 K(2/E)/sqrt(2E), two
+two-dimensional Henon-Heiles families through x = 0, the figure-eight orbit, the convergence
+table of the period (pendulum, rotations, harmonic oscillator, figure-eight) with the residuals
+of every orbit, and Newton against IPOPT (scripts/bench_periodic.py).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import platform
+import sys
 from pathlib import Path
 
 import casadi
 import numpy as np
+from scipy.integrate import solve_ivp
 from scipy.special import ellipk
 
-from ddvp_nlp.io.periodic_runs import plot_orbit, write_family
-from ddvp_nlp.scenes import load_scene
-from ddvp_nlp.solvers.periodic import solve_periodic
-from ddvp_nlp.solvers.periodic_family import solve_periodic_family
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_periodic  # noqa: E402
+
+from ddvp_nlp.io.periodic_runs import plot_orbit, write_family  # noqa: E402
+from ddvp_nlp.scenes import load_scene  # noqa: E402
+from ddvp_nlp.solvers.periodic import solve_periodic  # noqa: E402
+from ddvp_nlp.solvers.periodic_family import solve_periodic_family  # noqa: E402
 
 FIGURE_EIGHT_PERIOD = 6.32591398
 
@@ -28,7 +37,13 @@ def pendulum_period(energy):
     return 4 * ellipk(np.asarray(energy) / 2)
 
 
-def convergence_rows(name, sizes, exact, **options):
+def rotation_period(energy):
+    """One turn: ``int_0^{2 pi} dq / sqrt(2 (E - 1 + cos q)) = 4 K(2 / E) / sqrt(2 E)``."""
+    energy = np.asarray(energy, float)
+    return 4 * ellipk(2 / energy) / np.sqrt(2 * energy)
+
+
+def convergence_rows(name, sizes, exact, label=None, **options):
     scene = load_scene(name)
     rows, previous = [], None
     for N in sizes:
@@ -36,11 +51,105 @@ def convergence_rows(name, sizes, exact, **options):
         error = solution.stats["period"] - exact
         order = np.log2(abs(previous / error)) if previous is not None else np.nan
         worst = max(solution.stats["residuals"].values())
-        rows.append(f"| {name} | {N} | {solution.status.code} | {solution.stats['period']:.10f} "
+        rows.append(f"| {label or name} | {N} | {solution.status.code} "
+                    f"| {solution.stats['solver']} | {solution.stats['period']:.10f} "
                     f"| {error:.3e} | {'' if np.isnan(order) else f'{order:.3f}'} "
                     f"| {worst:.1e} |")
         previous = error
     return rows
+
+
+def rotation_rows(out: Path):
+    """Pendulum rotations (q1 an angle, section q1=0): a family E = 2.2 .. 4 at N = 200 against
+    the exact period, and its figure."""
+    pendulum = load_scene("pendulum")
+    family = solve_periodic_family(pendulum.system, np.linspace(2.2, 4.0, 10), nodes=200,
+                                   section="q1=0", angles=("q1",))
+    rows = write_family(out / "pendulum_rotations", pendulum, family, {}, plot=True,
+                        reference=rotation_period, folders=False)
+    solvers = [orbit.stats["solver"] for _, orbit in family]
+    return [f"| {r['energy']:.1f} | {r['period']:.8f} | {rotation_period(r['energy']):.8f} | "
+            f"{r['period'] - rotation_period(r['energy']):.2e} | {r['status']} | {solver} |"
+            for r, solver in zip(rows, solvers, strict=True)]
+
+
+def henon_heiles_field(t, z):
+    x, y, px, py = z
+    return [px, py, -x - 2 * x * y, -y - x * x + y * y]
+
+
+def exact_return(orbit, period):
+    """``|z(T) - z_0|_inf`` of the exact flow (DOP853, rtol 1e-12) from the orbit's node 0 over
+    ``T``: a check that uses neither the scheme nor its equations."""
+    z0 = np.concatenate([orbit.q[0], orbit.p[0]])
+    run = solve_ivp(henon_heiles_field, (0.0, period), z0, method="DOP853", rtol=1e-12,
+                    atol=1e-14)
+    return float(np.max(np.abs(run.y[:, -1] - z0)))
+
+
+def henon_heiles_rows(out: Path):
+    """The two 2-D families through x = 0 (and the invariant-plane one for the figure), at
+    N = 200 and 400 by continuation in E, each orbit checked against the exact flow."""
+    scene = load_scene("henon_heiles")
+    energies = np.round(np.arange(0.02, 0.1601, 0.02), 3)
+    families = dict(scene.periodic["families"])
+    families["x = 0 (invariant line)"] = {"section": scene.periodic["section"],
+                                           "start": scene.periodic["start"]}
+    found, rows = {}, []
+    for name, data in families.items():
+        coarse = solve_periodic_family(scene.system, energies, nodes=200, **data)
+        fine = solve_periodic_family(scene.system, energies, nodes=400, guess=coarse[0][1],
+                                     **data)
+        found[name] = fine
+        for (energy, a), (_, b) in zip(coarse, fine, strict=True):
+            if name.startswith("x = 0"):
+                continue
+            extrapolated = b.stats["period"] + (b.stats["period"] - a.stats["period"]) / 3
+            accuracy = b.stats["accuracy"]
+            rows.append(f"| {name} | {energy:.2f} | {a.status.code}, {b.status.code} | "
+                        f"{a.stats['period']:.8f} | {b.stats['period']:.8f} | "
+                        f"{extrapolated:.8f} | {accuracy['verdict']} | "
+                        f"{accuracy['local_error_max']:.1e} | "
+                        f"{accuracy['global_error_estimate_max']:.1e} | "
+                        f"{exact_return(b, extrapolated):.1e} | "
+                        f"{max(b.stats['residuals'].values()):.1e} |")
+    plot_henon_heiles(found, out / "henon_heiles.png")
+    return rows
+
+
+def plot_henon_heiles(found: dict, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.8))
+    for (name, family), colour in zip(found.items(), ("C0", "C1", "C2"), strict=True):
+        for energy, orbit in family:
+            if orbit.success and round(energy, 3) in (0.04, 0.1, 0.16):
+                left.plot(orbit.q[:, 0], orbit.q[:, 1], "-", color=colour, lw=0.9)
+        ok = [(e, o.stats["period"]) for e, o in family if o.success]
+        right.plot(*zip(*ok, strict=True), "o-", color=colour, ms=4, label=name)
+    x, y = np.meshgrid(np.linspace(-1, 1, 400), np.linspace(-0.6, 1.1, 400))
+    left.contour(x, y, (x * x + y * y) / 2 + x * x * y - y ** 3 / 3, levels=[1 / 6],
+                 colors="0.6", linewidths=0.8)
+    left.set_aspect("equal")
+    left.set_xlabel("x = q1")
+    left.set_ylabel("y = q2")
+    left.set_title("orbits at E = 0.04, 0.10, 0.16 (grey: V = 1/6)")
+    right.set_xlabel("energy E")
+    right.set_ylabel("period T")
+    right.set_title("period against energy, N = 400")
+    right.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def solver_table() -> str:
+    """``scripts/bench_periodic.py``'s table (its output, captured)."""
+    captured = io.StringIO()
+    with contextlib.redirect_stdout(captured):
+        sys.argv = ["bench_periodic.py", "--repeats", "3"]
+        bench_periodic.main()
+    return captured.getvalue().rstrip()
 
 
 def main() -> None:
@@ -68,11 +177,19 @@ def main() -> None:
 
     table = [*convergence_rows("pendulum", (100, 200, 400, 800), pendulum_period(0.5),
                                energy=0.5, section="p1=0"),
+             *convergence_rows("pendulum", (100, 200, 400, 800), rotation_period(2.5),
+                               label="pendulum rotation", energy=2.5, section="q1=0",
+                               angles=("q1",), max_iter=400),
              *convergence_rows("harmonic", (40, 80, 160, 320), np.pi, energy=0.3,
                                params={"w": 2.0}),
              *convergence_rows("figure_eight", (150, 300, 600, 1200), FIGURE_EIGHT_PERIOD,
                                **options)]
+    rotations = rotation_rows(out)
+    henon = henon_heiles_rows(out)
+    solvers = solver_table()
     page = PAGE.format(family="\n".join(family_table), table="\n".join(table),
+                       rotations="\n".join(rotations), henon="\n".join(henon),
+                       solvers=solvers,
                        eight=orbit.message, eight_period=orbit.stats["period"],
                        machine=f"Python {platform.python_version()}, CasADi "
                                f"{casadi.__version__}, numpy {np.__version__}, "
@@ -83,8 +200,10 @@ def main() -> None:
 
 PAGE = """# Periodic orbits at a prescribed energy
 
-Generated by `python scripts/periodic_page.py`; the solver is `ddvp_nlp/solvers/periodic.py`
-(`ddvp periodic SCENE --energy E --nodes N [--section NAME=VALUE] [--family E1:E2:COUNT]`).
+Generated by `python scripts/periodic_page.py` (a few minutes; it runs
+`scripts/bench_periodic.py` for the solver table); the solver is
+`ddvp_nlp/solvers/periodic.py` (`ddvp periodic SCENE --energy E --nodes N [--section NAME=VALUE]
+[--family E1:E2:COUNT] [--solver newton|ipopt|auto]`).
 
 Unknowns: node states and node times `t_0 .. t_N` of a closed grid of `N` intervals, plus the
 unfolding parameters. Equations: canonical equations of every interval (`2nN`), `H(Q_k, P_k) = E`
@@ -94,11 +213,23 @@ and the section (2). That is one equation more than the `(N+1)(2n+1)` node value
 problem has no exact time-shift symmetry, so the phase condition is kept and an unfolding
 parameter `lambda` (`z' = (J + lambda I) grad H`) is added; it comes out at round-off on every
 orbit below. A symmetry with a conserved integral (translations and rotations of the three-body
-problem) adds one phase condition and one unfolding parameter each. The square Jacobian (band
-plus closure corners plus the unfolding columns) is factored by SuperLU inside the
-fixed-endpoint solver's Newton iteration, and each orbit is verified by its own unscaled
-residuals (canonical, the scheme's energy equations including the wrap-around one, prescribed
-energy, closure, section).
+problem) adds one phase condition and one unfolding parameter each.
+
+Two solvers take the same square system. `newton`: the Jacobian (band plus closure corners plus
+the unfolding columns) factored by SuperLU inside the fixed-endpoint solver's Newton iteration.
+`ipopt` (`solvers/periodic_ipopt.py`): objective 0, the same rows as equality constraints, every
+step bounded below, exact Hessian; a feasibility problem, because the system is square with an
+isolated solution (minimising the sum of squares would square the condition number and could
+stop at a non-zero minimum). `auto` (the default): Newton, then IPOPT from the same start when
+Newton's point fails its verification. Whichever found it, each orbit is verified by its own
+unscaled residuals (canonical, the scheme's energy equations including the wrap-around one,
+prescribed energy, closure, section) and by the accuracy check that does not trust the scheme
+(`solvers/accuracy.py`: every interval against an RK4 step of the exact flow, and the
+propagated global error estimate).
+
+An angle coordinate (a scene's `periodic={{"angles": ("q1",)}}`, as `problems/pendulum.py`
+declares; `solve_periodic(..., angles=("q1",))`) may close with whole turns, `q_N = q_0 + 2 pi w`;
+`w` is taken from the start, whose march returns to a section on the angle one turn on.
 
 ## Pendulum: the family of librations against 4 K(k)
 
@@ -110,6 +241,53 @@ E = 0.1, the default start (a march from the turning point to its return).
 | E | discrete period | 4 K(k) | difference | status |
 |---|---|---|---|---|
 {family}
+
+## Pendulum: rotations against 4 K(2/E) / sqrt(2E)
+
+Above the separatrix (`E > 2`), on the section `q1 = 0`. One turn takes
+`T = int_0^{{2 pi}} dq / p(q)`, `p = sqrt(2 (E - 1 + cos q))`; with `q = 2 phi`,
+`E - 1 + cos q = E (1 - (2/E) sin^2 phi)`, so `T = 4 K(m) / sqrt(2E)` with the parameter
+`m = 2/E` (`2 K(1/k) / k` in the librations' modulus `k^2 = E/2`); `tests/test_periodic_solvers.py`
+checks it against a quadrature. N = 200, continuation from E = 2.2. Newton's monotone line
+search stalls on these orbits from the march's start (the steps of the discrete orbit have a
+spike, 4x the others at N = 100, where the level curve `p(q)` has an inflection and the energy
+equation barely fixes the step), so `auto` hands them to IPOPT: the last column. Continued from
+the previous orbit, Newton does converge from E = 2.6 on. The discrete problem is the reason: the
+midpoints `(Q_k, P_k)` lie on the level curve and each node is where the tangent steps of two
+neighbouring midpoints meet, which is well posed where the curve is convex; across an inflection
+one long step is needed, and the system gets worse conditioned as `N` grows. IPOPT took 13, 28,
+69 and 296 iterations for N = 100, 200, 400, 800 at E = 2.5 (the convergence table below runs
+the rotations with `max_iter=400`; the default 100 stops N = 800).
+
+![pendulum rotations](pendulum_rotations/family.png)
+
+| E | discrete period | 4 K(2/E)/sqrt(2E) | difference | status | solver |
+|---|---|---|---|---|---|
+{rotations}
+
+## Henon-Heiles: two-dimensional orbits through x = 0
+
+Besides the family on the invariant line `x = 0` (green), two families whose orbits move in
+both coordinates, through the section `x = 0` (`problems/henon_heiles.py`, `periodic["families"]`):
+the *loop* (from the circular motion of the linearised 1:1 oscillator; it crosses `x = 0` at
+`y > 0` moving in `-x`) and the orbit *across* the axis `x = 0` (from the normal mode along `x`;
+it crosses at `y < 0`). Each is continued in `E` from 0.02 at N = 200 (from the march's start)
+and at N = 400 (from the N = 200 orbit at E = 0.02: from the march's start, N = 400 failed on
+the orbit across at E = 0.02, close to the 1:1 resonance where the orbits separate). Checks that do
+not use the scheme's equations: the accuracy check's largest local error (RK4 step of the exact
+flow over each interval) and propagated global error estimate, and the return of the exact flow
+(DOP853, rtol 1e-12) from the N = 400 orbit's node 0 after the extrapolated period
+`T_400 + (T_400 - T_200)/3`, which the discretisation error of node 0 bounds.
+
+![Henon-Heiles families](henon_heiles.png)
+
+| family | E | status | T_200 | T_400 | T_extr | accuracy | RK4 local | global est | return | res. |
+|---|---|---|---|---|---|---|---|---|---|---|
+{henon}
+
+Columns: status at N = 200 and 400; `T_extr` the extrapolated period; `RK4 local` the
+accuracy check's largest local error and `global est` its propagated global error estimate
+(N = 400); `return` the exact flow's return distance; `res.` the largest residual (N = 400).
 
 ## Figure-eight (three equal masses, G = m = 1)
 
@@ -124,12 +302,22 @@ translations and the rotation. Period {eight_period:.8f} (Simo: 6.32591398).
 Order: `log2` of the ratio of successive errors. The figure-eight's reference period has eight
 decimals and its energy six, so its last row stops at their precision.
 
-| scene | N | status | period | error | order | largest residual |
-|---|---|---|---|---|---|---|
+| scene | N | status | solver | period | error | order | largest residual |
+|---|---|---|---|---|---|---|---|
 {table}
+
+## Newton against IPOPT
+
+`python scripts/bench_periodic.py`: both solvers from the same start (the march to the return),
+the solver and the verification timed, best of 3 after a warm-up; the first call builds the
+CasADi functions and the IPOPT problem. The machine is shared (2 cores, other jobs running), so
+the ratios, measured side by side, say more than the seconds.
+
+{solvers}
 
 Machine: {machine}.
 """
+
 
 if __name__ == "__main__":
     main()

@@ -137,6 +137,9 @@ def _periodic_command(commands) -> None:
                           help="continue the orbit over COUNT energies from E1 to E2")
     periodic.add_argument("--scheme", default="vddvp", choices=("vddvp", "lee"),
                           help="energy rule (the same equations for autonomous H)")
+    periodic.add_argument("--solver", default="auto", metavar="newton|ipopt|auto",
+                          help="Newton with sparse LU, IPOPT, or Newton then IPOPT when "
+                               "Newton's orbit fails its verification (default: auto)")
     periodic.add_argument("--guess", default=None, metavar="FILE",
                           help="start from a run folder / result.npz (t, q, p over one period)")
     periodic.add_argument("--set", dest="settings", action="append", default=[],

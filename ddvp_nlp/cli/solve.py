@@ -205,7 +205,8 @@ def run_periodic(args) -> int:
     params = parse_settings(args.settings)
     options = {"section": args.section or defaults.get("section", "p1=0"),
                "scheme": args.scheme, "params": params, "start": defaults.get("start"),
-               "integrals": defaults.get("integrals", ())}
+               "integrals": defaults.get("integrals", ()),
+               "angles": defaults.get("angles", ()), "solver": args.solver}
     nodes = args.nodes if args.nodes is not None else defaults.get("nodes", 200)
     guess = _bvp_guess(args.guess) if args.guess else None
     if args.family is not None:

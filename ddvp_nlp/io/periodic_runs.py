@@ -29,7 +29,9 @@ def periodic_meta(scene, solution: Solution, params: dict) -> dict:
             "nodes": solution.steps, "params": params, "residuals": stats["residuals"],
             "residual_limit": stats["limit"], "unfolding": stats["unfolding"],
             "integral_unfoldings": stats["integral_unfoldings"],
-            "newton": stats["newton"], "iterations": stats["iterations"],
+            "solver": stats.get("solver"), "outcome": stats["outcome"],
+            "iterations": stats["iterations"], "attempts": stats.get("attempts", []),
+            "winding": stats["winding"], "accuracy": stats["accuracy"],
             "tau_min": stats["tau_min"], "tau_max": stats["tau_max"],
             "timing": solution.timing}
 

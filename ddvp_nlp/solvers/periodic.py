@@ -52,9 +52,28 @@ Square count: ``(N+1)(2n+1) + 1`` unknowns (nodes and ``lambda``); equations ``2
 full column (``lambda``): sparse LU (SuperLU), in the Newton iteration of ``bvp_newton.py`` (its
 ``tau_floor`` safeguard and Deuflhard's monotonicity line search).
 
-Every returned point is verified by its own unscaled residuals (closure, canonical, the scheme's
-energy equations, the prescribed energy, the section, every step positive). The start:
-``periodic_start.py``.
+The same rows are also handed to IPOPT (``periodic_ipopt.py``: objective 0, the rows as
+equality constraints, the steps bounded below, exact Hessian). ``solver="auto"`` runs Newton and,
+when its point fails the verification, IPOPT from the same start. They differ where the grid is
+far from the start: on the pendulum's rotations the solution's steps have a spike (4x the
+others at N = 100) where the level curve ``p(q)`` has an inflection: there the ``tau_k^2`` term
+of the interval energy ``H(Q_k, P_k)`` (the chord's midpoint against the curve, proportional to
+its curvature) changes sign, and the energy equation barely fixes ``tau_k``. From the march's
+uniform times Newton's monotone line search stalls with a step at its floor, and IPOPT's filter
+line search gets there, in more iterations as ``N`` grows (13, 28, 69, 296 for N = 100, 200,
+400, 800 at E = 2.5: the default ``max_iter`` stops the last).
+
+Rotations: a coordinate named in ``angles`` is an angle (``H`` is ``2 pi``-periodic in it); the
+closure rows read ``q_N - q_0 = 2 pi w`` with the number of turns ``w`` taken from the start (a
+march returns to a section on an angle one turn on), and the wrap-around energy equation uses
+node 1 shifted by ``2 pi w``.
+
+Every returned point, whichever solver found it, is verified by its own unscaled residuals
+(closure, canonical, the scheme's energy equations, the prescribed energy, the section, every
+step positive), then by the accuracy check of ``accuracy.py``, which does not trust the
+scheme's equations: each interval against one RK4 step of the exact flow, the level against
+``E``, and the propagated global error estimate (status ``inaccurate`` when a local error
+passes its tolerance). The start: ``periodic_start.py``.
 """
 
 from __future__ import annotations
@@ -71,15 +90,24 @@ from ..errors import InputError
 from ..physics.hamiltonian import HamiltonianSystem
 from ..solution import Solution, Status
 from ..validation import check_integer, check_real, check_state
+from .accuracy import AccuracyMonitor, Tolerance, assess
 from .bvp_newton import newton
 from .periodic_assembly import Closure, PeriodicAssembly, integral_gradients
-from .periodic_start import guess_nodes, march_to_return, resample, section_point
+from .periodic_ipopt import periodic_ipopt
+from .periodic_start import (
+    closing_shift,
+    guess_nodes,
+    march_to_return,
+    resample,
+    section_point,
+)
 
 EPS = float(np.finfo(float).eps)
 # Newton's per-row target and the verification's round-off allowance, in round-offs of the
 # rows' magnitudes.
 TARGET_ROUND_OFFS = 64
 ALLOWANCE_ROUND_OFFS = 4096
+SOLVERS = ("auto", "newton", "ipopt")
 SECTION = re.compile(r"^\s*([qp])(\d+)\s*=\s*(.+?)\s*$")
 
 
@@ -107,8 +135,8 @@ def parse_section(section, n: int) -> tuple[int, float, str]:
 def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
-                   start=None, integrals=(), tol: float = 1e-10,
-                   max_iter: int = 50) -> Solution:
+                   start=None, integrals=(), angles=(), solver: str = "auto",
+                   tol: float = 1e-10, max_iter: int = 100, verbose: bool = False) -> Solution:
     """A periodic orbit of ``system`` at energy ``E`` on ``N = nodes`` intervals (module
     docstring).
 
@@ -131,51 +159,105 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             dependent closure equation; each gets a phase condition ``g . (z_0 - z_0^ref) = 0``
             (``g = J grad I`` at the start's node 0) and an unfolding parameter ``mu``, as
             ``H`` gets the section and ``lambda`` (module docstring).
+        angles: names of coordinates that are angles (``"q1"``; ``H`` ``2 pi``-periodic in
+            them): the orbit may close with ``q_N = q_0 + 2 pi w`` (a rotation, ``w`` turns,
+            taken from the start), and the return to a section on an angle is counted modulo
+            ``2 pi``.
+        solver: ``"newton"`` (SuperLU inside the fixed-endpoint solver's Newton iteration),
+            ``"ipopt"`` (``periodic_ipopt.py``) or ``"auto"`` (Newton, then IPOPT from the same
+            start when Newton's point fails the verification of its residuals).
         tol: verification tolerance of the unscaled residuals (above their round-off).
-        max_iter: Newton iterations.
+        max_iter: iterations of either solver.
+        verbose: IPOPT's iteration log.
 
     Returns:
         A :class:`Solution` with ``N + 1`` nodes; ``stats`` holds ``period``, ``energy``,
-        ``unfolding`` (``lambda``) and the largest residuals of each kind; ``energy_residual``
-        holds the scheme's energy equation at nodes ``1 .. N`` (node ``N`` the wrap-around).
-        No orbit found is a failure status with the residuals in the message.
+        ``unfolding`` (``lambda``), ``winding``, the largest residuals of each kind, the
+        accuracy estimate (``accuracy``: against RK4 steps of the exact flow) and the solver's
+        ``attempts``; ``energy_residual`` holds the scheme's energy equation at nodes ``1 ..
+        N`` (node ``N`` the wrap-around). No orbit found is a failure status with the
+        residuals in the message; an orbit whose steps do not follow the exact flow is
+        ``inaccurate``.
     """
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, tol,
-                       max_iter)
+                       max_iter, angles, solver)
+    request["verbose"] = bool(verbose)
     started = time.perf_counter()
     t, z = _start_nodes(request)
     integrals = tuple(integrals)
-    closure = _closure(request, z[0], integrals)
+    closure = _closure(request, z, integrals)
     assembly = PeriodicAssembly(system, request["scheme"], nodes, closure, integrals)
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
     scale = max(1.0, float(np.max(np.abs(x0))), abs(request["energy"]))
-    target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
-    result = newton(assembly, x0, closure, target, tau_floor=1e-3 * t[-1] / nodes,
-                    max_iter=max_iter, linear="sparse")
-    return _solution(request, assembly, result, scale, started)
+    tau_floor = 1e-3 * t[-1] / nodes
+    order = ("newton", "ipopt") if request["solver"] == "auto" else (request["solver"],)
+    attempts, results = [], []
+    for name in order:
+        began, cpu = time.perf_counter(), time.process_time()
+        result = _run(name, request, assembly, x0, closure, scale, tau_floor, integrals)
+        results.append(_solution(request, assembly, result, scale, started, closure))
+        results[-1].stats["solver"] = name
+        attempts.append({"solver": name, "status": results[-1].status.code,
+                         "iterations": result.iterations, "said": result.outcome,
+                         "wall_s": time.perf_counter() - began,
+                         "cpu_s": time.process_time() - cpu})
+        if results[-1].status in (Status.SUCCESS, Status.INACCURATE):
+            break  # the equations hold: another solver would find the same grid
+    chosen = next((r for r in results if r.success), results[0])
+    chosen.stats["attempts"] = attempts
+    return _noted(chosen, attempts)
+
+
+def _run(name, request, assembly, x0, closure, scale, tau_floor, integrals):
+    """One solver from ``x0``: Newton's result, or IPOPT's in the same fields."""
+    if name == "newton":
+        target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
+        result = newton(assembly, x0, closure, target, tau_floor=tau_floor,
+                        max_iter=request["max_iter"], linear="sparse")
+        result.outcome = f"newton: {result.outcome}"
+        return result
+    problem = periodic_ipopt(request["system"], request["scheme"], request["nodes"],
+                             integrals, request["index"], tol=request["tol"],
+                             max_iter=request["max_iter"], verbose=request["verbose"])
+    return problem.solve(x0, closure, tau_floor)
+
+
+def _noted(solution: Solution, attempts: list) -> Solution:
+    """``solution`` with the other attempts named in its message (``auto``)."""
+    others = [a for a in attempts if a["solver"] != solution.stats["solver"]]
+    if others:
+        solution.message += "; " + "; ".join(
+            f"{a['solver']} also tried: {a['status']} ({a['said']})" for a in others)
+    return solution
 
 
 def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", params=None,
-                   start=None, integrals=(), tol=1e-10, max_iter=50) -> None:
+                   start=None, integrals=(), angles=(), solver="auto", tol=1e-10,
+                   max_iter=100, verbose=False) -> None:
     """Raise the ``InputError`` :func:`solve_periodic` would raise for these arguments without
     a guess (the section's point at ``energy`` included), and build nothing."""
-    _checked(system, energy, nodes, section, None, scheme, params, start, tol, max_iter)
+    _checked(system, energy, nodes, section, None, scheme, params, start, tol, max_iter,
+             angles, solver)
 
 
-def _closure(request, reference: np.ndarray, integrals) -> Closure:
-    """The problem's data; the phase conditions of the integrals at the start's node 0."""
+def _closure(request, z: np.ndarray, integrals) -> Closure:
+    """The problem's data; the phase conditions of the integrals at the start's node 0, the
+    closure shift (turns of the angle coordinates) from the start's ends."""
     system = request["system"]
     n = system.n
+    reference = z[0]
     generators = np.zeros((len(integrals), 2 * n))
     if integrals:
         gradients = np.asarray(integral_gradients(system, integrals)(
             reference[:n], reference[n:], request["theta"]))[:, 1:].T
         generators = np.hstack([gradients[:, n:], -gradients[:, :n]])  # J grad I
     return Closure(request["energy"], request["index"], request["value"], request["theta"],
-                   reference.copy(), generators)
+                   reference.copy(), generators,
+                   closing_shift(z[0], z[-1], request["angles"]))
 
 
-def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, max_iter):
+def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, max_iter,
+             angles=(), solver="auto"):
     """Every argument checked (``InputError`` naming argument and value) before any build."""
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):
@@ -186,10 +268,13 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, 
     if not scheme.variable_steps:
         raise InputError(f"scheme {scheme.rule!r} has no energy equation; periodic orbits at "
                          f"a prescribed energy need 'vddvp' or 'lee'")
+    if solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})")
     energy = check_real("energy", energy)
     nodes = check_integer("nodes", nodes, minimum=3)
     index, value, label = parse_section(section, system.n)
     n = system.n
+    angle_indices = parse_angles(angles, n)
     direction = np.ones(2 * n)
     if start is not None:
         try:
@@ -198,16 +283,37 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, 
             raise InputError(f"start must be a pair (q, p), got {start!r}") from None
         direction = np.concatenate([check_state("start q", q, n), check_state("start p", p, n)])
     request = {"system": system, "scheme": scheme, "energy": energy, "nodes": nodes,
-               "index": index, "value": value, "label": label,
+               "index": index, "value": value, "label": label, "solver": solver,
+               "angles": angle_indices,
                "theta": system.parameter_vector(params), "direction": direction,
                "tol": check_real("tol", tol, positive=True),
                "max_iter": check_integer("max_iter", max_iter)}
     if guess is None:
-        request["point"] = section_point(system, request["theta"], energy, index, value,
-                                         direction, label)
+        try:
+            request["point"] = section_point(system, request["theta"], energy, index, value,
+                                             direction, label)
+        except InputError as error:
+            if angle_indices and index - 1 not in angle_indices:
+                raise InputError(f"{error}; a rotation of the angle q{angle_indices[0] + 1} "
+                                 f"has a section on it, e.g. q{angle_indices[0] + 1}=0") \
+                    from None
+            raise
     else:
-        request["guess"] = guess_nodes(guess, n, nodes)
+        request["guess"] = guess_nodes(guess, n, nodes, angle_indices)
     return request
+
+
+def parse_angles(angles, n: int) -> tuple[int, ...]:
+    """Indices into ``z = (q, p)`` (from 0) of the angle coordinates named ``"q1"`` ..
+    ``"qn"``."""
+    names = (angles,) if isinstance(angles, str) else tuple(angles)
+    indices = []
+    for name in names:
+        match = re.fullmatch(r"q(\d+)", name) if isinstance(name, str) else None
+        if match is None or not 1 <= int(match.group(1)) <= n:
+            raise InputError(f"angles must name coordinates q1..q{n}, got {angles!r}")
+        indices.append(int(match.group(1)) - 1)
+    return tuple(sorted(set(indices)))
 
 
 def _start_nodes(request):
@@ -215,54 +321,72 @@ def _start_nodes(request):
     that does not return leaves the point repeated: the solve then fails with a status)."""
     if "guess" in request:
         return request["guess"]
+    angle = request["index"] - 1 in request["angles"]
     traced = march_to_return(request["system"], request["theta"], request["point"],
-                             request["index"], request["value"], request["scheme"])
+                             request["index"], request["value"], request["scheme"], angle)
     if traced is None:
         request["start_note"] = "the march from the section's point did not return to it"
         return np.linspace(0.0, 1.0, request["nodes"] + 1), np.tile(
             request["point"], (request["nodes"] + 1, 1))
-    return resample(*traced, request["nodes"])
+    return resample(*traced, request["nodes"], request["angles"])
 
 
-def periodic_residuals(system, scheme: Scheme, t, q, p, theta, energy: float):
+def periodic_residuals(system, scheme: Scheme, t, q, p, theta, energy: float, shift=0.0):
     """The scheme's equations on a closed grid of ``N + 1`` nodes, unscaled: ``canonical (N,
     2n)`` (increment form), ``energy (N,)`` (the scheme's energy equation at nodes ``1 .. N-1``
-    and at the wrap-around node, interval ``N-1`` against interval ``0``), ``prescribed`` (``H_0 -
-    E``), ``closure (2n,)`` (``z_N - z_0``)."""
+    and at the wrap-around node, interval ``N-1`` against interval ``0``, node ``N + 1`` being
+    node 1 shifted by ``shift``), ``prescribed`` (``H_0 - E``), ``closure (2n,)`` (``z_N - z_0 -
+    shift``; ``shift`` is ``2 pi`` times the turns of the angle coordinates)."""
+    n = q.shape[1]
+    shift = np.broadcast_to(np.asarray(shift, float), (2 * n,))
     canonical, interior = equations.grid_residuals(system, scheme, t, q, p, theta)
     wrap_t = [t[-2], t[-1], t[-1] + t[1] - t[0]]
-    _, wrap = equations.grid_residuals(system, scheme, wrap_t, np.vstack([q[-2:], q[1:2]]),
-                                       np.vstack([p[-2:], p[1:2]]), theta)
+    _, wrap = equations.grid_residuals(system, scheme, wrap_t,
+                                       np.vstack([q[-2:], q[1:2] + shift[:n]]),
+                                       np.vstack([p[-2:], p[1:2] + shift[n:]]), theta)
     first = equations.interval_energies(system, scheme, t[:2], q[:2], p[:2], theta)[0]
-    closure = np.concatenate([q[-1] - q[0], p[-1] - p[0]])
+    closure = np.concatenate([q[-1] - q[0], p[-1] - p[0]]) - shift
     return canonical, np.concatenate([interior, wrap]), float(first - energy), closure
 
 
-def _solution(request, assembly, result, scale, started) -> Solution:
+def _solution(request, assembly, result, scale, started, closure) -> Solution:
+    """The point ``result.x`` verified (whichever solver found it): its unscaled residuals
+    recomputed, then the accuracy check against the exact flow."""
     system, scheme = request["system"], request["scheme"]
     t, q, p, unfolding = assembly.layout.unpack(result.x)
     finite = bool(np.all(np.isfinite(result.x)))
     N, n = request["nodes"], system.n
     if finite:
-        canonical, energy, prescribed, closure = periodic_residuals(
-            system, scheme, t, q, p, request["theta"], request["energy"])
+        canonical, energy, prescribed, closing = periodic_residuals(
+            system, scheme, t, q, p, request["theta"], request["energy"], closure.shift)
     else:
         canonical, energy = np.full((N, 2 * n), np.nan), np.full(N, np.nan)
-        prescribed, closure = np.nan, np.full(2 * n, np.nan)
+        prescribed, closing = np.nan, np.full(2 * n, np.nan)
     section = float(np.concatenate([[t[0]], q[0], p[0]])[request["index"]] - request["value"])
     worst = {"canonical": float(np.max(np.abs(canonical))),
              "energy": float(np.max(np.abs(energy))), "prescribed_energy": abs(prescribed),
-             "closure": float(np.max(np.abs(closure))), "section": abs(section)}
+             "closure": float(np.max(np.abs(closing))), "section": abs(section)}
     limit = max(request["tol"], ALLOWANCE_ROUND_OFFS * EPS * scale)
     status, message = _verdict(result, worst, limit, np.diff(t), request.get("start_note"))
+    accuracy, local_error = ({}, np.zeros(0))
+    if finite:
+        accuracy, local_error = assess(system, t, np.hstack([q, p]), request["theta"],
+                                       Tolerance(), level=request["energy"])
+        if status is Status.SUCCESS and accuracy["first_failure"] is not None:
+            status = Status.INACCURATE
+            message = (f"{status.value}: {AccuracyMonitor.describe(accuracy['first_failure'])}"
+                       f"; the discrete equations hold: {message}")
+    winding = np.round(np.asarray(closure.shift, float) / (2 * np.pi)) * np.ones(2 * n)
     stats = {"period": float(t[-1] - t[0]), "energy": request["energy"],
              "section": request["label"], "unfolding": float(unfolding[0]),
              "integral_unfoldings": unfolding[1:].tolist(), "limit": limit,
-             "residuals": worst, "iterations": result.iterations, "newton": result.outcome,
+             "winding": [int(winding[i]) for i in range(n)],
+             "residuals": worst, "iterations": result.iterations, "outcome": result.outcome,
+             "accuracy": accuracy,
              "tau_min": float(np.min(np.diff(t))), "tau_max": float(np.max(np.diff(t)))}
     return Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                     energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
-                    newton_iterations=result.iterations,
+                    newton_iterations=result.iterations, local_error=local_error,
                     timing={"build_s": 0.0, "solve_s": time.perf_counter() - started},
                     stats=stats)
 
@@ -270,7 +394,7 @@ def _solution(request, assembly, result, scale, started) -> Solution:
 def _verdict(result, worst: dict, limit: float, tau: np.ndarray, note):
     """Status and message from the residuals; Newton's word is quoted."""
     listed = ", ".join(f"{name} {value:.3e}" for name, value in worst.items())
-    said = f"newton: {result.outcome}" + (f"; {note}" if note else "")
+    said = result.outcome + (f"; {note}" if note else "")
     if not all(np.isfinite(v) for v in worst.values()):
         return Status.NON_FINITE, f"the iteration produced non-finite values ({said})"
     if np.min(tau) <= 0:

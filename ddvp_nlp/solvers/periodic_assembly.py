@@ -10,7 +10,7 @@ mu_r)``, one per first integral (``H``, then the ``r`` integrals of the symmetri
     for k = 0 .. N-1:  canonical equations of interval k,            (2n rows)
                        unfolded by tau_k (lambda grad H + sum mu_i grad I_i)(Q_k, P_k)
                        H(Q_k, P_k) - E                               (1 row)
-    q_N - q_0,  p_N - p_0                                            (2n rows)
+    q_N - q_0 - 2 pi w,  p_N - p_0   (w: turns of angle coordinates)  (2n rows)
 
 ``2 + r + N m + 2n = (N+1) m + 1 + r`` rows: square. Why these rows, and why the unfolding, is
 the docstring of ``periodic.py``. The interval rows are ``equations.canonical_expression`` and
@@ -86,7 +86,9 @@ class Closure:
     """The data of one periodic problem: the prescribed energy, the section (index into
     ``z = (t, q, p)`` of a node and value), the parameters, and for each first integral the
     reference node ``z_0^ref = (q, p)`` and symmetry generator ``g_i = J grad I_i(z_0^ref)`` of
-    its phase condition ``g_i . (z_0 - z_0^ref) = 0``."""
+    its phase condition ``g_i . (z_0 - z_0^ref) = 0``; ``shift`` (``2n``,) is ``z_N - z_0`` on
+    the orbit: ``2 pi w_i`` for an angle coordinate that turns ``w_i`` times (a rotation), else
+    0."""
 
     energy: float
     section_index: int
@@ -94,6 +96,7 @@ class Closure:
     theta: np.ndarray
     reference: np.ndarray = field(default_factory=lambda: np.zeros(0))
     generators: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    shift: np.ndarray | float = 0.0
 
 
 def integral_gradients(system, integrals) -> ca.Function:
@@ -109,9 +112,10 @@ def integral_gradients(system, integrals) -> ca.Function:
     return cached(system, ("periodic_gradients", tuple(integrals)), build)
 
 
-def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
-    """``(z_a, z_b, u, E, theta) -> (rows (m,), d rows / d(z_a, z_b, u))`` with ``u`` the
-    unfolding parameters ``(lambda, mu_1, ..., mu_r)``."""
+def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
+    """``(z_a, z_b, u, E, theta) -> rows (m,)`` of one interval, with ``u`` the unfolding
+    parameters ``(lambda, mu_1, ..., mu_r)``: the Newton assembly differentiates it into blocks,
+    the IPOPT problem (``periodic_ipopt.py``) maps it over the grid."""
     def build():
         n, r = system.n, len(integrals)
         z_a, z_b = ca.SX.sym("z_a", 2 * n + 1), ca.SX.sym("z_b", 2 * n + 1)
@@ -130,9 +134,19 @@ def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
         gradients = integral_gradients(system, integrals)(Q, P, theta)
         rows = ca.vertcat(canonical - (t_b - t_a) * ca.mtimes(gradients, unfolding),
                           energy - level)
+        return ca.Function("periodic_rows", [z_a, z_b, unfolding, level, theta], [rows])
+    return cached(system, ("periodic_rows", scheme, tuple(integrals)), build)
+
+
+def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
+    """``(z_a, z_b, u, E, theta) -> (rows (m,), d rows / d(z_a, z_b, u))``."""
+    def build():
+        rows = interval_rows(system, scheme, integrals)
+        z_a, z_b, unfolding, level, theta = rows.sx_in()
+        expression = rows(z_a, z_b, unfolding, level, theta)
         unknowns = ca.vertcat(z_a, z_b, unfolding)
         return ca.Function("periodic_interval", [z_a, z_b, unfolding, level, theta],
-                           [rows, ca.densify(ca.jacobian(rows, unknowns))])
+                           [expression, ca.densify(ca.jacobian(expression, unknowns))])
     return cached(system, ("periodic_interval", scheme, tuple(integrals)), build)
 
 
@@ -165,7 +179,7 @@ class PeriodicAssembly:
         F[1] = z[0, closure.section_index] - closure.section_value
         F[2:h] = closure.generators @ (z[0, 1:] - closure.reference) if h > 2 else 0.0
         F[h:h + N * m] = rows[:, 0, :].ravel()
-        F[h + N * m:] = z[N, 1:] - z[0, 1:]
+        F[h + N * m:] = z[N, 1:] - z[0, 1:] - closure.shift
         return F, (J if jacobian else None)
 
     def residuals(self, F: np.ndarray):

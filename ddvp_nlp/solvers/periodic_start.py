@@ -9,13 +9,18 @@ section, along that ray, meets the energy surface: an input error.
 
 The march: ``solvers/march.py`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
-in the direction it left it; the crossing time, interpolated linearly between the two nodes, is
-the period of the guess. The guess is the march resampled on ``N + 1`` equally spaced times with
-the last node equal to the first; Newton moves the node times to where the energy equations put
-them.
+in the direction it left it (on an angle coordinate, its value plus any whole turns). Where the
+energy rule's march stops before the return (its energy step breaks down on the pendulum's
+rotations near q = 1.95 whatever tau0), the fixed-step midpoint rule is marched instead: the
+start only has to be near the orbit. The crossing time, interpolated linearly between the two
+nodes, is the period of the guess. The guess is the march resampled on ``N + 1`` equally
+spaced times with the last node equal to the first (plus the whole turns of angle
+coordinates); the solver moves the node times to where the energy equations put them.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -67,21 +72,40 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
     return z
 
 
-def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, scheme):
+def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, scheme,
+                    angle: bool = False):
     """``(t, z)`` of a march from ``z0`` up to its first return to the section, the last row
-    the interpolated crossing, or ``None`` if it does not return within the horizons."""
-    n = system.n
+    the interpolated crossing, or ``None`` if it does not return within the horizons (with
+    ``scheme``, then with fixed steps: module docstring). On an
+    ``angle`` coordinate the section is met at ``value + 2 pi k`` for any ``k`` (a rotation
+    returns one turn on)."""
     f = np.asarray(vector_field_function(system)(z0, 0.0, theta)).ravel()
     heading = np.sign(f[index - 1])
     if heading == 0:
         return None  # the flow is tangent to the section here: no crossing to look for
     tau0 = MARCH_FRACTION * max(np.linalg.norm(z0), 1e-3) / max(np.linalg.norm(f), 1e-12)
+    for rule in dict.fromkeys((scheme, "fixed")):
+        with warnings.catch_warnings():  # a breakdown of the start's march is handled here
+            warnings.simplefilter("ignore", RuntimeWarning)
+            traced = _march_until_return(system, theta, z0, index, value, rule, angle,
+                                         heading, tau0)
+        if traced is not None:
+            return traced
+    return None
+
+
+def _march_until_return(system, theta, z0, index, value, scheme, angle, heading, tau0):
+    """The march of :func:`march_to_return` with one rule, horizon after horizon."""
+    n = system.n
     horizon = FIRST_HORIZON * tau0
     for _ in range(MAX_HORIZONS):
         run = march(system, z0[:n], z0[n:], tau0=tau0, t_end=horizon, scheme=scheme,
                     params=dict(zip(system.params, theta, strict=True)), check_accuracy=False)
         t, z = run.t, np.hstack([run.q, run.p])
-        c = heading * (z[:, index - 1] - value)
+        c = z[:, index - 1] - value
+        if angle:  # the offset reduced to (-pi, pi]: its jumps at pi are not crossings of 0
+            c = np.pi - np.mod(np.pi - c, 2 * np.pi)
+        c = heading * c
         back = np.flatnonzero((c[:-1] < 0) & (c[1:] >= 0))
         if back.size:
             k = int(back[0]) + 1
@@ -95,19 +119,29 @@ def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, sch
     return None
 
 
-def resample(t, z, intervals: int) -> tuple[np.ndarray, np.ndarray]:
+def closing_shift(first: np.ndarray, last: np.ndarray, angles=()) -> np.ndarray:
+    """``z_N - z_0`` of the closed orbit near a start from ``first`` to ``last``: ``2 pi`` times
+    the whole turns of each angle coordinate (indices into ``z``), 0 elsewhere."""
+    shift = np.zeros(np.size(first))
+    for i in angles:
+        shift[i] = 2 * np.pi * np.round((last[i] - first[i]) / (2 * np.pi))
+    return shift
+
+
+def resample(t, z, intervals: int, angles=()) -> tuple[np.ndarray, np.ndarray]:
     """``N + 1`` nodes on equally spaced times from ``t[0]`` to ``t[-1]`` (``t`` shifted to start
-    at 0), cubic between the given nodes, the last node set equal to the first."""
+    at 0), cubic between the given nodes, the last node set equal to the first (plus the whole
+    turns of the ``angles``, :func:`closing_shift`)."""
     t = np.asarray(t, float) - float(t[0])
     z = np.asarray(z, float)
     grid = np.linspace(0.0, t[-1], intervals + 1)
     zs = CubicSpline(t, z, axis=0)(grid) if t.size >= 4 else np.column_stack(
         [np.interp(grid, t, z[:, j]) for j in range(z.shape[1])])
-    zs[-1] = zs[0]
+    zs[-1] = zs[0] + closing_shift(zs[0], zs[-1], angles)
     return grid, zs
 
 
-def guess_nodes(guess, n: int, intervals: int):
+def guess_nodes(guess, n: int, intervals: int, angles=()):
     """``(t, z)`` of ``N + 1`` nodes from a user's start: a :class:`Solution` or a mapping with
     ``t``, ``q``, ``p`` (one period, last node at or near the first). Taken as it is when it has
     ``N + 1`` rows (a previous solve on the same grid), else resampled."""
@@ -125,6 +159,6 @@ def guess_nodes(guess, n: int, intervals: int):
                          f"times, got {t.size} nodes")
     if t.size == intervals + 1:
         z = z.copy()
-        z[-1] = z[0]
+        z[-1] = z[0] + closing_shift(z[0], z[-1], angles)
         return t - t[0], z
-    return resample(t, z, intervals)
+    return resample(t, z, intervals, angles)

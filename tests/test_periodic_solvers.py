@@ -1,0 +1,170 @@
+"""Periodic orbits, continued: IPOPT beside Newton, pendulum rotations (an angle coordinate
+closing with a whole turn), Henon-Heiles orbits through x = 0 off the invariant plane, and the
+refusals of bad input (solvers/periodic.py, periodic_ipopt.py)."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.special import ellipk
+
+from ddvp_nlp.errors import InputError
+from ddvp_nlp.scenes import load_scene
+from ddvp_nlp.solvers.periodic import solve_periodic
+from ddvp_nlp.solvers.periodic_family import solve_periodic_family
+
+
+def fitted_order(sizes, errors) -> float:
+    return -np.polyfit(np.log(sizes), np.log(np.abs(errors)), 1)[0]
+
+
+def midpoint_residuals(solution, force, hamiltonian, energy, turn=0.0):
+    """The largest residual of the midpoint rule's equations for ``H = p^2/2 + V(q)``, of
+    ``H(Q_k, P_k) = E`` and of the closure ``q_N = q_0 + turn``, ``p_N = p_0``, with numpy."""
+    t, q, p = solution.t, solution.q[:, 0], solution.p[:, 0]
+    tau = np.diff(t)
+    Q, P = (q[:-1] + q[1:]) / 2, (p[:-1] + p[1:]) / 2
+    assert np.all(tau > 0) and abs(t[0]) < 1e-12
+    return max(np.max(np.abs(q[1:] - q[:-1] - tau * P)),
+               np.max(np.abs(p[1:] - p[:-1] + tau * force(Q))),
+               np.max(np.abs(hamiltonian(Q, P) - energy)),
+               abs(q[-1] - q[0] - turn), abs(p[-1] - p[0]))
+
+
+def pendulum_h(q, p):
+    return p ** 2 / 2 + 1 - np.cos(q)
+
+
+@pytest.mark.parametrize("scene, energy, nodes, params, force, hamiltonian", [
+    ("pendulum", 0.5, 100, None, np.sin, pendulum_h),
+    ("harmonic", 0.3, 80, {"w": 2.0}, lambda q: 4.0 * q, lambda q, p: (p ** 2 + 4 * q ** 2) / 2),
+])
+def test_ipopt_finds_the_orbit_newton_finds(scene, energy, nodes, params, force, hamiltonian):
+    system = load_scene(scene).system
+    orbits = {solver: solve_periodic(system, energy=energy, nodes=nodes, params=params,
+                                     solver=solver) for solver in ("newton", "ipopt")}
+    for solver, orbit in orbits.items():
+        assert orbit.success, orbit.message
+        assert orbit.stats["solver"] == solver and orbit.stats["attempts"][0]["solver"] == solver
+        assert midpoint_residuals(orbit, force, hamiltonian, energy) < 1e-10
+        assert orbit.stats["accuracy"]["verdict"] == "accurate"
+    assert orbits["ipopt"].stats["period"] == pytest.approx(orbits["newton"].stats["period"],
+                                                            abs=1e-9)
+    assert orbits["ipopt"].stats["iterations"] <= 10
+    assert orbits["newton"].stats["iterations"] <= 10
+    assert "ipopt: Solve_Succeeded" in orbits["ipopt"].message
+
+
+def rotation_period(energy: float) -> float:
+    """``T = int_0^{2 pi} dq / p(q)``, ``p = sqrt(2 (E - 1 + cos q))``; with ``q = 2 phi``,
+    ``E - 1 + cos q = E (1 - (2 / E) sin^2 phi)``: ``T = 4 K(m) / sqrt(2 E)``, ``m = 2 / E``
+    (scipy's parameter, ``m = k^2``), i.e. ``2 K(1/k) / k`` in the modulus ``k^2 = E / 2`` of the
+    librations."""
+    return 4 * ellipk(2 / energy) / np.sqrt(2 * energy)
+
+
+@pytest.fixture(scope="module")
+def rotations():
+    system = load_scene("pendulum").system
+    return {N: solve_periodic(system, energy=2.5, nodes=N, section="q1=0", angles=("q1",))
+            for N in (100, 200, 400)}
+
+
+def test_rotation_period_formula_agrees_with_a_quadrature():
+    for energy in (2.1, 2.5, 4.0, 10.0):
+        turn, _ = quad(lambda q, e: 1 / np.sqrt(2 * (e - 1 + np.cos(q))), 0, 2 * np.pi,
+                       args=(energy,), epsabs=1e-13, epsrel=1e-13)
+        assert rotation_period(energy) == pytest.approx(turn, rel=1e-11)
+
+
+def test_rotation_period_converges_at_order_two(rotations):
+    exact = rotation_period(2.5)
+    sizes = sorted(rotations)
+    for N in sizes:
+        orbit = rotations[N]
+        assert orbit.success, orbit.message
+        assert orbit.stats["winding"] == [1]
+        assert midpoint_residuals(orbit, np.sin, pendulum_h, 2.5, turn=2 * np.pi) < 1e-10
+        assert np.all(orbit.p[:, 0] > 0)  # a rotation: q only increases
+        assert sum(a["iterations"] for a in orbit.stats["attempts"]) <= 200
+    errors = [rotations[N].stats["period"] - exact for N in sizes]
+    assert fitted_order(sizes, errors) == pytest.approx(2.0, abs=0.05)
+    assert abs(errors[-1]) < 2e-5
+
+
+def test_auto_tries_newton_first_and_reports_both(rotations):
+    """On the rotations Newton stalls (a spike of the steps at the level curve's inflections)
+    and IPOPT from the same start finds the orbit; the message names both."""
+    orbit = rotations[100]
+    attempts = orbit.stats["attempts"]
+    assert [a["solver"] for a in attempts] == ["newton", "ipopt"]
+    assert attempts[0]["status"] != "success" and attempts[1]["status"] == "success"
+    assert orbit.stats["solver"] == "ipopt" and "newton also tried" in orbit.message
+
+
+def test_rotation_without_an_angle_does_not_close():
+    """Without ``angles`` q never returns to the section: a failure status, not an orbit."""
+    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=50,
+                           section="q1=0", solver="newton")
+    assert not orbit.success and "did not return" in orbit.message
+
+
+@pytest.mark.parametrize("name, increasing", [("loop", False), ("across", True)])
+def test_henon_heiles_families_through_x0_leave_the_invariant_plane(name, increasing):
+    scene = load_scene("henon_heiles")
+    data = scene.periodic["families"][name]
+    family = solve_periodic_family(scene.system, [0.02, 0.06, 0.1], nodes=100, **data)
+    periods = []
+    for _, orbit in family:
+        assert orbit.success, orbit.message
+        assert orbit.stats["accuracy"]["verdict"] == "accurate"
+        assert orbit.stats["accuracy"]["global_error_estimate_max"] < 2e-3
+        assert abs(orbit.stats["unfolding"]) < 1e-12
+        assert np.ptp(orbit.q[:, 0]) > 0.2 and np.ptp(orbit.q[:, 1]) > 0.01  # both move
+        periods.append(orbit.stats["period"])
+    assert (np.diff(periods) > 0).all() if increasing else (np.diff(periods) < 0).all()
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"solver": "simplex"}, "unknown solver 'simplex' (choose from auto, newton, ipopt)"),
+    ({"angles": ("q2",)}, "angles must name coordinates q1..q1, got ('q2',)"),
+    ({"energy": 2.5, "angles": ("q1",)},
+     "a rotation of the angle q1 has a section on it, e.g. q1=0"),
+    ({"energy": 3.0, "section": "q1=0.5", "nodes": 2}, "nodes must be an integer >= 3, got 2"),
+    ({"energy": float("nan")}, "energy"),
+])
+def test_more_bad_input_is_refused(kwargs, message):
+    arguments = {"energy": 0.5, "nodes": 50, **kwargs}
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")
+                       .replace(".", r"\.")):
+        solve_periodic(load_scene("pendulum").system, **arguments)
+
+
+@pytest.mark.parametrize("scene, arguments, message", [
+    ("pendulum", ["--energy", "0.5", "--solver", "simplex"], "unknown solver 'simplex'"),
+    ("pendulum", ["--energy", "2.5"], "a rotation of the angle q1 has a section on it"),
+    ("paper_pendulum", ["--energy", "0.5"], "H depends on t"),
+    ("henon_heiles", ["--energy", "0.1", "--section", "q3=0"], "section names no coordinate"),
+    ("harmonic", ["--energy", "-1"], "energy -1.0 is outside the range"),
+])
+def test_cli_refuses_before_any_output(tmp_path, capsys, scene, arguments, message):
+    from ddvp_nlp.cli import main
+
+    out = tmp_path / "out"
+    assert main(["periodic", scene, *arguments, "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert message in error and "Traceback" not in error
+    assert not out.exists()
+
+
+def test_cli_rotation_on_ipopt(tmp_path, capsys):
+    from ddvp_nlp.cli import main
+
+    assert main(["periodic", "pendulum", "--energy", "2.5", "--section", "q1=0", "--nodes",
+                 "100", "--solver", "ipopt", "--out", str(tmp_path), "--no-plot"]) == 0
+    meta = json.loads((tmp_path / "meta.json").read_text())
+    assert meta["solver"] == "ipopt" and meta["winding"] == [1]
+    assert meta["period"] == pytest.approx(rotation_period(2.5), abs=1e-3)
+    data = np.load(tmp_path / "result.npz")
+    assert data["q"][-1, 0] == pytest.approx(data["q"][0, 0] + 2 * np.pi, abs=1e-12)
