@@ -100,3 +100,6 @@ def test_solve_bvp_takes_march_time_keywords_and_still_t_span():
         solve_bvp(system, [0.5], [0.1], (0.0, 1.0), t_end=1.0, nodes=21)
     with pytest.raises(InputError, match="needs t_end"):
         solve_bvp(system, [0.5], [0.1], nodes=21)
+    with pytest.warns(DeprecationWarning), \
+            pytest.raises(InputError, match=r"^t_span must be a pair \(t_0, t_end\), got 3\.0$"):
+        solve_bvp(system, [0.5], [0.1], t_span=3.0, nodes=21)
