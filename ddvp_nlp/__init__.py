@@ -5,7 +5,8 @@ symplectic and conserve energy. See docs/theory.md for the equations in this cod
 docs/guide.md for a user guide.
 
 The public interface is ``__all__``: solvers (``march``, ``solve_bvp``, ``march_higher``,
-``solve_bvp_higher``), their result (``Solution``, ``Status``), systems and schemes, and scenes.
+``solve_bvp_higher``), their result (``Solution``, ``Status``) and its figure (``plot``), systems
+and schemes, and scenes.
 Everything else is reached through its module and may change.
 """
 
@@ -21,6 +22,28 @@ from .solvers.higher import march_higher, solve_bvp_higher
 from .solvers.march import march
 
 
+def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):
+    """Draw ``solution`` as ``ddvp march`` draws a run: ``q``, ``p``, the step length where it
+    varies and the phase portrait, and with the ``system`` that was solved the relative energy
+    drift ``|H - H0| / max(1, |H0|)``.
+
+    Args:
+        solution: a result of ``march``, ``solve_bvp``, ``march_higher`` or ``solve_bvp_higher``.
+        path: where to write the PNG; ``None`` returns the image instead.
+        system: the solved system, for the energy panel (omitted without it).
+        params: its parameter values (default: those of the solve).
+        title: the figure's title (default: scheme, steps and status).
+
+    Returns:
+        ``path``, or the ``PIL.Image.Image`` when ``path`` is ``None``.
+    """
+    # The one import from the root into io/ (docs/architecture.md): a facade, imported here
+    # and not at the top so that `import ddvp_nlp` loads no figure code.
+    from .io.plotting import plot_solution
+
+    return plot_solution(solution, path, system=system, params=params, title=title)
+
+
 def _version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -34,5 +57,5 @@ __version__ = _version()
 
 __all__ = ["HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
            "Lagrangian", "LagrangianSystem", "Scene", "Scheme", "Solution", "Status",
-           "__version__", "list_scenes", "load_scene", "march", "march_higher", "solve_bvp",
-           "solve_bvp_higher"]
+           "__version__", "list_scenes", "load_scene", "march", "march_higher", "plot",
+           "solve_bvp", "solve_bvp_higher"]

@@ -63,6 +63,8 @@ class Scene:
         periodic: optional defaults of ``ddvp periodic`` (``solvers/periodic.py``):
             ``{"section": "p1=0", "energy": E, "nodes": N, "start": (q, p)}``, any subset;
             ``start`` is the direction along which the section's point at ``E`` is looked for.
+        scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
+            given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
     """
 
     hamiltonian: Callable[..., object]
@@ -81,8 +83,10 @@ class Scene:
     description: str = ""
     v0: object = None
     periodic: Mapping[str, object] | None = None
+    scheme: str | None = None
 
     def __post_init__(self):
+        _check_scheme_name(self.scheme)
         for key in ("q0", "tau0", "t_end"):
             if getattr(self, key) is None:
                 raise InputError(f"scene needs {key}")
@@ -273,6 +277,9 @@ class HigherOrderScene:
             fixed-endpoint problem takes ``order`` of its nodes at each end of ``t_span`` on the
             uniform grid of ``nodes`` nodes.
         tau0, t_end, t0: march defaults; ``boundary``: ``{"t_span": (t0, t1), "nodes": N}``.
+        scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
+            given (the energy rules have no positive step on some of these; ``fixed`` always
+            has one).
     """
 
     lagrangian: Callable[..., object]
@@ -287,6 +294,10 @@ class HigherOrderScene:
     name: str = "scene"
     source: str = ""
     description: str = ""
+    scheme: str | None = None
+
+    def __post_init__(self):
+        _check_scheme_name(self.scheme)
 
     @cached_property
     def system(self) -> HigherOrderSystem:
@@ -321,3 +332,10 @@ class HigherOrderScene:
 
 def _shown(params: dict) -> str:
     return ", ".join(f"{k} = {v:g}" for k, v in params.items()) or "the defaults"
+
+
+def _check_scheme_name(scheme) -> None:
+    """A scene's declared scheme is a name (which names exist is the command line's to check:
+    the scheme rules live in ``discrete/``, above this module)."""
+    if scheme is not None and (not isinstance(scheme, str) or not scheme.strip()):
+        raise InputError(f"scene scheme must be a scheme name such as 'fixed', got {scheme!r}")

@@ -11,5 +11,8 @@ def cubic(t):
     return (1 + 0.5 * t - 2 * t**2 + 1.5 * t**3)[:, None]
 
 
+# fixed by default: from the straight start IPOPT does not solve the vddvp problem
+# (Search_Direction_Becomes_Too_Small); fixed steps solve it to round-off.
 scene = HigherOrderScene(lagrangian, n=1, order=2, exact=cubic, tau0=0.05, t_end=2.0,
-                         boundary={"t_span": (0.0, 1.0), "nodes": 21})
+                         boundary={"t_span": (0.0, 1.0), "nodes": 21},
+                         scheme="fixed")

@@ -10,7 +10,8 @@ from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
 PUBLIC = {"HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError", "Lagrangian",
           "LagrangianSystem", "Scene", "Scheme", "Solution", "Status", "__version__",
-          "list_scenes", "load_scene", "march", "march_higher", "solve_bvp", "solve_bvp_higher"}
+          "list_scenes", "load_scene", "march", "march_higher", "plot", "solve_bvp",
+          "solve_bvp_higher"}
 
 
 def test_public_names_are_stable_and_importable():
@@ -100,3 +101,28 @@ def test_solve_bvp_takes_march_time_keywords_and_still_t_span():
         solve_bvp(system, [0.5], [0.1], (0.0, 1.0), t_end=1.0, nodes=21)
     with pytest.raises(InputError, match="needs t_end"):
         solve_bvp(system, [0.5], [0.1], nodes=21)
+    with pytest.warns(DeprecationWarning), \
+            pytest.raises(InputError, match=r"^t_span must be a pair \(t_0, t_end\), got 3\.0$"):
+        solve_bvp(system, [0.5], [0.1], t_span=3.0, nodes=21)
+
+
+def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
+    from PIL import Image
+
+    from ddvp_nlp import plot
+
+    scene = load_scene("pendulum")
+    marched = march(scene.system, [0.5], [0.5], tau0=0.05, t_end=5.0)
+    solved = solve_bvp(scene.system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=91)
+    assert marched.success and solved.success
+    for name, solution in (("march", marched), ("bvp", solved)):
+        path = tmp_path / f"{name}.png"
+        assert plot(solution, path, system=scene.system) == path
+        with Image.open(path) as image:
+            assert image.format == "PNG"
+            with_energy = image.size
+        # without the system there is no energy panel: one panel less
+        image = plot(solution)
+        assert image.size[0] == with_energy[0] and image.size[1] < with_energy[1]
+        colours = np.unique(np.asarray(image).reshape(-1, 3), axis=0)
+        assert len(colours) > 5  # lines and text, not a blank canvas

@@ -101,7 +101,8 @@ def test_the_jacobian_is_banded_and_both_factorisations_agree(name, rule):
 
 def test_banded_and_sparse_newton_agree_on_kepler():
     system, q_start, q_end, span, nodes, params = boundary("kepler")
-    solved = [solve_bvp(system, q_start, q_end, span, nodes=nodes, solver="newton",
+    solved = [solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
+                        solver="newton",
                         scheme="fixed", linear=linear) for linear in ("banded", "sparse")]
     assert all(s.success for s in solved)
     assert np.max(np.abs(solved[0].q - solved[1].q)) < 1e-12
@@ -111,7 +112,7 @@ def test_newton_iterations_stay_few_and_repeat_at_twenty_thousand_nodes():
     """Bounded iteration counts (never a wall-clock bound): the released solve from the
     predicted times takes at most 3 iterations, every phase at most 8, the same in two runs."""
     system = load_scene("pendulum").system
-    runs = [solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000, solver="newton")
+    runs = [solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=20_000, solver="newton")
             for _ in range(2)]
     assert all(r.success for r in runs), runs[0].message
     counts = [[ph["iterations"] for ph in r.stats["phases"]] for r in runs]
@@ -123,7 +124,7 @@ def test_a_harmonic_problem_solved_to_round_off_is_a_success():
     """Issue 16, item 6: every equation holds to round-off; Newton's tolerance must not sit
     below the scaled energy rows' round-off."""
     system = load_scene("harmonic").system
-    solution = solve_bvp(system, [1.0], [0.5], (0.0, 3.0), nodes=121, solver="newton")
+    solution = solve_bvp(system, [1.0], [0.5], t0=0.0, t_end=3.0, nodes=121, solver="newton")
     assert solution.success, solution.message
     assert solution.stats["canonical_residual_max"] < 1e-13
     assert "(newton: converged" in solution.message
@@ -133,7 +134,8 @@ def test_guess_march_finds_the_branch_the_straight_line_misses():
     """From q = 0.5 to q = -0.3 in 10 time units the straight-line start (a motion that never
     turns) does not reach a solution; shooting finds the one that swings (p changes sign)."""
     system = load_scene("pendulum").system
-    straight, shot = (solve_bvp(system, [0.5], [-0.3], (0.0, 10.0), nodes=201, solver="newton",
+    straight, shot = (solve_bvp(system, [0.5], [-0.3], t0=0.0, t_end=10.0, nodes=201,
+                                solver="newton",
                                 guess=guess) for guess in ("straight", "march"))
     assert not straight.success
     assert shot.success, shot.message
@@ -144,7 +146,7 @@ def test_guess_march_finds_the_branch_the_straight_line_misses():
 
 def test_a_time_limit_ends_with_its_status():
     system = load_scene("pendulum").system
-    solution = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181, solver="newton",
+    solution = solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=181, solver="newton",
                          time_limit=1e-9)
     assert solution.status is Status.TIME_LIMIT
     assert "time limit reached" in solution.message
@@ -152,7 +154,7 @@ def test_a_time_limit_ends_with_its_status():
 
 def test_progress_reports_each_iteration(capsys):
     system = load_scene("pendulum").system
-    solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181, solver="newton", progress=True)
+    solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=181, solver="newton", progress=True)
     assert "bvp [vddvp equations]: iteration 1, |F| = " in capsys.readouterr().err
 
 
@@ -160,12 +162,12 @@ def test_bad_guess_and_linear_solver_are_refused():
     system = load_scene("pendulum").system
     with pytest.raises(InputError, match=r"^unknown guess 'curved' \(choose from straight, "
                                          r"march, or give a Solution"):
-        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, guess="curved")
+        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, guess="curved")
     with pytest.raises(InputError, match=r"^unknown linear 'qr' \(choose from auto, banded, "
                                          r"sparse\)$"):
-        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, linear="qr")
+        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, linear="qr")
     with pytest.raises(InputError, match=r"^time_limit must be > 0, got -1.0$"):
-        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, time_limit=-1.0)
+        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, time_limit=-1.0)
 
 
 def test_cli_bvp_guess_options(tmp_path, capsys):

@@ -173,12 +173,21 @@ def test_bad_grid_files_name_the_key(tmp_path, text, message):
     assert message in str(error.value)
 
 
-def test_sweep_command_resumes(tmp_path, capsys):
+def test_sweep_command_resumes(tmp_path, capsys, monkeypatch):
+    from ddvp_nlp.io import stress_report
+
+    titles = []
+    drawn = stress_report.plot_stress
+    monkeypatch.setattr(stress_report, "plot_stress",
+                        lambda *a, **k: (titles.append(k["title"]), drawn(*a, **k)))
     out = tmp_path / "sweep"
     command = ["sweep", "harmonic", "--grid", "w=1,2", "--methods", "rk4,dop853", "--set",
                "t_end=3", "--workers", "1", "--no-compile", "--no-progress", "--out", str(out)]
     assert main(command) == 0
     assert capsys.readouterr().out.startswith("sweep: 4 runs")
+    # the sweep's figure and report speak of the sweep, not of the stress cases
+    assert titles == ["Sweep of harmonic over w"]
+    assert (out / "sweep.md").read_text().startswith("# Sweep of harmonic over w\n")
     first = (out / "sweep.csv").read_text()
     assert main(command) == 0
     assert (out / "sweep.csv").read_text().splitlines()[1:] == first.splitlines()[1:]

@@ -109,8 +109,7 @@ def test_scene_file_without_scene(tmp_path):
     ({"q_start": []}, "q_start must have shape (1,), got shape (0,): []"),
     ({"q_start": [[0.5]]}, "q_start must have shape (1,), got shape (1, 1): [[0.5]]"),
     ({"q_end": [np.inf]}, "q_end must be finite, got [inf]"),
-    ({"t_span": (0.0, np.nan)}, "t_span[1] must be finite, got nan"),
-    ({"t_span": 3.0}, "t_span must be a pair (t_0, t_end), got 3.0"),
+    ({"t_end": np.nan}, "t_span[1] must be finite, got nan"),
     ({"nodes": 2.5}, "nodes must be an integer >= 3, got 2.5"),
     ({"tol": float("nan")}, "tol must be finite, got nan"),
     ({"tol": -1e-9}, "tol must be > 0, got -1e-09"),
@@ -120,10 +119,10 @@ def test_scene_file_without_scene(tmp_path):
 def test_solve_bvp_rejects_bad_input(pendulum, kwargs, message):
     from ddvp_nlp.solvers.bvp import solve_bvp
 
-    options = {"q_start": [0.5], "q_end": [-0.036], "t_span": (0.0, 9.0), "nodes": 20, **kwargs}
+    options = {"q_start": [0.5], "q_end": [-0.036], "t0": 0.0, "t_end": 9.0, "nodes": 20,
+               **kwargs}
     with expect(message):
-        solve_bvp(pendulum, options.pop("q_start"), options.pop("q_end"),
-                  options.pop("t_span"), **options)
+        solve_bvp(pendulum, options.pop("q_start"), options.pop("q_end"), **options)
 
 
 def test_parameter_value_of_the_wrong_type_in_a_scene():

@@ -96,9 +96,11 @@ def test_fixed_endpoint_problem_matches_the_hamiltonian_one():
     hamiltonian, lagrangian = load_scene("pendulum"), load_scene("pendulum_lagrangian")
     for rule in ("vddvp", "fixed"):
         data = hamiltonian.resolve_boundary()
-        a = solve_bvp(hamiltonian.system, data.q_start, data.q_end, data.t_span,
+        a = solve_bvp(hamiltonian.system, data.q_start, data.q_end, t0=data.t_span[0],
+                      t_end=data.t_span[1],
                       nodes=data.nodes, scheme=rule)
-        b = solve_bvp(lagrangian.system, data.q_start, data.q_end, data.t_span,
+        b = solve_bvp(lagrangian.system, data.q_start, data.q_end, t0=data.t_span[0],
+                      t_end=data.t_span[1],
                       nodes=data.nodes, scheme=rule)
         assert a.success and b.success, b.message
         for x, y in ((a.t, b.t), (a.q, b.q), (a.p, b.p)):

@@ -170,13 +170,13 @@ def test_fuzz_library_calls():
         except InputError:
             refused += 1
     for _ in range(FUZZ_COUNT // 3):
-        kwargs = {"nodes": 11}
-        args = [[1.0], [0.5], (0.0, 1.0)]
-        slot = rng.randrange(4)
-        if slot < 3:
+        kwargs = {"nodes": 11, "t0": 0.0, "t_end": 1.0}
+        args = [[1.0], [0.5]]
+        slot = rng.randrange(5)
+        if slot < 2:
             args[slot] = rng.choice(bad)
         else:
-            kwargs["nodes"] = rng.choice(bad)
+            kwargs[("t0", "t_end", "nodes")[slot - 2]] = rng.choice(bad)
         try:
             solve_bvp(scene.system, *args, **kwargs)
         except InputError:

@@ -10,7 +10,7 @@ import warnings
 from ..errors import InputError
 from .grids import run_compare, run_reproduce, run_scenes, run_stress, run_sweep
 from .interrupts import INTERRUPTS, Stopped
-from .parser import build_parser
+from .parser import build_parser, parse_arguments
 from .solve import run_periodic, run_poincare, run_solve
 from .summary import format_warning
 
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     from ..errors import OutputError
 
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_arguments(parser, argv)
     if args.command not in COMMANDS:
         parser.error(f"unknown command {args.command!r}")
     original_format = warnings.formatwarning

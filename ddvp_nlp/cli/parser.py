@@ -36,9 +36,9 @@ def parse_settings(items: list[str]) -> dict:
 
 def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> None:
     parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
-    default = Scheme().rule
-    parser.add_argument("--scheme", default=default, choices=RULES + methods,
-                        help=f"energy rule: {', '.join(RULES)} (default: {default}, the paper's)"
+    parser.add_argument("--scheme", default=None, choices=RULES + methods,
+                        help=f"energy rule: {', '.join(RULES)} (default: the scene's, shown by "
+                        f"`ddvp scenes`, else {Scheme().rule}, the paper's)"
                         + (f"; or a compared method, its knob tau0 (dop853: rtol = atol = "
                            f"--tol): {', '.join(methods)}" if methods else ""))
     parser.add_argument("--alpha", type=float, default=0.5,
@@ -47,10 +47,15 @@ def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> N
                         help="time at which H is evaluated on an interval (default: midpoint)")
     parser.add_argument("--set", dest="settings", action="append", default=[],
                         metavar="NAME=VALUE",
-                        help="override a scene parameter or t0, tau0, t_end, q0, p0 (march), "
-                             "q_start, q_end, t0, t_end (bvp); vectors as comma lists; repeatable")
+                        help="override a scene parameter or a setting: march: t0, tau0, t_end "
+                             "and the initial state q0 with p0 (or v0, the first velocity, for "
+                             "a scene declared by its Lagrangian; a higher-order scene starts "
+                             "on its exact motion); bvp: q_start, q_end, t0, t_end; vectors "
+                             "as comma lists, e.g. q0=1,0; repeatable")
     parser.add_argument("--out", default=None,
-                        help="output folder (default: runs/SCENE-SCHEME or runs/SCENE-bvp-SCHEME)")
+                        help="output folder (default: runs/SCENE-SCHEME, runs/SCENE-bvp-SCHEME "
+                             "for bvp; with --set (bvp: or --nodes) a short hash of the resolved "
+                             "settings is appended, e.g. runs/kepler-vddvp-1a2b3c4d)")
     parser.add_argument("--tol", type=float, default=1e-10,
                         help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
 
@@ -85,13 +90,27 @@ def _version() -> str:
         return "unknown"
 
 
+def parse_arguments(parser: argparse.ArgumentParser, argv: list[str] | None):
+    """``parser.parse_args(argv)``, except that an unknown option of a command is refused with
+    that command's usage (argparse leaves leftovers to the top level, whose usage lists only
+    the commands). Exits 2 with the message, as argparse does."""
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        command = getattr(parser, "commands", {}).get(getattr(args, "command", None), parser)
+        command.error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
                                  "variational principle) on CasADi.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    commands = parser.add_subparsers(dest="command", required=True)
-    commands.add_parser("scenes", help="list the built-in scenes with their parameters")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                     help="one of the commands below; `ddvp COMMAND --help` "
+                                          "lists its options")
+    commands.add_parser("scenes", help="list the built-in scenes: parameters, initial state, "
+                                       "fixed-endpoint data and default scheme")
     _march_command(commands)
     _bvp_command(commands)
     _compare_command(commands)
@@ -100,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     _reproduce_command(commands)
     _periodic_command(commands)
     _poincare_command(commands)
+    parser.commands = dict(commands.choices)  # each command's parser, for its own usage
     return parser
 
 
@@ -153,7 +173,8 @@ def _march_command(commands) -> None:
 
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
     _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES))
-    march.add_argument("--max-steps", type=int, default=10_000_000)
+    march.add_argument("--max-steps", type=int, default=10_000_000,
+                       help="stop after this many steps (status max_steps; default: 10000000)")
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
     march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
     march.add_argument("--max-step-ratio", type=float, default=10.0,

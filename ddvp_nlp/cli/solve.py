@@ -16,15 +16,19 @@ from .summary import print_summary
 def run_solve(args) -> int:
     """``ddvp march`` and ``ddvp bvp`` on any scene: resolve, solve, write the run folder and
     print its summary."""
-    from ..io.runs import prepare_folder, write_run
+    from ..io.runs import default_folder, prepare_folder, write_run
 
     scene = load_scene(args.scene)
     higher = _higher(scene)
+    args.scheme = _scheme_name(args, scene)
     scheme = _scheme(args, higher)
-    config = _resolve(args, scene, higher)
+    overrides = parse_settings(args.settings)
+    config = _resolve(args, scene, higher, overrides)
+    if args.command == "bvp" and args.nodes is not None:
+        overrides["nodes"] = args.nodes
     infix = "-bvp" if args.command == "bvp" else ""
-    out = prepare_folder(args.out if args.out is not None
-                         else f"runs/{scene.name}{infix}-{args.scheme}")
+    out = prepare_folder(args.out if args.out is not None else default_folder(
+        f"{scene.name}{infix}-{args.scheme}", _resolved(config), overrides))
     args.checkpoint = _checkpoint_saver(args, scene, out)
     if args.command == "march" and not higher:
         INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
@@ -36,7 +40,8 @@ def run_solve(args) -> int:
                        f"{out}/") from None
     with INTERRUPTS.saving():  # a second Ctrl-C or a SIGTERM waits until the set is written
         meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
-                         solution=solution, extra=extra, plot=not args.no_plot)
+                         solution=solution, extra={**(extra or {}), "overrides": overrides},
+                         plot=not args.no_plot)
     print_summary(meta, out)
     if INTERRUPTS.pending:
         print(f"ddvp {args.command}: interrupted while saving; the run above was written whole "
@@ -64,6 +69,32 @@ def _higher(scene) -> bool:
     return isinstance(scene, HigherOrderScene)
 
 
+def _scheme_name(args, scene) -> str:
+    """``--scheme``, else the scheme the scene declares, else the paper's ``vddvp``; a scene's
+    declared name is checked here, where the names are known."""
+    if args.scheme is not None:
+        return args.scheme
+    declared = getattr(scene, "scheme", None)
+    if declared is None:
+        return Scheme().rule
+    known = RULES if args.command == "bvp" else RULES + _method_names()
+    if declared not in known:
+        raise InputError(f"scene {scene.name!r} declares scheme {declared!r}, which ddvp "
+                         f"{args.command} does not know (known: {', '.join(known)})")
+    return declared
+
+
+def _method_names() -> tuple:
+    from ..studies.methods import METHODS
+
+    return tuple(name for name in METHODS if name not in RULES)
+
+
+def _resolved(config) -> dict:
+    """The resolved settings of a run as plain values (what the folder's hash is taken of)."""
+    return config if isinstance(config, dict) else config.as_dict()
+
+
 def _scheme(args, higher: bool) -> Scheme:
     if higher and (args.alpha != 0.5 or args.clock != "midpoint"):
         raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
@@ -73,8 +104,7 @@ def _scheme(args, higher: bool) -> Scheme:
     return Scheme(rule=args.scheme, alpha=args.alpha, clock=args.clock)
 
 
-def _resolve(args, scene, higher: bool):
-    settings = parse_settings(args.settings)
+def _resolve(args, scene, higher: bool, settings: dict):
     if args.command == "bvp" and not higher:
         return scene.resolve_boundary(settings, nodes=args.nodes)
     return scene.resolve(settings)

@@ -1,7 +1,8 @@
 """Input and output: run folders, figures, Markdown reports and input files.
 
 - ``runs.py``: writing a run's ``result.npz``, ``meta.json`` and figure (every kind of scene).
-- ``plotting.py``: the trajectory figure of a run.
+- ``plotting.py``: the trajectory figure of a run or of any ``Solution`` (``ddvp_nlp.plot``).
+- ``raster.py``: the Pillow canvas that figure is drawn on (panels, ticks, lines, text).
 - ``periodic_runs.py``: ``ddvp periodic``'s run folder (orbit and step-length figure) and a
   family's ``family.csv`` and period-against-energy figure.
 - ``poincare_runs.py``: ``ddvp poincare``'s ``section.npz``, ``section.csv``, ``orbits.csv`` and
@@ -15,5 +16,7 @@
 - ``reproduce.py``: ``ddvp reproduce``'s figures and report, verdicts against stated thresholds.
 
 May import everything but ``cli``; nothing but ``cli`` imports from here, except
-``studies.grid``, which uses ``row_file`` (a leaf: it imports nothing of the package).
+``studies.grid``, which uses ``row_file`` (a leaf: it imports nothing of the package), and the
+package root's ``plot``, which imports ``plotting`` inside the function (a facade;
+docs/architecture.md).
 """

@@ -1,29 +1,30 @@
-"""The trajectory plot of a run: only the panels that apply to it."""
+"""The trajectory figure of a run, and of any :class:`~ddvp_nlp.solution.Solution`: only the
+panels that apply to it, drawn on a raster canvas (``raster.py``; why not matplotlib is said
+there)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-# Figure without pyplot: no backend switching and no global figure registry to keep.
 import numpy as np
-from matplotlib.figure import Figure
 
 from ..discrete import equations
+from . import raster
 
 # Long runs get a second column that zooms on the start, where single swings can be seen
 # (the paper's figures 2-3 are such zooms of figure 1).
 ZOOM_FROM_NODES = 2000
 ZOOM_FRACTION = 0.035
-# Lines against t are drawn from their min/max envelope per pixel column (COLUMNS columns per
-# axis, about the axis' width at DPI): what a full line would light up, at a few thousand points
-# whatever the length. Drawing all 20000 nodes of paper_pendulum in five panels took 1.4 s, more
-# than the march, and the q and p panels were solid blocks.
+# Lines against t are drawn from their min/max envelope per pixel column: what a full line would
+# light up, at a few thousand points whatever the length. Drawing all 20000 nodes of
+# paper_pendulum in five panels took 1.4 s, more than the march, and the q and p panels were
+# solid blocks. COLUMNS: the default number of columns of ``envelope``.
 COLUMNS = 600
-DPI = 100
-# The phase portrait is a histogram of the nodes on this many cells a side.
-PHASE_BINS = 160
 # Exact zeros on the log-scale energy axis are drawn at this floor, labelled 0.
 ZERO_FLOOR = 1e-17
+# Figure geometry in pixels: a time column, the zoom column, the phase portrait; panel height.
+TIME_WIDTH, PHASE_WIDTH, PANEL_HEIGHT = 470, 330, 150
+LEFT, GAP, TOP, BOTTOM, ROW_GAP = 78, 78, 34, 44, 10
 
 
 def envelope(t: np.ndarray, values: np.ndarray, columns: int = COLUMNS):
@@ -49,47 +50,44 @@ def envelope(t: np.ndarray, values: np.ndarray, columns: int = COLUMNS):
 
 
 def plot_trajectory(solution, scene, scheme, path: Path, *, energies) -> None:
-    """``trajectory.png``: ``q``, ``p``, the step (energy rules) and the relative energy error
-    against ``t`` (a zoom on the start beside them for long runs) and the phase portrait.
-    ``energies``: the run's node and interval energies (``runs.run_energies``)."""
-    t, q, p = solution.t, solution.q, solution.p
-    panels = [("q", q), ("p", p)]
-    if scheme.variable_steps:
-        panels.append(("step length tau_k", (t[:-1], solution.tau)))
-    panels.append(_energy_panel(solution, scene.system, scheme, energies))
-    zoom = t.size >= ZOOM_FROM_NODES
-    columns = 3 if zoom else 2
-    fig = Figure(figsize=(4.4 * columns, 1.7 * len(panels) + 0.6), dpi=DPI)
-    grid = fig.add_gridspec(len(panels), columns, width_ratios=[1.5] * (columns - 1) + [1],
-                            left=0.07, right=0.98, bottom=0.08, top=0.93, wspace=0.28,
-                            hspace=0.12)
-    spans = [(t[0], t[-1])]
-    if zoom:
-        spans.append((t[0], t[0] + ZOOM_FRACTION * (t[-1] - t[0])))
-    for column, (start, stop) in enumerate(spans):
-        axes = None
-        for row, (label, data) in enumerate(panels):
-            axes = fig.add_subplot(grid[row, column], sharex=axes)
-            _draw_panel(axes, t, label, data, start, stop)
-            axes.set_ylabel(label if column == 0 else "", fontsize=8)
-            axes.tick_params(labelsize=7, labelbottom=row == len(panels) - 1)
-            _few_ticks(axes, y=not isinstance(data, list))
-        axes.set_xlabel("t", fontsize=8)
-    _phase_portrait(fig.add_subplot(grid[:, -1]), q, p)
-    fig.suptitle(f"{scene.name}: {scheme.rule}, {solution.steps} steps, {solution.status.code}"
-                 + (f"   (middle: the first {ZOOM_FRACTION:.1%} of the time span)"
-                    if zoom else ""), fontsize=9)
-    fig.savefig(path, dpi=DPI)
+    """``trajectory.png`` of a run: ``q``, ``p``, the step (energy rules) and the relative
+    energy error against ``t`` (a zoom on the start beside them for long runs) and the phase
+    portrait. ``energies``: the run's node and interval energies (``runs.run_energies``)."""
+    energy = _energy_panel(solution, scene.system, scheme, energies)
+    title = f"{scene.name}: {scheme.rule}, {solution.steps} steps, {solution.status.code}"
+    _figure(solution, _panels(solution, scheme.variable_steps, energy), title).save(path)
 
 
-def _few_ticks(axes, *, y: bool = True):
-    """Four ticks an axis: matplotlib builds each tick as several artists, and the ticks were
-    most of the drawing time once the lines were decimated."""
-    from matplotlib.ticker import MaxNLocator
+def plot_solution(solution, path=None, *, system=None, params=None, title: str | None = None):
+    """The figure of ``ddvp march`` for any :class:`~ddvp_nlp.solution.Solution` (a march, a
+    fixed-endpoint solve, a higher-order run): ``q``, ``p``, the step length where it varies,
+    the phase portrait, and, given the ``system`` that was solved (``params``: its values,
+    default those of the solve), the relative energy drift ``|H - H0| / max(1, |H0|)`` at the
+    nodes (for a time-dependent ``H``, the residual of the scheme's energy equation relative
+    to ``max(1, |H0|)``).
 
-    axes.xaxis.set_major_locator(MaxNLocator(4))
-    if y:
-        axes.yaxis.set_major_locator(MaxNLocator(3))
+    Returns:
+        ``path`` after writing the PNG there, or the ``PIL.Image.Image`` when ``path`` is
+        ``None`` (Jupyter shows it).
+    """
+    tau = solution.tau
+    varies = tau.size > 1 and float(np.ptp(tau)) > 1e-9 * float(np.max(np.abs(tau)))
+    energy = None
+    if system is not None and solution.t.size >= 2:
+        nodes = solution.energy(system, params)
+        scale = max(1.0, abs(float(nodes[0])))
+        if system.time_dependent:
+            energy = ("|energy residual| / max(1,|H0|)",
+                      [("", solution.t[1:-1], np.abs(solution.energy_residual) / scale)])
+        else:
+            energy = ("|H - H0| / max(1,|H0|)",
+                      [("node energy H(q_k, p_k)", solution.t, np.abs(nodes - nodes[0]) / scale)])
+    canvas = _figure(solution, _panels(solution, varies, energy), title or
+                     f"{solution.scheme}: {solution.steps} steps, {solution.status.code}")
+    if path is None:
+        return canvas.image
+    canvas.save(path)
+    return path
 
 
 def _energy_panel(solution, system, scheme, energies):
@@ -108,66 +106,105 @@ def _energy_panel(solution, system, scheme, energies):
              ("node energy H(q_k, p_k)", t, np.abs(nodes - nodes[0]) / scale)])
 
 
-def _draw_panel(axes, t, label, data, start, stop):
-    if isinstance(data, list):  # energy curves: (label, t, values), log scale with zeros
-        for name, times, values in data:
-            selected = (times >= start) & (times <= stop)
-            shown_t, shown = envelope(times[selected], values[selected])
-            axes.plot(shown_t, np.maximum(shown, ZERO_FLOOR), lw=0.8, label=name or None)
-        _log_axis_with_zero(axes)
-        if len(data) > 1:
-            axes.legend(fontsize=6, loc="upper left")
-        return
-    times, values = (t, data) if not isinstance(data, tuple) else data
-    selected = (times >= start) & (times <= stop)
-    shown_t, shown = envelope(times[selected], values[selected])
-    shown = shown.reshape(shown_t.size, -1)
-    for i in range(shown.shape[1]):
-        axes.plot(shown_t, shown[:, i], lw=0.8,
-                  label=f"{label}{i + 1}" if shown.shape[1] > 1 else None)
-    if 1 < shown.shape[1] <= 6:
-        axes.legend(fontsize=6, ncol=shown.shape[1], loc="upper right")
+def _panels(solution, steps: bool, energy) -> list:
+    """``(label, curves, log)`` per row, ``curves`` a list of ``(name, t, values)``."""
+    t = solution.t
+    rows = [(name, [(f"{name}{i + 1}" if values.shape[1] > 1 else "", t, values[:, i])
+                    for i in range(values.shape[1])], False)
+            for name, values in (("q", solution.q), ("p", solution.p))]
+    if steps:
+        rows.append(("step length tau_k", [("", t[:-1], solution.tau)], False))
+    if energy is not None:
+        rows.append((energy[0], energy[1], True))
+    return rows
 
 
-def _log_axis_with_zero(axes):
-    """A log axis whose bottom decade, ``ZERO_FLOOR``, stands for exact zeros (labelled 0).
-    At most six labelled decades, plain text labels: mathtext labels and minor ticks over 17
-    decades took 0.6 s to draw."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
+def _figure(solution, rows, title: str) -> raster.Canvas:
+    """The canvas: the rows against ``t`` over the whole run (and over its start, for long
+    runs), and the phase portrait on the right."""
+    t = solution.t
+    zoom = t.size >= ZOOM_FROM_NODES
+    spans = [(t[0], t[-1])] + ([(t[0], t[0] + ZOOM_FRACTION * (t[-1] - t[0]))] if zoom else [])
+    width = LEFT + len(spans) * (TIME_WIDTH + GAP) + PHASE_WIDTH + 20
+    height = TOP + len(rows) * (PANEL_HEIGHT + ROW_GAP) + BOTTOM
+    canvas = raster.Canvas(width, height)
+    canvas.text(width / 2, 8, title + (f"   (middle: the first {ZOOM_FRACTION:.1%} of the time "
+                                       "span)" if zoom else ""), "mt")
+    for column, span in enumerate(spans):
+        left = LEFT + column * (TIME_WIDTH + GAP)
+        for row, (label, curves, log) in enumerate(rows):
+            top = TOP + row * (PANEL_HEIGHT + ROW_GAP)
+            box = (left, top, left + TIME_WIDTH, top + PANEL_HEIGHT)
+            _time_panel(canvas, box, span, curves, log, last=row == len(rows) - 1)
+            if column == 0:
+                canvas.vertical_text(18, top + PANEL_HEIGHT / 2, label)
+        canvas.text(left + TIME_WIDTH / 2, height - 14, "t", "mm")
+    left = LEFT + len(spans) * (TIME_WIDTH + GAP)
+    _phase_portrait(canvas, (left, TOP + 18, left + PHASE_WIDTH, height - BOTTOM),
+                    solution.q, solution.p)
+    return canvas
 
-    axes.set_yscale("log")
-    _, top = axes.get_ylim()
-    axes.set_ylim(ZERO_FLOOR / 3, max(top, ZERO_FLOOR * 10))
-    axes.yaxis.set_major_locator(LogLocator(numticks=4))
-    axes.yaxis.set_minor_locator(NullLocator())
-    axes.yaxis.set_major_formatter(FuncFormatter(
-        lambda value, _: "0" if value <= ZERO_FLOOR * 1.01 else f"{value:.0e}"))
+
+def _time_panel(canvas, box, span, curves, log: bool, *, last: bool) -> None:
+    """One panel against ``t`` over ``span``: each curve's envelope per pixel column."""
+    start, stop = span
+    shown = []
+    for name, times, values in curves:
+        selected = (times >= start) & (times <= stop)
+        x, y = envelope(times[selected], values[selected], columns=box[2] - box[0])
+        shown.append((name, x, np.maximum(y, ZERO_FLOOR) if log else y))
+    finite = np.concatenate([y[np.isfinite(y)] for _, _, y in shown] + [np.zeros(0)])
+    names = [name for name, _, _ in shown]
+    legend = 1 < len(names) <= 6 and all(names)
+    if log:  # room above the data for the legend: three decades
+        top = max(float(finite.max()) if finite.size else 1.0, ZERO_FLOOR * 10)
+        top *= 1e3 if legend else 3
+        panel = raster.Panel(canvas, box, span, (ZERO_FLOOR / 3, top), log=True)
+        ticks, labels = _log_ticks(top)
+        panel.frame(x_labels=last, y_ticks=ticks, y_labels=labels)
+    else:  # room above the data for the legend: a third of the range
+        low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        panel = raster.Panel(canvas, box, span,
+                             (low, high + 0.3 * (high - low) if legend else high))
+        panel.frame(x_labels=last)
+    colors = [raster.COLORS[i % len(raster.COLORS)] for i in range(len(shown))]
+    for (_, x, y), color in zip(shown, colors, strict=True):
+        panel.line(x, y, color)
+    if legend:
+        panel.legend(names, colors)
 
 
-def _phase_portrait(axes, q, p):
-    """Where the orbit went in the ``(q_1, p_1)`` plane, as pixels: each of
-    ``PHASE_BINS`` x ``PHASE_BINS`` cells the nodes visit is shaded by how many do (log scale).
-    A line through 20000 nodes that retrace one orbit a thousand times took a second to draw;
-    the visited cells show the same curve (and a chaotic orbit's spread) at a fixed cost."""
-    from matplotlib.colors import LogNorm
+def _log_ticks(top: float):
+    """At most six decades from ``ZERO_FLOOR`` (labelled 0) to ``top``, evenly spaced."""
+    low, high = round(np.log10(ZERO_FLOOR)), int(np.floor(np.log10(top)))
+    every = max(1, int(np.ceil((high - low) / 5)))
+    decades = list(range(low, high + 1, every))
+    ticks = 10.0 ** np.array(decades, dtype=float)
+    return ticks, ["0" if d == low else f"1e{d}" for d in decades]
 
-    counts, q_edges, p_edges = np.histogram2d(q[:, 0], p[:, 0], bins=PHASE_BINS)
-    counts = np.where(counts > 0, counts, np.nan)
-    axes.imshow(counts.T, origin="lower", aspect="auto", cmap="viridis_r",
-                norm=LogNorm(vmin=1, vmax=max(2.0, np.nanmax(counts))), interpolation="nearest",
-                extent=(q_edges[0], q_edges[-1], p_edges[0], p_edges[-1]))
-    axes.plot(q[0, 0], p[0, 0], "r.", ms=6)
-    components = f" (q1, p1 of {q.shape[1]})" if q.shape[1] > 1 else ""
-    axes.set_xlabel("q1" if components else "q", fontsize=8)
-    axes.set_ylabel("p1" if components else "p", fontsize=8)
-    axes.set_title(f"phase portrait{components}: nodes per cell; red: start", fontsize=8)
-    axes.tick_params(labelsize=7)
-    _few_ticks(axes)
+
+def _phase_portrait(canvas, box, q, p) -> None:
+    """The orbit in the ``(q_1, p_1)`` plane: the polyline through the nodes (on a raster
+    canvas 20000 nodes cost milliseconds; through matplotlib they took a second) and the start
+    in red."""
+    panel = raster.Panel(canvas, box, (float(q[:, 0].min()), float(q[:, 0].max())),
+                         (float(p[:, 0].min()), float(p[:, 0].max())))
+    panel.frame(grid=True)
+    panel.line(q[:, 0], p[:, 0], raster.COLORS[0])
+    panel.dot(q[0, 0], p[0, 0], raster.COLORS[3])
+    several = q.shape[1] > 1
+    canvas.text((box[0] + box[2]) / 2, box[1] - 4,
+                f"phase portrait{f' (q1, p1 of {q.shape[1]})' if several else ''}; "
+                "red: start", "mb", small=True)
+    canvas.text((box[0] + box[2]) / 2, box[3] + 22, "q1" if several else "q", "mt")
+    canvas.vertical_text(box[0] - 58, (box[1] + box[3]) / 2, "p1" if several else "p")
 
 
 def plot_higher_trajectory(solution, scene, command, exact, energy, path: Path) -> None:
     """A higher-order run: nodes against the exact solution, the steps, and the energy
     ``E^(k)`` where the recursion defines it."""
+    from matplotlib.figure import Figure  # no pyplot: no backend, no global figure registry
+
     panels = 3 if energy.size else 2
     fig = Figure(figsize=(8, 2.6 * panels))
     axes = fig.subplots(panels, 1, sharex=True)

@@ -39,6 +39,25 @@ def prepare_folder(out: str | os.PathLike) -> Path:
     return path
 
 
+def settings_hash(settings: dict) -> str:
+    """Eight hex digits of the SHA-256 of ``settings`` written as sorted JSON: equal settings
+    give equal hashes, in any process."""
+    import hashlib
+
+    text = json.dumps(settings, sort_keys=True, default=_json_default)
+    return hashlib.sha256(text.encode()).hexdigest()[:8]
+
+
+def default_folder(label: str, resolved: dict, overrides: dict) -> str:
+    """A run's default folder: ``runs/LABEL`` (``LABEL`` = ``SCENE-SCHEME``, or
+    ``SCENE-bvp-SCHEME``) for the scene's own settings, ``runs/LABEL-HASH`` when ``overrides``
+    changed any, ``HASH`` from the ``resolved`` settings, so that two runs with different
+    settings never share a folder and the same settings always find theirs."""
+    if not overrides:
+        return f"runs/{label}"
+    return f"runs/{label}-{settings_hash(resolved)}"
+
+
 def run_energies(system, scheme: Scheme, solution: Solution, theta):
     """For autonomous ``H``: ``H(z_k)`` at every node and the interval energies; for a
     time-dependent one only ``H(z_0, t_0)`` (what its reports use). Computed once per run, for

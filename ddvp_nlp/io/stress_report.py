@@ -51,7 +51,7 @@ def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None 
                        workers=workers, scheduler=scheduler)
     out = prepare_folder(out)  # only once the input is known to be good
     result = run_stress(plan, out / f"{name}.csv", resume=resume, progress=progress)
-    plot_stress(result, out / f"{name}.png")
+    plot_stress(result, out / f"{name}.png", title=title)
     (out / f"{name}.md").write_text(report(result, title=title))
     return result.rows
 
@@ -185,13 +185,13 @@ def _grid_cells(result: StressResult):
             else:
                 texts[i][j] = SHORT.get(r["status"], r["status"])
             if r is not None and str(r.get("accuracy", "")).startswith("inaccurate"):
-                texts[i][j] += " (!)"  # the accuracy check refuses it (stress.md says where)
+                texts[i][j] += " (!)"  # the accuracy check refuses it (the report says where)
     return values, texts
 
 
-def plot_stress(result: StressResult, path):
+def plot_stress(result: StressResult, path, *, title: str = DEFAULT_TITLE):
     """The grid as a picture: cases by methods, coloured by energy error; failed red, not run
-    grey."""
+    grey; titled by ``title`` (the stress cases' or the sweep's)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -209,7 +209,8 @@ def plot_stress(result: StressResult, path):
     ax.set_xticks(range(len(methods)), methods, rotation=20)
     ax.set_yticks(range(len(cases)), [f"{c.group}: {c.name}" for c in cases], fontsize=8)
     fig.colorbar(image, ax=ax, label="log10 relative energy error (red: failed; grey: not run)")
-    ax.set_title("stress grid: status and energy error; (!) the accuracy check refuses the run")
+    ax.set_title(f"{title}: status and energy error;\n(!) the accuracy check refuses the run",
+                 fontsize=10)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -83,7 +83,8 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
 
     Args:
         system: the Hamiltonian or Lagrangian system.
-        q0, p0: initial state, each of shape ``(n,)``.
+        q0: initial position, shape ``(n,)``.
+        p0: initial momentum, shape ``(n,)`` (or give ``v0``).
         v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
             march takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform.
         tau0: first step; for energy rules it sets the discrete energy level, for ``fixed`` the
@@ -95,7 +96,8 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
         tol: acceptance tolerance of each step's unscaled residuals, relative to ``max(1, |z|)``
             (canonical) and ``max(1, |H|)`` (energy).
         max_steps: bound on the number of steps.
-        tau_min, tau_max: optional bounds on every step length.
+        tau_min: optional lower bound on every step length.
+        tau_max: optional upper bound on every step length.
         max_step_ratio: bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)`` (``None``: none).
             The default 10 stops a march whose energy equation jumped to a far root: on
             ``kepler`` with ``e = 0.99`` and ``tau0 = 0.01``, without it, the fourth step was 235
@@ -117,13 +119,15 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
             energy residual subject to the canonical equations (a bounded scalar search). Each
             such step is listed in ``stats["least_squares"]`` with its energy defect, and the
             march goes on.
-        rtol, atol, energy_tol, global_tol: the accuracy check (``accuracy.py``), which does not
-            trust the scheme's own equations: every step against one RK4 step of the exact flow
-            (``delta_k <= atol + rtol |z|``), the first step's energy level and (autonomous
-            ``H``) the nodal energy drift against ``H(z_0, t_0)`` (``energy_tol``, relative to
-            ``max(1, |H0|)``), and optionally the propagated global error estimate. The first
-            failure ends the march with status ``inaccurate``; ``stats["accuracy"]`` and
-            ``Solution.local_error`` hold the estimates.
+        rtol: the accuracy check (``accuracy.py``), which does not trust the scheme's own
+            equations: every step against one RK4 step of the exact flow, ``delta_k <= atol +
+            rtol |z|``. The first failure of any of its tests ends the march with status
+            ``inaccurate``; ``stats["accuracy"]`` and ``Solution.local_error`` hold the
+            estimates.
+        atol: see ``rtol``.
+        energy_tol: bound on the first step's energy level and (autonomous ``H``) the nodal
+            energy drift against ``H(z_0, t_0)``, relative to ``max(1, |H0|)``.
+        global_tol: optional bound on the propagated global error estimate.
         accept_inaccurate: record the first failure of the accuracy check and go on.
         check_accuracy: ``False`` leaves the check out (the comparison does, so that run times
             compare like with like, and makes it afterwards with ``accuracy.assess``).
