@@ -53,7 +53,9 @@ class Scene:
         t0: default start time.
         params: parameter names and defaults.
         exact: optional exact solution ``exact(t, q0, p0, t0, **params) -> (q, p)`` with ``t`` of
-            shape ``(N,)`` and ``q``, ``p`` of shape ``(N, n)``.
+            shape ``(N,)`` and ``q``, ``p`` of shape ``(N, n)``; it raises ``ValueError`` for a
+            start it does not cover (an unbound Kepler orbit, a rotating pendulum), and the
+            studies then use a DOP853 reference, the run files no exact error.
         invariants: optional named first integrals besides ``H``, ``f(q, p, **params) -> (N,)``.
         boundary: optional default fixed-endpoint data
             ``{"q_start": ..., "q_end": ..., "t_span": (t0, t1), "nodes": N}``.

@@ -5,7 +5,8 @@ Default horizons (``docs/work_precision/SCENE/``): each scene runs every method 
 omega = 50; from seconds (harmonic) to about three minutes (paper_pendulum, to t = 10000).
 
 Long horizons (``--horizons``, ``docs/work_precision/horizons/CASE/``): Kepler at e = 0.6 and
-0.9, the pendulum, Henon-Heiles and FPU at 10, 10^3 and 10^5 periods (FPU: time units), each
+0.9, the pendulum, Henon-Heiles and FPU at 10, 10^3 and 10^5 periods (FPU: of its stiff
+springs), each
 a ``ddvp compare --horizons`` run with its error-growth figure, then
 ``docs/work_precision/horizons/README.md``, the summary in words computed from the rows
 (``--summary-only`` rewrites it from the runs already on disk). Tens of minutes per case.
@@ -55,7 +56,9 @@ HORIZON_CASES = {
     "kepler_e0.9": ("kepler", {"e": 0.9}, TWO_PI, "periods"),
     "pendulum": ("pendulum", {}, None, "periods"),
     "henon_heiles": ("henon_heiles", {}, TWO_PI, "linear periods (2 pi)"),
-    "fpu": ("fpu", {"omega": 50.0}, 1.0, "time units"),
+    # FPU's periods: those of its stiff springs, 2 pi / omega (the slow exchange of their
+    # energies takes about omega of them)
+    "fpu": ("fpu", {"omega": 50.0}, TWO_PI / 50.0, "stiff periods (2 pi / omega)"),
 }
 
 
