@@ -165,9 +165,6 @@ class FastChunk:
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
 
-    With ``orbits`` > 1 one call runs the chunk from each of ``orbits`` states (an ensemble,
-    ``ensemble.py``): :meth:`steps` takes one state per row and returns each orbit's steps.
-
     With ``accuracy`` each step also runs the accuracy check's estimates
     (``accuracy.local_error_function``: one RK4 step of the exact flow from the step's first
     node over ``t_next - t_a``, and the forward-mode propagation of the global error ``error``,
@@ -176,7 +173,7 @@ class FastChunk:
     """
 
     def __init__(self, system, scheme, functions: StepFunctions, *, chunk: int, compiler,
-                 cache_dir, accuracy: bool = False, orbits: int = 1):
+                 cache_dir, accuracy: bool = False):
         started = time.perf_counter()
         n2 = 2 * system.n
         theta = ca.SX.sym("theta", system.theta.numel())
@@ -189,10 +186,7 @@ class FastChunk:
             self.state, self.constants, self.output = fixed_layouts(n2, accuracy)
             step = self._fixed_step(functions, theta)
         self.chunk = chunk
-        self.orbits = orbits
         function = step.mapaccum("chunk", chunk)
-        if orbits > 1:  # an ensemble: the same chunk from each orbit's state, in one call
-            function = function.map(orbits)
         self.path = "vm"
         self.compile_s = 0.0
         self.compile = None
@@ -257,9 +251,9 @@ class FastChunk:
 
     def _call(self, state: np.ndarray, parameters: np.ndarray):
         """One call through a :class:`~ddvp_nlp.solvers.compiler.FunctionBuffer` (numpy arrays
-        in place of DM). Returns ``(states, outputs)``, one row per step (orbit after orbit),
-        overwritten by the next call."""
-        tiled = np.broadcast_to(parameters, (self.chunk * self.orbits, parameters.size))
+        in place of DM). Returns ``(states, outputs)``, one row per step, overwritten by the
+        next call."""
+        tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
         return self._buffer(state, tiled)
 
     def _decode(self, outputs: np.ndarray, states: np.ndarray) -> ChunkSteps:
@@ -293,24 +287,23 @@ class FastChunk:
         return np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
                                                           total=total)])
 
-    def steps(self, states: np.ndarray, parameters: np.ndarray) -> list[ChunkSteps]:
-        """``chunk`` steps from each of the ``orbits`` rows of ``states``, one call."""
-        after, outputs = self._call(states, parameters)
-        c = self.chunk
-        return [self._decode(outputs[i * c:(i + 1) * c], after[i * c:(i + 1) * c])
-                for i in range(self.orbits)]
+    def steps(self, state: np.ndarray, parameters: np.ndarray) -> ChunkSteps:
+        """``chunk`` steps from ``state`` (:meth:`energy_state`, :meth:`fixed_state`), one
+        call."""
+        after, outputs = self._call(state, parameters)
+        return self._decode(outputs, after)
 
     def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, *,
                      error=None) -> ChunkSteps:
         """``chunk`` energy steps of one orbit (:meth:`energy_state`)."""
         return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift, error=error),
-                          theta)[0]
+                          theta)
 
     def fixed_steps(self, k: int, z, theta, *, t0, tau, t_end, total, error=None) -> ChunkSteps:
         """``chunk`` fixed-length steps of one orbit from node ``k`` (state ``z``) of a uniform
         grid of ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
         parameters = self.fixed_parameters(theta, t0=t0, tau=tau, t_end=t_end, total=total)
-        return self.steps(self.fixed_state(k, z, error=error), parameters)[0]
+        return self.steps(self.fixed_state(k, z, error=error), parameters)
 
 
 def _compiled_or_vm(function, compiler, folder):

@@ -25,7 +25,7 @@ import numpy as np
 from ..solution import Status
 from .acceptance import Acceptance
 from .accuracy import ACCURACY_VALUES
-from .chunk import ChunkSteps, FastChunk
+from .chunk import FastChunk
 from .driver import Advance, Nodes, describe_phase_space
 from .least_squares import least_squares_step
 from .steps import NewtonSteps, StepResult
@@ -145,14 +145,11 @@ class CompiledStepper:
                 self.chunk.fixed_parameters(self.theta, t0=clock.t0, tau=clock.tau,
                                             t_end=clock.t_end, total=clock.total))
 
-    def run(self, nodes: Nodes, budget: int, steps: ChunkSteps | None = None
-            ) -> tuple[Advance, bool]:
+    def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
         """The steps kept (up to the first that fails a check, the end or ``budget``) and
-        whether a step failed. ``steps``: the chunk's steps from these nodes if already
-        computed (an ensemble's call for all orbits), else one call now."""
+        whether a step failed."""
         k = nodes.count - 1
-        if steps is None:
-            steps = self.chunk.steps(*self.inputs(nodes))[0]
+        steps = self.chunk.steps(*self.inputs(nodes))
         if self.chunk.variable:
             good, ends = self._energy_checks(nodes, k, steps)
         else:
@@ -207,10 +204,9 @@ class MarchStepper:
         """Whether the next call runs a compiled chunk (else one careful step)."""
         return self.careful_left == 0 and (not self.careful.variable or nodes.count > 1)
 
-    def advance(self, nodes: Nodes, budget: int, steps: ChunkSteps | None = None) -> Advance:
-        """``steps``: the chunk's steps from these nodes if already computed (ensembles)."""
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
         if self.wants_chunk(nodes):
-            advance, failed = self.compiled.run(nodes, budget, steps)
+            advance, failed = self.compiled.run(nodes, budget)
             if failed:
                 self.careful_left = self.compiled.chunk.chunk - advance.count
             if advance.count:
