@@ -1,9 +1,11 @@
 """Poincare crossings located by the dense output, against DOP853's event location."""
 
 import numpy as np
+import pytest
 from scipy.integrate import solve_ivp
 
 from ddvp_nlp import load_scene, march
+from ddvp_nlp.errors import InputError
 from ddvp_nlp.physics.hamiltonian import vector_field_function
 from ddvp_nlp.studies.poincare import crossings, section_starts
 
@@ -33,3 +35,25 @@ def test_crossings_lie_on_the_section_and_converge_to_dop853_at_the_schemes_orde
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all((orders > 1.8) & (orders < 2.2)), orders  # the scheme's order, 2
     assert errors[-1] < 1e-3
+
+
+def test_a_section_on_a_dask_cluster_is_the_local_one():
+    import dask
+    from distributed import LocalCluster
+
+    from ddvp_nlp.studies.poincare import poincare_section
+
+    system = load_scene("henon_heiles").system
+    options = dict(orbits=3, tau0=0.05, t_end=30.0, seed=2)
+    local = poincare_section(system, 1 / 12, **options)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    with cluster:
+        remote = poincare_section(system, 1 / 12, scene="henon_heiles",
+                                  scheduler=cluster.scheduler_address, **options)
+        with pytest.raises(InputError, match="scene="):
+            poincare_section(system, 1 / 12, scheduler=cluster.scheduler_address, **options)
+    assert remote.statuses == local.statuses == ["reached t_end"] * 3
+    assert np.array_equal(remote.points, local.points) and np.array_equal(remote.orbit,
+                                                                          local.orbit)
