@@ -56,3 +56,39 @@ def test_a_baseline_through_buffers_is_its_chunk_called_with_dm(tmp_path, method
     rows = np.asarray(rows).T[:600]
     assert np.array_equal(rows[:-1, 0], solution.t[1:-1])  # the last node is put on t_end
     assert np.array_equal(rows[:, 1:5], np.hstack([solution.q, solution.p])[1:])
+
+
+def _same(a, b) -> bool:
+    return (np.array_equal(a.t, b.t) and np.array_equal(a.q, b.q) and np.array_equal(a.p, b.p)
+            and a.status is b.status and a.message == b.message and a.stats == b.stats
+            and np.array_equal(a.local_error, b.local_error)
+            and np.array_equal(a.solvability, b.solvability))
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+@pytest.mark.parametrize("case", ["careful windows", "accuracy stop", "max_steps", "fixed"])
+def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, monkeypatch, case):
+    """The compiled stepper checks up to MAX_CALLS chained chunks at once and hands them out
+    one by one; nodes, status, message and every statistic are those of one call per chunk,
+    also where chunk steps fail and the careful path takes windows in between."""
+    from ddvp_nlp.solvers import stepper
+
+    pendulum, henon = load_scene("pendulum").system, load_scene("henon_heiles").system
+    runs = {"careful windows": (pendulum, [0.0], [np.sqrt(5.0)],
+                                dict(tau0=0.05, t_end=10.0, breakdown="least_squares")),
+            "accuracy stop": (henon, [0.0, 0.1], [0.3, 0.0],
+                              dict(tau0=0.05, t_end=400.0, global_tol=1e-3)),
+            "max_steps": (henon, [0.0, 0.1], [0.3, 0.0],
+                          dict(tau0=0.05, t_end=1e6, max_steps=1500)),
+            "fixed": (henon, [0.0, 0.1], [0.3, 0.0],
+                      dict(tau0=0.05, t_end=45.0, scheme="fixed"))}
+    system, q0, p0, options = runs[case]
+    found = []
+    for calls in (1, stepper.MAX_CALLS):
+        monkeypatch.setattr(stepper, "MAX_CALLS", calls)
+        found.append(march(system, q0, p0, chunk=64, cache_dir=tmp_path, **options))
+    one, batched = found
+    assert one.stats["fast_steps"] > 3 * 64  # several chunks, so batches of several
+    if case == "careful windows":
+        assert one.stats["careful_steps"] > 64 and one.success
+    assert _same(one, batched)

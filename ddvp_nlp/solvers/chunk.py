@@ -256,8 +256,9 @@ class FastChunk:
         tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
         return self._buffer(state, tiled)
 
-    def _decode(self, outputs: np.ndarray, states: np.ndarray) -> ChunkSteps:
-        outputs = outputs.copy()  # the buffers are overwritten by the next call
+    def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
+        if copy:
+            outputs = outputs.copy()  # the buffers are overwritten by the next call
         # the estimates do not decide whether a step is good: a step's own outputs do
         checked = self.output.size - (len(ACCURACY_OUTPUTS) if self.accuracy else 0)
         finite = np.all(np.isfinite(outputs[:, :checked]), axis=1)
@@ -287,11 +288,22 @@ class FastChunk:
         return np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
                                                           total=total)])
 
-    def steps(self, state: np.ndarray, parameters: np.ndarray) -> ChunkSteps:
-        """``chunk`` steps from ``state`` (:meth:`energy_state`, :meth:`fixed_state`), one
-        call."""
-        after, outputs = self._call(state, parameters)
-        return self._decode(outputs, after)
+    def steps(self, state: np.ndarray, parameters: np.ndarray, calls: int = 1) -> ChunkSteps:
+        """``calls * chunk`` steps from ``state`` (:meth:`energy_state`, :meth:`fixed_state`):
+        ``calls`` calls, each from the state the previous one ended in, which is the state the
+        march builds from the nodes for its next call when it kept every step (the same
+        numbers: the node times, states, drift and error vector are outputs of the chunk)."""
+        if calls == 1:
+            after, outputs = self._call(state, parameters)
+            return self._decode(outputs, after)
+        c = self.chunk
+        outputs = np.empty((calls * c, self.output.size))
+        states = np.empty((calls * c, self.state.size))
+        for i in range(calls):
+            after, out = self._call(state, parameters)
+            outputs[i * c:(i + 1) * c], states[i * c:(i + 1) * c] = out, after
+            state = states[(i + 1) * c - 1]
+        return self._decode(outputs, states, copy=False)
 
     def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, *,
                      error=None) -> ChunkSteps:
