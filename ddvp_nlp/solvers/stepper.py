@@ -208,7 +208,7 @@ class CompiledStepper:
             left = min(left, self.clock.total - k)
         elif k > 0 and nodes.t[k] > nodes.t[0]:
             mean = (nodes.t[k] - nodes.t[0]) / k
-            left = min(left, math.ceil(1.25 * (self.clock.t_end - nodes.t[k]) / mean) + 1)
+            left = min(left, math.ceil((self.clock.t_end - nodes.t[k]) / mean) + 1)
         return max(1, min(self.calls, math.ceil(left / self.chunk.chunk)))
 
     def _energy_checks(self, nodes, k, steps):
