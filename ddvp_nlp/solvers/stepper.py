@@ -36,7 +36,7 @@ from .steps import NewtonSteps, StepResult
 BREAKDOWNS = ("stop", "least_squares")
 # Chunk calls per batch of the compiled stepper: 1, 2, 4, ... up to this while every step is
 # kept (one after a failed step), fewer near the end of the run. Eight chunks of 1024 steps cut
-# the decoding and checks per step about eightfold for an 8 MB batch.
+# the decoding and checks per step about eightfold; a batch holds a few MB (2 MB for n = 2).
 MAX_CALLS = 8
 LEAST_SQUARES_CASES = (Status.NO_ADMISSIBLE_STEP, Status.NEWTON_FAILED,
                        Status.RESIDUAL_TOO_LARGE, Status.STEP_BELOW_MIN, Status.STEP_ABOVE_MAX,
