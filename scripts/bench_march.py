@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import platform
+import resource
 import subprocess
 import tempfile
 import time
@@ -166,14 +167,23 @@ def c_march_library(folder):
     return lib
 
 
-def timed(repeats, run):
-    """Best CPU and best wall time of ``repeats`` runs after one warm-up, and the last result."""
-    run()
+def cpu_seconds():
+    """CPU seconds of this process and of its children that have ended (worker processes)."""
+    own, ended = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
+                                                      resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + ended.ru_utime + ended.ru_stime
+
+
+def timed(repeats, run, *, warm_up=True):
+    """Best CPU (this process and its ended children) and best wall time of ``repeats`` runs
+    after one warm-up, and the last result."""
+    if warm_up:
+        run()
     cpu, wall, result = [], [], None
     for _ in range(repeats):
-        c0, w0 = time.process_time(), time.perf_counter()
+        c0, w0 = cpu_seconds(), time.perf_counter()
         result = run()
-        cpu.append(time.process_time() - c0)
+        cpu.append(cpu_seconds() - c0)
         wall.append(time.perf_counter() - w0)
     return min(cpu), min(wall), result
 

@@ -1,8 +1,9 @@
 """Regenerate docs/poincare/README.md: Henon-Heiles sections at E = 1/12, 1/8 and 1/6.
 
 Each energy: 20 orbits from seeded starts on q1 = 0 (the section's momentum from H = E), marched
-together (``march_ensemble``, vddvp) to t = 1000, crossings with q1 increasing located on the
-cubic Hermite interpolant of their interval. A few minutes on two cores.
+as one ensemble (``march_ensemble``, vddvp, two worker processes) to t = 1000, crossings with q1
+increasing located on the cubic Hermite interpolant of their interval; each orbit's nodal energy
+error in a table of its own. A few minutes on two cores.
 
     python scripts/poincare_page.py [--out docs/poincare]
 """
@@ -34,6 +35,7 @@ def main() -> None:
              "error `|H(z_k) - E|` over all orbits.", "",
              "| E | crossings | failed orbits | largest nodal energy error | seconds |",
              "|---|---|---|---|---|"]
+    per_orbit = []
     for label, energy in ENERGIES.items():
         folder = out / f"E_{label.replace('/', '_')}"
         started = time.perf_counter()
@@ -46,10 +48,24 @@ def main() -> None:
         error = float(np.max(section["energy_errors"]))
         crossings = section["points"].shape[0]
         lines.append(f"| {label} | {crossings} | {failed} | {error:.2e} | {seconds:.0f} |")
+        per_orbit += orbit_table(label, section, orbits)
         print(f"E = {label}: exit {code}, {crossings} crossings, {failed} failed, {seconds:.0f} s")
     lines += [""] + [f"![E = {label}](E_{label.replace('/', '_')}/section.png)"
-                     for label in ENERGIES] + [""]
+                     for label in ENERGIES] + [""] + per_orbit
     (out / "README.md").write_text("\n".join(lines))
+
+
+def orbit_table(label, section, orbits) -> list[str]:
+    """Each orbit of one energy: its start, status, steps, crossings and nodal energy error."""
+    lines = [f"## E = {label}, orbit by orbit", "",
+             "| orbit | start (q2, p2) | status | steps | crossings | nodal energy error |",
+             "|---|---|---|---|---|---|"]
+    for row in orbits:
+        k, status, steps, error, _, q2, _, p2 = row.split(",")
+        crossings = int(np.sum(section["orbit"] == int(k)))
+        lines.append(f"| {k} | ({float(q2):.4f}, {float(p2):.4f}) | {status} | {steps} | "
+                     f"{crossings} | {error} |")
+    return lines + [""]
 
 
 if __name__ == "__main__":

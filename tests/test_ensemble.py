@@ -1,9 +1,11 @@
 """Ensembles: many orbits marched together, each as march() would, and Poincare sections."""
 
 import numpy as np
+import pytest
 
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.cli import main
+from ddvp_nlp.errors import InputError
 from ddvp_nlp.solution import Status
 from ddvp_nlp.solvers.ensemble import march_ensemble
 from ddvp_nlp.studies.poincare import poincare_section
@@ -22,6 +24,29 @@ def test_ensemble_is_each_march_alone_and_a_failing_orbit_does_not_stop_the_othe
         assert np.array_equal(alone.t, solution.t) and np.array_equal(alone.q, solution.q)
         assert np.array_equal(alone.local_error, solution.local_error)
     assert solutions[0].stats["fast_steps"] == solutions[0].steps - 1  # one call per chunk
+    # marched on two forked workers, which inherit the loaded chunk: no compile in a worker
+    assert [s.stats["worker_compiles"] for s in solutions] == [0, 0, 0]
+
+
+def test_workers_give_the_serial_ensemble_and_bad_input_stops_before_any_march():
+    scene = load_scene("henon_heiles")
+    rng = np.random.default_rng(3)
+    q0s = np.column_stack([np.zeros(5), rng.uniform(-0.2, 0.2, 5)])
+    p0s = rng.uniform(-0.2, 0.2, (5, 2))
+    serial = march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=40.0, workers=1)
+    split = march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=40.0, workers=2)
+    assert all(s.success for s in serial) and len(split) == 5
+    for a, b in zip(serial, split, strict=True):
+        assert a.status is b.status and a.t.size == b.t.size
+        for x, y in ((a.t, b.t), (a.q, b.q), (a.p, b.p), (a.local_error, b.local_error)):
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
+        assert np.array_equal(a.at(7.3)[0], b.at(7.3)[0])  # dense output attached again
+    with pytest.raises(InputError, match="workers"):
+        march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=40.0, workers=0)
+    bad = p0s.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(InputError, match="orbit 3"):
+        march_ensemble(scene.system, q0s, bad, tau0=0.05, t_end=40.0)
 
 
 def test_section_points_lie_on_the_section_and_the_energy_surface(tmp_path):

@@ -140,6 +140,11 @@ def _poincare_command(commands) -> None:
                           metavar="NAME=VALUE", help="a parameter of the scene")
     poincare.add_argument("--out", default=None, help="output folder")
     poincare.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    poincare.add_argument("--workers", type=int, default=2,
+                          help="local worker processes marching the orbits (default: 2)")
+    poincare.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                          help="march the orbits on this Dask scheduler, e.g. tcp://host:8786 "
+                               "(default: $DDVP_SCHEDULER, else local workers)")
 
 
 def _periodic_command(commands) -> None:

@@ -292,8 +292,10 @@ def run_poincare(args) -> int:
     scene = load_scene(args.scene)
     config = scene.resolve({})
     orbits = check_integer("--orbits", args.orbits)
+    workers = check_integer("--workers", args.workers)
     section = poincare_section(scene.system, args.energy, section=args.section, orbits=orbits,
-                               direction=args.direction,
+                               direction=args.direction, workers=workers, scene=args.scene,
+                               scheduler=args.scheduler,
                                tau0=args.tau0 if args.tau0 is not None else config.tau0,
                                t_end=args.t_end if args.t_end is not None else config.t_end,
                                params=parse_settings(args.settings), seed=args.seed)

@@ -11,8 +11,8 @@
     in one layout; ``compiler.py``: finding gcc and caching compiled libraries.
   - ``stepper.py``: the careful, compiled and composite steppers the driver runs.
   - ``monitors.py``: the energy guard and the solvability monitor.
-- ``ensemble.py``: ``march_ensemble``, many initial states marched together: one compiled chunk
-  call per round for all orbits, each orbit with its own steps, status and checks.
+- ``ensemble.py``: ``march_ensemble``, many initial states, each marched by ``march``, split
+  across worker processes that inherit the loaded compiled chunk.
 - ``bvp.py``: fixed-endpoint problems as one NLP (IPOPT) or one Newton system.
 - ``periodic.py``: periodic orbits at a prescribed energy on a closed grid (node times free,
   an unfolding parameter; the equation count in its docstring); ``periodic_assembly.py`` its

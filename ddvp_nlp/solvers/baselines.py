@@ -8,8 +8,9 @@
 
 They march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite
 and, for an implicit step map (``avf.py``), while its own residual is under the tolerance. Also
-here, for every compiled baseline (``lee_left.py`` too): :func:`chunk_for`, the named
-columns of a chunk's rows (:class:`Columns`), :func:`load` and :func:`solution_of`.
+here, for every compiled baseline (``lee_left.py``, ``verlet_adaptive.py`` too): ``CHUNK``, the
+named columns of a chunk's rows (:class:`Columns`), :func:`load` (compiled, called through
+numpy buffers) and :func:`solution_of`.
 """
 
 from __future__ import annotations
@@ -25,17 +26,14 @@ from ..discrete.explicit import FIXED_STEPS
 from ..errors import InputError
 from ..physics.hamiltonian import HamiltonianSystem, not_separable
 from ..solution import Solution, Status
-from .compiler import cache_folder, compile_function
+from .compiler import FunctionBuffer, cache_folder, compile_function
 from .driver import Advance, Nodes, describe_phase_space, drive
 from .integrator import Integrator
 
+# Steps per compiled call, whatever the run's length: one compile per scene and method (a size
+# per run length cost a gcc compile of 0.4 s for each size); a short run throws away the rest
+# of its one chunk (1024 steps of an explicit method: well under a millisecond).
 CHUNK = 1024
-
-
-def chunk_for(steps: float) -> int:
-    """Steps per compiled call for a run of about ``steps`` steps: the next power of two, between
-    64 and 1024, so short runs do not pay for 1024 steps they throw away."""
-    return int(min(CHUNK, max(64, 2 ** math.ceil(math.log2(max(steps, 1))))))
 
 
 class Columns:
@@ -74,14 +72,28 @@ class Columns:
                 for name, width, part in self._slices()}
 
 
-def load(function: ca.Function, compiler, cache_dir):
-    """``function`` compiled (cached) where a compiler is given, else as it is; and the seconds
-    spent compiling."""
+class Buffered:
+    """A chunk function called through ``Function.buffer`` (numpy arrays, no DM conversions),
+    answering as a DM call would: each output the ``(rows, columns)`` array ``np.asarray`` makes
+    of the DM (a copy: the next call overwrites the buffers; callers keep slices of it)."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._buffer = FunctionBuffer(function)
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        outputs = self._buffer(*(np.asarray(a, float).T for a in args))
+        return [out.copy().T for out in outputs]
+
+
+def load(function: ca.Function, compiler, cache_dir) -> tuple[Buffered, float]:
+    """``function`` compiled (cached) where a compiler is given, else as it is, as a
+    :class:`Buffered` call; and the seconds spent compiling."""
     if compiler is None:
-        return function, 0.0
+        return Buffered(function), 0.0
     started = time.perf_counter()
-    return compile_function(function, compiler, cache_folder(cache_dir)), \
-        time.perf_counter() - started
+    compiled = compile_function(function, compiler, cache_folder(cache_dir))
+    return Buffered(compiled), time.perf_counter() - started
 
 
 def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=None,
@@ -213,7 +225,7 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
     is checked between chunks."""
     started = time.perf_counter()
     total = max(1, math.ceil((t_end - t0) / tau - 1e-9))
-    chunk = chunk_for(total)
+    chunk = CHUNK
     function, compile_s = _fixed_chunk(system, method, chunk, compiler, cache_dir)
     built = time.perf_counter()
     constants = np.tile(np.concatenate([theta, [t0, (t_end - t0) / total]])[:, None], (1, chunk))

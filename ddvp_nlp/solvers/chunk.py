@@ -165,9 +165,6 @@ class FastChunk:
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
 
-    With ``orbits`` > 1 one call runs the chunk from each of ``orbits`` states (an ensemble,
-    ``ensemble.py``): :meth:`steps` takes one state per row and returns each orbit's steps.
-
     With ``accuracy`` each step also runs the accuracy check's estimates
     (``accuracy.local_error_function``: one RK4 step of the exact flow from the step's first
     node over ``t_next - t_a``, and the forward-mode propagation of the global error ``error``,
@@ -176,7 +173,7 @@ class FastChunk:
     """
 
     def __init__(self, system, scheme, functions: StepFunctions, *, chunk: int, compiler,
-                 cache_dir, accuracy: bool = False, orbits: int = 1):
+                 cache_dir, accuracy: bool = False):
         started = time.perf_counter()
         n2 = 2 * system.n
         theta = ca.SX.sym("theta", system.theta.numel())
@@ -189,10 +186,7 @@ class FastChunk:
             self.state, self.constants, self.output = fixed_layouts(n2, accuracy)
             step = self._fixed_step(functions, theta)
         self.chunk = chunk
-        self.orbits = orbits
         function = step.mapaccum("chunk", chunk)
-        if orbits > 1:  # an ensemble: the same chunk from each orbit's state, in one call
-            function = function.map(orbits)
         self.path = "vm"
         self.compile_s = 0.0
         self.compile = None
@@ -257,13 +251,14 @@ class FastChunk:
 
     def _call(self, state: np.ndarray, parameters: np.ndarray):
         """One call through a :class:`~ddvp_nlp.solvers.compiler.FunctionBuffer` (numpy arrays
-        in place of DM). Returns ``(states, outputs)``, one row per step (orbit after orbit),
-        overwritten by the next call."""
-        tiled = np.broadcast_to(parameters, (self.chunk * self.orbits, parameters.size))
+        in place of DM). Returns ``(states, outputs)``, one row per step, overwritten by the
+        next call."""
+        tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
         return self._buffer(state, tiled)
 
-    def _decode(self, outputs: np.ndarray, states: np.ndarray) -> ChunkSteps:
-        outputs = outputs.copy()  # the buffers are overwritten by the next call
+    def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
+        if copy:
+            outputs = outputs.copy()  # the buffers are overwritten by the next call
         # the estimates do not decide whether a step is good: a step's own outputs do
         checked = self.output.size - (len(ACCURACY_OUTPUTS) if self.accuracy else 0)
         finite = np.all(np.isfinite(outputs[:, :checked]), axis=1)
@@ -293,24 +288,34 @@ class FastChunk:
         return np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
                                                           total=total)])
 
-    def steps(self, states: np.ndarray, parameters: np.ndarray) -> list[ChunkSteps]:
-        """``chunk`` steps from each of the ``orbits`` rows of ``states``, one call."""
-        after, outputs = self._call(states, parameters)
+    def steps(self, state: np.ndarray, parameters: np.ndarray, calls: int = 1) -> ChunkSteps:
+        """``calls * chunk`` steps from ``state`` (:meth:`energy_state`, :meth:`fixed_state`):
+        ``calls`` calls, each from the state the previous one ended in, which is the state the
+        march builds from the nodes for its next call when it kept every step (the same
+        numbers: the node times, states, drift and error vector are outputs of the chunk)."""
+        if calls == 1:
+            after, outputs = self._call(state, parameters)
+            return self._decode(outputs, after)
         c = self.chunk
-        return [self._decode(outputs[i * c:(i + 1) * c], after[i * c:(i + 1) * c])
-                for i in range(self.orbits)]
+        outputs = np.empty((calls * c, self.output.size))
+        states = np.empty((calls * c, self.state.size))
+        for i in range(calls):
+            after, out = self._call(state, parameters)
+            outputs[i * c:(i + 1) * c], states[i * c:(i + 1) * c] = out, after
+            state = states[(i + 1) * c - 1]
+        return self._decode(outputs, states, copy=False)
 
     def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, *,
                      error=None) -> ChunkSteps:
         """``chunk`` energy steps of one orbit (:meth:`energy_state`)."""
         return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift, error=error),
-                          theta)[0]
+                          theta)
 
     def fixed_steps(self, k: int, z, theta, *, t0, tau, t_end, total, error=None) -> ChunkSteps:
         """``chunk`` fixed-length steps of one orbit from node ``k`` (state ``z``) of a uniform
         grid of ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
         parameters = self.fixed_parameters(theta, t0=t0, tau=tau, t_end=t_end, total=total)
-        return self.steps(self.fixed_state(k, z, error=error), parameters)[0]
+        return self.steps(self.fixed_state(k, z, error=error), parameters)
 
 
 def _compiled_or_vm(function, compiler, folder):

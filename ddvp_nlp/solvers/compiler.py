@@ -91,6 +91,16 @@ def compile_function(function: ca.Function, compiler: str, folder: Path, *,
     return ca.external(function.name(), str(library))
 
 
+_BUILDS = [0]  # C compiles run by this process (a list: one mutable count, lock-free reads)
+_BUILDS_LOCK = threading.Lock()
+
+
+def build_count() -> int:
+    """How many C compiles this process has run (cache hits are not compiles): what the tests
+    count to show that a scene compiles once and that ensemble workers compile nothing."""
+    return _BUILDS[0]
+
+
 def _intact(library: Path) -> bool:
     """The library exists and its bytes match the checksum written when it was built."""
     stamp = library.with_name(library.name + ".sha256")
@@ -117,6 +127,8 @@ def _build(code: str, name: str, compiler: str, library: Path) -> None:
         except OSError as exc:
             raise CompileUnavailable(f"the C compiler {compiler!r} cannot run: "
                                      f"{exc.strerror or exc}") from None
+        with _BUILDS_LOCK:
+            _BUILDS[0] += 1
         if result.returncode != 0 or not built.exists():
             raise CompileUnavailable(f"the C compiler {compiler!r} failed on {name} "
                                      f"(exit {result.returncode}): "

@@ -1,61 +1,47 @@
-"""Many initial states marched together: one compiled call per chunk for all orbits.
+"""Many initial states marched as one ensemble, split across worker processes.
 
-``march_ensemble`` runs ``M`` marches of the same system, scheme and options in lock step. Each
-round, every orbit whose march would run a compiled chunk (``MarchStepper.wants_chunk``) gets its
-chunk from one call of the chunk mapped over the orbits (``FastChunk(orbits=M)``); an orbit on
-its careful path (step 0 of the energy rules, the window after a chunk step failed its check)
-takes its careful step alone. Everything else is each orbit's own, exactly as in :func:`march`:
-its nodes, step lengths, acceptance, monitors (solvability, accuracy check), status and message.
-An orbit that ends (``t_end``, a failed step, the accuracy check, ``max_steps``) leaves the
-round; the others go on. Each orbit's nodes are those ``march`` gives from the same start (the
-chunk's arithmetic is the same per orbit).
+``march_ensemble`` runs ``M`` marches of the same system, scheme and options. Each orbit is
+marched by :func:`~ddvp_nlp.solvers.march.march` itself, so its nodes, step lengths,
+acceptance, monitors (solvability, accuracy check), status and message are exactly those of a
+march from the same start; an orbit that fails ends alone. What the ensemble adds:
+
+- every input (options and all ``M`` starts) is checked before anything is built or run;
+- the compiled functions the marches share (the chunk, the recheck) are built once, in this
+  process, by a three-step march of the first start, before any worker starts; the workers are
+  forked from this process and inherit them loaded (nothing is compiled in a worker);
+- the orbits are split into blocks, run on ``workers`` local processes (two by default), and
+  merged back in orbit order.
+
+Why not one compiled call per round mapped over the orbits: that was the first version. It
+cost the same as a loop of ``march`` calls (34.2 against 35.8 orbits per CPU second,
+docs/benchmarks/bench_ensemble.md): a chunk is 1024 steps of compiled arithmetic, so the call
+itself is a small part of a round, and the per-orbit checks and monitors are the same either
+way; a map over ``M`` orbits also computed the chunks of finished orbits and needed a compile
+per ``M``. Marching orbit after orbit shares the march's own compiled chunk (one compile per
+scene and scheme) and throws nothing away.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
+import math
+import multiprocessing
+import warnings
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from ..cache import cached
 from ..discrete.scheme import Scheme
 from ..errors import InputError
-from ..solution import Solution, Status, bound_reached
+from ..solution import Solution
+from ..validation import check_cache_folder, check_integer
 from .accuracy import Tolerance
-from .chunk import FastChunk
-from .compiler import find_compiler
-from .driver import Nodes, Outcome, accept, message
-from .march import (
-    _accuracy_monitor,
-    _build,
-    _check_options,
-    _check_start,
-    _monitors,
-    _Parts,
-    _solution,
-    _start,
-)
-from .stepper import CompiledStepper, MarchStepper
-from .steps import step_functions
+from .compiler import build_count, find_compiler
+from .dense import attach
+from .march import _check_options, _check_start, _start, march
 
-
-@dataclass
-class _Orbit:
-    """One march of the ensemble: its parts, nodes, monitors, and how it ended."""
-
-    parts: _Parts
-    stepper: MarchStepper
-    nodes: Nodes
-    monitors: list
-    solvability: object
-    checker: object
-    status: Status | None = None
-    detail: str = ""
-
-    @property
-    def running(self) -> bool:
-        return self.status is None
+# Blocks per worker: orbits differ in length (a failing orbit is short), so each worker takes
+# several blocks, the next as soon as it is free.
+BLOCKS_PER_WORKER = 4
 
 
 def march_ensemble(system, q0s, p0s, *, tau0: float, t_end: float, t0: float = 0.0,
@@ -64,105 +50,104 @@ def march_ensemble(system, q0s, p0s, *, tau0: float, t_end: float, t0: float = 0
                    max_step_ratio: float | None = 10.0, chunk: int = 1024,
                    compiler: str | None = "auto", cache_dir=None, rtol: float = 1e-2,
                    atol: float = 1e-2, energy_tol: float = 0.1, global_tol=None,
-                   accept_inaccurate: bool = False,
-                   check_accuracy: bool = True) -> list[Solution]:
-    """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would,
-    all ``M`` at once; the arguments after them are :func:`march`'s.
+                   accept_inaccurate: bool = False, check_accuracy: bool = True,
+                   workers: int = 2) -> list[Solution]:
+    """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would;
+    the arguments after them are :func:`march`'s.
 
-    Returns one :class:`Solution` per orbit, in order, each with its own status: a failing
-    orbit ends alone. ``timing["solve_s"]`` is the whole ensemble's stepping time."""
+    ``workers``: local processes marching the orbits (forked from this one; ``1``: all in
+    this process). Returns one :class:`Solution` per orbit, in order, each with its own status
+    and :func:`march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
+    counts the C compiles the orbit's worker ran (none: it inherits the loaded functions)."""
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(np.asarray(q0s, float)), np.atleast_2d(np.asarray(p0s, float))
     if q0s.shape != p0s.shape or q0s.shape[0] == 0:
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")
-    options = _check_options(scheme, t0=t0, t_end=t_end, tau0=tau0, tol=tol,
-                             max_steps=max_steps, tau_min=tau_min, tau_max=tau_max,
-                             max_step_ratio=max_step_ratio, chunk=chunk, time_limit=None,
-                             energy_guard=None, breakdown="stop")
-    tolerance = Tolerance(rtol=rtol, atol=atol, energy_tol=energy_tol, global_tol=global_tol,
-                          stop=not accept_inaccurate)
-    theta = system.parameter_vector(params)
-    compiler = find_compiler(compiler)
-    started = time.perf_counter()
-    fast = cached(system, ("ensemble", scheme, options.chunk, q0s.shape[0], compiler,
-                           str(cache_dir), check_accuracy),
-                  lambda: FastChunk(system, scheme, step_functions(system, scheme),
-                                    chunk=options.chunk, compiler=compiler, cache_dir=cache_dir,
-                                    accuracy=check_accuracy, orbits=q0s.shape[0]))
-    orbits = [_orbit(system, scheme, theta, options, tolerance, fast, q0, p0,
-                     check_accuracy=check_accuracy, cache_dir=cache_dir)
-              for q0, p0 in zip(q0s, p0s, strict=True)]
-    built = time.perf_counter()
-    while any(orbit.running for orbit in orbits):
-        _round(orbits, fast, options)
-    solved = time.perf_counter()
-    compiled = compiler if fast.path == "compiled" else None
-    return [_finish(system, scheme, theta, orbit, compiled, cache_dir,
-                    {"build_s": built - started, "solve_s": solved - built,
-                     "orbits": len(orbits)}) for orbit in orbits]
+    workers = check_integer("workers", workers)
+    options = dict(tau0=tau0, t_end=t_end, t0=t0, scheme=scheme, params=params, tol=tol,
+                   max_steps=max_steps, tau_min=tau_min, tau_max=tau_max,
+                   max_step_ratio=max_step_ratio, chunk=chunk, cache_dir=cache_dir, rtol=rtol,
+                   atol=atol, energy_tol=energy_tol, global_tol=global_tol,
+                   accept_inaccurate=accept_inaccurate, check_accuracy=check_accuracy)
+    theta = _check_all(system, scheme, q0s, p0s, options)
+    options["compiler"] = find_compiler(compiler)
+    with warnings.catch_warnings():  # the first orbit's warnings come from its own march
+        warnings.simplefilter("ignore")
+        # build (or load from the on-disk cache) what every march shares, here, once
+        march(system, q0s[0], p0s[0], **{**options, "t_end": t0 + min(3 * tau0, t_end - t0)})
+    job = _Job(system, q0s, p0s, options)
+    blocks = _blocks(q0s.shape[0], workers)
+    if workers == 1 or len(blocks) == 1 or not _can_fork():
+        return job.run(range(q0s.shape[0]), count_compiles=False)
+    context = multiprocessing.get_context("fork")
+    with ProcessPoolExecutor(min(workers, len(blocks)), mp_context=context,
+                             initializer=_install, initargs=(job,)) as pool:
+        solutions = [s for part in pool.map(_run_block, blocks) for s in part]
+    for solution in solutions:  # the vector field stays behind in the worker
+        attach(solution, system, theta, t_end)
+    return solutions
 
 
-def _orbit(system, scheme, theta, options, tolerance, fast, q0, p0, *, check_accuracy,
-           cache_dir) -> _Orbit:
-    """One orbit's parts, as :func:`march` builds them, its chunk the ensemble's."""
-    q0, p0, _ = _check_start(system, q0, p0, None)
-    p0, H0 = _start(system, scheme, q0, p0, None, t0=options.t0, tau0=options.tau0,
-                    theta=theta)
-    parts = _build(system, scheme, theta, options, fast=False, compiler=None,
-                   cache_dir=cache_dir, check_accuracy=check_accuracy)
-    stepper = MarchStepper(parts.stepper, CompiledStepper(
-        fast, theta, options.acceptance, parts.stepper.clock, parts.tally,
-        errors=parts.errors))
-    parts.fast_chunk = fast
-    nodes = Nodes(options.t0, np.concatenate([q0, p0]))
-    monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
-    checker = None
-    if check_accuracy:
-        checker = _accuracy_monitor(system, scheme, theta, tolerance, H0, parts.errors)
-        monitors.append(checker)
-    return _Orbit(parts, stepper, nodes, monitors, solvability, checker)
+def _check_all(system, scheme, q0s, p0s, options) -> np.ndarray:
+    """Every option and every start, checked as :func:`march` checks them, before any march;
+    returns ``theta``."""
+    _check_options(scheme, t0=options["t0"], t_end=options["t_end"], tau0=options["tau0"],
+                   tol=options["tol"], max_steps=options["max_steps"],
+                   tau_min=options["tau_min"], tau_max=options["tau_max"],
+                   max_step_ratio=options["max_step_ratio"], chunk=options["chunk"],
+                   time_limit=None, energy_guard=None, breakdown="stop")
+    Tolerance(rtol=options["rtol"], atol=options["atol"], energy_tol=options["energy_tol"],
+              global_tol=options["global_tol"], stop=True)
+    check_cache_folder(options["cache_dir"])
+    theta = system.parameter_vector(options["params"])
+    for i, (q0, p0) in enumerate(zip(q0s, p0s, strict=True)):
+        try:
+            q0, p0, _ = _check_start(system, q0, p0, None)
+            _start(system, scheme, q0, p0, None, t0=options["t0"], tau0=options["tau0"],
+                   theta=theta)
+        except InputError as exc:
+            raise InputError(f"orbit {i}: {exc}") from None
+    return theta
 
 
-def _round(orbits: list[_Orbit], fast: FastChunk, options) -> None:
-    """One call of the ensemble's chunk for the orbits that run one, then one stepper call
-    (that chunk, or a careful step) and the driver's acceptance for every running orbit."""
-    running = [orbit for orbit in orbits if orbit.running]
-    chunked = [i for i, orbit in enumerate(orbits)
-               if orbit.running and orbit.stepper.wants_chunk(orbit.nodes)]
-    steps = {}
-    if chunked:
-        inputs = {i: orbits[i].stepper.compiled.inputs(orbits[i].nodes) for i in chunked}
-        filler, parameters = inputs[chunked[0]]
-        states = np.array([inputs[i][0] if i in inputs else filler
-                           for i in range(len(orbits))])
-        results = fast.steps(states, parameters)
-        steps = {id(orbits[i]): results[i] for i in chunked}
-    for orbit in running:
-        nodes = orbit.nodes
-        taken = nodes.count - 1
-        reached = bound_reached(taken, options.max_steps, 0.0, None)
-        if reached:
-            orbit.status, orbit.detail = reached
-            continue
-        advance = orbit.stepper.advance(nodes, options.max_steps - taken,
-                                        steps.get(id(orbit)))
-        status, detail = accept(nodes, advance, options.t_end, orbit.monitors)
-        if status is not Status.SUCCESS:
-            orbit.status, orbit.detail = status, detail
-        elif nodes.t[nodes.count - 1] >= options.t_end:
-            orbit.status = Status.SUCCESS
+def _blocks(count: int, workers: int) -> list[range]:
+    """Consecutive blocks of orbits, ``BLOCKS_PER_WORKER`` per worker (fewer if too few)."""
+    size = max(1, math.ceil(count / (workers * BLOCKS_PER_WORKER)))
+    return [range(start, min(start + size, count)) for start in range(0, count, size)]
 
 
-def _finish(system, scheme, theta, orbit: _Orbit, compiler, cache_dir, timing) -> Solution:
-    """The orbit's :class:`Solution`, as :func:`march` writes it."""
-    t, z = orbit.nodes.arrays()
-    text = message(orbit.status, steps=t.size - 1, t_end=orbit.stepper.careful.clock.t_end,
-                   t=float(t[-1]), state=orbit.stepper.describe(z[-1]), detail=orbit.detail)
-    solution = _solution(system, scheme, theta, Outcome(t, z, orbit.status, text), orbit.parts,
-                         orbit.solvability, compiler=compiler, cache_dir=cache_dir,
-                         timing=timing)
-    if orbit.checker is not None:
-        solution.local_error = orbit.checker.local_errors(solution.steps)
-        solution.stats["accuracy"] = orbit.checker.report(solution.steps)
-    return solution
+def _can_fork() -> bool:
+    """Workers are forked: not where ``fork`` is missing, nor from a daemon process (a pool
+    worker, which may not have children)."""
+    return ("fork" in multiprocessing.get_all_start_methods()
+            and not multiprocessing.current_process().daemon)
+
+
+class _Job:
+    """The marches of one ensemble: the system, the starts and :func:`march`'s options."""
+
+    def __init__(self, system, q0s, p0s, options):
+        self.system, self.q0s, self.p0s, self.options = system, q0s, p0s, options
+
+    def run(self, indices, *, count_compiles: bool) -> list[Solution]:
+        before = build_count()
+        solutions = [march(self.system, self.q0s[i], self.p0s[i], **self.options)
+                     for i in indices]
+        if count_compiles:
+            for solution in solutions:
+                solution.stats["worker_compiles"] = build_count() - before
+        return solutions
+
+
+_JOB: _Job | None = None
+
+
+def _install(job: _Job) -> None:
+    """A worker's initializer: the job, inherited through ``fork`` (nothing is pickled)."""
+    global _JOB
+    _JOB = job
+
+
+def _run_block(indices: range) -> list[Solution]:
+    return _JOB.run(indices, count_compiles=True)

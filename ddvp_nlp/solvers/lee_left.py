@@ -24,7 +24,7 @@ from ..cache import cached
 from ..discrete.lee_left import LeeLeftPointEquations
 from ..physics.hamiltonian import HamiltonianSystem, quadratic_kinetic_matrix
 from ..solution import Solution, Status
-from .baselines import Columns, chunk_for, load, solution_of
+from .baselines import CHUNK, Columns, load, solution_of
 from .chunk import FAST_NEWTON_OPTIONS
 from .driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
 from .integrator import Integrator
@@ -145,7 +145,7 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     started = time.perf_counter()
     n = system.n
     functions = cached(system, "lee_left", lambda: LeeLeftPointEquations(system))
-    chunk = chunk_for((t_end - t0) / tau0)
+    chunk = CHUNK
     function, compile_s = _chunk(system, functions, chunk, compiler, cache_dir)
     built = time.perf_counter()
     t, z, first_residual = _first_step(functions, q0, p0, tau0, t0, theta)

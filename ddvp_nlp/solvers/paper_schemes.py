@@ -8,13 +8,12 @@
   steps); order 2, symplectic, does not conserve energy.
 
 The knob is the first step ``tau0`` (the step ``tau`` of ``midpoint``); the march runs in
-compiled chunks sized like the baselines' (:func:`~ddvp_nlp.solvers.baselines.chunk_for`), so
-that no method pays for steps it throws away.
+compiled chunks of the baselines' one size (``baselines.CHUNK``), so a scene compiles once.
 """
 
 from __future__ import annotations
 
-from .baselines import chunk_for
+from .baselines import CHUNK
 from .integrator import Integrator
 from .march import march
 
@@ -25,7 +24,7 @@ def _march(rule: str):
         return march(system, config.q0, config.p0, tau0=value, t_end=config.t_end, t0=config.t0,
                      scheme=rule, params=config.params, max_steps=max_steps, compiler=compiler,
                      cache_dir=cache_dir, time_limit=time_limit,
-                     chunk=chunk_for((config.t_end - config.t0) / value),
+                     chunk=CHUNK,
                      check_accuracy=False)
     return run
 

@@ -6,7 +6,10 @@
   step fails with a status in ``LEAST_SQUARES_CASES`` and ``breakdown == "least_squares"``, the
   least-squares step (``least_squares.py``) replaces it.
 - :class:`CompiledStepper`: one compiled chunk per call (``chunk.py``), kept up to the first step
-  that fails the same :class:`~ddvp_nlp.solvers.acceptance.Acceptance`.
+  that fails the same :class:`~ddvp_nlp.solvers.acceptance.Acceptance`. Its chunks are computed
+  and checked in batches of up to ``MAX_CALLS`` chained calls and handed out one chunk per
+  call, exactly as one call per chunk would give them: the Python work of decoding and checking
+  a chunk is paid once per batch.
 - :class:`MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
   check, the careful path redoes the rest of that chunk's window (``careful_left`` steps), then
   the chunks resume. So both paths accept exactly the same steps.
@@ -25,12 +28,16 @@ import numpy as np
 from ..solution import Status
 from .acceptance import Acceptance
 from .accuracy import ACCURACY_VALUES
-from .chunk import ChunkSteps, FastChunk
+from .chunk import FastChunk
 from .driver import Advance, Nodes, describe_phase_space
 from .least_squares import least_squares_step
 from .steps import NewtonSteps, StepResult
 
 BREAKDOWNS = ("stop", "least_squares")
+# Chunk calls per batch of the compiled stepper: 1, 2, 4, ... up to this while every step is
+# kept (one after a failed step), fewer near the end of the run. Eight chunks of 1024 steps cut
+# the decoding and checks per step about eightfold; a batch holds a few MB (2 MB for n = 2).
+MAX_CALLS = 8
 LEAST_SQUARES_CASES = (Status.NO_ADMISSIBLE_STEP, Status.NEWTON_FAILED,
                        Status.RESIDUAL_TOO_LARGE, Status.STEP_BELOW_MIN, Status.STEP_ABOVE_MAX,
                        Status.STEP_RATIO)
@@ -131,6 +138,8 @@ class CompiledStepper:
         self.clock = clock
         self.tally = tally
         self.errors = errors if chunk.accuracy is not None else None
+        self.calls = 1  # chunk calls of the next batch
+        self._pending: list = []  # the batch's chunks not yet handed out, in order
 
     def inputs(self, nodes: Nodes) -> tuple[np.ndarray, np.ndarray]:
         """The chunk's state from the newest nodes and its parameters."""
@@ -145,30 +154,62 @@ class CompiledStepper:
                 self.chunk.fixed_parameters(self.theta, t0=clock.t0, tau=clock.tau,
                                             t_end=clock.t_end, total=clock.total))
 
-    def run(self, nodes: Nodes, budget: int, steps: ChunkSteps | None = None
-            ) -> tuple[Advance, bool]:
-        """The steps kept (up to the first that fails a check, the end or ``budget``) and
-        whether a step failed. ``steps``: the chunk's steps from these nodes if already
-        computed (an ensemble's call for all orbits), else one call now."""
+    def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
+        """One chunk's steps kept (up to the first that fails a check, the end or ``budget``)
+        and whether a step failed: the next chunk of the current batch, or of a new one."""
+        if self._pending and self._pending[0][0] != nodes.count:
+            self._pending.clear()  # not where the batch left off: compute afresh
+        if not self._pending:
+            self._pending = self._batch(nodes, budget)
+        _, advance, failed, drift = self._pending.pop(0)
+        if advance.count and self.chunk.variable:
+            self.tally.drift = drift
+        self.tally.fast_steps += advance.count
+        return advance, failed
+
+    def _batch(self, nodes: Nodes, budget: int) -> list:
+        """The chunks of one batch, each ``(node count before it, Advance, failed, drift
+        after it)``, cut as one call per chunk would cut them."""
         k = nodes.count - 1
-        if steps is None:
-            steps = self.chunk.steps(*self.inputs(nodes))[0]
+        steps = self.chunk.steps(*self.inputs(nodes), self._calls(nodes, budget))
         if self.chunk.variable:
             good, ends = self._energy_checks(nodes, k, steps)
         else:
             good, ends = self._fixed_checks(k, steps)
-        limit = min(self.chunk.chunk, budget)
+        limit = min(steps.t_next.size, budget)
         if ends.size:  # steps after the end are not counted, failures included
             limit = min(limit, int(ends[0]) + 1)
         bad = np.flatnonzero(~good[:limit])
         kept = int(bad[0]) if bad.size else limit
-        if kept and self.chunk.variable:
-            self.tally.drift = float(steps.drift[kept - 1])
-        self.tally.fast_steps += kept
-        values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept]}
-        if self.errors is not None:
-            values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
-        return Advance(steps.t_next[:kept], steps.z_next[:kept], values=values), bool(bad.size)
+        self.calls = 1 if bad.size else min(2 * self.calls, MAX_CALLS)
+        c = self.chunk.chunk
+        last = kept // c if bad.size else (kept - 1) // c  # the chunk that ends the batch
+        pieces = []
+        for i in range(last + 1):
+            start, stop = i * c, min((i + 1) * c, kept)
+            values = {"H": steps.H_node[start:stop], "w": steps.w_node[start:stop]}
+            if self.errors is not None:
+                values.update({name: getattr(steps, name)[start:stop]
+                               for name in ACCURACY_VALUES})
+            drift = float(steps.drift[stop - 1]) if stop > start and self.chunk.variable \
+                else None
+            pieces.append((nodes.count + start,
+                           Advance(steps.t_next[start:stop], steps.z_next[start:stop],
+                                   values=values),
+                           bool(bad.size) and i == last, drift))
+        return pieces
+
+    def _calls(self, nodes: Nodes, budget: int) -> int:
+        """Chunk calls of the next batch: ``self.calls``, fewer where the run ends sooner
+        (``budget``; the steps left to ``total``, or to ``t_end`` at the mean step so far)."""
+        k = nodes.count - 1
+        left = budget
+        if self.clock.total is not None:
+            left = min(left, self.clock.total - k)
+        elif k > 0 and nodes.t[k] > nodes.t[0]:
+            mean = (nodes.t[k] - nodes.t[0]) / k
+            left = min(left, math.ceil((self.clock.t_end - nodes.t[k]) / mean) + 1)
+        return max(1, min(self.calls, math.ceil(left / self.chunk.chunk)))
 
     def _energy_checks(self, nodes, k, steps):
         t = nodes.t
@@ -185,7 +226,7 @@ class CompiledStepper:
     def _fixed_checks(self, k, steps):
         with np.errstate(invalid="ignore"):
             good = steps.finite & self.acceptance.residuals_ok(steps.canonical, steps.size)
-        return good, np.flatnonzero(k + 1 + np.arange(self.chunk.chunk) == self.clock.total)
+        return good, np.flatnonzero(k + 1 + np.arange(steps.t_next.size) == self.clock.total)
 
 
 class MarchStepper:
@@ -207,10 +248,9 @@ class MarchStepper:
         """Whether the next call runs a compiled chunk (else one careful step)."""
         return self.careful_left == 0 and (not self.careful.variable or nodes.count > 1)
 
-    def advance(self, nodes: Nodes, budget: int, steps: ChunkSteps | None = None) -> Advance:
-        """``steps``: the chunk's steps from these nodes if already computed (ensembles)."""
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
         if self.wants_chunk(nodes):
-            advance, failed = self.compiled.run(nodes, budget, steps)
+            advance, failed = self.compiled.run(nodes, budget)
             if failed:
                 self.careful_left = self.compiled.chunk.chunk - advance.count
             if advance.count:

@@ -19,7 +19,7 @@ from ..cache import cached
 from ..discrete.adaptive_verlet import adaptive_verlet_step, density_parts
 from ..physics.hamiltonian import HamiltonianSystem, not_separable
 from ..solution import Status
-from .baselines import Columns, chunk_for, load, solution_of
+from .baselines import CHUNK, Columns, load, solution_of
 from .driver import Advance, Nodes, describe_phase_space, drive
 from .integrator import Integrator
 
@@ -93,7 +93,7 @@ def adaptive_verlet_run(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end
     c2, norm = density_constants(system, q0, t0, theta)
     _, rho0, G0 = density_parts(system)(q0, p0, t0, theta, c2, norm)
     rho_half = float(rho0) + tau0 / 2 * float(G0)
-    chunk = chunk_for(min((t_end - t0) / tau0, max_steps))
+    chunk = CHUNK
     function, compile_s = _chunk(system, chunk, compiler, cache_dir)
     built = time.perf_counter()
     constants = np.tile(np.concatenate([[tau0, t_end, c2, norm], theta])[:, None], (1, chunk))

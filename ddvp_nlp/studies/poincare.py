@@ -12,6 +12,12 @@ the direction, the point is located on the cubic Hermite interpolant of the inte
 and the exact vector field ``f`` at both, third order, above the scheme's second), its root by
 bisection to round-off: each crossing lies on the section to 1e-12 and on the energy surface to
 the scheme's own nodal accuracy.
+
+Where the orbits run: ``march_ensemble`` on ``workers`` local processes (two by default), or,
+with a Dask ``scheduler`` (argument or ``$DDVP_SCHEDULER``), in blocks of orbits as tasks of
+``grid.run_tasks``, like grid rows: each worker loads the scene by its name or file (``scene``)
+and its compiled chunk from its own compile cache, and marches its block as a serial ensemble;
+the blocks are merged back in orbit order.
 """
 
 from __future__ import annotations
@@ -22,8 +28,14 @@ import numpy as np
 
 from ..errors import InputError
 from ..physics.hamiltonian import vector_field_function
+from ..scenes import load_scene
 from ..solvers.ensemble import march_ensemble
 from ..solvers.periodic import parse_section
+from .grid import Task, resolve_scheduler, run_tasks
+
+# Orbits per task on a cluster: enough that a task's start-up (loading the scene and its
+# compiled chunk) is small against its marching.
+CLUSTER_BLOCK = 10
 
 
 @dataclass
@@ -83,17 +95,20 @@ def _energy(system, z, theta, n, i, momentum):
 
 def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: int = 10,
                      direction: str = "+", tau0: float, t_end: float, params=None,
-                     seed: int = 0, box=(-1.0, 1.0), **march_options) -> Section:
+                     seed: int = 0, box=(-1.0, 1.0), scene: str | None = None,
+                     scheduler: str | None = None, **march_options) -> Section:
     """March ``orbits`` starts on the section at ``energy`` as one ensemble and collect their
-    crossings (module docstring). ``march_options`` go to ``march_ensemble``."""
+    crossings (module docstring). ``march_options`` go to ``march_ensemble`` (``workers``
+    too); ``scheduler``: a Dask cluster's address, whose workers load ``scene`` (the name or
+    file ``system`` came from)."""
     if direction not in ("+", "-"):
         raise InputError(f"direction must be '+' or '-', got {direction!r}")
     theta = system.parameter_vector(params)
     n = system.n
     starts = section_starts(system, theta, energy, section, orbits, direction=direction,
                             box=box, seed=seed)
-    solutions = march_ensemble(system, starts[:, :n], starts[:, n:], tau0=tau0, t_end=t_end,
-                               params=params, **march_options)
+    solutions = ensemble(system, starts[:, :n], starts[:, n:], scene=scene, scheduler=scheduler,
+                         tau0=tau0, t_end=t_end, params=params, **march_options)
     index, value, _ = parse_section(section, n)
     field = vector_field_function(system)
     points, times, orbit, errors = [], [], [], []
@@ -108,6 +123,37 @@ def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: in
     return Section(energy, section, direction, np.vstack(points), np.concatenate(times),
                    np.concatenate(orbit), starts, [s.status.value for s in solutions],
                    np.array(errors), np.array([s.steps for s in solutions]))
+
+
+def ensemble(system, q0s, p0s, *, scene: str | None = None, scheduler: str | None = None,
+             **options) -> list:
+    """``march_ensemble(system, q0s, p0s, **options)``, here (local workers) or, with a
+    ``scheduler``, on that Dask cluster in blocks of ``CLUSTER_BLOCK`` orbits (module
+    docstring). A block that fails on the cluster raises, naming its orbits and the error."""
+    scheduler = resolve_scheduler(scheduler)
+    if scheduler is None:
+        return march_ensemble(system, q0s, p0s, **options)
+    if scene is None:
+        raise InputError("a cluster run needs scene=, the scene's name or file, which each "
+                         "worker loads (a system cannot be sent to another machine)")
+    options.pop("workers", None)
+    tasks = [Task(f"orbits-{start}", "ddvp_nlp.studies.poincare:march_block",
+                  (scene, q0s[start:start + CLUSTER_BLOCK].tolist(),
+                   p0s[start:start + CLUSTER_BLOCK].tolist()), options)
+             for start in range(0, len(q0s), CLUSTER_BLOCK)]
+    blocks = {}
+    for task, result, error in run_tasks(tasks, scheduler=scheduler):
+        if error is not None:
+            raise RuntimeError(f"orbits from {task.key.split('-')[1]} on the cluster: {error}")
+        blocks[task.key] = result
+    return [solution for task in tasks for solution in blocks[task.key]]
+
+
+def march_block(scene: str, q0s, p0s, **options) -> list:
+    """One cluster task: the scene loaded by name or file, its orbits marched in this worker
+    (a serial ensemble)."""
+    return march_ensemble(load_scene(scene).system, np.asarray(q0s), np.asarray(p0s),
+                          workers=1, **options)
 
 
 def crossings(field, theta, t, z, column: int, value: float, direction: str):
