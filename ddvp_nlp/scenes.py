@@ -63,8 +63,12 @@ class Scene:
         source: the name or path it was loaded from (empty for a scene made in Python); grid
             tasks reload the scene from it in their own process.
         periodic: optional defaults of ``ddvp periodic`` (``solvers/periodic.py``):
-            ``{"section": "p1=0", "energy": E, "nodes": N, "start": (q, p)}``, any subset;
-            ``start`` is the direction along which the section's point at ``E`` is looked for.
+            ``{"section": "p1=0", "energy": E, "nodes": N, "start": (q, p), "integrals": (...),
+            "angles": ("q1",), "families": {...}}``, any subset; ``start`` is the direction
+            along which the section's point at ``E`` is looked for; ``angles`` names angle
+            coordinates, which may close with whole turns (rotations); ``families`` names
+            further families by their own section and start (read by
+            ``scripts/periodic_page.py``).
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
     """
