@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +32,9 @@ def prepare_folder(out: str | os.PathLike) -> Path:
     path = Path(out)
     try:
         path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".ddvp_write_test"
+        # a name of this process's own: two runs starting at once into one folder must not
+        # remove each other's probe (a fixed name made one of them exit 2 under load)
+        probe = path / f".ddvp_write_test.{os.getpid()}.{secrets.token_hex(4)}"
         probe.write_text("")
         probe.unlink()
     except OSError as exc:
