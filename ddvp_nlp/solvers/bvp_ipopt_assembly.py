@@ -33,6 +33,19 @@ from ..discrete.scheme import Scheme
 from .bvp_assembly import Ends, GridAssembly, chunked, hessian_block_functions
 from .bvp_ipopt import DEFAULT_OPTIONS, ipopt_settings, pinned_bounds
 
+# Changes to bvp_ipopt.DEFAULT_OPTIONS for this build, measured on the pendulum's released solve
+# at N = 1e5 from the same start (one process each, loaded machine, CPU time):
+# - AMD ordering (pivot_order 0): MUMPS's analysis 0.26 s against 5.1 s with METIS, the
+#   whole phase 9.1 s against 11.2 s; AMF and QAMD were slower (14.5 s, 10.3 s);
+# - mu_init 1e-13 (and mu_min below it): with 1e-9 the complementarity alone stayed above
+#   IPOPT's tol (1e-11), and lowering the barrier took 8 iterations and ended at
+#   "acceptable"; with 1e-13 the phase took 1-2 iterations and ended "Solve_Succeeded".
+# MUMPS scaling 77 or 8 and a pivot tolerance of 1e-4 took more factorizations (32, 22, 8
+# against 5): the inertia MUMPS reports for this saddle-point matrix (its (1,1) block is
+# ~1e-13) is off by a few eigenvalues, which costs IPOPT a perturbed refactorization.
+ASSEMBLY_OPTIONS = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_init": 1e-13,
+                    "ipopt.mu_min": 1e-15}
+
 
 def _sparsity(rows: np.ndarray, columns: np.ndarray, shape):
     """CasADi sparsity and the CSC order of the entries ``(rows, columns)`` (no duplicates).
@@ -146,13 +159,13 @@ class GridNlp:
         F, _ = self._evaluate(x, parameters)
         out[:self.kept.size] = F[self.kept]
         if self.steps:
-            out[self.kept.size:] = np.diff(x[::self.layout.m])
+            out[self.kept.size:] = np.diff(x[::self.layout.m]) / parameters[self.n_theta]
 
     def jacobian(self, x, parameters, out):
         _, blocks = self._evaluate(x, parameters)
         band = self.grid.banded(blocks).T.ravel()
         out[self._band_target] = band[self._band_source]
-        out[self._constant_target] = self._constants
+        out[self._constant_target] = self._constants / parameters[self.n_theta]
 
     def hessian(self, x, parameters, lam_g, out):
         n, N, m = self.layout.n, self.layout.nodes, self.layout.m
@@ -238,7 +251,7 @@ class AssemblyIpoptProblem:
         x = ca.MX.sym("x", self.layout.size)
         p = ca.MX.sym("p", self.nlp.n_theta + 1)
         settings = ipopt_settings(tol, max_iter, verbose, time_limit,
-                                  {**DEFAULT_OPTIONS, **(options or {})})
+                                  {**DEFAULT_OPTIONS, **ASSEMBLY_OPTIONS, **(options or {})})
         settings.update({"jac_g": jac_g, "hess_lag": hess_lag, "no_nlp_grad": True,
                          "calc_lam_p": False})
         self.solver = ca.nlpsol("bvp_grid", "ipopt", {"x": x, "p": p, "f": 0, "g": g(x, p)},
@@ -248,7 +261,7 @@ class AssemblyIpoptProblem:
         """``(x, converged, return_status, iterations)`` from ``x0``."""
         lbx, ubx = pinned_bounds(self.layout, self.scheme, ends)
         steps = self.nlp.ng - self.nlp.kept.size
-        lbg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, tau_floor)]
+        lbg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]
         ubg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, np.inf)]
         result = self.solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
                              p=np.concatenate([ends.theta, [ends.energy_scale]]))
