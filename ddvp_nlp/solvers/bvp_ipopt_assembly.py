@@ -31,7 +31,7 @@ import numpy as np
 
 from ..discrete.scheme import Scheme
 from .bvp_assembly import Ends, GridAssembly, chunked, hessian_block_functions
-from .bvp_ipopt import DEFAULT_OPTIONS, ipopt_settings, pinned_bounds
+from .bvp_ipopt import DEFAULT_OPTIONS, _residual_functions, ipopt_settings, pinned_bounds
 
 # Changes to bvp_ipopt.DEFAULT_OPTIONS for this build, measured on the pendulum's released solve
 # at N = 1e5 from the same start (one process each, loaded machine, CPU time):
@@ -74,6 +74,12 @@ class GridNlp:
         pinned[time_rows[-1:] if self.steps else time_rows] = True
         self.kept = np.flatnonzero(~pinned)
         self.ng = self.kept.size + (N - 1 if self.steps else 0)
+        residuals = _residual_functions(system, scheme)
+        self._residuals = [None if f is None else chunked(system, ("bvp_residual", j, scheme), f)
+                           for j, f in enumerate(residuals)]
+        for f, count in zip(self._residuals, (N - 1, N - 2), strict=True):
+            if f is not None:
+                f.prepare(count)
         hessians = hessian_block_functions(system, scheme)
         self._hessians = [None if h is None else (chunked(system, ("bvp_hessian", j, scheme),
                                                           h[0]), h[1], h[2])
@@ -155,9 +161,26 @@ class GridNlp:
         return Ends(np.zeros(n), np.zeros(n), times, parameters[:self.n_theta],
                     float(parameters[self.n_theta]))
 
+    def _rows(self, x, parameters) -> np.ndarray:
+        """The kept rows of ``F(x)`` without the Jacobian blocks (IPOPT's line search asks for
+        ``g`` alone), or from the last evaluation if it was at ``x``."""
+        if self._last is not None and np.array_equal(self._last[0], x) \
+                and np.array_equal(self._last[1], parameters):
+            return self._last[2][self.kept]
+        n, N, m = self.layout.n, self.layout.nodes, self.layout.m
+        z = np.ascontiguousarray(x).reshape(N, m)
+        theta = np.ascontiguousarray(parameters[:self.n_theta])
+        F = np.zeros(N * m)
+        body = F[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
+        interval, node = self._residuals
+        body[:, :2 * n] = interval([z[:-1], z[1:]], theta, N - 1)[0][:, 0]
+        if node is not None:
+            body[:-1, 2 * n] = node([z[:-2], z[1:-1], z[2:]], theta, N - 2)[0][:, 0, 0] \
+                / parameters[self.n_theta]
+        return F[self.kept]
+
     def g(self, x, parameters, out):
-        F, _ = self._evaluate(x, parameters)
-        out[:self.kept.size] = F[self.kept]
+        out[:self.kept.size] = self._rows(x, parameters)
         if self.steps:
             out[self.kept.size:] = np.diff(x[::self.layout.m]) / parameters[self.n_theta]
 
