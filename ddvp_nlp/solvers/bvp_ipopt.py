@@ -1,5 +1,10 @@
 """IPOPT on the fixed-endpoint system, with the layout of ``bvp_assembly.py``.
 
+This is the MX build, kept for comparison (``bvp_phase.IPOPT_BUILD = "mx"``); the default build
+feeds IPOPT the banded assembly through callbacks (``bvp_ipopt_assembly.py``, 4-6 times faster
+on the pendulum at N = 1e3..1e5, docs/benchmarks/bench_bvp.md). Both share
+:data:`DEFAULT_OPTIONS`, :func:`ipopt_settings` and :func:`pinned_bounds`.
+
 The NLP: unknowns ``x`` interleaved by node, ``z_k = (t_k, q_k, p_k)``; the fixed end values
 (``t_0, q_0, t_{N-1}, q_{N-1}``, and for ``fixed`` every ``t_k``) pinned by ``lbx = ubx`` (IPOPT
 removes them, ``fixed_variable_treatment = make_parameter``); objective ``0``; constraints,
