@@ -14,6 +14,11 @@ counts repeat; the table gives the best wall time.
 
     python scripts/bench_bvp.py                  (the full table: about 10 minutes)
     python scripts/bench_bvp.py --quick          (N = 1e3, 1e4 only)
+    python scripts/bench_bvp.py --only pendulum:ipopt,pendulum:ipopt-mx,pendulum:newton
+
+Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``bvp_ipopt_assembly.py``, the
+default build); ``ipopt-mx`` the MX NLP of mapped functions (``bvp_ipopt.py``), run in the same
+way for the ratio.
 """
 
 from __future__ import annotations
@@ -30,14 +35,17 @@ import numpy as np
 PLAN = {  # (case, solver): sizes
     ("pendulum", "newton"): [1_000, 10_000, 100_000, 1_000_000],
     ("pendulum", "ipopt"): [1_000, 10_000, 100_000],
+    ("pendulum", "ipopt-mx"): [1_000, 10_000, 100_000],
     ("kepler", "auto"): [1_000, 10_000],
 }
 TARGETS = {("pendulum", "newton"): {10_000: 0.2, 100_000: 1.5, 1_000_000: 20.0},
            ("pendulum", "ipopt"): {10_000: 2.0, 100_000: 20.0},
+           ("pendulum", "ipopt-mx"): {10_000: 2.0, 100_000: 20.0},
            ("kepler", "auto"): {10_000: 0.5, 100_000: 5.0}}
 TIME_LIMIT = 150.0
 # Runs per (case, solver, N): 3 where a run takes seconds, to show the iteration counts repeat.
-REPEATS = {("pendulum", "newton"): 3, ("pendulum", "ipopt"): 3, ("kepler", "auto"): 1}
+REPEATS = {("pendulum", "newton"): 3, ("pendulum", "ipopt"): 3, ("pendulum", "ipopt-mx"): 3,
+           ("kepler", "auto"): 1}
 
 
 def endpoints(case: str):
@@ -54,14 +62,20 @@ def endpoints(case: str):
 
 
 def one(case: str, nodes: int, solver: str) -> dict:
+    from ddvp_nlp.solvers import bvp_phase
     from ddvp_nlp.solvers.bvp import solve_bvp
+
+    label = solver
+    if solver.startswith("ipopt"):
+        bvp_phase.IPOPT_BUILD = "mx" if solver == "ipopt-mx" else "assembly"
+        solver = "ipopt"
 
     system, q_start, q_end, span, params = endpoints(case)
     cpu = time.process_time()
     solution = solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
                          solver=solver, params=params, time_limit=TIME_LIMIT)
     phases = solution.stats["phases"]
-    return {"case": case, "N": nodes, "solver": solver, "status": solution.status.code,
+    return {"case": case, "N": nodes, "solver": label, "status": solution.status.code,
             "path": solution.stats["solver"],
             "build_s": solution.timing["build_s"], "solve_s": solution.timing["solve_s"],
             "cpu_s": time.process_time() - cpu,
@@ -123,10 +137,13 @@ def summary(rows) -> None:
                   f"(N = {mine[0]['N']:.0e} .. {mine[-1]['N']:.0e}; target: at most N^1.1)")
     for nodes in sorted({r["N"] for r in rows}):
         pair = {r["solver"]: r for r in rows if r["N"] == nodes and r["case"] == "pendulum"}
-        if {"ipopt", "newton"} <= set(pair):
-            ratio = ((pair["ipopt"]["build_s"] + pair["ipopt"]["solve_s"])
-                     / (pair["newton"]["build_s"] + pair["newton"]["solve_s"]))
-            print(f"pendulum N = {nodes:.0e}: build + solve, ipopt / newton = {ratio:.1f}")
+        for a, b in (("ipopt", "newton"), ("ipopt-mx", "ipopt")):
+            if {a, b} <= set(pair):
+                wall = ((pair[a]["build_s"] + pair[a]["solve_s"])
+                        / (pair[b]["build_s"] + pair[b]["solve_s"]))
+                cpu = pair[a]["cpu_s"] / pair[b]["cpu_s"]
+                print(f"pendulum N = {nodes:.0e}: build + solve, {a} / {b} = {wall:.1f} wall, "
+                      f"{cpu:.1f} CPU")
     import casadi
     import scipy
     print(f"\nmachine: {platform.machine()}, {platform.processor() or 'cpu'}, "
@@ -140,8 +157,13 @@ def main(argv: list[str]) -> None:
         return
     quick = "--quick" in argv
     repeat = 1 if quick else 3
+    only = None
+    if "--only" in argv:
+        only = {tuple(pair.split(":")) for pair in argv[argv.index("--only") + 1].split(",")}
     rows = []
     for (case, solver), sizes in PLAN.items():
+        if only is not None and (case, solver) not in only:
+            continue
         for nodes in sizes:
             if quick and nodes > 10_000:
                 continue

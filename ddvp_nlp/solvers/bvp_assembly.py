@@ -121,6 +121,42 @@ def _action_function(system, scheme: Scheme) -> ca.Function:
     return cached(system, ("bvp_action", scheme), build)
 
 
+def hessian_block_functions(system, scheme: Scheme):
+    """The second derivatives IPOPT's Lagrangian needs, block by block: ``(interval, node)``,
+    each ``(function, rows, columns)`` or ``None`` (``node`` for ``fixed``).
+
+    ``interval(z_a, z_b, lam, theta)`` returns the structural nonzeros of the upper triangle of
+    the Hessian of ``lam . r(z_a, z_b)`` (``lam`` one multiplier per canonical row, ``2n``) in
+    the stacked ``(z_a, z_b)`` (``2m`` values), as a column; entry ``i`` sits at ``(rows[i],
+    columns[i])`` of that ``2m x 2m`` block. ``node(z_prev, z_mid, z_next, mu, theta)`` does the
+    same for ``mu e`` over ``3m`` values. Entries that vanish for every argument are left out,
+    so that the output holds only what the grid's Hessian needs.
+    """
+    def triangle(name, expression, blocks, inputs):
+        H = ca.triu(ca.hessian(expression, ca.vertcat(*blocks))[0])
+        if H.nnz() == 0:
+            return None
+        rows, columns = H.sparsity().get_triplet()
+        return (ca.Function(name, inputs, [ca.vertcat(*H.nonzeros())]), np.array(rows),
+                np.array(columns))
+
+    def build():
+        n = system.n
+        z = [ca.SX.sym(f"z{j}", 2 * n + 1) for j in range(3)]
+        (t0, q0, p0), (t1, q1, p1), (t2, q2, p2) = [(zj[0], zj[1:n + 1], zj[n + 1:])
+                                                     for zj in z]
+        theta = system.theta
+        lam, mu = ca.SX.sym("lam", 2 * n), ca.SX.sym("mu")
+        r = equations.canonical_expression(system, scheme, t0, t1, q0, p0, q1, p1, theta)
+        interval = triangle("interval_hessian", ca.dot(lam, r), z[:2], [z[0], z[1], lam, theta])
+        if not scheme.variable_steps:
+            return interval, None
+        e = equations.energy_expression(system, scheme, scheme.rule, t0, t1, t2, q0, p0, q1,
+                                        p1, q2, p2, theta)
+        return interval, triangle("node_hessian", mu * e, z, [*z, mu, theta])
+    return cached(system, ("bvp_hessian_blocks", scheme), build)
+
+
 class ChunkedMap:
     """A per-block function evaluated over ``count`` blocks in windows of ``CHUNK`` blocks, each
     by one mapped call through ``Function.buffer`` on numpy memory.

@@ -1,5 +1,10 @@
 """IPOPT on the fixed-endpoint system, with the layout of ``bvp_assembly.py``.
 
+This is the MX build, kept for comparison (``bvp_phase.IPOPT_BUILD = "mx"``); the default build
+feeds IPOPT the banded assembly through callbacks (``bvp_ipopt_assembly.py``, 4-6 times faster
+on the pendulum at N = 1e3..1e5, docs/benchmarks/bench_bvp.md). Both share
+:data:`DEFAULT_OPTIONS`, :func:`ipopt_settings` and :func:`pinned_bounds`.
+
 The NLP: unknowns ``x`` interleaved by node, ``z_k = (t_k, q_k, p_k)``; the fixed end values
 (``t_0, q_0, t_{N-1}, q_{N-1}``, and for ``fixed`` every ``t_k``) pinned by ``lbx = ubx`` (IPOPT
 removes them, ``fixed_variable_treatment = make_parameter``); objective ``0``; constraints,
@@ -63,6 +68,33 @@ DEFAULT_OPTIONS = {
 }
 
 
+def ipopt_settings(tol: float, max_iter: int, verbose: bool, time_limit: float | None,
+                   options: dict) -> dict:
+    """``nlpsol`` options: IPOPT's tolerances 100 times below the verification's ``tol``, its
+    output if ``verbose``, its wall-time limit, then ``options``."""
+    settings = {"print_time": verbose, "ipopt.print_level": 5 if verbose else 0,
+                "ipopt.sb": "yes", "ipopt.max_iter": max_iter,
+                "ipopt.tol": tol * 1e-2, "ipopt.constr_viol_tol": tol * 1e-2, **options}
+    if time_limit is not None:
+        settings["ipopt.max_wall_time"] = float(time_limit)
+    return settings
+
+
+def pinned_bounds(layout: NodeLayout, scheme: Scheme, ends: Ends):
+    """``(lbx, ubx)``: free values unbounded; the end positions, the end times (every time for
+    ``fixed``) pinned by ``lbx = ubx``."""
+    n, m, N = layout.n, layout.m, layout.nodes
+    lbx = np.full((N, m), -np.inf)
+    ubx = np.full((N, m), np.inf)
+    for bound in (lbx, ubx):
+        bound[0, 1:n + 1], bound[-1, 1:n + 1] = ends.q_start, ends.q_end
+        if scheme.variable_steps:
+            bound[0, 0], bound[-1, 0] = ends.times[0], ends.times[-1]
+        else:
+            bound[:, 0] = ends.times
+    return lbx.ravel(), ubx.ravel()
+
+
 class IpoptProblem:
     """The NLP of one system, scheme and node count; ``solve`` takes the data of one problem."""
 
@@ -91,29 +123,17 @@ class IpoptProblem:
             keep = self.kinds >= 0
             g = g[np.flatnonzero(keep).tolist()]
             self.kinds = self.kinds[keep]
-        settings = {"print_time": verbose, "ipopt.print_level": 5 if verbose else 0,
-                    "ipopt.sb": "yes", "ipopt.max_iter": max_iter,
-                    "ipopt.tol": tol * 1e-2, "ipopt.constr_viol_tol": tol * 1e-2,
-                    **DEFAULT_OPTIONS, **(options or {})}
-        if time_limit is not None:
-            settings["ipopt.max_wall_time"] = float(time_limit)
+        settings = ipopt_settings(tol, max_iter, verbose, time_limit,
+                                  {**DEFAULT_OPTIONS, **(options or {})})
         self.solver = ca.nlpsol("bvp", "ipopt", {"x": x, "p": ca.vertcat(theta, energy_scale),
                                                  "f": 0, "g": g}, settings)
 
     def solve(self, x0: np.ndarray, ends: Ends, tau_floor: float):
         """``(x, converged, return_status, iterations)`` from ``x0``."""
-        n, m, N = self.layout.n, self.layout.m, self.layout.nodes
-        lbx = np.full((N, m), -np.inf)
-        ubx = np.full((N, m), np.inf)
-        for bound in (lbx, ubx):
-            bound[0, 1:n + 1], bound[-1, 1:n + 1] = ends.q_start, ends.q_end
-            if self.scheme.variable_steps:
-                bound[0, 0], bound[-1, 0] = ends.times[0], ends.times[-1]
-            else:
-                bound[:, 0] = ends.times
+        lbx, ubx = pinned_bounds(self.layout, self.scheme, ends)
         lbg = np.where(self.kinds == 1, tau_floor, 0.0)
         ubg = np.where(self.kinds == 1, np.inf, 0.0)
-        result = self.solver(x0=x0, lbx=lbx.ravel(), ubx=ubx.ravel(), lbg=lbg, ubg=ubg,
+        result = self.solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
                              p=np.concatenate([ends.theta, [ends.energy_scale]]))
         stats = self.solver.stats()
         return (np.asarray(result["x"]).ravel(), bool(stats.get("success")),

@@ -20,6 +20,7 @@ from ..discrete import equations
 from ..discrete.scheme import Scheme
 from .bvp_assembly import Ends, GridAssembly
 from .bvp_ipopt import IpoptProblem
+from .bvp_ipopt_assembly import AssemblyIpoptProblem
 from .bvp_newton import newton
 
 EPS = np.finfo(float).eps
@@ -27,6 +28,11 @@ EPS = np.finfo(float).eps
 # bvp_newton.py); verification allows ROUND_OFF_ALLOWANCE of them (bvp.py).
 TARGET_ULPS = 16
 ROUND_OFF_ALLOWANCE = 1024
+# How the IPOPT problem is built: "assembly" (callbacks on the banded assembly,
+# bvp_ipopt_assembly.py) or "mx" (an MX NLP of mapped per-interval functions, bvp_ipopt.py).
+# Measured side by side in scripts/bench_bvp.py, which sets this per run.
+IPOPT_BUILDS = {"assembly": AssemblyIpoptProblem, "mx": IpoptProblem}
+IPOPT_BUILD = "assembly"
 
 
 @dataclass
@@ -129,12 +135,13 @@ def run_phase(request: Request, scheme: Scheme, x0: np.ndarray, name: str, solve
                                           result.iterations)
     else:
         remaining = request.remaining()
-        problem = _built(request, ("bvp_ipopt", scheme, request.nodes, request.max_iter,
-                                   request.tol, request.verbose, remaining),
-                         lambda: IpoptProblem(request.system, scheme, request.nodes,
-                                              tol=request.tol, max_iter=request.max_iter,
-                                              verbose=request.verbose or request.progress,
-                                              time_limit=remaining))
+        build = IPOPT_BUILDS[IPOPT_BUILD]
+        problem = _built(request, ("bvp_ipopt", IPOPT_BUILD, scheme, request.nodes,
+                                   request.max_iter, request.tol, request.verbose, remaining),
+                         lambda: build(request.system, scheme, request.nodes, tol=request.tol,
+                                       max_iter=request.max_iter,
+                                       verbose=request.verbose or request.progress,
+                                       time_limit=remaining))
         x, converged, said, iterations = problem.solve(x0, ends, request.tau_floor)
     phase = {"phase": name, "solver": solver, "converged": converged, "return_status": said,
              "iterations": iterations, "seconds": time.perf_counter() - started}
