@@ -85,7 +85,9 @@ def main() -> None:
     text = "\n".join([
         "# Published numbers, reproduced", "",
         "Regenerate: `python scripts/comparison_page.py` (seconds). Tests: "
-        "`tests/test_alternatives.py` (the SUNDIALS numbers to 1%).", "",
+        "`tests/test_alternatives.py` (the SUNDIALS numbers to 1%). Which method is cheapest "
+        "over 10 to 10^5 periods: [../work_precision/horizons/README.md]"
+        "(../work_precision/horizons/README.md).", "",
         "## SUNDIALS `ark_kepler`, leapfrog", "",
         "Kepler, e = 0.6, q0 = (0.4, 0), p0 = (0, 2), H0 = -0.5, to T = 50; SUNDIALS' "
         "`ARKODE_SPRK_LEAPFROG_2_2` is drift-kick-drift, our `leapfrog`. The kick-drift-kick "
