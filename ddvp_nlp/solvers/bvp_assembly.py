@@ -87,22 +87,31 @@ class Ends:
     energy_scale: float
 
 
+def node_expressions(system, scheme: Scheme):
+    """``(z, r, e)``: three stacked node vectors ``z_j = (t, q, p)`` (SX symbols), the canonical
+    equations ``r`` of the interval ``z_0 -> z_1`` and the energy equation ``e`` of the middle
+    node (``None`` for ``fixed``), as written in ``discrete/``; the parameters are
+    ``system.theta``. Every per-interval function of the fixed-endpoint solvers starts here."""
+    n = system.n
+    z = [ca.SX.sym(f"z{j}", 2 * n + 1) for j in range(3)]
+    (t0, q0, p0), (t1, q1, p1), (t2, q2, p2) = [(zj[0], zj[1:n + 1], zj[n + 1:]) for zj in z]
+    theta = system.theta
+    r = equations.canonical_expression(system, scheme, t0, t1, q0, p0, q1, p1, theta)
+    e = (equations.energy_expression(system, scheme, scheme.rule, t0, t1, t2, q0, p0, q1, p1,
+                                     q2, p2, theta) if scheme.variable_steps else None)
+    return z, r, e
+
+
 def _block_functions(system, scheme: Scheme):
     """Per-interval ``(r, dr/d(z_a, z_b))`` of the canonical equations and per-node ``(e,
     de/d(z_prev, z_mid, z_next))`` of the energy equation (``None`` for ``fixed``)."""
     def build():
-        n = system.n
-        z = [ca.SX.sym(f"z{j}", 2 * n + 1) for j in range(3)]
-        parts = [(zj[0], zj[1:n + 1], zj[n + 1:]) for zj in z]
-        (t0, q0, p0), (t1, q1, p1), (t2, q2, p2) = parts
+        z, r, e = node_expressions(system, scheme)
         theta = system.theta
-        r = equations.canonical_expression(system, scheme, t0, t1, q0, p0, q1, p1, theta)
         interval = ca.Function("interval", [z[0], z[1], theta],
                                [r, ca.densify(ca.jacobian(r, ca.vertcat(z[0], z[1])))])
-        if not scheme.variable_steps:
+        if e is None:
             return interval, None
-        e = equations.energy_expression(system, scheme, scheme.rule, t0, t1, t2, q0, p0, q1, p1,
-                                        q2, p2, theta)
         node = ca.Function("node", [z[0], z[1], z[2], theta],
                            [e, ca.densify(ca.jacobian(e, ca.vertcat(*z)))])
         return interval, node
@@ -141,18 +150,12 @@ def hessian_block_functions(system, scheme: Scheme):
                 np.array(columns))
 
     def build():
-        n = system.n
-        z = [ca.SX.sym(f"z{j}", 2 * n + 1) for j in range(3)]
-        (t0, q0, p0), (t1, q1, p1), (t2, q2, p2) = [(zj[0], zj[1:n + 1], zj[n + 1:])
-                                                     for zj in z]
+        z, r, e = node_expressions(system, scheme)
         theta = system.theta
-        lam, mu = ca.SX.sym("lam", 2 * n), ca.SX.sym("mu")
-        r = equations.canonical_expression(system, scheme, t0, t1, q0, p0, q1, p1, theta)
+        lam, mu = ca.SX.sym("lam", 2 * system.n), ca.SX.sym("mu")
         interval = triangle("interval_hessian", ca.dot(lam, r), z[:2], [z[0], z[1], lam, theta])
-        if not scheme.variable_steps:
+        if e is None:
             return interval, None
-        e = equations.energy_expression(system, scheme, scheme.rule, t0, t1, t2, q0, p0, q1,
-                                        p1, q2, p2, theta)
         return interval, triangle("node_hessian", mu * e, z, [*z, mu, theta])
     return cached(system, ("bvp_hessian_blocks", scheme), build)
 

@@ -31,26 +31,19 @@ import casadi as ca
 import numpy as np
 
 from ..cache import cached
-from ..discrete import equations
 from ..discrete.scheme import Scheme
-from .bvp_assembly import Ends, NodeLayout
+from .bvp_assembly import Ends, NodeLayout, node_expressions
 
 
 def _residual_functions(system, scheme: Scheme):
     """Per-interval canonical equations and per-node energy equation (``None`` for ``fixed``)
     as functions of stacked node vectors ``z = (t, q, p)``."""
     def build():
-        n = system.n
-        z = [ca.SX.sym(f"z{j}", 2 * n + 1) for j in range(3)]
-        (t0, q0, p0), (t1, q1, p1), (t2, q2, p2) = [(zj[0], zj[1:n + 1], zj[n + 1:])
-                                                     for zj in z]
+        z, r, e = node_expressions(system, scheme)
         theta = system.theta
-        r = equations.canonical_expression(system, scheme, t0, t1, q0, p0, q1, p1, theta)
         interval = ca.Function("interval_residual", [z[0], z[1], theta], [r])
-        if not scheme.variable_steps:
+        if e is None:
             return interval, None
-        e = equations.energy_expression(system, scheme, scheme.rule, t0, t1, t2, q0, p0, q1,
-                                        p1, q2, p2, theta)
         return interval, ca.Function("node_residual", [z[0], z[1], z[2], theta], [e])
     return cached(system, ("bvp_residuals", scheme), build)
 
