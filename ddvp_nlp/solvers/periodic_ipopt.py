@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from ..cache import PROBLEMS
-from .bvp_ipopt import DEFAULT_OPTIONS
+from .bvp_ipopt import DEFAULT_OPTIONS, ipopt_settings
 from .bvp_newton import NewtonResult
 from .periodic_assembly import ClosedLayout, Closure, interval_rows
 
@@ -60,10 +60,8 @@ class PeriodicIpopt:
                        Z[1:, N] - Z[1:, 0] - shift, ca.vec(Z[0, 1:] - Z[0, :-1]))
         self.equalities = 2 + r + N * m + 2 * n
         self.steps = N
-        settings = {"print_time": verbose, "ipopt.print_level": 5 if verbose else 0,
-                    "ipopt.sb": "yes", "ipopt.max_iter": max_iter,
-                    "ipopt.tol": tol * 1e-2, "ipopt.constr_viol_tol": tol * 1e-2,
-                    "ipopt.hessian_approximation": "exact", **DEFAULT_OPTIONS}
+        settings = ipopt_settings(tol, max_iter, verbose, None,
+                                  {"ipopt.hessian_approximation": "exact", **DEFAULT_OPTIONS})
         parameters = ca.vertcat(theta, energy, value, reference, shift, ca.vec(generators))
         self.solver = ca.nlpsol("periodic", "ipopt", {"x": x, "p": parameters, "f": 0,
                                                       "g": g}, settings)
