@@ -35,7 +35,7 @@ from ..discrete.scheme import Scheme
 from .bvp_assembly import Ends, NodeLayout, node_expressions
 
 
-def _residual_functions(system, scheme: Scheme):
+def residual_functions(system, scheme: Scheme):
     """Per-interval canonical equations and per-node energy equation (``None`` for ``fixed``)
     as functions of stacked node vectors ``z = (t, q, p)``."""
     def build():
@@ -101,7 +101,7 @@ class IpoptProblem:
         theta = ca.MX.sym("theta", system.theta.numel())
         energy_scale = ca.MX.sym("energy_scale")
         Z = ca.reshape(x, m, nodes)
-        interval, node = _residual_functions(system, scheme)
+        interval, node = residual_functions(system, scheme)
         rows = [interval.map(nodes - 1)(Z[:, :-1], Z[:, 1:], theta)]
         if node is not None:
             energy = node.map(nodes - 2)(Z[:, :-2], Z[:, 1:-1], Z[:, 2:], theta) / energy_scale

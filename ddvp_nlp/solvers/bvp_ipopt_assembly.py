@@ -31,7 +31,7 @@ import numpy as np
 
 from ..discrete.scheme import Scheme
 from .bvp_assembly import Ends, GridAssembly, chunked, hessian_block_functions
-from .bvp_ipopt import DEFAULT_OPTIONS, _residual_functions, ipopt_settings, pinned_bounds
+from .bvp_ipopt import DEFAULT_OPTIONS, ipopt_settings, pinned_bounds, residual_functions
 
 # Changes to bvp_ipopt.DEFAULT_OPTIONS for this build, measured on the pendulum's released solve
 # at N = 1e5 from the same start (one process each, loaded machine, CPU time):
@@ -74,7 +74,7 @@ class GridNlp:
         pinned[time_rows[-1:] if self.steps else time_rows] = True
         self.kept = np.flatnonzero(~pinned)
         self.ng = self.kept.size + (N - 1 if self.steps else 0)
-        residuals = _residual_functions(system, scheme)
+        residuals = residual_functions(system, scheme)
         self._residuals = [None if f is None else chunked(system, ("bvp_residual", j, scheme), f)
                            for j, f in enumerate(residuals)]
         for f, count in zip(self._residuals, (N - 1, N - 2), strict=True):
