@@ -233,7 +233,12 @@ def _bvp_command(commands) -> None:
                           "verification), newton or ipopt")
     bvp.add_argument("--guess", default="straight", metavar="straight|march|FILE",
                      help="start: straight line (default), march (shooting from q_start), or "
-                          "a run folder / result.npz whose t, q, p have --nodes rows")
+                          "a run folder / result.npz (its t, q, p resampled onto --nodes "
+                          "rows if it has another number)")
+    bvp.add_argument("--p-start", default=None, metavar="P1,P2,...",
+                     help="with --guess march: the momentum shooting starts from (default the "
+                          "straight line's); picks the branch of a problem with several "
+                          "solutions")
     bvp.add_argument("--time-limit", type=float, default=None,
                      help="stop after this many seconds (status time_limit)")
     bvp.add_argument("--progress", action="store_true",

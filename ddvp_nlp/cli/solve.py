@@ -170,9 +170,19 @@ def _bvp(args, scene, config, scheme):
                          t_end=config.t_span[1], nodes=config.nodes, scheme=scheme,
                          params=config.params, tol=args.tol,
                          solver=args.solver, verbose=args.verbose,
-                         guess=_bvp_guess(args.guess), time_limit=args.time_limit,
-                         progress=args.progress)
+                         guess=_bvp_guess(args.guess), p_start=_momentum(args.p_start),
+                         time_limit=args.time_limit, progress=args.progress)
     return solution, {"solver": solution.stats}
+
+
+def _momentum(text: str | None):
+    """``--p-start``'s comma-separated numbers (``None`` if not given)."""
+    if text is None:
+        return None
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"--p-start must be comma-separated numbers, got {text!r}") from None
 
 
 def _bvp_guess(value: str):

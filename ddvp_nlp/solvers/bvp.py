@@ -50,7 +50,7 @@ from ..validation import check_finite_array, check_integer, check_real, check_st
 from .accuracy import AccuracyMonitor, Tolerance, assess
 from .bvp_assembly import NodeLayout
 from .bvp_phase import EPS, ROUND_OFF_ALLOWANCE, Request, assembly, round_off_scales, run_phase
-from .bvp_start import predicted_times, start_point
+from .bvp_start import branch_obstacle, predicted_times, start_point
 from .dense import attach
 
 SOLVERS = ("auto", "newton", "ipopt")
@@ -62,7 +62,8 @@ __all__ = ["solve_bvp", "predicted_times", "SOLVERS", "GUESSES"]
 def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
               t0: float | None = None, t_end: float | None = None,
               scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
-              guess: Solution | Mapping | str | None = None, times=None, tol: float = 1e-9,
+              guess: Solution | Mapping | str | None = None, p_start=None, times=None,
+              tol: float = 1e-9,
               tau_floor: float | None = None, solver: str = "auto", max_iter: int = 200,
               verbose: bool = False, time_limit: float | None = None, progress: bool = False,
               linear: str = "auto") -> Solution:
@@ -78,7 +79,10 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         params: the system's parameter values.
         guess: ``"straight"`` (default), ``"march"`` (shooting; ``bvp_start.py``), or a start:
             a :class:`Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
-            arrays of ``nodes`` rows.
+            arrays (``nodes`` rows, or any number of rows, resampled by node index onto
+            ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
+        p_start: the momentum shooting starts from (``guess="march"`` only; default the
+            straight line's): chooses the branch of a problem with several solutions.
         times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
         tol: verification tolerance (module docstring).
         tau_floor: smallest allowed step (default ``1e-3 (t_end - t_0)/(N-1)``).
@@ -96,8 +100,8 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     """
     t_span = _time_span(t_span, t0, t_end)
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
-                              params=params, guess=guess, times=times, tol=tol,
-                              tau_floor=tau_floor, solver=solver, max_iter=max_iter,
+                              params=params, guess=guess, p_start=p_start, times=times,
+                              tol=tol, tau_floor=tau_floor, solver=solver, max_iter=max_iter,
                               verbose=verbose, time_limit=time_limit, progress=progress,
                               linear=linear)
     started = time.perf_counter()
@@ -111,12 +115,21 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     first = "ipopt" if request.solver == "ipopt" else "newton"
     x, phase = run_phase(request, request.scheme, x0, name, first)
     outcome = _outcome(request, x, phase)
+    obstacle = branch_obstacle(request, start) if outcome[0] is not Status.SUCCESS \
+        and request.scheme.variable_steps else None
     if request.solver == "auto" and outcome[0] is not Status.SUCCESS \
             and outcome[0] is not Status.TIME_LIMIT:
-        x_ipopt, phase_ipopt = run_phase(request, request.scheme, x0, name, "ipopt")
-        fallback = _outcome(request, x_ipopt, phase_ipopt)
-        if fallback[0] is Status.SUCCESS:
-            x, phase, outcome = x_ipopt, phase_ipopt, fallback
+        if obstacle is None:
+            x_ipopt, phase_ipopt = run_phase(request, request.scheme, x0, name, "ipopt")
+            fallback = _outcome(request, x_ipopt, phase_ipopt)
+            if fallback[0] is Status.SUCCESS:
+                x, phase, outcome = x_ipopt, phase_ipopt, fallback
+        else:
+            # IPOPT from the same start: kepler's radial branch took 200 iterations (150 s at
+            # N = 1e4) to end where Newton did (measured)
+            obstacle += " (IPOPT not tried from this start)"
+    if obstacle is not None and outcome[0] is not Status.SUCCESS:
+        outcome = (outcome[0], f"{outcome[1]}; {obstacle}", outcome[2])
     solution = _solution(request, x, phase, outcome, started)
     return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
 
@@ -134,8 +147,8 @@ def _time_span(t_span, t0, t_end):
     return (0.0 if t0 is None else t0, t_end)
 
 
-def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times, tol,
-             tau_floor, solver, max_iter, verbose, time_limit, progress, linear):
+def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_start, times,
+             tol, tau_floor, solver, max_iter, verbose, time_limit, progress, linear):
     """The validated :class:`Request` and start (``InputError`` naming the argument and value,
     before anything is built)."""
     scheme = Scheme.coerce(scheme)
@@ -166,10 +179,15 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
         raise InputError(f"unknown guess {guess!r} (choose from {', '.join(GUESSES)}, or give "
                          f"a Solution or a mapping with t, q and p)")
     else:
-        start = _check_guess(guess, nodes, n)
+        start = _check_guess(guess, nodes, n, t0, t1)
+    if p_start is not None:
+        if start != "march":
+            raise InputError(f"p_start is the shooting start's momentum: give it with "
+                             f"guess='march', got guess={guess!r}")
+        p_start = check_state("p_start", p_start, n)
     request = Request(system, scheme, nodes, q_start, q_end, t0, t1, grid_times,
                       system.parameter_vector(params), tol, tau_floor, solver, max_iter,
-                      verbose=verbose, linear=linear, progress=progress)
+                      verbose=verbose, linear=linear, progress=progress, p_start=p_start)
     return request, start
 
 
@@ -350,13 +368,30 @@ def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
     return grid_times
 
 
-def _check_guess(guess, nodes, n) -> dict:
+def _check_guess(guess, nodes, n, t0, t1) -> dict:
+    """The guess's ``t``, ``q``, ``p`` on ``nodes`` rows: as given, or resampled by node index
+    (linear interpolation between the guess's rows, so that its step distribution is kept) with
+    the times mapped affinely onto ``[t0, t1]``."""
     if isinstance(guess, Solution):
         guess = {"t": guess.t, "q": guess.q, "p": guess.p}
     if not isinstance(guess, Mapping) or not {"t", "q", "p"} <= set(guess):
         raise InputError("guess must be a Solution or a mapping with t, q and p")
-    shapes = {"t": (nodes,), "q": (nodes, n), "p": (nodes, n)}
+    rows = np.shape(guess["t"])[0] if np.ndim(guess["t"]) == 1 else -1
+    if rows < 2:
+        raise InputError(f"guess['t'] must be a vector of at least 2 times, got shape "
+                         f"{np.shape(guess['t'])}")
+    shapes = {"t": (rows,), "q": (rows, n), "p": (rows, n)}
     result = {}
     for key, shape in shapes.items():
         result[key] = check_finite_array(f"guess[{key!r}]", guess[key], shape)
-    return result
+    if np.any(np.diff(result["t"]) <= 0):
+        raise InputError("guess['t'] must increase")
+    if rows == nodes:
+        return result
+    index = np.linspace(0.0, rows - 1, nodes)
+    old = np.arange(rows)
+    t = np.interp(index, old, result["t"])
+    t = t0 + (t - t[0]) * (t1 - t0) / (t[-1] - t[0])
+    t[0], t[-1] = t0, t1
+    return {"t": t, **{key: np.column_stack([np.interp(index, old, c) for c in result[key].T])
+                       for key in ("q", "p")}}

@@ -56,6 +56,7 @@ class Request:
     linear: str = "auto"
     deadline: float | None = None
     progress: bool = False
+    p_start: np.ndarray | None = None
     build_s: float = 0.0
     phases: list = field(default_factory=list)
 

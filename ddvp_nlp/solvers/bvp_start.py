@@ -15,10 +15,18 @@ predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
 
 ``guess="march"`` replaces phase 1 by shooting: march ``fixed`` steps on the uniform grid from
 ``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by Newton's method with a
-finite-difference Jacobian (``n + 1`` marches an iteration). The fixed-endpoint problem can have
+finite-difference Jacobian (``n + 1`` marches an iteration), from ``p_start`` if given, else from
+the straight line's momentum. The fixed-endpoint problem can have
 several solutions (a pendulum that swings once or twice between the same positions); shooting
 from the straight line's momentum picks the one the march from that momentum reaches, which
-the straight-line start, a trajectory that never turns, can miss.
+the straight-line start, a trajectory that never turns, can miss. A Kepler orbit over three
+periods is one: the straight line between two points near the pericentre leads to the radial
+branch (out to r = 4.2 and back), on which the energy rules have no solution (``w < 0`` for
+``r < 2``, docs/theory.md section 7); ``p_start`` near the orbit's momentum selects the three
+revolutions.
+
+A node guess (a march, a file) of another rule is first moved to the predicted times and solved
+with fixed steps there (``_from_nodes``).
 """
 
 from __future__ import annotations
@@ -28,9 +36,19 @@ import numpy as np
 from ..discrete.scheme import Scheme
 from ..physics.hamiltonian import site_density_weight_function
 from .bvp_assembly import NodeLayout
-from .bvp_phase import Request, run_phase
+from .bvp_phase import Request, assembly, newton_targets, run_phase
 
 SHOOTING_ITERATIONS = 30
+# Relative singular-value cut of the shooting Jacobian (_shooting_step).
+SHOOTING_RCOND = 1e-6
+# Halvings of a shooting step before the iteration gives up.
+SHOOTING_HALVINGS = 8
+# Iterations without halving the closest miss before shooting stops.
+SHOOTING_STALL = 3
+# ... once the closest miss is below this (relative to max(1, |q_end|)): close enough for
+# the fixed-step solve to start on the march's branch. Farther, shooting goes on (the swinging
+# pendulum of the tests leaves a local minimum of the miss, 0.049, at its 10th iteration).
+SHOOTING_CLOSE = 1e-3
 
 
 def straight_line(request: Request, times) -> dict:
@@ -50,17 +68,17 @@ def start_point(request: Request, guess) -> dict:
     """The point the final solve starts from (module docstring); every phase that fails leaves
     the previous phase's point. ``guess`` is ``"straight"``, ``"march"`` or node arrays."""
     if isinstance(guess, dict):
-        return guess
+        return _from_nodes(request, guess)
     uniform = request.grid_times if not request.scheme.variable_steps else \
         np.linspace(request.t0, request.t1, request.nodes)
     start = straight_line(request, uniform)
     fixed = fixed_scheme(request.scheme)
+    reached = False
     if guess == "march":
-        shot = shooting(request, fixed, uniform)
-        if shot is not None:
-            start = shot
+        shot, reached = shooting(request, fixed, uniform)
+        start = shot or start
     solver = "ipopt" if request.solver == "ipopt" else "newton"
-    if guess != "march" or not request.scheme.variable_steps:
+    if not reached or not request.scheme.variable_steps:
         solved = _solve_fixed(request, fixed, uniform, start, "fixed steps, uniform times",
                               solver)
         start = solved or start
@@ -73,6 +91,36 @@ def start_point(request: Request, guess) -> dict:
                         solver) or start
 
 
+# A node guess whose released residuals are all within this many times Newton's targets (a
+# march of the same scheme: round-off) starts the released solve as it is; any other is first
+# moved to the predicted times and solved with fixed steps there. A small residual is not enough:
+# a fixed-step march's energy rows are only O(tau^2) off, 4e-8 at N = 1e5 on kepler e = 0.5, yet
+# its node times are far from the released ones (Newton from it hit a 60 s limit; from the
+# predicted times it took 2 iterations at N = 1e4; measured).
+NEAR_RELEASED = 64
+
+
+def _from_nodes(request: Request, guess: dict) -> dict:
+    """The start from the user's nodes (module docstring): as given when they nearly solve the
+    released equations (a march of the same scheme), else fixed steps on the predicted times
+    first."""
+    if not request.scheme.variable_steps:
+        return guess
+
+    layout = NodeLayout(request.system.n, request.nodes)
+    x = layout.pack(guess["t"], guess["q"], guess["p"])
+    grid, ends = assembly(request, request.scheme), request.ends(request.scheme)
+    F, _ = grid.evaluate(x, ends, jacobian=False)
+    if np.all(np.abs(F) <= NEAR_RELEASED * newton_targets(request, grid, x, ends)):
+        return guess
+    times = predicted_times(request.system, guess["t"], guess["q"], guess["p"], request.theta)
+    moved = {"t": times, "q": interpolate(times, guess["t"], guess["q"]),
+             "p": interpolate(times, guess["t"], guess["p"])}
+    solver = "ipopt" if request.solver == "ipopt" else "newton"
+    return _solve_fixed(request, fixed_scheme(request.scheme), times, moved,
+                        "fixed steps, predicted times (from the guess)", solver) or guess
+
+
 def _solve_fixed(request, fixed, times, start, name, solver):
     layout = NodeLayout(request.system.n, request.nodes)
     x, phase = run_phase(request, fixed, layout.pack(times, start["q"], start["p"]), name,
@@ -83,9 +131,11 @@ def _solve_fixed(request, fixed, times, start, name, solver):
     return {"t": t, "q": q, "p": p}
 
 
-def shooting(request: Request, fixed: Scheme, times) -> dict | None:
-    """The march of ``fixed`` steps from ``(q_start, p_0)`` that ends on ``q_end`` (module
-    docstring), or ``None`` if the iteration does not reach it to ``tol``."""
+def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]:
+    """``(march, reached)``: the march of ``fixed`` steps from ``(q_start, p_0)`` that ends on
+    ``q_end`` to ``tol`` (module docstring), or, when the iteration stops short, the march that
+    came closest (``reached`` False: the fixed-step solve then starts from it, on its branch);
+    ``None`` if not even the first march succeeds."""
     from .march import march
 
     h = (request.t1 - request.t0) / (request.nodes - 1)
@@ -97,27 +147,62 @@ def shooting(request: Request, fixed: Scheme, times) -> dict | None:
                      t0=request.t0, scheme=fixed, params=params, max_steps=request.nodes,
                      tol=min(request.tol, 1e-10))
 
-    p0 = straight_line(request, times)["p"][0]
+    p0 = straight_line(request, times)["p"][0] if request.p_start is None \
+        else request.p_start.copy()
     record = {"phase": "shooting (march)", "solver": "newton (finite differences)",
               "converged": False, "return_status": "", "iterations": 0}
     request.phases.append(record)
+    run = shoot(p0)
+    if not run.success or run.t.size != request.nodes:
+        record["return_status"] = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
+        return None, False
+    best, stalled = (np.linalg.norm(run.q[-1] - request.q_end), run), 0
+    close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.q_end))))
     for iteration in range(1, SHOOTING_ITERATIONS + 1):
-        run = shoot(p0)
-        if not run.success or run.t.size != request.nodes:
-            record["return_status"] = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
-            return None
         miss = run.q[-1] - request.q_end
         record["iterations"] = iteration
         if np.max(np.abs(miss)) <= request.tol:
             record.update(converged=True, return_status=f"q_end reached, p_0 = {p0.tolist()}")
-            return {"t": run.t, "q": run.q, "p": run.p}
+            return {"t": run.t, "q": run.q, "p": run.p}, True
         step = _shooting_step(shoot, p0, run.q[-1], miss)
         if step is None:
             record["return_status"] = "a march of the finite differences failed"
-            return None
-        p0 = p0 - step
-    record["return_status"] = f"q_end not reached in {SHOOTING_ITERATIONS} iterations"
-    return None
+            break
+        # The longest of the halved steps whose march succeeds and comes closer to q_end; if
+        # none comes closer, the longest whose march succeeds (the end can depend on p_0 so
+        # unevenly, a swinging pendulum, that full steps converge where every shorter step
+        # first moves away; measured); the closest march seen is kept.
+        taken = None
+        for halving in range(SHOOTING_HALVINGS + 1):
+            trial = p0 - step / 2 ** halving
+            candidate = shoot(trial)
+            if not (candidate.success and candidate.t.size == request.nodes):
+                continue
+            taken = taken or (trial, candidate)
+            if np.linalg.norm(candidate.q[-1] - request.q_end) < np.linalg.norm(miss):
+                taken = (trial, candidate)
+                break
+        if taken is None:
+            record["return_status"] = (f"every march along the step from p_0 = {p0.tolist()} "
+                                       f"fails (miss {np.linalg.norm(miss):.3e})")
+            break
+        p0, run = taken
+        distance = np.linalg.norm(run.q[-1] - request.q_end)
+        if distance < 0.5 * best[0]:
+            stalled = 0
+        else:
+            stalled += 1
+        best = min(best, (distance, run), key=lambda b: b[0])
+        if stalled >= SHOOTING_STALL and best[0] <= close:
+            record["return_status"] = (f"the miss has not halved in {SHOOTING_STALL} "
+                                       f"iterations")
+            break
+    else:
+        record["return_status"] = f"q_end not reached in {SHOOTING_ITERATIONS} iterations"
+    run = best[1]
+    record["return_status"] += (f"; the closest march (miss {best[0]:.3e}) starts the "
+                                f"fixed-step solve")
+    return {"t": run.t, "q": run.q, "p": run.p}, False
 
 
 def _shooting_step(shoot, p0, q_last, miss) -> np.ndarray | None:
@@ -133,7 +218,11 @@ def _shooting_step(shoot, p0, q_last, miss) -> np.ndarray | None:
         if not run.success:
             return None
         J[:, i] = (run.q[-1] - q_last) / h
-    step = np.linalg.lstsq(J, miss, rcond=None)[0]
+    # Directions the end barely depends on are left alone (rcond): over whole periods of a
+    # Kepler orbit every direction of p_0 with the same |p_0| returns to the start, and
+    # the minimum-norm step along that near-null direction sent p_0 into the centre
+    # (measured).
+    step = np.linalg.lstsq(J, miss, rcond=SHOOTING_RCOND)[0]
     # a step larger than the momentum itself leaves the march's basin: cap it
     scale = max(1.0, float(np.max(np.abs(p0))))
     return step * min(1.0, scale / max(float(np.max(np.abs(step))), 1e-300))
@@ -144,17 +233,46 @@ def interpolate(times, t, values) -> np.ndarray:
 
 
 def predicted_times(system, t, q, p, theta) -> np.ndarray:
-    """Node times with the site density of the energy rules, ``tau_k ~ w^(-1/3)`` evaluated at
-    the interval midpoints of the grid ``t``, ``q``, ``p``; same first and last time."""
+    """Node times with the site density of the energy rules: ``tau ~ w^(-1/3)``, that is
+    ``w^(1/3)`` nodes per unit time, ``w`` evaluated at the interval midpoints of the grid ``t``,
+    ``q``, ``p``; same number of nodes, same first and last time.
+
+    The new nodes split the integral of ``w^(1/3)`` over the old grid into equal parts: the
+    density is a function of where the motion is, not of the old node's index (taking
+    ``tau_k ~ w_k^(-1/3)`` of the old interval ``k`` put the released kepler e = 0.5 solution up
+    to 37 mean steps away from the prediction and cost 44 damped Newton iterations at N = 1e3;
+    measured)."""
     N = t.size
-    w = np.asarray(site_density_weight_function(system).map(N - 1)(
-        ((q[:-1] + q[1:]) / 2).T, ((p[:-1] + p[1:]) / 2).T, ((t[:-1] + t[1:]) / 2)[None, :],
-        np.asarray(theta, float)[:, None])).ravel()
+    w = site_weights(system, t, q, p, theta)
     # Where w <= 0 the energy rules have no positive step anyway (docs/theory.md
     # section 7); keep the prediction finite there and let the solve report it.
     floor = 1e-3 * np.median(np.abs(w)) if np.any(w != 0) else 1.0
-    tau = np.maximum(w, floor) ** (-1 / 3)
-    tau *= (t[-1] - t[0]) / tau.sum()
-    times = t[0] + np.concatenate([[0.0], np.cumsum(tau)])
-    times[-1] = t[-1]
+    density = np.maximum(w, floor) ** (1 / 3)
+    mass = np.concatenate([[0.0], np.cumsum(density * np.diff(t))])
+    times = np.interp(np.linspace(0.0, mass[-1], N), mass, t)
+    times[0], times[-1] = t[0], t[-1]
     return times
+
+
+def site_weights(system, t, q, p, theta) -> np.ndarray:
+    """``w = f' H_zz f`` at the interval midpoints of the grid ``t``, ``q``, ``p``."""
+    N = t.size
+    return np.asarray(site_density_weight_function(system).map(N - 1)(
+        ((q[:-1] + q[1:]) / 2).T, ((p[:-1] + p[1:]) / 2).T, ((t[:-1] + t[1:]) / 2)[None, :],
+        np.asarray(theta, float)[:, None])).ravel()
+
+
+def branch_obstacle(request: Request, start: dict) -> str | None:
+    """Why the released solve may have no solution near ``start``: the intervals where
+    ``w <= 0``, on which the energy rules have no positive step (docs/theory.md section 7), or
+    ``None`` if there are none."""
+    t = np.asarray(start["t"], float)
+    w = site_weights(request.system, t, np.asarray(start["q"], float),
+                     np.asarray(start["p"], float), request.theta)
+    bad = np.flatnonzero(w <= 0)
+    if bad.size == 0:
+        return None
+    return (f"on the start's branch w = f' H_zz f <= 0 on {bad.size} of {w.size} intervals "
+            f"(t in [{t[bad[0]]:.6g}, {t[bad[-1] + 1]:.6g}]), where the energy rules have no "
+            f"positive step: this branch probably has no {request.scheme.rule} solution; give "
+            f"a start on another branch (guess='march' with p_start, or nodes)")

@@ -1,0 +1,115 @@
+"""Starts of the fixed-endpoint solve (issue 16, item 5): the predicted times, a node guess of
+another rule or size, shooting from a given momentum, and the diagnosis of a branch on which the
+energy rules have no solution. Kepler e = 0.5 over three periods from the pericentre: the
+straight line leads to the radial branch, the orbit's momentum to the three revolutions."""
+
+import numpy as np
+import pytest
+
+from ddvp_nlp import InputError, load_scene, march
+from ddvp_nlp.cli import main
+from ddvp_nlp.solvers.bvp import solve_bvp
+
+E = 0.5
+PERIODS = 3.0
+Q0 = [1 - E, 0.0]
+P0 = [0.0, np.sqrt((1 + E) / (1 - E))]
+
+
+def kepler(nodes):
+    """The system, its fixed-step march over three periods on ``nodes`` nodes, and the march's
+    end (the fixed-endpoint data)."""
+    system = load_scene("kepler").system
+    T = 2 * np.pi * PERIODS
+    marched = march(system, Q0, P0, tau0=T / (nodes - 1), t_end=T, scheme="fixed",
+                    params={"e": E}, max_steps=nodes)
+    assert marched.success and marched.t.size == nodes
+    return system, marched
+
+
+def revolutions(solution) -> float:
+    angle = np.unwrap(np.arctan2(solution.q[:, 1], solution.q[:, 0]))
+    return float((angle[-1] - angle[0]) / (2 * np.pi))
+
+
+def test_a_fixed_step_march_as_guess_is_moved_to_the_predicted_times_first():
+    """Released directly from the fixed-step march, Newton needed 56 damped iterations; the
+    old prediction (tau_k ~ w_k^(-1/3) of the old grid's interval k) 44; the predicted times by
+    the integral of w^(1/3) leave a handful."""
+    system, marched = kepler(1000)
+    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+                         params={"e": E}, guess=marched, solver="newton")
+    assert solution.success, solution.message
+    names = [ph["phase"] for ph in solution.stats["phases"]]
+    assert names == ["fixed steps, predicted times (from the guess)", "vddvp equations"]
+    assert solution.stats["phases"][-1]["iterations"] <= 8
+    assert revolutions(solution) == pytest.approx(3.0, abs=0.05)
+
+
+def test_a_guess_that_already_solves_the_equations_is_taken_as_it_is():
+    system = load_scene("kepler").system
+    marched = march(system, Q0, P0, tau0=0.02, t_end=2.0, params={"e": E})
+    assert marched.success
+    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1],
+                         nodes=marched.t.size, params={"e": E}, guess=marched, solver="newton")
+    assert solution.success, solution.message
+    assert [ph["phase"] for ph in solution.stats["phases"]] == ["vddvp equations"]
+    assert np.max(np.abs(solution.t - marched.t)) < 1e-10
+
+
+def test_a_guess_with_another_number_of_nodes_is_resampled():
+    system, marched = kepler(600)
+    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+                         params={"e": E}, guess={"t": marched.t, "q": marched.q,
+                                                 "p": marched.p}, solver="newton")
+    assert solution.success, solution.message
+    assert solution.t.size == 1000
+    # the coarse march's end lies past the pericentre: the solution follows it there
+    assert revolutions(solution) == pytest.approx(revolutions(marched), abs=0.01)
+
+
+def test_the_straight_start_reaches_a_branch_without_solution_and_says_so():
+    """The straight line between two points near the pericentre ends, with fixed steps, on the
+    radial orbit (out to r = 4.2 and back), where w = f' H_zz f < 0 for r < 2: the released
+    solve fails, the message says why, and no IPOPT is run from the same start."""
+    system, marched = kepler(1000)
+    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+                         params={"e": E})
+    assert not solution.success
+    assert "w = f' H_zz f <= 0 on" in solution.message
+    assert "IPOPT not tried from this start" in solution.message
+    assert all(ph["solver"] == "newton" for ph in solution.stats["phases"])
+    assert abs(revolutions(solution)) < 0.05  # out and back, not round
+    assert np.isfinite(solution.canonical_residual).all()
+
+
+def test_shooting_from_the_orbits_momentum_finds_the_three_revolutions():
+    """Over whole periods the problem is degenerate (every direction of p_0 with |p_0| = sqrt 3
+    returns to the start): shooting stops short of q_end, and its closest march starts the
+    fixed-step solve on the branch it chose."""
+    system, marched = kepler(1000)
+    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+                         params={"e": E}, guess="march", p_start=[0.0, 1.7320508])
+    assert solution.success, solution.message
+    assert solution.stats["phases"][0]["phase"] == "shooting (march)"
+    assert revolutions(solution) == pytest.approx(3.0, abs=0.05)
+    assert solution.stats["p_sign_changes"] == [6, 6]
+    assert sum(ph["iterations"] for ph in solution.stats["phases"][1:]) <= 25
+
+
+def test_p_start_is_checked():
+    system = load_scene("kepler").system
+    with pytest.raises(InputError, match=r"^p_start is the shooting start's momentum"):
+        solve_bvp(system, Q0, Q0, t0=0.0, t_end=1.0, nodes=10, p_start=[0.0, 1.0])
+    with pytest.raises(InputError, match=r"p_start"):
+        solve_bvp(system, Q0, Q0, t0=0.0, t_end=1.0, nodes=10, guess="march", p_start=[1.0])
+
+
+def test_cli_p_start(tmp_path, capsys):
+    args = ["bvp", "kepler", "--set", "q_start=0.5,0", "--set", "q_end=-0.5,0.5", "--set",
+            "t_end=2", "--nodes", "201"]
+    assert main([*args, "--guess", "march", "--p-start", "0,1.7", "--out",
+                 str(tmp_path / "a")]) == 0
+    assert "kepler bvp [vddvp]: success" in capsys.readouterr().out
+    assert main([*args, "--p-start", "0,x", "--out", str(tmp_path / "b")]) == 2
+    assert "--p-start must be comma-separated numbers, got '0,x'" in capsys.readouterr().err
