@@ -5,8 +5,17 @@ Cases (issue 16's targets):
 
 - ``pendulum``: the autonomous pendulum over about 2.7 periods (t in [0, 18], q(0) = 0.5,
   q(18) from a fixed-step march with p(0) = 0.5), vddvp, default start;
-- ``kepler``: e = 0.5 over 3 periods from the pericentre, q(6 pi) from a fixed-step march,
-  vddvp, default start.
+- ``kepler``: e = 0.5 over 3 periods from the pericentre, q(6 pi) from a fixed-step march
+  (20000 steps), vddvp, default start (the straight line: it leads to the radial branch, on which
+  the energy rule has no solution; the row shows how fast that is reported);
+- ``kepler-shoot``: the same problem, ``guess="march"`` with ``p_start`` the orbit's momentum
+  (0, sqrt 3): shooting picks the three revolutions;
+- ``kepler-nodes``: the same problem, the march that made the endpoints as the guess (resampled
+  onto N nodes).
+
+Over whole periods this problem is degenerate: every direction of p_0 with |p_0| = sqrt 3 comes
+back to the start, so only the discretisation singles out a solution (the exact flow's shooting
+Jacobian has singular values 170 and 7e-9 at 3 periods, 77 and 1.0 at 2.75; measured).
 
 Each run is its own process (so that its peak memory, ``ru_maxrss``, is its own) with a time
 limit. Every (case, solver, N) runs ``--repeat`` times (default 3) to show that the iteration
@@ -37,28 +46,34 @@ PLAN = {  # (case, solver): sizes
     ("pendulum", "ipopt"): [1_000, 10_000, 100_000],
     ("pendulum", "ipopt-mx"): [1_000, 10_000, 100_000],
     ("kepler", "auto"): [1_000, 10_000],
+    ("kepler-shoot", "auto"): [1_000, 10_000, 100_000],
+    ("kepler-nodes", "auto"): [1_000, 10_000, 100_000],
 }
 TARGETS = {("pendulum", "newton"): {10_000: 0.2, 100_000: 1.5, 1_000_000: 20.0},
            ("pendulum", "ipopt"): {10_000: 2.0, 100_000: 20.0},
            ("pendulum", "ipopt-mx"): {10_000: 2.0, 100_000: 20.0},
-           ("kepler", "auto"): {10_000: 0.5, 100_000: 5.0}}
+           ("kepler", "auto"): {10_000: 0.5, 100_000: 5.0},
+           ("kepler-shoot", "auto"): {10_000: 0.5, 100_000: 5.0},
+           ("kepler-nodes", "auto"): {10_000: 0.5, 100_000: 5.0}}
 TIME_LIMIT = 150.0
 # Runs per (case, solver, N): 3 where a run takes seconds, to show the iteration counts repeat.
 REPEATS = {("pendulum", "newton"): 3, ("pendulum", "ipopt"): 3, ("pendulum", "ipopt-mx"): 3,
-           ("kepler", "auto"): 1}
+           ("kepler", "auto"): 1, ("kepler-shoot", "auto"): 3, ("kepler-nodes", "auto"): 3}
 
 
 def endpoints(case: str):
     from ddvp_nlp import load_scene, march
 
-    system = load_scene(case).system
+    system = load_scene(case.split("-")[0]).system
     if case == "pendulum":
         reference = march(system, [0.5], [0.5], tau0=0.01, t_end=18.0, scheme="fixed")
-        return system, [0.5], reference.q[-1], (0.0, 18.0), {}
+        return system, [0.5], reference.q[-1], (0.0, 18.0), {}, {}
     e, T = 0.5, 6 * np.pi
     q0, p0 = [1 - e, 0.0], [0.0, np.sqrt((1 + e) / (1 - e))]
     reference = march(system, q0, p0, tau0=T / 20000, t_end=T, scheme="fixed", params={"e": e})
-    return system, q0, reference.q[-1], (0.0, T), {"e": e}
+    start = {"kepler": {}, "kepler-shoot": {"guess": "march", "p_start": p0},
+             "kepler-nodes": {"guess": reference}}[case]
+    return system, q0, reference.q[-1], (0.0, T), {"e": e}, start
 
 
 def one(case: str, nodes: int, solver: str) -> dict:
@@ -70,10 +85,10 @@ def one(case: str, nodes: int, solver: str) -> dict:
         bvp_phase.IPOPT_BUILD = "mx" if solver == "ipopt-mx" else "assembly"
         solver = "ipopt"
 
-    system, q_start, q_end, span, params = endpoints(case)
+    system, q_start, q_end, span, params, start = endpoints(case)
     cpu = time.process_time()
     solution = solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
-                         solver=solver, params=params, time_limit=TIME_LIMIT)
+                         solver=solver, params=params, time_limit=TIME_LIMIT, **start)
     phases = solution.stats["phases"]
     return {"case": case, "N": nodes, "solver": label, "status": solution.status.code,
             "path": solution.stats["solver"],

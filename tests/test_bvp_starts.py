@@ -113,3 +113,11 @@ def test_cli_p_start(tmp_path, capsys):
     assert "kepler bvp [vddvp]: success" in capsys.readouterr().out
     assert main([*args, "--p-start", "0,x", "--out", str(tmp_path / "b")]) == 2
     assert "--p-start must be comma-separated numbers, got '0,x'" in capsys.readouterr().err
+
+
+def test_a_failure_from_the_straight_start_suggests_the_other_starts():
+    system = load_scene("pendulum").system
+    solution = solve_bvp(system, [0.5], [-0.3], t0=0.0, t_end=10.0, nodes=201, solver="newton")
+    assert not solution.success
+    assert solution.message.endswith("give guess='march' (shooting, with p_start near the "
+                                      "motion's momentum) or a march's nodes as the guess")
