@@ -149,3 +149,16 @@ def test_scenes_shows_start_boundary_data_and_scheme(capsys):
     assert "fixed ends: none" in entries["kepler"]
     for name in ("pais_uhlenbeck", "spline"):
         assert "scheme: fixed (the scene's)" in entries[name]
+
+
+def test_a_closed_stdout_ends_quietly(monkeypatch, capsys):
+    """``ddvp ... | head``: the reader goes away; no traceback, the shell's SIGPIPE code."""
+    import ddvp_nlp.cli.main as cli_main
+
+    def closed(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setitem(cli_main.COMMANDS, "scenes", closed)
+    monkeypatch.setattr(cli_main, "_silence_stdout", lambda: None)
+    assert cli_main.main(["scenes"]) == 141
+    assert "Traceback" not in capsys.readouterr().err

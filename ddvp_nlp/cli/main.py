@@ -1,6 +1,6 @@
 """The ``ddvp`` entry point: parse, dispatch to the command, map failures to exit codes (0
 success, 1 the solve failed with partial results written, 2 bad usage with a message naming the
-argument, never a traceback)."""
+argument, 141 stdout closed by its reader; never a traceback)."""
 
 from __future__ import annotations
 
@@ -55,6 +55,11 @@ def main(argv: list[str] | None = None) -> int:
     except Stopped as exc:
         print(f"ddvp {args.command}: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # the reader of stdout went away (`ddvp march ... | head`): the run's files are
+        # written before the summary is printed; say nothing more on the closed pipe
+        _silence_stdout()
+        return 141  # 128 + SIGPIPE, the shell's code for a writer whose reader went away
     except KeyboardInterrupt:  # a grid keeps its rows
         print(f"ddvp {args.command}: interrupted; the rows finished so far are in the output "
               "folder (ddvp sweep, and ddvp stress --resume, go on from them)", file=sys.stderr)
@@ -62,3 +67,14 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         restore()
         warnings.formatwarning = original_format
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so that the interpreter's final flush does not fail again."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
