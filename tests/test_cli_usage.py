@@ -153,7 +153,9 @@ def test_scenes_shows_start_boundary_data_and_scheme(capsys):
 
 def test_a_closed_stdout_ends_quietly(monkeypatch, capsys):
     """``ddvp ... | head``: the reader goes away; no traceback, the shell's SIGPIPE code."""
-    import ddvp_nlp.cli.main as cli_main
+    import importlib
+
+    cli_main = importlib.import_module("ddvp_nlp.cli.main")  # the module, not the function
 
     def closed(args):
         raise BrokenPipeError(32, "Broken pipe")
