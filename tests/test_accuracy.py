@@ -184,3 +184,16 @@ def test_the_readme_example_scene_is_accurate(tmp_path):
     out = tmp_path / "run"
     assert main(["march", str(scene_file), "--no-plot", "--no-progress", "--out", str(out)]) == 0
     assert json.loads((out / "meta.json").read_text())["accuracy"]["verdict"] == "accurate"
+
+
+def test_the_printed_verdict_says_when_the_phase_has_drifted(tmp_path, capsys):
+    """A harmonic run over 3000 periods at tau = 0.1: every step passes, the global estimate is
+    the size of the orbit; the summary must not just say "accurate"."""
+    out = tmp_path / "h"
+    assert main(["march", "harmonic", "--set", "t_end=20000", "--out", str(out),
+                 "--no-progress", "--no-plot"]) == 0
+    printed = capsys.readouterr().out
+    assert "each step accurate, but the global estimate is" in printed
+    assert "; accurate\n" not in printed
+    accuracy = json.loads((out / "meta.json").read_text())["accuracy"]
+    assert accuracy["global_error_estimate"] / accuracy["orbit_size"] > 1.0

@@ -329,6 +329,7 @@ class AccuracyMonitor:
                 # at its cap: the estimate only says the error is as large as the orbit
                 "global_error_saturated": bool(propagated.size and propagated[-1]
                                                >= 2 * max(1.0, self.size) * (1 - 1e-9)),
+                "orbit_size": float(max(1.0, self.size)),
                 "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
                 "global_tol": tol.global_tol}
 
