@@ -197,7 +197,8 @@ class HigherAssembly:
         else:
             g, H = self._blocks(x, ends.theta, False)[1], None
         G = np.bincount(self._gradient_index, weights=g.ravel(), minlength=self.layout.size)
-        F = np.where(self.derived, G * self.row_scale, x - ends.given)
+        with np.errstate(all="ignore"):  # a diverging iterate: inf and nan are the caller's
+            F = np.where(self.derived, G * self.row_scale, x - ends.given)
         if H is None:
             return F, None
         values = np.concatenate([H.ravel()[self._kept] * self._kept_scale,

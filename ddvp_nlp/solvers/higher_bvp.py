@@ -145,6 +145,8 @@ def solve_rule(request: HigherRequest, rule: str, x0: np.ndarray):
         fallback = verify(request, rule, x_ipopt, phase_ipopt)
         if fallback[0] is Status.SUCCESS:
             return x_ipopt, phase_ipopt, fallback
+        outcome = (outcome[0], f"{outcome[1]}; the IPOPT fallback failed too "
+                   f"({fallback[0].code}: ipopt: {phase_ipopt['return_status']})", outcome[2])
     return x, phase, outcome
 
 
@@ -155,6 +157,7 @@ def _run(request: HigherRequest, rule: str, x0: np.ndarray, solver: str):
         grid = assembly(request, rule)
         ends = request.ends(rule)
         x, converged, said, iterations = continuation(request, grid, ends, x0, rule)
+        x = np.where(grid.derived, x, ends.given)  # the pins' own rows, held exactly
     else:
         x, converged, said, iterations = _ipopt(request, rule, x0)
     phase = {"phase": rule, "solver": solver, "converged": converged, "return_status": said,
@@ -239,8 +242,9 @@ def newton(grid, x0: np.ndarray, ends: HigherEnds, target: np.ndarray, *, tau_fl
 
 
 def _weighted(F, weight) -> float:
-    v = F * weight
-    return float(np.sqrt(np.einsum("i,i->", v, v)))
+    with np.errstate(all="ignore"):
+        v = F * weight
+        return float(np.sqrt(np.einsum("i,i->", v, v)))
 
 
 def continuation(request: HigherRequest, grid: HigherAssembly, ends: HigherEnds, x0, rule: str):
