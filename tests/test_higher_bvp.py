@@ -29,9 +29,8 @@ def _solve(name, nodes, scheme, solver, **kwargs):
     ("spline", 21, "fixed", 1), ("spline", 21, "vddvp", 12), ("pais_uhlenbeck", 41, "fixed", 1),
     ("pais_uhlenbeck", 41, "vddvp", 13)])
 def test_newton_and_ipopt_give_the_same_nodes(name, nodes, scheme, iterations):
-    """Measured: Newton 1 iteration on fixed steps (the equations are linear), 10 on the
-    spline's released times and 11 on Pais-Uhlenbeck's (IPOPT 12 and 130); the nodes agree to
-    1e-14."""
+    """Measured: Newton 1 iteration on fixed steps (the equations are linear), 11 on the
+    released times of each (IPOPT 12 and 130); the nodes agree to 1e-13."""
     _, _, newton = _solve(name, nodes, scheme, "newton")
     _, _, ipopt = _solve(name, nodes, scheme, "ipopt")
     assert newton.success and ipopt.success, (newton.message, ipopt.message)
