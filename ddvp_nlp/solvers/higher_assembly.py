@@ -92,8 +92,9 @@ class HigherEnds:
 
 
 def window_functions(system):
-    """``(value, full)``: ``value(z_0..z_l, theta) -> (S_k, dS_k/dw)`` and ``full(...) ->
-    (dS_k/dw, d2S_k/dw2)`` with ``w = (z_0, ..., z_l)``, ``z_j = (t, q)`` (dense outputs)."""
+    """``(value, full, gradient)``: ``value(z_0..z_l, theta) -> (S_k, dS_k/dw)``, ``full(...)
+    -> (dS_k/dw, d2S_k/dw2)`` and ``gradient(...) -> dS_k/dw`` with ``w = (z_0, ..., z_l)``,
+    ``z_j = (t, q)`` (dense outputs)."""
     def build():
         l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
         z = [ca.SX.sym(f"z{j}", n + 1) for j in range(l + 1)]
@@ -104,7 +105,7 @@ def window_functions(system):
         value = ca.Function("window_value", inputs, [S, ca.densify(gradient)])
         full = ca.Function("window_hessian", inputs,
                            [ca.densify(gradient), ca.densify(ca.jacobian(gradient, w))])
-        return value, full
+        return value, full, ca.Function("window_gradient", inputs, [ca.densify(gradient)])
     return cached(system, ("higher_windows",), build)
 
 
@@ -115,7 +116,7 @@ class HigherAssembly:
     def __init__(self, system, rule: str, nodes: int, el_scale: float):
         self.layout = HigherLayout(system.n, system.order, nodes)
         self.variable = rule != "fixed"
-        value, full = window_functions(system)
+        value, full, _ = window_functions(system)
         self._value = chunked(system, ("higher_value",), value)
         self._full = chunked(system, ("higher_hessian",), full)
         for mapped in (self._value, self._full):
