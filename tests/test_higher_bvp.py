@@ -30,7 +30,7 @@ def _solve(name, nodes, scheme, solver, **kwargs):
     ("pais_uhlenbeck", 41, "vddvp", 13)])
 def test_newton_and_ipopt_give_the_same_nodes(name, nodes, scheme, iterations):
     """Measured: Newton 1 iteration on fixed steps (the equations are linear), 11 on the
-    released times of each (IPOPT 12 and 130); the nodes agree to 1e-13."""
+    released times of each (IPOPT 12 and 137); the nodes agree to 1e-13."""
     _, _, newton = _solve(name, nodes, scheme, "newton")
     _, _, ipopt = _solve(name, nodes, scheme, "ipopt")
     assert newton.success and ipopt.success, (newton.message, ipopt.message)
@@ -57,6 +57,10 @@ def test_spline_with_released_times_succeeds_whatever_ipopt_said(tmp_path):
                      str(out), "--no-plot"]) == 0
         meta = json.loads((out / "meta.json").read_text())
         assert meta["success"], meta
+    out = tmp_path / "pais_uhlenbeck"
+    assert main(["bvp", "pais_uhlenbeck", "--solver", "newton", "--out", str(out),
+                 "--no-plot"]) == 0
+    assert "newton: converged" in json.loads((out / "meta.json").read_text())["message"]
 
 
 def test_verification_decides_and_quotes_the_solver():
@@ -180,7 +184,7 @@ def test_grid_energies_match_the_node_by_node_recursion():
 
 def test_ten_thousand_nodes_in_one_newton_iteration():
     """The fixed-step spline at N = 1e4: the equations are linear, so one Newton iteration,
-    and no expression of the grid is built (measured 0.2 s wall, scripts/bench_higher.py).
+    and no expression of the grid is built (measured 0.15 s, scripts/bench_higher.py).
     The error against the cubic grows like N^4 eps (the fourth difference's conditioning):
     2e-4 here."""
     scene, _, solution = _solve("spline", 10_000, "fixed", "newton")
