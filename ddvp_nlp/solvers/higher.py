@@ -64,10 +64,10 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     Fixed steps are solved first on uniform times from the straight line between the ends; an
     energy rule then releases the times from that solution. Each solve is by ``solver``:
     ``"newton"`` (the window assembly, ``higher_assembly.py``: ``O(N)`` per iteration),
-    ``"ipopt"`` (an expression of the whole grid) or ``"auto"`` (Newton, then IPOPT if
-    Newton's point fails the verification). Every point is verified by its unscaled residuals
-    (``higher_bvp.py``): success is that verification, whatever the solver said, and the
-    message quotes the solver.
+    ``"ipopt"`` (an MX graph of the window's gradient mapped over the grid) or ``"auto"``
+    (Newton, then IPOPT from the same start if Newton's point fails the verification). Every
+    point is verified by its unscaled residuals (``higher_bvp.py``): success is that
+    verification, whatever the solver said, and the message quotes the solver.
 
     Args:
         tol: verification tolerance (Euler-Lagrange rows scaled by the mean step to the power
