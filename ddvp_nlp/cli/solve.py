@@ -224,7 +224,8 @@ def _bvp_higher(args, scene, config, scheme):
     t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
-                            scheme=scheme.rule, params=config["params"], tol=args.tol), None
+                            scheme=scheme.rule, params=config["params"], tol=args.tol,
+                            solver=args.solver), None
 
 
 # (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)

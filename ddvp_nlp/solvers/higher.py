@@ -1,7 +1,9 @@
 """Fixed-endpoint problems and marches for higher-derivative Lagrangians (``discrete/higher.py``).
 
 A Lagrangian of order ``l`` couples ``2l + 1`` nodes in its Euler-Lagrange equation at a node, so
-a fixed-endpoint problem fixes ``l`` nodes at each end and a march starts from ``2l`` nodes.
+a fixed-endpoint problem fixes ``l`` nodes at each end and a march starts from ``2l`` nodes. The
+fixed-endpoint system is assembled window by window (``higher_assembly.py``) and solved and
+verified in ``higher_bvp.py``.
 """
 
 from __future__ import annotations
@@ -13,12 +15,13 @@ import casadi as ca
 import numpy as np
 
 from ..cache import cached
-from ..discrete.higher import _check_rule, action, energies
+from ..discrete.higher import _check_rule, action
 from ..errors import InputError
 from ..physics.higher import HigherOrderSystem
 from ..solution import Solution, Status
 from ..validation import check_integer, check_real
 from .driver import Advance, Nodes, drive
+from .higher_bvp import SOLVERS, HigherRequest, grid_energies, solve_rule
 
 NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50, "error_on_fail": False}
 
@@ -50,142 +53,67 @@ def _ends(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop) -> _Ends:
     return _Ends(t_start, q_start, t_stop, q_stop)
 
 
-@dataclass
-class _Problem:
-    """The NLP of a fixed-endpoint problem: unknowns the ``free`` interior positions (column
-    ``j`` of an ``n x free`` matrix, stacked by column) and, for an energy rule, their times;
-    constraints ``g = 0`` (the equations) and ``steps >= floor``."""
-
-    solver: ca.Function
-    unknowns: ca.SX
-    g: ca.SX
-    steps: ca.SX
-    free: int
-    uniform: np.ndarray  # the interior times of uniform steps
-    mean: float  # the mean step
-
-
-def _build_problem(system: HigherOrderSystem, rule: str, ends: _Ends, nodes: int, theta,
-                   tol: float, max_iter: int) -> _Problem:
-    """The Euler-Lagrange rows (scaled by the mean step to the power ``2l - 1``, the units of
-    ``q``) and, for an energy rule, the energy rows, as an IPOPT problem."""
-    l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
-    free = nodes - 2 * l
-    Q = ca.SX.sym("q", n, free)
-    T = ca.SX.sym("t", free) if rule != "fixed" else None
-    uniform = np.linspace(ends.t_start[-1], ends.t_stop[0], free + 2)[1:-1]
-    q_nodes = [ca.DM(x) for x in ends.q_start] + [Q[:, j] for j in range(free)] + \
-        [ca.DM(x) for x in ends.q_stop]
-    t_free = [T[j] for j in range(free)] if T is not None else list(uniform)
-    t_nodes = list(ends.t_start) + t_free + list(ends.t_stop)
-    S = action(system, q_nodes, t_nodes, ca.DM(theta))
-    unknowns = ca.vec(Q) if T is None else ca.vertcat(ca.vec(Q), T)
-    mean = (ends.t_stop[0] - ends.t_start[-1]) / (free + 1)
-    scale = mean ** (2 * l - 1)  # an Euler-Lagrange row ~ dq / tau^(2l-1)
-    g = [ca.gradient(S, ca.vec(Q)) * scale]
-    if T is not None:
-        g.append(ca.gradient(S, T))
-        steps = ca.vertcat(*[t_nodes[k + 1] - t_nodes[k] for k in range(nodes - 1)])
-    else:
-        steps = ca.SX(0, 1)
-    g = ca.vertcat(*g)
-    solver = ca.nlpsol("bvp_higher", "ipopt", {"x": unknowns, "f": 0,
-                                                "g": ca.vertcat(g, steps)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.tol": tol * 1e-2, "ipopt.constr_viol_tol": tol * 1e-2,
-                        "ipopt.max_iter": max_iter})
-    return _Problem(solver, unknowns, g, steps, free, uniform, mean)
-
-
-def _initial_guess(problem: _Problem, ends: _Ends, fixed: Solution | None, order: int,
-                   nodes: int) -> np.ndarray:
-    """Positions interpolated linearly between the ends on uniform times; for an energy rule
-    (``fixed``: its warm start, the fixed-step solution) those of ``fixed`` where it succeeded,
-    then the uniform times."""
-    times, n = ends.times, ends.q_start.shape[1]
-    guess_q = np.array([np.interp(problem.uniform, times,
-                                  np.concatenate([ends.q_start[:, i], ends.q_stop[:, i]]))
-                        for i in range(n)])
-    if fixed is not None and fixed.success:
-        guess_q = fixed.q[order:nodes - order].T
-    return guess_q.T.ravel() if fixed is None else np.concatenate([guess_q.T.ravel(),
-                                                                   problem.uniform])
-
-
-def _solve(problem: _Problem, x0: np.ndarray) -> tuple[np.ndarray, dict]:
-    """IPOPT from ``x0``: the equations as equalities, every step at least ``1e-3`` times the
-    mean step."""
-    floor = 1e-3 * problem.mean
-    g_size, step_count = problem.g.numel(), problem.steps.numel()
-    result = problem.solver(x0=x0, lbg=np.concatenate([np.zeros(g_size),
-                                                       np.full(step_count, floor)]),
-                            ubg=np.concatenate([np.zeros(g_size), np.full(step_count, np.inf)]))
-    return np.asarray(result["x"]).ravel(), problem.solver.stats()
-
-
-def _verify(problem: _Problem, ends: _Ends, x: np.ndarray, stats: dict, tol: float, order: int,
-            variable: bool):
-    """The nodes of IPOPT's point ``x``, its status (``SUCCESS`` only if IPOPT succeeded, the
-    unscaled residuals are under ``tol`` and every step is positive), message and residuals."""
-    n, free = ends.q_start.shape[1], problem.free
-    q_free = x[:n * free].reshape(free, n)
-    t_all = np.concatenate([ends.t_start, x[n * free:] if variable else problem.uniform,
-                            ends.t_stop])
-    q_all = np.vstack([ends.q_start, q_free, ends.q_stop])
-    residual = ca.Function("g", [problem.unknowns], [problem.g])(x)
-    residual = np.abs(np.asarray(residual)).ravel()
-    el, energy = residual[:n * free], residual[n * free:]
-    ok = (stats.get("success") and el.max(initial=0) <= tol * max(1.0, np.abs(q_all).max())
-          and energy.max(initial=0) <= tol * max(1.0, abs(problem.mean))
-          and np.all(np.diff(t_all) > 0))
-    status = Status.SUCCESS if ok else (Status.NOT_VERIFIED if stats.get("success")
-                                        else Status.SOLVER_FAILED)
-    detail = (f"largest residuals: Euler-Lagrange {el.max(initial=0):.3e} (times "
-              f"mean step^{2 * order - 1}), energy {energy.max(initial=0):.3e}; IPOPT: "
-              f"{stats.get('return_status')}, {stats.get('iter_count')} iterations")
-    message = ("solved and verified: " if ok else f"{status.value}: ") + detail
-    return t_all, q_all, status, message, {"euler_lagrange_residual": el,
-                                           "energy_equation_residual": energy}
-
-
 def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *,
                      nodes: int, scheme: str = "vddvp", params=None, tol: float = 1e-9,
-                     max_iter: int = 500) -> Solution:
+                     max_iter: int = 500, solver: str = "auto",
+                     tau_floor: float | None = None) -> Solution:
     """The fixed-endpoint problem: ``l`` nodes fixed at each end (``t_start``, ``q_start`` of
     shapes ``(l,)``, ``(l, n)``; likewise at the stop), ``nodes`` nodes in all; unknown the free
-    positions (and for an energy rule the free node times, starting uniform). IPOPT solves the
-    Euler-Lagrange (and energy) equations; the result is verified by its unscaled residuals
-    (scaled by the mean step to the power ``2l - 1`` for the Euler-Lagrange rows, the units of
-    ``q``) and every step must be positive."""
+    positions (and for an energy rule the free node times).
+
+    Fixed steps are solved first on uniform times from the straight line between the ends; an
+    energy rule then releases the times from that solution. Each solve is by ``solver``:
+    ``"newton"`` (the window assembly, ``higher_assembly.py``: ``O(N)`` per iteration),
+    ``"ipopt"`` (an MX graph of the window's gradient mapped over the grid) or ``"auto"``
+    (Newton, then IPOPT from the same start if Newton's point fails the verification). Every
+    point is verified by its unscaled residuals (``higher_bvp.py``): success is that
+    verification, whatever the solver said, and the message quotes the solver.
+
+    Args:
+        tol: verification tolerance (Euler-Lagrange rows scaled by the mean step to the power
+            ``2l - 1``, in the units of ``q``; energy rows in units of ``max(1, tau_mean)``);
+            round-off of the rows' own scale is always allowed.
+        max_iter: iteration limit of each solve.
+        tau_floor: smallest step of an energy rule (default ``1e-3`` times the mean step).
+    """
     rule = _check_rule(system, scheme)
     ends = _ends(system, t_start, q_start, t_stop, q_stop)
     nodes = check_integer("nodes", nodes, minimum=2 * system.order + 1)
     tol = check_real("tol", tol, positive=True)
+    max_iter = check_integer("max_iter", max_iter)
+    if solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})")
     if np.any(np.diff(ends.times) <= 0):
         raise InputError(f"the fixed node times must increase, got {ends.times.tolist()}")
-    theta = system.parameter_vector(params)
+    request = HigherRequest(system, ends.t_start, ends.q_start, ends.t_stop, ends.q_stop, nodes,
+                            system.parameter_vector(params), tol, 0.0, solver, max_iter)
+    request.tau_floor = check_real("tau_floor", 1e-3 * request.mean if tau_floor is None
+                                   else tau_floor, positive=True)
+    if request.tau_floor >= request.mean:
+        raise InputError(f"tau_floor must be < the mean step {request.mean!r}, got "
+                         f"{request.tau_floor!r}")
     started = time.perf_counter()
-    problem = _build_problem(system, rule, ends, nodes, theta, tol, max_iter)
-    built = time.perf_counter()
-    variable = rule != "fixed"
-    # an energy rule starts from the fixed-step solution on uniform times, then releases them
-    fixed = solve_bvp_higher(system, ends.t_start, ends.q_start, ends.t_stop, ends.q_stop,
-                             nodes=nodes, scheme="fixed", params=params, tol=tol,
-                             max_iter=max_iter) if variable else None
-    x, stats = _solve(problem, _initial_guess(problem, ends, fixed, system.order, nodes))
-    t_all, q_all, status, message, residuals = _verify(problem, ends, x, stats, tol,
-                                                       system.order, variable)
-    return _higher_solution(system, t_all, q_all, theta, status, message, rule,
-                            {"build_s": built - started,
-                             "solve_s": time.perf_counter() - built},
-                            {**residuals, "iterations": int(stats.get("iter_count", 0))})
+    x, phase, outcome = solve_rule(request, "fixed", request.straight())
+    if rule != "fixed":  # the times released from the fixed-step solution
+        start = x if outcome[0] is Status.SUCCESS else request.straight()
+        x, phase, outcome = solve_rule(request, rule, start)
+    status, message, residuals = outcome
+    z = x.reshape(nodes, system.n + 1)
+    total = time.perf_counter() - started
+    return _higher_solution(system, z[:, 0].copy(), z[:, 1:].copy(), request.theta, status,
+                            message, rule, {"build_s": request.build_s,
+                                            "solve_s": total - request.build_s},
+                            {**residuals, "iterations": phase["iterations"],
+                             "iterations_total": sum(p["iterations"] for p in request.phases),
+                             "solver": phase["solver"], "return_status": phase["return_status"],
+                             "phases": request.phases, "tau_floor": request.tau_floor})
 
 
 def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
     """A :class:`Solution` whose ``p`` is the multiplier ``lambda_1`` (the momentum conjugate to
     ``q``) at the nodes where the recursion defines it (``k = l-1 .. N-1-l``; the others repeat
     the nearest defined value and are listed in ``stats["p_defined"]``)."""
-    first, E = energies(system, t, q, theta) if t.size > 2 * system.order else (
+    first, E = grid_energies(system, t, q, theta) if t.size > 2 * system.order else (
         np.zeros((0, system.n)), np.zeros(0))
     p = np.zeros_like(q)
     lo = system.order - 1
