@@ -34,7 +34,12 @@ import scipy.sparse as sp
 from ..cache import cached
 from ..discrete import equations
 from ..discrete.scheme import Scheme
+from .compiler import CompileUnavailable, cache_folder, compile_function, find_compiler, warn_once
 
+# How GridAssembly evaluates its blocks: "auto" compiles them with the C compiler that
+# compiler.find_compiler finds (the march's); None runs CasADi's virtual machine (the fallback
+# when there is no compiler; set here to measure the ratio, scripts/bench_bvp.py newton-vm).
+COMPILER: str | None = "auto"
 # Threads of each mapped evaluation: 1, since 2 threads were not faster on 2 cores (measured).
 THREADS = 1
 # Blocks per mapped evaluation (module docstring of ChunkedMap).
@@ -102,19 +107,56 @@ def node_expressions(system, scheme: Scheme):
     return z, r, e
 
 
+def _band_rows(J, n: int) -> ca.SX:
+    """The ``m`` rows of ``J`` (their Jacobian in the block's columns ``0 .. J.size2()-1``) as
+    band rows: a dense ``(2w + 1) x m`` matrix whose column ``a`` holds row ``a``'s entries at
+    block columns ``c = n + 1 + a - w + e``, ``e = 0 .. 2w`` (zero outside the block), so that
+    each band row is one diagonal-centred window of the grid's row (``GridAssembly._band_view``).
+    """
+    m, w = 2 * n + 1, 3 * n + 1
+    out = ca.SX(2 * w + 1, m)
+    for a in range(m):
+        for e in range(2 * w + 1):
+            c = n + 1 + a - w + e
+            if 0 <= c < J.size2():
+                out[e, a] = J[a, c]
+    return ca.densify(out)
+
+
 def _block_functions(system, scheme: Scheme):
-    """Per-interval ``(r, dr/d(z_a, z_b))`` of the canonical equations and per-node ``(e,
-    de/d(z_prev, z_mid, z_next))`` of the energy equation (``None`` for ``fixed``)."""
+    """The per-block functions of the grid: block ``k`` is the ``m`` rows after the pins of
+    ``t_0, q_0``, shifted by ``k m``: the canonical equations of interval ``k`` and the time row
+    of node ``k + 1``. Two kinds, each as ``(residual and band rows, residual only)``:
+
+    - ``pinned(z_a, z_b, t_given, theta)``: time row ``t_b - t_given`` (every block of ``fixed``;
+      the last block, ``t_{N-1} - t_end``, of an energy rule);
+    - ``energy(z_prev, z_mid, z_next, (theta, energy_scale))``: time row the energy equation of
+      node ``mid`` over ``energy_scale`` (``None`` for ``fixed``).
+
+    The expressions and derivatives are the ones of ``node_expressions`` (``dr/d(z_a, z_b)`` and
+    ``de/d(z_prev, z_mid, z_next)``, the energy row's divided by the scale), so that every path
+    computes the same numbers; the band rows are :func:`_band_rows`."""
     def build():
+        n = system.n
         z, r, e = node_expressions(system, scheme)
         theta = system.theta
-        interval = ca.Function("interval", [z[0], z[1], theta],
-                               [r, ca.densify(ca.jacobian(r, ca.vertcat(z[0], z[1])))])
+        J_r = ca.jacobian(r, ca.vertcat(z[0], z[1]))
+        t_given = ca.SX.sym("t_given")
+        F = ca.vertcat(r, z[1][0] - t_given)
+        J = ca.vertcat(J_r, ca.jacobian(F[2 * n], ca.vertcat(z[0], z[1])))
+        inputs = [z[0], z[1], t_given, theta]
+        pinned = (ca.Function("bvp_pinned_block", inputs, [F, _band_rows(J, n)]),
+                  ca.Function("bvp_pinned_rows", inputs, [F]))
         if e is None:
-            return interval, None
-        node = ca.Function("node", [z[0], z[1], z[2], theta],
-                           [e, ca.densify(ca.jacobian(e, ca.vertcat(*z)))])
-        return interval, node
+            return pinned, None
+        scale = ca.SX.sym("energy_scale")
+        F = ca.vertcat(r, e / scale)
+        J = ca.vertcat(ca.horzcat(J_r, ca.SX(2 * n, 2 * n + 1)),
+                       ca.jacobian(e, ca.vertcat(*z)) / scale)
+        inputs = [z[0], z[1], z[2], ca.vertcat(theta, scale)]
+        energy = (ca.Function("bvp_energy_block", inputs, [F, _band_rows(J, n)]),
+                  ca.Function("bvp_energy_rows", inputs, [F]))
+        return pinned, energy
     return cached(system, ("bvp_blocks", scheme), build)
 
 
@@ -210,64 +252,245 @@ def chunked(system, key, function: ca.Function) -> ChunkedMap:
     return cached(system, ("chunked", key), lambda: ChunkedMap(function))
 
 
+class WindowMap:
+    """A per-block function evaluated over ``count`` blocks in windows of ``CHUNK`` blocks, each
+    by one mapped call through ``Function.buffer`` on numpy memory, compiled when it can be.
+
+    Compiled (``compiler.compile_function``, cached on disk under a hash of the code): the
+    window is always ``CHUNK`` blocks wide, so that one library serves every grid; a grid
+    shorter than a window is padded (its last block repeated) and the surplus discarded. On
+    CasADi's virtual machine (no compiler, ``COMPILER = None``, or a failed compile, with one
+    warning) the window is ``min(CHUNK, count)`` blocks. As in :class:`ChunkedMap` the last
+    window is shifted back to end on the last block.
+
+    Inputs are C-contiguous arrays ``(count, size)`` (slices of the grid: no copy), ``shared``
+    one vector given to every block. Each output goes to an array ``(count, size)`` given by
+    the caller (written in place: for the residual, a slice of ``F``), or, if ``None``, to a
+    window-sized scratch that ``sink(first, values)`` receives after each window (the band rows,
+    scattered from there while they are in cache)."""
+
+    def __init__(self, function: ca.Function, compiler: str | None, folder):
+        self.function = function
+        self.path = "vm"
+        self._compiled = None
+        self._vm: dict[int, tuple] = {}
+        if compiler is not None:
+            try:
+                self._compiled = compile_function(function.map(CHUNK), compiler, folder,
+                                                  prefix="bvp").buffer()
+                self.path = "compiled"
+            except CompileUnavailable as exc:
+                warn_once(exc)  # the virtual machine evaluates the same function
+
+    def _window(self, count: int):
+        if self._compiled is not None:
+            return CHUNK, self._compiled
+        size = min(CHUNK, count)
+        if size not in self._vm:
+            self._vm[size] = self.function.map(size).buffer()
+        return size, self._vm[size]
+
+    def prepare(self, count: int) -> None:
+        self._window(count)
+
+    def __call__(self, inputs, shared, outputs, count: int, sink=None) -> None:
+        f = self.function
+        size, (buffer, trigger) = self._window(count)
+        tiled = np.tile(np.asarray(shared, float), (size, 1))
+        buffer.set_arg(len(inputs), memoryview(tiled))
+        scratch = [np.empty((size, f.nnz_out(j))) if out is None or count < size else None
+                   for j, out in enumerate(outputs)]
+        if count < size:  # a compiled window wider than the grid: pad, then keep count rows
+            padded = [np.empty((size, block.shape[1])) for block in inputs]
+            for j, (block, held) in enumerate(zip(inputs, padded, strict=True)):
+                held[:count], held[count:] = block, block[-1]
+                buffer.set_arg(j, memoryview(held))  # CasADi keeps the address only: keep
+            for j, held in enumerate(scratch):
+                buffer.set_res(j, memoryview(held))
+            trigger()
+            for out, held in zip(outputs, scratch, strict=True):
+                if out is not None:
+                    out[:] = held[:count]
+            if sink is not None:
+                sink(0, scratch[-1][:count])
+            return
+        for j, held in enumerate(scratch):
+            if held is not None:
+                buffer.set_res(j, memoryview(held))
+        for first in range(0, count, size):
+            first = min(first, count - size)
+            for j, block in enumerate(inputs):
+                buffer.set_arg(j, memoryview(block[first:first + size]))
+            for j, out in enumerate(outputs):
+                if out is not None:
+                    buffer.set_res(j, memoryview(out[first:first + size]))
+            trigger()
+            if sink is not None:
+                sink(first, scratch[-1])
+
+
+def window_map(system, key, function: ca.Function) -> WindowMap:
+    """The :class:`WindowMap` of ``function``, one per system, ``key`` and compiler setting."""
+    compiler = find_compiler(COMPILER)
+    folder = cache_folder()
+    return cached(system, ("bvp_window", key, compiler, str(folder)),
+                  lambda: WindowMap(function, compiler, folder))
+
+
+class BandJacobian:
+    """The Jacobian of one evaluation, held in its :class:`GridAssembly`'s band store (LAPACK
+    ``gbsv`` storage, overwritten by the next evaluation with ``jacobian=True`` and by an LU
+    factorisation in place)."""
+
+    def __init__(self, ab: np.ndarray):
+        self.ab = ab
+
+
 class GridAssembly:
     """Residual ``F(x)`` and Jacobian ``F'(x)`` of one system, scheme and node count (module
-    docstring), in LAPACK band storage or as a sparse matrix."""
+    docstring), in LAPACK band storage or as a sparse matrix.
+
+    The Jacobian is written into one band store allocated at the first evaluation and reused:
+    each block's band rows (:func:`_band_rows`) go to their places by one strided assignment per
+    window (the store has ``w + 1`` spare columns on each side, where the entries of columns
+    outside the grid land, always zeros), and the pinned rows' entries by one indexed
+    assignment. Every entry of the band (rows ``w .. 3w`` of the storage) is written at each
+    evaluation; the ``w`` rows above are LAPACK's fill-in, which ``gbtrf`` clears itself."""
 
     def __init__(self, system, scheme: Scheme, nodes: int):
         self.layout = NodeLayout(system.n, nodes)
         self.scheme = scheme
-        interval, node = _block_functions(system, scheme)
-        self._interval = chunked(system, ("bvp_interval", scheme), interval)
-        self._node = chunked(system, ("bvp_node", scheme), node) if node is not None else None
-        self._action = chunked(system, ("bvp_action", scheme), _action_function(system, scheme))
-        for mapped, count in ((self._interval, nodes - 1), (self._node, nodes - 2),
-                              (self._action, nodes - 1)):
-            if mapped is not None:
-                mapped.prepare(count)  # build the window now: it is part of the build time
+        pinned, energy = _block_functions(system, scheme)
+        self._energy_rule = energy is not None
+        if energy is None:
+            self._maps = [window_map(system, ("pinned", j, scheme), f)
+                          for j, f in enumerate(pinned)]
+        else:  # blocks 0 .. N-3; block N-2 (pinned to t_end) alone, on the virtual machine
+            self._maps = [window_map(system, ("energy", j, scheme), f)
+                          for j, f in enumerate(energy)]
+            self._last = pinned
+            self._last_buffers = [f.buffer() for f in pinned]
+        self._action = window_map(system, ("action", scheme), _action_function(system, scheme))
+        blocks = nodes - 2 if self._energy_rule else nodes - 1
+        for mapped in self._maps:
+            mapped.prepare(blocks)  # build (or load) the windows now: part of the build time
+        self._action.prepare(nodes - 1)
+        self._flat = None
+
+    @property
+    def path(self) -> str:
+        """``"compiled"`` or ``"vm"``: how the Jacobian blocks are evaluated."""
+        return self._maps[0].path
 
     def action(self, x: np.ndarray, theta: np.ndarray) -> float:
         """The discrete action ``S_D = sum_k S_k`` of the grid ``x``."""
-        N = self.layout.nodes
-        z = np.asarray(x, float).reshape(N, self.layout.m)
-        return float(np.sum(self._action([z[:-1], z[1:]], theta, N - 1)[0]))
+        N, m = self.layout.nodes, self.layout.m
+        z = np.ascontiguousarray(x, float).reshape(N, m)
+        S = np.empty((N - 1, 1))
+        self._action([z[:-1], z[1:]], np.ascontiguousarray(theta, float), [S], N - 1)
+        return float(np.sum(S))
 
     def evaluate(self, x: np.ndarray, ends: Ends, jacobian: bool = True):
-        """``F(x)`` (``N m``,) and, if asked, the Jacobian blocks ``(interval, node)``."""
+        """``F(x)`` (``N m``,) and, if asked, the Jacobian (a :class:`BandJacobian`, for
+        :meth:`banded` and :meth:`sparse`; valid until the next evaluation of the Jacobian)."""
         n, N, m = self.layout.n, self.layout.nodes, self.layout.m
         z = np.ascontiguousarray(x, float).reshape(N, m)
         theta = np.ascontiguousarray(ends.theta, float)
-        r, J = self._interval([z[:-1], z[1:]], theta, N - 1)
-        r = r[:, 0]
         F = np.empty(N * m)
         F[0] = z[0, 0] - ends.times[0]
         F[1:n + 1] = z[0, 1:n + 1] - ends.q_start
         body = F[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
-        body[:, :2 * n] = r
-        if self._node is not None:
-            e, Je = self._node([z[:-2], z[1:-1], z[2:]], theta, N - 2)
-            body[:-1, 2 * n] = e[:, 0, 0] / ends.energy_scale
-            body[-1, 2 * n] = z[-1, 0] - ends.times[-1]
+        kind = 0 if jacobian else 1
+        sink = self._sink() if jacobian else None
+        outputs = [body] if not jacobian else [body, None]
+        if not self._energy_rule:
+            times = np.ascontiguousarray(ends.times, float)[1:, None]
+            self._maps[kind]([z[:-1], z[1:], times], theta, outputs, N - 1, sink)
         else:
-            body[:, 2 * n] = z[1:, 0] - ends.times[1:]
-            Je = None
+            outputs[0] = body[:-1]
+            self._maps[kind]([z[:-2], z[1:-1], z[2:]], np.r_[theta, ends.energy_scale],
+                               outputs, N - 2, sink)
+            self._last_block(z, ends, theta, body, sink)
         F[-n:] = z[-1, 1:n + 1] - ends.q_end
         if not jacobian:
             return F, None
-        return F, (J, None if Je is None else Je[:, :, 0] / ends.energy_scale)
+        self._flat[self._pin_index] = self._pin_values
+        return F, BandJacobian(self._ab)
+
+    def _last_block(self, z, ends, theta, body, sink):
+        """Block ``N - 2`` of an energy rule: canonical rows and ``t_{N-1} - t_end``."""
+        kind = 0 if sink is not None else 1
+        buffer, trigger = self._last_buffers[kind]
+        held = [np.ascontiguousarray(z[-2]), np.ascontiguousarray(z[-1]),
+                np.array([float(ends.times[-1])]), theta]
+        for j, value in enumerate(held):
+            buffer.set_arg(j, memoryview(value))
+        row = np.empty(self.layout.m)
+        buffer.set_res(0, memoryview(row))
+        band = None
+        if sink is not None:
+            band = np.empty((1, self._last[0].nnz_out(1)))
+            buffer.set_res(1, memoryview(band))
+        trigger()
+        body[-1] = row
+        if sink is not None:
+            sink(self.layout.nodes - 2, band)
+
+    def _sink(self):
+        """The band store (allocated once) and the assignment of a window's band rows."""
+        m, w = self.layout.m, self.layout.bandwidth
+        if self._flat is None:
+            self._allocate()
+        view = self._band_view
+
+        def sink(first, values):
+            view[first:first + values.shape[0]] = values.reshape(-1, m, 2 * w + 1)
+        return sink
+
+    def _allocate(self):
+        """The band store ``(3w + 1, N m)`` (Fortran order) inside a flat buffer with ``w + 1``
+        spare columns on each side; the strided view of the blocks' band rows; the pinned
+        rows' positions."""
+        n, N, m, w = self.layout.n, self.layout.nodes, self.layout.m, self.layout.bandwidth
+        L, size, spare = 3 * w + 1, N * m, w + 1
+        self._flat = np.zeros(L * (size + 2 * spare))
+        self._ab = self._flat[spare * L:(spare + size) * L].reshape(size, L).T
+        # entry (i, j) of the matrix is at flat position spare L + 2w + i + j (L - 1); block k's
+        # band row a, entry e: i = k m + n + 1 + a, j = i - w + e
+        first = spare * L + 2 * w + (n + 1) * L - w * (L - 1)
+        last = first + (N - 2) * m * L + (m - 1) * L + 2 * w * (L - 1)
+        assert 0 <= first and last < self._flat.size, "band store margins too small"
+        step = self._flat.itemsize
+        self._band_view = np.lib.stride_tricks.as_strided(
+            self._flat[first:], shape=(N - 1, m, 2 * w + 1),
+            strides=(m * L * step, L * step, (L - 1) * step), writeable=True)
+        # t_0, q_0: A[i, i] = 1 (i = 0 .. n); q_{N-1}: A[N m - n + i, (N-1) m + 1 + i] = 1, n
+        # columns left of the diagonal
+        rows = np.r_[np.arange(n + 1), size - n + np.arange(n)]
+        diagonal = np.r_[np.zeros(n + 1, int), np.full(n, -n)]
+        i, e = np.meshgrid(rows, np.arange(2 * w + 1), indexing="ij")
+        self._pin_index = (spare * L + 2 * w + i * L + (e - w) * (L - 1)).ravel()
+        self._pin_values = (e - w == diagonal[:, None]).astype(float).ravel()
 
     def residuals(self, F: np.ndarray, ends: Ends):
         """The unscaled equations in ``F``: canonical ``(N-1, 2n)``, energy ``(N-2,)`` (empty
         for ``fixed``)."""
         n, N, m = self.layout.n, self.layout.nodes, self.layout.m
         body = F[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
-        energy = body[:-1, 2 * n] * ends.energy_scale if self._node is not None else np.zeros(0)
+        energy = body[:-1, 2 * n] * ends.energy_scale if self._energy_rule \
+            else np.zeros(0)
         return body[:, :2 * n].copy(), energy
 
     def banded(self, blocks) -> np.ndarray:
         """The Jacobian in LAPACK ``gbsv`` storage: shape ``(3 w + 1, N m)``, Fortran order, with
         ``A[i, j]`` at row ``2 w + i - j`` (``w`` the bandwidth; the top ``w`` rows are LAPACK's
-        workspace for the fill-in of pivoting)."""
+        workspace for the fill-in of pivoting).
+
+        ``blocks`` is what :meth:`evaluate` returned (its store itself, no copy), or dense
+        blocks ``(interval (N-1, 2m, 2n), node (N-2, 3m) or None)`` in the layout of
+        :meth:`_entries` (a new array; ``bvp_ipopt_assembly`` builds its pattern from ones)."""
+        if isinstance(blocks, BandJacobian):
+            return blocks.ab
         N, m = self.layout.nodes, self.layout.m
         w = self.layout.bandwidth
         store = np.zeros((N, m, 3 * w + 1))
@@ -278,7 +501,16 @@ class GridAssembly:
         return store.reshape(N * m, 3 * w + 1).T
 
     def sparse(self, blocks) -> sp.csc_matrix:
-        """The same Jacobian as a sparse matrix (for wide bands)."""
+        """The same Jacobian as a sparse matrix (for wide bands); from a :class:`BandJacobian`,
+        its nonzero entries."""
+        size = self.layout.size
+        if isinstance(blocks, BandJacobian):
+            w = self.layout.bandwidth
+            band = blocks.ab[w:3 * w + 1]
+            j = np.broadcast_to(np.arange(size), band.shape)
+            i = j + np.arange(-w, w + 1)[:, None]
+            keep = (i >= 0) & (i < size) & (band != 0)
+            return sp.csc_matrix((band[keep], (i[keep], j[keep])), (size, size))
         m = self.layout.m
         rows, cols, values = [], [], []
         for row, col, value in self._entries(blocks):
@@ -286,7 +518,6 @@ class GridAssembly:
             rows.append(row[0] + (k + row[1]) * m)
             cols.append(col + (k + row[1]) * m)
             values.append(value)
-        size = self.layout.size
         return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows),
                                                        np.concatenate(cols))), (size, size))
 

@@ -103,7 +103,7 @@ def newton(assembly: GridAssembly, x0: np.ndarray, ends: Ends, target: np.ndarra
         progress: called as ``progress(iteration, residual_norm, alpha)`` after each iteration.
     """
     x = np.array(x0, float)
-    F, blocks = assembly.evaluate(x, ends)
+    F, _ = assembly.evaluate(x, ends, jacobian=False)
     norm = float(_norm(F))
     result = NewtonResult(x, False, "", 0, [norm])
     if not np.isfinite(norm):
@@ -118,6 +118,9 @@ def newton(assembly: GridAssembly, x0: np.ndarray, ends: Ends, target: np.ndarra
         if deadline is not None and time.perf_counter() > deadline:
             result.outcome = f"time limit reached after {iteration - 1} iterations"
             return result
+        # F(x) is at hand (the start's, or the line search's); the Jacobian only now, when a
+        # step is needed: a converged phase evaluates none
+        _, blocks = assembly.evaluate(x, ends)
         lu = Factorization(assembly, blocks, linear)
         dx = lu.solve(-F)
         if not np.all(np.isfinite(dx)):
@@ -136,7 +139,6 @@ def newton(assembly: GridAssembly, x0: np.ndarray, ends: Ends, target: np.ndarra
         result.step_lengths.append(alpha)
         if progress is not None:
             progress(iteration, norm, alpha)
-        F, blocks = assembly.evaluate(x, ends)
     result.outcome = f"max_iter = {max_iter} reached, residual norm {norm:.3e}"
     result.converged = bool(np.all(np.abs(F) <= target))
     return result
