@@ -1,0 +1,158 @@
+"""The fixed-endpoint assembly compiled (``bvp_assembly.COMPILER = "auto"``, gcc through
+``compiler.py``) and on CasADi's virtual machine (``None``, the fallback): the same residuals,
+Jacobian and nodes, one compiled library for every node count, the fallback when the compiler
+fails, and the band store reused across evaluations and in-place factorisations."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.linalg import lapack
+
+from ddvp_nlp import load_scene, march
+from ddvp_nlp.cache import PROBLEMS
+from ddvp_nlp.discrete.scheme import Scheme
+from ddvp_nlp.solvers import bvp_assembly, compiler
+from ddvp_nlp.solvers.bvp import solve_bvp
+from ddvp_nlp.solvers.bvp_assembly import CHUNK, Ends, GridAssembly
+
+needs_compiler = pytest.mark.skipif(compiler.find_compiler("auto") is None,
+                                    reason="no C compiler on this machine")
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """A fresh compiled-code cache; the assembly setting restored after the test."""
+    monkeypatch.setenv("DDVP_NLP_CACHE", str(tmp_path))
+    monkeypatch.setattr(bvp_assembly, "COMPILER", "auto")
+    return tmp_path
+
+
+def _point(system, rule, nodes, seed=1):
+    """A grid near a motion (increasing times, random states) and its data."""
+    n = system.n
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, nodes) + 1e-3 * rng.random(nodes) / nodes
+    q, p = rng.random((nodes, n)), rng.random((nodes, n))
+    theta = np.asarray(system.parameter_vector({}), float)
+    times = np.array([t[0], t[-1]]) if rule != "fixed" else t + 1e-4
+    return t, q, p, Ends(q[0] + 0.1, q[-1] - 0.1, times, theta, 2.0 / (nodes - 1))
+
+
+def _both(system, rule, nodes, x, ends):
+    """``(F, band)`` of each path, compiled first."""
+    out = []
+    for setting in ("auto", None):
+        bvp_assembly.COMPILER = setting
+        grid = GridAssembly(system, Scheme(rule), nodes)
+        assert grid.path == ("compiled" if setting else "vm")
+        F, blocks = grid.evaluate(x, ends)
+        out.append((F, grid.banded(blocks).copy(), grid.evaluate(x, ends, False)[0]))
+    return out
+
+
+@needs_compiler
+@pytest.mark.parametrize("name", ["pendulum", "kepler"])
+@pytest.mark.parametrize("rule", ["vddvp", "fixed"])
+@pytest.mark.parametrize("nodes", [5, 300, CHUNK + 9])
+def test_compiled_and_vm_assemble_the_same_system(cache, name, rule, nodes):
+    """Grids shorter than a window (padded), and longer (a shifted last window): the residual,
+    with and without the Jacobian, and every band entry agree to round-off."""
+    system = load_scene(name).system
+    t, q, p, ends = _point(system, rule, nodes)
+    x = GridAssembly(system, Scheme(rule), nodes).layout.pack(t, q, p)
+    (F_c, band_c, R_c), (F_v, band_v, R_v) = _both(system, rule, nodes, x, ends)
+    assert np.all(np.isfinite(F_c)) and np.all(np.isfinite(band_c))
+    assert np.max(np.abs(F_c - F_v)) <= 1e-13
+    assert np.array_equal(F_c, R_c) and np.array_equal(F_v, R_v)
+    w = (band_c.shape[0] - 1) // 3
+    assert np.max(np.abs(band_c[w:] - band_v[w:])) <= 1e-12 * max(1.0, np.max(np.abs(band_v)))
+
+
+def test_the_band_store_is_rewritten_whole_after_an_in_place_factorisation(cache):
+    """The store is reused: after ``gbtrf`` overwrote it, the next evaluation restores every
+    entry of the band (LAPACK's fill-in rows aside, which it clears itself), so the second
+    factorisation solves exactly as a fresh one."""
+    system = load_scene("kepler").system
+    nodes = 40
+    t, q, p, ends = _point(system, "vddvp", nodes)
+    grid = GridAssembly(system, Scheme("vddvp"), nodes)
+    x = grid.layout.pack(t, q, p)
+    w = grid.layout.bandwidth
+    F, blocks = grid.evaluate(x, ends)
+    fresh = np.asfortranarray(grid.banded(blocks).copy())
+    lapack.dgbtrf(grid.banded(blocks), w, w, overwrite_ab=1)
+    assert not np.array_equal(grid.banded(blocks)[w:], fresh[w:])  # the LU is in the store
+    F_again, blocks = grid.evaluate(x, ends)
+    assert np.array_equal(F_again, F)
+    assert np.array_equal(grid.banded(blocks)[w:], fresh[w:])
+    lu, pivots, info = lapack.dgbtrf(grid.banded(blocks), w, w, overwrite_ab=1)
+    fresh[:w] = 0.0
+    lu_fresh, pivots_fresh, _ = lapack.dgbtrf(fresh, w, w)
+    assert info == 0
+    assert np.array_equal(lapack.dgbtrs(lu, w, w, F, pivots)[0],
+                          lapack.dgbtrs(lu_fresh, w, w, F, pivots_fresh)[0])
+
+
+@needs_compiler
+def test_one_compile_serves_every_node_count(cache):
+    """The window is CHUNK blocks whatever N: a second grid size compiles nothing, and a new
+    process would load the libraries from the cache folder."""
+    system = load_scene("pendulum").system
+    GridAssembly(system, Scheme("vddvp"), 50)
+    built = compiler.build_count()
+    libraries = sorted(p.name for p in cache.glob("bvp_*.so"))
+    assert libraries  # residual-and-band rows, residual rows, action
+    for nodes in (7, 1000, 3 * CHUNK + 1):
+        GridAssembly(load_scene("pendulum").system, Scheme("vddvp"), nodes)
+    assert compiler.build_count() == built
+    assert sorted(p.name for p in cache.glob("bvp_*.so")) == libraries
+
+
+def test_a_failing_compiler_falls_back_to_the_virtual_machine(cache, monkeypatch):
+    """A compiler that exits with an error: one warning, the virtual machine, the same nodes."""
+    monkeypatch.setattr(bvp_assembly, "COMPILER", "false")
+    system = load_scene("pendulum").system
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        grid = GridAssembly(system, Scheme("vddvp"), 30)
+    assert grid.path == "vm"
+    assert any("running on CasADi's virtual machine instead" in str(w.message) for w in caught)
+    t, q, p, ends = _point(system, "vddvp", 30)
+    F, blocks = grid.evaluate(grid.layout.pack(t, q, p), ends)
+    assert np.all(np.isfinite(F)) and np.all(np.isfinite(grid.banded(blocks)))
+
+
+def _solve(name, setting, nodes):
+    """The default-start Newton solve of a pendulum swing or of kepler e = 0.5 over one period
+    (endpoints from a fixed-step march), with the assembly ``setting``."""
+    bvp_assembly.COMPILER = setting
+    PROBLEMS.clear()  # the built assemblies are cached per system: build this path's own
+    if name == "pendulum":
+        system = load_scene("pendulum").system
+        reference = march(system, [0.5], [0.5], tau0=0.01, t_end=9.0, scheme="fixed")
+        return solve_bvp(system, [0.5], reference.q[-1], t0=0.0, t_end=9.0, nodes=nodes,
+                         solver="newton")
+    system = load_scene("kepler").system
+    e, T = 0.5, 2 * np.pi
+    q0, p0 = [1 - e, 0.0], [0.0, np.sqrt((1 + e) / (1 - e))]
+    reference = march(system, q0, p0, tau0=T / (nodes - 1), t_end=T, scheme="fixed",
+                      params={"e": e}, max_steps=nodes)
+    return solve_bvp(system, q0, reference.q[-1], t0=0.0, t_end=T, nodes=nodes,
+                     solver="newton", params={"e": e}, guess=reference)
+
+
+@needs_compiler
+@pytest.mark.parametrize("name, nodes, most", [("pendulum", 2000, 10), ("kepler", 1500, 8)])
+def test_compiled_and_vm_newton_return_the_same_nodes(cache, name, nodes, most):
+    """Both paths verify, take the same iterations in every phase (a bounded number), and
+    return the same nodes to 1e-12."""
+    compiled = _solve(name, "auto", nodes)
+    vm = _solve(name, None, nodes)
+    for solution in (compiled, vm):
+        assert solution.success, solution.message
+    counts = [[ph["iterations"] for ph in s.stats["phases"]] for s in (compiled, vm)]
+    assert counts[0] == counts[1]
+    assert sum(counts[0]) <= most
+    for key in ("t", "q", "p"):
+        assert np.max(np.abs(getattr(compiled, key) - getattr(vm, key))) <= 1e-12
