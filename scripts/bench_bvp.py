@@ -24,6 +24,12 @@ counts repeat; the table gives the best wall time.
     python scripts/bench_bvp.py                  (the full table: about 10 minutes)
     python scripts/bench_bvp.py --quick          (N = 1e3, 1e4 only)
     python scripts/bench_bvp.py --only pendulum:ipopt,pendulum:ipopt-mx,pendulum:newton
+    python scripts/bench_bvp.py --only pendulum:newton,pendulum:newton-vm
+
+Solver ``newton-vm`` is Newton with the assembly's blocks on CasADi's virtual machine
+(``bvp_assembly.COMPILER = None``, the path without a C compiler), run in the same way for the
+ratio to ``newton`` (compiled: ``compiler.py``, cached in ``$DDVP_NLP_CACHE`` or
+``~/.cache/ddvp_nlp``, so only the first run ever compiles).
 
 Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``bvp_ipopt_assembly.py``, the
 default build); ``ipopt-mx`` the MX NLP of mapped functions (``bvp_ipopt.py``), run in the same
@@ -43,6 +49,7 @@ import numpy as np
 
 PLAN = {  # (case, solver): sizes
     ("pendulum", "newton"): [1_000, 10_000, 100_000, 1_000_000],
+    ("pendulum", "newton-vm"): [1_000, 10_000, 100_000, 1_000_000],
     ("pendulum", "ipopt"): [1_000, 10_000, 100_000],
     ("pendulum", "ipopt-mx"): [1_000, 10_000, 100_000],
     ("kepler", "auto"): [1_000, 10_000],
@@ -57,7 +64,8 @@ TARGETS = {("pendulum", "newton"): {10_000: 0.2, 100_000: 1.5, 1_000_000: 20.0},
            ("kepler-nodes", "auto"): {10_000: 0.5, 100_000: 5.0}}
 TIME_LIMIT = 150.0
 # Runs per (case, solver, N): 3 where a run takes seconds, to show the iteration counts repeat.
-REPEATS = {("pendulum", "newton"): 3, ("pendulum", "ipopt"): 3, ("pendulum", "ipopt-mx"): 3,
+REPEATS = {("pendulum", "newton"): 3, ("pendulum", "newton-vm"): 3, ("pendulum", "ipopt"): 3,
+           ("pendulum", "ipopt-mx"): 3,
            ("kepler", "auto"): 1, ("kepler-shoot", "auto"): 3, ("kepler-nodes", "auto"): 3}
 
 
@@ -81,6 +89,10 @@ def one(case: str, nodes: int, solver: str) -> dict:
     from ddvp_nlp.solvers.bvp import solve_bvp
 
     label = solver
+    if solver.startswith("newton"):
+        from ddvp_nlp.solvers import bvp_assembly
+        bvp_assembly.COMPILER = None if solver == "newton-vm" else "auto"
+        solver = "newton"
     if solver.startswith("ipopt"):
         bvp_phase.IPOPT_BUILD = "mx" if solver == "ipopt-mx" else "assembly"
         solver = "ipopt"
@@ -91,13 +103,25 @@ def one(case: str, nodes: int, solver: str) -> dict:
                          solver=solver, params=params, time_limit=TIME_LIMIT, **start)
     phases = solution.stats["phases"]
     return {"case": case, "N": nodes, "solver": label, "status": solution.status.code,
-            "path": solution.stats["solver"],
+            "path": _path(system, solution.stats["solver"]),
             "build_s": solution.timing["build_s"], "solve_s": solution.timing["solve_s"],
             "cpu_s": time.process_time() - cpu,
             "iterations": [ph["iterations"] for ph in phases],
             "canonical": solution.stats.get("canonical_residual_max", float("nan")),
             "energy": solution.stats.get("energy_residual_max", float("nan")),
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def _path(system, solver: str) -> str:
+    """The solver that returned the point; for Newton, how its blocks were evaluated (compiled
+    or on CasADi's virtual machine, read from the built assembly)."""
+    from ddvp_nlp.cache import PROBLEMS
+
+    if solver != "newton":
+        return solver
+    paths = {PROBLEMS.get(system, key, lambda: None).path for key in PROBLEMS.keys(system)
+             if key[0] == "bvp_assembly"}
+    return f"newton, {'/'.join(sorted(paths))}"
 
 
 def run(case, nodes, solver, repeat) -> dict:
@@ -152,7 +176,7 @@ def summary(rows) -> None:
                   f"(N = {mine[0]['N']:.0e} .. {mine[-1]['N']:.0e}; target: at most N^1.1)")
     for nodes in sorted({r["N"] for r in rows}):
         pair = {r["solver"]: r for r in rows if r["N"] == nodes and r["case"] == "pendulum"}
-        for a, b in (("ipopt", "newton"), ("ipopt-mx", "ipopt")):
+        for a, b in (("ipopt", "newton"), ("ipopt-mx", "ipopt"), ("newton-vm", "newton")):
             if {a, b} <= set(pair):
                 wall = ((pair[a]["build_s"] + pair[a]["solve_s"])
                         / (pair[b]["build_s"] + pair[b]["solve_s"]))
@@ -182,7 +206,8 @@ def main(argv: list[str]) -> None:
         for nodes in sizes:
             if quick and nodes > 10_000:
                 continue
-            count = min(repeat, REPEATS[case, solver]) if nodes <= 10_000 or solver == "newton" \
+            count = min(repeat, REPEATS[case, solver]) \
+                if nodes <= 10_000 or solver.startswith("newton") \
                 else 1
             rows.append(run(case, nodes, solver, count if nodes < 1_000_000 else 1))
     table(rows)

@@ -14,7 +14,7 @@ from ddvp_nlp.cache import PROBLEMS
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers import bvp_assembly, compiler
 from ddvp_nlp.solvers.bvp import solve_bvp
-from ddvp_nlp.solvers.bvp_assembly import CHUNK, Ends, GridAssembly
+from ddvp_nlp.solvers.bvp_assembly import WINDOW, Ends, GridAssembly
 
 needs_compiler = pytest.mark.skipif(compiler.find_compiler("auto") is None,
                                     reason="no C compiler on this machine")
@@ -54,7 +54,7 @@ def _both(system, rule, nodes, x, ends):
 @needs_compiler
 @pytest.mark.parametrize("name", ["pendulum", "kepler"])
 @pytest.mark.parametrize("rule", ["vddvp", "fixed"])
-@pytest.mark.parametrize("nodes", [5, 300, CHUNK + 9])
+@pytest.mark.parametrize("nodes", [5, 300, WINDOW + 9])
 def test_compiled_and_vm_assemble_the_same_system(cache, name, rule, nodes):
     """Grids shorter than a window (padded), and longer (a shifted last window): the residual,
     with and without the Jacobian, and every band entry agree to round-off."""
@@ -96,14 +96,14 @@ def test_the_band_store_is_rewritten_whole_after_an_in_place_factorisation(cache
 
 @needs_compiler
 def test_one_compile_serves_every_node_count(cache):
-    """The window is CHUNK blocks whatever N: a second grid size compiles nothing, and a new
+    """The window is WINDOW blocks whatever N: a second grid size compiles nothing, and a new
     process would load the libraries from the cache folder."""
     system = load_scene("pendulum").system
     GridAssembly(system, Scheme("vddvp"), 50)
     built = compiler.build_count()
     libraries = sorted(p.name for p in cache.glob("bvp_*.so"))
     assert libraries  # residual-and-band rows, residual rows, action
-    for nodes in (7, 1000, 3 * CHUNK + 1):
+    for nodes in (7, 1000, 3 * WINDOW + 1):
         GridAssembly(load_scene("pendulum").system, Scheme("vddvp"), nodes)
     assert compiler.build_count() == built
     assert sorted(p.name for p in cache.glob("bvp_*.so")) == libraries

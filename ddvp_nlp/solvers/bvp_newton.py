@@ -69,10 +69,12 @@ class Factorization:
             self.singular = True
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``F'(x)^-1 rhs``; ``rhs`` (a temporary of the caller's) may be overwritten."""
         if self.singular:
             return np.full_like(rhs, np.nan)
         if self.banded:
-            return lapack.dgbtrs(self.lu, self.width, self.width, rhs, self.pivots)[0]
+            return lapack.dgbtrs(self.lu, self.width, self.width, rhs, self.pivots,
+                                 overwrite_b=1)[0]
         return self.lu.solve(rhs)
 
 
