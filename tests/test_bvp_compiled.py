@@ -1,7 +1,8 @@
 """The fixed-endpoint assembly compiled (``bvp_assembly.COMPILER = "auto"``, gcc through
 ``compiler.py``) and on CasADi's virtual machine (``None``, the fallback): the same residuals,
 Jacobian and nodes, one compiled library for every node count, the fallback when the compiler
-fails, and the band store reused across evaluations and in-place factorisations."""
+fails, and the band store reused across evaluations and in-place factorisations. The compiled
+banded LU (``bvp_band.py``) against LAPACK's through scipy: the same factors and solutions."""
 
 import warnings
 
@@ -12,7 +13,7 @@ from scipy.linalg import lapack
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.cache import PROBLEMS
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers import bvp_assembly, compiler
+from ddvp_nlp.solvers import bvp_assembly, bvp_band, compiler
 from ddvp_nlp.solvers.bvp import solve_bvp
 from ddvp_nlp.solvers.bvp_assembly import WINDOW, Ends, GridAssembly
 
@@ -25,6 +26,7 @@ def cache(tmp_path, monkeypatch):
     """A fresh compiled-code cache; the assembly setting restored after the test."""
     monkeypatch.setenv("DDVP_NLP_CACHE", str(tmp_path))
     monkeypatch.setattr(bvp_assembly, "COMPILER", "auto")
+    monkeypatch.setattr(bvp_band, "KERNEL", "auto")
     return tmp_path
 
 
@@ -125,8 +127,8 @@ def test_a_failing_compiler_falls_back_to_the_virtual_machine(cache, monkeypatch
 
 def _solve(name, setting, nodes):
     """The default-start Newton solve of a pendulum swing or of kepler e = 0.5 over one period
-    (endpoints from a fixed-step march), with the assembly ``setting``."""
-    bvp_assembly.COMPILER = setting
+    (endpoints from a fixed-step march), with the assembly and the band LU ``setting``."""
+    bvp_assembly.COMPILER = bvp_band.KERNEL = setting
     PROBLEMS.clear()  # the built assemblies are cached per system: build this path's own
     if name == "pendulum":
         system = load_scene("pendulum").system
@@ -145,8 +147,9 @@ def _solve(name, setting, nodes):
 @needs_compiler
 @pytest.mark.parametrize("name, nodes, most", [("pendulum", 2000, 10), ("kepler", 1500, 8)])
 def test_compiled_and_vm_newton_return_the_same_nodes(cache, name, nodes, most):
-    """Both paths verify, take the same iterations in every phase (a bounded number), and
-    return the same nodes to 1e-12."""
+    """Compiled (blocks and band LU) and not (CasADi's VM, LAPACK through scipy): both verify,
+    take the same iterations in every phase (a bounded number), and return the same nodes to
+    1e-12."""
     compiled = _solve(name, "auto", nodes)
     vm = _solve(name, None, nodes)
     for solution in (compiled, vm):
@@ -156,3 +159,59 @@ def test_compiled_and_vm_newton_return_the_same_nodes(cache, name, nodes, most):
     assert sum(counts[0]) <= most
     for key in ("t", "q", "p"):
         assert np.max(np.abs(getattr(compiled, key) - getattr(vm, key))) <= 1e-12
+
+
+def _random_band(size, w, seed):
+    """A random matrix of bandwidth ``w`` in ``gbtrf`` storage, with pivoting needed (the
+    diagonal is not dominant) and garbage in the fill-in rows (both LU must clear them: the
+    assembly's store holds the previous factors there)."""
+    return np.asfortranarray(np.random.default_rng(seed).standard_normal((3 * w + 1, size)))
+
+
+@needs_compiler
+@pytest.mark.parametrize("w", [4, 7, 31])
+def test_the_compiled_band_lu_is_lapacks(cache, w):
+    """Bandwidths of n = 1, 2 and 10: the same pivots as LAPACK's ``dgbtrf``/``dgbtrs``
+    through scipy, and for n = 1, 2 the same factors and solution to the bit (the same
+    operations in the same order); at w = 31 OpenBLAS's vectorised rank-1 updates round
+    differently."""
+    kernel = bvp_band.kernel()
+    assert kernel is not None
+    ab = _random_band(2000, w, seed=w)
+    rhs = np.random.default_rng(0).standard_normal(2000)
+    lu_lapack, pivots_lapack, info_lapack = lapack.dgbtrf(ab.copy(order="F"), w, w)
+    lu = ab.copy(order="F")
+    pivots, info = kernel.factor(lu, w, w)
+    assert info == info_lapack == 0
+    assert np.array_equal(pivots, pivots_lapack)
+    assert np.any(pivots != np.arange(2000))  # rows were exchanged
+    solution = kernel.solve(lu, w, w, pivots, rhs.copy())
+    expected = lapack.dgbtrs(lu_lapack, w, w, rhs, pivots_lapack)[0]
+    if w <= 7:
+        assert np.array_equal(lu, lu_lapack)
+        assert np.array_equal(solution, expected)
+    assert np.max(np.abs(lu - lu_lapack)) <= 1e-12 * np.max(np.abs(lu_lapack))
+    assert np.max(np.abs(solution - expected)) <= 1e-10 * np.max(np.abs(expected))
+
+
+@needs_compiler
+def test_the_compiled_band_lu_reports_a_singular_matrix_as_lapack_does(cache):
+    ab = _random_band(50, 4, seed=3)
+    ab[:, 20] = 0.0  # a zero column
+    _, _, info_lapack = lapack.dgbtrf(ab.copy(order="F"), 4, 4)
+    _, info = bvp_band.kernel().factor(ab.copy(order="F"), 4, 4)
+    assert info == info_lapack > 0
+
+
+def test_without_a_compiler_the_band_lu_is_lapack(cache, monkeypatch):
+    """``KERNEL = None``: no kernel; a compiler that fails: one warning, no kernel; Newton
+    solves either way."""
+    monkeypatch.setattr(bvp_band, "KERNEL", None)
+    assert bvp_band.kernel() is None
+    monkeypatch.setattr(bvp_band, "KERNEL", "false")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert bvp_band.kernel() is None
+    assert any("LAPACK through scipy instead" in str(w.message) for w in caught)
+    solution = _solve("pendulum", None, 300)
+    assert solution.success, solution.message

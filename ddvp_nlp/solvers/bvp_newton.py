@@ -1,8 +1,9 @@
 """Newton's method on the square fixed-endpoint system ``F(x) = 0`` (``bvp_assembly.py``).
 
-Each iteration solves ``F'(x) dx = -F(x)`` by LU factorisation of the banded Jacobian (LAPACK
-``gbsv``: ``O(N w^2)`` work and ``O(N w)`` memory, ``w = 3n + 1`` the bandwidth), or by sparse
-LU (SuperLU) when the band is wide, then takes ``x + alpha dx`` with:
+Each iteration solves ``F'(x) dx = -F(x)`` by LU factorisation of the banded Jacobian (LAPACK's
+``gbtrf``/``gbtrs``, compiled (``bvp_band.py``) or through scipy: ``O(N w^2)`` work and
+``O(N w)`` memory, ``w = 3n + 1`` the bandwidth), or by sparse LU (SuperLU) when the band is
+wide, then takes ``x + alpha dx`` with:
 
 - a safeguard: ``alpha <= 0.99 alpha_max``, where ``alpha_max`` is the largest step that keeps
   every ``t_{k+1} - t_k >= tau_floor`` (the time-reversed root ``tau < 0`` of docs/theory.md
@@ -28,6 +29,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
 
+from . import bvp_band
 from .bvp_assembly import Ends, GridAssembly
 
 # Band storage above this bandwidth costs more than the sparse factorisation (fill-in of the
@@ -51,16 +53,25 @@ class NewtonResult:
 
 
 class Factorization:
-    """LU factors of ``F'(x)``: banded (LAPACK ``gbtrf``) up to ``WIDEST_BAND``, else sparse
-    (SuperLU); ``solve(rhs)`` is ``nan`` if the matrix is singular."""
+    """LU factors of ``F'(x)``: banded up to ``WIDEST_BAND`` (LAPACK's ``gbtrf``, compiled by
+    ``bvp_band.py`` when there is a compiler, else through scipy: the same factors), else sparse
+    (SuperLU); ``solve(rhs)`` is ``nan`` if the matrix is singular. The band is factorised in
+    place, in the assembly's store."""
 
     def __init__(self, assembly: GridAssembly, blocks, linear: str):
         self.width = assembly.layout.bandwidth
         self.banded = linear == "banded" or (linear == "auto" and self.width <= WIDEST_BAND)
         self.singular = False
+        self.kernel = None
         if self.banded:
-            self.lu, self.pivots, info = lapack.dgbtrf(assembly.banded(blocks), self.width,
-                                                       self.width, overwrite_ab=1)
+            ab = assembly.banded(blocks)
+            self.kernel = bvp_band.kernel() if ab.flags.f_contiguous else None
+            if self.kernel is not None:
+                self.pivots, info = self.kernel.factor(ab, self.width, self.width)
+                self.lu = ab
+            else:
+                self.lu, self.pivots, info = lapack.dgbtrf(ab, self.width, self.width,
+                                                           overwrite_ab=1)
             self.singular = info != 0
             return
         try:
@@ -72,6 +83,8 @@ class Factorization:
         """``F'(x)^-1 rhs``; ``rhs`` (a temporary of the caller's) may be overwritten."""
         if self.singular:
             return np.full_like(rhs, np.nan)
+        if self.kernel is not None:
+            return self.kernel.solve(self.lu, self.width, self.width, self.pivots, rhs)
         if self.banded:
             return lapack.dgbtrs(self.lu, self.width, self.width, rhs, self.pivots,
                                  overwrite_b=1)[0]
