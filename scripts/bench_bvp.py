@@ -24,11 +24,13 @@ counts repeat; the table gives the best wall time.
     python scripts/bench_bvp.py                  (the full table: about 10 minutes)
     python scripts/bench_bvp.py --quick          (N = 1e3, 1e4 only)
     python scripts/bench_bvp.py --only pendulum:ipopt,pendulum:ipopt-mx,pendulum:newton
-    python scripts/bench_bvp.py --only pendulum:newton,pendulum:newton-vm
+    python scripts/bench_bvp.py --only pendulum:newton,pendulum:newton-vm,pendulum:newton-lapack
 
-Solver ``newton-vm`` is Newton with the assembly's blocks on CasADi's virtual machine
-(``bvp_assembly.COMPILER = None``, the path without a C compiler), run in the same way for the
-ratio to ``newton`` (compiled: ``compiler.py``, cached in ``$DDVP_NLP_CACHE`` or
+Solver ``newton-vm`` is Newton with nothing compiled: the assembly's blocks on CasADi's virtual
+machine (``bvp_assembly.COMPILER = None``) and the band LU by LAPACK through scipy
+(``bvp_band.KERNEL = None``), the path of a machine without a C compiler; ``newton-lapack``
+compiles the blocks but factorises with LAPACK. Both run in the same way for the ratio to
+``newton`` (everything compiled by ``compiler.py``, cached in ``$DDVP_NLP_CACHE`` or
 ``~/.cache/ddvp_nlp``, so only the first run ever compiles).
 
 Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``bvp_ipopt_assembly.py``, the
@@ -50,6 +52,7 @@ import numpy as np
 PLAN = {  # (case, solver): sizes
     ("pendulum", "newton"): [1_000, 10_000, 100_000, 1_000_000],
     ("pendulum", "newton-vm"): [1_000, 10_000, 100_000, 1_000_000],
+    ("pendulum", "newton-lapack"): [1_000, 10_000, 100_000, 1_000_000],
     ("pendulum", "ipopt"): [1_000, 10_000, 100_000],
     ("pendulum", "ipopt-mx"): [1_000, 10_000, 100_000],
     ("kepler", "auto"): [1_000, 10_000],
@@ -64,8 +67,8 @@ TARGETS = {("pendulum", "newton"): {10_000: 0.2, 100_000: 1.5, 1_000_000: 20.0},
            ("kepler-nodes", "auto"): {10_000: 0.5, 100_000: 5.0}}
 TIME_LIMIT = 150.0
 # Runs per (case, solver, N): 3 where a run takes seconds, to show the iteration counts repeat.
-REPEATS = {("pendulum", "newton"): 3, ("pendulum", "newton-vm"): 3, ("pendulum", "ipopt"): 3,
-           ("pendulum", "ipopt-mx"): 3,
+REPEATS = {("pendulum", "newton"): 3, ("pendulum", "newton-vm"): 3,
+           ("pendulum", "newton-lapack"): 3, ("pendulum", "ipopt"): 3, ("pendulum", "ipopt-mx"): 3,
            ("kepler", "auto"): 1, ("kepler-shoot", "auto"): 3, ("kepler-nodes", "auto"): 3}
 
 
@@ -90,8 +93,9 @@ def one(case: str, nodes: int, solver: str) -> dict:
 
     label = solver
     if solver.startswith("newton"):
-        from ddvp_nlp.solvers import bvp_assembly
+        from ddvp_nlp.solvers import bvp_assembly, bvp_band
         bvp_assembly.COMPILER = None if solver == "newton-vm" else "auto"
+        bvp_band.KERNEL = None if solver in ("newton-vm", "newton-lapack") else "auto"
         solver = "newton"
     if solver.startswith("ipopt"):
         bvp_phase.IPOPT_BUILD = "mx" if solver == "ipopt-mx" else "assembly"
@@ -119,9 +123,12 @@ def _path(system, solver: str) -> str:
 
     if solver != "newton":
         return solver
+    from ddvp_nlp.solvers import bvp_band
+
     paths = {PROBLEMS.get(system, key, lambda: None).path for key in PROBLEMS.keys(system)
              if key[0] == "bvp_assembly"}
-    return f"newton, {'/'.join(sorted(paths))}"
+    lu = "C LU" if bvp_band.kernel() is not None else "LAPACK"
+    return f"newton, {'/'.join(sorted(paths))}, {lu}"
 
 
 def run(case, nodes, solver, repeat) -> dict:
@@ -176,7 +183,8 @@ def summary(rows) -> None:
                   f"(N = {mine[0]['N']:.0e} .. {mine[-1]['N']:.0e}; target: at most N^1.1)")
     for nodes in sorted({r["N"] for r in rows}):
         pair = {r["solver"]: r for r in rows if r["N"] == nodes and r["case"] == "pendulum"}
-        for a, b in (("ipopt", "newton"), ("ipopt-mx", "ipopt"), ("newton-vm", "newton")):
+        for a, b in (("ipopt", "newton"), ("ipopt-mx", "ipopt"), ("newton-vm", "newton"),
+                     ("newton-lapack", "newton")):
             if {a, b} <= set(pair):
                 wall = ((pair[a]["build_s"] + pair[a]["solve_s"])
                         / (pair[b]["build_s"] + pair[b]["solve_s"]))
