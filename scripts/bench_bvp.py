@@ -179,8 +179,14 @@ def summary(rows) -> None:
         if len(mine) >= 2:
             slope = np.polyfit(np.log([r["N"] for r in mine]),
                                np.log([r["per_iteration"] for r in mine]), 1)[0]
+            # the same fit on CPU time (build + solve per iteration): wall time on a shared
+            # machine measures the other processes too
+            cpu = np.polyfit(np.log([r["N"] for r in mine]),
+                             np.log([r["cpu_s"] / max(1, sum(r["iterations"])) for r in mine]),
+                             1)[0]
             print(f"{case} {solver}: time per iteration grows like N^{slope:.2f} "
-                  f"(N = {mine[0]['N']:.0e} .. {mine[-1]['N']:.0e}; target: at most N^1.1)")
+                  f"(N = {mine[0]['N']:.0e} .. {mine[-1]['N']:.0e}; target: at most N^1.1); "
+                  f"CPU time per iteration like N^{cpu:.2f}")
     for nodes in sorted({r["N"] for r in rows}):
         pair = {r["solver"]: r for r in rows if r["N"] == nodes and r["case"] == "pendulum"}
         for a, b in (("ipopt", "newton"), ("ipopt-mx", "ipopt"), ("newton-vm", "newton"),
