@@ -215,3 +215,25 @@ def test_without_a_compiler_the_band_lu_is_lapack(cache, monkeypatch):
     assert any("LAPACK through scipy instead" in str(w.message) for w in caught)
     solution = _solve("pendulum", None, 300)
     assert solution.success, solution.message
+
+
+@pytest.mark.parametrize("setting", ["auto", None])
+def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(cache, setting):
+    """The helper offered to the starts (``site_weights``): the same values as the function
+    mapped over the whole grid, compiled or not, for a grid longer than a window."""
+    from ddvp_nlp.physics.hamiltonian import site_density_weight_function
+
+    bvp_assembly.COMPILER = setting
+    system = load_scene("kepler").system
+    function = site_density_weight_function(system)
+    count = WINDOW + 13
+    rng = np.random.default_rng(5)
+    q, p, t = rng.random((count, 2)) + 0.5, rng.random((count, 2)), rng.random((count, 1))
+    theta = np.asarray(system.parameter_vector({}), float)
+    expected = np.asarray(function.map(count)(q.T, p.T, t.T, theta[:, None])).ravel()
+    (got,) = bvp_assembly.evaluate_blocks(system, ("site_weights",), function, [q, p, t], theta)
+    assert got.shape == (count, 1)
+    path = bvp_assembly.window_map(system, ("site_weights",), function).path
+    assert path == ("vm" if setting is None or compiler.find_compiler("auto") is None
+                    else "compiled")
+    assert np.max(np.abs(got.ravel() - expected)) <= 1e-12 * np.max(np.abs(expected))

@@ -341,6 +341,21 @@ def window_map(system, key, function: ca.Function) -> WindowMap:
                   lambda: WindowMap(function, compiler, folder))
 
 
+def evaluate_blocks(system, key, function: ca.Function, inputs, shared) -> list[np.ndarray]:
+    """``function`` on every row of ``inputs`` (arrays ``(count, size_i)``, one block a row;
+    ``shared``, the function's last input, given to every block), through a
+    :class:`WindowMap` kept per ``system`` and ``key``: compiled when there is a compiler, one
+    library for every ``count``. Output ``j`` has shape ``(count, nnz_out(j))``.
+
+    For per-node evaluations of the starts (``bvp_start.site_weights`` maps its function over
+    ``N - 1`` intervals on CasADi's virtual machine, a map built for each ``N``)."""
+    count = int(np.shape(inputs[0])[0])
+    outputs = [np.empty((count, function.nnz_out(j))) for j in range(function.n_out())]
+    window_map(system, key, function)([np.ascontiguousarray(a, float) for a in inputs],
+                                      np.ascontiguousarray(shared, float), outputs, count)
+    return outputs
+
+
 class BandJacobian:
     """The Jacobian of one evaluation, held in its :class:`GridAssembly`'s band store (LAPACK
     ``gbsv`` storage, overwritten by the next evaluation with ``jacobian=True`` and by an LU
