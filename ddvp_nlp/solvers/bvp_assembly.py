@@ -16,11 +16,15 @@ values ``z_j`` with ``|r - j m| <= 3n + 1``: the Jacobian is banded with lower a
 ``3n + 1`` (4 for ``n = 1``), whatever ``N``.
 
 The equations are the ones written once in ``discrete/`` (``canonical_expression``,
-``energy_expression``); here each becomes a per-interval (per-node) CasADi function returning
-its residual and dense Jacobian, mapped over the grid and evaluated through ``Function.buffer``
-on numpy memory: no expression grows with ``N``. The Jacobian blocks land in LAPACK's band
-storage by one vectorised assignment per block entry (the band row of an entry does not depend
-on ``k``: rows and columns both advance by ``m`` per interval).
+``energy_expression``). :class:`GridAssembly` evaluates them by blocks: block ``k`` is the ``m``
+rows of interval ``k`` (canonical rows, time row of node ``k + 1``), one CasADi function of
+``z_k, z_{k+1}`` (and ``z_{k+2}`` for an energy rule) returning the block's residual and its
+Jacobian already laid out as band rows (:func:`_band_rows`). The function is mapped over windows
+of ``WINDOW`` blocks, compiled once by ``compiler.py`` (the march's build and cache; CasADi's
+virtual machine without a compiler), and evaluated through ``Function.buffer`` on numpy memory:
+the residual lands in ``F`` itself, the band rows in a band store kept by the assembly, by one
+strided assignment per window (the band row of an entry does not depend on ``k``: rows and
+columns both advance by ``m`` per block). No expression grows with ``N``.
 """
 
 from __future__ import annotations
