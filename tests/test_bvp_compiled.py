@@ -237,3 +237,17 @@ def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(cache, setting):
     assert path == ("vm" if setting is None or compiler.find_compiler("auto") is None
                     else "compiled")
     assert np.max(np.abs(got.ravel() - expected)) <= 1e-12 * np.max(np.abs(expected))
+
+
+def test_a_solve_leaves_no_band_store_in_the_cached_assemblies(cache):
+    """The assemblies stay cached per system for the next solve; their band stores (the size
+    of the band, 312 MB at N = 1e6) are dropped when Newton ends."""
+    system = load_scene("pendulum").system
+    PROBLEMS.clear()
+    solution = solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=400,
+                         solver="newton")
+    assert solution.success
+    grids = [PROBLEMS.get(system, key, lambda: None) for key in PROBLEMS.keys(system)
+             if key[0] == "bvp_assembly"]
+    assert len(grids) == 2  # fixed (the start) and vddvp
+    assert all(grid._flat is None for grid in grids)

@@ -440,6 +440,11 @@ class GridAssembly:
         self._flat[self._pin_index] = self._pin_values
         return F, BandJacobian(self._ab)
 
+    def release(self) -> None:
+        """Drop the band store (allocated again by the next evaluation of the Jacobian): the
+        assembly stays cached between solves (``bvp_phase``), its store need not."""
+        self._flat = self._ab = self._band_view = None
+
     def _last_block(self, z, ends, theta, body, sink):
         """Block ``N - 2`` of an energy rule: canonical rows and ``t_{N-1} - t_end``."""
         kind = 0 if sink is not None else 1

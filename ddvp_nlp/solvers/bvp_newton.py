@@ -117,6 +117,16 @@ def newton(assembly: GridAssembly, x0: np.ndarray, ends: Ends, target: np.ndarra
         deadline: ``time.perf_counter()`` value after which to stop.
         progress: called as ``progress(iteration, residual_norm, alpha)`` after each iteration.
     """
+    try:
+        return _newton(assembly, x0, ends, target, tau_floor=tau_floor, max_iter=max_iter,
+                       linear=linear, deadline=deadline, progress=progress)
+    finally:
+        release = getattr(assembly, "release", None)
+        if release is not None:  # the band store (312 MB at N = 1e6): not kept by the cache
+            release()
+
+
+def _newton(assembly, x0, ends, target, *, tau_floor, max_iter, linear, deadline, progress):
     x = np.array(x0, float)
     F, _ = assembly.evaluate(x, ends, jacobian=False)
     norm = float(_norm(F))
