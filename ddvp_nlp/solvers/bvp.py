@@ -205,10 +205,11 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_
     return request, start
 
 
-# Peak memory per node, measured (docs/benchmarks/bench_bvp.md): Newton 1.06 GB at 1e6 nodes of
-# the pendulum (n = 1), IPOPT on the assembly 0.77-1.27 GB at 1e5 (the MX build, kept for
-# comparison only, 2.8 GB); the blocks grow like (2n + 1)^2.
-BYTES_PER_NODE = {"newton": 1.1e3, "auto": 1.1e3, "ipopt": 1.3e4}
+# Peak memory per node, measured (docs/benchmarks/bench_bvp.md): Newton 0.67 GB at 1e6 nodes of
+# the pendulum (n = 1; 1.06 GB before the band store was reused), IPOPT on the assembly
+# 0.77-1.27 GB at 1e5 and 9.3 GB at 1e6 (the MX build, kept for comparison only, 2.8 GB at 1e5);
+# the blocks grow like (2n + 1)^2.
+BYTES_PER_NODE = {"newton": 0.8e3, "auto": 0.8e3, "ipopt": 1.3e4}
 
 
 def _check_memory(nodes: int, n: int, solver: str) -> None:
