@@ -13,10 +13,11 @@ The system is assembled node by node (``bvp_assembly.py``): its Jacobian is band
 bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
 
 - ``"newton"``: Newton's method with banded LU, a line search on the residual and the
-  ``tau_floor`` safeguard (``bvp_newton.py``): ``O(N)`` time and memory per iteration;
-- ``"ipopt"``: IPOPT on the same per-interval functions mapped over the grid (``bvp_ipopt.py``),
-  the design's NLP solver;
-- ``"auto"`` (default): Newton, 10-50x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
+  ``tau_floor`` safeguard (``bvp_newton.py``; blocks compiled, band LU in C, ``bvp_band.py``):
+  ``O(N)`` time and memory per iteration;
+- ``"ipopt"``: IPOPT on the same assembly through callbacks (``bvp_ipopt_assembly.py``), the
+  design's NLP solver;
+- ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
   then IPOPT from the same start if Newton's point does not pass the verification.
 
 Starts: ``bvp_start.py`` (straight line or shooting, then fixed steps on uniform and on predicted
