@@ -121,3 +121,32 @@ def test_a_failure_from_the_straight_start_suggests_the_other_starts():
     assert not solution.success
     assert solution.message.endswith("give guess='march' (shooting, with p_start near the "
                                       "motion's momentum) or a march's nodes as the guess")
+
+
+def test_auto_retries_a_fixed_phase_with_ipopt_where_newton_stalls():
+    """Henon-Heiles over 50 time units from the straight line: Newton alone stalls on the first
+    fixed-step phase; auto retries that phase with IPOPT, and the rest follows by Newton."""
+    system = load_scene("henon_heiles").system
+    T = 50.0
+    marched = march(system, [0.0, 0.1], [0.35, 0.0], tau0=T / 999, t_end=T)
+    assert marched.success
+    args = (system, [0.0, 0.1], marched.q[-1])
+    kwargs = {"t0": 0.0, "t_end": marched.t[-1], "nodes": marched.t.size}
+    newton = solve_bvp(*args, solver="newton", **kwargs)
+    auto = solve_bvp(*args, **kwargs)
+    assert not newton.success
+    assert auto.success, auto.message
+    phases = [(ph["phase"], ph["solver"], ph["converged"]) for ph in auto.stats["phases"]]
+    assert phases[:2] == [("fixed steps, uniform times", "newton", False),
+                          ("fixed steps, uniform times", "ipopt", True)]
+    assert phases[-1] == ("vddvp equations", "newton", True)
+
+
+def test_newton_and_ipopt_return_the_same_kepler_nodes_from_the_same_start():
+    system, marched = kepler(1000)
+    solved = [solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+                        params={"e": E}, guess=marched, solver=solver)
+              for solver in ("newton", "ipopt")]
+    assert all(s.success for s in solved), [s.message for s in solved]
+    for key in ("t", "q", "p"):
+        assert np.max(np.abs(getattr(solved[0], key) - getattr(solved[1], key))) < 1e-10, key
