@@ -132,16 +132,21 @@ def test_a_harmonic_problem_solved_to_round_off_is_a_success():
 
 def test_guess_march_finds_the_branch_the_straight_line_misses():
     """From q = 0.5 to q = -0.3 in 10 time units the straight-line start (a motion that never
-    turns) does not reach a solution; shooting finds the one that swings (p changes sign)."""
+    turns) does not reach a solution by itself; the continuation in the end position from the
+    march of its momentum lands on one verified solution (p changes sign twice), shooting on
+    another (three times)."""
     system = load_scene("pendulum").system
     straight, shot = (solve_bvp(system, [0.5], [-0.3], t0=0.0, t_end=10.0, nodes=201,
                                 solver="newton",
                                 guess=guess) for guess in ("straight", "march"))
-    assert not straight.success
-    assert shot.success, shot.message
+    assert straight.success and shot.success, (straight.message, shot.message)
+    assert straight.stats["phases"][0]["converged"] is False
+    assert "continuation" in straight.stats["phases"][1]["phase"]
+    assert straight.stats["p_sign_changes"] == [2]
     assert shot.stats["phases"][0]["phase"] == "shooting (march)"
     assert shot.stats["p_sign_changes"] == [3]
     assert "p changes sign 3 times" in shot.message
+    assert np.max(np.abs(straight.q - shot.q)) > 0.1
 
 
 def test_a_time_limit_ends_with_its_status():

@@ -116,30 +116,51 @@ def test_cli_p_start(tmp_path, capsys):
 
 
 def test_a_failure_from_the_straight_start_suggests_the_other_starts():
-    system = load_scene("pendulum").system
-    solution = solve_bvp(system, [0.5], [-0.3], t0=0.0, t_end=10.0, nodes=201, solver="newton")
+    """M midpoint steps of h = 2 tan(pi/2M) turn the harmonic oscillator by exactly pi: q_end =
+    0.5 from q_0 = 1 has no solution, and every start fails."""
+    M = 20
+    system = load_scene("harmonic").system
+    solution = solve_bvp(system, [1.0], [0.5], t0=0.0, t_end=M * 2 * np.tan(np.pi / (2 * M)),
+                         nodes=M + 1, solver="newton")
     assert not solution.success
     assert solution.message.endswith("give guess='march' (shooting, with p_start near the "
                                       "motion's momentum) or a march's nodes as the guess")
 
 
 def test_auto_retries_a_fixed_phase_with_ipopt_where_newton_stalls():
-    """Henon-Heiles over 50 time units from the straight line: Newton alone stalls on the first
+    """Henon-Heiles over 50 time units from the straight line: Newton stalls on the first
     fixed-step phase; auto retries that phase with IPOPT, and the rest follows by Newton."""
     system = load_scene("henon_heiles").system
     T = 50.0
     marched = march(system, [0.0, 0.1], [0.35, 0.0], tau0=T / 999, t_end=T)
     assert marched.success
-    args = (system, [0.0, 0.1], marched.q[-1])
-    kwargs = {"t0": 0.0, "t_end": marched.t[-1], "nodes": marched.t.size}
-    newton = solve_bvp(*args, solver="newton", **kwargs)
-    auto = solve_bvp(*args, **kwargs)
-    assert not newton.success
+    auto = solve_bvp(system, [0.0, 0.1], marched.q[-1], t0=0.0, t_end=marched.t[-1],
+                     nodes=marched.t.size)
     assert auto.success, auto.message
     phases = [(ph["phase"], ph["solver"], ph["converged"]) for ph in auto.stats["phases"]]
     assert phases[:2] == [("fixed steps, uniform times", "newton", False),
                           ("fixed steps, uniform times", "ipopt", True)]
     assert phases[-1] == ("vddvp equations", "newton", True)
+
+
+@pytest.mark.parametrize("T", [10.0, 20.0])
+def test_the_continuation_solves_what_newton_and_ipopt_miss_from_the_straight_line(T):
+    """Henon-Heiles over 10 and 20 time units: from the straight line both Newton and IPOPT
+    fail on the fixed-step phase (IPOPT: Infeasible_Problem_Detected); the pseudo-arclength
+    continuation in the end position, from the march of the straight line's momentum, passes
+    the folds and reaches a verified solution."""
+    system = load_scene("henon_heiles").system
+    marched = march(system, [0.0, 0.1], [0.35, 0.0], tau0=T / 999, t_end=T)
+    solution = solve_bvp(system, [0.0, 0.1], marched.q[-1], t0=0.0, t_end=marched.t[-1],
+                         nodes=marched.t.size)
+    assert solution.success, solution.message
+    phases = solution.stats["phases"]
+    assert [(ph["solver"], ph["converged"]) for ph in phases[:2]] == [("newton", False),
+                                                                      ("ipopt", False)]
+    continued = phases[2]
+    assert continued["phase"].startswith("continuation in q_end") and continued["converged"]
+    assert continued["steps"] <= 300
+    assert solution.stats["accuracy"]["first_failure"] is None
 
 
 def test_newton_and_ipopt_return_the_same_kepler_nodes_from_the_same_start():

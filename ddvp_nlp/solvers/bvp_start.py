@@ -36,6 +36,7 @@ import numpy as np
 from ..discrete.scheme import Scheme
 from ..physics.hamiltonian import site_density_weight_function
 from .bvp_assembly import NodeLayout, evaluate_blocks
+from .bvp_continuation import continue_in_end_position
 from .bvp_phase import Request, assembly, newton_targets, run_phase
 
 SHOOTING_ITERATIONS = 30
@@ -73,7 +74,7 @@ def start_point(request: Request, guess) -> dict:
         np.linspace(request.t0, request.t1, request.nodes)
     start = straight_line(request, uniform)
     fixed = fixed_scheme(request.scheme)
-    reached = False
+    reached, shot = False, None
     if guess == "march":
         shot, reached = shooting(request, fixed, uniform)
         start = shot or start
@@ -81,6 +82,10 @@ def start_point(request: Request, guess) -> dict:
     if not reached or not request.scheme.variable_steps:
         solved = _solve_fixed(request, fixed, uniform, start, "fixed steps, uniform times",
                               solver)
+        if solved is None and request.remaining() != 0.0 and request.solver != "ipopt" \
+                and np.allclose(uniform, np.linspace(request.t0, request.t1, request.nodes)):
+            solved = _continued(request, fixed, uniform, shot if guess == "march" else None,
+                                solver)
         start = solved or start
     if not request.scheme.variable_steps:
         return start
@@ -138,21 +143,47 @@ def _solve_fixed(request, fixed, times, start, name, solver):
     return {"t": t, "q": q, "p": p}
 
 
+def _continued(request: Request, fixed: Scheme, times, base, solver) -> dict | None:
+    """The fixed-step problem solved after a continuation in its end position
+    (``bvp_continuation.py``) from ``base`` (shooting's closest march) or else from the march
+    of the straight line's momentum; ``None`` if either fails."""
+    if base is None:
+        base = _fixed_march(request, fixed, straight_line(request, times)["p"][0])
+    if base is None:
+        return None
+    near = continue_in_end_position(request, fixed, times, base, request.linear)
+    if near is None:
+        return None
+    return _solve_fixed(request, fixed, times, near,
+                        "fixed steps, uniform times (after the continuation)", solver)
+
+
+def _march(request: Request, fixed: Scheme, p0):
+    """The march of ``fixed`` steps on the uniform grid of ``request.nodes`` nodes from
+    ``(q_start, p0)``."""
+    from .march import march
+
+    params = dict(zip(request.system.params, request.theta.tolist(), strict=True))
+    return march(request.system, request.q_start, p0, tau0=request.mean_step, t_end=request.t1,
+                 t0=request.t0, scheme=fixed, params=params, max_steps=request.nodes,
+                 tol=min(request.tol, 1e-10))
+
+
+def _fixed_march(request: Request, fixed: Scheme, p0) -> dict | None:
+    """:func:`_march`'s nodes, or ``None`` if it does not reach ``t_end`` in ``nodes`` nodes."""
+    run = _march(request, fixed, p0)
+    if not run.success or run.t.size != request.nodes:
+        return None
+    return {"t": run.t, "q": run.q, "p": run.p}
+
+
 def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]:
     """``(march, reached)``: the march of ``fixed`` steps from ``(q_start, p_0)`` that ends on
     ``q_end`` to ``tol`` (module docstring), or, when the iteration stops short, the march that
     came closest (``reached`` False: the fixed-step solve then starts from it, on its branch);
     ``None`` if not even the first march succeeds."""
-    from .march import march
-
-    h = (request.t1 - request.t0) / (request.nodes - 1)
-
-    params = dict(zip(request.system.params, request.theta.tolist(), strict=True))
-
     def shoot(p0):
-        return march(request.system, request.q_start, p0, tau0=h, t_end=request.t1,
-                     t0=request.t0, scheme=fixed, params=params, max_steps=request.nodes,
-                     tol=min(request.tol, 1e-10))
+        return _march(request, fixed, p0)
 
     p0 = straight_line(request, times)["p"][0] if request.p_start is None \
         else request.p_start.copy()
