@@ -3,11 +3,14 @@ number grows like ``N^2``, so the start must be close).
 
 Default (``guess="straight"``), for grids of any length:
 
-1. the ``fixed`` problem on uniform times, from uniform motion between the endpoints;
+1. the ``fixed`` problem on uniform times, from uniform motion between the endpoints (with
+   ``solver="auto"``, IPOPT again if Newton fails; if both fail, the pseudo-arclength
+   continuation in the end position from the march of the straight line's momentum,
+   ``bvp_continuation.py``, then this phase from where it ends);
 2. the ``fixed`` problem on times with the predicted site density
-   ``tau ~ (f' H_zz f)^(-1/3)``, ``f`` the Hamiltonian vector field (the paper's section 4 for
-   ``H = p^2/2 + V``: ``f' H_zz f = V'' p^2 + V'^2``; the expansion ``H(z_mid) = H(z) -
-   tau^2 f' H_zz f / 8`` gives the same weight for any ``H``);
+   ``tau ~ (f' H_zz f)^(-1/3)`` (``predicted_times``), ``f`` the Hamiltonian vector field (the
+   paper's section 4 for ``H = p^2/2 + V``: ``f' H_zz f = V'' p^2 + V'^2``; the expansion
+   ``H(z_mid) = H(z) - tau^2 f' H_zz f / 8`` gives the same weight for any ``H``);
 3. (``bvp.py``) the scheme's equations with the times released.
 
 Released directly from uniform times, Newton diverged at N = 1e5 on the pendulum; from the
