@@ -13,8 +13,10 @@ extrapolated from the measured rate per step, said to be extrapolated.
 from __future__ import annotations
 
 import argparse
+import pickle
 import platform
 import tempfile
+import time
 
 import casadi
 import numpy as np
@@ -74,6 +76,15 @@ def main():
                    and np.array_equal(a.p, b.p) and a.status is b.status
                    for a, b in zip(loop[3], solutions, strict=True))
         print(f"\n- {label}: nodes equal to the loop's, orbit by orbit: {same}")
+    solution = loop[3][0]  # what a worker sends back per orbit: the pickled Solution
+    started = time.process_time()
+    for _ in range(5):
+        blob = pickle.dumps(solution, protocol=pickle.HIGHEST_PROTOCOL)
+        pickle.loads(blob)
+    transfer = (time.process_time() - started) / 5
+    print(f"\n- result transfer from a worker, per orbit ({solution.steps} steps): "
+          f"{len(blob) / 1e6:.1f} MB pickled, pickle + unpickle {transfer * 1e3:.1f} ms CPU "
+          f"({transfer / solution.steps * 1e6:.3f} us per step; the pipe not counted)")
     if args.scale_to:
         count, size = args.scale_to.lower().split("x")
         total = int(count) * float(size)

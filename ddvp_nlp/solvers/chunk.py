@@ -7,9 +7,10 @@ repeats it ``chunk`` times per call. Where a C compiler is present the chunk is 
 compiled and cached; elsewhere CasADi's virtual machine runs the same function.
 
 ``fast_newton`` never raises and never says whether it converged, so every step of a chunk is
-checked afterwards by the march (finite values, ``tau > 0``, its unscaled residuals against the
-tolerance, the step bounds); the first step that fails a check is redone by the careful path
-from the last good state, so the fast path never changes what is accepted.
+checked (finite values, ``tau > 0``, its unscaled residuals against the tolerance, the step
+bounds: ``acceptance.Acceptance``'s test, computed in the chunk as each step's ``good`` flag);
+the first step that fails it is redone by the careful path from the last good state, so the
+fast path never changes what is accepted.
 
 What goes into a chunk and what comes out of it is named in one place, the layouts below: the
 chunk's ``vertcat`` is built from named parts and its output matrix is read back by the same
@@ -45,10 +46,32 @@ from .unrolled import unrolled_newton
 # Either way a step that did not converge fails its residual check and is redone carefully.
 FAST_NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
 # fast_newton's iterations written out as straight-line code (``unrolled.py``); the rest of its
-# loop runs only where these did not stop, so the result is fast_newton's to the last bit. Four:
-# from the RK4 predictor, fast_newton stops after four iterations on every step of the paper's
-# example and on 93% of fpu's (measured); fewer would call the loop on nearly every step.
+# loop runs only where these did not stop, so the result is fast_newton's to the last bit.
+# Small systems (at most SMALL_NEWTON unknowns: n <= 2): three iterations, then the fourth's
+# residual test alone, all inlined with common subexpressions merged. From the RK4 predictor
+# fast_newton stops at that test on every step of the paper's example and after two or three
+# updates on Henon-Heiles (measured): the chunk cost 0.88 against 1.17 us per step (paper's
+# example, 1.28 against 1.62 on Henon-Heiles, side by side). Larger systems: four iterations as
+# calls (fpu, n = 6, needs the fourth update on 80% of its steps, and the inlined QR of 13
+# unknowns took 4-6 s to compile for 4% gained).
 UNROLLED_ITERATIONS = 4
+SMALL_NEWTON = 5
+SMALL_UNROLL = {"iterations": 3, "check_after": True, "inline": True}
+
+
+def step_options(unknowns: int) -> dict:
+    """Options of a chunk's step function: small systems merge common subexpressions across
+    the predictor, the check and the accuracy estimates too (Henon-Heiles: the chunk 6% cheaper,
+    1.36 -> 1.28 us per step side by side; the same bits; the paper's example 1%)."""
+    return {"cse": unknowns <= SMALL_NEWTON}
+
+
+def unroll_options(unknowns: int) -> dict:
+    """How :func:`~ddvp_nlp.solvers.unrolled.unrolled_newton` unrolls a Newton of
+    ``unknowns`` unknowns (see ``SMALL_NEWTON``)."""
+    if unknowns <= SMALL_NEWTON:
+        return dict(SMALL_UNROLL)
+    return {"iterations": UNROLLED_ITERATIONS}
 
 
 class Layout:
@@ -101,6 +124,20 @@ def _step_length() -> ca.Function:
 _STEP_LENGTH = _step_length()
 
 
+# The acceptance test's numbers (``acceptance.Acceptance``), a parameter of every chunk call: the
+# chunk computes each step's verdict (``good``) itself. A bound that is not set is infinite.
+LIMITS = Layout(("tol", 1), ("tau_min", 1), ("tau_max", 1), ("max_step_ratio", 1))
+
+
+def limits(acceptance) -> np.ndarray:
+    """``LIMITS`` of an :class:`~ddvp_nlp.solvers.acceptance.Acceptance`."""
+    def bound(value, missing):
+        return missing if value is None else value
+    return LIMITS.pack(tol=acceptance.tol, tau_min=bound(acceptance.tau_min, -np.inf),
+                       tau_max=bound(acceptance.tau_max, np.inf),
+                       max_step_ratio=bound(acceptance.max_step_ratio, np.inf))
+
+
 def energy_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout]:
     """State and per-step output of a chunk of energy steps (``n2 = 2n``); with ``accuracy``
     the state also carries the propagated global error ``error`` and the output the check's
@@ -108,7 +145,7 @@ def energy_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout]:
     state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1),
                    *((("error", n2),) if accuracy else ()))
     output = Layout(("t_next", 1), ("z_next", n2),
-                    *((name, 1) for name in EnergyCheck._fields),
+                    *((name, 1) for name in EnergyCheck._fields), ("good", 1),
                     *(ACCURACY_OUTPUTS if accuracy else ()))
     return state, output
 
@@ -119,7 +156,7 @@ def fixed_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout, Layo
     state = Layout(("k", 1), ("z", n2), *((("error", n2),) if accuracy else ()))
     constants = Layout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
     output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields),
-                    *(ACCURACY_OUTPUTS if accuracy else ()))
+                    ("good", 1), *(ACCURACY_OUTPUTS if accuracy else ()))
     return state, constants, output
 
 
@@ -129,8 +166,10 @@ class ChunkSteps:
 
     ``t_next`` ``(chunk,)``, ``z_next`` ``(chunk, 2n)``, the check of each step (``canonical``,
     ``size``, ``H_node``, ``w_node``; energy steps also ``energy``, ``H_interval`` and ``drift``,
-    the compensated sum after the step; see ``steps.EnergyCheck``) and ``finite``: whether every
-    output of the step is finite. A diverged step is NaN and fails its checks.
+    the compensated sum after the step; see ``steps.EnergyCheck``) and ``good``: the
+    acceptance test's verdict on the step, computed in the chunk (:func:`step_verdict`): every
+    output finite, ``tau > 0``, the residuals against ``tol`` and the step bounds. A diverged
+    step is NaN and fails it.
 
     A chunk that carries the accuracy check also gives, per step, ``delta``, ``scale``,
     ``H_new`` and ``global_error`` (``accuracy.ErrorEstimates``' four estimates) and ``error``
@@ -142,7 +181,7 @@ class ChunkSteps:
     size: np.ndarray
     H_node: np.ndarray
     w_node: np.ndarray
-    finite: np.ndarray
+    good: np.ndarray
     energy: np.ndarray | None = None
     H_interval: np.ndarray | None = None
     drift: np.ndarray | None = None
@@ -153,12 +192,44 @@ class ChunkSteps:
     error: np.ndarray | None = None
 
 
+_LARGEST = float(np.finfo(float).max)
+
+
+def _finite(values) -> ca.SX:
+    """Whether every value is finite: ``|v| <= DBL_MAX`` is false for NaN and infinities (an
+    expression CasADi does not simplify away, unlike ``v - v == 0``)."""
+    verdict = ca.SX(1)
+    for value in values:
+        verdict = ca.logic_and(verdict, ca.fabs(value) <= _LARGEST)
+    return verdict
+
+
+def step_verdict(outputs: list, check, limit: dict, *, tau=None, tau_prev=None) -> ca.SX:
+    """``Acceptance``'s test of one step as an expression, the same arithmetic as its numpy
+    predicates (``acceptance.py``): ``outputs`` (the step's own outputs) finite, the residuals
+    against ``tol``; for energy steps also ``tau > 0`` and the bounds on ``tau`` and on
+    ``max(tau / tau_prev, tau_prev / tau)``. ``1`` where the step is accepted, else ``0``."""
+    verdict = ca.logic_and(_finite(outputs),
+                           check.canonical <= limit["tol"] * ca.fmax(1.0, check.size))
+    if tau is None:
+        return verdict
+    verdict = ca.logic_and(verdict, ca.fabs(check.energy)
+                           <= limit["tol"] * ca.fmax(1.0, check.H_interval))
+    ratio = ca.fmax(tau / tau_prev, tau_prev / tau)
+    for test in (tau > 0, tau >= limit["tau_min"], tau <= limit["tau_max"],
+                 ratio <= limit["max_step_ratio"]):
+        verdict = ca.logic_and(verdict, test)
+    return verdict
+
+
 class FastChunk:
     """``chunk`` march steps per call, compiled or on the virtual machine.
 
     Energy rules: the state is ``energy_layouts``' first layout; :meth:`energy_steps` runs from
     ``(t_prev, t_mid, z_prev, z_mid, drift)``. Fixed rule: state ``[k, z]`` and constants
-    ``[t0, tau, t_end, total]``; :meth:`fixed_steps` runs from node ``k``. ``H_node`` and the
+    ``[t0, tau, t_end, total]``; :meth:`fixed_steps` runs from node ``k``. Either way the
+    parameters end with the acceptance test's numbers (``LIMITS``): each step's verdict comes
+    out of the chunk. ``H_node`` and the
     site-density weight ``w_node`` are those of each new node (energy guard, solvability monitor).
 
     ``functions`` are the careful path's :class:`~ddvp_nlp.solvers.steps.StepFunctions`;
@@ -208,18 +279,25 @@ class FastChunk:
     def _energy_step(self, functions, theta):
         state = ca.SX.sym("state", self.state.size)
         s = self.state.split(state)
+        limit = ca.SX.sym("limits", LIMITS.size)
         w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
         newton = unrolled_newton("fast_energy_step", functions.energy_residual,
-                                 FAST_NEWTON_OPTIONS, iterations=UNROLLED_ITERATIONS)
+                                 FAST_NEWTON_OPTIONS,
+                                 **unroll_options(functions.energy_residual.numel_in(0)))
         x = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
         check = EnergyCheck(*functions.energy_check(x, w))
         t_next = s["t_mid"] + x[-1]
         carried, estimates = self._estimates(s, s["t_mid"], t_next, s["z_mid"], x[:-1], theta)
         after = self.state.stack(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"],
                                  z_mid=x[:-1], drift=s["drift"] + check.energy, **carried)
+        # the step lengths as the march computes them from the node times
+        good = step_verdict([t_next, *ca.vertsplit(x[:-1]), *check], check, LIMITS.split(limit),
+                            tau=_STEP_LENGTH(t_next, s["t_mid"]),
+                            tau_prev=_STEP_LENGTH(s["t_mid"], s["t_prev"]))
         outputs = self.output.stack(t_next=t_next, z_next=x[:-1], **check._asdict(),
-                                    **estimates)
-        return ca.Function("step", [state, theta], [after, outputs])
+                                    good=good, **estimates)
+        return ca.Function("step", [state, ca.vertcat(theta, limit)], [after, outputs],
+                           step_options(functions.energy_residual.numel_in(0)))
 
     def _estimates(self, s, t_a, t_b, z_a, z_b, theta) -> tuple[dict, dict]:
         """The accuracy check's part of one step (nothing without it): the carried error
@@ -235,19 +313,24 @@ class FastChunk:
     def _fixed_step(self, functions, theta):
         state = ca.SX.sym("state", self.state.size)
         constants = ca.SX.sym("constants", self.constants.size)
+        limit = ca.SX.sym("limits", LIMITS.size)
         s, c = self.state.split(state), self.constants.split(constants)
         k = s["k"]
         t_a = ca.if_else(k == 0, c["t0"], c["t0"] + k * c["tau"])
         t_b = ca.if_else(k + 1 == c["total"], c["t_end"], c["t0"] + (k + 1) * c["tau"])
         w = ca.vertcat(t_a, t_b, s["z"], theta)
         newton = unrolled_newton("fast_fixed_step", functions.fixed_residual,
-                                 FAST_NEWTON_OPTIONS, iterations=UNROLLED_ITERATIONS)
+                                 FAST_NEWTON_OPTIONS,
+                                 **unroll_options(functions.fixed_residual.numel_in(0)))
         z_b = newton(functions.fixed_predict(w), w)
         check = FixedCheck(*functions.fixed_check(z_b, w))
         carried, estimates = self._estimates(s, t_a, t_b, s["z"], z_b, theta)
-        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict(), **estimates)
-        return ca.Function("step", [state, ca.vertcat(theta, constants)],
-                           [self.state.stack(k=k + 1, z=z_b, **carried), outputs])
+        good = step_verdict([t_b, *ca.vertsplit(z_b), *check], check, LIMITS.split(limit))
+        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict(), good=good,
+                                    **estimates)
+        return ca.Function("step", [state, ca.vertcat(theta, constants, limit)],
+                           [self.state.stack(k=k + 1, z=z_b, **carried), outputs],
+                           step_options(functions.fixed_residual.numel_in(0)))
 
     def _call(self, state: np.ndarray, parameters: np.ndarray):
         """One call through a :class:`~ddvp_nlp.solvers.compiler.FunctionBuffer` (numpy arrays
@@ -259,12 +342,11 @@ class FastChunk:
     def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
         if copy:
             outputs = outputs.copy()  # the buffers are overwritten by the next call
-        # the estimates do not decide whether a step is good: a step's own outputs do
-        checked = self.output.size - (len(ACCURACY_OUTPUTS) if self.accuracy else 0)
-        finite = np.all(np.isfinite(outputs[:, :checked]), axis=1)
         carried = self.state.columns(states)
         extra = {name: carried[name].copy() for name in ("drift", "error") if name in carried}
-        return ChunkSteps(**self.output.columns(outputs), finite=finite, **extra)
+        columns = self.output.columns(outputs)
+        columns["good"] = columns["good"] != 0
+        return ChunkSteps(**columns, **extra)
 
     def _carried(self, error) -> dict:
         """The error vector of the accuracy check's state part (zeros if none is given)."""
@@ -282,11 +364,15 @@ class FastChunk:
         """The state of fixed-length steps from node ``k`` (state ``z``)."""
         return self.state.pack(k=k, z=z, **self._carried(error))
 
-    def fixed_parameters(self, theta, *, t0, tau, t_end, total) -> np.ndarray:
-        """``theta`` and the grid: ``total`` steps of ``tau`` from ``t0`` that end on
-        ``t_end``."""
+    def energy_parameters(self, theta, acceptance) -> np.ndarray:
+        """``theta`` and the acceptance test's numbers (``LIMITS``)."""
+        return np.concatenate([theta, limits(acceptance)])
+
+    def fixed_parameters(self, theta, acceptance, *, t0, tau, t_end, total) -> np.ndarray:
+        """``theta``, the grid (``total`` steps of ``tau`` from ``t0`` that end on ``t_end``)
+        and the acceptance test's numbers."""
         return np.concatenate([theta, self.constants.pack(t0=t0, tau=tau, t_end=t_end,
-                                                          total=total)])
+                                                          total=total), limits(acceptance)])
 
     def steps(self, state: np.ndarray, parameters: np.ndarray, calls: int = 1) -> ChunkSteps:
         """``calls * chunk`` steps from ``state`` (:meth:`energy_state`, :meth:`fixed_state`):
@@ -305,16 +391,19 @@ class FastChunk:
             state = states[(i + 1) * c - 1]
         return self._decode(outputs, states, copy=False)
 
-    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, *,
+    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, acceptance, *,
                      error=None) -> ChunkSteps:
-        """``chunk`` energy steps of one orbit (:meth:`energy_state`)."""
+        """``chunk`` energy steps of one orbit (:meth:`energy_state`), judged by
+        ``acceptance``."""
         return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift, error=error),
-                          theta)
+                          self.energy_parameters(theta, acceptance))
 
-    def fixed_steps(self, k: int, z, theta, *, t0, tau, t_end, total, error=None) -> ChunkSteps:
+    def fixed_steps(self, k: int, z, theta, acceptance, *, t0, tau, t_end, total,
+                    error=None) -> ChunkSteps:
         """``chunk`` fixed-length steps of one orbit from node ``k`` (state ``z``) of a uniform
         grid of ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
-        parameters = self.fixed_parameters(theta, t0=t0, tau=tau, t_end=t_end, total=total)
+        parameters = self.fixed_parameters(theta, acceptance, t0=t0, tau=tau, t_end=t_end,
+                                           total=total)
         return self.steps(self.fixed_state(k, z, error=error), parameters)
 
 

@@ -58,9 +58,16 @@ class SolvabilityMonitor:
     this folder (the code that called the march)."""
 
     def __init__(self, t0: float, w0: float):
-        self.weights: list[float] = []
+        self._weights: list[np.ndarray] = []  # blocks of w, in order (no per-node floats)
+        self._count = 0
+        self._last = math.nan
         self.warning: dict | None = None
         self._observe(np.array([w0]), np.array([t0]))
+
+    @property
+    def weights(self) -> list[float]:
+        """``w`` at every node watched so far."""
+        return np.concatenate(self._weights).tolist() if self._weights else []
 
     def watch(self, nodes, first, advance):
         if not advance.count:  # a failed step brings no node
@@ -70,18 +77,26 @@ class SolvabilityMonitor:
         return None
 
     def solvability(self, count: int) -> np.ndarray:
-        return -np.asarray(self.weights[:count], dtype=float) / 8
+        weights = np.concatenate(self._weights) if self._weights else np.zeros(0)
+        return -weights[:count] / 8
+
+    def _keep(self, w):
+        w = np.array(w, dtype=float)  # a copy: the stepper's arrays may be reused
+        self._weights.append(w)
+        self._count += w.size
+        self._last = float(w[-1])
 
     def _observe(self, w, t):
         if self.warning is not None or not w.size:
-            self.weights.extend(w.tolist())
+            if w.size:
+                self._keep(w)
             return
-        if w.size == 1 and self.weights:  # one careful node: plain floats are cheaper
-            last, now = self.weights[-1], float(w[0])
+        if w.size == 1 and self._count:  # one careful node: plain floats are cheaper
+            last, now = self._last, float(w[0])
             if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
-                self.weights.append(now)
+                self._keep(w)
                 return
-        previous = np.concatenate([[self.weights[-1] if self.weights else w[0]], w[:-1]])
+        previous = np.concatenate([[self._last if self._count else w[0]], w[:-1]])
         with np.errstate(divide="ignore", invalid="ignore"):
             jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
         sign = np.sign(w) != np.sign(previous)
@@ -91,12 +106,12 @@ class SolvabilityMonitor:
             reason = ("the site-density weight w = -8 c(z) changed sign" if sign[i] else
                       f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is long "
                       "against the change of c(z)")
-            self.warning = {"step": len(self.weights) + i, "t": float(t[i]),
+            self.warning = {"step": self._count + i, "t": float(t[i]),
                             "c": float(-w[i] / 8), "reason": reason}
             warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
                           f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy step "
                           "may follow", RuntimeWarning, stacklevel=_caller_level())
-        self.weights.extend(w.tolist())
+        self._keep(w)
 
 
 _HERE = os.path.dirname(os.path.abspath(__file__)) + os.sep

@@ -148,11 +148,13 @@ class CompiledStepper:
         if self.chunk.variable:
             t, z = nodes.t, nodes.z
             return (self.chunk.energy_state(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
-                                            error=error), self.theta)
+                                            error=error),
+                    self.chunk.energy_parameters(self.theta, self.acceptance))
         clock = self.clock
         return (self.chunk.fixed_state(k, nodes.z[k], error=error),
-                self.chunk.fixed_parameters(self.theta, t0=clock.t0, tau=clock.tau,
-                                            t_end=clock.t_end, total=clock.total))
+                self.chunk.fixed_parameters(self.theta, self.acceptance, t0=clock.t0,
+                                            tau=clock.tau, t_end=clock.t_end,
+                                            total=clock.total))
 
     def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
         """One chunk's steps kept (up to the first that fails a check, the end or ``budget``)
@@ -212,21 +214,13 @@ class CompiledStepper:
         return max(1, min(self.calls, math.ceil(left / self.chunk.chunk)))
 
     def _energy_checks(self, nodes, k, steps):
-        t = nodes.t
-        t_mid = np.concatenate([[t[k]], steps.t_next[:-1]])
-        with np.errstate(invalid="ignore"):  # a diverged step is NaN; it fails the checks
-            tau = steps.t_next - t_mid
-            tau_prev = np.concatenate([[t[k] - t[k - 1]], tau[:-1]])
-            good = (steps.finite & (tau > 0)
-                    & self.acceptance.residuals_ok(steps.canonical, steps.size, steps.energy,
-                                                   steps.H_interval)
-                    & self.acceptance.bounds_ok(tau, tau_prev))
-        return good, np.flatnonzero(steps.t_next >= self.clock.t_end)
+        """Each step's verdict (the chunk's own, ``chunk.step_verdict``) and the steps that
+        reach ``t_end``."""
+        return steps.good, np.flatnonzero(steps.t_next >= self.clock.t_end)
 
     def _fixed_checks(self, k, steps):
-        with np.errstate(invalid="ignore"):
-            good = steps.finite & self.acceptance.residuals_ok(steps.canonical, steps.size)
-        return good, np.flatnonzero(k + 1 + np.arange(steps.t_next.size) == self.clock.total)
+        return steps.good, np.flatnonzero(k + 1 + np.arange(steps.t_next.size)
+                                          == self.clock.total)
 
 
 class MarchStepper:

@@ -128,30 +128,56 @@ def newton_iteration(qr: SparseQR, *, abstol: float, abstol_step: float) -> ca.F
 
 
 def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
-                    iterations: int) -> ca.Function:
+                    iterations: int, check_after: bool = False,
+                    inline: bool = False) -> ca.Function:
     """``fast_newton`` on ``residual(x, w)`` with ``options`` (``abstol``, ``abstolStep``,
     ``max_iter``) as ``iterations`` unrolled iterations, then, only where those did not stop,
     ``fast_newton`` itself for the iterations left: ``(x0, w) -> x``, the same result.
 
-    The Jacobian is ``fast_newton``'s own ``jac_g_x``, called as a function of its own exactly
-    as ``fast_newton`` calls it."""
+    With ``check_after`` the iteration after the unrolled ones is written as its first test
+    only: the residual at the last iterate against ``abstol``, which is where ``fast_newton``
+    stops on most steps (on every step of the paper's example, after three updates from the RK4
+    predictor); where that test fails, ``fast_newton`` goes on from the same iterate and
+    computes that iteration in full, so the result is the same.
+
+    The Jacobian is ``fast_newton``'s own ``jac_g_x``, called as ``fast_newton`` calls it. With
+    ``inline`` the unrolled iterations are one SX function with common subexpressions merged
+    (``cse``): what depends on ``w`` only (for an energy step the previous interval's energy and
+    the time factors at its clock) is computed once, not once per iteration, and each
+    iteration's sines and cosines once. Merging only shares a value between identical
+    operations on identical operands, so the bits are those of the separate calls (tested);
+    the generated code grows with the unrolled QR, so it pays for small systems only."""
     jacobian = ca.rootfinder(name, "fast_newton", residual, options).get_function("jac_g_x")
     qr = SparseQR(jacobian.sparsity_out(0))
     iteration = newton_iteration(qr, abstol=options["abstol"],
                                  abstol_step=options["abstolStep"])
-    x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
-    w = ca.MX.sym("w", jacobian.sparsity_in(1))
-    x, stopped = x0, ca.MX(0)
+    kind = ca.SX if inline else ca.MX
+    x0 = kind.sym("x0", jacobian.sparsity_in(0))
+    w = kind.sym("w", jacobian.sparsity_in(1))
+    x, stopped = x0, kind(0)
     for _ in range(iterations):
         J, g = jacobian(x, w)
         x, stopped = iteration(J, g, x, stopped)
+    done = iterations
+    if check_after:
+        _, g = jacobian(x, w)  # inline: J unused, only g's expressions stay
+        g_sym = ca.SX.sym("g", g.sparsity())
+        small = ca.Function("small_residual", [g_sym],
+                            [norm_inf([g_sym[i] for i in range(g.numel())])
+                             <= options["abstol"]])
+        stopped = ca.logic_or(stopped, small(g))
+    if inline:
+        unrolled = ca.Function(name + "_unrolled", [x0, w], [x, stopped], {"cse": True})
+        x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
+        w = ca.MX.sym("w", jacobian.sparsity_in(1))
+        x, stopped = unrolled(x0, w)
     rest = ca.rootfinder(name + "_rest", "fast_newton", residual,
-                         {**options, "max_iter": options["max_iter"] - iterations})
+                         {**options, "max_iter": options["max_iter"] - done})
     x_sym, w_sym = ca.MX.sym("x", x0.sparsity()), ca.MX.sym("w", w.sparsity())
-    done = ca.Function("done", [x_sym, w_sym], [x_sym])
+    finish_done = ca.Function("done", [x_sym, w_sym], [x_sym])
     # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
     # both branches. The rest runs only where the unrolled iterations did not stop.
-    finish = ca.Function.if_else(name + "_finish", done,
+    finish = ca.Function.if_else(name + "_finish", finish_done,
                                  ca.Function("go_on", [x_sym, w_sym], [rest(x_sym, w_sym)]))
     solved = finish(stopped, x, w)
     return ca.Function(name, [x0, w], [solved], {"never_inline": True})
