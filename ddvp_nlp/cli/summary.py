@@ -80,6 +80,8 @@ def _verdict_words(accuracy: dict) -> str:
         return accuracy["verdict"]
     if accuracy.get("global_tol") is not None:
         return "accurate (global estimate within --global-tol)"
+    if accuracy.get("global_error_saturated"):  # the estimate's own words say the rest
+        return "each step accurate"
     size = accuracy.get("orbit_size") or 1.0
     relative = accuracy["global_error_estimate"] / size
     if relative >= PHASE_WARNING:
