@@ -137,14 +137,36 @@ static double norm_inf(int m, const double* v) {
 
 /* March from (t0, z0) until t >= t_end or max_steps; t (max_steps+1), z ((max_steps+1) x 2n),
  * H (max_steps+1). Returns the number of steps taken, or -(step + 1) where a step failed. */
+/* The acceptance of a step, the library's (acceptance.py): finite unknowns, tau > 0, the
+ * canonical residuals against tol, the energy residual (times the previous step) against tol;
+ * adds the step's energy residual to the drift. */
+static int accept(int m, int m2, const double* x, const double* g, double tau, double tol,
+                  double size, int energy, double tau_prev, double E_prev, double* drift) {
+  int i;
+  for (i = 0; i < m; ++i) if (!isfinite(x[i])) return 0;
+  if (tau <= 0 || norm_inf(m2, g) > tol * size) return 0;
+  if (energy) {
+    if (fabs(g[m2]) * tau_prev > tol * fmax(1.0, fabs(E_prev))) return 0;
+    *drift += g[m2] * tau_prev;
+  }
+  return 1;
+}
+
+/* The system and the first node of a march. */
+static void start(System* s, int kind, int n, const double* theta, const double* z0, double t0,
+                  double* t, double* z, double* H) {
+  int i;
+  s->kind = kind; s->n = n;
+  for (i = 0; i < 4; ++i) s->theta[i] = theta[i];
+  t[0] = t0; memcpy(z, z0, sizeof(double) * 2 * n);
+  H[0] = hamiltonian(s, z, z + n, t0);
+}
+
 int c_march(int kind, int n, const double* theta, const double* z0, double t0, double tau0,
             double t_end, int max_steps, double tol, double* t, double* z, double* H) {
   System s; int k, i, it, m2 = 2 * n;
   double g[MAXU], J[MAXU * MAXU], x[MAXU], drift = 0;
-  s.kind = kind; s.n = n;
-  for (i = 0; i < 4; ++i) s.theta[i] = theta[i];
-  t[0] = t0; memcpy(z, z0, sizeof(double) * m2);
-  H[0] = hamiltonian(&s, z, z + n, t0);
+  start(&s, kind, n, theta, z0, t0, t, z, H);
   for (k = 0; k < max_steps && t[k] < t_end; ++k) {
     const double* za = z + k * m2;
     int energy = k > 0, m = m2 + (energy ? 1 : 0);
@@ -167,12 +189,7 @@ int c_march(int kind, int n, const double* theta, const double* z0, double t0, d
     }
     residual(&s, za, t[k], x, tau0, energy, E_prev, s_prev, tau_prev, drift, g, J);
     double tau = energy ? x[m2] : tau0, size = fmax(1.0, norm_inf(m2, za));
-    for (i = 0; i < m; ++i) if (!isfinite(x[i])) return -(k + 1);
-    if (tau <= 0 || norm_inf(m2, g) > tol * size) return -(k + 1);
-    if (energy) {
-      if (fabs(g[m2]) * tau_prev > tol * fmax(1.0, fabs(E_prev))) return -(k + 1);
-      drift += g[m2] * tau_prev;
-    }
+    if (!accept(m, m2, x, g, tau, tol, size, energy, tau_prev, E_prev, &drift)) return -(k + 1);
     t[k + 1] = t[k] + tau;
     memcpy(z + (k + 1) * m2, x, sizeof(double) * m2);
     H[k + 1] = hamiltonian(&s, x, x + n, t[k + 1]);
@@ -296,10 +313,7 @@ int c_march_fast(int kind, int n, const double* theta, const double* z0, double 
   System s; int k, i, it, m2 = 2 * n;
   double g[MAXU], J[MAXU * MAXU], x[MAXU], drift = 0;
   long total = 0;
-  s.kind = kind; s.n = n;
-  for (i = 0; i < 4; ++i) s.theta[i] = theta[i];
-  t[0] = t0; memcpy(z, z0, sizeof(double) * m2);
-  H[0] = hamiltonian(&s, z, z + n, t0);
+  start(&s, kind, n, theta, z0, t0, t, z, H);
   for (k = 0; k < max_steps && t[k] < t_end; ++k) {
     const double* za = z + k * m2;
     int energy = k > 0, m = m2 + (energy ? 1 : 0), updated = 0;
@@ -342,12 +356,7 @@ int c_march_fast(int kind, int n, const double* theta, const double* z0, double 
     }
     total += it;
     double tau = energy ? x[m2] : tau0;
-    for (i = 0; i < m; ++i) if (!isfinite(x[i])) return -(k + 1);
-    if (tau <= 0 || norm_inf(m2, g) > tol * size) return -(k + 1);
-    if (energy) {
-      if (fabs(g[m2]) * tau_prev > tol * fmax(1.0, fabs(E_prev))) return -(k + 1);
-      drift += g[m2] * tau_prev;
-    }
+    if (!accept(m, m2, x, g, tau, tol, size, energy, tau_prev, E_prev, &drift)) return -(k + 1);
     t[k + 1] = t[k] + tau;
     memcpy(z + (k + 1) * m2, x, sizeof(double) * m2);
     if (kind == 0) {  /* H at the new node: one sin of the clock, one cos of q */
