@@ -193,7 +193,8 @@ def test_the_printed_verdict_says_when_the_phase_has_drifted(tmp_path, capsys):
     assert main(["march", "harmonic", "--set", "t_end=20000", "--out", str(out),
                  "--no-progress", "--no-plot"]) == 0
     printed = capsys.readouterr().out
-    assert "each step accurate, but the global estimate is 1.8 of the orbit's size" in printed
+    assert "each step accurate, but the phase is lost: the global estimate is 1.8 times the " \
+        "orbit's size" in printed
     assert "; accurate\n" not in printed
     accuracy = json.loads((out / "meta.json").read_text())["accuracy"]
     assert accuracy["global_error_estimate"] / accuracy["orbit_size"] > 1.0

@@ -3,6 +3,8 @@ another rule or size, shooting from a given momentum, and the diagnosis of a bra
 energy rules have no solution. Kepler e = 0.5 over three periods from the pericentre: the
 straight line leads to the radial branch, the orbit's momentum to the three revolutions."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -171,3 +173,36 @@ def test_newton_and_ipopt_return_the_same_kepler_nodes_from_the_same_start():
     assert all(s.success for s in solved), [s.message for s in solved]
     for key in ("t", "q", "p"):
         assert np.max(np.abs(getattr(solved[0], key) - getattr(solved[1], key))) < 1e-10, key
+
+
+def test_cli_refusals_name_the_options_and_leave_no_empty_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    args = ["bvp", "kepler", "--set", "q_start=0.5,0", "--set", "q_end=-0.5,0.5", "--set",
+            "t_end=2", "--nodes", "201"]
+    assert main([*args, "--p-start", "0,1"]) == 2
+    assert "--p-start 0,1 is the momentum shooting starts from: give it with --guess " \
+        "march (got --guess straight)" in capsys.readouterr().err
+    (tmp_path / "notes.txt").write_text("not an npz")
+    assert main([*args, "--guess", "notes.txt"]) == 2
+    assert "--guess 'notes.txt': notes.txt is not a result.npz with t, q and p arrays" \
+        in capsys.readouterr().err
+    np.savez(tmp_path / "one.npz", t=np.linspace(0, 2, 201), q=np.zeros((201, 1)),
+             p=np.zeros((201, 1)))
+    assert main([*args, "--guess", "one.npz"]) == 2
+    assert "its q has shape (201, 1), this scene has n = 2 coordinates" \
+        in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").iterdir())
+
+
+def test_cli_runs_with_other_starts_get_folders_of_their_own(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    args = ["bvp", "pendulum", "--set", "q_start=0.5", "--set", "q_end=-0.3", "--set",
+            "t_end=10", "--nodes", "201", "--no-plot"]
+    assert main(args) == 0
+    assert main([*args, "--guess", "march"]) == 0
+    folders = sorted(path.name for path in (tmp_path / "runs").iterdir())
+    assert len(folders) == 2, folders
+    metas = [json.loads((tmp_path / "runs" / name / "meta.json").read_text())
+             for name in folders]
+    assert sorted(m["overrides"].get("guess", "straight") for m in metas) == ["march",
+                                                                             "straight"]

@@ -109,7 +109,7 @@ def test_scene_file_without_scene(tmp_path):
     ({"q_start": []}, "q_start must have shape (1,), got shape (0,): []"),
     ({"q_start": [[0.5]]}, "q_start must have shape (1,), got shape (1, 1): [[0.5]]"),
     ({"q_end": [np.inf]}, "q_end must be finite, got [inf]"),
-    ({"t_end": np.nan}, "t_span[1] must be finite, got nan"),
+    ({"t_end": np.nan}, "t_end must be finite, got nan"),
     ({"nodes": 2.5}, "nodes must be an integer >= 3, got 2.5"),
     ({"tol": float("nan")}, "tol must be finite, got nan"),
     ({"tol": -1e-9}, "tol must be > 0, got -1e-09"),

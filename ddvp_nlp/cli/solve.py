@@ -4,6 +4,7 @@ run folder, print its summary."""
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from ..discrete.scheme import RULES, Scheme
 from ..errors import InputError
@@ -24,11 +25,22 @@ def run_solve(args) -> int:
     scheme = _scheme(args, higher)
     overrides = parse_settings(args.settings)
     config = _resolve(args, scene, higher, overrides)
-    if args.command == "bvp" and args.nodes is not None:
-        overrides["nodes"] = args.nodes
+    resolved = dict(_resolved(config))
+    if args.command == "bvp":
+        if args.nodes is not None:
+            overrides["nodes"] = args.nodes
+        # the start and the solver can change which solution a bvp returns: a run with
+        # another one gets a folder of its own (two runs differing only in --guess shared one)
+        for name, value, default in (("guess", args.guess, "straight"),
+                                     ("p_start", args.p_start, None),
+                                     ("solver", args.solver, "auto")):
+            if value != default:
+                overrides[name] = resolved[name] = value
     infix = "-bvp" if args.command == "bvp" else ""
-    out = prepare_folder(args.out if args.out is not None else default_folder(
-        f"{scene.name}{infix}-{args.scheme}", _resolved(config), overrides))
+    target = args.out if args.out is not None else default_folder(
+        f"{scene.name}{infix}-{args.scheme}", resolved, overrides)
+    existed = Path(target).exists()
+    out = prepare_folder(target)
     args.checkpoint = _checkpoint_saver(args, scene, out)
     if args.command == "march" and not higher:
         INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
@@ -36,8 +48,14 @@ def run_solve(args) -> int:
     try:
         solution, extra = solve(args, scene, config, scheme)
     except KeyboardInterrupt:
-        raise Stopped(f"interrupted before the run had a result; nothing new was written to "
-                       f"{out}/") from None
+        removed = not existed and _remove_if_empty(out)
+        raise Stopped("interrupted before the run had a result; nothing was written" +
+                      (f" (the empty folder {out}/ is removed)" if removed else
+                       f" to {out}/")) from None
+    except InputError:
+        if not existed:  # a refused run leaves no empty folder behind
+            _remove_if_empty(out)
+        raise
     with INTERRUPTS.saving():  # a second Ctrl-C or a SIGTERM waits until the set is written
         meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
                          solution=solution, extra={**(extra or {}), "overrides": overrides},
@@ -47,6 +65,20 @@ def run_solve(args) -> int:
         print(f"ddvp {args.command}: interrupted while saving; the run above was written whole "
               f"to {out}/", file=sys.stderr)
     return 0 if solution.success and not INTERRUPTS.pending else 1
+
+
+def _remove_if_empty(out) -> bool:
+    """Remove the folder ``out`` if nothing but a lock file is in it; whether it was removed."""
+    try:
+        entries = [entry for entry in out.iterdir() if entry.name != ".ddvp.lock"]
+        if entries:
+            return False
+        for entry in out.iterdir():
+            entry.unlink()
+        out.rmdir()
+        return True
+    except OSError:
+        return False
 
 
 def _checkpoint_saver(args, scene, out):
@@ -166,11 +198,16 @@ def _march_method(args, scene, config):
 def _bvp(args, scene, config, scheme):
     from ..solvers.bvp import solve_bvp
 
+    p_start = _momentum(args.p_start)
+    if p_start is not None and args.guess != "march":
+        raise InputError(f"--p-start {args.p_start} is the momentum shooting starts from: give "
+                         f"it with --guess march (got --guess {args.guess})")
     solution = solve_bvp(scene.system, config.q_start, config.q_end, t0=config.t_span[0],
                          t_end=config.t_span[1], nodes=config.nodes, scheme=scheme,
                          params=config.params, tol=args.tol,
                          solver=args.solver, verbose=args.verbose,
-                         guess=_bvp_guess(args.guess), p_start=_momentum(args.p_start),
+                         guess=_bvp_guess(args.guess, scene.system.n),
+                         p_start=p_start,
                          time_limit=args.time_limit, progress=args.progress)
     return solution, {"solver": solution.stats}
 
@@ -185,7 +222,7 @@ def _momentum(text: str | None):
         raise InputError(f"--p-start must be comma-separated numbers, got {text!r}") from None
 
 
-def _bvp_guess(value: str):
+def _bvp_guess(value: str, n: int | None = None):
     """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a ``result.npz`` (or of the one in
     a run folder); ``InputError`` if the file is missing or lacks them."""
     from pathlib import Path
@@ -200,11 +237,15 @@ def _bvp_guess(value: str):
         raise InputError(f"--guess must be straight, march or a result.npz (or run folder), "
                          f"got {value!r}: no such file")
     try:
-        with np.load(path) as data:
-            return {key: data[key] for key in ("t", "q", "p")}
-    except (OSError, ValueError, KeyError) as error:
-        raise InputError(f"--guess {value!r}: cannot read t, q and p from {path} "
-                         f"({error})") from None
+        with np.load(path, allow_pickle=False) as data:
+            guess = {key: data[key] for key in ("t", "q", "p")}
+    except (OSError, ValueError, KeyError, AttributeError):
+        raise InputError(f"--guess {value!r}: {path} is not a result.npz with t, q and p "
+                         f"arrays") from None
+    if n is not None and (guess["q"].ndim != 2 or guess["q"].shape[1] != n):
+        raise InputError(f"--guess {value!r}: its q has shape {guess['q'].shape}, this scene "
+                         f"has n = {n} coordinates")
+    return guess
 
 
 def _march_higher(args, scene, config, scheme):

@@ -37,7 +37,8 @@ def print_summary(meta: dict, out) -> None:
     if "note" in meta:
         lines.append(f"  {meta['note']}")
     if "error_vs_exact" in meta:
-        lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e}")
+        lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e} "
+                     f"(largest over the run)")
     path = f" ({meta['path']} path)" if "path" in meta else ""
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
                  f" s{path}; written to {out}/")
@@ -85,8 +86,9 @@ def _verdict_words(accuracy: dict) -> str:
     size = accuracy.get("orbit_size") or 1.0
     relative = accuracy["global_error_estimate"] / size
     if relative >= PHASE_WARNING:
-        return (f"each step accurate, but the global estimate is {relative:.2g} of the orbit's "
-                f"size (phase drift; not checked unless --global-tol is given)")
+        state = "the phase is lost" if relative >= 1 else "the phase has drifted"
+        return (f"each step accurate, but {state}: the global estimate is {relative:.2g} times "
+                f"the orbit's size (not checked unless --global-tol is given)")
     return "accurate"
 
 

@@ -365,10 +365,10 @@ def _check_span(t_span) -> tuple[float, float]:
         t0, t1 = (float(v) for v in t_span)
     except (TypeError, ValueError):
         raise InputError(f"t_span must be a pair (t_0, t_end), got {t_span!r}") from None
-    check_real("t_span[0]", t0)
-    check_real("t_span[1]", t1)
+    check_real("t0", t0)
+    check_real("t_end", t1)
     if t1 <= t0:
-        raise InputError(f"t_span must have t_end > t_0, got {t_span!r}")
+        raise InputError(f"t_end must be > t0, got t0 = {t0!r}, t_end = {t1!r}")
     return t0, t1
 
 

@@ -319,8 +319,9 @@ def continuation(request: HigherRequest, grid: HigherAssembly, ends: HigherEnds,
 
 def verify(request: HigherRequest, rule: str, x: np.ndarray, phase: dict):
     """``(status, message, residuals)`` of the point ``x`` (module docstring)."""
-    said = (f"{phase['solver']}: {phase['return_status']}, {phase['iterations']} "
-            f"iterations")
+    said = f"{phase['solver']}: {phase['return_status']}"
+    if "iterations" not in phase["return_status"]:  # Newton's own words count them already
+        said += f", {phase['iterations']} iterations"
     N, m, l = request.nodes, request.n + 1, request.order  # noqa: E741 (the order)
     empty = {"euler_lagrange_residual": np.full((N - 2 * l) * request.n, np.nan),
              "energy_equation_residual": np.full(N - 2 * l if rule != "fixed" else 0, np.nan)}
