@@ -10,8 +10,10 @@ def hamiltonian(q, p, t, w):
 
 
 def exact(t, q0, p0, t0, w):
-    phase = w * (np.asarray(t) - t0)
-    q = q0[0] * np.cos(phase) + p0[0] / w * np.sin(phase)
+    elapsed = np.asarray(t) - t0
+    phase = w * elapsed
+    # sin(w t)/w, which is t at w = 0 (a free particle)
+    q = q0[0] * np.cos(phase) + p0[0] * (np.sin(phase) / w if w != 0 else elapsed)
     p = -q0[0] * w * np.sin(phase) + p0[0] * np.cos(phase)
     return q[:, None], p[:, None]
 

@@ -164,3 +164,13 @@ def test_a_closed_stdout_ends_quietly(monkeypatch, capsys):
     monkeypatch.setattr(cli_main, "_silence_stdout", lambda: None)
     assert cli_main.main(["scenes"]) == 141
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_motion_at_rest_says_why_the_step_is_free_and_prints_no_nan(tmp_path, capsys):
+    """harmonic with w = 0 from rest: f = 0, so w = f' H_zz f = 0 at every node."""
+    with pytest.warns(RuntimeWarning, match="site-density weight w = -8 c\\(z\\) is zero"):
+        assert main(["march", "harmonic", "--set", "w=0", "--out", str(tmp_path / "a"),
+                     "--no-progress", "--no-plot"]) == 0
+    captured = capsys.readouterr()
+    assert "nan" not in captured.out and "invalid value" not in captured.err
+    assert "error against the exact solution 0.000e+00" in captured.out

@@ -103,9 +103,14 @@ class SolvabilityMonitor:
         alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
         if alarm.size:
             i = int(alarm[0])
-            reason = ("the site-density weight w = -8 c(z) changed sign" if sign[i] else
-                      f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is long "
-                      "against the change of c(z)")
+            if w[i] == 0 or previous[i] == 0:
+                reason = ("the site-density weight w = -8 c(z) is zero: the energy rule does "
+                          "not fix the step here (the motion is at rest, or f' H_zz f vanishes)")
+            elif sign[i]:
+                reason = "the site-density weight w = -8 c(z) changed sign"
+            else:
+                reason = (f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is "
+                          "long against the change of c(z)")
             self.warning = {"step": self._count + i, "t": float(t[i]),
                             "c": float(-w[i] / 8), "reason": reason}
             warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
