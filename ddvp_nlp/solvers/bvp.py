@@ -323,7 +323,11 @@ def _solution(request: Request, x, phase, outcome, started) -> Solution:
     sign_changes = [int(np.count_nonzero(np.diff(np.sign(p[:, i])) != 0))
                     for i in range(request.system.n)]
     if status is Status.SUCCESS:
-        message += f"; p changes sign {', '.join(map(str, sign_changes))} times"
+        if len(sign_changes) == 1:
+            message += f"; p changes sign {sign_changes[0]} times"
+        else:
+            message += "; sign changes of " + ", ".join(
+                f"p{i + 1}: {count}" for i, count in enumerate(sign_changes))
     stats = {"solver": phase["solver"], "phases": phases, "return_status":
              phase["return_status"], "iterations": phase["iterations"],
              "iterations_total": sum(ph["iterations"] for ph in phases),
