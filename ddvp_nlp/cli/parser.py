@@ -201,7 +201,8 @@ def _march_command(commands) -> None:
                        help="write the run so far to the output folder this often while "
                             f"marching, so a kill loses at most this much (default: "
                             f"{CHECKPOINT_SECONDS:g})")
-    march.add_argument("--no-progress", action="store_true", help="no progress bar")
+    march.add_argument("--no-progress", action="store_true",
+                       help="no progress bar (it is drawn only when stderr is a terminal)")
     march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
 
 

@@ -197,7 +197,9 @@ class _ProgressBar:
         if enabled:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=t_end - t0, unit="t", leave=False,
+            # disable=None: drawn on a terminal only; in a file or a pipe its carriage-return
+            # frames stayed in front of the summary (a newcomer's report)
+            self.bar = tqdm(total=t_end - t0, unit="t", leave=False, disable=None,
                             bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} "
                                        "[{elapsed}<{remaining}]")
 
