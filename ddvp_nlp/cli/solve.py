@@ -208,8 +208,15 @@ def _bvp(args, scene, config, scheme):
                          solver=args.solver, verbose=args.verbose,
                          guess=_bvp_guess(args.guess, scene.system.n),
                          p_start=p_start,
-                         time_limit=args.time_limit, progress=args.progress)
+                         time_limit=args.time_limit,
+                         progress=args.progress or (config.nodes >= AUTO_PROGRESS_NODES
+                                                    and sys.stderr.isatty()))
     return solution, {"solver": solution.stats}
+
+
+# A bvp of at least this many nodes reports its iterations on a terminal without --progress
+# (Newton takes about 1 s an iteration at 1e6 nodes; a 1e7-node solve ran silently).
+AUTO_PROGRESS_NODES = 100_000
 
 
 def _momentum(text: str | None):
