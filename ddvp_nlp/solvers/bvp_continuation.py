@@ -26,6 +26,7 @@ the march by the path: ``stats["p_sign_changes"]`` of the result says which it i
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -94,6 +95,9 @@ def continue_in_end_position(request: Request, fixed, times, base: dict, linear:
             secant = corrected - y
             tangent = secant / _norm(secant, weight)
             y = corrected
+            if request.progress:
+                print(f"bvp [continuation]: step {record['steps']}, s = {y[-1]:.6g}, "
+                      f"arclength step {h:.3g}", file=sys.stderr, flush=True)
             if iterations <= 3:
                 h = min(LARGEST_STEP, 1.5 * h)
         else:
