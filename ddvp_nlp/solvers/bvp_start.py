@@ -114,7 +114,6 @@ def _from_nodes(request: Request, guess: dict) -> dict:
     first."""
     if not request.scheme.variable_steps:
         return guess
-
     layout = NodeLayout(request.system.n, request.nodes)
     x = layout.pack(guess["t"], guess["q"], guess["p"])
     grid, ends = assembly(request, request.scheme), request.ends(request.scheme)
