@@ -14,6 +14,7 @@ callers run CasADi's virtual machine instead, with one warning (:func:`warn_once
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import shutil
@@ -38,13 +39,21 @@ def find_compiler(compiler: str | None = "auto") -> str | None:
         return None
     if compiler == "auto":
         for candidate in (os.environ.get("CC"), "gcc", "cc"):
-            if candidate and shutil.which(candidate):
-                return shutil.which(candidate)
+            found = _which(candidate, os.environ.get("PATH")) if candidate else None
+            if found:
+                return found
         return None
-    found = shutil.which(compiler)
+    found = _which(compiler, os.environ.get("PATH"))
     if found is None:
         raise InputError(f"compiler {compiler!r} was not found")
     return found
+
+
+@functools.lru_cache(maxsize=64)
+def _which(command: str, path: str | None) -> str | None:
+    """``shutil.which``, remembered per command and ``PATH`` (a march looked the compiler up on
+    every call: 0.5 ms of a 2.9 ms short march)."""
+    return shutil.which(command, path=path)
 
 
 def cache_folder(cache_dir: str | os.PathLike | None = None) -> Path:

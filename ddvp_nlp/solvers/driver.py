@@ -164,8 +164,11 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
     finally:
         bar.close()
     t, z = nodes.arrays()
+    # the state is printed only in a failure's sentence (numpy's array printing cost 0.6 ms of
+    # a 2.9 ms short march)
     text = message(status, steps=t.size - 1, t_end=t_end, t=float(t[-1]),
-                   state=stepper.describe(z[-1]), detail=detail)
+                   state="" if status is Status.SUCCESS else stepper.describe(z[-1]),
+                   detail=detail)
     return Outcome(t, z, status, text)
 
 
