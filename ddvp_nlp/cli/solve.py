@@ -232,8 +232,6 @@ def _momentum(text: str | None):
 def _bvp_guess(value: str, n: int | None = None):
     """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a ``result.npz`` (or of the one in
     a run folder); ``InputError`` if the file is missing or lacks them."""
-    from pathlib import Path
-
     import numpy as np
 
     if value in ("straight", "march"):

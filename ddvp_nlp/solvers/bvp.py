@@ -51,7 +51,7 @@ from ..validation import check_finite_array, check_integer, check_real, check_st
 from .accuracy import AccuracyMonitor, Tolerance, assess
 from .bvp_assembly import NodeLayout
 from .bvp_phase import EPS, ROUND_OFF_ALLOWANCE, Request, assembly, round_off_scales, run_phase
-from .bvp_start import branch_obstacle, predicted_times, start_point
+from .bvp_start import branch_obstacle, first_solver, predicted_times, start_point
 from .dense import attach
 
 SOLVERS = ("auto", "newton", "ipopt")
@@ -124,8 +124,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     x0 = layout.pack(np.asarray(start["t"], float), np.asarray(start["q"], float),
                      np.asarray(start["p"], float))
     name = f"{request.scheme.rule} equations"
-    first = "ipopt" if request.solver == "ipopt" else "newton"
-    x, phase = run_phase(request, request.scheme, x0, name, first)
+    x, phase = run_phase(request, request.scheme, x0, name, first_solver(request))
     outcome = _outcome(request, x, phase)
     obstacle = branch_obstacle(request, start) if outcome[0] is not Status.SUCCESS \
         and request.scheme.variable_steps else None

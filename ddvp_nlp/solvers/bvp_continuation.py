@@ -66,9 +66,11 @@ def continue_in_end_position(request: Request, fixed, times, base: dict, linear:
         return Ends(request.q_start, a + s * d, np.asarray(times, float), request.theta, 1.0)
 
     y = np.concatenate([layout.pack(times, base["q"], base["p"]), [0.0]])
-    tangent = _first_tangent(grid, y, ends, F_s, weight, linear)
     h, result = FIRST_STEP, None
     try:
+        tangent = _first_tangent(grid, y, ends, F_s, weight, linear)
+        if tangent is None:
+            record["return_status"] = "the Jacobian at the march is singular: no tangent"
         while record["steps"] < MAX_STEPS and tangent is not None:
             if request.remaining() == 0.0:
                 record["return_status"] = f"time limit reached at s = {y[-1]:.4g}"
@@ -101,7 +103,7 @@ def continue_in_end_position(request: Request, fixed, times, base: dict, linear:
             if iterations <= 3:
                 h = min(LARGEST_STEP, 1.5 * h)
         else:
-            if not record["return_status"]:
+            if tangent is not None:
                 record["return_status"] = f"{MAX_STEPS} steps without reaching s = 1 " \
                                           f"(s = {y[-1]:.4g})"
     finally:

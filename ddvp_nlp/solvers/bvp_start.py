@@ -64,6 +64,11 @@ def straight_line(request: Request, times) -> dict:
     return {"t": np.asarray(times, float), "q": q, "p": np.repeat(slope[None, :], times.size, 0)}
 
 
+def first_solver(request: Request) -> str:
+    """The solver a start phase tries first: IPOPT if asked for, else Newton."""
+    return "ipopt" if request.solver == "ipopt" else "newton"
+
+
 def fixed_scheme(scheme: Scheme) -> Scheme:
     return Scheme("fixed", alpha=scheme.alpha, clock=scheme.clock)
 
@@ -81,7 +86,7 @@ def start_point(request: Request, guess) -> dict:
     if guess == "march":
         shot, reached = shooting(request, fixed, uniform)
         start = shot or start
-    solver = "ipopt" if request.solver == "ipopt" else "newton"
+    solver = first_solver(request)
     if not reached or not request.scheme.variable_steps:
         solved = _solve_fixed(request, fixed, uniform, start, "fixed steps, uniform times",
                               solver)
@@ -92,11 +97,7 @@ def start_point(request: Request, guess) -> dict:
         start = solved or start
     if not request.scheme.variable_steps:
         return start
-    times = predicted_times(request.system, start["t"], start["q"], start["p"], request.theta)
-    moved = {"t": times, "q": interpolate(times, start["t"], start["q"]),
-             "p": interpolate(times, start["t"], start["p"])}
-    return _solve_fixed(request, fixed, times, moved, "fixed steps, predicted times",
-                        solver) or start
+    return _at_predicted_times(request, start, "fixed steps, predicted times") or start
 
 
 # A node guess whose released residuals are all within this many times Newton's targets (a
@@ -120,12 +121,18 @@ def _from_nodes(request: Request, guess: dict) -> dict:
     F, _ = grid.evaluate(x, ends, jacobian=False)
     if np.all(np.abs(F) <= NEAR_RELEASED * newton_targets(request, grid, x, ends)):
         return guess
-    times = predicted_times(request.system, guess["t"], guess["q"], guess["p"], request.theta)
-    moved = {"t": times, "q": interpolate(times, guess["t"], guess["q"]),
-             "p": interpolate(times, guess["t"], guess["p"])}
-    solver = "ipopt" if request.solver == "ipopt" else "newton"
-    return _solve_fixed(request, fixed_scheme(request.scheme), times, moved,
-                        "fixed steps, predicted times (from the guess)", solver) or guess
+    return _at_predicted_times(request, guess,
+                               "fixed steps, predicted times (from the guess)") or guess
+
+
+def _at_predicted_times(request: Request, start: dict, name: str) -> dict | None:
+    """``start`` moved to its predicted times and solved there with fixed steps (phase 2);
+    ``None`` if that solve does not converge."""
+    times = predicted_times(request.system, start["t"], start["q"], start["p"], request.theta)
+    moved = {"t": times, "q": interpolate(times, start["t"], start["q"]),
+             "p": interpolate(times, start["t"], start["p"])}
+    return _solve_fixed(request, fixed_scheme(request.scheme), times, moved, name,
+                        first_solver(request))
 
 
 def _solve_fixed(request, fixed, times, start, name, solver):
@@ -174,9 +181,12 @@ def _march(request: Request, fixed: Scheme, p0):
 def _fixed_march(request: Request, fixed: Scheme, p0) -> dict | None:
     """:func:`_march`'s nodes, or ``None`` if it does not reach ``t_end`` in ``nodes`` nodes."""
     run = _march(request, fixed, p0)
-    if not run.success or run.t.size != request.nodes:
-        return None
-    return {"t": run.t, "q": run.q, "p": run.p}
+    return {"t": run.t, "q": run.q, "p": run.p} if _whole(request, run) else None
+
+
+def _whole(request: Request, run) -> bool:
+    """Whether the march ``run`` reached ``t_end`` in exactly the grid's ``nodes`` nodes."""
+    return run.success and run.t.size == request.nodes
 
 
 def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]:
@@ -193,7 +203,7 @@ def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]
               "converged": False, "return_status": "", "iterations": 0}
     request.phases.append(record)
     run = shoot(p0)
-    if not run.success or run.t.size != request.nodes:
+    if not _whole(request, run):
         record["return_status"] = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
         return None, False
     best, stalled = (np.linalg.norm(run.q[-1] - request.q_end), run), 0
@@ -216,7 +226,7 @@ def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]
         for halving in range(SHOOTING_HALVINGS + 1):
             trial = p0 - step / 2 ** halving
             candidate = shoot(trial)
-            if not (candidate.success and candidate.t.size == request.nodes):
+            if not _whole(request, candidate):
                 continue
             taken = taken or (trial, candidate)
             if np.linalg.norm(candidate.q[-1] - request.q_end) < np.linalg.norm(miss):
