@@ -79,11 +79,14 @@ class Request:
 
 
 def assembly(request: Request, scheme: Scheme) -> GridAssembly:
-    return _built(request, ("bvp_assembly", scheme, request.nodes),
+    return built(request, ("bvp_assembly", scheme, request.nodes),
                   lambda: GridAssembly(request.system, scheme, request.nodes))
 
 
-def _built(request: Request, key, build):
+def built(request, key, build):
+    """``build()`` cached per system under ``key`` (``PROBLEMS``), its time added to
+    ``request.build_s`` (any request with ``system`` and ``build_s``: the higher-order solver's
+    too)."""
     started = time.perf_counter()
     value = PROBLEMS.get(request.system, key, build)
     request.build_s += time.perf_counter() - started
@@ -137,7 +140,7 @@ def run_phase(request: Request, scheme: Scheme, x0: np.ndarray, name: str, solve
     else:
         remaining = request.remaining()
         build = IPOPT_BUILDS[IPOPT_BUILD]
-        problem = _built(request, ("bvp_ipopt", IPOPT_BUILD, scheme, request.nodes,
+        problem = built(request, ("bvp_ipopt", IPOPT_BUILD, scheme, request.nodes,
                                    request.max_iter, request.tol, request.verbose, remaining),
                          lambda: build(request.system, scheme, request.nodes, tol=request.tol,
                                        max_iter=request.max_iter,

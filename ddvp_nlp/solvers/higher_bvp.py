@@ -32,11 +32,10 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..cache import PROBLEMS
 from ..solution import Status
 from .bvp_assembly import chunked
 from .bvp_newton import FLOOR_FACTOR, Factorization, NewtonResult, largest_admissible_step
-from .bvp_phase import EPS
+from .bvp_phase import EPS, built
 from .higher_assembly import HigherAssembly, HigherEnds, window_functions
 
 SOLVERS = ("auto", "newton", "ipopt")
@@ -132,15 +131,8 @@ class HigherRequest:
 
 def assembly(request: HigherRequest, rule: str) -> HigherAssembly:
     variable = rule != "fixed"
-    return _built(request, ("higher_assembly", variable, request.nodes, request.el_scale),
+    return built(request, ("higher_assembly", variable, request.nodes, request.el_scale),
                   lambda: HigherAssembly(request.system, rule, request.nodes, request.el_scale))
-
-
-def _built(request: HigherRequest, key, build):
-    started = time.perf_counter()
-    value = PROBLEMS.get(request.system, key, build)
-    request.build_s += time.perf_counter() - started
-    return value
 
 
 def solve_rule(request: HigherRequest, rule: str, x0: np.ndarray):
@@ -417,7 +409,7 @@ def grid_energies(system, t, q, theta) -> tuple[np.ndarray, np.ndarray]:
 
 def _ipopt(request: HigherRequest, rule: str, x0: np.ndarray):
     """``(x, converged, said, iterations)`` of IPOPT from ``x0`` (packed like Newton's)."""
-    solver, free = _built(request, ("higher_ipopt", rule != "fixed", request.nodes,
+    solver, free = built(request, ("higher_ipopt", rule != "fixed", request.nodes,
                                     request.tol, request.max_iter),
                           lambda: _ipopt_problem(request, rule))
     N, n, l = request.nodes, request.n, request.order  # noqa: E741 (the order)
