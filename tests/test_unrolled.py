@@ -1,5 +1,6 @@
-"""The unrolled Newton gives fast_newton's result to the last bit, whether or not its unrolled
-iterations stop, and the compiled recheck gives the virtual machine's residuals."""
+"""The unrolled Newton with fast_newton's QR gives fast_newton's result to the last bit, whether
+or not its unrolled iterations stop; with the elimination of the chunk's small systems it finds
+the same root; and the compiled recheck gives the virtual machine's residuals."""
 
 import casadi as ca
 import numpy as np
@@ -8,11 +9,11 @@ import pytest
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.chunk import FAST_NEWTON_OPTIONS, SMALL_UNROLL
+from ddvp_nlp.solvers.chunk import FAST_NEWTON_OPTIONS, MEDIUM_UNROLL, SMALL_UNROLL
 from ddvp_nlp.solvers.compiler import compile_function, find_compiler
 from ddvp_nlp.solvers.recheck import grid_residuals
 from ddvp_nlp.solvers.steps import step_functions
-from ddvp_nlp.solvers.unrolled import unrolled_newton
+from ddvp_nlp.solvers.unrolled import DenseLU, unrolled_newton
 
 
 def _steps(name):
@@ -65,11 +66,63 @@ def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
     reference = compile_function(ca.Function("fast_newton_step", [x0, w_sym],
                                              [root(x0, w_sym)]), compiler, tmp_path)
     unrolled = compile_function(unrolled_newton("unrolled", functions.energy_residual,
-                                                FAST_NEWTON_OPTIONS, **SMALL_UNROLL),
+                                                FAST_NEWTON_OPTIONS,
+                                                **{**SMALL_UNROLL, "linear": "qr"}),
                                 compiler, tmp_path)
     for w, guess in cases:
         assert np.array_equal(np.asarray(unrolled(guess, w)).ravel(),
                               np.asarray(reference(guess, w)).ravel())
+
+
+@pytest.mark.parametrize("name, options", [("paper_pendulum", SMALL_UNROLL),
+                                           ("henon_heiles", SMALL_UNROLL),
+                                           ("fpu", MEDIUM_UNROLL)])
+def test_unrolled_elimination_finds_fast_newtons_root(name, options):
+    """The chunk's unrolling (elimination instead of QR) lands on fast_newton's root to
+    round-off, from the predictor and from guesses pushed off by up to 0.1 (which go on to
+    fast_newton after the unrolled iterations), with a residual at round-off as fast_newton's
+    (fpu's energy row ends between 4e-14 and 8e-13 either way)."""
+    functions, cases = _steps(name)
+    assert options["linear"] == "lu"
+    reference = ca.rootfinder("reference", "fast_newton", functions.energy_residual,
+                              FAST_NEWTON_OPTIONS)
+    unrolled = unrolled_newton("unrolled", functions.energy_residual, FAST_NEWTON_OPTIONS,
+                               **options)
+    for w, guess in cases:
+        x = np.asarray(unrolled(guess, w)).ravel()
+        expected = np.asarray(reference(guess, w)).ravel()
+        np.testing.assert_allclose(x, expected, rtol=0, atol=1e-13)
+        residual = np.max(np.abs(np.asarray(functions.energy_residual(x, w))))
+        floor = np.max(np.abs(np.asarray(functions.energy_residual(expected, w))))
+        assert residual <= max(1e-12, 4 * floor), (residual, floor)
+
+
+def test_dense_elimination_solves_like_numpy():
+    """DenseLU on a pattern with structural zeros (skipped) and fill-in, against numpy."""
+    rng = np.random.default_rng(3)
+    pattern = ca.Sparsity.dense(5, 5)
+    dense = np.eye(5) + 0.3 * rng.uniform(-1, 1, (5, 5))
+    dense[3, 0] = dense[4, 1] = dense[0, 4] = 0.0
+    pattern = ca.DM(dense).sparsity()  # the zeros are structural
+    solver = DenseLU(pattern)
+    a = ca.SX.sym("a", pattern.nnz())
+    b = ca.SX.sym("b", 5)
+    x = solver.solve(solver.factor([a[k] for k in range(pattern.nnz())]),
+                     [b[i] for i in range(5)])
+    solve = ca.Function("solve", [a, b], [ca.vertcat(*x)])
+    rhs = rng.uniform(-1, 1, 5)
+    values = np.asarray(ca.DM(dense).nonzeros())
+    np.testing.assert_allclose(np.asarray(solve(values, rhs)).ravel(),
+                               np.linalg.solve(dense, rhs), rtol=1e-13, atol=1e-14)
+    # a zero leading pivot of a regular matrix gives a non-finite update (the chunk's
+    # acceptance test then rejects the step), never a wrong finite one
+    swapped = np.array([[0.0, 1.0], [1.0, 0.0]])
+    small = DenseLU(ca.Sparsity.dense(2, 2))
+    a2, b2 = ca.SX.sym("a", 4), ca.SX.sym("b", 2)
+    x2 = small.solve(small.factor([a2[k] for k in range(4)]), [b2[0], b2[1]])
+    out = np.asarray(ca.Function("s", [a2, b2], [ca.vertcat(*x2)])(
+        swapped.T.ravel(), [1.0, 2.0])).ravel()
+    assert not np.all(np.isfinite(out))
 
 
 def test_compiled_recheck_equals_the_virtual_machine(tmp_path):

@@ -46,17 +46,22 @@ from .unrolled import unrolled_newton
 # Either way a step that did not converge fails its residual check and is redone carefully.
 FAST_NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
 # fast_newton's iterations written out as straight-line code (``unrolled.py``); the rest of its
-# loop runs only where these did not stop, so the result is fast_newton's to the last bit.
+# loop runs only where these did not stop.
 # Small systems (at most SMALL_NEWTON unknowns: n <= 2): three iterations, then the fourth's
 # residual test alone, all inlined with common subexpressions merged. From the RK4 predictor
 # fast_newton stops at that test on every step of the paper's example and after two or three
-# updates on Henon-Heiles (measured): the chunk cost 0.88 against 1.17 us per step (paper's
-# example, 1.28 against 1.62 on Henon-Heiles, side by side). Larger systems: four iterations as
-# calls (fpu, n = 6, needs the fourth update on 80% of its steps, and the inlined QR of 13
-# unknowns took 4-6 s to compile for 4% gained).
+# updates on Henon-Heiles (measured). Up to MEDIUM_NEWTON unknowns (fpu, n = 6, needs the fourth
+# update on 80% of its steps): four iterations and the fifth's test, inlined. Both solve each
+# update by elimination without pivoting (``unrolled.DenseLU``) instead of fast_newton's QR:
+# the chunk with the accuracy check cost 0.77 against 0.92 us per step on the paper's example,
+# 0.79 against 1.27 on Henon-Heiles, 3.3 against 6.8 on fpu (side by side; fpu's QR inlined took
+# 4-6 s to compile, the elimination 1.3 s). Larger systems: four iterations of fast_newton's own
+# QR as calls.
 UNROLLED_ITERATIONS = 4
 SMALL_NEWTON = 5
-SMALL_UNROLL = {"iterations": 3, "check_after": True, "inline": True}
+SMALL_UNROLL = {"iterations": 3, "check_after": True, "inline": True, "linear": "lu"}
+MEDIUM_NEWTON = 13
+MEDIUM_UNROLL = {"iterations": 4, "check_after": True, "inline": True, "linear": "lu"}
 
 
 def step_options(unknowns: int) -> dict:
@@ -71,6 +76,8 @@ def unroll_options(unknowns: int) -> dict:
     ``unknowns`` unknowns (see ``SMALL_NEWTON``)."""
     if unknowns <= SMALL_NEWTON:
         return dict(SMALL_UNROLL)
+    if unknowns <= MEDIUM_NEWTON:
+        return dict(MEDIUM_UNROLL)
     return {"iterations": UNROLLED_ITERATIONS}
 
 
