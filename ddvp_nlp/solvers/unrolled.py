@@ -10,6 +10,10 @@ to the Jacobian's sparsity pattern), each update masked once the loop would have
 returns the iterate and whether the loop would have stopped; where it would not, the caller
 goes on with ``fast_newton`` from that iterate, so the result is the one ``fast_newton`` gives,
 to the last bit (the chunk compiles with ``-ffp-contract=off``).
+
+The march's chunk asks for a cheaper linear solve on small systems (``linear="lu"``,
+:class:`DenseLU`): the same iterations and tests, each update by elimination; the result is then
+``fast_newton``'s root to round-off, not its bits.
 """
 
 from __future__ import annotations
