@@ -141,3 +141,22 @@ def test_compiled_recheck_equals_the_virtual_machine(tmp_path):
                            cache_dir=tmp_path)
     for a, b in zip(found, expected, strict=True):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("options", [SMALL_UNROLL, {"iterations": 2}])
+def test_values_at_the_root_are_those_of_the_returned_iterate(options):
+    """``at_root`` (the chunk's step check) comes out of the unrolled Newton equal to the
+    check of the returned root, where the unrolled iterations stop and where fast_newton goes
+    on (the pushed guesses)."""
+    functions, cases = _steps("henon_heiles")
+    check = functions.energy_check
+    unrolled = unrolled_newton("unrolled", functions.energy_residual, FAST_NEWTON_OPTIONS,
+                               at_root=check, **options)
+    plain = unrolled_newton("plain", functions.energy_residual, FAST_NEWTON_OPTIONS, **options)
+    for w, guess in cases:
+        x, *values = unrolled.call([guess, w])
+        assert np.array_equal(np.asarray(x), np.asarray(plain(guess, w)))
+        expected = check.call([x, w])
+        assert len(values) == check.n_out()
+        for value, want in zip(values, expected, strict=True):
+            assert float(value) == float(want)

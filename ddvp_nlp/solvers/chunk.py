@@ -229,6 +229,13 @@ def step_verdict(outputs: list, check, limit: dict, *, tau=None, tau_prev=None) 
     return verdict
 
 
+def _residuals(check: ca.Function) -> ca.Function:
+    """A step check (``StepFunctions.energy_check`` or ``fixed_check``) without its last two
+    outputs, ``H`` and ``w`` of the new node: the residuals and their scales."""
+    x, w = ca.SX.sym("x", check.sparsity_in(0)), ca.SX.sym("w", check.sparsity_in(1))
+    return ca.Function(check.name() + "_residuals", [x, w], check(x, w)[:-2])
+
+
 class FastChunk:
     """``chunk`` march steps per call, compiled or on the virtual machine.
 
@@ -288,12 +295,15 @@ class FastChunk:
         s = self.state.split(state)
         limit = ca.SX.sym("limits", LIMITS.size)
         w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
+        # the step's residuals come out of the Newton, where they share the last residual
+        # test's terms; H and w of the new node stay here, where they share terms with the
+        # accuracy check's estimates
         newton = unrolled_newton("fast_energy_step", functions.energy_residual,
-                                 FAST_NEWTON_OPTIONS,
+                                 FAST_NEWTON_OPTIONS, at_root=_residuals(functions.energy_check),
                                  **unroll_options(functions.energy_residual.numel_in(0)))
-        x = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
-        check = EnergyCheck(*functions.energy_check(x, w))
+        x, *residuals = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
         t_next = s["t_mid"] + x[-1]
+        check = EnergyCheck(*residuals, *functions.node_monitor(x[:-1], t_next, theta))
         carried, estimates = self._estimates(s, s["t_mid"], t_next, s["z_mid"], x[:-1], theta)
         after = self.state.stack(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"],
                                  z_mid=x[:-1], drift=s["drift"] + check.energy, **carried)
@@ -327,10 +337,10 @@ class FastChunk:
         t_b = ca.if_else(k + 1 == c["total"], c["t_end"], c["t0"] + (k + 1) * c["tau"])
         w = ca.vertcat(t_a, t_b, s["z"], theta)
         newton = unrolled_newton("fast_fixed_step", functions.fixed_residual,
-                                 FAST_NEWTON_OPTIONS,
+                                 FAST_NEWTON_OPTIONS, at_root=_residuals(functions.fixed_check),
                                  **unroll_options(functions.fixed_residual.numel_in(0)))
-        z_b = newton(functions.fixed_predict(w), w)
-        check = FixedCheck(*functions.fixed_check(z_b, w))
+        z_b, *residuals = newton(functions.fixed_predict(w), w)
+        check = FixedCheck(*residuals, *functions.node_monitor(z_b, t_b, theta))
         carried, estimates = self._estimates(s, t_a, t_b, s["z"], z_b, theta)
         good = step_verdict([t_b, *ca.vertsplit(z_b), *check], check, LIMITS.split(limit))
         outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict(), good=good,

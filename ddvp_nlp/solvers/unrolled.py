@@ -187,7 +187,8 @@ def newton_iteration(qr: SparseQR | DenseLU, *, abstol: float,
 
 def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
                     iterations: int, check_after: bool = False,
-                    inline: bool = False, linear: str = "qr") -> ca.Function:
+                    inline: bool = False, linear: str = "qr",
+                    at_root: ca.Function | None = None) -> ca.Function:
     """``fast_newton`` on ``residual(x, w)`` with ``options`` (``abstol``, ``abstolStep``,
     ``max_iter``) as ``iterations`` unrolled iterations, then, only where those did not stop,
     ``fast_newton`` itself for the iterations left: ``(x0, w) -> x``, the same result.
@@ -208,7 +209,13 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
 
     ``linear``: ``"qr"`` solves each update as ``fast_newton`` does (``casadi_qr``), so the
     result is ``fast_newton``'s to the last bit; ``"lu"`` solves it by :class:`DenseLU`
-    (cheaper; the result is then a root to the same tolerance, not the same bits)."""
+    (cheaper; the result is then a root to the same tolerance, not the same bits).
+
+    ``at_root``: an optional SX function ``(x, w) -> (...)`` of the result (the step's check),
+    whose outputs are returned after ``x``. Inlined, it is computed with the unrolled
+    iterations, merged with their last residual test, and passed through where they stop;
+    where ``fast_newton`` goes on, it is computed again at ``fast_newton``'s result. Either way
+    its values are those of ``at_root`` at the returned ``x``."""
     if linear not in ("qr", "lu"):
         raise ValueError(f"linear must be 'qr' or 'lu', got {linear!r}")
     jacobian = ca.rootfinder(name, "fast_newton", residual, options).get_function("jac_g_x")
@@ -230,18 +237,27 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
                             [norm_inf([g_sym[i] for i in range(g.numel())])
                              <= options["abstol"]])
         stopped = ca.logic_or(stopped, small(g))
+    values = []  # at_root's outputs at the unrolled iterate, carried through the switch
     if inline:
-        unrolled = ca.Function(name + "_unrolled", [x0, w], [x, stopped], {"cse": True})
+        values = at_root.call([x, w]) if at_root is not None else []
+        unrolled = ca.Function(name + "_unrolled", [x0, w], [x, stopped, *values],
+                               {"cse": True})
         x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
         w = ca.MX.sym("w", jacobian.sparsity_in(1))
-        x, stopped = unrolled(x0, w)
+        x, stopped, *values = unrolled.call([x0, w])
     rest = ca.rootfinder(name + "_rest", "fast_newton", residual,
                          {**options, "max_iter": options["max_iter"] - done})
     x_sym, w_sym = ca.MX.sym("x", x0.sparsity()), ca.MX.sym("w", w.sparsity())
-    finish_done = ca.Function("done", [x_sym, w_sym], [x_sym])
+    v_syms = [ca.MX.sym(f"v{i}", value.sparsity()) for i, value in enumerate(values)]
+    finish_done = ca.Function("done", [x_sym, w_sym, *v_syms], [x_sym, *v_syms])
+    x_rest = rest(x_sym, w_sym)
+    again = at_root.call([x_rest, w_sym]) if values else []
     # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
     # both branches. The rest runs only where the unrolled iterations did not stop.
     finish = ca.Function.if_else(name + "_finish", finish_done,
-                                 ca.Function("go_on", [x_sym, w_sym], [rest(x_sym, w_sym)]))
-    solved = finish(stopped, x, w)
-    return ca.Function(name, [x0, w], [solved], {"never_inline": True})
+                                 ca.Function("go_on", [x_sym, w_sym, *v_syms],
+                                             [x_rest, *again]))
+    solved, *values = finish.call([stopped, x, w, *values])
+    if at_root is not None and not inline:
+        values = at_root.call([solved, w])
+    return ca.Function(name, [x0, w], [solved, *values], {"never_inline": True})
