@@ -357,10 +357,11 @@ class FastChunk:
         return self._buffer(state, tiled)
 
     def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
-        if copy:
-            outputs = outputs.copy()  # the buffers are overwritten by the next call
         carried = self.state.columns(states)
-        extra = {name: carried[name].copy() for name in ("drift", "error") if name in carried}
+        extra = {name: carried[name] for name in ("drift", "error") if name in carried}
+        if copy:  # the buffers are overwritten by the next call
+            outputs = outputs.copy()
+            extra = {name: value.copy() for name, value in extra.items()}
         columns = self.output.columns(outputs)
         columns["good"] = columns["good"] != 0
         return ChunkSteps(**columns, **extra)

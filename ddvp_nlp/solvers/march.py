@@ -380,7 +380,7 @@ def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, com
     return Solution(
         t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=outcome.status,
         message=outcome.message, scheme=scheme.rule, energy_residual=energy,
-        canonical_residual=np.max(np.abs(canonical), axis=1) if canonical.size else np.zeros(0),
+        canonical_residual=_row_max_abs(canonical) if canonical.size else np.zeros(0),
         newton_iterations=parts.newton.newton_iterations,
         timing={**timing, "compile_s": fast_chunk.compile_s if fast_chunk else 0.0,
                 "verify_s": verified - started},
@@ -390,3 +390,15 @@ def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, com
                "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
                "solvability_warning": solvability.warning if solvability else None,
                "least_squares": tally.least_squares})
+
+
+def _row_max_abs(values: np.ndarray) -> np.ndarray:
+    """``np.max(np.abs(values), axis=1)``, the same numbers, column by column: numpy's
+    reduction along rows of two cost 0.8 ms of the paper's example (20 150 rows), this 0.05
+    (past 16 columns the reduction is the faster)."""
+    if values.shape[1] > 16:
+        return np.max(np.abs(values), axis=1)
+    out = np.abs(values[:, 0])
+    for j in range(1, values.shape[1]):
+        np.maximum(out, np.abs(values[:, j]), out=out)
+    return out
