@@ -1,8 +1,8 @@
 """The march's bookkeeping shortcuts give exactly what the straightforward computations give.
 
 Each shortcut (a pre-test that clears a block with a few reductions, a row maximum taken column
-by column, arrays that grow instead of lists of blocks, chunk calls that write into the batch's
-arrays) is compared bit for bit with the plain numpy it replaces, on blocks built to sit on and
+by column, arrays that grow instead of lists of blocks, chunk calls that keep the parameters in
+the buffer) is compared bit for bit with the plain numpy it replaces, on blocks built to sit on and
 around every threshold, with zeros, signs, NaN and infinities."""
 
 import math
@@ -17,7 +17,6 @@ from ddvp_nlp.solvers import monitors
 from ddvp_nlp.solvers.acceptance import Acceptance
 from ddvp_nlp.solvers.accuracy import AccuracyMonitor, Tolerance, _Series
 from ddvp_nlp.solvers.chunk import FastChunk
-from ddvp_nlp.solvers.compiler import FunctionBuffer
 from ddvp_nlp.solvers.driver import Nodes
 from ddvp_nlp.solvers.march import _row_max_abs
 from ddvp_nlp.solvers.monitors import MONITOR_LIMIT, SolvabilityMonitor
@@ -249,24 +248,6 @@ def test_chunk_batches_are_the_chained_single_calls():
     for name in ("t_next", "z_next", "good", "H_node", "w_node", "drift", "delta", "error"):
         assert same(getattr(batch, name), np.concatenate([getattr(p, name) for p in pieces])), \
             name
-
-
-def test_call_into_writes_where_asked_and_leaves_the_buffer_alone():
-    import casadi as ca
-    x = ca.SX.sym("x", 2)
-    function = ca.Function("f", [x], [2 * x, ca.sum1(x)]).map(4)
-    buffer = FunctionBuffer(function)
-    values = np.arange(8.0).reshape(4, 2)
-    own = [a.copy() for a in buffer(values)]
-    target = [np.zeros((8, 2)), np.zeros((8, 1))]
-    buffer.call_into([target[0][4:], target[1][4:]], values + 1)
-    assert same(target[0][4:], 2 * (values + 1)) and not target[0][:4].any()
-    assert same(target[1][4:, 0], (values + 1).sum(axis=1))
-    assert all(same(a, b) for a, b in zip(buffer._arrays()[3], own, strict=True))
-    again = buffer(values + 2)  # the own arrays are written again
-    assert same(again[0], 2 * (values + 2)) and not target[0][:4].any()
-    with pytest.raises(ValueError, match="C-contiguous"):
-        buffer.call_into([np.zeros((2, 4)).T, np.zeros((4, 1))], values)
 
 
 def test_quiet_blocks_skip_the_full_test():

@@ -185,18 +185,3 @@ class FunctionBuffer:
                 array.reshape(-1)[:] = np.ravel(value)
         trigger()
         return outputs
-
-    def call_into(self, results: list, *values) -> None:
-        """:meth:`__call__` with CasADi writing the outputs straight into ``results`` (arrays of
-        the outputs' shapes, C-contiguous: row blocks of a larger array) instead of the own
-        arrays, which are left as they were: no copy out of the buffer."""
-        buffer, _, _, outputs = self._arrays()
-        for i, (array, own) in enumerate(zip(results, outputs, strict=True)):
-            if array.shape != own.shape or not array.flags.c_contiguous:
-                raise ValueError(f"output {i} needs a C-contiguous array of shape {own.shape}")
-            buffer.set_res(i, memoryview(array.reshape(-1)))
-        try:
-            self(*values)
-        finally:
-            for i, array in enumerate(outputs):
-                buffer.set_res(i, memoryview(array.reshape(-1)))
