@@ -357,10 +357,11 @@ class FastChunk:
         return self._buffer(state, tiled)
 
     def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
-        if copy:
-            outputs = outputs.copy()  # the buffers are overwritten by the next call
         carried = self.state.columns(states)
-        extra = {name: carried[name].copy() for name in ("drift", "error") if name in carried}
+        extra = {name: carried[name] for name in ("drift", "error") if name in carried}
+        if copy:  # the buffers are overwritten by the next call
+            outputs = outputs.copy()
+            extra = {name: value.copy() for name, value in extra.items()}
         columns = self.output.columns(outputs)
         columns["good"] = columns["good"] != 0
         return ChunkSteps(**columns, **extra)
@@ -403,7 +404,8 @@ class FastChunk:
         outputs = np.empty((calls * c, self.output.size))
         states = np.empty((calls * c, self.state.size))
         for i in range(calls):
-            after, out = self._call(state, parameters)
+            # the parameters stay in the buffer from the first call (no tiling and copy again)
+            after, out = self._call(state, parameters) if i == 0 else self._buffer(state, None)
             outputs[i * c:(i + 1) * c], states[i * c:(i + 1) * c] = out, after
             state = states[(i + 1) * c - 1]
         return self._decode(outputs, states, copy=False)

@@ -103,13 +103,17 @@ class Nodes:
 
     def extend(self, t, z):
         extra = np.size(t)
-        if self.count + extra > self.t.size:
-            size = max(2 * self.t.size, self.count + extra)
-            self.t = np.resize(self.t, size)
-            self.z = np.resize(self.z, (size, self.z.shape[1]))
-        self.t[self.count:self.count + extra] = t
-        self.z[self.count:self.count + extra] = z
-        self.count += extra
+        end = self.count + extra
+        if end > self.t.size:
+            # new arrays with the kept rows copied (np.resize also filled the rest by repeating
+            # them: twice the copying)
+            size = max(2 * self.t.size, end)
+            t_new, z_new = np.empty(size), np.empty((size, self.z.shape[1]))
+            t_new[:self.count], z_new[:self.count] = self.t[:self.count], self.z[:self.count]
+            self.t, self.z = t_new, z_new
+        self.t[self.count:end] = t
+        self.z[self.count:end] = z
+        self.count = end
 
     def truncate(self, count: int):
         self.count = count

@@ -96,6 +96,9 @@ class SolvabilityMonitor:
             if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
                 self._keep(w)
                 return
+        if self._count and w.size > 1 and _quiet(w, self._last):
+            self._keep(w)
+            return
         previous = np.concatenate([[self._last if self._count else w[0]], w[:-1]])
         with np.errstate(divide="ignore", invalid="ignore"):
             jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
@@ -117,6 +120,24 @@ class SolvabilityMonitor:
                           f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy step "
                           "may follow", RuntimeWarning, stacklevel=_caller_level())
         self._keep(w)
+
+
+# Ratios w_k / w_{k-1} strictly inside these pass the test above for certain: a margin of 1e-9
+# against the few units of round-off of a logarithm near MONITOR_LIMIT.
+_QUIET = (math.exp(-MONITOR_LIMIT) * (1 + 1e-9), math.exp(MONITOR_LIMIT) * (1 - 1e-9))
+
+
+def _quiet(w: np.ndarray, last: float) -> bool:
+    """Whether no node of ``w`` (after ``last``) can alarm the solvability monitor: every ratio
+    ``w_k / w_{k-1}`` positive (same sign, no zero, no NaN) and well inside ``MONITOR_LIMIT``.
+    A division and two reductions, against the logarithms, signs and comparisons of the full
+    test (which still decides every block this does not clear, so the warning is the same)."""
+    low, high = _QUIET
+    if not last or not low < float(w[0]) / last < high:
+        return False
+    with np.errstate(all="ignore"):  # a zero or an overflow only fails the test
+        ratio = w[1:] / w[:-1]
+    return bool(low < ratio.min() and ratio.max() < high)
 
 
 _HERE = os.path.dirname(os.path.abspath(__file__)) + os.sep

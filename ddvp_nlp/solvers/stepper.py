@@ -140,6 +140,7 @@ class CompiledStepper:
         self.errors = errors if chunk.accuracy is not None else None
         self.calls = 1  # chunk calls of the next batch
         self._pending: list = []  # the batch's chunks not yet handed out, in order
+        self._packed = None  # the chunk's parameters
 
     def inputs(self, nodes: Nodes) -> tuple[np.ndarray, np.ndarray]:
         """The chunk's state from the newest nodes and its parameters."""
@@ -149,12 +150,19 @@ class CompiledStepper:
             t, z = nodes.t, nodes.z
             return (self.chunk.energy_state(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
                                             error=error),
-                    self.chunk.energy_parameters(self.theta, self.acceptance))
-        clock = self.clock
-        return (self.chunk.fixed_state(k, nodes.z[k], error=error),
-                self.chunk.fixed_parameters(self.theta, self.acceptance, t0=clock.t0,
-                                            tau=clock.tau, t_end=clock.t_end,
-                                            total=clock.total))
+                    self._parameters())
+        return self.chunk.fixed_state(k, nodes.z[k], error=error), self._parameters()
+
+    def _parameters(self) -> np.ndarray:
+        """The chunk's parameters, the same for the whole run: packed once."""
+        if self._packed is None:
+            clock = self.clock
+            self._packed = (
+                self.chunk.energy_parameters(self.theta, self.acceptance) if self.chunk.variable
+                else self.chunk.fixed_parameters(self.theta, self.acceptance, t0=clock.t0,
+                                                 tau=clock.tau, t_end=clock.t_end,
+                                                 total=clock.total))
+        return self._packed
 
     def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
         """One chunk's steps kept (up to the first that fails a check, the end or ``budget``)

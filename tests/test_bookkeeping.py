@@ -1,0 +1,259 @@
+"""The march's bookkeeping shortcuts give exactly what the straightforward computations give.
+
+Each shortcut (a pre-test that clears a block with a few reductions, a row maximum taken column
+by column, arrays that grow instead of lists of blocks, chunk calls that keep the parameters in
+the buffer) is compared bit for bit with the plain numpy it replaces, on blocks built to sit on and
+around every threshold, with zeros, signs, NaN and infinities."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from ddvp_nlp import load_scene, march
+from ddvp_nlp.discrete.scheme import Scheme
+from ddvp_nlp.solvers import monitors
+from ddvp_nlp.solvers.acceptance import Acceptance
+from ddvp_nlp.solvers.accuracy import AccuracyMonitor, Tolerance, _Series
+from ddvp_nlp.solvers.chunk import FastChunk
+from ddvp_nlp.solvers.driver import Nodes
+from ddvp_nlp.solvers.march import _row_max_abs
+from ddvp_nlp.solvers.monitors import MONITOR_LIMIT, SolvabilityMonitor
+from ddvp_nlp.solvers.steps import step_functions
+
+
+def same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("width", [1, 2, 3, 4, 7, 16, 17, 40])
+def test_row_max_abs_is_numpys_reduction(width):
+    rng = np.random.default_rng(width)
+    values = rng.standard_normal((3000, width)) * 10.0 ** rng.integers(-300, 300, (3000, width))
+    values[5] = 0.0
+    values[6] = -0.0
+    values[7, 0] = -np.inf
+    assert same(_row_max_abs(values), np.max(np.abs(values), axis=1))
+    values[8, -1] = np.nan
+    assert np.array_equal(_row_max_abs(values), np.max(np.abs(values), axis=1), equal_nan=True)
+
+
+def _weight_blocks(rng):
+    """Blocks of w: quiet ones, and ones with every kind of alarm (or near miss) somewhere."""
+    edge = math.exp(MONITOR_LIMIT)
+    blocks = []
+    for kind in range(14):
+        w = -0.05 * np.cumprod(1 + 0.01 * rng.standard_normal(300))
+        i = int(rng.integers(1, 299))
+        if kind == 1:
+            w[i] = -w[i]  # sign change
+        elif kind == 2:
+            w[i] = 0.0
+        elif kind == 3:
+            w[i:] *= edge * 1.001  # a jump just past the limit
+        elif kind == 4:
+            w[i:] *= np.nextafter(edge, 0)  # just inside: no alarm, but past the pre-test
+        elif kind == 5:
+            w[i:] /= edge * (1 - 1e-12)
+        elif kind == 6:
+            w[i] = np.nan
+        elif kind == 7:
+            w[i] = -np.inf
+        elif kind == 8:
+            w *= 1e-300  # ratios of tiny numbers
+        elif kind == 9:
+            w[:i] *= 1e300
+        elif kind == 10:
+            w = w[:1]  # one careful node
+        elif kind == 11:
+            w = -w
+        elif kind == 12:
+            w[0] = w[0] * edge * 1.5  # the alarm at the block's first node
+        blocks.append(w)
+    return blocks
+
+
+def _reference_observe(monitor, w, t):
+    """The solvability test without the pre-test (the code before it)."""
+    if monitor.warning is not None or not w.size:
+        if w.size:
+            monitor._keep(w)
+        return
+    if w.size == 1 and monitor._count:
+        last, now = monitor._last, float(w[0])
+        if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
+            monitor._keep(w)
+            return
+    previous = np.concatenate([[monitor._last if monitor._count else w[0]], w[:-1]])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
+    sign = np.sign(w) != np.sign(previous)
+    alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
+    if alarm.size:
+        i = int(alarm[0])
+        if w[i] == 0 or previous[i] == 0:
+            reason = ("the site-density weight w = -8 c(z) is zero: the energy rule does "
+                      "not fix the step here (the motion is at rest, or f' H_zz f vanishes)")
+        elif sign[i]:
+            reason = "the site-density weight w = -8 c(z) changed sign"
+        else:
+            reason = (f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is "
+                      "long against the change of c(z)")
+        monitor.warning = {"step": monitor._count + i, "t": float(t[i]),
+                           "c": float(-w[i] / 8), "reason": reason}
+    monitor._keep(w)
+
+
+def test_solvability_pretest_changes_no_warning(monkeypatch):
+    rng = np.random.default_rng(1)
+    cleared = []
+    quiet = monitors._quiet
+
+    def counting(w, last):
+        result = quiet(w, last)
+        cleared.append(result)
+        return result
+
+    monkeypatch.setattr(monitors, "_quiet", counting)
+    blocks = _weight_blocks(rng)
+    for order in range(30):  # the blocks in many orders: each alarm after various histories
+        chosen = [blocks[i] for i in rng.permutation(len(blocks))[:4]]
+        fast, plain = SolvabilityMonitor(0.0, -0.05), SolvabilityMonitor(0.0, -0.05)
+        start = 0
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for w in chosen:
+                t = start + np.arange(w.size) * 0.1
+                fast._observe(w, t)
+                _reference_observe(plain, w, t)
+                start += w.size
+        assert same(np.concatenate(fast._weights), np.concatenate(plain._weights))
+        assert repr(fast.warning) == repr(plain.warning), order  # NaN c included
+        assert len(caught) == (fast.warning is not None)
+    assert True in cleared and False in cleared  # both the shortcut and the full test ran
+
+
+def _reference_first_failure(monitor, start, t, delta, scale, H, globals_):
+    """The accuracy tests without the pre-tests, and the drift they record."""
+    tol = monitor.tolerance
+    candidates = []
+    local = delta > tol.atol + tol.rtol * scale
+    if np.any(local):
+        i = int(np.argmax(local))
+        candidates.append((i, "local error", delta[i], tol.atol + tol.rtol * scale[i]))
+    drift = np.abs(H - monitor.H0) / monitor.energy_scale
+    largest = float(np.max(drift))
+    over = drift > tol.energy_tol
+    if np.any(over):
+        i = int(np.argmax(over))
+        candidates.append((i, "nodal energy drift", drift[i], tol.energy_tol))
+    if not candidates:
+        return None, largest
+    i, test, value, limit = min(candidates, key=lambda c: c[0])
+    return {"step": start + i, "t": float(t[i]), "test": test, "value": float(value),
+            "limit": float(limit)}, largest
+
+
+@pytest.mark.parametrize("H0", [0.3, -7.5, 1e3])
+def test_accuracy_pretests_change_no_verdict(H0):
+    system = load_scene("harmonic").system  # autonomous: the drift test runs
+    tolerance = Tolerance(rtol=1e-3, atol=1e-4, energy_tol=1e-2)
+    rng = np.random.default_rng(int(abs(H0) * 10))
+    scale_H = max(1.0, abs(H0))
+    shortcuts = 0
+    for case in range(60):
+        m = 200
+        t = np.cumsum(rng.random(m + 1))
+        scale = rng.random(m) * 10.0 ** rng.integers(-3, 3)
+        delta = rng.random(m) * tolerance.atol * 0.5
+        H = H0 + (rng.random(m) - 0.5) * tolerance.energy_tol * scale_H
+        i = int(rng.integers(0, m))
+        kind = case % 10
+        if kind == 1:
+            delta[i] = tolerance.atol + tolerance.rtol * scale[i]  # on the bound: passes
+        elif kind == 2:
+            delta[i] = np.nextafter(tolerance.atol + tolerance.rtol * scale[i], 1)
+        elif kind == 3:
+            H[i] = H0 + tolerance.energy_tol * scale_H  # on the drift bound
+        elif kind == 4:
+            H[i] = np.nextafter(H0 - tolerance.energy_tol * scale_H, -np.inf)
+        elif kind == 5:
+            delta[i] = np.nan
+        elif kind == 6:
+            H[i] = np.nan
+        elif kind == 7:
+            scale[i] = np.nan
+        elif kind == 8:
+            H[i] = np.inf
+        elif kind == 9:
+            delta[:] = tolerance.atol * 2  # past atol everywhere: the full local test decides
+        monitor = AccuracyMonitor(system, [], tolerance, H0=H0)
+        expected, largest = _reference_first_failure(monitor, 0, t, delta, scale, H, None)
+        found = monitor._first_failure(0, t, delta, scale, H, None)
+        assert found == expected, case
+        assert same(monitor.energy_drift, max(0.0, largest)), case
+        shortcuts += bool(np.nanmax(delta) <= tolerance.atol)
+    assert shortcuts > 0
+
+
+def test_accuracy_monitor_keeps_estimates_as_concatenated_blocks():
+    series, blocks = _Series(), []
+    rng = np.random.default_rng(2)
+    for size in (1, 5, 1024, 1023, 3000, 0, 7):
+        block = rng.standard_normal(size)[::1]
+        series.append(block)
+        blocks.append(block.copy())
+        block[:] = 0  # the series holds its own copy
+    joined = np.concatenate(blocks)
+    for count in (0, 1, 10, joined.size, joined.size + 5):
+        head = series.head(count)
+        assert same(head, joined[:count]) and head.flags.c_contiguous
+    assert series.head(3).base is None  # a copy, not a view of the growing array
+
+
+def test_nodes_keep_their_rows_when_they_grow():
+    nodes = Nodes(0.0, [1.0, 2.0])
+    t, z = [np.zeros(1)], [np.array([[1.0, 2.0]])]
+    rng = np.random.default_rng(3)
+    for size in (1000, 1, 5000, 30):
+        t.append(rng.random(size))
+        z.append(rng.random((size, 2)))
+        nodes.extend(t[-1], z[-1])
+    kept_t, kept_z = nodes.arrays()
+    assert same(kept_t, np.concatenate(t)) and same(kept_z, np.concatenate(z))
+
+
+def test_chunk_batches_are_the_chained_single_calls():
+    """Several chunk calls written into one batch's arrays give the chunks of one call each."""
+    scene = load_scene("pendulum")
+    config = scene.resolve({})
+    system, scheme = scene.system, Scheme.coerce("vddvp")
+    start = march(system, config.q0, config.p0, tau0=0.05, t_end=1.0, fast=False, max_steps=1)
+    theta = system.parameter_vector(config.params)
+    chunk = FastChunk(system, scheme, step_functions(system, scheme), chunk=16, compiler=None,
+                      cache_dir=None, accuracy=True)
+    z = np.column_stack([start.q, start.p])
+    state = chunk.energy_state(start.t[0], start.t[1], z[0], z[1], 0.0, error=np.zeros(2))
+    parameters = chunk.energy_parameters(theta, Acceptance(1e-10, None, None, 10.0))
+    batch = chunk.steps(state, parameters, calls=3)
+    pieces = []
+    for _ in range(3):
+        one = chunk.steps(state, parameters)
+        pieces.append(one)
+        state = chunk.energy_state(one.t_next[-2], one.t_next[-1], one.z_next[-2],
+                                   one.z_next[-1], one.drift[-1], error=one.error[-1])
+    assert batch.good.all()
+    for name in ("t_next", "z_next", "good", "H_node", "w_node", "drift", "delta", "error"):
+        assert same(getattr(batch, name), np.concatenate([getattr(p, name) for p in pieces])), \
+            name
+
+
+def test_quiet_blocks_skip_the_full_test():
+    """The pre-test clears an ordinary block (else it would not save anything)."""
+    w = -0.05 * (1 + 0.01 * np.sin(np.arange(1024) * 0.1))
+    assert monitors._quiet(w, -0.05)
+    w[500] = -w[500]
+    assert not monitors._quiet(w, -0.05)
+    assert not monitors._quiet(w[:10], 0.0)
