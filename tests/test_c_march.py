@@ -57,3 +57,38 @@ def test_fast_c_march_solves_the_same_equations(library, name, kind, overrides, 
         assert np.max(np.abs(z2[:steps + 1] - z[:steps + 1])) < 1e-2
         assert np.max(np.abs(H2[:steps + 1] - H[:steps + 1])) < 1e-4
         assert count.value <= iterations * steps  # Newton updates in all
+
+
+@pytest.mark.parametrize("name, kind, overrides", [("paper_pendulum", 0, {"t_end": 2000.0}),
+                                                   ("fpu", 1, {"t_end": 20.0})])
+def test_c_checks_compute_what_the_march_checks(library, name, kind, overrides):
+    """c_march_checks (the C row that does march()'s extra work) computes the march's own
+    numbers on the march's nodes: the recheck's residuals, the accuracy check's estimates and
+    the solvability weight (w = -8 c)."""
+    from ddvp_nlp import march
+
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+    system = scene.system
+    n = system.n
+    theta = np.zeros(4)
+    values = system.parameter_vector(config.params)
+    theta[:values.size] = values
+    solution = march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
+                     params=config.params)
+    steps = solution.steps
+    t = np.ascontiguousarray(solution.t)
+    z = np.ascontiguousarray(np.column_stack([solution.q, solution.p]))
+    canonical, energy = np.empty((steps, 2 * n)), np.zeros(steps)
+    delta, scale, error, w = np.empty(steps), np.empty(steps), np.empty(steps), np.empty(steps + 1)
+    library.c_march_checks(kind, n, theta, steps, t, z, canonical, energy, delta, scale, error, w)
+    size = np.maximum(1.0, np.max(np.abs(z), axis=1))
+    np.testing.assert_allclose(np.max(np.abs(canonical), axis=1), solution.canonical_residual,
+                               rtol=0, atol=1e-13 * size.max())
+    np.testing.assert_allclose(energy[1:], solution.energy_residual, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(delta, solution.local_error, rtol=1e-6, atol=1e-15)
+    np.testing.assert_allclose(w, -8 * solution.solvability, rtol=1e-9,
+                               atol=1e-12 * np.max(np.abs(w)))
+    report = solution.stats["accuracy"]
+    assert error[-1] == pytest.approx(report["global_error_estimate"], rel=1e-6)
+    assert np.max(error) == pytest.approx(report["global_error_estimate_max"], rel=1e-6)

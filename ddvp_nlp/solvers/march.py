@@ -185,6 +185,8 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
                     time_limit=options.time_limit, monitors=monitors, progress=progress,
                     catch_interrupt=True)
     solved = time.perf_counter()
+    if isinstance(parts.stepper, MarchStepper):  # fast_steps: the fast nodes the run kept
+        parts.stepper.compiled.settle(outcome.t.size)
     solution = _solution(system, scheme, theta, outcome, parts, solvability,
                          compiler=compiler if compiled else None, cache_dir=cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})

@@ -5,11 +5,11 @@
   the :class:`Clock`; every other step is an energy step, then the step bounds; where an energy
   step fails with a status in ``LEAST_SQUARES_CASES`` and ``breakdown == "least_squares"``, the
   least-squares step (``least_squares.py``) replaces it.
-- :class:`CompiledStepper`: one compiled chunk per call (``chunk.py``), kept up to the first step
-  that fails the same :class:`~ddvp_nlp.solvers.acceptance.Acceptance`. Its chunks are computed
-  and checked in batches of up to ``MAX_CALLS`` chained calls and handed out one chunk per
-  call, exactly as one call per chunk would give them: the Python work of decoding and checking
-  a chunk is paid once per batch.
+- :class:`CompiledStepper`: a batch of up to ``MAX_CALLS`` chained compiled chunk calls per
+  call (``chunk.py``), kept up to the first step that fails the same
+  :class:`~ddvp_nlp.solvers.acceptance.Acceptance`: the nodes one call per chunk would give, with
+  the Python work of decoding, checking and watching (the driver's monitors) paid once per
+  batch.
 - :class:`MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
   check, the careful path redoes the rest of that chunk's window (``careful_left`` steps), then
   the chunks resume. So both paths accept exactly the same steps.
@@ -37,6 +37,7 @@ BREAKDOWNS = ("stop", "least_squares")
 # Chunk calls per batch of the compiled stepper: 1, 2, 4, ... up to this while every step is
 # kept (one after a failed step), fewer near the end of the run. Eight chunks of 1024 steps cut
 # the decoding and checks per step about eightfold; a batch holds a few MB (2 MB for n = 2).
+# The driver asks for a stop (Ctrl-C, time limit) between batches: every few milliseconds.
 MAX_CALLS = 8
 LEAST_SQUARES_CASES = (Status.NO_ADMISSIBLE_STEP, Status.NEWTON_FAILED,
                        Status.RESIDUAL_TOO_LARGE, Status.STEP_BELOW_MIN, Status.STEP_ABOVE_MAX,
@@ -123,7 +124,7 @@ class CarefulStepper:
 
 
 class CompiledStepper:
-    """One compiled chunk per call, kept up to its first step that fails a check.
+    """A batch of compiled chunk calls per call, kept up to its first step that fails a check.
 
     A chunk that carries the accuracy check starts from ``errors.e`` (the check's
     :class:`~ddvp_nlp.solvers.accuracy.ErrorEstimates`, which the monitor keeps up to date) and
@@ -139,8 +140,15 @@ class CompiledStepper:
         self.tally = tally
         self.errors = errors if chunk.accuracy is not None else None
         self.calls = 1  # chunk calls of the next batch
-        self._pending: list = []  # the batch's chunks not yet handed out, in order
+        self._handed = (0, 0)  # (first node index, count) of the last batch handed out
         self._packed = None  # the chunk's parameters
+
+    def settle(self, count: int) -> None:
+        """Count in ``tally.fast_steps`` only the nodes of the last batch that the run kept
+        (``count`` nodes in all now: the driver's monitors may have cut the batch)."""
+        first, handed = self._handed
+        self.tally.fast_steps -= handed - min(handed, max(0, count - first))
+        self._handed = (0, 0)
 
     def inputs(self, nodes: Nodes) -> tuple[np.ndarray, np.ndarray]:
         """The chunk's state from the newest nodes and its parameters."""
@@ -164,22 +172,10 @@ class CompiledStepper:
                                                  total=clock.total))
         return self._packed
 
-    def run(self, nodes: Nodes, budget: int) -> tuple[Advance, bool]:
-        """One chunk's steps kept (up to the first that fails a check, the end or ``budget``)
-        and whether a step failed: the next chunk of the current batch, or of a new one."""
-        if self._pending and self._pending[0][0] != nodes.count:
-            self._pending.clear()  # not where the batch left off: compute afresh
-        if not self._pending:
-            self._pending = self._batch(nodes, budget)
-        _, advance, failed, drift = self._pending.pop(0)
-        if advance.count and self.chunk.variable:
-            self.tally.drift = drift
-        self.tally.fast_steps += advance.count
-        return advance, failed
-
-    def _batch(self, nodes: Nodes, budget: int) -> list:
-        """The chunks of one batch, each ``(node count before it, Advance, failed, drift
-        after it)``, cut as one call per chunk would cut them."""
+    def run(self, nodes: Nodes, budget: int) -> tuple[Advance, int | None]:
+        """The steps of one batch of chained chunk calls, kept up to the first that fails a
+        check, the end or ``budget``, and, where a step failed, how many steps of its chunk
+        came before it (``None`` where none failed)."""
         k = nodes.count - 1
         steps = self.chunk.steps(*self.inputs(nodes), self._calls(nodes, budget))
         if self.chunk.variable:
@@ -192,22 +188,16 @@ class CompiledStepper:
         bad = np.flatnonzero(~good[:limit])
         kept = int(bad[0]) if bad.size else limit
         self.calls = 1 if bad.size else min(2 * self.calls, MAX_CALLS)
-        c = self.chunk.chunk
-        last = kept // c if bad.size else (kept - 1) // c  # the chunk that ends the batch
-        pieces = []
-        for i in range(last + 1):
-            start, stop = i * c, min((i + 1) * c, kept)
-            values = {"H": steps.H_node[start:stop], "w": steps.w_node[start:stop]}
-            if self.errors is not None:
-                values.update({name: getattr(steps, name)[start:stop]
-                               for name in ACCURACY_VALUES})
-            drift = float(steps.drift[stop - 1]) if stop > start and self.chunk.variable \
-                else None
-            pieces.append((nodes.count + start,
-                           Advance(steps.t_next[start:stop], steps.z_next[start:stop],
-                                   values=values),
-                           bool(bad.size) and i == last, drift))
-        return pieces
+        values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept]}
+        if self.errors is not None:
+            values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
+        if kept and self.chunk.variable:
+            self.tally.drift = float(steps.drift[kept - 1])
+        self.settle(nodes.count)
+        self.tally.fast_steps += kept
+        self._handed = (nodes.count, kept)
+        advance = Advance(steps.t_next[:kept], steps.z_next[:kept], values=values)
+        return advance, (kept % self.chunk.chunk if bad.size else None)
 
     def _calls(self, nodes: Nodes, budget: int) -> int:
         """Chunk calls of the next batch: ``self.calls``, fewer where the run ends sooner
@@ -252,9 +242,9 @@ class MarchStepper:
 
     def advance(self, nodes: Nodes, budget: int) -> Advance:
         if self.wants_chunk(nodes):
-            advance, failed = self.compiled.run(nodes, budget)
-            if failed:
-                self.careful_left = self.compiled.chunk.chunk - advance.count
+            advance, before = self.compiled.run(nodes, budget)
+            if before is not None:  # the careful path takes the rest of that chunk's window
+                self.careful_left = self.compiled.chunk.chunk - before
             if advance.count:
                 return advance
         self.careful_left = max(self.careful_left - 1, 0)
