@@ -77,6 +77,14 @@ def vector_field_check(system, theta, config):
     return state, np.asarray(field(config.t0 + 0.3, state, theta)).ravel()
 
 
+def _largest_difference(a, b) -> float:
+    """Largest difference of t, q, p between two marches of the same number of steps."""
+    if a.steps != b.steps:
+        return float("nan")
+    return float(max(np.max(np.abs(a.t - b.t)), np.max(np.abs(a.q - b.q)),
+                     np.max(np.abs(a.p - b.p))))
+
+
 def bench(name, overrides, repeats):
     scene = load_scene(name)
     config = scene.resolve(overrides)
@@ -102,9 +110,10 @@ def bench(name, overrides, repeats):
             rows[label] = (best.timing["solve_s"], best)
     careful = rows["careful path"][1]
     compiled = rows["fast path, compiled"][1]
-    agreement = max(np.max(np.abs(compiled.t - careful.t)), np.max(np.abs(compiled.q - careful.q)),
-                    np.max(np.abs(compiled.p - careful.p))) if compiled.steps == careful.steps \
-        else float("nan")
+    agreement = _largest_difference(compiled, careful)
+    nudged = _largest_difference(march(system, config.q0 + 1e-15, config.p0, tau0=config.tau0,
+                                       t_end=config.t_end, params=config.params, fast=False),
+                                 careful)
 
     f = FIELDS[name](config.params)
     check = np.asarray(vector_field_check(system, theta, config))
@@ -140,9 +149,12 @@ def bench(name, overrides, repeats):
           f"(once per system, scheme and options; cached afterwards)")
     verify = compiled.timing["verify_s"]
     print(f"- recomputing every equation on the returned grid: {verify:.4f} s "
-          f"({verify / steps * 1e6:.2f} us per node, on CasADi's virtual machine)")
+          f"({verify / steps * 1e6:.2f} us per node, "
+          f"{'compiled' if compiled.stats['path'] == 'compiled' else 'virtual machine'})")
     print(f"- compiled fast path vs careful path: largest difference of t, q, p over {steps} "
-          f"steps {agreement:.2e}; speed-up {rows['careful path'][0] / fastest:.1f}x")
+          f"steps {agreement:.2e} (the careful path itself moves by {nudged:.2e} when q0 is "
+          f"nudged by 1e-15: round-off grown over the run); speed-up "
+          f"{rows['careful path'][0] / fastest:.1f}x")
     worst = np.max(np.abs(compiled.energy_residual))
     print(f"- vddvp largest energy residual per step {worst:.2e}; state error against DOP853 at "
           f"rtol 1e-13 {ours_error:.2e}")
@@ -168,6 +180,9 @@ def c_march_library(folder):
     lib.c_march_fast.argtypes = [*lib.c_march.argtypes[:9], ctypes.c_int, pointer, pointer,
                                  pointer, ctypes.POINTER(ctypes.c_long)]
     lib.c_march_fast.restype = ctypes.c_int
+    lib.c_march_checks.argtypes = [ctypes.c_int, ctypes.c_int, pointer, ctypes.c_int, pointer,
+                                   pointer, *[pointer] * 6]
+    lib.c_march_checks.restype = None
     return lib
 
 
@@ -223,6 +238,19 @@ def bench_against_c(name, overrides, repeats, folder):
         return march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
                      params=config.params, cache_dir=folder, **options)
 
+    checks = [np.empty((capacity, 2 * n)), np.zeros(capacity), *(np.empty(capacity + 1)
+                                                                   for _ in range(4))]
+
+    def c_checked(predictor, iterations):
+        """The fast C march, then the march()'s own extra work in C on its nodes."""
+        march_fast = c_fast(predictor, iterations)
+
+        def run():
+            steps = march_fast()
+            lib.c_march_checks(C_KINDS[name], n, theta, steps, t, z, *checks)
+            return steps
+        return run
+
     # one round: every C march and every march() once, interleaved, `repeats` rounds (best of
     # each): the machine's load hits every row alike
     c_rows = {"C march, first reference (scripts/c_march.c: c_march)": c_run}
@@ -231,6 +259,9 @@ def bench_against_c(name, overrides, repeats, folder):
         counts[predictor] = ctypes.c_long(0)
         c_rows[f"C march, fast (c_march_fast, {label} predictor)"] = c_fast(predictor,
                                                                            counts[predictor])
+    for predictor, label in C_PREDICTORS.items():
+        c_rows[f"C march, fast ({label}) + march()'s checks in C (c_march_checks)"] = \
+            c_checked(predictor, ctypes.c_long(0))
     march_rows = {"march(), accuracy check on (default)": lambda: run(),
                   "march(), check_accuracy=False": lambda: run(check_accuracy=False)}
     found = {label: [math.inf, math.inf, None] for label in [*c_rows, *march_rows]}
@@ -245,7 +276,9 @@ def bench_against_c(name, overrides, repeats, folder):
                         best[0], best[1], best[2] = min(best[0], cpu), min(best[1], wall), result
     iterations = {p: counts[p].value for p in C_PREDICTORS}
     c_steps = found[next(iter(c_rows))][2]
-    fast_labels = [label for label in c_rows if "fast" in label]
+    fast_labels = [label for label in c_rows if "fast (c_march_fast" in label]
+    checked_labels = [label for label in c_rows if "c_march_checks" in label]
+    checked = min(checked_labels, key=lambda label: found[label][0])
     reference = min(fast_labels, key=lambda label: found[label][0])
     c_cpu, c_wall = found[reference][:2]
     rows = [(label, cpu, wall, result if label in c_rows else result.steps)
@@ -265,6 +298,11 @@ def bench_against_c(name, overrides, repeats, folder):
               f"{cpu / c_cpu:.2f} | {wall / c_wall:.2f} |")
     print(f"\n- C marches: {c_steps} steps; largest |t_C - t_march| over the nodes (last C "
           f"march run) {difference:.2e}")
+    like = found["march(), accuracy check on (default)"][0] / found[checked][0]
+    print(f"- like for like: march() (accuracy check on) against the fastest C march that also "
+          f"does march()'s checks (the recheck of every residual, the accuracy check's RK4 "
+          f"estimates and propagated global error, w at every node; {checked}): CPU ratio "
+          f"{like:.2f}")
     per_step = ", ".join(f"{C_PREDICTORS[p]} {iterations[p] / c_steps:.2f}"
                          for p in C_PREDICTORS)
     print(f"- c_march_fast's Newton iterations per step by predictor: {per_step}")

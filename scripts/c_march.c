@@ -368,3 +368,115 @@ int c_march_fast(int kind, int n, const double* theta, const double* z0, double 
   if (iterations) *iterations = total;
   return k;
 }
+
+/* ---------------------------------------------------------------------------------------------
+ * c_march_checks: what march() does beyond c_march_fast, on the nodes of a finished march (steps
+ * intervals, nodes t[0..steps], z), written as fast as the march above, so that a row
+ * "c_march_fast + c_march_checks" does the library's work in C:
+ * - the recheck: every canonical residual (canonical, steps x 2n, unscaled) and every energy
+ *   residual (energy[k], node k = 1..steps-1), recomputed from the nodes;
+ * - the accuracy check's estimates (accuracy.local_error_function): per interval one RK4 step of
+ *   the exact flow from z_k over t_k+1 - t_k, d = z_k+1 - RK4, delta[k] = |d|_inf,
+ *   scale[k] = max(|z_k|, |z_k+1|), and the global error propagated by the RK4 step's tangent,
+ *   e <- M e + d, saturated at 2 max(1, scale); global[k] = |e|_inf after the step;
+ * - the site-density weight w = f' H_zz f = p' V_qq p + |V_q|^2 at every node (w[0..steps]).
+ * For n = 1 a kernel with sincos whose stage at t_k (sin, cos of q_k and the clock factor)
+ * also gives w at node k; other n the general potential().
+ * ------------------------------------------------------------------------------------------- */
+
+/* The pendulum's V_q, V_qq and V at (q, t): one sincos of q, one sin of the clock. */
+static inline void pendulum_terms(const double* th, double q, double t, double* V, double* Vq,
+                                  double* Vqq) {
+  double sq, cq, f = 1 - th[0] * sin(th[1] * t);
+  sincos(q, &sq, &cq);
+  *V = (1 - cq) * f; *Vq = sq * f; *Vqq = cq * f;
+}
+
+void c_march_checks(int kind, int n, const double* theta, int steps, const double* t,
+                    const double* z, double* canonical, double* energy, double* delta,
+                    double* scale, double* global, double* w) {
+  System s;
+  int k, i, j, m2 = 2 * n, stage;
+  double e[2 * MAXN];
+  s.kind = kind; s.n = n;
+  for (i = 0; i < 4; ++i) s.theta[i] = theta[i];
+  for (i = 0; i < m2; ++i) e[i] = 0;
+  for (k = 0; k < steps; ++k) {
+    const double *za = z + k * m2, *zb = za + m2;
+    double ta = t[k], tau = t[k + 1] - t[k], clock = ta + tau / 2;
+    double Q[MAXN], P[MAXN], V, Vq[MAXN], Vqq[MAXN * MAXN], Vqt[MAXN];
+    double y[2 * MAXN], dy[2 * MAXN], kz[4][2 * MAXN], dk[4][2 * MAXN], d[2 * MAXN];
+    static const double offset[4] = {0, 0.5, 0.5, 1};
+    /* the recheck: interval k's canonical residuals, node k's energy residual (k >= 1) */
+    for (i = 0; i < n; ++i) { Q[i] = (za[i] + zb[i]) / 2; P[i] = (za[n + i] + zb[n + i]) / 2; }
+    if (kind == 0) pendulum_terms(theta, Q[0], clock, &V, Vq, Vqq);
+    else potential(&s, Q, clock, &V, Vq, Vqq, Vqt);
+    for (i = 0; i < n; ++i) {
+      canonical[k * m2 + i] = zb[i] - za[i] - tau * P[i];
+      canonical[k * m2 + n + i] = zb[n + i] - za[n + i] + tau * Vq[i];
+    }
+    if (k >= 1) {  /* H of intervals k - 1 and k at interval k - 1's clock */
+      const double* zp = za - m2;
+      double s_prev = (t[k - 1] + t[k]) / 2, Qp[MAXN], Pp[MAXN], Vp, Vk, T = 0, Tp = 0;
+      for (i = 0; i < n; ++i) { Qp[i] = (zp[i] + za[i]) / 2; Pp[i] = (zp[n + i] + za[n + i]) / 2;
+                                T += P[i] * P[i] / 2; Tp += Pp[i] * Pp[i] / 2; }
+      if (kind == 0) {
+        double f = 1 - theta[0] * sin(theta[1] * s_prev);
+        Vk = (1 - cos(Q[0])) * f; Vp = (1 - cos(Qp[0])) * f;
+      } else {
+        double Vqd[MAXN], Vqqd[MAXN * MAXN], Vqtd[MAXN];
+        potential(&s, Q, s_prev, &Vk, Vqd, Vqqd, Vqtd);
+        potential(&s, Qp, s_prev, &Vp, Vqd, Vqqd, Vqtd);
+      }
+      energy[k] = T + Vk - Tp - Vp;
+    }
+    /* RK4 of the exact flow and its tangent applied to e; stage 0 gives w at node k */
+    for (i = 0; i < m2; ++i) { y[i] = za[i]; dy[i] = e[i]; }
+    for (stage = 0; stage < 4; ++stage) {
+      double ts = ta + offset[stage] * tau, h = offset[stage < 3 ? stage + 1 : 3] * tau;
+      if (kind == 0) pendulum_terms(theta, y[0], ts, &V, Vq, Vqq);
+      else potential(&s, y, ts, &V, Vq, Vqq, Vqt);
+      for (i = 0; i < n; ++i) {
+        kz[stage][i] = y[n + i]; kz[stage][n + i] = -Vq[i];
+        dk[stage][i] = dy[n + i];
+        dk[stage][n + i] = 0;
+        for (j = 0; j < n; ++j) dk[stage][n + i] -= Vqq[i * n + j] * dy[j];
+      }
+      if (stage == 0) {
+        double ww = 0;
+        for (i = 0; i < n; ++i) {
+          ww += Vq[i] * Vq[i];
+          for (j = 0; j < n; ++j) ww += za[n + i] * Vqq[i * n + j] * za[n + j];
+        }
+        w[k] = ww;
+      }
+      if (stage < 3)
+        for (i = 0; i < m2; ++i) { y[i] = za[i] + h * kz[stage][i]; dy[i] = e[i] + h * dk[stage][i]; }
+    }
+    {
+      double dn = 0, en = 0, sa = norm_inf(m2, za), sb = norm_inf(m2, zb), limit, factor;
+      for (i = 0; i < m2; ++i) {
+        double phi = za[i] + tau / 6 * (kz[0][i] + 2 * kz[1][i] + 2 * kz[2][i] + kz[3][i]);
+        d[i] = zb[i] - phi;
+        e[i] = e[i] + tau / 6 * (dk[0][i] + 2 * dk[1][i] + 2 * dk[2][i] + dk[3][i]) + d[i];
+        dn = fmax(dn, fabs(d[i])); en = fmax(en, fabs(e[i]));
+      }
+      scale[k] = fmax(sa, sb);
+      limit = 2 * fmax(1.0, scale[k]);
+      factor = fmin(1.0, limit / fmax(en, 1e-300));
+      for (i = 0; i < m2; ++i) e[i] *= factor;
+      delta[k] = dn; global[k] = en * factor;
+    }
+  }
+  {  /* w at the last node */
+    const double* zl = z + steps * m2;
+    double V, Vq[MAXN], Vqq[MAXN * MAXN], Vqt[MAXN], ww = 0;
+    if (kind == 0) pendulum_terms(theta, zl[0], t[steps], &V, Vq, Vqq);
+    else potential(&s, zl, t[steps], &V, Vq, Vqq, Vqt);
+    for (i = 0; i < n; ++i) {
+      ww += Vq[i] * Vq[i];
+      for (j = 0; j < n; ++j) ww += zl[n + i] * Vqq[i * n + j] * zl[n + j];
+    }
+    w[steps] = ww;
+  }
+}
