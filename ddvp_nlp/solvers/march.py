@@ -105,7 +105,8 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
             time units, past the whole horizon, and every equation held.
         progress: show a progress bar on stderr.
         fast: run the steps in compiled chunks (``chunk.py``); ``False`` forces the careful
-            per-step path. Both accept exactly the same steps.
+            per-step path. Both accept a step by the same test; their nodes differ by
+            round-off (the compiled Newton eliminates where the careful one factors by QR).
         chunk: steps per compiled call.
         compiler: C compiler for the fast path: ``"auto"`` (``$CC``, ``gcc``, ``cc``), a
             command, or ``None`` for CasADi's virtual machine.

@@ -12,7 +12,7 @@
   batch.
 - :class:`MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
   check, the careful path redoes the rest of that chunk's window (``careful_left`` steps), then
-  the chunks resume. So both paths accept exactly the same steps.
+  the chunks resume. So every step passes the same acceptance test, whichever path took it.
 
 :class:`Tally` holds what the steppers carry from step to step: the compensated energy drift and
 the counts the ``Solution`` reports.
