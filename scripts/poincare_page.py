@@ -32,7 +32,10 @@ def main() -> None:
              f"`python scripts/poincare_page.py` ({args.orbits} orbits per energy, vddvp, "
              f"t_end = {args.t_end:g}, section q1 = 0 crossed upwards; seeded starts). Each "
              "orbit keeps its own discrete energy level; the table gives the largest nodal energy "
-             "error `|H(z_k) - E|` over all orbits.", "",
+             "error `|H(z_k) - E|` over all orbits. The chaotic orbits (most at E = 1/6, some "
+             "at 1/8) amplify round-off exponentially: a change in the last bits of the steps "
+             "(another Newton, another machine) changes their steps and crossings, not the "
+             "picture nor the size of the energy errors.", "",
              "| E | crossings | failed orbits | largest nodal energy error | seconds |",
              "|---|---|---|---|---|"]
     per_orbit = []
