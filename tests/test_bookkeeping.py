@@ -75,38 +75,9 @@ def _weight_blocks(rng):
     return blocks
 
 
-def _reference_observe(monitor, w, t):
-    """The solvability test without the pre-test (the code before it)."""
-    if monitor.warning is not None or not w.size:
-        if w.size:
-            monitor._keep(w)
-        return
-    if w.size == 1 and monitor._count:
-        last, now = monitor._last, float(w[0])
-        if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
-            monitor._keep(w)
-            return
-    previous = np.concatenate([[monitor._last if monitor._count else w[0]], w[:-1]])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
-    sign = np.sign(w) != np.sign(previous)
-    alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
-    if alarm.size:
-        i = int(alarm[0])
-        if w[i] == 0 or previous[i] == 0:
-            reason = ("the site-density weight w = -8 c(z) is zero: the energy rule does "
-                      "not fix the step here (the motion is at rest, or f' H_zz f vanishes)")
-        elif sign[i]:
-            reason = "the site-density weight w = -8 c(z) changed sign"
-        else:
-            reason = (f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is "
-                      "long against the change of c(z)")
-        monitor.warning = {"step": monitor._count + i, "t": float(t[i]),
-                           "c": float(-w[i] / 8), "reason": reason}
-    monitor._keep(w)
-
-
 def test_solvability_pretest_changes_no_warning(monkeypatch):
+    """The monitor with its block pre-test (``monitors._quiet``) against the same monitor with
+    the pre-test switched off (every block through the full test, the code before it)."""
     rng = np.random.default_rng(1)
     cleared = []
     quiet = monitors._quiet
@@ -116,22 +87,25 @@ def test_solvability_pretest_changes_no_warning(monkeypatch):
         cleared.append(result)
         return result
 
-    monkeypatch.setattr(monitors, "_quiet", counting)
+    def watch(monitor, pretest, pieces):
+        monkeypatch.setattr(monitors, "_quiet", counting if pretest else lambda w, last: False)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for w, t in pieces:
+                monitor._observe(w, t)
+        return len(caught)
+
     blocks = _weight_blocks(rng)
     for order in range(30):  # the blocks in many orders: each alarm after various histories
         chosen = [blocks[i] for i in rng.permutation(len(blocks))[:4]]
+        starts = np.cumsum([0] + [w.size for w in chosen])
+        pieces = [(w, start + np.arange(w.size) * 0.1)
+                  for w, start in zip(chosen, starts, strict=False)]
         fast, plain = SolvabilityMonitor(0.0, -0.05), SolvabilityMonitor(0.0, -0.05)
-        start = 0
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            for w in chosen:
-                t = start + np.arange(w.size) * 0.1
-                fast._observe(w, t)
-                _reference_observe(plain, w, t)
-                start += w.size
+        warned = watch(fast, True, pieces)
+        assert warned == watch(plain, False, pieces) == (fast.warning is not None)
         assert same(np.concatenate(fast._weights), np.concatenate(plain._weights))
         assert repr(fast.warning) == repr(plain.warning), order  # NaN c included
-        assert len(caught) == (fast.warning is not None)
     assert True in cleared and False in cleared  # both the shortcut and the full test ran
 
 

@@ -27,16 +27,21 @@ def library(tmp_path_factory):
     return c_march_library(tmp_path_factory.mktemp("c_march"))
 
 
+def _scene(name, overrides):
+    """The system, its resolved configuration and its parameters padded to the C march's four."""
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+    theta = np.zeros(4)
+    values = scene.system.parameter_vector(config.params)
+    theta[:values.size] = values
+    return scene.system, config, theta
+
+
 @pytest.mark.parametrize("name, kind, overrides, iterations",
                          [("paper_pendulum", 0, {}, 4.0), ("fpu", 1, {"t_end": 20.0}, 6.0)])
 def test_fast_c_march_solves_the_same_equations(library, name, kind, overrides, iterations):
-    scene = load_scene(name)
-    config = scene.resolve(overrides)
-    system = scene.system
+    system, config, theta = _scene(name, overrides)
     n = system.n
-    theta = np.zeros(4)
-    values = system.parameter_vector(config.params)
-    theta[:values.size] = values
     z0 = np.concatenate([config.q0, config.p0])
     capacity = 30_000
 
@@ -67,13 +72,8 @@ def test_c_checks_compute_what_the_march_checks(library, name, kind, overrides):
     the solvability weight (w = -8 c)."""
     from ddvp_nlp import march
 
-    scene = load_scene(name)
-    config = scene.resolve(overrides)
-    system = scene.system
+    system, config, theta = _scene(name, overrides)
     n = system.n
-    theta = np.zeros(4)
-    values = system.parameter_vector(config.params)
-    theta[:values.size] = values
     solution = march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
                      params=config.params)
     steps = solution.steps
