@@ -26,24 +26,53 @@ from .compiler import (
 BLOCK = 1024
 
 
+# Nodes per piece whose equations are written out together with common subexpressions merged:
+# the canonical equations of interval k and the energy equations at nodes k and k + 1 share the
+# interval's midpoint terms and clock factors, computed once instead of up to three times. Per
+# node, side by side against separate mapped functions: paper's example 0.18 -> 0.05 us,
+# Henon-Heiles 0.08 -> 0.05, fpu 0.19 -> 0.10 (pieces of 8; 16 and 32 no faster, longer to
+# compile).
+PIECE = 8
+
+
+def _piece(system, scheme) -> ca.Function:
+    """``(T (PIECE + 2), Z (2n x PIECE + 2), theta) -> (canonical (2n x PIECE), energy (1 x
+    PIECE))`` as one SX function with merged subexpressions: the same operations on the same
+    operands as separate calls (merging only shares identical ones), so the same bits."""
+    n = system.n
+    T = ca.SX.sym("T", 1, PIECE + 2)
+    Z = ca.SX.sym("Z", 2 * n, PIECE + 2)
+    theta = ca.SX.sym("theta", system.theta.numel())
+    canonical_f = equations.canonical_function(system, scheme)
+    energy_f = equations.energy_function(system, scheme)
+    canonical, energy = [], []
+    for k in range(PIECE):
+        t0, t1, t2 = T[0, k], T[0, k + 1], T[0, k + 2]
+        (q0, p0), (q1, p1), (q2, p2) = ((Z[:n, j], Z[n:, j]) for j in (k, k + 1, k + 2))
+        canonical.append(canonical_f(t0, t1, q0, p0, q1, p1, theta))
+        energy.append(energy_f(t0, t1, t2, q0, p0, q1, p1, q2, p2, theta))
+    return ca.Function("recheck_piece", [T, Z, theta],
+                       [ca.horzcat(*canonical), ca.horzcat(*energy)], {"cse": True})
+
+
 def recheck_block(system, scheme) -> ca.Function:
     """``(T (BLOCK + 2), Z (2n x BLOCK + 2), theta) -> (canonical (2n x BLOCK), energy
     (1 x BLOCK))``: the canonical residuals of the intervals from the first ``BLOCK`` nodes of
-    ``T, Z`` and the energy residuals at the ``BLOCK`` nodes after the first, each by the same
-    function mapped over the shifted columns (so the same bits as separate mapped calls); one
+    ``T, Z`` and the energy residuals at the ``BLOCK`` nodes after the first, computed in pieces
+    of ``PIECE`` nodes (:func:`_piece`: the same bits as the separate mapped functions); one
     compiled call per block, the shifts done in C rather than as copies in numpy."""
     n = system.n
     T = ca.MX.sym("T", 1, BLOCK + 2)
     Z = ca.MX.sym("Z", 2 * n, BLOCK + 2)
     theta = ca.MX.sym("theta", system.theta.numel())
-    q = [Z[:n, i:i + BLOCK] for i in range(3)]
-    p = [Z[n:, i:i + BLOCK] for i in range(3)]
-    t = [T[:, i:i + BLOCK] for i in range(3)]
-    canonical = equations.canonical_function(system, scheme).map(BLOCK)(
-        t[0], t[1], q[0], p[0], q[1], p[1], theta)
-    energy = equations.energy_function(system, scheme).map(BLOCK)(
-        t[0], t[1], t[2], q[0], p[0], q[1], p[1], q[2], p[2], theta)
-    return ca.Function("recheck_block", [T, Z, theta], [canonical, energy])
+    piece = _piece(system, scheme)
+    canonical, energy = [], []
+    for start in range(0, BLOCK, PIECE):
+        c, e = piece(T[:, start:start + PIECE + 2], Z[:, start:start + PIECE + 2], theta)
+        canonical.append(c)
+        energy.append(e)
+    return ca.Function("recheck_block", [T, Z, theta],
+                       [ca.horzcat(*canonical), ca.horzcat(*energy)])
 
 
 def _block(system, scheme, compiler, cache_dir):
