@@ -70,7 +70,10 @@ class Solution:
         local_error: the accuracy check's local error estimate of each step (N-1,), against one
             RK4 step of the exact flow (``solvers/accuracy.py``), where it was made.
         timing: ``build_s`` and ``solve_s`` in seconds.
-        stats: solver-specific statistics (IPOPT's, the march's retries, ...).
+        stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
+            ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
+            counts the steps tried on the careful path, including one that failed or that a
+            monitor then cut (so the two can add up to one more than the steps).
         t_end: the end time the run was asked for (a march's last node lies up to one step past
             it); ``at_end()`` interpolates there.
         vector_field: ``f(t, z) -> z'`` on rows (``(M,)``, ``(M, 2n)``), the exact flow's vector

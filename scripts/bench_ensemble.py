@@ -82,7 +82,7 @@ def main():
         blob = pickle.dumps(solution, protocol=pickle.HIGHEST_PROTOCOL)
         pickle.loads(blob)
     transfer = (time.process_time() - started) / 5
-    print(f"\n- result transfer from a worker, per orbit ({solution.steps} steps): "
+    print(f"\n- result transfer from a worker, orbit 0 ({solution.steps} steps): "
           f"{len(blob) / 1e6:.1f} MB pickled, pickle + unpickle {transfer * 1e3:.1f} ms CPU "
           f"({transfer / solution.steps * 1e6:.3f} us per step; the pipe not counted)")
     if args.scale_to:

@@ -65,3 +65,14 @@ def test_section_points_lie_on_the_section_and_the_energy_surface(tmp_path):
     code = main(["poincare", "henon_heiles", "--energy", "0.0833", "--orbits", "2",
                  "--t-end", "30", "--out", str(out), "--no-plot"])
     assert code == 0 and (out / "section.csv").exists() and (out / "orbits.csv").exists()
+
+
+@pytest.mark.parametrize("energy", ["nan", "inf"])
+def test_a_section_at_no_finite_energy_is_refused_by_name(energy, tmp_path, capsys):
+    """``--energy nan`` had been searched for starts and reported as a surface that misses the
+    section; it is refused as the option it is, before any start or march."""
+    code = main(["poincare", "henon_heiles", "--energy", energy, "--orbits", "2",
+                 "--out", str(tmp_path / "section")])
+    assert code == 2
+    assert f"--energy must be finite, got {energy}" in capsys.readouterr().err
+    assert not (tmp_path / "section").exists()

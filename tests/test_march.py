@@ -171,3 +171,31 @@ def test_step_bounds_end_the_march_with_their_status():
     assert ratio.status is Status.STEP_RATIO
     ratios = ratio.tau[1:] / ratio.tau[:-1]
     assert np.all(np.maximum(ratios, 1 / ratios) <= 1.01)
+
+
+def test_an_interrupt_inside_the_monitors_keeps_only_the_nodes_all_of_them_saw(monkeypatch):
+    """A Ctrl-C that lands while the driver's monitors look at a batch (here in the solvability
+    monitor, before the accuracy check has seen it, on its third call) drops that batch: the
+    nodes kept are those every monitor saw, and the per-node arrays agree with them."""
+    from ddvp_nlp.solvers import monitors
+
+    scene = load_scene("henon_heiles")
+    watch = monitors.SolvabilityMonitor.watch
+    calls = []
+
+    def interrupted(self, nodes, first, advance):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return watch(self, nodes, first, advance)
+
+    monkeypatch.setattr(monitors.SolvabilityMonitor, "watch", interrupted)
+    solution = march(scene.system, [0.0, 0.1], [0.35, 0.0], tau0=0.05, t_end=1e5)
+    monkeypatch.setattr(monitors.SolvabilityMonitor, "watch", watch)
+    assert solution.status is Status.INTERRUPTED
+    assert solution.local_error.size == solution.steps
+    assert solution.solvability.size == solution.t.size
+    before = march(scene.system, [0.0, 0.1], [0.35, 0.0], tau0=0.05, t_end=1e5,
+                   max_steps=solution.steps)
+    assert solution.steps > 1000 and before.steps == solution.steps  # two whole calls kept
+    assert np.array_equal(solution.t, before.t)

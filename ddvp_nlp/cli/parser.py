@@ -195,7 +195,8 @@ def _march_command(commands) -> None:
     _accuracy_arguments(march)
     march.add_argument("--careful", action="store_true",
                        help="force the careful per-step path (default: compiled chunks of steps, "
-                            "checked step by step; both accept the same steps)")
+                            "checked step by step by the same test; their nodes differ by "
+                            "round-off)")
     march.add_argument("--checkpoint-every", type=float, default=CHECKPOINT_SECONDS,
                        metavar="SECONDS",
                        help="write the run so far to the output folder this often while "

@@ -344,13 +344,14 @@ def run_poincare(args) -> int:
 
     from ..io.poincare_runs import write_section
     from ..studies.poincare import poincare_section
-    from ..validation import check_integer
+    from ..validation import check_integer, check_real
 
     scene = load_scene(args.scene)
     config = scene.resolve({})
+    energy = check_real("--energy", args.energy)
     orbits = check_integer("--orbits", args.orbits)
     workers = check_integer("--workers", args.workers)
-    section = poincare_section(scene.system, args.energy, section=args.section, orbits=orbits,
+    section = poincare_section(scene.system, energy, section=args.section, orbits=orbits,
                                direction=args.direction, workers=workers, scene=args.scene,
                                scheduler=args.scheduler,
                                tau0=args.tau0 if args.tau0 is not None else config.tau0,

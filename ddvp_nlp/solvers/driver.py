@@ -149,6 +149,7 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
     started = time.perf_counter()
     bar = _ProgressBar(progress, float(nodes.t[nodes.count - 1]), t_end)
     status, detail = Status.SUCCESS, ""
+    watched = nodes.count  # the nodes every monitor has seen
     try:
         while nodes.t[nodes.count - 1] < t_end:
             steps = nodes.count - 1 - step_offset
@@ -158,12 +159,15 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
                 break
             advance = stepper.advance(nodes, max_steps - steps)
             status, detail = accept(nodes, advance, t_end, monitors)
+            watched = nodes.count
             bar.update(float(nodes.t[nodes.count - 1]))
             if status is not Status.SUCCESS:
                 break
     except KeyboardInterrupt:
         if not catch_interrupt:
             raise
+        # an interrupt inside accept: nodes added but not yet seen by every monitor go
+        nodes.truncate(watched)
         status, detail = Status.INTERRUPTED, ""
     finally:
         bar.close()

@@ -121,12 +121,14 @@ class DenseLU:
     written as ``if_else`` cost more than they saved: Henon-Heiles' chunk 1.22 against 1.08 us
     per step with partial pivoting, 0.60 without, side by side).
 
-    Why no pivoting is safe here: the step's Jacobian is ``I + O(tau)`` in its canonical block
-    and the last pivot, the energy row's Schur complement, vanishes only where the step itself
-    is singular. A small pivot spoils the Newton update, not the result: the residual is always
-    the step's own, so the iterations then do not stop, and ``fast_newton`` (with its QR) goes
-    on from where they left off; a zero pivot makes the step non-finite, which the acceptance
-    test rejects, and the careful path redoes it. The iterates differ from ``fast_newton``'s in
+    Why no pivoting is safe here: the step's Jacobian is ``I + O(tau)`` in its canonical block,
+    so its pivots stay near 1 for the steps a march takes, and the last pivot, the energy row's
+    Schur complement, vanishes only where the step itself is singular. Where a pivot does come
+    out small (a leading minor such as ``1 + tau^2/4 V_qq`` near zero while the matrix is
+    regular), it spoils the Newton update, not the result: the residual is always the step's
+    own, so the iterations then do not stop, and ``fast_newton`` (with its QR) goes on from
+    where they left off; a zero pivot makes the step non-finite, which the acceptance test
+    rejects, and the careful path redoes it. The iterates differ from ``fast_newton``'s in
     the last bits."""
 
     def __init__(self, pattern: ca.Sparsity):

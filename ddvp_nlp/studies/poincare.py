@@ -31,6 +31,7 @@ from ..physics.hamiltonian import vector_field_function
 from ..scenes import load_scene
 from ..solvers.ensemble import march_ensemble
 from ..solvers.periodic import parse_section
+from ..validation import check_real
 from .grid import Task, resolve_scheduler, run_tasks
 
 # Orbits per task on a cluster: enough that a task's start-up (loading the scene and its
@@ -60,6 +61,7 @@ def section_starts(system, theta, energy: float, section: str, count: int, *,
                    direction: str = "+", box=(-1.0, 1.0), seed: int = 0) -> np.ndarray:
     """``count`` starts ``z = (q, p)`` (rows) on the section at ``H = E`` (module docstring)."""
     n = system.n
+    energy = check_real("energy", energy)
     index, value, _ = parse_section(section, n)
     if index > n:
         raise InputError(f"the section must fix a coordinate q1..q{n}, got {section!r}")
