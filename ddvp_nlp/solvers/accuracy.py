@@ -50,6 +50,7 @@ from ..validation import check_real
 from .compiler import (
     CompileUnavailable,
     FunctionBuffer,
+    buffered,
     cache_folder,
     compile_function,
     warn_once,
@@ -142,15 +143,6 @@ class ErrorEstimates:
         self.substeps = substeps
         self.compiler, self.cache_dir = compiler, cache_dir
         self._buffer = None
-        self._single_buffer = None
-
-    @property
-    def single_buffer(self) -> FunctionBuffer:
-        """:attr:`single` called through a :class:`FunctionBuffer` (made at its first use)."""
-        if self._single_buffer is None:  # one per function (a march makes its estimates)
-            self._single_buffer = cached(self.system, ("local_error_buffer", self.substeps),
-                                         lambda: FunctionBuffer(self.single))
-        return self._single_buffer
 
     @property
     def buffer(self) -> FunctionBuffer:
@@ -196,7 +188,7 @@ class ErrorEstimates:
         """Few steps (the careful path's one at a time): the single-step function, no padding."""
         steps = t.size - 1
         out = np.empty((4, steps))
-        single = self.single_buffer
+        single = buffered(self.single, "local_error", self.substeps, owner=self.system)
         for k in range(steps):
             # through Function.buffer: the same evaluation without a DM for each argument and
             # result (a call cost 100 us of a 2 ms short march; the careful path makes one a step)

@@ -38,7 +38,7 @@ from ..validation import check_cache_folder, check_integer, check_real, check_st
 from .acceptance import Acceptance
 from .accuracy import AccuracyMonitor, ErrorEstimates, Tolerance
 from .chunk import FastChunk
-from .compiler import FunctionBuffer
+from .compiler import buffered
 from .dense import attach
 from .driver import Nodes, drive
 from .monitors import (
@@ -349,20 +349,12 @@ def _monitors(parts: _Parts, scheme, options: _Options, H0, nodes, theta):
     if options.energy_guard is not None:
         monitors.append(EnergyGuard(options.energy_guard, H0))
     if scheme.variable_steps:
-        monitor = _buffered(parts.functions.node_monitor, "node_monitor",
-                            owner=parts.functions)
+        monitor = buffered(parts.functions.node_monitor, "node_monitor",
+                           owner=parts.functions)
         _, w_first = monitor(nodes.z[0], nodes.t[0], theta)
         solvability = SolvabilityMonitor(float(nodes.t[0]), float(w_first[0, 0]))
         monitors.append(solvability)
     return monitors, solvability
-
-
-def _buffered(function, *key, owner) -> FunctionBuffer:
-    """``function`` called through a :class:`FunctionBuffer`, kept per ``owner`` (held weakly,
-    as the function is) and ``key``: the same evaluation as a call with DM arguments, without
-    their conversions (about 80 us a call, twice in every march)."""
-    buffer = cached(owner, ("buffer", *key), lambda: FunctionBuffer(function))
-    return buffer if buffer.function is function else FunctionBuffer(function)
 
 
 def _accuracy_monitor(system, scheme, theta, tolerance, H0, errors):
@@ -371,8 +363,8 @@ def _accuracy_monitor(system, scheme, theta, tolerance, H0, errors):
     interval's energy, with ``H0``."""
     level = None
     if scheme.variable_steps:
-        interval_energy = _buffered(equations.midpoint_energy_function(system, scheme),
-                                    "interval_energy", scheme, owner=system)
+        interval_energy = buffered(equations.midpoint_energy_function(system, scheme),
+                                   "interval_energy", scheme, owner=system)
         n = system.n
 
         def level(t, z):
