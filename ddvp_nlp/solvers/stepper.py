@@ -145,7 +145,8 @@ class CompiledStepper:
 
     def settle(self, count: int) -> None:
         """Count in ``tally.fast_steps`` only the nodes of the last batch that the run kept
-        (``count`` nodes in all now: the driver's monitors may have cut the batch)."""
+        (``count`` nodes in all at its end: the driver's monitors may have cut that batch; a
+        cut always ends the run, so only the last batch can have been cut)."""
         first, handed = self._handed
         self.tally.fast_steps -= handed - min(handed, max(0, count - first))
         self._handed = (0, 0)
@@ -193,7 +194,6 @@ class CompiledStepper:
             values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
         if kept and self.chunk.variable:
             self.tally.drift = float(steps.drift[kept - 1])
-        self.settle(nodes.count)
         self.tally.fast_steps += kept
         self._handed = (nodes.count, kept)
         advance = Advance(steps.t_next[:kept], steps.z_next[:kept], values=values)
