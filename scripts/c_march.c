@@ -380,14 +380,19 @@ int c_march_fast(int kind, int n, const double* theta, const double* z0, double 
  *   scale[k] = max(|z_k|, |z_k+1|), and the global error propagated by the RK4 step's tangent,
  *   e <- M e + d, saturated at 2 max(1, scale); global[k] = |e|_inf after the step;
  * - the site-density weight w = f' H_zz f = p' V_qq p + |V_q|^2 at every node (w[0..steps]).
- * For n = 1 a kernel with sincos whose stage at t_k (sin, cos of q_k and the clock factor)
- * also gives w at node k; other n the general potential().
+ * For n = 1 a kernel with sincos: interval k's cos Q and clock factor serve its canonical
+ * residuals and the energy residuals at nodes k and k + 1, and the RK4 stage at t_k (sin, cos
+ * of q_k and the clock factor) also gives w at node k; other n the general potential().
  * ------------------------------------------------------------------------------------------- */
 
-/* The pendulum's V_q, V_qq and V at (q, t): one sincos of q, one sin of the clock. */
-static inline void pendulum_terms(const double* th, double q, double t, double* V, double* Vq,
-                                  double* Vqq) {
-  double sq, cq, f = 1 - th[0] * sin(th[1] * t);
+/* The pendulum's clock factor 1 - eps sin(omega t). */
+static inline double pendulum_clock(const double* th, double t) {
+  return 1 - th[0] * sin(th[1] * t);
+}
+
+/* The pendulum's V_q, V_qq and V at q, with the clock factor f: one sincos of q. */
+static inline void pendulum_terms(double q, double f, double* V, double* Vq, double* Vqq) {
+  double sq, cq;
   sincos(q, &sq, &cq);
   *V = (1 - cq) * f; *Vq = sq * f; *Vqq = cq * f;
 }
@@ -398,6 +403,8 @@ void c_march_checks(int kind, int n, const double* theta, int steps, const doubl
   System s;
   int k, i, j, m2 = 2 * n, stage;
   double e[2 * MAXN];
+  double cQ_prev = 0, f_prev = 0, T_prev = 0;  /* interval k - 1's cos Q, clock factor, |P|^2/2 */
+  double f_node = kind == 0 ? pendulum_clock(theta, t[0]) : 0;  /* the clock factor at t_k */
   s.kind = kind; s.n = n;
   for (i = 0; i < 4; ++i) s.theta[i] = theta[i];
   for (i = 0; i < m2; ++i) e[i] = 0;
@@ -408,34 +415,50 @@ void c_march_checks(int kind, int n, const double* theta, int steps, const doubl
     double y[2 * MAXN], dy[2 * MAXN], kz[4][2 * MAXN], dk[4][2 * MAXN], d[2 * MAXN];
     static const double offset[4] = {0, 0.5, 0.5, 1};
     /* the recheck: interval k's canonical residuals, node k's energy residual (k >= 1) */
-    for (i = 0; i < n; ++i) { Q[i] = (za[i] + zb[i]) / 2; P[i] = (za[n + i] + zb[n + i]) / 2; }
-    if (kind == 0) pendulum_terms(theta, Q[0], clock, &V, Vq, Vqq);
-    else potential(&s, Q, clock, &V, Vq, Vqq, Vqt);
+    double T = 0, cQ = 0, f_clock = 0;
+    for (i = 0; i < n; ++i) { Q[i] = (za[i] + zb[i]) / 2; P[i] = (za[n + i] + zb[n + i]) / 2;
+                              T += P[i] * P[i] / 2; }
+    if (kind == 0) {  /* one sincos of Q, one sin of the clock: both reused at node k + 1 */
+      double sQ;
+      sincos(Q[0], &sQ, &cQ);
+      f_clock = pendulum_clock(theta, clock);
+      Vq[0] = sQ * f_clock;
+    } else {
+      potential(&s, Q, clock, &V, Vq, Vqq, Vqt);
+    }
     for (i = 0; i < n; ++i) {
       canonical[k * m2 + i] = zb[i] - za[i] - tau * P[i];
       canonical[k * m2 + n + i] = zb[n + i] - za[n + i] + tau * Vq[i];
     }
     if (k >= 1) {  /* H of intervals k - 1 and k at interval k - 1's clock */
-      const double* zp = za - m2;
-      double s_prev = (t[k - 1] + t[k]) / 2, Qp[MAXN], Pp[MAXN], Vp, Vk, T = 0, Tp = 0;
-      for (i = 0; i < n; ++i) { Qp[i] = (zp[i] + za[i]) / 2; Pp[i] = (zp[n + i] + za[n + i]) / 2;
-                                T += P[i] * P[i] / 2; Tp += Pp[i] * Pp[i] / 2; }
+      double Vp, Vk;
       if (kind == 0) {
-        double f = 1 - theta[0] * sin(theta[1] * s_prev);
-        Vk = (1 - cos(Q[0])) * f; Vp = (1 - cos(Qp[0])) * f;
+        Vk = (1 - cQ) * f_prev; Vp = (1 - cQ_prev) * f_prev;
       } else {
-        double Vqd[MAXN], Vqqd[MAXN * MAXN], Vqtd[MAXN];
+        const double* zp = za - m2;
+        double s_prev = (t[k - 1] + t[k]) / 2, Qp[MAXN], Vqd[MAXN], Vqqd[MAXN * MAXN],
+               Vqtd[MAXN];
+        for (i = 0; i < n; ++i) Qp[i] = (zp[i] + za[i]) / 2;
         potential(&s, Q, s_prev, &Vk, Vqd, Vqqd, Vqtd);
         potential(&s, Qp, s_prev, &Vp, Vqd, Vqqd, Vqtd);
       }
-      energy[k] = T + Vk - Tp - Vp;
+      energy[k] = T + Vk - T_prev - Vp;
     }
-    /* RK4 of the exact flow and its tangent applied to e; stage 0 gives w at node k */
+    cQ_prev = cQ; f_prev = f_clock; T_prev = T;
+    /* RK4 of the exact flow and its tangent applied to e; stage 0 gives w at node k. For the
+     * pendulum the stages' clock factors are t_k's (carried), the interval's clock's (stages 1
+     * and 2: ta + 0.5 tau is the clock to the bit) and ta + tau's (t_k+1 up to round-off,
+     * carried to the next step's stage 0 and w). */
     for (i = 0; i < m2; ++i) { y[i] = za[i]; dy[i] = e[i]; }
     for (stage = 0; stage < 4; ++stage) {
       double ts = ta + offset[stage] * tau, h = offset[stage < 3 ? stage + 1 : 3] * tau;
-      if (kind == 0) pendulum_terms(theta, y[0], ts, &V, Vq, Vqq);
-      else potential(&s, y, ts, &V, Vq, Vqq, Vqt);
+      if (kind == 0) {
+        double f = stage == 0 ? f_node : stage < 3 ? f_clock : pendulum_clock(theta, ts);
+        pendulum_terms(y[0], f, &V, Vq, Vqq);
+        if (stage == 3) f_node = f;
+      } else {
+        potential(&s, y, ts, &V, Vq, Vqq, Vqt);
+      }
       for (i = 0; i < n; ++i) {
         kz[stage][i] = y[n + i]; kz[stage][n + i] = -Vq[i];
         dk[stage][i] = dy[n + i];
@@ -471,7 +494,7 @@ void c_march_checks(int kind, int n, const double* theta, int steps, const doubl
   {  /* w at the last node */
     const double* zl = z + steps * m2;
     double V, Vq[MAXN], Vqq[MAXN * MAXN], Vqt[MAXN], ww = 0;
-    if (kind == 0) pendulum_terms(theta, zl[0], t[steps], &V, Vq, Vqq);
+    if (kind == 0) pendulum_terms(zl[0], f_node, &V, Vq, Vqq);
     else potential(&s, zl, t[steps], &V, Vq, Vqq, Vqt);
     for (i = 0; i < n; ++i) {
       ww += Vq[i] * Vq[i];
