@@ -17,9 +17,9 @@ from .physics.higher import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
 from .scenes import HigherOrderScene, Scene, list_scenes, load_scene
 from .solution import Solution, Status
-from .solvers.bvp import solve_bvp
-from .solvers.higher import march_higher, solve_bvp_higher
-from .solvers.march import march
+from .solvers.bvp.solve import solve_bvp
+from .solvers.higher.solve import march_higher, solve_bvp_higher
+from .solvers.march.solve import march
 
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):

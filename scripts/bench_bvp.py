@@ -88,12 +88,13 @@ def endpoints(case: str):
 
 
 def one(case: str, nodes: int, solver: str) -> dict:
-    from ddvp_nlp.solvers import bvp_phase
-    from ddvp_nlp.solvers.bvp import solve_bvp
+    from ddvp_nlp.solvers.bvp import phase as bvp_phase
+    from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
     label = solver
     if solver.startswith("newton"):
-        from ddvp_nlp.solvers import bvp_assembly, bvp_band
+        from ddvp_nlp.solvers.bvp import assembly as bvp_assembly
+        from ddvp_nlp.solvers.grid import band as bvp_band
         bvp_assembly.COMPILER = None if solver == "newton-vm" else "auto"
         bvp_band.KERNEL = None if solver in ("newton-vm", "newton-lapack") else "auto"
         solver = "newton"
@@ -123,7 +124,7 @@ def _path(system, solver: str) -> str:
 
     if solver != "newton":
         return solver
-    from ddvp_nlp.solvers import bvp_band
+    from ddvp_nlp.solvers.grid import band as bvp_band
 
     paths = {PROBLEMS.get(system, key, lambda: None).path for key in PROBLEMS.keys(system)
              if key[0] == "bvp_assembly"}

@@ -25,7 +25,7 @@ import numpy as np
 from bench_march import timed  # noqa: E402
 
 from ddvp_nlp import load_scene, march
-from ddvp_nlp.solvers.ensemble import march_ensemble
+from ddvp_nlp.solvers.march.ensemble import march_ensemble
 from ddvp_nlp.studies.poincare import section_starts
 
 

@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.solvers.higher import solve_bvp_higher
+from ddvp_nlp.solvers.higher.solve import solve_bvp_higher
 
 
 def run(scene, config, nodes, scheme, solver):

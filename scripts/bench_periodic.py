@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_march import timed  # noqa: E402
 
 from ddvp_nlp import load_scene  # noqa: E402
-from ddvp_nlp.solvers.periodic import parse_section, solve_periodic  # noqa: E402
-from ddvp_nlp.solvers.periodic_start import (  # noqa: E402
+from ddvp_nlp.solvers.periodic.solve import parse_section, solve_periodic  # noqa: E402
+from ddvp_nlp.solvers.periodic.start import (  # noqa: E402
     march_to_return,
     resample,
     section_point,

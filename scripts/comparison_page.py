@@ -18,7 +18,7 @@ import numpy as np
 from ddvp_nlp import Scene, load_scene, march
 from ddvp_nlp.discrete.equations import interval_energies
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.baselines import fixed_step_run
+from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 from ddvp_nlp.solvers.compiler import find_compiler
 
 ARK_KEPLER = {1e-3: -1.0321e-7, 5e-4: -2.583e-8, 2.5e-4: -6.460e-9, 1.25e-4: -1.615e-9,

@@ -27,8 +27,8 @@ import bench_periodic  # noqa: E402
 
 from ddvp_nlp.io.periodic_runs import plot_orbit, write_family  # noqa: E402
 from ddvp_nlp.scenes import load_scene  # noqa: E402
-from ddvp_nlp.solvers.periodic import solve_periodic  # noqa: E402
-from ddvp_nlp.solvers.periodic_family import solve_periodic_family  # noqa: E402
+from ddvp_nlp.solvers.periodic.family import solve_periodic_family  # noqa: E402
+from ddvp_nlp.solvers.periodic.solve import solve_periodic  # noqa: E402
 
 FIGURE_EIGHT_PERIOD = 6.32591398
 

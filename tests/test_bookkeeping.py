@@ -13,14 +13,14 @@ import pytest
 
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers import monitors
-from ddvp_nlp.solvers.acceptance import Acceptance
 from ddvp_nlp.solvers.accuracy import AccuracyMonitor, Tolerance, _Series
-from ddvp_nlp.solvers.chunk import FastChunk
 from ddvp_nlp.solvers.driver import Nodes
-from ddvp_nlp.solvers.march import _row_max_abs
-from ddvp_nlp.solvers.monitors import MONITOR_LIMIT, SolvabilityMonitor
-from ddvp_nlp.solvers.steps import step_functions
+from ddvp_nlp.solvers.march import monitors
+from ddvp_nlp.solvers.march.acceptance import Acceptance
+from ddvp_nlp.solvers.march.chunk import FastChunk
+from ddvp_nlp.solvers.march.monitors import MONITOR_LIMIT, SolvabilityMonitor
+from ddvp_nlp.solvers.march.solve import _row_max_abs
+from ddvp_nlp.solvers.march.steps import step_functions
 
 
 def same(a, b) -> bool:

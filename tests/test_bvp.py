@@ -11,7 +11,7 @@ from scipy.optimize import brentq
 
 from ddvp_nlp import InputError, Scheme, Status, load_scene, march
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.bvp import solve_bvp
+from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 
 @pytest.mark.parametrize("name, tau0, t_end", [("paper_pendulum", 0.5, 9.0),
@@ -111,7 +111,7 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
                          t_end=data.t_span[1], nodes=data.nodes,
                          tol=1e-9)
     assert solution.success
-    from ddvp_nlp.solvers.bvp import _verify
+    from ddvp_nlp.solvers.bvp.solve import _verify
     phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3,
              "solver": "ipopt"}
     canonical = np.zeros((data.nodes - 1, 2))

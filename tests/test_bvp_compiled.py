@@ -13,9 +13,11 @@ from scipy.linalg import lapack
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.cache import PROBLEMS
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers import bvp_assembly, bvp_band, compiler
-from ddvp_nlp.solvers.bvp import solve_bvp
-from ddvp_nlp.solvers.bvp_assembly import WINDOW, Ends, GridAssembly
+from ddvp_nlp.solvers import compiler
+from ddvp_nlp.solvers.bvp import assembly as bvp_assembly
+from ddvp_nlp.solvers.bvp.assembly import WINDOW, Ends, GridAssembly
+from ddvp_nlp.solvers.bvp.solve import solve_bvp
+from ddvp_nlp.solvers.grid import band as bvp_band
 
 needs_compiler = pytest.mark.skipif(compiler.find_compiler("auto") is None,
                                     reason="no C compiler on this machine")

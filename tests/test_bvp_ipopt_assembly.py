@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import Scheme, load_scene
-from ddvp_nlp.solvers import bvp_phase
-from ddvp_nlp.solvers.bvp import solve_bvp
-from ddvp_nlp.solvers.bvp_ipopt import IpoptProblem
-from ddvp_nlp.solvers.bvp_ipopt_assembly import AssemblyIpoptProblem
+from ddvp_nlp.solvers.bvp import phase as bvp_phase
+from ddvp_nlp.solvers.bvp.ipopt import AssemblyIpoptProblem
+from ddvp_nlp.solvers.bvp.solve import solve_bvp
+from ddvp_nlp.solvers.grid.ipopt import IpoptProblem
 
 
 @pytest.mark.parametrize("name, rule", [("pendulum", "vddvp"), ("pendulum", "fixed"),

@@ -6,8 +6,8 @@ import pytest
 
 from ddvp_nlp import InputError, Scheme, Status, load_scene
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.bvp import solve_bvp
-from ddvp_nlp.solvers.bvp_assembly import Ends, GridAssembly
+from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
+from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 CASES = {  # scene: (q_start, q_end, t_span, nodes, params); None: the scene's boundary data
     "pendulum": None,

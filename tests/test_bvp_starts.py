@@ -10,7 +10,7 @@ import pytest
 
 from ddvp_nlp import InputError, load_scene, march
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.bvp import solve_bvp
+from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 E = 0.5
 PERIODS = 3.0

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import load_scene, march
-from ddvp_nlp.solvers import baselines, lee_left, paper_schemes
+from ddvp_nlp.solvers.baselines import fixed_step as baselines
+from ddvp_nlp.solvers.baselines import lee_left, paper_schemes
 from ddvp_nlp.solvers.compiler import build_count, find_compiler
 
 COMPILER = find_compiler("auto")
@@ -71,7 +72,7 @@ def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, monkeypa
     """The compiled stepper checks up to MAX_CALLS chained chunks at once and hands them out
     one by one; nodes, status, message and every statistic are those of one call per chunk,
     also where chunk steps fail and the careful path takes windows in between."""
-    from ddvp_nlp.solvers import stepper
+    from ddvp_nlp.solvers.march import stepper
 
     pendulum, henon = load_scene("pendulum").system, load_scene("henon_heiles").system
     runs = {"careful windows": (pendulum, [0.0], [np.sqrt(5.0)],

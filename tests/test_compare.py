@@ -11,9 +11,9 @@ from conftest import fitted_order
 from ddvp_nlp import HamiltonianSystem, InputError, Scene, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.io.work_precision import read_rows, work_precision
-from ddvp_nlp.solvers.baselines import fixed_step_run
-from ddvp_nlp.solvers.lee_left import lee_left_march
-from ddvp_nlp.solvers.scipy_dop853 import flow_callable
+from ddvp_nlp.solvers.baselines.dop853 import flow_callable
+from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
+from ddvp_nlp.solvers.baselines.lee_left import lee_left_march
 from ddvp_nlp.studies.compare import (
     COLUMNS,
     Reference,

@@ -8,7 +8,7 @@ from conftest import fitted_order
 
 from ddvp_nlp import HigherOrderSystem, InputError, load_scene
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.higher import march_higher, solve_bvp_higher
+from ddvp_nlp.solvers.higher.solve import march_higher, solve_bvp_higher
 
 
 @pytest.fixture(scope="module")

@@ -11,9 +11,9 @@ import pytest
 from ddvp_nlp import HigherOrderSystem, Status, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.discrete.higher import energies
-from ddvp_nlp.solvers import higher_bvp
-from ddvp_nlp.solvers.higher import solve_bvp_higher
-from ddvp_nlp.solvers.higher_assembly import HigherAssembly, HigherEnds
+from ddvp_nlp.solvers.higher import phase as higher_bvp
+from ddvp_nlp.solvers.higher.assembly import HigherAssembly, HigherEnds
+from ddvp_nlp.solvers.higher.solve import solve_bvp_higher
 
 
 def _solve(name, nodes, scheme, solver, **kwargs):

@@ -117,7 +117,7 @@ def test_scene_file_without_scene(tmp_path):
     ({"params": {"w": "1"}}, "system 'pendulum' has no parameter 'w' (its parameters: none)"),
 ])
 def test_solve_bvp_rejects_bad_input(pendulum, kwargs, message):
-    from ddvp_nlp.solvers.bvp import solve_bvp
+    from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
     options = {"q_start": [0.5], "q_end": [-0.036], "t0": 0.0, "t_end": 9.0, "nodes": 20,
                **kwargs}

@@ -8,7 +8,7 @@ from scipy.special import ellipk
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
 from ddvp_nlp.solution import Status
-from ddvp_nlp.solvers.periodic import solve_periodic
+from ddvp_nlp.solvers.periodic.solve import solve_periodic
 
 
 def fitted_order(sizes, errors) -> float:

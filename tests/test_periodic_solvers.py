@@ -11,8 +11,8 @@ from scipy.special import ellipk
 
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
-from ddvp_nlp.solvers.periodic import solve_periodic
-from ddvp_nlp.solvers.periodic_family import solve_periodic_family
+from ddvp_nlp.solvers.periodic.family import solve_periodic_family
+from ddvp_nlp.solvers.periodic.solve import solve_periodic
 
 
 def fitted_order(sizes, errors) -> float:

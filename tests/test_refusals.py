@@ -153,7 +153,7 @@ def test_fuzz_command_line(tmp_path, capsys):
 
 
 def test_fuzz_library_calls():
-    from ddvp_nlp.solvers.bvp import solve_bvp
+    from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
     rng = random.Random(16)
     scene = load_scene("harmonic")

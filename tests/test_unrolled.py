@@ -9,11 +9,11 @@ import pytest
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.chunk import FAST_NEWTON_OPTIONS, MEDIUM_UNROLL, SMALL_UNROLL
 from ddvp_nlp.solvers.compiler import compile_function, find_compiler
-from ddvp_nlp.solvers.recheck import grid_residuals
-from ddvp_nlp.solvers.steps import step_functions
-from ddvp_nlp.solvers.unrolled import DenseLU, unrolled_newton
+from ddvp_nlp.solvers.march.chunk import FAST_NEWTON_OPTIONS, MEDIUM_UNROLL, SMALL_UNROLL
+from ddvp_nlp.solvers.march.recheck import grid_residuals
+from ddvp_nlp.solvers.march.steps import step_functions
+from ddvp_nlp.solvers.march.unrolled import DenseLU, unrolled_newton
 
 
 def _steps(name):

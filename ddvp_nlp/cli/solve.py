@@ -143,7 +143,7 @@ def _resolve(args, scene, higher: bool, settings: dict):
 
 
 def _march(args, scene, config, scheme):
-    from ..solvers.march import march
+    from ..solvers.march.solve import march
 
     if args.scheme not in RULES:
         return _march_method(args, scene, config)
@@ -196,7 +196,7 @@ def _march_method(args, scene, config):
 
 
 def _bvp(args, scene, config, scheme):
-    from ..solvers.bvp import solve_bvp
+    from ..solvers.bvp.solve import solve_bvp
 
     p_start = _momentum(args.p_start)
     if p_start is not None and args.guess != "march":
@@ -254,7 +254,7 @@ def _bvp_guess(value: str, n: int | None = None):
 
 
 def _march_higher(args, scene, config, scheme):
-    from ..solvers.higher import march_higher
+    from ..solvers.higher.solve import march_higher
 
     t_init, q_init = scene.start(config)
     return march_higher(scene.system, t_init, q_init, t_end=config["t_end"],
@@ -263,7 +263,7 @@ def _march_higher(args, scene, config, scheme):
 
 
 def _bvp_higher(args, scene, config, scheme):
-    from ..solvers.higher import solve_bvp_higher
+    from ..solvers.higher.solve import solve_bvp_higher
 
     boundary = dict(scene.boundary or {})
     nodes = args.nodes or boundary.get("nodes", 41)
@@ -284,8 +284,8 @@ def run_periodic(args) -> int:
     energy); every input checked before anything is built."""
     from ..io.periodic_runs import write_family, write_periodic
     from ..io.runs import prepare_folder
-    from ..solvers.periodic import check_periodic, solve_periodic
-    from ..solvers.periodic_family import solve_periodic_family
+    from ..solvers.periodic.family import solve_periodic_family
+    from ..solvers.periodic.solve import check_periodic, solve_periodic
 
     scene = load_scene(args.scene)
     defaults = dict(getattr(scene, "periodic", None) or {})

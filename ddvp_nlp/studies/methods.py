@@ -1,11 +1,11 @@
 """The registry of every integrator the comparison runs: one line per method.
 
 Each method states its traits once, beside its implementation under ``solvers/`` (a
-:class:`~ddvp_nlp.solvers.integrator.Integrator` constant: name, what it is, order, symplectic,
-energy-conserving, knob, whether it applies to a system and why not, whether it repeats another
-method there). A :class:`Method` is that integrator as the studies see it, with the default knob
-values of a sweep. Adding a method to the comparison: declare its ``Integrator`` in its
-implementation module, then add one line to ``METHODS`` below.
+:class:`~ddvp_nlp.solvers.baselines.integrator.Integrator` constant: name, what it is, order,
+symplectic, energy-conserving, knob, whether it applies to a system and why not, whether it
+repeats another method there). A :class:`Method` is that integrator as the studies see it, with
+the default knob values of a sweep. Adding a method to the comparison: declare its
+``Integrator`` in its implementation module, then add one line to ``METHODS`` below.
 """
 
 from __future__ import annotations
@@ -15,9 +15,11 @@ import numpy as np
 from ..errors import InputError
 from ..scenes import RunConfig
 from ..solution import Status
-from ..solvers import avf, baselines, lee_left, paper_schemes, scipy_dop853, verlet_adaptive
-from ..solvers.integrator import Integrator
-from ..solvers.scipy_dop853 import dop853  # noqa: F401 (the reference solution of the studies)
+from ..solvers.baselines import avf, lee_left, paper_schemes, verlet_adaptive
+from ..solvers.baselines import dop853 as scipy_dop853
+from ..solvers.baselines import fixed_step as baselines
+from ..solvers.baselines.dop853 import dop853  # noqa: F401 (the reference solution of the studies)
+from ..solvers.baselines.integrator import Integrator
 
 
 class Method(Integrator):

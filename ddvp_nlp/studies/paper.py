@@ -18,7 +18,7 @@ from ..physics.hamiltonian import (
     vector_field_function,
 )
 from ..scenes import load_scene
-from ..solvers.march import march
+from ..solvers.march.solve import march
 
 
 def dominant_period(t, values, *, longer_than=None, shorter_than=None) -> float:

@@ -29,8 +29,8 @@ import numpy as np
 from ..errors import InputError
 from ..physics.hamiltonian import vector_field_function
 from ..scenes import load_scene
-from ..solvers.ensemble import march_ensemble
-from ..solvers.periodic import parse_section
+from ..solvers.march.ensemble import march_ensemble
+from ..solvers.periodic.solve import parse_section
 from ..validation import check_real
 from .grid import Task, resolve_scheduler, run_tasks
 

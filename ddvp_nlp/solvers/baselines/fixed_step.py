@@ -1,0 +1,264 @@
+"""The explicit schemes users would pick instead, run the same way as the march: compiled chunks.
+
+- Stormer-Verlet for separable ``H = T(p) + V(q, t)``, order 2, symplectic, in both forms
+  (``discrete/explicit.py``): ``stormer_verlet`` kick-drift-kick, ``leapfrog`` drift-kick-drift.
+
+- Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
+  energy-conserving.
+
+They march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite
+and, for an implicit step map (``avf.py``), while its own residual is under the tolerance. Also
+here, for every compiled baseline (``lee_left.py``, ``verlet_adaptive.py`` too): ``CHUNK``, the
+named columns of a chunk's rows (:class:`Columns`), :func:`load` (compiled, called through
+numpy buffers) and :func:`solution_of`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+from ...cache import cached
+from ...discrete.explicit import FIXED_STEPS
+from ...errors import InputError
+from ...physics.hamiltonian import HamiltonianSystem, not_separable
+from ...solution import Solution, Status
+from ..compiler import FunctionBuffer, cache_folder, compile_function
+from ..driver import Advance, Nodes, describe_phase_space, drive
+from .integrator import Integrator
+
+# Steps per compiled call, whatever the run's length: one compile per scene and method (a size
+# per run length cost a gcc compile of 0.4 s for each size); a short run throws away the rest
+# of its one chunk (1024 steps of an explicit method: well under a millisecond).
+CHUNK = 1024
+
+
+class Columns:
+    """Named columns of a compiled chunk's state or output rows, in order: the one place where a
+    row is both written (:meth:`pack`, CasADi) and read (:meth:`split`, :meth:`unpack`)."""
+
+    def __init__(self, **widths: int):
+        self.widths = widths
+
+    def _slices(self):
+        start = 0
+        for name, width in self.widths.items():
+            yield name, width, slice(start, start + width)
+            start += width
+
+    def pack(self, **parts) -> ca.SX:
+        """The row as one CasADi column, from its parts by name."""
+        if parts.keys() != self.widths.keys():
+            raise ValueError(f"a row has the columns {list(self.widths)}, got {list(parts)}")
+        return ca.vertcat(*(parts[name] for name in self.widths))
+
+    def join(self, **parts) -> np.ndarray:
+        """The row as one numpy vector, from its parts by name."""
+        return np.concatenate([np.atleast_1d(np.asarray(parts[name], float))
+                               for name in self.widths])
+
+    def split(self, row) -> dict:
+        """The parts of one row (a CasADi or numpy vector) by name."""
+        return {name: row[part.start] if width == 1 else row[part]
+                for name, width, part in self._slices()}
+
+    def unpack(self, rows: np.ndarray) -> dict[str, np.ndarray]:
+        """The columns of ``rows`` (one row per step) by name: ``(m,)`` for a width of one, else
+        ``(m, width)``."""
+        return {name: rows[:, part.start] if width == 1 else rows[:, part]
+                for name, width, part in self._slices()}
+
+
+class Buffered:
+    """A chunk function called through ``Function.buffer`` (numpy arrays, no DM conversions),
+    answering as a DM call would: each output the ``(rows, columns)`` array ``np.asarray`` makes
+    of the DM (a copy: the next call overwrites the buffers; callers keep slices of it)."""
+
+    def __init__(self, function: ca.Function):
+        self.function = function
+        self._buffer = FunctionBuffer(function)
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        outputs = self._buffer(*(np.asarray(a, float).T for a in args))
+        return [out.copy().T for out in outputs]
+
+
+def load(function: ca.Function, compiler, cache_dir) -> tuple[Buffered, float]:
+    """``function`` compiled (cached) where a compiler is given, else as it is, as a
+    :class:`Buffered` call; and the seconds spent compiling."""
+    if compiler is None:
+        return Buffered(function), 0.0
+    started = time.perf_counter()
+    compiled = compile_function(function, compiler, cache_folder(cache_dir))
+    return Buffered(compiled), time.perf_counter() - started
+
+
+def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=None,
+                canonical_residual=None, stats=None) -> Solution:
+    """A baseline's :class:`Solution` from its nodes ``t``, ``z = (q, p)``."""
+    return Solution(t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
+                    scheme=scheme,
+                    energy_residual=np.zeros(0) if energy_residual is None else energy_residual,
+                    canonical_residual=(np.zeros(0) if canonical_residual is None
+                                        else canonical_residual),
+                    timing=timing, stats=stats or {})
+
+
+def _fixed_layout(n: int) -> tuple[Columns, Columns]:
+    """A fixed-step chunk's state (step index, ``z``) and output row (``t``, ``z``, the step's
+    own residual ``|r|_inf``, zero for an explicit map)."""
+    return Columns(k=1, z=2 * n), Columns(t=1, z=2 * n, residual=1)
+
+
+def step_map(system: HamiltonianSystem, method: str) -> ca.Function:
+    """``(z, t, tau, theta) -> (z_next, residual)`` of a fixed-step method: an explicit map of
+    ``discrete/explicit.py`` (residual 0), or an implicit one registered in
+    :data:`IMPLICIT_STEPS` (its equation's residual at the returned ``z_next``)."""
+    if method in IMPLICIT_STEPS:
+        return IMPLICIT_STEPS[method][0](system)
+    explicit = FIXED_STEPS[method](system)
+    z, t, tau = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t"), ca.SX.sym("tau")
+    return ca.Function(f"{method}_with_residual", [z, t, tau, system.theta],
+                       [explicit(z, t, tau, system.theta), ca.SX(0)])
+
+
+# Implicit fixed-step methods: name -> (the map as in :func:`step_map`, the equation as in
+# :func:`step_equation`), each ``(system) -> Function``, filled in by their own modules
+# (``avf.py``), which import this one.
+IMPLICIT_STEPS: dict = {}
+
+
+def step_equation(system: HamiltonianSystem, method: str) -> ca.Function:
+    """``(z_next, z, t, tau, theta) -> r``: the equation a fixed-step method's nodes satisfy,
+    ``z_next - Phi(z)`` for an explicit map ``Phi``."""
+    if method in IMPLICIT_STEPS:
+        return IMPLICIT_STEPS[method][1](system)
+    explicit = FIXED_STEPS[method](system)
+    z, z_next = ca.SX.sym("z", 2 * system.n), ca.SX.sym("z_next", 2 * system.n)
+    t, tau = ca.SX.sym("t"), ca.SX.sym("tau")
+    return ca.Function(f"{method}_equation", [z_next, z, t, tau, system.theta],
+                       [z_next - explicit(z, t, tau, system.theta)])
+
+
+def step_residuals(system: HamiltonianSystem, method: str, t, z, theta) -> np.ndarray:
+    """``|r_k|_inf`` of every step of a returned fixed-step trajectory (``t`` ``(N+1,)``, ``z``
+    ``(N+1, 2n)``): the method's own equation recomputed on its nodes."""
+    if t.size < 2:
+        return np.zeros(0)
+    equation = step_equation(system, method).map(t.size - 1)
+    r = np.asarray(equation(z[1:].T, z[:-1].T, t[:-1], np.diff(t),
+                            np.tile(np.asarray(theta, float)[:, None], (1, t.size - 1))))
+    return np.max(np.abs(r), axis=0)
+
+
+def _fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, cache_dir):
+    """``chunk`` steps of ``method`` per call: ``(state, constants) -> (states, rows)``, the
+    constants ``(theta, t0, h)``, so that step ``k`` starts at ``t0 + k h``."""
+    def build():
+        step = step_map(system, method)
+        state_layout, row = _fixed_layout(system.n)
+        state = ca.SX.sym("state", 1 + 2 * system.n)
+        constants = ca.SX.sym("constants", system.theta.numel() + 2)
+        theta, first, h = constants[:-2], constants[-2], constants[-1]
+        parts = state_layout.split(state)
+        k, z = parts["k"], parts["z"]
+        z_next, residual = step(z, first + k * h, h, theta)
+        one = ca.Function(f"{method}_step", [state, constants],
+                          [state_layout.pack(k=k + 1, z=z_next),
+                           row.pack(t=first + (k + 1) * h, z=z_next, residual=residual)])
+        return load(one.mapaccum(f"{method}_chunk", chunk), compiler, cache_dir)
+    return cached(system, (method, chunk, compiler, str(cache_dir)), build)
+
+
+class _FixedSteps:
+    """Stepper (``driver.py``) of a compiled fixed-step chunk on the grid ``t0 + k h``, whose
+    step ``total`` lands on ``t_end`` exactly. A step is kept while its row is finite and its
+    residual at most ``tol max(1, |z_k+1|_inf)``."""
+
+    describe = staticmethod(describe_phase_space)
+
+    def __init__(self, function, chunk: int, constants, total: int, t_end: float, n: int):
+        self.function, self.chunk, self.constants = function, chunk, constants
+        self.total, self.t_end = total, t_end
+        self.state, self.row = _fixed_layout(n)
+
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
+        k = nodes.count - 1
+        _, rows = self.function(self.state.join(k=k, z=nodes.z[k]), self.constants)
+        rows = np.asarray(rows).T[:min(self.chunk, budget)]
+        return _kept(self.row, rows, self.total - k, self.t_end)
+
+
+def _kept(row: Columns, rows: np.ndarray, left: int, t_end: float) -> Advance:
+    """The leading rows that are finite and whose residual is small (``left``: steps to
+    ``t_end``, whose last node is put on ``t_end`` exactly)."""
+    finite = np.all(np.isfinite(rows), axis=1)
+    columns = row.unpack(rows)
+    scale = np.maximum(1.0, np.max(np.abs(np.where(np.isfinite(columns["z"]), columns["z"], 0)),
+                                   axis=1))
+    solved = columns["residual"] <= RESIDUAL_TOL * scale
+    good = finite & solved
+    kept = int(np.argmin(good)) if not good.all() else rows.shape[0]
+    t = columns["t"][:kept].copy()
+    if kept == left:
+        t[-1] = t_end  # k h may differ from t_end by round-off
+    if kept == rows.shape[0]:
+        return Advance(t, columns["z"][:kept])
+    status = Status.NON_FINITE if not finite[kept] else Status.RESIDUAL_TOO_LARGE
+    detail = ("" if not finite[kept] else
+              f"residual {columns['residual'][kept]:.3g} > {RESIDUAL_TOL:g} max(1, |z|)")
+    return Advance(t, columns["z"][:kept], status, detail)
+
+
+# An implicit step is accepted when its equation holds to this, relative to max(1, |z|).
+RESIDUAL_TOL = 1e-10
+
+
+def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float, t_end: float,
+                   t0: float, theta, compiler, cache_dir=None,
+                   time_limit: float | None = None) -> Solution:
+    """March ``method`` (``"stormer_verlet"`` or ``"rk4"``) on uniform steps that end on
+    ``t_end`` (the step is ``(t_end - t0)/ceil((t_end - t0)/tau)``); ``time_limit`` (seconds)
+    is checked between chunks."""
+    started = time.perf_counter()
+    total = max(1, math.ceil((t_end - t0) / tau - 1e-9))
+    chunk = CHUNK
+    function, compile_s = _fixed_chunk(system, method, chunk, compiler, cache_dir)
+    built = time.perf_counter()
+    constants = np.tile(np.concatenate([theta, [t0, (t_end - t0) / total]])[:, None], (1, chunk))
+    stepper = _FixedSteps(function, chunk, constants, total, t_end, system.n)
+    outcome = drive(stepper, Nodes(t0, np.concatenate([q0, p0])), t_end=t_end, max_steps=total,
+                    time_limit=time_limit)
+    return solution_of(outcome.t, outcome.z, system.n, outcome.status, outcome.message, method,
+                       {"build_s": built - started, "solve_s": time.perf_counter() - built,
+                        "compile_s": compile_s},
+                       stats={"path": "vm" if compiler is None else "compiled"})
+
+
+def fixed_step_run_of(name: str):
+    """``Integrator.run`` of the fixed-step method ``name``, knob ``tau``."""
+    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
+        steps = math.ceil((config.t_end - config.t0) / value - 1e-9)
+        if steps > max_steps:
+            raise InputError(f"tau = {value!r} needs {steps} steps to reach t_end, more than "
+                             f"max_steps = {max_steps}")
+        return fixed_step_run(system, name, config.q0, config.p0, tau=value,
+                              t_end=config.t_end, t0=config.t0,
+                              theta=system.parameter_vector(config.params),
+                              compiler=compiler, cache_dir=cache_dir, time_limit=time_limit)
+    return run
+
+
+STORMER_VERLET = Integrator("stormer_verlet", "Stormer-Verlet kick-drift-kick (velocity Verlet; "
+                            "separable H)", order=2, symplectic=True, energy_conserving=False,
+                            knob="tau", run=fixed_step_run_of("stormer_verlet"),
+                            applies=not_separable)
+LEAPFROG = Integrator("leapfrog", "Stormer-Verlet drift-kick-drift (position Verlet, SUNDIALS' "
+                      "leapfrog; separable H)", order=2, symplectic=True,
+                      energy_conserving=False, knob="tau", run=fixed_step_run_of("leapfrog"),
+                      applies=not_separable)
+RK4 = Integrator("rk4", "classical Runge-Kutta", order=4, symplectic=False,
+                 energy_conserving=False, knob="tau", run=fixed_step_run_of("rk4"))

@@ -1,0 +1,57 @@
+"""What an integrator declares about itself, beside its implementation, for the studies to read.
+
+An :class:`Integrator` is one method of the comparison: its traits (stated once, here and
+nowhere else) and ``run``, which turns ``(system, run configuration, knob value)`` into a
+:class:`~ddvp_nlp.solution.Solution`. The knob is what a user turns for accuracy: the first step
+``tau0`` of the energy-determined schemes, the step ``tau`` of fixed-step ones, a tolerance
+``rtol``. The run configuration is read by attribute only (``q0``, ``p0``, ``t0``, ``t_end``,
+``params``: a ``scenes.RunConfig``), so this layer needs no import of the scenes.
+
+Each implementation module declares its integrators as module constants; the registry
+(``studies/methods.py``) lists them, one line each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+
+from ...solution import Solution
+
+
+def no_reason(system) -> None:
+    """The default of ``applies`` and ``redundant``: applies to every system, repeats no other
+    method."""
+    return None
+
+
+@dataclass(frozen=True)
+class Integrator:
+    """One integrator of the comparison.
+
+    Attributes:
+        name: key used on the command line and in the CSV.
+        description: one line for reports.
+        order: order of accuracy.
+        symplectic, energy_conserving: traits.
+        knob: the accuracy setting swept (``"tau0"``, ``"tau"`` or ``"rtol"``).
+        run: ``run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None)
+            -> Solution``.
+        applies: ``applies(system) -> None`` or the reason the method does not apply.
+        redundant: ``redundant(system) -> None`` or why, on this system, the method repeats
+            another one exactly (left out of default comparisons, run when asked for by name).
+    """
+
+    name: str
+    description: str
+    order: int
+    symplectic: bool
+    energy_conserving: bool
+    knob: str
+    run: Callable[..., Solution]
+    applies: Callable[[object], str | None] = no_reason
+    redundant: Callable[[object], str | None] = no_reason
+
+    def traits(self) -> dict:
+        """Every field by name (to build a richer view of the same integrator)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}

@@ -1,0 +1,46 @@
+"""The paper's schemes as comparison methods, each run by ``march`` (``march.py``).
+
+- ``vddvp`` (rule ``vddvp``): the variable-step midpoint scheme, the energy of interval ``k``
+  at the previous clock; order 2, symplectic, conserves the midpoint ``H``.
+- ``lee`` (rule ``lee``): the same action with the node-time variation ``dS_D/dt_k = 0``; order
+  2, symplectic, conserves energy. For autonomous ``H`` it is ``vddvp`` exactly.
+- ``midpoint`` (rule ``fixed``): fixed-step implicit midpoint (the paper's DDVP with fixed
+  steps); order 2, symplectic, does not conserve energy.
+
+The knob is the first step ``tau0`` (the step ``tau`` of ``midpoint``); the march runs in
+compiled chunks of the baselines' one size (``baselines.CHUNK``), so a scene compiles once.
+"""
+
+from __future__ import annotations
+
+from ..march.solve import march
+from .fixed_step import CHUNK
+from .integrator import Integrator
+
+
+def _march(rule: str):
+    """``Integrator.run`` of the march with the energy ``rule``, knob ``tau0``."""
+    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
+        return march(system, config.q0, config.p0, tau0=value, t_end=config.t_end, t0=config.t0,
+                     scheme=rule, params=config.params, max_steps=max_steps, compiler=compiler,
+                     cache_dir=cache_dir, time_limit=time_limit,
+                     chunk=CHUNK,
+                     check_accuracy=False)
+    return run
+
+
+def _same_as_vddvp(system) -> str | None:
+    if system.time_dependent:
+        return None
+    return "for autonomous H its energy equation is the vddvp one (H_k = H_{k-1})"
+
+
+VDDVP = Integrator("vddvp", "the paper's variable-step midpoint scheme (energy of interval k at "
+                   "the previous clock)", order=2, symplectic=True, energy_conserving=True,
+                   knob="tau0", run=_march("vddvp"))
+LEE = Integrator("lee", "same action, node-time variation dS_D/dt_k = 0", order=2,
+                 symplectic=True, energy_conserving=True, knob="tau0", run=_march("lee"),
+                 redundant=_same_as_vddvp)
+MIDPOINT = Integrator("midpoint", "fixed-step implicit midpoint (the paper's DDVP with fixed "
+                      "steps)", order=2, symplectic=True, energy_conserving=False, knob="tau",
+                      run=_march("fixed"))

@@ -1,0 +1,417 @@
+"""Fixed-endpoint problems: the whole discrete action's equations on one grid (docs/theory.md
+sections 2, 4, 5).
+
+Given ``q(t_0)``, ``q(t_end)``, ``t_0``, ``t_end`` and ``N`` nodes, the unknowns are the interior
+``q``, all ``p`` and (energy rules) the interior node times; the equations are the canonical
+equations of every interval (``2n(N-1)``) and the energy equation of every interior node
+(``N-2``): a square system. The node times stay variables (a cumulative sum of steps would make
+the Jacobian dense) and every step stays above ``tau_floor > 0``, which excludes the
+time-reversed root. For a Lagrangian system the interval equations are its discrete Legendre
+transform (``discrete/lagrangian.py``), in the same unknowns.
+
+The system is assembled node by node (``bvp_assembly.py``): its Jacobian is banded, with
+bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
+
+- ``"newton"``: Newton's method with banded LU, a line search on the residual and the
+  ``tau_floor`` safeguard (``bvp_newton.py``; blocks compiled, band LU in C, ``bvp_band.py``):
+  ``O(N)`` time and memory per iteration;
+- ``"ipopt"``: IPOPT on the same assembly through callbacks (``bvp_ipopt_assembly.py``), the
+  design's NLP solver;
+- ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
+  then IPOPT from the same start if Newton's point does not pass the verification.
+
+Starts: ``bvp_start.py`` (straight line or shooting, then fixed steps on uniform and on predicted
+times, then the times released).
+
+Every returned point is verified by its own unscaled residuals, whatever the solver said
+(IPOPT's default ``constr_viol_tol`` once accepted node times off by 3e-2): success means the
+largest canonical residual (increment form) is below ``max(tol, c)`` and the largest energy
+residual below ``max(tol (t_end - t_0)/(N-1), c_E)`` (the energy equation's derivative in a node
+time is ``O(tau)``, so this makes ``tol`` a tolerance on node times whatever ``N``), with ``c``,
+``c_E`` 1024 round-offs of the rows' magnitudes (``max(1, |q_start|, |q_end|, |t_0|, |t_end|)``
+and ``max(1, |E_k|)``: below those no solver can go), and every step is positive. The message says
+what the solver said.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Mapping
+
+import numpy as np
+
+from ...discrete import equations
+from ...discrete.scheme import Scheme
+from ...errors import InputError
+from ...physics.hamiltonian import HamiltonianSystem
+from ...solution import Solution, Status
+from ...validation import check_finite_array, check_integer, check_real, check_state
+from ..accuracy import AccuracyMonitor, Tolerance, assess
+from ..dense import attach
+from .assembly import NodeLayout
+from .phase import EPS, ROUND_OFF_ALLOWANCE, Request, assembly, round_off_scales, run_phase
+from .start import branch_obstacle, first_solver, predicted_times, start_point
+
+SOLVERS = ("auto", "newton", "ipopt")
+GUESSES = ("straight", "march")
+LINEAR_SOLVERS = ("auto", "banded", "sparse")
+# What a failed solve from a built-in start suggests: over a long horizon the problem has many
+# solutions, and the straight line (a motion that never turns) rarely leads to one (henon_heiles
+# over 50 time units at N = 1e3: failed from it, solved in 7 iterations from a fixed-step march;
+# measured).
+START_HINT = {
+    "straight": "the straight-line start may lead to another solution or to none: give "
+                "guess='march' (shooting, with p_start near the motion's momentum) or a march's "
+                "nodes as the guess",
+    "march": "shooting picks the branch the march from p_start reaches: try another p_start, "
+             "or a march's nodes as the guess"}
+__all__ = ["solve_bvp", "predicted_times", "SOLVERS", "GUESSES"]
+
+
+def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
+              t0: float | None = None, t_end: float | None = None,
+              scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
+              guess: Solution | Mapping | str | None = None, p_start=None, times=None,
+              tol: float = 1e-9,
+              tau_floor: float | None = None, solver: str = "auto", max_iter: int = 200,
+              verbose: bool = False, time_limit: float | None = None, progress: bool = False,
+              linear: str = "auto") -> Solution:
+    """Solve the fixed-endpoint problem ``q(t_0) = q_start``, ``q(t_end) = q_end`` on ``nodes``.
+
+    Args:
+        system: the Hamiltonian (or Lagrangian) system.
+        q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
+        t0, t_end: the two end times, keywords as in ``march`` (one convention for both).
+        t_span: deprecated, ``(t0, t_end)``; still accepted with a ``DeprecationWarning``.
+        nodes: number of nodes ``N >= 3``.
+        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
+        params: the system's parameter values.
+        guess: ``"straight"`` (default), ``"march"`` (shooting; ``bvp_start.py``), or a start:
+            a :class:`Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
+            arrays (``nodes`` rows, or any number of rows, resampled by node index onto
+            ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
+        p_start: the momentum shooting starts from (``guess="march"`` only; default the
+            straight line's): chooses the branch of a problem with several solutions.
+        times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
+        tol: verification tolerance (module docstring).
+        tau_floor: smallest allowed step (default ``1e-3 (t_end - t_0)/(N-1)``).
+        solver: ``"auto"`` (default), ``"newton"`` or ``"ipopt"`` (module docstring).
+        max_iter: iteration limit of the solver, per phase.
+        verbose: show IPOPT's output.
+        time_limit: seconds after which the solve stops (status ``time_limit``).
+        progress: report each Newton iteration (and IPOPT's) on stderr.
+        linear: Newton's linear solver: ``"auto"``, ``"banded"`` (LAPACK) or ``"sparse"``.
+
+    Returns:
+        A :class:`Solution` whose ``stats`` hold each phase's solver verdict, the largest
+        residuals, the action and the number of sign changes of each ``p`` component (which of
+        several solutions it is); failures are a status on it.
+    """
+    t_span = _time_span(t_span, t0, t_end)
+    request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
+                              params=params, guess=guess, p_start=p_start, times=times,
+                              tol=tol, tau_floor=tau_floor, solver=solver, max_iter=max_iter,
+                              verbose=verbose, time_limit=time_limit, progress=progress,
+                              linear=linear)
+    started = time.perf_counter()
+    if time_limit is not None:
+        request.deadline = started + time_limit
+    start_kind = start
+    start = start_point(request, start)
+    layout = NodeLayout(system.n, request.nodes)
+    x0 = layout.pack(np.asarray(start["t"], float), np.asarray(start["q"], float),
+                     np.asarray(start["p"], float))
+    name = f"{request.scheme.rule} equations"
+    x, phase = run_phase(request, request.scheme, x0, name, first_solver(request))
+    outcome = _outcome(request, x, phase)
+    obstacle = branch_obstacle(request, start) if outcome[0] is not Status.SUCCESS \
+        and request.scheme.variable_steps else None
+    if request.solver == "auto" and outcome[0] is not Status.SUCCESS \
+            and outcome[0] is not Status.TIME_LIMIT:
+        if obstacle is None:
+            x_ipopt, phase_ipopt = run_phase(request, request.scheme, x0, name, "ipopt")
+            fallback = _outcome(request, x_ipopt, phase_ipopt)
+            if fallback[0] is Status.SUCCESS:
+                x, phase, outcome = x_ipopt, phase_ipopt, fallback
+        else:
+            # IPOPT from the same start: kepler's radial branch took 200 iterations (150 s at
+            # N = 1e4) to end where Newton did (measured)
+            obstacle += " (IPOPT not tried from this start)"
+    if obstacle is not None and outcome[0] is not Status.SUCCESS:
+        outcome = (outcome[0], f"{outcome[1]}; {obstacle}", outcome[2])
+    elif outcome[0] is not Status.SUCCESS and isinstance(start_kind, str) \
+            and outcome[0] is not Status.TIME_LIMIT:
+        outcome = (outcome[0], f"{outcome[1]}; {START_HINT[start_kind]}", outcome[2])
+    solution = _solution(request, x, phase, outcome, started)
+    return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
+
+
+def _time_span(t_span, t0, t_end):
+    """``(t0, t_end)`` from the keywords, or from the deprecated ``t_span``."""
+    if t_span is not None:
+        if t0 is not None or t_end is not None:
+            raise InputError("give t0 and t_end, not t_span as well")
+        warnings.warn("solve_bvp(..., t_span) is deprecated: pass t0=... and t_end=... as "
+                      "march does", DeprecationWarning, stacklevel=3)
+        return t_span
+    if t_end is None:
+        raise InputError("solve_bvp needs t_end (and t0, default 0.0)")
+    return (0.0 if t0 is None else t0, t_end)
+
+
+def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_start, times,
+             tol, tau_floor, solver, max_iter, verbose, time_limit, progress, linear):
+    """The validated :class:`Request` and start (``InputError`` naming the argument and value,
+    before anything is built)."""
+    scheme = Scheme.coerce(scheme)
+    if not isinstance(system, HamiltonianSystem):
+        raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    n = system.n
+    q_start = check_state("q_start", q_start, n)
+    q_end = check_state("q_end", q_end, n)
+    t0, t1 = _check_span(t_span)
+    nodes = check_integer("nodes", nodes, minimum=3)
+    _check_memory(nodes, n, solver)
+    tol = check_real("tol", tol, positive=True)
+    for name, value, choices in (("solver", solver, SOLVERS), ("linear", linear, LINEAR_SOLVERS)):
+        if value not in choices:
+            raise InputError(f"unknown {name} {value!r} (choose from {', '.join(choices)})")
+    max_iter = check_integer("max_iter", max_iter)
+    check_real("time_limit", time_limit, positive=True, allow_none=True)
+    mean_step = (t1 - t0) / (nodes - 1)
+    tau_floor = check_real("tau_floor", 1e-3 * mean_step if tau_floor is None else tau_floor,
+                            positive=True)
+    if tau_floor >= mean_step:
+        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean_step!r}, "
+                         f"got {tau_floor!r}")
+    grid_times = _check_times(times, nodes, t0, t1)
+    if guess is None or (isinstance(guess, str) and guess in GUESSES):
+        start = guess or "straight"
+    elif isinstance(guess, str):
+        raise InputError(f"unknown guess {guess!r} (choose from {', '.join(GUESSES)}, or give "
+                         f"a Solution or a mapping with t, q and p)")
+    else:
+        start = _check_guess(guess, nodes, n, t0, t1)
+    if p_start is not None:
+        if start != "march":
+            raise InputError(f"p_start is the shooting start's momentum: give it with "
+                             f"guess='march', got guess={guess!r}")
+        p_start = check_state("p_start", p_start, n)
+    request = Request(system, scheme, nodes, q_start, q_end, t0, t1, grid_times,
+                      system.parameter_vector(params), tol, tau_floor, solver, max_iter,
+                      verbose=verbose, linear=linear, progress=progress, p_start=p_start)
+    return request, start
+
+
+# Peak memory per node, measured (docs/benchmarks/bench_bvp.md): Newton 0.67 GB at 1e6 nodes of
+# the pendulum (n = 1; 1.06 GB before the band store was reused), IPOPT on the assembly
+# 0.77-1.27 GB at 1e5 and 9.3 GB at 1e6 (the MX build, kept for comparison only, 2.8 GB at 1e5);
+# the blocks grow like (2n + 1)^2.
+BYTES_PER_NODE = {"newton": 0.8e3, "auto": 0.8e3, "ipopt": 1.3e4}
+
+
+def _check_memory(nodes: int, n: int, solver: str) -> None:
+    """Refuse a grid whose estimated peak memory exceeds what this machine has available."""
+    per_node = BYTES_PER_NODE.get(solver, BYTES_PER_NODE["ipopt"]) * ((2 * n + 1) / 3) ** 2
+    needed = nodes * per_node
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise InputError(
+            f"nodes = {nodes} needs about {needed / 1e9:.3g} GB with solver {solver!r} "
+            f"(measured {per_node / 1e3:.3g} kB per node for n = {n}), more than the "
+            f"{available / 1e9:.3g} GB this machine has available")
+
+
+def _available_memory() -> float | None:
+    """Bytes of memory available (``MemAvailable`` of /proc/meminfo), or None if unknown."""
+    try:
+        with open("/proc/meminfo") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        return None
+    return None
+
+
+def _residuals(request: Request, x: np.ndarray):
+    """Canonical ``(N-1, 2n)`` and energy ``(N-2,)`` residuals of ``x``, unscaled (for ``fixed``
+    steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it)."""
+    if not request.scheme.variable_steps:
+        t, q, p = NodeLayout(request.system.n, request.nodes).unpack(x)
+        return equations.grid_residuals(request.system, request.scheme, t, q, p, request.theta)
+    grid = assembly(request, request.scheme)
+    ends = request.ends(request.scheme)
+    F, _ = grid.evaluate(x, ends, jacobian=False)
+    return grid.residuals(F, ends)
+
+
+def _outcome(request: Request, x: np.ndarray, phase: dict):
+    """``(status, message, stats)`` of the point ``x`` that ``phase`` returned."""
+    t = x.reshape(request.nodes, -1)[:, 0]
+    finite = bool(np.all(np.isfinite(x)))
+    canonical, energy = _residuals(request, x) if finite else (None, None)
+    # The canonical rows' round-off is measured on the data, not on the point: a diverged
+    # iterate's own magnitude would excuse any residual.
+    data = max(1.0, *np.abs(request.q_start), *np.abs(request.q_end), abs(request.t0),
+               abs(request.t1))
+    scales = (data, round_off_scales(request, x, request.scheme)[1]) if finite else (1.0, 1.0)
+    limits = (max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales[0]),
+              max(request.tol * request.mean_step, ROUND_OFF_ALLOWANCE * EPS * scales[1]))
+    stats = {"canonical_limit": limits[0], "energy_limit": limits[1],
+             "canonical": canonical, "energy": energy}
+    status, message = _verify(phase, t, canonical, energy, request.scheme, limits, stats)
+    return status, message, stats
+
+
+def _verify(phase, t, canonical, energy, scheme, limits, stats):
+    """Status and message from the point's own residuals; the solver's verdict is quoted, and
+    decides only when the point fails (solver failure, time limit)."""
+    if canonical is None:
+        return Status.NON_FINITE, (f"the solver returned non-finite values "
+                                   f"({phase['solver']}: {phase['return_status']})")
+    tau = np.diff(t)
+    worst_canonical = float(np.max(np.abs(canonical)))
+    worst_energy = float(np.max(np.abs(energy), initial=0.0))
+    stats.update(canonical_residual_max=worst_canonical, energy_residual_max=worst_energy,
+                 tau_min=float(np.min(tau)))
+    problems = []
+    if np.min(tau) <= 0:
+        k = int(np.argmin(tau))
+        problems.append(f"step {k} is not positive: tau = {tau[k]:.6g} (t = {t[k]:.10g})")
+    if worst_canonical > limits[0]:
+        k = int(np.argmax(np.max(np.abs(canonical), axis=1)))
+        problems.append(f"canonical residual {worst_canonical:.3e} on interval {k} "
+                        f"(t = {t[k]:.6g})")
+    if scheme.variable_steps and worst_energy > limits[1]:
+        k = int(np.argmax(np.abs(energy))) + 1
+        problems.append(f"energy residual {worst_energy:.3e} at node {k} (t = {t[k]:.6g}), "
+                        f"tolerance {limits[1]:.3e}")
+    said = f"{phase['solver']}: {phase['return_status']}"
+    if not problems:
+        return Status.SUCCESS, (f"solved and verified: largest residuals canonical "
+                                f"{worst_canonical:.3e}, energy {worst_energy:.3e}; "
+                                f"{phase['iterations']} iterations ({said})")
+    detail = "".join(f"; {p}" for p in problems)
+    if _timed_out(phase):
+        return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value} ({said}){detail}"
+    if not phase["converged"]:
+        return Status.SOLVER_FAILED, f"{Status.SOLVER_FAILED.value} ({said}){detail}"
+    if np.min(tau) <= 0:
+        return Status.NO_ADMISSIBLE_STEP, problems[0] + f" ({said})"
+    return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {'; '.join(problems)} ({said})"
+
+
+def _timed_out(phase) -> bool:
+    said = phase["return_status"]
+    return said.startswith("time limit") or said == "Maximum_WallTime_Exceeded"
+
+
+def _solution(request: Request, x, phase, outcome, started) -> Solution:
+    status, message, checks = outcome
+    layout = NodeLayout(request.system.n, request.nodes)
+    t, q, p = layout.unpack(x)
+    finite = bool(np.all(np.isfinite(x)))
+    canonical, energy = checks.pop("canonical"), checks.pop("energy")
+    if canonical is None:
+        canonical = np.full((request.nodes - 1, 2 * request.system.n), np.nan)
+        energy = np.full(request.nodes - 2 if request.scheme.variable_steps else 0, np.nan)
+    phases = request.phases
+    sign_changes = [int(np.count_nonzero(np.diff(np.sign(p[:, i])) != 0))
+                    for i in range(request.system.n)]
+    if status is Status.SUCCESS:
+        if len(sign_changes) == 1:
+            message += f"; p changes sign {sign_changes[0]} times"
+        else:
+            message += "; sign changes of " + ", ".join(
+                f"p{i + 1}: {count}" for i, count in enumerate(sign_changes))
+    stats = {"solver": phase["solver"], "phases": phases, "return_status":
+             phase["return_status"], "iterations": phase["iterations"],
+             "iterations_total": sum(ph["iterations"] for ph in phases),
+             "action": assembly(request, request.scheme).action(x, request.theta)
+             if finite else math.nan,
+             "energy_scale": request.mean_step, "tau_floor": request.tau_floor,
+             "p_sign_changes": sign_changes, **checks}
+    local_error = np.zeros(0)
+    if finite:
+        stats["accuracy"], local_error = _accuracy(request, t, q, p)
+        failure = stats["accuracy"]["first_failure"]
+        if status is Status.SUCCESS and failure is not None:
+            status = Status.INACCURATE
+            message = (f"{status.value}: {AccuracyMonitor.describe(failure)}; the discrete "
+                       f"equations hold: {message}")
+    total = time.perf_counter() - started
+    return Solution(
+        t=t, q=q, p=p, status=status, message=message, scheme=request.scheme.rule,
+        energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
+        newton_iterations=stats["iterations_total"], local_error=local_error,
+        timing={"build_s": request.build_s, "solve_s": total - request.build_s}, stats=stats)
+
+
+def _accuracy(request: Request, t, q, p):
+    """The accuracy check (``accuracy.py``) on the grid: each interval against one RK4 step of
+    the exact flow, the energy level of the first interval (energy rules) and the nodal drift
+    against ``H`` at the first node. A verified discrete solution can still be far from the
+    motion when the grid is coarse."""
+    system, scheme = request.system, request.scheme
+    level = None
+    if scheme.variable_steps:
+        level = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
+                                                  request.theta)[0])
+    return assess(system, t, np.hstack([q, p]), request.theta, Tolerance(), level=level)
+
+
+def _check_span(t_span) -> tuple[float, float]:
+    try:
+        t0, t1 = (float(v) for v in t_span)
+    except (TypeError, ValueError):
+        raise InputError(f"t_span must be a pair (t_0, t_end), got {t_span!r}") from None
+    check_real("t0", t0)
+    check_real("t_end", t1)
+    if t1 <= t0:
+        raise InputError(f"t_end must be > t0, got t0 = {t0!r}, t_end = {t1!r}")
+    return t0, t1
+
+
+def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
+    """The fixed rule's node times: uniform by default, else ``nodes`` increasing values from
+    ``t0`` to ``t1``."""
+    if times is None:
+        return np.linspace(t0, t1, nodes)
+    grid_times = np.asarray(times, float)
+    if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
+            or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
+        raise InputError(f"times must be {nodes} increasing finite values from t_0 to "
+                         f"t_end, got {times!r}")
+    return grid_times
+
+
+def _check_guess(guess, nodes, n, t0, t1) -> dict:
+    """The guess's ``t``, ``q``, ``p`` on ``nodes`` rows: as given, or resampled by node index
+    (linear interpolation between the guess's rows, so that its step distribution is kept) with
+    the times mapped affinely onto ``[t0, t1]``."""
+    if isinstance(guess, Solution):
+        guess = {"t": guess.t, "q": guess.q, "p": guess.p}
+    if not isinstance(guess, Mapping) or not {"t", "q", "p"} <= set(guess):
+        raise InputError("guess must be a Solution or a mapping with t, q and p")
+    rows = np.shape(guess["t"])[0] if np.ndim(guess["t"]) == 1 else -1
+    if rows < 2:
+        raise InputError(f"guess['t'] must be a vector of at least 2 times, got shape "
+                         f"{np.shape(guess['t'])}")
+    shapes = {"t": (rows,), "q": (rows, n), "p": (rows, n)}
+    result = {}
+    for key, shape in shapes.items():
+        result[key] = check_finite_array(f"guess[{key!r}]", guess[key], shape)
+    if np.any(np.diff(result["t"]) <= 0):
+        raise InputError("guess['t'] must increase")
+    if rows == nodes:
+        return result
+    index = np.linspace(0.0, rows - 1, nodes)
+    old = np.arange(rows)
+    t = np.interp(index, old, result["t"])
+    t = t0 + (t - t[0]) * (t1 - t0) / (t[-1] - t[0])
+    t[0], t[-1] = t0, t1
+    return {"t": t, **{key: np.column_stack([np.interp(index, old, c) for c in result[key].T])
+                       for key in ("q", "p")}}

@@ -1,0 +1,296 @@
+"""Fixed-endpoint problems and marches for higher-derivative Lagrangians (``discrete/higher.py``).
+
+A Lagrangian of order ``l`` couples ``2l + 1`` nodes in its Euler-Lagrange equation at a node, so
+a fixed-endpoint problem fixes ``l`` nodes at each end and a march starts from ``2l`` nodes. The
+fixed-endpoint system is assembled window by window (``higher_assembly.py``) and solved and
+verified in ``higher_bvp.py``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from ...cache import cached
+from ...discrete.higher import _check_rule, action
+from ...errors import InputError
+from ...physics.higher import HigherOrderSystem
+from ...solution import Solution, Status
+from ...validation import check_integer, check_real
+from ..driver import Advance, Nodes, drive
+from .phase import SOLVERS, HigherRequest, grid_energies, solve_rule
+
+NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50, "error_on_fail": False}
+
+
+@dataclass
+class _Ends:
+    """The ``l`` fixed nodes at each end of a fixed-endpoint problem."""
+
+    t_start: np.ndarray
+    q_start: np.ndarray
+    t_stop: np.ndarray
+    q_stop: np.ndarray
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.concatenate([self.t_start, self.t_stop])
+
+
+def _ends(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop) -> _Ends:
+    """The fixed nodes as arrays of shapes ``(l,)`` and ``(l, n)``; ``InputError`` if not
+    finite."""
+    l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
+    t_start, t_stop = (np.asarray(x, float).reshape(l) for x in (t_start, t_stop))
+    q_start, q_stop = (np.asarray(x, float).reshape(l, n) for x in (q_start, q_stop))
+    for name, value in (("t_start", t_start), ("q_start", q_start), ("t_stop", t_stop),
+                        ("q_stop", q_stop)):
+        if not np.all(np.isfinite(value)):
+            raise InputError(f"{name} must be finite, got {value.tolist()}")
+    return _Ends(t_start, q_start, t_stop, q_stop)
+
+
+def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *,
+                     nodes: int, scheme: str = "vddvp", params=None, tol: float = 1e-9,
+                     max_iter: int = 500, solver: str = "auto",
+                     tau_floor: float | None = None) -> Solution:
+    """The fixed-endpoint problem: ``l`` nodes fixed at each end (``t_start``, ``q_start`` of
+    shapes ``(l,)``, ``(l, n)``; likewise at the stop), ``nodes`` nodes in all; unknown the free
+    positions (and for an energy rule the free node times).
+
+    Fixed steps are solved first on uniform times from the straight line between the ends; an
+    energy rule then releases the times from that solution. Each solve is by ``solver``:
+    ``"newton"`` (the window assembly, ``higher_assembly.py``: ``O(N)`` per iteration),
+    ``"ipopt"`` (an MX graph of the window's gradient mapped over the grid) or ``"auto"``
+    (Newton, then IPOPT from the same start if Newton's point fails the verification). Every
+    point is verified by its unscaled residuals (``higher_bvp.py``): success is that
+    verification, whatever the solver said, and the message quotes the solver.
+
+    Args:
+        tol: verification tolerance (Euler-Lagrange rows scaled by the mean step to the power
+            ``2l - 1``, in the units of ``q``; energy rows in units of ``max(1, tau_mean)``);
+            round-off of the rows' own scale is always allowed.
+        max_iter: iteration limit of each solve.
+        tau_floor: smallest step of an energy rule (default ``1e-3`` times the mean step).
+    """
+    rule = _check_rule(system, scheme)
+    ends = _ends(system, t_start, q_start, t_stop, q_stop)
+    nodes = check_integer("nodes", nodes, minimum=2 * system.order + 1)
+    tol = check_real("tol", tol, positive=True)
+    max_iter = check_integer("max_iter", max_iter)
+    if solver not in SOLVERS:
+        raise InputError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})")
+    if np.any(np.diff(ends.times) <= 0):
+        raise InputError(f"the fixed node times must increase, got {ends.times.tolist()}")
+    request = HigherRequest(system, ends.t_start, ends.q_start, ends.t_stop, ends.q_stop, nodes,
+                            system.parameter_vector(params), tol, 0.0, solver, max_iter)
+    request.tau_floor = check_real("tau_floor", 1e-3 * request.mean if tau_floor is None
+                                   else tau_floor, positive=True)
+    if request.tau_floor >= request.mean:
+        raise InputError(f"tau_floor must be < the mean step {request.mean!r}, got "
+                         f"{request.tau_floor!r}")
+    started = time.perf_counter()
+    x, phase, outcome = solve_rule(request, "fixed", request.straight())
+    if rule != "fixed":  # the times released from the fixed-step solution
+        start = x if outcome[0] is Status.SUCCESS else request.straight()
+        x, phase, outcome = solve_rule(request, rule, start)
+    status, message, residuals = outcome
+    z = x.reshape(nodes, system.n + 1)
+    total = time.perf_counter() - started
+    return _higher_solution(system, z[:, 0].copy(), z[:, 1:].copy(), request.theta, status,
+                            message, rule, {"build_s": request.build_s,
+                                            "solve_s": total - request.build_s},
+                            {**residuals, "iterations": phase["iterations"],
+                             "iterations_total": sum(p["iterations"] for p in request.phases),
+                             "solver": phase["solver"], "return_status": phase["return_status"],
+                             "phases": request.phases, "tau_floor": request.tau_floor})
+
+
+def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
+    """A :class:`Solution` whose ``p`` is the multiplier ``lambda_1`` (the momentum conjugate to
+    ``q``) at the nodes where the recursion defines it (``k = l-1 .. N-1-l``; the others repeat
+    the nearest defined value and are listed in ``stats["p_defined"]``)."""
+    first, E = grid_energies(system, t, q, theta) if t.size > 2 * system.order else (
+        np.zeros((0, system.n)), np.zeros(0))
+    p = np.zeros_like(q)
+    lo = system.order - 1
+    if first.shape[0]:
+        p[lo:lo + first.shape[0]] = first
+        p[:lo] = first[0]
+        p[lo + first.shape[0]:] = first[-1]
+    return Solution(t=t, q=q, p=p, status=status, message=message, scheme=rule,
+                    energy_residual=np.diff(E) if E.size else np.zeros(0),
+                    canonical_residual=np.zeros(0), timing=timing,
+                    stats={**stats, "energy": E, "p_defined": [lo, lo + first.shape[0]]})
+
+
+
+def _check_start(system: HigherOrderSystem, rule: str, t_init, q_init, t_end, max_steps):
+    """The start nodes as arrays ``(2l,)``, ``(2l, n)``, ``t_end`` and ``max_steps``, checked."""
+    l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
+    t_init = np.asarray(t_init, float).reshape(-1)
+    if t_init.size != 2 * l:
+        raise InputError(f"t_init must hold 2*order = {2 * l} node times, got {t_init.size}")
+    q_init = np.asarray(q_init, float).reshape(2 * l, n)
+    if not (np.all(np.isfinite(t_init)) and np.all(np.isfinite(q_init))):
+        raise InputError("t_init and q_init must be finite")
+    if np.any(np.diff(t_init) <= 0):
+        raise InputError(f"t_init must increase, got {t_init.tolist()}")
+    t_end = check_real("t_end", t_end)
+    if t_end <= t_init[-1]:
+        raise InputError(f"t_end must be > the last given node time {t_init[-1]!r}, got "
+                         f"{t_end!r}")
+    max_steps = check_integer("max_steps", max_steps)
+    if rule != "fixed" and l < 2:
+        raise InputError("march_higher's energy rule needs order >= 2; first-order Lagrangians "
+                         "march with ddvp_nlp.march (LagrangianSystem)")
+    return t_init, q_init, t_end, max_steps
+
+
+class _HigherSteps:
+    """Stepper (``driver.py``) of :func:`march_higher`, one step per call; the nodes' ``z`` is
+    ``q``.
+
+    With the energy rule the newest node is *pending*: only its difference
+    ``u = (q_{k+l} - q_{k+l-1}) / tau`` is known, kept here with the step ``tau`` that produced
+    it; the driver's nodes are the complete ones. A step is accepted only if finite, ``tau > 0``
+    and its residuals are under ``tol``."""
+
+    def __init__(self, system: HigherOrderSystem, rule: str, theta, tol: float, h: float,
+                 pending=None):
+        self.root, self.check = _step_functions(system, rule)
+        self.l, self.n, self.theta, self.tol, self.h = system.order, system.n, theta, tol, h
+        self.variable = rule != "fixed"
+        self.u, self.tau = pending if pending is not None else (None, None)
+
+    def describe(self, z: np.ndarray) -> str:
+        return f"q = {z}"
+
+    def advance(self, nodes: Nodes, budget: int) -> Advance:
+        t, q = nodes.t[:nodes.count], nodes.z[:nodes.count]
+        x, w, step = self._solve(t, q)
+        failure = self._failure(x, w, step)
+        if failure is not None:
+            return Advance.failed(*failure, width=self.n)
+        if self.variable:
+            q_new = q[-1] + step * self.u
+            self.u, self.tau = x[:self.n], step
+        else:
+            q_new = x[:self.n]
+        return Advance(np.array([t[-1] + step]), q_new[None, :])
+
+    def _solve(self, t, q):
+        """Newton's point ``x`` for the next step, the known data ``w`` and the step length."""
+        l = self.l  # noqa: E741 (l is the order, as in the paper)
+        if self.variable:
+            w = np.concatenate([t[-(2 * l - 1):], np.ravel(q[-(2 * l - 1):]), self.u,
+                                self.theta])
+            x = np.asarray(self.root(np.concatenate([self.u, [self.tau]]), w)).ravel()
+            return x, w, x[-1]
+        w = np.concatenate([t[-2 * l:], np.ravel(q[-2 * l:]), self.theta])
+        x = np.asarray(self.root(_extrapolate(t[-2 * l:], q[-2 * l:], t[-1] + self.h),
+                                 w)).ravel()
+        return x, w, self.h
+
+    def _failure(self, x, w, step) -> tuple[Status, str] | None:
+        """``(status, detail)`` if the step is not acceptable, else ``None``."""
+        if not np.all(np.isfinite(x)):
+            return Status.NON_FINITE, ""
+        if step <= 0:
+            return Status.NO_ADMISSIBLE_STEP, f"Newton found tau = {step:.6g}"
+        el, energy, size = (float(v) for v in self.check(x, w))
+        if el > self.tol * max(1.0, size) or abs(energy) > self.tol * max(1.0, size):
+            converged = self.root.stats().get("return_status") == "success"
+            return (Status.RESIDUAL_TOO_LARGE if converged else Status.NEWTON_FAILED,
+                    f"Euler-Lagrange residual {el:.3e}, energy residual {energy:.3e}")
+        return None
+
+
+def march_higher(system: HigherOrderSystem, t_init, q_init, *, t_end: float,
+                 scheme: str = "vddvp", params=None, tol: float = 1e-9,
+                 max_steps: int = 1_000_000, time_limit: float | None = None) -> Solution:
+    """March from ``2l`` given nodes (``t_init`` ``(2l,)``, ``q_init`` ``(2l, n)``) until the
+    first node at or past ``t_end``.
+
+    Fixed steps (the spacing of the last two given nodes): step ``k`` solves the Euler-Lagrange
+    equation at node ``k`` for node ``k + l``.
+
+    Energy rule (``l >= 2``): node ``k + l`` enters the equations at node ``k`` only through
+    the last difference ``u = (q_{k+l} - q_{k+l-1}) / tau_{k+l-1}``, so the equations at node
+    ``k`` (Euler-Lagrange and energy) are solved for ``u`` and the time ``t_{k+l-1}`` of the node
+    before it, whose position follows from the previous ``u``. The last given node therefore
+    fixes only the first ``u``, not a time: its time is recomputed by the first step.
+
+    Newton (CasADi's rootfinder) starts from the previous ``u`` and step; a step is accepted
+    only if finite, ``tau > 0`` and its residuals are under ``tol`` (the Euler-Lagrange rows
+    scaled by ``tau^(2l-1)``, in the units of ``q``). Steps are counted from the last given
+    node: ``max_steps`` bounds the nodes after the first ``2l``.
+    """
+    rule = _check_rule(system, scheme)
+    t_init, q_init, t_end, max_steps = _check_start(system, rule, t_init, q_init, t_end,
+                                                    max_steps)
+    theta = system.parameter_vector(params)
+    started = time.perf_counter()
+    h = t_init[-1] - t_init[-2]
+    if rule != "fixed":  # the last given node is pending: only its difference is kept
+        stepper = _HigherSteps(system, rule, theta, tol, h, ((q_init[-1] - q_init[-2]) / h, h))
+        nodes = Nodes(t_init[:-1], q_init[:-1])
+    else:
+        stepper = _HigherSteps(system, rule, theta, tol, h)
+        nodes = Nodes(t_init, q_init)
+    built = time.perf_counter()
+    outcome = drive(stepper, nodes, t_end=t_end, max_steps=max_steps, time_limit=time_limit,
+                    step_offset=2 * system.order - 1)
+    return _higher_solution(system, outcome.t, outcome.z, theta, outcome.status,
+                            outcome.message, rule, {"build_s": built - started,
+                                                    "solve_s": time.perf_counter() - built}, {})
+
+
+def _extrapolate(t, q, t_new):
+    """Polynomial through the window's nodes, evaluated at ``t_new`` (the predictor)."""
+    degree = min(len(t) - 1, 3)
+    return np.array([np.polyval(np.polyfit(t - t[-1], q[:, i], degree), t_new - t[-1])
+                     for i in range(q.shape[1])])
+
+
+def _step_functions(system: HigherOrderSystem, rule: str):
+    """Newton for one march step (see :func:`march_higher`) and its residual check."""
+    return cached(system, ("higher_march", rule), lambda: _build_step_functions(system, rule))
+
+
+def _build_step_functions(system: HigherOrderSystem, rule: str):
+    l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
+    theta = ca.SX.sym("theta", system.theta.numel())
+    variable = rule != "fixed"
+    known = 2 * l - 1 if variable else 2 * l  # complete nodes k-l .. in the window
+    tw, qw = ca.SX.sym("t", known), ca.SX.sym("q", known * n)
+    q_nodes = [qw[i * n:(i + 1) * n] for i in range(known)]
+    t_nodes = [tw[i] for i in range(known)]
+    if variable:
+        u_prev, u, tau = ca.SX.sym("u_prev", n), ca.SX.sym("u", n), ca.SX.sym("tau")
+        q_nodes.append(q_nodes[-1] + tau * u_prev)  # node k+l-1, its time unknown
+        t_nodes.append(t_nodes[-1] + tau)
+        q_nodes.append(q_nodes[-1] + tau * u)  # node k+l: only u matters (any step works)
+        t_nodes.append(t_nodes[-1] + tau)
+        x, w = ca.vertcat(u, tau), ca.vertcat(tw, qw, u_prev, theta)
+    else:
+        q_new = ca.SX.sym("q_new", n)
+        q_nodes.append(q_new)
+        t_nodes.append(tw[-1] + (tw[-1] - tw[-2]))
+        x, w = q_new, ca.vertcat(tw, qw, theta)
+    # The equations at node k = l of the window, from the action's gradient in q_k and t_k.
+    q_k, t_k = ca.SX.sym("q_k", n), ca.SX.sym("t_k")
+    at = ca.vertcat(q_nodes[l], t_nodes[l])
+    q_nodes[l], t_nodes[l] = q_k, t_k
+    S = action(system, q_nodes, t_nodes, theta)
+    el = ca.substitute(ca.gradient(S, q_k), ca.vertcat(q_k, t_k), at)
+    energy = ca.substitute(ca.gradient(S, t_k), ca.vertcat(q_k, t_k), at)
+    scaled = el * (tw[-1] - tw[-2]) ** (2 * l - 1)  # in the units of q, O(1) in tau
+    g = ca.vertcat(scaled, energy) if variable else scaled
+    root = ca.rootfinder("higher_step", "newton", ca.Function("g", [x, w], [g]), NEWTON_OPTIONS)
+    check = ca.Function("check", [x, w], [ca.norm_inf(scaled),
+                                         energy if variable else ca.SX(0), ca.norm_inf(qw)])
+    return root, check

@@ -1,0 +1,197 @@
+"""The march's monitors (driver rule 5): the energy guard and the solvability monitor.
+
+Both read per-node values the steppers computed with each step (``Advance.values``): ``"H"``,
+the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H_zz f = -8 c(z)``
+(docs/theory.md section 7), so watching costs no extra CasADi call.
+
+- :class:`EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
+  ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are
+  dropped.
+- :class:`SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
+  sign and the step to be short against the change of ``w``, so it warns once, at the first node
+  where ``w`` changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+import warnings
+
+import numpy as np
+
+from ...solution import Status
+
+# The solvability monitor warns once |ln(w_k / w_{k-1})| passes this. Measured on kepler
+# (tau0 = 0.01): at most 0.36 per step for e = 0.7 (which runs), 0.6-0.9 in the 3-4 steps before
+# the breakdown at e = 0.78 and 0.8; rotating pendulum (p0 = 2): 0.74 two steps before.
+MONITOR_LIMIT = 0.5
+
+
+class EnergyGuard:
+    """Ends the run at the first node whose ``H`` leaves ``H0 +- guard * max(1, |H0|)``."""
+
+    def __init__(self, guard: float, H0: float):
+        self.H0 = H0
+        self.limit = guard * max(1.0, abs(H0))
+
+    def watch(self, nodes, first, advance):
+        if not advance.count:  # a failed step brings no node
+            return None
+        H = advance.values["H"]
+        over = np.flatnonzero(np.abs(H - self.H0) > self.limit)
+        if not over.size:
+            return None
+        i = int(over[0])
+        return Status.ENERGY_GUARD, (
+            f"at t = {nodes.t[first + i]:.10g} |H - H0| = {abs(H[i] - self.H0):.3e} > "
+            f"energy_guard * max(1, |H0|) = {self.limit:.3e}"), i
+
+
+class SolvabilityMonitor:
+    """Keeps ``w`` at every node and warns (``RuntimeWarning``) at the first alarming node.
+
+    ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; :meth:`solvability` gives
+    ``c(z_k) = -w_k / 8`` at the kept nodes. The warning points at the first caller outside
+    this folder (the code that called the march)."""
+
+    def __init__(self, t0: float, w0: float):
+        self._weights: list[np.ndarray] = []  # blocks of w, in order (no per-node floats)
+        self._count = 0
+        self._last = math.nan
+        self.warning: dict | None = None
+        self._observe(np.array([w0]), np.array([t0]))
+
+    @property
+    def weights(self) -> list[float]:
+        """``w`` at every node watched so far."""
+        return np.concatenate(self._weights).tolist() if self._weights else []
+
+    def watch(self, nodes, first, advance):
+        if not advance.count:  # a failed step brings no node
+            return None
+        w = advance.values["w"]
+        self._observe(w, nodes.t[first:first + w.size])
+        return None
+
+    def solvability(self, count: int) -> np.ndarray:
+        weights = np.concatenate(self._weights) if self._weights else np.zeros(0)
+        return -weights[:count] / 8
+
+    def _keep(self, w):
+        w = np.array(w, dtype=float)  # a copy: the stepper's arrays may be reused
+        self._weights.append(w)
+        self._count += w.size
+        self._last = float(w[-1])
+
+    def _observe(self, w, t):
+        if self.warning is not None or not w.size:
+            if w.size:
+                self._keep(w)
+            return
+        if w.size == 1 and self._count:  # one careful node: plain floats are cheaper
+            last, now = self._last, float(w[0])
+            if last * now > 0 and abs(math.log(now / last)) <= MONITOR_LIMIT:
+                self._keep(w)
+                return
+        if self._count and w.size > 1 and _quiet(w, self._last):
+            self._keep(w)
+            return
+        previous = np.concatenate([[self._last if self._count else w[0]], w[:-1]])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            jump = np.abs(np.log(np.abs(w) / np.abs(previous)))
+        sign = np.sign(w) != np.sign(previous)
+        alarm = np.flatnonzero(sign | ~(jump <= MONITOR_LIMIT))
+        if alarm.size:
+            i = int(alarm[0])
+            if w[i] == 0 or previous[i] == 0:
+                reason = ("the site-density weight w = -8 c(z) is zero: the energy rule does "
+                          "not fix the step here (the motion is at rest, or f' H_zz f vanishes)")
+            elif sign[i]:
+                reason = "the site-density weight w = -8 c(z) changed sign"
+            else:
+                reason = (f"|ln(w_k / w_k-1)| = {jump[i]:.3g} > {MONITOR_LIMIT}: the step is "
+                          "long against the change of c(z)")
+            self.warning = {"step": self._count + i, "t": float(t[i]),
+                            "c": float(-w[i] / 8), "reason": reason}
+            warnings.warn(f"solvability monitor at step {self.warning['step']}, t = "
+                          f"{self.warning['t']:.10g}: {reason}; a breakdown of the energy step "
+                          "may follow", RuntimeWarning, stacklevel=_caller_level())
+        self._keep(w)
+
+
+# Ratios w_k / w_{k-1} strictly inside these pass the test above for certain: a margin of 1e-9
+# against the few units of round-off of a logarithm near MONITOR_LIMIT.
+_QUIET = (math.exp(-MONITOR_LIMIT) * (1 + 1e-9), math.exp(MONITOR_LIMIT) * (1 - 1e-9))
+
+
+def _quiet(w: np.ndarray, last: float) -> bool:
+    """Whether no node of ``w`` (after ``last``) can alarm the solvability monitor: every ratio
+    ``w_k / w_{k-1}`` positive (same sign, no zero, no NaN) and well inside ``MONITOR_LIMIT``.
+    A division and two reductions, against the logarithms, signs and comparisons of the full
+    test (which still decides every block this does not clear, so the warning is the same)."""
+    low, high = _QUIET
+    if not last or not low < float(w[0]) / last < high:
+        return False
+    with np.errstate(all="ignore"):  # a zero or an overflow only fails the test
+        ratio = w[1:] / w[:-1]
+    return bool(low < ratio.min() and ratio.max() < high)
+
+
+_HERE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def _caller_level() -> int:
+    """``stacklevel`` of the first frame outside this folder, seen from the caller."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_code.co_filename.startswith(_HERE):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+class Checkpoint:
+    """Never ends the run: every ``interval`` seconds of stepping it hands the nodes kept so far
+    to ``save(t, z)`` (views, to be written before it returns), so a killed march loses at most
+    one interval. Its cost is held to about ``budget`` of the stepping time: after a save of
+    ``s`` seconds the next one waits at least ``s / budget``. ``seconds`` and ``saves`` record
+    the cost. A save that raises ``OSError`` stops the checkpoints (the final write will say
+    what cannot be written) with one warning."""
+
+    def __init__(self, save, interval: float, budget: float = 0.05):
+        self.save = save
+        self.interval = interval
+        self.budget = budget
+        self.seconds = 0.0
+        self.saves = 0
+        self.due = time.perf_counter() + interval
+
+    def watch(self, nodes, first, advance):
+        now = time.perf_counter()
+        if self.save is None or now < self.due:
+            return None
+        try:
+            self.save(nodes.t[:nodes.count], nodes.z[:nodes.count])
+        except OSError as exc:
+            warnings.warn(f"checkpoints stopped: {exc}", RuntimeWarning, stacklevel=2)
+            self.save = None
+            return None
+        spent = time.perf_counter() - now
+        self.seconds += spent
+        self.saves += 1
+        self.due = time.perf_counter() + max(self.interval, spent / self.budget)
+        return None
+
+
+class StopRequest:
+    """Ends the run (status ``INTERRUPTED``, every new node kept) once ``stop()`` is true: an
+    interrupt noted by a signal handler, acted on between two stepper calls."""
+
+    def __init__(self, stop):
+        self.stop = stop
+
+    def watch(self, nodes, first, advance):
+        if self.stop():
+            return Status.INTERRUPTED, "", advance.count
+        return None

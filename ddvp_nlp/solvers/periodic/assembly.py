@@ -1,0 +1,222 @@
+"""The periodic system of a closed grid, assembled node by node: residual and sparse Jacobian.
+
+Unknowns, interleaved by node, then the unfolding parameters: ``x = (z_0, z_1, ..., z_N, u)``
+with ``z_k = (t_k, q_k, p_k)`` (``m = 2n + 1`` values per node) and ``u = (lambda, mu_1, ..,
+mu_r)``, one per first integral (``H``, then the ``r`` integrals of the symmetries given):
+``(N+1) m + 1 + r`` in all. Equations, in the same order::
+
+    t_0,  z_0[section] - value                                       (2 rows)
+    g_i . (z_0 - z_0^ref) for each integral I_i, g_i = J grad I_i    (r rows)
+    for k = 0 .. N-1:  canonical equations of interval k,            (2n rows)
+                       unfolded by tau_k (lambda grad H + sum mu_i grad I_i)(Q_k, P_k)
+                       H(Q_k, P_k) - E                               (1 row)
+    q_N - q_0 - 2 pi w,  p_N - p_0   (w: turns of angle coordinates)  (2n rows)
+
+``2 + r + N m + 2n = (N+1) m + 1 + r`` rows: square. Why these rows, and why the unfolding, is
+the docstring of ``periodic.py``. The interval rows are ``equations.canonical_expression`` and
+``equations.midpoint_energy_function``'s expression, written once in ``discrete/``; each interval
+becomes one CasADi function returning its ``m`` rows and their dense Jacobian in
+``(z_k, z_{k+1}, u)``, mapped over the grid by ``bvp_assembly.ChunkedMap``. The closure rows
+put entries in the corner (columns of ``z_0``) and each unfolding parameter is a full column:
+the matrix is factored by sparse LU (SuperLU), not in band storage. The object has the
+interface ``bvp_newton.newton`` expects (``layout.time_index``, ``layout.bandwidth``,
+``evaluate``, ``sparse``), so the fixed-endpoint solver's Newton iteration and line search run
+unchanged."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+
+from ...cache import cached
+from ...discrete import equations
+from ...discrete.scheme import Scheme
+from ..bvp.assembly import chunked
+
+
+@dataclass(frozen=True)
+class ClosedLayout:
+    """Node ``k``'s ``(t, q, p)`` at ``x[k m:(k+1) m]`` for ``k = 0 .. N``; then the unfolding
+    parameters ``u = (lambda, mu_1, ..., mu_r)``, one per first integral (``H`` first)."""
+
+    n: int
+    intervals: int
+    integrals: int = 0
+
+    @property
+    def m(self) -> int:
+        return 2 * self.n + 1
+
+    @property
+    def nodes(self) -> int:
+        return self.intervals + 1
+
+    @property
+    def unfoldings(self) -> int:
+        return 1 + self.integrals
+
+    @property
+    def size(self) -> int:
+        return self.nodes * self.m + self.unfoldings
+
+    @property
+    def bandwidth(self) -> int:
+        """Wider than any band: tells ``bvp_newton`` to factor the sparse matrix."""
+        return self.size
+
+    def pack(self, t, q, p) -> np.ndarray:
+        return np.concatenate([np.column_stack([np.asarray(t, float), q, p]).ravel(),
+                               np.zeros(self.unfoldings)])
+
+    def unpack(self, x):
+        """``(t, q, p, u)`` (copies) from ``x``."""
+        z = np.asarray(x[:self.nodes * self.m], float).reshape(self.nodes, self.m)
+        return (z[:, 0].copy(), z[:, 1:self.n + 1].copy(), z[:, self.n + 1:].copy(),
+                np.array(x[self.nodes * self.m:], float))
+
+    def time_index(self) -> np.ndarray:
+        return np.arange(self.nodes) * self.m
+
+
+@dataclass(frozen=True)
+class Closure:
+    """The data of one periodic problem: the prescribed energy, the section (index into
+    ``z = (t, q, p)`` of a node and value), the parameters, and for each first integral the
+    reference node ``z_0^ref = (q, p)`` and symmetry generator ``g_i = J grad I_i(z_0^ref)`` of
+    its phase condition ``g_i . (z_0 - z_0^ref) = 0``; ``shift`` (``2n``,) is ``z_N - z_0`` on
+    the orbit: ``2 pi w_i`` for an angle coordinate that turns ``w_i`` times (a rotation), else
+    0."""
+
+    energy: float
+    section_index: int
+    section_value: float
+    theta: np.ndarray
+    reference: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    generators: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    shift: np.ndarray | float = 0.0
+
+
+def integral_gradients(system, integrals) -> ca.Function:
+    """``(q, p, theta) -> [grad H, grad I_1, ..., grad I_r]`` (``2n x (1 + r)``), gradients in
+    ``z = (q, p)``; ``integrals`` are functions ``I(q, p)`` on CasADi symbols."""
+    def build():
+        z = ca.vertcat(system.q, system.p)
+        columns = [ca.gradient(system.H, z)]
+        for integral in integrals:
+            columns.append(ca.gradient(integral(system.q, system.p), z))
+        return ca.Function("integral_gradients", [system.q, system.p, system.theta],
+                           [ca.horzcat(*columns)])
+    return cached(system, ("periodic_gradients", tuple(integrals)), build)
+
+
+def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
+    """``(z_a, z_b, u, E, theta) -> rows (m,)`` of one interval, with ``u`` the unfolding
+    parameters ``(lambda, mu_1, ..., mu_r)``: the Newton assembly differentiates it into blocks,
+    the IPOPT problem (``periodic_ipopt.py``) maps it over the grid."""
+    def build():
+        n, r = system.n, len(integrals)
+        z_a, z_b = ca.SX.sym("z_a", 2 * n + 1), ca.SX.sym("z_b", 2 * n + 1)
+        unfolding, level = ca.SX.sym("u", 1 + r), ca.SX.sym("E")
+        t_a, q_a, p_a = z_a[0], z_a[1:n + 1], z_a[n + 1:]
+        t_b, q_b, p_b = z_b[0], z_b[1:n + 1], z_b[n + 1:]
+        theta = system.theta
+        canonical = equations.canonical_expression(system, scheme, t_a, t_b, q_a, p_a, q_b,
+                                                   p_b, theta)
+        energy = equations.midpoint_energy_function(system, scheme)(t_a, t_b, q_a, p_a, q_b,
+                                                                    p_b, theta)
+        Q = scheme.alpha * q_a + scheme.beta * q_b
+        P = scheme.alpha * p_b + scheme.beta * p_a
+        # The unfolding: increments z_b - z_a = tau (J grad H + lambda grad H + sum mu_i
+        # grad I_i)(Q, P); the canonical rows are q_b - q_a - tau H_p and p_b - p_a + tau H_q.
+        gradients = integral_gradients(system, integrals)(Q, P, theta)
+        rows = ca.vertcat(canonical - (t_b - t_a) * ca.mtimes(gradients, unfolding),
+                          energy - level)
+        return ca.Function("periodic_rows", [z_a, z_b, unfolding, level, theta], [rows])
+    return cached(system, ("periodic_rows", scheme, tuple(integrals)), build)
+
+
+def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
+    """``(z_a, z_b, u, E, theta) -> (rows (m,), d rows / d(z_a, z_b, u))``."""
+    def build():
+        rows = interval_rows(system, scheme, integrals)
+        z_a, z_b, unfolding, level, theta = rows.sx_in()
+        expression = rows(z_a, z_b, unfolding, level, theta)
+        unknowns = ca.vertcat(z_a, z_b, unfolding)
+        return ca.Function("periodic_interval", [z_a, z_b, unfolding, level, theta],
+                           [expression, ca.densify(ca.jacobian(expression, unknowns))])
+    return cached(system, ("periodic_interval", scheme, tuple(integrals)), build)
+
+
+class PeriodicAssembly:
+    """``F(x)`` and ``F'(x)`` of one system, scheme and interval count (module docstring)."""
+
+    def __init__(self, system, scheme: Scheme, intervals: int, closure: Closure,
+                 integrals=()):
+        self.layout = ClosedLayout(system.n, intervals, len(integrals))
+        self.scheme = scheme
+        self.closure = closure
+        self._interval = chunked(system, ("periodic_interval", scheme, tuple(integrals)),
+                                 _interval_function(system, scheme, tuple(integrals)))
+        self._pattern = self._sparsity()
+
+    @property
+    def header(self) -> int:
+        """Rows before the intervals': ``t_0``, the section, one phase row per integral."""
+        return 2 + self.layout.integrals
+
+    def evaluate(self, x: np.ndarray, closure: Closure, jacobian: bool = True):
+        """``F(x)`` and, if asked, the interval blocks ``(N, 2m + 1 + r, m)``."""
+        N, m, h = self.layout.intervals, self.layout.m, self.header
+        z = np.ascontiguousarray(x[:(N + 1) * m], float).reshape(N + 1, m)
+        unfolding = np.tile(x[(N + 1) * m:], (N, 1))
+        level = np.full((N, 1), closure.energy)
+        rows, J = self._interval([z[:-1], z[1:], unfolding, level], closure.theta, N)
+        F = np.empty(self.layout.size)
+        F[0] = z[0, 0]
+        F[1] = z[0, closure.section_index] - closure.section_value
+        F[2:h] = closure.generators @ (z[0, 1:] - closure.reference) if h > 2 else 0.0
+        F[h:h + N * m] = rows[:, 0, :].ravel()
+        F[h + N * m:] = z[N, 1:] - z[0, 1:] - closure.shift
+        return F, (J if jacobian else None)
+
+    def residuals(self, F: np.ndarray):
+        """``(canonical (N, 2n), energy (N,), closure (2n,))`` in ``F`` (unscaled)."""
+        N, m, n, h = self.layout.intervals, self.layout.m, self.layout.n, self.header
+        body = F[h:h + N * m].reshape(N, m)
+        return body[:, :2 * n].copy(), body[:, 2 * n].copy(), F[h + N * m:].copy()
+
+    def _sparsity(self):
+        """Rows and columns of the interval blocks' entries, in the order of their values
+        (``N (2m + u) m``, ``u`` unfolding parameters)."""
+        N, m, h = self.layout.intervals, self.layout.m, self.header
+        u = self.layout.unfoldings
+        k = np.arange(N)[:, None, None]
+        column = np.arange(2 * m + u)[None, :, None]
+        row = np.arange(m)[None, None, :]
+        first_unfolding = (N + 1) * m
+        rows = np.broadcast_to(h + k * m + row, (N, 2 * m + u, m))
+        cols = np.broadcast_to(np.where(column < 2 * m, k * m + column,
+                                        first_unfolding + column - 2 * m), (N, 2 * m + u, m))
+        return rows.ravel(), cols.ravel()
+
+    def sparse(self, blocks) -> sp.csc_matrix:
+        """The Jacobian as a sparse matrix: the interval blocks, then the constant rows
+        (``t_0``, section, phase conditions, closure)."""
+        N, m, h = self.layout.intervals, self.layout.m, self.header
+        rows, cols = self._pattern
+        closing = h + N * m + np.arange(m - 1)
+        r = self.layout.integrals
+        phase_rows = np.repeat(2 + np.arange(r), m - 1)
+        phase_cols = np.tile(1 + np.arange(m - 1), r)
+        fixed_rows = np.concatenate([[0, 1], phase_rows, closing, closing])
+        fixed_cols = np.concatenate([[0, self.closure.section_index], phase_cols,
+                                     N * m + 1 + np.arange(m - 1), 1 + np.arange(m - 1)])
+        fixed_values = np.concatenate([[1.0, 1.0], np.ravel(self.closure.generators),
+                                       np.ones(m - 1), -np.ones(m - 1)])
+        size = self.layout.size
+        return sp.csc_matrix((np.concatenate([np.asarray(blocks).ravel(), fixed_values]),
+                              (np.concatenate([rows, fixed_rows]),
+                               np.concatenate([cols, fixed_cols]))), (size, size))
