@@ -4,9 +4,10 @@ Node times are unknowns; varying them gives a discrete energy equation, so the s
 symplectic and conserve energy. See docs/theory.md for the equations in this code's notation and
 docs/guide.md for a user guide.
 
-The public interface is ``__all__``: solvers (``march``, ``solve_bvp``, ``march_higher``,
-``solve_bvp_higher``), their result (``Solution``, ``Status``) and its figure (``plot``), systems
-and schemes, and scenes.
+The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``solve_bvp``,
+``solve_periodic``, ``solve_periodic_family``, ``march_higher``, ``solve_bvp_higher``), their
+options (``StepControl``, ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``), their
+result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes, and scenes.
 Everything else is reached through its module and may change.
 """
 
@@ -17,9 +18,11 @@ from .physics.higher import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
 from .scenes import HigherOrderScene, Scene, list_scenes, load_scene
 from .solution import Solution, Status
-from .solvers.bvp.solve import solve_bvp
-from .solvers.higher.solve import march_higher, solve_bvp_higher
-from .solvers.march.solve import march
+from .solvers.bvp import solve_bvp
+from .solvers.higher import march_higher, solve_bvp_higher
+from .solvers.march import march, march_ensemble
+from .solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+from .solvers.periodic import solve_periodic, solve_periodic_family
 
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):
@@ -55,7 +58,8 @@ def _version() -> str:
 
 __version__ = _version()
 
-__all__ = ["HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
-           "Lagrangian", "LagrangianSystem", "Scene", "Scheme", "Solution", "Status",
-           "__version__", "list_scenes", "load_scene", "march", "march_higher", "plot",
-           "solve_bvp", "solve_bvp_higher"]
+__all__ = ["Compilation", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
+           "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output", "Scene",
+           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
+           "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
+           "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

@@ -129,3 +129,18 @@ def check_unique_settings(items) -> None:
             raise InputError(f"--set {name} is given twice ({seen[name]!r} and {item!r}); "
                              "give each setting once")
         seen[name] = item
+
+
+def check_span(t_span) -> tuple[float, float]:
+    """``t_span = (t0, t_end)`` as two finite numbers with ``t0 < t_end``."""
+    if t_span is None:
+        raise InputError("give t_span = (t0, t_end)")
+    try:
+        t0, t_end = t_span
+    except (TypeError, ValueError):
+        raise InputError(f"t_span must be a pair (t0, t_end), got {t_span!r}") from None
+    t0 = check_real("t0", t0)
+    t_end = check_real("t_end", t_end)
+    if t_end <= t0:
+        raise InputError(f"t_end must be > t0 = {t0!r}, got {t_end!r}")
+    return t0, t_end

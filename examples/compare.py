@@ -18,8 +18,15 @@ scene = load_scene("harmonic")
 config = scene.resolve()
 for scheme in ("vddvp", "lee", "fixed"):
     started = time.perf_counter()
-    solution = march(scene.system, config.q0, config.p0, tau0=0.05, t_end=config.t_end,
-                     params=config.params, scheme=scheme)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=0.05,
+        params=config.params,
+        scheme=scheme,
+    )
     seconds = time.perf_counter() - started
     q_exact, p_exact = scene.exact(solution.t, config.q0, config.p0, config.t0,
                                    *config.params.values())

@@ -10,7 +10,7 @@ import numpy as np
 from ddvp_nlp import load_scene, march
 
 scene = load_scene("harmonic")
-solution = march(scene.system, [1.0], [0.0], tau0=0.07, t_end=10.0)
+solution = march(scene.system, [1.0], [0.0], (0.0, 10.0), tau0=0.07)
 print(f"last node t = {solution.t[-1]:.4f}, asked for t_end = {solution.t_end}")
 
 q_end, p_end = solution.at_end()

@@ -7,7 +7,7 @@ Run: python examples/fixed_endpoint.py
 from ddvp_nlp import load_scene, solve_bvp
 
 system = load_scene("pendulum").system
-solution = solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=181, scheme="vddvp")
+solution = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181, scheme="vddvp")
 
 print(solution)
 changes = solution.stats["p_sign_changes"]  # which of several solutions this is

@@ -7,8 +7,15 @@ from ddvp_nlp import load_scene, march
 
 scene = load_scene("paper_pendulum")
 config = scene.resolve({"t_end": 100.0})  # the scene's defaults, a shorter horizon
-solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t0=config.t0,
-                 t_end=config.t_end, params=config.params, scheme="vddvp")
+solution = march(
+    scene.system,
+    config.q0,
+    config.p0,
+    (config.t0, config.t_end),
+    tau0=config.tau0,
+    params=config.params,
+    scheme="vddvp",
+)
 
 print(solution)
 print(f"steps {solution.steps}, tau in [{solution.tau.min():.4f}, {solution.tau.max():.4f}]")

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import StepControl, Tolerance, load_scene, march
 from ddvp_nlp.studies.reference import Reference
 
 ECCENTRICITIES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
@@ -35,9 +35,16 @@ def run(scene, e, tau0, reference, global_tol):
     config = scene.resolve({"e": e})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        solution = march(scene.system, config.q0, config.p0, tau0=tau0, t_end=config.t_end,
-                         params=config.params, accept_inaccurate=True, global_tol=global_tol,
-                         max_steps=2_000_000, time_limit=120)
+        solution = march(
+            scene.system,
+            config.q0,
+            config.p0,
+            (0.0, config.t_end),
+            tau0=tau0,
+            params=config.params,
+            steps=StepControl(max_steps=2_000_000, time_limit=120),
+            accuracy=Tolerance(global_tol=global_tol, stop=False),
+        )
     z = np.hstack([solution.q, solution.p])
     truth = reference(solution.t)
     true = float(np.max(np.abs(z - truth))) / max(1.0, float(np.max(np.abs(truth))))

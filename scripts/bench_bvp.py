@@ -23,19 +23,18 @@ counts repeat; the table gives the best wall time.
 
     python scripts/bench_bvp.py                  (the full table: about 10 minutes)
     python scripts/bench_bvp.py --quick          (N = 1e3, 1e4 only)
-    python scripts/bench_bvp.py --only pendulum:ipopt,pendulum:ipopt-mx,pendulum:newton
+    python scripts/bench_bvp.py --only pendulum:ipopt,pendulum:newton
     python scripts/bench_bvp.py --only pendulum:newton,pendulum:newton-vm,pendulum:newton-lapack
 
 Solver ``newton-vm`` is Newton with nothing compiled: the assembly's blocks on CasADi's virtual
-machine (``bvp_assembly.COMPILER = None``) and the band LU by LAPACK through scipy
-(``bvp_band.KERNEL = None``), the path of a machine without a C compiler; ``newton-lapack``
-compiles the blocks but factorises with LAPACK. Both run in the same way for the ratio to
-``newton`` (everything compiled by ``compiler.py``, cached in ``$DDVP_NLP_CACHE`` or
-``~/.cache/ddvp_nlp``, so only the first run ever compiles).
+machine and the band LU by LAPACK through scipy (``Compilation(compiler=None,
+band_lu="lapack")``), the path of a machine without a C compiler; ``newton-lapack`` compiles
+the blocks but factorises with LAPACK (``Compilation(band_lu="lapack")``). Both run in the same
+way for the ratio to ``newton`` (everything compiled by ``compiler.py``, cached in
+``$DDVP_NLP_CACHE`` or ``~/.cache/ddvp_nlp``, so only the first run ever compiles).
 
-Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``bvp_ipopt_assembly.py``, the
-default build); ``ipopt-mx`` the MX NLP of mapped functions (``bvp_ipopt.py``), run in the same
-way for the ratio.
+Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``solvers/bvp/ipopt.py`` through
+the grid's one IPOPT build).
 """
 
 from __future__ import annotations
@@ -54,21 +53,19 @@ PLAN = {  # (case, solver): sizes
     ("pendulum", "newton-vm"): [1_000, 10_000, 100_000, 1_000_000],
     ("pendulum", "newton-lapack"): [1_000, 10_000, 100_000, 1_000_000],
     ("pendulum", "ipopt"): [1_000, 10_000, 100_000],
-    ("pendulum", "ipopt-mx"): [1_000, 10_000, 100_000],
     ("kepler", "auto"): [1_000, 10_000],
     ("kepler-shoot", "auto"): [1_000, 10_000, 100_000],
     ("kepler-nodes", "auto"): [1_000, 10_000, 100_000],
 }
 TARGETS = {("pendulum", "newton"): {10_000: 0.2, 100_000: 1.5, 1_000_000: 20.0},
            ("pendulum", "ipopt"): {10_000: 2.0, 100_000: 20.0},
-           ("pendulum", "ipopt-mx"): {10_000: 2.0, 100_000: 20.0},
            ("kepler", "auto"): {10_000: 0.5, 100_000: 5.0},
            ("kepler-shoot", "auto"): {10_000: 0.5, 100_000: 5.0},
            ("kepler-nodes", "auto"): {10_000: 0.5, 100_000: 5.0}}
 TIME_LIMIT = 150.0
 # Runs per (case, solver, N): 3 where a run takes seconds, to show the iteration counts repeat.
 REPEATS = {("pendulum", "newton"): 3, ("pendulum", "newton-vm"): 3,
-           ("pendulum", "newton-lapack"): 3, ("pendulum", "ipopt"): 3, ("pendulum", "ipopt-mx"): 3,
+           ("pendulum", "newton-lapack"): 3, ("pendulum", "ipopt"): 3,
            ("kepler", "auto"): 1, ("kepler-shoot", "auto"): 3, ("kepler-nodes", "auto"): 3}
 
 
@@ -77,38 +74,41 @@ def endpoints(case: str):
 
     system = load_scene(case.split("-")[0]).system
     if case == "pendulum":
-        reference = march(system, [0.5], [0.5], tau0=0.01, t_end=18.0, scheme="fixed")
+        reference = march(system, [0.5], [0.5], (0.0, 18.0), tau0=0.01, scheme="fixed")
         return system, [0.5], reference.q[-1], (0.0, 18.0), {}, {}
     e, T = 0.5, 6 * np.pi
     q0, p0 = [1 - e, 0.0], [0.0, np.sqrt((1 + e) / (1 - e))]
-    reference = march(system, q0, p0, tau0=T / 20000, t_end=T, scheme="fixed", params={"e": e})
+    reference = march(system, q0, p0, (0.0, T), tau0=T / 20000, scheme="fixed", params={"e": e})
     start = {"kepler": {}, "kepler-shoot": {"guess": "march", "p_start": p0},
              "kepler-nodes": {"guess": reference}}[case]
     return system, q0, reference.q[-1], (0.0, T), {"e": e}, start
 
 
 def one(case: str, nodes: int, solver: str) -> dict:
-    from ddvp_nlp.solvers.bvp import phase as bvp_phase
-    from ddvp_nlp.solvers.bvp.solve import solve_bvp
+    from ddvp_nlp import Compilation, GridOptions, solve_bvp
 
     label = solver
-    if solver.startswith("newton"):
-        from ddvp_nlp.solvers.bvp import assembly as bvp_assembly
-        from ddvp_nlp.solvers.grid import band as bvp_band
-        bvp_assembly.COMPILER = None if solver == "newton-vm" else "auto"
-        bvp_band.KERNEL = None if solver in ("newton-vm", "newton-lapack") else "auto"
-        solver = "newton"
-    if solver.startswith("ipopt"):
-        bvp_phase.IPOPT_BUILD = "mx" if solver == "ipopt-mx" else "assembly"
-        solver = "ipopt"
+    compilation = Compilation(compiler=None if solver == "newton-vm" else "auto",
+                              band_lu="lapack" if solver in ("newton-vm", "newton-lapack")
+                              else "compiled")
+    solver = solver.split("-")[0]
 
     system, q_start, q_end, span, params, start = endpoints(case)
     cpu = time.process_time()
-    solution = solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
-                         solver=solver, params=params, time_limit=TIME_LIMIT, **start)
+    solution = solve_bvp(
+        system,
+        q_start,
+        q_end,
+        (span[0], span[1]),
+        nodes=nodes,
+        params=params,
+        options=GridOptions(solver=solver, time_limit=TIME_LIMIT),
+        compilation=compilation,
+        **start,
+    )
     phases = solution.stats["phases"]
     return {"case": case, "N": nodes, "solver": label, "status": solution.status.code,
-            "path": _path(system, solution.stats["solver"]),
+            "path": _path(system, solution.stats["solver"], compilation),
             "build_s": solution.timing["build_s"], "solve_s": solution.timing["solve_s"],
             "cpu_s": time.process_time() - cpu,
             "iterations": [ph["iterations"] for ph in phases],
@@ -117,18 +117,18 @@ def one(case: str, nodes: int, solver: str) -> dict:
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
-def _path(system, solver: str) -> str:
+def _path(system, solver: str, compilation) -> str:
     """The solver that returned the point; for Newton, how its blocks were evaluated (compiled
     or on CasADi's virtual machine, read from the built assembly)."""
     from ddvp_nlp.cache import PROBLEMS
 
     if solver != "newton":
         return solver
-    from ddvp_nlp.solvers.grid import band as bvp_band
+    from ddvp_nlp.solvers.grid.linear import band_kernel
 
     paths = {PROBLEMS.get(system, key, lambda: None).path for key in PROBLEMS.keys(system)
              if key[0] == "bvp_assembly"}
-    lu = "C LU" if bvp_band.kernel() is not None else "LAPACK"
+    lu = "C LU" if band_kernel(compilation) is not None else "LAPACK"
     return f"newton, {'/'.join(sorted(paths))}, {lu}"
 
 

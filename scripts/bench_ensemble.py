@@ -24,21 +24,34 @@ import numpy as np
 # scripts/ is on the path when a script runs: the one timer of the benchmarks
 from bench_march import timed  # noqa: E402
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.solvers.march.ensemble import march_ensemble
 from ddvp_nlp.studies.poincare import section_starts
 
 
 def rows(args, system, q0s, p0s, cache):
     def loop():
-        return [march(system, q, p, tau0=0.05, t_end=args.t_end, cache_dir=cache)
-                for q, p in zip(q0s, p0s, strict=True)]
+        return [
+            march(
+                system, q, p, (0.0, args.t_end), tau0=0.05, compilation=Compilation(cache_dir=cache)
+            )
+            for q, p in zip(q0s, p0s, strict=True)
+        ]
 
     def ensemble(workers):
-        return lambda: march_ensemble(system, q0s, p0s, tau0=0.05, t_end=args.t_end,
-                                      cache_dir=cache, workers=workers)
+        return lambda: march_ensemble(
+            system,
+            q0s,
+            p0s,
+            (0.0, args.t_end),
+            tau0=0.05,
+            workers=workers,
+            compilation=Compilation(cache_dir=cache),
+        )
 
-    march(system, q0s[0], p0s[0], tau0=0.05, t_end=1.0, cache_dir=cache)  # compile / load
+    march(
+        system, q0s[0], p0s[0], (0.0, 1.0), tau0=0.05, compilation=Compilation(cache_dir=cache)
+    )  # compile / load
     found = [("loop of march()", *timed(args.repeats, loop, warm_up=False))]
     for workers in args.workers:
         found.append((f"march_ensemble(workers={workers})",

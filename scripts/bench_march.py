@@ -28,7 +28,7 @@ import numpy as np
 import scipy
 from scipy.integrate import solve_ivp
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, load_scene, march
 
 
 def best_of(repeats, run):
@@ -93,8 +93,16 @@ def bench(name, overrides, repeats):
     rows = {}
     with tempfile.TemporaryDirectory() as cache:
         def run(**options):
-            return march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                         params=config.params, cache_dir=cache, **options)
+            return march(
+                system,
+                config.q0,
+                config.p0,
+                (0.0, config.t_end),
+                tau0=config.tau0,
+                params=config.params,
+                compilation=Compilation(cache_dir=cache),
+                **options,
+            )
 
         first = run()  # builds and compiles into the empty cache: the build/compile figures
         build = {"build_s": first.timing["build_s"], "compile_s": first.timing["compile_s"]}
@@ -111,9 +119,18 @@ def bench(name, overrides, repeats):
     careful = rows["careful path"][1]
     compiled = rows["fast path, compiled"][1]
     agreement = _largest_difference(compiled, careful)
-    nudged = _largest_difference(march(system, config.q0 + 1e-15, config.p0, tau0=config.tau0,
-                                       t_end=config.t_end, params=config.params, fast=False),
-                                 careful)
+    nudged = _largest_difference(
+        march(
+            system,
+            config.q0 + 1e-15,
+            config.p0,
+            (0.0, config.t_end),
+            tau0=config.tau0,
+            params=config.params,
+            compilation=Compilation(fast=False),
+        ),
+        careful,
+    )
 
     f = FIELDS[name](config.params)
     check = np.asarray(vector_field_check(system, theta, config))
@@ -235,8 +252,16 @@ def bench_against_c(name, overrides, repeats, folder):
                                         ctypes.byref(iterations))
 
     def run(**options):
-        return march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                     params=config.params, cache_dir=folder, **options)
+        return march(
+            system,
+            config.q0,
+            config.p0,
+            (0.0, config.t_end),
+            tau0=config.tau0,
+            params=config.params,
+            compilation=Compilation(cache_dir=folder),
+            **options,
+        )
 
     checks = [np.empty((capacity, 2 * n)), np.zeros(capacity), *(np.empty(capacity + 1)
                                                                    for _ in range(4))]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddvp_nlp import Scene, load_scene, march
+from ddvp_nlp import Output, Scene, load_scene, march
 from ddvp_nlp.discrete.equations import interval_energies
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
@@ -60,12 +60,19 @@ def double_well_table(t_end: float) -> list[str]:
                       name="double_well")
         system, theta = scene.system, np.zeros(0)
         for h0 in (0.1, 0.01):
-            run = march(system, [q0], [0.0], tau0=h0, t_end=t_end, scheme="vddvp",
-                        progress=False)
+            run = march(system, [q0], [0.0], (0.0, t_end), tau0=h0, scheme="vddvp",
+                        output=Output(progress=False))
             interval = interval_energies(system, Scheme(), run.t, run.q, run.p, theta)
             nodes = system.energy(run.q, run.p, run.t, theta)
-            fixed = march(system, [q0], [0.0], tau0=t_end / run.steps, t_end=t_end,
-                          scheme="fixed", progress=False)
+            fixed = march(
+                system,
+                [q0],
+                [0.0],
+                (0.0, t_end),
+                tau0=t_end / run.steps,
+                scheme="fixed",
+                output=Output(progress=False),
+            )
             fixed_H = system.energy(fixed.q, fixed.p, fixed.t, theta)
             tau = np.diff(run.t)
             lines.append(

@@ -8,9 +8,9 @@ def run_scene(name, overrides=None, **kwargs):
     """March a built-in scene with its defaults, ``overrides`` applied to them."""
     scene = load_scene(name)
     config = scene.resolve(overrides or {})
-    options = {"tau0": config.tau0, "t_end": config.t_end, "t0": config.t0,
-               "params": config.params, **kwargs}
-    return scene, config, march(scene.system, config.q0, config.p0, **options)
+    options = {"tau0": config.tau0, "params": config.params, **kwargs}
+    return scene, config, march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                                **options)
 
 
 def fitted_order(steps, errors):

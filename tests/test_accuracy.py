@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from ddvp_nlp import HigherOrderScene, list_scenes, load_scene, march
+from ddvp_nlp import Compilation, HigherOrderScene, Tolerance, list_scenes, load_scene, march
 from ddvp_nlp.cli import main
 from ddvp_nlp.errors import InputError
-from ddvp_nlp.solvers.accuracy import ErrorEstimates, Tolerance
+from ddvp_nlp.solvers.accuracy import ErrorEstimates
 
 
 def _exact_harmonic(t, z0, t0, w):
@@ -23,8 +23,15 @@ def test_local_error_estimate_is_the_true_local_error_on_harmonic(compiled):
     a relative O(tau^2)."""
     scene = load_scene("harmonic")
     config = scene.resolve({"t_end": 5.0})
-    solution = march(scene.system, config.q0, config.p0, tau0=0.1, t_end=config.t_end,
-                     scheme="fixed", params=config.params)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=0.1,
+        scheme="fixed",
+        params=config.params,
+    )
     theta = scene.system.parameter_vector(config.params)
     z = np.hstack([solution.q, solution.p])
     from ddvp_nlp.solvers.compiler import find_compiler
@@ -51,8 +58,15 @@ def test_propagated_global_error_is_the_true_error_on_harmonic():
     it is the true global error up to the RK4 reference's own error."""
     scene = load_scene("harmonic")
     config = scene.resolve({})
-    solution = march(scene.system, config.q0, config.p0, tau0=0.05, t_end=config.t_end,
-                     scheme="fixed", params=config.params)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=0.05,
+        scheme="fixed",
+        params=config.params,
+    )
     theta = scene.system.parameter_vector(config.params)
     z = np.hstack([solution.q, solution.p])
     _, _, _, estimate = ErrorEstimates(scene.system)(solution.t, z, theta)
@@ -105,8 +119,15 @@ def test_known_wrong_trajectories_end_inaccurate(tmp_path, capsys, argv, step):
 def test_accept_inaccurate_records_and_goes_on():
     scene = load_scene("kepler")
     config = scene.resolve({"e": 0.95})
-    solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                     params=config.params, accept_inaccurate=True)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=config.tau0,
+        params=config.params,
+        accuracy=Tolerance(stop=False),
+    )
     accuracy = solution.stats["accuracy"]
     assert solution.success and solution.t[-1] >= config.t_end
     assert accuracy["verdict"] == "inaccurate" and accuracy["first_failure"]["step"] == 0
@@ -118,8 +139,15 @@ def test_accept_inaccurate_records_and_goes_on():
 def test_every_built_in_scene_is_accurate_at_its_defaults(name):
     scene = load_scene(name)
     config = scene.resolve({})
-    solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
-                     t_end=config.t_end, t0=config.t0, params=config.params)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (config.t0, config.t_end),
+        v0=config.v0,
+        tau0=config.tau0,
+        params=config.params,
+    )
     assert solution.success, solution.message
     assert solution.stats["accuracy"]["verdict"] == "accurate"
 
@@ -127,8 +155,14 @@ def test_every_built_in_scene_is_accurate_at_its_defaults(name):
 def test_paper_example_is_unchanged():
     scene = load_scene("paper_pendulum")
     config = scene.resolve({})
-    solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                     params=config.params)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=config.tau0,
+        params=config.params,
+    )
     assert solution.success and solution.steps == 20150
     assert (round(solution.tau.min(), 5), round(solution.tau.max(), 6)) == (0.45814, 0.534655)
 
@@ -137,9 +171,19 @@ def test_paper_example_is_unchanged():
 def test_compiled_and_careful_paths_give_the_same_estimates(name):
     scene = load_scene(name)
     config = scene.resolve({"t_end": 5.0})
-    runs = [march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
-                  t_end=config.t_end, t0=config.t0, params=config.params, fast=fast)
-            for fast in (True, False)]
+    runs = [
+        march(
+            scene.system,
+            config.q0,
+            config.p0,
+            (config.t0, config.t_end),
+            v0=config.v0,
+            tau0=config.tau0,
+            params=config.params,
+            compilation=Compilation(fast=fast),
+        )
+        for fast in (True, False)
+    ]
     # the two paths accept the same steps; their nodes agree to round-off
     assert runs[0].t.size == runs[1].t.size and np.allclose(runs[0].t, runs[1].t, rtol=1e-12)
     assert np.allclose(runs[0].local_error, runs[1].local_error, rtol=1e-6, atol=1e-14)
@@ -165,8 +209,14 @@ def _true_error(scene, overrides, solution):
 def test_global_estimate_tracks_the_true_error(name, overrides):
     scene = load_scene(name)
     config = scene.resolve(overrides)
-    solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                     params=config.params)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=config.tau0,
+        params=config.params,
+    )
     true = _true_error(scene, overrides, solution)[-1]
     estimate = solution.stats["accuracy"]["global_error_estimate"]
     assert 1e-4 < true < 0.5

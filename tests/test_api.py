@@ -8,10 +8,13 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError", "Lagrangian",
-          "LagrangianSystem", "Scene", "Scheme", "Solution", "Status", "__version__",
-          "list_scenes", "load_scene", "march", "march_higher", "plot", "solve_bvp",
-          "solve_bvp_higher"}
+PUBLIC = {"Compilation", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
+          "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output", "Scene",
+          "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
+          "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
+          "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"}
+# No public function takes more than this many parameters: the rest are option objects.
+MOST_PARAMETERS = 13
 
 
 def test_public_names_are_stable_and_importable():
@@ -22,7 +25,7 @@ def test_public_names_are_stable_and_importable():
 
 def _harmonic_march(tau0, scheme="vddvp", t_end=5.0):
     scene = load_scene("harmonic")
-    return scene, march(scene.system, [1.0], [0.0], tau0=tau0, t_end=t_end, scheme=scheme)
+    return scene, march(scene.system, [1.0], [0.0], (0.0, t_end), tau0=tau0, scheme=scheme)
 
 
 def _dense_error(scene, solution, times):
@@ -89,21 +92,33 @@ def test_energy_at_the_nodes():
                        0.5 * (solution.p[:, 0] ** 2 + 4 * solution.q[:, 0] ** 2))
 
 
-def test_solve_bvp_takes_march_time_keywords_and_still_t_span():
+def test_march_and_solve_bvp_take_t_span_as_scipy_does():
+    """``t_span = (t0, t_end)`` is the fourth positional argument of both, or a keyword;
+    missing or malformed, it is refused by name."""
     system = load_scene("pendulum").system
-    new = solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=21)
-    with pytest.warns(DeprecationWarning, match=r"t_span\) is deprecated"):
-        old = solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=21)
-    assert new.success and np.array_equal(new.t, old.t) and np.array_equal(new.q, old.q)
-    q, _ = new.at(0.5)
-    assert q.shape == (1,) and new.at_end()[0][0] == pytest.approx(0.1, abs=1e-12)
-    with pytest.raises(InputError, match="not t_span as well"):
-        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), t_end=1.0, nodes=21)
-    with pytest.raises(InputError, match="needs t_end"):
-        solve_bvp(system, [0.5], [0.1], nodes=21)
-    with pytest.warns(DeprecationWarning), \
-            pytest.raises(InputError, match=r"^t_span must be a pair \(t_0, t_end\), got 3\.0$"):
+    solution = solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=21)
+    assert solution.success and np.array_equal(
+        solution.t, solve_bvp(system, [0.5], [0.1], t_span=(0.0, 1.0), nodes=21).t)
+    q, _ = solution.at(0.5)
+    assert q.shape == (1,) and solution.at_end()[0][0] == pytest.approx(0.1, abs=1e-12)
+    marched = march(system, [0.5], [0.5], (0.0, 1.0), tau0=0.1)
+    assert marched.success and marched.t[-1] >= 1.0
+    for call in (lambda: solve_bvp(system, [0.5], [0.1], nodes=21),
+                 lambda: march(system, [0.5], [0.5], tau0=0.1)):
+        with pytest.raises(InputError, match=r"^give t_span = \(t0, t_end\)$"):
+            call()
+    with pytest.raises(InputError, match=r"^t_span must be a pair \(t0, t_end\), got 3\.0$"):
         solve_bvp(system, [0.5], [0.1], t_span=3.0, nodes=21)
+
+
+def test_no_public_function_takes_more_than_a_dozen_parameters():
+    """The groups of options are objects (``StepControl``, ``Tolerance``, ``GridOptions``,
+    ``Compilation``, ``Output``), so a solve takes a handful of arguments."""
+    import inspect
+
+    counts = {name: len(inspect.signature(getattr(ddvp_nlp, name)).parameters)
+              for name in PUBLIC if inspect.isfunction(getattr(ddvp_nlp, name))}
+    assert max(counts.values()) <= MOST_PARAMETERS, counts
 
 
 def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
@@ -112,8 +127,8 @@ def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
     from ddvp_nlp import plot
 
     scene = load_scene("pendulum")
-    marched = march(scene.system, [0.5], [0.5], tau0=0.05, t_end=5.0)
-    solved = solve_bvp(scene.system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=91)
+    marched = march(scene.system, [0.5], [0.5], (0.0, 5.0), tau0=0.05)
+    solved = solve_bvp(scene.system, [0.5], [-0.036], (0.0, 9.0), nodes=91)
     assert marched.success and solved.success
     for name, solution in (("march", marched), ("bvp", solved)):
         path = tmp_path / f"{name}.png"

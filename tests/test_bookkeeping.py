@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, StepControl, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.accuracy import AccuracyMonitor, Tolerance, _Series
 from ddvp_nlp.solvers.driver import Nodes
@@ -204,7 +204,15 @@ def test_chunk_batches_are_the_chained_single_calls():
     scene = load_scene("pendulum")
     config = scene.resolve({})
     system, scheme = scene.system, Scheme.coerce("vddvp")
-    start = march(system, config.q0, config.p0, tau0=0.05, t_end=1.0, fast=False, max_steps=1)
+    start = march(
+        system,
+        config.q0,
+        config.p0,
+        (0.0, 1.0),
+        tau0=0.05,
+        steps=StepControl(max_steps=1),
+        compilation=Compilation(fast=False),
+    )
     theta = system.parameter_vector(config.params)
     chunk = FastChunk(system, scheme, step_functions(system, scheme), chunk=16, compiler=None,
                       cache_dir=None, accuracy=True)

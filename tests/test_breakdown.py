@@ -10,7 +10,16 @@ import numpy as np
 import pytest
 from conftest import run_scene
 
-from ddvp_nlp import HamiltonianSystem, InputError, Status, load_scene, march
+from ddvp_nlp import (
+    Compilation,
+    HamiltonianSystem,
+    InputError,
+    Status,
+    StepControl,
+    Tolerance,
+    load_scene,
+    march,
+)
 from ddvp_nlp.cli import main
 
 
@@ -29,7 +38,15 @@ def square_root():
 
 @pytest.mark.parametrize("fast", [True, False])
 def test_non_finite_step(square_root, fast):
-    solution = march(square_root, [1.0], [-3.0], tau0=0.5, t_end=5.0, scheme="fixed", fast=fast)
+    solution = march(
+        square_root,
+        [1.0],
+        [-3.0],
+        (0.0, 5.0),
+        tau0=0.5,
+        scheme="fixed",
+        compilation=Compilation(fast=fast),
+    )
     assert solution.status is Status.NON_FINITE
     assert solution.message.startswith("a step produced a non-finite value: step 0 from t = 0, "
                                        "q = [1.], p = [-3.]; z = [")
@@ -37,21 +54,21 @@ def test_non_finite_step(square_root, fast):
 
 
 def test_residual_above_the_tolerance(square_root):
-    solution = march(square_root, [1.0], [-1.0], tau0=0.1, t_end=5.0, tol=1e-18)
+    solution = march(square_root, [1.0], [-1.0], (0.0, 5.0), tau0=0.1, steps=StepControl(tol=1e-18))
     assert solution.status is Status.RESIDUAL_TOO_LARGE
     assert "canonical residual" in solution.message
     _clean(solution)
 
 
 def test_max_steps():
-    _, _, solution = run_scene("harmonic", max_steps=7)
+    _, _, solution = run_scene("harmonic", steps=StepControl(max_steps=7))
     assert solution.status is Status.MAX_STEPS and solution.steps == 7
     assert solution.message.endswith("; max_steps = 7")
     _clean(solution)
 
 
 def test_time_limit_keeps_what_was_done():
-    _, _, solution = run_scene("harmonic", time_limit=1e-12)
+    _, _, solution = run_scene("harmonic", steps=StepControl(time_limit=1e-12))
     assert solution.status is Status.TIME_LIMIT
     assert solution.message.endswith("; time_limit = 1e-12 s")
     assert solution.steps >= 0
@@ -60,25 +77,44 @@ def test_time_limit_keeps_what_was_done():
 
 @pytest.mark.parametrize("fast", [True, False])
 def test_energy_guard_stops_before_the_first_node_outside_the_band(fast):
-    scene, config, solution = run_scene("pendulum", {"tau0": 0.5}, scheme="fixed",
-                                        energy_guard=1e-4, fast=fast)
+    scene, config, solution = run_scene(
+        "pendulum",
+        {"tau0": 0.5},
+        scheme="fixed",
+        steps=StepControl(energy_guard=1e-4),
+        compilation=Compilation(fast=fast),
+    )
     assert solution.status is Status.ENERGY_GUARD
     H = scene.system.energy(solution.q, solution.p, solution.t, [])
     assert np.max(np.abs(H - H[0])) <= 1e-4 * max(1, abs(H[0]))
     assert "|H - H0| = " in solution.message and "> energy_guard * max(1, |H0|) = 1.000e-04" \
         in solution.message
     # the node it refused is the next fixed step: one step further breaks the band
-    longer = march(scene.system, config.q0, config.p0, tau0=0.5, t_end=config.t_end,
-                   scheme="fixed", max_steps=solution.steps + 1)
+    longer = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=0.5,
+        scheme="fixed",
+        steps=StepControl(max_steps=solution.steps + 1),
+    )
     H_next = scene.system.energy(longer.q[-1:], longer.p[-1:], longer.t[-1:], [])[0]
     assert abs(H_next - H[0]) > 1e-4
     _clean(solution)
 
 
 def test_fast_and_careful_paths_stop_at_the_same_node_under_the_guard():
-    _, _, fast = run_scene("pendulum", {"tau0": 0.5}, scheme="fixed", energy_guard=1e-4)
-    _, _, careful = run_scene("pendulum", {"tau0": 0.5}, scheme="fixed", energy_guard=1e-4,
-                              fast=False)
+    _, _, fast = run_scene(
+        "pendulum", {"tau0": 0.5}, scheme="fixed", steps=StepControl(energy_guard=1e-4)
+    )
+    _, _, careful = run_scene(
+        "pendulum",
+        {"tau0": 0.5},
+        scheme="fixed",
+        steps=StepControl(energy_guard=1e-4),
+        compilation=Compilation(fast=False),
+    )
     assert fast.steps == careful.steps and fast.message == careful.message
 
 
@@ -108,12 +144,12 @@ def test_solvability_monitor_is_quiet_where_the_scheme_is_fine():
 
 def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged():
     scene = load_scene("pendulum")
-    common = {"tau0": 0.05, "t_end": 10.0}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        stopped = march(scene.system, [0.5], [2.0], **common)  # H = 2.12 > 2: rotation
-        carried = march(scene.system, [0.5], [2.0], **common, breakdown="least_squares",
-                        tau_min=0.02)
+        # H = 2.12 > 2: rotation
+        stopped = march(scene.system, [0.5], [2.0], (0.0, 10.0), tau0=0.05)
+        carried = march(scene.system, [0.5], [2.0], (0.0, 10.0), tau0=0.05,
+                        steps=StepControl(tau_min=0.02, breakdown="least_squares"))
     assert not stopped.success
     assert carried.success, carried.message
     _clean(carried)
@@ -161,19 +197,22 @@ def test_interrupted_march_writes_a_readable_partial_result(tmp_path, monkeypatc
     assert np.all(np.diff(result["t"]) > 0) and np.all(np.isfinite(result["q"]))
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"time_limit": 0.0}, "time_limit must be > 0, got 0.0"),
-    ({"energy_guard": float("nan")}, "energy_guard must be finite, got nan"),
-    ({"breakdown": "skip"}, "breakdown must be one of stop, least_squares, got 'skip'"),
-    ({"breakdown": "least_squares", "scheme": "fixed"},
+@pytest.mark.parametrize("steps, scheme, message", [
+    ({"time_limit": 0.0}, "vddvp", "time_limit must be > 0, got 0.0"),
+    ({"energy_guard": float("nan")}, "vddvp", "energy_guard must be finite, got nan"),
+    ({"breakdown": "skip"}, "vddvp", "breakdown must be one of stop, least_squares, got 'skip'"),
+    ({"breakdown": "least_squares"}, "fixed",
      "breakdown='least_squares' needs an energy rule (vddvp or lee), got scheme 'fixed'"),
-    ({"tol": float("nan")}, "tol must be finite, got nan"),
+    ({"tol": float("nan")}, "vddvp", "tol must be finite, got nan"),
 ])
-def test_bad_breakdown_options(kwargs, message):
+def test_bad_breakdown_options(steps, scheme, message):
+    """Refused by name, when the options are made or (a combination with the scheme) when the
+    march checks them, before anything is built."""
     scene = load_scene("harmonic")
     with pytest.raises(InputError, match="^" + message.replace("(", r"\(").replace(")", r"\)")
                        + "$"):
-        march(scene.system, [1.0], [0.0], tau0=0.1, t_end=1.0, **kwargs)
+        march(scene.system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, scheme=scheme,
+              steps=StepControl(**steps))
 
 
 def test_default_step_ratio_refuses_a_jump_to_a_far_root():
@@ -181,9 +220,13 @@ def test_default_step_ratio_refuses_a_jump_to_a_far_root():
         warnings.simplefilter("ignore", RuntimeWarning)
         # the accuracy check would stop both runs first (accuracy.py); this test is about the
         # step-ratio guard, so the check only records
-        _, _, guarded = run_scene("kepler", {"e": 0.99}, accept_inaccurate=True)
-        _, _, unguarded = run_scene("kepler", {"e": 0.99}, max_step_ratio=None,
-                                    accept_inaccurate=True)
+        _, _, guarded = run_scene("kepler", {"e": 0.99}, accuracy=Tolerance(stop=False))
+        _, _, unguarded = run_scene(
+            "kepler",
+            {"e": 0.99},
+            steps=StepControl(max_step_ratio=None),
+            accuracy=Tolerance(stop=False),
+        )
     assert guarded.status is Status.STEP_RATIO
     assert "> max_step_ratio 10.0" in guarded.message
     _clean(guarded)
@@ -205,7 +248,9 @@ def test_rotating_pendulum_breakdowns_by_status(tau0, status, steps, prefix, fas
     scene = load_scene("pendulum")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        solution = march(scene.system, [0.5], [2.0], tau0=tau0, t_end=30.0, fast=fast)
+        solution = march(
+            scene.system, [0.5], [2.0], (0.0, 30.0), tau0=tau0, compilation=Compilation(fast=fast)
+        )
     assert solution.status is status and solution.steps == steps
     assert solution.message.startswith(prefix)
     assert solution.stats["solvability_warning"]["step"] < steps

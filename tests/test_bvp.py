@@ -9,7 +9,7 @@ from conftest import fitted_order
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from ddvp_nlp import InputError, Scheme, Status, load_scene, march
+from ddvp_nlp import GridOptions, InputError, Scheme, Status, load_scene, march
 from ddvp_nlp.cli import main
 from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
@@ -22,10 +22,17 @@ from ddvp_nlp.solvers.bvp.solve import solve_bvp
 def test_endpoints_of_a_march_give_back_its_nodes(name, tau0, t_end, rule, solver):
     """From the default start (no guess), with the march's endpoints and node count."""
     system = load_scene(name).system
-    marched = march(system, [0.5], [0.5], tau0=tau0, t_end=t_end, scheme=rule)
+    marched = march(system, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule)
     assert marched.success and 20 <= marched.t.size <= 300
-    solved = solve_bvp(system, marched.q[0], marched.q[-1], t0=marched.t[0],
-                       t_end=marched.t[-1], nodes=marched.t.size, scheme=rule, solver=solver)
+    solved = solve_bvp(
+        system,
+        marched.q[0],
+        marched.q[-1],
+        (marched.t[0], marched.t[-1]),
+        nodes=marched.t.size,
+        scheme=rule,
+        options=GridOptions(solver=solver),
+    )
     assert solved.success, solved.message
     assert np.max(np.abs(solved.t - marched.t)) < 1e-8
     assert np.max(np.abs(solved.q - marched.q)) < 1e-8
@@ -48,7 +55,7 @@ def test_fixed_steps_converge_with_order_two_to_the_continuous_solution():
     system = load_scene("pendulum").system
     sizes, errors = [], []
     for nodes in (51, 101, 201, 401):
-        solution = solve_bvp(system, [q_start], [q_end], t0=0.0, t_end=T, nodes=nodes,
+        solution = solve_bvp(system, [q_start], [q_end], (0.0, T), nodes=nodes,
                              scheme="fixed")
         assert solution.success, solution.message
         exact = reference(solution.t)
@@ -61,9 +68,17 @@ def test_fixed_steps_converge_with_order_two_to_the_continuous_solution():
 def test_lee_and_vddvp_agree_on_an_autonomous_scene():
     scene = load_scene("pendulum")
     data = scene.resolve_boundary()
-    solutions = [solve_bvp(scene.system, data.q_start, data.q_end, t0=data.t_span[0],
-                         t_end=data.t_span[1],
-                           nodes=data.nodes, scheme=rule) for rule in ("vddvp", "lee")]
+    solutions = [
+        solve_bvp(
+            scene.system,
+            data.q_start,
+            data.q_end,
+            (data.t_span[0], data.t_span[1]),
+            nodes=data.nodes,
+            scheme=rule,
+        )
+        for rule in ("vddvp", "lee")
+    ]
     assert all(s.success for s in solutions)
     assert np.max(np.abs(solutions[0].t - solutions[1].t)) < 1e-10
     assert np.max(np.abs(solutions[0].q - solutions[1].q)) < 1e-10
@@ -77,8 +92,8 @@ def test_unreachable_endpoints_end_with_a_status_and_residuals(rule, solver):
     M = 20
     h = 2 * np.tan(np.pi / (2 * M))
     system = load_scene("harmonic").system
-    solution = solve_bvp(system, [1.0], [0.5], t0=0.0, t_end=M * h, nodes=M + 1, scheme=rule,
-                         solver=solver)
+    solution = solve_bvp(system, [1.0], [0.5], (0.0, M * h), nodes=M + 1, scheme=rule,
+                         options=GridOptions(solver=solver))
     assert not solution.success
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED,
                                Status.NO_ADMISSIBLE_STEP)
@@ -93,9 +108,14 @@ def test_unreachable_endpoints_end_with_a_status_and_residuals(rule, solver):
 def test_solver_failure_keeps_the_last_iterate_and_says_why(solver, said):
     scene = load_scene("pendulum")
     data = scene.resolve_boundary()
-    solution = solve_bvp(scene.system, data.q_start, data.q_end, t0=data.t_span[0],
-                         t_end=data.t_span[1], nodes=data.nodes,
-                         max_iter=1, solver=solver)
+    solution = solve_bvp(
+        scene.system,
+        data.q_start,
+        data.q_end,
+        (data.t_span[0], data.t_span[1]),
+        nodes=data.nodes,
+        options=GridOptions(solver=solver, max_iter=1),
+    )
     assert solution.status is Status.SOLVER_FAILED
     assert re.match(r"the NLP solver did not converge \(" + said + r"\); "
                     r"canonical residual \S+ on interval \d+", solution.message)
@@ -107,9 +127,14 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
     an otherwise solved grid gives NOT_VERIFIED, naming the interval."""
     scene = load_scene("pendulum")
     data = scene.resolve_boundary()
-    solution = solve_bvp(scene.system, data.q_start, data.q_end, t0=data.t_span[0],
-                         t_end=data.t_span[1], nodes=data.nodes,
-                         tol=1e-9)
+    solution = solve_bvp(
+        scene.system,
+        data.q_start,
+        data.q_end,
+        (data.t_span[0], data.t_span[1]),
+        nodes=data.nodes,
+        options=GridOptions(tol=1e-9),
+    )
     assert solution.success
     from ddvp_nlp.solvers.bvp.solve import _verify
     phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3,
@@ -127,16 +152,16 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
 def test_bad_input_is_refused_before_building():
     system = load_scene("pendulum").system
     with pytest.raises(InputError, match=r"^nodes must be an integer >= 3, got 2$"):
-        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=2)
-    with pytest.raises(InputError, match=r"^t_end must be > t0, got t0 = 1\.0, t_end = 0\.0$"):
-        solve_bvp(system, [0.5], [0.1], t0=1.0, t_end=0.0, nodes=10)
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=2)
+    with pytest.raises(InputError, match=r"^t_end must be > t0 = 1\.0, got 0\.0$"):
+        solve_bvp(system, [0.5], [0.1], (1.0, 0.0), nodes=10)
     with pytest.raises(InputError, match=r"^q_end must be finite, got \[nan\]$"):
-        solve_bvp(system, [0.5], [np.nan], t0=0.0, t_end=1.0, nodes=10)
+        solve_bvp(system, [0.5], [np.nan], (0.0, 1.0), nodes=10)
     with pytest.raises(InputError,
                        match=r"^unknown solver 'snopt' \(choose from auto, newton, ipopt\)$"):
-        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, solver="snopt")
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, options=GridOptions(solver="snopt"))
     with pytest.raises(InputError, match=r"^guess\['q'\] must have shape \(10, 1\), got \(9, 1\)$"):
-        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10,
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10,
                   guess={"t": np.linspace(0, 1, 10), "q": np.zeros((9, 1)),
                          "p": np.zeros((10, 1))})
 

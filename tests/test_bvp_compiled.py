@@ -1,8 +1,10 @@
-"""The fixed-endpoint assembly compiled (``bvp_assembly.COMPILER = "auto"``, gcc through
-``compiler.py``) and on CasADi's virtual machine (``None``, the fallback): the same residuals,
-Jacobian and nodes, one compiled library for every node count, the fallback when the compiler
-fails, and the band store reused across evaluations and in-place factorisations. The compiled
-banded LU (``bvp_band.py``) against LAPACK's through scipy: the same factors and solutions."""
+"""The fixed-endpoint assembly compiled (``Compilation(compiler="auto")``, gcc through
+``compiler.py``) and on CasADi's virtual machine (``compiler=None``, the fallback): the same
+residuals, Jacobian and nodes, one compiled library for every node count, the fallback when the
+compiler fails, and the band store reused across evaluations and in-place factorisations. The
+compiled banded LU (``grid/band.py``) against LAPACK's through scipy: the same pivots, and
+factors and solutions within the rounding the two orders of operations allow (OpenBLAS's
+kernels round differently on different CPUs: bit equality is not a property of the path)."""
 
 import warnings
 
@@ -10,14 +12,17 @@ import numpy as np
 import pytest
 from scipy.linalg import lapack
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, GridOptions, StepControl, load_scene, march, solve_bvp
 from ddvp_nlp.cache import PROBLEMS
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers import compiler
-from ddvp_nlp.solvers.bvp import assembly as bvp_assembly
-from ddvp_nlp.solvers.bvp.assembly import WINDOW, Ends, GridAssembly
-from ddvp_nlp.solvers.bvp.solve import solve_bvp
-from ddvp_nlp.solvers.grid import band as bvp_band
+from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
+from ddvp_nlp.solvers.grid import band
+from ddvp_nlp.solvers.grid.maps import WINDOW, evaluate_blocks, window_map
+
+EPS = np.finfo(float).eps
+COMPILED = Compilation()
+NOTHING_COMPILED = Compilation(compiler=None, band_lu="lapack")
 
 needs_compiler = pytest.mark.skipif(compiler.find_compiler("auto") is None,
                                     reason="no C compiler on this machine")
@@ -25,10 +30,8 @@ needs_compiler = pytest.mark.skipif(compiler.find_compiler("auto") is None,
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    """A fresh compiled-code cache; the assembly setting restored after the test."""
+    """A fresh compiled-code cache."""
     monkeypatch.setenv("DDVP_NLP_CACHE", str(tmp_path))
-    monkeypatch.setattr(bvp_assembly, "COMPILER", "auto")
-    monkeypatch.setattr(bvp_band, "KERNEL", "auto")
     return tmp_path
 
 
@@ -47,8 +50,7 @@ def _both(system, rule, nodes, x, ends):
     """``(F, band)`` of each path, compiled first."""
     out = []
     for setting in ("auto", None):
-        bvp_assembly.COMPILER = setting
-        grid = GridAssembly(system, Scheme(rule), nodes)
+        grid = GridAssembly(system, Scheme(rule), nodes, Compilation(compiler=setting))
         assert grid.path == ("compiled" if setting else "vm")
         F, blocks = grid.evaluate(x, ends)
         out.append((F, grid.banded(blocks).copy(), grid.evaluate(x, ends, False)[0]))
@@ -115,11 +117,10 @@ def test_one_compile_serves_every_node_count(cache):
 
 def test_a_failing_compiler_falls_back_to_the_virtual_machine(cache, monkeypatch):
     """A compiler that exits with an error: one warning, the virtual machine, the same nodes."""
-    monkeypatch.setattr(bvp_assembly, "COMPILER", "false")
     system = load_scene("pendulum").system
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        grid = GridAssembly(system, Scheme("vddvp"), 30)
+        grid = GridAssembly(system, Scheme("vddvp"), 30, Compilation(compiler="false"))
     assert grid.path == "vm"
     assert any("running on CasADi's virtual machine instead" in str(w.message) for w in caught)
     t, q, p, ends = _point(system, "vddvp", 30)
@@ -127,40 +128,52 @@ def test_a_failing_compiler_falls_back_to_the_virtual_machine(cache, monkeypatch
     assert np.all(np.isfinite(F)) and np.all(np.isfinite(grid.banded(blocks)))
 
 
-def _solve(name, setting, nodes):
+def _solve(name, compilation, nodes, nudge=0.0):
     """The default-start Newton solve of a pendulum swing or of kepler e = 0.5 over one period
-    (endpoints from a fixed-step march), with the assembly and the band LU ``setting``."""
-    bvp_assembly.COMPILER = bvp_band.KERNEL = setting
-    PROBLEMS.clear()  # the built assemblies are cached per system: build this path's own
+    (endpoints from a fixed-step march), with the assembly and the band LU of
+    ``compilation``; ``nudge``: ``q_end`` moved by that many units of its round-off."""
     if name == "pendulum":
         system = load_scene("pendulum").system
-        reference = march(system, [0.5], [0.5], tau0=0.01, t_end=9.0, scheme="fixed")
-        return solve_bvp(system, [0.5], reference.q[-1], t0=0.0, t_end=9.0, nodes=nodes,
-                         solver="newton")
+        reference = march(system, [0.5], [0.5], (0.0, 9.0), tau0=0.01, scheme="fixed")
+        q_end = reference.q[-1] + nudge * EPS * np.maximum(1.0, np.abs(reference.q[-1]))
+        return solve_bvp(system, [0.5], q_end, (0.0, 9.0), nodes=nodes,
+                         options=GridOptions(solver="newton"), compilation=compilation)
     system = load_scene("kepler").system
     e, T = 0.5, 2 * np.pi
     q0, p0 = [1 - e, 0.0], [0.0, np.sqrt((1 + e) / (1 - e))]
-    reference = march(system, q0, p0, tau0=T / (nodes - 1), t_end=T, scheme="fixed",
-                      params={"e": e}, max_steps=nodes)
-    return solve_bvp(system, q0, reference.q[-1], t0=0.0, t_end=T, nodes=nodes,
-                     solver="newton", params={"e": e}, guess=reference)
+    reference = march(system, q0, p0, (0.0, T), tau0=T / (nodes - 1), scheme="fixed",
+                      params={"e": e}, steps=StepControl(max_steps=nodes))
+    q_end = reference.q[-1] + nudge * EPS * np.maximum(1.0, np.abs(reference.q[-1]))
+    return solve_bvp(system, q0, q_end, (0.0, T), nodes=nodes, params={"e": e},
+                     guess=reference, options=GridOptions(solver="newton"),
+                     compilation=compilation)
+
+
+def _largest_difference(a, b) -> float:
+    return max(float(np.max(np.abs(getattr(a, key) - getattr(b, key)))) for key in "tqp")
 
 
 @needs_compiler
 @pytest.mark.parametrize("name, nodes, most", [("pendulum", 2000, 10), ("kepler", 1500, 8)])
 def test_compiled_and_vm_newton_return_the_same_nodes(cache, name, nodes, most):
     """Compiled (blocks and band LU) and not (CasADi's VM, LAPACK through scipy): both verify,
-    take the same iterations in every phase (a bounded number), and return the same nodes to
-    1e-12."""
-    compiled = _solve(name, "auto", nodes)
-    vm = _solve(name, None, nodes)
+    take a bounded number of iterations in every phase (the same, give or take one where the
+    last one lands near the round-off target), and return the same nodes within four times
+    the problem's own sensitivity to round-off: how far the nodes move when ``q_end`` moves by
+    four ulps (the two paths evaluate the same rows with a few ulps of different rounding;
+    the problem's condition, ``~N^2``, carries that to the nodes: 8e-12 at N = 1500 on kepler,
+    where a 4-ulp nudge of ``q_end`` moves them 1e-11; measured)."""
+    compiled = _solve(name, COMPILED, nodes)
+    vm = _solve(name, NOTHING_COMPILED, nodes)
     for solution in (compiled, vm):
         assert solution.success, solution.message
     counts = [[ph["iterations"] for ph in s.stats["phases"]] for s in (compiled, vm)]
-    assert counts[0] == counts[1]
+    assert len(counts[0]) == len(counts[1])
+    assert all(abs(a - b) <= 1 for a, b in zip(*counts, strict=True))
     assert sum(counts[0]) <= most
-    for key in ("t", "q", "p"):
-        assert np.max(np.abs(getattr(compiled, key) - getattr(vm, key))) <= 1e-12
+    sensitivity = _largest_difference(compiled, _solve(name, COMPILED, nodes, nudge=4))
+    assert 0 < sensitivity < 1e-9
+    assert _largest_difference(compiled, vm) <= 4 * sensitivity
 
 
 def _random_band(size, w, seed):
@@ -170,30 +183,48 @@ def _random_band(size, w, seed):
     return np.asfortranarray(np.random.default_rng(seed).standard_normal((3 * w + 1, size)))
 
 
+def _dense(ab: np.ndarray, w: int) -> np.ndarray:
+    """The matrix of a ``gbtrf`` store (its band rows ``w .. 3w``)."""
+    size = ab.shape[1]
+    A = np.zeros((size, size))
+    for j in range(size):
+        for i in range(max(0, j - w), min(size, j + w + 1)):
+            A[i, j] = ab[2 * w + i - j, j]
+    return A
+
+
 @needs_compiler
 @pytest.mark.parametrize("w", [4, 7, 31])
 def test_the_compiled_band_lu_is_lapacks(cache, w):
     """Bandwidths of n = 1, 2 and 10: the same pivots as LAPACK's ``dgbtrf``/``dgbtrs``
-    through scipy, and for n = 1, 2 the same factors and solution to the bit (the same
-    operations in the same order); at w = 31 OpenBLAS's vectorised rank-1 updates round
-    differently."""
-    kernel = bvp_band.kernel()
+    through scipy; factors and solutions that differ by no more than the two orders of
+    operations can round apart (the loops are LAPACK's reference ones; OpenBLAS's kernels use
+    FMA and vector updates on some CPUs): the factors by a few ulps of the largest product
+    ``|L||U|`` entering each entry, the solutions by the matrix's condition number times that
+    backward error."""
+    kernel = band.kernel()
     assert kernel is not None
-    ab = _random_band(2000, w, seed=w)
-    rhs = np.random.default_rng(0).standard_normal(2000)
+    size = 400
+    ab = _random_band(size, w, seed=w)
+    A = _dense(ab, w)
+    rhs = np.random.default_rng(0).standard_normal(size)
     lu_lapack, pivots_lapack, info_lapack = lapack.dgbtrf(ab.copy(order="F"), w, w)
     lu = ab.copy(order="F")
     pivots, info = kernel.factor(lu, w, w)
     assert info == info_lapack == 0
     assert np.array_equal(pivots, pivots_lapack)
-    assert np.any(pivots != np.arange(2000))  # rows were exchanged
+    assert np.any(pivots != np.arange(size))  # rows were exchanged
     solution = kernel.solve(lu, w, w, pivots, rhs.copy())
     expected = lapack.dgbtrs(lu_lapack, w, w, rhs, pivots_lapack)[0]
-    if w <= 7:
-        assert np.array_equal(lu, lu_lapack)
-        assert np.array_equal(solution, expected)
-    assert np.max(np.abs(lu - lu_lapack)) <= 1e-12 * np.max(np.abs(lu_lapack))
-    assert np.max(np.abs(solution - expected)) <= 1e-10 * np.max(np.abs(expected))
+    # backward error of each: the computed solution solves a matrix within (3w + 1) eps |L||U|
+    growth = float(np.max(np.abs(lu_lapack)))
+    entry_bound = 4 * (3 * w + 1) * EPS * growth ** 2
+    assert np.max(np.abs(lu[w:] - lu_lapack[w:])) <= entry_bound
+    for x in (solution, expected):
+        assert np.max(np.abs(A @ x - rhs)) <= entry_bound * size * np.max(np.abs(x))
+    condition = np.linalg.cond(A, 1)
+    assert np.max(np.abs(solution - expected)) <= 2 * condition * entry_bound * size \
+        * np.max(np.abs(expected)) / max(1.0, np.max(np.abs(A)))
 
 
 @needs_compiler
@@ -201,21 +232,19 @@ def test_the_compiled_band_lu_reports_a_singular_matrix_as_lapack_does(cache):
     ab = _random_band(50, 4, seed=3)
     ab[:, 20] = 0.0  # a zero column
     _, _, info_lapack = lapack.dgbtrf(ab.copy(order="F"), 4, 4)
-    _, info = bvp_band.kernel().factor(ab.copy(order="F"), 4, 4)
+    _, info = band.kernel().factor(ab.copy(order="F"), 4, 4)
     assert info == info_lapack > 0
 
 
-def test_without_a_compiler_the_band_lu_is_lapack(cache, monkeypatch):
-    """``KERNEL = None``: no kernel; a compiler that fails: one warning, no kernel; Newton
-    solves either way."""
-    monkeypatch.setattr(bvp_band, "KERNEL", None)
-    assert bvp_band.kernel() is None
-    monkeypatch.setattr(bvp_band, "KERNEL", "false")
+def test_without_a_compiler_the_band_lu_is_lapack(cache):
+    """No compiler: no kernel; a compiler that fails: one warning, no kernel; Newton solves
+    either way."""
+    assert band.kernel(None) is None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        assert bvp_band.kernel() is None
+        assert band.kernel("false") is None
     assert any("LAPACK through scipy instead" in str(w.message) for w in caught)
-    solution = _solve("pendulum", None, 300)
+    solution = _solve("pendulum", NOTHING_COMPILED, 300)
     assert solution.success, solution.message
 
 
@@ -225,7 +254,7 @@ def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(cache, setting):
     mapped over the whole grid, compiled or not, for a grid longer than a window."""
     from ddvp_nlp.physics.hamiltonian import site_density_weight_function
 
-    bvp_assembly.COMPILER = setting
+    compilation = Compilation(compiler=setting)
     system = load_scene("kepler").system
     function = site_density_weight_function(system)
     count = WINDOW + 13
@@ -233,9 +262,9 @@ def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(cache, setting):
     q, p, t = rng.random((count, 2)) + 0.5, rng.random((count, 2)), rng.random((count, 1))
     theta = np.asarray(system.parameter_vector({}), float)
     expected = np.asarray(function.map(count)(q.T, p.T, t.T, theta[:, None])).ravel()
-    (got,) = bvp_assembly.evaluate_blocks(system, ("site_weights",), function, [q, p, t], theta)
+    (got,) = evaluate_blocks(system, ("site_weights",), function, [q, p, t], theta, compilation)
     assert got.shape == (count, 1)
-    path = bvp_assembly.window_map(system, ("site_weights",), function).path
+    path = window_map(system, ("site_weights",), function, compilation).path
     assert path == ("vm" if setting is None or compiler.find_compiler("auto") is None
                     else "compiled")
     assert np.max(np.abs(got.ravel() - expected)) <= 1e-12 * np.max(np.abs(expected))
@@ -246,8 +275,8 @@ def test_a_solve_leaves_no_band_store_in_the_cached_assemblies(cache):
     of the band, 312 MB at N = 1e6) are dropped when Newton ends."""
     system = load_scene("pendulum").system
     PROBLEMS.clear()
-    solution = solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=400,
-                         solver="newton")
+    solution = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=400,
+                         options=GridOptions(solver="newton"))
     assert solution.success
     grids = [PROBLEMS.get(system, key, lambda: None) for key in PROBLEMS.keys(system)
              if key[0] == "bvp_assembly"]

@@ -1,61 +1,79 @@
-"""IPOPT fed by the banded assembly (bvp_ipopt_assembly.py): the same functions as the MX build,
-the same nodes, few iterations (issue 16)."""
+"""IPOPT fed by the banded assembly (``solvers/bvp/ipopt.py``, through the grid's one IPOPT
+build): its functions against CasADi's own derivatives of the same rows, its nodes against
+Newton's, few iterations (issue 16)."""
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import Scheme, load_scene
-from ddvp_nlp.solvers.bvp import phase as bvp_phase
-from ddvp_nlp.solvers.bvp.ipopt import AssemblyIpoptProblem
-from ddvp_nlp.solvers.bvp.solve import solve_bvp
-from ddvp_nlp.solvers.grid.ipopt import IpoptProblem
+from ddvp_nlp import GridOptions, Scheme, load_scene, solve_bvp
+from ddvp_nlp.solvers.bvp.ipopt import BvpIpopt, residual_functions
+
+
+def _reference_rows(system, scheme: Scheme, nodes: int):
+    """The IPOPT rows written as one MX expression of ``x`` and ``p = (theta, energy_scale)``:
+    the canonical rows of every interval and the energy rows over the energy scale, in the
+    assembly's order (node by node, the node ``N - 1``'s energy row dropped), then the step rows
+    ``t_{k+1} - t_k`` in units of the energy scale: what CasADi differentiates for the oracle."""
+    m = 2 * system.n + 1
+    x = ca.MX.sym("x", nodes * m)
+    p = ca.MX.sym("p", system.theta.numel() + 1)
+    theta, scale = p[:-1], p[-1]
+    Z = ca.reshape(x, m, nodes)
+    interval, node = residual_functions(system, scheme)
+    canonical = interval.map(nodes - 1)(Z[:, :-1], Z[:, 1:], theta)
+    rows = []
+    for k in range(nodes - 1):
+        rows.append(canonical[:, k])
+        if node is not None and k < nodes - 2:
+            rows.append(node(Z[:, k], Z[:, k + 1], Z[:, k + 2], theta) / scale)
+    if node is not None:
+        rows.append(((Z[0, 1:] - Z[0, :-1]) / scale).T)
+    return x, p, ca.vertcat(*rows)
 
 
 @pytest.mark.parametrize("name, rule", [("pendulum", "vddvp"), ("pendulum", "fixed"),
                                         ("kepler", "lee"), ("pendulum_lagrangian", "vddvp"),
                                         ("paper_pendulum", "vddvp")])
-def test_callbacks_match_the_mx_build(name, rule):
+def test_callbacks_match_casadis_derivatives_of_the_same_rows(name, rule):
     """g, its Jacobian and the Lagrangian's Hessian of the callbacks equal CasADi's own
-    derivatives of the MX NLP at a random point (rows reordered: the MX build interleaves the
-    step rows, the assembly appends them, in units of the mean step)."""
+    derivatives of the rows written as one MX expression, at a random point."""
     system = load_scene(name).system
     nodes, n = 7, system.n
-    assembly = AssemblyIpoptProblem(system, Scheme(rule), nodes, tol=1e-9, max_iter=5)
-    mx = IpoptProblem(system, Scheme(rule), nodes, tol=1e-9, max_iter=5)
+    problem = BvpIpopt(system, Scheme(rule), nodes, tol=1e-9, max_iter=5)
+    x_sym, p_sym, rows = _reference_rows(system, Scheme(rule), nodes)
     rng = np.random.default_rng(3)
     t = np.sort(rng.random(nodes)) + np.arange(nodes)
-    x = assembly.layout.pack(t, rng.random((nodes, n)) + 1, rng.random((nodes, n)))
-    scale = 0.7
-    parameters = np.r_[system.parameter_vector(None), scale]
-    order = np.r_[np.flatnonzero(mx.kinds == 0), np.flatnonzero(mx.kinds == 1)]
-    unit = np.where(mx.kinds[order] == 1, 1 / scale, 1.0)  # step rows in mean steps
-    g_mx, J_mx = mx.solver.get_function("nlp_jac_g")(x, parameters)
-    g_mx = np.asarray(g_mx).ravel()[order] * unit
-    J_mx = np.asarray(ca.DM(J_mx))[order] * unit[:, None]
-    g, jac_g, hess_lag = assembly._callbacks
-    assert np.max(np.abs(np.asarray(g(x, parameters)).ravel() - g_mx)) < 1e-13
+    x = problem.layout.pack(t, rng.random((nodes, n)) + 1, rng.random((nodes, n)))
+    parameters = np.r_[system.parameter_vector(None), 0.7]
+    reference = ca.Function("reference", [x_sym, p_sym], [rows, ca.jacobian(rows, x_sym)])
+    g_ref, J_ref = (np.asarray(ca.DM(v)) for v in reference(x, parameters))
+    g, jac_g, hess_lag = problem._callbacks
+    assert np.max(np.abs(np.asarray(g(x, parameters)).ravel() - g_ref.ravel())) < 1e-13
     J = np.asarray(ca.DM(jac_g(x, parameters)[1]))
-    assert J.shape == J_mx.shape and np.max(np.abs(J - J_mx)) < 1e-12
-    lam = rng.standard_normal(order.size)
-    lam_mx = np.empty_like(lam)
-    lam_mx[order] = lam * unit
+    assert J.shape == J_ref.shape and np.max(np.abs(J - J_ref)) < 1e-12
+    lam = rng.standard_normal(g_ref.size)
+    lam_sym = ca.MX.sym("lam", g_ref.size)
+    hessian = ca.Function("hessian", [x_sym, p_sym, lam_sym],
+                          [ca.triu(ca.hessian(ca.dot(lam_sym, rows), x_sym)[0])])
+    H_ref = np.asarray(ca.DM(hessian(x, parameters, lam)))
     H = np.asarray(ca.DM(hess_lag(x, parameters, 1.0, lam)))
-    H_mx = np.asarray(ca.DM(mx.solver.get_function("nlp_hess_l")(x, parameters, 1.0, lam_mx)))
-    assert np.max(np.abs(H_mx)) > 0.1
-    assert np.max(np.abs(H - H_mx)) < 1e-12
+    assert np.max(np.abs(H_ref)) > 0.1
+    assert np.max(np.abs(H - H_ref)) < 1e-12
 
 
-def test_both_ipopt_builds_return_the_same_nodes(monkeypatch):
+def test_ipopt_and_newton_return_the_same_nodes():
+    """Two solvers of the same rows, both verified, return the same solution (to a few
+    hundred round-offs of the rows carried through the problem's condition)."""
     system = load_scene("pendulum").system
-    solved = {}
-    for build in ("mx", "assembly"):
-        monkeypatch.setattr(bvp_phase, "IPOPT_BUILD", build)
-        solved[build] = solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=181,
-                                  solver="ipopt")
-        assert solved[build].success, solved[build].message
+    solved = {solver: solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181,
+                                options=GridOptions(solver=solver))
+              for solver in ("ipopt", "newton")}
+    for solution in solved.values():
+        assert solution.success, solution.message
+    assert solved["ipopt"].stats["solver"] == "ipopt"
     for key in ("t", "q", "p"):
-        assert np.max(np.abs(getattr(solved["mx"], key) - getattr(solved["assembly"], key))) \
+        assert np.max(np.abs(getattr(solved["ipopt"], key) - getattr(solved["newton"], key))) \
             < 1e-10, key
 
 
@@ -63,8 +81,8 @@ def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes(
     """Bounded iteration counts (never time), the same in two runs: measured 5 + 1 + 5 here,
     ending Solve_Succeeded (not "acceptable")."""
     system = load_scene("pendulum").system
-    runs = [solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=20_000,
-                      solver="ipopt") for _ in range(2)]
+    runs = [solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
+                      options=GridOptions(solver="ipopt")) for _ in range(2)]
     assert all(r.success for r in runs), runs[0].message
     counts = [[ph["iterations"] for ph in r.stats["phases"]] for r in runs]
     assert counts[0] == counts[1]

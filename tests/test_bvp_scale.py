@@ -4,7 +4,7 @@ round-off-aware verification and the bounds on a run (issue 16)."""
 import numpy as np
 import pytest
 
-from ddvp_nlp import InputError, Scheme, Status, load_scene
+from ddvp_nlp import GridOptions, InputError, Output, Scheme, Status, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
 from ddvp_nlp.solvers.bvp.solve import solve_bvp
@@ -31,8 +31,8 @@ def boundary(name):
                                         for rule in ("vddvp", "fixed") if name != "kepler"])
 def test_newton_and_ipopt_return_the_same_nodes(name, rule):
     system, q_start, q_end, span, nodes, params = boundary(name)
-    solved = [solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
-                        scheme=rule, params=params, solver=solver)
+    solved = [solve_bvp(system, q_start, q_end, (span[0], span[1]), nodes=nodes,
+                        scheme=rule, params=params, options=GridOptions(solver=solver))
               for solver in ("newton", "ipopt")]
     assert all(s.success for s in solved), [s.message for s in solved]
     assert [s.stats["solver"] for s in solved] == ["newton", "ipopt"]
@@ -62,14 +62,24 @@ def test_kepler_has_two_branches_and_each_solver_lands_on_a_true_one(rule):
     their own (q_0, p_0) ends within 2e-3 of q_end). Started from Newton's point, IPOPT stays
     on it: the two solvers agree on a branch once they are given the same one."""
     system, q_start, q_end, span, nodes, params = boundary("kepler")
-    newton, ipopt = [solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
-                               scheme=rule, solver=solver) for solver in ("newton", "ipopt")]
+    newton, ipopt = [
+        solve_bvp(
+            system,
+            q_start,
+            q_end,
+            (span[0], span[1]),
+            nodes=nodes,
+            scheme=rule,
+            options=GridOptions(solver=solver),
+        )
+        for solver in ("newton", "ipopt")
+    ]
     assert newton.success and ipopt.success, (newton.message, ipopt.message)
     assert _swept_angle(newton) == pytest.approx(-5 * np.pi / 4, abs=1e-9)
     assert _swept_angle(ipopt) == pytest.approx(3 * np.pi / 4, abs=1e-9)
     assert _kepler_miss(newton) < 2e-3 and _kepler_miss(ipopt) < 2e-3
-    again = solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
-                      scheme=rule, solver="ipopt", guess=newton)
+    again = solve_bvp(system, q_start, q_end, (span[0], span[1]), nodes=nodes,
+                      scheme=rule, guess=newton, options=GridOptions(solver="ipopt"))
     assert again.success and again.stats["solver"] == "ipopt"
     for key in ("t", "q", "p"):
         assert np.max(np.abs(getattr(again, key) - getattr(newton, key))) < 1e-9, key
@@ -101,9 +111,18 @@ def test_the_jacobian_is_banded_and_both_factorisations_agree(name, rule):
 
 def test_banded_and_sparse_newton_agree_on_kepler():
     system, q_start, q_end, span, nodes, params = boundary("kepler")
-    solved = [solve_bvp(system, q_start, q_end, t0=span[0], t_end=span[1], nodes=nodes,
-                        solver="newton",
-                        scheme="fixed", linear=linear) for linear in ("banded", "sparse")]
+    solved = [
+        solve_bvp(
+            system,
+            q_start,
+            q_end,
+            (span[0], span[1]),
+            nodes=nodes,
+            scheme="fixed",
+            options=GridOptions(solver="newton", linear=linear),
+        )
+        for linear in ("banded", "sparse")
+    ]
     assert all(s.success for s in solved)
     assert np.max(np.abs(solved[0].q - solved[1].q)) < 1e-12
 
@@ -112,8 +131,12 @@ def test_newton_iterations_stay_few_and_repeat_at_twenty_thousand_nodes():
     """Bounded iteration counts (never a wall-clock bound): the released solve from the
     predicted times takes at most 3 iterations, every phase at most 8, the same in two runs."""
     system = load_scene("pendulum").system
-    runs = [solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=20_000, solver="newton")
-            for _ in range(2)]
+    runs = [
+        solve_bvp(
+            system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000, options=GridOptions(solver="newton")
+        )
+        for _ in range(2)
+    ]
     assert all(r.success for r in runs), runs[0].message
     counts = [[ph["iterations"] for ph in r.stats["phases"]] for r in runs]
     assert counts[0] == counts[1]
@@ -124,7 +147,9 @@ def test_a_harmonic_problem_solved_to_round_off_is_a_success():
     """Issue 16, item 6: every equation holds to round-off; Newton's tolerance must not sit
     below the scaled energy rows' round-off."""
     system = load_scene("harmonic").system
-    solution = solve_bvp(system, [1.0], [0.5], t0=0.0, t_end=3.0, nodes=121, solver="newton")
+    solution = solve_bvp(
+        system, [1.0], [0.5], (0.0, 3.0), nodes=121, options=GridOptions(solver="newton")
+    )
     assert solution.success, solution.message
     assert solution.stats["canonical_residual_max"] < 1e-13
     assert "(newton: converged" in solution.message
@@ -136,9 +161,18 @@ def test_guess_march_finds_the_branch_the_straight_line_misses():
     march of its momentum lands on one verified solution (p changes sign twice), shooting on
     another (three times)."""
     system = load_scene("pendulum").system
-    straight, shot = (solve_bvp(system, [0.5], [-0.3], t0=0.0, t_end=10.0, nodes=201,
-                                solver="newton",
-                                guess=guess) for guess in ("straight", "march"))
+    straight, shot = (
+        solve_bvp(
+            system,
+            [0.5],
+            [-0.3],
+            (0.0, 10.0),
+            nodes=201,
+            guess=guess,
+            options=GridOptions(solver="newton"),
+        )
+        for guess in ("straight", "march")
+    )
     assert straight.success and shot.success, (straight.message, shot.message)
     assert straight.stats["phases"][0]["converged"] is False
     assert "continuation" in straight.stats["phases"][1]["phase"]
@@ -151,15 +185,29 @@ def test_guess_march_finds_the_branch_the_straight_line_misses():
 
 def test_a_time_limit_ends_with_its_status():
     system = load_scene("pendulum").system
-    solution = solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=181, solver="newton",
-                         time_limit=1e-9)
+    solution = solve_bvp(
+        system,
+        [0.5],
+        [-0.036],
+        (0.0, 9.0),
+        nodes=181,
+        options=GridOptions(solver="newton", time_limit=1e-9),
+    )
     assert solution.status is Status.TIME_LIMIT
     assert "time limit reached" in solution.message
 
 
 def test_progress_reports_each_iteration(capsys):
     system = load_scene("pendulum").system
-    solve_bvp(system, [0.5], [-0.036], t0=0.0, t_end=9.0, nodes=181, solver="newton", progress=True)
+    solve_bvp(
+        system,
+        [0.5],
+        [-0.036],
+        (0.0, 9.0),
+        nodes=181,
+        options=GridOptions(solver="newton"),
+        output=Output(progress=True),
+    )
     assert "bvp [vddvp equations]: iteration 1, |F| = " in capsys.readouterr().err
 
 
@@ -167,12 +215,12 @@ def test_bad_guess_and_linear_solver_are_refused():
     system = load_scene("pendulum").system
     with pytest.raises(InputError, match=r"^unknown guess 'curved' \(choose from straight, "
                                          r"march, or give a Solution"):
-        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, guess="curved")
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, guess="curved")
     with pytest.raises(InputError, match=r"^unknown linear 'qr' \(choose from auto, banded, "
                                          r"sparse\)$"):
-        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, linear="qr")
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, options=GridOptions(linear="qr"))
     with pytest.raises(InputError, match=r"^time_limit must be > 0, got -1.0$"):
-        solve_bvp(system, [0.5], [0.1], t0=0.0, t_end=1.0, nodes=10, time_limit=-1.0)
+        solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, options=GridOptions(time_limit=-1.0))
 
 
 def test_cli_bvp_guess_options(tmp_path, capsys):

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from ddvp_nlp import InputError, load_scene, march
+from ddvp_nlp import GridOptions, InputError, StepControl, load_scene, march
 from ddvp_nlp.cli import main
 from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
@@ -23,8 +23,8 @@ def kepler(nodes):
     end (the fixed-endpoint data)."""
     system = load_scene("kepler").system
     T = 2 * np.pi * PERIODS
-    marched = march(system, Q0, P0, tau0=T / (nodes - 1), t_end=T, scheme="fixed",
-                    params={"e": E}, max_steps=nodes)
+    marched = march(system, Q0, P0, (0.0, T), tau0=T / (nodes - 1), scheme="fixed",
+                    params={"e": E}, steps=StepControl(max_steps=nodes))
     assert marched.success and marched.t.size == nodes
     return system, marched
 
@@ -39,8 +39,8 @@ def test_a_fixed_step_march_as_guess_is_moved_to_the_predicted_times_first():
     old prediction (tau_k ~ w_k^(-1/3) of the old grid's interval k) 44; the predicted times by
     the integral of w^(1/3) leave a handful."""
     system, marched = kepler(1000)
-    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
-                         params={"e": E}, guess=marched, solver="newton")
+    solution = solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
+                         params={"e": E}, guess=marched, options=GridOptions(solver="newton"))
     assert solution.success, solution.message
     names = [ph["phase"] for ph in solution.stats["phases"]]
     assert names == ["fixed steps, predicted times (from the guess)", "vddvp equations"]
@@ -50,10 +50,18 @@ def test_a_fixed_step_march_as_guess_is_moved_to_the_predicted_times_first():
 
 def test_a_guess_that_already_solves_the_equations_is_taken_as_it_is():
     system = load_scene("kepler").system
-    marched = march(system, Q0, P0, tau0=0.02, t_end=2.0, params={"e": E})
+    marched = march(system, Q0, P0, (0.0, 2.0), tau0=0.02, params={"e": E})
     assert marched.success
-    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1],
-                         nodes=marched.t.size, params={"e": E}, guess=marched, solver="newton")
+    solution = solve_bvp(
+        system,
+        Q0,
+        marched.q[-1],
+        (0.0, marched.t[-1]),
+        nodes=marched.t.size,
+        params={"e": E},
+        guess=marched,
+        options=GridOptions(solver="newton"),
+    )
     assert solution.success, solution.message
     assert [ph["phase"] for ph in solution.stats["phases"]] == ["vddvp equations"]
     assert np.max(np.abs(solution.t - marched.t)) < 1e-10
@@ -61,9 +69,16 @@ def test_a_guess_that_already_solves_the_equations_is_taken_as_it_is():
 
 def test_a_guess_with_another_number_of_nodes_is_resampled():
     system, marched = kepler(600)
-    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
-                         params={"e": E}, guess={"t": marched.t, "q": marched.q,
-                                                 "p": marched.p}, solver="newton")
+    solution = solve_bvp(
+        system,
+        Q0,
+        marched.q[-1],
+        (0.0, marched.t[-1]),
+        nodes=1000,
+        params={"e": E},
+        guess={"t": marched.t, "q": marched.q, "p": marched.p},
+        options=GridOptions(solver="newton"),
+    )
     assert solution.success, solution.message
     assert solution.t.size == 1000
     # the coarse march's end lies past the pericentre: the solution follows it there
@@ -75,7 +90,7 @@ def test_the_straight_start_reaches_a_branch_without_solution_and_says_so():
     radial orbit (out to r = 4.2 and back), where w = f' H_zz f < 0 for r < 2: the released
     solve fails, the message says why, and no IPOPT is run from the same start."""
     system, marched = kepler(1000)
-    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+    solution = solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
                          params={"e": E})
     assert not solution.success
     assert "w = f' H_zz f <= 0 on" in solution.message
@@ -90,7 +105,7 @@ def test_shooting_from_the_orbits_momentum_finds_the_three_revolutions():
     returns to the start): shooting stops short of q_end, and its closest march starts the
     fixed-step solve on the branch it chose."""
     system, marched = kepler(1000)
-    solution = solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
+    solution = solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
                          params={"e": E}, guess="march", p_start=[0.0, 1.7320508])
     assert solution.success, solution.message
     assert solution.stats["phases"][0]["phase"] == "shooting (march)"
@@ -102,9 +117,9 @@ def test_shooting_from_the_orbits_momentum_finds_the_three_revolutions():
 def test_p_start_is_checked():
     system = load_scene("kepler").system
     with pytest.raises(InputError, match=r"^p_start is the shooting start's momentum"):
-        solve_bvp(system, Q0, Q0, t0=0.0, t_end=1.0, nodes=10, p_start=[0.0, 1.0])
+        solve_bvp(system, Q0, Q0, (0.0, 1.0), nodes=10, p_start=[0.0, 1.0])
     with pytest.raises(InputError, match=r"p_start"):
-        solve_bvp(system, Q0, Q0, t0=0.0, t_end=1.0, nodes=10, guess="march", p_start=[1.0])
+        solve_bvp(system, Q0, Q0, (0.0, 1.0), nodes=10, guess="march", p_start=[1.0])
 
 
 def test_cli_p_start(tmp_path, capsys):
@@ -122,8 +137,14 @@ def test_a_failure_from_the_straight_start_suggests_the_other_starts():
     0.5 from q_0 = 1 has no solution, and every start fails."""
     M = 20
     system = load_scene("harmonic").system
-    solution = solve_bvp(system, [1.0], [0.5], t0=0.0, t_end=M * 2 * np.tan(np.pi / (2 * M)),
-                         nodes=M + 1, solver="newton")
+    solution = solve_bvp(
+        system,
+        [1.0],
+        [0.5],
+        (0.0, M * 2 * np.tan(np.pi / (2 * M))),
+        nodes=M + 1,
+        options=GridOptions(solver="newton"),
+    )
     assert not solution.success
     assert solution.message.endswith("give guess='march' (shooting, with p_start near the "
                                       "motion's momentum) or a march's nodes as the guess")
@@ -134,10 +155,9 @@ def test_auto_retries_a_fixed_phase_with_ipopt_where_newton_stalls():
     fixed-step phase; auto retries that phase with IPOPT, and the rest follows by Newton."""
     system = load_scene("henon_heiles").system
     T = 50.0
-    marched = march(system, [0.0, 0.1], [0.35, 0.0], tau0=T / 999, t_end=T)
+    marched = march(system, [0.0, 0.1], [0.35, 0.0], (0.0, T), tau0=T / 999)
     assert marched.success
-    auto = solve_bvp(system, [0.0, 0.1], marched.q[-1], t0=0.0, t_end=marched.t[-1],
-                     nodes=marched.t.size)
+    auto = solve_bvp(system, [0.0, 0.1], marched.q[-1], (0.0, marched.t[-1]), nodes=marched.t.size)
     assert auto.success, auto.message
     phases = [(ph["phase"], ph["solver"], ph["converged"]) for ph in auto.stats["phases"]]
     assert phases[:2] == [("fixed steps, uniform times", "newton", False),
@@ -152,9 +172,10 @@ def test_the_continuation_solves_what_newton_and_ipopt_miss_from_the_straight_li
     continuation in the end position, from the march of the straight line's momentum, passes
     the folds and reaches a verified solution."""
     system = load_scene("henon_heiles").system
-    marched = march(system, [0.0, 0.1], [0.35, 0.0], tau0=T / 999, t_end=T)
-    solution = solve_bvp(system, [0.0, 0.1], marched.q[-1], t0=0.0, t_end=marched.t[-1],
-                         nodes=marched.t.size)
+    marched = march(system, [0.0, 0.1], [0.35, 0.0], (0.0, T), tau0=T / 999)
+    solution = solve_bvp(
+        system, [0.0, 0.1], marched.q[-1], (0.0, marched.t[-1]), nodes=marched.t.size
+    )
     assert solution.success, solution.message
     phases = solution.stats["phases"]
     assert [(ph["solver"], ph["converged"]) for ph in phases[:2]] == [("newton", False),
@@ -167,8 +188,8 @@ def test_the_continuation_solves_what_newton_and_ipopt_miss_from_the_straight_li
 
 def test_newton_and_ipopt_return_the_same_kepler_nodes_from_the_same_start():
     system, marched = kepler(1000)
-    solved = [solve_bvp(system, Q0, marched.q[-1], t0=0.0, t_end=marched.t[-1], nodes=1000,
-                        params={"e": E}, guess=marched, solver=solver)
+    solved = [solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
+                        params={"e": E}, guess=marched, options=GridOptions(solver=solver))
               for solver in ("newton", "ipopt")]
     assert all(s.success for s in solved), [s.message for s in solved]
     for key in ("t", "q", "p"):

@@ -74,8 +74,9 @@ def test_c_checks_compute_what_the_march_checks(library, name, kind, overrides):
 
     system, config, theta = _scene(name, overrides)
     n = system.n
-    solution = march(system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                     params=config.params)
+    solution = march(
+        system, config.q0, config.p0, (0.0, config.t_end), tau0=config.tau0, params=config.params
+    )
     steps = solution.steps
     t = np.ascontiguousarray(solution.t)
     z = np.ascontiguousarray(np.column_stack([solution.q, solution.p]))

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, StepControl, Tolerance, load_scene, march
 from ddvp_nlp.solvers.baselines import fixed_step as baselines
 from ddvp_nlp.solvers.baselines import lee_left, paper_schemes
 from ddvp_nlp.solvers.compiler import build_count, find_compiler
@@ -32,8 +32,17 @@ def test_a_short_and_a_long_run_of_a_scene_compile_once(tmp_path, method):
 def test_the_chunk_size_does_not_change_the_nodes(tmp_path):
     scene = load_scene("henon_heiles")
     config = scene.resolve({"t_end": 40.0})
-    runs = [march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                  chunk=chunk, cache_dir=tmp_path) for chunk in (64, 1024)]
+    runs = [
+        march(
+            scene.system,
+            config.q0,
+            config.p0,
+            (0.0, config.t_end),
+            tau0=config.tau0,
+            compilation=Compilation(cache_dir=tmp_path, chunk=chunk),
+        )
+        for chunk in (64, 1024)
+    ]
     assert runs[0].stats["fast_steps"] == runs[0].steps - 1 > 64  # many chunks against one
     for a, b in zip((runs[0].t, runs[0].q, runs[0].p), (runs[1].t, runs[1].q, runs[1].p),
                     strict=True):
@@ -68,26 +77,25 @@ def _same(a, b) -> bool:
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 @pytest.mark.parametrize("case", ["careful windows", "accuracy stop", "max_steps", "fixed"])
-def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, monkeypatch, case):
-    """The compiled stepper checks up to MAX_CALLS chained chunks at once and hands them out
+def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, case):
+    """The compiled stepper checks up to ``batch`` chained chunks at once and hands them out
     one by one; nodes, status, message and every statistic are those of one call per chunk,
     also where chunk steps fail and the careful path takes windows in between."""
     from ddvp_nlp.solvers.march import stepper
 
     pendulum, henon = load_scene("pendulum").system, load_scene("henon_heiles").system
-    runs = {"careful windows": (pendulum, [0.0], [np.sqrt(5.0)],
-                                dict(tau0=0.05, t_end=10.0, breakdown="least_squares")),
-            "accuracy stop": (henon, [0.0, 0.1], [0.3, 0.0],
-                              dict(tau0=0.05, t_end=400.0, global_tol=1e-3)),
-            "max_steps": (henon, [0.0, 0.1], [0.3, 0.0],
-                          dict(tau0=0.05, t_end=1e6, max_steps=1500)),
-            "fixed": (henon, [0.0, 0.1], [0.3, 0.0],
-                      dict(tau0=0.05, t_end=45.0, scheme="fixed"))}
-    system, q0, p0, options = runs[case]
+    runs = {"careful windows": (pendulum, [0.0], [np.sqrt(5.0)], 10.0,
+                                dict(steps=StepControl(breakdown="least_squares"))),
+            "accuracy stop": (henon, [0.0, 0.1], [0.3, 0.0], 400.0,
+                              dict(accuracy=Tolerance(global_tol=1e-3))),
+            "max_steps": (henon, [0.0, 0.1], [0.3, 0.0], 1e6,
+                          dict(steps=StepControl(max_steps=1500))),
+            "fixed": (henon, [0.0, 0.1], [0.3, 0.0], 45.0, dict(scheme="fixed"))}
+    system, q0, p0, t_end, options = runs[case]
     found = []
     for calls in (1, stepper.MAX_CALLS):
-        monkeypatch.setattr(stepper, "MAX_CALLS", calls)
-        found.append(march(system, q0, p0, chunk=64, cache_dir=tmp_path, **options))
+        found.append(march(system, q0, p0, (0.0, t_end), tau0=0.05, **options,
+                           compilation=Compilation(cache_dir=tmp_path, chunk=64, batch=calls)))
     one, batched = found
     assert one.stats["fast_steps"] > 3 * 64  # several chunks, so batches of several
     if case == "careful windows":

@@ -4,7 +4,7 @@ on the step's outputs (acceptance.py), bounds and tolerance included."""
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.march.acceptance import Acceptance
 from ddvp_nlp.solvers.march.chunk import FastChunk
@@ -34,8 +34,15 @@ def test_the_chunk_verdict_is_the_acceptance_test(accuracy):
     system = scene.system
     scheme = Scheme.coerce("vddvp")
     theta = system.parameter_vector(None)
-    start = march(system, [0.0, 0.1], [0.3, 0.0], tau0=0.05, t_end=0.1, fast=False,
-                  check_accuracy=False)
+    start = march(
+        system,
+        [0.0, 0.1],
+        [0.3, 0.0],
+        (0.0, 0.1),
+        tau0=0.05,
+        accuracy=None,
+        compilation=Compilation(fast=False),
+    )
     z = np.column_stack([start.q, start.p])
     chunk = FastChunk(system, scheme, step_functions(system, scheme), chunk=48, compiler=None,
                       cache_dir=None, accuracy=accuracy)

@@ -15,11 +15,11 @@ def test_ensemble_is_each_march_alone_and_a_failing_orbit_does_not_stop_the_othe
     scene = load_scene("henon_heiles")
     q0s = np.array([[0.0, 0.1], [0.0, 0.0], [0.0, -0.2]])
     p0s = np.array([[0.35, 0.0], [0.0, 1.2], [0.3, 0.1]])  # the second: E = 0.72, escapes
-    solutions = march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=60.0)
+    solutions = march_ensemble(scene.system, q0s, p0s, (0.0, 60.0), tau0=0.05)
     assert [s.success for s in solutions] == [True, False, True]
     assert solutions[1].status is Status.NEWTON_FAILED and solutions[1].steps < 20
     for solution, q0, p0 in zip(solutions, q0s, p0s, strict=True):
-        alone = march(scene.system, q0, p0, tau0=0.05, t_end=60.0)
+        alone = march(scene.system, q0, p0, (0.0, 60.0), tau0=0.05)
         assert alone.status is solution.status and alone.steps == solution.steps
         assert np.array_equal(alone.t, solution.t) and np.array_equal(alone.q, solution.q)
         assert np.array_equal(alone.local_error, solution.local_error)
@@ -33,8 +33,8 @@ def test_workers_give_the_serial_ensemble_and_bad_input_stops_before_any_march()
     rng = np.random.default_rng(3)
     q0s = np.column_stack([np.zeros(5), rng.uniform(-0.2, 0.2, 5)])
     p0s = rng.uniform(-0.2, 0.2, (5, 2))
-    serial = march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=40.0, workers=1)
-    split = march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=40.0, workers=2)
+    serial = march_ensemble(scene.system, q0s, p0s, (0.0, 40.0), tau0=0.05, workers=1)
+    split = march_ensemble(scene.system, q0s, p0s, (0.0, 40.0), tau0=0.05, workers=2)
     assert all(s.success for s in serial) and len(split) == 5
     for a, b in zip(serial, split, strict=True):
         assert a.status is b.status and a.t.size == b.t.size
@@ -42,11 +42,11 @@ def test_workers_give_the_serial_ensemble_and_bad_input_stops_before_any_march()
             np.testing.assert_allclose(y, x, rtol=0, atol=1e-12)
         assert np.array_equal(a.at(7.3)[0], b.at(7.3)[0])  # dense output attached again
     with pytest.raises(InputError, match="workers"):
-        march_ensemble(scene.system, q0s, p0s, tau0=0.05, t_end=40.0, workers=0)
+        march_ensemble(scene.system, q0s, p0s, (0.0, 40.0), tau0=0.05, workers=0)
     bad = p0s.copy()
     bad[3, 1] = np.nan
     with pytest.raises(InputError, match="orbit 3"):
-        march_ensemble(scene.system, q0s, bad, tau0=0.05, t_end=40.0)
+        march_ensemble(scene.system, q0s, bad, (0.0, 40.0), tau0=0.05)
 
 
 def test_section_points_lie_on_the_section_and_the_energy_surface(tmp_path):

@@ -1,5 +1,5 @@
 """Fixed-endpoint problems of higher-derivative Lagrangians on the window assembly
-(``solvers/higher_assembly.py``, ``solvers/higher_bvp.py``): Newton against IPOPT, the
+(``solvers/higher/assembly.py``, ``solvers/higher/phase.py``): Newton against IPOPT, the
 verification that decides whatever the solver said, and the scale."""
 
 import json
@@ -8,12 +8,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import HigherOrderSystem, Status, load_scene
+from ddvp_nlp import GridOptions, HigherOrderSystem, Status, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.discrete.higher import energies
-from ddvp_nlp.solvers.higher import phase as higher_bvp
+from ddvp_nlp.solvers.grid.problem import GridResult
+from ddvp_nlp.solvers.higher import phase
 from ddvp_nlp.solvers.higher.assembly import HigherAssembly, HigherEnds
-from ddvp_nlp.solvers.higher.solve import solve_bvp_higher
+from ddvp_nlp.solvers.higher.problem import straight
+from ddvp_nlp.solvers.higher.solve import bvp_request, solve_bvp_higher
 
 
 def _solve(name, nodes, scheme, solver, **kwargs):
@@ -22,7 +24,7 @@ def _solve(name, nodes, scheme, solver, **kwargs):
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary["t_span"])
     return scene, config, solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
                                            scheme=scheme, params=config["params"],
-                                           solver=solver, **kwargs)
+                                           options=GridOptions(solver=solver), **kwargs)
 
 
 @pytest.mark.parametrize("name, nodes, scheme, iterations", [
@@ -69,9 +71,9 @@ def test_verification_decides_and_quotes_the_solver():
     scene, config, solution = _solve("spline", 21, "vddvp", "newton")
     request = _request(scene, config, 21)
     x = np.column_stack([solution.t, solution.q]).ravel()
-    phase = {"solver": "ipopt", "converged": False, "iterations": 15,
-             "return_status": "Search_Direction_Becomes_Too_Small"}
-    status, message, residuals = higher_bvp.verify(request, "vddvp", x, phase)
+    said = {"solver": "ipopt", "converged": False, "iterations": 15,
+            "return_status": "Search_Direction_Becomes_Too_Small"}
+    status, message, residuals = phase.verify(request, "vddvp", x, said)
     assert status is Status.SUCCESS
     assert message.startswith("solved and verified: ") and \
         "ipopt: Search_Direction_Becomes_Too_Small, 15 iterations" in message
@@ -79,22 +81,19 @@ def test_verification_decides_and_quotes_the_solver():
     # a point off by 1e-6 is refused, whatever the solver said
     moved = x.copy()
     moved[10 * 2 + 1] += 1e-6  # q of node 10
-    status, message, _ = higher_bvp.verify(request, "vddvp", moved, dict(phase, converged=True))
+    status, message, _ = phase.verify(request, "vddvp", moved, dict(said, converged=True))
     assert status is Status.NOT_VERIFIED and "Euler-Lagrange residual" in message
     # a diverged point is reported as such
-    status, message, _ = higher_bvp.verify(request, "vddvp", x * 1e10, phase)
+    status, message, _ = phase.verify(request, "vddvp", x * 1e10, said)
     assert status is Status.SOLVER_FAILED and message.startswith("diverged: |q| reached")
-    status, message, _ = higher_bvp.verify(request, "vddvp", np.full_like(x, np.nan), phase)
+    status, message, _ = phase.verify(request, "vddvp", np.full_like(x, np.nan), said)
     assert status is Status.NON_FINITE and message.startswith("diverged: ")
 
 
-def _request(scene, config, nodes):
+def _request(scene, config, nodes, scheme="vddvp"):
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary["t_span"])
-    request = higher_bvp.HigherRequest(scene.system, t_a, q_a, t_b, q_b, nodes,
-                                       scene.system.parameter_vector(config["params"]), 1e-9,
-                                       0.0, "newton", 500)
-    request.tau_floor = 1e-3 * request.mean
-    return request
+    return bvp_request(scene.system, t_a, q_a, t_b, q_b, nodes=nodes, scheme=scheme,
+                       params=config["params"], options=GridOptions(solver="newton"))
 
 
 def test_a_problem_with_no_solution_ends_in_failure_with_its_residuals():
@@ -118,10 +117,10 @@ def test_a_problem_with_no_solution_ends_in_failure_with_its_residuals():
 
 
 def test_auto_falls_back_to_ipopt_when_newtons_point_fails(monkeypatch):
-    def nowhere(grid, x0, ends, target, *, tau_floor, max_iter):
-        return higher_bvp.NewtonResult(np.array(x0, float), False, "stalled (forced)", 0)
+    def nowhere(grid, x0, ends, target, **options):
+        return GridResult(np.array(x0, float), False, "stalled (forced)", 0)
 
-    monkeypatch.setattr(higher_bvp, "newton", nowhere)
+    monkeypatch.setattr(phase, "newton", nowhere)
     _, _, solution = _solve("pais_uhlenbeck", 41, "fixed", "auto")
     assert solution.success and solution.stats["solver"] == "ipopt"
     assert [p["solver"] for p in solution.stats["phases"]] == ["newton", "ipopt"]
@@ -129,16 +128,19 @@ def test_auto_falls_back_to_ipopt_when_newtons_point_fails(monkeypatch):
     assert alone.status is Status.SOLVER_FAILED and "stalled (forced)" in alone.message
 
 
-def test_the_homotopy_takes_over_when_plain_newton_does_not_converge(monkeypatch):
+def test_the_homotopy_takes_over_when_plain_newton_does_not_converge():
     """With 5 iterations per stage plain Newton (11 iterations on Pais-Uhlenbeck's released
     times) stops short; the homotopy in lambda reaches the same nodes."""
-    _, _, plain = _solve("pais_uhlenbeck", 41, "vddvp", "newton")
-    monkeypatch.setattr(higher_bvp, "STAGE_ITERATIONS", 5)
-    _, _, staged = _solve("pais_uhlenbeck", 41, "vddvp", "newton")
-    assert staged.success, staged.message
-    assert "homotopy from the start" in staged.stats["return_status"]
-    assert np.max(np.abs(staged.t - plain.t)) < 1e-10
-    assert np.max(np.abs(staged.q - plain.q)) < 1e-10
+    scene, config, plain = _solve("pais_uhlenbeck", 41, "vddvp", "newton")
+    request = _request(scene, config, 41)
+    start, _, fixed = phase.solve_rule(request, "fixed", straight(request))
+    assert fixed[0] is Status.SUCCESS
+    staged, said, outcome = phase.solve_rule(request, "vddvp", start, stage_iterations=5)
+    assert outcome[0] is Status.SUCCESS, outcome[1]
+    assert "homotopy from the start" in said["return_status"]
+    z = staged.reshape(41, 2)
+    assert np.max(np.abs(z[:, 0] - plain.t)) < 1e-10
+    assert np.max(np.abs(z[:, 1:] - plain.q)) < 1e-10
 
 
 @pytest.mark.parametrize("rule", ["fixed", "vddvp"])
@@ -176,7 +178,7 @@ def test_grid_energies_match_the_node_by_node_recursion():
     for nodes in (7, 8, 30):
         t, q = np.cumsum(rng.uniform(0.1, 0.3, nodes)), rng.normal(size=(nodes, 2))
         first, E = energies(system, t, q, np.zeros(0))
-        first_grid, E_grid = higher_bvp.grid_energies(system, t, q, np.zeros(0))
+        first_grid, E_grid = phase.grid_energies(system, t, q, np.zeros(0))
         assert first.shape == first_grid.shape and E.shape == E_grid.shape
         assert np.max(np.abs(first - first_grid)) < 1e-12 * max(1, np.max(np.abs(first)))
         assert np.max(np.abs(E - E_grid)) < 1e-12 * max(1, np.max(np.abs(E)))

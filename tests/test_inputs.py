@@ -6,7 +6,16 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import HamiltonianSystem, InputError, Scheme, load_scene, march
+from ddvp_nlp import (
+    GridOptions,
+    HamiltonianSystem,
+    InputError,
+    Scheme,
+    StepControl,
+    load_scene,
+    march,
+    solve_bvp,
+)
 
 
 @pytest.fixture(scope="module")
@@ -38,15 +47,19 @@ def expect(message):
     ({"params": {"g": 9.81}}, "system 'pendulum' has no parameter 'g' (its parameters: none)"),
 ])
 def test_march_rejects_bad_input(pendulum, kwargs, message):
-    options = {"q0": [0.5], "p0": [0.5], "tau0": 0.05, "t_end": 10.0, **kwargs}
+    options = {"q0": [0.5], "p0": [0.5], "tau0": 0.05, "t0": 0.0, "t_end": 10.0, **kwargs}
     with expect(message):
-        march(pendulum, options.pop("q0"), options.pop("p0"), **options)
+        span = (options.pop("t0"), options.pop("t_end"))
+        steps = {k: options.pop(k) for k in ("tol", "max_steps", "tau_min", "tau_max")
+                 if k in options}
+        march(pendulum, options.pop("q0"), options.pop("p0"), span,
+              steps=StepControl(**steps), **options)
 
 
 def test_parameter_of_wrong_type():
     system = load_scene("harmonic").system
     with expect("parameter 'w' must be a real number, got 'fast' of type str"):
-        march(system, [1.0], [0.0], tau0=0.1, t_end=1.0, params={"w": "fast"})
+        march(system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, params={"w": "fast"})
 
 
 def test_hamiltonian_not_scalar():
@@ -70,7 +83,7 @@ def test_hamiltonian_that_raises():
 def test_hamiltonian_not_finite_at_the_initial_state():
     system = HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 - 1 / q[0], n=1, name="coulomb")
     with expect("H is not finite at the initial state q0=[0.0], p0=[1.0], t0=0.0: H = -inf"):
-        march(system, [0.0], [1.0], tau0=0.1, t_end=1.0)
+        march(system, [0.0], [1.0], (0.0, 1.0), tau0=0.1)
 
 
 def test_alpha_out_of_range():
@@ -117,12 +130,13 @@ def test_scene_file_without_scene(tmp_path):
     ({"params": {"w": "1"}}, "system 'pendulum' has no parameter 'w' (its parameters: none)"),
 ])
 def test_solve_bvp_rejects_bad_input(pendulum, kwargs, message):
-    from ddvp_nlp.solvers.bvp.solve import solve_bvp
-
     options = {"q_start": [0.5], "q_end": [-0.036], "t0": 0.0, "t_end": 9.0, "nodes": 20,
                **kwargs}
     with expect(message):
-        solve_bvp(pendulum, options.pop("q_start"), options.pop("q_end"), **options)
+        span = (options.pop("t0"), options.pop("t_end"))
+        grid = GridOptions(tol=options.pop("tol")) if "tol" in options else None
+        solve_bvp(pendulum, options.pop("q_start"), options.pop("q_end"), span, options=grid,
+                  **options)
 
 
 def test_parameter_value_of_the_wrong_type_in_a_scene():

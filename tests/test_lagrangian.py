@@ -35,8 +35,8 @@ def test_fixed_steps_match_the_hamiltonian_scheme_for_every_alpha(alpha):
     hamiltonian = load_scene("pendulum").system
     lagrangian = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
     scheme = Scheme(rule="fixed", alpha=alpha)
-    _same(march(hamiltonian, [0.5], [0.5], tau0=0.05, t_end=20.0, scheme=scheme),
-          march(lagrangian, [0.5], [0.5], tau0=0.05, t_end=20.0, scheme=scheme), 1e-10)
+    _same(march(hamiltonian, [0.5], [0.5], (0.0, 20.0), tau0=0.05, scheme=scheme),
+          march(lagrangian, [0.5], [0.5], (0.0, 20.0), tau0=0.05, scheme=scheme), 1e-10)
 
 
 @pytest.mark.parametrize("rule", ["vddvp", "lee"])
@@ -50,8 +50,8 @@ def test_energy_rules_match_the_hamiltonian_scheme(rule, scene, function, params
     measured 9e-10 in t after 403 pendulum steps.)"""
     hamiltonian = load_scene(scene).system
     lagrangian = LagrangianSystem(function, 1, params=params, name=f"{scene}_l")
-    _same(march(hamiltonian, [0.5], [0.5], tau0=tau0, t_end=t_end, scheme=rule),
-          march(lagrangian, [0.5], [0.5], tau0=tau0, t_end=t_end, scheme=rule), 1e-10)
+    _same(march(hamiltonian, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule),
+          march(lagrangian, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule), 1e-10)
 
 
 @pytest.mark.parametrize("alpha, order", [(0.0, 1), (1.0, 1), (0.5, 2)])
@@ -60,8 +60,9 @@ def test_fitted_order_by_alpha(alpha, order):
     steps = [0.1 / 2**j for j in range(4)]
     errors = []
     for tau in steps:
-        solution = march(system, [1.0], [0.0], tau0=tau, t_end=5.0,
-                         scheme=Scheme(rule="fixed", alpha=alpha))
+        solution = march(
+            system, [1.0], [0.0], (0.0, 5.0), tau0=tau, scheme=Scheme(rule="fixed", alpha=alpha)
+        )
         exact_q, exact_p = np.cos(solution.t), -np.sin(solution.t)
         errors.append(max(np.max(np.abs(solution.q[:, 0] - exact_q)),
                           np.max(np.abs(solution.p[:, 0] - exact_p))))
@@ -70,7 +71,7 @@ def test_fitted_order_by_alpha(alpha, order):
 
 def test_interval_energy_is_conserved_by_vddvp():
     system = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
-    solution = march(system, [0.5], [0.5], tau0=0.05, t_end=50.0)
+    solution = march(system, [0.5], [0.5], (0.0, 50.0), tau0=0.05)
     E = interval_energies(system, Scheme(), solution.t, solution.q, solution.p, [])
     assert solution.success and np.ptp(E) < 1e-12
     # E_k = v_k^2/2 + V(Q_k) with v_k = (q_{k+1} - q_k)/tau_k, recomputed with numpy
@@ -83,7 +84,7 @@ def test_interval_energy_is_conserved_by_vddvp():
 def test_start_from_a_velocity(alpha):
     system = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
     scheme = Scheme(rule="fixed", alpha=alpha)
-    solution = march(system, [0.5], v0=[0.4], tau0=0.05, t_end=1.0, scheme=scheme)
+    solution = march(system, [0.5], t_span=(0.0, 1.0), v0=[0.4], tau0=0.05, scheme=scheme)
     assert solution.success
     assert abs(solution.q[1, 0] - (0.5 + 0.05 * 0.4)) < 1e-14  # q_1 = q_0 + tau0 v0
     Q = alpha * 0.5 + (1 - alpha) * solution.q[1, 0]
@@ -96,12 +97,22 @@ def test_fixed_endpoint_problem_matches_the_hamiltonian_one():
     hamiltonian, lagrangian = load_scene("pendulum"), load_scene("pendulum_lagrangian")
     for rule in ("vddvp", "fixed"):
         data = hamiltonian.resolve_boundary()
-        a = solve_bvp(hamiltonian.system, data.q_start, data.q_end, t0=data.t_span[0],
-                      t_end=data.t_span[1],
-                      nodes=data.nodes, scheme=rule)
-        b = solve_bvp(lagrangian.system, data.q_start, data.q_end, t0=data.t_span[0],
-                      t_end=data.t_span[1],
-                      nodes=data.nodes, scheme=rule)
+        a = solve_bvp(
+            hamiltonian.system,
+            data.q_start,
+            data.q_end,
+            (data.t_span[0], data.t_span[1]),
+            nodes=data.nodes,
+            scheme=rule,
+        )
+        b = solve_bvp(
+            lagrangian.system,
+            data.q_start,
+            data.q_end,
+            (data.t_span[0], data.t_span[1]),
+            nodes=data.nodes,
+            scheme=rule,
+        )
         assert a.success and b.success, b.message
         for x, y in ((a.t, b.t), (a.q, b.q), (a.p, b.p)):
             assert np.max(np.abs(x - y)) < 1e-9
@@ -149,13 +160,13 @@ def test_bad_lagrangian(function, message):
 def test_bad_start(kwargs, message):
     system = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
     with pytest.raises(InputError, match="^" + message.replace("[", r"\[").replace("]", r"\]")):
-        march(system, [0.5], tau0=0.05, t_end=1.0, **kwargs)
+        march(system, [0.5], t_span=(0.0, 1.0), tau0=0.05, **kwargs)
 
 
 def test_v0_needs_a_lagrangian():
     with pytest.raises(InputError, match="^v0 needs a Lagrangian system; 'pendulum' is "
                                          "Hamiltonian: give p0$"):
-        march(load_scene("pendulum").system, [0.5], v0=[0.4], tau0=0.05, t_end=1.0)
+        march(load_scene("pendulum").system, [0.5], t_span=(0.0, 1.0), v0=[0.4], tau0=0.05)
     with pytest.raises(InputError, match="^v0 is for a scene declared by Lagrangian"):
         Scene(lambda q, p, t: p[0] ** 2, n=1, q0=[0.0], v0=[1.0], tau0=0.1, t_end=1.0)
     scene = Scene(Lagrangian(_pendulum_l), n=1, q0=[0.5], v0=[0.4], tau0=0.05, t_end=1.0)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from conftest import fitted_order, run_scene
 
-from ddvp_nlp import HamiltonianSystem, Scheme, Status, load_scene, march
+from ddvp_nlp import HamiltonianSystem, Scheme, Status, StepControl, Tolerance, load_scene, march
 
 EPS, OMEGA = 0.1, 0.02
 
@@ -54,8 +54,8 @@ def test_equations_hold_when_recomputed_with_numpy(paper, scheme):
     config = paper.resolve({"t_end": 300.0})
     # alpha = 0.3 at tau0 = 0.5 is beyond the accuracy check's default tolerance (accuracy.py);
     # the equations, which this test is about, hold all the same
-    solution = march(paper.system, config.q0, config.p0, tau0=0.5, t_end=300.0, scheme=scheme,
-                     accept_inaccurate=True)
+    solution = march(paper.system, config.q0, config.p0, (0.0, 300.0), tau0=0.5, scheme=scheme,
+                     accuracy=Tolerance(stop=False))
     assert solution.success, solution.message
     canonical, energy = numpy_residuals(solution, scheme)
     assert np.max(np.abs(canonical)) < 1e-10
@@ -86,7 +86,7 @@ def test_midpoint_rule_is_second_order_on_harmonic(rule):
     config = scene.resolve()
     steps, errors = [], []
     for tau0 in (0.2, 0.1, 0.05, 0.025):
-        solution = march(scene.system, config.q0, config.p0, tau0=tau0, t_end=10.0, scheme=rule)
+        solution = march(scene.system, config.q0, config.p0, (0.0, 10.0), tau0=tau0, scheme=rule)
         q, p = scene.exact(solution.t, config.q0, config.p0, 0.0, **config.params)
         steps.append(tau0)
         errors.append(max(np.max(np.abs(solution.q - q)), np.max(np.abs(solution.p - p))))
@@ -96,7 +96,9 @@ def test_midpoint_rule_is_second_order_on_harmonic(rule):
 @pytest.mark.parametrize("name", ["pendulum", "harmonic", "kepler", "henon_heiles", "fpu"])
 @pytest.mark.parametrize("rule", ["vddvp", "lee"])
 def test_midpoint_energy_conserved_over_ten_thousand_steps(name, rule):
-    scene, config, solution = run_scene(name, {"t_end": 1e9}, scheme=rule, max_steps=10_000)
+    scene, config, solution = run_scene(
+        name, {"t_end": 1e9}, scheme=rule, steps=StepControl(max_steps=10_000)
+    )
     assert solution.status is Status.MAX_STEPS and solution.steps == 10_000
     from ddvp_nlp.discrete.equations import interval_energies
     H = interval_energies(scene.system, Scheme(rule), solution.t, solution.q, solution.p,
@@ -124,8 +126,8 @@ def test_gauge_term_changes_lee_but_not_vddvp():
         lambda q, p, t, eps, omega: base.hamiltonian(q, p, t, eps, omega) + 0.05 * ca.sin(0.5 * t)
         + 0.01 * t, n=1, params=dict(base.params), name="gauged")
     for rule, same in (("vddvp", True), ("lee", False)):
-        a = march(base.system, [0.5], [0.5], tau0=0.5, t_end=100.0, scheme=rule)
-        b = march(gauged, [0.5], [0.5], tau0=0.5, t_end=100.0, scheme=rule)
+        a = march(base.system, [0.5], [0.5], (0.0, 100.0), tau0=0.5, scheme=rule)
+        b = march(gauged, [0.5], [0.5], (0.0, 100.0), tau0=0.5, scheme=rule)
         assert a.success and b.success
         n = min(a.t.size, b.t.size)
         difference = max(np.max(np.abs(a.t[:n] - b.t[:n])), np.max(np.abs(a.q[:n] - b.q[:n])))
@@ -151,7 +153,7 @@ def test_fixed_steps_end_on_t_end():
 def test_breakdown_keeps_every_accepted_step_and_never_a_reversed_one():
     """The rotating pendulum (H = 2.5) has no positive step once c(z) changes sign."""
     scene = load_scene("pendulum")
-    solution = march(scene.system, [0.0], [np.sqrt(5.0)], tau0=0.05, t_end=100.0)
+    solution = march(scene.system, [0.0], [np.sqrt(5.0)], (0.0, 100.0), tau0=0.05)
     assert not solution.success
     assert solution.status in (Status.NEWTON_FAILED, Status.NO_ADMISSIBLE_STEP)
     assert solution.steps > 5 and np.all(solution.tau > 0)
@@ -163,11 +165,13 @@ def test_breakdown_keeps_every_accepted_step_and_never_a_reversed_one():
 
 
 def test_step_bounds_end_the_march_with_their_status():
-    _, _, low = run_scene("paper_pendulum", {"t_end": 50.0}, tau_min=0.49)
+    _, _, low = run_scene("paper_pendulum", {"t_end": 50.0}, steps=StepControl(tau_min=0.49))
     assert low.status is Status.STEP_BELOW_MIN and np.all(low.tau >= 0.49)
-    _, _, high = run_scene("paper_pendulum", {"t_end": 50.0}, tau_max=0.51)
+    _, _, high = run_scene("paper_pendulum", {"t_end": 50.0}, steps=StepControl(tau_max=0.51))
     assert high.status is Status.STEP_ABOVE_MAX and np.all(high.tau[1:] <= 0.51)
-    _, _, ratio = run_scene("paper_pendulum", {"t_end": 50.0}, max_step_ratio=1.01)
+    _, _, ratio = run_scene(
+        "paper_pendulum", {"t_end": 50.0}, steps=StepControl(max_step_ratio=1.01)
+    )
     assert ratio.status is Status.STEP_RATIO
     ratios = ratio.tau[1:] / ratio.tau[:-1]
     assert np.all(np.maximum(ratios, 1 / ratios) <= 1.01)
@@ -190,12 +194,18 @@ def test_an_interrupt_inside_the_monitors_keeps_only_the_nodes_all_of_them_saw(m
         return watch(self, nodes, first, advance)
 
     monkeypatch.setattr(monitors.SolvabilityMonitor, "watch", interrupted)
-    solution = march(scene.system, [0.0, 0.1], [0.35, 0.0], tau0=0.05, t_end=1e5)
+    solution = march(scene.system, [0.0, 0.1], [0.35, 0.0], (0.0, 1e5), tau0=0.05)
     monkeypatch.setattr(monitors.SolvabilityMonitor, "watch", watch)
     assert solution.status is Status.INTERRUPTED
     assert solution.local_error.size == solution.steps
     assert solution.solvability.size == solution.t.size
-    before = march(scene.system, [0.0, 0.1], [0.35, 0.0], tau0=0.05, t_end=1e5,
-                   max_steps=solution.steps)
+    before = march(
+        scene.system,
+        [0.0, 0.1],
+        [0.35, 0.0],
+        (0.0, 1e5),
+        tau0=0.05,
+        steps=StepControl(max_steps=solution.steps),
+    )
     assert solution.steps > 1000 and before.steps == solution.steps  # two whole calls kept
     assert np.array_equal(solution.t, before.t)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
+from ddvp_nlp import GridOptions
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
 from ddvp_nlp.solution import Status
@@ -97,7 +98,7 @@ def test_no_orbit_found_is_a_failure_status_with_residuals():
     """Henon-Heiles from a generic point of x = 0: the march does not close, Newton finds no
     orbit nearby; the result says so and carries the residuals."""
     solution = solve_periodic(load_scene("henon_heiles").system, energy=0.1, nodes=100,
-                              section="q1=0", max_iter=20)
+                              section="q1=0", options=GridOptions(max_iter=20))
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED)
     assert "canonical" in solution.message and solution.stats["residuals"]["canonical"] > 1e-6
     # auto: Newton, then IPOPT from the same start; neither is passed off as an orbit

@@ -9,6 +9,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.special import ellipk
 
+from ddvp_nlp import GridOptions
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
 from ddvp_nlp.solvers.periodic.family import solve_periodic_family
@@ -42,8 +43,12 @@ def pendulum_h(q, p):
 ])
 def test_ipopt_finds_the_orbit_newton_finds(scene, energy, nodes, params, force, hamiltonian):
     system = load_scene(scene).system
-    orbits = {solver: solve_periodic(system, energy=energy, nodes=nodes, params=params,
-                                     solver=solver) for solver in ("newton", "ipopt")}
+    orbits = {
+        solver: solve_periodic(
+            system, energy=energy, nodes=nodes, params=params, options=GridOptions(solver=solver)
+        )
+        for solver in ("newton", "ipopt")
+    }
     for solver, orbit in orbits.items():
         assert orbit.success, orbit.message
         assert orbit.stats["solver"] == solver and orbit.stats["attempts"][0]["solver"] == solver
@@ -106,7 +111,7 @@ def test_auto_tries_newton_first_and_reports_both(rotations):
 def test_rotation_without_an_angle_does_not_close():
     """Without ``angles`` q never returns to the section: a failure status, not an orbit."""
     orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=50,
-                           section="q1=0", solver="newton")
+                           section="q1=0", options=GridOptions(solver="newton"))
     assert not orbit.success and "did not return" in orbit.message
 
 
@@ -138,6 +143,8 @@ def test_more_bad_input_is_refused(kwargs, message):
     arguments = {"energy": 0.5, "nodes": 50, **kwargs}
     with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")
                        .replace(".", r"\.")):
+        if "solver" in arguments:
+            arguments["options"] = GridOptions(solver=arguments.pop("solver"))
         solve_periodic(load_scene("pendulum").system, **arguments)
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, Output, StepControl, Tolerance, load_scene, march, solve_bvp
 from ddvp_nlp.cli import main
 from ddvp_nlp.errors import InputError
 
@@ -61,16 +61,23 @@ def test_bad_scene_files_are_refused(tmp_path, capsys, body, text):
 
 
 @pytest.mark.parametrize("kwargs, text", [
-    ({"params": [0.5]}, "params of system 'pendulum' must be a mapping of names to numbers, "
-                        "got [0.5]"),
-    ({"chunk": 10**9}, "chunk must be at most 65536, got 1000000000"),
-    ({"cache_dir": __file__}, f"cache_dir must be a folder, got the file {__file__!r}"),
+    (lambda: {"params": [0.5]},
+     "params of system 'pendulum' must be a mapping of names to numbers, got [0.5]"),
+    (lambda: {"compilation": Compilation(chunk=10**9)},
+     "chunk must be at most 65536, got 1000000000"),
+    (lambda: {"compilation": Compilation(cache_dir=__file__)},
+     f"cache_dir must be a folder, got the file {__file__!r}"),
+    (lambda: {"steps": {"tol": 1e-8}},
+     "steps must be a StepControl(...), got {'tol': 1e-08}"),
+    (lambda: {"accuracy": 1e-3}, "accuracy must be a Tolerance(...), got 0.001"),
 ])
 def test_bad_march_arguments_are_refused(kwargs, text):
+    """Bad values are refused by name, when an option object is made or, for a value where an
+    option object belongs, by the march."""
     scene = load_scene("pendulum")
     config = scene.resolve({})
     with pytest.raises(InputError) as info:
-        march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=1.0, **kwargs)
+        march(scene.system, config.q0, config.p0, (0.0, 1.0), tau0=config.tau0, **kwargs())
     assert str(info.value) == text
 
 
@@ -107,8 +114,8 @@ def test_an_unusable_cache_or_compiler_falls_back_with_one_warning(tmp_path, mon
                else {"cache_dir": tmp_path / "c", "compiler": "false"})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        solution = march(load_scene("harmonic").system, [1.0], [0.0], tau0=0.1, t_end=2.0,
-                         **options)
+        solution = march(load_scene("harmonic").system, [1.0], [0.0], (0.0, 2.0), tau0=0.1,
+                         compilation=Compilation(**options))
     assert solution.success and solution.stats["path"] == "vm"
     fallbacks = [w for w in caught if "virtual machine instead" in str(w.message)]
     assert len(fallbacks) == 1
@@ -152,33 +159,54 @@ def test_fuzz_command_line(tmp_path, capsys):
     assert clean >= FUZZ_COUNT // 2
 
 
-def test_fuzz_library_calls():
-    from ddvp_nlp.solvers.bvp.solve import solve_bvp
+# where each fuzzed name of the march goes: the call itself, or an option object
+MARCH_PLACES = {"q0": None, "p0": None, "tau0": None, "t_end": None, "t0": None,
+                "params": None, "scheme": None, "tol": StepControl, "max_steps": StepControl,
+                "tau_min": StepControl, "max_step_ratio": StepControl,
+                "time_limit": StepControl, "energy_guard": StepControl,
+                "breakdown": StepControl, "chunk": Compilation, "rtol": Tolerance,
+                "energy_tol": Tolerance, "checkpoint_interval": Output}
 
+
+def _fuzzed_march(system, name, value):
+    """A march of ``harmonic`` with ``name`` set to ``value`` where it belongs."""
+    values = {"q0": [1.0], "p0": [0.0], "tau0": 0.1, "t0": 0.0, "t_end": 1.0}
+    groups = {StepControl: {"max_steps": 50}, Compilation: {}, Tolerance: {}, Output: {}}
+    place = MARCH_PLACES[name]
+    (values if place is None else groups[place])[name] = value
+    keyword = {StepControl: "steps", Compilation: "compilation", Tolerance: "accuracy",
+               Output: "output"}
+    options = {keyword[kind]: kind(**fields) for kind, fields in groups.items()}
+    extra = {key: values[key] for key in ("params", "scheme") if key in values}
+    return march(system, values["q0"], values["p0"], (values["t0"], values["t_end"]),
+                 tau0=values["tau0"], **extra, **options)
+
+
+def test_fuzz_library_calls():
+    """Random bad values for every argument and option field: each is refused with an
+    InputError (never a traceback from inside), or, where it is harmless, solved."""
     rng = random.Random(16)
     scene = load_scene("harmonic")
     bad = [None, "x", [], [np.nan], [1.0, 2.0], -1.0, 0.0, np.inf, True, {"w": "a"}, 10**30,
            object(), -5, 1e-300]
-    names = ["q0", "p0", "tau0", "t_end", "t0", "tol", "max_steps", "params", "chunk",
-             "tau_min", "max_step_ratio", "time_limit", "energy_guard", "breakdown", "scheme"]
     refused = 0
     for _ in range(FUZZ_COUNT):
-        kwargs = {"q0": [1.0], "p0": [0.0], "tau0": 0.1, "t_end": 1.0, "max_steps": 50}
-        kwargs[rng.choice(names)] = rng.choice(bad)
         try:
-            march(scene.system, **kwargs)
+            _fuzzed_march(scene.system, rng.choice(list(MARCH_PLACES)), rng.choice(bad))
         except InputError:
             refused += 1
     for _ in range(FUZZ_COUNT // 3):
-        kwargs = {"nodes": 11, "t0": 0.0, "t_end": 1.0}
+        span, nodes = [0.0, 1.0], 11
         args = [[1.0], [0.5]]
         slot = rng.randrange(5)
         if slot < 2:
             args[slot] = rng.choice(bad)
+        elif slot < 4:
+            span[slot - 2] = rng.choice(bad)
         else:
-            kwargs[("t0", "t_end", "nodes")[slot - 2]] = rng.choice(bad)
+            nodes = rng.choice(bad)
         try:
-            solve_bvp(scene.system, *args, **kwargs)
+            solve_bvp(scene.system, *args, tuple(span), nodes=nodes)
         except InputError:
             refused += 1
     assert refused >= FUZZ_COUNT

@@ -6,14 +6,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.compiler import compile_function, find_compiler
-from ddvp_nlp.solvers.march.chunk import FAST_NEWTON_OPTIONS, MEDIUM_UNROLL, SMALL_UNROLL
+from ddvp_nlp.solvers.march.chunk import MEDIUM_UNROLL, SMALL_UNROLL
+from ddvp_nlp.solvers.march.newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
 from ddvp_nlp.solvers.march.recheck import grid_residuals
 from ddvp_nlp.solvers.march.steps import step_functions
-from ddvp_nlp.solvers.march.unrolled import DenseLU, unrolled_newton
 
 
 def _steps(name):
@@ -23,9 +23,16 @@ def _steps(name):
     the residual after three iterations from 1e-17 to 1e-3)."""
     scene = load_scene(name)
     system, config = scene.system, scene.resolve({})
-    solution = march(system, config.q0, config.p0, tau0=config.tau0,
-                     t_end=config.t0 + 40 * config.tau0, params=config.params, fast=False,
-                     check_accuracy=False)
+    solution = march(
+        system,
+        config.q0,
+        config.p0,
+        (0.0, config.t0 + 40 * config.tau0),
+        tau0=config.tau0,
+        params=config.params,
+        accuracy=None,
+        compilation=Compilation(fast=False),
+    )
     z = np.column_stack([solution.q, solution.p])
     functions = step_functions(system, Scheme.coerce("vddvp"))
     theta = system.parameter_vector(config.params)
@@ -44,8 +51,8 @@ def _steps(name):
 def test_unrolled_newton_is_fast_newton_bit_for_bit(iterations, check_after, inline):
     functions, cases = _steps("paper_pendulum")
     reference = ca.rootfinder("reference", "fast_newton", functions.energy_residual,
-                              FAST_NEWTON_OPTIONS)
-    unrolled = unrolled_newton("unrolled", functions.energy_residual, FAST_NEWTON_OPTIONS,
+                              NEWTON_OPTIONS)
+    unrolled = unrolled_newton("unrolled", functions.energy_residual, NEWTON_OPTIONS,
                                iterations=iterations, check_after=check_after, inline=inline)
     for w, guess in cases:
         expected = np.asarray(reference(guess, w)).ravel()
@@ -60,13 +67,13 @@ def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
     if compiler is None:
         pytest.skip("no C compiler")
     functions, cases = _steps("henon_heiles")
-    root = ca.rootfinder("root", "fast_newton", functions.energy_residual, FAST_NEWTON_OPTIONS)
+    root = ca.rootfinder("root", "fast_newton", functions.energy_residual, NEWTON_OPTIONS)
     x0 = ca.MX.sym("x0", functions.energy_residual.sparsity_in(0))
     w_sym = ca.MX.sym("w", functions.energy_residual.sparsity_in(1))
     reference = compile_function(ca.Function("fast_newton_step", [x0, w_sym],
                                              [root(x0, w_sym)]), compiler, tmp_path)
     unrolled = compile_function(unrolled_newton("unrolled", functions.energy_residual,
-                                                FAST_NEWTON_OPTIONS,
+                                                NEWTON_OPTIONS,
                                                 **{**SMALL_UNROLL, "linear": "qr"}),
                                 compiler, tmp_path)
     for w, guess in cases:
@@ -85,8 +92,8 @@ def test_unrolled_elimination_finds_fast_newtons_root(name, options):
     functions, cases = _steps(name)
     assert options["linear"] == "lu"
     reference = ca.rootfinder("reference", "fast_newton", functions.energy_residual,
-                              FAST_NEWTON_OPTIONS)
-    unrolled = unrolled_newton("unrolled", functions.energy_residual, FAST_NEWTON_OPTIONS,
+                              NEWTON_OPTIONS)
+    unrolled = unrolled_newton("unrolled", functions.energy_residual, NEWTON_OPTIONS,
                                **options)
     for w, guess in cases:
         x = np.asarray(unrolled(guess, w)).ravel()
@@ -156,9 +163,9 @@ def test_values_at_the_root_are_those_of_the_returned_iterate(options):
     on (the pushed guesses)."""
     functions, cases = _steps("henon_heiles")
     check = functions.energy_check
-    unrolled = unrolled_newton("unrolled", functions.energy_residual, FAST_NEWTON_OPTIONS,
+    unrolled = unrolled_newton("unrolled", functions.energy_residual, NEWTON_OPTIONS,
                                at_root=check, **options)
-    plain = unrolled_newton("plain", functions.energy_residual, FAST_NEWTON_OPTIONS, **options)
+    plain = unrolled_newton("plain", functions.energy_residual, NEWTON_OPTIONS, **options)
     for w, guess in cases:
         x, *values = unrolled.call([guess, w])
         assert np.array_equal(np.asarray(x), np.asarray(plain(guess, w)))

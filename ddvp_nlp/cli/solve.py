@@ -9,6 +9,8 @@ from pathlib import Path
 from ..discrete.scheme import RULES, Scheme
 from ..errors import InputError
 from ..scenes import load_scene
+from ..solvers.options import GridOptions, Output
+from . import options
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
 from .summary import print_summary
@@ -148,18 +150,12 @@ def _march(args, scene, config, scheme):
     if args.scheme not in RULES:
         return _march_method(args, scene, config)
 
-    solution = march(scene.system, config.q0, config.p0, v0=config.v0, tau0=config.tau0,
-                     t_end=config.t_end,
-                     t0=config.t0, scheme=scheme, params=config.params, tol=args.tol,
-                     max_steps=args.max_steps, tau_min=args.tau_min, tau_max=args.tau_max,
-                     max_step_ratio=args.max_step_ratio, progress=not args.no_progress,
-                     fast=not args.careful, time_limit=args.time_limit,
-                     energy_guard=args.energy_guard,
-                     breakdown="least_squares" if args.least_squares else "stop",
-                     rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
-                     global_tol=args.global_tol, accept_inaccurate=args.accept_inaccurate,
-                     checkpoint=args.checkpoint, checkpoint_interval=args.checkpoint_every,
-                     stop=INTERRUPTS.stop_requested)
+    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     v0=config.v0, tau0=config.tau0, scheme=scheme, params=config.params,
+                     steps=options.step_control(args), accuracy=options.tolerance(args),
+                     compilation=options.compilation(args),
+                     output=options.march_output(args, checkpoint=args.checkpoint,
+                                                 stop=INTERRUPTS.stop_requested))
     stats = solution.stats
     return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                   "checkpoints")}
@@ -175,14 +171,10 @@ def _march_method(args, scene, config):
 
     method = METHODS[args.scheme]
     value = args.tol if method.knob == "rtol" else config.tau0
-    from ..solvers.accuracy import Tolerance
-
-    tolerance = Tolerance(rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
-                          global_tol=args.global_tol, stop=not args.accept_inaccurate)
     solution = run_method(scene, config, args.scheme, value,
                           compiler=None if args.careful else find_compiler("auto"),
                           max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
-                          tolerance=tolerance)
+                          tolerance=options.tolerance(args))
     extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
              "own_residual_max": solution.stats.get("own_residual_max"),
              "path": solution.stats.get("path")}
@@ -202,15 +194,12 @@ def _bvp(args, scene, config, scheme):
     if p_start is not None and args.guess != "march":
         raise InputError(f"--p-start {args.p_start} is the momentum shooting starts from: give "
                          f"it with --guess march (got --guess {args.guess})")
-    solution = solve_bvp(scene.system, config.q_start, config.q_end, t0=config.t_span[0],
-                         t_end=config.t_span[1], nodes=config.nodes, scheme=scheme,
-                         params=config.params, tol=args.tol,
-                         solver=args.solver, verbose=args.verbose,
-                         guess=_bvp_guess(args.guess, scene.system.n),
-                         p_start=p_start,
-                         time_limit=args.time_limit,
-                         progress=args.progress or (config.nodes >= AUTO_PROGRESS_NODES
-                                                    and sys.stderr.isatty()))
+    progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
+                         nodes=config.nodes, scheme=scheme, params=config.params,
+                         guess=_bvp_guess(args.guess, scene.system.n), p_start=p_start,
+                         options=options.grid_options(args, tol=args.tol),
+                         output=Output(progress=progress))
     return solution, {"solver": solution.stats}
 
 
@@ -270,8 +259,8 @@ def _bvp_higher(args, scene, config, scheme):
     t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
-                            scheme=scheme.rule, params=config["params"], tol=args.tol,
-                            solver=args.solver), None
+                            scheme=scheme.rule, params=config["params"],
+                            options=GridOptions(solver=args.solver, tol=args.tol)), None
 
 
 # (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)
@@ -290,19 +279,20 @@ def run_periodic(args) -> int:
     scene = load_scene(args.scene)
     defaults = dict(getattr(scene, "periodic", None) or {})
     params = parse_settings(args.settings)
-    options = {"section": args.section or defaults.get("section", "p1=0"),
-               "scheme": args.scheme, "params": params, "start": defaults.get("start"),
-               "integrals": defaults.get("integrals", ()),
-               "angles": defaults.get("angles", ()), "solver": args.solver}
+    settings = {"section": args.section or defaults.get("section", "p1=0"),
+                "scheme": args.scheme, "params": params, "start": defaults.get("start"),
+                "integrals": defaults.get("integrals", ()),
+                "angles": defaults.get("angles", ()),
+                "options": options.grid_options(args)}
     nodes = args.nodes if args.nodes is not None else defaults.get("nodes", 200)
     guess = _bvp_guess(args.guess) if args.guess else None
     if args.family is not None:
         energies = _family_energies(args.family)
         for energy in (energies[0], energies[-1]):
-            check_periodic(scene.system, energy=energy, nodes=nodes, **options)
+            check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
         out = prepare_folder(args.out or f"runs/{scene.name}-family")
         family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
-                                       **options)
+                                       **settings)
         rows = write_family(out, scene, family, params, plot=not args.no_plot)
         for row in rows:
             print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
@@ -312,9 +302,10 @@ def run_periodic(args) -> int:
     energy = args.energy if args.energy is not None else defaults.get("energy")
     if energy is None:
         raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
-    check_periodic(scene.system, energy=energy, nodes=nodes, **options)
+    check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
     out = prepare_folder(args.out or f"runs/{scene.name}-periodic")
-    solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess, **options)
+    solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
+                              **settings)
     meta = write_periodic(out, scene, solution, params, plot=not args.no_plot)
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "

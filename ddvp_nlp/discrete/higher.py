@@ -60,7 +60,7 @@ def action(system: HigherOrderSystem, q_nodes: list, t_nodes: list, theta) -> ca
     return total
 
 
-def _check_rule(system: HigherOrderSystem, rule: str) -> str:
+def check_rule(system: HigherOrderSystem, rule: str) -> str:
     if rule not in RULES:
         raise InputError(f"unknown scheme {rule!r} (choose from {', '.join(RULES)})")
     if rule == "vddvp" and system.time_dependent:

@@ -36,7 +36,7 @@ compiled CasADi function mapped over blocks of nodes.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from types import SimpleNamespace
 
 import casadi as ca
@@ -46,7 +46,6 @@ from ..cache import cached
 from ..discrete.runge_kutta import rk4
 from ..physics.hamiltonian import vector_field_function
 from ..solution import Status
-from ..validation import check_real
 from .compiler import (
     CompileUnavailable,
     FunctionBuffer,
@@ -55,6 +54,7 @@ from .compiler import (
     compile_function,
     warn_once,
 )
+from .options import Tolerance
 
 BLOCK = 1024  # nodes per call of the compiled estimate (the last block is padded)
 SMALL = 16  # fewer steps than this go one by one, unpadded
@@ -65,32 +65,6 @@ ACCURACY_VALUES = ("delta", "scale", "H_new", "global_error", "error")
 ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-squares step "
           "(--least-squares); --accept-inaccurate (accept_inaccurate=True) records the estimates "
           "and goes on")
-
-
-@dataclass(frozen=True)
-class Tolerance:
-    """What the accuracy check accepts.
-
-    Attributes:
-        rtol, atol: the local error test ``delta_k <= atol + rtol * |z|``.
-        energy_tol: bound on ``level_error`` and ``energy_drift`` (relative to ``max(1, |H0|)``).
-        global_tol: optional bound on the global estimate relative to ``max(1, max |z|)``.
-        stop: end the march at the first failure (status ``inaccurate``); ``False`` records it
-            and goes on.
-    """
-
-    rtol: float = 1e-2
-    atol: float = 1e-2
-    energy_tol: float = 0.1
-    global_tol: float | None = None
-    stop: bool = True
-
-    def __post_init__(self):
-        for name in ("rtol", "atol", "energy_tol"):
-            object.__setattr__(self, name, check_real(name, getattr(self, name), positive=True))
-        object.__setattr__(self, "global_tol",
-                           check_real("global_tol", self.global_tol, positive=True,
-                                      allow_none=True))
 
 
 def local_error_function(system, substeps: int = 1) -> ca.Function:

@@ -87,18 +87,28 @@ def compile_function(function: ca.Function, compiler: str, folder: Path, *,
     compiler fails."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
-    code = source.dump()
-    key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, ca.__version__])
+    library = compile_source(source.dump(), function.name(), compiler, folder, prefix=prefix,
+                             salt=(ca.__version__,))
+    return ca.external(function.name(), str(library))
+
+
+def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
+                   salt=()) -> Path:
+    """``PREFIX_HASH.so`` in ``folder``, compiled from the C ``code`` (once per hash of the
+    code, the compiler, its flags and ``salt``; again if the cached library fails its
+    checksum), each file renamed into place complete. Raises :class:`CompileUnavailable` if the
+    folder or the compiler fails; ``name`` is what a compiler error names."""
+    key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, *salt])
                          .encode()).hexdigest()[:24]
     library = Path(folder) / f"{prefix}_{key}.so"
     try:
         Path(folder).mkdir(parents=True, exist_ok=True)
         if not _intact(library):
-            _build(code, function.name(), compiler, library)
+            _build(code, name, compiler, library)
     except OSError as exc:
         raise CompileUnavailable(f"the compiled-code cache {str(folder)!r} cannot be used: "
                                  f"{exc.strerror or exc}") from None
-    return ca.external(function.name(), str(library))
+    return library
 
 
 _BUILDS = [0]  # C compiles run by this process (a list: one mutable count, lock-free reads)

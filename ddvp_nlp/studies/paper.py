@@ -19,6 +19,7 @@ from ..physics.hamiltonian import (
 )
 from ..scenes import load_scene
 from ..solvers.march.solve import march
+from ..solvers.options import StepControl
 
 
 def dominant_period(t, values, *, longer_than=None, shorter_than=None) -> float:
@@ -69,8 +70,14 @@ def paper_example(t_end: float = 10000.0) -> dict:
     the extreme steps fall (first 16 time units, as in figure 3)."""
     scene = load_scene("paper_pendulum")
     config = scene.resolve({"t_end": t_end})
-    solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                     params=config.params)
+    solution = march(
+        scene.system,
+        config.q0,
+        config.p0,
+        (0.0, config.t_end),
+        tau0=config.tau0,
+        params=config.params,
+    )
     t, q, tau = solution.t, solution.q[:, 0], solution.tau
     first = t[:-1] <= 16.0
     result = {"solution": solution, "steps": solution.steps,
@@ -98,7 +105,7 @@ def site_density_spread(system: HamiltonianSystem, q0, p0, tau0s, *, t_end: floa
     weight = site_density_weight_function(system)
     result = {"tau0": list(tau0s), "tau_spread": [], "node": [], "midpoint": []}
     for tau0 in tau0s:
-        solution = march(system, q0, p0, tau0=tau0, t_end=t_end)
+        solution = march(system, q0, p0, (0.0, t_end), tau0=tau0)
         N = solution.t.size
         nodes = np.asarray(weight.map(N)(solution.q.T, solution.p.T, solution.t[None, :],
                                          np.zeros((0, 1)))).ravel()
@@ -123,8 +130,8 @@ def gauge_differences(t_end: float = 100.0) -> dict:
         + 0.05 * ca.sin(0.5 * t) + 0.01 * t, n=1, params=dict(base.params), name="gauged")
     result = {}
     for rule in ("vddvp", "lee"):
-        a = march(base.system, [0.5], [0.5], tau0=0.5, t_end=t_end, scheme=rule)
-        b = march(gauged, [0.5], [0.5], tau0=0.5, t_end=t_end, scheme=rule)
+        a = march(base.system, [0.5], [0.5], (0.0, t_end), tau0=0.5, scheme=rule)
+        b = march(gauged, [0.5], [0.5], (0.0, t_end), tau0=0.5, scheme=rule)
         n = min(a.t.size, b.t.size)
         result[rule] = {"t": float(np.max(np.abs(a.t[:n] - b.t[:n]))),
                         "q": float(np.max(np.abs(a.q[:n] - b.q[:n]))),
@@ -139,7 +146,7 @@ def step_ratio_sweep(tau0s, *, t_end: float = 16.0) -> dict:
     rows = []
     for rule in ("vddvp", "lee"):
         for tau0 in tau0s:
-            solution = march(scene.system, [0.5], [0.5], tau0=tau0, t_end=t_end, scheme=rule)
+            solution = march(scene.system, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule)
             ratio = solution.tau / tau0
             rows.append({"rule": rule, "tau0": tau0, "status": solution.status.code,
                          "steps": solution.steps, "t_reached": float(solution.t[-1]),
@@ -219,7 +226,7 @@ def symplecticity(samples: int = 5) -> dict:
         scene = load_scene(name)
         system = scene.system
         theta = system.parameter_vector()
-        run = march(system, [0.5], [0.5], tau0=0.1, t_end=20.0, scheme="lee")
+        run = march(system, [0.5], [0.5], (0.0, 20.0), tau0=0.1, scheme="lee")
         picks = np.linspace(1, run.steps - 1, samples).astype(int)
         fixed = fixed_step_map(system, scheme)
         extended, after_step = extended_lee_map(system, scheme)
@@ -257,7 +264,9 @@ def energy_residual_growth(steps=(1000, 10_000, 100_000)) -> dict:
     largest value and the size of its running sum (what a drift of the energy level would be)
     after each number of steps."""
     scene = load_scene("paper_pendulum")
-    run = march(scene.system, [0.5], [0.5], tau0=0.5, t_end=1e12, max_steps=max(steps))
+    run = march(
+        scene.system, [0.5], [0.5], (0.0, 1e12), tau0=0.5, steps=StepControl(max_steps=max(steps))
+    )
     running = np.cumsum(run.energy_residual)
     rows = [{"steps": N, "t": float(run.t[N]),
              "max_residual": float(np.max(np.abs(run.energy_residual[:N - 1]))),
@@ -273,8 +282,8 @@ def legendre_agreement(t_end: float = 20.0) -> dict:
     hamiltonian, lagrangian = load_scene("pendulum"), load_scene("pendulum_lagrangian")
     result = {}
     for rule in ("vddvp", "lee", "fixed"):
-        a = march(hamiltonian.system, [0.5], [0.5], tau0=0.05, t_end=t_end, scheme=rule)
-        b = march(lagrangian.system, [0.5], [0.5], tau0=0.05, t_end=t_end, scheme=rule)
+        a = march(hamiltonian.system, [0.5], [0.5], (0.0, t_end), tau0=0.05, scheme=rule)
+        b = march(lagrangian.system, [0.5], [0.5], (0.0, t_end), tau0=0.05, scheme=rule)
         n = min(a.t.size, b.t.size)
         result[rule] = {"t": float(np.max(np.abs(a.t[:n] - b.t[:n]))),
                         "q": float(np.max(np.abs(a.q[:n] - b.q[:n]))),

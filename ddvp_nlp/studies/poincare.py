@@ -110,7 +110,7 @@ def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: in
     starts = section_starts(system, theta, energy, section, orbits, direction=direction,
                             box=box, seed=seed)
     solutions = ensemble(system, starts[:, :n], starts[:, n:], scene=scene, scheduler=scheduler,
-                         tau0=tau0, t_end=t_end, params=params, **march_options)
+                         t_span=(0.0, t_end), tau0=tau0, params=params, **march_options)
     index, value, _ = parse_section(section, n)
     field = vector_field_function(system)
     points, times, orbit, errors = [], [], [], []

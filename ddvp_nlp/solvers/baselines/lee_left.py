@@ -25,7 +25,7 @@ from ...discrete.lee_left import LeeLeftPointEquations
 from ...physics.hamiltonian import HamiltonianSystem, quadratic_kinetic_matrix
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
-from ..march.chunk import FAST_NEWTON_OPTIONS
+from ..march.newton import NEWTON_OPTIONS
 from .fixed_step import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
 
@@ -48,7 +48,7 @@ def _chunk(system: HamiltonianSystem, functions: LeeLeftPointEquations, chunk: i
         theta_symbol = ca.SX.sym("theta", system.theta.numel())
         w = ca.vertcat(state, theta_symbol)
         newton = ca.rootfinder("lee_left_newton", "fast_newton", functions.residual,
-                               FAST_NEWTON_OPTIONS)
+                               NEWTON_OPTIONS)
         x = newton(functions.predict(w), w)
         v, tau = x[:n], x[n]
         now = state_layout.split(state)

@@ -14,6 +14,7 @@ compiled chunks of the baselines' one size (``baselines.CHUNK``), so a scene com
 from __future__ import annotations
 
 from ..march.solve import march
+from ..options import Compilation, StepControl
 from .fixed_step import CHUNK
 from .integrator import Integrator
 
@@ -21,11 +22,18 @@ from .integrator import Integrator
 def _march(rule: str):
     """``Integrator.run`` of the march with the energy ``rule``, knob ``tau0``."""
     def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
-        return march(system, config.q0, config.p0, tau0=value, t_end=config.t_end, t0=config.t0,
-                     scheme=rule, params=config.params, max_steps=max_steps, compiler=compiler,
-                     cache_dir=cache_dir, time_limit=time_limit,
-                     chunk=CHUNK,
-                     check_accuracy=False)
+        return march(
+            system,
+            config.q0,
+            config.p0,
+            (config.t0, config.t_end),
+            tau0=value,
+            scheme=rule,
+            params=config.params,
+            steps=StepControl(max_steps=max_steps, time_limit=time_limit),
+            accuracy=None,
+            compilation=Compilation(compiler=compiler, cache_dir=cache_dir, chunk=CHUNK),
+        )
     return run
 
 

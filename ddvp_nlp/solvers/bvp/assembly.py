@@ -38,20 +38,8 @@ import scipy.sparse as sp
 from ...cache import cached
 from ...discrete import equations
 from ...discrete.scheme import Scheme
-from ..compiler import CompileUnavailable, cache_folder, compile_function, find_compiler, warn_once
-
-# How GridAssembly evaluates its blocks: "auto" compiles them with the C compiler that
-# compiler.find_compiler finds (the march's); None runs CasADi's virtual machine (the fallback
-# when there is no compiler; set here to measure the ratio, scripts/bench_bvp.py newton-vm).
-COMPILER: str | None = "auto"
-# Threads of each mapped evaluation: 1, since 2 threads were not faster on 2 cores (measured).
-THREADS = 1
-# Blocks per mapped evaluation (module docstring of ChunkedMap).
-CHUNK = 4096
-# Blocks per window of GridAssembly's compiled maps (WindowMap): building a map costs ~7 us a
-# block per process (28 ms at 4096, 4 ms at 1024, measured), and at N = 1e6 the evaluations took
-# the same time with 1024 and 4096.
-WINDOW = 1024
+from ..grid.maps import window_map
+from ..options import Compilation
 
 
 @dataclass(frozen=True)
@@ -210,156 +198,6 @@ def hessian_block_functions(system, scheme: Scheme):
     return cached(system, ("bvp_hessian_blocks", scheme), build)
 
 
-class ChunkedMap:
-    """A per-block function evaluated over ``count`` blocks in windows of ``CHUNK`` blocks, each
-    by one mapped call through ``Function.buffer`` on numpy memory.
-
-    A map over the whole grid cost 0.11 s to build at N = 1e5 (its sparsity patterns grow with
-    N); a fixed window is built once per function and process. The last window is shifted back
-    to end on the last block (it recomputes a few blocks: harmless). Block inputs are arrays of
-    shape ``(count, size)``; ``theta`` is shared. Output ``j`` has shape ``(count, columns,
-    rows)`` (CasADi's column-major blocks read as C arrays).
-    """
-
-    def __init__(self, function: ca.Function):
-        self.function = function
-        self._maps: dict[int, tuple] = {}
-
-    def _window(self, size: int):
-        if size not in self._maps:
-            # Threads did not pay off on 2 cores (measured at N = 1e5 and 1e6); the form
-            # map(name, "thread", n, reduce_in, ...) aborted on evaluation (CasADi 3.8.2).
-            mapped = self.function.map(size, "thread", THREADS) if THREADS > 1 and size > 1 \
-                else self.function.map(size)
-            self._maps[size] = mapped.buffer()
-        return self._maps[size]
-
-    def prepare(self, count: int) -> None:
-        self._window(min(CHUNK, count))
-
-    def __call__(self, blocks: list[np.ndarray], theta: np.ndarray, count: int):
-        f = self.function
-        outputs = [np.empty((count, f.size2_out(j), f.size1_out(j))) for j in range(f.n_out())]
-        size = min(CHUNK, count)
-        buffer, evaluate = self._window(size)
-        shared = np.ascontiguousarray(np.tile(np.asarray(theta, float), size))
-        buffer.set_arg(len(blocks), memoryview(shared))
-        for first in range(0, count, size):
-            first = min(first, count - size)
-            held = [np.ascontiguousarray(b[first:first + size]) for b in blocks]
-            for j, part in enumerate(held):
-                buffer.set_arg(j, memoryview(part))
-            for j, out in enumerate(outputs):
-                buffer.set_res(j, memoryview(out[first:first + size]))
-            evaluate()
-        return outputs
-
-
-def chunked(system, key, function: ca.Function) -> ChunkedMap:
-    """The :class:`ChunkedMap` of ``function``, one per system and ``key``."""
-    return cached(system, ("chunked", key), lambda: ChunkedMap(function))
-
-
-class WindowMap:
-    """A per-block function evaluated over ``count`` blocks in windows of ``WINDOW`` blocks, each
-    by one mapped call through ``Function.buffer`` on numpy memory, compiled when it can be.
-
-    Compiled (``compiler.compile_function``, cached on disk under a hash of the code): the
-    window is always ``WINDOW`` blocks wide, so that one library serves every grid; a grid
-    shorter than a window is padded (its last block repeated) and the surplus discarded. On
-    CasADi's virtual machine (no compiler, ``COMPILER = None``, or a failed compile, with one
-    warning) the window is ``min(WINDOW, count)`` blocks. As in :class:`ChunkedMap` the last
-    window is shifted back to end on the last block.
-
-    Inputs are C-contiguous arrays ``(count, size)`` (slices of the grid: no copy), ``shared``
-    one vector given to every block. Each output goes to an array ``(count, size)`` given by
-    the caller (written in place: for the residual, a slice of ``F``), or, if ``None``, to a
-    window-sized scratch that ``sink(first, values)`` receives after each window (the band rows,
-    scattered from there while they are in cache)."""
-
-    def __init__(self, function: ca.Function, compiler: str | None, folder):
-        self.function = function
-        self.path = "vm"
-        self._compiled = None
-        self._vm: dict[int, tuple] = {}
-        if compiler is not None:
-            try:
-                self._compiled = compile_function(function.map(WINDOW), compiler, folder,
-                                                  prefix="bvp").buffer()
-                self.path = "compiled"
-            except CompileUnavailable as exc:
-                warn_once(exc)  # the virtual machine evaluates the same function
-
-    def _window(self, count: int):
-        if self._compiled is not None:
-            return WINDOW, self._compiled
-        size = min(WINDOW, count)
-        if size not in self._vm:
-            self._vm[size] = self.function.map(size).buffer()
-        return size, self._vm[size]
-
-    def prepare(self, count: int) -> None:
-        self._window(count)
-
-    def __call__(self, inputs, shared, outputs, count: int, sink=None) -> None:
-        f = self.function
-        size, (buffer, trigger) = self._window(count)
-        tiled = np.tile(np.asarray(shared, float), (size, 1))
-        buffer.set_arg(len(inputs), memoryview(tiled))
-        scratch = [np.empty((size, f.nnz_out(j))) if out is None or count < size else None
-                   for j, out in enumerate(outputs)]
-        if count < size:  # a compiled window wider than the grid: pad, then keep count rows
-            padded = [np.empty((size, block.shape[1])) for block in inputs]
-            for j, (block, held) in enumerate(zip(inputs, padded, strict=True)):
-                held[:count], held[count:] = block, block[-1]
-                buffer.set_arg(j, memoryview(held))  # CasADi keeps the address only: keep
-            for j, held in enumerate(scratch):
-                buffer.set_res(j, memoryview(held))
-            trigger()
-            for out, held in zip(outputs, scratch, strict=True):
-                if out is not None:
-                    out[:] = held[:count]
-            if sink is not None:
-                sink(0, scratch[-1][:count])
-            return
-        for j, held in enumerate(scratch):
-            if held is not None:
-                buffer.set_res(j, memoryview(held))
-        for first in range(0, count, size):
-            first = min(first, count - size)
-            for j, block in enumerate(inputs):
-                buffer.set_arg(j, memoryview(block[first:first + size]))
-            for j, out in enumerate(outputs):
-                if out is not None:
-                    buffer.set_res(j, memoryview(out[first:first + size]))
-            trigger()
-            if sink is not None:
-                sink(first, scratch[-1])
-
-
-def window_map(system, key, function: ca.Function) -> WindowMap:
-    """The :class:`WindowMap` of ``function``, one per system, ``key`` and compiler setting."""
-    compiler = find_compiler(COMPILER)
-    folder = cache_folder()
-    return cached(system, ("bvp_window", key, compiler, str(folder)),
-                  lambda: WindowMap(function, compiler, folder))
-
-
-def evaluate_blocks(system, key, function: ca.Function, inputs, shared) -> list[np.ndarray]:
-    """``function`` on every row of ``inputs`` (arrays ``(count, size_i)``, one block a row;
-    ``shared``, the function's last input, given to every block), through a
-    :class:`WindowMap` kept per ``system`` and ``key``: compiled when there is a compiler, one
-    library for every ``count``. Output ``j`` has shape ``(count, nnz_out(j))``.
-
-    For per-node evaluations of the starts (``bvp_start.site_weights`` maps its function over
-    ``N - 1`` intervals on CasADi's virtual machine, a map built for each ``N``)."""
-    count = int(np.shape(inputs[0])[0])
-    outputs = [np.empty((count, function.nnz_out(j))) for j in range(function.n_out())]
-    window_map(system, key, function)([np.ascontiguousarray(a, float) for a in inputs],
-                                      np.ascontiguousarray(shared, float), outputs, count)
-    return outputs
-
-
 class BandJacobian:
     """The Jacobian of one evaluation, held in its :class:`GridAssembly`'s band store (LAPACK
     ``gbsv`` storage, overwritten by the next evaluation with ``jacobian=True`` and by an LU
@@ -380,20 +218,23 @@ class GridAssembly:
     assignment. Every entry of the band (rows ``w .. 3w`` of the storage) is written at each
     evaluation; the ``w`` rows above are LAPACK's fill-in, which ``gbtrf`` clears itself."""
 
-    def __init__(self, system, scheme: Scheme, nodes: int):
+    def __init__(self, system, scheme: Scheme, nodes: int,
+                 compilation: Compilation | None = None):
+        compilation = compilation or Compilation()
         self.layout = NodeLayout(system.n, nodes)
         self.scheme = scheme
         pinned, energy = _block_functions(system, scheme)
         self._energy_rule = energy is not None
         if energy is None:
-            self._maps = [window_map(system, ("pinned", j, scheme), f)
+            self._maps = [window_map(system, ("pinned", j, scheme), f, compilation)
                           for j, f in enumerate(pinned)]
         else:  # blocks 0 .. N-3; block N-2 (pinned to t_end) alone, on the virtual machine
-            self._maps = [window_map(system, ("energy", j, scheme), f)
+            self._maps = [window_map(system, ("energy", j, scheme), f, compilation)
                           for j, f in enumerate(energy)]
             self._last = pinned
             self._last_buffers = [f.buffer() for f in pinned]
-        self._action = window_map(system, ("action", scheme), _action_function(system, scheme))
+        self._action = window_map(system, ("action", scheme), _action_function(system, scheme),
+                                  compilation)
         blocks = nodes - 2 if self._energy_rule else nodes - 1
         for mapped in self._maps:
             mapped.prepare(blocks)  # build (or load) the windows now: part of the build time

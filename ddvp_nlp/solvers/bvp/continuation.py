@@ -31,9 +31,10 @@ import time
 
 import numpy as np
 
-from ..grid.newton import Factorization
+from ..grid.linear import Factorization, band_kernel
+from ..grid.problem import GridRequest
 from .assembly import Ends, NodeLayout
-from .phase import Request, assembly
+from .phase import Boundary, assembly
 
 FIRST_STEP = 0.05
 SMALLEST_STEP = 1e-5
@@ -44,7 +45,7 @@ CORRECTOR_ITERATIONS = 8
 CORRECTOR_TOL = 1e-10
 
 
-def continue_in_end_position(request: Request, fixed, times, base: dict, linear: str = "auto"):
+def continue_in_end_position(request: GridRequest[Boundary], fixed, times, base: dict):
     """The fixed-step problem's nodes near ``s = 1`` on the path from the march ``base``
     (module docstring), as a start (``dict`` of ``t``, ``q``, ``p``), or ``None``; the phase
     record in ``request.phases`` says how far it got."""
@@ -52,10 +53,15 @@ def continue_in_end_position(request: Request, fixed, times, base: dict, linear:
     grid = assembly(request, fixed)
     n, size = request.system.n, layout.size
     a = np.asarray(base["q"][-1], float)
-    d = request.q_end - a
+    d = request.data.q_end - a
     F_s = np.zeros(size)
     F_s[-n:] = -d
     weight = np.concatenate([np.full(size, 1.0 / size), [1.0]])
+    kernel = band_kernel(request.compilation)
+
+    def factor(blocks):
+        return Factorization(grid, blocks, request.linear, kernel)
+
     record = {"phase": "continuation in q_end (fixed steps, pseudo-arclength)",
               "solver": "newton (bordered)", "converged": False, "return_status": "",
               "iterations": 0, "steps": 0}
@@ -63,12 +69,12 @@ def continue_in_end_position(request: Request, fixed, times, base: dict, linear:
     started = time.perf_counter()
 
     def ends(s):
-        return Ends(request.q_start, a + s * d, np.asarray(times, float), request.theta, 1.0)
+        return Ends(request.data.q_start, a + s * d, np.asarray(times, float), request.theta, 1.0)
 
     y = np.concatenate([layout.pack(times, base["q"], base["p"]), [0.0]])
     h, result = FIRST_STEP, None
     try:
-        tangent = _first_tangent(grid, y, ends, F_s, weight, linear)
+        tangent = _first_tangent(grid, y, ends, F_s, weight, factor)
         if tangent is None:
             record["return_status"] = "the Jacobian at the march is singular: no tangent"
         while record["steps"] < MAX_STEPS and tangent is not None:
@@ -76,7 +82,7 @@ def continue_in_end_position(request: Request, fixed, times, base: dict, linear:
                 record["return_status"] = f"time limit reached at s = {y[-1]:.4g}"
                 break
             corrected, iterations = _corrector(grid, y + h * tangent, tangent, ends, F_s,
-                                               weight, linear)
+                                               weight, factor)
             record["iterations"] += iterations
             record["steps"] += 1
             if corrected is None:
@@ -116,10 +122,10 @@ def _norm(v, weight) -> float:
     return float(np.sqrt(np.sum(weight * v * v)))
 
 
-def _first_tangent(grid, y, ends, F_s, weight, linear):
+def _first_tangent(grid, y, ends, F_s, weight, factor):
     """The tangent at the march (``s`` increasing): ``(F_x^-1 (-F_s), 1)``, normalised."""
     _, blocks = grid.evaluate(y[:-1], ends(y[-1]), jacobian=True)
-    lu = Factorization(grid, blocks, linear)
+    lu = factor(blocks)
     z = lu.solve(-F_s.copy())
     if not np.all(np.isfinite(z)):
         return None
@@ -127,7 +133,7 @@ def _first_tangent(grid, y, ends, F_s, weight, linear):
     return tangent / _norm(tangent, weight)
 
 
-def _corrector(grid, prediction, tangent, ends, F_s, weight, linear):
+def _corrector(grid, prediction, tangent, ends, F_s, weight, factor):
     """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` by bordering (module
     docstring): ``(y, iterations)``, ``y`` ``None`` if it did not converge."""
     y = prediction.copy()
@@ -137,7 +143,7 @@ def _corrector(grid, prediction, tangent, ends, F_s, weight, linear):
             return None, iteration
         if np.max(np.abs(F)) <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))):
             return y, iteration - 1
-        lu = Factorization(grid, blocks, linear)
+        lu = factor(blocks)
         z1 = lu.solve(-F)
         z2 = lu.solve(-F_s.copy())
         if not (np.all(np.isfinite(z1)) and np.all(np.isfinite(z2))):

@@ -1,27 +1,29 @@
-"""IPOPT fed by the banded assembly of ``bvp_assembly.py``: no NLP expression over the grid.
+"""IPOPT on the fixed-endpoint system, fed by the banded assembly of ``assembly.py``: no NLP
+expression over the grid.
 
-The NLP is the one of ``bvp_ipopt.py`` (unknowns interleaved by node, the fixed end values and,
-for ``fixed``, every node time pinned by ``lbx = ubx``; objective ``0``; the canonical and
-energy rows as equalities, ``t_{k+1} - t_k >= tau_floor`` as linear rows), but IPOPT's
-functions are :class:`casadi.Callback` objects whose ``eval_buffer`` runs numpy code on
-CasADi's own memory:
+The NLP (``grid/ipopt.py``'s feasibility problem): unknowns interleaved by node,
+``z_k = (t_k, q_k, p_k)``; the fixed end values (``t_0, q_0, t_{N-1}, q_{N-1}``, and for
+``fixed`` every ``t_k``) pinned by ``lbx = ubx`` (IPOPT removes them,
+``fixed_variable_treatment = make_parameter``); objective ``0``; the canonical and energy rows
+as equalities, ``t_{k+1} - t_k >= tau_floor`` as linear rows. IPOPT's functions are
+:class:`casadi.Callback` objects whose ``eval_buffer`` runs numpy code on CasADi's own memory:
 
 - ``g``: the rows of :class:`GridAssembly`'s ``F(x)`` that are not pins (the pinned rows
-  ``t_0 - t_start`` etc. are dropped: IPOPT removes the pinned variables,
-  ``fixed_variable_treatment = make_parameter``), then the step differences;
+  ``t_0 - t_start`` etc. are dropped), then the step differences;
 - ``jac_g``: the same Jacobian blocks that Newton factorises, gathered from the assembly's band
   storage into a sparsity pattern built once (CSC nonzeros in the order of the band storage's
   memory, merged with the constant step rows by one precomputed permutation);
 - ``hess_lag``: the upper triangle of ``sum_i lam_i Hess g_i`` (the objective is ``0``), from
   per-interval Hessian blocks of ``lam . r_k`` and per-node ones of ``mu e_k``
   (``hessian_block_functions``: only their structural nonzeros), evaluated in windows like the
-  residual (``ChunkedMap``) and summed into a band store by one vectorised addition per block
-  entry, then gathered into the fixed pattern.
+  residual (``grid/maps.ChunkedMap``) and summed into a band store by one vectorised addition
+  per block entry, then gathered into the fixed pattern.
 
 Build cost is the sparsity patterns (``O(N)`` numpy, then CasADi ``Sparsity`` from lists) and
 IPOPT's own set-up; each evaluation is ``O(N)``. IPOPT receives ``g`` and ``jac_g``
 separately; the assembly is evaluated once per point (the last point's ``F`` and blocks are
-kept). Measured against the MX path in ``scripts/bench_bvp.py``.
+kept). This build was 4-6 times faster than an MX NLP of mapped per-interval functions on the
+pendulum at N = 1e3..1e5 (docs/benchmarks/bench_bvp.md).
 """
 
 from __future__ import annotations
@@ -29,11 +31,15 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ...cache import cached
 from ...discrete.scheme import Scheme
-from ..grid.ipopt import DEFAULT_OPTIONS, ipopt_settings, pinned_bounds, residual_functions
-from .assembly import Ends, GridAssembly, chunked, hessian_block_functions
+from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
+from ..grid.maps import chunked
+from ..grid.problem import GridResult
+from ..options import Compilation
+from .assembly import Ends, GridAssembly, NodeLayout, hessian_block_functions, node_expressions
 
-# Changes to bvp_ipopt.DEFAULT_OPTIONS for this build, measured on the pendulum's released solve
+# Changes to grid/ipopt.DEFAULT_OPTIONS for this build, measured on the pendulum's released solve
 # at N = 1e5 from the same start (one process each, loaded machine, CPU time):
 # - AMD ordering (pivot_order 0): MUMPS's analysis 0.26 s against 5.1 s with METIS, the
 #   whole phase 9.1 s against 11.2 s; AMF and QAMD were slower (14.5 s, 10.3 s);
@@ -45,6 +51,34 @@ from .assembly import Ends, GridAssembly, chunked, hessian_block_functions
 # ~1e-13) is off by a few eigenvalues, which costs IPOPT a perturbed refactorization.
 ASSEMBLY_OPTIONS = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_init": 1e-13,
                     "ipopt.mu_min": 1e-15}
+
+
+def residual_functions(system, scheme: Scheme):
+    """Per-interval canonical equations and per-node energy equation (``None`` for ``fixed``)
+    as functions of stacked node vectors ``z = (t, q, p)``."""
+    def build():
+        z, r, e = node_expressions(system, scheme)
+        theta = system.theta
+        interval = ca.Function("interval_residual", [z[0], z[1], theta], [r])
+        if e is None:
+            return interval, None
+        return interval, ca.Function("node_residual", [z[0], z[1], z[2], theta], [e])
+    return cached(system, ("bvp_residuals", scheme), build)
+
+
+def pinned_bounds(layout: NodeLayout, scheme: Scheme, ends: Ends):
+    """``(lbx, ubx)``: free values unbounded; the end positions, the end times (every time for
+    ``fixed``) pinned by ``lbx = ubx``."""
+    n, m, N = layout.n, layout.m, layout.nodes
+    lbx = np.full((N, m), -np.inf)
+    ubx = np.full((N, m), np.inf)
+    for bound in (lbx, ubx):
+        bound[0, 1:n + 1], bound[-1, 1:n + 1] = ends.q_start, ends.q_end
+        if scheme.variable_steps:
+            bound[0, 0], bound[-1, 0] = ends.times[0], ends.times[-1]
+        else:
+            bound[:, 0] = ends.times
+    return lbx.ravel(), ubx.ravel()
 
 
 def _sparsity(rows: np.ndarray, columns: np.ndarray, shape):
@@ -62,8 +96,8 @@ class GridNlp:
     """``g``, its Jacobian and the Lagrangian's Hessian of one system, scheme and node count,
     on numpy arrays (module docstring); the callbacks below call it."""
 
-    def __init__(self, system, scheme: Scheme, nodes: int):
-        self.grid = GridAssembly(system, scheme, nodes)
+    def __init__(self, system, scheme: Scheme, nodes: int, compilation: Compilation):
+        self.grid = GridAssembly(system, scheme, nodes, compilation)
         self.layout, self.scheme = self.grid.layout, scheme
         self.steps = scheme.variable_steps
         self.n_theta = system.theta.numel()
@@ -75,14 +109,15 @@ class GridNlp:
         self.kept = np.flatnonzero(~pinned)
         self.ng = self.kept.size + (N - 1 if self.steps else 0)
         residuals = residual_functions(system, scheme)
-        self._residuals = [None if f is None else chunked(system, ("bvp_residual", j, scheme), f)
+        self._residuals = [None if f is None else chunked(system, ("bvp_residual", j, scheme), f,
+                                                          compilation.threads)
                            for j, f in enumerate(residuals)]
         for f, count in zip(self._residuals, (N - 1, N - 2), strict=True):
             if f is not None:
                 f.prepare(count)
         hessians = hessian_block_functions(system, scheme)
         self._hessians = [None if h is None else (chunked(system, ("bvp_hessian", j, scheme),
-                                                          h[0]), h[1], h[2])
+                                                          h[0], compilation.threads), h[1], h[2])
                           for j, h in enumerate(hessians)]
         for h, count in zip(self._hessians, (N - 1, N - 2), strict=True):
             if h is not None:
@@ -261,33 +296,30 @@ def _callbacks(nlp: GridNlp):
                       [nlp.hess_sparsity], hess_lag))
 
 
-class AssemblyIpoptProblem:
-    """IPOPT on :class:`GridNlp`; the same interface as ``bvp_ipopt.IpoptProblem``."""
+class BvpIpopt:
+    """IPOPT on :class:`GridNlp` (``grid/ipopt.py``'s one build) for one system, scheme and
+    node count; :meth:`solve` takes the data of one problem."""
 
     def __init__(self, system, scheme: Scheme, nodes: int, *, tol: float, max_iter: int,
                  verbose: bool = False, time_limit: float | None = None,
-                 options: dict | None = None):
-        self.nlp = GridNlp(system, scheme, nodes)
+                 compilation: Compilation | None = None):
+        self.nlp = GridNlp(system, scheme, nodes, compilation or Compilation())
         self.layout, self.scheme = self.nlp.layout, scheme
         self._callbacks = _callbacks(self.nlp)  # IPOPT holds them by reference: keep them
         g, jac_g, hess_lag = self._callbacks
         x = ca.MX.sym("x", self.layout.size)
         p = ca.MX.sym("p", self.nlp.n_theta + 1)
         settings = ipopt_settings(tol, max_iter, verbose, time_limit,
-                                  {**DEFAULT_OPTIONS, **ASSEMBLY_OPTIONS, **(options or {})})
+                                  {**DEFAULT_OPTIONS, **ASSEMBLY_OPTIONS})
         settings.update({"jac_g": jac_g, "hess_lag": hess_lag, "no_nlp_grad": True,
                          "calc_lam_p": False})
-        self.solver = ca.nlpsol("bvp_grid", "ipopt", {"x": x, "p": p, "f": 0, "g": g(x, p)},
-                                settings)
+        self.problem = FeasibilityNlp("bvp_grid", x, p, g(x, p), settings)
 
-    def solve(self, x0: np.ndarray, ends: Ends, tau_floor: float):
-        """``(x, converged, return_status, iterations)`` from ``x0``."""
+    def solve(self, x0: np.ndarray, ends: Ends, tau_floor: float) -> GridResult:
+        """IPOPT from ``x0``, in the fields of a :class:`GridResult`."""
         lbx, ubx = pinned_bounds(self.layout, self.scheme, ends)
         steps = self.nlp.ng - self.nlp.kept.size
         lbg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]
         ubg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, np.inf)]
-        result = self.solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
-                             p=np.concatenate([ends.theta, [ends.energy_scale]]))
-        stats = self.solver.stats()
-        return (np.asarray(result["x"]).ravel(), bool(stats.get("success")),
-                str(stats.get("return_status")), int(stats.get("iter_count", 0)))
+        return self.problem.solve(x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
+                                  p=np.concatenate([ends.theta, [ends.energy_scale]]))

@@ -1,99 +1,75 @@
 """One solve of the fixed-endpoint system by one solver: the unit the starts and the final
-solve are made of (``bvp.py``, ``bvp_start.py``).
+solve are made of (``solve.py``, ``start.py``).
 
-A :class:`Request` holds the validated inputs of ``solve_bvp``; :func:`run_phase` solves the
-system of a scheme (the user's, or ``fixed`` on given times for the start) from a point, by
-Newton (``bvp_newton.py``) or IPOPT (``bvp_ipopt.py``), and records what the solver said. The
-built problems are cached per system (``PROBLEMS``), their build time counted apart.
+The inputs of a ``solve_bvp`` call are a :class:`~ddvp_nlp.solvers.grid.problem.GridRequest`
+whose ``data`` is a :class:`Boundary`; :func:`run_phase` solves the system of a scheme (the
+user's, or ``fixed`` on given times for the start) from a point, by the grid's Newton
+(``grid/newton.py``) or IPOPT (``ipopt.py`` on ``grid/ipopt.py``), and records what the solver
+said. The built problems are cached per system (``GridRequest.built``), their build time
+counted apart.
 """
 
 from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ...cache import PROBLEMS
 from ...discrete import equations
 from ...discrete.scheme import Scheme
-from ..grid.ipopt import IpoptProblem
+from ..grid.linear import band_kernel
 from ..grid.newton import newton
+from ..grid.problem import GridRequest
 from .assembly import Ends, GridAssembly
-from .ipopt import AssemblyIpoptProblem
+from .ipopt import BvpIpopt
 
 EPS = np.finfo(float).eps
 # Newton's target on each row: this many units of the row's round-off (module docstring of
-# bvp_newton.py); verification allows ROUND_OFF_ALLOWANCE of them (bvp.py).
+# grid/newton.py); verification allows ROUND_OFF_ALLOWANCE of them (solve.py).
 TARGET_ULPS = 16
 ROUND_OFF_ALLOWANCE = 1024
-# How the IPOPT problem is built: "assembly" (callbacks on the banded assembly,
-# bvp_ipopt_assembly.py) or "mx" (an MX NLP of mapped per-interval functions, bvp_ipopt.py).
-# Measured side by side in scripts/bench_bvp.py, which sets this per run.
-IPOPT_BUILDS = {"assembly": AssemblyIpoptProblem, "mx": IpoptProblem}
-IPOPT_BUILD = "assembly"
 
 
 @dataclass
-class Request:
-    """The validated inputs of one ``solve_bvp`` call."""
+class Boundary:
+    """The data of a fixed-endpoint problem: the end positions and times, the node times of
+    the ``fixed`` rule, and the momentum shooting starts from (``guess="march"``)."""
 
-    system: object
-    scheme: Scheme
-    nodes: int
     q_start: np.ndarray
     q_end: np.ndarray
     t0: float
     t1: float
     grid_times: np.ndarray
-    theta: np.ndarray
-    tol: float
-    tau_floor: float
-    solver: str
-    max_iter: int
-    verbose: bool = False
-    linear: str = "auto"
-    deadline: float | None = None
-    progress: bool = False
     p_start: np.ndarray | None = None
-    build_s: float = 0.0
-    phases: list = field(default_factory=list)
-
-    @property
-    def mean_step(self) -> float:
-        return (self.t1 - self.t0) / (self.nodes - 1)
-
-    def ends(self, scheme: Scheme, times=None) -> Ends:
-        """The data of the system of ``scheme``: for ``fixed``, on ``times`` (default the
-        request's grid)."""
-        if scheme.variable_steps:
-            return Ends(self.q_start, self.q_end, np.array([self.t0, self.t1]), self.theta,
-                        self.mean_step)
-        return Ends(self.q_start, self.q_end,
-                    self.grid_times if times is None else np.asarray(times, float),
-                    self.theta, 1.0)
-
-    def remaining(self) -> float | None:
-        return None if self.deadline is None else max(self.deadline - time.perf_counter(), 0.0)
 
 
-def assembly(request: Request, scheme: Scheme) -> GridAssembly:
-    return built(request, ("bvp_assembly", scheme, request.nodes),
-                  lambda: GridAssembly(request.system, scheme, request.nodes))
+def mean_step(request: GridRequest[Boundary]) -> float:
+    return (request.data.t1 - request.data.t0) / (request.nodes - 1)
 
 
-def built(request, key, build):
-    """``build()`` cached per system under ``key`` (``PROBLEMS``), its time added to
-    ``request.build_s`` (any request with ``system`` and ``build_s``: the higher-order solver's
-    too)."""
-    started = time.perf_counter()
-    value = PROBLEMS.get(request.system, key, build)
-    request.build_s += time.perf_counter() - started
-    return value
+def ends(request: GridRequest[Boundary], scheme: Scheme, times=None) -> Ends:
+    """The data of the system of ``scheme``: for ``fixed``, on ``times`` (default the
+    request's grid)."""
+    data = request.data
+    if scheme.variable_steps:
+        return Ends(data.q_start, data.q_end, np.array([data.t0, data.t1]), request.theta,
+                    mean_step(request))
+    return Ends(data.q_start, data.q_end,
+                data.grid_times if times is None else np.asarray(times, float),
+                request.theta, 1.0)
 
 
-def round_off_scales(request: Request, x: np.ndarray, scheme: Scheme):
+def assembly(request: GridRequest, scheme: Scheme) -> GridAssembly:
+    compilation = request.compilation
+    return request.built(("bvp_assembly", scheme, request.nodes, compilation.compiler,
+                          str(compilation.cache_dir)),
+                         lambda: GridAssembly(request.system, scheme, request.nodes,
+                                              compilation))
+
+
+def round_off_scales(request: GridRequest, x: np.ndarray, scheme: Scheme):
     """``(canonical, energy)``: the magnitude whose round-off bounds a canonical row
     (``max(1, |q|, |p|, |t|)``) and an unscaled energy row (``max(1, |E_k|)`` on up to 1000
     sampled intervals)."""
@@ -110,7 +86,7 @@ def round_off_scales(request: Request, x: np.ndarray, scheme: Scheme):
     return canonical, float(max(1.0, np.max(np.abs(E[:-1]))) if E.size > 1 else 1.0)
 
 
-def newton_targets(request: Request, grid: GridAssembly, x, ends: Ends) -> np.ndarray:
+def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> np.ndarray:
     """Per-row ``|F_i|`` targets: ``TARGET_ULPS`` round-offs of each row (the energy rows in
     their scaled units)."""
     n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
@@ -118,35 +94,36 @@ def newton_targets(request: Request, grid: GridAssembly, x, ends: Ends) -> np.nd
     target = np.full(N * m, TARGET_ULPS * EPS * canonical)
     body = target[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
     if grid.scheme.variable_steps:
-        body[:-1, 2 * n] = TARGET_ULPS * EPS * energy / ends.energy_scale
+        body[:-1, 2 * n] = TARGET_ULPS * EPS * energy / data.energy_scale
     return target
 
 
-def run_phase(request: Request, scheme: Scheme, x0: np.ndarray, name: str, solver: str,
+def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, solver: str,
               times=None):
     """``(x, phase)``: the system of ``scheme`` solved from ``x0`` by ``solver``; ``phase``
     records the solver's own verdict (``converged``, ``return_status``, ``iterations``)."""
-    ends = request.ends(scheme, times)
+    data = ends(request, scheme, times)
     started = time.perf_counter()
     if solver == "newton":
         grid = assembly(request, scheme)
-        result = newton(grid, x0, ends, newton_targets(request, grid, x0, ends),
+        result = newton(grid, x0, data, newton_targets(request, grid, x0, data),
                         tau_floor=request.tau_floor if scheme.variable_steps else -np.inf,
                         max_iter=request.max_iter, linear=request.linear,
-                        deadline=request.deadline,
+                        kernel=band_kernel(request.compilation), deadline=request.deadline,
                         progress=_reporter(name) if request.progress else None)
-        x, converged, said, iterations = (result.x, result.converged, result.outcome,
-                                          result.iterations)
     else:
         remaining = request.remaining()
-        build = IPOPT_BUILDS[IPOPT_BUILD]
-        problem = built(request, ("bvp_ipopt", IPOPT_BUILD, scheme, request.nodes,
-                                   request.max_iter, request.tol, request.verbose, remaining),
-                         lambda: build(request.system, scheme, request.nodes, tol=request.tol,
-                                       max_iter=request.max_iter,
-                                       verbose=request.verbose or request.progress,
-                                       time_limit=remaining))
-        x, converged, said, iterations = problem.solve(x0, ends, request.tau_floor)
+        compilation = request.compilation
+        problem = request.built(("bvp_ipopt", scheme, request.nodes, request.max_iter,
+                                 request.tol, request.verbose, remaining, compilation),
+                                lambda: BvpIpopt(request.system, scheme, request.nodes,
+                                                 tol=request.tol, max_iter=request.max_iter,
+                                                 verbose=request.verbose or request.progress,
+                                                 time_limit=remaining,
+                                                 compilation=compilation))
+        result = problem.solve(x0, data, request.tau_floor)
+    x, converged, said, iterations = (result.x, result.converged, result.outcome,
+                                      result.iterations)
     phase = {"phase": name, "solver": solver, "converged": converged, "return_status": said,
              "iterations": iterations, "seconds": time.perf_counter() - started}
     request.phases.append(phase)

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from collections.abc import Mapping
 
 import numpy as np
@@ -47,16 +46,31 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
-from ...validation import check_finite_array, check_integer, check_real, check_state
-from ..accuracy import AccuracyMonitor, Tolerance, assess
+from ...validation import (
+    check_finite_array,
+    check_integer,
+    check_real,
+    check_span,
+    check_state,
+)
+from ..accuracy import AccuracyMonitor, assess
 from ..dense import attach
+from ..grid.problem import GridRequest
+from ..options import Compilation, GridOptions, Output, Tolerance, coerce
 from .assembly import NodeLayout
-from .phase import EPS, ROUND_OFF_ALLOWANCE, Request, assembly, round_off_scales, run_phase
-from .start import branch_obstacle, first_solver, predicted_times, start_point
+from .phase import (
+    EPS,
+    ROUND_OFF_ALLOWANCE,
+    Boundary,
+    assembly,
+    ends,
+    mean_step,
+    round_off_scales,
+    run_phase,
+)
+from .start import branch_obstacle, first_solver, start_point
 
-SOLVERS = ("auto", "newton", "ipopt")
 GUESSES = ("straight", "march")
-LINEAR_SOLVERS = ("auto", "banded", "sparse")
 # What a failed solve from a built-in start suggests: over a long horizon the problem has many
 # solutions, and the straight line (a motion that never turns) rarely leads to one (henon_heiles
 # over 50 time units at N = 1e3: failed from it, solved in 7 iterations from a fixed-step march;
@@ -67,57 +81,50 @@ START_HINT = {
                 "nodes as the guess",
     "march": "shooting picks the branch the march from p_start reaches: try another p_start, "
              "or a march's nodes as the guess"}
-__all__ = ["solve_bvp", "predicted_times", "SOLVERS", "GUESSES"]
+# The defaults of GridOptions' None fields for this problem.
+DEFAULT_TOL = 1e-9
+DEFAULT_MAX_ITER = 200
 
 
 def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
-              t0: float | None = None, t_end: float | None = None,
               scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
               guess: Solution | Mapping | str | None = None, p_start=None, times=None,
-              tol: float = 1e-9,
-              tau_floor: float | None = None, solver: str = "auto", max_iter: int = 200,
-              verbose: bool = False, time_limit: float | None = None, progress: bool = False,
-              linear: str = "auto") -> Solution:
+              options: GridOptions | None = None, compilation: Compilation | None = None,
+              output: Output | None = None) -> Solution:
     """Solve the fixed-endpoint problem ``q(t_0) = q_start``, ``q(t_end) = q_end`` on ``nodes``.
 
     Args:
         system: the Hamiltonian (or Lagrangian) system.
         q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
-        t0, t_end: the two end times, keywords as in ``march`` (one convention for both).
-        t_span: deprecated, ``(t0, t_end)``; still accepted with a ``DeprecationWarning``.
+        t_span: ``(t0, t_end)``, the two end times.
         nodes: number of nodes ``N >= 3``.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
         params: the system's parameter values.
-        guess: ``"straight"`` (default), ``"march"`` (shooting; ``bvp_start.py``), or a start:
+        guess: ``"straight"`` (default), ``"march"`` (shooting; ``start.py``), or a start:
             a :class:`Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
             arrays (``nodes`` rows, or any number of rows, resampled by node index onto
             ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
         p_start: the momentum shooting starts from (``guess="march"`` only; default the
             straight line's): chooses the branch of a problem with several solutions.
         times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
-        tol: verification tolerance (module docstring).
-        tau_floor: smallest allowed step (default ``1e-3 (t_end - t_0)/(N-1)``).
-        solver: ``"auto"`` (default), ``"newton"`` or ``"ipopt"`` (module docstring).
-        max_iter: iteration limit of the solver, per phase.
-        verbose: show IPOPT's output.
-        time_limit: seconds after which the solve stops (status ``time_limit``).
-        progress: report each Newton iteration (and IPOPT's) on stderr.
-        linear: Newton's linear solver: ``"auto"``, ``"banded"`` (LAPACK) or ``"sparse"``.
+        options: the solver (``"auto"``, the default, ``"newton"`` or ``"ipopt"``; module
+            docstring), the verification tolerance ``tol`` (default 1e-9), ``max_iter`` per
+            phase (default 200), ``tau_floor`` (default ``1e-3 (t_end - t_0)/(N-1)``), the
+            linear solver, a ``time_limit`` and IPOPT's log (:class:`GridOptions`).
+        compilation: which compiled code the assembly and the band LU run.
+        output: ``progress`` reports each Newton iteration (and IPOPT's log) on stderr.
 
     Returns:
         A :class:`Solution` whose ``stats`` hold each phase's solver verdict, the largest
         residuals, the action and the number of sign changes of each ``p`` component (which of
         several solutions it is); failures are a status on it.
     """
-    t_span = _time_span(t_span, t0, t_end)
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
                               params=params, guess=guess, p_start=p_start, times=times,
-                              tol=tol, tau_floor=tau_floor, solver=solver, max_iter=max_iter,
-                              verbose=verbose, time_limit=time_limit, progress=progress,
-                              linear=linear)
-    started = time.perf_counter()
-    if time_limit is not None:
-        request.deadline = started + time_limit
+                              options=coerce(options, GridOptions, "options"),
+                              compilation=coerce(compilation, Compilation, "compilation"),
+                              output=coerce(output, Output, "output"))
+    started = request.start_clock()
     start_kind = start
     start = start_point(request, start)
     layout = NodeLayout(system.n, request.nodes)
@@ -148,43 +155,25 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
 
 
-def _time_span(t_span, t0, t_end):
-    """``(t0, t_end)`` from the keywords, or from the deprecated ``t_span``."""
-    if t_span is not None:
-        if t0 is not None or t_end is not None:
-            raise InputError("give t0 and t_end, not t_span as well")
-        warnings.warn("solve_bvp(..., t_span) is deprecated: pass t0=... and t_end=... as "
-                      "march does", DeprecationWarning, stacklevel=3)
-        return t_span
-    if t_end is None:
-        raise InputError("solve_bvp needs t_end (and t0, default 0.0)")
-    return (0.0 if t0 is None else t0, t_end)
-
-
 def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_start, times,
-             tol, tau_floor, solver, max_iter, verbose, time_limit, progress, linear):
-    """The validated :class:`Request` and start (``InputError`` naming the argument and value,
-    before anything is built)."""
+             options: GridOptions, compilation: Compilation, output: Output):
+    """The validated :class:`GridRequest` and start (``InputError`` naming the argument and
+    value, before anything is built)."""
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
     n = system.n
     q_start = check_state("q_start", q_start, n)
     q_end = check_state("q_end", q_end, n)
-    t0, t1 = _check_span(t_span)
+    t0, t1 = check_span(t_span)
     nodes = check_integer("nodes", nodes, minimum=3)
-    _check_memory(nodes, n, solver)
-    tol = check_real("tol", tol, positive=True)
-    for name, value, choices in (("solver", solver, SOLVERS), ("linear", linear, LINEAR_SOLVERS)):
-        if value not in choices:
-            raise InputError(f"unknown {name} {value!r} (choose from {', '.join(choices)})")
-    max_iter = check_integer("max_iter", max_iter)
-    check_real("time_limit", time_limit, positive=True, allow_none=True)
-    mean_step = (t1 - t0) / (nodes - 1)
-    tau_floor = check_real("tau_floor", 1e-3 * mean_step if tau_floor is None else tau_floor,
-                            positive=True)
-    if tau_floor >= mean_step:
-        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean_step!r}, "
+    options = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    _check_memory(nodes, n, options.solver)
+    mean = (t1 - t0) / (nodes - 1)
+    tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None
+                           else options.tau_floor, positive=True)
+    if tau_floor >= mean:
+        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
                          f"got {tau_floor!r}")
     grid_times = _check_times(times, nodes, t0, t1)
     if guess is None or (isinstance(guess, str) and guess in GUESSES):
@@ -199,9 +188,9 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_
             raise InputError(f"p_start is the shooting start's momentum: give it with "
                              f"guess='march', got guess={guess!r}")
         p_start = check_state("p_start", p_start, n)
-    request = Request(system, scheme, nodes, q_start, q_end, t0, t1, grid_times,
-                      system.parameter_vector(params), tol, tau_floor, solver, max_iter,
-                      verbose=verbose, linear=linear, progress=progress, p_start=p_start)
+    request = GridRequest(system, scheme, nodes, system.parameter_vector(params),
+                          Boundary(q_start, q_end, t0, t1, grid_times, p_start), options,
+                          compilation, tau_floor=tau_floor, progress=output.progress)
     return request, start
 
 
@@ -236,30 +225,31 @@ def _available_memory() -> float | None:
     return None
 
 
-def _residuals(request: Request, x: np.ndarray):
+def _residuals(request: GridRequest, x: np.ndarray):
     """Canonical ``(N-1, 2n)`` and energy ``(N-2,)`` residuals of ``x``, unscaled (for ``fixed``
     steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it)."""
     if not request.scheme.variable_steps:
         t, q, p = NodeLayout(request.system.n, request.nodes).unpack(x)
         return equations.grid_residuals(request.system, request.scheme, t, q, p, request.theta)
     grid = assembly(request, request.scheme)
-    ends = request.ends(request.scheme)
-    F, _ = grid.evaluate(x, ends, jacobian=False)
-    return grid.residuals(F, ends)
+    data = ends(request, request.scheme)
+    F, _ = grid.evaluate(x, data, jacobian=False)
+    return grid.residuals(F, data)
 
 
-def _outcome(request: Request, x: np.ndarray, phase: dict):
+def _outcome(request: GridRequest, x: np.ndarray, phase: dict):
     """``(status, message, stats)`` of the point ``x`` that ``phase`` returned."""
     t = x.reshape(request.nodes, -1)[:, 0]
     finite = bool(np.all(np.isfinite(x)))
     canonical, energy = _residuals(request, x) if finite else (None, None)
     # The canonical rows' round-off is measured on the data, not on the point: a diverged
     # iterate's own magnitude would excuse any residual.
-    data = max(1.0, *np.abs(request.q_start), *np.abs(request.q_end), abs(request.t0),
-               abs(request.t1))
+    boundary = request.data
+    data = max(1.0, *np.abs(boundary.q_start), *np.abs(boundary.q_end), abs(boundary.t0),
+               abs(boundary.t1))
     scales = (data, round_off_scales(request, x, request.scheme)[1]) if finite else (1.0, 1.0)
     limits = (max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales[0]),
-              max(request.tol * request.mean_step, ROUND_OFF_ALLOWANCE * EPS * scales[1]))
+              max(request.tol * mean_step(request), ROUND_OFF_ALLOWANCE * EPS * scales[1]))
     stats = {"canonical_limit": limits[0], "energy_limit": limits[1],
              "canonical": canonical, "energy": energy}
     status, message = _verify(phase, t, canonical, energy, request.scheme, limits, stats)
@@ -309,7 +299,7 @@ def _timed_out(phase) -> bool:
     return said.startswith("time limit") or said == "Maximum_WallTime_Exceeded"
 
 
-def _solution(request: Request, x, phase, outcome, started) -> Solution:
+def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
     status, message, checks = outcome
     layout = NodeLayout(request.system.n, request.nodes)
     t, q, p = layout.unpack(x)
@@ -332,7 +322,7 @@ def _solution(request: Request, x, phase, outcome, started) -> Solution:
              "iterations_total": sum(ph["iterations"] for ph in phases),
              "action": assembly(request, request.scheme).action(x, request.theta)
              if finite else math.nan,
-             "energy_scale": request.mean_step, "tau_floor": request.tau_floor,
+             "energy_scale": mean_step(request), "tau_floor": request.tau_floor,
              "p_sign_changes": sign_changes, **checks}
     local_error = np.zeros(0)
     if finite:
@@ -350,7 +340,7 @@ def _solution(request: Request, x, phase, outcome, started) -> Solution:
         timing={"build_s": request.build_s, "solve_s": total - request.build_s}, stats=stats)
 
 
-def _accuracy(request: Request, t, q, p):
+def _accuracy(request: GridRequest, t, q, p):
     """The accuracy check (``accuracy.py``) on the grid: each interval against one RK4 step of
     the exact flow, the energy level of the first interval (energy rules) and the nodal drift
     against ``H`` at the first node. A verified discrete solution can still be far from the
@@ -361,18 +351,6 @@ def _accuracy(request: Request, t, q, p):
         level = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
                                                   request.theta)[0])
     return assess(system, t, np.hstack([q, p]), request.theta, Tolerance(), level=level)
-
-
-def _check_span(t_span) -> tuple[float, float]:
-    try:
-        t0, t1 = (float(v) for v in t_span)
-    except (TypeError, ValueError):
-        raise InputError(f"t_span must be a pair (t_0, t_end), got {t_span!r}") from None
-    check_real("t0", t0)
-    check_real("t_end", t1)
-    if t1 <= t0:
-        raise InputError(f"t_end must be > t0, got t0 = {t0!r}, t_end = {t1!r}")
-    return t0, t1
 
 
 def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:

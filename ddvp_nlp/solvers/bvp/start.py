@@ -38,9 +38,12 @@ import numpy as np
 
 from ...discrete.scheme import Scheme
 from ...physics.hamiltonian import site_density_weight_function
-from .assembly import NodeLayout, evaluate_blocks
+from ..grid.maps import evaluate_blocks
+from ..grid.problem import GridRequest
+from ..options import Compilation, StepControl
+from .assembly import NodeLayout
 from .continuation import continue_in_end_position
-from .phase import Request, assembly, newton_targets, run_phase
+from .phase import Boundary, assembly, ends, mean_step, newton_targets, run_phase
 
 SHOOTING_ITERATIONS = 30
 # Relative singular-value cut of the shooting Jacobian (_shooting_step).
@@ -55,16 +58,19 @@ SHOOTING_STALL = 3
 SHOOTING_CLOSE = 1e-3
 
 
-def straight_line(request: Request, times) -> dict:
+def straight_line(request: GridRequest[Boundary], times) -> dict:
     """Uniform motion between the endpoints: ``q`` linear in ``t``, ``p`` its slope (the
     velocity; for ``H = p^2/2 + V`` the momentum of that motion)."""
     s = (times - times[0]) / (times[-1] - times[0])
-    q = request.q_start[None, :] + s[:, None] * (request.q_end - request.q_start)[None, :]
-    slope = (request.q_end - request.q_start) / (times[-1] - times[0])
+    q = (
+        request.data.q_start[None, :]
+        + s[:, None] * (request.data.q_end - request.data.q_start)[None, :]
+    )
+    slope = (request.data.q_end - request.data.q_start) / (times[-1] - times[0])
     return {"t": np.asarray(times, float), "q": q, "p": np.repeat(slope[None, :], times.size, 0)}
 
 
-def first_solver(request: Request) -> str:
+def first_solver(request: GridRequest[Boundary]) -> str:
     """The solver a start phase tries first: IPOPT if asked for, else Newton."""
     return "ipopt" if request.solver == "ipopt" else "newton"
 
@@ -73,13 +79,13 @@ def fixed_scheme(scheme: Scheme) -> Scheme:
     return Scheme("fixed", alpha=scheme.alpha, clock=scheme.clock)
 
 
-def start_point(request: Request, guess) -> dict:
+def start_point(request: GridRequest[Boundary], guess) -> dict:
     """The point the final solve starts from (module docstring); every phase that fails leaves
     the previous phase's point. ``guess`` is ``"straight"``, ``"march"`` or node arrays."""
     if isinstance(guess, dict):
         return _from_nodes(request, guess)
-    uniform = request.grid_times if not request.scheme.variable_steps else \
-        np.linspace(request.t0, request.t1, request.nodes)
+    uniform = request.data.grid_times if not request.scheme.variable_steps else \
+        np.linspace(request.data.t0, request.data.t1, request.nodes)
     start = straight_line(request, uniform)
     fixed = fixed_scheme(request.scheme)
     reached, shot = False, None
@@ -90,8 +96,9 @@ def start_point(request: Request, guess) -> dict:
     if not reached or not request.scheme.variable_steps:
         solved = _solve_fixed(request, fixed, uniform, start, "fixed steps, uniform times",
                               solver)
+        whole = np.linspace(request.data.t0, request.data.t1, request.nodes)
         if solved is None and request.remaining() != 0.0 and request.solver != "ipopt" \
-                and np.allclose(uniform, np.linspace(request.t0, request.t1, request.nodes)):
+                and np.allclose(uniform, whole):
             solved = _continued(request, fixed, uniform, shot if guess == "march" else None,
                                 solver)
         start = solved or start
@@ -109,7 +116,7 @@ def start_point(request: Request, guess) -> dict:
 NEAR_RELEASED = 64
 
 
-def _from_nodes(request: Request, guess: dict) -> dict:
+def _from_nodes(request: GridRequest[Boundary], guess: dict) -> dict:
     """The start from the user's nodes (module docstring): as given when they nearly solve the
     released equations (a march of the same scheme), else fixed steps on the predicted times
     first."""
@@ -117,18 +124,19 @@ def _from_nodes(request: Request, guess: dict) -> dict:
         return guess
     layout = NodeLayout(request.system.n, request.nodes)
     x = layout.pack(guess["t"], guess["q"], guess["p"])
-    grid, ends = assembly(request, request.scheme), request.ends(request.scheme)
-    F, _ = grid.evaluate(x, ends, jacobian=False)
-    if np.all(np.abs(F) <= NEAR_RELEASED * newton_targets(request, grid, x, ends)):
+    grid, data = assembly(request, request.scheme), ends(request, request.scheme)
+    F, _ = grid.evaluate(x, data, jacobian=False)
+    if np.all(np.abs(F) <= NEAR_RELEASED * newton_targets(request, grid, x, data)):
         return guess
     return _at_predicted_times(request, guess,
                                "fixed steps, predicted times (from the guess)") or guess
 
 
-def _at_predicted_times(request: Request, start: dict, name: str) -> dict | None:
+def _at_predicted_times(request: GridRequest[Boundary], start: dict, name: str) -> dict | None:
     """``start`` moved to its predicted times and solved there with fixed steps (phase 2);
     ``None`` if that solve does not converge."""
-    times = predicted_times(request.system, start["t"], start["q"], start["p"], request.theta)
+    times = predicted_times(request.system, start["t"], start["q"], start["p"], request.theta,
+                            request.compilation)
     moved = {"t": times, "q": interpolate(times, start["t"], start["q"]),
              "p": interpolate(times, start["t"], start["p"])}
     return _solve_fixed(request, fixed_scheme(request.scheme), times, moved, name,
@@ -152,7 +160,7 @@ def _solve_fixed(request, fixed, times, start, name, solver):
     return {"t": t, "q": q, "p": p}
 
 
-def _continued(request: Request, fixed: Scheme, times, base, solver) -> dict | None:
+def _continued(request: GridRequest[Boundary], fixed: Scheme, times, base, solver) -> dict | None:
     """The fixed-step problem solved after a continuation in its end position
     (``bvp_continuation.py``) from ``base`` (shooting's closest march) or else from the march
     of the straight line's momentum; ``None`` if either fails."""
@@ -160,36 +168,37 @@ def _continued(request: Request, fixed: Scheme, times, base, solver) -> dict | N
         base = _fixed_march(request, fixed, straight_line(request, times)["p"][0])
     if base is None:
         return None
-    near = continue_in_end_position(request, fixed, times, base, request.linear)
+    near = continue_in_end_position(request, fixed, times, base)
     if near is None:
         return None
     return _solve_fixed(request, fixed, times, near,
                         "fixed steps, uniform times (after the continuation)", solver)
 
 
-def _march(request: Request, fixed: Scheme, p0):
+def _march(request: GridRequest[Boundary], fixed: Scheme, p0):
     """The march of ``fixed`` steps on the uniform grid of ``request.nodes`` nodes from
     ``(q_start, p0)``."""
-    from ..march.solve import march
+    from ..march import march
 
     params = dict(zip(request.system.params, request.theta.tolist(), strict=True))
-    return march(request.system, request.q_start, p0, tau0=request.mean_step, t_end=request.t1,
-                 t0=request.t0, scheme=fixed, params=params, max_steps=request.nodes,
-                 tol=min(request.tol, 1e-10))
+    return march(request.system, request.data.q_start, p0, (request.data.t0, request.data.t1),
+                 tau0=mean_step(request), scheme=fixed, params=params,
+                 steps=StepControl(tol=min(request.tol, 1e-10), max_steps=request.nodes),
+                 compilation=request.compilation)
 
 
-def _fixed_march(request: Request, fixed: Scheme, p0) -> dict | None:
+def _fixed_march(request: GridRequest[Boundary], fixed: Scheme, p0) -> dict | None:
     """:func:`_march`'s nodes, or ``None`` if it does not reach ``t_end`` in ``nodes`` nodes."""
     run = _march(request, fixed, p0)
     return {"t": run.t, "q": run.q, "p": run.p} if _whole(request, run) else None
 
 
-def _whole(request: Request, run) -> bool:
+def _whole(request: GridRequest[Boundary], run) -> bool:
     """Whether the march ``run`` reached ``t_end`` in exactly the grid's ``nodes`` nodes."""
     return run.success and run.t.size == request.nodes
 
 
-def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]:
+def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict | None, bool]:
     """``(march, reached)``: the march of ``fixed`` steps from ``(q_start, p_0)`` that ends on
     ``q_end`` to ``tol`` (module docstring), or, when the iteration stops short, the march that
     came closest (``reached`` False: the fixed-step solve then starts from it, on its branch);
@@ -197,8 +206,8 @@ def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]
     def shoot(p0):
         return _march(request, fixed, p0)
 
-    p0 = straight_line(request, times)["p"][0] if request.p_start is None \
-        else request.p_start.copy()
+    p0 = straight_line(request, times)["p"][0] if request.data.p_start is None \
+        else request.data.p_start.copy()
     record = {"phase": "shooting (march)", "solver": "newton (finite differences)",
               "converged": False, "return_status": "", "iterations": 0}
     request.phases.append(record)
@@ -206,10 +215,10 @@ def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]
     if not _whole(request, run):
         record["return_status"] = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
         return None, False
-    best, stalled = (np.linalg.norm(run.q[-1] - request.q_end), run), 0
-    close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.q_end))))
+    best, stalled = (np.linalg.norm(run.q[-1] - request.data.q_end), run), 0
+    close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.data.q_end))))
     for iteration in range(1, SHOOTING_ITERATIONS + 1):
-        miss = run.q[-1] - request.q_end
+        miss = run.q[-1] - request.data.q_end
         record["iterations"] = iteration
         if np.max(np.abs(miss)) <= request.tol:
             record.update(converged=True, return_status=f"q_end reached, p_0 = {p0.tolist()}")
@@ -229,7 +238,7 @@ def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]
             if not _whole(request, candidate):
                 continue
             taken = taken or (trial, candidate)
-            if np.linalg.norm(candidate.q[-1] - request.q_end) < np.linalg.norm(miss):
+            if np.linalg.norm(candidate.q[-1] - request.data.q_end) < np.linalg.norm(miss):
                 taken = (trial, candidate)
                 break
         if taken is None:
@@ -237,7 +246,7 @@ def shooting(request: Request, fixed: Scheme, times) -> tuple[dict | None, bool]
                                        f"fails (miss {np.linalg.norm(miss):.3e})")
             break
         p0, run = taken
-        distance = np.linalg.norm(run.q[-1] - request.q_end)
+        distance = np.linalg.norm(run.q[-1] - request.data.q_end)
         if distance < 0.5 * best[0]:
             stalled = 0
         else:
@@ -282,7 +291,7 @@ def interpolate(times, t, values) -> np.ndarray:
     return np.column_stack([np.interp(times, t, column) for column in values.T])
 
 
-def predicted_times(system, t, q, p, theta) -> np.ndarray:
+def predicted_times(system, t, q, p, theta, compilation: Compilation | None = None) -> np.ndarray:
     """Node times with the site density of the energy rules: ``tau ~ w^(-1/3)``, that is
     ``w^(1/3)`` nodes per unit time, ``w`` evaluated at the interval midpoints of the grid ``t``,
     ``q``, ``p``; same number of nodes, same first and last time.
@@ -293,7 +302,7 @@ def predicted_times(system, t, q, p, theta) -> np.ndarray:
     to 37 mean steps away from the prediction and cost 44 damped Newton iterations at N = 1e3;
     measured)."""
     N = t.size
-    w = site_weights(system, t, q, p, theta)
+    w = site_weights(system, t, q, p, theta, compilation)
     # Where w <= 0 the energy rules have no positive step anyway (docs/theory.md
     # section 7); keep the prediction finite there and let the solve report it.
     floor = 1e-3 * np.median(np.abs(w)) if np.any(w != 0) else 1.0
@@ -304,22 +313,23 @@ def predicted_times(system, t, q, p, theta) -> np.ndarray:
     return times
 
 
-def site_weights(system, t, q, p, theta) -> np.ndarray:
+def site_weights(system, t, q, p, theta, compilation: Compilation | None = None) -> np.ndarray:
     """``w = f' H_zz f`` at the interval midpoints of the grid ``t``, ``q``, ``p``."""
     # through the assembly's compiled windows: a VM map built for each N took 1.33 s CPU at
     # N = 1e6, this 0.08 s, the same values (measured)
     return evaluate_blocks(system, ("site_weights",), site_density_weight_function(system),
                            [(q[:-1] + q[1:]) / 2, (p[:-1] + p[1:]) / 2,
-                            ((t[:-1] + t[1:]) / 2)[:, None]], theta)[0].ravel()
+                            ((t[:-1] + t[1:]) / 2)[:, None]], theta,
+                           compilation or Compilation())[0].ravel()
 
 
-def branch_obstacle(request: Request, start: dict) -> str | None:
+def branch_obstacle(request: GridRequest[Boundary], start: dict) -> str | None:
     """Why the released solve may have no solution near ``start``: the intervals where
     ``w <= 0``, on which the energy rules have no positive step (docs/theory.md section 7), or
     ``None`` if there are none."""
     t = np.asarray(start["t"], float)
     w = site_weights(request.system, t, np.asarray(start["q"], float),
-                     np.asarray(start["p"], float), request.theta)
+                     np.asarray(start["p"], float), request.theta, request.compilation)
     bad = np.flatnonzero(w <= 0)
     if bad.size == 0:
         return None

@@ -11,24 +11,20 @@ same multipliers, the same updates, compiled without contraction to FMA), so the
 solutions are LAPACK's to the bit on the matrices measured (``tests/test_bvp_compiled.py``).
 
 Built once per compiler and source by ``compiler.py``'s build and cache (``band_HASH.so`` in the
-compiled-code cache, checksummed); without a compiler (``KERNEL = None``, or a failed build,
-with one warning per process) :func:`kernel` is ``None`` and the caller runs LAPACK through scipy.
+compiled-code cache, checksummed); without a compiler (``Compilation(band_lu="lapack")``, no
+compiler found, or a failed build, with one warning per process) :func:`kernel` is ``None`` and
+the caller runs LAPACK through scipy.
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .. import compiler as _compiler
-from ..compiler import CompileUnavailable, cache_folder, find_compiler
-
-# "auto": compile with the compiler that compiler.find_compiler finds; None: LAPACK (scipy).
-KERNEL: str | None = "auto"
+from ..compiler import CompileUnavailable, cache_folder, compile_source, find_compiler
 
 SOURCE = r"""
 #include <math.h>
@@ -134,35 +130,20 @@ class BandKernel:
         return b
 
 
-def kernel() -> BandKernel | None:
+def kernel(compiler: str | None = "auto", cache_dir=None) -> BandKernel | None:
     """The compiled kernel, built (once per source, compiler and flags) or loaded from the
     cache; ``None`` without a compiler or if the build fails (one warning): LAPACK then."""
-    found = find_compiler(KERNEL)
+    found = find_compiler(compiler)
     if found is None:
         return None
-    folder = cache_folder()
+    folder = cache_folder(cache_dir)
     key = (found, str(folder))
     if key not in _LOADED:
         try:
-            _LOADED[key] = BandKernel(_library(found, folder))
+            _LOADED[key] = BandKernel(compile_source(SOURCE, "band_lu", found, folder,
+                                                     prefix="band"))
         except (CompileUnavailable, OSError) as exc:
             _LOADED[key] = None
             warnings.warn(f"{exc}; the banded LU runs LAPACK through scipy instead (slower, "
                           f"the same factors)", RuntimeWarning, stacklevel=3)
     return _LOADED[key]
-
-
-def _library(found: str, folder: Path) -> Path:
-    """``band_HASH.so`` in ``folder``, compiled and checksummed the way ``compiler.py`` builds
-    the march's libraries (its flags, its atomic rename, its checksum)."""
-    digest = hashlib.sha256("\0".join([SOURCE, found, *_compiler.COMPILE_FLAGS])
-                            .encode()).hexdigest()[:24]
-    library = Path(folder) / f"band_{digest}.so"
-    try:
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        if not _compiler._intact(library):
-            _compiler._build(SOURCE, "band_lu", found, library)
-    except OSError as exc:
-        raise CompileUnavailable(f"the compiled-code cache {str(folder)!r} cannot be used: "
-                                 f"{exc.strerror or exc}") from None
-    return library

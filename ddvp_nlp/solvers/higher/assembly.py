@@ -36,7 +36,7 @@ import scipy.sparse as sp
 
 from ...cache import cached
 from ...discrete.higher import action
-from ..bvp.assembly import chunked
+from ..grid.maps import chunked
 
 
 @dataclass(frozen=True)
@@ -205,6 +205,9 @@ class HigherAssembly:
         values = np.concatenate([H.ravel()[self._kept] * self._kept_scale,
                                  np.ones(self._pin_count)])
         return F, values
+
+    def release(self) -> None:
+        """Nothing to drop: the Jacobian's values are the evaluation's own array."""
 
     def sparse(self, values) -> sp.csc_matrix:
         data = np.bincount(self._csc_position, weights=values,

@@ -9,38 +9,30 @@ verified in ``higher_bvp.py``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from ...cache import cached
-from ...discrete.higher import _check_rule, action
+from ...discrete.higher import action, check_rule
+from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.higher import HigherOrderSystem
 from ...solution import Solution, Status
 from ...validation import check_integer, check_real
 from ..driver import Advance, Nodes, drive
-from .phase import SOLVERS, HigherRequest, grid_energies, solve_rule
+from ..grid.problem import GridRequest
+from ..options import GridOptions, coerce
+from .phase import grid_energies, solve_rule
+from .problem import FixedNodes, mean_step, straight
 
+# The defaults of GridOptions' None fields for the fixed-endpoint problem.
+DEFAULT_TOL = 1e-9
+DEFAULT_MAX_ITER = 500
 NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50, "error_on_fail": False}
 
 
-@dataclass
-class _Ends:
-    """The ``l`` fixed nodes at each end of a fixed-endpoint problem."""
-
-    t_start: np.ndarray
-    q_start: np.ndarray
-    t_stop: np.ndarray
-    q_stop: np.ndarray
-
-    @property
-    def times(self) -> np.ndarray:
-        return np.concatenate([self.t_start, self.t_stop])
-
-
-def _ends(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop) -> _Ends:
+def _fixed_nodes(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop) -> FixedNodes:
     """The fixed nodes as arrays of shapes ``(l,)`` and ``(l, n)``; ``InputError`` if not
     finite."""
     l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
@@ -50,52 +42,39 @@ def _ends(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop) -> _Ends:
                         ("q_stop", q_stop)):
         if not np.all(np.isfinite(value)):
             raise InputError(f"{name} must be finite, got {value.tolist()}")
-    return _Ends(t_start, q_start, t_stop, q_stop)
+    return FixedNodes(t_start, q_start, t_stop, q_stop)
 
 
 def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *,
-                     nodes: int, scheme: str = "vddvp", params=None, tol: float = 1e-9,
-                     max_iter: int = 500, solver: str = "auto",
-                     tau_floor: float | None = None) -> Solution:
+                     nodes: int, scheme: str = "vddvp", params=None,
+                     options: GridOptions | None = None) -> Solution:
     """The fixed-endpoint problem: ``l`` nodes fixed at each end (``t_start``, ``q_start`` of
     shapes ``(l,)``, ``(l, n)``; likewise at the stop), ``nodes`` nodes in all; unknown the free
     positions (and for an energy rule the free node times).
 
     Fixed steps are solved first on uniform times from the straight line between the ends; an
-    energy rule then releases the times from that solution. Each solve is by ``solver``:
-    ``"newton"`` (the window assembly, ``higher_assembly.py``: ``O(N)`` per iteration),
-    ``"ipopt"`` (an MX graph of the window's gradient mapped over the grid) or ``"auto"``
-    (Newton, then IPOPT from the same start if Newton's point fails the verification). Every
-    point is verified by its unscaled residuals (``higher_bvp.py``): success is that
-    verification, whatever the solver said, and the message quotes the solver.
+    energy rule then releases the times from that solution. Each solve is by
+    ``options.solver``: ``"newton"`` (the grid's Newton on the window assembly,
+    ``assembly.py``: ``O(N)`` per iteration), ``"ipopt"`` (the grid's IPOPT build on an MX
+    graph of the window's gradient mapped over the grid) or ``"auto"`` (Newton, then IPOPT from
+    the same start if Newton's point fails the verification). Every point is verified by its
+    unscaled residuals (``phase.py``): success is that verification, whatever the solver said,
+    and the message quotes the solver.
 
     Args:
-        tol: verification tolerance (Euler-Lagrange rows scaled by the mean step to the power
-            ``2l - 1``, in the units of ``q``; energy rows in units of ``max(1, tau_mean)``);
-            round-off of the rows' own scale is always allowed.
-        max_iter: iteration limit of each solve.
-        tau_floor: smallest step of an energy rule (default ``1e-3`` times the mean step).
+        options: ``tol``: verification tolerance (default 1e-9; Euler-Lagrange rows scaled by
+            the mean step to the power ``2l - 1``, in the units of ``q``; energy rows in units
+            of ``max(1, tau_mean)``), round-off of the rows' own scale always allowed;
+            ``max_iter``: iteration limit of each solve (default 500); ``tau_floor``: smallest
+            step of an energy rule (default ``1e-3`` times the mean step); ``solver``.
     """
-    rule = _check_rule(system, scheme)
-    ends = _ends(system, t_start, q_start, t_stop, q_stop)
-    nodes = check_integer("nodes", nodes, minimum=2 * system.order + 1)
-    tol = check_real("tol", tol, positive=True)
-    max_iter = check_integer("max_iter", max_iter)
-    if solver not in SOLVERS:
-        raise InputError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})")
-    if np.any(np.diff(ends.times) <= 0):
-        raise InputError(f"the fixed node times must increase, got {ends.times.tolist()}")
-    request = HigherRequest(system, ends.t_start, ends.q_start, ends.t_stop, ends.q_stop, nodes,
-                            system.parameter_vector(params), tol, 0.0, solver, max_iter)
-    request.tau_floor = check_real("tau_floor", 1e-3 * request.mean if tau_floor is None
-                                   else tau_floor, positive=True)
-    if request.tau_floor >= request.mean:
-        raise InputError(f"tau_floor must be < the mean step {request.mean!r}, got "
-                         f"{request.tau_floor!r}")
+    request = bvp_request(system, t_start, q_start, t_stop, q_stop, nodes=nodes, scheme=scheme,
+                          params=params, options=options)
+    rule = request.scheme.rule
     started = time.perf_counter()
-    x, phase, outcome = solve_rule(request, "fixed", request.straight())
+    x, phase, outcome = solve_rule(request, "fixed", straight(request))
     if rule != "fixed":  # the times released from the fixed-step solution
-        start = x if outcome[0] is Status.SUCCESS else request.straight()
+        start = x if outcome[0] is Status.SUCCESS else straight(request)
         x, phase, outcome = solve_rule(request, rule, start)
     status, message, residuals = outcome
     z = x.reshape(nodes, system.n + 1)
@@ -107,6 +86,29 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
                              "iterations_total": sum(p["iterations"] for p in request.phases),
                              "solver": phase["solver"], "return_status": phase["return_status"],
                              "phases": request.phases, "tau_floor": request.tau_floor})
+
+
+def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, nodes: int,
+                scheme: str = "vddvp", params=None,
+                options: GridOptions | None = None) -> GridRequest[FixedNodes]:
+    """The checked inputs of :func:`solve_bvp_higher` (``InputError`` naming the argument and
+    the value, before anything is built), with the defaults of ``options`` resolved."""
+    rule = check_rule(system, scheme)
+    fixed = _fixed_nodes(system, t_start, q_start, t_stop, q_stop)
+    nodes = check_integer("nodes", nodes, minimum=2 * system.order + 1)
+    options = coerce(options, GridOptions, "options").resolved(tol=DEFAULT_TOL,
+                                                               max_iter=DEFAULT_MAX_ITER)
+    if np.any(np.diff(fixed.times) <= 0):
+        raise InputError(f"the fixed node times must increase, got {fixed.times.tolist()}")
+    request = GridRequest(system, Scheme.coerce(rule), nodes, system.parameter_vector(params),
+                          fixed, options)
+    mean = mean_step(request)
+    request.tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None
+                                   else options.tau_floor, positive=True)
+    if request.tau_floor >= mean:
+        raise InputError(f"tau_floor must be < the mean step {mean!r}, got "
+                         f"{request.tau_floor!r}")
+    return request
 
 
 def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
@@ -229,7 +231,7 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, *, t_end: float,
     scaled by ``tau^(2l-1)``, in the units of ``q``). Steps are counted from the last given
     node: ``max_steps`` bounds the nodes after the first ``2l``.
     """
-    rule = _check_rule(system, scheme)
+    rule = check_rule(system, scheme)
     t_init, q_init, t_end, max_steps = _check_start(system, rule, t_init, q_init, t_end,
                                                     max_steps)
     theta = system.parameter_vector(params)

@@ -39,20 +39,17 @@ from ..compiler import (
     compile_function,
     warn_once,
 )
+from .newton import NEWTON_OPTIONS, unrolled_newton
 from .steps import EnergyCheck, FixedCheck, StepFunctions
-from .unrolled import unrolled_newton
 
-# error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
-# Either way a step that did not converge fails its residual check and is redone carefully.
-FAST_NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
-# fast_newton's iterations written out as straight-line code (``unrolled.py``); the rest of its
-# loop runs only where these did not stop.
+# fast_newton's iterations written out as straight-line code (``newton.unrolled_newton``); the
+# rest of its loop runs only where these did not stop.
 # Small systems (at most SMALL_NEWTON unknowns: n <= 2): three iterations, then the fourth's
 # residual test alone, all inlined with common subexpressions merged. From the RK4 predictor
 # fast_newton stops at that test on every step of the paper's example and after two or three
 # updates on Henon-Heiles (measured). Up to MEDIUM_NEWTON unknowns (fpu, n = 6, needs the fourth
 # update on 80% of its steps): four iterations and the fifth's test, inlined. Both solve each
-# update by elimination without pivoting (``unrolled.DenseLU``) instead of fast_newton's QR:
+# update by elimination without pivoting (``newton.DenseLU``) instead of fast_newton's QR:
 # the chunk with the accuracy check cost 0.77 against 0.92 us per step on the paper's example,
 # 0.79 against 1.27 on Henon-Heiles, 3.3 against 6.8 on fpu (side by side; fpu's QR inlined took
 # 4-6 s to compile, the elimination 1.3 s). Larger systems: four iterations of fast_newton's own
@@ -72,7 +69,7 @@ def step_options(unknowns: int) -> dict:
 
 
 def unroll_options(unknowns: int) -> dict:
-    """How :func:`~ddvp_nlp.solvers.march.unrolled.unrolled_newton` unrolls a Newton of
+    """How :func:`~ddvp_nlp.solvers.march.newton.unrolled_newton` unrolls a Newton of
     ``unknowns`` unknowns (see ``SMALL_NEWTON``)."""
     if unknowns <= SMALL_NEWTON:
         return dict(SMALL_UNROLL)
@@ -299,7 +296,7 @@ class FastChunk:
         # test's terms; H and w of the new node stay here, where they share terms with the
         # accuracy check's estimates
         newton = unrolled_newton("fast_energy_step", functions.energy_residual,
-                                 FAST_NEWTON_OPTIONS, at_root=_residuals(functions.energy_check),
+                                 NEWTON_OPTIONS, at_root=_residuals(functions.energy_check),
                                  **unroll_options(functions.energy_residual.numel_in(0)))
         x, *residuals = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
         t_next = s["t_mid"] + x[-1]
@@ -337,7 +334,7 @@ class FastChunk:
         t_b = ca.if_else(k + 1 == c["total"], c["t_end"], c["t0"] + (k + 1) * c["tau"])
         w = ca.vertcat(t_a, t_b, s["z"], theta)
         newton = unrolled_newton("fast_fixed_step", functions.fixed_residual,
-                                 FAST_NEWTON_OPTIONS, at_root=_residuals(functions.fixed_check),
+                                 NEWTON_OPTIONS, at_root=_residuals(functions.fixed_check),
                                  **unroll_options(functions.fixed_residual.numel_in(0)))
         z_b, *residuals = newton(functions.fixed_predict(w), w)
         check = FixedCheck(*residuals, *functions.node_monitor(z_b, t_b, theta))

@@ -27,17 +27,18 @@ import math
 import multiprocessing
 import warnings
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 
 import numpy as np
 
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution
-from ...validation import check_cache_folder, check_integer
-from ..accuracy import Tolerance
+from ...validation import check_integer, check_span
 from ..compiler import build_count, find_compiler
 from ..dense import attach
-from .solve import _check_options, _check_start, _start, march
+from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
+from .solve import check_problem, march
 
 # Blocks per worker: orbits differ in length (a failing orbit is short), so each worker takes
 # several blocks, the next as soon as it is free. A block holds at most BLOCK_ORBITS orbits: its
@@ -48,16 +49,13 @@ BLOCKS_PER_WORKER = 4
 BLOCK_ORBITS = 2
 
 
-def march_ensemble(system, q0s, p0s, *, tau0: float, t_end: float, t0: float = 0.0,
-                   scheme="vddvp", params=None, tol: float = 1e-10,
-                   max_steps: int = 10_000_000, tau_min=None, tau_max=None,
-                   max_step_ratio: float | None = 10.0, chunk: int = 1024,
-                   compiler: str | None = "auto", cache_dir=None, rtol: float = 1e-2,
-                   atol: float = 1e-2, energy_tol: float = 0.1, global_tol=None,
-                   accept_inaccurate: bool = False, check_accuracy: bool = True,
-                   workers: int = 2) -> list[Solution]:
+def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp", params=None,
+                   steps: StepControl | None = None,
+                   accuracy: Tolerance | None = DEFAULT_TOLERANCE,
+                   compilation: Compilation | None = None, workers: int = 2) -> list[Solution]:
     """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would;
-    the arguments after them are :func:`march`'s.
+    the arguments after them are :func:`march`'s (``compilation.fast`` must stay on: the
+    workers share the compiled chunk).
 
     ``workers``: local processes marching the orbits (forked from this one; ``1``: all in
     this process). Returns one :class:`Solution` per orbit, in order, each with its own status
@@ -69,18 +67,21 @@ def march_ensemble(system, q0s, p0s, *, tau0: float, t_end: float, t0: float = 0
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")
     workers = check_integer("workers", workers)
-    options = dict(tau0=tau0, t_end=t_end, t0=t0, scheme=scheme, params=params, tol=tol,
-                   max_steps=max_steps, tau_min=tau_min, tau_max=tau_max,
-                   max_step_ratio=max_step_ratio, chunk=chunk, cache_dir=cache_dir, rtol=rtol,
-                   atol=atol, energy_tol=energy_tol, global_tol=global_tol,
-                   accept_inaccurate=accept_inaccurate, check_accuracy=check_accuracy)
-    theta = _check_all(system, scheme, q0s, p0s, options)
-    options["compiler"] = find_compiler(compiler)
+    steps = coerce(steps, StepControl, "steps")  # time_limit, energy_guard: per orbit
+    if accuracy is not None:
+        coerce(accuracy, Tolerance, "accuracy")
+    compilation = coerce(compilation, Compilation, "compilation")
+    t0, t_end = check_span(t_span)
+    theta = _check_all(system, scheme, q0s, p0s, (t0, t_end), tau0, steps, params)
+    compilation = replace(compilation, fast=True,
+                          compiler=find_compiler(compilation.compiler))
+    options = dict(tau0=tau0, scheme=scheme, params=params, steps=steps, accuracy=accuracy,
+                   compilation=compilation)
     with warnings.catch_warnings():  # the first orbit's warnings come from its own march
         warnings.simplefilter("ignore")
         # build (or load from the on-disk cache) what every march shares, here, once
-        march(system, q0s[0], p0s[0], **{**options, "t_end": t0 + min(3 * tau0, t_end - t0)})
-    job = _Job(system, q0s, p0s, options)
+        march(system, q0s[0], p0s[0], (t0, t0 + min(3 * tau0, t_end - t0)), **options)
+    job = _Job(system, q0s, p0s, (t0, t_end), options)
     blocks = _blocks(q0s.shape[0], workers)
     if workers == 1 or len(blocks) == 1 or not _can_fork():
         return job.run(range(q0s.shape[0]), count_compiles=False)
@@ -93,23 +94,14 @@ def march_ensemble(system, q0s, p0s, *, tau0: float, t_end: float, t0: float = 0
     return solutions
 
 
-def _check_all(system, scheme, q0s, p0s, options) -> np.ndarray:
-    """Every option and every start, checked as :func:`march` checks them, before any march;
-    returns ``theta``."""
-    _check_options(scheme, t0=options["t0"], t_end=options["t_end"], tau0=options["tau0"],
-                   tol=options["tol"], max_steps=options["max_steps"],
-                   tau_min=options["tau_min"], tau_max=options["tau_max"],
-                   max_step_ratio=options["max_step_ratio"], chunk=options["chunk"],
-                   time_limit=None, energy_guard=None, breakdown="stop")
-    Tolerance(rtol=options["rtol"], atol=options["atol"], energy_tol=options["energy_tol"],
-              global_tol=options["global_tol"], stop=True)
-    check_cache_folder(options["cache_dir"])
-    theta = system.parameter_vector(options["params"])
+def _check_all(system, scheme, q0s, p0s, t_span, tau0, steps, params) -> np.ndarray:
+    """Every start, checked as :func:`march` checks it, before any march; returns
+    ``theta``."""
+    theta = None
     for i, (q0, p0) in enumerate(zip(q0s, p0s, strict=True)):
         try:
-            q0, p0, _ = _check_start(system, q0, p0, None)
-            _start(system, scheme, q0, p0, None, t0=options["t0"], tau0=options["tau0"],
-                   theta=theta)
+            theta = check_problem(system, scheme, q0, p0, None, t_span, tau0, steps,
+                                  params).theta
         except InputError as exc:
             raise InputError(f"orbit {i}: {exc}") from None
     return theta
@@ -132,12 +124,13 @@ def _can_fork() -> bool:
 class _Job:
     """The marches of one ensemble: the system, the starts and :func:`march`'s options."""
 
-    def __init__(self, system, q0s, p0s, options):
+    def __init__(self, system, q0s, p0s, t_span, options):
         self.system, self.q0s, self.p0s, self.options = system, q0s, p0s, options
+        self.t_span = t_span
 
     def run(self, indices, *, count_compiles: bool) -> list[Solution]:
         before = build_count()
-        solutions = [march(self.system, self.q0s[i], self.p0s[i], **self.options)
+        solutions = [march(self.system, self.q0s[i], self.p0s[i], self.t_span, **self.options)
                      for i in indices]
         if count_compiles:
             for solution in solutions:

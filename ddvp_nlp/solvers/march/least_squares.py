@@ -16,7 +16,8 @@ import math
 import numpy as np
 
 from ...solution import Status
-from .steps import EnergyCheck, NewtonSteps, StepResult
+from .newton import NewtonSteps, StepResult
+from .steps import EnergyCheck
 
 
 def step_range(acceptance, tau_prev: float) -> tuple[float, float]:

@@ -8,11 +8,12 @@ canonical equations only, on uniform steps that end on ``t_end``.
 
 A step is accepted only if Newton converged, every value is finite, ``tau_k > 0`` (the
 time-reversed root ``(z_{k-1}, -tau_{k-1})`` solves the midpoint step equations for every state),
-the step's own unscaled residuals are below ``tol`` (relative to ``max(1, |z|)`` and
-``max(1, |H|)``) and the optional step bounds hold (``acceptance.py``). The first step that fails
-ends the march with a status; every accepted node is kept.
+the step's own unscaled residuals are below ``StepControl.tol`` (relative to ``max(1, |z|)``
+and ``max(1, |H|)``) and the optional step bounds hold (``acceptance.py``). The first step that
+fails ends the march with a status; every accepted node is kept.
 
-The parts: ``steps.py`` (the step functions, Newton with retries), ``least_squares.py`` (the
+The parts: ``steps.py`` (the step functions), ``newton.py`` (Newton on one step, with retries, and
+its compiled unrolled form), ``least_squares.py`` (the
 step that replaces a failed one with ``breakdown="least_squares"``), ``chunk.py`` (compiled
 chunks of steps), ``stepper.py`` (the careful, compiled and composite steppers), ``monitors.py``
 (energy guard, solvability monitor). This module checks the input, builds those parts, runs them
@@ -34,112 +35,55 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
-from ...validation import check_cache_folder, check_integer, check_real, check_state
-from ..accuracy import AccuracyMonitor, ErrorEstimates, Tolerance
-from ..compiler import buffered
+from ...validation import check_real, check_span, check_state
+from ..accuracy import AccuracyMonitor, ErrorEstimates
+from ..compiler import buffered, find_compiler
 from ..dense import attach
 from ..driver import Nodes, drive
+from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
 from .acceptance import Acceptance
 from .chunk import FastChunk
-from .monitors import (
-    MONITOR_LIMIT,
-    Checkpoint,
-    EnergyGuard,
-    SolvabilityMonitor,
-    StopRequest,
-)
+from .monitors import Checkpoint, EnergyGuard, SolvabilityMonitor, StopRequest
+from .newton import NewtonSteps
 from .recheck import grid_residuals
-from .stepper import (
-    BREAKDOWNS,
-    LEAST_SQUARES_CASES,
-    CarefulStepper,
-    Clock,
-    CompiledStepper,
-    MarchStepper,
-    Tally,
-)
-from .steps import NEWTON_OPTIONS, RETRY_FACTORS, NewtonSteps, StepFunctions, step_functions
-
-# Names that lived here before the march was split into its parts.
-# Steps per compiled call: past this the chunk's generated code and its output buffer grow to
-# gigabytes (chunk = 10**9 took two minutes and 4.7 GB for a ten-step march) for no speed gained.
-MAX_CHUNK = 65536
-
-__all__ = ["BREAKDOWNS", "LEAST_SQUARES_CASES", "MONITOR_LIMIT", "NEWTON_OPTIONS",
-           "RETRY_FACTORS", "march"]
+from .stepper import CarefulStepper, Clock, CompiledStepper, MarchStepper, Tally
+from .steps import StepFunctions, step_functions
 
 
-def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end: float,
-          t0: float = 0.0,
+def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v0=None,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
-          tol: float = 1e-10, max_steps: int = 10_000_000, tau_min: float | None = None,
-          tau_max: float | None = None, max_step_ratio: float | None = 10.0,
-          progress: bool = False, fast: bool = True, chunk: int = 1024,
-          compiler: str | None = "auto", cache_dir=None, time_limit: float | None = None,
-          energy_guard: float | None = None, breakdown: str = "stop", rtol: float = 1e-2,
-          atol: float = 1e-2, energy_tol: float = 0.1, global_tol: float | None = None,
-          accept_inaccurate: bool = False, check_accuracy: bool = True,
-          checkpoint=None, checkpoint_interval: float = 5.0, stop=None) -> Solution:
+          steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
+          compilation: Compilation | None = None, output: Output | None = None) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
         system: the Hamiltonian or Lagrangian system.
         q0: initial position, shape ``(n,)``.
         p0: initial momentum, shape ``(n,)`` (or give ``v0``).
-        v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
-            march takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform.
+        t_span: ``(t0, t_end)``; energy rules stop at the first node with ``t >= t_end``.
         tau0: first step; for energy rules it sets the discrete energy level, for ``fixed`` the
             step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
-        t_end: end time; energy rules stop at the first node with ``t >= t_end``.
-        t0: initial time.
+        v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
+            march takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
         params: values of the system's parameters (defaults filled in).
-        tol: acceptance tolerance of each step's unscaled residuals, relative to ``max(1, |z|)``
-            (canonical) and ``max(1, |H|)`` (energy).
-        max_steps: bound on the number of steps.
-        tau_min: optional lower bound on every step length.
-        tau_max: optional upper bound on every step length.
-        max_step_ratio: bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)`` (``None``: none).
-            The default 10 stops a march whose energy equation jumped to a far root: on
-            ``kepler`` with ``e = 0.99`` and ``tau0 = 0.01``, without it, the fourth step was 235
-            time units, past the whole horizon, and every equation held.
-        progress: show a progress bar on stderr.
-        fast: run the steps in compiled chunks (``chunk.py``); ``False`` forces the careful
-            per-step path. Both accept a step by the same test; their nodes differ by
-            round-off (the compiled Newton eliminates where the careful one factors by QR).
-        chunk: steps per compiled call.
-        compiler: C compiler for the fast path: ``"auto"`` (``$CC``, ``gcc``, ``cc``), a
-            command, or ``None`` for CasADi's virtual machine.
-        cache_dir: folder of compiled chunks (default ``$DDVP_NLP_CACHE`` or
-            ``~/.cache/ddvp_nlp``).
-        time_limit: optional bound in seconds on the stepping (status ``time_limit``).
-        energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(1, |H(z_0, t_0)|)``
-            at every node (status ``energy_guard``).
-        breakdown: what an energy rule does when a step has no admissible root: ``"stop"``
-            (default) or ``"least_squares"``, the step of Kane, Marsden and Ortiz: the ``tau`` in
-            ``[tau_min, tau_max]`` (default ``[tau_prev/10, 10 tau_prev]``) that minimises the
-            energy residual subject to the canonical equations (a bounded scalar search). Each
-            such step is listed in ``stats["least_squares"]`` with its energy defect, and the
-            march goes on.
-        rtol: the accuracy check (``accuracy.py``), which does not trust the scheme's own
-            equations: every step against one RK4 step of the exact flow, ``delta_k <= atol +
-            rtol |z|``. The first failure of any of its tests ends the march with status
-            ``inaccurate``; ``stats["accuracy"]`` and ``Solution.local_error`` hold the
-            estimates.
-        atol: see ``rtol``.
-        energy_tol: bound on the first step's energy level and (autonomous ``H``) the nodal
-            energy drift against ``H(z_0, t_0)``, relative to ``max(1, |H0|)``.
-        global_tol: optional bound on the propagated global error estimate.
-        accept_inaccurate: record the first failure of the accuracy check and go on.
-        check_accuracy: ``False`` leaves the check out (the comparison does, so that run times
-            compare like with like, and makes it afterwards with ``accuracy.assess``).
-        checkpoint: optional ``save(t, z)``, called with the nodes kept so far every
-            ``checkpoint_interval`` seconds of stepping (at most about 5% of it), so that a
-            killed march loses at most one interval (``monitors.Checkpoint``). Its cost is in
-            ``timing["checkpoint_s"]`` and ``stats["checkpoints"]``.
-        stop: optional ``stop() -> bool``, asked after every stepper call; ``True`` ends the
-            march with status ``interrupted``, every accepted node kept (how the command line
-            turns Ctrl-C and SIGTERM into a clean end, never an exception inside CasADi).
+        steps: when a step is accepted and when the march stops (:class:`StepControl`: the
+            residual tolerance, step bounds, what to do at a breakdown, ``max_steps``,
+            ``time_limit``, ``energy_guard``).
+        accuracy: the accuracy check (``solvers/accuracy.py``), which does not trust the
+            scheme's own equations: every step against one RK4 step of the exact flow, the
+            energy level of the first step, the propagated global error. The first failure ends
+            the march with status ``inaccurate`` (unless ``Tolerance.stop`` is off);
+            ``stats["accuracy"]`` and ``Solution.local_error`` hold the estimates. ``None``
+            leaves the check out (the comparison does, so that run times compare like with
+            like, and checks afterwards with ``accuracy.assess``).
+        compilation: compiled chunks of steps or the careful path, the compiler and its cache
+            (:class:`Compilation`).
+        output: progress bar, checkpoints and the stop request (:class:`Output`).
+
+    A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
+    unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
+    The first step that fails ends the march with a status; every accepted node is kept.
 
     The solvability monitor (energy rules): at every node the site-density weight
     ``w = f' H_zz f = -8 c(z)`` (docs/theory.md section 7). A positive step needs ``c`` to keep its
@@ -152,44 +96,39 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
         A :class:`Solution`; failures are a status on it, never an exception.
     """
     scheme = Scheme.coerce(scheme)
-    q0, p0, v0 = _check_start(system, q0, p0, v0)
-    options = _check_options(scheme, t0=t0, t_end=t_end, tau0=tau0, tol=tol,
-                             max_steps=max_steps, tau_min=tau_min, tau_max=tau_max,
-                             max_step_ratio=max_step_ratio, chunk=chunk, time_limit=time_limit,
-                             energy_guard=energy_guard, breakdown=breakdown)
-    accuracy = Tolerance(rtol=rtol, atol=atol, energy_tol=energy_tol, global_tol=global_tol,
-                         stop=not accept_inaccurate)
-    saver = _checkpoint(checkpoint, checkpoint_interval)
-    check_cache_folder(cache_dir)
-    if fast:
-        from ..compiler import find_compiler
-        compiler = find_compiler(compiler)
-    theta = system.parameter_vector(params)
-    p0, H0 = _start(system, scheme, q0, p0, v0, t0=options.t0, tau0=options.tau0, theta=theta)
+    problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0,
+                            coerce(steps, StepControl, "steps"), params)
+    if accuracy is not None:
+        coerce(accuracy, Tolerance, "accuracy")
+    compilation = coerce(compilation, Compilation, "compilation")
+    output = coerce(output, Output, "output")
+    compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
 
     started = time.perf_counter()
-    parts = _build(system, scheme, theta, options, fast=fast, compiler=compiler,
-                   cache_dir=cache_dir, check_accuracy=check_accuracy)
+    parts = _build(problem, compilation, compiler, check_accuracy=accuracy is not None)
     built = time.perf_counter()
-    nodes = Nodes(options.t0, np.concatenate([q0, p0]))
-    monitors, solvability = _monitors(parts, scheme, options, H0, nodes, theta)
+    nodes = Nodes(problem.t0, np.concatenate([problem.q0, problem.p0]))
+    monitors, solvability = _monitors(parts, problem, nodes)
     # the check and the recheck are compiled where the march's own chunk is (one fallback
     # warning, not three)
     compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
     checker = None
-    if check_accuracy:
-        checker = _accuracy_monitor(system, scheme, theta, accuracy, H0, parts.errors)
+    if accuracy is not None:
+        checker = _accuracy_monitor(problem, accuracy, parts.errors)
         monitors.append(checker)
-    monitors += [StopRequest(stop)] if stop else []
+    saver = None if output.checkpoint is None else Checkpoint(output.checkpoint,
+                                                              output.checkpoint_interval)
+    monitors += [StopRequest(output.stop)] if output.stop else []
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
-    outcome = drive(parts.stepper, nodes, t_end=options.t_end, max_steps=options.max_steps,
-                    time_limit=options.time_limit, monitors=monitors, progress=progress,
-                    catch_interrupt=True)
+    outcome = drive(parts.stepper, nodes, t_end=problem.t_end, max_steps=problem.steps.max_steps,
+                    time_limit=problem.steps.time_limit, monitors=monitors,
+                    progress=output.progress, catch_interrupt=True)
     solved = time.perf_counter()
     if isinstance(parts.stepper, MarchStepper):  # fast_steps: the fast nodes the run kept
         parts.stepper.compiled.settle(outcome.t.size)
-    solution = _solution(system, scheme, theta, outcome, parts, solvability,
-                         compiler=compiler if compiled else None, cache_dir=cache_dir,
+    solution = _solution(problem, outcome, parts, solvability,
+                         compiler=compiler if compiled else None,
+                         cache_dir=compilation.cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
     if checker is not None:
         solution.local_error = checker.local_errors(solution.steps)
@@ -197,37 +136,53 @@ def march(system: HamiltonianSystem, q0, p0=None, *, v0=None, tau0: float, t_end
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
-    return attach(solution, system, theta, options.t_end)
-
-
-def _checkpoint(save, interval) -> Checkpoint | None:
-    """The checkpoint monitor, if a ``save`` is given (``interval`` checked)."""
-    if save is None:
-        return None
-    if not callable(save):
-        raise InputError(f"checkpoint must be a callable save(t, z), got {save!r}")
-    return Checkpoint(save, check_real("checkpoint_interval", interval, positive=True))
+    return attach(solution, system, problem.theta, problem.t_end)
 
 
 @dataclass(frozen=True)
-class _Options:
-    """The checked numbers of one march."""
+class MarchProblem:
+    """The checked inputs of one march: the system and scheme, the start (``p0`` from ``v0``
+    if that was given), the times, the parameter vector, ``H(z_0, t_0)``, the step control and
+    the acceptance test it makes."""
 
+    system: HamiltonianSystem
+    scheme: Scheme
+    q0: np.ndarray
+    p0: np.ndarray
     t0: float
     t_end: float
     tau0: float
-    max_steps: int
-    chunk: int
-    time_limit: float | None
-    energy_guard: float | None
-    breakdown: str
+    theta: np.ndarray
+    H0: float
+    steps: StepControl
     acceptance: Acceptance
 
 
-def _check_start(system, q0, p0, v0):
-    """The system and the initial state: ``q0`` and exactly one of ``p0`` and ``v0``."""
+def check_problem(system, scheme: Scheme, q0, p0, v0, t_span, tau0, steps: StepControl,
+                  params) -> MarchProblem:
+    """Every input of :func:`march` but the options objects, checked in the order of its
+    signature (``InputError`` naming the argument and the value), before anything is built;
+    ``march_ensemble`` checks each of its starts with it."""
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    q0, p0, v0 = _check_state(system, q0, p0, v0)
+    t0, t_end, tau0 = _check_times(t_span, tau0)
+    if (steps.tau_min is not None and tau0 < steps.tau_min) or \
+            (steps.tau_max is not None and tau0 > steps.tau_max):
+        raise InputError(f"tau0 must lie in [tau_min, tau_max] = [{steps.tau_min}, "
+                         f"{steps.tau_max}], got {tau0!r}")
+    if steps.breakdown == "least_squares" and not scheme.variable_steps:
+        raise InputError("breakdown='least_squares' needs an energy rule (vddvp or lee), got "
+                         f"scheme {scheme.rule!r}")
+    theta = system.parameter_vector(params)
+    p0, H0 = _start(system, scheme, q0, p0, v0, t0=t0, tau0=tau0, theta=theta)
+    return MarchProblem(system, scheme, q0, p0, t0, t_end, tau0, theta, H0, steps,
+                        Acceptance(steps.tol, steps.tau_min, steps.tau_max,
+                                   steps.max_step_ratio))
+
+
+def _check_state(system, q0, p0, v0):
+    """``q0`` and exactly one of ``p0`` and ``v0``."""
     q0 = check_state("q0", q0, system.n)
     if (p0 is None) == (v0 is None):
         raise InputError("give exactly one of p0 and v0")
@@ -239,52 +194,13 @@ def _check_start(system, q0, p0, v0):
     return q0, p0, v0
 
 
-def _check_options(scheme: Scheme, *, t0, t_end, tau0, tol, max_steps, tau_min, tau_max,
-                   max_step_ratio, chunk, time_limit, energy_guard, breakdown) -> _Options:
-    """Every other argument of :func:`march`, checked in the order of its signature."""
-    t0, t_end, tau0 = _check_times(t0, t_end, tau0)
-    tol = check_real("tol", tol, positive=True)
-    max_steps = check_integer("max_steps", max_steps)
-    tau_min, tau_max, max_step_ratio = _check_step_bounds(tau0, tau_min, tau_max,
-                                                          max_step_ratio)
-    chunk = check_integer("chunk", chunk, maximum=MAX_CHUNK)
-    time_limit = check_real("time_limit", time_limit, positive=True, allow_none=True)
-    energy_guard = check_real("energy_guard", energy_guard, positive=True, allow_none=True)
-    if breakdown not in BREAKDOWNS:
-        raise InputError(f"breakdown must be one of {', '.join(BREAKDOWNS)}, got {breakdown!r}")
-    if breakdown == "least_squares" and not scheme.variable_steps:
-        raise InputError("breakdown='least_squares' needs an energy rule (vddvp or lee), got "
-                         f"scheme {scheme.rule!r}")
-    return _Options(t0, t_end, tau0, max_steps, chunk, time_limit, energy_guard, breakdown,
-                    Acceptance(tol, tau_min, tau_max, max_step_ratio))
-
-
-def _check_times(t0, t_end, tau0):
+def _check_times(t_span, tau0):
     """``t0 < t_end`` and a first step ``0 < tau0 <= t_end - t0``."""
-    t0 = check_real("t0", t0)
-    t_end = check_real("t_end", t_end)
-    if t_end <= t0:
-        raise InputError(f"t_end must be > t0 = {t0!r}, got {t_end!r}")
+    t0, t_end = check_span(t_span)
     tau0 = check_real("tau0", tau0, positive=True)
     if tau0 > t_end - t0:
         raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
     return t0, t_end, tau0
-
-
-def _check_step_bounds(tau0, tau_min, tau_max, max_step_ratio):
-    """Optional ``0 < tau_min < tau_max`` around ``tau0`` and ``max_step_ratio > 1``."""
-    tau_min = check_real("tau_min", tau_min, positive=True, allow_none=True)
-    tau_max = check_real("tau_max", tau_max, positive=True, allow_none=True)
-    if tau_min is not None and tau_max is not None and tau_min >= tau_max:
-        raise InputError(f"tau_min must be < tau_max = {tau_max!r}, got {tau_min!r}")
-    if (tau_min is not None and tau0 < tau_min) or (tau_max is not None and tau0 > tau_max):
-        raise InputError(f"tau0 must lie in [tau_min, tau_max] = [{tau_min}, {tau_max}], "
-                         f"got {tau0!r}")
-    max_step_ratio = check_real("max_step_ratio", max_step_ratio, positive=True,
-                                allow_none=True)
-    if max_step_ratio is not None and max_step_ratio <= 1:
-        raise InputError(f"max_step_ratio must be > 1, got {max_step_ratio!r}")
-    return tau_min, tau_max, max_step_ratio
 
 
 def _start(system, scheme, q0, p0, v0, *, t0, tau0, theta) -> tuple[np.ndarray, float]:
@@ -314,53 +230,58 @@ class _Parts:
     errors: ErrorEstimates | None
 
 
-def _build(system, scheme, theta, options: _Options, *, fast, compiler, cache_dir,
+def _build(problem: MarchProblem, compilation: Compilation, compiler, *,
            check_accuracy=True) -> _Parts:
-    """The step functions (cached on the system), the compiled chunk if ``fast`` (cached too;
-    with ``check_accuracy`` it computes the accuracy check's estimates too), the stepper and the
-    accuracy check's error state (compiled where the chunk is: one fallback warning, not
-    two)."""
+    """The step functions (cached on the system), the compiled chunk if ``compilation.fast``
+    (cached too; with ``check_accuracy`` it computes the accuracy check's estimates too), the
+    stepper and the accuracy check's error state (compiled where the chunk is: one fallback
+    warning, not two)."""
+    system, scheme, steps = problem.system, problem.scheme, problem.steps
+    cache_dir = compilation.cache_dir
     functions = step_functions(system, scheme)
-    newton = NewtonSteps(functions, theta, options.acceptance)
+    newton = NewtonSteps(system, scheme, functions, problem.theta, problem.acceptance)
     tally = Tally()
-    clock = Clock.for_rule(scheme.variable_steps, options.t0, options.t_end, options.tau0)
+    clock = Clock.for_rule(scheme.variable_steps, problem.t0, problem.t_end, problem.tau0)
     stepper = CarefulStepper(newton, clock, tally, variable=scheme.variable_steps,
-                             breakdown=options.breakdown)
+                             breakdown=steps.breakdown)
     fast_chunk = errors = None
-    if fast:
+    if compilation.fast:
         fast_chunk = cached(system,
-            ("fast", scheme, options.chunk, compiler, str(cache_dir), check_accuracy),
-            lambda: FastChunk(system, scheme, functions, chunk=options.chunk, compiler=compiler,
-                              cache_dir=cache_dir, accuracy=check_accuracy))
+            ("fast", scheme, compilation.chunk, compiler, str(cache_dir), check_accuracy),
+            lambda: FastChunk(system, scheme, functions, chunk=compilation.chunk,
+                              compiler=compiler, cache_dir=cache_dir, accuracy=check_accuracy))
     if check_accuracy:
         compiled = fast_chunk is not None and fast_chunk.path == "compiled"
         errors = ErrorEstimates(system, compiler=compiler if compiled else None,
                                 cache_dir=cache_dir)
     if fast_chunk is not None:
-        stepper = MarchStepper(stepper, CompiledStepper(fast_chunk, theta, options.acceptance,
-                                                        clock, tally, errors=errors))
+        stepper = MarchStepper(stepper, CompiledStepper(fast_chunk, problem.theta,
+                                                        problem.acceptance, clock, tally,
+                                                        errors=errors,
+                                                        max_calls=compilation.batch))
     return _Parts(functions, newton, tally, fast_chunk, stepper, errors)
 
 
-def _monitors(parts: _Parts, scheme, options: _Options, H0, nodes, theta):
+def _monitors(parts: _Parts, problem: MarchProblem, nodes):
     """The energy guard (if asked for) and, for energy rules, the solvability monitor, which
     starts from the weight at node 0. Returns the monitors and the solvability monitor."""
     monitors, solvability = [], None
-    if options.energy_guard is not None:
-        monitors.append(EnergyGuard(options.energy_guard, H0))
-    if scheme.variable_steps:
+    if problem.steps.energy_guard is not None:
+        monitors.append(EnergyGuard(problem.steps.energy_guard, problem.H0))
+    if problem.scheme.variable_steps:
         monitor = buffered(parts.functions.node_monitor, "node_monitor",
                            owner=parts.functions)
-        _, w_first = monitor(nodes.z[0], nodes.t[0], theta)
+        _, w_first = monitor(nodes.z[0], nodes.t[0], problem.theta)
         solvability = SolvabilityMonitor(float(nodes.t[0]), float(w_first[0, 0]))
         monitors.append(solvability)
     return monitors, solvability
 
 
-def _accuracy_monitor(system, scheme, theta, tolerance, H0, errors):
+def _accuracy_monitor(problem: MarchProblem, tolerance, errors):
     """The accuracy check of the march (its error state ``errors`` shared with the compiled
     chunk); for the energy rules it also compares the level the first step sets, the first
     interval's energy, with ``H0``."""
+    system, scheme, theta = problem.system, problem.scheme, problem.theta
     level = None
     if scheme.variable_steps:
         interval_energy = buffered(equations.midpoint_energy_function(system, scheme),
@@ -370,14 +291,15 @@ def _accuracy_monitor(system, scheme, theta, tolerance, H0, errors):
         def level(t, z):
             return float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
                                          theta)[0][0, 0])
-    return AccuracyMonitor(system, theta, tolerance, H0=H0, level=level, errors=errors)
+    return AccuracyMonitor(system, theta, tolerance, H0=problem.H0, level=level, errors=errors)
 
 
-def _solution(system, scheme, theta, outcome, parts: _Parts, solvability, *, compiler,
+def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, compiler,
               cache_dir, timing):
     """The :class:`Solution`, with every equation recomputed on the returned grid (compiled
     with ``compiler``, else on CasADi's virtual machine)."""
     started = time.perf_counter()
+    system, scheme, theta = problem.system, problem.scheme, problem.theta
     t, z = outcome.t, outcome.z
     n = system.n
     canonical, energy = grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta,

@@ -31,10 +31,10 @@ from ..driver import Advance, Nodes, describe_phase_space
 from .acceptance import Acceptance
 from .chunk import FastChunk
 from .least_squares import least_squares_step
-from .steps import NewtonSteps, StepResult
+from .newton import NewtonSteps, StepResult
 
-BREAKDOWNS = ("stop", "least_squares")
-# Chunk calls per batch of the compiled stepper: 1, 2, 4, ... up to this while every step is
+# Chunk calls per batch of the compiled stepper (the default of Compilation.batch): 1, 2, 4, ...
+# up to this while every step is
 # kept (one after a failed step), fewer near the end of the run. Eight chunks of 1024 steps cut
 # the decoding and checks per step about eightfold; a batch holds a few MB (2 MB for n = 2).
 # The driver asks for a stop (Ctrl-C, time limit) between batches: every few milliseconds.
@@ -132,8 +132,9 @@ class CompiledStepper:
     (``ACCURACY_VALUES``)."""
 
     def __init__(self, chunk: FastChunk, theta: np.ndarray, acceptance: Acceptance,
-                 clock: Clock, tally: Tally, *, errors=None):
+                 clock: Clock, tally: Tally, *, errors=None, max_calls: int = MAX_CALLS):
         self.chunk = chunk
+        self.max_calls = max_calls
         self.theta = theta
         self.acceptance = acceptance
         self.clock = clock
@@ -188,7 +189,7 @@ class CompiledStepper:
             limit = min(limit, int(ends[0]) + 1)
         bad = np.flatnonzero(~good[:limit])
         kept = int(bad[0]) if bad.size else limit
-        self.calls = 1 if bad.size else min(2 * self.calls, MAX_CALLS)
+        self.calls = 1 if bad.size else min(2 * self.calls, self.max_calls)
         values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept]}
         if self.errors is not None:
             values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})

@@ -16,12 +16,11 @@ mu_r)``, one per first integral (``H``, then the ``r`` integrals of the symmetri
 the docstring of ``periodic.py``. The interval rows are ``equations.canonical_expression`` and
 ``equations.midpoint_energy_function``'s expression, written once in ``discrete/``; each interval
 becomes one CasADi function returning its ``m`` rows and their dense Jacobian in
-``(z_k, z_{k+1}, u)``, mapped over the grid by ``bvp_assembly.ChunkedMap``. The closure rows
+``(z_k, z_{k+1}, u)``, mapped over the grid by ``grid/maps.ChunkedMap``. The closure rows
 put entries in the corner (columns of ``z_0``) and each unfolding parameter is a full column:
-the matrix is factored by sparse LU (SuperLU), not in band storage. The object has the
-interface ``bvp_newton.newton`` expects (``layout.time_index``, ``layout.bandwidth``,
-``evaluate``, ``sparse``), so the fixed-endpoint solver's Newton iteration and line search run
-unchanged."""
+the matrix is factored by sparse LU (SuperLU), not in band storage. :class:`PeriodicAssembly`
+is a ``grid.problem.GridProblem`` (its data a :class:`Closure`): the grid's Newton and its
+IPOPT build take it as they take the fixed-endpoint assembly."""
 
 from __future__ import annotations
 
@@ -34,7 +33,7 @@ import scipy.sparse as sp
 from ...cache import cached
 from ...discrete import equations
 from ...discrete.scheme import Scheme
-from ..bvp.assembly import chunked
+from ..grid.maps import chunked
 
 
 @dataclass(frozen=True)
@@ -64,7 +63,7 @@ class ClosedLayout:
 
     @property
     def bandwidth(self) -> int:
-        """Wider than any band: tells ``bvp_newton`` to factor the sparse matrix."""
+        """Wider than any band: tells the grid's Newton to factor the sparse matrix."""
         return self.size
 
     def pack(self, t, q, p) -> np.ndarray:
@@ -181,6 +180,9 @@ class PeriodicAssembly:
         F[h:h + N * m] = rows[:, 0, :].ravel()
         F[h + N * m:] = z[N, 1:] - z[0, 1:] - closure.shift
         return F, (J if jacobian else None)
+
+    def release(self) -> None:
+        """Nothing to drop: the blocks are the evaluation's own arrays."""
 
     def residuals(self, F: np.ndarray):
         """``(canonical (N, 2n), energy (N,), closure (2n,))`` in ``F`` (unscaled)."""

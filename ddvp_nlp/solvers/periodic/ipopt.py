@@ -10,9 +10,9 @@ Constraints, all equalities but the last group::
     z_N - z_0 - shift = 0                                            (2n rows)
     t_{k+1} - t_k >= tau_floor                                       (N rows)
 
-Objective: ``0``. The equality constraints are as many as the unknowns and their solution is
-isolated (that is what the unfolding parameters are for), so IPOPT's job is a feasibility
-problem; any objective would only pull its multipliers away from zero and add its own
+Objective: ``0`` (``grid/ipopt.py``). The equality constraints are as many as the unknowns and
+their solution is isolated (that is what the unfolding parameters are for), so IPOPT's job is a
+feasibility problem; any objective would only pull its multipliers away from zero and add its own
 curvature to the Hessian of the Lagrangian, and minimising the sum of squares of the rows
 instead would square the Jacobian's condition number and make a non-zero local minimum (no
 orbit) look like an answer. With ``f = 0`` IPOPT's steps are Newton steps on the rows,
@@ -22,8 +22,8 @@ The interval rows are one CasADi function (SX) mapped over the grid on MX: the c
 Jacobian and the exact Hessian of the Lagrangian are maps of per-interval derivatives. The
 problem's data (parameters, energy, section value, the integrals' reference node and
 generators, the closure shift) are NLP parameters, so one built problem serves a whole family.
-IPOPT's linear-solver and barrier options are the fixed-endpoint solver's
-(``bvp_ipopt.DEFAULT_OPTIONS``: the start is close and the step bounds inactive at the orbit).
+The build is the grid's one IPOPT build (``grid/ipopt.py``), with its options
+(``DEFAULT_OPTIONS``: the start is close and the step bounds inactive at the orbit).
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ import casadi as ca
 import numpy as np
 
 from ...cache import PROBLEMS
-from ..grid.ipopt import DEFAULT_OPTIONS, ipopt_settings
-from ..grid.newton import NewtonResult
+from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
+from ..grid.problem import GridResult
 from .assembly import ClosedLayout, Closure, interval_rows
 
 
@@ -63,12 +63,11 @@ class PeriodicIpopt:
         settings = ipopt_settings(tol, max_iter, verbose, None,
                                   {"ipopt.hessian_approximation": "exact", **DEFAULT_OPTIONS})
         parameters = ca.vertcat(theta, energy, value, reference, shift, ca.vec(generators))
-        self.solver = ca.nlpsol("periodic", "ipopt", {"x": x, "p": parameters, "f": 0,
-                                                      "g": g}, settings)
+        self.problem = FeasibilityNlp("periodic", x, parameters, g, settings)
 
-    def solve(self, x0: np.ndarray, closure: Closure, tau_floor: float) -> NewtonResult:
-        """IPOPT from ``x0``; its verdict in the fields of a Newton result (``converged`` is
-        IPOPT's own success, the verification of ``periodic.py`` comes after)."""
+    def solve(self, x0: np.ndarray, closure: Closure, tau_floor: float) -> GridResult:
+        """IPOPT from ``x0`` (``converged`` is IPOPT's own success, the verification of
+        ``solve.py`` comes after)."""
         n = self.layout.n
         shift = np.broadcast_to(np.asarray(closure.shift, float), (2 * n,))
         reference = closure.reference if closure.reference.size else np.zeros(2 * n)
@@ -76,12 +75,9 @@ class PeriodicIpopt:
                                      reference, shift, np.ravel(closure.generators, "F")])
         lbg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, tau_floor)])
         ubg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, np.inf)])
-        result = self.solver(x0=x0, p=parameters, lbg=lbg, ubg=ubg)
-        stats = self.solver.stats()
-        iterations = int(stats.get("iter_count", 0))
-        said = str(stats.get("return_status"))
-        return NewtonResult(np.asarray(result["x"], float).ravel(), bool(stats.get("success")),
-                            f"ipopt: {said} after {iterations} iterations", iterations)
+        result = self.problem.solve(x0, p=parameters, lbg=lbg, ubg=ubg)
+        result.outcome = f"ipopt: {result.outcome} after {result.iterations} iterations"
+        return result
 
 
 def periodic_ipopt(system, scheme, intervals: int, integrals, section_index: int, *,

@@ -81,6 +81,7 @@ from __future__ import annotations
 import re
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -90,8 +91,10 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
 from ...validation import check_integer, check_real, check_state
-from ..accuracy import AccuracyMonitor, Tolerance, assess
+from ..accuracy import AccuracyMonitor, assess
 from ..grid.newton import newton
+from ..grid.problem import GridRequest
+from ..options import GridOptions, Tolerance, coerce
 from .assembly import Closure, PeriodicAssembly, integral_gradients
 from .ipopt import periodic_ipopt
 from .start import (
@@ -107,7 +110,9 @@ EPS = float(np.finfo(float).eps)
 # rows' magnitudes.
 TARGET_ROUND_OFFS = 64
 ALLOWANCE_ROUND_OFFS = 4096
-SOLVERS = ("auto", "newton", "ipopt")
+# The defaults of GridOptions' None fields for this problem.
+DEFAULT_TOL = 1e-10
+DEFAULT_MAX_ITER = 100
 SECTION = re.compile(r"^\s*([qp])(\d+)\s*=\s*(.+?)\s*$")
 
 
@@ -132,11 +137,29 @@ def parse_section(section, n: int) -> tuple[int, float, str]:
     return index, value, f"{kind}{number}={value:g}"
 
 
+@dataclass
+class Orbit:
+    """The data of a periodic problem (the ``data`` of its :class:`GridRequest`): the
+    prescribed energy, the section (index into ``z = (t, q, p)``, value, label), the angle
+    coordinates, the direction along which the section's point is looked for, and the start:
+    that ``point`` (marched to its return) or the user's ``guess`` nodes."""
+
+    energy: float
+    index: int
+    value: float
+    label: str
+    angles: tuple
+    direction: np.ndarray
+    point: np.ndarray | None = None
+    guess: tuple | None = None
+    start_note: str | None = None
+
+
 def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
-                   start=None, integrals=(), angles=(), solver: str = "auto",
-                   tol: float = 1e-10, max_iter: int = 100, verbose: bool = False) -> Solution:
+                   start=None, integrals=(), angles=(),
+                   options: GridOptions | None = None) -> Solution:
     """A periodic orbit of ``system`` at energy ``E`` on ``N = nodes`` intervals (module
     docstring).
 
@@ -148,11 +171,11 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             ``p1..pn``, or a pair ``(NAME, VALUE)``.
         guess: a start (a :class:`Solution` or a mapping with ``t``, ``q``, ``p`` over one
             period); default: the march from the section's point at ``E`` to its return
-            (``periodic_start.py``).
+            (``start.py``).
         scheme: ``"vddvp"`` or ``"lee"`` (the same equations for autonomous ``H``).
         params: the system's parameter values.
         start: ``(q, p)``: the direction along which the section's point at ``E`` is looked for
-            (``periodic_start.section_point``); default all ones.
+            (``start.section_point``); default all ones.
         integrals: first integrals ``I(q, p)`` (functions on CasADi symbols) besides ``H``
             whose flows are symmetries of ``H`` (total momentum: translations; angular
             momentum: rotations). Each makes one more direction of solutions and one more
@@ -163,12 +186,11 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             them): the orbit may close with ``q_N = q_0 + 2 pi w`` (a rotation, ``w`` turns,
             taken from the start), and the return to a section on an angle is counted modulo
             ``2 pi``.
-        solver: ``"newton"`` (SuperLU inside the fixed-endpoint solver's Newton iteration),
-            ``"ipopt"`` (``periodic_ipopt.py``) or ``"auto"`` (Newton, then IPOPT from the same
-            start when Newton's point fails the verification of its residuals).
-        tol: verification tolerance of the unscaled residuals (above their round-off).
-        max_iter: iterations of either solver.
-        verbose: IPOPT's iteration log.
+        options: the solver (``"newton"``: sparse LU in the grid's Newton, ``"ipopt"``:
+            ``ipopt.py``, ``"auto"``: Newton, then IPOPT from the same start when Newton's point
+            fails the verification of its residuals), the verification tolerance ``tol``
+            (default 1e-10) of the unscaled residuals above their round-off, ``max_iter`` of
+            either solver (default 100) and IPOPT's log (:class:`GridOptions`).
 
     Returns:
         A :class:`Solution` with ``N + 1`` nodes; ``stats`` holds ``period``, ``energy``,
@@ -179,22 +201,21 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         residuals in the message; an orbit whose steps do not follow the exact flow is
         ``inaccurate``.
     """
-    request = _checked(system, energy, nodes, section, guess, scheme, params, start, tol,
-                       max_iter, angles, solver)
-    request["verbose"] = bool(verbose)
+    request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
+                       coerce(options, GridOptions, "options"))
     started = time.perf_counter()
     t, z = _start_nodes(request)
     integrals = tuple(integrals)
     closure = _closure(request, z, integrals)
-    assembly = PeriodicAssembly(system, request["scheme"], nodes, closure, integrals)
+    assembly = PeriodicAssembly(system, request.scheme, nodes, closure, integrals)
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
-    scale = max(1.0, float(np.max(np.abs(x0))), abs(request["energy"]))
-    tau_floor = 1e-3 * t[-1] / nodes
-    order = ("newton", "ipopt") if request["solver"] == "auto" else (request["solver"],)
+    scale = max(1.0, float(np.max(np.abs(x0))), abs(request.data.energy))
+    request.tau_floor = 1e-3 * t[-1] / nodes
+    order = ("newton", "ipopt") if request.solver == "auto" else (request.solver,)
     attempts, results = [], []
     for name in order:
         began, cpu = time.perf_counter(), time.process_time()
-        result = _run(name, request, assembly, x0, closure, scale, tau_floor, integrals)
+        result = _run(name, request, assembly, x0, closure, scale, integrals)
         results.append(_solution(request, assembly, result, scale, started, closure))
         results[-1].stats["solver"] = name
         attempts.append({"solver": name, "status": results[-1].status.code,
@@ -208,18 +229,18 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
     return _noted(chosen, attempts)
 
 
-def _run(name, request, assembly, x0, closure, scale, tau_floor, integrals):
-    """One solver from ``x0``: Newton's result, or IPOPT's in the same fields."""
+def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integrals):
+    """One solver from ``x0``: the grid's Newton, or IPOPT, as a ``GridResult``."""
     if name == "newton":
         target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
-        result = newton(assembly, x0, closure, target, tau_floor=tau_floor,
-                        max_iter=request["max_iter"], linear="sparse")
+        result = newton(assembly, x0, closure, target, tau_floor=request.tau_floor,
+                        max_iter=request.max_iter, linear="sparse")
         result.outcome = f"newton: {result.outcome}"
         return result
-    problem = periodic_ipopt(request["system"], request["scheme"], request["nodes"],
-                             integrals, request["index"], tol=request["tol"],
-                             max_iter=request["max_iter"], verbose=request["verbose"])
-    return problem.solve(x0, closure, tau_floor)
+    problem = periodic_ipopt(request.system, request.scheme, request.nodes, integrals,
+                             request.data.index, tol=request.tol, max_iter=request.max_iter,
+                             verbose=request.verbose)
+    return problem.solve(x0, closure, request.tau_floor)
 
 
 def _noted(solution: Solution, attempts: list) -> Solution:
@@ -232,32 +253,30 @@ def _noted(solution: Solution, attempts: list) -> Solution:
 
 
 def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", params=None,
-                   start=None, integrals=(), angles=(), solver="auto", tol=1e-10,
-                   max_iter=100, verbose=False) -> None:
+                   start=None, integrals=(), angles=(), options=None) -> None:
     """Raise the ``InputError`` :func:`solve_periodic` would raise for these arguments without
     a guess (the section's point at ``energy`` included), and build nothing."""
-    _checked(system, energy, nodes, section, None, scheme, params, start, tol, max_iter,
-             angles, solver)
+    _checked(system, energy, nodes, section, None, scheme, params, start, angles,
+             coerce(options, GridOptions, "options"))
 
 
-def _closure(request, z: np.ndarray, integrals) -> Closure:
+def _closure(request: GridRequest[Orbit], z: np.ndarray, integrals) -> Closure:
     """The problem's data; the phase conditions of the integrals at the start's node 0, the
     closure shift (turns of the angle coordinates) from the start's ends."""
-    system = request["system"]
+    system, orbit = request.system, request.data
     n = system.n
     reference = z[0]
     generators = np.zeros((len(integrals), 2 * n))
     if integrals:
         gradients = np.asarray(integral_gradients(system, integrals)(
-            reference[:n], reference[n:], request["theta"]))[:, 1:].T
+            reference[:n], reference[n:], request.theta))[:, 1:].T
         generators = np.hstack([gradients[:, n:], -gradients[:, :n]])  # J grad I
-    return Closure(request["energy"], request["index"], request["value"], request["theta"],
-                   reference.copy(), generators,
-                   closing_shift(z[0], z[-1], request["angles"]))
+    return Closure(orbit.energy, orbit.index, orbit.value, request.theta, reference.copy(),
+                   generators, closing_shift(z[0], z[-1], orbit.angles))
 
 
-def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, max_iter,
-             angles=(), solver="auto"):
+def _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
+             options: GridOptions) -> GridRequest[Orbit]:
     """Every argument checked (``InputError`` naming argument and value) before any build."""
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):
@@ -268,8 +287,6 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, 
     if not scheme.variable_steps:
         raise InputError(f"scheme {scheme.rule!r} has no energy equation; periodic orbits at "
                          f"a prescribed energy need 'vddvp' or 'lee'")
-    if solver not in SOLVERS:
-        raise InputError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})")
     energy = check_real("energy", energy)
     nodes = check_integer("nodes", nodes, minimum=3)
     index, value, label = parse_section(section, system.n)
@@ -282,16 +299,11 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, 
         except (TypeError, ValueError):
             raise InputError(f"start must be a pair (q, p), got {start!r}") from None
         direction = np.concatenate([check_state("start q", q, n), check_state("start p", p, n)])
-    request = {"system": system, "scheme": scheme, "energy": energy, "nodes": nodes,
-               "index": index, "value": value, "label": label, "solver": solver,
-               "angles": angle_indices,
-               "theta": system.parameter_vector(params), "direction": direction,
-               "tol": check_real("tol", tol, positive=True),
-               "max_iter": check_integer("max_iter", max_iter)}
+    theta = system.parameter_vector(params)
+    orbit = Orbit(energy, index, value, label, angle_indices, direction)
     if guess is None:
         try:
-            request["point"] = section_point(system, request["theta"], energy, index, value,
-                                             direction, label)
+            orbit.point = section_point(system, theta, energy, index, value, direction, label)
         except InputError as error:
             if angle_indices and index - 1 not in angle_indices:
                 raise InputError(f"{error}; a rotation of the angle q{angle_indices[0] + 1} "
@@ -299,8 +311,9 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, tol, 
                     from None
             raise
     else:
-        request["guess"] = guess_nodes(guess, n, nodes, angle_indices)
-    return request
+        orbit.guess = guess_nodes(guess, n, nodes, angle_indices)
+    return GridRequest(system, scheme, nodes, theta, orbit,
+                       options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER))
 
 
 def parse_angles(angles, n: int) -> tuple[int, ...]:
@@ -316,19 +329,20 @@ def parse_angles(angles, n: int) -> tuple[int, ...]:
     return tuple(sorted(set(indices)))
 
 
-def _start_nodes(request):
+def _start_nodes(request: GridRequest[Orbit]):
     """``(t, z)`` of ``N + 1`` nodes: the user's guess, or the march to the return (a march
     that does not return leaves the point repeated: the solve then fails with a status)."""
-    if "guess" in request:
-        return request["guess"]
-    angle = request["index"] - 1 in request["angles"]
-    traced = march_to_return(request["system"], request["theta"], request["point"],
-                             request["index"], request["value"], request["scheme"], angle)
+    orbit = request.data
+    if orbit.guess is not None:
+        return orbit.guess
+    angle = orbit.index - 1 in orbit.angles
+    traced = march_to_return(request.system, request.theta, orbit.point, orbit.index,
+                             orbit.value, request.scheme, angle)
     if traced is None:
-        request["start_note"] = "the march from the section's point did not return to it"
-        return np.linspace(0.0, 1.0, request["nodes"] + 1), np.tile(
-            request["point"], (request["nodes"] + 1, 1))
-    return resample(*traced, request["nodes"], request["angles"])
+        orbit.start_note = "the march from the section's point did not return to it"
+        return np.linspace(0.0, 1.0, request.nodes + 1), np.tile(orbit.point,
+                                                                 (request.nodes + 1, 1))
+    return resample(*traced, request.nodes, orbit.angles)
 
 
 def periodic_residuals(system, scheme: Scheme, t, q, p, theta, energy: float, shift=0.0):
@@ -349,36 +363,37 @@ def periodic_residuals(system, scheme: Scheme, t, q, p, theta, energy: float, sh
     return canonical, np.concatenate([interior, wrap]), float(first - energy), closure
 
 
-def _solution(request, assembly, result, scale, started, closure) -> Solution:
+def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
+              closure) -> Solution:
     """The point ``result.x`` verified (whichever solver found it): its unscaled residuals
     recomputed, then the accuracy check against the exact flow."""
-    system, scheme = request["system"], request["scheme"]
+    system, scheme, orbit = request.system, request.scheme, request.data
     t, q, p, unfolding = assembly.layout.unpack(result.x)
     finite = bool(np.all(np.isfinite(result.x)))
-    N, n = request["nodes"], system.n
+    N, n = request.nodes, system.n
     if finite:
         canonical, energy, prescribed, closing = periodic_residuals(
-            system, scheme, t, q, p, request["theta"], request["energy"], closure.shift)
+            system, scheme, t, q, p, request.theta, orbit.energy, closure.shift)
     else:
         canonical, energy = np.full((N, 2 * n), np.nan), np.full(N, np.nan)
         prescribed, closing = np.nan, np.full(2 * n, np.nan)
-    section = float(np.concatenate([[t[0]], q[0], p[0]])[request["index"]] - request["value"])
+    section = float(np.concatenate([[t[0]], q[0], p[0]])[orbit.index] - orbit.value)
     worst = {"canonical": float(np.max(np.abs(canonical))),
              "energy": float(np.max(np.abs(energy))), "prescribed_energy": abs(prescribed),
              "closure": float(np.max(np.abs(closing))), "section": abs(section)}
-    limit = max(request["tol"], ALLOWANCE_ROUND_OFFS * EPS * scale)
-    status, message = _verdict(result, worst, limit, np.diff(t), request.get("start_note"))
+    limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
+    status, message = _verdict(result, worst, limit, np.diff(t), orbit.start_note)
     accuracy, local_error = ({}, np.zeros(0))
     if finite:
-        accuracy, local_error = assess(system, t, np.hstack([q, p]), request["theta"],
-                                       Tolerance(), level=request["energy"])
+        accuracy, local_error = assess(system, t, np.hstack([q, p]), request.theta,
+                                       Tolerance(), level=orbit.energy)
         if status is Status.SUCCESS and accuracy["first_failure"] is not None:
             status = Status.INACCURATE
             message = (f"{status.value}: {AccuracyMonitor.describe(accuracy['first_failure'])}"
                        f"; the discrete equations hold: {message}")
     winding = np.round(np.asarray(closure.shift, float) / (2 * np.pi)) * np.ones(2 * n)
-    stats = {"period": float(t[-1] - t[0]), "energy": request["energy"],
-             "section": request["label"], "unfolding": float(unfolding[0]),
+    stats = {"period": float(t[-1] - t[0]), "energy": orbit.energy,
+             "section": orbit.label, "unfolding": float(unfolding[0]),
              "integral_unfoldings": unfolding[1:].tolist(), "limit": limit,
              "winding": [int(winding[i]) for i in range(n)],
              "residuals": worst, "iterations": result.iterations, "outcome": result.outcome,

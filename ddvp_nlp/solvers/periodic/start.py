@@ -99,8 +99,8 @@ def _march_until_return(system, theta, z0, index, value, scheme, angle, heading,
     n = system.n
     horizon = FIRST_HORIZON * tau0
     for _ in range(MAX_HORIZONS):
-        run = march(system, z0[:n], z0[n:], tau0=tau0, t_end=horizon, scheme=scheme,
-                    params=dict(zip(system.params, theta, strict=True)), check_accuracy=False)
+        run = march(system, z0[:n], z0[n:], (0.0, horizon), tau0=tau0, scheme=scheme,
+                    params=dict(zip(system.params, theta, strict=True)), accuracy=None)
         t, z = run.t, np.hstack([run.q, run.p])
         c = z[:, index - 1] - value
         if angle:  # the offset reduced to (-pi, pi]: its jumps at pi are not crossings of 0

@@ -1,6 +1,16 @@
-"""CasADi's ``fast_newton``, unrolled: a fixed number of its iterations as straight-line SX.
+"""Newton's method on one march step: the option set both paths share, the careful solve,
+and the compiled path's unrolled ``fast_newton``.
 
-``fast_newton`` (the rootfinder of the compiled chunk) iterates, at most ``max_iter`` times:
+Both paths solve the same step equations (``steps.py``) with the same options
+(:data:`NEWTON_OPTIONS`) and accept a root by the same test (``acceptance.py``):
+
+- the careful path (:class:`NewtonSteps`): CasADi's ``newton`` rootfinder from the Runge-Kutta
+  predictor, retried from other guesses of ``tau`` (:data:`RETRY_FACTORS`), each outcome in a
+  :class:`StepResult`;
+- the compiled path (``chunk.py``): CasADi's ``fast_newton``, which can be code-generated, with
+  its first iterations written out as straight-line code (:func:`unrolled_newton`, below).
+
+The unrolled ``fast_newton``. ``fast_newton`` iterates, at most ``max_iter`` times:
 evaluate ``g(x)`` and ``J = dg/dx``; stop if ``|g|_inf <= abstol``; else factor ``J = QR``
 (Householder, CasADi's sparse ``casadi_qr``), ``dx = J^-1 g``, ``x <- x - dx``; stop if
 ``|dx|_inf <= abstol_step``. Its loop and its generic sparse QR cost more than the arithmetic of
@@ -18,8 +28,154 @@ The march's chunk asks for a cheaper linear solve on small systems (``linear="lu
 
 from __future__ import annotations
 
-import casadi as ca
+from dataclasses import dataclass
 
+import casadi as ca
+import numpy as np
+
+from ...cache import cached
+from ...errors import InputError
+from ...solution import Status
+from .steps import EnergyCheck, FixedCheck, StepFunctions
+
+# The options of both paths' rootfinders (``newton`` careful, ``fast_newton`` compiled).
+# error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
+# Either way a step that did not converge fails its residual check and is redone carefully.
+NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
+# Starting guesses for tau, as multiples of the previous step, tried in order when Newton from the
+# predictor fails or lands on tau <= 0. The spurious root sits at -tau_{k-1}; these start far
+# from it.
+RETRY_FACTORS = (1.0, 0.5, 2.0, 0.25)
+
+
+def careful_rootfinder(name: str, residual: ca.Function, system, scheme) -> ca.Function:
+    """CasADi's Newton rootfinder on ``residual``; a step whose equations cannot determine it
+    (a structurally singular Jacobian, for example ``H = p[0]`` or a constant ``H`` under an
+    energy rule, whose energy equation does not depend on the step) is refused by name."""
+    rows = residual.size1_out(0)
+    rank = residual.sparsity_jac(0, 0)
+    if ca.sprank(rank) < rows:
+        unknowns = "(z_next, tau)" if name == "energy_step" else "z_next"
+        raise InputError(
+            f"H of {system.name!r} has no well-posed {scheme.rule} step: the step equations do "
+            f"not determine {unknowns} (their Jacobian is structurally singular: rank "
+            f"{ca.sprank(rank)} of {rows}). Under an energy rule the energy of an interval must "
+            "depend on its length, which it does not for H linear in p or constant; use "
+            "--scheme fixed" if name == "energy_step" else
+            f"H of {system.name!r} has no well-posed step: the canonical equations do not "
+            f"determine z_next (rank {ca.sprank(rank)} of {rows})")
+    return ca.rootfinder(name, "newton", residual, NEWTON_OPTIONS)
+
+def rootfinders(system, scheme, functions: StepFunctions) -> tuple:
+    """The careful path's rootfinders ``(fixed, energy)`` of ``functions`` (``energy`` is
+    ``None`` for the ``fixed`` rule), built once per system and scheme."""
+    def build():
+        fixed = careful_rootfinder("fixed_step", functions.fixed_residual, system, scheme)
+        energy = (careful_rootfinder("energy_step", functions.energy_residual, system, scheme)
+                  if scheme.variable_steps else None)
+        return fixed, energy
+    return cached(system, ("march_roots", scheme), build)
+
+
+@dataclass
+class StepResult:
+    """One careful step: the new node, or a failure status with a detail in words.
+
+    The new node is ``(t_next, z_next)``; ``tau`` is the length an energy step solved for.
+    ``energy`` is the energy residual of an accepted energy step (it joins the drift);
+    ``H_node``, ``w_node`` are the monitors' values at the new node."""
+
+    status: Status
+    detail: str = ""
+    t_next: float | None = None
+    z_next: np.ndarray | None = None
+    tau: float | None = None
+    energy: float = 0.0
+    H_node: float = 0.0
+    w_node: float = 0.0
+
+    @classmethod
+    def failed(cls, status: Status, detail: str = "") -> StepResult:
+        return cls(status, detail)
+
+
+class NewtonSteps:
+    """Careful steps: CasADi's ``newton`` on :class:`StepFunctions`, checked by ``acceptance``
+    (an :class:`~ddvp_nlp.solvers.march.acceptance.Acceptance`). Counts Newton iterations and
+    retries."""
+
+    def __init__(self, system, scheme, functions: StepFunctions, theta: np.ndarray, acceptance):
+        self.functions = functions
+        self.fixed_root, self.energy_root = rootfinders(system, scheme, functions)
+        self.theta = theta
+        self.acceptance = acceptance
+        self.newton_iterations = 0
+        self.retries = 0
+
+    def _solve(self, root, guess, w):
+        x = np.asarray(root(guess, w)).ravel()
+        stats = root.stats()
+        self.newton_iterations += int(stats.get("iter_count", 0))
+        # Read return_status: CasADi's "success" flag was seen False on converged calls.
+        return x, stats.get("return_status") == "success"
+
+    def fixed_step(self, t_a: float, t_b: float, z_a: np.ndarray) -> StepResult:
+        """``z_b`` on ``[t_a, t_b]`` from the RK4 predictor."""
+        f = self.functions
+        w = np.concatenate([[t_a, t_b], z_a, self.theta])
+        z_b, converged = self._solve(self.fixed_root, f.fixed_predict(w), w)
+        if not np.all(np.isfinite(z_b)):
+            return StepResult.failed(Status.NON_FINITE, f"z = {z_b.tolist()}")
+        if not converged:
+            return StepResult.failed(Status.NEWTON_FAILED)
+        check = FixedCheck(*(float(v) for v in f.fixed_check(z_b, w)))
+        if not self.acceptance.residuals_ok(check.canonical, check.size):
+            return StepResult.failed(Status.RESIDUAL_TOO_LARGE,
+                                     f"canonical residual {check.canonical:.3e}")
+        return StepResult(Status.SUCCESS, t_next=t_b, z_next=z_b, H_node=check.H_node,
+                          w_node=check.w_node)
+
+    def energy_parameters(self, t_prev, t_mid, z_prev, z_mid, drift) -> np.ndarray:
+        """The parameter vector ``w`` of the energy step functions."""
+        return np.concatenate([[t_prev, t_mid], z_prev, z_mid, self.theta, [drift]])
+
+    def energy_step(self, t_prev, t_mid, z_prev, z_mid, drift) -> StepResult:
+        """``(z_{k+1}, tau_k)``: Newton from the predictor with ``tau = f tau_{k-1}`` for each
+        ``f`` in ``RETRY_FACTORS`` until a root passes every check. On failure the status says
+        how the worst attempt failed (a residual above the tolerance over a negative step over
+        Newton's failure)."""
+        f = self.functions
+        w = self.energy_parameters(t_prev, t_mid, z_prev, z_mid, drift)
+        tau_prev = t_mid - t_prev
+        detail = ""
+        worst = Status.NEWTON_FAILED
+        for attempt, factor in enumerate(RETRY_FACTORS):
+            if attempt:
+                self.retries += 1
+            x, converged = self._solve(self.energy_root, f.energy_predict(w, factor * tau_prev), w)
+            if not np.all(np.isfinite(x)):
+                worst, detail = Status.NON_FINITE, f"(z, tau) = {x.tolist()}"
+                continue
+            if not converged:
+                continue
+            tau = x[-1]
+            if tau <= 0:
+                if worst is not Status.RESIDUAL_TOO_LARGE:
+                    worst, detail = Status.NO_ADMISSIBLE_STEP, f"Newton found tau = {tau:.6g}"
+                continue
+            check = EnergyCheck(*(float(v) for v in f.energy_check(x, w)))
+            if not self.acceptance.residuals_ok(check.canonical, check.size, check.energy,
+                                                check.H_interval):
+                worst, detail = Status.RESIDUAL_TOO_LARGE, (
+                    f"canonical residual {check.canonical:.3e}, energy residual "
+                    f"{check.energy:.3e}")
+                continue
+            return StepResult(Status.SUCCESS, t_next=t_mid + tau, z_next=x[:-1], tau=tau,
+                              energy=check.energy, H_node=check.H_node, w_node=check.w_node)
+        return StepResult.failed(worst, detail)
+
+
+# --- the compiled path: fast_newton unrolled --------------------------------------------------
 
 def norm_inf(values) -> ca.SX:
     """``casadi_norm_inf``: ``fmax`` from 0 over ``|v_i|`` (``fmax`` ignores a NaN)."""

@@ -1,0 +1,42 @@
+"""The command line's options as the solvers' option objects: one place where ``--tol``,
+``--max-steps``, ``--careful`` ... become a :class:`StepControl`, a :class:`Tolerance`, a
+:class:`GridOptions`, a :class:`Compilation` or an :class:`Output`, for every command that has
+them. A bad value fails here, with the object's own message naming the field."""
+
+from __future__ import annotations
+
+from ..solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+
+
+def step_control(args) -> StepControl:
+    """``ddvp march``'s step acceptance and limits."""
+    return StepControl(tol=args.tol, tau_min=args.tau_min, tau_max=args.tau_max,
+                       max_step_ratio=args.max_step_ratio,
+                       breakdown="least_squares" if args.least_squares else "stop",
+                       max_steps=args.max_steps, time_limit=args.time_limit,
+                       energy_guard=args.energy_guard)
+
+
+def tolerance(args) -> Tolerance:
+    """The accuracy check's tolerances (``--rtol``, ``--atol``, ``--energy-tol``,
+    ``--global-tol``, ``--accept-inaccurate``)."""
+    return Tolerance(rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
+                     global_tol=args.global_tol, stop=not args.accept_inaccurate)
+
+
+def compilation(args) -> Compilation:
+    """``--careful`` turns the compiled chunks off (the march's careful per-step path)."""
+    return Compilation(fast=not getattr(args, "careful", False))
+
+
+def grid_options(args, *, tol=None) -> GridOptions:
+    """A grid solve's options (``--solver``, ``--tol``, ``--time-limit``, ``--verbose``)."""
+    return GridOptions(solver=args.solver, tol=tol,
+                       time_limit=getattr(args, "time_limit", None),
+                       verbose=getattr(args, "verbose", False))
+
+
+def march_output(args, *, checkpoint=None, stop=None) -> Output:
+    """A march's progress bar (off with ``--no-progress``), checkpoints and stop request."""
+    return Output(progress=not args.no_progress, checkpoint=checkpoint,
+                  checkpoint_interval=args.checkpoint_every, stop=stop)

@@ -1,0 +1,143 @@
+"""What a grid problem is: the protocol an assembly implements, the request every grid solver
+receives, and the result every grid solver returns (the contract of ``grid/__init__.py``)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Generic, Protocol, TypeVar
+
+import numpy as np
+
+from ...cache import PROBLEMS
+from ...discrete.scheme import Scheme
+from ..options import Compilation, GridOptions
+
+Data = TypeVar("Data")
+
+
+class GridLayout(Protocol):
+    """Where the unknowns sit in ``x``."""
+
+    @property
+    def size(self) -> int:
+        """Number of unknowns (and of rows: the system is square)."""
+
+    @property
+    def bandwidth(self) -> int:
+        """Lower and upper bandwidth of the Jacobian; wider than 32 means sparse LU."""
+
+    def time_index(self) -> np.ndarray:
+        """Positions of the node times ``t_0 .. t_{N-1}`` in ``x``, in order."""
+
+
+class GridProblem(Protocol[Data]):
+    """The square system ``F(x) = 0`` of one grid, as the grid solvers see it.
+
+    ``data`` is the problem's own data (ends, energy, section, parameters): one assembly,
+    built once per system and grid size, serves every problem of that shape."""
+
+    layout: GridLayout
+
+    def evaluate(self, x: np.ndarray, data: Data, jacobian: bool = True):
+        """``(F, J)``: the residual ``F(x)`` (a new array of ``layout.size``) and, if asked,
+        the Jacobian in the assembly's own form (``None`` if not asked), valid until the next
+        evaluation with ``jacobian=True``."""
+
+    def banded(self, jacobian) -> np.ndarray:
+        """``J`` in LAPACK ``gbtrf`` storage, ``(3 w + 1, size)`` in Fortran order (only asked
+        for when ``layout.bandwidth <= WIDEST_BAND``); it may be factored in place."""
+
+    def sparse(self, jacobian):
+        """``J`` as a scipy sparse matrix."""
+
+    def release(self) -> None:
+        """Drop the memory the Jacobian's storage holds (the assembly stays cached)."""
+
+
+@dataclass
+class GridResult:
+    """What a grid solver returns: the point it ended on, whether it says it converged, what
+    happened in words, and its iteration history. Whether the point solves the problem is the
+    caller's verification to decide."""
+
+    x: np.ndarray
+    converged: bool
+    outcome: str
+    iterations: int
+    residual_norms: list = field(default_factory=list)
+    step_lengths: list = field(default_factory=list)
+
+
+@dataclass
+class GridRequest(Generic[Data]):
+    """The checked inputs of one grid solve (fixed ends, a periodic orbit, a higher-order
+    problem): what every family's phases and solvers receive.
+
+    Attributes:
+        system, scheme: the system and the scheme whose equations are solved.
+        nodes: the grid's size as the family's function was given it (nodes, or intervals of a
+            closed grid).
+        theta: the parameter vector.
+        data: the family's problem data (``bvp.Boundary``, ``periodic.Orbit``,
+            ``higher.FixedNodes``).
+        options: the :class:`GridOptions`, with the family's defaults in place of ``None``.
+        compilation: which compiled code the assemblies and the band LU run.
+        tau_floor: the smallest step the iterates may take (resolved).
+        progress: report each iteration on stderr.
+        deadline: ``time.perf_counter()`` value after which the solve stops.
+        build_s: seconds spent building problems (:meth:`built`).
+        phases: one record per solve made for this request, in order.
+    """
+
+    system: object
+    scheme: Scheme
+    nodes: int
+    theta: np.ndarray
+    data: Data
+    options: GridOptions
+    compilation: Compilation = field(default_factory=Compilation)
+    tau_floor: float = 0.0
+    progress: bool = False
+    deadline: float | None = None
+    build_s: float = 0.0
+    phases: list = field(default_factory=list)
+
+    @property
+    def solver(self) -> str:
+        return self.options.solver
+
+    @property
+    def tol(self) -> float:
+        return self.options.tol
+
+    @property
+    def max_iter(self) -> int:
+        return self.options.max_iter
+
+    @property
+    def linear(self) -> str:
+        return self.options.linear
+
+    @property
+    def verbose(self) -> bool:
+        return self.options.verbose
+
+    def start_clock(self) -> float:
+        """Now; the deadline set from ``options.time_limit``."""
+        now = time.perf_counter()
+        if self.options.time_limit is not None:
+            self.deadline = now + self.options.time_limit
+        return now
+
+    def remaining(self) -> float | None:
+        """Seconds left before the deadline (``None``: no deadline)."""
+        return None if self.deadline is None else max(self.deadline - time.perf_counter(), 0.0)
+
+    def built(self, key, build):
+        """``build()`` cached per system under ``key`` (``cache.PROBLEMS``), its time added to
+        :attr:`build_s`."""
+        started = time.perf_counter()
+        value = PROBLEMS.get(self.system, key, build)
+        self.build_s += time.perf_counter() - started
+        return value

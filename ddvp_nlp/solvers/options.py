@@ -1,0 +1,258 @@
+"""The options of the solvers, as small objects a caller builds once and passes by name.
+
+Every public solver takes its essential arguments (the system, the start or the ends, the time
+span, the grid) and then at most a few of these:
+
+- :class:`StepControl`: when a march accepts a step and when it stops (``march``,
+  ``march_ensemble``);
+- :class:`Tolerance`: what the accuracy check, which does not trust the scheme's own equations,
+  accepts (``march``, ``march_ensemble``; the grid solvers use its defaults);
+- :class:`GridOptions`: how a whole-grid problem is solved (``solve_bvp``, ``solve_periodic``,
+  ``solve_periodic_family``, ``solve_bvp_higher``);
+- :class:`Compilation`: which compiled code runs (every solver that generates C);
+- :class:`Output`: progress, checkpoints and stop requests (``march``, ``solve_bvp``).
+
+Each object checks its fields when it is made: a bad value is an :class:`InputError` that names
+the field and the value, raised before any solver is built. Checks that need the problem (a
+``tau_min`` against ``tau0``, a ``tau_floor`` against the mean step) are made by the solver,
+still before it builds anything. The objects are frozen: ``dataclasses.replace(options,
+tol=1e-12)`` makes a changed copy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from ..errors import InputError
+from ..validation import check_cache_folder, check_integer, check_real
+
+# What a march does when an energy step has no admissible root (StepControl.breakdown).
+BREAKDOWNS = ("stop", "least_squares")
+# Steps per compiled call: past this the chunk's generated code and its output buffer grow to
+# gigabytes (chunk = 10**9 took two minutes and 4.7 GB for a ten-step march) for no speed gained.
+MAX_CHUNK = 65536
+GRID_SOLVERS = ("auto", "newton", "ipopt")
+LINEAR_SOLVERS = ("auto", "banded", "sparse")
+BAND_LU = ("compiled", "lapack")
+
+
+def _set(options, name, value):
+    object.__setattr__(options, name, value)
+
+
+def _choice(name: str, value, choices) -> str:
+    if value not in choices:
+        raise InputError(f"unknown {name} {value!r} (choose from {', '.join(choices)})")
+    return value
+
+
+@dataclass(frozen=True)
+class StepControl:
+    """When a march accepts a step, and when the march stops.
+
+    Attributes:
+        tol: acceptance tolerance of each step's unscaled residuals, relative to
+            ``max(1, |z|)`` (canonical equations) and ``max(1, |H|)`` (energy equation).
+        tau_min, tau_max: optional bounds on every step length.
+        max_step_ratio: bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)`` (``None``: none).
+            The default 10 stops a march whose energy equation jumped to a far root: on
+            ``kepler`` with ``e = 0.99`` and ``tau0 = 0.01``, without it, the fourth step was
+            235 time units, past the whole horizon, and every equation held.
+        breakdown: what an energy rule does when a step has no admissible root: ``"stop"``
+            (status ``no_admissible_step``) or ``"least_squares"``, the step of Kane, Marsden
+            and Ortiz (the ``tau`` that minimises the energy residual subject to the canonical
+            equations; each such step is listed in ``stats["least_squares"]``).
+        max_steps: bound on the number of steps (status ``max_steps``).
+        time_limit: optional bound in seconds on the stepping (status ``time_limit``).
+        energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(1, |H(z_0, t_0)|)``
+            at every node (status ``energy_guard``).
+    """
+
+    tol: float = 1e-10
+    tau_min: float | None = None
+    tau_max: float | None = None
+    max_step_ratio: float | None = 10.0
+    breakdown: str = "stop"
+    max_steps: int = 10_000_000
+    time_limit: float | None = None
+    energy_guard: float | None = None
+
+    def __post_init__(self):
+        _set(self, "tol", check_real("tol", self.tol, positive=True))
+        _set(self, "max_steps", check_integer("max_steps", self.max_steps))
+        tau_min = check_real("tau_min", self.tau_min, positive=True, allow_none=True)
+        tau_max = check_real("tau_max", self.tau_max, positive=True, allow_none=True)
+        if tau_min is not None and tau_max is not None and tau_min >= tau_max:
+            raise InputError(f"tau_min must be < tau_max = {tau_max!r}, got {tau_min!r}")
+        _set(self, "tau_min", tau_min)
+        _set(self, "tau_max", tau_max)
+        ratio = check_real("max_step_ratio", self.max_step_ratio, positive=True,
+                           allow_none=True)
+        if ratio is not None and ratio <= 1:
+            raise InputError(f"max_step_ratio must be > 1, got {ratio!r}")
+        _set(self, "max_step_ratio", ratio)
+        _set(self, "time_limit", check_real("time_limit", self.time_limit, positive=True,
+                                            allow_none=True))
+        _set(self, "energy_guard", check_real("energy_guard", self.energy_guard, positive=True,
+                                              allow_none=True))
+        if self.breakdown not in BREAKDOWNS:
+            raise InputError(f"breakdown must be one of {', '.join(BREAKDOWNS)}, got "
+                             f"{self.breakdown!r}")
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """What the accuracy check accepts (``accuracy.py``).
+
+    Attributes:
+        rtol, atol: the local error test ``delta_k <= atol + rtol * |z|``.
+        energy_tol: bound on ``level_error`` and ``energy_drift`` (relative to ``max(1, |H0|)``).
+        global_tol: optional bound on the global estimate relative to ``max(1, max |z|)``.
+        stop: end the march at the first failure (status ``inaccurate``); ``False`` records it
+            and goes on.
+    """
+
+    rtol: float = 1e-2
+    atol: float = 1e-2
+    energy_tol: float = 0.1
+    global_tol: float | None = None
+    stop: bool = True
+
+    def __post_init__(self):
+        for name in ("rtol", "atol", "energy_tol"):
+            _set(self, name, check_real(name, getattr(self, name), positive=True))
+        _set(self, "global_tol", check_real("global_tol", self.global_tol, positive=True,
+                                            allow_none=True))
+
+
+# The default of ``accuracy=`` (``None`` there turns the check off).
+DEFAULT_TOLERANCE = Tolerance()
+
+
+@dataclass(frozen=True)
+class GridOptions:
+    """How a whole-grid problem (fixed ends, a periodic orbit, a higher-order problem) is
+    solved. ``None`` takes the solver's own default, given in its docstring.
+
+    Attributes:
+        solver: ``"newton"`` (the grid's Newton, ``grid/newton.py``), ``"ipopt"`` (the grid's
+            IPOPT build, ``grid/ipopt.py``) or ``"auto"``: Newton, then IPOPT from the same
+            start when Newton's point fails its verification.
+        tol: verification tolerance of the returned point's own unscaled residuals (above
+            their round-off, which is always allowed).
+        max_iter: iteration limit of the solver, per phase.
+        tau_floor: smallest step the iterates may take (energy rules).
+        linear: Newton's linear solver: ``"auto"`` (banded LU up to bandwidth 32, else
+            sparse), ``"banded"`` or ``"sparse"`` (SuperLU).
+        time_limit: seconds after which the solve stops (status ``time_limit``).
+        verbose: IPOPT's iteration log on stdout.
+    """
+
+    solver: str = "auto"
+    tol: float | None = None
+    max_iter: int | None = None
+    tau_floor: float | None = None
+    linear: str = "auto"
+    time_limit: float | None = None
+    verbose: bool = False
+
+    def __post_init__(self):
+        _choice("solver", self.solver, GRID_SOLVERS)
+        _choice("linear", self.linear, LINEAR_SOLVERS)
+        _set(self, "tol", check_real("tol", self.tol, positive=True, allow_none=True))
+        if self.max_iter is not None:
+            _set(self, "max_iter", check_integer("max_iter", self.max_iter))
+        _set(self, "tau_floor", check_real("tau_floor", self.tau_floor, positive=True,
+                                           allow_none=True))
+        _set(self, "time_limit", check_real("time_limit", self.time_limit, positive=True,
+                                            allow_none=True))
+
+    def resolved(self, *, tol: float, max_iter: int) -> GridOptions:
+        """These options with a solver's defaults in place of ``None``."""
+        return GridOptions(self.solver, tol if self.tol is None else self.tol,
+                           max_iter if self.max_iter is None else self.max_iter,
+                           self.tau_floor, self.linear, self.time_limit, self.verbose)
+
+
+@dataclass(frozen=True)
+class Compilation:
+    """Which compiled code a solver runs.
+
+    Attributes:
+        compiler: C compiler for generated code: ``"auto"`` (``$CC``, ``gcc``, ``cc``), a
+            command, or ``None`` for CasADi's virtual machine (the same functions, slower).
+        cache_dir: folder of compiled libraries (default ``$DDVP_NLP_CACHE`` or
+            ``~/.cache/ddvp_nlp``).
+        fast: a march runs its steps in compiled chunks (``march/chunk.py``); ``False`` forces
+            the careful per-step path. Both accept a step by the same test; their nodes differ
+            by round-off (the compiled Newton eliminates where the careful one factors by QR).
+        chunk: steps per compiled call of a march.
+        batch: most chunk calls a march makes and checks at once (1, 2, 4, ... up to this
+            while every step is kept): the same nodes as one call at a time, with the decoding
+            and the monitors paid once per batch.
+        threads: threads of each mapped evaluation of a grid's blocks (1: two were not faster
+            on two cores, measured).
+        band_lu: the grid's banded LU: ``"compiled"`` (LAPACK's loops compiled with
+            ``compiler``, ``grid/band.py``; LAPACK through scipy where there is no compiler)
+            or ``"lapack"`` (through scipy).
+    """
+
+    compiler: str | None = "auto"
+    cache_dir: object = None
+    fast: bool = True
+    chunk: int = 1024
+    batch: int = 8
+    threads: int = 1
+    band_lu: str = "compiled"
+
+    def __post_init__(self):
+        if self.compiler is not None and (not isinstance(self.compiler, str)
+                                          or not self.compiler.strip()):
+            raise InputError(f"compiler must be 'auto', a command or None, got "
+                             f"{self.compiler!r}")
+        check_cache_folder(self.cache_dir)
+        _set(self, "chunk", check_integer("chunk", self.chunk, maximum=MAX_CHUNK))
+        _set(self, "batch", check_integer("batch", self.batch))
+        _set(self, "threads", check_integer("threads", self.threads))
+        _choice("band_lu", self.band_lu, BAND_LU)
+
+
+@dataclass(frozen=True)
+class Output:
+    """What a solver reports while it runs, and how it can be stopped.
+
+    Attributes:
+        progress: a progress bar (march) or a line per iteration (grid solvers) on stderr.
+        checkpoint: optional ``save(t, z)``, called with the nodes kept so far every
+            ``checkpoint_interval`` seconds of a march's stepping (at most about 5% of it), so
+            that a killed march loses at most one interval.
+        checkpoint_interval: seconds between checkpoints.
+        stop: optional ``stop() -> bool``, asked after every stepper call; ``True`` ends the
+            march with status ``interrupted``, every accepted node kept (how the command line
+            turns Ctrl-C and SIGTERM into a clean end, never an exception inside CasADi).
+    """
+
+    progress: bool = False
+    checkpoint: Callable | None = None
+    checkpoint_interval: float = 5.0
+    stop: Callable[[], bool] | None = None
+
+    def __post_init__(self):
+        if self.checkpoint is not None and not callable(self.checkpoint):
+            raise InputError(f"checkpoint must be a callable save(t, z), got "
+                             f"{self.checkpoint!r}")
+        if self.stop is not None and not callable(self.stop):
+            raise InputError(f"stop must be a callable stop() -> bool, got {self.stop!r}")
+        _set(self, "checkpoint_interval", check_real("checkpoint_interval",
+                                                     self.checkpoint_interval, positive=True))
+
+
+def coerce(value, kind, name: str):
+    """``value`` if it is a ``kind`` (``None``: the defaults), else an :class:`InputError`
+    naming the argument (``steps=dict(...)`` instead of ``steps=StepControl(...)``)."""
+    if value is None:
+        return kind()
+    if not isinstance(value, kind):
+        raise InputError(f"{name} must be a {kind.__name__}(...), got {value!r}")
+    return value
