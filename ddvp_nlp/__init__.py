@@ -16,7 +16,14 @@ from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem
 from .physics.higher import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
-from .scenes import HigherOrderScene, Scene, list_scenes, load_scene
+from .scenes import (
+    Endpoints,
+    HigherOrderScene,
+    PeriodicSettings,
+    Scene,
+    list_scenes,
+    load_scene,
+)
 from .solution import Solution, Status
 from .solvers.bvp import solve_bvp
 from .solvers.higher import march_higher, solve_bvp_higher
@@ -58,8 +65,9 @@ def _version() -> str:
 
 __version__ = _version()
 
-__all__ = ["Compilation", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
-           "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output", "Scene",
+__all__ = ["Compilation", "Endpoints", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
+           "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output",
+           "PeriodicSettings", "Scene",
            "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
            "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
            "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

@@ -37,6 +37,51 @@ BOUNDARY_SETTINGS = ("q_start", "q_end", "t0", "t_end")
 VECTOR_SETTINGS = ("q0", "p0", "v0", "q_start", "q_end")
 
 
+@dataclass(frozen=True)
+class Endpoints:
+    """A scene's default fixed-endpoint problem (``ddvp bvp``): the end positions (not for a
+    higher-order scene, whose ends come from its exact motion), the time span and the node
+    count. Any field left ``None`` falls back to the scene's ``t0``, ``t_end`` or 101 nodes."""
+
+    q_start: object = None
+    q_end: object = None
+    t_span: tuple | None = None
+    nodes: int | None = None
+
+
+@dataclass(frozen=True)
+class PeriodicSettings:
+    """A scene's defaults for ``ddvp periodic`` (``solvers/periodic``).
+
+    Attributes:
+        section: the phase condition on node 0, ``"NAME=VALUE"``.
+        energy: the default prescribed energy.
+        nodes: the default number of intervals.
+        start: ``(q, p)``, the direction along which the section's point at ``energy`` is
+            looked for.
+        integrals: first integrals besides ``H`` whose flows are symmetries.
+        angles: angle coordinates (``("q1",)``), which may close with whole turns.
+        families: further families by name, each its own ``PeriodicSettings`` (section and
+            start; read by ``scripts/periodic_page.py``).
+    """
+
+    section: str = "p1=0"
+    energy: float | None = None
+    nodes: int = 200
+    start: tuple | None = None
+    integrals: tuple = ()
+    angles: tuple = ()
+    families: Mapping[str, PeriodicSettings] = field(default_factory=dict)
+
+
+def _check_settings(owner: str, name: str, value, kind):
+    """A scene's ``boundary``/``periodic`` setting is ``None`` or a ``kind``; anything else
+    (a dict, the shape these had before) is refused by name."""
+    if value is not None and not isinstance(value, kind):
+        raise InputError(f"scene {owner!r}: {name} must be {kind.__name__}(...) or None, got "
+                         f"{value!r}")
+
+
 @dataclass(eq=False)
 class Scene:
     """A mechanical system with its defaults.
@@ -57,18 +102,11 @@ class Scene:
             start it does not cover (an unbound Kepler orbit, a rotating pendulum), and the
             studies then use a DOP853 reference, the run files no exact error.
         invariants: optional named first integrals besides ``H``, ``f(q, p, **params) -> (N,)``.
-        boundary: optional default fixed-endpoint data
-            ``{"q_start": ..., "q_end": ..., "t_span": (t0, t1), "nodes": N}``.
+        boundary: optional default fixed-endpoint data, an :class:`Endpoints`.
         name, description: set from the file name and docstring when loaded.
         source: the name or path it was loaded from (empty for a scene made in Python); grid
             tasks reload the scene from it in their own process.
-        periodic: optional defaults of ``ddvp periodic`` (``solvers/periodic.py``):
-            ``{"section": "p1=0", "energy": E, "nodes": N, "start": (q, p), "integrals": (...),
-            "angles": ("q1",), "families": {...}}``, any subset; ``start`` is the direction
-            along which the section's point at ``E`` is looked for; ``angles`` names angle
-            coordinates, which may close with whole turns (rotations); ``families`` names
-            further families by their own section and start (read by
-            ``scripts/periodic_page.py``).
+        periodic: optional defaults of ``ddvp periodic``, a :class:`PeriodicSettings`.
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
     """
@@ -83,16 +121,18 @@ class Scene:
     params: Mapping[str, float] = field(default_factory=dict)
     exact: Callable[..., tuple] | None = None
     invariants: Mapping[str, Callable[..., np.ndarray]] = field(default_factory=dict)
-    boundary: Mapping[str, object] | None = None
+    boundary: Endpoints | None = None
     name: str = "scene"
     source: str = ""
     description: str = ""
     v0: object = None
-    periodic: Mapping[str, object] | None = None
+    periodic: PeriodicSettings | None = None
     scheme: str | None = None
 
     def __post_init__(self):
         _check_scheme_name(self.scheme)
+        _check_settings(self.name, "boundary", self.boundary, Endpoints)
+        _check_settings(self.name, "periodic", self.periodic, PeriodicSettings)
         for key in ("q0", "tau0", "t_end"):
             if getattr(self, key) is None:
                 raise InputError(f"scene needs {key}")
@@ -124,20 +164,20 @@ class Scene:
         """Fixed-endpoint data: the scene's ``boundary`` with ``overrides`` (parameters,
         ``q_start``, ``q_end``, ``t0``, ``t_end``) and ``nodes`` applied."""
         params, settings = self._split_parameters(overrides, BOUNDARY_SETTINGS)
-        data = dict(self.boundary or {})
-        if not data and not {"q_start", "q_end"} <= set(settings):
+        data = self.boundary or Endpoints()
+        if self.boundary is None and not {"q_start", "q_end"} <= set(settings):
             raise InputError(f"scene {self.name!r} declares no fixed-endpoint data: give "
                              "q_start, q_end, t0 and t_end (--set NAME=VALUE) and --nodes")
-        t_span = data.get("t_span", (self.t0, self.t_end))
+        t_span = data.t_span or (self.t0, self.t_end)
         t0 = settings.get("t0", t_span[0])
         t1 = settings.get("t_end", t_span[1])
         return BoundaryConfig(params=params,
                               q_start=np.atleast_1d(np.asarray(settings.get(
-                                  "q_start", data.get("q_start")), dtype=float)),
+                                  "q_start", data.q_start), dtype=float)),
                               q_end=np.atleast_1d(np.asarray(settings.get(
-                                  "q_end", data.get("q_end")), dtype=float)),
+                                  "q_end", data.q_end), dtype=float)),
                               t_span=(float(t0), float(t1)),
-                              nodes=nodes if nodes is not None else data.get("nodes", 101))
+                              nodes=nodes if nodes is not None else (data.nodes or 101))
 
     def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
         """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
@@ -189,6 +229,21 @@ class RunConfig:
         start = {"p0": self.p0.tolist()} if self.p0 is not None else {"v0": self.v0.tolist()}
         return {**self.params, "q0": self.q0.tolist(), **start, "t0": self.t0,
                 "tau0": self.tau0, "t_end": self.t_end}
+
+
+@dataclass
+class HigherRunConfig:
+    """Resolved values of one run of a higher-order scene."""
+
+    params: dict[str, float]
+    t0: float
+    tau0: float
+    t_end: float
+
+    def as_dict(self) -> dict:
+        """The resolved settings as plain values (what a run folder's name is hashed from)."""
+        return {"params": dict(self.params), "t0": self.t0, "tau0": self.tau0,
+                "t_end": self.t_end}
 
 
 @dataclass
@@ -282,7 +337,8 @@ class HigherOrderScene:
             march starts from ``2 * order`` of its nodes spaced ``tau0`` from ``t0``; the
             fixed-endpoint problem takes ``order`` of its nodes at each end of ``t_span`` on the
             uniform grid of ``nodes`` nodes.
-        tau0, t_end, t0: march defaults; ``boundary``: ``{"t_span": (t0, t1), "nodes": N}``.
+        tau0, t_end, t0: march defaults; ``boundary``: an :class:`Endpoints` with ``t_span``
+            and ``nodes`` (the end positions come from ``exact``).
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (the energy rules have no positive step on some of these; ``fixed`` always
             has one).
@@ -296,7 +352,7 @@ class HigherOrderScene:
     t_end: float
     t0: float = 0.0
     params: Mapping[str, float] = field(default_factory=dict)
-    boundary: Mapping[str, object] | None = None
+    boundary: Endpoints | None = None
     name: str = "scene"
     source: str = ""
     description: str = ""
@@ -304,34 +360,39 @@ class HigherOrderScene:
 
     def __post_init__(self):
         _check_scheme_name(self.scheme)
+        _check_settings(self.name, "boundary", self.boundary, Endpoints)
 
     @cached_property
     def system(self) -> HigherOrderSystem:
         return HigherOrderSystem(self.lagrangian, self.n, self.order, dict(self.params),
                                  name=self.name)
 
-    def resolve(self, overrides=None) -> dict:
-        """Parameters, ``t0``, ``tau0``, ``t_end``, ``nodes`` with ``overrides`` applied."""
+    def resolve(self, overrides=None) -> HigherRunConfig:
+        """Parameters, ``t0``, ``tau0``, ``t_end`` with ``overrides`` applied."""
         overrides = dict(overrides or {})
-        settings = {k: overrides.pop(k) for k in ("t0", "tau0", "t_end") if k in overrides}
+        settings = {k: overrides.pop(k) for k in RUN_SETTINGS if k in overrides}
         params = check_parameter_values(overrides, dict(self.params),
                                         owner=f"scene {self.name!r}")
         values = {"t0": self.t0, "tau0": self.tau0, "t_end": self.t_end, **settings}
         for key, value in values.items():
             check_real(key, value)
-        return {"params": params, **{k: float(v) for k, v in values.items()}}
+        return HigherRunConfig(params=params, **{k: float(v) for k, v in values.items()})
 
-    def start(self, config) -> tuple[np.ndarray, np.ndarray]:
-        t = config["t0"] + config["tau0"] * np.arange(2 * self.order)
-        return t, self._exact(t, config["params"])
+    def start(self, config: HigherRunConfig) -> tuple[np.ndarray, np.ndarray]:
+        """The ``2 l`` start nodes of a march: the exact motion ``tau0`` apart from ``t0``."""
+        t = config.t0 + config.tau0 * np.arange(2 * self.order)
+        return t, self.exact_motion(t, config.params)
 
-    def ends(self, config, nodes: int, t_span):
+    def ends(self, config: HigherRunConfig, nodes: int, t_span):
+        """The ``l`` fixed nodes at each end of the uniform grid of ``nodes`` nodes on
+        ``t_span``, on the exact motion."""
         grid = np.linspace(t_span[0], t_span[1], nodes)
         l = self.order  # noqa: E741 (l is the order, as in the paper)
-        q = self._exact(grid, config["params"])
+        q = self.exact_motion(grid, config.params)
         return grid[:l], q[:l], grid[-l:], q[-l:]
 
-    def _exact(self, t, params):
+    def exact_motion(self, t, params):
+        """The scene's exact motion ``q(t)`` at the times ``t``, shape ``(N, n)``."""
         return np.asarray(self.exact(np.asarray(t, float), **params), float).reshape(
             np.size(t), self.n)
 

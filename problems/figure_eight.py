@@ -8,7 +8,7 @@ Simo's initial data: ``x_1 = -x_2 = (0.97000436, -0.24308753)``, ``x_3 = 0``,
 import casadi as ca
 import numpy as np
 
-from ddvp_nlp import Scene
+from ddvp_nlp import PeriodicSettings, Scene
 
 POSITION = np.array([0.97000436, -0.24308753])
 VELOCITY_3 = np.array([-0.93240737, -0.86473146])
@@ -42,6 +42,5 @@ def angular_momentum(q, p):
 # direction; the section point at E is looked for along Simo's state. Translations and rotations
 # are symmetries (their integrals, conserved exactly by the midpoint rule, get phase conditions).
 scene = Scene(hamiltonian, n=6, q0=q0, p0=p0, tau0=0.01, t_end=PERIOD,
-              periodic={"section": "q5=0", "energy": ENERGY, "nodes": 600,
-                        "start": (q0, p0),
-                        "integrals": (momentum_x, momentum_y, angular_momentum)})
+              periodic=PeriodicSettings(section="q5=0", energy=ENERGY, nodes=600, start=(q0, p0),
+                                        integrals=(momentum_x, momentum_y, angular_momentum)))

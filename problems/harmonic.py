@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ddvp_nlp import Scene
+from ddvp_nlp import PeriodicSettings, Scene
 
 
 def hamiltonian(q, p, t, w):
@@ -20,4 +20,5 @@ def exact(t, q0, p0, t0, w):
 
 # Periodic orbits (ddvp periodic): period 2 pi / w at every energy.
 scene = Scene(hamiltonian, n=1, params={"w": 1.0}, q0=[1.0], p0=[0.0], tau0=0.1, t_end=20.0,
-              exact=exact, periodic={"section": "p1=0", "energy": 0.5, "nodes": 200})
+              exact=exact,
+              periodic=PeriodicSettings(section="p1=0", energy=0.5, nodes=200))

@@ -2,7 +2,7 @@
 
 import casadi as ca
 
-from ddvp_nlp import Scene
+from ddvp_nlp import PeriodicSettings, Scene
 
 
 def hamiltonian(q, p, t):
@@ -17,9 +17,9 @@ def hamiltonian(q, p, t):
 # circular motion of the linearised 1:1 oscillator, crossing x = 0 at y > 0 moving in -x) and
 # the orbit across the axis x = 0 (born from the normal mode along x, crossing x = 0 at y < 0).
 scene = Scene(hamiltonian, n=2, q0=[0.0, 0.1], p0=[0.35, 0.0], tau0=0.05, t_end=200.0,
-              periodic={"section": "p2=0", "energy": 0.1, "nodes": 200,
-                        "start": ([0.0, 1.0], [0.0, 0.0]),
-                        "families": {
-                            "loop": {"section": "q1=0", "start": ([0.0, 1.0], [-1.0, 0.0])},
-                            "across": {"section": "q1=0",
-                                       "start": ([0.0, -0.1], [1.0, 0.0])}}})
+              periodic=PeriodicSettings(
+                  section="p2=0", energy=0.1, nodes=200, start=([0.0, 1.0], [0.0, 0.0]),
+                  families={
+                      "loop": PeriodicSettings(section="q1=0", start=([0.0, 1.0], [-1.0, 0.0])),
+                      "across": PeriodicSettings(section="q1=0",
+                                                 start=([0.0, -0.1], [1.0, 0.0]))}))

@@ -6,7 +6,7 @@ w_1,2^2 = (1 -/+ sqrt(1 - 4 g w^2)) / (2 g); the scene follows cos(w_1 t) + cos(
 
 import numpy as np
 
-from ddvp_nlp import HigherOrderScene
+from ddvp_nlp import Endpoints, HigherOrderScene
 
 
 def lagrangian(q, v, t, w, g):
@@ -26,5 +26,6 @@ def exact(t, w, g):
 # fixed by default: the vddvp march finds no positive step at step 2 (Newton gives
 # tau = -0.65); fixed steps follow the exact motion.
 scene = HigherOrderScene(lagrangian, n=1, order=2, exact=exact, params={"w": 1.0, "g": 0.1},
-                         tau0=0.02, t_end=10.0, boundary={"t_span": (0.0, 2.0), "nodes": 41},
+                         tau0=0.02, t_end=10.0,
+                         boundary=Endpoints(t_span=(0.0, 2.0), nodes=41),
                          scheme="fixed")

@@ -5,7 +5,7 @@ H = l^2/2 + (1 - cos th)(1 - eps sin(omega t)), th0 = l0 = 0.5, t0 = 0, tau0 = 0
 
 import casadi as ca
 
-from ddvp_nlp import Scene
+from ddvp_nlp import Endpoints, Scene
 
 
 def hamiltonian(q, p, t, eps, omega):
@@ -16,5 +16,5 @@ def hamiltonian(q, p, t, eps, omega):
 # q(9) depends strongly on p(0).
 scene = Scene(hamiltonian, n=1, params={"eps": 0.1, "omega": 0.02},
               q0=[0.5], p0=[0.5], t0=0.0, tau0=0.5, t_end=10000.0,
-              boundary={"q_start": [0.5], "q_end": [-0.0065], "t_span": (0.0, 9.0),
-                        "nodes": 91})
+              boundary=Endpoints(q_start=[0.5], q_end=[-0.0065], t_span=(0.0, 9.0),
+                        nodes=91))

@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 from scipy.special import ellipj, ellipk, ellipkinc
 
-from ddvp_nlp import Scene
+from ddvp_nlp import Endpoints, PeriodicSettings, Scene
 
 
 def hamiltonian(q, p, t):
@@ -38,6 +38,6 @@ def exact(t, q0, p0, t0):
 # Fixed-endpoint data: about where the motion from (0.5, 0.5) is at t = 9 (1.4 swings), where
 # q(9) depends strongly on p(0) (at t = 10 it has a fold near p(0) = 0.5).
 scene = Scene(hamiltonian, n=1, q0=[0.5], p0=[0.5], tau0=0.05, t_end=100.0, exact=exact,
-              boundary={"q_start": [0.5], "q_end": [-0.036], "t_span": (0.0, 9.0),
-                        "nodes": 181},
-              periodic={"section": "p1=0", "energy": 0.5, "nodes": 200, "angles": ("q1",)})
+              boundary=Endpoints(q_start=[0.5], q_end=[-0.036], t_span=(0.0, 9.0),
+                        nodes=181),
+              periodic=PeriodicSettings(section="p1=0", energy=0.5, nodes=200, angles=("q1",)))

@@ -6,7 +6,7 @@ every alpha), so the two scenes check each other.
 
 import casadi as ca
 
-from ddvp_nlp import Lagrangian, Scene
+from ddvp_nlp import Endpoints, Lagrangian, Scene
 
 
 def lagrangian(q, v, t):
@@ -14,5 +14,5 @@ def lagrangian(q, v, t):
 
 
 scene = Scene(Lagrangian(lagrangian), n=1, q0=[0.5], p0=[0.5], tau0=0.05, t_end=100.0,
-              boundary={"q_start": [0.5], "q_end": [-0.036], "t_span": (0.0, 9.0),
-                        "nodes": 181})
+              boundary=Endpoints(q_start=[0.5], q_end=[-0.036], t_span=(0.0, 9.0),
+                        nodes=181))

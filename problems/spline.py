@@ -1,6 +1,6 @@
 """Cubic spline: L = q''^2/2 (the paper's case 1 with l = 2); its motions are cubics."""
 
-from ddvp_nlp import HigherOrderScene
+from ddvp_nlp import Endpoints, HigherOrderScene
 
 
 def lagrangian(q, v, t):
@@ -15,5 +15,5 @@ def cubic(t):
 # (--scheme vddvp) the solution is verified up to about 150 nodes, its steps drift far from
 # uniform and its error against the cubic is larger (README, "Higher derivatives").
 scene = HigherOrderScene(lagrangian, n=1, order=2, exact=cubic, tau0=0.05, t_end=2.0,
-                         boundary={"t_span": (0.0, 1.0), "nodes": 21},
+                         boundary=Endpoints(t_span=(0.0, 1.0), nodes=21),
                          scheme="fixed")

@@ -24,8 +24,7 @@ import numpy as np
 # scripts/ is on the path when a script runs: the one timer of the benchmarks
 from bench_march import timed  # noqa: E402
 
-from ddvp_nlp import Compilation, load_scene, march
-from ddvp_nlp.solvers.march.ensemble import march_ensemble
+from ddvp_nlp import Compilation, load_scene, march, march_ensemble
 from ddvp_nlp.studies.poincare import section_starts
 
 

@@ -41,8 +41,8 @@ from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.io.runs import run_energies
 scene = load_scene({scene_name!r})
 config = scene.resolve({{}})
-solution = march(scene.system, config.q0, config.p0, tau0=config.tau0, t_end=config.t_end,
-                 t0=config.t0, params=config.params)
+solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                 tau0=config.tau0, params=config.params)
 energies = run_energies(scene.system, Scheme(), solution,
                         scene.system.parameter_vector(config.params))
 started = time.process_time()

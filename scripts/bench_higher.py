@@ -13,17 +13,16 @@ import time
 
 import numpy as np
 
-from ddvp_nlp import GridOptions, load_scene
-from ddvp_nlp.solvers.higher.solve import solve_bvp_higher
+from ddvp_nlp import GridOptions, load_scene, solve_bvp_higher
 
 
 def run(scene, config, nodes, scheme, solver):
-    t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary["t_span"])
+    t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary.t_span)
     wall, cpu = time.perf_counter(), time.process_time()
     solution = solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes, scheme=scheme,
-                                params=config["params"], options=GridOptions(solver=solver))
+                                params=config.params, options=GridOptions(solver=solver))
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    error = float(np.max(np.abs(solution.q - scene._exact(solution.t, config["params"]))))
+    error = float(np.max(np.abs(solution.q - scene.exact_motion(solution.t, config.params))))
     return solution, wall, cpu, error
 
 

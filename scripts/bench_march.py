@@ -93,16 +93,9 @@ def bench(name, overrides, repeats):
     rows = {}
     with tempfile.TemporaryDirectory() as cache:
         def run(**options):
-            return march(
-                system,
-                config.q0,
-                config.p0,
-                (0.0, config.t_end),
-                tau0=config.tau0,
-                params=config.params,
-                compilation=Compilation(cache_dir=cache),
-                **options,
-            )
+            return march(system, config.q0, config.p0, (0.0, config.t_end), tau0=config.tau0,
+                         params=config.params,
+                         compilation=Compilation(cache_dir=cache, **options))
 
         first = run()  # builds and compiles into the empty cache: the build/compile figures
         build = {"build_s": first.timing["build_s"], "compile_s": first.timing["compile_s"]}
@@ -252,16 +245,8 @@ def bench_against_c(name, overrides, repeats, folder):
                                         ctypes.byref(iterations))
 
     def run(**options):
-        return march(
-            system,
-            config.q0,
-            config.p0,
-            (0.0, config.t_end),
-            tau0=config.tau0,
-            params=config.params,
-            compilation=Compilation(cache_dir=folder),
-            **options,
-        )
+        return march(system, config.q0, config.p0, (0.0, config.t_end), tau0=config.tau0,
+                     params=config.params, compilation=Compilation(cache_dir=folder), **options)
 
     checks = [np.empty((capacity, 2 * n)), np.zeros(capacity), *(np.empty(capacity + 1)
                                                                    for _ in range(4))]
@@ -288,7 +273,7 @@ def bench_against_c(name, overrides, repeats, folder):
         c_rows[f"C march, fast ({label}) + march()'s checks in C (c_march_checks)"] = \
             c_checked(predictor, ctypes.c_long(0))
     march_rows = {"march(), accuracy check on (default)": lambda: run(),
-                  "march(), check_accuracy=False": lambda: run(check_accuracy=False)}
+                  "march(), accuracy=None": lambda: run(accuracy=None)}
     found = {label: [math.inf, math.inf, None] for label in [*c_rows, *march_rows]}
     for run_all in (False, True):  # a warm-up round, then the measured ones
         for _ in range(repeats if run_all else 1):
@@ -308,7 +293,7 @@ def bench_against_c(name, overrides, repeats, folder):
     c_cpu, c_wall = found[reference][:2]
     rows = [(label, cpu, wall, result if label in c_rows else result.steps)
             for label, (cpu, wall, result) in found.items()]
-    solution = found["march(), check_accuracy=False"][2]
+    solution = found["march(), accuracy=None"][2]
     rows.insert(1, rows.pop(rows.index(next(r for r in rows if r[0] == reference))))
     steps = solution.steps
     same = c_steps == steps

@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_march import timed  # noqa: E402
 
-from ddvp_nlp import load_scene  # noqa: E402
+from ddvp_nlp import GridOptions, load_scene  # noqa: E402
 from ddvp_nlp.solvers.periodic.solve import parse_section, solve_periodic  # noqa: E402
 from ddvp_nlp.solvers.periodic.start import (  # noqa: E402
     march_to_return,
@@ -33,8 +33,8 @@ from ddvp_nlp.solvers.periodic.start import (  # noqa: E402
 
 def cases():
     eight = load_scene("figure_eight").periodic
-    eight_options = {"energy": eight["energy"], "section": eight["section"],
-                     "start": eight["start"], "integrals": eight["integrals"]}
+    eight_options = {"energy": eight.energy, "section": eight.section, "start": eight.start,
+                     "integrals": eight.integrals}
     return [("pendulum", 100, {"energy": 0.5, "section": "p1=0"}),
             ("pendulum", 400, {"energy": 0.5, "section": "p1=0"}),
             ("figure_eight", 600, eight_options)]
@@ -65,7 +65,7 @@ def main() -> None:
         measured = {}
         for solver in ("newton", "ipopt"):
             run = functools.partial(solve_periodic, system, nodes=nodes, guess=guess,
-                                    solver=solver, **options)
+                                    options=GridOptions(solver=solver), **options)
             first = time.perf_counter()
             run()
             first = time.perf_counter() - first

@@ -25,10 +25,9 @@ from scipy.special import ellipk
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_periodic  # noqa: E402
 
+from ddvp_nlp import GridOptions, solve_periodic, solve_periodic_family  # noqa: E402
 from ddvp_nlp.io.periodic_runs import plot_orbit, write_family  # noqa: E402
 from ddvp_nlp.scenes import load_scene  # noqa: E402
-from ddvp_nlp.solvers.periodic.family import solve_periodic_family  # noqa: E402
-from ddvp_nlp.solvers.periodic.solve import solve_periodic  # noqa: E402
 
 FIGURE_EIGHT_PERIOD = 6.32591398
 
@@ -92,9 +91,10 @@ def henon_heiles_rows(out: Path):
     N = 200 and 400 by continuation in E, each orbit checked against the exact flow."""
     scene = load_scene("henon_heiles")
     energies = np.round(np.arange(0.02, 0.1601, 0.02), 3)
-    families = dict(scene.periodic["families"])
-    families["x = 0 (invariant line)"] = {"section": scene.periodic["section"],
-                                           "start": scene.periodic["start"]}
+    families = {name: {"section": data.section, "start": data.start}
+                for name, data in scene.periodic.families.items()}
+    families["x = 0 (invariant line)"] = {"section": scene.periodic.section,
+                                           "start": scene.periodic.start}
     found, rows = {}, []
     for name, data in families.items():
         coarse = solve_periodic_family(scene.system, energies, nodes=200, **data)
@@ -169,17 +169,17 @@ def main() -> None:
 
     eight = load_scene("figure_eight")
     data = eight.periodic
-    options = {"energy": data["energy"], "section": data["section"], "start": data["start"],
-               "integrals": data["integrals"]}
+    options = {"energy": data.energy, "section": data.section, "start": data.start,
+               "integrals": data.integrals}
     orbit = solve_periodic(eight.system, nodes=600, **options)
-    plot_orbit(orbit, f"figure-eight, E = {data['energy']}, N = 600, "
+    plot_orbit(orbit, f"figure-eight, E = {data.energy}, N = 600, "
                       f"T = {orbit.stats['period']:.8f}", out / "figure_eight.png")
 
     table = [*convergence_rows("pendulum", (100, 200, 400, 800), pendulum_period(0.5),
                                energy=0.5, section="p1=0"),
              *convergence_rows("pendulum", (100, 200, 400, 800), rotation_period(2.5),
                                label="pendulum rotation", energy=2.5, section="q1=0",
-                               angles=("q1",), max_iter=400),
+                               angles=("q1",), options=GridOptions(max_iter=400)),
              *convergence_rows("harmonic", (40, 80, 160, 320), np.pi, energy=0.3,
                                params={"w": 2.0}),
              *convergence_rows("figure_eight", (150, 300, 600, 1200), FIGURE_EIGHT_PERIOD,
@@ -268,7 +268,7 @@ the rotations with `max_iter=400`; the default 100 stops N = 800).
 ## Henon-Heiles: two-dimensional orbits through x = 0
 
 Besides the family on the invariant line `x = 0` (green), two families whose orbits move in
-both coordinates, through the section `x = 0` (`problems/henon_heiles.py`, `periodic["families"]`):
+both coordinates, through the section `x = 0` (`problems/henon_heiles.py`, `periodic.families`):
 the *loop* (from the circular motion of the linearised 1:1 oscillator; it crosses `x = 0` at
 `y > 0` moving in `-x`) and the orbit *across* the axis `x = 0` (from the normal mode along `x`;
 it crosses at `y < 0`). Each is continued in `E` from 0.02 at N = 200 (from the march's start)

@@ -8,8 +8,9 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"Compilation", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
-          "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output", "Scene",
+PUBLIC = {"Compilation", "Endpoints", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
+          "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output",
+          "PeriodicSettings", "Scene",
           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
           "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
           "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"}

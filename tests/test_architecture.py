@@ -151,3 +151,191 @@ def sizes():
 def test_no_function_or_class_is_too_long(kind, limit):
     too_long = [(name, lines) for k, name, lines in sizes() if k == kind and lines > limit]
     assert too_long == []
+
+
+# --- inside solvers/: a folder per family, each with its written contract ---------------------
+
+SOLVER_CORE = {"options", "driver", "accuracy", "dense", "compiler"}
+# what each family of solvers/ may import besides the core (and itself)
+SOLVER_FAMILIES = {
+    "march": set(),
+    "grid": set(),
+    "baselines": {"march"},
+    "bvp": {"grid", "march"},
+    "periodic": {"grid", "march"},
+    "higher": {"grid"},
+}
+
+
+def _solver_part(module: str) -> str | None:
+    """``march``, ``grid`` ... for a module inside a family of solvers/, ``core`` for a core
+    module, ``None`` outside solvers/."""
+    parts = module.split(".")
+    if parts[0] != "solvers" or len(parts) < 2:
+        return None
+    return parts[1] if parts[1] in SOLVER_FAMILIES else "core"
+
+
+def test_solvers_holds_only_its_families_and_core_modules():
+    top = {path.stem for path in (PACKAGE / "solvers").glob("*.py")}
+    folders = {path.name for path in (PACKAGE / "solvers").iterdir()
+               if path.is_dir() and (path / "__init__.py").exists()}
+    assert top == SOLVER_CORE | {"__init__"}
+    assert folders == set(SOLVER_FAMILIES)
+
+
+def family_violations(edges: dict[str, set[str]]) -> list[str]:
+    """The imports of ``edges`` (module -> modules) that break the rules of solvers/."""
+    wrong = []
+    for module, targets in edges.items():
+        source = _solver_part(module)
+        if source is None:
+            continue
+        allowed = set() if source == "core" else SOLVER_FAMILIES[source]
+        for target in targets:
+            part = _solver_part(target)
+            if part not in (None, "core", source) and part not in allowed:
+                wrong.append(f"{module} imports {target}")
+    return wrong
+
+
+def test_each_family_imports_only_what_its_rules_allow():
+    """The core imports no family; march/ and grid/ only the core; baselines/ also march/; bvp/
+    and periodic/ also grid/ and march/; higher/ also grid/."""
+    assert family_violations(graph()) == []
+
+
+def test_the_family_rule_catches_forbidden_imports():
+    assert family_violations({"solvers.march.solve": {"solvers.bvp.solve", "solvers.driver"},
+                              "solvers.driver": {"solvers.march.solve"},
+                              "solvers.bvp.start": {"solvers.march.solve"},
+                              "solvers.grid.newton": {"solvers.periodic.assembly"}}) == [
+        "solvers.march.solve imports solvers.bvp.solve",
+        "solvers.driver imports solvers.march.solve",
+        "solvers.grid.newton imports solvers.periodic.assembly"]
+
+
+@pytest.mark.parametrize("family", sorted(SOLVER_FAMILIES))
+def test_each_family_states_its_contract_as_numbered_rules(family):
+    """Each family's ``__init__`` says what is where and, as scipy's ``OdeSolver`` does, the
+    rules an implementer must keep, numbered."""
+    doc = ast.get_docstring(ast.parse((PACKAGE / "solvers" / family / "__init__.py")
+                                      .read_text())) or ""
+    numbered = [line for line in doc.splitlines() if line[:3] in {f"{k}. " for k in range(10)}]
+    assert len(numbered) >= 3, doc[:200]
+    for module in (PACKAGE / "solvers" / family).glob("*.py"):
+        if module.stem != "__init__":
+            assert f"``{module.name}``" in doc, f"{family}/__init__ does not name {module.name}"
+
+
+# --- names: no private name across modules, registries filled where they are defined ----------
+
+# The private-looking names of a namedtuple are its public interface.
+NAMEDTUPLE_API = {"_fields", "_asdict", "_replace", "_make"}
+
+
+def private_uses(path: Path) -> list[str]:
+    """Private names (``_x``) this module takes from another one: imported by name, or read as
+    an attribute of anything but ``self`` and ``cls``."""
+    found = []
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "")
+                                                  .startswith("ddvp_nlp")):
+            found += [f"import {alias.name} (line {node.lineno})" for alias in node.names
+                      if alias.name.startswith("_") and not alias.name.startswith("__")]
+        elif isinstance(node, ast.Attribute) and node.attr.startswith("_") \
+                and not node.attr.startswith("__") and node.attr not in NAMEDTUPLE_API:
+            if not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+                found.append(f"{ast.unparse(node)} (line {node.lineno})")
+    return found
+
+
+def test_no_private_name_is_used_across_modules():
+    used = {name: private_uses(path) for name, path in modules().items()}
+    assert {name: uses for name, uses in used.items() if uses} == {}
+
+
+def test_the_assignment_check_finds_a_registry_filled_from_outside(tmp_path):
+    path = tmp_path / "avf.py"
+    path.write_text("from ddvp_nlp.solvers.baselines import fixed_step\n"
+                    "fixed_step.IMPLICIT_STEPS['avf'] = 1\nfixed_step.CHUNK = 3\n"
+                    "import warnings\nwarnings.formatwarning = print\n")
+    assert foreign_assignments(path) == ["fixed_step.IMPLICIT_STEPS['avf'] (line 2)",
+                                         "fixed_step.CHUNK (line 3)"]
+
+
+def test_the_private_name_check_finds_both_kinds(tmp_path):
+    path = tmp_path / "m.py"
+    path.write_text("from .other import _helper\nx = scene._exact(1)\ny = self._ok\n"
+                    "z = row._asdict()\n")
+    assert private_uses(path) == ["import _helper (line 1)", "scene._exact (line 2)"]
+
+
+def bound_modules(tree, package: list[str]) -> set[str]:
+    """Names this code binds to modules of the package (``from . import stepper``, ``from
+    ddvp_nlp.solvers import compiler``, ``import ddvp_nlp.x as y``); ``package`` is the
+    importing module's package, as a list of names (empty outside the package)."""
+    known = modules()
+    bound = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - node.level + 1] + \
+                    (node.module.split(".") if node.module else [])
+            elif (node.module or "").startswith("ddvp_nlp"):
+                base = node.module.split(".")[1:]
+            else:
+                continue
+            for alias in node.names:
+                if ".".join([*base, alias.name]) in known:
+                    bound.add(alias.asname or alias.name)
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("ddvp_nlp.") and alias.asname:
+                    bound.add(alias.asname)
+    return bound
+
+
+def foreign_assignments(path: Path, package: list[str] | None = None) -> list[str]:
+    """Assignments into another package module's namespace (``module.NAME = ...``,
+    ``module.TABLE[key] = ...``): a registry filled by an import's side effect, or a global
+    switched from outside."""
+    tree = ast.parse(path.read_text())
+    bound = bound_modules(tree, package or [])
+    found = []
+    for node in ast.walk(tree):
+        targets = node.targets if isinstance(node, ast.Assign) else \
+            [node.target] if isinstance(node, ast.AugAssign) else []
+        for target in targets:
+            base = target.value if isinstance(target, ast.Subscript) else target
+            if isinstance(base, ast.Attribute) and isinstance(base.value, ast.Name) \
+                    and base.value.id in bound:
+                found.append(f"{ast.unparse(target)} (line {node.lineno})")
+    return found
+
+
+def test_no_module_fills_or_switches_another_ones_globals():
+    assigned = {name: foreign_assignments(path, name.split(".")[:-1]
+                                          if path.name != "__init__.py" else name.split("."))
+                for name, path in modules().items()}
+    assert {name: found for name, found in assigned.items() if found} == {}
+
+
+def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
+    """Solver choices are arguments or option fields: neither the tests nor the benchmarks
+    assign a module's constants (``monkeypatch.setattr(module, "NAME", ...)`` or
+    ``module.NAME = ...``); replacing a function to inject a fault stays allowed."""
+    root = PACKAGE.parent
+    switched = []
+    for path in [*(root / "tests").glob("*.py"), *(root / "scripts").glob("*.py")]:
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and ast.unparse(node.func).endswith("setattr") \
+                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) \
+                    and str(node.args[1].value).isupper() \
+                    and not str(node.args[1].value).startswith("_"):
+                switched.append(f"{path.name}: {ast.unparse(node)}")
+        switched += [f"{path.name}: {found}" for found in foreign_assignments(path)
+                     if found.split(".")[1][:1].isupper()]
+    assert switched == []

@@ -9,9 +9,8 @@ from conftest import fitted_order
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from ddvp_nlp import GridOptions, InputError, Scheme, Status, load_scene, march
+from ddvp_nlp import GridOptions, InputError, Scheme, Status, load_scene, march, solve_bvp
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 
 @pytest.mark.parametrize("name, tau0, t_end", [("paper_pendulum", 0.5, 9.0),

@@ -4,10 +4,9 @@ round-off-aware verification and the bounds on a run (issue 16)."""
 import numpy as np
 import pytest
 
-from ddvp_nlp import GridOptions, InputError, Output, Scheme, Status, load_scene
+from ddvp_nlp import GridOptions, InputError, Output, Scheme, Status, load_scene, solve_bvp
 from ddvp_nlp.cli import main
 from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
-from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 CASES = {  # scene: (q_start, q_end, t_span, nodes, params); None: the scene's boundary data
     "pendulum": None,

@@ -8,9 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from ddvp_nlp import GridOptions, InputError, StepControl, load_scene, march
+from ddvp_nlp import GridOptions, InputError, StepControl, load_scene, march, solve_bvp
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 E = 0.5
 PERIODS = 3.0

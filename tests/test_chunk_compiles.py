@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import Compilation, StepControl, Tolerance, load_scene, march
-from ddvp_nlp.solvers.baselines import fixed_step as baselines
-from ddvp_nlp.solvers.baselines import lee_left, paper_schemes
+from ddvp_nlp.solvers.baselines import chunks, fixed_step, lee_left, paper_schemes
 from ddvp_nlp.solvers.compiler import build_count, find_compiler
 
 COMPILER = find_compiler("auto")
@@ -13,7 +12,7 @@ needs_compiler = pytest.mark.skipif(COMPILER is None, reason="no C compiler")
 
 
 @needs_compiler
-@pytest.mark.parametrize("method", [paper_schemes.VDDVP, baselines.RK4, lee_left.LEE_LEFT])
+@pytest.mark.parametrize("method", [paper_schemes.VDDVP, fixed_step.RK4, lee_left.LEE_LEFT])
 def test_a_short_and_a_long_run_of_a_scene_compile_once(tmp_path, method):
     scene = load_scene("pendulum")
     short, long = scene.resolve({"t_end": 0.5}), scene.resolve({"t_end": 60.0})
@@ -55,12 +54,12 @@ def test_a_baseline_through_buffers_is_its_chunk_called_with_dm(tmp_path, method
     system = scene.system
     config = scene.resolve({"t_end": 30.0})
     theta = system.parameter_vector(None)
-    solution = baselines.fixed_step_run(system, method, config.q0, config.p0, tau=0.05,
+    solution = fixed_step.fixed_step_run(system, method, config.q0, config.p0, tau=0.05,
                                         t_end=config.t_end, t0=0.0, theta=theta,
                                         compiler=COMPILER, cache_dir=tmp_path)
-    function, _ = baselines._fixed_chunk(system, method, baselines.CHUNK, COMPILER, tmp_path)
-    assert isinstance(function, baselines.Buffered) and solution.steps == 600
-    constants = np.tile(np.concatenate([theta, [0.0, 0.05]])[:, None], (1, baselines.CHUNK))
+    function, _ = fixed_step.fixed_chunk(system, method, chunks.CHUNK, COMPILER, tmp_path)
+    assert isinstance(function, chunks.Buffered) and solution.steps == 600
+    constants = np.tile(np.concatenate([theta, [0.0, 0.05]])[:, None], (1, chunks.CHUNK))
     state = np.concatenate([[0.0], config.q0, config.p0])
     _, rows = function.function(state, constants)  # the DM call the baselines made before
     rows = np.asarray(rows).T[:600]

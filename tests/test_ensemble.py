@@ -3,11 +3,10 @@
 import numpy as np
 import pytest
 
-from ddvp_nlp import load_scene, march
+from ddvp_nlp import load_scene, march, march_ensemble
 from ddvp_nlp.cli import main
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.solution import Status
-from ddvp_nlp.solvers.march.ensemble import march_ensemble
 from ddvp_nlp.studies.poincare import poincare_section
 
 

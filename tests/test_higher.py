@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from conftest import fitted_order
 
-from ddvp_nlp import HigherOrderSystem, InputError, load_scene
+from ddvp_nlp import HigherOrderSystem, InputError, load_scene, march_higher, solve_bvp_higher
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.higher.solve import march_higher, solve_bvp_higher
 
 
 @pytest.fixture(scope="module")
@@ -26,11 +25,11 @@ def test_spline_reproduces_the_cubic_through_its_boundary_data(spline):
     t_a, q_a, t_b, q_b = spline.ends(config, 21, (0.0, 1.0))
     solution = solve_bvp_higher(spline.system, t_a, q_a, t_b, q_b, nodes=21, scheme="fixed")
     assert solution.success, solution.message
-    assert np.max(np.abs(solution.q - spline._exact(solution.t, {}))) < 1e-12
+    assert np.max(np.abs(solution.q - spline.exact_motion(solution.t, {}))) < 1e-12
     t_init, q_init = spline.start(config)
     marched = march_higher(spline.system, t_init, q_init, t_end=2.0, scheme="fixed")
     assert marched.success and marched.steps == 40
-    assert np.max(np.abs(marched.q - spline._exact(marched.t, {}))) < 1e-9
+    assert np.max(np.abs(marched.q - spline.exact_motion(marched.t, {}))) < 1e-9
 
 
 def test_pais_uhlenbeck_fixed_steps_converge_at_second_order(pais_uhlenbeck):
@@ -41,10 +40,10 @@ def test_pais_uhlenbeck_fixed_steps_converge_at_second_order(pais_uhlenbeck):
         config = pais_uhlenbeck.resolve({"tau0": tau, "t_end": 5.0})
         t_init, q_init = pais_uhlenbeck.start(config)
         solution = march_higher(pais_uhlenbeck.system, t_init, q_init, t_end=5.0,
-                                scheme="fixed", params=config["params"])
+                                scheme="fixed", params=config.params)
         assert solution.success
-        errors.append(np.max(np.abs(solution.q - pais_uhlenbeck._exact(solution.t,
-                                                                        config["params"]))))
+        errors.append(np.max(np.abs(solution.q - pais_uhlenbeck.exact_motion(solution.t,
+                                                                        config.params))))
     assert abs(fitted_order(steps, errors) - 2) < 0.1, errors
 
 
@@ -55,7 +54,7 @@ def test_energy_is_conserved_along_a_variable_step_solution(pais_uhlenbeck):
     config = pais_uhlenbeck.resolve()
     t_a, q_a, t_b, q_b = pais_uhlenbeck.ends(config, 41, (0.0, 2.0))
     solution = solve_bvp_higher(pais_uhlenbeck.system, t_a, q_a, t_b, q_b, nodes=41,
-                                scheme="vddvp", params=config["params"])
+                                scheme="vddvp", params=config.params)
     assert solution.success, solution.message
     energy = solution.stats["energy"]
     assert energy.size == 41 - 2 * 2 + 1
@@ -63,7 +62,7 @@ def test_energy_is_conserved_along_a_variable_step_solution(pais_uhlenbeck):
     assert solution.tau.max() / solution.tau.min() > 2
     # fixed steps on the same data do not conserve it
     fixed = solve_bvp_higher(pais_uhlenbeck.system, t_a, q_a, t_b, q_b, nodes=41,
-                             scheme="fixed", params=config["params"])
+                             scheme="fixed", params=config.params)
     assert np.ptp(fixed.stats["energy"]) > 1e-3
 
 
@@ -73,7 +72,7 @@ def test_energy_march_conserves_energy_while_it_runs(pais_uhlenbeck):
     config = pais_uhlenbeck.resolve({"t0": 0.7, "tau0": 0.02, "t_end": 3.7})
     t_init, q_init = pais_uhlenbeck.start(config)
     solution = march_higher(pais_uhlenbeck.system, t_init, q_init, t_end=3.7, scheme="vddvp",
-                            params=config["params"])
+                            params=config.params)
     assert solution.steps > 10 and np.all(solution.tau > 0)
     assert np.ptp(solution.stats["energy"]) < 1e-10
     assert np.all(np.isfinite(solution.q))

@@ -21,9 +21,9 @@ from ddvp_nlp.solvers.higher.solve import bvp_request, solve_bvp_higher
 def _solve(name, nodes, scheme, solver, **kwargs):
     scene = load_scene(name)
     config = scene.resolve()
-    t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary["t_span"])
+    t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary.t_span)
     return scene, config, solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
-                                           scheme=scheme, params=config["params"],
+                                           scheme=scheme, params=config.params,
                                            options=GridOptions(solver=solver), **kwargs)
 
 
@@ -47,7 +47,7 @@ def test_newton_and_ipopt_give_the_same_nodes(name, nodes, scheme, iterations):
 def test_fixed_steps_reproduce_the_cubic_to_round_off():
     scene, config, solution = _solve("spline", 21, "fixed", "newton")
     assert solution.success and solution.stats["iterations_total"] == 1
-    assert np.max(np.abs(solution.q - scene._exact(solution.t, {}))) < 1e-13
+    assert np.max(np.abs(solution.q - scene.exact_motion(solution.t, {}))) < 1e-13
 
 
 def test_spline_with_released_times_succeeds_whatever_ipopt_said(tmp_path):
@@ -91,9 +91,9 @@ def test_verification_decides_and_quotes_the_solver():
 
 
 def _request(scene, config, nodes, scheme="vddvp"):
-    t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary["t_span"])
+    t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary.t_span)
     return bvp_request(scene.system, t_a, q_a, t_b, q_b, nodes=nodes, scheme=scheme,
-                       params=config["params"], options=GridOptions(solver="newton"))
+                       params=config.params, options=GridOptions(solver="newton"))
 
 
 def test_a_problem_with_no_solution_ends_in_failure_with_its_residuals():
@@ -192,4 +192,4 @@ def test_ten_thousand_nodes_in_one_newton_iteration():
     scene, _, solution = _solve("spline", 10_000, "fixed", "newton")
     assert solution.success, solution.message
     assert solution.stats["iterations_total"] == 1
-    assert np.max(np.abs(solution.q - scene._exact(solution.t, {}))) < 1e-2
+    assert np.max(np.abs(solution.q - scene.exact_motion(solution.t, {}))) < 1e-2

@@ -143,3 +143,22 @@ def test_parameter_value_of_the_wrong_type_in_a_scene():
     scene = load_scene("kepler")
     with expect("parameter 'e' must be a real number, got '0.5' of type str"):
         scene.resolve({"e": "0.5"})
+
+
+def test_scene_settings_are_objects_not_dicts():
+    """A scene's fixed-endpoint and periodic defaults have one shape, a dataclass; the dicts
+    they used to be are refused by name."""
+    from ddvp_nlp import Endpoints, PeriodicSettings, Scene
+
+    def H(q, p, t):
+        return (p[0] ** 2 + q[0] ** 2) / 2
+
+    with expect("scene 'scene': boundary must be Endpoints(...) or None, got {'nodes': 5}"):
+        Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0, boundary={"nodes": 5})
+    with expect("scene 'scene': periodic must be PeriodicSettings(...) or None, got "
+                "{'energy': 0.5}"):
+        Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0, periodic={"energy": 0.5})
+    scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0,
+                  boundary=Endpoints(q_start=[1.0], q_end=[0.0], t_span=(0.0, 1.0)),
+                  periodic=PeriodicSettings(energy=0.5))
+    assert scene.resolve_boundary({}).nodes == 101 and scene.periodic.section == "p1=0"

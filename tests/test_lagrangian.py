@@ -5,10 +5,18 @@ import numpy as np
 import pytest
 from conftest import fitted_order
 
-from ddvp_nlp import InputError, Lagrangian, LagrangianSystem, Scene, Scheme, load_scene, march
+from ddvp_nlp import (
+    InputError,
+    Lagrangian,
+    LagrangianSystem,
+    Scene,
+    Scheme,
+    load_scene,
+    march,
+    solve_bvp,
+)
 from ddvp_nlp.cli import main
 from ddvp_nlp.discrete.equations import interval_energies
-from ddvp_nlp.solvers.bvp.solve import solve_bvp
 
 
 def _pendulum_l(q, v, t):

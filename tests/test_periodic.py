@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from ddvp_nlp import GridOptions
+from ddvp_nlp import GridOptions, solve_periodic
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
 from ddvp_nlp.solution import Status
-from ddvp_nlp.solvers.periodic.solve import solve_periodic
 
 
 def fitted_order(sizes, errors) -> float:
@@ -112,9 +111,9 @@ def test_figure_eight_closes_with_simos_period_and_one_curve():
     discretisation error)."""
     scene = load_scene("figure_eight")
     data = scene.periodic
-    solution = solve_periodic(scene.system, energy=data["energy"], nodes=600,
-                              section=data["section"], start=data["start"],
-                              integrals=data["integrals"])
+    solution = solve_periodic(scene.system, energy=data.energy, nodes=600,
+                              section=data.section, start=data.start,
+                              integrals=data.integrals)
     assert solution.success, solution.message
     period = solution.stats["period"]
     assert abs(period - 6.32591398) < 1e-3

@@ -9,11 +9,9 @@ import pytest
 from scipy.integrate import quad
 from scipy.special import ellipk
 
-from ddvp_nlp import GridOptions
+from ddvp_nlp import GridOptions, solve_periodic, solve_periodic_family
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
-from ddvp_nlp.solvers.periodic.family import solve_periodic_family
-from ddvp_nlp.solvers.periodic.solve import solve_periodic
 
 
 def fitted_order(sizes, errors) -> float:
@@ -118,8 +116,9 @@ def test_rotation_without_an_angle_does_not_close():
 @pytest.mark.parametrize("name, increasing", [("loop", False), ("across", True)])
 def test_henon_heiles_families_through_x0_leave_the_invariant_plane(name, increasing):
     scene = load_scene("henon_heiles")
-    data = scene.periodic["families"][name]
-    family = solve_periodic_family(scene.system, [0.02, 0.06, 0.1], nodes=100, **data)
+    data = scene.periodic.families[name]
+    family = solve_periodic_family(scene.system, [0.02, 0.06, 0.1], nodes=100,
+                                   section=data.section, start=data.start)
     periods = []
     for _, orbit in family:
         assert orbit.success, orbit.message

@@ -29,10 +29,11 @@ def _describe(name: str) -> str:
     if isinstance(scene, HigherOrderScene):
         lines.append(f"{indent}start: the exact motion at {2 * scene.order} nodes tau0 apart "
                      "from t0")
-        ends = dict(scene.boundary or {})
-        span = ends.get("t_span", (scene.t0, scene.t_end))
+        ends = scene.boundary
+        span = (ends and ends.t_span) or (scene.t0, scene.t_end)
         lines.append(f"{indent}fixed ends: the exact motion's {scene.order} first and last "
-                     f"nodes, t in [{span[0]:g}, {span[1]:g}], {ends.get('nodes', 41)} nodes")
+                     f"nodes, t in [{span[0]:g}, {span[1]:g}], {(ends and ends.nodes) or 41} "
+                     f"nodes")
     else:
         config = scene.resolve({})
         start = (f"p0={_vector(config.p0)}" if config.p0 is not None
@@ -48,7 +49,7 @@ def _vector(values) -> str:
 
 
 def _boundary(scene) -> str:
-    if not scene.boundary:
+    if scene.boundary is None:
         return "none (give --set q_start=... --set q_end=... --set t_end=... --nodes N)"
     data = scene.resolve_boundary({})
     return (f"q_start={_vector(data.q_start)} q_end={_vector(data.q_end)}, "

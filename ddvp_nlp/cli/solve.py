@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..discrete.scheme import RULES, Scheme
 from ..errors import InputError
-from ..scenes import load_scene
+from ..scenes import Endpoints, PeriodicSettings, load_scene
 from ..solvers.options import GridOptions, Output
 from . import options
 from .interrupts import INTERRUPTS, Stopped
@@ -126,7 +126,7 @@ def _method_names() -> tuple:
 
 def _resolved(config) -> dict:
     """The resolved settings of a run as plain values (what the folder's hash is taken of)."""
-    return config if isinstance(config, dict) else config.as_dict()
+    return config.as_dict()
 
 
 def _scheme(args, higher: bool) -> Scheme:
@@ -246,20 +246,20 @@ def _march_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import march_higher
 
     t_init, q_init = scene.start(config)
-    return march_higher(scene.system, t_init, q_init, t_end=config["t_end"],
-                        scheme=scheme.rule, params=config["params"], tol=args.tol,
+    return march_higher(scene.system, t_init, q_init, t_end=config.t_end,
+                        scheme=scheme.rule, params=config.params, tol=args.tol,
                         max_steps=args.max_steps, time_limit=args.time_limit), None
 
 
 def _bvp_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import solve_bvp_higher
 
-    boundary = dict(scene.boundary or {})
-    nodes = args.nodes or boundary.get("nodes", 41)
-    t_span = boundary.get("t_span", (config["t0"], config["t_end"]))
+    boundary = scene.boundary or Endpoints()
+    nodes = args.nodes or boundary.nodes or 41
+    t_span = boundary.t_span or (config.t0, config.t_end)
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
-                            scheme=scheme.rule, params=config["params"],
+                            scheme=scheme.rule, params=config.params,
                             options=GridOptions(solver=args.solver, tol=args.tol)), None
 
 
@@ -277,14 +277,12 @@ def run_periodic(args) -> int:
     from ..solvers.periodic.solve import check_periodic, solve_periodic
 
     scene = load_scene(args.scene)
-    defaults = dict(getattr(scene, "periodic", None) or {})
+    defaults = getattr(scene, "periodic", None) or PeriodicSettings()
     params = parse_settings(args.settings)
-    settings = {"section": args.section or defaults.get("section", "p1=0"),
-                "scheme": args.scheme, "params": params, "start": defaults.get("start"),
-                "integrals": defaults.get("integrals", ()),
-                "angles": defaults.get("angles", ()),
-                "options": options.grid_options(args)}
-    nodes = args.nodes if args.nodes is not None else defaults.get("nodes", 200)
+    settings = {"section": args.section or defaults.section, "scheme": args.scheme,
+                "params": params, "start": defaults.start, "integrals": defaults.integrals,
+                "angles": defaults.angles, "options": options.grid_options(args)}
+    nodes = args.nodes if args.nodes is not None else defaults.nodes
     guess = _bvp_guess(args.guess) if args.guess else None
     if args.family is not None:
         energies = _family_energies(args.family)
@@ -299,7 +297,7 @@ def run_periodic(args) -> int:
                   f"residuals canonical {row['canonical']:.2e}, closure {row['closure']:.2e}")
         print(f"  written to {out}/ (family.csv, family.png, E=... folders)")
         return 0 if all(row["status"] == "success" for row in rows) else 1
-    energy = args.energy if args.energy is not None else defaults.get("energy")
+    energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:
         raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
     check_periodic(scene.system, energy=energy, nodes=nodes, **settings)

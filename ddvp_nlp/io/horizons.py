@@ -23,7 +23,7 @@ from ..studies.horizons import (
 )
 from ..studies.methods import get_methods
 from .runs import prepare_folder
-from .work_precision import _in_words, _plot_method, work_precision
+from .work_precision import in_words, plot_method, work_precision
 
 
 def work_precision_horizons(scene: Scene, horizons, *, unit: float = 1.0,
@@ -94,7 +94,7 @@ def plot_horizons(results: dict, path, *, title: str, unit: float) -> None:
         for row_index, (kind, label) in enumerate(kinds):
             ax = axes[row_index][column]
             for method in methods_in(rows):
-                _plot_method(ax, rows, method, kind, names.index(method))
+                plot_method(ax, rows, method, kind, names.index(method))
             ax.set_title(f"T = {horizon:g}" + (f" x {unit:.4g}" if unit != 1 else ""),
                          fontsize=10)
             ax.set_xlabel("run time [s]")
@@ -138,7 +138,7 @@ def horizons_summary(scene, results, notes, growth, target, unit) -> str:
         lines += [f"## T = {horizon:g}", ""]
         for kind, label in ERROR_KINDS.items():
             lines += [f"- {label.split(' max')[0]}: "
-                      + _in_words(rows, kind, methods_in(rows)).removeprefix("In words: ")]
+                      + in_words(rows, kind, methods_in(rows)).removeprefix("In words: ")]
         if notes[horizon]:
             lines += ["- Left out: " + "; ".join(notes[horizon]) + "."]
         lines.append("")

@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..solution import Solution  # noqa: E402
-from .runs import _json_default  # noqa: E402
+from .runs import json_default  # noqa: E402
 
 FAMILY_COLUMNS = ("energy", "status", "period", "nodes", "canonical", "energy_equation",
                   "closure", "unfolding", "iterations")
@@ -45,7 +45,7 @@ def write_periodic(out: Path, scene, solution: Solution, params: dict, plot: boo
              canonical_residual=solution.canonical_residual,
              energy_residual=solution.energy_residual)
     meta = periodic_meta(scene, solution, params)
-    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=_json_default))
+    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=json_default))
     if plot:
         plot_orbit(solution, f"{scene.name}: E = {meta['energy']:.6g}, "
                              f"T = {meta['period']:.8g} ({meta['status']})", out / "orbit.png")

@@ -47,7 +47,7 @@ def settings_hash(settings: dict) -> str:
     give equal hashes, in any process."""
     import hashlib
 
-    text = json.dumps(settings, sort_keys=True, default=_json_default)
+    text = json.dumps(settings, sort_keys=True, default=json_default)
     return hashlib.sha256(text.encode()).hexdigest()[:8]
 
 
@@ -142,7 +142,7 @@ def save_run(out: Path, arrays: dict, meta: dict, draw=None) -> dict:
         scratches[FIGURE] = atomic.write_scratch(out, FIGURE, draw) if draw else None
         meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size),
                 "result_sha256": atomic.sha256_of(scratches[RESULT])}
-        text = json.dumps(meta, indent=2, default=_json_default) + "\n"
+        text = json.dumps(meta, indent=2, default=json_default) + "\n"
         scratches[META] = atomic.write_scratch(out, META, lambda path: path.write_text(text))
     except BaseException:  # an OutputError, or an interrupt while drawing: leave no scratch
         atomic.discard(scratches.values())
@@ -264,10 +264,10 @@ def _checks(scene: Scene, config, solution: Solution) -> dict:
 def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution):
     """Arrays, metadata and figure of a run of a scene with higher derivatives."""
     energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
-    exact = scene._exact(solution.t, config["params"])
+    exact = scene.exact_motion(solution.t, config.params)
     meta = {"command": command, "scene": scene.name, "scheme": solution.scheme,
-            "order": scene.order, "params": {**config["params"], "t0": config["t0"],
-                                             "tau0": config["tau0"], "t_end": config["t_end"]},
+            "order": scene.order, "params": {**config.params, "t0": config.t0,
+                                             "tau0": config.tau0, "t_end": config.t_end},
             **_steps_meta(solution),
             "energy_error": float(np.ptp(energy)) if energy.size else 0.0,
             "energy_error_kind": "spread of E^(k) = sum_m lambda_m . v_m - L over the run",
@@ -281,7 +281,7 @@ def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solut
     return {"t": solution.t, "q": solution.q, "p": solution.p, "energy": energy}, meta, draw
 
 
-def _json_default(value):
+def json_default(value):
     if isinstance(value, (np.floating, np.integer)):
         return value.item()
     if isinstance(value, np.ndarray):

@@ -84,7 +84,7 @@ def plot_work_precision(rows, path, *, title):
     fig, axes = plt.subplots(1, len(ERROR_KINDS), figsize=(12, 4.6), constrained_layout=True)
     for ax, (kind, label) in zip(axes, ERROR_KINDS.items(), strict=True):
         for i, method in enumerate(methods_in(rows)):
-            _plot_method(ax, rows, method, kind, i)
+            plot_method(ax, rows, method, kind, i)
         ax.set_xlabel("run time [s] (best of repeats, build excluded)")
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
@@ -94,7 +94,7 @@ def plot_work_precision(rows, path, *, title):
     plt.close(fig)
 
 
-def _plot_method(ax, rows, method, kind, index):
+def plot_method(ax, rows, method, kind, index):
     markers = "os^vD<>ph*"
     good = [r for r in succeeded(rows, method) if r[kind] > 0]
     failed = [r for r in rows if r["method"] == method and r["status"] != "success"
@@ -119,7 +119,7 @@ def summary(result: WorkPrecision) -> str:
         lines += ["", "Left out on this scene: " + "; ".join(result.left_out) + "."]
     for kind, label in ERROR_KINDS.items():
         lines += _ranking_section(rows, kind, label.split(" max")[0])
-        lines += ["", _in_words(rows, kind, methods)]
+        lines += ["", in_words(rows, kind, methods)]
     lines += ["", "## vddvp against DOP853 at equal energy error", "", _ratio_text(rows)]
     lines += failure_table(rows, "Runs that did not reach t_end",
                            ("method", lambda r: f"`{r['method']}`"),
@@ -177,7 +177,7 @@ def _ranking_section(rows, kind, name) -> list[str]:
     return lines
 
 
-def _in_words(rows, kind, methods) -> str:
+def in_words(rows, kind, methods) -> str:
     """Which method to use, per range of error levels, in one sentence each."""
     spans = winner_spans(rows, kind)
     if not spans:

@@ -67,7 +67,7 @@ class HamiltonianSystem:
             raise InputError(
                 f"{kind} of {self.name!r} failed on symbolic input: "
                 f"{type(exc).__name__}: {exc}") from exc
-        expression = _as_scalar_expression(value, self.name, kind)
+        expression = as_scalar_expression(value, self.name, kind)
         given = ca.vertcat(self.q, second, self.t, self.theta)
         stray = [s.name() for s in ca.symvar(expression) if not ca.depends_on(s, given)]
         if stray:
@@ -98,7 +98,7 @@ class HamiltonianSystem:
 
 
 
-def _as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
+def as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
     if isinstance(value, (int, float, np.integer, np.floating)):
         value = ca.SX(float(value))
     if isinstance(value, ca.MX):

@@ -42,9 +42,9 @@ class HigherOrderSystem:
         except Exception as exc:
             raise InputError(f"lagrangian of {name!r} failed on symbolic input: "
                              f"{type(exc).__name__}: {exc}") from exc
-        from .hamiltonian import _as_scalar_expression
+        from .hamiltonian import as_scalar_expression
 
-        self.L = _as_scalar_expression(value, name, "lagrangian")
+        self.L = as_scalar_expression(value, name, "lagrangian")
         given = ca.vertcat(self.q, *self.v, self.t, self.theta)
         stray = [s.name() for s in ca.symvar(self.L) if not ca.depends_on(s, given)]
         if stray:

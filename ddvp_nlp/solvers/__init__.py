@@ -1,33 +1,39 @@
-"""Solvers: turning the discrete equations into trajectories.
+"""Solvers: the discrete equations of ``discrete/`` turned into trajectories.
 
-- ``driver.py``: the one step loop and the contract of a stepper (numbered rules).
-- ``march.py``: initial-value problems, node by node: input checks, building the parts below,
-  the driver call, the ``Solution``.
+One folder per family, around a small core:
 
-  - ``steps.py``: one march step as CasADi functions, and its careful solve (Newton, retries).
-  - ``acceptance.py``: when a step is accepted (residuals, step bounds), for both paths.
-  - ``least_squares.py``: Kane-Marsden-Ortiz's step where an energy step has no root.
-  - ``chunk.py``: many march steps per call in compiled CasADi code, inputs and outputs named
-    in one layout; ``compiler.py``: finding gcc and caching compiled libraries.
-  - ``stepper.py``: the careful, compiled and composite steppers the driver runs.
-  - ``monitors.py``: the energy guard and the solvability monitor.
-- ``ensemble.py``: ``march_ensemble``, many initial states, each marched by ``march``, split
-  across worker processes that inherit the loaded compiled chunk.
-- ``bvp.py``: fixed-endpoint problems as one NLP (IPOPT) or one Newton system.
-- ``periodic.py``: periodic orbits at a prescribed energy on a closed grid (node times free,
-  an unfolding parameter; the equation count in its docstring); ``periodic_assembly.py`` its
-  residual and sparse Jacobian, ``periodic_start.py`` its starts (a march from the section to
-  its return, or a user's guess resampled).
-- ``higher.py``: the same two for higher-derivative Lagrangians.
-- The integrators users would pick instead, each a stepper of the driver, compiled like the
-  march: ``baselines.py`` (Stormer-Verlet kick-drift-kick and drift-kick-drift (``leapfrog``),
-  RK4, and what every compiled baseline shares), ``avf.py`` (the averaged vector field method),
-  ``verlet_adaptive.py`` (reversible adaptive Stormer-Verlet), ``lee_left.py`` (T.D. Lee's
-  left-point scheme), ``scipy_dop853.py`` (scipy's DOP853).
-- ``integrator.py``: what a method of the comparison declares about itself (order, symplectic,
-  energy-conserving, knob, where it applies), beside its implementation; ``paper_schemes.py``
-  declares the paper's own three (vddvp, lee, midpoint).
+- ``march/``: initial-value problems node by node (``march``, ``march_ensemble``): the step
+  equations as functions, the march's Newton (careful and compiled), the steppers, the monitors.
+- ``grid/``: what every whole-grid problem shares: the contract of an assembly
+  (``GridProblem``), the request (``GridRequest``), block maps, the banded LU, the grid's one
+  Newton and its one IPOPT build.
+- ``bvp/``: fixed-endpoint problems (``solve_bvp``) on the node-interleaved banded assembly.
+- ``periodic/``: periodic orbits at a prescribed energy and their families (``solve_periodic``,
+  ``solve_periodic_family``).
+- ``higher/``: higher-derivative Lagrangians, marched and on a grid (``march_higher``,
+  ``solve_bvp_higher``).
+- ``baselines/``: the integrators the comparison runs (the paper's schemes and what users would
+  pick instead), each a stepper of the one step loop, in one registry.
+- The core: ``options.py`` (the option objects every solver takes), ``driver.py`` (the one
+  step loop and the contract of a stepper), ``accuracy.py`` (the accuracy check that does not
+  trust the scheme's equations), ``dense.py`` (the interpolant behind ``Solution.at``),
+  ``compiler.py`` (finding gcc, compiling and caching generated code).
 
-Every solver returns a ``Solution`` whose failures are a status, never an exception. May import:
-``discrete``, ``physics``, ``solution``, ``errors``, ``validation``, ``cache``.
+Every solver keeps these rules:
+
+1. Its inputs are checked before anything is built: a bad value is an ``InputError`` that
+   names the argument (or the option's field) and the value.
+2. It returns a ``Solution``; a numerical failure is a status on it with a message, never an
+   exception, and every accepted node is kept.
+3. Success is decided by the returned points' own unscaled residuals, recomputed after the
+   solve, and by the accuracy check against the exact flow; what a solver said is quoted in the
+   message, never trusted.
+4. Its options are objects (``options.py``) passed in the call; nothing is configured by a
+   module global.
+5. The equations come from ``discrete/`` and are written nowhere here.
+
+What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``
+and ``march/`` import only the core; ``baselines/`` the core and ``march/``; ``bvp/`` and
+``periodic/`` the core, ``grid/`` and ``march/`` (their starts march); ``higher/`` the core and
+``grid/``. The package as a whole imports ``discrete``, ``physics`` and the base modules.
 """

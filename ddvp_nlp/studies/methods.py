@@ -1,11 +1,12 @@
-"""The registry of every integrator the comparison runs: one line per method.
+"""Every integrator the comparison runs, as the studies see it.
 
-Each method states its traits once, beside its implementation under ``solvers/`` (a
+Each method states its traits once, beside its implementation under ``solvers/baselines/`` (a
 :class:`~ddvp_nlp.solvers.baselines.integrator.Integrator` constant: name, what it is, order,
 symplectic, energy-conserving, knob, whether it applies to a system and why not, whether it
 repeats another method there). A :class:`Method` is that integrator as the studies see it, with
 the default knob values of a sweep. Adding a method to the comparison: declare its
-``Integrator`` in its implementation module, then add one line to ``METHODS`` below.
+``Integrator`` in its implementation module, then add it to ``solvers/baselines``'
+``INTEGRATORS`` (the contract is in that package's docstring).
 """
 
 from __future__ import annotations
@@ -15,11 +16,8 @@ import numpy as np
 from ..errors import InputError
 from ..scenes import RunConfig
 from ..solution import Status
-from ..solvers.baselines import avf, lee_left, paper_schemes, verlet_adaptive
-from ..solvers.baselines import dop853 as scipy_dop853
-from ..solvers.baselines import fixed_step as baselines
-from ..solvers.baselines.dop853 import dop853  # noqa: F401 (the reference solution of the studies)
-from ..solvers.baselines.integrator import Integrator
+from ..solvers.baselines import INTEGRATORS, Integrator
+from ..solvers.baselines.fixed_step import step_residuals
 
 
 class Method(Integrator):
@@ -34,18 +32,7 @@ class Method(Integrator):
         return [largest / 2 ** j for j in range(halvings + 1)]
 
 
-METHODS: dict[str, Method] = {m.name: Method(**m.traits()) for m in (
-    paper_schemes.VDDVP,
-    paper_schemes.LEE,
-    paper_schemes.MIDPOINT,
-    baselines.STORMER_VERLET,
-    baselines.LEAPFROG,
-    verlet_adaptive.VERLET_ADAPTIVE,
-    avf.AVF,
-    baselines.RK4,
-    scipy_dop853.DOP853,
-    lee_left.LEE_LEFT,
-)}
+METHODS: dict[str, Method] = {m.name: Method(**m.traits()) for m in INTEGRATORS}
 
 
 def get_methods(names) -> list[Method]:
@@ -78,7 +65,7 @@ def own_residuals(system, name: str, solution, theta) -> np.ndarray | None:
     equation on its nodes; the march's schemes report their own (``canonical_residual``)."""
     if name in _STEP_EQUATIONS:
         z = np.hstack([solution.q, solution.p])
-        return baselines.step_residuals(system, _STEP_EQUATIONS[name], solution.t, z, theta)
+        return step_residuals(system, _STEP_EQUATIONS[name], solution.t, z, theta)
     if name in MARCHED:
         return solution.canonical_residual
     return None

@@ -1,8 +1,9 @@
-"""The averaged vector field method (``discrete/avf.py``) as a compiled fixed-step baseline.
+"""The averaged vector field method's step (``discrete/avf.py``), for the compiled fixed-step
+baseline of ``fixed_step.py``.
 
 Each step solves the AVF equation for ``z_{k+1}`` by CasADi's ``fast_newton`` from the RK4
-predictor, in the same compiled chunks as the explicit baselines (``baselines.py``); a step is
-kept while finite and while its equation holds to ``RESIDUAL_TOL max(1, |z|)``. Order 2,
+predictor, in the same compiled chunks as the explicit baselines; a step is kept while finite
+and while its equation holds to ``fixed_step.RESIDUAL_TOL max(1, |z|)``. Order 2,
 symmetric, conserves autonomous ``H`` at the nodes (exactly, up to round-off, for polynomial
 ``H`` of degree at most 6; see ``discrete/avf.py`` for the others); not symplectic.
 """
@@ -12,11 +13,9 @@ from __future__ import annotations
 import casadi as ca
 
 from ...cache import cached
-from ...discrete.avf import GAUSS_NODES, avf_residual
+from ...discrete.avf import avf_residual
 from ...discrete.explicit import rk4_step
 from ...physics.hamiltonian import HamiltonianSystem
-from . import fixed_step as baselines
-from .integrator import Integrator
 
 NEWTON_OPTIONS = {"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 12, "error_on_fail": False}
 
@@ -37,10 +36,3 @@ def avf_step(system: HamiltonianSystem) -> ca.Function:
         return ca.Function("avf", [z, t, tau, system.theta],
                            [solved, ca.norm_inf(residual(solved, w))])
     return cached(system, "avf_step", build)
-
-
-baselines.IMPLICIT_STEPS["avf"] = (avf_step, avf_residual)
-
-AVF = Integrator("avf", f"averaged vector field (Quispel-McLaren), {GAUSS_NODES}-point "
-                 "Gauss-Legendre segment integral", order=2, symplectic=False,
-                 energy_conserving=True, knob="tau", run=baselines.fixed_step_run_of("avf"))

@@ -1,16 +1,15 @@
-"""The explicit schemes users would pick instead, run the same way as the march: compiled chunks.
+"""The fixed-step schemes users would pick instead, run the same way as the march: compiled
+chunks.
 
 - Stormer-Verlet for separable ``H = T(p) + V(q, t)``, order 2, symplectic, in both forms
   (``discrete/explicit.py``): ``stormer_verlet`` kick-drift-kick, ``leapfrog`` drift-kick-drift.
-
 - Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
   energy-conserving.
+- The averaged vector field method (``avf.py``), order 2, symmetric, energy-conserving for
+  autonomous ``H``, not symplectic: an implicit step map, listed in :data:`IMPLICIT_STEPS`.
 
 They march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite
-and, for an implicit step map (``avf.py``), while its own residual is under the tolerance. Also
-here, for every compiled baseline (``lee_left.py``, ``verlet_adaptive.py`` too): ``CHUNK``, the
-named columns of a chunk's rows (:class:`Columns`), :func:`load` (compiled, called through
-numpy buffers) and :func:`solution_of`.
+and, for an implicit step map, while its own residual is under the tolerance.
 """
 
 from __future__ import annotations
@@ -22,89 +21,15 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
+from ...discrete.avf import GAUSS_NODES, avf_residual
 from ...discrete.explicit import FIXED_STEPS
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem, not_separable
 from ...solution import Solution, Status
-from ..compiler import FunctionBuffer, cache_folder, compile_function
 from ..driver import Advance, Nodes, describe_phase_space, drive
+from .avf import avf_step
+from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
-
-# Steps per compiled call, whatever the run's length: one compile per scene and method (a size
-# per run length cost a gcc compile of 0.4 s for each size); a short run throws away the rest
-# of its one chunk (1024 steps of an explicit method: well under a millisecond).
-CHUNK = 1024
-
-
-class Columns:
-    """Named columns of a compiled chunk's state or output rows, in order: the one place where a
-    row is both written (:meth:`pack`, CasADi) and read (:meth:`split`, :meth:`unpack`)."""
-
-    def __init__(self, **widths: int):
-        self.widths = widths
-
-    def _slices(self):
-        start = 0
-        for name, width in self.widths.items():
-            yield name, width, slice(start, start + width)
-            start += width
-
-    def pack(self, **parts) -> ca.SX:
-        """The row as one CasADi column, from its parts by name."""
-        if parts.keys() != self.widths.keys():
-            raise ValueError(f"a row has the columns {list(self.widths)}, got {list(parts)}")
-        return ca.vertcat(*(parts[name] for name in self.widths))
-
-    def join(self, **parts) -> np.ndarray:
-        """The row as one numpy vector, from its parts by name."""
-        return np.concatenate([np.atleast_1d(np.asarray(parts[name], float))
-                               for name in self.widths])
-
-    def split(self, row) -> dict:
-        """The parts of one row (a CasADi or numpy vector) by name."""
-        return {name: row[part.start] if width == 1 else row[part]
-                for name, width, part in self._slices()}
-
-    def unpack(self, rows: np.ndarray) -> dict[str, np.ndarray]:
-        """The columns of ``rows`` (one row per step) by name: ``(m,)`` for a width of one, else
-        ``(m, width)``."""
-        return {name: rows[:, part.start] if width == 1 else rows[:, part]
-                for name, width, part in self._slices()}
-
-
-class Buffered:
-    """A chunk function called through ``Function.buffer`` (numpy arrays, no DM conversions),
-    answering as a DM call would: each output the ``(rows, columns)`` array ``np.asarray`` makes
-    of the DM (a copy: the next call overwrites the buffers; callers keep slices of it)."""
-
-    def __init__(self, function: ca.Function):
-        self.function = function
-        self._buffer = FunctionBuffer(function)
-
-    def __call__(self, *args) -> list[np.ndarray]:
-        outputs = self._buffer(*(np.asarray(a, float).T for a in args))
-        return [out.copy().T for out in outputs]
-
-
-def load(function: ca.Function, compiler, cache_dir) -> tuple[Buffered, float]:
-    """``function`` compiled (cached) where a compiler is given, else as it is, as a
-    :class:`Buffered` call; and the seconds spent compiling."""
-    if compiler is None:
-        return Buffered(function), 0.0
-    started = time.perf_counter()
-    compiled = compile_function(function, compiler, cache_folder(cache_dir))
-    return Buffered(compiled), time.perf_counter() - started
-
-
-def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=None,
-                canonical_residual=None, stats=None) -> Solution:
-    """A baseline's :class:`Solution` from its nodes ``t``, ``z = (q, p)``."""
-    return Solution(t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
-                    scheme=scheme,
-                    energy_residual=np.zeros(0) if energy_residual is None else energy_residual,
-                    canonical_residual=(np.zeros(0) if canonical_residual is None
-                                        else canonical_residual),
-                    timing=timing, stats=stats or {})
 
 
 def _fixed_layout(n: int) -> tuple[Columns, Columns]:
@@ -126,9 +51,8 @@ def step_map(system: HamiltonianSystem, method: str) -> ca.Function:
 
 
 # Implicit fixed-step methods: name -> (the map as in :func:`step_map`, the equation as in
-# :func:`step_equation`), each ``(system) -> Function``, filled in by their own modules
-# (``avf.py``), which import this one.
-IMPLICIT_STEPS: dict = {}
+# :func:`step_equation`), each ``(system) -> Function``.
+IMPLICIT_STEPS = {"avf": (avf_step, avf_residual)}
 
 
 def step_equation(system: HamiltonianSystem, method: str) -> ca.Function:
@@ -154,7 +78,7 @@ def step_residuals(system: HamiltonianSystem, method: str, t, z, theta) -> np.nd
     return np.max(np.abs(r), axis=0)
 
 
-def _fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, cache_dir):
+def fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, cache_dir):
     """``chunk`` steps of ``method`` per call: ``(state, constants) -> (states, rows)``, the
     constants ``(theta, t0, h)``, so that step ``k`` starts at ``t0 + k h``."""
     def build():
@@ -226,7 +150,7 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
     started = time.perf_counter()
     total = max(1, math.ceil((t_end - t0) / tau - 1e-9))
     chunk = CHUNK
-    function, compile_s = _fixed_chunk(system, method, chunk, compiler, cache_dir)
+    function, compile_s = fixed_chunk(system, method, chunk, compiler, cache_dir)
     built = time.perf_counter()
     constants = np.tile(np.concatenate([theta, [t0, (t_end - t0) / total]])[:, None], (1, chunk))
     stepper = _FixedSteps(function, chunk, constants, total, t_end, system.n)
@@ -262,3 +186,6 @@ LEAPFROG = Integrator("leapfrog", "Stormer-Verlet drift-kick-drift (position Ver
                       applies=not_separable)
 RK4 = Integrator("rk4", "classical Runge-Kutta", order=4, symplectic=False,
                  energy_conserving=False, knob="tau", run=fixed_step_run_of("rk4"))
+AVF = Integrator("avf", f"averaged vector field (Quispel-McLaren), {GAUSS_NODES}-point "
+                 "Gauss-Legendre segment integral", order=2, symplectic=False,
+                 energy_conserving=True, knob="tau", run=fixed_step_run_of("avf"))

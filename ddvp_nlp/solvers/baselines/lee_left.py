@@ -26,7 +26,7 @@ from ...physics.hamiltonian import HamiltonianSystem, quadratic_kinetic_matrix
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
 from ..march.newton import NEWTON_OPTIONS
-from .fixed_step import CHUNK, Columns, load, solution_of
+from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
 
 

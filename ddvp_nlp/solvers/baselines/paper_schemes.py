@@ -1,4 +1,4 @@
-"""The paper's schemes as comparison methods, each run by ``march`` (``march.py``).
+"""The paper's schemes as comparison methods, each run by ``march`` (``solvers/march``).
 
 - ``vddvp`` (rule ``vddvp``): the variable-step midpoint scheme, the energy of interval ``k``
   at the previous clock; order 2, symplectic, conserves the midpoint ``H``.
@@ -8,14 +8,14 @@
   steps); order 2, symplectic, does not conserve energy.
 
 The knob is the first step ``tau0`` (the step ``tau`` of ``midpoint``); the march runs in
-compiled chunks of the baselines' one size (``baselines.CHUNK``), so a scene compiles once.
+compiled chunks of the baselines' one size (``chunks.CHUNK``), so a scene compiles once.
 """
 
 from __future__ import annotations
 
 from ..march.solve import march
 from ..options import Compilation, StepControl
-from .fixed_step import CHUNK
+from .chunks import CHUNK
 from .integrator import Integrator
 
 

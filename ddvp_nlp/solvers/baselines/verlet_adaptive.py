@@ -20,7 +20,7 @@ from ...discrete.adaptive_verlet import adaptive_verlet_step, density_parts
 from ...physics.hamiltonian import HamiltonianSystem, not_separable
 from ...solution import Status
 from ..driver import Advance, Nodes, describe_phase_space, drive
-from .fixed_step import CHUNK, Columns, load, solution_of
+from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
 
 # rho's floor relative to its value at q_0: c = kappa_0 / FLOOR_RATIO.

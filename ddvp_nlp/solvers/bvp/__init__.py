@@ -1,5 +1,34 @@
-"""bvp"""
+"""Fixed-endpoint problems: ``solve_bvp``, the whole discrete action's equations on one grid.
+
+Given ``q(t_0)``, ``q(t_end)`` and ``N`` nodes the unknowns are the interior positions, all
+momenta and (energy rules) the interior node times; the equations the canonical equations of
+every interval and the energy equation of every interior node (docs/theory.md sections 2, 4).
+
+Where things are:
+
+- ``solve.py``: ``solve_bvp``: the checks into a ``GridRequest`` whose data is a
+  ``phase.Boundary``, the phases, the verification, the ``Solution``;
+- ``assembly.py``: the node-interleaved system and its banded Jacobian (bandwidth ``3n + 1``
+  whatever ``N``), a ``grid.GridProblem``;
+- ``phase.py``: one solve of one scheme's system by one solver (the grid's Newton or IPOPT);
+- ``ipopt.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
+- ``start.py``: the starts (straight line or shooting, fixed steps on uniform and on
+  predicted times); ``continuation.py``: the continuation in the end position, the start of
+  last resort.
+
+The contract, on top of the grid's (``grid/__init__.py``):
+
+1. The node times stay unknowns (a cumulative sum of steps would make the Jacobian dense) and
+   every step stays above ``tau_floor > 0`` (the time-reversed root is never approached).
+2. A phase that fails leaves the previous phase's point; the final solve starts from the best
+   point the starts reached.
+3. Success is the returned point's own residuals: every canonical residual under ``max(tol,
+   1024 round-offs of the data)``, every energy residual under ``max(tol (t_end - t_0)/(N-1),
+   1024 round-offs of |E|)``, every step positive; the message quotes the solver.
+4. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
+"""
 
 from .solve import solve_bvp
+from .start import predicted_times
 
-__all__ = ["solve_bvp"]
+__all__ = ["predicted_times", "solve_bvp"]

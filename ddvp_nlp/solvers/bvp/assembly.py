@@ -283,7 +283,7 @@ class GridAssembly:
 
     def release(self) -> None:
         """Drop the band store (allocated again by the next evaluation of the Jacobian): the
-        assembly stays cached between solves (``bvp_phase``), its store need not."""
+        assembly stays cached between solves (``phase.py``), its store need not."""
         self._flat = self._ab = self._band_view = None
 
     def _last_block(self, z, ends, theta, body, sink):
@@ -357,7 +357,7 @@ class GridAssembly:
 
         ``blocks`` is what :meth:`evaluate` returned (its store itself, no copy), or dense
         blocks ``(interval (N-1, 2m, 2n), node (N-2, 3m) or None)`` in the layout of
-        :meth:`_entries` (a new array; ``bvp_ipopt_assembly`` builds its pattern from ones)."""
+        :meth:`_entries` (a new array; ``ipopt.py`` builds its pattern from ones)."""
         if isinstance(blocks, BandJacobian):
             return blocks.ab
         N, m = self.layout.nodes, self.layout.m

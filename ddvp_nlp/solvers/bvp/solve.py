@@ -9,18 +9,18 @@ the Jacobian dense) and every step stays above ``tau_floor > 0``, which excludes
 time-reversed root. For a Lagrangian system the interval equations are its discrete Legendre
 transform (``discrete/lagrangian.py``), in the same unknowns.
 
-The system is assembled node by node (``bvp_assembly.py``): its Jacobian is banded, with
+The system is assembled node by node (``assembly.py``): its Jacobian is banded, with
 bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
 
 - ``"newton"``: Newton's method with banded LU, a line search on the residual and the
-  ``tau_floor`` safeguard (``bvp_newton.py``; blocks compiled, band LU in C, ``bvp_band.py``):
+  ``tau_floor`` safeguard (``grid/newton.py``; blocks compiled, band LU in C, ``grid/band.py``):
   ``O(N)`` time and memory per iteration;
-- ``"ipopt"``: IPOPT on the same assembly through callbacks (``bvp_ipopt_assembly.py``), the
-  design's NLP solver;
+- ``"ipopt"``: IPOPT on the same assembly through callbacks (``ipopt.py``, the grid's IPOPT
+  build), the design's NLP solver;
 - ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
   then IPOPT from the same start if Newton's point does not pass the verification.
 
-Starts: ``bvp_start.py`` (straight line or shooting, then fixed steps on uniform and on predicted
+Starts: ``start.py`` (straight line or shooting, then fixed steps on uniform and on predicted
 times, then the times released).
 
 Every returned point is verified by its own unscaled residuals, whatever the solver said

@@ -1,6 +1,6 @@
 """Banded LU with partial pivoting and its solve, compiled: LAPACK's ``dgbtf2`` and ``dgbtrs``
 (no transpose, one right-hand side) written out in C, for the bandwidths of the fixed-endpoint
-Jacobian (``bvp_newton.py``).
+Jacobian (``newton.py``, through ``linear.py``).
 
 Why: the reference ``dgbtf2`` that scipy's OpenBLAS runs for a band this narrow (``kl = 4`` is
 below LAPACK's block size) calls ``idamax``, ``dswap``, ``dscal`` and ``dger`` once per column,

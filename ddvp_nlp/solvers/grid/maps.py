@@ -171,7 +171,7 @@ def evaluate_blocks(system, key, function: ca.Function, inputs, shared,
     :class:`WindowMap` kept per ``system`` and ``key``: compiled when there is a compiler, one
     library for every ``count``. Output ``j`` has shape ``(count, nnz_out(j))``.
 
-    For per-node evaluations of the starts (``bvp_start.site_weights`` maps its function over
+    For per-node evaluations of the starts (``bvp/start.site_weights`` maps its function over
     ``N - 1`` intervals on CasADi's virtual machine, a map built for each ``N``)."""
     count = int(np.shape(inputs[0])[0])
     outputs = [np.empty((count, function.nnz_out(j))) for j in range(function.n_out())]

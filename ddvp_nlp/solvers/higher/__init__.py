@@ -1,4 +1,31 @@
-"""higher"""
+"""Higher-derivative Lagrangians (the paper's case 1): ``march_higher`` and
+``solve_bvp_higher``.
+
+A Lagrangian of order ``l`` couples ``2l + 1`` nodes in its Euler-Lagrange equation at a node,
+so a march starts from ``2l`` nodes and a fixed-endpoint problem fixes ``l`` nodes at each end.
+
+Where things are:
+
+- ``solve.py``: ``march_higher`` (node by node, in the one step loop of ``driver.py``) and
+  ``solve_bvp_higher`` (``bvp_request`` checks its inputs into a ``GridRequest`` whose data is
+  a ``problem.FixedNodes``);
+- ``problem.py``: that data and what follows from it (uniform times, scales, the pins);
+- ``assembly.py``: the system window by window (the window's action and its derivatives), a
+  ``grid.GridProblem``;
+- ``phase.py``: one rule's solve (the grid's Newton with the ``DecreaseOrMonotonicity`` test,
+  through a Newton homotopy where plain Newton does not converge; or IPOPT), and the
+  verification;
+- ``ipopt.py``: the window gradient mapped over the grid for the grid's IPOPT build.
+
+The contract, on top of the grid's (``grid/__init__.py``):
+
+1. Fixed steps are solved first on uniform times; an energy rule releases the times from that
+   solution.
+2. Verification decides, whatever the solver said: the Euler-Lagrange rows in the units of
+   ``q``, the energy rows, the pins held, every step positive, against bounds of each row's own
+   round-off computed from the data, not from the point.
+3. This package imports the core and ``grid/``.
+"""
 
 from .solve import march_higher, solve_bvp_higher
 

@@ -14,16 +14,16 @@ The discrete action ``S_D = sum_k S_k`` (``discrete/higher.py``) is a sum of win
 ``S_k = tau_k L(q_k, v^(k), t_k)`` depends on the ``l + 1`` nodes ``k .. k + l`` only. One
 CasADi function per window returns ``S_k``, its gradient and its dense Hessian in the window's
 ``W = (l + 1) m`` node values; it is mapped over the ``N - l`` windows (``ChunkedMap`` of
-``bvp_assembly.py``: fixed windows of blocks through ``Function.buffer``), so that no expression
+``bvp/assembly.py``: fixed windows of blocks through ``Function.buffer``), so that no expression
 grows with ``N``. The gradient is the windows' gradients added at ``k m + a`` (one
 ``bincount``); the Jacobian of the equations is the action's Hessian, added the same way, its
 rows scaled like the equations, with identity rows for the pins. Its entries lie within
 ``w = W - 1`` of the diagonal whatever ``N``: LAPACK band storage (``banded``) or a sparse
 matrix (``sparse``) are filled by one ``bincount`` each on positions computed once.
 
-The object has the interface ``bvp_newton.newton`` expects of an assembly (``layout`` with
-``bandwidth`` and ``time_index``, ``evaluate``, ``banded``, ``sparse``), so the first-order
-Newton iteration runs on it unchanged.
+The object is a ``grid.problem.GridProblem``, the interface the grid's Newton expects of an
+assembly (``layout`` with ``bandwidth`` and ``time_index``, ``evaluate``, ``banded``,
+``sparse``, ``release``), so the grid's Newton iteration runs on it.
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ EPS = np.finfo(float).eps
 # The round-off bound of a row (``HigherAssembly.round_off`` times machine epsilon: every input's
 # rounding carried through the row in absolute value) is a worst case, not a typical error:
 # Newton aims at TARGET_BOUNDS of it, verification allows ROUND_OFF_BOUNDS. With 1024 (the
-# first-order allowance of ``bvp_phase``, whose scale is |E|, not a bound) IPOPT's last iterate
+# first-order allowance of ``bvp/phase.py``, whose scale is |E|, not a bound) IPOPT's last iterate
 # on the spline's released times at N = 1e3 (500 iterations, Maximum_Iterations_Exceeded), its
 # steps still uniform to 1 % and its energy rows at 2.7e-5, passed: 15 times the bound there.
 TARGET_BOUNDS = 1

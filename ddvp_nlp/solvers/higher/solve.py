@@ -2,8 +2,8 @@
 
 A Lagrangian of order ``l`` couples ``2l + 1`` nodes in its Euler-Lagrange equation at a node, so
 a fixed-endpoint problem fixes ``l`` nodes at each end and a march starts from ``2l`` nodes. The
-fixed-endpoint system is assembled window by window (``higher_assembly.py``) and solved and
-verified in ``higher_bvp.py``.
+fixed-endpoint system is assembled window by window (``assembly.py``) and solved and
+verified in ``phase.py``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,44 @@
-"""march"""
+"""Initial-value problems, node by node: ``march`` and ``march_ensemble``.
+
+Step 0 is a plain implicit step of length ``tau0`` (the ``2n`` canonical equations of interval 0
+for ``z_1``); every later step of an energy rule solves the canonical equations of interval ``k``
+and the energy equation at node ``k`` for ``(z_{k+1}, tau_k)``; the ``fixed`` rule solves the
+canonical equations on uniform steps that end on ``t_end`` (docs/theory.md section 5).
+
+Where things are:
+
+- ``solve.py``: ``march``: the checks (``check_problem``), the build, the driver call, the
+  ``Solution``;
+- ``steps.py``: one step as CasADi functions (residual, predictor, check), from ``discrete/``;
+- ``newton.py``: the march's Newton: the option set of both paths, the careful solve with
+  retries (``NewtonSteps``), and the compiled path's unrolled ``fast_newton``;
+- ``acceptance.py``: when a step is accepted, one test for both paths;
+- ``chunk.py``: many steps per call in compiled CasADi code; ``stepper.py``: the careful,
+  compiled and composite steppers the driver runs;
+- ``least_squares.py``: the step of Kane, Marsden and Ortiz where an energy step has no root;
+- ``monitors.py``: energy guard, solvability, checkpoints, stop requests;
+- ``recheck.py``: every equation recomputed on the returned grid;
+- ``ensemble.py``: ``march_ensemble``, many starts on worker processes.
+
+The contract of the march. An implementer changing it must keep:
+
+1. Every input is checked by ``check_problem`` (and the option objects' own checks) before
+   anything is built; ``march_ensemble`` checks every start the same way first.
+2. Both paths solve the same step functions (``steps.StepFunctions``) with the same Newton
+   options (``newton.NEWTON_OPTIONS``) and accept a step by the same test
+   (``acceptance.Acceptance``): finite values, ``tau > 0``, the step's unscaled residuals under
+   ``StepControl.tol``, the step bounds. The compiled path never changes what is accepted: a
+   step that fails its check inside a chunk is redone by the careful path from the last good
+   node. Their nodes differ by round-off only.
+3. The steppers keep the driver's rules (``driver.py``): accepted nodes in order, a failure as
+   a status with every node before it kept, the cut at ``t_end`` and the monitors left to the
+   driver.
+4. After the loop every equation is recomputed on the returned grid (``recheck.py``) and the
+   accuracy check reports on the whole run; the ``Solution`` carries both.
+5. A Ctrl-C or a stop request ends the march with status ``interrupted`` and every node every
+   monitor saw kept.
+6. This package imports the core and ``options``; never a grid family or a baseline.
+"""
 
 from .ensemble import march_ensemble
 from .solve import march

@@ -14,9 +14,9 @@ the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
-import sys
 import time
 import warnings
 
@@ -145,7 +145,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__)) + os.sep
 
 def _caller_level() -> int:
     """``stacklevel`` of the first frame outside this folder, seen from the caller."""
-    frame, level = sys._getframe(1), 1
+    frame, level = inspect.currentframe().f_back, 1
     while frame is not None and frame.f_code.co_filename.startswith(_HERE):
         frame, level = frame.f_back, level + 1
     return level

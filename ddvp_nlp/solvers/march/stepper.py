@@ -1,6 +1,6 @@
 """The march's steppers for the one-step-loop driver (``driver.py``).
 
-- :class:`CarefulStepper`: one step per call with CasADi's ``newton`` (``steps.py``). Step 0 of
+- :class:`CarefulStepper`: one step per call with CasADi's ``newton`` (``newton.py``). Step 0 of
   the energy rules and every step of the ``fixed`` rule is a fixed-length step on the times of
   the :class:`Clock`; every other step is an energy step, then the step bounds; where an energy
   step fails with a status in ``LEAST_SQUARES_CASES`` and ``breakdown == "least_squares"``, the

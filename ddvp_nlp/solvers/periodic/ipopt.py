@@ -1,12 +1,12 @@
-"""IPOPT on the periodic system of ``periodic_assembly.py``: the same unknowns, the same rows.
+"""IPOPT on the periodic system of ``assembly.py``: the same unknowns, the same rows.
 
-The NLP: unknowns ``x`` in the layout of :class:`~.periodic_assembly.ClosedLayout` (node
+The NLP: unknowns ``x`` in the layout of :class:`~.assembly.ClosedLayout` (node
 states and times interleaved, then the unfolding parameters ``lambda, mu_1 .. mu_r``), so a
-point found here goes through the verification of ``periodic.py`` exactly as Newton's does.
+point found here goes through the verification of ``solve.py`` exactly as Newton's does.
 Constraints, all equalities but the last group::
 
     t_0 = 0,  z_0[section] = value,  g_i . (z_0 - z_0^ref) = 0       (2 + r rows)
-    the m rows of every interval (periodic_assembly.interval_rows)   (N m rows)
+    the m rows of every interval (assembly.interval_rows)   (N m rows)
     z_N - z_0 - shift = 0                                            (2n rows)
     t_{k+1} - t_k >= tau_floor                                       (N rows)
 

@@ -48,11 +48,11 @@ Square count: ``(N+1)(2n+1) + 1`` unknowns (nodes and ``lambda``); equations ``2
    treatment as ``H``: a phase condition ``g_i . (z_0 - z_0^ref) = 0`` (``g_i = J grad I_i`` at
    the start's node 0) and an unfolding parameter ``mu_i`` (``+ tau_k mu_i grad I_i`` in the
    canonical equations); the count stays square with ``r`` more rows and unknowns. The Jacobian
-(``periodic_assembly.py``) is the fixed-endpoint solver's band plus corner entries (closure) and a
-full column (``lambda``): sparse LU (SuperLU), in the Newton iteration of ``bvp_newton.py`` (its
-``tau_floor`` safeguard and Deuflhard's monotonicity line search).
+(``assembly.py``) is the fixed-endpoint solver's band plus corner entries (closure) and a
+full column (``lambda``): sparse LU (SuperLU), in the grid's Newton iteration
+(``grid/newton.py``: its ``tau_floor`` safeguard and Deuflhard's monotonicity line search).
 
-The same rows are also handed to IPOPT (``periodic_ipopt.py``: objective 0, the rows as
+The same rows are also handed to IPOPT (``ipopt.py``: objective 0, the rows as
 equality constraints, the steps bounded below, exact Hessian). ``solver="auto"`` runs Newton and,
 when its point fails the verification, IPOPT from the same start. They differ where the grid is
 far from the start: on the pendulum's rotations the solution's steps have a spike (4x the
@@ -73,7 +73,7 @@ Every returned point, whichever solver found it, is verified by its own unscaled
 step positive), then by the accuracy check of ``accuracy.py``, which does not trust the
 scheme's equations: each interval against one RK4 step of the exact flow, the level against
 ``E``, and the propagated global error estimate (status ``inaccurate`` when a local error
-passes its tolerance). The start: ``periodic_start.py``.
+passes its tolerance). The start: ``start.py``.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ value)``, and ``s`` is the first root of ``H(z(s)) = E`` on ``(0, S_MAX]`` (a sc
 sign change, then Brent's method). No root means that ``E`` is outside the range where the
 section, along that ray, meets the energy surface: an input error.
 
-The march: ``solvers/march.py`` from that point with a small first step (it sets the discrete
+The march: ``solvers/march`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
 in the direction it left it (on an angle coordinate, its value plus any whole turns). Where the
 energy rule's march stops before the return (its energy step breaks down on the pendulum's
