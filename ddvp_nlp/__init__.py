@@ -25,7 +25,7 @@ from .scenes import (
     load_scene,
 )
 from .solution import Solution, Status
-from .solvers.bvp import solve_bvp
+from .solvers.bvp import Shooting, solve_bvp
 from .solvers.higher import march_higher, solve_bvp_higher
 from .solvers.march import march, march_ensemble
 from .solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
@@ -67,7 +67,7 @@ __version__ = _version()
 
 __all__ = ["Compilation", "Endpoints", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
            "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output",
-           "PeriodicSettings", "Scene",
+           "PeriodicSettings", "Scene", "Shooting",
            "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
            "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
            "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

@@ -8,7 +8,7 @@ Cases (issue 16's targets):
 - ``kepler``: e = 0.5 over 3 periods from the pericentre, q(6 pi) from a fixed-step march
   (20000 steps), vddvp, default start (the straight line: it leads to the radial branch, on which
   the energy rule has no solution; the row shows how fast that is reported);
-- ``kepler-shoot``: the same problem, ``guess="march"`` with ``p_start`` the orbit's momentum
+- ``kepler-shoot``: the same problem, ``guess=Shooting(p_start)`` with the orbit's momentum
   (0, sqrt 3): shooting picks the three revolutions;
 - ``kepler-nodes``: the same problem, the march that made the endpoints as the guess (resampled
   onto N nodes).
@@ -70,7 +70,7 @@ REPEATS = {("pendulum", "newton"): 3, ("pendulum", "newton-vm"): 3,
 
 
 def endpoints(case: str):
-    from ddvp_nlp import load_scene, march
+    from ddvp_nlp import Shooting, load_scene, march
 
     system = load_scene(case.split("-")[0]).system
     if case == "pendulum":
@@ -79,7 +79,7 @@ def endpoints(case: str):
     e, T = 0.5, 6 * np.pi
     q0, p0 = [1 - e, 0.0], [0.0, np.sqrt((1 + e) / (1 - e))]
     reference = march(system, q0, p0, (0.0, T), tau0=T / 20000, scheme="fixed", params={"e": e})
-    start = {"kepler": {}, "kepler-shoot": {"guess": "march", "p_start": p0},
+    start = {"kepler": {}, "kepler-shoot": {"guess": Shooting(p0)},
              "kepler-nodes": {"guess": reference}}[case]
     return system, q0, reference.q[-1], (0.0, T), {"e": e}, start
 

@@ -20,6 +20,7 @@ import dask
 from distributed import LocalCluster
 
 from ddvp_nlp.io.stress_report import stress
+from ddvp_nlp.studies.grid import Workers
 
 
 def _equal(x, y) -> bool:
@@ -38,7 +39,7 @@ def main() -> None:
     warnings.simplefilter("ignore", RuntimeWarning)
     with tempfile.TemporaryDirectory() as scratch:
         started = time.perf_counter()
-        stress(f"{scratch}/warm", quick=args.quick, workers=1)  # fills the compiled cache
+        stress(f"{scratch}/warm", quick=args.quick)  # fills the compiled cache
         print(f"warm-up in this process (compiles the chunks once): "
               f"{time.perf_counter() - started:.1f} s")
         timings, results = {}, {}
@@ -48,8 +49,9 @@ def main() -> None:
                 cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                        processes=True, dashboard_address=None)
             try:
-                results[workers] = stress(f"{scratch}/w{workers}", quick=args.quick,
-                                          scheduler=cluster.scheduler_address)
+                results[workers] = stress(
+                    f"{scratch}/w{workers}", quick=args.quick,
+                    workers=Workers(scheduler=cluster.scheduler_address))
             finally:
                 cluster.close()
             timings[workers] = time.perf_counter() - started

@@ -28,8 +28,14 @@ from scipy.special import ellipk
 
 from ddvp_nlp import load_scene
 from ddvp_nlp.io.horizons import work_precision_horizons
-from ddvp_nlp.io.work_precision import _in_words, read_rows, work_precision
-from ddvp_nlp.studies.compare import ERROR_KINDS, cheapest, methods_in, winner_spans
+from ddvp_nlp.io.work_precision import in_words, read_rows, work_precision
+from ddvp_nlp.studies.compare import (
+    ERROR_KINDS,
+    CompareOptions,
+    cheapest,
+    methods_in,
+    winner_spans,
+)
 
 SCENES = {
     "paper_pendulum": {},
@@ -67,10 +73,12 @@ def run_horizons(cases, out: Path, args) -> None:
         name, overrides, unit, _ = HORIZON_CASES[case]
         unit = unit or _pendulum_period()
         started = time.perf_counter()
-        work_precision_horizons(load_scene(name), args.horizon_list, unit=unit, overrides=overrides,
-                                out=out / case, halvings=args.halvings, repeats=args.repeats,
-                                max_steps=args.max_steps, run_budget_s=args.run_budget,
-                                progress=True)
+        work_precision_horizons(load_scene(name), args.horizon_list, out=out / case, unit=unit,
+                                overrides=overrides,
+                                options=CompareOptions(halvings=args.halvings,
+                                                       repeats=args.repeats,
+                                                       max_steps=args.max_steps),
+                                run_budget_s=args.run_budget, progress=True)
         print(f"{case}: {time.perf_counter() - started:.0f} s -> {out / case}/horizons.md",
               flush=True)
 
@@ -91,7 +99,7 @@ def _verdicts(rows) -> list[str]:
     win, as indented list items (computed from the rows)."""
     methods, lines = methods_in(rows), []
     for kind, label in ERROR_KINDS.items():
-        text = _in_words(rows, kind, methods).removeprefix("In words: ")
+        text = in_words(rows, kind, methods).removeprefix("In words: ")
         lines.append(f"  - {label.split(' max')[0]}: {text}")
     for method in ("vddvp", "lee"):
         if method in methods:
@@ -172,8 +180,8 @@ def main() -> None:
     for name in [] if args.summary_only else args.scenes.split(","):
         started = time.perf_counter()
         folder = Path(args.out) / name
-        rows = work_precision(load_scene(name), overrides=SCENES[name], out=folder,
-                              repeats=args.repeats, progress=True)
+        rows = work_precision(load_scene(name), out=folder, overrides=SCENES[name],
+                              options=CompareOptions(repeats=args.repeats), progress=True)
         failed = sum(r["status"] != "success" for r in rows)
         print(f"{name}: {len(rows)} runs ({failed} did not reach t_end) in "
               f"{time.perf_counter() - started:.0f} s -> {folder}/summary.md")

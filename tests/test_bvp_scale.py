@@ -213,7 +213,7 @@ def test_progress_reports_each_iteration(capsys):
 def test_bad_guess_and_linear_solver_are_refused():
     system = load_scene("pendulum").system
     with pytest.raises(InputError, match=r"^unknown guess 'curved' \(choose from straight, "
-                                         r"march, or give a Solution"):
+                                         r"march, or give Shooting\(p_start\), a Solution"):
         solve_bvp(system, [0.5], [0.1], (0.0, 1.0), nodes=10, guess="curved")
     with pytest.raises(InputError, match=r"^unknown linear 'qr' \(choose from auto, banded, "
                                          r"sparse\)$"):

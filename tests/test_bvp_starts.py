@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from ddvp_nlp import GridOptions, InputError, StepControl, load_scene, march, solve_bvp
+from ddvp_nlp import GridOptions, InputError, Shooting, StepControl, load_scene, march, solve_bvp
 from ddvp_nlp.cli import main
 
 E = 0.5
@@ -105,7 +105,7 @@ def test_shooting_from_the_orbits_momentum_finds_the_three_revolutions():
     fixed-step solve on the branch it chose."""
     system, marched = kepler(1000)
     solution = solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
-                         params={"e": E}, guess="march", p_start=[0.0, 1.7320508])
+                         params={"e": E}, guess=Shooting([0.0, 1.7320508]))
     assert solution.success, solution.message
     assert solution.stats["phases"][0]["phase"] == "shooting (march)"
     assert revolutions(solution) == pytest.approx(3.0, abs=0.05)
@@ -115,10 +115,10 @@ def test_shooting_from_the_orbits_momentum_finds_the_three_revolutions():
 
 def test_p_start_is_checked():
     system = load_scene("kepler").system
-    with pytest.raises(InputError, match=r"^p_start is the shooting start's momentum"):
-        solve_bvp(system, Q0, Q0, (0.0, 1.0), nodes=10, p_start=[0.0, 1.0])
-    with pytest.raises(InputError, match=r"p_start"):
-        solve_bvp(system, Q0, Q0, (0.0, 1.0), nodes=10, guess="march", p_start=[1.0])
+    with pytest.raises(InputError, match=r"^p_start must have shape \(2,\), got shape \(1,\)"):
+        solve_bvp(system, Q0, Q0, (0.0, 1.0), nodes=10, guess=Shooting([1.0]))
+    with pytest.raises(InputError, match=r"^p_start must be finite"):
+        solve_bvp(system, Q0, Q0, (0.0, 1.0), nodes=10, guess=Shooting([np.nan, 1.0]))
 
 
 def test_cli_p_start(tmp_path, capsys):
@@ -145,7 +145,7 @@ def test_a_failure_from_the_straight_start_suggests_the_other_starts():
         options=GridOptions(solver="newton"),
     )
     assert not solution.success
-    assert solution.message.endswith("give guess='march' (shooting, with p_start near the "
+    assert solution.message.endswith("give guess=Shooting(p_start) (shooting, p_start near the "
                                       "motion's momentum) or a march's nodes as the guess")
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import fitted_order
 
-from ddvp_nlp import HamiltonianSystem, InputError, Scene, load_scene
+from ddvp_nlp import Compilation, HamiltonianSystem, InputError, Scene, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.io.work_precision import read_rows, work_precision
 from ddvp_nlp.solvers.baselines.dop853 import flow_callable
@@ -16,6 +16,7 @@ from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 from ddvp_nlp.solvers.baselines.lee_left import lee_left_march
 from ddvp_nlp.studies.compare import (
     COLUMNS,
+    CompareOptions,
     Reference,
     default_methods,
     errors,
@@ -131,10 +132,12 @@ def test_flow_callable_is_the_hamiltonian_vector_field():
 
 def test_work_precision_writes_the_documented_report(tmp_path):
     scene = load_scene("harmonic")
-    rows = work_precision(scene, out=tmp_path, methods=["lee_left", "rk4", "dop853"],
-                          knobs={"lee_left": [0.1, 0.05], "rk4": [0.2, 0.1, 0.05],
-                                 "dop853": [1e-6, 1e-8]},
-                          compiler=None, repeats=1)
+    rows = work_precision(scene, out=tmp_path, compilation=Compilation(compiler=None),
+                          options=CompareOptions(methods=["lee_left", "rk4", "dop853"],
+                                                 knobs={"lee_left": [0.1, 0.05],
+                                                        "rk4": [0.2, 0.1, 0.05],
+                                                        "dop853": [1e-6, 1e-8]},
+                                                 repeats=1))
     with open(tmp_path / "work_precision.csv", newline="") as handle:
         assert next(csv.reader(handle)) == COLUMNS
     np.testing.assert_equal(read_rows(tmp_path / "work_precision.csv"), rows)  # NaN == NaN
@@ -159,9 +162,10 @@ def test_work_precision_writes_the_documented_report(tmp_path):
 
 
 def test_a_step_beyond_max_steps_is_a_row_not_a_crash(tmp_path):
-    rows = work_precision(load_scene("harmonic"), out=tmp_path, methods="rk4",
-                          knobs={"rk4": [0.1, 0.001]}, compiler=None, repeats=1,
-                          max_steps=1000)
+    rows = work_precision(load_scene("harmonic"), out=tmp_path,
+                          compilation=Compilation(compiler=None),
+                          options=CompareOptions(methods="rk4", knobs={"rk4": [0.1, 0.001]},
+                                                 repeats=1, max_steps=1000))
     assert rows[0]["status"] == "success"
     assert rows[1]["status"] == "not_run"
     assert rows[1]["message"] == ("tau = 0.001 needs 20000 steps to reach t_end, more than "
@@ -185,7 +189,7 @@ def test_methods_that_do_not_apply_are_left_out_with_the_reason():
     assert [m.name for m in default_methods(paper)[0]] == list(METHODS)
     with pytest.raises(InputError, match="method 'stormer_verlet' does not apply to scene "
                                          "'bent': dH/dp depends on q or t"):
-        work_precision(scene, out="unused", methods=["stormer_verlet"])
+        work_precision(scene, out="unused", options=CompareOptions(methods=["stormer_verlet"]))
 
 
 def test_quartic_kinetic_energy_is_refused_by_lee_left_only():
@@ -211,7 +215,9 @@ def test_quartic_kinetic_energy_is_refused_by_lee_left_only():
 ])
 def test_bad_comparison_input_is_refused_before_anything_runs(tmp_path, kwargs, message):
     with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
-        work_precision(load_scene("harmonic"), out=tmp_path / "never", **kwargs)
+        overrides = kwargs.pop("overrides", None)
+        work_precision(load_scene("harmonic"), out=tmp_path / "never", overrides=overrides,
+                       options=CompareOptions(**kwargs))
     assert not (tmp_path / "never").exists()
 
 

@@ -8,12 +8,12 @@ import dask
 import numpy as np
 import pytest
 
-from ddvp_nlp import InputError
+from ddvp_nlp import Compilation, InputError
 from ddvp_nlp.cli import main
 from ddvp_nlp.io.grid_file import load_grid_file
 from ddvp_nlp.io.stress_report import stress
 from ddvp_nlp.solvers.compiler import find_compiler
-from ddvp_nlp.studies.grid import Task, describe_error, run_grid, run_tasks
+from ddvp_nlp.studies.grid import Task, Workers, describe_error, run_grid, run_tasks
 from ddvp_nlp.studies.sweep import SweepSpec, parse_axis, sweep_cases
 
 CLUSTER_CONFIG = {"distributed.scheduler.allowed-failures": 1,
@@ -43,10 +43,11 @@ def _harmonic_cases():
 
 def test_the_same_grid_gives_the_same_rows_wherever_it_runs(tmp_path, cluster):
     cases = _harmonic_cases()
-    here = stress(tmp_path / "here", cases=cases, compiler=None, workers=1, name="sweep")
-    remote = stress(tmp_path / "remote", cases=cases, compiler=None,
-                    scheduler=cluster.scheduler_address, name="sweep")
-    embedded = stress(tmp_path / "embedded", cases=cases, compiler=None, workers=2,
+    vm = Compilation(compiler=None)
+    here = stress(tmp_path / "here", cases=cases, compilation=vm, name="sweep")
+    remote = stress(tmp_path / "remote", cases=cases, compilation=vm,
+                    workers=Workers(scheduler=cluster.scheduler_address), name="sweep")
+    embedded = stress(tmp_path / "embedded", cases=cases, compilation=vm, workers=Workers(2),
                       name="sweep")
     assert len(here) == 8 and all(r["status"] == "success" for r in here)
     np.testing.assert_equal(_without_timing(remote), _without_timing(here))  # NaN == NaN
@@ -113,8 +114,8 @@ def test_workers_share_the_compiled_cache(tmp_path, cluster):
     cases = sweep_cases(SweepSpec(scene="pendulum", axes={"t_end": [3.0, 3.1]},
                                   methods=("vddvp",)))
     cache = tmp_path / "cache"
-    rows = stress(tmp_path / "out", cases=cases, compiler=find_compiler("auto"),
-                  cache_dir=str(cache), scheduler=cluster.scheduler_address, name="sweep")
+    rows = stress(tmp_path / "out", cases=cases, compilation=Compilation(cache_dir=str(cache)),
+                  workers=Workers(scheduler=cluster.scheduler_address), name="sweep")
     assert [r["status"] for r in rows] == ["success", "success"]
     if find_compiler("auto"):
         libraries = list(cache.glob("chunk_*.so"))  # the march's (accuracy_*.so: the check's)

@@ -7,6 +7,7 @@ import warnings
 
 import pytest
 
+from ddvp_nlp import Compilation
 from ddvp_nlp.cli import main
 from ddvp_nlp.io.stress_report import read_rows, stress
 from ddvp_nlp.studies.stress import COLUMNS, default_cases
@@ -17,7 +18,7 @@ def quick(tmp_path_factory):
     out = tmp_path_factory.mktemp("stress")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        rows = stress(out, quick=True, compiler=None)
+        rows = stress(out, quick=True, compilation=Compilation(compiler=None))
     return out, rows
 
 

@@ -7,7 +7,9 @@ import warnings
 
 from ..errors import InputError
 from ..scenes import list_scenes, load_scene
+from ..solvers.options import StepControl
 from ..validation import check_real
+from . import options
 from .parser import parse_settings
 from .summary import status_summary
 
@@ -58,17 +60,17 @@ def _boundary(scene) -> str:
 
 def run_compare(args) -> int:
     from ..io.work_precision import work_precision
-    from ..studies.compare import ERROR_KINDS, cheapest
+    from ..studies.compare import ERROR_KINDS, CompareOptions, cheapest
 
     scene = load_scene(args.scene)
     out = args.out or f"runs/{scene.name}-compare"
     if args.horizons:
         return _compare_horizons(args, scene, out)
-    rows = work_precision(scene, overrides=parse_settings(args.settings), methods=args.methods,
-                          out=out, halvings=args.halvings, repeats=args.repeats,
-                          compiler=None if args.no_compile else "auto",
-                          progress=not args.no_progress, workers=args.workers or 1,
-                          scheduler=args.scheduler)
+    rows = work_precision(scene, out=out, overrides=parse_settings(args.settings),
+                          options=CompareOptions(methods=args.methods, halvings=args.halvings,
+                                                 repeats=args.repeats),
+                          compilation=options.compiled_or_not(args),
+                          workers=options.workers(args), progress=not args.no_progress)
     failed = sum(r["status"] != "success" for r in rows)
     print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
     for kind, label in ERROR_KINDS.items():
@@ -84,14 +86,17 @@ def run_compare(args) -> int:
 
 def _compare_horizons(args, scene, out) -> int:
     from ..io.horizons import work_precision_horizons
+    from ..studies.compare import CompareOptions
 
     results = work_precision_horizons(
-        scene, args.horizons, unit=args.time_unit, overrides=parse_settings(args.settings),
-        methods=args.methods, out=out, halvings=args.halvings, repeats=args.repeats,
-        compiler=None if args.no_compile else "auto", max_steps=args.max_steps,
+        scene, args.horizons, out=out, unit=args.time_unit,
+        overrides=parse_settings(args.settings),
+        options=CompareOptions(methods=args.methods, halvings=args.halvings,
+                               repeats=args.repeats, max_steps=args.max_steps),
+        compilation=options.compiled_or_not(args), workers=options.workers(args),
         run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
         reference_span=check_real("--reference-span", args.reference_span, positive=True),
-        progress=not args.no_progress, workers=args.workers or 1, scheduler=args.scheduler)
+        progress=not args.no_progress)
     for horizon, rows in results.items():
         failed = sum(r["status"] != "success" for r in rows)
         print(f"{scene.name} compare, T = {horizon:g}: {len(rows)} runs, {failed} did not reach "
@@ -107,10 +112,11 @@ def run_stress(args) -> int:
     with warnings.catch_warnings():
         # the solvability warnings of breaking cases are expected here; stress.md reports them
         warnings.simplefilter("ignore", RuntimeWarning)
-        rows = stress(args.out, quick=args.quick, compiler=None if args.no_compile else "auto",
-                      max_steps=args.max_steps, time_limit=args.time_limit,
-                      progress=not args.no_progress, workers=args.workers,
-                      scheduler=args.scheduler, resume=args.resume)
+        rows = stress(args.out, quick=args.quick,
+                      steps=StepControl(max_steps=args.max_steps, time_limit=args.time_limit),
+                      compilation=options.compiled_or_not(args),
+                      workers=options.workers(args, default=None),
+                      progress=not args.no_progress, resume=args.resume)
     status_summary("stress", rows, args.out, "stress")
     return 0
 
@@ -125,10 +131,11 @@ def run_sweep(args) -> int:
     out = args.out or f"runs/{load_scene(spec.scene).name}-sweep"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        rows = stress(out, cases=cases, compiler=None if args.no_compile else "auto",
-                      max_steps=spec.max_steps, time_limit=spec.time_limit,
-                      progress=not args.no_progress, workers=args.workers,
-                      scheduler=args.scheduler, resume=not args.fresh, name="sweep",
+        rows = stress(out, cases=cases,
+                      steps=StepControl(max_steps=spec.max_steps, time_limit=spec.time_limit),
+                      compilation=options.compiled_or_not(args),
+                      workers=options.workers(args, default=None),
+                      progress=not args.no_progress, resume=not args.fresh, name="sweep",
                       title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}")
     status_summary("sweep", rows, out, "sweep")
     return 0

@@ -6,6 +6,7 @@ them. A bad value fails here, with the object's own message naming the field."""
 from __future__ import annotations
 
 from ..solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+from ..studies.grid import Workers
 
 
 def step_control(args) -> StepControl:
@@ -40,3 +41,15 @@ def march_output(args, *, checkpoint=None, stop=None) -> Output:
     """A march's progress bar (off with ``--no-progress``), checkpoints and stop request."""
     return Output(progress=not args.no_progress, checkpoint=checkpoint,
                   checkpoint_interval=args.checkpoint_every, stop=stop)
+
+
+def compiled_or_not(args) -> Compilation:
+    """``--no-compile``: CasADi's virtual machine instead of gcc."""
+    return Compilation(compiler=None if args.no_compile else "auto")
+
+
+def workers(args, *, default: int | None = 1) -> Workers:
+    """``--workers`` and ``--scheduler`` (``default``: the count when ``--workers`` is not
+    given)."""
+    return Workers(count=args.workers if args.workers is not None else default,
+                   scheduler=args.scheduler)

@@ -188,16 +188,16 @@ def _march_method(args, scene, config):
 
 
 def _bvp(args, scene, config, scheme):
-    from ..solvers.bvp.solve import solve_bvp
+    from ..solvers.bvp import Shooting, solve_bvp
 
     p_start = _momentum(args.p_start)
     if p_start is not None and args.guess != "march":
         raise InputError(f"--p-start {args.p_start} is the momentum shooting starts from: give "
                          f"it with --guess march (got --guess {args.guess})")
     progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
+    guess = Shooting(p_start) if p_start is not None else _bvp_guess(args.guess, scene.system.n)
     solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
-                         nodes=config.nodes, scheme=scheme, params=config.params,
-                         guess=_bvp_guess(args.guess, scene.system.n), p_start=p_start,
+                         nodes=config.nodes, scheme=scheme, params=config.params, guess=guess,
                          options=options.grid_options(args, tol=args.tol),
                          output=Output(progress=progress))
     return solution, {"solver": solution.stats}

@@ -10,11 +10,14 @@ cost over the longest horizon and draws its errors against time.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
+from dataclasses import replace
 
 from ..scenes import Scene
 from ..solvers.compiler import find_compiler
-from ..studies.compare import ERROR_KINDS, default_methods, methods_in
+from ..solvers.options import Compilation
+from ..studies.compare import ERROR_KINDS, CompareOptions, default_methods, methods_in
+from ..studies.grid import Workers
 from ..studies.horizons import (
     affordable_knobs,
     error_growth,
@@ -26,38 +29,44 @@ from .runs import prepare_folder
 from .work_precision import in_words, plot_method, work_precision
 
 
-def work_precision_horizons(scene: Scene, horizons, *, unit: float = 1.0,
-                            overrides: Mapping[str, object] | None = None,
-                            methods: Sequence[str] | str | None = None,
-                            out: str | os.PathLike, halvings: int = 6, repeats: int = 3,
-                            compiler: str | None = "auto", max_steps: int = 2_000_000,
+def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
+                            unit: float = 1.0, overrides: Mapping[str, object] | None = None,
+                            options: CompareOptions | None = None,
+                            compilation: Compilation | None = None,
+                            workers: Workers | None = None,
                             run_budget_s: float | None = 120.0,
                             reference_span: float = 10_000.0,
-                            progress: bool = False, **options) -> dict[float, list[dict]]:
+                            progress: bool = False) -> dict[float, list[dict]]:
     """Compare at each horizon ``T`` (to ``t_end = t0 + T unit``); write ``out/horizon_T/``
     (the usual report), ``horizons.png`` (a column per horizon, a row per error kind),
     ``growth.png`` (errors against time at equal cost, longest horizon) and ``horizons.md``.
     Returns the rows per horizon.
 
-    ``max_steps`` and ``run_budget_s`` cut each horizon's sweeps
-    (:func:`~ddvp_nlp.studies.horizons.affordable_knobs`); a scene without an exact solution
-    gets no trajectory reference beyond ``reference_span`` time units
+    ``options``: as for :func:`~ddvp_nlp.io.work_precision.work_precision` (default
+    ``max_steps`` here 2e6); its ``knobs`` and ``reference`` are chosen per horizon:
+    ``options.max_steps`` and ``run_budget_s`` cut each horizon's sweeps
+    (:func:`~ddvp_nlp.studies.horizons.affordable_knobs`), and a scene without an exact
+    solution gets no trajectory reference beyond ``reference_span`` time units
     (:func:`~ddvp_nlp.studies.horizons.reference_kind`)."""
+    options = options if options is not None else CompareOptions(max_steps=2_000_000)
+    compilation = compilation or Compilation()
     horizons = parse_horizons(horizons)
     overrides = dict(overrides or {})
     config = scene.resolve(overrides)
-    chosen = default_methods(scene.system)[0] if methods is None else get_methods(methods)
+    chosen = default_methods(scene.system)[0] if options.methods is None \
+        else get_methods(options.methods)
     out = prepare_folder(out)
     results, notes, previous = {}, {}, None
     for horizon in horizons:
         t_end = config.t0 + horizon * unit
-        knobs, left_out = affordable_knobs(chosen, config, t_end, halvings, max_steps,
-                                           previous=previous, run_budget_s=run_budget_s)
+        knobs, left_out = affordable_knobs(chosen, config, t_end, options.halvings,
+                                           options.max_steps, previous=previous,
+                                           run_budget_s=run_budget_s)
         kind = reference_kind(scene, t_end - config.t0, reference_span)
         results[horizon] = work_precision(
-            scene, overrides={**overrides, "t_end": t_end}, methods=list(knobs),
-            out=out / f"horizon_{horizon:g}", knobs=knobs, repeats=repeats, compiler=compiler,
-            max_steps=max_steps, progress=progress, reference=kind, **options)
+            scene, overrides={**overrides, "t_end": t_end}, out=out / f"horizon_{horizon:g}",
+            options=replace(options, methods=list(knobs), knobs=knobs, reference=kind),
+            compilation=compilation, workers=workers, progress=progress)
         notes[horizon] = left_out + ([f"the trajectory error (no exact solution, and the "
                                       f"DOP853 reference is computed only up to "
                                       f"{reference_span:g} time units)"]
@@ -68,8 +77,9 @@ def work_precision_horizons(scene: Scene, horizons, *, unit: float = 1.0,
     longest = horizons[-1]
     span = longest * unit
     target, growth = error_growth(scene, {**overrides, "t_end": config.t0 + span},
-                                  results[longest], compiler=find_compiler(compiler),
-                                  max_steps=max_steps,
+                                  results[longest],
+                                  compiler=find_compiler(compilation.compiler),
+                                  max_steps=options.max_steps,
                                   reference=reference_kind(scene, span, reference_span))
     plot_growth(growth, out / "growth.png",
                 title=f"{scene.name}: errors against time at about {target:.2g} s each")

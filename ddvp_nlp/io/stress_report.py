@@ -13,6 +13,8 @@ import os
 
 import numpy as np
 
+from ..solvers.options import Compilation, StepControl
+from ..studies.grid import Workers
 from ..studies.reference import REFERENCE_RTOL
 from ..studies.stress import (
     DOP853_RTOL,
@@ -36,19 +38,18 @@ SHORT = {"success": "ok", "no_admissible_step": "no root", "newton_failed": "New
 NOT_RUN = ("= vddvp", "n/a")  # cells of a method that did not run on a case
 
 
-def stress(out: str | os.PathLike, *, quick: bool = False, compiler: str | None = "auto",
-           cache_dir=None, max_steps: int = 2_000_000, time_limit: float = 60.0,
-           cases: list[Case] | None = None, progress: bool = False, workers: int | None = 1,
-           scheduler: str | None = None, resume: bool = False, name: str = "stress",
-           title: str = DEFAULT_TITLE) -> list[dict]:
+def stress(out: str | os.PathLike, *, quick: bool = False, cases: list[Case] | None = None,
+           steps: StepControl | None = None, compilation: Compilation | None = None,
+           workers: Workers | None = None, progress: bool = False, resume: bool = False,
+           name: str = "stress", title: str = DEFAULT_TITLE) -> list[dict]:
     """Run the grid and write ``NAME.csv``, ``NAME.md`` and ``NAME.png`` in ``out``.
 
-    ``workers``/``scheduler``: see :func:`ddvp_nlp.studies.grid.run_tasks` (default: in this
+    ``steps``: each run's ``max_steps`` and ``time_limit`` (default 2e6 steps, 60 s);
+    ``workers``: where the runs go (:class:`~ddvp_nlp.studies.grid.Workers`, default: in this
     process). ``resume``: keep the rows already in ``NAME.csv`` and run only the missing tasks.
     """
-    plan = plan_stress(quick=quick, compiler=compiler, cache_dir=cache_dir,
-                       max_steps=max_steps, time_limit=time_limit, cases=cases,
-                       workers=workers, scheduler=scheduler)
+    plan = plan_stress(quick=quick, cases=cases, steps=steps, compilation=compilation,
+                       workers=workers)
     out = prepare_folder(out)  # only once the input is known to be good
     result = run_stress(plan, out / f"{name}.csv", resume=resume, progress=progress)
     plot_stress(result, out / f"{name}.png", title=title)

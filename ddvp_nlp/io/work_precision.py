@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 from ..scenes import Scene
+from ..solvers.options import Compilation
 from ..studies.compare import (
     ERROR_KINDS,
     ROWS,
+    CompareOptions,
     WorkPrecision,
     methods_in,
     pareto,
@@ -25,41 +27,32 @@ from ..studies.compare import (
     time_ratios,
     winner_spans,
 )
+from ..studies.grid import Workers
 from ..studies.methods import METHODS
 from .markdown import failure_table, machine, seconds, yes_no
 from .runs import prepare_folder
 
 
-def work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = None,
-                   methods: Sequence[str] | str | None = None, out: str | os.PathLike,
-                   halvings: int = 6, repeats: int = 3, budget_s: float = 3.0,
-                   compiler: str | None = "auto", cache_dir=None, max_steps: int = 5_000_000,
-                   knobs: Mapping[str, Sequence[float]] | None = None,
-                   progress: bool = False, workers: int | None = 1,
-                   scheduler: str | None = None, reference: str = "auto") -> list[dict]:
+def work_precision(scene: Scene, *, out: str | os.PathLike,
+                   overrides: Mapping[str, object] | None = None,
+                   options: CompareOptions | None = None, compilation: Compilation | None = None,
+                   workers: Workers | None = None, progress: bool = False) -> list[dict]:
     """Run the comparison and write ``work_precision.csv``, ``.png`` and ``summary.md`` in
     ``out`` (created). Returns the rows.
 
     Args:
         scene: the scene; ``overrides`` as for :meth:`Scene.resolve` (parameters, ``t_end``, ...).
-        methods: names (list or comma-separated); default every method that applies and is not
-            the same as another on this scene.
-        halvings: number of halvings of the step in the default sweeps (``2 tau0`` down).
-        repeats, budget_s: timed calls per run after the warm-up, and the time after which the
-            repeats stop early.
-        compiler: for the compiled methods, as in :func:`ddvp_nlp.march`.
-        knobs: per-method knob values replacing the default sweep.
-        max_steps: bound on the steps of each run.
-        workers, scheduler: where the runs go (:func:`ddvp_nlp.studies.grid.run_tasks`). The
-            default runs them one after the other in this process, because the run times are
-            what is compared: two runs at once on a 2-core machine slow each other down.
-        reference: ``auto`` (the scene's exact solution where it covers the start, else
-            DOP853 at 1e-13), ``exact``, ``dop853``, or ``none`` (energy error only).
+        out: the folder.
+        options: the methods, their sweeps, the timing and the reference
+            (:class:`~ddvp_nlp.studies.compare.CompareOptions`).
+        compilation: for the compiled methods, as in :func:`ddvp_nlp.march`.
+        workers: where the runs go (:class:`~ddvp_nlp.studies.grid.Workers`). The default
+            runs them one after the other in this process, because the run times are what is
+            compared: two runs at once on a 2-core machine slow each other down.
+        progress: a progress bar on stderr.
     """
-    plan = plan_work_precision(scene, overrides=overrides, methods=methods, halvings=halvings,
-                               repeats=repeats, budget_s=budget_s, compiler=compiler,
-                               cache_dir=cache_dir, max_steps=max_steps, knobs=knobs,
-                               workers=workers, scheduler=scheduler, reference=reference)
+    plan = plan_work_precision(scene, overrides=overrides, options=options,
+                               compilation=compilation, workers=workers)
     out = prepare_folder(out)  # only once the input is known to be good
     result = run_work_precision(plan, out / "work_precision.csv", progress=progress)
     plot_work_precision(result.rows, out / "work_precision.png",

@@ -32,10 +32,11 @@ from ..errors import InputError
 from ..scenes import RunConfig, Scene, load_scene
 from ..solution import Status
 from ..solvers.compiler import find_compiler
+from ..solvers.options import Compilation, coerce
 from ..validation import check_count, check_real
 from .accuracy import COLUMNS as ACCURACY_COLUMNS
 from .accuracy import NOT_MADE, accuracy_columns
-from .grid import RowSchema, Task, check_workers, describe_error, resolve_scheduler, run_grid
+from .grid import RowSchema, Task, Workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS, Method, get_methods
 from .reference import (
     REFERENCE_KINDS,
@@ -62,9 +63,47 @@ ERROR_KINDS = {"trajectory_error": "trajectory error max |z - z_ref|",
 # (and the DOP853 reference's own error) and a ranking would rank noise.
 FINEST_LEVEL = 1e-12
 
-__all__ = ["COLUMNS", "ERROR_KINDS", "REFERENCE_RTOL", "ROWS", "Reference", "WorkPrecision",
+__all__ = ["COLUMNS", "CompareOptions", "ERROR_KINDS", "REFERENCE_RTOL", "ROWS", "Reference",
+           "WorkPrecision",
            "WorkPrecisionPlan", "cheapest", "default_methods", "errors", "pareto",
            "plan_work_precision", "run_work_precision", "time_to_reach"]
+
+
+@dataclass(frozen=True)
+class CompareOptions:
+    """What a work-precision comparison runs and how it times the runs.
+
+    Attributes:
+        methods: names (a list or comma-separated); default every method that applies and is
+            not the same as another on this scene.
+        halvings: number of halvings of the step in the default sweeps (``2 tau0`` down).
+        repeats, budget_s: timed calls per run after the warm-up, and the time after which the
+            repeats stop early.
+        max_steps: bound on the steps of each run.
+        knobs: per-method knob values replacing the default sweep.
+        reference: ``auto`` (the scene's exact solution where it covers the start, else
+            DOP853 at 1e-13), ``exact``, ``dop853``, or ``none`` (energy error only).
+    """
+
+    methods: Sequence[str] | str | None = None
+    halvings: int = 6
+    repeats: int = 3
+    budget_s: float = 3.0
+    max_steps: int = 5_000_000
+    knobs: Mapping[str, Sequence[float]] | None = None
+    reference: str = "auto"
+
+    def __post_init__(self):
+        object.__setattr__(self, "halvings", check_count("halvings", self.halvings, minimum=0,
+                                                         maximum=MAX_HALVINGS))
+        object.__setattr__(self, "repeats", check_count("repeats", self.repeats, minimum=1))
+        object.__setattr__(self, "budget_s", check_real("budget_s", self.budget_s,
+                                                        positive=True))
+        object.__setattr__(self, "max_steps", check_count("max_steps", self.max_steps,
+                                                          minimum=1))
+        if self.reference not in REFERENCE_KINDS:
+            raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
+                             f"got {self.reference!r}")
 
 
 @dataclass
@@ -179,32 +218,27 @@ def _runs(chosen, knobs, config, halvings) -> list[tuple[Method, float]]:
 
 
 def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = None,
-                        methods: Sequence[str] | str | None = None, halvings: int = 6,
-                        repeats: int = 3, budget_s: float = 3.0, compiler: str | None = "auto",
-                        cache_dir=None, max_steps: int = 5_000_000,
-                        knobs: Mapping[str, Sequence[float]] | None = None,
-                        workers: int | None = 1, scheduler: str | None = None,
-                        reference: str = "auto") -> WorkPrecisionPlan:
+                        options: CompareOptions | None = None,
+                        compilation: Compilation | None = None,
+                        workers: Workers | None = None) -> WorkPrecisionPlan:
     """Check a comparison's input before anything runs (arguments as
     :func:`ddvp_nlp.io.work_precision.work_precision`)."""
+    options = coerce(options, CompareOptions, "options")
+    compilation = coerce(compilation, Compilation, "compilation")
+    workers = coerce(workers, Workers, "workers")
     check_comparable(scene)
     config = scene.resolve(overrides)
     check_starts_from_p0(scene, config)
-    halvings = check_count("halvings", halvings, minimum=0, maximum=MAX_HALVINGS)
-    repeats = check_count("repeats", repeats, minimum=1)
-    chosen, left_out = _chosen_methods(scene, methods)
-    runs = _runs(chosen, knobs, config, halvings)
-    workers = check_workers(workers)
-    scheduler = resolve_scheduler(scheduler)
-    if reference not in REFERENCE_KINDS:
-        raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
-                         f"got {reference!r}")
-    if (scheduler is not None or workers != 1) and not scene.source:
+    chosen, left_out = _chosen_methods(scene, options.methods)
+    runs = _runs(chosen, options.knobs, config, options.halvings)
+    scheduler = resolve_scheduler(workers.scheduler)
+    if (scheduler is not None or workers.count != 1) and not scene.source:
         raise InputError(f"scene {scene.name!r} was made in Python, not loaded from a file: "
                          "other processes cannot load it (use workers=1)")
-    return WorkPrecisionPlan(scene, dict(overrides or {}), config, runs, left_out, repeats,
-                             budget_s, find_compiler(compiler), cache_dir, max_steps, workers,
-                             scheduler, reference)
+    return WorkPrecisionPlan(scene, dict(overrides or {}), config, runs, left_out,
+                             options.repeats, options.budget_s,
+                             find_compiler(compilation.compiler), compilation.cache_dir,
+                             options.max_steps, workers.count, scheduler, options.reference)
 
 
 def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,

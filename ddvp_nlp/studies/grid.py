@@ -100,6 +100,30 @@ def check_workers(workers) -> int | None:
     return None if workers is None else check_integer("workers", workers)
 
 
+@dataclass(frozen=True)
+class Workers:
+    """Where the runs of a grid go.
+
+    Attributes:
+        count: local worker processes (``1``, the default: one after the other in this
+            process, so that run times compare like with like; ``None``: as many as there are
+            cores).
+        scheduler: the address of a Dask scheduler (``tcp://host:8786``) whose workers run the
+            tasks instead; default ``$DDVP_SCHEDULER``, else local. Whether anyone answers
+            there is checked when the grid is planned.
+    """
+
+    count: int | None = 1
+    scheduler: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "count", check_workers(self.count))
+        if self.scheduler is not None and (not isinstance(self.scheduler, str)
+                                           or "://" not in self.scheduler):
+            raise InputError(f"scheduler must be an address like tcp://host:8786, got "
+                             f"{self.scheduler!r}")
+
+
 def run_tasks(tasks: Sequence[Task], *, workers: int | None = None,
               scheduler: str | None = None, retries: int = 1,
               progress: bool = False) -> Iterator[tuple[Task, object, str | None]]:

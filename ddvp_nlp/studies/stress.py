@@ -32,10 +32,10 @@ from ..errors import InputError
 from ..physics.hamiltonian import site_density_weight_function
 from ..scenes import load_scene, scene_digest, scene_file
 from ..solvers.compiler import find_compiler
-from ..validation import check_integer, check_real
+from ..solvers.options import Compilation, StepControl, coerce
 from .accuracy import COLUMNS as ACCURACY_COLUMNS
 from .accuracy import NOT_MADE, accuracy_columns
-from .grid import RowSchema, Task, check_workers, describe_error, resolve_scheduler, run_grid
+from .grid import RowSchema, Task, Workers, describe_error, resolve_scheduler, run_grid
 from .methods import METHODS
 from .reference import check_comparable, check_starts_from_p0, reference_for
 
@@ -295,22 +295,30 @@ class Breakdown:
         return self.broke == self.prediction["breaks"]
 
 
-def plan_stress(*, quick: bool = False, compiler: str | None = "auto", cache_dir=None,
-                max_steps: int = 2_000_000, time_limit: float = 60.0,
-                cases: list[Case] | None = None, workers: int | None = 1,
-                scheduler: str | None = None) -> StressPlan:
+# Each run's bounds when none are given: far past where any case breaks, short of a hang.
+DEFAULT_STEPS = StepControl(max_steps=2_000_000, time_limit=60.0)
+
+
+def plan_stress(*, quick: bool = False, cases: list[Case] | None = None,
+                steps: StepControl | None = None, compilation: Compilation | None = None,
+                workers: Workers | None = None) -> StressPlan:
     """Check the bounds and make every case's tasks (arguments as
-    :func:`ddvp_nlp.io.stress_report.stress`)."""
-    max_steps = check_integer("max_steps", max_steps)
-    time_limit = check_real("time_limit", time_limit, positive=True)
-    workers = check_workers(workers)
-    scheduler = resolve_scheduler(scheduler)
-    compiler = find_compiler(compiler)
+    :func:`ddvp_nlp.io.stress_report.stress`; of ``steps`` each run takes ``max_steps`` and
+    ``time_limit``)."""
+    steps = DEFAULT_STEPS if steps is None else coerce(steps, StepControl, "steps")
+    if steps.time_limit is None:
+        raise InputError("steps.time_limit must be set for a grid of runs (a run that hangs "
+                         "would hold the grid), got None")
+    compilation = coerce(compilation, Compilation, "compilation")
+    workers = coerce(workers, Workers, "workers")
+    scheduler = resolve_scheduler(workers.scheduler)
+    compiler = find_compiler(compilation.compiler)
     cases = default_cases(quick) if cases is None else cases
     tasks = [task for case in cases for task in case_tasks(
-        case, compiler=compiler, cache_dir=cache_dir, max_steps=max_steps,
-        time_limit=time_limit)]
-    return StressPlan(cases, tasks, compiler, max_steps, time_limit, quick, workers, scheduler)
+        case, compiler=compiler, cache_dir=compilation.cache_dir, max_steps=steps.max_steps,
+        time_limit=steps.time_limit)]
+    return StressPlan(cases, tasks, compiler, steps.max_steps, steps.time_limit, quick,
+                      workers.count, scheduler)
 
 
 def run_stress(plan: StressPlan, rows_path, *, resume: bool = False,

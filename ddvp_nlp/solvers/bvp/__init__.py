@@ -29,6 +29,6 @@ The contract, on top of the grid's (``grid/__init__.py``):
 """
 
 from .solve import solve_bvp
-from .start import predicted_times
+from .start import Shooting, predicted_times
 
-__all__ = ["predicted_times", "solve_bvp"]
+__all__ = ["Shooting", "predicted_times", "solve_bvp"]

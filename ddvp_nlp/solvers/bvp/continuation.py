@@ -50,110 +50,116 @@ def continue_in_end_position(request: GridRequest[Boundary], fixed, times, base:
     (module docstring), as a start (``dict`` of ``t``, ``q``, ``p``), or ``None``; the phase
     record in ``request.phases`` says how far it got."""
     layout = NodeLayout(request.system.n, request.nodes)
-    grid = assembly(request, fixed)
-    n, size = request.system.n, layout.size
-    a = np.asarray(base["q"][-1], float)
-    d = request.data.q_end - a
-    F_s = np.zeros(size)
-    F_s[-n:] = -d
-    weight = np.concatenate([np.full(size, 1.0 / size), [1.0]])
-    kernel = band_kernel(request.compilation)
-
-    def factor(blocks):
-        return Factorization(grid, blocks, request.linear, kernel)
-
+    path = _Path(request, assembly(request, fixed), times, np.asarray(base["q"][-1], float))
     record = {"phase": "continuation in q_end (fixed steps, pseudo-arclength)",
               "solver": "newton (bordered)", "converged": False, "return_status": "",
               "iterations": 0, "steps": 0}
     request.phases.append(record)
     started = time.perf_counter()
-
-    def ends(s):
-        return Ends(request.data.q_start, a + s * d, np.asarray(times, float), request.theta, 1.0)
-
     y = np.concatenate([layout.pack(times, base["q"], base["p"]), [0.0]])
-    h, result = FIRST_STEP, None
     try:
-        tangent = _first_tangent(grid, y, ends, F_s, weight, factor)
-        if tangent is None:
-            record["return_status"] = "the Jacobian at the march is singular: no tangent"
-        while record["steps"] < MAX_STEPS and tangent is not None:
-            if request.remaining() == 0.0:
-                record["return_status"] = f"time limit reached at s = {y[-1]:.4g}"
-                break
-            corrected, iterations = _corrector(grid, y + h * tangent, tangent, ends, F_s,
-                                               weight, factor)
-            record["iterations"] += iterations
-            record["steps"] += 1
-            if corrected is None:
-                h /= 2
-                if h < SMALLEST_STEP:
-                    record["return_status"] = (f"the step fell below {SMALLEST_STEP:g} at "
-                                               f"s = {y[-1]:.4g}")
-                    break
-                continue
-            if corrected[-1] >= 1.0:
-                w = (1.0 - y[-1]) / (corrected[-1] - y[-1])
-                point = y + w * (corrected - y)
-                t, q, p = layout.unpack(point[:-1])
-                result = {"t": t, "q": q, "p": p}
-                record.update(converged=True, return_status=f"s = 1 reached in "
-                              f"{record['steps']} steps")
-                break
-            secant = corrected - y
-            tangent = secant / _norm(secant, weight)
-            y = corrected
-            if request.progress:
-                print(f"bvp [continuation]: step {record['steps']}, s = {y[-1]:.6g}, "
-                      f"arclength step {h:.3g}", file=sys.stderr, flush=True)
-            if iterations <= 3:
-                h = min(LARGEST_STEP, 1.5 * h)
-        else:
-            if tangent is not None:
-                record["return_status"] = f"{MAX_STEPS} steps without reaching s = 1 " \
-                                          f"(s = {y[-1]:.4g})"
+        point = _walk(request, path, y, record)
     finally:
-        grid.release()
+        path.grid.release()
     record["seconds"] = time.perf_counter() - started
-    return result
-
-
-def _norm(v, weight) -> float:
-    return float(np.sqrt(np.sum(weight * v * v)))
-
-
-def _first_tangent(grid, y, ends, F_s, weight, factor):
-    """The tangent at the march (``s`` increasing): ``(F_x^-1 (-F_s), 1)``, normalised."""
-    _, blocks = grid.evaluate(y[:-1], ends(y[-1]), jacobian=True)
-    lu = factor(blocks)
-    z = lu.solve(-F_s.copy())
-    if not np.all(np.isfinite(z)):
+    if point is None:
         return None
-    tangent = np.concatenate([z, [1.0]])
-    return tangent / _norm(tangent, weight)
+    t, q, p = layout.unpack(point[:-1])
+    return {"t": t, "q": q, "p": p}
 
 
-def _corrector(grid, prediction, tangent, ends, F_s, weight, factor):
-    """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` by bordering (module
-    docstring): ``(y, iterations)``, ``y`` ``None`` if it did not converge."""
-    y = prediction.copy()
-    for iteration in range(1, CORRECTOR_ITERATIONS + 1):
-        F, blocks = grid.evaluate(y[:-1], ends(y[-1]), jacobian=True)
-        if not np.all(np.isfinite(F)):
-            return None, iteration
-        if np.max(np.abs(F)) <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))):
-            return y, iteration - 1
-        lu = factor(blocks)
-        z1 = lu.solve(-F)
-        z2 = lu.solve(-F_s.copy())
-        if not (np.all(np.isfinite(z1)) and np.all(np.isfinite(z2))):
-            return None, iteration
-        g = float(np.sum(weight * tangent * (y - prediction)))
-        wx = weight[:-1] * tangent[:-1]
-        denominator = float(wx @ z2) + weight[-1] * tangent[-1]
-        if denominator == 0.0:
-            return None, iteration
-        ds = (-g - float(wx @ z1)) / denominator
-        y[:-1] += z1 + ds * z2
-        y[-1] += ds
-    return None, CORRECTOR_ITERATIONS
+def _walk(request, path, y, record):
+    """Steps along the path from ``y`` until ``s = 1`` (the point there, interpolated) or a
+    stop (``None``; ``record`` says why)."""
+    h = FIRST_STEP
+    tangent = path.first_tangent(y)
+    if tangent is None:
+        record["return_status"] = "the Jacobian at the march is singular: no tangent"
+        return None
+    while record["steps"] < MAX_STEPS:
+        if request.remaining() == 0.0:
+            record["return_status"] = f"time limit reached at s = {y[-1]:.4g}"
+            return None
+        corrected, iterations = path.correct(y + h * tangent, tangent)
+        record["iterations"] += iterations
+        record["steps"] += 1
+        if corrected is None:
+            h /= 2
+            if h < SMALLEST_STEP:
+                record["return_status"] = (f"the step fell below {SMALLEST_STEP:g} at "
+                                           f"s = {y[-1]:.4g}")
+                return None
+            continue
+        if corrected[-1] >= 1.0:
+            w = (1.0 - y[-1]) / (corrected[-1] - y[-1])
+            record.update(converged=True, return_status=f"s = 1 reached in "
+                          f"{record['steps']} steps")
+            return y + w * (corrected - y)
+        secant = corrected - y
+        tangent = secant / path.norm(secant)
+        y = corrected
+        if request.progress:
+            print(f"bvp [continuation]: step {record['steps']}, s = {y[-1]:.6g}, "
+                  f"arclength step {h:.3g}", file=sys.stderr, flush=True)
+        if iterations <= 3:
+            h = min(LARGEST_STEP, 1.5 * h)
+    record["return_status"] = f"{MAX_STEPS} steps without reaching s = 1 (s = {y[-1]:.4g})"
+    return None
+
+
+class _Path:
+    """The path of solutions ``F(x, s) = 0`` with the end position ``a + s d``: its tangent and
+    corrector by bordering (module docstring)."""
+
+    def __init__(self, request, grid, times, a):
+        self.grid, self.request = grid, request
+        size = grid.layout.size
+        self.times, self.a, self.d = np.asarray(times, float), a, request.data.q_end - a
+        self.F_s = np.zeros(size)
+        self.F_s[-request.system.n:] = -self.d
+        self.weight = np.concatenate([np.full(size, 1.0 / size), [1.0]])
+        self.kernel = band_kernel(request.compilation)
+
+    def ends(self, s) -> Ends:
+        return Ends(self.request.data.q_start, self.a + s * self.d, self.times,
+                    self.request.theta, 1.0)
+
+    def norm(self, v) -> float:
+        return float(np.sqrt(np.sum(self.weight * v * v)))
+
+    def factor(self, blocks) -> Factorization:
+        return Factorization(self.grid, blocks, self.request.linear, self.kernel)
+
+    def first_tangent(self, y):
+        """The tangent at the march (``s`` increasing): ``(F_x^-1 (-F_s), 1)``, normalised."""
+        _, blocks = self.grid.evaluate(y[:-1], self.ends(y[-1]), jacobian=True)
+        z = self.factor(blocks).solve(-self.F_s.copy())
+        if not np.all(np.isfinite(z)):
+            return None
+        tangent = np.concatenate([z, [1.0]])
+        return tangent / self.norm(tangent)
+
+    def correct(self, prediction, tangent):
+        """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` by bordering:
+        ``(y, iterations)``, ``y`` ``None`` if it did not converge."""
+        y, weight = prediction.copy(), self.weight
+        for iteration in range(1, CORRECTOR_ITERATIONS + 1):
+            F, blocks = self.grid.evaluate(y[:-1], self.ends(y[-1]), jacobian=True)
+            if not np.all(np.isfinite(F)):
+                return None, iteration
+            if np.max(np.abs(F)) <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))):
+                return y, iteration - 1
+            lu = self.factor(blocks)
+            z1 = lu.solve(-F)
+            z2 = lu.solve(-self.F_s.copy())
+            if not (np.all(np.isfinite(z1)) and np.all(np.isfinite(z2))):
+                return None, iteration
+            g = float(np.sum(weight * tangent * (y - prediction)))
+            wx = weight[:-1] * tangent[:-1]
+            denominator = float(wx @ z2) + weight[-1] * tangent[-1]
+            if denominator == 0.0:
+                return None, iteration
+            ds = (-g - float(wx @ z1)) / denominator
+            y[:-1] += z1 + ds * z2
+            y[-1] += ds
+        return None, CORRECTOR_ITERATIONS

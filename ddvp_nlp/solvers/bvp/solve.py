@@ -68,7 +68,7 @@ from .phase import (
     round_off_scales,
     run_phase,
 )
-from .start import branch_obstacle, first_solver, start_point
+from .start import Shooting, branch_obstacle, first_solver, start_point
 
 GUESSES = ("straight", "march")
 # What a failed solve from a built-in start suggests: over a long horizon the problem has many
@@ -77,7 +77,8 @@ GUESSES = ("straight", "march")
 # measured).
 START_HINT = {
     "straight": "the straight-line start may lead to another solution or to none: give "
-                "guess='march' (shooting, with p_start near the motion's momentum) or a march's "
+                "guess=Shooting(p_start) (shooting, p_start near the motion's momentum) or a "
+                "march's "
                 "nodes as the guess",
     "march": "shooting picks the branch the march from p_start reaches: try another p_start, "
              "or a march's nodes as the guess"}
@@ -88,7 +89,7 @@ DEFAULT_MAX_ITER = 200
 
 def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
               scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
-              guess: Solution | Mapping | str | None = None, p_start=None, times=None,
+              guess: Solution | Mapping | Shooting | str | None = None, times=None,
               options: GridOptions | None = None, compilation: Compilation | None = None,
               output: Output | None = None) -> Solution:
     """Solve the fixed-endpoint problem ``q(t_0) = q_start``, ``q(t_end) = q_end`` on ``nodes``.
@@ -100,12 +101,12 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         nodes: number of nodes ``N >= 3``.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
         params: the system's parameter values.
-        guess: ``"straight"`` (default), ``"march"`` (shooting; ``start.py``), or a start:
-            a :class:`Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
+        guess: ``"straight"`` (default), shooting (``Shooting(p_start)``, the momentum it
+            starts from choosing the branch of a problem with several solutions; ``"march"``
+            is ``Shooting()``, from the straight line's momentum; ``start.py``), or a start: a
+            :class:`Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
             arrays (``nodes`` rows, or any number of rows, resampled by node index onto
             ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
-        p_start: the momentum shooting starts from (``guess="march"`` only; default the
-            straight line's): chooses the branch of a problem with several solutions.
         times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
         options: the solver (``"auto"``, the default, ``"newton"`` or ``"ipopt"``; module
             docstring), the verification tolerance ``tol`` (default 1e-9), ``max_iter`` per
@@ -120,7 +121,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         several solutions it is); failures are a status on it.
     """
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
-                              params=params, guess=guess, p_start=p_start, times=times,
+                              params=params, guess=guess, times=times,
                               options=coerce(options, GridOptions, "options"),
                               compilation=coerce(compilation, Compilation, "compilation"),
                               output=coerce(output, Output, "output"))
@@ -155,7 +156,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
 
 
-def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_start, times,
+def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times,
              options: GridOptions, compilation: Compilation, output: Output):
     """The validated :class:`GridRequest` and start (``InputError`` naming the argument and
     value, before anything is built)."""
@@ -176,18 +177,18 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, p_
         raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
                          f"got {tau_floor!r}")
     grid_times = _check_times(times, nodes, t0, t1)
-    if guess is None or (isinstance(guess, str) and guess in GUESSES):
+    p_start = None
+    if isinstance(guess, Shooting):
+        start = "march"
+        if guess.p_start is not None:
+            p_start = check_state("p_start", guess.p_start, n)
+    elif guess is None or (isinstance(guess, str) and guess in GUESSES):
         start = guess or "straight"
     elif isinstance(guess, str):
         raise InputError(f"unknown guess {guess!r} (choose from {', '.join(GUESSES)}, or give "
-                         f"a Solution or a mapping with t, q and p)")
+                         f"Shooting(p_start), a Solution or a mapping with t, q and p)")
     else:
         start = _check_guess(guess, nodes, n, t0, t1)
-    if p_start is not None:
-        if start != "march":
-            raise InputError(f"p_start is the shooting start's momentum: give it with "
-                             f"guess='march', got guess={guess!r}")
-        p_start = check_state("p_start", p_start, n)
     request = GridRequest(system, scheme, nodes, system.parameter_vector(params),
                           Boundary(q_start, q_end, t0, t1, grid_times, p_start), options,
                           compilation, tau_floor=tau_floor, progress=output.progress)

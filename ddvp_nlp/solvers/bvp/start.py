@@ -34,6 +34,8 @@ with fixed steps there (``_from_nodes``).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...discrete.scheme import Scheme
@@ -44,6 +46,18 @@ from ..options import Compilation, StepControl
 from .assembly import NodeLayout
 from .continuation import continue_in_end_position
 from .phase import Boundary, assembly, ends, mean_step, newton_targets, run_phase
+
+
+@dataclass(frozen=True)
+class Shooting:
+    """The start by shooting (``solve_bvp(..., guess=Shooting(p_start))``; ``guess="march"`` is
+    ``Shooting()``): march fixed steps from ``(q_start, p_start)`` and correct ``p_start`` until
+    the march ends on ``q_end`` (module docstring). ``p_start``: the momentum shooting starts
+    from (default the straight line's); it chooses the branch of a problem with several
+    solutions."""
+
+    p_start: object = None
+
 
 SHOOTING_ITERATIONS = 30
 # Relative singular-value cut of the shooting Jacobian (_shooting_step).
