@@ -357,13 +357,13 @@ class GridAssembly:
 
         ``blocks`` is what :meth:`evaluate` returned (its store itself, no copy), or dense
         blocks ``(interval (N-1, 2m, 2n), node (N-2, 3m) or None)`` in the layout of
-        :meth:`_entries` (a new array; ``ipopt.py`` builds its pattern from ones)."""
+        :func:`block_entries` (a new array; ``ipopt.py`` builds its pattern from ones)."""
         if isinstance(blocks, BandJacobian):
             return blocks.ab
         N, m = self.layout.nodes, self.layout.m
         w = self.layout.bandwidth
         store = np.zeros((N, m, 3 * w + 1))
-        for row, col, value in self._entries(blocks):
+        for row, col, value in block_entries(self.layout, blocks):
             # row, col: offsets within the block's window; value: (count,) over the grid
             node, comp = divmod(col, m)
             store[node + row[1]:node + row[1] + value.size, comp, 2 * w + row[0] - col] = value
@@ -382,7 +382,7 @@ class GridAssembly:
             return sp.csc_matrix((band[keep], (i[keep], j[keep])), (size, size))
         m = self.layout.m
         rows, cols, values = [], [], []
-        for row, col, value in self._entries(blocks):
+        for row, col, value in block_entries(self.layout, blocks):
             k = np.arange(value.size)
             rows.append(row[0] + (k + row[1]) * m)
             cols.append(col + (k + row[1]) * m)
@@ -390,26 +390,27 @@ class GridAssembly:
         return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows),
                                                        np.concatenate(cols))), (size, size))
 
-    def _entries(self, blocks):
-        """Every Jacobian entry as ``((row offset, first node), column offset, values)``: the
-        entry is at row ``row offset + k m`` and column ``column offset + k m`` for ``k`` =
-        first node, first node + 1, ... (one per value). Offsets are relative to node
-        ``first node``'s first row/column, so that ``row offset - column offset`` is the
-        entry's diagonal."""
-        n, N, m = self.layout.n, self.layout.nodes, self.layout.m
-        J, Je = blocks
-        one = np.ones(1)
-        for i in range(n + 1):  # t_0, q_0 pinned
-            yield (i, 0), i, one
-        for a in range(2 * n):  # canonical rows of interval k: row (n+1) + k m + a
-            for c in range(2 * m):
-                yield (n + 1 + a, 0), c, J[:, c, a]
-        time_row = n + 1 + 2 * n
-        if Je is not None:
-            for c in range(3 * m):
-                yield (time_row, 0), c, Je[:, c]
-            yield (time_row, N - 2), m, one  # t_{N-1} pinned
-        else:
-            yield (time_row, 0), m, np.ones(N - 1)
-        for i in range(n):  # q_{N-1} pinned: row N m - n + i, column (N-1) m + 1 + i
-            yield (m - n + i, N - 1), 1 + i, one
+
+def block_entries(layout: NodeLayout, blocks):
+    """Every Jacobian entry as ``((row offset, first node), column offset, values)``: the
+    entry is at row ``row offset + k m`` and column ``column offset + k m`` for ``k`` =
+    first node, first node + 1, ... (one per value). Offsets are relative to node
+    ``first node``'s first row/column, so that ``row offset - column offset`` is the
+    entry's diagonal."""
+    n, N, m = layout.n, layout.nodes, layout.m
+    J, Je = blocks
+    one = np.ones(1)
+    for i in range(n + 1):  # t_0, q_0 pinned
+        yield (i, 0), i, one
+    for a in range(2 * n):  # canonical rows of interval k: row (n+1) + k m + a
+        for c in range(2 * m):
+            yield (n + 1 + a, 0), c, J[:, c, a]
+    time_row = n + 1 + 2 * n
+    if Je is not None:
+        for c in range(3 * m):
+            yield (time_row, 0), c, Je[:, c]
+        yield (time_row, N - 2), m, one  # t_{N-1} pinned
+    else:
+        yield (time_row, 0), m, np.ones(N - 1)
+    for i in range(n):  # q_{N-1} pinned: row N m - n + i, column (N-1) m + 1 + i
+        yield (m - n + i, N - 1), 1 + i, one
