@@ -9,8 +9,9 @@ system goes) and a key whose first element names the kind of function, for examp
 Two caches, with two lifetimes:
 
 - ``FUNCTIONS``: small per-interval and per-step functions, kept as long as their system;
-- ``PROBLEMS``: whole fixed-endpoint problems (their size grows with the node count), at most
-  ``PROBLEMS.limit`` per system, the least recently used dropped first.
+- ``PROBLEMS``: whole grid problems, built assemblies and IPOPT builds (their size grows with
+  the node count), at most ``PROBLEMS.limit`` per system, the least recently used dropped
+  first.
 
 :func:`evaluate_columns` evaluates a per-node function on every node of a long result through a
 block-wide map kept in ``FUNCTIONS``.

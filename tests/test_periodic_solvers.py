@@ -1,6 +1,6 @@
 """Periodic orbits, continued: IPOPT beside Newton, pendulum rotations (an angle coordinate
 closing with a whole turn), Henon-Heiles orbits through x = 0 off the invariant plane, and the
-refusals of bad input (solvers/periodic.py, periodic_ipopt.py)."""
+refusals of bad input (solvers/periodic/solve.py, periodic/ipopt.py)."""
 
 import json
 

@@ -107,7 +107,7 @@ def test_an_unusable_cache_or_compiler_falls_back_with_one_warning(tmp_path, mon
                                                                    setting):
     from ddvp_nlp.solvers import compiler
 
-    monkeypatch.setattr(compiler, "_WARNED", set())
+    compiler.forget_warnings()
     cache = tmp_path / "a-file"
     cache.write_text("")
     options = ({"cache_dir": cache / "sub"} if setting == "cache"

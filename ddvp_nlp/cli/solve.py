@@ -9,7 +9,7 @@ from pathlib import Path
 from ..discrete.scheme import RULES, Scheme
 from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
-from ..solvers.options import GridOptions, Output
+from ..solvers.options import Output
 from . import options
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
@@ -246,9 +246,8 @@ def _march_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import march_higher
 
     t_init, q_init = scene.start(config)
-    return march_higher(scene.system, t_init, q_init, t_end=config.t_end,
-                        scheme=scheme.rule, params=config.params, tol=args.tol,
-                        max_steps=args.max_steps, time_limit=args.time_limit), None
+    return march_higher(scene.system, t_init, q_init, config.t_end, scheme=scheme.rule,
+                        params=config.params, steps=options.step_control(args)), None
 
 
 def _bvp_higher(args, scene, config, scheme):
@@ -260,7 +259,7 @@ def _bvp_higher(args, scene, config, scheme):
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
                             scheme=scheme.rule, params=config.params,
-                            options=GridOptions(solver=args.solver, tol=args.tol)), None
+                            options=options.grid_options(args, tol=args.tol)), None
 
 
 # (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)

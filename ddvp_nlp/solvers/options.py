@@ -22,7 +22,9 @@ tol=1e-12)`` makes a changed copy.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+import numpy as np
 
 from ..errors import InputError
 from ..validation import check_cache_folder, check_integer, check_real
@@ -39,6 +41,14 @@ BAND_LU = ("compiled", "lapack")
 
 def _set(options, name, value):
     object.__setattr__(options, name, value)
+
+
+def _flag(name: str, value) -> bool:
+    """A field that is on or off: ``True``/``False`` (``np.bool_`` too), nothing else (a string
+    such as ``"no"`` is truthy and would turn it on)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 def _choice(name: str, value, choices) -> str:
@@ -124,6 +134,7 @@ class Tolerance:
             _set(self, name, check_real(name, getattr(self, name), positive=True))
         _set(self, "global_tol", check_real("global_tol", self.global_tol, positive=True,
                                             allow_none=True))
+        _set(self, "stop", _flag("stop", self.stop))
 
 
 # The default of ``accuracy=`` (``None`` there turns the check off).
@@ -167,12 +178,12 @@ class GridOptions:
                                            allow_none=True))
         _set(self, "time_limit", check_real("time_limit", self.time_limit, positive=True,
                                             allow_none=True))
+        _set(self, "verbose", _flag("verbose", self.verbose))
 
     def resolved(self, *, tol: float, max_iter: int) -> GridOptions:
         """These options with a solver's defaults in place of ``None``."""
-        return GridOptions(self.solver, tol if self.tol is None else self.tol,
-                           max_iter if self.max_iter is None else self.max_iter,
-                           self.tau_floor, self.linear, self.time_limit, self.verbose)
+        return replace(self, tol=tol if self.tol is None else self.tol,
+                       max_iter=max_iter if self.max_iter is None else self.max_iter)
 
 
 @dataclass(frozen=True)
@@ -191,8 +202,8 @@ class Compilation:
         batch: most chunk calls a march makes and checks at once (1, 2, 4, ... up to this
             while every step is kept): the same nodes as one call at a time, with the decoding
             and the monitors paid once per batch.
-        threads: threads of each mapped evaluation of a grid's blocks (1: two were not faster
-            on two cores, measured).
+        threads: threads of each mapped evaluation of the fixed-endpoint IPOPT build's
+            residual and Hessian blocks (1: two were not faster on two cores, measured).
         band_lu: the grid's banded LU: ``"compiled"`` (LAPACK's loops compiled with
             ``compiler``, ``grid/band.py``; LAPACK through scipy where there is no compiler)
             or ``"lapack"`` (through scipy).
@@ -212,6 +223,7 @@ class Compilation:
             raise InputError(f"compiler must be 'auto', a command or None, got "
                              f"{self.compiler!r}")
         check_cache_folder(self.cache_dir)
+        _set(self, "fast", _flag("fast", self.fast))
         _set(self, "chunk", check_integer("chunk", self.chunk, maximum=MAX_CHUNK))
         _set(self, "batch", check_integer("batch", self.batch))
         _set(self, "threads", check_integer("threads", self.threads))
@@ -223,7 +235,8 @@ class Output:
     """What a solver reports while it runs, and how it can be stopped.
 
     Attributes:
-        progress: a progress bar (march) or a line per iteration (grid solvers) on stderr.
+        progress: a progress bar (march) or a line per iteration (grid solvers) on stderr; a
+            grid solve's IPOPT also writes its iteration log, on stdout.
         checkpoint: optional ``save(t, z)``, called with the nodes kept so far every
             ``checkpoint_interval`` seconds of a march's stepping (at most about 5% of it), so
             that a killed march loses at most one interval.
@@ -239,6 +252,7 @@ class Output:
     stop: Callable[[], bool] | None = None
 
     def __post_init__(self):
+        _set(self, "progress", _flag("progress", self.progress))
         if self.checkpoint is not None and not callable(self.checkpoint):
             raise InputError(f"checkpoint must be a callable save(t, z), got "
                              f"{self.checkpoint!r}")

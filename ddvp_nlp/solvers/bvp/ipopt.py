@@ -28,6 +28,8 @@ pendulum at N = 1e3..1e5 (docs/benchmarks/bench_bvp.md).
 
 from __future__ import annotations
 
+from types import MappingProxyType
+
 import casadi as ca
 import numpy as np
 
@@ -49,8 +51,8 @@ from .assembly import Ends, GridAssembly, NodeLayout, hessian_block_functions, n
 # MUMPS scaling 77 or 8 and a pivot tolerance of 1e-4 took more factorizations (32, 22, 8
 # against 5): the inertia MUMPS reports for this saddle-point matrix (its (1,1) block is
 # ~1e-13) is off by a few eigenvalues, which costs IPOPT a perturbed refactorization.
-ASSEMBLY_OPTIONS = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_init": 1e-13,
-                    "ipopt.mu_min": 1e-15}
+ASSEMBLY_OPTIONS = MappingProxyType({"ipopt.mumps_pivot_order": 0, "ipopt.mu_init": 1e-13,
+                                     "ipopt.mu_min": 1e-15})
 
 
 def residual_functions(system, scheme: Scheme):

@@ -55,7 +55,7 @@ from ...validation import (
 )
 from ..accuracy import AccuracyMonitor, assess
 from ..dense import attach
-from ..grid.problem import GridRequest
+from ..grid.problem import GridRequest, timed_out
 from ..options import Compilation, GridOptions, Output, Tolerance, coerce
 from .assembly import NodeLayout
 from .phase import (
@@ -120,11 +120,15 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         residuals, the action and the number of sign changes of each ``p`` component (which of
         several solutions it is); failures are a status on it.
     """
+    output = coerce(output, Output, "output")
+    if output.checkpoint is not None or output.stop is not None:
+        raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
+                         "and stop belong to a march")
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
                               params=params, guess=guess, times=times,
                               options=coerce(options, GridOptions, "options"),
                               compilation=coerce(compilation, Compilation, "compilation"),
-                              output=coerce(output, Output, "output"))
+                              output=output)
     started = request.start_clock()
     start_kind = start
     start = start_point(request, start)
@@ -197,8 +201,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
 
 # Peak memory per node, measured (docs/benchmarks/bench_bvp.md): Newton 0.67 GB at 1e6 nodes of
 # the pendulum (n = 1; 1.06 GB before the band store was reused), IPOPT on the assembly
-# 0.77-1.27 GB at 1e5 and 9.3 GB at 1e6 (the MX build, kept for comparison only, 2.8 GB at 1e5);
-# the blocks grow like (2n + 1)^2.
+# 0.77-1.27 GB at 1e5 and 9.3 GB at 1e6; the blocks grow like (2n + 1)^2.
 BYTES_PER_NODE = {"newton": 0.8e3, "auto": 0.8e3, "ipopt": 1.3e4}
 
 
@@ -286,18 +289,13 @@ def _verify(phase, t, canonical, energy, scheme, limits, stats):
                                 f"{worst_canonical:.3e}, energy {worst_energy:.3e}; "
                                 f"{phase['iterations']} iterations ({said})")
     detail = "".join(f"; {p}" for p in problems)
-    if _timed_out(phase):
+    if timed_out(phase["return_status"]):
         return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value} ({said}){detail}"
     if not phase["converged"]:
         return Status.SOLVER_FAILED, f"{Status.SOLVER_FAILED.value} ({said}){detail}"
     if np.min(tau) <= 0:
         return Status.NO_ADMISSIBLE_STEP, problems[0] + f" ({said})"
     return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {'; '.join(problems)} ({said})"
-
-
-def _timed_out(phase) -> bool:
-    said = phase["return_status"]
-    return said.startswith("time limit") or said == "Maximum_WallTime_Exceeded"
 
 
 def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
@@ -359,7 +357,10 @@ def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
     ``t0`` to ``t1``."""
     if times is None:
         return np.linspace(t0, t1, nodes)
-    grid_times = np.asarray(times, float)
+    try:
+        grid_times = np.asarray(times, float)
+    except (TypeError, ValueError):
+        grid_times = np.zeros(0)
     if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
             or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
         raise InputError(f"times must be {nodes} increasing finite values from t_0 to "

@@ -25,12 +25,14 @@ inactive there.
 
 from __future__ import annotations
 
+from types import MappingProxyType
+
 import casadi as ca
 import numpy as np
 
 from .problem import GridResult
 
-DEFAULT_OPTIONS = {
+DEFAULT_OPTIONS = MappingProxyType({
     "ipopt.linear_solver": "mumps",
     "ipopt.mumps_pivot_order": 5,  # METIS
     "ipopt.mumps_permuting_scaling": 0,
@@ -40,7 +42,7 @@ DEFAULT_OPTIONS = {
     # iterate away first: 7-13 iterations instead of 2-3 at N = 1e4 (measured).
     "ipopt.mu_init": 1e-9, "ipopt.bound_push": 1e-12, "ipopt.bound_frac": 1e-12,
     "ipopt.bound_mult_init_method": "mu-based",
-}
+})
 
 
 def ipopt_settings(tol: float, max_iter: int, verbose: bool, time_limit: float | None,
@@ -51,7 +53,8 @@ def ipopt_settings(tol: float, max_iter: int, verbose: bool, time_limit: float |
                 "ipopt.sb": "yes", "ipopt.max_iter": max_iter,
                 "ipopt.tol": tol * 1e-2, "ipopt.constr_viol_tol": tol * 1e-2, **options}
     if time_limit is not None:
-        settings["ipopt.max_wall_time"] = float(time_limit)
+        # IPOPT takes only a positive limit; a deadline already passed stops it at once
+        settings["ipopt.max_wall_time"] = max(float(time_limit), 1e-6)
     return settings
 
 

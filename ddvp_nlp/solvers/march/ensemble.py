@@ -54,16 +54,16 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
                    compilation: Compilation | None = None, workers: int = 2) -> list[Solution]:
     """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would;
-    the arguments after them are :func:`march`'s (``compilation.fast`` must stay on: the
-    workers share the compiled chunk).
+    the arguments after them are :func:`march`'s (with ``compilation.fast``, the default, the
+    workers share the compiled chunk built here).
 
     ``workers``: local processes marching the orbits (forked from this one; ``1``: all in
     this process). Returns one :class:`Solution` per orbit, in order, each with its own status
     and :func:`march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
     counts the C compiles the orbit's worker ran (none: it inherits the loaded functions)."""
     scheme = Scheme.coerce(scheme)
-    q0s, p0s = np.atleast_2d(np.asarray(q0s, float)), np.atleast_2d(np.asarray(p0s, float))
-    if q0s.shape != p0s.shape or q0s.shape[0] == 0:
+    q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
+    if q0s.shape != p0s.shape or q0s.shape[0] == 0 or q0s.ndim != 2:
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")
     workers = check_integer("workers", workers)
@@ -73,8 +73,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     compilation = coerce(compilation, Compilation, "compilation")
     t0, t_end = check_span(t_span)
     theta = _check_all(system, scheme, q0s, p0s, (t0, t_end), tau0, steps, params)
-    compilation = replace(compilation, fast=True,
-                          compiler=find_compiler(compilation.compiler))
+    compilation = replace(compilation, compiler=find_compiler(compilation.compiler))
     options = dict(tau0=tau0, scheme=scheme, params=params, steps=steps, accuracy=accuracy,
                    compilation=compilation)
     with warnings.catch_warnings():  # the first orbit's warnings come from its own march
@@ -92,6 +91,16 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     for solution in solutions:  # the vector field stays behind in the worker
         attach(solution, system, theta, t_end)
     return solutions
+
+
+def _numbers(name: str, value) -> np.ndarray:
+    """An array of real numbers (whether each start is finite, :func:`_check_all` says, orbit
+    by orbit)."""
+    try:
+        return np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an (M, n) array of real numbers, got {value!r}") \
+            from None
 
 
 def _check_all(system, scheme, q0s, p0s, t_span, tau0, steps, params) -> np.ndarray:

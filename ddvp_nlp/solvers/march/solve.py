@@ -96,12 +96,13 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         A :class:`Solution`; failures are a status on it, never an exception.
     """
     scheme = Scheme.coerce(scheme)
-    problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0,
-                            coerce(steps, StepControl, "steps"), params)
+    steps = coerce(steps, StepControl, "steps")
     if accuracy is not None:
         coerce(accuracy, Tolerance, "accuracy")
     compilation = coerce(compilation, Compilation, "compilation")
     output = coerce(output, Output, "output")
+    # the options first: the start (p0 from v0, H0) already builds CasADi functions
+    problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
     compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
 
     started = time.perf_counter()

@@ -93,7 +93,7 @@ from ...solution import Solution, Status
 from ...validation import check_integer, check_real, check_state
 from ..accuracy import AccuracyMonitor, assess
 from ..grid.newton import newton
-from ..grid.problem import GridRequest
+from ..grid.problem import GridRequest, timed_out
 from ..options import GridOptions, Tolerance, coerce
 from .assembly import Closure, PeriodicAssembly, integral_gradients
 from .ipopt import periodic_ipopt
@@ -201,16 +201,18 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         residuals in the message; an orbit whose steps do not follow the exact flow is
         ``inaccurate``.
     """
+    integrals = check_integrals(integrals)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
                        coerce(options, GridOptions, "options"))
-    started = time.perf_counter()
+    started = request.start_clock()
     t, z = _start_nodes(request)
-    integrals = tuple(integrals)
     closure = _closure(request, z, integrals)
-    assembly = PeriodicAssembly(system, request.scheme, nodes, closure, integrals)
+    began = time.perf_counter()
+    assembly = PeriodicAssembly(system, request.scheme, nodes, integrals)
+    request.build_s += time.perf_counter() - began
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
     scale = max(1.0, float(np.max(np.abs(x0))), abs(request.data.energy))
-    request.tau_floor = 1e-3 * t[-1] / nodes
+    request.tau_floor = _tau_floor(request, t[-1])
     order = ("newton", "ipopt") if request.solver == "auto" else (request.solver,)
     attempts, results = [], []
     for name in order:
@@ -222,8 +224,8 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                          "iterations": result.iterations, "said": result.outcome,
                          "wall_s": time.perf_counter() - began,
                          "cpu_s": time.process_time() - cpu})
-        if results[-1].status in (Status.SUCCESS, Status.INACCURATE):
-            break  # the equations hold: another solver would find the same grid
+        if results[-1].status in (Status.SUCCESS, Status.INACCURATE, Status.TIME_LIMIT):
+            break  # the equations hold (another solver would find the same grid), or no time
     chosen = next((r for r in results if r.success), results[0])
     chosen.stats["attempts"] = attempts
     return _noted(chosen, attempts)
@@ -234,13 +236,27 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integr
     if name == "newton":
         target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
         result = newton(assembly, x0, closure, target, tau_floor=request.tau_floor,
-                        max_iter=request.max_iter, linear="sparse")
+                        max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
         result.outcome = f"newton: {result.outcome}"
         return result
+    began = time.perf_counter()  # the build (or the cache's answer) counts as build time
     problem = periodic_ipopt(request.system, request.scheme, request.nodes, integrals,
                              request.data.index, tol=request.tol, max_iter=request.max_iter,
-                             verbose=request.verbose)
+                             verbose=request.verbose, time_limit=request.remaining())
+    request.build_s += time.perf_counter() - began
     return problem.solve(x0, closure, request.tau_floor)
+
+
+def _tau_floor(request: GridRequest, period: float) -> float:
+    """``options.tau_floor`` if given (below the start's mean step), else a thousandth of the
+    start's mean step."""
+    mean = period / request.nodes
+    floor = request.options.tau_floor
+    if floor is None:
+        return 1e-3 * period / request.nodes
+    if floor >= mean:
+        raise InputError(f"tau_floor must be < the start's mean step {mean!r}, got {floor!r}")
+    return floor
 
 
 def _noted(solution: Solution, attempts: list) -> Solution:
@@ -256,6 +272,7 @@ def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", par
                    start=None, integrals=(), angles=(), options=None) -> None:
     """Raise the ``InputError`` :func:`solve_periodic` would raise for these arguments without
     a guess (the section's point at ``energy`` included), and build nothing."""
+    check_integrals(integrals)
     _checked(system, energy, nodes, section, None, scheme, params, start, angles,
              coerce(options, GridOptions, "options"))
 
@@ -287,6 +304,10 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
     if not scheme.variable_steps:
         raise InputError(f"scheme {scheme.rule!r} has no energy equation; periodic orbits at "
                          f"a prescribed energy need 'vddvp' or 'lee'")
+    if options.linear == "banded":
+        raise InputError("linear must be 'auto' or 'sparse' for a periodic orbit (its "
+                         "Jacobian has closure rows in a corner and a full unfolding column: "
+                         "not banded), got 'banded'")
     energy = check_real("energy", energy)
     nodes = check_integer("nodes", nodes, minimum=3)
     index, value, label = parse_section(section, system.n)
@@ -316,10 +337,24 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
                        options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER))
 
 
+def check_integrals(integrals) -> tuple:
+    """``integrals`` as a tuple of functions ``I(q, p)``."""
+    try:
+        integrals = tuple(integrals)
+    except TypeError:
+        integrals = (integrals,)
+    if not all(callable(integral) for integral in integrals):
+        raise InputError(f"integrals must be functions I(q, p), got {integrals!r}")
+    return integrals
+
+
 def parse_angles(angles, n: int) -> tuple[int, ...]:
     """Indices into ``z = (q, p)`` (from 0) of the angle coordinates named ``"q1"`` ..
     ``"qn"``."""
-    names = (angles,) if isinstance(angles, str) else tuple(angles)
+    try:
+        names = (angles,) if isinstance(angles, str) else tuple(angles)
+    except TypeError:
+        raise InputError(f"angles must name coordinates q1..q{n}, got {angles!r}") from None
     indices = []
     for name in names:
         match = re.fullmatch(r"q(\d+)", name) if isinstance(name, str) else None
@@ -402,7 +437,8 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     return Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                     energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
                     newton_iterations=result.iterations, local_error=local_error,
-                    timing={"build_s": 0.0, "solve_s": time.perf_counter() - started},
+                    timing={"build_s": request.build_s,
+                            "solve_s": time.perf_counter() - started - request.build_s},
                     stats=stats)
 
 
@@ -420,6 +456,8 @@ def _verdict(result, worst: dict, limit: float, tau: np.ndarray, note):
         return Status.SUCCESS, (f"periodic orbit found and verified: largest residuals {listed} "
                                 f"(limit {limit:.1e}); {said}")
     detail = f"largest residuals {listed}, limit {limit:.1e}, above it: {', '.join(failed)}"
+    if timed_out(result.outcome):
+        return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value}: {detail} ({said})"
     if not result.converged:
         return Status.SOLVER_FAILED, f"no periodic orbit found: {detail} ({said})"
     return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {detail} ({said})"
