@@ -21,6 +21,7 @@ from __future__ import annotations
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
+from importlib import import_module
 from typing import TypeVar
 
 import numpy as np
@@ -51,6 +52,12 @@ class FunctionCache:
     def keys(self, owner: object) -> list:
         """The keys held for ``owner``, oldest first."""
         return list(self._entries.get(owner, ()))
+
+    def discard(self, owner: object, dropped: Callable[[Hashable], bool]) -> None:
+        """Drop the entries of ``owner`` whose key ``dropped(key)`` is true."""
+        entries = self._entries.get(owner)
+        for key in [k for k in entries or () if dropped(k)]:
+            del entries[key]
 
     def clear(self, owner: object | None = None) -> None:
         """Drop every entry (of ``owner`` only, if given)."""
@@ -105,3 +112,20 @@ def use_compiler(system, compile) -> None:
     ``system`` from now on: once a march has a working compiler, the checks of its results
     (every equation at every node) run compiled too."""
     FUNCTIONS.get(system, ("block compiler",), lambda: compile)
+
+
+def lazy_exports(package: str, names: dict[str, str]):
+    """``(__getattr__, __dir__)`` for a package whose public ``names`` (name -> submodule)
+    are imported when first asked for (PEP 562), so that importing one of its modules, or the
+    package, does not load the others and what they import."""
+    def getattr_(name: str):
+        if name not in names:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(import_module(f"{package}.{names[name]}"), name)
+        vars(import_module(package))[name] = value  # found directly from now on
+        return value
+
+    def dir_():
+        return sorted(set(vars(import_module(package))) | set(names))
+
+    return getattr_, dir_

@@ -27,6 +27,10 @@ The contract, on top of the grid's (``grid/__init__.py``):
 3. This package imports the core and ``grid/``.
 """
 
-from .solve import march_higher, solve_bvp_higher
+from ...cache import lazy_exports
+
+# loaded when first asked for: importing one module of the family loads only what it needs
+__getattr__, __dir__ = lazy_exports(__name__, {"march_higher": "solve",
+                                                "solve_bvp_higher": "solve"})
 
 __all__ = ["march_higher", "solve_bvp_higher"]

@@ -24,7 +24,10 @@ The contract, on top of the grid's (``grid/__init__.py``):
 4. This package imports the core, ``grid/`` and ``march/`` (the start is a march).
 """
 
-from .family import solve_periodic_family
-from .solve import solve_periodic
+from ...cache import lazy_exports
+
+# loaded when first asked for: importing one module of the family loads only what it needs
+__getattr__, __dir__ = lazy_exports(__name__, {"solve_periodic": "solve",
+                                                "solve_periodic_family": "family"})
 
 __all__ = ["solve_periodic", "solve_periodic_family"]
