@@ -133,19 +133,25 @@ def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends)
 
 
 def _ipopt(request: GridRequest, scheme: Scheme, x0: np.ndarray, data: Ends):
-    """IPOPT's solve of the system of ``scheme`` from ``x0``, its tolerance at the rows'
-    round-off (:func:`ipopt_floor`). Before a released problem is built the fixed-step ones are
+    """IPOPT's solve of the system of ``scheme`` from ``x0``: the request's own system to
+    ``tol`` (but not below the rows' round-off, :func:`ipopt_floor`), a start phase to that
+    round-off. Before a released problem is built the fixed-step ones are
     dropped from the cache: at N = 1e6 the fixed-step one held about 3 GB while the released
     one was built (measured)."""
     remaining = request.remaining()
     compilation = request.compilation
     floor = ipopt_floor(request, x0, scheme, data)
+    # A start phase (another scheme than the request's: fixed steps) ends where Newton's does,
+    # at its rows' round-off: at 1e-2 tol = 1e-11 IPOPT took the predicted times' start as it
+    # came at N = 1e6 (0 iterations), the released rows were then 2.5e-12 off, above the
+    # verification, and one IPOPT iteration on them cost 38 s and 7.9 GB (measured).
+    tol = request.tol if scheme == request.scheme else floor
     if scheme.variable_steps:
         request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != scheme)
     problem = request.built(("bvp_ipopt", scheme, request.nodes, request.max_iter,
-                             request.tol, floor, request.verbose, remaining, compilation),
+                             tol, floor, request.verbose, remaining, compilation),
                             lambda: BvpIpopt(request.system, scheme, request.nodes,
-                                             tol=request.tol, max_iter=request.max_iter,
+                                             tol=tol, max_iter=request.max_iter,
                                              verbose=request.verbose or request.progress,
                                              time_limit=remaining, compilation=compilation,
                                              floor=floor))
