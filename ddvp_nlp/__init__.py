@@ -11,6 +11,8 @@ result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes
 Everything else is reached through its module and may change.
 """
 
+from typing import TYPE_CHECKING
+
 from .cache import lazy_exports
 from .discrete.scheme import Scheme
 from .errors import InputError
@@ -27,6 +29,12 @@ from .scenes import (
 )
 from .solution import Solution, Status
 from .solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+
+if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .solvers.bvp import Shooting, solve_bvp
+    from .solvers.higher import march_higher, solve_bvp_higher
+    from .solvers.march import march, march_ensemble
+    from .solvers.periodic import solve_periodic, solve_periodic_family
 
 # The solvers are loaded when first asked for (PEP 562): `from ddvp_nlp import march` loads the
 # march and not the fixed-endpoint, periodic and higher-order families with scipy.sparse and
