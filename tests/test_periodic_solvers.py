@@ -127,6 +127,10 @@ def test_continuation_keeps_the_step_distribution():
     t, z = refine_by_index(orbit.t, np.hstack([orbit.q, orbit.p]), 200, angles=(0,))
     assert t.size == 201 and z[-1, 0] == pytest.approx(z[0, 0] + 2 * np.pi, abs=1e-14)
     np.testing.assert_allclose(np.diff(t)[::2], np.diff(orbit.t) / 2, rtol=1e-12)
+    t_open, z_open = refine_by_index(orbit.t, np.hstack([orbit.q, orbit.p]), 150,
+                                     closed=False)
+    assert np.array_equal(z_open[[0, -1]], np.hstack([orbit.q, orbit.p])[[0, -1]])
+    assert t_open[0] == 0.0 and t_open[-1] == pytest.approx(orbit.t[-1] - orbit.t[0])
     assert node_levels(800) == [100, 200, 400, 800]
     assert node_levels(1000) == [125, 250, 500, 1000]
     assert node_levels(150) == [150] and node_levels(60) == [60]
