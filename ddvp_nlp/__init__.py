@@ -11,6 +11,9 @@ result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes
 Everything else is reached through its module and may change.
 """
 
+from typing import TYPE_CHECKING
+
+from .cache import lazy_exports
 from .discrete.scheme import Scheme
 from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem
@@ -25,11 +28,23 @@ from .scenes import (
     load_scene,
 )
 from .solution import Solution, Status
-from .solvers.bvp import Shooting, solve_bvp
-from .solvers.higher import march_higher, solve_bvp_higher
-from .solvers.march import march, march_ensemble
 from .solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
-from .solvers.periodic import solve_periodic, solve_periodic_family
+
+if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .solvers.bvp import Shooting, solve_bvp
+    from .solvers.higher import march_higher, solve_bvp_higher
+    from .solvers.march import march, march_ensemble
+    from .solvers.periodic import solve_periodic, solve_periodic_family
+
+# The solvers are loaded when first asked for (PEP 562): `from ddvp_nlp import march` loads the
+# march and not the fixed-endpoint, periodic and higher-order families with scipy.sparse and
+# scipy.linalg behind them (import ddvp_nlp took 0.43 s CPU with every family, 75% of a warm
+# `ddvp march`; measured).
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "march": "solvers.march", "march_ensemble": "solvers.march", "solve_bvp": "solvers.bvp",
+    "Shooting": "solvers.bvp", "solve_periodic": "solvers.periodic",
+    "solve_periodic_family": "solvers.periodic", "march_higher": "solvers.higher",
+    "solve_bvp_higher": "solvers.higher"})
 
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):

@@ -28,7 +28,16 @@ The contract, on top of the grid's (``grid/__init__.py``):
 4. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
 """
 
-from .solve import solve_bvp
-from .start import Shooting, predicted_times
+from typing import TYPE_CHECKING
+
+from ...cache import lazy_exports
+
+if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .solve import solve_bvp
+    from .start import Shooting, predicted_times
+
+# loaded when first asked for: importing one module of the family loads only what it needs
+__getattr__, __dir__ = lazy_exports(__name__, {"solve_bvp": "solve", "Shooting": "start",
+                                                "predicted_times": "start"})
 
 __all__ = ["Shooting", "predicted_times", "solve_bvp"]

@@ -152,3 +152,8 @@ class GridRequest(Generic[Data]):
         value = PROBLEMS.get(self.system, key, build)
         self.build_s += time.perf_counter() - started
         return value
+
+    def forget(self, dropped) -> None:
+        """Drop this system's built problems whose key ``dropped(key)`` is true, before a
+        large one is built in their place."""
+        PROBLEMS.discard(self.system, dropped)
