@@ -120,9 +120,14 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                                                               output.checkpoint_interval)
     monitors += [StopRequest(output.stop)] if output.stop else []
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
-    outcome = drive(parts.stepper, nodes, t_end=problem.t_end, max_steps=problem.steps.max_steps,
-                    time_limit=problem.steps.time_limit, monitors=monitors,
-                    progress=output.progress, catch_interrupt=True)
+    try:
+        outcome = drive(parts.stepper, nodes, t_end=problem.t_end,
+                        max_steps=problem.steps.max_steps, time_limit=problem.steps.time_limit,
+                        monitors=monitors, progress=output.progress, catch_interrupt=True,
+                        stop=output.stop)
+    finally:
+        if saver:  # a checkpoint in flight lands before the final write can start
+            saver.finish()
     solved = time.perf_counter()
     if isinstance(parts.stepper, MarchStepper):  # fast_steps: the fast nodes the run kept
         parts.stepper.compiled.settle(outcome.t.size)
@@ -136,6 +141,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
+        solution.stats["checkpoints_landed_s"] = [round(t, 3) for t in saver.landed]
     return attach(solution, system, problem.theta, problem.t_end)
 
 
