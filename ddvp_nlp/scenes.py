@@ -221,6 +221,10 @@ class Scene:
         if callable(value):
             try:
                 value = value(**params)
+            except SceneCodeError as exc:
+                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
+                                 f"{_shown(params)}: {exc.reason.removeprefix('raised ')} "
+                                 f"({exc.where})") from None
             except Exception as exc:
                 raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
                                  f"{_shown(params)}: {type(exc).__name__}: {exc}") from None
@@ -404,10 +408,16 @@ def scene_code(path, what: str, size: int = 0):
         signal.setitimer(signal.ITIMER_REAL, limit)
     try:
         yield
-    except (KeyboardInterrupt, InputError):
+    except (KeyboardInterrupt, SceneCodeError, _Passed):
         raise
+    except InputError as exc:  # a check of ddvp's own, called by the scene: say where
+        where, _ = _describe(path, what, exc, limit)
+        if "line" not in where:
+            raise
+        raise SceneCodeError(f"{where}: {exc}", where=where, reason=str(exc)) from None
     except BaseException as exc:  # noqa: B036 - a scene must not end the command its own way
-        raise InputError(_describe(path, what, exc, limit)) from None
+        where, reason = _describe(path, what, exc, limit)
+        raise SceneCodeError(f"{where}: {what} {reason}", where=where, reason=reason) from None
     finally:
         _GuardState.depth -= 1
         if outer:
@@ -428,9 +438,17 @@ def _refused_abort():
     raise _SceneExit("os.abort()")
 
 
-def _describe(path, what: str, exc: BaseException, limit: float) -> str:
-    """``scene file PATH, line N: WHAT ...``: the deepest line of the scene file in the
-    traceback, and what happened in words."""
+class SceneCodeError(InputError):
+    """A scene's code failed: ``where`` (the file and the line) and ``reason`` (what it did)."""
+
+    def __init__(self, message: str, *, where: str, reason: str):
+        super().__init__(message)
+        self.where, self.reason = where, reason
+
+
+def _describe(path, what: str, exc: BaseException, limit: float) -> tuple[str, str]:
+    """``(where, reason)``: ``scene file PATH, line N`` (the deepest line of the scene file in
+    the traceback) and what happened in words."""
     import traceback
 
     line = None
@@ -440,13 +458,13 @@ def _describe(path, what: str, exc: BaseException, limit: float) -> str:
             line = frame.lineno
     where = f"scene file {str(path)!r}" + (f", line {line}" if line else "")
     if isinstance(exc, _SceneTimeout):
-        return (f"{where}: {what} did not return within {limit:.3g} s (the limit of a scene's "
-                f"code; ${SCENE_SECONDS_VARIABLE} sets it)")
+        return where, (f"did not return within {limit:.3g} s (the limit of a scene's code; "
+                       f"${SCENE_SECONDS_VARIABLE} sets it)")
     if isinstance(exc, SystemExit):
-        return f"{where}: {what} called sys.exit({exc.code!r}); a scene may not end the command"
+        return where, f"called sys.exit({exc.code!r}); a scene may not end the command"
     if isinstance(exc, _SceneExit):
-        return f"{where}: {what} called {exc}; a scene may not end the command"
-    return f"{where}: {what} raised {type(exc).__name__}: {exc}"
+        return where, f"called {exc}; a scene may not end the command"
+    return where, f"raised {type(exc).__name__}: {exc}"
 
 
 def _guarded(function, path, what: str, *, passes=()):
@@ -514,6 +532,8 @@ def _probe(scene, path) -> None:
         try:
             scene.exact(np.array([config.t0, config.t0 + config.tau0]), config.q0, config.p0,
                         config.t0, **config.params)
+        except SceneCodeError:
+            raise
         except ValueError:  # a start it does not cover: the studies use a reference instead
             pass
 

@@ -125,10 +125,20 @@ def _stdout_usable() -> None:
 
 
 def _closed(stream) -> bool:
+    """Whether ``stream`` is a file whose descriptor is closed (a stream without one, such as
+    a test's capture, is usable)."""
+    import io
+
     try:
-        os.fstat(stream.fileno())
+        descriptor = stream.fileno()
+    except (io.UnsupportedOperation, AttributeError):
         return False
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError):
+        return True
+    try:
+        os.fstat(descriptor)
+        return False
+    except OSError:
         return True
 
 

@@ -27,7 +27,6 @@ def run_solve(args) -> int:
     scheme = _scheme(args, higher)
     overrides = parse_settings(args.settings)
     config = _resolve(args, scene, higher, overrides)
-    _check_sizes(args, scene, config, higher)
     target, owned, overrides = _run_folder(args, scene, config, overrides)
     with output_folder(target, owned=owned) as out:
         args.checkpoint = _checkpoint_saver(args, scene, out)
@@ -109,16 +108,6 @@ def result_options(args) -> dict:
             if hasattr(args, name) and getattr(args, name) != default}
 
 
-def _check_sizes(args, scene, config, higher) -> None:
-    """A bvp's node count against the memory its grid solve needs, before any is built."""
-    from ..validation import check_memory
-
-    if args.command == "bvp" and not higher:
-        n = scene.system.n
-        check_memory("--nodes", config.nodes, 48.0 * config.nodes * (2 * n + 1) ** 2,
-                     "the banded Jacobian of the grid and its factors")
-
-
 def _checkpoint_saver(args, scene, out):
     """For a march of a scene with ``H`` or ``L``: ``save(t, z)`` writing the run so far to
     ``out`` (a checkpoint), interrupts held off while it writes."""
@@ -193,7 +182,8 @@ def _march(args, scene, config, scheme):
                                                  stop=INTERRUPTS.stop_requested))
     stats = solution.stats
     return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
-                                                  "checkpoints")}
+                                                  "checkpoints", "checkpoints_landed_s")
+                      if key in stats}
 
 
 def _march_method(args, scene, config):

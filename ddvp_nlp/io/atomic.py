@@ -207,19 +207,20 @@ class OutputFolder:
                 handle.flush()
                 os.fsync(handle.fileno())  # the bytes are on disk before a name points at them
         except BaseException as exc:
-            self._unlink(scratch)
+            self.unlink(scratch)
             if isinstance(exc, OSError) and not isinstance(exc, OutputError):
                 raise OutputError(self.path / name, exc) from None
             raise
         return Written(scratch)
 
     def commit(self, files: dict[str, Writer | None], meta: dict | None = None, *,
-               manifest: str = MANIFEST) -> dict:
+               manifest: str = MANIFEST, digests: dict[str, str] | None = None) -> dict:
         """Write ``files`` (name -> writer, or a :class:`Written` scratch file; ``None``: remove
         that name) and the manifest
         ``meta`` (with ``files``: each file's SHA-256, size and inode) as one set: every file
         first to a scratch name, then renamed, the manifest last (module docstring). Returns
-        the manifest written. A failure removes every scratch file and raises
+        the manifest written; ``digests`` copies a file's SHA-256 to a key of its own
+        (``{"result_sha256": "result.npz"}``). A failure removes every scratch file and raises
         :class:`OutputError` naming the file; the previous set stays readable."""
         with self.guard:
             scratches: dict[str, str] = {}
@@ -230,14 +231,17 @@ class OutputFolder:
                     elif write is not None:
                         scratches[name] = self.scratch(name, write)
                 entries = {name: self._entry(scratch) for name, scratch in scratches.items()}
-                written = {**(meta or {}), "files": entries}
+                written = {**(meta or {}),
+                           **{key: entries[name]["sha256"] for key, name in
+                              (digests or {}).items() if name in entries},
+                           "files": entries}
                 body = json.dumps(written, indent=2, default=_json_default) + "\n"
                 manifest_scratch = self.scratch(manifest, text(body))
             except BaseException:
                 for scratch in scratches.values():
-                    self._unlink(scratch)
+                    self.unlink(scratch)
                 raise
-            self._swap(scratches, manifest, manifest_scratch,
+            _swap(self, scratches, manifest, manifest_scratch,
                        removed=[name for name, write in files.items() if write is None])
             self.committed = True
             return written
@@ -247,53 +251,6 @@ class OutputFolder:
         return {"sha256": sha256_of(scratch, dir_fd=self.fd), "bytes": info.st_size,
                 "inode": info.st_ino}
 
-    def _swap(self, scratches: dict[str, str], manifest: str, manifest_scratch: str, *,
-              removed: list[str]) -> None:
-        """The renames of a set: each replaced file of the last complete set kept as
-        ``.NAME.previous``, the new files, the manifest, then the old ones dropped."""
-        current = self._current_files(manifest)
-        pending = dict(scratches)
-        try:
-            for name, scratch in scratches.items():
-                if current.get(name) == name:  # the file the manifest names: keep it aside
-                    os.rename(name, previous_name(name), src_dir_fd=self.fd,
-                              dst_dir_fd=self.fd)
-                os.rename(scratch, name, src_dir_fd=self.fd, dst_dir_fd=self.fd)
-                del pending[name]
-            os.rename(manifest_scratch, manifest, src_dir_fd=self.fd, dst_dir_fd=self.fd)
-        except OSError as exc:
-            for scratch in [*pending.values(), manifest_scratch]:
-                self._unlink(scratch)
-            raise OutputError(self.path / manifest, exc) from None
-        self._sync()
-        stale = set(current) - set(scratches)
-        for name in {*scratches, *current, *removed}:
-            self._unlink(previous_name(name))
-        for name in stale | set(removed):
-            if name not in scratches:
-                self._unlink(name)
-
-    def _current_files(self, manifest: str) -> dict[str, str]:
-        """For each file of the set the manifest describes: which name holds it now (itself,
-        or its ``.previous`` twin after a kill in the middle of a swap). Matched by inode and
-        size, the cheap identity a rename keeps (readers check the checksums)."""
-        try:
-            described = _load_manifest(self.fd, manifest, self.path).get("files", {})
-        except (InputError, OSError):
-            return {}
-        found = {}
-        for name, entry in described.items() if isinstance(described, dict) else ():
-            for candidate in (name, previous_name(name)):
-                try:
-                    info = os.stat(candidate, dir_fd=self.fd, follow_symlinks=False)
-                except (OSError, ValueError):
-                    continue
-                if isinstance(entry, dict) and (info.st_ino, info.st_size) == (
-                        entry.get("inode"), entry.get("bytes")):
-                    found[name] = candidate
-                    break
-        return found
-
     def replace(self, name: str, write: Writer) -> None:
         """Replace one file on its own (no manifest): scratch, flush, rename."""
         with self.guard:
@@ -301,7 +258,7 @@ class OutputFolder:
             try:
                 os.rename(scratch, name, src_dir_fd=self.fd, dst_dir_fd=self.fd)
             except OSError as exc:
-                self._unlink(scratch)
+                self.unlink(scratch)
                 raise OutputError(self.path / name, exc) from None
             self.committed = True
 
@@ -323,7 +280,7 @@ class OutputFolder:
 
     def remove(self, name: str) -> None:
         with self.guard:
-            self._unlink(name)
+            self.unlink(name)
 
     def subfolder(self, name: str) -> OutputFolder:
         """A folder inside this one, opened (and created) the same way."""
@@ -331,11 +288,11 @@ class OutputFolder:
 
     # -- housekeeping ----------------------------------------------------------------------
 
-    def _unlink(self, name: str) -> None:
+    def unlink(self, name: str) -> None:
         with contextlib.suppress(OSError):
             os.unlink(name, dir_fd=self.fd)
 
-    def _sync(self) -> None:
+    def sync(self) -> None:
         with contextlib.suppress(OSError):
             os.fsync(self.fd)
 
@@ -344,7 +301,7 @@ class OutputFolder:
         with contextlib.suppress(OSError):
             for entry in os.scandir(self.fd):
                 if entry.name.startswith(".") and entry.name.endswith(".tmp"):
-                    self._unlink(entry.name)
+                    self.unlink(entry.name)
 
     def _forget_created(self) -> None:
         """Remove the folders this writer created (innermost first), if they are empty."""
@@ -370,6 +327,54 @@ class OutputFolder:
         if self.committed:
             self.created = []
         self._forget_created()  # rmdir: only folders that stayed empty go
+
+
+def _swap(folder: OutputFolder, scratches: dict[str, str], manifest: str, manifest_scratch: str, *,
+          removed: list[str]) -> None:
+    """The renames of a set: each replaced file of the last complete set kept as
+    ``.NAME.previous``, the new files, the manifest, then the old ones dropped."""
+    current = _current_files(folder, manifest)
+    pending = dict(scratches)
+    try:
+        for name, scratch in scratches.items():
+            if current.get(name) == name:  # the file the manifest names: keep it aside
+                os.rename(name, previous_name(name), src_dir_fd=folder.fd,
+                          dst_dir_fd=folder.fd)
+            os.rename(scratch, name, src_dir_fd=folder.fd, dst_dir_fd=folder.fd)
+            del pending[name]
+        os.rename(manifest_scratch, manifest, src_dir_fd=folder.fd, dst_dir_fd=folder.fd)
+    except OSError as exc:
+        for scratch in [*pending.values(), manifest_scratch]:
+            folder.unlink(scratch)
+        raise OutputError(folder.path / manifest, exc) from None
+    folder.sync()
+    stale = set(current) - set(scratches)
+    for name in {*scratches, *current, *removed}:
+        folder.unlink(previous_name(name))
+    for name in stale | set(removed):
+        if name not in scratches:
+            folder.unlink(name)
+
+def _current_files(folder: OutputFolder, manifest: str) -> dict[str, str]:
+    """For each file of the set the manifest describes: which name holds it now (itself,
+    or its ``.previous`` twin after a kill in the middle of a swap). Matched by inode and
+    size, the cheap identity a rename keeps (readers check the checksums)."""
+    try:
+        described = _load_manifest(folder.fd, manifest, folder.path).get("files", {})
+    except (InputError, OSError):
+        return {}
+    found = {}
+    for name, entry in described.items() if isinstance(described, dict) else ():
+        for candidate in (name, previous_name(name)):
+            try:
+                info = os.stat(candidate, dir_fd=folder.fd, follow_symlinks=False)
+            except (OSError, ValueError):
+                continue
+            if isinstance(entry, dict) and (info.st_ino, info.st_size) == (
+                    entry.get("inode"), entry.get("bytes")):
+                found[name] = candidate
+                break
+    return found
 
 
 _REGISTRY: dict[tuple, OutputFolder] = {}  # folders this process holds, by (device, inode)
@@ -400,6 +405,8 @@ def open_folder(path: str | os.PathLike | OutputFolder, *, owned: int = 1) -> Ou
     try:
         head.mkdir(parents=True, exist_ok=True)
         base = os.open(head, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except FileExistsError:  # mkdir's word for a file where a folder should be
+        raise _refusal(head, OSError(errno.ENOTDIR, "Not a directory")) from None
     except OSError as exc:
         raise _refusal(head, exc) from None
     return _open_below(base, head, tail)

@@ -106,11 +106,11 @@ def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
     ``interruptible``: as for :func:`save_run`.
     """
     record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
-    arrays, meta, draw = record(command, scene, config, scheme, solution)
+    arrays, meta, draw = record(command, scene, config, scheme, solution, interruptible)
     meta.update(extra or {})
     if command == "bvp" and not solution.success:
         meta["note"] = NOT_A_SOLUTION
-    figure = draw if plot and solution.t.size >= 2 else None
+    figure = draw if plot and draw is not None and solution.t.size >= 2 else None
     return save_run(out, arrays, meta, figure, interruptible=interruptible)
 
 
@@ -134,14 +134,14 @@ def save_run(out, arrays: dict, meta: dict, draw=None, *, interruptible=None) ->
         result = folder.scratch(RESULT, lambda handle: np.savez(handle, **arrays))
         try:
             figure = figure_writer(folder, FIGURE, draw, interruptible)
-            meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size),
-                    "result_sha256": atomic.sha256_of(result, dir_fd=folder.fd)}
+            meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size)}
             if draw is not None and figure is None:
                 meta["figure"] = "not drawn: interrupted while drawing"
         except BaseException:
             folder.remove(result)
             raise
-        return folder.commit({RESULT: result, FIGURE: figure}, meta)
+        return folder.commit({RESULT: result, FIGURE: figure}, meta,
+                             digests={"result_sha256": RESULT})
 
 
 def figure_writer(folder, name: str, draw, interruptible=None):
@@ -226,8 +226,25 @@ def _steps_meta(solution: Solution) -> dict:
             "tau_max": float(tau.max()) if tau.size else None}
 
 
-def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution):
-    """Arrays, metadata and figure of a run of a scene with ``H`` or a first-order ``L``."""
+def _optional(interruptible, compute, fallback):
+    """``compute()``, or ``fallback`` when an interrupt stops it inside ``interruptible()``:
+    the figures of a run that an interrupt may skip (the nodes are written all the same)."""
+    import contextlib
+
+    try:
+        with (interruptible or contextlib.nullcontext)():
+            return compute()
+    except KeyboardInterrupt:
+        return fallback
+
+
+SKIPPED = "not computed: interrupted while the run was saved"
+
+
+def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution,
+                        interruptible=None):
+    """Arrays, metadata and figure of a run of a scene with ``H`` or a first-order ``L``; the
+    energies, the scene's checks and the figure may be cut by an interrupt (``SKIPPED``)."""
     theta = scene.system.parameter_vector(config.params)
     arrays = {"t": solution.t, "q": solution.q, "p": solution.p,
               "energy_residual": solution.energy_residual,
@@ -238,15 +255,20 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
     if flagged:
         arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)
         arrays["least_squares_defect"] = np.array([e["energy_defect"] for e in flagged])
-    energies = run_energies(scene.system, scheme, solution, theta)
+    energies = _optional(interruptible,
+                         lambda: run_energies(scene.system, scheme, solution, theta), None)
+    energy = energy_report(scene, scheme, solution, theta, energies) if energies else {
+        "energy_residual_max": _max_abs(solution.energy_residual),
+        "energy_error": float("nan"), "energy_error_kind": SKIPPED}
     meta = {"command": command, "scene": scene.name, "scheme": scheme.rule,
             "alpha": scheme.alpha, "clock": scheme.clock, "params": config.as_dict(),
             **_steps_meta(solution),
             "newton_iterations": solution.newton_iterations,
             "canonical_residual_max": _max_abs(solution.canonical_residual),
             "timing": solution.timing,
-            **energy_report(scene, scheme, solution, theta, energies),
-            **_checks(scene, config, solution)}
+            **energy,
+            **_optional(interruptible, lambda: _checks(scene, config, solution),
+                        {"checks": SKIPPED})}
     accuracy = solution.stats.get("accuracy")
     if accuracy:
         meta["accuracy"] = accuracy
@@ -259,7 +281,7 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
         from .plotting import plot_trajectory
         plot_trajectory(solution, scene, scheme, path, energies=energies)
 
-    return arrays, meta, draw
+    return arrays, meta, draw if energies else None
 
 
 def _checks(scene: Scene, config, solution: Solution) -> dict:
@@ -297,7 +319,8 @@ def _checks(scene: Scene, config, solution: Solution) -> dict:
     return found
 
 
-def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution):
+def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution,
+                   interruptible=None):
     """Arrays, metadata and figure of a run of a scene with higher derivatives."""
     energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
     exact = scene.exact_motion(solution.t, config.params)

@@ -51,7 +51,7 @@ ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
              "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
-             "message", "fingerprint"),
+             "message", "fingerprint", "row_sha256"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
             "scheme_energy_residual", "error_estimate"),
     integers=("steps", "repeats", "order"),

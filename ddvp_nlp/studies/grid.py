@@ -387,10 +387,11 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
 
     A file that is not a grid file ddvp wrote (not UTF-8 text, another header, a field past
     the CSV limit, a link, a folder, bigger than the memory allows) is refused, naming it and
-    the reason (``InputError``); so is a row of another grid (same folder, other settings,
-    methods or scene file): it is not overwritten. A row cut short by a kill, whose checksum
-    does not match, with an unknown status, or a success with a number that is not finite, is
-    dropped with a warning and its task runs again; so is a failed task's row (``RETRIED``)."""
+    the reason (``InputError``); so is a row of another grid (a key this grid does not have:
+    other points, methods or cases): it is not overwritten. A row cut short by a kill, whose
+    checksum does not match, computed with other settings (its task's fingerprint changed),
+    with an unknown status, or a success with a number that is not finite, is dropped with a
+    warning and its task runs again; so is a failed task's row (``RETRIED``)."""
     fingerprints = {task.key: task.fingerprint() for task in tasks}
     kept, foreign = {}, 0
     for source in (Path(path), journal_path(path)):
@@ -408,13 +409,13 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
                 warnings.warn(f"{source}: line {number} {reason}; its task runs again",
                               RuntimeWarning, stacklevel=3)
                 continue
-            if row["status"] not in RETRIED:
+            if row.get("status") not in RETRIED:
                 kept[row["key"]] = parsed
     if foreign:
-        raise InputError(f"{path} holds {foreign} rows of another grid (other settings, methods "
-                         "or scene file); they are not overwritten: start this grid afresh to "
-                         "replace them (sweep --fresh, stress without --resume) or give "
-                         "another --out")
+        raise InputError(f"{path} holds {foreign} rows of another grid (points, methods or "
+                         "cases this grid does not have); they are not overwritten: start this "
+                         "grid afresh to replace them (sweep --fresh, stress without --resume) "
+                         "or give another --out")
     return kept
 
 
@@ -424,8 +425,12 @@ def _row_problem(row: dict, columns, fingerprints: dict, finite) -> str | None:
         return "is incomplete (a run cut short?)"
     if row[CHECKSUM] != row_checksum(row, columns):
         return "does not match its checksum (edited, or written by another tool)"
-    if fingerprints.get(row["key"]) != row["fingerprint"]:
+    if row["key"] not in fingerprints:
         return "foreign"
+    if fingerprints[row["key"]] != row["fingerprint"]:
+        return "was computed with other settings or another scene file"
+    if "status" not in row:  # a grid whose rows have no status (a plain table of results)
+        return None
     if row["status"] not in STATUSES:
         return f"has an unknown status {row['status'][:40]!r}"
     if row["status"] == "success":

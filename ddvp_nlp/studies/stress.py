@@ -42,7 +42,8 @@ from .reference import check_comparable, check_starts_from_p0, reference_for
 ROWS = RowSchema(
     columns=("key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
              "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message", "fingerprint"),
+             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message", "fingerprint",
+             "row_sha256"),
     floats=("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
             "w_ratio", "error_estimate"),
     integers=("steps",),

@@ -213,6 +213,7 @@ class Checkpoint:
         self.seconds_per_byte = spent / max(1, t.size * (z.shape[1] + 1) * 8)
         landed = now - self.started
         self.landed.append(landed)
+        self.target += self.interval
         while self.target <= landed:  # the next multiple of the interval still ahead
             self.target += self.interval
 
