@@ -11,6 +11,7 @@ result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes
 Everything else is reached through its module and may change.
 """
 
+from . import startup  # noqa: F401 - first: holds Ctrl-C while the command starts
 from .discrete.scheme import Scheme
 from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem

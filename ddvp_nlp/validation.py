@@ -260,10 +260,13 @@ def read_limited(path: str | os.PathLike, limit: int, *, what: str,
         reason = ("it is a symbolic link, which ddvp does not follow" if exc.errno == errno.ELOOP
                   else exc.strerror or str(exc))
         raise InputError(f"{what} {str(path)!r} cannot be read: {reason}") from None
+    info = os.fstat(descriptor)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(descriptor)
+        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file"
+        raise InputError(f"{what} {str(path)!r} is {kind}" if kind == "a folder" else
+                         f"{what} {str(path)!r} is not a regular file")
     with os.fdopen(descriptor, "rb") as handle:
-        info = os.fstat(descriptor)
-        if not stat.S_ISREG(info.st_mode):
-            raise InputError(f"{what} {str(path)!r} is not a regular file")
         if info.st_size > limit:
             raise InputError(f"{what} {str(path)!r} has {info.st_size} bytes, more than the "
                              f"{limit} such a file can have")

@@ -21,6 +21,7 @@ import signal
 import sys
 import time
 
+SIGNALS = {signal.SIGINT, signal.SIGTERM}
 # A signal this long after a raised one that did not end the command raises again.
 RAISE_AGAIN_S = 1.0
 
@@ -43,15 +44,25 @@ class Interrupts:
         self.raised_at = None
 
     def install(self):
-        """Set the handlers (main thread only); returns a function restoring the old ones."""
+        """Set the handlers (main thread only) and release the signals the package held while
+        the command started (``ddvp_nlp/__init__.py``): one that came meanwhile is handled now.
+        Returns the function that ends the handling: the old handlers back, or, for the
+        command, the signals held again (one arriving while the process exits is dropped, not
+        a traceback)."""
         import threading
 
         self.__init__()
         if threading.current_thread() is not threading.main_thread():
             return lambda: None  # handlers can only be set from the main thread
-        previous = {sig: signal.signal(sig, self.handle)
-                    for sig in (signal.SIGINT, signal.SIGTERM)}
-        return lambda: [signal.signal(sig, handler) for sig, handler in previous.items()]
+        previous = {sig: signal.signal(sig, self.handle) for sig in SIGNALS}
+        held = SIGNALS & signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)
+
+        def restore():
+            if held:  # the command: hold them again until the process is gone
+                signal.pthread_sigmask(signal.SIG_BLOCK, held)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        return restore
 
     def handle(self, signum, frame):
         self.requested = True
@@ -85,13 +96,21 @@ class Interrupts:
 
     @contextlib.contextmanager
     def interruptible(self):
-        """Inside :meth:`saving`, a part a signal may stop (raising ``KeyboardInterrupt``);
-        not entered at all once a second signal came (the user asked twice)."""
+        """Inside :meth:`saving`, a part a signal may stop (raising ``KeyboardInterrupt``, also
+        when the signal surfaced as another error); not entered at all once a second signal
+        came (the user asked twice)."""
         if self.signals > 1:
             raise KeyboardInterrupt
+        before = self.signals
         self.abortable += 1
         try:
             yield
+        except BaseException:
+            # raised inside a CasADi call, the interrupt comes out as another error
+            # (NotImplementedError from its wrapper): a signal that came meanwhile decides
+            if self.signals > before:
+                raise KeyboardInterrupt from None
+            raise
         finally:
             self.abortable -= 1
 

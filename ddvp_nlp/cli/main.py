@@ -26,19 +26,24 @@ from .summary import format_warning
 COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
             "compare": run_compare, "stress": run_stress, "sweep": run_sweep,
             "reproduce": run_reproduce, "periodic": run_periodic, "poincare": run_poincare}
-# Set to 1 to see the traceback of an unexpected error (a defect of ddvp) instead of one line.
+# Set to 1 to see the traceback of whatever ended a command, besides its one line.
 TRACEBACK_VARIABLE = "DDVP_TRACEBACK"
 
 
 def main(argv: list[str] | None = None) -> int:
-    _stdout_usable()
-    parser = build_parser()
-    args = parse_arguments(parser, argv)
-    if args.command not in COMMANDS:
-        parser.error(f"unknown command {args.command!r}")
     original_format = warnings.formatwarning
-    warnings.formatwarning = format_warning  # one line, no source echo
-    restore = INTERRUPTS.install()
+    restore = lambda: None  # noqa: E731 - until the handlers are in place
+    try:
+        restore = INTERRUPTS.install()
+        _stdout_usable()
+        parser = build_parser()
+        args = parse_arguments(parser, argv)
+        if args.command not in COMMANDS:
+            parser.error(f"unknown command {args.command!r}")
+        warnings.formatwarning = format_warning  # one line, no source echo
+    except BaseException as exc:  # noqa: B036 - a signal while starting, argparse's exit
+        INTERRUPTS.end()
+        return _failure("ddvp", exc)
     try:
         return _run(args)
     finally:
@@ -62,6 +67,10 @@ def _run(args) -> int:
 
 def _failure(command: str, exc: BaseException) -> int:
     """The exit code and message of a command that raised ``exc``."""
+    if os.environ.get(TRACEBACK_VARIABLE) == "1":  # where it came from, for a defect report
+        import traceback
+
+        traceback.print_exception(exc)
     if isinstance(exc, BrokenPipeError) or (isinstance(exc, OSError) and exc.errno == 32):
         # the reader of stdout went away (`ddvp march ... | head`): the run's files are
         # written before the summary is printed; say nothing more on the closed pipe
@@ -95,8 +104,6 @@ def _failure(command: str, exc: BaseException) -> int:
     if isinstance(exc, RecursionError):
         _say(f"{command}: error: input nested too deeply to read ({exc})")
         return 2
-    if os.environ.get(TRACEBACK_VARIABLE) == "1":
-        raise exc
     _say(f"{command}: internal error: {type(exc).__name__}: {exc} (a defect of ddvp; "
          f"{TRACEBACK_VARIABLE}=1 shows where)")
     return 1

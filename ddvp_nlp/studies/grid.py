@@ -163,6 +163,21 @@ def _run_here(task, retries):
     raise AssertionError("unreachable")
 
 
+# Dask's own loggers, in this process and (through the environment) in the local workers it
+# spawns: at an interrupt, the workers' heartbeats logged CommClosedError tracebacks.
+DASK_LOGGERS = ("distributed", "tornado", "asyncio")
+
+
+def _quiet_dask() -> None:
+    """Only Dask's critical messages, here and in workers started from now on; ddvp reports a
+    failed task or a lost worker itself (as the row's status)."""
+    import logging
+
+    for name in DASK_LOGGERS:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
+
+
 def _watch_parent(parent: int) -> None:
     """On a local cluster's worker: end with ``parent`` if it is this worker's parent."""
     from ..solvers.march.ensemble import end_with_parent
@@ -188,6 +203,7 @@ def _run_on_dask(tasks, *, workers, scheduler, retries):
     from distributed.scheduler import KilledWorker
 
     cluster = None
+    _quiet_dask()
     if scheduler is None:
         # allowed-failures 1: a task whose worker dies runs once more, then is reported.
         # worker-saturation 1.0: a worker holds only the task it runs, so a dying worker takes
@@ -251,6 +267,11 @@ class RowSchema:
     def read(self, path) -> list[dict]:
         """The typed rows of a result file written with this schema."""
         return [self.parse(row) for row in read_csv(path, missing_ok=False)]
+
+
+class GridFileWarning(UserWarning):
+    """A row of a grid file that is not reused (and why): shown even where the runs'
+    numerical warnings are silenced."""
 
 
 class GridInterrupted(KeyboardInterrupt):
@@ -407,7 +428,7 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
                     reason = f"does not parse ({exc})"
             if reason is not None:
                 warnings.warn(f"{source}: line {number} {reason}; its task runs again",
-                              RuntimeWarning, stacklevel=3)
+                              GridFileWarning, stacklevel=3)
                 continue
             if row.get("status") not in RETRIED:
                 kept[row["key"]] = parsed
@@ -457,6 +478,10 @@ def _file_rows(path: Path, columns) -> Iterator[tuple[int, dict]]:
     from ..validation import check_file_size, read_limited
 
     if not os.path.lexists(path):
+        return
+    if path.is_symlink():  # never followed; the grid's commit replaces the link itself
+        warnings.warn(f"{path} is a symbolic link: not read (ddvp follows no link); its rows, "
+                      "if any, run again", GridFileWarning, stacklevel=4)
         return
     data = read_limited(path, GRID_FILE_LIMIT, what="grid file")
     check_file_size(str(path), len(data))
