@@ -365,10 +365,15 @@ def signal_cases(rng: random.Random) -> list[Case]:
 
 
 def _march_kept(folder, result):
-    """After Ctrl-C/SIGTERM: the folder holds the run whole (interrupted, or finished)."""
+    """After Ctrl-C/SIGTERM: the folder holds the run whole (interrupted, or finished), or,
+    stopped before the march had a node to keep, nothing, as the message says."""
     from ddvp_nlp.errors import InputError
     from ddvp_nlp.io.runs import read_run
 
+    if "nothing new was written" in result.stderr or "before anything was written" in \
+            result.stderr:  # stopped while starting or building: no node to keep
+        return [] if not (folder / "out" / "meta.json").exists() else [
+            "says nothing was written, but the folder holds a run"]
     try:
         arrays, meta = read_run(folder / "out")
     except InputError as exc:
@@ -808,7 +813,9 @@ def _stdout_full(case: Case, root: Path, tag: str, disk_kind: str) -> Result:
                                   stderr=subprocess.PIPE, text=True, timeout=TIMEOUT_S)
         result = Result(Case(case.group, case.name, case.argv, (1,)), done.returncode, "",
                         done.stderr, time.monotonic() - started)
-        judge(result, root, tag)
+        own = root / "stdout-full"
+        own.mkdir(exist_ok=True)
+        judge(result, own, tag)
         result.case = case
         return result
     finally:

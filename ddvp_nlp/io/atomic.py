@@ -247,9 +247,12 @@ class OutputFolder:
             return written
 
     def _entry(self, scratch: str) -> dict:
-        info = os.stat(scratch, dir_fd=self.fd, follow_symlinks=False)
-        return {"sha256": sha256_of(scratch, dir_fd=self.fd), "bytes": info.st_size,
-                "inode": info.st_ino}
+        try:
+            info = os.stat(scratch, dir_fd=self.fd, follow_symlinks=False)
+            digest = sha256_of(scratch, dir_fd=self.fd)
+        except OSError as exc:
+            raise OutputError(self.path / scratch, exc) from None
+        return {"sha256": digest, "bytes": info.st_size, "inode": info.st_ino}
 
     def replace(self, name: str, write: Writer) -> None:
         """Replace one file on its own (no manifest): scratch, flush, rename."""

@@ -35,7 +35,7 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
-from ...validation import check_real, check_span, check_state
+from ...validation import check_span, check_state, check_step
 from ..accuracy import AccuracyMonitor, ErrorEstimates
 from ..compiler import buffered, find_compiler
 from ..dense import attach
@@ -203,7 +203,7 @@ def _check_state(system, q0, p0, v0):
 def _check_times(t_span, tau0):
     """``t0 < t_end`` and a first step ``0 < tau0 <= t_end - t0``."""
     t0, t_end = check_span(t_span)
-    tau0 = check_real("tau0", tau0, positive=True)
+    tau0 = check_step(tau0, t0, t_end)
     if tau0 > t_end - t0:
         raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
     return t0, t_end, tau0
