@@ -26,6 +26,7 @@ order, holding exactly the rows of this grid. A :class:`RowSchema` types the row
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import json
@@ -198,27 +199,12 @@ def _connect(client_class, scheduler: str):
 
 
 def _run_on_dask(tasks, *, workers, scheduler, retries):
-    import dask
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    cluster = None
     _quiet_dask()
-    if scheduler is None:
-        # allowed-failures 1: a task whose worker dies runs once more, then is reported.
-        # worker-saturation 1.0: a worker holds only the task it runs, so a dying worker takes
-        # no queued task down with it, and the longest tasks (highest priority) start first.
-        with dask.config.set({"distributed.scheduler.allowed-failures": 1,
-                              "distributed.scheduler.worker-saturation": 1.0}):
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1,
-                                   threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
-        client = Client(cluster)
-        # the workers end with this process, even when it is killed (SIGKILL gives it no
-        # chance to close the cluster)
-        client.run(_watch_parent, os.getpid())
-    else:
-        client = _connect(Client, scheduler)
+    with held_signals():  # a cluster cut half-way through its start or its close cannot close
+        client, cluster = _start_dask(workers, scheduler)
     futures = {}
     try:
         run = uuid.uuid4().hex[:8]
@@ -235,12 +221,59 @@ def _run_on_dask(tasks, *, workers, scheduler, retries):
                 yield task, None, f"task_failed: {type(exc).__name__}: {exc}"
             future.release()
     except BaseException:  # Ctrl-C included: stop the rest, keep what was yielded
-        client.cancel(list(futures))
+        with held_signals():
+            client.cancel(list(futures))
         raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with held_signals():
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def _start_dask(workers, scheduler):
+    """``(client, cluster)``: a local cluster of ``workers`` processes (``cluster`` to close),
+    or a client of the cluster at ``scheduler`` (``cluster`` ``None``)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        return _connect(Client, scheduler), None
+    # allowed-failures 1: a task whose worker dies runs once more, then is reported.
+    # worker-saturation 1.0: a worker holds only the task it runs, so a dying worker takes
+    # no queued task down with it, and the longest tasks (highest priority) start first.
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1,
+                          "distributed.scheduler.worker-saturation": 1.0}), \
+            warnings.catch_warnings():
+        # no dashboard is served; Dask still warns when another process holds its port
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1,
+                               threads_per_worker=1, processes=True, dashboard_address=None)
+    client = Client(cluster)
+    # the workers end with this process, even when it is killed (SIGKILL gives it no chance
+    # to close the cluster)
+    client.run(_watch_parent, os.getpid())
+    return client, cluster
+
+
+@contextlib.contextmanager
+def held_signals():
+    """Ctrl-C and SIGTERM held (blocked, not lost) in the main thread for the duration: the
+    start and the close of a cluster are not cut half-way (Dask's exit hook then failed with
+    a traceback); a signal that came meanwhile is handled right after."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or \
+            not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    wanted = {signal.SIGINT, signal.SIGTERM}
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, wanted)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 @dataclass(frozen=True)
