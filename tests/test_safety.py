@@ -310,7 +310,7 @@ def test_default_folders_carry_every_setting_that_changes_the_result(tmp_path, m
 def test_checkpoints_land_on_their_multiples_of_the_interval():
     """On a test clock: each save costs time proportional to the nodes; the checkpoints start
     early by the measured cost, so they land at 5, 10, 15 ... (the first by a guess of the
-    cost; each later one within one stepper call of its time)."""
+    cost; each later one within a tenth of its cost before, or one stepper call after)."""
     from ddvp_nlp.solvers.march.monitors import Checkpoint
 
     now = [0.0]
@@ -336,7 +336,10 @@ def test_checkpoints_land_on_their_multiples_of_the_interval():
     assert landed.size == int(now[0] // 5)
     first_cost = 2e-6 * 50 * 5.0 / 0.01  # the first save's own cost, 0.05 s
     assert 5.0 <= landed[0] <= 5.0 + first_cost + 0.01
-    assert np.all(np.abs(landed[1:] - targets[1:]) <= 0.02)
+    # later ones start early by their cost, estimated a tenth high (at most 0.3 s here): they
+    # land at most 0.03 s early, or one call (0.01 s) late
+    early = landed[1:] - targets[1:]
+    assert np.all(early >= -0.031) and np.all(early <= 0.011)
 
 
 def test_ensemble_workers_end_with_their_killed_parent(tmp_path):

@@ -238,7 +238,8 @@ def _optional(interruptible, compute, fallback):
         return fallback
 
 
-SKIPPED = "not computed: interrupted while the run was saved"
+SKIPPED = ("not computed: the run was interrupted, and is written without it (the nodes in "
+           "result.npz give it)")
 
 
 def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution,

@@ -99,9 +99,21 @@ def _reachable(scheduler: str, timeout: float = 3.0) -> None:
                          f"{exc.strerror or exc}") from None
 
 
+# Memory of one local worker process (Python, numpy, CasADi and Dask loaded; measured about
+# 150 MB): --workers 100000000000 had started a cluster until the machine ran out of memory.
+WORKER_BYTES = 200e6
+
+
 def check_workers(workers) -> int | None:
-    """``None`` (as many as there are cores) or a positive integer."""
-    return None if workers is None else check_integer("workers", workers)
+    """``None`` (as many as there are cores) or a positive integer whose processes fit in
+    memory."""
+    from ..validation import check_memory
+
+    if workers is None:
+        return None
+    workers = check_integer("workers", workers)
+    check_memory("workers", workers, workers * WORKER_BYTES, "the local worker processes")
+    return workers
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,7 @@ import numpy as np
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution
-from ...validation import check_integer, check_span
+from ...validation import check_integer, check_memory, check_span
 from ..compiler import build_count, find_compiler
 from ..dense import attach
 from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
@@ -49,6 +49,9 @@ from .solve import check_problem, march
 # cost this process twice the system time of messages of 2 (1.6 against 0.8 s for 100
 # Henon-Heiles orbits of 96617 steps, two runs each: fresh pages for every large message).
 BLOCKS_PER_WORKER = 4
+# Memory of one forked worker (it shares the parent's pages until it writes them): a bound on
+# how many may start, not a measurement of each.
+WORKER_BYTES = 200e6
 BLOCK_ORBITS = 2
 
 
@@ -70,6 +73,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")
     workers = check_integer("workers", workers)
+    check_memory("workers", workers, workers * WORKER_BYTES, "the worker processes")
     steps = coerce(steps, StepControl, "steps")  # time_limit, energy_guard: per orbit
     if accuracy is not None:
         coerce(accuracy, Tolerance, "accuracy")
