@@ -41,7 +41,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.command not in COMMANDS:
             parser.error(f"unknown command {args.command!r}")
         warnings.formatwarning = format_warning  # one line, no source echo
-    except BaseException as exc:  # noqa: B036 - a signal while starting, argparse's exit
+    except SystemExit:  # argparse's own end (--help, --version, a usage error), as it is
+        restore()
+        raise
+    except BaseException as exc:  # noqa: B036 - a signal while starting
         INTERRUPTS.end()
         return _failure("ddvp", exc)
     try:
