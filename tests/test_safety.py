@@ -383,3 +383,32 @@ def test_read_run_refuses_a_folder_without_a_manifest_naming_it(tmp_path):
     (out / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(InputError, match="lists no files"):
         read_run(out)
+
+
+def test_a_run_stopped_by_the_user_is_written_without_its_optional_parts(tmp_path, capsys):
+    """What an interrupt leaves out while a run is written (energies at every node, the
+    scene's checks, the figure) is said in meta.json, and the summary still prints."""
+    import contextlib
+
+    from ddvp_nlp import load_scene, march
+    from ddvp_nlp.cli.summary import print_summary
+    from ddvp_nlp.discrete.scheme import Scheme
+    from ddvp_nlp.io.runs import write_run
+
+    scene = load_scene("pendulum")
+    config = scene.resolve({"t_end": 2.0})
+    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0)
+
+    @contextlib.contextmanager
+    def stopped():
+        raise KeyboardInterrupt
+        yield
+
+    meta = write_run(tmp_path / "run", command="march", scene=scene, config=config,
+                     scheme=Scheme(), solution=solution, interruptible=stopped)
+    assert meta["checks"].startswith("not computed") and "trajectory.png" not in meta["files"]
+    arrays, _ = read_run(tmp_path / "run")
+    assert arrays["t"].size == solution.t.size
+    print_summary(meta, tmp_path / "run")
+    assert "not computed: the run was interrupted" in capsys.readouterr().out

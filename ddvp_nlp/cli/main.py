@@ -88,11 +88,14 @@ def _failure(command: str, exc: BaseException) -> int:
     if isinstance(exc, Stopped):
         _say(f"{command}: {exc}")
         return 1
-    if isinstance(exc, KeyboardInterrupt) or INTERRUPTS.requested:
-        # a grid's runner says what it kept (Stopped); anything else ends here, having written
-        # nothing new
+    if isinstance(exc, KeyboardInterrupt):
+        # a command that kept something says so itself (Stopped); this one wrote nothing new
         _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}) before anything was "
              "written; the output folder keeps what it held before")
+        return 1
+    if INTERRUPTS.requested:  # an interrupt that surfaced as another error (inside CasADi)
+        _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}); it ended with "
+             f"{type(exc).__name__}: {str(exc)[:200]}")
         return 1
     if isinstance(exc, SystemExit):
         return exc.code if isinstance(exc.code, int) else 1
