@@ -742,7 +742,8 @@ def page(results: list[Result], seed: int, disk_kind: str, seconds: float) -> st
     lines += ["", "## Every case", "", "| group | case | exit | seconds | outcome |",
               "|---|---|---|---|---|"]
     for r in results:
-        outcome = "; ".join(r.problems) if r.problems else _summary_line(r)
+        outcome = ("; ".join(r.problems) + " (stderr: " + _summary_line(r) + ")") \
+            if r.problems else _summary_line(r)
         stop = f" (stopped {r.stop_s:.2f} s after the signal)" if r.stop_s is not None else ""
         lines.append(f"| {r.case.group} | {_cell(r.case.name)} | {r.code} | {r.seconds:.1f} | "
                      f"{'FAIL: ' if r.problems else 'ok: '}{_cell(outcome)}{stop} |")
