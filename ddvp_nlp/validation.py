@@ -211,13 +211,13 @@ def check_step(tau0, t0: float, t_end: float) -> float:
     ``t0 + tau0 > t0`` and ``(t_end - t0) / tau0`` a finite number of steps (``5e-324``
     passed ``> 0`` and overflowed the step count)."""
     tau0 = check_real("tau0", tau0, positive=True)
-    if not math.isfinite(t_end - t0) or not math.isfinite((t_end - t0) / tau0):
-        raise InputError(f"t_end - t0 = {t_end - t0!r} is more steps of tau0 = {tau0!r} than a "
-                         "float can count")
     if tau0 < np.finfo(float).tiny or not t0 + tau0 > t0:
         raise InputError(f"tau0 = {tau0!r} is too small to be a step from t0 = {t0!r}: "
                          f"t0 + tau0 rounds to t0 (the smallest step there is "
                          f"{np.spacing(max(abs(t0), abs(t_end), np.finfo(float).tiny)):.3g})")
+    if not math.isfinite(t_end - t0) or not math.isfinite((t_end - t0) / tau0):
+        raise InputError(f"t_end - t0 = {t_end - t0!r} is more steps of tau0 = {tau0!r} than a "
+                         "float can count")
     return tau0
 
 
