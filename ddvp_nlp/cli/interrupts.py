@@ -42,6 +42,7 @@ class Interrupts:
         self.abortable = 0       # inside interruptible(): raise even while holding
         self.ending = False      # the command is unwinding: note only
         self.raised_at = None
+        self.restore = lambda: None
 
     def install(self):
         """Set the handlers (main thread only) and release the signals the package held while
@@ -55,13 +56,15 @@ class Interrupts:
         if threading.current_thread() is not threading.main_thread():
             return lambda: None  # handlers can only be set from the main thread
         previous = {sig: signal.signal(sig, self.handle) for sig in SIGNALS}
-        held = SIGNALS & signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)
+        held = SIGNALS & signal.pthread_sigmask(signal.SIG_BLOCK, set())
 
         def restore():
             if held:  # the command: hold them again until the process is gone
                 signal.pthread_sigmask(signal.SIG_BLOCK, held)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+        self.restore = restore  # in place before a held signal is handled (it may raise)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
         return restore
 
     def handle(self, signum, frame):

@@ -46,7 +46,10 @@ def main(argv: list[str] | None = None) -> int:
         raise
     except BaseException as exc:  # noqa: B036 - a signal while starting
         INTERRUPTS.end()
-        return _failure("ddvp", exc)
+        try:
+            return _failure("ddvp", exc)
+        finally:
+            INTERRUPTS.restore()
     try:
         return _run(args)
     finally:
