@@ -13,6 +13,7 @@ Everything else is reached through its module and may change.
 
 from typing import TYPE_CHECKING
 
+from . import startup  # noqa: F401 - first: holds Ctrl-C while the command starts
 from .cache import lazy_exports
 from .discrete.scheme import Scheme
 from .errors import InputError

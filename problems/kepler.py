@@ -79,4 +79,5 @@ def eccentric_anomaly(M, ecc: float, max_iter: int = 60):
 scene = Scene(hamiltonian, n=2, params={"e": 0.5},
               q0=lambda e: [1 - e, 0.0], p0=lambda e: [0.0, np.sqrt((1 + e) / (1 - e))],
               tau0=0.01, t_end=20 * np.pi, exact=exact,
-              invariants={"angular_momentum": angular_momentum})
+              invariants={"angular_momentum": angular_momentum},
+              ranges={"e": "[0, 1)"})  # an ellipse: e < 0 has no meaning, e >= 1 no orbit

@@ -106,8 +106,8 @@ def test_scene_parameter_unknown():
 def test_scene_file_that_does_not_load(tmp_path):
     path = tmp_path / "bad.py"
     path.write_text("import nonexistent_module_xyz\n")
-    with expect(f"scene file {str(path)!r} does not load: ModuleNotFoundError: "
-                "No module named 'nonexistent_module_xyz'"):
+    with expect(f"scene file {str(path)!r}, line 1: loading the file raised "
+                "ModuleNotFoundError: No module named 'nonexistent_module_xyz'"):
         load_scene(str(path))
 
 

@@ -97,7 +97,7 @@ def test_stress_command(tmp_path, capsys, monkeypatch):
     assert out.startswith("stress: 10 runs")
     assert "vddvp           1 reached t_end; newton_failed 1" in out
     assert main(["stress", "--time-limit", "0", "--out", str(tmp_path / "x")]) == 2
-    assert "ddvp stress: error: time_limit must be > 0, got 0.0" in capsys.readouterr().err
+    assert "ddvp stress: error: --time-limit must be > 0, got 0.0" in capsys.readouterr().err
 
 
 def test_a_sweep_reports_every_method_it_ran(tmp_path, capsys):

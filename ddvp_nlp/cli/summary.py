@@ -54,7 +54,7 @@ def _accuracy_lines(meta: dict) -> list[str]:
     if "node_energy_error" in meta:
         lines.append(f"  energy error {meta['node_energy_error']:.3e} (largest |H(z_k) - H0| / "
                      "max(1, |H0|) at the nodes)")
-    if accuracy.get("level") is not None:
+    if accuracy.get("level") is not None and "H0" in meta:  # H0: not for an interrupted run
         lines.append(f"  energy level of the first step {accuracy['level']:.10g} against "
                      f"H0 = {meta['H0']:.10g} (error {accuracy['level_error']:.3e} of "
                      "max(1, |H0|))")

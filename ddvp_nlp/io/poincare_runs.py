@@ -4,34 +4,51 @@
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
 
+from . import atomic  # noqa: E402
+from .runs import figure_writer  # noqa: E402
 
-def write_section(out: Path, section, *, plot: bool = True) -> None:
-    """The files of a Poincare section (module docstring) in the folder ``out``."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+
+def write_section(out, section, *, plot: bool = True, interruptible=None) -> dict:
+    """The files of a Poincare section (module docstring) in the folder ``out``, with
+    ``meta.json`` last, as one set through the output layer (:mod:`ddvp_nlp.io.atomic`)."""
     n = section.points.shape[1] // 2
     names = [f"q{i + 1}" for i in range(n)] + [f"p{i + 1}" for i in range(n)]
-    np.savez(out / "section.npz", points=section.points, times=section.times,
-             orbit=section.orbit, starts=section.starts, energy_errors=section.energy_errors,
-             steps=section.steps, energy=section.energy)
-    with open(out / "section.csv", "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["orbit", "t", *names])
-        for k, t, z in zip(section.orbit, section.times, section.points, strict=True):
-            writer.writerow([int(k), repr(float(t)), *(repr(float(v)) for v in z)])
-    with open(out / "orbits.csv", "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["orbit", "status", "steps", "nodal_energy_error",
-                         *(f"start_{name}" for name in names)])
-        for k, start in enumerate(section.starts):
-            writer.writerow([k, section.statuses[k], int(section.steps[k]),
-                             f"{section.energy_errors[k]:.3e}", *(repr(float(v)) for v in start)])
-    if plot:
-        plot_section(section, out / "section.png")
+    crossings, orbits = io.StringIO(), io.StringIO()
+    writer = csv.writer(crossings, lineterminator="\n")
+    writer.writerow(["orbit", "t", *names])
+    for k, t, z in zip(section.orbit, section.times, section.points, strict=True):
+        writer.writerow([int(k), repr(float(t)), *(repr(float(v)) for v in z)])
+    writer = csv.writer(orbits, lineterminator="\n")
+    writer.writerow(["orbit", "status", "steps", "nodal_energy_error",
+                     *(f"start_{name}" for name in names)])
+    for k, start in enumerate(section.starts):
+        writer.writerow([k, section.statuses[k], int(section.steps[k]),
+                         f"{section.energy_errors[k]:.3e}", *(repr(float(v)) for v in start)])
+
+    def arrays(handle):
+        np.savez(handle, points=section.points, times=section.times, orbit=section.orbit,
+                 starts=section.starts, energy_errors=section.energy_errors,
+                 steps=section.steps, energy=section.energy)
+
+    meta = {"command": "poincare", "energy": float(section.energy),
+            "section": section.section, "direction": section.direction,
+            "orbits": int(section.starts.shape[0]), "crossings": int(section.points.shape[0]),
+            "failed": sum(s != "reached t_end" for s in section.statuses)}
+    with atomic.output_folder(out) as folder:
+        figure = figure_writer(folder, "section.png",
+                               (lambda handle: plot_section(section, handle)) if plot else None,
+                               interruptible)
+        if plot and figure is None:
+            meta["figure"] = "not drawn: interrupted while drawing"
+        return folder.commit({"section.npz": arrays,
+                              "section.csv": atomic.text(crossings.getvalue()),
+                              "orbits.csv": atomic.text(orbits.getvalue()),
+                              "section.png": figure}, meta)
 
 
 def plot_section(section, path: Path) -> None:

@@ -35,6 +35,8 @@ BREAKDOWNS = ("stop", "least_squares")
 # gigabytes (chunk = 10**9 took two minutes and 4.7 GB for a ten-step march) for no speed gained.
 MAX_CHUNK = 65536
 GRID_SOLVERS = ("auto", "newton", "ipopt")
+# Shortest time between two checkpoints of a march (seconds): each one writes every node so far.
+MIN_CHECKPOINT_INTERVAL = 0.01
 LINEAR_SOLVERS = ("auto", "banded", "sparse")
 BAND_LU = ("compiled", "lapack")
 
@@ -258,8 +260,11 @@ class Output:
                              f"{self.checkpoint!r}")
         if self.stop is not None and not callable(self.stop):
             raise InputError(f"stop must be a callable stop() -> bool, got {self.stop!r}")
-        _set(self, "checkpoint_interval", check_real("checkpoint_interval",
-                                                     self.checkpoint_interval, positive=True))
+        interval = check_real("checkpoint_interval", self.checkpoint_interval, positive=True)
+        if interval < MIN_CHECKPOINT_INTERVAL:
+            raise InputError(f"checkpoint_interval must be at least {MIN_CHECKPOINT_INTERVAL} "
+                             f"s (a checkpoint writes every node so far), got {interval!r}")
+        _set(self, "checkpoint_interval", interval)
 
 
 def coerce(value, kind, name: str):

@@ -52,7 +52,7 @@ ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
              "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
-             "message", "fingerprint"),
+             "message", "fingerprint", "row_sha256"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
             "scheme_energy_residual", "error_estimate"),
     integers=("steps", "repeats", "order"),
@@ -252,7 +252,7 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
 
 
 def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
-                       progress: bool = False) -> WorkPrecision:
+                       progress: bool = False, commit: bool = True) -> WorkPrecision:
     """Run a planned comparison; its rows go to the result file ``rows_path`` as they finish."""
     scene = plan.scene
     reference = reference_for(scene, plan.overrides, plan.reference)
@@ -266,7 +266,7 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
              for method, value in plan.runs]
     rows, _ = run_grid(tasks, rows_path, COLUMNS, failure_row=failure_row, parse=ROWS.parse,
                        resume=False, workers=plan.workers, scheduler=plan.scheduler,
-                       progress=progress)
+                       progress=progress, commit=commit)
     return WorkPrecision(rows, scene, plan.config, reference, plan.left_out, plan.compiler,
                          plan.repeats, plan.budget_s)
 

@@ -25,8 +25,11 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import os
+import signal
+import threading
+import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -34,7 +37,7 @@ import numpy as np
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution
-from ...validation import check_integer, check_span
+from ...validation import check_integer, check_memory, check_span
 from ..compiler import build_count, find_compiler
 from ..dense import attach
 from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
@@ -46,6 +49,9 @@ from .solve import check_problem, march
 # cost this process twice the system time of messages of 2 (1.6 against 0.8 s for 100
 # Henon-Heiles orbits of 96617 steps, two runs each: fresh pages for every large message).
 BLOCKS_PER_WORKER = 4
+# Memory of one forked worker (it shares the parent's pages until it writes them): a bound on
+# how many may start, not a measurement of each.
+WORKER_BYTES = 200e6
 BLOCK_ORBITS = 2
 
 
@@ -67,6 +73,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")
     workers = check_integer("workers", workers)
+    check_memory("workers", workers, workers * WORKER_BYTES, "the worker processes")
     steps = coerce(steps, StepControl, "steps")  # time_limit, energy_guard: per orbit
     if accuracy is not None:
         coerce(accuracy, Tolerance, "accuracy")
@@ -85,9 +92,16 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     if workers == 1 or len(blocks) == 1 or not _can_fork():
         return job.run(range(q0s.shape[0]), count_compiles=False)
     context = multiprocessing.get_context("fork")
-    with ProcessPoolExecutor(min(workers, len(blocks)), mp_context=context,
-                             initializer=_install, initargs=(job,)) as pool:
-        solutions = [s for part in pool.map(_run_block, blocks) for s in part]
+    pool = context.Pool(min(workers, len(blocks)), initializer=_install,
+                        initargs=(job, os.getpid()))
+    try:
+        solutions = [s for part in pool.imap(_run_block, blocks) for s in part]
+        pool.close()
+    except BaseException:  # Ctrl-C, SIGTERM, a failed block: no worker outlives this call
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
     for solution in solutions:  # the vector field stays behind in the worker
         attach(solution, system, theta, t_end)
     return solutions
@@ -150,10 +164,48 @@ class _Job:
 _JOB: _Job | None = None
 
 
-def _install(job: _Job) -> None:
-    """A worker's initializer: the job, inherited through ``fork`` (nothing is pickled)."""
+def _install(job: _Job, parent: int) -> None:
+    """A worker's initializer: the job, inherited through ``fork`` (nothing is pickled); the
+    parent's Ctrl-C handling undone (the parent stops the workers: a terminal's Ctrl-C reaches
+    the whole process group) and the worker tied to its parent's life."""
     global _JOB
     _JOB = job
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    end_with_parent(parent)
+
+
+# How often a worker looks whether its parent is still there.
+PARENT_POLL_S = 0.2
+
+
+def end_with_parent(parent: int, *, death_signal: bool = True) -> None:
+    """End this process (``os._exit``) once ``parent`` is gone: a SIGKILL of the parent gives it
+    no chance to stop its workers, and they had marched on (two left after a killed
+    ``ddvp poincare``). With ``death_signal`` (a process forked by the parent's main thread)
+    Linux also gets ``PR_SET_PDEATHSIG``; the poll covers the rest."""
+    if death_signal:
+        _death_signal()
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="ddvp-parent-watch").start()
+
+
+def _death_signal() -> None:
+    """``prctl(PR_SET_PDEATHSIG, SIGKILL)`` where the C library has it."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError, TypeError):
+        pass
 
 
 def _run_block(indices: range) -> list[Solution]:
