@@ -1,0 +1,211 @@
+"""The exact flow's side of a periodic orbit: its monodromy and the exact orbit near a discrete
+one, both from the variational equations integrated by scipy's DOP853 (no equation of the
+scheme is used here).
+
+Variational equations. Along ``z' = f(z) + sum_i u_i grad I_i(z)`` (``I_0 = H``; the ``u_i`` are
+unfolding parameters, zero on an orbit of the Hamiltonian flow), the derivatives of the flow
+``phi_t(z_0; u)`` obey::
+
+    Y' = Df(z) Y,         Y(0) = I        (Y = d phi_t / d z_0, 2n x 2n)
+    Y_u' = Df(z) Y_u + [grad I_0, ..., grad I_r],   Y_u(0) = 0
+
+with ``Df = J Hess H + sum_i u_i Hess I_i``; ``Y(T)`` on a periodic orbit is its monodromy
+matrix. They are integrated together with ``z`` by DOP853 (``rtol``, ``atol`` relative to the
+orbit's size), the right-hand side one CasADi function of the stacked state.
+
+Closing the exact flow (:func:`close_exact`): Newton's method on the shooting equations::
+
+    phi_T(z_0; u) - z_0 - shift = 0      (2n)
+    H(z_0) - E = 0,  z_0[section] - value = 0,  g_i . (z_0 - z_ref) = 0   (2 + r)
+
+in ``(z_0, T, u)`` (``2n + 2 + r`` unknowns): the unfolding parameters make the count square as
+they do for the discrete orbit (``solve.py``), and come out at the integrator's accuracy on an
+orbit of the Hamiltonian flow. Started from a discrete orbit's node 0 and period, its
+convergence shows that an exact orbit is there; the distance between the two is the discrete
+orbit's error at node 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from ...cache import cached
+
+# DOP853's tolerances for the reference: relative, and absolute relative to the orbit's size.
+RTOL = 1e-12
+# Newton on the shooting equations: iterations, and the closure it stops at (relative to the
+# orbit's size, a few hundred of DOP853's rtol).
+MAX_SHOOTING_ITERATIONS = 12
+CLOSURE_TARGET = 1e-10
+
+
+def _variational_function(system, integrals) -> ca.Function:
+    """``(w, u, theta) -> w'`` for ``w = (z, vec Y, vec Y_u)`` (module docstring)."""
+    def build():
+        n, r = system.n, len(integrals)
+        k = 2 * n
+        q, p = system.q, system.p
+        z = ca.vertcat(q, p)
+        functions = [system.H] + [integral(q, p) for integral in integrals]
+        gradients = ca.horzcat(*[ca.gradient(h, z) for h in functions])
+        u = ca.SX.sym("u", 1 + r)
+        J = ca.blockcat([[ca.SX(n, n), ca.SX.eye(n)], [-ca.SX.eye(n), ca.SX(n, n)]])
+        field = ca.mtimes(J, gradients[:, 0]) + ca.mtimes(gradients, u)
+        Df = ca.jacobian(field, z)
+        w = ca.SX.sym("w", k + k * k + k * (1 + r))
+        Y = ca.reshape(w[k:k + k * k], k, k)
+        Yu = ca.reshape(w[k + k * k:], k, 1 + r)
+        at = {"q": w[:n], "p": w[n:k]}
+
+        def here(expression):
+            return ca.substitute(expression, ca.vertcat(q, p), ca.vertcat(at["q"], at["p"]))
+        Df_w, field_w, gradients_w = here(Df), here(field), here(gradients)
+        derivative = ca.vertcat(field_w, ca.vec(ca.mtimes(Df_w, Y)),
+                                ca.vec(ca.mtimes(Df_w, Yu) + gradients_w))
+        return ca.Function("variational", [w, u, system.theta], [derivative])
+    return cached(system, ("exact_variational", tuple(integrals)), build)
+
+
+@dataclass
+class Flow:
+    """The end of an integration of the variational equations: ``z(T)``, ``Y(T)`` (the
+    monodromy on a periodic orbit), ``Y_u(T)`` and ``f(z(T))``, with DOP853's counts."""
+
+    z: np.ndarray
+    monodromy: np.ndarray
+    unfolding: np.ndarray
+    field: np.ndarray
+    evaluations: int
+    success: bool
+    message: str
+
+
+def flow_with_derivatives(system, theta, z0, period: float, *, integrals=(), unfolding=None,
+                          rtol: float = RTOL) -> Flow:
+    """``phi_T(z_0; u)`` with its derivatives (module docstring) by DOP853 at ``rtol`` (and
+    ``atol = rtol`` times the largest ``|z_0|``, at least ``rtol``)."""
+    integrals = tuple(integrals)
+    k, r = 2 * system.n, len(integrals)
+    rhs = _variational_function(system, integrals)
+    u = np.zeros(1 + r) if unfolding is None else np.asarray(unfolding, float)
+    theta = np.asarray(theta, float)
+    w0 = np.concatenate([np.asarray(z0, float), np.eye(k).ravel(order="F"),
+                         np.zeros(k * (1 + r))])
+    scale = max(float(np.max(np.abs(z0))), 1.0)
+
+    def derivative(_, w):
+        return np.asarray(rhs(w, u, theta)).ravel()
+    run = solve_ivp(derivative, (0.0, float(period)), w0, method="DOP853", rtol=rtol,
+                    atol=rtol * scale)
+    w = run.y[:, -1]
+    z = w[:k]
+    field = np.asarray(rhs(np.concatenate([z, np.zeros(w0.size - k)]), u, theta)).ravel()[:k]
+    return Flow(z=z, monodromy=w[k:k + k * k].reshape(k, k, order="F"),
+                unfolding=w[k + k * k:].reshape(k, 1 + r, order="F"), field=field,
+                evaluations=int(run.nfev), success=bool(run.success), message=run.message)
+
+
+@dataclass
+class ExactOrbit:
+    """The exact flow's periodic orbit found by :func:`close_exact`: node 0, period, unfolding
+    parameters, its monodromy, and how the shooting went (``converged``, ``closure`` = the
+    largest ``|phi_T(z_0) - z_0 - shift|`` relative to the orbit's size, ``iterations``);
+    ``start_return`` is the same measure of the start (the discrete orbit's node 0 after its
+    own period), ``distance`` the largest ``|z_0 - z_0(start)|``."""
+
+    z0: np.ndarray
+    period: float
+    unfolding: np.ndarray
+    monodromy: np.ndarray
+    field: np.ndarray
+    converged: bool
+    closure: float
+    iterations: int
+    start_return: float
+    distance: float
+    history: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return {"converged": self.converged, "period": self.period, "closure": self.closure,
+                "iterations": self.iterations, "start_return": self.start_return,
+                "distance": self.distance, "unfolding": self.unfolding.tolist(),
+                "z0": self.z0.tolist()}
+
+
+def close_exact(system, theta, z0, period: float, *, energy: float, section_index: int,
+                section_value: float, integrals=(), shift=0.0, rtol: float = RTOL
+                ) -> ExactOrbit:
+    """The exact periodic orbit near ``(z_0, T)`` by Newton on the shooting equations (module
+    docstring). ``section_index`` counts ``t`` as 0 (as the discrete layouts do), so
+    ``z_0[section_index - 1]`` is fixed; the integrals' phase conditions are taken at the
+    start's ``z_0``."""
+    integrals = tuple(integrals)
+    k, r = 2 * system.n, len(integrals)
+    z = np.array(z0, float)
+    reference = z.copy()
+    shift = np.broadcast_to(np.asarray(shift, float), (k,))
+    gradient = _gradients_function(system, integrals)
+    generators = _generators(np.asarray(gradient(reference, theta))[:, 1:]) if r else \
+        np.zeros((0, k))
+    T, u = float(period), np.zeros(1 + r)
+    scale = max(float(np.max(np.abs(z))), 1.0)
+    history, start_return, flow = [], None, None
+    for iteration in range(MAX_SHOOTING_ITERATIONS + 1):
+        flow = flow_with_derivatives(system, theta, z, T, integrals=integrals, unfolding=u,
+                                     rtol=rtol)
+        closing = flow.z - z - shift
+        grad_H = np.asarray(gradient(z, theta))[:, 0]
+        H = float(system.energy(z[None, :k // 2], z[None, k // 2:], [0.0], theta)[0])
+        F = np.concatenate([closing, [H - energy, z[section_index - 1] - section_value],
+                            generators @ (z - reference)])
+        error = float(np.max(np.abs(closing))) / scale
+        history.append(error)
+        if start_return is None:
+            start_return = error
+        if error <= CLOSURE_TARGET and abs(F[k]) <= CLOSURE_TARGET * max(1.0, abs(energy)):
+            break
+        if iteration == MAX_SHOOTING_ITERATIONS:
+            break
+        section_row = np.zeros(k)
+        section_row[section_index - 1] = 1.0
+        top = np.hstack([flow.monodromy - np.eye(k), flow.field[:, None], flow.unfolding])
+        rows = np.vstack([top, np.r_[grad_H, 0.0, np.zeros(1 + r)],
+                          np.r_[section_row, 0.0, np.zeros(1 + r)],
+                          np.hstack([generators, np.zeros((r, 2 + r))])])
+        step = np.linalg.solve(rows, -F)
+        z, T, u = z + step[:k], T + step[k], u + step[k + 1:]
+    converged = bool(history[-1] <= CLOSURE_TARGET and np.max(np.abs(u)) <= 1e3 * rtol)
+    if not np.isclose(u, 0.0, atol=1e3 * rtol).all():
+        converged = False
+    return ExactOrbit(z0=z, period=T, unfolding=u, monodromy=flow.monodromy, field=flow.field,
+                      converged=converged, closure=history[-1], iterations=len(history) - 1,
+                      start_return=start_return, distance=float(np.max(np.abs(z - z0))),
+                      history=history)
+
+
+def _gradients_function(system, integrals) -> ca.Function:
+    """``(z, theta) -> [grad H, grad I_1, ...]`` (``2n x (1 + r)``)."""
+    def build():
+        z = ca.vertcat(system.q, system.p)
+        columns = [ca.gradient(system.H, z)] + [
+            ca.gradient(integral(system.q, system.p), z) for integral in integrals]
+        return ca.Function("exact_gradients", [z, system.theta], [ca.horzcat(*columns)])
+    return cached(system, ("exact_gradients", tuple(integrals)), build)
+
+
+def _generators(gradients: np.ndarray) -> np.ndarray:
+    """``J grad I_i`` as rows, from the gradients as columns ``(2n, r)``."""
+    n = gradients.shape[0] // 2
+    return np.vstack([gradients[n:], -gradients[:n]]).T
+
+
+def exact_field_directions(system, theta, z0, integrals=()) -> np.ndarray:
+    """The directions the exact monodromy fixes at ``z_0``: the flow ``f(z_0) = J grad H`` and
+    each symmetry's generator ``J grad I_i``, as columns ``(2n, 1 + r)``."""
+    gradients = np.asarray(_gradients_function(system, tuple(integrals))(
+        np.asarray(z0, float), np.asarray(theta, float)))
+    return _generators(gradients).T
