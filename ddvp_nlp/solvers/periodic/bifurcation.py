@@ -13,10 +13,11 @@ Confirmation by the exact flow (:func:`confirm`): the same test function on the 
 orbits (``exact.close_exact`` from the discrete orbit at the located energy ``E_N``, then at
 each energy from the last exact orbit), its sign change bracketed around ``E_N`` (half-width
 ``1e-6 max(1, |E_N|)``, quadrupled until the signs differ) and located by Brent's method: the
-exact flow's bifurcation energy ``E_exact``, and ``E_N - E_exact`` the discrete error. A fold's
-test function on the exact flow is ``dT/dE`` (the exact family's period against energy)
-changing sign through infinity; a fold is confirmed by the sign change of ``det(R - I)``
-instead, which it carries too.
+exact flow's bifurcation energy ``E_exact``, and ``E_N - E_exact`` the discrete error. A fold
+has exact orbits on one side only (two there, none beyond), so no sign change can be bracketed
+in ``E``; the exact family is followed in its period instead (``close_exact(...,
+fixed_period=True)``, regular through the fold), and the fold is the zero of ``dE/dT``, bracketed
+around the discrete orbit's period and located by Brent's method.
 """
 
 from __future__ import annotations
@@ -72,20 +73,27 @@ def confirm(system, theta, orbit, kind: str, *, section_index: int, section_valu
     start = (np.concatenate([orbit.q[0], orbit.p[0]]), float(orbit.stats["period"]))
     shift = np.concatenate([2 * np.pi * np.asarray(orbit.stats["winding"], float),
                             np.zeros(system.n)])
-    test_kind = "branch point" if kind == "fold" else kind
     seen = {"count": 0, "closure": 0.0}
 
-    def test(level):
-        exact = close_exact(system, theta, start[0], start[1], energy=level,
-                            section_index=section_index, section_value=section_value,
-                            integrals=integrals, shift=shift)
+    def closed(level, begin=start, period=None):
+        exact = close_exact(system, theta, begin[0], begin[1] if period is None else period,
+                            energy=level, section_index=section_index,
+                            section_value=section_value, integrals=integrals, shift=shift,
+                            fixed_period=period is not None)
         seen["count"] += 1
         seen["closure"] = max(seen["closure"], exact.closure)
         if not exact.converged:
             raise _NotClosed(level)
+        return exact
+
+    def test(level):
+        exact = closed(level)
         stability = exact_stability(system, theta, exact.z0, exact.monodromy,
                                     integrals=integrals, tol=tol)
-        return tests(stability, 1.0)[test_kind]
+        return tests(stability, 1.0)[kind]
+
+    if kind == "fold":
+        return _fold(closed, orbit, energy, seen)
 
     half = FIRST_HALF_WIDTH * max(1.0, abs(energy))
     try:
@@ -103,6 +111,37 @@ def confirm(system, theta, orbit, kind: str, *, section_index: int, section_valu
     return Confirmation(energy=float(root), bracket=(energy - half, energy + half),
                         values=(low, high), closure=seen["closure"],
                         difference=energy - float(root), evaluations=seen["count"])
+
+
+def _fold(closed, orbit, energy: float, seen: dict) -> Confirmation | None:
+    """The exact fold: the zero of ``dE/dT`` along the exact family parametrised by its period
+    (module docstring), bracketed around the discrete orbit's period and located by Brent's
+    method; each exact orbit starts from the last one found."""
+    period = float(orbit.stats["period"])
+    state = {"start": (np.concatenate([orbit.q[0], orbit.p[0]]), period), "energy": energy}
+
+    def slope(level_period):
+        exact = closed(state["energy"], state["start"], level_period)
+        state["start"], state["energy"] = (exact.z0, exact.period), exact.energy
+        return 1.0 / exact.period_derivative
+
+    half = FIRST_HALF_WIDTH * max(1.0, period)
+    try:
+        for _ in range(EXPANSIONS):
+            low, high = slope(period - half), slope(period + half)
+            if low * high < 0:
+                break
+            half *= 4
+        else:
+            return None
+        root = brentq(slope, period - half, period + half, xtol=1e-13 * period, rtol=1e-15,
+                      maxiter=100)
+        slope(root)
+    except _NotClosed:
+        return None
+    return Confirmation(energy=state["energy"], bracket=(period - half, period + half),
+                        values=(low, high), closure=seen["closure"],
+                        difference=energy - state["energy"], evaluations=seen["count"])
 
 
 class _NotClosed(Exception):

@@ -49,9 +49,9 @@ from ...validation import check_integer, check_real
 from ..grid.newton import newton
 from ..options import GridOptions, coerce
 from .assembly import Closure, PeriodicAssembly, integral_gradients
-from .bifurcation import KINDS, tests
+from .bifurcation import KINDS, confirm, tests
 from .solve import EPS, TARGET_ROUND_OFFS, check_periodic, parse_section, solve_periodic
-from .stability import DEFAULT_TOL, Stability, discrete_stability, orbit_stability
+from .stability import DEFAULT_TOL, Stability, discrete_stability, periodic_stability
 from .start import closing_shift
 
 # Corrector: iterations, and those at most of which the step grows.
@@ -72,6 +72,9 @@ class Continuation:
         tol: the tolerance of the stability verdicts, on the stability indices.
         locate_tol: the located bifurcations' bracket in the energy, relative to
             ``max(1, |E|)``.
+        exact: close the exact flow at every member and analyse its monodromy
+            (:func:`~.stability.periodic_stability`; about 0.1-1 s an orbit).
+        confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
     """
 
     step: float | None = None
@@ -80,6 +83,8 @@ class Continuation:
     min_step: float = 1e-4
     tol: float = DEFAULT_TOL
     locate_tol: float = 1e-10
+    exact: bool = True
+    confirm: bool = True
 
     def __post_init__(self):
         for name in ("step", "max_step"):
@@ -314,8 +319,9 @@ class _Walker:
         previous = tangent_before if tangent_before is not None else np.r_[
             np.zeros(y.size - 1), self.direction]
         tangent = self.arc.tangent(y, self.closure, previous)
-        stability = orbit_stability(self.system, orbit, params=self.common["params"],
-                                    integrals=self.integrals, tol=self.settings.tol)
+        stability = periodic_stability(self.system, orbit, params=self.common["params"],
+                                       integrals=self.integrals, tol=self.settings.tol,
+                                       exact=self.settings.exact)
         self.members.append(Member(float(y[-1]), orbit, stability, arclength,
                                    float(tangent[-1])))
         self.points.append(y)
@@ -419,8 +425,11 @@ class _Walker:
             test(root)
             y = points[root]
         orbit = self.verified(y)
-        stability = orbit_stability(self.system, orbit, params=self.common["params"],
-                                    integrals=self.integrals, tol=self.settings.tol)
+        if not orbit.success:
+            return None
+        stability = periodic_stability(self.system, orbit, params=self.common["params"],
+                                       integrals=self.integrals, tol=self.settings.tol,
+                                       exact=self.settings.exact)
         before = tests(a.stability, a.slope)[kind]
         after = tests(b.stability, b.slope)[kind]
         signs = {0.0: np.sign(before), width: np.sign(after)}
@@ -429,7 +438,15 @@ class _Walker:
         right = min(s for s, sign in signs.items() if sign != signs[0.0] and s >= root)
         energy = {0.0: a.energy, width: b.energy, **{s: float(p[-1]) for s, p in points.items()}}
         bracket = tuple(sorted((energy[left], energy[right])))
-        return Bifurcation(kind, float(y[-1]), bracket, i, (before, after), orbit, stability)
+        extra = {}
+        if self.settings.confirm:
+            confirmed = confirm(self.system, self.theta, orbit, kind,
+                                section_index=self.closure.section_index,
+                                section_value=self.closure.section_value,
+                                integrals=self.integrals, tol=self.settings.tol)
+            extra = confirmed.as_dict() if confirmed is not None else {"exact_energy": None}
+        return Bifurcation(kind, float(y[-1]), bracket, i, (before, after), orbit, stability,
+                           extra)
 
 
 class _LostFamily(Exception):

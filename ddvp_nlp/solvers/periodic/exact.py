@@ -99,8 +99,9 @@ def flow_with_derivatives(system, theta, z0, period: float, *, integrals=(), unf
 
     def derivative(_, w):
         return np.asarray(rhs(w, u, theta)).ravel()
-    run = solve_ivp(derivative, (0.0, float(period)), w0, method="DOP853", rtol=rtol,
-                    atol=rtol * scale)
+    with np.errstate(all="ignore"):  # a diverging shooting iterate: non-finite, then refused
+        run = solve_ivp(derivative, (0.0, float(period)), w0, method="DOP853", rtol=rtol,
+                        atol=rtol * scale)
     w = run.y[:, -1]
     z = w[:k]
     field = np.asarray(rhs(np.concatenate([z, np.zeros(w0.size - k)]), u, theta)).ravel()[:k]
@@ -115,7 +116,8 @@ class ExactOrbit:
     parameters, its monodromy, and how the shooting went (``converged``, ``closure`` = the
     largest ``|phi_T(z_0) - z_0 - shift|`` relative to the orbit's size, ``iterations``);
     ``start_return`` is the same measure of the start (the discrete orbit's node 0 after its
-    own period), ``distance`` the largest ``|z_0 - z_0(start)|``."""
+    own period), ``distance`` the largest ``|z_0 - z_0(start)|``, ``period_derivative`` the
+    exact family's ``dT/dE``."""
 
     z0: np.ndarray
     period: float
@@ -127,22 +129,29 @@ class ExactOrbit:
     iterations: int
     start_return: float
     distance: float
+    energy: float
+    period_derivative: float
     history: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
-        return {"converged": self.converged, "period": self.period, "closure": self.closure,
+        return {"converged": self.converged, "period": self.period, "energy": self.energy,
+                "closure": self.closure,
                 "iterations": self.iterations, "start_return": self.start_return,
-                "distance": self.distance, "unfolding": self.unfolding.tolist(),
+                "distance": self.distance, "period_derivative": self.period_derivative,
+                "unfolding": self.unfolding.tolist(),
                 "z0": self.z0.tolist()}
 
 
 def close_exact(system, theta, z0, period: float, *, energy: float, section_index: int,
-                section_value: float, integrals=(), shift=0.0, rtol: float = RTOL
-                ) -> ExactOrbit:
+                section_value: float, integrals=(), shift=0.0, rtol: float = RTOL,
+                fixed_period: bool = False) -> ExactOrbit:
     """The exact periodic orbit near ``(z_0, T)`` by Newton on the shooting equations (module
     docstring). ``section_index`` counts ``t`` as 0 (as the discrete layouts do), so
     ``z_0[section_index - 1]`` is fixed; the integrals' phase conditions are taken at the
-    start's ``z_0``."""
+    start's ``z_0``. The orbit's ``period_derivative`` (``dT/dE`` along the exact family, at
+    fixed section and phases) comes from the last Newton matrix. With ``fixed_period`` the
+    period is held and the energy is the unknown (``energy`` its start): regular through a
+    fold in ``E``, where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
     z = np.array(z0, float)
@@ -151,39 +160,51 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
     gradient = _gradients_function(system, integrals)
     generators = _generators(np.asarray(gradient(reference, theta))[:, 1:]) if r else \
         np.zeros((0, k))
+    section_row = np.zeros(k)
+    section_row[section_index - 1] = 1.0
     T, u = float(period), np.zeros(1 + r)
     scale = max(float(np.max(np.abs(z))), 1.0)
-    history, start_return, flow = [], None, None
+    history = []
     for iteration in range(MAX_SHOOTING_ITERATIONS + 1):
         flow = flow_with_derivatives(system, theta, z, T, integrals=integrals, unfolding=u,
                                      rtol=rtol)
         closing = flow.z - z - shift
-        grad_H = np.asarray(gradient(z, theta))[:, 0]
         H = float(system.energy(z[None, :k // 2], z[None, k // 2:], [0.0], theta)[0])
         F = np.concatenate([closing, [H - energy, z[section_index - 1] - section_value],
                             generators @ (z - reference)])
-        error = float(np.max(np.abs(closing))) / scale
-        history.append(error)
-        if start_return is None:
-            start_return = error
-        if error <= CLOSURE_TARGET and abs(F[k]) <= CLOSURE_TARGET * max(1.0, abs(energy)):
-            break
-        if iteration == MAX_SHOOTING_ITERATIONS:
-            break
-        section_row = np.zeros(k)
-        section_row[section_index - 1] = 1.0
-        top = np.hstack([flow.monodromy - np.eye(k), flow.field[:, None], flow.unfolding])
-        rows = np.vstack([top, np.r_[grad_H, 0.0, np.zeros(1 + r)],
+        history.append(float(np.max(np.abs(closing))) / scale)
+        rows = np.vstack([np.hstack([flow.monodromy - np.eye(k), flow.field[:, None],
+                                     flow.unfolding]),
+                          np.r_[np.asarray(gradient(z, theta))[:, 0], 0.0, np.zeros(1 + r)],
                           np.r_[section_row, 0.0, np.zeros(1 + r)],
                           np.hstack([generators, np.zeros((r, 2 + r))])])
+        if fixed_period:  # the column of E instead of T's
+            rows[:, k] = 0.0
+            rows[k, k] = -1.0
+        closed = history[-1] <= CLOSURE_TARGET and \
+            abs(F[k]) <= CLOSURE_TARGET * max(1.0, abs(energy))
+        if closed or iteration == MAX_SHOOTING_ITERATIONS or not flow.success \
+                or not np.all(np.isfinite(F)):
+            break
         step = np.linalg.solve(rows, -F)
-        z, T, u = z + step[:k], T + step[k], u + step[k + 1:]
-    converged = bool(history[-1] <= CLOSURE_TARGET and np.max(np.abs(u)) <= 1e3 * rtol)
-    if not np.isclose(u, 0.0, atol=1e3 * rtol).all():
-        converged = False
+        z, u = z + step[:k], u + step[k + 1:]
+        if fixed_period:
+            energy += step[k]
+        else:
+            T += step[k]
+    if fixed_period:  # dE/dT: the closure's derivative in T is the field at the return
+        derivative = np.linalg.solve(rows, -np.r_[flow.field, np.zeros(2 + r)])
+        period_derivative = 1.0 / derivative[k] if derivative[k] != 0 else np.inf
+    else:
+        energy_row = np.zeros(k + 2 + r)
+        energy_row[k] = 1.0
+        period_derivative = float(np.linalg.solve(rows, energy_row)[k])
+    # an orbit of the Hamiltonian flow: the unfolding at the integrator's accuracy
+    converged = bool(closed and flow.success and np.max(np.abs(u)) <= 1e3 * rtol)
     return ExactOrbit(z0=z, period=T, unfolding=u, monodromy=flow.monodromy, field=flow.field,
                       converged=converged, closure=history[-1], iterations=len(history) - 1,
-                      start_return=start_return, distance=float(np.max(np.abs(z - z0))),
+                      start_return=history[0], distance=float(np.max(np.abs(z - z0))),
+                      energy=float(energy), period_derivative=float(period_derivative),
                       history=history)
 
 

@@ -62,7 +62,7 @@ from ...errors import InputError
 from ...solution import Solution
 from ...validation import check_real
 from .assembly import interval_rows
-from .exact import exact_field_directions
+from .exact import ExactOrbit, close_exact, exact_field_directions
 from .solve import parse_section
 
 VERDICTS = ("stable", "marginal", "unstable")
@@ -224,6 +224,9 @@ class Stability:
         fixed: the fixed directions ``V`` as columns.
         kind: ``"discrete"`` or ``"exact"``.
         extra: further numbers (``period_derivative`` dT/dE of the discrete orbit, ...).
+        exact: the exact flow's :class:`Stability` at the exact orbit near this one (``None``
+            unless asked for: :func:`periodic_stability`).
+        exact_orbit: that exact orbit (``exact.ExactOrbit``: its closure, its distance).
     """
 
     multipliers: np.ndarray
@@ -239,6 +242,31 @@ class Stability:
     fixed: np.ndarray
     kind: str
     extra: dict = field(default_factory=dict)
+    exact: Stability | None = None
+    exact_orbit: ExactOrbit | None = None
+
+    @property
+    def index_error(self) -> float | None:
+        """The largest ``|k_j - k_j(exact)|`` of the indices (sorted alike), or ``None``."""
+        if self.exact is None or self.exact.indices.size != self.indices.size:
+            return None
+        return float(np.max(np.abs(self.indices - self.exact.indices), initial=0.0))
+
+    def summary(self) -> str:
+        """One line: the verdict, the indices, the trivial multipliers' distance from 1 and,
+        if made, the exact flow's verdict and the indices' difference."""
+        shown = ", ".join(_shown(k) for k in self.indices) or "none (one degree of freedom)"
+        text = (f"{self.verdict} (tolerance {self.tol:g} on the indices): stability indices "
+                f"{shown}; {self.trivial.size} trivial multipliers within "
+                f"{self.trivial_error:.1e} of 1")
+        if self.exact is not None:
+            closed = self.exact_orbit
+            text += (f"; exact flow: {self.exact.verdict}"
+                     + (f", indices differ by {self.index_error:.2e}"
+                        if self.index_error is not None else "")
+                     + (f", orbit closed to {closed.closure:.1e} at {closed.distance:.2e} from "
+                        f"node 0" if closed is not None else ""))
+        return text
 
     def as_dict(self) -> dict:
         """Plain values for a run folder's ``stability.json`` (complex numbers as pairs)."""
@@ -248,7 +276,14 @@ class Stability:
                 "multipliers": pairs(self.multipliers), "indices": pairs(self.indices),
                 "moduli": [float(abs(v)) for v in self.multipliers],
                 "trivial": pairs(self.trivial), "trivial_error": self.trivial_error,
-                "defect": self.defect, "isotropy": self.isotropy, **self.extra}
+                "defect": self.defect, "isotropy": self.isotropy, **self.extra,
+                "exact": None if self.exact is None else self.exact.as_dict(),
+                "exact_orbit": None if self.exact_orbit is None else self.exact_orbit.as_dict(),
+                "index_error": self.index_error}
+
+
+def _shown(k: complex) -> str:
+    return f"{k.real:.8g}" if k.imag == 0 else f"{k.real:.6g}{k.imag:+.3g}i"
 
 
 def analyse(M: np.ndarray, fixed: np.ndarray, *, tol: float, kind: str,
@@ -303,6 +338,52 @@ def orbit_stability(system, solution: Solution, *, params=None, integrals=(),
                               solution.p, energy=float(solution.stats["energy"]),
                               section_index=index, theta=system.parameter_vector(params),
                               integrals=integrals, tol=tol)
+
+
+def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
+                       tol: float = DEFAULT_TOL, exact: bool = True) -> Stability:
+    """The Floquet multipliers of a periodic orbit and its verdict (module docstring), checked
+    against the exact flow.
+
+    The discrete orbit's monodromy (the step maps' derivatives, node times included, multiplied
+    along the orbit) is reduced by its trivial directions; the nontrivial multipliers give one
+    stability index per pair and the verdict. With ``exact``, the exact periodic orbit near
+    this one is found by shooting with DOP853 (``exact.py``: variational equations at
+    ``rtol = 1e-12``) and its monodromy analysed the same way: the indices' difference is the
+    discretisation error of the multipliers (``O(N^-2)``), and an exact orbit that does not
+    close says the discrete one is not near an orbit of the flow.
+
+    Args:
+        system: the system the orbit was solved for.
+        orbit: a periodic orbit returned by :func:`~ddvp_nlp.solve_periodic` (a failed one is
+            refused).
+        params: the system's parameter values (those of the solve).
+        integrals: the first integrals the orbit was solved with.
+        tol: the tolerance on the stability indices: ``|k| = 2`` within it is ``marginal``.
+        exact: also close the exact flow and analyse its monodromy.
+
+    Returns:
+        A :class:`Stability`: ``multipliers``, ``indices``, ``verdict``, ``trivial`` and,
+        with ``exact``, ``exact`` and ``exact_orbit``; ``summary()`` says it in one line.
+    """
+    stability = orbit_stability(system, orbit, params=params, integrals=integrals, tol=tol)
+    if not orbit.success:
+        raise InputError(f"orbit: a failed solve has no monodromy to trust ({orbit.status.code}:"
+                         f" {orbit.message[:120]})")
+    if exact:
+        theta = system.parameter_vector(params)
+        index, value, _ = parse_section(orbit.stats["section"], system.n)
+        shift = np.concatenate([2 * np.pi * np.asarray(orbit.stats["winding"], float),
+                                np.zeros(system.n)])
+        closed = close_exact(system, theta, np.concatenate([orbit.q[0], orbit.p[0]]),
+                             float(orbit.stats["period"]), energy=float(orbit.stats["energy"]),
+                             section_index=index, section_value=value,
+                             integrals=tuple(integrals), shift=shift)
+        stability.exact_orbit = closed
+        if closed.converged:
+            stability.exact = exact_stability(system, theta, closed.z0, closed.monodromy,
+                                              integrals=integrals, tol=tol)
+    return stability
 
 
 def discrete_stability(system, scheme, t, q, p, *, energy: float, section_index: int, theta,
