@@ -14,7 +14,9 @@ Where things are:
 - ``ipopt.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
 - ``start.py``: the starts (straight line or shooting, fixed steps on uniform and on
   predicted times); ``continuation.py``: the continuation in the end position, the start of
-  last resort.
+  last resort;
+- ``energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the
+  last interval's energy prescribed, checked against the exact flow's shooting.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -28,7 +30,8 @@ The contract, on top of the grid's (``grid/__init__.py``):
 4. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
 """
 
+from .energy import AtEnergy
 from .solve import solve_bvp
 from .start import Shooting, predicted_times
 
-__all__ = ["Shooting", "predicted_times", "solve_bvp"]
+__all__ = ["AtEnergy", "Shooting", "predicted_times", "solve_bvp"]
