@@ -147,7 +147,7 @@ def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, 
                      max_iter: int, compilation) -> Solution:
     """Phase 2 of the module docstring from the fixed-endpoint grid ``fixed``."""
     started = time.perf_counter()
-    nodes, n = fixed.t.size, system.n
+    nodes = fixed.t.size
     grid = _assembly(system, scheme, nodes, compilation)
     x = grid.layout.pack(fixed.t, fixed.q, fixed.p)
     first = float(equations.interval_energies(system, scheme, fixed.t[:2], fixed.q[:2],
@@ -203,8 +203,9 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, phase) -> Solutio
             f"step {int(np.argmin(tau))} is not positive ({phase['outcome']})")
     elif max(worst.values()) > limit or phase["reached_energy"] != span.energy:
         status, message = Status.SOLVER_FAILED, (
-            f"no transfer at energy {span.energy:.10g} found: reached {phase['reached_energy']:.10g}"
-            f" from {phase['start_energy']:.10g}; largest residuals {listed} (limit "
+            f"no transfer at energy {span.energy:.10g} found: reached "
+            f"{phase['reached_energy']:.10g} from {phase['start_energy']:.10g}; largest "
+            f"residuals {listed} (limit "
             f"{limit:.1e}; newton: {phase['outcome']})")
     else:
         status, message = Status.SUCCESS, (
