@@ -35,7 +35,8 @@ def run_solve(args) -> int:
         # another one gets a folder of its own (two runs differing only in --guess shared one)
         for name, value, default in (("guess", args.guess, "straight"),
                                      ("p_start", args.p_start, None),
-                                     ("solver", args.solver, "auto")):
+                                     ("solver", args.solver, "auto"),
+                                     ("energy", args.energy, None)):
             if value != default:
                 overrides[name] = resolved[name] = value
     infix = "-bvp" if args.command == "bvp" else ""
@@ -188,7 +189,8 @@ def _march_method(args, scene, config):
 
 
 def _bvp(args, scene, config, scheme):
-    from ..solvers.bvp import Shooting, solve_bvp
+    from ..solvers.bvp import AtEnergy, Shooting, solve_bvp
+    from .stability import transfer_note
 
     p_start = _momentum(args.p_start)
     if p_start is not None and args.guess != "march":
@@ -196,11 +198,17 @@ def _bvp(args, scene, config, scheme):
                          f"it with --guess march (got --guess {args.guess})")
     progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else _bvp_guess(args.guess, scene.system.n)
-    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
+    span = config.t_span
+    if args.energy is not None:  # the scene's span is the transfer time's guess
+        span = AtEnergy(args.energy, t0=span[0], duration=span[1] - span[0])
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, span,
                          nodes=config.nodes, scheme=scheme, params=config.params, guess=guess,
                          options=options.grid_options(args, tol=args.tol),
                          output=Output(progress=progress))
-    return solution, {"solver": solution.stats}
+    extra = {"solver": solution.stats}
+    if args.energy is not None and "transfer_time" in solution.stats:
+        extra["note"] = transfer_note(solution.stats)
+    return solution, extra
 
 
 # A bvp of at least this many nodes reports its iterations on a terminal without --progress
@@ -254,6 +262,10 @@ def _march_higher(args, scene, config, scheme):
 def _bvp_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import solve_bvp_higher
 
+    if args.energy is not None:
+        raise InputError(f"--energy: scene {scene.name!r} is a higher-order scene; a transfer at "
+                         f"a prescribed energy needs a Hamiltonian (or first-order Lagrangian) "
+                         f"scene")
     boundary = scene.boundary or Endpoints()
     nodes = args.nodes or boundary.nodes or 41
     t_span = boundary.t_span or (config.t0, config.t_end)
@@ -275,6 +287,7 @@ def run_periodic(args) -> int:
     from ..io.runs import prepare_folder
     from ..solvers.periodic.family import solve_periodic_family
     from ..solvers.periodic.solve import check_periodic, solve_periodic
+    from .stability import scene_guess
 
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
@@ -284,9 +297,14 @@ def run_periodic(args) -> int:
                 "angles": defaults.angles, "options": options.grid_options(args)}
     nodes = args.nodes if args.nodes is not None else defaults.nodes
     guess = _bvp_guess(args.guess) if args.guess else None
+    if args.follow is not None or args.stability:
+        from .stability import run_periodic_stability
+
+        return run_periodic_stability(args, scene, settings, nodes, guess, params)
     if args.family is not None:
-        energies = _family_energies(args.family)
-        for energy in (energies[0], energies[-1]):
+        energies = family_energies(args.family)
+        guess = guess or scene_guess(scene, energies[0], params)
+        for energy in (energies[0], energies[-1]) if guess is None else ():
             check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
         out = prepare_folder(args.out or f"runs/{scene.name}-family")
         family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
@@ -300,7 +318,9 @@ def run_periodic(args) -> int:
     energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:
         raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
-    check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+    guess = guess or scene_guess(scene, energy, params)
+    if guess is None:
+        check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
     out = prepare_folder(args.out or f"runs/{scene.name}-periodic")
     solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
                               **settings)
@@ -311,7 +331,7 @@ def run_periodic(args) -> int:
     return 0 if solution.success else 1
 
 
-def _family_energies(text: str):
+def family_energies(text: str):
     """``E1:E2:COUNT`` as ``COUNT`` energies from ``E1`` to ``E2``."""
     import numpy as np
 

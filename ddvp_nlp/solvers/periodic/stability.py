@@ -247,10 +247,13 @@ class Stability:
 
     @property
     def index_error(self) -> float | None:
-        """The largest ``|k_j - k_j(exact)|`` of the indices (sorted alike), or ``None``."""
+        """The largest ``|k_j - k_j(exact)| / max(2, |k_j(exact)|)`` of the indices (sorted
+        alike: an unstable pair's index grows like its multiplier, a stable one's lies in
+        ``[-2, 2]``), or ``None``."""
         if self.exact is None or self.exact.indices.size != self.indices.size:
             return None
-        return float(np.max(np.abs(self.indices - self.exact.indices), initial=0.0))
+        scale = np.maximum(2.0, np.abs(self.exact.indices))
+        return float(np.max(np.abs(self.indices - self.exact.indices) / scale, initial=0.0))
 
     def summary(self) -> str:
         """One line: the verdict, the indices, the trivial multipliers' distance from 1 and,
@@ -262,7 +265,7 @@ class Stability:
         if self.exact is not None:
             closed = self.exact_orbit
             text += (f"; exact flow: {self.exact.verdict}"
-                     + (f", indices differ by {self.index_error:.2e}"
+                     + (f", indices differ by {self.index_error:.2e} (relative)"
                         if self.index_error is not None else "")
                      + (f", orbit closed to {closed.closure:.1e} at {closed.distance:.2e} from "
                         f"node 0" if closed is not None else ""))
