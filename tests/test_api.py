@@ -8,8 +8,9 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
-          "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output",
+PUBLIC = {"AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions",
+          "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+          "Lagrangian", "LagrangianSystem", "Output",
           "PeriodicSettings", "Scene", "Shooting",
           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",

@@ -287,7 +287,7 @@ def run_periodic(args) -> int:
     from ..io.runs import prepare_folder
     from ..solvers.periodic.family import solve_periodic_family
     from ..solvers.periodic.solve import check_periodic, solve_periodic
-    from .stability import scene_guess
+    from .stability import family_energies, scene_guess
 
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
@@ -329,22 +329,6 @@ def run_periodic(args) -> int:
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
           f"written to {out}/")
     return 0 if solution.success else 1
-
-
-def family_energies(text: str):
-    """``E1:E2:COUNT`` as ``COUNT`` energies from ``E1`` to ``E2``."""
-    import numpy as np
-
-    parts = text.split(":")
-    try:
-        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
-        if len(parts) != 3:
-            raise ValueError
-    except (ValueError, IndexError):
-        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
-    if count < 2 or not np.isfinite(first) or not np.isfinite(last):
-        raise InputError(f"--family needs finite E1, E2 and COUNT >= 2, got {text!r}")
-    return np.linspace(first, last, count)
 
 
 def run_poincare(args) -> int:

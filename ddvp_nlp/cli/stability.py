@@ -81,7 +81,6 @@ def _family(args, scene, settings, nodes, guess, params, tol) -> int:
     from ..io.stability_runs import write_family_stability
     from ..solvers.periodic import periodic_stability, solve_periodic_family
     from ..solvers.periodic.solve import check_periodic
-    from .solve import family_energies
 
     energies = family_energies(args.family)
     guess = guess or scene_guess(scene, energies[0], params)
@@ -141,3 +140,19 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults) -> int:
     print(f"{family.message}; {len(family.members)} orbits in {family.seconds:.1f} s; written "
           f"to {out}/ (family.csv, bifurcations.csv, bifurcations.json, family.png)")
     return 0 if family.members and family.complete else 1
+
+
+def family_energies(text: str):
+    """``E1:E2:COUNT`` as ``COUNT`` energies from ``E1`` to ``E2``."""
+    import numpy as np
+
+    parts = text.split(":")
+    try:
+        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
+        if len(parts) != 3:
+            raise ValueError
+    except (ValueError, IndexError):
+        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
+    if count < 2 or not np.isfinite(first) or not np.isfinite(last):
+        raise InputError(f"--family needs finite E1, E2 and COUNT >= 2, got {text!r}")
+    return np.linspace(first, last, count)
