@@ -14,9 +14,11 @@ The solve (``solve.py`` calls these in order):
 
 1. the fixed-endpoint problem on ``(t_0, t_0 + D)`` with the duration guess ``D``
    (``AtEnergy.duration``, else the guess's span, else :func:`duration_guess`), by
-   ``solve_bvp`` itself: a grid on the right path, at the energy that duration gives, ``E_1``;
+   ``solve_bvp`` itself, then a secant iteration on ``D`` towards ``E(D) = E``
+   (:func:`fixed_time_start`): a grid on the right path, at an energy ``E_1`` near ``E``;
 2. :func:`release_end_time`: the grid's Newton on the system above from that grid, the energy
-   continued from ``E_1`` to ``E`` (one step, halved on failure), then the verification
+   continued from ``E_1`` to ``E`` (the whole way first; a failed step halves, a successful one
+   doubles up to what remains; each from the secant predictor), then the verification
    (residuals of every kind, the prescribed energy on every interval, every step positive), the
    accuracy check (``accuracy.assess``, level ``E``) and a check against the exact flow:
    shooting by DOP853 (``physics/flow.py``) for ``(p_0, T)`` with ``q(T) = q_end``,
@@ -52,7 +54,15 @@ TARGET_ULPS = 16
 ROUND_OFF_ALLOWANCE = 1024
 # The energy's continuation from the fixed-time grid's: a failed step halves (at most this many
 # times in all), a successful one doubles up to what remains.
-MAX_HALVINGS = 30
+MAX_HALVINGS = 40
+# Newton's iterations on one step of that continuation: from the secant predictor a step that
+# converges takes a few; one that does not is halved rather than iterated on.
+STEP_ITERATIONS = 60
+# The secant on the duration before the end time is released: steps, and the energy distance
+# (relative to max(1, |E|)) at which it stops.
+SECANT_STEPS = 12
+SECANT_TOL = 1e-3
+SECANT_REACH = 0.1
 SHOOTING_ITERATIONS = 15
 
 
@@ -126,6 +136,50 @@ def duration_guess(system, theta, q_start, q_end, energy: float, guess=None) -> 
     return length / speed
 
 
+def fixed_time_start(solve_fixed, system, scheme, theta, duration: float, energy: float):
+    """``(grid, durations)``: a fixed-endpoint grid whose energy is near ``E``, by a damped
+    secant iteration on the duration. ``solve_fixed(D, guess)`` solves the fixed-time problem on
+    ``(t_0, t_0 + D)``; from the guessed duration, then ``D (1 + 1e-2)``, each next ``D`` from
+    the secant through the last two ``(D, E(D))``, changed by at most ``SECANT_REACH`` of ``D``
+    and halved while a solve fails or ends farther from ``E`` (``E(D)`` folds where the
+    fixed-time solver changes branch: the pendulum's two-swing transfer jumped to a direct one
+    at a 15 % longer duration), each solve from the last grid with its times stretched, until
+    ``|E(D) - E|`` is below ``SECANT_TOL max(1, |E|)``. The end time is then released from a
+    grid whose energy is close: the continuation in ``E`` that follows has little left."""
+    grid = solve_fixed(duration, None)
+    if not grid.success:
+        return grid, [duration]
+    tried = [(duration, _energy(system, scheme, grid, theta))]
+    for _ in range(SECANT_STEPS):
+        if abs(tried[-1][1] - energy) <= SECANT_TOL * max(1.0, abs(energy)):
+            break
+        d1, e1 = tried[-1]
+        if len(tried) == 1:
+            step = 1e-2 * d1
+        else:
+            d0, e0 = tried[-2]
+            step = (energy - e1) * (d1 - d0) / (e1 - e0) if e1 != e0 else 0.0
+        step = float(np.clip(step, -SECANT_REACH * d1, SECANT_REACH * d1))
+        for _ in range(4):
+            stretch = (d1 + step) / d1
+            trial = solve_fixed(d1 + step, {"t": grid.t[0] + (grid.t - grid.t[0]) * stretch,
+                                            "q": grid.q, "p": grid.p})
+            level = _energy(system, scheme, trial, theta) if trial.success else None
+            if level is not None and (len(tried) == 1 or abs(level - energy) < abs(e1 - energy)):
+                break
+            step /= 2
+        else:
+            break
+        grid = trial
+        tried.append((d1 + step, level))
+    return grid, [d for d, _ in tried]
+
+
+def _energy(system, scheme, grid: Solution, theta) -> float:
+    return float(equations.interval_energies(system, scheme, grid.t[:2], grid.q[:2],
+                                             grid.p[:2], theta)[0])
+
+
 def _assembly(system, scheme, nodes, compilation) -> GridAssembly:
     key = ("bvp_transfer", scheme, nodes, compilation.compiler, str(compilation.cache_dir))
     return PROBLEMS.get(system, key, lambda: GridAssembly(
@@ -153,17 +207,20 @@ def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, 
     first = float(equations.interval_energies(system, scheme, fixed.t[:2], fixed.q[:2],
                                               fixed.p[:2], theta)[0])
     level, step, halvings, iterations, said = first, span.energy - first, 0, 0, ""
+    secant = None  # (the last step's change of the grid, that step): the predictor
     while True:
         trial_level = level + step
         scale = (x[-grid.layout.m] - span.t0) / (nodes - 1)
         ends = Ends(fixed.q[0], fixed.q[-1], np.array([span.t0, x[-grid.layout.m]]), theta,
                     scale, energy=trial_level)
-        result = newton(grid, x, ends, _targets(grid.layout, x, trial_level, scale),
-                        tau_floor=1e-3 * scale, max_iter=max_iter, linear="auto",
-                        kernel=band_kernel(compilation))
+        start = x if secant is None else x + secant[0] * (step / secant[1])
+        result = newton(grid, start, ends, _targets(grid.layout, x, trial_level, scale),
+                        tau_floor=1e-3 * scale, max_iter=min(max_iter, STEP_ITERATIONS),
+                        linear="auto", kernel=band_kernel(compilation))
         iterations += result.iterations
         said = result.outcome
         if result.converged and np.all(np.diff(result.x[grid.layout.time_index()]) > 0):
+            secant = (result.x - x, step)
             x, level = result.x, trial_level
             if level == span.energy:
                 break

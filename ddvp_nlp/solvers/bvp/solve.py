@@ -58,7 +58,13 @@ from ..dense import attach
 from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, Tolerance, coerce
 from .assembly import NodeLayout
-from .energy import AtEnergy, check_transfer, duration_guess, release_end_time
+from .energy import (
+    AtEnergy,
+    check_transfer,
+    duration_guess,
+    fixed_time_start,
+    release_end_time,
+)
 from .phase import (
     EPS,
     ROUND_OFF_ALLOWANCE,
@@ -176,9 +182,13 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
     theta = system.parameter_vector(params)
     q_a, q_b = check_state("q_start", q_start, system.n), check_state("q_end", q_end, system.n)
     duration = span.duration or duration_guess(system, theta, q_a, q_b, span.energy, guess)
-    fixed = solve_bvp(system, q_a, q_b, (span.t0, span.t0 + duration), nodes=nodes,
-                      scheme=scheme, params=params, guess=guess, options=options,
-                      compilation=compilation, output=output)
+
+    def solve_fixed(length, start):
+        return solve_bvp(system, q_a, q_b, (span.t0, span.t0 + length), nodes=nodes,
+                         scheme=scheme, params=params, guess=guess if start is None else start,
+                         options=options, compilation=compilation, output=output)
+    fixed, durations = fixed_time_start(solve_fixed, system, scheme, theta, duration,
+                                        span.energy)
     if not fixed.success:
         fixed.message = (f"the fixed-time problem at the guessed duration {duration:.6g} was "
                          f"not solved, so the end time was not released: {fixed.message}")
@@ -187,7 +197,7 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
     solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
                                 max_iter=resolved.max_iter,
                                 compilation=coerce(compilation, Compilation, "compilation"))
-    solution.stats["fixed_time_start"] = {"duration": duration, "message": fixed.message}
+    solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
     return attach(solution, system, theta, solution.t[-1])
 
 

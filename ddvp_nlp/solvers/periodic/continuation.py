@@ -43,6 +43,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import brentq
 
+from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution
 from ...validation import check_integer, check_real
@@ -135,13 +136,17 @@ class Bifurcation:
 @dataclass
 class Family:
     """The members in the order of the continuation, the bifurcations located between them,
-    and how the continuation ended (``message``; ``complete`` when it left the energy range)."""
+    and how the continuation ended (``message``; ``complete`` when it left the energy range).
+    ``unlocated``: sign changes of a test function whose location failed (the corrector lost
+    the family inside the bracket), each ``{"kind", "after_member", "energies"}``: reported,
+    not dropped."""
 
     members: list
     bifurcations: list
     complete: bool
     message: str
     seconds: float = 0.0
+    unlocated: list = field(default_factory=list)
 
 
 @dataclass
@@ -250,8 +255,13 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
                       time.perf_counter() - started)
     walker = _Walker(system, first, nodes, common, walk, (first_energy, last_energy))
     members, message, complete = walker.walk()
-    bifurcations = walker.locate_all()
-    return Family(members, bifurcations, complete, message, time.perf_counter() - started)
+    bifurcations, unlocated = walker.locate_all()
+    if unlocated:
+        message += (f"; {len(unlocated)} sign change(s) of a test function not located: "
+                    + ", ".join(f"{u['kind']} after member {u['after_member']}"
+                                for u in unlocated))
+    return Family(members, bifurcations, complete, message, time.perf_counter() - started,
+                  unlocated)
 
 
 def _checked(system, energies, nodes, section, guess, scheme, params, start, angles, options,
@@ -290,7 +300,6 @@ class _Walker:
         self.first_step = walk.step or span / 20
         self.max_step = walk.max_step or span / 10
         self.closure = self._closure(first)
-        from ...discrete.scheme import Scheme
         self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), nodes,
                                          self.closure, self.integrals)
         self.arc = ArclengthSystem(self.assembly)
@@ -375,8 +384,10 @@ class _Walker:
                 ds = min(1.5 * ds, longest)
         return self.members, f"max_orbits = {self.settings.max_orbits} reached", False
 
-    def locate_all(self) -> list:
-        found = []
+    def locate_all(self):
+        """``(located, unlocated)``: every sign change between neighbours (module
+        docstring)."""
+        found, unlocated = [], []
         for i in range(len(self.members) - 1):
             a, b = self.members[i], self.members[i + 1]
             before, after = tests(a.stability, a.slope), tests(b.stability, b.slope)
@@ -387,7 +398,10 @@ class _Walker:
                 located = self.locate(i, kind)
                 if located is not None:
                     found.append(located)
-        return found
+                else:
+                    unlocated.append({"kind": kind, "after_member": i,
+                                      "energies": (a.energy, b.energy)})
+        return found, unlocated
 
     def _test_at(self, i: int, length: float, kind: str):
         y, _ = self.correct(i, length)

@@ -258,7 +258,7 @@ class Stability:
     def summary(self) -> str:
         """One line: the verdict, the indices, the trivial multipliers' distance from 1 and,
         if made, the exact flow's verdict and the indices' difference."""
-        shown = ", ".join(_shown(k) for k in self.indices) or "none (one degree of freedom)"
+        shown = ", ".join(_shown(k) for k in self.indices) or "none (every multiplier is trivial)"
         text = (f"{self.verdict} (tolerance {self.tol:g} on the indices): stability indices "
                 f"{shown}; {self.trivial.size} trivial multipliers within "
                 f"{self.trivial_error:.1e} of 1")
