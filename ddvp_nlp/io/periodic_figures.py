@@ -56,15 +56,23 @@ def plot_followed_family(family, title: str, path: Path) -> None:
 
 
 def _indices(axes, members) -> None:
-    """The stability indices (real parts) against the energy, on a symmetric log scale with
-    the lines ``k = +-2``."""
-    for member in members:
-        k = member.stability.indices
+    """The stability indices (real parts) against the energy with the lines ``k = +-2``;
+    on a symmetric log scale when some index passes 10 (an unstable pair's grows like its
+    multiplier)."""
+    values = [member.stability.indices.real for member in members]
+    for member, k in zip(members, values, strict=True):
         colour = COLOURS[member.stability.verdict]
-        axes.plot(np.full(k.size, member.energy), k.real, "o", ms=3, color=colour)
+        axes.plot(np.full(k.size, member.energy), k, "o", ms=3, color=colour)
     for level in (-2, 2):
         axes.axhline(level, color="0.5", lw=0.8, ls="--")
-    axes.set_yscale("symlog", linthresh=3.0)
+    largest = max((float(np.max(np.abs(k))) for k in values if k.size), default=0.0)
+    if largest > 10:
+        axes.set_yscale("symlog", linthresh=3.0)
+    else:
+        axes.set_ylim(-max(3.0, 1.1 * largest), max(3.0, 1.1 * largest))
+    if largest == 0.0:
+        axes.text(0.5, 0.5, "no nontrivial multiplier\n(every one is trivial)",
+                  transform=axes.transAxes, ha="center", va="center")
     axes.set_xlabel("energy E")
     axes.set_ylabel("stability index k = mu + 1/mu")
     axes.set_title("stability indices (|k| < 2: stable pair)")

@@ -31,9 +31,10 @@ spanning ``W``'s orthogonal complement) ``M`` is block upper triangular::
     [[A_VV, *, *], [0, R, *], [0, 0, A_DD]]
 
 The nontrivial multipliers are the eigenvalues of the reduced monodromy ``R`` (``2n - 2(r+1)``
-square), the trivial ones those of ``A_VV`` and ``A_DD`` (all 1, reported with their distance
-from 1). A nontrivial pair crossing 1 (the halo family's birth) is then still told apart from
-the trivial ones: they are never eigenvalues of the same block. The exact monodromy is reduced
+square), the trivial ones those of ``A_VV`` and ``A_DD`` (both blocks are the identity for exact
+fixed directions; how far they are from it is reported). A nontrivial pair crossing 1 (the
+halo family's birth) is then still told apart from the trivial ones: they are never
+eigenvalues of the same block. The exact monodromy is reduced
 the same way with ``v_0 = f(z_0)``.
 
 The stability index of a pair ``(mu, 1/mu)`` is ``k = mu + 1/mu``: real in ``(-2, 2)`` on the
@@ -153,10 +154,13 @@ def _null_space(rows: np.ndarray, dimension: int) -> np.ndarray:
 
 
 def reduce(M: np.ndarray, fixed: np.ndarray):
-    """``(R, trivial, defect, isotropy)`` for ``M`` and its fixed directions ``V`` (module
-    docstring): the reduced monodromy, the eigenvalues of ``A_VV`` and ``A_DD``, the largest
-    entry of the blocks that vanish for an exact ``V`` (relative to ``|M|``), and the largest
-    ``|v_i^T J v_j|`` (relative to the ``v``'s sizes)."""
+    """``(R, trivial, trivial_error, defect, isotropy)`` for ``M`` and its fixed directions
+    ``V`` (module docstring): the reduced monodromy; the eigenvalues of ``A_VV`` and ``A_DD``;
+    the largest entry of ``A_VV - I`` and ``A_DD - I`` (both blocks are the identity for exact
+    fixed directions, in the orthonormal basis: this is the backward error of "the trivial
+    multipliers are 1", while the blocks' eigenvalues, Jordan-like, move by about its square
+    root); the largest entry of the blocks below them, which vanish too (relative to
+    ``|M|``); and the largest ``|v_i^T J v_j|``."""
     k, f = M.shape[0], fixed.shape[1]
     J = _symplectic_form(k)
     V = _orthonormal(fixed, f)
@@ -165,12 +169,14 @@ def reduce(M: np.ndarray, fixed: np.ndarray):
     B = np.hstack([V, C, D])
     A = B.T @ M @ B
     R = A[f:k - f, f:k - f]
-    trivial = np.concatenate([np.linalg.eigvals(A[:f, :f]), np.linalg.eigvals(A[k - f:, k - f:])])
+    blocks = (A[:f, :f], A[k - f:, k - f:])
+    trivial = np.concatenate([np.linalg.eigvals(block) for block in blocks])
+    trivial_error = max(float(np.max(np.abs(block - np.eye(f)))) for block in blocks)
     scale = max(np.linalg.norm(M, 2), 1.0)
     defect = max(float(np.max(np.abs(A[f:, :f]), initial=0.0)),
                  float(np.max(np.abs(A[k - f:, :k - f]), initial=0.0))) / scale
     isotropy = float(np.max(np.abs(V.T @ J @ V), initial=0.0))
-    return R, trivial, defect, isotropy
+    return R, trivial, trivial_error, defect, isotropy
 
 
 def stability_indices(R: np.ndarray) -> np.ndarray:
@@ -214,8 +220,11 @@ class Stability:
             ``2n - 2(r + 1)`` of them), by modulus.
         indices: one stability index ``mu + 1/mu`` per nontrivial pair.
         verdict: ``stable``, ``marginal`` or ``unstable`` with tolerance ``tol`` on the indices.
-        trivial: the trivial multipliers (``2(r + 1)``), each 1 up to ``trivial_error``.
-        trivial_error: their largest distance from 1.
+        trivial: the trivial multipliers (``2(r + 1)``): the eigenvalues of the blocks of the
+            fixed directions and of their dual, 1 in exact arithmetic.
+        trivial_error: the largest entry of those blocks minus the identity (:func:`reduce`):
+            how far "the trivial multipliers are 1" is from holding; the eigenvalues move by
+            up to about its square root (the blocks are Jordan-like).
         defect: the largest entry of the blocks that vanish for exact fixed directions, relative
             to ``|M|`` (round-off, or the exponentially small defect of the discrete orbit).
         isotropy: the largest ``|v_i^T J v_j|`` of the fixed directions (0 for commuting
@@ -260,8 +269,8 @@ class Stability:
         if made, the exact flow's verdict and the indices' difference."""
         shown = ", ".join(_shown(k) for k in self.indices) or "none (every multiplier is trivial)"
         text = (f"{self.verdict} (tolerance {self.tol:g} on the indices): stability indices "
-                f"{shown}; {self.trivial.size} trivial multipliers within "
-                f"{self.trivial_error:.1e} of 1")
+                f"{shown}; {self.trivial.size} trivial multipliers, their blocks within "
+                f"{self.trivial_error:.1e} of the identity")
         if self.exact is not None:
             closed = self.exact_orbit
             text += (f"; exact flow: {self.exact.verdict}"
@@ -292,13 +301,13 @@ def _shown(k: complex) -> str:
 def analyse(M: np.ndarray, fixed: np.ndarray, *, tol: float, kind: str,
             extra: dict | None = None) -> Stability:
     """Reduce ``M`` by its fixed directions and judge the nontrivial pairs."""
-    R, trivial, defect, isotropy = reduce(M, fixed)
+    R, trivial, trivial_error, defect, isotropy = reduce(M, fixed)
     indices = stability_indices(R)
     multipliers = np.linalg.eigvals(R) if R.size else np.zeros(0, complex)
     multipliers = np.array(sorted(np.asarray(multipliers, complex),
                                   key=lambda x: (abs(x), np.angle(x))))
     return Stability(multipliers=multipliers, indices=indices, verdict=verdict(indices, tol),
-                     tol=tol, trivial=trivial, trivial_error=float(np.max(np.abs(trivial - 1))),
+                     tol=tol, trivial=trivial, trivial_error=trivial_error,
                      defect=defect, isotropy=isotropy, monodromy=M, reduced=R, fixed=fixed,
                      kind=kind, extra=dict(extra or {}))
 
@@ -369,10 +378,10 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
         A :class:`Stability`: ``multipliers``, ``indices``, ``verdict``, ``trivial`` and,
         with ``exact``, ``exact`` and ``exact_orbit``; ``summary()`` says it in one line.
     """
-    stability = orbit_stability(system, orbit, params=params, integrals=integrals, tol=tol)
-    if not orbit.success:
+    if isinstance(orbit, Solution) and not orbit.success:
         raise InputError(f"orbit: a failed solve has no monodromy to trust ({orbit.status.code}:"
                          f" {orbit.message[:120]})")
+    stability = orbit_stability(system, orbit, params=params, integrals=integrals, tol=tol)
     if exact:
         theta = system.parameter_vector(params)
         index, value, _ = parse_section(orbit.stats["section"], system.n)
