@@ -156,11 +156,13 @@ def _null_space(rows: np.ndarray, dimension: int) -> np.ndarray:
 def reduce(M: np.ndarray, fixed: np.ndarray):
     """``(R, trivial, trivial_error, defect, isotropy)`` for ``M`` and its fixed directions
     ``V`` (module docstring): the reduced monodromy; the eigenvalues of ``A_VV`` and ``A_DD``;
-    the largest entry of ``A_VV - I`` and ``A_DD - I`` (both blocks are the identity for exact
-    fixed directions, in the orthonormal basis: this is the backward error of "the trivial
-    multipliers are 1", while the blocks' eigenvalues, Jordan-like, move by about its square
-    root); the largest entry of the blocks below them, which vanish too (relative to
-    ``|M|``); and the largest ``|v_i^T J v_j|``."""
+    the largest entry of ``A_VV - I`` and ``A_DD - I`` relative to ``max(1, |M|)`` (both
+    blocks are the identity for exact fixed directions, in the orthonormal basis: this is the
+    backward error of "the trivial multipliers are 1", in the units of ``M``'s round-off,
+    which the discrete map's twist makes large: ``|M|`` grows like ``N^2``; the blocks'
+    eigenvalues, Jordan-like, move by about the square root of the absolute error); the
+    largest entry of the blocks below them, which vanish too (relative to ``|M|``); and the
+    largest ``|v_i^T J v_j|``."""
     k, f = M.shape[0], fixed.shape[1]
     J = _symplectic_form(k)
     V = _orthonormal(fixed, f)
@@ -171,8 +173,8 @@ def reduce(M: np.ndarray, fixed: np.ndarray):
     R = A[f:k - f, f:k - f]
     blocks = (A[:f, :f], A[k - f:, k - f:])
     trivial = np.concatenate([np.linalg.eigvals(block) for block in blocks])
-    trivial_error = max(float(np.max(np.abs(block - np.eye(f)))) for block in blocks)
     scale = max(np.linalg.norm(M, 2), 1.0)
+    trivial_error = max(float(np.max(np.abs(block - np.eye(f)))) for block in blocks) / scale
     defect = max(float(np.max(np.abs(A[f:, :f]), initial=0.0)),
                  float(np.max(np.abs(A[k - f:, :k - f]), initial=0.0))) / scale
     isotropy = float(np.max(np.abs(V.T @ J @ V), initial=0.0))
@@ -222,9 +224,9 @@ class Stability:
         verdict: ``stable``, ``marginal`` or ``unstable`` with tolerance ``tol`` on the indices.
         trivial: the trivial multipliers (``2(r + 1)``): the eigenvalues of the blocks of the
             fixed directions and of their dual, 1 in exact arithmetic.
-        trivial_error: the largest entry of those blocks minus the identity (:func:`reduce`):
-            how far "the trivial multipliers are 1" is from holding; the eigenvalues move by
-            up to about its square root (the blocks are Jordan-like).
+        trivial_error: the largest entry of those blocks minus the identity, relative to
+            ``max(1, |M|)`` (:func:`reduce`): how far "the trivial multipliers are 1" is from
+            holding, in the units of ``M``'s round-off.
         defect: the largest entry of the blocks that vanish for exact fixed directions, relative
             to ``|M|`` (round-off, or the exponentially small defect of the discrete orbit).
         isotropy: the largest ``|v_i^T J v_j|`` of the fixed directions (0 for commuting
@@ -269,8 +271,8 @@ class Stability:
         if made, the exact flow's verdict and the indices' difference."""
         shown = ", ".join(_shown(k) for k in self.indices) or "none (every multiplier is trivial)"
         text = (f"{self.verdict} (tolerance {self.tol:g} on the indices): stability indices "
-                f"{shown}; {self.trivial.size} trivial multipliers, their blocks within "
-                f"{self.trivial_error:.1e} of the identity")
+                f"{shown}; {self.trivial.size} trivial multipliers, their blocks the identity "
+                f"to {self.trivial_error:.1e} of |M|")
         if self.exact is not None:
             closed = self.exact_orbit
             text += (f"; exact flow: {self.exact.verdict}"
