@@ -73,6 +73,9 @@ class PeriodicSettings:
         angles: angle coordinates (``("q1",)``), which may close with whole turns.
         families: further families by name, each its own ``PeriodicSettings`` (section and
             start; read by ``scripts/periodic_page.py``).
+        guess: optional ``guess(energy, **params) -> {"t", "q", "p"}``, one period of a start
+            near the orbit at ``energy``, used when no guess is given (where no ray from the
+            origin through the orbit makes the section's point, as about a Lagrange point).
     """
 
     section: str = "p1=0"
@@ -82,6 +85,7 @@ class PeriodicSettings:
     integrals: tuple = ()
     angles: tuple = ()
     families: Mapping[str, PeriodicSettings] = field(default_factory=dict)
+    guess: Callable[..., Mapping] | None = None
 
 
 def _check_settings(owner: str, name: str, value, kind):

@@ -4,7 +4,7 @@
 
 Rotations (``--only rotation``): the pendulum's rotation at E = 2.5 (section q1 = 0, q1 an
 angle) for N = 100, 200, 400, 800 from ``solve_periodic``'s default start (the predicted grid,
-then continuation in N: ``solvers/periodic/continuation.py``), Newton and IPOPT, with the
+then continuation in N: ``solvers/periodic/refinement.py``), Newton and IPOPT, with the
 iterations of every level; beside it IPOPT from the old start (the march on equally spaced
 times, ``max_iter`` 400), which Newton could not solve at any N. Targets (issue 29): N = 800 in
 at most 0.3 s with Newton or IPOPT, iteration counts flat in N.

@@ -92,7 +92,7 @@ def test_alpha_out_of_range():
 
 
 def test_unknown_scene_names_the_built_in_ones():
-    with expect("unknown scene 'pendulm' (built-in scenes: figure_eight, fpu, harmonic, "
+    with expect("unknown scene 'pendulm' (built-in scenes: cr3bp, figure_eight, fpu, harmonic, "
                 "henon_heiles, kepler, pais_uhlenbeck, paper_pendulum, pendulum, "
                 "pendulum_lagrangian, spline)"):
         load_scene("pendulm")

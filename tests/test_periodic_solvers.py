@@ -12,7 +12,7 @@ from scipy.special import ellipk
 from ddvp_nlp import GridOptions, solve_periodic, solve_periodic_family
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
-from ddvp_nlp.solvers.periodic.continuation import node_levels, refine_by_index
+from ddvp_nlp.solvers.periodic.refinement import node_levels, refine_by_index
 from ddvp_nlp.solvers.periodic.start import march_to_return, resample, section_point
 
 

@@ -176,6 +176,22 @@ def _periodic_command(commands) -> None:
                                "runs/SCENE-family-HASH; -HASH of the energy and every other "
                                "setting when they are not the scene's defaults)")
     periodic.add_argument("--no-plot", action="store_true", help="do not write the figures")
+    periodic.add_argument("--stability", action="store_true",
+                          help="the Floquet multipliers, stability indices and verdict of the "
+                               "orbit (of each orbit of --family), checked against the exact "
+                               "flow (stability.json)")
+    periodic.add_argument("--stability-tol", type=float, default=1e-6, metavar="TOL",
+                          help="a stability index within TOL of +-2 is marginal (default 1e-6)")
+    periodic.add_argument("--follow", type=float, default=None, metavar="E_END",
+                          help="follow the family from --energy towards E_END by "
+                               "pseudo-arclength continuation (through folds), every orbit's "
+                               "stability, the bifurcations located and confirmed on the exact "
+                               "flow")
+    periodic.add_argument("--step", type=float, default=None, metavar="DE",
+                          help="with --follow: the first step in the energy (default: a "
+                               "twentieth of the range)")
+    periodic.add_argument("--max-orbits", type=int, default=200,
+                          help="with --follow: at most this many orbits (default 200)")
 
 
 def _march_command(commands) -> None:
@@ -246,6 +262,9 @@ def _bvp_command(commands) -> None:
                      help="with --guess march: the momentum shooting starts from (default the "
                           "straight line's); picks the branch of a problem with several "
                           "solutions")
+    bvp.add_argument("--energy", type=float, default=None,
+                     help="a transfer at this energy E: the end time becomes an unknown (the "
+                          "scene's t_end - t0 its guess), every interval's energy is E")
     bvp.add_argument("--time-limit", type=float, default=None,
                      help="stop after this many seconds (status time_limit)")
     bvp.add_argument("--progress", action="store_true",

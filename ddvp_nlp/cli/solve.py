@@ -34,7 +34,7 @@ def run_solve(args) -> int:
             solution, extra = _SOLVERS[args.command, higher](args, scene, config, scheme)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) before the run had a "
-                          f"node to keep; nothing new was written: {_holds(out)}") from None
+                          f"node to keep; nothing new was written: {holds(out)}") from None
         meta = _save(args, out, scene, config, scheme, solution,
                      {**(extra or {}), "overrides": overrides})
     print_summary(meta, out.path)
@@ -58,10 +58,10 @@ def _save(args, out, scene, config, scheme, solution, extra) -> dict:
                              plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
     except OutputError as exc:
         raise OutputError.because(exc, f"the run ({solution.steps} steps) was not saved; "
-                                       f"{_holds(out)}") from None
+                                       f"{holds(out)}") from None
 
 
-def _holds(out) -> str:
+def holds(out) -> str:
     from ..io.atomic import describe
 
     return describe(out.path)
@@ -81,7 +81,8 @@ def _run_folder(args, scene, config, overrides):
         # another one gets a folder of its own (two runs differing only in --guess shared one)
         for name, value, default in (("guess", args.guess, "straight"),
                                      ("p_start", args.p_start, None),
-                                     ("solver", args.solver, "auto")):
+                                     ("solver", args.solver, "auto"),
+                                     ("energy", args.energy, None)):
             if value != default:
                 overrides[name] = resolved[name] = value
     options = result_options(args)
@@ -213,7 +214,8 @@ def _march_method(args, scene, config):
 
 
 def _bvp(args, scene, config, scheme):
-    from ..solvers.bvp import Shooting, solve_bvp
+    from ..solvers.bvp import AtEnergy, Shooting, solve_bvp
+    from .stability import transfer_note
 
     p_start = _momentum(args.p_start)
     if p_start is not None and args.guess != "march":
@@ -221,11 +223,17 @@ def _bvp(args, scene, config, scheme):
                          f"it with --guess march (got --guess {args.guess})")
     progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else _bvp_guess(args.guess, scene.system.n)
-    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
+    span = config.t_span
+    if args.energy is not None:  # the scene's span is the transfer time's guess
+        span = AtEnergy(args.energy, t0=span[0], duration=span[1] - span[0])
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, span,
                          nodes=config.nodes, scheme=scheme, params=config.params, guess=guess,
                          options=options.grid_options(args, tol=args.tol),
                          output=Output(progress=progress))
-    return solution, {"solver": solution.stats}
+    extra = {"solver": solution.stats}
+    if args.energy is not None and "transfer_time" in solution.stats:
+        extra["note"] = transfer_note(solution.stats)
+    return solution, extra
 
 
 # A bvp of at least this many nodes reports its iterations on a terminal without --progress
@@ -291,6 +299,10 @@ def _march_higher(args, scene, config, scheme):
 def _bvp_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import solve_bvp_higher
 
+    if args.energy is not None:
+        raise InputError(f"--energy: scene {scene.name!r} is a higher-order scene; a transfer at "
+                         f"a prescribed energy needs a Hamiltonian (or first-order Lagrangian) "
+                         f"scene")
     boundary = scene.boundary or Endpoints()
     nodes = args.nodes or boundary.nodes or 41
     t_span = boundary.t_span or (config.t0, config.t_end)
@@ -309,6 +321,7 @@ def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
     from ..solvers.periodic.solve import check_periodic
+    from .stability import scene_guess
 
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
@@ -321,22 +334,29 @@ def run_periodic(args) -> int:
     guess = _bvp_guess(args.guess, scene.system.n) if args.guess else None
     named = {"nodes": nodes, "section": settings["section"], "scheme": args.scheme,
              "solver": args.solver, "params": params, "guess": args.guess}
+    if args.follow is not None or args.stability:
+        from .stability import run_periodic_stability
+
+        return run_periodic_stability(args, scene, settings, nodes, guess, params, named)
     if args.family is not None:
-        energies = _family_energies(args.family, scene.system.n, nodes)
-        for energy in (energies[0], energies[-1]):
+        energies = family_energies(args.family, scene.system.n, nodes)
+        guess = guess or scene_guess(scene, energies[0], params)
+        for energy in (energies[0], energies[-1]) if guess is None else ():
             check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
         return _periodic_family(args, scene, energies, nodes, guess, settings,
                                 {**named, "family": args.family})
     energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:
         raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
-    check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
-    _check_grid_memory("--nodes", nodes, scene.system.n, 1)
+    guess = guess or scene_guess(scene, energy, params)
+    if guess is None:
+        check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+    check_grid_memory("--nodes", nodes, scene.system.n, 1)
     return _periodic_orbit(args, scene, energy, nodes, guess, settings,
                            {**named, "energy": energy}, defaults)
 
 
-def _default_or(args, label: str, named: dict, defaults: dict):
+def default_or(args, label: str, named: dict, defaults: dict):
     """``(folder, owned)``: ``--out``, else ``runs/LABEL`` for the defaults and
     ``runs/LABEL-HASH`` (``HASH`` of every setting) when any setting differs from them."""
     from ..io.runs import default_folder
@@ -352,7 +372,7 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
     from ..io.periodic_runs import write_periodic
     from ..solvers.periodic.solve import solve_periodic
 
-    target, owned = _default_or(args, f"{scene.name}-periodic", named, {
+    target, owned = default_or(args, f"{scene.name}-periodic", named, {
         "nodes": defaults.nodes, "section": defaults.section, "scheme": "vddvp",
         "solver": "auto", "params": {}, "guess": None, "energy": defaults.energy})
     with output_folder(target, owned=owned) as out:
@@ -361,7 +381,7 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
                                       **settings)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while solving; nothing "
-                          f"new was written: {_holds(out)}") from None
+                          f"new was written: {holds(out)}") from None
         with INTERRUPTS.saving():
             meta = write_periodic(out, scene, solution, settings["params"],
                                   plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
@@ -376,14 +396,14 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
     from ..io.periodic_runs import write_family
     from ..solvers.periodic.family import solve_periodic_family
 
-    target, owned = _default_or(args, f"{scene.name}-family", named, {})
+    target, owned = default_or(args, f"{scene.name}-family", named, {})
     with output_folder(target, owned=owned) as out:
         try:
             family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
                                            **settings)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while solving the "
-                          f"family; nothing new was written: {_holds(out)}") from None
+                          f"family; nothing new was written: {holds(out)}") from None
         with INTERRUPTS.saving():
             rows = write_family(out, scene, family, settings["params"], plot=not args.no_plot,
                                 interruptible=INTERRUPTS.interruptible)
@@ -395,7 +415,7 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
         else 1
 
 
-def _check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
+def check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
     """The nodes of a grid solve (and ``members`` kept solutions) against the memory."""
     from ..validation import check_memory
 
@@ -403,7 +423,7 @@ def _check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
                  "the grid's Jacobian and the kept orbits")
 
 
-def _family_energies(text: str, n: int = 1, nodes: int = 200):
+def family_energies(text: str, n: int = 1, nodes: int = 200):
     """``E1:E2:COUNT`` as ``COUNT`` distinct energies from ``E1`` to ``E2``, the family's
     orbits checked against the memory before any is solved."""
     import numpy as np
@@ -424,7 +444,7 @@ def _family_energies(text: str, n: int = 1, nodes: int = 200):
         raise InputError(f"--family needs E1 != E2, got {text!r}")
     check_memory("--family COUNT", count, count * (64.0 * (nodes + 1) * (2 * n + 2) + 4096),
                  "the family's orbits")
-    _check_grid_memory("--nodes", nodes, n, count)
+    check_grid_memory("--nodes", nodes, n, count)
     energies = np.linspace(first, last, count)
     if np.unique(energies).size != count:
         raise InputError(f"--family {text!r}: {count} energies from {first!r} to {last!r} are "
@@ -451,7 +471,7 @@ def run_poincare(args) -> int:
         raise InputError(f"--t-end must be > 0 (the orbits start at t = 0), got {t_end!r}")
     named = {"orbits": args.orbits, "section": args.section, "direction": args.direction,
              "t_end": args.t_end, "tau0": args.tau0, "seed": args.seed, "params": params}
-    target, owned = _default_or(args, f"{scene.name}-poincare-E{args.energy:g}", named, {
+    target, owned = default_or(args, f"{scene.name}-poincare-E{args.energy:g}", named, {
         "orbits": 20, "section": "q1=0", "direction": "+", "t_end": None, "tau0": None,
         "seed": 0, "params": {}})
     with output_folder(target, owned=owned) as out:
@@ -464,7 +484,7 @@ def run_poincare(args) -> int:
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while the orbits ran "
                           "(a section is written once all its orbits are done); nothing new "
-                          f"was written: {_holds(out)}") from None
+                          f"was written: {holds(out)}") from None
         with INTERRUPTS.saving():
             write_section(out, section, plot=not args.no_plot,
                           interruptible=INTERRUPTS.interruptible)

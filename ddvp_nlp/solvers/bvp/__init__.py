@@ -14,7 +14,9 @@ Where things are:
 - ``ipopt.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
 - ``start.py``: the starts (straight line or shooting, fixed steps on uniform and on
   predicted times); ``continuation.py``: the continuation in the end position, the start of
-  last resort.
+  last resort;
+- ``energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the
+  last interval's energy prescribed, checked against the exact flow's shooting.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -33,11 +35,12 @@ from typing import TYPE_CHECKING
 from ...cache import lazy_exports
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .energy import AtEnergy
     from .solve import solve_bvp
     from .start import Shooting, predicted_times
 
 # loaded when first asked for: importing one module of the family loads only what it needs
 __getattr__, __dir__ = lazy_exports(__name__, {"solve_bvp": "solve", "Shooting": "start",
-                                                "predicted_times": "start"})
+                                                "predicted_times": "start", "AtEnergy": "energy"})
 
-__all__ = ["Shooting", "predicted_times", "solve_bvp"]
+__all__ = ["AtEnergy", "Shooting", "predicted_times", "solve_bvp"]

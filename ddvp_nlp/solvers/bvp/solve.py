@@ -61,6 +61,13 @@ from ..dense import attach
 from ..grid.problem import GridRequest, timed_out
 from ..options import Compilation, GridOptions, Output, Tolerance, coerce
 from .assembly import NodeLayout
+from .energy import (
+    AtEnergy,
+    check_transfer,
+    duration_guess,
+    fixed_time_start,
+    release_end_time,
+)
 from .phase import (
     EPS,
     ROUND_OFF_ALLOWANCE,
@@ -100,7 +107,10 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     Args:
         system: the Hamiltonian (or Lagrangian) system.
         q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
-        t_span: ``(t0, t_end)``, the two end times.
+        t_span: ``(t0, t_end)``, the two end times; or ``AtEnergy(E, t0, duration)``: a
+            transfer at the prescribed energy ``E`` with the end time an unknown
+            (``energy.py``: the fixed-time problem at the guessed duration first, then the end
+            time released; Newton only).
         nodes: number of nodes ``N >= 3``.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
         params: the system's parameter values.
@@ -127,6 +137,10 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     if output.checkpoint is not None or output.stop is not None:
         raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
                          "and stop belong to a march")
+    if isinstance(t_span, AtEnergy):
+        return _transfer(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
+                         params=params, guess=guess, options=options, compilation=compilation,
+                         output=output)
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
                               params=params, guess=guess, times=times,
                               options=coerce(options, GridOptions, "options"),
@@ -182,6 +196,37 @@ def _final_phase(request: GridRequest, x0: np.ndarray, name: str):
             return x0, skipped, outcome
     x, phase = run_phase(request, request.scheme, x0, name, solver)
     return x, phase, _outcome(request, x, phase)
+
+
+def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, guess, options,
+              compilation, output) -> Solution:
+    """A transfer at a prescribed energy (``energy.py``): the fixed-time problem at the guessed
+    duration, then the end time released."""
+    scheme = Scheme.coerce(scheme)
+    if not isinstance(system, HamiltonianSystem):
+        raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    options = coerce(options, GridOptions, "options")
+    check_transfer(system, scheme, options)
+    theta = system.parameter_vector(params)
+    q_a, q_b = check_state("q_start", q_start, system.n), check_state("q_end", q_end, system.n)
+    duration = span.duration or duration_guess(system, theta, q_a, q_b, span.energy, guess)
+
+    def solve_fixed(length, start):
+        return solve_bvp(system, q_a, q_b, (span.t0, span.t0 + length), nodes=nodes,
+                         scheme=scheme, params=params, guess=guess if start is None else start,
+                         options=options, compilation=compilation, output=output)
+    fixed, durations = fixed_time_start(solve_fixed, system, scheme, theta, duration,
+                                        span.energy)
+    if not fixed.success:
+        fixed.message = (f"the fixed-time problem at the guessed duration {duration:.6g} was "
+                         f"not solved, so the end time was not released: {fixed.message}")
+        return fixed
+    resolved = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
+                                max_iter=resolved.max_iter,
+                                compilation=coerce(compilation, Compilation, "compilation"))
+    solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
+    return attach(solution, system, theta, solution.t[-1])
 
 
 def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times,

@@ -101,8 +101,8 @@ from ..grid.newton import newton
 from ..grid.problem import GridRequest, timed_out
 from ..options import GridOptions, Tolerance, coerce
 from .assembly import Closure, PeriodicAssembly, integral_gradients
-from .continuation import continue_in_nodes, node_levels
 from .ipopt import periodic_ipopt
+from .refinement import continue_in_nodes, node_levels
 from .start import (
     closing_shift,
     guess_nodes,
