@@ -11,7 +11,9 @@ from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
 from ..solvers.options import Output
 from . import options
+from .folders import default_or, holds
 from .interrupts import INTERRUPTS, Stopped
+from .options import check_grid_memory, family_energies
 from .parser import parse_settings
 from .summary import print_summary
 
@@ -59,12 +61,6 @@ def _save(args, out, scene, config, scheme, solution, extra) -> dict:
     except OutputError as exc:
         raise OutputError.because(exc, f"the run ({solution.steps} steps) was not saved; "
                                        f"{holds(out)}") from None
-
-
-def holds(out) -> str:
-    from ..io.atomic import describe
-
-    return describe(out.path)
 
 
 def _run_folder(args, scene, config, overrides):
@@ -356,17 +352,6 @@ def run_periodic(args) -> int:
                            {**named, "energy": energy}, defaults)
 
 
-def default_or(args, label: str, named: dict, defaults: dict):
-    """``(folder, owned)``: ``--out``, else ``runs/LABEL`` for the defaults and
-    ``runs/LABEL-HASH`` (``HASH`` of every setting) when any setting differs from them."""
-    from ..io.runs import default_folder
-
-    if args.out is not None:
-        return args.out, 1
-    changed = {k: v for k, v in named.items() if defaults.get(k, object()) != v}
-    return default_folder(label, named, changed), 2
-
-
 def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults) -> int:
     from ..io.atomic import output_folder
     from ..io.periodic_runs import write_periodic
@@ -413,43 +398,6 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
     print(f"  written to {out.path}/ (family.csv, family.png, E=... folders)")
     return 0 if all(row["status"] == "success" for row in rows) and not INTERRUPTS.requested \
         else 1
-
-
-def check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
-    """The nodes of a grid solve (and ``members`` kept solutions) against the memory."""
-    from ..validation import check_memory
-
-    check_memory(flag, nodes, 48.0 * nodes * (2 * n + 2) ** 2 + members * 64.0 * nodes * n,
-                 "the grid's Jacobian and the kept orbits")
-
-
-def family_energies(text: str, n: int = 1, nodes: int = 200):
-    """``E1:E2:COUNT`` as ``COUNT`` distinct energies from ``E1`` to ``E2``, the family's
-    orbits checked against the memory before any is solved."""
-    import numpy as np
-
-    from ..validation import check_integer, check_memory
-
-    parts = text.split(":")
-    try:
-        if len(parts) != 3:
-            raise ValueError
-        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
-    except (ValueError, IndexError, OverflowError):
-        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
-    if not np.isfinite(first) or not np.isfinite(last):
-        raise InputError(f"--family needs finite E1 and E2, got {text!r}")
-    check_integer("--family COUNT", count, minimum=2)
-    if first == last:
-        raise InputError(f"--family needs E1 != E2, got {text!r}")
-    check_memory("--family COUNT", count, count * (64.0 * (nodes + 1) * (2 * n + 2) + 4096),
-                 "the family's orbits")
-    check_grid_memory("--nodes", nodes, n, count)
-    energies = np.linspace(first, last, count)
-    if np.unique(energies).size != count:
-        raise InputError(f"--family {text!r}: {count} energies from {first!r} to {last!r} are "
-                         "not all distinct in floating point")
-    return energies
 
 
 def run_poincare(args) -> int:

@@ -301,7 +301,7 @@ class _Walker:
         self.max_step = walk.max_step or span / 10
         self.closure = self._closure(first)
         self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), nodes,
-                                         self.closure, self.integrals)
+                                         self.integrals)
         self.arc = ArclengthSystem(self.assembly)
         self.members, self.points, self.tangents, self.steps = [], [], [], []
         self._accept(first, None, 0.0)

@@ -218,9 +218,10 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         return _solve_on(replace(request, nodes=intervals, phases=[]), t, z, integrals, started)
 
     solution, records = continue_in_nodes(solve_level, t, z, levels, request.data.angles)
-    if solution.status not in (Status.SUCCESS, Status.INACCURATE) and len(records) > 1 \
-            and request.data.start_note is None:
-        # a level on the way failed: the predicted grid at N itself, as without continuation
+    if solution.status not in (Status.SUCCESS, Status.INACCURATE) \
+            and records[-1]["nodes"] != nodes and request.data.start_note is None:
+        # a level below N failed (the first one too): the predicted grid at N itself, as
+        # without continuation
         fallback = solve_level(nodes, *_start_nodes(request, nodes))
         records.append({"nodes": nodes, "status": fallback.status.code,
                         "iterations": fallback.newton_iterations, "from": "predicted grid"})
