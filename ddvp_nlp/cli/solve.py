@@ -55,7 +55,8 @@ def _save(args, out, scene, config, scheme, solution, extra) -> dict:
         with INTERRUPTS.saving():
             return write_run(out, command=args.command, scene=scene, config=config,
                              scheme=scheme, solution=solution, extra=extra,
-                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
+                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible,
+                             figure_format=args.figure_format)
     except OutputError as exc:
         raise OutputError.because(exc, f"the run ({solution.steps} steps) was not saved; "
                                        f"{holds(out)}") from None
