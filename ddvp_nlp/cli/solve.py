@@ -105,7 +105,7 @@ RESULT_OPTIONS = {"alpha": 0.5, "clock": "midpoint", "tol": 1e-10, "tau_min": No
 
 
 def result_options(args) -> dict:
-    """The options of ``args`` in :data:`RESULT_OPTIONS` whose value is not the default."""
+    """The options of ``args`` in `RESULT_OPTIONS` whose value is not the default."""
     return {name: getattr(args, name) for name, default in RESULT_OPTIONS.items()
             if hasattr(args, name) and getattr(args, name) != default}
 

@@ -5,7 +5,7 @@ matplotlib is imported only inside these functions, when a figure is drawn: ``im
 and a run with ``--no-plot`` never load it. No pyplot: figures are plain ``Figure`` objects,
 so there is no global figure registry to leak into and no interactive backend to select.
 
-Long series are reduced before they are drawn (:func:`decimate`): the minimum and the maximum
+Long series are reduced before they are drawn (`decimate`): the minimum and the maximum
 of each of as many bins as the panel has pixel columns, which lights the same pixels as the
 whole line, so a run of a million nodes draws as fast as one of a thousand.
 """
@@ -34,7 +34,7 @@ FAILED = {"marker": "x", "color": "#CC3311", "linestyle": "none", "markersize": 
 
 
 def check_format(value: str) -> str:
-    """``value`` if it is one of :data:`FORMATS`, else an :class:`~ddvp_nlp.errors.InputError`
+    """``value`` if it is one of `FORMATS`, else an `InputError`
     naming it."""
     if value not in FORMATS:
         raise InputError(f"figure format {value!r} is not one of {', '.join(FORMATS)}")
@@ -65,7 +65,7 @@ def styled():
 
 def new_figure(width: float, height: float, *, layout: str | None = "constrained"):
     """A ``matplotlib.figure.Figure`` of ``width`` by ``height`` inches (no pyplot). Call it
-    inside :func:`styled`, which must also surround :func:`save`."""
+    inside `styled`, which must also surround `save`."""
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), layout=layout)
@@ -111,7 +111,7 @@ def decimate(t: np.ndarray, values: np.ndarray, bins: int):
 def envelope_band(ax, t, values, bins: int, **style) -> None:
     """One series on ``ax`` as it would look drawn whole: the line itself while it has at most
     ``2 * bins`` points, else the band between the minimum and the maximum of each bin
-    (:func:`decimate`) filled, its edges as wide as the line. Filling the band costs a polygon
+    (`decimate`) filled, its edges as wide as the line. Filling the band costs a polygon
     where the zigzag through the extremes cost a full-height stroke per pixel column."""
     t = np.asarray(t, dtype=float)
     values = np.asarray(values, dtype=float)
@@ -125,7 +125,7 @@ def envelope_band(ax, t, values, bins: int, **style) -> None:
 
 
 def bins_for(ax) -> int:
-    """The number of :func:`decimate` bins for a panel: one per pixel column at the saved
+    """The number of `decimate` bins for a panel: one per pixel column at the saved
     resolution."""
     width = ax.get_position().width * ax.figure.get_figwidth()
     return max(64, int(width * BINS_PER_INCH))

@@ -1,9 +1,9 @@
 """Work-precision at several horizons and the error-growth figure: ``horizons.png``,
 ``growth.png``, ``horizons.md``, and each horizon's own report in ``horizon_T/``.
 
-:func:`work_precision_horizons` runs :func:`~ddvp_nlp.io.work_precision.work_precision` once per
+`work_precision_horizons` runs `work_precision` once per
 horizon (``t_end = t0 + T unit``), with the sweeps cut to what ``max_steps`` affords
-(:func:`~ddvp_nlp.studies.horizons.affordable_knobs`), then reruns each method at about equal
+(`affordable_knobs`), then reruns each method at about equal
 cost over the longest horizon and draws its errors against time.
 """
 
@@ -43,12 +43,12 @@ def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
     ``growth.png`` (errors against time at equal cost, longest horizon) and ``horizons.md``.
     Returns the rows per horizon.
 
-    ``options``: as for :func:`~ddvp_nlp.io.work_precision.work_precision` (default
+    ``options``: as for `work_precision` (default
     ``max_steps`` here 2e6); its ``knobs`` and ``reference`` are chosen per horizon:
     ``options.max_steps`` and ``run_budget_s`` cut each horizon's sweeps
-    (:func:`~ddvp_nlp.studies.horizons.affordable_knobs`), and a scene without an exact
+    (`affordable_knobs`), and a scene without an exact
     solution gets no trajectory reference beyond ``reference_span`` time units
-    (:func:`~ddvp_nlp.studies.horizons.reference_kind`)."""
+    (`reference_kind`)."""
     options = options if options is not None else CompareOptions(max_steps=2_000_000)
     compilation = compilation or Compilation()
     horizons = parse_horizons(horizons)

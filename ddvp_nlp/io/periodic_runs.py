@@ -37,7 +37,7 @@ def write_periodic(out, scene, solution: Solution, params: dict, plot: bool = Tr
                    interruptible=None):
     """``result.npz`` (``t``, ``q``, ``p`` of the ``N + 1`` nodes, the last equal to the
     first), ``orbit.png`` if ``plot``, and ``meta.json`` last, as one set through the output
-    layer (:mod:`ddvp_nlp.io.atomic`); returns the meta."""
+    layer (`ddvp_nlp.io.atomic`); returns the meta."""
     meta = periodic_meta(scene, solution, params)
 
     def draw(handle):

@@ -1,10 +1,10 @@
 """The run figure (``trajectory.png``, ``.svg`` or ``.pdf``) of a run, and of any
-:class:`~ddvp_nlp.solution.Solution`: only the panels that apply to it, in the house style
-(:mod:`ddvp_nlp.io.figures`).
+`Solution`: only the panels that apply to it, in the house style
+(`ddvp_nlp.io.figures`).
 
 Layout: on the left, against ``t``, the coordinates, the momenta, the step length where it
 varies and the energy error (log scale); for a long run a second column shows its first
-:data:`ZOOM_STEPS` steps, where single swings and steps can be told apart; on the right the
+`ZOOM_STEPS` steps, where single swings and steps can be told apart; on the right the
 phase portrait ``(q_1, p_1)`` and, for two or more degrees of freedom, the configuration plane
 ``(q_1, q_2)`` (the orbit of Kepler or of the figure-eight), at equal aspect.
 """
@@ -48,7 +48,7 @@ def plot_trajectory(solution, scene, scheme, path, *, energies, fmt: str = "png"
 
 
 def plot_solution(solution, path=None, *, system=None, params=None, title: str | None = None):
-    """The figure of ``ddvp march`` for any :class:`~ddvp_nlp.solution.Solution` (a march, a
+    """The figure of ``ddvp march`` for any `Solution` (a march, a
     fixed-endpoint solve, a higher-order run): ``q``, ``p``, the step length where it varies,
     the phase portrait (and the configuration plane for two or more degrees of freedom), and,
     given the ``system`` that was solved (``params``: its values, default those of the solve),

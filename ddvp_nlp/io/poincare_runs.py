@@ -15,7 +15,7 @@ from .runs import figure_writer
 
 def write_section(out, section, *, plot: bool = True, interruptible=None) -> dict:
     """The files of a Poincare section (module docstring) in the folder ``out``, with
-    ``meta.json`` last, as one set through the output layer (:mod:`ddvp_nlp.io.atomic`)."""
+    ``meta.json`` last, as one set through the output layer (`ddvp_nlp.io.atomic`)."""
     n = section.points.shape[1] // 2
     names = [f"q{i + 1}" for i in range(n)] + [f"p{i + 1}" for i in range(n)]
     crossings, orbits = io.StringIO(), io.StringIO()

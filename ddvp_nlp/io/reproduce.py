@@ -2,7 +2,7 @@
 code measures (``studies/paper.py``).
 
 Every verdict in the report ("Confirmed" or "Not confirmed") is computed from the measured
-numbers against a threshold in :data:`THRESHOLDS`, and the report prints the threshold beside
+numbers against a threshold in `THRESHOLDS`, and the report prints the threshold beside
 the verdict: a bad measurement gives "Not confirmed", whatever the paper says.
 """
 
@@ -28,7 +28,7 @@ def reproduce(out: Path, *, quick: bool = False, workers: int | None = 1,
               scheduler: str | None = None) -> dict:
     """Measure, plot and write ``report.md`` into ``out``; return the measurements.
 
-    Each measurement is one grid task (:mod:`ddvp_nlp.grid`): ``workers``/``scheduler`` say where
+    Each measurement is one grid task (`ddvp_nlp.grid`): ``workers``/``scheduler`` say where
     they run (default: one after the other in this process).
     """
     sizes = QUICK if quick else FULL
@@ -170,7 +170,7 @@ def verdict(holds: bool, threshold: str) -> str:
 
 
 def report(measured: dict, *, quick: bool = False) -> str:
-    """``report.md`` from the measurements (the dict :func:`reproduce` returns)."""
+    """``report.md`` from the measurements (the dict `reproduce` returns)."""
     lines = ["# The paper's claims against what ddvp_nlp measures", ""]
     if quick:
         lines += ["*Quick run (`--quick`): shorter runs and fewer step sizes than the full "

@@ -2,10 +2,10 @@
 (Hamiltonian, first-order Lagrangian, higher-order Lagrangian), and reading it back.
 
 The files are written to temporary names and renamed into place under the folder's lock
-(:mod:`ddvp_nlp.io.atomic`), ``meta.json`` last; ``meta.json`` records what it describes (the
-node count and the SHA-256 of ``result.npz``), so :func:`read_run` refuses a pair that a kill
+(`ddvp_nlp.io.atomic`), ``meta.json`` last; ``meta.json`` records what it describes (the
+node count and the SHA-256 of ``result.npz``), so `read_run` refuses a pair that a kill
 between two renames, or an older tool, left mismatched. A long march also writes the same pair
-as a checkpoint at intervals (:func:`write_checkpoint`), with status ``running``.
+as a checkpoint at intervals (`write_checkpoint`), with status ``running``.
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from . import atomic, figures
 
 def prepare_folder(out, *, owned: int = 1) -> atomic.OutputFolder:
     """``out`` created, opened without following links and locked for this process
-    (:func:`ddvp_nlp.io.atomic.open_folder`); close it (or use
-    :func:`~ddvp_nlp.io.atomic.output_folder`) when done."""
+    (`ddvp_nlp.io.atomic.open_folder`); close it (or use
+    `output_folder`) when done."""
     return atomic.open_folder(out, owned=owned)
 
 
@@ -102,9 +102,9 @@ def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
     ``figure_format``) of a run of any scene; return the metadata.
 
     A scene with ``H`` or a first-order ``L`` needs its ``scheme``. A higher-order scene's run
-    (``config`` the dict of :meth:`HigherOrderScene.resolve`) stores ``p`` as the multiplier
+    (``config`` the dict of `HigherOrderScene.resolve`) stores ``p`` as the multiplier
     ``lambda_1`` and ``energy``, the energy ``E^(k)`` where the recursion defines it.
-    ``interruptible``: as for :func:`save_run`.
+    ``interruptible``: as for `save_run`.
     """
     record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
     arrays, meta, draw = record(command, scene, config, scheme, solution, interruptible)
@@ -128,12 +128,12 @@ def save_run(out, arrays: dict, meta: dict, draw=None, *, interruptible=None,
     """Write ``result.npz`` (``arrays``), ``trajectory.png`` (``draw(file)``, if given, in
     ``figure_format``; an older figure of any format is removed) and ``meta.json`` (``meta``
     with ``nodes``, ``result_sha256`` and the manifest of the files) as one set through the
-    output layer (:mod:`ddvp_nlp.io.atomic`): all of them or none, ``meta.json`` last.
+    output layer (`ddvp_nlp.io.atomic`): all of them or none, ``meta.json`` last.
     Return the metadata written.
 
     ``interruptible``: a context inside which an interrupt may stop the figure (the figure is
     then left out and ``meta["figure"]`` says so; the nodes are written all the same).
-    Raises :class:`~ddvp_nlp.errors.OutputError` naming the file that could not be written;
+    Raises `OutputError` naming the file that could not be written;
     the folder then still holds the earlier set whole (or nothing)."""
     with atomic.output_folder(out) as folder:
         result = folder.scratch(RESULT, lambda handle: np.savez(handle, **arrays))
@@ -153,7 +153,7 @@ def save_run(out, arrays: dict, meta: dict, draw=None, *, interruptible=None,
 
 def figure_writer(folder, name: str, draw, interruptible=None):
     """The figure ``draw(file)`` written to a scratch file of ``folder`` for ``name`` (a
-    :class:`~ddvp_nlp.io.atomic.Written` a set takes), or ``None``: no figure, or an interrupt
+    `Written` a set takes), or ``None``: no figure, or an interrupt
     while it was drawn inside ``interruptible()`` (the rest of the set is written all the
     same)."""
     if draw is None:
@@ -184,7 +184,7 @@ def read_run(folder: str | os.PathLike) -> tuple[dict, dict]:
     """``(arrays, meta)`` of a run folder's last complete set, after checking that
     ``meta.json`` describes the ``result.npz`` beside it (checksum, node count, shapes, finite
     increasing times). A kill between two renames leaves the previous set, which is read
-    instead. Raises :class:`InputError` naming the folder and the reason otherwise."""
+    instead. Raises `InputError` naming the folder and the reason otherwise."""
     from ..validation import check_file_size
 
     folder = Path(folder)

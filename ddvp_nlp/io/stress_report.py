@@ -1,7 +1,7 @@
 """Stress and sweep output: ``NAME.csv``, ``NAME.md`` and ``NAME.png``.
 
-:func:`stress` is the entry point of ``ddvp stress`` and ``ddvp sweep``: it checks the bounds,
-creates the folder, runs the grid of :mod:`ddvp_nlp.studies.stress` (its rows go to the CSV as
+`stress` is the entry point of ``ddvp stress`` and ``ddvp sweep``: it checks the bounds,
+creates the folder, runs the grid of `ddvp_nlp.studies.stress` (its rows go to the CSV as
 they finish, which is what resume reads back), then writes the Markdown table and the figure
 from what the study returned. The table's columns are the methods that ran.
 """
@@ -46,7 +46,7 @@ def stress(out: str | os.PathLike, *, quick: bool = False, cases: list[Case] | N
     """Run the grid and write ``NAME.csv``, ``NAME.md`` and ``NAME.png`` in ``out``.
 
     ``steps``: each run's ``max_steps`` and ``time_limit`` (default 2e6 steps, 60 s);
-    ``workers``: where the runs go (:class:`~ddvp_nlp.studies.grid.Workers`, default: in this
+    ``workers``: where the runs go (`Workers`, default: in this
     process). ``resume``: keep the rows already in ``NAME.csv`` and run only the missing tasks.
     """
     plan = plan_stress(quick=quick, cases=cases, steps=steps, compilation=compilation,

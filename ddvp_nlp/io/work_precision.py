@@ -1,7 +1,7 @@
 """Work-precision output: ``work_precision.csv``, ``work_precision.png`` and ``summary.md``.
 
-:func:`work_precision` is the entry point: it checks the input, creates the folder, runs the
-comparison of :mod:`ddvp_nlp.studies.compare` (its rows go to the CSV as they finish), then
+`work_precision` is the entry point: it checks the input, creates the folder, runs the
+comparison of `ddvp_nlp.studies.compare` (its rows go to the CSV as they finish), then
 draws the figure and writes the summary from what the study returned.
 """
 
@@ -43,12 +43,12 @@ def work_precision(scene: Scene, *, out: str | os.PathLike,
     ``out`` (created). Returns the rows.
 
     Args:
-        scene: the scene; ``overrides`` as for :meth:`Scene.resolve` (parameters, ``t_end``, ...).
+        scene: the scene; ``overrides`` as for `Scene.resolve` (parameters, ``t_end``, ...).
         out: the folder.
         options: the methods, their sweeps, the timing and the reference
-            (:class:`~ddvp_nlp.studies.compare.CompareOptions`).
-        compilation: for the compiled methods, as in :func:`ddvp_nlp.march`.
-        workers: where the runs go (:class:`~ddvp_nlp.studies.grid.Workers`). The default
+            (`CompareOptions`).
+        compilation: for the compiled methods, as in `ddvp_nlp.march`.
+        workers: where the runs go (`Workers`). The default
             runs them one after the other in this process, because the run times are what is
             compared: two runs at once on a 2-core machine slow each other down.
         progress: a progress bar on stderr.
