@@ -230,6 +230,11 @@ def plot_higher_trajectory(solution, scene, command, exact, energy, path,
         axes[0].legend(loc="upper right")
         axes[1].plot(solution.t[:-1], solution.tau, ".-", ms=2.5, color="C2")
         axes[1].set_ylabel(r"step $\tau_k$")
+        tau = solution.tau
+        if tau.size and float(np.ptp(tau)) <= 1e-9 * float(np.max(np.abs(tau))):
+            # constant to round-off (fixed steps): the offset axis magnified 1e-14 noise
+            axes[1].set_ylim(0.9 * float(tau.min()), 1.1 * float(tau.max()))
+            axes[1].ticklabel_format(axis="y", useOffset=False)
         if energy.size:
             lo = scene.order - 1
             axes[2].plot(solution.t[lo:lo + energy.size], energy - energy[0], ".-", ms=2.5,
