@@ -59,18 +59,20 @@ __getattr__, __dir__ = lazy_exports(__name__, {
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):
     """Draw ``solution`` as ``ddvp march`` draws a run: ``q``, ``p``, the step length where it
-    varies and the phase portrait, and with the ``system`` that was solved the relative energy
-    drift ``|H - H0| / max(1, |H0|)``.
+    varies, the phase portrait (and the configuration plane for two or more degrees of
+    freedom), and with the ``system`` that was solved the relative energy drift
+    ``|H - H0| / |H0|``.
 
     Args:
         solution: a result of ``march``, ``solve_bvp``, ``march_higher`` or ``solve_bvp_higher``.
-        path: where to write the PNG; ``None`` returns the image instead.
+        path: where to write the figure (PNG, SVG or PDF by the suffix); ``None`` returns the
+            ``matplotlib.figure.Figure`` instead.
         system: the solved system, for the energy panel (omitted without it).
         params: its parameter values (default: those of the solve).
         title: the figure's title (default: scheme, steps and status).
 
     Returns:
-        ``path``, or the ``PIL.Image.Image`` when ``path`` is ``None``.
+        ``path``, or the ``matplotlib.figure.Figure`` when ``path`` is ``None``.
     """
     # The one import from the root into io/ (docs/architecture.md): a facade, imported here
     # and not at the top so that `import ddvp_nlp` loads no figure code.

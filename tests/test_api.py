@@ -124,7 +124,7 @@ def test_no_public_function_takes_more_than_a_dozen_parameters():
     assert max(counts.values()) <= MOST_PARAMETERS, counts
 
 
-def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
+def test_plot_writes_a_figure_for_a_march_and_for_a_bvp_solution(tmp_path):
     from PIL import Image
 
     from ddvp_nlp import plot
@@ -138,9 +138,13 @@ def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
         assert plot(solution, path, system=scene.system) == path
         with Image.open(path) as image:
             assert image.format == "PNG"
-            with_energy = image.size
-        # without the system there is no energy panel: one panel less
-        image = plot(solution)
-        assert image.size[0] == with_energy[0] and image.size[1] < with_energy[1]
-        colours = np.unique(np.asarray(image).reshape(-1, 3), axis=0)
-        assert len(colours) > 5  # lines and text, not a blank canvas
+        # the suffix picks the format: vector output
+        assert plot(solution, tmp_path / f"{name}.svg", system=scene.system).read_text(
+        ).lstrip().startswith("<?xml")
+        assert plot(solution, tmp_path / f"{name}.pdf").read_bytes()[:4] == b"%PDF"
+        # without a path, the matplotlib figure; without the system, no energy panel
+        with_energy = plot(solution, system=scene.system)
+        without = plot(solution)
+        labels = [ax.get_ylabel() for ax in without.axes]
+        assert len(without.axes) == len(with_energy.axes) - 1
+        assert "$q$" in labels and "$p$" in labels and not any("H_0" in s for s in labels)

@@ -1,6 +1,6 @@
 """The command line's options as the solvers' option objects: one place where ``--tol``,
-``--max-steps``, ``--careful`` ... become a :class:`StepControl`, a :class:`Tolerance`, a
-:class:`GridOptions`, a :class:`Compilation` or an :class:`Output`, for every command that has
+``--max-steps``, ``--careful`` ... become a `StepControl`, a `Tolerance`, a
+`GridOptions`, a `Compilation` or an `Output`, for every command that has
 them. A bad value fails here, with the object's own message naming the field."""
 
 from __future__ import annotations

@@ -225,7 +225,18 @@ def _march_command(commands) -> None:
                             f"{CHECKPOINT_SECONDS:g})")
     march.add_argument("--no-progress", action="store_true",
                        help="no progress bar (it is drawn only when stderr is a terminal)")
-    march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    _figure_arguments(march, "trajectory.png")
+
+
+def _figure_arguments(parser: argparse.ArgumentParser, figure: str, plot: bool = True) -> None:
+    """``--format`` of the figures (``io/figures.py``) and, if ``plot``, ``--no-plot``."""
+    from ..io.figures import FORMATS
+
+    if plot:
+        parser.add_argument("--no-plot", action="store_true", help=f"do not write {figure}")
+    parser.add_argument("--format", dest="figure_format", default=FORMATS[0], choices=FORMATS,
+                        help=f"file format of {figure} (default: {FORMATS[0]}; svg and pdf are "
+                             "vector graphics)")
 
 
 def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
@@ -271,7 +282,7 @@ def _bvp_command(commands) -> None:
                      help="report each solver iteration on stderr (automatic on a terminal "
                           "from 100000 nodes)")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
-    bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    _figure_arguments(bvp, "trajectory.png")
 
 
 def _compare_command(commands) -> None:

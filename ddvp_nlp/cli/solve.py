@@ -57,7 +57,8 @@ def _save(args, out, scene, config, scheme, solution, extra) -> dict:
         with INTERRUPTS.saving():
             return write_run(out, command=args.command, scene=scene, config=config,
                              scheme=scheme, solution=solution, extra=extra,
-                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
+                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible,
+                             figure_format=args.figure_format)
     except OutputError as exc:
         raise OutputError.because(exc, f"the run ({solution.steps} steps) was not saved; "
                                        f"{holds(out)}") from None
@@ -100,7 +101,7 @@ RESULT_OPTIONS = {"alpha": 0.5, "clock": "midpoint", "tol": 1e-10, "tau_min": No
 
 
 def result_options(args) -> dict:
-    """The options of ``args`` in :data:`RESULT_OPTIONS` whose value is not the default."""
+    """The options of ``args`` in `RESULT_OPTIONS` whose value is not the default."""
     return {name: getattr(args, name) for name, default in RESULT_OPTIONS.items()
             if hasattr(args, name) and getattr(args, name) != default}
 

@@ -27,7 +27,7 @@ also measured against the exact flow ``z' = f(z, t) = (H_p, -H_q)``, with three 
 The check runs as a monitor of the step loop (``driver.py``), on the nodes each call of the
 stepper accepted, so it stops a march at the first step that fails (or, with ``stop=False``,
 records the first failure and lets the march go on). The march's compiled chunk computes the
-estimates with its steps (``chunk.py``: the same :func:`local_error_function`, the error vector
+estimates with its steps (``chunk.py``: the same `local_error_function`, the error vector
 in the chunk's state) and hands them over in ``Advance.values`` (``ACCURACY_VALUES``); where they
 are absent (the careful path, a finished trajectory) the monitor computes them itself, with a
 compiled CasADi function mapped over blocks of nodes.
@@ -350,7 +350,7 @@ class AccuracyMonitor:
 def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, substeps: int = 1,
            compiler=None, cache_dir=None) -> tuple[dict, np.ndarray]:
     """The accuracy check on a finished trajectory of any method (``t`` (N,), ``z`` (N, 2n)),
-    without stopping it: the report of :meth:`AccuracyMonitor.report` and the local errors.
+    without stopping it: the report of `AccuracyMonitor.report` and the local errors.
     ``level`` is the energy level the method keeps, if it keeps one (a number)."""
     H0 = float(system.energy(z[:1, :system.n], z[:1, system.n:], t[:1], theta)[0])
     monitor = AccuracyMonitor(system, theta, replace(tolerance, stop=False), H0=H0,

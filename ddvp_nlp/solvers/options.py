@@ -3,16 +3,16 @@
 Every public solver takes its essential arguments (the system, the start or the ends, the time
 span, the grid) and then at most a few of these:
 
-- :class:`StepControl`: when a march accepts a step and when it stops (``march``,
+- `StepControl`: when a march accepts a step and when it stops (``march``,
   ``march_ensemble``);
-- :class:`Tolerance`: what the accuracy check, which does not trust the scheme's own equations,
+- `Tolerance`: what the accuracy check, which does not trust the scheme's own equations,
   accepts (``march``, ``march_ensemble``; the grid solvers use its defaults);
-- :class:`GridOptions`: how a whole-grid problem is solved (``solve_bvp``, ``solve_periodic``,
+- `GridOptions`: how a whole-grid problem is solved (``solve_bvp``, ``solve_periodic``,
   ``solve_periodic_family``, ``solve_bvp_higher``);
-- :class:`Compilation`: which compiled code runs (every solver that generates C);
-- :class:`Output`: progress, checkpoints and stop requests (``march``, ``solve_bvp``).
+- `Compilation`: which compiled code runs (every solver that generates C);
+- `Output`: progress, checkpoints and stop requests (``march``, ``solve_bvp``).
 
-Each object checks its fields when it is made: a bad value is an :class:`InputError` that names
+Each object checks its fields when it is made: a bad value is an `InputError` that names
 the field and the value, raised before any solver is built. Checks that need the problem (a
 ``tau_min`` against ``tau0``, a ``tau_floor`` against the mean step) are made by the solver,
 still before it builds anything. The objects are frozen: ``dataclasses.replace(options,
@@ -268,7 +268,7 @@ class Output:
 
 
 def coerce(value, kind, name: str):
-    """``value`` if it is a ``kind`` (``None``: the defaults), else an :class:`InputError`
+    """``value`` if it is a ``kind`` (``None``: the defaults), else an `InputError`
     naming the argument (``steps=dict(...)`` instead of ``steps=StepControl(...)``)."""
     if value is None:
         return kind()

@@ -13,10 +13,10 @@ prescribed_energy_block``); with the energy equations it prescribes every interv
 The solve (``solve.py`` calls these in order):
 
 1. the fixed-endpoint problem on ``(t_0, t_0 + D)`` with the duration guess ``D``
-   (``AtEnergy.duration``, else the guess's span, else :func:`duration_guess`), by
+   (``AtEnergy.duration``, else the guess's span, else `duration_guess`), by
    ``solve_bvp`` itself, then a secant iteration on ``D`` towards ``E(D) = E``
-   (:func:`fixed_time_start`): a grid on the right path, at an energy ``E_1`` near ``E``;
-2. :func:`release_end_time`: the grid's Newton on the system above from that grid, the energy
+   (`fixed_time_start`): a grid on the right path, at an energy ``E_1`` near ``E``;
+2. `release_end_time`: the grid's Newton on the system above from that grid, the energy
    continued from ``E_1`` to ``E`` (the whole way first; a failed step halves, a successful one
    doubles up to what remains; each from the secant predictor), then the verification
    (residuals of every kind, the prescribed energy on every interval, every step positive), the

@@ -1,7 +1,7 @@
 """Many initial states marched as one ensemble, split across worker processes.
 
 ``march_ensemble`` runs ``M`` marches of the same system, scheme and options. Each orbit is
-marched by :func:`~ddvp_nlp.solvers.march.solve.march` itself, so its nodes, step lengths,
+marched by `march` itself, so its nodes, step lengths,
 acceptance, monitors (solvability, accuracy check), status and message are exactly those of a
 march from the same start; an orbit that fails ends alone. What the ensemble adds:
 
@@ -59,13 +59,13 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
                    steps: StepControl | None = None,
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
                    compilation: Compilation | None = None, workers: int = 2) -> list[Solution]:
-    """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would;
-    the arguments after them are :func:`march`'s (with ``compilation.fast``, the default, the
+    """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as `march` would;
+    the arguments after them are `march`'s (with ``compilation.fast``, the default, the
     workers share the compiled chunk built here).
 
     ``workers``: local processes marching the orbits (forked from this one; ``1``: all in
-    this process). Returns one :class:`Solution` per orbit, in order, each with its own status
-    and :func:`march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
+    this process). Returns one `Solution` per orbit, in order, each with its own status
+    and `march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
     counts the C compiles the orbit's worker ran (none: it inherits the loaded functions)."""
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
@@ -108,7 +108,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
 
 
 def _numbers(name: str, value) -> np.ndarray:
-    """An array of real numbers (whether each start is finite, :func:`_check_all` says, orbit
+    """An array of real numbers (whether each start is finite, `_check_all` says, orbit
     by orbit)."""
     try:
         return np.asarray(value, float)
@@ -118,7 +118,7 @@ def _numbers(name: str, value) -> np.ndarray:
 
 
 def _check_all(system, scheme, q0s, p0s, t_span, tau0, steps, params) -> np.ndarray:
-    """Every start, checked as :func:`march` checks it, before any march; returns
+    """Every start, checked as `march` checks it, before any march; returns
     ``theta``."""
     theta = None
     for i, (q0, p0) in enumerate(zip(q0s, p0s, strict=True)):
@@ -145,7 +145,7 @@ def _can_fork() -> bool:
 
 
 class _Job:
-    """The marches of one ensemble: the system, the starts and :func:`march`'s options."""
+    """The marches of one ensemble: the system, the starts and `march`'s options."""
 
     def __init__(self, system, q0s, p0s, t_span, options):
         self.system, self.q0s, self.p0s, self.options = system, q0s, p0s, options

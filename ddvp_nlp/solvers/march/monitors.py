@@ -4,10 +4,10 @@ Both read per-node values the steppers computed with each step (``Advance.values
 the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H_zz f = -8 c(z)``
 (docs/theory.md section 7), so watching costs no extra CasADi call.
 
-- :class:`EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
+- `EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
   ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are
   dropped.
-- :class:`SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
+- `SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
   sign and the step to be short against the change of ``w``, so it warns once, at the first node
   where ``w`` changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``.
 """
@@ -53,7 +53,7 @@ class EnergyGuard:
 class SolvabilityMonitor:
     """Keeps ``w`` at every node and warns (``RuntimeWarning``) at the first alarming node.
 
-    ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; :meth:`solvability` gives
+    ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; `solvability` gives
     ``c(z_k) = -w_k / 8`` at the kept nodes. The warning points at the first caller outside
     this folder (the code that called the march)."""
 

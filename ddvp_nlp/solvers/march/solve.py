@@ -17,7 +17,7 @@ its compiled unrolled form), ``least_squares.py`` (the
 step that replaces a failed one with ``breakdown="least_squares"``), ``chunk.py`` (compiled
 chunks of steps), ``stepper.py`` (the careful, compiled and composite steppers), ``monitors.py``
 (energy guard, solvability monitor). This module checks the input, builds those parts, runs them
-with the driver (``driver.py``) and returns the :class:`Solution`.
+with the driver (``driver.py``) and returns the `Solution`.
 """
 
 from __future__ import annotations
@@ -65,9 +65,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
         v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
             march takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform.
-        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
+        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a `Scheme`.
         params: values of the system's parameters (defaults filled in).
-        steps: when a step is accepted and when the march stops (:class:`StepControl`: the
+        steps: when a step is accepted and when the march stops (`StepControl`: the
             residual tolerance, step bounds, what to do at a breakdown, ``max_steps``,
             ``time_limit``, ``energy_guard``).
         accuracy: the accuracy check (``solvers/accuracy.py``), which does not trust the
@@ -78,8 +78,8 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             leaves the check out (the comparison does, so that run times compare like with
             like, and checks afterwards with ``accuracy.assess``).
         compilation: compiled chunks of steps or the careful path, the compiler and its cache
-            (:class:`Compilation`).
-        output: progress bar, checkpoints and the stop request (:class:`Output`).
+            (`Compilation`).
+        output: progress bar, checkpoints and the stop request (`Output`).
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -93,7 +93,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     ``Solution.solvability`` holds ``c(z_k)`` at every node.
 
     Returns:
-        A :class:`Solution`; failures are a status on it, never an exception.
+        A `Solution`; failures are a status on it, never an exception.
     """
     scheme = Scheme.coerce(scheme)
     steps = coerce(steps, StepControl, "steps")
@@ -167,7 +167,7 @@ class MarchProblem:
 
 def check_problem(system, scheme: Scheme, q0, p0, v0, t_span, tau0, steps: StepControl,
                   params) -> MarchProblem:
-    """Every input of :func:`march` but the options objects, checked in the order of its
+    """Every input of `march` but the options objects, checked in the order of its
     signature (``InputError`` naming the argument and the value), before anything is built;
     ``march_ensemble`` checks each of its starts with it."""
     if not isinstance(system, HamiltonianSystem):
@@ -227,7 +227,7 @@ def _start(system, scheme, q0, p0, v0, *, t0, tau0, theta) -> tuple[np.ndarray, 
 
 @dataclass
 class _Parts:
-    """What :func:`_build` made: the stepper and what the ``Solution`` reads back from it."""
+    """What `_build` made: the stepper and what the ``Solution`` reads back from it."""
 
     functions: StepFunctions
     newton: NewtonSteps
@@ -303,7 +303,7 @@ def _accuracy_monitor(problem: MarchProblem, tolerance, errors):
 
 def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, compiler,
               cache_dir, timing):
-    """The :class:`Solution`, with every equation recomputed on the returned grid (compiled
+    """The `Solution`, with every equation recomputed on the returned grid (compiled
     with ``compiler``, else on CasADi's virtual machine)."""
     started = time.perf_counter()
     system, scheme, theta = problem.system, problem.scheme, problem.theta

@@ -1,20 +1,20 @@
 """The march's steppers for the one-step-loop driver (``driver.py``).
 
-- :class:`CarefulStepper`: one step per call with CasADi's ``newton`` (``newton.py``). Step 0 of
+- `CarefulStepper`: one step per call with CasADi's ``newton`` (``newton.py``). Step 0 of
   the energy rules and every step of the ``fixed`` rule is a fixed-length step on the times of
-  the :class:`Clock`; every other step is an energy step, then the step bounds; where an energy
+  the `Clock`; every other step is an energy step, then the step bounds; where an energy
   step fails with a status in ``LEAST_SQUARES_CASES`` and ``breakdown == "least_squares"``, the
   least-squares step (``least_squares.py``) replaces it.
-- :class:`CompiledStepper`: a batch of up to ``MAX_CALLS`` chained compiled chunk calls per call
+- `CompiledStepper`: a batch of up to ``MAX_CALLS`` chained compiled chunk calls per call
   (``chunk.py``), kept up to the first step that fails the same
-  :class:`~ddvp_nlp.solvers.march.acceptance.Acceptance`: the nodes one call per chunk would
+  `Acceptance`: the nodes one call per chunk would
   give, with the Python work of decoding, checking and watching (the driver's monitors) paid
   once per batch.
-- :class:`MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
+- `MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
   check, the careful path redoes the rest of that chunk's window (``careful_left`` steps), then
   the chunks resume. So every step passes the same acceptance test, whichever path took it.
 
-:class:`Tally` holds what the steppers carry from step to step: the compensated energy drift and
+`Tally` holds what the steppers carry from step to step: the compensated energy drift and
 the counts the ``Solution`` reports.
 """
 
@@ -127,7 +127,7 @@ class CompiledStepper:
     """A batch of compiled chunk calls per call, kept up to its first step that fails a check.
 
     A chunk that carries the accuracy check starts from ``errors.e`` (the check's
-    :class:`~ddvp_nlp.solvers.accuracy.ErrorEstimates`, which the monitor keeps up to date) and
+    `ErrorEstimates`, which the monitor keeps up to date) and
     returns the check's estimates of every kept step in ``Advance.values``
     (``ACCURACY_VALUES``)."""
 
