@@ -41,6 +41,7 @@ The contract of the march. An implementer changing it must keep:
 """
 
 from .ensemble import march_ensemble
-from .solve import march
+from .resume import MarchState
+from .solve import continue_march, march
 
-__all__ = ["march", "march_ensemble"]
+__all__ = ["MarchState", "continue_march", "march", "march_ensemble"]
