@@ -40,8 +40,8 @@ The contract of the march. An implementer changing it must keep:
 6. This package imports the core and ``options``; never a grid family or a baseline.
 """
 
-from .ensemble import march_ensemble
+from .ensemble import Collect, march_ensemble
 from .resume import MarchState
 from .solve import continue_march, march
 
-__all__ = ["MarchState", "continue_march", "march", "march_ensemble"]
+__all__ = ["Collect", "MarchState", "continue_march", "march", "march_ensemble"]
