@@ -91,11 +91,11 @@ def _version() -> str:
 
 __version__ = _version()
 
-__all__ = ["AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions",
+__all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
            "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
-           "Lagrangian", "LagrangianSystem", "Output",
+           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Shooting",
-           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
+           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__", "continue_march",
            "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
            "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
            "solve_periodic", "solve_periodic_family"]

@@ -7,8 +7,6 @@ import pickle
 import sys
 import time
 
-import numpy as np
-
 from ddvp_nlp import load_scene
 from ddvp_nlp.solvers.march.ensemble import Collect, march_ensemble
 from ddvp_nlp.studies.poincare import SectionOutput, section_starts

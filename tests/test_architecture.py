@@ -134,7 +134,10 @@ def test_the_cycle_finder_finds_a_cycle():
 
 
 def test_no_import_cycle():
-    assert find_cycle(graph()) is None
+    # a facade is imported inside a function, when called: no cycle at import time
+    edges = {module: {t for t in targets if (module, t) not in FACADES}
+             for module, targets in graph().items()}
+    assert find_cycle(edges) is None
 
 
 def test_each_part_imports_only_the_layers_below_it():

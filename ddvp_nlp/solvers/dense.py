@@ -229,7 +229,7 @@ class EventMonitor:
                 j = terminal - self.counts[i] - 1
                 if stop is None or times[keep][j] < stop[0]:
                     stop = (times[keep][j], int(where[keep][j]), i)
-        for i, where, times, states in located:
+        for i, _, times, states in located:
             if stop is not None:
                 within = times <= stop[0]
                 times, states = times[within], states[within]

@@ -29,8 +29,8 @@ import numpy as np
 from ..errors import InputError
 from ..physics.hamiltonian import vector_field_function
 from ..scenes import load_scene
-from ..solvers.grid.maps import evaluate_blocks
 from ..solvers.dense import Event, locate
+from ..solvers.grid.maps import evaluate_blocks
 from ..solvers.march.ensemble import Collect, march_ensemble
 from ..solvers.options import Compilation
 from ..solvers.periodic.solve import parse_section
