@@ -12,7 +12,8 @@ PUBLIC = {"AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "Gr
           "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
-          "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__", "continue_march",
+          "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
+          "continue_march",
           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
           "solve_periodic", "solve_periodic_family"}
