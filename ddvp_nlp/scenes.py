@@ -219,6 +219,51 @@ class Scene:
         return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
                          **{k: float(v) for k, v in values.items()})
 
+    def march(self, t_end: float | None = None, *, overrides: Mapping[str, object] | None = None,
+              **options):
+        """``march`` from this scene's defaults (``resolve(overrides)``: parameters, start,
+        ``t0``, ``tau0``, ``t_end``; ``t_end`` here wins), its default scheme, and ``options``
+        passed on (``steps=``, ``accuracy=``, ``compilation=``, ``output=``, ``scheme=``...)."""
+        from .solvers.march import march  # a facade: scenes sit below the solvers
+
+        config = self.resolve(overrides)
+        options.setdefault("scheme", self.scheme or "vddvp")
+        options.setdefault("tau0", config.tau0)
+        return march(self.system, config.q0, config.p0, (config.t0, t_end or config.t_end),
+                     v0=config.v0, params=config.params, **options)
+
+    def solve_bvp(self, *, overrides: Mapping[str, object] | None = None,
+                  nodes: int | None = None, **options):
+        """``solve_bvp`` on this scene's fixed-endpoint data (``resolve_boundary``) and default
+        scheme, ``options`` passed on."""
+        from .solvers.bvp import solve_bvp  # a facade: scenes sit below the solvers
+
+        data = self.resolve_boundary(overrides, nodes)
+        options.setdefault("scheme", self.scheme or "vddvp")
+        return solve_bvp(self.system, data.q_start, data.q_end, data.t_span, nodes=data.nodes,
+                         params=data.params, **options)
+
+    def solve_periodic(self, energy: float | None = None, *, nodes: int | None = None,
+                       overrides: Mapping[str, object] | None = None, **options):
+        """``solve_periodic`` with this scene's periodic defaults (``PeriodicSettings``:
+        energy, nodes, section, start, integrals, angles, the guess function) and its default
+        scheme, ``options`` passed on. (Named so because ``periodic`` is the settings field.)"""
+        from .solvers.periodic import solve_periodic  # a facade: scenes sit below the solvers
+
+        settings = self.periodic or PeriodicSettings()
+        energy = settings.energy if energy is None else energy
+        if energy is None:
+            raise InputError(f"scene {self.name!r} declares no periodic energy: give energy=")
+        params, _ = self._split_parameters(overrides, ())
+        if settings.guess is not None:
+            options.setdefault("guess", settings.guess(energy, **params))
+        for name in ("section", "start", "integrals", "angles"):
+            if getattr(settings, name) is not None:
+                options.setdefault(name, getattr(settings, name))
+        options.setdefault("scheme", self.scheme or "vddvp")
+        return solve_periodic(self.system, energy=energy, nodes=nodes or settings.nodes,
+                              params=params, **options)
+
     def _start_value(self, name: str, value, params: dict) -> np.ndarray:
         """The scene's ``q0``, ``p0`` or ``v0`` (a function of the parameters, or a value) as a
         finite real vector of length ``n``; a function that raises is named with the values."""

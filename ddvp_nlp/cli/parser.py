@@ -34,8 +34,10 @@ def parse_settings(items: list[str]) -> dict:
     return settings
 
 
-def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> None:
-    parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = (), *,
+                      scene_optional: bool = False) -> None:
+    parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file",
+                        **({"nargs": "?", "default": None} if scene_optional else {}))
     parser.add_argument("--scheme", default=None, choices=RULES + methods,
                         help=f"energy rule: {', '.join(RULES)} (default: the scene's, shown by "
                         f"`ddvp scenes`, else {Scheme().rule}, the paper's)"
@@ -198,7 +200,14 @@ def _march_command(commands) -> None:
     from ..studies.methods import METHODS
 
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
-    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES))
+    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES),
+                      scene_optional=True)
+    march.add_argument("--resume", default=None, metavar="FOLDER",
+                       help="continue the march in FOLDER (a killed run's last checkpoint or a "
+                            "finished run) with the options it ran with, to its t_end or "
+                            "--t-end; the nodes equal an uninterrupted run's bit for bit")
+    march.add_argument("--t-end", type=float, default=None,
+                       help="with --resume: continue to this later end time")
     march.add_argument("--max-steps", type=int, default=10_000_000,
                        help="stop after this many steps (status max_steps; default: 10000000)")
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")

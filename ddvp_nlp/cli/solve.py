@@ -23,6 +23,11 @@ def run_solve(args) -> int:
     print its summary."""
     from ..io.atomic import output_folder
 
+    if getattr(args, "resume", None):
+        return run_resume(args)
+    if args.scene is None:
+        raise InputError(f"ddvp {args.command} needs a scene (a name from `ddvp scenes` or a "
+                         ".py file)" + (", or --resume FOLDER" if args.command == "march" else ""))
     scene = load_scene(args.scene)
     higher = _higher(scene)
     args.scheme = _scheme_name(args, scene)
@@ -31,7 +36,8 @@ def run_solve(args) -> int:
     config = _resolve(args, scene, higher, overrides)
     target, owned, overrides = _run_folder(args, scene, config, overrides)
     with output_folder(target, owned=owned) as out:
-        args.checkpoint = _checkpoint_saver(args, scene, out)
+        args.checkpoint = _checkpoint_saver(args, scene, out, resume_record(args, scene,
+                                                                            overrides))
         try:
             solution, extra = _SOLVERS[args.command, higher](args, scene, config, scheme)
         except KeyboardInterrupt:
@@ -106,17 +112,76 @@ def result_options(args) -> dict:
             if hasattr(args, name) and getattr(args, name) != default}
 
 
-def _checkpoint_saver(args, scene, out):
-    """For a march of a scene with ``H`` or ``L``: ``save(t, z)`` writing the run so far to
-    ``out`` (a checkpoint), interrupts held off while it writes."""
+def _checkpoint_saver(args, scene, out, record: dict):
+    """For a march of a scene with ``H`` or ``L``: ``save(t, z, carried)`` writing the run so
+    far to ``out`` (a checkpoint, with what ``--resume`` needs), interrupts held off while it
+    writes."""
     if args.command != "march" or _higher(scene):
         return None
     from ..io.runs import write_checkpoint
 
-    def save(t, z):  # called from the march's checkpoint thread: the main thread polls
+    def save(t, z, carried):  # called from the march's checkpoint thread: the main thread polls
         write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
-                         n=scene.system.n)
+                         n=scene.system.n, extra={"carried": carried, "resume": record})
     return save
+
+
+# What `ddvp march --resume` reads back to rebuild the run's options exactly (the bounds
+# --max-steps and --time-limit, the checkpoints, progress and plot are the resuming command's).
+RESUME_OPTIONS = ("scheme", "alpha", "clock", "tol", "tau_min", "tau_max", "max_step_ratio",
+                  "energy_guard", "least_squares", "rtol", "atol", "energy_tol", "global_tol",
+                  "accept_inaccurate", "careful")
+
+
+def resume_record(args, scene, overrides: dict) -> dict:
+    """The scene (name or file), the ``--set`` overrides and the march's options."""
+    return {"scene": scene.source or scene.name, "overrides": overrides,
+            "options": {name: getattr(args, name, None) for name in RESUME_OPTIONS}}
+
+
+def run_resume(args) -> int:
+    """``ddvp march --resume FOLDER [--t-end T]``: the march in ``FOLDER`` (its last checkpoint
+    or its finished run) continued to its ``t_end`` or a later one, with the options it ran
+    with, written back to ``FOLDER``; the nodes are an uninterrupted run's bit for bit."""
+    from ..io.atomic import output_folder
+    from ..io.runs import read_run
+    from ..solvers.march import MarchState, continue_march
+
+    arrays, meta = read_run(args.resume)
+    record = meta.get("resume")
+    if meta.get("command") != "march" or not isinstance(record, dict):
+        raise InputError(f"--resume: {args.resume} holds no march this ddvp can continue "
+                         f"(command {meta.get('command')!r}, no resume record)")
+    if meta.get("status") not in RESUMABLE:
+        raise InputError(f"--resume: the run in {args.resume} ended with status "
+                         f"{meta.get('status')!r}; only {', '.join(RESUMABLE)} can be continued")
+    for name, value in record["options"].items():
+        setattr(args, name, value)
+    scene = load_scene(record["scene"])
+    scheme = _scheme(args, False)
+    config = scene.resolve(record["overrides"])
+    t_end = config.t_end if args.t_end is None else args.t_end
+    state = MarchState.of(arrays["t"], arrays["q"], arrays["p"], config.t_end,
+                          meta.get("carried"))
+    with output_folder(args.resume, owned=0) as out:
+        saver = _checkpoint_saver(args, scene, out, record)
+        solution = continue_march(
+            scene.system, state, t_end, tau0=config.tau0, scheme=scheme, params=config.params,
+            steps=options.step_control(args), accuracy=options.tolerance(args),
+            compilation=options.compilation(args),
+            output=options.march_output(args, checkpoint=saver,
+                                        stop=INTERRUPTS.stop_requested))
+        config.t_end = t_end
+        extra = {"carried": solution.stats["carried"], "resume": record,
+                 "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
+                 "overrides": record["overrides"]}
+        meta = _save(args, out, scene, config, scheme, solution, extra)
+    print_summary(meta, out.path)
+    return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+# Statuses of a march that --resume continues: a checkpoint, a stop, a bound, a finished run.
+RESUMABLE = ("running", "interrupted", "max_steps", "time_limit", "success")
 
 
 def _higher(scene) -> bool:
@@ -179,9 +244,11 @@ def _march(args, scene, config, scheme):
                      output=options.march_output(args, checkpoint=args.checkpoint,
                                                  stop=INTERRUPTS.stop_requested))
     stats = solution.stats
-    return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
-                                                  "checkpoints", "checkpoints_landed_s")
-                      if key in stats}
+    return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
+                                                     "checkpoints", "checkpoints_landed_s")
+                         if key in stats},
+                      "carried": stats["carried"],
+                      "resume": resume_record(args, scene, parse_settings(args.settings))}
 
 
 def _march_method(args, scene, config):

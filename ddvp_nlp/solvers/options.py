@@ -246,12 +246,20 @@ class Output:
         stop: optional ``stop() -> bool``, asked after every stepper call; ``True`` ends the
             march with status ``interrupted``, every accepted node kept (how the command line
             turns Ctrl-C and SIGTERM into a clean end, never an exception inside CasADi).
+        t_eval: times (sorted, inside ``t_span``) at which a march reports ``z = (q, p)`` from
+            its dense output, beside the nodes (``Solution.t_eval``, ``z_eval``).
+        events: a function ``g(t, q, p)`` or a list of them, with scipy's optional attributes
+            ``direction``, ``terminal`` (and ``vectorized``): their crossings are located on the
+            march's dense output (``Solution.t_events``, ``z_events``); a terminal one ends
+            the march with status ``event`` (``solvers/dense.py``).
     """
 
     progress: bool = False
     checkpoint: Callable | None = None
     checkpoint_interval: float = 5.0
     stop: Callable[[], bool] | None = None
+    t_eval: object = None
+    events: object = None
 
     def __post_init__(self):
         _set(self, "progress", _flag("progress", self.progress))
@@ -265,6 +273,10 @@ class Output:
             raise InputError(f"checkpoint_interval must be at least {MIN_CHECKPOINT_INTERVAL} "
                              f"s (a checkpoint writes every node so far), got {interval!r}")
         _set(self, "checkpoint_interval", interval)
+        from .dense import check_events, check_times
+
+        _set(self, "t_eval", check_times(self.t_eval))
+        _set(self, "events", check_events(self.events))
 
 
 def coerce(value, kind, name: str):

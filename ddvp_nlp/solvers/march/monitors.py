@@ -169,8 +169,9 @@ class Checkpoint:
     # its fsync and the checksum).
     FIRST_GUESS_S_PER_BYTE = 1e-8
 
-    def __init__(self, save, interval: float, clock=time.perf_counter):
+    def __init__(self, save, interval: float, clock=time.perf_counter, state=None):
         self.save = save
+        self.state = state  # a snapshot taken with the nodes, passed to save as a third argument
         self.interval = interval
         self.clock = clock  # seconds; a test's own clock
         self.started = clock()
@@ -195,15 +196,16 @@ class Checkpoint:
         import threading
 
         t, z = nodes.t[:count], nodes.z[:count]  # views: rows below count never change
-        self.thread = threading.Thread(target=self._write, args=(t, z), daemon=True,
+        extra = (self.state(),) if self.state is not None else ()
+        self.thread = threading.Thread(target=self._write, args=(t, z, *extra), daemon=True,
                                        name="ddvp-checkpoint")
         self.thread.start()
         return None
 
-    def _write(self, t, z):
+    def _write(self, t, z, *state):
         began = self.clock()
         try:
-            self.save(t, z)
+            self.save(t, z, *state)
         except Exception as exc:  # noqa: BLE001 - reported from the march's own thread
             self.failure = exc
             return

@@ -38,7 +38,7 @@ from ...solution import Solution
 from ...validation import check_span, check_state, check_step
 from ..accuracy import AccuracyMonitor, ErrorEstimates
 from ..compiler import buffered, find_compiler
-from ..dense import attach
+from ..dense import DenseField, EventMonitor, attach, check_times, evaluate_at
 from ..driver import Nodes, drive
 from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
 from .acceptance import Acceptance
@@ -46,6 +46,7 @@ from .chunk import FastChunk
 from .monitors import Checkpoint, EnergyGuard, SolvabilityMonitor, StopRequest
 from .newton import NewtonSteps
 from .recheck import grid_residuals
+from .resume import CarryTracker, MarchState, check_resume, with_state
 from .stepper import CarefulStepper, Clock, CompiledStepper, MarchStepper, Tally
 from .steps import StepFunctions, step_functions
 
@@ -79,7 +80,8 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             like, and checks afterwards with ``accuracy.assess``).
         compilation: compiled chunks of steps or the careful path, the compiler and its cache
             (`Compilation`).
-        output: progress bar, checkpoints and the stop request (`Output`).
+        output: progress bar, checkpoints, the stop request, the times to report
+            (``t_eval``) and the events (`Output`; ``solvers/dense.py``).
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -103,8 +105,51 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     output = coerce(output, Output, "output")
     # the options first: the start (p0 from v0, H0) already builds CasADi functions
     problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
-    compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
+    check_times(output.t_eval, (problem.t0, problem.t_end))
+    return run_march(problem, accuracy, compilation, output)
 
+
+def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | None = None, *,
+                   tau0: float, scheme: str | Scheme = "vddvp",
+                   params: Mapping[str, float] | None = None, steps: StepControl | None = None,
+                   accuracy: Tolerance | None = DEFAULT_TOLERANCE,
+                   compilation: Compilation | None = None,
+                   output: Output | None = None) -> Solution:
+    """Continue the march whose nodes and carried state are ``state`` (a killed run's last
+    checkpoint, or a finished run) to ``t_end`` (default: the one it was asked for; the same or
+    later), with the options it ran with (``tau0``, ``scheme``, ``params``, ``steps``,
+    ``accuracy``, ``compilation``, as for `march`).
+
+    The loop goes on as if it had never stopped (``resume.py``): the returned nodes are the
+    earlier ones followed by those an uninterrupted `march` to ``t_end`` gives, bit for
+    bit, on the compiled and the careful path. A fixed-step march keeps its ``t_end``.
+
+    Returns:
+        A `Solution` of the whole run, from the first node.
+    """
+    scheme = Scheme.coerce(scheme)
+    steps = coerce(steps, StepControl, "steps")
+    if accuracy is not None:
+        coerce(accuracy, Tolerance, "accuracy")
+    compilation = coerce(compilation, Compilation, "compilation")
+    output = coerce(output, Output, "output")
+    if not isinstance(state, MarchState):
+        raise InputError(f"state must be a MarchState, got {type(state).__name__}")
+    n = state.z.shape[1] // 2
+    t_end = state.t_end if t_end is None else t_end
+    problem = check_problem(system, scheme, state.z[0, :n], state.z[0, n:], None,
+                            (state.t[0], t_end), tau0, steps, params)
+    check_resume(state, problem, scheme.variable_steps)
+    check_times(output.t_eval, (problem.t0, problem.t_end))
+    return run_march(problem, accuracy, compilation, output, start=state)
+
+
+def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output: Output,
+              start=None) -> Solution:
+    """Build the march of a checked ``problem`` and drive it from its start, or from ``start``
+    (a `MarchState`: the nodes of an earlier run of the
+    same problem and what its loop carried, ``resume.py``)."""
+    compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
     started = time.perf_counter()
     parts = _build(problem, compilation, compiler, check_accuracy=accuracy is not None)
     built = time.perf_counter()
@@ -117,9 +162,21 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     if accuracy is not None:
         checker = _accuracy_monitor(problem, accuracy, parts.errors)
         monitors.append(checker)
-    saver = None if output.checkpoint is None else Checkpoint(output.checkpoint,
-                                                              output.checkpoint_interval)
+    events = None
+    if output.events:
+        events = EventMonitor(output.events, DenseField.of(problem.system, problem.theta),
+                              problem.t_end, nodes.t[0], nodes.z[0])
+        monitors.append(events)
+    if start is not None:  # the earlier nodes, watched again; the loop's state restored
+        nodes = start.restore(parts.stepper, parts.tally, monitors, parts.functions,
+                              problem.theta)
+    carry = CarryTracker(parts.tally, *((start.careful_left, start.phase) if start else ()))
+    saver = None
+    if output.checkpoint is not None:
+        save, state = with_state(output.checkpoint, carry)
+        saver = Checkpoint(save, output.checkpoint_interval, state=state)
     monitors += [StopRequest(output.stop)] if output.stop else []
+    monitors += [carry]
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
     try:
         outcome = drive(parts.stepper, nodes, t_end=problem.t_end,
@@ -136,6 +193,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                          compiler=compiler if compiled else None,
                          cache_dir=compilation.cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
+    solution.stats["carried"] = carry.state()
     if checker is not None:
         solution.local_error = checker.local_errors(solution.steps)
         solution.stats["accuracy"] = checker.report(solution.steps)
@@ -143,7 +201,11 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
         solution.stats["checkpoints_landed_s"] = [round(t, 3) for t in saver.landed]
-    return attach(solution, system, problem.theta, problem.t_end)
+    attach(solution, problem.system, problem.theta, problem.t_end)
+    if events is not None:
+        events.report(solution)
+    evaluate_at(solution, output.t_eval)
+    return solution
 
 
 @dataclass(frozen=True)
