@@ -459,6 +459,7 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
                           f"family; nothing new was written: {holds(out)}") from None
         with INTERRUPTS.saving():
             rows = write_family(out, scene, family, settings["params"], plot=not args.no_plot,
+                                section=settings["section"],
                                 interruptible=INTERRUPTS.interruptible)
     for row in rows:
         print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
