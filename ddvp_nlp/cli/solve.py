@@ -489,7 +489,7 @@ def run_poincare(args) -> int:
     named = {"orbits": args.orbits, "section": args.section, "direction": args.direction,
              "t_end": args.t_end, "tau0": args.tau0, "seed": args.seed, "params": params}
     target, owned = default_or(args, f"{scene.name}-poincare-E{args.energy:g}", named, {
-        "orbits": 20, "section": "q1=0", "direction": "+", "t_end": None, "tau0": None,
+        "orbits": 50, "section": "q1=0", "direction": "+", "t_end": 2000.0, "tau0": None,
         "seed": 0, "params": {}})
     with output_folder(target, owned=owned) as out:
         try:
