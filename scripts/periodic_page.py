@@ -262,16 +262,22 @@ Above the separatrix (`E > 2`), on the section `q1 = 0`. One turn takes
 `T = int_0^{{2 pi}} dq / p(q)`, `p = sqrt(2 (E - 1 + cos q))`; with `q = 2 phi`,
 `E - 1 + cos q = E (1 - (2/E) sin^2 phi)`, so `T = 4 K(m) / sqrt(2E)` with the parameter
 `m = 2/E` (`2 K(1/k) / k` in the librations' modulus `k^2 = E/2`); `tests/test_periodic_solvers.py`
-checks it against a quadrature. N = 200, continuation from E = 2.2. Newton's monotone line
-search stalls on these orbits from the march's start (the steps of the discrete orbit have a
-spike, 4x the others at N = 100, where the level curve `p(q)` has an inflection and the energy
-equation barely fixes the step), so `auto` hands them to IPOPT: the last column. Continued from
-the previous orbit, Newton does converge from E = 2.6 on. The discrete problem is the reason: the
-midpoints `(Q_k, P_k)` lie on the level curve and each node is where the tangent steps of two
-neighbouring midpoints meet, which is well posed where the curve is convex; across an inflection
-one long step is needed, and the system gets worse conditioned as `N` grows. IPOPT took 13, 28,
-69 and 296 iterations for N = 100, 200, 400, 800 at E = 2.5 (the convergence table below runs
-the rotations with `max_iter=400`; the default 100 stops N = 800).
+checks it against a quadrature. N = 200, continuation from E = 2.2. The steps of the discrete
+rotation have a spike (3-5x the others at N = 100..800) where the level curve `p(q)` has an
+inflection: there `w = f' H_zz f` changes sign, the `tau^2 w / 8` term of the interval energy
+vanishes and the energy equation barely fixes the step (the midpoints `(Q_k, P_k)` lie on the
+level curve and each node is where the tangent steps of two neighbouring midpoints meet, well
+posed where the curve is convex; across an inflection one long step is needed). Elsewhere the
+steps follow `tau |w|^(1/3)` = const, with one constant on each side of the inflections (0.0345
+where `w > 0`, 0.0525 where `w < 0` at N = 100; measured). From the march resampled on equally
+spaced times, which has no spike, Newton's monotone line search stalled at every N and IPOPT
+took 13, 28, 69 and 296 iterations for N = 100, 200, 400, 800 at E = 2.5. The default start is
+now the march on the predicted grid `tau ~ |w|^(-1/3)` (floored so that no predicted step
+exceeds four typical ones: the spike is there), solved on N = 100 first and refined by
+continuation in N (`solvers/periodic/refinement.py`: 100, 200, 400, 800, each level started
+from the last one's nodes resampled by node index, which keeps the step distribution): Newton
+converges in 5 iterations on every level, IPOPT in 5-7 (`python scripts/bench_periodic.py --only
+rotation`, below).
 
 ![pendulum rotations](pendulum_rotations/family.png)
 
