@@ -76,6 +76,10 @@ class PeriodicSettings:
         guess: optional ``guess(energy, **params) -> {"t", "q", "p"}``, one period of a start
             near the orbit at ``energy``, used when no guess is given (where no ray from the
             origin through the orbit makes the section's point, as about a Lagrange point).
+        period: optional ``period(energy, **params)``, the exact period ``T(E)`` of this
+            family's orbits where it is known in closed form (NaN at energies the family does
+            not reach), elementwise over an array of energies: drawn under the discrete
+            periods in a family's figure, with their relative difference.
     """
 
     section: str = "p1=0"
@@ -86,6 +90,19 @@ class PeriodicSettings:
     angles: tuple = ()
     families: Mapping[str, PeriodicSettings] = field(default_factory=dict)
     guess: Callable[..., Mapping] | None = None
+    period: Callable[..., object] | None = None
+
+    def exact_period(self, section: str, params: Mapping) -> Callable | None:
+        """``T(E)`` (one argument, ``params`` bound) of the family through ``section``: this
+        family's or one of `families`' ``period`` whose section is ``section`` (spaces
+        ignored), else ``None`` (no closed form declared for that family)."""
+        wanted = section.replace(" ", "")
+        for settings in (self, *self.families.values()):
+            if settings.period is not None and settings.section.replace(" ", "") == wanted:
+                period = settings.period
+                return lambda energy: np.asarray(period(np.asarray(energy, float), **params),
+                                                 dtype=float)
+        return None
 
 
 def _check_settings(owner: str, name: str, value, kind):

@@ -18,7 +18,12 @@ def exact(t, q0, p0, t0, w):
     return q[:, None], p[:, None]
 
 
+def period(energy, w):
+    """The exact period 2 pi / w, the same at every energy."""
+    return np.full(np.shape(energy), 2 * np.pi / w)
+
+
 # Periodic orbits (ddvp periodic): period 2 pi / w at every energy.
 scene = Scene(hamiltonian, n=1, params={"w": 1.0}, q0=[1.0], p0=[0.0], tau0=0.1, t_end=20.0,
               exact=exact,
-              periodic=PeriodicSettings(section="p1=0", energy=0.5, nodes=200))
+              periodic=PeriodicSettings(section="p1=0", energy=0.5, nodes=200, period=period))

@@ -20,26 +20,29 @@ from pathlib import Path
 import casadi
 import numpy as np
 from scipy.integrate import solve_ivp
-from scipy.special import ellipk
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_periodic  # noqa: E402
 
-from ddvp_nlp import GridOptions, solve_periodic, solve_periodic_family  # noqa: E402
+from ddvp_nlp import (  # noqa: E402
+    GridOptions,
+    periodic_stability,
+    solve_periodic,
+    solve_periodic_family,
+)
 from ddvp_nlp.io.periodic_runs import plot_orbit, write_family  # noqa: E402
 from ddvp_nlp.scenes import load_scene  # noqa: E402
 
-FIGURE_EIGHT_PERIOD = 6.32591398
+# Simo's period of his eight-decimal initial data: a reference for the orbit through his data,
+# not for the orbit at the prescribed energy -1.287144 (six decimals) that is solved here.
+SIMO_PERIOD = 6.32591398
 
 
-def pendulum_period(energy):
-    return 4 * ellipk(np.asarray(energy) / 2)
-
-
-def rotation_period(energy):
-    """One turn: ``int_0^{2 pi} dq / sqrt(2 (E - 1 + cos q)) = 4 K(2 / E) / sqrt(2 E)``."""
-    energy = np.asarray(energy, float)
-    return 4 * ellipk(2 / energy) / np.sqrt(2 * energy)
+# The exact periods the pendulum scene declares (problems/pendulum.py, PeriodicSettings.period):
+# librations 4 K(E / 2), rotations 4 K(2 / E) / sqrt(2 E).
+PENDULUM = load_scene("pendulum").periodic
+pendulum_period = PENDULUM.period
+rotation_period = PENDULUM.families["rotations"].period
 
 
 def convergence_rows(name, sizes, exact, label=None, **options):
@@ -65,7 +68,7 @@ def rotation_rows(out: Path):
     family = solve_periodic_family(pendulum.system, np.linspace(2.2, 4.0, 10), nodes=200,
                                    section="q1=0", angles=("q1",))
     rows = write_family(out / "pendulum_rotations", pendulum, family, {}, plot=True,
-                        reference=rotation_period, folders=False)
+                        section="q1=0", folders=False)
     solvers = [orbit.stats["solver"] for _, orbit in family]
     return [f"| {r['energy']:.1f} | {r['period']:.8f} | {rotation_period(r['energy']):.8f} | "
             f"{r['period'] - rotation_period(r['energy']):.2e} | {r['status']} | {solver} |"
@@ -161,7 +164,7 @@ def main() -> None:
     pendulum = load_scene("pendulum")
     family = solve_periodic_family(pendulum.system, np.linspace(0.1, 1.9, 19), nodes=200)
     rows = write_family(out / "pendulum_family", pendulum, family, {}, plot=True,
-                        reference=pendulum_period, folders=False)
+                        folders=False)
     family_table = [f"| {r['energy']:.2f} | {r['period']:.8f} | "
                     f"{pendulum_period(r['energy']):.8f} | "
                     f"{r['period'] - pendulum_period(r['energy']):.2e} | {r['status']} |"
@@ -174,6 +177,15 @@ def main() -> None:
     orbit = solve_periodic(eight.system, nodes=600, **options)
     plot_orbit(orbit, f"figure-eight, E = {data.energy}, N = 600, "
                       f"T = {orbit.stats['period']:.8f}", out / "figure_eight.png")
+    # the reference of the convergence table: the exact flow's orbit at the energy solved,
+    # closed by DOP853 shooting from the finest discrete orbit
+    eight_exact = periodic_stability(
+        eight.system, solve_periodic(eight.system, nodes=1200, **options),
+        integrals=data.integrals).exact_orbit
+    if not eight_exact.converged:
+        raise SystemExit(f"the exact figure-eight at E = {data.energy} did not close "
+                         f"(closure {eight_exact.closure:.1e})")
+    simo_energy = float(eight.system.energy(eight.q0, eight.p0, 0.0, [])[0])
 
     table = [*convergence_rows("pendulum", (100, 200, 400, 800), pendulum_period(0.5),
                                energy=0.5, section="p1=0"),
@@ -182,7 +194,7 @@ def main() -> None:
                                angles=("q1",), options=GridOptions(max_iter=400)),
              *convergence_rows("harmonic", (40, 80, 160, 320), np.pi, energy=0.3,
                                params={"w": 2.0}),
-             *convergence_rows("figure_eight", (150, 300, 600, 1200), FIGURE_EIGHT_PERIOD,
+             *convergence_rows("figure_eight", (150, 300, 600, 1200), eight_exact.period,
                                **options)]
     rotations = rotation_rows(out)
     henon = henon_heiles_rows(out)
@@ -191,6 +203,8 @@ def main() -> None:
                        rotations="\n".join(rotations), henon="\n".join(henon),
                        solvers=solvers,
                        eight=orbit.message, eight_period=orbit.stats["period"],
+                       eight_exact=eight_exact.period, eight_closure=eight_exact.closure,
+                       simo_energy=simo_energy, simo_period=SIMO_PERIOD,
                        machine=f"Python {platform.python_version()}, CasADi "
                                f"{casadi.__version__}, numpy {np.__version__}, "
                                f"{platform.machine()}")
@@ -248,16 +262,22 @@ Above the separatrix (`E > 2`), on the section `q1 = 0`. One turn takes
 `T = int_0^{{2 pi}} dq / p(q)`, `p = sqrt(2 (E - 1 + cos q))`; with `q = 2 phi`,
 `E - 1 + cos q = E (1 - (2/E) sin^2 phi)`, so `T = 4 K(m) / sqrt(2E)` with the parameter
 `m = 2/E` (`2 K(1/k) / k` in the librations' modulus `k^2 = E/2`); `tests/test_periodic_solvers.py`
-checks it against a quadrature. N = 200, continuation from E = 2.2. Newton's monotone line
-search stalls on these orbits from the march's start (the steps of the discrete orbit have a
-spike, 4x the others at N = 100, where the level curve `p(q)` has an inflection and the energy
-equation barely fixes the step), so `auto` hands them to IPOPT: the last column. Continued from
-the previous orbit, Newton does converge from E = 2.6 on. The discrete problem is the reason: the
-midpoints `(Q_k, P_k)` lie on the level curve and each node is where the tangent steps of two
-neighbouring midpoints meet, which is well posed where the curve is convex; across an inflection
-one long step is needed, and the system gets worse conditioned as `N` grows. IPOPT took 13, 28,
-69 and 296 iterations for N = 100, 200, 400, 800 at E = 2.5 (the convergence table below runs
-the rotations with `max_iter=400`; the default 100 stops N = 800).
+checks it against a quadrature. N = 200, continuation from E = 2.2. The steps of the discrete
+rotation have a spike (3-5x the others at N = 100..800) where the level curve `p(q)` has an
+inflection: there `w = f' H_zz f` changes sign, the `tau^2 w / 8` term of the interval energy
+vanishes and the energy equation barely fixes the step (the midpoints `(Q_k, P_k)` lie on the
+level curve and each node is where the tangent steps of two neighbouring midpoints meet, well
+posed where the curve is convex; across an inflection one long step is needed). Elsewhere the
+steps follow `tau |w|^(1/3)` = const, with one constant on each side of the inflections (0.0345
+where `w > 0`, 0.0525 where `w < 0` at N = 100; measured). From the march resampled on equally
+spaced times, which has no spike, Newton's monotone line search stalled at every N and IPOPT
+took 13, 28, 69 and 296 iterations for N = 100, 200, 400, 800 at E = 2.5. The default start is
+now the march on the predicted grid `tau ~ |w|^(-1/3)` (floored so that no predicted step
+exceeds four typical ones: the spike is there), solved on N = 100 first and refined by
+continuation in N (`solvers/periodic/refinement.py`: 100, 200, 400, 800, each level started
+from the last one's nodes resampled by node index, which keeps the step distribution): Newton
+converges in 5 iterations on every level, IPOPT in 5-7 (`python scripts/bench_periodic.py --only
+rotation`, below).
 
 ![pendulum rotations](pendulum_rotations/family.png)
 
@@ -292,15 +312,22 @@ accuracy check's largest local error and `global est` its propagated global erro
 ## Figure-eight (three equal masses, G = m = 1)
 
 Simo's data, energy -1.287144, N = 600, section `x_3 = 0`, phase conditions for the
-translations and the rotation. Period {eight_period:.8f} (Simo: 6.32591398).
+translations and the rotation. Period {eight_period:.8f} at N = 600 (the exact orbit at this
+energy: {eight_exact:.8f}; Simo's data, at energy {simo_energy:.8f}: {simo_period}).
 {eight}
 
 ![figure-eight](figure_eight.png)
 
 ## Convergence of the period
 
-Order: `log2` of the ratio of successive errors. The figure-eight's reference period has eight
-decimals and its energy six, so its last row stops at their precision.
+Order: `log2` of the ratio of successive errors. Every reference is the exact period at the
+energy solved: `4 K(E/2)` and `4 K(2/E) / sqrt(2E)` for the pendulum (declared on the scene,
+`PeriodicSettings.period`), `2 pi / w` for the oscillator, and for the figure-eight the exact
+flow's orbit at E = -1.287144, closed by DOP853 shooting from the N = 1200 orbit
+(`periodic_stability(...).exact_orbit`): period {eight_exact:.10f}, closure {eight_closure:.1e}.
+Simo's {simo_period} is the period of his eight-decimal initial data, whose energy is
+{simo_energy:.10f}, not -1.287144: measured against it, the errors stop falling at the
+difference of the two orbits' periods and the last order is an artefact.
 
 | scene | N | status | solver | period | error | order | largest residual |
 |---|---|---|---|---|---|---|---|

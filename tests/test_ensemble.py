@@ -75,3 +75,20 @@ def test_a_section_at_no_finite_energy_is_refused_by_name(energy, tmp_path, caps
     assert code == 2
     assert f"--energy must be finite, got {energy}" in capsys.readouterr().err
     assert not (tmp_path / "section").exists()
+
+
+def test_the_poincare_defaults_give_a_few_hundred_crossings_per_orbit(tmp_path, capsys):
+    """Issue 30: the defaults drew about 30 crossings per orbit (t_end = 200), too sparse to
+    see a section; 2000 time units give about 300 (Henon-Heiles at E = 1/8)."""
+    import csv
+
+    out = tmp_path / "section"
+    assert main(["poincare", "henon_heiles", "--energy", "0.125", "--orbits", "2",
+                 "--out", str(out), "--no-plot"]) == 0
+    with open(out / "section.csv") as handle:
+        orbits = [row["orbit"] for row in csv.DictReader(handle)]
+    assert sorted(set(orbits)) == ["0", "1"]
+    assert all(orbits.count(orbit) >= 250 for orbit in ("0", "1"))
+    from ddvp_nlp.cli.parser import build_parser
+
+    assert build_parser().parse_args(["poincare", "henon_heiles", "--energy", "0.1"]).orbits == 50

@@ -136,3 +136,43 @@ def test_march_writes_its_figure_in_the_format_asked_and_removes_another(tmp_pat
     with pytest.raises(SystemExit) as exc:
         main([*base, "--format", "jpg"])
     assert exc.value.code == 2
+
+
+def test_the_process_settings_left_out_of_the_house_style_are_matplotlibs():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # matplotlib.style.core is deprecated in 3.11
+        from matplotlib.style.core import STYLE_BLACKLIST
+    assert figures.NOT_STYLE == frozenset(STYLE_BLACKLIST)
+    assert not figures.NOT_STYLE & set(figures.house_style())
+
+
+@pytest.mark.parametrize(("mathtext", "plain"), [
+    (r"$\mathdefault{0.5}$", "0.5"),
+    ("$\\mathdefault{\N{MINUS SIGN}0.25}$", "\N{MINUS SIGN}0.25"),
+    (r"$\mathdefault{10^{-5}}$", "10⁻⁵"),
+    (r"$\mathdefault{10^{12}}$", "10¹²"),
+    (r"$\mathdefault{2\times10^{-3}}$", "2×10⁻³"),
+    ("$\\times\\mathdefault{10^{\N{MINUS SIGN}3}}\\mathdefault{+1.5}$", "×10⁻³+1.5"),
+    (r"$\mathdefault{10^{0.50}}$", r"$\mathdefault{10^{0.50}}$"),  # left to mathtext
+    (r"$\tau_k$", r"$\tau_k$"),
+    ("0.5", "0.5"),
+])
+def test_tick_labels_written_as_mathtext_become_the_same_plain_text(mathtext, plain):
+    assert figures.plain_text(mathtext) == plain
+
+
+def test_a_saved_figure_has_plain_text_ticks_with_superscripts_on_a_log_axis(tmp_path):
+    with figures.styled():
+        fig = figures.new_figure(3, 2)
+        ax = fig.add_subplot()
+        ax.semilogy([0, 1, 2], [1e-9, 1e-6, 1e-3])
+        twin = fig.add_subplot(2, 2, 1)
+        twin.plot([0, 1], [1e-4, 1.0001e-4])  # an offset axis
+        figures.save(fig, tmp_path / "f.png")
+    texts = figures.distinct_tick_texts(ax)
+    assert "10⁻⁵" in texts and not any("$" in text for text in texts)
+    assert len(set(texts)) == len(texts)
+    offset = twin.yaxis.get_offset_text().get_text()
+    assert offset and "$" not in offset

@@ -25,6 +25,17 @@ def test_step_length_periods_and_extremes(example):
     assert example["extremes"]["minima"] >= 4 and example["extremes"]["maxima"] >= 4
 
 
+def test_the_spacing_of_the_minima_is_the_period_where_the_spectrum_has_no_single_line():
+    """A fast oscillation phase-modulated by a slow one at the first zero of J0: its carrier
+    line vanishes and the strongest line of its spectrum is a sideband, while its minima keep
+    the fast period (the step length of section 5 is such a signal)."""
+    t = np.sort(np.random.default_rng(2).uniform(0, 10000, 40000))
+    values = np.sin(2 * np.pi * t / 3.3 + 2.405 * np.sin(2 * np.pi * t / 314.0))
+    spacing, count = paper.minima_spacing(t, values)
+    assert abs(spacing / 3.3 - 1) < 1e-3 and abs(count - 10000 / 3.3) <= 2
+    assert abs(paper.dominant_period(t, values, shorter_than=50) / 3.3 - 1) > 5e-3
+
+
 def test_dominant_period_of_a_known_signal():
     t = np.sort(np.random.default_rng(1).uniform(0, 1000, 5000))
     values = np.sin(2 * np.pi * t / 97.0) + 0.3 * np.sin(2 * np.pi * t / 3.1)

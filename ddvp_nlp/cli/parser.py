@@ -130,12 +130,16 @@ def _poincare_command(commands) -> None:
         "poincare", help="a Poincare section at a fixed energy: many orbits marched together")
     poincare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     poincare.add_argument("--energy", type=float, required=True, help="the energy E")
-    poincare.add_argument("--orbits", type=int, default=20, help="number of orbits M")
+    # defaults measured to give a dense section in a few seconds: Henon-Heiles at E = 1/8, 50
+    # orbits to t = 2000, 15214 crossings in 2.4 s wall on 2 shared cores (README)
+    poincare.add_argument("--orbits", type=int, default=50,
+                          help="number of orbits M (default 50)")
     poincare.add_argument("--section", default="q1=0", metavar="NAME=VALUE",
                           help="the section, NAME in q1..qn (default q1=0)")
     poincare.add_argument("--direction", default="+", choices=("+", "-"),
                           help="crossings with the section coordinate increasing (+)")
-    poincare.add_argument("--t-end", type=float, default=None, help="end time of every orbit")
+    poincare.add_argument("--t-end", type=float, default=2000.0,
+                          help="end time of every orbit (default 2000)")
     poincare.add_argument("--tau0", type=float, default=None, help="first step")
     poincare.add_argument("--seed", type=int, default=0, help="seed of the starts")
     poincare.add_argument("--set", dest="settings", action="append", default=[],

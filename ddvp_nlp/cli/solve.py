@@ -459,6 +459,7 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
                           f"family; nothing new was written: {holds(out)}") from None
         with INTERRUPTS.saving():
             rows = write_family(out, scene, family, settings["params"], plot=not args.no_plot,
+                                section=settings["section"],
                                 interruptible=INTERRUPTS.interruptible)
     for row in rows:
         print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
@@ -488,7 +489,7 @@ def run_poincare(args) -> int:
     named = {"orbits": args.orbits, "section": args.section, "direction": args.direction,
              "t_end": args.t_end, "tau0": args.tau0, "seed": args.seed, "params": params}
     target, owned = default_or(args, f"{scene.name}-poincare-E{args.energy:g}", named, {
-        "orbits": 20, "section": "q1=0", "direction": "+", "t_end": None, "tau0": None,
+        "orbits": 50, "section": "q1=0", "direction": "+", "t_end": 2000.0, "tau0": None,
         "seed": 0, "params": {}})
     with output_folder(target, owned=owned) as out:
         try:

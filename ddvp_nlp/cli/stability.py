@@ -123,7 +123,7 @@ def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
             raise _interrupted(out, "solving the family") from None
         with INTERRUPTS.saving():
             write_family(out, scene, family, params, plot=not args.no_plot,
-                         interruptible=INTERRUPTS.interruptible)
+                         section=settings["section"], interruptible=INTERRUPTS.interruptible)
         try:
             stabilities = [periodic_stability(scene.system, orbit, params=params,
                                               integrals=settings["integrals"], tol=tol)

@@ -101,13 +101,29 @@ def family_row(energy: float, solution: Solution) -> dict:
 
 
 def write_family(out, scene, family: list, params: dict, plot: bool = True,
-                 reference=None, folders: bool = True, *, interruptible=None) -> list[dict]:
+                 reference=None, folders: bool = True, *, section: str | None = None,
+                 interruptible=None) -> list[dict]:
     """``family.csv`` (one row per energy, failed ones included), ``family.png`` (period
-    against energy, beside ``reference(E)`` if given) and ``meta.json`` as one set, after, if
-    ``folders``, a run folder ``E=<energy>`` each."""
+    against energy, beside the exact period ``T(E)``) and ``meta.json`` as one set, after, if
+    ``folders``, a run folder ``E=<energy>`` each.
+
+    ``reference``: ``T(E)``; by default the one the scene declares for the family through
+    ``section`` (``PeriodicSettings.period``, the scene's default section if ``None``), with
+    the scene's parameters under ``params``. ``family.csv`` then has the exact period and the
+    relative difference ``(T - T_exact) / T_exact`` of every member."""
+    reference = reference or scene_period(scene, section, params)
     rows = [family_row(energy, solution) for energy, solution in family]
+    columns = FAMILY_COLUMNS
+    if reference is not None:
+        columns = (*FAMILY_COLUMNS, "exact_period", "relative_difference")
+        for row in rows:
+            exact = float(reference(row["energy"]))
+            row["exact_period"] = exact
+            # a failed member's period is its last iterate's, not an orbit's
+            row["relative_difference"] = ((row["period"] - exact) / exact
+                                          if row["status"] == "success" else float("nan"))
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=FAMILY_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     with atomic.output_folder(out) as folder:
@@ -122,8 +138,18 @@ def write_family(out, scene, family: list, params: dict, plot: bool = True,
         folder.commit({"family.csv": atomic.text(buffer.getvalue()), "family.png": figure},
                       {"command": "periodic", "scene": scene.name, "members": len(rows),
                        "succeeded": sum(r["status"] == "success" for r in rows),
-                       "params": params})
+                       "params": params, "exact_period": reference is not None})
     return rows
+
+
+def scene_period(scene, section: str | None, params: dict):
+    """The exact ``T(E)`` the scene declares for the family through ``section`` (its default
+    section if ``None``), its parameters bound (``params`` over the scene's), else ``None``."""
+    settings = getattr(scene, "periodic", None)
+    if settings is None:
+        return None
+    values = {**getattr(scene, "params", {}), **params}
+    return settings.exact_period(section or settings.section, values)
 
 
 def plot_family(rows: list[dict], title: str, path: Path, reference=None,

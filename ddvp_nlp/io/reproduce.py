@@ -203,10 +203,15 @@ def _example_section(example) -> list[str]:
     placed = (extremes["at_smallest_steps"] <= T["smallest_at"]
               and extremes["at_largest_steps"] >= T["largest_at"])
     return lines + [
-        f"- Short period of the step length: **{example['short_period']:.3f}**; the pendulum's "
-        f"own period (zero crossings of the angle) is {example['pendulum_period']:.3f}, so the "
-        f"step length oscillates twice per swing (ratio {ratio:.3f}): once per passage through "
-        "theta = 0. " + verdict(holds, f"ratio within {T['short_ratio']:g} of 0.5"),
+        f"- Short period of the step length (mean spacing of its "
+        f"{example.get('short_minima', 0)} local minima): **{example['short_period']:.3f}**; "
+        f"the pendulum's own period (zero crossings of the angle) is "
+        f"{example['pendulum_period']:.3f}, so the step length oscillates twice per swing "
+        f"(ratio {ratio:.3f}): once per passage through theta = 0. "
+        + verdict(holds, f"ratio within {T['short_ratio']:g} of 0.5")
+        + (f" (Its spectrum has no single line there: the slow modulation splits it into "
+           f"sidebands; the strongest, at period {example['short_spectral_line']:.3f}, is not "
+           f"the oscillation's period.)" if "short_spectral_line" in example else ""),
         f"- Where the extreme steps fall (0 <= t <= 16, |theta| over the amplitude at the "
         f"interval): locally smallest steps at **{extremes['at_smallest_steps']:.2f}** (mean "
         f"over {extremes['minima']} minima), locally largest at "

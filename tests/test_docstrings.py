@@ -1,0 +1,35 @@
+"""The API pages are rendered from the docstrings by mkdocstrings, which shows a Sphinx role
+(``:class:`Scheme` ``) as raw text: docstrings use code spans instead (issue 30)."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import ddvp_nlp
+
+ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|obj|exc|ref|math|const|term)"
+                  r":`")
+
+
+def docstrings(path: Path):
+    tree = ast.parse(path.read_text(), filename=str(path))
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            text = ast.get_docstring(node, clean=False)
+            if text:
+                yield getattr(node, "name", path.stem), text
+
+
+def test_no_docstring_of_the_package_holds_a_raw_sphinx_role():
+    root = Path(ddvp_nlp.__file__).parent
+    found = [f"{path.relative_to(root)}: {name}: {match.group(0)}"
+             for path in sorted(root.rglob("*.py")) for name, text in docstrings(path)
+             for match in ROLE.finditer(text)]
+    assert not found, "\n".join(found)
+
+
+def test_the_pattern_sees_a_role():
+    assert ROLE.search("See :class:`Scheme` and :py:func:`march`.")
+    assert not ROLE.search("See `Scheme` and ``march``.")
