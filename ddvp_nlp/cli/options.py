@@ -39,8 +39,8 @@ def grid_options(args, *, tol=None) -> GridOptions:
 
 
 def march_output(args, *, checkpoint=None, stop=None) -> Output:
-    """A march's progress bar (off with ``--no-progress``), checkpoints and stop request."""
-    return Output(progress=not args.no_progress, checkpoint=checkpoint,
+    """A march's progress (on unless ``--no-progress``), checkpoints and stop request."""
+    return Output(progress=args.progress is not False, checkpoint=checkpoint,
                   checkpoint_interval=args.checkpoint_every, stop=stop)
 
 

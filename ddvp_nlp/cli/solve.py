@@ -28,6 +28,8 @@ def run_solve(args) -> int:
     if args.scene is None:
         raise InputError(f"ddvp {args.command} needs a scene (a name from `ddvp scenes` or a "
                          ".py file)" + (", or --resume FOLDER" if args.command == "march" else ""))
+    if getattr(args, "t_end", None) is not None:  # ran silently to the scene's t_end before
+        args.settings = [*args.settings, f"t_end={args.t_end!r}"]
     scene = load_scene(args.scene)
     higher = _higher(scene)
     args.scheme = _scheme_name(args, scene)
@@ -285,7 +287,8 @@ def _bvp(args, scene, config, scheme):
     if p_start is not None and args.guess != "march":
         raise InputError(f"--p-start {args.p_start} is the momentum shooting starts from: give "
                          f"it with --guess march (got --guess {args.guess})")
-    progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
+    progress = args.progress if args.progress is not None else (
+        config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else _bvp_guess(args.guess, scene.system.n)
     span = config.t_span
     if args.energy is not None:  # the scene's span is the transfer time's guess
