@@ -38,10 +38,12 @@ def grid_options(args, *, tol=None) -> GridOptions:
                        verbose=getattr(args, "verbose", False))
 
 
-def march_output(args, *, checkpoint=None, stop=None) -> Output:
-    """A march's progress (on unless ``--no-progress``), checkpoints and stop request."""
+def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:
+    """A march's progress (on unless ``--no-progress``), checkpoints, stop request, output
+    times and events (``cli/events.py``)."""
     return Output(progress=args.progress is not False, checkpoint=checkpoint,
-                  checkpoint_interval=args.checkpoint_every, stop=stop)
+                  checkpoint_interval=args.checkpoint_every, stop=stop, t_eval=t_eval,
+                  events=events or None)
 
 
 def compiled_or_not(args) -> Compilation:

@@ -270,6 +270,16 @@ def _march_command(commands) -> None:
     march.add_argument("--t-end", type=float, default=None,
                        help="the end time (the same as --set t_end=T); with --resume: "
                             "continue to this later end time")
+    march.add_argument("--t-eval", default=None, metavar="T1,T2,...|START:STOP:COUNT",
+                       help="also report the state (q, p) at these times, from the scheme's "
+                            "dense output (result.npz: t_eval, z_eval)")
+    march.add_argument("--event", dest="events", action="append", default=[],
+                       metavar="EXPR[;up|down][;terminal[=N]]",
+                       help="an event: where EXPR, an expression in t, q1.., p1.. and the "
+                            "scene's parameters (e.g. 'q1 - 0.5', 'p1*q2 - q1*p2'), is zero, "
+                            "located to round-off on the dense output; up/down: one direction "
+                            "of crossing only; terminal: end the march there (at the N-th); "
+                            "repeatable (result.npz: t_events_K, z_events_K; meta.json)")
     march.add_argument("--max-steps", type=int, default=10_000_000,
                        help="stop after this many steps (status max_steps; default: 10000000)")
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
