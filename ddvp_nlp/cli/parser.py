@@ -90,6 +90,16 @@ def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> No
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run the tasks on this Dask scheduler, e.g. tcp://host:8786 "
                              "(default: $DDVP_SCHEDULER, else local)")
+    _cluster_argument(parser)
+
+
+def _cluster_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--cluster", default=None, metavar="SPEC|FILE",
+                        help="start a Dask cluster for this run and run on it: "
+                             "local:workers=N[,threads=T] or slurm:cores=C,memory=M,"
+                             "walltime=HH:MM:SS,jobs=J[,queue=Q,account=A,processes=P,"
+                             "job_extra=L1;L2], or a TOML file with a [cluster] table "
+                             "(studies/cluster.py; slurm needs pip install 'ddvp-nlp[cluster]')")
 
 
 def _version() -> str:
@@ -208,6 +218,7 @@ def _poincare_command(commands) -> None:
     poincare.add_argument("--scheduler", default=None, metavar="ADDRESS",
                           help="march the orbits on this Dask scheduler, e.g. tcp://host:8786 "
                                "(default: $DDVP_SCHEDULER, else local workers)")
+    _cluster_argument(poincare)
 
 
 def _periodic_command(commands) -> None:

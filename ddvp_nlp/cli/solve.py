@@ -562,7 +562,8 @@ def run_poincare(args) -> int:
                                        orbits=args.orbits, direction=args.direction,
                                        workers=args.workers, scene=args.scene,
                                        scheduler=args.scheduler, tau0=tau0, t_end=t_end,
-                                       params=params, seed=args.seed)
+                                       params=params, seed=args.seed,
+                                       progress=args.progress is not False)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while the orbits ran "
                           "(a section is written once all its orbits are done); nothing new "
