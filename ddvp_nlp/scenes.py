@@ -371,9 +371,14 @@ def scene_file(name_or_path: str) -> Path:
         if path.suffix != ".py":
             raise InputError(f"scene file {name_or_path!r} is not a Python file (.py)")
         return path
-    if name_or_path not in list_scenes():
-        raise InputError(f"unknown scene {name_or_path!r} (built-in scenes: "
-                         f"{', '.join(list_scenes())})")
+    known = list_scenes()
+    if name_or_path not in known:
+        import difflib
+
+        close = difflib.get_close_matches(name_or_path, known, n=3)
+        hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
+        raise InputError(f"unknown scene {name_or_path!r}{hint} (built-in scenes: "
+                         f"{', '.join(known)}; or a .py file)")
     return scene_folder() / f"{name_or_path}.py"
 
 
@@ -411,11 +416,16 @@ def load_scene(name_or_path: str, *, digest: str | None = None) -> Scene:
     scene.name = name
     scene.source = name_or_path  # how another process loads the same scene
     doc = module.__dict__.get("__doc__")
-    scene.description = doc.strip().splitlines()[0] if isinstance(doc, str) and doc.strip() \
-        else ""
+    scene.description = first_paragraph(doc) if isinstance(doc, str) else ""
     _guard_functions(scene, path)
     _probe(scene, path)
     return scene
+
+
+def first_paragraph(doc: str) -> str:
+    """A docstring's first paragraph as one line (its first line only had cut Kepler's
+    description mid-sentence)."""
+    return " ".join(doc.strip().split("\n\n")[0].split())
 
 
 # Largest scene file read: a scene is a page of Python.

@@ -10,7 +10,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "ddvp_nlp"
 
 # What each part may import (besides itself and the base modules): the layers of the README's
 # architecture section, bottom to top.
-BASE = {"errors", "validation", "cache", "solution", "startup"}
+BASE = {"errors", "validation", "cache", "solution", "startup", "progress"}
 ALLOWED = {
     "base": {"base"},
     "physics": {"base"},

@@ -49,3 +49,44 @@ def test_the_same_ensemble_on_a_local_cluster_gives_the_same_crossings():
     for name in ("points", "times", "orbit", "energy_errors", "steps"):
         assert np.array_equal(getattr(alone, name), getattr(spread, name)), name
     assert alone.statuses == spread.statuses
+
+
+def test_the_command_line_runs_the_section_on_a_cluster_it_starts(tmp_path, capsys):
+    """``ddvp poincare --cluster local:workers=2``: the cluster started for the run, the
+    orbits marched on its workers, the crossings those of one process (``--workers 1``)."""
+    from ddvp_nlp.cli import main
+
+    common = ["poincare", "henon_heiles", "--energy", "0.125", "--orbits", "6", "--t-end",
+              "300", "--tau0", "0.05", "--seed", "3", "--no-plot"]
+    assert main([*common, "--workers", "1", "--out", str(tmp_path / "one")]) == 0
+    assert main([*common, "--cluster", "local:workers=2", "--out", str(tmp_path / "two")]) == 0
+    one, two = (np.load(tmp_path / name / "section.npz") for name in ("one", "two"))
+    assert one["points"].shape[0] > 50
+    for name in one.files:
+        assert np.array_equal(one[name], two[name]), name
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["poincare", "henon_heiles", "--energy", "0.1", "--cluster", "pbs:cores=2"],
+     "--cluster: the kind must be one of local, slurm"),
+    (["sweep", "kepler", "--grid", "e=0.1,0.2", "--cluster", "local:workers=0"],
+     "workers must be at least 1"),
+    (["stress", "--quick", "--cluster", "local:workers=2", "--scheduler", "tcp://h:1"],
+     "give --cluster"),
+    (["compare", "harmonic", "--cluster", "nowhere.toml"], "--cluster nowhere.toml"),
+])
+def test_a_bad_cluster_option_exits_2_naming_it(argv, message, capsys):
+    from ddvp_nlp.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_every_command_running_on_dask_takes_cluster():
+    from ddvp_nlp.cli.parser import build_parser, parse_arguments
+
+    parser = build_parser()
+    for argv in (["poincare", "henon_heiles", "--energy", "0.1"], ["sweep", "kepler"],
+                 ["stress"], ["compare", "harmonic"], ["reproduce"]):
+        assert parse_arguments(parser, [*argv, "--cluster", "local"]).cluster == "local"

@@ -92,10 +92,17 @@ def test_alpha_out_of_range():
 
 
 def test_unknown_scene_names_the_built_in_ones():
-    with expect("unknown scene 'pendulm' (built-in scenes: cr3bp, figure_eight, fpu, harmonic, "
-                "henon_heiles, kepler, pais_uhlenbeck, paper_pendulum, pendulum, "
-                "pendulum_lagrangian, spline)"):
+    with pytest.raises(InputError, match=re.escape("unknown scene 'pendulm'; did you mean "
+                                                   "'pendulum'")):
         load_scene("pendulm")
+    with pytest.raises(InputError, match=re.escape(
+            "(built-in scenes: cr3bp, figure_eight, fpu, harmonic, henon_heiles, kepler, "
+            "pais_uhlenbeck, paper_pendulum, pendulum, pendulum_lagrangian, spline; or a "
+            ".py file)")):
+        load_scene("pendulm")
+    with pytest.raises(InputError) as far:  # nothing close: no guess
+        load_scene("zzzz")
+    assert "did you mean" not in str(far.value)
 
 
 def test_scene_parameter_unknown():

@@ -3,6 +3,7 @@ many solves (through ``studies/``) and write their reports (through ``io/``)."""
 
 from __future__ import annotations
 
+import textwrap
 import warnings
 
 from ..errors import InputError
@@ -27,7 +28,8 @@ def _describe(name: str) -> str:
               else f"{Scheme().rule} (default)")
     indent = " " * 17
     lines = [f"{name:16s} n={scene.n}  {params + '  ' if params else ''}{defaults}",
-             f"{indent}{scene.description}"]
+             *textwrap.wrap(scene.description, SCENES_WIDTH, initial_indent=indent,
+                            subsequent_indent=indent, break_on_hyphens=False)]
     if isinstance(scene, HigherOrderScene):
         lines.append(f"{indent}start: the exact motion at {2 * scene.order} nodes tau0 apart "
                      "from t0")
@@ -44,6 +46,10 @@ def _describe(name: str) -> str:
         lines.append(f"{indent}fixed ends: {_boundary(scene)}")
     lines.append(f"{indent}scheme: {scheme}")
     return "\n".join(lines)
+
+
+# Width of the descriptions of `ddvp scenes`, wrapped at words (a terminal's 100 columns).
+SCENES_WIDTH = 96
 
 
 def _vector(values) -> str:
@@ -117,7 +123,8 @@ def run_compare(args) -> int:
                                                          halvings=args.halvings,
                                                          repeats=args.repeats),
                                   compilation=options.compiled_or_not(args),
-                                  workers=options.workers(args), progress=not args.no_progress,
+                                  workers=options.workers(args),
+                                  progress=args.progress is not False,
                                   interruptible=INTERRUPTS.interruptible)
     except GridInterrupted as exc:
         raise _interrupted(exc) from None
@@ -148,7 +155,7 @@ def _compare_horizons(args, scene, out) -> int:
             compilation=options.compiled_or_not(args), workers=options.workers(args),
             run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
             reference_span=check_real("--reference-span", args.reference_span, positive=True),
-            progress=not args.no_progress)
+            progress=args.progress is not False)
     except GridInterrupted as exc:
         raise _interrupted(exc) from None
     for horizon, rows in results.items():
@@ -178,7 +185,7 @@ def run_stress(args) -> int:
                                             time_limit=args.time_limit),
                           compilation=options.compiled_or_not(args),
                           workers=options.workers(args, default=None),
-                          progress=not args.no_progress, resume=args.resume,
+                          progress=args.progress is not False, resume=args.resume,
                           interruptible=INTERRUPTS.interruptible)
     except GridInterrupted as exc:
         raise _interrupted(exc) from None
@@ -207,7 +214,7 @@ def run_sweep(args) -> int:
                                             time_limit=spec.time_limit),
                           compilation=options.compiled_or_not(args),
                           workers=options.workers(args, default=None),
-                          progress=not args.no_progress, resume=not args.fresh, name="sweep",
+                          progress=args.progress is not False, resume=not args.fresh, name="sweep",
                           title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}",
                           interruptible=INTERRUPTS.interruptible)
     except GridInterrupted as exc:

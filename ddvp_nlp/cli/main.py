@@ -58,12 +58,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args) -> int:
-    from .options import check_numbers
+    from .options import check_numbers, on_cluster
 
     command = f"ddvp {args.command}"
     try:
         check_numbers(args)
-        code = COMMANDS[args.command](args)
+        with on_cluster(args):
+            code = COMMANDS[args.command](args)
         sys.stdout.flush()  # a full disk behind stdout fails here, not at the exit
         return code
     except BaseException as exc:  # noqa: B036 - every way out gets an exit code and a line

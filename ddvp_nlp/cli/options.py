@@ -5,6 +5,8 @@ them. A bad value fails here, with the object's own message naming the field."""
 
 from __future__ import annotations
 
+import contextlib
+
 from ..errors import InputError
 from ..solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
 from ..studies.grid import Workers
@@ -38,15 +40,37 @@ def grid_options(args, *, tol=None) -> GridOptions:
                        verbose=getattr(args, "verbose", False))
 
 
-def march_output(args, *, checkpoint=None, stop=None) -> Output:
-    """A march's progress bar (off with ``--no-progress``), checkpoints and stop request."""
-    return Output(progress=not args.no_progress, checkpoint=checkpoint,
-                  checkpoint_interval=args.checkpoint_every, stop=stop)
+def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:
+    """A march's progress (on unless ``--no-progress``), checkpoints, stop request, output
+    times and events (``cli/events.py``)."""
+    return Output(progress=args.progress is not False, checkpoint=checkpoint,
+                  checkpoint_interval=args.checkpoint_every, stop=stop, t_eval=t_eval,
+                  events=events or None)
 
 
 def compiled_or_not(args) -> Compilation:
     """``--no-compile``: CasADi's virtual machine instead of gcc."""
     return Compilation(compiler=None if args.no_compile else "auto")
+
+
+@contextlib.contextmanager
+def on_cluster(args):
+    """With ``--cluster SPEC|FILE``: the description checked, the cluster started for the
+    command (``studies/cluster.py``) and its scheduler's address put in ``args.scheduler``,
+    where the grids and the Poincare ensemble already send their tasks; closed at the end."""
+    text = getattr(args, "cluster", None)
+    if text is None:
+        yield
+        return
+    from ..studies.cluster import parse_cluster, start_cluster
+
+    if args.scheduler is not None:
+        raise InputError("give --cluster (a cluster started for this run) or --scheduler (one "
+                         "that runs already), not both")
+    spec = parse_cluster(text)
+    with start_cluster(spec) as cluster:
+        args.scheduler = cluster.scheduler_address
+        yield
 
 
 def workers(args, *, default: int | None = 1) -> Workers:

@@ -71,7 +71,17 @@ def _run_bounds(parser: argparse.ArgumentParser, *, defaults: bool) -> None:
                         help="bound in seconds on each run (default: 60)")
     parser.add_argument("--no-compile", action="store_true",
                         help="run the compiled methods on CasADi's virtual machine instead")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _progress_arguments(parser, "a line per finished run")
+
+
+def _progress_arguments(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--progress/--no-progress``, the same on every command: ``None`` (neither given) is
+    the command's default."""
+    from ..progress import PLAIN_LINE_SECONDS
+
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help=f"progress on stderr ({what}): a bar on a terminal, else a plain "
+                             f"line every {PLAIN_LINE_SECONDS:g} s; --no-progress for none")
 
 
 def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> None:
@@ -80,6 +90,16 @@ def _grid_arguments(parser: argparse.ArgumentParser, workers_default: str) -> No
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run the tasks on this Dask scheduler, e.g. tcp://host:8786 "
                              "(default: $DDVP_SCHEDULER, else local)")
+    _cluster_argument(parser)
+
+
+def _cluster_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--cluster", default=None, metavar="SPEC|FILE",
+                        help="start a Dask cluster for this run and run on it: "
+                             "local:workers=N[,threads=T] or slurm:cores=C,memory=M,"
+                             "walltime=HH:MM:SS,jobs=J[,queue=Q,account=A,processes=P,"
+                             "job_extra=L1;L2], or a TOML file with a [cluster] table "
+                             "(studies/cluster.py; slurm needs pip install 'ddvp-nlp[cluster]')")
 
 
 def _version() -> str:
@@ -99,8 +119,55 @@ def parse_arguments(parser: argparse.ArgumentParser, argv: list[str] | None):
     args, extra = parser.parse_known_args(argv)
     if extra:
         command = getattr(parser, "commands", {}).get(getattr(args, "command", None), parser)
+        hint = setting_hint(command, args, extra)
+        if hint is not None:  # one line, not the usage: the user knows the command
+            command.exit(2, f"{command.prog}: error: {hint}\n")
         command.error(f"unrecognized arguments: {' '.join(extra)}")
     return args
+
+
+def setting_hint(command: argparse.ArgumentParser, args, extra: list[str]) -> str | None:
+    """For an unknown ``--NAME [VALUE]`` that is a scene setting (``t0``, ``tau0``, ``q0``
+    ...) or a parameter of the scene named on the command line: how to give it with
+    ``--set``. For another unknown option: the command's options closest to it, if any."""
+    import difflib
+    import re
+
+    from ..scenes import BOUNDARY_SETTINGS, RUN_SETTINGS, STATE_SETTINGS
+
+    option = next((item for item in extra if item.startswith("--")), None)
+    if option is None:
+        return None
+    flag, _, value = option.partition("=")
+    if not value:
+        after = extra[extra.index(option) + 1:extra.index(option) + 2]
+        value = after[0] if after and not after[0].startswith("-") else "VALUE"
+    name = flag[2:].replace("-", "_")
+    # the options as the usage line names them (argparse keeps its actions private)
+    flags = sorted(set(re.findall(r"--[a-z][a-z0-9-]*", command.format_usage())))
+    takes_set = "--set" in flags
+    names = {*RUN_SETTINGS, *STATE_SETTINGS, *BOUNDARY_SETTINGS, *_scene_parameters(args)}
+    if takes_set and name in names:
+        return (f"{flag} is not an option of {command.prog}: scene settings and parameters "
+                f"are given with --set, e.g. --set {name}={value} (see `ddvp scenes`)")
+    close = difflib.get_close_matches(flag, flags, n=3, cutoff=0.75)
+    if close:
+        return f"unrecognized option {flag}; did you mean {' or '.join(close)}?"
+    return None
+
+
+def _scene_parameters(args) -> tuple:
+    """The parameter names of the built-in scene named on the command line (none for a scene
+    file, whose code is not run to make a message, or an unknown name)."""
+    from ..scenes import list_scenes, load_scene
+
+    scene = getattr(args, "scene", None)
+    if not isinstance(scene, str) or scene not in list_scenes():
+        return ()
+    try:
+        return tuple(load_scene(scene).params)
+    except InputError:
+        return ()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -148,11 +215,14 @@ def _poincare_command(commands) -> None:
                           help="output folder (default: runs/SCENE-poincare-EENERGY; -HASH of "
                                "the other settings when they are not the defaults)")
     poincare.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    _progress_arguments(poincare, "the blocks of orbits done, on a Dask cluster; the local "
+                                  "workers report none")
     poincare.add_argument("--workers", type=int, default=2,
                           help="local worker processes marching the orbits (default: 2)")
     poincare.add_argument("--scheduler", default=None, metavar="ADDRESS",
                           help="march the orbits on this Dask scheduler, e.g. tcp://host:8786 "
                                "(default: $DDVP_SCHEDULER, else local workers)")
+    _cluster_argument(poincare)
 
 
 def _periodic_command(commands) -> None:
@@ -182,6 +252,8 @@ def _periodic_command(commands) -> None:
                                "runs/SCENE-family-HASH; -HASH of the energy and every other "
                                "setting when they are not the scene's defaults)")
     periodic.add_argument("--no-plot", action="store_true", help="do not write the figures")
+    _progress_arguments(periodic, "none yet: the periodic solvers report no progress; "
+                                  "accepted like on every command")
     periodic.add_argument("--stability", action="store_true",
                           help="the Floquet multipliers, stability indices and verdict of the "
                                "orbit (of each orbit of --family), checked against the exact "
@@ -211,7 +283,18 @@ def _march_command(commands) -> None:
                             "finished run) with the options it ran with, to its t_end or "
                             "--t-end; the nodes equal an uninterrupted run's bit for bit")
     march.add_argument("--t-end", type=float, default=None,
-                       help="with --resume: continue to this later end time")
+                       help="the end time (the same as --set t_end=T); with --resume: "
+                            "continue to this later end time")
+    march.add_argument("--t-eval", default=None, metavar="T1,T2,...|START:STOP:COUNT",
+                       help="also report the state (q, p) at these times, from the scheme's "
+                            "dense output (result.npz: t_eval, z_eval)")
+    march.add_argument("--event", dest="events", action="append", default=[],
+                       metavar="EXPR[;up|down][;terminal[=N]]",
+                       help="an event: where EXPR, an expression in t, q1.., p1.. and the "
+                            "scene's parameters (e.g. 'q1 - 0.5', 'p1*q2 - q1*p2'), is zero, "
+                            "located to round-off on the dense output; up/down: one direction "
+                            "of crossing only; terminal: end the march there (at the N-th); "
+                            "repeatable (result.npz: t_events_K, z_events_K; meta.json)")
     march.add_argument("--max-steps", type=int, default=10_000_000,
                        help="stop after this many steps (status max_steps; default: 10000000)")
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
@@ -236,8 +319,7 @@ def _march_command(commands) -> None:
                        help="write the run so far to the output folder this often while "
                             f"marching, so a kill loses at most this much (default: "
                             f"{CHECKPOINT_SECONDS:g})")
-    march.add_argument("--no-progress", action="store_true",
-                       help="no progress bar (it is drawn only when stderr is a terminal)")
+    _progress_arguments(march, "the time reached; default on")
     _figure_arguments(march, "trajectory.png")
 
 
@@ -291,9 +373,8 @@ def _bvp_command(commands) -> None:
                           "scene's t_end - t0 its guess), every interval's energy is E")
     bvp.add_argument("--time-limit", type=float, default=None,
                      help="stop after this many seconds (status time_limit)")
-    bvp.add_argument("--progress", action="store_true",
-                     help="report each solver iteration on stderr (automatic on a terminal "
-                          "from 100000 nodes)")
+    _progress_arguments(bvp, "a line per solver iteration; default on a terminal from "
+                             "100000 nodes")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     _figure_arguments(bvp, "trajectory.png")
 
@@ -320,7 +401,7 @@ def _compare_command(commands) -> None:
                          help="timed calls per run after one warm-up; best is kept (default: 3)")
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
-    compare.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _progress_arguments(compare, "the runs done; default on")
     compare.add_argument("--horizons", default=None, metavar="T1,T2,...",
                          help="compare at each horizon t_end = t0 + T * --time-unit (e.g. "
                               "10,1000,100000): horizons.png, growth.png, horizons.md and a "
@@ -393,3 +474,5 @@ def _reproduce_command(commands) -> None:
     reproduce.add_argument("--quick", action="store_true",
                            help="shorter runs and fewer step sizes (about 10 s)")
     _grid_arguments(reproduce, "1")
+    _progress_arguments(reproduce, "none yet: its runs report no progress; accepted like on "
+                                   "every command")

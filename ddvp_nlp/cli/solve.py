@@ -9,6 +9,7 @@ from pathlib import Path
 from ..discrete.scheme import RULES, Scheme
 from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
+from ..solution import Status
 from ..solvers.options import Output
 from . import options
 from .folders import default_or, holds
@@ -24,10 +25,16 @@ def run_solve(args) -> int:
     from ..io.atomic import output_folder
 
     if getattr(args, "resume", None):
+        if args.t_eval is not None or args.events:
+            raise InputError("--t-eval and --event apply to a march from its start, not to "
+                             "--resume (the crossings before the resumed node are not "
+                             "searched again)")
         return run_resume(args)
     if args.scene is None:
         raise InputError(f"ddvp {args.command} needs a scene (a name from `ddvp scenes` or a "
                          ".py file)" + (", or --resume FOLDER" if args.command == "march" else ""))
+    if getattr(args, "t_end", None) is not None:  # ran silently to the scene's t_end before
+        args.settings = [*args.settings, f"t_end={args.t_end!r}"]
     scene = load_scene(args.scene)
     higher = _higher(scene)
     args.scheme = _scheme_name(args, scene)
@@ -46,6 +53,7 @@ def run_solve(args) -> int:
         meta = _save(args, out, scene, config, scheme, solution,
                      {**(extra or {}), "overrides": overrides})
     print_summary(meta, out.path)
+    print_requested(meta, solution)
     if INTERRUPTS.requested:
         kept = f"{meta['nodes']} nodes, up to t = {meta['t_reached']:.10g}"
         print(f"ddvp {args.command}: interrupted ({INTERRUPTS.name}); the run was written whole "
@@ -234,7 +242,11 @@ def _resolve(args, scene, higher: bool, settings: dict):
 def _march(args, scene, config, scheme):
     from ..solvers.march.solve import march
 
+    times, events = requested_output(args, scene, config)
     if args.scheme not in RULES:
+        if times is not None or events:
+            raise InputError(f"--t-eval and --event use the dense output of the scheme's own "
+                             f"march; --scheme {args.scheme} is a compared method")
         return _march_method(args, scene, config)
 
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
@@ -242,13 +254,15 @@ def _march(args, scene, config, scheme):
                      steps=options.step_control(args), accuracy=options.tolerance(args),
                      compilation=options.compilation(args),
                      output=options.march_output(args, checkpoint=args.checkpoint,
-                                                 stop=INTERRUPTS.stop_requested))
+                                                 stop=INTERRUPTS.stop_requested,
+                                                 t_eval=times, events=events))
     stats = solution.stats
     return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                      "checkpoints", "checkpoints_landed_s")
                          if key in stats},
                       "carried": stats["carried"],
-                      "resume": resume_record(args, scene, parse_settings(args.settings))}
+                      "resume": resume_record(args, scene, parse_settings(args.settings)),
+                      **requested_meta(solution, events)}
 
 
 def _march_method(args, scene, config):
@@ -285,7 +299,8 @@ def _bvp(args, scene, config, scheme):
     if p_start is not None and args.guess != "march":
         raise InputError(f"--p-start {args.p_start} is the momentum shooting starts from: give "
                          f"it with --guess march (got --guess {args.guess})")
-    progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
+    progress = args.progress if args.progress is not None else (
+        config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else _bvp_guess(args.guess, scene.system.n)
     span = config.t_span
     if args.energy is not None:  # the scene's span is the transfer time's guess
@@ -352,9 +367,60 @@ def _bvp_guess(value: str, n: int | None = None):
     return guess
 
 
+def requested_output(args, scene, config):
+    """``(t_eval, events)`` of ``--t-eval`` and ``--event`` (``cli/events.py``), checked
+    against the scene's names and the run's span."""
+    from .events import parse_event, parse_times
+
+    times = None if args.t_eval is None else parse_times(args.t_eval, (config.t0,
+                                                                       config.t_end))
+    events = [parse_event(text, scene.system.n, config.params) for text in args.events]
+    return times, events
+
+
+def requested_meta(solution, events) -> dict:
+    """``meta.json``'s record of the output times and each event's crossings (the arrays are
+    in ``result.npz``: ``t_eval``, ``z_eval``, ``t_events_K``, ``z_events_K``)."""
+    meta = {}
+    if solution.t_eval is not None:
+        meta["t_eval"] = {"count": int(solution.t_eval.size),
+                          "first": float(solution.t_eval[0]) if solution.t_eval.size else None,
+                          "last": float(solution.t_eval[-1]) if solution.t_eval.size else None}
+    if events:
+        meta["events"] = [{**event.describe(), "count": int(times.size),
+                           "times": [float(t) for t in times[:EVENT_TIMES_IN_META]]}
+                          for event, times in zip(events, solution.t_events, strict=True)]
+    return meta
+
+
+# Crossing times listed in meta.json per event (all of them are in result.npz).
+EVENT_TIMES_IN_META = 20
+
+
+def print_requested(meta: dict, solution) -> None:
+    """A line for the output times and one per event."""
+    if "t_eval" in meta:
+        told = meta["t_eval"]
+        print(f"  t_eval: the state at {told['count']} times"
+              + (f" from {told['first']:.10g} to {told['last']:.10g}" if told["count"] else "")
+              + " (result.npz: t_eval, z_eval)")
+    for k, event in enumerate(meta.get("events", ())):
+        times = event["times"]
+        where = (f", first at t = {times[0]:.12g}" if times else "")
+        ended = (" - ended the march" if solution.status is Status.EVENT
+                 and event["terminal"] and event["count"] >= event["terminal"] else "")
+        plural = "" if event["count"] == 1 else "s"
+        print(f"  event {k} '{event['expression']}' ({event['direction']}): "
+              f"{event['count']} crossing{plural}{where}{ended} (result.npz: t_events_{k}, "
+              f"z_events_{k})")
+
+
 def _march_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import march_higher
 
+    if args.t_eval is not None or args.events:
+        raise InputError(f"--t-eval and --event are not available for the higher-order scene "
+                         f"{scene.name!r} (its march has no dense output)")
     t_init, q_init = scene.start(config)
     return march_higher(scene.system, t_init, q_init, config.t_end, scheme=scheme.rule,
                         params=config.params, steps=options.step_control(args)), None
@@ -497,7 +563,8 @@ def run_poincare(args) -> int:
                                        orbits=args.orbits, direction=args.direction,
                                        workers=args.workers, scene=args.scene,
                                        scheduler=args.scheduler, tau0=tau0, t_end=t_end,
-                                       params=params, seed=args.seed)
+                                       params=params, seed=args.seed,
+                                       progress=args.progress is not False)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while the orbits ran "
                           "(a section is written once all its orbits are done); nothing new "

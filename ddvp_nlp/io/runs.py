@@ -249,6 +249,19 @@ SKIPPED = ("not computed: the run was interrupted, and is written without it (th
            "result.npz give it)")
 
 
+def requested_arrays(solution: Solution) -> dict:
+    """The states at the asked-for times (``t_eval``, ``z_eval``) and each event's crossings
+    (``t_events_K``, ``z_events_K`` for event ``K``) of a march (``Output(t_eval=...,
+    events=...)``), for ``result.npz``."""
+    arrays = {}
+    if solution.t_eval is not None:
+        arrays["t_eval"], arrays["z_eval"] = solution.t_eval, solution.z_eval
+    for k, (times, states) in enumerate(zip(solution.t_events or (), solution.z_events or (),
+                                            strict=True)):
+        arrays[f"t_events_{k}"], arrays[f"z_events_{k}"] = times, states
+    return arrays
+
+
 def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution,
                         interruptible=None):
     """Arrays, metadata and figure of a run of a scene with ``H`` or a first-order ``L``; the
@@ -259,6 +272,7 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
               "canonical_residual": solution.canonical_residual}
     if solution.solvability.size:
         arrays["solvability"] = solution.solvability
+    arrays.update(requested_arrays(solution))
     flagged = solution.stats.get("least_squares") or []
     if flagged:
         arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)

@@ -204,27 +204,21 @@ def accept(nodes: Nodes, advance: Advance, t_end: float, monitors) -> tuple[Stat
 
 
 class _ProgressBar:
-    """tqdm over ``[t0, t_end]``, updated with the newest node time (a no-op when off)."""
+    """Progress over ``[t0, t_end]`` (``ddvp_nlp/progress.py``: a bar on a terminal, plain
+    lines elsewhere), updated with the newest node time (a no-op when off)."""
 
     def __init__(self, enabled: bool, t0: float, t_end: float):
-        self.enabled = enabled
+        from ..progress import progress
+
         self.reported = t0
         self.t_end = t_end
-        if enabled:
-            from tqdm import tqdm
-
-            # disable=None: drawn on a terminal only; in a file or a pipe its carriage-return
-            # frames stayed in front of the summary (a newcomer's report)
-            self.bar = tqdm(total=t_end - t0, unit="t", leave=False, disable=None,
-                            bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} "
-                                       "[{elapsed}<{remaining}]")
+        self.bar = progress(t_end - t0, unit="t", label="march", enabled=enabled)
 
     def update(self, t: float):
-        if self.enabled and math.isfinite(t):
+        if math.isfinite(t):
             now = min(t, self.t_end)
             self.bar.update(now - self.reported)
             self.reported = now
 
     def close(self):
-        if self.enabled:
-            self.bar.close()
+        self.bar.close()

@@ -10,7 +10,7 @@ A description is ``KIND`` with ``NAME=VALUE`` settings, given as ``--cluster
 ``cores``, ``memory``, ``processes``, ``queue``, ``account``, ``walltime``, ``job_extra``
 (sbatch lines, ``;``-separated), and ``jobs``, the batch jobs to submit). Each SLURM job runs
 ``processes`` Dask workers; every worker loads the scene by name or file and its compiled chunk
-from its own compile cache (``docs/guide/cluster.md``).
+from its own compile cache (``docs/guide.md``, section 10; ``docs/from-scipy.md``).
 """
 
 from __future__ import annotations

@@ -147,11 +147,11 @@ def run_tasks(tasks: Sequence[Task], *, workers: int | None = None,
 
     ``error`` is ``"task_failed: <exception>"`` or ``"worker_died: <message>"``.
     """
-    from tqdm import tqdm
+    from ..progress import progress as report
 
     workers = check_workers(workers)
     scheduler = resolve_scheduler(scheduler)
-    bar = tqdm(total=len(tasks), disable=not progress, unit="task", leave=False)
+    bar = report(len(tasks), unit="task", label="runs", enabled=progress)
     try:
         if scheduler is None and workers == 1:
             for task in sorted(tasks, key=lambda t: -t.priority):

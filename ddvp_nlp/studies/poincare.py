@@ -154,8 +154,10 @@ def ensemble(system, q0s, p0s, *, scene: str | None = None, scheduler: str | Non
              **options) -> list:
     """``march_ensemble(system, q0s, p0s, **options)``, here (local workers) or, with a
     ``scheduler``, on that Dask cluster in blocks of ``CLUSTER_BLOCK`` orbits (module
-    docstring). A block that fails on the cluster raises, naming its orbits and the error."""
+    docstring). A block that fails on the cluster raises, naming its orbits and the error.
+    ``progress`` (in ``options``): the blocks done on the cluster, on stderr."""
     scheduler = resolve_scheduler(scheduler)
+    progress = options.pop("progress", False)
     if scheduler is None:
         return march_ensemble(system, q0s, p0s, **options)
     if scene is None:
@@ -167,7 +169,7 @@ def ensemble(system, q0s, p0s, *, scene: str | None = None, scheduler: str | Non
                    p0s[start:start + CLUSTER_BLOCK].tolist()), options)
              for start in range(0, len(q0s), CLUSTER_BLOCK)]
     blocks = {}
-    for task, result, error in run_tasks(tasks, scheduler=scheduler):
+    for task, result, error in run_tasks(tasks, scheduler=scheduler, progress=progress):
         if error is not None:
             raise RuntimeError(f"orbits from {task.key.split('-')[1]} on the cluster: {error}")
         blocks[task.key] = result
