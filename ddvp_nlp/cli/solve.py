@@ -118,6 +118,26 @@ def _scheme_name(args, scene) -> str:
     return declared
 
 
+def exact_motion(scene, config):
+    """The scene's exact solution through the run's start as ``exact(t) -> z`` (rows), for the
+    accuracy check, or ``None`` (no exact solution, a start it does not cover, a start from
+    ``v0`` whose ``p0`` the march computes)."""
+    import numpy as np
+
+    if scene.exact is None or getattr(config, "p0", None) is None:
+        return None
+    q0, p0, t0, params = config.q0, config.p0, config.t0, config.params
+    try:
+        scene.exact(np.array([t0]), q0, p0, t0, **params)
+    except ValueError:
+        return None
+
+    def exact(t):
+        q, p = scene.exact(np.asarray(t, float), q0, p0, t0, **params)
+        return np.hstack([np.reshape(q, (np.size(t), -1)), np.reshape(p, (np.size(t), -1))])
+    return exact
+
+
 def _method_names() -> tuple:
     from ..studies.methods import METHODS
 
@@ -152,7 +172,8 @@ def _march(args, scene, config, scheme):
 
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      v0=config.v0, tau0=config.tau0, scheme=scheme, params=config.params,
-                     steps=options.step_control(args), accuracy=options.tolerance(args),
+                     steps=options.step_control(args),
+                     accuracy=options.tolerance(args, exact=exact_motion(scene, config)),
                      compilation=options.compilation(args),
                      output=options.march_output(args, checkpoint=args.checkpoint,
                                                  stop=INTERRUPTS.stop_requested))
@@ -174,7 +195,8 @@ def _march_method(args, scene, config):
     solution = run_method(scene, config, args.scheme, value,
                           compiler=None if args.careful else find_compiler("auto"),
                           max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
-                          tolerance=options.tolerance(args))
+                          tolerance=options.tolerance(args,
+                                                      exact=exact_motion(scene, config)))
     extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
              "own_residual_max": solution.stats.get("own_residual_max"),
              "path": solution.stats.get("path")}
@@ -248,7 +270,9 @@ def _march_higher(args, scene, config, scheme):
     t_init, q_init = scene.start(config)
     return march_higher(scene.system, t_init, q_init, t_end=config.t_end,
                         scheme=scheme.rule, params=config.params, tol=args.tol,
-                        max_steps=args.max_steps, time_limit=args.time_limit), None
+                        max_steps=args.max_steps, time_limit=args.time_limit,
+                        accuracy=options.tolerance(args, exact=_higher_exact(scene, config))
+                        ), None
 
 
 def _bvp_higher(args, scene, config, scheme):
@@ -260,7 +284,15 @@ def _bvp_higher(args, scene, config, scheme):
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
                             scheme=scheme.rule, params=config.params,
-                            options=GridOptions(solver=args.solver, tol=args.tol)), None
+                            options=GridOptions(solver=args.solver, tol=args.tol,
+                                                accuracy=options.tolerance(
+                                                    args, exact=_higher_exact(scene, config)))
+                            ), None
+
+
+def _higher_exact(scene, config):
+    """A higher-order scene's exact motion as ``exact(t) -> q`` (rows), for the check."""
+    return lambda t: scene.exact_motion(t, config.params)
 
 
 # (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)
@@ -308,6 +340,11 @@ def run_periodic(args) -> int:
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
           f"written to {out}/")
+    if solution.stats.get("accuracy"):
+        from ..solvers.accuracy import describe
+
+        accuracy = solution.stats["accuracy"]
+        print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
     return 0 if solution.success else 1
 
 
@@ -345,12 +382,17 @@ def run_poincare(args) -> int:
                                scheduler=args.scheduler,
                                tau0=args.tau0 if args.tau0 is not None else config.tau0,
                                t_end=args.t_end if args.t_end is not None else config.t_end,
-                               params=parse_settings(args.settings), seed=args.seed)
+                               params=parse_settings(args.settings), seed=args.seed,
+                               accuracy=options.tolerance(args))
     out = Path(args.out or f"runs/{scene.name}-poincare-E{args.energy:g}")
     write_section(out, section, plot=not args.no_plot)
     failed = sum(status != "reached t_end" for status in section.statuses)
+    verdicts = [verdict for verdict, _ in section.verdicts]
     print(f"{len(section.statuses)} orbits, {section.points.shape[0]} crossings of "
           f"{args.section}; {failed} orbits failed; largest nodal energy error "
           f"{section.energy_errors.max():.2e}")
+    print("  accuracy check of each orbit: " + ", ".join(
+        f"{verdicts.count(v)} {v}" for v in ("accurate", "drifted", "inaccurate")) +
+        " (orbits.csv: each orbit's verdict and t_drift)")
     print(f"  written to {out}/ (section.npz, section.csv, orbits.csv, section.png)")
     return 0 if failed == 0 else 1

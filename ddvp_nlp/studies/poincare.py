@@ -42,8 +42,10 @@ CLUSTER_BLOCK = 10
 @dataclass
 class Section:
     """The crossings of all orbits: ``points`` ``(K, 2n)`` (``z = (q, p)``), ``times`` and
-    ``orbit`` (index of its orbit) ``(K,)``; per orbit its start, status and nodal energy
-    error ``max_k |H(z_k) - E|``."""
+    ``orbit`` (index of its orbit) ``(K,)``; per orbit its start, status, nodal energy
+    error ``max_k |H(z_k) - E|`` and the accuracy check's verdict with its ``t_drift``
+    (``verdicts``: ``(verdict, t_drift)`` pairs; crossings after an orbit's ``t_drift`` are
+    where its trajectory error had passed the tolerance)."""
 
     energy: float
     section: str
@@ -55,6 +57,7 @@ class Section:
     statuses: list
     energy_errors: np.ndarray
     steps: np.ndarray
+    verdicts: tuple | list = ()
 
 
 def section_starts(system, theta, energy: float, section: str, count: int, *,
@@ -122,9 +125,11 @@ def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: in
         orbit.append(np.full(t_cross.size, k))
         H = system.energy(solution.q, solution.p, solution.t, theta)
         errors.append(float(np.max(np.abs(H - energy))))
+    verdicts = [(s.stats.get("accuracy", {}).get("verdict", ""),
+                 s.stats.get("accuracy", {}).get("t_drift")) for s in solutions]
     return Section(energy, section, direction, np.vstack(points), np.concatenate(times),
                    np.concatenate(orbit), starts, [s.status.value for s in solutions],
-                   np.array(errors), np.array([s.steps for s in solutions]))
+                   np.array(errors), np.array([s.steps for s in solutions]), verdicts)
 
 
 def ensemble(system, q0s, p0s, *, scene: str | None = None, scheduler: str | None = None,

@@ -14,7 +14,9 @@ Where things are:
 - ``ipopt.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
 - ``start.py``: the starts (straight line or shooting, fixed steps on uniform and on
   predicted times); ``continuation.py``: the continuation in the end position, the start of
-  last resort.
+  last resort;
+- ``continuous.py``: the continuous problem near a solution, by multiple shooting with the
+  reference flow: what the accuracy check measures the grid against, or why there is none.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -25,7 +27,10 @@ The contract, on top of the grid's (``grid/__init__.py``):
 3. Success is the returned point's own residuals: every canonical residual under ``max(tol,
    1024 round-offs of the data)``, every energy residual under ``max(tol (t_end - t_0)/(N-1),
    1024 round-offs of |E|)``, every step positive; the message quotes the solver.
-4. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
+4. A verified point is then judged against the exact flow (``accuracy.py``): its intervals,
+   its energy, and its trajectory against the continuous solution near it; a problem with no
+   continuous solution near the discrete one ends ``inaccurate``, saying so.
+5. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
 """
 
 from .solve import solve_bvp

@@ -36,7 +36,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
 from ...validation import check_real, check_span, check_state
-from ..accuracy import AccuracyMonitor, ErrorEstimates
+from ..accuracy import AccuracyMonitor, ErrorEstimates, apply_verdict
 from ..compiler import buffered, find_compiler
 from ..dense import attach
 from ..driver import Nodes, drive
@@ -114,7 +114,12 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
     checker = None
     if accuracy is not None:
-        checker = _accuracy_monitor(problem, accuracy, parts.errors)
+        # the reference flow is compiled where the chunk is, or (careful path) with the
+        # compiler asked for: one fallback warning, not two
+        checker = _accuracy_monitor(
+            problem, accuracy, parts.errors, cache_dir=compilation.cache_dir,
+            compiler=compiler if compiled else
+            None if compilation.fast else find_compiler(compilation.compiler))
         monitors.append(checker)
     saver = None if output.checkpoint is None else Checkpoint(output.checkpoint,
                                                               output.checkpoint_interval)
@@ -131,8 +136,12 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                          cache_dir=compilation.cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
     if checker is not None:
-        solution.local_error = checker.local_errors(solution.steps)
-        solution.stats["accuracy"] = checker.report(solution.steps)
+        started = time.perf_counter()
+        report, solution.local_error = checker.report(
+            solution.t, np.hstack([solution.q, solution.p]), exact=accuracy.exact)
+        solution.stats["accuracy"] = report
+        apply_verdict(solution, report, accuracy)
+        solution.timing["accuracy_s"] = time.perf_counter() - started
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
@@ -277,10 +286,10 @@ def _monitors(parts: _Parts, problem: MarchProblem, nodes):
     return monitors, solvability
 
 
-def _accuracy_monitor(problem: MarchProblem, tolerance, errors):
+def _accuracy_monitor(problem: MarchProblem, tolerance, errors, *, compiler, cache_dir):
     """The accuracy check of the march (its error state ``errors`` shared with the compiled
-    chunk); for the energy rules it also compares the level the first step sets, the first
-    interval's energy, with ``H0``."""
+    chunk, its reference flow compiled with ``compiler``); for the energy rules it also takes
+    the level the first step sets, the first interval's energy at its clock."""
     system, scheme, theta = problem.system, problem.scheme, problem.theta
     level = None
     if scheme.variable_steps:
@@ -288,10 +297,13 @@ def _accuracy_monitor(problem: MarchProblem, tolerance, errors):
                                    "interval_energy", scheme, owner=system)
         n = system.n
 
-        def level(t, z):
-            return float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
-                                         theta)[0][0, 0])
-    return AccuracyMonitor(system, theta, tolerance, H0=problem.H0, level=level, errors=errors)
+        def level(t, z):  # the first interval's energy, at its own clock
+            value = float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
+                                          theta)[0][0, 0])
+            return value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
+                                else t[0])
+    return AccuracyMonitor(system, theta, tolerance, H0=problem.H0, level=level, errors=errors,
+                           compiler=compiler, cache_dir=cache_dir)
 
 
 def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, compiler,
