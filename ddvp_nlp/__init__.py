@@ -5,12 +5,18 @@ symplectic and conserve energy. See docs/theory.md for the equations in this cod
 docs/guide.md for a user guide.
 
 The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``solve_bvp``,
-``solve_periodic``, ``solve_periodic_family``, ``march_higher``, ``solve_bvp_higher``), their
-options (``StepControl``, ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``), their
+``solve_periodic``, ``solve_periodic_family``, ``follow_periodic_family``, ``march_higher``,
+``solve_bvp_higher``), the stability of a periodic orbit (``periodic_stability``), their
+options (``StepControl``, ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``,
+``Continuation``, ``AtEnergy`` for a transfer at a prescribed energy), their
 result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes, and scenes.
 Everything else is reached through its module and may change.
 """
 
+from typing import TYPE_CHECKING
+
+from . import startup  # noqa: F401 - first: holds Ctrl-C while the command starts
+from .cache import lazy_exports
 from .discrete.scheme import Scheme
 from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem
@@ -25,11 +31,30 @@ from .scenes import (
     load_scene,
 )
 from .solution import Solution, Status
-from .solvers.bvp import Shooting, solve_bvp
-from .solvers.higher import march_higher, solve_bvp_higher
-from .solvers.march import march, march_ensemble
 from .solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
-from .solvers.periodic import solve_periodic, solve_periodic_family
+
+if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .solvers.bvp import AtEnergy, Shooting, solve_bvp
+    from .solvers.higher import march_higher, solve_bvp_higher
+    from .solvers.march import march, march_ensemble
+    from .solvers.periodic import (
+        Continuation,
+        follow_periodic_family,
+        periodic_stability,
+        solve_periodic,
+        solve_periodic_family,
+    )
+
+# The solvers are loaded when first asked for (PEP 562): `from ddvp_nlp import march` loads the
+# march and not the fixed-endpoint, periodic and higher-order families with scipy.sparse and
+# scipy.linalg behind them (import ddvp_nlp took 0.43 s CPU with every family, 75% of a warm
+# `ddvp march`; measured).
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "march": "solvers.march", "march_ensemble": "solvers.march", "solve_bvp": "solvers.bvp",
+    "Shooting": "solvers.bvp", "AtEnergy": "solvers.bvp", "solve_periodic": "solvers.periodic",
+    "solve_periodic_family": "solvers.periodic", "periodic_stability": "solvers.periodic",
+    "follow_periodic_family": "solvers.periodic", "Continuation": "solvers.periodic",
+    "march_higher": "solvers.higher", "solve_bvp_higher": "solvers.higher"})
 
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):
@@ -65,9 +90,11 @@ def _version() -> str:
 
 __version__ = _version()
 
-__all__ = ["Compilation", "Endpoints", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
-           "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output",
+__all__ = ["AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions",
+           "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+           "Lagrangian", "LagrangianSystem", "Output",
            "PeriodicSettings", "Scene", "Shooting",
            "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
-           "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
-           "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]
+           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
+           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
+           "solve_periodic", "solve_periodic_family"]

@@ -16,3 +16,10 @@ class OutputError(OSError):
 
     def __str__(self) -> str:
         return self.args[1]
+
+    @classmethod
+    def because(cls, error: "OutputError", note: str) -> "OutputError":
+        """``error`` with ``note`` (what the folder holds now) added to its message."""
+        found = cls(error.path, OSError(error.errno, "see below"))
+        found.args = (error.errno, f"{error}; {note}")
+        return found

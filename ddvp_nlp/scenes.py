@@ -16,6 +16,7 @@ The built-in scenes are the files of the top-level ``problems/`` folder (install
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 from collections.abc import Callable, Mapping
@@ -29,7 +30,16 @@ from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem
 from .physics.higher import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
-from .validation import check_parameter_values, check_real, check_state
+from .validation import (
+    check_degrees,
+    check_integer,
+    check_parameter_ranges,
+    check_parameter_values,
+    check_real,
+    check_state,
+    check_step,
+    read_limited,
+)
 
 RUN_SETTINGS = ("t0", "tau0", "t_end")
 STATE_SETTINGS = ("q0", "p0", "v0")
@@ -63,6 +73,9 @@ class PeriodicSettings:
         angles: angle coordinates (``("q1",)``), which may close with whole turns.
         families: further families by name, each its own ``PeriodicSettings`` (section and
             start; read by ``scripts/periodic_page.py``).
+        guess: optional ``guess(energy, **params) -> {"t", "q", "p"}``, one period of a start
+            near the orbit at ``energy``, used when no guess is given (where no ray from the
+            origin through the orbit makes the section's point, as about a Lagrange point).
     """
 
     section: str = "p1=0"
@@ -72,6 +85,7 @@ class PeriodicSettings:
     integrals: tuple = ()
     angles: tuple = ()
     families: Mapping[str, PeriodicSettings] = field(default_factory=dict)
+    guess: Callable[..., Mapping] | None = None
 
 
 def _check_settings(owner: str, name: str, value, kind):
@@ -109,6 +123,9 @@ class Scene:
         periodic: optional defaults of ``ddvp periodic``, a :class:`PeriodicSettings`.
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
+        ranges: optional intervals of the parameters where the scene means something, e.g.
+            ``{"e": "[0, 1)"}`` for an eccentricity; a value outside is refused by name before
+            anything is built.
     """
 
     hamiltonian: Callable[..., object]
@@ -128,9 +145,10 @@ class Scene:
     v0: object = None
     periodic: PeriodicSettings | None = None
     scheme: str | None = None
+    ranges: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
-        _check_scheme_name(self.scheme)
+        _check_common(self)
         _check_settings(self.name, "boundary", self.boundary, Endpoints)
         _check_settings(self.name, "periodic", self.periodic, PeriodicSettings)
         for key in ("q0", "tau0", "t_end"):
@@ -156,8 +174,8 @@ class Scene:
             known = ", ".join([*self.params, *settings_names])
             raise InputError(f"scene {self.name!r} has no parameter {unknown[0]!r} "
                              f"(it has: {known})")
-        return check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}"), \
-            settings
+        return check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}",
+                                      ranges=self.ranges), settings
 
     def resolve_boundary(self, overrides: Mapping[str, object] | None = None,
                          nodes: int | None = None) -> BoundaryConfig:
@@ -193,9 +211,9 @@ class Scene:
         values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
         for k, v in values.items():
             check_real(k, v)
-        check_real("tau0", values["tau0"], positive=True)
         if values["t_end"] <= values["t0"]:
             raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
         q0, p0, v0 = (None if x is None else self._start_value(name, x, params)
                       for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))
         return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
@@ -207,6 +225,10 @@ class Scene:
         if callable(value):
             try:
                 value = value(**params)
+            except SceneCodeError as exc:
+                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
+                                 f"{_shown(params)}: {exc.reason.removeprefix('raised ')} "
+                                 f"({exc.where})") from None
             except Exception as exc:
                 raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
                                  f"{_shown(params)}: {type(exc).__name__}: {exc}") from None
@@ -296,35 +318,242 @@ def scene_file(name_or_path: str) -> Path:
 def scene_digest(name_or_path: str) -> str:
     """SHA-256 of the scene's file: what a grid row was computed from, so that a resumed grid
     reuses a row only for the same file, and a worker refuses a different one."""
-    return hashlib.sha256(scene_file(name_or_path).read_bytes()).hexdigest()
+    return hashlib.sha256(read_limited(scene_file(name_or_path), SCENE_FILE_LIMIT,
+                                       what="scene file")).hexdigest()
 
 
 def load_scene(name_or_path: str, *, digest: str | None = None) -> Scene:
     """A built-in scene by name, or the scene defined in a Python file; with ``digest``, only
-    if the file's SHA-256 is that (a worker of a grid loads the file the grid was planned on)."""
+    if the file's SHA-256 is that (a worker of a grid loads the file the grid was planned on).
+
+    The file's code runs bounded (:func:`scene_code`): whatever it raises (``SystemExit``,
+    ``GeneratorExit``, any ``BaseException`` but ``KeyboardInterrupt``), an ``os._exit``, or a
+    run past the time limit is an :class:`InputError` naming the file and the line; so is
+    every later call of the scene's functions (``H`` or ``L``, ``exact``, the invariants, the
+    start functions), which are checked once on the scene's own defaults here."""
     path = scene_file(name_or_path)
     name = path.stem
-    if digest is not None and scene_digest(name_or_path) != digest:
+    source = read_limited(path, SCENE_FILE_LIMIT, what="scene file")
+    if digest is not None and hashlib.sha256(source).hexdigest() != digest:
         raise InputError(f"scene file {str(path)!r} is not the one this grid was planned with "
                          "(its content differs): a worker has another file of that name, or it "
                          "changed since")
     spec = importlib.util.spec_from_file_location(f"ddvp_scene_{name}", path)
     module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    except SystemExit as exc:  # a scene file that exits would end the command with its code
-        raise InputError(f"scene file {str(path)!r} does not load: it called "
-                         f"sys.exit({exc.code!r})") from None
-    except Exception as exc:
-        raise InputError(f"scene file {str(path)!r} does not load: "
-                         f"{type(exc).__name__}: {exc}") from exc
-    scene = getattr(module, "scene", None)
+    with scene_code(path, "loading the file"):
+        code = compile(source, str(path), "exec")
+        exec(code, module.__dict__)  # noqa: S102 - the scene file the user named
+    scene = module.__dict__.get("scene")
     if not isinstance(scene, (Scene, HigherOrderScene)):
         raise InputError(f"scene file {str(path)!r} defines no `scene = Scene(...)`")
     scene.name = name
     scene.source = name_or_path  # how another process loads the same scene
-    scene.description = (module.__doc__ or "").strip().splitlines()[0] if module.__doc__ else ""
+    doc = module.__dict__.get("__doc__")
+    scene.description = doc.strip().splitlines()[0] if isinstance(doc, str) and doc.strip() \
+        else ""
+    _guard_functions(scene, path)
+    _probe(scene, path)
     return scene
+
+
+# Largest scene file read: a scene is a page of Python.
+SCENE_FILE_LIMIT = 4 << 20
+# Seconds a scene's code may run in one call (loading the file, building H, one evaluation of
+# exact or an invariant, plus SCENE_SECONDS_PER_VALUE for each value of its array arguments);
+# $DDVP_SCENE_TIME_LIMIT overrides the base.
+SCENE_SECONDS = 20.0
+SCENE_SECONDS_PER_VALUE = 2e-6
+SCENE_SECONDS_VARIABLE = "DDVP_SCENE_TIME_LIMIT"
+
+
+class _SceneTimeout(BaseException):
+    """Raised by the alarm in a scene's code that ran past its time limit."""
+
+
+class _SceneExit(BaseException):
+    """Raised in place of ``os._exit``/``os.abort`` called by a scene's code."""
+
+
+class _GuardState:
+    depth = 0
+
+
+def scene_seconds() -> float:
+    """The base time limit of a scene's code (``$DDVP_SCENE_TIME_LIMIT`` or the default)."""
+    import math
+    import os
+
+    text = os.environ.get(SCENE_SECONDS_VARIABLE, "")
+    try:
+        value = float(text) if text.strip() else SCENE_SECONDS
+    except ValueError:
+        value = SCENE_SECONDS
+    return value if math.isfinite(value) and value > 0 else SCENE_SECONDS
+
+
+@contextlib.contextmanager
+def scene_code(path, what: str, size: int = 0):
+    """Run a scene's code: any exception it raises but ``KeyboardInterrupt`` (and an
+    :class:`InputError` of ddvp's own checks) becomes an :class:`InputError` with the file,
+    the line and the message; ``os._exit``/``os.abort`` raise instead of ending the process;
+    past ``scene_seconds() + size * SCENE_SECONDS_PER_VALUE`` seconds an alarm ends it (in the
+    main thread; worker threads of a grid have no alarm)."""
+    import os
+    import signal
+    import threading
+
+    outer = _GuardState.depth == 0 and threading.current_thread() is threading.main_thread()
+    limit = scene_seconds() + size * SCENE_SECONDS_PER_VALUE
+    _GuardState.depth += 1
+    saved = (os._exit, os.abort)
+    if outer:
+        os._exit, os.abort = _refused_exit, _refused_abort
+        previous = signal.signal(signal.SIGALRM, _alarm)
+        signal.setitimer(signal.ITIMER_REAL, limit)
+    try:
+        yield
+    except (KeyboardInterrupt, SceneCodeError, _Passed):
+        raise
+    except InputError as exc:  # a check of ddvp's own, called by the scene: say where
+        where, _ = _describe(path, what, exc, limit)
+        if "line" not in where:
+            raise
+        raise SceneCodeError(f"{where}: {exc}", where=where, reason=str(exc)) from None
+    except BaseException as exc:  # noqa: B036 - a scene must not end the command its own way
+        where, reason = _describe(path, what, exc, limit)
+        raise SceneCodeError(f"{where}: {what} {reason}", where=where, reason=reason) from None
+    finally:
+        _GuardState.depth -= 1
+        if outer:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous)
+            os._exit, os.abort = saved
+
+
+def _alarm(signum, frame):
+    raise _SceneTimeout
+
+
+def _refused_exit(code=0):
+    raise _SceneExit(f"os._exit({code!r})")
+
+
+def _refused_abort():
+    raise _SceneExit("os.abort()")
+
+
+class SceneCodeError(InputError):
+    """A scene's code failed: ``where`` (the file and the line) and ``reason`` (what it did)."""
+
+    def __init__(self, message: str, *, where: str, reason: str):
+        super().__init__(message)
+        self.where, self.reason = where, reason
+
+
+def _describe(path, what: str, exc: BaseException, limit: float) -> tuple[str, str]:
+    """``(where, reason)``: ``scene file PATH, line N`` (the deepest line of the scene file in
+    the traceback) and what happened in words."""
+    import traceback
+
+    line = None
+    wanted = str(Path(path).resolve())
+    for frame in traceback.extract_tb(exc.__traceback__):
+        if str(Path(frame.filename).resolve()) == wanted:
+            line = frame.lineno
+    where = f"scene file {str(path)!r}" + (f", line {line}" if line else "")
+    if isinstance(exc, _SceneTimeout):
+        return where, (f"did not return within {limit:.3g} s (the limit of a scene's code; "
+                       f"${SCENE_SECONDS_VARIABLE} sets it)")
+    if isinstance(exc, SystemExit):
+        return where, f"called sys.exit({exc.code!r}); a scene may not end the command"
+    if isinstance(exc, _SceneExit):
+        return where, f"called {exc}; a scene may not end the command"
+    return where, f"raised {type(exc).__name__}: {exc}"
+
+
+def _guarded(function, path, what: str, *, passes=()):
+    """``function`` run under :func:`scene_code` at every call; exceptions of ``passes`` (the
+    ``ValueError`` an ``exact`` raises for a start it does not cover) pass as they are."""
+    import functools
+
+    if not callable(function) or getattr(function, "__ddvp_guarded__", False):
+        return function
+
+    @functools.wraps(function)
+    def guarded(*args, **kwargs):
+        size = sum(int(np.size(a)) for a in args if isinstance(a, np.ndarray))
+        try:
+            with scene_code(path, what, size):
+                try:
+                    return function(*args, **kwargs)
+                except passes as exc:
+                    raise _Passed(exc) from None
+        except _Passed as passed:
+            raise passed.args[0] from None
+
+    guarded.__ddvp_guarded__ = True
+    return guarded
+
+
+class _Passed(InputError):
+    """Carries an allowed exception of a scene's function through :func:`scene_code`."""
+
+
+def _guard_functions(scene, path) -> None:
+    """Every function of ``scene`` replaced by its guarded form (:func:`_guarded`)."""
+    if isinstance(scene, HigherOrderScene):
+        scene.lagrangian = _guarded(scene.lagrangian, path, "L")
+        scene.exact = _guarded(scene.exact, path, "exact")
+        return
+    if isinstance(scene.hamiltonian, Lagrangian):
+        scene.hamiltonian.function = _guarded(scene.hamiltonian.function, path, "L")
+    else:
+        scene.hamiltonian = _guarded(scene.hamiltonian, path, "H")
+    scene.exact = _guarded(scene.exact, path, "exact", passes=(ValueError,))
+    scene.invariants = {name: _guarded(f, path, f"invariant {name!r}")
+                        for name, f in scene.invariants.items()}
+    for key in ("q0", "p0", "v0"):
+        setattr(scene, key, _guarded(getattr(scene, key), path, key))
+
+
+def _probe(scene, path) -> None:
+    """The scene's functions called once on its own defaults, so that one that raises, hangs
+    or returns what is not an array of numbers is refused now, not after a long run: ``H``
+    (or ``L``) built symbolically, ``exact`` and every invariant at the start."""
+    scene.system  # noqa: B018 - builds H (or L) on symbols, under its guard
+    if isinstance(scene, HigherOrderScene):
+        config = scene.resolve({})
+        scene.exact_motion(np.array([config.t0, config.t0 + config.tau0]), config.params)
+        return
+    config = scene.resolve({})
+    if config.p0 is None:
+        return
+    q, p = config.q0[None, :], config.p0[None, :]
+    for name, invariant in scene.invariants.items():
+        value = invariant(q, p, **config.params)
+        check_invariant_value(scene.name, name, value, 1)
+    if scene.exact is not None:
+        try:
+            scene.exact(np.array([config.t0, config.t0 + config.tau0]), config.q0, config.p0,
+                        config.t0, **config.params)
+        except SceneCodeError:
+            raise
+        except ValueError:  # a start it does not cover: the studies use a reference instead
+            pass
+
+
+def check_invariant_value(scene: str, name: str, value, count: int) -> np.ndarray:
+    """An invariant's value: ``count`` finite-or-not real numbers."""
+    try:
+        array = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"scene {scene!r}: invariant {name!r} returned "
+                         f"{type(value).__name__} {str(value)[:60]!r}, not {count} real "
+                         "numbers") from None
+    if array.size != count:
+        raise InputError(f"scene {scene!r}: invariant {name!r} returned {array.size} values "
+                         f"for {count} states")
+    return array
 
 
 @dataclass(eq=False)
@@ -357,10 +586,11 @@ class HigherOrderScene:
     source: str = ""
     description: str = ""
     scheme: str | None = None
+    ranges: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
-        _check_scheme_name(self.scheme)
-        _check_settings(self.name, "boundary", self.boundary, Endpoints)
+        _check_common(self)
+        self.order = check_integer("order", self.order)
 
     @cached_property
     def system(self) -> HigherOrderSystem:
@@ -372,10 +602,13 @@ class HigherOrderScene:
         overrides = dict(overrides or {})
         settings = {k: overrides.pop(k) for k in RUN_SETTINGS if k in overrides}
         params = check_parameter_values(overrides, dict(self.params),
-                                        owner=f"scene {self.name!r}")
+                                        owner=f"scene {self.name!r}", ranges=self.ranges)
         values = {"t0": self.t0, "tau0": self.tau0, "t_end": self.t_end, **settings}
         for key, value in values.items():
             check_real(key, value)
+        if values["t_end"] <= values["t0"]:
+            raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
         return HigherRunConfig(params=params, **{k: float(v) for k, v in values.items()})
 
     def start(self, config: HigherRunConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -399,6 +632,30 @@ class HigherOrderScene:
 
 def _shown(params: dict) -> str:
     return ", ".join(f"{k} = {v:g}" for k, v in params.items()) or "the defaults"
+
+
+def _check_common(scene) -> None:
+    """What every scene must be: a scheme name or none, ``boundary`` an :class:`Endpoints`,
+    ``n`` a size that fits in memory, ``params`` a mapping of names to finite numbers (a list
+    was taken and failed later), ``ranges`` intervals holding the defaults."""
+    _check_scheme_name(scene.scheme)
+    _check_settings(scene.name, "boundary", scene.boundary, Endpoints)
+    scene.n = check_degrees(scene.n)
+    owner = f"scene {scene.name!r}"
+    if not isinstance(scene.params, Mapping) or not all(isinstance(k, str)
+                                                        for k in scene.params):
+        raise InputError(f"{owner}: params must be a dict of parameter names to numbers, got "
+                         f"{scene.params!r}")
+    scene.params = check_parameter_values(dict(scene.params), dict(scene.params), owner=owner)
+    scene.ranges = check_parameter_ranges(scene.ranges, scene.params, owner=owner)
+    check_parameter_values({}, scene.params, owner=owner, ranges=scene.ranges)
+    if not isinstance(getattr(scene, "invariants", {}), Mapping):
+        raise InputError(f"{owner}: invariants must be a dict of names to functions, got "
+                         f"{scene.invariants!r}")
+    for key in ("exact",):
+        value = getattr(scene, key, None)
+        if value is not None and not callable(value):
+            raise InputError(f"{owner}: {key} must be a function or None, got {value!r}")
 
 
 def _check_scheme_name(scheme) -> None:

@@ -24,7 +24,7 @@ class Status(enum.Enum):
     STEP_ABOVE_MAX = "the step length rose above tau_max"
     STEP_RATIO = "the step length changed by more than max_step_ratio in one step"
     MAX_STEPS = "max_steps was reached before t_end"
-    TIME_LIMIT = "the time limit was reached before t_end"
+    TIME_LIMIT = "the time limit was reached"
     ENERGY_GUARD = "H left the band energy_guard allows around its initial value"
     INACCURATE = ("an accuracy estimate passed its tolerance: the steps satisfy the scheme's "
                   "equations but do not follow the motion")

@@ -5,6 +5,7 @@ built, and returns the value in the type the library uses."""
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 
 import numpy as np
@@ -52,8 +53,10 @@ def check_integer(name: str, value, *, minimum: int = 1, maximum: int | None = N
 
 
 def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, float],
-                           *, owner: str) -> dict[str, float]:
-    """Merge ``values`` into ``defaults``; each name must be known, each value a finite real."""
+                           *, owner: str, ranges: Mapping[str, str] | None = None
+                           ) -> dict[str, float]:
+    """Merge ``values`` into ``defaults``; each name must be known, each value a finite real,
+    inside its interval of ``ranges`` (``{"e": "[0, 1)"}``) if one is declared."""
     if not isinstance(values, Mapping):
         raise InputError(f"params of {owner} must be a mapping of names to numbers, "
                          f"got {values!r}")
@@ -69,6 +72,9 @@ def check_parameter_values(values: Mapping[str, object], defaults: Mapping[str, 
         if not math.isfinite(float(value)):
             raise InputError(f"parameter {name!r} must be finite, got {value!r}")
         resolved[name] = float(value)
+    for name, interval in (ranges or {}).items():
+        if name in resolved:
+            check_in_interval(name, resolved[name], interval)
     return resolved
 
 
@@ -110,8 +116,6 @@ def check_count(name: str, value, *, minimum: int = 0, maximum: int | None = Non
 
 def check_cache_folder(value) -> None:
     """``None`` or a path that is not an existing file (the compiled-code cache folder)."""
-    import os
-
     if value is None:
         return
     if not isinstance(value, (str, os.PathLike)) or not str(value).strip():
@@ -144,3 +148,159 @@ def check_span(t_span) -> tuple[float, float]:
     if t_end <= t0:
         raise InputError(f"t_end must be > t0 = {t0!r}, got {t_end!r}")
     return t0, t_end
+
+
+def available_memory() -> int:
+    """Bytes this process may still allocate: ``MemAvailable`` of ``/proc/meminfo`` (Linux),
+    else the physical memory; an address-space limit (``ulimit -v``) lowers it."""
+    found = None
+    try:
+        with open("/proc/meminfo") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    found = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    if found is None:
+        try:
+            found = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (OSError, ValueError, AttributeError):
+            found = 1 << 34
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            found = min(found, soft)
+    except (ImportError, OSError, ValueError):
+        pass
+    return int(found)
+
+
+def check_memory(name: str, value, needed: float, what: str) -> None:
+    """Refuse ``value`` of the argument ``name`` when ``what`` would need ``needed`` bytes,
+    more than half of :func:`available_memory` (the rest is for everything else the run
+    holds), before anything is allocated."""
+    budget = available_memory() / 2
+    if not needed <= budget:  # also refuses a NaN or infinite estimate
+        raise InputError(f"{name} = {value!r} is more than this machine can hold: {what} "
+                         f"needs about {_bytes(needed)}, and {_bytes(budget)} (half of the "
+                         "memory available now) is the most a run may take")
+
+
+def _bytes(count: float) -> str:
+    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if count >= size:
+            return f"{count / size:.3g} {unit}"
+    return f"{count:.0f} bytes"
+
+
+# Largest file ddvp reads back whole (a guess, a run's result.npz): a quarter of the memory
+# available, checked by the size on disk before reading.
+def check_file_size(where: str, size: int) -> None:
+    """Refuse a file whose ``size`` would not fit in a quarter of the memory available."""
+    budget = available_memory() / 4
+    if size > budget:
+        raise InputError(f"{where} has {_bytes(size)}, more than this machine can read back "
+                         f"({_bytes(budget)}, a quarter of the memory available now)")
+
+
+def check_step(tau0, t0: float, t_end: float) -> float:
+    """A first step ``tau0`` that floating point resolves: positive, finite, not subnormal,
+    ``t0 + tau0 > t0`` and ``(t_end - t0) / tau0`` a finite number of steps (``5e-324``
+    passed ``> 0`` and overflowed the step count)."""
+    tau0 = check_real("tau0", tau0, positive=True)
+    if tau0 < np.finfo(float).tiny or not t0 + tau0 > t0:
+        raise InputError(f"tau0 = {tau0!r} is too small to be a step from t0 = {t0!r}: "
+                         f"t0 + tau0 rounds to t0 (the smallest step there is "
+                         f"{np.spacing(max(abs(t0), abs(t_end), np.finfo(float).tiny)):.3g})")
+    if not math.isfinite(t_end - t0) or not math.isfinite((t_end - t0) / tau0):
+        raise InputError(f"t_end - t0 = {t_end - t0!r} is more steps of tau0 = {tau0!r} than a "
+                         "float can count")
+    return tau0
+
+
+def parse_range(name: str, text: str) -> tuple[float, float, bool, bool]:
+    """An interval such as ``"[0, 1)"`` or ``"(0, inf)"``: ``(low, high, low_closed,
+    high_closed)``."""
+    spec = text.strip() if isinstance(text, str) else ""
+    try:
+        low_text, high_text = spec[1:-1].split(",")
+        low, high = float(low_text), float(high_text)
+    except ValueError:
+        low = high = math.nan
+    if len(spec) < 5 or spec[0] not in "[(" or spec[-1] not in "])" or \
+            math.isnan(low) or math.isnan(high) or not low < high:
+        raise InputError(f"the range of parameter {name!r} must be an interval like '[0, 1)' "
+                         f"or '(0, inf)', got {text!r}")
+    return low, high, spec[0] == "[", spec[-1] == "]"
+
+
+def check_in_interval(name: str, value: float, text: str) -> float:
+    """``value`` inside the interval ``text`` (:func:`parse_range`)."""
+    low, high, low_closed, high_closed = parse_range(name, text)
+    above = value >= low if low_closed else value > low
+    below = value <= high if high_closed else value < high
+    if not (above and below):
+        raise InputError(f"parameter {name!r} must lie in {text.strip()}, got {value!r}")
+    return value
+
+
+def read_limited(path: str | os.PathLike, limit: int, *, what: str,
+                 dir_fd: int | None = None) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes, opened without following a
+    link; anything else (a link, a folder, a device, a bigger file) is an :class:`InputError`
+    that names the file and the reason."""
+    import errno
+    import stat
+
+    try:
+        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK,
+                             dir_fd=dir_fd)
+    except OSError as exc:
+        reason = ("it is a symbolic link, which ddvp does not follow" if exc.errno == errno.ELOOP
+                  else exc.strerror or str(exc))
+        raise InputError(f"{what} {str(path)!r} cannot be read: {reason}") from None
+    info = os.fstat(descriptor)
+    if not stat.S_ISREG(info.st_mode):
+        os.close(descriptor)
+        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file"
+        raise InputError(f"{what} {str(path)!r} is {kind}" if kind == "a folder" else
+                         f"{what} {str(path)!r} is not a regular file")
+    with os.fdopen(descriptor, "rb") as handle:
+        if info.st_size > limit:
+            raise InputError(f"{what} {str(path)!r} has {info.st_size} bytes, more than the "
+                             f"{limit} such a file can have")
+        try:
+            data = handle.read(limit + 1)
+        except OSError as exc:
+            raise InputError(f"{what} {str(path)!r} cannot be read: {exc.strerror}") from None
+    if len(data) > limit:
+        raise InputError(f"{what} {str(path)!r} is larger than {limit} bytes")
+    return data
+
+
+def check_degrees(n) -> int:
+    """Degrees of freedom ``n``: a positive integer whose step equations fit in memory (a
+    march's Newton step has a dense ``(2n + 1)``-square Jacobian and its factors; ``n =
+    10**6`` built for ever instead of being refused)."""
+    n = check_integer("n", n)
+    check_memory("n", n, 4 * 8.0 * (2 * n + 1) ** 2, "the dense Jacobian of one step")
+    return n
+
+
+def check_parameter_ranges(ranges, params, *, owner: str) -> dict:
+    """A scene's declared parameter ranges: a mapping of its parameter names to intervals
+    (``"[0, 1)"``), each default inside its interval."""
+    if ranges is None:
+        return {}
+    if not isinstance(ranges, Mapping):
+        raise InputError(f"ranges of {owner} must map parameter names to intervals like "
+                         f"'[0, 1)', got {ranges!r}")
+    for name, text in ranges.items():
+        if name not in params:
+            raise InputError(f"{owner} declares a range for {name!r}, which is not one of its "
+                             f"parameters ({', '.join(params) or 'none'})")
+        parse_range(name, text)
+    return dict(ranges)

@@ -43,12 +43,7 @@ def kepler_motion(s, q0, p0):
         E0 = np.arctan2((q0 @ p0) / (ecc * np.sqrt(a)), (1 - r0 / a) / ecc)
     n = a ** -1.5
     M = np.mod(E0 - ecc * np.sin(E0) + n * np.asarray(s), 2 * np.pi)
-    E = M + 0.85 * ecc * np.sign(np.sin(M))  # a start from which Newton converges for e < 1
-    for _ in range(60):
-        step = (E - ecc * np.sin(E) - M) / (1 - ecc * np.cos(E))
-        E = E - step
-        if np.max(np.abs(step)) < 1e-15:
-            break
+    E = eccentric_anomaly(M, ecc)
     b, rate = a * np.sqrt(1 - ecc**2), n / (1 - ecc * np.cos(E))
     x, y = a * (np.cos(E) - ecc), b * np.sin(E)
     vx, vy = -a * rate * np.sin(E), b * rate * np.cos(E)
@@ -58,10 +53,34 @@ def kepler_motion(s, q0, p0):
     return q, p
 
 
+def eccentric_anomaly(M, ecc: float, max_iter: int = 60):
+    """``E`` with ``E - e sin E = M`` by Newton's method, from a start from which it converges
+    for ``e < 1``. An anomaly stops once its step is within the round-off of the residual
+    divided by the derivative, ``4 eps (|E| + e + |M|) / (1 - e cos E)``: an absolute
+    ``|step| < 1e-15`` is below the round-off of ``E`` near ``2 pi`` (1.8e-15 there), so that
+    rule never held and every call ran all 60 iterations (3.0 s of 11 in ``ddvp compare kepler``;
+    measured). Only the anomalies not yet converged are iterated."""
+    M = np.asarray(M, float)
+    E = M + 0.85 * ecc * np.sign(np.sin(M))
+    eps = np.finfo(float).eps
+    active = np.arange(E.size)
+    flat, target = E.reshape(-1).copy(), M.reshape(-1)
+    for _ in range(max_iter):
+        e_k, m_k = flat[active], target[active]
+        slope = 1 - ecc * np.cos(e_k)
+        step = (e_k - ecc * np.sin(e_k) - m_k) / slope
+        flat[active] = e_k - step
+        active = active[np.abs(step) > 4 * eps * (np.abs(e_k) + ecc + np.abs(m_k)) / slope]
+        if active.size == 0:
+            break
+    return flat.reshape(E.shape)
+
+
 # tau0 = 0.001: the trajectory stays within 1e-2 of the orbit's size over the ten periods
 # (largest error 1.6e-3 against the exact solution); at the old 0.01 the phase passed 1e-2 of
 # the orbit in the first period (largest 0.36 by the tenth), every step accurate: a drifted run.
 scene = Scene(hamiltonian, n=2, params={"e": 0.5},
               q0=lambda e: [1 - e, 0.0], p0=lambda e: [0.0, np.sqrt((1 + e) / (1 - e))],
               tau0=0.001, t_end=20 * np.pi, exact=exact,
-              invariants={"angular_momentum": angular_momentum})
+              invariants={"angular_momentum": angular_momentum},
+              ranges={"e": "[0, 1)"})  # an ellipse: e < 0 has no meaning, e >= 1 no orbit

@@ -28,4 +28,4 @@ def exact(t, w, g):
 scene = HigherOrderScene(lagrangian, n=1, order=2, exact=exact, params={"w": 1.0, "g": 0.1},
                          tau0=0.02, t_end=10.0,
                          boundary=Endpoints(t_span=(0.0, 2.0), nodes=41),
-                         scheme="fixed")
+                         scheme="fixed", ranges={"g": "(0, inf)"})

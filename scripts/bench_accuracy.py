@@ -81,7 +81,8 @@ def main():
     args = parser.parse_args()
     load = os.getloadavg()
     lines = ["# The accuracy check's cost", "",
-             f"`python scripts/bench_accuracy.py --repeats {args.repeats}`: each march {args.repeats} "
+             f"`python scripts/bench_accuracy.py --repeats {args.repeats}`: each march "
+             f"{args.repeats} "
              "times without and with the check, interleaved, warm; milliseconds of CPU "
              "(median, range) and wall (median); ratios of the medians. Load average at the "
              f"start {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} (2 cores, shared).", "",

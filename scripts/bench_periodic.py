@@ -1,6 +1,15 @@
 """Newton (SuperLU) against IPOPT on the periodic problem, side by side in one run.
 
-    python scripts/bench_periodic.py [--repeats 3]
+    python scripts/bench_periodic.py [--repeats 3] [--only solvers,rotation]
+
+Rotations (``--only rotation``): the pendulum's rotation at E = 2.5 (section q1 = 0, q1 an
+angle) for N = 100, 200, 400, 800 from ``solve_periodic``'s default start (the predicted grid,
+then continuation in N: ``solvers/periodic/refinement.py``), Newton and IPOPT, with the
+iterations of every level; beside it IPOPT from the old start (the march on equally spaced
+times, ``max_iter`` 400), which Newton could not solve at any N. Targets (issue 29): N = 800 in
+at most 0.3 s with Newton or IPOPT, iteration counts flat in N.
+
+Solvers (``--only solvers``):
 
 Each case starts both solvers from the same nodes (the default start: the march from the
 section's point to its return, resampled on N intervals), so the times are the solvers' and the
@@ -13,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import os
 import sys
 import time
 from pathlib import Path
@@ -51,10 +61,51 @@ def start_nodes(system, nodes, options):
     return {"t": t, "q": z[:, :system.n], "p": z[:, system.n:]}
 
 
+def rotations(repeats: int) -> None:
+    """The rotation by continuation against IPOPT from uniform times (module docstring)."""
+    system = load_scene("pendulum").system
+    theta = system.parameter_vector(None)
+    point = section_point(system, theta, 2.5, 1, 0.0, np.ones(2), "q1=0")
+    traced = march_to_return(system, theta, point, 1, 0.0, "vddvp", True)
+    print("\n| N | start | solver | status | iterations per level | wall s | CPU s |")
+    print("|---|---|---|---|---|---|---|")
+    for nodes in (100, 200, 400, 800):
+        t, z = resample(*traced, nodes, angles=(0,))
+        uniform = {"t": t, "q": z[:, :1], "p": z[:, 1:]}
+        measured = {}
+        for label, solver, guess, most in (("continuation", "newton", None, None),
+                                           ("continuation", "ipopt", None, None),
+                                           ("uniform times", "ipopt", uniform, 400)):
+            run = functools.partial(solve_periodic, system, energy=2.5, nodes=nodes,
+                                    section="q1=0", angles=("q1",), guess=guess,
+                                    options=GridOptions(solver=solver, max_iter=most))
+            cpu, wall, orbit = timed(repeats, run)
+            measured[label, solver] = (cpu, wall)
+            levels = orbit.stats.get("levels") or [{"iterations": orbit.stats["iterations"]}]
+            print(f"| {nodes} | {label} | {solver} | {orbit.status.code} | "
+                  f"{' + '.join(str(level['iterations']) for level in levels)} | {wall:.3f} | "
+                  f"{cpu:.3f} |", flush=True)
+        old = measured["uniform times", "ipopt"]
+        for solver in ("newton", "ipopt"):
+            new = measured["continuation", solver]
+            print(f"| {nodes} | uniform IPOPT / continuation {solver} | | | | "
+                  f"{old[1] / new[1]:.1f}x | {old[0] / new[0]:.1f}x |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--only", default="solvers,rotation")
     args = parser.parse_args()
+    print(f"load average at the start: {os.getloadavg()}", flush=True)
+    if "rotation" in args.only:
+        rotations(args.repeats)
+    if "solvers" in args.only:
+        solvers(args.repeats)
+    print(f"\nload average at the end: {os.getloadavg()}")
+
+
+def solvers(repeats: int) -> None:
     header = ("| scene | N | solver | status | iterations | wall s | CPU s | first call wall s "
               "| period | largest residual |")
     print(header)
@@ -69,7 +120,7 @@ def main() -> None:
             first = time.perf_counter()
             run()
             first = time.perf_counter() - first
-            cpu, wall, orbit = timed(args.repeats, run)
+            cpu, wall, orbit = timed(repeats, run)
             measured[solver] = (cpu, wall)
             print(f"| {name} | {nodes} | {solver} | {orbit.status.code} | "
                   f"{orbit.stats['iterations']} | {wall:.3f} | {cpu:.3f} | {first:.2f} | "

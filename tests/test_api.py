@@ -8,12 +8,14 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"Compilation", "Endpoints", "GridOptions", "HamiltonianSystem", "HigherOrderScene",
-          "HigherOrderSystem", "InputError", "Lagrangian", "LagrangianSystem", "Output",
+PUBLIC = {"AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions",
+          "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+          "Lagrangian", "LagrangianSystem", "Output",
           "PeriodicSettings", "Scene", "Shooting",
           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
-          "list_scenes", "load_scene", "march", "march_ensemble", "march_higher", "plot",
-          "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"}
+          "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
+          "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
+          "solve_periodic", "solve_periodic_family"}
 # No public function takes more than this many parameters: the rest are option objects.
 MOST_PARAMETERS = 12
 

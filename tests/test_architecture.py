@@ -10,7 +10,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "ddvp_nlp"
 
 # What each part may import (besides itself and the base modules): the layers of the README's
 # architecture section, bottom to top.
-BASE = {"errors", "validation", "cache", "solution"}
+BASE = {"errors", "validation", "cache", "solution", "startup"}
 ALLOWED = {
     "base": {"base"},
     "physics": {"base"},
@@ -40,22 +40,53 @@ def modules() -> dict[str, Path]:
 
 
 def imports(name: str, path: Path) -> set[str]:
-    """The package modules ``name`` imports (at any depth of its code)."""
+    """The package modules ``name`` imports (at any depth of its code): relative and absolute
+    ``from ... import``, ``import ddvp_nlp.x``, and ``importlib.import_module("ddvp_nlp.x")``
+    with a literal name; ``from package import module`` counts as the module."""
     package = name.split(".")[:-1] if not path.name == "__init__.py" else name.split(".")
     if name == "__init__":
         package = []
     known = modules()
     result = set()
+
+    def add(target: str, names=()):
+        for alias in names:
+            full = f"{target}.{alias}" if target else alias
+            if full in known:
+                result.add(full)
+                continue
+            result.add(target)
+        if not names:
+            result.add(target)
+
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.level:
             base = package[:len(package) - node.level + 1]
-            target = ".".join(base + ([node.module] if node.module else []))
+            add(".".join(base + ([node.module] if node.module else [])),
+                [alias.name for alias in node.names])
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("ddvp_nlp"):
+            add(node.module[len("ddvp_nlp."):] if "." in node.module else "",
+                [alias.name for alias in node.names])
+        elif isinstance(node, ast.Import):
             for alias in node.names:
-                full = f"{target}.{alias.name}" if target else alias.name
-                result.add(full if full in known else target)
-        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("ddvp_nlp."):
-            result.add(node.module[len("ddvp_nlp."):])
+                if alias.name.startswith("ddvp_nlp."):
+                    add(alias.name[len("ddvp_nlp."):])
+        elif isinstance(node, ast.Call) and ast.unparse(node.func).endswith("import_module") \
+                and node.args and isinstance(node.args[0], ast.Constant) \
+                and str(node.args[0].value).startswith("ddvp_nlp."):
+            add(str(node.args[0].value)[len("ddvp_nlp."):])
     return {m for m in result if m in known and m != name}
+
+
+def test_the_import_graph_sees_every_form_of_import(tmp_path, monkeypatch):
+    path = tmp_path / "fake.py"
+    path.write_text("import ddvp_nlp.solvers.bvp.solve as a\n"
+                    "from ddvp_nlp.solvers import periodic\n"
+                    "from ..grid import newton\n"
+                    "import importlib\n"
+                    "importlib.import_module('ddvp_nlp.solvers.higher.phase')\n")
+    assert imports("solvers.march.fake", path) == {
+        "solvers.bvp.solve", "solvers.periodic", "solvers.grid.newton", "solvers.higher.phase"}
 
 
 def graph() -> dict[str, set[str]]:
@@ -232,6 +263,9 @@ def test_each_family_states_its_contract_as_numbered_rules(family):
 
 # The private-looking names of a namedtuple are its public interface.
 NAMEDTUPLE_API = {"_fields", "_asdict", "_replace", "_make"}
+# Documented public functions of the standard library whose names start with "_": os._exit
+# (a forked worker's end, and what a scene's code may not call).
+STDLIB_API = {"_exit"}
 
 
 def private_uses(path: Path) -> list[str]:
@@ -245,9 +279,16 @@ def private_uses(path: Path) -> list[str]:
             found += [f"import {alias.name} (line {node.lineno})" for alias in node.names
                       if alias.name.startswith("_") and not alias.name.startswith("__")]
         elif isinstance(node, ast.Attribute) and node.attr.startswith("_") \
-                and not node.attr.startswith("__") and node.attr not in NAMEDTUPLE_API:
+                and not node.attr.startswith("__") and node.attr not in NAMEDTUPLE_API \
+                and node.attr not in STDLIB_API:
             if not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
                 found.append(f"{ast.unparse(node)} (line {node.lineno})")
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id in ("getattr", "setattr", "hasattr") and len(node.args) >= 2 \
+                and isinstance(node.args[1], ast.Constant) \
+                and str(node.args[1].value).startswith("_") \
+                and not str(node.args[1].value).startswith("__"):
+            found.append(f"{ast.unparse(node)} (line {node.lineno})")
     return found
 
 
@@ -268,8 +309,9 @@ def test_the_assignment_check_finds_a_registry_filled_from_outside(tmp_path):
 def test_the_private_name_check_finds_both_kinds(tmp_path):
     path = tmp_path / "m.py"
     path.write_text("from .other import _helper\nx = scene._exact(1)\ny = self._ok\n"
-                    "z = row._asdict()\n")
-    assert private_uses(path) == ["import _helper (line 1)", "scene._exact (line 2)"]
+                    "z = row._asdict()\nw = getattr(module, '_checked')\n")
+    assert sorted(private_uses(path)) == ["getattr(module, '_checked') (line 5)",
+                                          "import _helper (line 1)", "scene._exact (line 2)"]
 
 
 def bound_modules(tree, package: list[str]) -> set[str]:
@@ -322,6 +364,32 @@ def test_no_module_fills_or_switches_another_ones_globals():
     assert {name: found for name, found in assigned.items() if found} == {}
 
 
+def _switches_a_setting(call: ast.Call) -> bool:
+    """``monkeypatch.setattr(module, "NAME", ...)``, ``monkeypatch.setattr("pkg.mod.NAME",
+    ...)`` or ``monkeypatch.setitem(module.TABLE, ...)``: a module's constant or registry
+    switched (an upper-case name; replacing a function stays allowed)."""
+    function = ast.unparse(call.func)
+    if function.endswith("setitem") and call.args:
+        target = ast.unparse(call.args[0])
+        return "." in target and target.split(".")[-1].isupper()
+    if not function.endswith("setattr") or not call.args:
+        return False
+    first = call.args[0]
+    if isinstance(first, ast.Constant) and isinstance(first.value, str) and "." in first.value:
+        return first.value.rsplit(".", 1)[1].isupper()
+    return len(call.args) >= 2 and isinstance(call.args[1], ast.Constant) \
+        and str(call.args[1].value).lstrip("_").isupper()
+
+
+def test_the_switch_check_finds_every_form():
+    calls = ['monkeypatch.setattr(stepper, "MAX_CALLS", 1)', 'monkeypatch.setattr(c, "_WARNED", 1)',
+             'monkeypatch.setattr("ddvp_nlp.cli.main.COMMANDS", {})',
+             'monkeypatch.setitem(cli_main.COMMANDS, "scenes", f)',
+             'monkeypatch.setattr(stress, "default_cases", f)']
+    found = [_switches_a_setting(ast.parse(call).body[0].value) for call in calls]
+    assert found == [True, True, True, True, False]
+
+
 def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
     """Solver choices are arguments or option fields: neither the tests nor the benchmarks
     assign a module's constants (``monkeypatch.setattr(module, "NAME", ...)`` or
@@ -331,10 +399,7 @@ def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
     for path in [*(root / "tests").glob("*.py"), *(root / "scripts").glob("*.py")]:
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
-            if isinstance(node, ast.Call) and ast.unparse(node.func).endswith("setattr") \
-                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) \
-                    and str(node.args[1].value).isupper() \
-                    and not str(node.args[1].value).startswith("_"):
+            if isinstance(node, ast.Call) and _switches_a_setting(node):
                 switched.append(f"{path.name}: {ast.unparse(node)}")
         switched += [f"{path.name}: {found}" for found in foreign_assignments(path)
                      if found.split(".")[1][:1].isupper()]

@@ -7,7 +7,12 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import GridOptions, Scheme, load_scene, solve_bvp
+from ddvp_nlp.cache import PROBLEMS
+from ddvp_nlp.solvers.bvp.assembly import NodeLayout
 from ddvp_nlp.solvers.bvp.ipopt import BvpIpopt, residual_functions
+from ddvp_nlp.solvers.bvp.phase import Boundary, ends, ipopt_floor
+from ddvp_nlp.solvers.grid.ipopt import solver_tolerance
+from ddvp_nlp.solvers.grid.problem import GridRequest
 
 
 def _reference_rows(system, scheme: Scheme, nodes: int):
@@ -37,7 +42,9 @@ def _reference_rows(system, scheme: Scheme, nodes: int):
                                         ("paper_pendulum", "vddvp")])
 def test_callbacks_match_casadis_derivatives_of_the_same_rows(name, rule):
     """g, its Jacobian and the Lagrangian's Hessian of the callbacks equal CasADi's own
-    derivatives of the rows written as one MX expression, at a random point."""
+    derivatives of the rows written as one MX expression, at a random point, in the columns of
+    the values IPOPT varies (``fixed`` pins every node time for the whole build: those columns
+    are left out of the patterns, and are zero in the callbacks')."""
     system = load_scene(name).system
     nodes, n = 7, system.n
     problem = BvpIpopt(system, Scheme(rule), nodes, tol=1e-9, max_iter=5)
@@ -50,16 +57,20 @@ def test_callbacks_match_casadis_derivatives_of_the_same_rows(name, rule):
     g_ref, J_ref = (np.asarray(ca.DM(v)) for v in reference(x, parameters))
     g, jac_g, hess_lag = problem._callbacks
     assert np.max(np.abs(np.asarray(g(x, parameters)).ravel() - g_ref.ravel())) < 1e-13
+    free = ~problem.nlp.fixed_columns
+    assert free.sum() == (nodes * (2 * n + 1) if rule != "fixed" else nodes * 2 * n)
     J = np.asarray(ca.DM(jac_g(x, parameters)[1]))
-    assert J.shape == J_ref.shape and np.max(np.abs(J - J_ref)) < 1e-12
+    assert J.shape == J_ref.shape and np.max(np.abs(J - J_ref)[:, free]) < 1e-12
+    assert not np.any(J[:, ~free])
     lam = rng.standard_normal(g_ref.size)
     lam_sym = ca.MX.sym("lam", g_ref.size)
     hessian = ca.Function("hessian", [x_sym, p_sym, lam_sym],
                           [ca.triu(ca.hessian(ca.dot(lam_sym, rows), x_sym)[0])])
     H_ref = np.asarray(ca.DM(hessian(x, parameters, lam)))
     H = np.asarray(ca.DM(hess_lag(x, parameters, 1.0, lam)))
-    assert np.max(np.abs(H_ref)) > 0.1
-    assert np.max(np.abs(H - H_ref)) < 1e-12
+    assert np.max(np.abs(H_ref[np.ix_(free, free)])) > 0.1
+    assert np.max(np.abs(H - H_ref)[np.ix_(free, free)]) < 1e-12
+    assert not np.any(H[~free]) and not np.any(H[:, ~free])
 
 
 def test_ipopt_and_newton_return_the_same_nodes():
@@ -78,8 +89,9 @@ def test_ipopt_and_newton_return_the_same_nodes():
 
 
 def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes():
-    """Bounded iteration counts (never time), the same in two runs: measured 5 + 1 + 5 here,
-    ending Solve_Succeeded (not "acceptable")."""
+    """Bounded iteration counts (never time), the same in two runs, ending Solve_Succeeded (not
+    "acceptable") or not run at all: the start phases' point already passes the verification
+    here (5 + 1 + 0, measured)."""
     system = load_scene("pendulum").system
     runs = [solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
                       options=GridOptions(solver="ipopt")) for _ in range(2)]
@@ -87,4 +99,52 @@ def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes(
     counts = [[ph["iterations"] for ph in r.stats["phases"]] for r in runs]
     assert counts[0] == counts[1]
     assert counts[0][-1] <= 6 and max(counts[0]) <= 8, counts
-    assert runs[0].stats["return_status"] == "Solve_Succeeded"
+    assert runs[0].stats["return_status"] in ("Solve_Succeeded",
+                                              "not run: the start passes the verification")
+
+
+def test_ipopt_is_not_run_from_a_start_that_passes_the_verification():
+    """The released phase is skipped when its start already verifies (the point returned is
+    that start, verified again by the same rule), run when it does not; the start phases'
+    problems are dropped from the cache before the final phase."""
+    system = load_scene("pendulum").system
+    coarse = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181,
+                       options=GridOptions(solver="ipopt"))
+    fine = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
+                     options=GridOptions(solver="ipopt"))
+    for solution in (coarse, fine):
+        assert solution.success, solution.message
+        assert all(key[1] == Scheme("vddvp") for key in PROBLEMS.keys(system)
+                   if key[0] == "bvp_ipopt")
+    assert coarse.stats["phases"][-1]["iterations"] > 0
+    assert coarse.stats["return_status"] == "Solve_Succeeded"
+    assert fine.stats["phases"][-1]["iterations"] == 0
+    assert fine.stats["energy_residual_max"] <= fine.stats["energy_limit"]
+    assert "not run: the start passes the verification" in fine.message
+
+
+def test_ipopt_tolerance_sits_at_the_rows_round_off():
+    """IPOPT's tolerance is 1e-2 tol, raised to the round-off of its rows (the energy rows
+    divided by the mean step carry eps |E| / h) and never above tol; the floor grows like 1/h
+    and scales with the energy."""
+    assert solver_tolerance(1e-10) == pytest.approx(1e-12)
+    assert solver_tolerance(1e-10, 3e-11) == pytest.approx(3e-11)
+    assert solver_tolerance(1e-10, 5e-10) == pytest.approx(1e-10)
+    system = load_scene("pendulum").system
+    floors = {}
+    for nodes, level in ((1_000, 1.0), (10_000, 1.0), (10_000, 1e3)):
+        request = GridRequest(system, Scheme("vddvp"), nodes, system.parameter_vector(None),
+                              Boundary(np.array([0.5]), np.array([-0.036]), 0.0, 9.0,
+                                       np.linspace(0.0, 9.0, nodes)),
+                              GridOptions().resolved(tol=1e-9, max_iter=5))
+        layout = NodeLayout(1, nodes)
+        t = np.linspace(0.0, 9.0, nodes)
+        # a point whose interval energies are about ``level``: p = sqrt(2 level)
+        x = layout.pack(t, np.zeros((nodes, 1)), np.full((nodes, 1), np.sqrt(2 * level)))
+        data = ends(request, request.scheme)
+        floors[nodes, level] = ipopt_floor(request, x, request.scheme, data)
+        eps, h = np.finfo(float).eps, 9.0 / (nodes - 1)
+        assert floors[nodes, level] >= 16 * eps * level / h
+        assert floors[nodes, level] <= 1.1 * 16 * eps * max(9.0, level / h)
+    assert floors[10_000, 1.0] / floors[1_000, 1.0] == pytest.approx(10.0, rel=0.15)
+    assert floors[10_000, 1e3] / floors[10_000, 1.0] == pytest.approx(1e3, rel=0.15)

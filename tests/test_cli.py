@@ -75,8 +75,9 @@ def test_bad_usage_exits_2_with_the_message(tmp_path, capsys):
 def test_unwritable_output_folder_is_refused_before_solving(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    assert main(["march", "harmonic", "--out", str(blocker / "sub")]) == 2
-    assert f"output folder {str(blocker / 'sub')!r} cannot be written" in capsys.readouterr().err
+    # an output problem, not bad usage: exit 1, naming the path that is not a folder
+    assert main(["march", "harmonic", "--out", str(blocker / "sub")]) == 1
+    assert f"cannot write {blocker}: it is not a folder" in capsys.readouterr().err
 
 
 def test_scenes_lists_every_scene_with_parameters(capsys):

@@ -243,6 +243,6 @@ def test_compare_command(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.startswith("harmonic compare: 4 runs, 0 did not reach t_end")
     assert {p.name for p in tmp_path.iterdir()} == {"work_precision.csv", "work_precision.png",
-                                                    "summary.md"}
+                                                    "summary.md", "meta.json"}
     assert main(["compare", "harmonic", "--methods", "euler"]) == 2
     assert "ddvp compare: error: unknown method 'euler'" in capsys.readouterr().err

@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 from conftest import fitted_order
 
-from ddvp_nlp import HigherOrderSystem, InputError, load_scene, march_higher, solve_bvp_higher
+from ddvp_nlp import (
+    HigherOrderSystem,
+    InputError,
+    StepControl,
+    load_scene,
+    march_higher,
+    solve_bvp_higher,
+)
 from ddvp_nlp.cli import main
 
 
@@ -27,7 +34,7 @@ def test_spline_reproduces_the_cubic_through_its_boundary_data(spline):
     assert solution.success, solution.message
     assert np.max(np.abs(solution.q - spline.exact_motion(solution.t, {}))) < 1e-12
     t_init, q_init = spline.start(config)
-    marched = march_higher(spline.system, t_init, q_init, t_end=2.0, scheme="fixed")
+    marched = march_higher(spline.system, t_init, q_init, 2.0, scheme="fixed")
     assert marched.success and marched.steps == 40
     assert np.max(np.abs(marched.q - spline.exact_motion(marched.t, {}))) < 1e-9
 
@@ -39,7 +46,7 @@ def test_pais_uhlenbeck_fixed_steps_converge_at_second_order(pais_uhlenbeck):
     for tau in steps:
         config = pais_uhlenbeck.resolve({"tau0": tau, "t_end": 5.0})
         t_init, q_init = pais_uhlenbeck.start(config)
-        solution = march_higher(pais_uhlenbeck.system, t_init, q_init, t_end=5.0,
+        solution = march_higher(pais_uhlenbeck.system, t_init, q_init, 5.0,
                                 scheme="fixed", params=config.params)
         assert solution.success
         errors.append(np.max(np.abs(solution.q - pais_uhlenbeck.exact_motion(solution.t,
@@ -71,7 +78,7 @@ def test_energy_march_conserves_energy_while_it_runs(pais_uhlenbeck):
     march is short-lived (measured: 24 steps from t = 0.7, then Newton fails)."""
     config = pais_uhlenbeck.resolve({"t0": 0.7, "tau0": 0.02, "t_end": 3.7})
     t_init, q_init = pais_uhlenbeck.start(config)
-    solution = march_higher(pais_uhlenbeck.system, t_init, q_init, t_end=3.7, scheme="vddvp",
+    solution = march_higher(pais_uhlenbeck.system, t_init, q_init, 3.7, scheme="vddvp",
                             params=config.params)
     assert solution.steps > 10 and np.all(solution.tau > 0)
     assert np.ptp(solution.stats["energy"]) < 1e-10
@@ -89,11 +96,22 @@ def test_singular_in_the_highest_derivative_is_refused():
 def test_bad_higher_order_input():
     system = HigherOrderSystem(lambda q, v, t: v[1][0] ** 2 / 2 + t * q[0], 1, 2, name="td")
     with pytest.raises(InputError, match="vddvp rule for a time-dependent higher-order"):
-        march_higher(system, [0, 1, 2, 3], [0, 1, 2, 3], t_end=5.0, scheme="vddvp")
-    with pytest.raises(InputError, match=r"^t_init must hold 2\*order = 4 node times, got 3$"):
-        march_higher(system, [0, 1, 2], [0, 1, 2], t_end=5.0, scheme="fixed")
+        march_higher(system, [0, 1, 2, 3], [0, 1, 2, 3], 5.0, scheme="vddvp")
+    with pytest.raises(InputError, match=r"^t_init must have shape \(4,\), got \(3,\)$"):
+        march_higher(system, [0, 1, 2], [0, 1, 2], 5.0, scheme="fixed")
     with pytest.raises(InputError, match=r"^t_init must increase, got \[0.0, 2.0, 1.0, 3.0\]$"):
-        march_higher(system, [0, 2, 1, 3], [0, 1, 2, 3], t_end=5.0, scheme="fixed")
+        march_higher(system, [0, 2, 1, 3], [0, 1, 2, 3], 5.0, scheme="fixed")
+    with pytest.raises(InputError, match=r"^q_init must have shape \(4, 1\), got \(2, 2\)$"):
+        march_higher(system, [0, 1, 2, 3], [[0, 1], [2, 3]], 5.0, scheme="fixed")
+    with pytest.raises(InputError, match=r"^tol must be > 0, got -1.0$"):
+        march_higher(system, [0, 1, 2, 3], [0, 1, 2, 3], 5.0, steps=StepControl(tol=-1))
+    with pytest.raises(InputError, match=r"^march_higher takes tol, max_steps and time_limit of "
+                                         r"StepControl; tau_min=0.1 does not apply$"):
+        march_higher(system, [0, 1, 2, 3], [0, 1, 2, 3], 5.0, steps=StepControl(tau_min=0.1))
+    with pytest.raises(InputError, match=r"^system must be a HigherOrderSystem, got str$"):
+        march_higher("spline", [0, 1, 2, 3], [0, 1, 2, 3], 5.0)
+    with pytest.raises(InputError, match=r"^q_start must have shape \(2, 1\), got \(3,\)$"):
+        solve_bvp_higher(system, [0, 1], [0, 1, 2], [3, 4], [3, 4], nodes=9, scheme="fixed")
     with pytest.raises(InputError, match="^nodes must be an integer >= 5, got 4$"):
         solve_bvp_higher(system, [0, 1], [0, 1], [3, 4], [3, 4], nodes=4, scheme="fixed")
     with pytest.raises(InputError, match="^order must be a positive integer, got 0$"):

@@ -92,7 +92,7 @@ def test_alpha_out_of_range():
 
 
 def test_unknown_scene_names_the_built_in_ones():
-    with expect("unknown scene 'pendulm' (built-in scenes: figure_eight, fpu, harmonic, "
+    with expect("unknown scene 'pendulm' (built-in scenes: cr3bp, figure_eight, fpu, harmonic, "
                 "henon_heiles, kepler, pais_uhlenbeck, paper_pendulum, pendulum, "
                 "pendulum_lagrangian, spline)"):
         load_scene("pendulm")
@@ -106,8 +106,8 @@ def test_scene_parameter_unknown():
 def test_scene_file_that_does_not_load(tmp_path):
     path = tmp_path / "bad.py"
     path.write_text("import nonexistent_module_xyz\n")
-    with expect(f"scene file {str(path)!r} does not load: ModuleNotFoundError: "
-                "No module named 'nonexistent_module_xyz'"):
+    with expect(f"scene file {str(path)!r}, line 1: loading the file raised "
+                "ModuleNotFoundError: No module named 'nonexistent_module_xyz'"):
         load_scene(str(path))
 
 

@@ -1,4 +1,4 @@
-"""Periodic orbits at a prescribed energy (solvers/periodic.py): convergence of the discrete
+"""Periodic orbits at a prescribed energy (solvers/periodic/): convergence of the discrete
 period, the equations recomputed independently, input errors and the failure status."""
 
 import numpy as np

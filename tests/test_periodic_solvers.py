@@ -1,6 +1,6 @@
 """Periodic orbits, continued: IPOPT beside Newton, pendulum rotations (an angle coordinate
 closing with a whole turn), Henon-Heiles orbits through x = 0 off the invariant plane, and the
-refusals of bad input (solvers/periodic.py, periodic_ipopt.py)."""
+refusals of bad input (solvers/periodic/solve.py, periodic/ipopt.py)."""
 
 import json
 
@@ -12,6 +12,8 @@ from scipy.special import ellipk
 from ddvp_nlp import GridOptions, solve_periodic, solve_periodic_family
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
+from ddvp_nlp.solvers.periodic.refinement import node_levels, refine_by_index
+from ddvp_nlp.solvers.periodic.start import march_to_return, resample, section_point
 
 
 def fitted_order(sizes, errors) -> float:
@@ -96,10 +98,54 @@ def test_rotation_period_converges_at_order_two(rotations):
     assert abs(errors[-1]) < 2e-5
 
 
-def test_auto_tries_newton_first_and_reports_both(rotations):
-    """On the rotations Newton stalls (a spike of the steps at the level curve's inflections)
-    and IPOPT from the same start finds the orbit; the message names both."""
-    orbit = rotations[100]
+def test_newton_converges_on_rotations_in_as_many_iterations_at_every_n():
+    """The rotation's steps have a spike where the level curve has an inflection (w = f' H_zz f
+    changes sign). From the predicted grid (tau ~ |w|^(-1/3)) and then by continuation in N,
+    Newton finds the orbit on every level in a number of iterations that does not grow with N
+    (from uniform times it failed at every N, and IPOPT needed 13, 28, 69, 296 iterations)."""
+    system = load_scene("pendulum").system
+    counts = {}
+    for N in (100, 200, 400, 800):
+        orbit = solve_periodic(system, energy=2.5, nodes=N, section="q1=0", angles=("q1",),
+                               options=GridOptions(solver="newton"))
+        assert orbit.success, orbit.message
+        levels = orbit.stats["levels"]
+        assert [level["nodes"] for level in levels] == [100, 200, 400, 800][:len(levels)]
+        assert levels[-1]["nodes"] == N and all(lv["status"] == "success" for lv in levels)
+        assert all(level["iterations"] <= 8 for level in levels)
+        counts[N] = levels[-1]["iterations"]
+        tau = np.diff(orbit.t)
+        assert np.max(tau) > 2.5 * np.median(tau)  # the spike is there
+    assert counts[800] <= counts[100] + 1
+
+
+def test_continuation_keeps_the_step_distribution():
+    """Refined by node index, an orbit's nodes keep its steps' shape: each old step is split
+    in two halves, the spike included."""
+    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=100,
+                           section="q1=0", angles=("q1",))
+    t, z = refine_by_index(orbit.t, np.hstack([orbit.q, orbit.p]), 200, angles=(0,))
+    assert t.size == 201 and z[-1, 0] == pytest.approx(z[0, 0] + 2 * np.pi, abs=1e-14)
+    np.testing.assert_allclose(np.diff(t)[::2], np.diff(orbit.t) / 2, rtol=1e-12)
+    t_open, z_open = refine_by_index(orbit.t, np.hstack([orbit.q, orbit.p]), 150,
+                                     closed=False)
+    assert np.array_equal(z_open[[0, -1]], np.hstack([orbit.q, orbit.p])[[0, -1]])
+    assert t_open[0] == 0.0 and t_open[-1] == pytest.approx(orbit.t[-1] - orbit.t[0])
+    assert node_levels(800) == [100, 200, 400, 800]
+    assert node_levels(1000) == [125, 250, 500, 1000]
+    assert node_levels(150) == [150] and node_levels(60) == [60]
+
+
+def test_auto_tries_newton_first_and_reports_both():
+    """From uniform times (the start without the step spike) Newton stalls on the rotation and
+    IPOPT from the same start finds the orbit; the message names both."""
+    system = load_scene("pendulum").system
+    theta = system.parameter_vector(None)
+    point = section_point(system, theta, 2.5, 1, 0.0, np.ones(2), "q1=0")
+    t, z = resample(*march_to_return(system, theta, point, 1, 0.0, "vddvp", True), 100,
+                    angles=(0,))
+    orbit = solve_periodic(system, energy=2.5, nodes=100, section="q1=0", angles=("q1",),
+                           guess={"t": t, "q": z[:, :1], "p": z[:, 1:]})
     attempts = orbit.stats["attempts"]
     assert [a["solver"] for a in attempts] == ["newton", "ipopt"]
     assert attempts[0]["status"] != "success" and attempts[1]["status"] == "success"

@@ -28,7 +28,7 @@ def test_crossings_lie_on_the_section_and_converge_to_dop853_at_the_schemes_orde
     errors = []
     for tau0 in (0.1, 0.05, 0.025):
         solution = march(system, z0[:2], z0[2:], (0.0, t_end), tau0=tau0)
-        t, z = crossings(field, theta, solution.t, np.hstack([solution.q, solution.p]), 0, 0.0,
+        t, z = crossings(system, theta, solution.t, np.hstack([solution.q, solution.p]), 0, 0.0,
                          "+")
         assert t.size == 3 and np.max(np.abs(z[:, 0])) <= 1e-12  # on the section
         errors.append(max(np.max(np.abs(z - z_ref)), np.max(np.abs(t - t_ref))))

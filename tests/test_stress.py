@@ -85,23 +85,19 @@ def test_long_run_separates_symplectic_from_dissipative_energy_error(quick):
     assert _row(rows, harmonic, "vddvp")["energy_error"] < 1e-11
 
 
-def test_stress_command(tmp_path, capsys):
+def test_stress_command(tmp_path, capsys, monkeypatch):
     from ddvp_nlp.studies import stress as stress_module
 
+    # the command on a smaller set of cases (a function replaced, not a setting switched)
     cases = [c for c in stress_module.default_cases(quick=True) if c.group == "pendulum"]
-    original = stress_module.default_cases
-    stress_module.default_cases = lambda quick=False: cases
-    try:
-        code = main(["stress", "--quick", "--no-compile", "--no-progress", "--out",
-                     str(tmp_path)])
-    finally:
-        stress_module.default_cases = original
+    monkeypatch.setattr(stress_module, "default_cases", lambda quick=False: cases)
+    code = main(["stress", "--quick", "--no-compile", "--no-progress", "--out", str(tmp_path)])
     assert code == 0
     out = capsys.readouterr().out
     assert out.startswith("stress: 10 runs")
     assert "vddvp           1 reached t_end; newton_failed 1" in out
     assert main(["stress", "--time-limit", "0", "--out", str(tmp_path / "x")]) == 2
-    assert "ddvp stress: error: time_limit must be > 0, got 0.0" in capsys.readouterr().err
+    assert "ddvp stress: error: --time-limit must be > 0, got 0.0" in capsys.readouterr().err
 
 
 def test_a_sweep_reports_every_method_it_ran(tmp_path, capsys):

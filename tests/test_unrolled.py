@@ -54,8 +54,9 @@ def _steps(name):
                           (1, True, True), (3, True, False), (2, False, True)])
 def test_unrolled_newton_is_fast_newton_bit_for_bit(iterations, check_after, inline):
     functions, cases = _steps("paper_pendulum")
-    reference = ca.rootfinder("reference", "fast_newton", functions.energy_residual,
-                              NEWTON_OPTIONS)
+    reference = ca.rootfinder(
+        "reference", "fast_newton", functions.energy_residual, dict(NEWTON_OPTIONS)
+    )
     unrolled = unrolled_newton("unrolled", functions.energy_residual, NEWTON_OPTIONS,
                                iterations=iterations, check_after=check_after, inline=inline)
     for w, guess in cases:
@@ -71,7 +72,7 @@ def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
     if compiler is None:
         pytest.skip("no C compiler")
     functions, cases = _steps("henon_heiles")
-    root = ca.rootfinder("root", "fast_newton", functions.energy_residual, NEWTON_OPTIONS)
+    root = ca.rootfinder("root", "fast_newton", functions.energy_residual, dict(NEWTON_OPTIONS))
     x0 = ca.MX.sym("x0", functions.energy_residual.sparsity_in(0))
     w_sym = ca.MX.sym("w", functions.energy_residual.sparsity_in(1))
     reference = compile_function(ca.Function("fast_newton_step", [x0, w_sym],
@@ -95,8 +96,9 @@ def test_unrolled_elimination_finds_fast_newtons_root(name, options):
     (fpu's energy row ends between 4e-14 and 8e-13 either way)."""
     functions, cases = _steps(name)
     assert options["linear"] == "lu"
-    reference = ca.rootfinder("reference", "fast_newton", functions.energy_residual,
-                              NEWTON_OPTIONS)
+    reference = ca.rootfinder(
+        "reference", "fast_newton", functions.energy_residual, dict(NEWTON_OPTIONS)
+    )
     unrolled = unrolled_newton("unrolled", functions.energy_residual, NEWTON_OPTIONS,
                                **options)
     for w, guess in cases:

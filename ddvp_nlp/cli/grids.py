@@ -58,19 +58,69 @@ def _boundary(scene) -> str:
             f"t in [{data.t_span[0]:g}, {data.t_span[1]:g}], {data.nodes} nodes")
 
 
+def _grid_folder(args, label: str, named: dict, defaults: dict):
+    """``(folder, owned)``: ``--out``, else ``runs/LABEL``, with ``-HASH`` of every setting
+    that changes the result when one differs from its default (``compare`` and ``sweep`` had
+    ignored ``--set``: ``--set t_end=5`` and ``t_end=50`` wrote one folder)."""
+    from ..io.runs import default_folder
+
+    if args.out is not None:
+        return args.out, 1
+    changed = {k: v for k, v in named.items() if defaults.get(k, object()) != v}
+    return default_folder(label, named, changed), 2
+
+
+def _grid_ended(command: str, rows: list[dict]) -> int:
+    """0 if any task of the grid succeeded, 1 if every one failed (a sweep whose every task
+    failed had exited 0), said on stderr."""
+    import sys
+
+    if rows and not any(r["status"] == "success" for r in rows):
+        print(f"ddvp {command}: every one of the {len(rows)} runs failed", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _interrupted(exc) -> Exception:
+    """A grid's interrupt as the command's stop, with what was kept (the grid's message)."""
+    from .interrupts import Stopped
+
+    return Stopped(str(exc) or "interrupted; nothing new was written")
+
+
 def run_compare(args) -> int:
+    from ..io.atomic import output_folder
     from ..io.work_precision import work_precision
     from ..studies.compare import ERROR_KINDS, CompareOptions, cheapest
+    from ..studies.grid import GridInterrupted
+    from .interrupts import INTERRUPTS
 
     scene = load_scene(args.scene)
-    out = args.out or f"runs/{scene.name}-compare"
+    settings = parse_settings(args.settings)
+    scene.resolve(settings)  # every name and value checked before a folder is made
+    named = {"settings": settings, "methods": args.methods, "halvings": args.halvings,
+             "repeats": args.repeats, "no_compile": args.no_compile,
+             "horizons": args.horizons, "time_unit": args.time_unit,
+             "max_steps": args.max_steps, "run_budget": args.run_budget,
+             "reference_span": args.reference_span}
+    target, owned = _grid_folder(args, f"{scene.name}-compare", named, {
+        "settings": {}, "methods": None, "halvings": 6, "repeats": 3, "no_compile": False,
+        "horizons": None, "time_unit": 1.0, "max_steps": 2_000_000, "run_budget": 120.0,
+        "reference_span": 10_000.0})
     if args.horizons:
-        return _compare_horizons(args, scene, out)
-    rows = work_precision(scene, out=out, overrides=parse_settings(args.settings),
-                          options=CompareOptions(methods=args.methods, halvings=args.halvings,
-                                                 repeats=args.repeats),
-                          compilation=options.compiled_or_not(args),
-                          workers=options.workers(args), progress=not args.no_progress)
+        with output_folder(target, owned=owned) as out:
+            return _compare_horizons(args, scene, out)
+    try:
+        with output_folder(target, owned=owned) as out:
+            rows = work_precision(scene, out=out, overrides=settings,
+                                  options=CompareOptions(methods=args.methods,
+                                                         halvings=args.halvings,
+                                                         repeats=args.repeats),
+                                  compilation=options.compiled_or_not(args),
+                                  workers=options.workers(args), progress=not args.no_progress,
+                                  interruptible=INTERRUPTS.interruptible)
+    except GridInterrupted as exc:
+        raise _interrupted(exc) from None
     failed = sum(r["status"] != "success" for r in rows)
     print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
     for kind, label in ERROR_KINDS.items():
@@ -80,70 +130,96 @@ def run_compare(args) -> int:
                 name, seconds, bound = ranking[0]
                 print(f"  {label.split(' max')[0]} <= {level:.0e}: cheapest {name} "
                       f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
-    print(f"  written to {out}/ (work_precision.csv, work_precision.png, summary.md)")
-    return 0
+    print(f"  written to {out.path}/ (work_precision.csv, work_precision.png, summary.md)")
+    return _grid_ended("compare", rows)
 
 
 def _compare_horizons(args, scene, out) -> int:
     from ..io.horizons import work_precision_horizons
     from ..studies.compare import CompareOptions
+    from ..studies.grid import GridInterrupted
 
-    results = work_precision_horizons(
-        scene, args.horizons, out=out, unit=args.time_unit,
-        overrides=parse_settings(args.settings),
-        options=CompareOptions(methods=args.methods, halvings=args.halvings,
-                               repeats=args.repeats, max_steps=args.max_steps),
-        compilation=options.compiled_or_not(args), workers=options.workers(args),
-        run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
-        reference_span=check_real("--reference-span", args.reference_span, positive=True),
-        progress=not args.no_progress)
+    try:
+        results = work_precision_horizons(
+            scene, args.horizons, out=out, unit=args.time_unit,
+            overrides=parse_settings(args.settings),
+            options=CompareOptions(methods=args.methods, halvings=args.halvings,
+                                   repeats=args.repeats, max_steps=args.max_steps),
+            compilation=options.compiled_or_not(args), workers=options.workers(args),
+            run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
+            reference_span=check_real("--reference-span", args.reference_span, positive=True),
+            progress=not args.no_progress)
+    except GridInterrupted as exc:
+        raise _interrupted(exc) from None
     for horizon, rows in results.items():
         failed = sum(r["status"] != "success" for r in rows)
         print(f"{scene.name} compare, T = {horizon:g}: {len(rows)} runs, {failed} did not reach "
               "t_end")
-    print(f"  written to {out}/ (horizons.png, growth.png, horizons.md, horizon_T/)")
-    return 0
+    print(f"  written to {out.path}/ (horizons.png, growth.png, horizons.md, horizon_T/)")
+    return _grid_ended("compare", [r for rows in results.values() for r in rows])
 
 
 def run_stress(args) -> int:
-
+    from ..io.atomic import output_folder
     from ..io.stress_report import stress
+    from ..studies.grid import GridInterrupted
+    from .interrupts import INTERRUPTS
 
-    with warnings.catch_warnings():
-        # the solvability warnings of breaking cases are expected here; stress.md reports them
-        warnings.simplefilter("ignore", RuntimeWarning)
-        rows = stress(args.out, quick=args.quick,
-                      steps=StepControl(max_steps=args.max_steps, time_limit=args.time_limit),
-                      compilation=options.compiled_or_not(args),
-                      workers=options.workers(args, default=None),
-                      progress=not args.no_progress, resume=args.resume)
-    status_summary("stress", rows, args.out, "stress")
-    return 0
+    named = {"quick": args.quick, "max_steps": args.max_steps,
+             "time_limit": args.time_limit, "no_compile": args.no_compile}
+    target, owned = _grid_folder(args, "stress", named, {
+        "quick": False, "max_steps": 2_000_000, "time_limit": 60.0, "no_compile": False})
+    try:
+        with output_folder(target, owned=owned) as out, warnings.catch_warnings():
+            # the solvability warnings of breaking cases are expected here; stress.md says so
+            warnings.simplefilter("ignore", RuntimeWarning)
+            rows = stress(out, quick=args.quick,
+                          steps=StepControl(max_steps=args.max_steps,
+                                            time_limit=args.time_limit),
+                          compilation=options.compiled_or_not(args),
+                          workers=options.workers(args, default=None),
+                          progress=not args.no_progress, resume=args.resume,
+                          interruptible=INTERRUPTS.interruptible)
+    except GridInterrupted as exc:
+        raise _interrupted(exc) from None
+    status_summary("stress", rows, out.path, "stress")
+    return _grid_ended("stress", rows)
 
 
 def run_sweep(args) -> int:
-
+    from ..io.atomic import output_folder
     from ..io.stress_report import stress
+    from ..studies.grid import GridInterrupted
     from ..studies.sweep import sweep_cases
+    from .interrupts import INTERRUPTS
 
     spec = _sweep_spec(args)
     cases = sweep_cases(spec)
-    out = args.out or f"runs/{load_scene(spec.scene).name}-sweep"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        rows = stress(out, cases=cases,
-                      steps=StepControl(max_steps=spec.max_steps, time_limit=spec.time_limit),
-                      compilation=options.compiled_or_not(args),
-                      workers=options.workers(args, default=None),
-                      progress=not args.no_progress, resume=not args.fresh, name="sweep",
-                      title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}")
-    status_summary("sweep", rows, out, "sweep")
-    return 0
+    named = {"scene": spec.scene, "axes": spec.axes, "methods": list(spec.methods),
+             "settings": spec.settings, "max_steps": spec.max_steps,
+             "time_limit": spec.time_limit, "no_compile": args.no_compile}
+    target, owned = _grid_folder(args, f"{load_scene(spec.scene).name}-sweep", named, {})
+    try:
+        with output_folder(target, owned=owned) as out, warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            rows = stress(out, cases=cases,
+                          steps=StepControl(max_steps=spec.max_steps,
+                                            time_limit=spec.time_limit),
+                          compilation=options.compiled_or_not(args),
+                          workers=options.workers(args, default=None),
+                          progress=not args.no_progress, resume=not args.fresh, name="sweep",
+                          title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}",
+                          interruptible=INTERRUPTS.interruptible)
+    except GridInterrupted as exc:
+        raise _interrupted(exc) from None
+    status_summary("sweep", rows, out.path, "sweep")
+    return _grid_ended("sweep", rows)
 
 
 def _sweep_spec(args):
     """The sweep of a grid file or of SCENE with --grid axes, with the command line's methods,
-    settings and bounds on top."""
+    settings and bounds on top; a scene file named inside a grid file only if the command line
+    allows it (--allow-scene): a grid file runs no code the user did not name."""
     from ..io.grid_file import load_grid_file
     from ..studies.methods import get_methods
     from ..studies.sweep import SweepSpec
@@ -151,41 +227,61 @@ def _sweep_spec(args):
     if args.file:
         if args.scene or args.grid:
             raise InputError("give either --file or SCENE with --grid, not both")
-        spec = load_grid_file(args.file)
+        spec = load_grid_file(args.file, allowed=args.allow_scene)
     else:
         if not args.scene or not args.grid:
             raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
         spec = SweepSpec(scene=args.scene, axes=_grid_axes(args.grid))
-    if args.methods:
+    if args.methods is not None:
         spec.methods = tuple(m.name for m in get_methods(args.methods))
     spec.settings = {**spec.settings, **parse_settings(args.settings)}
     if args.max_steps is not None:
         spec.max_steps = args.max_steps
     if args.time_limit is not None:
         spec.time_limit = args.time_limit
+    StepControl(max_steps=spec.max_steps, time_limit=spec.time_limit)  # named checks
+    from .options import check_distinct
+
+    for name, values in spec.axes.items():
+        for value in values:
+            check_real(f"grid axis {name}", value)
+        check_distinct(f"grid axis {name}", values)
+    clash = sorted(set(spec.settings) & set(spec.axes))
+    if clash:
+        raise InputError(f"{clash[0]!r} is both a grid axis and a fixed setting (--set or "
+                         "[settings]); give it once")
     return spec
 
 
 def _grid_axes(items: list[str]) -> dict:
-    """``NAME=SPEC`` items of --grid, as axes."""
+    """``NAME=SPEC`` items of --grid, as axes: finite values, none twice, each name once."""
     from ..studies.sweep import parse_axis
+    from .options import check_distinct
 
     axes = {}
     for item in items:
         name, sep, text = item.partition("=")
         if not sep or not name.strip():
             raise InputError(f"--grid expects NAME=SPEC, got {item!r}")
-        axes[name.strip()] = parse_axis(name.strip(), text)
+        name = name.strip()
+        if name in axes:
+            raise InputError(f"--grid {name} is given twice; give each axis once")
+        values = parse_axis(name, text)
+        for value in values:
+            check_real(f"--grid {name}", value)
+        check_distinct(f"--grid {name}", values)
+        axes[name] = values
     return axes
 
 
 def run_reproduce(args) -> int:
+    from ..io.atomic import output_folder
     from ..io.reproduce import reproduce
-    from ..io.runs import prepare_folder
 
-    out = prepare_folder(args.out)
-    reproduce(out, quick=args.quick, workers=args.workers or 1, scheduler=args.scheduler)
-    print(f"report written to {out / 'report.md'}")
+    target, owned = _grid_folder(args, "reproduce", {"quick": args.quick}, {"quick": False})
+    with output_folder(target, owned=owned) as out:
+        reproduce(out, quick=args.quick, workers=args.workers or 1, scheduler=args.scheduler)
+    print(f"report written to {out.path / 'report.md'}")
     return 0
 
 

@@ -1,10 +1,29 @@
-"""Ctrl-C and SIGTERM during a command: the first asks the march to stop cleanly, later ones
-are noted while the run is saved."""
+"""Ctrl-C and SIGTERM during a command, honoured at every moment.
+
+- While a march steps (it polls :meth:`Interrupts.stop_requested` after every stepper call), a
+  signal only asks it to stop: it ends after the current call (milliseconds) with status
+  ``interrupted`` and every accepted node, which are then written.
+- While a run's files are written (:meth:`Interrupts.saving`) a signal is noted, not raised, so
+  the set is never cut short; the only part it may stop is the figure
+  (:meth:`Interrupts.interruptible`), which is then left out.
+- Anywhere else (loading, building, a grid solve, the final verification of a grid) the first
+  signal raises ``KeyboardInterrupt``; the command stops and says what it kept. Later signals
+  are noted, not raised again while the command is ending (a second Ctrl-C had surfaced as a
+  traceback from inside the first one's handling); one arriving more than a second after a
+  raised one that the program swallowed (a CasADi callback turns it into another error) raises
+  again.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
+import time
+
+SIGNALS = {signal.SIGINT, signal.SIGTERM}
+# A signal this long after a raised one that did not end the command raises again.
+RAISE_AGAIN_S = 1.0
 
 
 class Stopped(Exception):
@@ -12,60 +31,102 @@ class Stopped(Exception):
 
 
 class Interrupts:
-    """SIGINT and SIGTERM, handled alike. During a march (``mode="flag"``) the first one only
-    asks the march to stop: it ends after its current chunk of steps with status
-    ``interrupted`` and every accepted node (raising inside a CasADi call could tear it). With
-    ``mode="raise"`` the first one raises ``KeyboardInterrupt`` (a grid keeps its rows). Once a
-    run is stopping or being saved (:meth:`saving`), later ones are only noted, so a second
-    Ctrl-C cannot cut the files of a run short; a second one before the march polled the
-    first (during its build) raises."""
+    """SIGINT and SIGTERM, handled alike (module docstring)."""
 
     def __init__(self):
-        self.mode = "raise"
-        self.requested = False
-        self.stopping = False
-        self.pending = False
-        self.holding = 0
+        self.requested = False   # a signal arrived
+        self.signals = 0
+        self.name = ""
+        self.polling = False     # a march is stepping and polls stop_requested
+        self.holding = 0         # inside saving(): note only
+        self.abortable = 0       # inside interruptible(): raise even while holding
+        self.ending = False      # the command is unwinding: note only
+        self.raised_at = None
+        self.restore = lambda: None
 
-    def install(self, mode: str):
+    def install(self):
+        """Set the handlers (main thread only) and release the signals the package held while
+        the command started (``ddvp_nlp/__init__.py``): one that came meanwhile is handled now.
+        Returns the function that ends the handling: the old handlers back, or, for the
+        command, the signals held again (one arriving while the process exits is dropped, not
+        a traceback)."""
         import threading
 
         self.__init__()
-        self.mode = mode
         if threading.current_thread() is not threading.main_thread():
             return lambda: None  # handlers can only be set from the main thread
-        previous = {sig: signal.signal(sig, self.handle)
-                    for sig in (signal.SIGINT, signal.SIGTERM)}
-        return lambda: [signal.signal(sig, handler) for sig, handler in previous.items()]
+        previous = {sig: signal.signal(sig, self.handle) for sig in SIGNALS}
+        held = SIGNALS & signal.pthread_sigmask(signal.SIG_BLOCK, set())
+
+        def restore():
+            if held:  # the command: hold them again until the process is gone
+                signal.pthread_sigmask(signal.SIG_BLOCK, held)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        self.restore = restore  # in place before a held signal is handled (it may raise)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
+        return restore
 
     def handle(self, signum, frame):
-        if self.holding or self.stopping:
-            self.pending = True
-            print("ddvp: still saving the run; it stops once the files are written",
-                  file=sys.stderr)
+        self.requested = True
+        self.signals += 1
+        self.name = self.name or signal.Signals(signum).name
+        if self.abortable:
+            raise KeyboardInterrupt
+        if self.ending or self.holding or self.polling:
+            if self.holding and self.signals == 1:
+                _say("ddvp: stopping; the files being written are finished first")
             return
-        if self.mode == "flag" and not self.requested:
-            self.requested = True
-            return
-        raise KeyboardInterrupt
+        now = time.monotonic()
+        if self.raised_at is None or now - self.raised_at > RAISE_AGAIN_S:
+            self.raised_at = now
+            raise KeyboardInterrupt
 
     def stop_requested(self) -> bool:
-        """Polled by the march after each chunk: whether to stop (and from then on hold)."""
-        if self.requested:
-            self.stopping = True
+        """Polled by the march between stepper calls: whether to stop. From the first poll on,
+        a signal only asks the march to stop (it keeps every accepted node)."""
+        self.polling = True
         return self.requested
 
+    @contextlib.contextmanager
     def saving(self):
-        import contextlib
+        """Signals are noted, not raised, while a run's files are written."""
+        self.holding += 1
+        try:
+            yield
+        finally:
+            self.holding -= 1
 
-        @contextlib.contextmanager
-        def held():
-            self.holding += 1
-            try:
-                yield
-            finally:
-                self.holding -= 1
-        return held()
+    @contextlib.contextmanager
+    def interruptible(self):
+        """Inside :meth:`saving`, a part a signal may stop (raising ``KeyboardInterrupt``, also
+        when the signal surfaced as another error); not entered at all once a signal came: a
+        run stopped by the user is written without its optional parts (energies over every
+        node, the scene's checks, the figure: seconds for ten million nodes), so it ends as
+        soon as its nodes are on disk."""
+        if self.signals:  # asked to stop: the optional parts are left out from the start
+            raise KeyboardInterrupt
+        before = self.signals
+        self.abortable += 1
+        try:
+            yield
+        except BaseException:
+            # raised inside a CasADi call, the interrupt comes out as another error
+            # (NotImplementedError from its wrapper): a signal that came meanwhile decides
+            if self.signals > before:
+                raise KeyboardInterrupt from None
+            raise
+        finally:
+            self.abortable -= 1
+
+    def end(self) -> None:
+        """The command is ending: from now on signals are only noted."""
+        self.ending = True
+
+
+def _say(text: str) -> None:
+    with contextlib.suppress(Exception):
+        print(text, file=sys.stderr, flush=True)
 
 
 INTERRUPTS = Interrupts()

@@ -1,13 +1,22 @@
-"""The ``ddvp`` entry point: parse, dispatch to the command, map failures to exit codes (0
-success, 1 the solve failed with partial results written, 2 bad usage with a message naming the
-argument, 141 stdout closed by its reader; never a traceback)."""
+"""The ``ddvp`` entry point: parse, check every numeric option, dispatch to the command, map
+failures to exit codes, never a traceback:
+
+- 0: success;
+- 1: the solve failed, was interrupted (Ctrl-C, SIGTERM), or its output could not be written
+  (a full disk, a read-only or busy folder, a name too long): the message says what the
+  output folder holds;
+- 2: bad usage or bad input (an option, a scene file, a grid file, a guess), with a message
+  naming it;
+- 141: stdout was closed by its reader.
+"""
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 
-from ..errors import InputError
+from ..errors import InputError, OutputError
 from .grids import run_compare, run_reproduce, run_scenes, run_stress, run_sweep
 from .interrupts import INTERRUPTS, Stopped
 from .parser import build_parser, parse_arguments
@@ -16,65 +25,143 @@ from .summary import format_warning
 
 COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
             "compare": run_compare, "stress": run_stress, "sweep": run_sweep,
-            "reproduce": run_reproduce, "periodic": run_periodic}
-
-
-COMMANDS["poincare"] = run_poincare
-
-
-def _check_common(args) -> None:
-    """Options several commands share, checked before anything is loaded: ``--workers`` (0 was
-    silently taken as 1)."""
-    from ..validation import check_integer
-
-    if getattr(args, "workers", None) is not None:
-        check_integer("--workers", args.workers)
+            "reproduce": run_reproduce, "periodic": run_periodic, "poincare": run_poincare}
+# Set to 1 to see the traceback of whatever ended a command, besides its one line.
+TRACEBACK_VARIABLE = "DDVP_TRACEBACK"
 
 
 def main(argv: list[str] | None = None) -> int:
-
-    from ..errors import OutputError
-
-    parser = build_parser()
-    args = parse_arguments(parser, argv)
-    if args.command not in COMMANDS:
-        parser.error(f"unknown command {args.command!r}")
     original_format = warnings.formatwarning
-    warnings.formatwarning = format_warning  # one line, no source echo
-    restore = INTERRUPTS.install("raise")
+    restore = lambda: None  # noqa: E731 - until the handlers are in place
     try:
-        _check_common(args)
-        return COMMANDS[args.command](args)
-    except InputError as exc:
-        print(f"ddvp {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except OutputError as exc:
-        print(f"ddvp {args.command}: error: {exc}; the run was not saved (the folder keeps "
-              "what it held before)", file=sys.stderr)
-        return 1
-    except Stopped as exc:
-        print(f"ddvp {args.command}: {exc}", file=sys.stderr)
-        return 1
-    except BrokenPipeError:
-        # the reader of stdout went away (`ddvp march ... | head`): the run's files are
-        # written before the summary is printed; say nothing more on the closed pipe
-        _silence_stdout()
-        return 141  # 128 + SIGPIPE, the shell's code for a writer whose reader went away
-    except KeyboardInterrupt:  # a grid keeps its rows
-        print(f"ddvp {args.command}: interrupted; the rows finished so far are in the output "
-              "folder (ddvp sweep, and ddvp stress --resume, go on from them)", file=sys.stderr)
-        return 1
+        restore = INTERRUPTS.install()
+        _stdout_usable()
+        parser = build_parser()
+        args = parse_arguments(parser, argv)
+        if args.command not in COMMANDS:
+            parser.error(f"unknown command {args.command!r}")
+        warnings.formatwarning = format_warning  # one line, no source echo
+    except SystemExit:  # argparse's own end (--help, --version, a usage error), as it is
+        restore()
+        raise
+    except BaseException as exc:  # noqa: B036 - a signal while starting
+        INTERRUPTS.end()
+        try:
+            return _failure("ddvp", exc)
+        finally:
+            INTERRUPTS.restore()
+    try:
+        return _run(args)
     finally:
         restore()
         warnings.formatwarning = original_format
 
 
+def _run(args) -> int:
+    from .options import check_numbers
+
+    command = f"ddvp {args.command}"
+    try:
+        check_numbers(args)
+        code = COMMANDS[args.command](args)
+        sys.stdout.flush()  # a full disk behind stdout fails here, not at the exit
+        return code
+    except BaseException as exc:  # noqa: B036 - every way out gets an exit code and a line
+        INTERRUPTS.end()
+        return _failure(command, exc)
+
+
+def _failure(command: str, exc: BaseException) -> int:
+    """The exit code and message of a command that raised ``exc``."""
+    if os.environ.get(TRACEBACK_VARIABLE) == "1":  # where it came from, for a defect report
+        import traceback
+
+        traceback.print_exception(exc)
+    if isinstance(exc, BrokenPipeError) or (isinstance(exc, OSError) and exc.errno == 32):
+        # the reader of stdout went away (`ddvp march ... | head`): the run's files are
+        # written before the summary is printed; say nothing more on the closed pipe
+        _silence_stdout()
+        return 141  # 128 + SIGPIPE, the shell's code for a writer whose reader went away
+    if isinstance(exc, InputError) and not INTERRUPTS.requested:
+        _say(f"{command}: error: {exc}")
+        return 2
+    if isinstance(exc, OutputError):
+        _say(f"{command}: error: {exc}")
+        return 1
+    if isinstance(exc, Stopped):
+        _say(f"{command}: {exc}")
+        return 1
+    if isinstance(exc, KeyboardInterrupt):
+        # a command that kept something says so itself (Stopped); this one wrote nothing new
+        _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}) before anything was "
+             "written; the output folder keeps what it held before")
+        return 1
+    if INTERRUPTS.requested:  # an interrupt that surfaced as another error (inside CasADi)
+        _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}); it ended with "
+             f"{type(exc).__name__}: {str(exc)[:200]}")
+        return 1
+    if isinstance(exc, SystemExit):
+        return exc.code if isinstance(exc.code, int) else 1
+    if isinstance(exc, MemoryError):
+        _say(f"{command}: error: out of memory ({exc or 'no detail'}); nothing new was "
+             "written")
+        return 1
+    if isinstance(exc, OSError):  # writing stdout or stderr: a full disk, a closed file
+        _silence_stdout()
+        _say(f"{command}: error: cannot write the output: {exc.strerror or exc}")
+        return 1
+    if isinstance(exc, RecursionError):
+        _say(f"{command}: error: input nested too deeply to read ({exc})")
+        return 2
+    _say(f"{command}: internal error: {type(exc).__name__}: {exc} (a defect of ddvp; "
+         f"{TRACEBACK_VARIABLE}=1 shows where)")
+    return 1
+
+
+def _say(text: str) -> None:
+    try:
+        print(text, file=sys.stderr, flush=True)
+    except (OSError, ValueError, AttributeError):  # stderr closed too: the code says it
+        pass
+
+
+def _stdout_usable() -> None:
+    """A command started with stdout closed (``ddvp scenes >&-``) prints into /dev/null
+    instead of failing on its first line."""
+    if sys.stdout is None or _closed(sys.stdout):
+        try:
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - for the process's lifetime
+        except OSError:
+            pass
+    if sys.stderr is None or _closed(sys.stderr):
+        try:
+            sys.stderr = open(os.devnull, "w")  # noqa: SIM115
+        except OSError:
+            pass
+
+
+def _closed(stream) -> bool:
+    """Whether ``stream`` is a file whose descriptor is closed (a stream without one, such as
+    a test's capture, is usable)."""
+    import io
+
+    try:
+        descriptor = stream.fileno()
+    except (io.UnsupportedOperation, AttributeError):
+        return False
+    except (OSError, ValueError):
+        return True
+    try:
+        os.fstat(descriptor)
+        return False
+    except OSError:
+        return True
+
+
 def _silence_stdout() -> None:
     """Point stdout at /dev/null so that the interpreter's final flush does not fail again."""
-    import os
-
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
-    except (OSError, ValueError):
+    except (OSError, ValueError, AttributeError):
         pass

@@ -59,3 +59,96 @@ def workers(args, *, default: int | None = 1) -> Workers:
     given)."""
     return Workers(count=args.workers if args.workers is not None else default,
                    scheduler=args.scheduler)
+
+
+# Every numeric option of every command, by its name on the command line: what it must be.
+# "positive": a finite number > 0; "finite": any finite number; "ratio": > 1; "unit": in
+# [0, 1] (alpha = 0 and 1 are the symplectic Euler schemes, docs/theory.md); "count": an
+# integer >= 1; "natural": an integer >= 0.
+NUMBERS = {
+    "tol": "positive", "alpha": "unit", "tau_min": "positive", "tau_max": "positive",
+    "max_step_ratio": "ratio", "time_limit": "positive", "energy_guard": "positive",
+    "rtol": "positive", "atol": "positive", "energy_tol": "positive",
+    "global_tol": "positive", "checkpoint_every": "positive", "max_steps": "count",
+    "nodes": "count", "energy": "finite", "orbits": "count", "t_end": "finite",
+    "tau0": "positive", "seed": "natural", "workers": "count", "halvings": "natural",
+    "repeats": "count", "time_unit": "positive", "run_budget": "positive",
+    "reference_span": "positive",
+}
+# Seeds numpy takes: below 2**63 (a larger one was taken, and a negative one a traceback).
+MAX_SEED = 2**63 - 1
+
+
+def check_numbers(args) -> None:
+    """Every numeric option the command has, checked by name and range before anything is
+    loaded (``InputError`` naming the option: ``--time-limit nan`` and ``--alpha 0`` had
+    passed)."""
+    from ..errors import InputError
+    from ..validation import check_integer, check_real
+
+    for dest, rule in NUMBERS.items():
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        flag = "--" + dest.replace("_", "-")
+        if rule in ("count", "natural"):
+            check_integer(flag, value, minimum=1 if rule == "count" else 0,
+                          maximum=MAX_SEED if dest == "seed" else None)
+            continue
+        value = check_real(flag, value, positive=rule in ("positive", "ratio"))
+        if rule == "ratio" and not value > 1:
+            raise InputError(f"{flag} must be > 1, got {value!r}")
+        if rule == "unit" and not 0 <= value <= 1:
+            raise InputError(f"{flag} must lie in [0, 1], got {value!r}")
+    tau_min, tau_max = getattr(args, "tau_min", None), getattr(args, "tau_max", None)
+    if tau_min is not None and tau_max is not None and not tau_min < tau_max:
+        raise InputError(f"--tau-min must be < --tau-max = {tau_max!r}, got {tau_min!r}")
+    _check_lists(args)
+
+
+def _check_lists(args) -> None:
+    """``--methods``, ``--section``, ``--horizons`` and ``--family``: not empty, no repeats."""
+    from ..errors import InputError
+
+    methods = getattr(args, "methods", None)
+    if methods is not None:
+        names = [name.strip() for name in methods.split(",")]
+        if not any(names) or "" in names:
+            raise InputError(f"--methods must be comma-separated method names, got "
+                             f"{methods!r}")
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            raise InputError(f"--methods names {repeated[0]!r} twice")
+    section = getattr(args, "section", None)
+    if section is not None and (not section.strip() or "=" not in section):
+        raise InputError(f"--section must be NAME=VALUE (e.g. q1=0), got {section!r}")
+    horizons = getattr(args, "horizons", None)
+    if horizons is not None:
+        check_values("--horizons", horizons, positive=True)
+
+
+def check_values(flag: str, text: str, *, positive: bool = False) -> list[float]:
+    """Comma-separated finite numbers, none repeated (``positive``: all > 0)."""
+    from ..errors import InputError
+    from ..validation import check_real
+
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"{flag} must be comma-separated numbers, got {text!r}") from None
+    for value in values:
+        check_real(flag, value, positive=positive)
+    check_distinct(flag, values)
+    return values
+
+
+def check_distinct(flag: str, values) -> None:
+    """No value twice (a repeated grid value ran the same runs twice and one row hid the
+    other)."""
+    from ..errors import InputError
+
+    seen = set()
+    for value in values:
+        if value in seen:
+            raise InputError(f"{flag} has the value {value!r} twice; give each value once")
+        seen.add(value)

@@ -138,7 +138,9 @@ def _poincare_command(commands) -> None:
     poincare.add_argument("--seed", type=int, default=0, help="seed of the starts")
     poincare.add_argument("--set", dest="settings", action="append", default=[],
                           metavar="NAME=VALUE", help="a parameter of the scene")
-    poincare.add_argument("--out", default=None, help="output folder")
+    poincare.add_argument("--out", default=None,
+                          help="output folder (default: runs/SCENE-poincare-EENERGY; -HASH of "
+                               "the other settings when they are not the defaults)")
     poincare.add_argument("--no-plot", action="store_true", help="do not write the figure")
     poincare.add_argument("--workers", type=int, default=2,
                           help="local worker processes marching the orbits (default: 2)")
@@ -170,9 +172,28 @@ def _periodic_command(commands) -> None:
                           help="start from a run folder / result.npz (t, q, p over one period)")
     periodic.add_argument("--set", dest="settings", action="append", default=[],
                           metavar="NAME=VALUE", help="a parameter of the scene")
-    periodic.add_argument("--out", default=None, help="output folder")
+    periodic.add_argument("--out", default=None,
+                          help="output folder (default: runs/SCENE-periodic, or "
+                               "runs/SCENE-family-HASH; -HASH of the energy and every other "
+                               "setting when they are not the scene's defaults)")
     periodic.add_argument("--no-plot", action="store_true", help="do not write the figures")
     _accuracy_arguments(periodic)
+    periodic.add_argument("--stability", action="store_true",
+                          help="the Floquet multipliers, stability indices and verdict of the "
+                               "orbit (of each orbit of --family), checked against the exact "
+                               "flow (stability.json)")
+    periodic.add_argument("--stability-tol", type=float, default=1e-6, metavar="TOL",
+                          help="a stability index within TOL of +-2 is marginal (default 1e-6)")
+    periodic.add_argument("--follow", type=float, default=None, metavar="E_END",
+                          help="follow the family from --energy towards E_END by "
+                               "pseudo-arclength continuation (through folds), every orbit's "
+                               "stability, the bifurcations located and confirmed on the exact "
+                               "flow")
+    periodic.add_argument("--step", type=float, default=None, metavar="DE",
+                          help="with --follow: the first step in the energy (default: a "
+                               "twentieth of the range)")
+    periodic.add_argument("--max-orbits", type=int, default=200,
+                          help="with --follow: at most this many orbits (default 200)")
 
 
 def _march_command(commands) -> None:
@@ -251,6 +272,9 @@ def _bvp_command(commands) -> None:
                      help="with --guess march: the momentum shooting starts from (default the "
                           "straight line's); picks the branch of a problem with several "
                           "solutions")
+    bvp.add_argument("--energy", type=float, default=None,
+                     help="a transfer at this energy E: the end time becomes an unknown (the "
+                          "scene's t_end - t0 its guess), every interval's energy is E")
     bvp.add_argument("--time-limit", type=float, default=None,
                      help="stop after this many seconds (status time_limit)")
     bvp.add_argument("--progress", action="store_true",
@@ -274,7 +298,8 @@ def _compare_command(commands) -> None:
                          metavar="NAME=VALUE",
                          help="override a scene parameter or t0, tau0, t_end, q0, p0; repeatable")
     compare.add_argument("--out", default=None,
-                         help="output folder (default: runs/SCENE-compare)")
+                         help="output folder (default: runs/SCENE-compare; -HASH of the "
+                              "settings, methods and sweeps when they are not the defaults)")
     compare.add_argument("--halvings", type=int, default=6,
                          help="step sweeps go from 2 tau0 down by this many halvings "
                               "(default: 6)")
@@ -306,7 +331,9 @@ def _compare_command(commands) -> None:
 def _stress_command(commands) -> None:
     stress = commands.add_parser(
         "stress", help="run every method on the stiff and extreme cases; say where each breaks")
-    stress.add_argument("--out", default="runs/stress", help="output folder")
+    stress.add_argument("--out", default=None,
+                        help="output folder (default: runs/stress; -HASH of the bounds and "
+                             "--quick when they are not the defaults)")
     stress.add_argument("--quick", action="store_true",
                         help="a few cases on short horizons (seconds)")
     _run_bounds(stress, defaults=True)
@@ -326,12 +353,18 @@ def _sweep_command(commands) -> None:
                        help="an axis: NAME=FROM:TO:COUNT or NAME=V1,V2,...; NAME is a scene "
                             "parameter, t_end, t0, tau0 (the step) or rtol (DOP853); repeatable")
     sweep.add_argument("--file", default=None, help="a TOML grid file (see `ddvp_nlp.sweep`)")
+    sweep.add_argument("--allow-scene", default=None, metavar="FILE",
+                       help="the scene file a --file grid names, allowed to run (a grid file "
+                            "runs no code the command line does not name: its scene is a "
+                            "built-in name, or this file)")
     sweep.add_argument("--methods", default=None,
                        help=f"comma-separated methods (default: {', '.join(DEFAULT_METHODS)} "
                             "where they apply)")
     sweep.add_argument("--set", dest="settings", action="append", default=[],
                        metavar="NAME=VALUE", help="a fixed scene parameter or setting")
-    sweep.add_argument("--out", default=None, help="output folder (default: runs/SCENE-sweep)")
+    sweep.add_argument("--out", default=None,
+                       help="output folder (default: runs/SCENE-sweep-HASH, HASH of the grid, "
+                            "methods, settings and bounds: another grid never shares it)")
     sweep.add_argument("--fresh", action="store_true",
                        help="start afresh instead of resuming from OUT/sweep.csv")
     _run_bounds(sweep, defaults=False)
@@ -341,7 +374,9 @@ def _sweep_command(commands) -> None:
 def _reproduce_command(commands) -> None:
     reproduce = commands.add_parser(
         "reproduce", help="figures and report.md comparing the paper's claims with measurements")
-    reproduce.add_argument("--out", default="runs/reproduce", help="output folder")
+    reproduce.add_argument("--out", default=None,
+                           help="output folder (default: runs/reproduce, with -HASH for "
+                                "--quick)")
     reproduce.add_argument("--quick", action="store_true",
                            help="shorter runs and fewer step sizes (about 10 s)")
     _grid_arguments(reproduce, "1")

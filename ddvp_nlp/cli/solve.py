@@ -4,12 +4,13 @@ run folder, print its summary."""
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from ..discrete.scheme import RULES, Scheme
 from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
-from ..solvers.options import GridOptions, Output
+from ..solvers.options import Output
 from . import options
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
@@ -19,7 +20,7 @@ from .summary import print_summary
 def run_solve(args) -> int:
     """``ddvp march`` and ``ddvp bvp`` on any scene: resolve, solve, write the run folder and
     print its summary."""
-    from ..io.runs import default_folder, prepare_folder, write_run
+    from ..io.atomic import output_folder
 
     scene = load_scene(args.scene)
     higher = _higher(scene)
@@ -27,6 +28,52 @@ def run_solve(args) -> int:
     scheme = _scheme(args, higher)
     overrides = parse_settings(args.settings)
     config = _resolve(args, scene, higher, overrides)
+    target, owned, overrides = _run_folder(args, scene, config, overrides)
+    with output_folder(target, owned=owned) as out:
+        args.checkpoint = _checkpoint_saver(args, scene, out)
+        try:
+            solution, extra = _SOLVERS[args.command, higher](args, scene, config, scheme)
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) before the run had a "
+                          f"node to keep; nothing new was written: {holds(out)}") from None
+        meta = _save(args, out, scene, config, scheme, solution,
+                     {**(extra or {}), "overrides": overrides})
+    print_summary(meta, out.path)
+    if INTERRUPTS.requested:
+        kept = f"{meta['nodes']} nodes, up to t = {meta['t_reached']:.10g}"
+        print(f"ddvp {args.command}: interrupted ({INTERRUPTS.name}); the run was written whole "
+              f"to {out.path}/ ({kept})", file=sys.stderr)
+    return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+def _save(args, out, scene, config, scheme, solution, extra) -> dict:
+    """The run's set written with interrupts held (only the figure may be cut short); on a
+    write failure, what the folder holds is said."""
+    from ..errors import OutputError
+    from ..io.runs import write_run
+
+    try:
+        with INTERRUPTS.saving():
+            return write_run(out, command=args.command, scene=scene, config=config,
+                             scheme=scheme, solution=solution, extra=extra,
+                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
+    except OutputError as exc:
+        raise OutputError.because(exc, f"the run ({solution.steps} steps) was not saved; "
+                                       f"{holds(out)}") from None
+
+
+def holds(out) -> str:
+    from ..io.atomic import describe
+
+    return describe(out.path)
+
+
+def _run_folder(args, scene, config, overrides):
+    """The output folder (``--out``, else the default named by every setting that changes
+    the result), how many of its trailing components ddvp chose, and the overrides recorded
+    in ``meta.json``."""
+    from ..io.runs import default_folder
+
     resolved = dict(_resolved(config))
     if args.command == "bvp":
         if args.nodes is not None:
@@ -35,52 +82,32 @@ def run_solve(args) -> int:
         # another one gets a folder of its own (two runs differing only in --guess shared one)
         for name, value, default in (("guess", args.guess, "straight"),
                                      ("p_start", args.p_start, None),
-                                     ("solver", args.solver, "auto")):
+                                     ("solver", args.solver, "auto"),
+                                     ("energy", args.energy, None)):
             if value != default:
                 overrides[name] = resolved[name] = value
+    options = result_options(args)
+    resolved.update(options)
+    if args.out is not None:
+        return args.out, 1, overrides
     infix = "-bvp" if args.command == "bvp" else ""
-    target = args.out if args.out is not None else default_folder(
-        f"{scene.name}{infix}-{args.scheme}", resolved, overrides)
-    existed = Path(target).exists()
-    out = prepare_folder(target)
-    args.checkpoint = _checkpoint_saver(args, scene, out)
-    if args.command == "march" and not higher:
-        INTERRUPTS.mode = "flag"  # the march polls it (stop=) and ends cleanly
-    solve = _SOLVERS[args.command, higher]
-    try:
-        solution, extra = solve(args, scene, config, scheme)
-    except KeyboardInterrupt:
-        removed = not existed and _remove_if_empty(out)
-        raise Stopped("interrupted before the run had a result; nothing was written" +
-                      (f" (the empty folder {out}/ is removed)" if removed else
-                       f" to {out}/")) from None
-    except InputError:
-        if not existed:  # a refused run leaves no empty folder behind
-            _remove_if_empty(out)
-        raise
-    with INTERRUPTS.saving():  # a second Ctrl-C or a SIGTERM waits until the set is written
-        meta = write_run(out, command=args.command, scene=scene, config=config, scheme=scheme,
-                         solution=solution, extra={**(extra or {}), "overrides": overrides},
-                         plot=not args.no_plot)
-    print_summary(meta, out)
-    if INTERRUPTS.pending:
-        print(f"ddvp {args.command}: interrupted while saving; the run above was written whole "
-              f"to {out}/", file=sys.stderr)
-    return 0 if solution.success and not INTERRUPTS.pending else 1
+    return default_folder(f"{scene.name}{infix}-{args.scheme}", resolved,
+                          {**overrides, **options}), 2, overrides
 
 
-def _remove_if_empty(out) -> bool:
-    """Remove the folder ``out`` if nothing but a lock file is in it; whether it was removed."""
-    try:
-        entries = [entry for entry in out.iterdir() if entry.name != ".ddvp.lock"]
-        if entries:
-            return False
-        for entry in out.iterdir():
-            entry.unlink()
-        out.rmdir()
-        return True
-    except OSError:
-        return False
+# Options of march and bvp that change the result, with their defaults: a run that changes one
+# gets a folder of its own (--alpha, --clock and --tol had shared the default one).
+RESULT_OPTIONS = {"alpha": 0.5, "clock": "midpoint", "tol": 1e-10, "tau_min": None,
+                  "tau_max": None, "max_step_ratio": 10.0, "max_steps": 10_000_000,
+                  "time_limit": None, "energy_guard": None, "least_squares": False,
+                  "rtol": 1e-2, "atol": 1e-2, "energy_tol": 0.1, "global_tol": None,
+                  "accept_inaccurate": False, "careful": False}
+
+
+def result_options(args) -> dict:
+    """The options of ``args`` in :data:`RESULT_OPTIONS` whose value is not the default."""
+    return {name: getattr(args, name) for name, default in RESULT_OPTIONS.items()
+            if hasattr(args, name) and getattr(args, name) != default}
 
 
 def _checkpoint_saver(args, scene, out):
@@ -90,10 +117,9 @@ def _checkpoint_saver(args, scene, out):
         return None
     from ..io.runs import write_checkpoint
 
-    def save(t, z):
-        with INTERRUPTS.saving():
-            write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
-                             n=scene.system.n)
+    def save(t, z):  # called from the march's checkpoint thread: the main thread polls
+        write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
+                         n=scene.system.n)
     return save
 
 
@@ -179,7 +205,8 @@ def _march(args, scene, config, scheme):
                                                  stop=INTERRUPTS.stop_requested))
     stats = solution.stats
     return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
-                                                  "checkpoints")}
+                                                  "checkpoints", "checkpoints_landed_s")
+                      if key in stats}
 
 
 def _march_method(args, scene, config):
@@ -210,7 +237,8 @@ def _march_method(args, scene, config):
 
 
 def _bvp(args, scene, config, scheme):
-    from ..solvers.bvp import Shooting, solve_bvp
+    from ..solvers.bvp import AtEnergy, Shooting, solve_bvp
+    from .stability import transfer_note
 
     p_start = _momentum(args.p_start)
     if p_start is not None and args.guess != "march":
@@ -218,11 +246,17 @@ def _bvp(args, scene, config, scheme):
                          f"it with --guess march (got --guess {args.guess})")
     progress = args.progress or (config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else _bvp_guess(args.guess, scene.system.n)
-    solution = solve_bvp(scene.system, config.q_start, config.q_end, config.t_span,
+    span = config.t_span
+    if args.energy is not None:  # the scene's span is the transfer time's guess
+        span = AtEnergy(args.energy, t0=span[0], duration=span[1] - span[0])
+    solution = solve_bvp(scene.system, config.q_start, config.q_end, span,
                          nodes=config.nodes, scheme=scheme, params=config.params, guess=guess,
                          options=options.grid_options(args, tol=args.tol),
                          output=Output(progress=progress))
-    return solution, {"solver": solution.stats}
+    extra = {"solver": solution.stats}
+    if args.energy is not None and "transfer_time" in solution.stats:
+        extra["note"] = transfer_note(solution.stats)
+    return solution, extra
 
 
 # A bvp of at least this many nodes reports its iterations on a terminal without --progress
@@ -241,24 +275,37 @@ def _momentum(text: str | None):
 
 
 def _bvp_guess(value: str, n: int | None = None):
-    """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a ``result.npz`` (or of the one in
-    a run folder); ``InputError`` if the file is missing or lacks them."""
+    """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a run folder's last complete
+    set, or of a ``result.npz`` file (checked: a zip of real, finite arrays, ``t`` increasing,
+    ``q`` and ``p`` of shape ``(N, n)``; beside a ``meta.json``, the file that one describes);
+    ``InputError`` naming the file and the reason otherwise."""
     import numpy as np
+
+    from ..io.runs import META, check_run_arrays, read_run
+    from ..validation import check_file_size
 
     if value in ("straight", "march"):
         return value
     path = Path(value)
-    path = path / "result.npz" if path.is_dir() else path
-    if not path.is_file():
-        raise InputError(f"--guess must be straight, march or a result.npz (or run folder), "
-                         f"got {value!r}: no such file")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            guess = {key: data[key] for key in ("t", "q", "p")}
-    except (OSError, ValueError, KeyError, AttributeError):
-        raise InputError(f"--guess {value!r}: {path} is not a result.npz with t, q and p "
-                         f"arrays") from None
-    if n is not None and (guess["q"].ndim != 2 or guess["q"].shape[1] != n):
+    if path.is_dir() or (path.name == "result.npz" and (path.parent / META).exists()):
+        try:
+            arrays, _ = read_run(path if path.is_dir() else path.parent)
+        except InputError as exc:
+            raise InputError(f"--guess {value!r}: {exc}") from None
+    else:
+        if not path.is_file():
+            raise InputError(f"--guess must be straight, march or a result.npz (or run "
+                             f"folder), got {value!r}: no such file")
+        check_file_size(f"--guess {value!r}", path.stat().st_size)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {key: data[key] for key in ("t", "q", "p")}
+        except Exception:  # not a zip, not npy, a missing array, a pickled object
+            raise InputError(f"--guess {value!r}: {path} is not a result.npz with t, q and p "
+                             f"arrays") from None
+    check_run_arrays(f"--guess {value!r}", arrays)
+    guess = {key: np.asarray(arrays[key], dtype=float) for key in ("t", "q", "p")}
+    if n is not None and guess["q"].shape[1] != n:
         raise InputError(f"--guess {value!r}: its q has shape {guess['q'].shape}, this scene "
                          f"has n = {n} coordinates")
     return guess
@@ -268,9 +315,8 @@ def _march_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import march_higher
 
     t_init, q_init = scene.start(config)
-    return march_higher(scene.system, t_init, q_init, t_end=config.t_end,
-                        scheme=scheme.rule, params=config.params, tol=args.tol,
-                        max_steps=args.max_steps, time_limit=args.time_limit,
+    return march_higher(scene.system, t_init, q_init, config.t_end, scheme=scheme.rule,
+                        params=config.params, steps=options.step_control(args),
                         accuracy=options.tolerance(args, exact=_higher_exact(scene, config))
                         ), None
 
@@ -278,15 +324,19 @@ def _march_higher(args, scene, config, scheme):
 def _bvp_higher(args, scene, config, scheme):
     from ..solvers.higher.solve import solve_bvp_higher
 
+    if args.energy is not None:
+        raise InputError(f"--energy: scene {scene.name!r} is a higher-order scene; a transfer at "
+                         f"a prescribed energy needs a Hamiltonian (or first-order Lagrangian) "
+                         f"scene")
     boundary = scene.boundary or Endpoints()
     nodes = args.nodes or boundary.nodes or 41
     t_span = boundary.t_span or (config.t0, config.t_end)
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
                             scheme=scheme.rule, params=config.params,
-                            options=GridOptions(solver=args.solver, tol=args.tol,
-                                                accuracy=options.tolerance(
-                                                    args, exact=_higher_exact(scene, config)))
+                            options=replace(options.grid_options(args, tol=args.tol),
+                                            accuracy=options.tolerance(
+                                                args, exact=_higher_exact(scene, config)))
                             ), None
 
 
@@ -303,89 +353,180 @@ _SOLVERS = {("march", False): _march, ("bvp", False): _bvp,
 def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
-    from ..io.periodic_runs import write_family, write_periodic
-    from ..io.runs import prepare_folder
-    from ..solvers.periodic.family import solve_periodic_family
-    from ..solvers.periodic.solve import check_periodic, solve_periodic
+    from ..solvers.periodic.solve import check_periodic
+    from .stability import scene_guess
 
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
     params = parse_settings(args.settings)
+    scene.resolve({k: v for k, v in params.items() if k in scene.params})  # ranges, names
     settings = {"section": args.section or defaults.section, "scheme": args.scheme,
                 "params": params, "start": defaults.start, "integrals": defaults.integrals,
                 "angles": defaults.angles, "options": options.grid_options(args)}
     nodes = args.nodes if args.nodes is not None else defaults.nodes
-    guess = _bvp_guess(args.guess) if args.guess else None
+    guess = _bvp_guess(args.guess, scene.system.n) if args.guess else None
+    named = {"nodes": nodes, "section": settings["section"], "scheme": args.scheme,
+             "solver": args.solver, "params": params, "guess": args.guess}
+    if args.follow is not None or args.stability:
+        from .stability import run_periodic_stability
+
+        return run_periodic_stability(args, scene, settings, nodes, guess, params, named)
     if args.family is not None:
-        energies = _family_energies(args.family)
-        for energy in (energies[0], energies[-1]):
+        energies = family_energies(args.family, scene.system.n, nodes)
+        guess = guess or scene_guess(scene, energies[0], params)
+        for energy in (energies[0], energies[-1]) if guess is None else ():
             check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
-        out = prepare_folder(args.out or f"runs/{scene.name}-family")
-        family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
-                                       **settings)
-        rows = write_family(out, scene, family, params, plot=not args.no_plot)
-        for row in rows:
-            print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
-                  f"residuals canonical {row['canonical']:.2e}, closure {row['closure']:.2e}")
-        print(f"  written to {out}/ (family.csv, family.png, E=... folders)")
-        return 0 if all(row["status"] == "success" for row in rows) else 1
+        return _periodic_family(args, scene, energies, nodes, guess, settings,
+                                {**named, "family": args.family})
     energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:
         raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
-    check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
-    out = prepare_folder(args.out or f"runs/{scene.name}-periodic")
-    solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
-                              **settings)
-    meta = write_periodic(out, scene, solution, params, plot=not args.no_plot)
+    guess = guess or scene_guess(scene, energy, params)
+    if guess is None:
+        check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+    check_grid_memory("--nodes", nodes, scene.system.n, 1)
+    return _periodic_orbit(args, scene, energy, nodes, guess, settings,
+                           {**named, "energy": energy}, defaults)
+
+
+def default_or(args, label: str, named: dict, defaults: dict):
+    """``(folder, owned)``: ``--out``, else ``runs/LABEL`` for the defaults and
+    ``runs/LABEL-HASH`` (``HASH`` of every setting) when any setting differs from them."""
+    from ..io.runs import default_folder
+
+    if args.out is not None:
+        return args.out, 1
+    changed = {k: v for k, v in named.items() if defaults.get(k, object()) != v}
+    return default_folder(label, named, changed), 2
+
+
+def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults) -> int:
+    from ..io.atomic import output_folder
+    from ..io.periodic_runs import write_periodic
+    from ..solvers.periodic.solve import solve_periodic
+
+    target, owned = default_or(args, f"{scene.name}-periodic", named, {
+        "nodes": defaults.nodes, "section": defaults.section, "scheme": "vddvp",
+        "solver": "auto", "params": {}, "guess": None, "energy": defaults.energy})
+    with output_folder(target, owned=owned) as out:
+        try:
+            solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
+                                      **settings)
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while solving; nothing "
+                          f"new was written: {holds(out)}") from None
+        with INTERRUPTS.saving():
+            meta = write_periodic(out, scene, solution, settings["params"],
+                                  plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
-          f"written to {out}/")
+          f"written to {out.path}/")
     if solution.stats.get("accuracy"):
         from ..solvers.accuracy import describe
 
         accuracy = solution.stats["accuracy"]
         print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
-    return 0 if solution.success else 1
+    return 0 if solution.success and not INTERRUPTS.requested else 1
 
 
-def _family_energies(text: str):
-    """``E1:E2:COUNT`` as ``COUNT`` energies from ``E1`` to ``E2``."""
+def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> int:
+    from ..io.atomic import output_folder
+    from ..io.periodic_runs import write_family
+    from ..solvers.periodic.family import solve_periodic_family
+
+    target, owned = default_or(args, f"{scene.name}-family", named, {})
+    with output_folder(target, owned=owned) as out:
+        try:
+            family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
+                                           **settings)
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while solving the "
+                          f"family; nothing new was written: {holds(out)}") from None
+        with INTERRUPTS.saving():
+            rows = write_family(out, scene, family, settings["params"], plot=not args.no_plot,
+                                interruptible=INTERRUPTS.interruptible)
+    for row in rows:
+        print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
+              f"residuals canonical {row['canonical']:.2e}, closure {row['closure']:.2e}")
+    print(f"  written to {out.path}/ (family.csv, family.png, E=... folders)")
+    return 0 if all(row["status"] == "success" for row in rows) and not INTERRUPTS.requested \
+        else 1
+
+
+def check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
+    """The nodes of a grid solve (and ``members`` kept solutions) against the memory."""
+    from ..validation import check_memory
+
+    check_memory(flag, nodes, 48.0 * nodes * (2 * n + 2) ** 2 + members * 64.0 * nodes * n,
+                 "the grid's Jacobian and the kept orbits")
+
+
+def family_energies(text: str, n: int = 1, nodes: int = 200):
+    """``E1:E2:COUNT`` as ``COUNT`` distinct energies from ``E1`` to ``E2``, the family's
+    orbits checked against the memory before any is solved."""
     import numpy as np
+
+    from ..validation import check_integer, check_memory
 
     parts = text.split(":")
     try:
-        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
         if len(parts) != 3:
             raise ValueError
-    except (ValueError, IndexError):
+        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
+    except (ValueError, IndexError, OverflowError):
         raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
-    if count < 2 or not np.isfinite(first) or not np.isfinite(last):
-        raise InputError(f"--family needs finite E1, E2 and COUNT >= 2, got {text!r}")
-    return np.linspace(first, last, count)
+    if not np.isfinite(first) or not np.isfinite(last):
+        raise InputError(f"--family needs finite E1 and E2, got {text!r}")
+    check_integer("--family COUNT", count, minimum=2)
+    if first == last:
+        raise InputError(f"--family needs E1 != E2, got {text!r}")
+    check_memory("--family COUNT", count, count * (64.0 * (nodes + 1) * (2 * n + 2) + 4096),
+                 "the family's orbits")
+    check_grid_memory("--nodes", nodes, n, count)
+    energies = np.linspace(first, last, count)
+    if np.unique(energies).size != count:
+        raise InputError(f"--family {text!r}: {count} energies from {first!r} to {last!r} are "
+                         "not all distinct in floating point")
+    return energies
 
 
 def run_poincare(args) -> int:
     """``ddvp poincare``: the starts on the section, one ensemble, its crossings written."""
-    from pathlib import Path
-
+    from ..io.atomic import output_folder
     from ..io.poincare_runs import write_section
     from ..studies.poincare import poincare_section
-    from ..validation import check_integer, check_real
+    from ..validation import check_memory
 
     scene = load_scene(args.scene)
-    config = scene.resolve({})
-    energy = check_real("--energy", args.energy)
-    orbits = check_integer("--orbits", args.orbits)
-    workers = check_integer("--workers", args.workers)
-    section = poincare_section(scene.system, energy, section=args.section, orbits=orbits,
-                               direction=args.direction, workers=workers, scene=args.scene,
-                               scheduler=args.scheduler,
-                               tau0=args.tau0 if args.tau0 is not None else config.tau0,
-                               t_end=args.t_end if args.t_end is not None else config.t_end,
-                               params=parse_settings(args.settings), seed=args.seed,
-                               accuracy=options.tolerance(args))
-    out = Path(args.out or f"runs/{scene.name}-poincare-E{args.energy:g}")
-    write_section(out, section, plot=not args.no_plot)
+    params = parse_settings(args.settings)
+    config = scene.resolve({k: v for k, v in params.items() if k in scene.params})
+    tau0 = args.tau0 if args.tau0 is not None else config.tau0
+    t_end = args.t_end if args.t_end is not None else config.t_end
+    n = scene.system.n
+    check_memory("--orbits", args.orbits, args.orbits * (2 * n * 8.0 * 64 + 4096),
+                 "the orbits' starts and results")
+    if args.t_end is not None and not t_end > 0:
+        raise InputError(f"--t-end must be > 0 (the orbits start at t = 0), got {t_end!r}")
+    named = {"orbits": args.orbits, "section": args.section, "direction": args.direction,
+             "t_end": args.t_end, "tau0": args.tau0, "seed": args.seed, "params": params}
+    target, owned = default_or(args, f"{scene.name}-poincare-E{args.energy:g}", named, {
+        "orbits": 20, "section": "q1=0", "direction": "+", "t_end": None, "tau0": None,
+        "seed": 0, "params": {}})
+    with output_folder(target, owned=owned) as out:
+        try:
+            section = poincare_section(scene.system, args.energy, section=args.section,
+                                       orbits=args.orbits, direction=args.direction,
+                                       workers=args.workers, scene=args.scene,
+                                       scheduler=args.scheduler, tau0=tau0, t_end=t_end,
+                                       params=params, seed=args.seed,
+                                       accuracy=options.tolerance(args))
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while the orbits ran "
+                          "(a section is written once all its orbits are done); nothing new "
+                          f"was written: {holds(out)}") from None
+        with INTERRUPTS.saving():
+            write_section(out, section, plot=not args.no_plot,
+                          interruptible=INTERRUPTS.interruptible)
     failed = sum(status != "reached t_end" for status in section.statuses)
     verdicts = [verdict for verdict, _ in section.verdicts]
     print(f"{len(section.statuses)} orbits, {section.points.shape[0]} crossings of "
@@ -394,5 +535,5 @@ def run_poincare(args) -> int:
     print("  accuracy check of each orbit: " + ", ".join(
         f"{verdicts.count(v)} {v}" for v in ("accurate", "drifted", "inaccurate")) +
         " (orbits.csv: each orbit's verdict and t_drift)")
-    print(f"  written to {out}/ (section.npz, section.csv, orbits.csv, section.png)")
-    return 0 if failed == 0 else 1
+    print(f"  written to {out.path}/ (section.npz, section.csv, orbits.csv, section.png)")
+    return 0 if failed == 0 and not INTERRUPTS.requested else 1

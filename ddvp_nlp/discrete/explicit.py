@@ -1,4 +1,5 @@
-"""The step maps of the explicit schemes users would pick instead (``solvers/baselines.py``).
+"""The step maps of the explicit schemes users would pick instead (run by
+``solvers/baselines/fixed_step.py``).
 
 - Stormer-Verlet for separable ``H = T(p) + V(q, t)`` in its two Strang splittings of the
   autonomous extended system (time advances with ``q``), both order 2, symplectic, symmetric.

@@ -1,7 +1,7 @@
 """The classical fourth-order Runge-Kutta step, written once.
 
-The march uses it as the predictor of each implicit step; ``solvers/baselines.py`` runs it as an
-integrator of its own."""
+The march uses it as the predictor of each implicit step; ``solvers/baselines/fixed_step.py``
+runs it as an integrator of its own."""
 
 from __future__ import annotations
 

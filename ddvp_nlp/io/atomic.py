@@ -1,119 +1,563 @@
-"""Writing a set of files into a folder so that a crash, a kill or a second writer never leaves a
-torn or mixed set.
+"""The one output layer: every file any command writes goes through an :class:`OutputFolder`.
 
-Each file is first written in full to a temporary name in the same folder
-(``.STEM.PID.TOKEN.tmp.SUFFIX``),
-flushed to disk, and only then renamed into place; a rename within one folder is atomic, so a
-reader sees either the old file or the new one, never a part. The renames of one set happen
-under an exclusive lock on ``FOLDER/.ddvp.lock`` (``fcntl.flock``), so of several processes
-writing the same folder at once the last one to rename wins with all of its files. The last file
-of a set (``meta.json`` of a run) records the checksum of the others, which is how a reader tells
-a set that a kill cut between two renames from a whole one (:mod:`ddvp_nlp.io.runs`).
+What it promises, and how:
+
+- **No link is followed.** The folder is opened component by component with ``O_NOFOLLOW``
+  (the components ddvp chose: the last one of a folder the user named, ``runs/NAME`` of a
+  default one), and every file is created or opened relative to that descriptor with
+  ``O_NOFOLLOW`` (a planted symbolic link is refused by name, never written through); a new
+  file lands by ``rename``, which replaces a link itself rather than its target.
+- **One writer at a time.** Opening a folder takes an exclusive, non-blocking ``flock`` on
+  ``FOLDER/.ddvp.lock`` (opened without following links) for as long as the command runs; a
+  second ddvp process writing the same folder is refused (:class:`~ddvp_nlp.errors.OutputError`,
+  exit 1) instead of replacing the first one's result in silence. The lock file is removed when
+  the writer is done.
+- **All of a set or none, and the previous set readable until the new one is whole.** A set of
+  files (:meth:`OutputFolder.commit`) is written in full to scratch names with a random token
+  (``.NAME.PID.TOKEN.tmp``, created with ``O_EXCL``), flushed and ``fsync``-ed; the manifest
+  ``meta.json`` names each file of the set with its SHA-256, size and inode and is renamed
+  last. Before a file of the previous set is replaced, it is renamed to ``.NAME.previous``;
+  those are removed once the new manifest is in place. A kill at any moment therefore leaves,
+  for each name, either the file the manifest describes or its ``.previous`` twin, and
+  :func:`read_set` (which checks every checksum) finds the last complete set, or says that
+  there is none.
+- **Disk full, read-only, not a folder, a name too long**: an :class:`OutputError` naming the
+  path (the command exits 1); the scratch files of the failed set are removed, and so are the
+  folders this writer created, if nothing was committed in them.
+
+Rows of a grid that arrive one by one go to a journal (:meth:`OutputFolder.journal`), appended
+and flushed line by line beside the last complete set, which stays untouched until the new one
+is committed.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
+import json
 import os
 import secrets
+import stat
+import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from ..errors import OutputError
+from ..errors import InputError, OutputError
+from ..validation import read_limited
 
 LOCK_NAME = ".ddvp.lock"
+MANIFEST = "meta.json"
+_DIRECTORY = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+_NEW_FILE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+# Largest manifest read back: a meta.json is a few kilobytes; a bigger one is not ours.
+MANIFEST_LIMIT = 16 << 20
+
+Writer = Callable[[object], None]  # writer(binary file object)
 
 
-def sha256_of(path: str | os.PathLike) -> str:
-    """The SHA-256 of a file's bytes, in hex."""
+class Written(str):
+    """The name of a scratch file already written (:meth:`OutputFolder.scratch`): a set can
+    take it in place of a writer, so large files are written once."""
+
+
+def sha256_of(path: str | os.PathLike, *, dir_fd: int | None = None) -> str:
+    """The SHA-256 of a file's bytes, in hex (the file opened without following a link)."""
+    descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=dir_fd)
     digest = hashlib.sha256()
-    with open(path, "rb") as handle:
+    with os.fdopen(descriptor, "rb") as handle:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
 
 
-def scratch_name(folder: Path, name: str) -> Path:
-    """A temporary name beside ``folder/name`` that no other writer uses (hidden, same suffix,
-    so writers that choose a format by the suffix still do)."""
-    path = Path(name)
-    return folder / f".{path.stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp{path.suffix}"
+def text(content: str) -> Writer:
+    """A writer of ``content`` as UTF-8."""
+    data = content.encode("utf-8")
+    return lambda handle: handle.write(data)
 
 
-def write_scratch(folder: Path, name: str, write: Callable[[Path], None]) -> Path:
-    """Write ``folder/name``'s new content to a scratch file with ``write(path)``, flushed to
-    disk; return the scratch path. A failed write leaves no scratch file behind and raises
-    :class:`OutputError` naming ``folder/name``."""
-    scratch = scratch_name(folder, name)
+def previous_name(name: str) -> str:
+    return f".{name}.previous"
+
+
+def _is_link(name: str, dir_fd: int) -> bool:
     try:
-        write(scratch)
-        with open(scratch, "rb+") as handle:
-            os.fsync(handle.fileno())  # the bytes are on disk before the name points at them
-    except OSError as exc:
-        _discard([scratch])
-        raise OutputError(folder / name, exc) from None
-    return scratch
+        return stat.S_ISLNK(os.stat(name, dir_fd=dir_fd, follow_symlinks=False).st_mode)
+    except OSError:
+        return False
 
 
-def commit(folder: Path, scratches: dict[str, Path | None]) -> None:
-    """Rename each scratch file to its name, in the order given, under the folder's lock; a name
-    whose scratch is ``None`` is removed (so no file of an earlier run stays beside this one's).
-    On failure every scratch file not yet renamed is removed and :class:`OutputError` names the
-    file that failed."""
-    pending = [s for s in scratches.values() if s is not None]
-    with _locked(folder):
-        for name, scratch in scratches.items():
-            target = folder / name
+def _refusal(path, exc: OSError) -> OutputError:
+    """The error of a folder component that is a link or not a folder, in words."""
+    if exc.errno == errno.ELOOP:
+        return OutputError(path, OSError(exc.errno, "it is a symbolic link; ddvp does not write "
+                                                    "through links"))
+    if exc.errno == errno.ENOTDIR:
+        return OutputError(path, OSError(exc.errno, "it is not a folder"))
+    return OutputError(path, exc)
+
+
+class _Lock:
+    """The exclusive ``flock`` on ``.ddvp.lock`` of one folder, for this process."""
+
+    def __init__(self, folder_fd: int, path: Path):
+        import fcntl
+
+        self.path, self.folder_fd = path / LOCK_NAME, folder_fd
+        for _ in range(100):  # the name may be removed by the holder between open and flock
             try:
-                if scratch is None:
-                    with contextlib.suppress(FileNotFoundError):
-                        target.unlink()
-                else:
-                    os.replace(scratch, target)
-                    pending.remove(scratch)
+                descriptor = os.open(LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW
+                                     | os.O_CLOEXEC, 0o644, dir_fd=folder_fd)
             except OSError as exc:
-                _discard(pending)
-                raise OutputError(target, exc) from None
-        _sync_folder(folder)
-
-
-def discard(scratches) -> None:
-    """Remove scratch files of a set that will not be committed."""
-    _discard([s for s in scratches if s is not None])
-
-
-def _discard(paths) -> None:
-    for path in paths:
+                raise _refusal(self.path, exc) from None
+            if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+                os.close(descriptor)
+                raise OutputError(self.path, OSError(errno.EEXIST, "it is not a regular file"))
+            try:
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                holder = _read_pid(descriptor)
+                os.close(descriptor)
+                raise OutputError(path, OSError(errno.EBUSY, (
+                    f"another ddvp process{f' (pid {holder})' if holder else ''} is writing "
+                    "this folder; two writers would replace each other's results: wait for it "
+                    "to end or choose another output folder"))) from None
+            if self._still_named(descriptor):
+                break
+            os.close(descriptor)
+        else:
+            raise OutputError(self.path, OSError(errno.EBUSY, "the lock file keeps changing"))
+        self.descriptor, self.owner = descriptor, os.getpid()
         with contextlib.suppress(OSError):
-            Path(path).unlink()
+            os.ftruncate(descriptor, 0)
+            os.pwrite(descriptor, f"{os.getpid()}\n".encode(), 0)
+
+    def _still_named(self, descriptor: int) -> bool:
+        try:
+            named = os.stat(LOCK_NAME, dir_fd=self.folder_fd, follow_symlinks=False)
+        except OSError:
+            return False
+        held = os.fstat(descriptor)
+        return (named.st_dev, named.st_ino) == (held.st_dev, held.st_ino)
+
+    def release(self) -> None:
+        if self.descriptor < 0 or os.getpid() != self.owner:  # a forked child holds nothing
+            return
+        with contextlib.suppress(OSError):
+            os.unlink(LOCK_NAME, dir_fd=self.folder_fd)
+        os.close(self.descriptor)
+        self.descriptor = -1
+
+
+def _read_pid(descriptor: int) -> str:
+    with contextlib.suppress(OSError, ValueError):
+        value = os.pread(descriptor, 32, 0).decode().strip()
+        if value.isdigit():
+            return value
+    return ""
+
+
+class OutputFolder:
+    """A folder opened for writing: its descriptor (no link followed), its lock, the folders
+    this writer created. Use :func:`output_folder` (a context) or :func:`open_folder`."""
+
+    def __init__(self, path: Path, descriptor: int, created: list[tuple[int, str]],
+                 parents: list[int]):
+        self.path, self.fd, self.created, self.parents = path, descriptor, created, parents
+        self.committed = False
+        self.users = 1
+        self.guard = threading.RLock()  # a checkpoint thread and the main thread take turns
+        try:
+            self.lock = _Lock(descriptor, path)
+            self._remove_stale_scratch()
+        except BaseException:
+            self._forget_created()
+            os.close(descriptor)
+            raise
+        self.key = (os.fstat(descriptor).st_dev, os.fstat(descriptor).st_ino)
+
+    def __repr__(self) -> str:
+        return f"OutputFolder({str(self.path)!r})"
+
+    def __enter__(self) -> OutputFolder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __fspath__(self) -> str:
+        return str(self.path)
+
+    def __truediv__(self, name: str) -> Path:
+        return self.path / name
+
+    # -- writing ---------------------------------------------------------------------------
+
+    def scratch(self, name: str, write: Writer) -> Written:
+        """Write ``name``'s new content to a fresh scratch file, flushed to disk; its name."""
+        scratch = f".{name}.{os.getpid()}.{secrets.token_hex(6)}.tmp"
+        try:
+            descriptor = os.open(scratch, _NEW_FILE, 0o644, dir_fd=self.fd)
+        except OSError as exc:
+            raise OutputError(self.path / name, exc) from None
+        try:
+            with os.fdopen(descriptor, "wb") as handle:
+                write(handle)
+                handle.flush()
+                os.fsync(handle.fileno())  # the bytes are on disk before a name points at them
+        except BaseException as exc:
+            self.unlink(scratch)
+            if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+                raise OutputError(self.path / name, exc) from None
+            raise
+        return Written(scratch)
+
+    def commit(self, files: dict[str, Writer | None], meta: dict | None = None, *,
+               manifest: str = MANIFEST, digests: dict[str, str] | None = None) -> dict:
+        """Write ``files`` (name -> writer, or a :class:`Written` scratch file; ``None``: remove
+        that name) and the manifest
+        ``meta`` (with ``files``: each file's SHA-256, size and inode) as one set: every file
+        first to a scratch name, then renamed, the manifest last (module docstring). Returns
+        the manifest written; ``digests`` copies a file's SHA-256 to a key of its own
+        (``{"result_sha256": "result.npz"}``). A failure removes every scratch file and raises
+        :class:`OutputError` naming the file; the previous set stays readable."""
+        with self.guard:
+            scratches: dict[str, str] = {}
+            try:
+                for name, write in files.items():
+                    if isinstance(write, Written):
+                        scratches[name] = write
+                    elif write is not None:
+                        scratches[name] = self.scratch(name, write)
+                entries = {name: self._entry(scratch) for name, scratch in scratches.items()}
+                written = {**(meta or {}),
+                           **{key: entries[name]["sha256"] for key, name in
+                              (digests or {}).items() if name in entries},
+                           "files": entries}
+                body = json.dumps(written, indent=2, default=_json_default) + "\n"
+                manifest_scratch = self.scratch(manifest, text(body))
+            except BaseException:
+                for scratch in scratches.values():
+                    self.unlink(scratch)
+                raise
+            _swap(self, scratches, manifest, manifest_scratch,
+                       removed=[name for name, write in files.items() if write is None])
+            self.committed = True
+            return written
+
+    def _entry(self, scratch: str) -> dict:
+        try:
+            info = os.stat(scratch, dir_fd=self.fd, follow_symlinks=False)
+            digest = sha256_of(scratch, dir_fd=self.fd)
+        except OSError as exc:
+            raise OutputError(self.path / scratch, exc) from None
+        return {"sha256": digest, "bytes": info.st_size, "inode": info.st_ino}
+
+    def replace(self, name: str, write: Writer) -> None:
+        """Replace one file on its own (no manifest): scratch, flush, rename."""
+        with self.guard:
+            scratch = self.scratch(name, write)
+            try:
+                os.rename(scratch, name, src_dir_fd=self.fd, dst_dir_fd=self.fd)
+            except OSError as exc:
+                self.unlink(scratch)
+                raise OutputError(self.path / name, exc) from None
+            self.committed = True
+
+    @contextlib.contextmanager
+    def journal(self, name: str) -> Iterator[object]:
+        """A text file opened for appending (``O_APPEND``, no link followed)."""
+        try:
+            descriptor = os.open(name, os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC,
+                                 dir_fd=self.fd)
+        except OSError as exc:
+            raise _refusal(self.path / name, exc) from None
+        try:
+            with os.fdopen(descriptor, "a", encoding="utf-8", newline="") as handle:
+                yield handle
+        except OSError as exc:
+            if isinstance(exc, OutputError):
+                raise
+            raise OutputError(self.path / name, exc) from None
+
+    def remove(self, name: str) -> None:
+        with self.guard:
+            self.unlink(name)
+
+    def subfolder(self, name: str) -> OutputFolder:
+        """A folder inside this one, opened (and created) the same way."""
+        return _open_below(os.dup(self.fd), self.path, [name])
+
+    # -- housekeeping ----------------------------------------------------------------------
+
+    def unlink(self, name: str) -> None:
+        with contextlib.suppress(OSError):
+            os.unlink(name, dir_fd=self.fd)
+
+    def sync(self) -> None:
+        with contextlib.suppress(OSError):
+            os.fsync(self.fd)
+
+    def _remove_stale_scratch(self) -> None:
+        """Scratch files of writers that were killed (only one writer holds the lock)."""
+        with contextlib.suppress(OSError):
+            for entry in os.scandir(self.fd):
+                if entry.name.startswith(".") and entry.name.endswith(".tmp"):
+                    self.unlink(entry.name)
+
+    def _forget_created(self) -> None:
+        """Remove the folders this writer created (innermost first), if they are empty."""
+        for parent, name in reversed(self.created):
+            with contextlib.suppress(OSError):
+                os.rmdir(name, dir_fd=parent)
+        self.created = []
+        for parent in self.parents:
+            with contextlib.suppress(OSError):
+                os.close(parent)
+        self.parents = []
+
+    def close(self) -> None:
+        """Release the lock; folders created for a set that never landed are removed."""
+        with _REGISTRY_GUARD:
+            self.users -= 1
+            if self.users > 0:
+                return
+            _REGISTRY.pop(self.key, None)
+        self.lock.release()
+        with contextlib.suppress(OSError):
+            os.close(self.fd)
+        if self.committed:
+            self.created = []
+        self._forget_created()  # rmdir: only folders that stayed empty go
+
+
+def _swap(folder: OutputFolder, scratches: dict[str, str], manifest: str, manifest_scratch: str, *,
+          removed: list[str]) -> None:
+    """The renames of a set: each replaced file of the last complete set kept as
+    ``.NAME.previous``, the new files, the manifest, then the old ones dropped."""
+    current = _current_files(folder, manifest)
+    pending = dict(scratches)
+    try:
+        for name, scratch in scratches.items():
+            if current.get(name) == name:  # the file the manifest names: keep it aside
+                os.rename(name, previous_name(name), src_dir_fd=folder.fd,
+                          dst_dir_fd=folder.fd)
+            os.rename(scratch, name, src_dir_fd=folder.fd, dst_dir_fd=folder.fd)
+            del pending[name]
+        os.rename(manifest_scratch, manifest, src_dir_fd=folder.fd, dst_dir_fd=folder.fd)
+    except OSError as exc:
+        for scratch in [*pending.values(), manifest_scratch]:
+            folder.unlink(scratch)
+        raise OutputError(folder.path / manifest, exc) from None
+    folder.sync()
+    stale = set(current) - set(scratches)
+    for name in {*scratches, *current, *removed}:
+        folder.unlink(previous_name(name))
+    for name in stale | set(removed):
+        if name not in scratches:
+            folder.unlink(name)
+
+def _current_files(folder: OutputFolder, manifest: str) -> dict[str, str]:
+    """For each file of the set the manifest describes: which name holds it now (itself,
+    or its ``.previous`` twin after a kill in the middle of a swap). Matched by inode and
+    size, the cheap identity a rename keeps (readers check the checksums)."""
+    try:
+        described = _load_manifest(folder.fd, manifest, folder.path).get("files", {})
+    except (InputError, OSError):
+        return {}
+    found = {}
+    for name, entry in described.items() if isinstance(described, dict) else ():
+        for candidate in (name, previous_name(name)):
+            try:
+                info = os.stat(candidate, dir_fd=folder.fd, follow_symlinks=False)
+            except (OSError, ValueError):
+                continue
+            if isinstance(entry, dict) and (info.st_ino, info.st_size) == (
+                    entry.get("inode"), entry.get("bytes")):
+                found[name] = candidate
+                break
+    return found
+
+
+_REGISTRY: dict[tuple, OutputFolder] = {}  # folders this process holds, by (device, inode)
+_REGISTRY_GUARD = threading.RLock()
+
+
+def open_folder(path: str | os.PathLike | OutputFolder, *, owned: int = 1) -> OutputFolder:
+    """``path`` opened for writing (created if missing) and locked for this process; a folder
+    this process already holds is shared (:meth:`OutputFolder.close` once per open).
+    ``owned``: how many trailing components ddvp chose (``runs/NAME``: 2), opened without
+    following links; the ones before are the user's and resolve as the system does."""
+    if isinstance(path, OutputFolder):
+        with _REGISTRY_GUARD:
+            path.users += 1
+        return path
+    if not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise InputError(f"output folder must be a non-empty path, got {path!r}")
+    path = Path(path)
+    parts = path.parts
+    tail: list[str] = []
+    # the components ddvp chose, and every one that does not exist yet (what this writer
+    # creates, it removes again if nothing lands in it)
+    while parts and parts[-1] not in ("/", "..") and (
+            len(tail) < owned or not os.path.lexists(Path(*parts))):
+        tail.insert(0, parts[-1])
+        parts = parts[:-1]
+    head = Path(*parts) if parts else Path(".")
+    try:
+        head.mkdir(parents=True, exist_ok=True)
+        base = os.open(head, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except FileExistsError:  # mkdir's word for a file where a folder should be
+        raise _refusal(head, OSError(errno.ENOTDIR, "Not a directory")) from None
+    except OSError as exc:
+        raise _refusal(head, exc) from None
+    return _open_below(base, head, tail)
+
+
+def _open_below(base: int, head: Path, names: list[str]) -> OutputFolder:
+    """Open (creating) ``head/names...`` from the descriptor ``base`` (which is taken over),
+    no link followed."""
+    created, opened, where = [], [base], head
+    try:
+        for name in names:
+            where = where / name
+            try:
+                os.mkdir(name, 0o777, dir_fd=opened[-1])
+                created.append((opened[-1], name))
+            except FileExistsError:
+                pass
+            except OSError as exc:
+                raise _refusal(where, exc) from None
+            try:
+                opened.append(os.open(name, _DIRECTORY, dir_fd=opened[-1]))
+            except OSError as exc:
+                if _is_link(name, opened[-1]):
+                    exc = OSError(errno.ELOOP, exc.strerror)
+                raise _refusal(where, exc) from None
+    except BaseException:
+        for parent, name in reversed(created):
+            with contextlib.suppress(OSError):
+                os.rmdir(name, dir_fd=parent)
+        for descriptor in opened:
+            with contextlib.suppress(OSError):
+                os.close(descriptor)
+        raise
+    descriptor = opened.pop()
+    with _REGISTRY_GUARD:
+        info = os.fstat(descriptor)
+        held = _REGISTRY.get((info.st_dev, info.st_ino))
+        if held is not None and held.lock.owner == os.getpid():
+            held.users += 1
+            for fd in [*opened, descriptor]:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+            return held
+        folder = OutputFolder(where, descriptor, created, opened)
+        _REGISTRY[folder.key] = folder
+        return folder
 
 
 @contextlib.contextmanager
-def _locked(folder: Path) -> Iterator[None]:
-    """An exclusive lock on the folder's lock file (a no-op where locks are unavailable)."""
+def output_folder(path, *, owned: int = 1) -> Iterator[OutputFolder]:
+    """:func:`open_folder` as a context: the lock is released at the end."""
+    folder = open_folder(path, owned=owned)
     try:
-        import fcntl
-    except ImportError:  # not POSIX: renames stay atomic, concurrent sets may mix
-        yield
-        return
+        yield folder
+    finally:
+        folder.close()
+
+
+# -- reading back ------------------------------------------------------------------------------
+
+def _load_manifest(folder_fd: int | None, manifest: str, folder: Path) -> dict:
+    where = manifest if folder_fd is not None else folder / manifest
+    data = read_limited(where, MANIFEST_LIMIT, what="manifest", dir_fd=folder_fd)
     try:
-        handle = open(folder / LOCK_NAME, "a")
+        meta = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise InputError(f"{folder / manifest} is not a manifest ddvp wrote: {exc}") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"{folder / manifest} is not a manifest ddvp wrote (not an object)")
+    return meta
+
+
+def read_set(folder: str | os.PathLike, *, manifest: str = MANIFEST,
+             required: tuple[str, ...] = ()) -> tuple[dict, dict[str, Path]]:
+    """``(meta, {name: path})`` of the last complete set in ``folder``: the manifest, and for
+    each file it names the path whose SHA-256 is the one recorded (the file itself, or its
+    ``.previous`` twin after a kill between two renames). :class:`InputError` (naming the
+    folder and the reason) if there is no manifest, a file of ``required`` is not in it, or a
+    file matches neither name."""
+    folder = Path(folder)
+    try:
+        descriptor = os.open(folder, _DIRECTORY)
     except OSError as exc:
-        raise OutputError(folder / LOCK_NAME, exc) from None
-    with handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
+        raise InputError(f"{folder} holds no readable run: {_reason(exc)}") from None
+    try:
         try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+            meta = _load_manifest(descriptor, manifest, folder)
+        except InputError as exc:
+            raise InputError(f"{folder} holds no readable run: {exc}") from None
+        entries = meta.get("files")
+        if not isinstance(entries, dict):
+            raise InputError(f"{folder / manifest} lists no files (written by another tool, or "
+                             "an older ddvp)")
+        missing = [name for name in required if name not in entries]
+        if missing:
+            raise InputError(f"{folder / manifest} does not describe {missing[0]}")
+        found = {}
+        for name, entry in entries.items():
+            found[name] = folder / _matching(descriptor, folder, name, entry)
+        return meta, found
+    finally:
+        os.close(descriptor)
 
 
-def _sync_folder(folder: Path) -> None:
-    """Flush the folder's entries (the renames) to disk, where the system allows it."""
-    with contextlib.suppress(OSError):
-        descriptor = os.open(folder, os.O_RDONLY)
+def _matching(descriptor: int, folder: Path, name, entry) -> str:
+    if not isinstance(name, str) or "/" in name or not isinstance(entry, dict):
+        raise InputError(f"{folder / MANIFEST} names a file {name!r} ddvp did not write")
+    reasons = []
+    for candidate in (name, previous_name(name)):
         try:
-            os.fsync(descriptor)
-        finally:
-            os.close(descriptor)
+            digest = sha256_of(candidate, dir_fd=descriptor)
+        except OSError as exc:
+            reasons.append(f"{candidate}: {_reason(exc)}")
+            continue
+        if digest == entry.get("sha256"):
+            return candidate
+        reasons.append(f"{candidate}: its checksum differs")
+    raise InputError(f"{folder / name} is not the file {folder / MANIFEST} describes "
+                     f"({'; '.join(reasons)}): the set was cut while writing, or changed by "
+                     "another tool")
+
+
+def _reason(exc: OSError) -> str:
+    if exc.errno == errno.ELOOP:
+        return "it is a symbolic link, which ddvp does not follow"
+    return exc.strerror or str(exc)
+
+
+def _json_default(value):
+    import numpy as np
+
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if hasattr(value, "code"):  # a Status
+        return value.code
+    raise TypeError(f"cannot write {type(value).__name__} to JSON")
+
+
+def describe(folder: str | os.PathLike) -> str:
+    """What ``folder`` holds now, in words: the last complete set's status, or nothing."""
+    try:
+        meta, _ = read_set(folder)
+    except InputError:
+        return f"{folder}/ holds no complete result"
+    status = meta.get("status", "complete")
+    if status == "running":
+        return (f"{folder}/ holds the checkpoint of step {meta.get('steps')} (t = "
+                f"{meta.get('t_reached')})")
+    return f"{folder}/ holds an earlier complete result (status {status})"

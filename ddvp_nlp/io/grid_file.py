@@ -29,11 +29,17 @@ from ..studies.sweep import SweepSpec, evenly_spaced
 
 TOP_KEYS = ("scene", "methods", "settings", "grid", "bounds")
 RANGE_KEYS = ("from", "to", "count")
+# Largest grid file read: a grid is a page of TOML (a /dev/zero or a huge file is refused by
+# its size before it is read).
+GRID_FILE_LIMIT = 1 << 20
 BOUND_KEYS = ("max_steps", "time_limit")
 
 
-def load_grid_file(path: str | Path) -> SweepSpec:
-    """Read a TOML grid; an unknown key is an error that gives the key's path."""
+def load_grid_file(path: str | Path, *, allowed: str | None = None) -> SweepSpec:
+    """Read a TOML grid; an unknown key is an error that gives the key's path. Its scene must
+    be a built-in name, or the scene file ``allowed`` names (``--allow-scene``): a grid file
+    runs no code the command line did not name (a ``scene = "/path/evil.py"`` had been
+    imported and run before any check)."""
     path = Path(path)
     data = _read_toml(path)
     where = str(path)
@@ -41,6 +47,7 @@ def load_grid_file(path: str | Path) -> SweepSpec:
     if not isinstance(data.get("scene"), str):
         raise InputError(f"{where}: 'scene' must be a scene name or file, got "
                          f"{data.get('scene')!r}")
+    _check_scene_allowed(where, data["scene"], allowed)
     grid = data.get("grid")
     if not isinstance(grid, dict) or not grid:
         raise InputError(f"{where}: '[grid]' must list at least one axis")
@@ -48,13 +55,44 @@ def load_grid_file(path: str | Path) -> SweepSpec:
     bounds = _table(where, data, "bounds")
     _known(where, bounds, BOUND_KEYS, "bounds.")
     settings = _table(where, data, "settings")
+    for key, value in settings.items():
+        if not (_number(value) or (isinstance(value, list) and value
+                                   and all(_number(v) for v in value))):
+            raise InputError(f"{where}: 'settings.{key}' must be a finite number (or a list of "
+                             f"them), got {value!r}")
     methods = data.get("methods", list(DEFAULT_METHODS))
-    if not isinstance(methods, list) or not all(isinstance(m, str) for m in methods):
-        raise InputError(f"{where}: 'methods' must be a list of method names, got {methods!r}")
+    if not isinstance(methods, list) or not methods or \
+            not all(isinstance(m, str) for m in methods) or len(set(methods)) != len(methods):
+        raise InputError(f"{where}: 'methods' must be a list of distinct method names, got "
+                         f"{methods!r}")
+    max_steps = bounds.get("max_steps", 2_000_000)
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise InputError(f"{where}: 'bounds.max_steps' must be a positive integer, got "
+                         f"{max_steps!r}")
+    time_limit = bounds.get("time_limit", 60.0)
+    if not _number(time_limit) or time_limit <= 0:
+        raise InputError(f"{where}: 'bounds.time_limit' must be a positive number of seconds, "
+                         f"got {time_limit!r}")
     return SweepSpec(scene=data["scene"], axes=axes,
                      methods=tuple(m.name for m in get_methods(methods)), settings=settings,
-                     max_steps=bounds.get("max_steps", 2_000_000),
-                     time_limit=bounds.get("time_limit", 60.0))
+                     max_steps=max_steps, time_limit=float(time_limit))
+
+
+def _check_scene_allowed(where: str, scene: str, allowed: str | None) -> None:
+    """A built-in scene name passes; a file only if ``allowed`` is the same file."""
+    from ..scenes import list_scenes
+
+    if scene in list_scenes():
+        return
+    if allowed is not None:
+        try:
+            if Path(scene).resolve() == Path(allowed).resolve():
+                return
+        except (OSError, RuntimeError):
+            pass
+    raise InputError(f"{where}: scene {scene!r} is not a built-in scene; a grid file runs "
+                     "no code the command line does not name: allow the file with "
+                     f"--allow-scene {scene}")
 
 
 def _read_toml(path: Path) -> dict:
@@ -63,14 +101,18 @@ def _read_toml(path: Path) -> dict:
     except ModuleNotFoundError:  # Python 3.10
         import tomli as tomllib
 
+    from ..validation import read_limited
+
+    data = read_limited(path, GRID_FILE_LIMIT, what="grid file")
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError as exc:
         raise InputError(f"grid file {str(path)!r} is not UTF-8 text (byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"grid file {str(path)!r} cannot be read: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"grid file {str(path)!r} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"grid file {str(path)!r} is nested too deeply to be a grid "
+                         "file") from None
 
 
 def _axis(where: str, key: str, value) -> list[float]:
@@ -78,7 +120,10 @@ def _axis(where: str, key: str, value) -> list[float]:
     if isinstance(value, dict):
         return _range_axis(where, key, value)
     if isinstance(value, list) and value and all(_number(v) for v in value):
-        return [float(v) for v in value]
+        values = [float(v) for v in value]
+        if len(set(values)) != len(values):
+            raise InputError(f"{where}: '{key}' has a value twice ({value!r}); give each once")
+        return values
     raise InputError(f"{where}: '{key}' must be a list of numbers or "
                      f"{{from, to, count}}, got {value!r}")
 

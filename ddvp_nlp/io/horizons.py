@@ -25,7 +25,8 @@ from ..studies.horizons import (
     reference_kind,
 )
 from ..studies.methods import get_methods
-from .runs import prepare_folder
+from . import atomic
+from .runs import figure_writer
 from .work_precision import in_words, plot_method, work_precision
 
 
@@ -55,7 +56,15 @@ def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
     config = scene.resolve(overrides)
     chosen = default_methods(scene.system)[0] if options.methods is None \
         else get_methods(options.methods)
-    out = prepare_folder(out)
+    with atomic.output_folder(out) as folder:
+        return _horizons(scene, horizons, folder, unit, overrides, options, compilation,
+                         workers, run_budget_s, reference_span, progress, config, chosen)
+
+
+def _horizons(scene, horizons, out, unit, overrides, options, compilation, workers,
+              run_budget_s, reference_span, progress, config, chosen):
+    """The comparisons at each horizon (each its own folder), then the set of the horizons'
+    figures and summary."""
     results, notes, previous = {}, {}, None
     for horizon in horizons:
         t_end = config.t0 + horizon * unit
@@ -72,8 +81,6 @@ def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
                                       f"{reference_span:g} time units)"]
                                      if kind == "none" else [])
         previous = (t_end - config.t0, results[horizon])
-    plot_horizons(results, out / "horizons.png", title=f"{scene.name}: error against run time",
-                  unit=unit)
     longest = horizons[-1]
     span = longest * unit
     target, growth = error_growth(scene, {**overrides, "t_end": config.t0 + span},
@@ -81,10 +88,15 @@ def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
                                   compiler=find_compiler(compilation.compiler),
                                   max_steps=options.max_steps,
                                   reference=reference_kind(scene, span, reference_span))
-    plot_growth(growth, out / "growth.png",
-                title=f"{scene.name}: errors against time at about {target:.2g} s each")
-    (out / "horizons.md").write_text(horizons_summary(scene, results, notes, growth, target,
-                                                      unit))
+    out.commit({
+        "horizons.png": figure_writer(out, "horizons.png", lambda handle: plot_horizons(
+            results, handle, title=f"{scene.name}: error against run time", unit=unit)),
+        "growth.png": figure_writer(out, "growth.png", lambda handle: plot_growth(
+            growth, handle,
+            title=f"{scene.name}: errors against time at about {target:.2g} s each")),
+        "horizons.md": atomic.text(horizons_summary(scene, results, notes, growth, target,
+                                                    unit))},
+        {"command": "compare", "scene": scene.name, "horizons": list(results)})
     return results
 
 

@@ -4,7 +4,7 @@ family (``family.csv``, ``family.png``, one run folder per energy)."""
 from __future__ import annotations
 
 import csv
-import json
+import io
 from pathlib import Path
 
 import matplotlib
@@ -14,7 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ..solution import Solution  # noqa: E402
-from .runs import json_default  # noqa: E402
+from . import atomic  # noqa: E402
+from .runs import figure_writer  # noqa: E402
 
 FAMILY_COLUMNS = ("energy", "status", "period", "nodes", "canonical", "energy_equation",
                   "closure", "unfolding", "iterations")
@@ -36,20 +37,27 @@ def periodic_meta(scene, solution: Solution, params: dict) -> dict:
             "timing": solution.timing}
 
 
-def write_periodic(out: Path, scene, solution: Solution, params: dict, plot: bool = True):
+def write_periodic(out, scene, solution: Solution, params: dict, plot: bool = True, *,
+                   interruptible=None):
     """``result.npz`` (``t``, ``q``, ``p`` of the ``N + 1`` nodes, the last equal to the
-    first), ``meta.json`` and, if ``plot``, ``orbit.png``; returns the meta."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    np.savez(out / "result.npz", t=solution.t, q=solution.q, p=solution.p,
-             canonical_residual=solution.canonical_residual,
-             energy_residual=solution.energy_residual)
+    first), ``orbit.png`` if ``plot``, and ``meta.json`` last, as one set through the output
+    layer (:mod:`ddvp_nlp.io.atomic`); returns the meta."""
     meta = periodic_meta(scene, solution, params)
-    (out / "meta.json").write_text(json.dumps(meta, indent=2, default=json_default))
-    if plot:
+
+    def draw(handle):
         plot_orbit(solution, f"{scene.name}: E = {meta['energy']:.6g}, "
-                             f"T = {meta['period']:.8g} ({meta['status']})", out / "orbit.png")
-    return meta
+                             f"T = {meta['period']:.8g} ({meta['status']})", handle)
+
+    def arrays(handle):
+        np.savez(handle, t=solution.t, q=solution.q, p=solution.p,
+                 canonical_residual=solution.canonical_residual,
+                 energy_residual=solution.energy_residual)
+
+    with atomic.output_folder(out) as folder:
+        figure = figure_writer(folder, "orbit.png", draw if plot else None, interruptible)
+        if plot and figure is None:
+            meta["figure"] = "not drawn: interrupted while drawing"
+        return folder.commit({"result.npz": arrays, "orbit.png": figure}, meta)
 
 
 def configuration_curves(solution: Solution):
@@ -94,23 +102,29 @@ def family_row(energy: float, solution: Solution) -> dict:
             "unfolding": stats["unfolding"], "iterations": stats["iterations"]}
 
 
-def write_family(out: Path, scene, family: list, params: dict, plot: bool = True,
-                 reference=None, folders: bool = True) -> list[dict]:
+def write_family(out, scene, family: list, params: dict, plot: bool = True,
+                 reference=None, folders: bool = True, *, interruptible=None) -> list[dict]:
     """``family.csv`` (one row per energy, failed ones included), ``family.png`` (period
-    against energy, beside ``reference(E)`` if given) and, if ``folders``, a run folder
-    ``E=<energy>`` each."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    against energy, beside ``reference(E)`` if given) and ``meta.json`` as one set, after, if
+    ``folders``, a run folder ``E=<energy>`` each."""
     rows = [family_row(energy, solution) for energy, solution in family]
-    with open(out / "family.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=FAMILY_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
-    for energy, solution in family if folders else ():
-        write_periodic(out / f"E={energy:.6g}", scene, solution, params, plot=False)
-    if plot:
-        plot_family(rows, f"{scene.name}: period against energy", out / "family.png",
-                    reference)
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=FAMILY_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    with atomic.output_folder(out) as folder:
+        for energy, solution in family if folders else ():
+            with folder.subfolder(f"E={energy:.6g}") as member:
+                write_periodic(member, scene, solution, params, plot=False)
+
+        def draw(handle):
+            plot_family(rows, f"{scene.name}: period against energy", handle, reference)
+
+        figure = figure_writer(folder, "family.png", draw if plot else None, interruptible)
+        folder.commit({"family.csv": atomic.text(buffer.getvalue()), "family.png": figure},
+                      {"command": "periodic", "scene": scene.name, "members": len(rows),
+                       "succeeded": sum(r["status"] == "success" for r in rows),
+                       "params": params})
     return rows
 
 

@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 from ..scenes import load_scene  # noqa: E402
 from ..studies import paper  # noqa: E402
 from ..studies.grid import Task, run_tasks  # noqa: E402
+from . import atomic  # noqa: E402
 
 FULL = {"t_end": 10000.0, "site_tau0": (0.05, 0.025, 0.0125, 0.005),
         "sweep_tau0": (0.5, 0.05, 0.005, 0.0005),
@@ -54,15 +55,21 @@ def reproduce(out: Path, *, quick: bool = False, workers: int | None = 1,
         else:
             failed.append(f"{task.key}: {error}")
     if failed:
-        raise RuntimeError("measurements failed, no report written: " + "; ".join(failed))
+        raise MeasurementsFailed("measurements failed, no report written: " + "; ".join(failed))
     measured = {"example": results["example"],
                 "site": {"pendulum": results["site_pendulum"],
                          "quartic": results["site_quartic"]},
                 **{key: results[key] for key in ("gauge", "sweep", "symplectic", "growth",
                                                  "legendre")}}
-    _figures(out, measured["example"], measured["site"], measured["sweep"])
-    (out / "report.md").write_text(report(measured, quick=quick))
+    with atomic.output_folder(out) as folder:
+        folder.commit({**_figures(measured["example"], measured["site"], measured["sweep"]),
+                       "report.md": atomic.text(report(measured, quick=quick))},
+                      {"command": "reproduce", "quick": quick})
     return measured
+
+
+class MeasurementsFailed(RuntimeError):
+    """A measurement of the report failed; nothing was written."""
 
 
 def site_density(*, name: str, tau0) -> dict:
@@ -74,7 +81,14 @@ def site_density(*, name: str, tau0) -> dict:
     return paper.site_density_spread(paper.quartic_system(), [1.0], [0.0], tau0, t_end=20.0)
 
 
-def _figures(out, example, site, sweep):
+def _figures(example, site, sweep) -> dict:
+    """The report's figures, as writers of the output layer (name -> ``writer(file)``)."""
+    return {"paper_figures.png": lambda handle: _paper_figures(handle, example),
+            "site_density.png": lambda handle: _site_figure(handle, site),
+            "step_ratios.png": lambda handle: _ratio_figure(handle, sweep)}
+
+
+def _paper_figures(path, example):
     solution = example["solution"]
     t, q, tau = solution.t, solution.q[:, 0], solution.tau
     fig, axes = plt.subplots(4, 1, figsize=(8, 10))
@@ -93,24 +107,28 @@ def _figures(out, example, site, sweep):
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(out / "paper_figures.png", dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
 
+
+def _site_figure(path, site):
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for name, data in site.items():
         for key, style in (("node", "o-"), ("midpoint", "s--")):
             ax.loglog(data["tau0"], data[key], style,
                       label=f"{name}, weight at the {key} (slope {data[f'slope_{key}']:.2f})")
-    _finish(fig, ax, out / "site_density.png", "max/min - 1 of tau_k (V'' p^2 + V'^2)^(1/3)",
+    _finish(fig, ax, path, "max/min - 1 of tau_k (V'' p^2 + V'^2)^(1/3)",
             "site density (section 4)")
 
+
+def _ratio_figure(path, sweep):
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for rule, color in (("vddvp", "C0"), ("lee", "C1")):
         rows = [r for r in sweep["rows"] if r["rule"] == rule]
         tau0 = [r["tau0"] for r in rows]
         ax.loglog(tau0, [r["ratio_min"] for r in rows], "v-", color=color, label=f"{rule}: min")
         ax.loglog(tau0, [r["ratio_max"] for r in rows], "^-", color=color, label=f"{rule}: max")
-    _finish(fig, ax, out / "step_ratios.png", "tau_k / tau0",
+    _finish(fig, ax, path, "tau_k / tau0",
             "paper's example to t = 16: range of the steps (section 4)")
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
 from pathlib import Path
 
 import numpy as np
@@ -25,21 +24,11 @@ from ..solution import Solution, Status
 from . import atomic
 
 
-def prepare_folder(out: str | os.PathLike) -> Path:
-    """Create ``out`` and check that it can be written, before any solve starts."""
-    if not isinstance(out, (str, os.PathLike)) or not str(out).strip():
-        raise InputError(f"output folder must be a non-empty path, got {out!r}")
-    path = Path(out)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        # a name of this process's own: two runs starting at once into one folder must not
-        # remove each other's probe (a fixed name made one of them exit 2 under load)
-        probe = path / f".ddvp_write_test.{os.getpid()}.{secrets.token_hex(4)}"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as exc:
-        raise InputError(f"output folder {str(out)!r} cannot be written: {exc.strerror}") from None
-    return path
+def prepare_folder(out, *, owned: int = 1) -> atomic.OutputFolder:
+    """``out`` created, opened without following links and locked for this process
+    (:func:`ddvp_nlp.io.atomic.open_folder`); close it (or use
+    :func:`~ddvp_nlp.io.atomic.output_folder`) when done."""
+    return atomic.open_folder(out, owned=owned)
 
 
 def settings_hash(settings: dict) -> str:
@@ -107,22 +96,23 @@ def _max_abs(values) -> float:
 def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
               config: RunConfig | BoundaryConfig | dict, solution: Solution,
               scheme: Scheme | None = None, extra: dict | None = None,
-              plot: bool = True) -> dict:
+              plot: bool = True, interruptible=None) -> dict:
     """Write ``result.npz``, ``meta.json`` and ``trajectory.png`` of a run of any scene; return
     the metadata.
 
     A scene with ``H`` or a first-order ``L`` needs its ``scheme``. A higher-order scene's run
     (``config`` the dict of :meth:`HigherOrderScene.resolve`) stores ``p`` as the multiplier
     ``lambda_1`` and ``energy``, the energy ``E^(k)`` where the recursion defines it.
+    ``interruptible``: as for :func:`save_run`.
     """
     record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
-    arrays, meta, draw = record(command, scene, config, scheme, solution)
+    arrays, meta, draw = record(command, scene, config, scheme, solution, interruptible)
     meta.update(extra or {})
     if command == "bvp" and not solution.success and \
             solution.status not in (Status.INACCURATE, Status.DRIFTED):  # judged, not failed
         meta["note"] = NOT_A_SOLUTION
-    figure = draw if plot and solution.t.size >= 2 else None
-    return save_run(out, arrays, meta, figure)
+    figure = draw if plot and draw is not None and solution.t.size >= 2 else None
+    return save_run(out, arrays, meta, figure, interruptible=interruptible)
 
 
 RESULT, META, FIGURE = "result.npz", "meta.json", "trajectory.png"
@@ -130,34 +120,48 @@ NOT_A_SOLUTION = ("NOT A SOLUTION: the nodes are the last iterate of the failed 
                   "diagnosis; they do not satisfy the equations")
 
 
-def save_run(out: Path, arrays: dict, meta: dict, draw=None) -> dict:
-    """Write ``result.npz`` (``arrays``), ``trajectory.png`` (``draw(path)``, if given; else an
-    older figure is removed) and ``meta.json`` (``meta`` with ``nodes`` and ``result_sha256``)
-    as one set: all of them or none, ``meta.json`` last. Return the metadata written.
+def save_run(out, arrays: dict, meta: dict, draw=None, *, interruptible=None) -> dict:
+    """Write ``result.npz`` (``arrays``), ``trajectory.png`` (``draw(file)``, if given; else
+    an older figure is removed) and ``meta.json`` (``meta`` with ``nodes``, ``result_sha256``
+    and the manifest of the files) as one set through the output layer
+    (:mod:`ddvp_nlp.io.atomic`): all of them or none, ``meta.json`` last. Return the metadata
+    written.
 
+    ``interruptible``: a context inside which an interrupt may stop the figure (the figure is
+    then left out and ``meta["figure"]`` says so; the nodes are written all the same).
     Raises :class:`~ddvp_nlp.errors.OutputError` naming the file that could not be written;
     the folder then still holds the earlier set whole (or nothing)."""
-    out = Path(out)
-    scratches = {RESULT: atomic.write_scratch(out, RESULT, lambda path: _save_npz(path, arrays))}
+    with atomic.output_folder(out) as folder:
+        result = folder.scratch(RESULT, lambda handle: np.savez(handle, **arrays))
+        try:
+            figure = figure_writer(folder, FIGURE, draw, interruptible)
+            meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size)}
+            if draw is not None and figure is None:
+                meta["figure"] = "not drawn: interrupted while drawing"
+        except BaseException:
+            folder.remove(result)
+            raise
+        return folder.commit({RESULT: result, FIGURE: figure}, meta,
+                             digests={"result_sha256": RESULT})
+
+
+def figure_writer(folder, name: str, draw, interruptible=None):
+    """The figure ``draw(file)`` written to a scratch file of ``folder`` for ``name`` (a
+    :class:`~ddvp_nlp.io.atomic.Written` a set takes), or ``None``: no figure, or an interrupt
+    while it was drawn inside ``interruptible()`` (the rest of the set is written all the
+    same)."""
+    if draw is None:
+        return None
+    import contextlib
+
     try:
-        scratches[FIGURE] = atomic.write_scratch(out, FIGURE, draw) if draw else None
-        meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size),
-                "result_sha256": atomic.sha256_of(scratches[RESULT])}
-        text = json.dumps(meta, indent=2, default=json_default) + "\n"
-        scratches[META] = atomic.write_scratch(out, META, lambda path: path.write_text(text))
-    except BaseException:  # an OutputError, or an interrupt while drawing: leave no scratch
-        atomic.discard(scratches.values())
-        raise
-    atomic.commit(out, scratches)
-    return meta
+        with (interruptible or contextlib.nullcontext)():
+            return folder.scratch(name, draw)
+    except KeyboardInterrupt:
+        return None
 
 
-def _save_npz(path: Path, arrays: dict) -> None:
-    with open(path, "wb") as handle:  # a file object: np.savez would append ".npz" to a name
-        np.savez(handle, **arrays)
-
-
-def write_checkpoint(out: Path, *, command: str, scene_name: str, t, z, n: int,
+def write_checkpoint(out, *, command: str, scene_name: str, t, z, n: int,
                      extra: dict | None = None) -> dict:
     """The run so far, as a set like a finished run's (``t``, ``q``, ``p`` only; no figure),
     with status ``running``: what a kill of a long march leaves behind."""
@@ -171,25 +175,46 @@ def write_checkpoint(out: Path, *, command: str, scene_name: str, t, z, n: int,
 
 
 def read_run(folder: str | os.PathLike) -> tuple[dict, dict]:
-    """``(arrays, meta)`` of a run folder, after checking that ``meta.json`` describes the
-    ``result.npz`` beside it (checksum and node count). Raises :class:`InputError` when a file
-    is missing or the pair does not match."""
+    """``(arrays, meta)`` of a run folder's last complete set, after checking that
+    ``meta.json`` describes the ``result.npz`` beside it (checksum, node count, shapes, finite
+    increasing times). A kill between two renames leaves the previous set, which is read
+    instead. Raises :class:`InputError` naming the folder and the reason otherwise."""
+    from ..validation import check_file_size
+
     folder = Path(folder)
+    meta, files = atomic.read_set(folder, required=(RESULT,))
+    path = files[RESULT]
+    check_file_size(str(path), path.stat().st_size)
     try:
-        meta = json.loads((folder / META).read_text())
-        digest = atomic.sha256_of(folder / RESULT)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{folder} holds no readable run: {exc}") from None
-    if meta.get("result_sha256") != digest:
-        raise InputError(f"{folder / RESULT} is not the file {folder / META} describes (its "
-                         "checksum differs): the run was cut while writing, or written by "
-                         "another tool")
-    with np.load(folder / RESULT) as data:
-        arrays = {name: data[name] for name in data.files}
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except Exception as exc:  # zipfile, format and value errors of a damaged file
+        raise InputError(f"{path} is not a result.npz ddvp wrote: {type(exc).__name__}: "
+                         f"{exc}") from None
+    check_run_arrays(str(path), arrays)
     if arrays["t"].size != meta.get("nodes"):
-        raise InputError(f"{folder / RESULT} holds {arrays['t'].size} nodes, {folder / META} "
+        raise InputError(f"{path} holds {arrays['t'].size} nodes, {folder / META} "
                          f"says {meta.get('nodes')}")
     return arrays, meta
+
+
+def check_run_arrays(where: str, arrays: dict) -> None:
+    """``t``, ``q``, ``p`` of a result: real, finite, ``t`` strictly increasing, ``q`` and
+    ``p`` of shape ``(t.size, n)``."""
+    missing = [name for name in ("t", "q", "p") if name not in arrays]
+    if missing:
+        raise InputError(f"{where} has no array {missing[0]!r} (it needs t, q and p)")
+    t, q, p = arrays["t"], arrays["q"], arrays["p"]
+    for name, value in (("t", t), ("q", q), ("p", p)):
+        if value.dtype.kind not in "fiu":
+            raise InputError(f"{where}: {name} must hold real numbers, got dtype {value.dtype}")
+        if not np.all(np.isfinite(value)):
+            raise InputError(f"{where}: {name} holds values that are not finite")
+    if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0):
+        raise InputError(f"{where}: t must be at least two strictly increasing times")
+    if q.ndim != 2 or q.shape[0] != t.size or p.shape != q.shape or q.shape[1] < 1:
+        raise InputError(f"{where}: q and p must have shape ({t.size}, n), got {q.shape} "
+                         f"and {p.shape}")
 
 
 def _steps_meta(solution: Solution) -> dict:
@@ -202,8 +227,26 @@ def _steps_meta(solution: Solution) -> dict:
             "tau_max": float(tau.max()) if tau.size else None}
 
 
-def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution):
-    """Arrays, metadata and figure of a run of a scene with ``H`` or a first-order ``L``."""
+def _optional(interruptible, compute, fallback):
+    """``compute()``, or ``fallback`` when an interrupt stops it inside ``interruptible()``:
+    the figures of a run that an interrupt may skip (the nodes are written all the same)."""
+    import contextlib
+
+    try:
+        with (interruptible or contextlib.nullcontext)():
+            return compute()
+    except KeyboardInterrupt:
+        return fallback
+
+
+SKIPPED = ("not computed: the run was interrupted, and is written without it (the nodes in "
+           "result.npz give it)")
+
+
+def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution: Solution,
+                        interruptible=None):
+    """Arrays, metadata and figure of a run of a scene with ``H`` or a first-order ``L``; the
+    energies, the scene's checks and the figure may be cut by an interrupt (``SKIPPED``)."""
     theta = scene.system.parameter_vector(config.params)
     arrays = {"t": solution.t, "q": solution.q, "p": solution.p,
               "energy_residual": solution.energy_residual,
@@ -214,15 +257,20 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
     if flagged:
         arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)
         arrays["least_squares_defect"] = np.array([e["energy_defect"] for e in flagged])
-    energies = run_energies(scene.system, scheme, solution, theta)
+    energies = _optional(interruptible,
+                         lambda: run_energies(scene.system, scheme, solution, theta), None)
+    energy = energy_report(scene, scheme, solution, theta, energies) if energies else {
+        "energy_residual_max": _max_abs(solution.energy_residual),
+        "energy_error": float("nan"), "energy_error_kind": SKIPPED}
     meta = {"command": command, "scene": scene.name, "scheme": scheme.rule,
             "alpha": scheme.alpha, "clock": scheme.clock, "params": config.as_dict(),
             **_steps_meta(solution),
             "newton_iterations": solution.newton_iterations,
             "canonical_residual_max": _max_abs(solution.canonical_residual),
             "timing": solution.timing,
-            **energy_report(scene, scheme, solution, theta, energies),
-            **_checks(scene, config, solution)}
+            **energy,
+            **_optional(interruptible, lambda: _checks(scene, config, solution),
+                        {"checks": SKIPPED})}
     accuracy = solution.stats.get("accuracy")
     if accuracy:
         meta["accuracy"] = accuracy
@@ -235,34 +283,46 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
         from .plotting import plot_trajectory
         plot_trajectory(solution, scene, scheme, path, energies=energies)
 
-    return arrays, meta, draw
+    return arrays, meta, draw if energies else None
 
 
 def _checks(scene: Scene, config, solution: Solution) -> dict:
-    """Invariant drifts, the error against an exact solution, a solvability warning."""
+    """Invariant drifts, the error against an exact solution, a solvability warning. A
+    scene's function that fails on the run's nodes (it was checked on the start when the
+    scene was loaded) is recorded as such; the nodes are written all the same."""
+    from ..scenes import check_invariant_value
+
     found = {}
     if scene.invariants and solution.t.size:
-        found["invariant_drift"] = {
-            name: _max_abs(f(solution.q, solution.p, **config.params)
-                           - f(solution.q[:1], solution.p[:1], **config.params)[0])
-            for name, f in scene.invariants.items()}
+        drift = {}
+        for name, f in scene.invariants.items():
+            try:
+                values = check_invariant_value(scene.name, name,
+                                               f(solution.q, solution.p, **config.params),
+                                               solution.t.size)
+                drift[name] = _max_abs(values - values[0])
+            except InputError as exc:
+                drift[name] = f"not computed: {exc}"
+        found["invariant_drift"] = drift
     if scene.exact is not None and solution.t.size:
         # The exact solution through the result's own first node (for a march: its initial
         # state; for a fixed-endpoint problem: the computed initial momentum).
         try:
             q, p = scene.exact(solution.t, solution.q[0], solution.p[0], solution.t[0],
                                **config.params)
-        except ValueError as reason:  # a start the exact solution does not cover
+            error = max(_max_abs(solution.q - np.asarray(q, dtype=float)),
+                        _max_abs(solution.p - np.asarray(p, dtype=float)))
+        except (ValueError, TypeError) as reason:  # a start it does not cover, or a failure
             found["exact_solution"] = f"not compared: {reason}"
         else:
-            found["error_vs_exact"] = float(max(_max_abs(solution.q - q),
-                                                _max_abs(solution.p - p)))
+            found["error_vs_exact"] = float(error)
     if solution.stats.get("solvability_warning"):
         found["solvability_warning"] = solution.stats["solvability_warning"]
     return found
 
 
-def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution):
+def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution,
+                   interruptible=None):
     """Arrays, metadata and figure of a run of a scene with higher derivatives."""
     energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
     exact = scene.exact_motion(solution.t, config.params)

@@ -14,7 +14,7 @@ import os
 import numpy as np
 
 from ..solvers.options import Compilation, StepControl
-from ..studies.grid import Workers
+from ..studies.grid import Workers, commit_grid
 from ..studies.reference import REFERENCE_RTOL
 from ..studies.stress import (
     DOP853_RTOL,
@@ -26,8 +26,9 @@ from ..studies.stress import (
     prediction_for,
     run_stress,
 )
+from . import atomic
 from .markdown import failure_table, machine
-from .runs import prepare_folder
+from .runs import figure_writer
 
 DEFAULT_TITLE = "Stress cases: where each scheme breaks"
 SHORT = {"success": "ok", "no_admissible_step": "no root", "newton_failed": "Newton",
@@ -41,7 +42,7 @@ NOT_RUN = ("= vddvp", "n/a")  # cells of a method that did not run on a case
 def stress(out: str | os.PathLike, *, quick: bool = False, cases: list[Case] | None = None,
            steps: StepControl | None = None, compilation: Compilation | None = None,
            workers: Workers | None = None, progress: bool = False, resume: bool = False,
-           name: str = "stress", title: str = DEFAULT_TITLE) -> list[dict]:
+           name: str = "stress", title: str = DEFAULT_TITLE, interruptible=None) -> list[dict]:
     """Run the grid and write ``NAME.csv``, ``NAME.md`` and ``NAME.png`` in ``out``.
 
     ``steps``: each run's ``max_steps`` and ``time_limit`` (default 2e6 steps, 60 s);
@@ -50,10 +51,17 @@ def stress(out: str | os.PathLike, *, quick: bool = False, cases: list[Case] | N
     """
     plan = plan_stress(quick=quick, cases=cases, steps=steps, compilation=compilation,
                        workers=workers)
-    out = prepare_folder(out)  # only once the input is known to be good
-    result = run_stress(plan, out / f"{name}.csv", resume=resume, progress=progress)
-    plot_stress(result, out / f"{name}.png", title=title)
-    (out / f"{name}.md").write_text(report(result, title=title))
+    with atomic.output_folder(out) as folder:  # only once the input is known to be good
+        result = run_stress(plan, folder / f"{name}.csv", resume=resume, progress=progress,
+                            commit=False)
+        figure = figure_writer(folder, f"{name}.png",
+                               lambda handle: plot_stress(result, handle, title=title),
+                               interruptible)
+        commit_grid(folder / f"{name}.csv", ROWS.columns, result.rows,
+                    {f"{name}.png": figure,
+                     f"{name}.md": atomic.text(report(result, title=title))},
+                    {"command": name, "title": title,
+                     "succeeded": sum(r["status"] == "success" for r in result.rows)})
     return result.rows
 
 

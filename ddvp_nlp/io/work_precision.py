@@ -27,16 +27,18 @@ from ..studies.compare import (
     time_ratios,
     winner_spans,
 )
-from ..studies.grid import Workers
+from ..studies.grid import Workers, commit_grid
 from ..studies.methods import METHODS
+from . import atomic
 from .markdown import failure_table, machine, seconds, yes_no
-from .runs import prepare_folder
+from .runs import figure_writer
 
 
 def work_precision(scene: Scene, *, out: str | os.PathLike,
                    overrides: Mapping[str, object] | None = None,
                    options: CompareOptions | None = None, compilation: Compilation | None = None,
-                   workers: Workers | None = None, progress: bool = False) -> list[dict]:
+                   workers: Workers | None = None, progress: bool = False,
+                   interruptible=None) -> list[dict]:
     """Run the comparison and write ``work_precision.csv``, ``.png`` and ``summary.md`` in
     ``out`` (created). Returns the rows.
 
@@ -53,11 +55,15 @@ def work_precision(scene: Scene, *, out: str | os.PathLike,
     """
     plan = plan_work_precision(scene, overrides=overrides, options=options,
                                compilation=compilation, workers=workers)
-    out = prepare_folder(out)  # only once the input is known to be good
-    result = run_work_precision(plan, out / "work_precision.csv", progress=progress)
-    plot_work_precision(result.rows, out / "work_precision.png",
-                        title=f"{scene.name}: error against run time")
-    (out / "summary.md").write_text(summary(result))
+    with atomic.output_folder(out) as folder:  # only once the input is known to be good
+        result = run_work_precision(plan, folder / "work_precision.csv", progress=progress,
+                                    commit=False)
+        figure = figure_writer(folder, "work_precision.png", lambda handle: plot_work_precision(
+            result.rows, handle, title=f"{scene.name}: error against run time"), interruptible)
+        commit_grid(folder / "work_precision.csv", ROWS.columns, result.rows,
+                    {"work_precision.png": figure, "summary.md": atomic.text(summary(result))},
+                    {"command": "compare", "scene": scene.name,
+                     "succeeded": sum(r["status"] == "success" for r in result.rows)})
     return result.rows
 
 

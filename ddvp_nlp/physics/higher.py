@@ -2,7 +2,7 @@
 
 ``v_m`` stands for the ``m``-th derivative; the system checks that ``L`` is regular in the
 highest one (``d2L/dv_l^2`` invertible). The discrete action, its differences and energies are in
-``discrete/higher.py``; the solvers in ``solvers/higher.py``.
+``discrete/higher.py``; the solvers in ``solvers/higher/``.
 """
 
 from __future__ import annotations

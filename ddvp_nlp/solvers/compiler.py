@@ -72,6 +72,12 @@ class CompileUnavailable(RuntimeError):
 _WARNED: set[str] = set()
 
 
+def forget_warnings() -> None:
+    """Warn again about reasons already warned of in this process (a long-lived process whose
+    setup changed, or a test that wants to see the warning)."""
+    _WARNED.clear()
+
+
 def warn_once(reason: Exception) -> None:
     """One warning per distinct reason in this process: the virtual machine takes over."""
     text = f"{reason}; running on CasADi's virtual machine instead (slower, same steps)"

@@ -144,14 +144,19 @@ def message(status: Status, *, steps: int, t_end: float, t: float, state: str,
 
 def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
           time_limit: float | None = None, monitors=(), progress: bool = False,
-          catch_interrupt: bool = False, step_offset: int = 0) -> Outcome:
-    """Run ``stepper`` from the newest node of ``nodes`` until one of rules 2-5 ends it."""
+          catch_interrupt: bool = False, step_offset: int = 0, stop=None) -> Outcome:
+    """Run ``stepper`` from the newest node of ``nodes`` until one of rules 2-5 ends it.
+    ``stop()``, if given, is asked once before the first call (a stop requested while the
+    march was built ends it at once, status ``INTERRUPTED``); after that a ``StopRequest``
+    monitor asks it after every call."""
     started = time.perf_counter()
     bar = _ProgressBar(progress, float(nodes.t[nodes.count - 1]), t_end)
     status, detail = Status.SUCCESS, ""
     watched = nodes.count  # the nodes every monitor has seen
     try:
-        while nodes.t[nodes.count - 1] < t_end:
+        if stop is not None and stop():
+            status = Status.INTERRUPTED
+        while status is Status.SUCCESS and nodes.t[nodes.count - 1] < t_end:
             steps = nodes.count - 1 - step_offset
             reached = bound_reached(steps, max_steps, started, time_limit)
             if reached:

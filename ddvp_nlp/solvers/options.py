@@ -22,7 +22,9 @@ tol=1e-12)`` makes a changed copy.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+import numpy as np
 
 from ..errors import InputError
 from ..validation import check_cache_folder, check_integer, check_real
@@ -33,12 +35,22 @@ BREAKDOWNS = ("stop", "least_squares")
 # gigabytes (chunk = 10**9 took two minutes and 4.7 GB for a ten-step march) for no speed gained.
 MAX_CHUNK = 65536
 GRID_SOLVERS = ("auto", "newton", "ipopt")
+# Shortest time between two checkpoints of a march (seconds): each one writes every node so far.
+MIN_CHECKPOINT_INTERVAL = 0.01
 LINEAR_SOLVERS = ("auto", "banded", "sparse")
 BAND_LU = ("compiled", "lapack")
 
 
 def _set(options, name, value):
     object.__setattr__(options, name, value)
+
+
+def _flag(name: str, value) -> bool:
+    """A field that is on or off: ``True``/``False`` (``np.bool_`` too), nothing else (a string
+    such as ``"no"`` is truthy and would turn it on)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 def _choice(name: str, value, choices) -> str:
@@ -135,6 +147,8 @@ class Tolerance:
         for name in ("rtol", "energy_tol", "global_tol"):
             _set(self, name, check_real(name, getattr(self, name), positive=True))
         _set(self, "atol", check_real("atol", self.atol, positive=True, allow_none=True))
+        for name in ("require_accurate", "stop"):
+            _set(self, name, _flag(name, getattr(self, name)))
         if self.exact is not None and not callable(self.exact):
             raise InputError(f"exact must be a callable exact(t) -> z, got {self.exact!r}")
 
@@ -183,14 +197,13 @@ class GridOptions:
                                            allow_none=True))
         _set(self, "time_limit", check_real("time_limit", self.time_limit, positive=True,
                                             allow_none=True))
+        _set(self, "verbose", _flag("verbose", self.verbose))
         _set(self, "accuracy", coerce(self.accuracy, Tolerance, "accuracy"))
 
     def resolved(self, *, tol: float, max_iter: int) -> GridOptions:
         """These options with a solver's defaults in place of ``None``."""
-        return GridOptions(self.solver, tol if self.tol is None else self.tol,
-                           max_iter if self.max_iter is None else self.max_iter,
-                           self.tau_floor, self.linear, self.time_limit, self.verbose,
-                           self.accuracy)
+        return replace(self, tol=tol if self.tol is None else self.tol,
+                       max_iter=max_iter if self.max_iter is None else self.max_iter)
 
 
 @dataclass(frozen=True)
@@ -209,8 +222,8 @@ class Compilation:
         batch: most chunk calls a march makes and checks at once (1, 2, 4, ... up to this
             while every step is kept): the same nodes as one call at a time, with the decoding
             and the monitors paid once per batch.
-        threads: threads of each mapped evaluation of a grid's blocks (1: two were not faster
-            on two cores, measured).
+        threads: threads of each mapped evaluation of the fixed-endpoint IPOPT build's
+            residual and Hessian blocks (1: two were not faster on two cores, measured).
         band_lu: the grid's banded LU: ``"compiled"`` (LAPACK's loops compiled with
             ``compiler``, ``grid/band.py``; LAPACK through scipy where there is no compiler)
             or ``"lapack"`` (through scipy).
@@ -230,6 +243,7 @@ class Compilation:
             raise InputError(f"compiler must be 'auto', a command or None, got "
                              f"{self.compiler!r}")
         check_cache_folder(self.cache_dir)
+        _set(self, "fast", _flag("fast", self.fast))
         _set(self, "chunk", check_integer("chunk", self.chunk, maximum=MAX_CHUNK))
         _set(self, "batch", check_integer("batch", self.batch))
         _set(self, "threads", check_integer("threads", self.threads))
@@ -241,7 +255,8 @@ class Output:
     """What a solver reports while it runs, and how it can be stopped.
 
     Attributes:
-        progress: a progress bar (march) or a line per iteration (grid solvers) on stderr.
+        progress: a progress bar (march) or a line per iteration (grid solvers) on stderr; a
+            grid solve's IPOPT also writes its iteration log, on stdout.
         checkpoint: optional ``save(t, z)``, called with the nodes kept so far every
             ``checkpoint_interval`` seconds of a march's stepping (at most about 5% of it), so
             that a killed march loses at most one interval.
@@ -257,13 +272,17 @@ class Output:
     stop: Callable[[], bool] | None = None
 
     def __post_init__(self):
+        _set(self, "progress", _flag("progress", self.progress))
         if self.checkpoint is not None and not callable(self.checkpoint):
             raise InputError(f"checkpoint must be a callable save(t, z), got "
                              f"{self.checkpoint!r}")
         if self.stop is not None and not callable(self.stop):
             raise InputError(f"stop must be a callable stop() -> bool, got {self.stop!r}")
-        _set(self, "checkpoint_interval", check_real("checkpoint_interval",
-                                                     self.checkpoint_interval, positive=True))
+        interval = check_real("checkpoint_interval", self.checkpoint_interval, positive=True)
+        if interval < MIN_CHECKPOINT_INTERVAL:
+            raise InputError(f"checkpoint_interval must be at least {MIN_CHECKPOINT_INTERVAL} "
+                             f"s (a checkpoint writes every node so far), got {interval!r}")
+        _set(self, "checkpoint_interval", interval)
 
 
 def coerce(value, kind, name: str):

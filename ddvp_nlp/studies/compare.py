@@ -32,6 +32,7 @@ from ..errors import InputError
 from ..scenes import RunConfig, Scene, load_scene
 from ..solution import Status
 from ..solvers.compiler import find_compiler
+from ..solvers.grid.maps import evaluate_blocks
 from ..solvers.options import Compilation, coerce
 from ..validation import check_count, check_real
 from .accuracy import COLUMNS as ACCURACY_COLUMNS
@@ -51,7 +52,7 @@ ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
              "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
-             "message", "fingerprint"),
+             "message", "fingerprint", "row_sha256"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
             "scheme_energy_residual", "error_estimate"),
     integers=("steps", "repeats", "order"),
@@ -140,17 +141,26 @@ class WorkPrecision:
     budget_s: float
 
 
-def errors(system, reference: Reference, solution) -> tuple[float, float]:
-    """Trajectory and energy errors of a solution's nodes (see the module docstring)."""
+def errors(system, reference: Reference, solution,
+           compilation: Compilation | None = None) -> tuple[float, float]:
+    """Trajectory and energy errors of a solution's nodes (see the module docstring). ``H`` at
+    the nodes through a compiled window map kept per system (``compilation``): a map per run's
+    length cost more than the runs of ``ddvp compare kepler`` (measured)."""
     t = solution.t
     z = np.hstack([solution.q, solution.p])
     z_ref = reference(t)
     trajectory = float(np.max(np.abs(z - z_ref)))
     theta = reference.theta
-    H = system.energy(solution.q, solution.p, t, theta)
+    compilation = compilation or Compilation()
+
+    def energy_at(q, p):
+        return evaluate_blocks(system, ("study_energy",), system.H_function,
+                               [q, p, t[:, None]], theta, compilation)[0].ravel()
+
+    H = energy_at(solution.q, solution.p)
     n = system.n
     if system.time_dependent:
-        H_ref = system.energy(z_ref[:, :n], z_ref[:, n:], t, theta)
+        H_ref = energy_at(z_ref[:, :n], z_ref[:, n:])
         energy = float(np.max(np.abs(H - H_ref)))
     else:
         energy = float(np.max(np.abs(H - H[0])))
@@ -242,7 +252,7 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
 
 
 def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
-                       progress: bool = False) -> WorkPrecision:
+                       progress: bool = False, commit: bool = True) -> WorkPrecision:
     """Run a planned comparison; its rows go to the result file ``rows_path`` as they finish."""
     scene = plan.scene
     reference = reference_for(scene, plan.overrides, plan.reference)
@@ -256,7 +266,7 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
              for method, value in plan.runs]
     rows, _ = run_grid(tasks, rows_path, COLUMNS, failure_row=failure_row, parse=ROWS.parse,
                        resume=False, workers=plan.workers, scheduler=plan.scheduler,
-                       progress=progress)
+                       progress=progress, commit=commit)
     return WorkPrecision(rows, scene, plan.config, reference, plan.left_out, plan.compiler,
                          plan.repeats, plan.budget_s)
 
@@ -304,7 +314,8 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
     except InputError as exc:  # e.g. a step that needs more than max_steps
         return {**row, **_NOT_MEASURED, "status": "not_run", "message": str(exc),
                 "t_reached": config.t0}
-    trajectory, energy = errors(system, reference, solution)
+    trajectory, energy = errors(system, reference, solution,
+                                Compilation(compiler=compiler, cache_dir=cache_dir))
     residual = (float(np.max(np.abs(solution.energy_residual)))
                 if method.energy_conserving and solution.energy_residual.size else math.nan)
     return {**row, "status": solution.status.code, "message": solution.message,

@@ -29,7 +29,9 @@ import numpy as np
 from ..errors import InputError
 from ..physics.hamiltonian import vector_field_function
 from ..scenes import load_scene
+from ..solvers.grid.maps import evaluate_blocks
 from ..solvers.march.ensemble import march_ensemble
+from ..solvers.options import Compilation
 from ..solvers.periodic.solve import parse_section
 from ..validation import check_real
 from .grid import Task, resolve_scheduler, run_tasks
@@ -37,6 +39,8 @@ from .grid import Task, resolve_scheduler, run_tasks
 # Orbits per task on a cluster: enough that a task's start-up (loading the scene and its
 # compiled chunk) is small against its marching.
 CLUSTER_BLOCK = 10
+# The crossings' vector field and the nodal energies: compiled where there is a compiler.
+COMPILATION = Compilation()
 
 
 @dataclass
@@ -115,15 +119,16 @@ def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: in
     solutions = ensemble(system, starts[:, :n], starts[:, n:], scene=scene, scheduler=scheduler,
                          t_span=(0.0, t_end), tau0=tau0, params=params, **march_options)
     index, value, _ = parse_section(section, n)
-    field = vector_field_function(system)
     points, times, orbit, errors = [], [], [], []
     for k, solution in enumerate(solutions):
         z = np.hstack([solution.q, solution.p])
-        t_cross, z_cross = crossings(field, theta, solution.t, z, index - 1, value, direction)
+        t_cross, z_cross = crossings(system, theta, solution.t, z, index - 1, value, direction)
         points.append(z_cross)
         times.append(t_cross)
         orbit.append(np.full(t_cross.size, k))
-        H = system.energy(solution.q, solution.p, solution.t, theta)
+        H = evaluate_blocks(system, ("poincare_energy",), system.H_function,
+                            [solution.q, solution.p, solution.t[:, None]], theta,
+                            COMPILATION)[0]
         errors.append(float(np.max(np.abs(H - energy))))
     verdicts = [(s.stats.get("accuracy", {}).get("verdict", ""),
                  s.stats.get("accuracy", {}).get("t_drift")) for s in solutions]
@@ -163,18 +168,22 @@ def march_block(scene: str, q0s, p0s, **options) -> list:
                           workers=1, **options)
 
 
-def crossings(field, theta, t, z, column: int, value: float, direction: str):
+def crossings(system, theta, t, z, column: int, value: float, direction: str):
     """Times ``(K,)`` and states ``(K, 2n)`` where ``z[:, column]`` passes ``value`` in the
-    direction, on each interval's cubic Hermite interpolant."""
+    direction, on each interval's cubic Hermite interpolant. The vector field is evaluated at
+    the two nodes of the crossing intervals only, by a compiled map kept per system (on every
+    node of every orbit through a map built per orbit, locating the crossings of
+    ``ddvp poincare`` took longer than marching the orbits: 8.6 s against 5.7 s; measured)."""
     s = z[:, column] - value
     sign = 1 if direction == "+" else -1
     where = np.flatnonzero((sign * s[:-1] < 0) & (sign * s[1:] >= 0))
     if where.size == 0:
         return np.zeros(0), np.zeros((0, z.shape[1]))
-    f = np.array(field.map(t.size)(z.T, t[None, :], np.repeat(
-        np.asarray(theta, float).reshape(-1, 1), t.size, axis=1))).T
+    ends = np.concatenate([where, where + 1])
+    f = evaluate_blocks(system, ("poincare_field",), vector_field_function(system),
+                        [z[ends], t[ends, None]], theta, COMPILATION)[0]
     h = (t[where + 1] - t[where])[:, None]
-    za, zb, fa, fb = z[where], z[where + 1], f[where] * h, f[where + 1] * h
+    za, zb, fa, fb = z[where], z[where + 1], f[:where.size] * h, f[where.size:] * h
     lo, hi = np.zeros(where.size), np.ones(where.size)
     for _ in range(60):  # bisection on the section coordinate, to round-off
         mid = (lo + hi) / 2

@@ -42,7 +42,8 @@ from .reference import check_comparable, check_starts_from_p0, reference_for
 ROWS = RowSchema(
     columns=("key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
              "steps", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
-             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message", "fingerprint"),
+             "predicted_breaks", "w_ratio", *ACCURACY_COLUMNS, "message", "fingerprint",
+             "row_sha256"),
     floats=("value", "t_reached", "t_end", "energy_error", "tau_min", "tau_max", "seconds",
             "w_ratio", "error_estimate"),
     integers=("steps",),
@@ -322,12 +323,13 @@ def plan_stress(*, quick: bool = False, cases: list[Case] | None = None,
 
 
 def run_stress(plan: StressPlan, rows_path, *, resume: bool = False,
-               progress: bool = False) -> StressResult:
+               progress: bool = False, commit: bool = True) -> StressResult:
     """Run a planned grid; its rows go to the result file ``rows_path`` as they finish
     (``resume``: keep the rows already there and run only the missing tasks)."""
     rows, _ = run_grid(plan.tasks, rows_path, COLUMNS, failure_row=failure_row,
                        parse=ROWS.parse, resume=resume, workers=plan.workers,
-                       scheduler=plan.scheduler, progress=progress)
+                       scheduler=plan.scheduler, progress=progress, commit=commit,
+                       finite=("t_reached", "energy_error"))
     predictions = {(r["case"], r["group"]): {"breaks": r["predicted_breaks"],
                                              "w_ratio": r["w_ratio"]}
                    for r in rows if r["method"] == "dop853" and r["status"] == "success"}

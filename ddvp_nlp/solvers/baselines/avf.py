@@ -10,6 +10,8 @@ symmetric, conserves autonomous ``H`` at the nodes (exactly, up to round-off, fo
 
 from __future__ import annotations
 
+from types import MappingProxyType
+
 import casadi as ca
 
 from ...cache import cached
@@ -17,7 +19,9 @@ from ...discrete.avf import avf_residual
 from ...discrete.explicit import rk4_step
 from ...physics.hamiltonian import HamiltonianSystem
 
-NEWTON_OPTIONS = {"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 12, "error_on_fail": False}
+# The AVF step's own Newton (an implicit fixed-step map, solved inside a baseline's chunk).
+AVF_NEWTON = MappingProxyType({"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 12,
+                               "error_on_fail": False})
 
 
 def avf_step(system: HamiltonianSystem) -> ca.Function:
@@ -30,7 +34,7 @@ def avf_step(system: HamiltonianSystem) -> ca.Function:
         w = ca.vertcat(z, t, tau, system.theta)
         parts = ca.vertsplit(w, [0, 2 * n, 2 * n + 1, 2 * n + 2, w.numel()])
         residual = ca.Function("g", [z_next, w], [equation(z_next, *parts)])
-        newton = ca.rootfinder("avf_newton", "fast_newton", residual, NEWTON_OPTIONS)
+        newton = ca.rootfinder("avf_newton", "fast_newton", residual, dict(AVF_NEWTON))
         guess = rk4_step(system)(z, t, tau, system.theta)
         solved = newton(guess, w)
         return ca.Function("avf", [z, t, tau, system.theta],

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -52,7 +53,7 @@ def step_map(system: HamiltonianSystem, method: str) -> ca.Function:
 
 # Implicit fixed-step methods: name -> (the map as in :func:`step_map`, the equation as in
 # :func:`step_equation`), each ``(system) -> Function``.
-IMPLICIT_STEPS = {"avf": (avf_step, avf_residual)}
+IMPLICIT_STEPS = MappingProxyType({"avf": (avf_step, avf_residual)})
 
 
 def step_equation(system: HamiltonianSystem, method: str) -> ca.Function:

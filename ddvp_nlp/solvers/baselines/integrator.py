@@ -8,7 +8,7 @@ nowhere else) and ``run``, which turns ``(system, run configuration, knob value)
 ``params``: a ``scenes.RunConfig``), so this layer needs no import of the scenes.
 
 Each implementation module declares its integrators as module constants; the registry
-(``studies/methods.py``) lists them, one line each.
+(``INTEGRATORS`` in ``solvers/baselines/__init__.py``) lists them, one line each.
 """
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ def _chunk(system: HamiltonianSystem, functions: LeeLeftPointEquations, chunk: i
         theta_symbol = ca.SX.sym("theta", system.theta.numel())
         w = ca.vertcat(state, theta_symbol)
         newton = ca.rootfinder("lee_left_newton", "fast_newton", functions.residual,
-                               NEWTON_OPTIONS)
+                               dict(NEWTON_OPTIONS))
         x = newton(functions.predict(w), w)
         v, tau = x[:n], x[n]
         now = state_layout.split(state)

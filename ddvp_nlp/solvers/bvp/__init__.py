@@ -17,6 +17,8 @@ Where things are:
   last resort;
 - ``continuous.py``: the continuous problem near a solution, by multiple shooting with the
   reference flow: what the accuracy check measures the grid against, or why there is none.
+- ``energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the
+  last interval's energy prescribed, checked against the exact flow's shooting.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -33,7 +35,17 @@ The contract, on top of the grid's (``grid/__init__.py``):
 5. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
 """
 
-from .solve import solve_bvp
-from .start import Shooting, predicted_times
+from typing import TYPE_CHECKING
 
-__all__ = ["Shooting", "predicted_times", "solve_bvp"]
+from ...cache import lazy_exports
+
+if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .energy import AtEnergy
+    from .solve import solve_bvp
+    from .start import Shooting, predicted_times
+
+# loaded when first asked for: importing one module of the family loads only what it needs
+__getattr__, __dir__ = lazy_exports(__name__, {"solve_bvp": "solve", "Shooting": "start",
+                                                "predicted_times": "start", "AtEnergy": "energy"})
+
+__all__ = ["AtEnergy", "Shooting", "predicted_times", "solve_bvp"]

@@ -79,13 +79,16 @@ class NodeLayout:
 @dataclass
 class Ends:
     """The data of one problem: fixed positions, node times (``t_0, t_end`` for an energy rule,
-    all ``N`` for ``fixed``), parameters and the energy rows' scale."""
+    all ``N`` for ``fixed``), parameters and the energy rows' scale; ``energy``: the prescribed
+    energy of a transfer whose end time is free (``energy.py``), the value the last block of
+    a :class:`GridAssembly` built with ``last=`` takes instead of ``t_end``."""
 
     q_start: np.ndarray
     q_end: np.ndarray
     times: np.ndarray
     theta: np.ndarray
     energy_scale: float
+    energy: float | None = None
 
 
 def node_expressions(system, scheme: Scheme):
@@ -156,6 +159,27 @@ def _block_functions(system, scheme: Scheme):
     return cached(system, ("bvp_blocks", scheme), build)
 
 
+def prescribed_energy_block(system, scheme: Scheme):
+    """The last block of a transfer at a prescribed energy (``energy.py``), as the ``last`` of
+    :class:`GridAssembly`: ``(block, rows)`` of ``(z_a, z_b, E, theta)``, the canonical
+    equations of interval ``N - 2`` and, in the time row of node ``N - 1``, ``H(Q, P) - E`` of
+    that interval (``discrete/``'s interval energy; with the energy equations ``H_k =
+    H_{k-1}`` of the interior nodes it prescribes every interval's energy), in place of
+    ``t_{N-1} - t_end``: ``t_{N-1}`` is an unknown."""
+    def build():
+        n = system.n
+        z, r, _ = node_expressions(system, scheme)
+        theta, level = system.theta, ca.SX.sym("E")
+        energy = equations.midpoint_energy_function(system, scheme)(
+            z[0][0], z[1][0], z[0][1:n + 1], z[0][n + 1:], z[1][1:n + 1], z[1][n + 1:], theta)
+        F = ca.vertcat(r, energy - level)
+        J = ca.jacobian(F, ca.vertcat(z[0], z[1]))
+        inputs = [z[0], z[1], level, theta]
+        return (ca.Function("bvp_prescribed_block", inputs, [F, _band_rows(J, n)]),
+                ca.Function("bvp_prescribed_rows", inputs, [F]))
+    return cached(system, ("bvp_prescribed_block", scheme), build)
+
+
 def _action_function(system, scheme: Scheme) -> ca.Function:
     """``S_k(z_a, z_b, theta)``: the interval action of ``discrete/``."""
     def build():
@@ -219,7 +243,10 @@ class GridAssembly:
     evaluation; the ``w`` rows above are LAPACK's fill-in, which ``gbtrf`` clears itself."""
 
     def __init__(self, system, scheme: Scheme, nodes: int,
-                 compilation: Compilation | None = None):
+                 compilation: Compilation | None = None, last=None):
+        """``last``: the last block's functions ``(block, rows)`` of inputs ``(z_a, z_b, value,
+        theta)`` in place of the pin ``t_{N-1} - t_end`` (an energy rule's; ``value`` is
+        ``Ends.energy``)."""
         compilation = compilation or Compilation()
         self.layout = NodeLayout(system.n, nodes)
         self.scheme = scheme
@@ -231,8 +258,8 @@ class GridAssembly:
         else:  # blocks 0 .. N-3; block N-2 (pinned to t_end) alone, on the virtual machine
             self._maps = [window_map(system, ("energy", j, scheme), f, compilation)
                           for j, f in enumerate(energy)]
-            self._last = pinned
-            self._last_buffers = [f.buffer() for f in pinned]
+            self._last = last or pinned
+            self._last_buffers = [f.buffer() for f in self._last]
         self._action = window_map(system, ("action", scheme), _action_function(system, scheme),
                                   compilation)
         blocks = nodes - 2 if self._energy_rule else nodes - 1
@@ -290,8 +317,9 @@ class GridAssembly:
         """Block ``N - 2`` of an energy rule: canonical rows and ``t_{N-1} - t_end``."""
         kind = 0 if sink is not None else 1
         buffer, trigger = self._last_buffers[kind]
+        given = ends.times[-1] if ends.energy is None else ends.energy
         held = [np.ascontiguousarray(z[-2]), np.ascontiguousarray(z[-1]),
-                np.array([float(ends.times[-1])]), theta]
+                np.array([float(given)]), theta]
         for j, value in enumerate(held):
             buffer.set_arg(j, memoryview(value))
         row = np.empty(self.layout.m)

@@ -28,6 +28,8 @@ pendulum at N = 1e3..1e5 (docs/benchmarks/bench_bvp.md).
 
 from __future__ import annotations
 
+from types import MappingProxyType
+
 import casadi as ca
 import numpy as np
 
@@ -49,8 +51,8 @@ from .assembly import Ends, GridAssembly, NodeLayout, hessian_block_functions, n
 # MUMPS scaling 77 or 8 and a pivot tolerance of 1e-4 took more factorizations (32, 22, 8
 # against 5): the inertia MUMPS reports for this saddle-point matrix (its (1,1) block is
 # ~1e-13) is off by a few eigenvalues, which costs IPOPT a perturbed refactorization.
-ASSEMBLY_OPTIONS = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_init": 1e-13,
-                    "ipopt.mu_min": 1e-15}
+ASSEMBLY_OPTIONS = MappingProxyType({"ipopt.mumps_pivot_order": 0, "ipopt.mu_init": 1e-13,
+                                     "ipopt.mu_min": 1e-15})
 
 
 def residual_functions(system, scheme: Scheme):
@@ -92,6 +94,11 @@ def _sparsity(rows: np.ndarray, columns: np.ndarray, shape):
     return ca.Sparsity(shape[0], shape[1], colind.tolist(), rows[order].tolist()), order
 
 
+def _narrow(index: np.ndarray) -> np.ndarray:
+    """``index`` as 32-bit integers where they fit (half the memory of the patterns)."""
+    return index.astype(np.int32) if index.size and index.max() < 2 ** 31 else index
+
+
 class GridNlp:
     """``g``, its Jacobian and the Lagrangian's Hessian of one system, scheme and node count,
     on numpy arrays (module docstring); the callbacks below call it."""
@@ -122,6 +129,14 @@ class GridNlp:
         for h, count in zip(self._hessians, (N - 1, N - 2), strict=True):
             if h is not None:
                 h[0].prepare(count)
+        # Columns of values pinned for the whole build (every node time of ``fixed``): IPOPT
+        # drops them (fixed_variable_treatment make_parameter), so their Jacobian and Hessian
+        # entries are left out of the patterns. At N = 1e6 they were a third of the Jacobian's
+        # 1.2e7 entries and most of the Hessian's, copied by CasADi, IPOPT and MUMPS (peak
+        # 4.3 GB; measured).
+        self.fixed_columns = np.zeros(N * m, bool)
+        if not self.steps:
+            self.fixed_columns[::m] = True
         self._jacobian_pattern(pinned)
         self._hessian_pattern()
         self._last = None
@@ -137,7 +152,7 @@ class GridNlp:
         columns = flat // band.shape[1]
         rows = flat % band.shape[1] - 2 * w + columns
         row_of = np.cumsum(~pinned) - 1  # F row -> g row
-        keep = ~pinned[rows]
+        keep = ~pinned[rows] & ~self.fixed_columns[columns]
         rows, columns, self._band_source = row_of[rows[keep]], columns[keep], flat[keep]
         if self.steps:  # t_{k+1} - t_k: -1 at t_k, +1 at t_{k+1}
             k = np.arange(N - 1)
@@ -147,8 +162,9 @@ class GridNlp:
         else:
             constants = np.zeros(0)
         self.jac_sparsity, order = _sparsity(rows, columns, (self.ng, N * m))
-        position = np.empty_like(order)
+        position = np.empty(order.size, np.int32 if order.size < 2 ** 31 else np.int64)
         position[order] = np.arange(order.size)
+        self._band_source = _narrow(self._band_source)
         self._band_target = position[:self._band_source.size]
         self._constant_target = position[self._band_source.size:]
         self._constants = constants
@@ -161,8 +177,10 @@ class GridNlp:
         flat = np.flatnonzero(band.ravel())
         rows = flat // band.shape[1]
         columns = rows + flat % band.shape[1]
+        keep = ~self.fixed_columns[rows] & ~self.fixed_columns[columns]
+        flat, rows, columns = flat[keep], rows[keep], columns[keep]
         self.hess_sparsity, order = _sparsity(rows, columns, (N * m, N * m))
-        self._hessian_source = flat[order]
+        self._hessian_source = _narrow(flat[order])
 
     def _hessian_band(self, values) -> np.ndarray:
         """Upper band of the Hessian, ``H[i, i + d]`` at ``[i, d]``, from the blocks'
@@ -188,6 +206,10 @@ class GridNlp:
             F, blocks = self.grid.evaluate(x, ends)
             self._last = (x.copy(), parameters.copy(), F, blocks)
         return self._last[2], self._last[3]
+
+    def forget(self) -> None:
+        """Drop the last evaluation (its point, rows and Jacobian blocks)."""
+        self._last = None
 
     def _ends(self, parameters) -> Ends:
         """The ends are pinned by bounds: the rows that hold them are not in ``g``."""
@@ -302,7 +324,7 @@ class BvpIpopt:
 
     def __init__(self, system, scheme: Scheme, nodes: int, *, tol: float, max_iter: int,
                  verbose: bool = False, time_limit: float | None = None,
-                 compilation: Compilation | None = None):
+                 compilation: Compilation | None = None, floor: float = 0.0):
         self.nlp = GridNlp(system, scheme, nodes, compilation or Compilation())
         self.layout, self.scheme = self.nlp.layout, scheme
         self._callbacks = _callbacks(self.nlp)  # IPOPT holds them by reference: keep them
@@ -310,7 +332,7 @@ class BvpIpopt:
         x = ca.MX.sym("x", self.layout.size)
         p = ca.MX.sym("p", self.nlp.n_theta + 1)
         settings = ipopt_settings(tol, max_iter, verbose, time_limit,
-                                  {**DEFAULT_OPTIONS, **ASSEMBLY_OPTIONS})
+                                  {**DEFAULT_OPTIONS, **ASSEMBLY_OPTIONS}, floor)
         settings.update({"jac_g": jac_g, "hess_lag": hess_lag, "no_nlp_grad": True,
                          "calc_lam_p": False})
         self.problem = FeasibilityNlp("bvp_grid", x, p, g(x, p), settings)
@@ -321,5 +343,7 @@ class BvpIpopt:
         steps = self.nlp.ng - self.nlp.kept.size
         lbg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]
         ubg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, np.inf)]
-        return self.problem.solve(x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
-                                  p=np.concatenate([ends.theta, [ends.energy_scale]]))
+        result = self.problem.solve(x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
+                                    p=np.concatenate([ends.theta, [ends.energy_scale]]))
+        self.nlp.forget()  # the last point's blocks: O(N) memory the cached problem need not hold
+        return result

@@ -112,22 +112,50 @@ def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, s
                         kernel=band_kernel(request.compilation), deadline=request.deadline,
                         progress=_reporter(name) if request.progress else None)
     else:
-        remaining = request.remaining()
-        compilation = request.compilation
-        problem = request.built(("bvp_ipopt", scheme, request.nodes, request.max_iter,
-                                 request.tol, request.verbose, remaining, compilation),
-                                lambda: BvpIpopt(request.system, scheme, request.nodes,
-                                                 tol=request.tol, max_iter=request.max_iter,
-                                                 verbose=request.verbose or request.progress,
-                                                 time_limit=remaining,
-                                                 compilation=compilation))
-        result = problem.solve(x0, data, request.tau_floor)
+        result = _ipopt(request, scheme, x0, data)
     x, converged, said, iterations = (result.x, result.converged, result.outcome,
                                       result.iterations)
     phase = {"phase": name, "solver": solver, "converged": converged, "return_status": said,
              "iterations": iterations, "seconds": time.perf_counter() - started}
     request.phases.append(phase)
     return x, phase
+
+
+def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends) -> float:
+    """The round-off of the rows IPOPT sees near ``x``, ``TARGET_ULPS`` units of the largest:
+    the canonical rows' ``eps max(1, |q|, |p|, |t|)`` and (energy rules) the energy rows'
+    ``eps max(1, |E_k|)`` divided by the energy scale, the mean step (1e-11 at N = 1e6 on the
+    pendulum), rounded up to two digits so that nearby starts share a built problem."""
+    canonical, energy = round_off_scales(request, x, scheme)
+    floor = TARGET_ULPS * EPS * max(canonical, energy / data.energy_scale)
+    digits = 10.0 ** (np.floor(np.log10(floor)) - 1)
+    return float(np.ceil(floor / digits) * digits)
+
+
+def _ipopt(request: GridRequest, scheme: Scheme, x0: np.ndarray, data: Ends):
+    """IPOPT's solve of the system of ``scheme`` from ``x0``: the request's own system to
+    ``tol`` (but not below the rows' round-off, :func:`ipopt_floor`), a start phase to that
+    round-off. Before a released problem is built the fixed-step ones are
+    dropped from the cache: at N = 1e6 the fixed-step one held about 3 GB while the released
+    one was built (measured)."""
+    remaining = request.remaining()
+    compilation = request.compilation
+    floor = ipopt_floor(request, x0, scheme, data)
+    # A start phase (another scheme than the request's: fixed steps) ends where Newton's does,
+    # at its rows' round-off: at 1e-2 tol = 1e-11 IPOPT took the predicted times' start as it
+    # came at N = 1e6 (0 iterations), the released rows were then 2.5e-12 off, above the
+    # verification, and one IPOPT iteration on them cost 38 s and 7.9 GB (measured).
+    tol = request.tol if scheme == request.scheme else floor
+    if scheme.variable_steps:
+        request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != scheme)
+    problem = request.built(("bvp_ipopt", scheme, request.nodes, request.max_iter,
+                             tol, floor, request.verbose, remaining, compilation),
+                            lambda: BvpIpopt(request.system, scheme, request.nodes,
+                                             tol=tol, max_iter=request.max_iter,
+                                             verbose=request.verbose or request.progress,
+                                             time_limit=remaining, compilation=compilation,
+                                             floor=floor))
+    return problem.solve(x0, data, request.tau_floor)
 
 
 def _reporter(name: str):

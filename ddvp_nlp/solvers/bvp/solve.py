@@ -16,7 +16,10 @@ bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
   ``tau_floor`` safeguard (``grid/newton.py``; blocks compiled, band LU in C, ``grid/band.py``):
   ``O(N)`` time and memory per iteration;
 - ``"ipopt"``: IPOPT on the same assembly through callbacks (``ipopt.py``, the grid's IPOPT
-  build), the design's NLP solver;
+  build), the design's NLP solver. Its tolerance on the released times is the rows' round-off
+  where that is above ``1e-2 tol`` (``phase.ipopt_floor``: the energy rows divided by the mean
+  step carry ``eps |E| / h``, 1e-11 at N = 1e6), and it is not run from a start that already
+  passes the verification (the start phases' own point, at large N);
 - ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
   then IPOPT from the same start if Newton's point does not pass the verification.
 
@@ -56,9 +59,16 @@ from ...validation import (
 from ..accuracy import Judgement, Level, apply_verdict
 from ..compiler import find_compiler
 from ..dense import attach
-from ..grid.problem import GridRequest
+from ..grid.problem import GridRequest, timed_out
 from ..options import Compilation, GridOptions, Output, Tolerance, coerce
 from .assembly import NodeLayout
+from .energy import (
+    AtEnergy,
+    check_transfer,
+    duration_guess,
+    fixed_time_start,
+    release_end_time,
+)
 from .phase import (
     EPS,
     ROUND_OFF_ALLOWANCE,
@@ -98,7 +108,10 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     Args:
         system: the Hamiltonian (or Lagrangian) system.
         q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
-        t_span: ``(t0, t_end)``, the two end times.
+        t_span: ``(t0, t_end)``, the two end times; or ``AtEnergy(E, t0, duration)``: a
+            transfer at the prescribed energy ``E`` with the end time an unknown
+            (``energy.py``: the fixed-time problem at the guessed duration first, then the end
+            time released; Newton only).
         nodes: number of nodes ``N >= 3``.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
         params: the system's parameter values.
@@ -121,11 +134,19 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         residuals, the action and the number of sign changes of each ``p`` component (which of
         several solutions it is); failures are a status on it.
     """
+    output = coerce(output, Output, "output")
+    if output.checkpoint is not None or output.stop is not None:
+        raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
+                         "and stop belong to a march")
+    if isinstance(t_span, AtEnergy):
+        return _transfer(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
+                         params=params, guess=guess, options=options, compilation=compilation,
+                         output=output)
     request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
                               params=params, guess=guess, times=times,
                               options=coerce(options, GridOptions, "options"),
                               compilation=coerce(compilation, Compilation, "compilation"),
-                              output=coerce(output, Output, "output"))
+                              output=output)
     started = request.start_clock()
     start_kind = start
     start = start_point(request, start)
@@ -133,8 +154,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     x0 = layout.pack(np.asarray(start["t"], float), np.asarray(start["q"], float),
                      np.asarray(start["p"], float))
     name = f"{request.scheme.rule} equations"
-    x, phase = run_phase(request, request.scheme, x0, name, first_solver(request))
-    outcome = _outcome(request, x, phase)
+    x, phase, outcome = _final_phase(request, x0, name)
     obstacle = branch_obstacle(request, start) if outcome[0] is not Status.SUCCESS \
         and request.scheme.variable_steps else None
     if request.solver == "auto" and outcome[0] is not Status.SUCCESS \
@@ -155,6 +175,59 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         outcome = (outcome[0], f"{outcome[1]}; {START_HINT[start_kind]}", outcome[2])
     solution = _solution(request, x, phase, outcome, started)
     return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
+
+
+def _final_phase(request: GridRequest, x0: np.ndarray, name: str):
+    """``(x, phase, outcome)`` of the scheme's own system solved from ``x0``. IPOPT is not run
+    from a start that already passes the verification: the start phases end that close at
+    N = 1e6 on the pendulum (inf_pr 2.5e-11), and IPOPT had nothing left to do but iterate on
+    round-off (measured). Newton is always run: its targets are tighter than the
+    verification."""
+    solver = first_solver(request)
+    # The start phases' IPOPT problems are done with: each holds its solver's memory (MUMPS's
+    # factors among it), about 3 GB at N = 1e6, while the verification builds the assembly.
+    request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != request.scheme)
+    if solver == "ipopt":
+        skipped = {"phase": name, "solver": solver, "converged": True,
+                   "return_status": "not run: the start passes the verification",
+                   "iterations": 0, "seconds": 0.0}
+        outcome = _outcome(request, x0, skipped)
+        if outcome[0] is Status.SUCCESS:
+            request.phases.append(skipped)
+            return x0, skipped, outcome
+    x, phase = run_phase(request, request.scheme, x0, name, solver)
+    return x, phase, _outcome(request, x, phase)
+
+
+def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, guess, options,
+              compilation, output) -> Solution:
+    """A transfer at a prescribed energy (``energy.py``): the fixed-time problem at the guessed
+    duration, then the end time released."""
+    scheme = Scheme.coerce(scheme)
+    if not isinstance(system, HamiltonianSystem):
+        raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    options = coerce(options, GridOptions, "options")
+    check_transfer(system, scheme, options)
+    theta = system.parameter_vector(params)
+    q_a, q_b = check_state("q_start", q_start, system.n), check_state("q_end", q_end, system.n)
+    duration = span.duration or duration_guess(system, theta, q_a, q_b, span.energy, guess)
+
+    def solve_fixed(length, start):
+        return solve_bvp(system, q_a, q_b, (span.t0, span.t0 + length), nodes=nodes,
+                         scheme=scheme, params=params, guess=guess if start is None else start,
+                         options=options, compilation=compilation, output=output)
+    fixed, durations = fixed_time_start(solve_fixed, system, scheme, theta, duration,
+                                        span.energy)
+    if not fixed.success:
+        fixed.message = (f"the fixed-time problem at the guessed duration {duration:.6g} was "
+                         f"not solved, so the end time was not released: {fixed.message}")
+        return fixed
+    resolved = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
+                                max_iter=resolved.max_iter,
+                                compilation=coerce(compilation, Compilation, "compilation"))
+    solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
+    return attach(solution, system, theta, solution.t[-1])
 
 
 def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times,
@@ -196,11 +269,11 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     return request, start
 
 
-# Peak memory per node, measured (docs/benchmarks/bench_bvp.md): Newton 0.67 GB at 1e6 nodes of
-# the pendulum (n = 1; 1.06 GB before the band store was reused), IPOPT on the assembly
-# 0.77-1.27 GB at 1e5 and 9.3 GB at 1e6 (the MX build, kept for comparison only, 2.8 GB at 1e5);
-# the blocks grow like (2n + 1)^2.
-BYTES_PER_NODE = {"newton": 0.8e3, "auto": 0.8e3, "ipopt": 1.3e4}
+# Peak memory per node, measured (docs/benchmarks/bench_bvp.md, bench_ipopt.md): Newton 0.67 GB
+# at 1e6 nodes of the pendulum (n = 1; 1.06 GB before the band store was reused), IPOPT on the
+# assembly 3.9-4.3 GB at 1e6 (9.3 GB before its tolerance sat at the rows' round-off and the
+# pinned times left its patterns); the blocks grow like (2n + 1)^2.
+BYTES_PER_NODE = {"newton": 0.8e3, "auto": 0.8e3, "ipopt": 4.5e3}
 
 
 def _check_memory(nodes: int, n: int, solver: str) -> None:
@@ -287,18 +360,13 @@ def _verify(phase, t, canonical, energy, scheme, limits, stats):
                                 f"{worst_canonical:.3e}, energy {worst_energy:.3e}; "
                                 f"{phase['iterations']} iterations ({said})")
     detail = "".join(f"; {p}" for p in problems)
-    if _timed_out(phase):
+    if timed_out(phase["return_status"]):
         return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value} ({said}){detail}"
     if not phase["converged"]:
         return Status.SOLVER_FAILED, f"{Status.SOLVER_FAILED.value} ({said}){detail}"
     if np.min(tau) <= 0:
         return Status.NO_ADMISSIBLE_STEP, problems[0] + f" ({said})"
     return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {'; '.join(problems)} ({said})"
-
-
-def _timed_out(phase) -> bool:
-    said = phase["return_status"]
-    return said.startswith("time limit") or said == "Maximum_WallTime_Exceeded"
 
 
 def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
@@ -385,7 +453,10 @@ def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
     ``t0`` to ``t1``."""
     if times is None:
         return np.linspace(t0, t1, nodes)
-    grid_times = np.asarray(times, float)
+    try:
+        grid_times = np.asarray(times, float)
+    except (TypeError, ValueError):
+        grid_times = np.zeros(0)
     if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
             or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
         raise InputError(f"times must be {nodes} increasing finite values from t_0 to "

@@ -25,9 +25,10 @@ The contract of a grid problem. An assembly must:
    problem's data (ends, energy, section, parameters) in every ``evaluate(x, data,
    jacobian)``, so that one assembly serves a family of problems.
 3. Return from ``evaluate`` a new residual array and, if asked, the Jacobian in its own form,
-   with the same residual bits whether or not the Jacobian was asked for;
-   ``banded(J)`` and ``sparse(J)`` give it to the LU; ``release()`` drops the Jacobian's
-   storage (the assembly stays cached).
+   with the same residual bits whether or not the Jacobian was asked for (tested for every
+   assembly); ``sparse(J)`` and, for a banded Jacobian, ``banded(J)`` give it to the LU, from
+   ``J`` alone (the data of the evaluation travels with it); ``release()`` drops the
+   Jacobian's storage (the assembly stays cached).
 4. Write no equation itself: its blocks are the expressions of ``discrete/``.
 
 And a family using them must:
@@ -41,8 +42,6 @@ And a family using them must:
 This package imports only the core (``options``, ``compiler``) and ``discrete``; no family.
 """
 
-from .newton import DECREASE_OR_MONOTONICITY, MONOTONICITY, newton
 from .problem import GridProblem, GridRequest, GridResult
 
-__all__ = ["DECREASE_OR_MONOTONICITY", "MONOTONICITY", "GridProblem", "GridRequest",
-           "GridResult", "newton"]
+__all__ = ["GridProblem", "GridRequest", "GridResult"]

@@ -36,6 +36,7 @@ happened in words. Whether that point solves the problem is the caller's verific
 from __future__ import annotations
 
 import time
+from typing import Protocol
 
 import numpy as np
 
@@ -69,6 +70,24 @@ def _norm(v: np.ndarray, weight=None) -> float:
         if weight is not None:
             v = v * weight
         return float(np.sqrt(np.einsum("i,i->", v, v)))
+
+
+class StepTest(Protocol):
+    """What the line search asks of a step test, and which iterate the solve returns."""
+
+    keep_best: bool
+
+    def norm(self, F, weight) -> float:
+        """The residual norm the history records (and the test compares)."""
+
+    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight) -> bool:
+        """Whether ``x + alpha dx`` (residual ``F_trial``) is taken."""
+
+    def stalled(self, F, target, norm: float, iteration: int) -> tuple[str, bool]:
+        """What happened, and whether it counts as converged, when no step passes."""
+
+    def finish(self, result: GridResult, best, target, max_iter: int, norm: float) -> None:
+        """The returned iterate and words after ``max_iter`` iterations."""
 
 
 class NaturalMonotonicity:
@@ -137,7 +156,7 @@ DECREASE_OR_MONOTONICITY = DecreaseOrMonotonicity()
 def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
            tau_floor: float, max_iter: int = 50, linear: str = "auto",
            kernel: band.BandKernel | None = None, deadline: float | None = None,
-           progress=None, test: NaturalMonotonicity = MONOTONICITY,
+           progress=None, test: StepTest = MONOTONICITY,
            offset: np.ndarray | None = None) -> GridResult:
     """Newton's method with safeguard and line search (module docstring) from ``x0``.
 
@@ -187,9 +206,8 @@ def _newton(problem, x0, data, target, *, tau_floor, max_iter, linear, kernel, d
             result.outcome = f"time limit reached after {iteration - 1} iterations"
             return result
         # F(x) is at hand (the start's, or the line search's); the Jacobian only now, when a
-        # step is needed: a converged solve evaluates none. The step takes F from the same
-        # evaluation as J (the assemblies' F is the same with and without J; the higher-order
-        # assembly's may differ in the last bits, and its homotopy was tuned on this one)
+        # step is needed: a converged solve evaluates none (F is the same with and without J:
+        # the grid contract's rule 3)
         F, J = residual(x, True)
         lu = Factorization(problem, J, linear, kernel)
         dx = lu.solve(-F)

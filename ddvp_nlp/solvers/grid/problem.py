@@ -25,7 +25,8 @@ class GridLayout(Protocol):
 
     @property
     def bandwidth(self) -> int:
-        """Lower and upper bandwidth of the Jacobian; wider than 32 means sparse LU."""
+        """Lower and upper bandwidth of the Jacobian; wider than 32 means sparse LU (a
+        Jacobian that is not banded gives the system's size)."""
 
     def time_index(self) -> np.ndarray:
         """Positions of the node times ``t_0 .. t_{N-1}`` in ``x``, in order."""
@@ -45,8 +46,11 @@ class GridProblem(Protocol[Data]):
         evaluation with ``jacobian=True``."""
 
     def banded(self, jacobian) -> np.ndarray:
-        """``J`` in LAPACK ``gbtrf`` storage, ``(3 w + 1, size)`` in Fortran order (only asked
-        for when ``layout.bandwidth <= WIDEST_BAND``); it may be factored in place."""
+        """``J`` in LAPACK ``gbtrf`` storage, ``(3 w + 1, size)`` in Fortran order; it may be
+        factored in place. Asked for only when ``layout.bandwidth <= WIDEST_BAND`` (or
+        ``linear="banded"``): an assembly whose Jacobian is not banded (a periodic grid's) gives
+        a bandwidth of its size and need not have this method, and its family refuses
+        ``linear="banded"``."""
 
     def sparse(self, jacobian):
         """``J`` as a scipy sparse matrix."""
@@ -69,6 +73,13 @@ class GridResult:
     step_lengths: list = field(default_factory=list)
 
 
+def timed_out(said: str) -> bool:
+    """Whether a grid solver's words say it stopped at its time limit (the grid Newton's
+    ``"time limit reached ..."``, IPOPT's ``Maximum_WallTime_Exceeded``), whatever prefix a
+    family put before them."""
+    return "time limit reached" in said or "Maximum_WallTime_Exceeded" in said
+
+
 @dataclass
 class GridRequest(Generic[Data]):
     """The checked inputs of one grid solve (fixed ends, a periodic orbit, a higher-order
@@ -80,7 +91,7 @@ class GridRequest(Generic[Data]):
             closed grid).
         theta: the parameter vector.
         data: the family's problem data (``bvp.Boundary``, ``periodic.Orbit``,
-            ``higher.FixedNodes``).
+            ``higher.problem.FixedNodes``).
         options: the :class:`GridOptions`, with the family's defaults in place of ``None``.
         compilation: which compiled code the assemblies and the band LU run.
         tau_floor: the smallest step the iterates may take (resolved).
@@ -141,3 +152,8 @@ class GridRequest(Generic[Data]):
         value = PROBLEMS.get(self.system, key, build)
         self.build_s += time.perf_counter() - started
         return value
+
+    def forget(self, dropped) -> None:
+        """Drop this system's built problems whose key ``dropped(key)`` is true, before a
+        large one is built in their place."""
+        PROBLEMS.discard(self.system, dropped)

@@ -14,7 +14,7 @@ The discrete action ``S_D = sum_k S_k`` (``discrete/higher.py``) is a sum of win
 ``S_k = tau_k L(q_k, v^(k), t_k)`` depends on the ``l + 1`` nodes ``k .. k + l`` only. One
 CasADi function per window returns ``S_k``, its gradient and its dense Hessian in the window's
 ``W = (l + 1) m`` node values; it is mapped over the ``N - l`` windows (``ChunkedMap`` of
-``bvp/assembly.py``: fixed windows of blocks through ``Function.buffer``), so that no expression
+``grid/maps.py``: fixed windows of blocks through ``Function.buffer``), so that no expression
 grows with ``N``. The gradient is the windows' gradients added at ``k m + a`` (one
 ``bincount``); the Jacobian of the equations is the action's Hessian, added the same way, its
 rows scaled like the equations, with identity rows for the pins. Its entries lie within

@@ -24,8 +24,10 @@ from .problem import el_scale, order, uniform
 
 def higher_ipopt(request: GridRequest, rule: str, x0: np.ndarray):
     """``(x, converged, said, iterations)`` of IPOPT from ``x0`` (packed like Newton's)."""
+    # a time limit is an option of the build: with one, each solve builds its own
+    remaining = request.remaining()
     problem, free = request.built(("higher_ipopt", rule != "fixed", request.nodes,
-                                   request.tol, request.max_iter),
+                                   request.tol, request.max_iter, request.verbose, remaining),
                                   lambda: _problem(request, rule, order(request),
                                                    uniform(request)))
     N, n, l = request.nodes, request.system.n, order(request)  # noqa: E741 (the order)
@@ -66,5 +68,6 @@ def _problem(request: GridRequest, rule: str, l: int, uniform_times):  # noqa: E
         g.append(G[0, l:N - l].T)
         unknowns = ca.vertcat(unknowns, T.T)
         steps = (Z[0, 1:] - Z[0, :-1]).T
-    settings = ipopt_settings(request.tol, request.max_iter, False, None, {})
+    settings = ipopt_settings(request.tol, request.max_iter, request.verbose,
+                              request.remaining(), {})
     return FeasibilityNlp("bvp_higher", unknowns, None, ca.vertcat(*g, steps), settings), free

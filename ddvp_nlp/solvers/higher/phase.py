@@ -36,7 +36,7 @@ from ...solution import Status
 from ..grid.linear import band_kernel
 from ..grid.maps import chunked
 from ..grid.newton import DECREASE_OR_MONOTONICITY, newton
-from ..grid.problem import GridRequest
+from ..grid.problem import GridRequest, timed_out
 from .assembly import HigherAssembly, HigherEnds
 from .ipopt import higher_ipopt
 from .problem import FixedNodes, data_scale, el_scale, ends, magnitudes, mean_step, order
@@ -74,7 +74,7 @@ def solve_rule(request: GridRequest[FixedNodes], rule: str, x0: np.ndarray, *,
     first = "ipopt" if request.solver == "ipopt" else "newton"
     x, phase = _run(request, rule, x0, first, stage_iterations)
     outcome = verify(request, rule, x, phase)
-    if request.solver == "auto" and outcome[0] is not Status.SUCCESS:
+    if request.solver == "auto" and outcome[0] not in (Status.SUCCESS, Status.TIME_LIMIT):
         x_ipopt, phase_ipopt = _run(request, rule, x0, "ipopt", stage_iterations)
         fallback = verify(request, rule, x_ipopt, phase_ipopt)
         if fallback[0] is Status.SUCCESS:
@@ -124,7 +124,8 @@ def continuation(request: GridRequest[FixedNodes], grid: HigherAssembly, pinned:
         trial = min(1.0, lam + d)
         stage_target = target if trial == 1.0 else STAGE_SLACK * target
         result = newton(grid, x, pinned, stage_target, tau_floor=tau_floor,
-                        max_iter=min(limit, request.max_iter - total), kernel=kernel,
+                        max_iter=min(limit, request.max_iter - total), linear=request.linear,
+                        kernel=kernel, deadline=request.deadline,
                         test=DECREASE_OR_MONOTONICITY, offset=(1.0 - trial) * F0)
         total, stages, said = total + result.iterations, stages + 1, result.outcome
         if trial == 1.0 and min(result.residual_norms, default=np.inf) < closest[0]:
@@ -179,7 +180,9 @@ def verify(request: GridRequest[FixedNodes], rule: str, x: np.ndarray, phase: di
               f"step^{2 * l - 1}), energy {energy.max(initial=0):.3e}; {said}")
     if not problems:
         return Status.SUCCESS, f"solved and verified: {detail}", residuals
-    if not phase["converged"]:
+    if timed_out(phase["return_status"]):
+        status = Status.TIME_LIMIT
+    elif not phase["converged"]:
         status = Status.SOLVER_FAILED
     elif np.min(np.diff(t)) <= 0:
         status = Status.NO_ADMISSIBLE_STEP

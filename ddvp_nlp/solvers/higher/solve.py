@@ -9,6 +9,7 @@ verified in ``phase.py``.
 from __future__ import annotations
 
 import time
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -19,37 +20,56 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.higher import HigherOrderSystem
 from ...solution import Solution, Status
-from ...validation import check_integer, check_real
+from ...validation import check_finite_array, check_integer, check_real
 from ..accuracy import apply_verdict
 from ..compiler import find_compiler
 from ..driver import Advance, Nodes, drive
 from ..grid.problem import GridRequest
-from ..options import DEFAULT_TOLERANCE, GridOptions, Tolerance, coerce
+from ..options import DEFAULT_TOLERANCE, Compilation, GridOptions, StepControl, Tolerance, coerce
 from .phase import grid_energies, solve_rule
 from .problem import FixedNodes, mean_step, straight
 
 # The defaults of GridOptions' None fields for the fixed-endpoint problem.
 DEFAULT_TOL = 1e-9
 DEFAULT_MAX_ITER = 500
-NEWTON_OPTIONS = {"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50, "error_on_fail": False}
+# The march's step control when none is given; of a StepControl the higher-order march reads
+# tol, max_steps and time_limit (its steps are the spacing of the given nodes, or the energy
+# rule's: no bounds on them).
+DEFAULT_STEPS = StepControl(tol=1e-9, max_steps=1_000_000)
+# The higher-order march's own step solve (one Euler-Lagrange/energy step in the last
+# difference; not the first-order march's Newton of march/newton.py).
+HIGHER_STEP_NEWTON = MappingProxyType({"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50,
+                                       "error_on_fail": False})
+
+
+def _check_system(system) -> None:
+    if not isinstance(system, HigherOrderSystem):
+        raise InputError(f"system must be a HigherOrderSystem, got {type(system).__name__}")
 
 
 def _fixed_nodes(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop) -> FixedNodes:
-    """The fixed nodes as arrays of shapes ``(l,)`` and ``(l, n)``; ``InputError`` if not
-    finite."""
+    """The fixed nodes as finite arrays of shapes ``(l,)`` and ``(l, n)``."""
     l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
-    t_start, t_stop = (np.asarray(x, float).reshape(l) for x in (t_start, t_stop))
-    q_start, q_stop = (np.asarray(x, float).reshape(l, n) for x in (q_start, q_stop))
-    for name, value in (("t_start", t_start), ("q_start", q_start), ("t_stop", t_stop),
-                        ("q_stop", q_stop)):
-        if not np.all(np.isfinite(value)):
-            raise InputError(f"{name} must be finite, got {value.tolist()}")
-    return FixedNodes(t_start, q_start, t_stop, q_stop)
+    return FixedNodes(check_finite_array("t_start", t_start, (l,)),
+                      _positions("q_start", q_start, l, n),
+                      check_finite_array("t_stop", t_stop, (l,)),
+                      _positions("q_stop", q_stop, l, n))
+
+
+def _positions(name: str, value, rows: int, n: int) -> np.ndarray:
+    """``rows`` positions, a finite ``(rows, n)`` array (for ``n = 1`` also a vector)."""
+    array = check_finite_array(name, value)
+    if n == 1 and array.shape == (rows,):
+        return array.reshape(rows, 1)
+    if array.shape != (rows, n):
+        raise InputError(f"{name} must have shape ({rows}, {n}), got {array.shape}")
+    return array
 
 
 def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *,
                      nodes: int, scheme: str = "vddvp", params=None,
-                     options: GridOptions | None = None) -> Solution:
+                     options: GridOptions | None = None,
+                     compilation: Compilation | None = None) -> Solution:
     """The fixed-endpoint problem: ``l`` nodes fixed at each end (``t_start``, ``q_start`` of
     shapes ``(l,)``, ``(l, n)``; likewise at the stop), ``nodes`` nodes in all; unknown the free
     positions (and for an energy rule the free node times).
@@ -68,12 +88,15 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
             the mean step to the power ``2l - 1``, in the units of ``q``; energy rows in units
             of ``max(1, tau_mean)``), round-off of the rows' own scale always allowed;
             ``max_iter``: iteration limit of each solve (default 500); ``tau_floor``: smallest
-            step of an energy rule (default ``1e-3`` times the mean step); ``solver``.
+            step of an energy rule (default ``1e-3`` times the mean step); ``solver``;
+            ``linear`` (the Newton's LU); ``time_limit`` (status ``time_limit``); ``verbose``
+            (IPOPT's log).
+        compilation: which compiled code the band LU runs.
     """
     request = bvp_request(system, t_start, q_start, t_stop, q_stop, nodes=nodes, scheme=scheme,
-                          params=params, options=options)
+                          params=params, options=options, compilation=compilation)
     rule = request.scheme.rule
-    started = time.perf_counter()
+    started = request.start_clock()
     x, phase, outcome = solve_rule(request, "fixed", straight(request))
     if rule != "fixed":  # the times released from the fixed-step solution
         start = x if outcome[0] is Status.SUCCESS else straight(request)
@@ -114,10 +137,12 @@ def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cach
 
 
 def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, nodes: int,
-                scheme: str = "vddvp", params=None,
-                options: GridOptions | None = None) -> GridRequest[FixedNodes]:
+                scheme: str = "vddvp", params=None, options: GridOptions | None = None,
+                compilation: Compilation | None = None) -> GridRequest[FixedNodes]:
     """The checked inputs of :func:`solve_bvp_higher` (``InputError`` naming the argument and
     the value, before anything is built), with the defaults of ``options`` resolved."""
+    _check_system(system)
+    compilation = coerce(compilation, Compilation, "compilation")
     rule = check_rule(system, scheme)
     fixed = _fixed_nodes(system, t_start, q_start, t_stop, q_stop)
     nodes = check_integer("nodes", nodes, minimum=2 * system.order + 1)
@@ -126,7 +151,7 @@ def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, 
     if np.any(np.diff(fixed.times) <= 0):
         raise InputError(f"the fixed node times must increase, got {fixed.times.tolist()}")
     request = GridRequest(system, Scheme.coerce(rule), nodes, system.parameter_vector(params),
-                          fixed, options)
+                          fixed, options, compilation)
     mean = mean_step(request)
     request.tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None
                                    else options.tau_floor, positive=True)
@@ -155,26 +180,34 @@ def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
 
 
 
-def _check_start(system: HigherOrderSystem, rule: str, t_init, q_init, t_end, max_steps):
-    """The start nodes as arrays ``(2l,)``, ``(2l, n)``, ``t_end`` and ``max_steps``, checked."""
+def _check_steps(steps: StepControl) -> None:
+    """The higher-order march has no step bounds, breakdown step or energy guard."""
+    unused = {name: getattr(steps, name) for name in ("tau_min", "tau_max", "energy_guard")
+              if getattr(steps, name) is not None}
+    if steps.breakdown != "stop":
+        unused["breakdown"] = steps.breakdown
+    if unused:
+        raise InputError(f"march_higher takes tol, max_steps and time_limit of StepControl; "
+                         f"{', '.join(f'{k}={v!r}' for k, v in unused.items())} does not apply")
+
+
+def _check_start(system: HigherOrderSystem, rule: str, t_init, q_init, t_end):
+    """The start nodes as arrays ``(2l,)``, ``(2l, n)`` and ``t_end``, checked."""
     l, n = system.order, system.n  # noqa: E741 (l is the order, as in the paper)
-    t_init = np.asarray(t_init, float).reshape(-1)
-    if t_init.size != 2 * l:
-        raise InputError(f"t_init must hold 2*order = {2 * l} node times, got {t_init.size}")
-    q_init = np.asarray(q_init, float).reshape(2 * l, n)
-    if not (np.all(np.isfinite(t_init)) and np.all(np.isfinite(q_init))):
-        raise InputError("t_init and q_init must be finite")
+    t_init = check_finite_array("t_init", t_init, (2 * l,))
+    q_init = _positions("q_init", q_init, 2 * l, n)
     if np.any(np.diff(t_init) <= 0):
         raise InputError(f"t_init must increase, got {t_init.tolist()}")
+    if t_end is None:
+        raise InputError("give t_end, the time the march reaches")
     t_end = check_real("t_end", t_end)
     if t_end <= t_init[-1]:
         raise InputError(f"t_end must be > the last given node time {t_init[-1]!r}, got "
                          f"{t_end!r}")
-    max_steps = check_integer("max_steps", max_steps)
     if rule != "fixed" and l < 2:
         raise InputError("march_higher's energy rule needs order >= 2; first-order Lagrangians "
                          "march with ddvp_nlp.march (LagrangianSystem)")
-    return t_init, q_init, t_end, max_steps
+    return t_init, q_init, t_end
 
 
 class _HigherSteps:
@@ -236,9 +269,8 @@ class _HigherSteps:
         return None
 
 
-def march_higher(system: HigherOrderSystem, t_init, q_init, *, t_end: float,
-                 scheme: str = "vddvp", params=None, tol: float = 1e-9,
-                 max_steps: int = 1_000_000, time_limit: float | None = None,
+def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None = None, *,
+                 scheme: str = "vddvp", params=None, steps: StepControl | None = None,
                  accuracy: Tolerance | None = DEFAULT_TOLERANCE) -> Solution:
     """March from ``2l`` given nodes (``t_init`` ``(2l,)``, ``q_init`` ``(2l, n)``) until the
     first node at or past ``t_end``.
@@ -253,17 +285,23 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, *, t_end: float,
     fixes only the first ``u``, not a time: its time is recomputed by the first step.
 
     Newton (CasADi's rootfinder) starts from the previous ``u`` and step; a step is accepted
-    only if finite, ``tau > 0`` and its residuals are under ``tol`` (the Euler-Lagrange rows
-    scaled by ``tau^(2l-1)``, in the units of ``q``). Steps are counted from the last given
-    node: ``max_steps`` bounds the nodes after the first ``2l``.
+    only if finite, ``tau > 0`` and its residuals are under ``steps.tol`` (the Euler-Lagrange
+    rows scaled by ``tau^(2l-1)``, in the units of ``q``). Steps are counted from the last
+    given node: ``steps.max_steps`` bounds the nodes after the first ``2l``;
+    ``steps.time_limit`` the seconds of stepping. ``steps`` defaults to
+    ``StepControl(tol=1e-9, max_steps=10**6)``; its step bounds and breakdown do not apply
+    here and are refused.
 
     ``accuracy``: the accuracy check (``verdict.py``: every step and the trajectory against
     the exact Euler-Lagrange flow through the start nodes, or ``accuracy.exact``); ``None``
     leaves it out.
     """
+    _check_system(system)
+    steps = DEFAULT_STEPS if steps is None else coerce(steps, StepControl, "steps")
+    _check_steps(steps)
     rule = check_rule(system, scheme)
-    t_init, q_init, t_end, max_steps = _check_start(system, rule, t_init, q_init, t_end,
-                                                    max_steps)
+    t_init, q_init, t_end = _check_start(system, rule, t_init, q_init, t_end)
+    tol, max_steps, time_limit = steps.tol, steps.max_steps, steps.time_limit
     if accuracy is not None:
         accuracy = coerce(accuracy, Tolerance, "accuracy")
     theta = system.parameter_vector(params)
@@ -328,7 +366,8 @@ def _build_step_functions(system: HigherOrderSystem, rule: str):
     energy = ca.substitute(ca.gradient(S, t_k), ca.vertcat(q_k, t_k), at)
     scaled = el * (tw[-1] - tw[-2]) ** (2 * l - 1)  # in the units of q, O(1) in tau
     g = ca.vertcat(scaled, energy) if variable else scaled
-    root = ca.rootfinder("higher_step", "newton", ca.Function("g", [x, w], [g]), NEWTON_OPTIONS)
+    root = ca.rootfinder("higher_step", "newton", ca.Function("g", [x, w], [g]),
+                         dict(HIGHER_STEP_NEWTON))
     check = ca.Function("check", [x, w], [ca.norm_inf(scaled),
                                          energy if variable else ca.SX(0), ca.norm_inf(qw)])
     return root, check

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -56,9 +57,11 @@ from .steps import EnergyCheck, FixedCheck, StepFunctions
 # QR as calls.
 UNROLLED_ITERATIONS = 4
 SMALL_NEWTON = 5
-SMALL_UNROLL = {"iterations": 3, "check_after": True, "inline": True, "linear": "lu"}
+SMALL_UNROLL = MappingProxyType({"iterations": 3, "check_after": True, "inline": True,
+                                 "linear": "lu"})
 MEDIUM_NEWTON = 13
-MEDIUM_UNROLL = {"iterations": 4, "check_after": True, "inline": True, "linear": "lu"}
+MEDIUM_UNROLL = MappingProxyType({"iterations": 4, "check_after": True, "inline": True,
+                                  "linear": "lu"})
 
 
 def step_options(unknowns: int) -> dict:

@@ -25,8 +25,11 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import os
+import signal
+import threading
+import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -34,7 +37,7 @@ import numpy as np
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution
-from ...validation import check_integer, check_span
+from ...validation import check_integer, check_memory, check_span
 from ..compiler import build_count, find_compiler
 from ..dense import attach
 from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
@@ -46,6 +49,9 @@ from .solve import check_problem, march
 # cost this process twice the system time of messages of 2 (1.6 against 0.8 s for 100
 # Henon-Heiles orbits of 96617 steps, two runs each: fresh pages for every large message).
 BLOCKS_PER_WORKER = 4
+# Memory of one forked worker (it shares the parent's pages until it writes them): a bound on
+# how many may start, not a measurement of each.
+WORKER_BYTES = 200e6
 BLOCK_ORBITS = 2
 
 
@@ -54,27 +60,27 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
                    compilation: Compilation | None = None, workers: int = 2) -> list[Solution]:
     """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would;
-    the arguments after them are :func:`march`'s (``compilation.fast`` must stay on: the
-    workers share the compiled chunk).
+    the arguments after them are :func:`march`'s (with ``compilation.fast``, the default, the
+    workers share the compiled chunk built here).
 
     ``workers``: local processes marching the orbits (forked from this one; ``1``: all in
     this process). Returns one :class:`Solution` per orbit, in order, each with its own status
     and :func:`march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
     counts the C compiles the orbit's worker ran (none: it inherits the loaded functions)."""
     scheme = Scheme.coerce(scheme)
-    q0s, p0s = np.atleast_2d(np.asarray(q0s, float)), np.atleast_2d(np.asarray(p0s, float))
-    if q0s.shape != p0s.shape or q0s.shape[0] == 0:
+    q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
+    if q0s.shape != p0s.shape or q0s.shape[0] == 0 or q0s.ndim != 2:
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")
     workers = check_integer("workers", workers)
+    check_memory("workers", workers, workers * WORKER_BYTES, "the worker processes")
     steps = coerce(steps, StepControl, "steps")  # time_limit, energy_guard: per orbit
     if accuracy is not None:
         coerce(accuracy, Tolerance, "accuracy")
     compilation = coerce(compilation, Compilation, "compilation")
     t0, t_end = check_span(t_span)
     theta = _check_all(system, scheme, q0s, p0s, (t0, t_end), tau0, steps, params)
-    compilation = replace(compilation, fast=True,
-                          compiler=find_compiler(compilation.compiler))
+    compilation = replace(compilation, compiler=find_compiler(compilation.compiler))
     options = dict(tau0=tau0, scheme=scheme, params=params, steps=steps, accuracy=accuracy,
                    compilation=compilation)
     with warnings.catch_warnings():  # the first orbit's warnings come from its own march
@@ -86,12 +92,29 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     if workers == 1 or len(blocks) == 1 or not _can_fork():
         return job.run(range(q0s.shape[0]), count_compiles=False)
     context = multiprocessing.get_context("fork")
-    with ProcessPoolExecutor(min(workers, len(blocks)), mp_context=context,
-                             initializer=_install, initargs=(job,)) as pool:
-        solutions = [s for part in pool.map(_run_block, blocks) for s in part]
+    pool = context.Pool(min(workers, len(blocks)), initializer=_install,
+                        initargs=(job, os.getpid()))
+    try:
+        solutions = [s for part in pool.imap(_run_block, blocks) for s in part]
+        pool.close()
+    except BaseException:  # Ctrl-C, SIGTERM, a failed block: no worker outlives this call
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
     for solution in solutions:  # the vector field stays behind in the worker
         attach(solution, system, theta, t_end)
     return solutions
+
+
+def _numbers(name: str, value) -> np.ndarray:
+    """An array of real numbers (whether each start is finite, :func:`_check_all` says, orbit
+    by orbit)."""
+    try:
+        return np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an (M, n) array of real numbers, got {value!r}") \
+            from None
 
 
 def _check_all(system, scheme, q0s, p0s, t_span, tau0, steps, params) -> np.ndarray:
@@ -141,10 +164,48 @@ class _Job:
 _JOB: _Job | None = None
 
 
-def _install(job: _Job) -> None:
-    """A worker's initializer: the job, inherited through ``fork`` (nothing is pickled)."""
+def _install(job: _Job, parent: int) -> None:
+    """A worker's initializer: the job, inherited through ``fork`` (nothing is pickled); the
+    parent's Ctrl-C handling undone (the parent stops the workers: a terminal's Ctrl-C reaches
+    the whole process group) and the worker tied to its parent's life."""
     global _JOB
     _JOB = job
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    end_with_parent(parent)
+
+
+# How often a worker looks whether its parent is still there.
+PARENT_POLL_S = 0.2
+
+
+def end_with_parent(parent: int, *, death_signal: bool = True) -> None:
+    """End this process (``os._exit``) once ``parent`` is gone: a SIGKILL of the parent gives it
+    no chance to stop its workers, and they had marched on (two left after a killed
+    ``ddvp poincare``). With ``death_signal`` (a process forked by the parent's main thread)
+    Linux also gets ``PR_SET_PDEATHSIG``; the poll covers the rest."""
+    if death_signal:
+        _death_signal()
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="ddvp-parent-watch").start()
+
+
+def _death_signal() -> None:
+    """``prctl(PR_SET_PDEATHSIG, SIGKILL)`` where the C library has it."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError, TypeError):
+        pass
 
 
 def _run_block(indices: range) -> list[Solution]:

@@ -29,6 +29,7 @@ The march's chunk asks for a cheaper linear solve on small systems (``linear="lu
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -41,7 +42,8 @@ from .steps import EnergyCheck, FixedCheck, StepFunctions
 # The options of both paths' rootfinders (``newton`` careful, ``fast_newton`` compiled).
 # error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
 # Either way a step that did not converge fails its residual check and is redone carefully.
-NEWTON_OPTIONS = {"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30, "error_on_fail": False}
+NEWTON_OPTIONS = MappingProxyType({"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30,
+                                   "error_on_fail": False})
 # Starting guesses for tau, as multiples of the previous step, tried in order when Newton from the
 # predictor fails or lands on tau <= 0. The spurious root sits at -tau_{k-1}; these start far
 # from it.
@@ -64,7 +66,7 @@ def careful_rootfinder(name: str, residual: ca.Function, system, scheme) -> ca.F
             "--scheme fixed" if name == "energy_step" else
             f"H of {system.name!r} has no well-posed step: the canonical equations do not "
             f"determine z_next (rank {ca.sprank(rank)} of {rows})")
-    return ca.rootfinder(name, "newton", residual, NEWTON_OPTIONS)
+    return ca.rootfinder(name, "newton", residual, dict(NEWTON_OPTIONS))
 
 def rootfinders(system, scheme, functions: StepFunctions) -> tuple:
     """The careful path's rootfinders ``(fixed, energy)`` of ``functions`` (``energy`` is
@@ -388,7 +390,7 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
     its values are those of ``at_root`` at the returned ``x``."""
     if linear not in ("qr", "lu"):
         raise ValueError(f"linear must be 'qr' or 'lu', got {linear!r}")
-    jacobian = ca.rootfinder(name, "fast_newton", residual, options).get_function("jac_g_x")
+    jacobian = ca.rootfinder(name, "fast_newton", residual, dict(options)).get_function("jac_g_x")
     solver = (SparseQR if linear == "qr" else DenseLU)(jacobian.sparsity_out(0))
     iteration = newton_iteration(solver, abstol=options["abstol"],
                                  abstol_step=options["abstolStep"])

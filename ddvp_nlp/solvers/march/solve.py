@@ -35,7 +35,7 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
-from ...validation import check_real, check_span, check_state
+from ...validation import check_span, check_state, check_step
 from ..accuracy import AccuracyMonitor, ErrorEstimates, apply_verdict
 from ..compiler import buffered, find_compiler
 from ..dense import attach
@@ -96,12 +96,13 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         A :class:`Solution`; failures are a status on it, never an exception.
     """
     scheme = Scheme.coerce(scheme)
-    problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0,
-                            coerce(steps, StepControl, "steps"), params)
+    steps = coerce(steps, StepControl, "steps")
     if accuracy is not None:
         coerce(accuracy, Tolerance, "accuracy")
     compilation = coerce(compilation, Compilation, "compilation")
     output = coerce(output, Output, "output")
+    # the options first: the start (p0 from v0, H0) already builds CasADi functions
+    problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
     compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
 
     started = time.perf_counter()
@@ -125,9 +126,14 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                                                               output.checkpoint_interval)
     monitors += [StopRequest(output.stop)] if output.stop else []
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
-    outcome = drive(parts.stepper, nodes, t_end=problem.t_end, max_steps=problem.steps.max_steps,
-                    time_limit=problem.steps.time_limit, monitors=monitors,
-                    progress=output.progress, catch_interrupt=True)
+    try:
+        outcome = drive(parts.stepper, nodes, t_end=problem.t_end,
+                        max_steps=problem.steps.max_steps, time_limit=problem.steps.time_limit,
+                        monitors=monitors, progress=output.progress, catch_interrupt=True,
+                        stop=output.stop)
+    finally:
+        if saver:  # a checkpoint in flight lands before the final write can start
+            saver.finish()
     solved = time.perf_counter()
     if isinstance(parts.stepper, MarchStepper):  # fast_steps: the fast nodes the run kept
         parts.stepper.compiled.settle(outcome.t.size)
@@ -145,6 +151,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
+        solution.stats["checkpoints_landed_s"] = [round(t, 3) for t in saver.landed]
     return attach(solution, system, problem.theta, problem.t_end)
 
 
@@ -206,7 +213,7 @@ def _check_state(system, q0, p0, v0):
 def _check_times(t_span, tau0):
     """``t0 < t_end`` and a first step ``0 < tau0 <= t_end - t0``."""
     t0, t_end = check_span(t_span)
-    tau0 = check_real("tau0", tau0, positive=True)
+    tau0 = check_step(tau0, t0, t_end)
     if tau0 > t_end - t0:
         raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
     return t0, t_end, tau0

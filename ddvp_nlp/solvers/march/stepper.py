@@ -209,7 +209,9 @@ class CompiledStepper:
             left = min(left, self.clock.total - k)
         elif k > 0 and nodes.t[k] > nodes.t[0]:
             mean = (nodes.t[k] - nodes.t[0]) / k
-            left = min(left, math.ceil((self.clock.t_end - nodes.t[k]) / mean) + 1)
+            ahead = (self.clock.t_end - nodes.t[k]) / mean
+            if math.isfinite(ahead):  # a subnormal mean step overflows: no estimate then
+                left = min(left, math.ceil(ahead) + 1)
         return max(1, min(self.calls, math.ceil(left / self.chunk.chunk)))
 
     def _energy_checks(self, nodes, k, steps):

@@ -1,4 +1,6 @@
-"""Periodic orbits at a prescribed energy: ``solve_periodic`` and ``solve_periodic_family``.
+"""Periodic orbits at a prescribed energy: ``solve_periodic``, ``solve_periodic_family``, their
+stability (``periodic_stability``) and families followed through folds with their bifurcations
+(``follow_periodic_family``).
 
 A closed grid of ``N`` intervals with free node times, the energy of every interval prescribed,
 the period an unknown, a phase condition and unfolding parameters that make the count square
@@ -10,8 +12,19 @@ Where things are:
   ``Orbit``, the solvers, the verification, the ``Solution``;
 - ``assembly.py``: the closed system and its sparse Jacobian, a ``grid.GridProblem``;
 - ``ipopt.py``: the same rows for the grid's IPOPT build;
-- ``start.py``: the section's point at the energy, the march to its return, resampling;
-- ``family.py``: orbits along a range of energies, each from the last.
+- ``start.py``: the section's point at the energy, the march to its return, the predicted
+  grid (``tau ~ |w|^(-1/3)``) and resampling;
+- ``refinement.py``: continuation in the number of intervals (``continue_in_nodes``: a
+  coarse grid first, each finer one from the last refined by node index), the walk
+  ``solve_periodic`` takes from its default start and any closed-grid solve can take;
+- ``family.py``: orbits along a range of energies, each from the last;
+- ``stability.py``: the discrete monodromy (the step maps' derivatives by implicit
+  differentiation), its reduction by the trivial directions, the stability indices and the
+  verdict; ``exact.py``: the exact orbit near a discrete one and its monodromy (DOP853 on the
+  variational equations, ``physics/flow.py``);
+- ``continuation.py``: pseudo-arclength continuation in the energy, the bifurcations between
+  members located; ``bifurcation.py``: their test functions and their confirmation on the exact
+  flow.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -22,9 +35,29 @@ The contract, on top of the grid's (``grid/__init__.py``):
    wrap-around node, the prescribed energy, closure, section), every step positive, then the
    accuracy check against the exact flow.
 4. This package imports the core, ``grid/`` and ``march/`` (the start is a march).
+5. Multipliers are reported apart: the trivial ones (two per fixed direction: the flow's and
+   each symmetry's) from the blocks of the reduction, the nontrivial ones from the reduced
+   monodromy; a verdict is made on the stability indices with a stated tolerance.
+6. A bifurcation is reported only where a test function changes sign between two verified
+   members, with the bracket it was narrowed to; its confirmation on the exact flow is
+   reported beside it, never in its place.
 """
 
-from .family import solve_periodic_family
-from .solve import solve_periodic
+from typing import TYPE_CHECKING
 
-__all__ = ["solve_periodic", "solve_periodic_family"]
+from ...cache import lazy_exports
+
+if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
+    from .continuation import Continuation, follow_periodic_family
+    from .family import solve_periodic_family
+    from .solve import solve_periodic
+    from .stability import Stability, periodic_stability
+
+# loaded when first asked for: importing one module of the family loads only what it needs
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "solve_periodic": "solve", "solve_periodic_family": "family",
+    "Continuation": "continuation", "follow_periodic_family": "continuation",
+    "Stability": "stability", "periodic_stability": "stability"})
+
+__all__ = ["Continuation", "Stability", "follow_periodic_family", "periodic_stability",
+           "solve_periodic", "solve_periodic_family"]

@@ -150,13 +150,12 @@ def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
 
 
 class PeriodicAssembly:
-    """``F(x)`` and ``F'(x)`` of one system, scheme and interval count (module docstring)."""
+    """``F(x)`` and ``F'(x)`` of one system, scheme, interval count and set of integrals
+    (module docstring); the problem's data (a :class:`Closure`) comes with each evaluation."""
 
-    def __init__(self, system, scheme: Scheme, intervals: int, closure: Closure,
-                 integrals=()):
+    def __init__(self, system, scheme: Scheme, intervals: int, integrals=()):
         self.layout = ClosedLayout(system.n, intervals, len(integrals))
         self.scheme = scheme
-        self.closure = closure
         self._interval = chunked(system, ("periodic_interval", scheme, tuple(integrals)),
                                  _interval_function(system, scheme, tuple(integrals)))
         self._pattern = self._sparsity()
@@ -167,7 +166,8 @@ class PeriodicAssembly:
         return 2 + self.layout.integrals
 
     def evaluate(self, x: np.ndarray, closure: Closure, jacobian: bool = True):
-        """``F(x)`` and, if asked, the interval blocks ``(N, 2m + 1 + r, m)``."""
+        """``F(x)`` and, if asked, the Jacobian: the interval blocks ``(N, 2m + 1 + r, m)``
+        with the problem data its constant rows need (``(blocks, closure)``)."""
         N, m, h = self.layout.intervals, self.layout.m, self.header
         z = np.ascontiguousarray(x[:(N + 1) * m], float).reshape(N + 1, m)
         unfolding = np.tile(x[(N + 1) * m:], (N, 1))
@@ -179,7 +179,7 @@ class PeriodicAssembly:
         F[2:h] = closure.generators @ (z[0, 1:] - closure.reference) if h > 2 else 0.0
         F[h:h + N * m] = rows[:, 0, :].ravel()
         F[h + N * m:] = z[N, 1:] - z[0, 1:] - closure.shift
-        return F, (J if jacobian else None)
+        return F, ((J, closure) if jacobian else None)
 
     def release(self) -> None:
         """Nothing to drop: the blocks are the evaluation's own arrays."""
@@ -204,9 +204,10 @@ class PeriodicAssembly:
                                         first_unfolding + column - 2 * m), (N, 2 * m + u, m))
         return rows.ravel(), cols.ravel()
 
-    def sparse(self, blocks) -> sp.csc_matrix:
+    def sparse(self, jacobian) -> sp.csc_matrix:
         """The Jacobian as a sparse matrix: the interval blocks, then the constant rows
-        (``t_0``, section, phase conditions, closure)."""
+        (``t_0``, section, phase conditions, closure) of the problem the evaluation was of."""
+        blocks, closure = jacobian
         N, m, h = self.layout.intervals, self.layout.m, self.header
         rows, cols = self._pattern
         closing = h + N * m + np.arange(m - 1)
@@ -214,9 +215,9 @@ class PeriodicAssembly:
         phase_rows = np.repeat(2 + np.arange(r), m - 1)
         phase_cols = np.tile(1 + np.arange(m - 1), r)
         fixed_rows = np.concatenate([[0, 1], phase_rows, closing, closing])
-        fixed_cols = np.concatenate([[0, self.closure.section_index], phase_cols,
+        fixed_cols = np.concatenate([[0, closure.section_index], phase_cols,
                                      N * m + 1 + np.arange(m - 1), 1 + np.arange(m - 1)])
-        fixed_values = np.concatenate([[1.0, 1.0], np.ravel(self.closure.generators),
+        fixed_values = np.concatenate([[1.0, 1.0], np.ravel(closure.generators),
                                        np.ones(m - 1), -np.ones(m - 1)])
         size = self.layout.size
         return sp.csc_matrix((np.concatenate([np.asarray(blocks).ravel(), fixed_values]),

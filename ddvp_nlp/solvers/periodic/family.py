@@ -12,19 +12,26 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import InputError
-from ...validation import check_integer
+from ...validation import check_finite_array, check_integer
 from .solve import check_periodic, solve_periodic
+
+# What a family passes on to every solve_periodic.
+FORWARDED = {"section", "scheme", "params", "start", "integrals", "angles", "options"}
 
 
 def solve_periodic_family(system, energies, *, nodes: int, max_halvings: int = 4,
                           guess=None, **options) -> list:
     """``[(E, Solution), ...]`` for every energy of ``energies`` (module docstring); the
     intermediate energies the halvings took are not listed. ``options`` go to
-    :func:`solve_periodic` (``section``, ``scheme``, ``params``, ``start``, ``integrals``,
-    ``tol``, ``max_iter``)."""
-    energies = [float(e) for e in np.atleast_1d(np.asarray(energies, float))]
-    if not energies or not np.all(np.isfinite(energies)):
-        raise InputError(f"energies must be finite numbers, got {energies!r}")
+    :func:`solve_periodic`: ``section``, ``scheme``, ``params``, ``start``, ``integrals``,
+    ``angles`` and its ``options`` (a ``GridOptions``)."""
+    unknown = sorted(set(options) - FORWARDED)
+    if unknown:
+        raise InputError(f"solve_periodic_family takes no {unknown[0]!r} (it passes "
+                         f"{', '.join(sorted(FORWARDED))} to solve_periodic)")
+    energies = [float(e) for e in np.atleast_1d(check_finite_array("energies", energies))]
+    if not energies:
+        raise InputError("energies must be finite numbers, got none")
     max_halvings = check_integer("max_halvings", max_halvings, minimum=0)
     # Both ends of the range before any solve (energy outside the section's range, ...).
     for energy in {energies[0], energies[-1]}:

@@ -42,7 +42,8 @@ class PeriodicIpopt:
     coordinate; :meth:`solve` takes the data of one orbit (a :class:`Closure`)."""
 
     def __init__(self, system, scheme, intervals: int, integrals, section_index: int, *,
-                 tol: float, max_iter: int, verbose: bool = False):
+                 tol: float, max_iter: int, verbose: bool = False,
+                 time_limit: float | None = None):
         integrals = tuple(integrals)
         self.layout = layout = ClosedLayout(system.n, intervals, len(integrals))
         N, m, n, r = intervals, layout.m, system.n, len(integrals)
@@ -60,7 +61,7 @@ class PeriodicIpopt:
                        Z[1:, N] - Z[1:, 0] - shift, ca.vec(Z[0, 1:] - Z[0, :-1]))
         self.equalities = 2 + r + N * m + 2 * n
         self.steps = N
-        settings = ipopt_settings(tol, max_iter, verbose, None,
+        settings = ipopt_settings(tol, max_iter, verbose, time_limit,
                                   {"ipopt.hessian_approximation": "exact", **DEFAULT_OPTIONS})
         parameters = ca.vertcat(theta, energy, value, reference, shift, ca.vec(generators))
         self.problem = FeasibilityNlp("periodic", x, parameters, g, settings)
@@ -81,10 +82,12 @@ class PeriodicIpopt:
 
 
 def periodic_ipopt(system, scheme, intervals: int, integrals, section_index: int, *,
-                   tol: float, max_iter: int, verbose: bool = False) -> PeriodicIpopt:
-    """The built problem, kept in ``cache.PROBLEMS`` (a family reuses it)."""
+                   tol: float, max_iter: int, verbose: bool = False,
+                   time_limit: float | None = None) -> PeriodicIpopt:
+    """The built problem, kept in ``cache.PROBLEMS`` (a family reuses it; a time limit is an
+    option of the build, so a limited solve builds its own)."""
     key = ("periodic_ipopt", scheme, intervals, tuple(integrals), section_index, tol,
-           max_iter, verbose)
+           max_iter, verbose, time_limit)
     return PROBLEMS.get(system, key, lambda: PeriodicIpopt(
         system, scheme, intervals, integrals, section_index, tol=tol, max_iter=max_iter,
-        verbose=verbose))
+        verbose=verbose, time_limit=time_limit))

@@ -13,9 +13,11 @@ in the direction it left it (on an angle coordinate, its value plus any whole tu
 energy rule's march stops before the return (its energy step breaks down on the pendulum's
 rotations near q = 1.95 whatever tau0), the fixed-step midpoint rule is marched instead: the
 start only has to be near the orbit. The crossing time, interpolated linearly between the two
-nodes, is the period of the guess. The guess is the march resampled on ``N + 1`` equally
-spaced times with the last node equal to the first (plus the whole turns of angle
-coordinates); the solver moves the node times to where the energy equations put them.
+nodes, is the period of the guess. The guess is the march resampled on ``N + 1`` times with
+the energy rules' predicted site density (``predicted_grid``: ``tau ~ |w|^(-1/3)``, the step
+spike of a rotation included; ``resample`` spaces them equally), the last node equal to the
+first (plus the whole turns of angle coordinates); the solver moves the node times to where the
+energy equations put them.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from ...errors import InputError
-from ...physics.hamiltonian import vector_field_function
+from ...physics.hamiltonian import site_density_weight_function, vector_field_function
 from ...solution import Solution
 from ..march.solve import march
 
@@ -162,3 +164,37 @@ def guess_nodes(guess, n: int, intervals: int, angles=()):
         z[-1] = z[0] + closing_shift(z[0], z[-1], angles)
         return t - t[0], z
     return resample(t, z, intervals, angles)
+
+
+# The predicted steps' ratio to the typical one where w = f' H_zz f vanishes: the density
+# |w|^(1/3) is floored at this fraction of its median (the discrete rotation's step spike at the
+# level curve's inflection is 3-5x the typical step at N = 100..800 on the pendulum at E = 2.5;
+# measured).
+SPIKE = 4.0
+
+
+def predicted_grid(system, theta, t, z, intervals: int, angles=()):
+    """``N + 1`` nodes on the march ``(t, z)`` at the energy rules' site density: ``tau ~
+    |w|^(-1/3)``, ``w = f' H_zz f`` (``H(z_mid) = H(z) - tau^2 w / 8``: the interval energy's
+    error term that the energy equation balances), floored so that no predicted step exceeds
+    ``SPIKE`` typical ones. Where ``w`` changes sign (a pendulum's rotation, at the inflection
+    of its level curve) the discrete orbit's steps have a spike; with uniform times Newton
+    stalled at every N (module docstring of ``solve.py``). The nodes split the integral of the
+    density over the march into equal parts, cubic between the march's nodes; the last node is
+    the first plus the whole turns of the ``angles``."""
+    t = np.asarray(t, float) - float(t[0])
+    z = np.asarray(z, float)
+    n = system.n
+    middle = (z[:-1] + z[1:]) / 2
+    w = np.asarray(site_density_weight_function(system).map(middle.shape[0])(
+        middle[:, :n].T, middle[:, n:].T, ((t[:-1] + t[1:]) / 2)[None, :], theta)).ravel()
+    density = np.abs(w) ** (1 / 3)
+    floor = np.median(density) / SPIKE if np.any(density > 0) else 1.0
+    density = np.maximum(density, floor)
+    mass = np.concatenate([[0.0], np.cumsum(density * np.diff(t))])
+    grid = np.interp(np.linspace(0.0, mass[-1], intervals + 1), mass, t)
+    grid[0], grid[-1] = 0.0, t[-1]
+    zs = CubicSpline(t, z, axis=0)(grid) if t.size >= 4 else np.column_stack(
+        [np.interp(grid, t, z[:, j]) for j in range(z.shape[1])])
+    zs[-1] = zs[0] + closing_shift(zs[0], zs[-1], angles)
+    return grid, zs

@@ -1,0 +1,191 @@
+"""``ddvp periodic --stability`` and ``--follow``, and the note of ``ddvp bvp --energy``: the
+stability of an orbit (or of each orbit of a family), a family followed by pseudo-arclength
+continuation with its bifurcations, written to the run folder and summed up on stdout."""
+
+from __future__ import annotations
+
+from ..errors import InputError
+from ..scenes import PeriodicSettings
+from ..validation import check_integer, check_real
+from .interrupts import INTERRUPTS, Stopped
+
+
+def scene_guess(scene, energy: float, params: dict):
+    """The scene's own start at ``energy`` (``PeriodicSettings.guess``), or ``None``."""
+    defaults = getattr(scene, "periodic", None) or PeriodicSettings()
+    if defaults.guess is None:
+        return None
+    values = {**scene.params, **params}
+    try:
+        return defaults.guess(energy, **values)
+    except ValueError as error:
+        raise InputError(f"--energy {energy!r}: scene {scene.name!r} has no start there: "
+                         f"{error}") from None
+
+
+def transfer_note(stats: dict) -> str:
+    """One line on a transfer at a prescribed energy and its check by shooting."""
+    exact = stats.get("exact") or {}
+    text = f"transfer time {stats['transfer_time']:.12g} at energy {stats['energy']:.10g}"
+    if exact.get("converged"):
+        text += (f"; the exact flow's shooting: {exact['transfer_time']:.12g} (difference "
+                 f"{exact['time_difference']:.2e}), path difference {exact['path_difference']:.2e}")
+    elif exact:
+        text += "; the exact flow's shooting did not converge from this transfer"
+    return text
+
+
+def run_periodic_stability(args, scene, settings: dict, nodes: int, guess, params: dict,
+                           named: dict) -> int:
+    """``--stability`` on one orbit or a ``--family``, or ``--follow``; ``named``: the
+    settings that name the default run folder (``cli/solve.py``'s ``default_or``)."""
+    defaults = getattr(scene, "periodic", None) or PeriodicSettings()
+    tol = check_real("--stability-tol", args.stability_tol, positive=True)
+    if args.follow is not None:
+        if args.family is not None:
+            raise InputError("--follow and --family are two ways through a family: give one")
+        return _follow(args, scene, settings, nodes, guess, params, tol, defaults,
+                       {**named, "follow": args.follow})
+    if args.family is not None:
+        return _family(args, scene, settings, nodes, guess, params, tol,
+                       {**named, "family": args.family})
+    energy = args.energy if args.energy is not None else defaults.energy
+    if energy is None:
+        raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
+    return _orbit(args, scene, settings, nodes, guess or scene_guess(scene, energy, params),
+                  params, tol, energy, {**named, "energy": energy})
+
+
+def _interrupted(out, what: str) -> Stopped:
+    from .solve import holds
+
+    return Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while {what}; nothing new "
+                   f"was written: {holds(out)}")
+
+
+def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> int:
+    from ..io.atomic import output_folder
+    from ..io.periodic_runs import write_periodic
+    from ..io.stability_runs import write_stability
+    from ..solvers.periodic import periodic_stability, solve_periodic
+    from ..solvers.periodic.solve import check_periodic
+    from .solve import check_grid_memory, default_or
+
+    if guess is None:
+        check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+    check_grid_memory("--nodes", nodes, scene.system.n, 1)
+    target, owned = default_or(args, f"{scene.name}-periodic", {**named, "stability": tol}, {})
+    with output_folder(target, owned=owned) as out:
+        try:
+            solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
+                                      **settings)
+        except KeyboardInterrupt:
+            raise _interrupted(out, "solving") from None
+        with INTERRUPTS.saving():
+            meta = write_periodic(out, scene, solution, params, plot=not args.no_plot,
+                                  interruptible=INTERRUPTS.interruptible)
+        print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}"
+              f"\n  period {meta['period']:.12g} at E = {meta['energy']:.10g}, "
+              f"N = {meta['nodes']}")
+        if not solution.success:
+            print(f"  no stability: the orbit was not found; written to {out.path}/")
+            return 1
+        try:
+            stability = periodic_stability(scene.system, solution, params=params,
+                                           integrals=settings["integrals"], tol=tol)
+        except KeyboardInterrupt:
+            raise _interrupted(out, "computing the stability (the orbit was written)") from None
+        with INTERRUPTS.saving():
+            write_stability(out, stability)
+    print(f"  stability: {stability.summary()}\n  written to {out.path}/ (stability.json)")
+    return 0 if not INTERRUPTS.requested else 1
+
+
+def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
+    from ..io.atomic import output_folder
+    from ..io.periodic_runs import write_family
+    from ..io.stability_runs import write_family_stability
+    from ..solvers.periodic import periodic_stability, solve_periodic_family
+    from ..solvers.periodic.solve import check_periodic
+    from .solve import default_or, family_energies
+
+    energies = family_energies(args.family, scene.system.n, nodes)
+    guess = guess or scene_guess(scene, energies[0], params)
+    for energy in (energies[0], energies[-1]) if guess is None else ():
+        check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+    target, owned = default_or(args, f"{scene.name}-family", {**named, "stability": tol}, {})
+    with output_folder(target, owned=owned) as out:
+        try:
+            family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
+                                           **settings)
+        except KeyboardInterrupt:
+            raise _interrupted(out, "solving the family") from None
+        with INTERRUPTS.saving():
+            write_family(out, scene, family, params, plot=not args.no_plot,
+                         interruptible=INTERRUPTS.interruptible)
+        try:
+            stabilities = [periodic_stability(scene.system, orbit, params=params,
+                                              integrals=settings["integrals"], tol=tol)
+                           if orbit.success else None for _, orbit in family]
+        except KeyboardInterrupt:
+            raise _interrupted(out, "computing the stabilities (the family was written)") \
+                from None
+        with INTERRUPTS.saving():
+            rows = write_family_stability(out, family, stabilities)
+    for row in rows:
+        print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
+              f"{row.get('verdict', '-')}: indices {row.get('indices', '-')}")
+    print(f"  written to {out.path}/ (family.csv, stability.csv, family.png, E=... folders)")
+    return 0 if all(row["status"] == "success" for row in rows) and not INTERRUPTS.requested \
+        else 1
+
+
+def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -> int:
+    from ..io.atomic import output_folder
+    from ..io.periodic_runs import write_periodic
+    from ..io.stability_runs import write_followed_family
+    from ..solvers.periodic import Continuation, follow_periodic_family
+    from .solve import check_grid_memory, default_or
+
+    energy = args.energy if args.energy is not None else defaults.energy
+    if energy is None:
+        raise InputError(f"--energy is needed with --follow: scene {scene.name!r} declares no "
+                         f"default energy")
+    check_real("--follow", args.follow)
+    continuation = Continuation(step=args.step, tol=tol,
+                                max_orbits=check_integer("--max-orbits", args.max_orbits,
+                                                         minimum=2))
+    guess = guess or scene_guess(scene, energy, params)
+    check_grid_memory("--nodes", nodes, scene.system.n, continuation.max_orbits)
+    target, owned = default_or(args, f"{scene.name}-follow", {
+        **named, "energy": energy, "step": args.step, "max_orbits": args.max_orbits,
+        "stability": tol}, {})
+    with output_folder(target, owned=owned) as out:
+        try:
+            family = follow_periodic_family(scene.system, (energy, args.follow), nodes=nodes,
+                                            guess=guess, continuation=continuation, **settings)
+        except KeyboardInterrupt:
+            raise _interrupted(out, "following the family") from None
+
+        def write_orbit(folder, scene, solution, params):
+            write_periodic(folder, scene, solution, params, plot=False)
+        with INTERRUPTS.saving():
+            write_followed_family(out, scene, family, params, plot=not args.no_plot,
+                                  write_orbit=write_orbit)
+    for member in family.members:
+        exact = member.stability.exact
+        print(f"E = {member.energy:<14.10g} T = {member.orbit.stats['period']:<14.10g} "
+              f"{member.stability.verdict:9s} indices "
+              f"{', '.join(f'{k.real:.6g}' for k in member.stability.indices) or '-'}"
+              + (f" (exact flow: {exact.verdict}, difference {member.stability.index_error:.1e})"
+                 if exact is not None else ""))
+    for j, found in enumerate(family.bifurcations):
+        exact = found.extra.get("exact_energy")
+        print(f"bifurcation {j + 1}: {found.kind} at E = {found.energy:.12g} (bracket "
+              f"{found.bracket[0]:.12g} .. {found.bracket[1]:.12g})"
+              + (f"; exact flow: E = {exact:.12g}, difference "
+                 f"{found.extra['discrete_minus_exact']:.2e}" if exact is not None
+                 else "; not confirmed on the exact flow"))
+    print(f"{family.message}; {len(family.members)} orbits in {family.seconds:.1f} s; written "
+          f"to {out.path}/ (family.csv, bifurcations.csv, bifurcations.json, family.png)")
+    return 0 if family.members and family.complete and not INTERRUPTS.requested else 1
