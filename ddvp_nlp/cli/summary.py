@@ -38,7 +38,8 @@ def print_summary(meta: dict, out) -> None:
         lines.append(f"  {meta['note']}")
     if "error_vs_exact" in meta:
         lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e} "
-                     f"(largest over the run)")
+                     f"(absolute: the largest |z_k - z_exact(t_k)| over the run, in the units "
+                     f"of q and p)")
     path = f" ({meta['path']} path)" if "path" in meta else ""
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
                  f" s{path}; written to {out}/")

@@ -51,6 +51,10 @@ TRUTH_RTOL = 1e-12
 CHECK_RTOL = 1e-10
 SCHEMES = ("vddvp", "vddvp", "vddvp", "lee", "fixed")
 MAX_STEPS = 4000
+# The truth's bounds (``_dense_truth``): its steps, and how far past the run's own size a state
+# may go before the truth is not trusted.
+TRUTH_MAX_STEPS = 50_000
+TRUTH_ESCAPE = 1e6
 
 
 @dataclass(frozen=True)
@@ -215,7 +219,6 @@ def true_error(system, solution, covered: float | None = None) -> dict:
     """The run's true error against scipy's DOP853 (module docstring): ``error`` over the nodes
     up to ``covered`` (all if ``None``), ``error_all`` over every node, ``truth_error`` (the
     bound of the truth's own error, same units) and ``trusted``."""
-    from scipy import integrate
 
     from ..solvers.baselines.dop853 import flow_callable
 
@@ -225,15 +228,16 @@ def true_error(system, solution, covered: float | None = None) -> dict:
     if t.size < 2:
         return {"error": 0.0, "error_all": 0.0, "truth_error": 0.0, "trusted": True}
     flow = flow_callable(system, system.parameter_vector({}))
-    size = np.maximum(np.abs(z).max(axis=0), np.ptp(z, axis=0))
+    # The truth's absolute tolerance from the motion's scales (a component at rest at 0, which
+    # drawn starts give, would otherwise get none and make DOP853's steps shrink without end).
+    size = motion_scales(z.min(axis=0), z.max(axis=0), np.abs(z).max(axis=0), n)
     states = []
     for rtol in (TRUTH_RTOL, CHECK_RTOL):
-        result = integrate.solve_ivp(flow, (t[0], t[-1]), z[0], method="DOP853", rtol=rtol,
-                                     atol=rtol * 1e-2 * size, dense_output=True)
-        if not result.success:
+        path = _dense_truth(flow, t, z[0], rtol, rtol * 1e-2 * size)
+        if path is None:
             return {"error": math.nan, "error_all": math.nan, "truth_error": math.nan,
                     "trusted": False}
-        states.append(result.sol(t).T)
+        states.append(path)
     truth = states[0]
     both = np.vstack([z, truth])
     scale = motion_scales(both.min(axis=0), both.max(axis=0), np.abs(both).max(axis=0), n)
@@ -242,6 +246,29 @@ def true_error(system, solution, covered: float | None = None) -> dict:
     rows = slice(None) if covered is None else t <= covered
     return {"error": float(np.max(error[rows])), "error_all": float(np.max(error)),
             "truth_error": float(np.max(own)), "trusted": bool(np.all(np.isfinite(own)))}
+
+
+def _dense_truth(flow, t, z0, rtol: float, atol: np.ndarray):
+    """DOP853 (scipy) from ``z0`` over ``[t_0, t_N]`` at ``rtol``, its dense output at the node
+    times ``t``; ``None`` where it cannot be trusted: a failed step, more than
+    ``TRUTH_MAX_STEPS`` steps (an orbit that escapes to infinity in finite time makes the
+    steps shrink without end), or a state ``TRUTH_ESCAPE`` times the run's own size."""
+    from scipy import integrate
+
+    solver = integrate.DOP853(flow, t[0], z0, t[-1], rtol=rtol, atol=atol)
+    times, pieces = [t[0]], []
+    bound = TRUTH_ESCAPE * float(np.max(atol)) / (rtol * 1e-2)
+    for _ in range(TRUTH_MAX_STEPS):
+        if solver.status != "running":
+            break
+        if solver.step() is not None or not np.all(np.isfinite(solver.y)) \
+                or float(np.max(np.abs(solver.y))) > bound:
+            return None
+        times.append(solver.t)
+        pieces.append(solver.dense_output())
+    if solver.status != "finished":
+        return None
+    return integrate.OdeSolution(times, pieces)(t).T
 
 
 def classify(verdict: str, true: float, tol: float) -> str:

@@ -225,7 +225,8 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
     resolved = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
     solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
                                 max_iter=resolved.max_iter,
-                                compilation=coerce(compilation, Compilation, "compilation"))
+                                compilation=coerce(compilation, Compilation, "compilation"),
+                                accuracy=options.accuracy)
     solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
     return attach(solution, system, theta, solution.t[-1])
 
