@@ -36,7 +36,7 @@ from .solvers.options import Compilation, GridOptions, Output, StepControl, Tole
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
     from .solvers.bvp import AtEnergy, Shooting, solve_bvp
     from .solvers.higher import march_higher, solve_bvp_higher
-    from .solvers.march import march, march_ensemble
+    from .solvers.march import Collect, MarchState, continue_march, march, march_ensemble
     from .solvers.periodic import (
         Continuation,
         follow_periodic_family,
@@ -50,7 +50,8 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 # scipy.linalg behind them (import ddvp_nlp took 0.43 s CPU with every family, 75% of a warm
 # `ddvp march`; measured).
 __getattr__, __dir__ = lazy_exports(__name__, {
-    "march": "solvers.march", "march_ensemble": "solvers.march", "solve_bvp": "solvers.bvp",
+    "march": "solvers.march", "march_ensemble": "solvers.march", "Collect": "solvers.march",
+    "MarchState": "solvers.march", "continue_march": "solvers.march", "solve_bvp": "solvers.bvp",
     "Shooting": "solvers.bvp", "AtEnergy": "solvers.bvp", "solve_periodic": "solvers.periodic",
     "solve_periodic_family": "solvers.periodic", "periodic_stability": "solvers.periodic",
     "follow_periodic_family": "solvers.periodic", "Continuation": "solvers.periodic",
@@ -59,18 +60,20 @@ __getattr__, __dir__ = lazy_exports(__name__, {
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):
     """Draw ``solution`` as ``ddvp march`` draws a run: ``q``, ``p``, the step length where it
-    varies and the phase portrait, and with the ``system`` that was solved the relative energy
-    drift ``|H - H0| / max(1, |H0|)``.
+    varies, the phase portrait (and the configuration plane for two or more degrees of
+    freedom), and with the ``system`` that was solved the relative energy drift
+    ``|H - H0| / |H0|``.
 
     Args:
         solution: a result of ``march``, ``solve_bvp``, ``march_higher`` or ``solve_bvp_higher``.
-        path: where to write the PNG; ``None`` returns the image instead.
+        path: where to write the figure (PNG, SVG or PDF by the suffix); ``None`` returns the
+            ``matplotlib.figure.Figure`` instead.
         system: the solved system, for the energy panel (omitted without it).
         params: its parameter values (default: those of the solve).
         title: the figure's title (default: scheme, steps and status).
 
     Returns:
-        ``path``, or the ``PIL.Image.Image`` when ``path`` is ``None``.
+        ``path``, or the ``matplotlib.figure.Figure`` when ``path`` is ``None``.
     """
     # The one import from the root into io/ (docs/architecture.md): a facade, imported here
     # and not at the top so that `import ddvp_nlp` loads no figure code.
@@ -90,11 +93,12 @@ def _version() -> str:
 
 __version__ = _version()
 
-__all__ = ["AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions",
+__all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
            "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
-           "Lagrangian", "LagrangianSystem", "Output",
+           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Shooting",
            "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
+           "continue_march",
            "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
            "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
            "solve_periodic", "solve_periodic_family"]

@@ -13,7 +13,7 @@ Two caches, with two lifetimes:
   the node count), at most ``PROBLEMS.limit`` per system, the least recently used dropped
   first.
 
-:func:`evaluate_columns` evaluates a per-node function on every node of a long result through a
+`evaluate_columns` evaluates a per-node function on every node of a long result through a
 block-wide map kept in ``FUNCTIONS``.
 """
 
@@ -89,7 +89,7 @@ def evaluate_columns(system, function, columns: list, theta, *,
     ``theta`` for every column: shape ``(rows_out, N)``. Runs a cached ``BLOCK``-wide map
     (or, for fewer columns, one as wide as the next power of two) block by block (the last
     block padded by repeating its last column), compiled by
-    ``compile`` if given, else by the one registered for ``system`` (:func:`use_compiler`)."""
+    ``compile`` if given, else by the one registered for ``system`` (`use_compiler`)."""
     N = columns[0].shape[1]
     # A short grid gets a map of the next power of two, padded: a map per grid length was
     # built anew for every run of a comparison (66 runs of `ddvp compare kepler`: 1.8 s of
@@ -113,7 +113,7 @@ def evaluate_columns(system, function, columns: list, theta, *,
 
 
 def use_compiler(system, compile) -> None:
-    """Make ``compile`` (``Function -> Function``) the one :func:`evaluate_columns` uses for
+    """Make ``compile`` (``Function -> Function``) the one `evaluate_columns` uses for
     ``system`` from now on: once a march has a working compiler, the checks of its results
     (every equation at every node) run compiled too."""
     FUNCTIONS.get(system, ("block compiler",), lambda: compile)

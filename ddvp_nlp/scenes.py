@@ -116,11 +116,11 @@ class Scene:
             start it does not cover (an unbound Kepler orbit, a rotating pendulum), and the
             studies then use a DOP853 reference, the run files no exact error.
         invariants: optional named first integrals besides ``H``, ``f(q, p, **params) -> (N,)``.
-        boundary: optional default fixed-endpoint data, an :class:`Endpoints`.
+        boundary: optional default fixed-endpoint data, an `Endpoints`.
         name, description: set from the file name and docstring when loaded.
         source: the name or path it was loaded from (empty for a scene made in Python); grid
             tasks reload the scene from it in their own process.
-        periodic: optional defaults of ``ddvp periodic``, a :class:`PeriodicSettings`.
+        periodic: optional defaults of ``ddvp periodic``, a `PeriodicSettings`.
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
         ranges: optional intervals of the parameters where the scene means something, e.g.
@@ -218,6 +218,51 @@ class Scene:
                       for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))
         return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
                          **{k: float(v) for k, v in values.items()})
+
+    def march(self, t_end: float | None = None, *, overrides: Mapping[str, object] | None = None,
+              **options):
+        """``march`` from this scene's defaults (``resolve(overrides)``: parameters, start,
+        ``t0``, ``tau0``, ``t_end``; ``t_end`` here wins), its default scheme, and ``options``
+        passed on (``steps=``, ``accuracy=``, ``compilation=``, ``output=``, ``scheme=``...)."""
+        from .solvers.march import march  # a facade: scenes sit below the solvers
+
+        config = self.resolve(overrides)
+        options.setdefault("scheme", self.scheme or "vddvp")
+        options.setdefault("tau0", config.tau0)
+        return march(self.system, config.q0, config.p0, (config.t0, t_end or config.t_end),
+                     v0=config.v0, params=config.params, **options)
+
+    def solve_bvp(self, *, overrides: Mapping[str, object] | None = None,
+                  nodes: int | None = None, **options):
+        """``solve_bvp`` on this scene's fixed-endpoint data (``resolve_boundary``) and default
+        scheme, ``options`` passed on."""
+        from .solvers.bvp import solve_bvp  # a facade: scenes sit below the solvers
+
+        data = self.resolve_boundary(overrides, nodes)
+        options.setdefault("scheme", self.scheme or "vddvp")
+        return solve_bvp(self.system, data.q_start, data.q_end, data.t_span, nodes=data.nodes,
+                         params=data.params, **options)
+
+    def solve_periodic(self, energy: float | None = None, *, nodes: int | None = None,
+                       overrides: Mapping[str, object] | None = None, **options):
+        """``solve_periodic`` with this scene's periodic defaults (``PeriodicSettings``:
+        energy, nodes, section, start, integrals, angles, the guess function) and its default
+        scheme, ``options`` passed on. (Named so because ``periodic`` is the settings field.)"""
+        from .solvers.periodic import solve_periodic  # a facade: scenes sit below the solvers
+
+        settings = self.periodic or PeriodicSettings()
+        energy = settings.energy if energy is None else energy
+        if energy is None:
+            raise InputError(f"scene {self.name!r} declares no periodic energy: give energy=")
+        params, _ = self._split_parameters(overrides, ())
+        if settings.guess is not None:
+            options.setdefault("guess", settings.guess(energy, **params))
+        for name in ("section", "start", "integrals", "angles"):
+            if getattr(settings, name) is not None:
+                options.setdefault(name, getattr(settings, name))
+        options.setdefault("scheme", self.scheme or "vddvp")
+        return solve_periodic(self.system, energy=energy, nodes=nodes or settings.nodes,
+                              params=params, **options)
 
     def _start_value(self, name: str, value, params: dict) -> np.ndarray:
         """The scene's ``q0``, ``p0`` or ``v0`` (a function of the parameters, or a value) as a
@@ -326,9 +371,9 @@ def load_scene(name_or_path: str, *, digest: str | None = None) -> Scene:
     """A built-in scene by name, or the scene defined in a Python file; with ``digest``, only
     if the file's SHA-256 is that (a worker of a grid loads the file the grid was planned on).
 
-    The file's code runs bounded (:func:`scene_code`): whatever it raises (``SystemExit``,
+    The file's code runs bounded (`scene_code`): whatever it raises (``SystemExit``,
     ``GeneratorExit``, any ``BaseException`` but ``KeyboardInterrupt``), an ``os._exit``, or a
-    run past the time limit is an :class:`InputError` naming the file and the line; so is
+    run past the time limit is an `InputError` naming the file and the line; so is
     every later call of the scene's functions (``H`` or ``L``, ``exact``, the invariants, the
     start functions), which are checked once on the scene's own defaults here."""
     path = scene_file(name_or_path)
@@ -394,7 +439,7 @@ def scene_seconds() -> float:
 @contextlib.contextmanager
 def scene_code(path, what: str, size: int = 0):
     """Run a scene's code: any exception it raises but ``KeyboardInterrupt`` (and an
-    :class:`InputError` of ddvp's own checks) becomes an :class:`InputError` with the file,
+    `InputError` of ddvp's own checks) becomes an `InputError` with the file,
     the line and the message; ``os._exit``/``os.abort`` raise instead of ending the process;
     past ``scene_seconds() + size * SCENE_SECONDS_PER_VALUE`` seconds an alarm ends it (in the
     main thread; worker threads of a grid have no alarm)."""
@@ -472,7 +517,7 @@ def _describe(path, what: str, exc: BaseException, limit: float) -> tuple[str, s
 
 
 def _guarded(function, path, what: str, *, passes=()):
-    """``function`` run under :func:`scene_code` at every call; exceptions of ``passes`` (the
+    """``function`` run under `scene_code` at every call; exceptions of ``passes`` (the
     ``ValueError`` an ``exact`` raises for a start it does not cover) pass as they are."""
     import functools
 
@@ -496,11 +541,11 @@ def _guarded(function, path, what: str, *, passes=()):
 
 
 class _Passed(InputError):
-    """Carries an allowed exception of a scene's function through :func:`scene_code`."""
+    """Carries an allowed exception of a scene's function through `scene_code`."""
 
 
 def _guard_functions(scene, path) -> None:
-    """Every function of ``scene`` replaced by its guarded form (:func:`_guarded`)."""
+    """Every function of ``scene`` replaced by its guarded form (`_guarded`)."""
     if isinstance(scene, HigherOrderScene):
         scene.lagrangian = _guarded(scene.lagrangian, path, "L")
         scene.exact = _guarded(scene.exact, path, "exact")
@@ -566,7 +611,7 @@ class HigherOrderScene:
             march starts from ``2 * order`` of its nodes spaced ``tau0`` from ``t0``; the
             fixed-endpoint problem takes ``order`` of its nodes at each end of ``t_span`` on the
             uniform grid of ``nodes`` nodes.
-        tau0, t_end, t0: march defaults; ``boundary``: an :class:`Endpoints` with ``t_span``
+        tau0, t_end, t0: march defaults; ``boundary``: an `Endpoints` with ``t_span``
             and ``nodes`` (the end positions come from ``exact``).
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (the energy rules have no positive step on some of these; ``fixed`` always
@@ -635,7 +680,7 @@ def _shown(params: dict) -> str:
 
 
 def _check_common(scene) -> None:
-    """What every scene must be: a scheme name or none, ``boundary`` an :class:`Endpoints`,
+    """What every scene must be: a scheme name or none, ``boundary`` an `Endpoints`,
     ``n`` a size that fits in memory, ``params`` a mapping of names to finite numbers (a list
     was taken and failed later), ``ranges`` intervals holding the defaults."""
     _check_scheme_name(scene.scheme)

@@ -12,10 +12,12 @@ from .errors import InputError
 
 
 class Status(enum.Enum):
-    """How a solve ended. Every value but ``SUCCESS`` is a failure; its text says what happened
-    in words a person can act on (the message of the result adds step, time and state)."""
+    """How a solve ended. Every value but ``SUCCESS`` and ``EVENT`` is a failure; its text says
+    what happened in words a person can act on (the message of the result adds step, time and
+    state)."""
 
     SUCCESS = "reached t_end"
+    EVENT = "a terminal event occurred"
     NO_ADMISSIBLE_STEP = "the step equations have no root with tau > 0 near the previous step"
     NEWTON_FAILED = "Newton's method did not converge on the step equations"
     NON_FINITE = "a step produced a non-finite value"
@@ -80,7 +82,14 @@ class Solution:
             it); ``at_end()`` interpolates there.
         vector_field: ``f(t, z) -> z'`` on rows (``(M,)``, ``(M, 2n)``), the exact flow's vector
             field ``(H_p, -H_q)`` of the solved system; set by ``march`` and ``solve_bvp`` for
-            ``at``. Not pickled (a copy sent to another process interpolates without it).
+            ``at`` and ``energy`` (``solvers/dense.py``: it pickles as CasADi's serialization
+            of the same function, so a copy in another process gives the same answers).
+        t_eval, z_eval: the times a march was asked to report (``Output(t_eval=...)``) up to
+            its last node and ``z = (q, p)`` there ``(M, 2n)``, from ``at``; else ``None``.
+        t_events, z_events: per event function (``Output(events=...)``), the times ``(K,)``
+            and states ``(K, 2n)`` of its crossings, located to round-off on ``at``'s
+            interpolant; else ``None``.
+        system: the solved system (``energy()`` and ``plot()`` use it); not pickled.
     """
 
     t: np.ndarray
@@ -98,10 +107,21 @@ class Solution:
     stats: dict = field(default_factory=dict)
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
+    t_eval: np.ndarray | None = None
+    z_eval: np.ndarray | None = None
+    t_events: list | None = None
+    z_events: list | None = None
+    system: object = field(default=None, repr=False, compare=False)
 
     @property
     def success(self) -> bool:
-        return self.status is Status.SUCCESS
+        """Reached ``t_end``, or stopped at a terminal event (as scipy's ``solve_ivp``)."""
+        return self.status in (Status.SUCCESS, Status.EVENT)
+
+    @property
+    def statistics(self) -> SolverStatistics:
+        """The solver's counts in named fields (`SolverStatistics`)."""
+        return SolverStatistics.of(self)
 
     @property
     def tau(self) -> np.ndarray:
@@ -138,15 +158,21 @@ class Solution:
         if self.t.size == 0:
             raise InputError("the solution has no nodes to interpolate")
         slack = 1e-12 * max(1.0, abs(self.t[0]), abs(self.t[-1]))
+        if rows.ndim != 1:
+            raise InputError(f"t must be a number or a 1-d array of times, got shape "
+                             f"{rows.shape}")
         outside = ~((rows >= self.t[0] - slack) & (rows <= self.t[-1] + slack))
-        if np.any(outside) or rows.ndim != 1:
-            raise InputError(f"t must lie in the run's span [{self.t[0]!r}, {self.t[-1]!r}], "
-                             f"got {rows[outside][:3].tolist() if rows.ndim == 1 else t!r}")
+        if np.any(outside):
+            shown = ", ".join(f"{float(x):.17g}" for x in rows[outside][:3])
+            raise InputError(f"t must lie in the run's span [{float(self.t[0]):.17g}, "
+                             f"{float(self.t[-1]):.17g}] (no extrapolation), got {shown}"
+                             + (f" and {int(outside.sum()) - 3} more" if outside.sum() > 3
+                                else ""))
         z = np.hstack([self.q, self.p])
         if self.t.size == 1:
             values = np.repeat(z, rows.size, axis=0)
         else:
-            values = _hermite(self.t, z, self._slopes(z), np.clip(rows, self.t[0], self.t[-1]))
+            values = hermite(self.t, z, self._slopes(z), np.clip(rows, self.t[0], self.t[-1]))
         n = self.q.shape[1]
         if times.ndim == 0:
             return values[0, :n], values[0, n:]
@@ -158,15 +184,30 @@ class Solution:
         end = self.t_end if self.t_end is not None else self.t[-1]
         return self.at(min(end, self.t[-1]))
 
-    def energy(self, system, params=None) -> np.ndarray:
-        """``H(q_k, p_k, t_k)`` at every node, for the ``system`` that was solved (``params``:
-        its parameter values; default the values the solve used, ``stats["theta"]``, else the
+    def energy(self, system=None, params=None) -> np.ndarray:
+        """``H(q_k, p_k, t_k)`` at every node, for the ``system`` that was solved (default: the
+        one the solver remembered, or after pickling its dense field's ``H``; ``params``: its
+        parameter values; default the values the solve used, ``stats["theta"]``, else the
         system's defaults)."""
+        system = system if system is not None else self.system
+        if system is None and params is None and hasattr(self.vector_field, "energy"):
+            return self.vector_field.energy(self.q, self.p, self.t)
+        if system is None:
+            raise InputError("energy() needs the solved system: this solution does not hold it "
+                             "(pass energy(system))")
         if params is not None or "theta" not in self.stats:
             theta = system.parameter_vector(params)
         else:
             theta = np.asarray(self.stats["theta"], dtype=float)
         return system.energy(self.q, self.p, self.t, theta)
+
+    def plot(self, path=None, *, params=None, title: str | None = None):
+        """``ddvp_nlp.plot(self, path, system=...)`` with the system this solution remembers
+        (the energy panel is left out without one)."""
+        # a facade like the root's plot: figure code is loaded only when a figure is drawn
+        from .io.plotting import plot_solution
+
+        return plot_solution(self, path, system=self.system, params=params, title=title)
 
     def _slopes(self, z: np.ndarray) -> np.ndarray:
         if self.vector_field is not None:
@@ -175,7 +216,9 @@ class Solution:
 
     def __getstate__(self):
         state = dict(self.__dict__)
-        state["vector_field"] = None  # holds compiled CasADi functions of this process
+        state["system"] = None  # its CasADi functions and scene code stay in this process
+        if not getattr(self.vector_field, "portable", False):
+            state["vector_field"] = None  # a closure over this process's functions
         return state
 
     def __repr__(self) -> str:
@@ -183,11 +226,59 @@ class Solution:
                 f"t=[{self.t[0]:.6g}, {self.t[-1]:.6g}], message={self.message!r})")
 
 
-def _hermite(t: np.ndarray, z: np.ndarray, slopes: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Cubic Hermite interpolation of the rows ``z`` (slopes ``slopes``) at ``times``."""
+def hermite(t: np.ndarray, z: np.ndarray, slopes: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of the rows ``z`` (slopes ``slopes``) at ``times``, on the
+    interval ``t_k <= time < t_k+1`` (the last one for the last node)."""
     k = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.size - 2)
     tau = (t[k + 1] - t[k])[:, None]
     theta = ((times - t[k]) / (t[k + 1] - t[k]))[:, None]
     theta2, theta3 = theta**2, theta**3
     return ((2 * theta3 - 3 * theta2 + 1) * z[k] + (theta3 - 2 * theta2 + theta) * tau * slopes[k]
             + (3 * theta2 - 2 * theta3) * z[k + 1] + (theta3 - theta2) * tau * slopes[k + 1])
+
+
+@dataclass(frozen=True)
+class SolverStatistics:
+    """A solve's counts by name (``Solution.statistics``; ``Solution.stats`` keeps the full,
+    solver-specific dict).
+
+    Attributes:
+        steps: accepted steps (intervals) returned.
+        newton_iterations: Newton iterations counted by CasADi's careful rootfinder (a march's
+            compiled steps do not report theirs) or the NLP solver's iterations.
+        function_evaluations: evaluations of the careful step equations (residual with its
+            Jacobian): CasADi's ``newton`` evaluates them once before each iteration's test,
+            so one more than its iterations per solve: ``newton_iterations + careful_steps +
+            retries`` for a march (compiled chunks not counted); ``None`` where nothing
+            counted them (the grid solvers).
+        fast_steps: a march's steps kept from compiled chunks.
+        careful_steps: a march's steps tried on the careful path.
+        retries: Newton restarts from a changed predictor (careful march steps).
+        least_squares_steps: steps replaced by the least-squares step.
+        build_s, solve_s: seconds spent building and solving.
+    """
+
+    steps: int
+    newton_iterations: int
+    function_evaluations: int | None
+    fast_steps: int
+    careful_steps: int
+    retries: int
+    least_squares_steps: int
+    build_s: float
+    solve_s: float
+
+    @classmethod
+    def of(cls, solution: Solution) -> SolverStatistics:
+        stats, timing = solution.stats, solution.timing
+        careful = int(stats.get("careful_steps", 0))
+        evaluations = None
+        if "careful_steps" in stats:
+            evaluations = solution.newton_iterations + careful + int(stats.get("retries", 0))
+        return cls(steps=solution.steps, newton_iterations=int(solution.newton_iterations),
+                   function_evaluations=None if evaluations is None else int(evaluations),
+                   fast_steps=int(stats.get("fast_steps", 0)), careful_steps=careful,
+                   retries=int(stats.get("retries", 0)),
+                   least_squares_steps=len(stats.get("least_squares") or []),
+                   build_s=float(timing.get("build_s", 0.0)),
+                   solve_s=float(timing.get("solve_s", 0.0)))

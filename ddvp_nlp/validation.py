@@ -104,7 +104,7 @@ def check_finite_array(name: str, value, shape: tuple | None = None) -> np.ndarr
 
 
 def check_count(name: str, value, *, minimum: int = 0, maximum: int | None = None) -> int:
-    """An integer ``>= minimum`` (and ``<= maximum``), as :func:`check_integer`, but the message
+    """An integer ``>= minimum`` (and ``<= maximum``), as `check_integer`, but the message
     always states the minimum (``an integer >= 1``): the comparison's counts have said so since
     they were added."""
     try:
@@ -180,7 +180,7 @@ def available_memory() -> int:
 
 def check_memory(name: str, value, needed: float, what: str) -> None:
     """Refuse ``value`` of the argument ``name`` when ``what`` would need ``needed`` bytes,
-    more than half of :func:`available_memory` (the rest is for everything else the run
+    more than half of `available_memory` (the rest is for everything else the run
     holds), before anything is allocated."""
     budget = available_memory() / 2
     if not needed <= budget:  # also refuses a NaN or infinite estimate
@@ -238,7 +238,7 @@ def parse_range(name: str, text: str) -> tuple[float, float, bool, bool]:
 
 
 def check_in_interval(name: str, value: float, text: str) -> float:
-    """``value`` inside the interval ``text`` (:func:`parse_range`)."""
+    """``value`` inside the interval ``text`` (`parse_range`)."""
     low, high, low_closed, high_closed = parse_range(name, text)
     above = value >= low if low_closed else value > low
     below = value <= high if high_closed else value < high
@@ -250,7 +250,7 @@ def check_in_interval(name: str, value: float, text: str) -> float:
 def read_limited(path: str | os.PathLike, limit: int, *, what: str,
                  dir_fd: int | None = None) -> bytes:
     """The bytes of a regular file of at most ``limit`` bytes, opened without following a
-    link; anything else (a link, a folder, a device, a bigger file) is an :class:`InputError`
+    link; anything else (a link, a folder, a device, a bigger file) is an `InputError`
     that names the file and the reason."""
     import errno
     import stat

@@ -8,11 +8,12 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"AtEnergy", "Compilation", "Continuation", "Endpoints", "GridOptions",
+PUBLIC = {"AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
           "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
-          "Lagrangian", "LagrangianSystem", "Output",
+          "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
+          "continue_march",
           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
           "solve_periodic", "solve_periodic_family"}
@@ -74,15 +75,17 @@ def test_dense_output_refuses_times_outside_the_run():
         solution.at(-0.5)
 
 
-def test_a_pickled_solution_interpolates_from_its_nodes():
-    """The vector field holds this process's CasADi functions and is not pickled; the copy falls
-    back to finite-difference slopes, still second order and close to the original."""
+def test_a_pickled_solution_interpolates_as_the_original():
+    """The dense field pickles as CasADi's serialization of the same function (documented in
+    solvers/dense.py): the copy's slopes, so its answers, are the same bits; energy() works
+    without the system, which is not pickled."""
     scene, solution = _harmonic_march(0.025)
     copy = pickle.loads(pickle.dumps(solution))
-    assert copy.vector_field is None
+    assert copy.system is None and solution.system is not None
     times = np.linspace(0.0, 5.0, 301)
     assert _dense_error(scene, copy, times) < 5e-3
-    assert np.max(np.abs(copy.at(times)[0] - solution.at(times)[0])) < 1e-3
+    assert np.array_equal(np.hstack(copy.at(times)), np.hstack(solution.at(times)))
+    assert np.allclose(copy.energy(), solution.energy(), rtol=0, atol=1e-15)
 
 
 def test_energy_at_the_nodes():
@@ -124,7 +127,7 @@ def test_no_public_function_takes_more_than_a_dozen_parameters():
     assert max(counts.values()) <= MOST_PARAMETERS, counts
 
 
-def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
+def test_plot_writes_a_figure_for_a_march_and_for_a_bvp_solution(tmp_path):
     from PIL import Image
 
     from ddvp_nlp import plot
@@ -138,9 +141,13 @@ def test_plot_writes_a_png_for_a_march_and_for_a_bvp_solution(tmp_path):
         assert plot(solution, path, system=scene.system) == path
         with Image.open(path) as image:
             assert image.format == "PNG"
-            with_energy = image.size
-        # without the system there is no energy panel: one panel less
-        image = plot(solution)
-        assert image.size[0] == with_energy[0] and image.size[1] < with_energy[1]
-        colours = np.unique(np.asarray(image).reshape(-1, 3), axis=0)
-        assert len(colours) > 5  # lines and text, not a blank canvas
+        # the suffix picks the format: vector output
+        assert plot(solution, tmp_path / f"{name}.svg", system=scene.system).read_text(
+        ).lstrip().startswith("<?xml")
+        assert plot(solution, tmp_path / f"{name}.pdf").read_bytes()[:4] == b"%PDF"
+        # without a path, the matplotlib figure; without the system, no energy panel
+        with_energy = plot(solution, system=scene.system)
+        without = plot(solution)
+        labels = [ax.get_ylabel() for ax in without.axes]
+        assert len(without.axes) == len(with_energy.axes) - 1
+        assert "$q$" in labels and "$p$" in labels and not any("H_0" in s for s in labels)

@@ -1,11 +1,11 @@
 """Ctrl-C and SIGTERM during a command, honoured at every moment.
 
-- While a march steps (it polls :meth:`Interrupts.stop_requested` after every stepper call), a
+- While a march steps (it polls `Interrupts.stop_requested` after every stepper call), a
   signal only asks it to stop: it ends after the current call (milliseconds) with status
   ``interrupted`` and every accepted node, which are then written.
-- While a run's files are written (:meth:`Interrupts.saving`) a signal is noted, not raised, so
+- While a run's files are written (`Interrupts.saving`) a signal is noted, not raised, so
   the set is never cut short; the only part it may stop is the figure
-  (:meth:`Interrupts.interruptible`), which is then left out.
+  (`Interrupts.interruptible`), which is then left out.
 - Anywhere else (loading, building, a grid solve, the final verification of a grid) the first
   signal raises ``KeyboardInterrupt``; the command stops and says what it kept. Later signals
   are noted, not raised again while the command is ending (a second Ctrl-C had surfaced as a
@@ -99,7 +99,7 @@ class Interrupts:
 
     @contextlib.contextmanager
     def interruptible(self):
-        """Inside :meth:`saving`, a part a signal may stop (raising ``KeyboardInterrupt``, also
+        """Inside `saving`, a part a signal may stop (raising ``KeyboardInterrupt``, also
         when the signal surfaced as another error); not entered at all once a signal came: a
         run stopped by the user is written without its optional parts (energies over every
         node, the scene's checks, the figure: seconds for ten million nodes), so it ends as

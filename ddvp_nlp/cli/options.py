@@ -1,10 +1,11 @@
 """The command line's options as the solvers' option objects: one place where ``--tol``,
-``--max-steps``, ``--careful`` ... become a :class:`StepControl`, a :class:`Tolerance`, a
-:class:`GridOptions`, a :class:`Compilation` or an :class:`Output`, for every command that has
+``--max-steps``, ``--careful`` ... become a `StepControl`, a `Tolerance`, a
+`GridOptions`, a `Compilation` or an `Output`, for every command that has
 them. A bad value fails here, with the object's own message naming the field."""
 
 from __future__ import annotations
 
+from ..errors import InputError
 from ..solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
 from ..studies.grid import Workers
 
@@ -152,3 +153,40 @@ def check_distinct(flag: str, values) -> None:
         if value in seen:
             raise InputError(f"{flag} has the value {value!r} twice; give each value once")
         seen.add(value)
+
+
+def check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
+    """The nodes of a grid solve (and ``members`` kept solutions) against the memory."""
+    from ..validation import check_memory
+
+    check_memory(flag, nodes, 48.0 * nodes * (2 * n + 2) ** 2 + members * 64.0 * nodes * n,
+                 "the grid's Jacobian and the kept orbits")
+
+
+def family_energies(text: str, n: int = 1, nodes: int = 200):
+    """``E1:E2:COUNT`` as ``COUNT`` distinct energies from ``E1`` to ``E2``, the family's
+    orbits checked against the memory before any is solved."""
+    import numpy as np
+
+    from ..validation import check_integer, check_memory
+
+    parts = text.split(":")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
+    except (ValueError, IndexError, OverflowError):
+        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
+    if not np.isfinite(first) or not np.isfinite(last):
+        raise InputError(f"--family needs finite E1 and E2, got {text!r}")
+    check_integer("--family COUNT", count, minimum=2)
+    if first == last:
+        raise InputError(f"--family needs E1 != E2, got {text!r}")
+    check_memory("--family COUNT", count, count * (64.0 * (nodes + 1) * (2 * n + 2) + 4096),
+                 "the family's orbits")
+    check_grid_memory("--nodes", nodes, n, count)
+    energies = np.linspace(first, last, count)
+    if np.unique(energies).size != count:
+        raise InputError(f"--family {text!r}: {count} energies from {first!r} to {last!r} are "
+                         "not all distinct in floating point")
+    return energies

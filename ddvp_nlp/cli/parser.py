@@ -34,8 +34,10 @@ def parse_settings(items: list[str]) -> dict:
     return settings
 
 
-def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = ()) -> None:
-    parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
+def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = (), *,
+                      scene_optional: bool = False) -> None:
+    parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file",
+                        **({"nargs": "?", "default": None} if scene_optional else {}))
     parser.add_argument("--scheme", default=None, choices=RULES + methods,
                         help=f"energy rule: {', '.join(RULES)} (default: the scene's, shown by "
                         f"`ddvp scenes`, else {Scheme().rule}, the paper's)"
@@ -200,7 +202,14 @@ def _march_command(commands) -> None:
     from ..studies.methods import METHODS
 
     march = commands.add_parser("march", help="solve an initial-value problem step by step")
-    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES))
+    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES),
+                      scene_optional=True)
+    march.add_argument("--resume", default=None, metavar="FOLDER",
+                       help="continue the march in FOLDER (a killed run's last checkpoint or a "
+                            "finished run) with the options it ran with, to its t_end or "
+                            "--t-end; the nodes equal an uninterrupted run's bit for bit")
+    march.add_argument("--t-end", type=float, default=None,
+                       help="with --resume: continue to this later end time")
     march.add_argument("--max-steps", type=int, default=10_000_000,
                        help="stop after this many steps (status max_steps; default: 10000000)")
     march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
@@ -227,7 +236,18 @@ def _march_command(commands) -> None:
                             f"{CHECKPOINT_SECONDS:g})")
     march.add_argument("--no-progress", action="store_true",
                        help="no progress bar (it is drawn only when stderr is a terminal)")
-    march.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    _figure_arguments(march, "trajectory.png")
+
+
+def _figure_arguments(parser: argparse.ArgumentParser, figure: str, plot: bool = True) -> None:
+    """``--format`` of the figures (``io/figures.py``) and, if ``plot``, ``--no-plot``."""
+    from ..io.figures import FORMATS
+
+    if plot:
+        parser.add_argument("--no-plot", action="store_true", help=f"do not write {figure}")
+    parser.add_argument("--format", dest="figure_format", default=FORMATS[0], choices=FORMATS,
+                        help=f"file format of {figure} (default: {FORMATS[0]}; svg and pdf are "
+                             "vector graphics)")
 
 
 def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
@@ -281,7 +301,7 @@ def _bvp_command(commands) -> None:
                      help="report each solver iteration on stderr (automatic on a terminal "
                           "from 100000 nodes)")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
-    bvp.add_argument("--no-plot", action="store_true", help="do not write trajectory.png")
+    _figure_arguments(bvp, "trajectory.png")
     _accuracy_arguments(bvp)
 
 

@@ -12,7 +12,9 @@ from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
 from ..solvers.options import Output
 from . import options
+from .folders import default_or, holds
 from .interrupts import INTERRUPTS, Stopped
+from .options import check_grid_memory, family_energies
 from .parser import parse_settings
 from .summary import print_summary
 
@@ -22,6 +24,11 @@ def run_solve(args) -> int:
     print its summary."""
     from ..io.atomic import output_folder
 
+    if getattr(args, "resume", None):
+        return run_resume(args)
+    if args.scene is None:
+        raise InputError(f"ddvp {args.command} needs a scene (a name from `ddvp scenes` or a "
+                         ".py file)" + (", or --resume FOLDER" if args.command == "march" else ""))
     scene = load_scene(args.scene)
     higher = _higher(scene)
     args.scheme = _scheme_name(args, scene)
@@ -30,7 +37,8 @@ def run_solve(args) -> int:
     config = _resolve(args, scene, higher, overrides)
     target, owned, overrides = _run_folder(args, scene, config, overrides)
     with output_folder(target, owned=owned) as out:
-        args.checkpoint = _checkpoint_saver(args, scene, out)
+        args.checkpoint = _checkpoint_saver(args, scene, out, resume_record(args, scene,
+                                                                            overrides))
         try:
             solution, extra = _SOLVERS[args.command, higher](args, scene, config, scheme)
         except KeyboardInterrupt:
@@ -56,16 +64,11 @@ def _save(args, out, scene, config, scheme, solution, extra) -> dict:
         with INTERRUPTS.saving():
             return write_run(out, command=args.command, scene=scene, config=config,
                              scheme=scheme, solution=solution, extra=extra,
-                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
+                             plot=not args.no_plot, interruptible=INTERRUPTS.interruptible,
+                             figure_format=args.figure_format)
     except OutputError as exc:
         raise OutputError.because(exc, f"the run ({solution.steps} steps) was not saved; "
                                        f"{holds(out)}") from None
-
-
-def holds(out) -> str:
-    from ..io.atomic import describe
-
-    return describe(out.path)
 
 
 def _run_folder(args, scene, config, overrides):
@@ -105,22 +108,81 @@ RESULT_OPTIONS = {"alpha": 0.5, "clock": "midpoint", "tol": 1e-10, "tau_min": No
 
 
 def result_options(args) -> dict:
-    """The options of ``args`` in :data:`RESULT_OPTIONS` whose value is not the default."""
+    """The options of ``args`` in `RESULT_OPTIONS` whose value is not the default."""
     return {name: getattr(args, name) for name, default in RESULT_OPTIONS.items()
             if hasattr(args, name) and getattr(args, name) != default}
 
 
-def _checkpoint_saver(args, scene, out):
-    """For a march of a scene with ``H`` or ``L``: ``save(t, z)`` writing the run so far to
-    ``out`` (a checkpoint), interrupts held off while it writes."""
+def _checkpoint_saver(args, scene, out, record: dict):
+    """For a march of a scene with ``H`` or ``L``: ``save(t, z, carried)`` writing the run so
+    far to ``out`` (a checkpoint, with what ``--resume`` needs), interrupts held off while it
+    writes."""
     if args.command != "march" or _higher(scene):
         return None
     from ..io.runs import write_checkpoint
 
-    def save(t, z):  # called from the march's checkpoint thread: the main thread polls
+    def save(t, z, carried):  # called from the march's checkpoint thread: the main thread polls
         write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
-                         n=scene.system.n)
+                         n=scene.system.n, extra={"carried": carried, "resume": record})
     return save
+
+
+# What `ddvp march --resume` reads back to rebuild the run's options exactly (the bounds
+# --max-steps and --time-limit, the checkpoints, progress and plot are the resuming command's).
+RESUME_OPTIONS = ("scheme", "alpha", "clock", "tol", "tau_min", "tau_max", "max_step_ratio",
+                  "energy_guard", "least_squares", "rtol", "atol", "energy_tol", "global_tol",
+                  "accept_inaccurate", "careful")
+
+
+def resume_record(args, scene, overrides: dict) -> dict:
+    """The scene (name or file), the ``--set`` overrides and the march's options."""
+    return {"scene": scene.source or scene.name, "overrides": overrides,
+            "options": {name: getattr(args, name, None) for name in RESUME_OPTIONS}}
+
+
+def run_resume(args) -> int:
+    """``ddvp march --resume FOLDER [--t-end T]``: the march in ``FOLDER`` (its last checkpoint
+    or its finished run) continued to its ``t_end`` or a later one, with the options it ran
+    with, written back to ``FOLDER``; the nodes are an uninterrupted run's bit for bit."""
+    from ..io.atomic import output_folder
+    from ..io.runs import read_run
+    from ..solvers.march import MarchState, continue_march
+
+    arrays, meta = read_run(args.resume)
+    record = meta.get("resume")
+    if meta.get("command") != "march" or not isinstance(record, dict):
+        raise InputError(f"--resume: {args.resume} holds no march this ddvp can continue "
+                         f"(command {meta.get('command')!r}, no resume record)")
+    if meta.get("status") not in RESUMABLE:
+        raise InputError(f"--resume: the run in {args.resume} ended with status "
+                         f"{meta.get('status')!r}; only {', '.join(RESUMABLE)} can be continued")
+    for name, value in record["options"].items():
+        setattr(args, name, value)
+    scene = load_scene(record["scene"])
+    scheme = _scheme(args, False)
+    config = scene.resolve(record["overrides"])
+    t_end = config.t_end if args.t_end is None else args.t_end
+    state = MarchState.of(arrays["t"], arrays["q"], arrays["p"], config.t_end,
+                          meta.get("carried"))
+    with output_folder(args.resume, owned=0) as out:
+        saver = _checkpoint_saver(args, scene, out, record)
+        solution = continue_march(
+            scene.system, state, t_end, tau0=config.tau0, scheme=scheme, params=config.params,
+            steps=options.step_control(args), accuracy=options.tolerance(args),
+            compilation=options.compilation(args),
+            output=options.march_output(args, checkpoint=saver,
+                                        stop=INTERRUPTS.stop_requested))
+        config.t_end = t_end
+        extra = {"carried": solution.stats["carried"], "resume": record,
+                 "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
+                 "overrides": record["overrides"]}
+        meta = _save(args, out, scene, config, scheme, solution, extra)
+    print_summary(meta, out.path)
+    return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+# Statuses of a march that --resume continues: a checkpoint, a stop, a bound, a finished run.
+RESUMABLE = ("running", "interrupted", "max_steps", "time_limit", "success")
 
 
 def _higher(scene) -> bool:
@@ -204,9 +266,11 @@ def _march(args, scene, config, scheme):
                      output=options.march_output(args, checkpoint=args.checkpoint,
                                                  stop=INTERRUPTS.stop_requested))
     stats = solution.stats
-    return solution, {key: stats[key] for key in ("path", "fast_steps", "careful_steps",
-                                                  "checkpoints", "checkpoints_landed_s")
-                      if key in stats}
+    return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
+                                                     "checkpoints", "checkpoints_landed_s")
+                         if key in stats},
+                      "carried": stats["carried"],
+                      "resume": resume_record(args, scene, parse_settings(args.settings))}
 
 
 def _march_method(args, scene, config):
@@ -389,17 +453,6 @@ def run_periodic(args) -> int:
                            {**named, "energy": energy}, defaults)
 
 
-def default_or(args, label: str, named: dict, defaults: dict):
-    """``(folder, owned)``: ``--out``, else ``runs/LABEL`` for the defaults and
-    ``runs/LABEL-HASH`` (``HASH`` of every setting) when any setting differs from them."""
-    from ..io.runs import default_folder
-
-    if args.out is not None:
-        return args.out, 1
-    changed = {k: v for k, v in named.items() if defaults.get(k, object()) != v}
-    return default_folder(label, named, changed), 2
-
-
 def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults) -> int:
     from ..io.atomic import output_folder
     from ..io.periodic_runs import write_periodic
@@ -451,43 +504,6 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
     print(f"  written to {out.path}/ (family.csv, family.png, E=... folders)")
     return 0 if all(row["status"] == "success" for row in rows) and not INTERRUPTS.requested \
         else 1
-
-
-def check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
-    """The nodes of a grid solve (and ``members`` kept solutions) against the memory."""
-    from ..validation import check_memory
-
-    check_memory(flag, nodes, 48.0 * nodes * (2 * n + 2) ** 2 + members * 64.0 * nodes * n,
-                 "the grid's Jacobian and the kept orbits")
-
-
-def family_energies(text: str, n: int = 1, nodes: int = 200):
-    """``E1:E2:COUNT`` as ``COUNT`` distinct energies from ``E1`` to ``E2``, the family's
-    orbits checked against the memory before any is solved."""
-    import numpy as np
-
-    from ..validation import check_integer, check_memory
-
-    parts = text.split(":")
-    try:
-        if len(parts) != 3:
-            raise ValueError
-        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
-    except (ValueError, IndexError, OverflowError):
-        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
-    if not np.isfinite(first) or not np.isfinite(last):
-        raise InputError(f"--family needs finite E1 and E2, got {text!r}")
-    check_integer("--family COUNT", count, minimum=2)
-    if first == last:
-        raise InputError(f"--family needs E1 != E2, got {text!r}")
-    check_memory("--family COUNT", count, count * (64.0 * (nodes + 1) * (2 * n + 2) + 4096),
-                 "the family's orbits")
-    check_grid_memory("--nodes", nodes, n, count)
-    energies = np.linspace(first, last, count)
-    if np.unique(energies).size != count:
-        raise InputError(f"--family {text!r}: {count} energies from {first!r} to {last!r} are "
-                         "not all distinct in floating point")
-    return energies
 
 
 def run_poincare(args) -> int:

@@ -7,6 +7,7 @@ from __future__ import annotations
 from ..errors import InputError
 from ..scenes import PeriodicSettings
 from ..validation import check_integer, check_real
+from .folders import default_or, holds
 from .interrupts import INTERRUPTS, Stopped
 
 
@@ -57,7 +58,7 @@ def run_periodic_stability(args, scene, settings: dict, nodes: int, guess, param
 
 
 def _interrupted(out, what: str) -> Stopped:
-    from .solve import holds
+
 
     return Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while {what}; nothing new "
                    f"was written: {holds(out)}")
@@ -69,7 +70,7 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
     from ..io.stability_runs import write_stability
     from ..solvers.periodic import periodic_stability, solve_periodic
     from ..solvers.periodic.solve import check_periodic
-    from .solve import check_grid_memory, default_or
+    from .options import check_grid_memory
 
     if guess is None:
         check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
@@ -107,7 +108,7 @@ def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
     from ..io.stability_runs import write_family_stability
     from ..solvers.periodic import periodic_stability, solve_periodic_family
     from ..solvers.periodic.solve import check_periodic
-    from .solve import default_or, family_energies
+    from .options import family_energies
 
     energies = family_energies(args.family, scene.system.n, nodes)
     guess = guess or scene_guess(scene, energies[0], params)
@@ -145,7 +146,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
     from ..io.periodic_runs import write_periodic
     from ..io.stability_runs import write_followed_family
     from ..solvers.periodic import Continuation, follow_periodic_family
-    from .solve import check_grid_memory, default_or
+    from .options import check_grid_memory
 
     energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:

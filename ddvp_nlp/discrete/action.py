@@ -5,7 +5,7 @@ Interval ``k`` joins node ``a = k`` and node ``b = k + 1``; its arguments are
     Q = alpha q_a + beta q_b,   P = alpha p_b + beta p_a,   tau = t_b - t_a,
     s = t_a + tau/2 (midpoint clock) or t_a (left clock).
 
-Each form of system gives an :class:`IntervalAction` (``hamiltonian.py``, ``lagrangian.py``) with
+Each form of system gives an `IntervalAction` (``hamiltonian.py``, ``lagrangian.py``) with
 three things, and only these:
 
 - ``action``: the interval action ``S_k(t_a, t_b, z_a, z_b, theta)``, which takes both node

@@ -6,7 +6,7 @@ For ``z = (q, p)`` and ``J = [[0, I], [-I, 0]]`` the step from ``z_k`` to ``z_{k
 
 For autonomous ``H`` the exact integral gives ``H(z_{k+1}) = H(z_k)`` at every node (the chain
 rule along the segment). The integral here is Gauss-Legendre quadrature with
-:data:`GAUSS_NODES` = 3 nodes, exact for polynomials of degree 5 in ``s``: so for polynomial
+`GAUSS_NODES` = 3 nodes, exact for polynomials of degree 5 in ``s``: so for polynomial
 ``H`` of degree at most 6 (``grad H`` of degree at most 5) the scheme is the AVF method exactly
 and keeps ``H`` at the nodes to round-off (``harmonic``, ``henon_heiles`` (cubic), ``fpu``
 (quartic)). Otherwise (``pendulum``, ``kepler``) the quadrature error of the segment integral

@@ -111,7 +111,7 @@ def grid_residuals(system: HamiltonianSystem, scheme: Scheme, t, q, p, theta, *,
                    compile=None):
     """All equations of a grid: canonical residuals ``(N-1, 2n)`` and energy residuals ``(N-2,)``
     of the scheme's diagnostic rule, unscaled. ``compile`` (``Function -> Function``, e.g. a
-    C compiler's) runs the block-mapped equations compiled; see :func:`evaluate_columns`."""
+    C compiler's) runs the block-mapped equations compiled; see `evaluate_columns`."""
     t = np.asarray(t, float)
     q = np.asarray(q, float)
     p = np.asarray(p, float)

@@ -1,8 +1,9 @@
 """Input and output: run folders, figures, Markdown reports and input files.
 
 - ``runs.py``: writing a run's ``result.npz``, ``meta.json`` and figure (every kind of scene).
+- ``figures.py``: the one plotting stack: matplotlib (imported only when a figure is drawn)
+  under the house style ``ddvp.mplstyle``, PNG/SVG/PDF, min/max decimation of long series.
 - ``plotting.py``: the trajectory figure of a run or of any ``Solution`` (``ddvp_nlp.plot``).
-- ``raster.py``: the Pillow canvas that figure is drawn on (panels, ticks, lines, text).
 - ``periodic_runs.py``: ``ddvp periodic``'s run folder (orbit and step-length figure) and a
   family's ``family.csv`` and period-against-energy figure.
 - ``poincare_runs.py``: ``ddvp poincare``'s ``section.npz``, ``section.csv``, ``orbits.csv`` and

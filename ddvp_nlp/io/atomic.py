@@ -1,4 +1,4 @@
-"""The one output layer: every file any command writes goes through an :class:`OutputFolder`.
+"""The one output layer: every file any command writes goes through an `OutputFolder`.
 
 What it promises, and how:
 
@@ -9,23 +9,23 @@ What it promises, and how:
   file lands by ``rename``, which replaces a link itself rather than its target.
 - **One writer at a time.** Opening a folder takes an exclusive, non-blocking ``flock`` on
   ``FOLDER/.ddvp.lock`` (opened without following links) for as long as the command runs; a
-  second ddvp process writing the same folder is refused (:class:`~ddvp_nlp.errors.OutputError`,
+  second ddvp process writing the same folder is refused (`OutputError`,
   exit 1) instead of replacing the first one's result in silence. The lock file is removed when
   the writer is done.
 - **All of a set or none, and the previous set readable until the new one is whole.** A set of
-  files (:meth:`OutputFolder.commit`) is written in full to scratch names with a random token
+  files (`OutputFolder.commit`) is written in full to scratch names with a random token
   (``.NAME.PID.TOKEN.tmp``, created with ``O_EXCL``), flushed and ``fsync``-ed; the manifest
   ``meta.json`` names each file of the set with its SHA-256, size and inode and is renamed
   last. Before a file of the previous set is replaced, it is renamed to ``.NAME.previous``;
   those are removed once the new manifest is in place. A kill at any moment therefore leaves,
   for each name, either the file the manifest describes or its ``.previous`` twin, and
-  :func:`read_set` (which checks every checksum) finds the last complete set, or says that
+  `read_set` (which checks every checksum) finds the last complete set, or says that
   there is none.
-- **Disk full, read-only, not a folder, a name too long**: an :class:`OutputError` naming the
+- **Disk full, read-only, not a folder, a name too long**: an `OutputError` naming the
   path (the command exits 1); the scratch files of the failed set are removed, and so are the
   folders this writer created, if nothing was committed in them.
 
-Rows of a grid that arrive one by one go to a journal (:meth:`OutputFolder.journal`), appended
+Rows of a grid that arrive one by one go to a journal (`OutputFolder.journal`), appended
 and flushed line by line beside the last complete set, which stays untouched until the new one
 is committed.
 """
@@ -57,7 +57,7 @@ Writer = Callable[[object], None]  # writer(binary file object)
 
 
 class Written(str):
-    """The name of a scratch file already written (:meth:`OutputFolder.scratch`): a set can
+    """The name of a scratch file already written (`OutputFolder.scratch`): a set can
     take it in place of a writer, so large files are written once."""
 
 
@@ -160,7 +160,7 @@ def _read_pid(descriptor: int) -> str:
 
 class OutputFolder:
     """A folder opened for writing: its descriptor (no link followed), its lock, the folders
-    this writer created. Use :func:`output_folder` (a context) or :func:`open_folder`."""
+    this writer created. Use `output_folder` (a context) or `open_folder`."""
 
     def __init__(self, path: Path, descriptor: int, created: list[tuple[int, str]],
                  parents: list[int]):
@@ -215,13 +215,13 @@ class OutputFolder:
 
     def commit(self, files: dict[str, Writer | None], meta: dict | None = None, *,
                manifest: str = MANIFEST, digests: dict[str, str] | None = None) -> dict:
-        """Write ``files`` (name -> writer, or a :class:`Written` scratch file; ``None``: remove
+        """Write ``files`` (name -> writer, or a `Written` scratch file; ``None``: remove
         that name) and the manifest
         ``meta`` (with ``files``: each file's SHA-256, size and inode) as one set: every file
         first to a scratch name, then renamed, the manifest last (module docstring). Returns
         the manifest written; ``digests`` copies a file's SHA-256 to a key of its own
         (``{"result_sha256": "result.npz"}``). A failure removes every scratch file and raises
-        :class:`OutputError` naming the file; the previous set stays readable."""
+        `OutputError` naming the file; the previous set stays readable."""
         with self.guard:
             scratches: dict[str, str] = {}
             try:
@@ -386,7 +386,7 @@ _REGISTRY_GUARD = threading.RLock()
 
 def open_folder(path: str | os.PathLike | OutputFolder, *, owned: int = 1) -> OutputFolder:
     """``path`` opened for writing (created if missing) and locked for this process; a folder
-    this process already holds is shared (:meth:`OutputFolder.close` once per open).
+    this process already holds is shared (`OutputFolder.close` once per open).
     ``owned``: how many trailing components ddvp chose (``runs/NAME``: 2), opened without
     following links; the ones before are the user's and resolve as the system does."""
     if isinstance(path, OutputFolder):
@@ -460,7 +460,7 @@ def _open_below(base: int, head: Path, names: list[str]) -> OutputFolder:
 
 @contextlib.contextmanager
 def output_folder(path, *, owned: int = 1) -> Iterator[OutputFolder]:
-    """:func:`open_folder` as a context: the lock is released at the end."""
+    """`open_folder` as a context: the lock is released at the end."""
     folder = open_folder(path, owned=owned)
     try:
         yield folder
@@ -486,7 +486,7 @@ def read_set(folder: str | os.PathLike, *, manifest: str = MANIFEST,
              required: tuple[str, ...] = ()) -> tuple[dict, dict[str, Path]]:
     """``(meta, {name: path})`` of the last complete set in ``folder``: the manifest, and for
     each file it names the path whose SHA-256 is the one recorded (the file itself, or its
-    ``.previous`` twin after a kill between two renames). :class:`InputError` (naming the
+    ``.previous`` twin after a kill between two renames). `InputError` (naming the
     folder and the reason) if there is no manifest, a file of ``required`` is not in it, or a
     file matches neither name."""
     folder = Path(folder)

@@ -1,4 +1,4 @@
-"""Reading a sweep's TOML grid file into a :class:`ddvp_nlp.studies.sweep.SweepSpec`::
+"""Reading a sweep's TOML grid file into a `ddvp_nlp.studies.sweep.SweepSpec`::
 
     scene = "kepler"
     methods = ["vddvp", "rk4", "dop853"]      # optional: default every method that applies

@@ -1,9 +1,9 @@
 """Work-precision at several horizons and the error-growth figure: ``horizons.png``,
 ``growth.png``, ``horizons.md``, and each horizon's own report in ``horizon_T/``.
 
-:func:`work_precision_horizons` runs :func:`~ddvp_nlp.io.work_precision.work_precision` once per
+`work_precision_horizons` runs `work_precision` once per
 horizon (``t_end = t0 + T unit``), with the sweeps cut to what ``max_steps`` affords
-(:func:`~ddvp_nlp.studies.horizons.affordable_knobs`), then reruns each method at about equal
+(`affordable_knobs`), then reruns each method at about equal
 cost over the longest horizon and draws its errors against time.
 """
 
@@ -25,9 +25,9 @@ from ..studies.horizons import (
     reference_kind,
 )
 from ..studies.methods import get_methods
-from . import atomic
+from . import atomic, figures
 from .runs import figure_writer
-from .work_precision import in_words, plot_method, work_precision
+from .work_precision import AXIS_LABELS, in_words, plot_method, work_precision
 
 
 def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
@@ -43,12 +43,12 @@ def work_precision_horizons(scene: Scene, horizons, *, out: str | os.PathLike,
     ``growth.png`` (errors against time at equal cost, longest horizon) and ``horizons.md``.
     Returns the rows per horizon.
 
-    ``options``: as for :func:`~ddvp_nlp.io.work_precision.work_precision` (default
+    ``options``: as for `work_precision` (default
     ``max_steps`` here 2e6); its ``knobs`` and ``reference`` are chosen per horizon:
     ``options.max_steps`` and ``run_budget_s`` cut each horizon's sweeps
-    (:func:`~ddvp_nlp.studies.horizons.affordable_knobs`), and a scene without an exact
+    (`affordable_knobs`), and a scene without an exact
     solution gets no trajectory reference beyond ``reference_span`` time units
-    (:func:`~ddvp_nlp.studies.horizons.reference_kind`)."""
+    (`reference_kind`)."""
     options = options if options is not None else CompareOptions(max_steps=2_000_000)
     compilation = compilation or Compilation()
     horizons = parse_horizons(horizons)
@@ -103,52 +103,46 @@ def _horizons(scene, horizons, out, unit, overrides, options, compilation, worke
 def plot_horizons(results: dict, path, *, title: str, unit: float) -> None:
     """A column per horizon, a row per error kind, every method's runs as in the single
     report."""
-    import matplotlib
+    with figures.styled():
+        fig = figures.new_figure(2.6 * len(results) + 1.0, 5.2)
+        axes = fig.subplots(len(ERROR_KINDS), len(results), squeeze=False)
+        _horizon_panels(axes, results, unit)
+        fig.suptitle(title)
+        figures.save(fig, path)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    kinds = list(ERROR_KINDS.items())
-    fig, axes = plt.subplots(len(kinds), len(results), squeeze=False,
-                             figsize=(4.2 * len(results) + 1, 7.5), constrained_layout=True)
+def _horizon_panels(axes, results: dict, unit: float) -> None:
+    kinds = list(ERROR_KINDS)
     names = list(dict.fromkeys(m for rows in results.values() for m in methods_in(rows)))
     for column, (horizon, rows) in enumerate(results.items()):
-        for row_index, (kind, label) in enumerate(kinds):
+        for row_index, kind in enumerate(kinds):
             ax = axes[row_index][column]
             for method in methods_in(rows):
                 plot_method(ax, rows, method, kind, names.index(method))
-            ax.set_title(f"T = {horizon:g}" + (f" x {unit:.4g}" if unit != 1 else ""),
-                         fontsize=10)
+            ax.set_title(f"$T = {horizon:g}$" + (rf"$\,\times\,{unit:.4g}$"
+                                                   if unit != 1 else ""))
             ax.set_xlabel("run time [s]")
-            ax.set_ylabel(label.split(" max")[0])
-            ax.grid(True, which="both", alpha=0.3)
-    axes[0][0].legend(fontsize=7)
-    fig.suptitle(title)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+            ax.set_ylabel(AXIS_LABELS[kind] if column == 0 else "")
+            ax.grid(True, which="major")
+            ax.legend(loc="lower left", fontsize="x-small")
 
 
 def plot_growth(growth, path, *, title: str) -> None:
     """Energy and trajectory error against ``t - t0``, log-log, one line per method."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
-    for ax, kind in zip(axes, ("energy_error", "trajectory_error"), strict=True):
-        for item in growth:
-            values = getattr(item, kind)
-            positive = values > 0
-            ax.loglog(item.t[positive], values[positive],
-                      label=f"{item.method} ({item.knob} = {item.value:.3g})")
-        ax.set_xlabel("t - t0")
-        ax.set_ylabel("|H(z_k) - H(z_0)|" if kind == "energy_error" else "max |z_k - z_ref|")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
-    fig.suptitle(title)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH, 3.2)
+        axes = fig.subplots(1, 2)
+        for ax, kind in zip(axes, ("energy_error", "trajectory_error"), strict=True):
+            for item in growth:
+                ax.loglog(item.t, figures.positive(getattr(item, kind)),
+                          label=f"{item.method} ({item.knob} = {item.value:.3g})")
+            ax.set_xlabel("$t - t_0$")
+            ax.set_ylabel(r"$|H(z_k) - H(z_0)|$ (absolute)" if kind == "energy_error" else
+                          r"$\max |z_k - z_{\mathrm{ref}}|$ (absolute)")
+            ax.grid(True, which="major")
+            ax.legend(loc="upper left", fontsize="small")
+        fig.suptitle(title)
+        figures.save(fig, path)
 
 
 def horizons_summary(scene, results, notes, growth, target, unit) -> str:

@@ -1,30 +1,38 @@
-"""The figure of a followed family of periodic orbits (plain matplotlib, imported only when a
-figure is drawn): the orbits, the period against the energy and the stability indices against
-the energy, each orbit coloured by its verdict, the located bifurcations marked."""
+"""The figure of a followed family of periodic orbits (the house style of ``figures.py``,
+matplotlib imported only when a figure is drawn): the orbits, the period against the energy
+and the stability indices against the energy, each orbit coloured by its verdict, the located
+bifurcations marked."""
 
 from __future__ import annotations
 
 import numpy as np
 
-COLOURS = {"stable": "tab:green", "marginal": "tab:orange", "unstable": "tab:red"}
+from . import figures
+
+COLOURS = {"stable": "#228833", "marginal": "#CCBB44", "unstable": "#EE6677"}
 MARKERS = {"fold": "s", "branch point": "D", "period doubling": "v"}
 
 
-def plot_followed_family(family, title: str, path) -> None:
-    import matplotlib
+def plot_followed_family(family, title: str, path, fmt: str = "png") -> None:
+    """Three panels: the orbits coloured by their verdict, the period against the energy with
+    the bifurcations marked, and the stability indices."""
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH * 1.15, 2.9)
+        _draw_family(fig, family)
+        fig.suptitle(title)
+        figures.save(fig, path, fmt)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
+def _draw_family(fig, family) -> None:
     members = family.members
-    fig, (orbits, periods, indices) = plt.subplots(1, 3, figsize=(16, 4.8))
+    orbits, periods, indices = fig.subplots(1, 3)
     for member in members:
         colour = COLOURS[member.stability.verdict]
         q, p = member.orbit.q, member.orbit.p
         x, y = (q[:, 0], p[:, 0]) if q.shape[1] == 1 else (q[:, 0], q[:, 1])
         orbits.plot(x, y, "-", lw=0.6, color=colour)
-    orbits.set_xlabel("q1")
-    orbits.set_ylabel("p1" if members and members[0].orbit.q.shape[1] == 1 else "q2")
+    orbits.set_xlabel("$q_1$")
+    orbits.set_ylabel("$p_1$" if members and members[0].orbit.q.shape[1] == 1 else "$q_2$")
     orbits.set_aspect("equal", adjustable="datalim")
     orbits.set_title("orbits")
     energy = np.array([m.energy for m in members])
@@ -43,14 +51,10 @@ def plot_followed_family(family, title: str, path) -> None:
     for kind, marker in MARKERS.items():
         if any(b.kind == kind for b in family.bifurcations):
             periods.plot([], [], marker, ms=9, mfc="none", mec="k", label=kind)
-    periods.set_xlabel("energy E")
-    periods.set_ylabel("period T")
-    periods.set_title(f"period (N = {members[0].orbit.steps})" if members else "period")
-    periods.legend(fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
+    periods.set_xlabel("energy $E$")
+    periods.set_ylabel("period $T$")
+    periods.set_title(f"period ($N = {members[0].orbit.steps}$)" if members else "period")
+    periods.legend(fontsize="small")
 
 
 def _indices(axes, members) -> None:
@@ -71,6 +75,6 @@ def _indices(axes, members) -> None:
     if largest == 0.0:
         axes.text(0.5, 0.5, "no nontrivial multiplier\n(every one is trivial)",
                   transform=axes.transAxes, ha="center", va="center")
-    axes.set_xlabel("energy E")
-    axes.set_ylabel("stability index k = mu + 1/mu")
-    axes.set_title("stability indices (|k| < 2: stable pair)")
+    axes.set_xlabel("energy $E$")
+    axes.set_ylabel(r"stability index $k = \mu + 1/\mu$")
+    axes.set_title(r"stability indices ($|k| < 2$: stable pair)")

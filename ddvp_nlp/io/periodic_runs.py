@@ -7,15 +7,11 @@ import csv
 import io
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..solution import Solution  # noqa: E402
-from . import atomic  # noqa: E402
-from .runs import figure_writer  # noqa: E402
+from ..solution import Solution
+from . import atomic, figures
+from .runs import figure_writer
 
 FAMILY_COLUMNS = ("energy", "status", "period", "nodes", "canonical", "energy_equation",
                   "closure", "unfolding", "iterations")
@@ -41,7 +37,7 @@ def write_periodic(out, scene, solution: Solution, params: dict, plot: bool = Tr
                    interruptible=None):
     """``result.npz`` (``t``, ``q``, ``p`` of the ``N + 1`` nodes, the last equal to the
     first), ``orbit.png`` if ``plot``, and ``meta.json`` last, as one set through the output
-    layer (:mod:`ddvp_nlp.io.atomic`); returns the meta."""
+    layer (`ddvp_nlp.io.atomic`); returns the meta."""
     meta = periodic_meta(scene, solution, params)
 
     def draw(handle):
@@ -65,32 +61,34 @@ def configuration_curves(solution: Solution):
     q2)`` for two, and for more (an even number) one curve per body ``(q_{2i+1}, q_{2i+2})``."""
     q, p, n = solution.q, solution.p, solution.q.shape[1]
     if n == 1:
-        return [(q[:, 0], p[:, 0], "(q, p)")]
+        return [(q[:, 0], p[:, 0], "$(q, p)$")]
     if n == 2 or n % 2:
-        return [(q[:, 0], q[:, 1], "(q1, q2)")]
+        return [(q[:, 0], q[:, 1], "$(q_1, q_2)$")]
     return [(q[:, 2 * i], q[:, 2 * i + 1], f"body {i + 1}") for i in range(n // 2)]
 
 
-def plot_orbit(solution: Solution, title: str, path: Path) -> None:
-    """The orbit (``configuration_curves``) with its nodes, and the step length along it."""
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.5))
-    curves = configuration_curves(solution)
-    for x, y, label in curves:
-        left.plot(x, y, ".-", ms=2, lw=0.8, label=label)
-    left.set_aspect("equal", adjustable="datalim")
-    left.set_xlabel("q1" if len(curves) > 1 or solution.q.shape[1] > 1 else "q")
-    left.set_ylabel("p" if solution.q.shape[1] == 1 else "q2")
-    if len(curves) > 1:
-        left.legend()
-    left.set_title("orbit")
-    right.plot(solution.t[:-1], np.diff(solution.t), ".-", ms=2, lw=0.8)
-    right.set_xlabel("t_k")
-    right.set_ylabel("tau_k")
-    right.set_title("step length along the orbit")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+def plot_orbit(solution: Solution, title: str, path: Path, fmt: str = "png") -> None:
+    """The orbit (``configuration_curves``) with its nodes at equal aspect, and the step
+    length along it; a failed solve says so in the title (its nodes are the last iterate)."""
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH, 3.2)
+        left, right = fig.subplots(1, 2, width_ratios=[1, 1.3])
+        curves = configuration_curves(solution)
+        for x, y, label in curves:
+            left.plot(x, y, ".-", ms=2, lw=0.7, label=label)
+        left.set_aspect("equal", adjustable="datalim")
+        left.set_xlabel("$q_1$" if len(curves) > 1 or solution.q.shape[1] > 1 else "$q$")
+        left.set_ylabel("$p$" if solution.q.shape[1] == 1 else "$q_2$")
+        if len(curves) > 1:
+            left.legend(loc="upper right")
+        left.set_title("orbit")
+        right.plot(solution.t[:-1], np.diff(solution.t), ".-", ms=2, lw=0.7)
+        right.set_xlabel("$t_k$")
+        right.set_ylabel(r"$\tau_k$")
+        right.set_title("step length along the orbit")
+        fig.suptitle(title if solution.success else
+                     f"{title}: FAILED, the last iterate (not an orbit)")
+        figures.save(fig, path, fmt)
 
 
 def family_row(energy: float, solution: Solution) -> dict:
@@ -128,23 +126,38 @@ def write_family(out, scene, family: list, params: dict, plot: bool = True,
     return rows
 
 
-def plot_family(rows: list[dict], title: str, path: Path, reference=None) -> None:
+def plot_family(rows: list[dict], title: str, path: Path, reference=None,
+                fmt: str = "png") -> None:
+    """The period against the energy: the discrete orbits as dots, beside the exact period
+    ``reference(E)`` where the scene has one (then a lower panel shows the relative
+    difference); failed energies as red crosses on the energy axis (their period is the last
+    iterate's, not an orbit's)."""
     ok = [r for r in rows if r["status"] == "success"]
     failed = [r for r in rows if r["status"] != "success"]
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    if reference is not None and rows:
-        energies = np.linspace(min(r["energy"] for r in rows), max(r["energy"] for r in rows),
-                               400)
-        ax.plot(energies, reference(energies), "-", color="0.6", label="exact")
-    ax.plot([r["energy"] for r in ok], [r["period"] for r in ok], "o", ms=4,
-            label=f"discrete, N = {rows[0]['nodes']}" if rows else "discrete")
-    if failed:
-        ax.plot([r["energy"] for r in failed], [r["period"] for r in failed], "x", color="r",
-                label="failed")
-    ax.set_xlabel("energy E")
-    ax.set_ylabel("period T")
-    ax.set_title(title)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figures.styled():
+        fig = figures.new_figure(figures.COLUMN_WIDTH * 1.4, 4.2 if reference else 3.0)
+        axes = fig.subplots(2 if reference else 1, 1, sharex=True, squeeze=False,
+                            height_ratios=[2.2, 1] if reference else [1])[:, 0]
+        ax = axes[0]
+        if reference is not None and rows:
+            energies = np.linspace(min(r["energy"] for r in rows),
+                                   max(r["energy"] for r in rows), 400)
+            ax.plot(energies, reference(energies), "-", color="0.45", lw=1.0,
+                    label="exact period")
+        ax.plot([r["energy"] for r in ok], [r["period"] for r in ok], "o", ms=3.5,
+                label=f"discrete, $N = {rows[0]['nodes']}$" if rows else "discrete")
+        if failed:
+            ax.plot([r["energy"] for r in failed], [0.0] * len(failed), **figures.FAILED,
+                    transform=ax.get_xaxis_transform(), clip_on=False,
+                    label="failed (no orbit)")
+        ax.set_ylabel("period $T$")
+        ax.set_title(title)
+        ax.legend(loc="best")
+        if reference is not None and ok:
+            e = np.array([r["energy"] for r in ok])
+            exact = np.asarray(reference(e), dtype=float)
+            axes[1].semilogy(e, figures.positive(np.abs(
+                np.array([r["period"] for r in ok]) - exact) / np.abs(exact)), "o-", ms=3)
+            axes[1].set_ylabel(r"$|T - T_{\mathrm{exact}}| / T_{\mathrm{exact}}$")
+        axes[-1].set_xlabel("energy $E$")
+        figures.save(fig, path, fmt)

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import atomic  # noqa: E402
-from .runs import figure_writer  # noqa: E402
+from . import atomic, figures
+from .runs import figure_writer
 
 
 def write_section(out, section, *, plot: bool = True, interruptible=None) -> dict:
     """The files of a Poincare section (module docstring) in the folder ``out``, with
-    ``meta.json`` last, as one set through the output layer (:mod:`ddvp_nlp.io.atomic`)."""
+    ``meta.json`` last, as one set through the output layer (`ddvp_nlp.io.atomic`)."""
     n = section.points.shape[1] // 2
     names = [f"q{i + 1}" for i in range(n)] + [f"p{i + 1}" for i in range(n)]
     crossings, orbits = io.StringIO(), io.StringIO()
@@ -55,28 +55,37 @@ def write_section(out, section, *, plot: bool = True, interruptible=None) -> dic
                               "section.png": figure}, meta)
 
 
-def plot_section(section, path: Path) -> None:
+def plot_section(section, path: Path, fmt: str = "png") -> None:
     """The crossings in the plane of the first free coordinate and its momentum, one colour per
     orbit."""
-    # imported here: `ddvp poincare --no-plot` loaded pyplot for nothing (0.8 s, measured)
     import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     n = section.points.shape[1] // 2
     fixed = int(section.section[1:].split("=")[0]) - 1
     free = next(i for i in range(n) if i != fixed) if n > 1 else fixed
-    fig, ax = plt.subplots(figsize=(6, 6))
-    colours = plt.cm.tab20(np.linspace(0, 1, max(section.starts.shape[0], 1)))
-    for k in range(section.starts.shape[0]):
-        mine = section.orbit == k
-        ax.plot(section.points[mine, free], section.points[mine, n + free], ".", ms=1.5,
-                color=colours[k % len(colours)])
-    ax.set_xlabel(f"q{free + 1}")
-    ax.set_ylabel(f"p{free + 1}")
-    ax.set_title(f"Poincare section {section.section} ({section.direction}), E = "
-                 f"{section.energy:g}, {section.starts.shape[0]} orbits")
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    orbits = section.starts.shape[0]
+    with figures.styled():
+        fig = figures.new_figure(figures.COLUMN_WIDTH * 1.3, figures.COLUMN_WIDTH * 1.3)
+        ax = fig.subplots()
+        colours = matplotlib.colormaps["turbo"](np.linspace(0.05, 0.95, max(orbits, 1)))
+        for k in range(orbits):
+            mine = section.orbit == k
+            ax.plot(section.points[mine, free], section.points[mine, n + free], ".", ms=1.2,
+                    mew=0, color=colours[k], rasterized=True)
+        failed = [k for k, s in enumerate(section.statuses) if s != "reached t_end"]
+        if failed:  # where a failed orbit started, so a reader knows a curve is cut short
+            ax.plot(section.starts[failed, free], section.starts[failed, n + free],
+                    **figures.FAILED, label=f"{len(failed)} orbits failed (start)")
+            ax.legend(loc="upper right")
+        ax.set_xlabel(f"$q_{free + 1}$")
+        ax.set_ylabel(f"$p_{free + 1}$")
+        ax.set_title(f"Poincare section ${_section_tex(section.section)}$ "
+                     f"({section.direction}), $E = {section.energy:g}$,\n{orbits} orbits, "
+                     f"{section.points.shape[0]} crossings")
+        figures.save(fig, path, fmt)
+
+
+def _section_tex(section: str) -> str:
+    """``q1=0`` as mathtext ``q_1 = 0``."""
+    name, _, value = section.partition("=")
+    return f"{name[0]}_{{{name[1:]}}} = {value}"

@@ -2,7 +2,7 @@
 code measures (``studies/paper.py``).
 
 Every verdict in the report ("Confirmed" or "Not confirmed") is computed from the measured
-numbers against a threshold in :data:`THRESHOLDS`, and the report prints the threshold beside
+numbers against a threshold in `THRESHOLDS`, and the report prints the threshold beside
 the verdict: a bad measurement gives "Not confirmed", whatever the paper says.
 """
 
@@ -10,16 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..scenes import load_scene  # noqa: E402
-from ..studies import paper  # noqa: E402
-from ..studies.grid import Task, run_tasks  # noqa: E402
-from . import atomic  # noqa: E402
+from ..scenes import load_scene
+from ..studies import paper
+from ..studies.grid import Task, run_tasks
+from . import atomic, figures
 
 FULL = {"t_end": 10000.0, "site_tau0": (0.05, 0.025, 0.0125, 0.005),
         "sweep_tau0": (0.5, 0.05, 0.005, 0.0005),
@@ -32,7 +28,7 @@ def reproduce(out: Path, *, quick: bool = False, workers: int | None = 1,
               scheduler: str | None = None) -> dict:
     """Measure, plot and write ``report.md`` into ``out``; return the measurements.
 
-    Each measurement is one grid task (:mod:`ddvp_nlp.grid`): ``workers``/``scheduler`` say where
+    Each measurement is one grid task (`ddvp_nlp.grid`): ``workers``/``scheduler`` say where
     they run (default: one after the other in this process).
     """
     sizes = QUICK if quick else FULL
@@ -89,59 +85,66 @@ def _figures(example, site, sweep) -> dict:
 
 
 def _paper_figures(path, example):
+    """The paper's figures 1-3 redrawn from the measured run: the step length over the whole
+    run (as its min/max envelope) and over ``t <= 350``, the angle and the step over
+    ``t <= 16``, node by node."""
     solution = example["solution"]
     t, q, tau = solution.t, solution.q[:, 0], solution.tau
-    fig, axes = plt.subplots(4, 1, figsize=(8, 10))
-    for ax, t_max, title in ((axes[0], t[-1], "figure 1"), (axes[1], 350.0, "figure 2")):
-        sel = t[:-1] <= t_max
-        ax.plot(t[:-1][sel], tau[sel], lw=0.6)
-        ax.set_ylabel("tau_k")
-        ax.set_title(f"{title}: step length against time, 0 <= t <= {t_max:.0f}", fontsize=9)
-    sel = t <= 16.0
-    axes[2].plot(t[sel], q[sel], "o-", ms=3)
-    axes[2].set_ylabel("theta_k")
-    axes[2].set_title("figure 3: angle and step length, 0 <= t <= 16", fontsize=9)
-    axes[3].plot(t[:-1][sel[:-1]], tau[sel[:-1]], "o-", ms=3)
-    axes[3].set_ylabel("tau_k")
-    axes[3].set_xlabel("t")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH * 0.8, 6.6)
+        axes = fig.subplots(4, 1)
+        for ax, t_max, title in ((axes[0], t[-1], "figure 1"), (axes[1], 350.0, "figure 2")):
+            sel = t[:-1] <= t_max
+            figures.envelope_band(ax, t[:-1][sel], tau[sel], figures.bins_for(ax), lw=0.6)
+            ax.set_ylabel(r"$\tau_k$")
+            ax.set_title(f"{title}: step length against time, $0 \\leq t \\leq {t_max:.0f}$")
+        sel = t <= 16.0
+        axes[2].plot(t[sel], q[sel], "o-", ms=2.5)
+        axes[2].set_ylabel(r"$\theta_k$")
+        axes[2].set_title(r"figure 3: angle and step length, $0 \leq t \leq 16$")
+        axes[3].plot(t[:-1][sel[:-1]], tau[sel[:-1]], "o-", ms=2.5, color="C1")
+        axes[3].set_ylabel(r"$\tau_k$")
+        axes[3].set_xlabel("$t$")
+        figures.save(fig, path)
 
 
 def _site_figure(path, site):
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for name, data in site.items():
-        for key, style in (("node", "o-"), ("midpoint", "s--")):
-            ax.loglog(data["tau0"], data[key], style,
-                      label=f"{name}, weight at the {key} (slope {data[f'slope_{key}']:.2f})")
-    _finish(fig, ax, path, "max/min - 1 of tau_k (V'' p^2 + V'^2)^(1/3)",
-            "site density (section 4)")
+    with figures.styled():
+        fig = figures.new_figure(figures.COLUMN_WIDTH * 1.4, 3.4)
+        ax = fig.subplots()
+        for name, data in site.items():
+            for key, style in (("node", "o-"), ("midpoint", "s--")):
+                ax.loglog(data["tau0"], data[key], style,
+                          label=f"{name}, weight at the {key} "
+                                f"(slope {data[f'slope_{key}']:.2f})")
+        _finish(ax, r"$\max/\min - 1$ of $\tau_k\,(V'' p^2 + V'^2)^{1/3}$",
+                "site density (section 4)")
+        figures.save(fig, path)
 
 
 def _ratio_figure(path, sweep):
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for rule, color in (("vddvp", "C0"), ("lee", "C1")):
-        rows = [r for r in sweep["rows"] if r["rule"] == rule]
-        tau0 = [r["tau0"] for r in rows]
-        ax.loglog(tau0, [r["ratio_min"] for r in rows], "v-", color=color, label=f"{rule}: min")
-        ax.loglog(tau0, [r["ratio_max"] for r in rows], "^-", color=color, label=f"{rule}: max")
-    _finish(fig, ax, path, "tau_k / tau0",
-            "paper's example to t = 16: range of the steps (section 4)")
+    with figures.styled():
+        fig = figures.new_figure(figures.COLUMN_WIDTH * 1.4, 3.4)
+        ax = fig.subplots()
+        for rule, color in (("vddvp", "C0"), ("lee", "C1")):
+            rows = [r for r in sweep["rows"] if r["rule"] == rule]
+            tau0 = [r["tau0"] for r in rows]
+            ax.loglog(tau0, [r["ratio_min"] for r in rows], "v-", color=color,
+                      label=f"{rule}: min")
+            ax.loglog(tau0, [r["ratio_max"] for r in rows], "^-", color=color,
+                      label=f"{rule}: max")
+        _finish(ax, r"$\tau_k / \tau_0$",
+                "paper's example to $t = 16$: range of the steps (section 4)")
+        figures.save(fig, path)
 
 
-def _finish(fig, ax, path, ylabel, title):
-    """Labels, legend and grid of a log-log panel against tau0; save and close."""
-    ax.set_xlabel("tau0")
+def _finish(ax, ylabel, title):
+    """Labels, legend and grid of a log-log panel against tau0."""
+    ax.set_xlabel(r"$\tau_0$")
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    ax.set_title(title)
+    ax.legend(fontsize="small")
+    ax.grid(True, which="major")
 
 
 # What each verdict is measured against (printed in the report beside the verdict).
@@ -167,7 +170,7 @@ def verdict(holds: bool, threshold: str) -> str:
 
 
 def report(measured: dict, *, quick: bool = False) -> str:
-    """``report.md`` from the measurements (the dict :func:`reproduce` returns)."""
+    """``report.md`` from the measurements (the dict `reproduce` returns)."""
     lines = ["# The paper's claims against what ddvp_nlp measures", ""]
     if quick:
         lines += ["*Quick run (`--quick`): shorter runs and fewer step sizes than the full "

@@ -1,5 +1,5 @@
 """Reading a grid's result file: a CSV with one row per finished task, as strings (a
-:class:`ddvp_nlp.studies.grid.RowSchema` types them again; ``studies/grid.py`` writes them
+`ddvp_nlp.studies.grid.RowSchema` types them again; ``studies/grid.py`` writes them
 through the output layer and checks every row it reuses)."""
 
 from __future__ import annotations

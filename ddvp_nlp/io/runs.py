@@ -2,14 +2,15 @@
 (Hamiltonian, first-order Lagrangian, higher-order Lagrangian), and reading it back.
 
 The files are written to temporary names and renamed into place under the folder's lock
-(:mod:`ddvp_nlp.io.atomic`), ``meta.json`` last; ``meta.json`` records what it describes (the
-node count and the SHA-256 of ``result.npz``), so :func:`read_run` refuses a pair that a kill
+(`ddvp_nlp.io.atomic`), ``meta.json`` last; ``meta.json`` records what it describes (the
+node count and the SHA-256 of ``result.npz``), so `read_run` refuses a pair that a kill
 between two renames, or an older tool, left mismatched. A long march also writes the same pair
-as a checkpoint at intervals (:func:`write_checkpoint`), with status ``running``.
+as a checkpoint at intervals (`write_checkpoint`), with status ``running``.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
@@ -21,13 +22,13 @@ from ..discrete.scheme import Scheme
 from ..errors import InputError
 from ..scenes import BoundaryConfig, HigherOrderScene, RunConfig, Scene
 from ..solution import Solution, Status
-from . import atomic
+from . import atomic, figures
 
 
 def prepare_folder(out, *, owned: int = 1) -> atomic.OutputFolder:
     """``out`` created, opened without following links and locked for this process
-    (:func:`ddvp_nlp.io.atomic.open_folder`); close it (or use
-    :func:`~ddvp_nlp.io.atomic.output_folder`) when done."""
+    (`ddvp_nlp.io.atomic.open_folder`); close it (or use
+    `output_folder`) when done."""
     return atomic.open_folder(out, owned=owned)
 
 
@@ -96,14 +97,14 @@ def _max_abs(values) -> float:
 def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
               config: RunConfig | BoundaryConfig | dict, solution: Solution,
               scheme: Scheme | None = None, extra: dict | None = None,
-              plot: bool = True, interruptible=None) -> dict:
-    """Write ``result.npz``, ``meta.json`` and ``trajectory.png`` of a run of any scene; return
-    the metadata.
+              plot: bool = True, interruptible=None, figure_format: str = "png") -> dict:
+    """Write ``result.npz``, ``meta.json`` and ``trajectory.png`` (``.svg``, ``.pdf``: by
+    ``figure_format``) of a run of any scene; return the metadata.
 
     A scene with ``H`` or a first-order ``L`` needs its ``scheme``. A higher-order scene's run
-    (``config`` the dict of :meth:`HigherOrderScene.resolve`) stores ``p`` as the multiplier
+    (``config`` the dict of `HigherOrderScene.resolve`) stores ``p`` as the multiplier
     ``lambda_1`` and ``energy``, the energy ``E^(k)`` where the recursion defines it.
-    ``interruptible``: as for :func:`save_run`.
+    ``interruptible``: as for `save_run`.
     """
     record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
     arrays, meta, draw = record(command, scene, config, scheme, solution, interruptible)
@@ -112,42 +113,48 @@ def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
             solution.status not in (Status.INACCURATE, Status.DRIFTED):  # judged, not failed
         meta["note"] = NOT_A_SOLUTION
     figure = draw if plot and draw is not None and solution.t.size >= 2 else None
-    return save_run(out, arrays, meta, figure, interruptible=interruptible)
+    if figure is not None:
+        figure = functools.partial(figure, fmt=figures.check_format(figure_format))
+    return save_run(out, arrays, meta, figure, interruptible=interruptible,
+                    figure_format=figure_format)
 
 
-RESULT, META, FIGURE = "result.npz", "meta.json", "trajectory.png"
+RESULT, META, FIGURE = "result.npz", "meta.json", "trajectory"
 NOT_A_SOLUTION = ("NOT A SOLUTION: the nodes are the last iterate of the failed solve, kept for "
                   "diagnosis; they do not satisfy the equations")
 
 
-def save_run(out, arrays: dict, meta: dict, draw=None, *, interruptible=None) -> dict:
-    """Write ``result.npz`` (``arrays``), ``trajectory.png`` (``draw(file)``, if given; else
-    an older figure is removed) and ``meta.json`` (``meta`` with ``nodes``, ``result_sha256``
-    and the manifest of the files) as one set through the output layer
-    (:mod:`ddvp_nlp.io.atomic`): all of them or none, ``meta.json`` last. Return the metadata
-    written.
+def save_run(out, arrays: dict, meta: dict, draw=None, *, interruptible=None,
+             figure_format: str = "png") -> dict:
+    """Write ``result.npz`` (``arrays``), ``trajectory.png`` (``draw(file)``, if given, in
+    ``figure_format``; an older figure of any format is removed) and ``meta.json`` (``meta``
+    with ``nodes``, ``result_sha256`` and the manifest of the files) as one set through the
+    output layer (`ddvp_nlp.io.atomic`): all of them or none, ``meta.json`` last.
+    Return the metadata written.
 
     ``interruptible``: a context inside which an interrupt may stop the figure (the figure is
     then left out and ``meta["figure"]`` says so; the nodes are written all the same).
-    Raises :class:`~ddvp_nlp.errors.OutputError` naming the file that could not be written;
+    Raises `OutputError` naming the file that could not be written;
     the folder then still holds the earlier set whole (or nothing)."""
     with atomic.output_folder(out) as folder:
         result = folder.scratch(RESULT, lambda handle: np.savez(handle, **arrays))
         try:
-            figure = figure_writer(folder, FIGURE, draw, interruptible)
+            name = figures.file_name(FIGURE, figure_format)
+            figure = figure_writer(folder, name, draw, interruptible)
             meta = {**meta, "nodes": int(np.asarray(arrays["t"]).size)}
             if draw is not None and figure is None:
                 meta["figure"] = "not drawn: interrupted while drawing"
         except BaseException:
             folder.remove(result)
             raise
-        return folder.commit({RESULT: result, FIGURE: figure}, meta,
+        return folder.commit({RESULT: result, **figures.other_formats(FIGURE, figure_format),
+                              name: figure}, meta,
                              digests={"result_sha256": RESULT})
 
 
 def figure_writer(folder, name: str, draw, interruptible=None):
     """The figure ``draw(file)`` written to a scratch file of ``folder`` for ``name`` (a
-    :class:`~ddvp_nlp.io.atomic.Written` a set takes), or ``None``: no figure, or an interrupt
+    `Written` a set takes), or ``None``: no figure, or an interrupt
     while it was drawn inside ``interruptible()`` (the rest of the set is written all the
     same)."""
     if draw is None:
@@ -178,7 +185,7 @@ def read_run(folder: str | os.PathLike) -> tuple[dict, dict]:
     """``(arrays, meta)`` of a run folder's last complete set, after checking that
     ``meta.json`` describes the ``result.npz`` beside it (checksum, node count, shapes, finite
     increasing times). A kill between two renames leaves the previous set, which is read
-    instead. Raises :class:`InputError` naming the folder and the reason otherwise."""
+    instead. Raises `InputError` naming the folder and the reason otherwise."""
     from ..validation import check_file_size
 
     folder = Path(folder)
@@ -279,9 +286,9 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
         meta["least_squares_steps"] = len(flagged)
         meta["least_squares_defect_max"] = _max_abs([e["energy_defect"] for e in flagged])
 
-    def draw(path):
+    def draw(path, fmt="png"):
         from .plotting import plot_trajectory
-        plot_trajectory(solution, scene, scheme, path, energies=energies)
+        plot_trajectory(solution, scene, scheme, path, energies=energies, fmt=fmt)
 
     return arrays, meta, draw if energies else None
 
@@ -337,9 +344,9 @@ def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solut
     if solution.stats.get("accuracy"):
         meta["accuracy"] = solution.stats["accuracy"]
 
-    def draw(path):
+    def draw(path, fmt="png"):
         from .plotting import plot_higher_trajectory
-        plot_higher_trajectory(solution, scene, command, exact, energy, path)
+        plot_higher_trajectory(solution, scene, command, exact, energy, path, fmt)
 
     return {"t": solution.t, "q": solution.q, "p": solution.p, "energy": energy}, meta, draw
 

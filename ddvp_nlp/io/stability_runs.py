@@ -24,7 +24,7 @@ STABILITY_COLUMNS = ("energy", "status", "period", "verdict", "indices", "moduli
 
 def _write_set(out, files: dict, meta: dict | None = None) -> None:
     """``files`` (name -> writer) into the folder ``out`` (a path or an open
-    :class:`~ddvp_nlp.io.atomic.OutputFolder`): with ``meta``, one set under the manifest
+    `OutputFolder`): with ``meta``, one set under the manifest
     ``meta.json``; without, each file replaced on its own beside a set another writer made
     (an orbit's run folder), scratch file first, renamed into place."""
     with atomic.output_folder(out) as folder:
@@ -81,7 +81,7 @@ def write_stability(out, stability) -> dict:
 
 def write_family_stability(out, family: list, stabilities: list) -> list[dict]:
     """``stability.csv`` of a natural-parameter family (``[(E, Solution)]`` with one
-    :class:`Stability` or ``None`` each), and ``stability.json`` in each ``E=`` folder."""
+    `Stability` or ``None`` each), and ``stability.json`` in each ``E=`` folder."""
     rows = [stability_row(energy, orbit, stability)
             for (energy, orbit), stability in zip(family, stabilities, strict=True)]
     with atomic.output_folder(out) as folder:

@@ -1,7 +1,7 @@
 """Work-precision output: ``work_precision.csv``, ``work_precision.png`` and ``summary.md``.
 
-:func:`work_precision` is the entry point: it checks the input, creates the folder, runs the
-comparison of :mod:`ddvp_nlp.studies.compare` (its rows go to the CSV as they finish), then
+`work_precision` is the entry point: it checks the input, creates the folder, runs the
+comparison of `ddvp_nlp.studies.compare` (its rows go to the CSV as they finish), then
 draws the figure and writes the summary from what the study returned.
 """
 
@@ -29,7 +29,7 @@ from ..studies.compare import (
 )
 from ..studies.grid import Workers, commit_grid
 from ..studies.methods import METHODS
-from . import atomic
+from . import atomic, figures
 from .markdown import failure_table, machine, seconds, yes_no
 from .runs import figure_writer
 
@@ -43,12 +43,12 @@ def work_precision(scene: Scene, *, out: str | os.PathLike,
     ``out`` (created). Returns the rows.
 
     Args:
-        scene: the scene; ``overrides`` as for :meth:`Scene.resolve` (parameters, ``t_end``, ...).
+        scene: the scene; ``overrides`` as for `Scene.resolve` (parameters, ``t_end``, ...).
         out: the folder.
         options: the methods, their sweeps, the timing and the reference
-            (:class:`~ddvp_nlp.studies.compare.CompareOptions`).
-        compilation: for the compiled methods, as in :func:`ddvp_nlp.march`.
-        workers: where the runs go (:class:`~ddvp_nlp.studies.grid.Workers`). The default
+            (`CompareOptions`).
+        compilation: for the compiled methods, as in `ddvp_nlp.march`.
+        workers: where the runs go (`Workers`). The default
             runs them one after the other in this process, because the run times are what is
             compared: two runs at once on a 2-core machine slow each other down.
         progress: a progress bar on stderr.
@@ -72,40 +72,48 @@ def read_rows(path) -> list[dict]:
     return ROWS.read(path)
 
 
-def plot_work_precision(rows, path, *, title):
-    """Error against run time, one panel per error kind: each method's successful runs as a
-    line, its failed ones as crosses."""
-    import matplotlib
+# The axis labels of the figure: what is measured, and that it is absolute (the summary's
+# header says against what: the DOP853 reference, the first node's energy).
+AXIS_LABELS = {"trajectory_error": r"trajectory error $\max_k |z_k - z_{\mathrm{ref}}(t_k)|$",
+               "energy_error": r"energy error $\max_k |H_k - H_0|$ (absolute)"}
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(ERROR_KINDS), figsize=(12, 4.6), constrained_layout=True)
-    for ax, (kind, label) in zip(axes, ERROR_KINDS.items(), strict=True):
-        for i, method in enumerate(methods_in(rows)):
-            plot_method(ax, rows, method, kind, i)
-        ax.set_xlabel("run time [s] (best of repeats, build excluded)")
-        ax.set_ylabel(label)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
-    fig.suptitle(title)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def plot_work_precision(rows, path, *, title, fmt: str = "png"):
+    """Error against run time, one panel per error kind, each with its legend: each method's
+    successful runs as a line; a run that failed before ``t_end`` has no error to show (its
+    partial run's error would flatter it) and is marked by a cross on the panel's top edge at
+    its run time."""
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH, 3.3)
+        axes = fig.subplots(1, len(ERROR_KINDS))
+        for ax, kind in zip(axes, ERROR_KINDS, strict=True):
+            for i, method in enumerate(methods_in(rows)):
+                plot_method(ax, rows, method, kind, i)
+            ax.set_xlabel("run time [s] (best of repeats, build excluded)")
+            ax.set_ylabel(AXIS_LABELS.get(kind, kind))
+            ax.grid(True, which="major")
+            if any(r["status"] != "success" for r in rows):
+                figures.failed_legend(ax, "failed before $t_{end}$ (at its run time)")
+            ax.legend(loc="lower left", fontsize="small")
+        fig.suptitle(title)
+        figures.save(fig, path, fmt)
 
 
 def plot_method(ax, rows, method, kind, index):
+    """One method on one panel: its successful runs as a line, its failures as crosses on the
+    top edge (x: run time; y: the axes' top, not an error)."""
     markers = "os^vD<>ph*"
     good = [r for r in succeeded(rows, method) if r[kind] > 0]
     failed = [r for r in rows if r["method"] == method and r["status"] != "success"
-              and r["run_s"] > 0 and r[kind] > 0]
-    colour = f"C{index}"
+              and r["run_s"] > 0]
+    colour = f"C{index % 8}"
     if good:
-        line, = ax.loglog([r["run_s"] for r in good], [r[kind] for r in good],
-                          marker=markers[index % len(markers)], label=method)
-        colour = line.get_color()  # the failures of a method in its own line's colour
+        ax.loglog([r["run_s"] for r in good], [r[kind] for r in good],
+                          marker=markers[index % len(markers)], label=method, color=colour)
     if failed:
-        ax.loglog([r["run_s"] for r in failed], [r[kind] for r in failed], "x",
-                  color=colour, label=f"{method} (failed before t_end)")
+        ax.set_xscale("log")
+        ax.plot([r["run_s"] for r in failed], [1.0] * len(failed), "x", color=colour, ms=5,
+                mew=1.2, transform=ax.get_xaxis_transform(), clip_on=False)
 
 
 def summary(result: WorkPrecision) -> str:

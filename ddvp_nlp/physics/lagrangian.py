@@ -36,7 +36,7 @@ class LagrangianSystem(HamiltonianSystem):
 
     Attributes:
         lagrangian: ``L(q, v, t, **params)`` returning a scalar CasADi expression.
-        n, params, name: as for :class:`HamiltonianSystem`.
+        n, params, name: as for `HamiltonianSystem`.
         v: the velocity symbols; ``L`` the expression.
     """
 
@@ -72,7 +72,7 @@ class LagrangianSystem(HamiltonianSystem):
 
 
 def _check_regular(system: LagrangianSystem, L_vv) -> None:
-    """``d2L/dv2`` must be invertible (:func:`is_regular`)."""
+    """``d2L/dv2`` must be invertible (`is_regular`)."""
     function = ca.Function("L_vv", [system.q, system.v, system.t, system.theta], [L_vv])
     if not is_regular(function, vectors=2, n=system.n, theta=list(system.params.values())):
         raise InputError(

@@ -15,9 +15,9 @@ three verdicts:
 
 **Scales come from the motion, never from 1.** ``S_i``, the size of component ``i`` of
 ``z = (q, p)``, is its range over the run (the nodes and the reference's states), at least a
-tenth of the largest range of its block (``q`` or ``p``; :func:`motion_scales`). The energy
+tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). The energy
 scale ``E_s = max_k |S * grad H(z_k, t_k)|_2`` is how much ``H`` changes when the state moves by
-``S``, where it changes fastest (:func:`energy_scale`): an energy error ``dE`` puts the nodes at
+``S``, where it changes fastest (`energy_scale`): an energy error ``dE`` puts the nodes at
 least ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
 these, so a verdict does not change when ``q``, ``p``, ``t`` and ``H`` are rescaled
 consistently, when a constant is added to ``H`` or when a translation-invariant system is
@@ -28,7 +28,7 @@ The tests, in the order the verdict reads them:
 1. **Local error** of every step: ``d_k = z_{k+1} - Phi_{tau_k}(z_k)`` with ``Phi`` the exact
    flow over the accepted step; the step fails when ``|d_k,i| > rtol S_i (+ atol)`` for some
    ``i``. A march's own loop already computes ``|z_{k+1} - RK4(z_k)|_inf`` with its steps (the
-   *first look*, :class:`ErrorEstimates`, compiled into the march's chunk); the steps whose
+   *first look*, `ErrorEstimates`, compiled into the march's chunk); the steps whose
    first look is below half the bound pass, the others are measured again with the reference
    flow.
 2. **Energy level of the first step** (energy rules, which keep it for the whole march): the
@@ -60,11 +60,11 @@ underestimates the true error 3-90 times once that error passes a few percent of
 (kepler at ``e = 0.6``: 3.4e-2 against a true 1.34). It is kept as the march's first look
 (``linear_estimate_max`` in the report) and never decides.
 
-The check runs in two places. During a march, :class:`AccuracyMonitor` (a monitor of the step
+The check runs in two places. During a march, `AccuracyMonitor` (a monitor of the step
 loop, ``driver.py``) gathers the first look the compiled chunk computed with its steps (``Advance
 .values``, ``ACCURACY_VALUES``) or computes it itself; it never stops the march, because the
-scales are those of the whole run. At the end, :class:`Judgement` makes the verdict on the
-finished trajectory; :func:`assess` does the same for the trajectory of any method, a
+scales are those of the whole run. At the end, `Judgement` makes the verdict on the
+finished trajectory; `assess` does the same for the trajectory of any method, a
 fixed-endpoint or periodic solution.
 """
 
@@ -314,7 +314,7 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
 class FirstLook:
     """The first look of a second-order march: ``linear`` (N,), the first-order propagation's
     ``|e_{k+1}|_inf`` its own loop computed (the compiled chunk or the careful path's
-    :class:`ErrorEstimates`), reported beside the reference's error. Given, it also lets the
+    `ErrorEstimates`), reported beside the reference's error. Given, it also lets the
     local test pass the steps whose error against one RK4 step of the exact flow is below
     ``CANDIDATE`` times the bound (RK4's own error, ``O(tau^5)``, is far below a second-order
     scheme's ``O(tau^3)``; a method of order 4 or more must be measured with the reference)."""
@@ -333,7 +333,7 @@ class Level:
 
 class Judgement:
     """The accuracy check of one trajectory ``t`` (N+1,), ``z`` (N+1, 2n) against the exact
-    flow, made once (:meth:`report`); see the module docstring for the tests and the verdict."""
+    flow, made once (`report`); see the module docstring for the tests and the verdict."""
 
     def __init__(self, system, theta, tolerance: Tolerance, *, compiler=None, cache_dir=None):
         self.system, self.theta, self.tolerance = system, np.asarray(theta, float), tolerance
@@ -451,7 +451,7 @@ class Judgement:
                 "error_max_t": worst[1], "reference_error": own / 255}
 
     def _measured(self, t, z, states, estimate, own, substeps) -> dict:
-        """The same figures as :meth:`_scan` for reference states given whole (an exact
+        """The same figures as `_scan` for reference states given whole (an exact
         solution)."""
         extent = _Extent(z)
         extent.add(states)
@@ -590,9 +590,9 @@ def apply_verdict(solution, report: dict, tolerance: Tolerance, advice: str = AD
 
 class AccuracyMonitor:
     """The march's side of the check, a monitor of the step loop (``driver.py``, rule 5): it
-    gathers the first look (:class:`FirstLook`) the stepper computed with its steps, or
-    computes it (:class:`ErrorEstimates`), and the level the first step sets. It never stops a
-    march: the verdict is made on the whole run (:meth:`report`), whose scale it needs.
+    gathers the first look (`FirstLook`) the stepper computed with its steps, or
+    computes it (`ErrorEstimates`), and the level the first step sets. It never stops a
+    march: the verdict is made on the whole run (`report`), whose scale it needs.
 
     ``level`` is ``None`` for schemes without an energy level (fixed steps), else a function of
     the first two nodes ``(t, z)`` giving ``(level, clock)``."""
@@ -642,7 +642,7 @@ class AccuracyMonitor:
         return self.global_errors.head(steps)
 
     def report(self, t, z, exact=None) -> tuple[dict, np.ndarray]:
-        """The verdict on the march's nodes ``t``, ``z`` (:class:`Judgement`)."""
+        """The verdict on the march's nodes ``t``, ``z`` (`Judgement`)."""
         steps = t.size - 1
         look = FirstLook(self.global_error(steps))
         if look.linear.size != steps:
@@ -656,8 +656,8 @@ class AccuracyMonitor:
 def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, compiler=None,
            cache_dir=None, exact=None) -> tuple[dict, np.ndarray]:
     """The accuracy check on a finished trajectory of any method (``t`` (N,), ``z`` (N, 2n)):
-    the report of :meth:`Judgement.report` and the local error of every step. ``level`` is the
-    energy level the method keeps, if it keeps one (a :class:`Level`); ``exact``, the motion's
+    the report of `Judgement.report` and the local error of every step. ``level`` is the
+    energy level the method keeps, if it keeps one (a `Level`); ``exact``, the motion's
     exact states at given times, if known (``exact(t) -> (N, 2n)``)."""
     return Judgement(system, theta, tolerance, compiler=compiler, cache_dir=cache_dir).report(
         t, z, level=level, exact=exact)

@@ -8,8 +8,8 @@ at once both end with a complete library.
 The cache heals: beside each library ``chunk_KEY.so`` its SHA-256 is written at build time
 (``chunk_KEY.so.sha256``), and a library is loaded only when its bytes match; a truncated,
 empty or foreign file (which crashed every later run with a bus error) is rebuilt. When the cache
-folder cannot be used or the compiler fails, :class:`CompileUnavailable` says why, and the
-callers run CasADi's virtual machine instead, with one warning (:func:`warn_once`).
+folder cannot be used or the compiler fails, `CompileUnavailable` says why, and the
+callers run CasADi's virtual machine instead, with one warning (`warn_once`).
 """
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def warn_once(reason: Exception) -> None:
 def compile_function(function: ca.Function, compiler: str, folder: Path, *,
                      prefix: str = "chunk") -> ca.Function:
     """Generate, compile (once per hash; again if the cached library fails its checksum) and
-    load ``function`` as ``PREFIX_HASH.so``. Raises :class:`CompileUnavailable` if the folder or
+    load ``function`` as ``PREFIX_HASH.so``. Raises `CompileUnavailable` if the folder or
     compiler fails."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
@@ -102,7 +102,7 @@ def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
                    salt=()) -> Path:
     """``PREFIX_HASH.so`` in ``folder``, compiled from the C ``code`` (once per hash of the
     code, the compiler, its flags and ``salt``; again if the cached library fails its
-    checksum), each file renamed into place complete. Raises :class:`CompileUnavailable` if the
+    checksum), each file renamed into place complete. Raises `CompileUnavailable` if the
     folder or the compiler fails; ``name`` is what a compiler error names."""
     key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, *salt])
                          .encode()).hexdigest()[:24]
@@ -172,7 +172,7 @@ class FunctionBuffer:
 
     Each dense input or output of shape ``(rows, columns)`` is a C-ordered array of shape
     ``(columns, rows)`` (CasADi's column-major order): a mapped function's columns are its rows.
-    :meth:`__call__` copies the inputs in and returns the output arrays, which the next call of
+    `__call__` copies the inputs in and returns the output arrays, which the next call of
     the same thread overwrites (one set of arrays per thread: cached functions are shared)."""
 
     def __init__(self, function: ca.Function):
@@ -205,7 +205,7 @@ class FunctionBuffer:
 
 
 def buffered(function: ca.Function, *key, owner) -> FunctionBuffer:
-    """``function`` called through a :class:`FunctionBuffer` kept per ``owner`` (held weakly,
+    """``function`` called through a `FunctionBuffer` kept per ``owner`` (held weakly,
     as cached functions are) and ``key``: the same evaluation as a call with DM arguments,
     without their conversions (about 80-100 us a call). A new buffer where the cache holds
     one of another function under the same key."""

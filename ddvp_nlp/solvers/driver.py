@@ -1,11 +1,11 @@
 """One step loop for every integrator that marches: the driver and the contract of a stepper.
 
 A *stepper* knows one scheme: how to take steps and whether a step is acceptable. The *driver*
-(:func:`drive`) owns everything else: the node arrays, the end, the bounds, the interrupt, the
+(`drive`) owns everything else: the node arrays, the end, the bounds, the interrupt, the
 monitors, the progress bar and the message. The contract, rule by rule:
 
 1. ``stepper.advance(nodes, budget)`` takes steps from the newest node of ``nodes`` (a
-   :class:`Nodes`, read-only for the stepper) and returns an :class:`Advance`: the new nodes ``t``
+   `Nodes`, read-only for the stepper) and returns an `Advance`: the new nodes ``t``
    ``(m,)`` and ``z`` ``(m, d)`` in order, each already accepted by the stepper's own acceptance
    test, with ``m <= budget`` (the steps left under ``max_steps``).
 2. ``Advance.status`` is ``Status.SUCCESS`` while the stepper can go on; any other status ends the
@@ -21,7 +21,7 @@ monitors, the progress bar and the message. The contract, rule by rule:
    with the new nodes at ``first ..``). A monitor returns ``None`` to go on, or
    ``(status, detail, keep)``: the run ends with ``status`` and only the first ``keep`` new nodes
    stay; the monitors after it in ``monitors`` see only those (and may cut further).
-6. The message of the result is written here and only here (:func:`message`): on success
+6. The message of the result is written here and only here (`message`): on success
    ``"reached t_end = ... in N steps"``, on failure the status's own text, the step, the time and
    state of the last kept node (``stepper.describe(z)``), and the detail.
 

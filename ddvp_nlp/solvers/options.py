@@ -3,16 +3,16 @@
 Every public solver takes its essential arguments (the system, the start or the ends, the time
 span, the grid) and then at most a few of these:
 
-- :class:`StepControl`: when a march accepts a step and when it stops (``march``,
+- `StepControl`: when a march accepts a step and when it stops (``march``,
   ``march_ensemble``);
-- :class:`Tolerance`: what the accuracy check, which does not trust the scheme's own equations,
+- `Tolerance`: what the accuracy check, which does not trust the scheme's own equations,
   accepts (``march``, ``march_ensemble``; the grid solvers use its defaults);
-- :class:`GridOptions`: how a whole-grid problem is solved (``solve_bvp``, ``solve_periodic``,
+- `GridOptions`: how a whole-grid problem is solved (``solve_bvp``, ``solve_periodic``,
   ``solve_periodic_family``, ``solve_bvp_higher``);
-- :class:`Compilation`: which compiled code runs (every solver that generates C);
-- :class:`Output`: progress, checkpoints and stop requests (``march``, ``solve_bvp``).
+- `Compilation`: which compiled code runs (every solver that generates C);
+- `Output`: progress, checkpoints and stop requests (``march``, ``solve_bvp``).
 
-Each object checks its fields when it is made: a bad value is an :class:`InputError` that names
+Each object checks its fields when it is made: a bad value is an `InputError` that names
 the field and the value, raised before any solver is built. Checks that need the problem (a
 ``tau_min`` against ``tau0``, a ``tau_floor`` against the mean step) are made by the solver,
 still before it builds anything. The objects are frozen: ``dataclasses.replace(options,
@@ -174,7 +174,7 @@ class GridOptions:
             sparse), ``"banded"`` or ``"sparse"`` (SuperLU).
         time_limit: seconds after which the solve stops (status ``time_limit``).
         verbose: IPOPT's iteration log on stdout.
-        accuracy: the accuracy check of the solution (:class:`Tolerance`; ``None``: its
+        accuracy: the accuracy check of the solution (`Tolerance`; ``None``: its
             defaults). A grid solution is always checked.
     """
 
@@ -264,12 +264,20 @@ class Output:
         stop: optional ``stop() -> bool``, asked after every stepper call; ``True`` ends the
             march with status ``interrupted``, every accepted node kept (how the command line
             turns Ctrl-C and SIGTERM into a clean end, never an exception inside CasADi).
+        t_eval: times (sorted, inside ``t_span``) at which a march reports ``z = (q, p)`` from
+            its dense output, beside the nodes (``Solution.t_eval``, ``z_eval``).
+        events: a function ``g(t, q, p)`` or a list of them, with scipy's optional attributes
+            ``direction``, ``terminal`` (and ``vectorized``): their crossings are located on the
+            march's dense output (``Solution.t_events``, ``z_events``); a terminal one ends
+            the march with status ``event`` (``solvers/dense.py``).
     """
 
     progress: bool = False
     checkpoint: Callable | None = None
     checkpoint_interval: float = 5.0
     stop: Callable[[], bool] | None = None
+    t_eval: object = None
+    events: object = None
 
     def __post_init__(self):
         _set(self, "progress", _flag("progress", self.progress))
@@ -283,10 +291,14 @@ class Output:
             raise InputError(f"checkpoint_interval must be at least {MIN_CHECKPOINT_INTERVAL} "
                              f"s (a checkpoint writes every node so far), got {interval!r}")
         _set(self, "checkpoint_interval", interval)
+        from .dense import check_events, check_times
+
+        _set(self, "t_eval", check_times(self.t_eval))
+        _set(self, "events", check_events(self.events))
 
 
 def coerce(value, kind, name: str):
-    """``value`` if it is a ``kind`` (``None``: the defaults), else an :class:`InputError`
+    """``value`` if it is a ``kind`` (``None``: the defaults), else an `InputError`
     naming the argument (``steps=dict(...)`` instead of ``steps=StepControl(...)``)."""
     if value is None:
         return kind()

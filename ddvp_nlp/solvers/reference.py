@@ -125,9 +125,9 @@ def node_function(system) -> ca.Function:
 
 
 class ReferenceFlow:
-    """The exact flow of ``system`` with parameters ``theta``, by :func:`pair_function` on
-    blocks of ``BLOCK`` intervals: as a chain (:meth:`chain`, the reference trajectory from one
-    state through given node times) and as a map (:meth:`maps`, the flow over each of many
+    """The exact flow of ``system`` with parameters ``theta``, by `pair_function` on
+    blocks of ``BLOCK`` intervals: as a chain (`chain`, the reference trajectory from one
+    state through given node times) and as a map (`maps`, the flow over each of many
     intervals from its own start)."""
 
     def __init__(self, system, theta, *, compiler=None, cache_dir=None):
@@ -230,7 +230,7 @@ class ReferenceFlow:
 
     def first_look(self, t: np.ndarray, z: np.ndarray):
         """``z_{k+1} - RK4(z_k)`` over every step between the rows of ``t``, ``z`` (rows), and
-        the vector field and ``H`` at every node (as :meth:`at_nodes`)."""
+        the vector field and ``H`` at every node (as `at_nodes`)."""
         look = self._compiled("look")
         d, f, H = np.empty((t.size - 1, z.shape[1])), np.empty_like(z), np.empty(t.size)
         tau = np.diff(t)

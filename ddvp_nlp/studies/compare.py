@@ -12,11 +12,11 @@ For each method a sweep of its accuracy knob; for each run:
   scheme itself conserves, e.g. ``H`` at interval midpoints for ``vddvp``).
 
 A run that fails keeps its row, with its status and message and the errors of the nodes it
-accepted; the sweep goes on. :func:`plan_work_precision` checks the input,
-:func:`run_work_precision` runs the grid into its result file and returns a
-:class:`WorkPrecision`; the rankings
-(:func:`pareto`, :func:`cheapest`, ...) read its rows. The CSV, figure and ``summary.md`` are
-written by :mod:`ddvp_nlp.io.work_precision`.
+accepted; the sweep goes on. `plan_work_precision` checks the input,
+`run_work_precision` runs the grid into its result file and returns a
+`WorkPrecision`; the rankings
+(`pareto`, `cheapest`, ...) read its rows. The CSV, figure and ``summary.md`` are
+written by `ddvp_nlp.io.work_precision`.
 """
 
 from __future__ import annotations
@@ -128,7 +128,7 @@ class WorkPrecisionPlan:
 
 @dataclass
 class WorkPrecision:
-    """What a comparison measured: one row per run (:data:`COLUMNS`), and what the rows are
+    """What a comparison measured: one row per run (`COLUMNS`), and what the rows are
     relative to (the run configuration, the reference, the timing settings)."""
 
     rows: list[dict]
@@ -232,7 +232,7 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
                         compilation: Compilation | None = None,
                         workers: Workers | None = None) -> WorkPrecisionPlan:
     """Check a comparison's input before anything runs (arguments as
-    :func:`ddvp_nlp.io.work_precision.work_precision`)."""
+    `ddvp_nlp.io.work_precision.work_precision`)."""
     options = coerce(options, CompareOptions, "options")
     compilation = coerce(compilation, Compilation, "compilation")
     workers = coerce(workers, Workers, "workers")
@@ -364,7 +364,7 @@ def time_to_reach(front, level) -> tuple[float, bool] | None:
 
 def error_levels(rows, kind) -> list[float]:
     """The decades of error the successful runs span, from at most 1e-1 down to at least
-    :data:`FINEST_LEVEL`, coarse to fine."""
+    `FINEST_LEVEL`, coarse to fine."""
     errors_seen = [r[kind] for r in rows if r["status"] == "success" and r[kind] > 0
                    and math.isfinite(r[kind])]
     if not errors_seen:

@@ -1,12 +1,12 @@
 """Grids of independent runs: one task, one result row; in this process, on local worker
 processes, or on a Dask cluster, with the same rows whichever way they ran.
 
-A :class:`Task` names a function by ``"module:function"`` with its arguments, so it pickles small
+A `Task` names a function by ``"module:function"`` with its arguments, so it pickles small
 and each worker imports and runs it by itself (building, or loading from the cache, whatever
 compiled functions it needs; ``fast.compile_function`` writes each library atomically, so workers
 sharing a cache folder are safe).
 
-:func:`run_tasks` runs tasks and yields ``(task, result, error)`` as they finish:
+`run_tasks` runs tasks and yields ``(task, result, error)`` as they finish:
 
 - ``workers=1`` and no scheduler: one after the other in this process (no Dask);
 - ``scheduler=None`` otherwise: a ``dask.distributed.LocalCluster`` of ``workers`` processes
@@ -18,10 +18,10 @@ A task that raises is retried once, then reported with the error. A task whose w
 run again on another worker once (local clusters run with ``allowed-failures = 1``), then
 reported as ``worker_died``.
 
-:func:`run_grid` adds the result file (:mod:`ddvp_nlp.io.row_file`): each row is appended to a
+`run_grid` adds the result file (`ddvp_nlp.io.row_file`): each row is appended to a
 CSV as it arrives, so an interrupted grid keeps every finished row, and a second call with the
 same tasks skips the keys already in the file (resume). At the end the file is rewritten in task
-order, holding exactly the rows of this grid. A :class:`RowSchema` types the rows read back.
+order, holding exactly the rows of this grid. A `RowSchema` types the rows read back.
 """
 
 from __future__ import annotations
@@ -290,7 +290,7 @@ def held_signals():
 
 @dataclass(frozen=True)
 class RowSchema:
-    """A grid's table: its columns and which of them hold numbers or flags. :meth:`parse` is
+    """A grid's table: its columns and which of them hold numbers or flags. `parse` is
     the one place a row read back from the result file gets its types again."""
 
     columns: tuple[str, ...]
@@ -336,12 +336,12 @@ def run_grid(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequence[s
     interrupt or a kill keeps every finished row there). With ``commit`` the rows are then
     written to ``NAME.csv`` (through the output layer, with a manifest) and the journal is
     removed; without, the caller commits them with the other files of its set
-    (:func:`commit_grid`).
+    (`commit_grid`).
 
     Each task returns a row (a dict over ``columns``, ``key`` included); a task that fails
     gives ``failure_row(task, error)`` instead. Every row carries the task's ``fingerprint``
     and a checksum of its own values. ``resume``: rows already in ``NAME.csv`` or the journal
-    are reused after they are checked (:func:`read_rows_back`: checksum, this grid's key and
+    are reused after they are checked (`read_rows_back`: checksum, this grid's key and
     fingerprint, a known status, ``finite`` columns finite on a success); rows of another
     grid are refused, not overwritten (``InputError``); ``resume=False`` ignores them (they
     are replaced when this grid commits).
@@ -516,7 +516,7 @@ GRID_FILE_LIMIT = 1 << 30
 
 def _file_rows(path: Path, columns) -> Iterator[tuple[int, dict]]:
     """``(line number, row)`` of a grid file (none if it does not exist); ``InputError`` for a
-    file that is not one (module docstring of :func:`read_rows_back`)."""
+    file that is not one (module docstring of `read_rows_back`)."""
     import csv
     import io
 
@@ -552,7 +552,7 @@ def _file_rows(path: Path, columns) -> Iterator[tuple[int, dict]]:
 
 
 def describe_error(error: str) -> tuple[str, str]:
-    """``(status, message)`` of an error from :func:`run_tasks`."""
+    """``(status, message)`` of an error from `run_tasks`."""
     status, _, message = error.partition(": ")
     return status, message.strip().splitlines()[-1] if message.strip() else status
 

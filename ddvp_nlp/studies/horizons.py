@@ -1,15 +1,15 @@
 """Work-precision over several horizons, and the growth of each method's error with time.
 
-A horizon ``T`` runs the comparison of :mod:`.compare` to ``t_end = t0 + T unit`` (``unit``: a
+A horizon ``T`` runs the comparison of `.compare` to ``t_end = t0 + T unit`` (``unit``: a
 period, or the scene's own time unit). Long horizons cost what their steps cost, so the sweeps
-are cut before they run (:func:`affordable_knobs`, each cut named in the report): steps that
+are cut before they run (`affordable_knobs`, each cut named in the report): steps that
 would pass ``max_steps`` give way to coarser ones, and runs predicted from the shorter horizon
 to take longer than a budget are left out. The reference of a long horizon is the scene's exact
 solution where it has one (Kepler, pendulum, harmonic); otherwise DOP853 at 1e-13 up to
-:func:`reference_kind`'s span, and beyond it none: the energy error is still measured, the
+`reference_kind`'s span, and beyond it none: the energy error is still measured, the
 trajectory error is not (over 10^5 time units of a chaotic orbit it would measure nothing).
 
-Error growth (:func:`error_growth`): for each method one run at about equal cost (the run of
+Error growth (`error_growth`): for each method one run at about equal cost (the run of
 its sweep whose time is nearest, in log, to the common cost: the largest of the methods'
 cheapest run times, so every method can afford it), rerun and measured at every node: the
 energy error ``|H(z_k) - H(z_0)|`` and the trajectory error ``|z_k - z_ref(t_k)|_inf`` against
@@ -153,7 +153,7 @@ def _thin(t: np.ndarray, points: int) -> np.ndarray:
 
 def error_growth(scene, overrides, rows, *, compiler, cache_dir=None, max_steps: int,
                  points: int = 400, reference: str = "auto") -> tuple[float, list[Growth]]:
-    """The common cost and each method's :class:`Growth` (see the module docstring)."""
+    """The common cost and each method's `Growth` (see the module docstring)."""
     config = scene.resolve(overrides)
     reference = reference_for(scene, overrides, reference)
     system = scene.system

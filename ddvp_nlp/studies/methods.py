@@ -1,9 +1,9 @@
 """Every integrator the comparison runs, as the studies see it.
 
 Each method states its traits once, beside its implementation under ``solvers/baselines/`` (a
-:class:`~ddvp_nlp.solvers.baselines.integrator.Integrator` constant: name, what it is, order,
+`Integrator` constant: name, what it is, order,
 symplectic, energy-conserving, knob, whether it applies to a system and why not, whether it
-repeats another method there). A :class:`Method` is that integrator as the studies see it, with
+repeats another method there). A `Method` is that integrator as the studies see it, with
 the default knob values of a sweep. Adding a method to the comparison: declare its
 ``Integrator`` in its implementation module, then add it to ``solvers/baselines``'
 ``INTEGRATORS`` (the contract is in that package's docstring).
@@ -21,7 +21,7 @@ from ..solvers.baselines.fixed_step import step_residuals
 
 
 class Method(Integrator):
-    """An :class:`Integrator` of the comparison, with the default knob values of a sweep."""
+    """An `Integrator` of the comparison, with the default knob values of a sweep."""
 
     def sweep(self, config: RunConfig, halvings: int) -> list[float]:
         """Default knob values, coarse to fine: steps ``2 tau0, tau0, tau0/2, ...``

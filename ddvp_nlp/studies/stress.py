@@ -13,10 +13,10 @@ only while ``c(z) = -(f' H_zz f)/8`` keeps its sign along the orbit. ``w = f' H_
 at the nodes of the case's DOP853 run (rtol 1e-10); a sign change predicts a breakdown, and the
 smallest ``|w|/max|w|`` says how close the orbit comes to one.
 
-:func:`plan_stress` checks the bounds and makes the tasks, :func:`run_stress` runs them into the
-result file and returns a :class:`StressResult` (rows, cases, predictions); the Markdown table
-and figure are written by :mod:`ddvp_nlp.io.stress_report`. The methods are the registry's
-(:data:`ddvp_nlp.studies.methods.METHODS`), and a report's columns are the methods that ran.
+`plan_stress` checks the bounds and makes the tasks, `run_stress` runs them into the
+result file and returns a `StressResult` (rows, cases, predictions); the Markdown table
+and figure are written by `ddvp_nlp.io.stress_report`. The methods are the registry's
+(`ddvp_nlp.studies.methods.METHODS`), and a report's columns are the methods that ran.
 """
 
 from __future__ import annotations
@@ -255,7 +255,7 @@ class StressPlan:
 
 @dataclass
 class StressResult:
-    """What a grid measured: one row per run (:data:`COLUMNS`), the cases, the breakdown each
+    """What a grid measured: one row per run (`COLUMNS`), the cases, the breakdown each
     case's DOP853 run predicts, and the bounds the runs had."""
 
     rows: list[dict]
@@ -304,7 +304,7 @@ def plan_stress(*, quick: bool = False, cases: list[Case] | None = None,
                 steps: StepControl | None = None, compilation: Compilation | None = None,
                 workers: Workers | None = None) -> StressPlan:
     """Check the bounds and make every case's tasks (arguments as
-    :func:`ddvp_nlp.io.stress_report.stress`; of ``steps`` each run takes ``max_steps`` and
+    `ddvp_nlp.io.stress_report.stress`; of ``steps`` each run takes ``max_steps`` and
     ``time_limit``)."""
     steps = DEFAULT_STEPS if steps is None else coerce(steps, StepControl, "steps")
     if steps.time_limit is None:

@@ -2,8 +2,8 @@
 stress grid, on local worker processes or a Dask cluster, resumable.
 
 A grid is given on the command line (``--grid e=0.5:0.95:10 --grid tau0=0.01,0.005``) or in a
-TOML file (read by :mod:`ddvp_nlp.io.grid_file`) as a :class:`SweepSpec`;
-:func:`sweep_cases` turns it into the stress grid's cases.
+TOML file (read by `ddvp_nlp.io.grid_file`) as a `SweepSpec`;
+`sweep_cases` turns it into the stress grid's cases.
 
 An axis is a scene parameter or a run setting (``t0``, ``t_end``); ``tau0`` is the step of every
 step method (the first step of ``vddvp``/``lee``) and ``rtol`` the tolerance of DOP853.
@@ -59,7 +59,7 @@ def evenly_spaced(where, start, stop, count) -> list[float]:
 
 
 def sweep_cases(spec: SweepSpec) -> list[Case]:
-    """The product of the axes, one :class:`Case` per point; every point's settings are
+    """The product of the axes, one `Case` per point; every point's settings are
     checked against the scene before anything runs."""
     scene = load_scene(spec.scene)
     check_comparable(scene)

@@ -1,9 +1,9 @@
 """The accuracy check's verdicts on systems nobody chose, set beside the true error of each run.
 
-A *case* is a random Hamiltonian in ``n = 1 .. 3`` degrees of freedom (:class:`RandomSystem`:
+A *case* is a random Hamiltonian in ``n = 1 .. 3`` degrees of freedom (`RandomSystem`:
 a polynomial or trigonometric potential with couplings, masses, a non-separable term, a forcing
 ``F cos(Omega t) q_1`` and a gauge term ``A sin(Omega' t)``), a start, a first step and a
-horizon, all in the system's own units, and the units it is marched in (:class:`Units`: ``q``,
+horizon, all in the system's own units, and the units it is marched in (`Units`: ``q``,
 ``p`` and ``t`` rescaled, a constant added to ``H``, a translation of ``q`` where ``H`` is
 translation-invariant, a shift of the clock). In the marched variables
 
@@ -21,7 +21,7 @@ S_i`` with ``S`` the motion's scales (``accuracy.motion_scales``) over the run's
 true states, over the nodes the verdict covered (up to ``reference_until``, where the check's
 scan stopped).
 
-How a verdict is judged (:func:`classify`, ``MARGIN = 2``):
+How a verdict is judged (`classify`, ``MARGIN = 2``):
 
 - a **false success**: the verdict is ``accurate`` and the true error is above
   ``MARGIN * global_tol``;
@@ -193,7 +193,7 @@ def draw_case(rng: np.random.Generator, *, scaled: bool = True) -> Case:
 
 
 def draw_units(rng: np.random.Generator, *, invariant: bool) -> Units:
-    """Random units (see :func:`draw_case`)."""
+    """Random units (see `draw_case`)."""
     q, p, t = (10 ** rng.uniform(-4, 4) for _ in range(3))
     return Units(q=float(q), p=float(p), t=float(t),
                  offset=float(rng.uniform(-1, 1) * 10 ** rng.uniform(0, 4) * q * p / t),

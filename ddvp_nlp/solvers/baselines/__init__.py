@@ -1,9 +1,9 @@
 """The integrators the comparison runs: the paper's own schemes and what users would pick
-instead, each with its traits, in one registry (:data:`INTEGRATORS`).
+instead, each with its traits, in one registry (`INTEGRATORS`).
 
 The contract of a compared method. An implementer adding one must:
 
-1. Declare one :class:`~ddvp_nlp.solvers.baselines.integrator.Integrator` constant beside the
+1. Declare one `Integrator` constant beside the
    implementation: name, one-line description, ``order``, ``symplectic``,
    ``energy_conserving``, the ``knob`` a user turns for accuracy (``"tau0"``, ``"tau"`` or
    ``"rtol"``), ``applies(system)`` (``None`` or why the method does not apply, checked before
@@ -19,7 +19,7 @@ The contract of a compared method. An implementer adding one must:
    (``chunks.load``), CasADi's virtual machine otherwise, the same numbers either way.
 5. Write no equation here: step maps and residuals come from ``discrete/``; the nodes'
    own residual is recomputed by ``studies/methods.own_residuals``.
-6. Add the constant to :data:`INTEGRATORS` below (the command line's ``--scheme``, ``ddvp
+6. Add the constant to `INTEGRATORS` below (the command line's ``--scheme``, ``ddvp
    compare``, ``stress`` and ``sweep`` read the registry; ``studies/methods.py`` adds the
    sweeps' default knob values).
 

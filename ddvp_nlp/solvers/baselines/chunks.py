@@ -1,5 +1,5 @@
 """What every compiled baseline shares: the chunk size, the named columns of a chunk's rows,
-the compiled call through numpy buffers, and the :class:`Solution` of a run's nodes."""
+the compiled call through numpy buffers, and the `Solution` of a run's nodes."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ CHUNK = 1024
 
 class Columns:
     """Named columns of a compiled chunk's state or output rows, in order: the one place where a
-    row is both written (:meth:`pack`, CasADi) and read (:meth:`split`, :meth:`unpack`)."""
+    row is both written (`pack`, CasADi) and read (`split`, `unpack`)."""
 
     def __init__(self, **widths: int):
         self.widths = widths
@@ -69,7 +69,7 @@ class Buffered:
 
 def load(function: ca.Function, compiler, cache_dir) -> tuple[Buffered, float]:
     """``function`` compiled (cached) where a compiler is given, else as it is, as a
-    :class:`Buffered` call; and the seconds spent compiling."""
+    `Buffered` call; and the seconds spent compiling."""
     if compiler is None:
         return Buffered(function), 0.0
     started = time.perf_counter()
@@ -79,7 +79,7 @@ def load(function: ca.Function, compiler, cache_dir) -> tuple[Buffered, float]:
 
 def solution_of(t, z, n, status, message, scheme, timing, *, energy_residual=None,
                 canonical_residual=None, stats=None) -> Solution:
-    """A baseline's :class:`Solution` from its nodes ``t``, ``z = (q, p)``."""
+    """A baseline's `Solution` from its nodes ``t``, ``z = (q, p)``."""
     return Solution(t=t, q=z[:, :n].copy(), p=z[:, n:].copy(), status=status, message=message,
                     scheme=scheme,
                     energy_residual=np.zeros(0) if energy_residual is None else energy_residual,

@@ -6,7 +6,7 @@ chunks.
 - Classical Runge-Kutta (RK4) on ``z' = (H_p, -H_q)``, order 4, neither symplectic nor
   energy-conserving.
 - The averaged vector field method (``avf.py``), order 2, symmetric, energy-conserving for
-  autonomous ``H``, not symplectic: an implicit step map, listed in :data:`IMPLICIT_STEPS`.
+  autonomous ``H``, not symplectic: an implicit step map, listed in `IMPLICIT_STEPS`.
 
 They march on uniform steps that end on ``t_end``; each chunk's steps are accepted while finite
 and, for an implicit step map, while its own residual is under the tolerance.
@@ -42,7 +42,7 @@ def _fixed_layout(n: int) -> tuple[Columns, Columns]:
 def step_map(system: HamiltonianSystem, method: str) -> ca.Function:
     """``(z, t, tau, theta) -> (z_next, residual)`` of a fixed-step method: an explicit map of
     ``discrete/explicit.py`` (residual 0), or an implicit one registered in
-    :data:`IMPLICIT_STEPS` (its equation's residual at the returned ``z_next``)."""
+    `IMPLICIT_STEPS` (its equation's residual at the returned ``z_next``)."""
     if method in IMPLICIT_STEPS:
         return IMPLICIT_STEPS[method][0](system)
     explicit = FIXED_STEPS[method](system)
@@ -51,8 +51,8 @@ def step_map(system: HamiltonianSystem, method: str) -> ca.Function:
                        [explicit(z, t, tau, system.theta), ca.SX(0)])
 
 
-# Implicit fixed-step methods: name -> (the map as in :func:`step_map`, the equation as in
-# :func:`step_equation`), each ``(system) -> Function``.
+# Implicit fixed-step methods: name -> (the map as in `step_map`, the equation as in
+# `step_equation`), each ``(system) -> Function``.
 IMPLICIT_STEPS = MappingProxyType({"avf": (avf_step, avf_residual)})
 
 

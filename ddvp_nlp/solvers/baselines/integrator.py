@@ -1,8 +1,8 @@
 """What an integrator declares about itself, beside its implementation, for the studies to read.
 
-An :class:`Integrator` is one method of the comparison: its traits (stated once, here and
+An `Integrator` is one method of the comparison: its traits (stated once, here and
 nowhere else) and ``run``, which turns ``(system, run configuration, knob value)`` into a
-:class:`~ddvp_nlp.solution.Solution`. The knob is what a user turns for accuracy: the first step
+`Solution`. The knob is what a user turns for accuracy: the first step
 ``tau0`` of the energy-determined schemes, the step ``tau`` of fixed-step ones, a tolerance
 ``rtol``. The run configuration is read by attribute only (``q0``, ``p0``, ``t0``, ``t_end``,
 ``params``: a ``scenes.RunConfig``), so this layer needs no import of the scenes.

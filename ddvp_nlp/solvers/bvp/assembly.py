@@ -16,10 +16,10 @@ values ``z_j`` with ``|r - j m| <= 3n + 1``: the Jacobian is banded with lower a
 ``3n + 1`` (4 for ``n = 1``), whatever ``N``.
 
 The equations are the ones written once in ``discrete/`` (``canonical_expression``,
-``energy_expression``). :class:`GridAssembly` evaluates them by blocks: block ``k`` is the ``m``
+``energy_expression``). `GridAssembly` evaluates them by blocks: block ``k`` is the ``m``
 rows of interval ``k`` (canonical rows, time row of node ``k + 1``), one CasADi function of
 ``z_k, z_{k+1}`` (and ``z_{k+2}`` for an energy rule) returning the block's residual and its
-Jacobian already laid out as band rows (:func:`_band_rows`). The function is mapped over windows
+Jacobian already laid out as band rows (`_band_rows`). The function is mapped over windows
 of ``WINDOW`` blocks, compiled once by ``compiler.py`` (the march's build and cache; CasADi's
 virtual machine without a compiler), and evaluated through ``Function.buffer`` on numpy memory:
 the residual lands in ``F`` itself, the band rows in a band store kept by the assembly, by one
@@ -81,7 +81,7 @@ class Ends:
     """The data of one problem: fixed positions, node times (``t_0, t_end`` for an energy rule,
     all ``N`` for ``fixed``), parameters and the energy rows' scale; ``energy``: the prescribed
     energy of a transfer whose end time is free (``energy.py``), the value the last block of
-    a :class:`GridAssembly` built with ``last=`` takes instead of ``t_end``."""
+    a `GridAssembly` built with ``last=`` takes instead of ``t_end``."""
 
     q_start: np.ndarray
     q_end: np.ndarray
@@ -134,7 +134,7 @@ def _block_functions(system, scheme: Scheme):
 
     The expressions and derivatives are the ones of ``node_expressions`` (``dr/d(z_a, z_b)`` and
     ``de/d(z_prev, z_mid, z_next)``, the energy row's divided by the scale), so that every path
-    computes the same numbers; the band rows are :func:`_band_rows`."""
+    computes the same numbers; the band rows are `_band_rows`."""
     def build():
         n = system.n
         z, r, e = node_expressions(system, scheme)
@@ -161,7 +161,7 @@ def _block_functions(system, scheme: Scheme):
 
 def prescribed_energy_block(system, scheme: Scheme):
     """The last block of a transfer at a prescribed energy (``energy.py``), as the ``last`` of
-    :class:`GridAssembly`: ``(block, rows)`` of ``(z_a, z_b, E, theta)``, the canonical
+    `GridAssembly`: ``(block, rows)`` of ``(z_a, z_b, E, theta)``, the canonical
     equations of interval ``N - 2`` and, in the time row of node ``N - 1``, ``H(Q, P) - E`` of
     that interval (``discrete/``'s interval energy; with the energy equations ``H_k =
     H_{k-1}`` of the interior nodes it prescribes every interval's energy), in place of
@@ -223,7 +223,7 @@ def hessian_block_functions(system, scheme: Scheme):
 
 
 class BandJacobian:
-    """The Jacobian of one evaluation, held in its :class:`GridAssembly`'s band store (LAPACK
+    """The Jacobian of one evaluation, held in its `GridAssembly`'s band store (LAPACK
     ``gbsv`` storage, overwritten by the next evaluation with ``jacobian=True`` and by an LU
     factorisation in place)."""
 
@@ -236,7 +236,7 @@ class GridAssembly:
     docstring), in LAPACK band storage or as a sparse matrix.
 
     The Jacobian is written into one band store allocated at the first evaluation and reused:
-    each block's band rows (:func:`_band_rows`) go to their places by one strided assignment per
+    each block's band rows (`_band_rows`) go to their places by one strided assignment per
     window (the store has ``w + 1`` spare columns on each side, where the entries of columns
     outside the grid land, always zeros), and the pinned rows' entries by one indexed
     assignment. Every entry of the band (rows ``w .. 3w`` of the storage) is written at each
@@ -282,8 +282,8 @@ class GridAssembly:
         return float(np.sum(S))
 
     def evaluate(self, x: np.ndarray, ends: Ends, jacobian: bool = True):
-        """``F(x)`` (``N m``,) and, if asked, the Jacobian (a :class:`BandJacobian`, for
-        :meth:`banded` and :meth:`sparse`; valid until the next evaluation of the Jacobian)."""
+        """``F(x)`` (``N m``,) and, if asked, the Jacobian (a `BandJacobian`, for
+        `banded` and `sparse`; valid until the next evaluation of the Jacobian)."""
         n, N, m = self.layout.n, self.layout.nodes, self.layout.m
         z = np.ascontiguousarray(x, float).reshape(N, m)
         theta = np.ascontiguousarray(ends.theta, float)
@@ -383,9 +383,9 @@ class GridAssembly:
         ``A[i, j]`` at row ``2 w + i - j`` (``w`` the bandwidth; the top ``w`` rows are LAPACK's
         workspace for the fill-in of pivoting).
 
-        ``blocks`` is what :meth:`evaluate` returned (its store itself, no copy), or dense
+        ``blocks`` is what `evaluate` returned (its store itself, no copy), or dense
         blocks ``(interval (N-1, 2m, 2n), node (N-2, 3m) or None)`` in the layout of
-        :func:`block_entries` (a new array; ``ipopt.py`` builds its pattern from ones)."""
+        `block_entries` (a new array; ``ipopt.py`` builds its pattern from ones)."""
         if isinstance(blocks, BandJacobian):
             return blocks.ab
         N, m = self.layout.nodes, self.layout.m
@@ -398,7 +398,7 @@ class GridAssembly:
         return store.reshape(N * m, 3 * w + 1).T
 
     def sparse(self, blocks) -> sp.csc_matrix:
-        """The same Jacobian as a sparse matrix (for wide bands); from a :class:`BandJacobian`,
+        """The same Jacobian as a sparse matrix (for wide bands); from a `BandJacobian`,
         its nonzero entries."""
         size = self.layout.size
         if isinstance(blocks, BandJacobian):

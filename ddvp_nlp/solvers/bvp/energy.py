@@ -13,10 +13,10 @@ prescribed_energy_block``); with the energy equations it prescribes every interv
 The solve (``solve.py`` calls these in order):
 
 1. the fixed-endpoint problem on ``(t_0, t_0 + D)`` with the duration guess ``D``
-   (``AtEnergy.duration``, else the guess's span, else :func:`duration_guess`), by
+   (``AtEnergy.duration``, else the guess's span, else `duration_guess`), by
    ``solve_bvp`` itself, then a secant iteration on ``D`` towards ``E(D) = E``
-   (:func:`fixed_time_start`): a grid on the right path, at an energy ``E_1`` near ``E``;
-2. :func:`release_end_time`: the grid's Newton on the system above from that grid, the energy
+   (`fixed_time_start`): a grid on the right path, at an energy ``E_1`` near ``E``;
+2. `release_end_time`: the grid's Newton on the system above from that grid, the energy
    continued from ``E_1`` to ``E`` (the whole way first; a failed step halves, a successful one
    doubles up to what remains; each from the secant predictor), then the verification
    (residuals of every kind, the prescribed energy on every interval, every step positive), the
@@ -201,7 +201,7 @@ def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, 
                      max_iter: int, compilation, accuracy: Tolerance | None = None
                      ) -> Solution:
     """Phase 2 of the module docstring from the fixed-endpoint grid ``fixed``; ``accuracy``:
-    the check's tolerances (default :class:`Tolerance`)."""
+    the check's tolerances (default `Tolerance`)."""
     started = time.perf_counter()
     nodes = fixed.t.size
     grid = _assembly(system, scheme, nodes, compilation)
@@ -292,7 +292,7 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
 def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance):
     """The accuracy check of a transfer (``accuracy.py``): every interval and the energy level
     against the prescribed ``E`` (the first interval's clock), then the trajectory against the
-    exact flow's transfer near it (:func:`shoot_transfer`); with none near, the transfer is
+    exact flow's transfer near it (`shoot_transfer`); with none near, the transfer is
     ``inaccurate`` with that reason. Returns the report, the local errors and the shooting's
     figures."""
     clock = float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint" else t[0])

@@ -6,9 +6,9 @@ The NLP (``grid/ipopt.py``'s feasibility problem): unknowns interleaved by node,
 ``fixed`` every ``t_k``) pinned by ``lbx = ubx`` (IPOPT removes them,
 ``fixed_variable_treatment = make_parameter``); objective ``0``; the canonical and energy rows
 as equalities, ``t_{k+1} - t_k >= tau_floor`` as linear rows. IPOPT's functions are
-:class:`casadi.Callback` objects whose ``eval_buffer`` runs numpy code on CasADi's own memory:
+`casadi.Callback` objects whose ``eval_buffer`` runs numpy code on CasADi's own memory:
 
-- ``g``: the rows of :class:`GridAssembly`'s ``F(x)`` that are not pins (the pinned rows
+- ``g``: the rows of `GridAssembly`'s ``F(x)`` that are not pins (the pinned rows
   ``t_0 - t_start`` etc. are dropped), then the step differences;
 - ``jac_g``: the same Jacobian blocks that Newton factorises, gathered from the assembly's band
   storage into a sparsity pattern built once (CSC nonzeros in the order of the band storage's
@@ -266,7 +266,7 @@ class GridNlp:
 
 
 class _Callback(ca.Callback):
-    """One of IPOPT's functions, evaluated by :class:`GridNlp` on CasADi's buffers."""
+    """One of IPOPT's functions, evaluated by `GridNlp` on CasADi's buffers."""
 
     def __init__(self, name: str, nlp: GridNlp, inputs, outputs, evaluate):
         ca.Callback.__init__(self)
@@ -319,8 +319,8 @@ def _callbacks(nlp: GridNlp):
 
 
 class BvpIpopt:
-    """IPOPT on :class:`GridNlp` (``grid/ipopt.py``'s one build) for one system, scheme and
-    node count; :meth:`solve` takes the data of one problem."""
+    """IPOPT on `GridNlp` (``grid/ipopt.py``'s one build) for one system, scheme and
+    node count; `solve` takes the data of one problem."""
 
     def __init__(self, system, scheme: Scheme, nodes: int, *, tol: float, max_iter: int,
                  verbose: bool = False, time_limit: float | None = None,
@@ -338,7 +338,7 @@ class BvpIpopt:
         self.problem = FeasibilityNlp("bvp_grid", x, p, g(x, p), settings)
 
     def solve(self, x0: np.ndarray, ends: Ends, tau_floor: float) -> GridResult:
-        """IPOPT from ``x0``, in the fields of a :class:`GridResult`."""
+        """IPOPT from ``x0``, in the fields of a `GridResult`."""
         lbx, ubx = pinned_bounds(self.layout, self.scheme, ends)
         steps = self.nlp.ng - self.nlp.kept.size
         lbg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]

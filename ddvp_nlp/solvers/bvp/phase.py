@@ -1,8 +1,8 @@
 """One solve of the fixed-endpoint system by one solver: the unit the starts and the final
 solve are made of (``solve.py``, ``start.py``).
 
-The inputs of a ``solve_bvp`` call are a :class:`~ddvp_nlp.solvers.grid.problem.GridRequest`
-whose ``data`` is a :class:`Boundary`; :func:`run_phase` solves the system of a scheme (the
+The inputs of a ``solve_bvp`` call are a `GridRequest`
+whose ``data`` is a `Boundary`; `run_phase` solves the system of a scheme (the
 user's, or ``fixed`` on given times for the start) from a point, by the grid's Newton
 (``grid/newton.py``) or IPOPT (``ipopt.py`` on ``grid/ipopt.py``), and records what the solver
 said. The built problems are cached per system (``GridRequest.built``), their build time
@@ -134,7 +134,7 @@ def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends)
 
 def _ipopt(request: GridRequest, scheme: Scheme, x0: np.ndarray, data: Ends):
     """IPOPT's solve of the system of ``scheme`` from ``x0``: the request's own system to
-    ``tol`` (but not below the rows' round-off, :func:`ipopt_floor`), a start phase to that
+    ``tol`` (but not below the rows' round-off, `ipopt_floor`), a start phase to that
     round-off. Before a released problem is built the fixed-step ones are
     dropped from the cache: at N = 1e6 the fixed-step one held about 3 GB while the released
     one was built (measured)."""

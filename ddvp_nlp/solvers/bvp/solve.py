@@ -113,24 +113,24 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
             (``energy.py``: the fixed-time problem at the guessed duration first, then the end
             time released; Newton only).
         nodes: number of nodes ``N >= 3``.
-        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
+        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a `Scheme`.
         params: the system's parameter values.
         guess: ``"straight"`` (default), shooting (``Shooting(p_start)``, the momentum it
             starts from choosing the branch of a problem with several solutions; ``"march"``
             is ``Shooting()``, from the straight line's momentum; ``start.py``), or a start: a
-            :class:`Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
+            `Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
             arrays (``nodes`` rows, or any number of rows, resampled by node index onto
             ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
         times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
         options: the solver (``"auto"``, the default, ``"newton"`` or ``"ipopt"``; module
             docstring), the verification tolerance ``tol`` (default 1e-9), ``max_iter`` per
             phase (default 200), ``tau_floor`` (default ``1e-3 (t_end - t_0)/(N-1)``), the
-            linear solver, a ``time_limit`` and IPOPT's log (:class:`GridOptions`).
+            linear solver, a ``time_limit`` and IPOPT's log (`GridOptions`).
         compilation: which compiled code the assembly and the band LU run.
         output: ``progress`` reports each Newton iteration (and IPOPT's log) on stderr.
 
     Returns:
-        A :class:`Solution` whose ``stats`` hold each phase's solver verdict, the largest
+        A `Solution` whose ``stats`` hold each phase's solver verdict, the largest
         residuals, the action and the number of sign changes of each ``p`` component (which of
         several solutions it is); failures are a status on it.
     """
@@ -233,7 +233,7 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
 
 def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times,
              options: GridOptions, compilation: Compilation, output: Output):
-    """The validated :class:`GridRequest` and start (``InputError`` naming the argument and
+    """The validated `GridRequest` and start (``InputError`` naming the argument and
     value, before anything is built)."""
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):

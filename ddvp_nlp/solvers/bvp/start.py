@@ -202,7 +202,7 @@ def _march(request: GridRequest[Boundary], fixed: Scheme, p0):
 
 
 def _fixed_march(request: GridRequest[Boundary], fixed: Scheme, p0) -> dict | None:
-    """:func:`_march`'s nodes, or ``None`` if it does not reach ``t_end`` in ``nodes`` nodes."""
+    """`_march`'s nodes, or ``None`` if it does not reach ``t_end`` in ``nodes`` nodes."""
     run = _march(request, fixed, p0)
     return {"t": run.t, "q": run.q, "p": run.p} if _whole(request, run) else None
 

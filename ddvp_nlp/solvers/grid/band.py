@@ -12,7 +12,7 @@ solutions are LAPACK's to the bit on the matrices measured (``tests/test_bvp_com
 
 Built once per compiler and source by ``compiler.py``'s build and cache (``band_HASH.so`` in the
 compiled-code cache, checksummed); without a compiler (``Compilation(band_lu="lapack")``, no
-compiler found, or a failed build, with one warning per process) :func:`kernel` is ``None`` and
+compiler found, or a failed build, with one warning per process) `kernel` is ``None`` and
 the caller runs LAPACK through scipy.
 """
 

@@ -9,10 +9,10 @@ would square the Jacobian's condition number and make a non-zero local minimum (
 look like an answer. With ``f = 0`` IPOPT's steps are Newton steps on the rows, globalised by
 its filter line search, with the step bounds kept by the barrier.
 
-:class:`FeasibilityNlp` builds the ``nlpsol`` from the family's rows (an MX or SX expression of
+`FeasibilityNlp` builds the ``nlpsol`` from the family's rows (an MX or SX expression of
 the unknowns and parameters, or functions given as callbacks with their derivatives, as the
 fixed-endpoint assembly does) and returns IPOPT's point and verdict as a
-:class:`~ddvp_nlp.solvers.grid.problem.GridResult`. The families say how their rows are made:
+`GridResult`. The families say how their rows are made:
 ``bvp/ipopt.py`` (callbacks on the banded assembly), ``periodic/ipopt.py`` and
 ``higher/ipopt.py`` (per-interval or per-window functions mapped over the grid on MX).
 
@@ -60,7 +60,7 @@ def solver_tolerance(tol: float, floor: float = 0.0) -> float:
 
 def ipopt_settings(tol: float, max_iter: int, verbose: bool, time_limit: float | None,
                    options: dict, floor: float = 0.0) -> dict:
-    """``nlpsol`` options: IPOPT's tolerances :func:`solver_tolerance` of the verification's
+    """``nlpsol`` options: IPOPT's tolerances `solver_tolerance` of the verification's
     ``tol`` and the rows' round-off ``floor``, its output if ``verbose``, its wall-time limit,
     then ``options``."""
     inner = solver_tolerance(tol, floor)
@@ -80,7 +80,7 @@ class FeasibilityNlp:
         name: the ``nlpsol``'s name.
         x, p, g: the unknowns, the parameters (``None``: none) and the rows, as CasADi
             expressions (MX or SX).
-        settings: ``nlpsol`` options (:func:`ipopt_settings`), including any derivative
+        settings: ``nlpsol`` options (`ipopt_settings`), including any derivative
             callbacks (``jac_g``, ``hess_lag``) the family supplies.
     """
 

@@ -5,9 +5,9 @@ the same CasADi function of a few node vectors. Mapping that function over the w
 build sparsity patterns that grow with ``N``; instead a fixed window of blocks is mapped once
 and evaluated window after window through ``Function.buffer`` on numpy memory:
 
-- :class:`ChunkedMap` on CasADi's virtual machine (windows of ``CHUNK`` blocks), optionally in
+- `ChunkedMap` on CasADi's virtual machine (windows of ``CHUNK`` blocks), optionally in
   threads (``Compilation.threads``);
-- :class:`WindowMap` compiled when there is a compiler (windows of ``WINDOW`` blocks, one
+- `WindowMap` compiled when there is a compiler (windows of ``WINDOW`` blocks, one
   library for every grid), the virtual machine otherwise.
 """
 
@@ -75,7 +75,7 @@ class ChunkedMap:
 
 
 def chunked(system, key, function: ca.Function, threads: int = 1) -> ChunkedMap:
-    """The :class:`ChunkedMap` of ``function``, one per system, ``key`` and thread count."""
+    """The `ChunkedMap` of ``function``, one per system, ``key`` and thread count."""
     return cached(system, ("chunked", key, threads), lambda: ChunkedMap(function, threads))
 
 
@@ -87,7 +87,7 @@ class WindowMap:
     window is always ``WINDOW`` blocks wide, so that one library serves every grid; a grid
     shorter than a window is padded (its last block repeated) and the surplus discarded. On
     CasADi's virtual machine (no compiler, ``Compilation(compiler=None)``, or a failed compile,
-    with one warning) the window is ``min(WINDOW, count)`` blocks. As in :class:`ChunkedMap`
+    with one warning) the window is ``min(WINDOW, count)`` blocks. As in `ChunkedMap`
     the last window is shifted back to end on the last block.
 
     Inputs are C-contiguous arrays ``(count, size)`` (slices of the grid: no copy), ``shared``
@@ -157,7 +157,7 @@ class WindowMap:
 
 
 def window_map(system, key, function: ca.Function, compilation: Compilation) -> WindowMap:
-    """The :class:`WindowMap` of ``function``, one per system, ``key`` and compiler setting."""
+    """The `WindowMap` of ``function``, one per system, ``key`` and compiler setting."""
     compiler = find_compiler(compilation.compiler)
     folder = cache_folder(compilation.cache_dir)
     return cached(system, ("bvp_window", key, compiler, str(folder)),
@@ -168,7 +168,7 @@ def evaluate_blocks(system, key, function: ca.Function, inputs, shared,
                     compilation: Compilation) -> list[np.ndarray]:
     """``function`` on every row of ``inputs`` (arrays ``(count, size_i)``, one block a row;
     ``shared``, the function's last input, given to every block), through a
-    :class:`WindowMap` kept per ``system`` and ``key``: compiled when there is a compiler, one
+    `WindowMap` kept per ``system`` and ``key``: compiled when there is a compiler, one
     library for every ``count``. Output ``j`` has shape ``(count, nnz_out(j))``.
 
     For per-node evaluations of the starts (``bvp/start.site_weights`` maps its function over

@@ -10,13 +10,13 @@ Jacobian is not narrowly banded), then takes ``x + alpha dx`` with:
 - a backtracking line search: ``alpha`` halves until the step passes the *step test*, down to
   ``1e-10``. Two tests, each with the iterate it returns:
 
-  - :class:`NaturalMonotonicity` (first-order fixed-endpoint and periodic problems):
+  - `NaturalMonotonicity` (first-order fixed-endpoint and periodic problems):
     Deuflhard's natural monotonicity test, the simplified Newton correction
     ``|F'(x)^-1 F(x + alpha dx)|`` at most ``(1 - alpha/2) |dx|`` (the residual in the units of
     ``x``, so that no row's scale decides; the factors of ``F'(x)`` are reused). The 2-norm of
     ``F`` rejected the first full step on the pendulum at N = 1e4 and took 32 iterations where
     this takes 3. Returns the last iterate.
-  - :class:`DecreaseOrMonotonicity` (higher-order problems): either that test or a decrease of
+  - `DecreaseOrMonotonicity` (higher-order problems): either that test or a decrease of
     the residual weighted by the targets (Armijo). On these systems ``F'`` has condition
     ``~N^4`` (a fourth difference): at N = 1e5 of the spline the round-off of ``F`` at the exact
     step, carried through ``F'^-1``, exceeded the step itself, and the monotonicity test alone
@@ -27,7 +27,7 @@ Jacobian is not narrowly banded), then takes ``x + alpha dx`` with:
 
 It stops when every ``|F_i|`` is below its ``target_i`` (given by the caller at a small multiple
 of the row's round-off), or when no step passes the test any more (the round-off floor, or no
-solution nearby), and returns a :class:`~ddvp_nlp.solvers.grid.problem.GridResult` with what
+solution nearby), and returns a `GridResult` with what
 happened in words. Whether that point solves the problem is the caller's verification to decide.
 
 ``offset``: solve ``F(x) = offset`` instead (a stage of a Newton homotopy).
@@ -161,7 +161,7 @@ def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
     """Newton's method with safeguard and line search (module docstring) from ``x0``.
 
     Args:
-        problem, data: the system (a :class:`~ddvp_nlp.solvers.grid.problem.GridProblem`) and
+        problem, data: the system (a `GridProblem`) and
             its data.
         target: per-row bound on ``|F_i|`` at which the iteration has converged.
         tau_floor: smallest step the iterates may take (``-inf``: no node times are free).

@@ -92,12 +92,12 @@ class GridRequest(Generic[Data]):
         theta: the parameter vector.
         data: the family's problem data (``bvp.Boundary``, ``periodic.Orbit``,
             ``higher.problem.FixedNodes``).
-        options: the :class:`GridOptions`, with the family's defaults in place of ``None``.
+        options: the `GridOptions`, with the family's defaults in place of ``None``.
         compilation: which compiled code the assemblies and the band LU run.
         tau_floor: the smallest step the iterates may take (resolved).
         progress: report each iteration on stderr.
         deadline: ``time.perf_counter()`` value after which the solve stops.
-        build_s: seconds spent building problems (:meth:`built`).
+        build_s: seconds spent building problems (`built`).
         phases: one record per solve made for this request, in order.
     """
 
@@ -147,7 +147,7 @@ class GridRequest(Generic[Data]):
 
     def built(self, key, build):
         """``build()`` cached per system under ``key`` (``cache.PROBLEMS``), its time added to
-        :attr:`build_s`."""
+        `build_s`."""
         started = time.perf_counter()
         value = PROBLEMS.get(self.system, key, build)
         self.build_s += time.perf_counter() - started

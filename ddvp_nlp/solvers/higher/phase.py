@@ -1,19 +1,19 @@
 """The solves and the verification of a higher-order fixed-endpoint problem (``solve.py``).
 
-A :class:`~ddvp_nlp.solvers.grid.problem.GridRequest` whose ``data`` is a :class:`FixedNodes`
-holds the validated inputs; :func:`solve_rule` solves the system of one rule (``fixed`` on
+A `GridRequest` whose ``data`` is a `FixedNodes`
+holds the validated inputs; `solve_rule` solves the system of one rule (``fixed`` on
 uniform times, or an energy rule with the interior times released) from a point by
 
 - ``"newton"``: the grid's Newton (``grid/newton.py``: line search with the
   ``DecreaseOrMonotonicity`` test, ``tau_floor`` safeguard, banded LU) on the window assembly of
   ``assembly.py``, through a Newton homotopy where plain Newton does not converge
-  (:func:`continuation`);
+  (`continuation`);
 - ``"ipopt"``: the grid's IPOPT build on an MX graph of the window gradient mapped over the
   grid (``ipopt.py``: no expression grows with ``N``; CasADi's derivatives of it), the
   equations as equalities and ``t_{k+1} - t_k >= tau_floor``;
 - ``"auto"``: Newton, then IPOPT from the same start if Newton's point fails the verification.
 
-Verification decides, whatever the solver said (:func:`verify`): a point is a solution when every
+Verification decides, whatever the solver said (`verify`): a point is a solution when every
 Euler-Lagrange row (scaled by the mean step to the power ``2l - 1``, in the units of ``q``) is
 below ``max(tol max(1, |q_data|), c_i)``, every energy row (the action's derivative in a node
 time) below ``max(tol max(1, tau_mean), c_i)``, and every step is positive. ``c_i`` is
@@ -70,7 +70,7 @@ def solve_rule(request: GridRequest[FixedNodes], rule: str, x0: np.ndarray, *,
                stage_iterations: int = STAGE_ITERATIONS):
     """``(x, phase, outcome)``: the system of ``rule`` solved from ``x0`` by the request's
     solver (``"auto"``: Newton, then IPOPT if Newton's point fails the verification); the
-    outcome is :func:`verify`'s."""
+    outcome is `verify`'s."""
     first = "ipopt" if request.solver == "ipopt" else "newton"
     x, phase = _run(request, rule, x0, first, stage_iterations)
     outcome = verify(request, rule, x, phase)
@@ -104,7 +104,7 @@ def _run(request: GridRequest[FixedNodes], rule: str, x0: np.ndarray, solver: st
 
 def continuation(request: GridRequest[FixedNodes], grid: HigherAssembly, pinned: HigherEnds,
                  x0, rule: str, stage_iterations: int = STAGE_ITERATIONS):
-    """``(x, converged, said, iterations)``: :func:`newton` on ``F(x) = 0`` from ``x0``,
+    """``(x, converged, said, iterations)``: `newton` on ``F(x) = 0`` from ``x0``,
     through the Newton homotopy ``F(x) = (1 - lambda) F(x0)`` when a full step in ``lambda``
     does not converge within ``stage_iterations``.
 

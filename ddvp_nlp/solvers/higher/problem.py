@@ -1,5 +1,5 @@
 """The data of a higher-order fixed-endpoint problem and what follows from it: the ``data`` of
-its :class:`~ddvp_nlp.solvers.grid.problem.GridRequest`, and the helpers the solves and the
+its `GridRequest`, and the helpers the solves and the
 verification read it by (``phase.py``, ``ipopt.py``)."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from .assembly import HigherEnds
 @dataclass
 class FixedNodes:
     """The data of a higher-order fixed-endpoint problem (the ``data`` of its
-    :class:`GridRequest`): the ``l`` fixed nodes at each end, ``t_start`` ``(l,)``,
+    `GridRequest`): the ``l`` fixed nodes at each end, ``t_start`` ``(l,)``,
     ``q_start`` ``(l, n)``, likewise at the stop."""
 
     t_start: np.ndarray

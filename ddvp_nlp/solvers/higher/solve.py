@@ -139,7 +139,7 @@ def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cach
 def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, nodes: int,
                 scheme: str = "vddvp", params=None, options: GridOptions | None = None,
                 compilation: Compilation | None = None) -> GridRequest[FixedNodes]:
-    """The checked inputs of :func:`solve_bvp_higher` (``InputError`` naming the argument and
+    """The checked inputs of `solve_bvp_higher` (``InputError`` naming the argument and
     the value, before anything is built), with the defaults of ``options`` resolved."""
     _check_system(system)
     compilation = coerce(compilation, Compilation, "compilation")
@@ -162,7 +162,7 @@ def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, 
 
 
 def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
-    """A :class:`Solution` whose ``p`` is the multiplier ``lambda_1`` (the momentum conjugate to
+    """A `Solution` whose ``p`` is the multiplier ``lambda_1`` (the momentum conjugate to
     ``q``) at the nodes where the recursion defines it (``k = l-1 .. N-1-l``; the others repeat
     the nearest defined value and are listed in ``stats["p_defined"]``)."""
     first, E = grid_energies(system, t, q, theta) if t.size > 2 * system.order else (
@@ -211,7 +211,7 @@ def _check_start(system: HigherOrderSystem, rule: str, t_init, q_init, t_end):
 
 
 class _HigherSteps:
-    """Stepper (``driver.py``) of :func:`march_higher`, one step per call; the nodes' ``z`` is
+    """Stepper (``driver.py``) of `march_higher`, one step per call; the nodes' ``z`` is
     ``q``.
 
     With the energy rule the newest node is *pending*: only its difference
@@ -333,7 +333,7 @@ def _extrapolate(t, q, t_new):
 
 
 def _step_functions(system: HigherOrderSystem, rule: str):
-    """Newton for one march step (see :func:`march_higher`) and its residual check."""
+    """Newton for one march step (see `march_higher`) and its residual check."""
     return cached(system, ("higher_march", rule), lambda: _build_step_functions(system, rule))
 
 

@@ -18,7 +18,10 @@ Where things are:
 - ``least_squares.py``: the step of Kane, Marsden and Ortiz where an energy step has no root;
 - ``monitors.py``: energy guard, solvability, checkpoints, stop requests;
 - ``recheck.py``: every equation recomputed on the returned grid;
-- ``ensemble.py``: ``march_ensemble``, many starts on worker processes.
+- ``ensemble.py``: ``march_ensemble``, many starts on worker processes, with ``Collect``'s
+  per-orbit output and reduction run on the workers;
+- ``resume.py``: what the loop carries besides the nodes (``MarchState``), so that
+  ``continue_march`` goes on from a run's nodes as if it had never stopped.
 
 The contract of the march. An implementer changing it must keep:
 
@@ -38,9 +41,13 @@ The contract of the march. An implementer changing it must keep:
 5. A Ctrl-C or a stop request ends the march with status ``interrupted`` and every node every
    monitor saw kept.
 6. This package imports the core and ``options``; never a grid family or a baseline.
+7. Everything the loop carries from step to step that can change a node is in every node's
+   ``Advance.values["carry"]`` (``resume.py``): a march continued from any of its nodes gives
+   the nodes of an uninterrupted one bit for bit.
 """
 
-from .ensemble import march_ensemble
-from .solve import march
+from .ensemble import Collect, march_ensemble
+from .resume import MarchState
+from .solve import continue_march, march
 
-__all__ = ["march", "march_ensemble"]
+__all__ = ["Collect", "MarchState", "continue_march", "march", "march_ensemble"]

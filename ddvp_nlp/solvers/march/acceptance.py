@@ -8,7 +8,7 @@ small against the size of what they measure,
 and when its length keeps the optional bounds ``tau_min <= tau_k <= tau_max`` and
 ``max(tau_k / tau_{k-1}, tau_{k-1} / tau_k) <= max_step_ratio``. The predicates take scalars (a
 careful step) or arrays (every step of a compiled chunk at once), so both paths apply the very
-same test; :meth:`Acceptance.broken_bound` names the first bound a rejected step breaks.
+same test; `Acceptance.broken_bound` names the first bound a rejected step breaks.
 """
 
 from __future__ import annotations

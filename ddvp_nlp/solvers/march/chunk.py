@@ -14,7 +14,7 @@ fast path never changes what is accepted.
 
 What goes into a chunk and what comes out of it is named in one place, the layouts below: the
 chunk's ``vertcat`` is built from named parts and its output matrix is read back by the same
-names (:class:`ChunkSteps`).
+names (`ChunkSteps`).
 
 Compiled chunks are cached in ``cache_dir`` (argument, else ``$DDVP_NLP_CACHE``, else
 ``~/.cache/ddvp_nlp``) under a hash of the generated function, the compiler and its flags. Each
@@ -72,7 +72,7 @@ def step_options(unknowns: int) -> dict:
 
 
 def unroll_options(unknowns: int) -> dict:
-    """How :func:`~ddvp_nlp.solvers.march.newton.unrolled_newton` unrolls a Newton of
+    """How `unrolled_newton` unrolls a Newton of
     ``unknowns`` unknowns (see ``SMALL_NEWTON``)."""
     if unknowns <= SMALL_NEWTON:
         return dict(SMALL_UNROLL)
@@ -84,9 +84,9 @@ def unroll_options(unknowns: int) -> dict:
 class Layout:
     """A column vector made of named parts of given widths, in order.
 
-    The same object stacks the parts (symbolic, :meth:`stack`; numeric, :meth:`pack`), splits a
-    symbolic vector into them (:meth:`split`) and reads them back as columns of a matrix with
-    one row per step (:meth:`columns`): a part of width 1 is a vector, wider parts a matrix."""
+    The same object stacks the parts (symbolic, `stack`; numeric, `pack`), splits a
+    symbolic vector into them (`split`) and reads them back as columns of a matrix with
+    one row per step (`columns`): a part of width 1 is a vector, wider parts a matrix."""
 
     def __init__(self, *parts: tuple[str, int]):
         self.names = tuple(name for name, _ in parts)
@@ -137,7 +137,7 @@ LIMITS = Layout(("tol", 1), ("tau_min", 1), ("tau_max", 1), ("max_step_ratio", 1
 
 
 def limits(acceptance) -> np.ndarray:
-    """``LIMITS`` of an :class:`~ddvp_nlp.solvers.march.acceptance.Acceptance`."""
+    """``LIMITS`` of an `Acceptance`."""
     def bound(value, missing):
         return missing if value is None else value
     return LIMITS.pack(tol=acceptance.tol, tau_min=bound(acceptance.tau_min, -np.inf),
@@ -159,7 +159,7 @@ def energy_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout]:
 
 def fixed_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout, Layout]:
     """State, constants and per-step output of a chunk of fixed-length steps (``accuracy``:
-    as in :func:`energy_layouts`)."""
+    as in `energy_layouts`)."""
     state = Layout(("k", 1), ("z", n2), *((("error", n2),) if accuracy else ()))
     constants = Layout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
     output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields),
@@ -174,7 +174,7 @@ class ChunkSteps:
     ``t_next`` ``(chunk,)``, ``z_next`` ``(chunk, 2n)``, the check of each step (``canonical``,
     ``size``, ``H_node``, ``w_node``; energy steps also ``energy``, ``H_interval`` and ``drift``,
     the compensated sum after the step; see ``steps.EnergyCheck``) and ``good``: the
-    acceptance test's verdict on the step, computed in the chunk (:func:`step_verdict`): every
+    acceptance test's verdict on the step, computed in the chunk (`step_verdict`): every
     output finite, ``tau > 0``, the residuals against ``tol`` and the step bounds. A diverged
     step is NaN and fails it.
 
@@ -239,14 +239,14 @@ def _residuals(check: ca.Function) -> ca.Function:
 class FastChunk:
     """``chunk`` march steps per call, compiled or on the virtual machine.
 
-    Energy rules: the state is ``energy_layouts``' first layout; :meth:`energy_steps` runs from
+    Energy rules: the state is ``energy_layouts``' first layout; `energy_steps` runs from
     ``(t_prev, t_mid, z_prev, z_mid, drift)``. Fixed rule: state ``[k, z]`` and constants
-    ``[t0, tau, t_end, total]``; :meth:`fixed_steps` runs from node ``k``. Either way the
+    ``[t0, tau, t_end, total]``; `fixed_steps` runs from node ``k``. Either way the
     parameters end with the acceptance test's numbers (``LIMITS``): each step's verdict comes
     out of the chunk. ``H_node`` and the
     site-density weight ``w_node`` are those of each new node (energy guard, solvability monitor).
 
-    ``functions`` are the careful path's :class:`~ddvp_nlp.solvers.march.steps.StepFunctions`;
+    ``functions`` are the careful path's `StepFunctions`;
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
 
@@ -350,7 +350,7 @@ class FastChunk:
                            step_options(functions.fixed_residual.numel_in(0)))
 
     def _call(self, state: np.ndarray, parameters: np.ndarray):
-        """One call through a :class:`~ddvp_nlp.solvers.compiler.FunctionBuffer` (numpy arrays
+        """One call through a `FunctionBuffer` (numpy arrays
         in place of DM). Returns ``(states, outputs)``, one row per step, overwritten by the
         next call."""
         tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
@@ -393,7 +393,7 @@ class FastChunk:
                                                           total=total), limits(acceptance)])
 
     def steps(self, state: np.ndarray, parameters: np.ndarray, calls: int = 1) -> ChunkSteps:
-        """``calls * chunk`` steps from ``state`` (:meth:`energy_state`, :meth:`fixed_state`):
+        """``calls * chunk`` steps from ``state`` (`energy_state`, `fixed_state`):
         ``calls`` calls, each from the state the previous one ended in, which is the state the
         march builds from the nodes for its next call when it kept every step (the same
         numbers: the node times, states, drift and error vector are outputs of the chunk)."""
@@ -412,7 +412,7 @@ class FastChunk:
 
     def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, acceptance, *,
                      error=None) -> ChunkSteps:
-        """``chunk`` energy steps of one orbit (:meth:`energy_state`), judged by
+        """``chunk`` energy steps of one orbit (`energy_state`), judged by
         ``acceptance``."""
         return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift, error=error),
                           self.energy_parameters(theta, acceptance))

@@ -1,7 +1,7 @@
 """Many initial states marched as one ensemble, split across worker processes.
 
 ``march_ensemble`` runs ``M`` marches of the same system, scheme and options. Each orbit is
-marched by :func:`~ddvp_nlp.solvers.march.solve.march` itself, so its nodes, step lengths,
+marched by `march` itself, so its nodes, step lengths,
 acceptance, monitors (solvability, accuracy check), status and message are exactly those of a
 march from the same start; an orbit that fails ends alone. What the ensemble adds:
 
@@ -30,7 +30,8 @@ import signal
 import threading
 import time
 import warnings
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,18 +56,61 @@ WORKER_BYTES = 200e6
 BLOCK_ORBITS = 2
 
 
+@dataclass(frozen=True)
+class Collect:
+    """What an ensemble returns instead of whole solutions (SciML's ``output_func`` and
+    ``reduction``), computed on the workers so that only it crosses between processes.
+
+    Attributes:
+        output: ``output(solution, i) -> value`` for orbit ``i``, run where the orbit was
+            marched (``solution.at``, ``energy()`` and the events work there); ``None`` keeps
+            the solution.
+        reduction: ``reduction(values: list) -> value``, run on each block of orbits on its
+            worker and then on the list of the blocks' results, in orbit order: it must give
+            the same for a list and for a list of its reduced pieces (a concatenation, a max,
+            a count; a floating-point sum is the same up to round-off only). ``None``: the
+            list of outputs.
+    """
+
+    output: Callable | None = None
+    reduction: Callable | None = None
+
+    def __post_init__(self):
+        for name in ("output", "reduction"):
+            value = getattr(self, name)
+            if value is not None and not callable(value):
+                raise InputError(f"Collect.{name} must be a function, got {value!r}")
+
+    def block(self, solutions: list, first: int) -> list:
+        """A block's outputs (orbits ``first``, ``first + 1``, ...), reduced if asked."""
+        values = solutions if self.output is None else [
+            self.output(solution, first + k) for k, solution in enumerate(solutions)]
+        return values if self.reduction is None else [self.reduction(values)]
+
+    def merge(self, blocks: list):
+        """The blocks' results in orbit order: the list, or its reduction."""
+        values = [value for block in blocks for value in block]
+        return values if self.reduction is None else self.reduction(values)
+
+
 def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp", params=None,
                    steps: StepControl | None = None,
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
-                   compilation: Compilation | None = None, workers: int = 2) -> list[Solution]:
-    """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as :func:`march` would;
-    the arguments after them are :func:`march`'s (with ``compilation.fast``, the default, the
+                   compilation: Compilation | None = None, workers: int = 2,
+                   collect: Collect | None = None):
+    """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as `march` would;
+    the arguments after them are `march`'s (with ``compilation.fast``, the default, the
     workers share the compiled chunk built here).
 
     ``workers``: local processes marching the orbits (forked from this one; ``1``: all in
-    this process). Returns one :class:`Solution` per orbit, in order, each with its own status
-    and :func:`march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
-    counts the C compiles the orbit's worker ran (none: it inherits the loaded functions)."""
+    this process). Returns one `Solution` per orbit, in order, each with its own status
+    and `march`'s own timing of that orbit; with workers, ``stats["worker_compiles"]``
+    counts the C compiles the orbit's worker ran (none: it inherits the loaded functions).
+
+    ``collect``: a `Collect` whose ``output`` (per orbit) and ``reduction`` run on the
+    workers; the ensemble then returns only what they give (100 Henon-Heiles orbits to t = 5000
+    returned 725 MB of pickled solutions; their Poincare crossings 3.1 MB, measured by
+    ``scripts/bench_ensemble_bytes.py``)."""
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
     if q0s.shape != p0s.shape or q0s.shape[0] == 0 or q0s.ndim != 2:
@@ -78,6 +122,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     if accuracy is not None:
         coerce(accuracy, Tolerance, "accuracy")
     compilation = coerce(compilation, Compilation, "compilation")
+    collect = coerce(collect, Collect, "collect")
     t0, t_end = check_span(t_span)
     theta = _check_all(system, scheme, q0s, p0s, (t0, t_end), tau0, steps, params)
     compilation = replace(compilation, compiler=find_compiler(compilation.compiler))
@@ -87,28 +132,30 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
         warnings.simplefilter("ignore")
         # build (or load from the on-disk cache) what every march shares, here, once
         march(system, q0s[0], p0s[0], (t0, t0 + min(3 * tau0, t_end - t0)), **options)
-    job = _Job(system, q0s, p0s, (t0, t_end), options)
+    job = _Job(system, q0s, p0s, (t0, t_end), options, collect)
     blocks = _blocks(q0s.shape[0], workers)
     if workers == 1 or len(blocks) == 1 or not _can_fork():
-        return job.run(range(q0s.shape[0]), count_compiles=False)
+        return collect.merge([job.run(block, count_compiles=False) for block in blocks])
     context = multiprocessing.get_context("fork")
     pool = context.Pool(min(workers, len(blocks)), initializer=_install,
                         initargs=(job, os.getpid()))
     try:
-        solutions = [s for part in pool.imap(_run_block, blocks) for s in part]
+        parts = list(pool.imap(_run_block, blocks))
         pool.close()
     except BaseException:  # Ctrl-C, SIGTERM, a failed block: no worker outlives this call
         pool.terminate()
         raise
     finally:
         pool.join()
-    for solution in solutions:  # the vector field stays behind in the worker
-        attach(solution, system, theta, t_end)
-    return solutions
+    for part in parts:  # the live system stays behind in the worker
+        for value in part:
+            if isinstance(value, Solution):
+                attach(value, system, theta, t_end)
+    return collect.merge(parts)
 
 
 def _numbers(name: str, value) -> np.ndarray:
-    """An array of real numbers (whether each start is finite, :func:`_check_all` says, orbit
+    """An array of real numbers (whether each start is finite, `_check_all` says, orbit
     by orbit)."""
     try:
         return np.asarray(value, float)
@@ -118,7 +165,7 @@ def _numbers(name: str, value) -> np.ndarray:
 
 
 def _check_all(system, scheme, q0s, p0s, t_span, tau0, steps, params) -> np.ndarray:
-    """Every start, checked as :func:`march` checks it, before any march; returns
+    """Every start, checked as `march` checks it, before any march; returns
     ``theta``."""
     theta = None
     for i, (q0, p0) in enumerate(zip(q0s, p0s, strict=True)):
@@ -145,13 +192,19 @@ def _can_fork() -> bool:
 
 
 class _Job:
-    """The marches of one ensemble: the system, the starts and :func:`march`'s options."""
+    """The marches of one ensemble: the system, the starts and `march`'s options."""
 
-    def __init__(self, system, q0s, p0s, t_span, options):
+    def __init__(self, system, q0s, p0s, t_span, options, collect):
         self.system, self.q0s, self.p0s, self.options = system, q0s, p0s, options
         self.t_span = t_span
+        self.collect = collect
 
-    def run(self, indices, *, count_compiles: bool) -> list[Solution]:
+    def run(self, indices, *, count_compiles: bool) -> list:
+        """The block's orbits marched, then what ``collect`` asks of them."""
+        return self.collect.block(self.march(indices, count_compiles=count_compiles),
+                                  indices[0])
+
+    def march(self, indices, *, count_compiles: bool) -> list[Solution]:
         before = build_count()
         solutions = [march(self.system, self.q0s[i], self.p0s[i], self.t_span, **self.options)
                      for i in indices]

@@ -4,10 +4,10 @@ Both read per-node values the steppers computed with each step (``Advance.values
 the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H_zz f = -8 c(z)``
 (docs/theory.md section 7), so watching costs no extra CasADi call.
 
-- :class:`EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
+- `EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
   ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are
   dropped.
-- :class:`SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
+- `SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
   sign and the step to be short against the change of ``w``, so it warns once, at the first node
   where ``w`` changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``.
 """
@@ -53,7 +53,7 @@ class EnergyGuard:
 class SolvabilityMonitor:
     """Keeps ``w`` at every node and warns (``RuntimeWarning``) at the first alarming node.
 
-    ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; :meth:`solvability` gives
+    ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; `solvability` gives
     ``c(z_k) = -w_k / 8`` at the kept nodes. The warning points at the first caller outside
     this folder (the code that called the march)."""
 
@@ -169,8 +169,9 @@ class Checkpoint:
     # its fsync and the checksum).
     FIRST_GUESS_S_PER_BYTE = 1e-8
 
-    def __init__(self, save, interval: float, clock=time.perf_counter):
+    def __init__(self, save, interval: float, clock=time.perf_counter, state=None):
         self.save = save
+        self.state = state  # a snapshot taken with the nodes, passed to save as a third argument
         self.interval = interval
         self.clock = clock  # seconds; a test's own clock
         self.started = clock()
@@ -195,15 +196,16 @@ class Checkpoint:
         import threading
 
         t, z = nodes.t[:count], nodes.z[:count]  # views: rows below count never change
-        self.thread = threading.Thread(target=self._write, args=(t, z), daemon=True,
+        extra = (self.state(),) if self.state is not None else ()
+        self.thread = threading.Thread(target=self._write, args=(t, z, *extra), daemon=True,
                                        name="ddvp-checkpoint")
         self.thread.start()
         return None
 
-    def _write(self, t, z):
+    def _write(self, t, z, *state):
         began = self.clock()
         try:
-            self.save(t, z)
+            self.save(t, z, *state)
         except Exception as exc:  # noqa: BLE001 - reported from the march's own thread
             self.failure = exc
             return

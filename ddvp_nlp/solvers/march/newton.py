@@ -2,19 +2,19 @@
 and the compiled path's unrolled ``fast_newton``.
 
 Both paths solve the same step equations (``steps.py``) with the same options
-(:data:`NEWTON_OPTIONS`) and accept a root by the same test (``acceptance.py``):
+(`NEWTON_OPTIONS`) and accept a root by the same test (``acceptance.py``):
 
-- the careful path (:class:`NewtonSteps`): CasADi's ``newton`` rootfinder from the Runge-Kutta
-  predictor, retried from other guesses of ``tau`` (:data:`RETRY_FACTORS`), each outcome in a
-  :class:`StepResult`;
+- the careful path (`NewtonSteps`): CasADi's ``newton`` rootfinder from the Runge-Kutta
+  predictor, retried from other guesses of ``tau`` (`RETRY_FACTORS`), each outcome in a
+  `StepResult`;
 - the compiled path (``chunk.py``): CasADi's ``fast_newton``, which can be code-generated, with
-  its first iterations written out as straight-line code (:func:`unrolled_newton`, below).
+  its first iterations written out as straight-line code (`unrolled_newton`, below).
 
 The unrolled ``fast_newton``. ``fast_newton`` iterates, at most ``max_iter`` times:
 evaluate ``g(x)`` and ``J = dg/dx``; stop if ``|g|_inf <= abstol``; else factor ``J = QR``
 (Householder, CasADi's sparse ``casadi_qr``), ``dx = J^-1 g``, ``x <- x - dx``; stop if
 ``|dx|_inf <= abstol_step``. Its loop and its generic sparse QR cost more than the arithmetic of
-a small step. :func:`unrolled_newton` writes the first ``iterations`` of that loop as one SX
+a small step. `unrolled_newton` writes the first ``iterations`` of that loop as one SX
 expression: the same Jacobian function, the same QR in the same order of operations (specialised
 to the Jacobian's sparsity pattern), each update masked once the loop would have stopped. It
 returns the iterate and whether the loop would have stopped; where it would not, the caller
@@ -22,7 +22,7 @@ goes on with ``fast_newton`` from that iterate, so the result is the one ``fast_
 to the last bit (the chunk compiles with ``-ffp-contract=off``).
 
 The march's chunk asks for a cheaper linear solve on small systems (``linear="lu"``,
-:class:`DenseLU`): the same iterations and tests, each update by elimination; the result is then
+`DenseLU`): the same iterations and tests, each update by elimination; the result is then
 ``fast_newton``'s root to round-off, not its bits.
 """
 
@@ -102,8 +102,8 @@ class StepResult:
 
 
 class NewtonSteps:
-    """Careful steps: CasADi's ``newton`` on :class:`StepFunctions`, checked by ``acceptance``
-    (an :class:`~ddvp_nlp.solvers.march.acceptance.Acceptance`). Counts Newton iterations and
+    """Careful steps: CasADi's ``newton`` on `StepFunctions`, checked by ``acceptance``
+    (an `Acceptance`). Counts Newton iterations and
     retries."""
 
     def __init__(self, system, scheme, functions: StepFunctions, theta: np.ndarray, acceptance):
@@ -181,7 +181,7 @@ class NewtonSteps:
 
     def _passes(self, x, w) -> bool:
         """Whether an energy step Newton did not call converged passes the residual test with
-        a positive step, the compiled path's test (see :meth:`fixed_step`)."""
+        a positive step, the compiled path's test (see `fixed_step`)."""
         if not x[-1] > 0:
             return False
         check = EnergyCheck(*(float(v) for v in self.functions.energy_check(x, w)))
@@ -380,7 +380,7 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
     the generated code grows with the unrolled QR, so it pays for small systems only.
 
     ``linear``: ``"qr"`` solves each update as ``fast_newton`` does (``casadi_qr``), so the
-    result is ``fast_newton``'s to the last bit; ``"lu"`` solves it by :class:`DenseLU`
+    result is ``fast_newton``'s to the last bit; ``"lu"`` solves it by `DenseLU`
     (cheaper; the result is then a root to the same tolerance, not the same bits).
 
     ``at_root``: an optional SX function ``(x, w) -> (...)`` of the result (the step's check),

@@ -59,7 +59,7 @@ def recheck_block(system, scheme) -> ca.Function:
     """``(T (BLOCK + 2), Z (2n x BLOCK + 2), theta) -> (canonical (2n x BLOCK), energy
     (1 x BLOCK))``: the canonical residuals of the intervals from the first ``BLOCK`` nodes of
     ``T, Z`` and the energy residuals at the ``BLOCK`` nodes after the first, computed in pieces
-    of ``PIECE`` nodes (:func:`_piece`: the same bits as the separate mapped functions); one
+    of ``PIECE`` nodes (`_piece`: the same bits as the separate mapped functions); one
     compiled call per block, the shifts done in C rather than as copies in numpy."""
     n = system.n
     T = ca.MX.sym("T", 1, BLOCK + 2)
@@ -76,7 +76,7 @@ def recheck_block(system, scheme) -> ca.Function:
 
 
 def _block(system, scheme, compiler, cache_dir):
-    """The compiled :func:`recheck_block` (cached)."""
+    """The compiled `recheck_block` (cached)."""
     def build():
         function = compile_function(recheck_block(system, scheme), compiler,
                                     cache_folder(cache_dir), prefix="recheck")

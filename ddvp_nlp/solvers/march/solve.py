@@ -17,7 +17,7 @@ its compiled unrolled form), ``least_squares.py`` (the
 step that replaces a failed one with ``breakdown="least_squares"``), ``chunk.py`` (compiled
 chunks of steps), ``stepper.py`` (the careful, compiled and composite steppers), ``monitors.py``
 (energy guard, solvability monitor). This module checks the input, builds those parts, runs them
-with the driver (``driver.py``) and returns the :class:`Solution`.
+with the driver (``driver.py``) and returns the `Solution`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from ...solution import Solution
 from ...validation import check_span, check_state, check_step
 from ..accuracy import AccuracyMonitor, ErrorEstimates, apply_verdict
 from ..compiler import buffered, find_compiler
-from ..dense import attach
+from ..dense import DenseField, EventMonitor, attach, check_times, evaluate_at
 from ..driver import Nodes, drive
 from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
 from .acceptance import Acceptance
@@ -46,6 +46,7 @@ from .chunk import FastChunk
 from .monitors import Checkpoint, EnergyGuard, SolvabilityMonitor, StopRequest
 from .newton import NewtonSteps
 from .recheck import grid_residuals
+from .resume import CarryTracker, MarchState, check_resume, with_state
 from .stepper import CarefulStepper, Clock, CompiledStepper, MarchStepper, Tally
 from .steps import StepFunctions, step_functions
 
@@ -65,9 +66,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
         v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
             march takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform.
-        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a :class:`Scheme`.
+        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a `Scheme`.
         params: values of the system's parameters (defaults filled in).
-        steps: when a step is accepted and when the march stops (:class:`StepControl`: the
+        steps: when a step is accepted and when the march stops (`StepControl`: the
             residual tolerance, step bounds, what to do at a breakdown, ``max_steps``,
             ``time_limit``, ``energy_guard``).
         accuracy: the accuracy check (``solvers/accuracy.py``), which does not trust the
@@ -78,8 +79,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             leaves the check out (the comparison does, so that run times compare like with
             like, and checks afterwards with ``accuracy.assess``).
         compilation: compiled chunks of steps or the careful path, the compiler and its cache
-            (:class:`Compilation`).
-        output: progress bar, checkpoints and the stop request (:class:`Output`).
+            (`Compilation`).
+        output: progress bar, checkpoints, the stop request, the times to report
+            (``t_eval``) and the events (`Output`; ``solvers/dense.py``).
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -93,7 +95,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     ``Solution.solvability`` holds ``c(z_k)`` at every node.
 
     Returns:
-        A :class:`Solution`; failures are a status on it, never an exception.
+        A `Solution`; failures are a status on it, never an exception.
     """
     scheme = Scheme.coerce(scheme)
     steps = coerce(steps, StepControl, "steps")
@@ -103,8 +105,51 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     output = coerce(output, Output, "output")
     # the options first: the start (p0 from v0, H0) already builds CasADi functions
     problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
-    compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
+    check_times(output.t_eval, (problem.t0, problem.t_end))
+    return run_march(problem, accuracy, compilation, output)
 
+
+def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | None = None, *,
+                   tau0: float, scheme: str | Scheme = "vddvp",
+                   params: Mapping[str, float] | None = None, steps: StepControl | None = None,
+                   accuracy: Tolerance | None = DEFAULT_TOLERANCE,
+                   compilation: Compilation | None = None,
+                   output: Output | None = None) -> Solution:
+    """Continue the march whose nodes and carried state are ``state`` (a killed run's last
+    checkpoint, or a finished run) to ``t_end`` (default: the one it was asked for; the same or
+    later), with the options it ran with (``tau0``, ``scheme``, ``params``, ``steps``,
+    ``accuracy``, ``compilation``, as for `march`).
+
+    The loop goes on as if it had never stopped (``resume.py``): the returned nodes are the
+    earlier ones followed by those an uninterrupted `march` to ``t_end`` gives, bit for
+    bit, on the compiled and the careful path. A fixed-step march keeps its ``t_end``.
+
+    Returns:
+        A `Solution` of the whole run, from the first node.
+    """
+    scheme = Scheme.coerce(scheme)
+    steps = coerce(steps, StepControl, "steps")
+    if accuracy is not None:
+        coerce(accuracy, Tolerance, "accuracy")
+    compilation = coerce(compilation, Compilation, "compilation")
+    output = coerce(output, Output, "output")
+    if not isinstance(state, MarchState):
+        raise InputError(f"state must be a MarchState, got {type(state).__name__}")
+    n = state.z.shape[1] // 2
+    t_end = state.t_end if t_end is None else t_end
+    problem = check_problem(system, scheme, state.z[0, :n], state.z[0, n:], None,
+                            (state.t[0], t_end), tau0, steps, params)
+    check_resume(state, problem, scheme.variable_steps)
+    check_times(output.t_eval, (problem.t0, problem.t_end))
+    return run_march(problem, accuracy, compilation, output, start=state)
+
+
+def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output: Output,
+              start=None) -> Solution:
+    """Build the march of a checked ``problem`` and drive it from its start, or from ``start``
+    (a `MarchState`: the nodes of an earlier run of the
+    same problem and what its loop carried, ``resume.py``)."""
+    compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
     started = time.perf_counter()
     parts = _build(problem, compilation, compiler, check_accuracy=accuracy is not None)
     built = time.perf_counter()
@@ -122,9 +167,21 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             compiler=compiler if compiled else
             None if compilation.fast else find_compiler(compilation.compiler))
         monitors.append(checker)
-    saver = None if output.checkpoint is None else Checkpoint(output.checkpoint,
-                                                              output.checkpoint_interval)
+    events = None
+    if output.events:
+        events = EventMonitor(output.events, DenseField.of(problem.system, problem.theta),
+                              problem.t_end, nodes.t[0], nodes.z[0])
+        monitors.append(events)
+    if start is not None:  # the earlier nodes, watched again; the loop's state restored
+        nodes = start.restore(parts.stepper, parts.tally, monitors, parts.functions,
+                              problem.theta)
+    carry = CarryTracker(parts.tally, *((start.careful_left, start.phase) if start else ()))
+    saver = None
+    if output.checkpoint is not None:
+        save, state = with_state(output.checkpoint, carry)
+        saver = Checkpoint(save, output.checkpoint_interval, state=state)
     monitors += [StopRequest(output.stop)] if output.stop else []
+    monitors += [carry]
     monitors += [saver] if saver else []  # last: it sees only the nodes the others kept
     try:
         outcome = drive(parts.stepper, nodes, t_end=problem.t_end,
@@ -141,6 +198,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                          compiler=compiler if compiled else None,
                          cache_dir=compilation.cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
+    solution.stats["carried"] = carry.state()
     if checker is not None:
         started = time.perf_counter()
         report, solution.local_error = checker.report(
@@ -152,7 +210,11 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
         solution.stats["checkpoints_landed_s"] = [round(t, 3) for t in saver.landed]
-    return attach(solution, system, problem.theta, problem.t_end)
+    attach(solution, problem.system, problem.theta, problem.t_end)
+    if events is not None:
+        events.report(solution)
+    evaluate_at(solution, output.t_eval)
+    return solution
 
 
 @dataclass(frozen=True)
@@ -176,7 +238,7 @@ class MarchProblem:
 
 def check_problem(system, scheme: Scheme, q0, p0, v0, t_span, tau0, steps: StepControl,
                   params) -> MarchProblem:
-    """Every input of :func:`march` but the options objects, checked in the order of its
+    """Every input of `march` but the options objects, checked in the order of its
     signature (``InputError`` naming the argument and the value), before anything is built;
     ``march_ensemble`` checks each of its starts with it."""
     if not isinstance(system, HamiltonianSystem):
@@ -236,7 +298,7 @@ def _start(system, scheme, q0, p0, v0, *, t0, tau0, theta) -> tuple[np.ndarray, 
 
 @dataclass
 class _Parts:
-    """What :func:`_build` made: the stepper and what the ``Solution`` reads back from it."""
+    """What `_build` made: the stepper and what the ``Solution`` reads back from it."""
 
     functions: StepFunctions
     newton: NewtonSteps
@@ -315,7 +377,7 @@ def _accuracy_monitor(problem: MarchProblem, tolerance, errors, *, compiler, cac
 
 def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, compiler,
               cache_dir, timing):
-    """The :class:`Solution`, with every equation recomputed on the returned grid (compiled
+    """The `Solution`, with every equation recomputed on the returned grid (compiled
     with ``compiler``, else on CasADi's virtual machine)."""
     started = time.perf_counter()
     system, scheme, theta = problem.system, problem.scheme, problem.theta

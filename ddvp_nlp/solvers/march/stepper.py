@@ -1,20 +1,20 @@
 """The march's steppers for the one-step-loop driver (``driver.py``).
 
-- :class:`CarefulStepper`: one step per call with CasADi's ``newton`` (``newton.py``). Step 0 of
+- `CarefulStepper`: one step per call with CasADi's ``newton`` (``newton.py``). Step 0 of
   the energy rules and every step of the ``fixed`` rule is a fixed-length step on the times of
-  the :class:`Clock`; every other step is an energy step, then the step bounds; where an energy
+  the `Clock`; every other step is an energy step, then the step bounds; where an energy
   step fails with a status in ``LEAST_SQUARES_CASES`` and ``breakdown == "least_squares"``, the
   least-squares step (``least_squares.py``) replaces it.
-- :class:`CompiledStepper`: a batch of up to ``MAX_CALLS`` chained compiled chunk calls per call
+- `CompiledStepper`: a batch of up to ``MAX_CALLS`` chained compiled chunk calls per call
   (``chunk.py``), kept up to the first step that fails the same
-  :class:`~ddvp_nlp.solvers.march.acceptance.Acceptance`: the nodes one call per chunk would
+  `Acceptance`: the nodes one call per chunk would
   give, with the Python work of decoding, checking and watching (the driver's monitors) paid
   once per batch.
-- :class:`MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
+- `MarchStepper`: the composite. It runs compiled chunks; after a chunk step fails a
   check, the careful path redoes the rest of that chunk's window (``careful_left`` steps), then
   the chunks resume. So every step passes the same acceptance test, whichever path took it.
 
-:class:`Tally` holds what the steppers carry from step to step: the compensated energy drift and
+`Tally` holds what the steppers carry from step to step: the compensated energy drift and
 the counts the ``Solution`` reports.
 """
 
@@ -104,7 +104,8 @@ class CarefulStepper:
         if result.status is not Status.SUCCESS:
             return Advance.failed(result.status, result.detail, nodes.width)
         return Advance(np.array([result.t_next]), result.z_next[None, :],
-                       values={"H": np.array([result.H_node]), "w": np.array([result.w_node])})
+                       values={"H": np.array([result.H_node]), "w": np.array([result.w_node]),
+                               "carry": np.array([[self.tally.drift, 0.0, 0.0]])})
 
     def _energy_step(self, t, z, k) -> StepResult:
         result = self.steps.energy_step(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift)
@@ -127,7 +128,7 @@ class CompiledStepper:
     """A batch of compiled chunk calls per call, kept up to its first step that fails a check.
 
     A chunk that carries the accuracy check starts from ``errors.e`` (the check's
-    :class:`~ddvp_nlp.solvers.accuracy.ErrorEstimates`, which the monitor keeps up to date) and
+    `ErrorEstimates`, which the monitor keeps up to date) and
     returns the check's estimates of every kept step in ``Advance.values``
     (``ACCURACY_VALUES``)."""
 
@@ -141,6 +142,9 @@ class CompiledStepper:
         self.tally = tally
         self.errors = errors if chunk.accuracy is not None else None
         self.calls = 1  # chunk calls of the next batch
+        # steps since the last chunk boundary when a batch starts: 0 but in a resumed march,
+        # whose first batch starts where the uninterrupted run was inside a chunk
+        self.offset = 0
         self._handed = (0, 0)  # (first node index, count) of the last batch handed out
         self._packed = None  # the chunk's parameters
 
@@ -190,7 +194,8 @@ class CompiledStepper:
         bad = np.flatnonzero(~good[:limit])
         kept = int(bad[0]) if bad.size else limit
         self.calls = 1 if bad.size else min(2 * self.calls, self.max_calls)
-        values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept]}
+        values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept],
+                  "carry": self._carry(steps, kept)}
         if self.errors is not None:
             values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
         if kept and self.chunk.variable:
@@ -198,7 +203,18 @@ class CompiledStepper:
         self.tally.fast_steps += kept
         self._handed = (nodes.count, kept)
         advance = Advance(steps.t_next[:kept], steps.z_next[:kept], values=values)
-        return advance, (kept % self.chunk.chunk if bad.size else None)
+        before = (self.offset + kept) % self.chunk.chunk if bad.size else None
+        if bad.size:  # the careful path ends the window; the next chunks start a new one
+            self.offset = 0
+        return advance, before
+
+    def _carry(self, steps, kept: int) -> np.ndarray:
+        """Per kept step what a resumed march needs to go on as this one did (``resume.py``):
+        the drift after it, no careful steps owed, its place in its chunk."""
+        carry = np.zeros((kept, 3))
+        carry[:, 0] = steps.drift[:kept] if self.chunk.variable else self.tally.drift
+        carry[:, 2] = (self.offset + np.arange(1, kept + 1)) % self.chunk.chunk
+        return carry
 
     def _calls(self, nodes: Nodes, budget: int) -> int:
         """Chunk calls of the next batch: ``self.calls``, fewer where the run ends sooner
@@ -251,4 +267,7 @@ class MarchStepper:
             if advance.count:
                 return advance
         self.careful_left = max(self.careful_left - 1, 0)
-        return self.careful.advance(nodes, budget)
+        advance = self.careful.advance(nodes, budget)
+        if advance.count:
+            advance.values["carry"][0, 1] = self.careful_left
+        return advance

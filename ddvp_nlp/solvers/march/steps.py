@@ -7,11 +7,11 @@ Two kinds of step (docs/theory.md section 5):
 - *energy*: given ``t_{k-1}, t_k, z_{k-1}, z_k``, solve the ``2n`` canonical equations of interval
   ``k`` and the energy equation at node ``k`` for ``(z_{k+1}, tau_k)``.
 
-:class:`StepFunctions` holds, for each kind, the residual, a Runge-Kutta predictor and a *check*:
+`StepFunctions` holds, for each kind, the residual, a Runge-Kutta predictor and a *check*:
 the step's unscaled residuals and what the monitors need of the new node (``H`` and the
 site-density weight ``w``). Its attributes are the public interface that both paths build on:
-the careful Newton (``newton.py``, :class:`~ddvp_nlp.solvers.march.newton.NewtonSteps`) and the
-compiled chunk (``chunk.py``); :class:`FixedCheck` and :class:`EnergyCheck` name the check's
+the careful Newton (``newton.py``, `NewtonSteps`) and the
+compiled chunk (``chunk.py``); `FixedCheck` and `EnergyCheck` name the check's
 outputs.
 """
 
@@ -57,12 +57,12 @@ class StepFunctions:
 
     Fixed-length step: unknown ``z_b``; parameters ``w = [t_a, t_b, z_a, theta]``.
     ``fixed_residual(z_b, w)``, ``fixed_predict(w)`` (RK4),
-    ``fixed_check(z_b, w)`` (see :class:`FixedCheck`).
+    ``fixed_check(z_b, w)`` (see `FixedCheck`).
 
     Energy step (energy rules only): unknown ``x = [z_{k+1}, tau_k]``; parameters
     ``w = [t_{k-1}, t_k, z_{k-1}, z_k, theta, drift]``. ``energy_residual(x, w)``,
     ``energy_predict(w, tau_guess)``, ``energy_check(x, w)`` (see
-    :class:`EnergyCheck`).
+    `EnergyCheck`).
 
     ``node_monitor(z, t, theta)``: ``H`` and ``w`` at a node.
     """

@@ -18,8 +18,8 @@ the docstring of ``solve.py``. The interval rows are ``equations.canonical_expre
 becomes one CasADi function returning its ``m`` rows and their dense Jacobian in
 ``(z_k, z_{k+1}, u)``, mapped over the grid by ``grid/maps.ChunkedMap``. The closure rows
 put entries in the corner (columns of ``z_0``) and each unfolding parameter is a full column:
-the matrix is factored by sparse LU (SuperLU), not in band storage. :class:`PeriodicAssembly`
-is a ``grid.problem.GridProblem`` (its data a :class:`Closure`): the grid's Newton and its
+the matrix is factored by sparse LU (SuperLU), not in band storage. `PeriodicAssembly`
+is a ``grid.problem.GridProblem`` (its data a `Closure`): the grid's Newton and its
 IPOPT build take it as they take the fixed-endpoint assembly."""
 
 from __future__ import annotations
@@ -151,7 +151,7 @@ def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
 
 class PeriodicAssembly:
     """``F(x)`` and ``F'(x)`` of one system, scheme, interval count and set of integrals
-    (module docstring); the problem's data (a :class:`Closure`) comes with each evaluation."""
+    (module docstring); the problem's data (a `Closure`) comes with each evaluation."""
 
     def __init__(self, system, scheme: Scheme, intervals: int, integrals=()):
         self.layout = ClosedLayout(system.n, intervals, len(integrals))

@@ -9,7 +9,7 @@ Test functions (``continuation.py`` locates their sign changes between members):
 
 with ``R`` the reduced monodromy and ``k_j`` the stability indices (``stability.py``).
 
-Confirmation by the exact flow (:func:`confirm`): the same test function on the exact flow's
+Confirmation by the exact flow (`confirm`): the same test function on the exact flow's
 orbits (``exact.close_exact`` from the discrete orbit at the located energy ``E_N``, then at
 each energy from the last exact orbit), its sign change bracketed around ``E_N`` (half-width
 ``1e-6 max(1, |E_N|)``, quadrupled until the signs differ) and located by Brent's method: the
@@ -66,7 +66,7 @@ class Confirmation:
 def confirm(system, theta, orbit, kind: str, *, section_index: int, section_value: float,
             integrals=(), tol: float = 1e-6) -> Confirmation | None:
     """The exact flow's bifurcation of ``kind`` near the located discrete ``orbit`` (a
-    :class:`Solution` at the located energy), or ``None`` if the exact test function does not
+    `Solution` at the located energy), or ``None`` if the exact test function does not
     change sign within the widest bracket."""
     integrals = tuple(integrals)
     energy = float(orbit.stats["energy"])

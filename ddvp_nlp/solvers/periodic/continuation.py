@@ -14,7 +14,7 @@ node values): the nodes count by their mean square, so that a step is about as l
 orbit as in ``E``. At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
 ``t_E`` changes sign and the bordered matrix stays regular: the continuation passes it. The step
 ``ds`` grows by 1.5 after a corrector that took at most 3 iterations and halves after one that
-failed; every member is then verified by :func:`~.solve.solve_periodic` (its residuals, its
+failed; every member is then verified by `solve_periodic` (its residuals, its
 accuracy check), which starts from it.
 
 Each member's stability is its discrete monodromy's (``stability.py``). Bifurcations are sign
@@ -62,7 +62,7 @@ EASY_ITERATIONS = 3
 
 @dataclass(frozen=True)
 class Continuation:
-    """How :func:`follow_periodic_family` walks along the family.
+    """How `follow_periodic_family` walks along the family.
 
     Attributes:
         step: the first step, in the energy (default a twentieth of the range).
@@ -74,7 +74,7 @@ class Continuation:
         locate_tol: the located bifurcations' bracket in the energy, relative to
             ``max(1, |E|)``.
         exact: close the exact flow at every member and analyse its monodromy
-            (:func:`~.stability.periodic_stability`; about 0.1-1 s an orbit).
+            (`periodic_stability`; about 0.1-1 s an orbit).
         confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
     """
 
@@ -234,12 +234,12 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
         energies: ``(E_start, E_end)``: the first orbit's energy and the end of the range
             (the continuation heads towards it).
         nodes, section, guess, scheme, params, start, integrals, angles, options: as for
-            :func:`~ddvp_nlp.solve_periodic` (``guess`` and ``start`` for the first orbit).
+            `solve_periodic` (``guess`` and ``start`` for the first orbit).
         continuation: the steps, the stopping rules and the tolerances
-            (:class:`Continuation`).
+            (`Continuation`).
 
     Returns:
-        A :class:`Family`; a first orbit that is not found raises no error: the family is
+        A `Family`; a first orbit that is not found raises no error: the family is
         empty and its message says why.
     """
     started = time.perf_counter()
@@ -267,7 +267,7 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
 def _checked(system, energies, nodes, section, guess, scheme, params, start, angles, options,
              continuation):
     """The energies, options and continuation settings, checked before anything is built (the
-    first orbit's arguments by :func:`check_periodic`, its section point included when no
+    first orbit's arguments by `check_periodic`, its section point included when no
     guess is given)."""
     try:
         first_energy, last_energy = (float(e) for e in energies)
@@ -301,7 +301,7 @@ class _Walker:
         self.max_step = walk.max_step or span / 10
         self.closure = self._closure(first)
         self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), nodes,
-                                         self.closure, self.integrals)
+                                         self.integrals)
         self.arc = ArclengthSystem(self.assembly)
         self.members, self.points, self.tangents, self.steps = [], [], [], []
         self._accept(first, None, 0.0)

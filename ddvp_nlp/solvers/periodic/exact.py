@@ -3,7 +3,7 @@ one, both from the variational equations integrated by scipy's DOP853
 (``physics/flow.py``; no equation of the scheme is used here). ``Y(T)`` of
 ``flow_with_derivatives`` on a periodic orbit is its monodromy matrix.
 
-Closing the exact flow (:func:`close_exact`): Newton's method on the shooting equations::
+Closing the exact flow (`close_exact`): Newton's method on the shooting equations::
 
     phi_T(z_0; u) - z_0 - shift = 0      (2n)
     H(z_0) - E = 0,  z_0[section] - value = 0,  g_i . (z_0 - z_ref) = 0   (2 + r)
@@ -33,7 +33,7 @@ CLOSURE_TARGET = 1e-10
 
 @dataclass
 class ExactOrbit:
-    """The exact flow's periodic orbit found by :func:`close_exact`: node 0, period, unfolding
+    """The exact flow's periodic orbit found by `close_exact`: node 0, period, unfolding
     parameters, its monodromy, and how the shooting went (``converged``, ``closure`` = the
     largest ``|phi_T(z_0) - z_0 - shift|`` relative to the orbit's size, ``iterations``);
     ``start_return`` is the same measure of the start (the discrete orbit's node 0 after its

@@ -23,7 +23,7 @@ def solve_periodic_family(system, energies, *, nodes: int, max_halvings: int = 4
                           guess=None, **options) -> list:
     """``[(E, Solution), ...]`` for every energy of ``energies`` (module docstring); the
     intermediate energies the halvings took are not listed. ``options`` go to
-    :func:`solve_periodic`: ``section``, ``scheme``, ``params``, ``start``, ``integrals``,
+    `solve_periodic`: ``section``, ``scheme``, ``params``, ``start``, ``integrals``,
     ``angles`` and its ``options`` (a ``GridOptions``)."""
     unknown = sorted(set(options) - FORWARDED)
     if unknown:

@@ -1,6 +1,6 @@
 """IPOPT on the periodic system of ``assembly.py``: the same unknowns, the same rows.
 
-The NLP: unknowns ``x`` in the layout of :class:`~.assembly.ClosedLayout` (node
+The NLP: unknowns ``x`` in the layout of `ClosedLayout` (node
 states and times interleaved, then the unfolding parameters ``lambda, mu_1 .. mu_r``), so a
 point found here goes through the verification of ``solve.py`` exactly as Newton's does.
 Constraints, all equalities but the last group::
@@ -39,7 +39,7 @@ from .assembly import ClosedLayout, Closure, interval_rows
 
 class PeriodicIpopt:
     """The NLP of one system, scheme, interval count, set of integrals and section
-    coordinate; :meth:`solve` takes the data of one orbit (a :class:`Closure`)."""
+    coordinate; `solve` takes the data of one orbit (a `Closure`)."""
 
     def __init__(self, system, scheme, intervals: int, integrals, section_index: int, *,
                  tol: float, max_iter: int, verbose: bool = False,

@@ -10,10 +10,10 @@ old nodes. So every level starts with the step distribution of the level below, 
 ``O(tau^2)`` of its own, and the solver's work per level does not grow with ``N``.
 
 Levels: ``N``, then halved while the next one stays at or above ``first`` (default
-:data:`FIRST_LEVEL`): ``100, 200, 400, 800`` for ``N = 800``, ``125, 250, 500, 1000`` for
+`FIRST_LEVEL`): ``100, 200, 400, 800`` for ``N = 800``, ``125, 250, 500, 1000`` for
 ``N = 1000``, just ``N`` below ``2 first``.
 
-:func:`continue_in_nodes` is the walk, for any solver of a grid: ``solve_periodic`` uses it
+`continue_in_nodes` is the walk, for any solver of a grid: ``solve_periodic`` uses it
 for its default start, and another problem (a periodic orbit of another system, a grid with
 fixed ends and a prescribed energy: ``closed=False`` keeps the end nodes where they are) can
 hand it its own solve of one level.
@@ -68,7 +68,7 @@ def continue_in_nodes(solve: Callable[[int, np.ndarray, np.ndarray], Solution], 
     """Walk ``levels`` (coarsest first): ``solve(intervals, t, z)`` on each, from ``(t, z)``
     (nodes of the first level: ``t`` of shape ``(intervals + 1,)``, ``z = (q, p)`` of shape
     ``(intervals + 1, 2n)``) and then from the last level's solution refined by
-    :func:`refine_by_index` (``closed``: a periodic grid; ``False`` for a grid with fixed ends).
+    `refine_by_index` (``closed``: a periodic grid; ``False`` for a grid with fixed ends).
     Returns the last level's solution and one record per level
     (``nodes``, ``status``, ``iterations``). A level whose equations do not hold (a status
     other than ``success`` and ``inaccurate``: a coarse grid may be too coarse for the

@@ -146,7 +146,7 @@ def parse_section(section, n: int) -> tuple[int, float, str]:
 
 @dataclass
 class Orbit:
-    """The data of a periodic problem (the ``data`` of its :class:`GridRequest`): the
+    """The data of a periodic problem (the ``data`` of its `GridRequest`): the
     prescribed energy, the section (index into ``z = (t, q, p)``, value, label), the angle
     coordinates, the direction along which the section's point is looked for, and the start:
     that ``point`` (marched to its return) or the user's ``guess`` nodes."""
@@ -176,7 +176,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         nodes: the number of intervals ``N >= 3`` (``N + 1`` nodes, the last equal to the first).
         section: the phase condition on node 0, ``"NAME=VALUE"`` with ``NAME`` in ``q1..qn``,
             ``p1..pn``, or a pair ``(NAME, VALUE)``.
-        guess: a start (a :class:`Solution` or a mapping with ``t``, ``q``, ``p`` over one
+        guess: a start (a `Solution` or a mapping with ``t``, ``q``, ``p`` over one
             period); default: the march from the section's point at ``E`` to its return
             (``start.py``).
         scheme: ``"vddvp"`` or ``"lee"`` (the same equations for autonomous ``H``).
@@ -197,10 +197,10 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             ``ipopt.py``, ``"auto"``: Newton, then IPOPT from the same start when Newton's point
             fails the verification of its residuals), the verification tolerance ``tol``
             (default 1e-10) of the unscaled residuals above their round-off, ``max_iter`` of
-            either solver (default 100) and IPOPT's log (:class:`GridOptions`).
+            either solver (default 100) and IPOPT's log (`GridOptions`).
 
     Returns:
-        A :class:`Solution` with ``N + 1`` nodes; ``stats`` holds ``period``, ``energy``,
+        A `Solution` with ``N + 1`` nodes; ``stats`` holds ``period``, ``energy``,
         ``unfolding`` (``lambda``), ``winding``, the largest residuals of each kind, the
         accuracy estimate (``accuracy``: against RK4 steps of the exact flow) and the solver's
         ``attempts``; ``energy_residual`` holds the scheme's energy equation at nodes ``1 ..
@@ -219,9 +219,10 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         return _solve_on(replace(request, nodes=intervals, phases=[]), t, z, integrals, started)
 
     solution, records = continue_in_nodes(solve_level, t, z, levels, request.data.angles)
-    if solution.status not in (Status.SUCCESS, Status.INACCURATE) and len(records) > 1 \
-            and request.data.start_note is None:
-        # a level on the way failed: the predicted grid at N itself, as without continuation
+    if solution.status not in (Status.SUCCESS, Status.INACCURATE) \
+            and records[-1]["nodes"] != nodes and request.data.start_note is None:
+        # a level below N failed (the first one too): the predicted grid at N itself, as
+        # without continuation
         fallback = solve_level(nodes, *_start_nodes(request, nodes))
         records.append({"nodes": nodes, "status": fallback.status.code,
                         "iterations": fallback.newton_iterations, "from": "predicted grid"})
@@ -299,7 +300,7 @@ def _noted(solution: Solution, attempts: list) -> Solution:
 
 def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", params=None,
                    start=None, integrals=(), angles=(), options=None) -> None:
-    """Raise the ``InputError`` :func:`solve_periodic` would raise for these arguments without
+    """Raise the ``InputError`` `solve_periodic` would raise for these arguments without
     a guess (the section's point at ``energy`` included), and build nothing."""
     check_integrals(integrals)
     _checked(system, energy, nodes, section, None, scheme, params, start, angles,

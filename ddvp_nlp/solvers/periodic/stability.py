@@ -225,7 +225,7 @@ class Stability:
         trivial: the trivial multipliers (``2(r + 1)``): the eigenvalues of the blocks of the
             fixed directions and of their dual, 1 in exact arithmetic.
         trivial_error: the largest entry of those blocks minus the identity, relative to
-            ``max(1, |M|)`` (:func:`reduce`): how far "the trivial multipliers are 1" is from
+            ``max(1, |M|)`` (`reduce`): how far "the trivial multipliers are 1" is from
             holding, in the units of ``M``'s round-off.
         defect: the largest entry of the blocks that vanish for exact fixed directions, relative
             to ``|M|`` (round-off, or the exponentially small defect of the discrete orbit).
@@ -235,8 +235,8 @@ class Stability:
         fixed: the fixed directions ``V`` as columns.
         kind: ``"discrete"`` or ``"exact"``.
         extra: further numbers (``period_derivative`` dT/dE of the discrete orbit, ...).
-        exact: the exact flow's :class:`Stability` at the exact orbit near this one (``None``
-            unless asked for: :func:`periodic_stability`).
+        exact: the exact flow's `Stability` at the exact orbit near this one (``None``
+            unless asked for: `periodic_stability`).
         exact_orbit: that exact orbit (``exact.ExactOrbit``: its closure, its distance).
     """
 
@@ -323,7 +323,7 @@ def generator_rows(system, theta, z0, integrals) -> np.ndarray:
 
 def orbit_stability(system, solution: Solution, *, params=None, integrals=(),
                     tol: float = DEFAULT_TOL) -> Stability:
-    """The stability of a periodic orbit that :func:`solve_periodic` returned (module
+    """The stability of a periodic orbit that `solve_periodic` returned (module
     docstring): its discrete monodromy, reduced by ``v_0 = dz_0/dc`` and the generators of
     ``integrals`` (the same ones the orbit was solved with).
 
@@ -335,7 +335,7 @@ def orbit_stability(system, solution: Solution, *, params=None, integrals=(),
         tol: the tolerance on the stability indices for the verdict.
 
     Returns:
-        A :class:`Stability`; ``extra`` holds ``period_derivative`` (``dT/dE`` along the
+        A `Stability`; ``extra`` holds ``period_derivative`` (``dT/dE`` along the
         discrete family at this ``N``), ``section_unfolding`` (``du/dc``, zero up to the
         discrete orbit's defect) and ``monodromy_norm``.
     """
@@ -369,7 +369,7 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
 
     Args:
         system: the system the orbit was solved for.
-        orbit: a periodic orbit returned by :func:`~ddvp_nlp.solve_periodic` (a failed one is
+        orbit: a periodic orbit returned by `solve_periodic` (a failed one is
             refused).
         params: the system's parameter values (those of the solve).
         integrals: the first integrals the orbit was solved with.
@@ -377,7 +377,7 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
         exact: also close the exact flow and analyse its monodromy.
 
     Returns:
-        A :class:`Stability`: ``multipliers``, ``indices``, ``verdict``, ``trivial`` and,
+        A `Stability`: ``multipliers``, ``indices``, ``verdict``, ``trivial`` and,
         with ``exact``, ``exact`` and ``exact_orbit``; ``summary()`` says it in one line.
     """
     if isinstance(orbit, Solution) and not orbit.success:
@@ -402,7 +402,7 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
 
 def discrete_stability(system, scheme, t, q, p, *, energy: float, section_index: int, theta,
                        integrals=(), tol: float = DEFAULT_TOL) -> Stability:
-    """:func:`orbit_stability` on the nodes of a discrete orbit (``t``, ``q``, ``p``: ``N + 1``
+    """`orbit_stability` on the nodes of a discrete orbit (``t``, ``q``, ``p``: ``N + 1``
     rows) at ``energy``, whose phase condition fixes ``z_0[section_index - 1]``."""
     integrals = tuple(integrals)
     discrete = discrete_monodromy(system, scheme, t, q, p, theta, energy, integrals)

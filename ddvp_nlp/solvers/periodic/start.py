@@ -97,7 +97,7 @@ def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, sch
 
 
 def _march_until_return(system, theta, z0, index, value, scheme, angle, heading, tau0):
-    """The march of :func:`march_to_return` with one rule, horizon after horizon."""
+    """The march of `march_to_return` with one rule, horizon after horizon."""
     n = system.n
     horizon = FIRST_HORIZON * tau0
     for _ in range(MAX_HORIZONS):
@@ -133,7 +133,7 @@ def closing_shift(first: np.ndarray, last: np.ndarray, angles=()) -> np.ndarray:
 def resample(t, z, intervals: int, angles=()) -> tuple[np.ndarray, np.ndarray]:
     """``N + 1`` nodes on equally spaced times from ``t[0]`` to ``t[-1]`` (``t`` shifted to start
     at 0), cubic between the given nodes, the last node set equal to the first (plus the whole
-    turns of the ``angles``, :func:`closing_shift`)."""
+    turns of the ``angles``, `closing_shift`)."""
     t = np.asarray(t, float) - float(t[0])
     z = np.asarray(z, float)
     grid = np.linspace(0.0, t[-1], intervals + 1)
@@ -144,7 +144,7 @@ def resample(t, z, intervals: int, angles=()) -> tuple[np.ndarray, np.ndarray]:
 
 
 def guess_nodes(guess, n: int, intervals: int, angles=()):
-    """``(t, z)`` of ``N + 1`` nodes from a user's start: a :class:`Solution` or a mapping with
+    """``(t, z)`` of ``N + 1`` nodes from a user's start: a `Solution` or a mapping with
     ``t``, ``q``, ``p`` (one period, last node at or near the first). Taken as it is when it has
     ``N + 1`` rows (a previous solve on the same grid), else resampled."""
     if isinstance(guess, Solution):

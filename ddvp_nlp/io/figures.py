@@ -1,0 +1,169 @@
+"""The one plotting stack of the package: every figure is a matplotlib ``Figure`` drawn under the
+house style ``ddvp.mplstyle`` (beside this module) and saved as PNG, SVG or PDF.
+
+matplotlib is imported only inside these functions, when a figure is drawn: ``import ddvp_nlp``
+and a run with ``--no-plot`` never load it. No pyplot: figures are plain ``Figure`` objects,
+so there is no global figure registry to leak into and no interactive backend to select.
+
+Long series are reduced before they are drawn (`decimate`): the minimum and the maximum
+of each of as many bins as the panel has pixel columns, which lights the same pixels as the
+whole line, so a run of a million nodes draws as fast as one of a thousand.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+STYLE = Path(__file__).with_name("ddvp.mplstyle")
+FORMATS = ("png", "svg", "pdf")
+# A journal's text width and column width, in inches: figures are drawn at the size they are
+# printed, so the fonts of the style sheet are the fonts on the page.
+TEXT_WIDTH, COLUMN_WIDTH = 7.0, 3.4
+# Bins of ``decimate`` per inch of panel width: two points per bin at 200 dpi is one point per
+# pixel column.
+BINS_PER_INCH = 200
+# What marks a failed run in every figure: a red cross, named in the legend.
+FAILED = {"marker": "x", "color": "#CC3311", "linestyle": "none", "markersize": 5,
+          "markeredgewidth": 1.2}
+
+
+def check_format(value: str) -> str:
+    """``value`` if it is one of `FORMATS`, else an `InputError`
+    naming it."""
+    if value not in FORMATS:
+        raise InputError(f"figure format {value!r} is not one of {', '.join(FORMATS)}")
+    return value
+
+
+def file_name(stem: str, fmt: str = "png") -> str:
+    """The file a figure ``stem`` is written to in format ``fmt``: ``stem.fmt``."""
+    return f"{stem}.{check_format(fmt)}"
+
+
+def other_formats(stem: str, fmt: str = "png") -> dict:
+    """``{stem.other: None}`` for the formats other than ``fmt``: given to an output folder's
+    ``commit``, it removes a figure an earlier run wrote in another format, so a folder never
+    holds two figures of different runs."""
+    return {f"{stem}.{other}": None for other in FORMATS if other != fmt}
+
+
+@contextlib.contextmanager
+def styled():
+    """The house style in force inside the block (matplotlib's ``rc_context``: nothing global
+    is changed after it)."""
+    import matplotlib
+
+    with matplotlib.rc_context(fname=str(STYLE)):
+        yield
+
+
+def new_figure(width: float, height: float, *, layout: str | None = "constrained"):
+    """A ``matplotlib.figure.Figure`` of ``width`` by ``height`` inches (no pyplot). Call it
+    inside `styled`, which must also surround `save`."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width, height), layout=layout)
+
+
+def save(fig, target, fmt: str = "png") -> None:
+    """Write ``fig`` to ``target`` (a path or a binary file) in format ``fmt``."""
+    # PNG at zlib level 1: a fifth of the drawing time of a run figure went into level 6's
+    # compression, for a file 20% smaller
+    extra = {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
+    fig.savefig(target, format=check_format(fmt), **extra)
+
+
+def format_of(path, default: str = "png") -> str:
+    """The format a path's suffix names (``.png``, ``.svg``, ``.pdf``), else ``default``."""
+    suffix = Path(path).suffix.lower().lstrip(".") if isinstance(path, (str, Path)) else ""
+    return check_format(suffix) if suffix else default
+
+
+def decimate(t: np.ndarray, values: np.ndarray, bins: int):
+    """``(t, values)`` reduced to the minimum and the maximum of each of ``bins`` equal bins of
+    ``t``, in the order they occur: a line through them covers the same pixels as the whole
+    line at one bin per pixel column, and its extremes are exact. ``values`` is ``(N,)`` or
+    ``(N, m)``; a series of at most ``2 * bins`` points is returned as it is. NaN values are
+    skipped within a bin."""
+    values = np.asarray(values, dtype=float)
+    t = np.asarray(t, dtype=float)
+    if t.size <= 2 * bins or not (np.isfinite(t[0]) and np.isfinite(t[-1])) or t[-1] <= t[0]:
+        return t, values
+    flat = values.reshape(t.size, -1)
+    edges = np.linspace(t[0], t[-1], bins + 1)
+    starts = np.unique(np.searchsorted(t, edges[:-1], side="left"))
+    starts = starts[starts < t.size]
+    shown = []
+    with np.errstate(invalid="ignore"):
+        for column in flat.T:
+            low = np.fmin.reduceat(column, starts)
+            high = np.fmax.reduceat(column, starts)
+            shown.append(np.column_stack([low, high]).ravel())
+    return np.repeat(t[starts], 2), np.column_stack(shown).reshape(-1, *values.shape[1:])
+
+
+def envelope_band(ax, t, values, bins: int, **style) -> None:
+    """One series on ``ax`` as it would look drawn whole: the line itself while it has at most
+    ``2 * bins`` points, else the band between the minimum and the maximum of each bin
+    (`decimate`) filled, its edges as wide as the line. Filling the band costs a polygon
+    where the zigzag through the extremes cost a full-height stroke per pixel column."""
+    t = np.asarray(t, dtype=float)
+    values = np.asarray(values, dtype=float)
+    x, y = decimate(t, values, bins)
+    if x.size == t.size:
+        ax.plot(x, y, **style)
+        return
+    line = ax.plot(x[::2], y[::2], **style)[0]  # legend entry, colour; the minima
+    ax.plot(x[1::2], y[1::2], color=line.get_color(), lw=line.get_linewidth())
+    ax.fill_between(x[::2], y[::2], y[1::2], color=line.get_color(), lw=0, alpha=1.0)
+
+
+def bins_for(ax) -> int:
+    """The number of `decimate` bins for a panel: one per pixel column at the saved
+    resolution."""
+    width = ax.get_position().width * ax.figure.get_figwidth()
+    return max(64, int(width * BINS_PER_INCH))
+
+
+def positive(values) -> np.ndarray:
+    """``values`` with zeros and negative or non-finite entries as NaN: what a log axis shows
+    (an exact zero has no place on it and is left out rather than drawn at an invented floor)."""
+    values = np.asarray(values, dtype=float)
+    return np.where(np.isfinite(values) & (values > 0), values, np.nan)
+
+
+def log_norm(values, *, decades: float = 16.0):
+    """A ``LogNorm`` over the finite positive ``values``: from their smallest to their largest,
+    widened to whole decades, at most ``decades`` below the largest (a colour bar that never
+    saturates: an error of 4 and one of 30 get different colours)."""
+    from matplotlib.colors import LogNorm
+
+    values = positive(values)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return LogNorm(1e-16, 1.0)
+    high = 10.0 ** math.ceil(math.log10(float(finite.max())))
+    low = max(10.0 ** math.floor(math.log10(float(finite.min()))), high * 10.0 ** -decades)
+    return LogNorm(low, high if high > low else low * 10)
+
+
+def failed_legend(ax, label: str = "failed") -> None:
+    """An entry in ``ax``'s legend for the failed-run marker, drawn once."""
+    ax.plot([], [], label=label, **FAILED)
+
+
+def distinct_tick_texts(ax, axis: str = "y") -> list[str]:
+    """The texts of ``ax``'s visible major tick labels on ``axis`` after the figure is drawn,
+    with the offset text appended to each (what a reader sees): tests check they differ."""
+    target = ax.yaxis if axis == "y" else ax.xaxis
+    low, high = sorted(ax.get_ylim() if axis == "y" else ax.get_xlim())
+    offset = target.get_offset_text().get_text()
+    return [f"{label.get_text()}{offset}" for tick, label in
+            zip(target.get_majorticklocs(), target.get_majorticklabels(), strict=False)
+            if low <= tick <= high and label.get_text()]
