@@ -103,8 +103,8 @@ def _run_folder(args, scene, config, overrides):
 RESULT_OPTIONS = {"alpha": 0.5, "clock": "midpoint", "tol": 1e-10, "tau_min": None,
                   "tau_max": None, "max_step_ratio": 10.0, "max_steps": 10_000_000,
                   "time_limit": None, "energy_guard": None, "least_squares": False,
-                  "rtol": 1e-2, "atol": 1e-2, "energy_tol": 0.1, "global_tol": None,
-                  "accept_inaccurate": False, "careful": False}
+                  "rtol": 1e-2, "atol": None, "energy_tol": 0.1, "global_tol": 1e-2,
+                  "require_accurate": False, "accept_inaccurate": False, "careful": False}
 
 
 def result_options(args) -> dict:

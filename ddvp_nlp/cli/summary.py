@@ -99,7 +99,10 @@ def _verdict_words(meta: dict, accuracy: dict) -> str:
             return f"inaccurate: {failure['test']}: {failure['detail']}"
         return (f"inaccurate: the {failure['test']} of step {failure['step']} (t = "
                 f"{failure['t']:.6g}) is {failure['value']:.3e} > {failure['limit']:.3e}")
-    if meta.get("status") not in ("success", "drifted"):
+    if meta.get("status") not in ("success", "event", "drifted") \
+            and not accuracy["steps"]:
+        return f"no verdict: the run ended {meta['status']} before its first step"
+    if meta.get("status") not in ("success", "event", "drifted"):
         return (f"no verdict on the whole run (it ended {meta['status']}); the "
                 f"{accuracy['steps']} steps kept are "
                 + ("within the tolerance" if verdict == "accurate" else

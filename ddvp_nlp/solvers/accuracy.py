@@ -331,6 +331,22 @@ class Level:
     clock: float
 
 
+def _unjudged(t, z, tol: Tolerance) -> dict:
+    """The report of a run without a step (or with a non-finite node): nothing to measure."""
+    finite = bool(np.all(np.isfinite(z))) and bool(np.all(np.isfinite(t)))
+    failure = None if finite else {"step": 0, "t": float(t[0]) if t.size else 0.0,
+                                   "test": "finite nodes", "value": math.inf, "limit": 0.0}
+    return {"verdict": "accurate" if finite else "inaccurate", "first_failure": failure,
+            "t_drift": None, "drift_step": None, "error_max": 0.0, "error_max_t": None,
+            "estimate": "none (no step)", "reference_until": None, "reference_error": None,
+            "reference_lost": None, "scale": None, "energy_scale": None,
+            "local_error_max": 0.0, "linear_estimate_end": None, "linear_estimate_max": None,
+            "level": None, "level_reference": None, "level_error": None, "energy_drift": None,
+            "steps": max(t.size - 1, 0), "rtol": tol.rtol, "atol": tol.atol,
+            "energy_tol": tol.energy_tol, "global_tol": tol.global_tol,
+            "require_accurate": tol.require_accurate}
+
+
 class Judgement:
     """The accuracy check of one trajectory ``t`` (N+1,), ``z`` (N+1, 2n) against the exact
     flow, made once (`report`); see the module docstring for the tests and the verdict."""
@@ -346,7 +362,7 @@ class Judgement:
         t, z = np.asarray(t, float), np.asarray(z, float)
         steps = t.size - 1
         if steps < 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(t)):
-            return self._unjudged(t, z), np.zeros(max(steps, 0))
+            return _unjudged(t, z, self.tolerance), np.zeros(max(steps, 0))
         trajectory = self._trajectory(t, z, exact)
         n = self.system.n
         scale = trajectory["extent"].scales(n)
@@ -375,24 +391,6 @@ class Judgement:
             "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
             "global_tol": tol.global_tol, "require_accurate": tol.require_accurate}
         return report, local_error
-
-    def _unjudged(self, t, z) -> dict:
-        """A run without a step (or with a non-finite node): nothing to measure."""
-        finite = bool(np.all(np.isfinite(z))) and bool(np.all(np.isfinite(t)))
-        failure = None if finite else {"step": 0, "t": float(t[0]) if t.size else 0.0,
-                                       "test": "finite nodes", "value": math.inf,
-                                       "limit": 0.0}
-        tol = self.tolerance
-        return {"verdict": "accurate" if finite else "inaccurate", "first_failure": failure,
-                "t_drift": None, "drift_step": None, "error_max": 0.0, "error_max_t": None,
-                "estimate": "none (no step)", "reference_until": None, "reference_error": None,
-                "reference_lost": None, "scale": None, "energy_scale": None,
-                "local_error_max": 0.0, "linear_estimate_end": None,
-                "linear_estimate_max": None, "level": None,
-                "level_reference": None, "level_error": None, "energy_drift": None,
-                "steps": max(t.size - 1, 0), "rtol": tol.rtol, "atol": tol.atol,
-                "energy_tol": tol.energy_tol, "global_tol": tol.global_tol,
-                "require_accurate": tol.require_accurate}
 
     # -- the trajectory's error ---------------------------------------------------------------
     def _trajectory(self, t, z, exact) -> dict:

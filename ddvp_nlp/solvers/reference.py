@@ -46,10 +46,28 @@ MAX_SUBSTEPS = 256  # the finest substep count tried (a run of a few long steps)
 
 def _tableau():
     """``(A, b, c)`` of the order-8 solution of DOP853 (its first twelve stages)."""
-    from scipy.integrate._ivp import dop853_coefficients as dop
-
+    dop = _dop853_coefficients()
     stages = dop.N_STAGES
     return dop.A[:stages, :stages], dop.B, dop.C[:stages]
+
+
+def _dop853_coefficients():
+    """scipy's module of DOP853's coefficients, loaded from its file on its own: importing it
+    through ``scipy.integrate`` would load scipy.integrate's solvers with scipy.sparse and
+    scipy.linalg behind them (113 modules, which a march does not otherwise load)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    name = "ddvp_nlp_dop853_coefficients"
+    if name not in sys.modules:
+        spec = importlib.util.find_spec("scipy")
+        path = Path(spec.origin).parent / "integrate" / "_ivp" / "dop853_coefficients.py"
+        module = importlib.util.module_from_spec(importlib.util.spec_from_file_location(
+            name, path))
+        module.__spec__.loader.exec_module(module)
+        sys.modules[name] = module
+    return sys.modules[name]
 
 
 def order8_step(flow, z, t, h):
