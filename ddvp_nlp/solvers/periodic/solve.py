@@ -76,9 +76,9 @@ node 1 shifted by ``2 pi w``.
 Every returned point, whichever solver found it, is verified by its own unscaled residuals
 (closure, canonical, the scheme's energy equations, the prescribed energy, the section, every
 step positive), then by the accuracy check of ``accuracy.py``, which does not trust the
-scheme's equations: each interval against one RK4 step of the exact flow, the level against
-``E``, and the propagated global error estimate (status ``inaccurate`` when a local error
-passes its tolerance). The start: ``start.py``.
+scheme's equations: each interval against the exact flow, the level against ``E``, and the
+closure of the exact flow from the first node over the period (status ``inaccurate`` when a
+test fails: a grid too coarse to resolve the orbit is refused). The start: ``start.py``.
 """
 
 from __future__ import annotations
