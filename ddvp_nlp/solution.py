@@ -30,6 +30,8 @@ class Status(enum.Enum):
     ENERGY_GUARD = "H left the band energy_guard allows around its initial value"
     INACCURATE = ("an accuracy estimate passed its tolerance: the steps satisfy the scheme's "
                   "equations but do not follow the motion")
+    DRIFTED = ("the trajectory error passed its tolerance (every step follows the flow and the "
+               "energy is right: the phase drifted), and an accurate trajectory was required")
     INTERRUPTED = "interrupted by the user"
     SOLVER_FAILED = "the NLP solver did not converge"
     NOT_VERIFIED = "the solver's point does not satisfy the equations to the tolerance"

@@ -31,5 +31,10 @@ def initial_p(omega):
     return p
 
 
+# tau0 = 0.0002 (omega tau = 0.01): the trajectory stays within 1e-2 of the motion's size to
+# t = 20 (largest 2.1e-3 against the reference flow). The stiff springs' phase error of the
+# midpoint rule grows like t omega^3 tau^2 / 12: at the old 0.01 (omega tau = 0.5, the regime
+# of Hairer-Lubich-Wanner's energy-exchange experiments) it passed 1e-2 at t = 0.07, every step
+# accurate (a drifted run); set tau0=0.01 for those experiments.
 scene = Scene(hamiltonian, n=2 * M, params={"omega": 50.0}, q0=initial_q, p0=initial_p,
-              tau0=0.01, t_end=20.0)
+              tau0=0.0002, t_end=20.0)

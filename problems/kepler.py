@@ -76,8 +76,11 @@ def eccentric_anomaly(M, ecc: float, max_iter: int = 60):
     return flat.reshape(E.shape)
 
 
+# tau0 = 0.001: the trajectory stays within 1e-2 of the orbit's size over the ten periods
+# (largest error 1.6e-3 against the exact solution); at the old 0.01 the phase passed 1e-2 of
+# the orbit in the first period (largest 0.36 by the tenth), every step accurate: a drifted run.
 scene = Scene(hamiltonian, n=2, params={"e": 0.5},
               q0=lambda e: [1 - e, 0.0], p0=lambda e: [0.0, np.sqrt((1 + e) / (1 - e))],
-              tau0=0.01, t_end=20 * np.pi, exact=exact,
+              tau0=0.001, t_end=20 * np.pi, exact=exact,
               invariants={"angular_momentum": angular_momentum},
               ranges={"e": "[0, 1)"})  # an ellipse: e < 0 has no meaning, e >= 1 no orbit

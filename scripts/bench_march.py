@@ -325,11 +325,11 @@ def main():
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         bench_against_c("paper_pendulum", {}, args.repeats, folder)
-        bench_against_c("fpu", {"t_end": 200.0}, args.repeats, folder)
+        bench_against_c("fpu", {"t_end": 200.0, "tau0": 0.01}, args.repeats, folder)
     if args.c_only:
         return
     bench("paper_pendulum", {}, args.repeats)
-    bench("fpu", {"t_end": 200.0}, args.repeats)
+    bench("fpu", {"t_end": 200.0, "tau0": 0.01}, args.repeats)
     print(f"\nmachine: {platform.machine()}, python {platform.python_version()}, casadi "
           f"{casadi.__version__}, numpy {np.__version__}, scipy {scipy.__version__}")
 

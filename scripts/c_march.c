@@ -485,7 +485,7 @@ void c_march_checks(int kind, int n, const double* theta, int steps, const doubl
         dn = fmax(dn, fabs(d[i])); en = fmax(en, fabs(e[i]));
       }
       scale[k] = fmax(sa, sb);
-      limit = 2 * fmax(1.0, scale[k]);
+      limit = 2 * fmax(scale[k], 1e-300);
       factor = fmin(1.0, limit / fmax(en, 1e-300));
       for (i = 0; i < m2; ++i) e[i] *= factor;
       delta[k] = dn; global[k] = en * factor;

@@ -38,7 +38,9 @@ from scipy.special import ellipe, ellipk  # noqa: E402
 from ddvp_nlp import (  # noqa: E402
     AtEnergy,
     Continuation,
+    GridOptions,
     HamiltonianSystem,
+    Tolerance,
     follow_periodic_family,
     load_scene,
     periodic_stability,
@@ -46,6 +48,10 @@ from ddvp_nlp import (  # noqa: E402
     solve_periodic,
 )
 from ddvp_nlp.io.periodic_figures import plot_followed_family  # noqa: E402
+
+# The coarse grids of these convergence studies (N = 50, 100) resolve some orbits to about 1%:
+# the accuracy check's verdict is recorded, not enforced (their error is what is measured).
+RECORDED = GridOptions(accuracy=Tolerance(stop=False))
 
 ROOT = Path(__file__).resolve().parent.parent
 SIZES = (50, 100, 200, 400, 800)
@@ -93,7 +99,7 @@ def table(header, rows) -> str:
 def index_study(scene, settings, energy, sizes, *, base_nodes=400, guess=None, params=None):
     """Discrete indices on each grid against the exact flow's: rows and the errors."""
     common = {"section": settings.section, "start": settings.start, "params": params,
-              "integrals": settings.integrals, "angles": settings.angles}
+              "integrals": settings.integrals, "angles": settings.angles, "options": RECORDED}
     base = solve_periodic(scene.system, energy=energy, nodes=base_nodes, guess=guess, **common)
     rows, errors, exact = [], [], None
     for N in sizes:
@@ -258,7 +264,7 @@ def cr3bp_study(out: Path):
             family = follow_periodic_family(
                 scene.system, (-1.5935, -1.585), nodes=N, section="q2=0",
                 guess=scene.periodic.guess(-1.5935, mu=mu),
-                continuation=Continuation(step=0.0005))
+                continuation=Continuation(step=0.0005), options=RECORDED)
         families[N] = family
         [birth] = [b for b in family.bifurcations if b.kind == "branch point"]
         found.append(abs(birth.extra["discrete_minus_exact"]))
@@ -308,7 +314,8 @@ def axis_study(out: Path):
             family = follow_periodic_family(
                 scene.system, (0.02, 0.1666), nodes=N, section=settings.section,
                 start=settings.start,
-                continuation=Continuation(step=0.005, exact=False, max_orbits=400))
+                continuation=Continuation(step=0.005, exact=False, max_orbits=400),
+                options=RECORDED)
             events[N] = family
     plot_followed_family(events[400], "henon_heiles: the orbit on the axis x = 0, N = 400",
                          out / "henon_heiles_axis.png")
@@ -361,7 +368,8 @@ def fold_study(out: Path):
         with Clock() as clock:
             family = follow_periodic_family(
                 system, (start, 2.0), nodes=N, section="p1=0", guess=guess,
-                integrals=(rotor,), continuation=Continuation(step=0.02, max_orbits=80))
+                integrals=(rotor,), continuation=Continuation(step=0.02, max_orbits=80),
+                options=RECORDED)
         families[N] = family
         [fold] = [b for b in family.bifurcations if b.kind == "fold"]
         errors.append(fold.energy - top)

@@ -193,7 +193,7 @@ def test_no_function_or_class_is_too_long(kind, limit):
 
 # --- inside solvers/: a folder per family, each with its written contract ---------------------
 
-SOLVER_CORE = {"options", "driver", "accuracy", "dense", "compiler"}
+SOLVER_CORE = {"options", "driver", "accuracy", "reference", "dense", "compiler"}
 # what each family of solvers/ may import besides the core (and itself)
 SOLVER_FAMILIES = {
     "march": set(),

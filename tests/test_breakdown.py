@@ -220,10 +220,12 @@ def test_default_step_ratio_refuses_a_jump_to_a_far_root():
         warnings.simplefilter("ignore", RuntimeWarning)
         # the accuracy check would stop both runs first (accuracy.py); this test is about the
         # step-ratio guard, so the check only records
-        _, _, guarded = run_scene("kepler", {"e": 0.99}, accuracy=Tolerance(stop=False))
+        # tau0 = 0.01, kepler's default when this was measured (the default is 0.001 now)
+        _, _, guarded = run_scene("kepler", {"e": 0.99, "tau0": 0.01},
+                                  accuracy=Tolerance(stop=False))
         _, _, unguarded = run_scene(
             "kepler",
-            {"e": 0.99},
+            {"e": 0.99, "tau0": 0.01},
             steps=StepControl(max_step_ratio=None),
             accuracy=Tolerance(stop=False),
         )

@@ -12,12 +12,19 @@ from scipy.special import ellipk
 
 from ddvp_nlp import (
     Continuation,
+    GridOptions,
     HamiltonianSystem,
     InputError,
+    Tolerance,
     follow_periodic_family,
     load_scene,
 )
 from ddvp_nlp.cli import main
+
+# N = 100 resolves the L1 Lyapunov orbits to about 1% (the exact flow from node 0 leaves the
+# orbit by 1.05e-2 of its size): the accuracy check's verdict is recorded, not enforced, where a
+# test follows the family on that grid for its bifurcation (located to 3.3e-6 all the same).
+RECORDED = GridOptions(accuracy=Tolerance(stop=False))
 
 # The exact flow's halo bifurcation on the Earth-Moon L1 Lyapunov family, from this package's
 # DOP853 shooting (bifurcation.confirm at N = 100, 200, 400 agreed to 6e-12): Jacobi
@@ -34,7 +41,8 @@ def test_the_l1_lyapunov_family_is_followed_to_the_halo_bifurcation():
     mu = scene.params["mu"]
     family = follow_periodic_family(
         scene.system, (-1.5935, -1.586), nodes=100, section="q2=0",
-        guess=scene.periodic.guess(-1.5935, mu=mu), continuation=Continuation(step=0.001))
+        guess=scene.periodic.guess(-1.5935, mu=mu), continuation=Continuation(step=0.001),
+        options=RECORDED)
     assert family.complete, family.message
     energies = [m.energy for m in family.members]
     assert np.all(np.diff(energies) > 0) and len(energies) >= 5
@@ -157,7 +165,7 @@ def test_periodic_stability_on_the_command_line(tmp_path, capsys):
 def test_follow_on_the_command_line_writes_the_family_and_its_bifurcation(tmp_path, capsys):
     out = tmp_path / "follow"
     code = main(["periodic", "cr3bp", "--energy", "-1.5885", "--follow", "-1.5865", "--nodes",
-                 "60", "--step", "0.001", "--out", str(out)])
+                 "60", "--step", "0.001", "--accept-inaccurate", "--out", str(out)])
     assert code == 0
     text = capsys.readouterr().out
     assert "bifurcation 1: branch point" in text

@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import GridOptions, HigherOrderSystem, Status, load_scene
+from ddvp_nlp import GridOptions, HigherOrderSystem, Status, Tolerance, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.discrete.higher import energies
 from ddvp_nlp.solvers.grid.problem import GridResult
@@ -24,7 +24,13 @@ def _solve(name, nodes, scheme, solver, **kwargs):
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary.t_span)
     return scene, config, solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
                                            scheme=scheme, params=config.params,
-                                           options=GridOptions(solver=solver), **kwargs)
+                                           options=GridOptions(solver=solver, accuracy=ACCEPT),
+                                           **kwargs)
+
+
+# The solvers' agreement is about the discrete solution: the accuracy verdict is recorded, the
+# status kept (the released-time spline is 8% of its motion away from the exact cubic).
+ACCEPT = Tolerance(stop=False)
 
 
 @pytest.mark.parametrize("name, nodes, scheme, iterations", [
@@ -52,13 +58,17 @@ def test_fixed_steps_reproduce_the_cubic_to_round_off():
 
 def test_spline_with_released_times_succeeds_whatever_ipopt_said(tmp_path):
     """Before: refused as solver_failed because IPOPT said Search_Direction_Becomes_Too_Small
-    at a point whose residuals were 3.4e-15 (Euler-Lagrange) and 5.8e-12 (energy)."""
+    at a point whose residuals were 3.4e-15 (Euler-Lagrange) and 5.8e-12 (energy). The point is
+    verified; the accuracy check then finds it 1.3e-2 (8% of the motion's size) from the exact
+    cubic, a local error of 1.3e-2 of the motion at the last interval: inaccurate, recorded
+    here with --accept-inaccurate (changed from success when the check came to this path)."""
     for solver in ("auto", "ipopt"):
         out = tmp_path / solver
         assert main(["bvp", "spline", "--scheme", "vddvp", "--solver", solver, "--out",
-                     str(out), "--no-plot"]) == 0
+                     str(out), "--no-plot", "--accept-inaccurate"]) == 0
         meta = json.loads((out / "meta.json").read_text())
         assert meta["success"], meta
+        assert meta["accuracy"]["verdict"] == "inaccurate" and meta["error_vs_exact"] > 1e-2
     out = tmp_path / "pais_uhlenbeck"
     assert main(["bvp", "pais_uhlenbeck", "--solver", "newton", "--out", str(out),
                  "--no-plot"]) == 0

@@ -27,7 +27,9 @@ def test_a_march_cut_anywhere_continues_bit_for_bit(fast):
     run was inside a chunk decides which path takes which step."""
     scene = load_scene("kepler")
     config = scene.resolve({"e": 0.5, "t_end": 30.0 if fast else 8.0})
-    common = dict(tau0=config.tau0, params=config.params, accuracy=None,
+    # tau0 = 0.01 (the scene's default before it was made accurate at 0.001): the free steps
+    # pass tau_max below, so chunk steps fail and the careful path takes over
+    common = dict(tau0=0.01, params=config.params, accuracy=None,
                   compilation=Compilation(fast=fast, chunk=64))
     steps = dict(breakdown="least_squares", tau_max=0.95 * 0.0512)
     whole = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
@@ -60,8 +62,9 @@ def test_a_continuation_refuses_what_would_not_be_the_same_run():
     state = MarchState.of(half.t, half.q, half.p, 10.0, half.stats["carried"])
     with pytest.raises(InputError, match="t_end must be at least"):
         continue_march(scene.system, state, 5.0, tau0=c.tau0)
-    with pytest.raises(InputError, match="tau0 = 0.02 did not make"):
-        continue_march(scene.system, state, 20.0, tau0=0.02)
+    other = 2.5 * c.tau0  # not the first step the run took
+    with pytest.raises(InputError, match=f"tau0 = {other!r} did not make"):
+        continue_march(scene.system, state, 20.0, tau0=other)
     with pytest.raises(InputError, match="carried state"):
         MarchState.of(half.t, half.q, half.p, 10.0, None)
     fixed = march(scene.system, c.q0, c.p0, (0.0, 10.0), tau0=c.tau0, scheme="fixed")

@@ -299,7 +299,7 @@ def test_default_folders_carry_every_setting_that_changes_the_result(tmp_path, m
     for extra in ([], ["--alpha", "0.3"], ["--clock", "left"], ["--tol", "1e-9"]):
         assert main([*base, *extra]) == 0
     for energy in ("0.3", "0.6"):
-        assert main(["periodic", "harmonic", "--energy", energy, "--nodes", "20",
+        assert main(["periodic", "harmonic", "--energy", energy, "--nodes", "40",
                      "--no-plot"]) == 0
     folders = sorted(p.name for p in (tmp_path / "runs").iterdir())
     assert len(folders) == 6 and len({f.split("-")[-1] for f in folders}) == 6

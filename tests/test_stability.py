@@ -11,8 +11,10 @@ from hypothesis import strategies as st
 from scipy.special import ellipe, ellipk
 
 from ddvp_nlp import (
+    GridOptions,
     HamiltonianSystem,
     InputError,
+    Tolerance,
     load_scene,
     periodic_stability,
     solve_periodic,
@@ -26,9 +28,12 @@ NO_SHRINK = (Phase.explicit, Phase.generate)
 
 def _orbits(scene, settings, energy, sizes, base_nodes=400, **options):
     """Orbits at ``energy`` on each grid of ``sizes``, each from one orbit on ``base_nodes``
-    (from the scene's default start)."""
+    (from the scene's default start). The coarse grids of a convergence study are not held to
+    the accuracy check's 1e-2 (a Henon-Heiles orbit at N = 50 closes to 1.1e-2): their verdict
+    is recorded (``Tolerance(stop=False)``) and their error is what the study measures."""
     common = {"section": settings.section, "start": settings.start,
-              "integrals": settings.integrals, **options}
+              "integrals": settings.integrals,
+              "options": GridOptions(accuracy=Tolerance(stop=False)), **options}
     base = solve_periodic(scene.system, energy=energy, nodes=base_nodes, **common)
     assert base.success, base.message
     return [solve_periodic(scene.system, energy=energy, nodes=N, guess=base, **common)
@@ -191,7 +196,7 @@ def test_bad_arguments_are_refused_by_name():
     scene = load_scene("pendulum")
     with pytest.raises(InputError, match="solution must be a periodic orbit"):
         periodic_stability(scene.system, "orbit")
-    orbit = solve_periodic(scene.system, energy=0.5, nodes=20)
+    orbit = solve_periodic(scene.system, energy=0.5, nodes=60)
     with pytest.raises(InputError, match="tol"):
         periodic_stability(scene.system, orbit, tol=-1.0)
     with pytest.raises(InputError, match="integrals: the orbit was solved with 0"):

@@ -21,11 +21,17 @@ def step_control(args) -> StepControl:
                        energy_guard=args.energy_guard)
 
 
-def tolerance(args) -> Tolerance:
+def tolerance(args, exact=None) -> Tolerance:
     """The accuracy check's tolerances (``--rtol``, ``--atol``, ``--energy-tol``,
-    ``--global-tol``, ``--accept-inaccurate``)."""
-    return Tolerance(rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
-                     global_tol=args.global_tol, stop=not args.accept_inaccurate)
+    ``--global-tol``, ``--require-accurate``, ``--accept-inaccurate``; their defaults where a
+    command has none) and the motion's ``exact`` states, if known."""
+    defaults = Tolerance()
+    return Tolerance(rtol=getattr(args, "rtol", defaults.rtol),
+                     atol=getattr(args, "atol", defaults.atol),
+                     energy_tol=getattr(args, "energy_tol", defaults.energy_tol),
+                     global_tol=getattr(args, "global_tol", defaults.global_tol),
+                     require_accurate=getattr(args, "require_accurate", False),
+                     stop=not getattr(args, "accept_inaccurate", False), exact=exact)
 
 
 def compilation(args) -> Compilation:
@@ -37,7 +43,7 @@ def grid_options(args, *, tol=None) -> GridOptions:
     """A grid solve's options (``--solver``, ``--tol``, ``--time-limit``, ``--verbose``)."""
     return GridOptions(solver=args.solver, tol=tol,
                        time_limit=getattr(args, "time_limit", None),
-                       verbose=getattr(args, "verbose", False))
+                       verbose=getattr(args, "verbose", False), accuracy=tolerance(args))
 
 
 def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:

@@ -4,6 +4,7 @@ run folder, print its summary."""
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from ..discrete.scheme import RULES, Scheme
@@ -110,8 +111,8 @@ def _run_folder(args, scene, config, overrides):
 RESULT_OPTIONS = {"alpha": 0.5, "clock": "midpoint", "tol": 1e-10, "tau_min": None,
                   "tau_max": None, "max_step_ratio": 10.0, "max_steps": 10_000_000,
                   "time_limit": None, "energy_guard": None, "least_squares": False,
-                  "rtol": 1e-2, "atol": 1e-2, "energy_tol": 0.1, "global_tol": None,
-                  "accept_inaccurate": False, "careful": False}
+                  "rtol": 1e-2, "atol": None, "energy_tol": 0.1, "global_tol": 1e-2,
+                  "require_accurate": False, "accept_inaccurate": False, "careful": False}
 
 
 def result_options(args) -> dict:
@@ -213,6 +214,26 @@ def _scheme_name(args, scene) -> str:
     return declared
 
 
+def exact_motion(scene, config):
+    """The scene's exact solution through the run's start as ``exact(t) -> z`` (rows), for the
+    accuracy check, or ``None`` (no exact solution, a start it does not cover, a start from
+    ``v0`` whose ``p0`` the march computes)."""
+    import numpy as np
+
+    if scene.exact is None or getattr(config, "p0", None) is None:
+        return None
+    q0, p0, t0, params = config.q0, config.p0, config.t0, config.params
+    try:
+        scene.exact(np.array([t0]), q0, p0, t0, **params)
+    except ValueError:
+        return None
+
+    def exact(t):
+        q, p = scene.exact(np.asarray(t, float), q0, p0, t0, **params)
+        return np.hstack([np.reshape(q, (np.size(t), -1)), np.reshape(p, (np.size(t), -1))])
+    return exact
+
+
 def _method_names() -> tuple:
     from ..studies.methods import METHODS
 
@@ -251,7 +272,8 @@ def _march(args, scene, config, scheme):
 
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      v0=config.v0, tau0=config.tau0, scheme=scheme, params=config.params,
-                     steps=options.step_control(args), accuracy=options.tolerance(args),
+                     steps=options.step_control(args),
+                     accuracy=options.tolerance(args, exact=exact_motion(scene, config)),
                      compilation=options.compilation(args),
                      output=options.march_output(args, checkpoint=args.checkpoint,
                                                  stop=INTERRUPTS.stop_requested,
@@ -278,7 +300,8 @@ def _march_method(args, scene, config):
     solution = run_method(scene, config, args.scheme, value,
                           compiler=None if args.careful else find_compiler("auto"),
                           max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
-                          tolerance=options.tolerance(args))
+                          tolerance=options.tolerance(args,
+                                                      exact=exact_motion(scene, config)))
     extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
              "own_residual_max": solution.stats.get("own_residual_max"),
              "path": solution.stats.get("path")}
@@ -423,7 +446,9 @@ def _march_higher(args, scene, config, scheme):
                          f"{scene.name!r} (its march has no dense output)")
     t_init, q_init = scene.start(config)
     return march_higher(scene.system, t_init, q_init, config.t_end, scheme=scheme.rule,
-                        params=config.params, steps=options.step_control(args)), None
+                        params=config.params, steps=options.step_control(args),
+                        accuracy=options.tolerance(args, exact=_higher_exact(scene, config))
+                        ), None
 
 
 def _bvp_higher(args, scene, config, scheme):
@@ -439,7 +464,15 @@ def _bvp_higher(args, scene, config, scheme):
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, t_span)
     return solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,
                             scheme=scheme.rule, params=config.params,
-                            options=options.grid_options(args, tol=args.tol)), None
+                            options=replace(options.grid_options(args, tol=args.tol),
+                                            accuracy=options.tolerance(
+                                                args, exact=_higher_exact(scene, config)))
+                            ), None
+
+
+def _higher_exact(scene, config):
+    """A higher-order scene's exact motion as ``exact(t) -> q`` (rows), for the check."""
+    return lambda t: scene.exact_motion(t, config.params)
 
 
 # (command, higher-order scene) -> the solve: (args, scene, config, scheme) -> (solution, extra)
@@ -507,6 +540,11 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
           f"written to {out.path}/")
+    if solution.stats.get("accuracy"):
+        from ..solvers.accuracy import describe
+
+        accuracy = solution.stats["accuracy"]
+        print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
 
@@ -564,7 +602,8 @@ def run_poincare(args) -> int:
                                        workers=args.workers, scene=args.scene,
                                        scheduler=args.scheduler, tau0=tau0, t_end=t_end,
                                        params=params, seed=args.seed,
-                                       progress=args.progress is not False)
+                                       progress=args.progress is not False,
+                                       accuracy=options.tolerance(args))
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while the orbits ran "
                           "(a section is written once all its orbits are done); nothing new "
@@ -573,8 +612,12 @@ def run_poincare(args) -> int:
             write_section(out, section, plot=not args.no_plot,
                           interruptible=INTERRUPTS.interruptible)
     failed = sum(status != "reached t_end" for status in section.statuses)
+    verdicts = [verdict for verdict, _ in section.verdicts]
     print(f"{len(section.statuses)} orbits, {section.points.shape[0]} crossings of "
           f"{args.section}; {failed} orbits failed; largest nodal energy error "
           f"{section.energy_errors.max():.2e}")
+    print("  accuracy check of each orbit: " + ", ".join(
+        f"{verdicts.count(v)} {v}" for v in ("accurate", "drifted", "inaccurate")) +
+        " (orbits.csv: each orbit's verdict and t_drift)")
     print(f"  written to {out.path}/ (section.npz, section.csv, orbits.csv, section.png)")
     return 0 if failed == 0 and not INTERRUPTS.requested else 1

@@ -38,7 +38,8 @@ def print_summary(meta: dict, out) -> None:
         lines.append(f"  {meta['note']}")
     if "error_vs_exact" in meta:
         lines.append(f"  error against the exact solution {meta['error_vs_exact']:.3e} "
-                     f"(largest over the run)")
+                     f"(absolute: the largest |z_k - z_exact(t_k)| over the run, in the units "
+                     f"of q and p)")
     path = f" ({meta['path']} path)" if "path" in meta else ""
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
                  f" s{path}; written to {out}/")
@@ -46,49 +47,71 @@ def print_summary(meta: dict, out) -> None:
 
 
 def _accuracy_lines(meta: dict) -> list[str]:
-    """The estimates that do not trust the scheme, before the scheme's own residual."""
+    """The check that does not trust the scheme, before the scheme's own residual: what it
+    measured (relative to the motion's own scales) and its verdict, in words. A run that failed
+    (or whose check was not made on the whole run) is never called accurate."""
     accuracy = meta.get("accuracy")
-    if not accuracy:
+    if not accuracy or accuracy.get("scale") is None:
         return []
-    lines = []
-    if "node_energy_error" in meta:
-        lines.append(f"  energy error {meta['node_energy_error']:.3e} (largest |H(z_k) - H0| / "
-                     "max(1, |H0|) at the nodes)")
-    if accuracy.get("level") is not None and "H0" in meta:  # H0: not for an interrupted run
-        lines.append(f"  energy level of the first step {accuracy['level']:.10g} against "
-                     f"H0 = {meta['H0']:.10g} (error {accuracy['level_error']:.3e} of "
-                     "max(1, |H0|))")
-    estimate = f"{accuracy['global_error_estimate']:.3e} at the end"
-    if accuracy.get("global_error_saturated"):
-        estimate = (f">= {accuracy['global_error_estimate']:.3g} at the end (as large as the "
-                    "orbit: the phase is lost over this horizon; checked only with --global-tol)")
-    lines.append(f"  estimated error (against the exact flow): local <= "
-                 f"{accuracy['local_error_max']:.3e} per step, global {estimate}; "
-                 f"{_verdict_words(accuracy)}")
+    scale = ", ".join(f"{s:.3g}" for s in accuracy["scale"])
+    energy = accuracy.get("energy_scale")
+    lines = [f"  accuracy check against the exact flow ({accuracy['estimate']}); the motion's "
+             f"size S = [{scale}]" + ("" if energy is None else
+                                      f", energy scale E_s = {energy:.3g}")]
+    steps = (f"    steps: local error <= {accuracy['local_error_max']:.3e} of S (limit "
+             f"{accuracy['rtol']:g})")
+    if accuracy.get("level") is not None:
+        steps += (f"; energy level of the first step {accuracy['level']:.10g} against "
+                  f"{accuracy['level_reference']:.10g} ({accuracy['level_error']:.3e} of E_s, "
+                  f"limit {accuracy['energy_tol']:g})")
+    if accuracy.get("energy_drift") is not None:
+        steps += f"; nodal energy drift {accuracy['energy_drift']:.3e} of E_s"
+    lines.append(steps)
+    lines.append("    " + _trajectory_words(accuracy))
+    lines.append("    verdict: " + _verdict_words(meta, accuracy))
     return lines
 
 
-# A global error estimate past this fraction of the orbit's size is called out even when no
-# --global-tol bounds it (a harmonic run to t = 20000 at tau = 0.1 printed "accurate" with an
-# estimate of 1.8 and a true error of 2.0, the whole orbit).
-PHASE_WARNING = 0.1
+def _trajectory_words(accuracy: dict) -> str:
+    """What the trajectory error is, and over which part of the run it was measured."""
+    tol = accuracy["global_tol"]
+    scale = accuracy["scale"]
+    linear = accuracy.get("linear_estimate_max")
+    first_look = (f"; the linear propagation, a first look, says {linear / min(scale):.2e}"
+                  if linear is not None else "")
+    if accuracy.get("reference_lost") is not None:
+        return (f"trajectory error <= {accuracy['error_max']:.3e} of S up to t = "
+                f"{accuracy['reference_lost']:.6g}, not measurable past it (the reference's "
+                f"own error passed its share of the tolerance: the motion is too sensitive)"
+                + first_look)
+    if accuracy.get("t_drift") is not None:
+        return (f"trajectory error passes {tol:g} of S at t = {accuracy['t_drift']:.6g} "
+                f"(the scan stops there)" + first_look)
+    return (f"trajectory error <= {accuracy['error_max']:.3e} of S over the whole run (limit "
+            f"{tol:g})" + first_look)
 
 
-def _verdict_words(accuracy: dict) -> str:
-    """The verdict, saying what it covers: the steps (local error, energy) always, the global
-    error only when ``--global-tol`` bounded it."""
-    if accuracy["verdict"] != "accurate":
-        return accuracy["verdict"]
-    if accuracy.get("global_tol") is not None:
-        return "accurate (global estimate within --global-tol)"
-    if accuracy.get("global_error_saturated"):  # the estimate's own words say the rest
-        return "each step accurate"
-    size = accuracy.get("orbit_size") or 1.0
-    relative = accuracy["global_error_estimate"] / size
-    if relative >= PHASE_WARNING:
-        state = "the phase is lost" if relative >= 1 else "the phase has drifted"
-        return (f"each step accurate, but {state}: the global estimate is {relative:.2g} times "
-                f"the orbit's size (not checked unless --global-tol is given)")
+def _verdict_words(meta: dict, accuracy: dict) -> str:
+    verdict = accuracy["verdict"]
+    if verdict == "inaccurate":
+        failure = accuracy["first_failure"]
+        if failure.get("detail"):
+            return f"inaccurate: {failure['test']}: {failure['detail']}"
+        return (f"inaccurate: the {failure['test']} of step {failure['step']} (t = "
+                f"{failure['t']:.6g}) is {failure['value']:.3e} > {failure['limit']:.3e}")
+    if meta.get("status") not in ("success", "event", "drifted") \
+            and not accuracy["steps"]:
+        return f"no verdict: the run ended {meta['status']} before its first step"
+    if meta.get("status") not in ("success", "event", "drifted"):
+        return (f"no verdict on the whole run (it ended {meta['status']}); the "
+                f"{accuracy['steps']} steps kept are "
+                + ("within the tolerance" if verdict == "accurate" else
+                   f"drifted from t = {accuracy['t_drift']:.6g}"))
+    if verdict == "drifted":
+        return (f"drifted from t = {accuracy['t_drift']:.6g}: every step follows the flow and "
+                "the energy is right, but the phase is lost"
+                + ("" if accuracy.get("require_accurate") else
+                   " (exit 0; --require-accurate makes this a failure)"))
     return "accurate"
 
 

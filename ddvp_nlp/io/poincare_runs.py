@@ -24,11 +24,15 @@ def write_section(out, section, *, plot: bool = True, interruptible=None) -> dic
     for k, t, z in zip(section.orbit, section.times, section.points, strict=True):
         writer.writerow([int(k), repr(float(t)), *(repr(float(v)) for v in z)])
     writer = csv.writer(orbits, lineterminator="\n")
-    writer.writerow(["orbit", "status", "steps", "nodal_energy_error",
-                     *(f"start_{name}" for name in names)])
+    writer.writerow(["orbit", "status", "steps", "nodal_energy_error", "accuracy",
+                     "t_drift", *(f"start_{name}" for name in names)])
+    verdicts = section.verdicts or [("", None)] * len(section.starts)
     for k, start in enumerate(section.starts):
+        verdict, t_drift = verdicts[k]
         writer.writerow([k, section.statuses[k], int(section.steps[k]),
-                         f"{section.energy_errors[k]:.3e}", *(repr(float(v)) for v in start)])
+                         f"{section.energy_errors[k]:.3e}", verdict,
+                         "" if t_drift is None else repr(float(t_drift)),
+                         *(repr(float(v)) for v in start)])
 
     def arrays(handle):
         np.savez(handle, points=section.points, times=section.times, orbit=section.orbit,

@@ -109,7 +109,8 @@ def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
     record = _higher_record if isinstance(scene, HigherOrderScene) else _first_order_record
     arrays, meta, draw = record(command, scene, config, scheme, solution, interruptible)
     meta.update(extra or {})
-    if command == "bvp" and not solution.success:
+    if command == "bvp" and not solution.success and \
+            solution.status not in (Status.INACCURATE, Status.DRIFTED):  # judged, not failed
         meta["note"] = NOT_A_SOLUTION
     figure = draw if plot and draw is not None and solution.t.size >= 2 else None
     if figure is not None:
@@ -354,6 +355,8 @@ def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solut
             "energy_error_kind": "spread of E^(k) = sum_m lambda_m . v_m - L over the run",
             "error_vs_exact": float(np.max(np.abs(solution.q - exact))),
             "timing": solution.timing}
+    if solution.stats.get("accuracy"):
+        meta["accuracy"] = solution.stats["accuracy"]
 
     def draw(path, fmt="png"):
         from .plotting import plot_higher_trajectory

@@ -111,7 +111,8 @@ def _inaccurate_table(rows) -> list[str]:
              "The accuracy check on the returned nodes (one RK4 step of the exact flow per step, "
              "the first step's energy level, the nodal energy drift; default tolerances), "
              "whether or not the run reached t_end.", "",
-             "| case | method | status | first failed test | global error estimate |",
+             "| case | method | status | first failed test | trajectory error "
+             "(of the motion's size) |",
              "|---|---|---|---|---|"]
     for r in flagged:
         lines.append(f"| {r['group']}: {r['case']} | `{r['method']}` | {r['status']} | "

@@ -16,7 +16,10 @@ One folder per family, around a small core:
   pick instead), each a stepper of the one step loop, in one registry.
 - The core: ``options.py`` (the option objects every solver takes), ``driver.py`` (the one
   step loop and the contract of a stepper), ``accuracy.py`` (the accuracy check that does not
-  trust the scheme's equations), ``dense.py`` (the interpolant behind ``Solution.at``),
+  trust the scheme's equations: its verdict ``accurate``, ``drifted`` or ``inaccurate``),
+  ``reference.py`` (the exact flow integrated by a compiled order-8 Runge-Kutta method with
+  its own error controlled: the reference the check measures against), ``dense.py`` (the
+  interpolant behind ``Solution.at``),
   ``compiler.py`` (finding gcc, compiling and caching generated code).
 
 Every solver keeps these rules:

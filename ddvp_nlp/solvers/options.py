@@ -115,28 +115,42 @@ class StepControl:
 
 @dataclass(frozen=True)
 class Tolerance:
-    """What the accuracy check accepts (``accuracy.py``).
+    """What the accuracy check accepts (``accuracy.py``). Every figure is relative to the
+    motion's own scales: ``S_i``, the range of component ``i`` of ``z = (q, p)`` over the run,
+    and the energy scale ``E_s`` (how much ``H`` changes over ``S``); none to 1.
 
     Attributes:
-        rtol, atol: the local error test ``delta_k <= atol + rtol * |z|``.
-        energy_tol: bound on ``level_error`` and ``energy_drift`` (relative to ``max(1, |H0|)``).
-        global_tol: optional bound on the global estimate relative to ``max(1, max |z|)``.
-        stop: end the march at the first failure (status ``inaccurate``); ``False`` records it
-            and goes on.
+        rtol: the local error test of every step, ``|d_k,i| <= rtol S_i (+ atol)``.
+        atol: optional absolute allowance added to that bound, in the units of ``z`` (default
+            none: a fixed allowance would make the verdict depend on the units).
+        energy_tol: bound on the first step's energy level error and on the nodal energy
+            drift, relative to ``E_s``.
+        global_tol: the trajectory tolerance: ``max_i |z_k,i - z_ref,i(t_k)| / S_i`` at every
+            node, against the exact flow from ``z_0``; past it a run is ``drifted``.
+        require_accurate: a ``drifted`` run ends with status ``drifted`` (a failure; the
+            command line exits 1) instead of keeping its success.
+        stop: an ``inaccurate`` run ends with status ``inaccurate``; ``False`` records the
+            verdict and keeps the run's own status.
+        exact: optional exact motion of the run, ``exact(t) -> z`` of shape ``(N, 2n)``, used
+            instead of the reference flow (the command line gives the scene's exact solution).
     """
 
     rtol: float = 1e-2
-    atol: float = 1e-2
+    atol: float | None = None
     energy_tol: float = 0.1
-    global_tol: float | None = None
+    global_tol: float = 1e-2
+    require_accurate: bool = False
     stop: bool = True
+    exact: Callable | None = None
 
     def __post_init__(self):
-        for name in ("rtol", "atol", "energy_tol"):
+        for name in ("rtol", "energy_tol", "global_tol"):
             _set(self, name, check_real(name, getattr(self, name), positive=True))
-        _set(self, "global_tol", check_real("global_tol", self.global_tol, positive=True,
-                                            allow_none=True))
-        _set(self, "stop", _flag("stop", self.stop))
+        _set(self, "atol", check_real("atol", self.atol, positive=True, allow_none=True))
+        for name in ("require_accurate", "stop"):
+            _set(self, name, _flag(name, getattr(self, name)))
+        if self.exact is not None and not callable(self.exact):
+            raise InputError(f"exact must be a callable exact(t) -> z, got {self.exact!r}")
 
 
 # The default of ``accuracy=`` (``None`` there turns the check off).
@@ -160,6 +174,8 @@ class GridOptions:
             sparse), ``"banded"`` or ``"sparse"`` (SuperLU).
         time_limit: seconds after which the solve stops (status ``time_limit``).
         verbose: IPOPT's iteration log on stdout.
+        accuracy: the accuracy check of the solution (`Tolerance`; ``None``: its
+            defaults). A grid solution is always checked.
     """
 
     solver: str = "auto"
@@ -169,6 +185,7 @@ class GridOptions:
     linear: str = "auto"
     time_limit: float | None = None
     verbose: bool = False
+    accuracy: Tolerance | None = None
 
     def __post_init__(self):
         _choice("solver", self.solver, GRID_SOLVERS)
@@ -181,6 +198,7 @@ class GridOptions:
         _set(self, "time_limit", check_real("time_limit", self.time_limit, positive=True,
                                             allow_none=True))
         _set(self, "verbose", _flag("verbose", self.verbose))
+        _set(self, "accuracy", coerce(self.accuracy, Tolerance, "accuracy"))
 
     def resolved(self, *, tol: float, max_iter: int) -> GridOptions:
         """These options with a solver's defaults in place of ``None``."""

@@ -73,23 +73,23 @@ def own_residuals(system, name: str, solution, theta) -> np.ndarray | None:
 
 def _check_accuracy(system, config, method, solution, tolerance, *, compiler=None,
                     cache_dir=None) -> None:
-    """The accuracy check (``solvers/accuracy.py``) on the method's nodes, as for a march: a
-    success whose check fails becomes ``INACCURATE`` unless ``tolerance.stop`` is off (methods
-    of order above 4 have no reference step and are left as they are)."""
-    from ..solvers.accuracy import AccuracyMonitor, Tolerance, assess
+    """The accuracy check (``solvers/accuracy.py``) on the method's nodes, as for a march, for
+    every method whatever its order (the reference flow holds its own error below the
+    tolerance): a success judged ``inaccurate`` becomes ``INACCURATE`` (unless
+    ``tolerance.stop`` is off), a ``drifted`` one ``DRIFTED`` when an accurate trajectory is
+    required."""
+    from ..solvers.accuracy import apply_verdict, assess
+    from ..solvers.options import Tolerance
 
     tolerance = tolerance or Tolerance()
-    if method.order > 4 or solution.t.size < 2:
+    if solution.t.size < 2:
         return
     theta = system.parameter_vector(config.params)
     report, local = assess(system, solution.t, np.hstack([solution.q, solution.p]), theta,
-                           tolerance, substeps=1 if method.order <= 2 else 2,
-                           compiler=compiler, cache_dir=cache_dir)
+                           tolerance, compiler=compiler, cache_dir=cache_dir,
+                           exact=tolerance.exact)
     solution.stats["accuracy"], solution.local_error = report, local
-    failure = report["first_failure"]
-    if solution.success and failure is not None and tolerance.stop:
-        solution.status = Status.INACCURATE
-        solution.message = f"{Status.INACCURATE.value}: {AccuracyMonitor.describe(failure)}"
+    apply_verdict(solution, report, tolerance)
 
 
 def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, cache_dir=None,

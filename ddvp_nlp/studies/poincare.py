@@ -47,8 +47,10 @@ COMPILATION = Compilation()
 @dataclass
 class Section:
     """The crossings of all orbits: ``points`` ``(K, 2n)`` (``z = (q, p)``), ``times`` and
-    ``orbit`` (index of its orbit) ``(K,)``; per orbit its start, status and nodal energy
-    error ``max_k |H(z_k) - E|``."""
+    ``orbit`` (index of its orbit) ``(K,)``; per orbit its start, status, nodal energy
+    error ``max_k |H(z_k) - E|`` and the accuracy check's verdict with its ``t_drift``
+    (``verdicts``: ``(verdict, t_drift)`` pairs; crossings after an orbit's ``t_drift`` are
+    where its trajectory error had passed the tolerance)."""
 
     energy: float
     section: str
@@ -60,6 +62,7 @@ class Section:
     statuses: list
     energy_errors: np.ndarray
     steps: np.ndarray
+    verdicts: tuple | list = ()
 
 
 def section_starts(system, theta, energy: float, section: str, count: int, *,
@@ -127,13 +130,15 @@ def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: in
                    np.concatenate([np.full(o["times"].size, k) for k, o in enumerate(outputs)]),
                    starts, [o["status"] for o in outputs],
                    np.array([o["energy_error"] for o in outputs]),
-                   np.array([o["steps"] for o in outputs]))
+                   np.array([o["steps"] for o in outputs]),
+                   [(o["verdict"], o["t_drift"]) for o in outputs])
 
 
 class SectionOutput:
     """An ensemble's per-orbit output (``Collect.output``): the orbit's crossings of the
     section ``z[column] = value`` in ``direction``, its status, nodal energy error
-    ``max_k |H(z_k) - E|`` and step count; computed on the worker that marched the orbit."""
+    ``max_k |H(z_k) - E|``, step count and the accuracy check's verdict with its ``t_drift``;
+    computed on the worker that marched the orbit."""
 
     def __init__(self, column: int, value: float, direction: str, energy: float):
         self.column, self.value, self.direction, self.energy = column, value, direction, energy
@@ -147,7 +152,9 @@ class SectionOutput:
                             solution.vector_field.theta, COMPILATION)[0]
         return {"times": times, "points": points, "status": solution.status.value,
                 "energy_error": float(np.max(np.abs(H - self.energy))),
-                "steps": solution.steps}
+                "steps": solution.steps,
+                "verdict": solution.stats.get("accuracy", {}).get("verdict", ""),
+                "t_drift": solution.stats.get("accuracy", {}).get("t_drift")}
 
 
 def ensemble(system, q0s, p0s, *, scene: str | None = None, scheduler: str | None = None,

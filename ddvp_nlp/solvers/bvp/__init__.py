@@ -15,6 +15,8 @@ Where things are:
 - ``start.py``: the starts (straight line or shooting, fixed steps on uniform and on
   predicted times); ``continuation.py``: the continuation in the end position, the start of
   last resort;
+- ``continuous.py``: the continuous problem near a solution, by multiple shooting with the
+  reference flow: what the accuracy check measures the grid against, or why there is none.
 - ``energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the
   last interval's energy prescribed, checked against the exact flow's shooting.
 
@@ -27,7 +29,10 @@ The contract, on top of the grid's (``grid/__init__.py``):
 3. Success is the returned point's own residuals: every canonical residual under ``max(tol,
    1024 round-offs of the data)``, every energy residual under ``max(tol (t_end - t_0)/(N-1),
    1024 round-offs of |E|)``, every step positive; the message quotes the solver.
-4. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
+4. A verified point is then judged against the exact flow (``accuracy.py``): its intervals,
+   its energy, and its trajectory against the continuous solution near it; a problem with no
+   continuous solution near the discrete one ends ``inaccurate``, saying so.
+5. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
 """
 
 from typing import TYPE_CHECKING

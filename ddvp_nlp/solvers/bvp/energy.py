@@ -43,7 +43,7 @@ from ...physics.flow import flow_with_derivatives
 from ...physics.hamiltonian import derivatives_function
 from ...solution import Solution, Status
 from ...validation import check_real
-from ..accuracy import AccuracyMonitor, assess
+from ..accuracy import Level, apply_verdict, assess
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
 from ..options import Tolerance
@@ -198,8 +198,10 @@ def _targets(layout: NodeLayout, x, energy: float, energy_scale: float) -> np.nd
 
 
 def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, tol: float,
-                     max_iter: int, compilation) -> Solution:
-    """Phase 2 of the module docstring from the fixed-endpoint grid ``fixed``."""
+                     max_iter: int, compilation, accuracy: Tolerance | None = None
+                     ) -> Solution:
+    """Phase 2 of the module docstring from the fixed-endpoint grid ``fixed``; ``accuracy``:
+    the check's tolerances (default `Tolerance`)."""
     started = time.perf_counter()
     nodes = fixed.t.size
     grid = _assembly(system, scheme, nodes, compilation)
@@ -230,13 +232,13 @@ def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, 
             halvings, step = halvings + 1, step / 2
         else:
             break
-    return _verified(system, scheme, grid, x, ends, span, theta, tol,
+    return _verified(system, scheme, grid, x, ends, span, theta, tol, accuracy or Tolerance(),
                      {"iterations": iterations, "outcome": said, "halvings": halvings,
                       "start_energy": first, "reached_energy": level,
                       "seconds": time.perf_counter() - started})
 
 
-def _verified(system, scheme, grid, x, ends, span, theta, tol, phase) -> Solution:
+def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase) -> Solution:
     """The point's own residuals (canonical, the energy equations, the prescribed energy on
     every interval), the accuracy check and the exact flow's shooting (module docstring)."""
     t, q, p = grid.layout.unpack(x)
@@ -275,45 +277,79 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, phase) -> Solutio
              "tau_max": float(np.max(tau))}
     local_error = np.zeros(0)
     if np.all(np.isfinite(x)):
-        stats["accuracy"], local_error = assess(system, t, np.hstack([q, p]), theta,
-                                                Tolerance(), level=span.energy)
-        failure = stats["accuracy"]["first_failure"]
-        if status is Status.SUCCESS and failure is not None:
-            status = Status.INACCURATE
-            message = (f"{status.value}: {AccuracyMonitor.describe(failure)}; the discrete "
-                       f"equations hold: {message}")
-        if status in (Status.SUCCESS, Status.INACCURATE):
-            stats["exact"] = shoot_transfer(system, theta, t, q, p, span.energy)
-    return Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
+        stats["accuracy"], local_error, stats["exact"] = _judged(system, scheme, t, q, p, span,
+                                                                 theta, tolerance)
+    solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                     energy_residual=energy_rows,
                     canonical_residual=np.max(np.abs(canonical), axis=1),
                     newton_iterations=phase["iterations"], local_error=local_error,
                     timing={"build_s": 0.0, "solve_s": phase["seconds"]}, stats=stats)
+    if np.all(np.isfinite(x)):
+        apply_verdict(solution, stats["accuracy"], tolerance, advice="try more nodes")
+    return solution
+
+
+def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance):
+    """The accuracy check of a transfer (``accuracy.py``): every interval and the energy level
+    against the prescribed ``E`` (the first interval's clock), then the trajectory against the
+    exact flow's transfer near it (`shoot_transfer`); with none near, the transfer is
+    ``inaccurate`` with that reason. Returns the report, the local errors and the shooting's
+    figures."""
+    clock = float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint" else t[0])
+    z = np.hstack([q, p])
+    report, local = assess(system, t, z, theta, tolerance, level=Level(span.energy, clock))
+    exact = shoot_transfer(system, theta, t, q, p, span.energy)
+    path = exact.pop("path")
+    if report["verdict"] == "inaccurate":
+        return report, local, exact
+    if path is None:
+        report["verdict"] = "inaccurate"
+        report["first_failure"] = {
+            "step": t.size - 2, "t": float(t[-2]), "test": "exact transfer", "value": None,
+            "limit": tolerance.global_tol,
+            "detail": (f"no transfer of the exact flow at energy {span.energy:.10g} was found "
+                       f"near this one (shooting from its p_0 and transfer time: residual "
+                       f"{exact['residual']:.2e} after {exact['iterations']} iterations)")}
+        return report, local, exact
+    report, local = assess(system, t, z, theta, tolerance, level=Level(span.energy, clock),
+                           exact=lambda _: path)
+    report["estimate"] = ("the exact flow's transfer near this one (shooting on p_0 and the "
+                          f"transfer time {exact['transfer_time']:.12g})")
+    return report, local, exact
 
 
 def shoot_transfer(system, theta, t, q, p, energy: float) -> dict:
     """The exact flow's transfer near the grid: Newton on ``(p_0, T)`` for ``q(T) = q_end`` and
     ``H(q_start, p_0) = E`` (DOP853 with the variational equations), from the grid's ``p_0``
     and transfer time; the differences of the transfer time and of the path at the grid's
-    node times (largest over ``z``)."""
+    node times (largest over ``z``) and the exact path there (``path``, ``None`` unless the
+    shooting converged; its residuals relative to the end positions' scale and the energy's)."""
     n = system.n
     q_start, q_end = q[0], q[-1]
     momentum, duration = p[0].copy(), float(t[-1] - t[0])
-    history = []
+    # Scales of the residuals from the problem, none from 1: positions by the end positions
+    # and the distance between them, the energy by |E| (its round-off) and by H_p . p, the
+    # energy a momentum of this size carries.
+    span = max(float(np.max(np.abs(q_end - q_start))), float(np.max(np.abs(q_end))),
+               float(np.max(np.abs(q_start))), np.finfo(float).tiny)
+    history, worst = [], []
     for _ in range(SHOOTING_ITERATIONS):
         z0 = np.concatenate([q_start, momentum])
         flow = flow_with_derivatives(system, theta, z0, duration)
         H0, _, H_p, _ = derivatives_function(system)(q_start, momentum, 0.0, theta)
         residual = np.r_[flow.z[:n] - q_end, float(H0) - energy]
+        scale = np.r_[np.full(n, span), max(abs(energy), float(np.abs(np.asarray(H_p).ravel())
+                                                                @ np.abs(momentum)),
+                                             np.finfo(float).tiny)]
         history.append(float(np.max(np.abs(residual))))
-        if history[-1] <= 1e-11 * max(1.0, float(np.max(np.abs(q_end))), abs(energy)) \
-                or not flow.success:
+        worst.append(float(np.max(np.abs(residual) / scale)))
+        if worst[-1] <= 1e-11 or not flow.success:
             break
         jacobian = np.vstack([np.hstack([flow.monodromy[:n, n:], flow.field[:n, None]]),
                               np.r_[np.asarray(H_p).ravel(), 0.0]])
         correction = np.linalg.solve(jacobian, -residual)
         momentum, duration = momentum + correction[:n], duration + correction[n]
-    converged = bool(history[-1] <= 1e-9 * max(1.0, float(np.max(np.abs(q_end)))))
+    converged = bool(worst[-1] <= 1e-9)
     path = flow_with_derivatives(system, theta, np.concatenate([q_start, momentum]), duration,
                                  times=np.clip(t - t[0], 0.0, duration)).path if converged \
         else None
@@ -322,4 +358,4 @@ def shoot_transfer(system, theta, t, q, p, energy: float) -> dict:
             "momentum": momentum.tolist(), "iterations": len(history) - 1,
             "residual": history[-1],
             "path_difference": None if path is None else float(
-                np.max(np.abs(np.hstack([q, p]) - path)))}
+                np.max(np.abs(np.hstack([q, p]) - path))), "path": path}

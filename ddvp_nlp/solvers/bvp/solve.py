@@ -56,7 +56,8 @@ from ...validation import (
     check_span,
     check_state,
 )
-from ..accuracy import AccuracyMonitor, assess
+from ..accuracy import Judgement, Level, apply_verdict
+from ..compiler import find_compiler
 from ..dense import attach
 from ..grid.problem import GridRequest, timed_out
 from ..options import Compilation, GridOptions, Output, Tolerance, coerce
@@ -224,7 +225,8 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
     resolved = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
     solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
                                 max_iter=resolved.max_iter,
-                                compilation=coerce(compilation, Compilation, "compilation"))
+                                compilation=coerce(compilation, Compilation, "compilation"),
+                                accuracy=options.accuracy)
     solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
     return attach(solution, system, theta, solution.t[-1])
 
@@ -396,30 +398,55 @@ def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
     local_error = np.zeros(0)
     if finite:
         stats["accuracy"], local_error = _accuracy(request, t, q, p)
-        failure = stats["accuracy"]["first_failure"]
-        if status is Status.SUCCESS and failure is not None:
-            status = Status.INACCURATE
-            message = (f"{status.value}: {AccuracyMonitor.describe(failure)}; the discrete "
-                       f"equations hold: {message}")
     total = time.perf_counter() - started
-    return Solution(
+    solution = Solution(
         t=t, q=q, p=p, status=status, message=message, scheme=request.scheme.rule,
         energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
         newton_iterations=stats["iterations_total"], local_error=local_error,
         timing={"build_s": request.build_s, "solve_s": total - request.build_s}, stats=stats)
+    if finite:
+        apply_verdict(solution, stats["accuracy"], request.options.accuracy or Tolerance(),
+                      advice="try more nodes")
+    return solution
 
 
 def _accuracy(request: GridRequest, t, q, p):
-    """The accuracy check (``accuracy.py``) on the grid: each interval against one RK4 step of
-    the exact flow, the energy level of the first interval (energy rules) and the nodal drift
-    against ``H`` at the first node. A verified discrete solution can still be far from the
-    motion when the grid is coarse."""
+    """The accuracy check (``accuracy.py``) on the grid, against the exact flow: each interval,
+    the energy level of the first interval (energy rules), the nodal drift; then the continuous
+    problem, solved by shooting from the solution's own momentum (``continuous.py``): with a
+    continuous solution near, the grid's trajectory is judged against it; with none, the
+    problem is refused with that reason (a verified discrete solution can exist where no
+    motion does: its end error, small beside a huge motion, says nothing then)."""
+    from .continuous import shoot
+
     system, scheme = request.system, request.scheme
+    tolerance = request.options.accuracy or Tolerance()
     level = None
     if scheme.variable_steps:
-        level = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
+        value = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
                                                   request.theta)[0])
-    return assess(system, t, np.hstack([q, p]), request.theta, Tolerance(), level=level)
+        level = Level(value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
+                                   else t[0]))
+    judge = Judgement(system, request.theta, tolerance,
+                      compiler=find_compiler(request.compilation.compiler),
+                      cache_dir=request.compilation.cache_dir)
+    z = np.hstack([q, p])
+    report, local = judge.report(t, z, level=level)
+    if report["verdict"] == "inaccurate":
+        return report, local
+    scale = np.asarray(report["scale"])
+    shot = shoot(judge.reference, t, z, q[-1], scale)
+    if shot.states is None:
+        report["verdict"] = "inaccurate"
+        report["first_failure"] = {"step": t.size - 2, "t": float(t[-2]),
+                                   "test": "continuous solution", "value": None,
+                                   "limit": tolerance.global_tol, "detail": shot.reason}
+        return report, local
+    states = shot.states
+    report, local = judge.report(t, z, level=level, exact=lambda _: states)
+    report["estimate"] = ("the continuous solution near this one (shooting with the reference "
+                          f"flow: p_0 = {shot.p0.tolist()})")
+    return report, local
 
 
 def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:

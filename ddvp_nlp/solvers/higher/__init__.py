@@ -15,7 +15,9 @@ Where things are:
 - ``phase.py``: one rule's solve (the grid's Newton with the ``DecreaseOrMonotonicity`` test,
   through a Newton homotopy where plain Newton does not converge; or IPOPT), and the
   verification;
-- ``ipopt.py``: the window gradient mapped over the grid for the grid's IPOPT build.
+- ``ipopt.py``: the window gradient mapped over the grid for the grid's IPOPT build;
+- ``verdict.py``: the accuracy check of a higher-order trajectory against the exact
+  Euler-Lagrange flow (its positions, step by step and over the run).
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -24,7 +26,10 @@ The contract, on top of the grid's (``grid/__init__.py``):
 2. Verification decides, whatever the solver said: the Euler-Lagrange rows in the units of
    ``q``, the energy rows, the pins held, every step positive, against bounds of each row's own
    round-off computed from the data, not from the point.
-3. This package imports the core and ``grid/``.
+3. Every result is then judged against the exact Euler-Lagrange flow through its data
+   (``verdict.py``); a fixed-endpoint problem with no continuous solution ends
+   ``inaccurate``, saying so.
+4. This package imports the core and ``grid/``.
 """
 
 from typing import TYPE_CHECKING

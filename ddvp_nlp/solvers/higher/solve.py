@@ -21,9 +21,11 @@ from ...errors import InputError
 from ...physics.higher import HigherOrderSystem
 from ...solution import Solution, Status
 from ...validation import check_finite_array, check_integer, check_real
+from ..accuracy import apply_verdict
+from ..compiler import find_compiler
 from ..driver import Advance, Nodes, drive
 from ..grid.problem import GridRequest
-from ..options import Compilation, GridOptions, StepControl, coerce
+from ..options import DEFAULT_TOLERANCE, Compilation, GridOptions, StepControl, Tolerance, coerce
 from .phase import grid_energies, solve_rule
 from .problem import FixedNodes, mean_step, straight
 
@@ -102,13 +104,36 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     status, message, residuals = outcome
     z = x.reshape(nodes, system.n + 1)
     total = time.perf_counter() - started
-    return _higher_solution(system, z[:, 0].copy(), z[:, 1:].copy(), request.theta, status,
-                            message, rule, {"build_s": request.build_s,
-                                            "solve_s": total - request.build_s},
-                            {**residuals, "iterations": phase["iterations"],
-                             "iterations_total": sum(p["iterations"] for p in request.phases),
-                             "solver": phase["solver"], "return_status": phase["return_status"],
-                             "phases": request.phases, "tau_floor": request.tau_floor})
+    solution = _higher_solution(
+        system, z[:, 0].copy(), z[:, 1:].copy(), request.theta, status, message, rule,
+        {"build_s": request.build_s, "solve_s": total - request.build_s},
+        {**residuals, "iterations": phase["iterations"],
+         "iterations_total": sum(p["iterations"] for p in request.phases),
+         "solver": phase["solver"], "return_status": phase["return_status"],
+         "phases": request.phases, "tau_floor": request.tau_floor})
+    l = system.order  # noqa: E741 (l is the order, as in the paper)
+    fixed = np.concatenate([np.arange(l), np.arange(nodes - l, nodes)])
+    _judge(solution, system, request.theta, request.options.accuracy or Tolerance(),
+           data=fixed, compiler=find_compiler(request.compilation.compiler),
+           cache_dir=request.compilation.cache_dir)
+    return solution
+
+
+def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cache_dir=None):
+    """The accuracy check of a higher-order trajectory (``verdict.py``) into
+    ``solution.stats["accuracy"]`` and ``solution.local_error``, and its status."""
+    from .verdict import judge_higher
+
+    if not np.all(np.isfinite(solution.q)) and solution.t.size:
+        finite = np.all(np.isfinite(solution.q), axis=1)
+        keep = int(np.argmin(finite)) if not finite.all() else solution.t.size
+        t, q = solution.t[:keep], solution.q[:keep]
+    else:
+        t, q = solution.t, solution.q
+    report, local = judge_higher(system, t, q, theta, tolerance, data=data,
+                                 exact=tolerance.exact, compiler=compiler, cache_dir=cache_dir)
+    solution.stats["accuracy"], solution.local_error = report, local
+    apply_verdict(solution, report, tolerance, advice="try a smaller tau0")
 
 
 def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, nodes: int,
@@ -245,8 +270,8 @@ class _HigherSteps:
 
 
 def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None = None, *,
-                 scheme: str = "vddvp", params=None,
-                 steps: StepControl | None = None) -> Solution:
+                 scheme: str = "vddvp", params=None, steps: StepControl | None = None,
+                 accuracy: Tolerance | None = DEFAULT_TOLERANCE) -> Solution:
     """March from ``2l`` given nodes (``t_init`` ``(2l,)``, ``q_init`` ``(2l, n)``) until the
     first node at or past ``t_end``.
 
@@ -266,6 +291,10 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None 
     ``steps.time_limit`` the seconds of stepping. ``steps`` defaults to
     ``StepControl(tol=1e-9, max_steps=10**6)``; its step bounds and breakdown do not apply
     here and are refused.
+
+    ``accuracy``: the accuracy check (``verdict.py``: every step and the trajectory against
+    the exact Euler-Lagrange flow through the start nodes, or ``accuracy.exact``); ``None``
+    leaves it out.
     """
     _check_system(system)
     steps = DEFAULT_STEPS if steps is None else coerce(steps, StepControl, "steps")
@@ -273,6 +302,8 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None 
     rule = check_rule(system, scheme)
     t_init, q_init, t_end = _check_start(system, rule, t_init, q_init, t_end)
     tol, max_steps, time_limit = steps.tol, steps.max_steps, steps.time_limit
+    if accuracy is not None:
+        accuracy = coerce(accuracy, Tolerance, "accuracy")
     theta = system.parameter_vector(params)
     started = time.perf_counter()
     h = t_init[-1] - t_init[-2]
@@ -285,9 +316,13 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None 
     built = time.perf_counter()
     outcome = drive(stepper, nodes, t_end=t_end, max_steps=max_steps, time_limit=time_limit,
                     step_offset=2 * system.order - 1)
-    return _higher_solution(system, outcome.t, outcome.z, theta, outcome.status,
-                            outcome.message, rule, {"build_s": built - started,
-                                                    "solve_s": time.perf_counter() - built}, {})
+    solution = _higher_solution(system, outcome.t, outcome.z, theta, outcome.status,
+                                outcome.message, rule, {"build_s": built - started,
+                                                        "solve_s": time.perf_counter() - built},
+                                {})
+    if accuracy is not None:
+        _judge(solution, system, theta, accuracy, compiler=find_compiler("auto"))
+    return solution
 
 
 def _extrapolate(t, q, t_new):

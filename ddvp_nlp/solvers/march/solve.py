@@ -36,7 +36,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
 from ...validation import check_span, check_state, check_step
-from ..accuracy import AccuracyMonitor, ErrorEstimates
+from ..accuracy import AccuracyMonitor, ErrorEstimates, apply_verdict
 from ..compiler import buffered, find_compiler
 from ..dense import DenseField, EventMonitor, attach, check_times, evaluate_at
 from ..driver import Nodes, drive
@@ -160,7 +160,12 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
     compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
     checker = None
     if accuracy is not None:
-        checker = _accuracy_monitor(problem, accuracy, parts.errors)
+        # the reference flow is compiled where the chunk is, or (careful path) with the
+        # compiler asked for: one fallback warning, not two
+        checker = _accuracy_monitor(
+            problem, accuracy, parts.errors, cache_dir=compilation.cache_dir,
+            compiler=compiler if compiled else
+            None if compilation.fast else find_compiler(compilation.compiler))
         monitors.append(checker)
     events = None
     if output.events:
@@ -195,8 +200,12 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
                          timing={"build_s": built - started, "solve_s": solved - built})
     solution.stats["carried"] = carry.state()
     if checker is not None:
-        solution.local_error = checker.local_errors(solution.steps)
-        solution.stats["accuracy"] = checker.report(solution.steps)
+        started = time.perf_counter()
+        report, solution.local_error = checker.report(
+            solution.t, np.hstack([solution.q, solution.p]), exact=accuracy.exact)
+        solution.stats["accuracy"] = report
+        apply_verdict(solution, report, accuracy)
+        solution.timing["accuracy_s"] = time.perf_counter() - started
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
         solution.stats["checkpoints"] = saver.saves
@@ -346,10 +355,10 @@ def _monitors(parts: _Parts, problem: MarchProblem, nodes):
     return monitors, solvability
 
 
-def _accuracy_monitor(problem: MarchProblem, tolerance, errors):
+def _accuracy_monitor(problem: MarchProblem, tolerance, errors, *, compiler, cache_dir):
     """The accuracy check of the march (its error state ``errors`` shared with the compiled
-    chunk); for the energy rules it also compares the level the first step sets, the first
-    interval's energy, with ``H0``."""
+    chunk, its reference flow compiled with ``compiler``); for the energy rules it also takes
+    the level the first step sets, the first interval's energy at its clock."""
     system, scheme, theta = problem.system, problem.scheme, problem.theta
     level = None
     if scheme.variable_steps:
@@ -357,10 +366,13 @@ def _accuracy_monitor(problem: MarchProblem, tolerance, errors):
                                    "interval_energy", scheme, owner=system)
         n = system.n
 
-        def level(t, z):
-            return float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
-                                         theta)[0][0, 0])
-    return AccuracyMonitor(system, theta, tolerance, H0=problem.H0, level=level, errors=errors)
+        def level(t, z):  # the first interval's energy, at its own clock
+            value = float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
+                                          theta)[0][0, 0])
+            return value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
+                                else t[0])
+    return AccuracyMonitor(system, theta, tolerance, H0=problem.H0, level=level, errors=errors,
+                           compiler=compiler, cache_dir=cache_dir)
 
 
 def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, compiler,

@@ -76,9 +76,9 @@ node 1 shifted by ``2 pi w``.
 Every returned point, whichever solver found it, is verified by its own unscaled residuals
 (closure, canonical, the scheme's energy equations, the prescribed energy, the section, every
 step positive), then by the accuracy check of ``accuracy.py``, which does not trust the
-scheme's equations: each interval against one RK4 step of the exact flow, the level against
-``E``, and the propagated global error estimate (status ``inaccurate`` when a local error
-passes its tolerance). The start: ``start.py``.
+scheme's equations: each interval against the exact flow, the level against ``E``, and the
+closure of the exact flow from the first node over the period (status ``inaccurate`` when a
+test fails: a grid too coarse to resolve the orbit is refused). The start: ``start.py``.
 """
 
 from __future__ import annotations
@@ -96,7 +96,8 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
 from ...validation import check_integer, check_real, check_state
-from ..accuracy import AccuracyMonitor, assess
+from ..accuracy import Judgement, Level, apply_verdict
+from ..compiler import find_compiler
 from ..grid.newton import newton
 from ..grid.problem import GridRequest, timed_out
 from ..options import GridOptions, Tolerance, coerce
@@ -449,12 +450,7 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     status, message = _verdict(result, worst, limit, np.diff(t), orbit.start_note)
     accuracy, local_error = ({}, np.zeros(0))
     if finite:
-        accuracy, local_error = assess(system, t, np.hstack([q, p]), request.theta,
-                                       Tolerance(), level=orbit.energy)
-        if status is Status.SUCCESS and accuracy["first_failure"] is not None:
-            status = Status.INACCURATE
-            message = (f"{status.value}: {AccuracyMonitor.describe(accuracy['first_failure'])}"
-                       f"; the discrete equations hold: {message}")
+        accuracy, local_error = _accuracy(request, t, q, p)
     winding = np.round(np.asarray(closure.shift, float) / (2 * np.pi)) * np.ones(2 * n)
     stats = {"period": float(t[-1] - t[0]), "energy": orbit.energy,
              "section": orbit.label, "unfolding": float(unfolding[0]),
@@ -463,12 +459,41 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
              "residuals": worst, "iterations": result.iterations, "outcome": result.outcome,
              "accuracy": accuracy,
              "tau_min": float(np.min(np.diff(t))), "tau_max": float(np.max(np.diff(t)))}
-    return Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
-                    energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
-                    newton_iterations=result.iterations, local_error=local_error,
-                    timing={"build_s": request.build_s,
-                            "solve_s": time.perf_counter() - started - request.build_s},
-                    stats=stats)
+    solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
+                        energy_residual=energy,
+                        canonical_residual=np.max(np.abs(canonical), axis=1),
+                        newton_iterations=result.iterations, local_error=local_error,
+                        timing={"build_s": request.build_s,
+                                "solve_s": time.perf_counter() - started - request.build_s},
+                        stats=stats)
+    if finite:
+        apply_verdict(solution, accuracy, request.options.accuracy or Tolerance(),
+                      advice="try more nodes")
+    return solution
+
+
+def _accuracy(request: GridRequest[Orbit], t, q, p):
+    """The accuracy check of an orbit against the exact flow (``accuracy.py``): every interval
+    (a grid too coarse to resolve the orbit fails here), the energy of the orbit through the
+    first node against the one prescribed, and the closure of the exact flow: the flow from
+    the first node must stay within ``global_tol`` of the orbit over the whole period, or the
+    orbit is refused (``inaccurate``: it is not an orbit of the exact flow)."""
+    judge = Judgement(request.system, request.theta, request.options.accuracy or Tolerance(),
+                      compiler=find_compiler(request.compilation.compiler),
+                      cache_dir=request.compilation.cache_dir)
+    level = Level(request.data.energy, float(t[0] + (t[1] - t[0]) / 2))
+    report, local = judge.report(t, np.hstack([q, p]), level=level)
+    if report["verdict"] == "drifted":
+        report["verdict"] = "inaccurate"
+        report["first_failure"] = {
+            "step": int(report["drift_step"]) - 1, "t": float(t[report["drift_step"]]),
+            "test": "closure of the exact flow", "value": report["error_max"],
+            "limit": report["global_tol"],
+            "detail": (f"the exact flow from the orbit's first node leaves the orbit by "
+                       f"{report['error_max']:.3e} of its size at t = "
+                       f"{t[report['drift_step']]:.6g} (period {t[-1] - t[0]:.10g}): it does "
+                       "not close; more nodes resolve the orbit better")}
+    return report, local
 
 
 def _verdict(result, worst: dict, limit: float, tau: np.ndarray, note):
