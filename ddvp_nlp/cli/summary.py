@@ -92,13 +92,11 @@ def _trajectory_words(accuracy: dict) -> str:
 
 
 def _verdict_words(meta: dict, accuracy: dict) -> str:
+    from ..solvers.accuracy import describe
+
     verdict = accuracy["verdict"]
     if verdict == "inaccurate":
-        failure = accuracy["first_failure"]
-        if failure.get("detail"):
-            return f"inaccurate: {failure['test']}: {failure['detail']}"
-        return (f"inaccurate: the {failure['test']} of step {failure['step']} (t = "
-                f"{failure['t']:.6g}) is {failure['value']:.3e} > {failure['limit']:.3e}")
+        return f"inaccurate: {describe(accuracy)}"
     if meta.get("status") not in ("success", "event", "drifted") \
             and not accuracy["steps"]:
         return f"no verdict: the run ended {meta['status']} before its first step"

@@ -51,6 +51,15 @@ from .stepper import CarefulStepper, Clock, CompiledStepper, MarchStepper, Tally
 from .steps import StepFunctions, step_functions
 
 
+def coerced(scheme, steps, accuracy, compilation, output):
+    """The options of a march as their objects (``InputError`` naming a wrong one), before
+    anything is built."""
+    if accuracy is not None:
+        coerce(accuracy, Tolerance, "accuracy")
+    return (Scheme.coerce(scheme), coerce(steps, StepControl, "steps"),
+            coerce(compilation, Compilation, "compilation"), coerce(output, Output, "output"))
+
+
 def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v0=None,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
@@ -97,12 +106,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     Returns:
         A `Solution`; failures are a status on it, never an exception.
     """
-    scheme = Scheme.coerce(scheme)
-    steps = coerce(steps, StepControl, "steps")
-    if accuracy is not None:
-        coerce(accuracy, Tolerance, "accuracy")
-    compilation = coerce(compilation, Compilation, "compilation")
-    output = coerce(output, Output, "output")
+    scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     # the options first: the start (p0 from v0, H0) already builds CasADi functions
     problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
     check_times(output.t_eval, (problem.t0, problem.t_end))
@@ -127,12 +131,7 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
     Returns:
         A `Solution` of the whole run, from the first node.
     """
-    scheme = Scheme.coerce(scheme)
-    steps = coerce(steps, StepControl, "steps")
-    if accuracy is not None:
-        coerce(accuracy, Tolerance, "accuracy")
-    compilation = coerce(compilation, Compilation, "compilation")
-    output = coerce(output, Output, "output")
+    scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     if not isinstance(state, MarchState):
         raise InputError(f"state must be a MarchState, got {type(state).__name__}")
     n = state.z.shape[1] // 2
