@@ -59,8 +59,13 @@ class Interrupts:
         held = SIGNALS & signal.pthread_sigmask(signal.SIG_BLOCK, set())
 
         def restore():
-            if held:  # the command: hold them again until the process is gone
+            if held:  # the command: hold them again until the process is gone, and ignore
+                # them: the mask is this thread's, and a signal a worker or checkpoint thread
+                # took had ended the exiting interpreter with KeyboardInterrupt (exit -2)
                 signal.pthread_sigmask(signal.SIG_BLOCK, held)
+                for sig in held:
+                    signal.signal(sig, signal.SIG_IGN)
+                return
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         self.restore = restore  # in place before a held signal is handled (it may raise)
