@@ -167,3 +167,19 @@ def test_reader_refuses_a_result_beside_another_runs_meta(tmp_path):
         f"{tmp_path / 'b' / 'result.npz'} is not the file {tmp_path / 'b' / 'meta.json'} "
         "describes (result.npz: its checksum differs; .result.npz.previous: No such file or "
         "directory): the set was cut while writing, or changed by another tool")
+
+
+def test_a_study_told_to_stop_never_exits_0(tmp_path):
+    """SIGTERM a second into `ddvp compare`: wherever it lands (the imports, a march's Newton
+    inside CasADi, where it surfaces as that run's failure, or between runs) the command exits
+    1 and says it was interrupted; it never reports a finished study (scripts/faults.py had
+    caught compare writing its files and exiting 0 after the signal)."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "ddvp_nlp.cli", "compare", "harmonic", "--set", "t_end=400",
+         "--no-progress", "--out", str(tmp_path / "out")],
+        cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGTERM)
+    out, err = process.communicate(timeout=600)
+    assert process.returncode == 1, (out, err)
+    assert "interrupted" in err and "Traceback" not in err

@@ -66,6 +66,13 @@ def _run(args) -> int:
         with on_cluster(args):
             code = COMMANDS[args.command](args)
         sys.stdout.flush()  # a full disk behind stdout fails here, not at the exit
+        if INTERRUPTS.requested and code == 0:
+            # a signal that surfaced inside CasADi as a task's error: the study went on and
+            # wrote its files, but the user asked it to stop, and a run may have been cut
+            _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}) while running; the "
+                 "files above were written whole, but the run the signal reached may show it "
+                 "as its own failure (a Newton or step failure in its row)")
+            return 1
         return code
     except BaseException as exc:  # noqa: B036 - every way out gets an exit code and a line
         INTERRUPTS.end()
