@@ -132,8 +132,10 @@ def _figure(solution, rows, title: str):
     # inches: time columns, the gap after each (tick labels of the next, or the legend), the
     # state column; left margin for the y labels, top for the titles, bottom for t
     widths = [3.2, 1.9][:len(spans)] + [2.1]
-    gaps = [0.55] * (len(spans) - 1) + [1.45 if legend else 0.95]
-    left, right, top, bottom = 0.85, 0.15, 0.55, 0.5
+    # (the legend's gap holds "interval H(Q_k, P_k)" and the state panels' y labels; the right
+    # margin the start's label where the start is the right-most point, as on a Kepler orbit)
+    gaps = [0.55] * (len(spans) - 1) + [2.2 if legend else 0.95]
+    left, right, top, bottom = 0.85, 0.5, 0.55, 0.5
     width = left + sum(widths) + sum(gaps) + right
     height = max(3.4, ROW_HEIGHT * len(rows) + top + bottom)
     fig = figures.new_figure(width, height, layout=None)
