@@ -147,7 +147,13 @@ def plain_tick_labels(fig) -> None:
     plain = plain_formatters()
     for ax in fig.axes:
         for axis in (ax.xaxis, ax.yaxis):
-            for formatter in (axis.get_major_formatter(), axis.get_minor_formatter()):
+            minor = axis.get_minor_formatter()
+            if axis is ax.xaxis and hasattr(minor, "minor_thresholds"):
+                # a log x axis over one to two decades labelled every minor tick ("2x10^-3
+                # 3x10^-3 ..." side by side), unreadable in a narrow panel: minor labels only
+                # below half a decade, where there is at most one major label
+                minor.minor_thresholds = (0.5, 0.2)
+            for formatter in (axis.get_major_formatter(), minor):
                 if type(formatter) in plain:
                     # the class swapped in place: its state is what the new methods read
                     formatter.__class__ = plain[type(formatter)]
