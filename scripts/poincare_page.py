@@ -46,8 +46,8 @@ def main() -> None:
                      str(args.orbits), "--t-end", repr(args.t_end), "--out", str(folder)])
         seconds = time.perf_counter() - started
         section = np.load(folder / "section.npz")
-        orbits = (folder / "orbits.csv").read_text().splitlines()[1:]
-        failed = sum(",reached t_end," not in row for row in orbits)
+        orbits = (folder / "orbits.csv").read_text().splitlines()
+        failed = sum(",reached t_end," not in row for row in orbits[1:])
         error = float(np.max(section["energy_errors"]))
         crossings = section["points"].shape[0]
         lines.append(f"| {label} | {crossings} | {failed} | {error:.2e} | {seconds:.0f} |")
@@ -59,15 +59,20 @@ def main() -> None:
 
 
 def orbit_table(label, section, orbits) -> list[str]:
-    """Each orbit of one energy: its start, status, steps, crossings and nodal energy error."""
+    """Each orbit of one energy: its start, status, steps, crossings, nodal energy error and the
+    accuracy check's verdict (``orbits.csv``'s rows, read by their header)."""
+    import csv
+
     lines = [f"## E = {label}, orbit by orbit", "",
-             "| orbit | start (q2, p2) | status | steps | crossings | nodal energy error |",
-             "|---|---|---|---|---|---|"]
-    for row in orbits:
-        k, status, steps, error, _, q2, _, p2 = row.split(",")
-        crossings = int(np.sum(section["orbit"] == int(k)))
-        lines.append(f"| {k} | ({float(q2):.4f}, {float(p2):.4f}) | {status} | {steps} | "
-                     f"{crossings} | {error} |")
+             "| orbit | start (q2, p2) | status | steps | crossings | nodal energy error | "
+             "verdict | t_drift |", "|---|---|---|---|---|---|---|---|"]
+    for row in csv.DictReader(orbits):
+        k = int(row["orbit"])
+        crossings = int(np.sum(section["orbit"] == k))
+        drift = f"{float(row['t_drift']):.4g}" if row.get("t_drift") else ""
+        lines.append(f"| {k} | ({float(row['start_q2']):.4f}, {float(row['start_p2']):.4f}) | "
+                     f"{row['status']} | {row['steps']} | {crossings} | "
+                     f"{row['nodal_energy_error']} | {row.get('accuracy', '')} | {drift} |")
     return lines + [""]
 
 
