@@ -12,7 +12,8 @@ bifurcations, transfers at a prescribed energy, each against the exact flow.
   against a closed form;
 - docs/transfers/README.md: transfers at a prescribed energy against DOP853 shooting.
 
-Every line of a page is a measured number; the figures are plain matplotlib. Takes about ten
+Every line of a page is a measured number; the figures are drawn in the package's house
+style (``ddvp_nlp/io/figures.py``). Takes about ten
 minutes alone on the machine.
 """
 
@@ -27,10 +28,6 @@ import warnings
 from pathlib import Path
 
 import casadi
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import brentq, minimize_scalar  # noqa: E402
 from scipy.special import ellipe, ellipk  # noqa: E402
@@ -47,6 +44,7 @@ from ddvp_nlp import (  # noqa: E402
     solve_bvp,
     solve_periodic,
 )
+from ddvp_nlp.io import figures  # noqa: E402
 from ddvp_nlp.io.periodic_figures import plot_followed_family  # noqa: E402
 
 # The coarse grids of these convergence studies (N = 50, 100) resolve some orbits to about 1%:
@@ -178,17 +176,17 @@ def pendulum_study():
 
 
 def figure(curves, path: Path, ylabel="relative error of the stability indices") -> None:
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for label, sizes, errors in curves:
-        ax.loglog(sizes, errors, "o-", ms=4, label=label)
-    sizes = np.array([50, 1600])
-    ax.loglog(sizes, 1e-1 * (sizes / 50.0) ** -2, "k--", lw=0.8, label="N^-2")
-    ax.set_xlabel("intervals N")
-    ax.set_ylabel(ylabel)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figures.styled():
+        fig = figures.new_figure(6.5, 4.5)
+        ax = fig.add_subplot()
+        for label, sizes, errors in curves:
+            ax.loglog(sizes, errors, "o-", ms=4, label=label)
+        sizes = np.array([50, 1600])
+        ax.loglog(sizes, 1e-1 * (sizes / 50.0) ** -2, "k--", lw=0.8, label="$N^{-2}$")
+        ax.set_xlabel("intervals $N$")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize="small")
+        figures.save(fig, path)
 
 
 PAGE_STABILITY = """# Stability of periodic orbits: Floquet multipliers
@@ -284,11 +282,17 @@ def cr3bp_study(out: Path):
 
 
 def vertical_figure(families, path: Path) -> None:
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    with figures.styled():
+        fig = figures.new_figure(6.5, 4.5)
+        _vertical_panel(fig.add_subplot(), families)
+        figures.save(fig, path)
+
+
+def _vertical_panel(ax, families) -> None:
     for N, family in families.items():
         energy = [m.energy for m in family.members]
         ax.plot(energy, [m.stability.indices[0].real - 2 for m in family.members], "o-",
-                ms=3, label=f"discrete, N = {N}")
+                ms=3, label=f"discrete, $N = {N}$")
     last = families[max(families)]
     ax.plot([m.energy for m in last.members],
             [m.stability.exact.indices[0].real - 2 for m in last.members], "k+", ms=8,
@@ -296,13 +300,10 @@ def vertical_figure(families, path: Path) -> None:
     ax.axhline(0.0, color="0.5", lw=0.8)
     for b in last.bifurcations:
         ax.axvline(b.extra["exact_energy"], color="k", ls=":", lw=0.8)
-    ax.set_xlabel("energy E")
-    ax.set_ylabel("vertical stability index - 2")
+    ax.set_xlabel("energy $E$")
+    ax.set_ylabel("vertical stability index $- 2$")
     ax.set_title("L1 Lyapunov family: the vertical pair crosses +1 (halo family's birth)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    ax.legend(fontsize="small")
 
 
 def axis_study(out: Path):
@@ -519,16 +520,20 @@ def transfer_path_figure(last, path: Path) -> None:
     flow = flow_with_derivatives(scene.system, np.zeros(0),
                                  np.concatenate([run.q[0], exact["momentum"]]),
                                  exact["transfer_time"], times=times)
-    fig, ax = plt.subplots(figsize=(5.5, 4.5))
-    ax.plot(flow.path[:, 0], flow.path[:, 1], "-", color="0.6", lw=2, label="DOP853 shooting")
-    ax.plot(run.q[::10, 0], run.q[::10, 1], ".", ms=4, label=f"discrete, N = {run.steps + 1}")
-    ax.set_xlabel("q1")
-    ax.set_ylabel("q2")
-    ax.set_title(f"Henon-Heiles transfer at E = 0.12, T = {run.stats['transfer_time']:.6f}")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figures.styled():
+        fig = figures.new_figure(5.5, 4.5)
+        ax = fig.add_subplot()
+        ax.plot(flow.path[:, 0], flow.path[:, 1], "-", color="0.6", lw=2,
+                label="DOP853 shooting")
+        ax.plot(run.q[::10, 0], run.q[::10, 1], ".", ms=4,
+                label=f"discrete, $N = {run.steps + 1}$")
+        ax.set_xlabel("$q_1$")
+        ax.set_ylabel("$q_2$")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title(f"Henon-Heiles transfer at $E = 0.12$, "
+                     f"$T = {run.stats['transfer_time']:.6f}$")
+        ax.legend()
+        figures.save(fig, path)
 
 
 PAGE_TRANSFERS = """# Transfers at a prescribed energy
