@@ -77,4 +77,4 @@ def _indices(axes, members) -> None:
                   transform=axes.transAxes, ha="center", va="center")
     axes.set_xlabel("energy $E$")
     axes.set_ylabel(r"stability index $k = \mu + 1/\mu$")
-    axes.set_title(r"stability indices ($|k| < 2$: stable pair)")
+    axes.set_title(r"stability indices ($|k| < 2$: stable)", fontsize="medium")
