@@ -46,6 +46,7 @@ from ...validation import check_real
 from ..accuracy import Level, apply_verdict, assess
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
+from ..grid.problem import check_energy_problem
 from ..options import Tolerance
 from .assembly import Ends, GridAssembly, NodeLayout, prescribed_energy_block
 
@@ -92,12 +93,7 @@ class AtEnergy:
 
 def check_transfer(system, scheme, options) -> None:
     """What a transfer at a prescribed energy needs of the system, scheme and solver."""
-    if system.time_dependent:
-        raise InputError(f"system {system.name!r}: H depends on t; a transfer at a prescribed "
-                         f"energy needs an autonomous H")
-    if not scheme.variable_steps:
-        raise InputError(f"scheme {scheme.rule!r} has no energy equation; a transfer at a "
-                         f"prescribed energy needs 'vddvp' or 'lee'")
+    check_energy_problem(system, scheme, "a transfer at a prescribed energy")
     if options is not None and options.solver == "ipopt":
         raise InputError("solver 'ipopt' has no free end time: a transfer at a prescribed "
                          "energy is solved by Newton (solver 'newton' or 'auto')")

@@ -11,6 +11,7 @@ import numpy as np
 
 from ...cache import PROBLEMS
 from ...discrete.scheme import Scheme
+from ...errors import InputError
 from ..options import Compilation, GridOptions
 
 Data = TypeVar("Data")
@@ -157,3 +158,13 @@ class GridRequest(Generic[Data]):
         """Drop this system's built problems whose key ``dropped(key)`` is true, before a
         large one is built in their place."""
         PROBLEMS.discard(self.system, dropped)
+
+
+def check_energy_problem(system, scheme: Scheme, what: str) -> None:
+    """A problem at a prescribed energy (``what``, said in the message) needs an autonomous
+    ``H`` and a scheme with an energy equation."""
+    if system.time_dependent:
+        raise InputError(f"system {system.name!r}: H depends on t; {what} needs an autonomous H")
+    if not scheme.variable_steps:
+        raise InputError(f"scheme {scheme.rule!r} has no energy equation; {what} needs 'vddvp' "
+                         f"or 'lee'")

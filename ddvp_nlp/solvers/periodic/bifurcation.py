@@ -95,22 +95,30 @@ def confirm(system, theta, orbit, kind: str, *, section_index: int, section_valu
     if kind == "fold":
         return _fold(closed, orbit, energy, seen)
 
-    half = FIRST_HALF_WIDTH * max(1.0, abs(energy))
     try:
-        for _ in range(EXPANSIONS):
-            low, high = test(energy - half), test(energy + half)
-            if low * high < 0:
-                break
-            half *= 4
-        else:
-            return None
-        root = brentq(test, energy - half, energy + half, xtol=1e-13 * max(1.0, abs(energy)),
-                      rtol=1e-15, maxiter=100)
+        found = _root_near(test, energy, FIRST_HALF_WIDTH * max(1.0, abs(energy)),
+                           1e-13 * max(1.0, abs(energy)))
     except _NotClosed:
         return None
-    return Confirmation(energy=float(root), bracket=(energy - half, energy + half),
-                        values=(low, high), closure=seen["closure"],
-                        difference=energy - float(root), evaluations=seen["count"])
+    if found is None:
+        return None
+    root, half, values = found
+    return Confirmation(energy=root, bracket=(energy - half, energy + half), values=values,
+                        closure=seen["closure"], difference=energy - root,
+                        evaluations=seen["count"])
+
+
+def _root_near(f, center: float, half: float, xtol: float):
+    """``(root, half, (f(center - half), f(center + half)))``: the bracket around ``center``
+    widened four times at a time (``EXPANSIONS`` tries) until ``f`` changes sign across it,
+    then its root by Brent's method; ``None`` if it never does."""
+    for _ in range(EXPANSIONS):
+        low, high = f(center - half), f(center + half)
+        if low * high < 0:
+            root = brentq(f, center - half, center + half, xtol=xtol, rtol=1e-15, maxiter=100)
+            return float(root), half, (low, high)
+        half *= 4
+    return None
 
 
 def _fold(closed, orbit, energy: float, seen: dict) -> Confirmation | None:
@@ -125,22 +133,16 @@ def _fold(closed, orbit, energy: float, seen: dict) -> Confirmation | None:
         state["start"], state["energy"] = (exact.z0, exact.period), exact.energy
         return 1.0 / exact.period_derivative
 
-    half = FIRST_HALF_WIDTH * max(1.0, period)
     try:
-        for _ in range(EXPANSIONS):
-            low, high = slope(period - half), slope(period + half)
-            if low * high < 0:
-                break
-            half *= 4
-        else:
+        found = _root_near(slope, period, FIRST_HALF_WIDTH * max(1.0, period), 1e-13 * period)
+        if found is None:
             return None
-        root = brentq(slope, period - half, period + half, xtol=1e-13 * period, rtol=1e-15,
-                      maxiter=100)
-        slope(root)
+        slope(found[0])  # the exact fold's orbit, its energy in state
     except _NotClosed:
         return None
+    _, half, values = found
     return Confirmation(energy=state["energy"], bracket=(period - half, period + half),
-                        values=(low, high), closure=seen["closure"],
+                        values=values, closure=seen["closure"],
                         difference=energy - state["energy"], evaluations=seen["count"])
 
 

@@ -99,7 +99,7 @@ from ...validation import check_integer, check_real, check_state
 from ..accuracy import Judgement, Level, apply_verdict
 from ..compiler import find_compiler
 from ..grid.newton import newton
-from ..grid.problem import GridRequest, timed_out
+from ..grid.problem import GridRequest, check_energy_problem, timed_out
 from ..options import GridOptions, Tolerance, coerce
 from .assembly import Closure, PeriodicAssembly, integral_gradients
 from .ipopt import periodic_ipopt
@@ -328,12 +328,7 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
-    if system.time_dependent:
-        raise InputError(f"system {system.name!r}: H depends on t; periodic orbits at a "
-                         f"prescribed energy need an autonomous H")
-    if not scheme.variable_steps:
-        raise InputError(f"scheme {scheme.rule!r} has no energy equation; periodic orbits at "
-                         f"a prescribed energy need 'vddvp' or 'lee'")
+    check_energy_problem(system, scheme, "a periodic orbit at a prescribed energy")
     if options.linear == "banded":
         raise InputError("linear must be 'auto' or 'sparse' for a periodic orbit (its "
                          "Jacobian has closure rows in a corner and a full unfolding column: "

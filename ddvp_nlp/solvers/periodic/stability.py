@@ -123,17 +123,23 @@ def section_direction(monodromy: DiscreteMonodromy, section_index: int,
                       generators: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(v_0, du)``: the derivative of the discrete orbit's node 0 and unfolding parameters in
     the section's value, from the condensed equations (module docstring)."""
+    k, rows = _bordered(monodromy, section_index, generators)
+    rhs = np.zeros(rows.shape[0])
+    rhs[k] = 1.0
+    solution = np.linalg.solve(rows, rhs)
+    return solution[:k], solution[k:]
+
+
+def _bordered(monodromy: DiscreteMonodromy, section_index: int, generators: np.ndarray):
+    """``(k, A)``: the condensed orbit equations' matrix ``[M - I, B]`` bordered by the
+    section's row and the phase conditions' rows (``k`` the size of the state)."""
     M, B = monodromy.monodromy, monodromy.unfolding
     k, u = M.shape[0], B.shape[1]
     r = generators.shape[0]
     section = np.zeros(k)
     section[section_index - 1] = 1.0
-    rows = np.vstack([np.hstack([M - np.eye(k), B]), np.r_[section, np.zeros(u)],
-                      np.hstack([generators, np.zeros((r, u))])])
-    rhs = np.zeros(k + 1 + r)
-    rhs[k] = 1.0
-    solution = np.linalg.solve(rows, rhs)
-    return solution[:k], solution[k:]
+    return k, np.vstack([np.hstack([M - np.eye(k), B]), np.r_[section, np.zeros(u)],
+                         np.hstack([generators, np.zeros((r, u))])])
 
 
 def _symplectic_form(k: int) -> np.ndarray:
@@ -419,14 +425,8 @@ def discrete_stability(system, scheme, t, q, p, *, energy: float, section_index:
 
 def energy_direction(monodromy: DiscreteMonodromy, section_index: int, generators):
     """``(dz_0/dE, dT/dE)`` along the discrete family at fixed section and phase conditions."""
-    M, B, b = monodromy.monodromy, monodromy.unfolding, monodromy.energy
-    k, u = M.shape[0], B.shape[1]
-    r = generators.shape[0]
-    section = np.zeros(k)
-    section[section_index - 1] = 1.0
-    rows = np.vstack([np.hstack([M - np.eye(k), B]), np.r_[section, np.zeros(u)],
-                      np.hstack([generators, np.zeros((r, u))])])
-    rhs = np.concatenate([-b, np.zeros(1 + r)])
+    k, rows = _bordered(monodromy, section_index, generators)
+    rhs = np.concatenate([-monodromy.energy, np.zeros(rows.shape[0] - k)])
     solution = np.linalg.solve(rows, rhs)
     dT = float(monodromy.period_gradient @ np.concatenate([solution, [1.0]]))
     return solution[:k], dT
