@@ -196,7 +196,7 @@ def test_the_halo_birth_converges_at_order_two_in_n():
         family = follow_periodic_family(
             scene.system, (-1.5935, -1.586), nodes=nodes, section="q2=0",
             guess=scene.periodic.guess(-1.5935, mu=mu),
-            continuation=Continuation(step=0.001, exact=False))
+            continuation=Continuation(step=0.001, exact=False), options=RECORDED)
         [birth] = family.bifurcations
         differences.append(abs(birth.energy - birth.extra["exact_energy"]))
     assert np.all(np.abs(np.log2(np.array(differences[:-1]) / differences[1:]) - 2) < 0.1)
