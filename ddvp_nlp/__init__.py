@@ -20,7 +20,7 @@ from .cache import lazy_exports
 from .discrete.scheme import Scheme
 from .errors import InputError
 from .physics.hamiltonian import HamiltonianSystem
-from .physics.higher import HigherOrderSystem
+from .physics.higher_order import HigherOrderSystem
 from .physics.lagrangian import Lagrangian, LagrangianSystem
 from .scenes import (
     Endpoints,
@@ -77,7 +77,7 @@ def plot(solution: Solution, path=None, *, system=None, params=None, title: str 
     """
     # The one import from the root into io/ (docs/architecture.md): a facade, imported here
     # and not at the top so that `import ddvp_nlp` loads no figure code.
-    from .io.plotting import plot_solution
+    from .io.run_figure import plot_solution
 
     return plot_solution(solution, path, system=system, params=params, title=title)
 

@@ -72,7 +72,7 @@ class Solution:
         solvability: ``c(z_k) = -(f' H_zz f)/8`` at every node for the energy rules (a positive
             step needs it to keep its sign; docs/theory.md section 7), else empty.
         local_error: the accuracy check's local error estimate of each step (N-1,), against one
-            RK4 step of the exact flow (``solvers/accuracy.py``), where it was made.
+            RK4 step of the exact flow (``solvers/accuracy/judgement.py``), where it was made.
         timing: ``build_s`` and ``solve_s`` in seconds.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
@@ -205,7 +205,7 @@ class Solution:
         """``ddvp_nlp.plot(self, path, system=...)`` with the system this solution remembers
         (the energy panel is left out without one)."""
         # a facade like the root's plot: figure code is loaded only when a figure is drawn
-        from .io.plotting import plot_solution
+        from .io.run_figure import plot_solution
 
         return plot_solution(self, path, system=self.system, params=params, title=title)
 

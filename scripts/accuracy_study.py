@@ -1,7 +1,7 @@
 """Regenerate docs/accuracy/README.md: the accuracy check's verdicts on systems nobody chose, set
 beside their true error, with the named cases and the built-in scenes.
 
-1. **Random systems** (``ddvp_nlp.studies.verdicts``): ``--cases`` Hamiltonians drawn with a
+1. **Random systems** (``ddvp_nlp.studies.verdict_study``): ``--cases`` Hamiltonians drawn with a
    fixed seed (polynomial and trigonometric potentials in 1-3 degrees of freedom, couplings,
    non-separable terms, forcing and gauge terms, units from 1e-4 to 1e4 with offsets and
    translations, first steps across the breakdown range, vddvp, lee and fixed steps), each
@@ -32,9 +32,9 @@ import numpy as np
 
 from ddvp_nlp import Tolerance, list_scenes, load_scene, march
 from ddvp_nlp.scenes import HigherOrderScene
-from ddvp_nlp.solvers.accuracy import motion_scales
-from ddvp_nlp.solvers.higher.solve import march_higher
-from ddvp_nlp.studies.verdicts import MARGIN, draw_case, judge_case
+from ddvp_nlp.solvers.accuracy.judgement import motion_scales
+from ddvp_nlp.solvers.higher.stepping import march_higher
+from ddvp_nlp.studies.verdict_study import MARGIN, draw_case, judge_case
 
 ECCENTRICITIES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 TAU0 = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
@@ -183,14 +183,14 @@ def named_section(kepler, scenes) -> list[str]:
 def page(rows, kepler, scenes, seed, seconds) -> str:
     intro = [
         "# The accuracy check on systems nobody chose", "",
-        "Every run ends with one of three verdicts (`ddvp_nlp/solvers/accuracy.py`): "
+        "Every run ends with one of three verdicts (`ddvp_nlp/solvers/accuracy/judgement.py`): "
         "`accurate` (the trajectory error stays within `global_tol` of the motion's size "
         "over the whole run), `drifted` (every step follows the flow and the energy is right, "
         "but the trajectory error passes `global_tol` from `t_drift` on) or `inaccurate` (a "
         "step does not follow the flow, or the energy level is wrong). Defaults: `global_tol "
         "= rtol = 1e-2`, `energy_tol = 0.1`; every figure is relative to the motion's own "
         "scales.", "",
-        "**How a verdict is judged** (`ddvp_nlp.studies.verdicts.classify`). The true error "
+        "**How a verdict is judged** (`ddvp_nlp.studies.verdict_study.classify`). The true error "
         "of a run is `max_k max_i |z_k,i - z_i(t_k)| / S_i` over its nodes, `z(t)` scipy's "
         "DOP853 at `rtol = 1e-12` with dense output from the run's own start, `S_i` the range "
         "of component `i` over the run's nodes and the true states (at least a tenth of the "

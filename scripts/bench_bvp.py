@@ -33,7 +33,7 @@ the blocks but factorises with LAPACK (``Compilation(band_lu="lapack")``). Both 
 way for the ratio to ``newton`` (everything compiled by ``compiler.py``, cached in
 ``$DDVP_NLP_CACHE`` or ``~/.cache/ddvp_nlp``, so only the first run ever compiles).
 
-Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``solvers/bvp/ipopt.py`` through
+Solver ``ipopt`` is IPOPT on the banded assembly's callbacks (``solvers/bvp/ends_nlp.py`` through
 the grid's one IPOPT build).
 """
 

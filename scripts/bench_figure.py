@@ -40,7 +40,7 @@ def in_process(scene_name: str, folder: str, fmt: str) -> tuple[float, ...]:
 import time
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.io.runs import run_energies
+from ddvp_nlp.io.run_folder import run_energies
 scene = load_scene({scene_name!r})
 config = scene.resolve({{}})
 solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
@@ -50,7 +50,7 @@ energies = run_energies(scene.system, Scheme(), solution,
 import sys
 assert "matplotlib" not in sys.modules, "matplotlib was imported before the figure"
 cpu, wall = time.process_time(), time.perf_counter()
-from ddvp_nlp.io.plotting import plot_trajectory
+from ddvp_nlp.io.run_figure import plot_trajectory
 import matplotlib.figure, matplotlib.backends.backend_{'agg' if fmt == 'png' else fmt}
 cpu_import, wall_import = time.process_time(), time.perf_counter()
 plot_trajectory(solution, scene, Scheme(), {folder!r} + "/figure.{fmt}", energies=energies,

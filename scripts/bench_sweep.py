@@ -19,8 +19,8 @@ import warnings
 import dask
 from distributed import LocalCluster
 
-from ddvp_nlp.io.stress_report import stress
-from ddvp_nlp.studies.grid import Workers
+from ddvp_nlp.runner.tasks import Workers
+from ddvp_nlp.studies.stress_report import stress
 
 
 def _equal(x, y) -> bool:

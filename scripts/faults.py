@@ -177,7 +177,7 @@ def _leftovers(folder: Path, killed: bool, kinds: set) -> list[str]:
 def _lying(result: Result, folder: Path, kinds: set) -> list[str]:
     """What the messages say was written, against what the folder holds."""
     from ddvp_nlp.errors import InputError
-    from ddvp_nlp.io.runs import read_run
+    from ddvp_nlp.io.run_folder import read_run
 
     problems = []
     said = re.search(r"written whole to (\S+)/ \((\d+) nodes", result.stderr)
@@ -368,7 +368,7 @@ def _march_kept(folder, result):
     """After Ctrl-C/SIGTERM: the folder holds the run whole (interrupted, or finished), or,
     stopped before the march had a node to keep, nothing, as the message says."""
     from ddvp_nlp.errors import InputError
-    from ddvp_nlp.io.runs import read_run
+    from ddvp_nlp.io.run_folder import read_run
 
     if "nothing new was written" in result.stderr or "before anything was written" in \
             result.stderr:  # stopped while starting or building: no node to keep

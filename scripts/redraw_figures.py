@@ -16,8 +16,8 @@ import argparse
 import re
 from pathlib import Path
 
-from ddvp_nlp.io.horizons import plot_horizons
-from ddvp_nlp.io.work_precision import plot_work_precision, read_rows
+from ddvp_nlp.studies.horizons_report import plot_horizons
+from ddvp_nlp.studies.work_precision_report import plot_work_precision, read_rows
 
 TITLE = "{scene}: error against run time"
 

@@ -27,15 +27,15 @@ from pathlib import Path
 from scipy.special import ellipk
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.io.horizons import work_precision_horizons
-from ddvp_nlp.io.work_precision import in_words, read_rows, work_precision
-from ddvp_nlp.studies.compare import (
+from ddvp_nlp.studies.horizons_report import work_precision_horizons
+from ddvp_nlp.studies.work_precision import (
     ERROR_KINDS,
     CompareOptions,
     cheapest,
     methods_in,
     winner_spans,
 )
+from ddvp_nlp.studies.work_precision_report import in_words, read_rows, work_precision
 
 SCENES = {
     "paper_pendulum": {},

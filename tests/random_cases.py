@@ -3,7 +3,7 @@ starts, steps, schemes and the units they are marched in."""
 
 from hypothesis import strategies as st
 
-from ddvp_nlp.studies.verdicts import Case, RandomSystem, Units
+from ddvp_nlp.studies.verdict_study import Case, RandomSystem, Units
 
 
 @st.composite

@@ -17,11 +17,11 @@ from ddvp_nlp import (
 )
 from ddvp_nlp.cli import main
 from ddvp_nlp.errors import InputError
-from ddvp_nlp.solvers.accuracy import ErrorEstimates, FirstLook, Judgement
+from ddvp_nlp.solvers.accuracy.judgement import ErrorEstimates, FirstLook, Judgement
 from ddvp_nlp.solvers.compiler import find_compiler
-from ddvp_nlp.solvers.higher.solve import march_higher
-from ddvp_nlp.solvers.reference import ReferenceFlow
-from ddvp_nlp.studies.reference import reference_for
+from ddvp_nlp.solvers.exact.flow import ReferenceFlow
+from ddvp_nlp.solvers.higher.stepping import march_higher
+from ddvp_nlp.studies.comparable import reference_for
 
 SHORT = ["--no-plot", "--no-progress"]
 

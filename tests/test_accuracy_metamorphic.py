@@ -15,8 +15,8 @@ from random_cases import cases_and_units
 
 from ddvp_nlp import Compilation, Tolerance, load_scene, march
 from ddvp_nlp.physics.hamiltonian import HamiltonianSystem
-from ddvp_nlp.solvers.accuracy import Judgement, Level
-from ddvp_nlp.studies.verdicts import Case, RandomSystem, Units, run_case
+from ddvp_nlp.solvers.accuracy.judgement import Judgement, Level
+from ddvp_nlp.studies.verdict_study import Case, RandomSystem, Units, run_case
 
 VM = Compilation(compiler=None, fast=False)
 FIGURES = ("error_max", "local_error_max", "level_error", "energy_drift")

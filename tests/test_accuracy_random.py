@@ -1,6 +1,6 @@
 """The accuracy verdict on systems nobody chose, judged against an independent reference.
 
-Hypothesis draws random Hamiltonians (``studies/verdicts.py``: polynomial and trigonometric
+Hypothesis draws random Hamiltonians (``studies/verdict_study.py``: polynomial and trigonometric
 potentials in 1-3 degrees of freedom with couplings, non-separable terms, forcing and gauge
 terms), starts, first steps across the breakdown range, schemes and units from 1e-4 to 1e4
 with offsets; each case is marched, its verdict set beside its true error against scipy's
@@ -13,7 +13,7 @@ deterministically (``derandomize``), a fixed number of them; the 1000-case study
 from hypothesis import HealthCheck, given, settings
 from random_cases import cases
 
-from ddvp_nlp.studies.verdicts import judge_case
+from ddvp_nlp.studies.verdict_study import judge_case
 
 CASES = 60
 

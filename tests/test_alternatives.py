@@ -11,8 +11,8 @@ from conftest import fitted_order
 from ddvp_nlp import load_scene
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 from ddvp_nlp.solvers.compiler import find_compiler
-from ddvp_nlp.studies.compare import Reference, errors
 from ddvp_nlp.studies.methods import METHODS
+from ddvp_nlp.studies.work_precision import Reference, errors
 
 
 def _run(name, scene_name, value, overrides=None, compiler=None):

@@ -22,7 +22,7 @@ ALLOWED = {
     "cli": {"base", "physics", "discrete", "solvers", "scenes", "studies", "io"},
     "__init__": {"base", "physics", "discrete", "solvers", "scenes"},
 }
-# The one import across the layers: the root's public ``plot`` is a facade over io/plotting.py,
+# The one import across the layers: the root's public ``plot`` is a facade over io/run_figure.py,
 # imported inside the function, so `from ddvp_nlp import plot` works while `import ddvp_nlp`
 # loads no figure code and no module below io/ can reach io/ (docs/architecture.md).
 FACADES = {("__init__", "io.plotting"),
@@ -84,11 +84,11 @@ def imports(name: str, path: Path) -> set[str]:
 
 def test_the_import_graph_sees_every_form_of_import(tmp_path, monkeypatch):
     path = tmp_path / "fake.py"
-    path.write_text("import ddvp_nlp.solvers.bvp.solve as a\n"
+    path.write_text("import ddvp_nlp.solvers.bvp.fixed_ends as a\n"
                     "from ddvp_nlp.solvers import periodic\n"
                     "from ..grid import newton\n"
                     "import importlib\n"
-                    "importlib.import_module('ddvp_nlp.solvers.higher.phase')\n")
+                    "importlib.import_module('ddvp_nlp.solvers.higher.window_solve')\n")
     assert imports("solvers.march.fake", path) == {
         "solvers.bvp.solve", "solvers.periodic", "solvers.grid.newton", "solvers.higher.phase"}
 

@@ -13,13 +13,13 @@ import pytest
 
 from ddvp_nlp import Compilation, StepControl, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.accuracy import _Series
+from ddvp_nlp.solvers.accuracy.judgement import _Series
 from ddvp_nlp.solvers.driver import Nodes
 from ddvp_nlp.solvers.march import monitors
 from ddvp_nlp.solvers.march.acceptance import Acceptance
 from ddvp_nlp.solvers.march.chunk import FastChunk
+from ddvp_nlp.solvers.march.initial_value import _row_max_abs
 from ddvp_nlp.solvers.march.monitors import MONITOR_LIMIT, SolvabilityMonitor
-from ddvp_nlp.solvers.march.solve import _row_max_abs
 from ddvp_nlp.solvers.march.steps import step_functions
 
 

@@ -135,7 +135,7 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
         options=GridOptions(tol=1e-9),
     )
     assert solution.success
-    from ddvp_nlp.solvers.bvp.solve import _verify
+    from ddvp_nlp.solvers.bvp.fixed_ends import _verify
     phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3,
              "solver": "ipopt"}
     canonical = np.zeros((data.nodes - 1, 2))

@@ -16,7 +16,7 @@ from ddvp_nlp import Compilation, GridOptions, StepControl, load_scene, march, s
 from ddvp_nlp.cache import PROBLEMS
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers import compiler
-from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
+from ddvp_nlp.solvers.bvp.interleaved import Ends, GridAssembly
 from ddvp_nlp.solvers.grid import band
 from ddvp_nlp.solvers.grid.maps import WINDOW, evaluate_blocks, window_map
 

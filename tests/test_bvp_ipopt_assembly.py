@@ -1,4 +1,4 @@
-"""IPOPT fed by the banded assembly (``solvers/bvp/ipopt.py``, through the grid's one IPOPT
+"""IPOPT fed by the banded assembly (``solvers/bvp/ends_nlp.py``, through the grid's one IPOPT
 build): its functions against CasADi's own derivatives of the same rows, its nodes against
 Newton's, few iterations (issue 16)."""
 
@@ -8,9 +8,9 @@ import pytest
 
 from ddvp_nlp import GridOptions, Scheme, load_scene, solve_bvp
 from ddvp_nlp.cache import PROBLEMS
-from ddvp_nlp.solvers.bvp.assembly import NodeLayout
-from ddvp_nlp.solvers.bvp.ipopt import BvpIpopt, residual_functions
-from ddvp_nlp.solvers.bvp.phase import Boundary, ends, ipopt_floor
+from ddvp_nlp.solvers.bvp.ends_nlp import BvpIpopt, residual_functions
+from ddvp_nlp.solvers.bvp.interleaved import NodeLayout
+from ddvp_nlp.solvers.bvp.phases import Boundary, ends, ipopt_floor
 from ddvp_nlp.solvers.grid.ipopt import solver_tolerance
 from ddvp_nlp.solvers.grid.problem import GridRequest
 

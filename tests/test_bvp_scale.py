@@ -6,7 +6,7 @@ import pytest
 
 from ddvp_nlp import GridOptions, InputError, Output, Scheme, Status, load_scene, solve_bvp
 from ddvp_nlp.cli import main
-from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
+from ddvp_nlp.solvers.bvp.interleaved import Ends, GridAssembly
 
 CASES = {  # scene: (q_start, q_end, t_span, nodes, params); None: the scene's boundary data
     "pendulum": None,

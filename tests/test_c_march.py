@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.solvers.accuracy import ErrorEstimates
+from ddvp_nlp.solvers.accuracy.judgement import ErrorEstimates
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 

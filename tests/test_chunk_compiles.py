@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import Compilation, StepControl, Tolerance, load_scene, march
-from ddvp_nlp.solvers.baselines import chunks, fixed_step, lee_left, paper_schemes
+from ddvp_nlp.solvers.baselines import (
+    chunks,
+    fixed_step,
+    paper_schemes,
+)
+from ddvp_nlp.solvers.baselines import (
+    lee_left_stepper as lee_left,
+)
 from ddvp_nlp.solvers.compiler import build_count, find_compiler
 
 COMPILER = find_compiler("auto")

@@ -15,7 +15,7 @@ from ddvp_nlp.cli import main
 from ddvp_nlp.cli.grids import SCENES_WIDTH
 from ddvp_nlp.cli.parser import build_parser, parse_arguments
 from ddvp_nlp.progress import PlainLines, Silent, progress
-from ddvp_nlp.studies.grid import Task, run_tasks
+from ddvp_nlp.runner.tasks import Task, run_tasks
 
 # The smallest arguments each command parses with.
 MINIMAL = {"march": ["harmonic"], "bvp": ["pendulum"], "compare": ["harmonic"], "stress": [],

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import InputError, load_scene
-from ddvp_nlp.studies.cluster import parse_cluster, start_cluster
+from ddvp_nlp.runner.cluster import parse_cluster, start_cluster
 from ddvp_nlp.studies.poincare import poincare_section
 
 

@@ -10,11 +10,11 @@ from conftest import fitted_order
 
 from ddvp_nlp import Compilation, HamiltonianSystem, InputError, Scene, load_scene
 from ddvp_nlp.cli import main
-from ddvp_nlp.io.work_precision import read_rows, work_precision
 from ddvp_nlp.solvers.baselines.dop853 import flow_callable
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
-from ddvp_nlp.solvers.baselines.lee_left import lee_left_march
-from ddvp_nlp.studies.compare import (
+from ddvp_nlp.solvers.baselines.lee_left_stepper import lee_left_march
+from ddvp_nlp.studies.methods import METHODS, get_methods
+from ddvp_nlp.studies.work_precision import (
     COLUMNS,
     CompareOptions,
     Reference,
@@ -23,7 +23,7 @@ from ddvp_nlp.studies.compare import (
     pareto,
     time_to_reach,
 )
-from ddvp_nlp.studies.methods import METHODS, get_methods
+from ddvp_nlp.studies.work_precision_report import read_rows, work_precision
 
 
 def _run(name, scene_name, value, overrides=None):

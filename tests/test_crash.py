@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from ddvp_nlp.errors import InputError
-from ddvp_nlp.io.runs import read_run
+from ddvp_nlp.io.run_folder import read_run
 
 # A march far longer than any test waits for: it is always stopped from outside.
 ENDLESS = ["march", "pendulum", "--set", "t_end=1e7", "--no-progress", "--no-plot",

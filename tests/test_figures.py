@@ -12,8 +12,9 @@ import pytest
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.errors import InputError
-from ddvp_nlp.io import figures, plotting
-from ddvp_nlp.io.runs import run_energies
+from ddvp_nlp.io import figures
+from ddvp_nlp.io import run_figure as plotting
+from ddvp_nlp.io.run_folder import run_energies
 
 
 def drawn(solution, scene, scheme=None):
@@ -40,7 +41,7 @@ def marched(name, **settings):
 
 
 def test_importing_the_figure_modules_loads_no_matplotlib():
-    code = ("import sys, ddvp_nlp.io.plotting, ddvp_nlp.io.figures, ddvp_nlp.io.runs; "
+    code = ("import sys, ddvp_nlp.io.run_figure, ddvp_nlp.io.figures, ddvp_nlp.io.run_folder; "
             "print('matplotlib' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()

@@ -154,7 +154,7 @@ def test_fuzzed_input_files_are_refused_or_rebuilt(index, valid_files, tmp_path,
     _check(code, err, (target, argv))
     if target in ("guess", "manifest") and code != 2:
         # a damaged run folder used as a guess: only if it still reads back whole
-        from ddvp_nlp.io.runs import read_run
+        from ddvp_nlp.io.run_folder import read_run
 
         arrays, _ = read_run(tmp_path / "run")
         assert np.all(np.isfinite(arrays["t"]))

@@ -10,18 +10,12 @@ import pytest
 
 from ddvp_nlp import Compilation, InputError
 from ddvp_nlp.cli import main
-from ddvp_nlp.io.grid_file import load_grid_file
-from ddvp_nlp.io.stress_report import stress
+from ddvp_nlp.runner.journal import JournalWarning, run_journalled
+from ddvp_nlp.runner.tasks import Task, Workers, describe_error, run_tasks
 from ddvp_nlp.solvers.compiler import find_compiler
-from ddvp_nlp.studies.grid import (
-    GridFileWarning,
-    Task,
-    Workers,
-    describe_error,
-    run_grid,
-    run_tasks,
-)
+from ddvp_nlp.studies.stress_report import stress
 from ddvp_nlp.studies.sweep import SweepSpec, parse_axis, sweep_cases
+from ddvp_nlp.studies.sweep_file import load_grid_file
 
 CLUSTER_CONFIG = {"distributed.scheduler.allowed-failures": 1,
                   "distributed.scheduler.worker-saturation": 1.0}
@@ -69,7 +63,7 @@ def test_a_task_that_raises_is_retried_once_and_recorded(tmp_path, cluster):
              Task("bad", "math:sqrt", args=(-1.0,)),
              Task("b", "builtins:dict", kwargs={"x": "2"})]
     for where in ({"workers": 1}, {"scheduler": cluster.scheduler_address}):
-        rows, ran = run_grid(tasks, tmp_path / "grid.csv", ["key", "x", "error"],
+        rows, ran = run_journalled(tasks, tmp_path / "grid.csv", ["key", "x", "error"],
                              failure_row=lambda task, error: {"x": "", "error": error},
                              parse=dict, resume=False, **where)
         assert ran == 3
@@ -83,7 +77,7 @@ def test_killing_a_worker_loses_no_finished_row(tmp_path, cluster):
     path = tmp_path / "grid.csv"
     tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i)}) for i in range(6)]
     tasks.insert(3, Task("kill", "os:_exit", args=(3,)))  # the worker process dies
-    rows, ran = run_grid(tasks, path, ["key", "x", "error"],
+    rows, ran = run_journalled(tasks, path, ["key", "x", "error"],
                          failure_row=lambda task, error: {"x": "", "error": error},
                          parse=dict, resume=False, scheduler=cluster.scheduler_address)
     assert ran == 7
@@ -100,9 +94,9 @@ def test_resume_skips_finished_rows(tmp_path):
     calls = []
     tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i)}) for i in range(4)]
     kwargs = {"failure_row": lambda task, error: {"x": error}, "parse": dict, "workers": 1}
-    first, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
+    first, ran = run_journalled(tasks, path, ["key", "x"], **kwargs)
     assert ran == 4
-    again, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
+    again, ran = run_journalled(tasks, path, ["key", "x"], **kwargs)
     assert ran == 0 and again == first
     # an interrupted grid: only two rows made it to the file
     with open(path, newline="") as handle:
@@ -111,7 +105,7 @@ def test_resume_skips_finished_rows(tmp_path):
         writer = csv.DictWriter(handle, list(kept[0]))
         writer.writeheader()
         writer.writerows(kept)
-    resumed, ran = run_grid(tasks, path, ["key", "x"], **kwargs)
+    resumed, ran = run_journalled(tasks, path, ["key", "x"], **kwargs)
     assert ran == 2 and resumed == first
     del calls
 
@@ -183,7 +177,7 @@ def test_bad_grid_files_name_the_key(tmp_path, text, message):
 
 
 def test_sweep_command_resumes(tmp_path, capsys, monkeypatch):
-    from ddvp_nlp.io import stress_report
+    from ddvp_nlp.studies import stress_report as stress_report
 
     titles = []
     drawn = stress_report.plot_stress
@@ -220,7 +214,7 @@ def test_bad_scheduler_and_workers():
 
 
 def _grid(path, tasks, **kwargs):
-    return run_grid(tasks, path, ["key", "x", "status"], parse=dict, workers=1,
+    return run_journalled(tasks, path, ["key", "x", "status"], parse=dict, workers=1,
                     failure_row=lambda task, error: {"x": "", "status": "task_failed"}, **kwargs)
 
 
@@ -239,7 +233,7 @@ def test_resume_retries_failed_rows_and_skips_a_torn_line(tmp_path):
     text = path.read_text().splitlines()
     text[1] = text[1].replace("success", "task_failed")  # edited by hand: its checksum fails
     path.write_text("\n".join(text[:-1]) + "\n" + text[-1][:4])  # and a torn last line
-    with pytest.warns(GridFileWarning, match="line 4 is incomplete"):
+    with pytest.warns(JournalWarning, match="line 4 is incomplete"):
         rows, ran = _grid(path, tasks)
     assert ran == 2 and [r["status"] for r in rows] == ["success"] * 3
 
@@ -257,7 +251,7 @@ def test_a_worker_refuses_a_scene_file_other_than_the_planned_one(tmp_path):
 
 
 def test_an_unreachable_scheduler_is_refused_quickly():
-    from ddvp_nlp.studies.grid import resolve_scheduler
+    from ddvp_nlp.runner.tasks import resolve_scheduler
 
     with pytest.raises(InputError, match="no Dask scheduler answers at 'tcp://127.0.0.1:9'"):
         resolve_scheduler("tcp://127.0.0.1:9")

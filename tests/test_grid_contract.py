@@ -15,9 +15,9 @@ from ddvp_nlp import (
     solve_periodic,
 )
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.bvp.assembly import Ends, GridAssembly
-from ddvp_nlp.solvers.higher.assembly import HigherAssembly, HigherEnds
-from ddvp_nlp.solvers.periodic.assembly import Closure, PeriodicAssembly
+from ddvp_nlp.solvers.bvp.interleaved import Ends, GridAssembly
+from ddvp_nlp.solvers.higher.windows import HigherAssembly, HigherEnds
+from ddvp_nlp.solvers.periodic.closed_grid import Closure, PeriodicAssembly
 
 PROTOCOL = ("evaluate", "sparse", "release")
 

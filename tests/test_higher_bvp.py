@@ -1,5 +1,5 @@
 """Fixed-endpoint problems of higher-derivative Lagrangians on the window assembly
-(``solvers/higher/assembly.py``, ``solvers/higher/phase.py``): Newton against IPOPT, the
+(``solvers/higher/windows.py``, ``solvers/higher/window_solve.py``): Newton against IPOPT, the
 verification that decides whatever the solver said, and the scale."""
 
 import json
@@ -10,12 +10,12 @@ import pytest
 
 from ddvp_nlp import GridOptions, HigherOrderSystem, Status, Tolerance, load_scene
 from ddvp_nlp.cli import main
-from ddvp_nlp.discrete.higher import energies
+from ddvp_nlp.discrete.higher_order_action import energies
 from ddvp_nlp.solvers.grid.problem import GridResult
-from ddvp_nlp.solvers.higher import phase
-from ddvp_nlp.solvers.higher.assembly import HigherAssembly, HigherEnds
-from ddvp_nlp.solvers.higher.problem import straight
-from ddvp_nlp.solvers.higher.solve import bvp_request, solve_bvp_higher
+from ddvp_nlp.solvers.higher import window_solve as phase
+from ddvp_nlp.solvers.higher.fixed_nodes import straight
+from ddvp_nlp.solvers.higher.stepping import bvp_request, solve_bvp_higher
+from ddvp_nlp.solvers.higher.windows import HigherAssembly, HigherEnds
 
 
 def _solve(name, nodes, scheme, solver, **kwargs):

@@ -7,10 +7,10 @@ from scipy.integrate import solve_ivp
 
 from ddvp_nlp import load_scene
 from ddvp_nlp.errors import InputError
-from ddvp_nlp.studies.compare import errors
+from ddvp_nlp.studies.comparable import Reference
 from ddvp_nlp.studies.horizons import affordable_knobs, reference_kind
 from ddvp_nlp.studies.methods import get_methods, run_method
-from ddvp_nlp.studies.reference import Reference
+from ddvp_nlp.studies.work_precision import errors
 
 
 def _dop853(rhs, z0, t):

@@ -37,7 +37,7 @@ def test_import_loads_no_solver_family_and_no_heavy_scipy_part():
 def test_a_march_loads_no_fixed_endpoint_solver():
     modules = loaded("import ddvp_nlp\nfrom ddvp_nlp import load_scene, march\n"
                      "march(load_scene('harmonic').system, [1.0], [0.0], (0.0, 1.0), tau0=0.1)")
-    assert "ddvp_nlp.solvers.march.solve" in modules
+    assert "ddvp_nlp.solvers.march.initial_value" in modules
     assert _under(modules, ("ddvp_nlp.solvers.bvp", "ddvp_nlp.solvers.grid",
                             "ddvp_nlp.solvers.periodic", "ddvp_nlp.solvers.higher")) == []
     assert _under(modules, ("scipy.sparse", "scipy.linalg")) == []
@@ -45,5 +45,5 @@ def test_a_march_loads_no_fixed_endpoint_solver():
 
 def test_every_public_solver_is_loaded_when_asked_for():
     modules = loaded("from ddvp_nlp import solve_bvp, solve_periodic, march_higher, Shooting")
-    assert {"ddvp_nlp.solvers.bvp.solve", "ddvp_nlp.solvers.periodic.solve",
-            "ddvp_nlp.solvers.higher.solve"} <= set(modules)
+    assert {"ddvp_nlp.solvers.bvp.fixed_ends", "ddvp_nlp.solvers.periodic.orbit",
+            "ddvp_nlp.solvers.higher.stepping"} <= set(modules)

@@ -5,8 +5,8 @@ import pytest
 
 from ddvp_nlp import load_scene
 from ddvp_nlp.cli import main
-from ddvp_nlp.io.reproduce import report as reproduce_report
-from ddvp_nlp.studies import paper
+from ddvp_nlp.studies import paper_claims as paper
+from ddvp_nlp.studies.reproduce import report as reproduce_report
 
 
 @pytest.fixture(scope="module")

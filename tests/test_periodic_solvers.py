@@ -1,6 +1,6 @@
 """Periodic orbits, continued: IPOPT beside Newton, pendulum rotations (an angle coordinate
 closing with a whole turn), Henon-Heiles orbits through x = 0 off the invariant plane, and the
-refusals of bad input (solvers/periodic/solve.py, periodic/ipopt.py)."""
+refusals of bad input (solvers/periodic/orbit.py, solvers/periodic/orbit_nlp.py)."""
 
 import json
 
@@ -12,8 +12,8 @@ from scipy.special import ellipk
 from ddvp_nlp import GridOptions, solve_periodic, solve_periodic_family
 from ddvp_nlp.errors import InputError
 from ddvp_nlp.scenes import load_scene
+from ddvp_nlp.solvers.periodic.first_orbit import march_to_return, resample, section_point
 from ddvp_nlp.solvers.periodic.refinement import node_levels, refine_by_index
-from ddvp_nlp.solvers.periodic.start import march_to_return, resample, section_point
 
 
 def fitted_order(sizes, errors) -> float:

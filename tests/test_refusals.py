@@ -214,7 +214,7 @@ def test_fuzz_library_calls():
 
 
 def test_fuzz_grid_files(tmp_path):
-    from ddvp_nlp.io.grid_file import load_grid_file
+    from ddvp_nlp.studies.sweep_file import load_grid_file
 
     rng = random.Random(17)
     pieces = ['scene = "harmonic"', 'scene = 3', '[axes]', 'w = [1, 2]', 'w = "1,2"',

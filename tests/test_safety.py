@@ -21,7 +21,7 @@ import pytest
 from ddvp_nlp.cli import main
 from ddvp_nlp.errors import InputError, OutputError
 from ddvp_nlp.io import atomic
-from ddvp_nlp.io.runs import read_run, save_run
+from ddvp_nlp.io.run_folder import read_run, save_run
 
 VICTIM = "must not change\n"
 
@@ -175,9 +175,9 @@ def test_a_forged_success_row_is_run_again(tmp_path, capsys):
     cells[header.index("energy_error")] = "1e-30"  # a better number than was measured
     lines[1] = ",".join(cells)
     (out / "sweep.csv").write_text("\n".join(lines) + "\n")
-    from ddvp_nlp.studies.grid import GridFileWarning
+    from ddvp_nlp.runner.journal import JournalWarning
 
-    with pytest.warns(GridFileWarning, match="does not match its checksum"):
+    with pytest.warns(JournalWarning, match="does not match its checksum"):
         assert main([*SWEEP, "--out", str(out)]) == 0
     assert "1e-30" not in (out / "sweep.csv").read_text()
 
@@ -393,7 +393,7 @@ def test_a_run_stopped_by_the_user_is_written_without_its_optional_parts(tmp_pat
     from ddvp_nlp import load_scene, march
     from ddvp_nlp.cli.summary import print_summary
     from ddvp_nlp.discrete.scheme import Scheme
-    from ddvp_nlp.io.runs import write_run
+    from ddvp_nlp.io.run_folder import write_run
 
     scene = load_scene("pendulum")
     config = scene.resolve({"t_end": 2.0})

@@ -19,7 +19,7 @@ from ddvp_nlp import (
     periodic_stability,
     solve_periodic,
 )
-from ddvp_nlp.solvers.periodic.stability import stability_indices, verdict
+from ddvp_nlp.solvers.periodic.floquet import stability_indices, verdict
 
 # Each example solves orbits: a failure is reported as drawn, not shrunk (shrinking re-solves
 # for minutes).

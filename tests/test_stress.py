@@ -9,8 +9,8 @@ import pytest
 
 from ddvp_nlp import Compilation
 from ddvp_nlp.cli import main
-from ddvp_nlp.io.stress_report import read_rows, stress
 from ddvp_nlp.studies.stress import COLUMNS, default_cases
+from ddvp_nlp.studies.stress_report import read_rows, stress
 
 
 @pytest.fixture(scope="module")

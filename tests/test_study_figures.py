@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import quad
 
 from ddvp_nlp.io import figures
-from ddvp_nlp.io.periodic_runs import plot_family, scene_period
+from ddvp_nlp.io.orbit_files import plot_family, scene_period
 from ddvp_nlp.scenes import load_scene
 
 

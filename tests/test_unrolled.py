@@ -11,8 +11,8 @@ from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.compiler import compile_function, find_compiler
 from ddvp_nlp.solvers.march.chunk import MEDIUM_UNROLL, SMALL_UNROLL
-from ddvp_nlp.solvers.march.newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
 from ddvp_nlp.solvers.march.recheck import grid_residuals
+from ddvp_nlp.solvers.march.step_newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
 from ddvp_nlp.solvers.march.steps import step_functions
 
 # the first steps these were measured at: the scenes' defaults then (kepler, fpu and

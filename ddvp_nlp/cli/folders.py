@@ -12,7 +12,7 @@ def holds(out) -> str:
 def default_or(args, label: str, named: dict, defaults: dict):
     """``(folder, owned)``: ``--out``, else ``runs/LABEL`` for the defaults and
     ``runs/LABEL-HASH`` (``HASH`` of every setting) when any setting differs from them."""
-    from ..io.runs import default_folder
+    from ..io.run_folder import default_folder
 
     if args.out is not None:
         return args.out, 1

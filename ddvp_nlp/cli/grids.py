@@ -10,7 +10,7 @@ from ..errors import InputError
 from ..scenes import list_scenes, load_scene
 from ..solvers.options import StepControl
 from ..validation import check_real
-from . import options
+from . import arguments as options
 from .parser import parse_settings
 from .summary import status_summary
 
@@ -68,7 +68,7 @@ def _grid_folder(args, label: str, named: dict, defaults: dict):
     """``(folder, owned)``: ``--out``, else ``runs/LABEL``, with ``-HASH`` of every setting
     that changes the result when one differs from its default (``compare`` and ``sweep`` had
     ignored ``--set``: ``--set t_end=5`` and ``t_end=50`` wrote one folder)."""
-    from ..io.runs import default_folder
+    from ..io.run_folder import default_folder
 
     if args.out is not None:
         return args.out, 1
@@ -96,9 +96,9 @@ def _interrupted(exc) -> Exception:
 
 def run_compare(args) -> int:
     from ..io.atomic import output_folder
-    from ..io.work_precision import work_precision
-    from ..studies.compare import ERROR_KINDS, CompareOptions, cheapest
-    from ..studies.grid import GridInterrupted
+    from ..runner.journal import JournalInterrupted
+    from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
+    from ..studies.work_precision_report import work_precision
     from .interrupts import INTERRUPTS
 
     scene = load_scene(args.scene)
@@ -126,7 +126,7 @@ def run_compare(args) -> int:
                                   workers=options.workers(args),
                                   progress=args.progress is not False,
                                   interruptible=INTERRUPTS.interruptible)
-    except GridInterrupted as exc:
+    except JournalInterrupted as exc:
         raise _interrupted(exc) from None
     failed = sum(r["status"] != "success" for r in rows)
     print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
@@ -142,9 +142,9 @@ def run_compare(args) -> int:
 
 
 def _compare_horizons(args, scene, out) -> int:
-    from ..io.horizons import work_precision_horizons
-    from ..studies.compare import CompareOptions
-    from ..studies.grid import GridInterrupted
+    from ..runner.journal import JournalInterrupted
+    from ..studies.horizons_report import work_precision_horizons
+    from ..studies.work_precision import CompareOptions
 
     try:
         results = work_precision_horizons(
@@ -156,7 +156,7 @@ def _compare_horizons(args, scene, out) -> int:
             run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
             reference_span=check_real("--reference-span", args.reference_span, positive=True),
             progress=args.progress is not False)
-    except GridInterrupted as exc:
+    except JournalInterrupted as exc:
         raise _interrupted(exc) from None
     for horizon, rows in results.items():
         failed = sum(r["status"] != "success" for r in rows)
@@ -168,8 +168,8 @@ def _compare_horizons(args, scene, out) -> int:
 
 def run_stress(args) -> int:
     from ..io.atomic import output_folder
-    from ..io.stress_report import stress
-    from ..studies.grid import GridInterrupted
+    from ..runner.journal import JournalInterrupted
+    from ..studies.stress_report import stress
     from .interrupts import INTERRUPTS
 
     named = {"quick": args.quick, "max_steps": args.max_steps,
@@ -187,7 +187,7 @@ def run_stress(args) -> int:
                           workers=options.workers(args, default=None),
                           progress=args.progress is not False, resume=args.resume,
                           interruptible=INTERRUPTS.interruptible)
-    except GridInterrupted as exc:
+    except JournalInterrupted as exc:
         raise _interrupted(exc) from None
     status_summary("stress", rows, out.path, "stress")
     return _grid_ended("stress", rows)
@@ -195,8 +195,8 @@ def run_stress(args) -> int:
 
 def run_sweep(args) -> int:
     from ..io.atomic import output_folder
-    from ..io.stress_report import stress
-    from ..studies.grid import GridInterrupted
+    from ..runner.journal import JournalInterrupted
+    from ..studies.stress_report import stress
     from ..studies.sweep import sweep_cases
     from .interrupts import INTERRUPTS
 
@@ -217,7 +217,7 @@ def run_sweep(args) -> int:
                           progress=args.progress is not False, resume=not args.fresh, name="sweep",
                           title=f"Sweep of {spec.scene} over {', '.join(spec.axes)}",
                           interruptible=INTERRUPTS.interruptible)
-    except GridInterrupted as exc:
+    except JournalInterrupted as exc:
         raise _interrupted(exc) from None
     status_summary("sweep", rows, out.path, "sweep")
     return _grid_ended("sweep", rows)
@@ -227,9 +227,9 @@ def _sweep_spec(args):
     """The sweep of a grid file or of SCENE with --grid axes, with the command line's methods,
     settings and bounds on top; a scene file named inside a grid file only if the command line
     allows it (--allow-scene): a grid file runs no code the user did not name."""
-    from ..io.grid_file import load_grid_file
     from ..studies.methods import get_methods
     from ..studies.sweep import SweepSpec
+    from ..studies.sweep_file import load_grid_file
 
     if args.file:
         if args.scene or args.grid:
@@ -247,7 +247,7 @@ def _sweep_spec(args):
     if args.time_limit is not None:
         spec.time_limit = args.time_limit
     StepControl(max_steps=spec.max_steps, time_limit=spec.time_limit)  # named checks
-    from .options import check_distinct
+    from .arguments import check_distinct
 
     for name, values in spec.axes.items():
         for value in values:
@@ -263,7 +263,7 @@ def _sweep_spec(args):
 def _grid_axes(items: list[str]) -> dict:
     """``NAME=SPEC`` items of --grid, as axes: finite values, none twice, each name once."""
     from ..studies.sweep import parse_axis
-    from .options import check_distinct
+    from .arguments import check_distinct
 
     axes = {}
     for item in items:
@@ -283,7 +283,7 @@ def _grid_axes(items: list[str]) -> dict:
 
 def run_reproduce(args) -> int:
     from ..io.atomic import output_folder
-    from ..io.reproduce import reproduce
+    from ..studies.reproduce import reproduce
 
     target, owned = _grid_folder(args, "reproduce", {"quick": args.quick}, {"quick": False})
     with output_folder(target, owned=owned) as out:

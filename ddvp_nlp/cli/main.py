@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args) -> int:
-    from .options import check_numbers, on_cluster
+    from .arguments import check_numbers, on_cluster
 
     command = f"ddvp {args.command}"
     try:

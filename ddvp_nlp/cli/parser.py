@@ -99,7 +99,7 @@ def _cluster_argument(parser: argparse.ArgumentParser) -> None:
                              "local:workers=N[,threads=T] or slurm:cores=C,memory=M,"
                              "walltime=HH:MM:SS,jobs=J[,queue=Q,account=A,processes=P,"
                              "job_extra=L1;L2], or a TOML file with a [cluster] table "
-                             "(studies/cluster.py; slurm needs pip install 'ddvp-nlp[cluster]')")
+                             "(runner/cluster.py; slurm needs pip install 'ddvp-nlp[cluster]')")
 
 
 def _version() -> str:
@@ -337,7 +337,8 @@ def _figure_arguments(parser: argparse.ArgumentParser, figure: str, plot: bool =
 
 
 def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
-    """The accuracy check (``solvers/accuracy.py``): a verdict that does not trust the scheme."""
+    """The accuracy check (``solvers/accuracy/judgement.py``): a verdict that does not trust
+    the scheme."""
     group = parser.add_argument_group(
         "accuracy check", "the run against the exact flow z' = (H_p, -H_q), every figure "
         "relative to the motion's own size S (each component's range over the run) and energy "

@@ -12,10 +12,10 @@ from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
 from ..solution import Status
 from ..solvers.options import Output
-from . import options
+from . import arguments as options
+from .arguments import check_grid_memory, family_energies
 from .folders import default_or, holds
 from .interrupts import INTERRUPTS, Stopped
-from .options import check_grid_memory, family_energies
 from .parser import parse_settings
 from .summary import print_summary
 
@@ -66,7 +66,7 @@ def _save(args, out, scene, config, scheme, solution, extra) -> dict:
     """The run's set written with interrupts held (only the figure may be cut short); on a
     write failure, what the folder holds is said."""
     from ..errors import OutputError
-    from ..io.runs import write_run
+    from ..io.run_folder import write_run
 
     try:
         with INTERRUPTS.saving():
@@ -83,7 +83,7 @@ def _run_folder(args, scene, config, overrides):
     """The output folder (``--out``, else the default named by every setting that changes
     the result), how many of its trailing components ddvp chose, and the overrides recorded
     in ``meta.json``."""
-    from ..io.runs import default_folder
+    from ..io.run_folder import default_folder
 
     resolved = dict(_resolved(config))
     if args.command == "bvp":
@@ -127,7 +127,7 @@ def _checkpoint_saver(args, scene, out, record: dict):
     writes."""
     if args.command != "march" or _higher(scene):
         return None
-    from ..io.runs import write_checkpoint
+    from ..io.run_folder import write_checkpoint
 
     def save(t, z, carried):  # called from the march's checkpoint thread: the main thread polls
         write_checkpoint(out, command="march", scene_name=scene.name, t=t, z=z,
@@ -153,7 +153,7 @@ def run_resume(args) -> int:
     or its finished run) continued to its ``t_end`` or a later one, with the options it ran
     with, written back to ``FOLDER``; the nodes are an uninterrupted run's bit for bit."""
     from ..io.atomic import output_folder
-    from ..io.runs import read_run
+    from ..io.run_folder import read_run
     from ..solvers.march import MarchState, continue_march
 
     arrays, meta = read_run(args.resume)
@@ -261,7 +261,7 @@ def _resolve(args, scene, higher: bool, settings: dict):
 
 
 def _march(args, scene, config, scheme):
-    from ..solvers.march.solve import march
+    from ..solvers.march.initial_value import march
 
     times, events = requested_output(args, scene, config)
     if args.scheme not in RULES:
@@ -360,7 +360,7 @@ def _bvp_guess(value: str, n: int | None = None):
     ``InputError`` naming the file and the reason otherwise."""
     import numpy as np
 
-    from ..io.runs import META, check_run_arrays, read_run
+    from ..io.run_folder import META, check_run_arrays, read_run
     from ..validation import check_file_size
 
     if value in ("straight", "march"):
@@ -439,7 +439,7 @@ def print_requested(meta: dict, solution) -> None:
 
 
 def _march_higher(args, scene, config, scheme):
-    from ..solvers.higher.solve import march_higher
+    from ..solvers.higher.stepping import march_higher
 
     if args.t_eval is not None or args.events:
         raise InputError(f"--t-eval and --event are not available for the higher-order scene "
@@ -452,7 +452,7 @@ def _march_higher(args, scene, config, scheme):
 
 
 def _bvp_higher(args, scene, config, scheme):
-    from ..solvers.higher.solve import solve_bvp_higher
+    from ..solvers.higher.stepping import solve_bvp_higher
 
     if args.energy is not None:
         raise InputError(f"--energy: scene {scene.name!r} is a higher-order scene; a transfer at "
@@ -483,7 +483,7 @@ _SOLVERS = {("march", False): _march, ("bvp", False): _bvp,
 def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
-    from ..solvers.periodic.solve import check_periodic
+    from ..solvers.periodic.orbit import check_periodic
     from .stability import scene_guess
 
     scene = load_scene(args.scene)
@@ -521,8 +521,8 @@ def run_periodic(args) -> int:
 
 def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults) -> int:
     from ..io.atomic import output_folder
-    from ..io.periodic_runs import write_periodic
-    from ..solvers.periodic.solve import solve_periodic
+    from ..io.orbit_files import write_periodic
+    from ..solvers.periodic.orbit import solve_periodic
 
     target, owned = default_or(args, f"{scene.name}-periodic", named, {
         "nodes": defaults.nodes, "section": defaults.section, "scheme": "vddvp",
@@ -541,7 +541,7 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
           f"written to {out.path}/")
     if solution.stats.get("accuracy"):
-        from ..solvers.accuracy import describe
+        from ..solvers.accuracy.judgement import describe
 
         accuracy = solution.stats["accuracy"]
         print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
@@ -550,7 +550,7 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
 
 def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> int:
     from ..io.atomic import output_folder
-    from ..io.periodic_runs import write_family
+    from ..io.orbit_files import write_family
     from ..solvers.periodic.family import solve_periodic_family
 
     target, owned = default_or(args, f"{scene.name}-family", named, {})
@@ -576,7 +576,7 @@ def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> in
 def run_poincare(args) -> int:
     """``ddvp poincare``: the starts on the section, one ensemble, its crossings written."""
     from ..io.atomic import output_folder
-    from ..io.poincare_runs import write_section
+    from ..io.section_files import write_section
     from ..studies.poincare import poincare_section
     from ..validation import check_memory
 

@@ -66,11 +66,11 @@ def _interrupted(out, what: str) -> Stopped:
 
 def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> int:
     from ..io.atomic import output_folder
-    from ..io.periodic_runs import write_periodic
-    from ..io.stability_runs import write_stability
+    from ..io.orbit_files import write_periodic
+    from ..io.stability_files import write_stability
     from ..solvers.periodic import periodic_stability, solve_periodic
-    from ..solvers.periodic.solve import check_periodic
-    from .options import check_grid_memory
+    from ..solvers.periodic.orbit import check_periodic
+    from .arguments import check_grid_memory
 
     if guess is None:
         check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
@@ -104,11 +104,11 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
 
 def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
     from ..io.atomic import output_folder
-    from ..io.periodic_runs import write_family
-    from ..io.stability_runs import write_family_stability
+    from ..io.orbit_files import write_family
+    from ..io.stability_files import write_family_stability
     from ..solvers.periodic import periodic_stability, solve_periodic_family
-    from ..solvers.periodic.solve import check_periodic
-    from .options import family_energies
+    from ..solvers.periodic.orbit import check_periodic
+    from .arguments import family_energies
 
     energies = family_energies(args.family, scene.system.n, nodes)
     guess = guess or scene_guess(scene, energies[0], params)
@@ -143,10 +143,10 @@ def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
 
 def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -> int:
     from ..io.atomic import output_folder
-    from ..io.periodic_runs import write_periodic
-    from ..io.stability_runs import write_followed_family
+    from ..io.orbit_files import write_periodic
+    from ..io.stability_files import write_followed_family
     from ..solvers.periodic import Continuation, follow_periodic_family
-    from .options import check_grid_memory
+    from .arguments import check_grid_memory
 
     energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:

@@ -16,8 +16,8 @@ from ..cache import cached, evaluate_columns
 from ..physics.hamiltonian import HamiltonianSystem
 from ..physics.lagrangian import LagrangianSystem
 from .action import IntervalAction
-from .hamiltonian import HamiltonianAction
-from .lagrangian import LagrangianAction
+from .hamiltonian_action import HamiltonianAction
+from .lagrangian_action import LagrangianAction
 from .scheme import Scheme
 
 CANONICAL_INPUTS = ["t_a", "t_b", "q_a", "p_a", "q_b", "p_b", "theta"]

@@ -6,7 +6,7 @@ interval ``k`` is ``tau_k [v_k.A^{-1} v_k/2 - V(q_k, t_k)]``, ``v_k = (q_{k+1} -
 The step equations at node ``k`` are the discrete Euler-Lagrange equation ``dS_D/dq_k = 0`` and
 the energy equation ``dS_D/dt_k = 0``, both taken from the two-interval action by automatic
 differentiation, in the unknowns ``(v_k, tau_k)``. The march that solves them is
-``solvers/baselines/lee_left.py``.
+``solvers/baselines/lee_left_stepper.py``.
 """
 
 from __future__ import annotations

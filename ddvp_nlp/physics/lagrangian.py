@@ -2,7 +2,7 @@
 
 ``H(q, p, t)`` is also built, by the Legendre transform ``p = dL/dv``: exactly where ``L`` is
 quadratic in ``v``, else by six Newton iterations from ``v = 0``. The discrete equations never
-use it (they come from ``L``: ``discrete/lagrangian.py``); the march's predictor, the
+use it (they come from ``L``: ``discrete/lagrangian_action.py``); the march's predictor, the
 solvability monitor and the energy guard do.
 """
 

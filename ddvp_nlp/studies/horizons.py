@@ -28,9 +28,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..validation import check_real
-from .compare import succeeded
+from .comparable import reference_for
 from .methods import METHODS
-from .reference import reference_for
+from .work_precision import succeeded
 
 
 def parse_horizons(text: str | list) -> list[float]:

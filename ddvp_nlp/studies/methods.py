@@ -73,12 +73,12 @@ def own_residuals(system, name: str, solution, theta) -> np.ndarray | None:
 
 def _check_accuracy(system, config, method, solution, tolerance, *, compiler=None,
                     cache_dir=None) -> None:
-    """The accuracy check (``solvers/accuracy.py``) on the method's nodes, as for a march, for
-    every method whatever its order (the reference flow holds its own error below the
+    """The accuracy check (``solvers/accuracy/judgement.py``) on the method's nodes, as for a
+    march, for every method whatever its order (the reference flow holds its own error below the
     tolerance): a success judged ``inaccurate`` becomes ``INACCURATE`` (unless
     ``tolerance.stop`` is off), a ``drifted`` one ``DRIFTED`` when an accurate trajectory is
     required."""
-    from ..solvers.accuracy import apply_verdict, assess
+    from ..solvers.accuracy.judgement import apply_verdict, assess
     from ..solvers.options import Tolerance
 
     tolerance = tolerance or Tolerance()

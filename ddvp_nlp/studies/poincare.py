@@ -28,14 +28,14 @@ import numpy as np
 
 from ..errors import InputError
 from ..physics.hamiltonian import vector_field_function
+from ..runner.tasks import Task, resolve_scheduler, run_tasks
 from ..scenes import load_scene
 from ..solvers.dense import Event, locate
 from ..solvers.grid.maps import evaluate_blocks
 from ..solvers.march.ensemble import Collect, march_ensemble
 from ..solvers.options import Compilation
-from ..solvers.periodic.solve import parse_section
+from ..solvers.periodic.orbit import parse_section
 from ..validation import check_real
-from .grid import Task, resolve_scheduler, run_tasks
 
 # Orbits per task on a cluster: enough that a task's start-up (loading the scene and its
 # compiled chunk) is small against its marching.

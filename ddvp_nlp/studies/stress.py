@@ -15,7 +15,7 @@ smallest ``|w|/max|w|`` says how close the orbit comes to one.
 
 `plan_stress` checks the bounds and makes the tasks, `run_stress` runs them into the
 result file and returns a `StressResult` (rows, cases, predictions); the Markdown table
-and figure are written by `ddvp_nlp.io.stress_report`. The methods are the registry's
+and figure are written by `ddvp_nlp.studies.stress_report`. The methods are the registry's
 (`ddvp_nlp.studies.methods.METHODS`), and a report's columns are the methods that ran.
 """
 
@@ -30,14 +30,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..physics.hamiltonian import site_density_weight_function
+from ..runner.journal import RowSchema, run_journalled
+from ..runner.tasks import Task, Workers, describe_error, resolve_scheduler
 from ..scenes import load_scene, scene_digest, scene_file
 from ..solvers.compiler import find_compiler
 from ..solvers.options import Compilation, StepControl, coerce
-from .accuracy import COLUMNS as ACCURACY_COLUMNS
-from .accuracy import NOT_MADE, accuracy_columns
-from .grid import RowSchema, Task, Workers, describe_error, resolve_scheduler, run_grid
+from .comparable import check_comparable, check_starts_from_p0, reference_for
 from .methods import METHODS
-from .reference import check_comparable, check_starts_from_p0, reference_for
+from .verdict_columns import COLUMNS as ACCURACY_COLUMNS
+from .verdict_columns import NOT_MADE, accuracy_columns
 
 ROWS = RowSchema(
     columns=("key", "group", "case", "scene", "settings", "method", "knob", "value", "status",
@@ -304,7 +305,7 @@ def plan_stress(*, quick: bool = False, cases: list[Case] | None = None,
                 steps: StepControl | None = None, compilation: Compilation | None = None,
                 workers: Workers | None = None) -> StressPlan:
     """Check the bounds and make every case's tasks (arguments as
-    `ddvp_nlp.io.stress_report.stress`; of ``steps`` each run takes ``max_steps`` and
+    `ddvp_nlp.studies.stress_report.stress`; of ``steps`` each run takes ``max_steps`` and
     ``time_limit``)."""
     steps = DEFAULT_STEPS if steps is None else coerce(steps, StepControl, "steps")
     if steps.time_limit is None:
@@ -326,7 +327,7 @@ def run_stress(plan: StressPlan, rows_path, *, resume: bool = False,
                progress: bool = False, commit: bool = True) -> StressResult:
     """Run a planned grid; its rows go to the result file ``rows_path`` as they finish
     (``resume``: keep the rows already there and run only the missing tasks)."""
-    rows, _ = run_grid(plan.tasks, rows_path, COLUMNS, failure_row=failure_row,
+    rows, _ = run_journalled(plan.tasks, rows_path, COLUMNS, failure_row=failure_row,
                        parse=ROWS.parse, resume=resume, workers=plan.workers,
                        scheduler=plan.scheduler, progress=progress, commit=commit,
                        finite=("t_reached", "energy_error"))

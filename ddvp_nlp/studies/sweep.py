@@ -2,7 +2,7 @@
 stress grid, on local worker processes or a Dask cluster, resumable.
 
 A grid is given on the command line (``--grid e=0.5:0.95:10 --grid tau0=0.01,0.005``) or in a
-TOML file (read by `ddvp_nlp.io.grid_file`) as a `SweepSpec`;
+TOML file (read by `ddvp_nlp.studies.sweep_file`) as a `SweepSpec`;
 `sweep_cases` turns it into the stress grid's cases.
 
 An axis is a scene parameter or a run setting (``t0``, ``t_end``); ``tau0`` is the step of every
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 from ..errors import InputError
 from ..scenes import load_scene
 from ..validation import check_real
+from .comparable import check_comparable
 from .methods import METHODS
-from .reference import check_comparable
 from .stress import DEFAULT_METHODS, DOP853_RTOL, Case
 
 

@@ -92,6 +92,10 @@ RUNS: list[tuple[str, str]] = [
 
 # CSV columns that hold times of the machine, not results.
 TIMING_WORDS = ("time", "cpu", "wall", "seconds", "elapsed", "date", "_s")
+# CSV columns of the journal's bookkeeping: the fingerprint hashes the task's function by its
+# module path (a moved module changes it by design: an old journal's rows are then run again),
+# and the checksum covers the fingerprint.
+BOOKKEEPING = ("fingerprint", "row_sha256")
 
 
 def take(folder: Path, only: list[str]) -> None:
@@ -132,7 +136,8 @@ def _csv_rows(path: Path) -> list[dict]:
     with open(path, newline="") as handle:
         rows = list(csv.DictReader(handle))
     return [{k: v for k, v in row.items()
-             if k is not None and not any(word in k.lower() for word in TIMING_WORDS)}
+             if k is not None and k not in BOOKKEEPING
+             and not any(word in k.lower() for word in TIMING_WORDS)}
             for row in rows]
 
 

@@ -33,7 +33,8 @@ leapfrog, RK4, AVF on uniform steps; ``avf.py`` the AVF step), ``verlet_adaptive
 ``dop853.py`` (scipy's DOP853, also the studies' reference).
 """
 
-from . import dop853, fixed_step, lee_left, paper_schemes, verlet_adaptive
+from . import dop853, fixed_step, paper_schemes, verlet_adaptive
+from . import lee_left_stepper as lee_left
 from .integrator import Integrator
 
 INTEGRATORS: tuple[Integrator, ...] = (

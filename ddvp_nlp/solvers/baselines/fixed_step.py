@@ -28,7 +28,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem, not_separable
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, describe_phase_space, drive
-from .avf import avf_step
+from .avf_stepper import avf_step
 from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
 

@@ -40,12 +40,13 @@ from typing import TYPE_CHECKING
 from ...cache import lazy_exports
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
-    from .energy import AtEnergy
-    from .solve import solve_bvp
-    from .start import Shooting, predicted_times
+    from .at_energy import AtEnergy
+    from .first_guess import Shooting, predicted_times
+    from .fixed_ends import solve_bvp
 
 # loaded when first asked for: importing one module of the family loads only what it needs
-__getattr__, __dir__ = lazy_exports(__name__, {"solve_bvp": "solve", "Shooting": "start",
-                                                "predicted_times": "start", "AtEnergy": "energy"})
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "solve_bvp": "fixed_ends", "Shooting": "first_guess", "predicted_times": "first_guess",
+    "AtEnergy": "at_energy"})
 
 __all__ = ["AtEnergy", "Shooting", "predicted_times", "solve_bvp"]

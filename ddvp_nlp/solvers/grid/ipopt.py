@@ -13,8 +13,9 @@ its filter line search, with the step bounds kept by the barrier.
 the unknowns and parameters, or functions given as callbacks with their derivatives, as the
 fixed-endpoint assembly does) and returns IPOPT's point and verdict as a
 `GridResult`. The families say how their rows are made:
-``bvp/ipopt.py`` (callbacks on the banded assembly), ``periodic/ipopt.py`` and
-``higher/ipopt.py`` (per-interval or per-window functions mapped over the grid on MX).
+``solvers/bvp/ends_nlp.py`` (callbacks on the banded assembly),
+``solvers/periodic/orbit_nlp.py`` and ``solvers/higher/window_nlp.py`` (per-interval or
+per-window functions mapped over the grid on MX).
 
 IPOPT's options (measured on the pendulum's fixed-endpoint problem, ``scripts/bench_bvp.py``):
 MUMPS with neither permuting scaling nor scaling (MUMPS's analysis phase took 129 of 155 s at

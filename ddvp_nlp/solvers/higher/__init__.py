@@ -37,10 +37,10 @@ from typing import TYPE_CHECKING
 from ...cache import lazy_exports
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
-    from .solve import march_higher, solve_bvp_higher
+    from .stepping import march_higher, solve_bvp_higher
 
 # loaded when first asked for: importing one module of the family loads only what it needs
-__getattr__, __dir__ = lazy_exports(__name__, {"march_higher": "solve",
-                                                "solve_bvp_higher": "solve"})
+__getattr__, __dir__ = lazy_exports(__name__, {"march_higher": "stepping",
+                                                "solve_bvp_higher": "stepping"})
 
 __all__ = ["march_higher", "solve_bvp_higher"]

@@ -47,7 +47,7 @@ The contract of the march. An implementer changing it must keep:
 """
 
 from .ensemble import Collect, march_ensemble
+from .initial_value import continue_march, march
 from .resume import MarchState
-from .solve import continue_march, march
 
 __all__ = ["Collect", "MarchState", "continue_march", "march", "march_ensemble"]

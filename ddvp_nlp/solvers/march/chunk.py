@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import use_compiler
-from ..accuracy import local_error_function
+from ..accuracy.judgement import local_error_function
 from ..compiler import (
     CompileUnavailable,
     FunctionBuffer,
@@ -40,7 +40,7 @@ from ..compiler import (
     compile_function,
     warn_once,
 )
-from .newton import NEWTON_OPTIONS, unrolled_newton
+from .step_newton import NEWTON_OPTIONS, unrolled_newton
 from .steps import EnergyCheck, FixedCheck, StepFunctions
 
 # fast_newton's iterations written out as straight-line code (``newton.unrolled_newton``); the

@@ -42,7 +42,7 @@ from ...validation import check_integer, check_memory, check_span
 from ..compiler import build_count, find_compiler
 from ..dense import attach
 from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
-from .solve import check_problem, march
+from .initial_value import check_problem, march
 
 # Blocks per worker: orbits differ in length (a failing orbit is short), so each worker takes
 # several blocks, the next as soon as it is free. A block holds at most BLOCK_ORBITS orbits: its

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ...solution import Status
-from .newton import NewtonSteps, StepResult
+from .step_newton import NewtonSteps, StepResult
 from .steps import EnergyCheck
 
 

@@ -26,12 +26,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...solution import Status
-from ..accuracy import ACCURACY_VALUES
+from ..accuracy.judgement import ACCURACY_VALUES
 from ..driver import Advance, Nodes, describe_phase_space
 from .acceptance import Acceptance
 from .chunk import FastChunk
 from .least_squares import least_squares_step
-from .newton import NewtonSteps, StepResult
+from .step_newton import NewtonSteps, StepResult
 
 # Chunk calls per batch of the compiled stepper (the default of Compilation.batch): 1, 2, 4, ...
 # up to this while every step is

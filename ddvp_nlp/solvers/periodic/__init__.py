@@ -21,7 +21,7 @@ Where things are:
 - ``stability.py``: the discrete monodromy (the step maps' derivatives by implicit
   differentiation), its reduction by the trivial directions, the stability indices and the
   verdict; ``exact.py``: the exact orbit near a discrete one and its monodromy (DOP853 on the
-  variational equations, ``physics/flow.py``);
+  variational equations, ``solvers/exact/variational.py``);
 - ``continuation.py``: pseudo-arclength continuation in the energy, the bifurcations between
   members located; ``bifurcation.py``: their test functions and their confirmation on the exact
   flow.
@@ -48,16 +48,16 @@ from typing import TYPE_CHECKING
 from ...cache import lazy_exports
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
-    from .continuation import Continuation, follow_periodic_family
+    from .arclength import Continuation, follow_periodic_family
     from .family import solve_periodic_family
-    from .solve import solve_periodic
-    from .stability import Stability, periodic_stability
+    from .floquet import Stability, periodic_stability
+    from .orbit import solve_periodic
 
 # loaded when first asked for: importing one module of the family loads only what it needs
 __getattr__, __dir__ = lazy_exports(__name__, {
-    "solve_periodic": "solve", "solve_periodic_family": "family",
-    "Continuation": "continuation", "follow_periodic_family": "continuation",
-    "Stability": "stability", "periodic_stability": "stability"})
+    "solve_periodic": "orbit", "solve_periodic_family": "family",
+    "Continuation": "arclength", "follow_periodic_family": "arclength",
+    "Stability": "floquet", "periodic_stability": "floquet"})
 
 __all__ = ["Continuation", "Stability", "follow_periodic_family", "periodic_stability",
            "solve_periodic", "solve_periodic_family"]

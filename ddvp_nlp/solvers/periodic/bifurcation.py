@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
-from .exact import close_exact
-from .stability import Stability, exact_stability
+from ..exact.closure import close_exact
+from .floquet import Stability, exact_stability
 
 KINDS = ("fold", "branch point", "period doubling")
 # The first half-width of the exact bracket (relative to max(1, |E|)) and its expansions.

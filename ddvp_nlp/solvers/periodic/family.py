@@ -13,7 +13,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...validation import check_finite_array, check_integer
-from .solve import check_periodic, solve_periodic
+from .orbit import check_periodic, solve_periodic
 
 # What a family passes on to every solve_periodic.
 FORWARDED = {"section", "scheme", "params", "start", "integrals", "angles", "options"}

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ...solution import Solution, Status
-from .start import closing_shift
+from .first_orbit import closing_shift
 
 # The coarsest level: the pendulum's rotation at E = 2.5 took 5 Newton iterations from the
 # predicted grid at N = 100 (start.predicted_grid), as at 200 and 800 (measured).

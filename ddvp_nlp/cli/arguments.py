@@ -1,0 +1,216 @@
+"""The command line's options as the solvers' option objects: one place where ``--tol``,
+``--max-steps``, ``--careful`` ... become a `StepControl`, a `Tolerance`, a
+`GridOptions`, a `Compilation` or an `Output`, for every command that has
+them. A bad value fails here, with the object's own message naming the field."""
+
+from __future__ import annotations
+
+import contextlib
+
+from ..errors import InputError
+from ..runner.tasks import Workers
+from ..solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+
+
+def step_control(args) -> StepControl:
+    """``ddvp march``'s step acceptance and limits."""
+    return StepControl(tol=args.tol, tau_min=args.tau_min, tau_max=args.tau_max,
+                       max_step_ratio=args.max_step_ratio,
+                       breakdown="least_squares" if args.least_squares else "stop",
+                       max_steps=args.max_steps, time_limit=args.time_limit,
+                       energy_guard=args.energy_guard)
+
+
+def tolerance(args, exact=None) -> Tolerance:
+    """The accuracy check's tolerances (``--rtol``, ``--atol``, ``--energy-tol``,
+    ``--global-tol``, ``--require-accurate``, ``--accept-inaccurate``; their defaults where a
+    command has none) and the motion's ``exact`` states, if known."""
+    defaults = Tolerance()
+    return Tolerance(rtol=getattr(args, "rtol", defaults.rtol),
+                     atol=getattr(args, "atol", defaults.atol),
+                     energy_tol=getattr(args, "energy_tol", defaults.energy_tol),
+                     global_tol=getattr(args, "global_tol", defaults.global_tol),
+                     require_accurate=getattr(args, "require_accurate", False),
+                     stop=not getattr(args, "accept_inaccurate", False), exact=exact)
+
+
+def compilation(args) -> Compilation:
+    """``--careful`` turns the compiled chunks off (the march's careful per-step path)."""
+    return Compilation(fast=not getattr(args, "careful", False))
+
+
+def grid_options(args, *, tol=None) -> GridOptions:
+    """A grid solve's options (``--solver``, ``--tol``, ``--time-limit``, ``--verbose``)."""
+    return GridOptions(solver=args.solver, tol=tol,
+                       time_limit=getattr(args, "time_limit", None),
+                       verbose=getattr(args, "verbose", False), accuracy=tolerance(args))
+
+
+def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:
+    """A march's progress (on unless ``--no-progress``), checkpoints, stop request, output
+    times and events (``cli/events.py``)."""
+    return Output(progress=args.progress is not False, checkpoint=checkpoint,
+                  checkpoint_interval=args.checkpoint_every, stop=stop, t_eval=t_eval,
+                  events=events or None)
+
+
+def compiled_or_not(args) -> Compilation:
+    """``--no-compile``: CasADi's virtual machine instead of gcc."""
+    return Compilation(compiler=None if args.no_compile else "auto")
+
+
+@contextlib.contextmanager
+def on_cluster(args):
+    """With ``--cluster SPEC|FILE``: the description checked, the cluster started for the
+    command (``runner/cluster.py``) and its scheduler's address put in ``args.scheduler``,
+    where the grids and the Poincare ensemble already send their tasks; closed at the end."""
+    text = getattr(args, "cluster", None)
+    if text is None:
+        yield
+        return
+    from ..runner.cluster import parse_cluster, start_cluster
+
+    if args.scheduler is not None:
+        raise InputError("give --cluster (a cluster started for this run) or --scheduler (one "
+                         "that runs already), not both")
+    spec = parse_cluster(text)
+    with start_cluster(spec) as cluster:
+        args.scheduler = cluster.scheduler_address
+        yield
+
+
+def workers(args, *, default: int | None = 1) -> Workers:
+    """``--workers`` and ``--scheduler`` (``default``: the count when ``--workers`` is not
+    given)."""
+    return Workers(count=args.workers if args.workers is not None else default,
+                   scheduler=args.scheduler)
+
+
+# Every numeric option of every command, by its name on the command line: what it must be.
+# "positive": a finite number > 0; "finite": any finite number; "ratio": > 1; "unit": in
+# [0, 1] (alpha = 0 and 1 are the symplectic Euler schemes, docs/theory.md); "count": an
+# integer >= 1; "natural": an integer >= 0.
+NUMBERS = {
+    "tol": "positive", "alpha": "unit", "tau_min": "positive", "tau_max": "positive",
+    "max_step_ratio": "ratio", "time_limit": "positive", "energy_guard": "positive",
+    "rtol": "positive", "atol": "positive", "energy_tol": "positive",
+    "global_tol": "positive", "checkpoint_every": "positive", "max_steps": "count",
+    "nodes": "count", "energy": "finite", "orbits": "count", "t_end": "finite",
+    "tau0": "positive", "seed": "natural", "workers": "count", "halvings": "natural",
+    "repeats": "count", "time_unit": "positive", "run_budget": "positive",
+    "reference_span": "positive",
+}
+# Seeds numpy takes: below 2**63 (a larger one was taken, and a negative one a traceback).
+MAX_SEED = 2**63 - 1
+
+
+def check_numbers(args) -> None:
+    """Every numeric option the command has, checked by name and range before anything is
+    loaded (``InputError`` naming the option: ``--time-limit nan`` and ``--alpha 0`` had
+    passed)."""
+    from ..errors import InputError
+    from ..validation import check_integer, check_real
+
+    for dest, rule in NUMBERS.items():
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        flag = "--" + dest.replace("_", "-")
+        if rule in ("count", "natural"):
+            check_integer(flag, value, minimum=1 if rule == "count" else 0,
+                          maximum=MAX_SEED if dest == "seed" else None)
+            continue
+        value = check_real(flag, value, positive=rule in ("positive", "ratio"))
+        if rule == "ratio" and not value > 1:
+            raise InputError(f"{flag} must be > 1, got {value!r}")
+        if rule == "unit" and not 0 <= value <= 1:
+            raise InputError(f"{flag} must lie in [0, 1], got {value!r}")
+    tau_min, tau_max = getattr(args, "tau_min", None), getattr(args, "tau_max", None)
+    if tau_min is not None and tau_max is not None and not tau_min < tau_max:
+        raise InputError(f"--tau-min must be < --tau-max = {tau_max!r}, got {tau_min!r}")
+    _check_lists(args)
+
+
+def _check_lists(args) -> None:
+    """``--methods``, ``--section``, ``--horizons`` and ``--family``: not empty, no repeats."""
+    from ..errors import InputError
+
+    methods = getattr(args, "methods", None)
+    if methods is not None:
+        names = [name.strip() for name in methods.split(",")]
+        if not any(names) or "" in names:
+            raise InputError(f"--methods must be comma-separated method names, got "
+                             f"{methods!r}")
+        repeated = sorted({name for name in names if names.count(name) > 1})
+        if repeated:
+            raise InputError(f"--methods names {repeated[0]!r} twice")
+    section = getattr(args, "section", None)
+    if section is not None and (not section.strip() or "=" not in section):
+        raise InputError(f"--section must be NAME=VALUE (e.g. q1=0), got {section!r}")
+    horizons = getattr(args, "horizons", None)
+    if horizons is not None:
+        check_values("--horizons", horizons, positive=True)
+
+
+def check_values(flag: str, text: str, *, positive: bool = False) -> list[float]:
+    """Comma-separated finite numbers, none repeated (``positive``: all > 0)."""
+    from ..errors import InputError
+    from ..validation import check_real
+
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"{flag} must be comma-separated numbers, got {text!r}") from None
+    for value in values:
+        check_real(flag, value, positive=positive)
+    check_distinct(flag, values)
+    return values
+
+
+def check_distinct(flag: str, values) -> None:
+    """No value twice (a repeated grid value ran the same runs twice and one row hid the
+    other)."""
+    from ..errors import InputError
+
+    seen = set()
+    for value in values:
+        if value in seen:
+            raise InputError(f"{flag} has the value {value!r} twice; give each value once")
+        seen.add(value)
+
+
+def check_grid_memory(flag: str, nodes: int, n: int, members: int) -> None:
+    """The nodes of a grid solve (and ``members`` kept solutions) against the memory."""
+    from ..validation import check_memory
+
+    check_memory(flag, nodes, 48.0 * nodes * (2 * n + 2) ** 2 + members * 64.0 * nodes * n,
+                 "the grid's Jacobian and the kept orbits")
+
+
+def family_energies(text: str, n: int = 1, nodes: int = 200):
+    """``E1:E2:COUNT`` as ``COUNT`` distinct energies from ``E1`` to ``E2``, the family's
+    orbits checked against the memory before any is solved."""
+    import numpy as np
+
+    from ..validation import check_integer, check_memory
+
+    parts = text.split(":")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
+    except (ValueError, IndexError, OverflowError):
+        raise InputError(f"--family must be E1:E2:COUNT, got {text!r}") from None
+    if not np.isfinite(first) or not np.isfinite(last):
+        raise InputError(f"--family needs finite E1 and E2, got {text!r}")
+    check_integer("--family COUNT", count, minimum=2)
+    if first == last:
+        raise InputError(f"--family needs E1 != E2, got {text!r}")
+    check_memory("--family COUNT", count, count * (64.0 * (nodes + 1) * (2 * n + 2) + 4096),
+                 "the family's orbits")
+    check_grid_memory("--nodes", nodes, n, count)
+    energies = np.linspace(first, last, count)
+    if np.unique(energies).size != count:
+        raise InputError(f"--family {text!r}: {count} energies from {first!r} to {last!r} are "
+                         "not all distinct in floating point")
+    return energies

@@ -1,0 +1,52 @@
+"""The figures of ``ddvp compare --horizons``: work-precision at each horizon
+(``horizons.png``) and the growth of each method's error with time (``growth.png``)."""
+
+from __future__ import annotations
+
+from . import figures
+from .work_precision_figure import AXIS_LABELS, methods_of, plot_method
+
+
+def plot_horizons(results: dict, path, *, title: str, unit: float) -> None:
+    """A column per horizon, a row per error kind, every method's runs as in the single
+    report."""
+    with figures.styled():
+        fig = figures.new_figure(2.6 * len(results) + 1.0, 5.2)
+        axes = fig.subplots(len(AXIS_LABELS), len(results), squeeze=False)
+        _horizon_panels(axes, results, unit)
+        fig.suptitle(title)
+        figures.save(fig, path)
+
+
+def _horizon_panels(axes, results: dict, unit: float) -> None:
+    kinds = list(AXIS_LABELS)
+    names = list(dict.fromkeys(m for rows in results.values() for m in methods_of(rows)))
+    for column, (horizon, rows) in enumerate(results.items()):
+        for row_index, kind in enumerate(kinds):
+            ax = axes[row_index][column]
+            for method in methods_of(rows):
+                plot_method(ax, rows, method, kind, names.index(method))
+            ax.set_title(f"$T = {horizon:g}$" + (rf"$\,\times\,{unit:.4g}$"
+                                                   if unit != 1 else ""))
+            ax.set_xlabel("run time [s]")
+            ax.set_ylabel(AXIS_LABELS[kind] if column == 0 else "")
+            ax.grid(True, which="major")
+            ax.legend(loc="lower left", fontsize="x-small")
+
+
+def plot_growth(growth, path, *, title: str) -> None:
+    """Energy and trajectory error against ``t - t0``, log-log, one line per method."""
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH, 3.2)
+        axes = fig.subplots(1, 2)
+        for ax, kind in zip(axes, ("energy_error", "trajectory_error"), strict=True):
+            for item in growth:
+                ax.loglog(item.t, figures.positive(getattr(item, kind)),
+                          label=f"{item.method} ({item.knob} = {item.value:.3g})")
+            ax.set_xlabel("$t - t_0$")
+            ax.set_ylabel(r"$|H(z_k) - H(z_0)|$ (absolute)" if kind == "energy_error" else
+                          r"$\max |z_k - z_{\mathrm{ref}}|$ (absolute)")
+            ax.grid(True, which="major")
+            ax.legend(loc="upper left", fontsize="small")
+        fig.suptitle(title)
+        figures.save(fig, path)

@@ -1,0 +1,147 @@
+"""The figure of ``ddvp stress`` and ``ddvp sweep`` (``NAME.png``): the grid of runs coloured by
+each successful run's energy error, failed runs red with their status, runs not made grey; a
+sweep over two axes as a map per method. It draws a study's result (its ``cases``, ``methods``
+and ``row(case, method)``) and the cells' values and texts the study computed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import figures
+
+NOT_RUN = ("= vddvp", "n/a")  # cells of a method that did not run on a case
+
+
+def plot_stress(result, path, *, cells, title: str, fmt: str = "png"):
+    """The grid as a picture, coloured by each successful run's relative energy error on a log
+    colour scale spanning the errors measured (``figures.log_norm``: it does not saturate).
+    A sweep over two axes is drawn as a map per method (the axes' values as coordinates);
+    anything else as cases by methods. Failed runs are red cells with their status, runs not
+    made grey; titled by ``title`` (the stress cases' or the sweep's); ``cells`` is
+    ``(values, texts)`` of the case-by-method grid."""
+    plane = _plane(result.cases)
+    with figures.styled():
+        if plane is None:
+            fig = _case_grid(result, cells, title)
+        else:
+            fig = _sweep_maps(result, plane, title)
+        figures.save(fig, path, fmt)
+
+
+def _plane(cases) -> tuple | None:
+    """``(x_name, xs, y_name, ys, index)`` when the cases are the full product of two axes
+    (a sweep's names read ``a=1, b=2``), ``index[(x, y)]`` the case there; else ``None``."""
+    if len({c.group for c in cases}) != 1:
+        return None
+    points = []
+    for case in cases:
+        try:
+            pairs = [item.split("=") for item in case.name.split(", ")]
+            points.append({k: float(v) for k, v in pairs})
+        except ValueError:
+            return None
+    if not points or any(len(p) != 2 or list(p) != list(points[0]) for p in points):
+        return None
+    x_name, y_name = list(points[0])
+    xs = sorted({p[x_name] for p in points})
+    ys = sorted({p[y_name] for p in points})
+    index = {(p[x_name], p[y_name]): case for p, case in zip(points, cases, strict=True)}
+    if len(xs) < 2 or len(ys) < 2 or len(index) != len(xs) * len(ys):
+        return None
+    return x_name, xs, y_name, ys, index
+
+
+def _case_grid(result, cells, title: str):
+    cases, methods = result.cases, result.methods
+    values, texts = cells
+    fig = figures.new_figure(2.4 + 1.1 * len(methods), 1.3 + 0.24 * len(cases))
+    ax = fig.subplots()
+    norm = figures.log_norm(10.0 ** values)
+    image = ax.imshow(np.ma.masked_invalid(10.0 ** values), cmap=_error_colours(), norm=norm,
+                      aspect="auto", interpolation="nearest")
+    _label_cells(ax, values, texts, norm)
+    ax.set_xticks(range(len(methods)), methods, rotation=20)
+    ax.set_yticks(range(len(cases)), [f"{c.group}: {c.name}" for c in cases], fontsize=7)
+    ax.minorticks_off()
+    ax.tick_params(top=False, right=False)
+    fig.colorbar(image, ax=ax, label="relative energy error (red: failed; grey: not run)")
+    ax.set_title(f"{title}: status and energy error;\n(!) the accuracy check refuses the run")
+    return fig
+
+
+def _error_colours():
+    import matplotlib
+
+    return matplotlib.colormaps["viridis"].with_extremes(bad="#CC3311")
+
+
+def _sweep_maps(result, plane, title: str):
+    """One panel per method over the two swept axes: the energy error as colour (log scale,
+    one colour bar for all), failed points as red cells marked with a cross."""
+    x_name, xs, y_name, ys, index = plane
+    methods = result.methods
+    grids = {}
+    for method in methods:
+        grid = np.full((len(ys), len(xs)), np.nan)
+        failed = np.zeros(grid.shape, dtype=bool)
+        for (x, y), case in index.items():
+            row = result.row(case, method)
+            if row is None:
+                continue
+            if row["status"] == "success":
+                grid[ys.index(y), xs.index(x)] = max(row["energy_error"], 1e-300)
+            else:
+                failed[ys.index(y), xs.index(x)] = True
+        grids[method] = (grid, failed)
+    norm = figures.log_norm(np.concatenate([g.ravel() for g, _ in grids.values()]))
+    fig = figures.new_figure(0.6 + 2.5 * len(methods), 2.9)
+    axes = np.atleast_1d(fig.subplots(1, len(methods), sharey=True))
+    for ax, method in zip(axes, methods, strict=True):
+        grid, failed = grids[method]
+        image = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(grid),
+                              cmap=_error_colours().with_extremes(bad="#DDDDDD"), norm=norm)
+        rows, columns = np.nonzero(failed)
+        ax.plot(np.asarray(xs)[columns], np.asarray(ys)[rows], **figures.FAILED)
+        ax.set_title(method)
+        ax.set_xlabel(_axis_label(x_name))
+        ax.minorticks_off()
+    axes[0].set_ylabel(_axis_label(y_name))
+    if failed_any := any(f.any() for _, f in grids.values()):
+        figures.failed_legend(axes[-1], "failed")
+    if failed_any:
+        axes[-1].legend(loc="upper right")
+    fig.colorbar(image, ax=list(axes), label="relative energy error (grey: not run)")
+    fig.suptitle(title)
+    return fig
+
+
+def _edges(values) -> np.ndarray:
+    """Cell edges around the points ``values``: midpoints, and half a spacing beyond the ends
+    (on a log scale when the points are spread over more than a decade)."""
+    v = np.asarray(values, dtype=float)
+    logarithmic = v.min() > 0 and v.max() / v.min() > 10
+    w = np.log10(v) if logarithmic else v
+    inner = (w[1:] + w[:-1]) / 2
+    edges = np.concatenate([[w[0] - (inner[0] - w[0])], inner, [w[-1] + (w[-1] - inner[-1])]])
+    return 10.0 ** edges if logarithmic else edges
+
+
+def _axis_label(name: str) -> str:
+    """A swept setting as an axis label, Greek and indices typeset (``tau0`` -> ``$\\tau_0$``)."""
+    greek = {"tau0": r"$\tau_0$", "omega": r"$\omega$", "eps": r"$\varepsilon$",
+             "alpha": r"$\alpha$", "e": "$e$", "t_end": r"$t_{\mathrm{end}}$"}
+    return greek.get(name, name)
+
+
+def _label_cells(ax, values, texts, norm):
+    from matplotlib.patches import Rectangle
+
+    middle = np.sqrt(norm.vmin * norm.vmax)
+    for i, row in enumerate(texts):
+        for j, text in enumerate(row):
+            skipped = text in NOT_RUN  # not run: grey, not failed red
+            if skipped:
+                ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, color="#dddddd"))
+            dark = (np.isnan(values[i, j]) and not skipped) or 10.0 ** values[i, j] < middle
+            ax.text(j, i, text, ha="center", va="center", fontsize=6,
+                    color="white" if dark else "black")

@@ -1,0 +1,56 @@
+"""The work-precision figure of ``ddvp compare`` (``work_precision.png``): error against run
+time, one panel per error kind, from the rows of the comparison (plain dicts with ``method``,
+``status``, ``run_s`` and one column per error kind)."""
+
+from __future__ import annotations
+
+from . import figures
+
+# The axis labels of the figure: what is measured, and that it is absolute (the summary's
+# header says against what: the DOP853 reference, the first node's energy).
+AXIS_LABELS = {"trajectory_error": r"trajectory error $\max_k |z_k - z_{\mathrm{ref}}(t_k)|$",
+               "energy_error": r"energy error $\max_k |H_k - H_0|$ (absolute)"}
+
+
+def plot_work_precision(rows, path, *, title, fmt: str = "png"):
+    """Error against run time, one panel per error kind, each with its legend: each method's
+    successful runs as a line; a run that failed before ``t_end`` has no error to show (its
+    partial run's error would flatter it) and is marked by a cross on the panel's top edge at
+    its run time."""
+    with figures.styled():
+        fig = figures.new_figure(figures.TEXT_WIDTH, 3.3)
+        axes = fig.subplots(1, len(AXIS_LABELS))
+        for ax, kind in zip(axes, AXIS_LABELS, strict=True):
+            for i, method in enumerate(methods_of(rows)):
+                plot_method(ax, rows, method, kind, i)
+            ax.set_xlabel("run time [s] (best of repeats, build excluded)")
+            ax.set_ylabel(AXIS_LABELS.get(kind, kind))
+            ax.grid(True, which="major")
+            if any(r["status"] != "success" for r in rows):
+                figures.failed_legend(ax, "failed before $t_{end}$ (at its run time)")
+            ax.legend(loc="lower left", fontsize="small")
+        fig.suptitle(title)
+        figures.save(fig, path, fmt)
+
+
+def plot_method(ax, rows, method, kind, index):
+    """One method on one panel: its successful runs as a line, its failures as crosses on the
+    top edge (x: run time; y: the axes' top, not an error)."""
+    markers = "os^vD<>ph*"
+    good = [r for r in rows if r["method"] == method and r["status"] == "success"
+            and r[kind] > 0]
+    failed = [r for r in rows if r["method"] == method and r["status"] != "success"
+              and r["run_s"] > 0]
+    colour = f"C{index % 8}"
+    if good:
+        ax.loglog([r["run_s"] for r in good], [r[kind] for r in good],
+                          marker=markers[index % len(markers)], label=method, color=colour)
+    if failed:
+        ax.set_xscale("log")
+        ax.plot([r["run_s"] for r in failed], [1.0] * len(failed), "x", color=colour, ms=5,
+                mew=1.2, transform=ax.get_xaxis_transform(), clip_on=False)
+
+
+def methods_of(rows) -> list[str]:
+    """The methods of the rows, in the order they first appear."""
+    return list(dict.fromkeys(r["method"] for r in rows))

@@ -1,0 +1,23 @@
+"""Scenes: a system plus the data to run it (start, fixed ends, periodic settings, default
+scheme), declared in a small Python file (``scene.py``), and their loading, by name from
+``problems/`` or by path, with the scene's code run bounded (``loader.py``)."""
+
+from .loader import list_scenes, load_scene, scene_digest, scene_file
+from .scene import (
+    BOUNDARY_SETTINGS,
+    RUN_SETTINGS,
+    STATE_SETTINGS,
+    VECTOR_SETTINGS,
+    BoundaryConfig,
+    Endpoints,
+    HigherOrderScene,
+    HigherRunConfig,
+    PeriodicSettings,
+    RunConfig,
+    Scene,
+)
+
+__all__ = ["BOUNDARY_SETTINGS", "RUN_SETTINGS", "STATE_SETTINGS", "VECTOR_SETTINGS",
+           "BoundaryConfig", "Endpoints", "HigherOrderScene",
+           "HigherRunConfig", "PeriodicSettings", "RunConfig", "Scene", "list_scenes",
+           "load_scene", "scene_digest", "scene_file"]

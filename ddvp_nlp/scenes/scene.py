@@ -1,0 +1,452 @@
+"""Scenes: a system plus the data to run it, declared in a small Python file.
+
+A scene file defines ``scene = Scene(...)`` with only what it needs::
+
+    import casadi as ca
+    from ddvp_nlp import Scene
+
+    def hamiltonian(q, p, t, w):
+        return (p[0]**2 + w**2 * q[0]**2) / 2
+
+    scene = Scene(hamiltonian, n=1, params={"w": 1.0}, q0=[1.0], p0=[0.0], tau0=0.1, t_end=10)
+
+The built-in scenes are the files of the top-level ``problems/`` folder (installed as
+``ddvp_nlp.problems``); any other path to a ``.py`` file works the same way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..errors import InputError
+from ..physics.hamiltonian import HamiltonianSystem
+from ..physics.higher_order import HigherOrderSystem
+from ..physics.lagrangian import Lagrangian, LagrangianSystem
+from ..validation import (
+    check_degrees,
+    check_integer,
+    check_parameter_ranges,
+    check_parameter_values,
+    check_real,
+    check_state,
+    check_step,
+)
+from .guard import SceneCodeError
+
+RUN_SETTINGS = ("t0", "tau0", "t_end")
+STATE_SETTINGS = ("q0", "p0", "v0")
+BOUNDARY_SETTINGS = ("q_start", "q_end", "t0", "t_end")
+VECTOR_SETTINGS = ("q0", "p0", "v0", "q_start", "q_end")
+
+
+@dataclass(frozen=True)
+class Endpoints:
+    """A scene's default fixed-endpoint problem (``ddvp bvp``): the end positions (not for a
+    higher-order scene, whose ends come from its exact motion), the time span and the node
+    count. Any field left ``None`` falls back to the scene's ``t0``, ``t_end`` or 101 nodes."""
+
+    q_start: object = None
+    q_end: object = None
+    t_span: tuple | None = None
+    nodes: int | None = None
+
+
+@dataclass(frozen=True)
+class PeriodicSettings:
+    """A scene's defaults for ``ddvp periodic`` (``solvers/periodic``).
+
+    Attributes:
+        section: the phase condition on node 0, ``"NAME=VALUE"``.
+        energy: the default prescribed energy.
+        nodes: the default number of intervals.
+        start: ``(q, p)``, the direction along which the section's point at ``energy`` is
+            looked for.
+        integrals: first integrals besides ``H`` whose flows are symmetries.
+        angles: angle coordinates (``("q1",)``), which may close with whole turns.
+        families: further families by name, each its own ``PeriodicSettings`` (section and
+            start; read by ``scripts/periodic_page.py``).
+        guess: optional ``guess(energy, **params) -> {"t", "q", "p"}``, one period of a start
+            near the orbit at ``energy``, used when no guess is given (where no ray from the
+            origin through the orbit makes the section's point, as about a Lagrange point).
+        period: optional ``period(energy, **params)``, the exact period ``T(E)`` of this
+            family's orbits where it is known in closed form (NaN at energies the family does
+            not reach), elementwise over an array of energies: drawn under the discrete
+            periods in a family's figure, with their relative difference.
+    """
+
+    section: str = "p1=0"
+    energy: float | None = None
+    nodes: int = 200
+    start: tuple | None = None
+    integrals: tuple = ()
+    angles: tuple = ()
+    families: Mapping[str, PeriodicSettings] = field(default_factory=dict)
+    guess: Callable[..., Mapping] | None = None
+    period: Callable[..., object] | None = None
+
+    def exact_period(self, section: str, params: Mapping) -> Callable | None:
+        """``T(E)`` (one argument, ``params`` bound) of the family through ``section``: this
+        family's or one of `families`' ``period`` whose section is ``section`` (spaces
+        ignored), else ``None`` (no closed form declared for that family)."""
+        wanted = section.replace(" ", "")
+        for settings in (self, *self.families.values()):
+            if settings.period is not None and settings.section.replace(" ", "") == wanted:
+                period = settings.period
+                return lambda energy: np.asarray(period(np.asarray(energy, float), **params),
+                                                 dtype=float)
+        return None
+
+
+def _check_settings(owner: str, name: str, value, kind):
+    """A scene's ``boundary``/``periodic`` setting is ``None`` or a ``kind``; anything else
+    (a dict, the shape these had before) is refused by name."""
+    if value is not None and not isinstance(value, kind):
+        raise InputError(f"scene {owner!r}: {name} must be {kind.__name__}(...) or None, got "
+                         f"{value!r}")
+
+
+@dataclass(eq=False)
+class Scene:
+    """A mechanical system with its defaults.
+
+    Attributes:
+        hamiltonian: ``H(q, p, t, **params)`` on CasADi symbols, or ``Lagrangian(L)`` with
+            ``L(q, v, t, **params)`` (``ddvp_nlp.lagrangian``).
+        n: degrees of freedom.
+        q0, p0: initial state, or a function of the parameters returning it.
+        v0: for a Lagrangian scene, the first interval's velocity instead of ``p0`` (the march
+            takes ``q_1 = q_0 + tau0 v0`` and ``p_0`` by the discrete Legendre transform).
+        tau0: default first step.
+        t_end: default end time.
+        t0: default start time.
+        params: parameter names and defaults.
+        exact: optional exact solution ``exact(t, q0, p0, t0, **params) -> (q, p)`` with ``t`` of
+            shape ``(N,)`` and ``q``, ``p`` of shape ``(N, n)``; it raises ``ValueError`` for a
+            start it does not cover (an unbound Kepler orbit, a rotating pendulum), and the
+            studies then use a DOP853 reference, the run files no exact error.
+        invariants: optional named first integrals besides ``H``, ``f(q, p, **params) -> (N,)``.
+        boundary: optional default fixed-endpoint data, an `Endpoints`.
+        name, description: set from the file name and docstring when loaded.
+        source: the name or path it was loaded from (empty for a scene made in Python); grid
+            tasks reload the scene from it in their own process.
+        periodic: optional defaults of ``ddvp periodic``, a `PeriodicSettings`.
+        scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
+            given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
+        ranges: optional intervals of the parameters where the scene means something, e.g.
+            ``{"e": "[0, 1)"}`` for an eccentricity; a value outside is refused by name before
+            anything is built.
+    """
+
+    hamiltonian: Callable[..., object]
+    n: int
+    q0: object = None
+    p0: object = None
+    tau0: float | None = None
+    t_end: float | None = None
+    t0: float = 0.0
+    params: Mapping[str, float] = field(default_factory=dict)
+    exact: Callable[..., tuple] | None = None
+    invariants: Mapping[str, Callable[..., np.ndarray]] = field(default_factory=dict)
+    boundary: Endpoints | None = None
+    name: str = "scene"
+    source: str = ""
+    description: str = ""
+    v0: object = None
+    periodic: PeriodicSettings | None = None
+    scheme: str | None = None
+    ranges: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self):
+        _check_common(self)
+        _check_settings(self.name, "boundary", self.boundary, Endpoints)
+        _check_settings(self.name, "periodic", self.periodic, PeriodicSettings)
+        for key in ("q0", "tau0", "t_end"):
+            if getattr(self, key) is None:
+                raise InputError(f"scene needs {key}")
+        if (self.p0 is None) == (self.v0 is None):
+            raise InputError("scene needs exactly one of p0 and v0")
+        if self.v0 is not None and not isinstance(self.hamiltonian, Lagrangian):
+            raise InputError("v0 is for a scene declared by Lagrangian(L); give p0")
+
+    @cached_property
+    def system(self) -> HamiltonianSystem:
+        if isinstance(self.hamiltonian, Lagrangian):
+            return LagrangianSystem(self.hamiltonian.function, self.n, dict(self.params),
+                                    name=self.name)
+        return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name)
+
+    def _split_parameters(self, overrides, settings_names):
+        overrides = dict(overrides or {})
+        settings = {k: overrides.pop(k) for k in settings_names if k in overrides}
+        unknown = sorted(set(overrides) - set(self.params))
+        if unknown:
+            known = ", ".join([*self.params, *settings_names])
+            raise InputError(f"scene {self.name!r} has no parameter {unknown[0]!r} "
+                             f"(it has: {known})")
+        return check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}",
+                                      ranges=self.ranges), settings
+
+    def resolve_boundary(self, overrides: Mapping[str, object] | None = None,
+                         nodes: int | None = None) -> BoundaryConfig:
+        """Fixed-endpoint data: the scene's ``boundary`` with ``overrides`` (parameters,
+        ``q_start``, ``q_end``, ``t0``, ``t_end``) and ``nodes`` applied."""
+        params, settings = self._split_parameters(overrides, BOUNDARY_SETTINGS)
+        data = self.boundary or Endpoints()
+        if self.boundary is None and not {"q_start", "q_end"} <= set(settings):
+            raise InputError(f"scene {self.name!r} declares no fixed-endpoint data: give "
+                             "q_start, q_end, t0 and t_end (--set NAME=VALUE) and --nodes")
+        t_span = data.t_span or (self.t0, self.t_end)
+        t0 = settings.get("t0", t_span[0])
+        t1 = settings.get("t_end", t_span[1])
+        return BoundaryConfig(params=params,
+                              q_start=np.atleast_1d(np.asarray(settings.get(
+                                  "q_start", data.q_start), dtype=float)),
+                              q_end=np.atleast_1d(np.asarray(settings.get(
+                                  "q_end", data.q_end), dtype=float)),
+                              t_span=(float(t0), float(t1)),
+                              nodes=nodes if nodes is not None else (data.nodes or 101))
+
+    def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
+        """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
+        ``p0``. Unknown names are an error that lists the known ones."""
+        lagrangian = isinstance(self.hamiltonian, Lagrangian)
+        names = (*RUN_SETTINGS, *(STATE_SETTINGS if lagrangian else STATE_SETTINGS[:2]))
+        params, settings = self._split_parameters(overrides, names)
+        q0 = settings.get("q0", self.q0)
+        if "p0" in settings and "v0" in settings:
+            raise InputError("give p0 or v0, not both")
+        p0 = settings.get("p0", None if "v0" in settings else self.p0)
+        v0 = settings.get("v0", None if "p0" in settings else self.v0)
+        values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
+        for k, v in values.items():
+            check_real(k, v)
+        if values["t_end"] <= values["t0"]:
+            raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
+        q0, p0, v0 = (None if x is None else self._start_value(name, x, params)
+                      for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))
+        return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
+                         **{k: float(v) for k, v in values.items()})
+
+    def march(self, t_end: float | None = None, *, overrides: Mapping[str, object] | None = None,
+              **options):
+        """``march`` from this scene's defaults (``resolve(overrides)``: parameters, start,
+        ``t0``, ``tau0``, ``t_end``; ``t_end`` here wins), its default scheme, and ``options``
+        passed on (``steps=``, ``accuracy=``, ``compilation=``, ``output=``, ``scheme=``...)."""
+        from ..solvers.march import march  # a facade: scenes sit below the solvers
+
+        config = self.resolve(overrides)
+        options.setdefault("scheme", self.scheme or "vddvp")
+        options.setdefault("tau0", config.tau0)
+        return march(self.system, config.q0, config.p0, (config.t0, t_end or config.t_end),
+                     v0=config.v0, params=config.params, **options)
+
+    def solve_bvp(self, *, overrides: Mapping[str, object] | None = None,
+                  nodes: int | None = None, **options):
+        """``solve_bvp`` on this scene's fixed-endpoint data (``resolve_boundary``) and default
+        scheme, ``options`` passed on."""
+        from ..solvers.bvp import solve_bvp  # a facade: scenes sit below the solvers
+
+        data = self.resolve_boundary(overrides, nodes)
+        options.setdefault("scheme", self.scheme or "vddvp")
+        return solve_bvp(self.system, data.q_start, data.q_end, data.t_span, nodes=data.nodes,
+                         params=data.params, **options)
+
+    def solve_periodic(self, energy: float | None = None, *, nodes: int | None = None,
+                       overrides: Mapping[str, object] | None = None, **options):
+        """``solve_periodic`` with this scene's periodic defaults (``PeriodicSettings``:
+        energy, nodes, section, start, integrals, angles, the guess function) and its default
+        scheme, ``options`` passed on. (Named so because ``periodic`` is the settings field.)"""
+        from ..solvers.periodic import solve_periodic  # a facade: scenes sit below the solvers
+
+        settings = self.periodic or PeriodicSettings()
+        energy = settings.energy if energy is None else energy
+        if energy is None:
+            raise InputError(f"scene {self.name!r} declares no periodic energy: give energy=")
+        params, _ = self._split_parameters(overrides, ())
+        if settings.guess is not None:
+            options.setdefault("guess", settings.guess(energy, **params))
+        for name in ("section", "start", "integrals", "angles"):
+            if getattr(settings, name) is not None:
+                options.setdefault(name, getattr(settings, name))
+        options.setdefault("scheme", self.scheme or "vddvp")
+        return solve_periodic(self.system, energy=energy, nodes=nodes or settings.nodes,
+                              params=params, **options)
+
+    def _start_value(self, name: str, value, params: dict) -> np.ndarray:
+        """The scene's ``q0``, ``p0`` or ``v0`` (a function of the parameters, or a value) as a
+        finite real vector of length ``n``; a function that raises is named with the values."""
+        if callable(value):
+            try:
+                value = value(**params)
+            except SceneCodeError as exc:
+                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
+                                 f"{_shown(params)}: {exc.reason.removeprefix('raised ')} "
+                                 f"({exc.where})") from None
+            except Exception as exc:
+                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
+                                 f"{_shown(params)}: {type(exc).__name__}: {exc}") from None
+        return check_state(f"scene {self.name!r}: {name}", value, self.n)
+
+
+@dataclass
+class RunConfig:
+    """Resolved values of one run of a scene."""
+
+    params: dict[str, float]
+    q0: np.ndarray
+    p0: np.ndarray | None
+    t0: float
+    tau0: float
+    t_end: float
+    v0: np.ndarray | None = None
+
+    def as_dict(self) -> dict:
+        start = {"p0": self.p0.tolist()} if self.p0 is not None else {"v0": self.v0.tolist()}
+        return {**self.params, "q0": self.q0.tolist(), **start, "t0": self.t0,
+                "tau0": self.tau0, "t_end": self.t_end}
+
+
+@dataclass
+class HigherRunConfig:
+    """Resolved values of one run of a higher-order scene."""
+
+    params: dict[str, float]
+    t0: float
+    tau0: float
+    t_end: float
+
+    def as_dict(self) -> dict:
+        """The resolved settings as plain values (what a run folder's name is hashed from)."""
+        return {"params": dict(self.params), "t0": self.t0, "tau0": self.tau0,
+                "t_end": self.t_end}
+
+
+@dataclass
+class BoundaryConfig:
+    """Resolved fixed-endpoint data of a scene."""
+
+    params: dict[str, float]
+    q_start: np.ndarray
+    q_end: np.ndarray
+    t_span: tuple[float, float]
+    nodes: int
+
+    def as_dict(self) -> dict:
+        return {**self.params, "q_start": self.q_start.tolist(), "q_end": self.q_end.tolist(),
+                "t0": self.t_span[0], "t_end": self.t_span[1], "nodes": self.nodes}
+
+
+
+
+@dataclass(eq=False)
+class HigherOrderScene:
+    """A scene declared by ``L(q, v, t, **params)`` with ``v[m-1]`` the ``m``-th difference.
+
+    Attributes:
+        lagrangian, n, order, params: the system.
+        exact: ``exact(t, **params) -> q`` of shape ``(N, n)``: the motion the scene follows. The
+            march starts from ``2 * order`` of its nodes spaced ``tau0`` from ``t0``; the
+            fixed-endpoint problem takes ``order`` of its nodes at each end of ``t_span`` on the
+            uniform grid of ``nodes`` nodes.
+        tau0, t_end, t0: march defaults; ``boundary``: an `Endpoints` with ``t_span``
+            and ``nodes`` (the end positions come from ``exact``).
+        scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
+            given (the energy rules have no positive step on some of these; ``fixed`` always
+            has one).
+    """
+
+    lagrangian: Callable[..., object]
+    n: int
+    order: int
+    exact: Callable[..., np.ndarray]
+    tau0: float
+    t_end: float
+    t0: float = 0.0
+    params: Mapping[str, float] = field(default_factory=dict)
+    boundary: Endpoints | None = None
+    name: str = "scene"
+    source: str = ""
+    description: str = ""
+    scheme: str | None = None
+    ranges: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self):
+        _check_common(self)
+        self.order = check_integer("order", self.order)
+
+    @cached_property
+    def system(self) -> HigherOrderSystem:
+        return HigherOrderSystem(self.lagrangian, self.n, self.order, dict(self.params),
+                                 name=self.name)
+
+    def resolve(self, overrides=None) -> HigherRunConfig:
+        """Parameters, ``t0``, ``tau0``, ``t_end`` with ``overrides`` applied."""
+        overrides = dict(overrides or {})
+        settings = {k: overrides.pop(k) for k in RUN_SETTINGS if k in overrides}
+        params = check_parameter_values(overrides, dict(self.params),
+                                        owner=f"scene {self.name!r}", ranges=self.ranges)
+        values = {"t0": self.t0, "tau0": self.tau0, "t_end": self.t_end, **settings}
+        for key, value in values.items():
+            check_real(key, value)
+        if values["t_end"] <= values["t0"]:
+            raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
+        return HigherRunConfig(params=params, **{k: float(v) for k, v in values.items()})
+
+    def start(self, config: HigherRunConfig) -> tuple[np.ndarray, np.ndarray]:
+        """The ``2 l`` start nodes of a march: the exact motion ``tau0`` apart from ``t0``."""
+        t = config.t0 + config.tau0 * np.arange(2 * self.order)
+        return t, self.exact_motion(t, config.params)
+
+    def ends(self, config: HigherRunConfig, nodes: int, t_span):
+        """The ``l`` fixed nodes at each end of the uniform grid of ``nodes`` nodes on
+        ``t_span``, on the exact motion."""
+        grid = np.linspace(t_span[0], t_span[1], nodes)
+        l = self.order  # noqa: E741 (l is the order, as in the paper)
+        q = self.exact_motion(grid, config.params)
+        return grid[:l], q[:l], grid[-l:], q[-l:]
+
+    def exact_motion(self, t, params):
+        """The scene's exact motion ``q(t)`` at the times ``t``, shape ``(N, n)``."""
+        return np.asarray(self.exact(np.asarray(t, float), **params), float).reshape(
+            np.size(t), self.n)
+
+
+def _shown(params: dict) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in params.items()) or "the defaults"
+
+
+def _check_common(scene) -> None:
+    """What every scene must be: a scheme name or none, ``boundary`` an `Endpoints`,
+    ``n`` a size that fits in memory, ``params`` a mapping of names to finite numbers (a list
+    was taken and failed later), ``ranges`` intervals holding the defaults."""
+    _check_scheme_name(scene.scheme)
+    _check_settings(scene.name, "boundary", scene.boundary, Endpoints)
+    scene.n = check_degrees(scene.n)
+    owner = f"scene {scene.name!r}"
+    if not isinstance(scene.params, Mapping) or not all(isinstance(k, str)
+                                                        for k in scene.params):
+        raise InputError(f"{owner}: params must be a dict of parameter names to numbers, got "
+                         f"{scene.params!r}")
+    scene.params = check_parameter_values(dict(scene.params), dict(scene.params), owner=owner)
+    scene.ranges = check_parameter_ranges(scene.ranges, scene.params, owner=owner)
+    check_parameter_values({}, scene.params, owner=owner, ranges=scene.ranges)
+    if not isinstance(getattr(scene, "invariants", {}), Mapping):
+        raise InputError(f"{owner}: invariants must be a dict of names to functions, got "
+                         f"{scene.invariants!r}")
+    for key in ("exact",):
+        value = getattr(scene, key, None)
+        if value is not None and not callable(value):
+            raise InputError(f"{owner}: {key} must be a function or None, got {value!r}")
+
+
+def _check_scheme_name(scheme) -> None:
+    """A scene's declared scheme is a name (which names exist is the command line's to check:
+    the scheme rules live in ``discrete/``, above this module)."""
+    if scheme is not None and (not isinstance(scheme, str) or not scheme.strip()):
+        raise InputError(f"scene scheme must be a scheme name such as 'fixed', got {scheme!r}")

@@ -1,0 +1,165 @@
+"""Continuation of the fixed-step problem in its end position, past turning points
+(pseudo-arclength): the start of last resort of ``start.py``.
+
+A march of fixed steps from ``(q_start, p_0)`` solves the fixed-endpoint problem whose end
+position is its own last position ``a``. Moving the end position along ``q_end(s) = a + s d``,
+``d = q_end - a``, from ``s = 0`` to ``s = 1`` carries that solution to the problem asked for,
+unless the path of solutions turns back in ``s`` (a fold: two solutions meet and vanish). There
+a continuation in ``s`` itself stops (tried: on the pendulum from 0.5 to -0.3 in 10 time units
+it stopped at ``s = 0.61``, on Henon-Heiles at ``s = 0.02-0.88``). Here the unknowns are
+``y = (x, s)`` and each step moves a length ``h`` along the path's tangent ``T``:
+
+- predictor ``y + h T``; corrector: Newton on ``F(x, s) = 0`` together with
+  ``<T, y - y_pred> = 0`` (the hyperplane through the prediction across the path), solved by
+  bordering with the banded LU of ``F_x``: ``dx = z_1 + ds z_2`` with ``F_x z_1 = -F`` and
+  ``F_x z_2 = -F_s`` (``F_s = -d`` on the end rows), which stays well posed at a fold where
+  ``F_x`` alone is singular;
+- the tangent is the secant of the last two points (its orientation kept), ``h`` grows by half
+  after a corrector that converged in a few iterations and halves after one that failed;
+- in ``<., .>`` the ``x`` part is divided by the number of unknowns, so that ``s`` counts as much
+  as the whole grid.
+
+When a step crosses ``s = 1`` the point at ``s = 1`` is interpolated and handed back; the caller
+solves the problem there (``start.py``). The solution found is the one connected to
+the march by the path: ``stats["p_sign_changes"]`` of the result says which it is.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from ..grid.linear import Factorization, band_kernel
+from ..grid.problem import GridRequest
+from .interleaved import Ends, NodeLayout
+from .phases import Boundary, assembly
+
+FIRST_STEP = 0.05
+SMALLEST_STEP = 1e-5
+LARGEST_STEP = 0.5
+MAX_STEPS = 400
+CORRECTOR_ITERATIONS = 8
+# The corrector has converged when every |F_i| is below this times max(1, |x|_inf).
+CORRECTOR_TOL = 1e-10
+
+
+def continue_in_end_position(request: GridRequest[Boundary], fixed, times, base: dict):
+    """The fixed-step problem's nodes near ``s = 1`` on the path from the march ``base``
+    (module docstring), as a start (``dict`` of ``t``, ``q``, ``p``), or ``None``; the phase
+    record in ``request.phases`` says how far it got."""
+    layout = NodeLayout(request.system.n, request.nodes)
+    path = _Path(request, assembly(request, fixed), times, np.asarray(base["q"][-1], float))
+    record = {"phase": "continuation in q_end (fixed steps, pseudo-arclength)",
+              "solver": "newton (bordered)", "converged": False, "return_status": "",
+              "iterations": 0, "steps": 0}
+    request.phases.append(record)
+    started = time.perf_counter()
+    y = np.concatenate([layout.pack(times, base["q"], base["p"]), [0.0]])
+    try:
+        point = _walk(request, path, y, record)
+    finally:
+        path.grid.release()
+    record["seconds"] = time.perf_counter() - started
+    if point is None:
+        return None
+    t, q, p = layout.unpack(point[:-1])
+    return {"t": t, "q": q, "p": p}
+
+
+def _walk(request, path, y, record):
+    """Steps along the path from ``y`` until ``s = 1`` (the point there, interpolated) or a
+    stop (``None``; ``record`` says why)."""
+    h = FIRST_STEP
+    tangent = path.first_tangent(y)
+    if tangent is None:
+        record["return_status"] = "the Jacobian at the march is singular: no tangent"
+        return None
+    while record["steps"] < MAX_STEPS:
+        if request.remaining() == 0.0:
+            record["return_status"] = f"time limit reached at s = {y[-1]:.4g}"
+            return None
+        corrected, iterations = path.correct(y + h * tangent, tangent)
+        record["iterations"] += iterations
+        record["steps"] += 1
+        if corrected is None:
+            h /= 2
+            if h < SMALLEST_STEP:
+                record["return_status"] = (f"the step fell below {SMALLEST_STEP:g} at "
+                                           f"s = {y[-1]:.4g}")
+                return None
+            continue
+        if corrected[-1] >= 1.0:
+            w = (1.0 - y[-1]) / (corrected[-1] - y[-1])
+            record.update(converged=True, return_status=f"s = 1 reached in "
+                          f"{record['steps']} steps")
+            return y + w * (corrected - y)
+        secant = corrected - y
+        tangent = secant / path.norm(secant)
+        y = corrected
+        if request.progress:
+            print(f"bvp [continuation]: step {record['steps']}, s = {y[-1]:.6g}, "
+                  f"arclength step {h:.3g}", file=sys.stderr, flush=True)
+        if iterations <= 3:
+            h = min(LARGEST_STEP, 1.5 * h)
+    record["return_status"] = f"{MAX_STEPS} steps without reaching s = 1 (s = {y[-1]:.4g})"
+    return None
+
+
+class _Path:
+    """The path of solutions ``F(x, s) = 0`` with the end position ``a + s d``: its tangent and
+    corrector by bordering (module docstring)."""
+
+    def __init__(self, request, grid, times, a):
+        self.grid, self.request = grid, request
+        size = grid.layout.size
+        self.times, self.a, self.d = np.asarray(times, float), a, request.data.q_end - a
+        self.F_s = np.zeros(size)
+        self.F_s[-request.system.n:] = -self.d
+        self.weight = np.concatenate([np.full(size, 1.0 / size), [1.0]])
+        self.kernel = band_kernel(request.compilation)
+
+    def ends(self, s) -> Ends:
+        return Ends(self.request.data.q_start, self.a + s * self.d, self.times,
+                    self.request.theta, 1.0)
+
+    def norm(self, v) -> float:
+        return float(np.sqrt(np.sum(self.weight * v * v)))
+
+    def factor(self, blocks) -> Factorization:
+        return Factorization(self.grid, blocks, self.request.linear, self.kernel)
+
+    def first_tangent(self, y):
+        """The tangent at the march (``s`` increasing): ``(F_x^-1 (-F_s), 1)``, normalised."""
+        _, blocks = self.grid.evaluate(y[:-1], self.ends(y[-1]), jacobian=True)
+        z = self.factor(blocks).solve(-self.F_s.copy())
+        if not np.all(np.isfinite(z)):
+            return None
+        tangent = np.concatenate([z, [1.0]])
+        return tangent / self.norm(tangent)
+
+    def correct(self, prediction, tangent):
+        """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` by bordering:
+        ``(y, iterations)``, ``y`` ``None`` if it did not converge."""
+        y, weight = prediction.copy(), self.weight
+        for iteration in range(1, CORRECTOR_ITERATIONS + 1):
+            F, blocks = self.grid.evaluate(y[:-1], self.ends(y[-1]), jacobian=True)
+            if not np.all(np.isfinite(F)):
+                return None, iteration
+            if np.max(np.abs(F)) <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))):
+                return y, iteration - 1
+            lu = self.factor(blocks)
+            z1 = lu.solve(-F)
+            z2 = lu.solve(-self.F_s.copy())
+            if not (np.all(np.isfinite(z1)) and np.all(np.isfinite(z2))):
+                return None, iteration
+            g = float(np.sum(weight * tangent * (y - prediction)))
+            wx = weight[:-1] * tangent[:-1]
+            denominator = float(wx @ z2) + weight[-1] * tangent[-1]
+            if denominator == 0.0:
+                return None, iteration
+            ds = (-g - float(wx @ z1)) / denominator
+            y[:-1] += z1 + ds * z2
+            y[-1] += ds
+        return None, CORRECTOR_ITERATIONS

@@ -1,0 +1,353 @@
+"""Starting points of the fixed-endpoint solve (docs/theory.md section 6: the Jacobian's condition
+number grows like ``N^2``, so the start must be close).
+
+Default (``guess="straight"``), for grids of any length:
+
+1. the ``fixed`` problem on uniform times, from uniform motion between the endpoints (with
+   ``solver="auto"``, IPOPT again if Newton fails; if both fail, the pseudo-arclength
+   continuation in the end position from the march of the straight line's momentum,
+   ``continuation.py``, then this phase from where it ends);
+2. the ``fixed`` problem on times with the predicted site density
+   ``tau ~ (f' H_zz f)^(-1/3)`` (``predicted_times``), ``f`` the Hamiltonian vector field (the
+   paper's section 4 for ``H = p^2/2 + V``: ``f' H_zz f = V'' p^2 + V'^2``; the expansion
+   ``H(z_mid) = H(z) - tau^2 f' H_zz f / 8`` gives the same weight for any ``H``);
+3. (``solve.py``) the scheme's equations with the times released.
+
+Released directly from uniform times, Newton diverged at N = 1e5 on the pendulum; from the
+predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
+
+``guess="march"`` replaces phase 1 by shooting: march ``fixed`` steps on the uniform grid from
+``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by Newton's method with a
+finite-difference Jacobian (``n + 1`` marches an iteration), from ``p_start`` if given, else from
+the straight line's momentum. The fixed-endpoint problem can have
+several solutions (a pendulum that swings once or twice between the same positions); shooting
+from the straight line's momentum picks the one the march from that momentum reaches, which
+the straight-line start, a trajectory that never turns, can miss. A Kepler orbit over three
+periods is one: the straight line between two points near the pericentre leads to the radial
+branch (out to r = 4.2 and back), on which the energy rules have no solution (``w < 0`` for
+``r < 2``, docs/theory.md section 7); ``p_start`` near the orbit's momentum selects the three
+revolutions.
+
+A node guess (a march, a file) of another rule is first moved to the predicted times and solved
+with fixed steps there (``_from_nodes``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...discrete.scheme import Scheme
+from ...physics.hamiltonian import site_density_weight_function
+from ..grid.maps import evaluate_blocks
+from ..grid.problem import GridRequest
+from ..options import Compilation, StepControl
+from .end_continuation import continue_in_end_position
+from .interleaved import NodeLayout
+from .phases import Boundary, assembly, ends, mean_step, newton_targets, run_phase
+
+
+@dataclass(frozen=True)
+class Shooting:
+    """The start by shooting (``solve_bvp(..., guess=Shooting(p_start))``; ``guess="march"`` is
+    ``Shooting()``): march fixed steps from ``(q_start, p_start)`` and correct ``p_start`` until
+    the march ends on ``q_end`` (module docstring). ``p_start``: the momentum shooting starts
+    from (default the straight line's); it chooses the branch of a problem with several
+    solutions."""
+
+    p_start: object = None
+
+
+SHOOTING_ITERATIONS = 30
+# Relative singular-value cut of the shooting Jacobian (_shooting_step).
+SHOOTING_RCOND = 1e-6
+# Halvings of a shooting step before the iteration gives up.
+SHOOTING_HALVINGS = 8
+# Iterations without halving the closest miss before shooting stops.
+SHOOTING_STALL = 3
+# ... once the closest miss is below this (relative to max(1, |q_end|)): close enough for
+# the fixed-step solve to start on the march's branch. Farther, shooting goes on (the swinging
+# pendulum of the tests leaves a local minimum of the miss, 0.049, at its 10th iteration).
+SHOOTING_CLOSE = 1e-3
+
+
+def straight_line(request: GridRequest[Boundary], times) -> dict:
+    """Uniform motion between the endpoints: ``q`` linear in ``t``, ``p`` its slope (the
+    velocity; for ``H = p^2/2 + V`` the momentum of that motion)."""
+    s = (times - times[0]) / (times[-1] - times[0])
+    q = (
+        request.data.q_start[None, :]
+        + s[:, None] * (request.data.q_end - request.data.q_start)[None, :]
+    )
+    slope = (request.data.q_end - request.data.q_start) / (times[-1] - times[0])
+    return {"t": np.asarray(times, float), "q": q, "p": np.repeat(slope[None, :], times.size, 0)}
+
+
+def first_solver(request: GridRequest[Boundary]) -> str:
+    """The solver a start phase tries first: IPOPT if asked for, else Newton."""
+    return "ipopt" if request.solver == "ipopt" else "newton"
+
+
+def fixed_scheme(scheme: Scheme) -> Scheme:
+    return Scheme("fixed", alpha=scheme.alpha, clock=scheme.clock)
+
+
+def start_point(request: GridRequest[Boundary], guess) -> dict:
+    """The point the final solve starts from (module docstring); every phase that fails leaves
+    the previous phase's point. ``guess`` is ``"straight"``, ``"march"`` or node arrays."""
+    if isinstance(guess, dict):
+        return _from_nodes(request, guess)
+    uniform = request.data.grid_times if not request.scheme.variable_steps else \
+        np.linspace(request.data.t0, request.data.t1, request.nodes)
+    start = straight_line(request, uniform)
+    fixed = fixed_scheme(request.scheme)
+    reached, shot = False, None
+    if guess == "march":
+        shot, reached = shooting(request, fixed, uniform)
+        start = shot or start
+    solver = first_solver(request)
+    if not reached or not request.scheme.variable_steps:
+        solved = _solve_fixed(request, fixed, uniform, start, "fixed steps, uniform times",
+                              solver)
+        whole = np.linspace(request.data.t0, request.data.t1, request.nodes)
+        if solved is None and request.remaining() != 0.0 and request.solver != "ipopt" \
+                and np.allclose(uniform, whole):
+            solved = _continued(request, fixed, uniform, shot if guess == "march" else None,
+                                solver)
+        start = solved or start
+    if not request.scheme.variable_steps:
+        return start
+    return _at_predicted_times(request, start, "fixed steps, predicted times") or start
+
+
+# A node guess whose released residuals are all within this many times Newton's targets (a
+# march of the same scheme: round-off) starts the released solve as it is; any other is first
+# moved to the predicted times and solved with fixed steps there. A small residual is not enough:
+# a fixed-step march's energy rows are only O(tau^2) off, 4e-8 at N = 1e5 on kepler e = 0.5, yet
+# its node times are far from the released ones (Newton from it hit a 60 s limit; from the
+# predicted times it took 2 iterations at N = 1e4; measured).
+NEAR_RELEASED = 64
+
+
+def _from_nodes(request: GridRequest[Boundary], guess: dict) -> dict:
+    """The start from the user's nodes (module docstring): as given when they nearly solve the
+    released equations (a march of the same scheme), else fixed steps on the predicted times
+    first."""
+    if not request.scheme.variable_steps:
+        return guess
+    layout = NodeLayout(request.system.n, request.nodes)
+    x = layout.pack(guess["t"], guess["q"], guess["p"])
+    grid, data = assembly(request, request.scheme), ends(request, request.scheme)
+    F, _ = grid.evaluate(x, data, jacobian=False)
+    if np.all(np.abs(F) <= NEAR_RELEASED * newton_targets(request, grid, x, data)):
+        return guess
+    return _at_predicted_times(request, guess,
+                               "fixed steps, predicted times (from the guess)") or guess
+
+
+def _at_predicted_times(request: GridRequest[Boundary], start: dict, name: str) -> dict | None:
+    """``start`` moved to its predicted times and solved there with fixed steps (phase 2);
+    ``None`` if that solve does not converge."""
+    times = predicted_times(request.system, start["t"], start["q"], start["p"], request.theta,
+                            request.compilation)
+    moved = {"t": times, "q": interpolate(times, start["t"], start["q"]),
+             "p": interpolate(times, start["t"], start["p"])}
+    return _solve_fixed(request, fixed_scheme(request.scheme), times, moved, name,
+                        first_solver(request))
+
+
+def _solve_fixed(request, fixed, times, start, name, solver):
+    """The fixed-step problem on ``times`` from ``start`` by ``solver``; with ``solver="auto"``
+    IPOPT again from the same start when Newton does not converge (Henon-Heiles over 50 time
+    units at N = 1e3: Newton stalled on the uniform phase, IPOPT solved it and the rest followed
+    in 2 + 2 iterations; measured). ``None`` if it does not converge."""
+    layout = NodeLayout(request.system.n, request.nodes)
+    x0 = layout.pack(times, start["q"], start["p"])
+    x, phase = run_phase(request, fixed, x0, name, solver, times=times)
+    if not (phase["converged"] and np.all(np.isfinite(x))) and request.solver == "auto" \
+            and solver == "newton" and request.remaining() != 0.0:
+        x, phase = run_phase(request, fixed, x0, name, "ipopt", times=times)
+    if not (phase["converged"] and np.all(np.isfinite(x))):
+        return None
+    t, q, p = layout.unpack(x)
+    return {"t": t, "q": q, "p": p}
+
+
+def _continued(request: GridRequest[Boundary], fixed: Scheme, times, base, solver) -> dict | None:
+    """The fixed-step problem solved after a continuation in its end position
+    (``continuation.py``) from ``base`` (shooting's closest march) or else from the march
+    of the straight line's momentum; ``None`` if either fails."""
+    if base is None:
+        base = _fixed_march(request, fixed, straight_line(request, times)["p"][0])
+    if base is None:
+        return None
+    near = continue_in_end_position(request, fixed, times, base)
+    if near is None:
+        return None
+    return _solve_fixed(request, fixed, times, near,
+                        "fixed steps, uniform times (after the continuation)", solver)
+
+
+def _march(request: GridRequest[Boundary], fixed: Scheme, p0):
+    """The march of ``fixed`` steps on the uniform grid of ``request.nodes`` nodes from
+    ``(q_start, p0)``."""
+    from ..march import march
+
+    params = dict(zip(request.system.params, request.theta.tolist(), strict=True))
+    return march(request.system, request.data.q_start, p0, (request.data.t0, request.data.t1),
+                 tau0=mean_step(request), scheme=fixed, params=params,
+                 steps=StepControl(tol=min(request.tol, 1e-10), max_steps=request.nodes),
+                 compilation=request.compilation)
+
+
+def _fixed_march(request: GridRequest[Boundary], fixed: Scheme, p0) -> dict | None:
+    """`_march`'s nodes, or ``None`` if it does not reach ``t_end`` in ``nodes`` nodes."""
+    run = _march(request, fixed, p0)
+    return {"t": run.t, "q": run.q, "p": run.p} if _whole(request, run) else None
+
+
+def _whole(request: GridRequest[Boundary], run) -> bool:
+    """Whether the march ``run`` reached ``t_end`` in exactly the grid's ``nodes`` nodes."""
+    return run.success and run.t.size == request.nodes
+
+
+def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict | None, bool]:
+    """``(march, reached)``: the march of ``fixed`` steps from ``(q_start, p_0)`` that ends on
+    ``q_end`` to ``tol`` (module docstring), or, when the iteration stops short, the march that
+    came closest (``reached`` False: the fixed-step solve then starts from it, on its branch);
+    ``None`` if not even the first march succeeds."""
+    def shoot(p0):
+        return _march(request, fixed, p0)
+
+    p0 = straight_line(request, times)["p"][0] if request.data.p_start is None \
+        else request.data.p_start.copy()
+    record = {"phase": "shooting (march)", "solver": "newton (finite differences)",
+              "converged": False, "return_status": "", "iterations": 0}
+    request.phases.append(record)
+    run = shoot(p0)
+    if not _whole(request, run):
+        record["return_status"] = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
+        return None, False
+    best, stalled = (np.linalg.norm(run.q[-1] - request.data.q_end), run), 0
+    close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.data.q_end))))
+    for iteration in range(1, SHOOTING_ITERATIONS + 1):
+        miss = run.q[-1] - request.data.q_end
+        record["iterations"] = iteration
+        if np.max(np.abs(miss)) <= request.tol:
+            record.update(converged=True, return_status=f"q_end reached, p_0 = {p0.tolist()}")
+            return {"t": run.t, "q": run.q, "p": run.p}, True
+        step = _shooting_step(shoot, p0, run.q[-1], miss)
+        if step is None:
+            record["return_status"] = "a march of the finite differences failed"
+            break
+        # The longest of the halved steps whose march succeeds and comes closer to q_end; if
+        # none comes closer, the longest whose march succeeds (the end can depend on p_0 so
+        # unevenly, a swinging pendulum, that full steps converge where every shorter step
+        # first moves away; measured); the closest march seen is kept.
+        taken = None
+        for halving in range(SHOOTING_HALVINGS + 1):
+            trial = p0 - step / 2 ** halving
+            candidate = shoot(trial)
+            if not _whole(request, candidate):
+                continue
+            taken = taken or (trial, candidate)
+            if np.linalg.norm(candidate.q[-1] - request.data.q_end) < np.linalg.norm(miss):
+                taken = (trial, candidate)
+                break
+        if taken is None:
+            record["return_status"] = (f"every march along the step from p_0 = {p0.tolist()} "
+                                       f"fails (miss {np.linalg.norm(miss):.3e})")
+            break
+        p0, run = taken
+        distance = np.linalg.norm(run.q[-1] - request.data.q_end)
+        if distance < 0.5 * best[0]:
+            stalled = 0
+        else:
+            stalled += 1
+        best = min(best, (distance, run), key=lambda b: b[0])
+        if stalled >= SHOOTING_STALL and best[0] <= close:
+            record["return_status"] = (f"the miss has not halved in {SHOOTING_STALL} "
+                                       f"iterations")
+            break
+    else:
+        record["return_status"] = f"q_end not reached in {SHOOTING_ITERATIONS} iterations"
+    run = best[1]
+    record["return_status"] += (f"; the closest march (miss {best[0]:.3e}) starts the "
+                                f"fixed-step solve")
+    return {"t": run.t, "q": run.q, "p": run.p}, False
+
+
+def _shooting_step(shoot, p0, q_last, miss) -> np.ndarray | None:
+    """Newton step ``J^-1 miss`` on ``q_{N-1}(p_0)``, ``J`` by forward differences, its length
+    capped at ``max(1, |p_0|)``; ``None`` if a march fails."""
+    n = p0.size
+    J = np.empty((n, n))
+    for i in range(n):
+        h = 1e-7 * max(1.0, abs(p0[i]))
+        bumped = p0.copy()
+        bumped[i] += h
+        run = shoot(bumped)
+        if not run.success:
+            return None
+        J[:, i] = (run.q[-1] - q_last) / h
+    # Directions the end barely depends on are left alone (rcond): over whole periods of a
+    # Kepler orbit every direction of p_0 with the same |p_0| returns to the start, and
+    # the minimum-norm step along that near-null direction sent p_0 into the centre
+    # (measured).
+    step = np.linalg.lstsq(J, miss, rcond=SHOOTING_RCOND)[0]
+    # a step larger than the momentum itself leaves the march's basin: cap it
+    scale = max(1.0, float(np.max(np.abs(p0))))
+    return step * min(1.0, scale / max(float(np.max(np.abs(step))), 1e-300))
+
+
+def interpolate(times, t, values) -> np.ndarray:
+    return np.column_stack([np.interp(times, t, column) for column in values.T])
+
+
+def predicted_times(system, t, q, p, theta, compilation: Compilation | None = None) -> np.ndarray:
+    """Node times with the site density of the energy rules: ``tau ~ w^(-1/3)``, that is
+    ``w^(1/3)`` nodes per unit time, ``w`` evaluated at the interval midpoints of the grid ``t``,
+    ``q``, ``p``; same number of nodes, same first and last time.
+
+    The new nodes split the integral of ``w^(1/3)`` over the old grid into equal parts: the
+    density is a function of where the motion is, not of the old node's index (taking
+    ``tau_k ~ w_k^(-1/3)`` of the old interval ``k`` put the released kepler e = 0.5 solution up
+    to 37 mean steps away from the prediction and cost 44 damped Newton iterations at N = 1e3;
+    measured)."""
+    N = t.size
+    w = site_weights(system, t, q, p, theta, compilation)
+    # Where w <= 0 the energy rules have no positive step anyway (docs/theory.md
+    # section 7); keep the prediction finite there and let the solve report it.
+    floor = 1e-3 * np.median(np.abs(w)) if np.any(w != 0) else 1.0
+    density = np.maximum(w, floor) ** (1 / 3)
+    mass = np.concatenate([[0.0], np.cumsum(density * np.diff(t))])
+    times = np.interp(np.linspace(0.0, mass[-1], N), mass, t)
+    times[0], times[-1] = t[0], t[-1]
+    return times
+
+
+def site_weights(system, t, q, p, theta, compilation: Compilation | None = None) -> np.ndarray:
+    """``w = f' H_zz f`` at the interval midpoints of the grid ``t``, ``q``, ``p``."""
+    # through the assembly's compiled windows: a VM map built for each N took 1.33 s CPU at
+    # N = 1e6, this 0.08 s, the same values (measured)
+    return evaluate_blocks(system, ("site_weights",), site_density_weight_function(system),
+                           [(q[:-1] + q[1:]) / 2, (p[:-1] + p[1:]) / 2,
+                            ((t[:-1] + t[1:]) / 2)[:, None]], theta,
+                           compilation or Compilation())[0].ravel()
+
+
+def branch_obstacle(request: GridRequest[Boundary], start: dict) -> str | None:
+    """Why the released solve may have no solution near ``start``: the intervals where
+    ``w <= 0``, on which the energy rules have no positive step (docs/theory.md section 7), or
+    ``None`` if there are none."""
+    t = np.asarray(start["t"], float)
+    w = site_weights(request.system, t, np.asarray(start["q"], float),
+                     np.asarray(start["p"], float), request.theta, request.compilation)
+    bad = np.flatnonzero(w <= 0)
+    if bad.size == 0:
+        return None
+    return (f"on the start's branch w = f' H_zz f <= 0 on {bad.size} of {w.size} intervals "
+            f"(t in [{t[bad[0]]:.6g}, {t[bad[-1] + 1]:.6g}]), where the energy rules have no "
+            f"positive step: this branch probably has no {request.scheme.rule} solution; give "
+            f"a start on another branch (guess='march' with p_start, or nodes)")

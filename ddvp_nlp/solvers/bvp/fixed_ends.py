@@ -1,0 +1,482 @@
+"""Fixed-endpoint problems: the whole discrete action's equations on one grid (docs/theory.md
+sections 2, 4, 5).
+
+Given ``q(t_0)``, ``q(t_end)``, ``t_0``, ``t_end`` and ``N`` nodes, the unknowns are the interior
+``q``, all ``p`` and (energy rules) the interior node times; the equations are the canonical
+equations of every interval (``2n(N-1)``) and the energy equation of every interior node
+(``N-2``): a square system. The node times stay variables (a cumulative sum of steps would make
+the Jacobian dense) and every step stays above ``tau_floor > 0``, which excludes the
+time-reversed root. For a Lagrangian system the interval equations are its discrete Legendre
+transform (``discrete/lagrangian_action.py``), in the same unknowns.
+
+The system is assembled node by node (``assembly.py``): its Jacobian is banded, with
+bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
+
+- ``"newton"``: Newton's method with banded LU, a line search on the residual and the
+  ``tau_floor`` safeguard (``grid/newton.py``; blocks compiled, band LU in C, ``grid/band.py``):
+  ``O(N)`` time and memory per iteration;
+- ``"ipopt"``: IPOPT on the same assembly through callbacks (``ipopt.py``, the grid's IPOPT
+  build), the design's NLP solver. Its tolerance on the released times is the rows' round-off
+  where that is above ``1e-2 tol`` (``phase.ipopt_floor``: the energy rows divided by the mean
+  step carry ``eps |E| / h``, 1e-11 at N = 1e6), and it is not run from a start that already
+  passes the verification (the start phases' own point, at large N);
+- ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
+  then IPOPT from the same start if Newton's point does not pass the verification.
+
+Starts: ``start.py`` (straight line or shooting, then fixed steps on uniform and on predicted
+times, then the times released).
+
+Every returned point is verified by its own unscaled residuals, whatever the solver said
+(IPOPT's default ``constr_viol_tol`` once accepted node times off by 3e-2): success means the
+largest canonical residual (increment form) is below ``max(tol, c)`` and the largest energy
+residual below ``max(tol (t_end - t_0)/(N-1), c_E)`` (the energy equation's derivative in a node
+time is ``O(tau)``, so this makes ``tol`` a tolerance on node times whatever ``N``), with ``c``,
+``c_E`` 1024 round-offs of the rows' magnitudes (``max(1, |q_start|, |q_end|, |t_0|, |t_end|)``
+and ``max(1, |E_k|)``: below those no solver can go), and every step is positive. The message says
+what the solver said.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+
+import numpy as np
+
+from ...discrete import equations
+from ...discrete.scheme import Scheme
+from ...errors import InputError
+from ...physics.hamiltonian import HamiltonianSystem
+from ...solution import Solution, Status
+from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
+from ..accuracy.judgement import Judgement, Level, apply_verdict
+from ..compiler import find_compiler
+from ..dense import attach
+from ..grid.problem import GridRequest, timed_out
+from ..options import Compilation, GridOptions, Output, Tolerance, coerce
+from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
+from .first_guess import Shooting, branch_obstacle, first_solver, start_point
+from .interleaved import NodeLayout
+from .phases import (
+    EPS,
+    ROUND_OFF_ALLOWANCE,
+    Boundary,
+    assembly,
+    ends,
+    mean_step,
+    round_off_scales,
+    run_phase,
+)
+
+GUESSES = ("straight", "march")
+# What a failed solve from a built-in start suggests: over a long horizon the problem has many
+# solutions, and the straight line (a motion that never turns) rarely leads to one (henon_heiles
+# over 50 time units at N = 1e3: failed from it, solved in 7 iterations from a fixed-step march;
+# measured).
+START_HINT = {
+    "straight": "the straight-line start may lead to another solution or to none: give "
+                "guess=Shooting(p_start) (shooting, p_start near the motion's momentum) or a "
+                "march's "
+                "nodes as the guess",
+    "march": "shooting picks the branch the march from p_start reaches: try another p_start, "
+             "or a march's nodes as the guess"}
+# The defaults of GridOptions' None fields for this problem.
+DEFAULT_TOL = 1e-9
+DEFAULT_MAX_ITER = 200
+
+
+def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
+              scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
+              guess: Solution | Mapping | Shooting | str | None = None, times=None,
+              options: GridOptions | None = None, compilation: Compilation | None = None,
+              output: Output | None = None) -> Solution:
+    """Solve the fixed-endpoint problem ``q(t_0) = q_start``, ``q(t_end) = q_end`` on ``nodes``.
+
+    Args:
+        system: the Hamiltonian (or Lagrangian) system.
+        q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
+        t_span: ``(t0, t_end)``, the two end times; or ``AtEnergy(E, t0, duration)``: a
+            transfer at the prescribed energy ``E`` with the end time an unknown
+            (``energy.py``: the fixed-time problem at the guessed duration first, then the end
+            time released; Newton only).
+        nodes: number of nodes ``N >= 3``.
+        scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a `Scheme`.
+        params: the system's parameter values.
+        guess: ``"straight"`` (default), shooting (``Shooting(p_start)``, the momentum it
+            starts from choosing the branch of a problem with several solutions; ``"march"``
+            is ``Shooting()``, from the straight line's momentum; ``start.py``), or a start: a
+            `Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
+            arrays (``nodes`` rows, or any number of rows, resampled by node index onto
+            ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
+        times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
+        options: the solver (``"auto"``, the default, ``"newton"`` or ``"ipopt"``; module
+            docstring), the verification tolerance ``tol`` (default 1e-9), ``max_iter`` per
+            phase (default 200), ``tau_floor`` (default ``1e-3 (t_end - t_0)/(N-1)``), the
+            linear solver, a ``time_limit`` and IPOPT's log (`GridOptions`).
+        compilation: which compiled code the assembly and the band LU run.
+        output: ``progress`` reports each Newton iteration (and IPOPT's log) on stderr.
+
+    Returns:
+        A `Solution` whose ``stats`` hold each phase's solver verdict, the largest
+        residuals, the action and the number of sign changes of each ``p`` component (which of
+        several solutions it is); failures are a status on it.
+    """
+    output = coerce(output, Output, "output")
+    if output.checkpoint is not None or output.stop is not None:
+        raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
+                         "and stop belong to a march")
+    if isinstance(t_span, AtEnergy):
+        return _transfer(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
+                         params=params, guess=guess, options=options, compilation=compilation,
+                         output=output)
+    request, start = _checked(system, q_start, q_end, t_span, nodes=nodes, scheme=scheme,
+                              params=params, guess=guess, times=times,
+                              options=coerce(options, GridOptions, "options"),
+                              compilation=coerce(compilation, Compilation, "compilation"),
+                              output=output)
+    started = request.start_clock()
+    start_kind = start
+    start = start_point(request, start)
+    layout = NodeLayout(system.n, request.nodes)
+    x0 = layout.pack(np.asarray(start["t"], float), np.asarray(start["q"], float),
+                     np.asarray(start["p"], float))
+    name = f"{request.scheme.rule} equations"
+    x, phase, outcome = _final_phase(request, x0, name)
+    obstacle = branch_obstacle(request, start) if outcome[0] is not Status.SUCCESS \
+        and request.scheme.variable_steps else None
+    if request.solver == "auto" and outcome[0] is not Status.SUCCESS \
+            and outcome[0] is not Status.TIME_LIMIT:
+        if obstacle is None:
+            x_ipopt, phase_ipopt = run_phase(request, request.scheme, x0, name, "ipopt")
+            fallback = _outcome(request, x_ipopt, phase_ipopt)
+            if fallback[0] is Status.SUCCESS:
+                x, phase, outcome = x_ipopt, phase_ipopt, fallback
+        else:
+            # IPOPT from the same start: kepler's radial branch took 200 iterations (150 s at
+            # N = 1e4) to end where Newton did (measured)
+            obstacle += " (IPOPT not tried from this start)"
+    if obstacle is not None and outcome[0] is not Status.SUCCESS:
+        outcome = (outcome[0], f"{outcome[1]}; {obstacle}", outcome[2])
+    elif outcome[0] is not Status.SUCCESS and isinstance(start_kind, str) \
+            and outcome[0] is not Status.TIME_LIMIT:
+        outcome = (outcome[0], f"{outcome[1]}; {START_HINT[start_kind]}", outcome[2])
+    solution = _solution(request, x, phase, outcome, started)
+    return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
+
+
+def _final_phase(request: GridRequest, x0: np.ndarray, name: str):
+    """``(x, phase, outcome)`` of the scheme's own system solved from ``x0``. IPOPT is not run
+    from a start that already passes the verification: the start phases end that close at
+    N = 1e6 on the pendulum (inf_pr 2.5e-11), and IPOPT had nothing left to do but iterate on
+    round-off (measured). Newton is always run: its targets are tighter than the
+    verification."""
+    solver = first_solver(request)
+    # The start phases' IPOPT problems are done with: each holds its solver's memory (MUMPS's
+    # factors among it), about 3 GB at N = 1e6, while the verification builds the assembly.
+    request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != request.scheme)
+    if solver == "ipopt":
+        skipped = {"phase": name, "solver": solver, "converged": True,
+                   "return_status": "not run: the start passes the verification",
+                   "iterations": 0, "seconds": 0.0}
+        outcome = _outcome(request, x0, skipped)
+        if outcome[0] is Status.SUCCESS:
+            request.phases.append(skipped)
+            return x0, skipped, outcome
+    x, phase = run_phase(request, request.scheme, x0, name, solver)
+    return x, phase, _outcome(request, x, phase)
+
+
+def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, guess, options,
+              compilation, output) -> Solution:
+    """A transfer at a prescribed energy (``energy.py``): the fixed-time problem at the guessed
+    duration, then the end time released."""
+    scheme = Scheme.coerce(scheme)
+    if not isinstance(system, HamiltonianSystem):
+        raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    options = coerce(options, GridOptions, "options")
+    check_transfer(system, scheme, options)
+    theta = system.parameter_vector(params)
+    q_a, q_b = check_state("q_start", q_start, system.n), check_state("q_end", q_end, system.n)
+    duration = span.duration or duration_guess(system, theta, q_a, q_b, span.energy, guess)
+
+    def solve_fixed(length, start):
+        return solve_bvp(system, q_a, q_b, (span.t0, span.t0 + length), nodes=nodes,
+                         scheme=scheme, params=params, guess=guess if start is None else start,
+                         options=options, compilation=compilation, output=output)
+    fixed, durations = fixed_time_start(solve_fixed, system, scheme, theta, duration,
+                                        span.energy)
+    if not fixed.success:
+        fixed.message = (f"the fixed-time problem at the guessed duration {duration:.6g} was "
+                         f"not solved, so the end time was not released: {fixed.message}")
+        return fixed
+    resolved = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
+                                max_iter=resolved.max_iter,
+                                compilation=coerce(compilation, Compilation, "compilation"),
+                                accuracy=options.accuracy)
+    solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
+    return attach(solution, system, theta, solution.t[-1])
+
+
+def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, times,
+             options: GridOptions, compilation: Compilation, output: Output):
+    """The validated `GridRequest` and start (``InputError`` naming the argument and
+    value, before anything is built)."""
+    scheme = Scheme.coerce(scheme)
+    if not isinstance(system, HamiltonianSystem):
+        raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    n = system.n
+    q_start = check_state("q_start", q_start, n)
+    q_end = check_state("q_end", q_end, n)
+    t0, t1 = check_span(t_span)
+    nodes = check_integer("nodes", nodes, minimum=3)
+    options = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    _check_memory(nodes, n, options.solver)
+    mean = (t1 - t0) / (nodes - 1)
+    tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None
+                           else options.tau_floor, positive=True)
+    if tau_floor >= mean:
+        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
+                         f"got {tau_floor!r}")
+    grid_times = _check_times(times, nodes, t0, t1)
+    p_start = None
+    if isinstance(guess, Shooting):
+        start = "march"
+        if guess.p_start is not None:
+            p_start = check_state("p_start", guess.p_start, n)
+    elif guess is None or (isinstance(guess, str) and guess in GUESSES):
+        start = guess or "straight"
+    elif isinstance(guess, str):
+        raise InputError(f"unknown guess {guess!r} (choose from {', '.join(GUESSES)}, or give "
+                         f"Shooting(p_start), a Solution or a mapping with t, q and p)")
+    else:
+        start = _check_guess(guess, nodes, n, t0, t1)
+    request = GridRequest(system, scheme, nodes, system.parameter_vector(params),
+                          Boundary(q_start, q_end, t0, t1, grid_times, p_start), options,
+                          compilation, tau_floor=tau_floor, progress=output.progress)
+    return request, start
+
+
+# Peak memory per node, measured (docs/benchmarks/bench_bvp.md, bench_ipopt.md): Newton 0.67 GB
+# at 1e6 nodes of the pendulum (n = 1; 1.06 GB before the band store was reused), IPOPT on the
+# assembly 3.9-4.3 GB at 1e6 (9.3 GB before its tolerance sat at the rows' round-off and the
+# pinned times left its patterns); the blocks grow like (2n + 1)^2.
+BYTES_PER_NODE = {"newton": 0.8e3, "auto": 0.8e3, "ipopt": 4.5e3}
+
+
+def _check_memory(nodes: int, n: int, solver: str) -> None:
+    """Refuse a grid whose estimated peak memory exceeds what this machine has available."""
+    per_node = BYTES_PER_NODE.get(solver, BYTES_PER_NODE["ipopt"]) * ((2 * n + 1) / 3) ** 2
+    needed = nodes * per_node
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise InputError(
+            f"nodes = {nodes} needs about {needed / 1e9:.3g} GB with solver {solver!r} "
+            f"(measured {per_node / 1e3:.3g} kB per node for n = {n}), more than the "
+            f"{available / 1e9:.3g} GB this machine has available")
+
+
+def _available_memory() -> float | None:
+    """Bytes of memory available (``MemAvailable`` of /proc/meminfo), or None if unknown."""
+    try:
+        with open("/proc/meminfo") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        return None
+    return None
+
+
+def _residuals(request: GridRequest, x: np.ndarray):
+    """Canonical ``(N-1, 2n)`` and energy ``(N-2,)`` residuals of ``x``, unscaled (for ``fixed``
+    steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it)."""
+    if not request.scheme.variable_steps:
+        t, q, p = NodeLayout(request.system.n, request.nodes).unpack(x)
+        return equations.grid_residuals(request.system, request.scheme, t, q, p, request.theta)
+    grid = assembly(request, request.scheme)
+    data = ends(request, request.scheme)
+    F, _ = grid.evaluate(x, data, jacobian=False)
+    return grid.residuals(F, data)
+
+
+def _outcome(request: GridRequest, x: np.ndarray, phase: dict):
+    """``(status, message, stats)`` of the point ``x`` that ``phase`` returned."""
+    t = x.reshape(request.nodes, -1)[:, 0]
+    finite = bool(np.all(np.isfinite(x)))
+    canonical, energy = _residuals(request, x) if finite else (None, None)
+    # The canonical rows' round-off is measured on the data, not on the point: a diverged
+    # iterate's own magnitude would excuse any residual.
+    boundary = request.data
+    data = max(1.0, *np.abs(boundary.q_start), *np.abs(boundary.q_end), abs(boundary.t0),
+               abs(boundary.t1))
+    scales = (data, round_off_scales(request, x, request.scheme)[1]) if finite else (1.0, 1.0)
+    limits = (max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales[0]),
+              max(request.tol * mean_step(request), ROUND_OFF_ALLOWANCE * EPS * scales[1]))
+    stats = {"canonical_limit": limits[0], "energy_limit": limits[1],
+             "canonical": canonical, "energy": energy}
+    status, message = _verify(phase, t, canonical, energy, request.scheme, limits, stats)
+    return status, message, stats
+
+
+def _verify(phase, t, canonical, energy, scheme, limits, stats):
+    """Status and message from the point's own residuals; the solver's verdict is quoted, and
+    decides only when the point fails (solver failure, time limit)."""
+    if canonical is None:
+        return Status.NON_FINITE, (f"the solver returned non-finite values "
+                                   f"({phase['solver']}: {phase['return_status']})")
+    tau = np.diff(t)
+    worst_canonical = float(np.max(np.abs(canonical)))
+    worst_energy = float(np.max(np.abs(energy), initial=0.0))
+    stats.update(canonical_residual_max=worst_canonical, energy_residual_max=worst_energy,
+                 tau_min=float(np.min(tau)))
+    problems = []
+    if np.min(tau) <= 0:
+        k = int(np.argmin(tau))
+        problems.append(f"step {k} is not positive: tau = {tau[k]:.6g} (t = {t[k]:.10g})")
+    if worst_canonical > limits[0]:
+        k = int(np.argmax(np.max(np.abs(canonical), axis=1)))
+        problems.append(f"canonical residual {worst_canonical:.3e} on interval {k} "
+                        f"(t = {t[k]:.6g})")
+    if scheme.variable_steps and worst_energy > limits[1]:
+        k = int(np.argmax(np.abs(energy))) + 1
+        problems.append(f"energy residual {worst_energy:.3e} at node {k} (t = {t[k]:.6g}), "
+                        f"tolerance {limits[1]:.3e}")
+    said = f"{phase['solver']}: {phase['return_status']}"
+    if not problems:
+        return Status.SUCCESS, (f"solved and verified: largest residuals canonical "
+                                f"{worst_canonical:.3e}, energy {worst_energy:.3e}; "
+                                f"{phase['iterations']} iterations ({said})")
+    detail = "".join(f"; {p}" for p in problems)
+    if timed_out(phase["return_status"]):
+        return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value} ({said}){detail}"
+    if not phase["converged"]:
+        return Status.SOLVER_FAILED, f"{Status.SOLVER_FAILED.value} ({said}){detail}"
+    if np.min(tau) <= 0:
+        return Status.NO_ADMISSIBLE_STEP, problems[0] + f" ({said})"
+    return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {'; '.join(problems)} ({said})"
+
+
+def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
+    status, message, checks = outcome
+    layout = NodeLayout(request.system.n, request.nodes)
+    t, q, p = layout.unpack(x)
+    finite = bool(np.all(np.isfinite(x)))
+    canonical, energy = checks.pop("canonical"), checks.pop("energy")
+    if canonical is None:
+        canonical = np.full((request.nodes - 1, 2 * request.system.n), np.nan)
+        energy = np.full(request.nodes - 2 if request.scheme.variable_steps else 0, np.nan)
+    phases = request.phases
+    sign_changes = [int(np.count_nonzero(np.diff(np.sign(p[:, i])) != 0))
+                    for i in range(request.system.n)]
+    if status is Status.SUCCESS:
+        if len(sign_changes) == 1:
+            message += f"; p changes sign {sign_changes[0]} times"
+        else:
+            message += "; sign changes of " + ", ".join(
+                f"p{i + 1}: {count}" for i, count in enumerate(sign_changes))
+    stats = {"solver": phase["solver"], "phases": phases, "return_status":
+             phase["return_status"], "iterations": phase["iterations"],
+             "iterations_total": sum(ph["iterations"] for ph in phases),
+             "action": assembly(request, request.scheme).action(x, request.theta)
+             if finite else math.nan,
+             "energy_scale": mean_step(request), "tau_floor": request.tau_floor,
+             "p_sign_changes": sign_changes, **checks}
+    local_error = np.zeros(0)
+    if finite:
+        stats["accuracy"], local_error = _accuracy(request, t, q, p)
+    total = time.perf_counter() - started
+    solution = Solution(
+        t=t, q=q, p=p, status=status, message=message, scheme=request.scheme.rule,
+        energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
+        newton_iterations=stats["iterations_total"], local_error=local_error,
+        timing={"build_s": request.build_s, "solve_s": total - request.build_s}, stats=stats)
+    if finite:
+        apply_verdict(solution, stats["accuracy"], request.options.accuracy or Tolerance(),
+                      advice="try more nodes")
+    return solution
+
+
+def _accuracy(request: GridRequest, t, q, p):
+    """The accuracy check (``accuracy.py``) on the grid, against the exact flow: each interval,
+    the energy level of the first interval (energy rules), the nodal drift; then the continuous
+    problem, solved by shooting from the solution's own momentum (``continuous.py``): with a
+    continuous solution near, the grid's trajectory is judged against it; with none, the
+    problem is refused with that reason (a verified discrete solution can exist where no
+    motion does: its end error, small beside a huge motion, says nothing then)."""
+    from ..exact.shooting import shoot
+
+    system, scheme = request.system, request.scheme
+    tolerance = request.options.accuracy or Tolerance()
+    level = None
+    if scheme.variable_steps:
+        value = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
+                                                  request.theta)[0])
+        level = Level(value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
+                                   else t[0]))
+    judge = Judgement(system, request.theta, tolerance,
+                      compiler=find_compiler(request.compilation.compiler),
+                      cache_dir=request.compilation.cache_dir)
+    z = np.hstack([q, p])
+    report, local = judge.report(t, z, level=level)
+    if report["verdict"] == "inaccurate":
+        return report, local
+    scale = np.asarray(report["scale"])
+    shot = shoot(judge.reference, t, z, q[-1], scale)
+    if shot.states is None:
+        report["verdict"] = "inaccurate"
+        report["first_failure"] = {"step": t.size - 2, "t": float(t[-2]),
+                                   "test": "continuous solution", "value": None,
+                                   "limit": tolerance.global_tol, "detail": shot.reason}
+        return report, local
+    states = shot.states
+    report, local = judge.report(t, z, level=level, exact=lambda _: states)
+    report["estimate"] = ("the continuous solution near this one (shooting with the reference "
+                          f"flow: p_0 = {shot.p0.tolist()})")
+    return report, local
+
+
+def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
+    """The fixed rule's node times: uniform by default, else ``nodes`` increasing values from
+    ``t0`` to ``t1``."""
+    if times is None:
+        return np.linspace(t0, t1, nodes)
+    try:
+        grid_times = np.asarray(times, float)
+    except (TypeError, ValueError):
+        grid_times = np.zeros(0)
+    if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
+            or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
+        raise InputError(f"times must be {nodes} increasing finite values from t_0 to "
+                         f"t_end, got {times!r}")
+    return grid_times
+
+
+def _check_guess(guess, nodes, n, t0, t1) -> dict:
+    """The guess's ``t``, ``q``, ``p`` on ``nodes`` rows: as given, or resampled by node index
+    (linear interpolation between the guess's rows, so that its step distribution is kept) with
+    the times mapped affinely onto ``[t0, t1]``."""
+    if isinstance(guess, Solution):
+        guess = {"t": guess.t, "q": guess.q, "p": guess.p}
+    if not isinstance(guess, Mapping) or not {"t", "q", "p"} <= set(guess):
+        raise InputError("guess must be a Solution or a mapping with t, q and p")
+    rows = np.shape(guess["t"])[0] if np.ndim(guess["t"]) == 1 else -1
+    if rows < 2:
+        raise InputError(f"guess['t'] must be a vector of at least 2 times, got shape "
+                         f"{np.shape(guess['t'])}")
+    shapes = {"t": (rows,), "q": (rows, n), "p": (rows, n)}
+    result = {}
+    for key, shape in shapes.items():
+        result[key] = check_finite_array(f"guess[{key!r}]", guess[key], shape)
+    if np.any(np.diff(result["t"]) <= 0):
+        raise InputError("guess['t'] must increase")
+    if rows == nodes:
+        return result
+    index = np.linspace(0.0, rows - 1, nodes)
+    old = np.arange(rows)
+    t = np.interp(index, old, result["t"])
+    t = t0 + (t - t[0]) * (t1 - t0) / (t[-1] - t[0])
+    t[0], t[-1] = t0, t1
+    return {"t": t, **{key: np.column_stack([np.interp(index, old, c) for c in result[key].T])
+                       for key in ("q", "p")}}

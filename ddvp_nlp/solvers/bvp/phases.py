@@ -1,0 +1,165 @@
+"""One solve of the fixed-endpoint system by one solver: the unit the starts and the final
+solve are made of (``solve.py``, ``start.py``).
+
+The inputs of a ``solve_bvp`` call are a `GridRequest`
+whose ``data`` is a `Boundary`; `run_phase` solves the system of a scheme (the
+user's, or ``fixed`` on given times for the start) from a point, by the grid's Newton
+(``grid/newton.py``) or IPOPT (``ipopt.py`` on ``grid/ipopt.py``), and records what the solver
+said. The built problems are cached per system (``GridRequest.built``), their build time
+counted apart.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...discrete import equations
+from ...discrete.scheme import Scheme
+from ..grid.linear import band_kernel
+from ..grid.newton import newton
+from ..grid.problem import GridRequest
+from .ends_nlp import BvpIpopt
+from .interleaved import Ends, GridAssembly
+
+EPS = np.finfo(float).eps
+# Newton's target on each row: this many units of the row's round-off (module docstring of
+# grid/newton.py); verification allows ROUND_OFF_ALLOWANCE of them (solve.py).
+TARGET_ULPS = 16
+ROUND_OFF_ALLOWANCE = 1024
+
+
+@dataclass
+class Boundary:
+    """The data of a fixed-endpoint problem: the end positions and times, the node times of
+    the ``fixed`` rule, and the momentum shooting starts from (``guess="march"``)."""
+
+    q_start: np.ndarray
+    q_end: np.ndarray
+    t0: float
+    t1: float
+    grid_times: np.ndarray
+    p_start: np.ndarray | None = None
+
+
+def mean_step(request: GridRequest[Boundary]) -> float:
+    return (request.data.t1 - request.data.t0) / (request.nodes - 1)
+
+
+def ends(request: GridRequest[Boundary], scheme: Scheme, times=None) -> Ends:
+    """The data of the system of ``scheme``: for ``fixed``, on ``times`` (default the
+    request's grid)."""
+    data = request.data
+    if scheme.variable_steps:
+        return Ends(data.q_start, data.q_end, np.array([data.t0, data.t1]), request.theta,
+                    mean_step(request))
+    return Ends(data.q_start, data.q_end,
+                data.grid_times if times is None else np.asarray(times, float),
+                request.theta, 1.0)
+
+
+def assembly(request: GridRequest, scheme: Scheme) -> GridAssembly:
+    compilation = request.compilation
+    return request.built(("bvp_assembly", scheme, request.nodes, compilation.compiler,
+                          str(compilation.cache_dir)),
+                         lambda: GridAssembly(request.system, scheme, request.nodes,
+                                              compilation))
+
+
+def round_off_scales(request: GridRequest, x: np.ndarray, scheme: Scheme):
+    """``(canonical, energy)``: the magnitude whose round-off bounds a canonical row
+    (``max(1, |q|, |p|, |t|)``) and an unscaled energy row (``max(1, |E_k|)`` on up to 1000
+    sampled intervals)."""
+    m = 2 * request.system.n + 1
+    z = x.reshape(-1, m)
+    canonical = float(max(1.0, np.max(np.abs(z))))
+    if not scheme.variable_steps:
+        return canonical, 1.0
+    k = np.unique(np.linspace(0, request.nodes - 2, min(request.nodes - 1, 1000)).astype(int))
+    n = request.system.n
+    E = equations.interval_energies(request.system, scheme, z[np.r_[k, k[-1] + 1], 0],
+                                    z[np.r_[k, k[-1] + 1], 1:n + 1],
+                                    z[np.r_[k, k[-1] + 1], n + 1:], request.theta)
+    return canonical, float(max(1.0, np.max(np.abs(E[:-1]))) if E.size > 1 else 1.0)
+
+
+def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> np.ndarray:
+    """Per-row ``|F_i|`` targets: ``TARGET_ULPS`` round-offs of each row (the energy rows in
+    their scaled units)."""
+    n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
+    canonical, energy = round_off_scales(request, x, grid.scheme)
+    target = np.full(N * m, TARGET_ULPS * EPS * canonical)
+    body = target[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
+    if grid.scheme.variable_steps:
+        body[:-1, 2 * n] = TARGET_ULPS * EPS * energy / data.energy_scale
+    return target
+
+
+def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, solver: str,
+              times=None):
+    """``(x, phase)``: the system of ``scheme`` solved from ``x0`` by ``solver``; ``phase``
+    records the solver's own verdict (``converged``, ``return_status``, ``iterations``)."""
+    data = ends(request, scheme, times)
+    started = time.perf_counter()
+    if solver == "newton":
+        grid = assembly(request, scheme)
+        result = newton(grid, x0, data, newton_targets(request, grid, x0, data),
+                        tau_floor=request.tau_floor if scheme.variable_steps else -np.inf,
+                        max_iter=request.max_iter, linear=request.linear,
+                        kernel=band_kernel(request.compilation), deadline=request.deadline,
+                        progress=_reporter(name) if request.progress else None)
+    else:
+        result = _ipopt(request, scheme, x0, data)
+    x, converged, said, iterations = (result.x, result.converged, result.outcome,
+                                      result.iterations)
+    phase = {"phase": name, "solver": solver, "converged": converged, "return_status": said,
+             "iterations": iterations, "seconds": time.perf_counter() - started}
+    request.phases.append(phase)
+    return x, phase
+
+
+def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends) -> float:
+    """The round-off of the rows IPOPT sees near ``x``, ``TARGET_ULPS`` units of the largest:
+    the canonical rows' ``eps max(1, |q|, |p|, |t|)`` and (energy rules) the energy rows'
+    ``eps max(1, |E_k|)`` divided by the energy scale, the mean step (1e-11 at N = 1e6 on the
+    pendulum), rounded up to two digits so that nearby starts share a built problem."""
+    canonical, energy = round_off_scales(request, x, scheme)
+    floor = TARGET_ULPS * EPS * max(canonical, energy / data.energy_scale)
+    digits = 10.0 ** (np.floor(np.log10(floor)) - 1)
+    return float(np.ceil(floor / digits) * digits)
+
+
+def _ipopt(request: GridRequest, scheme: Scheme, x0: np.ndarray, data: Ends):
+    """IPOPT's solve of the system of ``scheme`` from ``x0``: the request's own system to
+    ``tol`` (but not below the rows' round-off, `ipopt_floor`), a start phase to that
+    round-off. Before a released problem is built the fixed-step ones are
+    dropped from the cache: at N = 1e6 the fixed-step one held about 3 GB while the released
+    one was built (measured)."""
+    remaining = request.remaining()
+    compilation = request.compilation
+    floor = ipopt_floor(request, x0, scheme, data)
+    # A start phase (another scheme than the request's: fixed steps) ends where Newton's does,
+    # at its rows' round-off: at 1e-2 tol = 1e-11 IPOPT took the predicted times' start as it
+    # came at N = 1e6 (0 iterations), the released rows were then 2.5e-12 off, above the
+    # verification, and one IPOPT iteration on them cost 38 s and 7.9 GB (measured).
+    tol = request.tol if scheme == request.scheme else floor
+    if scheme.variable_steps:
+        request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != scheme)
+    problem = request.built(("bvp_ipopt", scheme, request.nodes, request.max_iter,
+                             tol, floor, request.verbose, remaining, compilation),
+                            lambda: BvpIpopt(request.system, scheme, request.nodes,
+                                             tol=tol, max_iter=request.max_iter,
+                                             verbose=request.verbose or request.progress,
+                                             time_limit=remaining, compilation=compilation,
+                                             floor=floor))
+    return problem.solve(x0, data, request.tau_floor)
+
+
+def _reporter(name: str):
+    def report(iteration, norm, alpha):
+        print(f"bvp [{name}]: iteration {iteration}, |F| = {norm:.3e}, step {alpha:.3g}",
+              file=sys.stderr, flush=True)
+    return report

@@ -1,0 +1,467 @@
+"""A family of periodic orbits by pseudo-arclength continuation in the energy, with each member's
+stability and the bifurcations along it located.
+
+The family is the solution curve of ``F(x; E) = 0``, the periodic system of ``assembly.py``
+(``x``: the nodes, node times and unfolding parameters of ``N`` intervals) with the energy ``E``
+an unknown too. From a member ``y_i = (x_i, E_i)`` with unit tangent ``t_i`` (``F_x t_x + F_E
+t_E = 0``, ``<t_i, t_i> = 1``; oriented as the previous one) the next member solves::
+
+    F(x; E) = 0,    <t_i, y - y_i> = ds          (Keller's pseudo-arclength)
+
+by the grid's Newton (sparse LU of the bordered Jacobian ``[[F_x, F_E], [W t_i^T, 0]]``) from
+the predictor ``y_i + ds t_i``. ``<a, b> = sum_j a_j b_j / K + a_E b_E`` (``K`` the number of
+node values): the nodes count by their mean square, so that a step is about as long in the
+orbit as in ``E``. At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
+``t_E`` changes sign and the bordered matrix stays regular: the continuation passes it. The step
+``ds`` grows by 1.5 after a corrector that took at most 3 iterations and halves after one that
+failed; every member is then verified by `solve_periodic` (its residuals, its
+accuracy check), which starts from it.
+
+Each member's stability is its discrete monodromy's (``stability.py``). Bifurcations are sign
+changes between neighbours of three test functions, smooth along the family whatever order the
+multipliers come in:
+
+- ``t_E``: a **fold** (the family turns back in ``E``; a multiplier pair passes +1 with it);
+- ``det(R - I) = prod_j (2 - k_j)`` (``R`` the reduced monodromy, ``k_j`` the stability
+  indices): a pair passes **+1** without a fold: a **branch point** (a symmetry-breaking
+  pitchfork, such as the halo family's birth from the planar Lyapunov family);
+- ``det(R + I) = prod_j (2 + k_j)``: a pair passes **-1**: **period doubling**.
+
+Each is located by Brent's method (bisection safeguarded by secant steps) in the arclength
+``s`` between the two members, every evaluation a corrector solve at ``<t_i, y - y_i> = s``,
+until the bracket's energies are within ``locate_tol``; the orbit at the located point is
+verified like a member.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.optimize import brentq
+
+from ...discrete.scheme import Scheme
+from ...errors import InputError
+from ...solution import Solution
+from ...validation import check_integer, check_real
+from ..grid.newton import newton
+from ..options import GridOptions, coerce
+from .bifurcation import KINDS, confirm, tests
+from .closed_grid import Closure, PeriodicAssembly, integral_gradients
+from .first_orbit import closing_shift
+from .floquet import DEFAULT_TOL, Stability, discrete_stability, periodic_stability
+from .orbit import EPS, TARGET_ROUND_OFFS, check_periodic, parse_section, solve_periodic
+
+# Corrector: iterations, and those at most of which the step grows.
+CORRECTOR_ITERATIONS = 15
+EASY_ITERATIONS = 3
+
+
+@dataclass(frozen=True)
+class Continuation:
+    """How `follow_periodic_family` walks along the family.
+
+    Attributes:
+        step: the first step, in the energy (default a twentieth of the range).
+        max_step: the longest step, in the energy (default a tenth of the range).
+        max_orbits: at most this many members.
+        min_step: the continuation stops when a failed step has been halved below this
+            fraction of the first step.
+        tol: the tolerance of the stability verdicts, on the stability indices.
+        locate_tol: the located bifurcations' bracket in the energy, relative to
+            ``max(1, |E|)``.
+        exact: close the exact flow at every member and analyse its monodromy
+            (`periodic_stability`; about 0.1-1 s an orbit).
+        confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
+    """
+
+    step: float | None = None
+    max_step: float | None = None
+    max_orbits: int = 200
+    min_step: float = 1e-4
+    tol: float = DEFAULT_TOL
+    locate_tol: float = 1e-10
+    exact: bool = True
+    confirm: bool = True
+
+    def __post_init__(self):
+        for name in ("step", "max_step"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, check_real(name, value, positive=True))
+        object.__setattr__(self, "max_orbits", check_integer("max_orbits", self.max_orbits,
+                                                             minimum=2))
+        for name in ("min_step", "tol", "locate_tol"):
+            object.__setattr__(self, name, check_real(name, getattr(self, name), positive=True))
+
+
+@dataclass
+class Member:
+    """One orbit of the family: its energy, the verified orbit, its stability, its arclength
+    from the first member and the energy component of its unit tangent (``dE/ds``)."""
+
+    energy: float
+    orbit: Solution
+    stability: Stability
+    arclength: float
+    slope: float
+
+
+@dataclass
+class Bifurcation:
+    """A located bifurcation: its kind (``KINDS``), energy, the energies of the final bracket,
+    the member it follows, the test function's values at the two members, the verified orbit
+    at the located point and its stability."""
+
+    kind: str
+    energy: float
+    bracket: tuple
+    after: int
+    tests: tuple
+    orbit: Solution
+    stability: Stability
+    extra: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        indices = self.stability.indices
+        return {"kind": self.kind, "energy": self.energy, "bracket": list(self.bracket),
+                "after_member": self.after, "period": self.orbit.stats["period"],
+                "indices": [[float(k.real), float(k.imag)] for k in indices],
+                "status": self.orbit.status.code, **self.extra}
+
+
+@dataclass
+class Family:
+    """The members in the order of the continuation, the bifurcations located between them,
+    and how the continuation ended (``message``; ``complete`` when it left the energy range).
+    ``unlocated``: sign changes of a test function whose location failed (the corrector lost
+    the family inside the bracket), each ``{"kind", "after_member", "energies"}``: reported,
+    not dropped."""
+
+    members: list
+    bifurcations: list
+    complete: bool
+    message: str
+    seconds: float = 0.0
+    unlocated: list = field(default_factory=list)
+
+
+@dataclass
+class _Arc:
+    """The data of one corrector solve: the closure (its energy is replaced by the unknown),
+    the weighted tangent row, the point the arclength is measured from and the arclength."""
+
+    closure: Closure
+    row: np.ndarray
+    origin: np.ndarray
+    length: float
+
+
+@dataclass(frozen=True)
+class _ArcLayout:
+    base: object
+
+    @property
+    def size(self) -> int:
+        return self.base.size + 1
+
+    @property
+    def bandwidth(self) -> int:
+        return self.size
+
+    def time_index(self) -> np.ndarray:
+        return self.base.time_index()
+
+
+class ArclengthSystem:
+    """``F(x; E)`` with ``E`` the last unknown, and the arclength row (module docstring): a
+    ``grid.GridProblem`` for the grid's Newton (sparse LU)."""
+
+    def __init__(self, assembly: PeriodicAssembly):
+        self.base = assembly
+        self.layout = _ArcLayout(assembly.layout)
+        N, m, h = assembly.layout.intervals, assembly.layout.m, assembly.header
+        rows = h + np.arange(N) * m + m - 1  # the rows H(Q_k, P_k) - E
+        self.energy_column = sp.csc_matrix((-np.ones(N), (rows, np.zeros(N, int))),
+                                           (assembly.layout.size, 1))
+        count = assembly.layout.nodes * m
+        self.weights = np.r_[np.full(count, 1.0 / count), np.zeros(assembly.layout.unfoldings),
+                             1.0]
+
+    def evaluate(self, y: np.ndarray, arc: _Arc, jacobian: bool = True):
+        closure = replace(arc.closure, energy=float(y[-1]))
+        F, blocks = self.base.evaluate(y[:-1], closure, jacobian)
+        F = np.r_[F, arc.row @ (y - arc.origin) - arc.length]
+        if not jacobian:
+            return F, None
+        return F, self.bordered(blocks, arc.row)
+
+    def bordered(self, blocks, row: np.ndarray) -> sp.csc_matrix:
+        return sp.bmat([[self.base.sparse(blocks), self.energy_column],
+                        [sp.csr_matrix(row[None, :-1]), sp.csr_matrix(row[None, -1:])]],
+                       format="csc")
+
+    def sparse(self, jacobian):
+        return jacobian
+
+    def release(self) -> None:
+        self.base.release()
+
+    def tangent(self, y: np.ndarray, closure: Closure, previous: np.ndarray) -> np.ndarray:
+        """The unit tangent at ``y`` oriented along ``previous`` (``<t, previous> > 0``)."""
+        _, blocks = self.base.evaluate(y[:-1], replace(closure, energy=float(y[-1])), True)
+        matrix = self.bordered(blocks, self.weights * previous)
+        rhs = np.zeros(y.size)
+        rhs[-1] = 1.0
+        t = spla.splu(matrix).solve(rhs)
+        return t / np.sqrt(np.sum(self.weights * t * t))
+
+
+def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", guess=None,
+                           scheme="vddvp", params=None, start=None, integrals=(), angles=(),
+                           options: GridOptions | None = None,
+                           continuation: Continuation | None = None) -> Family:
+    """The family of periodic orbits through the orbit at ``energies[0]``, followed by
+    pseudo-arclength continuation until its energy leaves ``[min(energies), max(energies)]``
+    (or ``max_orbits``), with every member's stability and the bifurcations between them
+    located (module docstring).
+
+    Args:
+        system: an autonomous Hamiltonian system.
+        energies: ``(E_start, E_end)``: the first orbit's energy and the end of the range
+            (the continuation heads towards it).
+        nodes, section, guess, scheme, params, start, integrals, angles, options: as for
+            `solve_periodic` (``guess`` and ``start`` for the first orbit).
+        continuation: the steps, the stopping rules and the tolerances
+            (`Continuation`).
+
+    Returns:
+        A `Family`; a first orbit that is not found raises no error: the family is
+        empty and its message says why.
+    """
+    started = time.perf_counter()
+    settings = _checked(system, energies, nodes, section, guess, scheme, params, start, angles,
+                        options, continuation)
+    first_energy, last_energy, options, walk = settings
+    common = {"section": section, "scheme": scheme, "params": params, "integrals": integrals,
+              "angles": angles, "options": options}
+    first = solve_periodic(system, energy=first_energy, nodes=nodes, guess=guess, start=start,
+                           **common)
+    if not first.success:
+        return Family([], [], False, f"the first orbit was not found: {first.message}",
+                      time.perf_counter() - started)
+    walker = _Walker(system, first, nodes, common, walk, (first_energy, last_energy))
+    members, message, complete = walker.walk()
+    bifurcations, unlocated = walker.locate_all()
+    if unlocated:
+        message += (f"; {len(unlocated)} sign change(s) of a test function not located: "
+                    + ", ".join(f"{u['kind']} after member {u['after_member']}"
+                                for u in unlocated))
+    return Family(members, bifurcations, complete, message, time.perf_counter() - started,
+                  unlocated)
+
+
+def _checked(system, energies, nodes, section, guess, scheme, params, start, angles, options,
+             continuation):
+    """The energies, options and continuation settings, checked before anything is built (the
+    first orbit's arguments by `check_periodic`, its section point included when no
+    guess is given)."""
+    try:
+        first_energy, last_energy = (float(e) for e in energies)
+    except (TypeError, ValueError):
+        raise InputError(f"energies must be a pair (E_start, E_end), got {energies!r}") from None
+    if not (np.isfinite(first_energy) and np.isfinite(last_energy)) \
+            or first_energy == last_energy:
+        raise InputError(f"energies must be two different finite numbers, got {energies!r}")
+    options = coerce(options, GridOptions, "options")
+    walk = coerce(continuation, Continuation, "continuation")
+    check_integer("nodes", nodes, minimum=3)
+    if guess is None:
+        check_periodic(system, energy=first_energy, nodes=nodes, section=section,
+                       scheme=scheme, params=params, start=start, angles=angles,
+                       options=options)
+    return first_energy, last_energy, options, walk
+
+
+class _Walker:
+    """The continuation's state: the assembly, the closure, the members and their tangents."""
+
+    def __init__(self, system, first: Solution, nodes: int, common: dict, walk: Continuation,
+                 energies):
+        self.system, self.nodes, self.common, self.settings = system, nodes, common, walk
+        self.theta = system.parameter_vector(common["params"])
+        self.integrals = tuple(common["integrals"])
+        self.low, self.high = min(energies), max(energies)
+        self.direction = np.sign(energies[1] - energies[0])
+        span = self.high - self.low
+        self.first_step = walk.step or span / 20
+        self.max_step = walk.max_step or span / 10
+        self.closure = self._closure(first)
+        self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), nodes,
+                                         self.integrals)
+        self.arc = ArclengthSystem(self.assembly)
+        self.members, self.points, self.tangents, self.steps = [], [], [], []
+        self._accept(first, None, 0.0)
+
+    def _closure(self, orbit: Solution) -> Closure:
+        n = self.system.n
+        index, value, _ = parse_section(orbit.stats["section"], n)
+        z = np.hstack([orbit.q, orbit.p])
+        generators = np.zeros((len(self.integrals), 2 * n))
+        if self.integrals:
+            gradients = np.asarray(integral_gradients(self.system, self.integrals)(
+                z[0, :n], z[0, n:], self.theta))[:, 1:].T
+            generators = np.hstack([gradients[:, n:], -gradients[:, :n]])
+        angles = tuple(i for i, w in enumerate(orbit.stats["winding"]) if w)
+        return Closure(float(orbit.stats["energy"]), index, value, self.theta, z[0].copy(),
+                       generators, closing_shift(z[0], z[-1], angles))
+
+    def _point(self, orbit: Solution) -> np.ndarray:
+        x = self.assembly.layout.pack(orbit.t - orbit.t[0], orbit.q, orbit.p)
+        return np.r_[x, float(orbit.stats["energy"])]
+
+    def _accept(self, orbit: Solution, tangent_before, arclength: float) -> None:
+        y = self._point(orbit)
+        previous = tangent_before if tangent_before is not None else np.r_[
+            np.zeros(y.size - 1), self.direction]
+        tangent = self.arc.tangent(y, self.closure, previous)
+        stability = periodic_stability(self.system, orbit, params=self.common["params"],
+                                       integrals=self.integrals, tol=self.settings.tol,
+                                       exact=self.settings.exact)
+        self.members.append(Member(float(y[-1]), orbit, stability, arclength,
+                                   float(tangent[-1])))
+        self.points.append(y)
+        self.tangents.append(tangent)
+
+    def correct(self, i: int, length: float):
+        """The point at arclength ``length`` from member ``i`` along its tangent, or
+        ``None``; with the corrector's iterations."""
+        y, t = self.points[i], self.tangents[i]
+        arc = _Arc(self.closure, self.arc.weights * t, y, length)
+        guess = y + length * t
+        scale = max(1.0, float(np.max(np.abs(guess))))
+        target = np.full(guess.size, TARGET_ROUND_OFFS * EPS * scale)
+        period = guess[self.assembly.layout.time_index()[-1]]
+        result = newton(self.arc, guess, arc, target, tau_floor=1e-3 * period / self.nodes,
+                        max_iter=CORRECTOR_ITERATIONS, linear="sparse")
+        if not result.converged:
+            return None, result.iterations
+        return result.x, result.iterations
+
+    def verified(self, y: np.ndarray) -> Solution:
+        """``solve_periodic`` started from the point ``y`` (its verification)."""
+        t, q, p, _ = self.assembly.layout.unpack(y[:-1])
+        return solve_periodic(self.system, energy=float(y[-1]), nodes=self.nodes,
+                              guess={"t": t, "q": q, "p": p}, **self.common)
+
+    def walk(self):
+        """Members until the energy leaves the range, ``max_orbits``, or a step fails below
+        ``min_step``: ``(members, message, complete)``."""
+        ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
+        longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
+        smallest = self.settings.min_step * ds
+        arclength = 0.0
+        while len(self.members) < self.settings.max_orbits:
+            y, iterations = self.correct(len(self.members) - 1, ds)
+            orbit = self.verified(y) if y is not None else None
+            if orbit is None or not orbit.success:
+                ds /= 2
+                if ds < smallest:
+                    said = "the corrector did not converge" if orbit is None else orbit.message
+                    return self.members, (f"stopped at E = {self.members[-1].energy:.10g}: a "
+                                          f"step below {smallest:.3g} failed ({said})"), False
+                continue
+            if not self.low <= float(y[-1]) <= self.high:
+                return self.members, (f"left the energy range after {len(self.members)} "
+                                      f"orbits"), True
+            arclength += ds
+            self.steps.append(ds)
+            self._accept(orbit, self.tangents[-1], arclength)
+            if iterations <= EASY_ITERATIONS:
+                ds = min(1.5 * ds, longest)
+        return self.members, f"max_orbits = {self.settings.max_orbits} reached", False
+
+    def locate_all(self):
+        """``(located, unlocated)``: every sign change between neighbours (module
+        docstring)."""
+        found, unlocated = [], []
+        for i in range(len(self.members) - 1):
+            a, b = self.members[i], self.members[i + 1]
+            before, after = tests(a.stability, a.slope), tests(b.stability, b.slope)
+            fold = before["fold"] * after["fold"] < 0
+            for kind in KINDS:
+                if before[kind] * after[kind] >= 0 or (kind == "branch point" and fold):
+                    continue
+                located = self.locate(i, kind)
+                if located is not None:
+                    found.append(located)
+                else:
+                    unlocated.append({"kind": kind, "after_member": i,
+                                      "energies": (a.energy, b.energy)})
+        return found, unlocated
+
+    def _test_at(self, i: int, length: float, kind: str):
+        y, _ = self.correct(i, length)
+        if y is None:
+            raise _LostFamily(length)
+        if kind == "fold":
+            return float(self.arc.tangent(y, self.closure, self.tangents[i])[-1]), y
+        t, q, p, _ = self.assembly.layout.unpack(y[:-1])
+        stability = discrete_stability(self.system, self.assembly.scheme, t, q, p,
+                                       energy=float(y[-1]),
+                                       section_index=self.closure.section_index,
+                                       theta=self.theta, integrals=self.integrals,
+                                       tol=self.settings.tol)
+        return tests(stability, 1.0)[kind], y
+
+    def locate(self, i: int, kind: str):
+        """The bifurcation of ``kind`` between members ``i`` and ``i + 1`` (module
+        docstring)."""
+        a, b = self.members[i], self.members[i + 1]
+        tolerance = self.settings.locate_tol * max(1.0, abs(a.energy))
+        points, values = {}, {}
+
+        def test(length):
+            value, y = self._test_at(i, length, kind)
+            points[length], values[length] = y, value
+            return value
+        width = self.steps[i]
+        xtol = tolerance / max(abs(a.slope), abs(b.slope), 1e-12)
+        try:
+            root = brentq(test, 0.0, width, xtol=xtol, rtol=4 * EPS, maxiter=100)
+        except (_LostFamily, ValueError):
+            return None
+        y = points.get(root)
+        if y is None:
+            test(root)
+            y = points[root]
+        orbit = self.verified(y)
+        if not orbit.success:
+            return None
+        stability = periodic_stability(self.system, orbit, params=self.common["params"],
+                                       integrals=self.integrals, tol=self.settings.tol,
+                                       exact=self.settings.exact)
+        before = tests(a.stability, a.slope)[kind]
+        after = tests(b.stability, b.slope)[kind]
+        signs = {0.0: np.sign(before), width: np.sign(after)}
+        signs.update({s: np.sign(v) for s, v in values.items()})
+        left = max(s for s, sign in signs.items() if sign == signs[0.0] and s <= root)
+        right = min(s for s, sign in signs.items() if sign != signs[0.0] and s >= root)
+        energy = {0.0: a.energy, width: b.energy, **{s: float(p[-1]) for s, p in points.items()}}
+        bracket = tuple(sorted((energy[left], energy[right])))
+        extra = {}
+        if self.settings.confirm:
+            confirmed = confirm(self.system, self.theta, orbit, kind,
+                                section_index=self.closure.section_index,
+                                section_value=self.closure.section_value,
+                                integrals=self.integrals, tol=self.settings.tol)
+            extra = confirmed.as_dict() if confirmed is not None else {"exact_energy": None}
+        return Bifurcation(kind, float(y[-1]), bracket, i, (before, after), orbit, stability,
+                           extra)
+
+
+class _LostFamily(Exception):
+    """The corrector did not converge inside a bracket."""

@@ -1,0 +1,419 @@
+"""Work-precision comparison: error against run time for every method on one scene.
+
+For each method a sweep of its accuracy knob; for each run:
+
+- run time: one warm-up call (it pays the build and compile, reported apart as ``build_s``), then
+  the best of up to ``repeats`` timed calls (fewer once the repeats add up to ``budget_s``);
+- trajectory error: ``max_k |z_k - z_ref(t_k)|_inf`` at the method's own node times, against the
+  scene's exact solution or else DOP853 at ``rtol = atol = 1e-13`` with dense output;
+- energy error: autonomous ``H``: ``max_k |H(z_k) - H(z_0)|`` (the drift of ``H`` at the nodes);
+  time-dependent ``H``: ``max_k |H(z_k, t_k) - H(z_ref(t_k), t_k)|``;
+- scheme energy residual: for the schemes with an energy equation, its largest residual (what the
+  scheme itself conserves, e.g. ``H`` at interval midpoints for ``vddvp``).
+
+A run that fails keeps its row, with its status and message and the errors of the nodes it
+accepted; the sweep goes on. `plan_work_precision` checks the input,
+`run_work_precision` runs the grid into its result file and returns a
+`WorkPrecision`; the rankings
+(`pareto`, `cheapest`, ...) read its rows. The CSV, figure and ``summary.md`` are
+written by `ddvp_nlp.studies.work_precision_report`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..runner.journal import RowSchema, run_journalled
+from ..runner.tasks import Task, Workers, describe_error, resolve_scheduler
+from ..scenes import RunConfig, Scene, load_scene
+from ..solution import Status
+from ..solvers.compiler import find_compiler
+from ..solvers.grid.maps import evaluate_blocks
+from ..solvers.options import Compilation, coerce
+from ..validation import check_count, check_real
+from .comparable import (
+    REFERENCE_KINDS,
+    REFERENCE_RTOL,
+    Reference,
+    check_comparable,
+    check_starts_from_p0,
+    reference_for,
+)
+from .methods import METHODS, Method, get_methods
+from .verdict_columns import COLUMNS as ACCURACY_COLUMNS
+from .verdict_columns import NOT_MADE, accuracy_columns
+
+ROWS = RowSchema(
+    columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
+             "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
+             "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
+             "message", "fingerprint", "row_sha256"),
+    floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
+            "scheme_energy_residual", "error_estimate"),
+    integers=("steps", "repeats", "order"),
+    flags=("symplectic", "energy_conserving"))
+COLUMNS = list(ROWS.columns)
+ERROR_KINDS = {"trajectory_error": "trajectory error max |z - z_ref|",
+               "energy_error": "energy error"}
+# Error levels the summary ranks: decades from 1e-1 down to this; below it errors are round-off
+# (and the DOP853 reference's own error) and a ranking would rank noise.
+FINEST_LEVEL = 1e-12
+
+__all__ = ["COLUMNS", "CompareOptions", "ERROR_KINDS", "REFERENCE_RTOL", "ROWS", "Reference",
+           "WorkPrecision",
+           "WorkPrecisionPlan", "cheapest", "default_methods", "errors", "pareto",
+           "plan_work_precision", "run_work_precision", "time_to_reach"]
+
+
+@dataclass(frozen=True)
+class CompareOptions:
+    """What a work-precision comparison runs and how it times the runs.
+
+    Attributes:
+        methods: names (a list or comma-separated); default every method that applies and is
+            not the same as another on this scene.
+        halvings: number of halvings of the step in the default sweeps (``2 tau0`` down).
+        repeats, budget_s: timed calls per run after the warm-up, and the time after which the
+            repeats stop early.
+        max_steps: bound on the steps of each run.
+        knobs: per-method knob values replacing the default sweep.
+        reference: ``auto`` (the scene's exact solution where it covers the start, else
+            DOP853 at 1e-13), ``exact``, ``dop853``, or ``none`` (energy error only).
+    """
+
+    methods: Sequence[str] | str | None = None
+    halvings: int = 6
+    repeats: int = 3
+    budget_s: float = 3.0
+    max_steps: int = 5_000_000
+    knobs: Mapping[str, Sequence[float]] | None = None
+    reference: str = "auto"
+
+    def __post_init__(self):
+        object.__setattr__(self, "halvings", check_count("halvings", self.halvings, minimum=0,
+                                                         maximum=MAX_HALVINGS))
+        object.__setattr__(self, "repeats", check_count("repeats", self.repeats, minimum=1))
+        object.__setattr__(self, "budget_s", check_real("budget_s", self.budget_s,
+                                                        positive=True))
+        object.__setattr__(self, "max_steps", check_count("max_steps", self.max_steps,
+                                                          minimum=1))
+        if self.reference not in REFERENCE_KINDS:
+            raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
+                             f"got {self.reference!r}")
+
+
+@dataclass
+class WorkPrecisionPlan:
+    """A checked comparison, ready to run: which method at which knob value, and how."""
+
+    scene: Scene
+    overrides: dict
+    config: RunConfig
+    runs: list[tuple[Method, float]]
+    left_out: list[str]
+    repeats: int
+    budget_s: float
+    compiler: str | None
+    cache_dir: object
+    max_steps: int
+    workers: int | None
+    scheduler: str | None
+    reference: str = "auto"
+
+
+@dataclass
+class WorkPrecision:
+    """What a comparison measured: one row per run (`COLUMNS`), and what the rows are
+    relative to (the run configuration, the reference, the timing settings)."""
+
+    rows: list[dict]
+    scene: Scene
+    config: RunConfig
+    reference: Reference
+    left_out: list[str]
+    compiler: str | None
+    repeats: int
+    budget_s: float
+
+
+def errors(system, reference: Reference, solution,
+           compilation: Compilation | None = None) -> tuple[float, float]:
+    """Trajectory and energy errors of a solution's nodes (see the module docstring). ``H`` at
+    the nodes through a compiled window map kept per system (``compilation``): a map per run's
+    length cost more than the runs of ``ddvp compare kepler`` (measured)."""
+    t = solution.t
+    z = np.hstack([solution.q, solution.p])
+    z_ref = reference(t)
+    trajectory = float(np.max(np.abs(z - z_ref)))
+    theta = reference.theta
+    compilation = compilation or Compilation()
+
+    def energy_at(q, p):
+        return evaluate_blocks(system, ("study_energy",), system.H_function,
+                               [q, p, t[:, None]], theta, compilation)[0].ravel()
+
+    H = energy_at(solution.q, solution.p)
+    n = system.n
+    if system.time_dependent:
+        H_ref = energy_at(z_ref[:, :n], z_ref[:, n:])
+        energy = float(np.max(np.abs(H - H_ref)))
+    else:
+        energy = float(np.max(np.abs(H - H[0])))
+    return trajectory, energy
+
+
+def _timed(call, repeats: int, budget_s: float):
+    """Warm-up call, then the best of up to ``repeats`` timed calls, stopping once they add up to
+    ``budget_s``. Returns (solution of the warm-up, best seconds, number of timed calls)."""
+    first = call()
+    best, spent, count = math.inf, 0.0, 0
+    while count < repeats and (count == 0 or spent < budget_s):
+        started = time.perf_counter()
+        call()
+        elapsed = time.perf_counter() - started
+        best, spent, count = min(best, elapsed), spent + elapsed, count + 1
+    return first, best, count
+
+
+def default_methods(system) -> tuple[list[Method], list[str]]:
+    """Every method that applies and does not repeat another on this system, and the reasons
+    for the ones left out."""
+    chosen, left_out = [], []
+    for method in METHODS.values():
+        reason = method.applies(system) or method.redundant(system)
+        if reason:
+            left_out.append(f"`{method.name}`: {reason}")
+        else:
+            chosen.append(method)
+    return chosen, left_out
+
+
+def _chosen_methods(scene, methods) -> tuple[list[Method], list[str]]:
+    """The methods asked for (each must apply), or by default every one that applies."""
+    if methods is None:
+        return default_methods(scene.system)
+    chosen = get_methods(methods)
+    for method in chosen:
+        reason = method.applies(scene.system)
+        if reason:
+            raise InputError(f"method {method.name!r} does not apply to scene "
+                             f"{scene.name!r}: {reason}")
+    return chosen, []
+
+
+# Halvings of the step past this reach steps of 2 tau0 / 2**40, where round-off has long taken
+# over and a single run would take days; 100000 overflowed a float.
+MAX_HALVINGS = 40
+
+
+def _runs(chosen, knobs, config, halvings) -> list[tuple[Method, float]]:
+    """``(method, knob value)`` of every run: the given knob values, else the method's sweep."""
+    knobs = dict(knobs or {})
+    unknown = sorted(set(knobs) - {m.name for m in chosen})
+    if unknown:
+        raise InputError(f"knobs given for method {unknown[0]!r}, which is not compared")
+    runs = [(m, float(v)) for m in chosen for v in knobs.get(m.name, m.sweep(config, halvings))]
+    span = config.t_end - config.t0
+    for method, value in runs:
+        check_real(f"{method.knob} of method {method.name!r}", value, positive=True)
+        if method.knob != "rtol" and value > span:
+            raise InputError(f"{method.knob} of method {method.name!r} must not exceed "
+                             f"t_end - t0 = {span!r}, got {value!r}")
+    return runs
+
+
+def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None = None,
+                        options: CompareOptions | None = None,
+                        compilation: Compilation | None = None,
+                        workers: Workers | None = None) -> WorkPrecisionPlan:
+    """Check a comparison's input before anything runs (arguments as
+    `ddvp_nlp.studies.work_precision_report.work_precision`)."""
+    options = coerce(options, CompareOptions, "options")
+    compilation = coerce(compilation, Compilation, "compilation")
+    workers = coerce(workers, Workers, "workers")
+    check_comparable(scene)
+    config = scene.resolve(overrides)
+    check_starts_from_p0(scene, config)
+    chosen, left_out = _chosen_methods(scene, options.methods)
+    runs = _runs(chosen, options.knobs, config, options.halvings)
+    scheduler = resolve_scheduler(workers.scheduler)
+    if (scheduler is not None or workers.count != 1) and not scene.source:
+        raise InputError(f"scene {scene.name!r} was made in Python, not loaded from a file: "
+                         "other processes cannot load it (use workers=1)")
+    return WorkPrecisionPlan(scene, dict(overrides or {}), config, runs, left_out,
+                             options.repeats, options.budget_s,
+                             find_compiler(compilation.compiler), compilation.cache_dir,
+                             options.max_steps, workers.count, scheduler, options.reference)
+
+
+def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
+                       progress: bool = False, commit: bool = True) -> WorkPrecision:
+    """Run a planned comparison; its rows go to the result file ``rows_path`` as they finish."""
+    scene = plan.scene
+    reference = reference_for(scene, plan.overrides, plan.reference)
+    where = scene.source or scene  # a scene made in Python runs in this process only
+    tasks = [Task(key=f"{method.name}|{value!r}",
+                  function="ddvp_nlp.studies.work_precision:run_one",
+                  kwargs={"scene": where, "overrides": plan.overrides,
+                          "method": method.name, "value": value, "repeats": plan.repeats,
+                          "budget_s": plan.budget_s, "compiler": plan.compiler,
+                          "cache_dir": plan.cache_dir, "max_steps": plan.max_steps,
+                          "reference": plan.reference})
+             for method, value in plan.runs]
+    rows, _ = run_journalled(tasks, rows_path, COLUMNS, failure_row=failure_row, parse=ROWS.parse,
+                       resume=False, workers=plan.workers, scheduler=plan.scheduler,
+                       progress=progress, commit=commit)
+    return WorkPrecision(rows, scene, plan.config, reference, plan.left_out, plan.compiler,
+                         plan.repeats, plan.budget_s)
+
+
+def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
+            max_steps, reference: str = "auto") -> dict:
+    """One run of the comparison, timed and measured: its row (a grid task)."""
+    scene = load_scene(scene) if isinstance(scene, str) else scene
+    config = scene.resolve(overrides)
+    return _measure(scene, config, METHODS[method], value,
+                    reference_for(scene, overrides, reference),
+                    repeats=repeats, budget_s=budget_s, compiler=compiler,
+                    cache_dir=cache_dir, max_steps=max_steps)
+
+
+_NOT_MEASURED = {"trajectory_error": math.nan, "energy_error": math.nan,
+                 "scheme_energy_residual": math.nan, "run_s": math.nan, "build_s": math.nan,
+                 "repeats": 0, "steps": 0, **NOT_MADE}
+
+
+def _traits(method: Method) -> dict:
+    return {"method": method.name, "knob": method.knob, "order": method.order,
+            "symplectic": method.symplectic, "energy_conserving": method.energy_conserving}
+
+
+def failure_row(task: Task, error: str) -> dict:
+    """The row of a run whose task raised or whose worker died."""
+    status, message = describe_error(error)
+    return {**_traits(METHODS[task.kwargs["method"]]), **_NOT_MEASURED,
+            "value": task.kwargs["value"], "status": status, "message": message,
+            "t_reached": math.nan, "reference": "", "scene": ""}
+
+
+def _measure(scene, config, method, value, reference, *, repeats, budget_s, compiler,
+             cache_dir, max_steps) -> dict:
+    system = scene.system
+
+    def call():
+        return method.run(system, config, value, compiler=compiler, cache_dir=cache_dir,
+                          max_steps=max_steps)
+
+    row = {"scene": scene.name, **_traits(method), "value": value, "reference": reference.kind}
+    try:
+        solution, best, count = _timed(call, repeats, budget_s)
+    except InputError as exc:  # e.g. a step that needs more than max_steps
+        return {**row, **_NOT_MEASURED, "status": "not_run", "message": str(exc),
+                "t_reached": config.t0}
+    trajectory, energy = errors(system, reference, solution,
+                                Compilation(compiler=compiler, cache_dir=cache_dir))
+    residual = (float(np.max(np.abs(solution.energy_residual)))
+                if method.energy_conserving and solution.energy_residual.size else math.nan)
+    return {**row, "status": solution.status.code, "message": solution.message,
+            "steps": solution.steps, "t_reached": float(solution.t[-1]), "run_s": best,
+            "build_s": solution.timing.get("build_s", 0.0), "repeats": count,
+            "trajectory_error": trajectory, "energy_error": energy,
+            "scheme_energy_residual": residual,
+            **accuracy_columns(system, config, method, solution, compiler=compiler,
+                               cache_dir=cache_dir)}
+
+
+def succeeded(rows, method) -> list[dict]:
+    """The rows of ``method`` that reached ``t_end``."""
+    return [r for r in rows if r["method"] == method and r["status"] == Status.SUCCESS.code]
+
+
+def methods_in(rows) -> list[str]:
+    """The methods of the rows, in the order they first appear."""
+    return list(dict.fromkeys(r["method"] for r in rows))
+
+
+def pareto(rows, method, kind) -> list[tuple[float, float]]:
+    """``(run time, error)`` of the successful runs of ``method`` that no cheaper run beats."""
+    points = sorted((r["run_s"], r[kind]) for r in succeeded(rows, method)
+                    if math.isfinite(r[kind]) and r[kind] > 0)
+    front = []
+    for seconds, error in points:
+        if not front or error < front[-1][1]:
+            front.append((seconds, error))
+    return front
+
+
+def time_to_reach(front, level) -> tuple[float, bool] | None:
+    """Run time at which a method reaches error ``level``: log-log interpolation along its Pareto
+    front; ``(time, True)`` if its cheapest run is already below the level (an upper bound);
+    ``None`` if no run reaches it."""
+    for i, (seconds, error) in enumerate(front):
+        if error <= level:
+            if i == 0:
+                return seconds, True
+            (t0, e0), (t1, e1) = front[i - 1], front[i]
+            fraction = (math.log(level) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            return math.exp(math.log(t0) + fraction * (math.log(t1) - math.log(t0))), False
+    return None
+
+
+def error_levels(rows, kind) -> list[float]:
+    """The decades of error the successful runs span, from at most 1e-1 down to at least
+    `FINEST_LEVEL`, coarse to fine."""
+    errors_seen = [r[kind] for r in rows if r["status"] == "success" and r[kind] > 0
+                   and math.isfinite(r[kind])]
+    if not errors_seen:
+        return []
+    top = math.floor(math.log10(max(errors_seen)))
+    bottom = max(math.ceil(math.log10(min(errors_seen))), round(math.log10(FINEST_LEVEL)))
+    return [10.0 ** k for k in range(min(top, -1), bottom - 1, -1)]
+
+
+def cheapest(rows, kind, level):
+    """Methods reaching ``level`` sorted by run time: ``[(method, seconds, upper_bound)]``."""
+    found = []
+    for method in methods_in(rows):
+        hit = time_to_reach(pareto(rows, method, kind), level)
+        if hit is not None:
+            found.append((method, *hit))
+    return sorted(found, key=lambda item: item[1])
+
+
+def rankings(rows, kind) -> list[tuple[float, list]]:
+    """``(level, cheapest(rows, kind, level))`` at every error level some method reaches."""
+    found = [(level, cheapest(rows, kind, level)) for level in error_levels(rows, kind)]
+    return [(level, ranking) for level, ranking in found if ranking]
+
+
+def winner_spans(rows, kind) -> list[tuple[str, float, float]]:
+    """``(method, coarsest level, finest level)`` of each run of levels one method wins."""
+    spans = []
+    for level, ranking in rankings(rows, kind):
+        winner = ranking[0][0]
+        if spans and spans[-1][0] == winner:
+            spans[-1][2] = level
+        else:
+            spans.append([winner, level, level])
+    return [tuple(span) for span in spans]
+
+
+def time_ratios(rows, first, second, kind) -> list[tuple[float, float, float]] | None:
+    """``(level, seconds of first, seconds of second)`` at the levels both reach by
+    interpolation (no upper bounds); ``None`` if either has no successful run."""
+    a_front, b_front = pareto(rows, first, kind), pareto(rows, second, kind)
+    if not a_front or not b_front:
+        return None
+    found = []
+    for level in error_levels(rows, kind):
+        a, b = time_to_reach(a_front, level), time_to_reach(b_front, level)
+        if a is None or b is None or a[1] or b[1]:
+            continue
+        found.append((level, a[0], b[0]))
+    return found
