@@ -17,11 +17,9 @@ from typing import TYPE_CHECKING
 
 from . import startup  # noqa: F401 - first: holds Ctrl-C while the command starts
 from .cache import lazy_exports
-from .discrete.scheme import Scheme
+from .discrete import Scheme
 from .errors import InputError
-from .physics.hamiltonian import HamiltonianSystem
-from .physics.higher_order import HigherOrderSystem
-from .physics.lagrangian import Lagrangian, LagrangianSystem
+from .physics import HamiltonianSystem, HigherOrderSystem, Lagrangian, LagrangianSystem
 from .scenes import (
     Endpoints,
     HigherOrderScene,
@@ -31,16 +29,23 @@ from .scenes import (
     load_scene,
 )
 from .solution import Solution, Status
-from .solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+from .solvers import Compilation, GridOptions, Output, StepControl, Tolerance
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
-    from .solvers.bvp import AtEnergy, Shooting, solve_bvp
-    from .solvers.higher import march_higher, solve_bvp_higher
-    from .solvers.march import Collect, MarchState, continue_march, march, march_ensemble
-    from .solvers.periodic import (
+    from .solvers import (
+        AtEnergy,
+        Collect,
         Continuation,
+        MarchState,
+        Shooting,
+        continue_march,
         follow_periodic_family,
+        march,
+        march_ensemble,
+        march_higher,
         periodic_stability,
+        solve_bvp,
+        solve_bvp_higher,
         solve_periodic,
         solve_periodic_family,
     )
@@ -49,13 +54,10 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 # march and not the fixed-endpoint, periodic and higher-order families with scipy.sparse and
 # scipy.linalg behind them (import ddvp_nlp took 0.43 s CPU with every family, 75% of a warm
 # `ddvp march`; measured).
-__getattr__, __dir__ = lazy_exports(__name__, {
-    "march": "solvers.march", "march_ensemble": "solvers.march", "Collect": "solvers.march",
-    "MarchState": "solvers.march", "continue_march": "solvers.march", "solve_bvp": "solvers.bvp",
-    "Shooting": "solvers.bvp", "AtEnergy": "solvers.bvp", "solve_periodic": "solvers.periodic",
-    "solve_periodic_family": "solvers.periodic", "periodic_stability": "solvers.periodic",
-    "follow_periodic_family": "solvers.periodic", "Continuation": "solvers.periodic",
-    "march_higher": "solvers.higher", "solve_bvp_higher": "solvers.higher"})
+__getattr__, __dir__ = lazy_exports(__name__, {name: "solvers" for name in (
+    "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
+    "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
+    "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher")})
 
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):

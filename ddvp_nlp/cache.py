@@ -134,3 +134,6 @@ def lazy_exports(package: str, names: dict[str, str]):
         return sorted(set(vars(import_module(package))) | set(names))
 
     return getattr_, dir_
+
+__all__ = ["BLOCK", "FUNCTIONS", "FunctionCache", "PROBLEMS", "cached", "evaluate_columns",
+           "lazy_exports", "use_compiler"]

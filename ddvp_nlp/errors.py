@@ -23,3 +23,5 @@ class OutputError(OSError):
         found = cls(error.path, OSError(error.errno, "see below"))
         found.args = (error.errno, f"{error}; {note}")
         return found
+
+__all__ = ["InputError", "OutputError"]

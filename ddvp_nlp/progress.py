@@ -82,3 +82,5 @@ class PlainLines:
 
     def close(self) -> None:
         pass
+
+__all__ = ["PLAIN_LINE_SECONDS", "PlainLines", "Silent", "progress"]

@@ -201,14 +201,6 @@ class Solution:
             theta = np.asarray(self.stats["theta"], dtype=float)
         return system.energy(self.q, self.p, self.t, theta)
 
-    def plot(self, path=None, *, params=None, title: str | None = None):
-        """``ddvp_nlp.plot(self, path, system=...)`` with the system this solution remembers
-        (the energy panel is left out without one)."""
-        # a facade like the root's plot: figure code is loaded only when a figure is drawn
-        from .io.run_figure import plot_solution
-
-        return plot_solution(self, path, system=self.system, params=params, title=title)
-
     def _slopes(self, z: np.ndarray) -> np.ndarray:
         if self.vector_field is not None:
             return np.asarray(self.vector_field(self.t, z), dtype=float).reshape(z.shape)
@@ -282,3 +274,5 @@ class SolverStatistics:
                    least_squares_steps=len(stats.get("least_squares") or []),
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
+
+__all__ = ["Solution", "SolverStatistics", "Status", "bound_reached", "hermite"]

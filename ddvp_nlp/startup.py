@@ -23,3 +23,5 @@ def hold_signals_while_the_command_starts() -> None:
 
 
 hold_signals_while_the_command_starts()
+
+__all__ = ["hold_signals_while_the_command_starts"]

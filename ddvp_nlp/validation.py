@@ -304,3 +304,9 @@ def check_parameter_ranges(ranges, params, *, owner: str) -> dict:
                              f"parameters ({', '.join(params) or 'none'})")
         parse_range(name, text)
     return dict(ranges)
+
+__all__ = ["available_memory", "check_cache_folder", "check_count", "check_degrees",
+           "check_file_size", "check_finite_array", "check_in_interval",
+           "check_in_range", "check_integer", "check_memory", "check_parameter_ranges",
+           "check_parameter_values", "check_real", "check_span", "check_state",
+           "check_step", "check_unique_settings", "parse_range", "read_limited"]

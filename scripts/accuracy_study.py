@@ -32,8 +32,7 @@ import numpy as np
 
 from ddvp_nlp import Tolerance, list_scenes, load_scene, march
 from ddvp_nlp.scenes import HigherOrderScene
-from ddvp_nlp.solvers.accuracy.judgement import motion_scales
-from ddvp_nlp.solvers.higher.stepping import march_higher
+from ddvp_nlp.solvers import march_higher, motion_scales
 from ddvp_nlp.studies.verdict_study import MARGIN, draw_case, judge_case
 
 ECCENTRICITIES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)

@@ -8,7 +8,7 @@ import sys
 import time
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.solvers.march.ensemble import Collect, march_ensemble
+from ddvp_nlp.solvers import Collect, march_ensemble
 from ddvp_nlp.studies.poincare import SectionOutput, section_starts
 
 

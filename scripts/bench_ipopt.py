@@ -66,9 +66,9 @@ def write_start(nodes: int, q_end: float, path: str) -> None:
     """The point the released phase of ``solve_bvp`` starts from (its start phases by
     Newton), as ``t``, ``q``, ``p`` in ``path``."""
     from ddvp_nlp import GridOptions, load_scene
+    from ddvp_nlp.solvers import Compilation, Output
     from ddvp_nlp.solvers.bvp.first_guess import start_point
     from ddvp_nlp.solvers.bvp.fixed_ends import _checked  # noqa: PLC2701 (a benchmark's look inside)
-    from ddvp_nlp.solvers.options import Compilation, Output
 
     request, guess = _checked(load_scene("pendulum").system, [0.5], [q_end], (0.0, T_END),
                               nodes=nodes, scheme="vddvp", params=None, guess=None, times=None,

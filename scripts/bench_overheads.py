@@ -32,7 +32,7 @@ PYTHON = sys.executable
 POINCARE = ["henon_heiles", "--energy", "0.125", "--orbits", "20", "--t-end", "5000"]
 ENSEMBLE_ONLY = """
 from ddvp_nlp import load_scene
-from ddvp_nlp.solvers.march import march_ensemble
+from ddvp_nlp.solvers.marching import march_ensemble
 from ddvp_nlp.studies.poincare import section_starts
 scene = load_scene("henon_heiles")
 theta = scene.system.parameter_vector(None)

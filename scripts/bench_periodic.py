@@ -33,8 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_march import timed  # noqa: E402
 
 from ddvp_nlp import GridOptions, load_scene  # noqa: E402
-from ddvp_nlp.solvers.periodic.first_orbit import march_to_return, resample, section_point
-from ddvp_nlp.solvers.periodic.orbit import parse_section, solve_periodic  # noqa: E402
+from ddvp_nlp.solvers import march_to_return, parse_section, resample, section_point, solve_periodic  # noqa: E402
 
 
 def cases():

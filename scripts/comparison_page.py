@@ -16,10 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ddvp_nlp import Output, Scene, load_scene, march
-from ddvp_nlp.discrete.equations import interval_energies
-from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
-from ddvp_nlp.solvers.compiler import find_compiler
+from ddvp_nlp.discrete import Scheme, interval_energies
+from ddvp_nlp.solvers import find_compiler, fixed_step_run
 
 ARK_KEPLER = {1e-3: -1.0321e-7, 5e-4: -2.583e-8, 2.5e-4: -6.460e-9, 1.25e-4: -1.615e-9,
               6.25e-5: -4.037e-10}

@@ -514,7 +514,7 @@ def transfer_page(out: Path) -> str:
 def transfer_path_figure(last, path: Path) -> None:
     scene, run = last
     exact = run.stats["exact"]
-    from ddvp_nlp.solvers.exact.variational import flow_with_derivatives
+    from ddvp_nlp.solvers import flow_with_derivatives
 
     times = np.linspace(0.0, exact["transfer_time"], 400)
     flow = flow_with_derivatives(scene.system, np.zeros(0),

@@ -1,35 +1,40 @@
-"""The package's structure, checked: no import cycle, each folder imports only the layers below
-it, and no function or class grows past the size a reader can hold."""
+"""The package's structure, checked: the library (base modules, physics, discrete, solvers) and
+the workbench on top of it (scenes, io, runner, studies, cli); no import cycle; each part imports
+only the parts below it; the workbench and the scripts use only public names (a package's
+``__all__``); no two modules share a file name; the module map of docs/architecture.md names
+every module once; no function or class grows past the size a reader can hold."""
 
 import ast
+import importlib
+import re
 from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parent.parent / "ddvp_nlp"
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "ddvp_nlp"
 
-# What each part may import (besides itself and the base modules): the layers of the README's
-# architecture section, bottom to top.
+# The library: the model of its field. The workbench: what is built on it.
 BASE = {"errors", "validation", "cache", "solution", "startup", "progress"}
+LIBRARY = {"base", "physics", "discrete", "solvers"}
+WORKBENCH = {"scenes", "io", "runner", "studies", "cli"}
+# What each part may import (besides itself), bottom to top.
 ALLOWED = {
     "base": {"base"},
     "physics": {"base"},
     "discrete": {"base", "physics"},
-    "scenes": {"base", "physics"},
     "solvers": {"base", "physics", "discrete"},
-    "studies": {"base", "physics", "discrete", "solvers", "scenes", "io"},
-    "io": {"base", "physics", "discrete", "solvers", "scenes", "studies"},
-    "cli": {"base", "physics", "discrete", "solvers", "scenes", "studies", "io"},
+    "scenes": {"base", "physics", "discrete", "solvers"},
+    "io": {"base", "physics", "discrete", "solvers", "scenes"},
+    "runner": {"base", "solvers", "io"},
+    "studies": {"base", "physics", "discrete", "solvers", "scenes", "io", "runner"},
+    "cli": {"base", "physics", "discrete", "solvers", "scenes", "io", "runner", "studies"},
     "__init__": {"base", "physics", "discrete", "solvers", "scenes"},
 }
-# The one import across the layers: the root's public ``plot`` is a facade over io/run_figure.py,
-# imported inside the function, so `from ddvp_nlp import plot` works while `import ddvp_nlp`
-# loads no figure code and no module below io/ can reach io/ (docs/architecture.md).
-FACADES = {("__init__", "io.plotting"),
-           # Scene.march / solve_bvp / solve_periodic and Solution.plot: the same kind of facade,
-           # imported inside the method (a scene and a solution sit below what they call)
-           ("scenes", "solvers.march"), ("scenes", "solvers.bvp"),
-           ("scenes", "solvers.periodic"), ("solution", "io.plotting")}
+# The one import across the layers: the root's public ``plot`` is a facade over
+# io/run_figure.py, imported inside the function, so that `from ddvp_nlp import plot` works
+# while `import ddvp_nlp` loads no figure code (docs/architecture.md).
+FACADES = {("__init__", "io.run_figure")}
 MAX_FUNCTION_LINES = 80
 MAX_CLASS_LINES = 200
 
@@ -89,8 +94,9 @@ def test_the_import_graph_sees_every_form_of_import(tmp_path, monkeypatch):
                     "from ..grid import newton\n"
                     "import importlib\n"
                     "importlib.import_module('ddvp_nlp.solvers.higher.window_solve')\n")
-    assert imports("solvers.march.fake", path) == {
-        "solvers.bvp.solve", "solvers.periodic", "solvers.grid.newton", "solvers.higher.phase"}
+    assert imports("solvers.marching.fake", path) == {
+        "solvers.bvp.fixed_ends", "solvers.periodic", "solvers.grid.newton",
+        "solvers.higher.window_solve"}
 
 
 def graph() -> dict[str, set[str]]:
@@ -154,7 +160,7 @@ def test_the_facade_is_the_roots_only_import_of_io_and_it_is_lazy():
     import subprocess
     import sys
 
-    assert {t for t in graph()["__init__"] if part(t) == "io"} == {"io.plotting"}
+    assert {t for t in graph()["__init__"] if part(t) == "io"} == {"io.run_figure"}
     tree = ast.parse((PACKAGE / "__init__.py").read_text())
     top_level = [node.module for node in tree.body if isinstance(node, ast.ImportFrom)]
     assert not any((module or "").startswith("io") for module in top_level)
@@ -193,15 +199,17 @@ def test_no_function_or_class_is_too_long(kind, limit):
 
 # --- inside solvers/: a folder per family, each with its written contract ---------------------
 
-SOLVER_CORE = {"options", "driver", "accuracy", "reference", "dense", "compiler"}
+SOLVER_CORE = {"options", "driver", "dense", "compiler"}
 # what each family of solvers/ may import besides the core (and itself)
 SOLVER_FAMILIES = {
-    "march": set(),
+    "exact": set(),
+    "accuracy": {"exact"},
     "grid": set(),
-    "baselines": {"march"},
-    "bvp": {"grid", "march"},
-    "periodic": {"grid", "march"},
-    "higher": {"grid"},
+    "marching": {"accuracy"},
+    "baselines": {"marching", "accuracy"},
+    "bvp": {"grid", "marching", "exact", "accuracy"},
+    "periodic": {"grid", "marching", "exact", "accuracy"},
+    "higher": {"grid", "exact", "accuracy"},
 }
 
 
@@ -238,32 +246,34 @@ def family_violations(edges: dict[str, set[str]]) -> list[str]:
 
 
 def test_each_family_imports_only_what_its_rules_allow():
-    """The core imports no family; march/ and grid/ only the core; baselines/ also march/; bvp/
-    and periodic/ also grid/ and march/; higher/ also grid/."""
+    """The core imports no family; exact/ and grid/ only the core; accuracy/ also exact/;
+    marching/ also accuracy/; baselines/ also marching/; bvp/ and periodic/ grid/, marching/, exact/
+    and accuracy/; higher/ grid/, exact/ and accuracy/."""
     assert family_violations(graph()) == []
 
 
 def test_the_family_rule_catches_forbidden_imports():
-    assert family_violations({"solvers.march.solve": {"solvers.bvp.solve", "solvers.driver"},
-                              "solvers.driver": {"solvers.march.solve"},
-                              "solvers.bvp.start": {"solvers.march.solve"},
-                              "solvers.grid.newton": {"solvers.periodic.assembly"}}) == [
-        "solvers.march.solve imports solvers.bvp.solve",
-        "solvers.driver imports solvers.march.solve",
-        "solvers.grid.newton imports solvers.periodic.assembly"]
+    assert family_violations({
+        "solvers.marching.initial_value": {"solvers.bvp.fixed_ends", "solvers.driver"},
+        "solvers.driver": {"solvers.marching.initial_value"},
+        "solvers.bvp.first_guess": {"solvers.marching.initial_value"},
+        "solvers.exact.flow": {"solvers.accuracy.judgement"},
+        "solvers.grid.newton": {"solvers.periodic.closed_grid"}}) == [
+        "solvers.marching.initial_value imports solvers.bvp.fixed_ends",
+        "solvers.driver imports solvers.marching.initial_value",
+        "solvers.exact.flow imports solvers.accuracy.judgement",
+        "solvers.grid.newton imports solvers.periodic.closed_grid"]
 
 
 @pytest.mark.parametrize("family", sorted(SOLVER_FAMILIES))
 def test_each_family_states_its_contract_as_numbered_rules(family):
-    """Each family's ``__init__`` says what is where and, as scipy's ``OdeSolver`` does, the
-    rules an implementer must keep, numbered."""
+    """Each family's ``__init__`` states, as scipy's ``OdeSolver`` does, the rules an
+    implementer must keep, numbered (where things are is the module map's job:
+    docs/architecture.md)."""
     doc = ast.get_docstring(ast.parse((PACKAGE / "solvers" / family / "__init__.py")
                                       .read_text())) or ""
     numbered = [line for line in doc.splitlines() if line[:3] in {f"{k}. " for k in range(10)}]
     assert len(numbered) >= 3, doc[:200]
-    for module in (PACKAGE / "solvers" / family).glob("*.py"):
-        if module.stem != "__init__":
-            assert f"``{module.name}``" in doc, f"{family}/__init__ does not name {module.name}"
 
 
 # --- names: no private name across modules, registries filled where they are defined ----------
@@ -403,7 +413,7 @@ def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
     ``module.NAME = ...``); replacing a function to inject a fault stays allowed."""
     root = PACKAGE.parent
     switched = []
-    for path in [*(root / "tests").glob("*.py"), *(root / "scripts").glob("*.py")]:
+    for path in [*(root / "tests").rglob("*.py"), *(root / "scripts").rglob("*.py")]:
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
             if isinstance(node, ast.Call) and _switches_a_setting(node):
@@ -411,3 +421,127 @@ def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
         switched += [f"{path.name}: {found}" for found in foreign_assignments(path)
                      if found.split(".")[1][:1].isupper()]
     assert switched == []
+
+
+# --- the library and the workbench: public names only ------------------------------------------
+
+# The library's faces: a workbench module or a script imports from the library only through
+# these (a package's __init__ or a base module), and only names in its __all__.
+LIBRARY_FACES = {"physics", "discrete", "solvers"} | BASE
+
+
+def _absolute(module: str | None, level: int, package: list[str]) -> str:
+    if not level:
+        return (module or "")[len("ddvp_nlp."):] if (module or "").startswith("ddvp_nlp.") \
+            else ("" if module == "ddvp_nlp" else "?")
+    base = package[:len(package) - level + 1]
+    return ".".join(base + ([module] if module else []))
+
+
+def public_name_violations(path: Path, package: list[str] | None, faces: dict) -> list[str]:
+    """Imports in ``path`` that reach past a face: a module inside a face's package, or a name
+    not in the face's ``__all__``. ``faces``: face module -> its ``__all__``; ``package``: the
+    importing module's package (``None`` outside ddvp_nlp)."""
+    wrong = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            wrong += [f"import {a.name} (line {node.lineno})" for a in node.names
+                      if a.name.startswith("ddvp_nlp.") and
+                      a.name[len("ddvp_nlp."):].split(".")[0] in {f.split(".")[0] for f in faces}]
+            continue
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level and package is None:
+            continue
+        target = _absolute(node.module, node.level, package or [])
+        head = target.split(".")[0]
+        if head not in {f.split(".")[0] for f in faces}:
+            continue
+        if target not in faces:
+            wrong.append(f"from {target} import ... (line {node.lineno}): not a public face")
+            continue
+        wrong += [f"from {target} import {a.name} (line {node.lineno}): not in its __all__"
+                  for a in node.names if a.name not in faces[target]]
+    return wrong
+
+
+def _faces(names) -> dict:
+    return {name: set(importlib.import_module(f"ddvp_nlp.{name}").__all__) for name in names}
+
+
+def test_the_workbench_uses_only_the_librarys_public_names():
+    faces = _faces(LIBRARY_FACES)
+    wrong = {}
+    for name, path in modules().items():
+        if part(name) not in WORKBENCH:
+            continue
+        package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        found = public_name_violations(path, package, faces)
+        if found:
+            wrong[name] = found
+    assert wrong == {}
+
+
+def test_the_public_name_check_finds_every_way_past_a_face(tmp_path):
+    path = tmp_path / "m.py"
+    path.write_text("from ..solvers.marching.chunk import Chunk\nfrom ..solvers import march, _x\n"
+                    "import ddvp_nlp.physics.hamiltonian\nfrom ..errors import InputError\n")
+    faces = {"solvers": {"march"}, "errors": {"InputError"}, "physics": set()}
+    assert sorted(public_name_violations(path, ["studies"], faces)) == [
+        "from solvers import _x (line 2): not in its __all__",
+        "from solvers.marching.chunk import ... (line 1): not a public face",
+        "import ddvp_nlp.physics.hamiltonian (line 3)"]
+
+
+def test_the_library_imports_nothing_of_the_workbench():
+    wrong = [f"{module} imports {target}" for module, targets in graph().items()
+             if part(module) in LIBRARY for target in targets if part(target) in WORKBENCH]
+    assert wrong == []
+
+
+def test_every_face_lists_only_names_it_has():
+    for name in sorted(LIBRARY_FACES | WORKBENCH):
+        face = importlib.import_module(f"ddvp_nlp.{name}")
+        for public in getattr(face, "__all__", ()):
+            assert getattr(face, public) is not None, f"ddvp_nlp.{name}.{public}"
+
+
+def test_scripts_and_examples_use_only_public_names():
+    """A script or an example imports the root's names or a package's ``__all__``, never a
+    module inside a package: a refactor that moves a name breaks this test, not the script."""
+    packages = {name for name, path in modules().items() if path.name == "__init__.py"
+                and name != "__init__"} | BASE
+    faces = _faces(packages)
+    faces[""] = set(importlib.import_module("ddvp_nlp").__all__)
+    wrong = {}
+    for path in [*(ROOT / "scripts").rglob("*.py"), *(ROOT / "examples").rglob("*.py")]:
+        found = public_name_violations(path, None, faces)
+        if found:
+            wrong[str(path.relative_to(ROOT))] = found
+    assert wrong == {}
+
+
+def test_no_two_modules_share_a_file_name():
+    seen = {}
+    for path in [*PACKAGE.rglob("*.py"), *(ROOT / "problems").glob("*.py")]:
+        if path.name in ("__init__.py", "__main__.py"):
+            continue
+        seen.setdefault(path.name, []).append(str(path.relative_to(ROOT)))
+    assert {name: paths for name, paths in seen.items() if len(paths) > 1} == {}
+
+
+def module_map() -> list[str]:
+    """The module paths the map of docs/architecture.md lists (its "Module map" section: one
+    ``path`` per line of a code block, relative to ``ddvp_nlp/``)."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    section = text.split("## Module map", 1)[1].split("\n## ", 1)[0]
+    block = section.split("```text", 1)[1].split("```", 1)[0]
+    return re.findall(r"^\s*([\w/]+\.py)\b", block, flags=re.M)
+
+
+def test_the_module_map_names_every_module_once():
+    listed = module_map()
+    actual = sorted(str(path.relative_to(PACKAGE)) for path in PACKAGE.rglob("*.py")
+                    if path.name != "__main__.py")
+    assert sorted(set(listed)) == sorted(listed), "a module is listed twice"
+    assert sorted(listed) == actual

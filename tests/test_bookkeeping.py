@@ -15,12 +15,12 @@ from ddvp_nlp import Compilation, StepControl, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.accuracy.judgement import _Series
 from ddvp_nlp.solvers.driver import Nodes
-from ddvp_nlp.solvers.march import monitors
-from ddvp_nlp.solvers.march.acceptance import Acceptance
-from ddvp_nlp.solvers.march.chunk import FastChunk
-from ddvp_nlp.solvers.march.initial_value import _row_max_abs
-from ddvp_nlp.solvers.march.monitors import MONITOR_LIMIT, SolvabilityMonitor
-from ddvp_nlp.solvers.march.steps import step_functions
+from ddvp_nlp.solvers.marching import monitors
+from ddvp_nlp.solvers.marching.acceptance import Acceptance
+from ddvp_nlp.solvers.marching.chunk import FastChunk
+from ddvp_nlp.solvers.marching.initial_value import _row_max_abs
+from ddvp_nlp.solvers.marching.monitors import MONITOR_LIMIT, SolvabilityMonitor
+from ddvp_nlp.solvers.marching.steps import step_functions
 
 
 def same(a, b) -> bool:

@@ -174,7 +174,7 @@ def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged
 
 def test_interrupted_march_writes_a_readable_partial_result(tmp_path, monkeypatch):
     # a Ctrl-C while the driver's monitors look at new nodes
-    monitors_module = importlib.import_module("ddvp_nlp.solvers.march.monitors")
+    monitors_module = importlib.import_module("ddvp_nlp.solvers.marching.monitors")
 
     original = monitors_module.SolvabilityMonitor.watch
     calls = {"n": 0}

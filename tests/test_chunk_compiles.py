@@ -87,7 +87,7 @@ def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, case):
     """The compiled stepper checks up to ``batch`` chained chunks at once and hands them out
     one by one; nodes, status, message and every statistic are those of one call per chunk,
     also where chunk steps fail and the careful path takes windows in between."""
-    from ddvp_nlp.solvers.march import stepper
+    from ddvp_nlp.solvers.marching import stepper
 
     pendulum, henon = load_scene("pendulum").system, load_scene("henon_heiles").system
     runs = {"careful windows": (pendulum, [0.0], [np.sqrt(5.0)], 10.0,

@@ -6,9 +6,9 @@ import pytest
 
 from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.march.acceptance import Acceptance
-from ddvp_nlp.solvers.march.chunk import FastChunk
-from ddvp_nlp.solvers.march.steps import step_functions
+from ddvp_nlp.solvers.marching.acceptance import Acceptance
+from ddvp_nlp.solvers.marching.chunk import FastChunk
+from ddvp_nlp.solvers.marching.steps import step_functions
 
 ACCEPTANCES = [Acceptance(1e-10), Acceptance(1e-10, 0.0495, 0.0505, 1.002),
                Acceptance(1e-10, None, None, None), Acceptance(1e-16), Acceptance(1e-10, 0.05)]

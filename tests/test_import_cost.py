@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 SOLVER_FAMILIES = ("ddvp_nlp.solvers.bvp", "ddvp_nlp.solvers.grid", "ddvp_nlp.solvers.periodic",
-                   "ddvp_nlp.solvers.higher", "ddvp_nlp.solvers.march",
+                   "ddvp_nlp.solvers.higher", "ddvp_nlp.solvers.marching",
                    "ddvp_nlp.solvers.baselines")
 HEAVY = ("scipy.sparse", "scipy.linalg", "scipy.interpolate", "scipy.optimize", "matplotlib")
 # ddvp_nlp's own modules after `import ddvp_nlp` (14 when this test was written; 58 when every
@@ -37,7 +37,7 @@ def test_import_loads_no_solver_family_and_no_heavy_scipy_part():
 def test_a_march_loads_no_fixed_endpoint_solver():
     modules = loaded("import ddvp_nlp\nfrom ddvp_nlp import load_scene, march\n"
                      "march(load_scene('harmonic').system, [1.0], [0.0], (0.0, 1.0), tau0=0.1)")
-    assert "ddvp_nlp.solvers.march.initial_value" in modules
+    assert "ddvp_nlp.solvers.marching.initial_value" in modules
     assert _under(modules, ("ddvp_nlp.solvers.bvp", "ddvp_nlp.solvers.grid",
                             "ddvp_nlp.solvers.periodic", "ddvp_nlp.solvers.higher")) == []
     assert _under(modules, ("scipy.sparse", "scipy.linalg")) == []

@@ -181,7 +181,7 @@ def test_an_interrupt_inside_the_monitors_keeps_only_the_nodes_all_of_them_saw(m
     """A Ctrl-C that lands while the driver's monitors look at a batch (here in the solvability
     monitor, before the accuracy check has seen it, on its third call) drops that batch: the
     nodes kept are those every monitor saw, and the per-node arrays agree with them."""
-    from ddvp_nlp.solvers.march import monitors
+    from ddvp_nlp.solvers.marching import monitors
 
     scene = load_scene("henon_heiles")
     watch = monitors.SolvabilityMonitor.watch

@@ -1,5 +1,5 @@
 """A march continued from its run folder or its state: the continued nodes equal an
-uninterrupted run's bit for bit (a documented property: ``solvers/march/resume.py``), on the
+uninterrupted run's bit for bit (a documented property: ``solvers/marching/resume.py``), on the
 compiled and the careful path, also where chunk steps failed and the careful path took windows."""
 
 import json
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import Compilation, InputError, StepControl, load_scene
-from ddvp_nlp.solvers.march import MarchState, continue_march, march
+from ddvp_nlp.solvers.marching import MarchState, continue_march, march
 
 
 def _same(a, b) -> bool:

@@ -311,7 +311,7 @@ def test_checkpoints_land_on_their_multiples_of_the_interval():
     """On a test clock: each save costs time proportional to the nodes; the checkpoints start
     early by the measured cost, so they land at 5, 10, 15 ... (the first by a guess of the
     cost; each later one within a tenth of its cost before, or one stepper call after)."""
-    from ddvp_nlp.solvers.march.monitors import Checkpoint
+    from ddvp_nlp.solvers.marching.monitors import Checkpoint
 
     now = [0.0]
 

@@ -10,10 +10,10 @@ from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.compiler import compile_function, find_compiler
-from ddvp_nlp.solvers.march.chunk import MEDIUM_UNROLL, SMALL_UNROLL
-from ddvp_nlp.solvers.march.recheck import grid_residuals
-from ddvp_nlp.solvers.march.step_newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
-from ddvp_nlp.solvers.march.steps import step_functions
+from ddvp_nlp.solvers.marching.chunk import MEDIUM_UNROLL, SMALL_UNROLL
+from ddvp_nlp.solvers.marching.recheck import grid_residuals
+from ddvp_nlp.solvers.marching.step_newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
+from ddvp_nlp.solvers.marching.steps import step_functions
 
 # the first steps these were measured at: the scenes' defaults then (kepler, fpu and
 # henon_heiles have smaller ones now, for an accurate trajectory at their defaults)

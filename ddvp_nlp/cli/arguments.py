@@ -9,7 +9,7 @@ import contextlib
 
 from ..errors import InputError
 from ..runner.tasks import Workers
-from ..solvers.options import Compilation, GridOptions, Output, StepControl, Tolerance
+from ..solvers import Compilation, GridOptions, Output, StepControl, Tolerance
 
 
 def step_control(args) -> StepControl:

@@ -8,7 +8,7 @@ import warnings
 
 from ..errors import InputError
 from ..scenes import list_scenes, load_scene
-from ..solvers.options import StepControl
+from ..solvers import StepControl
 from ..validation import check_real
 from . import arguments as options
 from .parser import parse_settings
@@ -18,7 +18,7 @@ from .summary import status_summary
 def _describe(name: str) -> str:
     """A scene's entry of ``ddvp scenes``: parameters and run defaults, description, initial
     state, fixed-endpoint data and the scheme ``march`` and ``bvp`` use by default."""
-    from ..discrete.scheme import Scheme
+    from ..discrete import Scheme
     from ..scenes import HigherOrderScene
 
     scene = load_scene(name)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..discrete.scheme import CLOCKS, RULES, Scheme
+from ..discrete import CLOCKS, RULES, Scheme
 from ..errors import InputError
 from ..scenes import VECTOR_SETTINGS
 

@@ -7,11 +7,11 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from ..discrete.scheme import RULES, Scheme
+from ..discrete import RULES, Scheme
 from ..errors import InputError
 from ..scenes import Endpoints, PeriodicSettings, load_scene
 from ..solution import Status
-from ..solvers.options import Output
+from ..solvers import Output
 from . import arguments as options
 from .arguments import check_grid_memory, family_energies
 from .folders import default_or, holds
@@ -154,7 +154,7 @@ def run_resume(args) -> int:
     with, written back to ``FOLDER``; the nodes are an uninterrupted run's bit for bit."""
     from ..io.atomic import output_folder
     from ..io.run_folder import read_run
-    from ..solvers.march import MarchState, continue_march
+    from ..solvers import MarchState, continue_march
 
     arrays, meta = read_run(args.resume)
     record = meta.get("resume")
@@ -261,7 +261,7 @@ def _resolve(args, scene, higher: bool, settings: dict):
 
 
 def _march(args, scene, config, scheme):
-    from ..solvers.march.initial_value import march
+    from ..solvers import march
 
     times, events = requested_output(args, scene, config)
     if args.scheme not in RULES:
@@ -292,7 +292,7 @@ def _march_method(args, scene, config):
     the knob ``tau0`` (``rtol = atol = --tol`` for DOP853), then its own residual check."""
     import numpy as np
 
-    from ..solvers.compiler import find_compiler
+    from ..solvers import find_compiler
     from ..studies.methods import METHODS, run_method
 
     method = METHODS[args.scheme]
@@ -315,7 +315,7 @@ def _march_method(args, scene, config):
 
 
 def _bvp(args, scene, config, scheme):
-    from ..solvers.bvp import AtEnergy, Shooting, solve_bvp
+    from ..solvers import AtEnergy, Shooting, solve_bvp
     from .stability import transfer_note
 
     p_start = _momentum(args.p_start)
@@ -439,7 +439,7 @@ def print_requested(meta: dict, solution) -> None:
 
 
 def _march_higher(args, scene, config, scheme):
-    from ..solvers.higher.stepping import march_higher
+    from ..solvers import march_higher
 
     if args.t_eval is not None or args.events:
         raise InputError(f"--t-eval and --event are not available for the higher-order scene "
@@ -452,7 +452,7 @@ def _march_higher(args, scene, config, scheme):
 
 
 def _bvp_higher(args, scene, config, scheme):
-    from ..solvers.higher.stepping import solve_bvp_higher
+    from ..solvers import solve_bvp_higher
 
     if args.energy is not None:
         raise InputError(f"--energy: scene {scene.name!r} is a higher-order scene; a transfer at "
@@ -483,7 +483,7 @@ _SOLVERS = {("march", False): _march, ("bvp", False): _bvp,
 def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
-    from ..solvers.periodic.orbit import check_periodic
+    from ..solvers import check_periodic
     from .stability import scene_guess
 
     scene = load_scene(args.scene)
@@ -522,7 +522,7 @@ def run_periodic(args) -> int:
 def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults) -> int:
     from ..io.atomic import output_folder
     from ..io.orbit_files import write_periodic
-    from ..solvers.periodic.orbit import solve_periodic
+    from ..solvers import solve_periodic
 
     target, owned = default_or(args, f"{scene.name}-periodic", named, {
         "nodes": defaults.nodes, "section": defaults.section, "scheme": "vddvp",
@@ -541,7 +541,7 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, N = {meta['nodes']}; "
           f"written to {out.path}/")
     if solution.stats.get("accuracy"):
-        from ..solvers.accuracy.judgement import describe
+        from ..solvers import describe
 
         accuracy = solution.stats["accuracy"]
         print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
@@ -551,7 +551,7 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
 def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> int:
     from ..io.atomic import output_folder
     from ..io.orbit_files import write_family
-    from ..solvers.periodic.family import solve_periodic_family
+    from ..solvers import solve_periodic_family
 
     target, owned = default_or(args, f"{scene.name}-family", named, {})
     with output_folder(target, owned=owned) as out:

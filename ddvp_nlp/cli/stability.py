@@ -68,8 +68,7 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
     from ..io.atomic import output_folder
     from ..io.orbit_files import write_periodic
     from ..io.stability_files import write_stability
-    from ..solvers.periodic import periodic_stability, solve_periodic
-    from ..solvers.periodic.orbit import check_periodic
+    from ..solvers import check_periodic, periodic_stability, solve_periodic
     from .arguments import check_grid_memory
 
     if guess is None:
@@ -106,8 +105,7 @@ def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
     from ..io.atomic import output_folder
     from ..io.orbit_files import write_family
     from ..io.stability_files import write_family_stability
-    from ..solvers.periodic import periodic_stability, solve_periodic_family
-    from ..solvers.periodic.orbit import check_periodic
+    from ..solvers import check_periodic, periodic_stability, solve_periodic_family
     from .arguments import family_energies
 
     energies = family_energies(args.family, scene.system.n, nodes)
@@ -145,7 +143,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
     from ..io.atomic import output_folder
     from ..io.orbit_files import write_periodic
     from ..io.stability_files import write_followed_family
-    from ..solvers.periodic import Continuation, follow_periodic_family
+    from ..solvers import Continuation, follow_periodic_family
     from .arguments import check_grid_memory
 
     energy = args.energy if args.energy is not None else defaults.energy

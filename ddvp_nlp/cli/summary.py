@@ -92,7 +92,7 @@ def _trajectory_words(accuracy: dict) -> str:
 
 
 def _verdict_words(meta: dict, accuracy: dict) -> str:
-    from ..solvers.accuracy.judgement import describe
+    from ..solvers import describe
 
     verdict = accuracy["verdict"]
     if verdict == "inaccurate":

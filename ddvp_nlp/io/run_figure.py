@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..discrete import equations
+from ..discrete import diagnostic_rule
 from . import figures
 
 # A run of more nodes than a panel has pixel columns (about 660 at 200 dpi) is drawn as its
@@ -95,7 +95,7 @@ def _energy_panel(solution, system, scheme, energies):
     nodes, interval = energies
     scale, kind = _energy_scale(nodes[0])
     if system.time_dependent:
-        rule = equations.diagnostic_rule(scheme)
+        rule = diagnostic_rule(scheme)
         return (f"|{rule} residual|{kind}",
                 [("", t[1:-1], np.abs(solution.energy_residual) / scale)])
     return (f"$|H - H_0|${kind}",

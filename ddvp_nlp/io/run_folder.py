@@ -17,8 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..discrete import equations
-from ..discrete.scheme import Scheme
+from ..discrete import Scheme, diagnostic_rule, interval_energies
 from ..errors import InputError
 from ..scenes import BoundaryConfig, HigherOrderScene, RunConfig, Scene
 from ..solution import Solution, Status
@@ -58,7 +57,7 @@ def run_energies(system, scheme: Scheme, solution: Solution, theta):
     if system.time_dependent:
         return system.energy(solution.q[:1], solution.p[:1], solution.t[:1], theta), None
     nodes = system.energy(solution.q, solution.p, solution.t, theta)
-    return nodes, equations.interval_energies(system, scheme, solution.t, solution.q,
+    return nodes, interval_energies(system, scheme, solution.t, solution.q,
                                               solution.p, theta)
 
 
@@ -76,7 +75,7 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta, energ
     if system.time_dependent:
         report["H0"] = float(nodes[0]) if solution.t.size else float("nan")
         report["energy_error"] = report["energy_residual_max"]
-        rule = equations.diagnostic_rule(scheme)
+        rule = diagnostic_rule(scheme)
         report["energy_error_kind"] = f"largest residual of the {rule} energy equation"
         return report
     report["H0"] = float(nodes[0])

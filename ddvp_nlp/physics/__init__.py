@@ -1,12 +1,21 @@
-"""Physics: the mechanical systems, each declared once by its generating function.
+"""Physics: the mechanical systems, each declared once by its generating function: ``H(q, p, t)``
+(`HamiltonianSystem`), ``L(q, v, t)`` with ``H`` by the Legendre transform
+(`LagrangianSystem`), ``L(q, v_1, ..., v_l, t)`` (`HigherOrderSystem`); their derivatives
+and vector fields as CasADi functions. Nothing here knows about grids, schemes, solvers or any
+integrator. The module map is in ``docs/architecture.md``.
 
-- ``hamiltonian.py``: ``HamiltonianSystem``, ``H(q, p, t)``, its derivatives and vector field
-  ``f = (H_p, -H_q)``.
-- ``lagrangian.py``: ``LagrangianSystem``, ``L(q, v, t)``, and ``H`` by the Legendre transform.
-- ``higher.py``: ``HigherOrderSystem``, ``L(q, v_1, ..., v_l, t)``.
-- ``flow.py``: the exact flow with its derivatives (variational equations by DOP853), the
-  reference of the checks against the exact motion.
-
-Nothing here knows about grids, schemes or solvers. May import: ``errors``, ``validation``,
-``cache``.
+Rules: physics imports only the base modules (``errors``, ``validation``, ``cache``).
 """
+
+from .hamiltonian import (
+    HamiltonianSystem,
+    derivatives_function,
+    site_density_weight_function,
+    vector_field_function,
+)
+from .higher_order import HigherOrderSystem, euler_lagrange_field
+from .lagrangian import Lagrangian, LagrangianSystem
+
+__all__ = ["HamiltonianSystem", "HigherOrderSystem", "Lagrangian", "LagrangianSystem",
+           "derivatives_function", "euler_lagrange_field", "site_density_weight_function",
+           "vector_field_function"]

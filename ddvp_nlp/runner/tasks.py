@@ -186,7 +186,7 @@ def _quiet_dask() -> None:
 
 def _watch_parent(parent: int) -> None:
     """On a local cluster's worker: end with ``parent`` if it is this worker's parent."""
-    from ..solvers.march.ensemble import end_with_parent
+    from ..solvers import end_with_parent
 
     if os.getppid() == parent:
         end_with_parent(parent, death_signal=False)

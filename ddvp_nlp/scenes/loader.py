@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..physics.lagrangian import Lagrangian
+from ..physics import Lagrangian
 from ..validation import read_limited
 from .guard import SceneCodeError, check_invariant_value, guarded, scene_code
 from .scene import HigherOrderScene, Scene

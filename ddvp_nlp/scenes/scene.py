@@ -23,9 +23,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import InputError
-from ..physics.hamiltonian import HamiltonianSystem
-from ..physics.higher_order import HigherOrderSystem
-from ..physics.lagrangian import Lagrangian, LagrangianSystem
+from ..physics import HamiltonianSystem, HigherOrderSystem, Lagrangian, LagrangianSystem
 from ..validation import (
     check_degrees,
     check_integer,
@@ -237,7 +235,7 @@ class Scene:
         """``march`` from this scene's defaults (``resolve(overrides)``: parameters, start,
         ``t0``, ``tau0``, ``t_end``; ``t_end`` here wins), its default scheme, and ``options``
         passed on (``steps=``, ``accuracy=``, ``compilation=``, ``output=``, ``scheme=``...)."""
-        from ..solvers.march import march  # a facade: scenes sit below the solvers
+        from ..solvers import march  # a facade: scenes sit below the solvers
 
         config = self.resolve(overrides)
         options.setdefault("scheme", self.scheme or "vddvp")
@@ -249,7 +247,7 @@ class Scene:
                   nodes: int | None = None, **options):
         """``solve_bvp`` on this scene's fixed-endpoint data (``resolve_boundary``) and default
         scheme, ``options`` passed on."""
-        from ..solvers.bvp import solve_bvp  # a facade: scenes sit below the solvers
+        from ..solvers import solve_bvp  # a facade: scenes sit below the solvers
 
         data = self.resolve_boundary(overrides, nodes)
         options.setdefault("scheme", self.scheme or "vddvp")
@@ -261,7 +259,7 @@ class Scene:
         """``solve_periodic`` with this scene's periodic defaults (``PeriodicSettings``:
         energy, nodes, section, start, integrals, angles, the guess function) and its default
         scheme, ``options`` passed on. (Named so because ``periodic`` is the settings field.)"""
-        from ..solvers.periodic import solve_periodic  # a facade: scenes sit below the solvers
+        from ..solvers import solve_periodic  # a facade: scenes sit below the solvers
 
         settings = self.periodic or PeriodicSettings()
         energy = settings.energy if energy is None else energy

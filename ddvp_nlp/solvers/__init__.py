@@ -1,26 +1,14 @@
-"""Solvers: the discrete equations of ``discrete/`` turned into trajectories.
+"""Solvers: the discrete equations of ``discrete/`` turned into trajectories, and the exact flow
+they are judged against. One folder per problem type (``marching/``, ``bvp/``, ``periodic/``,
+``higher/``), what the whole-grid families share (``grid/``), the compared integrators
+(``baselines/``), the one exact flow (``exact/``) and the verdicts measured against it
+(``accuracy/``), around a small core (options, the step loop, dense output, the compiler). The
+module map is in ``docs/architecture.md``.
 
-One folder per family, around a small core:
-
-- ``march/``: initial-value problems node by node (``march``, ``march_ensemble``): the step
-  equations as functions, the march's Newton (careful and compiled), the steppers, the monitors.
-- ``grid/``: what every whole-grid problem shares: the contract of an assembly
-  (``GridProblem``), the request (``GridRequest``), block maps, the banded LU, the grid's one
-  Newton and its one IPOPT build.
-- ``bvp/``: fixed-endpoint problems (``solve_bvp``) on the node-interleaved banded assembly.
-- ``periodic/``: periodic orbits at a prescribed energy and their families (``solve_periodic``,
-  ``solve_periodic_family``).
-- ``higher/``: higher-derivative Lagrangians, marched and on a grid (``march_higher``,
-  ``solve_bvp_higher``).
-- ``baselines/``: the integrators the comparison runs (the paper's schemes and what users would
-  pick instead), each a stepper of the one step loop, in one registry.
-- The core: ``options.py`` (the option objects every solver takes), ``driver.py`` (the one
-  step loop and the contract of a stepper), ``accuracy.py`` (the accuracy check that does not
-  trust the scheme's equations: its verdict ``accurate``, ``drifted`` or ``inaccurate``),
-  ``reference.py`` (the exact flow integrated by a compiled order-8 Runge-Kutta method with
-  its own error controlled: the reference the check measures against), ``dense.py`` (the
-  interpolant behind ``Solution.at``),
-  ``compiler.py`` (finding gcc, compiling and caching generated code).
+The names below (``__all__``) are the library's public surface for the workbench (scenes, io,
+runner, studies, the command line, scripts): ``tests/test_architecture.py`` holds every import
+of the workbench from the solvers to them. They load when first asked for, so that importing one
+family does not load the others (and scipy.sparse behind them).
 
 Every solver keeps these rules:
 
@@ -35,8 +23,86 @@ Every solver keeps these rules:
    module global.
 5. The equations come from ``discrete/`` and are written nowhere here.
 
-What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``
-and ``march/`` import only the core; ``baselines/`` the core and ``march/``; ``bvp/`` and
-``periodic/`` the core, ``grid/`` and ``march/`` (their starts march); ``higher/`` the core and
-``grid/``. The package as a whole imports ``discrete``, ``physics`` and the base modules.
+What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``,
+``marching/`` and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``;
+``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and ``periodic/`` the core,
+``grid/``, ``marching/``, ``exact/`` and ``accuracy/``; ``higher/`` the core, ``grid/``,
+``exact/`` and ``accuracy/``. The package as a whole imports ``discrete``, ``physics`` and the
+base modules, never the workbench.
 """
+
+from typing import TYPE_CHECKING
+
+from ..cache import lazy_exports
+
+# name -> module (relative to this package) that defines it
+PUBLIC = {
+    # options
+    "StepControl": "options", "Tolerance": "options", "GridOptions": "options",
+    "Compilation": "options", "Output": "options", "coerce": "options",
+    # initial-value problems
+    "march": "marching.initial_value", "continue_march": "marching.initial_value",
+    "MarchState": "marching.resume", "march_ensemble": "marching.ensemble",
+    "Collect": "marching.ensemble", "end_with_parent": "marching.ensemble",
+    # fixed ends
+    "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
+    # periodic orbits
+    "solve_periodic": "periodic.orbit", "check_periodic": "periodic.orbit",
+    "parse_section": "periodic.orbit", "solve_periodic_family": "periodic.family",
+    "follow_periodic_family": "periodic.arclength", "Continuation": "periodic.arclength",
+    "periodic_stability": "periodic.floquet", "Stability": "periodic.floquet",
+    "section_point": "periodic.first_orbit", "march_to_return": "periodic.first_orbit",
+    "resample": "periodic.first_orbit",
+    # higher-order Lagrangians
+    "march_higher": "higher.stepping", "solve_bvp_higher": "higher.stepping",
+    # the compared integrators
+    "INTEGRATORS": "baselines", "Integrator": "baselines",
+    "step_residuals": "baselines.fixed_step", "fixed_step_run": "baselines.fixed_step",
+    "dop853": "baselines.dop853", "flow_callable": "baselines.dop853",
+    # the exact flow and the verdicts
+    "flow_with_derivatives": "exact.variational",
+    "assess": "accuracy.judgement", "apply_verdict": "accuracy.judgement",
+    "describe": "accuracy.judgement", "Level": "accuracy.judgement",
+    "motion_scales": "accuracy.judgement",
+    # dense output, events, evaluation over many nodes, the compiler
+    "Event": "dense", "locate": "dense", "evaluate_blocks": "grid.maps",
+    "band_kernel": "grid.linear", "find_compiler": "compiler",
+}
+
+if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
+    from .accuracy.judgement import Level, apply_verdict, assess, describe, motion_scales
+    from .baselines import INTEGRATORS, Integrator
+    from .baselines.dop853 import dop853, flow_callable
+    from .baselines.fixed_step import fixed_step_run, step_residuals
+    from .bvp.at_energy import AtEnergy
+    from .bvp.first_guess import Shooting
+    from .bvp.fixed_ends import solve_bvp
+    from .compiler import find_compiler
+    from .dense import Event, locate
+    from .exact.variational import flow_with_derivatives
+    from .grid.linear import band_kernel
+    from .grid.maps import evaluate_blocks
+    from .higher.stepping import march_higher, solve_bvp_higher
+    from .marching.ensemble import Collect, end_with_parent, march_ensemble
+    from .marching.initial_value import continue_march, march
+    from .marching.resume import MarchState
+    from .options import Compilation, GridOptions, Output, StepControl, Tolerance, coerce
+    from .periodic.arclength import Continuation, follow_periodic_family
+    from .periodic.family import solve_periodic_family
+    from .periodic.first_orbit import march_to_return, resample, section_point
+    from .periodic.floquet import Stability, periodic_stability
+    from .periodic.orbit import check_periodic, parse_section, solve_periodic
+
+__getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
+
+__all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Event", "GridOptions",
+           "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
+           "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
+           "band_kernel", "check_periodic", "coerce", "continue_march", "describe",
+           "dop853", "end_with_parent", "evaluate_blocks", "find_compiler",
+           "fixed_step_run", "flow_callable", "flow_with_derivatives",
+           "follow_periodic_family", "locate", "march", "march_ensemble",
+           "march_higher", "march_to_return", "motion_scales", "parse_section",
+           "periodic_stability", "resample", "section_point", "solve_bvp",
+           "solve_bvp_higher", "solve_periodic", "solve_periodic_family",
+           "step_residuals"]

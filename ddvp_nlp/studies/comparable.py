@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..scenes import RunConfig, Scene
-from ..solvers.baselines.dop853 import dop853
+from ..solvers import dop853
 
 REFERENCE_RTOL = 1e-13
 

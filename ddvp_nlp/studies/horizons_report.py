@@ -18,8 +18,7 @@ from ..io.horizons_figure import plot_growth, plot_horizons
 from ..io.run_folder import figure_writer
 from ..runner.tasks import Workers
 from ..scenes import Scene
-from ..solvers.compiler import find_compiler
-from ..solvers.options import Compilation
+from ..solvers import Compilation, find_compiler
 from .horizons import affordable_knobs, error_growth, parse_horizons, reference_kind
 from .methods import get_methods
 from .work_precision import ERROR_KINDS, CompareOptions, default_methods, methods_in

@@ -16,8 +16,7 @@ import numpy as np
 from ..errors import InputError
 from ..scenes import RunConfig
 from ..solution import Status
-from ..solvers.baselines import INTEGRATORS, Integrator
-from ..solvers.baselines.fixed_step import step_residuals
+from ..solvers import INTEGRATORS, Integrator, step_residuals
 
 
 class Method(Integrator):
@@ -78,8 +77,7 @@ def _check_accuracy(system, config, method, solution, tolerance, *, compiler=Non
     tolerance): a success judged ``inaccurate`` becomes ``INACCURATE`` (unless
     ``tolerance.stop`` is off), a ``drifted`` one ``DRIFTED`` when an accurate trajectory is
     required."""
-    from ..solvers.accuracy.judgement import apply_verdict, assess
-    from ..solvers.options import Tolerance
+    from ..solvers import Tolerance, apply_verdict, assess
 
     tolerance = tolerance or Tolerance()
     if solution.t.size < 2:

@@ -10,16 +10,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..discrete import equations
-from ..discrete.scheme import Scheme
-from ..physics.hamiltonian import (
-    HamiltonianSystem,
-    site_density_weight_function,
-    vector_field_function,
-)
+from ..discrete import Scheme, canonical_function, interval_action_expression
+from ..physics import HamiltonianSystem, site_density_weight_function, vector_field_function
 from ..scenes import load_scene
-from ..solvers.march.initial_value import march
-from ..solvers.options import StepControl
+from ..solvers import StepControl, march
 
 
 def dominant_period(t, values, *, longer_than=None, shorter_than=None) -> float:
@@ -190,7 +184,7 @@ def fixed_step_map(system: HamiltonianSystem, scheme: Scheme):
     z, z_next = ca.MX.sym("z", 2 * n), ca.MX.sym("z_next", 2 * n)
     t, tau = ca.MX.sym("t"), ca.MX.sym("tau")
     theta = ca.MX.sym("theta", system.theta.numel())
-    canonical = equations.canonical_function(system, scheme)
+    canonical = canonical_function(system, scheme)
     g = ca.Function("g", [z_next, ca.vertcat(z, t, tau, theta)],
                     [canonical(t, t + tau, z[:n], z[n:], z_next[:n], z_next[n:], theta)])
     root = ca.rootfinder("step", "newton", g, {"abstol": 1e-15})
@@ -213,12 +207,12 @@ def extended_lee_map(system: HamiltonianSystem, scheme: Scheme):
     q_next, p_next, tau = unknown[:n], unknown[n:2 * n], unknown[2 * n]
     t_a, t_b = ca.SX.sym("t_a"), ca.SX.sym("t_b")
     theta = ca.SX.sym("theta", system.theta.numel())
-    action = equations.interval_action_expression(system, scheme, t_a, t_b, q, p, q_next, p_next,
+    action = interval_action_expression(system, scheme, t_a, t_b, q, p, q_next, p_next,
                                                   theta)
     dS = ca.Function("dS", [t_a, t_b, x, unknown, theta],
                      [ca.gradient(action, t_a), ca.gradient(action, t_b)])
     dS_left, dS_right = dS(t, t + tau, x, unknown, theta)
-    canonical = equations.canonical_function(system, scheme)(
+    canonical = canonical_function(system, scheme)(
         t, t + tau, q, p, q_next, p_next, theta)
     g = ca.Function("g", [unknown, ca.vertcat(x, theta)],
                     [ca.vertcat(canonical, dS_left + minus_E)])

@@ -27,14 +27,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..physics.hamiltonian import vector_field_function
+from ..physics import vector_field_function
 from ..runner.tasks import Task, resolve_scheduler, run_tasks
 from ..scenes import load_scene
-from ..solvers.dense import Event, locate
-from ..solvers.grid.maps import evaluate_blocks
-from ..solvers.march.ensemble import Collect, march_ensemble
-from ..solvers.options import Compilation
-from ..solvers.periodic.orbit import parse_section
+from ..solvers import (
+    Collect,
+    Compilation,
+    Event,
+    evaluate_blocks,
+    locate,
+    march_ensemble,
+    parse_section,
+)
 from ..validation import check_real
 
 # Orbits per task on a cluster: enough that a task's start-up (loading the scene and its

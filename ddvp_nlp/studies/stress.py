@@ -29,12 +29,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..physics.hamiltonian import site_density_weight_function
+from ..physics import site_density_weight_function
 from ..runner.journal import RowSchema, run_journalled
 from ..runner.tasks import Task, Workers, describe_error, resolve_scheduler
 from ..scenes import load_scene, scene_digest, scene_file
-from ..solvers.compiler import find_compiler
-from ..solvers.options import Compilation, StepControl, coerce
+from ..solvers import Compilation, StepControl, coerce, find_compiler
 from .comparable import check_comparable, check_starts_from_p0, reference_for
 from .methods import METHODS
 from .verdict_columns import COLUMNS as ACCURACY_COLUMNS

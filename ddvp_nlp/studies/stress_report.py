@@ -19,7 +19,7 @@ from ..io.run_folder import figure_writer
 from ..io.stress_figure import NOT_RUN, plot_stress
 from ..runner.journal import commit_journal
 from ..runner.tasks import Workers
-from ..solvers.options import Compilation, StepControl
+from ..solvers import Compilation, StepControl
 from .comparable import REFERENCE_RTOL
 from .stress import (
     DOP853_RTOL,

@@ -13,10 +13,8 @@ import math
 
 import numpy as np
 
-from ..discrete import equations
-from ..discrete.scheme import RULES, Scheme
-from ..solvers.accuracy.judgement import Level, assess
-from ..solvers.options import Tolerance
+from ..discrete import RULES, Scheme, interval_energies
+from ..solvers import Level, Tolerance, assess
 
 COLUMNS = ("accuracy", "error_estimate")
 NOT_MADE = {"accuracy": "", "error_estimate": math.nan}
@@ -33,7 +31,7 @@ def accuracy_columns(system, config, method, solution, *, compiler=None, cache_d
     level = None
     if method.name in RULES and method.energy_conserving:
         scheme = Scheme(method.name)
-        value = float(equations.interval_energies(system, scheme, solution.t[:2],
+        value = float(interval_energies(system, scheme, solution.t[:2],
                                                   solution.q[:2], solution.p[:2], theta)[0])
         t0, t1 = solution.t[:2]
         level = Level(value, float(t0 + (t1 - t0) / 2 if scheme.clock == "midpoint" else t0))

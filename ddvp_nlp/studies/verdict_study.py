@@ -41,10 +41,8 @@ from dataclasses import asdict, dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..physics.hamiltonian import HamiltonianSystem
-from ..solvers.accuracy.judgement import motion_scales
-from ..solvers.march.initial_value import march
-from ..solvers.options import Compilation, StepControl, Tolerance
+from ..physics import HamiltonianSystem
+from ..solvers import Compilation, StepControl, Tolerance, march, motion_scales
 
 MARGIN = 2.0
 TRUTH_RTOL = 1e-12
@@ -220,7 +218,7 @@ def true_error(system, solution, covered: float | None = None) -> dict:
     up to ``covered`` (all if ``None``), ``error_all`` over every node, ``truth_error`` (the
     bound of the truth's own error, same units) and ``trusted``."""
 
-    from ..solvers.baselines.dop853 import flow_callable
+    from ..solvers import flow_callable
 
     t = solution.t
     z = np.hstack([solution.q, solution.p])

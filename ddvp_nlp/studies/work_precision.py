@@ -33,9 +33,7 @@ from ..runner.journal import RowSchema, run_journalled
 from ..runner.tasks import Task, Workers, describe_error, resolve_scheduler
 from ..scenes import RunConfig, Scene, load_scene
 from ..solution import Status
-from ..solvers.compiler import find_compiler
-from ..solvers.grid.maps import evaluate_blocks
-from ..solvers.options import Compilation, coerce
+from ..solvers import Compilation, coerce, evaluate_blocks, find_compiler
 from ..validation import check_count, check_real
 from .comparable import (
     REFERENCE_KINDS,

@@ -18,7 +18,7 @@ from ..io.work_precision_figure import plot_work_precision
 from ..runner.journal import commit_journal
 from ..runner.tasks import Workers
 from ..scenes import Scene
-from ..solvers.options import Compilation
+from ..solvers import Compilation
 from .methods import METHODS
 from .work_precision import (
     ERROR_KINDS,

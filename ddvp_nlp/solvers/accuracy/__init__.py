@@ -1,7 +1,18 @@
-"""The accuracy check: a verdict (``accurate``, ``drifted`` or ``inaccurate``) on a solution that
-does not trust the scheme's own equations, measured against the exact flow (``exact/``).
+"""The accuracy check: a verdict on a solution that does not trust the scheme's own equations,
+measured against the exact flow (``exact/``): ``accurate``, ``drifted`` (every step follows the
+flow and the energy is right, but the phase is lost from ``t_drift`` on) or ``inaccurate``. The
+module map is in ``docs/architecture.md``.
 
-- ``judgement.py``: the scales of a motion, the tests and the verdict of a trajectory in phase
-  space (marches, fixed ends, every compared method), and the march's monitor of it.
-- ``higher_order.py``: the same verdicts for a higher-order trajectory (positions only).
+The contract of a verdict. An implementer must keep:
+
+1. Scales come from the motion, never from 1: each component's size is its range over the run,
+   the energy scale how much ``H`` changes over that size; a verdict does not change when the
+   units change or a constant is added to ``H``.
+2. What decides is measured against the exact flow (or the exact solution, where one is
+   given), with the reference's own error held below a tenth of the tolerance; a first-order
+   estimate may be reported, never decide.
+3. Every family (a march, a fixed-endpoint or periodic grid, a higher-order trajectory, a
+   compared method) gets the same three verdicts and the same report, with the first failure's
+   test, step, time, value and limit.
+4. This package imports only the core and ``exact/``.
 """

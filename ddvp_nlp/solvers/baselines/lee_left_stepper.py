@@ -25,7 +25,7 @@ from ...discrete.lee_left import LeeLeftPointEquations
 from ...physics.hamiltonian import HamiltonianSystem, quadratic_kinetic_matrix
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
-from ..march.step_newton import NEWTON_OPTIONS
+from ..marching.step_newton import NEWTON_OPTIONS
 from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
 

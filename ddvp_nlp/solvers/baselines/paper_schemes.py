@@ -13,7 +13,7 @@ compiled chunks of the baselines' one size (``chunks.CHUNK``), so a scene compil
 
 from __future__ import annotations
 
-from ..march.initial_value import march
+from ..marching.initial_value import march
 from ..options import Compilation, StepControl
 from .chunks import CHUNK
 from .integrator import Integrator

@@ -192,7 +192,7 @@ def _continued(request: GridRequest[Boundary], fixed: Scheme, times, base, solve
 def _march(request: GridRequest[Boundary], fixed: Scheme, p0):
     """The march of ``fixed`` steps on the uniform grid of ``request.nodes`` nodes from
     ``(q_start, p0)``."""
-    from ..march import march
+    from ..marching import march
 
     params = dict(zip(request.system.params, request.theta.tolist(), strict=True))
     return march(request.system, request.data.q_start, p0, (request.data.t0, request.data.t1),

@@ -1,12 +1,15 @@
-"""The exact flow ``z' = f(z, t) = (H_p, -H_q)``: the one truth every verdict and every
-comparison measures against. It shares nothing with the schemes it checks: no equation of
-``discrete/``, no Newton of the march, no step the scheme chose other than the node times.
+"""The exact flow ``z' = f(z, t) = (H_p, -H_q)`` (for a higher-order ``L``, its Euler-Lagrange
+equation in Ostrogradsky's variables): the one truth every verdict, comparison, shooting and
+monodromy measures against. The module map is in ``docs/architecture.md``.
 
-- ``flow.py``: the flow integrated by a compiled order-8 Runge-Kutta method with its own error
-  controlled (the reference trajectory at a run's node times, the flow over each step).
-- ``variational.py``: the flow with its derivatives (the variational equations): monodromy
-  matrices, shooting Jacobians.
-- ``shooting.py``: the continuous fixed-endpoint problem near a discrete solution, by multiple
-  shooting.
-- ``closure.py``: the exact periodic orbit near a discrete one, and its monodromy.
+The contract of the exact flow. An implementer must keep:
+
+1. It shares nothing with the schemes it checks: no equation of ``discrete/`` (only the vector
+   field of ``physics/``), no Newton of the march, no step a scheme chose other than the times
+   it is read at.
+2. Its own error is controlled and said: every result comes with a bound of its own error,
+   and a caller that needs the error below a budget gets it there or is told it could not be.
+3. Its derivatives (the variational equations) are those of the same flow, so a shooting
+   Newton and a monodromy matrix agree with the trajectory they belong to.
+4. This package imports only the core (``options``, ``compiler``) and the base modules.
 """

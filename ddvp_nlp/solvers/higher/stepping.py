@@ -38,7 +38,7 @@ DEFAULT_MAX_ITER = 500
 # rule's: no bounds on them).
 DEFAULT_STEPS = StepControl(tol=1e-9, max_steps=1_000_000)
 # The higher-order march's own step solve (one Euler-Lagrange/energy step in the last
-# difference; not the first-order march's Newton of solvers/march/step_newton.py).
+# difference; not the first-order march's Newton of solvers/marching/step_newton.py).
 HIGHER_STEP_NEWTON = MappingProxyType({"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50,
                                        "error_on_fail": False})
 
@@ -123,7 +123,7 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
 def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cache_dir=None):
     """The accuracy check of a higher-order trajectory (``verdict.py``) into
     ``solution.stats["accuracy"]`` and ``solution.local_error``, and its status."""
-    from ..accuracy.higher_order import judge_higher
+    from ..accuracy.positions import judge_higher
 
     if not np.all(np.isfinite(solution.q)) and solution.t.size:
         finite = np.all(np.isfinite(solution.q), axis=1)

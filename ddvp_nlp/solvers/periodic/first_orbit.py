@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 from ...errors import InputError
 from ...physics.hamiltonian import site_density_weight_function, vector_field_function
 from ...solution import Solution
-from ..march.initial_value import march
+from ..marching.initial_value import march
 
 # Scale of the start direction scanned for the energy (|z| up to S_MAX |d|), and its grid.
 S_MAX = 20.0
