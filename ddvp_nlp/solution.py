@@ -16,7 +16,7 @@ class Status(enum.Enum):
     what happened in words a person can act on (the message of the result adds step, time and
     state)."""
 
-    SUCCESS = "reached t_end"
+    SUCCESS = "solved: the solver's result passed every check"
     EVENT = "a terminal event occurred"
     NO_ADMISSIBLE_STEP = "the step equations have no root with tau > 0 near the previous step"
     NEWTON_FAILED = "Newton's method did not converge on the step equations"

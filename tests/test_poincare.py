@@ -54,6 +54,6 @@ def test_a_section_on_a_dask_cluster_is_the_local_one():
                                   scheduler=cluster.scheduler_address, **options)
         with pytest.raises(InputError, match="scene="):
             poincare_section(system, 1 / 12, scheduler=cluster.scheduler_address, **options)
-    assert remote.statuses == local.statuses == ["reached t_end"] * 3
+    assert remote.statuses == local.statuses == ["success"] * 3
     assert np.array_equal(remote.points, local.points) and np.array_equal(remote.orbit,
                                                                           local.orbit)

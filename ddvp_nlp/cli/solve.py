@@ -611,7 +611,7 @@ def run_poincare(args) -> int:
         with INTERRUPTS.saving():
             write_section(out, section, plot=not args.no_plot,
                           interruptible=INTERRUPTS.interruptible)
-    failed = sum(status != "reached t_end" for status in section.statuses)
+    failed = sum(status != "success" for status in section.statuses)
     verdicts = [verdict for verdict, _ in section.verdicts]
     print(f"{len(section.statuses)} orbits, {section.points.shape[0]} crossings of "
           f"{args.section}; {failed} orbits failed; largest nodal energy error "

@@ -42,7 +42,7 @@ def write_section(out, section, *, plot: bool = True, interruptible=None) -> dic
     meta = {"command": "poincare", "energy": float(section.energy),
             "section": section.section, "direction": section.direction,
             "orbits": int(section.starts.shape[0]), "crossings": int(section.points.shape[0]),
-            "failed": sum(s != "reached t_end" for s in section.statuses)}
+            "failed": sum(s != "success" for s in section.statuses)}
     with atomic.output_folder(out) as folder:
         figure = figure_writer(folder, "section.png",
                                (lambda handle: plot_section(section, handle)) if plot else None,
@@ -72,7 +72,7 @@ def plot_section(section, path: Path, fmt: str = "png") -> None:
             mine = section.orbit == k
             ax.plot(section.points[mine, free], section.points[mine, n + free], ".", ms=1.2,
                     mew=0, color=colours[k], rasterized=True)
-        failed = [k for k, s in enumerate(section.statuses) if s != "reached t_end"]
+        failed = [k for k, s in enumerate(section.statuses) if s != "success"]
         if failed:  # where a failed orbit started, so a reader knows a curve is cut short
             ax.plot(section.starts[failed, free], section.starts[failed, n + free],
                     **figures.FAILED, label=f"{len(failed)} orbits failed (start)")

@@ -154,7 +154,7 @@ class SectionOutput:
         H = evaluate_blocks(solution.system, ("poincare_energy",), solution.system.H_function,
                             [solution.q, solution.p, solution.t[:, None]],
                             solution.vector_field.theta, COMPILATION)[0]
-        return {"times": times, "points": points, "status": solution.status.value,
+        return {"times": times, "points": points, "status": solution.status.code,
                 "energy_error": float(np.max(np.abs(H - self.energy))),
                 "steps": solution.steps,
                 "verdict": solution.stats.get("accuracy", {}).get("verdict", ""),
