@@ -97,5 +97,5 @@ q0, p0 = _q[0], _p[0]
 # periods: the orbit's multiplier is about 2000).
 scene = Scene(hamiltonian, n=3, params={"mu": EARTH_MOON}, q0=q0, p0=p0, tau0=0.01,
               t_end=float(_t[-1]),
-              periodic=PeriodicSettings(section="q2=0", energy=-1.5935, nodes=200,
+              periodic=PeriodicSettings(section="q2=0", energy=-1.5935, nodes=201,
                                         guess=lyapunov_guess))

@@ -42,5 +42,5 @@ def angular_momentum(q, p):
 # direction; the section point at E is looked for along Simo's state. Translations and rotations
 # are symmetries (their integrals, conserved exactly by the midpoint rule, get phase conditions).
 scene = Scene(hamiltonian, n=6, q0=q0, p0=p0, tau0=0.01, t_end=PERIOD,
-              periodic=PeriodicSettings(section="q5=0", energy=ENERGY, nodes=600, start=(q0, p0),
+              periodic=PeriodicSettings(section="q5=0", energy=ENERGY, nodes=601, start=(q0, p0),
                                         integrals=(momentum_x, momentum_y, angular_momentum)))

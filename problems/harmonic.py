@@ -26,4 +26,4 @@ def period(energy, w):
 # Periodic orbits (ddvp periodic): period 2 pi / w at every energy.
 scene = Scene(hamiltonian, n=1, params={"w": 1.0}, q0=[1.0], p0=[0.0], tau0=0.1, t_end=20.0,
               exact=exact,
-              periodic=PeriodicSettings(section="p1=0", energy=0.5, nodes=200, period=period))
+              periodic=PeriodicSettings(section="p1=0", energy=0.5, nodes=201, period=period))

@@ -20,7 +20,7 @@ def hamiltonian(q, p, t):
 # check against the reference flow); at the old 0.05 it passed 1e-2 at t = 78.
 scene = Scene(hamiltonian, n=2, q0=[0.0, 0.1], p0=[0.35, 0.0], tau0=0.02, t_end=200.0,
               periodic=PeriodicSettings(
-                  section="p2=0", energy=0.1, nodes=200, start=([0.0, 1.0], [0.0, 0.0]),
+                  section="p2=0", energy=0.1, nodes=201, start=([0.0, 1.0], [0.0, 0.0]),
                   families={
                       "loop": PeriodicSettings(section="q1=0", start=([0.0, 1.0], [-1.0, 0.0])),
                       "across": PeriodicSettings(section="q1=0",

@@ -56,7 +56,7 @@ scene = Scene(hamiltonian, n=1, q0=[0.5], p0=[0.5], tau0=0.05, t_end=100.0, exac
               boundary=Endpoints(q_start=[0.5], q_end=[-0.036], t_span=(0.0, 9.0),
                         nodes=181),
               periodic=PeriodicSettings(
-                  section="p1=0", energy=0.5, nodes=200, angles=("q1",),
+                  section="p1=0", energy=0.5, nodes=201, angles=("q1",),
                   period=libration_period,
                   families={"rotations": PeriodicSettings(section="q1=0", energy=3.0,
                                                           angles=("q1",),

@@ -191,7 +191,7 @@ def test_kepler_at_e_06_is_not_called_accurate(tmp_path, capsys):
 def test_a_compared_method_above_order_4_is_checked(tmp_path):
     """DOP853 at rtol 1e-2 on kepler e = 0.9: 127% of the orbit off; no longer a success."""
     out = tmp_path / "d"
-    code = main(["march", "kepler", "--scheme", "dop853", "--tol", "1e-2", "--set", "e=0.9",
+    code = main(["march", "kepler", "--method", "dop853", "--tol", "1e-2", "--set", "e=0.9",
                  *SHORT, "--out", str(out)])
     meta = json.loads((out / "meta.json").read_text())
     assert meta["error_vs_exact"] > 1.0
@@ -236,7 +236,7 @@ def test_a_failed_solve_never_prints_accurate(tmp_path, capsys):
 def test_a_periodic_grid_too_coarse_is_refused(tmp_path):
     """--energy 1e-4 --nodes 4 on the harmonic oscillator: four nodes cannot resolve the orbit
     (the old check, with its floors of 1, let a period of 8 pass for 2 pi)."""
-    code = main(["periodic", "harmonic", "--energy", "1e-4", "--nodes", "4", "--no-plot",
+    code = main(["periodic", "harmonic", "--energy", "1e-4", "--nodes", "5", "--no-plot",
                  "--out", str(tmp_path / "p")])
     meta = json.loads((tmp_path / "p" / "meta.json").read_text())
     assert code == 1 and meta["status"] == "inaccurate"

@@ -9,6 +9,7 @@ import pytest
 from conftest import fitted_order
 
 from ddvp_nlp import load_scene
+from ddvp_nlp.discrete import RULES
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 from ddvp_nlp.solvers.compiler import find_compiler
 from ddvp_nlp.studies.methods import METHODS
@@ -120,7 +121,8 @@ def test_every_compared_method_marches_from_the_command_line(name, tmp_path, cap
     from ddvp_nlp.cli import main
 
     out = tmp_path / name
-    code = main(["march", "harmonic", "--scheme", name, "--set", "t_end=3", "--out", str(out),
+    flag = "--scheme" if name in RULES else "--method"  # the energy rules are schemes
+    code = main(["march", "harmonic", flag, name, "--set", "t_end=3", "--out", str(out),
                  "--no-progress", "--no-plot"])
     meta = json.loads((out / "meta.json").read_text())
     assert (out / "result.npz").is_file()

@@ -136,7 +136,7 @@ def test_ipopt_tolerance_sits_at_the_rows_round_off():
         request = GridRequest(system, Scheme("vddvp"), nodes, system.parameter_vector(None),
                               Boundary(np.array([0.5]), np.array([-0.036]), 0.0, 9.0,
                                        np.linspace(0.0, 9.0, nodes)),
-                              GridOptions().resolved(tol=1e-9, max_iter=5))
+                              GridOptions(tol=1e-9).resolved(max_iter=5))
         layout = NodeLayout(1, nodes)
         t = np.linspace(0.0, 9.0, nodes)
         # a point whose interval energies are about ``level``: p = sqrt(2 level)

@@ -110,7 +110,7 @@ def test_times_parse_and_stay_in_the_span():
 @pytest.mark.parametrize("extra, message", [
     (["--t-eval", "0:30:5"], "--t-eval '0:30:5': the times must lie in"),
     (["--event", "q9"], "unknown name 'q9'"),
-    (["--event", "q1", "--scheme", "rk4"], "compared method"),
+    (["--event", "q1", "--method", "rk4"], "compared method"),
     (["--event", "q1", "--resume", "nowhere"], "not to --resume"),
 ])
 def test_bad_requests_exit_2_naming_the_option(tmp_path, extra, message, capsys):

@@ -12,8 +12,8 @@ import pytest
 
 from ddvp_nlp import Output, load_scene, march
 from ddvp_nlp.cli import main
-from ddvp_nlp.cli.grids import SCENES_WIDTH
 from ddvp_nlp.cli.parser import build_parser, parse_arguments
+from ddvp_nlp.cli.scenes_command import SCENES_WIDTH
 from ddvp_nlp.progress import PlainLines, Silent, progress
 from ddvp_nlp.runner.tasks import Task, run_tasks
 

@@ -180,3 +180,53 @@ def test_a_motion_at_rest_says_why_the_step_is_free_and_prints_no_nan(tmp_path, 
     captured = capsys.readouterr()
     assert "nan" not in captured.out and "invalid value" not in captured.err
     assert "error against the exact solution 0.000e+00" in captured.out
+
+
+# Options whose default is the command line's own (not a field of an option object or an
+# argument of the API): where to write, what to run, how to show it.
+CLI_ONLY = {"out", "figure_format", "settings", "events", "scene", "methods", "grid", "guess",
+            "direction"}
+
+
+def _defaults(parser: argparse.ArgumentParser) -> dict:
+    return {action.dest: action.default for action in parser._actions
+            if not isinstance(action, (argparse._HelpAction, argparse._VersionAction))}
+
+
+def test_every_command_line_default_is_the_apis():
+    """A default exists once, in the API: every option whose default is a value (not ``None``,
+    ``False`` or an empty list) reads it from ``cli/arguments.API_DEFAULTS``, and that table
+    gives the option objects' own defaults."""
+    from ddvp_nlp.cli.arguments import API_DEFAULTS, api_default
+
+    own = []
+    for command, parser in build_parser().commands.items():
+        tables = [table for table in (command, "accuracy", "stress") if table in API_DEFAULTS]
+        for dest, value in _defaults(parser).items():
+            known = [table for table in tables if dest in API_DEFAULTS[table]]
+            if known and value is not None:  # None: taken later (a sweep's grid file's bound)
+                assert value == api_default(known[0], dest), (command, dest)
+            elif value not in (None, False, []) and dest not in CLI_ONLY:
+                own.append(f"ddvp {command} --{dest.replace('_', '-')} = {value!r}")
+    assert own == []
+
+
+def test_the_options_a_command_builds_by_default_are_the_apis():
+    from ddvp_nlp import Compilation, GridOptions, Output, StepControl, Tolerance
+    from ddvp_nlp.cli import arguments
+
+    march = build_parser("march").parse_args(["march", "pendulum"])
+    assert arguments.step_control(march) == StepControl()
+    assert arguments.tolerance(march) == Tolerance()
+    assert arguments.compilation(march) == Compilation()
+    assert arguments.march_output(march).checkpoint_interval == Output().checkpoint_interval
+    bvp = build_parser("bvp").parse_args(["bvp", "pendulum"])
+    assert arguments.grid_options(bvp) == GridOptions()
+    periodic = build_parser("periodic").parse_args(["periodic", "pendulum"])
+    assert arguments.grid_options(periodic) == GridOptions()
+
+
+def test_the_default_check_finds_a_default_of_the_command_lines_own():
+    parser = argparse.ArgumentParser(prog="x")
+    parser.add_argument("--tol", type=float, default=1e-9)
+    assert _defaults(parser)["tol"] == 1e-9  # what the walk above would flag for `x`

@@ -40,7 +40,7 @@ def test_the_l1_lyapunov_family_is_followed_to_the_halo_bifurcation():
     scene = load_scene("cr3bp")
     mu = scene.params["mu"]
     family = follow_periodic_family(
-        scene.system, (-1.5935, -1.586), nodes=100, section="q2=0",
+        scene.system, (-1.5935, -1.586), nodes=101, section="q2=0",
         guess=scene.periodic.guess(-1.5935, mu=mu), continuation=Continuation(step=0.001),
         options=RECORDED)
     assert family.complete, family.message
@@ -108,7 +108,7 @@ def test_the_continuation_passes_a_fold_located_against_the_closed_form():
     errors = []
     for nodes in (100, 200):
         family = follow_periodic_family(
-            system, (start, 2.0), nodes=nodes, section="p1=0", guess=_resonant_orbit(0.9),
+            system, (start, 2.0), nodes=nodes + 1, section="p1=0", guess=_resonant_orbit(0.9),
             integrals=(rotor_action,),
             continuation=Continuation(step=0.02, exact=False, confirm=nodes == 100,
                                       max_orbits=60))
@@ -128,7 +128,7 @@ def test_period_doubling_on_the_henon_heiles_axis_family():
     at N = 100 the continuation finds the period doubling within 3e-4 of it, confirmed."""
     scene = load_scene("henon_heiles")
     family = follow_periodic_family(
-        scene.system, (0.125, 0.14), nodes=100, section=scene.periodic.section,
+        scene.system, (0.125, 0.14), nodes=101, section=scene.periodic.section,
         start=scene.periodic.start, continuation=Continuation(step=0.004, exact=False))
     kinds = [b.kind for b in family.bifurcations]
     assert kinds == ["period doubling"], kinds
@@ -143,9 +143,9 @@ def test_period_doubling_on_the_henon_heiles_axis_family():
 def test_continuation_arguments_are_refused_by_name():
     scene = load_scene("pendulum")
     with pytest.raises(InputError, match="energies must be two different finite numbers"):
-        follow_periodic_family(scene.system, (0.5, 0.5), nodes=50)
+        follow_periodic_family(scene.system, (0.5, 0.5), nodes=51)
     with pytest.raises(InputError, match="energies must be a pair"):
-        follow_periodic_family(scene.system, 0.5, nodes=50)
+        follow_periodic_family(scene.system, 0.5, nodes=51)
     with pytest.raises(InputError, match="max_orbits"):
         Continuation(max_orbits=1)
     with pytest.raises(InputError, match="step"):
@@ -154,7 +154,7 @@ def test_continuation_arguments_are_refused_by_name():
 
 def test_periodic_stability_on_the_command_line(tmp_path, capsys):
     out = tmp_path / "orbit"
-    assert main(["periodic", "henon_heiles", "--nodes", "100", "--stability", "--no-plot",
+    assert main(["periodic", "henon_heiles", "--nodes", "101", "--stability", "--no-plot",
                  "--out", str(out)]) == 0
     data = json.loads((out / "stability.json").read_text())
     assert data["verdict"] == "stable" and data["exact"]["verdict"] == "stable"
@@ -165,7 +165,7 @@ def test_periodic_stability_on_the_command_line(tmp_path, capsys):
 def test_follow_on_the_command_line_writes_the_family_and_its_bifurcation(tmp_path, capsys):
     out = tmp_path / "follow"
     code = main(["periodic", "cr3bp", "--energy", "-1.5885", "--follow", "-1.5865", "--nodes",
-                 "60", "--step", "0.001", "--accept-inaccurate", "--out", str(out)])
+                 "61", "--step", "0.001", "--accept-inaccurate", "--out", str(out)])
     assert code == 0
     text = capsys.readouterr().out
     assert "bifurcation 1: branch point" in text

@@ -36,7 +36,7 @@ BASES = [
     (["bvp", "pendulum", "--nodes", "21", "--no-plot"],
      ["--nodes", "--tol", "--alpha", "--time-limit", "--p-start", "--guess", "--set",
       "--solver"]),
-    (["periodic", "harmonic", "--nodes", "20", "--no-plot"],
+    (["periodic", "harmonic", "--nodes", "21", "--no-plot"],
      ["--energy", "--nodes", "--section", "--family", "--set", "--guess"]),
     (["poincare", "henon_heiles", "--energy", "0.1", "--orbits", "2", "--t-end", "5",
       "--no-plot", "--workers", "1"],

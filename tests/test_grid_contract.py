@@ -96,7 +96,7 @@ FAMILIES = {
     "bvp": lambda options: solve_bvp(load_scene("pendulum").system, [0.5], [-0.036], (0.0, 9.0),
                                      nodes=181, options=options),
     "periodic": lambda options: solve_periodic(load_scene("pendulum").system, energy=0.5,
-                                               nodes=100, options=options),
+                                               nodes=101, options=options),
     "higher": _higher,
 }
 

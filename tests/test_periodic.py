@@ -23,7 +23,7 @@ def pendulum_period(energy: float) -> float:
 @pytest.fixture(scope="module")
 def pendulum_orbits():
     system = load_scene("pendulum").system
-    return {N: solve_periodic(system, energy=0.5, nodes=N, section="p1=0")
+    return {N: solve_periodic(system, energy=0.5, nodes=N + 1, section="p1=0")
             for N in (100, 200, 400)}
 
 
@@ -59,7 +59,7 @@ def test_pendulum_equations_hold_when_recomputed_with_numpy(pendulum_orbits):
 def test_harmonic_period_error_at_order_two():
     system = load_scene("harmonic").system
     sizes = (40, 80, 160)
-    periods = [solve_periodic(system, energy=0.3, nodes=N, params={"w": 2.0}).stats["period"]
+    periods = [solve_periodic(system, energy=0.3, nodes=N + 1, params={"w": 2.0}).stats["period"]
                for N in sizes]
     errors = np.array(periods) - np.pi
     assert fitted_order(sizes, errors) == pytest.approx(2.0, abs=0.05)
@@ -67,8 +67,8 @@ def test_harmonic_period_error_at_order_two():
 
 def test_the_section_may_be_any_coordinate_value_the_orbit_crosses():
     system = load_scene("pendulum").system
-    on_turning_point = solve_periodic(system, energy=0.5, nodes=60, section="p1=0")
-    elsewhere = solve_periodic(system, energy=0.5, nodes=60, section="q1=0.3")
+    on_turning_point = solve_periodic(system, energy=0.5, nodes=61, section="p1=0")
+    elsewhere = solve_periodic(system, energy=0.5, nodes=61, section="q1=0.3")
     assert elsewhere.success and elsewhere.q[0, 0] == pytest.approx(0.3, abs=1e-14)
     assert elsewhere.stats["period"] == pytest.approx(on_turning_point.stats["period"],
                                                       abs=1e-9)
@@ -77,7 +77,7 @@ def test_the_section_may_be_any_coordinate_value_the_orbit_crosses():
 @pytest.mark.parametrize("kwargs, message", [
     ({"energy": 2.5}, "energy 2.5 is outside the range where the section p1=0 meets"),
     ({"energy": -0.1}, "energy -0.1 is outside the range"),
-    ({"nodes": 2}, "nodes must be an integer >= 3, got 2"),
+    ({"nodes": 2}, "nodes must be an integer >= 4, got 2"),
     ({"section": "p2=0"}, "section names no coordinate: p2"),
     ({"section": "x1=0"}, "section must be NAME=VALUE with NAME one of q1..q1, p1..p1, got 'x1=0'"),
     ({"scheme": "fixed"}, "scheme 'fixed' has no energy equation"),
@@ -90,13 +90,13 @@ def test_bad_input_is_refused_naming_argument_and_value(kwargs, message):
 
 def test_time_dependent_hamiltonian_is_refused():
     with pytest.raises(InputError, match="H depends on t"):
-        solve_periodic(load_scene("paper_pendulum").system, energy=0.5, nodes=50)
+        solve_periodic(load_scene("paper_pendulum").system, energy=0.5, nodes=51)
 
 
 def test_no_orbit_found_is_a_failure_status_with_residuals():
     """Henon-Heiles from a generic point of x = 0: the march does not close, Newton finds no
     orbit nearby; the result says so and carries the residuals."""
-    solution = solve_periodic(load_scene("henon_heiles").system, energy=0.1, nodes=100,
+    solution = solve_periodic(load_scene("henon_heiles").system, energy=0.1, nodes=101,
                               section="q1=0", options=GridOptions(max_iter=20))
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED)
     assert "canonical" in solution.message and solution.stats["residuals"]["canonical"] > 1e-6
@@ -111,7 +111,7 @@ def test_figure_eight_closes_with_simos_period_and_one_curve():
     discretisation error)."""
     scene = load_scene("figure_eight")
     data = scene.periodic
-    solution = solve_periodic(scene.system, energy=data.energy, nodes=600,
+    solution = solve_periodic(scene.system, energy=data.energy, nodes=601,
                               section=data.section, start=data.start,
                               integrals=data.integrals)
     assert solution.success, solution.message
@@ -133,7 +133,7 @@ def test_figure_eight_closes_with_simos_period_and_one_curve():
 def test_cli_writes_an_orbit_and_a_family(tmp_path, capsys):
     from ddvp_nlp.cli import main
 
-    assert main(["periodic", "pendulum", "--energy", "0.5", "--nodes", "60", "--out",
+    assert main(["periodic", "pendulum", "--energy", "0.5", "--nodes", "61", "--out",
                  str(tmp_path / "one"), "--no-plot"]) == 0
     data = np.load(tmp_path / "one" / "result.npz")
     assert data["t"].shape == (61,) and np.array_equal(data["q"][-1], data["q"][0])
@@ -141,7 +141,7 @@ def test_cli_writes_an_orbit_and_a_family(tmp_path, capsys):
     meta = json.loads((tmp_path / "one" / "meta.json").read_text())
     assert meta["status"] == "success" and meta["period"] == pytest.approx(6.75, abs=0.01)
     assert set(meta["residuals"]) >= {"closure", "canonical", "energy"}
-    assert main(["periodic", "harmonic", "--family", "0.1:0.5:3", "--nodes", "40", "--out",
+    assert main(["periodic", "harmonic", "--family", "0.1:0.5:3", "--nodes", "41", "--out",
                  str(tmp_path / "family")]) == 0
     lines = (tmp_path / "family" / "family.csv").read_text().splitlines()
     assert len(lines) == 4 and (tmp_path / "family" / "family.png").exists()
@@ -149,7 +149,7 @@ def test_cli_writes_an_orbit_and_a_family(tmp_path, capsys):
 
 @pytest.mark.parametrize("arguments, message", [
     (["--energy", "2.5"], "energy 2.5 is outside the range"),
-    (["--energy", "0.5", "--nodes", "2"], "nodes must be an integer >= 3, got 2"),
+    (["--energy", "0.5", "--nodes", "2"], "nodes must be an integer >= 4, got 2"),
     (["--energy", "0.5", "--section", "q3=0"], "section names no coordinate: q3"),
     (["--family", "0.5:3:4"], "energy 3.0 is outside the range"),
     (["--family", "0.5:1"], "--family must be E1:E2:COUNT, got '0.5:1'"),

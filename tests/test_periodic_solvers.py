@@ -45,7 +45,8 @@ def test_ipopt_finds_the_orbit_newton_finds(scene, energy, nodes, params, force,
     system = load_scene(scene).system
     orbits = {
         solver: solve_periodic(
-            system, energy=energy, nodes=nodes, params=params, options=GridOptions(solver=solver)
+            system, energy=energy, nodes=nodes + 1, params=params,
+            options=GridOptions(solver=solver)
         )
         for solver in ("newton", "ipopt")
     }
@@ -72,7 +73,7 @@ def rotation_period(energy: float) -> float:
 @pytest.fixture(scope="module")
 def rotations():
     system = load_scene("pendulum").system
-    return {N: solve_periodic(system, energy=2.5, nodes=N, section="q1=0", angles=("q1",))
+    return {N: solve_periodic(system, energy=2.5, nodes=N + 1, section="q1=0", angles=("q1",))
             for N in (100, 200, 400)}
 
 
@@ -106,12 +107,12 @@ def test_newton_converges_on_rotations_in_as_many_iterations_at_every_n():
     system = load_scene("pendulum").system
     counts = {}
     for N in (100, 200, 400, 800):
-        orbit = solve_periodic(system, energy=2.5, nodes=N, section="q1=0", angles=("q1",),
+        orbit = solve_periodic(system, energy=2.5, nodes=N + 1, section="q1=0", angles=("q1",),
                                options=GridOptions(solver="newton"))
         assert orbit.success, orbit.message
         levels = orbit.stats["levels"]
-        assert [level["nodes"] for level in levels] == [100, 200, 400, 800][:len(levels)]
-        assert levels[-1]["nodes"] == N and all(lv["status"] == "success" for lv in levels)
+        assert [level["intervals"] for level in levels] == [100, 200, 400, 800][:len(levels)]
+        assert levels[-1]["intervals"] == N and all(lv["status"] == "success" for lv in levels)
         assert all(level["iterations"] <= 8 for level in levels)
         counts[N] = levels[-1]["iterations"]
         tau = np.diff(orbit.t)
@@ -122,7 +123,7 @@ def test_newton_converges_on_rotations_in_as_many_iterations_at_every_n():
 def test_continuation_keeps_the_step_distribution():
     """Refined by node index, an orbit's nodes keep its steps' shape: each old step is split
     in two halves, the spike included."""
-    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=100,
+    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=101,
                            section="q1=0", angles=("q1",))
     t, z = refine_by_index(orbit.t, np.hstack([orbit.q, orbit.p]), 200, angles=(0,))
     assert t.size == 201 and z[-1, 0] == pytest.approx(z[0, 0] + 2 * np.pi, abs=1e-14)
@@ -144,7 +145,7 @@ def test_auto_tries_newton_first_and_reports_both():
     point = section_point(system, theta, 2.5, 1, 0.0, np.ones(2), "q1=0")
     t, z = resample(*march_to_return(system, theta, point, 1, 0.0, "vddvp", True), 100,
                     angles=(0,))
-    orbit = solve_periodic(system, energy=2.5, nodes=100, section="q1=0", angles=("q1",),
+    orbit = solve_periodic(system, energy=2.5, nodes=101, section="q1=0", angles=("q1",),
                            guess={"t": t, "q": z[:, :1], "p": z[:, 1:]})
     attempts = orbit.stats["attempts"]
     assert [a["solver"] for a in attempts] == ["newton", "ipopt"]
@@ -154,7 +155,7 @@ def test_auto_tries_newton_first_and_reports_both():
 
 def test_rotation_without_an_angle_does_not_close():
     """Without ``angles`` q never returns to the section: a failure status, not an orbit."""
-    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=50,
+    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=51,
                            section="q1=0", options=GridOptions(solver="newton"))
     assert not orbit.success and "did not return" in orbit.message
 
@@ -163,7 +164,7 @@ def test_rotation_without_an_angle_does_not_close():
 def test_henon_heiles_families_through_x0_leave_the_invariant_plane(name, increasing):
     scene = load_scene("henon_heiles")
     data = scene.periodic.families[name]
-    family = solve_periodic_family(scene.system, [0.02, 0.06, 0.1], nodes=100,
+    family = solve_periodic_family(scene.system, [0.02, 0.06, 0.1], nodes=101,
                                    section=data.section, start=data.start)
     periods = []
     for _, orbit in family:
@@ -182,7 +183,7 @@ def test_henon_heiles_families_through_x0_leave_the_invariant_plane(name, increa
     ({"angles": ("q2",)}, "angles must name coordinates q1..q1, got ('q2',)"),
     ({"energy": 2.5, "angles": ("q1",)},
      "a rotation of the angle q1 has a section on it, e.g. q1=0"),
-    ({"energy": 3.0, "section": "q1=0.5", "nodes": 2}, "nodes must be an integer >= 3, got 2"),
+    ({"energy": 3.0, "section": "q1=0.5", "nodes": 2}, "nodes must be an integer >= 4, got 2"),
     ({"energy": float("nan")}, "energy"),
 ])
 def test_more_bad_input_is_refused(kwargs, message):
@@ -215,7 +216,7 @@ def test_cli_rotation_on_ipopt(tmp_path, capsys):
     from ddvp_nlp.cli import main
 
     assert main(["periodic", "pendulum", "--energy", "2.5", "--section", "q1=0", "--nodes",
-                 "100", "--solver", "ipopt", "--out", str(tmp_path), "--no-plot"]) == 0
+                 "101", "--solver", "ipopt", "--out", str(tmp_path), "--no-plot"]) == 0
     meta = json.loads((tmp_path / "meta.json").read_text())
     assert meta["solver"] == "ipopt" and meta["winding"] == [1]
     assert meta["period"] == pytest.approx(rotation_period(2.5), abs=1e-3)

@@ -277,7 +277,7 @@ def test_a_scene_that_misbehaves_is_refused_with_its_line(tmp_path, capsys, monk
 @pytest.mark.parametrize("argv, text", [
     (["march", "pendulum", "--set", "tau0=5e-324"], "tau0 = 5e-324 is too small"),
     (["march", "pendulum", "--time-limit", "nan"], "--time-limit must be finite"),
-    (["march", "pendulum", "--scheme", "dop853", "--tol", "0"], "--tol must be > 0"),
+    (["march", "pendulum", "--method", "dop853", "--tol", "0"], "--tol must be > 0"),
     (["compare", "pendulum", "--methods", ""], "--methods must be comma-separated"),
     (["sweep", "harmonic", "--grid", "w=1,1"], "has the value 1.0 twice"),
     (["poincare", "henon_heiles", "--energy", "0.1", "--section", ""], "--section must be"),
@@ -299,7 +299,7 @@ def test_default_folders_carry_every_setting_that_changes_the_result(tmp_path, m
     for extra in ([], ["--alpha", "0.3"], ["--clock", "left"], ["--tol", "1e-9"]):
         assert main([*base, *extra]) == 0
     for energy in ("0.3", "0.6"):
-        assert main(["periodic", "harmonic", "--energy", energy, "--nodes", "40",
+        assert main(["periodic", "harmonic", "--energy", energy, "--nodes", "41",
                      "--no-plot"]) == 0
     folders = sorted(p.name for p in (tmp_path / "runs").iterdir())
     assert len(folders) == 6 and len({f.split("-")[-1] for f in folders}) == 6

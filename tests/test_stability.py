@@ -34,9 +34,9 @@ def _orbits(scene, settings, energy, sizes, base_nodes=400, **options):
     common = {"section": settings.section, "start": settings.start,
               "integrals": settings.integrals,
               "options": GridOptions(accuracy=Tolerance(stop=False)), **options}
-    base = solve_periodic(scene.system, energy=energy, nodes=base_nodes, **common)
+    base = solve_periodic(scene.system, energy=energy, nodes=base_nodes + 1, **common)
     assert base.success, base.message
-    return [solve_periodic(scene.system, energy=energy, nodes=N, guess=base, **common)
+    return [solve_periodic(scene.system, energy=energy, nodes=N + 1, guess=base, **common)
             for N in sizes]
 
 
@@ -84,13 +84,13 @@ def test_pendulum_has_only_the_trivial_pair_and_its_period_derivative_converges(
 def test_the_figure_eight_is_linearly_stable_and_its_indices_converge():
     """Eight trivial multipliers (flow, two translations, rotation: two each) and two stable
     pairs, indices -0.5952 and 1.99720 on the exact flow; the discrete ones converge at order
-    2 over N = 200, 400, 800, and the verdict at the scene's N = 600 is stable. (At N = 100
-    the index near 2 comes out 2.00014: the discretisation error, 2.9e-3, is larger than the
+    2 over N = 200, 400, 800, and the verdict at the scene's N = 600 (601 nodes) is stable. (At
+    N = 100 the index near 2 comes out 2.00014: the discretisation error, 2.9e-3, is larger than the
     orbit's margin, 2.8e-3; the exact flow's check says so.)"""
     scene = load_scene("figure_eight")
     settings = scene.periodic
     sizes = (200, 400, 800)
-    orbits = _orbits(scene, settings, settings.energy, (*sizes, settings.nodes))
+    orbits = _orbits(scene, settings, settings.energy, (*sizes, settings.nodes - 1))
     errors = []
     for orbit in orbits:
         stability = periodic_stability(scene.system, orbit, integrals=settings.integrals)
@@ -113,7 +113,7 @@ def test_indices_and_verdicts_do_not_change_with_the_units():
     units drawn over four decades."""
     scene = load_scene("henon_heiles")
     loop = scene.periodic.families["loop"]
-    reference_orbit = solve_periodic(scene.system, energy=0.1, nodes=300, section=loop.section,
+    reference_orbit = solve_periodic(scene.system, energy=0.1, nodes=301, section=loop.section,
                                      start=loop.start)
     reference = periodic_stability(scene.system, reference_orbit, exact=False)
 
@@ -128,7 +128,7 @@ def test_indices_and_verdicts_do_not_change_with_the_units():
         system = HamiltonianSystem(hamiltonian, 2, name="henon_heiles_units")
         guess = {"t": reference_orbit.t / c, "q": reference_orbit.q / a,
                  "p": reference_orbit.p / b}
-        orbit = solve_periodic(system, energy=0.1 * c / (a * b), nodes=300,
+        orbit = solve_periodic(system, energy=0.1 * c / (a * b), nodes=301,
                                section="q1=0", guess=guess)
         assert orbit.success, orbit.message
         assert abs(orbit.stats["period"] * c / reference_orbit.stats["period"] - 1) < 1e-10
@@ -157,8 +157,8 @@ def test_drawn_systems_indices_match_the_exact_flow_within_their_richardson_esti
     barrier = omega ** 6 / (6 * beta ** 2) if beta else 1.0
     energy = amplitude * min(barrier, 1.0) * 0.5
     start = ([0.0, 1.0], [0.0, 0.0])
-    coarse = solve_periodic(system, energy=energy, nodes=100, section="p2=0", start=start)
-    fine = solve_periodic(system, energy=energy, nodes=200, section="p2=0", guess=coarse)
+    coarse = solve_periodic(system, energy=energy, nodes=101, section="p2=0", start=start)
+    fine = solve_periodic(system, energy=energy, nodes=201, section="p2=0", guess=coarse)
     assert coarse.success and fine.success, (coarse.message, fine.message)
     k_coarse = periodic_stability(system, coarse, exact=False).indices[0]
     checked = periodic_stability(system, fine)
@@ -196,7 +196,7 @@ def test_bad_arguments_are_refused_by_name():
     scene = load_scene("pendulum")
     with pytest.raises(InputError, match="solution must be a periodic orbit"):
         periodic_stability(scene.system, "orbit")
-    orbit = solve_periodic(scene.system, energy=0.5, nodes=60)
+    orbit = solve_periodic(scene.system, energy=0.5, nodes=61)
     with pytest.raises(InputError, match="tol"):
         periodic_stability(scene.system, orbit, tol=-1.0)
     with pytest.raises(InputError, match="integrals: the orbit was solved with 0"):

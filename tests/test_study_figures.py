@@ -62,7 +62,7 @@ def test_the_family_figure_draws_the_exact_curve_and_the_relative_difference():
     plot_family(rows, "pendulum", kept, reference=period)
     top, bottom = kept.figure.axes
     labels = [t.get_text() for t in top.get_legend().get_texts()]
-    assert labels == ["exact period", "discrete, $N = 100$", "failed (no orbit)"]
+    assert labels == ["exact period", "discrete, 100 nodes", "failed (no orbit)"]
     assert bottom.get_yscale() == "log" and "T_{\\mathrm{exact}}" in bottom.get_ylabel()
     # the failed member is on the energy axis, not at its last iterate's difference
     assert bottom.lines[0].get_xdata().tolist() == [0.2, 0.6, 1.0]

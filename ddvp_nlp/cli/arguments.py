@@ -6,10 +6,111 @@ them. A bad value fails here, with the object's own message naming the field."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import inspect
 
+from ..discrete import Scheme
 from ..errors import InputError
 from ..runner.tasks import Workers
+from ..scenes import PeriodicSettings
 from ..solvers import Compilation, GridOptions, Output, StepControl, Tolerance
+
+
+def _field(kind, name: str):
+    """The default of field ``name`` of the option object ``kind`` (a frozen dataclass)."""
+    return {f.name: f.default for f in dataclasses.fields(kind)}[name]
+
+
+def _argument(function, name: str):
+    """The default of keyword argument ``name`` of ``function``."""
+    return inspect.signature(function).parameters[name].default
+
+
+# Every command-line option that stands for a field of an option object or an argument of the
+# API, by command: the parser takes each default from here, so that a default exists once (the
+# API's); tests/test_cli_usage.py checks that every option with a default is here or is the
+# command line's own (CLI_ONLY).
+API_DEFAULTS = {
+    "march": {"tol": lambda: _field(StepControl, "tol"),
+              "tau_min": lambda: _field(StepControl, "tau_min"),
+              "tau_max": lambda: _field(StepControl, "tau_max"),
+              "max_step_ratio": lambda: _field(StepControl, "max_step_ratio"),
+              "max_steps": lambda: _field(StepControl, "max_steps"),
+              "time_limit": lambda: _field(StepControl, "time_limit"),
+              "energy_guard": lambda: _field(StepControl, "energy_guard"),
+              "alpha": lambda: _field(Scheme, "alpha"),
+              "clock": lambda: _field(Scheme, "clock"),
+              "checkpoint_every": lambda: _field(Output, "checkpoint_interval")},
+    "bvp": {"tol": lambda: _field(GridOptions, "tol"),
+            "solver": lambda: _field(GridOptions, "solver"),
+            "time_limit": lambda: _field(GridOptions, "time_limit"),
+            "alpha": lambda: _field(Scheme, "alpha"),
+            "clock": lambda: _field(Scheme, "clock")},
+    "periodic": {"solver": lambda: _field(GridOptions, "solver"),
+                 "scheme": lambda: _argument(_solvers().solve_periodic, "scheme"),
+                 "stability_tol": lambda: _field(_solvers().Continuation, "tol"),
+                 "max_orbits": lambda: _field(_solvers().Continuation, "max_orbits")},
+    "poincare": {"workers": lambda: _argument(_solvers().march_ensemble, "workers"),
+                 "orbits": lambda: _argument(_poincare_section(), "orbits"),
+                 "section": lambda: _argument(_poincare_section(), "section"),
+                 "direction": lambda: _argument(_poincare_section(), "direction"),
+                 "t_end": lambda: _argument(_poincare_section(), "t_end"),
+                 "seed": lambda: _argument(_poincare_section(), "seed")},
+    "compare": {"halvings": lambda: _field(_compare_options(), "halvings"),
+                "repeats": lambda: _field(_compare_options(), "repeats"),
+                "max_steps": lambda: _field(_compare_options(), "max_steps"),
+                "time_unit": lambda: _argument(_horizons(), "unit"),
+                "run_budget": lambda: _argument(_horizons(), "run_budget_s"),
+                "reference_span": lambda: _argument(_horizons(), "reference_span")},
+    "stress": {"max_steps": lambda: _stress_steps().max_steps,
+               "time_limit": lambda: _stress_steps().time_limit},
+    "accuracy": {"rtol": lambda: _field(Tolerance, "rtol"),
+                 "atol": lambda: _field(Tolerance, "atol"),
+                 "energy_tol": lambda: _field(Tolerance, "energy_tol"),
+                 "global_tol": lambda: _field(Tolerance, "global_tol")},
+}
+
+
+# The defaults of a command are read when its parser is built (only the running command's is):
+# the modules behind them load then, not with the command line.
+def _solvers():
+    from .. import solvers
+
+    return solvers
+
+
+def _poincare_section():
+    from ..studies.poincare import poincare_section
+
+    return poincare_section
+
+
+def _compare_options():
+    from ..studies.work_precision import CompareOptions
+
+    return CompareOptions
+
+
+def _horizons():
+    from ..studies.horizons_report import work_precision_horizons
+
+    return work_precision_horizons
+
+
+def _stress_steps():
+    from ..studies.stress import DEFAULT_STEPS
+
+    return DEFAULT_STEPS
+
+
+def api_default(command: str, dest: str):
+    """The API's default of option ``dest`` of ``command`` (`API_DEFAULTS`)."""
+    return API_DEFAULTS[command][dest]()
+
+
+def periodic_nodes() -> int:
+    """A periodic orbit's nodes when neither the command line nor the scene gives them."""
+    return _field(PeriodicSettings, "nodes")
 
 
 def step_control(args) -> StepControl:
@@ -39,11 +140,12 @@ def compilation(args) -> Compilation:
     return Compilation(fast=not getattr(args, "careful", False))
 
 
-def grid_options(args, *, tol=None) -> GridOptions:
-    """A grid solve's options (``--solver``, ``--tol``, ``--time-limit``, ``--verbose``)."""
-    return GridOptions(solver=args.solver, tol=tol,
-                       time_limit=getattr(args, "time_limit", None),
-                       verbose=getattr(args, "verbose", False), accuracy=tolerance(args))
+def grid_options(args) -> GridOptions:
+    """A grid solve's options (``--solver``, ``--tol``, ``--time-limit``, ``--verbose``; the
+    object's defaults where a command has none) and the accuracy check's (`tolerance`)."""
+    given = {name: getattr(args, name) for name in ("solver", "tol", "time_limit", "verbose")
+             if hasattr(args, name)}
+    return GridOptions(**given, accuracy=tolerance(args))
 
 
 def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:

@@ -15,17 +15,28 @@ from __future__ import annotations
 import os
 import sys
 import warnings
+from importlib import import_module
 
 from ..errors import InputError, OutputError
-from .grids import run_compare, run_reproduce, run_scenes, run_stress, run_sweep
+from .arguments import check_numbers, on_cluster
 from .interrupts import INTERRUPTS, Stopped
-from .parser import build_parser, parse_arguments
-from .solve import run_periodic, run_poincare, run_solve
+from .parser import build_parser, command_in, parse_arguments
 from .summary import format_warning
 
-COMMANDS = {"scenes": run_scenes, "march": run_solve, "bvp": run_solve,
-            "compare": run_compare, "stress": run_stress, "sweep": run_sweep,
-            "reproduce": run_reproduce, "periodic": run_periodic, "poincare": run_poincare}
+# Each command: the module of this package that runs it and its function, imported when the
+# command runs (`ddvp march` loads nothing of the studies, `ddvp scenes` nothing of a solver).
+COMMANDS = {"scenes": "scenes_command:run_scenes", "march": "march_command:run_march",
+            "bvp": "bvp_command:run_bvp", "compare": "study_commands:run_compare",
+            "stress": "study_commands:run_stress", "sweep": "study_commands:run_sweep",
+            "reproduce": "study_commands:run_reproduce",
+            "periodic": "orbit_commands:run_periodic",
+            "poincare": "section_command:run_poincare"}
+
+
+def command(name: str):
+    """The function that runs command ``name``."""
+    module, function = COMMANDS[name].split(":")
+    return getattr(import_module(f"{__package__}.{module}"), function)
 # Set to 1 to see the traceback of whatever ended a command, besides its one line.
 TRACEBACK_VARIABLE = "DDVP_TRACEBACK"
 
@@ -36,8 +47,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         restore = INTERRUPTS.install()
         _stdout_usable()
-        parser = build_parser()
-        args = parse_arguments(parser, argv)
+        words = sys.argv[1:] if argv is None else list(argv)
+        parser = build_parser(command_in(words))
+        args = parse_arguments(parser, words)
         if args.command not in COMMANDS:
             parser.error(f"unknown command {args.command!r}")
         warnings.formatwarning = format_warning  # one line, no source echo
@@ -58,25 +70,23 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args) -> int:
-    from .arguments import check_numbers, on_cluster
-
-    command = f"ddvp {args.command}"
+    label = f"ddvp {args.command}"
     try:
         check_numbers(args)
         with on_cluster(args):
-            code = COMMANDS[args.command](args)
+            code = command(args.command)(args)
         sys.stdout.flush()  # a full disk behind stdout fails here, not at the exit
         if INTERRUPTS.requested and code == 0:
             # a signal that surfaced inside CasADi as a task's error: the study went on and
             # wrote its files, but the user asked it to stop, and a run may have been cut
-            _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}) while running; the "
+            _say(f"{label}: interrupted ({INTERRUPTS.name or 'SIGINT'}) while running; the "
                  "files above were written whole, but the run the signal reached may show it "
                  "as its own failure (a Newton or step failure in its row)")
             return 1
         return code
     except BaseException as exc:  # noqa: B036 - every way out gets an exit code and a line
         INTERRUPTS.end()
-        return _failure(command, exc)
+        return _failure(label, exc)
 
 
 def _failure(command: str, exc: BaseException) -> int:

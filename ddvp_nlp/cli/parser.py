@@ -7,9 +7,17 @@ import argparse
 
 from ..discrete import CLOCKS, RULES, Scheme
 from ..errors import InputError
-from ..scenes import VECTOR_SETTINGS
+from ..scenes import BOUNDARY_NODES, VECTOR_SETTINGS
+from .arguments import api_default, periodic_nodes
 
-CHECKPOINT_SECONDS = 5.0
+
+def shown(value) -> str:
+    """A default as the help text shows it."""
+    if value is None:
+        return "none"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
 
 
 def parse_settings(items: list[str]) -> dict:
@@ -34,19 +42,24 @@ def parse_settings(items: list[str]) -> dict:
     return settings
 
 
-def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = (), *,
+def _scheme_arguments(parser: argparse.ArgumentParser, command: str, methods: tuple = (), *,
                       scene_optional: bool = False) -> None:
     parser.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file",
                         **({"nargs": "?", "default": None} if scene_optional else {}))
-    parser.add_argument("--scheme", default=None, choices=RULES + methods,
+    parser.add_argument("--scheme", default=None, metavar="{" + ",".join(RULES) + "}",
                         help=f"energy rule: {', '.join(RULES)} (default: the scene's, shown by "
-                        f"`ddvp scenes`, else {Scheme().rule}, the paper's)"
-                        + (f"; or a compared method, its knob tau0 (dop853: rtol = atol = "
-                           f"--tol): {', '.join(methods)}" if methods else ""))
-    parser.add_argument("--alpha", type=float, default=0.5,
-                        help="weight alpha of the scheme, beta = 1 - alpha (default: 0.5)")
-    parser.add_argument("--clock", default="midpoint", choices=CLOCKS,
-                        help="time at which H is evaluated on an interval (default: midpoint)")
+                        f"`ddvp scenes`, else {Scheme().rule}, the paper's)")
+    if methods:
+        parser.add_argument("--method", default=None, choices=methods,
+                            help="march with a compared method instead of an energy rule, its "
+                                 "knob tau0 (dop853: rtol = atol = --tol): "
+                                 f"{', '.join(methods)}")
+    alpha, clock = api_default(command, "alpha"), api_default(command, "clock")
+    parser.add_argument("--alpha", type=float, default=alpha,
+                        help=f"weight alpha of the scheme, beta = 1 - alpha (default: "
+                             f"{shown(alpha)})")
+    parser.add_argument("--clock", default=clock, choices=CLOCKS,
+                        help=f"time at which H is evaluated on an interval (default: {clock})")
     parser.add_argument("--set", dest="settings", action="append", default=[],
                         metavar="NAME=VALUE",
                         help="override a scene parameter or a setting: march: t0, tau0, t_end "
@@ -58,17 +71,21 @@ def _scheme_arguments(parser: argparse.ArgumentParser, methods: tuple = (), *,
                         help="output folder (default: runs/SCENE-SCHEME, runs/SCENE-bvp-SCHEME "
                              "for bvp; with --set (bvp: or --nodes) a short hash of the resolved "
                              "settings is appended, e.g. runs/kepler-vddvp-1a2b3c4d)")
-    parser.add_argument("--tol", type=float, default=1e-10,
-                        help="acceptance tolerance of the unscaled residuals (default: 1e-10)")
+    tol = api_default(command, "tol")
+    parser.add_argument("--tol", type=float, default=tol,
+                        help=f"acceptance tolerance of the unscaled residuals (default: "
+                             f"{shown(tol)})")
 
 
 def _run_bounds(parser: argparse.ArgumentParser, *, defaults: bool) -> None:
     """Per-run bounds and options shared by the grid commands (``defaults=False``: ``None``,
     so a grid file's bounds apply unless given here)."""
-    parser.add_argument("--max-steps", type=int, default=2_000_000 if defaults else None,
-                        help="bound on the steps of each run (default: 2000000)")
-    parser.add_argument("--time-limit", type=float, default=60.0 if defaults else None,
-                        help="bound in seconds on each run (default: 60)")
+    steps, seconds = api_default("stress", "max_steps"), api_default("stress", "time_limit")
+    parser.add_argument("--max-steps", type=int, default=steps if defaults else None,
+                        help=f"bound on the steps of each run (default: {shown(steps)})")
+    parser.add_argument("--time-limit", type=float, default=seconds if defaults else None,
+                        help=f"bound in seconds on each run, wall time (default: "
+                             f"{shown(seconds)})")
     parser.add_argument("--no-compile", action="store_true",
                         help="run the compiled methods on CasADi's virtual machine instead")
     _progress_arguments(parser, "a line per finished run")
@@ -170,7 +187,26 @@ def _scene_parameters(args) -> tuple:
         return ()
 
 
-def build_parser() -> argparse.ArgumentParser:
+# Each command: its one-line help and the function that adds its options.
+COMMAND_HELP = {
+    "scenes": "list the built-in scenes: parameters, initial state, fixed-endpoint data and "
+              "default scheme",
+    "march": "solve an initial-value problem step by step",
+    "bvp": "solve a fixed-endpoint problem on the whole grid",
+    "compare": "work-precision: error against run time for every method on a scene",
+    "stress": "run every method on the stiff and extreme cases; say where each breaks",
+    "sweep": "run your own grid of settings x methods, locally or on a Dask cluster",
+    "reproduce": "figures and report.md comparing the paper's claims with measurements",
+    "periodic": "find a periodic orbit at a prescribed energy (or a family of them)",
+    "poincare": "a Poincare section at a fixed energy: many orbits marched together",
+}
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``ddvp`` parser: every command with its help, and the options of ``command`` (of
+    every command if ``None``). A command's options take their defaults from the API, which
+    may load the modules behind them: building only the one a run needs keeps ``ddvp march``
+    from loading the studies."""
     parser = argparse.ArgumentParser(
         prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
                                  "variational principle) on CasADi.")
@@ -178,37 +214,43 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                      help="one of the commands below; `ddvp COMMAND --help` "
                                           "lists its options")
-    commands.add_parser("scenes", help="list the built-in scenes: parameters, initial state, "
-                                       "fixed-endpoint data and default scheme")
-    _march_command(commands)
-    _bvp_command(commands)
-    _compare_command(commands)
-    _stress_command(commands)
-    _sweep_command(commands)
-    _reproduce_command(commands)
-    _periodic_command(commands)
-    _poincare_command(commands)
+    options = {"scenes": lambda sub: None, "march": _march_command, "bvp": _bvp_command,
+               "compare": _compare_command, "stress": _stress_command,
+               "sweep": _sweep_command, "reproduce": _reproduce_command,
+               "periodic": _periodic_command, "poincare": _poincare_command}
+    for name, words in COMMAND_HELP.items():
+        sub = commands.add_parser(name, help=words)
+        if command is None or command == name:
+            options[name](sub)
     parser.commands = dict(commands.choices)  # each command's parser, for its own usage
     return parser
 
 
-def _poincare_command(commands) -> None:
-    poincare = commands.add_parser(
-        "poincare", help="a Poincare section at a fixed energy: many orbits marched together")
+def command_in(argv: list[str]) -> str | None:
+    """The command an argument list names (its first word that is not an option), if any."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
+def _poincare_command(poincare: argparse.ArgumentParser) -> None:
     poincare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     poincare.add_argument("--energy", type=float, required=True, help="the energy E")
     # defaults measured to give a dense section in a few seconds: Henon-Heiles at E = 1/8, 50
     # orbits to t = 2000, 15214 crossings in 2.4 s wall on 2 shared cores (README)
-    poincare.add_argument("--orbits", type=int, default=50,
-                          help="number of orbits M (default 50)")
-    poincare.add_argument("--section", default="q1=0", metavar="NAME=VALUE",
-                          help="the section, NAME in q1..qn (default q1=0)")
-    poincare.add_argument("--direction", default="+", choices=("+", "-"),
-                          help="crossings with the section coordinate increasing (+)")
-    poincare.add_argument("--t-end", type=float, default=2000.0,
-                          help="end time of every orbit (default 2000)")
-    poincare.add_argument("--tau0", type=float, default=None, help="first step")
-    poincare.add_argument("--seed", type=int, default=0, help="seed of the starts")
+    value = {name: api_default("poincare", name) for name in
+             ("orbits", "section", "direction", "t_end", "seed", "workers")}
+    poincare.add_argument("--orbits", type=int, default=value["orbits"],
+                          help=f"number of orbits M (default {value['orbits']})")
+    poincare.add_argument("--section", default=value["section"], metavar="NAME=VALUE",
+                          help=f"the section, NAME in q1..qn (default {value['section']})")
+    poincare.add_argument("--direction", default=value["direction"], choices=("+", "-"),
+                          help="crossings with the section coordinate increasing (+) or "
+                               f"decreasing (-) (default {value['direction']})")
+    poincare.add_argument("--t-end", type=float, default=value["t_end"],
+                          help=f"end time of every orbit (default {shown(value['t_end'])})")
+    poincare.add_argument("--tau0", type=float, default=None,
+                          help="first step (default: the scene's)")
+    poincare.add_argument("--seed", type=int, default=value["seed"],
+                          help=f"seed of the starts (default {value['seed']})")
     poincare.add_argument("--set", dest="settings", action="append", default=[],
                           metavar="NAME=VALUE", help="a parameter of the scene")
     poincare.add_argument("--out", default=None,
@@ -217,8 +259,9 @@ def _poincare_command(commands) -> None:
     poincare.add_argument("--no-plot", action="store_true", help="do not write the figure")
     _progress_arguments(poincare, "the blocks of orbits done, on a Dask cluster; the local "
                                   "workers report none")
-    poincare.add_argument("--workers", type=int, default=2,
-                          help="local worker processes marching the orbits (default: 2)")
+    poincare.add_argument("--workers", type=int, default=value["workers"],
+                          help=f"local worker processes marching the orbits (default: "
+                               f"{value['workers']})")
     poincare.add_argument("--scheduler", default=None, metavar="ADDRESS",
                           help="march the orbits on this Dask scheduler, e.g. tcp://host:8786 "
                                "(default: $DDVP_SCHEDULER, else local workers)")
@@ -226,24 +269,25 @@ def _poincare_command(commands) -> None:
     _accuracy_arguments(poincare)
 
 
-def _periodic_command(commands) -> None:
-    periodic = commands.add_parser(
-        "periodic", help="find a periodic orbit at a prescribed energy (or a family of them)")
+def _periodic_command(periodic: argparse.ArgumentParser) -> None:
     periodic.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     periodic.add_argument("--energy", type=float, default=None,
                           help="the prescribed energy E (default: the scene's)")
     periodic.add_argument("--nodes", type=int, default=None,
-                          help="number of intervals N (default: the scene's, else 200)")
+                          help="number of nodes of the closed grid, the last equal to the first "
+                               f"(default: the scene's, else {periodic_nodes()})")
     periodic.add_argument("--section", default=None, metavar="NAME=VALUE",
                           help="phase condition on node 0, NAME in q1..qn, p1..pn "
                                "(default: the scene's, else p1=0)")
     periodic.add_argument("--family", default=None, metavar="E1:E2:COUNT",
                           help="continue the orbit over COUNT energies from E1 to E2")
-    periodic.add_argument("--scheme", default="vddvp", choices=("vddvp", "lee"),
+    periodic.add_argument("--scheme", default=api_default("periodic", "scheme"),
+                          choices=("vddvp", "lee"),
                           help="energy rule (the same equations for autonomous H)")
-    periodic.add_argument("--solver", default="auto", metavar="newton|ipopt|auto",
+    solver = api_default("periodic", "solver")
+    periodic.add_argument("--solver", default=solver, metavar="newton|ipopt|auto",
                           help="Newton with sparse LU, IPOPT, or Newton then IPOPT when "
-                               "Newton's orbit fails its verification (default: auto)")
+                               f"Newton's orbit fails its verification (default: {solver})")
     periodic.add_argument("--guess", default=None, metavar="FILE",
                           help="start from a run folder / result.npz (t, q, p over one period)")
     periodic.add_argument("--set", dest="settings", action="append", default=[],
@@ -260,8 +304,10 @@ def _periodic_command(commands) -> None:
                           help="the Floquet multipliers, stability indices and verdict of the "
                                "orbit (of each orbit of --family), checked against the exact "
                                "flow (stability.json)")
-    periodic.add_argument("--stability-tol", type=float, default=1e-6, metavar="TOL",
-                          help="a stability index within TOL of +-2 is marginal (default 1e-6)")
+    marginal = api_default("periodic", "stability_tol")
+    periodic.add_argument("--stability-tol", type=float, default=marginal, metavar="TOL",
+                          help=f"a stability index within TOL of +-2 is marginal (default "
+                               f"{shown(marginal)})")
     periodic.add_argument("--follow", type=float, default=None, metavar="E_END",
                           help="follow the family from --energy towards E_END by "
                                "pseudo-arclength continuation (through folds), every orbit's "
@@ -270,15 +316,15 @@ def _periodic_command(commands) -> None:
     periodic.add_argument("--step", type=float, default=None, metavar="DE",
                           help="with --follow: the first step in the energy (default: a "
                                "twentieth of the range)")
-    periodic.add_argument("--max-orbits", type=int, default=200,
-                          help="with --follow: at most this many orbits (default 200)")
+    most = api_default("periodic", "max_orbits")
+    periodic.add_argument("--max-orbits", type=int, default=most,
+                          help=f"with --follow: at most this many orbits (default {most})")
 
 
-def _march_command(commands) -> None:
+def _march_command(march: argparse.ArgumentParser) -> None:
     from ..studies.methods import METHODS
 
-    march = commands.add_parser("march", help="solve an initial-value problem step by step")
-    _scheme_arguments(march, tuple(name for name in METHODS if name not in RULES),
+    _scheme_arguments(march, "march", tuple(name for name in METHODS if name not in RULES),
                       scene_optional=True)
     march.add_argument("--resume", default=None, metavar="FOLDER",
                        help="continue the march in FOLDER (a killed run's last checkpoint or a "
@@ -297,16 +343,25 @@ def _march_command(commands) -> None:
                             "located to round-off on the dense output; up/down: one direction "
                             "of crossing only; terminal: end the march there (at the N-th); "
                             "repeatable (result.npz: t_events_K, z_events_K; meta.json)")
-    march.add_argument("--max-steps", type=int, default=10_000_000,
-                       help="stop after this many steps (status max_steps; default: 10000000)")
-    march.add_argument("--tau-min", type=float, default=None, help="smallest accepted step")
-    march.add_argument("--tau-max", type=float, default=None, help="largest accepted step")
-    march.add_argument("--max-step-ratio", type=float, default=10.0,
-                       help="largest accepted ratio between consecutive steps (default: 10)")
-    march.add_argument("--time-limit", type=float, default=None,
-                       help="stop after this many seconds of stepping (status time_limit)")
-    march.add_argument("--energy-guard", type=float, default=None,
-                       help="stop when |H - H0| / max(1, |H0|) exceeds this at a node")
+    value = {name: api_default("march", name) for name in
+             ("max_steps", "tau_min", "tau_max", "max_step_ratio", "time_limit",
+              "energy_guard", "checkpoint_every")}
+    march.add_argument("--max-steps", type=int, default=value["max_steps"],
+                       help=f"stop after this many steps (status max_steps; default: "
+                            f"{value['max_steps']})")
+    march.add_argument("--tau-min", type=float, default=value["tau_min"],
+                       help=f"smallest accepted step (default: {shown(value['tau_min'])})")
+    march.add_argument("--tau-max", type=float, default=value["tau_max"],
+                       help=f"largest accepted step (default: {shown(value['tau_max'])})")
+    march.add_argument("--max-step-ratio", type=float, default=value["max_step_ratio"],
+                       help="largest accepted ratio between consecutive steps (default: "
+                            f"{shown(value['max_step_ratio'])})")
+    march.add_argument("--time-limit", type=float, default=value["time_limit"],
+                       help="stop after this many seconds of stepping, wall time (status "
+                            f"time_limit; default: {shown(value['time_limit'])})")
+    march.add_argument("--energy-guard", type=float, default=value["energy_guard"],
+                       help="stop when |H - H0| / max(1, |H0|) exceeds this at a node "
+                            f"(default: {shown(value['energy_guard'])})")
     march.add_argument("--least-squares", action="store_true",
                        help="where the energy step has no admissible root, take the least-squares "
                             "step (Kane-Marsden-Ortiz) within [tau-min, tau-max] and go on; each "
@@ -316,11 +371,11 @@ def _march_command(commands) -> None:
                        help="force the careful per-step path (default: compiled chunks of steps, "
                             "checked step by step by the same test; their nodes differ by "
                             "round-off)")
-    march.add_argument("--checkpoint-every", type=float, default=CHECKPOINT_SECONDS,
+    march.add_argument("--checkpoint-every", type=float, default=value["checkpoint_every"],
                        metavar="SECONDS",
                        help="write the run so far to the output folder this often while "
                             f"marching, so a kill loses at most this much (default: "
-                            f"{CHECKPOINT_SECONDS:g})")
+                            f"{shown(value['checkpoint_every'])})")
     _progress_arguments(march, "the time reached; default on")
     _figure_arguments(march, "trajectory.png")
 
@@ -345,32 +400,34 @@ def _accuracy_arguments(parser: argparse.ArgumentParser) -> None:
         "scale E_s; the verdict is accurate, drifted (each step follows the flow, the energy is "
         "right, the trajectory error passes --global-tol from t_drift on: exit 0 unless "
         "--require-accurate) or inaccurate (exit 1)")
-    group.add_argument("--rtol", type=float, default=1e-2,
+    value = {name: api_default("accuracy", name)
+             for name in ("rtol", "atol", "energy_tol", "global_tol")}
+    group.add_argument("--rtol", type=float, default=value["rtol"],
                        help="local error test of every step: |d_k,i| <= rtol S_i "
-                            "(default: 1e-2)")
-    group.add_argument("--atol", type=float, default=None,
+                            f"(default: {shown(value['rtol'])})")
+    group.add_argument("--atol", type=float, default=value["atol"],
                        help="an absolute allowance added to the local bound, in the units of "
-                            "z (default: none)")
-    group.add_argument("--energy-tol", type=float, default=0.1,
+                            f"z (default: {shown(value['atol'])})")
+    group.add_argument("--energy-tol", type=float, default=value["energy_tol"],
                        help="bound on the first step's energy level error and the nodal energy "
-                            "drift, relative to E_s (default: 0.1)")
-    group.add_argument("--global-tol", type=float, default=1e-2,
+                            f"drift, relative to E_s (default: {shown(value['energy_tol'])})")
+    group.add_argument("--global-tol", type=float, default=value["global_tol"],
                        help="the trajectory tolerance: max_i |z_i - z_ref,i| / S_i at every "
-                            "node (default: 1e-2)")
+                            f"node (default: {shown(value['global_tol'])})")
     group.add_argument("--require-accurate", action="store_true",
                        help="a drifted run fails (status drifted, exit 1)")
     group.add_argument("--accept-inaccurate", action="store_true",
                        help="an inaccurate run keeps its status (the verdict is recorded)")
 
 
-def _bvp_command(commands) -> None:
-    bvp = commands.add_parser("bvp", help="solve a fixed-endpoint problem on the whole grid")
-    _scheme_arguments(bvp)
+def _bvp_command(bvp: argparse.ArgumentParser) -> None:
+    _scheme_arguments(bvp, "bvp")
     bvp.add_argument("--nodes", type=int, default=None,
-                     help="number of nodes (default: the scene's, else 101)")
-    bvp.add_argument("--solver", default="auto", choices=("auto", "newton", "ipopt"),
-                     help="auto (default: banded Newton, then IPOPT if its point fails the "
-                          "verification), newton or ipopt")
+                     help=f"number of nodes (default: the scene's, else {BOUNDARY_NODES})")
+    solver = api_default("bvp", "solver")
+    bvp.add_argument("--solver", default=solver, choices=("auto", "newton", "ipopt"),
+                     help="auto (banded Newton, then IPOPT if its point fails the "
+                          f"verification), newton or ipopt (default: {solver})")
     bvp.add_argument("--guess", default="straight", metavar="straight|march|FILE",
                      help="start: straight line (default), march (shooting from q_start), or "
                           "a run folder / result.npz (its t, q, p resampled onto --nodes "
@@ -382,8 +439,8 @@ def _bvp_command(commands) -> None:
     bvp.add_argument("--energy", type=float, default=None,
                      help="a transfer at this energy E: the end time becomes an unknown (the "
                           "scene's t_end - t0 its guess), every interval's energy is E")
-    bvp.add_argument("--time-limit", type=float, default=None,
-                     help="stop after this many seconds (status time_limit)")
+    bvp.add_argument("--time-limit", type=float, default=api_default("bvp", "time_limit"),
+                     help="stop after this many seconds, wall time (status time_limit)")
     _progress_arguments(bvp, "a line per solver iteration; default on a terminal from "
                              "100000 nodes")
     bvp.add_argument("--verbose", action="store_true", help="show IPOPT's output")
@@ -391,11 +448,9 @@ def _bvp_command(commands) -> None:
     _accuracy_arguments(bvp)
 
 
-def _compare_command(commands) -> None:
+def _compare_command(compare: argparse.ArgumentParser) -> None:
     from ..studies.methods import METHODS
 
-    compare = commands.add_parser(
-        "compare", help="work-precision: error against run time for every method on a scene")
     compare.add_argument("scene", help="a built-in scene name (see `ddvp scenes`) or a .py file")
     compare.add_argument("--methods", default=None,
                          help="comma-separated methods (default: every one that applies); "
@@ -406,11 +461,14 @@ def _compare_command(commands) -> None:
     compare.add_argument("--out", default=None,
                          help="output folder (default: runs/SCENE-compare; -HASH of the "
                               "settings, methods and sweeps when they are not the defaults)")
-    compare.add_argument("--halvings", type=int, default=6,
+    value = {name: api_default("compare", name) for name in
+             ("halvings", "repeats", "time_unit", "max_steps", "run_budget", "reference_span")}
+    compare.add_argument("--halvings", type=int, default=value["halvings"],
                          help="step sweeps go from 2 tau0 down by this many halvings "
-                              "(default: 6)")
-    compare.add_argument("--repeats", type=int, default=3,
-                         help="timed calls per run after one warm-up; best is kept (default: 3)")
+                              f"(default: {value['halvings']})")
+    compare.add_argument("--repeats", type=int, default=value["repeats"],
+                         help="timed calls per run after one warm-up; best is kept (default: "
+                              f"{value['repeats']})")
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
     _progress_arguments(compare, "the runs done; default on")
@@ -418,25 +476,26 @@ def _compare_command(commands) -> None:
                          help="compare at each horizon t_end = t0 + T * --time-unit (e.g. "
                               "10,1000,100000): horizons.png, growth.png, horizons.md and a "
                               "report per horizon")
-    compare.add_argument("--time-unit", type=float, default=1.0,
+    compare.add_argument("--time-unit", type=float, default=value["time_unit"],
                          help="unit of --horizons, e.g. 6.283185307 for Kepler's period "
-                              "(default: 1, the scene's time unit)")
-    compare.add_argument("--max-steps", type=int, default=2_000_000,
-                         help="with --horizons: runs needing more steps give way to coarser "
-                              "steps (default: 2000000)")
-    compare.add_argument("--run-budget", type=float, default=120.0, metavar="SECONDS",
+                              f"(default: {shown(value['time_unit'])}, the scene's time unit)")
+    compare.add_argument("--max-steps", type=int, default=value["max_steps"],
+                         help="bound on the steps of each run; with --horizons runs needing "
+                              f"more give way to coarser steps (default: {value['max_steps']})")
+    compare.add_argument("--run-budget", type=float, default=value["run_budget"],
+                         metavar="SECONDS",
                          help="with --horizons: runs predicted from the shorter horizon to "
-                              "take longer are left out (default: 120)")
-    compare.add_argument("--reference-span", type=float, default=10_000.0, metavar="T",
+                              f"take longer are left out (default: {shown(value['run_budget'])})")
+    compare.add_argument("--reference-span", type=float, default=value["reference_span"],
+                         metavar="T",
                          help="with --horizons, scenes without an exact solution: beyond this "
                               "span of time the DOP853 reference is not computed and only the "
-                              "energy error is measured (default: 10000)")
+                              f"energy error is measured (default: "
+                              f"{shown(value['reference_span'])})")
     _grid_arguments(compare, "1: the run times are what is compared")
 
 
-def _stress_command(commands) -> None:
-    stress = commands.add_parser(
-        "stress", help="run every method on the stiff and extreme cases; say where each breaks")
+def _stress_command(stress: argparse.ArgumentParser) -> None:
     stress.add_argument("--out", default=None,
                         help="output folder (default: runs/stress; -HASH of the bounds and "
                              "--quick when they are not the defaults)")
@@ -448,11 +507,9 @@ def _stress_command(commands) -> None:
     _grid_arguments(stress, "one per core")
 
 
-def _sweep_command(commands) -> None:
+def _sweep_command(sweep: argparse.ArgumentParser) -> None:
     from ..studies.stress import DEFAULT_METHODS
 
-    sweep = commands.add_parser(
-        "sweep", help="run your own grid of settings x methods, locally or on a Dask cluster")
     sweep.add_argument("scene", nargs="?", default=None,
                        help="a built-in scene name or a .py file (or give --file)")
     sweep.add_argument("--grid", action="append", default=[], metavar="NAME=SPEC",
@@ -477,9 +534,7 @@ def _sweep_command(commands) -> None:
     _grid_arguments(sweep, "one per core")
 
 
-def _reproduce_command(commands) -> None:
-    reproduce = commands.add_parser(
-        "reproduce", help="figures and report.md comparing the paper's claims with measurements")
+def _reproduce_command(reproduce: argparse.ArgumentParser) -> None:
     reproduce.add_argument("--out", default=None,
                            help="output folder (default: runs/reproduce, with -HASH for "
                                 "--quick)")

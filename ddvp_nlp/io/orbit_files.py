@@ -23,7 +23,7 @@ def periodic_meta(scene, solution: Solution, params: dict) -> dict:
     return {"command": "periodic", "scene": scene.name, "scheme": solution.scheme,
             "status": solution.status.code, "message": solution.message,
             "period": stats["period"], "energy": stats["energy"], "section": stats["section"],
-            "nodes": solution.steps, "params": params, "residuals": stats["residuals"],
+            "nodes": solution.t.size, "params": params, "residuals": stats["residuals"],
             "residual_limit": stats["limit"], "unfolding": stats["unfolding"],
             "integral_unfoldings": stats["integral_unfoldings"],
             "solver": stats.get("solver"), "outcome": stats["outcome"],
@@ -95,7 +95,7 @@ def family_row(energy: float, solution: Solution) -> dict:
     stats = solution.stats
     residuals = stats["residuals"]
     return {"energy": energy, "status": solution.status.code, "period": stats["period"],
-            "nodes": solution.steps, "canonical": residuals["canonical"],
+            "nodes": solution.t.size, "canonical": residuals["canonical"],
             "energy_equation": residuals["energy"], "closure": residuals["closure"],
             "unfolding": stats["unfolding"], "iterations": stats["iterations"]}
 
@@ -171,7 +171,7 @@ def plot_family(rows: list[dict], title: str, path: Path, reference=None,
             ax.plot(energies, reference(energies), "-", color="0.45", lw=1.0,
                     label="exact period")
         ax.plot([r["energy"] for r in ok], [r["period"] for r in ok], "o", ms=3.5,
-                label=f"discrete, $N = {rows[0]['nodes']}$" if rows else "discrete")
+                label=f"discrete, {rows[0]['nodes']} nodes" if rows else "discrete")
         if failed:
             ax.plot([r["energy"] for r in failed], [0.0] * len(failed), **figures.FAILED,
                     transform=ax.get_xaxis_transform(), clip_on=False,

@@ -372,3 +372,37 @@ def json_default(value):
     if isinstance(value, Status):
         return value.code
     raise TypeError(f"cannot write {type(value).__name__} to JSON")
+
+
+def read_guess(value: str, n: int | None = None):
+    """``straight``, ``march``, or the ``t``, ``q``, ``p`` of a run folder's last complete
+    set, or of a ``result.npz`` file (checked: a zip of real, finite arrays, ``t`` increasing,
+    ``q`` and ``p`` of shape ``(N, n)``; beside a ``meta.json``, the file that one describes);
+    ``InputError`` naming the file and the reason otherwise."""
+    from ..validation import check_file_size
+
+    if value in ("straight", "march"):
+        return value
+    path = Path(value)
+    if path.is_dir() or (path.name == "result.npz" and (path.parent / META).exists()):
+        try:
+            arrays, _ = read_run(path if path.is_dir() else path.parent)
+        except InputError as exc:
+            raise InputError(f"--guess {value!r}: {exc}") from None
+    else:
+        if not path.is_file():
+            raise InputError(f"--guess must be straight, march or a result.npz (or run "
+                             f"folder), got {value!r}: no such file")
+        check_file_size(f"--guess {value!r}", path.stat().st_size)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {key: data[key] for key in ("t", "q", "p")}
+        except Exception:  # not a zip, not npy, a missing array, a pickled object
+            raise InputError(f"--guess {value!r}: {path} is not a result.npz with t, q and p "
+                             f"arrays") from None
+    check_run_arrays(f"--guess {value!r}", arrays)
+    guess = {key: np.asarray(arrays[key], dtype=float) for key in ("t", "q", "p")}
+    if n is not None and guess["q"].shape[1] != n:
+        raise InputError(f"--guess {value!r}: its q has shape {guess['q'].shape}, this scene "
+                         f"has n = {n} coordinates")
+    return guess

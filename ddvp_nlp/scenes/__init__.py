@@ -4,6 +4,7 @@ scheme), declared in a small Python file (``scene.py``), and their loading, by n
 
 from .loader import list_scenes, load_scene, scene_digest, scene_file
 from .scene import (
+    BOUNDARY_NODES,
     BOUNDARY_SETTINGS,
     RUN_SETTINGS,
     STATE_SETTINGS,
@@ -17,7 +18,7 @@ from .scene import (
     Scene,
 )
 
-__all__ = ["BOUNDARY_SETTINGS", "RUN_SETTINGS", "STATE_SETTINGS", "VECTOR_SETTINGS",
-           "BoundaryConfig", "Endpoints", "HigherOrderScene",
+__all__ = ["BOUNDARY_NODES", "BOUNDARY_SETTINGS", "RUN_SETTINGS", "STATE_SETTINGS",
+           "VECTOR_SETTINGS", "BoundaryConfig", "Endpoints", "HigherOrderScene",
            "HigherRunConfig", "PeriodicSettings", "RunConfig", "Scene", "list_scenes",
            "load_scene", "scene_digest", "scene_file"]

@@ -39,13 +39,16 @@ RUN_SETTINGS = ("t0", "tau0", "t_end")
 STATE_SETTINGS = ("q0", "p0", "v0")
 BOUNDARY_SETTINGS = ("q_start", "q_end", "t0", "t_end")
 VECTOR_SETTINGS = ("q0", "p0", "v0", "q_start", "q_end")
+# The nodes of a fixed-endpoint grid that neither the command nor the scene's Endpoints give.
+BOUNDARY_NODES = 101
 
 
 @dataclass(frozen=True)
 class Endpoints:
     """A scene's default fixed-endpoint problem (``ddvp bvp``): the end positions (not for a
     higher-order scene, whose ends come from its exact motion), the time span and the node
-    count. Any field left ``None`` falls back to the scene's ``t0``, ``t_end`` or 101 nodes."""
+    count. Any field left ``None`` falls back to the scene's ``t0``, ``t_end`` or
+    `BOUNDARY_NODES` nodes."""
 
     q_start: object = None
     q_end: object = None
@@ -60,7 +63,7 @@ class PeriodicSettings:
     Attributes:
         section: the phase condition on node 0, ``"NAME=VALUE"``.
         energy: the default prescribed energy.
-        nodes: the default number of intervals.
+        nodes: the default number of nodes of the closed grid (intervals + 1).
         start: ``(q, p)``, the direction along which the section's point at ``energy`` is
             looked for.
         integrals: first integrals besides ``H`` whose flows are symmetries.
@@ -78,7 +81,7 @@ class PeriodicSettings:
 
     section: str = "p1=0"
     energy: float | None = None
-    nodes: int = 200
+    nodes: int = 201
     start: tuple | None = None
     integrals: tuple = ()
     angles: tuple = ()
@@ -206,7 +209,7 @@ class Scene:
                               q_end=np.atleast_1d(np.asarray(settings.get(
                                   "q_end", data.q_end), dtype=float)),
                               t_span=(float(t0), float(t1)),
-                              nodes=nodes if nodes is not None else (data.nodes or 101))
+                              nodes=nodes if nodes is not None else (data.nodes or BOUNDARY_NODES))
 
     def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
         """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
@@ -230,12 +233,29 @@ class Scene:
         return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
                          **{k: float(v) for k, v in values.items()})
 
+    def exact_states(self, config: RunConfig) -> Callable | None:
+        """The scene's exact solution through the run's start as ``exact(t) -> z`` (rows), for
+        the accuracy check, or ``None`` (no exact solution, a start it does not cover, a start
+        from ``v0`` whose ``p0`` the march computes)."""
+        if self.exact is None or config.p0 is None:
+            return None
+        q0, p0, t0, params = config.q0, config.p0, config.t0, config.params
+        try:
+            self.exact(np.array([t0]), q0, p0, t0, **params)
+        except ValueError:
+            return None
+
+        def exact(t):
+            q, p = self.exact(np.asarray(t, float), q0, p0, t0, **params)
+            return np.hstack([np.reshape(q, (np.size(t), -1)), np.reshape(p, (np.size(t), -1))])
+        return exact
+
     def march(self, t_end: float | None = None, *, overrides: Mapping[str, object] | None = None,
               **options):
         """``march`` from this scene's defaults (``resolve(overrides)``: parameters, start,
         ``t0``, ``tau0``, ``t_end``; ``t_end`` here wins), its default scheme, and ``options``
         passed on (``steps=``, ``accuracy=``, ``compilation=``, ``output=``, ``scheme=``...)."""
-        from ..solvers import march  # a facade: scenes sit below the solvers
+        from ..solvers import march  # loaded when called
 
         config = self.resolve(overrides)
         options.setdefault("scheme", self.scheme or "vddvp")
@@ -247,7 +267,7 @@ class Scene:
                   nodes: int | None = None, **options):
         """``solve_bvp`` on this scene's fixed-endpoint data (``resolve_boundary``) and default
         scheme, ``options`` passed on."""
-        from ..solvers import solve_bvp  # a facade: scenes sit below the solvers
+        from ..solvers import solve_bvp  # loaded when called
 
         data = self.resolve_boundary(overrides, nodes)
         options.setdefault("scheme", self.scheme or "vddvp")
@@ -259,7 +279,7 @@ class Scene:
         """``solve_periodic`` with this scene's periodic defaults (``PeriodicSettings``:
         energy, nodes, section, start, integrals, angles, the guess function) and its default
         scheme, ``options`` passed on. (Named so because ``periodic`` is the settings field.)"""
-        from ..solvers import solve_periodic  # a facade: scenes sit below the solvers
+        from ..solvers import solve_periodic  # loaded when called
 
         settings = self.periodic or PeriodicSettings()
         energy = settings.energy if energy is None else energy
@@ -413,6 +433,15 @@ class HigherOrderScene:
         """The scene's exact motion ``q(t)`` at the times ``t``, shape ``(N, n)``."""
         return np.asarray(self.exact(np.asarray(t, float), **params), float).reshape(
             np.size(t), self.n)
+
+    def boundary_nodes(self, nodes: int | None = None) -> int:
+        """The nodes of a fixed-endpoint grid: ``nodes``, else the scene's, else
+        `BOUNDARY_NODES`."""
+        return nodes or (self.boundary and self.boundary.nodes) or BOUNDARY_NODES
+
+    def exact_positions(self, config: HigherRunConfig) -> Callable:
+        """The exact motion of a run as ``exact(t) -> q`` (rows), for the accuracy check."""
+        return lambda t: self.exact_motion(t, config.params)
 
 
 def _shown(params: dict) -> str:

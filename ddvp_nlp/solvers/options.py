@@ -167,8 +167,9 @@ class GridOptions:
             IPOPT build, ``grid/ipopt.py``) or ``"auto"``: Newton, then IPOPT from the same
             start when Newton's point fails its verification.
         tol: verification tolerance of the returned point's own unscaled residuals (above
-            their round-off, which is always allowed).
-        max_iter: iteration limit of the solver, per phase.
+            their round-off, which is always allowed); the same for every grid family.
+        max_iter: iteration limit of the solver, per phase (``None``: the family's own,
+            given in its docstring).
         tau_floor: smallest step the iterates may take (energy rules).
         linear: Newton's linear solver: ``"auto"`` (banded LU up to bandwidth 32, else
             sparse), ``"banded"`` or ``"sparse"`` (SuperLU).
@@ -179,7 +180,7 @@ class GridOptions:
     """
 
     solver: str = "auto"
-    tol: float | None = None
+    tol: float = 1e-10
     max_iter: int | None = None
     tau_floor: float | None = None
     linear: str = "auto"
@@ -190,7 +191,7 @@ class GridOptions:
     def __post_init__(self):
         _choice("solver", self.solver, GRID_SOLVERS)
         _choice("linear", self.linear, LINEAR_SOLVERS)
-        _set(self, "tol", check_real("tol", self.tol, positive=True, allow_none=True))
+        _set(self, "tol", check_real("tol", self.tol, positive=True))
         if self.max_iter is not None:
             _set(self, "max_iter", check_integer("max_iter", self.max_iter))
         _set(self, "tau_floor", check_real("tau_floor", self.tau_floor, positive=True,
@@ -200,10 +201,9 @@ class GridOptions:
         _set(self, "verbose", _flag("verbose", self.verbose))
         _set(self, "accuracy", coerce(self.accuracy, Tolerance, "accuracy"))
 
-    def resolved(self, *, tol: float, max_iter: int) -> GridOptions:
-        """These options with a solver's defaults in place of ``None``."""
-        return replace(self, tol=tol if self.tol is None else self.tol,
-                       max_iter=max_iter if self.max_iter is None else self.max_iter)
+    def resolved(self, *, max_iter: int) -> GridOptions:
+        """These options with a family's iteration limit in place of ``None``."""
+        return replace(self, max_iter=max_iter if self.max_iter is None else self.max_iter)
 
 
 @dataclass(frozen=True)

@@ -107,8 +107,8 @@ def _energy(system, z, theta, n, i, momentum):
     return system.energy(z[:, :n], z[:, n:], np.zeros(z.shape[0]), theta)
 
 
-def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: int = 10,
-                     direction: str = "+", tau0: float, t_end: float, params=None,
+def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: int = 50,
+                     direction: str = "+", tau0: float, t_end: float = 2000.0, params=None,
                      seed: int = 0, box=(-1.0, 1.0), scene: str | None = None,
                      scheduler: str | None = None, **march_options) -> Section:
     """March ``orbits`` starts on the section at ``energy`` as one ensemble and collect their

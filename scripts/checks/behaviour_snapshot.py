@@ -31,18 +31,24 @@ from pathlib import Path
 
 import numpy as np
 
-# Each run: (name, arguments after `ddvp`). --out and --no-progress are added. The set covers
+# Each run: (name, arguments after `ddvp`), in the command line of the tree being snapshotted
+# (a run keeps its name when its arguments change spelling: before the layout change of issue
+# 36 periodic --nodes counted intervals (100 became 101) and compared methods ran with
+# --scheme NAME, now --method NAME). --out and
+# --no-progress are added. The set covers
 # every command, every built-in scene, every compared method, both grid solvers and the
 # options that change a path through the code (events, output times, guesses, families).
 RUNS: list[tuple[str, str]] = [
     *[(f"march-{scene}", f"march {scene} --no-plot") for scene in (
         "cr3bp", "figure_eight", "fpu", "harmonic", "henon_heiles", "kepler",
         "pais_uhlenbeck", "paper_pendulum", "pendulum", "pendulum_lagrangian", "spline")],
-    *[(f"march-pendulum-{method}", f"march pendulum --scheme {method} --no-plot")
-      for method in ("lee", "fixed", "midpoint", "stormer_verlet", "leapfrog",
-                     "verlet_adaptive", "avf", "rk4", "dop853", "lee_left")],
+    *[(f"march-pendulum-{rule}", f"march pendulum --scheme {rule} --no-plot")
+      for rule in ("lee", "fixed")],
+    *[(f"march-pendulum-{method}", f"march pendulum --method {method} --no-plot")
+      for method in ("midpoint", "stormer_verlet", "leapfrog", "verlet_adaptive", "avf", "rk4",
+                     "dop853", "lee_left")],
     ("march-kepler-e06", "march kepler --set e=0.6 --no-plot"),
-    ("march-kepler-dop853-coarse", "march kepler --scheme dop853 --tol 1e-2 --set e=0.9 "
+    ("march-kepler-dop853-coarse", "march kepler --method dop853 --tol 1e-2 --set e=0.9 "
      "--no-plot"),
     ("march-pais-coarse", "march pais_uhlenbeck --set g=0.01 --set tau0=0.3 --no-plot"),
     ("march-pendulum-careful", "march pendulum --careful --set t_end=20 --no-plot"),
@@ -70,15 +76,15 @@ RUNS: list[tuple[str, str]] = [
      "--set t_end=3.141592653589793 --no-plot"),
     ("bvp-spline-ipopt", "bvp spline --solver ipopt --no-plot"),
     ("bvp-pais-plot", "bvp pais_uhlenbeck"),
-    ("periodic-pendulum", "periodic pendulum --energy 0.5 --nodes 100"),
-    ("periodic-pendulum-ipopt", "periodic pendulum --energy 0.5 --nodes 100 --solver ipopt "
+    ("periodic-pendulum", "periodic pendulum --energy 0.5 --nodes 101"),
+    ("periodic-pendulum-ipopt", "periodic pendulum --energy 0.5 --nodes 101 --solver ipopt "
      "--no-plot"),
-    ("periodic-pendulum-coarse", "periodic pendulum --energy 1e-4 --nodes 4 --no-plot"),
-    ("periodic-henon-stability", "periodic henon_heiles --energy 0.1 --nodes 100 --stability "
+    ("periodic-pendulum-coarse", "periodic pendulum --energy 1e-4 --nodes 5 --no-plot"),
+    ("periodic-henon-stability", "periodic henon_heiles --energy 0.1 --nodes 101 --stability "
      "--no-plot"),
-    ("periodic-pendulum-family", "periodic pendulum --energy 0.3 --nodes 60 "
+    ("periodic-pendulum-family", "periodic pendulum --energy 0.3 --nodes 61 "
      "--family 0.3:1.2:4 --stability"),
-    ("periodic-pendulum-follow", "periodic pendulum --energy 0.3 --nodes 60 --follow 1.5 "
+    ("periodic-pendulum-follow", "periodic pendulum --energy 0.3 --nodes 61 --follow 1.5 "
      "--max-orbits 6 --no-plot"),
     ("poincare-henon", "poincare henon_heiles --energy 0.125 --orbits 4 --t-end 200 "
      "--workers 1"),

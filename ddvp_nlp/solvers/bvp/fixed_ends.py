@@ -82,7 +82,6 @@ START_HINT = {
     "march": "shooting picks the branch the march from p_start reaches: try another p_start, "
              "or a march's nodes as the guess"}
 # The defaults of GridOptions' None fields for this problem.
-DEFAULT_TOL = 1e-9
 DEFAULT_MAX_ITER = 200
 
 
@@ -111,7 +110,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
             ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
         times: node times of the ``fixed`` rule (default uniform); ignored by energy rules.
         options: the solver (``"auto"``, the default, ``"newton"`` or ``"ipopt"``; module
-            docstring), the verification tolerance ``tol`` (default 1e-9), ``max_iter`` per
+            docstring), the verification tolerance ``tol`` (default 1e-10), ``max_iter`` per
             phase (default 200), ``tau_floor`` (default ``1e-3 (t_end - t_0)/(N-1)``), the
             linear solver, a ``time_limit`` and IPOPT's log (`GridOptions`).
         compilation: which compiled code the assembly and the band LU run.
@@ -210,7 +209,7 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
         fixed.message = (f"the fixed-time problem at the guessed duration {duration:.6g} was "
                          f"not solved, so the end time was not released: {fixed.message}")
         return fixed
-    resolved = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    resolved = options.resolved(max_iter=DEFAULT_MAX_ITER)
     solution = release_end_time(system, scheme, fixed, span, theta, tol=resolved.tol,
                                 max_iter=resolved.max_iter,
                                 compilation=coerce(compilation, Compilation, "compilation"),
@@ -231,7 +230,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     q_end = check_state("q_end", q_end, n)
     t0, t1 = check_span(t_span)
     nodes = check_integer("nodes", nodes, minimum=3)
-    options = options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER)
+    options = options.resolved(max_iter=DEFAULT_MAX_ITER)
     _check_memory(nodes, n, options.solver)
     mean = (t1 - t0) / (nodes - 1)
     tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None

@@ -31,12 +31,10 @@ from .fixed_nodes import FixedNodes, mean_step, straight
 from .window_solve import grid_energies, solve_rule
 
 # The defaults of GridOptions' None fields for the fixed-endpoint problem.
-DEFAULT_TOL = 1e-9
 DEFAULT_MAX_ITER = 500
 # The march's step control when none is given; of a StepControl the higher-order march reads
 # tol, max_steps and time_limit (its steps are the spacing of the given nodes, or the energy
 # rule's: no bounds on them).
-DEFAULT_STEPS = StepControl(tol=1e-9, max_steps=1_000_000)
 # The higher-order march's own step solve (one Euler-Lagrange/energy step in the last
 # difference; not the first-order march's Newton of solvers/marching/step_newton.py).
 HIGHER_STEP_NEWTON = MappingProxyType({"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50,
@@ -85,7 +83,7 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     and the message quotes the solver.
 
     Args:
-        options: ``tol``: verification tolerance (default 1e-9; Euler-Lagrange rows scaled by
+        options: ``tol``: verification tolerance (default 1e-10; Euler-Lagrange rows scaled by
             the mean step to the power ``2l - 1``, in the units of ``q``; energy rows in units
             of ``max(1, tau_mean)``), round-off of the rows' own scale always allowed;
             ``max_iter``: iteration limit of each solve (default 500); ``tau_floor``: smallest
@@ -147,8 +145,8 @@ def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, 
     rule = check_rule(system, scheme)
     fixed = _fixed_nodes(system, t_start, q_start, t_stop, q_stop)
     nodes = check_integer("nodes", nodes, minimum=2 * system.order + 1)
-    options = coerce(options, GridOptions, "options").resolved(tol=DEFAULT_TOL,
-                                                               max_iter=DEFAULT_MAX_ITER)
+    options = coerce(options, GridOptions, "options").resolved(
+        max_iter=DEFAULT_MAX_ITER)
     if np.any(np.diff(fixed.times) <= 0):
         raise InputError(f"the fixed node times must increase, got {fixed.times.tolist()}")
     request = GridRequest(system, Scheme.coerce(rule), nodes, system.parameter_vector(params),
@@ -289,16 +287,15 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None 
     only if finite, ``tau > 0`` and its residuals are under ``steps.tol`` (the Euler-Lagrange
     rows scaled by ``tau^(2l-1)``, in the units of ``q``). Steps are counted from the last
     given node: ``steps.max_steps`` bounds the nodes after the first ``2l``;
-    ``steps.time_limit`` the seconds of stepping. ``steps`` defaults to
-    ``StepControl(tol=1e-9, max_steps=10**6)``; its step bounds and breakdown do not apply
-    here and are refused.
+    ``steps.time_limit`` the seconds of stepping. ``steps`` defaults to ``StepControl()``, as
+    for ``march``; its step bounds and breakdown do not apply here and are refused.
 
-    ``accuracy``: the accuracy check (``verdict.py``: every step and the trajectory against
-    the exact Euler-Lagrange flow through the start nodes, or ``accuracy.exact``); ``None``
-    leaves it out.
+    ``accuracy``: the accuracy check (``accuracy/positions.py``: every step and the trajectory
+    against the exact Euler-Lagrange flow through the start nodes, or ``accuracy.exact``);
+    ``None`` leaves it out.
     """
     _check_system(system)
-    steps = DEFAULT_STEPS if steps is None else coerce(steps, StepControl, "steps")
+    steps = coerce(steps, StepControl, "steps")
     _check_steps(steps)
     rule = check_rule(system, scheme)
     t_init, q_init, t_end = _check_start(system, rule, t_init, q_init, t_end)

@@ -278,7 +278,7 @@ def _checked(system, energies, nodes, section, guess, scheme, params, start, ang
         raise InputError(f"energies must be two different finite numbers, got {energies!r}")
     options = coerce(options, GridOptions, "options")
     walk = coerce(continuation, Continuation, "continuation")
-    check_integer("nodes", nodes, minimum=3)
+    check_integer("nodes", nodes, minimum=4)
     if guess is None:
         check_periodic(system, energy=first_energy, nodes=nodes, section=section,
                        scheme=scheme, params=params, start=start, angles=angles,
@@ -291,7 +291,9 @@ class _Walker:
 
     def __init__(self, system, first: Solution, nodes: int, common: dict, walk: Continuation,
                  energies):
+        # nodes of the closed grid (as solve_periodic takes them) and its intervals
         self.system, self.nodes, self.common, self.settings = system, nodes, common, walk
+        self.intervals = nodes - 1
         self.theta = system.parameter_vector(common["params"])
         self.integrals = tuple(common["integrals"])
         self.low, self.high = min(energies), max(energies)
@@ -300,7 +302,7 @@ class _Walker:
         self.first_step = walk.step or span / 20
         self.max_step = walk.max_step or span / 10
         self.closure = self._closure(first)
-        self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), nodes,
+        self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), self.intervals,
                                          self.integrals)
         self.arc = ArclengthSystem(self.assembly)
         self.members, self.points, self.tangents, self.steps = [], [], [], []
@@ -345,7 +347,7 @@ class _Walker:
         scale = max(1.0, float(np.max(np.abs(guess))))
         target = np.full(guess.size, TARGET_ROUND_OFFS * EPS * scale)
         period = guess[self.assembly.layout.time_index()[-1]]
-        result = newton(self.arc, guess, arc, target, tau_floor=1e-3 * period / self.nodes,
+        result = newton(self.arc, guess, arc, target, tau_floor=1e-3 * period / self.intervals,
                         max_iter=CORRECTOR_ITERATIONS, linear="sparse")
         if not result.converged:
             return None, result.iterations

@@ -112,7 +112,6 @@ EPS = float(np.finfo(float).eps)
 TARGET_ROUND_OFFS = 64
 ALLOWANCE_ROUND_OFFS = 4096
 # The defaults of GridOptions' None fields for this problem.
-DEFAULT_TOL = 1e-10
 DEFAULT_MAX_ITER = 100
 SECTION = re.compile(r"^\s*([qp])(\d+)\s*=\s*(.+?)\s*$")
 
@@ -161,13 +160,15 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
                    start=None, integrals=(), angles=(),
                    options: GridOptions | None = None) -> Solution:
-    """A periodic orbit of ``system`` at energy ``E`` on ``N = nodes`` intervals (module
-    docstring).
+    """A periodic orbit of ``system`` at energy ``E`` on a closed grid of ``nodes`` nodes,
+    ``N = nodes - 1`` intervals (module docstring).
 
     Args:
         system: an autonomous Hamiltonian (or Lagrangian) system.
         energy: the prescribed interval energy ``E = H(Q_k, P_k)``.
-        nodes: the number of intervals ``N >= 3`` (``N + 1`` nodes, the last equal to the first).
+        nodes: the number of nodes ``N + 1 >= 4`` of the closed grid, the last equal to the
+            first shifted by the period (as every solver counts them: ``nodes`` rows in the
+            result).
         section: the phase condition on node 0, ``"NAME=VALUE"`` with ``NAME`` in ``q1..qn``,
             ``p1..pn``, or a pair ``(NAME, VALUE)``.
         guess: a start (a `Solution` or a mapping with ``t``, ``q``, ``p`` over one
@@ -206,7 +207,8 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
                        coerce(options, GridOptions, "options"))
     started = request.start_clock()
-    levels = node_levels(nodes) if request.data.guess is None else [nodes]
+    intervals = request.nodes  # a closed grid's request counts its intervals
+    levels = node_levels(intervals) if request.data.guess is None else [intervals]
     t, z = _start_nodes(request, levels[0])
 
     def solve_level(intervals, t, z):
@@ -214,11 +216,11 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
 
     solution, records = continue_in_nodes(solve_level, t, z, levels, request.data.angles)
     if solution.status not in (Status.SUCCESS, Status.INACCURATE) \
-            and records[-1]["nodes"] != nodes and request.data.start_note is None:
+            and records[-1]["intervals"] != intervals and request.data.start_note is None:
         # a level below N failed (the first one too): the predicted grid at N itself, as
         # without continuation
-        fallback = solve_level(nodes, *_start_nodes(request, nodes))
-        records.append({"nodes": nodes, "status": fallback.status.code,
+        fallback = solve_level(intervals, *_start_nodes(request, intervals))
+        records.append({"intervals": intervals, "status": fallback.status.code,
                         "iterations": fallback.newton_iterations, "from": "predicted grid"})
         solution = fallback
     solution.stats["levels"] = records
@@ -328,7 +330,7 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
                          "Jacobian has closure rows in a corner and a full unfolding column: "
                          "not banded), got 'banded'")
     energy = check_real("energy", energy)
-    nodes = check_integer("nodes", nodes, minimum=3)
+    intervals = check_integer("nodes", nodes, minimum=4) - 1
     index, value, label = parse_section(section, system.n)
     n = system.n
     angle_indices = parse_angles(angles, n)
@@ -351,9 +353,9 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
                     from None
             raise
     else:
-        orbit.guess = guess_nodes(guess, n, nodes, angle_indices)
-    return GridRequest(system, scheme, nodes, theta, orbit,
-                       options.resolved(tol=DEFAULT_TOL, max_iter=DEFAULT_MAX_ITER))
+        orbit.guess = guess_nodes(guess, n, intervals, angle_indices)
+    return GridRequest(system, scheme, intervals, theta, orbit,
+                       options.resolved(max_iter=DEFAULT_MAX_ITER))
 
 
 def check_integrals(integrals) -> tuple:

@@ -81,7 +81,7 @@ def continue_in_nodes(solve: Callable[[int, np.ndarray, np.ndarray], Solution], 
             t, z = refine_by_index(solution.t, np.hstack([solution.q, solution.p]),
                                    intervals, angles, closed)
         solution = solve(intervals, t, z)
-        records.append({"nodes": intervals, "status": solution.status.code,
+        records.append({"intervals": intervals, "status": solution.status.code,
                         "iterations": solution.newton_iterations})
         if solution.status not in (Status.SUCCESS, Status.INACCURATE):
             break

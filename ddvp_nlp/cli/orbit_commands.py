@@ -1,14 +1,114 @@
-"""``ddvp periodic --stability`` and ``--follow``, and the note of ``ddvp bvp --energy``: the
-stability of an orbit (or of each orbit of a family), a family followed by pseudo-arclength
-continuation with its bifurcations, written to the run folder and summed up on stdout."""
+"""``ddvp periodic``: a periodic orbit at a prescribed energy, a family over energies
+(``--family``), their stability (``--stability``) and a family followed by pseudo-arclength
+continuation with its bifurcations (``--follow``), written to the run folder and summed up on
+stdout."""
 
 from __future__ import annotations
 
 from ..errors import InputError
-from ..scenes import PeriodicSettings
+from ..io.atomic import output_folder
+from ..io.orbit_files import write_family, write_periodic
+from ..io.run_folder import read_guess
+from ..io.stability_files import write_family_stability, write_followed_family, write_stability
+from ..scenes import PeriodicSettings, load_scene
+from ..solvers import (
+    Continuation,
+    check_periodic,
+    describe,
+    follow_periodic_family,
+    periodic_stability,
+    solve_periodic,
+    solve_periodic_family,
+)
 from ..validation import check_integer, check_real
+from . import arguments as options
+from .arguments import check_grid_memory, family_energies
 from .folders import default_or, holds
 from .interrupts import INTERRUPTS, Stopped
+from .parser import parse_settings
+
+
+def run_periodic(args) -> int:
+    """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
+    energy); every input checked before anything is built."""
+    scene = load_scene(args.scene)
+    defaults = getattr(scene, "periodic", None) or PeriodicSettings()
+    params = parse_settings(args.settings)
+    scene.resolve({k: v for k, v in params.items() if k in scene.params})  # ranges, names
+    settings = {"section": args.section or defaults.section, "scheme": args.scheme,
+                "params": params, "start": defaults.start, "integrals": defaults.integrals,
+                "angles": defaults.angles, "options": options.grid_options(args)}
+    nodes = args.nodes if args.nodes is not None else defaults.nodes
+    guess = read_guess(args.guess, scene.system.n) if args.guess else None
+    named = {"nodes": nodes, "section": settings["section"], "scheme": args.scheme,
+             "solver": args.solver, "params": params, "guess": args.guess}
+    if args.follow is not None or args.stability:
+
+        return run_periodic_stability(args, scene, settings, nodes, guess, params, named)
+    if args.family is not None:
+        energies = family_energies(args.family, scene.system.n, nodes)
+        guess = guess or scene_guess(scene, energies[0], params)
+        for energy in (energies[0], energies[-1]) if guess is None else ():
+            check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+        return _periodic_family(args, scene, energies, nodes, guess, settings,
+                                {**named, "family": args.family})
+    energy = args.energy if args.energy is not None else defaults.energy
+    if energy is None:
+        raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
+    guess = guess or scene_guess(scene, energy, params)
+    if guess is None:
+        check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
+    check_grid_memory("--nodes", nodes, scene.system.n, 1)
+    return _periodic_orbit(args, scene, energy, nodes, guess, settings,
+                           {**named, "energy": energy}, defaults)
+
+
+def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults) -> int:
+
+    target, owned = default_or(args, f"{scene.name}-periodic", named,
+                               options=("scheme", "solver", "guess"),
+                               defaults={"nodes": defaults.nodes, "section": defaults.section,
+                                         "params": {}, "energy": defaults.energy})
+    with output_folder(target, owned=owned) as out:
+        try:
+            solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
+                                      **settings)
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while solving; nothing "
+                          f"new was written: {holds(out)}") from None
+        with INTERRUPTS.saving():
+            meta = write_periodic(out, scene, solution, settings["params"],
+                                  plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
+    print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
+          f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, {meta['nodes']} nodes; "
+          f"written to {out.path}/")
+    if solution.stats.get("accuracy"):
+
+        accuracy = solution.stats["accuracy"]
+        print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
+    return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> int:
+
+    target, owned = default_or(args, f"{scene.name}-family", named)
+    with output_folder(target, owned=owned) as out:
+        try:
+            family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
+                                           **settings)
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while solving the "
+                          f"family; nothing new was written: {holds(out)}") from None
+        with INTERRUPTS.saving():
+            rows = write_family(out, scene, family, settings["params"], plot=not args.no_plot,
+                                section=settings["section"],
+                                interruptible=INTERRUPTS.interruptible)
+    for row in rows:
+        print(f"E = {row['energy']:<12.6g} {row['status']:14s} T = {row['period']:.10g}  "
+              f"residuals canonical {row['canonical']:.2e}, closure {row['closure']:.2e}")
+    print(f"  written to {out.path}/ (family.csv, family.png, E=... folders)")
+    return 0 if all(row["status"] == "success" for row in rows) and not INTERRUPTS.requested \
+        else 1
 
 
 def scene_guess(scene, energy: float, params: dict):
@@ -24,22 +124,10 @@ def scene_guess(scene, energy: float, params: dict):
                          f"{error}") from None
 
 
-def transfer_note(stats: dict) -> str:
-    """One line on a transfer at a prescribed energy and its check by shooting."""
-    exact = stats.get("exact") or {}
-    text = f"transfer time {stats['transfer_time']:.12g} at energy {stats['energy']:.10g}"
-    if exact.get("converged"):
-        text += (f"; the exact flow's shooting: {exact['transfer_time']:.12g} (difference "
-                 f"{exact['time_difference']:.2e}), path difference {exact['path_difference']:.2e}")
-    elif exact:
-        text += "; the exact flow's shooting did not converge from this transfer"
-    return text
-
-
 def run_periodic_stability(args, scene, settings: dict, nodes: int, guess, params: dict,
                            named: dict) -> int:
     """``--stability`` on one orbit or a ``--family``, or ``--follow``; ``named``: the
-    settings that name the default run folder (``cli/solve.py``'s ``default_or``)."""
+    settings that name the default run folder (``folders.default_or``)."""
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
     tol = check_real("--stability-tol", args.stability_tol, positive=True)
     if args.follow is not None:
@@ -65,16 +153,11 @@ def _interrupted(out, what: str) -> Stopped:
 
 
 def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> int:
-    from ..io.atomic import output_folder
-    from ..io.orbit_files import write_periodic
-    from ..io.stability_files import write_stability
-    from ..solvers import check_periodic, periodic_stability, solve_periodic
-    from .arguments import check_grid_memory
 
     if guess is None:
         check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
     check_grid_memory("--nodes", nodes, scene.system.n, 1)
-    target, owned = default_or(args, f"{scene.name}-periodic", {**named, "stability": tol}, {})
+    target, owned = default_or(args, f"{scene.name}-periodic", {**named, "stability": tol})
     with output_folder(target, owned=owned) as out:
         try:
             solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
@@ -86,7 +169,7 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
                                   interruptible=INTERRUPTS.interruptible)
         print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}"
               f"\n  period {meta['period']:.12g} at E = {meta['energy']:.10g}, "
-              f"N = {meta['nodes']}")
+              f"{meta['nodes']} nodes")
         if not solution.success:
             print(f"  no stability: the orbit was not found; written to {out.path}/")
             return 1
@@ -102,17 +185,12 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
 
 
 def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
-    from ..io.atomic import output_folder
-    from ..io.orbit_files import write_family
-    from ..io.stability_files import write_family_stability
-    from ..solvers import check_periodic, periodic_stability, solve_periodic_family
-    from .arguments import family_energies
 
     energies = family_energies(args.family, scene.system.n, nodes)
     guess = guess or scene_guess(scene, energies[0], params)
     for energy in (energies[0], energies[-1]) if guess is None else ():
         check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
-    target, owned = default_or(args, f"{scene.name}-family", {**named, "stability": tol}, {})
+    target, owned = default_or(args, f"{scene.name}-family", {**named, "stability": tol})
     with output_folder(target, owned=owned) as out:
         try:
             family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
@@ -140,11 +218,6 @@ def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
 
 
 def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -> int:
-    from ..io.atomic import output_folder
-    from ..io.orbit_files import write_periodic
-    from ..io.stability_files import write_followed_family
-    from ..solvers import Continuation, follow_periodic_family
-    from .arguments import check_grid_memory
 
     energy = args.energy if args.energy is not None else defaults.energy
     if energy is None:
@@ -158,7 +231,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
     check_grid_memory("--nodes", nodes, scene.system.n, continuation.max_orbits)
     target, owned = default_or(args, f"{scene.name}-follow", {
         **named, "energy": energy, "step": args.step, "max_orbits": args.max_orbits,
-        "stability": tol}, {})
+        "stability": tol})
     with output_folder(target, owned=owned) as out:
         try:
             family = follow_periodic_family(scene.system, (energy, args.follow), nodes=nodes,

@@ -3,84 +3,34 @@ many solves (through ``studies/``) and write their reports (through ``io/``)."""
 
 from __future__ import annotations
 
-import textwrap
+import sys
 import warnings
 
 from ..errors import InputError
-from ..scenes import list_scenes, load_scene
+from ..io.atomic import output_folder
+from ..runner.journal import JournalInterrupted
+from ..scenes import load_scene
 from ..solvers import StepControl
+from ..studies.horizons_report import work_precision_horizons
+from ..studies.methods import get_methods
+from ..studies.reproduce import reproduce
+from ..studies.stress_report import stress
+from ..studies.sweep import SweepSpec, parse_axis, sweep_cases
+from ..studies.sweep_file import load_grid_file
+from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
+from ..studies.work_precision_report import work_precision
 from ..validation import check_real
 from . import arguments as options
+from .arguments import check_distinct
+from .folders import default_or
+from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
 from .summary import status_summary
-
-
-def _describe(name: str) -> str:
-    """A scene's entry of ``ddvp scenes``: parameters and run defaults, description, initial
-    state, fixed-endpoint data and the scheme ``march`` and ``bvp`` use by default."""
-    from ..discrete import Scheme
-    from ..scenes import HigherOrderScene
-
-    scene = load_scene(name)
-    params = ", ".join(f"{k}={v:g}" for k, v in scene.params.items())
-    defaults = f"t0={scene.t0:g} tau0={scene.tau0:g} t_end={scene.t_end:g}"
-    scheme = (f"{scene.scheme} (the scene's)" if scene.scheme
-              else f"{Scheme().rule} (default)")
-    indent = " " * 17
-    lines = [f"{name:16s} n={scene.n}  {params + '  ' if params else ''}{defaults}",
-             *textwrap.wrap(scene.description, SCENES_WIDTH, initial_indent=indent,
-                            subsequent_indent=indent, break_on_hyphens=False)]
-    if isinstance(scene, HigherOrderScene):
-        lines.append(f"{indent}start: the exact motion at {2 * scene.order} nodes tau0 apart "
-                     "from t0")
-        ends = scene.boundary
-        span = (ends and ends.t_span) or (scene.t0, scene.t_end)
-        lines.append(f"{indent}fixed ends: the exact motion's {scene.order} first and last "
-                     f"nodes, t in [{span[0]:g}, {span[1]:g}], {(ends and ends.nodes) or 41} "
-                     f"nodes")
-    else:
-        config = scene.resolve({})
-        start = (f"p0={_vector(config.p0)}" if config.p0 is not None
-                 else f"v0={_vector(config.v0)}")
-        lines.append(f"{indent}start: q0={_vector(config.q0)} {start}")
-        lines.append(f"{indent}fixed ends: {_boundary(scene)}")
-    lines.append(f"{indent}scheme: {scheme}")
-    return "\n".join(lines)
-
-
-# Width of the descriptions of `ddvp scenes`, wrapped at words (a terminal's 100 columns).
-SCENES_WIDTH = 96
-
-
-def _vector(values) -> str:
-    return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
-
-
-def _boundary(scene) -> str:
-    if scene.boundary is None:
-        return "none (give --set q_start=... --set q_end=... --set t_end=... --nodes N)"
-    data = scene.resolve_boundary({})
-    return (f"q_start={_vector(data.q_start)} q_end={_vector(data.q_end)}, "
-            f"t in [{data.t_span[0]:g}, {data.t_span[1]:g}], {data.nodes} nodes")
-
-
-def _grid_folder(args, label: str, named: dict, defaults: dict):
-    """``(folder, owned)``: ``--out``, else ``runs/LABEL``, with ``-HASH`` of every setting
-    that changes the result when one differs from its default (``compare`` and ``sweep`` had
-    ignored ``--set``: ``--set t_end=5`` and ``t_end=50`` wrote one folder)."""
-    from ..io.run_folder import default_folder
-
-    if args.out is not None:
-        return args.out, 1
-    changed = {k: v for k, v in named.items() if defaults.get(k, object()) != v}
-    return default_folder(label, named, changed), 2
 
 
 def _grid_ended(command: str, rows: list[dict]) -> int:
     """0 if any task of the grid succeeded, 1 if every one failed (a sweep whose every task
     failed had exited 0), said on stderr."""
-    import sys
-
     if rows and not any(r["status"] == "success" for r in rows):
         print(f"ddvp {command}: every one of the {len(rows)} runs failed", file=sys.stderr)
         return 1
@@ -89,17 +39,10 @@ def _grid_ended(command: str, rows: list[dict]) -> int:
 
 def _interrupted(exc) -> Exception:
     """A grid's interrupt as the command's stop, with what was kept (the grid's message)."""
-    from .interrupts import Stopped
-
     return Stopped(str(exc) or "interrupted; nothing new was written")
 
 
 def run_compare(args) -> int:
-    from ..io.atomic import output_folder
-    from ..runner.journal import JournalInterrupted
-    from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
-    from ..studies.work_precision_report import work_precision
-    from .interrupts import INTERRUPTS
 
     scene = load_scene(args.scene)
     settings = parse_settings(args.settings)
@@ -109,10 +52,9 @@ def run_compare(args) -> int:
              "horizons": args.horizons, "time_unit": args.time_unit,
              "max_steps": args.max_steps, "run_budget": args.run_budget,
              "reference_span": args.reference_span}
-    target, owned = _grid_folder(args, f"{scene.name}-compare", named, {
-        "settings": {}, "methods": None, "halvings": 6, "repeats": 3, "no_compile": False,
-        "horizons": None, "time_unit": 1.0, "max_steps": 2_000_000, "run_budget": 120.0,
-        "reference_span": 10_000.0})
+    target, owned = default_or(args, f"{scene.name}-compare", named,
+                               options=[name for name in named if name != "settings"],
+                               defaults={"settings": {}})
     if args.horizons:
         with output_folder(target, owned=owned) as out:
             return _compare_horizons(args, scene, out)
@@ -142,9 +84,6 @@ def run_compare(args) -> int:
 
 
 def _compare_horizons(args, scene, out) -> int:
-    from ..runner.journal import JournalInterrupted
-    from ..studies.horizons_report import work_precision_horizons
-    from ..studies.work_precision import CompareOptions
 
     try:
         results = work_precision_horizons(
@@ -167,15 +106,10 @@ def _compare_horizons(args, scene, out) -> int:
 
 
 def run_stress(args) -> int:
-    from ..io.atomic import output_folder
-    from ..runner.journal import JournalInterrupted
-    from ..studies.stress_report import stress
-    from .interrupts import INTERRUPTS
 
     named = {"quick": args.quick, "max_steps": args.max_steps,
              "time_limit": args.time_limit, "no_compile": args.no_compile}
-    target, owned = _grid_folder(args, "stress", named, {
-        "quick": False, "max_steps": 2_000_000, "time_limit": 60.0, "no_compile": False})
+    target, owned = default_or(args, "stress", named, options=list(named))
     try:
         with output_folder(target, owned=owned) as out, warnings.catch_warnings():
             # the solvability warnings of breaking cases are expected here; stress.md says so
@@ -194,18 +128,13 @@ def run_stress(args) -> int:
 
 
 def run_sweep(args) -> int:
-    from ..io.atomic import output_folder
-    from ..runner.journal import JournalInterrupted
-    from ..studies.stress_report import stress
-    from ..studies.sweep import sweep_cases
-    from .interrupts import INTERRUPTS
 
     spec = _sweep_spec(args)
     cases = sweep_cases(spec)
     named = {"scene": spec.scene, "axes": spec.axes, "methods": list(spec.methods),
              "settings": spec.settings, "max_steps": spec.max_steps,
              "time_limit": spec.time_limit, "no_compile": args.no_compile}
-    target, owned = _grid_folder(args, f"{load_scene(spec.scene).name}-sweep", named, {})
+    target, owned = default_or(args, f"{load_scene(spec.scene).name}-sweep", named)
     try:
         with output_folder(target, owned=owned) as out, warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -227,10 +156,6 @@ def _sweep_spec(args):
     """The sweep of a grid file or of SCENE with --grid axes, with the command line's methods,
     settings and bounds on top; a scene file named inside a grid file only if the command line
     allows it (--allow-scene): a grid file runs no code the user did not name."""
-    from ..studies.methods import get_methods
-    from ..studies.sweep import SweepSpec
-    from ..studies.sweep_file import load_grid_file
-
     if args.file:
         if args.scene or args.grid:
             raise InputError("give either --file or SCENE with --grid, not both")
@@ -247,7 +172,6 @@ def _sweep_spec(args):
     if args.time_limit is not None:
         spec.time_limit = args.time_limit
     StepControl(max_steps=spec.max_steps, time_limit=spec.time_limit)  # named checks
-    from .arguments import check_distinct
 
     for name, values in spec.axes.items():
         for value in values:
@@ -262,9 +186,6 @@ def _sweep_spec(args):
 
 def _grid_axes(items: list[str]) -> dict:
     """``NAME=SPEC`` items of --grid, as axes: finite values, none twice, each name once."""
-    from ..studies.sweep import parse_axis
-    from .arguments import check_distinct
-
     axes = {}
     for item in items:
         name, sep, text = item.partition("=")
@@ -282,16 +203,11 @@ def _grid_axes(items: list[str]) -> dict:
 
 
 def run_reproduce(args) -> int:
-    from ..io.atomic import output_folder
-    from ..studies.reproduce import reproduce
 
-    target, owned = _grid_folder(args, "reproduce", {"quick": args.quick}, {"quick": False})
+    target, owned = default_or(args, "reproduce", {"quick": args.quick}, options=["quick"])
     with output_folder(target, owned=owned) as out:
         reproduce(out, quick=args.quick, workers=args.workers or 1, scheduler=args.scheduler)
     print(f"report written to {out.path / 'report.md'}")
     return 0
 
 
-def run_scenes(args) -> int:
-    print("\n\n".join(_describe(name) for name in list_scenes()))
-    return 0
