@@ -136,8 +136,9 @@ def test_verification_rejects_a_converged_point_above_the_tolerance():
     )
     assert solution.success
     from ddvp_nlp.solvers.bvp.fixed_ends import _verify
-    phase = {"converged": True, "return_status": "Solve_Succeeded", "iterations": 3,
-             "solver": "ipopt"}
+    from ddvp_nlp.solvers.grid.policy import Stage
+
+    phase = Stage("vddvp equations", "ipopt", True, "Solve_Succeeded", 3)
     canonical = np.zeros((data.nodes - 1, 2))
     canonical[17, 1] = 2e-9
     status, message = _verify(phase, solution.t, canonical, solution.energy_residual,

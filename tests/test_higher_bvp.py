@@ -3,6 +3,7 @@
 verification that decides whatever the solver said, and the scale."""
 
 import json
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 from ddvp_nlp import GridOptions, HigherOrderSystem, Status, Tolerance, load_scene
 from ddvp_nlp.cli import main
 from ddvp_nlp.discrete.higher_order_action import energies
+from ddvp_nlp.solvers.grid.policy import Stage
 from ddvp_nlp.solvers.grid.problem import GridResult
 from ddvp_nlp.solvers.higher import window_solve as phase
 from ddvp_nlp.solvers.higher.fixed_nodes import straight
@@ -81,8 +83,7 @@ def test_verification_decides_and_quotes_the_solver():
     scene, config, solution = _solve("spline", 21, "vddvp", "newton")
     request = _request(scene, config, 21)
     x = np.column_stack([solution.t, solution.q]).ravel()
-    said = {"solver": "ipopt", "converged": False, "iterations": 15,
-            "return_status": "Search_Direction_Becomes_Too_Small"}
+    said = Stage("vddvp", "ipopt", False, "Search_Direction_Becomes_Too_Small", 15)
     status, message, residuals = phase.verify(request, "vddvp", x, said)
     assert status is Status.SUCCESS
     assert message.startswith("solved and verified: ") and \
@@ -91,7 +92,7 @@ def test_verification_decides_and_quotes_the_solver():
     # a point off by 1e-6 is refused, whatever the solver said
     moved = x.copy()
     moved[10 * 2 + 1] += 1e-6  # q of node 10
-    status, message, _ = phase.verify(request, "vddvp", moved, dict(said, converged=True))
+    status, message, _ = phase.verify(request, "vddvp", moved, replace(said, converged=True))
     assert status is Status.NOT_VERIFIED and "Euler-Lagrange residual" in message
     # a diverged point is reported as such
     status, message, _ = phase.verify(request, "vddvp", x * 1e10, said)
@@ -147,7 +148,7 @@ def test_the_homotopy_takes_over_when_plain_newton_does_not_converge():
     assert fixed[0] is Status.SUCCESS
     staged, said, outcome = phase.solve_rule(request, "vddvp", start, stage_iterations=5)
     assert outcome[0] is Status.SUCCESS, outcome[1]
-    assert "homotopy from the start" in said["return_status"]
+    assert "homotopy from the start" in said.said
     z = staged.reshape(41, 2)
     assert np.max(np.abs(z[:, 0] - plain.t)) < 1e-10
     assert np.max(np.abs(z[:, 1:] - plain.q)) < 1e-10

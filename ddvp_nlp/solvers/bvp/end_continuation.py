@@ -32,6 +32,7 @@ import time
 import numpy as np
 
 from ..grid.linear import Factorization, band_kernel
+from ..grid.policy import Stage
 from ..grid.problem import GridRequest
 from .interleaved import Ends, NodeLayout
 from .phases import Boundary, assembly
@@ -51,9 +52,8 @@ def continue_in_end_position(request: GridRequest[Boundary], fixed, times, base:
     record in ``request.phases`` says how far it got."""
     layout = NodeLayout(request.system.n, request.nodes)
     path = _Path(request, assembly(request, fixed), times, np.asarray(base["q"][-1], float))
-    record = {"phase": "continuation in q_end (fixed steps, pseudo-arclength)",
-              "solver": "newton (bordered)", "converged": False, "return_status": "",
-              "iterations": 0, "steps": 0}
+    record = Stage("continuation in q_end (fixed steps, pseudo-arclength)",
+                   "newton (bordered)", steps=0)
     request.phases.append(record)
     started = time.perf_counter()
     y = np.concatenate([layout.pack(times, base["q"], base["p"]), [0.0]])
@@ -61,7 +61,7 @@ def continue_in_end_position(request: GridRequest[Boundary], fixed, times, base:
         point = _walk(request, path, y, record)
     finally:
         path.grid.release()
-    record["seconds"] = time.perf_counter() - started
+    record.seconds = time.perf_counter() - started
     if point is None:
         return None
     t, q, p = layout.unpack(point[:-1])
@@ -74,36 +74,35 @@ def _walk(request, path, y, record):
     h = FIRST_STEP
     tangent = path.first_tangent(y)
     if tangent is None:
-        record["return_status"] = "the Jacobian at the march is singular: no tangent"
+        record.said = "the Jacobian at the march is singular: no tangent"
         return None
-    while record["steps"] < MAX_STEPS:
+    while record.steps < MAX_STEPS:
         if request.remaining() == 0.0:
-            record["return_status"] = f"time limit reached at s = {y[-1]:.4g}"
+            record.said = f"time limit reached at s = {y[-1]:.4g}"
             return None
         corrected, iterations = path.correct(y + h * tangent, tangent)
-        record["iterations"] += iterations
-        record["steps"] += 1
+        record.iterations += iterations
+        record.steps += 1
         if corrected is None:
             h /= 2
             if h < SMALLEST_STEP:
-                record["return_status"] = (f"the step fell below {SMALLEST_STEP:g} at "
+                record.said = (f"the step fell below {SMALLEST_STEP:g} at "
                                            f"s = {y[-1]:.4g}")
                 return None
             continue
         if corrected[-1] >= 1.0:
             w = (1.0 - y[-1]) / (corrected[-1] - y[-1])
-            record.update(converged=True, return_status=f"s = 1 reached in "
-                          f"{record['steps']} steps")
+            record.converged, record.said = True, f"s = 1 reached in {record.steps} steps"
             return y + w * (corrected - y)
         secant = corrected - y
         tangent = secant / path.norm(secant)
         y = corrected
         if request.progress:
-            print(f"bvp [continuation]: step {record['steps']}, s = {y[-1]:.6g}, "
+            print(f"bvp [continuation]: step {record.steps}, s = {y[-1]:.6g}, "
                   f"arclength step {h:.3g}", file=sys.stderr, flush=True)
         if iterations <= 3:
             h = min(LARGEST_STEP, 1.5 * h)
-    record["return_status"] = f"{MAX_STEPS} steps without reaching s = 1 (s = {y[-1]:.4g})"
+    record.said = f"{MAX_STEPS} steps without reaching s = 1 (s = {y[-1]:.4g})"
     return None
 
 

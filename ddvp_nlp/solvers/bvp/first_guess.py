@@ -41,6 +41,7 @@ import numpy as np
 from ...discrete.scheme import Scheme
 from ...physics.hamiltonian import site_density_weight_function
 from ..grid.maps import evaluate_blocks
+from ..grid.policy import Stage
 from ..grid.problem import GridRequest
 from ..options import Compilation, StepControl
 from .end_continuation import continue_in_end_position
@@ -164,11 +165,11 @@ def _solve_fixed(request, fixed, times, start, name, solver):
     in 2 + 2 iterations; measured). ``None`` if it does not converge."""
     layout = NodeLayout(request.system.n, request.nodes)
     x0 = layout.pack(times, start["q"], start["p"])
-    x, phase = run_phase(request, fixed, x0, name, solver, times=times)
-    if not (phase["converged"] and np.all(np.isfinite(x))) and request.solver == "auto" \
+    x, stage = run_phase(request, fixed, x0, name, solver, times=times)
+    if not (stage.converged and np.all(np.isfinite(x))) and request.solver == "auto" \
             and solver == "newton" and request.remaining() != 0.0:
-        x, phase = run_phase(request, fixed, x0, name, "ipopt", times=times)
-    if not (phase["converged"] and np.all(np.isfinite(x))):
+        x, stage = run_phase(request, fixed, x0, name, "ipopt", times=times)
+    if not (stage.converged and np.all(np.isfinite(x))):
         return None
     t, q, p = layout.unpack(x)
     return {"t": t, "q": q, "p": p}
@@ -222,24 +223,23 @@ def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict
 
     p0 = straight_line(request, times)["p"][0] if request.data.p_start is None \
         else request.data.p_start.copy()
-    record = {"phase": "shooting (march)", "solver": "newton (finite differences)",
-              "converged": False, "return_status": "", "iterations": 0}
+    record = Stage("shooting (march)", "newton (finite differences)")
     request.phases.append(record)
     run = shoot(p0)
     if not _whole(request, run):
-        record["return_status"] = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
+        record.said = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
         return None, False
     best, stalled = (np.linalg.norm(run.q[-1] - request.data.q_end), run), 0
     close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.data.q_end))))
     for iteration in range(1, SHOOTING_ITERATIONS + 1):
         miss = run.q[-1] - request.data.q_end
-        record["iterations"] = iteration
+        record.iterations = iteration
         if np.max(np.abs(miss)) <= request.tol:
-            record.update(converged=True, return_status=f"q_end reached, p_0 = {p0.tolist()}")
+            record.converged, record.said = True, f"q_end reached, p_0 = {p0.tolist()}"
             return {"t": run.t, "q": run.q, "p": run.p}, True
         step = _shooting_step(shoot, p0, run.q[-1], miss)
         if step is None:
-            record["return_status"] = "a march of the finite differences failed"
+            record.said = "a march of the finite differences failed"
             break
         # The longest of the halved steps whose march succeeds and comes closer to q_end; if
         # none comes closer, the longest whose march succeeds (the end can depend on p_0 so
@@ -256,7 +256,7 @@ def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict
                 taken = (trial, candidate)
                 break
         if taken is None:
-            record["return_status"] = (f"every march along the step from p_0 = {p0.tolist()} "
+            record.said = (f"every march along the step from p_0 = {p0.tolist()} "
                                        f"fails (miss {np.linalg.norm(miss):.3e})")
             break
         p0, run = taken
@@ -267,13 +267,13 @@ def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict
             stalled += 1
         best = min(best, (distance, run), key=lambda b: b[0])
         if stalled >= SHOOTING_STALL and best[0] <= close:
-            record["return_status"] = (f"the miss has not halved in {SHOOTING_STALL} "
+            record.said = (f"the miss has not halved in {SHOOTING_STALL} "
                                        f"iterations")
             break
     else:
-        record["return_status"] = f"q_end not reached in {SHOOTING_ITERATIONS} iterations"
+        record.said = f"q_end not reached in {SHOOTING_ITERATIONS} iterations"
     run = best[1]
-    record["return_status"] += (f"; the closest march (miss {best[0]:.3e}) starts the "
+    record.said += (f"; the closest march (miss {best[0]:.3e}) starts the "
                                 f"fixed-step solve")
     return {"t": run.t, "q": run.q, "p": run.p}, False
 

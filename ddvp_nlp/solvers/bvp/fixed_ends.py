@@ -53,10 +53,11 @@ from ...validation import check_finite_array, check_integer, check_real, check_s
 from ..accuracy.judgement import Judgement, Level, apply_verdict
 from ..compiler import find_compiler
 from ..dense import attach
-from ..grid.problem import GridRequest, timed_out
+from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
+from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, Tolerance, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
-from .first_guess import Shooting, branch_obstacle, first_solver, start_point
+from .first_guess import Shooting, branch_obstacle, start_point
 from .interleaved import NodeLayout
 from .phases import (
     EPS,
@@ -141,22 +142,27 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     x0 = layout.pack(np.asarray(start["t"], float), np.asarray(start["q"], float),
                      np.asarray(start["p"], float))
     name = f"{request.scheme.rule} equations"
-    x, phase, outcome = _final_phase(request, x0, name)
-    obstacle = branch_obstacle(request, start) if outcome[0] is not Status.SUCCESS \
-        and request.scheme.variable_steps else None
-    if request.solver == "auto" and outcome[0] is not Status.SUCCESS \
-            and outcome[0] is not Status.TIME_LIMIT:
-        if obstacle is None:
-            x_ipopt, phase_ipopt = run_phase(request, request.scheme, x0, name, "ipopt")
-            fallback = _outcome(request, x_ipopt, phase_ipopt)
-            if fallback[0] is Status.SUCCESS:
-                x, phase, outcome = x_ipopt, phase_ipopt, fallback
-        else:
-            # IPOPT from the same start: kepler's radial branch took 200 iterations (150 s at
-            # N = 1e4) to end where Newton did (measured)
-            obstacle += " (IPOPT not tried from this start)"
-    if obstacle is not None and outcome[0] is not Status.SUCCESS:
-        outcome = (outcome[0], f"{outcome[1]}; {obstacle}", outcome[2])
+    obstacle = []  # why IPOPT was held back, or why the first solve failed (the branch)
+
+    def held_back(first: Attempt) -> str | None:
+        obstacle.append(branch_obstacle(request, start) if request.scheme.variable_steps
+                        else None)
+        # IPOPT from the same start: kepler's radial branch took 200 iterations (150 s at
+        # N = 1e4) to end where Newton did (measured)
+        return obstacle[0]
+
+    chosen, tried, held = solve_in_order(
+        solver_order(request.solver), lambda solver: _final_phase(request, x0, name, solver,
+                                                                  first=not obstacle),
+        held_back=held_back)
+    x, phase, outcome = chosen.x, chosen.stage, chosen.outcome
+    if outcome[0] is not Status.SUCCESS and not obstacle and request.scheme.variable_steps:
+        obstacle.append(branch_obstacle(request, start))  # one solver only: still say why
+    reason = obstacle[0] if obstacle else None
+    if held is not None:
+        reason += " (IPOPT not tried from this start)"
+    if reason is not None and outcome[0] is not Status.SUCCESS:
+        outcome = (outcome[0], f"{outcome[1]}; {reason}", outcome[2])
     elif outcome[0] is not Status.SUCCESS and isinstance(start_kind, str) \
             and outcome[0] is not Status.TIME_LIMIT:
         outcome = (outcome[0], f"{outcome[1]}; {START_HINT[start_kind]}", outcome[2])
@@ -164,26 +170,26 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
     return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
 
 
-def _final_phase(request: GridRequest, x0: np.ndarray, name: str):
-    """``(x, phase, outcome)`` of the scheme's own system solved from ``x0``. IPOPT is not run
-    from a start that already passes the verification: the start phases end that close at
-    N = 1e6 on the pendulum (inf_pr 2.5e-11), and IPOPT had nothing left to do but iterate on
-    round-off (measured). Newton is always run: its targets are tighter than the
-    verification."""
-    solver = first_solver(request)
-    # The start phases' IPOPT problems are done with: each holds its solver's memory (MUMPS's
-    # factors among it), about 3 GB at N = 1e6, while the verification builds the assembly.
-    request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != request.scheme)
-    if solver == "ipopt":
-        skipped = {"phase": name, "solver": solver, "converged": True,
-                   "return_status": "not run: the start passes the verification",
-                   "iterations": 0, "seconds": 0.0}
+def _final_phase(request: GridRequest, x0: np.ndarray, name: str, solver: str, *,
+                 first: bool) -> Attempt:
+    """The scheme's own system solved from ``x0`` by ``solver`` (``first``: the policy's first
+    solver). IPOPT is not run first from a start that already passes the verification: the
+    start phases end that close at N = 1e6 on the pendulum (inf_pr 2.5e-11), and IPOPT had
+    nothing left to do but iterate on round-off (measured). Newton is always run: its targets
+    are tighter than the verification."""
+    if first:
+        # The start phases' IPOPT problems are done with: each holds its solver's memory
+        # (MUMPS's factors among it), about 3 GB at N = 1e6, while the verification builds
+        # the assembly.
+        request.forget(lambda key: key[0] == "bvp_ipopt" and key[1] != request.scheme)
+    if solver == "ipopt" and first:
+        skipped = Stage(name, solver, True, "not run: the start passes the verification")
         outcome = _outcome(request, x0, skipped)
         if outcome[0] is Status.SUCCESS:
             request.phases.append(skipped)
-            return x0, skipped, outcome
-    x, phase = run_phase(request, request.scheme, x0, name, solver)
-    return x, phase, _outcome(request, x, phase)
+            return Attempt(x0, skipped, outcome)
+    x, stage = run_phase(request, request.scheme, x0, name, solver)
+    return Attempt(x, stage, _outcome(request, x, stage))
 
 
 def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, guess, options,
@@ -300,7 +306,7 @@ def _residuals(request: GridRequest, x: np.ndarray):
     return grid.residuals(F, data)
 
 
-def _outcome(request: GridRequest, x: np.ndarray, phase: dict):
+def _outcome(request: GridRequest, x: np.ndarray, phase: Stage):
     """``(status, message, stats)`` of the point ``x`` that ``phase`` returned."""
     t = x.reshape(request.nodes, -1)[:, 0]
     finite = bool(np.all(np.isfinite(x)))
@@ -323,8 +329,7 @@ def _verify(phase, t, canonical, energy, scheme, limits, stats):
     """Status and message from the point's own residuals; the solver's verdict is quoted, and
     decides only when the point fails (solver failure, time limit)."""
     if canonical is None:
-        return Status.NON_FINITE, (f"the solver returned non-finite values "
-                                   f"({phase['solver']}: {phase['return_status']})")
+        return Status.NON_FINITE, f"the solver returned non-finite values ({phase.quoted})"
     tau = np.diff(t)
     worst_canonical = float(np.max(np.abs(canonical)))
     worst_energy = float(np.max(np.abs(energy), initial=0.0))
@@ -342,19 +347,17 @@ def _verify(phase, t, canonical, energy, scheme, limits, stats):
         k = int(np.argmax(np.abs(energy))) + 1
         problems.append(f"energy residual {worst_energy:.3e} at node {k} (t = {t[k]:.6g}), "
                         f"tolerance {limits[1]:.3e}")
-    said = f"{phase['solver']}: {phase['return_status']}"
+    said = phase.quoted
     if not problems:
         return Status.SUCCESS, (f"solved and verified: largest residuals canonical "
                                 f"{worst_canonical:.3e}, energy {worst_energy:.3e}; "
-                                f"{phase['iterations']} iterations ({said})")
-    detail = "".join(f"; {p}" for p in problems)
-    if timed_out(phase["return_status"]):
-        return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value} ({said}){detail}"
-    if not phase["converged"]:
-        return Status.SOLVER_FAILED, f"{Status.SOLVER_FAILED.value} ({said}){detail}"
-    if np.min(tau) <= 0:
-        return Status.NO_ADMISSIBLE_STEP, problems[0] + f" ({said})"
-    return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {'; '.join(problems)} ({said})"
+                                f"{phase.iterations} iterations ({said})")
+    status = failure_status(phase, tau)
+    if status is Status.NO_ADMISSIBLE_STEP:
+        return status, problems[0] + f" ({said})"
+    if status is Status.NOT_VERIFIED:
+        return status, f"{status.value}: {'; '.join(problems)} ({said})"
+    return status, f"{status.value} ({said})" + "".join(f"; {p}" for p in problems)
 
 
 def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
@@ -375,9 +378,9 @@ def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
         else:
             message += "; sign changes of " + ", ".join(
                 f"p{i + 1}: {count}" for i, count in enumerate(sign_changes))
-    stats = {"solver": phase["solver"], "phases": phases, "return_status":
-             phase["return_status"], "iterations": phase["iterations"],
-             "iterations_total": sum(ph["iterations"] for ph in phases),
+    stats = {"solver": phase.solver, "phases": [stage.record() for stage in phases],
+             "return_status": phase.said, "iterations": phase.iterations,
+             "iterations_total": sum(stage.iterations for stage in phases),
              "action": assembly(request, request.scheme).action(x, request.theta)
              if finite else math.nan,
              "energy_scale": mean_step(request), "tau_floor": request.tau_floor,

@@ -21,6 +21,7 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
+from ..grid.policy import Stage
 from ..grid.problem import GridRequest
 from .ends_nlp import BvpIpopt
 from .interleaved import Ends, GridAssembly
@@ -100,8 +101,8 @@ def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> n
 
 def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, solver: str,
               times=None):
-    """``(x, phase)``: the system of ``scheme`` solved from ``x0`` by ``solver``; ``phase``
-    records the solver's own verdict (``converged``, ``return_status``, ``iterations``)."""
+    """``(x, stage)``: the system of ``scheme`` solved from ``x0`` by ``solver``; the `Stage`
+    records the solver's own verdict (``converged``, what it said, ``iterations``)."""
     data = ends(request, scheme, times)
     started = time.perf_counter()
     if solver == "newton":
@@ -115,10 +116,9 @@ def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, s
         result = _ipopt(request, scheme, x0, data)
     x, converged, said, iterations = (result.x, result.converged, result.outcome,
                                       result.iterations)
-    phase = {"phase": name, "solver": solver, "converged": converged, "return_status": said,
-             "iterations": iterations, "seconds": time.perf_counter() - started}
-    request.phases.append(phase)
-    return x, phase
+    stage = Stage(name, solver, converged, said, iterations, time.perf_counter() - started)
+    request.phases.append(stage)
+    return x, stage
 
 
 def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends) -> float:

@@ -2,19 +2,11 @@
 
 A grid problem is one square system ``F(x) = 0`` in all node values of a grid (times, states,
 and a family's extra unknowns), assembled from per-block CasADi functions of the equations of
-``discrete/``. The families supply the assembly and the verification; this package supplies:
-
-- ``problem.py``: the contract of an assembly (``GridProblem``), the request every grid
-  solver receives (``GridRequest``, with the family's own data) and the result every grid
-  solver returns (``GridResult``);
-- ``maps.py``: per-block functions evaluated over the whole grid in windows, compiled where
-  there is a compiler;
-- ``linear.py`` and ``band.py``: the banded LU (LAPACK's loops compiled, or LAPACK through
-  scipy) and SuperLU where the Jacobian is not narrowly banded;
-- ``newton.py``: the grid's one Newton, with the ``tau_floor`` safeguard and a pluggable step
-  test (``NaturalMonotonicity``, ``DecreaseOrMonotonicity``);
-- ``ipopt.py``: the grid's one IPOPT build (``FeasibilityNlp``: objective 0, the rows as
-  equalities, the steps bounded below).
+``discrete/``. The families supply the assembly and the verification; this package supplies the
+contract of an assembly and the request and result every grid solver passes, block maps over
+the whole grid, the banded and sparse LU, the grid's one Newton, its one IPOPT build and its one
+solve policy (Newton, then IPOPT, each run recorded as a ``Stage``). The module map is in
+``docs/architecture.md``.
 
 The contract of a grid problem. An assembly must:
 
@@ -36,8 +28,10 @@ And a family using them must:
 5. Check its inputs into a ``GridRequest`` (its ``GridOptions`` with the family's defaults in
    place of ``None``) before anything is built.
 6. Verify every point a solver returns by the point's own unscaled residuals against
-   tolerances above their round-off, whatever the solver said, and quote what it said;
-   ``"auto"`` is Newton, then IPOPT from the same start when Newton's point fails.
+   tolerances above their round-off, whatever the solver said, and quote what it said; run
+   the solvers through ``policy.solve_in_order`` (``"auto"``: Newton, then IPOPT from the same
+   start when Newton's point fails) and decide a failed point's status by
+   ``policy.failure_status``.
 
 This package imports only the core (``options``, ``compiler``) and ``discrete``; no family.
 """

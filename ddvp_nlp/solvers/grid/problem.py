@@ -99,7 +99,7 @@ class GridRequest(Generic[Data]):
         progress: report each iteration on stderr.
         deadline: ``time.perf_counter()`` value after which the solve stops.
         build_s: seconds spent building problems (`built`).
-        phases: one record per solve made for this request, in order.
+        phases: one `Stage` (``policy.py``) per solver run made for this request, in order.
     """
 
     system: object

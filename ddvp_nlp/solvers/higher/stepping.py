@@ -106,10 +106,11 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     solution = _higher_solution(
         system, z[:, 0].copy(), z[:, 1:].copy(), request.theta, status, message, rule,
         {"build_s": request.build_s, "solve_s": total - request.build_s},
-        {**residuals, "iterations": phase["iterations"],
-         "iterations_total": sum(p["iterations"] for p in request.phases),
-         "solver": phase["solver"], "return_status": phase["return_status"],
-         "phases": request.phases, "tau_floor": request.tau_floor})
+        {**residuals, "iterations": phase.iterations,
+         "iterations_total": sum(stage.iterations for stage in request.phases),
+         "solver": phase.solver, "return_status": phase.said,
+         "phases": [stage.record() for stage in request.phases],
+         "tau_floor": request.tau_floor})
     l = system.order  # noqa: E741 (l is the order, as in the paper)
     fixed = np.concatenate([np.arange(l), np.arange(nodes - l, nodes)])
     _judge(solution, system, request.theta, request.options.accuracy or Tolerance(),

@@ -36,7 +36,8 @@ from ...solution import Status
 from ..grid.linear import band_kernel
 from ..grid.maps import chunked
 from ..grid.newton import DECREASE_OR_MONOTONICITY, newton
-from ..grid.problem import GridRequest, timed_out
+from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
+from ..grid.problem import GridRequest
 from .fixed_nodes import FixedNodes, data_scale, el_scale, ends, magnitudes, mean_step, order
 from .window_nlp import higher_ipopt
 from .windows import HigherAssembly, HigherEnds
@@ -72,22 +73,22 @@ def solve_rule(request: GridRequest[FixedNodes], rule: str, x0: np.ndarray, *,
     """``(x, phase, outcome)``: the system of ``rule`` solved from ``x0`` by the request's
     solver (``"auto"``: Newton, then IPOPT if Newton's point fails the verification); the
     outcome is `verify`'s."""
-    first = "ipopt" if request.solver == "ipopt" else "newton"
-    x, phase = _run(request, rule, x0, first, stage_iterations)
-    outcome = verify(request, rule, x, phase)
-    if request.solver == "auto" and outcome[0] not in (Status.SUCCESS, Status.TIME_LIMIT):
-        x_ipopt, phase_ipopt = _run(request, rule, x0, "ipopt", stage_iterations)
-        fallback = verify(request, rule, x_ipopt, phase_ipopt)
-        if fallback[0] is Status.SUCCESS:
-            return x_ipopt, phase_ipopt, fallback
-        outcome = (outcome[0], f"{outcome[1]}; the IPOPT fallback failed too "
-                   f"({fallback[0].code}: ipopt: {phase_ipopt['return_status']})", outcome[2])
-    return x, phase, outcome
+    def attempt(solver: str) -> Attempt:
+        x, stage = _run(request, rule, x0, solver, stage_iterations)
+        return Attempt(x, stage, verify(request, rule, x, stage))
+
+    chosen, tried, _ = solve_in_order(solver_order(request.solver), attempt)
+    outcome = chosen.outcome
+    for other in tried[1:]:
+        if chosen is not other:
+            outcome = (outcome[0], f"{outcome[1]}; the IPOPT fallback failed too "
+                       f"({other.status.code}: {other.stage.quoted})", outcome[2])
+    return chosen.x, chosen.stage, outcome
 
 
 def _run(request: GridRequest[FixedNodes], rule: str, x0: np.ndarray, solver: str,
          stage_iterations: int):
-    """One solver on one rule's system; ``phase`` records what the solver said."""
+    """One solver on one rule's system; its `Stage` records what the solver said."""
     started = time.perf_counter()
     if solver == "newton":
         grid = assembly(request, rule)
@@ -97,10 +98,9 @@ def _run(request: GridRequest[FixedNodes], rule: str, x0: np.ndarray, solver: st
         x = np.where(grid.derived, x, pinned.given)  # the pins' own rows, held exactly
     else:
         x, converged, said, iterations = higher_ipopt(request, rule, x0)
-    phase = {"phase": rule, "solver": solver, "converged": converged, "return_status": said,
-             "iterations": iterations, "seconds": time.perf_counter() - started}
-    request.phases.append(phase)
-    return x, phase
+    stage = Stage(rule, solver, converged, said, iterations, time.perf_counter() - started)
+    request.phases.append(stage)
+    return x, stage
 
 
 def continuation(request: GridRequest[FixedNodes], grid: HigherAssembly, pinned: HigherEnds,
@@ -144,11 +144,11 @@ def continuation(request: GridRequest[FixedNodes], grid: HigherAssembly, pinned:
     return x, lam == 1.0, said, total
 
 
-def verify(request: GridRequest[FixedNodes], rule: str, x: np.ndarray, phase: dict):
+def verify(request: GridRequest[FixedNodes], rule: str, x: np.ndarray, phase: Stage):
     """``(status, message, residuals)`` of the point ``x`` (module docstring)."""
-    said = f"{phase['solver']}: {phase['return_status']}"
-    if "iterations" not in phase["return_status"]:  # Newton's own words count them already
-        said += f", {phase['iterations']} iterations"
+    said = phase.quoted
+    if "iterations" not in phase.said:  # Newton's own words count them already
+        said += f", {phase.iterations} iterations"
     n = request.system.n
     N, m, l = request.nodes, n + 1, order(request)  # noqa: E741 (the order)
     empty = {"euler_lagrange_residual": np.full((N - 2 * l) * n, np.nan),
@@ -181,14 +181,7 @@ def verify(request: GridRequest[FixedNodes], rule: str, x: np.ndarray, phase: di
               f"step^{2 * l - 1}), energy {energy.max(initial=0):.3e}; {said}")
     if not problems:
         return Status.SUCCESS, f"solved and verified: {detail}", residuals
-    if timed_out(phase["return_status"]):
-        status = Status.TIME_LIMIT
-    elif not phase["converged"]:
-        status = Status.SOLVER_FAILED
-    elif np.min(np.diff(t)) <= 0:
-        status = Status.NO_ADMISSIBLE_STEP
-    else:
-        status = Status.NOT_VERIFIED
+    status = failure_status(phase, np.diff(t))
     return status, f"{status.value}: {'; '.join(problems)}; {detail}", residuals
 
 

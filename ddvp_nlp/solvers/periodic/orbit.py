@@ -99,7 +99,8 @@ from ...validation import check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, apply_verdict
 from ..compiler import find_compiler
 from ..grid.newton import newton
-from ..grid.problem import GridRequest, check_energy_problem, timed_out
+from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
+from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, Tolerance, coerce
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 from .first_orbit import closing_shift, guess_nodes, march_to_return, predicted_grid, section_point
@@ -239,22 +240,27 @@ def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
     scale = max(1.0, float(np.max(np.abs(x0))), abs(request.data.energy))
     request.tau_floor = _tau_floor(request, t[-1])
-    order = ("newton", "ipopt") if request.solver == "auto" else (request.solver,)
-    attempts, results = [], []
-    for name in order:
+    attempts = []
+
+    def attempt(solver: str) -> Attempt:
         began, cpu = time.perf_counter(), time.process_time()
-        result = _run(name, request, assembly, x0, closure, scale, integrals)
-        results.append(_solution(request, assembly, result, scale, started, closure))
-        results[-1].stats["solver"] = name
-        attempts.append({"solver": name, "status": results[-1].status.code,
+        result = _run(solver, request, assembly, x0, closure, scale, integrals)
+        solution = _solution(request, assembly, result, scale, started, closure)
+        solution.stats["solver"] = solver
+        stage = Stage("periodic orbit", solver, result.converged, result.outcome,
+                      result.iterations, time.perf_counter() - began)
+        request.phases.append(stage)
+        attempts.append({"solver": solver, "status": solution.status.code,
                          "iterations": result.iterations, "said": result.outcome,
-                         "wall_s": time.perf_counter() - began,
-                         "cpu_s": time.process_time() - cpu})
-        if results[-1].status in (Status.SUCCESS, Status.INACCURATE, Status.TIME_LIMIT):
-            break  # the equations hold (another solver would find the same grid), or no time
-    chosen = next((r for r in results if r.success), results[0])
-    chosen.stats["attempts"] = attempts
-    return _noted(chosen, attempts)
+                         "wall_s": stage.seconds, "cpu_s": time.process_time() - cpu})
+        return Attempt(result.x, stage, (solution.status, solution.message, solution))
+
+    # an inaccurate orbit holds the equations: another solver would find the same grid
+    chosen, _, _ = solve_in_order(solver_order(request.solver), attempt,
+                                  enough=(Status.SUCCESS, Status.INACCURATE, Status.TIME_LIMIT))
+    solution = chosen.outcome[2]
+    solution.stats["attempts"] = attempts
+    return _noted(solution, attempts)
 
 
 def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integrals):
@@ -501,8 +507,7 @@ def _verdict(result, worst: dict, limit: float, tau: np.ndarray, note):
         return Status.SUCCESS, (f"periodic orbit found and verified: largest residuals {listed} "
                                 f"(limit {limit:.1e}); {said}")
     detail = f"largest residuals {listed}, limit {limit:.1e}, above it: {', '.join(failed)}"
-    if timed_out(result.outcome):
-        return Status.TIME_LIMIT, f"{Status.TIME_LIMIT.value}: {detail} ({said})"
-    if not result.converged:
-        return Status.SOLVER_FAILED, f"no periodic orbit found: {detail} ({said})"
-    return Status.NOT_VERIFIED, f"{Status.NOT_VERIFIED.value}: {detail} ({said})"
+    status = failure_status(Stage("periodic orbit", "", result.converged, result.outcome), tau)
+    if status is Status.SOLVER_FAILED:
+        return status, f"no periodic orbit found: {detail} ({said})"
+    return status, f"{status.value}: {detail} ({said})"
