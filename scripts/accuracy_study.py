@@ -120,7 +120,8 @@ def _ratio_lines(rows) -> list[str]:
     far = ratio[np.abs(ratio - 1) > 1e-3]
     return [f"Over the {ratio.size} trusted cases with a true error above 1e-9 of the motion's "
             "size (the verdict's error is over the nodes its scan covered, up to `t_drift` "
-            "for a drifted run; the true error over the same nodes): ratio estimate / true "
+            "for a drifted run; the true error over the same nodes, with the scales of the "
+            "nodes and of the true states up to there, as the verdict's): ratio estimate / true "
             f"min {quantiles[0]:.6f}, 1% {quantiles[1]:.6f}, median {quantiles[2]:.6f}, 99% "
             f"{quantiles[3]:.6f}, max {quantiles[4]:.6f}; {far.size} cases off by more than "
             "0.1%."]

@@ -13,7 +13,6 @@ import pytest
 
 from ddvp_nlp import Compilation, StepControl, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.accuracy.judgement import _Series
 from ddvp_nlp.solvers.driver import Nodes
 from ddvp_nlp.solvers.marching import monitors
 from ddvp_nlp.solvers.marching.acceptance import Acceptance
@@ -109,21 +108,6 @@ def test_solvability_pretest_changes_no_warning(monkeypatch):
     assert True in cleared and False in cleared  # both the shortcut and the full test ran
 
 
-def test_accuracy_monitor_keeps_estimates_as_concatenated_blocks():
-    series, blocks = _Series(), []
-    rng = np.random.default_rng(2)
-    for size in (1, 5, 1024, 1023, 3000, 0, 7):
-        block = rng.standard_normal(size)[::1]
-        series.append(block)
-        blocks.append(block.copy())
-        block[:] = 0  # the series holds its own copy
-    joined = np.concatenate(blocks)
-    for count in (0, 1, 10, joined.size, joined.size + 5):
-        head = series.head(count)
-        assert same(head, joined[:count]) and head.flags.c_contiguous
-    assert series.head(3).base is None  # a copy, not a view of the growing array
-
-
 def test_nodes_keep_their_rows_when_they_grow():
     nodes = Nodes(0.0, [1.0, 2.0])
     t, z = [np.zeros(1)], [np.array([[1.0, 2.0]])]
@@ -152,9 +136,9 @@ def test_chunk_batches_are_the_chained_single_calls():
     )
     theta = system.parameter_vector(config.params)
     chunk = FastChunk(system, scheme, step_functions(system, scheme), chunk=16, compiler=None,
-                      cache_dir=None, accuracy=True)
+                      cache_dir=None)
     z = np.column_stack([start.q, start.p])
-    state = chunk.energy_state(start.t[0], start.t[1], z[0], z[1], 0.0, error=np.zeros(2))
+    state = chunk.energy_state(start.t[0], start.t[1], z[0], z[1], 0.0)
     parameters = chunk.energy_parameters(theta, Acceptance(1e-10, None, None, 10.0))
     batch = chunk.steps(state, parameters, calls=3)
     pieces = []
@@ -162,9 +146,9 @@ def test_chunk_batches_are_the_chained_single_calls():
         one = chunk.steps(state, parameters)
         pieces.append(one)
         state = chunk.energy_state(one.t_next[-2], one.t_next[-1], one.z_next[-2],
-                                   one.z_next[-1], one.drift[-1], error=one.error[-1])
+                                   one.z_next[-1], one.drift[-1])
     assert batch.good.all()
-    for name in ("t_next", "z_next", "good", "H_node", "w_node", "drift", "delta", "error"):
+    for name in ("t_next", "z_next", "good", "H_node", "w_node", "drift"):
         assert same(getattr(batch, name), np.concatenate([getattr(p, name) for p in pieces])), \
             name
 

@@ -2,7 +2,6 @@
 on the step's outputs (acceptance.py), bounds and tolerance included."""
 
 import numpy as np
-import pytest
 
 from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
@@ -28,8 +27,7 @@ def _numpy_verdict(acceptance, steps, t_prev, t_mid):
             & acceptance.bounds_ok(tau, tau_prev))
 
 
-@pytest.mark.parametrize("accuracy", [False, True])
-def test_the_chunk_verdict_is_the_acceptance_test(accuracy):
+def test_the_chunk_verdict_is_the_acceptance_test():
     scene = load_scene("henon_heiles")
     system = scene.system
     scheme = Scheme.coerce("vddvp")
@@ -45,7 +43,7 @@ def test_the_chunk_verdict_is_the_acceptance_test(accuracy):
     )
     z = np.column_stack([start.q, start.p])
     chunk = FastChunk(system, scheme, step_functions(system, scheme), chunk=48, compiler=None,
-                      cache_dir=None, accuracy=accuracy)
+                      cache_dir=None)
     verdicts = []
     for acceptance in ACCEPTANCES:
         steps = chunk.energy_steps(start.t[0], start.t[1], z[0], z[1], 0.0, theta, acceptance)

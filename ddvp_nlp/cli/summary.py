@@ -75,20 +75,15 @@ def _accuracy_lines(meta: dict) -> list[str]:
 def _trajectory_words(accuracy: dict) -> str:
     """What the trajectory error is, and over which part of the run it was measured."""
     tol = accuracy["global_tol"]
-    scale = accuracy["scale"]
-    linear = accuracy.get("linear_estimate_max")
-    first_look = (f"; the linear propagation, a first look, says {linear / min(scale):.2e}"
-                  if linear is not None else "")
     if accuracy.get("reference_lost") is not None:
         return (f"trajectory error <= {accuracy['error_max']:.3e} of S up to t = "
                 f"{accuracy['reference_lost']:.6g}, not measurable past it (the reference's "
-                f"own error passed its share of the tolerance: the motion is too sensitive)"
-                + first_look)
+                f"own error passed its share of the tolerance: the motion is too sensitive)")
     if accuracy.get("t_drift") is not None:
         return (f"trajectory error passes {tol:g} of S at t = {accuracy['t_drift']:.6g} "
-                f"(the scan stops there)" + first_look)
+                f"(the scan stops there)")
     return (f"trajectory error <= {accuracy['error_max']:.3e} of S over the whole run (limit "
-            f"{tol:g})" + first_look)
+            f"{tol:g})")
 
 
 def _verdict_words(meta: dict, accuracy: dict) -> str:

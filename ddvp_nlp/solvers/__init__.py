@@ -60,7 +60,8 @@ PUBLIC = {
     "step_residuals": "baselines.fixed_step", "fixed_step_run": "baselines.fixed_step",
     "dop853": "baselines.dop853", "flow_callable": "baselines.dop853",
     # the exact flow and the verdicts
-    "flow_with_derivatives": "exact.variational",
+    "flow_with_derivatives": "exact.variational", "exact_flow": "exact.flow",
+    "exact_reference": "exact.reference",
     "assess": "accuracy.judgement", "apply_verdict": "accuracy.judgement",
     "describe": "accuracy.judgement", "Level": "accuracy.judgement",
     "motion_scales": "accuracy.judgement",
@@ -79,6 +80,8 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .bvp.fixed_ends import solve_bvp
     from .compiler import find_compiler
     from .dense import Event, locate
+    from .exact.flow import exact_flow
+    from .exact.reference import exact_reference
     from .exact.variational import flow_with_derivatives
     from .grid.linear import band_kernel
     from .grid.maps import evaluate_blocks
@@ -100,7 +103,8 @@ __all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Event", "GridO
            "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
            "band_kernel", "check_periodic", "coerce", "continue_march", "describe",
            "dop853", "end_with_parent", "evaluate_blocks", "find_compiler",
-           "fixed_step_run", "flow_callable", "flow_with_derivatives",
+           "exact_flow", "exact_reference", "fixed_step_run", "flow_callable",
+           "flow_with_derivatives",
            "follow_periodic_family", "locate", "march", "march_ensemble",
            "march_higher", "march_to_return", "motion_scales", "parse_section",
            "periodic_stability", "resample", "section_point", "solve_bvp",

@@ -195,6 +195,12 @@ class FunctionBuffer:
             arrays = self._local.arrays = (buffer, trigger, inputs, outputs)
         return arrays
 
+    @property
+    def inputs(self) -> list[np.ndarray]:
+        """This thread's input arrays: an input set here stays for every later call that
+        passes ``None`` for it (a run's constant parameters, written once)."""
+        return self._arrays()[2]
+
     def __call__(self, *values) -> list[np.ndarray]:
         _, trigger, inputs, outputs = self._arrays()
         for array, value in zip(inputs, values, strict=False):

@@ -10,9 +10,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..scenes import RunConfig, Scene
-from ..solvers import dop853
+from ..solvers import exact_reference
 
-REFERENCE_RTOL = 1e-13
+# The comparisons' reference: the exact flow's pair of runs at this tolerance (the finer at a
+# tenth of it), its own error said beside every error it measures.
+REFERENCE_RTOL = 1e-12
 
 
 def check_comparable(scene) -> None:
@@ -29,17 +31,18 @@ def check_starts_from_p0(scene, config: RunConfig) -> None:
                          "(--set p0=...)")
 
 
-REFERENCE_KINDS = ("auto", "exact", "dop853", "none")
+REFERENCE_KINDS = ("auto", "exact", "flow", "none")
 
 
 class Reference:
-    """``z_ref(t)`` of a run configuration: the scene's exact solution, a DOP853 solution, or
-    none (``kind="none"``: the trajectory error is not measured, the energy error of an
-    autonomous ``H`` still is).
+    """``z_ref(t)`` of a run configuration: the scene's exact solution, the exact flow (the one
+    reference every verdict uses, ``solvers/exact/``), or none (``kind="none"``: the
+    trajectory error is not measured, the energy error of an autonomous ``H`` still is).
 
     ``kind="auto"`` takes the exact solution where the scene has one that covers the start
     (an exact function raises ``ValueError`` for a start it does not cover, e.g. an unbound
-    Kepler orbit), else DOP853 at ``rtol = atol = 1e-13``."""
+    Kepler orbit), else the exact flow at ``REFERENCE_RTOL`` (its run at a tenth of it, its
+    own error ``error`` in units of the motion's size)."""
 
     def __init__(self, scene: Scene, config: RunConfig, kind: str = "auto"):
         if kind not in REFERENCE_KINDS:
@@ -50,6 +53,7 @@ class Reference:
         self.theta = scene.system.parameter_vector(config.params)
         self._exact = self._dense = None
         self.steps = 0
+        self.error = 0.0
         started = time.perf_counter()
         if kind in ("auto", "exact") and self._exact_covers(scene, config):
             self.kind = "exact solution"
@@ -59,12 +63,19 @@ class Reference:
         elif kind == "none":
             self.kind = "none (trajectory error not measured)"
         else:
-            self.kind = f"DOP853 at rtol = atol = {REFERENCE_RTOL:g}"
-            solution = dop853(scene.system, config, REFERENCE_RTOL, dense_output=True)
-            if not solution.success:
-                raise RuntimeError(f"the reference solution failed: {solution.message}")
-            self._dense = solution.dense
-            self.steps = solution.steps
+            reference = exact_reference(scene.system, np.concatenate([config.q0, config.p0]),
+                                        config.t0, config.t_end, self.theta,
+                                        rtol=REFERENCE_RTOL)
+            if not (reference.fine.success and reference.coarse.success):
+                raise RuntimeError(f"the reference solution failed: {reference.fine.status}")
+            self._dense = reference.fine
+            self.steps = reference.fine.steps
+            ends = np.array([config.t_end])
+            scale = reference.fine.nodes()[1]
+            scale = np.ptp(scale, axis=0) + np.finfo(float).tiny
+            self.error = float(reference.error(ends, scale)[0])
+            self.kind = (f"the exact flow (adaptive DOP853 at rtol {reference.rtol:g}; its own "
+                         f"error at most {self.error:.1e} of the motion's range)")
         self.seconds = time.perf_counter() - started
 
     @property
@@ -89,7 +100,7 @@ class Reference:
             return np.hstack([np.reshape(q, (t.size, -1)), np.reshape(p, (t.size, -1))])
         if self._dense is None:
             return np.full((t.size, 2 * self.system.n), np.nan)
-        return self._dense(t).T
+        return self._dense.z(t)
 
 
 _REFERENCES: dict = {}

@@ -111,7 +111,7 @@ def _within_budget(method, values, span, previous, budget_s):
 
 
 def reference_kind(scene, span: float, reference_span: float) -> str:
-    """``auto`` (exact, or DOP853) for a horizon of ``span`` time units up to
+    """``auto`` (exact, or the exact flow) for a horizon of ``span`` time units up to
     ``reference_span``, or when the scene has an exact solution; beyond it ``none``."""
     return "auto" if scene.exact is not None or span <= reference_span else "none"
 

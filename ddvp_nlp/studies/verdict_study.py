@@ -12,14 +12,15 @@ translation-invariant, a shift of the clock). In the marched variables
 the same motion as ``H~``'s in other units: the verdict must not depend on them
 (tests/test_accuracy_metamorphic.py).
 
-Each case is marched (``march``, its verdict by ``accuracy.py``) and measured against scipy's
+Each case is marched (``march``, its verdict by ``accuracy/judgement.py``) and measured against scipy's
 DOP853 at ``rtol = 1e-12`` with dense output, an integrator that shares nothing with the check
 but the vector field; a second run at ``rtol = 1e-10`` bounds the first's error, and a case
 where the two differ by more than ``global_tol / 20`` of the motion's size at some node has no
 trusted truth and is left out (counted). The true error is ``max_k max_i |z_k,i - z_i(t_k)| /
-S_i`` with ``S`` the motion's scales (``accuracy.motion_scales``) over the run's nodes and the
-true states, over the nodes the verdict covered (up to ``reference_until``, where the check's
-scan stopped).
+S_i`` with ``S`` the motion's scales (``motion_scales``): for the verdict (``true_all``) over
+every node and every true state; for the ratio to the verdict's own figure (``true``), over the
+nodes the verdict covered (up to ``reference_until``, where the check's scan stopped) with the
+scales of every node and of the true states up to there, as the check's own.
 
 How a verdict is judged (`classify`, ``MARGIN = 2``):
 
@@ -237,12 +238,20 @@ def true_error(system, solution, covered: float | None = None) -> dict:
                     "trusted": False}
         states.append(path)
     truth = states[0]
-    both = np.vstack([z, truth])
-    scale = motion_scales(both.min(axis=0), both.max(axis=0), np.abs(both).max(axis=0), n)
-    error = np.max(np.abs(z - truth) / scale, axis=1)
-    own = np.max(np.abs(states[1] - truth) / scale, axis=1)
     rows = slice(None) if covered is None else t <= covered
-    return {"error": float(np.max(error[rows])), "error_all": float(np.max(error)),
+
+    def errors(states_seen):
+        both = np.vstack([z, states_seen])
+        scale = motion_scales(both.min(axis=0), both.max(axis=0), np.abs(both).max(axis=0), n)
+        return scale, np.max(np.abs(z - truth) / scale, axis=1)
+
+    # over the whole run: the scales of every node and every true state; over the covered
+    # nodes: the true states up to the last covered node only, as the verdict's own scales
+    # (a true orbit that moves off after the drift does not shrink the error before it)
+    scale, error_all = errors(truth)
+    _, error = errors(truth[rows])
+    own = np.max(np.abs(states[1] - truth) / scale, axis=1)
+    return {"error": float(np.max(error[rows])), "error_all": float(np.max(error_all)),
             "truth_error": float(np.max(own)), "trusted": bool(np.all(np.isfinite(own)))}
 
 

@@ -2,9 +2,9 @@
 
 A march can satisfy every one of its equations and still not follow the motion: the energy
 equation holds on a wrong energy level just as well as on the right one. So every trajectory is
-judged against the exact flow ``z' = f(z, t) = (H_p, -H_q)`` (``reference.py``: an order-8
-Runge-Kutta integration, compiled, its own error controlled by step doubling), and gets one of
-three verdicts:
+judged against the exact flow ``z' = f(z, t) = (H_p, -H_q)`` (``exact/``: one adaptive
+order-8 Runge-Kutta flow per system, compiled once, with dense output; its own error is measured
+by a second run at a tenth of the tolerance, never assumed), and gets one of three verdicts:
 
 - ``accurate``: the trajectory error stays within ``global_tol`` of the motion's size over the
   whole run;
@@ -16,34 +16,35 @@ three verdicts:
 **Scales come from the motion, never from 1.** ``S_i``, the size of component ``i`` of
 ``z = (q, p)``, is its range over the run (the nodes and the reference's states), at least a
 tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). The energy
-scale ``E_s = max_k |S * grad H(z_k, t_k)|_2`` is how much ``H`` changes when the state moves by
-``S``, where it changes fastest (`energy_scale`): an energy error ``dE`` puts the nodes at
-least ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
+scale ``E_s`` is the time average of ``|S * grad H(z_k, t_k)|_2``, how much ``H`` changes when
+the state moves by ``S`` (`energy_scale`): an energy error ``dE`` puts some node at least
+``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
 these, so a verdict does not change when ``q``, ``p``, ``t`` and ``H`` are rescaled
 consistently, when a constant is added to ``H`` or when a translation-invariant system is
-translated (tests/test_accuracy_metamorphic.py).
+translated (the metamorphic tests).
 
 The tests, in the order the verdict reads them:
 
 1. **Local error** of every step: ``d_k = z_{k+1} - Phi_{tau_k}(z_k)`` with ``Phi`` the exact
-   flow over the accepted step; the step fails when ``|d_k,i| > rtol S_i (+ atol)`` for some
-   ``i``. A march's own loop already computes ``|z_{k+1} - RK4(z_k)|_inf`` with its steps (the
-   *first look*, `ErrorEstimates`, compiled into the march's chunk); the steps whose
-   first look is below half the bound pass, the others are measured again with the reference
-   flow.
+   flow over the accepted step (``exact/short_flows.py``: every step at once, each with its own
+   error held below a tenth of the bound); the step fails when ``|d_k,i| > rtol S_i (+ atol)``
+   for some ``i``. For a second-order scheme (``screen``) one RK4 step of the exact flow is
+   measured first, over all nodes in compiled blocks (``node_values.py``); the steps below half
+   the bound pass, only the others go to the exact flow.
 2. **Energy level of the first step** (energy rules, which keep it for the whole march): the
-   first interval's energy against ``H`` of the exact motion at the first interval's clock,
-   ``H(Phi_{s_0 - t_0}(z_0), s_0)`` (for autonomous ``H`` simply ``H(z_0)``; for a
-   time-dependent one the explicit change of ``H`` over half a step is motion, not error: a
-   gauge term ``10 sin t`` is not refused). Fails above ``energy_tol``.
+   first interval's energy against ``H`` of the exact motion at the first interval's clock
+   (for autonomous ``H`` simply ``H(z_0)``; for a time-dependent one the explicit change of
+   ``H`` over half a step is motion, not error). Fails above ``energy_tol``.
 3. **Nodal energy drift** (autonomous ``H``): ``max_k |H(z_k) - H(z_0)| / E_s`` against
    ``energy_tol``.
 4. **Trajectory error**: ``max_i |z_k,i - z_ref,i(t_k)| / S_i`` at every node, ``z_ref`` the
-   reference flow from ``z_0`` at the run's own node times (or the exact solution, where one is
-   given). The first node above ``global_tol`` is ``t_drift``; the scan stops there (the verdict
-   needs no more: the run is not accurate). The reference is computed again with twice the
-   substeps wherever its own error (``|A - B|``, ``reference.py``) passes a tenth of
-   ``global_tol``; where even ``MAX_SUBSTEPS`` do not hold it there (a chaotic orbit past its
+   exact solution where the caller gives one (a fixed-endpoint solve passes its shooting
+   solution), else the exact flow from ``z_0`` read at the nodes by its dense output. The flow
+   is integrated over windows of nodes growing fourfold from ``t_0`` and stops at the first
+   window where the error passes ``global_tol`` (``t_drift``): a run that drifts early is never
+   integrated to its end (the paper's pendulum drifts at ``t = 2`` of ``10^4``). Where the
+   reference's own error passes a tenth of ``global_tol`` before ``t_drift`` it is integrated
+   again 100 times tighter; where even the tightest cannot hold it (a chaotic orbit past its
    horizon) the run is ``drifted`` from that time, and the report says the error could not be
    measured further.
 
@@ -54,18 +55,9 @@ honest: a local error above ``rtol S`` moves the trajectory by about that much a
 energy error above ``energy_tol E_s`` puts some node at least ``energy_tol / sqrt(2n)`` of the
 motion's size off the exact level set; both are trajectory errors above ``global_tol``.
 
-Why the linear propagation is not the verdict: the first-order estimate ``e_{k+1} = M_k e_k +
-d_k`` (``M_k`` the derivative of the RK4 step) is exact to first order and costs little, but it
-underestimates the true error 3-90 times once that error passes a few percent of the orbit
-(kepler at ``e = 0.6``: 3.4e-2 against a true 1.34). It is kept as the march's first look
-(``linear_estimate_max`` in the report) and never decides.
-
-The check runs in two places. During a march, `AccuracyMonitor` (a monitor of the step
-loop, ``driver.py``) gathers the first look the compiled chunk computed with its steps (``Advance
-.values``, ``ACCURACY_VALUES``) or computes it itself; it never stops the march, because the
-scales are those of the whole run. At the end, `Judgement` makes the verdict on the
-finished trajectory; `assess` does the same for the trajectory of any method, a
-fixed-endpoint or periodic solution.
+The check runs once, on the finished trajectory (`Judgement.report`), never inside the step
+loop: the scales are those of the whole run. `assess` does the same for the trajectory of any
+method, a fixed-endpoint or a periodic solution.
 """
 
 from __future__ import annotations
@@ -73,30 +65,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
-from ...cache import cached
-from ...discrete.runge_kutta import rk4
-from ...physics.hamiltonian import vector_field_function
 from ...solution import Status
-from ..compiler import (
-    CompileUnavailable,
-    FunctionBuffer,
-    buffered,
-    cache_folder,
-    compile_function,
-    warn_once,
-)
-from ..exact.flow import MAX_SUBSTEPS, ReferenceFlow
+from ..exact.flow import exact_flow
+from ..exact.reference import FACTOR, FLOOR_RTOL, reference
+from ..exact.short_flows import short_flows
 from ..options import Tolerance
+from .node_values import NodeValues
 
-BLOCK = 1024  # nodes per call of the compiled estimate (the last block is padded)
-SMALL = 16  # fewer steps than this go one by one, unpadded
-# The per-step estimates a stepper may hand the monitor in ``Advance.values``: ``delta``,
-# ``scale``, ``H_new``, ``global_error`` (each (m,)) and ``error`` (m, 2n), the error vector
-# after each step.
-ACCURACY_VALUES = ("delta", "scale", "H_new", "global_error", "error")
 ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-squares step "
           "(--least-squares); --accept-inaccurate (Tolerance(stop=False)) records the verdict "
           "and keeps the status")
@@ -106,146 +83,16 @@ BLOCK_FLOOR = 0.1
 ROUND_OFF = 1e-12
 # Steps whose first look is below this fraction of the local bound pass without a second look.
 CANDIDATE = 0.5
-# The reference's own error (|A - B|) may use this fraction of global_tol.
+# The reference's own error may use this fraction of global_tol (and the short flows' of the
+# local bound).
 REFERENCE_SHARE = 0.1
-
-
-def local_error_function(system, substeps: int = 1) -> ca.Function:
-    """``(e, z_a, z_b, t_a, tau, theta) -> (e_next, delta, scale, H_b)`` of the step from
-    ``z_a`` to ``z_b``: the propagated global error ``e_next = M e + d`` (``d = z_b - Phi``,
-    ``M = dPhi/dz_a`` applied by forward differentiation), ``delta = |d|_inf``,
-    ``max(|z_a|, |z_b|)`` and ``H`` at the new node."""
-    def build():
-        n2 = 2 * system.n
-        field = vector_field_function(system)
-        e, z_a, z_b = ca.SX.sym("e", n2), ca.SX.sym("z_a", n2), ca.SX.sym("z_b", n2)
-        t_a, tau = ca.SX.sym("t_a"), ca.SX.sym("tau")
-        theta = ca.SX.sym("theta", system.theta.numel())
-
-        def flow(z, t):
-            return field(z, t, theta)
-
-        phi, h = z_a, tau / substeps
-        for i in range(substeps):
-            phi = rk4(flow, phi, t_a + i * h, h)
-        d = z_b - phi
-        e_next = ca.jtimes(phi, z_a, e) + d
-        scale = ca.fmax(ca.norm_inf(z_a), ca.norm_inf(z_b))
-        # Saturate: an error cannot exceed the size of the region the orbit crosses, but the
-        # linear propagation grows without bound where the flow separates orbits (the paper's
-        # pendulum near its separatrix: 3e11 against a true 1.5 at t = 1000).
-        limit = 2 * ca.fmax(scale, 1e-300)
-        e_next = e_next * ca.fmin(1, limit / ca.fmax(ca.norm_inf(e_next), 1e-300))
-        H_b = system.H_function(z_b[:system.n], z_b[system.n:], t_a + tau, theta)
-        return ca.Function("local_error", [e, z_a, z_b, t_a, tau, theta],
-                           [e_next, ca.norm_inf(d), scale, H_b],
-                           ["e", "z_a", "z_b", "t_a", "tau", "theta"],
-                           ["e_next", "delta", "scale", "H_b"])
-    return cached(system, ("local_error", substeps), build)
-
-
-class ErrorEstimates:
-    """The local error estimates and the propagated global error of many steps at once: a
-    compiled ``mapaccum`` over ``BLOCK`` steps (CasADi's virtual machine where no compiler is
-    given), carrying the global error vector ``e`` from block to block.
-
-    ``e_{k+1} = M_k e_k + d_k`` is the first-order propagation of the step errors along the
-    flow: it sees what adding up ``|d_k|`` cannot, how the flow shears errors (a small error of
-    the energy becomes a phase error that grows linearly, as on Kepler orbits)."""
-
-    def __init__(self, system, substeps: int = 1, *, compiler=None, cache_dir=None):
-        self.system = system
-        self.e = np.zeros(2 * system.n)
-        self.single = local_error_function(system, substeps)
-        self.substeps = substeps
-        self.compiler, self.cache_dir = compiler, cache_dir
-        self._buffer = None
-
-    @property
-    def buffer(self) -> FunctionBuffer:
-        """The block function, built (and compiled) at its first use: a march whose chunk
-        computes the estimates never needs it."""
-        if self._buffer is None:
-            function = self.single.mapaccum("error_block", BLOCK)
-            if self.compiler is not None:
-                key = ("error_block", self.substeps, self.compiler, str(self.cache_dir))
-                try:
-                    function = cached(self.system, key, lambda: compile_function(
-                        function, self.compiler, cache_folder(self.cache_dir),
-                        prefix="accuracy"))
-                except CompileUnavailable as reason:  # the virtual machine computes the same
-                    warn_once(reason)
-            self._buffer = FunctionBuffer(function)
-        return self._buffer
-
-    def __call__(self, t: np.ndarray, z: np.ndarray, theta: np.ndarray):
-        """For the steps between the rows of ``t`` (M+1,) and ``z`` (M+1, 2n), continuing the
-        propagation from the previous call: ``delta``, ``scale``, ``H`` of the new node and the
-        global error estimate ``|e_{k+1}|_inf``, four arrays of shape (M,)."""
-        steps = t.size - 1
-        if steps < SMALL:
-            return self._one_by_one(t, z, theta)
-        out = np.empty((4, max(steps, 0)))
-        theta_block = np.broadcast_to(np.asarray(theta, float), (BLOCK, np.size(theta)))
-        for start in range(0, steps, BLOCK):
-            stop = min(start + BLOCK, steps)
-            count = stop - start
-            z_a, z_b = _padded(z[start:stop]), _padded(z[start + 1:stop + 1])
-            t_a = _padded(t[start:stop])
-            tau = _padded(np.diff(t[start:stop + 1]))
-            e, delta, scale, H_b = self.buffer(self.e, z_a, z_b, t_a, tau, theta_block)
-            self.e = e[count - 1].copy()
-            out[0, start:stop] = delta[:count, 0]
-            out[1, start:stop] = scale[:count, 0]
-            out[2, start:stop] = H_b[:count, 0]
-            out[3, start:stop] = np.max(np.abs(e[:count]), axis=1)
-        return out[0], out[1], out[2], out[3]
-
-    def _one_by_one(self, t, z, theta):
-        """Few steps (the careful path's one at a time): the single-step function, no padding."""
-        steps = t.size - 1
-        out = np.empty((4, steps))
-        single = buffered(self.single, "local_error", self.substeps, owner=self.system)
-        for k in range(steps):
-            # through Function.buffer: the same evaluation without a DM for each argument and
-            # result (a call cost 100 us of a 2 ms short march; the careful path makes one a step)
-            e, delta, scale, H_b = single(self.e, z[k], z[k + 1], t[k], t[k + 1] - t[k], theta)
-            self.e = e[0].copy()
-            out[:, k] = (delta[0, 0], scale[0, 0], H_b[0, 0], np.max(np.abs(self.e)))
-        return out[0], out[1], out[2], out[3]
-
-
-class _Series:
-    """Per-step values, appended block by block into one array that grows by doubling: no list
-    of blocks that are views of (and keep alive) whole batches of a compiled chunk's outputs,
-    and no concatenation each time they are read."""
-
-    def __init__(self):
-        self.data = np.empty(0)
-        self.count = 0
-
-    def append(self, values: np.ndarray):
-        end = self.count + values.size
-        if end > self.data.size:
-            data = np.empty(max(2 * self.data.size, end, BLOCK))
-            data[:self.count] = self.data[:self.count]
-            self.data = data
-        self.data[self.count:end] = values
-        self.count = end
-
-    def head(self, count: int) -> np.ndarray:
-        """A copy of ``values[:count]`` (all there are, if fewer)."""
-        return self.data[:self.count][:count].copy()
-
-
-def _padded(values: np.ndarray) -> np.ndarray:
-    """``values`` (rows) repeated from its last row up to ``BLOCK`` rows."""
-    extra = BLOCK - values.shape[0]
-    if extra == 0:  # a full block: no copy (np.pad cost 80 us a call)
-        return values
-    return np.pad(values, [(0, extra)] + [(0, 0)] * (values.ndim - 1), mode="edge")
-
-
+# The exact flow's tolerance to the first interval's clock (a fraction of a step).
+LEVEL_RTOL = 1e-12
+# The reference's first tolerance (the coarse run's; the reference is the run at a tenth of it):
+# tighter by 100 while its own error passes its share before t_drift.
+REFERENCE_RTOL = 1e-9
+# Nodes of the reference's first window (then four times as many each, until the run drifts).
+FIRST_WINDOW = 256
 
 
 def _finite_or_none(value) -> float | None:
@@ -311,18 +158,6 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
 # -- the verdict ----------------------------------------------------------------------------
 
 @dataclass
-class FirstLook:
-    """The first look of a second-order march: ``linear`` (N,), the first-order propagation's
-    ``|e_{k+1}|_inf`` its own loop computed (the compiled chunk or the careful path's
-    `ErrorEstimates`), reported beside the reference's error. Given, it also lets the
-    local test pass the steps whose error against one RK4 step of the exact flow is below
-    ``CANDIDATE`` times the bound (RK4's own error, ``O(tau^5)``, is far below a second-order
-    scheme's ``O(tau^3)``; a method of order 4 or more must be measured with the reference)."""
-
-    linear: np.ndarray
-
-
-@dataclass
 class Level:
     """The energy level a scheme keeps, set by its first step: ``value`` (``H`` of the first
     interval) at the first interval's clock ``clock``."""
@@ -340,8 +175,8 @@ def _unjudged(t, z, tol: Tolerance) -> dict:
             "t_drift": None, "drift_step": None, "error_max": 0.0, "error_max_t": None,
             "estimate": "none (no step)", "reference_until": None, "reference_error": None,
             "reference_lost": None, "scale": None, "energy_scale": None,
-            "local_error_max": 0.0, "linear_estimate_end": None, "linear_estimate_max": None,
-            "level": None, "level_reference": None, "level_error": None, "energy_drift": None,
+            "local_error_max": 0.0, "level": None, "level_reference": None,
+            "level_error": None, "energy_drift": None,
             "steps": max(t.size - 1, 0), "rtol": tol.rtol, "atol": tol.atol,
             "energy_tol": tol.energy_tol, "global_tol": tol.global_tol,
             "require_accurate": tol.require_accurate}
@@ -353,24 +188,33 @@ class Judgement:
 
     def __init__(self, system, theta, tolerance: Tolerance, *, compiler=None, cache_dir=None):
         self.system, self.theta, self.tolerance = system, np.asarray(theta, float), tolerance
-        self.reference = ReferenceFlow(system, theta, compiler=compiler, cache_dir=cache_dir)
+        self.compiler, self.cache_dir = compiler, cache_dir
+        self.values = NodeValues(system, theta, compiler=compiler, cache_dir=cache_dir)
 
-    def report(self, t, z, *, level: Level | None = None, first_look: FirstLook | None = None,
+    def flow(self):
+        """The exact flow (``exact/flow.py``), compiled once per system."""
+        return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+
+    def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None) -> tuple[dict, np.ndarray]:
         """The report (``Solution.stats["accuracy"]``) and the local error of every step,
-        ``|z_{k+1} - Phi(z_k)|_inf``."""
+        ``|z_{k+1} - Phi(z_k)|_inf``. ``screen``: the steps whose error against one RK4 step
+        of the exact flow is below ``CANDIDATE`` times the local bound pass without the exact
+        flow (a second-order scheme's steps; RK4's own error, ``O(tau^5)``, is far below a
+        second-order scheme's ``O(tau^3)``; a method of order 4 or more must be measured with
+        the exact flow)."""
         t, z = np.asarray(t, float), np.asarray(z, float)
         steps = t.size - 1
         if steps < 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(t)):
             return _unjudged(t, z, self.tolerance), np.zeros(max(steps, 0))
         trajectory = self._trajectory(t, z, exact)
         n = self.system.n
-        scale = trajectory["extent"].scales(n)
-        look = self.reference.first_look(t, z) if first_look is not None else None
-        field, H = look[1:] if look is not None else self.reference.at_nodes(t, z)
+        scale = trajectory["scale"]
+        look = self.values.first_look(t, z) if screen else None
+        field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
         energy = energy_scale(t, field, H, scale, n)
         local, local_error, local_max = self._local(t, z, scale, look)
-        energies = self._energies(t, z, H, energy, level)
+        energies = self._energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
         failure = min(failures, key=lambda f: f["step"]) if failures else None
         drift = trajectory["drift"]
@@ -381,12 +225,11 @@ class Judgement:
             "t_drift": None if drift is None else float(t[drift]),
             "drift_step": drift, "error_max": trajectory["error_max"],
             "error_max_t": trajectory["error_max_t"], "estimate": trajectory["estimate"],
-            "reference_until": float(t[trajectory["states"].shape[0]]),
+            "reference_until": trajectory["until"],
             "reference_error": trajectory["reference_error"],
             "reference_lost": trajectory["lost"],
             "scale": scale.tolist(), "energy_scale": energy,
             "local_error_max": local_max,
-            **_linear_figures(first_look),
             **energies["figures"], "steps": steps,
             "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
             "global_tol": tol.global_tol, "require_accurate": tol.require_accurate}
@@ -394,82 +237,74 @@ class Judgement:
 
     # -- the trajectory's error ---------------------------------------------------------------
     def _trajectory(self, t, z, exact) -> dict:
-        """The reference states at the nodes (the exact solution if given, else the reference
-        flow from ``z_0``), up to the first node whose error passes ``global_tol`` (where the
-        scan stops: the verdict needs no more), with the scales of the motion."""
+        """The trajectory error at every node against the reference states: the exact solution
+        if given, else the exact flow from ``z_0`` (``exact/reference.py``: two adaptive runs,
+        the finer read at the nodes by its dense output, its own error bounded by their
+        difference and held below ``REFERENCE_SHARE * global_tol``). The reference covers the
+        run in windows of nodes growing fourfold, each from ``t_0``, until the error drifts or
+        the run ends: a drifted run is measured up to ``t_drift`` only (the paper's pendulum
+        drifts at ``t = 2`` of ``10^4``)."""
+        n = self.system.n
         if exact is not None:
-            states = np.asarray(exact(t), float).reshape(t.size, -1)
-            return self._measured(t, z, states[1:], "exact solution", 0.0, 1)
-        tol = self.tolerance.global_tol
-        substeps = 1
+            states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
+            return self._measured(t, z, states, np.zeros(t.size - 1), "exact solution")
+        scale = _Extent(z).scales(n)
+        last = t.size - 1
+        end = min(last, max(FIRST_WINDOW, last // 64))
+        rtol = REFERENCE_RTOL
         while True:
-            extent = _Extent(z)
-            found = self._scan(t, z, extent, substeps, tol)
-            if found["lost"] is None or 2 * substeps > MAX_SUBSTEPS:
+            ref = reference(self.flow(), z[0], t[0], t[end], self.theta, scale, rtol=rtol)
+            with np.errstate(invalid="ignore", over="ignore"):
+                found = self._measured(t[:end + 1], z[:end + 1], ref.states(t[1:end + 1]),
+                                       None, "", ref=ref, scale=scale)
+            if found["lost"] is not None and rtol / 100 >= FLOOR_RTOL * FACTOR:
+                rtol /= 100  # its own error passed its share before t_drift: tighter
+                continue
+            if found["lost"] is not None or found["drift"] is not None or end == last:
                 break
-            substeps *= 2  # the reference's own error passed its share: resolve the flow better
-        found["estimate"] = (f"reference flow (order-8 Runge-Kutta, {2 * substeps} substeps "
-                             f"per step, its own error at most "
+            end = min(last, 4 * end)
+        found["estimate"] = (f"reference flow (adaptive order-8 Runge-Kutta, DOP853 at rtol "
+                             f"{ref.rtol:.0e}, {ref.fine.steps} steps; its own error at most "
                              f"{found['reference_error']:.1e} of the motion's size)")
         return found
 
-    def _scan(self, t, z, extent: _Extent, substeps: int, tol: float) -> dict:
-        """The reference chain block by block; stops where the trajectory error passes ``tol``
-        (drift) or where the reference's own error passes ``REFERENCE_SHARE * tol`` (lost)."""
-        n = self.system.n
-        states, worst, drift, lost = [], (0.0, None), None, None
-        own = 0.0
-        for first, A, B in self.reference.chain(t, z[0], substeps):
-            extent.add(B)
-            scale = extent.scales(n)
-            nodes = slice(first + 1, first + 1 + B.shape[0])
-            if not np.all(np.isfinite(B)):
-                lost = first + 1 + int(np.argmax(~np.all(np.isfinite(B), axis=1)))
-                break
-            own_rows = np.max(np.abs(A - B) / scale, axis=1)
-            error = np.max(np.abs(z[nodes] - B) / scale, axis=1)
-            budget = np.flatnonzero(own_rows > REFERENCE_SHARE * tol)
-            over = np.flatnonzero(error > tol)
-            stop = min(budget[0] if budget.size else B.shape[0], over[0] + 1 if over.size
-                       else B.shape[0])
-            states.append(B[:stop])
-            own = max(own, float(np.max(own_rows[:stop], initial=0.0)))
-            if stop and float(np.max(error[:stop])) > worst[0]:
-                i = int(np.argmax(error[:stop]))
-                worst = (float(error[i]), float(t[first + 1 + i]))
-            if budget.size and (not over.size or budget[0] <= over[0]):
-                lost = first + 1 + int(budget[0])
-                break
-            if over.size:
-                drift = first + 1 + int(over[0])
-                break
-        states = np.vstack(states) if states else np.zeros((0, 2 * n))
-        return {"states": states, "extent": extent, "drift": drift if lost is None else lost,
-                "lost": None if lost is None else float(t[lost]), "error_max": worst[0],
-                "error_max_t": worst[1], "reference_error": own / 255}
-
-    def _measured(self, t, z, states, estimate, own, substeps) -> dict:
-        """The same figures as `_scan` for reference states given whole (an exact
-        solution)."""
-        extent = _Extent(z)
-        extent.add(states)
-        scale = extent.scales(self.system.n)
-        error = np.max(np.abs(z[1:] - states) / scale, axis=1)
-        over = np.flatnonzero(error > self.tolerance.global_tol)
-        i = int(np.argmax(error))
-        return {"states": states, "extent": extent,
-                "drift": int(over[0]) + 1 if over.size else None, "lost": None,
-                "error_max": float(error[i]), "error_max_t": float(t[i + 1]),
-                "reference_error": own, "estimate": estimate}
+    def _measured(self, t, z, states, claim, estimate, ref=None, scale=None) -> dict:
+        """The figures of the trajectory error against reference ``states`` at ``t[1:]`` (rows;
+        ``claim``: their own error bound, in units of the scale, or from ``ref``). The scales
+        are those of every node of ``z`` and of the reference up to the first node whose error
+        passes ``global_tol`` (`_scales_to_drift`): an orbit the reference follows off to
+        infinity after the drift must not shrink the error."""
+        tol = self.tolerance.global_tol
+        finite = np.all(np.isfinite(states), axis=1)
+        scale, error = _scales_to_drift(z, states, finite, tol, self.system.n, scale)
+        if ref is not None:
+            claim = ref.error(t[1:], scale)
+        lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * tol))
+        over = np.flatnonzero(~(error <= tol))
+        lost_at = int(lost[0]) if lost.size else None
+        drift_at = int(over[0]) if over.size else None
+        if lost_at is not None and (drift_at is None or lost_at <= drift_at):
+            stop, drift, lost_t = lost_at, lost_at + 1, float(t[lost_at + 1])
+        else:
+            stop = drift_at + 1 if drift_at is not None else error.size
+            drift, lost_t = (None if drift_at is None else drift_at + 1), None
+        measured = error[:stop]
+        i = int(np.argmax(measured)) if measured.size else None
+        return {"scale": scale, "drift": drift, "lost": lost_t,
+                "error_max": float(measured[i]) if i is not None else 0.0,
+                "error_max_t": float(t[i + 1]) if i is not None else None,
+                "reference_error": float(np.max(claim[:stop], initial=0.0)),
+                "until": float(t[stop]) if stop < t.size else float(t[-1]),
+                "estimate": estimate}
 
     # -- the steps ----------------------------------------------------------------------------
     def _local(self, t, z, scale, look):
         """The local error test: ``|z_{k+1} - Phi_{tau_k}(z_k)|_i <= rtol S_i (+ atol)`` for every
-        step, ``Phi`` the reference flow with its own error held below a tenth of that bound.
-        With a first look (a second-order march), the steps whose error against one RK4 step is
-        below ``CANDIDATE`` times the bound in every component pass without being measured
-        again. Returns the first failure (or None), ``|d_k|_inf`` and the largest
-        ``max_i |d_k,i| / S_i``."""
+        step, ``Phi`` the exact flow (``exact/short_flows.py``) with its own error held below a
+        tenth of that bound. With a first look (a second-order march), the steps whose error
+        against one RK4 step is below ``CANDIDATE`` times the bound in every component pass
+        without being measured again. Returns the first failure (or None), ``|d_k|_inf`` and
+        the largest ``max_i |d_k,i| / S_i``."""
         tol = self.tolerance
         limit = tol.rtol * scale + (tol.atol or 0.0)
         steps = t.size - 1
@@ -481,19 +316,15 @@ class Judgement:
             ratio = np.max(d / limit, axis=1)
         todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
             np.arange(steps)
-        substeps = 1
-        while todo.size:
-            A, B = self.reference.maps(t[todo], z[todo], t[todo + 1] - t[todo], substeps)
-            d = z[todo + 1] - B
-            own = np.abs(A - B)
-            unsure = np.any(own > 0.1 * limit, axis=1) & np.all(np.isfinite(own), axis=1)
-            done = todo[~unsure] if 2 * substeps <= MAX_SUBSTEPS else todo
-            keep = np.isin(todo, done)
-            local[done] = np.max(np.abs(d[keep]), axis=1)
-            relative[done] = np.max(np.abs(d[keep]) / scale, axis=1)
-            ratio[done] = np.max(np.abs(d[keep]) / limit, axis=1)
-            todo = np.setdiff1d(todo, done)
-            substeps *= 2
+        if todo.size:
+            flows = short_flows(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+            phi, _, _ = flows(t[todo], z[todo], t[todo + 1] - t[todo], self.theta,
+                              REFERENCE_SHARE * limit)
+            d = np.abs(z[todo + 1] - phi)
+            with np.errstate(invalid="ignore"):
+                local[todo] = np.max(d, axis=1)
+                relative[todo] = np.max(d / scale, axis=1)
+                ratio[todo] = np.max(d / limit, axis=1)
         bad = np.flatnonzero(~(ratio <= 1.0))
         failure = None
         if bad.size:
@@ -502,7 +333,7 @@ class Judgement:
                        "value": float(relative[k]), "limit": tol.rtol}
         return failure, local, float(np.max(relative, initial=0.0))
 
-    def _energies(self, t, z, H, energy: float, level: Level | None) -> dict:
+    def _energies(self, t, z, H, energy: float, level: Level | None, scale) -> dict:
         """The energy tests, relative to the energy scale: the level the first step sets
         against ``H`` of the exact flow at the first interval's clock, and (autonomous ``H``)
         the nodal ``H`` against ``H(z_0, t_0)``."""
@@ -514,8 +345,9 @@ class Judgement:
         if level is not None:
             reference = H0
             if system.time_dependent:  # H of the exact motion at the level's own clock
-                state, _ = self.reference.flow(z[0], t[0], level.clock)
-                _, at_clock = self.reference.at_nodes(np.array([level.clock]), state[None, :])
+                run = self.flow().run(z[0], t[0], level.clock, self.theta, rtol=LEVEL_RTOL,
+                                      atol=LEVEL_RTOL * scale)
+                _, at_clock = self.values.at_nodes(np.array([level.clock]), run.z_end[None, :])
                 reference = float(at_clock[0])
             error = abs(level.value - reference) / energy
             figures.update(level=float(level.value), level_reference=reference,
@@ -536,13 +368,28 @@ class Judgement:
         return {"figures": figures, "failures": failures}
 
 
-def _linear_figures(first_look: FirstLook | None) -> dict:
-    """The first look's propagated estimate ``|e_k|_inf`` at the end and its largest value, in
-    the units of ``z`` (reported, never deciding)."""
-    if first_look is None or not first_look.linear.size:
-        return {"linear_estimate_end": None, "linear_estimate_max": None}
-    return {"linear_estimate_end": float(first_look.linear[-1]),
-            "linear_estimate_max": float(np.max(first_look.linear))}
+def _scales_to_drift(z, states, finite, tol, n, scale=None):
+    """``(S, error)``: the motion's scales from every node of ``z`` and the reference's finite
+    ``states`` up to the first node whose error (``max_i |z_k,i - state_i| / S_i``) passes
+    ``tol``, and that error at every node; found by a few passes (the scales only grow, the
+    first node past ``tol`` only moves later)."""
+    extent = _Extent(z)
+    scale = extent.scales(n) if scale is None else scale
+    rows = z[1:]
+    for _ in range(8):
+        with np.errstate(invalid="ignore"):
+            error = np.max(np.abs(rows - states) / scale, axis=1)
+        over = np.flatnonzero(~(error <= tol))
+        stop = int(over[0]) + 1 if over.size else error.size
+        seen = states[:stop][finite[:stop]]
+        grown = _Extent(z)
+        if seen.size:
+            grown.add(seen)
+        new = grown.scales(n)
+        if np.array_equal(new, scale):
+            break
+        scale = new
+    return scale, error
 
 
 def describe(report: dict) -> str:
@@ -584,71 +431,6 @@ def apply_verdict(solution, report: dict, tolerance: Tolerance, advice: str = AD
         solution.message = f"{Status.DRIFTED.value}: {words}"
     else:
         solution.message = f"{solution.message}; {verdict}: {words}"
-
-
-class AccuracyMonitor:
-    """The march's side of the check, a monitor of the step loop (``driver.py``, rule 5): it
-    gathers the first look (`FirstLook`) the stepper computed with its steps, or
-    computes it (`ErrorEstimates`), and the level the first step sets. It never stops a
-    march: the verdict is made on the whole run (`report`), whose scale it needs.
-
-    ``level`` is ``None`` for schemes without an energy level (fixed steps), else a function of
-    the first two nodes ``(t, z)`` giving ``(level, clock)``."""
-
-    def __init__(self, system, theta, tolerance: Tolerance, *, H0: float, level=None,
-                 substeps: int = 1, compiler=None, cache_dir=None, errors=None):
-        self.system = system
-        self.theta = np.asarray(theta, float)
-        self.tolerance = tolerance
-        self.H0 = H0
-        self.level_of = level
-        self.level = None
-        if errors is None:
-            errors = ErrorEstimates(system, substeps, compiler=compiler, cache_dir=cache_dir)
-        self.errors = errors
-        self.compiler, self.cache_dir = compiler, cache_dir
-        self.delta = _Series()  # delta_k of every step watched
-        self.global_errors = _Series()  # |e_k|_inf
-
-    def watch(self, nodes, first: int, advance):
-        start = max(first - 1, 0)  # the new steps run from node start to nodes.count - 1
-        t, z = nodes.t[start:nodes.count], nodes.z[start:nodes.count]
-        if t.size < 2:
-            return None
-        if start == 0 and self.level_of is not None:
-            self.level = Level(*self.level_of(t[:2], z[:2]))
-        delta, _, _, globals_ = self._estimates(t, z, advance)
-        self.delta.append(delta)
-        self.global_errors.append(globals_)
-        return None
-
-    def _estimates(self, t, z, advance):
-        """The stepper's own estimates of these steps if it computed them (a compiled chunk),
-        else this check's; either way ``errors.e`` ends at the newest node."""
-        values = advance.values if advance is not None else {}
-        if "delta" in values and values["delta"].size == t.size - 1:
-            self.errors.e = values["error"][-1].copy()
-            return values["delta"], values["scale"], values["H_new"], values["global_error"]
-        return self.errors(t, z, self.theta)
-
-    def local_errors(self, steps: int) -> np.ndarray:
-        """``delta_k`` of the first ``steps`` steps (the first look)."""
-        return self.delta.head(steps)
-
-    def global_error(self, steps: int) -> np.ndarray:
-        """``|e_k|_inf`` at the nodes ``1 .. steps``: the first-order propagated estimate."""
-        return self.global_errors.head(steps)
-
-    def report(self, t, z, exact=None) -> tuple[dict, np.ndarray]:
-        """The verdict on the march's nodes ``t``, ``z`` (`Judgement`)."""
-        steps = t.size - 1
-        look = FirstLook(self.global_error(steps))
-        if look.linear.size != steps:
-            look = None  # the monitor saw fewer nodes than the run kept: measure them all
-        judge = Judgement(self.system, self.theta, self.tolerance, compiler=self.compiler,
-                          cache_dir=self.cache_dir)
-        return judge.report(t, z, level=self.level if steps else None, first_look=look,
-                            exact=exact)
 
 
 def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, compiler=None,

@@ -1,8 +1,8 @@
 """The accuracy check of a higher-order trajectory: its positions against the exact flow of the
-Euler-Lagrange equation (``physics.higher.euler_lagrange_field``, Ostrogradsky's variables
-``y = (q, q', ..., q^(2l-1))``), integrated by the reference flow (``reference.py``).
+Euler-Lagrange equation (``physics.higher_order.euler_lagrange_field``, Ostrogradsky's variables
+``y = (q, q', ..., q^(2l-1))``), integrated by the exact flow (``exact/``).
 
-The same verdicts as for a trajectory in phase space (``accuracy.py``), on the positions alone
+The same verdicts as for a trajectory in phase space (``judgement.py``), on the positions alone
 (the nodes carry no derivatives), every figure relative to ``S_i``, the range of ``q_i`` over
 the run (at least a tenth of the largest range):
 
@@ -26,11 +26,15 @@ import math
 
 import numpy as np
 
-from ..exact.flow import MAX_SUBSTEPS, ReferenceFlow
+from ..exact.flow import exact_flow
+from ..exact.reference import FACTOR, FLOOR_RTOL, reference
+from ..exact.short_flows import short_flows
 
 NEWTON_ITERATIONS = 30
 FIT_TOLERANCE = 1e-10  # of the motion's size
+FIT_RTOL = 1e-12  # the flow's tolerance while fitting the start
 SHARE = 0.1  # of global_tol: the reference's own error
+REFERENCE_RTOL = 1e-9  # the reference's first tolerance (tighter by 100 while it must be)
 
 
 def window_states(t: np.ndarray, q: np.ndarray, order: int, at: np.ndarray) -> np.ndarray:
@@ -49,29 +53,17 @@ def window_states(t: np.ndarray, q: np.ndarray, order: int, at: np.ndarray) -> n
     return derivatives.reshape(at.size, width * n)
 
 
-def _chain(reference: ReferenceFlow, t, y0, share_limit):
-    """The reference flow from ``y0`` through ``t``, substeps doubled while ``|A - B|`` passes
-    ``share_limit`` (an array per component of ``y``, or a number): rows ``0 ..``, and the
-    largest ``|A - B|``."""
-    substeps = 1
-    while True:
-        rows_a, rows_b = [y0[None, :]], [y0[None, :]]
-        for _, a, b in reference.chain(t, y0, substeps):
-            rows_a.append(a)
-            rows_b.append(b)
-        A, B = np.vstack(rows_a), np.vstack(rows_b)
-        own = np.abs(A - B)
-        if not np.all(own <= share_limit) and 2 * substeps <= MAX_SUBSTEPS and \
-                np.all(np.isfinite(own)):
-            substeps *= 2
-            continue
-        return B, float(np.max(own))
+def _weights(scale: np.ndarray, order: int, span: float) -> np.ndarray:
+    """The size of each of Ostrogradsky's variables ``(q, q', ..., q^(2l-1))``: the positions'
+    scale over the span's powers."""
+    return np.concatenate([scale / max(span, 1e-300) ** j for j in range(2 * order)])
 
 
-def fit_start(reference: ReferenceFlow, t, data_index, q, order, scale) -> tuple:
+def fit_start(system, theta, t, data_index, q, order, scale, *, compiler=None,
+              cache_dir=None) -> tuple:
     """``y_0`` at ``t[0]`` of the motion of the exact flow through the positions ``q`` at the
-    nodes ``data_index`` (Newton from the polynomial through the first ``2l`` nodes), or
-    ``None`` with the reason."""
+    nodes ``data_index`` (Newton from the polynomial through the first ``2l`` nodes, its
+    Jacobian from the variational equations), or ``None`` with the reason."""
     n = q.shape[1]
     y = window_states(t, q, order, np.array([2 * order - 1]))[0]
     # the polynomial's derivatives at node 2l - 1, carried back to t_0 by Taylor's formula
@@ -79,24 +71,20 @@ def fit_start(reference: ReferenceFlow, t, data_index, q, order, scale) -> tuple
     blocks = y.reshape(2 * order, n)
     y = np.concatenate([sum(blocks[j + i] * shift ** i / math.factorial(i)
                             for i in range(2 * order - j)) for j in range(2 * order)])
-    span = t[data_index[-1]] - t[0]
-    weights = np.concatenate([scale / max(span, 1e-300) ** j for j in range(2 * order)])
+    weights = _weights(scale, order, t[data_index[-1]] - t[0])
     target = FIT_TOLERANCE * scale
-    last = data_index[-1] + 1
+    flow = exact_flow(system, tangent=y.size, compiler=compiler, cache_dir=cache_dir)
+    times = t[data_index]
     for _ in range(NEWTON_ITERATIONS):
-        states, _ = _chain(reference, t[:last], y, np.inf)
-        residual = (states[data_index, :n] - q[data_index]).ravel()
+        with np.errstate(all="ignore"):
+            run = flow.run(y, t[0], times[-1], theta, rtol=FIT_RTOL, atol=FIT_RTOL * weights)
+            states = run.z(times) if run.success else np.full((times.size, y.size), np.nan)
+        residual = (states[:, :n] - q[data_index]).ravel()
         if not np.all(np.isfinite(residual)):
             return None, "the exact flow from the nodes' own start does not stay finite"
         if np.all(np.abs(residual.reshape(-1, n)) <= target):
             return y, ""
-        jacobian = np.empty((residual.size, y.size))
-        for j in range(y.size):
-            nudged = y.copy()
-            nudged[j] += 1e-7 * weights[j]
-            moved, _ = _chain(reference, t[:last], nudged, np.inf)
-            jacobian[:, j] = ((moved[data_index, :n] - q[data_index]).ravel() - residual) / (
-                1e-7 * weights[j])
+        jacobian = run.Y(times)[:, :n, :].reshape(-1, y.size)
         step = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
         y = y + step
     return None, ("no motion of the exact flow passes through the given nodes (Newton on its "
@@ -118,9 +106,10 @@ def judge_higher(system, t, q, theta, tolerance, *, data=None, exact=None, compi
                 "step": 0, "t": float(t[0]), "test": "finite nodes", "value": None,
                 "limit": None, "detail": "a node is not finite"})
         return report, np.zeros(max(t.size - 1, 0))
-    reference = ReferenceFlow(system, theta, compiler=compiler, cache_dir=cache_dir)
+    flows = {"compiler": compiler, "cache_dir": cache_dir}
     scale = _q_scales(q)
-    motion, reason, estimate = _motion(reference, system, t, q, scale, tolerance, data, exact)
+    motion, reason, estimate = _motion(system, theta, t, q, scale, tolerance, data, exact,
+                                       flows)
     if motion is None:
         report.update(verdict="inaccurate", scale=scale.tolist(), estimate="none",
                       first_failure={"step": t.size - 2, "t": float(t[-2]),
@@ -130,7 +119,7 @@ def judge_higher(system, t, q, theta, tolerance, *, data=None, exact=None, compi
     scale = _q_scales(np.vstack([q, motion]))
     error = np.max(np.abs(q - motion) / scale, axis=1)
     over = np.flatnonzero(~(error <= tolerance.global_tol))
-    local, failure, local_max = _local(reference, t, q, l, scale, tolerance)
+    local, failure, local_max = _local(system, theta, t, q, l, scale, tolerance, flows)
     verdict = "inaccurate" if failure else ("drifted" if over.size else "accurate")
     report.update(verdict=verdict, first_failure=failure, scale=scale.tolist(),
                   estimate=estimate, error_max=float(np.max(error)),
@@ -149,25 +138,38 @@ def _q_scales(q: np.ndarray) -> np.ndarray:
                       np.finfo(float).tiny)
 
 
-def _motion(reference, system, t, q, scale, tolerance, data, exact):
+def _motion(system, theta, t, q, scale, tolerance, data, exact, flows):
     """The positions of the motion the run is measured against, at its nodes: the exact
-    solution, or the exact flow through the data nodes; ``(None, reason, "")`` if none."""
+    solution, or the exact flow through the data nodes (``exact/reference.py``, its own error
+    on the positions held below ``SHARE * global_tol``); ``(None, reason, "")`` if none."""
     l, n = system.order, system.n  # noqa: E741
     if exact is not None:
         return np.asarray(exact(t), float).reshape(t.size, n), "", "exact solution"
     data = np.arange(2 * l) if data is None else np.asarray(data)
-    y0, reason = fit_start(reference, t, data, q, l, scale)
+    y0, reason = fit_start(system, theta, t, data, q, l, scale, **flows)
     if y0 is None:
         return None, reason, ""
-    share = np.concatenate([SHARE * tolerance.global_tol * scale,
-                            np.full((2 * l - 1) * n, np.inf)])
-    states, own = _chain(reference, t, y0, share)
+    weights = _weights(scale, l, t[-1] - t[0])
+    # the claim on the positions alone: the derivatives' entries count as far below their size
+    claim_scale = np.concatenate([scale, np.full((2 * l - 1) * n, np.inf)])
+    flow = exact_flow(system, **flows)
+    rtol = REFERENCE_RTOL
+    while True:
+        ref = reference(flow, y0, t[0], t[-1], theta, weights, rtol=rtol)
+        own = float(np.max(ref.error(t, claim_scale)))
+        if own <= SHARE * tolerance.global_tol or rtol / 100 < FLOOR_RTOL * FACTOR:
+            break
+        rtol /= 100
+    with np.errstate(invalid="ignore", over="ignore"):
+        states = ref.states(t)
     return states[:, :n], "", ("the exact Euler-Lagrange flow through the run's data "
-                               f"(order-8 reference, its own error {own:.1e})")
+                               f"(adaptive order-8 reference, its own error {own:.1e})")
 
 
-def _local(reference, t, q, order, scale, tolerance):
-    """The local error test of every step from node ``2l - 1`` on (module docstring)."""
+def _local(system, theta, t, q, order, scale, tolerance, flows):
+    """The local error test of every step from node ``2l - 1`` on (module docstring): the
+    exact flow over each step (``exact/short_flows.py``) from the window's derivatives, its
+    own error on the positions held below a tenth of the bound."""
     n = q.shape[1]
     limit = tolerance.rtol * scale + (tolerance.atol or 0.0)
     steps = t.size - 1
@@ -176,15 +178,10 @@ def _local(reference, t, q, order, scale, tolerance):
     if not at.size:
         return local, None, 0.0
     y = window_states(t, q, order, at)
-    substeps = 1
-    while True:
-        A, B = reference.maps(t[at], y, t[at + 1] - t[at], substeps)
-        own = np.abs(A[:, :n] - B[:, :n])
-        if np.all(own <= 0.1 * limit) or 2 * substeps > MAX_SUBSTEPS or \
-                not np.all(np.isfinite(own)):
-            break
-        substeps *= 2
-    d = np.abs(q[at + 1] - B[:, :n])
+    budget = np.concatenate([SHARE * limit, np.full((2 * order - 1) * n, np.inf)])
+    with np.errstate(invalid="ignore", over="ignore"):
+        phi, _, _ = short_flows(system, **flows)(t[at], y, t[at + 1] - t[at], theta, budget)
+    d = np.abs(q[at + 1] - phi[:, :n])
     local[at] = np.max(d, axis=1)
     ratio = np.max(d / limit, axis=1)
     relative = np.max(d / scale, axis=1)
@@ -202,8 +199,7 @@ def _empty_report(tolerance, steps: int) -> dict:
             "error_max": 0.0, "error_max_t": None, "estimate": "none (too few nodes)",
             "reference_until": None, "reference_error": None, "reference_lost": None,
             "scale": None, "energy_scale": None, "local_error_max": 0.0,
-            "linear_estimate_end": None, "linear_estimate_max": None, "level": None,
-            "level_reference": None,
-            "level_error": None, "energy_drift": None, "steps": max(steps, 0),
+            "level": None, "level_reference": None, "level_error": None, "energy_drift": None,
+            "steps": max(steps, 0),
             "rtol": tolerance.rtol, "atol": tolerance.atol, "energy_tol": tolerance.energy_tol,
             "global_tol": tolerance.global_tol, "require_accurate": tolerance.require_accurate}

@@ -28,9 +28,10 @@ paper's schemes are marches).
 
 Modules: ``integrator.py`` (the traits), ``chunks.py`` (what every compiled baseline shares),
 ``paper_schemes.py`` (vddvp, lee, midpoint: the march), ``fixed_step.py`` (Stormer-Verlet,
-leapfrog, RK4, AVF on uniform steps; ``avf.py`` the AVF step), ``verlet_adaptive.py``
-(reversible adaptive Stormer-Verlet), ``lee_left.py`` (T.D. Lee's left-point scheme),
-``dop853.py`` (scipy's DOP853, also the studies' reference).
+leapfrog, RK4, AVF on uniform steps; ``avf_stepper.py`` the AVF step), ``verlet_adaptive.py``
+(reversible adaptive Stormer-Verlet), ``lee_left_stepper.py`` (T.D. Lee's left-point scheme),
+``dop853.py`` (scipy's DOP853, the method users would pick instead; the studies' reference is
+the exact flow of ``solvers/exact/``).
 """
 
 from . import dop853, fixed_step, paper_schemes, verlet_adaptive

@@ -21,9 +21,10 @@ The solve (``solve.py`` calls these in order):
    doubles up to what remains; each from the secant predictor), then the verification
    (residuals of every kind, the prescribed energy on every interval, every step positive), the
    accuracy check (``accuracy.assess``, level ``E``) and a check against the exact flow:
-   shooting by DOP853 (``solvers/exact/variational.py``) for ``(p_0, T)`` with ``q(T) = q_end``,
-   ``H(q_start, p_0) = E`` from the grid's ``p_0`` and ``t_end - t_0``, whose transfer time and
-   path (at the grid's node times) the grid's are compared with (``stats["exact"]``).
+   shooting on the exact flow (``solvers/exact/variational.py``) for ``(p_0, T)`` with
+   ``q(T) = q_end``, ``H(q_start, p_0) = E`` from the grid's ``p_0`` and ``t_end - t_0``, whose
+   transfer time and path (at the grid's node times) the grid's are compared with
+   (``stats["exact"]``).
 
 Only autonomous ``H`` and the energy rules; Newton only (IPOPT's build has no free end time).
 """
@@ -316,7 +317,7 @@ def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance
 
 def shoot_transfer(system, theta, t, q, p, energy: float) -> dict:
     """The exact flow's transfer near the grid: Newton on ``(p_0, T)`` for ``q(T) = q_end`` and
-    ``H(q_start, p_0) = E`` (DOP853 with the variational equations), from the grid's ``p_0``
+    ``H(q_start, p_0) = E`` (the exact flow with its variational equations), from the grid's ``p_0``
     and transfer time; the differences of the transfer time and of the path at the grid's
     node times (largest over ``z``) and the exact path there (``path``, ``None`` unless the
     shooting converged; its residuals relative to the end positions' scale and the energy's)."""

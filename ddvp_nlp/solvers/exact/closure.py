@@ -1,7 +1,7 @@
 """The exact flow's side of a periodic orbit: its monodromy and the exact orbit near a discrete
-one, both from the variational equations integrated by scipy's DOP853
-(``solvers/exact/variational.py``; no equation of the scheme is used here). ``Y(T)`` of
-``flow_with_derivatives`` on a periodic orbit is its monodromy matrix.
+one, both from the variational equations integrated by the one exact flow (``variational.py``,
+compiled DOP853 with the tangent carried along; no equation of the scheme is used here).
+``Y(T)`` of ``flow_with_derivatives`` on a periodic orbit is its monodromy matrix.
 
 Closing the exact flow (`close_exact`): Newton's method on the shooting equations::
 

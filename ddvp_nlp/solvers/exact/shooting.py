@@ -6,14 +6,15 @@ A discrete solution can exist where the continuous problem has none: the harmoni
 momentum (``t = pi`` is conjugate to ``0``), so no motion goes to ``q = 0.5``, yet the grid's
 equations, whose discrete half period differs from ``pi``, have a solution with a huge momentum.
 
-The check solves the continuous problem by multiple shooting with the reference flow
-(``reference.py``), from the discrete solution itself: the run is cut into ``SEGMENTS`` pieces at
-its nodes; the unknowns are the initial momentum and the states at the cuts, the equations the
-continuity of the flow at every cut and ``q(t_end) = q_end``; Newton (Jacobian by forward
-differences, all pieces and perturbations integrated together, a damped step) converges in a few
-iterations where a continuous solution is near, also on sensitive orbits that single shooting
-cannot follow (the pieces are short). It fails, and says so, where the end position does not
-depend on the initial data (a conjugate point) or no root is found.
+Multiple shooting on segments the flow's own error control chooses: a pilot run of the exact
+flow from the discrete solution's start is cut every ``STEPS_PER_SEGMENT`` accepted steps (each
+segment is as much motion as that many steps resolve, wherever the motion is fast or slow, and
+however many nodes the grid has). Unknowns ``x = (p_0, z_1, ..., z_{S-1})``; equations: the
+continuity ``phi_j(z_j) - z_{j+1} = 0`` at every cut and ``q(phi_{S-1}(z_{S-1})) = q_end``.
+Newton's Jacobian is block-bidiagonal, its blocks the variational equations' ``Y_j`` over each
+segment and ``-I``, solved as a band (never a dense ``(S 2n)^2`` matrix); the step is damped
+until the scaled residual shrinks. Converged, the solution is the segments' dense output, read
+at any times (the grid's nodes: a 10^6-node grid costs this check what a 10^3-node one does).
 """
 
 from __future__ import annotations
@@ -22,151 +23,169 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .flow import MAX_SUBSTEPS, ReferenceFlow
+from .flow import exact_flow
+from .trajectory import Trajectory, concatenate
 
-SEGMENTS = 16
+STEPS_PER_SEGMENT = 16
 MAX_ITERATIONS = 30
 # continuity and the end position must hold to this fraction of the motion's size
-TOLERANCE = 1e-9
-# forward-difference step, relative to the motion's size per component
-DIFFERENCE = 1e-7
+TOLERANCE = 1e-10
+# the flow's tolerance (its error is then far below TOLERANCE of the motion's size)
+RTOL = 1e-12
 
 
 @dataclass
 class Shot:
-    """The outcome: the continuous solution's states at the grid's times (rows; or ``None``),
-    its initial momentum, and, where there is none, why."""
+    """The continuous solution (``trajectory``, dense over the span; ``None`` where there is
+    none), its initial momentum, the segments' ends, Newton's iterations and its last scaled
+    residual, and, where there is no solution, why."""
 
-    states: np.ndarray | None
+    trajectory: Trajectory | None
     p0: np.ndarray | None
+    cuts: np.ndarray
+    iterations: int
+    residual: float
     reason: str = ""
 
-
-class _Pieces:
-    """The run cut at ``cuts`` (node indices, first 0, last N), each piece integrated by the
-    reference flow from its start through the grid's own times."""
-
-    def __init__(self, reference: ReferenceFlow, t: np.ndarray, cuts: np.ndarray):
-        self.reference, self.t, self.cuts = reference, t, cuts
-        self.substeps = 1
-
-    def run(self, starts: np.ndarray, record: bool = False):
-        """``starts`` (pieces, variants, 2n): the end of every piece for every variant, and
-        with ``record`` the states of variant 0 at every node (rows 0 .. N)."""
-        t, cuts = self.t, self.cuts
-        pieces, variants, width = starts.shape
-        lengths = np.diff(cuts)
-        while True:
-            current = starts.copy()
-            nodes = np.empty((t.size, width)) if record else None
-            if record:
-                nodes[cuts[:-1]] = starts[:, 0]
-            own = 0.0
-            for s in range(int(lengths.max())):
-                active = np.flatnonzero(lengths > s)
-                k = cuts[active] + s
-                A, B = self.reference.maps(np.repeat(t[k], variants),
-                                           current[active].reshape(-1, width),
-                                           np.repeat(t[k + 1] - t[k], variants), self.substeps)
-                own = max(own, float(np.max(np.abs(A - B), initial=0.0)))
-                current[active] = B.reshape(active.size, variants, width)
-                if record:
-                    nodes[k + 1] = current[active, 0]
-            size = float(np.max(np.abs(current), initial=0.0))
-            if own <= 1e-10 * size or 2 * self.substeps > MAX_SUBSTEPS or not np.isfinite(own):
-                return current, nodes
-            self.substeps *= 2
+    def states(self, times) -> np.ndarray:
+        """The continuous solution at ``times``: rows ``(q, p)``."""
+        return self.trajectory.z(times)
 
 
-def shoot(reference: ReferenceFlow, t: np.ndarray, z: np.ndarray, q_end, scale) -> Shot:
-    """The continuous solution from ``q_start = z[0, :n]`` at ``t[0]`` to ``q_end`` at ``t[-1]``
-    nearest to the discrete solution ``z`` (rows at ``t``; ``scale``: the motion's size per
-    component)."""
+def shoot(system, theta, t: np.ndarray, z: np.ndarray, q_end, scale, *,
+          compiler: str | None = "auto", cache_dir=None) -> Shot:
+    """The continuous solution from ``q_start = z[0, :n]`` at ``t[0]`` to ``q_end`` at
+    ``t[-1]`` nearest to the discrete solution ``z`` (rows at ``t``), Newton started from the
+    discrete solution itself; ``scale``: the motion's size per component (module
+    docstring)."""
     n = z.shape[1] // 2
-    cuts = np.unique(np.linspace(0, t.size - 1, min(SEGMENTS, t.size - 1) + 1).round()
-                     .astype(int))
-    pieces = _Pieces(reference, t, cuts)
+    d = 2 * n
+    theta = np.asarray(theta, float)
+    scale = np.asarray(scale, float)
     q_start, q_end = z[0, :n], np.asarray(q_end, float)
-    x = np.concatenate([z[0, n:], z[cuts[1:-1]].ravel()])  # p_0, then the states at the cuts
-    steps = DIFFERENCE * np.concatenate([scale[n:], np.tile(scale, cuts.size - 2)])
-    weights = np.concatenate([np.tile(scale, cuts.size - 2), scale[:n]])
+    flow = exact_flow(system, compiler=compiler, cache_dir=cache_dir)
+    tangent = exact_flow(system, tangent=d, dense=False, slots=4 * STEPS_PER_SEGMENT,
+                         compiler=compiler, cache_dir=cache_dir)
+    atol = RTOL * scale
+    t0, t1 = float(t[0]), float(t[-1])
+    pilot = flow.run(z[0], t0, t1, theta, rtol=RTOL, atol=atol)
+    cuts = np.concatenate([[t0], pilot.t_old[STEPS_PER_SEGMENT::STEPS_PER_SEGMENT], [t1]])
+    if cuts.size > 2 and abs(cuts[-1] - cuts[-2]) < 0.25 * abs(cuts[-2] - cuts[-3]):
+        cuts = np.delete(cuts, -2)  # no sliver of a last segment
+    segments = cuts.size - 1
+    weights = np.concatenate([np.tile(scale, segments - 1), scale[:n]])
+    x = np.concatenate([z[0, n:], _at(t, z, cuts[1:-1]).ravel()])
 
-    def starts_of(x_value, variants=1):
-        first = np.concatenate([q_start, x_value[:n]])
-        rest = x_value[n:].reshape(-1, 2 * n)
-        return np.repeat(np.vstack([first, rest])[:, None, :], variants, axis=1)
+    def starts_of(x_value):
+        return np.vstack([np.concatenate([q_start, x_value[:n]]), x_value[n:].reshape(-1, d)])
 
-    def residual_of(ends, x_value):
-        starts = starts_of(x_value)[:, 0]
-        continuity = (ends[:-1] - starts[1:]).ravel()
-        return np.concatenate([continuity, ends[-1, :n] - q_end])
+    def evaluate(x_value):
+        starts = starts_of(x_value)
+        ends, tangents = np.empty((segments, d)), np.empty((segments, d, d))
+        for j in range(segments):
+            run = tangent.run(starts[j], cuts[j], cuts[j + 1], theta, rtol=RTOL, atol=atol)
+            if not run.success or not np.all(np.isfinite(run.w_end)):
+                return None, None
+            ends[j], tangents[j] = run.z_end, run.Y_end
+        residual = np.concatenate([(ends[:-1] - starts[1:]).ravel(), ends[-1, :n] - q_end])
+        return residual, tangents
 
-    ends, _ = pieces.run(starts_of(x))
-    residual = residual_of(ends[:, 0], x)
-    conditioning = None
-    for _ in range(MAX_ITERATIONS):
-        if not np.all(np.isfinite(residual)):
+    residual, tangents = evaluate(x)
+    if residual is None:
+        return _none(system, theta, t, z, q_end, cuts, 0, np.inf, None, flow, atol)
+    size = float(np.max(np.abs(residual) / weights))
+    for iteration in range(MAX_ITERATIONS + 1):
+        if size <= TOLERANCE:
+            parts = [flow.run(start, cuts[j], cuts[j + 1], theta, rtol=RTOL, atol=atol)
+                     for j, start in enumerate(starts_of(x))]
+            return Shot(concatenate(parts), x[:n].copy(), cuts, iteration, size)
+        if iteration == MAX_ITERATIONS:
             break
-        if np.all(np.abs(residual) <= TOLERANCE * weights):
-            _, states = pieces.run(starts_of(x), record=True)
-            return Shot(states, x[:n].copy())
-        jacobian = _jacobian(pieces, starts_of, residual_of, x, steps, n, residual)
-        scaled = jacobian / weights[:, None] * steps[None, :] / DIFFERENCE
-        singular = np.linalg.svd(scaled, compute_uv=False)
-        conditioning = float(singular[-1] / singular[0]) if singular[0] > 0 else 0.0
-        step = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
-        size = float(np.max(np.abs(residual) / weights))
-        for _ in range(30):  # damped: the defects must shrink
+        step = -banded_solve(tangents, residual, n)
+        for _ in range(30):  # damped: the scaled residual must shrink
             trial = x + step
-            trial_ends, _ = pieces.run(starts_of(trial))
-            trial_residual = residual_of(trial_ends[:, 0], trial)
-            if np.all(np.isfinite(trial_residual)) and \
-                    float(np.max(np.abs(trial_residual) / weights)) < size:
-                break
+            trial_residual, trial_tangents = evaluate(trial)
+            if trial_residual is not None:
+                trial_size = float(np.max(np.abs(trial_residual) / weights))
+                if trial_size < size:
+                    break
             step = step / 2
         else:
             break
-        x, residual = trial, trial_residual
-    return Shot(None, None, _reason(reference, t, z, q_end, conditioning))
+        x, residual, tangents, size = trial, trial_residual, trial_tangents, trial_size
+    return _none(system, theta, t, z, q_end, cuts, MAX_ITERATIONS, size, tangents, flow, atol,
+                 scale)
 
 
-def _jacobian(pieces, starts_of, residual_of, x, steps, n, residual):
-    """The Jacobian of the defects in ``x`` by forward differences: every piece with every
-    perturbation of its own start integrated in one pass (variant 0 unperturbed)."""
-    pieces_count = pieces.cuts.size - 1
-    width = 2 * n
-    starts = starts_of(x, variants=width + 1)
-    columns = []  # (piece, variant, index into x)
-    for j in range(n):  # the first piece: its momentum
-        starts[0, 1 + j, n + j] += steps[j]
-        columns.append((0, 1 + j, j))
-    for piece in range(1, pieces_count):
-        for i in range(width):
-            index = n + (piece - 1) * width + i
-            starts[piece, 1 + i, i] += steps[index]
-            columns.append((piece, 1 + i, index))
-    ends, _ = pieces.run(starts)
-    jacobian = np.zeros((residual.size, x.size))
-    base = ends[:, 0]
-    for piece, variant, index in columns:
-        moved = base.copy()
-        moved[piece] = ends[piece, variant]
-        shifted = x.copy()
-        shifted[index] += steps[index]
-        jacobian[:, index] = (residual_of(moved, shifted) - residual) / steps[index]
-    return jacobian
+def _at(t: np.ndarray, z: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """The discrete solution at ``times`` (linear between its nodes): the segments' starts."""
+    return np.stack([np.interp(times, t, z[:, i]) for i in range(z.shape[1])], axis=-1)
 
 
-def _reason(reference, t, z, q_end, conditioning) -> str:
-    """Why there is no continuous solution: where the flow from the discrete start ends, and
-    whether ``t_end`` is conjugate to ``t_0``."""
+def banded_solve(tangents: np.ndarray, residual: np.ndarray, n: int) -> np.ndarray:
+    """``J^-1 residual`` for the block-bidiagonal Jacobian of the shooting equations
+    (``tangents``: (S, d, d), the flow's Jacobian over each segment), by LAPACK's band solver
+    (partial pivoting): O(S d^3), never a dense (S d)^2 matrix."""
+    from scipy.linalg import solve_banded
+
+    segments, d, _ = tangents.shape
+    size = n + d * (segments - 1)
+    rows, columns, values = [], [], []
+
+    def block(r0, c0, matrix):
+        r, c = np.indices(matrix.shape)
+        rows.append((r + r0).ravel())
+        columns.append((c + c0).ravel())
+        values.append(matrix.ravel())
+
+    def column(j):
+        return 0 if j == 0 else n + (j - 1) * d
+
+    for j in range(segments):
+        Y = tangents[j][:, n:] if j == 0 else tangents[j]  # z_0 = (q_start, p_0): p_0 varies
+        if j < segments - 1:
+            block(j * d, column(j), Y)
+            block(j * d, column(j + 1), -np.eye(d))
+        else:
+            block(j * d, column(j), Y[:n])
+    rows, columns, values = map(np.concatenate, (rows, columns, values))
+    lower, upper = int(np.max(rows - columns)), int(np.max(columns - rows))
+    band = np.zeros((lower + upper + 1, size))
+    band[upper + rows - columns, columns] = values
+    return solve_banded((lower, upper), band, residual)
+
+
+def _none(system, theta, t, z, q_end, cuts, iterations, size, tangents, flow, atol,
+          scale=None) -> Shot:
+    """No continuous solution near: why, in words (where the flow from the discrete start ends,
+    and whether ``t_end`` is conjugate to ``t_0``)."""
     n = z.shape[1] // 2
-    end, _ = reference.flow(z[0], t[0], t[-1], substeps=max(8, 2 * (t.size - 1)))
+    run = flow.run(z[0], float(t[0]), float(t[-1]), theta, rtol=RTOL, atol=atol)
+    end = run.z_end if run.success else np.full(2 * n, np.nan)
     reason = ("no motion of the exact flow near this solution goes from q_start to q_end: the "
               f"flow from its first node ends at q = {end[:n].tolist()} against q_end = "
               f"{np.asarray(q_end).tolist()}")
+    conditioning = _conditioning(tangents, n, scale)
     if conditioning is not None and conditioning < 1e-8:
         reason += (f"; the end position barely depends on the initial data (singular values "
                    f"{conditioning:.1e} apart): t_end is conjugate to t_0, where every motion "
                    "from q_start ends at one point or none does")
-    return reason
+    return Shot(None, None, cuts, iterations, size, reason)
+
+
+def _conditioning(tangents, n: int, scale) -> float | None:
+    """How much the end position depends on the initial momentum, against how much the flow
+    moves anything: the smallest singular value of ``d q_end / d p_0`` over the largest of the
+    flow's whole Jacobian (the segments' chained, each in units of the motion's size), or
+    ``None``. Near zero: ``t_end`` is conjugate to ``t_0``."""
+    if tangents is None or scale is None:
+        return None
+    product = np.eye(2 * n)
+    for Y in tangents:
+        product = Y @ product
+    scaled = product * scale[None, :] / scale[:, None]
+    if not np.all(np.isfinite(scaled)):
+        return None
+    largest = np.linalg.norm(scaled, 2)
+    singular = np.linalg.svd(scaled[:n, n:], compute_uv=False)
+    return float(singular[-1] / largest) if largest > 0 else 0.0

@@ -32,7 +32,6 @@ import casadi as ca
 import numpy as np
 
 from ...cache import use_compiler
-from ..accuracy.judgement import local_error_function
 from ..compiler import (
     CompileUnavailable,
     FunctionBuffer,
@@ -115,15 +114,10 @@ class Layout:
         return {name: matrix[:, self.slices[name]] for name in self.names}
 
 
-# The accuracy check's estimates of each step (``accuracy.local_error_function``), computed in
-# the chunk when it carries the check: local error, scale, H of the new node, |e|_inf.
-ACCURACY_OUTPUTS = (("delta", 1), ("scale", 1), ("H_new", 1), ("global_error", 1))
-
-
 def _step_length() -> ca.Function:
     """``t_b - t_a`` as a call of its own: inline, CasADi would simplify
     ``(t_mid + tau) - t_mid`` to ``tau``, which differs from the difference of the node times
-    (what the accuracy check uses) by round-off."""
+    (what the acceptance test is given) by round-off."""
     t_b, t_a = ca.SX.sym("t_b"), ca.SX.sym("t_a")
     return ca.Function("step_length", [t_b, t_a], [t_b - t_a], {"never_inline": True})
 
@@ -145,25 +139,20 @@ def limits(acceptance) -> np.ndarray:
                        max_step_ratio=bound(acceptance.max_step_ratio, np.inf))
 
 
-def energy_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout]:
-    """State and per-step output of a chunk of energy steps (``n2 = 2n``); with ``accuracy``
-    the state also carries the propagated global error ``error`` and the output the check's
-    estimates (``ACCURACY_OUTPUTS``)."""
-    state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1),
-                   *((("error", n2),) if accuracy else ()))
+def energy_layouts(n2: int) -> tuple[Layout, Layout]:
+    """State and per-step output of a chunk of energy steps (``n2 = 2n``)."""
+    state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1))
     output = Layout(("t_next", 1), ("z_next", n2),
-                    *((name, 1) for name in EnergyCheck._fields), ("good", 1),
-                    *(ACCURACY_OUTPUTS if accuracy else ()))
+                    *((name, 1) for name in EnergyCheck._fields), ("good", 1))
     return state, output
 
 
-def fixed_layouts(n2: int, accuracy: bool = False) -> tuple[Layout, Layout, Layout]:
-    """State, constants and per-step output of a chunk of fixed-length steps (``accuracy``:
-    as in `energy_layouts`)."""
-    state = Layout(("k", 1), ("z", n2), *((("error", n2),) if accuracy else ()))
+def fixed_layouts(n2: int) -> tuple[Layout, Layout, Layout]:
+    """State, constants and per-step output of a chunk of fixed-length steps."""
+    state = Layout(("k", 1), ("z", n2))
     constants = Layout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
     output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields),
-                    ("good", 1), *(ACCURACY_OUTPUTS if accuracy else ()))
+                    ("good", 1))
     return state, constants, output
 
 
@@ -176,11 +165,9 @@ class ChunkSteps:
     the compensated sum after the step; see ``steps.EnergyCheck``) and ``good``: the
     acceptance test's verdict on the step, computed in the chunk (`step_verdict`): every
     output finite, ``tau > 0``, the residuals against ``tol`` and the step bounds. A diverged
-    step is NaN and fails it.
-
-    A chunk that carries the accuracy check also gives, per step, ``delta``, ``scale``,
-    ``H_new`` and ``global_error`` (``accuracy.ErrorEstimates``' four estimates) and ``error``
-    ``(chunk, 2n)``, the propagated global error vector after the step."""
+    step is NaN and fails it. The accuracy check is made afterwards, on the whole run
+    (``accuracy/``): the chunk computes nothing for it, so it is the same chunk with the check
+    on or off."""
 
     t_next: np.ndarray
     z_next: np.ndarray
@@ -192,11 +179,6 @@ class ChunkSteps:
     energy: np.ndarray | None = None
     H_interval: np.ndarray | None = None
     drift: np.ndarray | None = None
-    delta: np.ndarray | None = None
-    scale: np.ndarray | None = None
-    H_new: np.ndarray | None = None
-    global_error: np.ndarray | None = None
-    error: np.ndarray | None = None
 
 
 _LARGEST = float(np.finfo(float).max)
@@ -249,26 +231,19 @@ class FastChunk:
     ``functions`` are the careful path's `StepFunctions`;
     ``compiler`` is already resolved (``find_compiler``): a path, or ``None`` for the virtual
     machine.
-
-    With ``accuracy`` each step also runs the accuracy check's estimates
-    (``accuracy.local_error_function``: one RK4 step of the exact flow from the step's first
-    node over ``t_next - t_a``, and the forward-mode propagation of the global error ``error``,
-    carried in the state), so the check costs no call of its own; the nodes are the same to
-    the bit.
     """
 
     def __init__(self, system, scheme, functions: StepFunctions, *, chunk: int, compiler,
-                 cache_dir, accuracy: bool = False):
+                 cache_dir):
         started = time.perf_counter()
         n2 = 2 * system.n
         theta = ca.SX.sym("theta", system.theta.numel())
         self.variable = scheme.variable_steps
-        self.accuracy = local_error_function(system) if accuracy else None
         if self.variable:
-            self.state, self.output = energy_layouts(n2, accuracy)
+            self.state, self.output = energy_layouts(n2)
             step = self._energy_step(functions, theta)
         else:
-            self.state, self.constants, self.output = fixed_layouts(n2, accuracy)
+            self.state, self.constants, self.output = fixed_layouts(n2)
             step = self._fixed_step(functions, theta)
         self.chunk = chunk
         function = step.mapaccum("chunk", chunk)
@@ -296,36 +271,23 @@ class FastChunk:
         limit = ca.SX.sym("limits", LIMITS.size)
         w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
         # the step's residuals come out of the Newton, where they share the last residual
-        # test's terms; H and w of the new node stay here, where they share terms with the
-        # accuracy check's estimates
+        # test's terms
         newton = unrolled_newton("fast_energy_step", functions.energy_residual,
                                  NEWTON_OPTIONS, at_root=_residuals(functions.energy_check),
                                  **unroll_options(functions.energy_residual.numel_in(0)))
         x, *residuals = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
         t_next = s["t_mid"] + x[-1]
         check = EnergyCheck(*residuals, *functions.node_monitor(x[:-1], t_next, theta))
-        carried, estimates = self._estimates(s, s["t_mid"], t_next, s["z_mid"], x[:-1], theta)
         after = self.state.stack(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"],
-                                 z_mid=x[:-1], drift=s["drift"] + check.energy, **carried)
+                                 z_mid=x[:-1], drift=s["drift"] + check.energy)
         # the step lengths as the march computes them from the node times
         good = step_verdict([t_next, *ca.vertsplit(x[:-1]), *check], check, LIMITS.split(limit),
                             tau=_STEP_LENGTH(t_next, s["t_mid"]),
                             tau_prev=_STEP_LENGTH(s["t_mid"], s["t_prev"]))
         outputs = self.output.stack(t_next=t_next, z_next=x[:-1], **check._asdict(),
-                                    good=good, **estimates)
+                                    good=good)
         return ca.Function("step", [state, ca.vertcat(theta, limit)], [after, outputs],
                            step_options(functions.energy_residual.numel_in(0)))
-
-    def _estimates(self, s, t_a, t_b, z_a, z_b, theta) -> tuple[dict, dict]:
-        """The accuracy check's part of one step (nothing without it): the carried error
-        vector and the per-step estimates, by layout name. The step length is ``t_b - t_a``
-        of the node times, as the check computes it from the nodes."""
-        if self.accuracy is None:
-            return {}, {}
-        e_next, delta, scale, H_b = self.accuracy(s["error"], z_a, z_b, t_a,
-                                                  _STEP_LENGTH(t_b, t_a), theta)
-        return {"error": e_next}, {"delta": delta, "scale": scale, "H_new": H_b,
-                                   "global_error": ca.norm_inf(e_next)}
 
     def _fixed_step(self, functions, theta):
         state = ca.SX.sym("state", self.state.size)
@@ -341,12 +303,10 @@ class FastChunk:
                                  **unroll_options(functions.fixed_residual.numel_in(0)))
         z_b, *residuals = newton(functions.fixed_predict(w), w)
         check = FixedCheck(*residuals, *functions.node_monitor(z_b, t_b, theta))
-        carried, estimates = self._estimates(s, t_a, t_b, s["z"], z_b, theta)
         good = step_verdict([t_b, *ca.vertsplit(z_b), *check], check, LIMITS.split(limit))
-        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict(), good=good,
-                                    **estimates)
+        outputs = self.output.stack(t_next=t_b, z_next=z_b, **check._asdict(), good=good)
         return ca.Function("step", [state, ca.vertcat(theta, constants, limit)],
-                           [self.state.stack(k=k + 1, z=z_b, **carried), outputs],
+                           [self.state.stack(k=k + 1, z=z_b), outputs],
                            step_options(functions.fixed_residual.numel_in(0)))
 
     def _call(self, state: np.ndarray, parameters: np.ndarray):
@@ -358,7 +318,7 @@ class FastChunk:
 
     def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
         carried = self.state.columns(states)
-        extra = {name: carried[name] for name in ("drift", "error") if name in carried}
+        extra = {name: carried[name] for name in ("drift",) if name in carried}
         if copy:  # the buffers are overwritten by the next call
             outputs = outputs.copy()
             extra = {name: value.copy() for name, value in extra.items()}
@@ -366,21 +326,14 @@ class FastChunk:
         columns["good"] = columns["good"] != 0
         return ChunkSteps(**columns, **extra)
 
-    def _carried(self, error) -> dict:
-        """The error vector of the accuracy check's state part (zeros if none is given)."""
-        if self.accuracy is None:
-            return {}
-        return {"error": np.zeros(self.accuracy.size1_in(0)) if error is None else error}
-
-    def energy_state(self, t_prev, t_mid, z_prev, z_mid, drift, *, error=None) -> np.ndarray:
-        """The state of energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``;
-        ``error``: the accuracy check's global error vector at node ``k``."""
+    def energy_state(self, t_prev, t_mid, z_prev, z_mid, drift) -> np.ndarray:
+        """The state of energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``."""
         return self.state.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
-                               drift=drift, **self._carried(error))
+                               drift=drift)
 
-    def fixed_state(self, k: int, z, *, error=None) -> np.ndarray:
+    def fixed_state(self, k: int, z) -> np.ndarray:
         """The state of fixed-length steps from node ``k`` (state ``z``)."""
-        return self.state.pack(k=k, z=z, **self._carried(error))
+        return self.state.pack(k=k, z=z)
 
     def energy_parameters(self, theta, acceptance) -> np.ndarray:
         """``theta`` and the acceptance test's numbers (``LIMITS``)."""
@@ -396,7 +349,7 @@ class FastChunk:
         """``calls * chunk`` steps from ``state`` (`energy_state`, `fixed_state`):
         ``calls`` calls, each from the state the previous one ended in, which is the state the
         march builds from the nodes for its next call when it kept every step (the same
-        numbers: the node times, states, drift and error vector are outputs of the chunk)."""
+        numbers: the node times, states and drift are outputs of the chunk)."""
         if calls == 1:
             after, outputs = self._call(state, parameters)
             return self._decode(outputs, after)
@@ -410,20 +363,20 @@ class FastChunk:
             state = states[(i + 1) * c - 1]
         return self._decode(outputs, states, copy=False)
 
-    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta, acceptance, *,
-                     error=None) -> ChunkSteps:
+    def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta,
+                     acceptance) -> ChunkSteps:
         """``chunk`` energy steps of one orbit (`energy_state`), judged by
         ``acceptance``."""
-        return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift, error=error),
+        return self.steps(self.energy_state(t_prev, t_mid, z_prev, z_mid, drift),
                           self.energy_parameters(theta, acceptance))
 
-    def fixed_steps(self, k: int, z, theta, acceptance, *, t0, tau, t_end, total,
-                    error=None) -> ChunkSteps:
+    def fixed_steps(self, k: int, z, theta, acceptance, *, t0, tau, t_end,
+                    total) -> ChunkSteps:
         """``chunk`` fixed-length steps of one orbit from node ``k`` (state ``z``) of a uniform
         grid of ``total`` steps of ``tau`` from ``t0`` that ends on ``t_end``."""
         parameters = self.fixed_parameters(theta, acceptance, t0=t0, tau=tau, t_end=t_end,
                                            total=total)
-        return self.steps(self.fixed_state(k, z, error=error), parameters)
+        return self.steps(self.fixed_state(k, z), parameters)
 
 
 def _compiled_or_vm(function, compiler, folder):

@@ -36,7 +36,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
 from ...validation import check_span, check_state, check_step
-from ..accuracy.judgement import AccuracyMonitor, ErrorEstimates, apply_verdict
+from ..accuracy.judgement import Judgement, Level, apply_verdict
 from ..compiler import buffered, find_compiler
 from ..dense import DenseField, EventMonitor, attach, check_times, evaluate_at
 from ..driver import Nodes, drive
@@ -150,22 +150,13 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
     same problem and what its loop carried, ``resume.py``)."""
     compiler = find_compiler(compilation.compiler) if compilation.fast else compilation.compiler
     started = time.perf_counter()
-    parts = _build(problem, compilation, compiler, check_accuracy=accuracy is not None)
+    parts = _build(problem, compilation, compiler)
     built = time.perf_counter()
     nodes = Nodes(problem.t0, np.concatenate([problem.q0, problem.p0]))
     monitors, solvability = _monitors(parts, problem, nodes)
     # the check and the recheck are compiled where the march's own chunk is (one fallback
     # warning, not three)
     compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
-    checker = None
-    if accuracy is not None:
-        # the reference flow is compiled where the chunk is, or (careful path) with the
-        # compiler asked for: one fallback warning, not two
-        checker = _accuracy_monitor(
-            problem, accuracy, parts.errors, cache_dir=compilation.cache_dir,
-            compiler=compiler if compiled else
-            None if compilation.fast else find_compiler(compilation.compiler))
-        monitors.append(checker)
     events = None
     if output.events:
         events = EventMonitor(output.events, DenseField.of(problem.system, problem.theta),
@@ -198,10 +189,14 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
                          cache_dir=compilation.cache_dir,
                          timing={"build_s": built - started, "solve_s": solved - built})
     solution.stats["carried"] = carry.state()
-    if checker is not None:
+    if accuracy is not None:
+        # the exact flow is compiled where the chunk is, or (careful path) with the compiler
+        # asked for: one fallback warning, not two
         started = time.perf_counter()
-        report, solution.local_error = checker.report(
-            solution.t, np.hstack([solution.q, solution.p]), exact=accuracy.exact)
+        report, solution.local_error = _judged(
+            problem, solution, accuracy, compiler=compiler if compiled else
+            None if compilation.fast else find_compiler(compilation.compiler),
+            cache_dir=compilation.cache_dir)
         solution.stats["accuracy"] = report
         apply_verdict(solution, report, accuracy)
         solution.timing["accuracy_s"] = time.perf_counter() - started
@@ -304,15 +299,12 @@ class _Parts:
     tally: Tally
     fast_chunk: FastChunk | None
     stepper: CarefulStepper | MarchStepper
-    errors: ErrorEstimates | None
 
 
-def _build(problem: MarchProblem, compilation: Compilation, compiler, *,
-           check_accuracy=True) -> _Parts:
+def _build(problem: MarchProblem, compilation: Compilation, compiler) -> _Parts:
     """The step functions (cached on the system), the compiled chunk if ``compilation.fast``
-    (cached too; with ``check_accuracy`` it computes the accuracy check's estimates too), the
-    stepper and the accuracy check's error state (compiled where the chunk is: one fallback
-    warning, not two)."""
+    (cached too, once per system, scheme and compiler: the same chunk with the accuracy check
+    on or off) and the stepper."""
     system, scheme, steps = problem.system, problem.scheme, problem.steps
     cache_dir = compilation.cache_dir
     functions = step_functions(system, scheme)
@@ -321,22 +313,15 @@ def _build(problem: MarchProblem, compilation: Compilation, compiler, *,
     clock = Clock.for_rule(scheme.variable_steps, problem.t0, problem.t_end, problem.tau0)
     stepper = CarefulStepper(newton, clock, tally, variable=scheme.variable_steps,
                              breakdown=steps.breakdown)
-    fast_chunk = errors = None
+    fast_chunk = None
     if compilation.fast:
-        fast_chunk = cached(system,
-            ("fast", scheme, compilation.chunk, compiler, str(cache_dir), check_accuracy),
-            lambda: FastChunk(system, scheme, functions, chunk=compilation.chunk,
-                              compiler=compiler, cache_dir=cache_dir, accuracy=check_accuracy))
-    if check_accuracy:
-        compiled = fast_chunk is not None and fast_chunk.path == "compiled"
-        errors = ErrorEstimates(system, compiler=compiler if compiled else None,
-                                cache_dir=cache_dir)
-    if fast_chunk is not None:
+        fast_chunk = cached(system, ("fast", scheme, compilation.chunk, compiler, str(cache_dir)),
+                            lambda: FastChunk(system, scheme, functions, chunk=compilation.chunk,
+                                              compiler=compiler, cache_dir=cache_dir))
         stepper = MarchStepper(stepper, CompiledStepper(fast_chunk, problem.theta,
                                                         problem.acceptance, clock, tally,
-                                                        errors=errors,
                                                         max_calls=compilation.batch))
-    return _Parts(functions, newton, tally, fast_chunk, stepper, errors)
+    return _Parts(functions, newton, tally, fast_chunk, stepper)
 
 
 def _monitors(parts: _Parts, problem: MarchProblem, nodes):
@@ -354,24 +339,24 @@ def _monitors(parts: _Parts, problem: MarchProblem, nodes):
     return monitors, solvability
 
 
-def _accuracy_monitor(problem: MarchProblem, tolerance, errors, *, compiler, cache_dir):
-    """The accuracy check of the march (its error state ``errors`` shared with the compiled
-    chunk, its reference flow compiled with ``compiler``); for the energy rules it also takes
-    the level the first step sets, the first interval's energy at its clock."""
+def _judged(problem: MarchProblem, solution, tolerance, *, compiler, cache_dir):
+    """The accuracy check of the march's nodes (``accuracy/judgement.py``), the exact flow
+    compiled with ``compiler``; for the energy rules the level the first step sets, the first
+    interval's energy at its clock, is tested too. The RK4 screen of the local test suits a
+    second-order scheme."""
     system, scheme, theta = problem.system, problem.scheme, problem.theta
+    t, z = solution.t, np.hstack([solution.q, solution.p])
     level = None
-    if scheme.variable_steps:
+    if scheme.variable_steps and t.size > 1:
         interval_energy = buffered(equations.midpoint_energy_function(system, scheme),
                                    "interval_energy", scheme, owner=system)
         n = system.n
-
-        def level(t, z):  # the first interval's energy, at its own clock
-            value = float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
-                                          theta)[0][0, 0])
-            return value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
-                                else t[0])
-    return AccuracyMonitor(system, theta, tolerance, H0=problem.H0, level=level, errors=errors,
-                           compiler=compiler, cache_dir=cache_dir)
+        value = float(interval_energy(t[0], t[1], z[0, :n], z[0, n:], z[1, :n], z[1, n:],
+                                      theta)[0][0, 0])
+        level = Level(value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
+                                   else t[0]))
+    judge = Judgement(system, theta, tolerance, compiler=compiler, cache_dir=cache_dir)
+    return judge.report(t, z, level=level, screen=True, exact=tolerance.exact)
 
 
 def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, compiler,

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...solution import Status
-from ..accuracy.judgement import ACCURACY_VALUES
 from ..driver import Advance, Nodes, describe_phase_space
 from .acceptance import Acceptance
 from .chunk import FastChunk
@@ -125,22 +124,17 @@ class CarefulStepper:
 
 
 class CompiledStepper:
-    """A batch of compiled chunk calls per call, kept up to its first step that fails a check.
-
-    A chunk that carries the accuracy check starts from ``errors.e`` (the check's
-    `ErrorEstimates`, which the monitor keeps up to date) and
-    returns the check's estimates of every kept step in ``Advance.values``
-    (``ACCURACY_VALUES``)."""
+    """A batch of compiled chunk calls per call, kept up to its first step that fails a
+    check."""
 
     def __init__(self, chunk: FastChunk, theta: np.ndarray, acceptance: Acceptance,
-                 clock: Clock, tally: Tally, *, errors=None, max_calls: int = MAX_CALLS):
+                 clock: Clock, tally: Tally, *, max_calls: int = MAX_CALLS):
         self.chunk = chunk
         self.max_calls = max_calls
         self.theta = theta
         self.acceptance = acceptance
         self.clock = clock
         self.tally = tally
-        self.errors = errors if chunk.accuracy is not None else None
         self.calls = 1  # chunk calls of the next batch
         # steps since the last chunk boundary when a batch starts: 0 but in a resumed march,
         # whose first batch starts where the uninterrupted run was inside a chunk
@@ -159,13 +153,11 @@ class CompiledStepper:
     def inputs(self, nodes: Nodes) -> tuple[np.ndarray, np.ndarray]:
         """The chunk's state from the newest nodes and its parameters."""
         k = nodes.count - 1
-        error = None if self.errors is None else self.errors.e
         if self.chunk.variable:
             t, z = nodes.t, nodes.z
-            return (self.chunk.energy_state(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift,
-                                            error=error),
+            return (self.chunk.energy_state(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift),
                     self._parameters())
-        return self.chunk.fixed_state(k, nodes.z[k], error=error), self._parameters()
+        return self.chunk.fixed_state(k, nodes.z[k]), self._parameters()
 
     def _parameters(self) -> np.ndarray:
         """The chunk's parameters, the same for the whole run: packed once."""
@@ -196,8 +188,6 @@ class CompiledStepper:
         self.calls = 1 if bad.size else min(2 * self.calls, self.max_calls)
         values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept],
                   "carry": self._carry(steps, kept)}
-        if self.errors is not None:
-            values.update({name: getattr(steps, name)[:kept] for name in ACCURACY_VALUES})
         if kept and self.chunk.variable:
             self.tally.drift = float(steps.drift[kept - 1])
         self.tally.fast_steps += kept

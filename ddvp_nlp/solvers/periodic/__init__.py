@@ -20,8 +20,8 @@ Where things are:
 - ``family.py``: orbits along a range of energies, each from the last;
 - ``stability.py``: the discrete monodromy (the step maps' derivatives by implicit
   differentiation), its reduction by the trivial directions, the stability indices and the
-  verdict; ``exact.py``: the exact orbit near a discrete one and its monodromy (DOP853 on the
-  variational equations, ``solvers/exact/variational.py``);
+  verdict; the exact orbit near a discrete one and its monodromy come from
+  ``solvers/exact/closure.py`` (the exact flow's variational equations);
 - ``continuation.py``: pseudo-arclength continuation in the energy, the bifurcations between
   members located; ``bifurcation.py``: their test functions and their confirmation on the exact
   flow.

@@ -368,7 +368,7 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
     The discrete orbit's monodromy (the step maps' derivatives, node times included, multiplied
     along the orbit) is reduced by its trivial directions; the nontrivial multipliers give one
     stability index per pair and the verdict. With ``exact``, the exact periodic orbit near
-    this one is found by shooting with DOP853 (``exact.py``: variational equations at
+    this one is found by shooting on the exact flow (``exact/closure.py``: variational equations at
     ``rtol = 1e-12``) and its monodromy analysed the same way: the indices' difference is the
     discretisation error of the multipliers (``O(N^-2)``), and an exact orbit that does not
     close says the discrete one is not near an orbit of the flow.

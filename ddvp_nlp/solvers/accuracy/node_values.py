@@ -1,0 +1,103 @@
+"""What the accuracy check evaluates at every node or step of a trajectory, compiled and mapped
+over blocks of nodes (CasADi's virtual machine where there is no compiler): the vector field
+and ``H`` at the nodes (the energy scale and drift), and the first look at every step
+(``z_{k+1} - RK4(z_k)``, one classical Runge-Kutta step of the exact flow: a cheap filter of the
+steps that plainly pass the local test)."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ...cache import cached
+from ...discrete.runge_kutta import rk4
+from ..compiler import FunctionBuffer
+from ..exact.flow import compiled_or_vm, flow_field
+
+BLOCK = 512  # nodes per call of a compiled block (the last block is padded)
+
+
+def look_function(system) -> ca.Function:
+    """``(z_a, z_b, t, h, theta) -> (z_b - RK4(z_a), f(z_a), H(z_a))``: a step's local error
+    against one classical Runge-Kutta step of the exact flow, component by component (the cheap
+    first look of a second-order march's steps), with the vector field and ``H`` at its first
+    node (the RK4 step's first stage: computed once)."""
+    def build():
+        field, n2 = flow_field(system)
+        theta = ca.SX.sym("theta", system.theta.numel())
+        z_a, z_b = ca.SX.sym("z_a", n2), ca.SX.sym("z_b", n2)
+        t, h = ca.SX.sym("t"), ca.SX.sym("h")
+        step = rk4(lambda z, time: field(z, time, theta), z_a, t, h)
+        H = system.H_function(z_a[:system.n], z_a[system.n:], t, theta)
+        return ca.Function("accuracy_look", [z_a, z_b, t, h, theta],
+                           [z_b - step, field(z_a, t, theta), H],
+                           ["z_a", "z_b", "t", "h", "theta"], ["d", "f", "H"], {"cse": True})
+    return cached(system, "accuracy_look", build)
+
+
+def node_function(system) -> ca.Function:
+    """``(z, t, theta) -> (f, H)``: the vector field and ``H`` at one node."""
+    def build():
+        field, n2 = flow_field(system)
+        theta = ca.SX.sym("theta", system.theta.numel())
+        z, t = ca.SX.sym("z", n2), ca.SX.sym("t")
+        H = system.H_function(z[:system.n], z[system.n:], t, theta)
+        return ca.Function("accuracy_node", [z, t, theta], [field(z, t, theta), H],
+                           ["z", "t", "theta"], ["f", "H"], {"cse": True})
+    return cached(system, "accuracy_node", build)
+
+
+class NodeValues:
+    """`first_look` and `at_nodes` of ``system`` with parameters ``theta``, compiled once per
+    system and compiler (kept with the system)."""
+
+    def __init__(self, system, theta, *, compiler=None, cache_dir=None):
+        self.system = system
+        self.theta = np.broadcast_to(np.asarray(theta, float),
+                                     (BLOCK, system.theta.numel())).copy()
+        self.compiler, self.cache_dir = compiler, cache_dir
+
+    def _compiled(self, kind: str) -> FunctionBuffer:
+        def build():
+            single = look_function(self.system) if kind == "look" else \
+                node_function(self.system)
+            mapped = single.map(f"accuracy_{kind}s", "serial", BLOCK, [], [])
+            return FunctionBuffer(compiled_or_vm(mapped, self.compiler, self.cache_dir))
+        return cached(self.system, ("accuracy", kind, self.compiler, str(self.cache_dir)),
+                      build)
+
+    def first_look(self, t: np.ndarray, z: np.ndarray):
+        """``z_{k+1} - RK4(z_k)`` over every step between the rows of ``t``, ``z`` (rows), and
+        the vector field and ``H`` at every node (as `at_nodes`)."""
+        look = self._compiled("look")
+        d, f, H = np.empty((t.size - 1, z.shape[1])), np.empty_like(z), np.empty(t.size)
+        tau = np.diff(t)
+        for first in range(0, tau.size, BLOCK):
+            last = min(first + BLOCK, tau.size)
+            count = last - first
+            out_d, out_f, out_H = look(_padded(z[first:last]), _padded(z[first + 1:last + 1]),
+                                       _padded(t[first:last]), _padded(tau[first:last]),
+                                       self.theta)
+            d[first:last], f[first:last], H[first:last] = (out_d[:count], out_f[:count],
+                                                           out_H[:count, 0])
+        f[-1:], H[-1:] = self.at_nodes(t[-1:], z[-1:])
+        return d, f, H
+
+    def at_nodes(self, t: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The vector field ``f`` (rows) and ``H`` at the nodes ``(t_k, z_k)``."""
+        nodes = self._compiled("node")
+        f, H = np.empty_like(z), np.empty(t.size)
+        for first in range(0, t.size, BLOCK):
+            last = min(first + BLOCK, t.size)
+            count = last - first
+            out_f, out_H = nodes(_padded(z[first:last]), _padded(t[first:last]), self.theta)
+            f[first:last], H[first:last] = out_f[:count], out_H[:count, 0]
+        return f, H
+
+
+def _padded(values: np.ndarray) -> np.ndarray:
+    """``values`` (rows) repeated from its last row up to ``BLOCK`` rows."""
+    extra = BLOCK - values.shape[0]
+    if extra == 0:
+        return values
+    return np.pad(values, [(0, extra)] + [(0, 0)] * (values.ndim - 1), mode="edge")
