@@ -13,11 +13,11 @@ import pytest
 
 from ddvp_nlp import Compilation, StepControl, load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
+from ddvp_nlp.solvers.columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_norm
 from ddvp_nlp.solvers.driver import Nodes
 from ddvp_nlp.solvers.marching import monitors
 from ddvp_nlp.solvers.marching.acceptance import Acceptance
 from ddvp_nlp.solvers.marching.chunk import FastChunk
-from ddvp_nlp.solvers.marching.initial_value import _row_max_abs
 from ddvp_nlp.solvers.marching.monitors import MONITOR_LIMIT, SolvabilityMonitor
 from ddvp_nlp.solvers.marching.steps import step_functions
 
@@ -34,9 +34,28 @@ def test_row_max_abs_is_numpys_reduction(width):
     values[5] = 0.0
     values[6] = -0.0
     values[7, 0] = -np.inf
-    assert same(_row_max_abs(values), np.max(np.abs(values), axis=1))
+    assert same(row_max_abs(values), np.max(np.abs(values), axis=1))
     values[8, -1] = np.nan
-    assert np.array_equal(_row_max_abs(values), np.max(np.abs(values), axis=1), equal_nan=True)
+    assert np.array_equal(row_max_abs(values), np.max(np.abs(values), axis=1), equal_nan=True)
+
+
+@pytest.mark.parametrize("width", [1, 2, 3, 4, 7, 16, 17, 40])
+def test_column_reductions_are_numpys(width):
+    """The column-by-column reductions give numpy's numbers, NaN and inf included."""
+    rng = np.random.default_rng(width)
+    values = rng.standard_normal((500, width)) * 10.0 ** rng.integers(-100, 100, (500, width))
+    scale = rng.uniform(0.1, 10.0, width)
+    assert same(row_max(values), np.max(values, axis=1))
+    assert same(row_max_ratio(values, scale), np.max(values / scale, axis=1))
+    assert np.allclose(row_norm(values / 1e100), np.sqrt(np.sum((values / 1e100) ** 2, axis=1)),
+                       rtol=1e-15, atol=0)
+    low, high, largest = column_extremes(values)
+    assert same(low, values.min(axis=0)) and same(high, values.max(axis=0))
+    assert same(largest, np.abs(values).max(axis=0))
+    values[3, -1], values[4, 0] = np.nan, np.inf
+    assert np.array_equal(row_max(values), np.max(values, axis=1), equal_nan=True)
+    assert np.array_equal(row_max_abs(values), np.max(np.abs(values), axis=1), equal_nan=True)
+    assert np.isnan(column_extremes(values)[0][-1])
 
 
 def _weight_blocks(rng):

@@ -12,9 +12,9 @@ translation-invariant, a shift of the clock). In the marched variables
 the same motion as ``H~``'s in other units: the verdict must not depend on them
 (tests/test_accuracy_metamorphic.py).
 
-Each case is marched (``march``, its verdict by ``accuracy/judgement.py``) and measured against scipy's
-DOP853 at ``rtol = 1e-12`` with dense output, an integrator that shares nothing with the check
-but the vector field; a second run at ``rtol = 1e-10`` bounds the first's error, and a case
+Each case is marched (``march``, its verdict by ``accuracy/judgement.py``) and measured against
+scipy's DOP853 at ``rtol = 1e-12`` with dense output, an integrator that shares nothing with the
+check but the vector field; a second run at ``rtol = 1e-10`` bounds the first's error, and a case
 where the two differ by more than ``global_tol / 20`` of the motion's size at some node has no
 trusted truth and is left out (counted). The true error is ``max_k max_i |z_k,i - z_i(t_k)| /
 S_i`` with ``S`` the motion's scales (``motion_scales``): for the verdict (``true_all``) over

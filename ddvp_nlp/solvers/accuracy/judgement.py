@@ -68,8 +68,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...solution import Status
+from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_norm
 from ..exact.flow import exact_flow
-from ..exact.reference import FACTOR, FLOOR_RTOL, reference
+from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
 from ..options import Tolerance
 from .node_values import NodeValues
@@ -120,13 +121,7 @@ class _Extent:
     seen so far (the march's nodes, then the reference's, block by block)."""
 
     def __init__(self, rows: np.ndarray):
-        self.low, self.high = rows.min(axis=0), rows.max(axis=0)
-        self.largest = np.abs(rows).max(axis=0)
-
-    def add(self, rows: np.ndarray) -> None:
-        np.minimum(self.low, rows.min(axis=0), out=self.low)
-        np.maximum(self.high, rows.max(axis=0), out=self.high)
-        np.maximum(self.largest, np.abs(rows).max(axis=0), out=self.largest)
+        self.low, self.high, self.largest = column_extremes(rows)
 
     def scales(self, n: int) -> np.ndarray:
         return motion_scales(self.low, self.high, self.largest, n)
@@ -143,7 +138,7 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
     least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
     # grad H = (H_q, H_p) = (-f_p, f_q)
     weighted = np.hstack([field[:, n:] * scale[:n], field[:, :n] * scale[n:]])
-    norm = np.sqrt(np.sum(weighted ** 2, axis=1))
+    norm = row_norm(weighted)
     weights = np.zeros(t.size)  # each node stands for half of each step beside it
     weights[:-1] += np.diff(t) / 2
     weights[1:] += np.diff(t) / 2
@@ -241,61 +236,41 @@ class Judgement:
         if given, else the exact flow from ``z_0`` (``exact/reference.py``: two adaptive runs,
         the finer read at the nodes by its dense output, its own error bounded by their
         difference and held below ``REFERENCE_SHARE * global_tol``). The reference covers the
-        run in windows of nodes growing fourfold, each from ``t_0``, until the error drifts or
-        the run ends: a drifted run is measured up to ``t_drift`` only (the paper's pendulum
-        drifts at ``t = 2`` of ``10^4``)."""
-        n = self.system.n
+        run in windows of nodes growing fourfold, each carried on from the last, until the
+        error drifts or the run ends: a drifted run is measured up to ``t_drift`` only (the
+        paper's pendulum drifts at ``t = 2`` of ``10^4``)."""
+        tol = self.tolerance.global_tol
+        extent = _Extent(z)  # every node's, whichever window is measured
         if exact is not None:
+            scan = _Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
-            return self._measured(t, z, states, np.zeros(t.size - 1), "exact solution")
-        scale = _Extent(z).scales(n)
+            scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
+            return scan.figures(t, "exact solution")
+        scale = extent.scales(self.system.n)
         last = t.size - 1
-        end = min(last, max(FIRST_WINDOW, last // 64))
         rtol = REFERENCE_RTOL
         while True:
-            ref = reference(self.flow(), z[0], t[0], t[end], self.theta, scale, rtol=rtol)
-            with np.errstate(invalid="ignore", over="ignore"):
-                found = self._measured(t[:end + 1], z[:end + 1], ref.states(t[1:end + 1]),
-                                       None, "", ref=ref, scale=scale)
-            if found["lost"] is not None and rtol / 100 >= FLOOR_RTOL * FACTOR:
+            scan = _Scan(extent, self.system.n, tol)
+            growing = GrowingReference(self.flow(), z[0], t[0], self.theta, scale, rtol=rtol)
+            start, end = 0, min(last, max(FIRST_WINDOW, last // 64))
+            while True:
+                window = growing.extend(t[end])
+                times = t[start + 1:end + 1]
+                with np.errstate(invalid="ignore", over="ignore"):
+                    scan.measure(t, z, start, end, window.states(times),
+                                 window.error(times, scale))
+                if scan.stopped or end == last:
+                    break
+                start, end = end, (last if 4 * end > last - end else 4 * end)
+            if scan.lost is not None and rtol / 100 >= FLOOR_RTOL * FACTOR:
                 rtol /= 100  # its own error passed its share before t_drift: tighter
                 continue
-            if found["lost"] is not None or found["drift"] is not None or end == last:
-                break
-            end = min(last, 4 * end)
+            break
+        found = scan.figures(t, "")
         found["estimate"] = (f"reference flow (adaptive order-8 Runge-Kutta, DOP853 at rtol "
-                             f"{ref.rtol:.0e}, {ref.fine.steps} steps; its own error at most "
+                             f"{window.rtol:.0e}, {growing.steps} steps; its own error at most "
                              f"{found['reference_error']:.1e} of the motion's size)")
         return found
-
-    def _measured(self, t, z, states, claim, estimate, ref=None, scale=None) -> dict:
-        """The figures of the trajectory error against reference ``states`` at ``t[1:]`` (rows;
-        ``claim``: their own error bound, in units of the scale, or from ``ref``). The scales
-        are those of every node of ``z`` and of the reference up to the first node whose error
-        passes ``global_tol`` (`_scales_to_drift`): an orbit the reference follows off to
-        infinity after the drift must not shrink the error."""
-        tol = self.tolerance.global_tol
-        finite = np.all(np.isfinite(states), axis=1)
-        scale, error = _scales_to_drift(z, states, finite, tol, self.system.n, scale)
-        if ref is not None:
-            claim = ref.error(t[1:], scale)
-        lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * tol))
-        over = np.flatnonzero(~(error <= tol))
-        lost_at = int(lost[0]) if lost.size else None
-        drift_at = int(over[0]) if over.size else None
-        if lost_at is not None and (drift_at is None or lost_at <= drift_at):
-            stop, drift, lost_t = lost_at, lost_at + 1, float(t[lost_at + 1])
-        else:
-            stop = drift_at + 1 if drift_at is not None else error.size
-            drift, lost_t = (None if drift_at is None else drift_at + 1), None
-        measured = error[:stop]
-        i = int(np.argmax(measured)) if measured.size else None
-        return {"scale": scale, "drift": drift, "lost": lost_t,
-                "error_max": float(measured[i]) if i is not None else 0.0,
-                "error_max_t": float(t[i + 1]) if i is not None else None,
-                "reference_error": float(np.max(claim[:stop], initial=0.0)),
-                "until": float(t[stop]) if stop < t.size else float(t[-1]),
-                "estimate": estimate}
 
     # -- the steps ----------------------------------------------------------------------------
     def _local(self, t, z, scale, look):
@@ -311,9 +286,9 @@ class Judgement:
         local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
         if look is not None:
             d = np.abs(look[0])
-            local = np.max(d, axis=1)
-            relative = np.max(d / scale, axis=1)
-            ratio = np.max(d / limit, axis=1)
+            local = row_max(d)
+            relative = row_max_ratio(d, scale)
+            ratio = row_max_ratio(d, limit)
         todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
             np.arange(steps)
         if todo.size:
@@ -322,9 +297,9 @@ class Judgement:
                               REFERENCE_SHARE * limit)
             d = np.abs(z[todo + 1] - phi)
             with np.errstate(invalid="ignore"):
-                local[todo] = np.max(d, axis=1)
-                relative[todo] = np.max(d / scale, axis=1)
-                ratio[todo] = np.max(d / limit, axis=1)
+                local[todo] = row_max(d)
+                relative[todo] = row_max_ratio(d, scale)
+                ratio[todo] = row_max_ratio(d, limit)
         bad = np.flatnonzero(~(ratio <= 1.0))
         failure = None
         if bad.size:
@@ -368,28 +343,93 @@ class Judgement:
         return {"figures": figures, "failures": failures}
 
 
-def _scales_to_drift(z, states, finite, tol, n, scale=None):
-    """``(S, error)``: the motion's scales from every node of ``z`` and the reference's finite
-    ``states`` up to the first node whose error (``max_i |z_k,i - state_i| / S_i``) passes
-    ``tol``, and that error at every node; found by a few passes (the scales only grow, the
-    first node past ``tol`` only moves later)."""
-    extent = _Extent(z)
-    scale = extent.scales(n) if scale is None else scale
-    rows = z[1:]
-    for _ in range(8):
-        with np.errstate(invalid="ignore"):
-            error = np.max(np.abs(rows - states) / scale, axis=1)
-        over = np.flatnonzero(~(error <= tol))
-        stop = int(over[0]) + 1 if over.size else error.size
-        seen = states[:stop][finite[:stop]]
-        grown = _Extent(z)
-        if seen.size:
-            grown.add(seen)
-        new = grown.scales(n)
-        if np.array_equal(new, scale):
-            break
-        scale = new
-    return scale, error
+class _Scan:
+    """The trajectory error's scan over windows of nodes, in order: each window's nodes
+    against the reference's states there and the reference's own claimed error (units of the
+    nodes' scales), until the first node whose error passes ``tol`` (the drift) or whose
+    reference is lost (non-finite, or its claim above ``REFERENCE_SHARE * tol``).
+
+    The scales are those of every node of the run (``extent``) and of the reference's states
+    up to the drift (an orbit the reference follows off to infinity after the drift must not
+    shrink the error). They only grow as states are seen, so a window that passed stays
+    passed; within the window that drifts they are found by a few passes (the first node past
+    ``tol`` only moves later as they grow). Per component, the largest difference and its node
+    are kept, so the largest error in the final scales needs no second look at the nodes."""
+
+    def __init__(self, extent: _Extent, n: int, tol: float):
+        self.extent, self.n, self.tol = extent, n, tol
+        d = extent.low.size
+        self.low, self.high = extent.low.copy(), extent.high.copy()
+        self.largest = extent.largest.copy()
+        self.column_max, self.column_node = np.zeros(d), np.ones(d, dtype=int)
+        self.claim_max = 0.0
+        self.drift: int | None = None  # node indices
+        self.lost: int | None = None
+        self.until = 0
+
+    @property
+    def stopped(self) -> bool:
+        return self.drift is not None or self.lost is not None
+
+    def scales(self) -> np.ndarray:
+        return motion_scales(self.low, self.high, self.largest, self.n)
+
+    def measure(self, t, z, start: int, end: int, states, claim) -> None:
+        """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``."""
+        rows = z[start + 1:end + 1]
+        with np.errstate(invalid="ignore", over="ignore"):
+            difference = np.abs(rows - states)
+        finite = np.isfinite(row_max_abs(states))
+        lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * self.tol))
+        lost_at = int(lost[0]) if lost.size else None
+        scale, over_at, seen = self.scales(), None, None
+        for _ in range(8):
+            with np.errstate(invalid="ignore"):
+                error = row_max_ratio(difference, scale)
+            over = np.flatnonzero(~(error <= self.tol))
+            over_at = int(over[0]) if over.size else None
+            stop = over_at + 1 if over_at is not None else error.size
+            if lost_at is not None:
+                stop = min(stop, lost_at)
+            if stop == 0:
+                break
+            seen = column_extremes(states[:stop])  # finite: the rows before a lost one
+            new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
+                                np.maximum(self.largest, seen[2]), self.n)
+            if np.array_equal(new, scale):
+                break
+            scale = new
+        if lost_at is not None and (over_at is None or lost_at <= over_at):
+            stop, self.lost = lost_at, start + 1 + lost_at
+        else:
+            stop = over_at + 1 if over_at is not None else error.size
+            self.drift = None if over_at is None else start + 1 + over_at
+        if stop:
+            seen = column_extremes(states[:stop])
+            np.minimum(self.low, seen[0], out=self.low)
+            np.maximum(self.high, seen[1], out=self.high)
+            np.maximum(self.largest, seen[2], out=self.largest)
+            seen = difference[:stop]
+            node = np.argmax(seen, axis=0)
+            value = seen[node, np.arange(seen.shape[1])]
+            better = value > self.column_max
+            self.column_max[better] = value[better]
+            self.column_node[better] = start + 1 + node[better]
+            self.claim_max = max(self.claim_max, float(np.max(claim[:stop])))
+        self.until = start + stop  # the last node measured
+
+    def figures(self, t, estimate: str) -> dict:
+        scale = self.scales()
+        relative = self.column_max / scale
+        i = int(np.argmax(relative))
+        measured = self.until > 0
+        # a lost reference: the run is drifted from there (its error cannot be measured on)
+        return {"scale": scale, "drift": self.lost if self.lost is not None else self.drift,
+                "lost": None if self.lost is None else float(t[self.lost]),
+                "error_max": float(relative[i]) if measured else 0.0,
+                "error_max_t": float(t[self.column_node[i]]) if measured else None,
+                "reference_error": self.claim_max,
+                "until": float(t[self.until]), "estimate": estimate}
 
 
 def describe(report: dict) -> str:

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from ..columns import row_max, row_max_ratio
 from ..exact.flow import exact_flow
 from ..exact.reference import FACTOR, FLOOR_RTOL, reference
 from ..exact.short_flows import short_flows
@@ -117,7 +118,7 @@ def judge_higher(system, t, q, theta, tolerance, *, data=None, exact=None, compi
                                      "limit": tolerance.global_tol, "detail": reason})
         return report, np.zeros(t.size - 1)
     scale = _q_scales(np.vstack([q, motion]))
-    error = np.max(np.abs(q - motion) / scale, axis=1)
+    error = row_max_ratio(np.abs(q - motion), scale)
     over = np.flatnonzero(~(error <= tolerance.global_tol))
     local, failure, local_max = _local(system, theta, t, q, l, scale, tolerance, flows)
     verdict = "inaccurate" if failure else ("drifted" if over.size else "accurate")
@@ -182,9 +183,9 @@ def _local(system, theta, t, q, order, scale, tolerance, flows):
     with np.errstate(invalid="ignore", over="ignore"):
         phi, _, _ = short_flows(system, **flows)(t[at], y, t[at + 1] - t[at], theta, budget)
     d = np.abs(q[at + 1] - phi[:, :n])
-    local[at] = np.max(d, axis=1)
-    ratio = np.max(d / limit, axis=1)
-    relative = np.max(d / scale, axis=1)
+    local[at] = row_max(d)
+    ratio = row_max_ratio(d, limit)
+    relative = row_max_ratio(d, scale)
     bad = np.flatnonzero(~(ratio <= 1.0))
     failure = None
     if bad.size:

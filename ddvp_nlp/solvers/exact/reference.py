@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..columns import row_max_ratio
 from .flow import AdaptiveFlow
 from .trajectory import Trajectory
 
@@ -35,6 +36,7 @@ class Reference:
     fine: Trajectory
     coarse: Trajectory
     rtol: float  # the fine run's
+    floor: float = 0.0  # the running maximum before t0 (a window of a `GrowingReference`)
 
     def states(self, times) -> np.ndarray:
         return self.fine.z(times)
@@ -58,21 +60,33 @@ class Reference:
         claim[(times > reached) if forward else (times < reached)] = np.inf
         return claim
 
-    def _claim(self, times, scale, forward) -> np.ndarray:
-        if times.size <= SAMPLES * self.fine.steps:
-            return SAFETY * np.maximum(np.maximum.accumulate(self._difference(times, scale)),
-                                       self.rtol)
+    def envelope(self, scale) -> float:
+        """The running maximum at the end of this reference (``floor`` included)."""
+        if not self.fine.steps:
+            return self.floor
+        with np.errstate(invalid="ignore"):  # NaN (a run that failed) stays NaN: lost
+            return float(np.maximum(self.floor, np.max(self._difference(self._samples(),
+                                                                        scale))))
+
+    def _samples(self) -> np.ndarray:
         fractions = np.arange(SAMPLES) / SAMPLES
-        samples = np.append((self.fine.t_old[:, None] + self.fine.h[:, None] * fractions)
-                            .ravel(), self.fine.t_reached)
-        envelope = np.maximum.accumulate(self._difference(samples, scale))
+        return np.append((self.fine.t_old[:, None] + self.fine.h[:, None] * fractions)
+                         .ravel(), self.fine.t_reached)
+
+    def _claim(self, times, scale, forward) -> np.ndarray:
+        if times.size <= SAMPLES * self.fine.steps or not self.fine.steps:
+            running = np.maximum.accumulate(np.maximum(self._difference(times, scale), self.floor))
+            return SAFETY * np.maximum(running, self.rtol)
+        samples = self._samples()
+        envelope = np.maximum.accumulate(np.maximum(self._difference(samples, scale),
+                                                    self.floor))
         keys = samples if forward else -samples
         index = np.searchsorted(keys, times if forward else -times, side="left")
         np.clip(index, 0, samples.size - 1, out=index)
         return SAFETY * np.maximum(np.take(envelope, index), self.rtol)
 
     def _difference(self, times, scale) -> np.ndarray:
-        return np.max(np.abs(self.coarse.z(times) - self.fine.z(times)) / scale, axis=1)
+        return row_max_ratio(np.abs(self.coarse.z(times) - self.fine.z(times)), scale)
 
 
 def reference(flow: AdaptiveFlow, z0, t0, t_end, theta, scale, *,
@@ -86,21 +100,37 @@ def reference(flow: AdaptiveFlow, z0, t0, t_end, theta, scale, *,
     return Reference(fine=fine, coarse=coarse, rtol=rtol / FACTOR)
 
 
-def reference_within(flow: AdaptiveFlow, z0, t0, t_end, theta, times, scale, budget: float,
-                     *, rtol: float = 1e-9) -> tuple[Reference, np.ndarray, float | None]:
-    """The reference at ``times`` with its claimed error held below ``budget`` (units of
-    ``scale``): tighter by 100 while it is not, down to ``FLOOR_RTOL``. Returns the reference,
-    its claimed error at ``times`` and the first time the claim passes the budget even then
-    (a motion too sensitive to follow; ``None`` if it holds throughout)."""
-    while True:
-        ref = reference(flow, z0, t0, t_end, theta, scale, rtol=rtol)
-        claim = ref.error(times, scale)
-        over = np.flatnonzero(claim > budget)
-        if not over.size:
-            return ref, claim, None
-        if rtol / 100 < FLOOR_RTOL * FACTOR:
-            return ref, claim, float(np.asarray(times)[over[0]])
-        rtol /= 100
+class GrowingReference:
+    """The pair of runs of `reference`, grown window by window: each `extend` carries both
+    runs on from where they stopped (each from its own end state, with its last step) to a
+    later time and returns that window as a `Reference`, whose claim continues the running
+    maximum of the windows before it (``floor``). The reference of a run that drifts early is
+    thus integrated only a little past the drift, and the whole run costs what one run over
+    the measured span costs."""
+
+    def __init__(self, flow: AdaptiveFlow, z0, t0: float, theta, scale, *,
+                 rtol: float = 1e-10):
+        self.flow, self.theta = flow, np.asarray(theta, float)
+        self.rtol, self.scale = rtol, np.asarray(scale, float)
+        z0 = np.asarray(z0, float)
+        self._ends = {"coarse": (float(t0), z0, None), "fine": (float(t0), z0, None)}
+        self.floor = 0.0  # the running maximum of |coarse - fine| / scale so far
+        self.steps = 0  # the fine run's accepted steps so far
+
+    def extend(self, t_end: float) -> Reference:
+        parts = {}
+        for name, factor in (("coarse", 1.0), ("fine", FACTOR)):
+            t, z, h = self._ends[name]
+            part = self.flow.run(z, t, t_end, self.theta, rtol=self.rtol / factor,
+                                 atol=self.rtol / factor * self.scale, h0=h)
+            parts[name] = part
+            last = abs(float(part.h[-1])) if part.steps else h
+            self._ends[name] = (part.t_reached, part.z_end, last)
+        window = Reference(fine=parts["fine"], coarse=parts["coarse"],
+                           rtol=self.rtol / FACTOR, floor=self.floor)
+        self.floor = window.envelope(self.scale)
+        self.steps += parts["fine"].steps
+        return window
 
 
 def exact_reference(system, z0, t0: float, t_end: float, theta, *, rtol: float = 1e-12,

@@ -9,6 +9,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
+from ..columns import row_max_ratio
 from ..compiler import FunctionBuffer
 from .attempt import combination, dop853_step
 from .flow import compiled_or_vm, flow_field
@@ -100,14 +101,14 @@ class LocalFlows:
     def _within(self, t, z, tau, theta, budget, max_substeps):
         budget = np.broadcast_to(np.asarray(budget, float), z.shape)
         phi, estimate = self.steps(t, z, tau, theta)
-        size = _ratio(np.maximum(np.abs(z), np.abs(phi)), np.ones((1, self.d)))[:, None]
-        ratio = _ratio(EMBEDDED_MARGIN * estimate + ROUND_OFF * size, budget)
+        size = row_max_ratio(np.maximum(np.abs(z), np.abs(phi)), np.ones((1, self.d)))[:, None]
+        ratio = row_max_ratio(EMBEDDED_MARGIN * estimate + ROUND_OFF * size, budget)
         used = np.ones(t.size, int)
         todo = np.flatnonzero(~(ratio <= 1))
         m = 1
         while todo.size and 2 * m <= max_substeps:
             finer, _ = self.steps(t[todo], z[todo], tau[todo], theta, 2 * m)
-            ratio[todo] = _ratio(np.abs(finer - phi[todo]) + 2 * m * ROUND_OFF * size[todo],
+            ratio[todo] = row_max_ratio(np.abs(finer - phi[todo]) + 2 * m * ROUND_OFF * size[todo],
                                  budget[todo])
             phi[todo] = finer
             used[todo] = 2 * m
@@ -115,15 +116,6 @@ class LocalFlows:
             m *= 2
         used[todo] = 0
         return phi, ratio[:, None] * budget, used
-
-
-def _ratio(error: np.ndarray, budget: np.ndarray) -> np.ndarray:
-    """``max_i error_i / budget_i`` per row (NaN where any is NaN), column by column (numpy's
-    ``max(axis=1)`` over 2..12 columns cost more than the compiled steps)."""
-    ratio = error[:, 0] / budget[:, 0]
-    for i in range(1, error.shape[1]):
-        np.maximum(ratio, error[:, i] / budget[:, i], out=ratio)
-    return ratio
 
 
 def _padded(values: np.ndarray, rows: int) -> np.ndarray:
