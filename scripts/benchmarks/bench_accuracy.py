@@ -8,7 +8,8 @@ average printed (the machine is shared). Each row says what the check measured a
 far: the reference flow stops at ``t_drift`` (a drifted run), so on a drifted run it covers only
 the nodes before it; an accurate run is measured over all of them.
 
-    python scripts/bench_accuracy.py [--repeats 7] [--out docs/benchmarks/bench_accuracy.md]
+    python scripts/benchmarks/bench_accuracy.py [--repeats 7]
+        [--out docs/benchmarks/bench_accuracy.md]
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ import warnings
 from pathlib import Path
 
 from ddvp_nlp import load_scene, march
+from ddvp_nlp.io import machine
+
+ROOT = Path(__file__).resolve().parents[2]
 
 CASES = [("paper_pendulum", {}), ("kepler", {}), ("henon_heiles", {}), ("fpu", {}),
          ("harmonic", {"t_end": 2000.0})]
@@ -77,15 +81,14 @@ def row(name, overrides, solution, times):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--out", default="docs/benchmarks/bench_accuracy.md")
+    parser.add_argument("--out", default=str(ROOT / "docs" / "benchmarks" / "bench_accuracy.md"))
     args = parser.parse_args()
-    load = os.getloadavg()
     lines = ["# The accuracy check's cost", "",
-             f"`python scripts/bench_accuracy.py --repeats {args.repeats}`: each march "
-             f"{args.repeats} "
+             f"`python scripts/benchmarks/bench_accuracy.py --repeats {args.repeats}`: each "
+             f"march {args.repeats} "
              "times without and with the check, interleaved, warm; milliseconds of CPU "
-             "(median, range) and wall (median); ratios of the medians. Load average at the "
-             f"start {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} (2 cores, shared).", "",
+             "(median, range) and wall (median); ratios of the medians.", "",
+             f"Machine at the start: {machine()}", "",
              "| run | steps | verdict | CPU ms, no check | CPU ms, check | CPU ratio | wall ms, "
              "no check | wall ms, check | wall ratio | measured against |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -95,6 +98,7 @@ def main():
         print(lines[-1], flush=True)
     end = os.getloadavg()
     lines += ["", f"Load average at the end {end[0]:.2f}, {end[1]:.2f}, {end[2]:.2f}.", ""]
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text("\n".join(lines))
     print(f"written to {args.out}")
 

@@ -21,10 +21,11 @@ Each run is its own process (so that its peak memory, ``ru_maxrss``, is its own)
 limit. Every (case, solver, N) runs ``--repeat`` times (default 3) to show that the iteration
 counts repeat; the table gives the best wall time.
 
-    python scripts/bench_bvp.py                  (the full table: about 10 minutes)
-    python scripts/bench_bvp.py --quick          (N = 1e3, 1e4 only)
-    python scripts/bench_bvp.py --only pendulum:ipopt,pendulum:newton
-    python scripts/bench_bvp.py --only pendulum:newton,pendulum:newton-vm,pendulum:newton-lapack
+    python scripts/benchmarks/bench_bvp.py                  (the full table: about 10 minutes)
+    python scripts/benchmarks/bench_bvp.py --quick          (N = 1e3, 1e4 only)
+    python scripts/benchmarks/bench_bvp.py --only pendulum:ipopt,pendulum:newton
+    python scripts/benchmarks/bench_bvp.py \
+        --only pendulum:newton,pendulum:newton-vm,pendulum:newton-lapack
 
 Solver ``newton-vm`` is Newton with nothing compiled: the assembly's blocks on CasADi's virtual
 machine and the band LU by LAPACK through scipy (``Compilation(compiler=None,
@@ -40,7 +41,6 @@ the grid's one IPOPT build).
 from __future__ import annotations
 
 import json
-import platform
 import resource
 import subprocess
 import sys
@@ -198,11 +198,9 @@ def summary(rows) -> None:
                 cpu = pair[a]["cpu_s"] / pair[b]["cpu_s"]
                 print(f"pendulum N = {nodes:.0e}: build + solve, {a} / {b} = {wall:.1f} wall, "
                       f"{cpu:.1f} CPU")
-    import casadi
-    import scipy
-    print(f"\nmachine: {platform.machine()}, {platform.processor() or 'cpu'}, "
-          f"python {platform.python_version()}, casadi {casadi.__version__}, "
-          f"numpy {np.__version__}, scipy {scipy.__version__}")
+    from ddvp_nlp.io import machine
+
+    print(f"\nmachine: {machine()}")
 
 
 def main(argv: list[str]) -> None:

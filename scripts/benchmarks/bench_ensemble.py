@@ -3,7 +3,7 @@ and by march_ensemble on one and on two worker processes, side by side in one ru
 counts this process and its worker processes; each row is the best of the repeats, after one
 short warm-up march that loads the compiled chunk.
 
-    python scripts/bench_ensemble.py [--orbits 20] [--t-end 500] [--repeats 3]
+    python scripts/benchmarks/bench_ensemble.py [--orbits 20] [--t-end 500] [--repeats 3]
 
 The issue's size is 100 orbits of 1e5 steps (``--orbits 100 --t-end 4800``, about 8.6e6
 steps on this scene at tau0 = 0.05); ``--scale-to 100x1e5`` prints the time of that size
@@ -14,18 +14,17 @@ from __future__ import annotations
 
 import argparse
 import pickle
-import platform
 import tempfile
 import time
 
-import casadi
 import numpy as np
 
-# scripts/ is on the path when a script runs: the one timer of the benchmarks
+# the script's own folder is on the path when it runs: the one timer of the benchmarks
 from bench_march import timed  # noqa: E402
 
 from ddvp_nlp import Compilation, load_scene, march, march_ensemble
-from ddvp_nlp.studies.poincare import section_starts
+from ddvp_nlp.io import machine
+from ddvp_nlp.studies import section_starts
 
 
 def rows(args, system, q0s, p0s, cache):
@@ -105,8 +104,7 @@ def main():
         for label, cpu, wall, _ in found:
             print(f"  - {label}: CPU {cpu / steps * total:.1f} s, wall "
                   f"{wall / steps * total:.1f} s")
-    print(f"\nmachine: {platform.machine()}, python {platform.python_version()}, casadi "
-          f"{casadi.__version__}, numpy {np.__version__}")
+    print(f"\nmachine: {machine()}")
 
 
 if __name__ == "__main__":

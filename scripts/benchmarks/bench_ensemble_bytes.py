@@ -8,8 +8,9 @@ import sys
 import time
 
 from ddvp_nlp import load_scene
+from ddvp_nlp.io import machine
 from ddvp_nlp.solvers import Collect, march_ensemble
-from ddvp_nlp.studies.poincare import SectionOutput, section_starts
+from ddvp_nlp.studies import SectionOutput, section_starts
 
 
 def main(t_end: float = 5000.0, orbits: int = 100, workers: int = 2) -> None:
@@ -31,6 +32,7 @@ def main(t_end: float = 5000.0, orbits: int = 100, workers: int = 2) -> None:
               f"CPU (this process) {cpu:.2f} s")
     crossings = sum(o["times"].size for o in results["crossings only"])
     print(f"crossings: {crossings}")
+    print(f"machine: {machine()}")
 
 
 if __name__ == "__main__":

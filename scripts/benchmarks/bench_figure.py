@@ -7,7 +7,7 @@ CPU time (user + sys) is the figure of merit: the machine is shared, so wall tim
 beside it, not instead, with the load average. Issue 30's target: the figure of
 ``ddvp march paper_pendulum``, matplotlib's import included, at most 0.5 s of CPU.
 
-    python scripts/bench_figure.py [--repeats 5] [--scene paper_pendulum] [--format png]
+    python scripts/benchmarks/bench_figure.py [--repeats 5] [--scene paper_pendulum] [--format png]
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from ddvp_nlp.io import machine
 
 
 def timed_run(argv: list[str]) -> tuple[float, float]:
@@ -39,8 +41,8 @@ def in_process(scene_name: str, folder: str, fmt: str) -> tuple[float, ...]:
     code = f"""
 import time
 from ddvp_nlp import load_scene, march
-from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.io.run_folder import run_energies
+from ddvp_nlp.discrete import Scheme
+from ddvp_nlp.io import run_energies
 scene = load_scene({scene_name!r})
 config = scene.resolve({{}})
 solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
@@ -50,7 +52,7 @@ energies = run_energies(scene.system, Scheme(), solution,
 import sys
 assert "matplotlib" not in sys.modules, "matplotlib was imported before the figure"
 cpu, wall = time.process_time(), time.perf_counter()
-from ddvp_nlp.io.run_figure import plot_trajectory
+from ddvp_nlp.io import plot_trajectory
 import matplotlib.figure, matplotlib.backends.backend_{'agg' if fmt == 'png' else fmt}
 cpu_import, wall_import = time.process_time(), time.perf_counter()
 plot_trajectory(solution, scene, Scheme(), {folder!r} + "/figure.{fmt}", energies=energies,
@@ -98,6 +100,7 @@ def main() -> None:
           f"({wall_draw:.3f} s wall)")
     print(f"figure with import: {total:.3f} s CPU (target at most 0.5 s: "
           f"{'met' if total <= 0.5 else 'MISSED'})")
+    print(f"machine: {machine()}")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Fixed-endpoint spline (and Pais-Uhlenbeck) at growing node counts: the window assembly's
 Newton, build and solve, wall and CPU time, iterations, error against the exact cubic.
 
-Usage: python scripts/bench_higher.py [--scheme fixed|vddvp] [--scene spline] N [N ...]
+Usage: python scripts/benchmarks/bench_higher.py [--scheme fixed|vddvp] [--scene spline] N [N ...]
 Each N runs in this process after one warm-up at N = 101 (CasADi functions are cached per
 system); peak memory is the process's maximum resident size so far.
 """
@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from ddvp_nlp import GridOptions, load_scene, solve_bvp_higher
+from ddvp_nlp.io import machine
 
 
 def run(scene, config, nodes, scheme, solver):
@@ -47,6 +48,7 @@ def main():
         print(f"| {nodes} | {solution.status.code} | {solution.stats['iterations_total']} | "
               f"{solution.timing['build_s']:.3f} | {solution.timing['solve_s']:.3f} | "
               f"{wall:.3f} | {cpu:.3f} | {error:.2e} | {peak:.0f} |", flush=True)
+    print(f"\nmachine: {machine()}")
 
 
 if __name__ == "__main__":

@@ -18,8 +18,8 @@ targets of issue 29 (1e6: IPOPT <= 40 s CPU and <= 4 GB, verified; within 1.5x o
 and 1e6; per iteration at most N^1.1; Newton 1e6 <= 10 s, <= 700 MB) and the load average at
 the start and the end.
 
-    python scripts/bench_ipopt.py                     (N = 1e4, 1e5, 1e6: about 5 minutes alone)
-    python scripts/bench_ipopt.py --sizes 10000,100000
+    python scripts/benchmarks/bench_ipopt.py           (N = 1e4, 1e5, 1e6: about 5 minutes alone)
+    python scripts/benchmarks/bench_ipopt.py --sizes 10000,100000
 """
 
 from __future__ import annotations
@@ -63,20 +63,25 @@ def child(command: list[str]) -> dict:
 
 
 def write_start(nodes: int, q_end: float, path: str) -> None:
-    """The point the released phase of ``solve_bvp`` starts from (its start phases by
-    Newton), as ``t``, ``q``, ``p`` in ``path``."""
-    from ddvp_nlp import GridOptions, load_scene
-    from ddvp_nlp.solvers import Compilation, Output
-    from ddvp_nlp.solvers.bvp.first_guess import start_point
-    from ddvp_nlp.solvers.bvp.fixed_ends import _checked  # noqa: PLC2701 (a benchmark's look inside)
+    """The point the released phase of ``solve_bvp`` starts from (its default start, by Newton),
+    as ``t``, ``q``, ``p`` in ``path``: the fixed-step problem on uniform times, then on the
+    times its solution predicts (``predicted_times``), each solved by ``solve_bvp`` with fixed
+    steps, the two start phases the package runs before it releases the times."""
+    from ddvp_nlp import GridOptions, load_scene, solve_bvp
+    from ddvp_nlp.solvers.bvp import predicted_times
 
-    request, guess = _checked(load_scene("pendulum").system, [0.5], [q_end], (0.0, T_END),
-                              nodes=nodes, scheme="vddvp", params=None, guess=None, times=None,
-                              options=GridOptions(solver="newton"), compilation=Compilation(),
-                              output=Output())
-    request.start_clock()
-    start = start_point(request, guess)
-    np.savez(path, t=start["t"], q=start["q"], p=start["p"])
+    system = load_scene("pendulum").system
+    newton = GridOptions(solver="newton")
+    uniform = solve_bvp(system, [0.5], [q_end], (0.0, T_END), nodes=nodes, scheme="fixed",
+                        options=newton)
+    times = predicted_times(system, uniform.t, uniform.q, uniform.p,
+                            system.parameter_vector(None))
+    moved = {"t": times, **{name: np.column_stack([np.interp(times, uniform.t, column)
+                                                    for column in getattr(uniform, name).T])
+                            for name in ("q", "p")}}
+    start = solve_bvp(system, [0.5], [q_end], (0.0, T_END), nodes=nodes, scheme="fixed",
+                      times=times, guess=moved, options=newton)
+    np.savez(path, t=start.t, q=start.q, p=start.p)
 
 
 def ddvp_row(nodes: int, solver: str, q_end: float, folder: str) -> dict:
@@ -186,6 +191,9 @@ def main() -> None:
     print_rows(rows)
     summary(rows)
     print(f"\nload average at the end: {os.getloadavg()}")
+    from ddvp_nlp.io import machine
+
+    print(f"machine: {machine()}")
 
 
 if __name__ == "__main__":

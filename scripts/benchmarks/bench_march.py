@@ -8,7 +8,7 @@ best of several repeats after one warm-up. "stepping" is the march's own solve t
 (``timing["verify_s"]``) and build/compile times are reported apart. DOP853 gets a hand-written
 numpy right-hand side, as a user would write it.
 
-    python scripts/bench_march.py [--repeats 5]
+    python scripts/benchmarks/bench_march.py [--repeats 5]
 """
 
 from __future__ import annotations
@@ -16,19 +16,17 @@ from __future__ import annotations
 import argparse
 import ctypes
 import math
-import platform
 import resource
 import subprocess
 import tempfile
 import time
 from pathlib import Path
 
-import casadi
 import numpy as np
-import scipy
 from scipy.integrate import solve_ivp
 
 from ddvp_nlp import Compilation, load_scene, march
+from ddvp_nlp.io import machine
 
 
 def best_of(repeats, run):
@@ -177,7 +175,8 @@ C_KINDS = {"paper_pendulum": 0, "fpu": 1}
 
 
 def c_march_library(folder):
-    """``scripts/c_march.c`` compiled with the library's own flags (``-ffp-contract=off``)."""
+    """``c_march.c`` (beside this script) compiled with the library's own flags
+    (``-ffp-contract=off``)."""
     library = Path(folder) / "c_march.so"
     subprocess.run(["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", str(C_SOURCE), "-o",
                     str(library), "-lm"], check=True)
@@ -196,7 +195,7 @@ def c_march_library(folder):
     return lib
 
 
-# c_march_fast's predictors (scripts/c_march.c)
+# c_march_fast's predictors (scripts/benchmarks/c_march.c)
 C_PREDICTORS = {0: "RK4", 1: "Stormer-Verlet", 2: "extrapolation from three nodes"}
 
 
@@ -263,7 +262,7 @@ def bench_against_c(name, overrides, repeats, folder):
 
     # one round: every C march and every march() once, interleaved, `repeats` rounds (best of
     # each): the machine's load hits every row alike
-    c_rows = {"C march, first reference (scripts/c_march.c: c_march)": c_run}
+    c_rows = {"C march, first reference (scripts/benchmarks/c_march.c: c_march)": c_run}
     counts = {}
     for predictor, label in C_PREDICTORS.items():
         counts[predictor] = ctypes.c_long(0)
@@ -330,8 +329,7 @@ def main():
         return
     bench("paper_pendulum", {}, args.repeats)
     bench("fpu", {"t_end": 200.0, "tau0": 0.01}, args.repeats)
-    print(f"\nmachine: {platform.machine()}, python {platform.python_version()}, casadi "
-          f"{casadi.__version__}, numpy {np.__version__}, scipy {scipy.__version__}")
+    print(f"\nmachine: {machine()}")
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ the best of ``--repeats`` runs, the load average printed at the start and the en
    upper bound); target: overhead at most the timed total. Warm (the compiled code cached by a
    first run, not counted).
 
-    python scripts/bench_overheads.py [--repeats 3] [--only import,poincare,compare]
+    python scripts/benchmarks/bench_overheads.py [--repeats 3] [--only import,poincare,compare]
 """
 
 from __future__ import annotations
@@ -28,12 +28,14 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ipopt import child  # noqa: E402
 
+from ddvp_nlp.io import machine  # noqa: E402
+
 PYTHON = sys.executable
 POINCARE = ["henon_heiles", "--energy", "0.125", "--orbits", "20", "--t-end", "5000"]
 ENSEMBLE_ONLY = """
 from ddvp_nlp import load_scene
-from ddvp_nlp.solvers.marching import march_ensemble
-from ddvp_nlp.studies.poincare import section_starts
+from ddvp_nlp.solvers import march_ensemble
+from ddvp_nlp.studies import section_starts
 scene = load_scene("henon_heiles")
 theta = scene.system.parameter_vector(None)
 starts = section_starts(scene.system, theta, 0.125, "q1=0", 20)
@@ -125,6 +127,7 @@ def main() -> None:
         for name in args.only.split(","):
             parts[name](args.repeats, folder)
     print(f"\nload average at the end: {os.getloadavg()}")
+    print(f"machine: {machine()}")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Newton (SuperLU) against IPOPT on the periodic problem, side by side in one run.
 
-    python scripts/bench_periodic.py [--repeats 3] [--only solvers,rotation]
+    python scripts/benchmarks/bench_periodic.py [--repeats 3] [--only solvers,rotation]
 
 Rotations (``--only rotation``): the pendulum's rotation at E = 2.5 (section q1 = 0, q1 an
 angle) for N = 100, 200, 400, 800 from ``solve_periodic``'s default start (the predicted grid,
@@ -33,7 +33,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_march import timed  # noqa: E402
 
 from ddvp_nlp import GridOptions, load_scene  # noqa: E402
-from ddvp_nlp.solvers import march_to_return, parse_section, resample, section_point, solve_periodic  # noqa: E402
+from ddvp_nlp.io import machine  # noqa: E402
+from ddvp_nlp.solvers import (  # noqa: E402
+    march_to_return,
+    parse_section,
+    resample,
+    section_point,
+    solve_periodic,
+)
 
 
 def cases():
@@ -98,6 +105,7 @@ def main() -> None:
     if "solvers" in args.only:
         solvers(args.repeats)
     print(f"\nload average at the end: {os.getloadavg()}")
+    print(f"machine: {machine()}")
 
 
 def solvers(repeats: int) -> None:

@@ -1,5 +1,5 @@
 /* A hand-written C march of the vddvp scheme (midpoint clock, alpha = 1/2) for separable
- * H = |p|^2/2 + V(q, t): the reference that scripts/bench_march.py times the library against.
+ * H = |p|^2/2 + V(q, t): the reference that scripts/benchmarks/bench_march.py times the library against.
  *
  * Interval k: Q = (q_k + q_k+1)/2, P = (p_k + p_k+1)/2, s_k = t_k + tau_k/2,
  *   q_k+1 - q_k - tau_k P = 0,   p_k+1 - p_k + tau_k V_q(Q, s_k) = 0,

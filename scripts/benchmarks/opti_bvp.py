@@ -2,8 +2,8 @@
 written by hand with CasADi's Opti and solved by IPOPT, as a user without ddvp_nlp would.
 
 Not part of the package: it imports nothing from ddvp_nlp. The problem is the one
-``scripts/bench_bvp.py`` solves (``H = p^2/2 + 1 - cos q``, ``q(0) = 0.5``, ``q(18)`` the end of
-a fixed-step march from ``p(0) = 0.5`` with step 0.01, ``N`` nodes, every node time free but the
+``bench_bvp.py`` solves (``H = p^2/2 + 1 - cos q``, ``q(0) = 0.5``, ``q(18)`` the end of a
+fixed-step march from ``p(0) = 0.5`` with step 0.01, ``N`` nodes, every node time free but the
 two ends), with its rows as the package scales them:
 
     q_{k+1} - q_k - tau_k P_k = 0,   p_{k+1} - p_k + tau_k sin Q_k = 0       (k = 0 .. N-2)
@@ -23,7 +23,7 @@ both IPOPTs solve the same rows from the same point (from the exact motion IPOPT
 28 iterations at N = 1e4 and 23 at 1e5, 132 s CPU there: no reference at 1e6). IPOPT with its
 defaults but the tolerances the package's verification asks for (``--tol``, default 1e-10).
 
-    python scripts/opti_bvp.py 100000 [--tol 1e-10] [--q-end Q] [--start FILE.npz]
+    python scripts/benchmarks/opti_bvp.py 100000 [--tol 1e-10] [--q-end Q] [--start FILE.npz]
 
 Prints one JSON line: IPOPT's status and iterations, build and solve seconds (wall and CPU), the
 largest rows, the peak memory of the process.

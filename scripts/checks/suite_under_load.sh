@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The default test suite N times in a row (default 5) beside two busy processes, as the suite's
-# steadiness is judged: `bash scripts/suite_under_load.sh [N]` from the project root, with the
+# steadiness is judged: `bash scripts/checks/suite_under_load.sh [N]` from the project root, with the
 # project's environment active. One line per run (exit code, seconds, load average, pytest's
 # last line); exits 1 if any run failed.
 set -u

@@ -14,7 +14,12 @@ beside their true error, with the named cases and the built-in scenes.
    exact solution.
 3. **The built-in scenes at their defaults**: verdict, t_drift, largest error.
 
-    python scripts/accuracy_study.py [--cases 1200] [--seed 27] [--out docs/accuracy]
+    python scripts/pages/accuracy_study.py [--cases 1200] [--seed 27] [--out docs/accuracy]
+        [--quick]
+
+A few minutes (1200 cases took 164 s); ``--quick`` (12 cases, a 2 x 2 Kepler grid, not for
+docs/) seconds. The page's seconds stand beside the machine and the date
+(``ddvp_nlp.io.machine``).
 """
 
 from __future__ import annotations
@@ -31,12 +36,15 @@ from pathlib import Path
 import numpy as np
 
 from ddvp_nlp import Tolerance, list_scenes, load_scene, march
+from ddvp_nlp.io import machine
 from ddvp_nlp.scenes import HigherOrderScene
 from ddvp_nlp.solvers import march_higher, motion_scales
-from ddvp_nlp.studies.verdict_study import MARGIN, draw_case, judge_case
+from ddvp_nlp.studies import MARGIN, draw_case, judge_case
 
+ROOT = Path(__file__).resolve().parents[2]
 ECCENTRICITIES = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
 TAU0 = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+QUICK_KEPLER = ((0.5, 0.9), (0.01, 0.1))
 COLUMNS = ("case", "n", "potential", "scheme", "time_dependent", "status", "steps", "verdict",
            "failure", "t_drift", "estimate", "true", "true_all", "truth_error", "class")
 
@@ -60,12 +68,12 @@ def random_rows(count: int, seed: int, progress: bool):
     return rows
 
 
-def kepler_rows():
+def kepler_rows(eccentricities=ECCENTRICITIES, steps=TAU0):
     """The Kepler grid: every verdict beside the true error against the exact solution."""
     scene = load_scene("kepler")
     rows = []
-    for e in ECCENTRICITIES:
-        for tau0 in TAU0:
+    for e in eccentricities:
+        for tau0 in steps:
             config = scene.resolve({"e": e, "tau0": tau0})
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -131,8 +139,9 @@ def random_section(rows, seed: int, seconds: float) -> list[str]:
     verdicts = Counter(r["verdict"] for r in rows if r["class"] != "error")
     false = [r for r in rows if r["class"] in ("false success", "false refusal")]
     lines = ["## Random systems", "",
-             f"`python scripts/accuracy_study.py --cases {len(rows)} --seed {seed}`: "
-             f"{len(rows)} cases in {seconds:.0f} s (every row in `random.csv`).", "",
+             f"`python scripts/pages/accuracy_study.py --cases {len(rows)} --seed {seed}`: "
+             f"{len(rows)} cases in {seconds:.0f} s (every row in [random.csv](random.csv)); "
+             f"{machine()}", "",
              "| | count |", "|---|---|"]
     for name in ("false success", "false refusal", "consistent", "band", "untrusted", "error"):
         lines.append(f"| {name} | {classes.get(name, 0)} |")
@@ -216,14 +225,19 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=1200)
     parser.add_argument("--seed", type=int, default=27)
-    parser.add_argument("--out", default="docs/accuracy")
+    parser.add_argument("--out", default=str(ROOT / "docs" / "accuracy"))
+    parser.add_argument("--quick", action="store_true",
+                        help="12 cases and a 2 x 2 Kepler grid (not for docs/)")
     args = parser.parse_args()
+    if args.quick:
+        args.cases = 12
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     rows = random_rows(args.cases, args.seed, progress=True)
     seconds = time.perf_counter() - started
-    kepler, scenes = kepler_rows(), scene_rows()
+    kepler = kepler_rows(*QUICK_KEPLER) if args.quick else kepler_rows()
+    scenes = scene_rows()
     write_csv(rows, out / "random.csv")
     (out / "README.md").write_text(page(rows, kepler, scenes, args.seed, seconds))
     classes = Counter(r["class"] for r in rows)

@@ -5,7 +5,9 @@
    p(0) = 0, the midpoint scheme with the energy rule (vddvp) at h0 = 0.1 and 0.01, against
    fixed-step midpoint over the same number of steps.
 
-    python scripts/comparison_page.py [--out docs/comparison] [--t-end 100]
+    python scripts/pages/comparison_page.py [--out docs/comparison] [--t-end 100] [--quick]
+
+Seconds (``--quick``: the double well to t = 20). No timing is shown.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ import numpy as np
 from ddvp_nlp import Output, Scene, load_scene, march
 from ddvp_nlp.discrete import Scheme, interval_energies
 from ddvp_nlp.solvers import find_compiler, fixed_step_run
+
+ROOT = Path(__file__).resolve().parents[2]
 
 ARK_KEPLER = {1e-3: -1.0321e-7, 5e-4: -2.583e-8, 2.5e-4: -6.460e-9, 1.25e-4: -1.615e-9,
               6.25e-5: -4.037e-10}
@@ -84,12 +88,15 @@ def double_well_table(t_end: float) -> list[str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/comparison")
+    parser.add_argument("--out", default=str(ROOT / "docs" / "comparison"))
     parser.add_argument("--t-end", type=float, default=100.0)
+    parser.add_argument("--quick", action="store_true", help="the double well to t = 20")
     args = parser.parse_args()
+    if args.quick:
+        args.t_end = 20.0
     text = "\n".join([
         "# Published numbers, reproduced", "",
-        "Regenerate: `python scripts/comparison_page.py` (seconds). Tests: "
+        "Regenerate: `python scripts/pages/comparison_page.py` (seconds). Tests: "
         "`tests/test_alternatives.py` (the SUNDIALS numbers to 1%). Which method is cheapest "
         "over 10 to 10^5 periods: [../work_precision/horizons/README.md]"
         "(../work_precision/horizons/README.md).", "",
@@ -108,6 +115,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "README.md").write_text(text)
     print(text)
+    print(f"wrote {out / 'README.md'}")
 
 
 if __name__ == "__main__":

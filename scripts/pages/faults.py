@@ -16,8 +16,11 @@ and is judged by the same checks:
 A full disk and a read-only one are a real tmpfs mounted for the run (root); where mounting is
 refused, a file-size limit (EFBIG, as a full disk) stands in and the page says so.
 
-Usage: ``python scripts/faults.py [--seed N] [--out docs/reliability/faults.md] [--only
-GROUP]``. Prints the summary table; writes the page with every case and its outcome.
+Usage: ``python scripts/pages/faults.py [--seed N] [--out docs/reliability/faults.md] [--only
+GROUP] [--quick]``. Prints the summary table; writes the page with every case and its outcome
+and the machine and date its seconds were measured on (``ddvp_nlp.io.machine``), except with
+``--only``. About ten minutes (root, for the tmpfs); ``--quick`` runs the ``numbers`` group
+alone (about a minute) and writes its page, not for docs/.
 """
 
 from __future__ import annotations
@@ -152,7 +155,7 @@ def judge(result: Result, folder: Path, tag: str) -> None:
 def _leftovers(folder: Path, killed: bool, kinds: set) -> list[str]:
     """Scratch and lock files left behind, folders that no reader can read."""
     from ddvp_nlp.errors import InputError
-    from ddvp_nlp.io.atomic import read_set
+    from ddvp_nlp.io import read_set
 
     problems = []
     for meta in folder.rglob("meta.json"):
@@ -177,7 +180,7 @@ def _leftovers(folder: Path, killed: bool, kinds: set) -> list[str]:
 def _lying(result: Result, folder: Path, kinds: set) -> list[str]:
     """What the messages say was written, against what the folder holds."""
     from ddvp_nlp.errors import InputError
-    from ddvp_nlp.io.run_folder import read_run
+    from ddvp_nlp.io import read_run
 
     problems = []
     said = re.search(r"written whole to (\S+)/ \((\d+) nodes", result.stderr)
@@ -197,7 +200,7 @@ def _lying(result: Result, folder: Path, kinds: set) -> list[str]:
             problems.append(f"says {kept.group(1)} rows are kept, {journal.name} holds {rows}")
     written = re.search(r"written to (\S+)/", result.stdout)
     if written and result.code in (0, 1) and "written to" in result.stdout:
-        from ddvp_nlp.io.atomic import read_set
+        from ddvp_nlp.io import read_set
 
         try:
             read_set(folder / written.group(1))
@@ -368,7 +371,7 @@ def _march_kept(folder, result):
     """After Ctrl-C/SIGTERM: the folder holds the run whole (interrupted, or finished), or,
     stopped before the march had a node to keep, nothing, as the message says."""
     from ddvp_nlp.errors import InputError
-    from ddvp_nlp.io.run_folder import read_run
+    from ddvp_nlp.io import read_run
 
     if "nothing new was written" in result.stderr or "before anything was written" in \
             result.stderr:  # stopped while starting or building: no node to keep
@@ -386,7 +389,7 @@ def _march_kept(folder, result):
 def _readable_or_none(name):
     def check(folder, result):
         from ddvp_nlp.errors import InputError
-        from ddvp_nlp.io.atomic import read_set
+        from ddvp_nlp.io import read_set
 
         out = folder / name
         if not out.exists() or not (out / "meta.json").exists():
@@ -717,11 +720,12 @@ KINDS = ("traceback", "code", "hang", "torn/lost/lying", "link")
 
 
 def page(results: list[Result], seed: int, disk_kind: str, seconds: float) -> str:
+    from ddvp_nlp.io import machine
+
     groups = list(dict.fromkeys(r.case.group for r in results))
     lines = ["# Fault injection: every command against signals, disks, links and hostile input",
-             "", f"`python scripts/faults.py --seed {seed}` ({len(results)} cases, "
-             f"{seconds / 60:.1f} min on this machine, load average "
-             f"{os.getloadavg()[0]:.2f} at the end). Each case runs the real command in a "
+             "", f"`python scripts/pages/faults.py --seed {seed}` ({len(results)} cases in "
+             f"{seconds / 60:.1f} min; {machine()}) Each case runs the real command in a "
              "subprocess; the checks are the script's docstring. Disks: "
              + ("a real tmpfs (3 MB) mounted for each case, filled to 6 kB free or remounted "
                 "read-only." if disk_kind == "tmpfs" else
@@ -762,9 +766,14 @@ def _cell(text: str) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seed", type=int, default=28)
-    parser.add_argument("--out", default="docs/reliability/faults.md")
-    parser.add_argument("--only", default=None, help="one group of cases")
+    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[2] / "docs"
+                                             / "reliability" / "faults.md"))
+    parser.add_argument("--only", default=None, help="one group of cases (writes no page)")
+    parser.add_argument("--quick", action="store_true",
+                        help="the numbers group alone, its page written (not for docs/)")
     args = parser.parse_args()
+    if args.quick:
+        args.only = "numbers"
     rng = random.Random(args.seed)
     probe = SmallDisk("1m")
     disk_kind = "tmpfs" if probe.mounted else "rlimit"
@@ -794,7 +803,9 @@ def main() -> int:
                       f" exit {result.code} {result.seconds:5.1f} s"
                       + (f"  {result.problems}" if result.problems else ""), flush=True)
     text = page(results, args.seed, disk_kind, time.monotonic() - started)
-    if not args.only:
+    if args.quick:
+        text = text.replace("\n\n", "\n\nA quick run (`--quick`): the numbers group alone.\n\n", 1)
+    if not args.only or args.quick:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text)
     print(text.split("## Every case")[0])

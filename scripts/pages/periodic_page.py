@@ -1,37 +1,50 @@
-"""Regenerate docs/periodic/: periodic orbits at a prescribed energy (solvers/periodic/).
+"""Regenerate docs/periodic/README.md and its figures: periodic orbits at a prescribed energy
+(solvers/periodic/).
 
-    python scripts/periodic_page.py [--out docs/periodic]
+    python scripts/pages/periodic_page.py [--out docs/periodic] [--quick]
 
 The pendulum's family against 4 K(k), its rotations against 4 K(2/E)/sqrt(2E), two
 two-dimensional Henon-Heiles families through x = 0, the figure-eight orbit, the convergence
 table of the period (pendulum, rotations, harmonic oscillator, figure-eight) with the residuals
-of every orbit, and Newton against IPOPT (scripts/bench_periodic.py).
+of every orbit, and Newton against IPOPT (``scripts/benchmarks/bench_periodic.py``, run as a
+process of its own, its timings beside the machine and the date). A few minutes; ``--quick``
+(smaller grids and families, one timed call) takes about one. Only the figures the page shows
+are kept in ``--out``: the families' folders are written to a scratch folder first.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
-import platform
+import shutil
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
-import casadi
 import numpy as np
 from scipy.integrate import solve_ivp
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_periodic  # noqa: E402
-
-from ddvp_nlp import (  # noqa: E402
+from ddvp_nlp import (
     GridOptions,
     periodic_stability,
     solve_periodic,
     solve_periodic_family,
 )
-from ddvp_nlp.io.orbit_files import plot_orbit, write_family  # noqa: E402
-from ddvp_nlp.scenes import load_scene  # noqa: E402
+from ddvp_nlp.io import machine, new_figure, plot_orbit, save, styled, write_family
+from ddvp_nlp.scenes import load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH_PERIODIC = ROOT / "scripts" / "benchmarks" / "bench_periodic.py"
+# The grids of the page, and of a quick run (minutes less; not for docs/)
+FULL = {"family": np.linspace(0.1, 1.9, 19), "rotations": np.linspace(2.2, 4.0, 10),
+        "henon": np.round(np.arange(0.02, 0.1601, 0.02), 3), "henon_nodes": (200, 400),
+        "eight": 600, "eight_exact": 1200, "pendulum": (100, 200, 400, 800),
+        "harmonic": (40, 80, 160, 320), "eight_sizes": (150, 300, 600, 1200),
+        "bench": ["--repeats", "3"]}
+QUICK = {"family": np.linspace(0.1, 1.9, 4), "rotations": np.linspace(2.2, 4.0, 3),
+         "henon": np.array([0.04, 0.1]), "henon_nodes": (100, 200), "eight": 300,
+         "eight_exact": 600, "pendulum": (100, 200), "harmonic": (40, 80),
+         "eight_sizes": (150, 300), "bench": ["--repeats", "1", "--only", "solvers"]}
 
 # Simo's period of his eight-decimal initial data: a reference for the orbit through his data,
 # not for the orbit at the prescribed energy -1.287144 (six decimals) that is solved here.
@@ -61,14 +74,16 @@ def convergence_rows(name, sizes, exact, label=None, **options):
     return rows
 
 
-def rotation_rows(out: Path):
+def rotation_rows(out: Path, scratch: Path, energies):
     """Pendulum rotations (q1 an angle, section q1=0): a family E = 2.2 .. 4 at N = 200 against
     the exact period, and its figure."""
     pendulum = load_scene("pendulum")
-    family = solve_periodic_family(pendulum.system, np.linspace(2.2, 4.0, 10), nodes=200,
+    family = solve_periodic_family(pendulum.system, energies, nodes=200,
                                    section="q1=0", angles=("q1",))
-    rows = write_family(out / "pendulum_rotations", pendulum, family, {}, plot=True,
+    rows = write_family(scratch / "pendulum_rotations", pendulum, family, {}, plot=True,
                         section="q1=0", folders=False)
+    keep_figure(scratch / "pendulum_rotations" / "family.png",
+                out / "pendulum_rotations" / "family.png")
     solvers = [orbit.stats["solver"] for _, orbit in family]
     return [f"| {r['energy']:.1f} | {r['period']:.8f} | {rotation_period(r['energy']):.8f} | "
             f"{r['period'] - rotation_period(r['energy']):.2e} | {r['status']} | {solver} |"
@@ -89,20 +104,27 @@ def exact_return(orbit, period):
     return float(np.max(np.abs(run.y[:, -1] - z0)))
 
 
-def henon_heiles_rows(out: Path):
+def keep_figure(source: Path, target: Path) -> None:
+    """Copy the figure the page shows out of a command's folder (its CSV and manifest stay
+    behind: no page shows them)."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(source, target)
+
+
+def henon_heiles_rows(out: Path, energies, sizes):
     """The two 2-D families through x = 0 (and the invariant-plane one for the figure), at
     N = 200 and 400 by continuation in E, each orbit checked against the exact flow."""
     scene = load_scene("henon_heiles")
-    energies = np.round(np.arange(0.02, 0.1601, 0.02), 3)
+    coarse_nodes, fine_nodes = sizes
     families = {name: {"section": data.section, "start": data.start}
                 for name, data in scene.periodic.families.items()}
     families["x = 0 (invariant line)"] = {"section": scene.periodic.section,
                                            "start": scene.periodic.start}
     found, rows = {}, []
     for name, data in families.items():
-        coarse = solve_periodic_family(scene.system, energies, nodes=200, **data)
-        fine = solve_periodic_family(scene.system, energies, nodes=400, guess=coarse[0][1],
-                                     **data)
+        coarse = solve_periodic_family(scene.system, energies, nodes=coarse_nodes, **data)
+        fine = solve_periodic_family(scene.system, energies, nodes=fine_nodes,
+                                     guess=coarse[0][1], **data)
         found[name] = fine
         for (energy, a), (_, b) in zip(coarse, fine, strict=True):
             if name.startswith("x = 0"):
@@ -121,13 +143,11 @@ def henon_heiles_rows(out: Path):
 
 
 def plot_henon_heiles(found: dict, path: Path) -> None:
-    from ddvp_nlp.io import figures
-
-    with figures.styled():
-        fig = figures.new_figure(11, 4.8)
+    with styled():
+        fig = new_figure(11, 4.8)
         left, right = fig.subplots(1, 2)
         _henon_heiles_panels(left, right, found)
-        figures.save(fig, path)
+        save(fig, path)
 
 
 def _henon_heiles_panels(left, right, found: dict) -> None:
@@ -150,25 +170,41 @@ def _henon_heiles_panels(left, right, found: dict) -> None:
     right.legend()
 
 
-def solver_table() -> str:
-    """``scripts/bench_periodic.py``'s table (its output, captured)."""
-    captured = io.StringIO()
-    with contextlib.redirect_stdout(captured):
-        sys.argv = ["bench_periodic.py", "--repeats", "3"]
-        bench_periodic.main()
-    return captured.getvalue().rstrip()
+def solver_table(arguments: list[str]) -> str:
+    """``scripts/benchmarks/bench_periodic.py``'s table (its output, run as a process of its
+    own); its last line names the machine and the date."""
+    done = subprocess.run([sys.executable, str(BENCH_PERIODIC), *arguments], check=True,
+                          capture_output=True, text=True)
+    return done.stdout.rstrip()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="docs/periodic")
-    out = Path(parser.parse_args().out)
+    parser.add_argument("--out", default=str(ROOT / "docs" / "periodic"))
+    parser.add_argument("--quick", action="store_true",
+                        help="smaller grids and families, one timed call (not for docs/)")
+    args = parser.parse_args()
+    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    grids = QUICK if args.quick else FULL
+    with tempfile.TemporaryDirectory(prefix="periodic-page-") as scratch:
+        page = build(out, Path(scratch), grids)
+    if args.quick:
+        page = page.replace("\n\n", "\n\nA quick run (`--quick`): smaller grids and "
+                            "families than the text says.\n\n", 1)
+    (out / "README.md").write_text(page)
+    print(f"wrote {out / 'README.md'}")
 
+
+def build(out: Path, scratch: Path, grids: dict) -> str:
+    """The page's text; its figures written to ``out`` (the families' folders to
+    ``scratch``)."""
     pendulum = load_scene("pendulum")
-    family = solve_periodic_family(pendulum.system, np.linspace(0.1, 1.9, 19), nodes=200)
-    rows = write_family(out / "pendulum_family", pendulum, family, {}, plot=True,
+    family = solve_periodic_family(pendulum.system, grids["family"], nodes=200)
+    rows = write_family(scratch / "pendulum_family", pendulum, family, {}, plot=True,
                         folders=False)
+    keep_figure(scratch / "pendulum_family" / "family.png",
+                out / "pendulum_family" / "family.png")
     family_table = [f"| {r['energy']:.2f} | {r['period']:.8f} | "
                     f"{pendulum_period(r['energy']):.8f} | "
                     f"{r['period'] - pendulum_period(r['energy']):.2e} | {r['status']} |"
@@ -178,48 +214,43 @@ def main() -> None:
     data = eight.periodic
     options = {"energy": data.energy, "section": data.section, "start": data.start,
                "integrals": data.integrals}
-    orbit = solve_periodic(eight.system, nodes=600, **options)
-    plot_orbit(orbit, f"figure-eight, E = {data.energy}, N = 600, "
+    orbit = solve_periodic(eight.system, nodes=grids["eight"], **options)
+    plot_orbit(orbit, f"figure-eight, E = {data.energy}, N = {grids['eight']}, "
                       f"T = {orbit.stats['period']:.8f}", out / "figure_eight.png")
     # the reference of the convergence table: the exact flow's orbit at the energy solved,
     # closed by DOP853 shooting from the finest discrete orbit
     eight_exact = periodic_stability(
-        eight.system, solve_periodic(eight.system, nodes=1200, **options),
+        eight.system, solve_periodic(eight.system, nodes=grids["eight_exact"], **options),
         integrals=data.integrals).exact_orbit
     if not eight_exact.converged:
         raise SystemExit(f"the exact figure-eight at E = {data.energy} did not close "
                          f"(closure {eight_exact.closure:.1e})")
     simo_energy = float(eight.system.energy(eight.q0, eight.p0, 0.0, [])[0])
 
-    table = [*convergence_rows("pendulum", (100, 200, 400, 800), pendulum_period(0.5),
+    table = [*convergence_rows("pendulum", grids["pendulum"], pendulum_period(0.5),
                                energy=0.5, section="p1=0"),
-             *convergence_rows("pendulum", (100, 200, 400, 800), rotation_period(2.5),
+             *convergence_rows("pendulum", grids["pendulum"], rotation_period(2.5),
                                label="pendulum rotation", energy=2.5, section="q1=0",
                                angles=("q1",), options=GridOptions(max_iter=400)),
-             *convergence_rows("harmonic", (40, 80, 160, 320), np.pi, energy=0.3,
+             *convergence_rows("harmonic", grids["harmonic"], np.pi, energy=0.3,
                                params={"w": 2.0}),
-             *convergence_rows("figure_eight", (150, 300, 600, 1200), eight_exact.period,
+             *convergence_rows("figure_eight", grids["eight_sizes"], eight_exact.period,
                                **options)]
-    rotations = rotation_rows(out)
-    henon = henon_heiles_rows(out)
-    solvers = solver_table()
-    page = PAGE.format(family="\n".join(family_table), table="\n".join(table),
+    rotations = rotation_rows(out, scratch, grids["rotations"])
+    henon = henon_heiles_rows(out, grids["henon"], grids["henon_nodes"])
+    solvers = solver_table(grids["bench"])
+    return PAGE.format(family="\n".join(family_table), table="\n".join(table),
                        rotations="\n".join(rotations), henon="\n".join(henon),
                        solvers=solvers,
                        eight=orbit.message, eight_period=orbit.stats["period"],
                        eight_exact=eight_exact.period, eight_closure=eight_exact.closure,
-                       simo_energy=simo_energy, simo_period=SIMO_PERIOD,
-                       machine=f"Python {platform.python_version()}, CasADi "
-                               f"{casadi.__version__}, numpy {np.__version__}, "
-                               f"{platform.machine()}")
-    (out / "README.md").write_text(page)
-    print(f"written {out / 'README.md'}")
+                       simo_energy=simo_energy, simo_period=SIMO_PERIOD, machine=machine())
 
 
 PAGE = """# Periodic orbits at a prescribed energy
 
-Generated by `python scripts/periodic_page.py` (a few minutes; it runs
-`scripts/bench_periodic.py` for the solver table); the solver is
+Generated by `python scripts/pages/periodic_page.py` (a few minutes; it runs
+`scripts/benchmarks/bench_periodic.py` for the solver table); the solver is
 `ddvp_nlp/solvers/periodic/orbit.py` (`ddvp periodic SCENE --energy E --nodes N
 [--section NAME=VALUE] [--family E1:E2:COUNT] [--solver newton|ipopt|auto]`).
 
@@ -280,8 +311,8 @@ now the march on the predicted grid `tau ~ |w|^(-1/3)` (floored so that no predi
 exceeds four typical ones: the spike is there), solved on N = 100 first and refined by
 continuation in N (`solvers/periodic/refinement.py`: 100, 200, 400, 800, each level started
 from the last one's nodes resampled by node index, which keeps the step distribution): Newton
-converges in 5 iterations on every level, IPOPT in 5-7 (`python scripts/bench_periodic.py --only
-rotation`, below).
+converges in 5 iterations on every level, IPOPT in 5-7
+(`python scripts/benchmarks/bench_periodic.py --only rotation`, below).
 
 ![pendulum rotations](pendulum_rotations/family.png)
 
@@ -341,14 +372,14 @@ difference of the two orbits' periods and the last order is an artefact.
 
 ## Newton against IPOPT
 
-`python scripts/bench_periodic.py`: both solvers from the same start (the march to the return),
-the solver and the verification timed, best of 3 after a warm-up; the first call builds the
-CasADi functions and the IPOPT problem. The machine is shared (2 cores, other jobs running), so
-the ratios, measured side by side, say more than the seconds.
+`python scripts/benchmarks/bench_periodic.py`: both solvers from the same start (the march to
+the return), the solver and the verification timed, best of 3 after a warm-up; the first call
+builds the CasADi functions and the IPOPT problem. On a shared machine (its load average is
+printed with the table) the ratios, measured side by side, say more than the seconds.
 
 {solvers}
 
-Machine: {machine}.
+The page's other numbers: {machine}
 """
 
 

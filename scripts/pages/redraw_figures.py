@@ -7,7 +7,9 @@ figure (``work_precision.csv``), so a change of the figure code needs only this:
 ``horizons.png`` redrawn from the CSVs next to them, nothing re-run. Figures whose data are not
 kept (``growth.png`` of the horizons, the stress map) are left as they are and listed.
 
-    python scripts/redraw_figures.py [--root docs/work_precision]
+    python scripts/pages/redraw_figures.py [--root docs/work_precision]
+
+Seconds; no timing is shown.
 """
 
 from __future__ import annotations
@@ -16,8 +18,10 @@ import argparse
 import re
 from pathlib import Path
 
-from ddvp_nlp.studies.horizons_report import plot_horizons
-from ddvp_nlp.studies.work_precision_report import plot_work_precision, read_rows
+from ddvp_nlp.io import plot_horizons, plot_work_precision
+from ddvp_nlp.studies import read_rows
+
+ROOT = Path(__file__).resolve().parents[2]
 
 TITLE = "{scene}: error against run time"
 
@@ -57,7 +61,7 @@ def redraw_horizons(root: Path) -> list[Path]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--root", default="docs/work_precision")
+    parser.add_argument("--root", default=str(ROOT / "docs" / "work_precision"))
     root = Path(parser.parse_args().root)
     drawn = redraw_comparisons(root) + redraw_horizons(root)
     for path in drawn:

@@ -4,7 +4,7 @@ the MathJax the site carries (docs/hooks.py) and that the API pages show no raw 
 
     pip install -e '.[docs]'            # mkdocs, the theme, MathJax (django-static-mathjax)
     apt-get install chromium            # Debian's headless browser (or set $CHROMIUM)
-    python scripts/screenshot_docs.py [--out docs-screenshots] [--no-build]
+    python scripts/pages/screenshot_docs.py [--out docs-screenshots] [--no-build]
 
 Nothing leaves the machine: the site is served from 127.0.0.1 on a free port, and Chromium is
 started with networking to other hosts disabled. Prints the PNG files written.
@@ -22,7 +22,7 @@ import sys
 import threading
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PAGES = {"theory": "theory/", "guide": "guide/", "api": "api/solvers/"}
 # Time Chromium lets the page run its scripts (MathJax typesets after load) before the shot.
 BUDGET_MS = 8000

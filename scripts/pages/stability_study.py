@@ -1,7 +1,8 @@
 """Regenerate the pages of issue 32: the stability of periodic orbits, families through folds and
 bifurcations, transfers at a prescribed energy, each against the exact flow.
 
-    python scripts/stability_study.py [--only stability|bifurcations|transfers]
+    python scripts/pages/stability_study.py [--only stability|bifurcations|transfers]
+        [--out docs] [--quick]
 
 - docs/periodic/stability.md: the discrete Floquet multipliers (stability indices) of
   Henon-Heiles' three orbits at E = 0.1, the figure-eight, a CR3BP Lyapunov orbit and the
@@ -13,26 +14,24 @@ bifurcations, transfers at a prescribed energy, each against the exact flow.
 - docs/transfers/README.md: transfers at a prescribed energy against DOP853 shooting.
 
 Every line of a page is a measured number; the figures are drawn in the package's house
-style (``ddvp_nlp/io/figures.py``). Takes about ten
-minutes alone on the machine.
+style (``ddvp_nlp/io/figures.py``); every page ends with its run time beside the machine and the
+date (``ddvp_nlp.io.machine``). Takes about ten minutes alone on the machine; ``--quick``
+(two grids per study, one continuation per family) about two, not for docs/.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
 import warnings
 from pathlib import Path
 
-import casadi
-import numpy as np  # noqa: E402
-from scipy.optimize import brentq, minimize_scalar  # noqa: E402
-from scipy.special import ellipe, ellipk  # noqa: E402
+import numpy as np
+from scipy.optimize import brentq, minimize_scalar
+from scipy.special import ellipe, ellipk
 
-from ddvp_nlp import (  # noqa: E402
+from ddvp_nlp import (
     AtEnergy,
     Continuation,
     GridOptions,
@@ -44,15 +43,21 @@ from ddvp_nlp import (  # noqa: E402
     solve_bvp,
     solve_periodic,
 )
-from ddvp_nlp.io import figures  # noqa: E402
-from ddvp_nlp.io.orbit_figures import plot_followed_family  # noqa: E402
+from ddvp_nlp.io import machine, new_figure, plot_followed_family, save, styled
+from ddvp_nlp.solvers import flow_with_derivatives
 
 # The coarse grids of these convergence studies (N = 50, 100) resolve some orbits to about 1%:
 # the accuracy check's verdict is recorded, not enforced (their error is what is measured).
 RECORDED = GridOptions(accuracy=Tolerance(stop=False))
 
-ROOT = Path(__file__).resolve().parent.parent
-SIZES = (50, 100, 200, 400, 800)
+ROOT = Path(__file__).resolve().parents[2]
+# The grids of each study (N), and the member drawn where a study has several; a quick run's
+FULL = {"sizes": (50, 100, 200, 400, 800), "eight": (100, 200, 400, 800, 1600),
+        "eight_base": 800, "cr3bp": (100, 200, 400), "cr3bp_drawn": 200, "axis": (200, 400),
+        "fold": (50, 100, 200, 400), "fold_drawn": 100, "transfers": (51, 101, 201, 401, 801)}
+QUICK = {"sizes": (50, 100), "eight": (100, 200), "eight_base": 200, "cr3bp": (100,),
+         "cr3bp_drawn": 100, "axis": (100, 200), "fold": (50, 100), "fold_drawn": 100,
+         "transfers": (51, 101)}
 
 
 class Clock:
@@ -68,13 +73,6 @@ class Clock:
 
     def __str__(self):
         return f"{self.wall:.1f} s wall, {self.cpu:.1f} s CPU"
-
-
-def machine() -> str:
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    return (f"Measured on {platform.machine()} ({os.cpu_count()} cores shared with other "
-            f"work; load average {load} at the end), python {platform.python_version()}, "
-            f"casadi {casadi.__version__}, numpy {np.__version__}.")
 
 
 def orders(errors) -> list[str]:
@@ -126,18 +124,19 @@ def index_study(scene, settings, energy, sizes, *, base_nodes=400, guess=None, p
     return rows, errors, exact, solved
 
 
-def stability_page(out: Path) -> str:
+def stability_page(out: Path, grids: dict) -> str:
+    sizes = grids["sizes"]
     hh = load_scene("henon_heiles")
     eight = load_scene("figure_eight")
     cr3bp = load_scene("cr3bp")
     mu = cr3bp.params["mu"]
-    cases = [("Henon-Heiles loop, E = 0.1", hh, hh.periodic.families["loop"], 0.1, SIZES, {}),
-             ("Henon-Heiles across, E = 0.1", hh, hh.periodic.families["across"], 0.1, SIZES,
+    cases = [("Henon-Heiles loop, E = 0.1", hh, hh.periodic.families["loop"], 0.1, sizes, {}),
+             ("Henon-Heiles across, E = 0.1", hh, hh.periodic.families["across"], 0.1, sizes,
               {}),
-             ("Henon-Heiles axis, E = 0.1", hh, hh.periodic, 0.1, SIZES, {}),
+             ("Henon-Heiles axis, E = 0.1", hh, hh.periodic, 0.1, sizes, {}),
              ("figure-eight, E = -1.287144", eight, eight.periodic, eight.periodic.energy,
-              (100, 200, 400, 800, 1600), {"base_nodes": 800}),
-             ("CR3BP L1 Lyapunov, E = -1.59", cr3bp, cr3bp.periodic, -1.59, SIZES,
+              grids["eight"], {"base_nodes": grids["eight_base"]}),
+             ("CR3BP L1 Lyapunov, E = -1.59", cr3bp, cr3bp.periodic, -1.59, sizes,
               {"guess": cr3bp.periodic.guess(-1.59, mu=mu), "base_nodes": 200})]
     sections, curves = [], []
     header = ["N", "status", "discrete indices", "exact indices", "relative error", "order",
@@ -148,20 +147,20 @@ def stability_page(out: Path) -> str:
             curves.append((title, solved, errors))
             sections.append(f"### {title}\n\nFitted order {fit(solved, errors):.3f}.\n\n"
                             + table(header, rows))
-        pendulum_rows, pendulum_errors = pendulum_study()
-        curves.append(("pendulum dT/dE, E = 0.5", SIZES, pendulum_errors))
+        pendulum_rows, pendulum_errors = pendulum_study(sizes)
+        curves.append(("pendulum dT/dE, E = 0.5", sizes, pendulum_errors))
     figure(curves, out / "stability_orders.png")
     return PAGE_STABILITY.format(sections="\n\n".join(sections), pendulum=pendulum_rows,
                                  total=total, machine=machine(),
-                                 pendulum_order=f"{fit(SIZES, pendulum_errors):.3f}")
+                                 pendulum_order=f"{fit(sizes, pendulum_errors):.3f}")
 
 
-def pendulum_study():
+def pendulum_study(sizes):
     scene = load_scene("pendulum")
     m = 0.25
     slope = (ellipe(m) - (1 - m) * ellipk(m)) / (m * (1 - m))
     rows, errors = [], []
-    for N in SIZES:
+    for N in sizes:
         orbit = solve_periodic(scene.system, energy=0.5, nodes=N, angles=("q1",))
         stability = periodic_stability(scene.system, orbit)
         errors.append(abs(stability.extra["period_derivative"] - slope))
@@ -176,8 +175,8 @@ def pendulum_study():
 
 
 def figure(curves, path: Path, ylabel="relative error of the stability indices") -> None:
-    with figures.styled():
-        fig = figures.new_figure(6.5, 4.5)
+    with styled():
+        fig = new_figure(6.5, 4.5)
         ax = fig.add_subplot()
         for label, sizes, errors in curves:
             ax.loglog(sizes, errors, "o-", ms=4, label=label)
@@ -186,14 +185,14 @@ def figure(curves, path: Path, ylabel="relative error of the stability indices")
         ax.set_xlabel("intervals $N$")
         ax.set_ylabel(ylabel)
         ax.legend(fontsize="small")
-        figures.save(fig, path)
+        save(fig, path)
 
 
 PAGE_STABILITY = """# Stability of periodic orbits: Floquet multipliers
 
-Generated by `python scripts/stability_study.py --only stability`
-(`ddvp_nlp/solvers/periodic/floquet.py`, `exact.py`; `ddvp periodic SCENE --stability`,
-`periodic_stability(system, orbit)`).
+Generated by `python scripts/pages/stability_study.py --only stability`
+(`ddvp_nlp/solvers/periodic/floquet.py`, `ddvp_nlp/solvers/exact/variational.py`;
+`ddvp periodic SCENE --stability`, `periodic_stability(system, orbit)`).
 
 At the prescribed energy `E` each step of the energy rule solves its interval's `2n + 1`
 equations (canonical, `H(Q_k, P_k) = E`) for `(t_{{k+1}}, z_{{k+1}})`; CasADi's Jacobians of those
@@ -247,17 +246,17 @@ differentiated in `E`); against the exact `4 dK/dE` it converges at order
   N = 1600. The nontrivial indices are computed in a block where that does not enter: their
   order stays 2.000 there.
 
-Whole page: {total}. {machine}
+Whole page: {total}; {machine}
 """
 
 
 # --- bifurcations ---------------------------------------------------------------------------
 
-def cr3bp_study(out: Path):
+def cr3bp_study(out: Path, grids: dict):
     scene = load_scene("cr3bp")
     mu = scene.params["mu"]
     rows, found, families = [], [], {}
-    for N in (100, 200, 400):
+    for N in grids["cr3bp"]:
         with Clock() as clock:
             family = follow_periodic_family(
                 scene.system, (-1.5935, -1.585), nodes=N, section="q2=0",
@@ -274,7 +273,8 @@ def cr3bp_study(out: Path):
                      f"{-2 * birth.energy:.9f}", str(clock)])
     for row, order in zip(rows, orders(found), strict=True):
         row.insert(6, order)
-    plot_followed_family(families[200], "cr3bp (Earth-Moon): L1 Lyapunov family, N = 200",
+    drawn = grids["cr3bp_drawn"]
+    plot_followed_family(families[drawn], f"cr3bp (Earth-Moon): L1 Lyapunov family, N = {drawn}",
                          out / "cr3bp_family.png")
     vertical_figure(families, out / "cr3bp_vertical.png")
     return table(["N", "orbits", "branch point E_N", "bracket", "exact flow's E",
@@ -282,10 +282,10 @@ def cr3bp_study(out: Path):
 
 
 def vertical_figure(families, path: Path) -> None:
-    with figures.styled():
-        fig = figures.new_figure(6.5, 4.5)
+    with styled():
+        fig = new_figure(6.5, 4.5)
         _vertical_panel(fig.add_subplot(), families)
-        figures.save(fig, path)
+        save(fig, path)
 
 
 def _vertical_panel(ax, families) -> None:
@@ -306,30 +306,31 @@ def _vertical_panel(ax, families) -> None:
     ax.legend(fontsize="small")
 
 
-def axis_study(out: Path):
+def axis_study(out: Path, grids: dict):
     scene = load_scene("henon_heiles")
     settings = scene.periodic
     events = {}
+    coarse, fine = grids["axis"]
     with Clock() as clock:
-        for N in (200, 400):
+        for N in (coarse, fine):
             family = follow_periodic_family(
                 scene.system, (0.02, 0.1666), nodes=N, section=settings.section,
                 start=settings.start,
                 continuation=Continuation(step=0.005, exact=False, max_orbits=400),
                 options=RECORDED)
             events[N] = family
-    plot_followed_family(events[400], "henon_heiles: the orbit on the axis x = 0, N = 400",
+    plot_followed_family(events[fine], f"henon_heiles: the orbit on the axis x = 0, N = {fine}",
                          out / "henon_heiles_axis.png")
     rows = []
-    for j, (b200, b400) in enumerate(zip(events[200].bifurcations, events[400].bifurcations,
-                                         strict=False)):
-        exact = b400.extra.get("exact_energy")
-        rows.append([j + 1, b400.kind, f"{b200.energy:.10f}", f"{b400.energy:.10f}",
+    for j, (first, second) in enumerate(zip(events[coarse].bifurcations,
+                                            events[fine].bifurcations, strict=False)):
+        exact = second.extra.get("exact_energy")
+        rows.append([j + 1, second.kind, f"{first.energy:.10f}", f"{second.energy:.10f}",
                      "-" if exact is None else f"{exact:.10f}",
-                     "-" if exact is None else f"{b200.energy - exact:.2e}",
-                     "-" if exact is None else f"{b400.energy - exact:.2e}"])
-    return table(["", "kind", "E (N = 200)", "E (N = 400)", "exact flow's E",
-                  "N = 200 - exact", "N = 400 - exact"], rows), clock
+                     "-" if exact is None else f"{first.energy - exact:.2e}",
+                     "-" if exact is None else f"{second.energy - exact:.2e}"])
+    return table(["", "kind", f"E (N = {coarse})", f"E (N = {fine})", "exact flow's E",
+                  f"N = {coarse} - exact", f"N = {fine} - exact"], rows), clock
 
 
 W0, BETA = 0.6, 0.1
@@ -353,7 +354,7 @@ def fold_energy(w):
     return pendulum, pendulum + W0 * action + BETA * action ** 2
 
 
-def fold_study(out: Path):
+def fold_study(out: Path, grids: dict):
     system, rotor = fold_system()
     top = -minimize_scalar(lambda w: -fold_energy(w)[1], bounds=(0.65, 0.85),
                            method="bounded", options={"xatol": 1e-12}).fun
@@ -365,7 +366,7 @@ def fold_study(out: Path):
     guess = {"t": t, "q": np.column_stack([q1[:, 0], radius * np.cos(w * t)]),
              "p": np.column_stack([p1[:, 0], -radius * np.sin(w * t)])}
     rows, errors, families = [], [], {}
-    for N in (50, 100, 200, 400):
+    for N in grids["fold"]:
         with Clock() as clock:
             family = follow_periodic_family(
                 system, (start, 2.0), nodes=N, section="p1=0", guess=guess,
@@ -379,25 +380,27 @@ def fold_study(out: Path):
                      "-" if exact is None else f"{exact - top:.1e}", str(clock)])
     for row, order in zip(rows, orders(errors), strict=True):
         row.insert(4, order)
-    plot_followed_family(families[100], "pendulum and rotor in 1:1 resonance: a fold, N = 100",
+    drawn = grids["fold_drawn"]
+    plot_followed_family(families[drawn],
+                         f"pendulum and rotor in 1:1 resonance: a fold, N = {drawn}",
                          out / "fold_family.png")
     return table(["N", "orbits", "fold E_N", "E_N - closed form", "order",
                   "exact flow - closed form", "time"], rows) + \
         f"\n\nClosed form: E_max = {top:.13f}."
 
 
-def bifurcation_page(out: Path) -> str:
+def bifurcation_page(out: Path, grids: dict) -> str:
     with Clock() as total:
-        cr3bp = cr3bp_study(out)
-        axis, axis_clock = axis_study(out)
-        fold = fold_study(out)
+        cr3bp = cr3bp_study(out, grids)
+        axis, axis_clock = axis_study(out, grids)
+        fold = fold_study(out, grids)
     return PAGE_BIFURCATIONS.format(cr3bp=cr3bp, axis=axis, axis_clock=axis_clock, fold=fold,
                                     total=total, machine=machine())
 
 
 PAGE_BIFURCATIONS = """# Families of periodic orbits: folds and bifurcations
 
-Generated by `python scripts/stability_study.py --only bifurcations`
+Generated by `python scripts/pages/stability_study.py --only bifurcations`
 (`ddvp_nlp/solvers/periodic/arclength.py`, `bifurcation.py`;
 `ddvp periodic SCENE --energy E1 --follow E2 [--step DE]`, `follow_periodic_family(system,
 (E1, E2), nodes=N, ...)`).
@@ -458,7 +461,7 @@ and comes back down the other branch; `dE/ds` changes sign once:
 
 {fold}
 
-Whole page: {total}. {machine}
+Whole page: {total}; {machine}
 """
 
 
@@ -484,14 +487,14 @@ def transfer_rows(scene_name, q_start, q_end, span, sizes):
     return rows, times, paths, last
 
 
-def transfer_page(out: Path) -> str:
+def transfer_page(out: Path, grids: dict) -> str:
     cases = [("pendulum, q = 0.5 to -0.036, E = 0.5", "pendulum", [0.5], [-0.036],
               AtEnergy(0.5, duration=9.0)),
              ("pendulum, q = 0.5 to -0.036, E = 0.8", "pendulum", [0.5], [-0.036],
               AtEnergy(0.8, duration=9.0)),
              ("Henon-Heiles, (0, 0.1) to (0.3, -0.1), E = 0.12 (no duration given)",
               "henon_heiles", [0.0, 0.1], [0.3, -0.1], AtEnergy(0.12))]
-    sizes = (51, 101, 201, 401, 801)
+    sizes = grids["transfers"]
     header = ["N", "status", "transfer time", "shooting", "difference", "order",
               "path difference", "order", "energy residual", "Newton iterations", "time"]
     sections, curves = [], []
@@ -514,14 +517,12 @@ def transfer_page(out: Path) -> str:
 def transfer_path_figure(last, path: Path) -> None:
     scene, run = last
     exact = run.stats["exact"]
-    from ddvp_nlp.solvers import flow_with_derivatives
-
     times = np.linspace(0.0, exact["transfer_time"], 400)
     flow = flow_with_derivatives(scene.system, np.zeros(0),
                                  np.concatenate([run.q[0], exact["momentum"]]),
                                  exact["transfer_time"], times=times)
-    with figures.styled():
-        fig = figures.new_figure(5.5, 4.5)
+    with styled():
+        fig = new_figure(5.5, 4.5)
         ax = fig.add_subplot()
         ax.plot(flow.path[:, 0], flow.path[:, 1], "-", color="0.6", lw=2,
                 label="DOP853 shooting")
@@ -533,12 +534,12 @@ def transfer_path_figure(last, path: Path) -> None:
         ax.set_title(f"Henon-Heiles transfer at $E = 0.12$, "
                      f"$T = {run.stats['transfer_time']:.6f}$")
         ax.legend()
-        figures.save(fig, path)
+        save(fig, path)
 
 
 PAGE_TRANSFERS = """# Transfers at a prescribed energy
 
-Generated by `python scripts/stability_study.py --only transfers`
+Generated by `python scripts/pages/stability_study.py --only transfers`
 (`ddvp_nlp/solvers/bvp/at_energy.py`; `ddvp bvp SCENE --energy E`,
 `solve_bvp(system, q_start, q_end, AtEnergy(E, t0=0, duration=None), nodes=N)`).
 
@@ -563,23 +564,32 @@ difference of `(q, p)` at the grid's node times. Both converge at order 2.
 
 {sections}
 
-Whole page: {total}. {machine}
+Whole page: {total}; {machine}
 """
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=("stability", "bifurcations", "transfers"))
+    parser.add_argument("--out", default=str(ROOT / "docs"),
+                        help="the docs folder: pages go to its periodic/ and transfers/")
+    parser.add_argument("--quick", action="store_true",
+                        help="two grids per study, one continuation per family (not for docs/)")
     args = parser.parse_args()
     warnings.simplefilter("ignore", RuntimeWarning)
-    pages = {"stability": (ROOT / "docs" / "periodic", "stability.md", stability_page),
-             "bifurcations": (ROOT / "docs" / "periodic", "bifurcations.md", bifurcation_page),
-             "transfers": (ROOT / "docs" / "transfers", "README.md", transfer_page)}
+    grids = QUICK if args.quick else FULL
+    docs = Path(args.out)
+    pages = {"stability": (docs / "periodic", "stability.md", stability_page),
+             "bifurcations": (docs / "periodic", "bifurcations.md", bifurcation_page),
+             "transfers": (docs / "transfers", "README.md", transfer_page)}
     for name, (folder, page, make) in pages.items():
         if args.only not in (None, name):
             continue
         folder.mkdir(parents=True, exist_ok=True)
-        text = make(folder)
+        text = make(folder, grids)
+        if args.quick:
+            text = text.replace("\n\n", "\n\nA quick run (`--quick`): fewer grids than the "
+                                "text says.\n\n", 1)
         (folder / page).write_text(text)
         print(f"wrote {folder / page}", flush=True)
     return 0

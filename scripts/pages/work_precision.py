@@ -1,4 +1,4 @@
-"""Regenerate the work-precision reports the README shows, into docs/work_precision/.
+"""Regenerate docs/work_precision/: work-precision reports of six scenes, and over long horizons.
 
 Default horizons (``docs/work_precision/SCENE/``): each scene runs every method that applies
 (``ddvp compare`` with its defaults) on its default horizon, Kepler at e = 0.6 and FPU at
@@ -11,31 +11,48 @@ a ``ddvp compare --horizons`` run with its error-growth figure, then
 ``docs/work_precision/horizons/README.md``, the summary in words computed from the rows
 (``--summary-only`` rewrites it from the runs already on disk). Tens of minutes per case.
 
-Run it with nothing else busy on the machine: the run times are what is compared.
+Run it with nothing else busy on the machine: the run times are what is compared; every report
+ends with the machine and the date (``ddvp_nlp.io.machine``). Each run's folder is written to a
+scratch folder and only what the pages show or read back (the reports, the figures, the rows of
+``work_precision.csv``, from which ``redraw_figures.py`` and ``--summary-only`` work) is copied
+into ``--out``.
 
-    python scripts/work_precision.py [--scenes paper_pendulum,harmonic] [--out docs/work_precision]
-    python scripts/work_precision.py --horizons [--cases kepler_e0.6,fpu] [--summary-only]
+    python scripts/pages/work_precision.py [--scenes paper_pendulum,harmonic]
+        [--out docs/work_precision] [--quick]
+    python scripts/pages/work_precision.py --horizons [--cases kepler_e0.6,fpu] [--summary-only]
+        [--quick]
+
+``--quick`` (not for docs/): the harmonic oscillator alone, two halvings, one timed call; with
+``--horizons``, the pendulum at 10 and 30 periods.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
 from scipy.special import ellipk
 
 from ddvp_nlp import load_scene
-from ddvp_nlp.studies.horizons_report import work_precision_horizons
-from ddvp_nlp.studies.work_precision import (
+from ddvp_nlp.cli import main as ddvp
+from ddvp_nlp.studies import (
     ERROR_KINDS,
     CompareOptions,
     cheapest,
+    in_words,
     methods_in,
+    read_rows,
     winner_spans,
+    work_precision_horizons,
 )
-from ddvp_nlp.studies.work_precision_report import in_words, read_rows, work_precision
+
+ROOT = Path(__file__).resolve().parents[2]
+# what a page shows or reads back: the rest of a run's folder (its manifest) stays in scratch
+SHOWN = ("*.md", "*.png", "work_precision.csv")
 
 SCENES = {
     "paper_pendulum": {},
@@ -68,17 +85,28 @@ HORIZON_CASES = {
 }
 
 
+def copy_shown(source: Path, target: Path) -> None:
+    """The files of ``SHOWN`` below ``source``, copied to the same places below ``target``."""
+    for pattern in SHOWN:
+        for path in source.rglob(pattern):
+            place = target / path.relative_to(source)
+            place.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, place)
+
+
 def run_horizons(cases, out: Path, args) -> None:
     for case in cases:
         name, overrides, unit, _ = HORIZON_CASES[case]
         unit = unit or _pendulum_period()
         started = time.perf_counter()
-        work_precision_horizons(load_scene(name), args.horizon_list, out=out / case, unit=unit,
-                                overrides=overrides,
-                                options=CompareOptions(halvings=args.halvings,
-                                                       repeats=args.repeats,
-                                                       max_steps=args.max_steps),
-                                run_budget_s=args.run_budget, progress=True)
+        with tempfile.TemporaryDirectory(prefix="horizons-") as scratch:
+            work_precision_horizons(load_scene(name), args.horizon_list, out=scratch,
+                                    unit=unit, overrides=overrides,
+                                    options=CompareOptions(halvings=args.halvings,
+                                                           repeats=args.repeats,
+                                                           max_steps=args.max_steps),
+                                    run_budget_s=args.run_budget, progress=True)
+            copy_shown(Path(scratch), out / case)
         print(f"{case}: {time.perf_counter() - started:.0f} s -> {out / case}/horizons.md",
               flush=True)
 
@@ -112,9 +140,9 @@ def _verdicts(rows) -> list[str]:
 def default_summary(out: Path) -> str:
     """``docs/work_precision/README.md``: every scene's verdicts on its default horizon."""
     lines = ["# Work-precision on each scene's default horizon", "",
-             "Regenerate: `python scripts/work_precision.py` (the runs and this page); the long "
-             "horizons are in [horizons/](horizons/README.md). Each scene's full report is "
-             "`SCENE/summary.md`.", ""]
+             "Regenerate: `python scripts/pages/work_precision.py` (the runs and this page); "
+             "the long horizons are in [horizons/](horizons/README.md). Each scene's full "
+             "report is `SCENE/summary.md`.", ""]
     for name, overrides in SCENES.items():
         path = out / name / "work_precision.csv"
         if not path.exists():
@@ -131,7 +159,7 @@ def default_summary(out: Path) -> str:
 def horizons_summary(out: Path) -> str:
     """The summary in words of every case on disk, computed from its rows."""
     lines = ["# Long horizons: which method, at which error level", "",
-             "Regenerate: `python scripts/work_precision.py --horizons` (the runs), or "
+             "Regenerate: `python scripts/pages/work_precision.py --horizons` (the runs), or "
              "`--horizons --summary-only` (this page from the runs on disk). Each case's own "
              "page (`CASE/horizons.md`) has the error-growth table at equal cost and the runs "
              "left out; each horizon's full report is in `CASE/horizon_T/summary.md`.", ""]
@@ -154,7 +182,7 @@ def horizons_summary(out: Path) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", default=",".join(SCENES))
-    parser.add_argument("--out", default="docs/work_precision")
+    parser.add_argument("--out", default=str(ROOT / "docs" / "work_precision"))
     parser.add_argument("--repeats", type=int, default=None,
                         help="timed calls per run (default: 3; 1 with --horizons)")
     parser.add_argument("--horizons", action="store_true",
@@ -166,7 +194,13 @@ def main() -> None:
     parser.add_argument("--halvings", type=int, default=2)
     parser.add_argument("--max-steps", type=int, default=10_000_000)
     parser.add_argument("--run-budget", type=float, default=60.0)
+    parser.add_argument("--quick", action="store_true",
+                        help="harmonic alone (with --horizons: the pendulum at 10 and 30 "
+                             "periods), two halvings, one timed call; not for docs/")
     args = parser.parse_args()
+    if args.quick:
+        args.scenes, args.cases, args.horizon_list = "harmonic", "pendulum", "10,30"
+        args.repeats, args.halvings, args.run_budget = 1, 2, 5.0
     if args.repeats is None:
         args.repeats = 1 if args.horizons else 3
     if args.horizons:
@@ -180,8 +214,16 @@ def main() -> None:
     for name in [] if args.summary_only else args.scenes.split(","):
         started = time.perf_counter()
         folder = Path(args.out) / name
-        rows = work_precision(load_scene(name), out=folder, overrides=SCENES[name],
-                              options=CompareOptions(repeats=args.repeats), progress=True)
+        # `ddvp compare` with the scene's settings: the command a reader reruns
+        argv = ["compare", name, "--repeats", str(args.repeats), "--progress",
+                *(f"--set={key}={value!r}" for key, value in SCENES[name].items()),
+                *(["--halvings", str(args.halvings)] if args.quick else [])]
+        with tempfile.TemporaryDirectory(prefix="work-precision-") as scratch:
+            code = ddvp([*argv, "--out", scratch])
+            if code != 0:
+                raise SystemExit(f"ddvp {' '.join(argv)}: exit {code}")
+            rows = read_rows(Path(scratch) / "work_precision.csv")
+            copy_shown(Path(scratch), folder)
         failed = sum(r["status"] != "success" for r in rows)
         print(f"{name}: {len(rows)} runs ({failed} did not reach t_end) in "
               f"{time.perf_counter() - started:.0f} s -> {folder}/summary.md")
