@@ -3,8 +3,8 @@ package's current figure code and house style (``ddvp_nlp/io/figures.py``).
 
 A comparison takes minutes to hours to run (the long horizons); its rows are kept beside its
 figure (``work_precision.csv``), so a change of the figure code needs only this: each
-``docs/work_precision/SCENE/work_precision.png``, each horizon's ``work_precision.png`` and each
-``horizons.png`` redrawn from the CSVs next to them, nothing re-run. Figures whose data are not
+``docs/work_precision/SCENE/work_precision.png`` and each ``horizons.png`` (a panel per horizon)
+redrawn from the CSVs next to them, nothing re-run. Figures whose data are not
 kept (``growth.png`` of the horizons, the stress map) are left as they are and listed.
 
     python scripts/pages/redraw_figures.py [--root docs/work_precision]
@@ -27,12 +27,14 @@ TITLE = "{scene}: error against run time"
 
 
 def redraw_comparisons(root: Path) -> list[Path]:
-    """Every ``work_precision.png`` below ``root`` with a ``work_precision.csv`` beside it."""
+    """Every ``work_precision.png`` below ``root`` with a ``work_precision.csv`` beside it, but
+    a long horizon's (its case's ``horizons.png`` shows it)."""
     drawn = []
     for table in sorted(root.rglob("work_precision.csv")):
         folder = table.parent
-        scene = folder.parent.name if folder.name.startswith("horizon_") else folder.name
-        scene = scene.split("_e0")[0]  # kepler_e0.6 -> kepler
+        if folder.name.startswith("horizon_"):
+            continue
+        scene = folder.name.split("_e0")[0]  # kepler_e0.6 -> kepler
         target = folder / "work_precision.png"
         plot_work_precision(read_rows(table), target, title=TITLE.format(scene=scene))
         drawn.append(target)

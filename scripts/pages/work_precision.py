@@ -86,9 +86,12 @@ HORIZON_CASES = {
 
 
 def copy_shown(source: Path, target: Path) -> None:
-    """The files of ``SHOWN`` below ``source``, copied to the same places below ``target``."""
+    """The files of ``SHOWN`` below ``source``, copied to the same places below ``target``; a
+    long-horizon case's figure per horizon stays behind (``horizons.png`` has a panel each)."""
     for pattern in SHOWN:
         for path in source.rglob(pattern):
+            if path.name == "work_precision.png" and path.parent.name.startswith("horizon_"):
+                continue
             place = target / path.relative_to(source)
             place.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(path, place)
