@@ -11,7 +11,7 @@ def hamiltonian(q, p, t):
 
 # Periodic orbits (ddvp periodic): the family on the axis x = p_x = 0 (an invariant plane),
 # through its turning point p_y = 0, up to the escape energy 1/6. "families" (read by
-# scripts/periodic_page.py; `ddvp periodic henon_heiles --section q1=0` takes the section, not
+# scripts/pages/periodic_page.py; `ddvp periodic henon_heiles --section q1=0` takes the section, not
 # the start) names two two-dimensional families through the section x = 0, each by the start
 # direction along which the section's point at E is looked for: the loop orbit (born from the
 # circular motion of the linearised 1:1 oscillator, crossing x = 0 at y > 0 moving in -x) and

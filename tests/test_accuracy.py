@@ -338,8 +338,8 @@ DUFFING = QUARTIC.replace("ca.sumsqr(p) / 2 + k * q[0] ** 4 / 4",
 
 
 def test_the_readme_example_scene(tmp_path):
-    """The README's Duffing scene: at tau0 = 0.05 every step follows the flow but the phase
-    passes 1e-2 of the motion at t = 19 (drifted, exit 0); at tau0 = 0.02 accurate."""
+    """The guide's Duffing scene (section 2): at tau0 = 0.05 every step follows the flow but the
+    phase passes 1e-2 of the motion at t = 19 (drifted, exit 0); at tau0 = 0.02 accurate."""
     scene_file = tmp_path / "duffing.py"
     scene_file.write_text(DUFFING)
     assert "q[0] ** 2 / 2" in scene_file.read_text()

@@ -8,7 +8,7 @@ DOP853 at rtol 1e-12 with dense output. No false success (``accurate`` with a tr
 twice the tolerance), no false refusal (``drifted`` or ``inaccurate`` with a true error below
 half of it): the definitions of ``studies.verdicts.classify``. The cases are drawn
 deterministically (``derandomize``), a fixed number of them; the 1000-case study is
-``scripts/accuracy_study.py`` (docs/accuracy/README.md)."""
+``scripts/pages/accuracy_study.py`` (docs/accuracy/README.md)."""
 
 from hypothesis import HealthCheck, given, settings
 from random_cases import cases

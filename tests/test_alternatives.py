@@ -128,7 +128,7 @@ def test_every_compared_method_marches_from_the_command_line(name, tmp_path, cap
     assert (out / "result.npz").is_file()
     assert meta["scheme"] == name
     assert f"harmonic march [{name}]" in capsys.readouterr().out
-    if name != "lee_left":  # Lee's left-point scheme breaks down on harmonic (README)
+    if name != "lee_left":  # Lee's left-point scheme breaks down on harmonic (theory section 3)
         assert code == 0 and meta["status"] == "success", meta["message"]
     residual = meta.get("own_residual_max", meta["canonical_residual_max"])
     if name == "dop853":

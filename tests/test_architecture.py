@@ -545,3 +545,22 @@ def test_the_module_map_names_every_module_once():
                     if path.name != "__main__.py")
     assert sorted(set(listed)) == sorted(listed), "a module is listed twice"
     assert sorted(listed) == actual
+
+
+def test_no_lazy_public_name_is_also_a_module_of_its_package():
+    """A face that loads its names on first use (a module ``__getattr__``) cannot export a
+    name its package has a module of: importing ``package.name`` binds the module in the
+    package, and ``from package import name`` gives the module from then on (``solvers.march``
+    shadowed ``march`` until it became ``solvers/marching/``). A face that imports its names
+    (``from .main import main``) binds them after the module and keeps them."""
+    shadowed = {}
+    for name, path in modules().items():
+        if path.name != "__init__.py" or name == "__init__" \
+                or "__getattr__" not in path.read_text():
+            continue
+        submodules = {child.stem for child in path.parent.glob("*.py")} | \
+            {child.name for child in path.parent.iterdir() if (child / "__init__.py").exists()}
+        clash = set(importlib.import_module(f"ddvp_nlp.{name}").__all__) & submodules
+        if clash:
+            shadowed[name] = sorted(clash)
+    assert shadowed == {}

@@ -1,6 +1,6 @@
-"""The C references of scripts/bench_march.py: the fast C march solves the same equations as
-the first one (same steps, same nodes up to the accumulated round-off) with few Newton
-iterations, whichever predictor it starts from."""
+"""The C references of scripts/benchmarks/bench_march.py: the fast C march solves the same
+equations as the first one (same steps, same nodes up to the accumulated round-off) with few
+Newton iterations, whichever predictor it starts from."""
 
 import ctypes
 import shutil
@@ -13,7 +13,7 @@ import pytest
 from ddvp_nlp import load_scene
 from ddvp_nlp.solvers.accuracy.node_values import NodeValues
 
-SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
+SCRIPTS = Path(__file__).resolve().parents[1] / "scripts" / "benchmarks"
 
 
 @pytest.fixture(scope="module")

@@ -172,7 +172,7 @@ def test_reader_refuses_a_result_beside_another_runs_meta(tmp_path):
 def test_a_study_told_to_stop_never_exits_0(tmp_path):
     """SIGTERM a second into `ddvp compare`: wherever it lands (the imports, a march's Newton
     inside CasADi, where it surfaces as that run's failure, or between runs) the command exits
-    1 and says it was interrupted; it never reports a finished study (scripts/faults.py had
+    1 and says it was interrupted; it never reports a finished study (scripts/pages/faults.py had
     caught compare writing its files and exiting 0 after the signal)."""
     process = subprocess.Popen(
         [sys.executable, "-m", "ddvp_nlp.cli", "compare", "harmonic", "--set", "t_end=400",

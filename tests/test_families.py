@@ -36,7 +36,7 @@ def test_the_l1_lyapunov_family_is_followed_to_the_halo_bifurcation():
     """From E = -1.5935 the family is followed with every orbit closed on the exact flow; the
     vertical pair's index crosses 2 once: a branch point (no fold), located to 1e-6 of the
     exact flow's (3.3e-6 at N = 100, 8.3e-7 at N = 200, 2.1e-7 at N = 400: order 2, in
-    scripts/stability_study.py), and confirmed there by the exact monodromy."""
+    scripts/pages/stability_study.py), and confirmed there by the exact monodromy."""
     scene = load_scene("cr3bp")
     mu = scene.params["mu"]
     family = follow_periodic_family(

@@ -197,7 +197,7 @@ def test_grid_energies_match_the_node_by_node_recursion():
 
 def test_ten_thousand_nodes_in_one_newton_iteration():
     """The fixed-step spline at N = 1e4: the equations are linear, so one Newton iteration,
-    and no expression of the grid is built (measured 0.15 s, scripts/bench_higher.py).
+    and no expression of the grid is built (measured 0.15 s, scripts/benchmarks/bench_higher.py).
     The error against the cubic grows like N^4 eps (the fourth difference's conditioning):
     2e-4 here."""
     scene, _, solution = _solve("spline", 10_000, "fixed", "newton")

@@ -141,7 +141,8 @@ def plain_tick_labels(fig) -> None:
     """Every numeric tick label and offset of ``fig`` drawn as plain Unicode text
     (`plain_text`) instead of mathtext: the same characters in the house style's serif, with
     true superscripts and minus signs, without the mathtext parse of each distinct label (85 ms
-    of the 370 ms drawing of the run figure of ``paper_pendulum``, ``scripts/bench_figure.py``).
+    of the 370 ms drawing of the run figure of ``paper_pendulum``,
+    ``scripts/benchmarks/bench_figure.py``).
     Only matplotlib's own scalar and log formatters are changed (a formatter a figure chose
     stays), and each keeps its settings (offset, limits, the axis it labels)."""
     plain = plain_formatters()

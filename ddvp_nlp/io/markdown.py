@@ -1,4 +1,5 @@
-"""Pieces every Markdown report of a grid shares: the failure table and the machine line."""
+"""Pieces every Markdown report shares: the failure table of a grid and the machine line
+beside every timing."""
 
 from __future__ import annotations
 
@@ -25,16 +26,42 @@ def failure_table(rows, title, *columns) -> list[str]:
     return lines
 
 
-def machine(compiler) -> str:
-    """One sentence: platform, cores, versions, how the compiled methods ran, and the date."""
+def machine(compiler: str | None | bool = False) -> str:
+    """One sentence to stand beside every timing a page shows: the CPU model, its cores and the
+    load average now, the platform and the versions, how the compiled methods ran (when
+    ``compiler`` is given: its name, or ``None`` for CasADi's virtual machine; ``False``, the
+    default, leaves it out) and the date and time (UTC)."""
     import casadi
     import scipy
 
-    return (f"{platform.platform()}, {os.cpu_count()} cores, Python "
-            f"{platform.python_version()}, CasADi {casadi.__version__}, NumPy {np.__version__}, "
-            f"SciPy {scipy.__version__}; compiled methods: "
-            f"{'gcc-compiled chunks (' + compiler + ')' if compiler else 'CasADi virtual machine'}"
-            f"; generated {datetime.date.today().isoformat()}.")
+    compiled = "" if compiler is False else (
+        f"; compiled methods: gcc-compiled chunks ({compiler})" if compiler
+        else "; compiled methods: CasADi virtual machine")
+    when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    return (f"{cpu_model()}, {os.cpu_count()} cores, load average {load_average()}; "
+            f"{platform.platform()}, Python {platform.python_version()}, CasADi "
+            f"{casadi.__version__}, NumPy {np.__version__}, SciPy {scipy.__version__}"
+            f"{compiled}; measured {when}.")
+
+
+def cpu_model() -> str:
+    """The processor's model name (``/proc/cpuinfo`` on Linux), else what ``platform`` says."""
+    try:
+        with open("/proc/cpuinfo") as handle:
+            for line in handle:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown CPU"
+
+
+def load_average() -> str:
+    """The 1, 5 and 15 minute load averages, or ``unknown`` where the system has none."""
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "unknown"
 
 
 def seconds(value) -> str:

@@ -123,7 +123,7 @@ def _figure(solution, rows, title: str):
 
     The margins are fixed in inches rather than found by a layout engine: constrained layout
     drew the figure twice and measured every tick label, 1.6 s of the 1.8 s the figure of
-    ``paper_pendulum`` took (``scripts/bench_figure.py``)."""
+    ``paper_pendulum`` took (``scripts/benchmarks/bench_figure.py``)."""
     t = solution.t
     zoom = t.size >= ZOOM_FROM_NODES
     spans = [(t[0], t[-1])] + ([(t[0], t[ZOOM_STEPS])] if zoom else [])

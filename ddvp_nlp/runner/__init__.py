@@ -7,3 +7,24 @@ Rules: the runner imports the library's public names and ``io``; never ``scenes`
 or ``cli``. A task names its function by ``"module:function"``: it pickles small and every
 worker imports it by itself.
 """
+
+from typing import TYPE_CHECKING
+
+from ..cache import lazy_exports
+
+# name -> module (relative to this package) that defines it
+PUBLIC = {
+    "Task": "tasks", "Workers": "tasks", "run_tasks": "tasks",
+    "ClusterSpec": "cluster", "parse_cluster": "cluster", "start_cluster": "cluster",
+    "run_journalled": "journal", "read_csv": "journal",
+}
+
+if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
+    from .cluster import ClusterSpec, parse_cluster, start_cluster
+    from .journal import read_csv, run_journalled
+    from .tasks import Task, Workers, run_tasks
+
+__getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
+
+__all__ = ["ClusterSpec", "Task", "Workers", "parse_cluster", "read_csv", "run_journalled",
+           "run_tasks", "start_cluster"]

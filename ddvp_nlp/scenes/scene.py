@@ -69,7 +69,7 @@ class PeriodicSettings:
         integrals: first integrals besides ``H`` whose flows are symmetries.
         angles: angle coordinates (``("q1",)``), which may close with whole turns.
         families: further families by name, each its own ``PeriodicSettings`` (section and
-            start; read by ``scripts/periodic_page.py``).
+            start; read by ``scripts/pages/periodic_page.py``).
         guess: optional ``guess(energy, **params) -> {"t", "q", "p"}``, one period of a start
             near the orbit at ``energy``, used when no guess is given (where no ray from the
             origin through the orbit makes the section's point, as about a Lagrange point).

@@ -15,6 +15,7 @@ from dataclasses import replace
 
 from ..io import atomic
 from ..io.horizons_figure import plot_growth, plot_horizons
+from ..io.markdown import machine
 from ..io.run_folder import figure_writer
 from ..runner.tasks import Workers
 from ..scenes import Scene
@@ -97,7 +98,7 @@ def _horizons(scene, horizons, out, unit, overrides, options, compilation, worke
 
 def horizons_summary(scene, results, notes, growth, target, unit) -> str:
     """``horizons.md``: per horizon the cheapest method at each error level in words, what was
-    left out, and the equal-cost error growth."""
+    left out, and the equal-cost error growth with the machine it was timed on."""
     lines = [f"# Work-precision over horizons: `{scene.name}`", "",
              f"Horizons in units of {unit:g}; each has its own report in `horizon_T/`.", ""]
     for horizon, rows in results.items():
@@ -115,7 +116,8 @@ def horizons_summary(scene, results, notes, growth, target, unit) -> str:
         lines.append(f"| `{item.method}` | {item.knob} = {item.value:.3g} | {item.run_s:.3g} s | "
                      f"{item.energy_error[-1]:.2e} | {item.energy_error.max():.2e} | "
                      f"{item.trajectory_error[-1]:.2e} |")
-    lines += ["", "![horizons](horizons.png)", "", "![growth](growth.png)", ""]
+    lines += ["", f"Run times measured on: {machine()}", "", "![horizons](horizons.png)", "",
+              "![growth](growth.png)", ""]
     return "\n".join(lines)
 
 

@@ -99,7 +99,7 @@ def report(result: StressResult, *, title: str = DEFAULT_TITLE) -> str:
                            ("case", lambda r: f"{r['group']}: {r['case']}"),
                            ("method", lambda r: f"`{r['method']}`"))
     lines += _inaccurate_table(result.rows)
-    lines += ["", "## Machine", "", machine(result.compiler), ""]
+    lines += ["", "## Machine", "", machine(result.compiler or None), ""]
     return "\n".join(lines)
 
 

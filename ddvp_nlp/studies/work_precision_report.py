@@ -89,7 +89,7 @@ def summary(result: WorkPrecision) -> str:
                            ("method", lambda r: f"`{r['method']}`"),
                            ("knob", lambda r: f"{r['knob']} = {r['value']:.3g}"))
     lines += _residual_note(rows)
-    lines += ["", "## Machine", "", machine(result.compiler), ""]
+    lines += ["", "## Machine", "", machine(result.compiler or None), ""]
     return "\n".join(lines)
 
 

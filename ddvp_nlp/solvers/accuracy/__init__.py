@@ -16,3 +16,17 @@ The contract of a verdict. An implementer must keep:
    test, step, time, value and limit.
 4. This package imports only the core and ``exact/``.
 """
+
+from typing import TYPE_CHECKING
+
+from ...cache import lazy_exports
+
+if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
+    from .judgement import Level, apply_verdict, assess, describe, motion_scales
+
+# loaded when first asked for: importing one module of the family loads only what it needs
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "assess": "judgement", "apply_verdict": "judgement", "describe": "judgement",
+    "Level": "judgement", "motion_scales": "judgement"})
+
+__all__ = ["Level", "apply_verdict", "assess", "describe", "motion_scales"]

@@ -13,3 +13,15 @@ The contract of the exact flow. An implementer must keep:
    Newton and a monodromy matrix agree with the trajectory they belong to.
 4. This package imports only the core (``options``, ``compiler``) and the base modules.
 """
+
+from typing import TYPE_CHECKING
+
+from ...cache import lazy_exports
+
+if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
+    from .variational import flow_with_derivatives
+
+# loaded when first asked for: the verdicts import the flow without its derivatives
+__getattr__, __dir__ = lazy_exports(__name__, {"flow_with_derivatives": "variational"})
+
+__all__ = ["flow_with_derivatives"]

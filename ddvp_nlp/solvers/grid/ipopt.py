@@ -17,7 +17,8 @@ fixed-endpoint assembly does) and returns IPOPT's point and verdict as a
 ``solvers/periodic/orbit_nlp.py`` and ``solvers/higher/window_nlp.py`` (per-interval or
 per-window functions mapped over the grid on MX).
 
-IPOPT's options (measured on the pendulum's fixed-endpoint problem, ``scripts/bench_bvp.py``):
+IPOPT's options (measured on the pendulum's fixed-endpoint problem,
+``scripts/benchmarks/bench_bvp.py``):
 MUMPS with neither permuting scaling nor scaling (MUMPS's analysis phase took 129 of 155 s at
 N = 1e5 with its defaults, 3.5 s without); a small initial barrier parameter and bound
 multipliers from it, since the start is already close to the solution and the step bounds are

@@ -110,7 +110,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     ``collect``: a `Collect` whose ``output`` (per orbit) and ``reduction`` run on the
     workers; the ensemble then returns only what they give (100 Henon-Heiles orbits to t = 5000
     returned 725 MB of pickled solutions; their Poincare crossings 3.1 MB, measured by
-    ``scripts/bench_ensemble_bytes.py``)."""
+    ``scripts/benchmarks/bench_ensemble_bytes.py``)."""
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
     if q0s.shape != p0s.shape or q0s.shape[0] == 0 or q0s.ndim != 2:

@@ -1,0 +1,839 @@
+"""Fault injection against the ``ddvp`` command line: signals at random moments, full and
+read-only disks on a small file system, concurrent writers, planted links, hostile files,
+scenes and numbers. Every case runs the real command in a subprocess, in a folder of its own,
+and is judged by the same checks:
+
+- **traceback**: ``Traceback`` on stderr;
+- **code**: the exit code is not one the case allows (0 success, 1 failed/interrupted/not
+  written, 2 refused input);
+- **hang**: the command did not end within its time (``TIMEOUT_S``; after a signal,
+  ``STOP_TIMEOUT_S``);
+- **torn/lost/lying**: a run folder that is not readable by the checking reader
+  (``read_set``), a message that says what was written which the folder does not hold,
+  scratch files or a lock file left behind, worker processes alive after the command ended;
+- **link**: the target of a planted symbolic link was written or created.
+
+A full disk and a read-only one are a real tmpfs mounted for the run (root); where mounting is
+refused, a file-size limit (EFBIG, as a full disk) stands in and the page says so.
+
+Usage: ``python scripts/pages/faults.py [--seed N] [--out docs/reliability/faults.md] [--only
+GROUP] [--quick]``. Prints the summary table; writes the page with every case and its outcome
+and the machine and date its seconds were measured on (``ddvp_nlp.io.machine``), except with
+``--only``. About ten minutes (root, for the tmpfs); ``--quick`` runs the ``numbers`` group
+alone (about a minute) and writes its page, not for docs/.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+TIMEOUT_S = 180.0
+STOP_TIMEOUT_S = 30.0
+SCENE_LIMIT_S = "3"  # $DDVP_SCENE_TIME_LIMIT for the cases: a hanging scene ends in seconds
+PYTHON = sys.executable
+VICTIM = "victim: this file must not change\n"
+
+
+@dataclass
+class Case:
+    group: str
+    name: str
+    argv: list[str]
+    codes: tuple = (0,)
+    setup: object = None          # setup(folder) before the command
+    signals: list = field(default_factory=list)  # [(delay_s, signal), ...] from the start
+    check: object = None          # check(folder, result) -> list of problems
+    expect_text: str = ""         # a text stderr must hold
+    timeout: float = TIMEOUT_S
+
+
+@dataclass
+class Result:
+    case: Case
+    code: int | None
+    stdout: str
+    stderr: str
+    seconds: float
+    stop_s: float | None = None
+    problems: list = field(default_factory=list)
+    kinds: set = field(default_factory=set)
+
+
+# -- running ------------------------------------------------------------------------------
+
+def run_case(case: Case, root: Path, tag: str) -> Result:
+    folder = root / re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{case.group}-{case.name}")[:120]
+    folder.mkdir(parents=True)
+    if case.setup:
+        case.setup(folder)
+    env = {**os.environ, "DDVP_SCENE_TIME_LIMIT": SCENE_LIMIT_S, "DDVP_FAULT_CASE": tag}
+    started = time.monotonic()
+    process = subprocess.Popen([PYTHON, "-m", "ddvp_nlp.cli", *case.argv], cwd=folder,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=env, start_new_session=True)
+    stop_s = None
+    first_signal = None
+    for delay, sig in case.signals:
+        wait = started + delay - time.monotonic()
+        if wait > 0:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                process.wait(wait)
+        if process.poll() is not None:
+            break
+        with contextlib.suppress(ProcessLookupError):
+            process.send_signal(sig)
+        first_signal = first_signal or time.monotonic()
+    limit = STOP_TIMEOUT_S if first_signal else case.timeout
+    try:
+        stdout, stderr = process.communicate(timeout=limit if not first_signal else
+                                             max(1.0, first_signal + limit - time.monotonic()))
+        code = process.returncode
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        stdout, stderr = process.communicate()
+        code = None
+    ended = time.monotonic()
+    if first_signal:
+        stop_s = ended - first_signal
+    result = Result(case, code, stdout, stderr, ended - started, stop_s)
+    judge(result, folder, tag)
+    return result
+
+
+def judge(result: Result, folder: Path, tag: str) -> None:
+    case, problems, kinds = result.case, result.problems, result.kinds
+    killed = any(sig == signal.SIGKILL for _, sig in case.signals)
+    if result.code is None:
+        problems.append("did not end (hang)")
+        kinds.add("hang")
+    if "Traceback" in result.stderr:
+        problems.append("traceback: " + result.stderr.strip().splitlines()[-1][:160])
+        kinds.add("traceback")
+    allowed = case.codes if not killed else (-signal.SIGKILL, *case.codes)
+    if result.code is not None and result.code not in allowed:
+        problems.append(f"exit {result.code}, expected {' or '.join(map(str, case.codes))}")
+        kinds.add("code")
+    if case.expect_text and result.code is not None and case.expect_text not in result.stderr:
+        problems.append(f"stderr lacks {case.expect_text!r}")
+        kinds.add("code")
+    for path in folder.rglob("*"):
+        if path.name == "victim" and path.read_text() != VICTIM:
+            problems.append(f"link followed: {path} was written")
+            kinds.add("link")
+        if path.name == "absent-target":
+            problems.append(f"link followed: {path} was created")
+            kinds.add("link")
+    problems += _leftovers(folder, killed, kinds)
+    problems += _lying(result, folder, kinds)
+    survivors = _processes_tagged(tag)
+    if survivors:
+        problems.append(f"{len(survivors)} processes alive after the command ended")
+        kinds.add("torn/lost/lying")
+        for pid in survivors:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+    if case.check and result.code is not None:
+        found = case.check(folder, result)
+        problems += found
+        if found:
+            kinds.add("torn/lost/lying")
+
+
+def _leftovers(folder: Path, killed: bool, kinds: set) -> list[str]:
+    """Scratch and lock files left behind, folders that no reader can read."""
+    from ddvp_nlp.errors import InputError
+    from ddvp_nlp.io import read_set
+
+    problems = []
+    for meta in folder.rglob("meta.json"):
+        if meta.parent.name in ("planted", "torn"):  # damaged on purpose by the case
+            continue
+        try:
+            read_set(meta.parent)
+        except InputError as exc:
+            problems.append(f"unreadable folder {meta.parent.relative_to(folder)}: {exc}")
+            kinds.add("torn/lost/lying")
+    if not killed:
+        for path in folder.rglob("*"):
+            if path.name.endswith(".tmp") and path.name.startswith("."):
+                problems.append(f"scratch file left: {path.relative_to(folder)}")
+                kinds.add("torn/lost/lying")
+            if path.name == ".ddvp.lock" and not path.is_symlink():
+                problems.append(f"lock file left: {path.relative_to(folder)}")
+                kinds.add("torn/lost/lying")
+    return problems
+
+
+def _lying(result: Result, folder: Path, kinds: set) -> list[str]:
+    """What the messages say was written, against what the folder holds."""
+    from ddvp_nlp.errors import InputError
+    from ddvp_nlp.io import read_run
+
+    problems = []
+    said = re.search(r"written whole to (\S+)/ \((\d+) nodes", result.stderr)
+    if said:
+        try:
+            arrays, _ = read_run(folder / said.group(1))
+            if arrays["t"].size != int(said.group(2)):
+                problems.append(f"says {said.group(2)} nodes were written, the folder holds "
+                                f"{arrays['t'].size}")
+        except InputError as exc:
+            problems.append(f"says the run was written, but: {exc}")
+    kept = re.search(r"(\d+) of (\d+) rows are finished and kept in (\S+) ", result.stderr)
+    if kept:
+        journal = folder / kept.group(3)
+        rows = _journal_rows(journal)
+        if rows != int(kept.group(1)):
+            problems.append(f"says {kept.group(1)} rows are kept, {journal.name} holds {rows}")
+    written = re.search(r"written to (\S+)/", result.stdout)
+    if written and result.code in (0, 1) and "written to" in result.stdout:
+        from ddvp_nlp.io import read_set
+
+        try:
+            read_set(folder / written.group(1))
+        except InputError as exc:
+            problems.append(f"says written to {written.group(1)}, but: {exc}")
+    if problems:
+        kinds.add("torn/lost/lying")
+    return problems
+
+
+def _journal_rows(path: Path) -> int:
+    import csv
+
+    if not path.exists():
+        return -1
+    with open(path, newline="") as handle:
+        return sum(1 for row in csv.DictReader(handle) if None not in row.values())
+
+
+def _processes_tagged(tag: str) -> list[int]:
+    """Processes (other than this one) whose environment carries the case's tag, after a
+    short grace for workers that are on their way out."""
+    needle = f"DDVP_FAULT_CASE={tag}".encode()
+    for _ in range(30):
+        found = []
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit() or int(entry.name) == os.getpid():
+                continue
+            with contextlib.suppress(OSError):
+                if needle in (entry / "environ").read_bytes().split(b"\0"):
+                    found.append(int(entry.name))
+        if not found:
+            return []
+        time.sleep(0.2)
+    return found
+
+
+# -- file systems ------------------------------------------------------------------------------
+
+class SmallDisk:
+    """A tmpfs of ``size`` mounted at a fresh folder (root only), or ``None``."""
+
+    def __init__(self, size: str = "2m"):
+        self.path = Path(tempfile.mkdtemp(prefix="ddvp-faults-fs-"))
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs",
+                               str(self.path)], capture_output=True)
+        self.mounted = done.returncode == 0
+
+    def fill(self, leave: int) -> None:
+        """Fill the file system but ``leave`` bytes."""
+        stat = os.statvfs(self.path)
+        free = stat.f_bavail * stat.f_frsize
+        with open(self.path / "filler", "wb") as handle:
+            handle.write(b"\0" * max(0, free - leave))
+
+    def read_only(self) -> None:
+        subprocess.run(["mount", "-o", "remount,ro", str(self.path)], check=True)
+
+    def close(self) -> None:
+        if self.mounted:
+            subprocess.run(["umount", "-l", str(self.path)], capture_output=True)
+        shutil.rmtree(self.path, ignore_errors=True)
+
+
+# -- the cases -----------------------------------------------------------------------------
+
+QUICK_MARCH = ["march", "harmonic", "--set", "t_end=5", "--no-progress"]
+LONG_MARCH = ["march", "pendulum", "--set", "t_end=1e7", "--no-progress", "--max-steps",
+              "3000000", "--checkpoint-every", "1"]
+QUICK_SWEEP = ["sweep", "harmonic", "--grid", "tau0=0.1,0.05", "--set", "t_end=2",
+               "--methods", "vddvp,rk4", "--no-progress", "--workers", "1"]
+QUICK_POINCARE = ["poincare", "henon_heiles", "--energy", "0.1", "--orbits", "4", "--t-end",
+                  "40", "--no-plot"]
+QUICK_COMPARE = ["compare", "harmonic", "--set", "t_end=2", "--methods", "vddvp,rk4",
+                 "--halvings", "1", "--repeats", "1", "--no-progress"]
+QUICK_PERIODIC = ["periodic", "harmonic", "--nodes", "40", "--no-plot"]
+QUICK_FAMILY = ["periodic", "harmonic", "--family", "0.2:0.5:3", "--nodes", "40",
+                "--no-plot"]
+QUICK_BVP = ["bvp", "pendulum", "--no-plot"]
+QUICK_STRESS = ["stress", "--quick", "--no-progress", "--workers", "1"]
+OUTPUTS = {  # a command, and the files it writes in its folder
+    "march": (QUICK_MARCH, ["result.npz", "meta.json", "trajectory.png"]),
+    "bvp": (QUICK_BVP, ["result.npz", "meta.json"]),
+    "periodic": (QUICK_PERIODIC, ["result.npz", "meta.json"]),
+    "family": (QUICK_FAMILY, ["family.csv", "meta.json", "family.png"]),
+    "poincare": (QUICK_POINCARE, ["section.npz", "section.csv", "orbits.csv", "meta.json"]),
+    "sweep": (QUICK_SWEEP, ["sweep.csv", "sweep.md", "sweep.png", "meta.json",
+                            "sweep.partial.csv"]),
+    "compare": (QUICK_COMPARE, ["work_precision.csv", "summary.md", "meta.json",
+                                "work_precision.partial.csv"]),
+}
+
+
+def _plant(names, target="victim"):
+    def setup(folder):
+        (folder / "victim").write_text(VICTIM)
+        out = folder / "out"
+        out.mkdir()
+        for name in names:
+            os.symlink(folder / target if target == "victim" else folder / "absent-target",
+                       out / name)
+    return setup
+
+
+def link_cases() -> list[Case]:
+    cases = []
+    for command, (argv, files) in OUTPUTS.items():
+        cases.append(Case("links", f"{command}: every output file a link to a victim",
+                          [*argv, "--out", "out"], (0,), _plant(files)))
+        cases.append(Case("links", f"{command}: every output file a link to a missing file",
+                          [*argv, "--out", "out"], (0,), _plant(files, "absent")))
+        cases.append(Case("links", f"{command}: .ddvp.lock a link", [*argv, "--out", "out"],
+                          (1,), _plant([".ddvp.lock"]), expect_text="symbolic link"))
+
+        def folder_link(folder):
+            (folder / "victim").write_text(VICTIM)
+            (folder / "elsewhere").mkdir()
+            os.symlink(folder / "elsewhere", folder / "out")
+        cases.append(Case("links", f"{command}: the output folder a link",
+                          [*argv, "--out", "out"], (1,), folder_link,
+                          check=_nothing_in("elsewhere"), expect_text="symbolic link"))
+    return cases
+
+
+def _nothing_in(name):
+    def check(folder, result):
+        inside = list((folder / name).iterdir())
+        return [f"{name}/ (a link's target) got {inside}"] if inside else []
+    return check
+
+
+def signal_cases(rng: random.Random) -> list[Case]:
+    cases = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        for _ in range(4):
+            delay = rng.uniform(0.5, 9.0)
+            count = rng.choice([1, 2, 3])
+            plan = [(delay + 0.15 * i, sig) for i in range(count)]
+            cases.append(Case("signals", f"march: {count} x {sig.name} at {delay:.2f} s",
+                              [*LONG_MARCH, "--out", "out"], (0, 1), signals=plan,
+                              check=_march_kept))
+    for _ in range(4):
+        delay = rng.uniform(1.0, 9.0)
+        cases.append(Case("signals", f"march: SIGKILL at {delay:.2f} s",
+                          [*LONG_MARCH, "--out", "out"], (0, 1),
+                          signals=[(delay, signal.SIGKILL)], check=_readable_or_none("out")))
+    for command, argv in (("bvp", ["bvp", "pendulum", "--nodes", "200001", "--no-plot"]),
+                          ("poincare", ["poincare", "henon_heiles", "--energy", "0.1",
+                                        "--orbits", "8", "--t-end", "2000", "--no-plot"]),
+                          ("sweep", ["sweep", "harmonic", "--grid", "tau0=0.1,0.05,0.02",
+                                     "--grid", "w=1,2,3", "--set", "t_end=200", "--methods",
+                                     "vddvp,rk4,dop853", "--no-progress"]),
+                          ("periodic", ["periodic", "pendulum", "--family", "0.1:1.5:12",
+                                        "--nodes", "400", "--no-plot"]),
+                          ("compare", ["compare", "harmonic", "--set", "t_end=400",
+                                       "--no-progress"])):
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            delay = rng.uniform(0.5, 6.0)
+            count = 3 if sig == signal.SIGINT else 1
+            cases.append(Case("signals", f"{command}: {count} x {sig.name} at {delay:.2f} s",
+                              [*argv, "--out", "out"], (0, 1),
+                              signals=[(delay + 0.2 * i, sig) for i in range(count)],
+                              check=_readable_or_none("out")))
+    return cases
+
+
+def _march_kept(folder, result):
+    """After Ctrl-C/SIGTERM: the folder holds the run whole (interrupted, or finished), or,
+    stopped before the march had a node to keep, nothing, as the message says."""
+    from ddvp_nlp.errors import InputError
+    from ddvp_nlp.io import read_run
+
+    if "nothing new was written" in result.stderr or "before anything was written" in \
+            result.stderr:  # stopped while starting or building: no node to keep
+        return [] if not (folder / "out" / "meta.json").exists() else [
+            "says nothing was written, but the folder holds a run"]
+    try:
+        arrays, meta = read_run(folder / "out")
+    except InputError as exc:
+        return [f"no readable run after the interrupt: {exc}"]
+    if meta["status"] not in ("interrupted", "max_steps", "success"):
+        return [f"status {meta['status']} after an interrupt"]
+    return []
+
+
+def _readable_or_none(name):
+    def check(folder, result):
+        from ddvp_nlp.errors import InputError
+        from ddvp_nlp.io import read_set
+
+        out = folder / name
+        if not out.exists() or not (out / "meta.json").exists():
+            data = [p.name for p in out.iterdir() if not p.name.startswith(".")] \
+                if out.exists() else []
+            stray = [n for n in data if not n.endswith(".partial.csv") and not n.startswith("E=")]
+            return [f"files without a manifest: {stray}"] if stray and result.code == 0 else []
+        try:
+            read_set(out)
+        except InputError as exc:
+            return [f"not readable: {exc}"]
+        return []
+    return check
+
+
+def disk_cases(disk_kind: str) -> list[Case]:
+    """Full and read-only file systems, for every command that writes."""
+    cases = []
+    for command, (argv, _) in OUTPUTS.items():
+        for state in ("full", "read-only"):
+            cases.append(Case("disk", f"{command}: {state} file system ({disk_kind})",
+                              [*argv, "--out", f"@DISK/{command}-{state}"], (1,),
+                              expect_text="cannot write"))
+        cases.append(Case("disk", f"{command}: a full disk keeps the earlier result",
+                          [*argv, "--out", f"@DISK/{command}-again"], (1,),
+                          expect_text="cannot write"))
+    for command, (argv, _) in OUTPUTS.items():
+        cases.append(Case("paths", f"{command}: --out an existing file",
+                          [*argv, "--out", "file"], (1,),
+                          lambda f: (f / "file").write_text("x"), expect_text="not a folder"))
+        cases.append(Case("paths", f"{command}: --out /dev/null",
+                          [*argv, "--out", "/dev/null"], (1,), expect_text="not a folder"))
+        cases.append(Case("paths", f"{command}: a component longer than the system allows",
+                          [*argv, "--out", "x" * 300], (1,), expect_text="File name too long"))
+    cases.append(Case("paths", "scenes: stdout a full disk", ["scenes"], (0, 1)))
+    return cases
+
+
+def concurrent_cases() -> list[Case]:
+    """Several writers of one folder at once: run as a group by :func:`run_concurrent`."""
+    return [Case("concurrent", "3 marches into one folder", [*QUICK_MARCH, "--out", "out"],
+                 (0, 1)),
+            Case("concurrent", "2 sweeps (different grids) into one folder",
+                 [*QUICK_SWEEP, "--out", "out"], (0, 1, 2)),
+            Case("concurrent", "a long march and a short one into one folder",
+                 [*LONG_MARCH, "--out", "out"], (0, 1))]
+
+
+GRID_HEADER = None
+
+
+def hostile_file_cases() -> list[Case]:
+    def sweep_file(content: bytes):
+        def setup(folder):
+            out = folder / "out"
+            out.mkdir()
+            (out / "sweep.csv").write_bytes(content)
+        return setup
+
+    def forged(folder):
+        # a finished sweep, then a row forged to claim success with other numbers
+        subprocess.run([PYTHON, "-m", "ddvp_nlp.cli", *QUICK_SWEEP, "--out", "out"],
+                       cwd=folder, capture_output=True, check=True)
+        lines = (folder / "out" / "sweep.csv").read_text().splitlines()
+        header = lines[0].split(",")
+        cells = lines[1].split(",")
+        cells[header.index("energy_error")] = "1e-30"
+        lines[1] = ",".join(cells)
+        (folder / "out" / "sweep.csv").write_text("\n".join(lines) + "\n")
+
+    def directory_at(name):
+        def setup(folder):
+            (folder / "out" / name).mkdir(parents=True)
+        return setup
+
+    def deep(folder):
+        (folder / "deep.toml").write_text("a = " + "[" * 10000 + "]" * 10000 + "\n")
+
+    def evil(folder):
+        (folder / "evil.py").write_text("open('pwned', 'w').write('x')\n")
+        (folder / "grid.toml").write_text(f'scene = "{folder / "evil.py"}"\n[grid]\nw = [1.0]\n')
+
+    def guess(content: bytes):
+        def setup(folder):
+            (folder / "guess.npz").write_bytes(content)
+        return setup
+
+    def complex_guess(folder):
+        import numpy as np
+
+        t = np.linspace(0, 1, 5)
+        np.savez(folder / "guess.npz", t=t, q=np.zeros((5, 1)) + 1j, p=np.zeros((5, 1)))
+
+    def torn(folder):
+        subprocess.run([PYTHON, "-m", "ddvp_nlp.cli", *QUICK_BVP, "--out", "torn"],
+                       cwd=folder, capture_output=True, check=True)
+        with open(folder / "torn" / "result.npz", "r+b") as handle:
+            handle.seek(100)
+            handle.write(b"\xff" * 64)
+
+    def pwned(folder, result):
+        return ["the grid file's scene ran"] if (folder / "pwned").exists() else []
+
+    return [
+        Case("files", "sweep.csv of binary garbage", [*QUICK_SWEEP, "--out", "out"], (2,),
+             sweep_file(os.urandom(3000)), expect_text="sweep.csv"),
+        Case("files", "sweep.csv of Latin-1 text", [*QUICK_SWEEP, "--out", "out"], (2,),
+             sweep_file("clé,état\nvaleur,été\n".encode("latin-1")), expect_text="UTF-8"),
+        Case("files", "sweep.csv with a huge field", [*QUICK_SWEEP, "--out", "out"], (2,),
+             sweep_file(b"key,x\n" + b"a" * 300000 + b",1\n"), expect_text="sweep.csv"),
+        Case("files", "a folder where sweep.csv belongs", [*QUICK_SWEEP, "--out", "out"],
+             (1, 2), directory_at("sweep.csv"), expect_text="sweep.csv"),
+        Case("files", "a folder at the journal's name", [*QUICK_SWEEP, "--out", "out"],
+             (1, 2), directory_at("sweep.partial.csv"), expect_text="sweep.partial.csv"),
+        Case("files", "a forged success row is run again", [*QUICK_SWEEP, "--out", "out"],
+             (0,), forged, check=_forged_row_rerun),
+        Case("files", "--file /dev/zero", ["sweep", "--file", "/dev/zero"], (2,),
+             expect_text="not a regular file"),
+        Case("files", "TOML nested 10^4 deep", ["sweep", "--file", "deep.toml"], (2,), deep,
+             expect_text="deep.toml"),
+        Case("files", "grid file naming a scene file", ["sweep", "--file", "grid.toml"], (2,),
+             evil, check=pwned, expect_text="--allow-scene"),
+        Case("files", "bvp --guess not an npz", [*QUICK_BVP, "--guess", "guess.npz"], (2,),
+             guess(b"not a zip at all"), expect_text="guess.npz"),
+        Case("files", "periodic --guess not an npz", [*QUICK_PERIODIC, "--guess", "guess.npz"],
+             (2,), guess(os.urandom(500)), expect_text="guess.npz"),
+        Case("files", "bvp --guess with complex numbers", [*QUICK_BVP, "--guess", "guess.npz"],
+             (2,), complex_guess, expect_text="real numbers"),
+        Case("files", "bvp --guess from a torn run folder", [*QUICK_BVP, "--guess", "torn"],
+             (2,), torn, expect_text="checksum"),
+    ]
+
+
+def _forged_row_rerun(folder, result):
+    import csv
+
+    with open(folder / "out" / "sweep.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    if any(r["energy_error"] == "1e-30" for r in rows):
+        return ["the forged row was kept"]
+    if "checksum" not in result.stderr:
+        return ["no warning named the forged row"]
+    return []
+
+
+SCENES = {
+    "GeneratorExit": "raise GeneratorExit('boom')\n",
+    "custom BaseException": "class Boom(BaseException):\n    pass\nraise Boom('boom')\n",
+    "sys.exit(7)": "import sys\nsys.exit(7)\n",
+    "os._exit(5) in H": "import os\n{scene}\ndef H(q, p, t):\n    os._exit(5)\n",
+    "sys.exit(7) in H": "import sys\ndef H(q, p, t):\n    sys.exit(7)\n",
+    "a loop in H": "def H(q, p, t):\n    while True:\n        pass\n",
+    "a loop while loading": "while True:\n    pass\n",
+    "n = 10**6": "def H(q, p, t):\n    return p[0]**2\n",
+    "params a list": "def H(q, p, t, w):\n    return p[0]**2\n",
+    "exact that raises": "def H(q, p, t):\n    return p[0]**2/2 + q[0]**2/2\n"
+                         "def exact(t, q0, p0, t0):\n    raise KeyError('no')\n",
+    "invariant returns a string": "def H(q, p, t):\n    return p[0]**2/2 + q[0]**2/2\n",
+    "KeyboardInterrupt-like GeneratorExit in H": "def H(q, p, t):\n    raise GeneratorExit\n",
+}
+SCENE_TAIL = {
+    "n = 10**6": "scene = Scene(H, n=10**6, q0=[1.0]*10**6, p0=[0.0]*10**6, tau0=0.1, t_end=1)\n",
+    "params a list": "scene = Scene(H, n=1, params=[1.0], q0=[1.0], p0=[0.0], tau0=0.1, "
+                     "t_end=1)\n",
+    "exact that raises": "scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1, "
+                         "exact=exact)\n",
+    "invariant returns a string": "scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, "
+                                  "t_end=1, invariants={'x': lambda q, p: 'abc'})\n",
+}
+
+
+def scene_cases() -> list[Case]:
+    cases = []
+    for name, body in SCENES.items():
+        tail = SCENE_TAIL.get(name, "scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, "
+                                    "t_end=1)\n")
+        text = "from ddvp_nlp import Scene\n" + body.replace("{scene}\n", "") + tail
+
+        def setup(folder, text=text):
+            (folder / "scene.py").write_text(text)
+        for command in ("march", "periodic", "compare"):
+            argv = [command, "scene.py", "--out", "out"]
+            if command == "periodic":
+                argv += ["--energy", "0.5", "--nodes", "20"]
+            if command == "compare":
+                argv += ["--methods", "rk4", "--halvings", "0", "--repeats", "1",
+                         "--no-progress"]
+            cases.append(Case("scenes", f"{command}: {name}", argv, (2,), setup,
+                              expect_text="scene"))
+    return cases
+
+
+NUMBERS = [
+    ["march", "pendulum", "--set", "tau0=5e-324"],
+    ["march", "kepler", "--set", "e=-0.3"],
+    ["march", "kepler", "--set", "e=1"],
+    ["bvp", "pendulum", "--alpha", "-0.1"],
+    ["bvp", "pendulum", "--alpha", "nan"],
+    ["march", "pendulum", "--time-limit", "nan"],
+    ["bvp", "pendulum", "--time-limit", "inf"],
+    ["march", "pendulum", "--scheme", "dop853", "--tol", "0"],
+    ["compare", "pendulum", "--methods", ""],
+    ["compare", "pendulum", "--methods", "rk4,rk4"],
+    ["sweep", "harmonic", "--grid", "w=1,1"],
+    ["sweep", "harmonic", "--grid", "w=1:1:3"],
+    ["sweep", "harmonic", "--grid", "w=nan"],
+    ["poincare", "henon_heiles", "--energy", "0.1", "--section", ""],
+    ["poincare", "henon_heiles", "--energy", "0.1", "--seed", "-1"],
+    ["poincare", "henon_heiles", "--energy", "0.1", "--orbits", "4000000000"],
+    ["poincare", "henon_heiles", "--energy", "nan"],
+    ["bvp", "pendulum", "--nodes", "100000000000"],
+    ["periodic", "pendulum", "--family", "0.1:0.5:1000000000"],
+    ["periodic", "pendulum", "--energy", "inf"],
+    ["march", "pendulum", "--max-steps", "0"],
+    ["march", "pendulum", "--tau-min", "0.1", "--tau-max", "0.01"],
+    ["march", "pendulum", "--max-step-ratio", "1"],
+    ["compare", "pendulum", "--horizons", "10,10"],
+    ["compare", "pendulum", "--workers", "0"],
+    ["stress", "--time-limit", "-1"],
+    ["march", "pendulum", "--checkpoint-every", "nan"],
+    ["bvp", "pendulum", "--guess", "nonexistent.npz"],
+    ["periodic", "pendulum", "--nodes", "0"],
+    ["march", "pendulum", "--set", "q0=1,2"],
+    ["march", "pendulum", "--set", "t_end=1e400"],
+    ["sweep", "--file", "missing.toml"],
+    ["sweep", "--scheduler", "tcp://127.0.0.1:1", "harmonic", "--grid", "w=1,2"],
+]
+
+
+def number_cases() -> list[Case]:
+    return [Case("numbers", " ".join(argv)[:70], [*argv, "--out", "out"] if argv[0] not in
+                 ("sweep",) or "--file" not in argv else argv, (2,), expect_text="error")
+            for argv in NUMBERS]
+
+
+# -- the disk and concurrency groups need set-up around the command ----------------------------
+
+def run_disk(case: Case, root: Path, tag: str, disk_kind: str) -> Result:
+    disk = SmallDisk("3m") if disk_kind == "tmpfs" else None
+    try:
+        target = case.argv[-1]
+        command = target.split("/")[-1]
+        if disk is not None:
+            base = disk.path
+            if command.endswith("again"):
+                first = [a if not a.startswith("@DISK") else str(base / command)
+                         for a in case.argv]
+                subprocess.run([PYTHON, "-m", "ddvp_nlp.cli", *first], capture_output=True,
+                               cwd=root)
+            if command.endswith("read-only"):
+                disk.read_only()
+            else:
+                disk.fill(leave=6000)
+        else:
+            base = root / "rlimit"
+            base.mkdir(exist_ok=True)
+        argv = [a if not a.startswith("@DISK") else str(base / command) for a in case.argv]
+        run = Case(case.group, case.name, argv, case.codes, case.setup, case.signals,
+                   case.check, case.expect_text, case.timeout)
+        before = _folder_state(base / command)
+        result = run_case(run, root, tag)
+        result.case = case
+        after = _folder_state(base / command)
+        if command.endswith("again") and before and before != after:
+            result.problems.append("the earlier result changed after a failed write")
+            result.kinds.add("torn/lost/lying")
+        if (base / command).exists() and not before:
+            leftovers = [p.name for p in (base / command).iterdir()]
+            if leftovers:
+                result.problems.append(f"left behind in a failed write: {leftovers}")
+                result.kinds.add("torn/lost/lying")
+        return result
+    finally:
+        if disk is not None:
+            disk.close()
+
+
+def _folder_state(path: Path):
+    if not path.exists():
+        return None
+    return sorted((p.name, p.stat().st_size) for p in path.iterdir())
+
+
+def run_concurrent(case: Case, root: Path, tag: str) -> Result:
+    """Start three writers of one folder together; judge the group."""
+    folder = root / re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{case.group}-{case.name}")
+    folder.mkdir(parents=True)
+    env = {**os.environ, "DDVP_FAULT_CASE": tag}
+    variants = [case.argv, case.argv, case.argv]
+    if "sweep" in case.argv:
+        variants = [case.argv, [*case.argv[:2], "--grid", "tau0=0.2,0.3", *case.argv[4:]]]
+    if case.argv == [*LONG_MARCH, "--out", "out"]:
+        variants = [case.argv, [*QUICK_MARCH, "--out", "out"]]
+    started = time.monotonic()
+    processes = []
+    for argv in variants:
+        processes.append(subprocess.Popen([PYTHON, "-m", "ddvp_nlp.cli", *argv], cwd=folder,
+                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                          text=True, env=env))
+        time.sleep(0.3 if argv is variants[0] and len(variants) == 2 else 0.0)
+    outputs = []
+    for process in processes:
+        try:
+            out, err = process.communicate(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, err = process.communicate()
+        outputs.append((process.returncode, out, err))
+    result = Result(case, max((c or 0) for c, _, _ in outputs),
+                    "\n".join(o for _, o, _ in outputs), "\n".join(e for _, _, e in outputs),
+                    time.monotonic() - started)
+    judge(result, folder, tag)
+    winners = [i for i, (c, o, _) in enumerate(outputs) if c in (0, 1) and "written to" in o]
+    refused = [i for i, (c, _, e) in enumerate(outputs) if c in (1, 2) and (
+        "is writing this folder" in e or "another grid" in e)]
+    if len(winners) + len(refused) != len(outputs):
+        result.problems.append(f"writers neither written nor refused: {outputs}")
+        result.kinds.add("torn/lost/lying")
+    if not winners:
+        result.problems.append("no writer wrote")
+        result.kinds.add("torn/lost/lying")
+    return result
+
+
+# -- the page ----------------------------------------------------------------------------------
+
+KINDS = ("traceback", "code", "hang", "torn/lost/lying", "link")
+
+
+def page(results: list[Result], seed: int, disk_kind: str, seconds: float) -> str:
+    from ddvp_nlp.io import machine
+
+    groups = list(dict.fromkeys(r.case.group for r in results))
+    lines = ["# Fault injection: every command against signals, disks, links and hostile input",
+             "", f"`python scripts/pages/faults.py --seed {seed}` ({len(results)} cases in "
+             f"{seconds / 60:.1f} min; {machine()}) Each case runs the real command in a "
+             "subprocess; the checks are the script's docstring. Disks: "
+             + ("a real tmpfs (3 MB) mounted for each case, filled to 6 kB free or remounted "
+                "read-only." if disk_kind == "tmpfs" else
+                "no mount was allowed; a file-size limit stands in for a full disk."),
+             "", "## Summary", "",
+             "| group | cases | passed | " + " | ".join(KINDS) + " |",
+             "|---|---|---|" + "---|" * len(KINDS)]
+    for group in [*groups, "all"]:
+        mine = [r for r in results if group in ("all", r.case.group)]
+        counts = [sum(kind in r.kinds for r in mine) for kind in KINDS]
+        lines.append(f"| {group} | {len(mine)} | {sum(not r.problems for r in mine)} | "
+                     + " | ".join(map(str, counts)) + " |")
+    stops = [r.stop_s for r in results if r.stop_s is not None and r.code is not None]
+    if stops:
+        lines += ["", f"Time from the first signal to the end of the command: median "
+                  f"{sorted(stops)[len(stops) // 2]:.2f} s, largest {max(stops):.2f} s "
+                  f"({len(stops)} signalled cases that were still running)."]
+    lines += ["", "## Every case", "", "| group | case | exit | seconds | outcome |",
+              "|---|---|---|---|---|"]
+    for r in results:
+        outcome = ("; ".join(r.problems) + " (stderr: " + _summary_line(r) + ")") \
+            if r.problems else _summary_line(r)
+        stop = f" (stopped {r.stop_s:.2f} s after the signal)" if r.stop_s is not None else ""
+        lines.append(f"| {r.case.group} | {_cell(r.case.name)} | {r.code} | {r.seconds:.1f} | "
+                     f"{'FAIL: ' if r.problems else 'ok: '}{_cell(outcome)}{stop} |")
+    return "\n".join(lines) + "\n"
+
+
+def _summary_line(r: Result) -> str:
+    text = (r.stderr.strip().splitlines() or r.stdout.strip().splitlines() or [""])[-1]
+    return text[:200]
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seed", type=int, default=28)
+    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[2] / "docs"
+                                             / "reliability" / "faults.md"))
+    parser.add_argument("--only", default=None, help="one group of cases (writes no page)")
+    parser.add_argument("--quick", action="store_true",
+                        help="the numbers group alone, its page written (not for docs/)")
+    args = parser.parse_args()
+    if args.quick:
+        args.only = "numbers"
+    rng = random.Random(args.seed)
+    probe = SmallDisk("1m")
+    disk_kind = "tmpfs" if probe.mounted else "rlimit"
+    probe.close()
+    groups = {"links": link_cases, "signals": lambda: signal_cases(rng),
+              "disk": lambda: disk_cases(disk_kind), "concurrent": concurrent_cases,
+              "files": hostile_file_cases, "scenes": scene_cases, "numbers": number_cases}
+    started = time.monotonic()
+    results = []
+    with tempfile.TemporaryDirectory(prefix="ddvp-faults-") as tmp:
+        root = Path(tmp)
+        for group, make in groups.items():
+            if args.only and group != args.only:
+                continue
+            for index, case in enumerate(make()):
+                tag = f"{group}-{index}-{os.getpid()}"
+                if group == "disk" and case.argv[-1].startswith("@DISK"):
+                    result = run_disk(case, root, tag, disk_kind)
+                elif group == "concurrent":
+                    result = run_concurrent(case, root, tag)
+                elif case.name.startswith("scenes: stdout"):
+                    result = _stdout_full(case, root, tag, disk_kind)
+                else:
+                    result = run_case(case, root, tag)
+                results.append(result)
+                print(f"{'FAIL' if result.problems else 'ok  '} {group:10s} {case.name[:60]:60s}"
+                      f" exit {result.code} {result.seconds:5.1f} s"
+                      + (f"  {result.problems}" if result.problems else ""), flush=True)
+    text = page(results, args.seed, disk_kind, time.monotonic() - started)
+    if args.quick:
+        text = text.replace("\n\n", "\n\nA quick run (`--quick`): the numbers group alone.\n\n", 1)
+    if not args.only or args.quick:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text)
+    print(text.split("## Every case")[0])
+    return 1 if any(r.problems for r in results) else 0
+
+
+def _stdout_full(case: Case, root: Path, tag: str, disk_kind: str) -> Result:
+    """``ddvp scenes > FULL_DISK/file``: exit 1 with a message, no traceback."""
+    disk = SmallDisk("1m") if disk_kind == "tmpfs" else None
+    try:
+        if disk is None:
+            return Result(case, 0, "", "", 0.0, problems=[], kinds=set())
+        disk.fill(leave=0)
+        with open(disk.path / "out.txt", "w") as sink:
+            started = time.monotonic()
+            done = subprocess.run([PYTHON, "-m", "ddvp_nlp.cli", "scenes"], stdout=sink,
+                                  stderr=subprocess.PIPE, text=True, timeout=TIMEOUT_S)
+        result = Result(Case(case.group, case.name, case.argv, (1,)), done.returncode, "",
+                        done.stderr, time.monotonic() - started)
+        own = root / "stdout-full"
+        own.mkdir(exist_ok=True)
+        judge(result, own, tag)
+        result.case = case
+        return result
+    finally:
+        if disk is not None:
+            disk.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
