@@ -78,7 +78,7 @@ def rotations(repeats: int) -> None:
         for label, solver, guess, most in (("continuation", "newton", None, None),
                                            ("continuation", "ipopt", None, None),
                                            ("uniform times", "ipopt", uniform, 400)):
-            run = functools.partial(solve_periodic, system, energy=2.5, nodes=nodes,
+            run = functools.partial(solve_periodic, system, energy=2.5, nodes=nodes + 1,
                                     section="q1=0", angles=("q1",), guess=guess,
                                     options=GridOptions(solver=solver, max_iter=most))
             cpu, wall, orbit = timed(repeats, run)
@@ -118,7 +118,7 @@ def solvers(repeats: int) -> None:
         guess = start_nodes(system, nodes, options)
         measured = {}
         for solver in ("newton", "ipopt"):
-            run = functools.partial(solve_periodic, system, nodes=nodes, guess=guess,
+            run = functools.partial(solve_periodic, system, nodes=nodes + 1, guess=guess,
                                     options=GridOptions(solver=solver), **options)
             first = time.perf_counter()
             run()

@@ -62,7 +62,7 @@ def convergence_rows(name, sizes, exact, label=None, **options):
     scene = load_scene(name)
     rows, previous = [], None
     for N in sizes:
-        solution = solve_periodic(scene.system, nodes=N, **options)
+        solution = solve_periodic(scene.system, nodes=N + 1, **options)
         error = solution.stats["period"] - exact
         order = np.log2(abs(previous / error)) if previous is not None else np.nan
         worst = max(solution.stats["residuals"].values())
@@ -78,7 +78,7 @@ def rotation_rows(out: Path, scratch: Path, energies):
     """Pendulum rotations (q1 an angle, section q1=0): a family E = 2.2 .. 4 at N = 200 against
     the exact period, and its figure."""
     pendulum = load_scene("pendulum")
-    family = solve_periodic_family(pendulum.system, energies, nodes=200,
+    family = solve_periodic_family(pendulum.system, energies, nodes=201,
                                    section="q1=0", angles=("q1",))
     rows = write_family(scratch / "pendulum_rotations", pendulum, family, {}, plot=True,
                         section="q1=0", folders=False)
@@ -122,8 +122,8 @@ def henon_heiles_rows(out: Path, energies, sizes):
                                            "start": scene.periodic.start}
     found, rows = {}, []
     for name, data in families.items():
-        coarse = solve_periodic_family(scene.system, energies, nodes=coarse_nodes, **data)
-        fine = solve_periodic_family(scene.system, energies, nodes=fine_nodes,
+        coarse = solve_periodic_family(scene.system, energies, nodes=coarse_nodes + 1, **data)
+        fine = solve_periodic_family(scene.system, energies, nodes=fine_nodes + 1,
                                      guess=coarse[0][1], **data)
         found[name] = fine
         for (energy, a), (_, b) in zip(coarse, fine, strict=True):
@@ -200,7 +200,7 @@ def build(out: Path, scratch: Path, grids: dict) -> str:
     """The page's text; its figures written to ``out`` (the families' folders to
     ``scratch``)."""
     pendulum = load_scene("pendulum")
-    family = solve_periodic_family(pendulum.system, grids["family"], nodes=200)
+    family = solve_periodic_family(pendulum.system, grids["family"], nodes=201)
     rows = write_family(scratch / "pendulum_family", pendulum, family, {}, plot=True,
                         folders=False)
     keep_figure(scratch / "pendulum_family" / "family.png",
@@ -214,13 +214,13 @@ def build(out: Path, scratch: Path, grids: dict) -> str:
     data = eight.periodic
     options = {"energy": data.energy, "section": data.section, "start": data.start,
                "integrals": data.integrals}
-    orbit = solve_periodic(eight.system, nodes=grids["eight"], **options)
+    orbit = solve_periodic(eight.system, nodes=grids["eight"] + 1, **options)
     plot_orbit(orbit, f"figure-eight, E = {data.energy}, N = {grids['eight']}, "
                       f"T = {orbit.stats['period']:.8f}", out / "figure_eight.png")
     # the reference of the convergence table: the exact flow's orbit at the energy solved,
     # closed by DOP853 shooting from the finest discrete orbit
     eight_exact = periodic_stability(
-        eight.system, solve_periodic(eight.system, nodes=grids["eight_exact"], **options),
+        eight.system, solve_periodic(eight.system, nodes=grids["eight_exact"] + 1, **options),
         integrals=data.integrals).exact_orbit
     if not eight_exact.converged:
         raise SystemExit(f"the exact figure-eight at E = {data.energy} did not close "

@@ -60,7 +60,7 @@ def main() -> None:
         seconds = time.perf_counter() - started
         section = np.load(folder / "section.npz")
         orbits = (folder / "orbits.csv").read_text().splitlines()
-        failed = sum(",reached t_end," not in row for row in orbits[1:])
+        failed = sum(",success," not in row for row in orbits[1:])
         error = float(np.max(section["energy_errors"]))
         crossings = section["points"].shape[0]
         lines.append(f"| {label} | {crossings} | {failed} | {error:.2e} | {seconds:.0f} |")
