@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -77,6 +78,22 @@ def test_a_run_below_the_thinning_threshold_draws_every_node():
     phase = next(ax for ax in fig.axes if ax.get_title() == "phase portrait")
     dots = next(line for line in phase.lines if line.get_marker() == ",")
     assert dots.get_xdata().size == solution.t.size
+
+
+@pytest.mark.parametrize("nodes", [400, 50_000])
+def test_a_higher_order_run_draws_its_nodes_or_their_envelope(nodes):
+    solution = long_run(nodes)
+    scene = SimpleNamespace(name="long", order=2)
+    keep = figures.Keep()
+    plotting.plot_higher_trajectory(solution, scene, "march", solution.q,
+                                    np.sin(solution.t[1:-1]), keep)
+    pixels = figures.TEXT_WIDTH * 0.75 * 200  # the figure's width in pixel columns
+    for ax in keep.figure.axes:
+        if nodes < pixels:  # every node drawn, as a dot
+            assert any(line.get_marker() == "." and line.get_xdata().size >= nodes - 2
+                       for line in ax.lines), ax.get_ylabel()
+        else:
+            assert points_drawn(ax) <= 6 * pixels, ax.get_ylabel()
 
 
 @pytest.mark.parametrize("seed", range(4))

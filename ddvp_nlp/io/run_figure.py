@@ -224,20 +224,43 @@ def _state_panel(ax, q, p, kind: str) -> None:
         ax.set_aspect("equal", adjustable="box")
 
 
+def _nodes(ax, t, values, **style) -> None:
+    """Nodes against ``t`` as dots joined by a line; for more nodes than the panel has pixel
+    columns, where the dots would merge, their min/max envelope (``figures.envelope_band``)."""
+    bins = figures.bins_for(ax)
+    if t.size > 2 * bins:
+        figures.envelope_band(ax, t, values, bins, lw=0.7, **style)
+    else:
+        ax.plot(t, values, ".-", ms=2.5, **style)
+
+
+def _exact(ax, t, values) -> None:
+    """The exact solution, dashed; for more nodes than pixel columns the dashed lines through
+    its minima and its maxima per pixel column (``figures.decimate``): the outline the nodes'
+    envelope should fill."""
+    bins = figures.bins_for(ax)
+    if t.size <= 2 * bins:
+        ax.plot(t, values, "k--", lw=0.8, label="exact $q(t)$")
+        return
+    x, y = figures.decimate(t, values, bins)
+    ax.plot(x[::2], y[::2], "k--", lw=0.8, label="exact $q(t)$")
+    ax.plot(x[1::2], y[1::2], "k--", lw=0.8)
+
+
 def plot_higher_trajectory(solution, scene, command, exact, energy, path,
                            fmt: str = "png") -> None:
     """A higher-order run: nodes against the exact solution, their error, the steps, and the
-    energy ``E^(k)`` where the recursion defines it."""
+    energy ``E^(k)`` where the recursion defines it; a run of more nodes than pixel columns
+    as envelopes (`_nodes`, `_exact`)."""
     with figures.styled():
         panels = 3 if energy.size else 2
         fig = figures.new_figure(figures.TEXT_WIDTH * 0.75, 1.5 * panels + 0.6)
         axes = fig.subplots(panels, 1, sharex=True)
-        axes[0].plot(solution.t, solution.q[:, 0], ".-", ms=2.5, label="nodes $q_k$")
-        axes[0].plot(solution.t, np.asarray(exact)[:, 0] if np.ndim(exact) > 1 else exact,
-                     "k--", lw=0.8, label="exact $q(t)$")
+        _nodes(axes[0], solution.t, solution.q[:, 0], label="nodes $q_k$")
+        _exact(axes[0], solution.t, np.asarray(exact)[:, 0] if np.ndim(exact) > 1 else exact)
         axes[0].set_ylabel("$q$")
         axes[0].legend(loc="upper right")
-        axes[1].plot(solution.t[:-1], solution.tau, ".-", ms=2.5, color="C2")
+        _nodes(axes[1], solution.t[:-1], solution.tau, color="C2")
         axes[1].set_ylabel(r"step $\tau_k$")
         tau = solution.tau
         if tau.size and float(np.ptp(tau)) <= 1e-9 * float(np.max(np.abs(tau))):
@@ -246,8 +269,7 @@ def plot_higher_trajectory(solution, scene, command, exact, energy, path,
             axes[1].ticklabel_format(axis="y", useOffset=False)
         if energy.size:
             lo = scene.order - 1
-            axes[2].plot(solution.t[lo:lo + energy.size], energy - energy[0], ".-", ms=2.5,
-                         color="C3")
+            _nodes(axes[2], solution.t[lo:lo + energy.size], energy - energy[0], color="C3")
             axes[2].set_ylabel(r"$E^{(k)} - E^{(l-1)}$")
         axes[-1].set_xlabel("$t$")
         status = solution.status.code
