@@ -39,11 +39,11 @@ from pathlib import Path
 TARGETS = {"march --no-plot": 0.6, "march with figure": 1.0}
 
 
-def timed_run(argv: list[str], env: dict | None = None) -> tuple[float, float]:
+def timed_run(argv: list[str], env: dict, cwd: str) -> tuple[float, float]:
     """``(cpu, wall)`` seconds of one child process running ``argv``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, env=env)
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, env=env, cwd=cwd)
     wall = time.perf_counter() - started
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall
@@ -55,9 +55,23 @@ def ddvp_command() -> list[str]:
     return [script] if os.path.exists(script) else [sys.executable, "-m", "ddvp_nlp.cli"]
 
 
+def source_tree() -> Path:
+    """The source tree this script belongs to: the nearest folder above it holding
+    ``ddvp_nlp/``; its ddvp_nlp is the one measured (first on the children's PYTHONPATH)."""
+    for folder in Path(__file__).resolve().parents:
+        if (folder / "ddvp_nlp" / "__init__.py").exists():
+            return folder
+    raise SystemExit("bench_startup.py: no ddvp_nlp/ in a folder above this script")
+
+
 def package_folder() -> Path:
-    """The folder of the ``ddvp_nlp`` package the children import (found, not imported)."""
-    return Path(importlib.util.find_spec("ddvp_nlp").submodule_search_locations[0])
+    return source_tree() / "ddvp_nlp"
+
+
+def tree_environment(folder: Path) -> dict:
+    """This process's environment with ``folder`` first on PYTHONPATH."""
+    paths = [str(folder), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
 
 
 def bytecode_line() -> str:
@@ -107,13 +121,21 @@ def measure(args, trees: dict) -> dict:
     every case of every tree alternated, after one warm-up of each."""
     results = {tree: {"times": {}, "timings": []} for tree in trees}
     with tempfile.TemporaryDirectory() as folder:
-        runs = [(tree, name, argv, env) for tree, env in trees.items()
-                for name, argv in cases(args, os.path.join(folder, tree)).items()]
-        for _, _, argv, env in runs:  # warm-up: compiled chunks into the cache
-            timed_run(argv, env)
-        for _ in range(args.repeats):
-            for tree, name, argv, env in runs:
-                results[tree]["times"].setdefault(name, []).append(timed_run(argv, env))
+        argvs = {tree: cases(args, os.path.join(folder, tree)) for tree in trees}
+        # each case of one tree next to the same case of the other, so that the pair sees one
+        # load, the first of the pair alternating
+        runs = [[(tree, name, argvs[tree][name], env) for tree, env in trees.items()]
+                for name in argvs["this tree"]]
+        # every child starts in the scratch folder: started in a source tree, `python -c`
+        # would import that tree's ddvp_nlp before any on PYTHONPATH
+        for pair in runs:  # warm-up: compiled chunks into the cache
+            for _, _, argv, env in pair:
+                timed_run(argv, env, folder)
+        for repeat in range(args.repeats):
+            for pair in runs:
+                for tree, name, argv, env in pair[::-1] if repeat % 2 else pair:
+                    results[tree]["times"].setdefault(name, []).append(
+                        timed_run(argv, env, folder))
         for tree in trees:
             with open(os.path.join(folder, tree, "no-plot", "meta.json")) as file:
                 results[tree]["timing"] = json.load(file).get("timing", {})
@@ -174,10 +196,10 @@ def main() -> None:
                         help="also run the ddvp_nlp of another source tree (a folder holding "
                              "ddvp_nlp/, put first on PYTHONPATH), alternated with this one")
     args = parser.parse_args()
-    trees = {"this tree": None}
+    trees = {"this tree": tree_environment(source_tree())}
     if args.against:
         against = os.path.abspath(args.against)
-        trees = {f"against {against}": {**os.environ, "PYTHONPATH": against}, **trees}
+        trees = {f"against {against}": tree_environment(Path(against)), **trees}
     if args.bytecode:
         compileall.compile_dir(str(package_folder()), quiet=1)
         if args.against:
