@@ -54,10 +54,23 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 # march and not the fixed-endpoint, periodic and higher-order families with scipy.sparse and
 # scipy.linalg behind them (import ddvp_nlp took 0.43 s CPU with every family, 75% of a warm
 # `ddvp march`; measured).
-__getattr__, __dir__ = lazy_exports(__name__, {name: "solvers" for name in (
+_solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
     "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher")})
+
+
+def __getattr__(name: str):
+    # __version__ too is found when first asked for: importlib.metadata and the email package
+    # behind it were a third of what `import ddvp_nlp` adds to numpy and casadi
+    if name == "__version__":
+        globals()[name] = _version()
+        return globals()[name]
+    return _solver(name)
+
+
+def __dir__() -> list[str]:
+    return sorted({*_names(), "__version__"})
 
 
 def plot(solution: Solution, path=None, *, system=None, params=None, title: str | None = None):
@@ -92,8 +105,6 @@ def _version() -> str:
     except PackageNotFoundError:  # a source tree that was never installed
         return "unknown"
 
-
-__version__ = _version()
 
 __all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
            "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",

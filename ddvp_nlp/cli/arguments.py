@@ -8,12 +8,15 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import inspect
+from typing import TYPE_CHECKING
 
 from ..discrete import Scheme
 from ..errors import InputError
-from ..runner.tasks import Workers
 from ..scenes import PeriodicSettings
 from ..solvers import Compilation, GridOptions, Output, StepControl, Tolerance
+
+if TYPE_CHECKING:  # the task runner loads with the commands that run tasks, not with a march
+    from ..runner.tasks import Workers
 
 
 def _field(kind, name: str):
@@ -184,6 +187,8 @@ def on_cluster(args):
 def workers(args, *, default: int | None = 1) -> Workers:
     """``--workers`` and ``--scheduler`` (``default``: the count when ``--workers`` is not
     given)."""
+    from ..runner.tasks import Workers
+
     return Workers(count=args.workers if args.workers is not None else default,
                    scheduler=args.scheduler)
 

@@ -119,14 +119,19 @@ def _cluster_argument(parser: argparse.ArgumentParser) -> None:
                              "(runner/cluster.py; slurm needs pip install 'ddvp-nlp[cluster]')")
 
 
-def _version() -> str:
-    """The installed distribution's version (``pyproject.toml``)."""
-    from importlib.metadata import PackageNotFoundError, version
+class VersionAction(argparse.Action):
+    """``--version``: argparse's own, but the version is looked up when asked for, not while
+    the parser is built (importlib.metadata, 0.03 s of every command's start)."""
 
-    try:
-        return version("ddvp-nlp")
-    except PackageNotFoundError:  # run from a source tree that was never installed
-        return "unknown"
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="show program's version number and exit"):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from .. import __version__
+
+        print(f"{parser.prog} {__version__}")  # on stdout, as argparse's
+        parser.exit()
 
 
 def parse_arguments(parser: argparse.ArgumentParser, argv: list[str] | None):
@@ -210,7 +215,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ddvp", description="Variable-time-step discrete mechanics (difference discrete "
                                  "variational principle) on CasADi.")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action=VersionAction)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
                                      help="one of the commands below; `ddvp COMMAND --help` "
                                           "lists its options")

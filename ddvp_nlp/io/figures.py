@@ -1,13 +1,15 @@
 """The one plotting stack of the package: every figure is a matplotlib ``Figure`` drawn under the
 house style ``ddvp.mplstyle`` (beside this module) and saved as PNG, SVG or PDF.
 
-matplotlib is imported only inside these functions, when a figure is drawn: ``import ddvp_nlp``
-and a run with ``--no-plot`` never load it. No pyplot: figures are plain ``Figure`` objects,
-so there is no global figure registry to leak into and no interactive backend to select.
+matplotlib is imported only inside these functions, when a figure is drawn (`load_matplotlib`):
+``import ddvp_nlp`` and a run with ``--no-plot`` never load it. No pyplot: figures are plain
+``Figure`` objects drawn by the Agg canvas, so there is no global figure registry to leak into
+and no interactive backend to select.
 
 Long series are reduced before they are drawn (`decimate`): the minimum and the maximum
 of each of as many bins as the panel has pixel columns, which lights the same pixels as the
-whole line, so a run of a million nodes draws as fast as one of a thousand.
+whole line, so a run of a million nodes draws as fast as one of a thousand; a cloud of
+millions of dots, one dot per half pixel (`thin_points`).
 """
 
 from __future__ import annotations
@@ -16,20 +18,19 @@ import contextlib
 import functools
 import math
 import re
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..startup import started_as_command
 
 STYLE = Path(__file__).with_name("ddvp.mplstyle")
 FORMATS = ("png", "svg", "pdf")
 # A journal's text width and column width, in inches: figures are drawn at the size they are
 # printed, so the fonts of the style sheet are the fonts on the page.
 TEXT_WIDTH, COLUMN_WIDTH = 7.0, 3.4
-# Bins of ``decimate`` per inch of panel width: two points per bin at 200 dpi is one point per
-# pixel column.
-BINS_PER_INCH = 200
 # What marks a failed run in every figure: a red cross, named in the legend.
 FAILED = {"marker": "x", "color": "#CC3311", "linestyle": "none", "markersize": 5,
           "markeredgewidth": 1.2}
@@ -63,6 +64,30 @@ NOT_STYLE = frozenset({
     "toolbar", "webagg.address", "webagg.open_in_browser", "webagg.port", "webagg.port_retries"})
 
 
+def load_matplotlib(*, help_tables: bool | None = None) -> None:
+    """Import what every figure uses, ``matplotlib.figure`` and the Agg canvas, if not yet
+    imported. Without ``help_tables`` (the default in the ``ddvp`` command's own process,
+    `started_as_command`; kept anywhere else), the table of settable properties that
+    matplotlib writes into each artist class's ``set`` and into its plotting methods'
+    docstrings as their modules load (``matplotlib.artist.kwdoc``) is left empty: a third of
+    the import's CPU (0.13 s of 0.45 s), help text that a process which draws its figure and
+    exits never shows, and nothing a figure reads."""
+    if "matplotlib.figure" in sys.modules:
+        return
+    if help_tables is None:
+        help_tables = not started_as_command()
+    import matplotlib.artist
+
+    tables = matplotlib.artist.kwdoc
+    if not help_tables:
+        matplotlib.artist.kwdoc = lambda artist: ""
+    try:
+        import matplotlib.figure  # noqa: F401 - loads every artist class
+        from matplotlib.backends import backend_agg  # noqa: F401
+    finally:
+        matplotlib.artist.kwdoc = tables
+
+
 @functools.cache
 def house_style() -> dict:
     """Every rcParam of a figure: matplotlib's defaults under ``ddvp.mplstyle``, so that a
@@ -79,6 +104,7 @@ def house_style() -> dict:
 def styled():
     """The house style in force inside the block (matplotlib's ``rc_context``: nothing global
     is changed after it)."""
+    load_matplotlib()
     import matplotlib
 
     with matplotlib.rc_context(house_style()):
@@ -226,11 +252,44 @@ def envelope_band(ax, t, values, bins: int, **style) -> None:
     ax.fill_between(x[::2], y[::2], y[1::2], color=line.get_color(), lw=0, alpha=1.0)
 
 
+def thin_points(x: np.ndarray, y: np.ndarray, cells: int) -> np.ndarray:
+    """The indices (ascending) of the points ``(x, y)`` a scatter of single pixels needs: the
+    points of least and greatest ``x`` and ``y`` (the axes' limits stay those of the whole
+    cloud) and one point of each other occupied cell of a ``cells`` by ``cells`` grid over
+    their range (which one is unspecified); non-finite points left out. At two or more cells
+    per pixel it lights the pixels the whole cloud lights, but for a few at its sparse edges
+    (2% of 12900 for three million nodes on a circle), and a million points cost what the
+    cells they fill cost."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    finite = np.isfinite(x) & np.isfinite(y)
+    if not finite.all():
+        index = np.flatnonzero(finite)
+        return index[thin_points(x[index], y[index], cells)]
+    if x.size <= cells:
+        return np.arange(x.size)
+    ids = None
+    for values in (x, y):
+        low, high = float(values.min()), float(values.max())
+        column = np.subtract(values, low)
+        column *= (cells - 1e-9) / (high - low) if high > low else 0.0
+        column = column.astype(np.intp)
+        ids = column if ids is None else ids * cells + column
+    owner = np.full(cells * cells, -1, dtype=np.intp)
+    owner[ids] = np.arange(ids.size)  # a cell filled twice keeps one of its points
+    extremes = [int(f(values)) for values in (x, y) for f in (np.argmin, np.argmax)]
+    return np.union1d(owner[owner >= 0], extremes)
+
+
 def bins_for(ax) -> int:
-    """The number of `decimate` bins for a panel: one per pixel column at the saved
-    resolution."""
+    """The number of `decimate` bins for a panel: one per pixel column at the resolution the
+    figure is saved at (the house style's ``savefig.dpi``, 200; call it inside `styled`)."""
+    import matplotlib
+
+    dpi = matplotlib.rcParams["savefig.dpi"]
+    dpi = ax.figure.dpi if dpi == "figure" else float(dpi)
     width = ax.get_position().width * ax.figure.get_figwidth()
-    return max(64, int(width * BINS_PER_INCH))
+    return max(64, int(width * dpi))
 
 
 def positive(values) -> np.ndarray:
