@@ -15,7 +15,7 @@ cached (an editable install under PYTHONDONTWRITEBYTECODE=1); the machine line s
 are cached, and ``--bytecode`` compiles them first (``compileall``), as an installed package
 has them.
 
-    python scripts/bench_startup.py [--repeats 7] [--scene paper_pendulum] [--format png]
+    python scripts/benchmarks/bench_startup.py [--repeats 7] [--scene paper_pendulum] [--format png]
                                     [--bytecode] [--against FOLDER]
 """
 
