@@ -115,7 +115,7 @@ class StepControl:
 
 @dataclass(frozen=True)
 class Tolerance:
-    """What the accuracy check accepts (``accuracy.py``). Every figure is relative to the
+    """What the accuracy check accepts (``accuracy/judgement.py``). Every figure is relative to the
     motion's own scales: ``S_i``, the range of component ``i`` of ``z = (q, p)`` over the run,
     and the energy scale ``E_s`` (how much ``H`` changes over ``S``); none to 1.
 
@@ -215,7 +215,7 @@ class Compilation:
             command, or ``None`` for CasADi's virtual machine (the same functions, slower).
         cache_dir: folder of compiled libraries (default ``$DDVP_NLP_CACHE`` or
             ``~/.cache/ddvp_nlp``).
-        fast: a march runs its steps in compiled chunks (``march/chunk.py``); ``False`` forces
+        fast: a march runs its steps in compiled chunks (``marching/chunk.py``); ``False`` forces
             the careful per-step path. Both accept a step by the same test; their nodes differ
             by round-off (the compiled Newton eliminates where the careful one factors by QR).
         chunk: steps per compiled call of a march.

@@ -23,7 +23,7 @@ The contract of a compared method. An implementer adding one must:
    compare``, ``stress`` and ``sweep`` read the registry; ``studies/methods.py`` adds the
    sweeps' default knob values).
 
-This package imports only the core (``driver``, ``compiler``, ``options``) and ``march/`` (the
+This package imports only the core (``driver``, ``compiler``, ``options``) and ``marching/`` (the
 paper's schemes are marches).
 
 Modules: ``integrator.py`` (the traits), ``chunks.py`` (what every compiled baseline shares),

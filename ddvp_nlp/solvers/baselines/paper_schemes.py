@@ -1,4 +1,4 @@
-"""The paper's schemes as comparison methods, each run by ``march`` (``solvers/march``).
+"""The paper's schemes as comparison methods, each run by ``march`` (``solvers/marching``).
 
 - ``vddvp`` (rule ``vddvp``): the variable-step midpoint scheme, the energy of interval ``k``
   at the previous clock; order 2, symplectic, conserves the midpoint ``H``.

@@ -6,18 +6,18 @@ every interval and the energy equation of every interior node (docs/theory.md se
 
 Where things are:
 
-- ``solve.py``: ``solve_bvp``: the checks into a ``GridRequest`` whose data is a
-  ``phase.Boundary``, the phases, the verification, the ``Solution``;
-- ``assembly.py``: the node-interleaved system and its banded Jacobian (bandwidth ``3n + 1``
+- ``fixed_ends.py``: ``solve_bvp``: the checks into a ``GridRequest`` whose data is a
+  ``phases.Boundary``, the phases, the verification, the ``Solution``;
+- ``interleaved.py``: the node-interleaved system and its banded Jacobian (bandwidth ``3n + 1``
   whatever ``N``), a ``grid.GridProblem``;
-- ``phase.py``: one solve of one scheme's system by one solver (the grid's Newton or IPOPT);
-- ``ipopt.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
-- ``start.py``: the starts (straight line or shooting, fixed steps on uniform and on
-  predicted times); ``continuation.py``: the continuation in the end position, the start of
+- ``phases.py``: one solve of one scheme's system by one solver (the grid's Newton or IPOPT);
+- ``ends_nlp.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
+- ``first_guess.py``: the starts (straight line or shooting, fixed steps on uniform and on
+  predicted times); ``end_continuation.py``: the continuation in the end position, the start of
   last resort;
-- ``continuous.py``: the continuous problem near a solution, by multiple shooting with the
+- ``exact/shooting.py``: the continuous problem near a solution, by multiple shooting with the
   reference flow: what the accuracy check measures the grid against, or why there is none.
-- ``energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the
+- ``at_energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the
   last interval's energy prescribed, checked against the exact flow's shooting.
 
 The contract, on top of the grid's (``grid/__init__.py``):
@@ -29,10 +29,10 @@ The contract, on top of the grid's (``grid/__init__.py``):
 3. Success is the returned point's own residuals: every canonical residual under ``max(tol,
    1024 round-offs of the data)``, every energy residual under ``max(tol (t_end - t_0)/(N-1),
    1024 round-offs of |E|)``, every step positive; the message quotes the solver.
-4. A verified point is then judged against the exact flow (``accuracy.py``): its intervals,
-   its energy, and its trajectory against the continuous solution near it; a problem with no
-   continuous solution near the discrete one ends ``inaccurate``, saying so.
-5. This package imports the core, ``grid/`` and ``march/`` (shooting marches).
+4. A verified point is then judged against the exact flow (``accuracy/judgement.py``): its
+   intervals, its energy, and its trajectory against the continuous solution near it; a problem
+   with no continuous solution near the discrete one ends ``inaccurate``, saying so.
+5. This package imports the core, ``grid/`` and ``marching/`` (shooting marches).
 """
 
 from typing import TYPE_CHECKING

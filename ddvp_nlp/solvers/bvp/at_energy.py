@@ -10,7 +10,7 @@ square and the Jacobian banded (the new row lies in the last block, ``assembly.
 prescribed_energy_block``); with the energy equations it prescribes every interval's energy
 (autonomous ``H``), so the transfer time is whatever the motion at energy ``E`` takes.
 
-The solve (``solve.py`` calls these in order):
+The solve (``fixed_ends.py`` calls these in order):
 
 1. the fixed-endpoint problem on ``(t_0, t_0 + D)`` with the duration guess ``D``
    (``AtEnergy.duration``, else the guess's span, else `duration_guess`), by
@@ -287,8 +287,8 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
 
 
 def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance):
-    """The accuracy check of a transfer (``accuracy.py``): every interval and the energy level
-    against the prescribed ``E`` (the first interval's clock), then the trajectory against the
+    """The accuracy check of a transfer (``accuracy/judgement.py``): every interval and the energy
+    level against the prescribed ``E`` (the first interval's clock), then the trajectory against the
     exact flow's transfer near it (`shoot_transfer`); with none near, the transfer is
     ``inaccurate`` with that reason. Returns the report, the local errors and the shooting's
     figures."""

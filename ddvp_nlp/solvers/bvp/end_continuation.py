@@ -1,5 +1,5 @@
 """Continuation of the fixed-step problem in its end position, past turning points
-(pseudo-arclength): the start of last resort of ``start.py``.
+(pseudo-arclength): the start of last resort of ``first_guess.py``.
 
 A march of fixed steps from ``(q_start, p_0)`` solves the fixed-endpoint problem whose end
 position is its own last position ``a``. Moving the end position along ``q_end(s) = a + s d``,
@@ -20,7 +20,7 @@ it stopped at ``s = 0.61``, on Henon-Heiles at ``s = 0.02-0.88``). Here the unkn
   as the whole grid.
 
 When a step crosses ``s = 1`` the point at ``s = 1`` is interpolated and handed back; the caller
-solves the problem there (``start.py``). The solution found is the one connected to
+solves the problem there (``first_guess.py``). The solution found is the one connected to
 the march by the path: ``stats["p_sign_changes"]`` of the result says which it is.
 """
 

@@ -1,4 +1,4 @@
-"""IPOPT on the fixed-endpoint system, fed by the banded assembly of ``assembly.py``: no NLP
+"""IPOPT on the fixed-endpoint system, fed by the banded assembly of ``interleaved.py``: no NLP
 expression over the grid.
 
 The NLP (``grid/ipopt.py``'s feasibility problem): unknowns interleaved by node,

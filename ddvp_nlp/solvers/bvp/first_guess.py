@@ -6,12 +6,12 @@ Default (``guess="straight"``), for grids of any length:
 1. the ``fixed`` problem on uniform times, from uniform motion between the endpoints (with
    ``solver="auto"``, IPOPT again if Newton fails; if both fail, the pseudo-arclength
    continuation in the end position from the march of the straight line's momentum,
-   ``continuation.py``, then this phase from where it ends);
+   ``end_continuation.py``, then this phase from where it ends);
 2. the ``fixed`` problem on times with the predicted site density
    ``tau ~ (f' H_zz f)^(-1/3)`` (``predicted_times``), ``f`` the Hamiltonian vector field (the
    paper's section 4 for ``H = p^2/2 + V``: ``f' H_zz f = V'' p^2 + V'^2``; the expansion
    ``H(z_mid) = H(z) - tau^2 f' H_zz f / 8`` gives the same weight for any ``H``);
-3. (``solve.py``) the scheme's equations with the times released.
+3. (``fixed_ends.py``) the scheme's equations with the times released.
 
 Released directly from uniform times, Newton diverged at N = 1e5 on the pendulum; from the
 predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
@@ -177,7 +177,7 @@ def _solve_fixed(request, fixed, times, start, name, solver):
 
 def _continued(request: GridRequest[Boundary], fixed: Scheme, times, base, solver) -> dict | None:
     """The fixed-step problem solved after a continuation in its end position
-    (``continuation.py``) from ``base`` (shooting's closest march) or else from the march
+    (``end_continuation.py``) from ``base`` (shooting's closest march) or else from the march
     of the straight line's momentum; ``None`` if either fails."""
     if base is None:
         base = _fixed_march(request, fixed, straight_line(request, times)["p"][0])

@@ -9,13 +9,13 @@ the Jacobian dense) and every step stays above ``tau_floor > 0``, which excludes
 time-reversed root. For a Lagrangian system the interval equations are its discrete Legendre
 transform (``discrete/lagrangian_action.py``), in the same unknowns.
 
-The system is assembled node by node (``assembly.py``): its Jacobian is banded, with
+The system is assembled node by node (``interleaved.py``): its Jacobian is banded, with
 bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
 
 - ``"newton"``: Newton's method with banded LU, a line search on the residual and the
   ``tau_floor`` safeguard (``grid/newton.py``; blocks compiled, band LU in C, ``grid/band.py``):
   ``O(N)`` time and memory per iteration;
-- ``"ipopt"``: IPOPT on the same assembly through callbacks (``ipopt.py``, the grid's IPOPT
+- ``"ipopt"``: IPOPT on the same assembly through callbacks (``ends_nlp.py``, the grid's IPOPT
   build), the design's NLP solver. Its tolerance on the released times is the rows' round-off
   where that is above ``1e-2 tol`` (``phase.ipopt_floor``: the energy rows divided by the mean
   step carry ``eps |E| / h``, 1e-11 at N = 1e6), and it is not run from a start that already
@@ -23,7 +23,7 @@ bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
 - ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
   then IPOPT from the same start if Newton's point does not pass the verification.
 
-Starts: ``start.py`` (straight line or shooting, then fixed steps on uniform and on predicted
+Starts: ``first_guess.py`` (straight line or shooting, then fixed steps on uniform and on predicted
 times, then the times released).
 
 Every returned point is verified by its own unscaled residuals, whatever the solver said
@@ -99,14 +99,14 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         q_start, q_end: fixed positions at the two ends, each of shape ``(n,)``.
         t_span: ``(t0, t_end)``, the two end times; or ``AtEnergy(E, t0, duration)``: a
             transfer at the prescribed energy ``E`` with the end time an unknown
-            (``energy.py``: the fixed-time problem at the guessed duration first, then the end
+            (``at_energy.py``: the fixed-time problem at the guessed duration first, then the end
             time released; Newton only).
         nodes: number of nodes ``N >= 3``.
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` or a `Scheme`.
         params: the system's parameter values.
         guess: ``"straight"`` (default), shooting (``Shooting(p_start)``, the momentum it
             starts from choosing the branch of a problem with several solutions; ``"march"``
-            is ``Shooting()``, from the straight line's momentum; ``start.py``), or a start: a
+            is ``Shooting()``, from the straight line's momentum; ``first_guess.py``), or a start: a
             `Solution` (for example a march) or a mapping with ``t``, ``q``, ``p``
             arrays (``nodes`` rows, or any number of rows, resampled by node index onto
             ``nodes`` rows with the times mapped onto ``[t0, t_end]``).
@@ -195,7 +195,7 @@ def _final_phase(request: GridRequest, x0: np.ndarray, name: str, solver: str, *
 
 def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, guess, options,
               compilation, output) -> Solution:
-    """A transfer at a prescribed energy (``energy.py``): the fixed-time problem at the guessed
+    """A transfer at a prescribed energy (``at_energy.py``): the fixed-time problem at the guessed
     duration, then the end time released."""
     scheme = Scheme.coerce(scheme)
     if not isinstance(system, HamiltonianSystem):

@@ -80,7 +80,7 @@ class NodeLayout:
 class Ends:
     """The data of one problem: fixed positions, node times (``t_0, t_end`` for an energy rule,
     all ``N`` for ``fixed``), parameters and the energy rows' scale; ``energy``: the prescribed
-    energy of a transfer whose end time is free (``energy.py``), the value the last block of
+    energy of a transfer whose end time is free (``at_energy.py``), the value the last block of
     a `GridAssembly` built with ``last=`` takes instead of ``t_end``."""
 
     q_start: np.ndarray
@@ -160,7 +160,7 @@ def _block_functions(system, scheme: Scheme):
 
 
 def prescribed_energy_block(system, scheme: Scheme):
-    """The last block of a transfer at a prescribed energy (``energy.py``), as the ``last`` of
+    """The last block of a transfer at a prescribed energy (``at_energy.py``), as the ``last`` of
     `GridAssembly`: ``(block, rows)`` of ``(z_a, z_b, E, theta)``, the canonical
     equations of interval ``N - 2`` and, in the time row of node ``N - 1``, ``H(Q, P) - E`` of
     that interval (``discrete/``'s interval energy; with the energy equations ``H_k =
@@ -310,7 +310,7 @@ class GridAssembly:
 
     def release(self) -> None:
         """Drop the band store (allocated again by the next evaluation of the Jacobian): the
-        assembly stays cached between solves (``phase.py``), its store need not."""
+        assembly stays cached between solves (``phases.py``), its store need not."""
         self._flat = self._ab = self._band_view = None
 
     def _last_block(self, z, ends, theta, body, sink):
@@ -385,7 +385,7 @@ class GridAssembly:
 
         ``blocks`` is what `evaluate` returned (its store itself, no copy), or dense
         blocks ``(interval (N-1, 2m, 2n), node (N-2, 3m) or None)`` in the layout of
-        `block_entries` (a new array; ``ipopt.py`` builds its pattern from ones)."""
+        `block_entries` (a new array; ``ends_nlp.py`` builds its pattern from ones)."""
         if isinstance(blocks, BandJacobian):
             return blocks.ab
         N, m = self.layout.nodes, self.layout.m

@@ -1,10 +1,10 @@
 """One solve of the fixed-endpoint system by one solver: the unit the starts and the final
-solve are made of (``solve.py``, ``start.py``).
+solve are made of (``fixed_ends.py``, ``first_guess.py``).
 
 The inputs of a ``solve_bvp`` call are a `GridRequest`
 whose ``data`` is a `Boundary`; `run_phase` solves the system of a scheme (the
 user's, or ``fixed`` on given times for the start) from a point, by the grid's Newton
-(``grid/newton.py``) or IPOPT (``ipopt.py`` on ``grid/ipopt.py``), and records what the solver
+(``grid/newton.py``) or IPOPT (``ends_nlp.py`` on ``grid/ipopt.py``), and records what the solver
 said. The built problems are cached per system (``GridRequest.built``), their build time
 counted apart.
 """
@@ -28,7 +28,7 @@ from .interleaved import Ends, GridAssembly
 
 EPS = np.finfo(float).eps
 # Newton's target on each row: this many units of the row's round-off (module docstring of
-# grid/newton.py); verification allows ROUND_OFF_ALLOWANCE of them (solve.py).
+# grid/newton.py); verification allows ROUND_OFF_ALLOWANCE of them (fixed_ends.py).
 TARGET_ULPS = 16
 ROUND_OFF_ALLOWANCE = 1024
 

@@ -66,8 +66,8 @@ class Layout:
     def control(self) -> slice:
         """The components of ``w`` the error norm sees: ``z`` alone (default), or all of ``w``
         with ``tangent_control``. ``Y`` obeys a linear equation whose coefficients come from
-        ``z``: steps that resolve ``z`` resolve ``Y`` to the same relative order (measured in
-        ``bench.py tangent``), a tangent run takes exactly the steps of the plain run (same
+        ``z``: steps that resolve ``z`` resolve ``Y`` to the same relative order (measured while
+        building it), a tangent run takes exactly the steps of the plain run (same
         ``z``, bit for bit), and a growing ``Y`` (a chaotic orbit's) cannot shorten them."""
         return slice(0, self.D if self.tangent_control else self.d)
 

@@ -9,8 +9,8 @@ Closing the exact flow (`close_exact`): Newton's method on the shooting equation
     H(z_0) - E = 0,  z_0[section] - value = 0,  g_i . (z_0 - z_ref) = 0   (2 + r)
 
 in ``(z_0, T, u)`` (``2n + 2 + r`` unknowns): the unfolding parameters make the count square as
-they do for the discrete orbit (``solve.py``), and come out at the integrator's accuracy on an
-orbit of the Hamiltonian flow. Started from a discrete orbit's node 0 and period, its
+they do for the discrete orbit (``periodic/orbit.py``), and come out at the integrator's
+accuracy on an orbit of the Hamiltonian flow. Started from a discrete orbit's node 0 and period, its
 convergence shows that an exact orbit is there; the distance between the two is the discrete
 orbit's error at node 0.
 """

@@ -6,17 +6,17 @@ so a march starts from ``2l`` nodes and a fixed-endpoint problem fixes ``l`` nod
 
 Where things are:
 
-- ``solve.py``: ``march_higher`` (node by node, in the one step loop of ``driver.py``) and
+- ``stepping.py``: ``march_higher`` (node by node, in the one step loop of ``driver.py``) and
   ``solve_bvp_higher`` (``bvp_request`` checks its inputs into a ``GridRequest`` whose data is
   a ``problem.FixedNodes``);
-- ``problem.py``: that data and what follows from it (uniform times, scales, the pins);
-- ``assembly.py``: the system window by window (the window's action and its derivatives), a
+- ``fixed_nodes.py``: that data and what follows from it (uniform times, scales, the pins);
+- ``windows.py``: the system window by window (the window's action and its derivatives), a
   ``grid.GridProblem``;
-- ``phase.py``: one rule's solve (the grid's Newton with the ``DecreaseOrMonotonicity`` test,
+- ``window_solve.py``: one rule's solve (the grid's Newton with the ``DecreaseOrMonotonicity`` test,
   through a Newton homotopy where plain Newton does not converge; or IPOPT), and the
   verification;
-- ``ipopt.py``: the window gradient mapped over the grid for the grid's IPOPT build;
-- ``verdict.py``: the accuracy check of a higher-order trajectory against the exact
+- ``window_nlp.py``: the window gradient mapped over the grid for the grid's IPOPT build;
+- ``accuracy/positions.py``: the accuracy check of a higher-order trajectory against the exact
   Euler-Lagrange flow (its positions, step by step and over the run).
 
 The contract, on top of the grid's (``grid/__init__.py``):
@@ -27,7 +27,7 @@ The contract, on top of the grid's (``grid/__init__.py``):
    ``q``, the energy rows, the pins held, every step positive, against bounds of each row's own
    round-off computed from the data, not from the point.
 3. Every result is then judged against the exact Euler-Lagrange flow through its data
-   (``verdict.py``); a fixed-endpoint problem with no continuous solution ends
+   (``accuracy/positions.py``); a fixed-endpoint problem with no continuous solution ends
    ``inaccurate``, saying so.
 4. This package imports the core and ``grid/``.
 """

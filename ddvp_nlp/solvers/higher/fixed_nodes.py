@@ -1,6 +1,6 @@
 """The data of a higher-order fixed-endpoint problem and what follows from it: the ``data`` of
 its `GridRequest`, and the helpers the solves and the
-verification read it by (``phase.py``, ``ipopt.py``)."""
+verification read it by (``window_solve.py``, ``window_nlp.py``)."""
 
 from __future__ import annotations
 

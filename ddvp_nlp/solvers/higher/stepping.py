@@ -3,8 +3,8 @@
 
 A Lagrangian of order ``l`` couples ``2l + 1`` nodes in its Euler-Lagrange equation at a node, so
 a fixed-endpoint problem fixes ``l`` nodes at each end and a march starts from ``2l`` nodes. The
-fixed-endpoint system is assembled window by window (``assembly.py``) and solved and
-verified in ``phase.py``.
+fixed-endpoint system is assembled window by window (``windows.py``) and solved and
+verified in ``window_solve.py``.
 """
 
 from __future__ import annotations
@@ -76,11 +76,11 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     Fixed steps are solved first on uniform times from the straight line between the ends; an
     energy rule then releases the times from that solution. Each solve is by
     ``options.solver``: ``"newton"`` (the grid's Newton on the window assembly,
-    ``assembly.py``: ``O(N)`` per iteration), ``"ipopt"`` (the grid's IPOPT build on an MX
+    ``windows.py``: ``O(N)`` per iteration), ``"ipopt"`` (the grid's IPOPT build on an MX
     graph of the window's gradient mapped over the grid) or ``"auto"`` (Newton, then IPOPT from
     the same start if Newton's point fails the verification). Every point is verified by its
-    unscaled residuals (``phase.py``): success is that verification, whatever the solver said,
-    and the message quotes the solver.
+    unscaled residuals (``window_solve.py``): success is that verification, whatever the solver
+    said, and the message quotes the solver.
 
     Args:
         options: ``tol``: verification tolerance (default 1e-10; Euler-Lagrange rows scaled by
@@ -120,7 +120,7 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
 
 
 def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cache_dir=None):
-    """The accuracy check of a higher-order trajectory (``verdict.py``) into
+    """The accuracy check of a higher-order trajectory (``accuracy/positions.py``) into
     ``solution.stats["accuracy"]`` and ``solution.local_error``, and its status."""
     from ..accuracy.positions import judge_higher
 

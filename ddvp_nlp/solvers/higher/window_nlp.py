@@ -2,8 +2,8 @@
 on an MX graph of the window gradient mapped over the grid.
 
 Unknowns: the free positions (node by node) then, for an energy rule, their times; constraints:
-the Euler-Lagrange rows (scaled as in the verification, ``phase.py``), the energy rows and the
-steps ``t_{k+1} - t_k >= tau_floor``; objective ``0``. The window gradient
+the Euler-Lagrange rows (scaled as in the verification, ``window_solve.py``), the energy rows
+and the steps ``t_{k+1} - t_k >= tau_floor``; objective ``0``. The window gradient
 (``assembly.window_functions``) is mapped over the grid and added node by node by ``l + 1``
 shifted slices, so that no expression grows with ``N`` (the SX expression of the whole action it
 replaces took 7.8 s to build at N = 1e4 of the spline, this 1.9 s, measured); IPOPT's

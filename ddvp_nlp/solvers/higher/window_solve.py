@@ -1,4 +1,4 @@
-"""The solves and the verification of a higher-order fixed-endpoint problem (``solve.py``).
+"""The solves and the verification of a higher-order fixed-endpoint problem (``stepping.py``).
 
 A `GridRequest` whose ``data`` is a `FixedNodes`
 holds the validated inputs; `solve_rule` solves the system of one rule (``fixed`` on
@@ -6,10 +6,10 @@ uniform times, or an energy rule with the interior times released) from a point 
 
 - ``"newton"``: the grid's Newton (``grid/newton.py``: line search with the
   ``DecreaseOrMonotonicity`` test, ``tau_floor`` safeguard, banded LU) on the window assembly of
-  ``assembly.py``, through a Newton homotopy where plain Newton does not converge
+  ``windows.py``, through a Newton homotopy where plain Newton does not converge
   (`continuation`);
 - ``"ipopt"``: the grid's IPOPT build on an MX graph of the window gradient mapped over the
-  grid (``ipopt.py``: no expression grows with ``N``; CasADi's derivatives of it), the
+  grid (``window_nlp.py``: no expression grows with ``N``; CasADi's derivatives of it), the
   equations as equalities and ``t_{k+1} - t_k >= tau_floor``;
 - ``"auto"``: Newton, then IPOPT from the same start if Newton's point fails the verification.
 

@@ -7,7 +7,7 @@ canonical equations on uniform steps that end on ``t_end`` (docs/theory.md secti
 
 Where things are:
 
-- ``solve.py``: ``march``: the checks (``check_problem``), the build, the driver call, the
+- ``initial_value.py``: ``march``: the checks (``check_problem``), the build, the driver call, the
   ``Solution``;
 - ``steps.py``: one step as CasADi functions (residual, predictor, check), from ``discrete/``;
 - ``newton.py``: the march's Newton: the option set of both paths, the careful solve with

@@ -4,25 +4,25 @@ stability (``periodic_stability``) and families followed through folds with thei
 
 A closed grid of ``N`` intervals with free node times, the energy of every interval prescribed,
 the period an unknown, a phase condition and unfolding parameters that make the count square
-(the docstring of ``solve.py`` derives it).
+(the docstring of ``orbit.py`` derives it).
 
 Where things are:
 
-- ``solve.py``: ``solve_periodic``: the checks into a ``GridRequest`` whose data is an
+- ``orbit.py``: ``solve_periodic``: the checks into a ``GridRequest`` whose data is an
   ``Orbit``, the solvers, the verification, the ``Solution``;
-- ``assembly.py``: the closed system and its sparse Jacobian, a ``grid.GridProblem``;
-- ``ipopt.py``: the same rows for the grid's IPOPT build;
-- ``start.py``: the section's point at the energy, the march to its return, the predicted
+- ``closed_grid.py``: the closed system and its sparse Jacobian, a ``grid.GridProblem``;
+- ``orbit_nlp.py``: the same rows for the grid's IPOPT build;
+- ``first_orbit.py``: the section's point at the energy, the march to its return, the predicted
   grid (``tau ~ |w|^(-1/3)``) and resampling;
 - ``refinement.py``: continuation in the number of intervals (``continue_in_nodes``: a
   coarse grid first, each finer one from the last refined by node index), the walk
   ``solve_periodic`` takes from its default start and any closed-grid solve can take;
 - ``family.py``: orbits along a range of energies, each from the last;
-- ``stability.py``: the discrete monodromy (the step maps' derivatives by implicit
+- ``floquet.py``: the discrete monodromy (the step maps' derivatives by implicit
   differentiation), its reduction by the trivial directions, the stability indices and the
   verdict; the exact orbit near a discrete one and its monodromy come from
   ``solvers/exact/closure.py`` (the exact flow's variational equations);
-- ``continuation.py``: pseudo-arclength continuation in the energy, the bifurcations between
+- ``arclength.py``: pseudo-arclength continuation in the energy, the bifurcations between
   members located; ``bifurcation.py``: their test functions and their confirmation on the exact
   flow.
 
@@ -34,7 +34,7 @@ The contract, on top of the grid's (``grid/__init__.py``):
 3. Success is the point's own residuals (canonical, the scheme's energy equations with the
    wrap-around node, the prescribed energy, closure, section), every step positive, then the
    accuracy check against the exact flow.
-4. This package imports the core, ``grid/`` and ``march/`` (the start is a march).
+4. This package imports the core, ``grid/`` and ``marching/`` (the start is a march).
 5. Multipliers are reported apart: the trivial ones (two per fixed direction: the flow's and
    each symmetry's) from the blocks of the reduction, the nontrivial ones from the reduced
    monodromy; a verdict is made on the stability indices with a stated tolerance.

@@ -1,7 +1,7 @@
 """A family of periodic orbits by pseudo-arclength continuation in the energy, with each member's
 stability and the bifurcations along it located.
 
-The family is the solution curve of ``F(x; E) = 0``, the periodic system of ``assembly.py``
+The family is the solution curve of ``F(x; E) = 0``, the periodic system of ``closed_grid.py``
 (``x``: the nodes, node times and unfolding parameters of ``N`` intervals) with the energy ``E``
 an unknown too. From a member ``y_i = (x_i, E_i)`` with unit tangent ``t_i`` (``F_x t_x + F_E
 t_E = 0``, ``<t_i, t_i> = 1``; oriented as the previous one) the next member solves::
@@ -17,7 +17,7 @@ orbit as in ``E``. At a fold, where the family turns back in ``E`` and ``F_x`` i
 failed; every member is then verified by `solve_periodic` (its residuals, its
 accuracy check), which starts from it.
 
-Each member's stability is its discrete monodromy's (``stability.py``). Bifurcations are sign
+Each member's stability is its discrete monodromy's (``floquet.py``). Bifurcations are sign
 changes between neighbours of three test functions, smooth along the family whatever order the
 multipliers come in:
 

@@ -1,13 +1,13 @@
 """The test functions of bifurcations along a family, and a located bifurcation confirmed by the
 exact flow.
 
-Test functions (``continuation.py`` locates their sign changes between members):
+Test functions (``arclength.py`` locates their sign changes between members):
 
 - ``fold``: ``dE/ds``, the energy component of the family's unit tangent;
 - ``branch point``: ``det(R - I) = prod_j (2 - k_j)`` (a nontrivial pair passes +1);
 - ``period doubling``: ``det(R + I) = prod_j (2 + k_j)`` (a pair passes -1),
 
-with ``R`` the reduced monodromy and ``k_j`` the stability indices (``stability.py``).
+with ``R`` the reduced monodromy and ``k_j`` the stability indices (``floquet.py``).
 
 Confirmation by the exact flow (`confirm`): the same test function on the exact flow's
 orbits (``exact.close_exact`` from the discrete orbit at the located energy ``E_N``, then at

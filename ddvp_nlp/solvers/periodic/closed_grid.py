@@ -13,7 +13,7 @@ mu_r)``, one per first integral (``H``, then the ``r`` integrals of the symmetri
     q_N - q_0 - 2 pi w,  p_N - p_0   (w: turns of angle coordinates)  (2n rows)
 
 ``2 + r + N m + 2n = (N+1) m + 1 + r`` rows: square. Why these rows, and why the unfolding, is
-the docstring of ``solve.py``. The interval rows are ``equations.canonical_expression`` and
+the docstring of ``orbit.py``. The interval rows are ``equations.canonical_expression`` and
 ``equations.midpoint_energy_function``'s expression, written once in ``discrete/``; each interval
 becomes one CasADi function returning its ``m`` rows and their dense Jacobian in
 ``(z_k, z_{k+1}, u)``, mapped over the grid by ``grid/maps.ChunkedMap``. The closure rows
@@ -114,7 +114,7 @@ def integral_gradients(system, integrals) -> ca.Function:
 def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
     """``(z_a, z_b, u, E, theta) -> rows (m,)`` of one interval, with ``u`` the unfolding
     parameters ``(lambda, mu_1, ..., mu_r)``: the Newton assembly differentiates it into blocks,
-    the IPOPT problem (``ipopt.py``) maps it over the grid."""
+    the IPOPT problem (``orbit_nlp.py``) maps it over the grid."""
     def build():
         n, r = system.n, len(integrals)
         z_a, z_b = ca.SX.sym("z_a", 2 * n + 1), ca.SX.sym("z_b", 2 * n + 1)

@@ -7,7 +7,7 @@ value)``, and ``s`` is the first root of ``H(z(s)) = E`` on ``(0, S_MAX]`` (a sc
 sign change, then Brent's method). No root means that ``E`` is outside the range where the
 section, along that ray, meets the energy surface: an input error.
 
-The march: ``solvers/march`` from that point with a small first step (it sets the discrete
+The march: ``solvers/marching`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
 in the direction it left it (on an angle coordinate, its value plus any whole turns). Where the
 energy rule's march stops before the return (its energy step breaks down on the pendulum's
@@ -179,7 +179,7 @@ def predicted_grid(system, theta, t, z, intervals: int, angles=()):
     error term that the energy equation balances), floored so that no predicted step exceeds
     ``SPIKE`` typical ones. Where ``w`` changes sign (a pendulum's rotation, at the inflection
     of its level curve) the discrete orbit's steps have a spike; with uniform times Newton
-    stalled at every N (module docstring of ``solve.py``). The nodes split the integral of the
+    stalled at every N (module docstring of ``orbit.py``). The nodes split the integral of the
     density over the march into equal parts, cubic between the march's nodes; the last node is
     the first plus the whole turns of the ``angles``."""
     t = np.asarray(t, float) - float(t[0])

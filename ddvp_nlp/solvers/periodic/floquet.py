@@ -18,7 +18,7 @@ The trivial multipliers. The exact monodromy fixes the flow direction and the ge
 with a second multiplier 1 (the conserved quantity's direction, ``J v`` a left eigenvector).
 The discrete map has the same structure: the symmetries are exact symmetries of the discrete
 equations, and the discrete orbits at ``E`` form a one-parameter family in the section's value
-``c`` (``solve.py``'s phase condition), so ``v_0 = dz_0/dc`` is fixed by ``M``. ``v_0`` comes
+``c`` (``orbit.py``'s phase condition), so ``v_0 = dz_0/dc`` is fixed by ``M``. ``v_0`` comes
 from the orbit's own equations, condensed onto node 0: ``(M - I) v_0 + (dz_N/du) du = 0``,
 ``v_0[section] = 1``, ``g_i . v_0 = 0``, a square system that is the discrete orbit's Jacobian
 with the interior nodes eliminated (nonsingular where the orbit is isolated at fixed ``E``).

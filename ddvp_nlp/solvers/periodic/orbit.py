@@ -48,11 +48,11 @@ Square count: ``(N+1)(2n+1) + 1`` unknowns (nodes and ``lambda``); equations ``2
    treatment as ``H``: a phase condition ``g_i . (z_0 - z_0^ref) = 0`` (``g_i = J grad I_i`` at
    the start's node 0) and an unfolding parameter ``mu_i`` (``+ tau_k mu_i grad I_i`` in the
    canonical equations); the count stays square with ``r`` more rows and unknowns. The Jacobian
-(``assembly.py``) is the fixed-endpoint solver's band plus corner entries (closure) and a
+(``closed_grid.py``) is the fixed-endpoint solver's band plus corner entries (closure) and a
 full column (``lambda``): sparse LU (SuperLU), in the grid's Newton iteration
 (``grid/newton.py``: its ``tau_floor`` safeguard and Deuflhard's monotonicity line search).
 
-The same rows are also handed to IPOPT (``ipopt.py``: objective 0, the rows as
+The same rows are also handed to IPOPT (``orbit_nlp.py``: objective 0, the rows as
 equality constraints, the steps bounded below, exact Hessian). ``solver="auto"`` runs Newton and,
 when its point fails the verification, IPOPT from the same start.
 
@@ -64,7 +64,7 @@ term of the interval energy ``H(Q_k, P_k)`` (the chord's midpoint against the cu
 IPOPT's filter line search got there in 13, 28, 69, 296 iterations for N = 100, 200, 400, 800
 at E = 2.5. The default start is therefore the march on the predicted grid ``tau ~
 |w|^(-1/3)`` (``start.predicted_grid``), solved on a coarse grid first and refined by
-continuation in N (``continuation.py``: 100, 200, 400, 800, resampled by node index so that
+continuation in N (``arclength.py``: 100, 200, 400, 800, resampled by node index so that
 each level starts with the step distribution of the last): 5 Newton iterations on every level,
 0.11 s CPU to N = 800 in all (measured). A user's guess is solved on N as it is.
 
@@ -75,10 +75,10 @@ node 1 shifted by ``2 pi w``.
 
 Every returned point, whichever solver found it, is verified by its own unscaled residuals
 (closure, canonical, the scheme's energy equations, the prescribed energy, the section, every
-step positive), then by the accuracy check of ``accuracy.py``, which does not trust the
+step positive), then by the accuracy check of ``accuracy/judgement.py``, which does not trust the
 scheme's equations: each interval against the exact flow, the level against ``E``, and the
 closure of the exact flow from the first node over the period (status ``inaccurate`` when a
-test fails: a grid too coarse to resolve the orbit is refused). The start: ``start.py``.
+test fails: a grid too coarse to resolve the orbit is refused). The start: ``first_orbit.py``.
 """
 
 from __future__ import annotations
@@ -174,7 +174,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             ``p1..pn``, or a pair ``(NAME, VALUE)``.
         guess: a start (a `Solution` or a mapping with ``t``, ``q``, ``p`` over one
             period); default: the march from the section's point at ``E`` to its return
-            (``start.py``).
+            (``first_orbit.py``).
         scheme: ``"vddvp"`` or ``"lee"`` (the same equations for autonomous ``H``).
         params: the system's parameter values.
         start: ``(q, p)``: the direction along which the section's point at ``E`` is looked for
@@ -190,7 +190,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             taken from the start), and the return to a section on an angle is counted modulo
             ``2 pi``.
         options: the solver (``"newton"``: sparse LU in the grid's Newton, ``"ipopt"``:
-            ``ipopt.py``, ``"auto"``: Newton, then IPOPT from the same start when Newton's point
+            ``orbit_nlp.py``, ``"auto"``: Newton, then IPOPT from the same start when Newton's point
             fails the verification of its residuals), the verification tolerance ``tol``
             (default 1e-10) of the unscaled residuals above their round-off, ``max_iter`` of
             either solver (default 100) and IPOPT's log (`GridOptions`).
@@ -470,9 +470,9 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
 
 
 def _accuracy(request: GridRequest[Orbit], t, q, p):
-    """The accuracy check of an orbit against the exact flow (``accuracy.py``): every interval
-    (a grid too coarse to resolve the orbit fails here), the energy of the orbit through the
-    first node against the one prescribed, and the closure of the exact flow: the flow from
+    """The accuracy check of an orbit against the exact flow (``accuracy/judgement.py``): every
+    interval (a grid too coarse to resolve the orbit fails here), the energy of the orbit through
+    the first node against the one prescribed, and the closure of the exact flow: the flow from
     the first node must stay within ``global_tol`` of the orbit over the whole period, or the
     orbit is refused (``inaccurate``: it is not an orbit of the exact flow)."""
     judge = Judgement(request.system, request.theta, request.options.accuracy or Tolerance(),

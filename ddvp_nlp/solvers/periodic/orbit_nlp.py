@@ -1,8 +1,8 @@
-"""IPOPT on the periodic system of ``assembly.py``: the same unknowns, the same rows.
+"""IPOPT on the periodic system of ``closed_grid.py``: the same unknowns, the same rows.
 
 The NLP: unknowns ``x`` in the layout of `ClosedLayout` (node
 states and times interleaved, then the unfolding parameters ``lambda, mu_1 .. mu_r``), so a
-point found here goes through the verification of ``solve.py`` exactly as Newton's does.
+point found here goes through the verification of ``orbit.py`` exactly as Newton's does.
 Constraints, all equalities but the last group::
 
     t_0 = 0,  z_0[section] = value,  g_i . (z_0 - z_0^ref) = 0       (2 + r rows)
@@ -68,7 +68,7 @@ class PeriodicIpopt:
 
     def solve(self, x0: np.ndarray, closure: Closure, tau_floor: float) -> GridResult:
         """IPOPT from ``x0`` (``converged`` is IPOPT's own success, the verification of
-        ``solve.py`` comes after)."""
+        ``orbit.py`` comes after)."""
         n = self.layout.n
         shift = np.broadcast_to(np.asarray(closure.shift, float), (2 * n,))
         reference = closure.reference if closure.reference.size else np.zeros(2 * n)
