@@ -150,6 +150,29 @@ def check_span(t_span) -> tuple[float, float]:
     return t0, t_end
 
 
+def check_times(t_eval, t_span=None, *, name: str = "t_eval") -> np.ndarray | None:
+    """Output times (``t_eval`` of a march, ``--t-eval`` of the command line): a non-empty
+    1-d array of finite times, sorted (repeats allowed, as scipy's), inside ``t_span`` if
+    given; ``name`` is the argument the message names."""
+    if t_eval is None:
+        return None
+    try:
+        times = np.asarray(t_eval, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of times, got {t_eval!r}") from None
+    if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)):
+        raise InputError(f"{name} must be a non-empty 1-d array of finite times, got "
+                         f"{np.array2string(np.atleast_1d(times), threshold=6)}")
+    if np.any(np.diff(times) < 0):
+        raise InputError(f"{name} must be sorted in increasing order, got "
+                         f"{np.array2string(times, threshold=6)}")
+    if t_span is not None and (times[0] < t_span[0] or times[-1] > t_span[1]):
+        raise InputError(f"{name} must lie in t_span = [{t_span[0]:.10g}, {t_span[1]:.10g}] "
+                         f"(the run's span), got times from {times[0]:.10g} to "
+                         f"{times[-1]:.10g}")
+    return times
+
+
 def available_memory() -> int:
     """Bytes this process may still allocate: ``MemAvailable`` of ``/proc/meminfo`` (Linux),
     else the physical memory; an address-space limit (``ulimit -v``) lowers it."""
@@ -305,7 +328,7 @@ def check_parameter_ranges(ranges, params, *, owner: str) -> dict:
         parse_range(name, text)
     return dict(ranges)
 
-__all__ = ["available_memory", "check_cache_folder", "check_count", "check_degrees",
+__all__ = ["available_memory", "check_cache_folder", "check_count", "check_degrees", "check_times",
            "check_file_size", "check_finite_array", "check_in_interval",
            "check_in_range", "check_integer", "check_memory", "check_parameter_ranges",
            "check_parameter_values", "check_real", "check_span", "check_state",

@@ -147,9 +147,10 @@ def _count(text: str, value: str) -> int:
 
 
 def parse_times(text: str, t_span) -> np.ndarray:
-    """``--t-eval``: ``T1,T2,...`` (increasing) or ``START:STOP:COUNT`` (``COUNT`` evenly
-    spaced times, both ends included), inside ``t_span``."""
-    from ..validation import check_integer, check_memory
+    """``--t-eval``: ``T1,T2,...`` or ``START:STOP:COUNT`` (``COUNT`` evenly spaced times, both
+    ends included), checked by the library's one check of output times (finite, sorted, inside
+    ``t_span``; `validation.check_times`) under the option's name."""
+    from ..validation import check_integer, check_memory, check_times
 
     parts = text.split(":")
     try:
@@ -164,9 +165,4 @@ def parse_times(text: str, t_span) -> np.ndarray:
     except ValueError:
         raise InputError(f"--t-eval must be T1,T2,... or START:STOP:COUNT, got {text!r}") \
             from None
-    if not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
-        raise InputError(f"--t-eval {text!r}: the times must be finite and increasing")
-    if times[0] < t_span[0] or times[-1] > t_span[1]:
-        raise InputError(f"--t-eval {text!r}: the times must lie in the run's span "
-                         f"[{t_span[0]:.10g}, {t_span[1]:.10g}]")
-    return times
+    return check_times(times, t_span, name=f"--t-eval {text!r}")

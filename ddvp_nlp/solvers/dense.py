@@ -80,25 +80,6 @@ def attach(solution: Solution, system, theta, t_end: float | None) -> Solution:
 
 # --- states at asked-for times ---------------------------------------------------------------
 
-def check_times(t_eval, t_span=None) -> np.ndarray | None:
-    """``t_eval`` as a sorted 1-d array of finite times (inside ``t_span`` if given)."""
-    if t_eval is None:
-        return None
-    try:
-        times = np.asarray(t_eval, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"t_eval must be an array of times, got {t_eval!r}") from None
-    if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)):
-        raise InputError(f"t_eval must be a non-empty 1-d array of finite times, got "
-                         f"{np.array2string(np.atleast_1d(times), threshold=6)}")
-    if np.any(np.diff(times) < 0):
-        raise InputError("t_eval must be sorted in increasing order")
-    if t_span is not None and (times[0] < t_span[0] or times[-1] > t_span[1]):
-        raise InputError(f"t_eval must lie in t_span = [{t_span[0]:g}, {t_span[1]:g}], got "
-                         f"times from {times[0]:g} to {times[-1]:g}")
-    return times
-
-
 def evaluate_at(solution: Solution, t_eval: np.ndarray | None) -> None:
     """``solution.t_eval`` and ``z_eval``: the asked-for times up to the last node (a march
     that stopped early has none after it) and ``(q, p)`` there from ``Solution.at``."""

@@ -291,7 +291,8 @@ class Output:
             raise InputError(f"checkpoint_interval must be at least {MIN_CHECKPOINT_INTERVAL} "
                              f"s (a checkpoint writes every node so far), got {interval!r}")
         _set(self, "checkpoint_interval", interval)
-        from .dense import check_events, check_times
+        from ..validation import check_times
+        from .dense import check_events
 
         _set(self, "t_eval", check_times(self.t_eval))
         _set(self, "events", check_events(self.events))

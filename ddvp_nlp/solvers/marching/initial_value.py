@@ -35,11 +35,11 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
-from ...validation import check_span, check_state, check_step
+from ...validation import check_span, check_state, check_step, check_times
 from ..accuracy.judgement import Judgement, Level, apply_verdict
 from ..columns import row_max_abs
 from ..compiler import buffered, find_compiler
-from ..dense import DenseField, EventMonitor, attach, check_times, evaluate_at
+from ..dense import DenseField, EventMonitor, attach, evaluate_at
 from ..driver import Nodes, drive
 from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
 from .acceptance import Acceptance
