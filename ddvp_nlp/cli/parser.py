@@ -430,7 +430,7 @@ def _bvp_command(bvp: argparse.ArgumentParser) -> None:
     bvp.add_argument("--nodes", type=int, default=None,
                      help=f"number of nodes (default: the scene's, else {BOUNDARY_NODES})")
     solver = api_default("bvp", "solver")
-    bvp.add_argument("--solver", default=solver, choices=("auto", "newton", "ipopt"),
+    bvp.add_argument("--solver", default=solver, metavar="auto|newton|ipopt",
                      help="auto (banded Newton, then IPOPT if its point fails the "
                           f"verification), newton or ipopt (default: {solver})")
     bvp.add_argument("--guess", default="straight", metavar="straight|march|FILE",

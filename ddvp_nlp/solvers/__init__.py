@@ -23,9 +23,9 @@ Every solver keeps these rules:
    module global.
 5. The equations come from ``discrete/`` and are written nowhere here.
 
-What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``,
-``marching/`` and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``;
-``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and ``periodic/`` the core,
+What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``
+and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``; ``marching/`` the
+core and ``accuracy/``; ``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and ``periodic/`` the core,
 ``grid/``, ``marching/``, ``exact/`` and ``accuracy/``; ``higher/`` the core, ``grid/``,
 ``exact/`` and ``accuracy/``. The package as a whole imports ``discrete``, ``physics`` and the
 base modules, never the workbench.
