@@ -40,10 +40,6 @@ class Status(enum.Enum):
     def code(self) -> str:
         return self.name.lower()
 
-    @classmethod
-    def from_code(cls, code: str) -> Status:
-        return cls[code.upper()]
-
 
 def bound_reached(steps: int, max_steps: int, started: float, time_limit: float | None):
     """``(status, detail)`` if a run has used its steps or its seconds (``started`` from

@@ -24,13 +24,6 @@ from ..solution import Solution, Status
 from . import atomic, figures
 
 
-def prepare_folder(out, *, owned: int = 1) -> atomic.OutputFolder:
-    """``out`` created, opened without following links and locked for this process
-    (`ddvp_nlp.io.atomic.open_folder`); close it (or use
-    `output_folder`) when done."""
-    return atomic.open_folder(out, owned=owned)
-
-
 def settings_hash(settings: dict) -> str:
     """Eight hex digits of the SHA-256 of ``settings`` written as sorted JSON: equal settings
     give equal hashes, in any process."""

@@ -25,10 +25,10 @@ Every solver keeps these rules:
 
 What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``
 and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``; ``marching/`` the
-core and ``accuracy/``; ``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and ``periodic/`` the core,
-``grid/``, ``marching/``, ``exact/`` and ``accuracy/``; ``higher/`` the core, ``grid/``,
-``exact/`` and ``accuracy/``. The package as a whole imports ``discrete``, ``physics`` and the
-base modules, never the workbench.
+core and ``accuracy/``; ``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and
+``periodic/`` the core, ``grid/``, ``marching/``, ``exact/`` and ``accuracy/``; ``higher/`` the
+core, ``grid/``, ``exact/`` and ``accuracy/``. The package as a whole imports ``discrete``,
+``physics`` and the base modules, never the workbench.
 """
 
 from typing import TYPE_CHECKING
