@@ -67,9 +67,12 @@ class Solution:
             do not report theirs; see ``stats["fast_steps"]``), or the NLP solver's iterations.
         solvability: ``c(z_k) = -(f' H_zz f)/8`` at every node for the energy rules (a positive
             step needs it to keep its sign; docs/theory.md section 7), else empty.
-        local_error: the accuracy check's local error estimate of each step (N-1,), against one
-            RK4 step of the exact flow (``solvers/accuracy/judgement.py``), where it was made.
-        timing: ``build_s`` and ``solve_s`` in seconds.
+        local_error: the accuracy check's local error of each step (N-1,), ``|z_{k+1} -
+            Phi(z_k)|_inf`` against the exact flow (a step its RK4 screen passed carries that
+            screen's figure; ``solvers/accuracy/judgement.py``), where it was made.
+        timing: ``build_s`` and ``solve_s`` in seconds (wall); a march and a fixed-endpoint
+            solve add ``accuracy_s``, the accuracy check's share of ``solve_s`` (and
+            ``accuracy_cpu_s``, its CPU time, for the fixed-endpoint solve).
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
             counts the steps tried on the careful path, including one that failed or that a

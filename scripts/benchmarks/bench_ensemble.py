@@ -13,6 +13,7 @@ extrapolated from the measured rate per step, said to be extrapolated.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import pickle
 import tempfile
 import time
@@ -20,7 +21,7 @@ import time
 import numpy as np
 
 # the script's own folder is on the path when it runs: the one timer of the benchmarks
-from bench_march import timed  # noqa: E402
+from bench_march import C_KINDS, C_PREDICTORS, c_march_library, timed  # noqa: E402
 
 from ddvp_nlp import Compilation, load_scene, march, march_ensemble
 from ddvp_nlp.io import machine
@@ -47,6 +48,10 @@ def rows(args, system, q0s, p0s, cache):
             compilation=Compilation(cache_dir=cache),
         )
 
+    def unchecked():
+        return march_ensemble(system, q0s, p0s, (0.0, args.t_end), tau0=0.05, workers=1,
+                              accuracy=None, compilation=Compilation(cache_dir=cache))
+
     march(
         system, q0s[0], p0s[0], (0.0, 1.0), tau0=0.05, compilation=Compilation(cache_dir=cache)
     )  # compile / load
@@ -54,7 +59,34 @@ def rows(args, system, q0s, p0s, cache):
     for workers in args.workers:
         found.append((f"march_ensemble(workers={workers})",
                       *timed(args.repeats, ensemble(workers), warm_up=False)))
+    found.append(("march_ensemble(workers=1, accuracy=None)",
+                  *timed(args.repeats, unchecked, warm_up=False)))
     return found
+
+
+def c_loop(args, q0s, p0s, folder):
+    """The same orbits marched one after another by the hand-written C march of the same
+    scheme (``c_march.c``, its fastest predictor), no checks: CPU, wall and steps."""
+    lib = c_march_library(folder)
+    capacity = int(args.t_end / 0.05 * 4) + 16
+    t, z, H = np.empty(capacity + 1), np.empty((capacity + 1, 4)), np.empty(capacity + 1)
+    theta = np.zeros(4)
+    best = None
+    for predictor in C_PREDICTORS:
+        count = ctypes.c_long(0)
+
+        def run(predictor=predictor, count=count):
+            steps = 0
+            for q, p in zip(q0s, p0s, strict=True):
+                steps += lib.c_march_fast(C_KINDS["henon_heiles"], 2, theta,
+                                          np.concatenate([q, p]), 0.0, 0.05, args.t_end,
+                                          capacity, 1e-10, predictor, t, z, H,
+                                          ctypes.byref(count))
+            return steps
+        cpu, wall, steps = timed(args.repeats, run)
+        if best is None or cpu < best[0]:
+            best = (cpu, wall, steps, C_PREDICTORS[predictor])
+    return best
 
 
 def main():
@@ -72,6 +104,7 @@ def main():
     q0s, p0s = starts[:, :2], starts[:, 2:]
     with tempfile.TemporaryDirectory() as cache:
         found = rows(args, system, q0s, p0s, cache)
+        c_cpu, c_wall, c_steps, c_predictor = c_loop(args, q0s, p0s, cache)
     loop = found[0]
     steps = sum(s.steps for s in loop[3])
     print(f"\n## Henon-Heiles, E = 1/8, {args.orbits} orbits to t = {args.t_end:g} "
@@ -82,7 +115,17 @@ def main():
     for label, cpu, wall, _ in found:
         print(f"| {label} | {cpu:.3f} | {wall:.3f} | {cpu / steps * 1e6:.3f} | "
               f"{wall / steps * 1e6:.3f} | {cpu / loop[1]:.2f} | {wall / loop[2]:.2f} |")
+    print(f"| C march of the same scheme, one orbit after another (c_march.c, "
+          f"{c_predictor} predictor; {c_steps} steps) | {c_cpu:.3f} | {c_wall:.3f} | "
+          f"{c_cpu / c_steps * 1e6:.3f} | {c_wall / c_steps * 1e6:.3f} | "
+          f"{c_cpu / loop[1]:.2f} | {c_wall / loop[2]:.2f} |")
+    checked = next(row for row in found if row[0] == "march_ensemble(workers=1)")
+    print(f"\n- march_ensemble(workers=1) with the accuracy check against the sequential C "
+          f"march: CPU ratio {checked[1] / c_cpu:.2f} (issue 37's target <= 1.5); without the "
+          f"check {found[-1][1] / c_cpu:.2f}")
     for label, _, _, solutions in found[1:]:
+        if "accuracy=None" in label:
+            continue
         same = all(np.array_equal(a.t, b.t) and np.array_equal(a.q, b.q)
                    and np.array_equal(a.p, b.p) and a.status is b.status
                    for a, b in zip(loop[3], solutions, strict=True))

@@ -171,7 +171,7 @@ def bench(name, overrides, repeats):
 
 
 C_SOURCE = Path(__file__).with_name("c_march.c")
-C_KINDS = {"paper_pendulum": 0, "fpu": 1}
+C_KINDS = {"paper_pendulum": 0, "fpu": 1, "henon_heiles": 2}
 
 
 def c_march_library(folder):

@@ -16,7 +16,8 @@
 #define MAXN 8
 #define MAXU (2 * MAXN + 1)
 
-typedef struct { int kind; int n; double theta[4]; } System;  /* 0 paper_pendulum, 1 fpu */
+/* 0 paper_pendulum, 1 fpu, 2 henon_heiles */
+typedef struct { int kind; int n; double theta[4]; } System;
 
 static void potential(const System* s, const double* q, double t, double* V, double* Vq,
                       double* Vqq, double* Vqt) {
@@ -28,6 +29,12 @@ static void potential(const System* s, const double* q, double t, double* V, dou
     Vq[0] = sin(q[0]) * f;
     Vqq[0] = cos(q[0]) * f;
     Vqt[0] = sin(q[0]) * (-eps * omega * cos(omega * t));
+  } else if (s->kind == 2) {  /* henon_heiles: (x^2 + y^2)/2 + x^2 y - y^3/3 */
+    double x = q[0], y = q[1];
+    *V = (x * x + y * y) / 2 + x * x * y - y * y * y / 3;
+    Vq[0] = x + 2 * x * y;
+    Vq[1] = y + x * x - y * y;
+    Vqq[0] = 1 + 2 * y; Vqq[1] = 2 * x; Vqq[2] = 2 * x; Vqq[3] = 1 - 2 * y;
   } else {  /* fpu: stiff springs (2i-1, 2i), soft quartic springs (2i, 2i+1), fixed ends */
     double omega = s->theta[0], x[MAXN + 2];
     x[0] = 0; x[n + 1] = 0;

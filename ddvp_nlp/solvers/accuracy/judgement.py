@@ -40,9 +40,9 @@ The tests, in the order the verdict reads them:
 4. **Trajectory error**: ``max_i |z_k,i - z_ref,i(t_k)| / S_i`` at every node, ``z_ref`` the
    exact solution where the caller gives one (a fixed-endpoint solve passes its shooting
    solution), else the exact flow from ``z_0`` read at the nodes by its dense output. The flow
-   is integrated over windows of nodes growing fourfold from ``t_0`` and stops at the first
-   window where the error passes ``global_tol`` (``t_drift``): a run that drifts early is never
-   integrated to its end (the paper's pendulum drifts at ``t = 2`` of ``10^4``). Where the
+   is integrated a compiled call (1024 attempted steps) at a time from ``t_0`` and stops at the
+   first piece where the error passes ``global_tol`` (``t_drift``): a run that drifts early is
+   never integrated to its end (the paper's pendulum drifts at ``t = 2`` of ``10^4``). Where the
    reference's own error passes a tenth of ``global_tol`` before ``t_drift`` it is integrated
    again 100 times tighter; where even the tightest cannot hold it (a chaotic orbit past its
    horizon) the run is ``drifted`` from that time, and the report says the error could not be
@@ -92,8 +92,6 @@ LEVEL_RTOL = 1e-12
 # The reference's first tolerance (the coarse run's; the reference is the run at a tenth of it):
 # tighter by 100 while its own error passes its share before t_drift.
 REFERENCE_RTOL = 1e-9
-# Nodes of the reference's first window (then four times as many each, until the run drifts).
-FIRST_WINDOW = 256
 
 
 def _finite_or_none(value) -> float | None:
@@ -136,9 +134,8 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
     the exact level set, so wherever the gradient is at most its average (somewhere it is) at
     least ``dE / E_s``: a displacement, free of units and of constants added to ``H``. At
     least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
-    # grad H = (H_q, H_p) = (-f_p, f_q)
-    weighted = np.hstack([field[:, n:] * scale[:n], field[:, :n] * scale[n:]])
-    norm = row_norm(weighted)
+    # grad H = (H_q, H_p) = (-f_p, f_q): column j of f weighs with S of the other block
+    norm = row_norm(field * np.concatenate([scale[n:], scale[:n]]))
     weights = np.zeros(t.size)  # each node stands for half of each step beside it
     weights[:-1] += np.diff(t) / 2
     weights[1:] += np.diff(t) / 2
@@ -235,10 +232,11 @@ class Judgement:
         """The trajectory error at every node against the reference states: the exact solution
         if given, else the exact flow from ``z_0`` (``exact/reference.py``: two adaptive runs,
         the finer read at the nodes by its dense output, its own error bounded by their
-        difference and held below ``REFERENCE_SHARE * global_tol``). The reference covers the
-        run in windows of nodes growing fourfold, each carried on from the last, until the
-        error drifts or the run ends: a drifted run is measured up to ``t_drift`` only (the
-        paper's pendulum drifts at ``t = 2`` of ``10^4``)."""
+        difference and held below ``REFERENCE_SHARE * global_tol``). The reference grows a
+        compiled call at a time (`GrowingReference`), each piece measured at the nodes it
+        covers, until the error drifts or the run ends: a drifted run is measured up to
+        ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
+        of ``10^4``)."""
         tol = self.tolerance.global_tol
         extent = _Extent(z)  # every node's, whichever window is measured
         if exact is not None:
@@ -251,24 +249,29 @@ class Judgement:
         rtol = REFERENCE_RTOL
         while True:
             scan = _Scan(extent, self.system.n, tol)
-            growing = GrowingReference(self.flow(), z[0], t[0], self.theta, scale, rtol=rtol)
-            start, end = 0, min(last, max(FIRST_WINDOW, last // 64))
+            growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
+                                       rtol=rtol)
+            start = 0
             while True:
-                window = growing.extend(t[end])
-                times = t[start + 1:end + 1]
-                with np.errstate(invalid="ignore", over="ignore"):
-                    scan.measure(t, z, start, end, window.states(times),
-                                 window.error(times, scale))
-                if scan.stopped or end == last:
+                piece = growing.advance()
+                end = last if growing.done else \
+                    int(np.searchsorted(t, growing.reached, side="right")) - 1
+                if growing.failed:  # the first node past where the flow stopped is lost
+                    end = min(end + 1, last)
+                if end > start:
+                    with np.errstate(invalid="ignore", over="ignore"):
+                        states, claim = growing.at(piece, t[start + 1:end + 1])
+                        scan.measure(t, z, start, end, states, claim)
+                    start = end
+                if scan.stopped or start == last:
                     break
-                start, end = end, (last if 4 * end > last - end else 4 * end)
             if scan.lost is not None and rtol / 100 >= FLOOR_RTOL * FACTOR:
                 rtol /= 100  # its own error passed its share before t_drift: tighter
                 continue
             break
         found = scan.figures(t, "")
         found["estimate"] = (f"reference flow (adaptive order-8 Runge-Kutta, DOP853 at rtol "
-                             f"{window.rtol:.0e}, {growing.steps} steps; its own error at most "
+                             f"{rtol / FACTOR:.0e}, {growing.steps} steps; its own error at most "
                              f"{found['reference_error']:.1e} of the motion's size)")
         return found
 

@@ -51,6 +51,7 @@ from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
 from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
 from ..accuracy.judgement import Judgement, Level, apply_verdict, motion_scales
+from ..columns import row_max_abs
 from ..compiler import find_compiler
 from ..dense import attach
 from ..exact.shooting import shoot
@@ -387,14 +388,18 @@ def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
              "energy_scale": mean_step(request), "tau_floor": request.tau_floor,
              "p_sign_changes": sign_changes, **checks}
     local_error = np.zeros(0)
+    judged, judged_cpu = time.perf_counter(), time.process_time()
     if finite:
         stats["accuracy"], local_error = _accuracy(request, t, q, p)
+    judged_cpu = time.process_time() - judged_cpu
     total = time.perf_counter() - started
     solution = Solution(
         t=t, q=q, p=p, status=status, message=message, scheme=request.scheme.rule,
-        energy_residual=energy, canonical_residual=np.max(np.abs(canonical), axis=1),
+        energy_residual=energy, canonical_residual=row_max_abs(canonical),
         newton_iterations=stats["iterations_total"], local_error=local_error,
-        timing={"build_s": request.build_s, "solve_s": total - request.build_s}, stats=stats)
+        timing={"build_s": request.build_s, "solve_s": total - request.build_s,
+                "accuracy_s": total - (judged - started), "accuracy_cpu_s": judged_cpu},
+        stats=stats)
     if finite:
         apply_verdict(solution, stats["accuracy"], request.options.accuracy or Tolerance(),
                       advice="try more nodes")

@@ -37,6 +37,7 @@ class Reference:
     coarse: Trajectory
     rtol: float  # the fine run's
     floor: float = 0.0  # the running maximum before t0 (a window of a `GrowingReference`)
+    end_envelope: float = 0.0  # the running maximum at the last time `at` was asked for
 
     def states(self, times) -> np.ndarray:
         return self.fine.z(times)
@@ -50,43 +51,40 @@ class Reference:
         cost follows the motion, not the number of times asked for), read at each time as
         its value at the first sample at or after it; where fewer times than samples are
         asked for, at the times themselves."""
+        return self.at(times, scale)[1]
+
+    def at(self, times, scale) -> tuple[np.ndarray, np.ndarray]:
+        """The states at ``times`` and their claimed error (`error`), the fine run read once;
+        `end_envelope` is then the running maximum at the last of them."""
         times = np.asarray(times, float)
         scale = np.asarray(scale, float)
         forward = self.fine.t_end >= self.fine.t0
-        claim = self._claim(times, scale, forward)
+        states = self.fine.z(times)
+        with np.errstate(invalid="ignore"):  # NaN (a run that failed) stays NaN: lost
+            if times.size <= SAMPLES * self.fine.steps or not self.fine.steps:
+                difference = row_max_ratio(np.abs(self.coarse.z(times) - states), scale)
+                running = np.maximum.accumulate(np.maximum(difference, self.floor))
+                claim = SAFETY * np.maximum(running, self.rtol)
+            else:
+                samples = self._samples()
+                difference = row_max_ratio(np.abs(self.coarse.z(samples) -
+                                                  self.fine.z(samples)), scale)
+                running = np.maximum.accumulate(np.maximum(difference, self.floor))
+                keys = samples if forward else -samples
+                index = np.searchsorted(keys, times if forward else -times, side="left")
+                np.clip(index, 0, samples.size - 1, out=index)
+                claim = SAFETY * np.maximum(np.take(running, index), self.rtol)
+        self.end_envelope = float(running[-1]) if running.size else self.floor
         # past where either run stopped (a failed run): no claim
         reached = min(self.fine.t_reached, self.coarse.t_reached) if forward else \
             max(self.fine.t_reached, self.coarse.t_reached)
         claim[(times > reached) if forward else (times < reached)] = np.inf
-        return claim
-
-    def envelope(self, scale) -> float:
-        """The running maximum at the end of this reference (``floor`` included)."""
-        if not self.fine.steps:
-            return self.floor
-        with np.errstate(invalid="ignore"):  # NaN (a run that failed) stays NaN: lost
-            return float(np.maximum(self.floor, np.max(self._difference(self._samples(),
-                                                                        scale))))
+        return states, claim
 
     def _samples(self) -> np.ndarray:
         fractions = np.arange(SAMPLES) / SAMPLES
         return np.append((self.fine.t_old[:, None] + self.fine.h[:, None] * fractions)
                          .ravel(), self.fine.t_reached)
-
-    def _claim(self, times, scale, forward) -> np.ndarray:
-        if times.size <= SAMPLES * self.fine.steps or not self.fine.steps:
-            running = np.maximum.accumulate(np.maximum(self._difference(times, scale), self.floor))
-            return SAFETY * np.maximum(running, self.rtol)
-        samples = self._samples()
-        envelope = np.maximum.accumulate(np.maximum(self._difference(samples, scale),
-                                                    self.floor))
-        keys = samples if forward else -samples
-        index = np.searchsorted(keys, times if forward else -times, side="left")
-        np.clip(index, 0, samples.size - 1, out=index)
-        return SAFETY * np.maximum(np.take(envelope, index), self.rtol)
-
-    def _difference(self, times, scale) -> np.ndarray:
-        return row_max_ratio(np.abs(self.coarse.z(times) - self.fine.z(times)), scale)
 
 
 def reference(flow: AdaptiveFlow, z0, t0, t_end, theta, scale, *,
@@ -101,36 +99,56 @@ def reference(flow: AdaptiveFlow, z0, t0, t_end, theta, scale, *,
 
 
 class GrowingReference:
-    """The pair of runs of `reference`, grown window by window: each `extend` carries both
-    runs on from where they stopped (each from its own end state, with its last step) to a
-    later time and returns that window as a `Reference`, whose claim continues the running
-    maximum of the windows before it (``floor``). The reference of a run that drifts early is
-    thus integrated only a little past the drift, and the whole run costs what one run over
-    the measured span costs."""
+    """The pair of runs of `reference`, grown a piece at a time: `advance` carries the fine run
+    on by one compiled call of the flow (``flow.slots`` attempted steps) from where it stopped
+    and the coarse run to the same time, and returns that piece as a `Reference` whose claim
+    continues the running maximum of the pieces before it (``floor``). The pieces follow the
+    reference's own steps, not the number of nodes read from it: a run that drifts early is
+    integrated one call past its drift, and an accurate one in as many calls as its motion
+    needs."""
 
-    def __init__(self, flow: AdaptiveFlow, z0, t0: float, theta, scale, *,
+    def __init__(self, flow: AdaptiveFlow, z0, t0: float, t_end: float, theta, scale, *,
                  rtol: float = 1e-10):
         self.flow, self.theta = flow, np.asarray(theta, float)
         self.rtol, self.scale = rtol, np.asarray(scale, float)
+        self.t_end = float(t_end)
         z0 = np.asarray(z0, float)
         self._ends = {"coarse": (float(t0), z0, None), "fine": (float(t0), z0, None)}
         self.floor = 0.0  # the running maximum of |coarse - fine| / scale so far
         self.steps = 0  # the fine run's accepted steps so far
+        self.reached = float(t0)  # where both runs have come to
+        self.done = False  # both reached t_end
+        self.failed = False  # a run stopped before t_end (the flow cannot go on)
 
-    def extend(self, t_end: float) -> Reference:
-        parts = {}
-        for name, factor in (("coarse", 1.0), ("fine", FACTOR)):
-            t, z, h = self._ends[name]
-            part = self.flow.run(z, t, t_end, self.theta, rtol=self.rtol / factor,
-                                 atol=self.rtol / factor * self.scale, h0=h)
-            parts[name] = part
-            last = abs(float(part.h[-1])) if part.steps else h
+    def advance(self) -> Reference:
+        """The next piece: the fine run one call on (or to ``t_end``), the coarse to where the
+        fine one stopped."""
+        t, z, h = self._ends["fine"]
+        fine = self.flow.run(z, t, self.t_end, self.theta, rtol=self.rtol / FACTOR,
+                             atol=self.rtol / FACTOR * self.scale, h0=h,
+                             max_attempts=self.flow.slots)
+        t, z, h = self._ends["coarse"]
+        coarse = self.flow.run(z, t, fine.t_reached, self.theta, rtol=self.rtol,
+                               atol=self.rtol * self.scale, h0=h)
+        for name, part in (("fine", fine), ("coarse", coarse)):
+            last = abs(float(part.h[-1])) if part.steps else self._ends[name][2]
             self._ends[name] = (part.t_reached, part.z_end, last)
-        window = Reference(fine=parts["fine"], coarse=parts["coarse"],
-                           rtol=self.rtol / FACTOR, floor=self.floor)
-        self.floor = window.envelope(self.scale)
-        self.steps += parts["fine"].steps
-        return window
+        forward = self.t_end >= fine.t0
+        self.reached = min(fine.t_reached, coarse.t_reached) if forward else \
+            max(fine.t_reached, coarse.t_reached)
+        self.done = self.reached == self.t_end
+        limit = "attempt limit reached"
+        self.failed = not self.done and (not coarse.success or fine.status != limit or
+                                         fine.steps == 0)
+        self.steps += fine.steps
+        return Reference(fine=fine, coarse=coarse, rtol=self.rtol / FACTOR, floor=self.floor)
+
+    def at(self, piece: Reference, times) -> tuple[np.ndarray, np.ndarray]:
+        """The states of ``piece`` at ``times`` (within it, after the pieces before) and their
+        claimed error; the running maximum carried on to the next piece."""
+        states, claim = piece.at(np.asarray(times, float), self.scale)
+        self.floor = piece.end_envelope
+        return states, claim
 
 
 def exact_reference(system, z0, t0: float, t_end: float, theta, *, rtol: float = 1e-12,
