@@ -46,6 +46,10 @@ def print_summary(meta: dict, out) -> None:
     print("\n".join(lines))
 
 
+# The motion's sizes printed one by one up to this many components (a chain's 128 are a range)
+SHOWN_SCALES = 8
+
+
 def _accuracy_lines(meta: dict) -> list[str]:
     """The check that does not trust the scheme, before the scheme's own residual: what it
     measured (relative to the motion's own scales) and its verdict, in words. A run that failed
@@ -53,10 +57,13 @@ def _accuracy_lines(meta: dict) -> list[str]:
     accuracy = meta.get("accuracy")
     if not accuracy or accuracy.get("scale") is None:
         return []
-    scale = ", ".join(f"{s:.3g}" for s in accuracy["scale"])
+    sizes = accuracy["scale"]
+    scale = (f"[{', '.join(f'{s:.3g}' for s in sizes)}]" if len(sizes) <= SHOWN_SCALES else
+             f"{min(sizes):.3g} .. {max(sizes):.3g} over {len(sizes)} components (meta.json "
+             f"has each)")
     energy = accuracy.get("energy_scale")
     lines = [f"  accuracy check against the exact flow ({accuracy['estimate']}); the motion's "
-             f"size S = [{scale}]" + ("" if energy is None else
+             f"size S = {scale}" + ("" if energy is None else
                                       f", energy scale E_s = {energy:.3g}")]
     steps = (f"    steps: local error <= {accuracy['local_error_max']:.3e} of S (limit "
              f"{accuracy['rtol']:g})")

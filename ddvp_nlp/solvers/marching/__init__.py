@@ -10,8 +10,10 @@ Where things are:
 - ``initial_value.py``: ``march``: the checks (``check_problem``), the build, the driver call, the
   ``Solution``;
 - ``steps.py``: one step as CasADi functions (residual, predictor, check), from ``discrete/``;
-- ``newton.py``: the march's Newton: the option set of both paths, the careful solve with
+- ``step_newton.py``: the march's Newton: the option set of both paths, the careful solve with
   retries (``NewtonSteps``), and the compiled path's unrolled ``fast_newton``;
+  ``chain_newton.py``: the compiled path's Newton for many unknowns (a chain of conditional
+  iterations, each update by a sparse elimination: cost linear in ``n`` for a banded step);
 - ``acceptance.py``: when a step is accepted, one test for both paths;
 - ``chunk.py``: many steps per call in compiled CasADi code; ``stepper.py``: the careful,
   compiled and composite steppers the driver runs;

@@ -39,22 +39,22 @@ from ..compiler import (
     compile_function,
     warn_once,
 )
+from .chain_newton import chain_newton
 from .step_newton import NEWTON_OPTIONS, unrolled_newton
 from .steps import EnergyCheck, FixedCheck, StepFunctions
 
-# fast_newton's iterations written out as straight-line code (``newton.unrolled_newton``); the
+# fast_newton's iterations written out as straight-line code (``step_newton.unrolled_newton``); the
 # rest of its loop runs only where these did not stop.
 # Small systems (at most SMALL_NEWTON unknowns: n <= 2): three iterations, then the fourth's
 # residual test alone, all inlined with common subexpressions merged. From the RK4 predictor
 # fast_newton stops at that test on every step of the paper's example and after two or three
 # updates on Henon-Heiles (measured). Up to MEDIUM_NEWTON unknowns (fpu, n = 6, needs the fourth
 # update on 80% of its steps): four iterations and the fifth's test, inlined. Both solve each
-# update by elimination without pivoting (``newton.DenseLU``) instead of fast_newton's QR:
+# update by elimination without pivoting (``step_newton.DenseLU``) instead of fast_newton's QR:
 # the chunk with the accuracy check cost 0.77 against 0.92 us per step on the paper's example,
 # 0.79 against 1.27 on Henon-Heiles, 3.3 against 6.8 on fpu (side by side; fpu's QR inlined took
-# 4-6 s to compile, the elimination 1.3 s). Larger systems: four iterations of fast_newton's own
-# QR as calls.
-UNROLLED_ITERATIONS = 4
+# 4-6 s to compile, the elimination 1.3 s). Larger systems: fast_newton's loop as a chain of
+# conditional calls with a sparse elimination (``chain_newton.py``).
 SMALL_NEWTON = 5
 SMALL_UNROLL = MappingProxyType({"iterations": 3, "check_after": True, "inline": True,
                                  "linear": "lu"})
@@ -71,13 +71,24 @@ def step_options(unknowns: int) -> dict:
 
 
 def unroll_options(unknowns: int) -> dict:
-    """How `unrolled_newton` unrolls a Newton of
-    ``unknowns`` unknowns (see ``SMALL_NEWTON``)."""
+    """How the chunk's Newton of ``unknowns`` unknowns is built (see ``SMALL_NEWTON``): the
+    options of `unrolled_newton`, or ``{"chain": True}`` above ``MEDIUM_NEWTON`` for
+    `chain_newton` (``chain_newton.py``: the unrolled QR's code grows like ``n^3``)."""
     if unknowns <= SMALL_NEWTON:
         return dict(SMALL_UNROLL)
     if unknowns <= MEDIUM_NEWTON:
         return dict(MEDIUM_UNROLL)
-    return {"iterations": UNROLLED_ITERATIONS}
+    return {"chain": True}
+
+
+def step_newton(name: str, residual: ca.Function, at_root: ca.Function, *,
+                border: int) -> ca.Function:
+    """The chunk's Newton on ``residual`` (``border``: the unknowns `chain_newton` eliminates
+    last), chosen by `unroll_options` from its number of unknowns."""
+    options = unroll_options(residual.numel_in(0))
+    if options.pop("chain", False):
+        return chain_newton(name, residual, NEWTON_OPTIONS, at_root=at_root, border=border)
+    return unrolled_newton(name, residual, NEWTON_OPTIONS, at_root=at_root, **options)
 
 
 class Layout:
@@ -272,9 +283,8 @@ class FastChunk:
         w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
         # the step's residuals come out of the Newton, where they share the last residual
         # test's terms
-        newton = unrolled_newton("fast_energy_step", functions.energy_residual,
-                                 NEWTON_OPTIONS, at_root=_residuals(functions.energy_check),
-                                 **unroll_options(functions.energy_residual.numel_in(0)))
+        newton = step_newton("fast_energy_step", functions.energy_residual,
+                             _residuals(functions.energy_check), border=1)
         x, *residuals = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
         t_next = s["t_mid"] + x[-1]
         check = EnergyCheck(*residuals, *functions.node_monitor(x[:-1], t_next, theta))
@@ -298,9 +308,8 @@ class FastChunk:
         t_a = ca.if_else(k == 0, c["t0"], c["t0"] + k * c["tau"])
         t_b = ca.if_else(k + 1 == c["total"], c["t_end"], c["t0"] + (k + 1) * c["tau"])
         w = ca.vertcat(t_a, t_b, s["z"], theta)
-        newton = unrolled_newton("fast_fixed_step", functions.fixed_residual,
-                                 NEWTON_OPTIONS, at_root=_residuals(functions.fixed_check),
-                                 **unroll_options(functions.fixed_residual.numel_in(0)))
+        newton = step_newton("fast_fixed_step", functions.fixed_residual,
+                             _residuals(functions.fixed_check), border=0)
         z_b, *residuals = newton(functions.fixed_predict(w), w)
         check = FixedCheck(*residuals, *functions.node_monitor(z_b, t_b, theta))
         good = step_verdict([t_b, *ca.vertsplit(z_b), *check], check, LIMITS.split(limit))
