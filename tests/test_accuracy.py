@@ -117,8 +117,9 @@ scene = Scene(hamiltonian, n=1, params={"k": 1.0}, q0=[1.0], p0=[0.0], tau0=0.05
     (["QUARTIC"], None),                  # the steps grow to 78 tau0; q reaches 1.9 > 1
 ])
 def test_known_wrong_trajectories_end_inaccurate(tmp_path, capsys, argv, step):
-    """Changed from the first version of the check, which cut the march at the failing step:
-    the verdict needs the scales of the whole run, so every accepted node is kept and judged."""
+    """Both are wrong within their first steps: the early verdict stops them there (a step ten
+    times over the bound with the scales so far, issue 38), every accepted node is kept and
+    judged, and the final verdict, with the kept run's scales, is inaccurate too."""
     if argv[0] == "QUARTIC":
         scene_file = tmp_path / "quartic.py"
         scene_file.write_text(QUARTIC)
@@ -135,7 +136,7 @@ def test_known_wrong_trajectories_end_inaccurate(tmp_path, capsys, argv, step):
         assert failure["step"] == step
     result = np.load(out / "result.npz")
     assert result["t"].size == meta["steps"] + 1 and result["local_error"].size == meta["steps"]
-    assert result["t"][-1] >= 50.0 or meta["t_reached"] >= 2 * np.pi * 10 - 1e-9
+    assert "the march stopped there" in meta["message"]
     printed = capsys.readouterr().out
     assert "verdict: inaccurate" in printed and "try a smaller tau0" in printed
 
@@ -203,10 +204,11 @@ def test_a_fixed_endpoint_problem_without_a_solution_is_refused(tmp_path, capsys
 
 def test_a_failed_solve_never_prints_accurate(tmp_path, capsys):
     """A march that ends on a failure (the quartic oscillator at tau0 = 0.02: Newton fails at
-    q = 1.96, beyond the orbit): the check covers the nodes kept and never says accurate."""
+    q = 1.96, beyond the orbit; --accept-inaccurate lets it go past its early verdict): the
+    check covers the nodes kept and never says accurate."""
     scene_file = tmp_path / "quartic.py"
     scene_file.write_text(QUARTIC)
-    code = main(["march", str(scene_file), "--set", "tau0=0.02", *SHORT,
+    code = main(["march", str(scene_file), "--set", "tau0=0.02", "--accept-inaccurate", *SHORT,
                  "--out", str(tmp_path / "q")])
     printed = capsys.readouterr().out
     assert code == 1 and "newton_failed" in printed

@@ -278,11 +278,24 @@ class Judgement:
     # -- the steps ----------------------------------------------------------------------------
     def _local(self, t, z, scale, look):
         """The local error test: ``|z_{k+1} - Phi_{tau_k}(z_k)|_i <= rtol S_i (+ atol)`` for every
-        step, ``Phi`` the exact flow (``exact/short_flows.py``) with its own error held below a
-        tenth of that bound. With a first look (a second-order march), the steps whose error
-        against one RK4 step is below ``CANDIDATE`` times the bound in every component pass
-        without being measured again. Returns the first failure (or None), ``|d_k|_inf`` and
-        the largest ``max_i |d_k,i| / S_i``."""
+        step (`step_errors`). Returns the first failure (or None), ``|d_k|_inf`` and the largest
+        ``max_i |d_k,i| / S_i``."""
+        tol = self.tolerance
+        local, relative, ratio = self.step_errors(t, z, scale, look)
+        bad = np.flatnonzero(~(ratio <= 1.0))
+        failure = None
+        if bad.size:
+            k = int(bad[0])
+            failure = {"step": k, "t": float(t[k]), "test": "local error",
+                       "value": float(relative[k]), "limit": tol.rtol}
+        return failure, local, float(np.max(relative, initial=0.0))
+
+    def step_errors(self, t, z, scale, look=None):
+        """Every step's local error against the exact flow (``exact/short_flows.py``, its own
+        error held below a tenth of the bound ``rtol S_i (+ atol)``): ``|d_k|_inf``,
+        ``max_i |d_k,i| / S_i`` and ``max_i |d_k,i| / bound_i``. With a first look (a
+        second-order march's RK4 screen, `NodeValues.first_look`), the steps whose screen is
+        below ``CANDIDATE`` times the bound in every component pass without the exact flow."""
         tol = self.tolerance
         limit = tol.rtol * scale + (tol.atol or 0.0)
         steps = t.size - 1
@@ -303,13 +316,7 @@ class Judgement:
                 local[todo] = row_max(d)
                 relative[todo] = row_max_ratio(d, scale)
                 ratio[todo] = row_max_ratio(d, limit)
-        bad = np.flatnonzero(~(ratio <= 1.0))
-        failure = None
-        if bad.size:
-            k = int(bad[0])
-            failure = {"step": k, "t": float(t[k]), "test": "local error",
-                       "value": float(relative[k]), "limit": tol.rtol}
-        return failure, local, float(np.max(relative, initial=0.0))
+        return local, relative, ratio
 
     def _energies(self, t, z, H, energy: float, level: Level | None, scale) -> dict:
         """The energy tests, relative to the energy scale: the level the first step sets

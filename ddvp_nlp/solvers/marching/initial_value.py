@@ -44,7 +44,7 @@ from ..driver import Nodes, drive
 from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
 from .acceptance import Acceptance
 from .chunk import FastChunk
-from .monitors import Checkpoint, EnergyGuard, SolvabilityMonitor, StopRequest
+from .monitors import Checkpoint, EarlyVerdict, EnergyGuard, SolvabilityMonitor, StopRequest
 from .recheck import grid_residuals
 from .resume import CarryTracker, MarchState, check_resume, with_state
 from .step_newton import NewtonSteps
@@ -156,8 +156,15 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
     nodes = Nodes(problem.t0, np.concatenate([problem.q0, problem.p0]))
     monitors, solvability = _monitors(parts, problem, nodes)
     # the check and the recheck are compiled where the march's own chunk is (one fallback
-    # warning, not three)
+    # warning, not three), or (careful path) with the compiler asked for
     compiled = parts.fast_chunk is not None and parts.fast_chunk.path == "compiled"
+    judging = compiler if compiled else \
+        None if compilation.fast else find_compiler(compilation.compiler)
+    if accuracy is not None and accuracy.stop:
+        monitors.append(EarlyVerdict(Judgement(problem.system, problem.theta, accuracy,
+                                               compiler=judging,
+                                               cache_dir=compilation.cache_dir),
+                                     screen=True))
     events = None
     if output.events:
         events = EventMonitor(output.events, DenseField.of(problem.system, problem.theta),
@@ -191,13 +198,9 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
                          timing={"build_s": built - started, "solve_s": solved - built})
     solution.stats["carried"] = carry.state()
     if accuracy is not None:
-        # the exact flow is compiled where the chunk is, or (careful path) with the compiler
-        # asked for: one fallback warning, not two
         started = time.perf_counter()
-        report, solution.local_error = _judged(
-            problem, solution, accuracy, compiler=compiler if compiled else
-            None if compilation.fast else find_compiler(compilation.compiler),
-            cache_dir=compilation.cache_dir)
+        report, solution.local_error = _judged(problem, solution, accuracy, compiler=judging,
+                                               cache_dir=compilation.cache_dir)
         solution.stats["accuracy"] = report
         apply_verdict(solution, report, accuracy)
         solution.timing["accuracy_s"] = time.perf_counter() - started

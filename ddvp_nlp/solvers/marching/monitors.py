@@ -10,6 +10,8 @@ the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H
 - `SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
   sign and the step to be short against the change of ``w``, so it warns once, at the first node
   where ``w`` changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``.
+- `EarlyVerdict` ends a march whose first steps plainly do not follow the motion (status
+  ``INACCURATE``), instead of marching on to a verdict made at the end.
 """
 
 from __future__ import annotations
@@ -23,11 +25,58 @@ import warnings
 import numpy as np
 
 from ...solution import Status
+from ..accuracy.judgement import ADVICE, motion_scales
+from ..columns import column_extremes
 
 # The solvability monitor warns once |ln(w_k / w_{k-1})| passes this. Measured on kepler
 # (tau0 = 0.01): at most 0.36 per step for e = 0.7 (which runs), 0.6-0.9 in the 3-4 steps before
 # the breakdown at e = 0.78 and 0.8; rotating pendulum (p0 = 2): 0.74 two steps before.
 MONITOR_LIMIT = 0.5
+
+
+# The early verdict: the first EARLY_STEPS steps are judged as they come (once EARLY_NODES nodes
+# give the motion's scales), and a step whose local error passes EARLY_FACTOR times the bound
+# ends the run. The final check judges every node against the whole run's scales, which only
+# grow; a factor of ten keeps a run the final check would pass from being cut (a stiff-soft
+# pair with its stiff mode under-resolved, frequency x tau0 = 10: 46 times the bound at step 0,
+# where the march had gone on for 57 s to be judged inaccurate from step 0 at the end).
+EARLY_NODES = 64
+EARLY_STEPS = 4096
+EARLY_FACTOR = 10.0
+
+
+class EarlyVerdict:
+    """Ends the march at the first of its first ``EARLY_STEPS`` steps whose local error against
+    the exact flow passes ``EARLY_FACTOR`` times the accuracy check's bound, with the scales of
+    the nodes so far (``judge``: the run's `Judgement`; ``screen``: a second-order scheme's
+    steps go through the RK4 screen first). The nodes up to that step's end are kept."""
+
+    def __init__(self, judge, *, screen: bool):
+        self.judge, self.screen = judge, screen
+        self.checked = 0  # the steps judged so far
+
+    def watch(self, nodes, first, advance):
+        count = nodes.count
+        if self.checked >= EARLY_STEPS or not advance.count or count - 1 < EARLY_NODES:
+            return None
+        start, end = self.checked, min(count - 1, EARLY_STEPS)
+        z = nodes.z[:count]
+        scale = motion_scales(*column_extremes(z), z.shape[1] // 2)
+        t, z = nodes.t[start:end + 1], z[start:end + 1]
+        look = self.judge.values.first_look(t, z) if self.screen else None
+        _, relative, ratio = self.judge.step_errors(t, z, scale, look)
+        self.checked = end
+        over = np.flatnonzero(~(ratio <= EARLY_FACTOR))
+        if not over.size:
+            return None
+        i = int(over[0])
+        k = start + i
+        rtol = self.judge.tolerance.rtol
+        return Status.INACCURATE, (
+            f"the local error of step {k} (from t = {t[i]:.10g}) is {relative[i]:.3e} of the "
+            f"motion's size so far, more than {EARLY_FACTOR:g} times the bound {rtol:g}: the "
+            f"march stopped there; {ADVICE}"), \
+            max(0, k + 2 - first)
 
 
 class EnergyGuard:
