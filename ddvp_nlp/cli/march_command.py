@@ -96,6 +96,7 @@ def _march(args, scene, config, scheme):
                                                  t_eval=times, events=events))
     stats = solution.stats
     return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
+                                                     "fallbacks", "first_fallback",
                                                      "checkpoints", "checkpoints_landed_s")
                          if key in stats},
                       "carried": stats["carried"],

@@ -41,6 +41,12 @@ def print_summary(meta: dict, out) -> None:
                      f"(absolute: the largest |z_k - z_exact(t_k)| over the run, in the units "
                      f"of q and p)")
     path = f" ({meta['path']} path)" if "path" in meta else ""
+    first = meta.get("first_fallback")
+    if first:
+        careful, refused = meta["steps"] - meta.get("fast_steps", 0), meta.get("fallbacks", 0)
+        lines.append(f"  {careful} of {meta['steps']} steps on the careful path: {refused} "
+                     f"compiled step{'s were' if refused != 1 else ' was'} refused, the first "
+                     f"at t = {first['t']:.10g}: {first['why']}")
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
                  f" s{path}; written to {out}/")
     print("\n".join(lines))

@@ -386,5 +386,6 @@ def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, com
         stats={"retries": parts.newton.retries, "theta": theta.tolist(),
                "path": fast_chunk.path if fast_chunk else "careful",
                "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
+               "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback,
                "solvability_warning": solvability.warning if solvability else None,
                "least_squares": tally.least_squares})

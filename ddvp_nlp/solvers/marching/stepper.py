@@ -53,6 +53,8 @@ class Tally:
     fast_steps: int = 0
     careful_steps: int = 0
     least_squares: list = field(default_factory=list)
+    fallbacks: int = 0  # compiled steps refused, each handing its chunk's window to the careful
+    first_fallback: dict | None = None  # where the first was refused, and why
 
 
 @dataclass(frozen=True)
@@ -185,6 +187,8 @@ class CompiledStepper:
             limit = min(limit, int(ends[0]) + 1)
         bad = np.flatnonzero(~good[:limit])
         kept = int(bad[0]) if bad.size else limit
+        if bad.size:
+            self._refused(nodes, steps, kept)
         self.calls = 1 if bad.size else min(2 * self.calls, self.max_calls)
         values = {"H": steps.H_node[:kept], "w": steps.w_node[:kept],
                   "carry": self._carry(steps, kept)}
@@ -197,6 +201,24 @@ class CompiledStepper:
         if bad.size:  # the careful path ends the window; the next chunks start a new one
             self.offset = 0
         return advance, before
+
+    def _refused(self, nodes: Nodes, steps, i: int) -> None:
+        """Count a compiled step refused by its check; say where and why for the first."""
+        self.tally.fallbacks += 1
+        if self.tally.first_fallback is not None:
+            return
+        t = float(steps.t_next[i - 1]) if i else float(nodes.t[nodes.count - 1])
+        canonical, size = float(steps.canonical[i]), float(steps.size[i])
+        energy = float(steps.energy[i]) if self.chunk.variable else 0.0
+        tau = float(steps.t_next[i]) - t
+        if not (np.isfinite(canonical) and np.isfinite(energy) and np.isfinite(tau)):
+            why = "its Newton returned non-finite values"
+        elif self.chunk.variable and not tau > 0:
+            why = f"its Newton found a non-positive step ({tau:.3g})"
+        else:
+            why = (f"its Newton did not converge from the predictor (canonical residual "
+                   f"{canonical:.3g} at state size {size:.3g}, energy residual {energy:.3g})")
+        self.tally.first_fallback = {"t": t, "why": why}
 
     def _carry(self, steps, kept: int) -> np.ndarray:
         """Per kept step what a resumed march needs to go on as this one did (``resume.py``):
