@@ -84,6 +84,10 @@ def _march(args, scene, config, scheme):
         if times is not None or events:
             raise InputError(f"--t-eval and --event use the dense output of the scheme's own "
                              f"march; --method {args.scheme} is a compared method")
+        if args.target_error is not None:
+            raise InputError(f"--target-error chooses the step of this package's schemes; "
+                             f"--method {args.scheme} is a compared method (ddvp compare runs "
+                             f"it over its knob)")
         return _march_method(args, scene, config)
 
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
@@ -93,10 +97,12 @@ def _march(args, scene, config, scheme):
                      compilation=options.compilation(args),
                      output=options.march_output(args, checkpoint=args.checkpoint,
                                                  stop=INTERRUPTS.stop_requested,
-                                                 t_eval=times, events=events))
+                                                 t_eval=times, events=events),
+                     target_error=args.target_error)
     stats = solution.stats
     return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                      "fallbacks", "first_fallback",
+                                                     "target_error",
                                                      "checkpoints", "checkpoints_landed_s")
                          if key in stats},
                       "carried": stats["carried"],

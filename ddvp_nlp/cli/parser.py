@@ -338,6 +338,12 @@ def _march_command(march: argparse.ArgumentParser) -> None:
     march.add_argument("--t-end", type=float, default=None,
                        help="the end time (the same as --set t_end=T); with --resume: "
                             "continue to this later end time")
+    march.add_argument("--target-error", type=float, default=api_default("march", "target_error"),
+                       metavar="E",
+                       help="ask for a trajectory error instead of a step: the march chooses its "
+                            "tau0 from a pilot march at the scene's tau0, so that the run is "
+                            "accurate at E of the motion's size (a second try where it is not); "
+                            "the printout and meta.json give the tau0 chosen and its cost")
     march.add_argument("--t-eval", default=None, metavar="T1,T2,...|START:STOP:COUNT",
                        help="also report the state (q, p) at these times, from the scheme's "
                             "dense output (result.npz: t_eval, z_eval)")

@@ -41,6 +41,17 @@ def print_summary(meta: dict, out) -> None:
                      f"(absolute: the largest |z_k - z_exact(t_k)| over the run, in the units "
                      f"of q and p)")
     path = f" ({meta['path']} path)" if "path" in meta else ""
+    target = meta.get("target_error")
+    if target:
+        pilot, runs = target["pilot"], target["runs"]
+        tries = "; ".join(f"tau0 {r['tau0']:.4g}: {r['verdict']} in {r['steps']} steps, "
+                          f"{r['cpu_s']:.2f} s CPU" for r in runs)
+        lines.append(f"  target error {target['target']:g}: tau0 {target['tau0']:.4g} chosen "
+                     f"from a pilot at tau0 {pilot['tau0']:g} to t = {pilot['t_end']:.6g} "
+                     f"(error {pilot['error']:.2e} at t = {pilot['measured_to']:.6g}, growth "
+                     f"t^{pilot['growth']:.2f}, predicted {pilot['predicted']:.2e} at t_end at "
+                     f"its step; {pilot['cpu_s']:.2f} s CPU); {tries}; "
+                     f"{target['cpu_s']:.2f} s CPU in all")
     first = meta.get("first_fallback")
     if first:
         careful, refused = meta["steps"] - meta.get("fast_steps", 0), meta.get("fallbacks", 0)

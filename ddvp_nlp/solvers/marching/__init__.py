@@ -23,7 +23,9 @@ Where things are:
 - ``ensemble.py``: ``march_ensemble``, many starts on worker processes, with ``Collect``'s
   per-orbit output and reduction run on the workers;
 - ``resume.py``: what the loop carries besides the nodes (``MarchState``), so that
-  ``continue_march`` goes on from a run's nodes as if it had never stopped.
+  ``continue_march`` goes on from a run's nodes as if it had never stopped;
+- ``target.py``: ``march(..., target_error=E)``, the first step chosen from a pilot march
+  for the trajectory error asked for.
 
 The contract of the march. An implementer changing it must keep:
 

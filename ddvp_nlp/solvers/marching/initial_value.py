@@ -50,6 +50,7 @@ from .resume import CarryTracker, MarchState, check_resume, with_state
 from .step_newton import NewtonSteps
 from .stepper import CarefulStepper, Clock, CompiledStepper, MarchStepper, Tally
 from .steps import StepFunctions, step_functions
+from .target import check_target, march_to_error
 
 
 def coerced(scheme, steps, accuracy, compilation, output):
@@ -64,7 +65,8 @@ def coerced(scheme, steps, accuracy, compilation, output):
 def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v0=None,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
-          compilation: Compilation | None = None, output: Output | None = None) -> Solution:
+          compilation: Compilation | None = None, output: Output | None = None,
+          target_error: float | None = None) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -92,6 +94,11 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             (`Compilation`).
         output: progress bar, checkpoints, the stop request, the times to report
             (``t_eval``) and the events (`Output`; ``solvers/dense.py``).
+        target_error: the trajectory error asked for, relative to the motion's size: the
+            march chooses its own first step from a pilot march at ``tau0`` over the start of
+            the span, so that the run is ``accurate`` at ``global_tol = target_error``, with
+            one second try where it is not (``target.py``); ``stats["target_error"]`` holds
+            the choice and what it cost.
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -108,9 +115,23 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         A `Solution`; failures are a status on it, never an exception.
     """
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
+    target = None
+    if target_error is not None:
+        target = check_target(target_error, accuracy)
+        if v0 is not None:
+            raise InputError("target_error needs p0: with v0 the start itself depends on tau0")
     # the options first: the start (p0 from v0, H0) already builds CasADi functions
     problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
     check_times(output.t_eval, (problem.t0, problem.t_end))
+    if target is not None:
+        def run(tau, span, tolerance):
+            return march(system, problem.q0, problem.p0, span, tau0=tau, scheme=scheme,
+                         params=params, steps=steps, accuracy=tolerance,
+                         compilation=compilation,
+                         output=output if tolerance is not None else None)
+        return march_to_error(run, system, np.concatenate([problem.q0, problem.p0]),
+                              problem.t0, problem.t_end, problem.tau0, problem.theta, target,
+                              accuracy)
     return run_march(problem, accuracy, compilation, output)
 
 

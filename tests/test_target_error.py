@@ -1,0 +1,95 @@
+"""Asking for an error instead of a step (solvers/marching/target.py): the march chooses its
+tau0 so that the run is accurate at the error asked for, judged by the accuracy check and by an
+independent reference; the choice does not depend on units; bad requests are refused."""
+
+from __future__ import annotations
+
+import json
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from ddvp_nlp import InputError, Scene, load_scene, march
+from ddvp_nlp.cli import main
+from ddvp_nlp.solvers import exact_reference
+
+
+def _true_error(scene, config, solution) -> float:
+    """The largest error over the nodes against the exact flow at rtol 1e-12, relative to each
+    component's range over the run (the accuracy check's scales, without their floors)."""
+    z = np.column_stack([solution.q, solution.p])
+    theta = scene.system.parameter_vector(config.params)
+    states = exact_reference(scene.system, z[0], solution.t[0], solution.t[-1], theta,
+                             rtol=1e-12).states(solution.t)
+    both = np.vstack([z, states])
+    scale = both.max(axis=0) - both.min(axis=0)
+    return float(np.max(np.abs(z - states) / scale))
+
+
+@pytest.mark.parametrize("name, overrides, target", [("kepler", {"e": 0.6, "t_end": 20.0}, 1e-3),
+                                                     ("henon_heiles", {"t_end": 100.0}, 1e-3),
+                                                     ("pendulum", {"t_end": 50.0}, 1e-4)])
+def test_the_run_is_accurate_at_the_error_asked_for(name, overrides, target):
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0, params=config.params, target_error=target)
+    record = solution.stats["target_error"]
+    assert solution.success and solution.stats["accuracy"]["verdict"] == "accurate"
+    assert solution.stats["accuracy"]["global_tol"] == target
+    assert record["tau0"] == record["runs"][-1]["tau0"] and 1 <= len(record["runs"]) <= 2
+    # an independent measure: within twice the target (the verdict study's margin)
+    assert _true_error(scene, config, solution) <= 2 * target
+    # not wasteful beyond reason: the chosen step at least a tenth of the pilot's prediction
+    assert record["pilot"]["steps"] >= 2 and record["cpu_s"] > 0
+
+
+def _oscillator(amplitude: float) -> Scene:
+    def hamiltonian(q, p, t):
+        return (ca.sumsqr(p) + 4 * ca.sumsqr(q)) / 2 + 0.1 * q[0] ** 4 / amplitude ** 2
+    return Scene(hamiltonian, n=1, q0=[amplitude], p0=[0.0], tau0=0.05, t_end=30.0,
+                 name="oscillator")
+
+
+def test_the_choice_does_not_depend_on_units():
+    """q and p a thousand times larger (the quartic term scaled with them): the same motion in
+    other units, the same tau0 chosen (everything the choice measures is relative)."""
+    chosen = []
+    for amplitude in (1.0, 1000.0):
+        scene = _oscillator(amplitude)
+        config = scene.resolve({})
+        solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                         tau0=config.tau0, target_error=1e-3)
+        chosen.append(solution.stats["target_error"]["tau0"])
+    assert chosen[1] == pytest.approx(chosen[0], rel=1e-3)
+
+
+@pytest.mark.parametrize("value", [0.0, -1e-3, 1.0, 5.0, float("nan"), "x"])
+def test_a_bad_target_is_refused_by_name(value):
+    scene = load_scene("harmonic")
+    with pytest.raises(InputError, match="target_error"):
+        march(scene.system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, target_error=value)
+
+
+def test_a_target_needs_the_check_and_p0():
+    scene = load_scene("harmonic")
+    with pytest.raises(InputError, match="accuracy check"):
+        march(scene.system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, target_error=1e-3,
+              accuracy=None)
+    lagrangian = load_scene("pendulum_lagrangian")
+    with pytest.raises(InputError, match="p0"):
+        march(lagrangian.system, [0.5], None, (0.0, 1.0), tau0=0.05, v0=[0.1],
+              target_error=1e-3)
+
+
+def test_the_command_line_says_what_it_chose(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["march", "pendulum", "--set", "t_end=20", "--target-error", "1e-3",
+                 "--no-plot", "--no-progress", "--out", str(out)]) == 0
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["target_error"]["target"] == 1e-3 and meta["target_error"]["tau0"] > 0
+    assert "target error 0.001: tau0" in capsys.readouterr().out
+    assert main(["march", "pendulum", "--method", "rk4", "--target-error", "1e-3",
+                 "--no-plot", "--out", str(tmp_path / "m")]) == 2
+    assert "compared method" in capsys.readouterr().err
