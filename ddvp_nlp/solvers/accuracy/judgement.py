@@ -100,6 +100,17 @@ def _finite_or_none(value) -> float | None:
 
 # -- the scales of a motion -------------------------------------------------------------------
 
+def exact_states(system, z0, t: np.ndarray, theta, *, rtol: float) -> np.ndarray:
+    """The exact flow of ``system`` from ``z0`` at the times ``t`` (increasing, ``z0`` at
+    ``t[0]``), from the reference this check judges by (a pair of runs, the finer at
+    ``rtol / FACTOR``): the independent reference for a caller outside this package, such as
+    the pilot of ``march(..., target_error=E)``."""
+    from ..exact.reference import exact_reference
+
+    t = np.asarray(t, float)
+    return exact_reference(system, z0, float(t[0]), float(t[-1]), theta, rtol=rtol).states(t)
+
+
 def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int) -> np.ndarray:
     """``S_i`` of each component of ``z = (q, p)`` from its least and greatest values over the
     motion and its largest magnitude: its range ``high - low``, at least ``BLOCK_FLOOR`` times

@@ -36,9 +36,8 @@ import numpy as np
 
 from ...errors import InputError
 from ...validation import check_real
-from ..accuracy.judgement import motion_scales
+from ..accuracy.judgement import exact_states, motion_scales
 from ..columns import column_extremes, row_max_ratio
-from ..exact.reference import exact_reference
 
 __all__ = ["march_to_error"]
 
@@ -114,8 +113,7 @@ def _pilot_error(system, theta, pilot) -> tuple[float, float, float]:
     growth exponent of the running maximum over the second half up to there."""
     t = pilot.t
     z = np.column_stack([pilot.q, pilot.p])
-    reference = exact_reference(system, z[0], t[0], t[-1], theta, rtol=REFERENCE_RTOL)
-    states = reference.states(t)
+    states = exact_states(system, z[0], t, theta, rtol=REFERENCE_RTOL)
     scale = motion_scales(*column_extremes(np.vstack([z, states])), system.n)
     running = np.maximum.accumulate(row_max_ratio(np.abs(z - states), scale))
     linear = np.flatnonzero(running <= LINEAR_LIMIT)
