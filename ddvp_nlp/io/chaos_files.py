@@ -73,8 +73,7 @@ def draw_map(ax, arrays: dict, matplotlib):
     M, N = (int(v) for v in arrays["shape"])
     x, y = arrays["axis_0"], arrays["axis_1"]
     megno = np.ma.masked_invalid(arrays["megno"].reshape(M, N))
-    cmap = matplotlib.colormaps["magma"].copy()
-    cmap.set_bad("#dddddd")
+    cmap = matplotlib.colormaps["magma"].with_extremes(bad="#dddddd")
     image = ax.pcolormesh(_edges(x), _edges(y), megno, cmap=cmap, vmin=0.0, vmax=MEGNO_CAP,
                           shading="flat", rasterized=True)
     ax.contour(arrays["boundary_0"], arrays["boundary_1"], arrays["boundary_H"],

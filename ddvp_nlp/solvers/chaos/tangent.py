@@ -210,8 +210,9 @@ class TangentChunk(FastChunk):
 
     def run(self, state: np.ndarray, parameters: np.ndarray) -> tuple[dict, np.ndarray]:
         """One call: ``chunk`` steps from ``state``. Returns the per-step columns by name
-        (`FastChunk`'s outputs, ``good`` as booleans, ``drift`` after each step and ``ell``
-        ``(chunk, vectors)``) and the state after each step ``(chunk, state size)``; copies,
+        (`FastChunk`'s outputs, ``good`` as booleans, ``drift`` after each step, ``ell``
+        ``(chunk, vectors)`` and ``tangent``, the tangent states after each step, each row
+        ``X`` stacked column by column) and the state after each step ``(chunk, state size)``; copies,
         not the call's buffers."""
         tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
         states, outputs = (np.array(a) for a in self._buffer(state, tiled))
@@ -220,4 +221,5 @@ class TangentChunk(FastChunk):
         columns["good"] = columns["good"] != 0
         columns["ell"] = outputs[:, size:].reshape(self.chunk, self.vectors)
         columns["drift"] = self.plain_state.columns(states[:, :self.plain_state.size])["drift"]
+        columns["tangent"] = states[:, self.plain_state.size:]
         return columns, states
