@@ -8,8 +8,8 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
-          "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
+          "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
           "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "__version__",

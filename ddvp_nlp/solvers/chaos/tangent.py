@@ -212,14 +212,15 @@ class TangentChunk(FastChunk):
         """One call: ``chunk`` steps from ``state``. Returns the per-step columns by name
         (`FastChunk`'s outputs, ``good`` as booleans, ``drift`` after each step, ``ell``
         ``(chunk, vectors)`` and ``tangent``, the tangent states after each step, each row
-        ``X`` stacked column by column) and the state after each step ``(chunk, state size)``; copies,
-        not the call's buffers."""
+        ``X`` stacked column by column) and the state after each step
+        ``(chunk, state size)``; copies, not the call's buffers."""
         tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
         states, outputs = (np.array(a) for a in self._buffer(state, tiled))
         size = self.plain_output.size
         columns = self.plain_output.columns(outputs[:, :size])
         columns["good"] = columns["good"] != 0
         columns["ell"] = outputs[:, size:].reshape(self.chunk, self.vectors)
-        columns["drift"] = self.plain_state.columns(states[:, :self.plain_state.size])["drift"]
-        columns["tangent"] = states[:, self.plain_state.size:]
+        plain = self.plain_state.size
+        columns["drift"] = self.plain_state.columns(states[:, :plain])["drift"]
+        columns["tangent"] = states[:, plain:]
         return columns, states
