@@ -6,7 +6,8 @@ docs/guide.md for a user guide.
 
 The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``solve_bvp``,
 ``solve_periodic``, ``solve_periodic_family``, ``follow_periodic_family``, ``march_higher``,
-``solve_bvp_higher``), the stability of a periodic orbit (``periodic_stability``), their
+``solve_bvp_higher``), the stability of a periodic orbit (``periodic_stability``), chaos
+indicators on the march's tangent map (``chaos_indicators``, ``lyapunov_spectrum``), their
 options (``StepControl``, ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``,
 ``Continuation``, ``AtEnergy`` for a transfer at a prescribed energy), their
 result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes, and scenes.
@@ -34,12 +35,16 @@ from .solvers import Compilation, GridOptions, Output, StepControl, Tolerance
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
     from .solvers import (
         AtEnergy,
+        ChaosIndicators,
         Collect,
         Continuation,
         MarchState,
         Shooting,
+        Spectrum,
+        chaos_indicators,
         continue_march,
         follow_periodic_family,
+        lyapunov_spectrum,
         march,
         march_ensemble,
         march_higher,
@@ -57,7 +62,8 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
-    "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher")})
+    "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher",
+    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum")})
 
 
 def __getattr__(name: str):
@@ -106,12 +112,11 @@ def _version() -> str:
         return "unknown"
 
 
-__all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
-           "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
-           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
-           "PeriodicSettings", "Scene", "Shooting",
-           "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
-           "continue_march",
-           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
-           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
-           "solve_periodic", "solve_periodic_family"]
+__all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
+           "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
+           "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
+           "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",
+           "StepControl", "Tolerance", "__version__", "chaos_indicators", "continue_march",
+           "follow_periodic_family", "list_scenes", "load_scene", "lyapunov_spectrum", "march",
+           "march_ensemble", "march_higher", "periodic_stability", "plot", "solve_bvp",
+           "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

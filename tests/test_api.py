@@ -8,12 +8,12 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
-PUBLIC = {"AtEnergy", "Collect", "Compilation", "Continuation", "Endpoints", "GridOptions",
-          "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
+          "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
-          "Scheme", "Solution", "Status", "StepControl", "Tolerance", "__version__",
-          "continue_march",
+          "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "__version__",
+          "chaos_indicators", "continue_march", "lyapunov_spectrum",
           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
           "solve_periodic", "solve_periodic_family"}

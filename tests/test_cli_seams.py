@@ -20,7 +20,8 @@ from ddvp_nlp.runner.tasks import Task, run_tasks
 # The smallest arguments each command parses with.
 MINIMAL = {"march": ["harmonic"], "bvp": ["pendulum"], "compare": ["harmonic"], "stress": [],
            "sweep": ["harmonic"], "reproduce": [], "periodic": ["henon_heiles"],
-           "poincare": ["henon_heiles", "--energy", "0.1"]}
+           "poincare": ["henon_heiles", "--energy", "0.1"],
+           "chaos": ["henon_heiles", "--energy", "0.1", "--grid", "q2=-0.3:0.3:3,p2=-0.3:0.3:3"]}
 
 
 def test_every_command_but_scenes_is_covered():

@@ -60,6 +60,9 @@ API_DEFAULTS = {
                  "direction": lambda: _argument(_poincare_section(), "direction"),
                  "t_end": lambda: _argument(_poincare_section(), "t_end"),
                  "seed": lambda: _argument(_poincare_section(), "seed")},
+    "chaos": {"workers": lambda: _argument(_chaos_map(), "workers"),
+              "section": lambda: _argument(_chaos_map(), "section"),
+              "t_end": lambda: _argument(_chaos_map(), "t_end")},
     "compare": {"halvings": lambda: _field(_compare_options(), "halvings"),
                 "repeats": lambda: _field(_compare_options(), "repeats"),
                 "max_steps": lambda: _field(_compare_options(), "max_steps"),
@@ -87,6 +90,12 @@ def _poincare_section():
     from ..studies.poincare import poincare_section
 
     return poincare_section
+
+
+def _chaos_map():
+    from ..studies.chaos_map import chaos_map
+
+    return chaos_map
 
 
 def _compare_options():

@@ -30,7 +30,7 @@ COMMANDS = {"scenes": "scenes_command:run_scenes", "march": "march_command:run_m
             "stress": "study_commands:run_stress", "sweep": "study_commands:run_sweep",
             "reproduce": "study_commands:run_reproduce",
             "periodic": "orbit_commands:run_periodic",
-            "poincare": "section_command:run_poincare"}
+            "poincare": "section_command:run_poincare", "chaos": "chaos_command:run_chaos"}
 
 
 def command(name: str):

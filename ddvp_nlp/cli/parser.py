@@ -204,6 +204,7 @@ COMMAND_HELP = {
     "reproduce": "figures and report.md comparing the paper's claims with measurements",
     "periodic": "find a periodic orbit at a prescribed energy (or a family of them)",
     "poincare": "a Poincare section at a fixed energy: many orbits marched together",
+    "chaos": "a chaos map (MEGNO, largest Lyapunov exponent) over a grid on a section",
 }
 
 
@@ -222,7 +223,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     options = {"scenes": lambda sub: None, "march": _march_command, "bvp": _bvp_command,
                "compare": _compare_command, "stress": _stress_command,
                "sweep": _sweep_command, "reproduce": _reproduce_command,
-               "periodic": _periodic_command, "poincare": _poincare_command}
+               "periodic": _periodic_command, "poincare": _poincare_command,
+               "chaos": _chaos_command}
     for name, words in COMMAND_HELP.items():
         sub = commands.add_parser(name, help=words)
         if command is None or command == name:
@@ -272,6 +274,50 @@ def _poincare_command(poincare: argparse.ArgumentParser) -> None:
                                "(default: $DDVP_SCHEDULER, else local workers)")
     _cluster_argument(poincare)
     _accuracy_arguments(poincare)
+
+
+def _chaos_command(chaos: argparse.ArgumentParser) -> None:
+    chaos.add_argument("scene", nargs="?", default=None,
+                       help="a built-in scene name (see `ddvp scenes`) or a .py file, of two "
+                            "degrees of freedom")
+    chaos.add_argument("--energy", type=float, default=None, help="the energy E (required)")
+    value = {name: api_default("chaos", name) for name in ("section", "t_end", "workers")}
+    chaos.add_argument("--section", default=value["section"], metavar="NAME=VALUE",
+                       help=f"the section the cells start on, q1 or q2 (default "
+                            f"{value['section']}); the conjugate momentum is the positive "
+                            "root of H = E")
+    chaos.add_argument("--grid", default=None, metavar="q2=A:B:N,p2=C:D:M",
+                       help="the cells: N values of the other coordinate from A to B and M of "
+                            "its momentum from C to D (required)")
+    chaos.add_argument("--t-end", type=float, default=value["t_end"],
+                       help=f"end time of every cell (default {shown(value['t_end'])}); the "
+                            "indicators are also kept at t-end/2")
+    chaos.add_argument("--tau0", type=float, default=None,
+                       help="first step, which sets the discrete energy level (default: the "
+                            "scene's)")
+    chaos.add_argument("--set", dest="settings", action="append", default=[],
+                       metavar="NAME=VALUE", help="a parameter of the scene")
+    chaos.add_argument("--out", default=None,
+                       help="output folder (default: runs/SCENE-chaos-EENERGY; -HASH of the "
+                            "other settings when they are not the defaults)")
+    chaos.add_argument("--shard", default=None, metavar="K/N",
+                       help="run only the K-th of N parts of the cells, into OUT/shard-K-of-N/ "
+                            "(a SLURM array task); join them with --merge OUT")
+    chaos.add_argument("--merge", default=None, metavar="DIR",
+                       help="join the parts of DIR/shard-*-of-N/ into DIR/chaos.npz and "
+                            "chaos.png (no other option)")
+    chaos.add_argument("--fresh", action="store_true",
+                       help="ignore the journal of an earlier run of the same map (default: "
+                            "go on from its finished blocks)")
+    chaos.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    _progress_arguments(chaos, "the blocks of cells done")
+    chaos.add_argument("--workers", type=int, default=value["workers"],
+                       help=f"local worker processes (default: {value['workers']}; 1: in this "
+                            "process)")
+    chaos.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run the cells on this Dask scheduler, e.g. tcp://host:8786 "
+                            "(default: $DDVP_SCHEDULER, else local workers)")
+    _cluster_argument(chaos)
 
 
 def _periodic_command(periodic: argparse.ArgumentParser) -> None:

@@ -27,8 +27,9 @@ What may import what (``tests/test_architecture.py``): the core imports no famil
 and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``; ``marching/`` the
 core and ``accuracy/``; ``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and
 ``periodic/`` the core, ``grid/``, ``marching/``, ``exact/`` and ``accuracy/``; ``higher/`` the
-core, ``grid/``, ``exact/`` and ``accuracy/``. The package as a whole imports ``discrete``,
-``physics`` and the base modules, never the workbench.
+core, ``grid/``, ``exact/`` and ``accuracy/``; ``chaos/`` the core, ``marching/`` and
+``exact/``. The package as a whole imports ``discrete``, ``physics`` and the base modules,
+never the workbench.
 """
 
 from typing import TYPE_CHECKING
@@ -65,6 +66,10 @@ PUBLIC = {
     "assess": "accuracy.judgement", "apply_verdict": "accuracy.judgement",
     "describe": "accuracy.judgement", "Level": "accuracy.judgement",
     "motion_scales": "accuracy.judgement",
+    # chaos indicators on the tangent map, and their exact-flow reference
+    "chaos_indicators": "chaos.indicators", "ChaosIndicators": "chaos.indicators",
+    "lyapunov_spectrum": "chaos.spectrum", "Spectrum": "chaos.spectrum",
+    "exact_indicators": "chaos.exact_indicators", "exact_spectrum": "chaos.exact_indicators",
     # dense output, events, evaluation over many nodes, the compiler
     "Event": "dense", "locate": "dense", "evaluate_blocks": "grid.maps",
     "band_kernel": "grid.linear", "find_compiler": "compiler",
@@ -78,6 +83,9 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .bvp.at_energy import AtEnergy
     from .bvp.first_guess import Shooting
     from .bvp.fixed_ends import solve_bvp
+    from .chaos.exact_indicators import exact_indicators, exact_spectrum
+    from .chaos.indicators import ChaosIndicators, chaos_indicators
+    from .chaos.spectrum import Spectrum, lyapunov_spectrum
     from .compiler import find_compiler
     from .dense import Event, locate
     from .exact.flow import exact_flow
@@ -98,15 +106,14 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
-__all__ = ["AtEnergy", "Collect", "Compilation", "Continuation", "Event", "GridOptions",
-           "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
-           "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
-           "band_kernel", "check_periodic", "coerce", "continue_march", "describe",
-           "dop853", "end_with_parent", "evaluate_blocks", "find_compiler",
-           "exact_flow", "exact_reference", "fixed_step_run", "flow_callable",
-           "flow_with_derivatives",
-           "follow_periodic_family", "locate", "march", "march_ensemble",
-           "march_higher", "march_to_return", "motion_scales", "parse_section",
-           "periodic_stability", "resample", "section_point", "solve_bvp",
-           "solve_bvp_higher", "solve_periodic", "solve_periodic_family",
+__all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Event",
+           "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
+           "Spectrum", "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
+           "band_kernel", "chaos_indicators", "check_periodic", "coerce", "continue_march",
+           "describe", "dop853", "end_with_parent", "evaluate_blocks", "find_compiler",
+           "exact_flow", "exact_indicators", "exact_reference", "exact_spectrum", "fixed_step_run",
+           "flow_callable", "flow_with_derivatives", "follow_periodic_family", "locate",
+           "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "march_to_return",
+           "motion_scales", "parse_section", "periodic_stability", "resample", "section_point",
+           "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family",
            "step_residuals"]
