@@ -2,7 +2,7 @@
 (``ddvp chaos``): the nodes never move, the tangent is the step's derivative, MEGNO tells tori
 from chaos, the spectrum pairs, and the map's command refuses bad input, shards and merges to
 the one-run map and resumes after a kill. Small and fast; the long studies are
-scripts/chaos_page.py."""
+scripts/pages/chaos_page.py."""
 
 import math
 import multiprocessing
@@ -255,7 +255,7 @@ def test_a_killed_map_resumes_from_its_journal(tmp_path, capsys):
 def test_the_indicators_converge_in_tau0_at_second_order(system):
     """ln|w| (the synchronous tangent) and <Y> (midpoint weights) against the exact flow at
     the same time, tau0 from 0.04 to 0.005: a fitted order of at least 1.7 (second order in
-    theory; scripts/chaos_page.py measured 1.78-2.10); the weight t_{k+1} would give 1."""
+    theory; scripts/pages/chaos_page.py measured 1.78-2.10); the weight t_{k+1} would give 1."""
     for orbit, t in ((REGULAR, 100.0), (CHAOTIC, 50.0)):
         q, p = start(*orbit)
         taus, megno, log_norm = (0.04, 0.02, 0.01, 0.005), [], []

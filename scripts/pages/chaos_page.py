@@ -1,7 +1,7 @@
 """docs/chaos/README.md: the chaos maps of ``ddvp chaos`` against the exact flow, and the
 validation of the indicators (issue 41).
 
-    python scripts/chaos_page.py [--work DIR] [--stage maps|exact|cost|validate|second|page|all]
+    python scripts/pages/chaos_page.py [--work DIR] [--stage maps|exact|cost|validate|second|page|all]
 
 Stages keep their results in the work folder (default /tmp/chaos-page) and are skipped when
 their file is there, so the page can be redrawn without running anything again:
@@ -37,7 +37,7 @@ import numpy as np
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.solvers import chaos_indicators, exact_indicators, exact_spectrum, lyapunov_spectrum
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs" / "chaos"
 E_MAP = 0.125
 GRID = "q2=-0.45:0.7:100,p2=-0.52:0.52:100"
