@@ -140,6 +140,15 @@ def test_every_function_takes_its_number_of_positional_scalars(text, message):
         parse_event(text, 2, {})
 
 
+@pytest.mark.parametrize("event", ["sin()", "sin(q1, q1)"])
+def test_a_wrong_call_exits_2_before_the_folder_is_made(tmp_path, event, capsys):
+    out = tmp_path / "x"
+    assert main(["march", "harmonic", "--no-plot", "--out", str(out), "--event", event]) == 2
+    err = capsys.readouterr().err
+    assert f"--event '{event}'" in err and "takes 1 argument" in err
+    assert "Traceback" not in err and not out.exists()
+
+
 # Pieces of expressions, right and wrong: the property is that any text is either refused
 # with an InputError or evaluates to one real number per time, never runs code, never raises
 # anything else.

@@ -4,6 +4,12 @@ against the fingerprint the run kept); a folder being written is busy for reader
 folder names carry every input that changes the result; grid rows are reused only when the
 manifest vouches for their file; ``--cluster FILE`` is read like any file the user names."""
 
+import json
+import subprocess
+import sys
+
+import pytest
+
 from ddvp_nlp.cli import main
 
 HARMONIC = """from ddvp_nlp import Scene
@@ -27,3 +33,145 @@ def test_periodic_of_a_scene_whose_energy_is_nowhere_finite_on_the_ray_says_so(t
     assert code == 2, err
     assert "H is not finite anywhere on the start's ray of the section q1=0" in err
     assert "zero-size" not in err and "Traceback" not in err
+
+
+def _run(tmp_path, scene="h.py", k="1", out="run", *extra):
+    (tmp_path / "h.py").write_text(HARMONIC.format(k=k))
+    return main(["march", str(tmp_path / scene) if scene.endswith(".py") else scene,
+                 "--no-plot", "--no-progress", "--out", str(tmp_path / out), *extra])
+
+
+def _edit_meta(folder, change):
+    meta = json.loads((folder / "meta.json").read_text())
+    change(meta)
+    (folder / "meta.json").write_text(json.dumps(meta))
+
+
+def test_resume_runs_no_scene_file_the_run_folder_names(tmp_path, capsys):
+    """``--resume F`` had imported whatever .py file F/meta.json named: a planted file ran."""
+    assert _run(tmp_path) == 0
+    evil = tmp_path / "evil.py"
+    evil.write_text(f"open({str(tmp_path / 'pwned')!r}, 'w').write('x')\n")
+    _edit_meta(tmp_path / "run", lambda m: m["resume"].update(scene=str(evil)))
+    capsys.readouterr()
+    assert main(["march", "--resume", str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "name it on the command line" in err and str(evil) in err
+    assert not (tmp_path / "pwned").exists()
+    # named on the command line, it is the user's own file: run, and refused by its content
+    assert main(["march", str(evil), "--resume", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert "is not the file the run was computed from" in capsys.readouterr().err
+    assert not (tmp_path / "pwned").exists()  # refused by its SHA-256 before it ran
+
+
+def test_resume_refuses_an_edited_scene_naming_both(tmp_path, capsys):
+    assert _run(tmp_path) == 0
+    assert main(["march", str(tmp_path / "h.py"), "--resume", str(tmp_path / "run"),
+                 "--t-end", "3", "--no-plot", "--no-progress"]) == 0
+    (tmp_path / "h.py").write_text(HARMONIC.format(k="2"))  # another H
+    capsys.readouterr()
+    assert main(["march", str(tmp_path / "h.py"), "--resume", str(tmp_path / "run"),
+                 "--t-end", "4", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "is not the file the run was computed from" in err
+    assert err.count("SHA-256") == 2 and "Traceback" not in err
+    # a built-in scene the run never used is refused the same way
+    assert main(["march", "harmonic", "--resume", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert "'harmonic'" in capsys.readouterr().err
+
+
+def test_resume_refuses_settings_changed_in_the_record(tmp_path, capsys):
+    """The fingerprint covers the settings too: a record whose overrides were edited does not
+    continue another run into this folder."""
+    assert main(["march", "harmonic", "--set", "w=2", "--set", "t_end=2", "--no-plot",
+                 "--no-progress", "--out", str(tmp_path / "run")]) == 0
+    _edit_meta(tmp_path / "run", lambda m: m["resume"]["overrides"].update(w=3.0))
+    capsys.readouterr()
+    assert main(["march", "--resume", str(tmp_path / "run"), "--no-progress"]) == 2
+    assert "is not what the run was computed from" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda m: m["resume"]["options"].update(out="/tmp/elsewhere"), "names the option 'out'"),
+    (lambda m: m["resume"]["options"].update(tol="1e-3"), "gives tol = '1e-3'"),
+    (lambda m: m["resume"]["options"].update(alpha=7.0), "--alpha must lie in [0, 1]"),
+    (lambda m: m["resume"]["options"].update(scheme="rk4"), "gives the scheme 'rk4'"),
+    (lambda m: m["resume"]["overrides"].update(w="__import__('os')"), "not a number"),
+    (lambda m: m["resume"].pop("fingerprint"), "records no fingerprint"),
+    (lambda m: m.update(carried={"drift": "nan", "careful_left": 0, "phase": 0}),
+     "is not one ddvp wrote"),
+    (lambda m: m.update(carried={"drift": 0.0, "careful_left": -1, "phase": 0}),
+     "is not one ddvp wrote"),
+])
+def test_a_resume_record_is_data_checked_like_the_command_line(tmp_path, capsys, change,
+                                                               message):
+    assert main(["march", "harmonic", "--set", "t_end=2", "--no-plot", "--no-progress",
+                 "--out", str(tmp_path / "run")]) == 0
+    _edit_meta(tmp_path / "run", change)
+    capsys.readouterr()
+    assert main(["march", "--resume", str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and "internal error" not in err
+
+
+def _hold_lock(folder):
+    """Another process holding the folder's lock as a writer does, until its stdin closes."""
+    script = ("import fcntl, os, sys; fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT); "
+              "fcntl.flock(fd, fcntl.LOCK_EX); os.write(fd, b'4242'); print('held', "
+              "flush=True); sys.stdin.read()")
+    holder = subprocess.Popen([sys.executable, "-c", script, str(folder / ".ddvp.lock")],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline() == "held\n"  # a line read, not a time waited
+    return holder
+
+
+def test_a_folder_being_written_is_busy_for_resume_and_for_readers(tmp_path, capsys):
+    """A second --resume of a folder being written had failed with a node-count mismatch
+    (it read a set half-swapped); the folder's lock is taken before anything is read."""
+    from ddvp_nlp.io.atomic import FolderBusy
+    from ddvp_nlp.io.run_folder import read_run
+
+    assert main(["march", "harmonic", "--set", "t_end=2", "--no-plot", "--no-progress",
+                 "--out", str(tmp_path / "run")]) == 0
+    holder = _hold_lock(tmp_path / "run")
+    try:
+        capsys.readouterr()
+        assert main(["march", "--resume", str(tmp_path / "run"), "--t-end", "3",
+                     "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert "is busy" in err and "pid 4242" in err and "Traceback" not in err
+        with pytest.raises(FolderBusy, match="is busy: another ddvp process \\(pid 4242\\)"):
+            read_run(tmp_path / "run")
+        assert main(["periodic", "harmonic", "--guess", str(tmp_path / "run"), "--energy",
+                     "0.5", "--nodes", "20", "--no-plot", "--out", str(tmp_path / "orbit")]) == 2
+        assert "is busy" in capsys.readouterr().err
+    finally:
+        holder.stdin.close()
+        holder.wait()
+    arrays, meta = read_run(tmp_path / "run")  # free again; the reader leaves no lock file
+    assert meta["status"] == "success" and not (tmp_path / "run" / ".ddvp.lock").exists()
+
+
+def test_default_folders_differ_by_every_input_that_changes_the_result(tmp_path, capsys,
+                                                                       monkeypatch):
+    """--event, --t-eval and the scene file's content had been left out of the default
+    folder's name: such runs overwrote each other."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "h.py").write_text(HARMONIC.format(k="1"))
+
+    def folder(*argv):
+        capsys.readouterr()
+        assert main(["march", *argv, "--no-plot", "--no-progress"]) == 0
+        return capsys.readouterr().out.split("written to ")[1].split("/")[1]
+
+    plain = folder("harmonic")
+    event = folder("harmonic", "--event", "q1")
+    other_event = folder("harmonic", "--event", "q1;up")
+    times = folder("harmonic", "--t-eval", "0:1:3")
+    scene = folder("h.py")
+    (tmp_path / "h.py").write_text(HARMONIC.format(k="2"))
+    edited = folder("h.py")
+    assert len({plain, event, other_event, times, scene, edited}) == 6
+    assert plain == "harmonic-vddvp" and folder("harmonic", "--event", "q1") == event
+    (tmp_path / "h.py").write_text(HARMONIC.format(k="1"))
+    assert folder("h.py") == scene  # the same content finds its folder again
