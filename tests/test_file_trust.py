@@ -5,11 +5,16 @@ folder names carry every input that changes the result; grid rows are reused onl
 manifest vouches for their file; ``--cluster FILE`` is read like any file the user names."""
 
 import json
+import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
+from ddvp_nlp import InputError
 from ddvp_nlp.cli import main
 
 HARMONIC = """from ddvp_nlp import Scene
@@ -175,3 +180,125 @@ def test_default_folders_differ_by_every_input_that_changes_the_result(tmp_path,
     assert plain == "harmonic-vddvp" and folder("harmonic", "--event", "q1") == event
     (tmp_path / "h.py").write_text(HARMONIC.format(k="1"))
     assert folder("h.py") == scene  # the same content finds its folder again
+
+
+# -- files the user names, drawn at random: a checked object or an InputError, nothing else --
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return {"nan": "nan", "inf": "inf", "-inf": "-inf"}.get(repr(value), repr(value))
+    if isinstance(value, (int, str)):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return "{" + ", ".join(f"{json.dumps(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
+
+
+def _toml(tables: dict) -> str:
+    lines = []
+    for key, value in tables.items():
+        if isinstance(value, dict):
+            lines.append(f"[{json.dumps(key)}]")
+            lines += [f"{json.dumps(k)} = {_toml_value(v)}" for k, v in value.items()]
+        else:
+            lines.insert(0, f"{json.dumps(key)} = {_toml_value(value)}")
+    return "\n".join(lines) + "\n"
+
+
+_SCALARS = st.one_of(st.integers(-10, 10**6), st.integers(), st.floats(), st.booleans(),
+                     st.sampled_from(["local", "slurm", "16GB", "01:00:00", "a b", "x\ny",
+                                      "harmonic", "kepler", "rk4", "vddvp", "evil.py",
+                                      "--exclusive;--x=1", "$(reboot)", "2.9", "1e400"]),
+                     st.text(max_size=8))
+_VALUES = st.recursive(_SCALARS, lambda inner: st.one_of(
+    st.lists(inner, max_size=4), st.dictionaries(st.sampled_from(
+        ["from", "to", "count", "x", "w", "e"]), inner, max_size=3)), max_leaves=8)
+
+
+@given(table=st.dictionaries(st.sampled_from(
+    ["kind", "workers", "threads", "cores", "memory", "processes", "queue", "account",
+     "walltime", "job_extra", "jobs", "other"]), _VALUES, max_size=5),
+    kind=st.sampled_from(["local", "slurm", "pbs", 3, None]))
+@settings(max_examples=150, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_cluster_file_is_a_checked_description_or_refused(tmp_path, table, kind):
+    from ddvp_nlp.runner.cluster import MAXIMA, ClusterSpec, parse_cluster
+
+    if kind is not None:
+        table = {**table, "kind": kind}
+    path = tmp_path / "cluster.toml"
+    path.write_text(_toml({"cluster": table}))
+    try:
+        spec = parse_cluster(str(path))
+    except InputError as exc:
+        assert str(exc).startswith("--cluster")
+        return
+    assert isinstance(spec, ClusterSpec) and spec.kind in ("local", "slurm")
+    for name, value in spec.settings.items():
+        if isinstance(value, int):
+            assert not isinstance(value, bool) and 1 <= value <= MAXIMA.get(name, 10**6)
+        else:
+            assert "\n" not in value and "$" not in value
+
+
+@given(doc=st.dictionaries(st.sampled_from(["scene", "methods", "settings", "grid", "bounds",
+                                            "other"]), _VALUES, max_size=5))
+@settings(max_examples=150, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_grid_file_is_a_checked_sweep_or_refused_and_runs_no_code(tmp_path, doc):
+    from ddvp_nlp.studies.sweep_file import load_grid_file
+
+    (tmp_path / "evil.py").write_text(f"open({str(tmp_path / 'pwned')!r}, 'w')\n")
+    path = tmp_path / "grid.toml"
+    path.write_text(_toml(doc))
+    try:
+        spec = load_grid_file(path)
+    except InputError:
+        pass
+    else:
+        assert spec.axes and all(np.all(np.isfinite(v)) for v in spec.axes.values())
+    assert not (tmp_path / "pwned").exists()
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda p: p.symlink_to("/dev/zero"), "it is a symbolic link, which ddvp does not follow"),
+    (lambda p: os.mkfifo(p), "is not a regular file"),
+    (lambda p: p.write_bytes(b"#" * (1 << 17)), "bytes, more than the"),
+    (lambda p: p.write_text('[cluster]\nkind = "local"\nworkers = 100000\n'),
+     "workers = 100000 is more than this machine can hold"),
+    (lambda p: p.write_text('[cluster]\nkind = "local"\nworkers = 2.9\n'),
+     "workers must be int (a whole number), got 2.9"),
+    (lambda p: p.write_text('[cluster]\nkind = "slurm"\nqueue = "x\\n#!/bin/sh"\n'),
+     "queue must be a partition name"),
+])
+def test_a_cluster_file_is_checked_like_the_command_line(tmp_path, capsys, make, message):
+    path = tmp_path / "cluster.toml"
+    make(path)
+    assert main(["stress", "--quick", "--cluster", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and not (tmp_path / "o").exists()
+
+
+def test_a_device_named_as_a_cluster_file_is_not_read(capsys):
+    assert main(["stress", "--quick", "--cluster", "/dev/zero"]) == 2
+    assert "--cluster /dev/zero: the file '/dev/zero' is not a regular file" in \
+        capsys.readouterr().err
+
+
+def test_workers_on_the_command_line_and_in_a_description_are_checked_alike(capsys):
+    assert main(["stress", "--quick", "--workers", "100000"]) == 2
+    flag = capsys.readouterr().err
+    assert main(["stress", "--quick", "--cluster", "local:workers=100000"]) == 2
+    described = capsys.readouterr().err
+    assert "workers = 100000 is more than this machine can hold" in flag
+    assert "workers = 100000 is more than this machine can hold" in described
+
+
+def test_a_slurm_cluster_without_sbatch_is_a_quick_exit_2(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("dask_jobqueue")
+    monkeypatch.setenv("PATH", str(tmp_path))  # no sbatch
+    assert main(["stress", "--quick", "--cluster", "slurm:cores=2", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "sbatch was not found on the PATH" in capsys.readouterr().err
