@@ -126,9 +126,7 @@ class _Lock:
             if not stat.S_ISREG(os.fstat(descriptor).st_mode):
                 os.close(descriptor)
                 raise OutputError(self.path, OSError(errno.EEXIST, "it is not a regular file"))
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
+            if not _flock(descriptor, fcntl.LOCK_EX):
                 holder = _read_pid(descriptor)
                 os.close(descriptor)
                 raise OutputError(path, OSError(errno.EBUSY, (
@@ -161,6 +159,56 @@ class _Lock:
             os.unlink(LOCK_NAME, dir_fd=self.folder_fd)
         os.close(self.descriptor)
         self.descriptor = -1
+
+
+# Tries, 5 ms apart, to take a lock whose holder is being killed (it lets go as it dies).
+DYING_HOLDER_TRIES = 2000
+
+
+def _flock(descriptor: int, mode: int) -> bool:
+    """``flock(mode)`` without blocking: ``True`` if taken, ``False`` if another process
+    holds the lock. A holder that is being killed is waited for (a bounded count of tries):
+    the ``ddvp`` command runs in a child of the process a user kills (``cli/supervisor.py``),
+    and the child, killed with it, may take a moment to let go."""
+    import fcntl
+    import time
+
+    for _ in range(DYING_HOLDER_TRIES):
+        try:
+            fcntl.flock(descriptor, mode | fcntl.LOCK_NB)
+            return True
+        except OSError:
+            holder = _read_pid(descriptor)
+            if not holder or not _exiting(int(holder)):
+                return False
+        time.sleep(0.005)
+    return False
+
+
+def _exiting(pid: int) -> bool:
+    """Whether process ``pid`` is gone or on its way out: a SIGKILL pending, exiting, or a
+    zombie (Linux's ``/proc``; elsewhere only a process that is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as handle:
+            fields = handle.read().rsplit(b")", 1)[1].split()
+        if fields[0] in (b"Z", b"X", b"x") or int(fields[6]) & 0x4:  # PF_EXITING
+            return True
+        with open(f"/proc/{pid}/status", "rb") as handle:
+            for line in handle:
+                if line.startswith((b"SigPnd:", b"ShdPnd:")) and \
+                        int(line.split()[1], 16) & (1 << 8):  # SIGKILL pending
+                    return True
+        return False
+    except FileNotFoundError:
+        return True
+    except (OSError, ValueError, IndexError):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        except OSError:
+            pass
+        return False
 
 
 def _read_pid(descriptor: int) -> str:
@@ -539,9 +587,7 @@ def _shared_lock(folder_fd: int, path: Path, fcntl) -> int | None:
         if not stat.S_ISREG(os.fstat(descriptor).st_mode):
             os.close(descriptor)
             raise InputError(f"{path / LOCK_NAME} is not a regular file")
-        try:
-            fcntl.flock(descriptor, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except OSError:
+        if not _flock(descriptor, fcntl.LOCK_SH):
             holder = _read_pid(descriptor)
             os.close(descriptor)
             raise FolderBusy(busy_message(path, holder)) from None
