@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from ddvp_nlp import InputError
@@ -302,3 +302,110 @@ def test_a_slurm_cluster_without_sbatch_is_a_quick_exit_2(tmp_path, capsys, monk
     assert main(["stress", "--quick", "--cluster", "slurm:cores=2", "--out",
                  str(tmp_path / "o")]) == 2
     assert "sbatch was not found on the PATH" in capsys.readouterr().err
+
+
+_JSON = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(), st.floats(),
+                               st.sampled_from(["evil.py", "harmonic", "pendulum", "vddvp",
+                                                "running", "march", "../x", "a" * 64]),
+                               st.text(max_size=6)),
+                     lambda inner: st.one_of(st.lists(inner, max_size=3),
+                                             st.dictionaries(st.text(max_size=5), inner,
+                                                             max_size=3)), max_leaves=6)
+_META_PATHS = [("resume", "scene"), ("resume", "options", "tol"), ("resume", "options", "scheme"),
+               ("resume", "options", "alpha"), ("resume", "options", "out"),
+               ("resume", "overrides", "w"), ("resume", "overrides", "q0"),
+               ("resume", "fingerprint"), ("resume", "scene_sha256"), ("resume",),
+               ("carried",), ("carried", "drift"), ("carried", "phase"), ("status",),
+               ("command",), ("nodes",), ("files",), ("files", "result.npz", "sha256"),
+               ("files", "result.npz")]
+_FILE_DAMAGE = ["none", "no result", "garbage result", "result a folder", "meta a link",
+                "lock a folder", "lock a link", "meta truncated", "previous twin only"]
+
+
+@given(changes=st.lists(st.tuples(st.sampled_from(_META_PATHS), st.one_of(st.just("delete"),
+                                                                            _JSON)),
+                        max_size=3),
+       damage=st.sampled_from(_FILE_DAMAGE), named=st.sampled_from([None, "harmonic", "h.py",
+                                                                    "evil.py"]))
+@example(changes=[], damage="none", named="h.py")  # the run continued
+@example(changes=[], damage="previous twin only", named="h.py")  # cut between two renames
+@example(changes=[(("resume", "scene"), "evil.py")], damage="none", named=None)
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_state_of_a_run_folder_is_resumed_checked_or_refused(tmp_path_factory, capsys,
+                                                                 changes, damage, named):
+    """Random edits of meta.json and damage to the files: --resume continues the run, or
+    refuses it with a message (exit 2), or says it failed (exit 1); never a traceback, never
+    code the command line did not name, never a run it did not check."""
+    import shutil
+
+    root = tmp_path_factory.mktemp("resume")
+    base = _base_run(tmp_path_factory)
+    shutil.copytree(base, root, dirs_exist_ok=True, symlinks=True)
+    (root / "evil.py").write_text(f"open({str(root / 'pwned')!r}, 'w')\n")
+    folder = root / "run"
+    meta = json.loads((folder / "meta.json").read_text())
+    for path, value in changes:
+        _set(meta, path, value)
+    (folder / "meta.json").write_text(json.dumps(meta))
+    _damage(folder, damage)
+    argv = ["march", *([str(root / named)] if named and named.endswith(".py") else
+                       [named] if named else []), "--resume", str(folder), "--no-progress",
+            "--no-plot", "--t-end", "3"]
+    capsys.readouterr()
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code in (0, 1, 2), err
+    assert "Traceback" not in err and "internal error" not in err, err
+    assert not (root / "pwned").exists()
+    if code == 0:  # only a run the checks passed: this scene, its settings, its options
+        from ddvp_nlp.io.run_folder import read_run
+
+        arrays, written = read_run(folder)
+        assert named in (None, "h.py") and written["status"] == "success"
+        assert arrays["t"][-1] >= 3.0 and written["resume"]["scene"].endswith("h.py")
+
+
+def _base_run(factory):
+    base = factory.getbasetemp() / "resume-base"
+    if not (base / "run" / "meta.json").exists():
+        base.mkdir(exist_ok=True)
+        (base / "h.py").write_text(HARMONIC.format(k="1"))
+        assert main(["march", str(base / "h.py"), "--no-plot", "--no-progress", "--out",
+                     str(base / "run")]) == 0
+    return base
+
+
+def _set(meta, path, value):
+    node = meta
+    for key in path[:-1]:
+        if not isinstance(node.get(key), dict):
+            node[key] = {}
+        node = node[key]
+    if value == "delete":
+        node.pop(path[-1], None)
+    else:
+        node[path[-1]] = value
+
+
+def _damage(folder, damage):
+    result = folder / "result.npz"
+    if damage == "no result":
+        result.unlink()
+    elif damage == "garbage result":
+        result.write_bytes(b"PK\x03\x04" + b"\0" * 100)
+    elif damage == "result a folder":
+        result.unlink()
+        result.mkdir()
+    elif damage == "meta a link":
+        (folder / "elsewhere.json").write_text((folder / "meta.json").read_text())
+        (folder / "meta.json").unlink()
+        (folder / "meta.json").symlink_to(folder / "elsewhere.json")
+    elif damage == "lock a folder":
+        (folder / ".ddvp.lock").mkdir()
+    elif damage == "lock a link":
+        (folder / ".ddvp.lock").symlink_to(folder / "nowhere")
+    elif damage == "meta truncated":
+        (folder / "meta.json").write_text((folder / "meta.json").read_text()[:50])
+    elif damage == "previous twin only":
+        result.rename(folder / ".result.npz.previous")
