@@ -3,13 +3,16 @@ crossings in the run folder, equal to the API's; event expressions evaluated by 
 walker that computes and never runs code."""
 
 import json
+import re
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ddvp_nlp import InputError, Output, load_scene, march
 from ddvp_nlp.cli import main
-from ddvp_nlp.cli.events import parse_event, parse_times
+from ddvp_nlp.cli.events import ARITY, parse_event, parse_times
 
 
 def run(tmp_path, *extra):
@@ -117,3 +120,73 @@ def test_bad_requests_exit_2_naming_the_option(tmp_path, extra, message, capsys)
     assert main(["march", "harmonic", "--no-plot", "--out", str(tmp_path / "x"), *extra]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("text, message", [
+    ("sin()", "sin takes 1 argument, got 0"),
+    ("sin(q1, q1)", "sin takes 1 argument, got 2"),
+    ("arctan2(q1)", "arctan2 takes 2 arguments, got 1"),
+    ("hypot(q1, q2, p1)", "hypot takes 2 arguments, got 3"),
+    ("maximum(q1, q2, q1)", "maximum takes 2 arguments, got 3"),
+    ("sin(*[q1])", "is not allowed"),
+    ("exp(x=q1)", "is not allowed"),
+    ("-" * 300 + "q1", "nested deeper than"),
+])
+def test_every_function_takes_its_number_of_positional_scalars(text, message):
+    """A numpy ufunc takes one argument more than its mathematics (its output array):
+    'sin(q1, q1)' had written into q1 and ended the run at step 1, 'sin()' was an internal
+    error; both are refused when parsed, naming the call."""
+    with pytest.raises(InputError, match=re.escape(message)):
+        parse_event(text, 2, {})
+
+
+@pytest.mark.parametrize("event", ["sin()", "sin(q1, q1)"])
+def test_a_wrong_call_exits_2_before_the_folder_is_made(tmp_path, event, capsys):
+    out = tmp_path / "x"
+    assert main(["march", "harmonic", "--no-plot", "--out", str(out), "--event", event]) == 2
+    err = capsys.readouterr().err
+    assert f"--event '{event}'" in err and "takes 1 argument" in err
+    assert "Traceback" not in err and not out.exists()
+
+
+# Pieces of expressions, right and wrong: the property is that any text is either refused
+# with an InputError or evaluates to one real number per time, never runs code, never raises
+# anything else.
+_ATOMS = st.sampled_from(["q1", "q2", "p1", "p2", "t", "pi", "mu", "1", "0", "2.5", "1e308",
+                          "x", "q3", "__import__", "open", "q1.real", "()", "[q1]", "''"])
+
+
+@st.composite
+def _expressions(draw, depth=0):
+    if depth > 4 or draw(st.booleans()):
+        return draw(_ATOMS)
+    kind = draw(st.sampled_from(["call", "binary", "unary", "keyword", "lambda"]))
+    sub = [draw(_expressions(depth=depth + 1)) for _ in range(draw(st.integers(0, 3)))]
+    if kind == "call":
+        name = draw(st.sampled_from([*ARITY, "eval", "getattr", "sum"]))
+        return f"{name}({', '.join(sub)})"
+    if kind == "binary" and sub:
+        return f"({sub[0]} {draw(st.sampled_from(['+', '-', '*', '/', '**', '%', '//', '@']))} "\
+               f"{sub[-1]})"
+    if kind == "unary" and sub:
+        return f"{draw(st.sampled_from(['-', '+', 'not ', '~']))}{sub[0]}"
+    if kind == "keyword":
+        return f"{draw(st.sampled_from(list(ARITY)))}(out={sub[0] if sub else 'q1'})"
+    return f"(lambda: {sub[0] if sub else 1})()"
+
+
+@given(text=_expressions(), modifiers=st.sampled_from(["", ";up", ";down;terminal=2", ";x"]))
+@settings(max_examples=300, deadline=None, derandomize=True)
+def test_any_expression_is_refused_or_evaluates_to_one_number_per_time(text, modifiers):
+    t = np.linspace(0.0, 1.0, 5)
+    q = np.linspace(-1.0, 1.0, 10).reshape(5, 2)
+    p = q[::-1].copy()
+    before = (q.copy(), p.copy())
+    try:
+        g = parse_event(text + modifiers, 2, {"mu": 0.5})
+    except InputError as exc:
+        assert str(exc).startswith("--event")
+        return
+    value = g(t, q, p)
+    assert value.shape == t.shape and value.dtype == float
+    assert np.array_equal(q, before[0]) and np.array_equal(p, before[1])  # nothing written

@@ -130,11 +130,17 @@ def test_a_full_disk_ends_with_exit_1_naming_the_file(tmp_path):
 
 
 def test_a_folder_gone_mid_run_ends_with_exit_1_naming_the_path(tmp_path):
+    """The folder is removed while the command is frozen (SIGSTOP to its process group): a
+    removal racing the checkpoints written meanwhile had failed with 'Directory not empty'."""
     out = tmp_path / "run"
-    process = ddvp([*ENDLESS, "--out", str(out)])
+    process = ddvp([*ENDLESS, "--out", str(out)], start_new_session=True)
     wait_for_checkpoint(out, process)
-    shutil.rmtree(out)
-    out.write_text("not a folder any more")
+    os.killpg(process.pid, signal.SIGSTOP)  # no writer runs while the folder goes
+    try:
+        shutil.rmtree(out)
+        out.write_text("not a folder any more")
+    finally:
+        os.killpg(process.pid, signal.SIGCONT)
     process.send_signal(signal.SIGINT)
     _, stderr = process.communicate()
     assert process.returncode == 1

@@ -10,7 +10,7 @@ import pytest
 
 from ddvp_nlp import Compilation, InputError
 from ddvp_nlp.cli import main
-from ddvp_nlp.runner.journal import JournalWarning, run_journalled
+from ddvp_nlp.runner.journal import JournalWarning, journal_path, run_journalled
 from ddvp_nlp.runner.tasks import Task, Workers, describe_error, run_tasks
 from ddvp_nlp.solvers.compiler import find_compiler
 from ddvp_nlp.studies.stress_report import stress
@@ -98,10 +98,12 @@ def test_resume_skips_finished_rows(tmp_path):
     assert ran == 4
     again, ran = run_journalled(tasks, path, ["key", "x"], **kwargs)
     assert ran == 0 and again == first
-    # an interrupted grid: only two rows made it to the file
+    # an interrupted grid: only two rows made it to its journal, no complete grid yet
     with open(path, newline="") as handle:
         kept = list(csv.DictReader(handle))[:2]
-    with open(path, "w", newline="") as handle:  # the file's own columns (fingerprint too)
+    path.unlink()
+    (tmp_path / "meta.json").unlink()
+    with open(journal_path(path), "w", newline="") as handle:  # its own columns (checks too)
         writer = csv.DictWriter(handle, list(kept[0]))
         writer.writeheader()
         writer.writerows(kept)
@@ -232,7 +234,10 @@ def test_resume_retries_failed_rows_and_skips_a_torn_line(tmp_path):
     _grid(path, tasks)
     text = path.read_text().splitlines()
     text[1] = text[1].replace("success", "task_failed")  # edited by hand: its checksum fails
-    path.write_text("\n".join(text[:-1]) + "\n" + text[-1][:4])  # and a torn last line
+    # the journal of a first grid killed while appending: a torn last line
+    journal_path(path).write_text("\n".join(text[:-1]) + "\n" + text[-1][:4])
+    path.unlink()
+    (tmp_path / "meta.json").unlink()
     with pytest.warns(JournalWarning, match="line 4 is incomplete"):
         rows, ran = _grid(path, tasks)
     assert ran == 2 and [r["status"] for r in rows] == ["success"] * 3
@@ -255,3 +260,39 @@ def test_an_unreachable_scheduler_is_refused_quickly():
 
     with pytest.raises(InputError, match="no Dask scheduler answers at 'tcp://127.0.0.1:9'"):
         resolve_scheduler("tcp://127.0.0.1:9")
+
+
+def test_a_complete_grid_the_manifest_does_not_vouch_for_gives_no_row(tmp_path):
+    """A rerun had reused sweep.csv rows whose file no longer matched its meta.json (rows
+    edited and re-signed: a row's checksum is not a signature); the manifest's SHA-256 of the
+    whole file decides now."""
+    from ddvp_nlp.runner.journal import row_checksum
+
+    path = tmp_path / "grid.csv"
+    tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i), "status": "success"})
+             for i in range(3)]
+    _grid(path, tasks)
+    with open(path, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    columns = list(rows[0])
+    rows[0]["x"] = "forged"
+    rows[0]["row_sha256"] = row_checksum(rows[0], columns)  # a valid row, a changed file
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, columns, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    with pytest.warns(JournalWarning, match="is not the file its manifest describes"):
+        again, ran = _grid(path, tasks)
+    assert ran == 3 and [r["x"] for r in again] == ["0", "1", "2"]
+
+
+def test_a_key_twice_in_a_grid_file_is_refused(tmp_path):
+    """Of two valid rows with one key the last had silently won."""
+    path = tmp_path / "grid.csv"
+    tasks = [Task(f"t{i}", "builtins:dict", kwargs={"x": str(i), "status": "success"})
+             for i in range(2)]
+    _grid(path, tasks)
+    lines = path.read_text().splitlines()
+    journal_path(path).write_text("\n".join([lines[0], lines[1], lines[2], lines[1]]) + "\n")
+    with pytest.raises(InputError, match="gives the key 't0' twice \\(lines 2 and 4\\)"):
+        _grid(path, tasks)

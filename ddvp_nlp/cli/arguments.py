@@ -183,12 +183,13 @@ def on_cluster(args):
     if text is None:
         yield
         return
-    from ..runner.cluster import parse_cluster, start_cluster
+    from ..runner.cluster import check_available, parse_cluster, start_cluster
 
     if args.scheduler is not None:
         raise InputError("give --cluster (a cluster started for this run) or --scheduler (one "
                          "that runs already), not both")
     spec = parse_cluster(text)
+    check_available(spec)
     with start_cluster(spec) as cluster:
         args.scheduler = cluster.scheduler_address
         yield

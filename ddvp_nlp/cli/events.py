@@ -3,12 +3,17 @@ command line.
 
 An event is ``EXPR[;up|down|both][;terminal[=N]]``: ``EXPR`` an arithmetic expression in
 ``t``, ``q1..qn``, ``p1..pn``, the scene's parameters and ``pi``, with ``+ - * / **``,
-parentheses, numbers and the functions of `FUNCTIONS`; the event is where it is zero
+parentheses, numbers and the functions of `FUNCTIONS`, each called with its number of
+positional arguments (``sin(q1)``, ``arctan2(q2, q1)``; ``sin()``, ``sin(q1, q1)``, a keyword or
+a ``*`` argument is refused: numpy would take the extra one as its output array); the event is
+where it is zero
 (``up``: crossed from negative to non-negative, ``down``: the reverse, ``both`` the default);
 ``terminal`` ends the march at the first crossing (``terminal=N``: at the N-th). The text is
 parsed by Python's ``ast`` and evaluated by walking that tree over numpy arrays: only the node
 kinds and names above are accepted, so an expression can compute, never run code (no
-attribute, subscript, call of anything but the listed functions, comprehension or lambda).
+attribute, subscript, call of anything but the listed functions, comprehension or lambda),
+and nested no deeper than `MAX_DEPTH`. Every refusal is an `InputError` naming the
+expression, raised when it is parsed (before anything is solved).
 """
 
 from __future__ import annotations
@@ -21,15 +26,21 @@ import numpy as np
 
 from ..errors import InputError
 
-FUNCTIONS = {name: getattr(np, name) for name in (
-    "sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "sinh", "cosh", "tanh",
-    "exp", "log", "log10", "sqrt", "abs", "hypot", "sign", "minimum", "maximum")}
+# Each function an expression may call, with the number of positional arguments it takes: a
+# numpy ufunc takes one more (its output array), which had made 'sin(q1, q1)' write into q1.
+ARITY = {**dict.fromkeys(("sin", "cos", "tan", "arcsin", "arccos", "arctan", "sinh", "cosh",
+                          "tanh", "exp", "log", "log10", "sqrt", "abs", "sign"), 1),
+         **dict.fromkeys(("arctan2", "hypot", "minimum", "maximum"), 2)}
+FUNCTIONS = {name: getattr(np, name) for name in ARITY}
 OPERATORS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
              ast.Div: operator.truediv, ast.Pow: operator.pow, ast.USub: operator.neg,
              ast.UAdd: operator.pos}
 DIRECTIONS = {"up": 1, "+": 1, "down": -1, "-": -1, "both": 0}
 # Longest expression read: an event is a line, not a program.
 MAX_EXPRESSION = 1000
+# Deepest nesting of operations read (a chain of 999 signs had overflowed the checker's
+# recursion).
+MAX_DEPTH = 200
 
 
 class Expression:
@@ -49,15 +60,19 @@ class Expression:
             self.tree = ast.parse(text.strip(), mode="eval").body
         except SyntaxError as exc:
             raise InputError(f"--event {text!r}: not an expression ({exc.msg})") from None
-        self._check(self.tree)
+        self._check(self.tree, 0)
 
     def names(self) -> set[str]:
         return {"t", "pi", *self.params, *(f"{s}{i}" for s in "qp" for i in
                                            range(1, self.n + 1))}
 
-    def _check(self, node) -> None:
-        """Every node an allowed kind, every name known: an `InputError` names the first
-        that is not."""
+    def _check(self, node, depth: int) -> None:
+        """Every node an allowed kind, every name known, every call of a listed function with
+        its number of positional arguments, no deeper than `MAX_DEPTH`: an `InputError`
+        names the first that is not."""
+        if depth > MAX_DEPTH:
+            raise InputError(f"--event {self.text!r}: nested deeper than {MAX_DEPTH} "
+                             "operations")
         if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
                 and not isinstance(node.value, bool):
             try:
@@ -73,20 +88,32 @@ class Expression:
                                  + "".join(f", {k}" for k in self.params) + ")")
             return
         if isinstance(node, ast.BinOp) and type(node.op) in OPERATORS:
-            self._check(node.left)
-            self._check(node.right)
+            self._check(node.left, depth + 1)
+            self._check(node.right, depth + 1)
             return
         if isinstance(node, ast.UnaryOp) and type(node.op) in OPERATORS:
-            self._check(node.operand)
+            self._check(node.operand, depth + 1)
             return
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
-                and node.func.id in FUNCTIONS and not node.keywords:
+                and node.func.id in FUNCTIONS:
+            self._check_call(node)
             for argument in node.args:
-                self._check(argument)
+                self._check(argument, depth + 1)
             return
         raise InputError(f"--event {self.text!r}: {ast.unparse(node)!r} is not allowed (an "
                          f"expression of numbers, names, + - * / **, parentheses and "
                          f"{', '.join(FUNCTIONS)})")
+
+    def _check_call(self, node: ast.Call) -> None:
+        """A call of a listed function: its number of arguments, all positional."""
+        name, wanted = node.func.id, ARITY[node.func.id]
+        if node.keywords or any(isinstance(a, ast.Starred) for a in node.args):
+            raise InputError(f"--event {self.text!r}: {ast.unparse(node)!r} is not allowed: "
+                             f"{name} takes {_arguments(wanted)}, positional only (no keyword "
+                             "or * argument)")
+        if len(node.args) != wanted:
+            raise InputError(f"--event {self.text!r}: {ast.unparse(node)!r}: {name} takes "
+                             f"{_arguments(wanted)}, got {len(node.args)}")
 
     def __call__(self, t, q, p):
         t = np.asarray(t, dtype=float)
@@ -116,6 +143,10 @@ class Expression:
         """The event as ``meta.json`` records it."""
         return {"expression": self.text, "direction": {1: "up", -1: "down", 0: "both"}[
             self.direction], "terminal": self.terminal}
+
+
+def _arguments(count: int) -> str:
+    return "1 argument" if count == 1 else f"{count} arguments"
 
 
 def parse_event(text: str, n: int, params: dict) -> Expression:

@@ -8,6 +8,9 @@ failures to exit codes, never a traceback:
 - 2: bad usage or bad input (an option, a scene file, a grid file, a guess), with a message
   naming it;
 - 141: stdout was closed by its reader.
+
+Run as a command (``main()``), it works in a child process that its parent watches
+(``cli/supervisor.py``): whatever it runs cannot keep it from ending or make it end lying.
 """
 
 from __future__ import annotations
@@ -42,6 +45,13 @@ TRACEBACK_VARIABLE = "DDVP_TRACEBACK"
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``ddvp`` command on ``argv`` (default: the command line, run in a supervised child
+    process, ``cli/supervisor.py``); its exit code."""
+    if argv is None:
+        from . import supervisor
+
+        if supervisor.available():
+            return supervisor.supervise(lambda: main(sys.argv[1:]))
     original_format = warnings.formatwarning
     restore = lambda: None  # noqa: E731 - until the handlers are in place
     try:

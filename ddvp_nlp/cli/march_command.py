@@ -3,20 +3,26 @@ with ``--method``), and ``--resume``, its continuation from a run folder."""
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import math
+import os
+
 import numpy as np
 
 from ..discrete import RULES
-from ..errors import InputError
-from ..io.atomic import output_folder
+from ..errors import InputError, OutputError
+from ..io.atomic import FolderBusy, open_folder
 from ..io.run_folder import read_run
-from ..scenes import load_scene
+from ..scenes import is_builtin, load_scene, scene_digest, scene_fingerprint
 from ..solvers import MarchState, continue_march, find_compiler, march
 from . import arguments as options
+from .arguments import check_numbers
 from .interrupts import INTERRUPTS
 from .one_run import (
+    RESUME_OPTIONS,
     checkpoint_saver,
     requested_meta,
-    requested_output,
     resume_record,
     run_one,
     save_run,
@@ -38,26 +44,44 @@ def run_march(args) -> int:
 
 
 def run_resume(args) -> int:
-    """``ddvp march --resume FOLDER [--t-end T]``: the march in ``FOLDER`` (its last checkpoint
-    or its finished run) continued to its ``t_end`` or a later one, with the options it ran
-    with, written back to ``FOLDER``; the nodes are an uninterrupted run's bit for bit."""
-    arrays, meta = read_run(args.resume)
-    record = meta.get("resume")
-    if meta.get("command") != "march" or not isinstance(record, dict):
-        raise InputError(f"--resume: {args.resume} holds no march this ddvp can continue "
-                         f"(command {meta.get('command')!r}, no resume record)")
-    if meta.get("status") not in RESUMABLE:
-        raise InputError(f"--resume: the run in {args.resume} ended with status "
-                         f"{meta.get('status')!r}; only {', '.join(RESUMABLE)} can be continued")
-    for name, value in record["options"].items():
-        setattr(args, name, value)
-    scene = load_scene(record["scene"])
-    scheme = scheme_of(args, False)
-    config = scene.resolve(record["overrides"])
-    t_end = config.t_end if args.t_end is None else args.t_end
-    state = MarchState.of(arrays["t"], arrays["q"], arrays["p"], config.t_end,
-                          meta.get("carried"))
-    with output_folder(args.resume, owned=0) as out:
+    """``ddvp march [SCENE] --resume FOLDER [--t-end T]``: the march in ``FOLDER`` (its last
+    checkpoint or its finished run) continued to its ``t_end`` or a later one, with the options
+    it ran with, written back to ``FOLDER``; the nodes are an uninterrupted run's bit for bit.
+
+    The folder is data, never code or authority: the system is rebuilt from ``SCENE`` on the
+    command line (or from the built-in scene the run names; a scene file it names is never
+    run), and only if that scene's file and the run's settings have the fingerprint the run
+    recorded (`scene_fingerprint`); the recorded options are the march's own names, each
+    checked as the command line checks it. The folder is locked before it is read: a folder
+    that another ddvp process is writing is busy (exit 2)."""
+    folder = args.resume
+    if not os.path.isdir(folder):
+        raise InputError(f"--resume {folder}: no such folder (give the folder of a march)")
+    with _locked(folder) as out:
+        arrays, meta = read_run(folder)
+        record = resume_record_of(folder, meta)
+        scene = resume_scene(args, folder, record)
+        for name, value in record["options"].items():
+            setattr(args, name, value)
+        check_numbers(args)
+        if args.scheme not in RULES:
+            raise InputError(f"--resume: the resume record of {folder} gives the scheme "
+                             f"{args.scheme!r}; a march continues with one of {', '.join(RULES)}")
+        scheme = scheme_of(args, False)
+        config = scene.resolve(record["overrides"])
+        found = scene_fingerprint(scene, config.as_dict())
+        if found != record["fingerprint"]:
+            raise InputError(
+                f"--resume {folder}: the scene {args.scene or record['scene']!r} with the run's "
+                f"settings (fingerprint {found[:16]}) is not what the run was computed from "
+                f"({record['scene']!r}, fingerprint {record['fingerprint'][:16]}): its file or "
+                "its settings changed; start a new march instead")
+        if arrays["q"].shape[1] != scene.system.n:
+            raise InputError(f"--resume {folder}: the run has {arrays['q'].shape[1]} "
+                             f"coordinates, the scene {scene.name!r} has {scene.system.n}")
+        t_end = config.t_end if args.t_end is None else args.t_end
+        state = MarchState.of(arrays["t"], arrays["q"], arrays["p"], config.t_end,
+                              checked_carried(folder, meta.get("carried")))
         saver = checkpoint_saver(args, scene, out, record)
         solution = continue_march(
             scene.system, state, t_end, tau0=config.tau0, scheme=scheme, params=config.params,
@@ -74,16 +98,112 @@ def run_resume(args) -> int:
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
 
+@contextlib.contextmanager
+def _locked(folder):
+    """The run folder opened and locked for this process before anything of it is read; a
+    folder another ddvp process holds is busy: an `InputError` (exit 2), not a half-read
+    run."""
+    try:
+        out = open_folder(folder, owned=0)
+    except OutputError as exc:
+        if exc.errno == errno.EBUSY:
+            raise FolderBusy(f"--resume {folder}: the folder is busy: {exc}") from None
+        raise
+    try:
+        yield out
+    finally:
+        out.close()
+
+
 # Statuses of a march that --resume continues: a checkpoint, a stop, a bound, a finished run.
 RESUMABLE = ("running", "interrupted", "max_steps", "time_limit", "success")
 
 
+def resume_record_of(folder, meta: dict) -> dict:
+    """The run's resume record, checked as data: the scene it names (a string), the
+    ``--set`` overrides (names to numbers or lists of numbers), the march's options (only
+    `RESUME_OPTIONS`) and the scene's fingerprint."""
+    record = meta.get("resume")
+    if meta.get("command") != "march" or not isinstance(record, dict):
+        raise InputError(f"--resume: {folder} holds no march this ddvp can continue "
+                         f"(command {meta.get('command')!r}, no resume record)")
+    if meta.get("status") not in RESUMABLE:
+        raise InputError(f"--resume: the run in {folder} ended with status "
+                         f"{meta.get('status')!r}; only {', '.join(RESUMABLE)} can be continued")
+    scene, overrides = record.get("scene"), record.get("overrides")
+    given, fingerprint = record.get("options"), record.get("fingerprint")
+    if not isinstance(fingerprint, str) or len(fingerprint) != 64:
+        raise InputError(f"--resume: the run in {folder} records no fingerprint of its scene "
+                         "(written by an older ddvp): it cannot be checked against a scene, so "
+                         "it is not continued; start a new march")
+    if not isinstance(scene, str) or not isinstance(overrides, dict) or \
+            not isinstance(given, dict):
+        raise InputError(f"--resume: the resume record of {folder} is not one ddvp wrote")
+    for name, value in overrides.items():
+        if not isinstance(name, str) or not _numbers(value):
+            raise InputError(f"--resume: the resume record of {folder} sets {name!r} to "
+                             f"{value!r}, which is not a number or a list of numbers")
+    unknown = sorted(set(given) - set(RESUME_OPTIONS))
+    if unknown:
+        raise InputError(f"--resume: the resume record of {folder} names the option "
+                         f"{unknown[0]!r}, which --resume does not take from a run")
+    kinds = {"scheme": str, "clock": str, "least_squares": bool, "careful": bool,
+             "accept_inaccurate": bool}
+    for name, value in given.items():
+        kind = kinds.get(name)
+        fine = isinstance(value, kind) if kind else (
+            value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)))
+        if not fine:
+            raise InputError(f"--resume: the resume record of {folder} gives {name} = "
+                             f"{value!r}, not what ddvp march takes")
+    return record
+
+
+def _numbers(value) -> bool:
+    if isinstance(value, list):
+        return 0 < len(value) <= 1 << 20 and all(_numbers(v) for v in value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def resume_scene(args, folder, record: dict):
+    """The scene a resumed march is rebuilt from: ``SCENE`` of the command line, else the
+    built-in scene the run names; a scene file is never run because a file names it (the
+    user names it). The named file's content is checked against the run's before it runs."""
+    named = args.scene
+    if named is None:
+        if not is_builtin(record["scene"]):
+            raise InputError(
+                f"--resume {folder}: the run was made from the scene file "
+                f"{record['scene'][:200]!r}; name it on the command line (ddvp march SCENE "
+                "--resume FOLDER): ddvp runs no scene file that a run folder names")
+        named = record["scene"]
+    digest = record.get("scene_sha256")
+    if isinstance(digest, str) and scene_digest(named) != digest:
+        raise InputError(
+            f"--resume {folder}: the scene {named!r} (SHA-256 {scene_digest(named)[:16]}) is "
+            f"not the file the run was computed from ({record['scene'][:200]!r}, SHA-256 "
+            f"{digest[:16]}); it was not run. Give that scene, or start a new march")
+    return load_scene(named)
+
+
+def checked_carried(folder, carried):
+    """The march's carried state as the run recorded it, checked: a finite drift and two
+    counts."""
+    if not isinstance(carried, dict):
+        return carried  # MarchState.of says what is missing
+    drift, left, phase = (carried.get(k) for k in ("drift", "careful_left", "phase"))
+    counts = all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 1 << 31
+                 for v in (left, phase))
+    if not (isinstance(drift, (int, float)) and not isinstance(drift, bool)
+            and math.isfinite(drift)) or not counts:
+        raise InputError(f"--resume: the carried state of {folder} ({carried!r:.200}) is not "
+                         "one ddvp wrote (a finite drift and two counts)")
+    return carried
+
+
 def _march(args, scene, config, scheme):
-    times, events = requested_output(args, scene, config)
+    times, events = args.requested  # checked by run_one before the folder was made
     if args.scheme not in RULES:
-        if times is not None or events:
-            raise InputError(f"--t-eval and --event use the dense output of the scheme's own "
-                             f"march; --method {args.scheme} is a compared method")
         if args.target_error is not None:
             raise InputError(f"--target-error chooses the step of this package's schemes; "
                              f"--method {args.scheme} is a compared method (ddvp compare runs "
@@ -106,7 +226,8 @@ def _march(args, scene, config, scheme):
                                                      "checkpoints", "checkpoints_landed_s")
                          if key in stats},
                       "carried": stats["carried"],
-                      "resume": resume_record(args, scene, parse_settings(args.settings)),
+                      "resume": resume_record(args, scene, config,
+                                              parse_settings(args.settings)),
                       **requested_meta(solution, events)}
 
 
@@ -136,9 +257,6 @@ def _march_method(args, scene, config):
 def _march_higher(args, scene, config, scheme):
     from ..solvers import march_higher  # the grid families load only for a higher-order scene
 
-    if args.t_eval is not None or args.events:
-        raise InputError(f"--t-eval and --event are not available for the higher-order scene "
-                         f"{scene.name!r} (its march has no dense output)")
     t_init, q_init = scene.start(config)
     return march_higher(scene.system, t_init, q_init, config.t_end, scheme=scheme.rule,
                         params=config.params, steps=options.step_control(args),

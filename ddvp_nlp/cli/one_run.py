@@ -1,6 +1,7 @@
 """One run of a scene into a folder, shared by ``ddvp march`` and ``ddvp bvp``: the scene and its
-settings resolved, the folder named by every setting that changes the result, the solve, the
-run written whole (interrupts held), the summary printed."""
+settings resolved, the output times and events parsed, the folder named by every input that
+changes the result (the settings, ``--t-eval``, ``--event``, a scene file's and a guess file's
+content), the solve, the run written whole (interrupts held), the summary printed."""
 
 from __future__ import annotations
 
@@ -9,11 +10,11 @@ import sys
 from ..discrete import RULES, Scheme
 from ..errors import InputError, OutputError
 from ..io.atomic import output_folder
-from ..io.run_folder import default_folder, write_checkpoint, write_run
-from ..scenes import HigherOrderScene, load_scene
+from ..io.run_folder import default_folder, read_guess, write_checkpoint, write_run
+from ..scenes import HigherOrderScene, load_scene, scene_fingerprint
 from ..solution import Status
 from .events import parse_event, parse_times
-from .folders import command_default, holds
+from .folders import command_default, content_inputs, holds
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
 from .summary import print_summary
@@ -34,9 +35,12 @@ def run_one(args, solvers: dict) -> int:
     scheme = scheme_of(args, higher)
     overrides = parse_settings(args.settings)
     config = resolve(args, scene, higher, overrides)
+    args.requested = requested_output(args, scene, config, higher)  # before any folder
+    if args.command == "bvp" and args.guess not in ("straight", "march"):
+        args.guess_data = read_guess(args.guess, scene.system.n)  # checked now; names
     target, owned, overrides = run_folder(args, scene, config, overrides)
     with output_folder(target, owned=owned) as out:
-        args.checkpoint = checkpoint_saver(args, scene, out, resume_record(args, scene,
+        args.checkpoint = checkpoint_saver(args, scene, out, resume_record(args, scene, config,
                                                                            overrides))
         try:
             solution, extra = solvers[higher](args, scene, config, scheme)
@@ -85,7 +89,8 @@ def run_folder(args, scene, config, overrides):
             value = getattr(args, name)
             if value != command_default(args.command, name):
                 overrides[name] = resolved[name] = value
-    options = result_options(args)
+    options = {**result_options(args), **requested_options(args),
+               **content_inputs(scene, getattr(args, "guess_data", None))}
     resolved.update(options)
     if args.out is not None:
         return args.out, 1, overrides
@@ -99,6 +104,16 @@ def run_folder(args, scene, config, overrides):
 RESULT_OPTIONS = ("alpha", "clock", "tol", "tau_min", "tau_max", "max_step_ratio", "max_steps",
                   "time_limit", "energy_guard", "least_squares", "rtol", "atol", "energy_tol",
                   "global_tol", "require_accurate", "accept_inaccurate", "careful")
+
+
+def requested_options(args) -> dict:
+    """``--t-eval`` and ``--event`` as given, when given: they add arrays to the run."""
+    found = {}
+    if getattr(args, "t_eval", None) is not None:
+        found["t_eval"] = args.t_eval
+    if getattr(args, "events", None):
+        found["events"] = list(args.events)
+    return found
 
 
 def result_options(args) -> dict:
@@ -127,9 +142,12 @@ RESUME_OPTIONS = ("scheme", "alpha", "clock", "tol", "tau_min", "tau_max", "max_
                   "accept_inaccurate", "careful")
 
 
-def resume_record(args, scene, overrides: dict) -> dict:
-    """The scene (name or file), the ``--set`` overrides and the march's options."""
-    return {"scene": scene.source or scene.name, "overrides": overrides,
+def resume_record(args, scene, config, overrides: dict) -> dict:
+    """The scene (name or file), the SHA-256 of its file, the fingerprint of its file and the
+    resolved settings (`scene_fingerprint`: what ``--resume`` checks the scene it is given
+    against), the ``--set`` overrides and the march's options."""
+    return {"scene": scene.source or scene.name, "scene_sha256": scene.digest,
+            "fingerprint": scene_fingerprint(scene, config.as_dict()), "overrides": overrides,
             "options": {name: getattr(args, name, None) for name in RESUME_OPTIONS}}
 
 
@@ -183,12 +201,21 @@ def resolve(args, scene, higher: bool, settings: dict):
     return scene.resolve(settings)
 
 
-def requested_output(args, scene, config):
+def requested_output(args, scene, config, higher: bool):
     """``(t_eval, events)`` of ``--t-eval`` and ``--event`` (``cli/events.py``), checked
-    against the scene's names and the run's span."""
-    times = None if args.t_eval is None else parse_times(args.t_eval, (config.t0,
-                                                                       config.t_end))
-    events = [parse_event(text, scene.system.n, config.params) for text in args.events]
+    against the scene's names and the run's span, before a folder is made or anything is
+    built; ``(None, [])`` when neither is given."""
+    t_eval, texts = getattr(args, "t_eval", None), getattr(args, "events", None) or []
+    if t_eval is None and not texts:
+        return None, []
+    if higher:
+        raise InputError(f"--t-eval and --event are not available for the higher-order scene "
+                         f"{scene.name!r} (its march has no dense output)")
+    if args.scheme not in RULES:
+        raise InputError(f"--t-eval and --event use the dense output of the scheme's own "
+                         f"march; --method {args.scheme} is a compared method")
+    times = None if t_eval is None else parse_times(t_eval, (config.t0, config.t_end))
+    events = [parse_event(text, scene.system.n, config.params) for text in texts]
     return times, events
 
 

@@ -68,7 +68,8 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
     target, owned = default_or(args, f"{scene.name}-periodic", named,
                                options=("scheme", "solver", "guess"),
                                defaults={"nodes": defaults.nodes, "section": defaults.section,
-                                         "params": {}, "energy": defaults.energy})
+                                         "params": {}, "energy": defaults.energy},
+                               scene=scene, guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:
             solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
@@ -91,7 +92,8 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
 
 def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> int:
 
-    target, owned = default_or(args, f"{scene.name}-family", named)
+    target, owned = default_or(args, f"{scene.name}-family", named, scene=scene,
+                               guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:
             family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
@@ -157,7 +159,8 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
     if guess is None:
         check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
     check_grid_memory("--nodes", nodes, scene.system.n, 1)
-    target, owned = default_or(args, f"{scene.name}-periodic", {**named, "stability": tol})
+    target, owned = default_or(args, f"{scene.name}-periodic", {**named, "stability": tol},
+                               scene=scene, guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:
             solution = solve_periodic(scene.system, energy=energy, nodes=nodes, guess=guess,
@@ -190,7 +193,8 @@ def _family(args, scene, settings, nodes, guess, params, tol, named) -> int:
     guess = guess or scene_guess(scene, energies[0], params)
     for energy in (energies[0], energies[-1]) if guess is None else ():
         check_periodic(scene.system, energy=energy, nodes=nodes, **settings)
-    target, owned = default_or(args, f"{scene.name}-family", {**named, "stability": tol})
+    target, owned = default_or(args, f"{scene.name}-family", {**named, "stability": tol},
+                               scene=scene, guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:
             family = solve_periodic_family(scene.system, energies, nodes=nodes, guess=guess,
@@ -231,7 +235,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
     check_grid_memory("--nodes", nodes, scene.system.n, continuation.max_orbits)
     target, owned = default_or(args, f"{scene.name}-follow", {
         **named, "energy": energy, "step": args.step, "max_orbits": args.max_orbits,
-        "stability": tol})
+        "stability": tol}, scene=scene, guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:
             family = follow_periodic_family(scene.system, (energy, args.follow), nodes=nodes,

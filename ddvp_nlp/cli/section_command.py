@@ -31,7 +31,7 @@ def run_poincare(args) -> int:
              "t_end": args.t_end, "tau0": args.tau0, "seed": args.seed, "params": params}
     target, owned = default_or(args, f"{scene.name}-poincare-E{args.energy:g}", named,
                                options=("orbits", "section", "direction", "t_end", "tau0",
-                                        "seed"), defaults={"params": {}})
+                                        "seed"), defaults={"params": {}}, scene=scene)
     with output_folder(target, owned=owned) as out:
         try:
             section = poincare_section(scene.system, args.energy, section=args.section,

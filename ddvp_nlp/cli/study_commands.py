@@ -54,7 +54,7 @@ def run_compare(args) -> int:
              "reference_span": args.reference_span}
     target, owned = default_or(args, f"{scene.name}-compare", named,
                                options=[name for name in named if name != "settings"],
-                               defaults={"settings": {}})
+                               defaults={"settings": {}}, scene=scene)
     if args.horizons:
         with output_folder(target, owned=owned) as out:
             return _compare_horizons(args, scene, out)
@@ -134,7 +134,8 @@ def run_sweep(args) -> int:
     named = {"scene": spec.scene, "axes": spec.axes, "methods": list(spec.methods),
              "settings": spec.settings, "max_steps": spec.max_steps,
              "time_limit": spec.time_limit, "no_compile": args.no_compile}
-    target, owned = default_or(args, f"{load_scene(spec.scene).name}-sweep", named)
+    scene = load_scene(spec.scene)
+    target, owned = default_or(args, f"{scene.name}-sweep", named, scene=scene)
     try:
         with output_folder(target, owned=owned) as out, warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)

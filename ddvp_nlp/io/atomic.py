@@ -7,11 +7,14 @@ What it promises, and how:
   default one), and every file is created or opened relative to that descriptor with
   ``O_NOFOLLOW`` (a planted symbolic link is refused by name, never written through); a new
   file lands by ``rename``, which replaces a link itself rather than its target.
-- **One writer at a time.** Opening a folder takes an exclusive, non-blocking ``flock`` on
-  ``FOLDER/.ddvp.lock`` (opened without following links) for as long as the command runs; a
-  second ddvp process writing the same folder is refused (`OutputError`,
-  exit 1) instead of replacing the first one's result in silence. The lock file is removed when
-  the writer is done.
+- **One writer at a time, and no reader while one writes.** Opening a folder takes an
+  exclusive, non-blocking ``flock`` on ``FOLDER/.ddvp.lock`` (opened without following links)
+  for as long as the command runs; a second ddvp process writing the same folder is refused
+  (`OutputError`, exit 1) instead of replacing the first one's result in silence. The lock
+  file is removed when the writer is done. A reader (`reading`, which `read_set` and
+  ``read_run`` take) holds a shared ``flock`` on the same file while it reads, so no writer
+  swaps a set under it; a folder being written is refused as busy (`FolderBusy`, an
+  `InputError`: exit 2), never read half-swapped.
 - **All of a set or none, and the previous set readable until the new one is whole.** A set of
   files (`OutputFolder.commit`) is written in full to scratch names with a random token
   (``.NAME.PID.TOKEN.tmp``, created with ``O_EXCL``), flushed and ``fsync``-ed; the manifest
@@ -98,6 +101,15 @@ def _refusal(path, exc: OSError) -> OutputError:
     return OutputError(path, exc)
 
 
+class FolderBusy(InputError):
+    """A folder another ddvp process is writing: it cannot be read (or resumed) now."""
+
+
+def busy_message(path, holder: str) -> str:
+    return (f"{path} is busy: another ddvp process{f' (pid {holder})' if holder else ''} is "
+            "writing it; wait for it to end (or stop it) and try again")
+
+
 class _Lock:
     """The exclusive ``flock`` on ``.ddvp.lock`` of one folder, for this process."""
 
@@ -114,15 +126,14 @@ class _Lock:
             if not stat.S_ISREG(os.fstat(descriptor).st_mode):
                 os.close(descriptor)
                 raise OutputError(self.path, OSError(errno.EEXIST, "it is not a regular file"))
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
+            if not _flock(descriptor, fcntl.LOCK_EX):
                 holder = _read_pid(descriptor)
                 os.close(descriptor)
                 raise OutputError(path, OSError(errno.EBUSY, (
-                    f"another ddvp process{f' (pid {holder})' if holder else ''} is writing "
-                    "this folder; two writers would replace each other's results: wait for it "
-                    "to end or choose another output folder"))) from None
+                    f"another ddvp process (pid {holder}) is writing this folder" if holder
+                    else "another ddvp process is writing this folder (or reading it)") + (
+                    "; two writers would replace each other's results: wait for it to end or "
+                    "choose another output folder"))) from None
             if self._still_named(descriptor):
                 break
             os.close(descriptor)
@@ -148,6 +159,56 @@ class _Lock:
             os.unlink(LOCK_NAME, dir_fd=self.folder_fd)
         os.close(self.descriptor)
         self.descriptor = -1
+
+
+# Tries, 5 ms apart, to take a lock whose holder is being killed (it lets go as it dies).
+DYING_HOLDER_TRIES = 2000
+
+
+def _flock(descriptor: int, mode: int) -> bool:
+    """``flock(mode)`` without blocking: ``True`` if taken, ``False`` if another process
+    holds the lock. A holder that is being killed is waited for (a bounded count of tries):
+    the ``ddvp`` command runs in a child of the process a user kills (``cli/supervisor.py``),
+    and the child, killed with it, may take a moment to let go."""
+    import fcntl
+    import time
+
+    for _ in range(DYING_HOLDER_TRIES):
+        try:
+            fcntl.flock(descriptor, mode | fcntl.LOCK_NB)
+            return True
+        except OSError:
+            holder = _read_pid(descriptor)
+            if not holder or not _exiting(int(holder)):
+                return False
+        time.sleep(0.005)
+    return False
+
+
+def _exiting(pid: int) -> bool:
+    """Whether process ``pid`` is gone or on its way out: a SIGKILL pending, exiting, or a
+    zombie (Linux's ``/proc``; elsewhere only a process that is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as handle:
+            fields = handle.read().rsplit(b")", 1)[1].split()
+        if fields[0] in (b"Z", b"X", b"x") or int(fields[6]) & 0x4:  # PF_EXITING
+            return True
+        with open(f"/proc/{pid}/status", "rb") as handle:
+            for line in handle:
+                if line.startswith((b"SigPnd:", b"ShdPnd:")) and \
+                        int(line.split()[1], 16) & (1 << 8):  # SIGKILL pending
+                    return True
+        return False
+    except FileNotFoundError:
+        return True
+    except (OSError, ValueError, IndexError):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        except OSError:
+            pass
+        return False
 
 
 def _read_pid(descriptor: int) -> str:
@@ -470,6 +531,89 @@ def output_folder(path, *, owned: int = 1) -> Iterator[OutputFolder]:
 
 # -- reading back ------------------------------------------------------------------------------
 
+_READING: dict[tuple, int] = {}  # folders this process reads under a shared lock, by identity
+
+
+@contextlib.contextmanager
+def reading(folder: str | os.PathLike) -> Iterator[None]:
+    """Hold a shared ``flock`` on ``FOLDER/.ddvp.lock`` while the folder is read, so that no
+    ddvp writer swaps a set under the reader; `FolderBusy` naming the folder (and the
+    writer's pid) if one is writing it now. Nothing to hold in a folder this process writes or
+    already reads, or that does not exist (the read then says what is missing); in a folder the
+    reader may not write, the lock file cannot be made, and the folder is read as it is."""
+    import fcntl
+
+    try:
+        descriptor = os.open(folder, _DIRECTORY)
+    except OSError:
+        yield
+        return
+    try:
+        info = os.fstat(descriptor)
+        key = (info.st_dev, info.st_ino)
+        with _REGISTRY_GUARD:
+            held = _REGISTRY.get(key)
+            mine = (held is not None and held.lock.owner == os.getpid()) or key in _READING
+        if mine:
+            yield
+            return
+        lock = _shared_lock(descriptor, Path(folder), fcntl)
+        with _REGISTRY_GUARD:
+            _READING[key] = 1
+        try:
+            yield
+        finally:
+            with _REGISTRY_GUARD:
+                _READING.pop(key, None)
+            if lock is not None:
+                _release_shared(lock, descriptor, fcntl)
+    finally:
+        os.close(descriptor)
+
+
+def _shared_lock(folder_fd: int, path: Path, fcntl) -> int | None:
+    """The lock file opened (made if missing) and locked shared; ``None`` where it cannot be
+    made (a folder the reader may not write: no ddvp process of this user writes there
+    either). `FolderBusy` when a writer holds it."""
+    for _ in range(100):  # the holder may remove the name between open and flock
+        try:
+            descriptor = os.open(LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC,
+                                 0o644, dir_fd=folder_fd)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise InputError(f"{path / LOCK_NAME} is a symbolic link; ddvp does not follow "
+                                 "links") from None
+            return None
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            os.close(descriptor)
+            raise InputError(f"{path / LOCK_NAME} is not a regular file")
+        if not _flock(descriptor, fcntl.LOCK_SH):
+            holder = _read_pid(descriptor)
+            os.close(descriptor)
+            raise FolderBusy(busy_message(path, holder)) from None
+        try:
+            named = os.stat(LOCK_NAME, dir_fd=folder_fd, follow_symlinks=False)
+            held = os.fstat(descriptor)
+            if (named.st_dev, named.st_ino) == (held.st_dev, held.st_ino):
+                return descriptor
+        except OSError:
+            pass
+        os.close(descriptor)
+    raise FolderBusy(f"{path} is busy: its lock file keeps changing")
+
+
+def _release_shared(descriptor: int, folder_fd: int, fcntl) -> None:
+    """The reader's lock given up; the lock file removed when no one else holds it (the
+    reader made it, or shares it with another reader, who removes it in turn)."""
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with contextlib.suppress(OSError):
+            os.unlink(LOCK_NAME, dir_fd=folder_fd)
+    except OSError:
+        pass
+    os.close(descriptor)
+
+
 def _load_manifest(folder_fd: int | None, manifest: str, folder: Path) -> dict:
     where = manifest if folder_fd is not None else folder / manifest
     data = read_limited(where, MANIFEST_LIMIT, what="manifest", dir_fd=folder_fd)
@@ -488,8 +632,14 @@ def read_set(folder: str | os.PathLike, *, manifest: str = MANIFEST,
     each file it names the path whose SHA-256 is the one recorded (the file itself, or its
     ``.previous`` twin after a kill between two renames). `InputError` (naming the
     folder and the reason) if there is no manifest, a file of ``required`` is not in it, or a
-    file matches neither name."""
+    file matches neither name; `FolderBusy` if another ddvp process is writing it
+    (`reading`)."""
     folder = Path(folder)
+    with reading(folder):
+        return _read_set(folder, manifest, required)
+
+
+def _read_set(folder: Path, manifest: str, required: tuple[str, ...]):
     try:
         descriptor = os.open(folder, _DIRECTORY)
     except OSError as exc:
@@ -512,6 +662,28 @@ def read_set(folder: str | os.PathLike, *, manifest: str = MANIFEST,
         return meta, found
     finally:
         os.close(descriptor)
+
+
+def vouched(folder: str | os.PathLike, name: str, *, manifest: str = MANIFEST) -> Path:
+    """The path of ``name`` in ``folder`` as the manifest vouches for it: the file whose
+    SHA-256 is the one the manifest records (itself, or its ``.previous`` twin after a kill
+    between two renames), read under the folder's lock (`reading`). `InputError` naming the
+    reason if there is no readable manifest, it does not list ``name``, or neither file
+    matches: the file is not one ddvp wrote whole (cut, edited, or from another tool)."""
+    folder = Path(folder)
+    with reading(folder):
+        try:
+            descriptor = os.open(folder, _DIRECTORY)
+        except OSError as exc:
+            raise InputError(f"{folder} cannot be read: {_reason(exc)}") from None
+        try:
+            meta = _load_manifest(descriptor, manifest, folder)
+            entries = meta.get("files")
+            if not isinstance(entries, dict) or name not in entries:
+                raise InputError(f"{folder / manifest} does not list {name}")
+            return folder / _matching(descriptor, folder, name, entries[name])
+        finally:
+            os.close(descriptor)
 
 
 def _matching(descriptor: int, folder: Path, name, entry) -> str:

@@ -177,10 +177,17 @@ def read_run(folder: str | os.PathLike) -> tuple[dict, dict]:
     """``(arrays, meta)`` of a run folder's last complete set, after checking that
     ``meta.json`` describes the ``result.npz`` beside it (checksum, node count, shapes, finite
     increasing times). A kill between two renames leaves the previous set, which is read
-    instead. Raises `InputError` naming the folder and the reason otherwise."""
+    instead. Raises `InputError` naming the folder and the reason otherwise, and
+    ``FolderBusy`` (an `InputError`) while another ddvp process writes the folder: the set is
+    read under the folder's shared lock (`ddvp_nlp.io.atomic.reading`)."""
+    folder = Path(folder)
+    with atomic.reading(folder):  # no writer swaps the set while it is read
+        return _read_run(folder)
+
+
+def _read_run(folder: Path) -> tuple[dict, dict]:
     from ..validation import check_file_size
 
-    folder = Path(folder)
     meta, files = atomic.read_set(folder, required=(RESULT,))
     path = files[RESULT]
     check_file_size(str(path), path.stat().st_size)

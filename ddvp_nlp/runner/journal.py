@@ -193,21 +193,37 @@ def row_lines(columns: Sequence[str], rows, *, header: bool = False) -> str:
 def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
     """The rows of ``NAME.csv`` and of its journal that a resumed grid keeps, by key.
 
-    A file that is not a grid file ddvp wrote (not UTF-8 text, another header, a field past
-    the CSV limit, a link, a folder, bigger than the memory allows) is refused, naming it and
-    the reason (``InputError``); so is a row of another grid (a key this grid does not have:
-    other points, methods or cases): it is not overwritten. A row cut short by a kill, whose
-    checksum does not match, computed with other settings (its task's fingerprint changed),
-    with an unknown status, or a success with a number that is not finite, is dropped with a
-    warning and its task runs again; so is a failed task's row (``RETRIED``)."""
+    ``NAME.csv`` is read only as the manifest ``meta.json`` beside it vouches for it (its
+    SHA-256 recorded when the grid was committed, `ddvp_nlp.io.atomic.vouched`): a file
+    edited since, cut, or without a manifest gives no row (one warning; its tasks run again).
+    The journal ``NAME.partial.csv`` (rows of a grid under way, appended by the writer that
+    held the folder) is read row by row. A file that is not a grid file ddvp wrote (not UTF-8
+    text, another header, a field past the CSV limit, a link, a folder, bigger than the memory
+    allows) is refused, naming it and the reason (``InputError``); so is a row of another grid
+    (a key this grid does not have: other points, methods or cases): it is not overwritten;
+    so is a key given twice in one file (which of the two is meant cannot be told). A row cut
+    short by a kill, whose checksum does not match, computed with other settings (its task's
+    fingerprint changed), with an unknown status, or a success with a number that is not
+    finite, is dropped with a warning and its task runs again; so is a failed task's row
+    (``RETRIED``). A journal row replaces ``NAME.csv``'s of the same key (it is newer)."""
     fingerprints = {task.key: task.fingerprint() for task in tasks}
     kept, foreign = {}, 0
-    for source in (Path(path), journal_path(path)):
+    complete, reused = _vouched_grid(Path(path))
+    for source, reuse in ((complete, reused), (journal_path(path), True)):
+        seen: dict[str, int] = {}
         for number, row in _file_rows(source, columns):
             reason = _row_problem(row, columns, fingerprints, finite)
             if reason == "foreign":
                 foreign += 1
                 continue
+            if not reuse:
+                continue
+            if reason is None and row["key"] in seen:
+                raise InputError(
+                    f"grid file {str(source)!r} gives the key {row['key'][:80]!r} twice (lines "
+                    f"{seen[row['key']]} and {number}): not a file ddvp wrote; start the grid "
+                    "afresh to replace it")
+            seen[row["key"]] = number
             if reason is None:
                 try:
                     parsed = parse(row)
@@ -225,6 +241,22 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
                          "grid afresh to replace them (sweep --fresh, stress without --resume) "
                          "or give another --out")
     return kept
+
+
+def _vouched_grid(path: Path) -> tuple[Path, bool]:
+    """``(file to read, whether its rows may be reused)`` for a grid's ``NAME.csv``: the file
+    the manifest vouches for; one that it does not vouch for is still read (for the rows of
+    another grid, which are not overwritten) but gives no row, with one warning."""
+    from ..io import atomic
+
+    if not os.path.lexists(path):
+        return path, False
+    try:
+        return atomic.vouched(path.parent, path.name), True
+    except InputError as exc:
+        warnings.warn(f"{path} is not reused: it is not the file its manifest describes "
+                      f"({exc}); its tasks run again", JournalWarning, stacklevel=4)
+        return path, False
 
 
 def _row_problem(row: dict, columns, fingerprints: dict, finite) -> str | None:

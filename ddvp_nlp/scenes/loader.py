@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import json
 from pathlib import Path
 
 import numpy as np
@@ -36,8 +37,7 @@ def scene_file(name_or_path: str) -> Path:
     """The file of a built-in scene (by name) or of a scene file (by path), checked."""
     if not isinstance(name_or_path, str) or not name_or_path:
         raise InputError(f"scene must be a name or a path, got {name_or_path!r}")
-    looks_like_path = name_or_path.endswith(".py") or "/" in name_or_path or "\\" in name_or_path
-    if looks_like_path:
+    if _looks_like_path(name_or_path):
         path = Path(name_or_path)
         if not path.is_file():
             raise InputError(f"scene file {name_or_path!r} does not exist")
@@ -53,6 +53,35 @@ def scene_file(name_or_path: str) -> Path:
         raise InputError(f"unknown scene {name_or_path!r}{hint} (built-in scenes: "
                          f"{', '.join(known)}; or a .py file)")
     return scene_folder() / f"{name_or_path}.py"
+
+
+def is_builtin(name_or_path) -> bool:
+    """Whether ``name_or_path`` names a built-in scene (a name of `list_scenes`, not a path):
+    the only scene a file ddvp wrote may name (a run folder's resume record), since loading it
+    runs no code but the package's own."""
+    return (isinstance(name_or_path, str) and not _looks_like_path(name_or_path)
+            and name_or_path in list_scenes())
+
+
+def _looks_like_path(text: str) -> bool:
+    return text.endswith(".py") or "/" in text or "\\" in text
+
+
+def scene_fingerprint(scene, settings: dict) -> str:
+    """The SHA-256 of a scene's file (`Scene.digest`) and a run's resolved ``settings`` (its
+    parameters, start, steps and span): what a run was computed from. A resumed run is
+    continued only from a scene whose fingerprint with the run's settings is the recorded one,
+    and a run folder's default name carries it for a scene file."""
+    text = json.dumps({"scene_sha256": scene.digest, "settings": settings}, sort_keys=True,
+                      default=_plain)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _plain(value):
+    array = np.asarray(value)
+    if array.dtype.kind in "biuf":
+        return array.tolist()
+    raise TypeError(f"cannot write {type(value).__name__} to JSON")
 
 
 def scene_digest(name_or_path: str) -> str:
@@ -88,6 +117,7 @@ def load_scene(name_or_path: str, *, digest: str | None = None) -> Scene:
         raise InputError(f"scene file {str(path)!r} defines no `scene = Scene(...)`")
     scene.name = name
     scene.source = name_or_path  # how another process loads the same scene
+    scene.digest = hashlib.sha256(source).hexdigest()
     doc = module.__dict__.get("__doc__")
     scene.description = first_paragraph(doc) if isinstance(doc, str) else ""
     _guard_functions(scene, path)

@@ -134,6 +134,8 @@ class Scene:
         name, description: set from the file name and docstring when loaded.
         source: the name or path it was loaded from (empty for a scene made in Python); grid
             tasks reload the scene from it in their own process.
+        digest: the SHA-256 of the file it was loaded from (empty for a scene made in
+            Python): what a run folder's name and a resumed run's check are made of.
         periodic: optional defaults of ``ddvp periodic``, a `PeriodicSettings`.
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
@@ -156,6 +158,7 @@ class Scene:
     name: str = "scene"
     source: str = ""
     description: str = ""
+    digest: str = ""
     v0: object = None
     periodic: PeriodicSettings | None = None
     scheme: str | None = None
@@ -376,6 +379,7 @@ class HigherOrderScene:
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (the energy rules have no positive step on some of these; ``fixed`` always
             has one).
+        name, source, description, digest: as for `Scene`.
     """
 
     lagrangian: Callable[..., object]
@@ -392,6 +396,7 @@ class HigherOrderScene:
     description: str = ""
     scheme: str | None = None
     ranges: Mapping[str, str] = field(default_factory=dict)
+    digest: str = ""
 
     def __post_init__(self):
         _check_common(self)

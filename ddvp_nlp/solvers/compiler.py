@@ -2,22 +2,42 @@
 
 Compiled libraries are cached in ``cache_dir`` (argument, else ``$DDVP_NLP_CACHE``, else
 ``~/.cache/ddvp_nlp``) under a hash of the generated code, the compiler and its flags. Each build
-compiles to a temporary file and renames it into place, so two processes building the same entry
-at once both end with a complete library.
+compiles in a scratch folder of its own and renames the library into place, so two processes
+building the same entry at once both end with a complete library.
 
-The cache heals: beside each library ``chunk_KEY.so`` its SHA-256 is written at build time
-(``chunk_KEY.so.sha256``), and a library is loaded only when its bytes match; a truncated,
-empty or foreign file (which crashed every later run with a bus error) is rebuilt. When the cache
-folder cannot be used or the compiler fails, `CompileUnavailable` says why, and the
+The cache is trusted the way ccache's, pip's or ``~/.ssh`` are, because loading a library runs
+its code:
+
+- **the folder** must be this user's, not writable by group or others, not a symbolic link,
+  and no folder above it may be writable by others (without the sticky bit) or belong to
+  another user: otherwise `CompileUnavailable` says which and why (one warning, and the
+  virtual machine runs instead); a missing folder is made private (``0700``);
+- **a library is loaded** only from a regular file of that folder that this user owns, with one
+  link and no write permission for others, whose bytes match the stamp written beside it at
+  build time (``chunk_KEY.so.sha256``: an HMAC-SHA256 of the name and the bytes under a key
+  kept in the folder, ``.ddvp-cache-key``, ``0600``, made on first use): a library copied in
+  or planted with a checksum beside it, a link, another user's file, a truncated or empty file
+  is never loaded; it is removed and rebuilt. A library that passes and still fails to load
+  (a damaged file with a matching stamp) is removed and rebuilt once, never a crash;
+- **scratch** folders (``.build-HOST-PID-TOKEN``) are locked (``flock``) by their build; the
+  scratch of a killed build, unlocked and older than a minute, is removed by the next
+  process that uses the cache.
+
+When the folder cannot be used or the compiler fails, `CompileUnavailable` says why, and the
 callers run CasADi's virtual machine instead, with one warning (`warn_once`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import functools
 import hashlib
+import hmac
 import os
+import secrets
 import shutil
+import stat
 import subprocess
 import tempfile
 import threading
@@ -88,33 +108,51 @@ def warn_once(reason: Exception) -> None:
 
 def compile_function(function: ca.Function, compiler: str, folder: Path, *,
                      prefix: str = "chunk") -> ca.Function:
-    """Generate, compile (once per hash; again if the cached library fails its checksum) and
+    """Generate, compile (once per hash; again if the cached library fails its checks) and
     load ``function`` as ``PREFIX_HASH.so``. Raises `CompileUnavailable` if the folder or
     compiler fails."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
-    library = compile_source(source.dump(), function.name(), compiler, folder, prefix=prefix,
-                             salt=(ca.__version__,))
-    return ca.external(function.name(), str(library))
+    return compile_source(source.dump(), function.name(), compiler, folder, prefix=prefix,
+                          salt=(ca.__version__,),
+                          load=lambda library: ca.external(function.name(), str(library)))
 
 
 def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
-                   salt=()) -> Path:
+                   salt=(), load=None):
     """``PREFIX_HASH.so`` in ``folder``, compiled from the C ``code`` (once per hash of the
     code, the compiler, its flags and ``salt``; again if the cached library fails its
-    checksum), each file renamed into place complete. Raises `CompileUnavailable` if the
-    folder or the compiler fails; ``name`` is what a compiler error names."""
+    checks), renamed into place complete; ``load(path)`` of it if ``load`` is given (a
+    library that fails to load is removed and rebuilt once). Raises `CompileUnavailable` if
+    the folder (module docstring) or the compiler fails; ``name`` is what a compiler error
+    names."""
     key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, *salt])
                          .encode()).hexdigest()[:24]
     library = Path(folder) / f"{prefix}_{key}.so"
     try:
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        if not _intact(library):
-            _build(code, name, compiler, library)
+        cache = open_cache(folder)
     except OSError as exc:
         raise CompileUnavailable(f"the compiled-code cache {str(folder)!r} cannot be used: "
                                  f"{exc.strerror or exc}") from None
-    return library
+    with cache:
+        for attempt in range(2):
+            try:
+                if not cache.intact(library.name):
+                    _build(code, name, compiler, cache, library.name)
+            except OSError as exc:
+                raise CompileUnavailable(f"the compiled-code cache {str(folder)!r} cannot be "
+                                         f"used: {exc.strerror or exc}") from None
+            if load is None:
+                return library
+            try:
+                return load(library)
+            except (RuntimeError, OSError) as exc:  # CasADi's or ctypes' refusal of the file
+                cache.discard(library.name)
+                if attempt:
+                    raise CompileUnavailable(f"the library {library.name} built in "
+                                             f"{str(folder)!r} does not load: "
+                                             f"{str(exc).strip()[:200]}") from None
+    raise AssertionError("unreachable")
 
 
 _BUILDS = [0]  # C compiles run by this process (a list: one mutable count, lock-free reads)
@@ -127,26 +165,221 @@ def build_count() -> int:
     return _BUILDS[0]
 
 
-def _intact(library: Path) -> bool:
-    """The library exists and its bytes match the checksum written when it was built."""
-    stamp = library.with_name(library.name + ".sha256")
+KEY_NAME = ".ddvp-cache-key"
+SCRATCH_PREFIX = ".build-"
+# A scratch folder younger than this is never taken for a killed build's (its build may be
+# about to lock it).
+SCRATCH_GRACE_S = 60.0
+_DIRECTORY = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK
+_CLEANED: set[tuple] = set()  # cache folders whose stale scratch this process has removed
+_CLEAN_LOCK = threading.Lock()
+
+
+class CacheFolder:
+    """The compiled-code cache folder, opened without following a link and checked
+    (`open_cache`); every file is reached through its descriptor."""
+
+    def __init__(self, path: Path, descriptor: int):
+        self.path, self.fd = path, descriptor
+        self.key = _private_key(descriptor, path)
+
+    def __enter__(self) -> CacheFolder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        os.close(self.fd)
+
+    def intact(self, name: str) -> bool:
+        """``name`` is a library this cache may load (module docstring): a regular file of
+        this user, one link, not writable by others, its stamp matching its bytes. Anything
+        else found under the name (or its stamp's) is removed, to be rebuilt."""
+        stamp = name + ".sha256"
+        try:
+            expected = _read_own(self.fd, stamp, 256).decode("ascii").strip()
+            data = _read_own(self.fd, name, None)
+        except FileNotFoundError:  # not built yet (or a build is renaming it into place)
+            return False
+        except (OSError, UnicodeDecodeError):
+            self.discard(name)  # a link, another user's file, a folder, ...: rebuilt
+            return False
+        if not hmac.compare_digest(expected, self.stamp(name, data)):
+            self.discard(name)
+            return False
+        return True
+
+    def stamp(self, name: str, data: bytes) -> str:
+        return hmac.new(self.key, name.encode() + b"\0" + data, hashlib.sha256).hexdigest()
+
+    def discard(self, name: str) -> None:
+        """The library ``name`` and its stamp removed (a link is removed, not followed)."""
+        for entry in (name + ".sha256", name):
+            _remove(self.fd, self.path, entry)
+
+    def clean_scratch(self) -> None:
+        """Remove the scratch folders of builds that were killed: unlocked, and older than
+        `SCRATCH_GRACE_S` (once per process and folder)."""
+        import fcntl
+        import time
+
+        identity = os.fstat(self.fd)[1:3]
+        with _CLEAN_LOCK:
+            if identity in _CLEANED:
+                return
+            _CLEANED.add(identity)
+        try:  # this version's scratch, and the tmpXXXXXXXX folders of the versions before it
+            entries = [e.name for e in os.scandir(self.fd)
+                       if e.name.startswith((SCRATCH_PREFIX, "tmp"))]
+        except OSError:
+            entries = []
+        for entry in entries:
+            try:
+                descriptor = os.open(entry, _DIRECTORY, dir_fd=self.fd)
+            except OSError:
+                continue
+            try:
+                if time.time() - os.fstat(descriptor).st_mtime < SCRATCH_GRACE_S:
+                    continue
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)  # its build is gone
+                shutil.rmtree(entry, dir_fd=self.fd, ignore_errors=True)
+            except OSError:
+                continue  # a build holds it
+            finally:
+                os.close(descriptor)
+
+
+def open_cache(folder) -> CacheFolder:
+    """The cache folder made (private) if missing, opened without following a link and
+    checked (module docstring); `CompileUnavailable` naming the folder and the reason, an
+    ``OSError`` if it cannot be made or opened."""
+    path = Path(folder)
+    if not os.path.lexists(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with contextlib.suppress(FileExistsError):
+            os.mkdir(path, 0o700)
     try:
-        return stamp.read_text().strip() == _sha256(library)
+        descriptor = os.open(path, _DIRECTORY)
+    except OSError as exc:
+        if exc.errno in (errno.ELOOP, errno.ENOTDIR) and os.path.islink(path):
+            raise CompileUnavailable(_unsafe(path, "it is a symbolic link, which the cache does "
+                                                   "not follow")) from None
+        raise
+    try:
+        _check_private(os.fstat(descriptor), path, "it")
+        _check_above(path)
+        cache = CacheFolder(path, descriptor)
+    except BaseException:
+        os.close(descriptor)
+        raise
+    cache.clean_scratch()
+    return cache
+
+
+def _unsafe(path: Path, reason: str) -> str:
+    return (f"the compiled-code cache {str(path)!r} is not safe to load libraries from: "
+            f"{reason}")
+
+
+def _check_private(info: os.stat_result, path: Path, what: str) -> None:
+    """The cache folder: this user's and not writable by group or others."""
+    if info.st_uid != os.geteuid():
+        raise CompileUnavailable(_unsafe(path, f"{what} belongs to user {info.st_uid}, not to "
+                                               f"you (user {os.geteuid()})"))
+    if info.st_mode & 0o022:
+        raise CompileUnavailable(_unsafe(path, f"{what} is writable by "
+                                               f"{_who(info.st_mode)} (mode "
+                                               f"{stat.S_IMODE(info.st_mode):04o}); "
+                                               f"chmod go-w {str(path)!r}"))
+
+
+def _who(mode: int) -> str:
+    return " and ".join(w for w, bit in (("its group", 0o020), ("others", 0o002)) if mode & bit)
+
+
+@functools.lru_cache(maxsize=16)
+def _check_above(path: Path) -> None:
+    """No folder above the cache lets another user replace it: each belongs to root or to
+    this user, and none is writable by others unless sticky (``/tmp``)."""
+    for parent in Path(os.path.realpath(path.parent)).joinpath("x").parents:
+        try:
+            info = os.stat(parent)
+        except OSError:
+            continue
+        if info.st_uid not in (0, os.geteuid()):
+            raise CompileUnavailable(_unsafe(path, f"the folder above it, {str(parent)!r}, "
+                                                   f"belongs to user {info.st_uid}"))
+        if info.st_mode & 0o002 and not info.st_mode & stat.S_ISVTX:
+            raise CompileUnavailable(_unsafe(path, f"the folder above it, {str(parent)!r}, is "
+                                                   "writable by others (and not sticky): "
+                                                   "anyone could replace the cache"))
+
+
+def _read_own(folder_fd: int, name: str, limit: int | None) -> bytes:
+    """The bytes of ``name`` in the cache: a regular file of this user with one link, not
+    writable by group or others, opened without following a link; ``OSError`` otherwise."""
+    descriptor = os.open(name, _READ, dir_fd=folder_fd)
+    with os.fdopen(descriptor, "rb") as handle:
+        info = os.fstat(descriptor)
+        if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid() or \
+                info.st_nlink != 1 or info.st_mode & 0o022:
+            raise OSError(errno.EPERM, f"{name} is not a private regular file of this user")
+        if limit is not None and info.st_size > limit:
+            raise OSError(errno.EFBIG, f"{name} is too large")
+        return handle.read()
+
+
+def _private_key(folder_fd: int, path: Path) -> bytes:
+    """The cache's secret stamp key: read from ``.ddvp-cache-key`` (a private regular file of
+    this user, 32 bytes), or made; a key file that is anything else is replaced (the libraries
+    stamped with it are then rebuilt)."""
+    for _ in range(3):
+        try:
+            key = _read_own(folder_fd, KEY_NAME, 64)
+            info = os.stat(KEY_NAME, dir_fd=folder_fd, follow_symlinks=False)
+            if len(key) == 32 and not info.st_mode & 0o077:
+                return key
+        except FileNotFoundError:
+            pass
+        except OSError:
+            pass
+        _remove(folder_fd, path, KEY_NAME)
+        try:
+            descriptor = os.open(KEY_NAME, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+                                 | os.O_CLOEXEC, 0o600, dir_fd=folder_fd)
+        except FileExistsError:
+            continue  # another process made it meanwhile: read theirs
+        with os.fdopen(descriptor, "wb") as handle:
+            handle.write(secrets.token_bytes(32))
+            handle.flush()
+            os.fsync(handle.fileno())
+    raise CompileUnavailable(_unsafe(path, f"its key file {KEY_NAME} keeps changing"))
+
+
+def _remove(folder_fd: int, path: Path, name: str) -> None:
+    """``name`` removed from the cache, whatever it is (a folder with what it holds; a link
+    itself, not its target)."""
+    try:
+        os.unlink(name, dir_fd=folder_fd)
+    except IsADirectoryError:
+        shutil.rmtree(path / name, ignore_errors=True)  # fd-based: follows no link inside
     except OSError:
-        return False
+        pass
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+def _build(code: str, name: str, compiler: str, cache: CacheFolder, library: str) -> None:
+    """Compile ``code`` to ``library`` in the cache and stamp it, each renamed into place
+    complete, from a scratch folder locked for the build's length."""
+    import fcntl
+    import socket
 
-
-def _build(code: str, name: str, compiler: str, library: Path) -> None:
-    """Compile ``code`` to ``library`` and its checksum, each renamed into place complete."""
-    folder = library.parent
-    with tempfile.TemporaryDirectory(dir=folder) as scratch:
-        c_file = Path(scratch) / "chunk.c"
+    scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{socket.gethostname()[:20]}-"
+                                           f"{os.getpid()}-", dir=cache.path))
+    lock = os.open(scratch, _DIRECTORY)
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # a live build: the cleaning of others leaves it
+        c_file = scratch / "chunk.c"
         c_file.write_text(code)
-        built = Path(scratch) / "chunk.so"
+        built = scratch / "chunk.so"
         try:
             result = subprocess.run([compiler, *COMPILE_FLAGS, str(c_file), "-o", str(built)],
                                     capture_output=True, text=True)
@@ -159,10 +392,19 @@ def _build(code: str, name: str, compiler: str, library: Path) -> None:
             raise CompileUnavailable(f"the C compiler {compiler!r} failed on {name} "
                                      f"(exit {result.returncode}): "
                                      f"{result.stderr.strip()[-300:] or 'no message'}")
-        stamp = Path(scratch) / "chunk.sha256"
-        stamp.write_text(_sha256(built) + "\n")
-        os.replace(built, library)  # atomic: a concurrent build leaves a complete file too
-        os.replace(stamp, library.with_name(library.name + ".sha256"))
+        os.chmod(built, 0o755)
+        stamp = scratch / "chunk.sha256"
+        stamp.write_text(cache.stamp(library, built.read_bytes()) + "\n")
+        os.chmod(stamp, 0o644)
+        scratch_fd = lock
+        # atomic: a concurrent build leaves a complete file too; the stamp lands last, so a
+        # library is never taken for intact before its bytes are all there
+        os.replace("chunk.so", library, src_dir_fd=scratch_fd, dst_dir_fd=cache.fd)
+        os.replace("chunk.sha256", library + ".sha256", src_dir_fd=scratch_fd,
+                   dst_dir_fd=cache.fd)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+        os.close(lock)
 
 
 class FunctionBuffer:

@@ -1,7 +1,8 @@
 """docs/chaos/README.md: the chaos maps of ``ddvp chaos`` against the exact flow, and the
 validation of the indicators (issue 41).
 
-    python scripts/pages/chaos_page.py [--work DIR] [--stage maps|exact|cost|validate|second|page|all]
+    python scripts/pages/chaos_page.py [--work DIR]
+        [--stage maps|exact|cost|validate|second|page|all]
 
 Stages keep their results in the work folder (default /tmp/chaos-page) and are skipped when
 their file is there, so the page can be redrawn without running anything again:

@@ -11,16 +11,28 @@ and is judged by the same checks:
 - **torn/lost/lying**: a run folder that is not readable by the checking reader
   (``read_set``), a message that says what was written which the folder does not hold,
   scratch files or a lock file left behind, worker processes alive after the command ended;
-- **link**: the target of a planted symbolic link was written or created.
+- **link**: the target of a planted symbolic link was written or created;
+- **code run**: code the user did not name ran (a planted scene, library or expression left
+  its mark file, ``pwned``);
+- **refused under load**: of valid runs started together on a loaded machine, those refused
+  (the ``load`` group: 8 concurrent marches of built-in scenes, their scene limit 2 s).
+
+The groups of issue 39 try what the tool wrote (``resume``, ``grids``, ``folders``: a run
+folder, a grid file and a default folder name are data, never code or authority), the compiled
+code ``cache``, the ``events`` evaluator, the ``bounds`` of a scene's code (defeated timers, a
+process ended by a scene, threads left behind), the ``cluster`` file and the ``load`` group;
+each with cases no issue names.
 
 A full disk and a read-only one are a real tmpfs mounted for the run (root); where mounting is
 refused, a file-size limit (EFBIG, as a full disk) stands in and the page says so.
 
 Usage: ``python scripts/pages/faults.py [--seed N] [--out docs/reliability/faults.md] [--only
-GROUP] [--quick]``. Prints the summary table; writes the page with every case and its outcome
-and the machine and date its seconds were measured on (``ddvp_nlp.io.machine``), except with
-``--only``. About ten minutes (root, for the tmpfs); ``--quick`` runs the ``numbers`` group
-alone (about a minute) and writes its page, not for docs/.
+GROUP[,GROUP...]] [--quick]``. Prints the summary table and the counts (cases run, tracebacks,
+wrong exit codes, hangs, torn/lost/lying results, code run that the user did not name, valid runs
+refused under load); writes the page with every case and its outcome and the machine and date its
+seconds were measured on (``ddvp_nlp.io.machine``), except with ``--only``. About ten minutes
+(root, for the tmpfs); ``--quick`` runs the ``numbers`` group alone (about a minute) and writes
+its page, not for docs/.
 """
 
 from __future__ import annotations
@@ -57,6 +69,8 @@ class Case:
     check: object = None          # check(folder, result) -> list of problems
     expect_text: str = ""         # a text stderr must hold
     timeout: float = TIMEOUT_S
+    env: dict = field(default_factory=dict)  # more environment ({folder}: the case's folder)
+    teardown: object = None       # teardown(folder) once the command ended, before the checks
 
 
 @dataclass
@@ -69,16 +83,22 @@ class Result:
     stop_s: float | None = None
     problems: list = field(default_factory=list)
     kinds: set = field(default_factory=set)
+    refused_under_load: int = 0   # the load group: valid runs refused
 
 
 # -- running ------------------------------------------------------------------------------
 
 def run_case(case: Case, root: Path, tag: str) -> Result:
     folder = root / re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{case.group}-{case.name}")[:120]
+    base, number = folder, 1
+    while folder.exists():  # two names that differ only in what the folder name leaves out
+        number += 1
+        folder = base.with_name(f"{base.name}-{number}")
     folder.mkdir(parents=True)
     if case.setup:
         case.setup(folder)
-    env = {**os.environ, "DDVP_SCENE_TIME_LIMIT": SCENE_LIMIT_S, "DDVP_FAULT_CASE": tag}
+    env = {**os.environ, "DDVP_SCENE_TIME_LIMIT": SCENE_LIMIT_S, "DDVP_FAULT_CASE": tag,
+           **{k: v.format(folder=folder) for k, v in case.env.items()}}
     started = time.monotonic()
     process = subprocess.Popen([PYTHON, "-m", "ddvp_nlp.cli", *case.argv], cwd=folder,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -109,6 +129,8 @@ def run_case(case: Case, root: Path, tag: str) -> Result:
     if first_signal:
         stop_s = ended - first_signal
     result = Result(case, code, stdout, stderr, ended - started, stop_s)
+    if case.teardown:
+        case.teardown(folder)
     judge(result, folder, tag)
     return result
 
@@ -136,6 +158,9 @@ def judge(result: Result, folder: Path, tag: str) -> None:
         if path.name == "absent-target":
             problems.append(f"link followed: {path} was created")
             kinds.add("link")
+        if path.name == "pwned":
+            problems.append(f"code the user did not name ran: {path} was made")
+            kinds.add("code run")
     problems += _leftovers(folder, killed, kinds)
     problems += _lying(result, folder, kinds)
     survivors = _processes_tagged(tag)
@@ -625,6 +650,530 @@ def number_cases() -> list[Case]:
             for argv in NUMBERS]
 
 
+# -- issue 39: what the tool wrote, the compiled-code cache, events, bounds, cluster files ------
+
+def _ddvp(folder: Path, *argv, env=None) -> subprocess.CompletedProcess:
+    """A set-up run of the command, unjudged."""
+    return subprocess.run([PYTHON, "-m", "ddvp_nlp.cli", *argv], cwd=folder,
+                          capture_output=True, text=True, env={**os.environ, **(env or {})})
+
+
+def _marker_code(folder: Path) -> str:
+    return f"open({str(folder / 'pwned')!r}, 'w').write('ran')\n"
+
+
+HARMONIC_FILE = ("from ddvp_nlp import Scene\ndef H(q, p, t):\n    return p[0]**2/2 + "
+                 "{k}*q[0]**2/2\nscene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=2)\n")
+RESUME = ["march", "--resume", "run", "--no-plot", "--no-progress"]
+
+
+def _a_run(scene="harmonic", edit=None, *, k="1"):
+    """Set-up: a finished march in run/ (of a scene file h.py when ``scene`` is h.py), then
+    ``edit(meta)`` of its meta.json."""
+    def setup(folder):
+        (folder / "h.py").write_text(HARMONIC_FILE.format(k=k))
+        (folder / "evil.py").write_text(_marker_code(folder))
+        _ddvp(folder, "march", scene, "--set", "t_end=2", "--no-plot", "--no-progress",
+              "--out", "run")
+        if edit is not None:
+            import json
+
+            meta = json.loads((folder / "run" / "meta.json").read_text())
+            edit(meta, folder)
+            (folder / "run" / "meta.json").write_text(json.dumps(meta))
+    return setup
+
+
+def _writer_running(folder):
+    """Set-up: a long march writing run/ (a checkpoint landed); teardown ends it."""
+    import json
+
+    process = subprocess.Popen([PYTHON, "-m", "ddvp_nlp.cli", *LONG_MARCH, "--out", "run"],
+                               cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                               start_new_session=True)
+    (folder / "writer.pid").write_text(str(process.pid))
+    meta = folder / "run" / "meta.json"
+    for _ in range(30000):  # polls for the first checkpoint
+        with contextlib.suppress(OSError, ValueError):
+            if json.loads(meta.read_text()).get("status") == "running":
+                return
+        if process.poll() is not None:
+            return
+        time.sleep(0.02)
+
+
+def _end_writer(folder):
+    with contextlib.suppress(OSError, ValueError, ProcessLookupError):
+        pid = int((folder / "writer.pid").read_text())
+        os.killpg(pid, signal.SIGTERM)
+        for _ in range(3000):
+            os.killpg(pid, 0)
+            time.sleep(0.02)
+    with contextlib.suppress(OSError, ValueError, ProcessLookupError):
+        os.killpg(int((folder / "writer.pid").read_text()), signal.SIGKILL)
+    time.sleep(0.2)
+
+
+def _status_is(name, wanted):
+    def check(folder, result):
+        from ddvp_nlp.errors import InputError
+        from ddvp_nlp.io.run_folder import read_run
+
+        try:
+            _, meta = read_run(folder / name)
+        except InputError as exc:
+            return [f"{name} is not readable: {exc}"]
+        return [] if meta["status"] == wanted else [f"{name} holds status {meta['status']}"]
+    return check
+
+
+def resume_cases() -> list[Case]:
+    def scene_to(value):
+        return lambda meta, folder: meta["resume"].update(
+            scene=value.format(folder=folder))
+
+    def option(name, value):
+        return lambda meta, folder: meta["resume"]["options"].update({name: value})
+
+    def overrides(meta, folder):
+        meta["resume"]["overrides"]["w"] = 3.0
+
+    def carried(meta, folder):
+        meta["carried"] = {"drift": "nan", "careful_left": 0, "phase": 0}
+
+    def meta_a_link(folder):  # "planted": damaged on purpose, the reader's check skips it
+        _a_run()(folder)
+        os.rename(folder / "run", folder / "planted")
+        (folder / "other").mkdir()
+        os.rename(folder / "planted" / "meta.json", folder / "other" / "meta.json")
+        os.symlink(folder / "other" / "meta.json", folder / "planted" / "meta.json")
+
+    def scene_edited(folder):
+        _a_run("h.py")(folder)
+        (folder / "h.py").write_text(HARMONIC_FILE.format(k="2"))
+
+    cases = [
+        Case("resume", "the run names a planted scene file", RESUME, (2,),
+             _a_run("h.py", scene_to("{folder}/evil.py")), expect_text="name it on the command"),
+        Case("resume", "the run names a planted file, the user a built-in scene",
+             ["march", "harmonic", *RESUME[1:]], (2,),
+             _a_run("h.py", scene_to("{folder}/evil.py")), expect_text="SHA-256"),
+        Case("resume", "the scene file was edited since the run", ["march", "h.py", *RESUME[1:]],
+             (2,), scene_edited, expect_text="is not the file the run was computed from"),
+        Case("resume", "the run names another built-in scene", RESUME, (2,),
+             _a_run("harmonic", scene_to("pendulum")), expect_text="SHA-256"),
+        Case("resume", "the record's settings were edited", RESUME, (2,),
+             _a_run("harmonic", lambda m, f: overrides(m, f)),
+             expect_text="is not what the run was computed from"),
+        Case("resume", "the record names an option --out", RESUME, (2,),
+             _a_run("harmonic", option("out", "/tmp/elsewhere")), expect_text="'out'"),
+        Case("resume", "the record's tol a text", RESUME, (2,),
+             _a_run("harmonic", option("tol", "__import__('os')")), expect_text="tol"),
+        Case("resume", "the record's scheme a compared method", RESUME, (2,),
+             _a_run("harmonic", option("scheme", "rk4")), expect_text="scheme"),
+        Case("resume", "the carried drift not a number", RESUME, (2,),
+             _a_run("harmonic", lambda m, f: carried(m, f)), expect_text="carried state"),
+        Case("resume", "a second --resume of a folder being written", [*RESUME, "--t-end", "9"],
+             (2,), _writer_running, expect_text="is busy", teardown=_end_writer),
+        Case("resume", "meta.json a link to another folder's",
+             ["march", "--resume", "planted", "--no-progress"], (2,), meta_a_link,
+             expect_text="symbolic link"),
+        Case("resume", "the folder is a file", RESUME, (2,),
+             lambda f: (f / "run").write_text("x"), expect_text="no such folder"),
+        Case("resume", "the same scene file, unchanged (continued)",
+             ["march", "h.py", *RESUME[1:], "--t-end", "3"], (0,), _a_run("h.py"),
+             check=_status_is("run", "success")),
+    ]
+    return cases
+
+
+def grid_cases() -> list[Case]:
+    def forged_and_signed(folder):
+        import csv
+
+        from ddvp_nlp.runner.journal import row_checksum
+
+        _ddvp(folder, *QUICK_SWEEP, "--out", "out")
+        path = folder / "out" / "sweep.csv"
+        with open(path, newline="") as handle:
+            rows = list(csv.DictReader(handle))
+        columns = list(rows[0])
+        rows[0]["energy_error"] = "1e-30"
+        rows[0]["row_sha256"] = row_checksum(rows[0], columns)
+        with open(path, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, columns, lineterminator="\n")
+            writer.writeheader()
+            writer.writerows(rows)
+
+    def twice_in_journal(folder):
+        _ddvp(folder, *QUICK_SWEEP, "--out", "out")
+        lines = (folder / "out" / "sweep.csv").read_text().splitlines()
+        (folder / "out" / "sweep.partial.csv").write_text(
+            "\n".join([lines[0], lines[1], lines[2], lines[1]]) + "\n")
+
+    def manifest_gone(folder):
+        _ddvp(folder, *QUICK_SWEEP, "--out", "out")
+        (folder / "out" / "meta.json").unlink()
+
+    def not_forged(folder, result):
+        text = (folder / "out" / "sweep.csv").read_text()
+        problems = ["the forged row was reused"] if "1e-30" in text else []
+        if "is not the file its manifest describes" not in result.stderr:
+            problems.append("no warning named the file")
+        return problems
+
+    return [
+        Case("grids", "sweep.csv re-signed after an edit", [*QUICK_SWEEP, "--out", "out"],
+             (0,), forged_and_signed, check=not_forged),
+        Case("grids", "a key twice in the journal", [*QUICK_SWEEP, "--out", "out"], (2,),
+             twice_in_journal, expect_text="twice"),
+        Case("grids", "sweep.csv without its manifest", [*QUICK_SWEEP, "--out", "out"], (0,),
+             manifest_gone, expect_text="is not reused"),
+    ]
+
+
+def folder_cases() -> list[Case]:
+    def first(*argv, edit=None):
+        def setup(folder):
+            (folder / "h.py").write_text(HARMONIC_FILE.format(k="1"))
+            _ddvp(folder, *argv, "--no-plot", "--no-progress")
+            if edit:
+                edit(folder)
+        return setup
+
+    def two_folders(folder, result):
+        runs = sorted(p.name for p in (folder / "runs").iterdir())
+        return [] if len(runs) == 2 else [f"two runs share a folder: {runs}"]
+
+    harmonic = ["march", "harmonic", "--no-plot", "--no-progress"]
+    scene = ["march", "h.py", "--no-plot", "--no-progress"]
+    return [
+        Case("folders", "--event after a plain run", [*harmonic, "--event", "q1"], (0,),
+             first("march", "harmonic"), check=two_folders),
+        Case("folders", "--t-eval after a plain run", [*harmonic, "--t-eval", "0:1:3"], (0,),
+             first("march", "harmonic"), check=two_folders),
+        Case("folders", "another --event after an event run",
+             [*harmonic, "--event", "q1;up"], (0,), first("march", "harmonic", "--event", "q1"),
+             check=two_folders),
+        Case("folders", "a scene file edited after its run", scene, (0,),
+             first("march", "h.py", edit=lambda f: (f / "h.py").write_text(
+                 HARMONIC_FILE.format(k="2"))), check=two_folders),
+    ]
+
+
+PLANTED_C = """#include <stdio.h>
+__attribute__((constructor)) static void planted(void) {
+    FILE *f = fopen("%s", "w"); if (f) { fputs("ran", f); fclose(f); }
+}
+"""
+CACHE_ENV = {"DDVP_NLP_CACHE": "{folder}/cache"}
+CACHED_MARCH = ["march", "harmonic", "--set", "t_end=2", "--no-plot", "--no-progress", "--out",
+                "run"]
+
+
+def cache_cases() -> list[Case]:
+    def planted(folder) -> bytes:
+        import shutil
+
+        source = folder / "planted.c"
+        source.write_text(PLANTED_C % (folder / "pwned"))
+        subprocess.run([shutil.which("gcc") or "cc", "-shared", "-fPIC", str(source), "-o",
+                        str(folder / "planted.so")], check=True)
+        return (folder / "planted.so").read_bytes()
+
+    def filled(folder):
+        _ddvp(folder, *CACHED_MARCH, env={"DDVP_NLP_CACHE": str(folder / "cache")})
+        return sorted((folder / "cache").glob("*.so"))
+
+    def plant_with_sha256(folder):
+        import hashlib
+
+        data = planted(folder)
+        for library in filled(folder):
+            library.write_bytes(data)
+            library.with_name(library.name + ".sha256").write_text(
+                hashlib.sha256(data).hexdigest() + "\n")
+
+    def plant_as_link(folder):
+        import hashlib
+
+        data = planted(folder)
+        for library in filled(folder):
+            library.unlink()
+            os.symlink(folder / "planted.so", library)
+            library.with_name(library.name + ".sha256").write_text(
+                hashlib.sha256(data).hexdigest() + "\n")
+
+    def garbage(folder):
+        import hashlib
+
+        for library in filled(folder):
+            data = b"\x7fELF" + os.urandom(3000)
+            library.write_bytes(data)
+            library.with_name(library.name + ".sha256").write_text(
+                hashlib.sha256(data).hexdigest() + "\n")
+
+    def open_cache(mode=0o777, owner=None):
+        def setup(folder):
+            (folder / "cache").mkdir()
+            (folder / "cache").chmod(mode)
+            if owner is not None:
+                os.chown(folder / "cache", owner, owner)
+        return setup
+
+    def cache_a_link(folder):
+        (folder / "real").mkdir(mode=0o700)
+        os.symlink(folder / "real", folder / "cache")
+
+    def killed_builds(folder):
+        filled(folder)
+        old = time.time() - 3600
+        for name in (".build-host-1-dead", "tmpkilled1"):
+            (folder / "cache" / name).mkdir()
+            (folder / "cache" / name / "chunk.c").write_text("int x;\n")
+            os.utime(folder / "cache" / name, (old, old))
+
+    def key_a_link(folder):
+        filled(folder)
+        key = folder / "cache" / ".ddvp-cache-key"
+        os.rename(key, folder / "key")
+        os.symlink(folder / "key", key)
+
+    def compiled(folder, result):
+        import json
+
+        path = json.loads((folder / "run" / "meta.json").read_text()).get("path")
+        return [] if path == "compiled" else [f"ran on the path {path!r}, not compiled"]
+
+    def vm_with_warning(folder, result):
+        import json
+
+        path = json.loads((folder / "run" / "meta.json").read_text()).get("path")
+        problems = [] if path == "vm" else [f"ran on the path {path!r}"]
+        return problems + ([] if "not safe to load libraries" in result.stderr else
+                           ["no warning said why the cache was refused"])
+
+    def scratch_gone(folder, result):
+        left = [p.name for p in (folder / "cache").iterdir() if p.is_dir()]
+        return [f"scratch of killed builds left: {left}"] if left else []
+
+    cases = [
+        Case("cache", "a planted library with its SHA-256 beside it", CACHED_MARCH, (0,),
+             plant_with_sha256, env=CACHE_ENV, check=compiled),
+        Case("cache", "a library that is a link to a planted one", CACHED_MARCH, (0,),
+             plant_as_link, env=CACHE_ENV, check=compiled),
+        Case("cache", "a damaged library with a matching SHA-256", CACHED_MARCH, (0,), garbage,
+             env=CACHE_ENV, check=compiled),
+        Case("cache", "a cache folder others may write", CACHED_MARCH, (0,), open_cache(),
+             env=CACHE_ENV, check=vm_with_warning),
+        Case("cache", "a cache folder its group may write", CACHED_MARCH, (0,),
+             open_cache(0o770), env=CACHE_ENV, check=vm_with_warning),
+        Case("cache", "the cache folder a link", CACHED_MARCH, (0,), cache_a_link,
+             env=CACHE_ENV, check=vm_with_warning),
+        Case("cache", "scratch of killed builds", CACHED_MARCH, (0,), killed_builds,
+             env=CACHE_ENV, check=scratch_gone),
+        Case("cache", "the cache's key a link", CACHED_MARCH, (0,), key_a_link, env=CACHE_ENV,
+             check=compiled),
+    ]
+    if os.geteuid() == 0:
+        cases.append(Case("cache", "a cache folder of another user", CACHED_MARCH, (0,),
+                          open_cache(0o700, owner=12345), env=CACHE_ENV,
+                          check=vm_with_warning))
+    return cases
+
+
+EVENTS_REFUSED = ["sin()", "sin(q1, q1)", "arctan2(q1)", "maximum(q1, p1, q1)", "exp(x=q1)",
+                  "sin(*[q1])", "-" * 400 + "q1", "__import__('os').system('touch pwned')",
+                  "q1.__class__", "(lambda: q1)()", "[q for q in (q1,)]", "9**9**9**9 + q9",
+                  "open('pwned', 'w')", "q1 if q1 else p1", "q1 @ p1", "sin(q1)(q1)"]
+
+
+def event_cases(rng: random.Random) -> list[Case]:
+    def nothing_written(folder, result):
+        return ["a folder was made"] if (folder / "out").exists() else []
+
+    cases = [Case("events", f"--event {text[:40]!r}",
+                  ["march", "harmonic", "--no-plot", "--no-progress", "--out", "out", "--event",
+                   text], (2,), check=nothing_written, expect_text="--event")
+             for text in EVENTS_REFUSED]
+    atoms = ["q1", "p1", "t", "pi", "w", "2", "x", "q1.real", "()"]
+    names = ["sin", "cos", "arctan2", "hypot", "exp", "log", "abs", "maximum", "eval"]
+    for _ in range(12):
+        text = rng.choice(atoms)
+        for _ in range(rng.randint(1, 5)):
+            kind = rng.random()
+            if kind < 0.4:
+                args = ", ".join([text] * rng.randint(0, 3))
+                text = f"{rng.choice(names)}({args})"
+            elif kind < 0.8:
+                text = f"({text} {rng.choice(['+', '-', '*', '/', '**', '%'])} "\
+                       f"{rng.choice(atoms)})"
+            else:
+                text = f"{rng.choice(['-', '+', 'not '])}{text}"
+        cases.append(Case("events", f"drawn: {text[:50]}",
+                          ["march", "harmonic", "--set", "t_end=2", "--no-plot",
+                           "--no-progress", "--out", "out", "--event", text], (0, 2)))
+    return cases
+
+
+SCENE_HEAD = ("from ddvp_nlp import Scene\ndef H(q, p, t):\n    return p[0]**2/2 + "
+              "q[0]**2/2\n")
+SCENE_END = "scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1)\n"
+BOUNDS = {  # what the scene does while it loads, the codes allowed, a text stderr must hold
+    "ignores the timers and loops": ("import signal\nfor s in (signal.SIGALRM, signal.SIGPROF)"
+                                     ":\n    signal.signal(s, signal.SIG_IGN)\nwhile True:\n"
+                                     "    pass\n", (2,), "went on past its limit"),
+    "cancels the timers and loops": ("import signal\nsignal.setitimer(signal.ITIMER_PROF, 0)\n"
+                                     "signal.setitimer(signal.ITIMER_REAL, 0)\nwhile True:\n"
+                                     "    pass\n", (2,), "limit"),
+    "catches what the timers raise": ("while True:\n    try:\n        while True:\n"
+                                      "            pass\n    except BaseException:\n"
+                                      "        pass\n", (2,), "limit"),
+    "sleeps, deaf to the timers": ("import signal, time\nsignal.signal(signal.SIGALRM, "
+                                   "signal.SIG_IGN)\ntime.sleep(10**6)\n", (2,), "limit"),
+    "waits on a lock": ("import threading\nthreading.Event().wait()\n", (2,), "asleep"),
+    "calls posix._exit(0)": ("import posix\nposix._exit(0)\n", (2,), "os._exit(0)"),
+    "kills itself": ("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n", (2,),
+                     "ended the process"),
+    "calls the C library's _exit": ("import ctypes\nctypes.CDLL(None)._exit(0)\n", (2,),
+                                    "ended the process"),
+    "loops in one C call": ("import re\nre.match('(a*)*b', 'a' * 40)\n", (2,), "limit"),
+    "changes the folder": ("import os\nos.chdir('/')\n", (0,), ""),
+}
+BOUNDED_RUN = ["--set", "t_end=1", "--no-plot", "--no-progress", "--out", "out"]
+
+
+def bound_cases() -> list[Case]:
+    cases = []
+    for name, (body, codes, text) in BOUNDS.items():
+        def setup(folder, body=body):
+            (folder / "scene.py").write_text(SCENE_HEAD + body + SCENE_END)
+        check = _status_is("out", "success") if codes == (0,) else None
+        cases.append(Case("bounds", f"a scene that {name}", ["march", "scene.py", *BOUNDED_RUN],
+                          codes, setup, check=check, expect_text=text))
+
+    def scene(body):
+        def setup(folder):
+            (folder / "scene.py").write_text(SCENE_HEAD + body + SCENE_END)
+        return setup
+
+    thread = "import threading\nthreading.Thread(target=threading.Event().wait).start()\n"
+    ending = ("import os, posix, threading, time\ndef end():\n    while not os.path.exists("
+              "'out/meta.json'):\n        time.sleep(0.01)\n    posix._exit(0)\n"
+              "threading.Thread(target=end, daemon=True).start()\n")
+    hang = "import atexit, time\natexit.register(lambda: time.sleep(10**6))\n"
+    deaf = "import signal\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\n" + thread
+    long = ["--set", "t_end=1e7", "--max-steps", "3000000", "--checkpoint-every", "0.2",
+            "--no-plot", "--no-progress", "--out", "out"]
+    cases += [
+        Case("bounds", "a thread left behind after saving", ["march", "scene.py", *BOUNDED_RUN],
+             (0,), scene(thread), check=_status_is("out", "success")),
+        Case("bounds", "an atexit hook that hangs", ["march", "scene.py", *BOUNDED_RUN], (0,),
+             scene(hang), check=_status_is("out", "success")),
+        Case("bounds", "a scene thread ends the process mid-run", ["march", "scene.py", *long],
+             (1,), scene(ending), expect_text="before it was done"),
+        Case("bounds", "SIGTERM, the scene deaf to it, a thread left",
+             ["march", "scene.py", *long], (1,), scene(deaf),
+             signals=[(4.0, signal.SIGTERM)], check=_march_kept),
+    ]
+    return cases
+
+
+def cluster_cases() -> list[Case]:
+    def fifo(folder):
+        os.mkfifo(folder / "cluster.toml")
+
+    def huge(folder):
+        with open(folder / "cluster.toml", "wb") as handle:
+            handle.truncate(3 << 30)  # sparse: 3 GB that take no disk
+
+    def text(content):
+        return lambda folder: (folder / "cluster.toml").write_text(content)
+
+    stress = ["stress", "--quick", "--no-progress", "--out", "out", "--cluster"]
+    no_sbatch = {"PATH": os.path.dirname(PYTHON)}
+    return [
+        Case("cluster", "--cluster /dev/zero", [*stress, "/dev/zero"], (2,),
+             expect_text="not a regular file", timeout=60),
+        Case("cluster", "--cluster a FIFO", [*stress, "cluster.toml"], (2,), fifo,
+             expect_text="not a regular file", timeout=60),
+        Case("cluster", "--cluster a 3 GB file", [*stress, "cluster.toml"], (2,), huge,
+             expect_text="bytes", timeout=60),
+        Case("cluster", "--cluster local:workers=100000", [*stress, "local:workers=100000"],
+             (2,), expect_text="more than this machine can hold"),
+        Case("cluster", "workers = 100000 in a file", [*stress, "cluster.toml"], (2,),
+             text('[cluster]\nkind = "local"\nworkers = 100000\n'),
+             expect_text="more than this machine can hold"),
+        Case("cluster", "workers = 2.9 in a file", [*stress, "cluster.toml"], (2,),
+             text('[cluster]\nkind = "local"\nworkers = 2.9\n'), expect_text="must be int"),
+        Case("cluster", "a slurm cluster without sbatch", [*stress, "slurm:cores=2"], (2,),
+             env=no_sbatch, expect_text="sbatch was not found", timeout=60),
+        Case("cluster", "a queue that is a shell line", [*stress, "cluster.toml"], (2,),
+             text('[cluster]\nkind = "slurm"\nqueue = "x\\n#!/bin/sh"\n'),
+             expect_text="queue must be"),
+        Case("cluster", "a table nested 10000 deep", [*stress, "cluster.toml"], (2,),
+             text("[cluster]\nkind = " + "[" * 10000 + "]" * 10000 + "\n"), timeout=60),
+        Case("cluster", "a setting twice", [*stress, "local:workers=1,workers=2"], (2,),
+             expect_text="twice"),
+    ]
+
+
+def periodic_cases() -> list[Case]:
+    def singular(folder):
+        (folder / "singular.py").write_text(
+            "from ddvp_nlp import Scene\ndef H(q, p, t):\n    return p[0]**2/2 - 1/q[0]**2\n"
+            "scene = Scene(H, n=1, q0=[1.0], p0=[0.5], tau0=0.01, t_end=1)\n")
+    return [Case("periodic", "H not finite along the whole start ray",
+                 ["periodic", "singular.py", "--energy", "0.5", "--nodes", "20", "--section",
+                  "q1=0", "--no-plot", "--out", "out"], (2,), singular,
+                 expect_text="not finite anywhere")]
+
+
+LOAD_SCENES = ["pendulum", "harmonic", "kepler", "henon_heiles", "paper_pendulum", "cr3bp",
+               "fpu", "figure_eight"]
+
+
+def load_cases() -> list[Case]:
+    return [Case("load", "8 marches at once, scene limit 2 s", [], (0, 1))]
+
+
+def run_load(case: Case, root: Path, tag: str) -> Result:
+    """Eight marches of built-in scenes started together into folders of their own, each
+    with a scene limit of 2 s (the wall clock had refused built-in scenes 12 times under this
+    load): a valid run refused (exit 2) is counted."""
+    folder = root / "load"
+    folder.mkdir()
+    env = {**os.environ, "DDVP_FAULT_CASE": tag, "DDVP_SCENE_TIME_LIMIT": "2"}
+    started = time.monotonic()
+    processes = [subprocess.Popen([PYTHON, "-m", "ddvp_nlp.cli", "march", scene, "--set",
+                                   "t_end=5", "--no-plot", "--no-progress", "--out",
+                                   f"run-{scene}"], cwd=folder, env=env,
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                 for scene in LOAD_SCENES]
+    outputs = []
+    for process in processes:
+        try:
+            out, err = process.communicate(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, err = process.communicate()
+        outputs.append((process.returncode, out, err))
+    load = os.getloadavg()[0]
+    result = Result(case, max(abs(c or 0) for c, _, _ in outputs),
+                    "\n".join(o for _, o, _ in outputs), "\n".join(e for _, _, e in outputs),
+                    time.monotonic() - started)
+    judge(result, folder, tag)
+    refused = [scene for scene, (code, _, err) in zip(LOAD_SCENES, outputs, strict=True)
+               if code == 2]
+    result.refused_under_load = len(refused)
+    result.case = Case(case.group, f"{case.name} (load average {load:.1f} at the end)",
+                       case.argv, case.codes)
+    if refused:
+        result.problems.append(f"valid runs refused under load: {refused}")
+        result.kinds.add("refused under load")
+    return result
+
+
 # -- the disk and concurrency groups need set-up around the command ----------------------------
 
 def run_disk(case: Case, root: Path, tag: str, disk_kind: str) -> Result:
@@ -716,7 +1265,8 @@ def run_concurrent(case: Case, root: Path, tag: str) -> Result:
 
 # -- the page ----------------------------------------------------------------------------------
 
-KINDS = ("traceback", "code", "hang", "torn/lost/lying", "link")
+KINDS = ("traceback", "code", "hang", "torn/lost/lying", "link", "code run",
+         "refused under load")
 
 
 def page(results: list[Result], seed: int, disk_kind: str, seconds: float) -> str:
@@ -768,7 +1318,8 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=28)
     parser.add_argument("--out", default=str(Path(__file__).resolve().parents[2] / "docs"
                                              / "reliability" / "faults.md"))
-    parser.add_argument("--only", default=None, help="one group of cases (writes no page)")
+    parser.add_argument("--only", default=None,
+                        help="groups of cases, comma-separated (writes no page)")
     parser.add_argument("--quick", action="store_true",
                         help="the numbers group alone, its page written (not for docs/)")
     args = parser.parse_args()
@@ -780,13 +1331,20 @@ def main() -> int:
     probe.close()
     groups = {"links": link_cases, "signals": lambda: signal_cases(rng),
               "disk": lambda: disk_cases(disk_kind), "concurrent": concurrent_cases,
-              "files": hostile_file_cases, "scenes": scene_cases, "numbers": number_cases}
+              "files": hostile_file_cases, "scenes": scene_cases, "numbers": number_cases,
+              "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
+              "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
+              "cluster": cluster_cases, "periodic": periodic_cases, "load": load_cases}
+    only = set(args.only.split(",")) if args.only else None
+    unknown = sorted((only or set()) - set(groups))
+    if unknown:
+        parser.error(f"unknown group {unknown[0]!r} (groups: {', '.join(groups)})")
     started = time.monotonic()
     results = []
     with tempfile.TemporaryDirectory(prefix="ddvp-faults-") as tmp:
         root = Path(tmp)
         for group, make in groups.items():
-            if args.only and group != args.only:
+            if only and group not in only:
                 continue
             for index, case in enumerate(make()):
                 tag = f"{group}-{index}-{os.getpid()}"
@@ -794,6 +1352,8 @@ def main() -> int:
                     result = run_disk(case, root, tag, disk_kind)
                 elif group == "concurrent":
                     result = run_concurrent(case, root, tag)
+                elif group == "load":
+                    result = run_load(case, root, tag)
                 elif case.name.startswith("scenes: stdout"):
                     result = _stdout_full(case, root, tag, disk_kind)
                 else:
@@ -809,7 +1369,26 @@ def main() -> int:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(text)
     print(text.split("## Every case")[0])
+    print(counts(results))
     return 1 if any(r.problems for r in results) else 0
+
+
+def counts(results: list[Result]) -> str:
+    """The figures of the closing note, one line each."""
+    def having(kind):
+        return sum(kind in r.kinds for r in results)
+
+    load_runs = sum(len(LOAD_SCENES) for r in results if r.case.group == "load")
+    lines = [f"cases run: {len(results)}",
+             f"tracebacks: {having('traceback')}",
+             f"wrong exit codes: {having('code')}",
+             f"hangs: {having('hang')}",
+             f"torn/lost/lying results: {having('torn/lost/lying')}",
+             f"links followed: {having('link')}",
+             f"code executed that the user did not name: {having('code run')}",
+             f"valid runs refused under load: {sum(r.refused_under_load for r in results)} of "
+             f"{load_runs}"]
+    return "\n".join(lines)
 
 
 def _stdout_full(case: Case, root: Path, tag: str, disk_kind: str) -> Result:

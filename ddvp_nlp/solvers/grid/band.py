@@ -140,8 +140,8 @@ def kernel(compiler: str | None = "auto", cache_dir=None) -> BandKernel | None:
     key = (found, str(folder))
     if key not in _LOADED:
         try:
-            _LOADED[key] = BandKernel(compile_source(SOURCE, "band_lu", found, folder,
-                                                     prefix="band"))
+            _LOADED[key] = compile_source(SOURCE, "band_lu", found, folder, prefix="band",
+                                          load=BandKernel)
         except (CompileUnavailable, OSError) as exc:
             _LOADED[key] = None
             warnings.warn(f"{exc}; the banded LU runs LAPACK through scipy instead (slower, "

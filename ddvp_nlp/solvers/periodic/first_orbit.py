@@ -5,7 +5,8 @@ The point: the section fixes one coordinate of ``z = (q, p)``; the others are th
 direction ``d`` (default all ones) scaled by ``s > 0``, ``z(s) = (s d with z[section] =
 value)``, and ``s`` is the first root of ``H(z(s)) = E`` on ``(0, S_MAX]`` (a scan for the first
 sign change, then Brent's method). No root means that ``E`` is outside the range where the
-section, along that ray, meets the energy surface: an input error.
+section, along that ray, meets the energy surface: an input error (which says so also when
+``H`` is not finite anywhere on the ray).
 
 The march: ``solvers/marching`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
@@ -57,6 +58,11 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
     change = change[np.isfinite(H[change]) & np.isfinite(H[change + 1])]
     if change.size == 0 or (change[0] == 0 and H[0] == 0 and change.size == 1):
         finite = H[np.isfinite(H)] + energy
+        if finite.size == 0:  # a singular potential along the whole ray: no range to name
+            raise InputError(
+                f"energy {energy!r}: H is not finite anywhere on the start's ray of the "
+                f"section {label} (|z| up to {S_MAX:g} |d|, {SCAN_POINTS} points), so no start "
+                "on it has that energy; give a start (--guess) or another section")
         raise InputError(
             f"energy {energy!r} is outside the range where the section {label} meets the "
             f"energy surface (along the start's ray H runs from {np.min(finite):.6g} to "

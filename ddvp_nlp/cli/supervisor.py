@@ -1,0 +1,244 @@
+"""The ``ddvp`` command runs in a child process watched by its parent, so that whatever the
+command runs (a scene's code above all) cannot keep it from ending, or make it end lying.
+
+The parent forks as the command starts and then only waits, forwards the signals it is sent
+and reads the child's `SceneWatch` (``scenes/guard.py``):
+
+- **a scene's code past its limits**: while the child's main thread runs a scene's code, the
+  parent measures it as the child does (CPU time of the process from ``/proc/PID/stat``; sleep
+  of the main thread, elapsed less on a processor less waiting to run, from its
+  ``schedstat``), so a loaded machine counts for nothing. The child's own timers end such
+  code with the file and the line; a scene that defeats them (ignores or cancels the timers,
+  catches what they raise, loops inside one C call) is ended from here once it passes
+  ``BACKSTOP`` times its limit plus ``BACKSTOP_S``: SIGKILL, exit 2, the file named;
+- **a process that ends without finishing**: a child that exits while a scene's code runs
+  (``posix._exit``, a signal it sends itself, ...) is exit 2 naming the file; one that exits
+  before saying it is done (a scene's thread that ended the process mid-run) is exit 1, never
+  the code it died with (an ``_exit(0)`` would have passed for a success);
+- **a process that does not end after its work**: once done, the child leaves at once where
+  non-daemon threads would keep the interpreter waiting for them; a child that still does
+  not end (an ``atexit`` hook that hangs) is ended after ``EXIT_ASLEEP_S`` of sleep;
+- **signals**: SIGINT, SIGTERM and SIGHUP sent to the parent are passed to the child (one
+  from the terminal reaches both already and is not passed twice); if the child then sleeps
+  ``STOP_ASLEEP_S`` (or computes ``STOP_CPU_S``) without ending, it is ended, exit 1. A child
+  killed by a signal ends the parent by the same signal, and a SIGKILLed parent takes the
+  child with it (``PR_SET_PDEATHSIG``).
+
+Only the command is supervised (``main()`` with no arguments, as the console script and
+``python -m ddvp_nlp.cli`` call it); ``main(argv)`` from Python runs in its caller's process,
+with the in-process limits only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+from ..scenes.guard import SceneWatch
+
+# A scene's code is ended from outside once it passes BACKSTOP times its limit plus
+# BACKSTOP_S, of CPU time or of sleep (its own timers act at the limit).
+BACKSTOP, BACKSTOP_S = 1.5, 2.0
+# A child told to stop that sleeps this long (or computes this long) without ending is ended.
+STOP_ASLEEP_S, STOP_CPU_S = 20.0, 120.0
+# A child done with its work that sleeps this long without ending is ended.
+EXIT_ASLEEP_S = 10.0
+POLL_S = 0.1
+FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+SI_KERNEL = 0x80  # si_code of a signal the kernel sent (the terminal's Ctrl-C), not kill()
+
+
+def available() -> bool:
+    """Whether the command can run supervised here (a fork and Linux's ``/proc``)."""
+    return hasattr(os, "fork") and hasattr(signal, "sigtimedwait") and os.path.isdir(
+        "/proc/self/task")
+
+
+def supervise(work: Callable[[], int]) -> int:
+    """``work()`` run in a child process watched from this one (module docstring); the
+    command's exit code."""
+    watch = SceneWatch()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    held = set(FORWARDED) | {signal.SIGCHLD}
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    child = os.fork()
+    if child == 0:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        return _child(work, watch)
+    return Parent(child, watch).wait()
+
+
+def _child(work: Callable[[], int], watch: SceneWatch) -> int:
+    """The command itself, in the child: it dies with its parent, reports to the watch, and
+    once done leaves without waiting for threads that would keep it alive."""
+    parent = os.getppid()
+    _die_with_parent()
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os._exit(1)
+    watch.attach()
+    try:
+        code = work()
+    except SystemExit as stop:  # argparse's end (--help, a usage error), as it is
+        code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+        if stop.code is not None and not isinstance(stop.code, int):
+            print(stop.code, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    watch.done(code)
+    lingering = [t for t in threading.enumerate()
+                 if t is not threading.main_thread() and not t.daemon and t.is_alive()]
+    if lingering:  # a scene's (or a library's) thread: the run is saved, nothing waits for it
+        os._exit(code)
+    return code
+
+
+def _die_with_parent() -> None:
+    """``prctl(PR_SET_PDEATHSIG, SIGKILL)``: a SIGKILLed parent takes the child along."""
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)
+
+
+class Parent:
+    """The waiting parent: signals forwarded, the child's scene code and end watched."""
+
+    def __init__(self, child: int, watch: SceneWatch):
+        self.child, self.watch = child, watch
+        self.scene = None      # (sequence, cpu at start, thread times at start, elapsed start)
+        self.stop = None       # (cpu, thread times, elapsed) when the first stop was passed on
+        self.done = None       # the same, when the child said it was done
+        self.killed = None     # (message, exit code) if this process ended the child
+
+    def wait(self) -> int:
+        while True:
+            self._signals()
+            ended, status = os.waitpid(self.child, os.WNOHANG)
+            if ended:
+                return self._end(status)
+            self._watch()
+
+    def _signals(self) -> None:
+        try:
+            info = signal.sigtimedwait(set(FORWARDED) | {signal.SIGCHLD}, POLL_S)
+        except InterruptedError:
+            return
+        if info is None or info.si_signo == signal.SIGCHLD:
+            return
+        if info.si_code != SI_KERNEL:  # kill() to this process: the child has not had it
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.child, info.si_signo)
+        if self.stop is None:
+            self.stop = self._sample()
+
+    def _watch(self) -> None:
+        state, sequence, _, limit, what, path = self.watch.read()
+        now = self._sample()
+        if state == SceneWatch.SCENE:
+            if self.scene is None or self.scene[0] != sequence:
+                self.scene = (sequence, now)
+                return
+            cpu, asleep = _since(self.scene[1], now)
+            bound = BACKSTOP * limit + BACKSTOP_S
+            if cpu > bound or asleep > bound:
+                spent = (f"{cpu:.3g} s of CPU time" if cpu > bound else
+                         f"{asleep:.3g} s asleep")
+                self._kill(f"scene file {path!r}: {what} went on past its limit of "
+                           f"{limit:.3g} s ({spent}) and did not stop when told; its process "
+                           "was ended", code=2)
+            return
+        self.scene = None
+        if state == SceneWatch.DONE:
+            self.done = self.done or now
+            cpu, asleep = _since(self.done, now)
+            if asleep > EXIT_ASLEEP_S:
+                self._kill("", code=self.watch.read()[2])
+            return
+        if self.stop is not None:
+            cpu, asleep = _since(self.stop, now)
+            if asleep > STOP_ASLEEP_S or cpu > STOP_CPU_S:
+                self._kill(f"ddvp: the command did not end after it was told to stop "
+                           f"({asleep:.3g} s asleep, {cpu:.3g} s of CPU time since); it was "
+                           "ended", code=1)
+
+    def _sample(self):
+        return _process_cpu(self.child), _main_thread(self.child), time.monotonic()
+
+    def _kill(self, message: str, *, code: int) -> None:
+        self.killed = (message, code)
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.child, signal.SIGKILL)
+
+    def _end(self, status: int) -> int:
+        """The command's exit code from the child's end (module docstring)."""
+        state, _, code, _, what, path = self.watch.read()
+        if self.killed:
+            message, code = self.killed
+            if message:
+                _say(message)
+            return code
+        if state == SceneWatch.SCENE:
+            how = (f"exit {os.waitstatus_to_exitcode(status)}" if os.WIFEXITED(status) else
+                   f"signal {signal.Signals(os.WTERMSIG(status)).name}")
+            _say(f"ddvp: error: scene file {path!r}: {what} ended the process ({how}); a scene "
+                 "may not end the command")
+            return 2
+        if os.WIFSIGNALED(status):
+            _end_like(os.WTERMSIG(status))
+        exit_code = os.waitstatus_to_exitcode(status)
+        if state != SceneWatch.DONE:
+            _say(f"ddvp: error: the command's process ended (exit {exit_code}) before it was "
+                 "done; something it ran ended it (a scene's thread?): what it wrote is whole, "
+                 "but the run did not finish")
+            return exit_code if exit_code not in (0, None) else 1
+        return exit_code
+
+
+def _since(start, now) -> tuple[float, float]:
+    """``(CPU time of the process, sleep of its main thread)`` between two samples."""
+    cpu = (now[0] - start[0]) if now[0] is not None and start[0] is not None else 0.0
+    elapsed = now[2] - start[2]
+    if now[1] is None or start[1] is None:
+        return cpu, elapsed - cpu
+    return cpu, elapsed - (now[1][0] - start[1][0]) - (now[1][1] - start[1][1])
+
+
+def _process_cpu(pid: int) -> float | None:
+    """User and system CPU time of process ``pid`` (all its threads), in seconds."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as handle:
+            fields = handle.read().rsplit(b")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _main_thread(pid: int) -> tuple[float, float] | None:
+    """``(on a processor, waiting to run)`` of the main thread of ``pid``, in seconds."""
+    try:
+        with open(f"/proc/{pid}/task/{pid}/schedstat", "rb") as handle:
+            running, waiting = handle.read().split()[:2]
+        return int(running) / 1e9, int(waiting) / 1e9
+    except (OSError, ValueError):
+        return None
+
+
+def _end_like(signum: int) -> None:
+    """End this process by ``signum``, as the child ended (a shell sees the same)."""
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signum})
+    os.kill(os.getpid(), signum)
+
+
+def _say(text: str) -> None:
+    with contextlib.suppress(Exception):
+        print(text, file=sys.stderr, flush=True)
