@@ -31,7 +31,8 @@ FORMATS = ("png", "svg", "pdf")
 # A journal's text width and column width, in inches: figures are drawn at the size they are
 # printed, so the fonts of the style sheet are the fonts on the page.
 TEXT_WIDTH, COLUMN_WIDTH = 7.0, 3.4
-# What marks a failed run in every figure: a red cross, named in the legend.
+# What marks a failed run in every figure: a cross, named in the legend; red, or in its
+# method's colour where several methods share a panel (the legend's entry in that colour).
 FAILED = {"marker": "x", "color": "#CC3311", "linestyle": "none", "markersize": 5,
           "markeredgewidth": 1.2}
 
@@ -254,11 +255,14 @@ def offset_in_label(ax) -> None:
     panel, over its title) written into the axis label instead: ``(T - 6.283) / 10⁻⁴``."""
     axis = ax.yaxis
     formatter = axis.get_major_formatter()
-    if not hasattr(formatter, "orderOfMagnitude") or ax.get_yscale() != "linear":
+    if not hasattr(formatter, "set_powerlimits") or ax.get_yscale() != "linear":
         return
     low, high = sorted(ax.get_ylim())
     formatter.set_locs([loc for loc in axis.get_majorticklocs() if low <= loc <= high])
-    offset, power = float(getattr(formatter, "offset", 0.0)), formatter.orderOfMagnitude
+    # the power of ten the formatter chose (private from matplotlib 3.11, public before)
+    power = getattr(formatter, "_orderOfMagnitude", None)
+    power = int(formatter.orderOfMagnitude if power is None else power)
+    offset = float(getattr(formatter, "offset", 0.0))
     if not offset and not power:
         return
     label = ax.get_ylabel() or "value"
