@@ -98,6 +98,7 @@ def plot_solution(solution, path=None, *, system=None, params=None, title: str |
     with figures.styled():
         fig = _figure(solution, _rows(solution, varies, energy), title)
         if path is None:
+            figures.save(fig, figures.Keep())  # the same finish as a saved figure, drawn
             return fig
         figures.save(fig, path, figures.format_of(path))
     return path
