@@ -259,9 +259,7 @@ def offset_in_label(ax) -> None:
         return
     low, high = sorted(ax.get_ylim())
     formatter.set_locs([loc for loc in axis.get_majorticklocs() if low <= loc <= high])
-    # the power of ten the formatter chose (private from matplotlib 3.11, public before)
-    power = getattr(formatter, "_orderOfMagnitude", None)
-    power = int(formatter.orderOfMagnitude if power is None else power)
+    power = _power_of(formatter.get_offset())
     offset = float(getattr(formatter, "offset", 0.0))
     if not offset and not power:
         return
@@ -278,6 +276,15 @@ def offset_in_label(ax) -> None:
     if power:
         formatter.set_powerlimits((power, power))
     axis.get_offset_text().set_visible(False)
+
+
+def _power_of(offset_text: str) -> int:
+    """The power of ten in an offset text (``×10⁻⁴+6.283``, or its mathtext), else 0 (the
+    formatter's own attribute is private from matplotlib 3.11)."""
+    text = offset_text.translate(str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-"))
+    text = text.replace("\N{MINUS SIGN}", "-")
+    match = re.search(r"(?:×|\\times)(?:\\mathdefault\{)?10\^?\{?(-?\d+)", text)
+    return int(match.group(1)) if match else 0
 
 
 def format_of(path, default: str = "png") -> str:
