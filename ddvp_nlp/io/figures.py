@@ -31,7 +31,8 @@ FORMATS = ("png", "svg", "pdf")
 # A journal's text width and column width, in inches: figures are drawn at the size they are
 # printed, so the fonts of the style sheet are the fonts on the page.
 TEXT_WIDTH, COLUMN_WIDTH = 7.0, 3.4
-# What marks a failed run in every figure: a red cross, named in the legend.
+# What marks a failed run in every figure: a cross, named in the legend; red, or in its
+# method's colour where several methods share a panel (the legend's entry in that colour).
 FAILED = {"marker": "x", "color": "#CC3311", "linestyle": "none", "markersize": 5,
           "markeredgewidth": 1.2}
 
@@ -129,8 +130,13 @@ class Keep:
 
 def save(fig, target, fmt: str = "png") -> None:
     """Write ``fig`` to ``target`` (a path, a binary file or a `Keep`) in format ``fmt``, its
-    numeric tick labels as plain text (`plain_tick_labels`)."""
+    numeric tick labels as plain text (`plain_tick_labels`), data constant to round-off drawn
+    as constant (`steady_limits`) and a y axis' offset in its label (`offset_in_label`)."""
     plain_tick_labels(fig)
+    for ax in fig.axes:
+        for axis in "xy":
+            steady_limits(ax, axis)
+        offset_in_label(ax)
     if isinstance(target, Keep):
         from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -205,6 +211,80 @@ def plain_formatters() -> dict:
 
     return {ticker.ScalarFormatter: PlainScalarFormatter,
             ticker.LogFormatterSciNotation: PlainLogFormatter}
+
+
+# Data whose spread is at most this fraction of their size are constant to round-off (a fixed
+# step, the period of a harmonic family): the autoscaled axis would magnify the last bits into
+# a "dip" under an offset label.
+STEADY = 1e-9
+
+
+def steady_limits(ax, axis: str = "y") -> None:
+    """An autoscaled ``axis`` of ``ax`` whose data (its lines in data coordinates) vary by at
+    most `STEADY` of their size drawn as a constant: a range of +-10% about it (a decade on a
+    log axis) and no offset, so round-off is not magnified into structure."""
+    autoscaled = ax.get_autoscaley_on() if axis == "y" else ax.get_autoscalex_on()
+    if not autoscaled or not ax.lines:
+        return
+    columns = [line.get_ydata(orig=False) if axis == "y" else line.get_xdata(orig=False)
+               for line in ax.lines if line.get_transform() == ax.transData]
+    values = np.concatenate([np.asarray(c, dtype=float).ravel() for c in columns] or [[]])
+    values = values[np.isfinite(values)]
+    if values.size < 2:
+        return
+    low, high = float(values.min()), float(values.max())
+    size = max(abs(low), abs(high))
+    if size == 0.0 or high - low > STEADY * size or high == low:
+        return  # varying, zero, or exactly constant (matplotlib's own range is sensible then)
+    centre = 0.5 * (low + high)
+    scale = ax.get_yscale() if axis == "y" else ax.get_xscale()
+    if scale == "log":
+        limits = (centre / 10 ** 0.5, centre * 10 ** 0.5) if centre > 0 else None
+    else:
+        limits = (centre - 0.1 * abs(centre), centre + 0.1 * abs(centre))
+    if limits is None:
+        return
+    (ax.set_ylim if axis == "y" else ax.set_xlim)(*limits)
+    formatter = (ax.yaxis if axis == "y" else ax.xaxis).get_major_formatter()
+    if hasattr(formatter, "set_useOffset"):
+        formatter.set_useOffset(False)
+
+
+def offset_in_label(ax) -> None:
+    """The y axis' offset and power of ten (matplotlib's ``x10^-4 +6.283`` drawn above the
+    panel, over its title) written into the axis label instead: ``(T - 6.283) / 10⁻⁴``."""
+    axis = ax.yaxis
+    formatter = axis.get_major_formatter()
+    if not hasattr(formatter, "set_powerlimits") or ax.get_yscale() != "linear":
+        return
+    low, high = sorted(ax.get_ylim())
+    formatter.set_locs([loc for loc in axis.get_majorticklocs() if low <= loc <= high])
+    power = _power_of(formatter.get_offset())
+    offset = float(getattr(formatter, "offset", 0.0))
+    if not offset and not power:
+        return
+    label = ax.get_ylabel() or "value"
+    if offset:
+        sign = "\N{MINUS SIGN}" if offset > 0 else "+"
+        label = f"{label} {sign} {abs(offset):.12g}"
+        label = f"({label})" if power else label
+    if power:
+        label = f"{label} / 10{str(power).translate(SUPERSCRIPTS)}"
+    ax.set_ylabel(label)
+    # the same offset and power at the draw, whatever ticks the final layout gives
+    formatter.set_useOffset(offset if offset else False)
+    if power:
+        formatter.set_powerlimits((power, power))
+    axis.get_offset_text().set_visible(False)
+
+
+def _power_of(offset_text: str) -> int:
+    """The power of ten in an offset text (``×10⁻⁴+6.283``, or its mathtext), else 0 (the
+    formatter's own attribute is private from matplotlib 3.11)."""
+    text = offset_text.translate(str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-"))
+    text = text.replace("\N{MINUS SIGN}", "-")
+    match = re.search(r"(?:×|\\times)(?:\\mathdefault\{)?10\^?\{?(-?\d+)", text)
+    return int(match.group(1)) if match else 0
 
 
 def format_of(path, default: str = "png") -> str:

@@ -4,16 +4,17 @@
 from __future__ import annotations
 
 from . import figures
-from .work_precision_figure import AXIS_LABELS, methods_of, plot_method
+from .work_precision_figure import AXIS_LABELS, figure_legend, methods_of, plot_method
 
 
 def plot_horizons(results: dict, path, *, title: str, unit: float) -> None:
     """A column per horizon, a row per error kind, every method's runs as in the single
     report."""
     with figures.styled():
-        fig = figures.new_figure(2.6 * len(results) + 1.0, 5.2)
+        fig = figures.new_figure(2.6 * len(results) + 1.0, 5.9)
         axes = fig.subplots(len(AXIS_LABELS), len(results), squeeze=False)
         _horizon_panels(axes, results, unit)
+        figure_legend(fig, axes.ravel())
         fig.suptitle(title)
         figures.save(fig, path)
 
@@ -31,7 +32,6 @@ def _horizon_panels(axes, results: dict, unit: float) -> None:
             ax.set_xlabel("run time [s]")
             ax.set_ylabel(AXIS_LABELS[kind] if column == 0 else "")
             ax.grid(True, which="major")
-            ax.legend(loc="lower left", fontsize="x-small")
 
 
 def plot_growth(growth, path, *, title: str) -> None:

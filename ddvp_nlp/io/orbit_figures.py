@@ -26,6 +26,7 @@ def plot_followed_family(family, title: str, path, fmt: str = "png") -> None:
 def _draw_family(fig, family) -> None:
     members = family.members
     orbits, periods, indices = fig.subplots(1, 3)
+    indices.sharex(periods)  # the same energies, whatever the indices panel holds
     for member in members:
         colour = COLOURS[member.stability.verdict]
         q, p = member.orbit.q, member.orbit.p
@@ -60,7 +61,8 @@ def _draw_family(fig, family) -> None:
 def _indices(axes, members) -> None:
     """The stability indices (real parts) against the energy with the lines ``k = +-2``;
     on a symmetric log scale when some index passes 10 (an unstable pair's grows like its
-    multiplier)."""
+    multiplier). A family with no nontrivial multiplier (one degree of freedom) shows what
+    there is, its trivial pair (``mu = 1``, ``k = 2``), and says so."""
     values = [member.stability.indices.real for member in members]
     for member, k in zip(members, values, strict=True):
         colour = COLOURS[member.stability.verdict]
@@ -72,9 +74,15 @@ def _indices(axes, members) -> None:
         axes.set_yscale("symlog", linthresh=3.0)
     else:
         axes.set_ylim(-max(3.0, 1.1 * largest), max(3.0, 1.1 * largest))
-    if largest == 0.0:
-        axes.text(0.5, 0.5, "no nontrivial multiplier\n(every one is trivial)",
-                  transform=axes.transAxes, ha="center", va="center")
+    if largest == 0.0 and members:
+        trivial = [(m.energy, np.asarray(m.stability.trivial)) for m in members]
+        energies = [e for e, mu in trivial for _ in range(mu.size)]
+        k = [float((value + 1 / value).real) for _, mu in trivial for value in mu]
+        axes.plot(energies, k, "o", ms=4, mfc="none", mec="0.3", mew=0.8,
+                  label=r"trivial pair $\mu = 1$")
+        axes.text(0.5, 0.3, "no nontrivial multiplier:\nevery one is trivial",
+                  transform=axes.transAxes, ha="center", va="center", fontsize="small")
+        axes.legend(loc="upper center", fontsize="small")
     axes.set_xlabel("energy $E$")
     axes.set_ylabel(r"stability index $k = \mu + 1/\mu$")
     axes.set_title(r"stability indices ($|k| < 2$: stable)", fontsize="medium")

@@ -39,16 +39,35 @@ THIN_FROM_NODES = 100_000
 ROW_HEIGHT = 1.25  # inches per panel row
 
 
-def plot_trajectory(solution, scene, scheme, path, *, energies, fmt: str = "png") -> None:
+def plot_trajectory(solution, scene, scheme, path, *, energies, fmt: str = "png",
+                    fixed_ends: bool = False) -> None:
     """The run figure of ``ddvp march``/``ddvp bvp`` written to ``path`` (a file name or a
     binary file) in format ``fmt``. ``energies``: the run's node and interval energies
     (``runs.run_energies``); the energy panel shows the relative drift of both for an
-    autonomous ``H``, the relative residual of the energy equation for a time-dependent one."""
+    autonomous ``H``, the relative residual of the energy equation for a time-dependent one.
+    ``fixed_ends``: a fixed-endpoint run, its two prescribed ends marked. The title says the
+    verdict (`verdict_text`)."""
     energy = _energy_panel(solution, scene.system, scheme, energies)
-    title = f"{scene.name}: {scheme.rule}, {solution.steps} steps, {solution.status.code}"
+    title = (f"{scene.name}: {scheme.rule}, {solution.steps} steps, "
+             f"{verdict_text(solution)}")
     with figures.styled():
-        fig = _figure(solution, _rows(solution, scheme.variable_steps, energy), title)
+        fig = _figure(solution, _rows(solution, scheme.variable_steps, energy), title,
+                      fixed_ends=fixed_ends)
         figures.save(fig, path, fmt)
+
+
+def verdict_text(solution) -> str:
+    """What a run's title says of it: the accuracy check's verdict (``accurate``, ``drifted
+    from t = ...``) for a run that passed its checks, the failed status otherwise (``inaccurate``,
+    ``failed: newton_failed``); never ``success`` alone for a drifted run."""
+    report = solution.stats.get("accuracy") or {}
+    verdict = report.get("verdict")
+    code = solution.status.code
+    if not solution.success:
+        return code if code == verdict else f"failed: {code}"
+    if verdict == "drifted" and report.get("t_drift") is not None:
+        return f"drifted from $t = {report['t_drift']:.4g}$"
+    return verdict or "success (accuracy not checked)"
 
 
 def plot_solution(solution, path=None, *, system=None, params=None, title: str | None = None):
@@ -75,10 +94,11 @@ def plot_solution(solution, path=None, *, system=None, params=None, title: str |
         else:
             energy = (f"$|H - H_0|${kind}", [(r"node energy $H(q_k, p_k)$", solution.t,
                                              np.abs(nodes - nodes[0]) / scale)])
-    title = title or f"{solution.scheme}: {solution.steps} steps, {solution.status.code}"
+    title = title or f"{solution.scheme}: {solution.steps} steps, {verdict_text(solution)}"
     with figures.styled():
         fig = _figure(solution, _rows(solution, varies, energy), title)
         if path is None:
+            figures.save(fig, figures.Keep())  # the same finish as a saved figure, drawn
             return fig
         figures.save(fig, path, figures.format_of(path))
     return path
@@ -121,9 +141,10 @@ def _rows(solution, steps: bool, energy) -> list:
     return rows
 
 
-def _figure(solution, rows, title: str):
+def _figure(solution, rows, title: str, *, fixed_ends: bool = False):
     """The figure: the rows against ``t`` over the whole run (and over its first
-    ``ZOOM_STEPS`` steps, for long runs) and the state-space panels on the right.
+    ``ZOOM_STEPS`` steps, for long runs) and the state-space panels on the right, filling the
+    column's height (one degree of freedom: the phase portrait, larger, centred).
 
     The margins are fixed in inches rather than found by a layout engine: constrained layout
     drew the figure twice and measured every tick label, 1.6 s of the 1.8 s the figure of
@@ -132,18 +153,17 @@ def _figure(solution, rows, title: str):
     zoom = t.size >= ZOOM_FROM_NODES
     spans = [(t[0], t[-1])] + ([(t[0], t[ZOOM_STEPS])] if zoom else [])
     n = solution.q.shape[1]
-    legend = any(1 < len(curves) <= LEGEND_COMPONENTS for _, curves, _ in rows)
-    # inches: time columns, the gap after each (tick labels of the next, or the legend), the
-    # state column; left margin for the y labels, top for the titles, bottom for t
-    widths = [3.2, 1.9][:len(spans)] + [2.1]
-    # (the legend's gap holds "interval H(Q_k, P_k)" and the state panels' y labels; the right
-    # margin the start's label where the start is the right-most point, as on a Kepler orbit)
-    gaps = [0.55] * (len(spans) - 1) + [2.2 if legend else 0.95]
+    kinds = ["phase", "configuration"] if n > 1 else ["phase"]
+    # inches: time columns, the gap after each (the tick labels of the next), the state
+    # column; left margin for the y labels, top for the titles, bottom for t
+    widths = [3.2, 1.9][:len(spans)] + [2.1 if n > 1 else 2.8]
+    gaps = [0.55] * (len(spans) - 1) + [0.95]
     left, right, top, bottom = 0.85, 0.5, 0.55, 0.5
     width = left + sum(widths) + sum(gaps) + right
     height = max(3.4, ROW_HEIGHT * len(rows) + top + bottom)
     fig = figures.new_figure(width, height, layout=None)
     x = left
+    ends = (t[0], t[-1]) if fixed_ends and t.size > 1 else None
     for column, span in enumerate(spans):
         first = None
         for row, (label, curves, log) in enumerate(rows):
@@ -151,7 +171,8 @@ def _figure(solution, rows, title: str):
                    widths[column] / width, (ROW_HEIGHT - 0.24) / height]
             ax = fig.add_axes(box, sharex=first)
             first = first or ax
-            _time_panel(ax, span, curves, log, legend=column == len(spans) - 1)
+            _time_panel(ax, span, curves, log, legend=column == 0,
+                        ends=ends if row == 0 else None)
             if column == 0:
                 ax.set_ylabel(label)
             if row < len(rows) - 1:
@@ -160,21 +181,20 @@ def _figure(solution, rows, title: str):
                         ("whole run" if zoom else ""))
         ax.set_xlabel("$t$")
         x += widths[column] + gaps[column]
-    kinds = ["phase", "configuration"] if n > 1 else ["phase"]
     cell = (height - top - bottom) / len(kinds)
     for index, kind in enumerate(kinds):
         side = min(widths[-1], cell - 0.7)
-        box = [x / width, 1 - (top + index * cell + 0.2 + side) / height, widths[-1] / width,
-               side / height]
-        _state_panel(fig.add_axes(box), solution.q, solution.p, kind)
+        lowest = top + index * cell + 0.5 * (cell - side) + 0.1
+        box = [x / width, 1 - (lowest + side) / height, widths[-1] / width, side / height]
+        _state_panel(fig.add_axes(box), solution.q, solution.p, kind, fixed_ends=fixed_ends)
     fig.suptitle(title, y=1 - 0.12 / height)
     return fig
 
 
-def _time_panel(ax, span, curves, log: bool, *, legend: bool) -> None:
+def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None) -> None:
     """One panel against ``t`` over ``span``: each curve reduced to its min/max envelope per
-    pixel column (``figures.decimate``); the names of the curves, if ``legend``, beside the
-    panel (never over the data)."""
+    pixel column (``figures.decimate``); the names of the curves, if ``legend``, in a band
+    left free above the data (never over them); ``ends``: the two fixed ends' times, marked."""
     start, stop = span
     bins = figures.bins_for(ax)
     names = [name for name, _, _ in curves]
@@ -183,20 +203,43 @@ def _time_panel(ax, span, curves, log: bool, *, legend: bool) -> None:
         shown = figures.positive(values[chosen]) if log else values[chosen]
         figures.envelope_band(ax, times[chosen], shown, bins, lw=0.7, label=name or None,
                               color=f"C{index % 8}")
+        if ends is not None:
+            fixed = np.isin(times, ends) & chosen
+            ax.plot(times[fixed], values[fixed], **FIXED_END, clip_on=False,
+                    label="fixed ends" if index == 0 else None)
     if log:
         ax.set_yscale("log")
     ax.set_xlim(start, stop)
     ax.minorticks_off()  # 40% of the drawing time of a run figure, and little to read
-    if legend and 1 < len(names) <= LEGEND_COMPONENTS and all(names):
-        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    labelled = 1 < len(names) <= LEGEND_COMPONENTS and all(names)
+    if labelled or ends is not None:
+        _headroom(ax, log)
+        if legend:
+            ax.legend(loc="upper center", ncol=len(names) + (ends is not None),
+                      borderaxespad=0.1, handlelength=1.2, columnspacing=1.0)
 
 
-def _state_panel(ax, q, p, kind: str) -> None:
+def _headroom(ax, log: bool) -> None:
+    """The panel's upper limit raised so that a band of about a third of its height above
+    the data holds the legend."""
+    low, high = ax.get_ylim()
+    if log:
+        ax.set_ylim(low, high * (high / low) ** 0.5)
+    else:
+        ax.set_ylim(low, high + 0.45 * (high - low))
+
+
+# The prescribed ends of a fixed-endpoint run.
+FIXED_END = {"marker": "s", "color": "black", "mfc": "none", "ms": 5, "mew": 1.0,
+             "linestyle": "none", "zorder": 4}
+
+
+def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False) -> None:
     """The phase portrait ``(q_1, p_1)`` or the configuration plane ``(q_1, q_2)``: the line
     through the nodes (the nodes as dots for long runs, thinned to one per half pixel for very
-    long ones), the start as a red dot; equal aspect
-    in the configuration plane always, in the phase plane unless the ranges are of unrelated
-    scales (``EQUAL_ASPECT_RATIO``)."""
+    long ones), the start as a red dot (a fixed-endpoint run: both ends as squares); equal
+    aspect in the configuration plane always, in the phase plane unless the ranges are of
+    unrelated scales (``EQUAL_ASPECT_RATIO``)."""
     several = q.shape[1] > 1
     if kind == "phase":
         x, y = q[:, 0], p[:, 0]
@@ -210,9 +253,15 @@ def _state_panel(ax, q, p, kind: str) -> None:
         shown = (figures.thin_points(x, y, 2 * figures.bins_for(ax))
                  if x.size >= THIN_FROM_NODES else slice(None))
         ax.plot(x[shown], y[shown], ",", color="C0", rasterized=True)
-    ax.plot(x[:1], y[:1], "o", color="C1", ms=4, clip_on=False, zorder=3)
-    ax.annotate("start", (x[0], y[0]), xytext=(4, 4), textcoords="offset points",
-                fontsize="small", color="C1")
+    if fixed_ends:
+        ax.plot(x[[0, -1]], y[[0, -1]], **FIXED_END, clip_on=False)
+        for index, name in ((0, "start"), (-1, "end")):
+            ax.annotate(name, (x[index], y[index]), xytext=(5, 4), textcoords="offset points",
+                        fontsize="small")
+    else:
+        ax.plot(x[:1], y[:1], "o", color="C1", ms=4, clip_on=False, zorder=3)
+        ax.annotate("start", (x[0], y[0]), xytext=(4, 4), textcoords="offset points",
+                    fontsize="small", color="C1")
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax.set_title("phase portrait" if kind == "phase" else "configuration")

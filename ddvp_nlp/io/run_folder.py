@@ -301,7 +301,8 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
 
     def draw(path, fmt="png"):
         from .run_figure import plot_trajectory
-        plot_trajectory(solution, scene, scheme, path, energies=energies, fmt=fmt)
+        plot_trajectory(solution, scene, scheme, path, energies=energies, fmt=fmt,
+                        fixed_ends=command == "bvp")
 
     return arrays, meta, draw if energies else None
 

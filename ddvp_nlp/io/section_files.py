@@ -57,7 +57,8 @@ def write_section(out, section, *, plot: bool = True, interruptible=None) -> dic
 
 def plot_section(section, path: Path, fmt: str = "png") -> None:
     """The crossings in the plane of the first free coordinate and its momentum, one colour per
-    orbit."""
+    orbit, as dots of a few pixels; the boundary of the energy surface on the section
+    (``section.boundary``, two degrees of freedom) as a thin grey line."""
     import matplotlib
 
     n = section.points.shape[1] // 2
@@ -70,12 +71,14 @@ def plot_section(section, path: Path, fmt: str = "png") -> None:
         colours = matplotlib.colormaps["turbo"](np.linspace(0.05, 0.95, max(orbits, 1)))
         for k in range(orbits):
             mine = section.orbit == k
-            ax.plot(section.points[mine, free], section.points[mine, n + free], ".", ms=1.2,
-                    mew=0, color=colours[k], rasterized=True)
+            ax.plot(section.points[mine, free], section.points[mine, n + free], "o",
+                    ms=DOT_SIZE, mew=0, color=colours[k], rasterized=True)
+        _boundary(ax, section)
         failed = [k for k, s in enumerate(section.statuses) if s != "success"]
         if failed:  # where a failed orbit started, so a reader knows a curve is cut short
             ax.plot(section.starts[failed, free], section.starts[failed, n + free],
                     **figures.FAILED, label=f"{len(failed)} orbits failed (start)")
+        if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="upper right")
         ax.set_xlabel(f"$q_{free + 1}$")
         ax.set_ylabel(f"$p_{free + 1}$")
@@ -83,6 +86,33 @@ def plot_section(section, path: Path, fmt: str = "png") -> None:
                      f"({section.direction}), $E = {section.energy:g}$,\n{orbits} orbits, "
                      f"{section.points.shape[0]} crossings")
         figures.save(fig, path, fmt)
+
+
+# The crossings' dots, in points: about 4 pixels across at the saved 200 dpi (single pixels
+# left sparse sections faint).
+DOT_SIZE = 1.5
+
+
+def _boundary(ax, section) -> None:
+    """The curve ``D = 0`` of ``section.boundary`` (where the energy surface meets the
+    section), the axes' limits those of the crossings and the curve."""
+    boundary = getattr(section, "boundary", None)
+    if boundary is None:
+        return
+    x, y, D = boundary
+    if not (np.nanmin(D) < 0 < np.nanmax(D)):
+        return
+    contour = ax.contour(x, y, D, levels=[0.0], colors="0.35", linewidths=0.7)
+    ax.plot([], [], color="0.35", lw=0.7, label="energy boundary $H = E$")
+    points = [path.vertices for path in contour.get_paths() if len(path.vertices)]
+    crossings = [np.column_stack(line.get_data()) for line in ax.lines
+                 if len(line.get_xdata())]
+    if points:  # the contour's grid reaches far beyond the curve: limits of what is drawn
+        xy = np.vstack(points + crossings)
+        low, high = np.nanmin(xy, axis=0), np.nanmax(xy, axis=0)
+        pad = 0.04 * (high - low)
+        ax.set_xlim(low[0] - pad[0], high[0] + pad[0])
+        ax.set_ylim(low[1] - pad[1], high[1] + pad[1])
 
 
 def _section_tex(section: str) -> str:

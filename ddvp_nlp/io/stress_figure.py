@@ -76,14 +76,18 @@ def _error_colours():
 
 
 def _sweep_maps(result, plane, title: str):
-    """One panel per method over the two swept axes: the energy error as colour (log scale,
-    one colour bar for all), failed points as red cells marked with a cross."""
+    """One panel per method over the two swept axes, one cell per swept value (the values are
+    the grid's categories, ticked by their value, not points of a continuous axis): the
+    energy error as colour (log scale, one colour bar for all), failed runs red with their
+    status, runs not made grey."""
+    from matplotlib.patches import Patch
+
     x_name, xs, y_name, ys, index = plane
     methods = result.methods
     grids = {}
     for method in methods:
         grid = np.full((len(ys), len(xs)), np.nan)
-        failed = np.zeros(grid.shape, dtype=bool)
+        failed = {}
         for (x, y), case in index.items():
             row = result.row(case, method)
             if row is None:
@@ -91,39 +95,47 @@ def _sweep_maps(result, plane, title: str):
             if row["status"] == "success":
                 grid[ys.index(y), xs.index(x)] = max(row["energy_error"], 1e-300)
             else:
-                failed[ys.index(y), xs.index(x)] = True
+                failed[ys.index(y), xs.index(x)] = row["status"]
         grids[method] = (grid, failed)
     norm = figures.log_norm(np.concatenate([g.ravel() for g, _ in grids.values()]))
-    fig = figures.new_figure(0.6 + 2.5 * len(methods), 2.9)
+    fig = figures.new_figure(0.6 + max(2.5, 0.45 * len(xs) + 1.0) * len(methods),
+                             max(2.9, 0.3 * len(ys) + 1.8))
     axes = np.atleast_1d(fig.subplots(1, len(methods), sharey=True))
+    colours = _error_colours().with_extremes(bad=NOT_RUN_COLOUR)
     for ax, method in zip(axes, methods, strict=True):
         grid, failed = grids[method]
-        image = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(grid),
-                              cmap=_error_colours().with_extremes(bad="#DDDDDD"), norm=norm)
-        rows, columns = np.nonzero(failed)
-        ax.plot(np.asarray(xs)[columns], np.asarray(ys)[rows], **figures.FAILED)
+        image = ax.pcolormesh(np.arange(len(xs) + 1) - 0.5, np.arange(len(ys) + 1) - 0.5,
+                              np.ma.masked_invalid(grid), cmap=colours, norm=norm)
+        for (i, j), status in failed.items():
+            ax.add_patch(_cell(j, i, FAILED_COLOUR))
+            ax.text(j, i, status.replace("_", "\n", 1), ha="center", va="center",
+                    fontsize=5.5, color="white")
+        ax.set_xticks(range(len(xs)), [f"{x:g}" for x in xs])
+        ax.set_yticks(range(len(ys)), [f"{y:g}" for y in ys])
+        ax.minorticks_off()
+        ax.tick_params(top=False, right=False, length=0)
         ax.set_title(method)
         ax.set_xlabel(_axis_label(x_name))
-        ax.minorticks_off()
     axes[0].set_ylabel(_axis_label(y_name))
-    if failed_any := any(f.any() for _, f in grids.values()):
-        figures.failed_legend(axes[-1], "failed")
-    if failed_any:
-        axes[-1].legend(loc="upper right")
-    fig.colorbar(image, ax=list(axes), label="relative energy error (grey: not run)")
+    fig.colorbar(image, ax=list(axes), label="relative energy error")
+    keys = ([Patch(color=FAILED_COLOUR, label="failed (its status)")]
+            if any(f for _, f in grids.values()) else [])
+    if any(np.isnan(g).sum() > len(f) for g, f in grids.values()):
+        keys.append(Patch(color=NOT_RUN_COLOUR, label="not run"))
+    if keys:
+        fig.legend(handles=keys, loc="outside lower center", ncol=len(keys),
+                   fontsize="small")
     fig.suptitle(title)
     return fig
 
 
-def _edges(values) -> np.ndarray:
-    """Cell edges around the points ``values``: midpoints, and half a spacing beyond the ends
-    (on a log scale when the points are spread over more than a decade)."""
-    v = np.asarray(values, dtype=float)
-    logarithmic = v.min() > 0 and v.max() / v.min() > 10
-    w = np.log10(v) if logarithmic else v
-    inner = (w[1:] + w[:-1]) / 2
-    edges = np.concatenate([[w[0] - (inner[0] - w[0])], inner, [w[-1] + (w[-1] - inner[-1])]])
-    return 10.0 ** edges if logarithmic else edges
+FAILED_COLOUR, NOT_RUN_COLOUR = figures.FAILED["color"], "#DDDDDD"
+
+
+def _cell(column, row, colour):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((column - 0.5, row - 0.5), 1, 1, color=colour, lw=0)
 
 
 def _axis_label(name: str) -> str:

@@ -54,7 +54,10 @@ class Section:
     ``orbit`` (index of its orbit) ``(K,)``; per orbit its start, status, nodal energy
     error ``max_k |H(z_k) - E|`` and the accuracy check's verdict with its ``t_drift``
     (``verdicts``: ``(verdict, t_drift)`` pairs; crossings after an orbit's ``t_drift`` are
-    where its trajectory error had passed the tolerance)."""
+    where its trajectory error had passed the tolerance). ``boundary``: for two degrees of
+    freedom, ``(x, y, D)``, the discriminant ``D`` of ``H = E`` in the section's momentum on a
+    grid of the free plane: ``D = 0`` bounds where the energy surface meets the section
+    (`energy_boundary`)."""
 
     energy: float
     section: str
@@ -67,6 +70,7 @@ class Section:
     energy_errors: np.ndarray
     steps: np.ndarray
     verdicts: tuple | list = ()
+    boundary: tuple | None = None
 
 
 def section_starts(system, theta, energy: float, section: str, count: int, *,
@@ -135,7 +139,36 @@ def poincare_section(system, energy: float, *, section: str = "q1=0", orbits: in
                    starts, [o["status"] for o in outputs],
                    np.array([o["energy_error"] for o in outputs]),
                    np.array([o["steps"] for o in outputs]),
-                   [(o["verdict"], o["t_drift"]) for o in outputs])
+                   [(o["verdict"], o["t_drift"]) for o in outputs],
+                   energy_boundary(system, theta, energy, index - 1, value, starts))
+
+
+# Points per side of the grid the energy boundary is contoured on.
+BOUNDARY_GRID = 160
+
+
+def energy_boundary(system, theta, energy: float, i: int, value: float, starts):
+    """``(x, y, D)`` (`Section`) for two degrees of freedom, else ``None``: ``H`` read off as
+    ``a p_i^2 + b p_i + c`` at each point of a grid of the free plane ``(q_j, p_j)`` (as the
+    starts are), ``D = b^2 - 4a(c - E)``, where ``a > 0``; the grid spans the starts' range
+    and as far again on each side."""
+    n = system.n
+    if n != 2:
+        return None
+    j = 1 - i
+    ranges = []
+    for column in (j, n + j):
+        low, high = float(starts[:, column].min()), float(starts[:, column].max())
+        half = max(high - low, 1e-3 * max(abs(low), abs(high), 1.0))
+        ranges.append(np.linspace(low - half, high + half, BOUNDARY_GRID))
+    x, y = np.meshgrid(*ranges)
+    z = np.zeros((x.size, 2 * n))
+    z[:, i], z[:, j], z[:, n + j] = value, x.ravel(), y.ravel()
+    H = [_energy(system, z, theta, n, i, s) for s in (0.0, 1.0, -1.0)]
+    c, b, a = H[0], (H[1] - H[2]) / 2, (H[1] + H[2]) / 2 - H[0]
+    with np.errstate(invalid="ignore"):
+        D = np.where(a > 0, b * b - 4 * a * (c - energy), np.nan)
+    return ranges[0], ranges[1], D.reshape(x.shape)
 
 
 class SectionOutput:
