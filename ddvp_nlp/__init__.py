@@ -10,7 +10,8 @@ The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``s
 indicators on the march's tangent map (``chaos_indicators``, ``lyapunov_spectrum``), their
 options (``StepControl``, ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``,
 ``Continuation``, ``AtEnergy`` for a transfer at a prescribed energy), their
-result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes, and scenes.
+result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes, scenes, and
+the work-precision comparison of integrators (``compare``).
 Everything else is reached through its module and may change.
 """
 
@@ -103,6 +104,45 @@ def plot(solution: Solution, path=None, *, system=None, params=None, title: str 
     return plot_solution(solution, path, system=system, params=params, title=title)
 
 
+def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None,
+            target_errors=None, options=None, compilation=None, workers=None, out=None,
+            progress: bool = False):
+    """Compare integrators on one problem, as ``ddvp compare`` does (the command calls this):
+    each method over a sweep of its accuracy knob, every run timed and measured against the
+    exact motion.
+
+    Args:
+        problem: a scene name (``"kepler"``) or file, a `Scene`, or a `HamiltonianSystem`
+            (then ``q0``, ``p0`` and ``t_span`` are needed, and the sweeps start from a step
+            derived from the motion's time scale).
+        methods: method names (``["vddvp", "rk4", "dop853"]`` or ``"vddvp,rk4"``); default every
+            method that applies and does not repeat another. An unknown name is refused with
+            the list of known ones.
+        q0, p0, t_span, params: the start, the span ``(t0, t_end)`` and parameter values (for a
+            scene, they replace its own; ``params`` may also set ``tau0``).
+        target_errors: trajectory errors (relative to the motion's size) at which the
+            methods that can aim at an error (the march's schemes) run, one
+            ``march(..., target_error=E)`` each, instead of their step sweep.
+        options: the sweeps, timing and reference (``studies.CompareOptions``: ``halvings``,
+            ``repeats``, ``knobs``, ``reference``, ...).
+        compilation: for the compiled methods, as in `march`.
+        workers: where the runs go (``runner.Workers``; default one after the other here).
+        out: a folder to write ``work_precision.csv``, ``.png`` and ``summary.md`` to.
+        progress: a progress bar on stderr.
+
+    Returns:
+        A ``WorkPrecision``: ``rows`` (one dict per run, failed runs kept with ``status`` and
+        ``message``), ``failed``, ``best(error)``, ``to_csv(path)``, ``plot(path=None)``.
+    """
+    # The second facade (docs/architecture.md): the comparison is a study of the workbench,
+    # imported here and not at the top so that `import ddvp_nlp` loads none of it.
+    from .studies.comparison import compare as run_comparison
+
+    return run_comparison(problem, methods, q0=q0, p0=p0, t_span=t_span, params=params,
+                          target_errors=target_errors, options=options,
+                          compilation=compilation, workers=workers, out=out, progress=progress)
+
+
 def _version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -116,7 +156,7 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",
-           "StepControl", "Tolerance", "__version__", "chaos_indicators", "continue_march",
-           "follow_periodic_family", "list_scenes", "load_scene", "lyapunov_spectrum", "march",
-           "march_ensemble", "march_higher", "periodic_stability", "plot", "solve_bvp",
-           "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]
+           "StepControl", "Tolerance", "__version__", "chaos_indicators", "compare",
+           "continue_march", "follow_periodic_family", "list_scenes", "load_scene",
+           "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "periodic_stability",
+           "plot", "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

@@ -13,7 +13,7 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
           "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "__version__",
-          "chaos_indicators", "continue_march", "lyapunov_spectrum",
+          "chaos_indicators", "compare", "continue_march", "lyapunov_spectrum",
           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
           "solve_periodic", "solve_periodic_family"}

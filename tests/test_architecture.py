@@ -31,10 +31,11 @@ ALLOWED = {
     "cli": {"base", "physics", "discrete", "solvers", "scenes", "io", "runner", "studies"},
     "__init__": {"base", "physics", "discrete", "solvers", "scenes"},
 }
-# The one import across the layers: the root's public ``plot`` is a facade over
-# io/run_figure.py, imported inside the function, so that `from ddvp_nlp import plot` works
-# while `import ddvp_nlp` loads no figure code (docs/architecture.md).
-FACADES = {("__init__", "io.run_figure")}
+# The two imports across the layers: the root's public ``plot`` is a facade over
+# io/run_figure.py and its ``compare`` over studies/comparison.py, each imported inside the
+# function, so that `from ddvp_nlp import plot, compare` works while `import ddvp_nlp` loads
+# no figure code and no study (docs/architecture.md).
+FACADES = {("__init__", "io.run_figure"), ("__init__", "studies.comparison")}
 MAX_FUNCTION_LINES = 80
 MAX_CLASS_LINES = 200
 
@@ -154,18 +155,20 @@ def test_each_part_imports_only_the_layers_below_it():
     assert wrong == []
 
 
-def test_the_facade_is_the_roots_only_import_of_io_and_it_is_lazy():
-    """The exception above stays one edge, made inside a function: importing the package
-    loads nothing of io/."""
+def test_the_facades_are_the_roots_only_imports_of_the_workbench_and_they_are_lazy():
+    """The exceptions above stay two edges, each made inside a function: importing the
+    package loads nothing of io/ or studies/."""
     import subprocess
     import sys
 
-    assert {t for t in graph()["__init__"] if part(t) == "io"} == {"io.run_figure"}
+    assert {t for t in graph()["__init__"] if part(t) in WORKBENCH - {"scenes"}} == {
+        target for _, target in FACADES}
     tree = ast.parse((PACKAGE / "__init__.py").read_text())
     top_level = [node.module for node in tree.body if isinstance(node, ast.ImportFrom)]
-    assert not any((module or "").startswith("io") for module in top_level)
+    assert not any((module or "").startswith(("io", "studies")) for module in top_level)
     loaded = subprocess.run([sys.executable, "-c", "import sys, ddvp_nlp; print(sorted(m for m "
-                             "in sys.modules if m.startswith('ddvp_nlp.io')))"],
+                             "in sys.modules if m.startswith(('ddvp_nlp.io', "
+                             "'ddvp_nlp.studies'))))"],
                             capture_output=True, text=True, check=True).stdout.strip()
     assert loaded == "[]"
 

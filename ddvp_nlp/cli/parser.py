@@ -526,6 +526,10 @@ def _compare_command(compare: argparse.ArgumentParser) -> None:
     compare.add_argument("--repeats", type=int, default=value["repeats"],
                          help="timed calls per run after one warm-up; best is kept (default: "
                               f"{value['repeats']})")
+    compare.add_argument("--target-errors", default=None, metavar="E1,E2,...",
+                         help="run the march's schemes once per trajectory error asked for "
+                              "(march --target-error), instead of their step sweeps; the "
+                              "other methods keep their sweeps")
     compare.add_argument("--no-compile", action="store_true",
                          help="run the compiled methods on CasADi's virtual machine instead")
     _progress_arguments(compare, "the runs done; default on")

@@ -11,6 +11,7 @@ from ..io.atomic import output_folder
 from ..runner.journal import JournalInterrupted
 from ..scenes import load_scene
 from ..solvers import StepControl
+from ..studies.comparison import compare
 from ..studies.horizons_report import work_precision_horizons
 from ..studies.methods import get_methods
 from ..studies.reproduce import reproduce
@@ -18,7 +19,6 @@ from ..studies.stress_report import stress
 from ..studies.sweep import SweepSpec, parse_axis, sweep_cases
 from ..studies.sweep_file import load_grid_file
 from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
-from ..studies.work_precision_report import work_precision
 from ..validation import check_real
 from . import arguments as options
 from .arguments import check_distinct
@@ -47,11 +47,15 @@ def run_compare(args) -> int:
     scene = load_scene(args.scene)
     settings = parse_settings(args.settings)
     scene.resolve(settings)  # every name and value checked before a folder is made
+    checked = CompareOptions(methods=args.methods, halvings=args.halvings, repeats=args.repeats,
+                             target_errors=_target_errors(args.target_errors))
+    if checked.methods is not None:
+        get_methods(checked.methods)
     named = {"settings": settings, "methods": args.methods, "halvings": args.halvings,
              "repeats": args.repeats, "no_compile": args.no_compile,
              "horizons": args.horizons, "time_unit": args.time_unit,
              "max_steps": args.max_steps, "run_budget": args.run_budget,
-             "reference_span": args.reference_span}
+             "reference_span": args.reference_span, "target_errors": args.target_errors}
     target, owned = default_or(args, f"{scene.name}-compare", named,
                                options=[name for name in named if name != "settings"],
                                defaults={"settings": {}}, scene=scene)
@@ -60,17 +64,16 @@ def run_compare(args) -> int:
             return _compare_horizons(args, scene, out)
     try:
         with output_folder(target, owned=owned) as out:
-            rows = work_precision(scene, out=out, overrides=settings,
-                                  options=CompareOptions(methods=args.methods,
-                                                         halvings=args.halvings,
-                                                         repeats=args.repeats),
-                                  compilation=options.compiled_or_not(args),
-                                  workers=options.workers(args),
-                                  progress=args.progress is not False,
-                                  interruptible=INTERRUPTS.interruptible)
+            # the Python compare itself, into the command's folder
+            result = compare(scene, params=settings, options=checked,
+                             compilation=options.compiled_or_not(args),
+                             workers=options.workers(args), out=out,
+                             progress=args.progress is not False,
+                             interruptible=INTERRUPTS.interruptible)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
-    failed = sum(r["status"] != "success" for r in rows)
+    rows = result.rows
+    failed = len(result.failed)
     print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
     for kind, label in ERROR_KINDS.items():
         for level in (1e-4, 1e-8):
@@ -81,6 +84,17 @@ def run_compare(args) -> int:
                       f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
     print(f"  written to {out.path}/ (work_precision.csv, work_precision.png, summary.md)")
     return _grid_ended("compare", rows)
+
+
+def _target_errors(text: str | None) -> list[float] | None:
+    """``--target-errors E1,E2,...`` as numbers (their range is checked by CompareOptions)."""
+    if text is None:
+        return None
+    try:
+        return [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
+            from None
 
 
 def _compare_horizons(args, scene, out) -> int:

@@ -16,8 +16,11 @@ Stormer-Verlet step. The map ``(z_k, rho_{k+1/2}) -> (z_{k+1}, rho_{k+3/2})`` is
 ``g(q, t)`` here is the local time scale of the force: with ``kappa(q, t) = |V_qq|_F`` (the
 Frobenius norm of the force's Jacobian, a squared frequency),
 ``rho = ((kappa^2 + c^2) / (kappa_0^2 + c^2))^{1/4}``, ``kappa_0 = kappa(q_0, t_0)``,
-``c = kappa_0 / 100`` so that ``rho`` stays positive where the force is flat. Then ``rho(q_0) =
-1``, the first step is ``eps`` (the knob ``tau0``), and the step scales like ``1/sqrt(kappa)``:
+``c`` the orbit's own curvature scale (the time-weighted geometric mean of ``kappa`` along the
+exact motion, ``solvers/baselines/verlet_adaptive.py``), so that ``rho`` stays positive and
+varies on the motion's time scale where the force is flat (an inflection point of a well, where
+``kappa`` vanishes). Then ``rho(q_0) = 1``, the first step is ``eps`` (the knob ``tau0``), and
+where ``kappa >> c`` the step scales like ``1/sqrt(kappa)``:
 ``r^{3/2}`` for Kepler (the density Hairer, Lubich and Wanner recommend for Verlet on Kepler,
 GNI VIII.3), constant (plain Stormer-Verlet) for a harmonic force.
 """

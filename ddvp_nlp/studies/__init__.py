@@ -20,6 +20,7 @@ PUBLIC = {
     "CompareOptions": "work_precision", "ERROR_KINDS": "work_precision",
     "cheapest": "work_precision", "methods_in": "work_precision",
     "winner_spans": "work_precision", "work_precision_horizons": "horizons_report",
+    "compare": "comparison", "WorkPrecision": "work_precision",
     # Poincare sections
     "poincare_section": "poincare", "section_starts": "poincare",
     "SectionOutput": "poincare",
@@ -28,14 +29,23 @@ PUBLIC = {
 }
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
+    from .comparison import compare
     from .horizons_report import work_precision_horizons
     from .poincare import SectionOutput, poincare_section, section_starts
     from .verdict_study import MARGIN, draw_case, judge_case
-    from .work_precision import ERROR_KINDS, CompareOptions, cheapest, methods_in, winner_spans
+    from .work_precision import (
+        ERROR_KINDS,
+        CompareOptions,
+        WorkPrecision,
+        cheapest,
+        methods_in,
+        winner_spans,
+    )
     from .work_precision_report import in_words, read_rows
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
-__all__ = ["CompareOptions", "ERROR_KINDS", "MARGIN", "SectionOutput", "cheapest",
+__all__ = ["CompareOptions", "ERROR_KINDS", "MARGIN", "SectionOutput", "WorkPrecision",
+           "cheapest", "compare",
            "draw_case", "in_words", "judge_case", "methods_in", "poincare_section",
            "read_rows", "section_starts", "winner_spans", "work_precision_horizons"]

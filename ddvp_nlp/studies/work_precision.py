@@ -1,9 +1,14 @@
 """Work-precision comparison: error against run time for every method on one scene.
 
-For each method a sweep of its accuracy knob; for each run:
+For each method a sweep of its accuracy knob, or, for the methods that aim at an error (the
+march's schemes, ``Integrator.aims``) when target errors are given, one run per target error
+(``march(..., target_error=E)``: the row's knob is ``target_error``, its value ``E``, and
+``chosen_tau0`` the first step the march chose); for each run:
 
 - run time: one warm-up call (it pays the build and compile, reported apart as ``build_s``), then
-  the best of up to ``repeats`` timed calls (fewer once the repeats add up to ``budget_s``);
+  the best of up to ``repeats`` timed calls (fewer once the repeats add up to ``budget_s``):
+  wall-clock ``run_s`` and the CPU time of the same call ``cpu_s``; a run at a target error
+  pays its pilot and any second try, as a user does;
 - trajectory error: ``max_k |z_k - z_ref(t_k)|_inf`` at the method's own node times, against the
   scene's exact solution or else DOP853 at ``rtol = atol = 1e-13`` with dense output;
 - energy error: autonomous ``H``: ``max_k |H(z_k) - H(z_0)|`` (the drift of ``H`` at the nodes);
@@ -12,7 +17,8 @@ For each method a sweep of its accuracy knob; for each run:
   scheme itself conserves, e.g. ``H`` at interval midpoints for ``vddvp``).
 
 A run that fails keeps its row, with its status and message and the errors of the nodes it
-accepted; the sweep goes on. `plan_work_precision` checks the input,
+accepted; the sweep goes on. The public entry is ``compare`` (``studies/comparison.py``).
+`plan_work_precision` checks the input,
 `run_work_precision` runs the grid into its result file and returns a
 `WorkPrecision`; the rankings
 (`pareto`, `cheapest`, ...) read its rows. The CSV, figure and ``summary.md`` are
@@ -51,12 +57,14 @@ ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
              "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
-             "message", "fingerprint", "row_sha256"),
+             "cpu_s", "chosen_tau0", "message", "fingerprint", "row_sha256"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
-            "scheme_energy_residual", "error_estimate"),
+            "scheme_energy_residual", "error_estimate", "cpu_s", "chosen_tau0"),
     integers=("steps", "repeats", "order"),
     flags=("symplectic", "energy_conserving"))
 COLUMNS = list(ROWS.columns)
+# Columns added since the first files were written: what a file without them reads as.
+ADDED = {"cpu_s": "nan", "chosen_tau0": "nan"}
 ERROR_KINDS = {"trajectory_error": "trajectory error max |z - z_ref|",
                "energy_error": "energy error"}
 # Error levels the summary ranks: decades from 1e-1 down to this; below it errors are round-off
@@ -83,6 +91,9 @@ class CompareOptions:
         knobs: per-method knob values replacing the default sweep.
         reference: ``auto`` (the scene's exact solution where it covers the start, else
             DOP853 at 1e-13), ``exact``, ``dop853``, or ``none`` (energy error only).
+        target_errors: trajectory errors (relative to the motion's size, each in (0, 1)) the
+            methods that aim at an error (the march's schemes) are run at, one run each,
+            instead of their knob sweep; the other methods keep their sweeps.
     """
 
     methods: Sequence[str] | str | None = None
@@ -92,6 +103,7 @@ class CompareOptions:
     max_steps: int = 5_000_000
     knobs: Mapping[str, Sequence[float]] | None = None
     reference: str = "auto"
+    target_errors: Sequence[float] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "halvings", check_count("halvings", self.halvings, minimum=0,
@@ -104,6 +116,25 @@ class CompareOptions:
         if self.reference not in REFERENCE_KINDS:
             raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
                              f"got {self.reference!r}")
+        if self.target_errors is not None:
+            object.__setattr__(self, "target_errors", _targets(self.target_errors))
+
+
+def _targets(values) -> tuple[float, ...]:
+    """Target errors: a non-empty list of distinct numbers in (0, 1)."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
+        raise InputError(f"target_errors must be a non-empty list of errors in (0, 1), "
+                         f"got {values!r}")
+    found = []
+    for value in values:
+        value = check_real("target_errors", value, positive=True)
+        if not value < 1:
+            raise InputError("target_errors are relative to the motion's size and must be "
+                             f"below 1, got {value!r}")
+        if value in found:
+            raise InputError(f"target_errors gives {value!r} twice")
+        found.append(value)
+    return tuple(found)
 
 
 @dataclass
@@ -113,7 +144,7 @@ class WorkPrecisionPlan:
     scene: Scene
     overrides: dict
     config: RunConfig
-    runs: list[tuple[Method, float]]
+    runs: list[tuple[Method, float, bool]]
     left_out: list[str]
     repeats: int
     budget_s: float
@@ -127,8 +158,20 @@ class WorkPrecisionPlan:
 
 @dataclass
 class WorkPrecision:
-    """What a comparison measured: one row per run (`COLUMNS`), and what the rows are
-    relative to (the run configuration, the reference, the timing settings)."""
+    """What a comparison measured, as ``compare`` returns it and ``ddvp compare`` writes it.
+
+    Attributes:
+        rows: one dict per run, failed runs included (`COLUMNS`): ``method``, ``knob`` and
+            its ``value``, ``status`` and ``message`` (why a run failed), ``steps``,
+            ``t_reached``, ``trajectory_error`` (against ``reference``), ``energy_error``,
+            ``scheme_energy_residual``, ``run_s`` (wall) and ``cpu_s``, ``build_s``,
+            ``accuracy`` (the verdict: ``accurate``, ``drifted from t = ...``,
+            ``inaccurate: ...``) and ``error_estimate``, ``chosen_tau0`` (at a target error).
+        scene, config: the scene and the run it compared (start, span, parameters).
+        reference: what the errors are measured against (``reference.kind`` says).
+        left_out: the methods not run on this scene, each with the reason.
+        compiler, repeats, budget_s: how the runs were timed.
+    """
 
     rows: list[dict]
     scene: Scene
@@ -138,6 +181,58 @@ class WorkPrecision:
     compiler: str | None
     repeats: int
     budget_s: float
+
+    def __repr__(self) -> str:
+        failed = len(self.failed)
+        return (f"WorkPrecision({self.scene.name!r}: {len(self.rows)} runs of "
+                f"{', '.join(methods_in(self.rows))}; {failed} did not reach t_end)")
+
+    @property
+    def failed(self) -> list[dict]:
+        """The rows of the runs that did not succeed, each with its ``status`` and
+        ``message``."""
+        return [r for r in self.rows if r["status"] != Status.SUCCESS.code]
+
+    def limitations(self) -> dict[str, str]:
+        """``{method: why}`` for each compared method with no successful run whose integrator
+        states where it cannot run (`Integrator.limitation`)."""
+        return {name: METHODS[name].limitation for name in methods_in(self.rows)
+                if METHODS[name].limitation and not succeeded(self.rows, name)}
+
+    def best(self, error: float, kind: str = "trajectory_error") -> dict | None:
+        """The cheapest successful run (least ``run_s``) whose ``kind`` error (a key of
+        `ERROR_KINDS`) is at most ``error``; ``None`` if no run reaches it."""
+        if kind not in ERROR_KINDS:
+            raise InputError(f"kind must be one of {', '.join(ERROR_KINDS)}, got {kind!r}")
+        error = check_real("error", error, positive=True)
+        found = [r for r in self.rows if r["status"] == Status.SUCCESS.code
+                 and math.isfinite(r[kind]) and r[kind] <= error]
+        return min(found, key=lambda r: r["run_s"], default=None)
+
+    def to_csv(self, path) -> None:
+        """The rows as ``ddvp compare``'s ``work_precision.csv`` (without the journal's
+        checksums)."""
+        import csv
+
+        columns = [c for c in COLUMNS if c not in ("fingerprint", "row_sha256")]
+        with open(path, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, columns, extrasaction="ignore")
+            writer.writeheader()
+            writer.writerows(self.rows)
+
+    def plot(self, path=None, *, title: str | None = None):
+        """The work-precision figure of ``ddvp compare`` (error against run time, a panel per
+        error kind, failed runs marked). Returns the ``matplotlib.figure.Figure``; with
+        ``path`` (PNG, SVG or PDF by its suffix) it is also written there."""
+        from ..io.figures import Keep, format_of, save
+        from ..io.work_precision_figure import plot_work_precision
+
+        keep = Keep()
+        plot_work_precision(self.rows, keep,
+                            title=title or f"{self.scene.name}: error against run time")
+        if path is not None:
+            save(keep.figure, path, format_of(path))
+        return keep.figure
 
 
 def errors(system, reference: Reference, solution,
@@ -168,15 +263,18 @@ def errors(system, reference: Reference, solution,
 
 def _timed(call, repeats: int, budget_s: float):
     """Warm-up call, then the best of up to ``repeats`` timed calls, stopping once they add up to
-    ``budget_s``. Returns (solution of the warm-up, best seconds, number of timed calls)."""
+    ``budget_s``. Returns (solution of the warm-up, best wall seconds, the CPU seconds of that
+    call, number of timed calls)."""
     first = call()
-    best, spent, count = math.inf, 0.0, 0
+    best, best_cpu, spent, count = math.inf, math.inf, 0.0, 0
     while count < repeats and (count == 0 or spent < budget_s):
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         call()
         elapsed = time.perf_counter() - started
-        best, spent, count = min(best, elapsed), spent + elapsed, count + 1
-    return first, best, count
+        if elapsed < best:
+            best, best_cpu = elapsed, time.process_time() - cpu
+        spent, count = spent + elapsed, count + 1
+    return first, best, best_cpu, count
 
 
 def default_methods(system) -> tuple[list[Method], list[str]]:
@@ -210,15 +308,24 @@ def _chosen_methods(scene, methods) -> tuple[list[Method], list[str]]:
 MAX_HALVINGS = 40
 
 
-def _runs(chosen, knobs, config, halvings) -> list[tuple[Method, float]]:
-    """``(method, knob value)`` of every run: the given knob values, else the method's sweep."""
+def _runs(chosen, knobs, config, halvings, targets=None) -> list[tuple[Method, float, bool]]:
+    """``(method, value, aims)`` of every run: a method that aims at an error once per target
+    error (``aims``: the value is the target), else the given knob values or the method's
+    sweep."""
     knobs = dict(knobs or {})
     unknown = sorted(set(knobs) - {m.name for m in chosen})
     if unknown:
         raise InputError(f"knobs given for method {unknown[0]!r}, which is not compared")
-    runs = [(m, float(v)) for m in chosen for v in knobs.get(m.name, m.sweep(config, halvings))]
+    runs = []
+    for m in chosen:
+        if targets and m.aims and m.name not in knobs:
+            runs += [(m, float(e), True) for e in targets]
+        else:
+            runs += [(m, float(v), False) for v in knobs.get(m.name, m.sweep(config, halvings))]
     span = config.t_end - config.t0
-    for method, value in runs:
+    for method, value, aims in runs:
+        if aims:
+            continue
         check_real(f"{method.knob} of method {method.name!r}", value, positive=True)
         if method.knob != "rtol" and value > span:
             raise InputError(f"{method.knob} of method {method.name!r} must not exceed "
@@ -239,7 +346,7 @@ def plan_work_precision(scene: Scene, *, overrides: Mapping[str, object] | None 
     config = scene.resolve(overrides)
     check_starts_from_p0(scene, config)
     chosen, left_out = _chosen_methods(scene, options.methods)
-    runs = _runs(chosen, options.knobs, config, options.halvings)
+    runs = _runs(chosen, options.knobs, config, options.halvings, options.target_errors)
     scheduler = resolve_scheduler(workers.scheduler)
     if (scheduler is not None or workers.count != 1) and not scene.source:
         raise InputError(f"scene {scene.name!r} was made in Python, not loaded from a file: "
@@ -256,14 +363,14 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
     scene = plan.scene
     reference = reference_for(scene, plan.overrides, plan.reference)
     where = scene.source or scene  # a scene made in Python runs in this process only
-    tasks = [Task(key=f"{method.name}|{value!r}",
+    tasks = [Task(key=f"{method.name}|{'target=' if aims else ''}{value!r}",
                   function="ddvp_nlp.studies.work_precision:run_one",
                   kwargs={"scene": where, "overrides": plan.overrides,
                           "method": method.name, "value": value, "repeats": plan.repeats,
                           "budget_s": plan.budget_s, "compiler": plan.compiler,
                           "cache_dir": plan.cache_dir, "max_steps": plan.max_steps,
-                          "reference": plan.reference})
-             for method, value in plan.runs]
+                          "reference": plan.reference, "aims": aims})
+             for method, value, aims in plan.runs]
     rows, _ = run_journalled(tasks, rows_path, COLUMNS, failure_row=failure_row, parse=ROWS.parse,
                        resume=False, workers=plan.workers, scheduler=plan.scheduler,
                        progress=progress, commit=commit)
@@ -272,55 +379,65 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
 
 
 def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
-            max_steps, reference: str = "auto") -> dict:
-    """One run of the comparison, timed and measured: its row (a grid task)."""
+            max_steps, reference: str = "auto", aims: bool = False) -> dict:
+    """One run of the comparison, timed and measured: its row (a grid task); with ``aims``
+    the method aims at the trajectory error ``value`` from a pilot at the scene's ``tau0``."""
     scene = load_scene(scene) if isinstance(scene, str) else scene
     config = scene.resolve(overrides)
     return _measure(scene, config, METHODS[method], value,
                     reference_for(scene, overrides, reference),
                     repeats=repeats, budget_s=budget_s, compiler=compiler,
-                    cache_dir=cache_dir, max_steps=max_steps)
+                    cache_dir=cache_dir, max_steps=max_steps, aims=aims)
 
 
 _NOT_MEASURED = {"trajectory_error": math.nan, "energy_error": math.nan,
                  "scheme_energy_residual": math.nan, "run_s": math.nan, "build_s": math.nan,
-                 "repeats": 0, "steps": 0, **NOT_MADE}
+                 "cpu_s": math.nan, "repeats": 0, "steps": 0, **NOT_MADE}
 
 
-def _traits(method: Method) -> dict:
-    return {"method": method.name, "knob": method.knob, "order": method.order,
-            "symplectic": method.symplectic, "energy_conserving": method.energy_conserving}
+def _traits(method: Method, aims: bool = False) -> dict:
+    return {"method": method.name, "knob": "target_error" if aims else method.knob,
+            "order": method.order, "symplectic": method.symplectic,
+            "energy_conserving": method.energy_conserving}
 
 
 def failure_row(task: Task, error: str) -> dict:
     """The row of a run whose task raised or whose worker died."""
     status, message = describe_error(error)
-    return {**_traits(METHODS[task.kwargs["method"]]), **_NOT_MEASURED,
-            "value": task.kwargs["value"], "status": status, "message": message,
-            "t_reached": math.nan, "reference": "", "scene": ""}
+    return {**_traits(METHODS[task.kwargs["method"]], task.kwargs.get("aims", False)),
+            **_NOT_MEASURED, "value": task.kwargs["value"], "status": status,
+            "message": message, "t_reached": math.nan, "reference": "", "scene": "",
+            "chosen_tau0": math.nan}
 
 
 def _measure(scene, config, method, value, reference, *, repeats, budget_s, compiler,
-             cache_dir, max_steps) -> dict:
+             cache_dir, max_steps, aims=False) -> dict:
     system = scene.system
+    if aims:  # the pilot from the scene's first step; the march chooses its own
+        knob, target = config.tau0, {"target_error": value}
+    else:
+        knob, target = value, {}
 
     def call():
-        return method.run(system, config, value, compiler=compiler, cache_dir=cache_dir,
-                          max_steps=max_steps)
+        return method.run(system, config, knob, compiler=compiler, cache_dir=cache_dir,
+                          max_steps=max_steps, **target)
 
-    row = {"scene": scene.name, **_traits(method), "value": value, "reference": reference.kind}
+    row = {"scene": scene.name, **_traits(method, aims), "value": value,
+           "reference": reference.kind, "chosen_tau0": math.nan}
     try:
-        solution, best, count = _timed(call, repeats, budget_s)
-    except InputError as exc:  # e.g. a step that needs more than max_steps
+        solution, best, cpu, count = _timed(call, repeats, budget_s)
+    except InputError as exc:  # e.g. a step that needs more than max_steps, a failed pilot
         return {**row, **_NOT_MEASURED, "status": "not_run", "message": str(exc),
                 "t_reached": config.t0}
+    if aims:
+        row["chosen_tau0"] = solution.stats["target_error"]["tau0"]
     trajectory, energy = errors(system, reference, solution,
                                 Compilation(compiler=compiler, cache_dir=cache_dir))
     residual = (float(np.max(np.abs(solution.energy_residual)))
                 if method.energy_conserving and solution.energy_residual.size else math.nan)
     return {**row, "status": solution.status.code, "message": solution.message,
             "steps": solution.steps, "t_reached": float(solution.t[-1]), "run_s": best,
-            "build_s": solution.timing.get("build_s", 0.0), "repeats": count,
+            "cpu_s": cpu, "build_s": solution.timing.get("build_s", 0.0), "repeats": count,
             "trajectory_error": trajectory, "energy_error": energy,
             "scheme_energy_residual": residual,
             **accuracy_columns(system, config, method, solution, compiler=compiler,

@@ -1,8 +1,9 @@
 """Work-precision output: ``work_precision.csv``, ``work_precision.png`` and ``summary.md``.
 
-`work_precision` is the entry point: it checks the input, creates the folder, runs the
-comparison of `ddvp_nlp.studies.work_precision` (its rows go to the CSV as they finish), then
-draws the figure and writes the summary from what the study returned.
+`write_work_precision` runs a checked comparison (`ddvp_nlp.studies.work_precision`) into a
+folder it creates (its rows go to the CSV as they finish), then draws the figure and writes the
+summary from what the study returned. ``compare`` (``studies/comparison.py``, the public entry
+that ``ddvp compare`` calls) and `work_precision` (the horizons study's) go through it.
 """
 
 from __future__ import annotations
@@ -15,16 +16,18 @@ from ..io import atomic
 from ..io.markdown import failure_table, machine, seconds, yes_no
 from ..io.run_folder import figure_writer
 from ..io.work_precision_figure import plot_work_precision
-from ..runner.journal import commit_journal
+from ..runner.journal import commit_journal, read_csv
 from ..runner.tasks import Workers
 from ..scenes import Scene
 from ..solvers import Compilation
 from .methods import METHODS
 from .work_precision import (
+    ADDED,
     ERROR_KINDS,
     ROWS,
     CompareOptions,
     WorkPrecision,
+    WorkPrecisionPlan,
     methods_in,
     pareto,
     plan_work_precision,
@@ -56,7 +59,16 @@ def work_precision(scene: Scene, *, out: str | os.PathLike,
     """
     plan = plan_work_precision(scene, overrides=overrides, options=options,
                                compilation=compilation, workers=workers)
-    with atomic.output_folder(out) as folder:  # only once the input is known to be good
+    return write_work_precision(plan, out, progress=progress, interruptible=interruptible).rows
+
+
+def write_work_precision(plan: WorkPrecisionPlan, out, *, progress: bool = False,
+                         interruptible=None) -> WorkPrecision:
+    """Run a checked comparison into the folder ``out`` (created now, once the input is known
+    to be good): ``work_precision.csv``, ``.png`` and ``summary.md``. Returns what it
+    measured."""
+    scene = plan.scene
+    with atomic.output_folder(out) as folder:
         result = run_work_precision(plan, folder / "work_precision.csv", progress=progress,
                                     commit=False)
         figure = figure_writer(folder, "work_precision.png", lambda handle: plot_work_precision(
@@ -65,12 +77,13 @@ def work_precision(scene: Scene, *, out: str | os.PathLike,
                     {"work_precision.png": figure, "summary.md": atomic.text(summary(result))},
                     {"command": "compare", "scene": scene.name,
                      "succeeded": sum(r["status"] == "success" for r in result.rows)})
-    return result.rows
+    return result
 
 
 def read_rows(path) -> list[dict]:
-    """Rows of a ``work_precision.csv`` with numbers as numbers."""
-    return ROWS.read(path)
+    """Rows of a ``work_precision.csv`` with numbers as numbers (a file written before a
+    column was added reads it as not measured)."""
+    return [ROWS.parse({**ADDED, **row}) for row in read_csv(path, missing_ok=False)]
 
 
 def summary(result: WorkPrecision) -> str:
@@ -88,6 +101,7 @@ def summary(result: WorkPrecision) -> str:
     lines += failure_table(rows, "Runs that did not reach t_end",
                            ("method", lambda r: f"`{r['method']}`"),
                            ("knob", lambda r: f"{r['knob']} = {r['value']:.3g}"))
+    lines += _limitation_note(result)
     lines += _residual_note(rows)
     lines += ["", "## Machine", "", machine(result.compiler or None), ""]
     return "\n".join(lines)
@@ -166,6 +180,15 @@ def _ratio_text(rows) -> str:
                       "|---|---|---|---|",
                       *(f"| {level:.0e} | {seconds(a)} | {seconds(b)} | {a / b:.3g} |"
                         for level, a, b in found)])
+
+
+def _limitation_note(result: WorkPrecision) -> list[str]:
+    """Why a method with no successful run cannot run here, in the words of its integrator."""
+    found = result.limitations()
+    if not found:
+        return []
+    return ["", "## Methods that cannot run on this orbit", "",
+            *(f"- `{name}`: {why}." for name, why in found.items())]
 
 
 def _residual_note(rows) -> list[str]:

@@ -111,6 +111,17 @@ def exact_states(system, z0, t: np.ndarray, theta, *, rtol: float) -> np.ndarray
     return exact_reference(system, z0, float(t[0]), float(t[-1]), theta, rtol=rtol).states(t)
 
 
+def exact_nodes(system, z0, t0: float, t_end: float, theta, *, rtol: float, attempts: int,
+                compiler=None, cache_dir=None) -> tuple[np.ndarray, np.ndarray]:
+    """The accepted steps ``(t, z)`` of the exact flow from ``z0`` at ``t0`` towards
+    ``t_end``, ended after ``attempts`` attempted steps if it has not arrived: the motion over a
+    stretch set by its own time scale, for a caller outside this package that needs the orbit's
+    scales before it runs (the step density of ``verlet_adaptive``)."""
+    flow = exact_flow(system, dense=False, compiler=compiler, cache_dir=cache_dir)
+    return flow.run(np.asarray(z0, float), t0, t_end, theta, rtol=rtol,
+                    max_attempts=attempts).nodes()
+
+
 def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int) -> np.ndarray:
     """``S_i`` of each component of ``z = (q, p)`` from its least and greatest values over the
     motion and its largest magnitude: its range ``high - low``, at least ``BLOCK_FLOOR`` times

@@ -40,6 +40,11 @@ class Integrator:
         applies: ``applies(system) -> None`` or the reason the method does not apply.
         redundant: ``redundant(system) -> None`` or why, on this system, the method repeats
             another one exactly (left out of default comparisons, run when asked for by name).
+        aims: ``run`` also takes ``target_error=E`` and chooses its own knob for a trajectory
+            error ``E`` (the march's ``target_error``); a comparison at target errors runs it
+            once per target.
+        limitation: where the method cannot run at all, in words (empty if nowhere known): a
+            report says it beside the method's failed runs.
     """
 
     name: str
@@ -51,6 +56,8 @@ class Integrator:
     run: Callable[..., Solution]
     applies: Callable[[object], str | None] = no_reason
     redundant: Callable[[object], str | None] = no_reason
+    aims: bool = False
+    limitation: str = ""
 
     def traits(self) -> dict:
         """Every field by name (to build a richer view of the same integrator)."""

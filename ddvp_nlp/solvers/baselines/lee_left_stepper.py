@@ -177,6 +177,15 @@ def _needs_quadratic_kinetic(system) -> str | None:
     return A if isinstance(A, str) else None
 
 
+# Why it stops on every oscillation, measured (harmonic, pendulum, Morse: each at five tau0):
+# the step equations fix tau_k through the change of speed over the force at q_k, and both
+# vanish together at the bottom of a well and at a turning point.
+LIMITATION = ("its step equations fix each step by the change of speed over the force at the "
+              "node; where the force vanishes (the bottom of a well, which every oscillation "
+              "passes) or the speed does (a turning point) no positive step remains near the "
+              "previous one, so on a bound orbit it stops within the first swing at any tau0 "
+              "(a property of the scheme, docs/theory.md section 3, not of the knob)")
+
 LEE_LEFT = Integrator("lee_left", "T.D. Lee's original left-point scheme with the node-time "
                       "variation", order=1, symplectic=True, energy_conserving=True, knob="tau0",
-                      run=_lee_left, applies=_needs_quadratic_kinetic)
+                      run=_lee_left, applies=_needs_quadratic_kinetic, limitation=LIMITATION)

@@ -8,20 +8,24 @@
   steps); order 2, symplectic, does not conserve energy.
 
 The knob is the first step ``tau0`` (the step ``tau`` of ``midpoint``); the march runs in
-compiled chunks of the baselines' one size (``chunks.CHUNK``), so a scene compiles once.
+compiled chunks of the baselines' one size (``chunks.CHUNK``), so a scene compiles once. Each
+also aims at a trajectory error (``run(..., target_error=E)``: the march's own choice of
+``tau0`` from a pilot at the given knob value, ``marching/target.py``, with the accuracy check
+on, as it must be to judge the error).
 """
 
 from __future__ import annotations
 
 from ..marching.initial_value import march
-from ..options import Compilation, StepControl
+from ..options import DEFAULT_TOLERANCE, Compilation, StepControl
 from .chunks import CHUNK
 from .integrator import Integrator
 
 
 def _march(rule: str):
     """``Integrator.run`` of the march with the energy ``rule``, knob ``tau0``."""
-    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None):
+    def run(system, config, value, *, compiler, cache_dir, max_steps, time_limit=None,
+            target_error=None):
         return march(
             system,
             config.q0,
@@ -31,8 +35,9 @@ def _march(rule: str):
             scheme=rule,
             params=config.params,
             steps=StepControl(max_steps=max_steps, time_limit=time_limit),
-            accuracy=None,
+            accuracy=None if target_error is None else DEFAULT_TOLERANCE,
             compilation=Compilation(compiler=compiler, cache_dir=cache_dir, chunk=CHUNK),
+            target_error=target_error,
         )
     return run
 
@@ -45,10 +50,10 @@ def _same_as_vddvp(system) -> str | None:
 
 VDDVP = Integrator("vddvp", "the paper's variable-step midpoint scheme (energy of interval k at "
                    "the previous clock)", order=2, symplectic=True, energy_conserving=True,
-                   knob="tau0", run=_march("vddvp"))
+                   knob="tau0", run=_march("vddvp"), aims=True)
 LEE = Integrator("lee", "same action, node-time variation dS_D/dt_k = 0", order=2,
                  symplectic=True, energy_conserving=True, knob="tau0", run=_march("lee"),
-                 redundant=_same_as_vddvp)
+                 redundant=_same_as_vddvp, aims=True)
 MIDPOINT = Integrator("midpoint", "fixed-step implicit midpoint (the paper's DDVP with fixed "
                       "steps)", order=2, symplectic=True, energy_conserving=False, knob="tau",
-                      run=_march("fixed"))
+                      run=_march("fixed"), aims=True)
