@@ -160,6 +160,10 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
 
 # -- the verdict ----------------------------------------------------------------------------
 
+class CheckStopped(Exception):
+    """A check given ``stop`` (`Judgement.report`) was asked to stop: no report."""
+
+
 @dataclass
 class Level:
     """The energy level a scheme keeps, set by its first step: ``value`` (``H`` of the first
@@ -199,7 +203,7 @@ class Judgement:
         return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
-               exact=None) -> tuple[dict, np.ndarray]:
+               exact=None, stop=None) -> tuple[dict, np.ndarray]:
         """The report (``Solution.stats["accuracy"]``) and the local error of every step,
         ``|z_{k+1} - Phi(z_k)|_inf``. ``screen``: the steps whose error against one RK4 step
         of the exact flow is below ``CANDIDATE`` times the local bound pass without the exact
@@ -210,10 +214,13 @@ class Judgement:
         steps = t.size - 1
         if steps < 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(t)):
             return unjudged(t, z, self.tolerance), np.zeros(max(steps, 0))
+        self.stop = stop
         trajectory = self._trajectory(t, z, exact)
         n = self.system.n
         scale = trajectory["scale"]
+        self._poll()
         look = self.values.first_look(t, z) if screen else None
+        self._poll()
         field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
         energy = energy_scale(t, field, H, scale, n)
         local, local_error, local_max = self._local(t, z, scale, look)
@@ -237,6 +244,12 @@ class Judgement:
             "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
             "global_tol": tol.global_tol, "require_accurate": tol.require_accurate}
         return report, local_error
+
+    stop = None  # report(stop=...): asked between the parts of a check
+
+    def _poll(self) -> None:
+        if self.stop is not None and self.stop():
+            raise CheckStopped
 
     # -- the trajectory's error ---------------------------------------------------------------
     def _trajectory(self, t, z, exact) -> dict:
@@ -276,6 +289,7 @@ class Judgement:
                     start = end
                 if scan.stopped or start == last:
                     break
+                self._poll()
             if scan.lost is not None and rtol / 100 >= FLOOR_RTOL * FACTOR:
                 rtol /= 100  # its own error passed its share before t_drift: tighter
                 continue
