@@ -181,3 +181,22 @@ def test_the_command_writes_what_it_keeps_and_refuses_to_resume_it(tmp_path, cap
     capsys.readouterr()
     assert main(["march", "--resume", str(out), "--no-plot"]) == 2
     assert "kept only some of its nodes" in capsys.readouterr().err
+
+
+def test_a_stopped_long_march_is_returned_without_the_work_over_every_node(monkeypatch):
+    """Ctrl-C on a march of millions of nodes: no recheck or whole-run check after it (they
+    had taken 8 s of the 10.7 s from the signal to the exit); here 'millions' is 1000."""
+    from ddvp_nlp.solvers.marching import initial_value
+
+    monkeypatch.setattr(initial_value, "INTERRUPTED_JUDGED", 1000)
+    calls = []
+
+    def stop():
+        calls.append(1)
+        return len(calls) > 3  # after 3 stepper calls (counts, no clock)
+    run = _pendulum(t_end=5000.0, stop=stop)
+    assert run.status.code == "interrupted" and run.t.size > 1000
+    assert "accuracy" not in run.stats and "left out" in run.stats["accuracy_skipped"]
+    assert run.canonical_residual.size == 0 and run.energy_residual.size == 0
+    short = _pendulum(t_end=5000.0, stop=lambda: len(calls) > 0)  # stopped at once: judged
+    assert short.t.size == 1 and "accuracy_skipped" not in short.stats
