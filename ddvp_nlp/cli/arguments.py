@@ -164,9 +164,12 @@ def grid_options(args) -> GridOptions:
 def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:
     """A march's progress (on unless ``--no-progress``), checkpoints, stop request, output
     times and events (``cli/events.py``)."""
-    return Output(progress=args.progress is not False, checkpoint=checkpoint,
+    keep_every, keep = getattr(args, "keep_every", None) or 1, getattr(args, "keep", "nodes")
+    thinned = keep_every > 1 or keep != "nodes"
+    return Output(progress=args.progress is not False,
+                  checkpoint=None if thinned else checkpoint,
                   checkpoint_interval=args.checkpoint_every, stop=stop, t_eval=t_eval,
-                  events=events or None)
+                  events=events or None, keep_every=keep_every, keep=keep)
 
 
 def compiled_or_not(args) -> Compilation:
@@ -216,7 +219,7 @@ NUMBERS = {
     "nodes": "count", "energy": "finite", "orbits": "count", "t_end": "finite",
     "tau0": "positive", "seed": "natural", "workers": "count", "halvings": "natural",
     "repeats": "count", "time_unit": "positive", "run_budget": "positive",
-    "reference_span": "positive",
+    "reference_span": "positive", "keep_every": "count",
 }
 # Seeds numpy takes: below 2**63 (a larger one was taken, and a negative one a traceback).
 MAX_SEED = 2**63 - 1

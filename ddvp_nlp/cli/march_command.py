@@ -39,7 +39,13 @@ def run_march(args) -> int:
             raise InputError("--t-eval and --event apply to a march from its start, not to "
                              "--resume (the crossings before the resumed node are not "
                              "searched again)")
+        if _thinned(args):
+            raise InputError("--keep-every and --keep apply to a march from its start: a "
+                             "thinned run cannot be continued with --resume")
         return run_resume(args)
+    if getattr(args, "keep", "nodes") == "t_eval" and args.t_eval is None and not args.events:
+        raise InputError("--keep t_eval keeps only the --t-eval states and the --event "
+                         "crossings: give --t-eval or --event")
     return run_one(args, {False: _march, True: _march_higher})
 
 
@@ -127,6 +133,11 @@ def resume_record_of(folder, meta: dict) -> dict:
     if meta.get("command") != "march" or not isinstance(record, dict):
         raise InputError(f"--resume: {folder} holds no march this ddvp can continue "
                          f"(command {meta.get('command')!r}, no resume record)")
+    kept = meta.get("kept")
+    if isinstance(kept, dict) and (kept.get("keep_every") != 1 or kept.get("keep") != "nodes"):
+        raise InputError(f"--resume: the run in {folder} kept only some of its nodes "
+                         f"(keep_every {kept.get('keep_every')!r}, keep {kept.get('keep')!r}): "
+                         "a march goes on only from consecutive nodes; start a new march")
     if meta.get("status") not in RESUMABLE:
         raise InputError(f"--resume: the run in {folder} ended with status "
                          f"{meta.get('status')!r}; only {', '.join(RESUMABLE)} can be continued")
@@ -204,6 +215,9 @@ def checked_carried(folder, carried):
 def _march(args, scene, config, scheme):
     times, events = args.requested  # checked by run_one before the folder was made
     if args.scheme not in RULES:
+        if _thinned(args):
+            raise InputError(f"--keep-every and --keep thin a march of this package's schemes; "
+                             f"--method {args.scheme} is a compared method")
         if args.target_error is not None:
             raise InputError(f"--target-error chooses the step of this package's schemes; "
                              f"--method {args.scheme} is a compared method (ddvp compare runs "
@@ -223,12 +237,29 @@ def _march(args, scene, config, scheme):
     return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                      "fallbacks", "first_fallback",
                                                      "target_error",
-                                                     "checkpoints", "checkpoints_landed_s")
+                                                     "checkpoints", "checkpoints_landed_s",
+                                                     "kept", "accuracy_skipped")
                          if key in stats},
+                      **_all_residuals(stats),
                       "carried": stats["carried"],
                       "resume": resume_record(args, scene, config,
                                               parse_settings(args.settings)),
                       **requested_meta(solution, events)}
+
+
+def _thinned(args) -> bool:
+    """Whether ``--keep-every`` or ``--keep t_eval`` was given."""
+    return getattr(args, "keep_every", None) is not None or \
+        getattr(args, "keep", "nodes") != "nodes"
+
+
+def _all_residuals(stats: dict) -> dict:
+    """A thinned march's largest residuals over every step, not only the kept ones."""
+    kept = stats.get("kept")
+    if not kept:
+        return {}
+    return {"canonical_residual_max": kept["canonical_residual_max"],
+            "energy_residual_max": kept["energy_residual_max"]}
 
 
 def _march_method(args, scene, config):
@@ -255,6 +286,9 @@ def _march_method(args, scene, config):
 
 
 def _march_higher(args, scene, config, scheme):
+    if _thinned(args):
+        raise InputError(f"--keep-every and --keep thin a march of a first-order scene; "
+                         f"{scene.name!r} is a higher-order scene")
     from ..solvers import march_higher  # the grid families load only for a higher-order scene
 
     t_init, q_init = scene.start(config)

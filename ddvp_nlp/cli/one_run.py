@@ -103,7 +103,8 @@ def run_folder(args, scene, config, overrides):
 # gets a folder of its own (--alpha, --clock and --tol had shared the default one).
 RESULT_OPTIONS = ("alpha", "clock", "tol", "tau_min", "tau_max", "max_step_ratio", "max_steps",
                   "time_limit", "energy_guard", "least_squares", "rtol", "atol", "energy_tol",
-                  "global_tol", "require_accurate", "accept_inaccurate", "careful")
+                  "global_tol", "require_accurate", "accept_inaccurate", "careful", "keep_every",
+                  "keep")
 
 
 def requested_options(args) -> dict:

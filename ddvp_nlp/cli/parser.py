@@ -433,6 +433,15 @@ def _march_command(march: argparse.ArgumentParser) -> None:
                        help="write the run so far to the output folder this often while "
                             f"marching, so a kill loses at most this much (default: "
                             f"{shown(value['checkpoint_every'])})")
+    march.add_argument("--keep-every", type=int, default=None, metavar="K",
+                       help="keep only every K-th node (and the last) of a long march: memory "
+                            "and result.npz grow with the nodes kept; every node is still "
+                            "checked and judged as the march goes; no checkpoints, no --resume "
+                            "(default: every node)")
+    march.add_argument("--keep", choices=("nodes", "t_eval"), default="nodes",
+                       help="t_eval: keep only the --t-eval states and the --event crossings "
+                            "(and the first and last node), judged as with --keep-every "
+                            "(default: nodes)")
     _progress_arguments(march, "the time reached; default on")
     _figure_arguments(march, "trajectory.png")
 

@@ -18,6 +18,10 @@ def print_summary(meta: dict, out) -> None:
     lines = [f"{meta['scene']} {meta['command']} [{meta['scheme']}]: {meta['status']} - "
              f"{meta['message']}",
              f"  steps {meta['steps']}, t reached {meta['t_reached']:.10g}"]
+    if meta.get("nodes_kept") is not None:
+        every = meta.get("kept_every", 1)
+        which = f"every {every}-th and the last" if every > 1 else "the first and the last"
+        lines[-1] += f"; {meta['nodes_kept']} nodes kept ({which})"
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
     lines.extend(_accuracy_lines(meta))

@@ -122,9 +122,12 @@ def _energy_panel(solution, system, scheme, energies):
         rule = diagnostic_rule(scheme)
         return (f"|{rule} residual|{kind}",
                 [("", t[1:-1], np.abs(solution.energy_residual) / scale)])
+    node = (r"node $H(q_k, p_k)$", t, np.abs(nodes - nodes[0]) / scale)
+    if interval is None:  # a thinned march: no consecutive intervals
+        return f"$|H - H_0|${kind}", [node]
     return (f"$|H - H_0|${kind}",
             [(r"interval $H(Q_k, P_k)$", t[:-1], np.abs(interval - interval[0]) / scale),
-             (r"node $H(q_k, p_k)$", t, np.abs(nodes - nodes[0]) / scale)])
+             node])
 
 
 def _rows(solution, steps: bool, energy) -> list:

@@ -50,6 +50,8 @@ def run_energies(system, scheme: Scheme, solution: Solution, theta):
     if system.time_dependent:
         return system.energy(solution.q[:1], solution.p[:1], solution.t[:1], theta), None
     nodes = system.energy(solution.q, solution.p, solution.t, theta)
+    if thinned(solution):  # the kept nodes are not consecutive: no interval between them
+        return nodes, None
     return nodes, interval_energies(system, scheme, solution.t, solution.q,
                                               solution.p, theta)
 
@@ -73,12 +75,28 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta, energ
         return report
     report["H0"] = float(nodes[0])
     report["node_energy_error"] = _max_abs(nodes - nodes[0]) / max(1.0, abs(float(nodes[0])))
+    kept = solution.stats.get("kept")
+    if thinned(solution):
+        # a thinned march keeps no consecutive intervals: its largest energy residual over
+        # every step, which the march recomputed as it went (and H's drift at the kept nodes)
+        report["energy_residual_max"] = kept["energy_residual_max"]
+        report["energy_error"] = kept["energy_residual_max"]
+        report["energy_error_kind"] = ("largest residual of the energy equation over every "
+                                       "step (a thinned run keeps no consecutive intervals)")
+        report["node_energy_drift"] = _max_abs(nodes - nodes[0])
+        return report
     report["energy_error"] = _max_abs(interval - interval[0]) if interval.size else 0.0
     report["energy_error_kind"] = ("largest drift of the interval energy E_k = v_k.dL/dv - L_k"
                                    if system.lagrangian_form else
                                    "largest drift of the interval energy H(Q_k, P_k)")
     report["node_energy_drift"] = _max_abs(nodes - nodes[0])
     return report
+
+
+def thinned(solution: Solution) -> bool:
+    """Whether a march kept only some of its nodes (``Output(keep_every=k)``)."""
+    kept = solution.stats.get("kept")
+    return bool(kept) and (kept["keep_every"] > 1 or kept["keep"] != "nodes")
 
 
 def _max_abs(values) -> float:
@@ -226,11 +244,17 @@ def check_run_arrays(where: str, arrays: dict) -> None:
 def _steps_meta(solution: Solution) -> dict:
     """Status, steps and step range: the part of ``meta.json`` every kind of run has."""
     tau = solution.tau
-    return {"status": solution.status.code, "success": solution.success,
-            "message": solution.message, "steps": solution.steps,
-            "t_reached": float(solution.t[-1]),
-            "tau_min": float(tau.min()) if tau.size else None,
-            "tau_max": float(tau.max()) if tau.size else None}
+    found = {"status": solution.status.code, "success": solution.success,
+             "message": solution.message, "steps": solution.steps,
+             "t_reached": float(solution.t[-1]),
+             "tau_min": float(tau.min()) if tau.size else None,
+             "tau_max": float(tau.max()) if tau.size else None}
+    if thinned(solution):  # every step marched, not the intervals between kept nodes
+        kept = solution.stats["kept"]
+        found.update(steps=kept["nodes_marched"] - 1, tau_min=kept["tau_min"],
+                     tau_max=kept["tau_max"], kept_every=kept["keep_every"],
+                     nodes_marched=kept["nodes_marched"], nodes_kept=kept["nodes_kept"])
+    return found
 
 
 def _optional(interruptible, compute, fallback):

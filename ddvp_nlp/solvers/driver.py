@@ -25,6 +25,13 @@ monitors, the progress bar and the message. The contract, rule by rule:
    ``"reached t_end = ... in N steps"``, on failure the status's own text, the step, the time and
    state of the last kept node (``stepper.describe(z)``), and the detail.
 
+7. With a ``thinning`` (a march that keeps only some nodes, ``marching/thinning.py``), the
+   driver hands it the nodes every monitor has seen once they pass ``thinning.window`` rows
+   (``thinning.settle(nodes)``, which keeps what it wants of them and drops all but the newest
+   rows from ``nodes``: ``nodes.dropped`` counts the rows gone, so a node's index in the run is
+   ``nodes.dropped`` plus its row), and the rest at the end (``thinning.finish(nodes)``, which
+   returns the kept nodes).
+
 Steps are counted from ``step_offset`` (the index of the node the first step starts from: 0 for
 a march from one node, more for schemes that start from several).
 """
@@ -86,7 +93,9 @@ def describe_phase_space(z: np.ndarray) -> str:
 
 
 class Nodes:
-    """The accepted nodes, in arrays that grow by doubling: ``t[:count]``, ``z[:count]``."""
+    """The accepted nodes, in arrays that grow by doubling: ``t[:count]``, ``z[:count]``; in a
+    thinned march (rule 7) the newest of them, row ``r`` being node ``dropped + r`` of the run
+    (``t_first``: the time of node 0)."""
 
     def __init__(self, t0, z0):
         t0 = np.atleast_1d(np.asarray(t0, dtype=float))
@@ -96,6 +105,20 @@ class Nodes:
         self.z = np.empty((size, z0.shape[1]))
         self.t[:t0.size], self.z[:t0.size] = t0, z0
         self.count = t0.size
+        self.dropped = 0
+        self.t_first = float(t0[0])
+
+    @property
+    def last(self) -> int:
+        """The index in the run of the newest node."""
+        return self.dropped + self.count - 1
+
+    def drop(self, rows: int) -> None:
+        """Forget the first ``rows`` rows (rule 7); the rest move to the front."""
+        rest = self.count - rows
+        self.t[:rest] = self.t[rows:self.count].copy()
+        self.z[:rest] = self.z[rows:self.count].copy()
+        self.count, self.dropped = rest, self.dropped + rows
 
     @property
     def width(self) -> int:
@@ -131,6 +154,11 @@ class Outcome:
     z: np.ndarray
     status: Status
     message: str
+    marched: int = -1  # nodes of the run, kept or not (-1: t.size)
+
+    def __post_init__(self):
+        if self.marched < 0:
+            self.marched = int(self.t.size)
 
 
 def message(status: Status, *, steps: int, t_end: float, t: float, state: str,
@@ -144,7 +172,8 @@ def message(status: Status, *, steps: int, t_end: float, t: float, state: str,
 
 def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
           time_limit: float | None = None, monitors=(), progress: bool = False,
-          catch_interrupt: bool = False, step_offset: int = 0, stop=None) -> Outcome:
+          catch_interrupt: bool = False, step_offset: int = 0, stop=None,
+          thinning=None) -> Outcome:
     """Run ``stepper`` from the newest node of ``nodes`` until one of rules 2-5 ends it.
     ``stop()``, if given, is asked once before the first call (a stop requested while the
     march was built ends it at once, status ``INTERRUPTED``); after that a ``StopRequest``
@@ -157,13 +186,15 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
         if stop is not None and stop():
             status = Status.INTERRUPTED
         while status is Status.SUCCESS and nodes.t[nodes.count - 1] < t_end:
-            steps = nodes.count - 1 - step_offset
+            steps = nodes.last - step_offset
             reached = bound_reached(steps, max_steps, started, time_limit)
             if reached:
                 status, detail = reached
                 break
             advance = stepper.advance(nodes, max_steps - steps)
             status, detail = accept(nodes, advance, t_end, monitors)
+            if thinning is not None and nodes.count > thinning.window:
+                thinning.settle(nodes)
             watched = nodes.count
             bar.update(float(nodes.t[nodes.count - 1]))
             if status is not Status.SUCCESS:
@@ -176,13 +207,14 @@ def drive(stepper: Stepper, nodes: Nodes, *, t_end: float, max_steps: int,
         status, detail = Status.INTERRUPTED, ""
     finally:
         bar.close()
-    t, z = nodes.arrays()
+    marched = nodes.last + 1
+    t, z = nodes.arrays() if thinning is None else thinning.finish(nodes)
     # the state is printed only in a failure's sentence (numpy's array printing cost 0.6 ms of
     # a 2.9 ms short march)
-    text = message(status, steps=t.size - 1, t_end=t_end, t=float(t[-1]),
+    text = message(status, steps=marched - 1, t_end=t_end, t=float(t[-1]),
                    state="" if status is Status.SUCCESS else stepper.describe(z[-1]),
                    detail=detail)
-    return Outcome(t, z, status, text)
+    return Outcome(t, z, status, text, marched)
 
 
 def accept(nodes: Nodes, advance: Advance, t_end: float, monitors) -> tuple[Status, str]:

@@ -37,6 +37,9 @@ MAX_CHUNK = 65536
 GRID_SOLVERS = ("auto", "newton", "ipopt")
 # Shortest time between two checkpoints of a march (seconds): each one writes every node so far.
 MIN_CHECKPOINT_INTERVAL = 0.01
+# What a march keeps (Output.keep): its nodes (every keep_every-th), or only the t_eval states
+# and the events (with the first and the last node).
+KEEPS = ("nodes", "t_eval")
 LINEAR_SOLVERS = ("auto", "banded", "sparse")
 BAND_LU = ("compiled", "lapack")
 
@@ -270,6 +273,19 @@ class Output:
             ``direction``, ``terminal`` (and ``vectorized``): their crossings are located on the
             march's dense output (``Solution.t_events``, ``z_events``); a terminal one ends
             the march with status ``event`` (``solvers/dense.py``).
+        keep_every: a long march keeps only every ``keep_every``-th node (node indices
+            ``0, k, 2k, ...``) and its last node; the others are dropped as the march goes
+            (in windows of ``marching/thinning.py``'s ``WINDOW`` nodes), so memory and the
+            written file grow with the nodes kept, not with the steps. Every node is still
+            marched, watched by the monitors and events, and judged by the accuracy check, a
+            window at a time (``accuracy/streaming.py`` says what it keeps and where its
+            figures differ from the check of a whole run). A thinned march takes no
+            checkpoints and cannot be continued (``continue_march`` needs consecutive nodes).
+            ``Solution.stats["kept"]`` records ``keep_every``, ``keep``, the nodes marched and
+            the nodes kept. Default 1: every node, as before.
+        keep: ``"nodes"`` (default: every ``keep_every``-th node) or ``"t_eval"``: only the
+            first and the last node are kept besides the ``t_eval`` states and the events
+            (one of them must be asked for).
     """
 
     progress: bool = False
@@ -278,9 +294,14 @@ class Output:
     stop: Callable[[], bool] | None = None
     t_eval: object = None
     events: object = None
+    keep_every: int = 1
+    keep: str = "nodes"
 
     def __post_init__(self):
         _set(self, "progress", _flag("progress", self.progress))
+        _set(self, "keep_every", check_integer("keep_every", self.keep_every))
+        if self.keep not in KEEPS:
+            raise InputError(f"keep must be one of {', '.join(KEEPS)}, got {self.keep!r}")
         if self.checkpoint is not None and not callable(self.checkpoint):
             raise InputError(f"checkpoint must be a callable save(t, z), got "
                              f"{self.checkpoint!r}")
@@ -296,6 +317,21 @@ class Output:
 
         _set(self, "t_eval", check_times(self.t_eval))
         _set(self, "events", check_events(self.events))
+        if self.keep == "t_eval" and self.t_eval is None and not self.events:
+            raise InputError("keep='t_eval' keeps only the t_eval states and the events: give "
+                             "t_eval or events")
+        if self.keep == "t_eval" and self.keep_every != 1:
+            raise InputError(f"keep='t_eval' keeps no nodes but the first and the last: "
+                             f"keep_every must stay 1, got {self.keep_every!r}")
+        if self.thinned and self.checkpoint is not None:
+            raise InputError("a thinned march (keep_every > 1 or keep='t_eval') takes no "
+                             "checkpoints: a checkpoint is for continuing a march, which needs "
+                             "every node")
+
+    @property
+    def thinned(self) -> bool:
+        """Whether a march keeps fewer than all its nodes."""
+        return self.keep_every > 1 or self.keep != "nodes"
 
 
 def coerce(value, kind, name: str):

@@ -15,6 +15,9 @@ The contract of a verdict. An implementer must keep:
    compared method) gets the same three verdicts and the same report, with the first failure's
    test, step, time, value and limit.
 4. This package imports only the core and ``exact/``.
+5. A trajectory fed a window at a time (``streaming.py``, a thinned march) keeps only bounded
+   state between windows and gets the same report; where a figure depends on scales the
+   windows could not know yet, its docstring says which.
 """
 
 from typing import TYPE_CHECKING

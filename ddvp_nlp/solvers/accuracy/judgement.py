@@ -94,7 +94,7 @@ LEVEL_RTOL = 1e-12
 REFERENCE_RTOL = 1e-9
 
 
-def _finite_or_none(value) -> float | None:
+def finite_or_none(value) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
@@ -136,7 +136,7 @@ def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int
     return np.maximum(scale, np.finfo(float).tiny)
 
 
-class _Extent:
+class Extent:
     """The least and greatest value and the largest magnitude of each component over the rows
     seen so far (the march's nodes, then the reference's, block by block)."""
 
@@ -171,6 +171,10 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
 
 # -- the verdict ----------------------------------------------------------------------------
 
+class CheckStopped(Exception):
+    """A check given ``stop`` (`Judgement.report`) was asked to stop: no report."""
+
+
 @dataclass
 class Level:
     """The energy level a scheme keeps, set by its first step: ``value`` (``H`` of the first
@@ -180,7 +184,7 @@ class Level:
     clock: float
 
 
-def _unjudged(t, z, tol: Tolerance) -> dict:
+def unjudged(t, z, tol: Tolerance) -> dict:
     """The report of a run without a step (or with a non-finite node): nothing to measure."""
     finite = bool(np.all(np.isfinite(z))) and bool(np.all(np.isfinite(t)))
     failure = None if finite else {"step": 0, "t": float(t[0]) if t.size else 0.0,
@@ -210,7 +214,7 @@ class Judgement:
         return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
-               exact=None) -> tuple[dict, np.ndarray]:
+               exact=None, stop=None) -> tuple[dict, np.ndarray]:
         """The report (``Solution.stats["accuracy"]``) and the local error of every step,
         ``|z_{k+1} - Phi(z_k)|_inf``. ``screen``: the steps whose error against one RK4 step
         of the exact flow is below ``CANDIDATE`` times the local bound pass without the exact
@@ -220,15 +224,18 @@ class Judgement:
         t, z = np.asarray(t, float), np.asarray(z, float)
         steps = t.size - 1
         if steps < 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(t)):
-            return _unjudged(t, z, self.tolerance), np.zeros(max(steps, 0))
+            return unjudged(t, z, self.tolerance), np.zeros(max(steps, 0))
+        self.stop = stop
         trajectory = self._trajectory(t, z, exact)
         n = self.system.n
         scale = trajectory["scale"]
+        self._poll()
         look = self.values.first_look(t, z) if screen else None
+        self._poll()
         field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
         energy = energy_scale(t, field, H, scale, n)
         local, local_error, local_max = self._local(t, z, scale, look)
-        energies = self._energies(t, z, H, energy, level, scale)
+        energies = self.energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
         failure = min(failures, key=lambda f: f["step"]) if failures else None
         drift = trajectory["drift"]
@@ -236,7 +243,7 @@ class Judgement:
         tol = self.tolerance
         report = {
             "verdict": verdict, "first_failure": failure,
-            "t_drift": None if drift is None else float(t[drift]),
+            "t_drift": None if drift is None else trajectory["drift_t"],
             "drift_step": drift, "error_max": trajectory["error_max"],
             "error_max_t": trajectory["error_max_t"], "estimate": trajectory["estimate"],
             "reference_until": trajectory["until"],
@@ -249,6 +256,12 @@ class Judgement:
             "global_tol": tol.global_tol, "require_accurate": tol.require_accurate}
         return report, local_error
 
+    stop = None  # report(stop=...): asked between the parts of a check
+
+    def _poll(self) -> None:
+        if self.stop is not None and self.stop():
+            raise CheckStopped
+
     # -- the trajectory's error ---------------------------------------------------------------
     def _trajectory(self, t, z, exact) -> dict:
         """The trajectory error at every node against the reference states: the exact solution
@@ -260,17 +273,17 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        extent = _Extent(z)  # every node's, whichever window is measured
+        extent = Extent(z)  # every node's, whichever window is measured
         if exact is not None:
-            scan = _Scan(extent, self.system.n, tol)
+            scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
             scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
-            return scan.figures(t, "exact solution")
+            return scan.figures(t[0], "exact solution")
         scale = extent.scales(self.system.n)
         last = t.size - 1
         rtol = REFERENCE_RTOL
         while True:
-            scan = _Scan(extent, self.system.n, tol)
+            scan = Scan(extent, self.system.n, tol)
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
                                        rtol=rtol)
             start = 0
@@ -287,11 +300,12 @@ class Judgement:
                     start = end
                 if scan.stopped or start == last:
                     break
+                self._poll()
             if scan.lost is not None and rtol / 100 >= FLOOR_RTOL * FACTOR:
                 rtol /= 100  # its own error passed its share before t_drift: tighter
                 continue
             break
-        found = scan.figures(t, "")
+        found = scan.figures(t[0], "")
         found["estimate"] = (f"reference flow (adaptive order-8 Runge-Kutta, DOP853 at rtol "
                              f"{rtol / FACTOR:.0e}, {growing.steps} steps; its own error at most "
                              f"{found['reference_error']:.1e} of the motion's size)")
@@ -318,12 +332,19 @@ class Judgement:
         ``max_i |d_k,i| / S_i`` and ``max_i |d_k,i| / bound_i``. With a first look (a
         second-order march's RK4 screen, `NodeValues.first_look`), the steps whose screen is
         below ``CANDIDATE`` times the bound in every component pass without the exact flow."""
+        return self.step_differences(t, z, scale, look)[1:]
+
+    def step_differences(self, t, z, scale, look=None):
+        """`step_errors` and, first, ``|d_k,i|`` of every step and component (rows; the
+        screen's where it passed)."""
         tol = self.tolerance
         limit = tol.rtol * scale + (tol.atol or 0.0)
         steps = t.size - 1
         local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
+        d_all = np.full((steps, z.shape[1]), np.inf)
         if look is not None:
             d = np.abs(look[0])
+            d_all = d
             local = row_max(d)
             relative = row_max_ratio(d, scale)
             ratio = row_max_ratio(d, limit)
@@ -334,13 +355,15 @@ class Judgement:
             phi, _, _ = flows(t[todo], z[todo], t[todo + 1] - t[todo], self.theta,
                               REFERENCE_SHARE * limit)
             d = np.abs(z[todo + 1] - phi)
+            d_all = d_all.copy() if look is not None else d_all
+            d_all[todo] = d
             with np.errstate(invalid="ignore"):
                 local[todo] = row_max(d)
                 relative[todo] = row_max_ratio(d, scale)
                 ratio[todo] = row_max_ratio(d, limit)
-        return local, relative, ratio
+        return d_all, local, relative, ratio
 
-    def _energies(self, t, z, H, energy: float, level: Level | None, scale) -> dict:
+    def energies(self, t, z, H, energy: float, level: Level | None, scale) -> dict:
         """The energy tests, relative to the energy scale: the level the first step sets
         against ``H`` of the exact flow at the first interval's clock, and (autonomous ``H``)
         the nodal ``H`` against ``H(z_0, t_0)``."""
@@ -358,14 +381,14 @@ class Judgement:
                 reference = float(at_clock[0])
             error = abs(level.value - reference) / energy
             figures.update(level=float(level.value), level_reference=reference,
-                           level_error=_finite_or_none(error))
+                           level_error=finite_or_none(error))
             if not error <= tol.energy_tol:
                 failures.append({"step": 0, "t": float(t[0]),
                                  "test": "energy level of the first step",
                                  "value": float(error), "limit": tol.energy_tol})
         if not system.time_dependent:
             drift = np.abs(H - H0) / energy
-            figures["energy_drift"] = _finite_or_none(float(np.max(drift)))
+            figures["energy_drift"] = finite_or_none(float(np.max(drift)))
             over = np.flatnonzero(~(drift <= tol.energy_tol))
             if over.size:
                 k = int(over[0])
@@ -375,7 +398,7 @@ class Judgement:
         return {"figures": figures, "failures": failures}
 
 
-class _Scan:
+class Scan:
     """The trajectory error's scan over windows of nodes, in order: each window's nodes
     against the reference's states there and the reference's own claimed error (units of the
     nodes' scales), until the first node whose error passes ``tol`` (the drift) or whose
@@ -388,7 +411,7 @@ class _Scan:
     ``tol`` only moves later as they grow). Per component, the largest difference and its node
     are kept, so the largest error in the final scales needs no second look at the nodes."""
 
-    def __init__(self, extent: _Extent, n: int, tol: float):
+    def __init__(self, extent: Extent, n: int, tol: float):
         self.extent, self.n, self.tol = extent, n, tol
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
@@ -398,6 +421,9 @@ class _Scan:
         self.drift: int | None = None  # node indices
         self.lost: int | None = None
         self.until = 0
+        # their times (a streamed scan no longer holds the nodes, `streaming.py`)
+        self.column_t = np.zeros(d)
+        self.times = {"drift": None, "lost": None, "until": None}
 
     @property
     def stopped(self) -> bool:
@@ -406,8 +432,9 @@ class _Scan:
     def scales(self) -> np.ndarray:
         return motion_scales(self.low, self.high, self.largest, self.n)
 
-    def measure(self, t, z, start: int, end: int, states, claim) -> None:
-        """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``."""
+    def measure(self, t, z, start: int, end: int, states, claim, offset: int = 0) -> None:
+        """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
+        (``offset``: the index in the run of row 0 of ``t`` and ``z``)."""
         rows = z[start + 1:end + 1]
         with np.errstate(invalid="ignore", over="ignore"):
             difference = np.abs(rows - states)
@@ -432,10 +459,13 @@ class _Scan:
                 break
             scale = new
         if lost_at is not None and (over_at is None or lost_at <= over_at):
-            stop, self.lost = lost_at, start + 1 + lost_at
+            stop, self.lost = lost_at, offset + start + 1 + lost_at
+            self.times["lost"] = float(t[start + 1 + lost_at])
         else:
             stop = over_at + 1 if over_at is not None else error.size
-            self.drift = None if over_at is None else start + 1 + over_at
+            self.drift = None if over_at is None else offset + start + 1 + over_at
+            if over_at is not None:
+                self.times["drift"] = float(t[start + 1 + over_at])
         if stop:
             seen = column_extremes(states[:stop])
             np.minimum(self.low, seen[0], out=self.low)
@@ -446,22 +476,29 @@ class _Scan:
             value = seen[node, np.arange(seen.shape[1])]
             better = value > self.column_max
             self.column_max[better] = value[better]
-            self.column_node[better] = start + 1 + node[better]
+            self.column_node[better] = offset + start + 1 + node[better]
+            self.column_t[better] = t[start + 1 + node[better]]
             self.claim_max = max(self.claim_max, float(np.max(claim[:stop])))
-        self.until = start + stop  # the last node measured
+        self.until = offset + start + stop  # the last node measured
+        self.times["until"] = float(t[start + stop])
 
-    def figures(self, t, estimate: str) -> dict:
+    def figures(self, t0: float, estimate: str) -> dict:
+        """The scan's figures (``t0``: the time of node 0); ``drift`` is a node index, with
+        its time ``drift_t``."""
         scale = self.scales()
         relative = self.column_max / scale
         i = int(np.argmax(relative))
         measured = self.until > 0
+        lost = self.lost is not None
         # a lost reference: the run is drifted from there (its error cannot be measured on)
-        return {"scale": scale, "drift": self.lost if self.lost is not None else self.drift,
-                "lost": None if self.lost is None else float(t[self.lost]),
+        return {"scale": scale, "drift": self.lost if lost else self.drift,
+                "drift_t": self.times["lost"] if lost else self.times["drift"],
+                "lost": self.times["lost"],
                 "error_max": float(relative[i]) if measured else 0.0,
-                "error_max_t": float(t[self.column_node[i]]) if measured else None,
+                "error_max_t": float(self.column_t[i]) if measured else None,
                 "reference_error": self.claim_max,
-                "until": float(t[self.until]), "estimate": estimate}
+                "until": self.times["until"] if measured else float(t0),
+                "estimate": estimate}
 
 
 def describe(report: dict) -> str:

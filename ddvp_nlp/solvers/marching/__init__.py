@@ -25,7 +25,9 @@ Where things are:
 - ``resume.py``: what the loop carries besides the nodes (``MarchState``), so that
   ``continue_march`` goes on from a run's nodes as if it had never stopped;
 - ``target.py``: ``march(..., target_error=E)``, the first step chosen from a pilot march
-  for the trajectory error asked for.
+  for the trajectory error asked for;
+- ``thinning.py``: ``Output(keep_every=k)`` and ``Output(keep="t_eval")``: a march that keeps
+  some of its nodes, rechecked and judged a window at a time as it goes.
 
 The contract of the march. An implementer changing it must keep:
 
@@ -41,9 +43,12 @@ The contract of the march. An implementer changing it must keep:
    a status with every node before it kept, the cut at ``t_end`` and the monitors left to the
    driver.
 4. After the loop every equation is recomputed on the returned grid (``recheck.py``) and the
-   accuracy check reports on the whole run; the ``Solution`` carries both.
+   accuracy check reports on the whole run; the ``Solution`` carries both. A thinned march
+   (``thinning.py``) does both a window at a time as it goes, on every node, kept or not.
 5. A Ctrl-C or a stop request ends the march with status ``interrupted`` and every node every
-   monitor saw kept.
+   monitor saw kept (a thinned march: every kept one, and its last). An interrupted march of
+   more than ``INTERRUPTED_JUDGED`` nodes is returned without its final accuracy check
+   (``stats["accuracy_skipped"]`` says so), so that it ends at once.
 6. This package imports the core and ``options``; never a grid family or a baseline.
 7. Everything the loop carries from step to step that can change a node is in every node's
    ``Advance.values["carry"]`` (``resume.py``): a march continued from any of its nodes gives

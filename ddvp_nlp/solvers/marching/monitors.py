@@ -57,7 +57,8 @@ class EarlyVerdict:
 
     def watch(self, nodes, first, advance):
         count = nodes.count
-        if self.checked >= EARLY_STEPS or not advance.count or count - 1 < EARLY_NODES:
+        if self.checked >= EARLY_STEPS or not advance.count or count - 1 < EARLY_NODES or \
+                nodes.dropped:  # a thinned march drops rows only past EARLY_STEPS
             return None
         start, end = self.checked, min(count - 1, EARLY_STEPS)
         z = nodes.z[:count]
@@ -106,11 +107,14 @@ class SolvabilityMonitor:
     ``c(z_k) = -w_k / 8`` at the kept nodes. The warning points at the first caller outside
     this folder (the code that called the march)."""
 
-    def __init__(self, t0: float, w0: float):
+    def __init__(self, t0: float, w0: float, selector=None):
         self._weights: list[np.ndarray] = []  # blocks of w, in order (no per-node floats)
         self._count = 0
         self._last = math.nan
         self.warning: dict | None = None
+        # a thinned march (`thinning.py`): only the kept nodes' w, and the newest two blocks
+        self.selector = selector
+        self._recent: list = []  # (first node, w) of the newest blocks
         self._observe(np.array([w0]), np.array([t0]))
 
     @property
@@ -126,12 +130,24 @@ class SolvabilityMonitor:
         return None
 
     def solvability(self, count: int) -> np.ndarray:
+        """``c`` at the first ``count`` nodes; in a thinned march at the kept ones among them
+        and at node ``count - 1``, the last."""
         weights = np.concatenate(self._weights) if self._weights else np.zeros(0)
-        return -weights[:count] / 8
+        if self.selector is None:
+            return -weights[:count] / 8
+        kept = self.selector.selected(0, count - 1)
+        last = [w[count - 1 - first] for first, w in self._recent
+                if first <= count - 1 < first + w.size]
+        return -np.concatenate([weights[:kept.size], last[:1]]) / 8
 
     def _keep(self, w):
         w = np.array(w, dtype=float)  # a copy: the stepper's arrays may be reused
-        self._weights.append(w)
+        if self.selector is None:
+            self._weights.append(w)
+        else:
+            rows = self.selector.selected(self._count, self._count + w.size) - self._count
+            self._weights.append(w[rows])
+            self._recent = [*self._recent[-1:], (self._count, w)]
         self._count += w.size
         self._last = float(w[-1])
 

@@ -95,11 +95,11 @@ class CarefulStepper:
     describe = staticmethod(describe_phase_space)
 
     def advance(self, nodes: Nodes, budget: int) -> Advance:
-        k = nodes.count - 1
+        k = nodes.count - 1  # its row; nodes.last its index in the run (driver rule 7)
         t, z = nodes.t, nodes.z
         self.tally.careful_steps += 1
-        if k == 0 or not self.variable:
-            result = self.steps.fixed_step(t[k], self.clock.time(k + 1), z[k])
+        if nodes.last == 0 or not self.variable:
+            result = self.steps.fixed_step(t[k], self.clock.time(nodes.last + 1), z[k])
         else:
             result = self._energy_step(t, z, k)
         if result.status is not Status.SUCCESS:
@@ -159,7 +159,7 @@ class CompiledStepper:
             t, z = nodes.t, nodes.z
             return (self.chunk.energy_state(t[k - 1], t[k], z[k - 1], z[k], self.tally.drift),
                     self._parameters())
-        return self.chunk.fixed_state(k, nodes.z[k]), self._parameters()
+        return self.chunk.fixed_state(nodes.last, nodes.z[k]), self._parameters()
 
     def _parameters(self) -> np.ndarray:
         """The chunk's parameters, the same for the whole run: packed once."""
@@ -176,7 +176,7 @@ class CompiledStepper:
         """The steps of one batch of chained chunk calls, kept up to the first that fails a
         check, the end or ``budget``, and, where a step failed, how many steps of its chunk
         came before it (``None`` where none failed)."""
-        k = nodes.count - 1
+        k = nodes.last
         steps = self.chunk.steps(*self.inputs(nodes), self._calls(nodes, budget))
         if self.chunk.variable:
             good, ends = self._energy_checks(nodes, k, steps)
@@ -195,7 +195,7 @@ class CompiledStepper:
         if kept and self.chunk.variable:
             self.tally.drift = float(steps.drift[kept - 1])
         self.tally.fast_steps += kept
-        self._handed = (nodes.count, kept)
+        self._handed = (nodes.last + 1, kept)
         advance = Advance(steps.t_next[:kept], steps.z_next[:kept], values=values)
         before = (self.offset + kept) % self.chunk.chunk if bad.size else None
         if bad.size:  # the careful path ends the window; the next chunks start a new one
@@ -231,13 +231,13 @@ class CompiledStepper:
     def _calls(self, nodes: Nodes, budget: int) -> int:
         """Chunk calls of the next batch: ``self.calls``, fewer where the run ends sooner
         (``budget``; the steps left to ``total``, or to ``t_end`` at the mean step so far)."""
-        k = nodes.count - 1
+        k, newest = nodes.last, float(nodes.t[nodes.count - 1])
         left = budget
         if self.clock.total is not None:
             left = min(left, self.clock.total - k)
-        elif k > 0 and nodes.t[k] > nodes.t[0]:
-            mean = (nodes.t[k] - nodes.t[0]) / k
-            ahead = (self.clock.t_end - nodes.t[k]) / mean
+        elif k > 0 and newest > nodes.t_first:
+            mean = (newest - nodes.t_first) / k
+            ahead = (self.clock.t_end - newest) / mean
             if math.isfinite(ahead):  # a subnormal mean step overflows: no estimate then
                 left = min(left, math.ceil(ahead) + 1)
         return max(1, min(self.calls, math.ceil(left / self.chunk.chunk)))
@@ -269,7 +269,7 @@ class MarchStepper:
 
     def wants_chunk(self, nodes: Nodes) -> bool:
         """Whether the next call runs a compiled chunk (else one careful step)."""
-        return self.careful_left == 0 and (not self.careful.variable or nodes.count > 1)
+        return self.careful_left == 0 and (not self.careful.variable or nodes.last > 0)
 
     def advance(self, nodes: Nodes, budget: int) -> Advance:
         if self.wants_chunk(nodes):
