@@ -306,3 +306,49 @@ def coerce(value, kind, name: str):
     if not isinstance(value, kind):
         raise InputError(f"{name} must be a {kind.__name__}(...), got {value!r}")
     return value
+
+
+# --- keywords a solver no longer takes ---------------------------------------------------------
+
+# Arguments the solvers took before their options became objects (version 0.1.0), with what
+# replaced them where that is not a field of one of the option objects below.
+_MOVED = {"t0": "t_span=(t0, t_end)", "t_end": "t_span=(t0, t_end)",
+          "accept_inaccurate": "accuracy=Tolerance(stop=False)",
+          "check_accuracy": "accuracy=None (no check) or a Tolerance",
+          "p_start": "guess=Shooting(p_start)", "max_iter": "options=GridOptions(max_iter=...)"}
+# Which argument of a solver holds each option object (its name in the signature).
+_HOLDERS = (("steps", StepControl), ("accuracy", Tolerance), ("options", GridOptions),
+            ("compilation", Compilation), ("output", Output))
+
+
+def replacement(name: str, parameters) -> str | None:
+    """What replaced the keyword ``name`` in a solver whose parameters are ``parameters``:
+    ``t_span=(t0, t_end)`` for ``t_end``, ``steps=StepControl(tol=...)`` for ``tol``, ...;
+    ``None`` for a name that was never an argument."""
+    if name in _MOVED and _MOVED[name].split("=")[0] in parameters:
+        return _MOVED[name]
+    for holder, kind in _HOLDERS:
+        if holder in parameters and name in kind.__dataclass_fields__:
+            return f"{holder}={kind.__name__}({name}=...)"
+    return None
+
+
+def answers_removed_keywords(function):
+    """``function`` as it is (same signature, same parameters), but a keyword it does not take
+    that it or its options took before is a ``TypeError`` naming the replacement
+    (``march(..., t_end=5)``: give ``t_span=(t0, t_end)``), not Python's bare 'unexpected
+    keyword argument'."""
+    import functools
+    import inspect
+
+    parameters = frozenset(inspect.signature(function).parameters)
+
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        for name in kwargs.keys() - parameters:
+            instead = replacement(name, parameters)
+            if instead is not None:
+                raise TypeError(f"{function.__name__}() no longer takes {name}=: give "
+                                f"{instead} (CHANGELOG.md, 0.2.0)")
+        return function(*args, **kwargs)
+    return wrapper

@@ -41,7 +41,15 @@ from ..columns import row_max_abs
 from ..compiler import buffered, find_compiler
 from ..dense import DenseField, EventMonitor, attach, evaluate_at
 from ..driver import Nodes, drive
-from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
+from ..options import (
+    DEFAULT_TOLERANCE,
+    Compilation,
+    Output,
+    StepControl,
+    Tolerance,
+    answers_removed_keywords,
+    coerce,
+)
 from .acceptance import Acceptance
 from .chunk import FastChunk
 from .monitors import Checkpoint, EarlyVerdict, EnergyGuard, SolvabilityMonitor, StopRequest
@@ -62,6 +70,7 @@ def coerced(scheme, steps, accuracy, compilation, output):
             coerce(compilation, Compilation, "compilation"), coerce(output, Output, "output"))
 
 
+@answers_removed_keywords
 def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v0=None,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
@@ -135,6 +144,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     return run_march(problem, accuracy, compilation, output)
 
 
+@answers_removed_keywords
 def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | None = None, *,
                    tau0: float, scheme: str | Scheme = "vddvp",
                    params: Mapping[str, float] | None = None, steps: StepControl | None = None,

@@ -101,7 +101,7 @@ from ..compiler import find_compiler
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
-from ..options import GridOptions, Tolerance, coerce
+from ..options import GridOptions, Tolerance, answers_removed_keywords, coerce
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 from .first_orbit import closing_shift, guess_nodes, march_to_return, predicted_grid, section_point
 from .orbit_nlp import periodic_ipopt
@@ -156,6 +156,7 @@ class Orbit:
     start_note: str | None = None
 
 
+@answers_removed_keywords
 def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
