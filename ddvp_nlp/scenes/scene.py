@@ -288,8 +288,9 @@ class Scene:
         values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
         for k, v in values.items():
             check_real(k, v)
-        if values["t_end"] <= values["t0"]:
-            raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        if values["t_end"] == values["t0"]:  # t_end < t0: a march backwards in time
+            raise InputError(f"t_end must differ from t0 = {values['t0']!r} (t_end < t0 "
+                             f"marches backwards), got {values['t_end']!r}")
         check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
         q0, p0, v0 = (None if x is None else self._start_value(name, x, params)
                       for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))

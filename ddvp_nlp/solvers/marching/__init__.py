@@ -25,7 +25,9 @@ Where things are:
 - ``resume.py``: what the loop carries besides the nodes (``MarchState``), so that
   ``continue_march`` goes on from a run's nodes as if it had never stopped;
 - ``target.py``: ``march(..., target_error=E)``, the first step chosen from a pilot march
-  for the trajectory error asked for.
+  for the trajectory error asked for;
+- ``backward.py``: a march with ``t_end < t0``, backwards in time, as the forward march of the
+  time-reversed ``H(q, -p, -t)`` mapped back node by node.
 
 The contract of the march. An implementer changing it must keep:
 

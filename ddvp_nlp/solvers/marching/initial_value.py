@@ -51,6 +51,7 @@ from ..options import (
     coerce,
 )
 from .acceptance import Acceptance
+from .backward import is_backward, march_backward
 from .chunk import FastChunk
 from .monitors import Checkpoint, EarlyVerdict, EnergyGuard, SolvabilityMonitor, StopRequest
 from .recheck import grid_residuals
@@ -83,6 +84,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         q0: initial position, shape ``(n,)``.
         p0: initial momentum, shape ``(n,)`` (or give ``v0``).
         t_span: ``(t0, t_end)``; energy rules stop at the first node with ``t >= t_end``.
+            With ``t_end < t0`` the march runs backwards in time, as scipy's ``solve_ivp``
+            does: the forward march of ``H(q, -p, -t)`` mapped back (``backward.py``), its
+            times decreasing, ``t_eval`` sorted in decreasing order.
         tau0: first step; for energy rules it sets the discrete energy level, for ``fixed`` the
             step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
         v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
@@ -123,6 +127,11 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     Returns:
         A `Solution`; failures are a status on it, never an exception.
     """
+    if is_backward(t_span):  # t_end < t0: the forward march of H(q, -p, -t) (backward.py)
+        return march_backward(march, system, q0, p0, t_span, tau0=tau0, v0=v0, scheme=scheme,
+                              params=params, steps=steps, accuracy=accuracy,
+                              compilation=compilation, output=output,
+                              target_error=target_error)
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     target = None
     if target_error is not None:
@@ -306,7 +315,7 @@ def _check_times(t_span, tau0):
     t0, t_end = check_span(t_span)
     tau0 = check_step(tau0, t0, t_end)
     if tau0 > t_end - t0:
-        raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
+        raise InputError(f"tau0 must not exceed |t_end - t0| = {t_end - t0!r}, got {tau0!r}")
     return t0, t_end, tau0
 
 
