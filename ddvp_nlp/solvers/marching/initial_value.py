@@ -97,12 +97,17 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             residual tolerance, step bounds, what to do at a breakdown, ``max_steps``,
             ``time_limit``, ``energy_guard``).
         accuracy: the accuracy check (``solvers/accuracy/judgement.py``), which does not trust the
-            scheme's own equations: every step against one RK4 step of the exact flow, the
-            energy level of the first step, the propagated global error. The first failure ends
-            the march with status ``inaccurate`` (unless ``Tolerance.stop`` is off);
-            ``stats["accuracy"]`` and ``Solution.local_error`` hold the estimates. ``None``
-            leaves the check out (the comparison does, so that run times compare like with
-            like, and checks afterwards with ``accuracy.assess``).
+            scheme's own equations and measures the run against the exact flow
+            (``solvers/exact/``, adaptive order-8 Runge-Kutta): each step's local error against
+            the flow over that step (a step that one compiled RK4 step of the flow already
+            clears is screened with it), the energy level of the first step and the nodal
+            energy, and the trajectory error against a reference from the first node that
+            states its own error. The verdict is ``accurate``, ``drifted`` or ``inaccurate``;
+            the first steps are judged as they come (the early verdict), so a march that
+            plainly does not follow the motion ends there with status ``inaccurate`` (unless
+            ``Tolerance.stop`` is off); ``stats["accuracy"]`` and ``Solution.local_error`` hold
+            the figures. ``None`` leaves the check out (the comparison does, so that run times
+            compare like with like, and judges afterwards against the same exact flow).
         compilation: compiled chunks of steps or the careful path, the compiler and its cache
             (`Compilation`).
         output: progress bar, checkpoints, the stop request, the times to report
