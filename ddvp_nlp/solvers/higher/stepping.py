@@ -46,7 +46,7 @@ DEFAULT_MAX_ITER = 500
 # The higher-order march's own step solve (one Euler-Lagrange/energy step in the last
 # difference; not the first-order march's Newton of solvers/marching/step_newton.py).
 HIGHER_STEP_NEWTON = MappingProxyType({"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50,
-                                       "error_on_fail": False})
+                                       "error_on_fail": False, "show_eval_warnings": False})
 
 
 def _check_system(system) -> None:
