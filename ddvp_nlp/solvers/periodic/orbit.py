@@ -103,7 +103,14 @@ from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, Tolerance, answers_removed_keywords, coerce
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
-from .first_orbit import closing_shift, guess_nodes, march_to_return, predicted_grid, section_point
+from .first_orbit import (
+    NoMotion,
+    closing_shift,
+    guess_nodes,
+    march_to_return,
+    predicted_grid,
+    section_point,
+)
 from .orbit_nlp import periodic_ipopt
 from .refinement import continue_in_nodes, node_levels
 
@@ -353,6 +360,8 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
     if guess is None:
         try:
             orbit.point = section_point(system, theta, energy, index, value, direction, label)
+        except NoMotion:  # below the least energy: another section cannot help
+            raise
         except InputError as error:
             if angle_indices and index - 1 not in angle_indices:
                 raise InputError(f"{error}; a rotation of the angle q{angle_indices[0] + 1} "
