@@ -76,7 +76,7 @@ def test_the_section_may_be_any_coordinate_value_the_orbit_crosses():
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"energy": 2.5}, "energy 2.5 is outside the range where the section p1=0 meets"),
-    ({"energy": -0.1}, "energy -0.1 is outside the range"),
+    ({"energy": -0.1}, "no motion exists at energy -0.1: H is at least 0"),
     ({"nodes": 2}, "nodes must be an integer >= 4, got 2"),
     ({"section": "p2=0"}, "section names no coordinate: p2"),
     ({"section": "x1=0"}, "section must be NAME=VALUE with NAME one of q1..q1, p1..p1, got 'x1=0'"),
