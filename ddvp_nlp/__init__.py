@@ -67,12 +67,14 @@ _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum")})
 
 
+# The version, written here and in pyproject.toml (tests/test_docs.py: they and CHANGELOG.md's
+# newest release agree). A literal, not importlib.metadata: that lookup (and the email package
+# behind it) was a third of what `import ddvp_nlp` adds to numpy and casadi, and it answered the
+# installed copy's version, not this tree's.
+__version__ = "0.2.0"
+
+
 def __getattr__(name: str):
-    # __version__ too is found when first asked for: importlib.metadata and the email package
-    # behind it were a third of what `import ddvp_nlp` adds to numpy and casadi
-    if name == "__version__":
-        globals()[name] = _version()
-        return globals()[name]
     return _solver(name)
 
 
@@ -141,15 +143,6 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
     return run_comparison(problem, methods, q0=q0, p0=p0, t_span=t_span, params=params,
                           target_errors=target_errors, options=options,
                           compilation=compilation, workers=workers, out=out, progress=progress)
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("ddvp-nlp")
-    except PackageNotFoundError:  # a source tree that was never installed
-        return "unknown"
 
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",

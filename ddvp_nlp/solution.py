@@ -160,18 +160,21 @@ class Solution:
         if rows.ndim != 1:
             raise InputError(f"t must be a number or a 1-d array of times, got shape "
                              f"{rows.shape}")
-        outside = ~((rows >= self.t[0] - slack) & (rows <= self.t[-1] + slack))
+        low, high = min(self.t[0], self.t[-1]), max(self.t[0], self.t[-1])
+        outside = ~((rows >= low - slack) & (rows <= high + slack))
         if np.any(outside):
             shown = ", ".join(f"{float(x):.17g}" for x in rows[outside][:3])
-            raise InputError(f"t must lie in the run's span [{float(self.t[0]):.17g}, "
-                             f"{float(self.t[-1]):.17g}] (no extrapolation), got {shown}"
+            raise InputError(f"t must lie in the run's span [{float(low):.17g}, "
+                             f"{float(high):.17g}] (no extrapolation), got {shown}"
                              + (f" and {int(outside.sum()) - 3} more" if outside.sum() > 3
                                 else ""))
         z = np.hstack([self.q, self.p])
         if self.t.size == 1:
             values = np.repeat(z, rows.size, axis=0)
-        else:
-            values = hermite(self.t, z, self._slopes(z), np.clip(rows, self.t[0], self.t[-1]))
+        else:  # a backward march's times decrease: the same nodes read in increasing order
+            order = slice(None) if self.t[-1] >= self.t[0] else slice(None, None, -1)
+            values = hermite(self.t[order], z[order], self._slopes(z)[order],
+                             np.clip(rows, low, high))
         n = self.q.shape[1]
         if times.ndim == 0:
             return values[0, :n], values[0, n:]
@@ -181,7 +184,8 @@ class Solution:
         """``(q, p)`` exactly at the requested ``t_end`` (``at(t_end)``), or at the last node
         if the run did not say what it was asked for or stopped before ``t_end``."""
         end = self.t_end if self.t_end is not None else self.t[-1]
-        return self.at(min(end, self.t[-1]))
+        backward = self.t.size > 1 and self.t[-1] < self.t[0]
+        return self.at(max(end, self.t[-1]) if backward else min(end, self.t[-1]))
 
     def energy(self, system=None, params=None) -> np.ndarray:
         """``H(q_k, p_k, t_k)`` at every node, for the ``system`` that was solved (default: the

@@ -152,8 +152,9 @@ def check_span(t_span) -> tuple[float, float]:
 
 def check_times(t_eval, t_span=None, *, name: str = "t_eval") -> np.ndarray | None:
     """Output times (``t_eval`` of a march, ``--t-eval`` of the command line): a non-empty
-    1-d array of finite times, sorted (repeats allowed, as scipy's), inside ``t_span`` if
-    given; ``name`` is the argument the message names."""
+    1-d array of finite times, sorted in the direction of ``t_span`` (repeats allowed, as
+    scipy's: increasing, or decreasing for a backward span ``t_end < t0``; without a span
+    either way), inside ``t_span`` if given; ``name`` is the argument the message names."""
     if t_eval is None:
         return None
     try:
@@ -163,10 +164,15 @@ def check_times(t_eval, t_span=None, *, name: str = "t_eval") -> np.ndarray | No
     if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)):
         raise InputError(f"{name} must be a non-empty 1-d array of finite times, got "
                          f"{np.array2string(np.atleast_1d(times), threshold=6)}")
-    if np.any(np.diff(times) < 0):
+    increasing, decreasing = not np.any(np.diff(times) < 0), not np.any(np.diff(times) > 0)
+    backward = t_span is not None and t_span[1] < t_span[0]
+    if backward and not decreasing:
+        raise InputError(f"{name} must be sorted in decreasing order for a backward march "
+                         f"(t_end < t0), got {np.array2string(times, threshold=6)}")
+    if not backward and not increasing and (t_span is not None or not decreasing):
         raise InputError(f"{name} must be sorted in increasing order, got "
                          f"{np.array2string(times, threshold=6)}")
-    if t_span is not None and (times[0] < t_span[0] or times[-1] > t_span[1]):
+    if t_span is not None and (times.min() < min(t_span) or times.max() > max(t_span)):
         raise InputError(f"{name} must lie in t_span = [{t_span[0]:.10g}, {t_span[1]:.10g}] "
                          f"(the run's span), got times from {times[0]:.10g} to "
                          f"{times[-1]:.10g}")

@@ -1,6 +1,8 @@
 """The public interface: what ``import ddvp_nlp`` offers, dense output, the time keywords."""
 
+import inspect
 import pickle
+import re
 
 import numpy as np
 import pytest
@@ -156,3 +158,25 @@ def test_plot_writes_a_figure_for_a_march_and_for_a_bvp_solution(tmp_path):
         labels = [ax.get_ylabel() for ax in without.axes]
         assert len(without.axes) == len(with_energy.axes) - 1
         assert "$q$" in labels and "$p$" in labels and not any("H_0" in s for s in labels)
+
+
+@pytest.mark.parametrize("keyword, replacement", [
+    ("t_end", "t_span=(t0, t_end)"), ("t0", "t_span=(t0, t_end)"),
+    ("tol", "steps=StepControl(tol=...)"), ("max_steps", "steps=StepControl(max_steps=...)"),
+    ("rtol", "accuracy=Tolerance(rtol=...)"), ("accept_inaccurate",
+                                               "accuracy=Tolerance(stop=False)"),
+    ("compiler", "compilation=Compilation(compiler=...)"),
+    ("checkpoint", "output=Output(checkpoint=...)")])
+def test_a_removed_keyword_names_its_replacement(keyword, replacement):
+    """march's arguments before the option objects (0.1.0) are answered with what replaced
+    them, before anything is built; the signature keeps its count (the dozen above)."""
+    system = load_scene("harmonic").system
+    with pytest.raises(TypeError, match=re.escape(f"march() no longer takes {keyword}=: give "
+                                                  f"{replacement}")):
+        march(system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, **{keyword: 5})
+    with pytest.raises(TypeError, match="unexpected keyword argument 'nonsense'"):
+        march(system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, nonsense=1)
+    with pytest.raises(TypeError, match=re.escape("solve_bvp() no longer takes max_iter=: give "
+                                                  "options=GridOptions(max_iter=...)")):
+        solve_bvp(system, [1.0], [0.0], (0.0, 1.0), nodes=5, max_iter=3)
+    assert len(inspect.signature(march).parameters) == MOST_PARAMETERS + 1

@@ -230,3 +230,28 @@ def test_the_default_check_finds_a_default_of_the_command_lines_own():
     parser = argparse.ArgumentParser(prog="x")
     parser.add_argument("--tol", type=float, default=1e-9)
     assert _defaults(parser)["tol"] == 1e-9  # what the walk above would flag for `x`
+
+
+def test_the_guides_synopsis_is_the_parsers():
+    """Section 11 of the guide (the synopsis the README points to) names every command and
+    every option of each command's parser, and no option the parser does not know."""
+    import re
+    from pathlib import Path
+
+    from ddvp_nlp.cli.parser import build_parser
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "guide.md").read_text()
+    synopsis = text[text.index("## 11. The command line in full"):]
+    synopsis = synopsis[synopsis.index("```text"):]
+    synopsis = synopsis[:synopsis.index("```\n", 7)]
+    known = {"--version"}
+    for name, sub in build_parser().commands.items():
+        options = {o for action in sub._actions for o in action.option_strings
+                   if o.startswith("--")} - {"--help"}
+        known |= options
+        assert f"ddvp {name}" in synopsis, f"command {name} missing from the guide's synopsis"
+        missing = sorted(o for o in options if not re.search(re.escape(o) + r"(?![\w-])",
+                                                             synopsis))
+        assert not missing, f"ddvp {name}: {missing} missing from the guide's synopsis"
+    unknown = set(re.findall(r"--[a-z][a-z0-9-]*", synopsis)) - known
+    assert not unknown, f"the guide's synopsis names options the parser lacks: {unknown}"

@@ -38,3 +38,18 @@ def test_licence_and_version():
     with pytest.raises(SystemExit) as stop:
         main(["--version"])
     assert stop.value.code == 0
+
+
+def test_one_version_everywhere():
+    """pyproject.toml, ddvp_nlp.__version__ and the newest release of CHANGELOG.md agree."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    import ddvp_nlp
+
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+    releases = re.findall(r"^## \[(\d+\.\d+\.\d+)\]", (ROOT / "CHANGELOG.md").read_text(),
+                          flags=re.M)
+    assert declared == ddvp_nlp.__version__ == releases[0], (declared, ddvp_nlp.__version__,
+                                                             releases)

@@ -53,7 +53,10 @@ def test_bad_events_and_times_are_refused_by_name():
     with pytest.raises(InputError, match=r"events\[0\].terminal"):
         Output(events=bad)
     with pytest.raises(InputError, match="t_eval must be sorted"):
-        Output(t_eval=[2.0, 1.0])
+        Output(t_eval=[2.0, 1.0, 3.0])
+    # decreasing times are a backward march's (t_end < t0); a forward one refuses them
+    with pytest.raises(InputError, match="t_eval must be sorted in increasing order"):
+        load_scene("harmonic").march(5.0, output=Output(t_eval=[2.0, 1.0]))
     with pytest.raises(InputError, match=r"t_eval must lie in t_span = \[0, 5\]"):
         load_scene("harmonic").march(5.0, output=Output(t_eval=[6.0]))
 

@@ -27,9 +27,9 @@ def blocks(language: str) -> list[str]:
 def test_the_section_has_each_item_of_issue_31():
     text = section()
     for item in ("t_eval", "events", "Scene.march", "--resume", "Collect", "--cluster",
-                 "--progress"):
+                 "--progress", "--keep-every"):
         assert item in text, item
-    assert len(blocks("python")) == 2 and len(blocks("bash")) == 3
+    assert len(blocks("python")) == 2 and len(blocks("bash")) == 4
 
 
 def test_the_python_examples_run_and_print_what_they_say(capsys):
@@ -57,3 +57,5 @@ def test_the_commands_run(tmp_path, monkeypatch, capsys):
     assert "6 orbits" in out and "0 orbits failed" in out
     resumed = np.load(tmp_path / "runs" / "resume-demo" / "result.npz")
     assert resumed["t"][-1] == pytest.approx(20.0)
+    kept = np.load(tmp_path / "runs" / "kept-demo" / "result.npz")
+    assert kept["t"][-1] >= 2e4 and 3900 <= kept["t"].size <= 4100  # every 100th of about 4e5

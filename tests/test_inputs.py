@@ -36,9 +36,9 @@ def expect(message):
     ({"tau0": 0.0}, "tau0 must be > 0, got 0.0"),
     ({"tau0": -0.1}, "tau0 must be > 0, got -0.1"),
     ({"tau0": float("nan")}, "tau0 must be finite, got nan"),
-    ({"tau0": 20.0}, "tau0 must not exceed t_end - t0 = 10.0, got 20.0"),
+    ({"tau0": 20.0}, "tau0 must not exceed |t_end - t0| = 10.0, got 20.0"),
     ({"t_end": 0.0}, "t_end must be > t0 = 0.0, got 0.0"),
-    ({"t_end": -1.0}, "t_end must be > t0 = 0.0, got -1.0"),
+    ({"t_end": -1.0, "tau0": 2.0}, "tau0 must not exceed |t_end - t0| = 1.0, got 2.0"),
     ({"scheme": "euler"}, "unknown scheme 'euler' (choose from vddvp, lee, fixed)"),
     ({"tol": 0.0}, "tol must be > 0, got 0.0"),
     ({"max_steps": 0}, "max_steps must be a positive integer, got 0"),
@@ -152,20 +152,44 @@ def test_parameter_value_of_the_wrong_type_in_a_scene():
         scene.resolve({"e": "0.5"})
 
 
-def test_scene_settings_are_objects_not_dicts():
-    """A scene's fixed-endpoint and periodic defaults have one shape, a dataclass; the dicts
-    they used to be are refused by name."""
+def test_scene_settings_as_objects_or_plain_forms():
+    """A scene's fixed-endpoint and periodic defaults are their dataclasses, or the plain
+    forms the docs write (a dict of fields; a tuple for boundary), made into the same objects
+    with the same checks; anything else, an unknown field or a bad value is refused by name."""
     from ddvp_nlp import Endpoints, PeriodicSettings, Scene
 
     def H(q, p, t):
         return (p[0] ** 2 + q[0] ** 2) / 2
 
-    with expect("scene 'scene': boundary must be Endpoints(...) or None, got {'nodes': 5}"):
-        Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0, boundary={"nodes": 5})
-    with expect("scene 'scene': periodic must be PeriodicSettings(...) or None, got "
-                "{'energy': 0.5}"):
-        Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0, periodic={"energy": 0.5})
-    scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0,
-                  boundary=Endpoints(q_start=[1.0], q_end=[0.0], t_span=(0.0, 1.0)),
-                  periodic=PeriodicSettings(energy=0.5))
-    assert scene.resolve_boundary({}).nodes == 101 and scene.periodic.section == "p1=0"
+    def scene(**kwargs):
+        return Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1.0, **kwargs)
+
+    made = scene(boundary=Endpoints(q_start=[1.0], q_end=[0.0], t_span=(0.0, 1.0)),
+                 periodic=PeriodicSettings(energy=0.5))
+    assert made.resolve_boundary({}).nodes == 101 and made.periodic.section == "p1=0"
+    plain = scene(boundary={"q_start": [1.0], "q_end": [0.0], "t_span": (0.0, 1.0)},
+                  periodic={"energy": 0.5, "angles": ["q1"],
+                            "families": {"other": {"section": "q1=0"}}})
+    assert plain.boundary == made.boundary and plain.periodic.energy == 0.5
+    assert plain.periodic.angles == ("q1",)
+    assert plain.periodic.families["other"] == PeriodicSettings(section="q1=0")
+    assert scene(boundary=([1.0], [0.0], (0.0, 1.0), 21)).resolve_boundary({}).nodes == 21
+    with expect("scene 'scene': boundary: unknown field 'node' of Endpoints (known: q_start, "
+                "q_end, t_span, nodes)"):
+        scene(boundary={"node": 5})
+    with expect("scene 'scene': periodic: unknown field 'energie' of PeriodicSettings (known: "
+                "section, energy, nodes, start, integrals, angles, families, guess, period)"):
+        scene(periodic={"energie": 0.5})
+    with expect("scene 'scene': periodic must be PeriodicSettings(...), a dict of its fields, "
+                "or None, got 0.5"):
+        scene(periodic=0.5)
+    with expect("scene 'scene': periodic: PeriodicSettings energy must be a real number, got "
+                "'0.5'"):
+        scene(periodic={"energy": "0.5"})
+    with pytest.raises(InputError, match=re.escape(
+            "scene 'scene': periodic: PeriodicSettings families['x']: unknown field")):
+        scene(periodic={"families": {"x": {"sections": "q1=0"}}})
+    with expect("scene 'scene': boundary: Endpoints nodes must be an integer >= 2, got 1"):
+        scene(boundary={"nodes": 1})
+    with expect("scene 'scene': boundary: t_end must be > t0 = 1.0, got 0.0"):
+        scene(boundary=([1.0], [0.0], (1.0, 0.0)))

@@ -17,7 +17,6 @@ WINDOW = 3000  # small windows: a short march crosses many of them
 
 @pytest.fixture
 def small_windows(monkeypatch):
-    monkeypatch.setattr(thinning, "WINDOW", WINDOW)
     rows = []
     settle = thinning.Thinning.settle
 
@@ -31,6 +30,8 @@ def small_windows(monkeypatch):
 def _pendulum(t_end=400.0, **output):
     scene = load_scene("pendulum")
     config = scene.resolve({})
+    if "keep_every" in output or "keep" in output:
+        output.setdefault("window", WINDOW)
     return march(scene.system, config.q0, config.p0, (config.t0, t_end), tau0=config.tau0,
                  params=config.params, output=Output(**output) if output else None)
 
@@ -100,7 +101,6 @@ def test_keep_t_eval_keeps_the_states_and_events_only(small_windows):
 def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, monkeypatch):
     """Kepler with chunk steps refused and redone on the careful path: the index of a node in
     the run (not its row) decides the careful step's clock and the chunk's state."""
-    monkeypatch.setattr(thinning, "WINDOW", 100)
     scene = load_scene("kepler")
     config = scene.resolve({"e": 0.5, "t_end": 30.0})
     common = dict(tau0=0.01, params=config.params, accuracy=None,
@@ -108,7 +108,7 @@ def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, monke
                   steps=StepControl(breakdown="least_squares", tau_max=0.95 * 0.0512))
     full = march(scene.system, config.q0, config.p0, (config.t0, config.t_end), **common)
     thin = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
-                 output=Output(keep_every=5), **common)
+                 output=Output(keep_every=5, window=100), **common)
     assert full.stats["careful_steps"] > 10 and thin.stats["kept"]["windows"] > 5
     idx = _kept(full.t.size, 5)
     assert np.array_equal(full.t[idx], thin.t) and np.array_equal(full.q[idx], thin.q)
@@ -188,7 +188,7 @@ def test_a_stopped_long_march_is_returned_without_the_work_over_every_node(monke
     had taken 8 s of the 10.7 s from the signal to the exit); here 'millions' is 1000."""
     from ddvp_nlp.solvers.marching import initial_value
 
-    monkeypatch.setattr(initial_value, "INTERRUPTED_JUDGED", 1000)
+    monkeypatch.setattr(initial_value, "_too_many_to_judge", lambda nodes: nodes > 1000)
     calls = []
 
     def stop():

@@ -76,7 +76,7 @@ def test_the_section_may_be_any_coordinate_value_the_orbit_crosses():
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"energy": 2.5}, "energy 2.5 is outside the range where the section p1=0 meets"),
-    ({"energy": -0.1}, "energy -0.1 is outside the range"),
+    ({"energy": -0.1}, "no motion exists at energy -0.1: H is at least 0"),
     ({"nodes": 2}, "nodes must be an integer >= 4, got 2"),
     ({"section": "p2=0"}, "section names no coordinate: p2"),
     ({"section": "x1=0"}, "section must be NAME=VALUE with NAME one of q1..q1, p1..p1, got 'x1=0'"),
@@ -162,3 +162,18 @@ def test_cli_bad_input_exits_2_before_any_output(tmp_path, capsys, arguments, me
     error = capsys.readouterr().err
     assert message in error and "Traceback" not in error
     assert not out.exists()
+
+
+def test_an_energy_below_every_motion_says_that_no_motion_exists():
+    """'ddvp periodic pendulum --energy -1' had suggested a rotation section: below the least
+    value of H there is no motion at all, and the message says so with the minimum; an energy
+    above the librations still gets the rotation hint."""
+    import re
+
+    pendulum = load_scene("pendulum")
+    with pytest.raises(InputError, match=re.escape(
+            "no motion exists at energy -1.0: H is at least 0 (its minimum, at q = [0.0], "
+            "p = [0.0]); give an energy above it")):
+        pendulum.solve_periodic(-1.0)
+    with pytest.raises(InputError, match="a rotation of the angle q1 has a section on it"):
+        pendulum.solve_periodic(3.0)

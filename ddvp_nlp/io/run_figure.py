@@ -202,9 +202,12 @@ def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None) -> None
     bins = figures.bins_for(ax)
     names = [name for name, _, _ in curves]
     for index, (name, times, values) in enumerate(curves):
-        chosen = (times >= start) & (times <= stop)
-        shown = figures.positive(values[chosen]) if log else values[chosen]
-        figures.envelope_band(ax, times[chosen], shown, bins, lw=0.7, label=name or None,
+        chosen = (times >= min(start, stop)) & (times <= max(start, stop))
+        times, values = times[chosen], values[chosen]
+        if times.size > 1 and times[-1] < times[0]:  # a backward march: the envelope's bins
+            times, values = times[::-1], values[::-1]  # want increasing times
+        shown = figures.positive(values) if log else values
+        figures.envelope_band(ax, times, shown, bins, lw=0.7, label=name or None,
                               color=f"C{index % 8}")
         if ends is not None:
             fixed = np.isin(times, ends) & chosen
@@ -212,7 +215,7 @@ def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None) -> None
                     label="fixed ends" if index == 0 else None)
     if log:
         ax.set_yscale("log")
-    ax.set_xlim(start, stop)
+    ax.set_xlim(start, stop)  # a backward march's axis runs from t0 down to t_end
     ax.minorticks_off()  # 40% of the drawing time of a run figure, and little to read
     labelled = 1 < len(names) <= LEGEND_COMPONENTS and all(names)
     if labelled or ends is not None:

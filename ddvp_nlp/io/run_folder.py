@@ -234,6 +234,9 @@ def check_run_arrays(where: str, arrays: dict) -> None:
             raise InputError(f"{where}: {name} must hold real numbers, got dtype {value.dtype}")
         if not np.all(np.isfinite(value)):
             raise InputError(f"{where}: {name} holds values that are not finite")
+    if t.ndim == 1 and t.size >= 2 and np.all(np.diff(t) < 0):
+        raise InputError(f"{where}: the run marched backwards (t decreasing); --resume and "
+                         "--guess take a forward run")
     if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0):
         raise InputError(f"{where}: t must be at least two strictly increasing times")
     if q.ndim != 2 or q.shape[0] != t.size or p.shape != q.shape or q.shape[1] < 1:

@@ -12,6 +12,12 @@ depends on ``t`` is read off the expression, not declared.
 
 from __future__ import annotations
 
+import contextlib
+import inspect
+import linecache
+import os
+import re
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -60,7 +66,8 @@ class HamiltonianSystem:
         no symbol it was not given."""
         symbols = {name: self.theta[i] for i, name in enumerate(self.params)}
         try:
-            value = function(self.q, second, self.t, **symbols)
+            with numpy_on_symbols(f"{kind} of {self.name!r}"):
+                value = function(self.q, second, self.t, **symbols)
         except InputError:
             raise
         except Exception as exc:  # the user's function; say whose it was
@@ -96,6 +103,52 @@ class HamiltonianSystem:
             return np.zeros(0)
         return evaluate_columns(self, self.H_function, [q.T, p.T, t[None, :]], theta).ravel()
 
+
+
+# CasADi's own warning when numpy's functions meet its symbols (20 lines about its numpy mode)
+NUMPY_ON_CASADI = "a numpy function was called on a casadi value"
+
+
+@contextlib.contextmanager
+def numpy_on_symbols(whose: str):
+    """Run a user's function on CasADi symbols with CasADi's 20-line warning about numpy's
+    functions (``np.cos(q[0])``) replaced by one of the tool's own, once, naming ``whose``
+    function, the numpy functions its line calls and where: the expression is right (numpy
+    hands the call to CasADi), but the user should write ``ca.cos``. Every other warning goes
+    on as it would have."""
+    calls: list[str] = []
+    previous = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if NUMPY_ON_CASADI in str(message):
+            calls.append(_numpy_call_site())
+        else:
+            previous(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("always", message=f".*{NUMPY_ON_CASADI}")
+        warnings.showwarning = show
+        yield
+    if calls:
+        sites = sorted(set(calls))
+        warnings.warn(f"{whose} uses numpy's functions on CasADi symbols ({'; '.join(sites)}); "
+                      "use casadi's (ca.cos, ca.exp, ...) instead", RuntimeWarning, stacklevel=3)
+
+
+def _numpy_call_site() -> str:
+    """``FILE:LINE np.cos`` of the innermost frame outside numpy, CasADi and this module:
+    the user's line that called numpy on a symbol."""
+    frame = inspect.currentframe()
+    inside = (os.path.dirname(np.__file__), os.path.dirname(ca.__file__))
+    while frame is not None and (frame.f_code.co_filename.startswith(inside)
+                                 or frame.f_code.co_filename in (warnings.__file__, __file__)):
+        frame = frame.f_back
+    if frame is None:
+        return "numpy"
+    source = linecache.getline(frame.f_code.co_filename, frame.f_lineno)
+    names = sorted(set(re.findall(r"\b(?:np|numpy)\.(\w+)", source)))
+    where = f"{os.path.basename(frame.f_code.co_filename)}:{frame.f_lineno}"
+    return f"{where}: {', '.join('np.' + name for name in names) or 'numpy'}"
 
 
 def as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:

@@ -16,6 +16,7 @@ The built-in scenes are the files of the top-level ``problems/`` folder (install
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -30,6 +31,7 @@ from ..validation import (
     check_parameter_ranges,
     check_parameter_values,
     check_real,
+    check_span,
     check_state,
     check_step,
 )
@@ -54,6 +56,13 @@ class Endpoints:
     q_end: object = None
     t_span: tuple | None = None
     nodes: int | None = None
+
+    def __post_init__(self):
+        if self.t_span is not None:
+            object.__setattr__(self, "t_span", check_span(self.t_span))
+        if self.nodes is not None:
+            object.__setattr__(self, "nodes", check_integer("Endpoints nodes", self.nodes,
+                                                            minimum=2))
 
 
 @dataclass(frozen=True)
@@ -89,6 +98,35 @@ class PeriodicSettings:
     guess: Callable[..., Mapping] | None = None
     period: Callable[..., object] | None = None
 
+    def __post_init__(self):
+        if not isinstance(self.section, str) or "=" not in self.section:
+            raise InputError(f"PeriodicSettings section must be 'NAME=VALUE' such as 'p1=0', "
+                             f"got {self.section!r}")
+        check_real("PeriodicSettings energy", self.energy, allow_none=True)
+        object.__setattr__(self, "nodes", check_integer("PeriodicSettings nodes", self.nodes,
+                                                        minimum=3))
+        if self.start is not None and (isinstance(self.start, (str, Mapping))
+                                       or len(self.start) != 2):
+            raise InputError(f"PeriodicSettings start must be a pair (q, p), got "
+                             f"{self.start!r}")
+        for name in ("integrals", "angles"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not isinstance(value, (tuple, list)):
+                raise InputError(f"PeriodicSettings {name} must be a tuple such as ('q1',), "
+                                 f"got {value!r}")
+            object.__setattr__(self, name, tuple(value))
+        if not isinstance(self.families, Mapping):
+            raise InputError(f"PeriodicSettings families must be a dict of names to settings, "
+                             f"got {self.families!r}")
+        object.__setattr__(self, "families", {
+            name: as_settings(f"PeriodicSettings families[{name!r}]", value, PeriodicSettings)
+            for name, value in self.families.items()})
+        for name in ("guess", "period"):
+            value = getattr(self, name)
+            if value is not None and not callable(value):
+                raise InputError(f"PeriodicSettings {name} must be a function or None, got "
+                                 f"{value!r}")
+
     def exact_period(self, section: str, params: Mapping) -> Callable | None:
         """``T(E)`` (one argument, ``params`` bound) of the family through ``section``: this
         family's or one of `families`' ``period`` whose section is ``section`` (spaces
@@ -102,12 +140,32 @@ class PeriodicSettings:
         return None
 
 
-def _check_settings(owner: str, name: str, value, kind):
-    """A scene's ``boundary``/``periodic`` setting is ``None`` or a ``kind``; anything else
-    (a dict, the shape these had before) is refused by name."""
-    if value is not None and not isinstance(value, kind):
-        raise InputError(f"scene {owner!r}: {name} must be {kind.__name__}(...) or None, got "
+def as_settings(where: str, value, kind):
+    """A scene's ``boundary``/``periodic`` setting as its object: ``None``, a ``kind``, a
+    mapping of its field names (``{"energy": 0.5}``, as the docs write it) or, for
+    `Endpoints`, a tuple of its fields in order (``(q_start, q_end, t_span, nodes)``); each
+    made by the class, so both forms pass the same checks. Anything else, or an unknown field,
+    is an `InputError` naming ``where``."""
+    if value is None or isinstance(value, kind):
+        return value
+    fields = [f.name for f in dataclasses.fields(kind)]
+    shapes = "a dict of its fields" + (" or a tuple (q_start, q_end, t_span, nodes)"
+                                       if kind is Endpoints else "")
+    if isinstance(value, Mapping):
+        unknown = [k for k in value if k not in fields]
+        if unknown:
+            raise InputError(f"{where}: unknown field {unknown[0]!r} of {kind.__name__} "
+                             f"(known: {', '.join(fields)})")
+        arguments, positional = dict(value), ()
+    elif kind is Endpoints and isinstance(value, (tuple, list)) and len(value) <= len(fields):
+        arguments, positional = {}, tuple(value)
+    else:
+        raise InputError(f"{where} must be {kind.__name__}(...), {shapes}, or None, got "
                          f"{value!r}")
+    try:
+        return kind(*positional, **arguments)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
 
 @dataclass(eq=False)
@@ -130,13 +188,15 @@ class Scene:
             start it does not cover (an unbound Kepler orbit, a rotating pendulum), and the
             studies then use a DOP853 reference, the run files no exact error.
         invariants: optional named first integrals besides ``H``, ``f(q, p, **params) -> (N,)``.
-        boundary: optional default fixed-endpoint data, an `Endpoints`.
+        boundary: optional default fixed-endpoint data, an `Endpoints` (or the same as a
+            dict of its fields, or a tuple ``(q_start, q_end, t_span, nodes)``).
         name, description: set from the file name and docstring when loaded.
         source: the name or path it was loaded from (empty for a scene made in Python); grid
             tasks reload the scene from it in their own process.
         digest: the SHA-256 of the file it was loaded from (empty for a scene made in
             Python): what a run folder's name and a resumed run's check are made of.
-        periodic: optional defaults of ``ddvp periodic``, a `PeriodicSettings`.
+        periodic: optional defaults of ``ddvp periodic``, a `PeriodicSettings` (or a dict of
+            its fields: ``periodic={"energy": 0.5, "angles": ("q1",)}``).
         scheme: optional scheme ``ddvp march`` and ``ddvp bvp`` use when ``--scheme`` is not
             given (default ``None``: the paper's ``vddvp``); ``ddvp scenes`` shows it.
         ranges: optional intervals of the parameters where the scene means something, e.g.
@@ -166,8 +226,8 @@ class Scene:
 
     def __post_init__(self):
         _check_common(self)
-        _check_settings(self.name, "boundary", self.boundary, Endpoints)
-        _check_settings(self.name, "periodic", self.periodic, PeriodicSettings)
+        self.periodic = as_settings(f"scene {self.name!r}: periodic", self.periodic,
+                                    PeriodicSettings)
         for key in ("q0", "tau0", "t_end"):
             if getattr(self, key) is None:
                 raise InputError(f"scene needs {key}")
@@ -228,8 +288,9 @@ class Scene:
         values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
         for k, v in values.items():
             check_real(k, v)
-        if values["t_end"] <= values["t0"]:
-            raise InputError(f"t_end must be > t0 = {values['t0']!r}, got {values['t_end']!r}")
+        if values["t_end"] == values["t0"]:  # t_end < t0: a march backwards in time
+            raise InputError(f"t_end must differ from t0 = {values['t0']!r} (t_end < t0 "
+                             f"marches backwards), got {values['t_end']!r}")
         check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
         q0, p0, v0 = (None if x is None else self._start_value(name, x, params)
                       for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))
@@ -458,7 +519,7 @@ def _check_common(scene) -> None:
     ``n`` a size that fits in memory, ``params`` a mapping of names to finite numbers (a list
     was taken and failed later), ``ranges`` intervals holding the defaults."""
     _check_scheme_name(scene.scheme)
-    _check_settings(scene.name, "boundary", scene.boundary, Endpoints)
+    scene.boundary = as_settings(f"scene {scene.name!r}: boundary", scene.boundary, Endpoints)
     scene.n = check_degrees(scene.n)
     owner = f"scene {scene.name!r}"
     if not isinstance(scene.params, Mapping) or not all(isinstance(k, str)

@@ -275,7 +275,7 @@ class Output:
             the march with status ``event`` (``solvers/dense.py``).
         keep_every: a long march keeps only every ``keep_every``-th node (node indices
             ``0, k, 2k, ...``) and its last node; the others are dropped as the march goes
-            (in windows of ``marching/thinning.py``'s ``WINDOW`` nodes), so memory and the
+            (in windows of ``window`` nodes), so memory and the
             written file grow with the nodes kept, not with the steps. Every node is still
             marched, watched by the monitors and events, and judged by the accuracy check, a
             window at a time (``accuracy/streaming.py`` says what it keeps and where its
@@ -286,6 +286,9 @@ class Output:
         keep: ``"nodes"`` (default: every ``keep_every``-th node) or ``"t_eval"``: only the
             first and the last node are kept besides the ``t_eval`` states and the events
             (one of them must be asked for).
+        window: nodes a thinned march holds before it drops those it does not keep (and
+            rechecks and judges them): its memory bound, default 65536 (about 1.5 MB for one
+            degree of freedom); the kept nodes and the verdict do not depend on it.
     """
 
     progress: bool = False
@@ -296,10 +299,14 @@ class Output:
     events: object = None
     keep_every: int = 1
     keep: str = "nodes"
+    window: int = 65536
 
     def __post_init__(self):
         _set(self, "progress", _flag("progress", self.progress))
         _set(self, "keep_every", check_integer("keep_every", self.keep_every))
+        _set(self, "window", check_integer("window", self.window))
+        if self.window < 16:
+            raise InputError(f"window must be at least 16 nodes, got {self.window!r}")
         if self.keep not in KEEPS:
             raise InputError(f"keep must be one of {', '.join(KEEPS)}, got {self.keep!r}")
         if self.checkpoint is not None and not callable(self.checkpoint):
@@ -342,3 +349,49 @@ def coerce(value, kind, name: str):
     if not isinstance(value, kind):
         raise InputError(f"{name} must be a {kind.__name__}(...), got {value!r}")
     return value
+
+
+# --- keywords a solver no longer takes ---------------------------------------------------------
+
+# Arguments the solvers took before their options became objects (version 0.1.0), with what
+# replaced them where that is not a field of one of the option objects below.
+_MOVED = {"t0": "t_span=(t0, t_end)", "t_end": "t_span=(t0, t_end)",
+          "accept_inaccurate": "accuracy=Tolerance(stop=False)",
+          "check_accuracy": "accuracy=None (no check) or a Tolerance",
+          "p_start": "guess=Shooting(p_start)", "max_iter": "options=GridOptions(max_iter=...)"}
+# Which argument of a solver holds each option object (its name in the signature).
+_HOLDERS = (("steps", StepControl), ("accuracy", Tolerance), ("options", GridOptions),
+            ("compilation", Compilation), ("output", Output))
+
+
+def replacement(name: str, parameters) -> str | None:
+    """What replaced the keyword ``name`` in a solver whose parameters are ``parameters``:
+    ``t_span=(t0, t_end)`` for ``t_end``, ``steps=StepControl(tol=...)`` for ``tol``, ...;
+    ``None`` for a name that was never an argument."""
+    if name in _MOVED and _MOVED[name].split("=")[0] in parameters:
+        return _MOVED[name]
+    for holder, kind in _HOLDERS:
+        if holder in parameters and name in kind.__dataclass_fields__:
+            return f"{holder}={kind.__name__}({name}=...)"
+    return None
+
+
+def answers_removed_keywords(function):
+    """``function`` as it is (same signature, same parameters), but a keyword it does not take
+    that it or its options took before is a ``TypeError`` naming the replacement
+    (``march(..., t_end=5)``: give ``t_span=(t0, t_end)``), not Python's bare 'unexpected
+    keyword argument'."""
+    import functools
+    import inspect
+
+    parameters = frozenset(inspect.signature(function).parameters)
+
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        for name in kwargs.keys() - parameters:
+            instead = replacement(name, parameters)
+            if instead is not None:
+                raise TypeError(f"{function.__name__}() no longer takes {name}=: give "
+                                f"{instead} (CHANGELOG.md, 0.2.0)")
+        return function(*args, **kwargs)
+    return wrapper

@@ -187,7 +187,7 @@ def fixed_step_map(system: HamiltonianSystem, scheme: Scheme):
     canonical = canonical_function(system, scheme)
     g = ca.Function("g", [z_next, ca.vertcat(z, t, tau, theta)],
                     [canonical(t, t + tau, z[:n], z[n:], z_next[:n], z_next[n:], theta)])
-    root = ca.rootfinder("step", "newton", g, {"abstol": 1e-15})
+    root = ca.rootfinder("step", "newton", g, {"abstol": 1e-15, "show_eval_warnings": False})
     z_out = root(z, ca.vertcat(z, t, tau, theta))
     return ca.Function("fixed_step_map", [z, t, tau, theta],
                        [z_out, ca.jacobian(z_out, z)])
@@ -216,7 +216,8 @@ def extended_lee_map(system: HamiltonianSystem, scheme: Scheme):
         t, t + tau, q, p, q_next, p_next, theta)
     g = ca.Function("g", [unknown, ca.vertcat(x, theta)],
                     [ca.vertcat(canonical, dS_left + minus_E)])
-    root = ca.rootfinder("lee_step", "newton", g, {"abstol": 1e-15})
+    root = ca.rootfinder("lee_step", "newton", g, {"abstol": 1e-15,
+                                                   "show_eval_warnings": False})
     X = ca.MX.sym("X", 2 * n + 2)
     Theta = ca.MX.sym("Theta", system.theta.numel())
     Guess = ca.MX.sym("Guess", 2 * n + 1)

@@ -21,7 +21,7 @@ from ...physics.hamiltonian import HamiltonianSystem
 
 # The AVF step's own Newton (an implicit fixed-step map, solved inside a baseline's chunk).
 AVF_NEWTON = MappingProxyType({"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 12,
-                               "error_on_fail": False})
+                               "error_on_fail": False, "show_eval_warnings": False})
 
 
 def avf_step(system: HamiltonianSystem) -> ca.Function:

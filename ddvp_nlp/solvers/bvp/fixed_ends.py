@@ -57,7 +57,7 @@ from ..dense import attach
 from ..exact.shooting import shoot
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest
-from ..options import Compilation, GridOptions, Output, Tolerance, coerce
+from ..options import Compilation, GridOptions, Output, Tolerance, answers_removed_keywords, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
 from .first_guess import Shooting, branch_obstacle, start_point
 from .interleaved import NodeLayout
@@ -88,6 +88,7 @@ START_HINT = {
 DEFAULT_MAX_ITER = 200
 
 
+@answers_removed_keywords
 def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: int,
               scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
               guess: Solution | Mapping | Shooting | str | None = None, times=None,

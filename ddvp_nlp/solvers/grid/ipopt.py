@@ -66,7 +66,10 @@ def ipopt_settings(tol: float, max_iter: int, verbose: bool, time_limit: float |
     ``tol`` and the rows' round-off ``floor``, its output if ``verbose``, its wall-time limit,
     then ``options``."""
     inner = solver_tolerance(tol, floor)
+    # show_eval_warnings: CasADi's "Inf detected ... oracle_function.cpp" lines only with
+    # --verbose; the verdict says what failed in the tool's words
     settings = {"print_time": verbose, "ipopt.print_level": 5 if verbose else 0,
+                "show_eval_warnings": verbose,
                 "ipopt.sb": "yes", "ipopt.max_iter": max_iter,
                 "ipopt.tol": inner, "ipopt.constr_viol_tol": inner, **options}
     if time_limit is not None:

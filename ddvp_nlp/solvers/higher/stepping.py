@@ -26,7 +26,15 @@ from ..accuracy.judgement import apply_verdict
 from ..compiler import find_compiler
 from ..driver import Advance, Nodes, drive
 from ..grid.problem import GridRequest
-from ..options import DEFAULT_TOLERANCE, Compilation, GridOptions, StepControl, Tolerance, coerce
+from ..options import (
+    DEFAULT_TOLERANCE,
+    Compilation,
+    GridOptions,
+    StepControl,
+    Tolerance,
+    answers_removed_keywords,
+    coerce,
+)
 from .fixed_nodes import FixedNodes, mean_step, straight
 from .window_solve import grid_energies, solve_rule
 
@@ -38,7 +46,7 @@ DEFAULT_MAX_ITER = 500
 # The higher-order march's own step solve (one Euler-Lagrange/energy step in the last
 # difference; not the first-order march's Newton of solvers/marching/step_newton.py).
 HIGHER_STEP_NEWTON = MappingProxyType({"abstol": 1e-13, "abstolStep": 1e-15, "max_iter": 50,
-                                       "error_on_fail": False})
+                                       "error_on_fail": False, "show_eval_warnings": False})
 
 
 def _check_system(system) -> None:
@@ -65,6 +73,7 @@ def _positions(name: str, value, rows: int, n: int) -> np.ndarray:
     return array
 
 
+@answers_removed_keywords
 def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *,
                      nodes: int, scheme: str = "vddvp", params=None,
                      options: GridOptions | None = None,
@@ -269,6 +278,7 @@ class _HigherSteps:
         return None
 
 
+@answers_removed_keywords
 def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None = None, *,
                  scheme: str = "vddvp", params=None, steps: StepControl | None = None,
                  accuracy: Tolerance | None = DEFAULT_TOLERANCE) -> Solution:

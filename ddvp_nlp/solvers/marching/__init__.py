@@ -28,6 +28,8 @@ Where things are:
   for the trajectory error asked for;
 - ``thinning.py``: ``Output(keep_every=k)`` and ``Output(keep="t_eval")``: a march that keeps
   some of its nodes, rechecked and judged a window at a time as it goes.
+- ``backward.py``: a march with ``t_end < t0``, backwards in time, as the forward march of the
+  time-reversed ``H(q, -p, -t)`` mapped back node by node.
 
 The contract of the march. An implementer changing it must keep:
 

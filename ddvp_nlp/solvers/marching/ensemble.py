@@ -41,7 +41,14 @@ from ...solution import Solution
 from ...validation import check_integer, check_memory, check_span
 from ..compiler import build_count, find_compiler
 from ..dense import attach
-from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
+from ..options import (
+    DEFAULT_TOLERANCE,
+    Compilation,
+    StepControl,
+    Tolerance,
+    answers_removed_keywords,
+    coerce,
+)
 from .initial_value import check_problem, march
 
 # Blocks per worker: orbits differ in length (a failing orbit is short), so each worker takes
@@ -93,6 +100,7 @@ class Collect:
         return values if self.reduction is None else self.reduction(values)
 
 
+@answers_removed_keywords
 def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp", params=None,
                    steps: StepControl | None = None,
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,

@@ -42,8 +42,17 @@ from ..columns import row_max_abs
 from ..compiler import buffered, find_compiler
 from ..dense import DenseField, EventMonitor, attach, evaluate_at
 from ..driver import Nodes, drive
-from ..options import DEFAULT_TOLERANCE, Compilation, Output, StepControl, Tolerance, coerce
+from ..options import (
+    DEFAULT_TOLERANCE,
+    Compilation,
+    Output,
+    StepControl,
+    Tolerance,
+    answers_removed_keywords,
+    coerce,
+)
 from .acceptance import Acceptance
+from .backward import is_backward, march_backward
 from .chunk import FastChunk
 from .monitors import Checkpoint, EarlyVerdict, EnergyGuard, SolvabilityMonitor, StopRequest
 from .recheck import grid_residuals
@@ -67,6 +76,7 @@ def coerced(scheme, steps, accuracy, compilation, output):
             coerce(compilation, Compilation, "compilation"), coerce(output, Output, "output"))
 
 
+@answers_removed_keywords
 def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v0=None,
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
@@ -79,6 +89,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         q0: initial position, shape ``(n,)``.
         p0: initial momentum, shape ``(n,)`` (or give ``v0``).
         t_span: ``(t0, t_end)``; energy rules stop at the first node with ``t >= t_end``.
+            With ``t_end < t0`` the march runs backwards in time, as scipy's ``solve_ivp``
+            does: the forward march of ``H(q, -p, -t)`` mapped back (``backward.py``), its
+            times decreasing, ``t_eval`` sorted in decreasing order.
         tau0: first step; for energy rules it sets the discrete energy level, for ``fixed`` the
             step is ``(t_end - t0) / ceil((t_end - t0) / tau0)``, so the march ends on ``t_end``.
         v0: instead of ``p0``, for a Lagrangian system: the first interval's velocity; the
@@ -89,12 +102,17 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             residual tolerance, step bounds, what to do at a breakdown, ``max_steps``,
             ``time_limit``, ``energy_guard``).
         accuracy: the accuracy check (``solvers/accuracy/judgement.py``), which does not trust the
-            scheme's own equations: every step against one RK4 step of the exact flow, the
-            energy level of the first step, the propagated global error. The first failure ends
-            the march with status ``inaccurate`` (unless ``Tolerance.stop`` is off);
-            ``stats["accuracy"]`` and ``Solution.local_error`` hold the estimates. ``None``
-            leaves the check out (the comparison does, so that run times compare like with
-            like, and checks afterwards with ``accuracy.assess``).
+            scheme's own equations and measures the run against the exact flow
+            (``solvers/exact/``, adaptive order-8 Runge-Kutta): each step's local error against
+            the flow over that step (a step that one compiled RK4 step of the flow already
+            clears is screened with it), the energy level of the first step and the nodal
+            energy, and the trajectory error against a reference from the first node that
+            states its own error. The verdict is ``accurate``, ``drifted`` or ``inaccurate``;
+            the first steps are judged as they come (the early verdict), so a march that
+            plainly does not follow the motion ends there with status ``inaccurate`` (unless
+            ``Tolerance.stop`` is off); ``stats["accuracy"]`` and ``Solution.local_error`` hold
+            the figures. ``None`` leaves the check out (the comparison does, so that run times
+            compare like with like, and judges afterwards against the same exact flow).
         compilation: compiled chunks of steps or the careful path, the compiler and its cache
             (`Compilation`).
         output: progress bar, checkpoints, the stop request, the times to report
@@ -119,6 +137,11 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     Returns:
         A `Solution`; failures are a status on it, never an exception.
     """
+    if is_backward(t_span):  # t_end < t0: the forward march of H(q, -p, -t) (backward.py)
+        return march_backward(march, system, q0, p0, t_span, tau0=tau0, v0=v0, scheme=scheme,
+                              params=params, steps=steps, accuracy=accuracy,
+                              compilation=compilation, output=output,
+                              target_error=target_error)
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     target = None
     if target_error is not None:
@@ -140,6 +163,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     return run_march(problem, accuracy, compilation, output)
 
 
+@answers_removed_keywords
 def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | None = None, *,
                    tau0: float, scheme: str | Scheme = "vddvp",
                    params: Mapping[str, float] | None = None, steps: StepControl | None = None,
@@ -241,7 +265,7 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
         try:
             report, solution.local_error = _judged(
                 problem, solution, accuracy, compiler=judging, cache_dir=compilation.cache_dir,
-                stop=output.stop if outcome.t.size > INTERRUPTED_JUDGED else None)
+                stop=output.stop if _too_many_to_judge(outcome.t.size) else None)
         except CheckStopped:
             _left_unjudged(solution, outcome, output, asked=True)
             return _finished(solution, problem, events, output)
@@ -324,7 +348,7 @@ def _check_times(t_span, tau0):
     t0, t_end = check_span(t_span)
     tau0 = check_step(tau0, t0, t_end)
     if tau0 > t_end - t0:
-        raise InputError(f"tau0 must not exceed t_end - t0 = {t_end - t0!r}, got {tau0!r}")
+        raise InputError(f"tau0 must not exceed |t_end - t0| = {t_end - t0!r}, got {tau0!r}")
     return t0, t_end, tau0
 
 
@@ -377,13 +401,18 @@ def _build(problem: MarchProblem, compilation: Compilation, compiler) -> _Parts:
     return _Parts(functions, newton, tally, fast_chunk, stepper)
 
 
+def _too_many_to_judge(nodes: int) -> bool:
+    """Whether a stopped march of ``nodes`` nodes is returned unjudged."""
+    return nodes > INTERRUPTED_JUDGED
+
+
 def _stopping(outcome, output: Output) -> bool:
     """Whether a march of more than ``INTERRUPTED_JUDGED`` nodes was stopped, or is asked to
     stop now that it has ended (a Ctrl-C during its last chunks): it is returned without
     the work over every node (the recheck, the check), so that a user who stopped it waits
     for nothing but the writing of its nodes (7.8 million nodes: 1.6 s of recheck and 6.3 s
     of check had come between the Ctrl-C and the writing)."""
-    if outcome.t.size <= INTERRUPTED_JUDGED:
+    if not _too_many_to_judge(outcome.t.size):
         return False
     return outcome.status is Status.INTERRUPTED or (output.stop is not None and output.stop())
 
@@ -414,7 +443,8 @@ def _thinning(problem: MarchProblem, accuracy, output: Output, *, compiler, judg
         return grid_residuals(system, scheme, t, z[:, :n], z[:, n:], theta, compiler=compiler,
                               cache_dir=cache_dir)
     return Thinning(output.keep_every, output.keep, residuals=residuals, judge=judge,
-                    t_eval=output.t_eval, field=DenseField.of(system, theta))
+                    t_eval=output.t_eval, field=DenseField.of(system, theta),
+                    window=output.window)
 
 
 def _thinned(problem: MarchProblem, outcome, parts: _Parts, solvability, thinning: Thinning,

@@ -42,8 +42,11 @@ from .steps import EnergyCheck, FixedCheck, StepFunctions
 # The options of both paths' rootfinders (``newton`` careful, ``fast_newton`` compiled).
 # error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
 # Either way a step that did not converge fails its residual check and is redone carefully.
+# show_eval_warnings off: a trial point where the residual or its Jacobian is not finite is a
+# failed step the march reports in its own words, not CasADi's "NaN detected ...
+# oracle_function.cpp" line on stderr (issue 40)
 NEWTON_OPTIONS = MappingProxyType({"abstol": 1e-14, "abstolStep": 1e-14, "max_iter": 30,
-                                   "error_on_fail": False})
+                                   "error_on_fail": False, "show_eval_warnings": False})
 # Starting guesses for tau, as multiples of the previous step, tried in order when Newton from the
 # predictor fails or lands on tau <= 0. The spurious root sits at -tau_{k-1}; these start far
 # from it.

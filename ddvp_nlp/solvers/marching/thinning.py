@@ -25,8 +25,9 @@ import numpy as np
 from ...solution import hermite
 from ..columns import row_max_abs
 
-# Rows gathered before a window is settled: 64k nodes of a one-degree-of-freedom march are 1.5
-# MB; fewer windows cost nothing more than the recheck and the check on the same nodes.
+# Rows gathered before a window is settled (Output.window's default): 64k nodes of a
+# one-degree-of-freedom march are 1.5 MB; fewer windows cost nothing more than the recheck and
+# the check on the same nodes.
 WINDOW = 65536
 # Rows that stay behind after a window: the energy step starts from the last two nodes.
 STAY = 2

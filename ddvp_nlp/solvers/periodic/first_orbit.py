@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import warnings
 
+import casadi as ca
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
@@ -63,6 +64,13 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
                 f"energy {energy!r}: H is not finite anywhere on the start's ray of the "
                 f"section {label} (|z| up to {S_MAX:g} |d|, {SCAN_POINTS} points), so no start "
                 "on it has that energy; give a start (--guess) or another section")
+        least = least_energy(system, theta, points[np.argmin(np.where(np.isfinite(H), H,
+                                                                        np.inf))])
+        if least is not None and energy < least[0]:
+            raise NoMotion(
+                f"no motion exists at energy {energy!r}: H is at least {least[0]:.6g} (its "
+                f"minimum, at q = {np.round(least[1][:n], 6).tolist()}, p = "
+                f"{np.round(least[1][n:], 6).tolist()}); give an energy above it")
         raise InputError(
             f"energy {energy!r} is outside the range where the section {label} meets the "
             f"energy surface (along the start's ray H runs from {np.min(finite):.6g} to "
@@ -78,6 +86,37 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
     z = root * direction
     z[index - 1] = value
     return z
+
+
+class NoMotion(InputError):
+    """An energy below the least value of ``H``: no section and no start can help."""
+
+
+def least_energy(system, theta, z0: np.ndarray):
+    """``(H_min, z)``: a minimum of ``H(z, 0)`` searched from ``z0`` and from the origin (BFGS
+    on CasADi's gradient), or ``None`` where ``H`` is not bounded below there (the search runs
+    off, as on Kepler's) or the search fails."""
+    from scipy.optimize import minimize
+
+    n = system.n
+    z = ca.SX.sym("z", 2 * n)
+    H = system.H_function(z[:n], z[n:], 0, theta)
+    value = ca.Function("H", [z], [H, ca.gradient(H, z)])
+    found = []
+    for start in (np.asarray(z0, float), np.zeros(2 * n)):
+        def objective(x):
+            h, g = value(x)
+            return float(h), np.asarray(g, float).ravel()
+        try:
+            with np.errstate(all="ignore"):
+                result = minimize(objective, start, jac=True, method="BFGS",
+                                  options={"maxiter": 200, "gtol": 1e-10})
+        except (ValueError, RuntimeError, ArithmeticError):
+            continue
+        if np.isfinite(result.fun) and np.linalg.norm(result.jac) < 1e-6 and \
+                np.max(np.abs(result.x)) < 1e6:
+            found.append((float(result.fun), result.x))
+    return min(found, key=lambda item: item[0]) if found else None
 
 
 def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, scheme,

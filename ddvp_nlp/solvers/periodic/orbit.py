@@ -101,9 +101,16 @@ from ..compiler import find_compiler
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
-from ..options import GridOptions, Tolerance, coerce
+from ..options import GridOptions, Tolerance, answers_removed_keywords, coerce
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
-from .first_orbit import closing_shift, guess_nodes, march_to_return, predicted_grid, section_point
+from .first_orbit import (
+    NoMotion,
+    closing_shift,
+    guess_nodes,
+    march_to_return,
+    predicted_grid,
+    section_point,
+)
 from .orbit_nlp import periodic_ipopt
 from .refinement import continue_in_nodes, node_levels
 
@@ -156,6 +163,7 @@ class Orbit:
     start_note: str | None = None
 
 
+@answers_removed_keywords
 def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
@@ -352,6 +360,8 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
     if guess is None:
         try:
             orbit.point = section_point(system, theta, energy, index, value, direction, label)
+        except NoMotion:  # below the least energy: another section cannot help
+            raise
         except InputError as error:
             if angle_indices and index - 1 not in angle_indices:
                 raise InputError(f"{error}; a rotation of the angle q{angle_indices[0] + 1} "
