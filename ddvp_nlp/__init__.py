@@ -67,7 +67,7 @@ _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum")})
 
 
-# The version, written here and in pyproject.toml (tests/test_docs.py: they and CHANGELOG.md's
+# The version, written here and in pyproject.toml (tests/docs/test_links.py: they and CHANGELOG.md's
 # newest release agree). A literal, not importlib.metadata: that lookup (and the email package
 # behind it) was a third of what `import ddvp_nlp` adds to numpy and casadi, and it answered the
 # installed copy's version, not this tree's.

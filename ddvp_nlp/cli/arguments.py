@@ -31,8 +31,8 @@ def _argument(function, name: str):
 
 # Every command-line option that stands for a field of an option object or an argument of the
 # API, by command: the parser takes each default from here, so that a default exists once (the
-# API's); tests/test_cli_usage.py checks that every option with a default is here or is the
-# command line's own (CLI_ONLY).
+# API's); tests/workbench/cli/test_usage.py checks that every option with a default is here or
+# is the command line's own (CLI_ONLY).
 API_DEFAULTS = {
     "march": {"tol": lambda: _field(StepControl, "tol"),
               "tau_min": lambda: _field(StepControl, "tau_min"),

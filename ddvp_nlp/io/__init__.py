@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from ..cache import lazy_exports
 
 # name -> module (relative to this package) that defines it: the names scripts and users take
-# from io (tests/test_architecture.py holds the scripts to them)
+# from io (tests/architecture/test_architecture.py holds the scripts to them)
 PUBLIC = {
     # the house style of every figure: draw inside styled(), on new_figure(), write with save()
     "styled": "figures", "new_figure": "figures", "save": "figures",

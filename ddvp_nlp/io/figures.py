@@ -58,7 +58,7 @@ def other_formats(stem: str, fmt: str = "png") -> dict:
 
 
 # rcParams that configure the process rather than a figure's look: what matplotlib's style
-# sheets may not set (its STYLE_BLACKLIST; tests/test_figures.py checks the two agree).
+# sheets may not set (its STYLE_BLACKLIST; tests/workbench/io/test_figures.py checks the two agree).
 NOT_STYLE = frozenset({
     "backend", "backend_fallback", "date.epoch", "docstring.hardcopy", "figure.max_open_warning",
     "figure.raise_window", "interactive", "savefig.directory", "timezone", "tk.window_focus",

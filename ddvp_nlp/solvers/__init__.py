@@ -6,9 +6,9 @@ they are judged against. One folder per problem type (``marching/``, ``bvp/``, `
 module map is in ``docs/architecture.md``.
 
 The names below (``__all__``) are the library's public surface for the workbench (scenes, io,
-runner, studies, the command line, scripts): ``tests/test_architecture.py`` holds every import
-of the workbench from the solvers to them. They load when first asked for, so that importing one
-family does not load the others (and scipy.sparse behind them).
+runner, studies, the command line, scripts): ``tests/architecture/test_architecture.py``
+holds every import of the workbench from the solvers to them. They load when first asked
+for, so that importing one family does not load the others (and scipy.sparse behind them).
 
 Every solver keeps these rules:
 
@@ -23,13 +23,13 @@ Every solver keeps these rules:
    module global.
 5. The equations come from ``discrete/`` and are written nowhere here.
 
-What may import what (``tests/test_architecture.py``): the core imports no family; ``grid/``
-and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``; ``marching/`` the
-core and ``accuracy/``; ``baselines/`` the core, ``marching/`` and ``accuracy/``; ``bvp/`` and
-``periodic/`` the core, ``grid/``, ``marching/``, ``exact/`` and ``accuracy/``; ``higher/`` the
-core, ``grid/``, ``exact/`` and ``accuracy/``; ``chaos/`` the core, ``marching/`` and
-``exact/``. The package as a whole imports ``discrete``, ``physics`` and the base modules,
-never the workbench.
+What may import what (``tests/architecture/test_architecture.py``): the core imports no family;
+``grid/`` and ``exact/`` import only the core; ``accuracy/`` the core and ``exact/``;
+``marching/`` the core and ``accuracy/``; ``baselines/`` the core, ``marching/`` and
+``accuracy/``; ``bvp/`` and ``periodic/`` the core, ``grid/``, ``marching/``, ``exact/`` and
+``accuracy/``; ``higher/`` the core, ``grid/``, ``exact/`` and ``accuracy/``; ``chaos/`` the
+core, ``marching/`` and ``exact/``. The package as a whole imports ``discrete``, ``physics`` and
+the base modules, never the workbench.
 """
 
 from typing import TYPE_CHECKING

@@ -10,7 +10,7 @@ translation-invariant, a shift of the clock). In the marched variables
     H(q, p, t) = (u_q u_p / u_t) H~((q - shift) / u_q, p / u_p, (t - t_shift) / u_t) + offset,
 
 the same motion as ``H~``'s in other units: the verdict must not depend on them
-(tests/test_accuracy_metamorphic.py).
+(tests/library/accuracy/test_units.py).
 
 Each case is marched (``march``, its verdict by ``accuracy/judgement.py``) and measured against
 scipy's DOP853 at ``rtol = 1e-12`` with dense output, an integrator that shares nothing with the

@@ -97,7 +97,8 @@ def main() -> None:
     text = "\n".join([
         "# Published numbers, reproduced", "",
         "Regenerate: `python scripts/pages/comparison_page.py` (seconds). Tests: "
-        "`tests/test_alternatives.py` (the SUNDIALS numbers to 1%). Which method is cheapest "
+        "`tests/library/baselines/test_alternatives.py` (the SUNDIALS numbers to 1%). "
+        "Which method is cheapest "
         "over 10 to 10^5 periods: [../work_precision/horizons/README.md]"
         "(../work_precision/horizons/README.md).", "",
         "## SUNDIALS `ark_kepler`, leapfrog", "",

@@ -296,8 +296,9 @@ E = 0.1, the default start (a march from the turning point to its return).
 Above the separatrix (`E > 2`), on the section `q1 = 0`. One turn takes
 `T = int_0^{{2 pi}} dq / p(q)`, `p = sqrt(2 (E - 1 + cos q))`; with `q = 2 phi`,
 `E - 1 + cos q = E (1 - (2/E) sin^2 phi)`, so `T = 4 K(m) / sqrt(2E)` with the parameter
-`m = 2/E` (`2 K(1/k) / k` in the librations' modulus `k^2 = E/2`); `tests/test_periodic_solvers.py`
-checks it against a quadrature. N = 200, continuation from E = 2.2. The steps of the discrete
+`m = 2/E` (`2 K(1/k) / k` in the librations' modulus `k^2 = E/2`);
+`tests/library/periodic/test_orbit_solvers.py` checks it against a quadrature. N = 200,
+continuation from E = 2.2. The steps of the discrete
 rotation have a spike (3-5x the others at N = 100..800) where the level curve `p(q)` has an
 inflection: there `w = f' H_zz f` changes sign, the `tau^2 w / 8` term of the interval energy
 vanishes and the energy equation barely fixes the step (the midpoints `(Q_k, P_k)` lie on the

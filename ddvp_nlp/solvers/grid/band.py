@@ -8,7 +8,8 @@ and ``dgbtrs`` ``dswap`` and ``dger`` once per column: at ``N m = 3e6`` columns 
 arithmetic, were the time (``gbtrf`` 0.35 s, ``gbtrs`` 0.17 s; this code 0.15 s and 0.08 s on
 the same matrix, measured). The loops are LAPACK's, in LAPACK's order (the same pivots, the
 same multipliers, the same updates, compiled without contraction to FMA), so the factors and
-solutions are LAPACK's to the bit on the matrices measured (``tests/test_bvp_compiled.py``).
+solutions are LAPACK's to the bit on the matrices measured
+(``tests/library/bvp/test_compiled_assembly.py``).
 
 Built once per compiler and source by ``compiler.py``'s build and cache (``band_HASH.so`` in the
 compiled-code cache, checksummed); without a compiler (``Compilation(band_lu="lapack")``, no

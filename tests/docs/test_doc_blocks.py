@@ -1,0 +1,154 @@
+"""Every documented form works (issue 40): the ```python blocks of README.md and docs/**/*.md
+run, and every `ddvp ...` line of their ```bash/```sh/```console blocks parses with the real
+command-line parser (ddvp_nlp/cli/parser.py), so an option that does not exist fails here.
+
+The python blocks of one page run in order in one namespace and one scratch folder, as a reader
+following the page would, in a child process bounded by CPU seconds (RLIMIT_CPU: a count of the
+work, not a wall clock on this shared machine). Conventions in the pages:
+
+- a block whose first line is ``# not run`` (or fenced ```python no-run) is skipped: only for a
+  block that needs a cluster or hours;
+- a block whose first line is ``# after: ddvp ...`` needs that command's output: the command
+  runs first (through ``ddvp_nlp.cli.main``, in the same folder);
+- a block of snippet includes (``--8<-- "examples/..."``) is the example file, run by
+  tests/docs/test_examples.py.
+"""
+
+import re
+import resource
+import shlex
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from ddvp_nlp.cli.parser import build_parser
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+FENCE = re.compile(r"^```([^\n]*)\n(.*?)^```", re.S | re.M)
+SHELL = {"bash", "sh", "console", "shell"}
+# CPU seconds a page's python blocks may take together (the guide's are the most: about 60 s
+# on this 2-core machine under load)
+CPU_SECONDS = 600
+# pages whose python blocks cost more than a few seconds: run with -m slow
+SLOW_PAGES = {"README.md", "docs/guide.md"}
+
+
+def blocks(page: Path, kinds: set[str]):
+    """``(line, info, body)`` of the fenced blocks of ``page`` whose language is in
+    ``kinds``."""
+    text = page.read_text()
+    for match in FENCE.finditer(text):
+        info = match.group(1).strip()
+        if info.split(" ")[0] in kinds:
+            yield text[:match.start()].count("\n") + 1, info, match.group(2)
+
+
+def runnable(info: str, body: str) -> bool:
+    first = body.lstrip().splitlines()[0] if body.strip() else ""
+    return "no-run" not in info.split() and not first.startswith("# not run") \
+        and not first.startswith("--8<--")
+
+
+def python_pages():
+    for page in PAGES:
+        found = [(line, body) for line, info, body in blocks(page, {"python"})
+                 if runnable(info, body)]
+        if found:
+            name = str(page.relative_to(ROOT))
+            marks = [pytest.mark.slow] if name in SLOW_PAGES else []
+            yield pytest.param(page, found, id=name, marks=marks)
+
+
+def _limit_cpu():
+    resource.setrlimit(resource.RLIMIT_CPU, (CPU_SECONDS, CPU_SECONDS + 5))
+
+
+RUNNER = textwrap.dedent("""
+    import json, shlex, sys, traceback
+    import matplotlib
+    matplotlib.use("Agg")
+    blocks = json.loads(sys.stdin.read())
+    namespace = {"__name__": "__doc_block__"}
+    for line, body in blocks:
+        first = body.lstrip().splitlines()[0] if body.strip() else ""
+        if first.startswith("# after: ddvp "):
+            from ddvp_nlp.cli import main
+            code = main(shlex.split(first[len("# after: ddvp "):]))
+            if code != 0:
+                print(f"line {line}: the command of '{first}' exited {code}")
+                sys.exit(1)
+        try:
+            exec(compile(body, f"<block at line {line}>", "exec"), namespace)
+        except Exception:
+            print(f"the block at line {line} failed:")
+            traceback.print_exc(file=sys.stdout)
+            sys.exit(1)
+""")
+
+
+@pytest.mark.parametrize("page, found", list(python_pages()))
+def test_python_blocks_run(page, found, tmp_path):
+    import json
+
+    env = {"PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin",
+           "HOME": str(tmp_path), "PYTHONDONTWRITEBYTECODE": "1"}
+    done = subprocess.run([sys.executable, "-c", RUNNER], input=json.dumps(found),
+                          cwd=tmp_path, env=env, capture_output=True, text=True,
+                          preexec_fn=_limit_cpu)
+    assert done.returncode == 0, (f"{page.relative_to(ROOT)}: "
+                                  f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
+
+
+def command_lines(body: str):
+    """The ``ddvp ...`` commands of a shell block: continuations joined, prompts and comments
+    dropped, ``&&``/``;`` chains split."""
+    text = re.sub(r"\\\n\s*", " ", body)
+    for raw in text.splitlines():
+        line = raw.strip().removeprefix("$ ")
+        try:
+            words = shlex.split(line, comments=True)
+        except ValueError:
+            continue
+        command = []
+        for word in [*words, "&&"]:
+            if word in ("&&", ";", "||"):
+                if command and command[0] == "ddvp":
+                    yield command
+                command = []
+            else:
+                command.append(word)
+
+
+def shell_commands():
+    for page in PAGES:
+        for line, info, body in blocks(page, SHELL):
+            if not runnable(info, body):
+                continue
+            for words in command_lines(body):
+                yield pytest.param(words, id=f"{page.relative_to(ROOT)}:{line}:{words[1]}")
+
+
+@pytest.mark.parametrize("words", list(shell_commands()))
+def test_documented_commands_parse(words, capsys):
+    parser = build_parser()
+    try:
+        parser.parse_args(words[1:])
+    except SystemExit as stop:
+        assert stop.code == 0, (" ".join(words), capsys.readouterr().err)
+
+
+def test_the_extraction_finds_the_blocks():
+    """Not vacuous: the README's march example and its commands are found, and an option
+    that does not exist fails to parse."""
+    lines = [words for page in PAGES for _, _, body in blocks(page, SHELL)
+             for words in command_lines(body)]
+    assert ["ddvp", "march", "kepler", "--set", "e=0.7", "--set", "tau0=0.005"] in lines
+    assert len(lines) > 30
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["march", "kepler", "--no-such-option"])
+    assert any(page.name == "README.md" for page, *_ in
+               (p.values for p in python_pages()))
