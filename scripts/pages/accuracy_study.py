@@ -17,7 +17,8 @@ beside their true error, with the named cases and the built-in scenes.
     python scripts/pages/accuracy_study.py [--cases 1200] [--seed 27] [--out docs/accuracy]
         [--quick]
 
-A few minutes (1200 cases took 164 s); ``--quick`` (12 cases, a 2 x 2 Kepler grid, not for
+About 20 minutes of CPU (1200 cases: 1192 s CPU, 1911 s wall at load 2, after the check
+moved to the one exact flow; 164 s before it); ``--quick`` (12 cases, a 2 x 2 Kepler grid, not for
 docs/) seconds. The page's seconds stand beside the machine and the date
 (``ddvp_nlp.io.machine``).
 """
