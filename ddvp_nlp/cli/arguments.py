@@ -44,6 +44,7 @@ API_DEFAULTS = {
               "alpha": lambda: _field(Scheme, "alpha"),
               "clock": lambda: _field(Scheme, "clock"),
               "checkpoint_every": lambda: _field(Output, "checkpoint_interval"),
+              "keep": lambda: _field(Output, "keep"),
               "target_error": lambda: _argument(_solvers().march, "target_error")},
     "bvp": {"tol": lambda: _field(GridOptions, "tol"),
             "solver": lambda: _field(GridOptions, "solver"),

@@ -438,7 +438,7 @@ def _march_command(march: argparse.ArgumentParser) -> None:
                             "and result.npz grow with the nodes kept; every node is still "
                             "checked and judged as the march goes; no checkpoints, no --resume "
                             "(default: every node)")
-    march.add_argument("--keep", choices=("nodes", "t_eval"), default="nodes",
+    march.add_argument("--keep", choices=("nodes", "t_eval"), default=api_default("march", "keep"),
                        help="t_eval: keep only the --t-eval states and the --event crossings "
                             "(and the first and last node), judged as with --keep-every "
                             "(default: nodes)")

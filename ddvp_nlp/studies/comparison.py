@@ -22,8 +22,9 @@ import numpy as np
 from ..errors import InputError
 from ..physics import HamiltonianSystem, LagrangianSystem
 from ..runner.tasks import Workers
-from ..scenes import Scene, load_scene
+from ..scenes import HigherOrderScene, Scene, load_scene
 from ..solvers import Compilation, exact_reference
+from .comparable import check_comparable
 from .methods import get_methods
 from .work_precision import CompareOptions, WorkPrecision, plan_work_precision, run_work_precision
 from .work_precision_report import write_work_precision
@@ -79,6 +80,8 @@ def _scene_of(problem, q0, p0, t_span, params) -> tuple[Scene, dict]:
     overrides = dict(params or {})
     if isinstance(problem, (str, os.PathLike)):
         problem = load_scene(os.fspath(problem))
+    if isinstance(problem, HigherOrderScene):
+        check_comparable(problem)  # says why: the compared methods need H
     if isinstance(problem, HamiltonianSystem):
         return _system_scene(problem, q0, p0, t_span, overrides), overrides
     if not isinstance(problem, Scene):

@@ -200,7 +200,7 @@ def test_more_bad_input_is_refused(kwargs, message):
     ("pendulum", ["--energy", "2.5"], "a rotation of the angle q1 has a section on it"),
     ("paper_pendulum", ["--energy", "0.5"], "H depends on t"),
     ("henon_heiles", ["--energy", "0.1", "--section", "q3=0"], "section names no coordinate"),
-    ("harmonic", ["--energy", "-1"], "energy -1.0 is outside the range"),
+    ("harmonic", ["--energy", "-1"], "no motion exists at energy -1.0"),
 ])
 def test_cli_refuses_before_any_output(tmp_path, capsys, scene, arguments, message):
     from ddvp_nlp.cli import main
