@@ -41,6 +41,7 @@ import stat
 import subprocess
 import tempfile
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -107,25 +108,26 @@ def warn_once(reason: Exception) -> None:
 
 
 def compile_function(function: ca.Function, compiler: str, folder: Path, *,
-                     prefix: str = "chunk") -> ca.Function:
+                     prefix: str = "chunk", build: bool = True) -> ca.Function | None:
     """Generate, compile (once per hash; again if the cached library fails its checks) and
-    load ``function`` as ``PREFIX_HASH.so``. Raises `CompileUnavailable` if the folder or
-    compiler fails."""
+    load ``function`` as ``PREFIX_HASH.so``; with ``build=False`` only a library already in
+    the cache is loaded, else ``None``. Raises `CompileUnavailable` if the folder or compiler
+    fails."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
     return compile_source(source.dump(), function.name(), compiler, folder, prefix=prefix,
-                          salt=(ca.__version__,),
+                          salt=(ca.__version__,), build=build,
                           load=lambda library: ca.external(function.name(), str(library)))
 
 
 def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
-                   salt=(), load=None):
+                   salt=(), load=None, build: bool = True):
     """``PREFIX_HASH.so`` in ``folder``, compiled from the C ``code`` (once per hash of the
     code, the compiler, its flags and ``salt``; again if the cached library fails its
     checks), renamed into place complete; ``load(path)`` of it if ``load`` is given (a
     library that fails to load is removed and rebuilt once). Raises `CompileUnavailable` if
     the folder (module docstring) or the compiler fails; ``name`` is what a compiler error
-    names."""
+    names. With ``build=False`` a library not in the cache is not built: ``None``."""
     key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, *salt])
                          .encode()).hexdigest()[:24]
     library = Path(folder) / f"{prefix}_{key}.so"
@@ -138,6 +140,8 @@ def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
         for attempt in range(2):
             try:
                 if not cache.intact(library.name):
+                    if not build:
+                        return None
                     _build(code, name, compiler, cache, library.name)
             except OSError as exc:
                 raise CompileUnavailable(f"the compiled-code cache {str(folder)!r} cannot be "
@@ -450,6 +454,80 @@ class FunctionBuffer:
                 array.reshape(-1)[:] = np.ravel(value)
         trigger()
         return outputs
+
+
+# CPU seconds a function not yet in the cache is evaluated by CasADi's virtual machine before it
+# is compiled (`RentedBuffer`): about half of what compiling one of the exact flow's or the
+# accuracy check's functions costs (gcc, 0.3-0.6 s), so a short check never pays for a compile
+# and a long one pays at most about twice the least it could (the rent-or-buy rule).
+COMPILE_AFTER_S = 0.25
+
+
+class RentedBuffer(FunctionBuffer):
+    """A `FunctionBuffer` of ``function`` compiled only when that pays: loaded at once if the
+    compiled-code cache holds its library; otherwise evaluated by CasADi's virtual machine
+    (the same arithmetic, bit for bit: the library is built without contraction to FMA) until
+    its calls have taken `COMPILE_AFTER_S` of CPU, then compiled and called compiled from the
+    next call on. Inputs set once (a run's parameters) carry over to the compiled function,
+    per thread. ``compiler=None``: the virtual machine always."""
+
+    def __init__(self, function: ca.Function, compiler: str | None, cache_dir=None, *,
+                 prefix: str = "chunk", compile_after: float = COMPILE_AFTER_S):
+        self.symbolic = function
+        self.compile_after = float(compile_after)
+        self._rent = None  # (compiler, folder, prefix) while not compiled
+        self._spent = 0.0
+        self._lock = threading.Lock()
+        found = None
+        compiler = find_compiler(compiler) if compiler is not None else None
+        if compiler is not None:
+            try:
+                folder = cache_folder(cache_dir)
+                found = compile_function(function, compiler, folder, prefix=prefix,
+                                         build=False)
+                if found is None:
+                    self._rent = (compiler, folder, prefix)
+            except CompileUnavailable as reason:  # the virtual machine computes the same
+                warn_once(reason)
+        super().__init__(found if found is not None else function)
+
+    @property
+    def compiled(self) -> bool:
+        return self.function is not self.symbolic
+
+    def _arrays(self):
+        arrays = getattr(self._local, "arrays", None)
+        if arrays is not None and getattr(self._local, "function", None) is not self.function:
+            del self._local.arrays  # this thread's arrays belong to the function before
+            fresh = super()._arrays()
+            for new, old in zip(fresh[2], arrays[2], strict=True):
+                new[:] = old
+            arrays = fresh
+        elif arrays is None:
+            arrays = super()._arrays()
+        self._local.function = self.function
+        return arrays
+
+    def __call__(self, *values) -> list[np.ndarray]:
+        if self._rent is None:
+            return super().__call__(*values)
+        started = time.process_time()
+        outputs = super().__call__(*values)
+        self._spent += time.process_time() - started
+        if self._spent >= self.compile_after:
+            self._buy()
+        return outputs
+
+    def _buy(self) -> None:
+        with self._lock:
+            if self._rent is None:
+                return
+            compiler, folder, prefix = self._rent
+            self._rent = None
+            try:
+                self.function = compile_function(self.symbolic, compiler, folder, prefix=prefix)
+            except CompileUnavailable as reason:
+                warn_once(reason)
 
 
 def buffered(function: ca.Function, *key, owner) -> FunctionBuffer:

@@ -11,6 +11,7 @@ import time
 import warnings
 
 import casadi as ca
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -291,3 +292,29 @@ def test_a_fifo_in_the_cache_does_not_hang_the_check(tmp_path):
     (cache / name).unlink()
     os.mkfifo(cache / name)
     assert loads_and_works(cache)
+
+
+def test_a_function_not_in_the_cache_is_compiled_only_once_its_calls_cost_a_compile(tmp_path):
+    """RentedBuffer: the virtual machine until the calls have taken ``compile_after`` of CPU,
+    then the compiled library, with the inputs set once carried over; a second buffer of the
+    same function loads the library at once; without a compiler, never compiled."""
+
+    from ddvp_nlp.solvers.compiler import RentedBuffer, find_compiler
+
+    if find_compiler("auto") is None:
+        pytest.skip("no C compiler")
+    x, a = ca.SX.sym("x", 3), ca.SX.sym("a")
+    function = ca.Function("rented", [x, a], [ca.sin(a * x) + x ** 3])
+    cache = tmp_path / "cache"
+    values = np.array([0.1, -0.7, 2.0])
+    for compile_after, compiled_after_call in ((1e9, False), (0.0, True)):
+        rented = RentedBuffer(function, "auto", cache, compile_after=compile_after)
+        assert not rented.compiled
+        rented.inputs[1][:] = 0.3  # set once, as a run's parameters are
+        first = rented(values, None)[0].copy()
+        assert rented.compiled is compiled_after_call
+        second = rented(values, None)[0].copy()  # the compiled call keeps the parameter
+        np.testing.assert_allclose(second, first, rtol=4 * np.finfo(float).eps, atol=0)
+    again = RentedBuffer(function, "auto", cache)
+    assert again.compiled  # in the cache now: loaded at once
+    assert not RentedBuffer(function, None, cache).compiled

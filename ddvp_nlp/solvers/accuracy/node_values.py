@@ -11,8 +11,8 @@ import numpy as np
 
 from ...cache import cached
 from ...discrete.runge_kutta import rk4
-from ..compiler import FunctionBuffer
-from ..exact.flow import compiled_or_vm, flow_field
+from ..compiler import FunctionBuffer, RentedBuffer
+from ..exact.flow import flow_field
 
 BLOCK = 512  # nodes per call of a compiled block (the last block is padded)
 
@@ -62,7 +62,7 @@ class NodeValues:
             single = look_function(self.system) if kind == "look" else \
                 node_function(self.system)
             mapped = single.map(f"accuracy_{kind}s", "serial", BLOCK, [], [])
-            return FunctionBuffer(compiled_or_vm(mapped, self.compiler, self.cache_dir))
+            return RentedBuffer(mapped, self.compiler, self.cache_dir, prefix="exact")
         return cached(self.system, ("accuracy", kind, self.compiler, str(self.cache_dir)),
                       build)
 

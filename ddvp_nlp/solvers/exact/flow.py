@@ -5,8 +5,10 @@ per node, so its work follows the motion, not the number of nodes it is read at.
 
 The vector field is Hamilton's ``(H_p, -H_q)`` for a system with ``H`` (or a first-order
 ``L``), the Euler-Lagrange equation in Ostrogradsky's variables for a higher-order ``L``
-(`flow_field`); a flow is built and compiled once per system, compiler and shape (`exact_flow`,
-cached on the system).
+(`flow_field`); a flow is built once per system, compiler and shape (`exact_flow`, cached on
+the system), and compiled when that pays: loaded at once from the compiled-code cache, else run
+by CasADi's virtual machine until its calls have cost about half a compile (a short check of a
+new system never waits for gcc), then compiled (``compiler.RentedBuffer``).
 
 Measured against scipy's DOP853 (the same tableau, estimator and controller, in Python) at
 ``rtol`` 1e-10: the same steps, 114 (Kepler), 218 (Henon-Heiles) and 275 (the paper's pendulum
@@ -23,14 +25,7 @@ import numpy as np
 
 from ...cache import cached
 from ...physics import HigherOrderSystem, euler_lagrange_field, vector_field_function
-from ..compiler import (
-    CompileUnavailable,
-    FunctionBuffer,
-    cache_folder,
-    compile_function,
-    find_compiler,
-    warn_once,
-)
+from ..compiler import FunctionBuffer, RentedBuffer
 from .attempt import DONE, FAILED, POWER, RUNNING, Layout, augmented_field, chunk_function
 from .trajectory import Trajectory
 
@@ -52,20 +47,6 @@ def flow_field(system) -> tuple[ca.Function, int]:
     return vector_field_function(system), 2 * system.n
 
 
-def compiled_or_vm(function: ca.Function, compiler: str | None, cache_dir=None) -> ca.Function:
-    """``function`` compiled with ``compiler`` (``"auto"``: gcc, cc or $CC) into the compiled-code
-    cache, or ``function`` itself, which CasADi's virtual machine evaluates with the same
-    arithmetic, where there is no compiler (``None``) or compiling fails (said once)."""
-    compiler = find_compiler(compiler) if compiler is not None else None
-    if compiler is None:
-        return function
-    try:
-        return compile_function(function, compiler, cache_folder(cache_dir), prefix="exact")
-    except CompileUnavailable as reason:  # the virtual machine computes the same
-        warn_once(reason)
-        return function
-
-
 class AdaptiveFlow:
     """The exact flow of ``field(z, t, theta) -> z'`` (a CasADi Function of SX) by adaptive
     DOP853, optionally with ``tangent`` columns of the variational equations and the dense
@@ -84,13 +65,15 @@ class AdaptiveFlow:
             inline = augmented_field(field, self.layout.m).n_instructions() <= INLINE_LIMIT
         symbolic = chunk_function(field, self.layout, self.slots, inline=inline)
         self.build_s = time.perf_counter() - started
-        started = time.perf_counter()
-        self.function = compiled_or_vm(symbolic, compiler, cache_dir)
-        self.compile_s = time.perf_counter() - started
-        self.compiled = self.function is not symbolic
-        self._buffer = FunctionBuffer(self.function)
+        # compiled when in the cache, else once its calls have cost a compile (RentedBuffer)
+        self._buffer = RentedBuffer(symbolic, compiler, cache_dir, prefix="exact")
         self._field_buffer = FunctionBuffer(field)
         self._tangent_buffer = FunctionBuffer(augmented_field(field, self.layout.m))
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the chunk runs compiled now (it may start in the virtual machine)."""
+        return self._buffer.compiled
 
     def initial_step(self, z0, t0, t_end, theta, rtol, atol) -> float:
         """Hairer's starting step (scipy's ``select_initial_step``, order 7), on ``z``."""

@@ -10,9 +10,9 @@ import numpy as np
 
 from ...cache import cached
 from ..columns import row_max_ratio
-from ..compiler import FunctionBuffer
+from ..compiler import RentedBuffer
 from .attempt import combination, dop853_step
-from .flow import compiled_or_vm, flow_field
+from .flow import flow_field
 from .tableau import dop853
 
 BLOCK = 4096  # intervals per call (the last block is padded)
@@ -56,8 +56,7 @@ class LocalFlows:
         self.block = int(block)
         single = local_step_function(field)
         mapped = single.map(f"local_steps_{self.block}", "serial", self.block, [3], [])
-        self.function = compiled_or_vm(mapped, compiler, cache_dir)
-        self._buffer = FunctionBuffer(self.function)
+        self._buffer = RentedBuffer(mapped, compiler, cache_dir, prefix="exact")
         self.d = field.size1_in(0)
 
     def steps(self, t, z, h, theta, substeps: int = 1) -> tuple[np.ndarray, np.ndarray]:
