@@ -43,7 +43,7 @@ from ddvp_nlp import (
     solve_bvp,
     solve_periodic,
 )
-from ddvp_nlp.io import machine, new_figure, plot_followed_family, save, styled
+from ddvp_nlp.io import machine, markdown_table, new_figure, plot_followed_family, save, styled
 from ddvp_nlp.solvers import flow_with_derivatives
 
 # The coarse grids of these convergence studies (N = 50, 100) resolve some orbits to about 1%:
@@ -85,9 +85,7 @@ def fit(sizes, errors) -> float:
 
 
 def table(header, rows) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
-    return "\n".join(lines)
+    return "\n".join(markdown_table(header, rows)[1:])  # the page puts the blank line before it
 
 
 # --- stability ------------------------------------------------------------------------------
