@@ -83,20 +83,15 @@ def test_rule_leaves_code_code(text):
 STILL_CODE: dict[str, int] = {
     "accuracy/check/": 3,
     "accuracy/": 2,
-    "architecture/": 5,
     "benchmarks/bench_bvp/": 7,
     "benchmarks/bench_ipopt/": 3,
     "benchmarks/bench_march/": 3,
     "benchmarks/bench_overheads/": 3,
     "chaos/": 1,
-    "guide/": 15,
     "periodic/bifurcations/": 6,
     "periodic/": 14,
-    "periodic/stability/": 9,
     "poincare/": 1,
     "reproduce/report/": 4,
-    "solvers/": 52,
-    "theory/": 109,
     "transfers/": 7,
 }
 
