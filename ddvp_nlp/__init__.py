@@ -120,8 +120,11 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
         methods: method names (``["vddvp", "rk4", "dop853"]`` or ``"vddvp,rk4"``); default every
             method that applies and does not repeat another. An unknown name is refused with
             the list of known ones.
-        q0, p0, t_span, params: the start, the span ``(t0, t_end)`` and parameter values (for a
-            scene, they replace its own; ``params`` may also set ``tau0``).
+        q0: the start's positions (for a scene, they replace its own).
+        p0: the start's momenta (for a scene, they replace its own).
+        t_span: the span ``(t0, t_end)`` (for a scene, it replaces its own).
+        params: parameter values (for a scene, they replace its own; they may also set
+            ``tau0``).
         target_errors: trajectory errors (relative to the motion's size) at which the
             methods that can aim at an error (the march's schemes) run, one
             ``march(..., target_error=E)`` each, instead of their step sweep.

@@ -31,15 +31,15 @@ PUBLIC = {
     # the comparison figures
     "plot_work_precision": "work_precision_figure", "plot_horizons": "horizons_figure",
     "plot_growth": "horizons_figure",
-    # the machine and date every timing of a report stands beside
-    "machine": "markdown",
+    # the machine and date every timing of a report stands beside; a Markdown table that renders
+    "machine": "markdown", "markdown_table": "markdown",
 }
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .atomic import output_folder, read_set
     from .figures import new_figure, save, styled
     from .horizons_figure import plot_growth, plot_horizons
-    from .markdown import machine
+    from .markdown import machine, markdown_table
     from .orbit_figures import plot_followed_family
     from .orbit_files import plot_orbit, write_family
     from .run_figure import plot_solution, plot_trajectory
@@ -49,7 +49,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
-__all__ = ["machine", "new_figure", "output_folder", "plot_followed_family", "plot_growth",
-           "plot_horizons", "plot_orbit", "plot_solution", "plot_trajectory",
+__all__ = ["machine", "markdown_table", "new_figure", "output_folder", "plot_followed_family",
+           "plot_growth", "plot_horizons", "plot_orbit", "plot_solution", "plot_trajectory",
            "plot_work_precision", "read_run", "read_set", "run_energies", "save", "styled",
            "write_family", "write_run", "write_section"]

@@ -1,5 +1,5 @@
-"""Pieces every Markdown report shares: the failure table of a grid and the machine line
-beside every timing."""
+"""Pieces every Markdown report shares: a table that renders, the failure table of a grid and
+the machine line beside every timing."""
 
 from __future__ import annotations
 
@@ -10,6 +10,17 @@ import platform
 import numpy as np
 
 
+def markdown_table(header, rows) -> list[str]:
+    """Markdown lines of a table that renders as one: a blank line first (a table glued to the
+    paragraph above is read as its text) and every ``|`` inside a cell escaped (``|M|`` in a
+    header would add cells and turn the table into text)."""
+
+    def line(cells):
+        return "| " + " | ".join(str(c).replace("|", r"\|") for c in cells) + " |"
+
+    return ["", line(header), "|" + "---|" * len(header)] + [line(row) for row in rows]
+
+
 def failure_table(rows, title, *columns) -> list[str]:
     """Markdown lines: a section ``title`` with one row per failed run: the given
     ``(header, cell)`` columns, then its status and message."""
@@ -17,13 +28,9 @@ def failure_table(rows, title, *columns) -> list[str]:
     if not failures:
         return []
     headers = [h for h, _ in columns] + ["status", "where and why"]
-    lines = ["", f"## {title}", "", "| " + " | ".join(headers) + " |",
-             "|" + "---|" * len(headers)]
-    for r in failures:
-        cells = [cell(r) for _, cell in columns] + [r["status"],
-                                                    r["message"].replace("|", "/")]
-        lines.append("| " + " | ".join(cells) + " |")
-    return lines
+    cells = [[cell(r) for _, cell in columns] + [r["status"], r["message"].replace("|", "/")]
+             for r in failures]
+    return ["", f"## {title}"] + markdown_table(headers, cells)
 
 
 def machine(compiler: str | None | bool = False) -> str:
