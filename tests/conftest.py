@@ -17,9 +17,9 @@ def paper():
     return load_scene("paper_pendulum")
 
 
-# The long studies and the costliest repetitions (tests/slow_tests.txt: each took 4 s or more
-# on the loaded 2-core machine), marked slow: the default run leaves them out, and
-# `python -m pytest -m slow` (or `-m "slow or not slow"` for everything) runs them.
+# The long studies and the costliest repetitions (tests/slow_tests.txt, tests/README.md), marked
+# slow: the default run leaves them out, and `python -m pytest -m slow` (or `-m "slow or not
+# slow"` for everything) runs them.
 SLOW = {line.strip() for line in (Path(__file__).parent / "slow_tests.txt").read_text().splitlines()
         if line.strip() and not line.startswith("#")}
 
