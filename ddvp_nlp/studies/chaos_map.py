@@ -115,15 +115,8 @@ def place_cells(system, theta, energy: float, grid: ChaosGrid) -> ChaosGrid:
     (module docstring); NaN starts where not."""
     energy = check_real("--energy", energy)
     n, i = 2, grid.index
-    j = 1 - i
     a, b = np.meshgrid(grid.axes[0], grid.axes[1])  # rows: second axis
-    z = np.zeros((a.size, 2 * n))
-    z[:, i], z[:, j], z[:, n + j] = grid.value, a.ravel(), b.ravel()
-    H = []
-    for momentum in (0.0, 1.0, -1.0):
-        z[:, n + i] = momentum
-        H.append(system.energy(z[:, :n], z[:, n:], np.zeros(z.shape[0]), theta))
-    c, slope, curve = H[0], (H[1] - H[2]) / 2, (H[1] + H[2]) / 2 - H[0]
+    z, (c, slope, curve) = _on_section(system, theta, grid, a, b)
     with np.errstate(invalid="ignore", divide="ignore"):
         root = (-slope + np.sqrt(slope * slope - 4 * curve * (c - energy))) / (2 * curve)
     runnable = np.isfinite(root) & (curve > 0) & (root >= 0)
@@ -134,6 +127,21 @@ def place_cells(system, theta, energy: float, grid: ChaosGrid) -> ChaosGrid:
             raise InputError(f"H is not quadratic in p{i + 1}: the starts miss H = E")
     grid.starts, grid.runnable = z, runnable
     return grid
+
+
+def _on_section(system, theta, grid: ChaosGrid, a: np.ndarray, b: np.ndarray):
+    """The states on the section at the axes' values ``a``, ``b`` (the section's momentum 0)
+    and ``H`` there as the quadratic ``c + slope p + curve p^2`` in the section's momentum
+    ``p`` (from ``H`` at ``p`` = 0, 1 and -1)."""
+    n, i, j = 2, grid.index, 1 - grid.index
+    z = np.zeros((a.size, 2 * n))
+    z[:, i], z[:, j], z[:, n + j] = grid.value, a.ravel(), b.ravel()
+    H = []
+    for momentum in (0.0, 1.0, -1.0):
+        z[:, n + i] = momentum
+        H.append(system.energy(z[:, :n], z[:, n:], np.zeros(z.shape[0]), theta))
+    z[:, n + i] = 0.0
+    return z, (H[0], (H[1] - H[2]) / 2, (H[1] + H[2]) / 2 - H[0])
 
 
 @functools.lru_cache(maxsize=4)
@@ -260,16 +268,10 @@ def map_arrays(result: ChaosMap, system, theta) -> dict:
     grid = result.grid
     fine = [np.linspace(axis[0], axis[-1], 300) for axis in grid.axes]
     a, b = np.meshgrid(*fine)
-    n, i, j = 2, grid.index, 1 - grid.index
-    z = np.zeros((a.size, 2 * n))
-    z[:, i], z[:, j], z[:, n + j] = grid.value, a.ravel(), b.ravel()
-    H = []
-    for momentum in (0.0, 1.0, -1.0):
-        z[:, n + i] = momentum
-        H.append(system.energy(z[:, :n], z[:, n:], np.zeros(z.shape[0]), theta))
-    slope, curve = (H[1] - H[2]) / 2, (H[1] + H[2]) / 2 - H[0]
+    n = 2
+    _, (c, slope, curve) = _on_section(system, theta, grid, a, b)
     with np.errstate(invalid="ignore", divide="ignore"):
-        least = np.where(curve > 0, H[0] - slope ** 2 / (4 * curve), np.nan)
+        least = np.where(curve > 0, c - slope ** 2 / (4 * curve), np.nan)
     return {"q0": grid.starts[:, :n], "p0": grid.starts[:, n:], **result.values,
             "status": result.status, "axis_names": np.array(grid.names),
             "axis_0": grid.axes[0], "axis_1": grid.axes[1], "shape": np.array(grid.shape),

@@ -100,6 +100,27 @@ def finite_or_none(value) -> float | None:
 
 # -- the scales of a motion -------------------------------------------------------------------
 
+def verdict_report(failure, trajectory: dict, scale, energy: float, local_max: float,
+                   figures: dict, steps: int, tol: Tolerance) -> dict:
+    """The report of a verdict (``stats["accuracy"]``), the same for a whole run and a
+    streamed one: ``failure`` the first failed test or ``None``, ``trajectory`` the scan's
+    findings (drift, largest error, the reference's reach and error)."""
+    drift = trajectory["drift"]
+    verdict = "inaccurate" if failure else ("drifted" if drift is not None else "accurate")
+    return {
+        "verdict": verdict, "first_failure": failure,
+        "t_drift": None if drift is None else trajectory["drift_t"],
+        "drift_step": drift, "error_max": trajectory["error_max"],
+        "error_max_t": trajectory["error_max_t"], "estimate": trajectory["estimate"],
+        "reference_until": trajectory["until"],
+        "reference_error": trajectory["reference_error"],
+        "reference_lost": trajectory["lost"],
+        "scale": scale.tolist(), "energy_scale": energy, "local_error_max": local_max,
+        **figures, "steps": steps,
+        "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
+        "global_tol": tol.global_tol, "require_accurate": tol.require_accurate}
+
+
 def exact_states(system, z0, t: np.ndarray, theta, *, rtol: float) -> np.ndarray:
     """The exact flow of ``system`` from ``z0`` at the times ``t`` (increasing, ``z0`` at
     ``t[0]``), from the reference this check judges by (a pair of runs, the finer at
@@ -238,22 +259,8 @@ class Judgement:
         energies = self.energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
         failure = min(failures, key=lambda f: f["step"]) if failures else None
-        drift = trajectory["drift"]
-        verdict = "inaccurate" if failure else ("drifted" if drift is not None else "accurate")
-        tol = self.tolerance
-        report = {
-            "verdict": verdict, "first_failure": failure,
-            "t_drift": None if drift is None else trajectory["drift_t"],
-            "drift_step": drift, "error_max": trajectory["error_max"],
-            "error_max_t": trajectory["error_max_t"], "estimate": trajectory["estimate"],
-            "reference_until": trajectory["until"],
-            "reference_error": trajectory["reference_error"],
-            "reference_lost": trajectory["lost"],
-            "scale": scale.tolist(), "energy_scale": energy,
-            "local_error_max": local_max,
-            **energies["figures"], "steps": steps,
-            "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
-            "global_tol": tol.global_tol, "require_accurate": tol.require_accurate}
+        report = verdict_report(failure, trajectory, scale, energy, local_max,
+                                energies["figures"], steps, self.tolerance)
         return report, local_error
 
     stop = None  # report(stop=...): asked between the parts of a check

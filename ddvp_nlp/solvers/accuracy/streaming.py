@@ -42,6 +42,7 @@ from .judgement import (
     Scan,
     finite_or_none,
     unjudged,
+    verdict_report,
 )
 
 # Steps (and nodes) failing the bound of their window's scales that are kept to be judged again
@@ -209,21 +210,8 @@ class StreamingJudgement:
         failures = [f for f in (failure, *failures) if f is not None]
         first = min(failures, key=lambda f: f["step"] if f["step"] is not None else
                     self.steps) if failures else None
-        drift = found["drift"]
-        verdict = "inaccurate" if first else ("drifted" if drift is not None else "accurate")
         column_max = np.where(np.isfinite(self.column_max), self.column_max, 0.0)
-        return {
-            "verdict": verdict, "first_failure": first,
-            "t_drift": None if drift is None else found["drift_t"],
-            "drift_step": drift, "error_max": found["error_max"],
-            "error_max_t": found["error_max_t"], "estimate": found["estimate"],
-            "reference_until": found["until"],
-            "reference_error": found["reference_error"],
-            "reference_lost": found["lost"],
-            "scale": scale.tolist(), "energy_scale": energy,
-            "local_error_max": float(np.max(column_max / scale, initial=0.0)),
-            **figures, "steps": self.steps,
-            "rtol": tol.rtol, "atol": tol.atol, "energy_tol": tol.energy_tol,
-            "global_tol": tol.global_tol, "require_accurate": tol.require_accurate,
-            "streamed": True}
+        return {**verdict_report(first, found, scale, energy,
+                                 float(np.max(column_max / scale, initial=0.0)), figures,
+                                 self.steps, tol), "streamed": True}
 
