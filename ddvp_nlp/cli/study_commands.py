@@ -87,14 +87,18 @@ def run_compare(args) -> int:
 
 
 def _target_errors(text: str | None) -> list[float] | None:
-    """``--target-errors E1,E2,...`` as numbers (their range is checked by CompareOptions)."""
+    """``--target-errors E1,E2,...`` as numbers in (0, 1), checked under the option's name."""
     if text is None:
         return None
     try:
-        return [float(part) for part in text.split(",") if part.strip()]
+        errors = [float(part) for part in text.split(",") if part.strip()]
     except ValueError:
         raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
             from None
+    if not errors or not all(0 < e < 1 for e in errors):  # as CompareOptions, by this name
+        raise InputError(f"--target-errors expects errors in (0, 1) relative to the motion's "
+                         f"size, separated by commas, got {text!r}")
+    return errors
 
 
 def _compare_horizons(args, scene, out) -> int:

@@ -146,3 +146,12 @@ def test_every_method_runs_at_its_middle_knob_on_a_smooth_bound_orbit(well):
         row = rows[len(rows) // 2]
         if row["status"] != "success":
             assert row["message"] and METHODS[name].limitation, (name, row["message"])
+
+
+@pytest.mark.parametrize("text", ["-1", "1e-3,nan", "2", ","])
+def test_the_command_names_its_own_option_for_bad_target_errors(text, tmp_path, capsys):
+    assert main(["compare", "harmonic", "--target-errors", text, "--out",
+                 str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "--target-errors" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
