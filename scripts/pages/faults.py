@@ -186,7 +186,7 @@ def _leftovers(folder: Path, killed: bool, kinds: set) -> list[str]:
 
     problems = []
     for meta in folder.rglob("meta.json"):
-        if meta.parent.name in ("planted", "torn"):  # damaged on purpose by the case
+        if meta.parent.name.startswith(("planted", "torn")):  # damaged on purpose by the case
             continue
         try:
             read_set(meta.parent)
@@ -746,9 +746,9 @@ def resume_cases() -> list[Case]:
     def meta_a_link(folder):  # "planted": damaged on purpose, the reader's check skips it
         _a_run()(folder)
         os.rename(folder / "run", folder / "planted")
-        (folder / "other").mkdir()
-        os.rename(folder / "planted" / "meta.json", folder / "other" / "meta.json")
-        os.symlink(folder / "other" / "meta.json", folder / "planted" / "meta.json")
+        (folder / "planted-other").mkdir()  # its meta.json without the files it names
+        os.rename(folder / "planted" / "meta.json", folder / "planted-other" / "meta.json")
+        os.symlink(folder / "planted-other" / "meta.json", folder / "planted" / "meta.json")
 
     def scene_edited(folder):
         _a_run("h.py")(folder)
