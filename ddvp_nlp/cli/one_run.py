@@ -104,7 +104,7 @@ def run_folder(args, scene, config, overrides):
 RESULT_OPTIONS = ("alpha", "clock", "tol", "tau_min", "tau_max", "max_step_ratio", "max_steps",
                   "time_limit", "energy_guard", "least_squares", "rtol", "atol", "energy_tol",
                   "global_tol", "require_accurate", "accept_inaccurate", "careful", "keep_every",
-                  "keep")
+                  "keep", "target_error")
 
 
 def requested_options(args) -> dict:

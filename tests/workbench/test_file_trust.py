@@ -409,3 +409,26 @@ def _damage(folder, damage):
         (folder / "meta.json").write_text((folder / "meta.json").read_text()[:50])
     elif damage == "previous twin only":
         result.rename(folder / ".result.npz.previous")
+
+
+# march options that change only how a run is shown or saved, and those named in the folder
+# otherwise (the label holds the scene and the scheme; --set goes through the resolved
+# settings; --t-eval and --event through requested_options; --t-end only with --resume)
+SHOWN_ONLY = {"help", "out", "progress", "no_plot", "figure_format", "checkpoint_every"}
+NAMED_OTHERWISE = {"scene", "scheme", "method", "settings", "resume", "t_end", "t_eval",
+                   "events"}
+
+
+def test_every_march_option_is_in_the_default_folders_name_or_said_not_to_change_the_result():
+    """A new option of ddvp march that changes the result must name the default folder
+    (--target-error had been left out: its run overwrote the main job's folder)."""
+    import argparse
+
+    from ddvp_nlp.cli.folders import _command_parser, command_default
+    from ddvp_nlp.cli.one_run import RESULT_OPTIONS, result_options
+
+    dests = {action.dest for action in _command_parser("march")._actions}
+    assert dests - set(RESULT_OPTIONS) - SHOWN_ONLY - NAMED_OTHERWISE == set()
+    args = argparse.Namespace(command="march", target_error=1e-3, **{
+        name: command_default("march", name) for name in RESULT_OPTIONS if name != "target_error"})
+    assert result_options(args) == {"target_error": 1e-3}
