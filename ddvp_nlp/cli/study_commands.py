@@ -18,7 +18,7 @@ from ..studies.reproduce import reproduce
 from ..studies.stress_report import stress
 from ..studies.sweep import SweepSpec, parse_axis, sweep_cases
 from ..studies.sweep_file import load_grid_file
-from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
+from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest, check_target_errors
 from ..validation import check_real
 from . import arguments as options
 from .arguments import check_distinct
@@ -87,7 +87,8 @@ def run_compare(args) -> int:
 
 
 def _target_errors(text: str | None) -> list[float] | None:
-    """``--target-errors E1,E2,...`` as numbers in (0, 1), checked under the option's name."""
+    """``--target-errors E1,E2,...`` as numbers, checked as CompareOptions checks them, under the
+    option's name."""
     if text is None:
         return None
     try:
@@ -95,10 +96,7 @@ def _target_errors(text: str | None) -> list[float] | None:
     except ValueError:
         raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
             from None
-    if not errors or not all(0 < e < 1 for e in errors):  # as CompareOptions, by this name
-        raise InputError(f"--target-errors expects errors in (0, 1) relative to the motion's "
-                         f"size, separated by commas, got {text!r}")
-    return errors
+    return list(check_target_errors(errors, "--target-errors"))
 
 
 def _compare_horizons(args, scene, out) -> int:

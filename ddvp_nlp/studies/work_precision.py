@@ -117,22 +117,23 @@ class CompareOptions:
             raise InputError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, "
                              f"got {self.reference!r}")
         if self.target_errors is not None:
-            object.__setattr__(self, "target_errors", _targets(self.target_errors))
+            object.__setattr__(self, "target_errors", check_target_errors(self.target_errors))
 
 
-def _targets(values) -> tuple[float, ...]:
-    """Target errors: a non-empty list of distinct numbers in (0, 1)."""
+def check_target_errors(values, name: str = "target_errors") -> tuple[float, ...]:
+    """Target errors: a non-empty list of distinct numbers in (0, 1), refused under ``name``
+    (the command line's ``--target-errors``)."""
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(f"target_errors must be a non-empty list of errors in (0, 1), "
+        raise InputError(f"{name} must be a non-empty list of errors in (0, 1), "
                          f"got {values!r}")
     found = []
     for value in values:
-        value = check_real("target_errors", value, positive=True)
+        value = check_real(name, value, positive=True)
         if not value < 1:
-            raise InputError("target_errors are relative to the motion's size and must be "
+            raise InputError(f"{name} are relative to the motion's size and must be "
                              f"below 1, got {value!r}")
         if value in found:
-            raise InputError(f"target_errors gives {value!r} twice")
+            raise InputError(f"{name} gives {value!r} twice")
         found.append(value)
     return tuple(found)
 
