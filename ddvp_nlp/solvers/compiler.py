@@ -113,9 +113,21 @@ def compile_function(function: ca.Function, compiler: str, folder: Path, *,
     load ``function`` as ``PREFIX_HASH.so``; with ``build=False`` only a library already in
     the cache is loaded, else ``None``. Raises `CompileUnavailable` if the folder or compiler
     fails."""
+    return _compile_code(function, generated_code(function), compiler, folder, prefix=prefix,
+                         build=build)
+
+
+def generated_code(function: ca.Function) -> str:
+    """The C code CasADi generates for ``function`` (what the cache is keyed by)."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
-    return compile_source(source.dump(), function.name(), compiler, folder, prefix=prefix,
+    return source.dump()
+
+
+def _compile_code(function: ca.Function, code: str, compiler: str, folder: Path, *,
+                  prefix: str, build: bool = True) -> ca.Function | None:
+    """`compile_function` from ``function``'s generated ``code``."""
+    return compile_source(code, function.name(), compiler, folder, prefix=prefix,
                           salt=(ca.__version__,), build=build,
                           load=lambda library: ca.external(function.name(), str(library)))
 
@@ -475,18 +487,18 @@ class RentedBuffer(FunctionBuffer):
                  prefix: str = "chunk", compile_after: float = COMPILE_AFTER_S):
         self.symbolic = function
         self.compile_after = float(compile_after)
-        self._rent = None  # (compiler, folder, prefix) while not compiled
+        self._rent = None  # (code, compiler, folder, prefix) while not compiled
         self._spent = 0.0
         self._lock = threading.Lock()
         found = None
         compiler = find_compiler(compiler) if compiler is not None else None
         if compiler is not None:
             try:
-                folder = cache_folder(cache_dir)
-                found = compile_function(function, compiler, folder, prefix=prefix,
-                                         build=False)
-                if found is None:
-                    self._rent = (compiler, folder, prefix)
+                folder, code = cache_folder(cache_dir), generated_code(function)
+                found = _compile_code(function, code, compiler, folder, prefix=prefix,
+                                      build=False)
+                if found is None:  # the code is kept: generated once, compiled if it pays
+                    self._rent = (code, compiler, folder, prefix)
             except CompileUnavailable as reason:  # the virtual machine computes the same
                 warn_once(reason)
         super().__init__(found if found is not None else function)
@@ -522,10 +534,11 @@ class RentedBuffer(FunctionBuffer):
         with self._lock:
             if self._rent is None:
                 return
-            compiler, folder, prefix = self._rent
+            code, compiler, folder, prefix = self._rent
             self._rent = None
             try:
-                self.function = compile_function(self.symbolic, compiler, folder, prefix=prefix)
+                self.function = _compile_code(self.symbolic, code, compiler, folder,
+                                              prefix=prefix)
             except CompileUnavailable as reason:
                 warn_once(reason)
 
