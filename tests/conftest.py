@@ -17,17 +17,33 @@ def paper():
     return load_scene("paper_pendulum")
 
 
-# The long studies and the costliest repetitions (tests/slow_tests.txt, tests/README.md), marked
-# slow: the default run leaves them out, and `python -m pytest -m slow` (or `-m "slow or not
-# slow"` for everything) runs them.
-SLOW = {line.strip() for line in (Path(__file__).parent / "slow_tests.txt").read_text().splitlines()
-        if line.strip() and not line.startswith("#")}
+# Three tiers (tests/README.md): `python -m pytest -m smoke` (architecture, refusals, one run per
+# scheme: under a minute), the default run (what CI runs: everything not slow) and
+# `python -m pytest -m slow` (scripts/checks/slow_tier.sh). A test is slow by a mark in its own
+# file that says why: `@pytest.mark.slow(why=...)`, or for some cases of a parametrized test
+# `@pytest.mark.slow_when(predicate, why=...)`, the predicate taking the case's parameters.
+SLOW_REASONS = {
+    "study": "a long study that measures a claim (orders, families, random systems)",
+    "repetition": "a costly repetition of a property a cheaper case of the default run checks",
+    "processes": "starts processes, clusters or file-system faults: seconds each",
+}
+
+
+def _slow_reason(mark, where):
+    why = mark.kwargs.get("why")
+    if why not in SLOW_REASONS:
+        raise pytest.UsageError(f"{where}: @pytest.mark.{mark.name} needs why= one of "
+                                f"{sorted(SLOW_REASONS)}, got {why!r}")
+    return why
 
 
 @pytest.hookimpl(tryfirst=True)  # before -m deselects
 def pytest_collection_modifyitems(config, items):
-    root = Path(config.rootpath)
     for item in items:
-        path = Path(item.fspath).resolve().relative_to(root).as_posix()
-        if f"{path}::{item.name}" in SLOW:
-            item.add_marker(pytest.mark.slow)
+        for mark in item.iter_markers("slow"):
+            _slow_reason(mark, item.nodeid)
+        for mark in item.iter_markers("slow_when"):
+            why = _slow_reason(mark, item.nodeid)
+            params = getattr(getattr(item, "callspec", None), "params", {})
+            if mark.args[0](**params):
+                item.add_marker(pytest.mark.slow(why=why))

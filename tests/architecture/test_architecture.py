@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "ddvp_nlp"
 
@@ -573,20 +575,26 @@ def test_no_lazy_public_name_is_also_a_module_of_its_package():
     assert shadowed == {}
 
 
-def test_every_test_marked_slow_by_name_exists():
-    """tests/slow_tests.txt names tests by path and name: a renamed test or file would silently
-    fall back into the default run, so each entry must name a test function of that file."""
-    tests = ROOT / "tests"
-    missing = []
-    for line in (tests / "slow_tests.txt").read_text().splitlines():
-        if not line.strip() or line.startswith("#"):
+def test_every_slow_mark_says_why_in_its_own_file():
+    """The slow tier is marked by meaning in the test files (tests/conftest.py): every
+    `pytest.mark.slow` and `pytest.mark.slow_when` is a call with a why= among the reasons the
+    conftest knows; a bare mark, or one with another reason, is listed here."""
+    from conftest import SLOW_REASONS
+
+    def is_slow_mark(node):
+        return (isinstance(node, ast.Attribute) and node.attr in {"slow", "slow_when"}
+                and isinstance(node.value, ast.Attribute) and node.value.attr == "mark")
+
+    bad, marks = [], 0
+    for file in sorted((ROOT / "tests").rglob("*.py")):
+        if file.name == "conftest.py":  # marks the cases its predicates chose, why= passed on
             continue
-        path, name = line.split("::")
-        function = name.split("[")[0]
-        file = ROOT / path
-        defined = file.exists() and function in {
-            node.name for node in ast.walk(ast.parse(file.read_text()))
-            if isinstance(node, ast.FunctionDef)}
-        if not defined:
-            missing.append(line)
-    assert missing == []
+        tree = ast.parse(file.read_text())
+        calls = {id(c.func): c for c in ast.walk(tree) if isinstance(c, ast.Call)}
+        for node in filter(is_slow_mark, ast.walk(tree)):
+            marks += 1
+            call = calls.get(id(node))
+            why = {k.arg: k.value for k in (call.keywords if call else [])}.get("why")
+            if not (isinstance(why, ast.Constant) and why.value in SLOW_REASONS):
+                bad.append(f"{file.relative_to(ROOT)}:{node.lineno}")
+    assert marks > 50 and bad == []

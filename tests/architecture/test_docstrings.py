@@ -7,7 +7,11 @@ import ast
 import re
 from pathlib import Path
 
+import pytest
+
 import ddvp_nlp
+
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
 ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|obj|exc|ref|math|const|term)"
                   r":`")

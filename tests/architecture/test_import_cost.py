@@ -6,6 +6,10 @@ import json
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 SOLVER_FAMILIES = ("ddvp_nlp.solvers.bvp", "ddvp_nlp.solvers.grid", "ddvp_nlp.solvers.periodic",
                    "ddvp_nlp.solvers.higher", "ddvp_nlp.solvers.marching",
                    "ddvp_nlp.solvers.baselines")

@@ -10,6 +10,8 @@ import pytest
 import ddvp_nlp
 from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
           "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
@@ -43,6 +45,7 @@ def _dense_error(scene, solution, times):
     return np.max(np.abs(np.hstack([q - q_exact, p - p_exact])))
 
 
+@pytest.mark.slow_when(lambda scheme, **_: scheme == "fixed", why="repetition")
 @pytest.mark.parametrize("scheme", ["vddvp", "fixed"])
 def test_dense_output_has_the_schemes_order(scheme):
     """Between the nodes (at every interval's quarter and midpoint) the interpolant's error
@@ -103,6 +106,7 @@ def test_energy_at_the_nodes():
                        0.5 * (solution.p[:, 0] ** 2 + 4 * solution.q[:, 0] ** 2))
 
 
+@pytest.mark.slow(why="repetition")
 def test_march_and_solve_bvp_take_t_span_as_scipy_does():
     """``t_span = (t0, t_end)`` is the fourth positional argument of both, or a keyword;
     missing or malformed, it is refused by name."""
@@ -134,6 +138,7 @@ def test_no_public_function_takes_more_than_a_dozen_parameters():
     assert not over, over
 
 
+@pytest.mark.slow(why="repetition")
 def test_plot_writes_a_figure_for_a_march_and_for_a_bvp_solution(tmp_path):
     from PIL import Image
 

@@ -12,6 +12,8 @@ import pytest
 
 import ddvp_nlp
 
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 
 def loaded(code: str) -> list[str]:
     """The modules a fresh interpreter holds after running ``code``."""

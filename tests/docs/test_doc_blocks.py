@@ -59,7 +59,7 @@ def python_pages():
                  if runnable(info, body)]
         if found:
             name = str(page.relative_to(ROOT))
-            marks = [pytest.mark.slow] if name in SLOW_PAGES else []
+            marks = [pytest.mark.slow(why="repetition")] if name in SLOW_PAGES else []
             yield pytest.param(page, found, id=name, marks=marks)
 
 

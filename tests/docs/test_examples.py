@@ -17,6 +17,9 @@ def test_every_example_is_listed():
     assert sorted(path.name for path in EXAMPLES.glob("*.py")) == sorted(EXPECTED)
 
 
+@pytest.mark.slow_when(
+    lambda name, **_: name in {"fixed_endpoint.py", "march.py", "own_scene.py"},
+    why="processes")
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_example_runs(name, tmp_path):
     done = subprocess.run([sys.executable, str(EXAMPLES / name)], capture_output=True, text=True,

@@ -205,6 +205,7 @@ ENTRY_STATES = ["missing", "intact", "garbage", "truncated", "empty", "symlink",
                 "folder", "fifo", "writable"]
 
 
+@pytest.mark.slow(why="processes")
 @given(library=st.sampled_from(ENTRY_STATES), stamp=st.sampled_from(
     ["ok", "missing", "garbage", "folder", "symlink", "huge", "plain-sha256"]),
     key=st.sampled_from(["ok", "missing", "short", "public", "folder", "symlink"]))

@@ -17,6 +17,8 @@ from ddvp_nlp import (
     solve_bvp,
 )
 
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 
 @pytest.fixture(scope="module")
 def pendulum():

@@ -130,6 +130,7 @@ def _hold_lock(folder):
     return holder
 
 
+@pytest.mark.slow(why="processes")
 def test_a_folder_being_written_is_busy_for_resume_and_for_readers(tmp_path, capsys):
     """A second --resume of a folder being written had failed with a node-count mismatch
     (it read a set half-swapped); the folder's lock is taken before anything is read."""
@@ -157,6 +158,7 @@ def test_a_folder_being_written_is_busy_for_resume_and_for_readers(tmp_path, cap
     assert meta["status"] == "success" and not (tmp_path / "run" / ".ddvp.lock").exists()
 
 
+@pytest.mark.slow(why="processes")
 def test_default_folders_differ_by_every_input_that_changes_the_result(tmp_path, capsys,
                                                                        monkeypatch):
     """--event, --t-eval and the scene file's content had been left out of the default
@@ -217,6 +219,7 @@ _VALUES = st.recursive(_SCALARS, lambda inner: st.one_of(
         ["from", "to", "count", "x", "w", "e"]), inner, max_size=3)), max_leaves=8)
 
 
+@pytest.mark.slow(why="processes")
 @given(table=st.dictionaries(st.sampled_from(
     ["kind", "workers", "threads", "cores", "memory", "processes", "queue", "account",
      "walltime", "job_extra", "jobs", "other"]), _VALUES, max_size=5),

@@ -64,6 +64,7 @@ UNITS = [Units(q=1e3, p=1e-2, t=10.0), Units(q=1e-3, p=1e-3, t=1e-2),
          Units(q=1e-4, p=30.0, t=1e3, offset=0.25, t_shift=-5.0)]
 
 
+@pytest.mark.slow_when(lambda scene_name, **_: scene_name == "henon_heiles", why="repetition")
 @pytest.mark.parametrize("scene_name, overrides, verdict", [
     ("harmonic", {"t_end": 19.95}, "accurate"),  # 20 falls on a node: the last step is a tie
     ("kepler", {"e": 0.6, "tau0": 0.01, "t_end": 12.0}, "drifted"),
@@ -81,6 +82,7 @@ def test_a_march_in_other_units_gets_the_same_verdict(scene_name, overrides, ver
     assert_same(unit.stats["accuracy"], other.stats["accuracy"], units, rel=1e-5)
 
 
+@pytest.mark.slow(why="repetition")
 def test_a_translated_chain_gets_the_same_verdict():
     """A translation-invariant system (a chain of three coupled pendula, ``1 - cos(q_i -
     q_j)``): the whole motion moved by 1e4 of its size, marched, judged alike."""
@@ -99,6 +101,7 @@ def test_a_translated_chain_gets_the_same_verdict():
 
 # -- the check alone, on the same trajectory in other units: random systems ---------------------
 
+@pytest.mark.slow(why="repetition")
 @settings(max_examples=40, derandomize=True, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(cases_and_units())

@@ -112,6 +112,7 @@ scene = Scene(hamiltonian, n=1, params={"k": 1.0}, q0=[1.0], p0=[0.0], tau0=0.05
 '''
 
 
+@pytest.mark.slow_when(lambda step, **_: step is None, why="repetition")
 @pytest.mark.parametrize("argv, step", [
     (["kepler", "--set", "e=0.95", "--set", "tau0=0.01"], 0),  # the level: -6.06, not -0.5
     (["QUARTIC"], None),                  # the steps grow to 78 tau0; q reaches 1.9 > 1
@@ -256,6 +257,9 @@ def test_a_gauge_term_marches_as_the_oscillator(tmp_path):
 
 # -- the built-in scenes -------------------------------------------------------------------------
 
+@pytest.mark.slow_when(
+    lambda name, **_: name not in {"harmonic", "henon_heiles", "kepler", "pendulum"},
+    why="repetition")
 @pytest.mark.parametrize("name", [n for n in list_scenes() if n != "paper_pendulum"])
 def test_every_built_in_scene_but_the_papers_is_accurate_at_its_defaults(name):
     scene = load_scene(name)
@@ -284,6 +288,7 @@ def test_the_paper_example_says_when_its_phase_drifted(capsys, tmp_path):
     assert f"drifted from t = {accuracy['t_drift']:.6g}" in capsys.readouterr().out
 
 
+@pytest.mark.slow_when(lambda name, **_: name == "kepler", why="repetition")
 @pytest.mark.parametrize("name", ["pendulum_lagrangian", "kepler", "paper_pendulum"])
 def test_compiled_and_careful_paths_give_the_same_verdict(name):
     runs = [_run(name, {"t_end": 5.0}, compilation=Compilation(fast=fast))[2]

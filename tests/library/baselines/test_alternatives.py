@@ -97,7 +97,7 @@ def test_leapfrog_reproduces_sundials_ark_kepler(dt):
     assert _ark_kepler(dt) == pytest.approx(ARK_KEPLER[dt], rel=0.01)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(why="study")
 @pytest.mark.parametrize("dt", [1.25e-4, 6.25e-5])
 def test_leapfrog_reproduces_sundials_ark_kepler_fine_steps(dt):
     assert _ark_kepler(dt) == pytest.approx(ARK_KEPLER[dt], rel=0.01)
@@ -114,6 +114,7 @@ def test_kick_drift_kick_is_not_sundials_leapfrog():
     assert H + 0.5 > 0 > ARK_KEPLER[1e-3]
 
 
+@pytest.mark.smoke  # one run per scheme and compared method: the quick tier
 @pytest.mark.parametrize("name", list(METHODS))
 def test_every_compared_method_marches_from_the_command_line(name, tmp_path, capsys):
     import json
@@ -148,6 +149,7 @@ def test_a_step_that_fails_its_own_equation_turns_the_run_into_a_failure():
     assert solution.status is Status.RESIDUAL_TOO_LARGE and "max(1, |z|)" in solution.message
 
 
+@pytest.mark.slow(why="study")
 def test_compare_over_horizons_writes_a_panel_per_horizon_and_the_growth(tmp_path, capsys):
     from ddvp_nlp.cli import main
 

@@ -153,6 +153,7 @@ def _largest_difference(a, b) -> float:
     return max(float(np.max(np.abs(getattr(a, key) - getattr(b, key)))) for key in "tqp")
 
 
+@pytest.mark.slow(why="repetition")
 @needs_compiler
 @pytest.mark.parametrize("name, nodes, most", [("pendulum", 2000, 10), ("kepler", 1500, 8)])
 def test_compiled_and_vm_newton_return_the_same_nodes(cache, name, nodes, most):

@@ -164,6 +164,7 @@ def test_auto_retries_a_fixed_phase_with_ipopt_where_newton_stalls():
     assert phases[-1] == ("vddvp equations", "newton", True)
 
 
+@pytest.mark.slow(why="study")
 @pytest.mark.parametrize("T", [10.0, 20.0])
 def test_the_continuation_solves_what_newton_and_ipopt_miss_from_the_straight_line(T):
     """Henon-Heiles over 10 and 20 time units: from the straight line both Newton and IPOPT

@@ -13,6 +13,9 @@ from ddvp_nlp import GridOptions, InputError, Scheme, Status, load_scene, march,
 from ddvp_nlp.cli import main
 
 
+@pytest.mark.slow_when(
+    lambda solver, name, tau0, **_: solver == "ipopt" and name == "paper_pendulum" and tau0 == 0.5,
+    why="repetition")
 @pytest.mark.parametrize("name, tau0, t_end", [("paper_pendulum", 0.5, 9.0),
                                                 ("paper_pendulum", 0.1, 9.0),
                                                 ("pendulum", 0.05, 9.0)])

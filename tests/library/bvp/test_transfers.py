@@ -35,6 +35,7 @@ def test_pendulum_transfer_time_and_path_converge_at_order_two_to_shooting():
     assert run.t_end == run.t[-1]  # dense output up to the found end time
 
 
+@pytest.mark.slow(why="study")
 def test_henon_heiles_transfer_from_the_straight_line_guess():
     """Two dimensions, no duration given (the straight line at the speed of H = E at its
     midpoint is the guess): at N = 101 and 201 the transfer matches shooting, the differences

@@ -192,6 +192,7 @@ def _arrays(path):
         return {key: data[key] for key in data.files}
 
 
+@pytest.mark.slow(why="processes")
 def test_a_map_in_shards_merged_is_the_map_of_one_run(tmp_path, capsys):
     assert _map(tmp_path / "one", "--plot") == 0
     assert (tmp_path / "one" / "chaos.png").stat().st_size > 10_000
@@ -251,7 +252,7 @@ def test_a_killed_map_resumes_from_its_journal(tmp_path, capsys):
     assert np.array_equal(resumed["status"], clean["status"])
 
 
-@pytest.mark.slow
+@pytest.mark.slow(why="study")
 def test_the_indicators_converge_in_tau0_at_second_order(system):
     """ln|w| (the synchronous tangent) and <Y> (midpoint weights) against the exact flow at
     the same time, tau0 from 0.04 to 0.005: a fitted order of at least 1.7 (second order in

@@ -37,6 +37,7 @@ def _same(a, b, tol):
         assert np.max(np.abs(x - y)) < tol
 
 
+@pytest.mark.slow_when(lambda alpha, **_: alpha != 0.5, why="repetition")
 @pytest.mark.parametrize("alpha", [0.0, 0.25, 0.5, 1.0])
 def test_fixed_steps_match_the_hamiltonian_scheme_for_every_alpha(alpha):
     """L = v^2/2 - V and H = p^2/2 + V: the same discrete trajectory (docs/theory.md section 4)."""
@@ -47,6 +48,7 @@ def test_fixed_steps_match_the_hamiltonian_scheme_for_every_alpha(alpha):
           march(lagrangian, [0.5], [0.5], (0.0, 20.0), tau0=0.05, scheme=scheme), 1e-10)
 
 
+@pytest.mark.slow_when(lambda scene, **_: scene == "paper_pendulum", why="repetition")
 @pytest.mark.parametrize("rule", ["vddvp", "lee"])
 @pytest.mark.parametrize("scene, function, params, tau0, t_end", [
     ("pendulum", _pendulum_l, {}, 0.05, 2.0),
@@ -62,6 +64,7 @@ def test_energy_rules_match_the_hamiltonian_scheme(rule, scene, function, params
           march(lagrangian, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule), 1e-10)
 
 
+@pytest.mark.slow_when(lambda alpha, **_: alpha != 1.0, why="study")
 @pytest.mark.parametrize("alpha, order", [(0.0, 1), (1.0, 1), (0.5, 2)])
 def test_fitted_order_by_alpha(alpha, order):
     system = LagrangianSystem(_harmonic_l, 1, name="harmonic_l")

@@ -43,6 +43,7 @@ def test_dominant_period_of_a_known_signal():
     assert abs(paper.dominant_period(t, values, shorter_than=20) - 3.1) < 0.01
 
 
+@pytest.mark.slow_when(lambda q0, **_: q0 == [1.0], why="study")
 @pytest.mark.parametrize("system, q0, p0", [(load_scene("pendulum").system, [0.5], [0.5]),
                                             (paper.quartic_system(), [1.0], [0.0])])
 def test_site_density_is_constant_up_to_order_tau(system, q0, p0):
@@ -53,6 +54,7 @@ def test_site_density_is_constant_up_to_order_tau(system, q0, p0):
     assert min(data["tau_spread"]) > 10 * max(data["node"])
 
 
+@pytest.mark.slow(why="study")
 def test_gauge_term():
     data = paper.gauge_differences(t_end=50.0)
     assert data["vddvp"]["success"] and data["lee"]["success"]
@@ -83,6 +85,7 @@ def test_energy_residual_does_not_grow_with_the_number_of_steps():
     assert all(r["max_residual"] < 1e-14 and r["running_sum"] < 1e-14 for r in rows)
 
 
+@pytest.mark.slow(why="study")
 def test_reproduce_writes_report_and_figures(tmp_path, capsys):
     assert main(["reproduce", "--quick", "--out", str(tmp_path)]) == 0
     report = (tmp_path / "report.md").read_text()

@@ -35,6 +35,7 @@ def rng():
     return np.random.default_rng(12345)
 
 
+@pytest.mark.slow_when(lambda name, **_: name != "kepler", why="repetition")
 @pytest.mark.parametrize("name, overrides", [("kepler", {"e": 0.6}),
                                              ("henon_heiles", {}),
                                              ("paper_pendulum", {"t_end": 200.0})])

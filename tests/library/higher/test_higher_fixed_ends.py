@@ -35,6 +35,9 @@ def _solve(name, nodes, scheme, solver, **kwargs):
 ACCEPT = Tolerance(stop=False)
 
 
+@pytest.mark.slow_when(
+    lambda name, scheme, **_: name == "pais_uhlenbeck" and scheme == "vddvp",
+    why="repetition")
 @pytest.mark.parametrize("name, nodes, scheme, iterations", [
     ("spline", 21, "fixed", 1), ("spline", 21, "vddvp", 12), ("pais_uhlenbeck", 41, "fixed", 1),
     ("pais_uhlenbeck", 41, "vddvp", 13)])

@@ -38,6 +38,7 @@ def relative_error(solution, exact):
     return np.max(np.abs(np.hstack([solution.q, solution.p]) - exact) / scale)
 
 
+@pytest.mark.slow_when(lambda scheme, **_: scheme != "fixed", why="repetition")
 @pytest.mark.parametrize("system, scheme", [(DRIVEN, "lee"), (DRIVEN, "fixed"),
                                             (PAPER, "vddvp")], ids=["lee", "fixed", "vddvp"])
 def test_a_time_dependent_march_backwards_follows_the_exact_flow(system, scheme):

@@ -142,6 +142,7 @@ def test_solvability_monitor_is_quiet_where_the_scheme_is_fine():
     assert fixed.solvability.size == 0  # no energy equation, nothing to monitor
 
 
+@pytest.mark.slow(why="study")
 def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged():
     scene = load_scene("pendulum")
     with warnings.catch_warnings():

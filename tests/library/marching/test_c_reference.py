@@ -66,6 +66,7 @@ def test_fast_c_march_solves_the_same_equations(library, name, kind, overrides, 
         assert count.value <= iterations * steps  # Newton updates in all
 
 
+@pytest.mark.slow_when(lambda name, **_: name == "fpu", why="repetition")
 @pytest.mark.parametrize("name, kind, overrides", [("paper_pendulum", 0, {"t_end": 2000.0}),
                                                    ("fpu", 1, {"t_end": 20.0, "tau0": 0.01})])
 def test_c_checks_compute_what_the_march_checks(library, name, kind, overrides):

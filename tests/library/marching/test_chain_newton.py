@@ -125,6 +125,7 @@ def test_a_long_chain_takes_the_chain_newton():
     assert unroll_options(2 * 7 + 1) == {"chain": True}
 
 
+@pytest.mark.slow(why="repetition")
 def test_a_chain_marches_on_the_compiled_path_like_the_careful_one():
     """n = 8 (17 unknowns): the compiled chunk with the chain Newton against the careful path,
     node for node to Newton's tolerance propagated over the run."""

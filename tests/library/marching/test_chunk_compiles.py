@@ -18,6 +18,7 @@ COMPILER = find_compiler("auto")
 needs_compiler = pytest.mark.skipif(COMPILER is None, reason="no C compiler")
 
 
+@pytest.mark.slow_when(lambda method, **_: method.name == "vddvp", why="repetition")
 @needs_compiler
 @pytest.mark.parametrize("method", [paper_schemes.VDDVP, fixed_step.RK4, lee_left.LEE_LEFT])
 def test_a_short_and_a_long_run_of_a_scene_compile_once(tmp_path, method):
@@ -34,6 +35,7 @@ def test_a_short_and_a_long_run_of_a_scene_compile_once(tmp_path, method):
     assert second.stats["path"] == "compiled"
 
 
+@pytest.mark.slow(why="repetition")
 @needs_compiler
 def test_the_chunk_size_does_not_change_the_nodes(tmp_path):
     scene = load_scene("henon_heiles")
@@ -81,6 +83,7 @@ def _same(a, b) -> bool:
             and np.array_equal(a.solvability, b.solvability))
 
 
+@pytest.mark.slow_when(lambda case, **_: case != "fixed", why="repetition")
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 @pytest.mark.parametrize("case", ["careful windows", "accuracy stop", "max_steps", "fixed"])
 def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, case):

@@ -14,6 +14,7 @@ def cache(tmp_path_factory):
     return tmp_path_factory.mktemp("chunks")
 
 
+@pytest.mark.slow(why="repetition")
 @pytest.mark.parametrize("name, rule, overrides", [
     ("paper_pendulum", "vddvp", {"t_end": 2000.0}),
     # tau0 as the scenes' defaults were when these were measured
@@ -64,6 +65,7 @@ def test_fast_and_careful_paths_give_the_same_trajectory(name, rule, overrides, 
         assert difference <= max(1e-9, 10 * sensitivity), (field, difference, sensitivity)
 
 
+@pytest.mark.slow_when(lambda compiler, **_: compiler == "auto", why="repetition")
 @pytest.mark.parametrize("compiler", ["auto", None])
 def test_a_failing_step_inside_a_chunk_is_handled_as_on_the_careful_path(compiler, cache):
     """The rotating pendulum has no positive step after 15 steps: the fast chunk (64 steps) fails

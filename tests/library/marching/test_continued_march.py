@@ -20,6 +20,7 @@ def _same(a, b) -> bool:
     return all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("t", "q", "p"))
 
 
+@pytest.mark.slow_when(lambda fast, **_: not fast, why="repetition")
 @pytest.mark.parametrize("fast", [True, False])
 def test_a_march_cut_anywhere_continues_bit_for_bit(fast):
     """Kepler e = 0.5 with tau_max just under the free steps: chunk steps fail their check and
@@ -78,6 +79,7 @@ def _ddvp(*args, cwd):
                           capture_output=True, text=True)
 
 
+@pytest.mark.slow(why="processes")
 def test_a_killed_march_resumes_from_its_checkpoint_bit_for_bit(tmp_path):
     """SIGKILL once a checkpoint has landed, then `ddvp march --resume`: the same nodes as a
     run that was never stopped."""
@@ -106,6 +108,7 @@ def test_a_killed_march_resumes_from_its_checkpoint_bit_for_bit(tmp_path):
     assert all(np.array_equal(a[k], b[k]) for k in "tqp")
 
 
+@pytest.mark.slow(why="repetition")
 def test_resume_on_the_careful_path_and_to_a_later_end(tmp_path):
     first = _ddvp("march", "pendulum", "--careful", "--set", "t_end=6", "--max-steps", "50",
                   "--no-plot", "--out", "run", cwd=tmp_path)

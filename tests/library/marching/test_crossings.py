@@ -37,6 +37,7 @@ def test_crossings_lie_on_the_section_and_converge_to_dop853_at_the_schemes_orde
     assert errors[-1] < 1e-3
 
 
+@pytest.mark.slow(why="processes")
 def test_a_section_on_a_dask_cluster_is_the_local_one():
     import dask
     from distributed import LocalCluster

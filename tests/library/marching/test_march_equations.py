@@ -47,6 +47,9 @@ def numpy_residuals(solution, scheme):
     return canonical, energy
 
 
+@pytest.mark.slow_when(
+    lambda scheme, **_: scheme.rule == "fixed" or scheme.clock == "left",
+    why="repetition")
 @pytest.mark.parametrize("scheme", [Scheme("vddvp"), Scheme("lee"), Scheme("fixed"),
                                     Scheme("fixed", alpha=0.3), Scheme("lee", clock="left"),
                                     Scheme("vddvp", clock="left")])
@@ -93,6 +96,7 @@ def test_midpoint_rule_is_second_order_on_harmonic(rule):
     assert 1.9 < fitted_order(steps, errors) < 2.1, errors
 
 
+@pytest.mark.slow_when(lambda rule, name, **_: rule == "vddvp" and name == "fpu", why="repetition")
 @pytest.mark.parametrize("name", ["pendulum", "harmonic", "kepler", "henon_heiles", "fpu"])
 @pytest.mark.parametrize("rule", ["vddvp", "lee"])
 def test_midpoint_energy_conserved_over_ten_thousand_steps(name, rule):

@@ -52,6 +52,7 @@ def _oscillator(amplitude: float) -> Scene:
                  name="oscillator")
 
 
+@pytest.mark.slow(why="repetition")
 def test_the_choice_does_not_depend_on_units():
     """q and p a thousand times larger (the quartic term scaled with them): the same motion in
     other units, the same tau0 chosen (everything the choice measures is relative)."""

@@ -138,6 +138,7 @@ def test_dense_elimination_solves_like_numpy():
     assert not np.all(np.isfinite(out))
 
 
+@pytest.mark.slow_when(lambda name, **_: name == "fpu", why="repetition")
 @pytest.mark.parametrize("name, rule", [("pendulum", "vddvp"), ("paper_pendulum", "vddvp"),
                                         ("henon_heiles", "lee"), ("fpu", "fixed"),
                                         ("kepler", "vddvp")])

@@ -32,6 +32,7 @@ RECORDED = GridOptions(accuracy=Tolerance(stop=False))
 HALO_BIRTH = -1.5871759770
 
 
+@pytest.mark.slow(why="study")
 def test_the_l1_lyapunov_family_is_followed_to_the_halo_bifurcation():
     """From E = -1.5935 the family is followed with every orbit closed on the exact flow; the
     vertical pair's index crosses 2 once: a branch point (no fold), located to 1e-6 of the
@@ -94,6 +95,7 @@ def _resonant_orbit(w):
             "p": np.column_stack([p1[:, 0], -radius * np.sin(w * t)])}
 
 
+@pytest.mark.slow(why="study")
 def test_the_continuation_passes_a_fold_located_against_the_closed_form():
     """The family's energy ``E(w)`` from elliptic integrals has its maximum 1.93236339050 at
     w = 0.76324. Followed from w = 0.9 towards E = 2 the continuation turns at the fold and
@@ -185,7 +187,7 @@ def test_follow_and_family_together_are_refused(tmp_path, capsys):
     assert "--follow and --family" in capsys.readouterr().err
 
 
-@pytest.mark.slow
+@pytest.mark.slow(why="study")
 def test_the_halo_birth_converges_at_order_two_in_n():
     """N = 100, 200, 400: the located branch point's distance from the exact flow's falls like
     N^-2 (measured 3.34e-6, 8.35e-7, 2.09e-7)."""

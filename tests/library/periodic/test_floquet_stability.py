@@ -40,6 +40,7 @@ def _orbits(scene, settings, energy, sizes, base_nodes=400, **options):
             for N in sizes]
 
 
+@pytest.mark.slow_when(lambda family, **_: family == "loop", why="study")
 @pytest.mark.parametrize("family", ["loop", "across", "axis"])
 def test_henon_heiles_indices_converge_at_order_two_to_the_exact_flows(family):
     """At E = 0.1 the loop orbit is stable (index 0.0884), the orbit across the axis unstable
@@ -81,6 +82,7 @@ def test_pendulum_has_only_the_trivial_pair_and_its_period_derivative_converges(
     assert abs(fitted_order(sizes, errors) + 2) < 0.1, errors
 
 
+@pytest.mark.slow(why="study")
 def test_the_figure_eight_is_linearly_stable_and_its_indices_converge():
     """Eight trivial multipliers (flow, two translations, rotation: two each) and two stable
     pairs, indices -0.5952 and 1.99720 on the exact flow; the discrete ones converge at order
@@ -104,6 +106,7 @@ def test_the_figure_eight_is_linearly_stable_and_its_indices_converge():
     assert abs(fitted_order(sizes, errors[:3]) + 2) < 0.15, errors
 
 
+@pytest.mark.slow(why="study")
 def test_indices_and_verdicts_do_not_change_with_the_units():
     """``q = a Q``, ``p = b P`` and ``H' = c H(a Q, b P) / (a b)`` (times ``1/c``): the same
     motion in other units, discretely too (the midpoint rule is affine, the energy equation
@@ -138,6 +141,7 @@ def test_indices_and_verdicts_do_not_change_with_the_units():
     check()
 
 
+@pytest.mark.slow(why="study")
 @settings(max_examples=4, deadline=None, derandomize=True, phases=NO_SHRINK,
           suppress_health_check=[HealthCheck.too_slow])
 @given(st.floats(0.7, 1.4), st.floats(-0.6, 0.6), st.floats(-0.6, 0.6), st.floats(0.2, 0.8))

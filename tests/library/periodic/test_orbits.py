@@ -105,6 +105,7 @@ def test_no_orbit_found_is_a_failure_status_with_residuals():
     assert all(a["status"] != "success" for a in solution.stats["attempts"])
 
 
+@pytest.mark.slow(why="study")
 def test_figure_eight_closes_with_simos_period_and_one_curve():
     """Three equal masses at Simo's energy: the period within 1e-3 of 6.32591398 at N = 600,
     and each body's orbit is the next one's shifted by a third of the period (to the

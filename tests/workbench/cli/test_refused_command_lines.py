@@ -14,6 +14,8 @@ from ddvp_nlp import Compilation, Output, StepControl, Tolerance, load_scene, ma
 from ddvp_nlp.cli import main
 from ddvp_nlp.errors import InputError
 
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 CASES = [
     # kepler declares e in [0, 1): both ends of the range refused by name before any start
     (["march", "kepler", "--set", "e=1"], "parameter 'e' must lie in [0, 1), got 1.0"),
@@ -82,6 +84,7 @@ def test_bad_march_arguments_are_refused(kwargs, text):
     assert str(info.value) == text
 
 
+@pytest.mark.slow(why="processes")
 def test_a_damaged_cached_library_is_rebuilt(tmp_path):
     import json
     import os
@@ -234,6 +237,7 @@ def test_fuzz_grid_files(tmp_path):
             pass
 
 
+@pytest.mark.slow_when(lambda expression, **_: expression == "0 * p[0]", why="repetition")
 @pytest.mark.parametrize("expression", ["p[0]", "0 * p[0]"])
 def test_a_hamiltonian_with_no_well_posed_energy_step_is_refused_by_name(tmp_path, capsys,
                                                                          expression):

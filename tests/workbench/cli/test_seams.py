@@ -68,6 +68,7 @@ def test_a_march_and_a_grid_write_no_carriage_return_into_a_redirected_stderr(ca
     assert "\r" not in capsys.readouterr().err
 
 
+@pytest.mark.slow(why="processes")
 def test_a_redirected_stderr_of_the_command_has_no_carriage_return(tmp_path):
     done = subprocess.run([sys.executable, "-m", "ddvp_nlp.cli", "compare", "harmonic",
                            "--methods", "vddvp,rk4", "--halvings", "1", "--repeats", "1",

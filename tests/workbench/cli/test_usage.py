@@ -11,6 +11,8 @@ import pytest
 from ddvp_nlp.cli import main
 from ddvp_nlp.cli.parser import build_parser
 
+pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
+
 
 def options_without_help(parser: argparse.ArgumentParser, name: str = "ddvp"):
     """``(command, option)`` of every argument, at every level, that has no help text."""

@@ -104,6 +104,7 @@ def test_the_run_figure_of_a_long_run_has_mathematical_labels_and_distinct_ticks
     assert max(line.get_xdata().size for line in whole.lines) < solution.t.size / 4
 
 
+@pytest.mark.slow(why="repetition")
 def test_steps_that_differ_in_the_fifth_digit_get_distinct_tick_labels():
     # fpu's steps lie within 0.2% of 0.01: the old canvas labelled all six ticks "0.01"
     scene, solution = marched("fpu", t_end=5.0)

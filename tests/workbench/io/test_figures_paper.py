@@ -118,6 +118,7 @@ def test_a_fixed_end_run_marks_both_ends():
     assert "fixed ends" in [t.get_text() for t in q.get_legend().get_texts()]
 
 
+@pytest.mark.slow_when(lambda success, **_: success, why="repetition")
 @pytest.mark.parametrize("success", [True, False])
 def test_an_orbit_and_a_family_of_constant_steps_and_periods(success):
     solution = run(Status.SUCCESS if success else Status.SOLVER_FAILED)

@@ -137,6 +137,7 @@ def _small_tmpfs(tmp_path):
     return mount
 
 
+@pytest.mark.slow_when(lambda state, **_: state == "read-only", why="processes")
 @pytest.mark.parametrize("state", ["full", "read-only"])
 def test_a_real_full_or_read_only_file_system(tmp_path, state):
     mount = _small_tmpfs(tmp_path)
@@ -183,6 +184,7 @@ def test_a_forged_success_row_is_run_again(tmp_path, capsys):
     assert "1e-30" not in (out / "sweep.csv").read_text()
 
 
+@pytest.mark.slow_when(lambda content, **_: content.startswith(b"cl"), why="repetition")
 @pytest.mark.parametrize("content, reason", [
     (b"\xff\xfe" + bytes(range(256)) * 8, "not UTF-8 text"),
     ("clé,été\n".encode("latin-1"), "not UTF-8 text"),
@@ -200,6 +202,7 @@ def test_a_damaged_grid_file_is_refused_by_name(tmp_path, capsys, content, reaso
     assert main([*SWEEP, "--out", str(out), "--fresh"]) == 0  # afresh: replaced
 
 
+@pytest.mark.slow(why="processes")
 def test_a_second_grid_never_wipes_another_grids_rows(tmp_path, capsys):
     out = tmp_path / "out"
     assert main([*SWEEP, "--out", str(out)]) == 0
@@ -256,6 +259,7 @@ SCENE_HEAD = "from ddvp_nlp import Scene\n"
 SCENE_TAIL = "scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1)\n"
 
 
+@pytest.mark.slow_when(lambda text, **_: "did not return" in text, why="processes")
 @pytest.mark.parametrize("body, text", [
     ("raise GeneratorExit('boom')\n", "line 2: loading the file raised GeneratorExit: boom"),
     ("class Boom(BaseException):\n    pass\nraise Boom('x')\n", "line 4: loading the file "
@@ -294,6 +298,7 @@ def test_numbers_are_checked_by_name_before_anything_is_built(tmp_path, capsys, 
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow(why="repetition")
 def test_default_folders_carry_every_setting_that_changes_the_result(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     base = ["march", "harmonic", "--set", "t_end=1", "--no-progress", "--no-plot"]

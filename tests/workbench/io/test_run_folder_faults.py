@@ -72,6 +72,7 @@ def test_sigkill_over_an_earlier_run_leaves_one_whole_run(tmp_path):
     assert meta["status"] == "running" and arrays["t"].size == meta["nodes"]
 
 
+@pytest.mark.slow_when(lambda signals, **_: len(signals) == 2, why="processes")
 @pytest.mark.parametrize("signals", [[signal.SIGINT, signal.SIGINT], [signal.SIGTERM]],
                          ids=["two-ctrl-c", "sigterm"])
 def test_interrupts_end_with_the_run_written(tmp_path, signals):
@@ -88,6 +89,7 @@ def test_interrupts_end_with_the_run_written(tmp_path, signals):
     assert meta["message"].startswith("interrupted by the user")
 
 
+@pytest.mark.slow(why="processes")
 def test_concurrent_writers_leave_one_whole_run(tmp_path):
     """Writers racing for one folder: each either writes its run whole and says so, or is
     refused (exit 1) while another holds the folder; none is replaced in silence."""
@@ -175,6 +177,7 @@ def test_reader_refuses_a_result_beside_another_runs_meta(tmp_path):
         "directory): the set was cut while writing, or changed by another tool")
 
 
+@pytest.mark.slow(why="processes")
 def test_a_study_told_to_stop_never_exits_0(tmp_path):
     """SIGTERM a second into `ddvp compare`: wherever it lands (the imports, a march's Newton
     inside CasADi, where it surfaces as that run's failure, or between runs) the command exits

@@ -36,6 +36,7 @@ def test_a_slurm_job_script_is_made_from_a_description():
     assert "--nthreads" in script or "--nworkers" in script
 
 
+@pytest.mark.slow(why="processes")
 def test_the_same_ensemble_on_a_local_cluster_gives_the_same_crossings():
     """Two worker processes of a LocalCluster (each loads the scene and its compiled chunk)
     against one process: the same crossings, bit for bit (the same compiled arithmetic)."""

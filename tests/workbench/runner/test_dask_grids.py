@@ -43,6 +43,7 @@ def _harmonic_cases():
                                  settings={"t_end": 5.0}))
 
 
+@pytest.mark.slow(why="processes")
 def test_the_same_grid_gives_the_same_rows_wherever_it_runs(tmp_path, cluster):
     cases = _harmonic_cases()
     vm = Compilation(compiler=None)
@@ -112,6 +113,7 @@ def test_resume_skips_finished_rows(tmp_path):
     del calls
 
 
+@pytest.mark.slow(why="processes")
 def test_workers_share_the_compiled_cache(tmp_path, cluster):
     """Two workers compiling the same march chunk into one empty cache folder at once."""
     # both runs use the same chunk of 64 steps, so both need the same library

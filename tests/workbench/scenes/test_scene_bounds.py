@@ -38,6 +38,7 @@ def command(tmp_path, *argv, limit="0.5"):
     return process.returncode, out, err
 
 
+@pytest.mark.slow(why="processes")
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs CPU affinity")
 def test_a_scene_that_waits_for_a_busy_processor_is_not_refused(tmp_path):
     """0.6 s of CPU work with a limit of 1 s, sharing one processor with a busy process: it

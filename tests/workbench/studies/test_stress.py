@@ -27,6 +27,7 @@ def _row(rows, case, method):
     return row
 
 
+@pytest.mark.slow(why="study")
 def test_every_case_runs_every_method_that_applies(quick):
     out, rows = quick
     cases = default_cases(quick=True)
@@ -41,6 +42,7 @@ def test_every_case_runs_every_method_that_applies(quick):
     assert len(read_rows(out / "stress.csv")) == len(rows)
 
 
+@pytest.mark.slow(why="study")
 def test_predicted_breakdowns_are_the_observed_ones(quick):
     out, rows = quick
     text = (out / "stress.md").read_text()
@@ -55,6 +57,7 @@ def test_predicted_breakdowns_are_the_observed_ones(quick):
     assert "**no**" not in text.split("## Predicted and observed")[1].split("## Where")[0]
 
 
+@pytest.mark.slow(why="study")
 def test_explicit_methods_blow_up_beyond_their_stability_limit(quick):
     _, rows = quick
     for method in ("stormer_verlet", "rk4"):  # omega*tau = 4 > 2 and > 2.83
@@ -65,6 +68,7 @@ def test_explicit_methods_blow_up_beyond_their_stability_limit(quick):
     assert _row(rows, "omega=50, omega*tau=4", "midpoint")["status"] == "success"
 
 
+@pytest.mark.slow(why="study")
 def test_failed_runs_say_where_and_why_and_lose_nothing(quick):
     out, rows = quick
     failed = [r for r in rows if r["status"] != "success"]
@@ -78,6 +82,7 @@ def test_failed_runs_say_where_and_why_and_lose_nothing(quick):
     assert (out / "stress.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow(why="study")
 def test_long_run_separates_symplectic_from_dissipative_energy_error(quick):
     _, rows = quick
     harmonic = "harmonic, 10 periods"
