@@ -1,5 +1,6 @@
 """Scenes: a system plus the data to run it (start, fixed ends, periodic settings, default
-scheme), declared in a small Python file (``scene.py``), and their loading, by name from
+scheme), declared in a small Python file (``scene.py``), one run's configuration resolved from it
+(``run_config.py``), and their loading, by name from
 ``problems/`` or by path, with the scene's code run bounded (``loader.py``)."""
 
 from .loader import (
@@ -10,7 +11,7 @@ from .loader import (
     scene_file,
     scene_fingerprint,
 )
-from .scene import (
+from .run_config import (
     BOUNDARY_NODES,
     BOUNDARY_SETTINGS,
     RUN_SETTINGS,
@@ -18,12 +19,10 @@ from .scene import (
     VECTOR_SETTINGS,
     BoundaryConfig,
     Endpoints,
-    HigherOrderScene,
     HigherRunConfig,
-    PeriodicSettings,
     RunConfig,
-    Scene,
 )
+from .scene import HigherOrderScene, PeriodicSettings, Scene
 
 __all__ = ["BOUNDARY_NODES", "BOUNDARY_SETTINGS", "RUN_SETTINGS", "STATE_SETTINGS",
            "VECTOR_SETTINGS", "BoundaryConfig", "Endpoints", "HigherOrderScene",

@@ -31,38 +31,19 @@ from ..validation import (
     check_parameter_ranges,
     check_parameter_values,
     check_real,
-    check_span,
-    check_state,
     check_step,
 )
-from .guard import SceneCodeError
-
-RUN_SETTINGS = ("t0", "tau0", "t_end")
-STATE_SETTINGS = ("q0", "p0", "v0")
-BOUNDARY_SETTINGS = ("q_start", "q_end", "t0", "t_end")
-VECTOR_SETTINGS = ("q0", "p0", "v0", "q_start", "q_end")
-# The nodes of a fixed-endpoint grid that neither the command nor the scene's Endpoints give.
-BOUNDARY_NODES = 101
-
-
-@dataclass(frozen=True)
-class Endpoints:
-    """A scene's default fixed-endpoint problem (``ddvp bvp``): the end positions (not for a
-    higher-order scene, whose ends come from its exact motion), the time span and the node
-    count. Any field left ``None`` falls back to the scene's ``t0``, ``t_end`` or
-    `BOUNDARY_NODES` nodes."""
-
-    q_start: object = None
-    q_end: object = None
-    t_span: tuple | None = None
-    nodes: int | None = None
-
-    def __post_init__(self):
-        if self.t_span is not None:
-            object.__setattr__(self, "t_span", check_span(self.t_span))
-        if self.nodes is not None:
-            object.__setattr__(self, "nodes", check_integer("Endpoints nodes", self.nodes,
-                                                            minimum=2))
+from .run_config import (
+    BOUNDARY_NODES,
+    RUN_SETTINGS,
+    BoundaryConfig,
+    Endpoints,
+    HigherRunConfig,
+    RunConfig,
+    resolve_boundary,
+    resolve_run,
+    split_parameters,
+)
 
 
 @dataclass(frozen=True)
@@ -243,59 +224,16 @@ class Scene:
                                     name=self.name)
         return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name)
 
-    def _split_parameters(self, overrides, settings_names):
-        overrides = dict(overrides or {})
-        settings = {k: overrides.pop(k) for k in settings_names if k in overrides}
-        unknown = sorted(set(overrides) - set(self.params))
-        if unknown:
-            known = ", ".join([*self.params, *settings_names])
-            raise InputError(f"scene {self.name!r} has no parameter {unknown[0]!r} "
-                             f"(it has: {known})")
-        return check_parameter_values(overrides, self.params, owner=f"scene {self.name!r}",
-                                      ranges=self.ranges), settings
-
     def resolve_boundary(self, overrides: Mapping[str, object] | None = None,
                          nodes: int | None = None) -> BoundaryConfig:
         """Fixed-endpoint data: the scene's ``boundary`` with ``overrides`` (parameters,
         ``q_start``, ``q_end``, ``t0``, ``t_end``) and ``nodes`` applied."""
-        params, settings = self._split_parameters(overrides, BOUNDARY_SETTINGS)
-        data = self.boundary or Endpoints()
-        if self.boundary is None and not {"q_start", "q_end"} <= set(settings):
-            raise InputError(f"scene {self.name!r} declares no fixed-endpoint data: give "
-                             "q_start, q_end, t0 and t_end (--set NAME=VALUE) and --nodes")
-        t_span = data.t_span or (self.t0, self.t_end)
-        t0 = settings.get("t0", t_span[0])
-        t1 = settings.get("t_end", t_span[1])
-        return BoundaryConfig(params=params,
-                              q_start=np.atleast_1d(np.asarray(settings.get(
-                                  "q_start", data.q_start), dtype=float)),
-                              q_end=np.atleast_1d(np.asarray(settings.get(
-                                  "q_end", data.q_end), dtype=float)),
-                              t_span=(float(t0), float(t1)),
-                              nodes=nodes if nodes is not None else (data.nodes or BOUNDARY_NODES))
+        return resolve_boundary(self, overrides, nodes)
 
     def resolve(self, overrides: Mapping[str, object] | None = None) -> RunConfig:
         """Defaults with ``overrides`` applied: parameters, ``t0``, ``tau0``, ``t_end``, ``q0``,
         ``p0``. Unknown names are an error that lists the known ones."""
-        lagrangian = isinstance(self.hamiltonian, Lagrangian)
-        names = (*RUN_SETTINGS, *(STATE_SETTINGS if lagrangian else STATE_SETTINGS[:2]))
-        params, settings = self._split_parameters(overrides, names)
-        q0 = settings.get("q0", self.q0)
-        if "p0" in settings and "v0" in settings:
-            raise InputError("give p0 or v0, not both")
-        p0 = settings.get("p0", None if "v0" in settings else self.p0)
-        v0 = settings.get("v0", None if "p0" in settings else self.v0)
-        values = {k: settings.get(k, getattr(self, k)) for k in RUN_SETTINGS}
-        for k, v in values.items():
-            check_real(k, v)
-        if values["t_end"] == values["t0"]:  # t_end < t0: a march backwards in time
-            raise InputError(f"t_end must differ from t0 = {values['t0']!r} (t_end < t0 "
-                             f"marches backwards), got {values['t_end']!r}")
-        check_step(values["tau0"], float(values["t0"]), float(values["t_end"]))
-        q0, p0, v0 = (None if x is None else self._start_value(name, x, params)
-                      for name, x in (("q0", q0), ("p0", p0), ("v0", v0)))
-        return RunConfig(params=params, q0=q0, p0=p0, v0=v0,
-                         **{k: float(v) for k, v in values.items()})
+        return resolve_run(self, overrides)
 
     def exact_states(self, config: RunConfig) -> Callable | None:
         """The scene's exact solution through the run's start as ``exact(t) -> z`` (rows), for
@@ -349,7 +287,7 @@ class Scene:
         energy = settings.energy if energy is None else energy
         if energy is None:
             raise InputError(f"scene {self.name!r} declares no periodic energy: give energy=")
-        params, _ = self._split_parameters(overrides, ())
+        params, _ = split_parameters(self, overrides, ())
         if settings.guess is not None:
             options.setdefault("guess", settings.guess(energy, **params))
         for name in ("section", "start", "integrals", "angles"):
@@ -358,71 +296,6 @@ class Scene:
         options.setdefault("scheme", self.scheme or "vddvp")
         return solve_periodic(self.system, energy=energy, nodes=nodes or settings.nodes,
                               params=params, **options)
-
-    def _start_value(self, name: str, value, params: dict) -> np.ndarray:
-        """The scene's ``q0``, ``p0`` or ``v0`` (a function of the parameters, or a value) as a
-        finite real vector of length ``n``; a function that raises is named with the values."""
-        if callable(value):
-            try:
-                value = value(**params)
-            except SceneCodeError as exc:
-                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
-                                 f"{_shown(params)}: {exc.reason.removeprefix('raised ')} "
-                                 f"({exc.where})") from None
-            except Exception as exc:
-                raise InputError(f"scene {self.name!r}: {name} cannot be computed for "
-                                 f"{_shown(params)}: {type(exc).__name__}: {exc}") from None
-        return check_state(f"scene {self.name!r}: {name}", value, self.n)
-
-
-@dataclass
-class RunConfig:
-    """Resolved values of one run of a scene."""
-
-    params: dict[str, float]
-    q0: np.ndarray
-    p0: np.ndarray | None
-    t0: float
-    tau0: float
-    t_end: float
-    v0: np.ndarray | None = None
-
-    def as_dict(self) -> dict:
-        start = {"p0": self.p0.tolist()} if self.p0 is not None else {"v0": self.v0.tolist()}
-        return {**self.params, "q0": self.q0.tolist(), **start, "t0": self.t0,
-                "tau0": self.tau0, "t_end": self.t_end}
-
-
-@dataclass
-class HigherRunConfig:
-    """Resolved values of one run of a higher-order scene."""
-
-    params: dict[str, float]
-    t0: float
-    tau0: float
-    t_end: float
-
-    def as_dict(self) -> dict:
-        """The resolved settings as plain values (what a run folder's name is hashed from)."""
-        return {"params": dict(self.params), "t0": self.t0, "tau0": self.tau0,
-                "t_end": self.t_end}
-
-
-@dataclass
-class BoundaryConfig:
-    """Resolved fixed-endpoint data of a scene."""
-
-    params: dict[str, float]
-    q_start: np.ndarray
-    q_end: np.ndarray
-    t_span: tuple[float, float]
-    nodes: int
-
-    def as_dict(self) -> dict:
-        return {**self.params, "q_start": self.q_start.tolist(), "q_end": self.q_end.tolist(),
-                "t0": self.t_span[0], "t_end": self.t_span[1], "nodes": self.nodes}
-
-
 
 
 @dataclass(eq=False)
@@ -508,10 +381,6 @@ class HigherOrderScene:
     def exact_positions(self, config: HigherRunConfig) -> Callable:
         """The exact motion of a run as ``exact(t) -> q`` (rows), for the accuracy check."""
         return lambda t: self.exact_motion(t, config.params)
-
-
-def _shown(params: dict) -> str:
-    return ", ".join(f"{k} = {v:g}" for k, v in params.items()) or "the defaults"
 
 
 def _check_common(scene) -> None:

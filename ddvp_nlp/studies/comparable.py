@@ -34,7 +34,7 @@ def check_starts_from_p0(scene, config: RunConfig) -> None:
 REFERENCE_KINDS = ("auto", "exact", "flow", "none")
 
 
-class Reference:
+class ComparisonReference:
     """``z_ref(t)`` of a run configuration: the scene's exact solution, the exact flow (the one
     reference every verdict uses, ``solvers/exact/``), or none (``kind="none"``: the
     trajectory error is not measured, the energy error of an autonomous ``H`` still is).
@@ -107,10 +107,10 @@ _REFERENCES: dict = {}
 
 
 def reference_for(scene: Scene, overrides: Mapping[str, object],
-                  kind: str = "auto") -> Reference:
+                  kind: str = "auto") -> ComparisonReference:
     """The reference of a scene and its overrides, computed once per process (every run of a
     grid on one worker shares it)."""
     key = (scene.source or id(scene), scene.name, repr(sorted(dict(overrides).items())), kind)
     if key not in _REFERENCES:
-        _REFERENCES[key] = Reference(scene, scene.resolve(overrides), kind)
+        _REFERENCES[key] = ComparisonReference(scene, scene.resolve(overrides), kind)
     return _REFERENCES[key]

@@ -58,7 +58,7 @@ DOP853_RTOL = 1e-10
 
 
 @dataclass
-class Case:
+class StressCase:
     """One stress case: a scene, its settings and the step every fixed- or first-step method
     uses (DOP853 runs at rtol 1e-10)."""
 
@@ -72,7 +72,7 @@ class Case:
     rtol: float = DOP853_RTOL
 
 
-def default_cases(quick: bool = False) -> list[Case]:
+def default_cases(quick: bool = False) -> list[StressCase]:
     """The grid of the issue; ``quick`` keeps one or two cases per group on short horizons (for
     the tests)."""
     return [case for group in (_fpu_cases, _kepler_cases, _pendulum_cases, _long_cases,
@@ -82,14 +82,15 @@ def default_cases(quick: bool = False) -> list[Case]:
 def _fpu_cases(quick):
     omegas = (50.0,) if quick else (50.0, 100.0, 300.0, 1000.0)
     products = (0.5, 4.0) if quick else (0.5, 1.0, 2.0, 4.0)
-    return [Case("fpu", f"omega={omega:g}, omega*tau={product:g}", "fpu",
-                 {"omega": omega, **({"t_end": 2.0} if quick else {})}, product / omega)
+    return [StressCase("fpu", f"omega={omega:g}, omega*tau={product:g}", "fpu",
+                       {"omega": omega, **({"t_end": 2.0} if quick else {})}, product / omega)
             for omega in omegas for product in products]
 
 
 def _kepler_cases(quick):
-    return [Case("kepler", f"e={e:g}", "kepler", {"e": e, "t_end": (2 if quick else 20) * math.pi},
-                 0.01, "ten periods" if not quick else "one period")
+    return [StressCase("kepler", f"e={e:g}", "kepler",
+                       {"e": e, "t_end": (2 if quick else 20) * math.pi}, 0.01,
+                       "ten periods" if not quick else "one period")
             for e in ((0.5, 0.9) if quick else (0.5, 0.7, 0.8, 0.9, 0.99))]
 
 
@@ -97,22 +98,22 @@ def _pendulum_cases(quick):
     energies = [("H=2-1e-2", 2 - 1e-2), ("H=2.5 (rotation)", 2.5)] if quick else [
         ("H=2-1e-2", 2 - 1e-2), ("H=2-1e-4", 2 - 1e-4), ("H=2-1e-6", 2 - 1e-6),
         ("H=2.5 (rotation)", 2.5)]
-    return [Case("pendulum", label, "pendulum",
-                 {"q0": [0.0], "p0": [math.sqrt(2 * H)], "t_end": 10.0 if quick else 100.0},
-                 0.05) for label, H in energies]
+    return [StressCase("pendulum", label, "pendulum",
+                       {"q0": [0.0], "p0": [math.sqrt(2 * H)], "t_end": 10.0 if quick else 100.0},
+                       0.05) for label, H in energies]
 
 
 def _long_cases(quick):
     periods = 10 if quick else 10_000
-    return [Case("long", f"harmonic, {periods} periods", "harmonic",
-                 {"t_end": 2 * math.pi * periods}, 0.1),
-            Case("long", f"pendulum, {periods} periods", "pendulum",
-                 {"t_end": _pendulum_period(0.5, 0.5) * periods}, 0.05)]
+    return [StressCase("long", f"harmonic, {periods} periods", "harmonic",
+                       {"t_end": 2 * math.pi * periods}, 0.1),
+            StressCase("long", f"pendulum, {periods} periods", "pendulum",
+                       {"t_end": _pendulum_period(0.5, 0.5) * periods}, 0.05)]
 
 
 def _paper_cases(quick):
-    return [Case("paper_pendulum", f"tau0={tau0:g}", "paper_pendulum",
-                 {"t_end": 20.0 if quick else 100.0}, tau0)
+    return [StressCase("paper_pendulum", f"tau0={tau0:g}", "paper_pendulum",
+                       {"t_end": 20.0 if quick else 100.0}, tau0)
             for tau0 in ((0.5, 5e-3) if quick else (0.5, 0.05, 5e-3, 5e-4))]
 
 
@@ -149,7 +150,7 @@ def predicted(system, config, dop853_solution) -> dict:
             "sampled_to": float(solution.t[-1])}
 
 
-def case_tasks(case: Case, *, compiler, cache_dir=None, max_steps: int = 2_000_000,
+def case_tasks(case: StressCase, *, compiler, cache_dir=None, max_steps: int = 2_000_000,
                time_limit: float = 60.0) -> list[Task]:
     """One task per method that applies to the case (``lee`` only where H depends on t)."""
     scene = load_scene(case.scene)
@@ -243,7 +244,7 @@ def _settings_text(settings: dict) -> str:
 class StressPlan:
     """A checked grid, ready to run: its cases, their tasks and the bounds of each run."""
 
-    cases: list[Case]
+    cases: list[StressCase]
     tasks: list[Task]
     compiler: str | None
     max_steps: int
@@ -259,7 +260,7 @@ class StressResult:
     case's DOP853 run predicts, and the bounds the runs had."""
 
     rows: list[dict]
-    cases: list[Case]
+    cases: list[StressCase]
     predictions: dict
     compiler: str | None
     max_steps: int
@@ -271,7 +272,7 @@ class StressResult:
         """The methods that ran, in the registry's order: a report's columns."""
         return [m for m in METHODS if any(r["method"] == m for r in self.rows)]
 
-    def row(self, case: Case, method: str) -> dict | None:
+    def row(self, case: StressCase, method: str) -> dict | None:
         """The row of ``method`` on ``case``, or ``None`` if it did not run there."""
         for r in self.rows:
             if r["case"] == case.name and r["group"] == case.group and r["method"] == method:
@@ -283,7 +284,7 @@ class StressResult:
 class Breakdown:
     """The energy step on one case: predicted (sign of ``c(z)``) against observed (``vddvp``)."""
 
-    case: Case
+    case: StressCase
     prediction: dict
     row: dict
 
@@ -300,7 +301,7 @@ class Breakdown:
 DEFAULT_STEPS = StepControl(max_steps=2_000_000, time_limit=60.0)
 
 
-def plan_stress(*, quick: bool = False, cases: list[Case] | None = None,
+def plan_stress(*, quick: bool = False, cases: list[StressCase] | None = None,
                 steps: StepControl | None = None, compilation: Compilation | None = None,
                 workers: Workers | None = None) -> StressPlan:
     """Check the bounds and make every case's tasks (arguments as
@@ -337,7 +338,7 @@ def run_stress(plan: StressPlan, rows_path, *, resume: bool = False,
                         plan.time_limit, plan.quick)
 
 
-def prediction_for(result: StressResult, case: Case) -> dict | None:
+def prediction_for(result: StressResult, case: StressCase) -> dict | None:
     """What the sign of ``c(z)`` along the case's DOP853 orbit predicts, if DOP853 succeeded."""
     return result.predictions.get((case.name, case.group))
 
@@ -361,6 +362,6 @@ def status_counts(rows) -> dict:
     return counts
 
 
-__all__ = ["COLUMNS", "DEFAULT_METHODS", "ROWS", "Breakdown", "Case", "StressPlan",
+__all__ = ["COLUMNS", "DEFAULT_METHODS", "ROWS", "Breakdown", "StressCase", "StressPlan",
            "StressResult", "breakdowns", "case_tasks", "default_cases", "plan_stress",
            "run_one", "run_stress", "status_counts"]

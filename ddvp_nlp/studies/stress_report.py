@@ -24,7 +24,7 @@ from .comparable import REFERENCE_RTOL
 from .stress import (
     DOP853_RTOL,
     ROWS,
-    Case,
+    StressCase,
     StressResult,
     breakdowns,
     plan_stress,
@@ -40,7 +40,7 @@ SHORT = {"success": "ok", "no_admissible_step": "no root", "newton_failed": "New
          "not_run": "not run"}
 
 
-def stress(out: str | os.PathLike, *, quick: bool = False, cases: list[Case] | None = None,
+def stress(out: str | os.PathLike, *, quick: bool = False, cases: list[StressCase] | None = None,
            steps: StepControl | None = None, compilation: Compilation | None = None,
            workers: Workers | None = None, progress: bool = False, resume: bool = False,
            name: str = "stress", title: str = DEFAULT_TITLE, interruptible=None) -> list[dict]:

@@ -20,7 +20,7 @@ from ..scenes import load_scene
 from ..validation import check_real
 from .comparable import check_comparable
 from .methods import METHODS
-from .stress import DEFAULT_METHODS, DOP853_RTOL, Case
+from .stress import DEFAULT_METHODS, DOP853_RTOL, StressCase
 
 
 @dataclass
@@ -58,8 +58,8 @@ def evenly_spaced(where, start, stop, count) -> list[float]:
     return [start + (stop - start) * i / (count - 1) for i in range(count)]
 
 
-def sweep_cases(spec: SweepSpec) -> list[Case]:
-    """The product of the axes, one `Case` per point; every point's settings are
+def sweep_cases(spec: SweepSpec) -> list[StressCase]:
+    """The product of the axes, one `StressCase` per point; every point's settings are
     checked against the scene before anything runs."""
     scene = load_scene(spec.scene)
     check_comparable(scene)
@@ -82,7 +82,7 @@ def sweep_cases(spec: SweepSpec) -> list[Case]:
 MAX_POINTS = 100_000
 
 
-def _case_at(scene, spec: SweepSpec, values: dict) -> Case:
+def _case_at(scene, spec: SweepSpec, values: dict) -> StressCase:
     """The case at one point of the grid (``values``: one value per axis)."""
     settings = {**spec.settings, **{k: v for k, v in values.items()
                                     if k not in ("tau0", "rtol")}}
@@ -94,5 +94,5 @@ def _case_at(scene, spec: SweepSpec, values: dict) -> Case:
                          f"{config.t_end - config.t0!r} at {values}")
     rtol = check_real("rtol", values.get("rtol", DOP853_RTOL), positive=True)
     label = ", ".join(f"{k}={v:g}" for k, v in values.items())
-    return Case(scene.name if "/" not in spec.scene else spec.scene, label, spec.scene,
-                settings, tau, methods=spec.methods, rtol=rtol)
+    return StressCase(scene.name if "/" not in spec.scene else spec.scene, label, spec.scene,
+                      settings, tau, methods=spec.methods, rtol=rtol)

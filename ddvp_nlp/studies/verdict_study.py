@@ -123,7 +123,7 @@ class Units:
 
 
 @dataclass(frozen=True)
-class Case:
+class DrawnCase:
     """A random system, a start ``(Q0, P0)``, a first step and a horizon in its own units, a
     scheme, and the units it is marched in."""
 
@@ -135,9 +135,9 @@ class Case:
     scheme: str = "vddvp"
     units: Units = field(default_factory=Units)
 
-    def in_units(self, units: Units) -> Case:
+    def in_units(self, units: Units) -> DrawnCase:
         """The same case marched in ``units``."""
-        return Case(self.system, self.Q0, self.P0, self.tau0, self.t_end, self.scheme, units)
+        return DrawnCase(self.system, self.Q0, self.P0, self.tau0, self.t_end, self.scheme, units)
 
     def hamiltonian_system(self) -> HamiltonianSystem:
         u, base = self.units, self.system
@@ -158,7 +158,7 @@ class Case:
         return asdict(self)
 
 
-def draw_case(rng: np.random.Generator, *, scaled: bool = True) -> Case:
+def draw_case(rng: np.random.Generator, *, scaled: bool = True) -> DrawnCase:
     """A random case (module docstring); with ``scaled`` its units are random too (``q``,
     ``p``, ``t`` from ``1e-4`` to ``1e4``, an offset of ``H`` up to ``1e4`` of its scale, a
     translation up to ``1e4`` of ``q``'s unit where ``H`` allows it)."""
@@ -186,9 +186,9 @@ def draw_case(rng: np.random.Generator, *, scaled: bool = True) -> Case:
     units = Units()
     if scaled:
         units = draw_units(rng, invariant=invariant)
-    return Case(system, tuple(rng.uniform(-1, 1, n) * amplitude),
-                tuple(rng.uniform(-1, 1, n) * amplitude), float(tau0), float(max(t_end, tau0)),
-                str(rng.choice(SCHEMES)), units)
+    return DrawnCase(system, tuple(rng.uniform(-1, 1, n) * amplitude),
+                     tuple(rng.uniform(-1, 1, n) * amplitude), float(tau0), float(max(t_end, tau0)),
+                     str(rng.choice(SCHEMES)), units)
 
 
 def draw_units(rng: np.random.Generator, *, invariant: bool) -> Units:
@@ -201,7 +201,7 @@ def draw_units(rng: np.random.Generator, *, invariant: bool) -> Units:
                  t_shift=float(rng.uniform(-1, 1) * 10 ** rng.uniform(0, 3) * t))
 
 
-def run_case(case: Case, *, tolerance: Tolerance | None = None,
+def run_case(case: DrawnCase, *, tolerance: Tolerance | None = None,
              compilation: Compilation | None = None):
     """The case marched (every accepted node kept, whatever its status) and judged."""
     system = case.hamiltonian_system()
@@ -290,7 +290,7 @@ def classify(verdict: str, true: float, tol: float) -> str:
     return "consistent" if true > tol else "band"
 
 
-def judge_case(case: Case, **options) -> dict:
+def judge_case(case: DrawnCase, **options) -> dict:
     """One case, marched, judged and measured: a row of the study."""
     system, solution = run_case(case, **options)
     report = solution.stats["accuracy"]

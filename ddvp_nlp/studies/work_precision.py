@@ -44,7 +44,7 @@ from ..validation import check_count, check_real
 from .comparable import (
     REFERENCE_KINDS,
     REFERENCE_RTOL,
-    Reference,
+    ComparisonReference,
     check_comparable,
     check_starts_from_p0,
     reference_for,
@@ -71,8 +71,8 @@ ERROR_KINDS = {"trajectory_error": "trajectory error max |z - z_ref|",
 # (and the DOP853 reference's own error) and a ranking would rank noise.
 FINEST_LEVEL = 1e-12
 
-__all__ = ["COLUMNS", "CompareOptions", "ERROR_KINDS", "REFERENCE_RTOL", "ROWS", "Reference",
-           "WorkPrecision",
+__all__ = ["COLUMNS", "CompareOptions", "ComparisonReference", "ERROR_KINDS", "REFERENCE_RTOL",
+           "ROWS", "WorkPrecision",
            "WorkPrecisionPlan", "cheapest", "default_methods", "errors", "pareto",
            "plan_work_precision", "run_work_precision", "time_to_reach"]
 
@@ -177,7 +177,7 @@ class WorkPrecision:
     rows: list[dict]
     scene: Scene
     config: RunConfig
-    reference: Reference
+    reference: ComparisonReference
     left_out: list[str]
     compiler: str | None
     repeats: int
@@ -236,7 +236,7 @@ class WorkPrecision:
         return keep.figure
 
 
-def errors(system, reference: Reference, solution,
+def errors(system, reference: ComparisonReference, solution,
            compilation: Compilation | None = None) -> tuple[float, float]:
     """Trajectory and energy errors of a solution's nodes (see the module docstring). ``H`` at
     the nodes through a compiled window map kept per system (``compilation``): a map per run's

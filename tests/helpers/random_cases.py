@@ -3,7 +3,7 @@ starts, steps, schemes and the units they are marched in."""
 
 from hypothesis import strategies as st
 
-from ddvp_nlp.studies.verdict_study import Case, RandomSystem, Units
+from ddvp_nlp.studies.verdict_study import DrawnCase, RandomSystem, Units
 
 
 @st.composite
@@ -32,10 +32,10 @@ def cases_and_units(draw):
     amplitude = draw(st.floats(0.1, 1.5))
     start = [tuple(draw(st.lists(st.floats(-1, 1), min_size=n, max_size=n)))
              for _ in range(2)]
-    case = Case(system, tuple(amplitude * v for v in start[0]),
-                tuple(amplitude * v for v in start[1]),
-                tau0=draw(st.floats(0.01, 0.8)), t_end=draw(st.floats(2.0, 12.0)),
-                scheme=draw(st.sampled_from(["vddvp", "lee", "fixed"])))
+    case = DrawnCase(system, tuple(amplitude * v for v in start[0]),
+                     tuple(amplitude * v for v in start[1]),
+                     tau0=draw(st.floats(0.01, 0.8)), t_end=draw(st.floats(2.0, 12.0)),
+                     scheme=draw(st.sampled_from(["vddvp", "lee", "fixed"])))
     exponent = st.floats(-4, 4)
     q, p, t = (10 ** draw(exponent) for _ in range(3))
     units = Units(q=q, p=p, t=t, offset=draw(st.floats(-1e3, 1e3)) * q * p / t,
@@ -51,4 +51,4 @@ def cases(draw):
     case, units = draw(cases_and_units())
     tau0 = 10 ** draw(st.floats(-2.5, 0.0))
     t_end = min(draw(st.floats(2.0, 20.0)), 2000 * tau0)
-    return Case(case.system, case.Q0, case.P0, tau0, max(t_end, tau0), case.scheme, units)
+    return DrawnCase(case.system, case.Q0, case.P0, tau0, max(t_end, tau0), case.scheme, units)

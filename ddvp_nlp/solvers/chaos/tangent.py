@@ -52,7 +52,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...physics import vector_field_function
-from ..marching.chunk import FastChunk, Layout, step_options
+from ..marching.chunk import ChunkLayout, FastChunk, step_options
 
 OBSERVATIONS = ("sync", "level")
 
@@ -186,9 +186,9 @@ class TangentChunk(FastChunk):
         plain = super()._energy_step(functions, theta)
         self.plain_state, self.plain_output = self.state, self.output
         m = self.vectors
-        self.state = Layout(("plain", self.plain_state.size),
+        self.state = ChunkLayout(("plain", self.plain_state.size),
                             ("tangent", self.tangent.width * m))
-        self.output = Layout(("plain", self.plain_output.size), ("ell", m))
+        self.output = ChunkLayout(("plain", self.plain_output.size), ("ell", m))
         state = ca.SX.sym("state", self.state.size)
         parameters = ca.SX.sym("parameters", plain.size1_in(1))
         s = self.state.split(state)

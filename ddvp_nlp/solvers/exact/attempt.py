@@ -4,7 +4,7 @@ Hairer's error estimate (the 5th- and 3rd-order embedded pair), the step-size co
 
 The state may carry a tangent matrix ``Y`` (d x m) beside ``z`` (d = 2n): ``w = (z, vec Y)``
 with ``w' = (f(z, t), Df(z, t) Y)``, ``Df Y`` by forward differentiation (``jtimes``, m
-directions). The error norm controls ``z`` alone (see ``Layout.control``).
+directions). The error norm controls ``z`` alone (see ``AttemptLayout.control``).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ RUNNING, DONE, FAILED = 0.0, 1.0, 2.0
 
 
 @dataclass(frozen=True)
-class Layout:
+class AttemptLayout:
     """Sizes and offsets of the vectors a slot reads and writes.
 
     state (accumulated):  [t, h, flag, rejected, w (D), f(w) (D)]
@@ -146,9 +146,9 @@ def dense_coefficients(rhs, K, w, w_new, t, h):
     return F
 
 
-def slot_function(field: ca.Function, layout: Layout, *, inline: bool = True) -> ca.Function:
+def slot_function(field: ca.Function, layout: AttemptLayout, *, inline: bool = True) -> ca.Function:
     """``(state, params) -> (state_next, record)``: one attempt of adaptive DOP853 (module
-    docstring; ``Layout`` for the vectors). No-op handling of finished slots is left to the
+    docstring; ``AttemptLayout`` for the vectors). No-op handling of finished slots is left to the
     caller (`chunk_function`); this function always attempts.
 
     ``inline``: one SX expression with the 16 evaluations of the (augmented) field written
@@ -203,7 +203,7 @@ def slot_function(field: ca.Function, layout: Layout, *, inline: bool = True) ->
                        ["state", "params"], ["state_next", "record"], {"cse": True})
 
 
-def skip_function(layout: Layout) -> ca.Function:
+def skip_function(layout: AttemptLayout) -> ca.Function:
     """``(state, params) -> (state, 0)``: a finished (or failed) slot."""
     state = ca.SX.sym("state", layout.state_size)
     params = ca.SX.sym("params", layout.param_size)
@@ -212,7 +212,7 @@ def skip_function(layout: Layout) -> ca.Function:
                        ["state", "params"], ["state_next", "record"])
 
 
-def chunk_function(field: ca.Function, layout: Layout, slots: int, *,
+def chunk_function(field: ca.Function, layout: AttemptLayout, slots: int, *,
                    skip: bool = True, inline: bool = True) -> ca.Function:
     """``(state, params[P x slots]) -> (states[S x slots], records[R x slots])``: ``slots``
     attempts in a row (``mapaccum``), each `slot_function`. With ``skip``, a slot whose

@@ -26,7 +26,7 @@ import numpy as np
 from ...cache import cached
 from ...physics import HigherOrderSystem, euler_lagrange_field, vector_field_function
 from ..compiler import FunctionBuffer, RentedBuffer
-from .attempt import DONE, FAILED, POWER, RUNNING, Layout, augmented_field, chunk_function
+from .attempt import DONE, FAILED, POWER, RUNNING, AttemptLayout, augmented_field, chunk_function
 from .trajectory import Trajectory
 
 SLOTS = 1024  # attempted steps per call (a finished chunk's slots cost a copy each)
@@ -57,7 +57,7 @@ class AdaptiveFlow:
                  inline: bool | None = None, tangent_control: bool = False):
         self.field = field
         d, p = field.size1_in(0), field.size1_in(2)
-        self.layout = Layout(d=d, m=int(tangent), p=p, dense=dense,
+        self.layout = AttemptLayout(d=d, m=int(tangent), p=p, dense=dense,
                              tangent_control=tangent_control)
         self.slots = int(slots)
         started = time.perf_counter()

@@ -91,7 +91,7 @@ def step_newton(name: str, residual: ca.Function, at_root: ca.Function, *,
     return unrolled_newton(name, residual, NEWTON_OPTIONS, at_root=at_root, **options)
 
 
-class Layout:
+class ChunkLayout:
     """A column vector made of named parts of given widths, in order.
 
     The same object stacks the parts (symbolic, `stack`; numeric, `pack`), splits a
@@ -138,7 +138,7 @@ _STEP_LENGTH = _step_length()
 
 # The acceptance test's numbers (``acceptance.Acceptance``), a parameter of every chunk call: the
 # chunk computes each step's verdict (``good``) itself. A bound that is not set is infinite.
-LIMITS = Layout(("tol", 1), ("tau_min", 1), ("tau_max", 1), ("max_step_ratio", 1))
+LIMITS = ChunkLayout(("tol", 1), ("tau_min", 1), ("tau_max", 1), ("max_step_ratio", 1))
 
 
 def limits(acceptance) -> np.ndarray:
@@ -150,19 +150,19 @@ def limits(acceptance) -> np.ndarray:
                        max_step_ratio=bound(acceptance.max_step_ratio, np.inf))
 
 
-def energy_layouts(n2: int) -> tuple[Layout, Layout]:
+def energy_layouts(n2: int) -> tuple[ChunkLayout, ChunkLayout]:
     """State and per-step output of a chunk of energy steps (``n2 = 2n``)."""
-    state = Layout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1))
-    output = Layout(("t_next", 1), ("z_next", n2),
+    state = ChunkLayout(("t_prev", 1), ("t_mid", 1), ("z_prev", n2), ("z_mid", n2), ("drift", 1))
+    output = ChunkLayout(("t_next", 1), ("z_next", n2),
                     *((name, 1) for name in EnergyCheck._fields), ("good", 1))
     return state, output
 
 
-def fixed_layouts(n2: int) -> tuple[Layout, Layout, Layout]:
+def fixed_layouts(n2: int) -> tuple[ChunkLayout, ChunkLayout, ChunkLayout]:
     """State, constants and per-step output of a chunk of fixed-length steps."""
-    state = Layout(("k", 1), ("z", n2))
-    constants = Layout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
-    output = Layout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields),
+    state = ChunkLayout(("k", 1), ("z", n2))
+    constants = ChunkLayout(("t0", 1), ("tau", 1), ("t_end", 1), ("total", 1))
+    output = ChunkLayout(("t_next", 1), ("z_next", n2), *((name, 1) for name in FixedCheck._fields),
                     ("good", 1))
     return state, constants, output
 

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from ddvp_nlp import Compilation, Tolerance, load_scene, march
 from ddvp_nlp.physics.hamiltonian import HamiltonianSystem
 from ddvp_nlp.solvers.accuracy.judgement import Judgement, Level
-from ddvp_nlp.studies.verdict_study import Case, RandomSystem, Units, run_case
+from ddvp_nlp.studies.verdict_study import DrawnCase, RandomSystem, Units, run_case
 
 VM = Compilation(compiler=None, fast=False)
 FIGURES = ("error_max", "local_error_max", "level_error", "energy_drift")
@@ -89,7 +89,7 @@ def test_a_translated_chain_gets_the_same_verdict():
     system = RandomSystem(n=3, potential="trigonometric", stiffness=(1.0,) * 3,
                           cubic=(0.0,) * 3, quartic=(0.1,) * 3, coupling=(1.0, 0.5, 0.8),
                           masses=(1.0, 1.5, 0.7), translation_invariant=True)
-    case = Case(system, (0.3, -0.2, 0.5), (0.4, 0.1, -0.3), tau0=0.05, t_end=20.0)
+    case = DrawnCase(system, (0.3, -0.2, 0.5), (0.4, 0.1, -0.3), tau0=0.05, t_end=20.0)
     for units in (Units(), Units(shift=1e4), Units(shift=-3e3, q=2.0, p=0.5, t=4.0)):
         _, solution = run_case(case.in_units(units))
         if units == Units():

@@ -13,7 +13,7 @@ from ddvp_nlp.discrete import RULES
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 from ddvp_nlp.solvers.compiler import find_compiler
 from ddvp_nlp.studies.methods import METHODS
-from ddvp_nlp.studies.work_precision import Reference, errors
+from ddvp_nlp.studies.work_precision import ComparisonReference, errors
 
 
 def _run(name, scene_name, value, overrides=None, compiler=None):
@@ -35,7 +35,7 @@ def test_fitted_order_is_two(name, scene_name, overrides, first):
     for tau in steps:
         scene, config, solution = _run(name, scene_name, tau, overrides)
         assert solution.success, solution.message
-        found.append(errors(scene.system, Reference(scene, config), solution)[0])
+        found.append(errors(scene.system, ComparisonReference(scene, config), solution)[0])
     assert METHODS[name].order == 2
     assert abs(fitted_order(steps, found) - 2) < 0.15, found
 

@@ -17,7 +17,7 @@ from ddvp_nlp.studies.methods import METHODS, get_methods
 from ddvp_nlp.studies.work_precision import (
     COLUMNS,
     CompareOptions,
-    Reference,
+    ComparisonReference,
     default_methods,
     errors,
     pareto,
@@ -42,7 +42,7 @@ def test_fitted_order_on_harmonic_matches_the_trait(name, order):
     for tau in steps:
         scene, config, solution = _run(name, "harmonic", tau, {"t_end": 5.0})
         assert solution.success, solution.message
-        found.append(errors(scene.system, Reference(scene, config), solution)[0])
+        found.append(errors(scene.system, ComparisonReference(scene, config), solution)[0])
     assert METHODS[name].order == order
     assert abs(fitted_order(steps, found) - order) < 0.1, found
 
@@ -52,7 +52,7 @@ def test_dop853_error_falls_with_its_tolerance():
     for rtol in (1e-4, 1e-6, 1e-8, 1e-10):
         scene, config, solution = _run("dop853", "harmonic", rtol)
         assert solution.success
-        found.append(errors(scene.system, Reference(scene, config), solution)[0])
+        found.append(errors(scene.system, ComparisonReference(scene, config), solution)[0])
     assert all(b < a / 20 for a, b in zip(found, found[1:], strict=False)), found
 
 

@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 
 from ddvp_nlp import load_scene
 from ddvp_nlp.errors import InputError
-from ddvp_nlp.studies.comparable import Reference
+from ddvp_nlp.studies.comparable import ComparisonReference
 from ddvp_nlp.studies.horizons import affordable_knobs, reference_kind
 from ddvp_nlp.studies.methods import get_methods, run_method
 from ddvp_nlp.studies.work_precision import errors
@@ -41,8 +41,8 @@ def test_kepler_exact_solution_refuses_an_unbound_start_and_the_reference_falls_
     with pytest.raises(ValueError, match="not bound"):
         scene.exact(np.array([0.0]), np.array([1.0, 0.0]), np.array([0.0, 1.5]), 0.0, e=0.5)
     config = scene.resolve({"q0": [1.0, 0.0], "p0": [0.0, 1.5], "t_end": 1.0})
-    assert Reference(scene, config).kind.startswith("the exact flow")
-    assert Reference(scene, scene.resolve({"t_end": 1.0})).kind == "exact solution"
+    assert ComparisonReference(scene, config).kind.startswith("the exact flow")
+    assert ComparisonReference(scene, scene.resolve({"t_end": 1.0})).kind == "exact solution"
 
 
 @pytest.mark.parametrize("q0, p0", [(0.5, 0.5), (-0.3, -0.9), (2.5, 0.1), (1.0, 0.0)])
@@ -68,14 +68,14 @@ def test_the_exact_reference_stays_exact_over_a_hundred_thousand_periods():
 def test_without_a_reference_only_the_energy_error_is_measured():
     scene = load_scene("henon_heiles")
     config = scene.resolve({"t_end": 20.0})
-    reference = Reference(scene, config, "none")
+    reference = ComparisonReference(scene, config, "none")
     assert not reference.measures_trajectory
     solution = run_method(scene, config, "leapfrog", 0.05, compiler=None, max_steps=10_000)
     trajectory, energy = errors(scene.system, reference, solution)
     assert np.isnan(trajectory)
     assert 0 < energy < 1e-2
     with pytest.raises(InputError, match="reference must be one of"):
-        Reference(scene, config, "exactly")
+        ComparisonReference(scene, config, "exactly")
 
 
 def test_reference_kind_drops_the_numerical_reference_beyond_its_span():
