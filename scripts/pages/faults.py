@@ -1132,6 +1132,31 @@ def periodic_cases() -> list[Case]:
                  expect_text="not finite anywhere")]
 
 
+def backward_cases() -> list[Case]:
+    """Every method told to run backwards (t_end < t0): it marches to t_end with steps, or
+    fails by name; a success with no step taken, t left at t0, is a lie (issue 45)."""
+    import json
+
+    def reached(folder, result):
+        meta = folder / "out" / "meta.json"
+        if not meta.exists():
+            return ["no meta.json"]
+        data = json.loads(meta.read_text())
+        steps = data.get("steps") or 0
+        if data.get("status") == "success" and steps < 1:
+            return [f"success with {steps} steps"]
+        return []
+    methods = ["vddvp", "lee", "midpoint", "stormer_verlet", "leapfrog", "verlet_adaptive",
+               "avf", "rk4", "dop853"]
+    return [Case("backward", f"harmonic, {name}, t_end = -3",
+                 ["march", "harmonic", "--scheme" if name in ("vddvp", "lee") else "--method",
+                  name, "--set", "t_end=-3", "--no-plot", "--no-progress", "--out", "out"],
+                 (0,), check=reached) for name in methods] + [
+        Case("backward", "harmonic, lee_left, t_end = -3 (stops within a swing: status 1)",
+             ["march", "harmonic", "--method", "lee_left", "--set", "t_end=-3", "--no-plot",
+              "--no-progress", "--out", "out"], (1,), check=reached)]
+
+
 LOAD_SCENES = ["pendulum", "harmonic", "kepler", "henon_heiles", "paper_pendulum", "cr3bp",
                "fpu", "figure_eight"]
 
@@ -1337,7 +1362,8 @@ def main() -> int:
               "files": hostile_file_cases, "scenes": scene_cases, "numbers": number_cases,
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
-              "cluster": cluster_cases, "periodic": periodic_cases, "load": load_cases}
+              "cluster": cluster_cases, "periodic": periodic_cases, "backward": backward_cases,
+              "load": load_cases}
     only = set(args.only.split(",")) if args.only else None
     unknown = sorted((only or set()) - set(groups))
     if unknown:

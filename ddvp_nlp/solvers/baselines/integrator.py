@@ -17,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 from ...solution import Solution
+from ..marching.backward import run_time_reversed
 
 
 def no_reason(system) -> None:
@@ -45,6 +46,10 @@ class Integrator:
             once per target.
         limitation: where the method cannot run at all, in words (empty if nowhere known): a
             report says it beside the method's failed runs.
+        reverses_itself: ``run`` marches backwards in time itself when ``t_end < t0`` (the
+            paper's schemes: the march does). Otherwise ``run`` is given a backward run as
+            the forward run of the time-reversed system, mapped back
+            (``marching/backward.run_time_reversed``), so every method runs either way.
     """
 
     name: str
@@ -58,7 +63,22 @@ class Integrator:
     redundant: Callable[[object], str | None] = no_reason
     aims: bool = False
     limitation: str = ""
+    reverses_itself: bool = False
+
+    def __post_init__(self):
+        if not (self.reverses_itself or getattr(self.run, "either_way", False)):
+            object.__setattr__(self, "run", _either_way(self.run))
 
     def traits(self) -> dict:
         """Every field by name (to build a richer view of the same integrator)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def _either_way(run):
+    """``run`` forwards as it is, backwards (``t_end < t0``) by time reversal."""
+    def either_way(system, config, value, **options):
+        if float(config.t_end) < float(config.t0):
+            return run_time_reversed(run, system, config, value, **options)
+        return run(system, config, value, **options)
+    either_way.__wrapped__, either_way.either_way = run, True
+    return either_way

@@ -50,10 +50,11 @@ def _same_as_vddvp(system) -> str | None:
 
 VDDVP = Integrator("vddvp", "the paper's variable-step midpoint scheme (energy of interval k at "
                    "the previous clock)", order=2, symplectic=True, energy_conserving=True,
-                   knob="tau0", run=_march("vddvp"), aims=True)
+                   knob="tau0", run=_march("vddvp"), aims=True, reverses_itself=True)
 LEE = Integrator("lee", "same action, node-time variation dS_D/dt_k = 0", order=2,
                  symplectic=True, energy_conserving=True, knob="tau0", run=_march("lee"),
+                 reverses_itself=True,
                  redundant=_same_as_vddvp, aims=True)
 MIDPOINT = Integrator("midpoint", "fixed-step implicit midpoint (the paper's DDVP with fixed "
                       "steps)", order=2, symplectic=True, energy_conserving=False, knob="tau",
-                      run=_march("fixed"), aims=True)
+                      run=_march("fixed"), aims=True, reverses_itself=True)

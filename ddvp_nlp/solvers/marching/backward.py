@@ -14,6 +14,7 @@ dense output on ``H``'s own vector field.
 
 from __future__ import annotations
 
+import copy
 import re
 import warnings
 from dataclasses import replace
@@ -29,7 +30,7 @@ from ...validation import check_real, check_times
 from ..dense import Event, attach
 from ..options import Output, Tolerance
 
-__all__ = ["is_backward", "march_backward"]
+__all__ = ["is_backward", "march_backward", "run_time_reversed"]
 
 
 def is_backward(t_span) -> bool:
@@ -81,6 +82,23 @@ def march_backward(march, system, q0, p0, t_span, *, v0, output, **options):
     for warning in caught:  # the monitors' warnings name times of the reversed march
         warnings.warn_explicit(_TIME.sub(_negated, str(warning.message)), warning.category,
                                warning.filename, warning.lineno)
+    return _forward(solution, system, t_end)
+
+
+def run_time_reversed(run, system, config, *args, **options):
+    """A forward-only method (``run(system, config, *args, **options) -> Solution``, ``config``
+    read by attribute: ``q0``, ``p0``, ``t0``, ``t_end``, ...) run backwards in time,
+    ``config.t_end < config.t0``: ``run`` of the time-reversed system from ``(q0, -p0)`` at
+    ``-t0`` to ``-t_end``, its `Solution` mapped back as the march's is. A compared method
+    told to run backwards thus marches the same steps as forwards on ``H(q, -p, -t)``; before
+    this it returned ``success`` with no step taken."""
+    t0, t_end = float(config.t0), float(config.t_end)
+    flipped = copy.copy(config)
+    flipped.t0, flipped.t_end = -t0, -t_end
+    for name in ("p0", "v0"):
+        if getattr(config, name, None) is not None:
+            setattr(flipped, name, -np.asarray(getattr(config, name), dtype=float))
+    solution = run(time_reversed(system), flipped, *args, **options)
     return _forward(solution, system, t_end)
 
 

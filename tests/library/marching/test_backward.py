@@ -132,3 +132,40 @@ def test_the_command_line_marches_backwards(tmp_path, capsys):
     assert (out / "trajectory.png").stat().st_size > 0
     assert main(["march", "--resume", str(out), "--t-end", "-5", "--no-plot"]) == 2
     assert "marched backwards" in capsys.readouterr().err
+
+
+# -- the compared methods (issue 45): backwards too, never "success" with no step -----------------
+
+COMPARED = [m for m in __import__("ddvp_nlp.solvers", fromlist=["INTEGRATORS"]).INTEGRATORS
+            if not m.reverses_itself and m.name != "lee_left"]  # lee_left: stops on any swing
+
+
+def _driven_config(t0, t_end):
+    from types import SimpleNamespace
+    return SimpleNamespace(q0=np.array([0.8]), p0=np.array([0.3]), v0=None, t0=t0,
+                           t_end=t_end, params={"eps": 0.3}, tau0=None)
+
+
+@pytest.mark.parametrize("method", COMPARED, ids=lambda m: m.name)
+def test_every_compared_method_marches_backwards_at_its_order(method):
+    """A time-dependent system marched from t0 = 1.5 back to -1.5 (never a grid point of the
+    forward run): the nodes go down in time to t_end, the end state converges to scipy's
+    DOP853 run backwards on the original field at the method's own order (or, for DOP853,
+    within a hundred times its tolerance). Before, every compared method returned success
+    with zero steps and t left at t0."""
+    config = _driven_config(1.5, -1.5)
+    theta = DRIVEN.parameter_vector(config.params)
+    exact = truth(DRIVEN, [0.8, 0.3], (1.5, -1.5), [-1.5], theta)[0]
+    values = [1e-6, 1e-8] if method.knob == "rtol" else [0.02, 0.01]
+    errors = []
+    for value in values:
+        solution = method.run(DRIVEN, config, value, compiler=None, cache_dir=None,
+                              max_steps=10**6)
+        assert solution.success, solution.message
+        assert solution.t.size > 2 and solution.t[-1] == -1.5 and np.all(np.diff(solution.t) < 0)
+        errors.append(np.max(np.abs(np.r_[solution.q[-1], solution.p[-1]] - exact)))
+    if method.knob == "rtol":
+        assert errors[-1] < 100 * values[-1], errors
+    else:
+        order = np.log2(errors[0] / errors[1])
+        assert abs(order - method.order) < 0.3, (errors, order)
