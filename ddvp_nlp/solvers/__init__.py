@@ -52,16 +52,16 @@ PUBLIC = {
     "parse_section": "periodic.orbit", "solve_periodic_family": "periodic.family",
     "follow_periodic_family": "periodic.arclength", "Continuation": "periodic.arclength",
     "periodic_stability": "periodic.floquet", "Stability": "periodic.floquet",
-    "section_point": "periodic.first_orbit", "march_to_return": "periodic.first_orbit",
-    "resample": "periodic.first_orbit",
     # higher-order Lagrangians
     "march_higher": "higher.stepping", "solve_bvp_higher": "higher.stepping",
     # the compared integrators
     "INTEGRATORS": "baselines", "Integrator": "baselines",
-    "step_residuals": "baselines.fixed_step", "fixed_step_run": "baselines.fixed_step",
+    "step_residuals": "baselines.fixed_step",
     "dop853": "baselines.dop853", "flow_callable": "baselines.dop853",
-    # the exact flow and the verdicts
-    "flow_with_derivatives": "exact.variational", "exact_flow": "exact.flow",
+    # the exact flow's reference and the verdicts (the exact flow's own pieces, exact_flow,
+    # flow_with_derivatives, exact_indicators, ..., are internal: a script that measures them
+    # imports them from their module and says so; tests/architecture/test_architecture.py
+    # lists those scripts)
     "exact_reference": "exact.reference",
     "assess": "accuracy.judgement", "apply_verdict": "accuracy.judgement",
     "describe": "accuracy.judgement", "Level": "accuracy.judgement",
@@ -69,29 +69,24 @@ PUBLIC = {
     # chaos indicators on the tangent map, and their exact-flow reference
     "chaos_indicators": "chaos.indicators", "ChaosIndicators": "chaos.indicators",
     "lyapunov_spectrum": "chaos.spectrum", "Spectrum": "chaos.spectrum",
-    "exact_indicators": "chaos.exact_indicators", "exact_spectrum": "chaos.exact_indicators",
     # dense output, events, evaluation over many nodes, the compiler
     "Event": "dense", "locate": "dense", "evaluate_blocks": "grid.maps",
-    "band_kernel": "grid.linear", "find_compiler": "compiler",
+    "find_compiler": "compiler",
 }
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .accuracy.judgement import Level, apply_verdict, assess, describe, motion_scales
     from .baselines import INTEGRATORS, Integrator
     from .baselines.dop853 import dop853, flow_callable
-    from .baselines.fixed_step import fixed_step_run, step_residuals
+    from .baselines.fixed_step import step_residuals
     from .bvp.at_energy import AtEnergy
     from .bvp.first_guess import Shooting
     from .bvp.fixed_ends import solve_bvp
-    from .chaos.exact_indicators import exact_indicators, exact_spectrum
     from .chaos.indicators import ChaosIndicators, chaos_indicators
     from .chaos.spectrum import Spectrum, lyapunov_spectrum
     from .compiler import find_compiler
     from .dense import Event, locate
-    from .exact.flow import exact_flow
     from .exact.reference import exact_reference
-    from .exact.variational import flow_with_derivatives
-    from .grid.linear import band_kernel
     from .grid.maps import evaluate_blocks
     from .higher.stepping import march_higher, solve_bvp_higher
     from .marching.ensemble import Collect, end_with_parent, march_ensemble
@@ -100,7 +95,6 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .options import Compilation, GridOptions, Output, StepControl, Tolerance, coerce
     from .periodic.arclength import Continuation, follow_periodic_family
     from .periodic.family import solve_periodic_family
-    from .periodic.first_orbit import march_to_return, resample, section_point
     from .periodic.floquet import Stability, periodic_stability
     from .periodic.orbit import check_periodic, parse_section, solve_periodic
 
@@ -109,11 +103,9 @@ __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
            "Spectrum", "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
-           "band_kernel", "chaos_indicators", "check_periodic", "coerce", "continue_march",
-           "describe", "dop853", "end_with_parent", "evaluate_blocks", "find_compiler",
-           "exact_flow", "exact_indicators", "exact_reference", "exact_spectrum", "fixed_step_run",
-           "flow_callable", "flow_with_derivatives", "follow_periodic_family", "locate",
-           "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "march_to_return",
-           "motion_scales", "parse_section", "periodic_stability", "resample", "section_point",
-           "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family",
-           "step_residuals"]
+           "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",
+           "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",
+           "flow_callable", "follow_periodic_family", "locate", "lyapunov_spectrum", "march",
+           "march_ensemble", "march_higher", "motion_scales", "parse_section",
+           "periodic_stability", "solve_bvp", "solve_bvp_higher", "solve_periodic",
+           "solve_periodic_family", "step_residuals"]

@@ -124,7 +124,8 @@ def _path(system, solver: str, compilation) -> str:
 
     if solver != "newton":
         return solver
-    from ddvp_nlp.solvers import band_kernel
+    # an internal, named explicitly: which LU the grid Newton uses (not a workbench name)
+    from ddvp_nlp.solvers.grid.linear import band_kernel
 
     paths = {PROBLEMS.get(system, key, lambda: None).path for key in PROBLEMS.keys(system)
              if key[0] == "bvp_assembly"}

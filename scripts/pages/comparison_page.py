@@ -19,7 +19,10 @@ import numpy as np
 
 from ddvp_nlp import Output, Scene, load_scene, march
 from ddvp_nlp.discrete import Scheme, interval_energies
-from ddvp_nlp.solvers import find_compiler, fixed_step_run
+from ddvp_nlp.solvers import find_compiler
+
+# an internal, named explicitly: one fixed-step run of a baseline (not a workbench name)
+from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -44,7 +44,9 @@ from ddvp_nlp import (
     solve_periodic,
 )
 from ddvp_nlp.io import machine, markdown_table, new_figure, plot_followed_family, save, styled
-from ddvp_nlp.solvers import flow_with_derivatives
+
+# an internal, named explicitly: the exact flow's own derivatives (not a workbench name)
+from ddvp_nlp.solvers.exact.variational import flow_with_derivatives
 
 # The coarse grids of these convergence studies (N = 50, 100) resolve some orbits to about 1%:
 # the accuracy check's verdict is recorded, not enforced (their error is what is measured).

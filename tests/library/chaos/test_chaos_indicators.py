@@ -14,8 +14,9 @@ import pytest
 
 import ddvp_nlp
 from ddvp_nlp.cli.main import main as ddvp
-from ddvp_nlp.solvers import chaos_indicators, exact_indicators, lyapunov_spectrum
+from ddvp_nlp.solvers import chaos_indicators, lyapunov_spectrum
 from ddvp_nlp.solvers.chaos import symplectic_flag
+from ddvp_nlp.solvers.chaos.exact_indicators import exact_indicators
 from ddvp_nlp.solvers.chaos.tangent_march import TangentMarch
 
 E = 1 / 8
