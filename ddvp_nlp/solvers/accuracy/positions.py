@@ -30,12 +30,13 @@ from ..columns import row_max, row_max_ratio
 from ..exact.flow import exact_flow
 from ..exact.reference import FACTOR, FLOOR_RTOL, reference
 from ..exact.short_flows import short_flows
+from ..exact.tolerance import EXACT_TOLERANCE
 
 NEWTON_ITERATIONS = 30
-FIT_TOLERANCE = 1e-10  # of the motion's size
-FIT_RTOL = 1e-12  # the flow's tolerance while fitting the start
+FIT_TOLERANCE = EXACT_TOLERANCE.newton_tol  # of the motion's size
+FIT_RTOL = EXACT_TOLERANCE.flow_rtol  # the flow's tolerance while fitting the start
 SHARE = 0.1  # of global_tol: the reference's own error
-REFERENCE_RTOL = 1e-9  # the reference's first tolerance (tighter by 100 while it must be)
+REFERENCE_RTOL = EXACT_TOLERANCE.reference_rtol  # the reference's first tolerance (tighter by 100 while it must be)
 
 
 def window_states(t: np.ndarray, q: np.ndarray, order: int, at: np.ndarray) -> np.ndarray:

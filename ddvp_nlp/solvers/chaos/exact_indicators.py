@@ -37,11 +37,12 @@ from ...cache import cached
 from ...physics import vector_field_function
 from ...solution import Status
 from ..exact.flow import AdaptiveFlow, exact_flow
+from ..exact.tolerance import EXACT_TOLERANCE
 from .indicators import ChaosIndicators
 from .spectrum import Spectrum
 from .tangent_march import start_tangent
 
-RTOL = 1e-12
+RTOL = EXACT_TOLERANCE.flow_rtol
 
 
 def megno_field(system) -> ca.Function:

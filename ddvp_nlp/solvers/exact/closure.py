@@ -23,12 +23,13 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
+from .tolerance import EXACT_TOLERANCE
 from .variational import RTOL, flow_with_derivatives
 
 # Newton on the shooting equations: iterations, and the closure it stops at (relative to the
 # orbit's size, a few hundred of DOP853's rtol).
 MAX_SHOOTING_ITERATIONS = 12
-CLOSURE_TARGET = 1e-10
+CLOSURE_TARGET = EXACT_TOLERANCE.newton_tol
 
 
 @dataclass

@@ -24,14 +24,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .flow import exact_flow
+from .flow_newton import exact_newton
+from .tolerance import EXACT_TOLERANCE
 from .trajectory import Trajectory, concatenate
 
 STEPS_PER_SEGMENT = 16
 MAX_ITERATIONS = 30
 # continuity and the end position must hold to this fraction of the motion's size
-TOLERANCE = 1e-10
+TOLERANCE = EXACT_TOLERANCE.newton_tol
 # the flow's tolerance (its error is then far below TOLERANCE of the motion's size)
-RTOL = 1e-12
+RTOL = EXACT_TOLERANCE.flow_rtol
 
 
 @dataclass
@@ -90,31 +92,21 @@ def shoot(system, theta, t: np.ndarray, z: np.ndarray, q_end, scale, *,
         residual = np.concatenate([(ends[:-1] - starts[1:]).ravel(), ends[-1, :n] - q_end])
         return residual, tangents
 
-    residual, tangents = evaluate(x)
-    if residual is None:
+    def newton_step(_x, residual, tangents):
+        return -banded_solve(tangents, residual, n)
+
+    result = exact_newton(evaluate, newton_step, x, size=lambda residual: float(
+        np.max(np.abs(residual) / weights)), tolerance=TOLERANCE, max_iterations=MAX_ITERATIONS,
+        halvings=30)
+    if result.failed_evaluation:
         return _none(system, theta, t, z, q_end, cuts, 0, np.inf, None, flow, atol)
-    size = float(np.max(np.abs(residual) / weights))
-    for iteration in range(MAX_ITERATIONS + 1):
-        if size <= TOLERANCE:
-            parts = [flow.run(start, cuts[j], cuts[j + 1], theta, rtol=RTOL, atol=atol)
-                     for j, start in enumerate(starts_of(x))]
-            return Shot(concatenate(parts), x[:n].copy(), cuts, iteration, size)
-        if iteration == MAX_ITERATIONS:
-            break
-        step = -banded_solve(tangents, residual, n)
-        for _ in range(30):  # damped: the scaled residual must shrink
-            trial = x + step
-            trial_residual, trial_tangents = evaluate(trial)
-            if trial_residual is not None:
-                trial_size = float(np.max(np.abs(trial_residual) / weights))
-                if trial_size < size:
-                    break
-            step = step / 2
-        else:
-            break
-        x, residual, tangents, size = trial, trial_residual, trial_tangents, trial_size
-    return _none(system, theta, t, z, q_end, cuts, MAX_ITERATIONS, size, tangents, flow, atol,
-                 scale)
+    if result.converged:
+        parts = [flow.run(start, cuts[j], cuts[j + 1], theta, rtol=RTOL, atol=atol)
+                 for j, start in enumerate(starts_of(result.x))]
+        return Shot(concatenate(parts), result.x[:n].copy(), cuts, result.iterations,
+                    result.residual)
+    return _none(system, theta, t, z, q_end, cuts, MAX_ITERATIONS, result.residual,
+                 result.payload, flow, atol, scale)
 
 
 def _at(t: np.ndarray, z: np.ndarray, times: np.ndarray) -> np.ndarray:

@@ -24,9 +24,10 @@ import numpy as np
 
 from ...cache import cached
 from .flow import AdaptiveFlow
+from .tolerance import EXACT_TOLERANCE
 
 # The references' relative tolerance (absolute: this times the start's largest component).
-RTOL = 1e-12
+RTOL = EXACT_TOLERANCE.flow_rtol
 
 
 def _extended_field(system, integrals) -> ca.Function:
