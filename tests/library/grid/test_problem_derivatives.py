@@ -38,39 +38,53 @@ def _periodic(seed: int):
     return assembly, x, Closure(-0.4, 2, 0.0, theta, shift=0.0)
 
 
-def _bvp(seed: int, compiler):
+def _bvp(seed: int, compiler, rule="vddvp"):
     rng = np.random.default_rng(seed)
     system = _system(rng)
     nodes = int(rng.integers(5, 30))
-    grid = GridAssembly(system, Scheme("vddvp"), nodes, Compilation(compiler=compiler))
+    grid = GridAssembly(system, Scheme(rule), nodes, Compilation(compiler=compiler))
     t = np.sort(rng.random(nodes)) + np.arange(nodes)
     q, p = rng.normal(size=(nodes, system.n)), rng.normal(size=(nodes, system.n))
-    theta = np.asarray(system.parameter_vector({}), float)
-    return grid, grid.layout.pack(t, q, p), Ends(q[0] + 0.1, q[-1], t[[0, -1]], theta, 0.7)
+    theta = np.asarray(system.parameter_vector({}), float) + rng.random(2)
+    times = t[[0, -1]] if rule != "fixed" else t + 1e-3
+    return grid, grid.layout.pack(t, q, p), Ends(q[0] + 0.1, q[-1], times, theta, 0.7)
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_periodic_parameter_jacobian_is_the_difference_quotient_of_the_residual(seed):
-    """Central difference with step ``h``: truncation ``O(h^2 |F'''|)`` plus round-off
+def _agrees_with_difference_quotient(assembly, x, data, with_theta):
+    """Central difference with step ``h``: truncation ``O(h^2 |F^(3)|)`` plus round-off
     ``eps |F| / h``; ``h = eps^(1/3) max(1, |theta|)`` balances them, so the agreement is
     ``~ eps^(2/3)`` times the residual's scale (factor 100 for the third derivative)."""
-    assembly, x, closure = _periodic(seed)
-    derivative = assembly.parameter_jacobian(x, closure)
+    derivative = assembly.parameter_jacobian(x, data)
     assert sp.issparse(derivative)
     derivative = derivative.toarray()
-    theta = closure.theta
+    theta = data.theta
     assert derivative.shape == (assembly.layout.size, theta.size)
     for j in range(theta.size):
         h = EPS ** (1 / 3) * max(1.0, abs(theta[j]))
         up, down = theta.copy(), theta.copy()
         up[j] += h
         down[j] -= h
-        F_up = assembly.evaluate(x, Closure(-0.4, 2, 0.0, up), jacobian=False)[0]
-        F_down = assembly.evaluate(x, Closure(-0.4, 2, 0.0, down), jacobian=False)[0]
+        F_up = assembly.evaluate(x, with_theta(up), jacobian=False)[0]
+        F_down = assembly.evaluate(x, with_theta(down), jacobian=False)[0]
         quotient = (F_up - F_down) / (2 * h)
         scale = max(1.0, np.max(np.abs(F_up)), np.max(np.abs(derivative[:, j])))
         assert np.max(np.abs(derivative[:, j] - quotient)) <= 100 * EPS ** (2 / 3) * scale
     assert np.any(derivative != 0.0)
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("rule", ["vddvp", "fixed", "lee"])
+def test_fixed_ends_parameter_jacobian_is_the_difference_quotient_of_the_residual(seed, rule):
+    grid, x, ends = _bvp(seed, None, rule)
+    _agrees_with_difference_quotient(grid, x, ends, lambda theta: Ends(
+        ends.q_start, ends.q_end, ends.times, theta, ends.energy_scale))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_periodic_parameter_jacobian_is_the_difference_quotient_of_the_residual(seed):
+    assembly, x, closure = _periodic(seed)
+    _agrees_with_difference_quotient(assembly, x, closure,
+                                     lambda theta: Closure(-0.4, 2, 0.0, theta))
 
 
 def _check_transposed(assembly, x, data, linear, kernel=None):
