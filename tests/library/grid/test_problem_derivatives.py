@@ -115,3 +115,44 @@ def test_transposed_solve_banded(seed, compiled):
     kernel = band_kernel(Compilation()) if compiled else None
     _check_transposed(grid, x, ends, "banded", kernel)
     _check_transposed(grid, x, ends, "sparse")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_higher_parameter_jacobian_is_the_difference_quotient_of_the_residual(seed):
+    from ddvp_nlp import HigherOrderSystem
+    from ddvp_nlp.solvers.higher.windows import HigherAssembly, HigherEnds
+    rng = np.random.default_rng(seed)
+    system = HigherOrderSystem(lambda q, v, t, lam, mu: v[1][0] ** 2 / 2 - lam * ca.exp(q[0])
+                               + mu * v[0][0] ** 2 * q[0], 1, 2, {"lam": 1.0, "mu": 0.5},
+                               name="random_higher")
+    nodes = int(rng.integers(9, 30))
+    assembly = HigherAssembly(system, "vddvp", nodes, 0.1)
+    x = rng.normal(size=assembly.layout.size)
+    x[assembly.layout.time_index()] = np.sort(rng.random(nodes)) + np.arange(nodes)
+    theta = np.array([1.0, 0.5]) + rng.random(2)
+    given = x + rng.normal(size=x.size)
+    _agrees_with_difference_quotient(assembly, x, HigherEnds(given, theta),
+                                     lambda value: HigherEnds(given, value))
+    _check_transposed(assembly, x, HigherEnds(given, theta), "banded")
+    _check_transposed(assembly, x, HigherEnds(given, theta), "sparse")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_transfer_parameter_jacobian_is_the_difference_quotient_of_the_residual(seed):
+    """The transfer at a prescribed energy: the last block's time row is ``H(Q, P) - E``."""
+    from ddvp_nlp.solvers.bvp.interleaved import prescribed_energy_block
+    rng = np.random.default_rng(seed)
+    system = _system(rng)
+    nodes = int(rng.integers(5, 30))
+    scheme = Scheme("vddvp")
+    grid = GridAssembly(system, scheme, nodes, Compilation(compiler=None),
+                        last=prescribed_energy_block(system, scheme))
+    t = np.sort(rng.random(nodes)) + np.arange(nodes)
+    q, p = rng.normal(size=(nodes, system.n)), rng.normal(size=(nodes, system.n))
+    theta = np.array([0.5, 0.5]) + rng.random(2)
+
+    def ends(value):
+        return Ends(q[0] + 0.1, q[-1], t[[0, -1]], value, 0.7, energy=0.3)
+    x = grid.layout.pack(t, q, p)
+    _agrees_with_difference_quotient(grid, x, ends(theta), ends)
+    _check_transposed(grid, x, ends(theta), "banded")
