@@ -39,6 +39,7 @@ from ...cache import cached
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.maps import window_map
+from ..grid.problem import parameter_blocks
 from ..options import Compilation
 
 
@@ -252,6 +253,7 @@ class GridAssembly:
         self.scheme = scheme
         pinned, energy = _block_functions(system, scheme)
         self._energy_rule = energy is not None
+        self._rows = (pinned[1], energy[1] if energy is not None else None)
         if energy is None:
             self._maps = [window_map(system, ("pinned", j, scheme), f, compilation)
                           for j, f in enumerate(pinned)]
@@ -307,6 +309,27 @@ class GridAssembly:
             return F, None
         self._flat[self._pin_index] = self._pin_values
         return F, BandJacobian(self._ab)
+
+    def parameter_jacobian(self, x: np.ndarray, ends: Ends) -> sp.csc_matrix:
+        """``dF/dtheta`` (``grid/problem.py``): the blocks' rows differentiated in ``theta``
+        (the pins of ``t_0``, ``q_0``, ``q_end`` do not depend on it)."""
+        n, N, m = self.layout.n, self.layout.nodes, self.layout.m
+        z = np.ascontiguousarray(x, float).reshape(N, m)
+        theta = np.ascontiguousarray(ends.theta, float)
+        dense = np.zeros((N * m, theta.size))
+        if theta.size == 0:
+            return sp.csc_matrix(dense)
+        body = dense[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m, theta.size)
+        if not self._energy_rule:
+            times = np.ascontiguousarray(ends.times, float)[1:, None]
+            body[:] = parameter_blocks(self._rows[0], 3, [z[:-1], z[1:], times], theta)
+            return sp.csc_matrix(dense)
+        body[:-1] = parameter_blocks(self._rows[1], 3, [z[:-2], z[1:-1], z[2:]],
+                                     np.r_[theta, ends.energy_scale], theta.size)
+        given = ends.times[-1] if ends.energy is None else ends.energy
+        body[-1] = parameter_blocks(self._last[1], 3, [z[-2:-1], z[-1:], np.array([[given]])],
+                                    theta)[0]
+        return sp.csc_matrix(dense)
 
     def release(self) -> None:
         """Drop the band store (allocated again by the next evaluation of the Jacobian): the

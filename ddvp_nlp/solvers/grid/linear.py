@@ -68,3 +68,14 @@ class Factorization:
             return lapack.dgbtrs(self.lu, self.width, self.width, rhs, self.pivots,
                                  overwrite_b=1)[0]
         return self.lu.solve(rhs)
+
+    def solve_transposed(self, rhs: np.ndarray) -> np.ndarray:
+        """``F'(x)^-T rhs`` from the same factors (an adjoint solve ``J^T lambda = g`` is one
+        call); ``nan`` if the matrix is singular. The compiled kernel's factors are LAPACK's
+        (same storage, same 0-based pivots), so LAPACK's transposed ``gbtrs`` reads them."""
+        if self.singular:
+            return np.full_like(rhs, np.nan)
+        if self.banded:
+            return lapack.dgbtrs(self.lu, self.width, self.width, rhs, self.pivots,
+                                 trans=1)[0]
+        return self.lu.solve(rhs, trans="T")

@@ -7,6 +7,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Generic, Protocol, TypeVar
 
+import casadi as ca
 import numpy as np
 
 from ...cache import PROBLEMS
@@ -58,6 +59,33 @@ class GridProblem(Protocol[Data]):
 
     def release(self) -> None:
         """Drop the memory the Jacobian's storage holds (the assembly stays cached)."""
+
+    def parameter_jacobian(self, x: np.ndarray, data: Data):
+        """``dF/dtheta`` at ``x``, ``(size, len(theta))`` as a scipy sparse matrix, from the
+        same CasADi expressions as ``F`` (`parameter_blocks`). Solvers do not use it yet: it is
+        where a forward sensitivity ``J dx/dtheta = -dF/dtheta`` or an adjoint
+        ``J^T lambda = g`` (``Factorization.solve_transposed``) takes ``dF/dtheta`` from."""
+
+
+def parameter_blocks(function: ca.Function, shared: int, grid, theta: np.ndarray,
+                     columns: int | None = None) -> np.ndarray:
+    """``d out_0 / d input_shared`` of a per-block function over ``count`` blocks,
+    ``(count, rows, columns)``: ``grid`` the per-block inputs ``(count, size)`` in the order of
+    the function's inputs without the shared one, ``theta`` the shared input, ``columns`` the
+    leading columns kept (the parameters of a shared input that also carries a scale). The
+    derivative is CasADi's of the function's own expression, evaluated on its virtual machine
+    (one mapped call)."""
+    inputs = function.sx_in()
+    expression = function.call(inputs)[0]
+    derivative = ca.Function(function.name() + "_theta", inputs,
+                             [ca.densify(ca.jacobian(expression, inputs[shared]))])
+    count = grid[0].shape[0]
+    width = inputs[shared].numel()
+    arguments = [np.ascontiguousarray(a, float).T for a in grid]
+    arguments.insert(shared, np.asarray(theta, float))
+    values = np.asarray(derivative.map(count)(*arguments)).reshape(
+        expression.numel(), count, width).transpose(1, 0, 2)
+    return values[:, :, :width if columns is None else columns]
 
 
 @dataclass

@@ -38,6 +38,7 @@ import scipy.sparse as sp
 from ...cache import cached
 from ...discrete.higher_order_action import action
 from ..grid.maps import chunked
+from ..grid.problem import parameter_blocks
 
 
 @dataclass(frozen=True)
@@ -119,6 +120,7 @@ class HigherAssembly:
         self.variable = rule != "fixed"
         value, full, _ = window_functions(system)
         self._value = chunked(system, ("higher_value",), value)
+        self._window_value = value
         self._full = chunked(system, ("higher_hessian",), full)
         for mapped in (self._value, self._full):
             mapped.prepare(self.layout.windows)
@@ -209,6 +211,23 @@ class HigherAssembly:
 
     def release(self) -> None:
         """Nothing to drop: the Jacobian's values are the evaluation's own array."""
+
+    def parameter_jacobian(self, x, ends: HigherEnds) -> sp.csc_matrix:
+        """``dF/dtheta`` (``grid/problem.py``): the windows' gradients ``dS_k/dx`` differentiated
+        in ``theta``, gathered and scaled as in `evaluate`; pinned rows do not depend on it."""
+        lay, theta = self.layout, np.ascontiguousarray(ends.theta, float)
+        if theta.size == 0:
+            return sp.csc_matrix((lay.size, 0))
+        inputs = self._window_value.sx_in()
+        gradient = ca.Function("window_gradient", inputs,
+                               [self._window_value.call(inputs)[1]])
+        z = np.ascontiguousarray(x, float).reshape(lay.nodes, lay.m)
+        blocks = parameter_blocks(gradient, lay.order + 1,
+                                  [z[j:j + lay.windows] for j in range(lay.order + 1)], theta)
+        dense = np.stack([np.bincount(self._gradient_index, weights=blocks[:, :, j].ravel(),
+                                      minlength=lay.size) for j in range(theta.size)], axis=1)
+        dense *= np.where(self.derived, self.row_scale, 0.0)[:, None]
+        return sp.csc_matrix(dense)
 
     def sparse(self, values) -> sp.csc_matrix:
         data = np.bincount(self._csc_position, weights=values,

@@ -137,6 +137,18 @@ def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
     return cached(system, ("periodic_rows", scheme, tuple(integrals)), build)
 
 
+def _parameter_function(system, scheme: Scheme, integrals) -> ca.Function:
+    """``(z_a, z_b, u, E, theta) -> d rows / d theta`` (``m x len(theta)``), from the same
+    rows as `_interval_function`."""
+    def build():
+        rows = interval_rows(system, scheme, integrals)
+        z_a, z_b, unfolding, level, theta = rows.sx_in()
+        expression = rows(z_a, z_b, unfolding, level, theta)
+        return ca.Function("periodic_theta", [z_a, z_b, unfolding, level, theta],
+                           [ca.densify(ca.jacobian(expression, theta))])
+    return cached(system, ("periodic_theta", scheme, tuple(integrals)), build)
+
+
 def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
     """``(z_a, z_b, u, E, theta) -> (rows (m,), d rows / d(z_a, z_b, u))``."""
     def build():
@@ -159,6 +171,7 @@ class PeriodicAssembly:
         self._interval = chunked(system, ("periodic_interval", scheme, tuple(integrals)),
                                  _interval_function(system, scheme, tuple(integrals)))
         self._pattern = self._sparsity()
+        self._theta_rows = _parameter_function(system, scheme, tuple(integrals))
 
     @property
     def header(self) -> int:
@@ -183,6 +196,24 @@ class PeriodicAssembly:
 
     def release(self) -> None:
         """Nothing to drop: the blocks are the evaluation's own arrays."""
+
+    def parameter_jacobian(self, x: np.ndarray, closure: Closure) -> sp.csc_matrix:
+        """``dF/dtheta`` at ``x`` (``(size, len(theta))``, sparse), differentiated from the same
+        interval rows as `evaluate`'s ``F``; the constant rows (``t_0``, section, phase,
+        closure) do not depend on ``theta``."""
+        N, m, h = self.layout.intervals, self.layout.m, self.header
+        z = np.ascontiguousarray(x[:(N + 1) * m], float).reshape(N + 1, m)
+        unfolding = np.tile(x[(N + 1) * m:], (N, 1))
+        level = np.full((N, 1), closure.energy)
+        theta = np.asarray(closure.theta, float).ravel()
+        if theta.size == 0:
+            return sp.csc_matrix((self.layout.size, 0))
+        mapped = self._theta_rows.map(N)
+        values = np.asarray(mapped(z[:-1].T, z[1:].T, unfolding.T, level.T, theta))
+        blocks = values.reshape(m, N, theta.size).transpose(1, 0, 2)
+        dense = np.zeros((self.layout.size, theta.size))
+        dense[h:h + N * m] = blocks.reshape(N * m, theta.size)
+        return sp.csc_matrix(dense)
 
     def residuals(self, F: np.ndarray):
         """``(canonical (N, 2n), energy (N,), closure (2n,))`` in ``F`` (unscaled)."""
