@@ -36,7 +36,8 @@ NEWTON_ITERATIONS = 30
 FIT_TOLERANCE = EXACT_TOLERANCE.newton_tol  # of the motion's size
 FIT_RTOL = EXACT_TOLERANCE.flow_rtol  # the flow's tolerance while fitting the start
 SHARE = 0.1  # of global_tol: the reference's own error
-REFERENCE_RTOL = EXACT_TOLERANCE.reference_rtol  # the reference's first tolerance (tighter by 100 while it must be)
+# the reference's first tolerance (tighter by 100 while it must be)
+REFERENCE_RTOL = EXACT_TOLERANCE.reference_rtol
 
 
 def window_states(t: np.ndarray, q: np.ndarray, order: int, at: np.ndarray) -> np.ndarray:

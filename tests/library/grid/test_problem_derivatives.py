@@ -1,11 +1,10 @@
 """Derivatives of a grid problem: ``dF/dtheta`` against a finite difference of ``F`` in
 ``theta``, and the transposed solve beside the solve (``J^T y = b``), on random points."""
 
+import casadi as ca
 import numpy as np
 import pytest
 import scipy.sparse as sp
-
-import casadi as ca
 
 from ddvp_nlp import Compilation, HamiltonianSystem
 from ddvp_nlp.discrete.scheme import Scheme
