@@ -57,7 +57,7 @@ def run_chaos(args) -> int:
                 scheduler=args.scheduler, shard=args.shard, resume=not args.fresh,
                 progress=args.progress is not False)
             arrays = map_arrays(result, scene.system, scene.system.parameter_vector(params))
-            meta = _meta(args, scene.name, tau0, params, result)
+            meta = _meta(args, scene, tau0, params, result)
             with INTERRUPTS.saving():
                 files = {("part.npz" if shard else "chaos.npz"): arrays_writer(arrays)}
                 if not shard and not args.no_plot:
@@ -72,10 +72,12 @@ def run_chaos(args) -> int:
     return 0 if failed == 0 and not INTERRUPTS.requested else 1
 
 
-def _meta(args, scene_name, tau0, params, result) -> dict:
-    settings = {"scene": scene_name, "energy": float(args.energy), "grid": args.grid,
-                "section": args.section, "t_end": float(args.t_end), "tau0": float(tau0),
-                "params": params}
+def _meta(args, scene, tau0, params, result) -> dict:
+    # the scene's hash beside its name: shards of two files of one name, or of a file edited
+    # between shards, are not parts of one map (merge_shards compares the settings)
+    settings = {"scene": scene.name, "scene_digest": scene.digest, "energy": float(args.energy),
+                "grid": args.grid, "section": args.section, "t_end": float(args.t_end),
+                "tau0": float(tau0), "params": params}
     status = result.status
     return {"command": "chaos", "settings": settings, "cells": int(status.size),
             "run": int(np.sum(status != "not_run")), "not_run": int(np.sum(status == "not_run")),

@@ -284,46 +284,99 @@ def map_arrays(result: ChaosMap, system, theta) -> dict:
 def merge_shards(folder) -> tuple[dict, dict]:
     """The part files of every ``shard-K-of-N`` folder in ``folder`` joined: ``(arrays,
     parts)``. Each part is read through its manifest (checksums); the parts must be ``N`` of
-    one job (the same ``N`` and settings) and every cell must come from exactly one of them,
-    else an ``InputError`` says which shard is missing or differs."""
+    one job (the same ``N`` and settings, the scene's file the same by its hash), each part
+    whole (every array, of the map's size), every cell from exactly one of them and every
+    cell a part calls a success with finite figures; else an ``InputError`` names the shard
+    and what is wrong. A folder named like a shard that is none (``shard-1-of-3.bak``) is
+    refused by name rather than guessed at."""
     from pathlib import Path
 
     from ..io.atomic import read_set
     from ..io.chaos_files import read_arrays
 
     folder = Path(folder)
-    found = sorted(p for p in folder.glob("shard-*-of-*") if p.is_dir())
-    if not found:
-        raise InputError(f"--merge {str(folder)!r}: no shard-K-of-N folder in it (run the "
-                         "shards with --shard K/N --out there first)")
-    counts = {int(p.name.rsplit("-", 1)[1]) for p in found}
-    if len(counts) != 1:
-        raise InputError(f"--merge {str(folder)!r}: shards of different splits "
-                         f"({sorted(counts)}); keep one job's shards only")
-    count = counts.pop()
-    parts, merged, settings = {}, None, None
+    where = f"--merge {str(folder)!r}"
+    count = _shard_count(folder, where)
+    parts, merged, settings, owner = {}, None, None, None
     for k in range(1, count + 1):
         name = shard_folder(k, count)
         if not (folder / name).is_dir():
-            raise InputError(f"--merge {str(folder)!r}: {name} is missing (that shard has "
+            raise InputError(f"{where}: {name} is missing (that shard has "
                              "not finished, or ran elsewhere)")
         meta, files = read_set(folder / name, required=("part.npz",))
-        arrays = read_arrays(files["part.npz"])
+        arrays = _whole_part(read_arrays(files["part.npz"]), name, where,
+                             None if merged is None else merged["status"].size)
         if settings is None:
             settings, merged = meta.get("settings"), dict(arrays)
             merged["status"] = arrays["status"].astype(object)
+            owner = np.full(arrays["status"].size, "", dtype=object)
         elif meta.get("settings") != settings:
-            raise InputError(f"--merge {str(folder)!r}: {name} was run with other settings "
+            raise InputError(f"{where}: {name} was run with other settings "
                              f"than shard 1 ({meta.get('settings')} against {settings})")
-        mine = arrays["status"] != "other_shard"
+        if not np.array_equal(arrays["status"] == "not_run", merged["status"] == "not_run"):
+            raise InputError(f"{where}: {name} and shard 1 differ on which cells are off the "
+                             "energy surface (parts of different jobs?)")
+        ran = ~np.isin(arrays["status"], ("other_shard", "not_run"))
+        twice = ran & (owner != "")
+        if twice.any():
+            raise InputError(f"{where}: {name} and {owner[twice][0]} both hold "
+                             f"{int(twice.sum())} cells (parts of different jobs?)")
+        owner[ran] = name
         for key in (*KEYS, "status"):
-            merged[key][mine] = arrays[key][mine]
+            merged[key][ran] = arrays[key][ran]
         parts[name] = meta
     left = int(np.sum(merged["status"] == "other_shard"))
     if left:
-        raise InputError(f"--merge {str(folder)!r}: {left} cells are in no shard's part")
+        raise InputError(f"{where}: {left} cells are in no shard's part")
     merged["status"] = merged["status"].astype(str)
     return merged, parts
+
+
+SHARD_NAME = re.compile(r"shard-([1-9][0-9]*)-of-([1-9][0-9]*)")
+
+
+def _shard_count(folder, where: str) -> int:
+    """``N`` of the ``shard-K-of-N`` folders in ``folder``: one ``N``, every ``K`` in
+    ``1..N``; a folder whose name starts ``shard-`` but is not one of them is refused."""
+    found = sorted(p.name for p in folder.glob("shard-*") if p.is_dir())
+    if not found:
+        raise InputError(f"{where}: no shard-K-of-N folder in it (run the "
+                         "shards with --shard K/N --out there first)")
+    stray = [name for name in found if not SHARD_NAME.fullmatch(name)]
+    if stray:
+        raise InputError(f"{where}: {stray[0]!r} is not a shard folder (shard-K-of-N, as "
+                         "--shard K/N writes them); move it out before merging")
+    pairs = [tuple(map(int, SHARD_NAME.fullmatch(name).groups())) for name in found]
+    counts = {n for _, n in pairs}
+    if len(counts) != 1:
+        raise InputError(f"{where}: shards of different splits "
+                         f"({sorted(counts)}); keep one job's shards only")
+    count = counts.pop()
+    beyond = [f"shard-{k}-of-{n}" for k, n in pairs if k > n]
+    if beyond:
+        raise InputError(f"{where}: {beyond[0]} is past the split's {count} shards")
+    return count
+
+
+def _whole_part(arrays: dict, name: str, where: str, cells: int | None) -> dict:
+    """A shard's arrays if whole: every figure and the status present, of one length (the
+    first part's), and finite wherever the part calls the cell a success."""
+    missing = [key for key in (*KEYS, "status") if key not in arrays]
+    if missing:
+        raise InputError(f"{where}: {name}'s part has no {missing[0]!r} array (damaged)")
+    size = cells if cells is not None else np.size(arrays["status"])
+    wrong = [key for key in (*KEYS, "status") if np.shape(arrays[key]) != (size,)]
+    if wrong:
+        raise InputError(f"{where}: {name}'s {wrong[0]!r} has shape "
+                         f"{np.shape(arrays[wrong[0]])}, not ({size},) as the map's cells")
+    success = arrays["status"] == "success"
+    for key in KEYS:
+        values = np.asarray(arrays[key], dtype=float)
+        bad = success & ~np.isfinite(values)
+        if bad.any():
+            raise InputError(f"{where}: {name} calls {int(bad.sum())} cells a success with "
+                             f"{key} = {values[bad][0]} (damaged)")
+    return arrays
 
 
 def chaos_map(system, energy: float, grid: str, out, *, scene: str, tau0: float,

@@ -1157,6 +1157,41 @@ def backward_cases() -> list[Case]:
               "--no-progress", "--out", "out"], (1,), check=reached)]
 
 
+def merge_cases() -> list[Case]:
+    """``ddvp chaos --merge`` on parts that are not one job's whole parts (written through the
+    tool's own manifest, so only the merge's checks can catch them): refused by name, exit 2."""
+    import numpy as np
+
+    from ddvp_nlp.io.atomic import output_folder
+    from ddvp_nlp.io.chaos_files import arrays_writer
+    from ddvp_nlp.studies.chaos_map import KEYS
+
+    def parts(damage):
+        def setup(folder):
+            for k in (1, 2):
+                status = np.array(["success" if i % 2 == k - 1 else "other_shard"
+                                   for i in range(6)])
+                if damage == "twice" and k == 2:
+                    status = np.array(["success" if i % 2 == 0 else "other_shard"
+                                       for i in range(6)])
+                arrays = {"status": status, **{key: np.ones(6) for key in KEYS}}
+                if damage == "nan" and k == 2:
+                    arrays["megno"][1] = np.nan
+                (folder / "parts").mkdir(exist_ok=True)
+                with output_folder(folder / "parts" / f"shard-{k}-of-2") as out:
+                    out.commit({"part.npz": arrays_writer(arrays)}, {"settings": {"scene": "s"}})
+            if damage == "stray":
+                (folder / "parts" / "shard-1-of-2.bak").mkdir()
+        return setup
+    argv = ["chaos", "--merge", "parts", "--no-plot"]
+    return [Case("merges", "a stray shard-1-of-2.bak folder", argv, (2,), parts("stray"),
+                 expect_text="is not a shard folder"),
+            Case("merges", "two parts holding the same cells", argv, (2,), parts("twice"),
+                 expect_text="both hold"),
+            Case("merges", "a success cell with megno NaN", argv, (2,), parts("nan"),
+                 expect_text="a success with megno = nan")]
+
+
 LOAD_SCENES = ["pendulum", "harmonic", "kepler", "henon_heiles", "paper_pendulum", "cr3bp",
                "fpu", "figure_eight"]
 
@@ -1363,6 +1398,7 @@ def main() -> int:
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
               "cluster": cluster_cases, "periodic": periodic_cases, "backward": backward_cases,
+              "merges": merge_cases,
               "load": load_cases}
     only = set(args.only.split(",")) if args.only else None
     unknown = sorted((only or set()) - set(groups))

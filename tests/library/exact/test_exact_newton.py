@@ -1,6 +1,6 @@
 """The one Newton on the exact flow's residuals (``solvers/exact/flow_newton.py``): it converges
-on a
-known root with a bound of its own error that holds, and says it failed where there is no root."""
+on a known root with a bound of its own error that holds, and says it failed where there
+is no root."""
 
 import numpy as np
 
