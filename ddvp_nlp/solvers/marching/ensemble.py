@@ -121,6 +121,9 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     ``scripts/benchmarks/bench_ensemble_bytes.py``)."""
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
+    if q0s.ndim == 2 and q0s.shape == p0s.shape and (q0s.shape[0] == 0 or q0s.size == 0):
+        raise InputError(f"q0s and p0s hold no orbit (shape {q0s.shape}): give at least one "
+                         "start, (M, n) arrays with M >= 1")
     if q0s.shape != p0s.shape or q0s.shape[0] == 0 or q0s.ndim != 2:
         raise InputError(f"q0s and p0s must be (M, n) arrays of the same shape, got "
                          f"{q0s.shape} and {p0s.shape}")

@@ -92,3 +92,11 @@ def test_the_poincare_defaults_give_a_few_hundred_crossings_per_orbit(tmp_path, 
     from ddvp_nlp.cli.parser import build_parser
 
     assert build_parser().parse_args(["poincare", "henon_heiles", "--energy", "0.1"]).orbits == 50
+
+
+@pytest.mark.parametrize("starts", [np.zeros((0, 1)), [], np.zeros((3, 0))])
+def test_an_ensemble_of_no_orbit_is_refused_as_such(starts):
+    """Zero orbits is named as zero orbits (it was answered "the shapes differ")."""
+    system = load_scene("harmonic").system
+    with pytest.raises(InputError, match="hold no orbit"):
+        march_ensemble(system, starts, starts, (0.0, 1.0), tau0=0.1)
