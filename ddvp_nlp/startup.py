@@ -20,14 +20,14 @@ def started_as_command() -> bool:
 
 
 def hold_signals_while_the_command_starts() -> None:
-    """Started as the ``ddvp`` command (`started_as_command`): Ctrl-C and SIGTERM are held
+    """Started as the ``ddvp`` command (`started_as_command`): Ctrl-C, SIGTERM and SIGHUP are held
     (blocked, not lost) until the command's handlers are in place (``cli/main.py`` releases
     them), so a signal while the imports run ends the command with its message, not a
     ``KeyboardInterrupt`` traceback from an import."""
     import signal
 
     if started_as_command() and hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
 
 
 hold_signals_while_the_command_starts()

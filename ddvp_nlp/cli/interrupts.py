@@ -1,4 +1,5 @@
-"""Ctrl-C and SIGTERM during a command, honoured at every moment.
+"""Ctrl-C, SIGTERM and SIGHUP (a closed terminal or ssh session) during a command, honoured
+at every moment, alike.
 
 - While a march steps (it polls `Interrupts.stop_requested` after every stepper call), a
   signal only asks it to stop: it ends after the current call (milliseconds) with status
@@ -21,7 +22,9 @@ import signal
 import sys
 import time
 
-SIGNALS = {signal.SIGINT, signal.SIGTERM}
+# SIGHUP too: a closed terminal had ended a march without saving it (a thinned march lost
+# everything), where Ctrl-C and SIGTERM save what was accepted.
+SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
 # A signal this long after a raised one that did not end the command raises again.
 RAISE_AGAIN_S = 1.0
 
@@ -31,7 +34,7 @@ class Stopped(Exception):
 
 
 class Interrupts:
-    """SIGINT and SIGTERM, handled alike (module docstring)."""
+    """SIGINT, SIGTERM and SIGHUP, handled alike (module docstring)."""
 
     def __init__(self):
         self.requested = False   # a signal arrived

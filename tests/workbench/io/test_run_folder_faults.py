@@ -73,8 +73,9 @@ def test_sigkill_over_an_earlier_run_leaves_one_whole_run(tmp_path):
 
 
 @pytest.mark.slow_when(lambda signals, **_: len(signals) == 2, why="processes")
-@pytest.mark.parametrize("signals", [[signal.SIGINT, signal.SIGINT], [signal.SIGTERM]],
-                         ids=["two-ctrl-c", "sigterm"])
+@pytest.mark.parametrize("signals", [[signal.SIGINT, signal.SIGINT], [signal.SIGTERM],
+                                     [signal.SIGHUP]],
+                         ids=["two-ctrl-c", "sigterm", "sighup"])  # sighup: a closed terminal
 def test_interrupts_end_with_the_run_written(tmp_path, signals):
     out = tmp_path / "run"
     process = ddvp([*ENDLESS, "--out", str(out)])
