@@ -303,7 +303,9 @@ class Output:
 
     def __post_init__(self):
         _set(self, "progress", _flag("progress", self.progress))
-        _set(self, "keep_every", check_integer("keep_every", self.keep_every))
+        # node indices are 64-bit integers: a larger stride cannot be counted (it had ended
+        # in an internal error), and from 2**62 on every march keeps its first and last node
+        _set(self, "keep_every", check_integer("keep_every", self.keep_every, maximum=2**62))
         _set(self, "window", check_integer("window", self.window))
         if self.window < 16:
             raise InputError(f"window must be at least 16 nodes, got {self.window!r}")

@@ -134,6 +134,7 @@ def test_an_interrupted_thinned_march_keeps_what_it_had(small_windows):
 @pytest.mark.parametrize("options, words", [
     (dict(keep_every=0), "keep_every must be a positive integer, got 0"),
     (dict(keep_every=2.5), "keep_every must be a positive integer, got 2.5"),
+    (dict(keep_every=10**23), "keep_every must be at most 4611686018427387904, got 10000"),
     (dict(keep="some"), "keep must be one of nodes, t_eval, got 'some'"),
     (dict(keep="t_eval"), "give t_eval or events"),
     (dict(keep_every=3, checkpoint=lambda t, z: None), "takes no checkpoints"),
