@@ -12,7 +12,8 @@ Where things are:
 - ``steps.py``: one step as CasADi functions (residual, predictor, check), from ``discrete/``;
 - ``step_newton.py``: the march's Newton: the option set of both paths, the careful solve with
   retries (``NewtonSteps``), the compiled path's unrolled ``fast_newton``, and one step as a
-  public problem (``StepProblem``: residual, Jacobians in the new and old nodes and ``theta``);
+  public problem (``StepProblem``: residual, Jacobians in the new and old nodes and ``theta``,
+  a solve and a transposed solve, the step's sensitivity);
   ``chain_newton.py``: the compiled path's Newton for many unknowns (a chain of conditional
   iterations, each update by a sparse elimination: cost linear in ``n`` for a banded step);
 - ``acceptance.py``: when a step is accepted, one test for both paths;

@@ -151,6 +151,29 @@ class StepProblem:
         in_x, in_w = (np.asarray(J) for J in self._jacobians(x, w))
         return in_x, in_w[:, self._old], in_w[:, self._parameters]
 
+    def solve(self, x, w, rhs) -> np.ndarray:
+        """``(dF/dx)^-1 rhs`` at ``(x, w)``."""
+        return _lu_solve(self.jacobians(x, w)[0], rhs, 0)
+
+    def solve_transposed(self, x, w, rhs) -> np.ndarray:
+        """``(dF/dx)^-T rhs`` at ``(x, w)``, beside `solve` (one step of an adjoint sweep)."""
+        return _lu_solve(self.jacobians(x, w)[0], rhs, 1)
+
+    def sensitivity(self, x, w) -> tuple:
+        """``(dx/d old nodes, dx/dtheta)`` of the step's root ``x``: ``-(dF/dx)^-1 dF/d(old,
+        theta)`` (the implicit function theorem; valid at a root)."""
+        in_x, in_old, in_theta = self.jacobians(x, w)
+        solved = _lu_solve(in_x, np.hstack([in_old, in_theta]), 0)
+        return -solved[:, :in_old.shape[1]], -solved[:, in_old.shape[1]:]
+
+
+def _lu_solve(matrix: np.ndarray, rhs: np.ndarray, trans: int) -> np.ndarray:
+    """``matrix^-1 rhs`` (``trans=1``: ``matrix^-T rhs``) from one LAPACK LU; ``scipy.linalg``
+    is imported here, so that a march that never asks loads none of it
+    (tests/architecture/test_import_cost.py)."""
+    import scipy.linalg
+    return scipy.linalg.lu_solve(scipy.linalg.lu_factor(matrix), rhs, trans=trans)
+
 
 class NewtonSteps:
     """Careful steps: CasADi's ``newton`` on `StepFunctions`, checked by ``acceptance``
