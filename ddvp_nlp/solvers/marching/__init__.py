@@ -11,7 +11,9 @@ Where things are:
   ``Solution``;
 - ``steps.py``: one step as CasADi functions (residual, predictor, check), from ``discrete/``;
 - ``step_newton.py``: the march's Newton: the option set of both paths, the careful solve with
-  retries (``NewtonSteps``), and the compiled path's unrolled ``fast_newton``;
+  retries (``NewtonSteps``), the compiled path's unrolled ``fast_newton``, and one step as a
+  public problem (``StepProblem``: residual, Jacobians in the new and old nodes and ``theta``,
+  a solve and a transposed solve, the step's sensitivity);
   ``chain_newton.py``: the compiled path's Newton for many unknowns (a chain of conditional
   iterations, each update by a sparse elimination: cost linear in ``n`` for a banded step);
 - ``acceptance.py``: when a step is accepted, one test for both paths;
@@ -60,5 +62,6 @@ The contract of the march. An implementer changing it must keep:
 from .ensemble import Collect, march_ensemble
 from .initial_value import continue_march, march
 from .resume import MarchState
+from .step_newton import StepProblem
 
-__all__ = ["Collect", "MarchState", "continue_march", "march", "march_ensemble"]
+__all__ = ["Collect", "MarchState", "StepProblem", "continue_march", "march", "march_ensemble"]

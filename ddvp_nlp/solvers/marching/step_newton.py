@@ -37,7 +37,7 @@ import numpy as np
 from ...cache import cached
 from ...errors import InputError
 from ...solution import Status
-from .steps import EnergyCheck, FixedCheck, StepFunctions
+from .steps import EnergyCheck, FixedCheck, StepFunctions, step_functions
 
 # The options of both paths' rootfinders (``newton`` careful, ``fast_newton`` compiled).
 # error_on_fail: on the virtual machine fast_newton raises by default; compiled, it cannot.
@@ -102,6 +102,77 @@ class StepResult:
     @classmethod
     def failed(cls, status: Status, detail: str = "") -> StepResult:
         return cls(status, detail)
+
+
+class StepProblem:
+    """One march step as a problem: ``F(x; old nodes, theta) = 0`` for the new unknowns ``x``,
+    with its Jacobians in ``x``, in the old nodes and in ``theta``, from the same CasADi
+    expressions the march's Newton solves (``steps.StepFunctions``).
+
+    ``kind="fixed"``: ``x = z_b``, old node ``z_a``, ``w = [t_a, t_b, z_a, theta]``;
+    ``kind="energy"``: ``x = [z_{k+1}, tau_k]``, old nodes ``(z_{k-1}, z_k)``,
+    ``w = [t_{k-1}, t_k, z_{k-1}, z_k, theta, drift]`` (energy rules only). The march does not
+    use this object: it is where a forward sensitivity ``dz_{k+1}/dtheta = -F_x^-1 (F_old
+    dz_old/dtheta + F_theta)`` or an adjoint sweep ``F_x^T lambda_k = ...`` takes its
+    Jacobians from."""
+
+    def __init__(self, system, scheme, theta, kind: str = "fixed"):
+        if kind not in ("fixed", "energy"):
+            raise InputError(f"kind must be 'fixed' or 'energy', not {kind!r}")
+        if kind == "energy" and not scheme.variable_steps:
+            raise InputError(f"scheme {scheme.rule!r} has no energy step")
+        functions = step_functions(system, scheme)
+        self.kind = kind
+        self.theta = np.asarray(theta, float).ravel()
+        self._residual = functions.fixed_residual if kind == "fixed" else \
+            functions.energy_residual
+        n = system.n
+        old = 2 * n if kind == "fixed" else 4 * n
+        self._old = slice(2, 2 + old)
+        self._parameters = slice(2 + old, 2 + old + self.theta.size)
+        x, w = self._residual.sx_in()
+        F = self._residual.call([x, w])[0]
+        self._jacobians = ca.Function("step_jacobians", [x, w], [
+            ca.densify(ca.jacobian(F, x)), ca.densify(ca.jacobian(F, w))])
+
+    def parameters(self, times, old_nodes, drift: float = 0.0) -> np.ndarray:
+        """``w`` from the old times ``(t_a, t_b)`` or ``(t_{k-1}, t_k)``, the old node values
+        (``z_a``, or ``(z_{k-1}, z_k)``) and, for an energy step, the drift."""
+        values = [np.ravel(times), *(np.ravel(z) for z in np.atleast_2d(old_nodes)),
+                  self.theta]
+        return np.concatenate(values + ([[drift]] if self.kind == "energy" else []))
+
+    def residual(self, x, w) -> np.ndarray:
+        """``F(x; w)``."""
+        return np.asarray(self._residual(x, w)).ravel()
+
+    def jacobians(self, x, w):
+        """``(dF/dx, dF/d old nodes, dF/dtheta)`` as dense arrays."""
+        in_x, in_w = (np.asarray(J) for J in self._jacobians(x, w))
+        return in_x, in_w[:, self._old], in_w[:, self._parameters]
+
+    def solve(self, x, w, rhs) -> np.ndarray:
+        """``(dF/dx)^-1 rhs`` at ``(x, w)``."""
+        return _lu_solve(self.jacobians(x, w)[0], rhs, 0)
+
+    def solve_transposed(self, x, w, rhs) -> np.ndarray:
+        """``(dF/dx)^-T rhs`` at ``(x, w)``, beside `solve` (one step of an adjoint sweep)."""
+        return _lu_solve(self.jacobians(x, w)[0], rhs, 1)
+
+    def sensitivity(self, x, w) -> tuple:
+        """``(dx/d old nodes, dx/dtheta)`` of the step's root ``x``: ``-(dF/dx)^-1 dF/d(old,
+        theta)`` (the implicit function theorem; valid at a root)."""
+        in_x, in_old, in_theta = self.jacobians(x, w)
+        solved = _lu_solve(in_x, np.hstack([in_old, in_theta]), 0)
+        return -solved[:, :in_old.shape[1]], -solved[:, in_old.shape[1]:]
+
+
+def _lu_solve(matrix: np.ndarray, rhs: np.ndarray, trans: int) -> np.ndarray:
+    """``matrix^-1 rhs`` (``trans=1``: ``matrix^-T rhs``) from one LAPACK LU; ``scipy.linalg``
+    is imported here, so that a march that never asks loads none of it
+    (tests/architecture/test_import_cost.py)."""
+    import scipy.linalg
+    return scipy.linalg.lu_solve(scipy.linalg.lu_factor(matrix), rhs, trans=trans)
 
 
 class NewtonSteps:
