@@ -180,12 +180,13 @@ def compiled_or_not(args) -> Compilation:
 
 @contextlib.contextmanager
 def on_cluster(args):
-    """With ``--cluster SPEC|FILE``: the description checked, the cluster started for the
-    command (``runner/cluster.py``) and its scheduler's address put in ``args.scheduler``,
-    where the grids and the Poincare ensemble already send their tasks; closed at the end."""
+    """The request the command runs: with ``--cluster SPEC|FILE``, the description checked,
+    the cluster started for the command (``runner/cluster.py``) and its scheduler's address the
+    new request's ``scheduler``, where the grids and the Poincare ensemble already send their
+    tasks; closed at the end. Without it, ``args`` as it is."""
     text = getattr(args, "cluster", None)
     if text is None:
-        yield
+        yield args
         return
     from ..runner.cluster import check_available, parse_cluster, start_cluster
 
@@ -195,8 +196,7 @@ def on_cluster(args):
     spec = parse_cluster(text)
     check_available(spec)
     with start_cluster(spec) as cluster:
-        args.scheduler = cluster.scheduler_address
-        yield
+        yield args.but(scheduler=cluster.scheduler_address)
 
 
 def workers(args, *, default: int | None = 1) -> Workers:

@@ -1,11 +1,11 @@
 """The run folder of a command: its default name (named by every input that changes the
-result, each setting compared with its default, the parser's, which is the API's; a scene
+result, each setting compared with its default, the request's, read once from the parser that
+parsed the command line, which takes it from the API; a scene
 file's content and a guess's numbers by their SHA-256), and what it holds after an
 interrupt."""
 
 from __future__ import annotations
 
-import functools
 import hashlib
 
 import numpy as np
@@ -13,23 +13,11 @@ import numpy as np
 from ..io.atomic import describe
 from ..io.run_folder import default_folder
 from ..scenes import is_builtin
-from .parser import build_parser
 
 
 def holds(out) -> str:
     """What the output folder ``out`` holds, in words (said when a command stops early)."""
     return describe(out.path)
-
-
-@functools.cache
-def _command_parser(command: str):
-    return build_parser(command).commands[command]
-
-
-def command_default(command: str, name: str):
-    """The default of option ``name`` of ``command``: the parser's, which is the API's
-    (``arguments.API_DEFAULTS``)."""
-    return _command_parser(command).get_default(name)
 
 
 def default_or(args, label: str, named: dict, *, options=(), defaults: dict | None = None,
@@ -42,7 +30,7 @@ def default_or(args, label: str, named: dict, *, options=(), defaults: dict | No
     the file it was."""
     if args.out is not None:
         return args.out, 1
-    reference = {name: command_default(args.command, name) for name in options}
+    reference = {name: args.default(name) for name in options}
     reference.update(defaults or {})
     named = {**named, **content_inputs(scene, guess)}
     changed = {k: v for k, v in named.items() if reference.get(k, object()) != v}

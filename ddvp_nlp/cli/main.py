@@ -24,6 +24,7 @@ from ..errors import InputError, OutputError
 from .arguments import check_numbers, on_cluster
 from .interrupts import INTERRUPTS, Stopped
 from .parser import build_parser, command_in, parse_arguments
+from .request import Request
 from .summary import format_warning
 
 # Each command: the module of this package that runs it and its function, imported when the
@@ -62,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parse_arguments(parser, words)
         if args.command not in COMMANDS:
             parser.error(f"unknown command {args.command!r}")
+        request = Request.read(args, parser.commands[args.command])  # once; never assigned to
         warnings.formatwarning = format_warning  # one line, no source echo
     except SystemExit:  # argparse's own end (--help, --version, a usage error), as it is
         restore()
@@ -73,18 +75,18 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             INTERRUPTS.restore()
     try:
-        return _run(args)
+        return _run(request)
     finally:
         restore()
         warnings.formatwarning = original_format
 
 
-def _run(args) -> int:
-    label = f"ddvp {args.command}"
+def _run(request: Request) -> int:
+    label = f"ddvp {request.command}"
     try:
-        check_numbers(args)
-        with on_cluster(args):
-            code = command(args.command)(args)
+        check_numbers(request)
+        with on_cluster(request) as request:
+            code = command(request.command)(request)
         sys.stdout.flush()  # a full disk behind stdout fails here, not at the exit
         if INTERRUPTS.requested and code == 0:
             # a signal that surfaced inside CasADi as a task's error: the study went on and

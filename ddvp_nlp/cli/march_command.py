@@ -67,8 +67,7 @@ def run_resume(args) -> int:
         arrays, meta = read_run(folder)
         record = resume_record_of(folder, meta)
         scene = resume_scene(args, folder, record)
-        for name, value in record["options"].items():
-            setattr(args, name, value)
+        args = args.but(**record["options"])  # the options the run was made with
         check_numbers(args)
         if args.scheme not in RULES:
             raise InputError(f"--resume: the resume record of {folder} gives the scheme "

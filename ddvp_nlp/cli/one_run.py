@@ -14,7 +14,7 @@ from ..io.run_folder import default_folder, read_guess, write_checkpoint, write_
 from ..scenes import HigherOrderScene, load_scene, scene_fingerprint
 from ..solution import Status
 from .events import parse_event, parse_times
-from .folders import command_default, content_inputs, holds
+from .folders import content_inputs, holds
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
 from .summary import print_summary
@@ -28,20 +28,20 @@ def run_one(args, solvers: dict) -> int:
         raise InputError(f"ddvp {args.command} needs a scene (a name from `ddvp scenes` or a "
                          ".py file)" + (", or --resume FOLDER" if args.command == "march" else ""))
     if getattr(args, "t_end", None) is not None:  # ran silently to the scene's t_end before
-        args.settings = [*args.settings, f"t_end={args.t_end!r}"]
+        args = args.but(settings=[*args.settings, f"t_end={args.t_end!r}"])
     scene = load_scene(args.scene)
     higher = isinstance(scene, HigherOrderScene)
-    args.scheme = scheme_name(args, scene)
+    args = args.but(scheme=scheme_name(args, scene))
     scheme = scheme_of(args, higher)
     overrides = parse_settings(args.settings)
     config = resolve(args, scene, higher, overrides)
-    args.requested = requested_output(args, scene, config, higher)  # before any folder
+    args = args.but(requested=requested_output(args, scene, config, higher))  # before a folder
     if args.command == "bvp" and args.guess not in ("straight", "march"):
-        args.guess_data = read_guess(args.guess, scene.system.n)  # checked now; names
+        args = args.but(guess_data=read_guess(args.guess, scene.system.n))  # checked now; names
     target, owned, overrides = run_folder(args, scene, config, overrides)
     with output_folder(target, owned=owned) as out:
-        args.checkpoint = checkpoint_saver(args, scene, out, resume_record(args, scene, config,
-                                                                           overrides))
+        args = args.but(checkpoint=checkpoint_saver(args, scene, out, resume_record(
+            args, scene, config, overrides)))
         try:
             solution, extra = solvers[higher](args, scene, config, scheme)
         except KeyboardInterrupt:
@@ -87,7 +87,7 @@ def run_folder(args, scene, config, overrides):
             overrides["nodes"] = args.nodes
         for name in BVP_CHOICES:
             value = getattr(args, name)
-            if value != command_default(args.command, name):
+            if value != args.default(name):
                 overrides[name] = resolved[name] = value
     options = {**result_options(args), **requested_options(args),
                **content_inputs(scene, getattr(args, "guess_data", None))}
@@ -120,7 +120,7 @@ def requested_options(args) -> dict:
 def result_options(args) -> dict:
     """The options of ``args`` in `RESULT_OPTIONS` whose value is not their default."""
     return {name: getattr(args, name) for name in RESULT_OPTIONS
-            if hasattr(args, name) and getattr(args, name) != command_default(args.command, name)}
+            if hasattr(args, name) and getattr(args, name) != args.default(name)}
 
 
 def checkpoint_saver(args, scene, out, record: dict):
@@ -186,8 +186,8 @@ def method_names() -> tuple:
 def scheme_of(args, higher: bool) -> Scheme:
     """The `Scheme` of the run (``fixed`` for a compared method: its interval energies are
     those of fixed steps)."""
-    if higher and (args.alpha != command_default(args.command, "alpha")
-                   or args.clock != command_default(args.command, "clock")):
+    if higher and (args.alpha != args.default("alpha")
+                   or args.clock != args.default("clock")):
         raise InputError("--alpha and --clock do not apply to a higher-order Lagrangian "
                          "(differences are taken at the left node)")
     if args.scheme not in RULES:

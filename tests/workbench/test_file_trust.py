@@ -425,13 +425,13 @@ NAMED_OTHERWISE = {"scene", "scheme", "method", "settings", "resume", "t_end", "
 def test_every_march_option_is_in_the_default_folders_name_or_said_not_to_change_the_result():
     """A new option of ddvp march that changes the result must name the default folder
     (--target-error had been left out: its run overwrote the main job's folder)."""
-    import argparse
-
-    from ddvp_nlp.cli.folders import _command_parser, command_default
     from ddvp_nlp.cli.one_run import RESULT_OPTIONS, result_options
+    from ddvp_nlp.cli.parser import build_parser, parse_arguments
+    from ddvp_nlp.cli.request import Request
 
-    dests = {action.dest for action in _command_parser("march")._actions}
+    parser = build_parser("march")
+    march = parser.commands["march"]
+    dests = {action.dest for action in march._actions}
     assert dests - set(RESULT_OPTIONS) - SHOWN_ONLY - NAMED_OTHERWISE == set()
-    args = argparse.Namespace(command="march", target_error=1e-3, **{
-        name: command_default("march", name) for name in RESULT_OPTIONS if name != "target_error"})
+    args = Request.read(parse_arguments(parser, ["march", "x", "--target-error", "1e-3"]), march)
     assert result_options(args) == {"target_error": 1e-3}
