@@ -13,8 +13,7 @@ Two caches, with two lifetimes:
   the node count), at most ``PROBLEMS.limit`` per system, the least recently used dropped
   first.
 
-`evaluate_columns` evaluates a per-node function on every node of a long result through a
-block-wide map kept in ``FUNCTIONS``.
+A function evaluated over many nodes block by block is ``blocks.py``'s.
 """
 
 from __future__ import annotations
@@ -24,8 +23,6 @@ from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from importlib import import_module
 from typing import TypeVar
-
-import numpy as np
 
 T = TypeVar("T")
 
@@ -77,48 +74,6 @@ def cached(owner: object, key: Hashable, build: Callable[[], T]) -> T:
     return FUNCTIONS.get(owner, key, build)
 
 
-# Columns per call of a block-mapped function: one map of this width is built (and compiled)
-# once per equation and reused for every grid; a map as wide as the grid was rebuilt for each
-# length (1.4 s for 400,000 nodes) and converted back element by element.
-BLOCK = 8192
-
-
-def evaluate_columns(system, function, columns: list, theta, *,
-                     compile=None) -> np.ndarray:
-    """``function`` (one output) on every column of ``columns`` (arrays ``(rows_i, N)``), with
-    ``theta`` for every column: shape ``(rows_out, N)``. Runs a cached ``BLOCK``-wide map
-    (or, for fewer columns, one as wide as the next power of two) block by block (the last
-    block padded by repeating its last column), compiled by
-    ``compile`` if given, else by the one registered for ``system`` (`use_compiler`)."""
-    N = columns[0].shape[1]
-    # A short grid gets a map of the next power of two, padded: a map per grid length was
-    # built anew for every run of a comparison (66 runs of `ddvp compare kepler`: 1.8 s of
-    # building maps for the energy errors; measured); a map per power of two is built once.
-    width = min(BLOCK, 1 << max(N - 1, 0).bit_length())
-    if width < BLOCK:
-        compile = None  # a short grid: compiling a map of its own width costs more than it saves
-    else:
-        compile = compile or FUNCTIONS.get(system, ("block compiler",), lambda: None)
-    mapped = cached(system, ("block", function.name(), width, compile is not None),
-                    lambda: (compile or (lambda f: f))(function.map(width)))
-    theta = np.repeat(np.asarray(theta, float)[:, None], width, axis=1)
-    blocks = []
-    for start in range(0, N, width):
-        chunk = [c[:, start:start + width] for c in columns]
-        short = width - chunk[0].shape[1]
-        if short:
-            chunk = [np.pad(c, ((0, 0), (0, short)), mode="edge") for c in chunk]
-        blocks.append(mapped(*chunk, theta).full()[:, :width - short])
-    return np.concatenate(blocks, axis=1)
-
-
-def use_compiler(system, compile) -> None:
-    """Make ``compile`` (``Function -> Function``) the one `evaluate_columns` uses for
-    ``system`` from now on: once a march has a working compiler, the checks of its results
-    (every equation at every node) run compiled too."""
-    FUNCTIONS.get(system, ("block compiler",), lambda: compile)
-
-
 def lazy_exports(package: str, names: dict[str, str]):
     """``(__getattr__, __dir__)`` for a package whose public ``names`` (name -> submodule)
     are imported when first asked for (PEP 562), so that importing one of its modules, or the
@@ -135,5 +90,4 @@ def lazy_exports(package: str, names: dict[str, str]):
 
     return getattr_, dir_
 
-__all__ = ["BLOCK", "FUNCTIONS", "FunctionCache", "PROBLEMS", "cached", "evaluate_columns",
-           "lazy_exports", "use_compiler"]
+__all__ = ["FUNCTIONS", "FunctionCache", "PROBLEMS", "cached", "lazy_exports"]

@@ -12,7 +12,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..cache import cached, evaluate_columns
+from ..blocks import copied, evaluate_columns, evaluate_in_blocks
+from ..cache import cached
 from ..physics.hamiltonian import HamiltonianSystem
 from ..physics.lagrangian import LagrangianSystem
 from .action import IntervalAction
@@ -108,14 +109,28 @@ def midpoint_energy_function(system: HamiltonianSystem, scheme: Scheme) -> ca.Fu
 
 
 def grid_residuals(system: HamiltonianSystem, scheme: Scheme, t, q, p, theta, *,
-                   compile=None):
+                   compile=None, block=None, block_width: int = 0):
     """All equations of a grid: canonical residuals ``(N-1, 2n)`` and energy residuals ``(N-2,)``
     of the scheme's diagnostic rule, unscaled. ``compile`` (``Function -> Function``, e.g. a
-    C compiler's) runs the block-mapped equations compiled; see `evaluate_columns`."""
+    C compiler's) runs the block-mapped equations compiled; see `evaluate_columns`.
+
+    ``block``: the same equations of ``block_width`` intervals in one function, ``(T (W + 2),
+    Z (W + 2, 2n)) -> (canonical (W, 2n), energy (W, 1))`` (the canonical equations of the
+    intervals from the first ``W`` nodes, the energy equations at the ``W`` nodes after the
+    first; ``solvers/marching/recheck.py`` compiles it), called block by block in place of
+    the mapped functions for a grid of 3 nodes or more; its parameters are the caller's to set."""
     t = np.asarray(t, float)
     q = np.asarray(q, float)
     p = np.asarray(p, float)
     N = t.size
+    if block is not None and N >= 3:
+        z = np.column_stack([q.reshape(N, -1), p.reshape(N, -1)])
+        canonical, energy = np.empty((N - 1, 2 * system.n)), np.empty(N - 2)
+        # block k reads nodes k W .. k W + W + 1 (the last block's missing nodes: the last node
+        # repeated; their residuals are not kept)
+        evaluate_in_blocks(copied(block), [t, z], [canonical, energy], count=N - 1,
+                           width=block_width, halo=2)
+        return canonical, energy
     theta = np.asarray(theta, float)
     canonical = np.zeros((max(N - 1, 0), 2 * system.n))
     energy = np.zeros(max(N - 2, 0))

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ..cache import cached, evaluate_columns
+from ..blocks import evaluate_columns
+from ..cache import cached
 from ..errors import InputError
 from ..validation import check_integer, check_parameter_values
 

@@ -31,7 +31,7 @@ from types import MappingProxyType
 import casadi as ca
 import numpy as np
 
-from ...cache import use_compiler
+from ...blocks import use_compiler
 from ..compiler import (
     CompileUnavailable,
     FunctionBuffer,

@@ -1,11 +1,11 @@
 """Every equation of a returned grid, recomputed in compiled code.
 
-The same residuals as ``discrete.equations.grid_residuals`` (the canonical equations of every
-interval, the energy equation at every inner node, unscaled), from the same CasADi functions,
-mapped over blocks of ``BLOCK`` intervals in one compiled function per block (the nodes go in
-once, the shifted columns are taken in C), called through numpy buffers: on CasADi's virtual
-machine the recheck cost 2-3 us per node, more than the compiled march itself.
-Without a compiler it is ``grid_residuals`` itself.
+``discrete.equations.grid_residuals`` (the canonical equations of every interval, the energy
+equation at every inner node, unscaled), from the same CasADi functions, its blocks of
+``BLOCK`` intervals one compiled function each (`recheck_block`: the nodes go in once, the
+shifted columns are taken in C), called through numpy buffers: on CasADi's virtual machine the
+recheck cost 2-3 us per node, more than the compiled march itself. Without a compiler it is
+``grid_residuals`` with its mapped functions.
 """
 
 from __future__ import annotations
@@ -103,9 +103,9 @@ def _block(system, scheme, compiler, cache_dir):
     return cached(system, ("recheck_block", scheme, compiler, str(cache_dir)), build)
 
 
-def grid_residuals(system, scheme, t, q, p, theta, *, compiler=None, cache_dir=None):
-    """Canonical residuals ``(N-1, 2n)`` and energy residuals ``(N-2,)``, as
-    ``discrete.equations.grid_residuals`` returns them."""
+def recheck_residuals(system, scheme, t, q, p, theta, *, compiler=None, cache_dir=None):
+    """``discrete.equations.grid_residuals`` (canonical residuals ``(N-1, 2n)``, energy
+    residuals ``(N-2,)``), its blocks the compiled `recheck_block` when there is a compiler."""
     if compiler is None or np.size(t) < 3:
         return equations.grid_residuals(system, scheme, t, q, p, theta)
     try:
@@ -113,26 +113,11 @@ def grid_residuals(system, scheme, t, q, p, theta, *, compiler=None, cache_dir=N
     except CompileUnavailable as reason:  # the virtual machine gives the same residuals
         warn_once(reason)
         return equations.grid_residuals(system, scheme, t, q, p, theta)
-    t = np.asarray(t, float)
-    z = np.column_stack([np.asarray(q, float).reshape(t.size, -1),
-                         np.asarray(p, float).reshape(t.size, -1)])
-    N = t.size
-    canonical = np.empty((N - 1, 2 * system.n))
-    energy = np.empty(N - 2)
-    theta = np.asarray(theta, float)
-    first = True
-    for start in range(0, N - 1, BLOCK):
-        stop = min(start + BLOCK + 2, N)
-        if stop - start == BLOCK + 2:
-            T, Z = t[start:stop], z[start:stop]
-        else:  # the last block: the last node repeated (its residuals are not kept)
-            T = np.pad(t[start:stop], (0, BLOCK + 2 - (stop - start)), mode="edge")
-            Z = np.pad(z[start:stop], [(0, BLOCK + 2 - (stop - start)), (0, 0)], mode="edge")
-        out_canonical, out_energy = block(T, Z, theta if first else None)
-        first = False
-        rows = min(BLOCK, N - 1 - start)
-        canonical[start:start + rows] = out_canonical[:rows]
-        rows = min(BLOCK, N - 2 - start)
-        if rows > 0:
-            energy[start:start + rows] = out_energy[:rows, 0]
-    return canonical, energy
+    block.inputs[2][:] = np.asarray(theta, float)  # kept for every block
+    return equations.grid_residuals(system, scheme, t, q, p, theta,
+                                    block=lambda T, Z: block(T, Z, None), block_width=BLOCK)
+
+
+# The name marching/initial_value.py imports (its two calls become `recheck_residuals` when
+# that module is next edited).
+grid_residuals = recheck_residuals
