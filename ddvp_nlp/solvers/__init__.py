@@ -63,7 +63,7 @@ PUBLIC = {
     # the exact flow and the verdicts
     "flow_with_derivatives": "exact.variational", "exact_flow": "exact.flow",
     "exact_reference": "exact.reference",
-    "assess": "accuracy.judgement", "apply_verdict": "accuracy.judgement",
+    "assess": "accuracy.judgement", "judge": "accuracy.judgement",
     "describe": "accuracy.judgement", "Level": "accuracy.judgement",
     "motion_scales": "accuracy.judgement",
     # chaos indicators on the tangent map, and their exact-flow reference
@@ -76,7 +76,7 @@ PUBLIC = {
 }
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
-    from .accuracy.judgement import Level, apply_verdict, assess, describe, motion_scales
+    from .accuracy.judgement import Level, assess, describe, judge, motion_scales
     from .baselines import INTEGRATORS, Integrator
     from .baselines.dop853 import dop853, flow_callable
     from .baselines.fixed_step import fixed_step_run, step_residuals
@@ -108,7 +108,7 @@ __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
-           "Spectrum", "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
+           "Spectrum", "Stability", "StepControl", "Tolerance", "judge", "assess",
            "band_kernel", "chaos_indicators", "check_periodic", "coerce", "continue_march",
            "describe", "dop853", "end_with_parent", "evaluate_blocks", "find_compiler",
            "exact_flow", "exact_indicators", "exact_reference", "exact_spectrum", "fixed_step_run",
