@@ -1,10 +1,11 @@
-"""The result of every solve: nodes, status and the checks that were made on them."""
+"""The result of every solve: nodes, status, the verdict of the accuracy check and the solver's
+counts."""
 
 from __future__ import annotations
 
 import enum
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -53,6 +54,138 @@ def bound_reached(steps: int, max_steps: int, started: float, time_limit: float 
     return None
 
 
+@dataclass(frozen=True)
+class Failure:
+    """The first failed test of a verdict: the ``test`` (``"local error"``, ``"nodal energy
+    drift"``, ...), the step and the time it starts from, the measured ``value`` against its
+    ``limit`` (relative to the motion's scales), and ``detail``, the reason in words where a
+    figure does not say it (no continuous solution near, an orbit that does not close)."""
+
+    step: int | None
+    t: float | None
+    test: str
+    value: float | None
+    limit: float | None
+    detail: str | None = None
+
+    def as_dict(self) -> dict:
+        """The failure as ``meta.json`` writes it (``detail`` only where there is one)."""
+        found = {"step": self.step, "t": self.t, "test": self.test, "value": self.value,
+                 "limit": self.limit}
+        return found if self.detail is None else {**found, "detail": self.detail}
+
+
+VERDICTS = ("accurate", "drifted", "inaccurate")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The verdict of the accuracy check on a trajectory (``solvers/accuracy/judgement.py``),
+    set once per solve (``Solution.verdict``). Every figure is relative to the motion's scales.
+
+    Attributes:
+        name: ``"accurate"``, ``"drifted"`` or ``"inaccurate"``.
+        first_failure: the first failed test (`Failure`), ``None`` unless ``inaccurate``.
+        t_drift, drift_step: the time and node from which the trajectory error passes
+            ``global_tol`` (or the reference was lost), else ``None``.
+        error_max, error_max_t: the largest trajectory error measured and its time.
+        estimate: what the trajectory error was measured against, in words.
+        reference_until: the last time the error was measured to.
+        reference_error: the reference's own largest claimed error.
+        reference_lost: where the reference's own error passed its share, else ``None``.
+        scale: ``S_i`` per component of ``z = (q, p)`` (of ``q`` for a higher-order run).
+        energy_scale: ``E_s``.
+        local_error_max: the largest local error, relative to ``S``.
+        level, level_reference, level_error: the energy level the first step set, ``H`` of
+            the exact motion at its clock, their difference relative to ``E_s``.
+        energy_drift: the largest nodal ``|H - H_0| / E_s`` (autonomous ``H``).
+        steps: the steps judged.
+        rtol, atol, energy_tol, global_tol, require_accurate: the `Tolerance` it was judged by.
+        streamed: judged a window at a time (a thinned march).
+    """
+
+    name: str
+    first_failure: Failure | None
+    t_drift: float | None
+    drift_step: int | None
+    error_max: float
+    error_max_t: float | None
+    estimate: str
+    reference_until: float | None
+    reference_error: float | None
+    reference_lost: float | None
+    scale: tuple | None
+    energy_scale: float | None
+    local_error_max: float
+    level: float | None
+    level_reference: float | None
+    level_error: float | None
+    energy_drift: float | None
+    steps: int
+    rtol: float
+    atol: float | None
+    energy_tol: float
+    global_tol: float
+    require_accurate: bool
+    streamed: bool = False
+
+    def __post_init__(self):
+        if self.name not in VERDICTS:
+            raise ValueError(f"a verdict is one of {', '.join(VERDICTS)}, got {self.name!r}")
+
+    @classmethod
+    def of(cls, report: dict) -> Verdict:
+        """The verdict of a check's report (the keys of `as_dict`; an unknown key is an
+        error, so a figure cannot be dropped on the way)."""
+        found = dict(report)
+        failure = found.pop("first_failure")
+        scale = found.pop("scale")
+        return cls(name=found.pop("verdict"),
+                   first_failure=None if failure is None else Failure(**failure),
+                   scale=None if scale is None else tuple(scale), **found)
+
+    @property
+    def accurate(self) -> bool:
+        return self.name == "accurate"
+
+    @property
+    def drifted(self) -> bool:
+        return self.name == "drifted"
+
+    @property
+    def inaccurate(self) -> bool:
+        return self.name == "inaccurate"
+
+    def as_dict(self) -> dict:
+        """The verdict as ``meta.json`` writes it (key ``accuracy``): ``verdict``, then the
+        fields in order (``streamed`` only for a streamed check)."""
+        found = {"verdict": self.name,
+                 "first_failure": None if self.first_failure is None else
+                 self.first_failure.as_dict()}
+        for name in _REPORTED:
+            found[name] = getattr(self, name)
+        if self.scale is not None:
+            found["scale"] = list(self.scale)
+        if self.streamed:
+            found["streamed"] = True
+        return found
+
+    def time_reversed(self) -> Verdict:
+        """The verdict of a march run backwards in time (``t -> -t``), read in the original
+        time."""
+        def flip(x):
+            return -x if isinstance(x, (int, float)) and not isinstance(x, bool) else x
+        failure = self.first_failure
+        if failure is not None:
+            failure = replace(failure, t=flip(failure.t))
+        return replace(self, t_drift=flip(self.t_drift), error_max_t=flip(self.error_max_t),
+                       reference_until=flip(self.reference_until), first_failure=failure)
+
+
+_REPORTED = tuple(f for f in Verdict.__dataclass_fields__
+                  if f not in ("name", "first_failure", "streamed"))
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
@@ -73,6 +206,10 @@ class Solution:
         timing: ``build_s`` and ``solve_s`` in seconds (wall); a march and a fixed-endpoint
             solve add ``accuracy_s``, the accuracy check's share of ``solve_s`` (and
             ``accuracy_cpu_s``, its CPU time, for the fixed-endpoint solve).
+        verdict: the accuracy check's `Verdict` (``solvers/accuracy/judgement.py`` sets it, once,
+            in ``judge``), or ``None`` where no check was made (``accuracy=None``, a point that
+            is not finite, a stopped long march: ``accuracy_skipped`` says why).
+        accuracy_skipped: why a march's check was left out, else ``None``.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
             counts the steps tried on the careful path, including one that failed or that a
@@ -104,6 +241,8 @@ class Solution:
     local_error: np.ndarray = field(default_factory=lambda: np.zeros(0))
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    verdict: Verdict | None = None
+    accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
     t_eval: np.ndarray | None = None
@@ -278,4 +417,5 @@ class SolverStatistics:
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
 
-__all__ = ["Solution", "SolverStatistics", "Status", "bound_reached", "hermite"]
+__all__ = ["Failure", "Solution", "SolverStatistics", "Status", "Verdict", "bound_reached",
+           "hermite"]

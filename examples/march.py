@@ -20,8 +20,8 @@ solution = march(
 print(solution)
 print(f"steps {solution.steps}, tau in [{solution.tau.min():.4f}, {solution.tau.max():.4f}]")
 print(f"largest energy residual {abs(solution.energy_residual).max():.1e} (units of H)")
-accuracy = solution.stats["accuracy"]
+verdict = solution.verdict
 # The paper's tau0 = 0.5: every step follows the flow and the energy level is right, but the
 # trajectory passes 1e-2 of the motion's size within the first swing (a drifted run).
-print(f"accuracy check: {accuracy['verdict']}"
-      + (f" from t = {accuracy['t_drift']:.3g}" if accuracy["t_drift"] is not None else ""))
+print(f"accuracy check: {verdict.name}"
+      + (f" from t = {verdict.t_drift:.3g}" if verdict.t_drift is not None else ""))

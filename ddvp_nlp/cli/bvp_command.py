@@ -35,10 +35,21 @@ def _bvp(args, scene, config, scheme):
                          nodes=config.nodes, scheme=scheme, params=config.params, guess=guess,
                          options=options.grid_options(args),
                          output=Output(progress=progress))
-    extra = {"solver": solution.stats}
+    extra = {"solver": solver_record(solution)}
     if args.energy is not None and "transfer_time" in solution.stats:
         extra["note"] = transfer_note(solution.stats)
     return solution, extra
+
+
+def solver_record(solution) -> dict:
+    """``meta.json``'s ``solver``: the solve's stats with its verdict (``accuracy``) where
+    the file has always had it, before what the solve added after judging (``exact``,
+    ``fixed_time_start``)."""
+    stats = dict(solution.stats)
+    if solution.verdict is None:
+        return stats
+    later = {key: stats.pop(key) for key in ("exact", "fixed_time_start") if key in stats}
+    return {**stats, "accuracy": solution.verdict.as_dict(), **later}
 
 
 # A bvp of at least this many nodes reports its iterations on a terminal without --progress

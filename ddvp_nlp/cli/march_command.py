@@ -237,8 +237,10 @@ def _march(args, scene, config, scheme):
                                                      "fallbacks", "first_fallback",
                                                      "target_error",
                                                      "checkpoints", "checkpoints_landed_s",
-                                                     "kept", "accuracy_skipped")
+                                                     "kept")
                          if key in stats},
+                      **({"accuracy_skipped": solution.accuracy_skipped}
+                         if solution.accuracy_skipped is not None else {}),
                       **_all_residuals(stats),
                       "carried": stats["carried"],
                       "resume": resume_record(args, scene, config,

@@ -83,10 +83,8 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
           f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, {meta['nodes']} nodes; "
           f"written to {out.path}/")
-    if solution.stats.get("accuracy"):
-
-        accuracy = solution.stats["accuracy"]
-        print(f"  accuracy check: {accuracy['verdict']} ({describe(accuracy)})")
+    if solution.verdict is not None:
+        print(f"  accuracy check: {solution.verdict.name} ({describe(solution.verdict)})")
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
 

@@ -115,11 +115,12 @@ def _trajectory_words(accuracy: dict) -> str:
 
 
 def _verdict_words(meta: dict, accuracy: dict) -> str:
+    from ..solution import Verdict
     from ..solvers import describe
 
     verdict = accuracy["verdict"]
     if verdict == "inaccurate":
-        return f"inaccurate: {describe(accuracy)}"
+        return f"inaccurate: {describe(Verdict.of(accuracy))}"
     if meta.get("status") not in ("success", "event", "drifted") \
             and not accuracy["steps"]:
         return f"no verdict: the run ended {meta['status']} before its first step"

@@ -28,7 +28,8 @@ def periodic_meta(scene, solution: Solution, params: dict) -> dict:
             "integral_unfoldings": stats["integral_unfoldings"],
             "solver": stats.get("solver"), "outcome": stats["outcome"],
             "iterations": stats["iterations"], "attempts": stats.get("attempts", []),
-            "winding": stats["winding"], "accuracy": stats["accuracy"],
+            "winding": stats["winding"],
+            "accuracy": solution.verdict.as_dict() if solution.verdict is not None else {},
             "tau_min": stats["tau_min"], "tau_max": stats["tau_max"],
             "timing": solution.timing}
 

@@ -60,13 +60,12 @@ def verdict_text(solution) -> str:
     """What a run's title says of it: the accuracy check's verdict (``accurate``, ``drifted
     from t = ...``) for a run that passed its checks, the failed status otherwise (``inaccurate``,
     ``failed: newton_failed``); never ``success`` alone for a drifted run."""
-    report = solution.stats.get("accuracy") or {}
-    verdict = report.get("verdict")
+    verdict = solution.verdict.name if solution.verdict is not None else None
     code = solution.status.code
     if not solution.success:
         return code if code == verdict else f"failed: {code}"
-    if verdict == "drifted" and report.get("t_drift") is not None:
-        return f"drifted from $t = {report['t_drift']:.4g}$"
+    if verdict == "drifted" and solution.verdict.t_drift is not None:
+        return f"drifted from $t = {solution.verdict.t_drift:.4g}$"
     return verdict or "success (accuracy not checked)"
 
 

@@ -318,9 +318,8 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
             **energy,
             **_optional(interruptible, lambda: _checks(scene, config, solution),
                         {"checks": SKIPPED})}
-    accuracy = solution.stats.get("accuracy")
-    if accuracy:
-        meta["accuracy"] = accuracy
+    if solution.verdict is not None:
+        meta["accuracy"] = solution.verdict.as_dict()
         arrays["local_error"] = solution.local_error
     if flagged:
         meta["least_squares_steps"] = len(flagged)
@@ -382,8 +381,8 @@ def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solut
             "energy_error_kind": "spread of E^(k) = sum_m lambda_m . v_m - L over the run",
             "error_vs_exact": float(np.max(np.abs(solution.q - exact))),
             "timing": solution.timing}
-    if solution.stats.get("accuracy"):
-        meta["accuracy"] = solution.stats["accuracy"]
+    if solution.verdict is not None:
+        meta["accuracy"] = solution.verdict.as_dict()
 
     def draw(path, fmt="png"):
         from .run_figure import plot_higher_trajectory

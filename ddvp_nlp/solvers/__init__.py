@@ -63,7 +63,7 @@ PUBLIC = {
     # imports them from their module and says so; tests/architecture/test_architecture.py
     # lists those scripts)
     "exact_reference": "exact.reference",
-    "assess": "accuracy.judgement", "apply_verdict": "accuracy.judgement",
+    "assess": "accuracy.judgement", "judge": "accuracy.judgement",
     "describe": "accuracy.judgement", "Level": "accuracy.judgement",
     "motion_scales": "accuracy.judgement",
     # chaos indicators on the tangent map, and their exact-flow reference
@@ -75,7 +75,7 @@ PUBLIC = {
 }
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
-    from .accuracy.judgement import Level, apply_verdict, assess, describe, motion_scales
+    from .accuracy.judgement import Level, assess, describe, judge, motion_scales
     from .baselines import INTEGRATORS, Integrator
     from .baselines.dop853 import dop853, flow_callable
     from .baselines.fixed_step import step_residuals
@@ -102,7 +102,7 @@ __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
-           "Spectrum", "Stability", "StepControl", "Tolerance", "apply_verdict", "assess",
+           "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
            "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",
            "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",
            "flow_callable", "follow_periodic_family", "locate", "lyapunov_spectrum", "march",

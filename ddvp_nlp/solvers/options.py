@@ -156,7 +156,9 @@ class Tolerance:
             raise InputError(f"exact must be a callable exact(t) -> z, got {self.exact!r}")
 
 
-# The default of ``accuracy=`` (``None`` there turns the check off).
+# The default of every ``accuracy=``: the check with its default tolerances. ``accuracy=None``
+# has one meaning wherever it is taken: no check (`march`, `continue_march`, `march_ensemble`,
+# `march_higher`); a grid solution is always checked, so `GridOptions` refuses it.
 DEFAULT_TOLERANCE = Tolerance()
 
 
@@ -178,8 +180,9 @@ class GridOptions:
             sparse), ``"banded"`` or ``"sparse"`` (SuperLU).
         time_limit: seconds after which the solve stops (status ``time_limit``).
         verbose: IPOPT's iteration log on stdout.
-        accuracy: the accuracy check of the solution (`Tolerance`; ``None``: its
-            defaults). A grid solution is always checked.
+        accuracy: the accuracy check of the solution (`Tolerance`, default
+            ``DEFAULT_TOLERANCE``, the defaults). A grid solution is always checked, so
+            ``None`` (no check, as for `march`) is refused.
     """
 
     solver: str = "auto"
@@ -189,7 +192,7 @@ class GridOptions:
     linear: str = "auto"
     time_limit: float | None = None
     verbose: bool = False
-    accuracy: Tolerance | None = None
+    accuracy: Tolerance = DEFAULT_TOLERANCE
 
     def __post_init__(self):
         _choice("solver", self.solver, GRID_SOLVERS)
@@ -202,6 +205,9 @@ class GridOptions:
         _set(self, "time_limit", check_real("time_limit", self.time_limit, positive=True,
                                             allow_none=True))
         _set(self, "verbose", _flag("verbose", self.verbose))
+        if self.accuracy is None:
+            raise InputError("accuracy=None means no check, and a grid solution is always "
+                             "checked: give a Tolerance (default Tolerance())")
         _set(self, "accuracy", coerce(self.accuracy, Tolerance, "accuracy"))
 
     def resolved(self, *, max_iter: int) -> GridOptions:

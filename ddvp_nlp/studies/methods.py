@@ -77,7 +77,7 @@ def _check_accuracy(system, config, method, solution, tolerance, *, compiler=Non
     tolerance): a success judged ``inaccurate`` becomes ``INACCURATE`` (unless
     ``tolerance.stop`` is off), a ``drifted`` one ``DRIFTED`` when an accurate trajectory is
     required."""
-    from ..solvers import Tolerance, apply_verdict, assess
+    from ..solvers import Tolerance, assess, judge
 
     tolerance = tolerance or Tolerance()
     if solution.t.size < 2:
@@ -86,8 +86,7 @@ def _check_accuracy(system, config, method, solution, tolerance, *, compiler=Non
     report, local = assess(system, solution.t, np.hstack([solution.q, solution.p]), theta,
                            tolerance, compiler=compiler, cache_dir=cache_dir,
                            exact=tolerance.exact)
-    solution.stats["accuracy"], solution.local_error = report, local
-    apply_verdict(solution, report, tolerance)
+    judge(solution, report, tolerance, local_error=local)
 
 
 def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, cache_dir=None,

@@ -190,8 +190,8 @@ class SectionOutput:
         return {"times": times, "points": points, "status": solution.status.code,
                 "energy_error": float(np.max(np.abs(H - self.energy))),
                 "steps": solution.steps,
-                "verdict": solution.stats.get("accuracy", {}).get("verdict", ""),
-                "t_drift": solution.stats.get("accuracy", {}).get("t_drift")}
+                "verdict": solution.verdict.name if solution.verdict is not None else "",
+                "t_drift": solution.verdict.t_drift if solution.verdict is not None else None}
 
 
 def ensemble(system, q0s, p0s, *, scene: str | None = None, scheduler: str | None = None,

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from ..discrete import RULES, Scheme, interval_energies
+from ..solution import Verdict
 from ..solvers import Level, Tolerance, assess
 
 COLUMNS = ("accuracy", "error_estimate")
@@ -37,12 +38,12 @@ def accuracy_columns(system, config, method, solution, *, compiler=None, cache_d
         level = Level(value, float(t0 + (t1 - t0) / 2 if scheme.clock == "midpoint" else t0))
     report, _ = assess(system, solution.t, z, theta, Tolerance(), level=level,
                        compiler=compiler, cache_dir=cache_dir)
-    failure = report["first_failure"]
+    found = Verdict.of(report)
+    failure = found.first_failure
     if failure is not None:
-        verdict = (f"inaccurate: {failure['test']} at step {failure['step']}, "
-                   f"t = {failure['t']:.6g}")
-    elif report["verdict"] == "drifted":
-        verdict = f"drifted from t = {report['t_drift']:.6g}"
+        verdict = f"inaccurate: {failure.test} at step {failure.step}, t = {failure.t:.6g}"
+    elif found.drifted:
+        verdict = f"drifted from t = {found.t_drift:.6g}"
     else:
         verdict = "accurate"
-    return {"accuracy": verdict, "error_estimate": report["error_max"]}
+    return {"accuracy": verdict, "error_estimate": found.error_max}

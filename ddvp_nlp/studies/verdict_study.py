@@ -293,17 +293,17 @@ def classify(verdict: str, true: float, tol: float) -> str:
 def judge_case(case: DrawnCase, **options) -> dict:
     """One case, marched, judged and measured: a row of the study."""
     system, solution = run_case(case, **options)
-    report = solution.stats["accuracy"]
-    tol = report["global_tol"]
-    truth = true_error(system, solution, covered=report["reference_until"])
+    verdict = solution.verdict
+    tol = verdict.global_tol
+    truth = true_error(system, solution, covered=verdict.reference_until)
     trusted = truth["trusted"] and truth["truth_error"] <= tol / 20
-    row = {"verdict": report["verdict"], "status": solution.status.code,
-           "steps": solution.steps, "estimate": report["error_max"], "true": truth["error"],
+    row = {"verdict": verdict.name, "status": solution.status.code,
+           "steps": solution.steps, "estimate": verdict.error_max, "true": truth["error"],
            "true_all": truth["error_all"], "truth_error": truth["truth_error"],
            "trusted": trusted, "n": case.system.n, "potential": case.system.potential,
            "scheme": case.scheme, "time_dependent": case.system.time_dependent,
-           "t_drift": report["t_drift"],
-           "failure": (report["first_failure"] or {}).get("test", "")}
-    row["class"] = classify(report["verdict"], truth["error_all"], tol) if trusted \
+           "t_drift": verdict.t_drift,
+           "failure": verdict.first_failure.test if verdict.first_failure else ""}
+    row["class"] = classify(verdict.name, truth["error_all"], tol) if trusted \
         else "untrusted"
     return row

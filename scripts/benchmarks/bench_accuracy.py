@@ -59,7 +59,7 @@ def bench(name, overrides, repeats):
 
 
 def row(name, overrides, solution, times):
-    accuracy = solution.stats["accuracy"]
+    accuracy = solution.verdict.as_dict()
     med = {check: (statistics.median(c for c, _ in times[check]),
                    statistics.median(w for _, w in times[check])) for check in times}
     span = {check: (min(c for c, _ in times[check]), max(c for c, _ in times[check]))

@@ -41,7 +41,7 @@ def just_meets(scene, config, target: float, start: float, bisections: int):
                      params=config.params, accuracy=tolerance)
 
     def accurate(solution):
-        return solution.success and solution.stats["accuracy"]["verdict"] == "accurate"
+        return solution.success and solution.verdict.name == "accurate"
 
     good, bad = start, start
     while not accurate(run(good)):
@@ -82,7 +82,7 @@ def main():
         best, best_cpu, _, _ = just_meets(scene, config, target, chosen, args.bisections)
         label = name + "".join(f", {k} = {v:g}" for k, v in overrides.items())
         print(f"| {label} | {target:g} | {chosen:.4g} | "
-              f"{solution.stats['accuracy']['verdict']} | {len(record['runs'])} | {cpu:.3f} | "
+              f"{solution.verdict.name} | {len(record['runs'])} | {cpu:.3f} | "
               f"{wall:.3f} | {best:.4g} | {best_cpu:.3f} | {cpu / best_cpu:.2f} |", flush=True)
     print(f"\n{machine()}")
 

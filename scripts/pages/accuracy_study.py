@@ -88,7 +88,7 @@ def kepler_rows(eccentricities=ECCENTRICITIES, steps=TAU0):
             scale = motion_scales(both.min(axis=0), both.max(axis=0), np.abs(both).max(axis=0),
                                   2)
             true = float(np.max(np.abs(z - truth) / scale))
-            report = solution.stats["accuracy"]
+            report = solution.verdict.as_dict()
             rows.append({"e": e, "tau0": tau0, "status": solution.status.code,
                          "steps": solution.steps, "verdict": report["verdict"],
                          "t_drift": report["t_drift"], "true": true,
@@ -109,7 +109,7 @@ def scene_rows():
         else:
             solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                              v0=config.v0, tau0=config.tau0, params=config.params)
-        report = solution.stats["accuracy"]
+        report = solution.verdict.as_dict()
         rows.append({"scene": name, "status": solution.status.code, "steps": solution.steps,
                      "tau0": config.tau0, "t_end": config.t_end, "verdict": report["verdict"],
                      "t_drift": report["t_drift"], "error_max": report["error_max"],

@@ -130,7 +130,7 @@ def henon_heiles_rows(out: Path, energies, sizes):
             if name.startswith("x = 0"):
                 continue
             extrapolated = b.stats["period"] + (b.stats["period"] - a.stats["period"]) / 3
-            accuracy = b.stats["accuracy"]
+            accuracy = b.verdict.as_dict()
             rows.append(f"| {name} | {energy:.2f} | {a.status.code}, {b.status.code} | "
                         f"{a.stats['period']:.8f} | {b.stats['period']:.8f} | "
                         f"{extrapolated:.8f} | {accuracy['verdict']} | "

@@ -25,11 +25,11 @@ from typing import TYPE_CHECKING
 from ...cache import lazy_exports
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
-    from .judgement import Level, apply_verdict, assess, describe, motion_scales
+    from .judgement import Level, assess, describe, judge, motion_scales
 
 # loaded when first asked for: importing one module of the family loads only what it needs
 __getattr__, __dir__ = lazy_exports(__name__, {
-    "assess": "judgement", "apply_verdict": "judgement", "describe": "judgement",
+    "assess": "judgement", "judge": "judgement", "describe": "judgement",
     "Level": "judgement", "motion_scales": "judgement"})
 
-__all__ = ["Level", "apply_verdict", "assess", "describe", "motion_scales"]
+__all__ = ["Level", "assess", "describe", "judge", "motion_scales"]

@@ -67,7 +67,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...solution import Status
+from ...solution import Status, Verdict
 from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_norm
 from ..exact.flow import exact_flow
 from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
@@ -102,8 +102,8 @@ def finite_or_none(value) -> float | None:
 
 def verdict_report(failure, trajectory: dict, scale, energy: float, local_max: float,
                    figures: dict, steps: int, tol: Tolerance) -> dict:
-    """The report of a verdict (``stats["accuracy"]``), the same for a whole run and a
-    streamed one: ``failure`` the first failed test or ``None``, ``trajectory`` the scan's
+    """The report of a verdict (`judge` makes it ``Solution.verdict``), the same for a whole
+    run and a streamed one: ``failure`` the first failed test or ``None``, ``trajectory`` the scan's
     findings (drift, largest error, the reference's reach and error)."""
     drift = trajectory["drift"]
     verdict = "inaccurate" if failure else ("drifted" if drift is not None else "accurate")
@@ -236,7 +236,7 @@ class Judgement:
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
-        """The report (``Solution.stats["accuracy"]``) and the local error of every step,
+        """The report (`judge` makes it ``Solution.verdict``) and the local error of every step,
         ``|z_{k+1} - Phi(z_k)|_inf``. ``screen``: the steps whose error against one RK4 step
         of the exact flow is below ``CANDIDATE`` times the local bound pass without the exact
         flow (a second-order scheme's steps; RK4's own error, ``O(tau^5)``, is far below a
@@ -508,45 +508,52 @@ class Scan:
                 "estimate": estimate}
 
 
-def describe(report: dict) -> str:
-    """The verdict of a report in words, with the figure that decided it."""
-    verdict = report["verdict"]
-    if verdict == "inaccurate":
-        failure = report["first_failure"]
-        if failure.get("detail"):
-            return f"{failure['test']}: {failure['detail']}"
-        return (f"the {failure['test']} of step {failure['step']} (from t = "
-                f"{failure['t']:.10g}) is {failure['value']:.3e} > {failure['limit']:.3e}")
-    if verdict == "drifted":
-        if report.get("reference_lost") is not None:
+def describe(verdict: Verdict) -> str:
+    """The verdict in words, with the figure that decided it."""
+    if verdict.inaccurate:
+        failure = verdict.first_failure
+        if failure.detail:
+            return f"{failure.test}: {failure.detail}"
+        return (f"the {failure.test} of step {failure.step} (from t = "
+                f"{failure.t:.10g}) is {failure.value:.3e} > {failure.limit:.3e}")
+    if verdict.drifted:
+        if verdict.reference_lost is not None:
             return (f"the trajectory error cannot be measured past t = "
-                    f"{report['reference_lost']:.6g} (the reference flow's own error passed "
+                    f"{verdict.reference_lost:.6g} (the reference flow's own error passed "
                     f"its share of the tolerance there: the motion is too sensitive)")
-        return (f"the trajectory error passes {report['global_tol']:g} of the motion's size at "
-                f"t = {report['t_drift']:.6g} (largest {report['error_max']:.3e})")
-    return (f"the trajectory error stays within {report['global_tol']:g} of the motion's size "
-            f"(largest {report['error_max']:.3e})")
+        return (f"the trajectory error passes {verdict.global_tol:g} of the motion's size at "
+                f"t = {verdict.t_drift:.6g} (largest {verdict.error_max:.3e})")
+    return (f"the trajectory error stays within {verdict.global_tol:g} of the motion's size "
+            f"(largest {verdict.error_max:.3e})")
 
 
-def apply_verdict(solution, report: dict, tolerance: Tolerance, advice: str = ADVICE) -> None:
-    """The status of a solve that reached its end, from its verdict: ``inaccurate`` ends it as
-    ``Status.INACCURATE`` (unless ``tolerance.stop`` is off), ``drifted`` as
-    ``Status.DRIFTED`` when ``tolerance.require_accurate`` asks for an accurate trajectory;
-    either way the message says what the check found (and, for a failed test, ``advice``)."""
-    verdict = report["verdict"]
-    if not solution.success or verdict == "accurate":
-        return
-    words = describe(report)
-    if verdict == "inaccurate" and tolerance.stop:
+def judge(solution, report: dict | Verdict | None, tolerance: Tolerance, *,
+          local_error: np.ndarray | None = None, advice: str = ADVICE) -> Verdict | None:
+    """The one place a solve's verdict is set (every family calls it once per solve): the
+    check's ``report`` (`Judgement.report`, `StreamingJudgement.report`, ``judge_higher``;
+    ``None``: no check was made) as ``solution.verdict``, the steps' ``local_error``, and the
+    status of a solve that reached its end: ``inaccurate`` ends it as ``Status.INACCURATE``
+    (unless ``tolerance.stop`` is off), ``drifted`` as ``Status.DRIFTED`` when
+    ``tolerance.require_accurate`` asks for an accurate trajectory; either way the message says
+    what the check found (and, for a failed test, ``advice``)."""
+    verdict = report if report is None or isinstance(report, Verdict) else Verdict.of(report)
+    solution.verdict = verdict
+    if local_error is not None:
+        solution.local_error = local_error
+    if verdict is None or not solution.success or verdict.accurate:
+        return verdict
+    words = describe(verdict)
+    if verdict.inaccurate and tolerance.stop:
         solution.status = Status.INACCURATE
-        detailed = bool(report["first_failure"].get("detail"))
+        detailed = bool(verdict.first_failure.detail)
         solution.message = f"{Status.INACCURATE.value}: {words}" + \
             ("" if detailed or not advice else f"; {advice}")
-    elif verdict == "drifted" and tolerance.require_accurate:
+    elif verdict.drifted and tolerance.require_accurate:
         solution.status = Status.DRIFTED
         solution.message = f"{Status.DRIFTED.value}: {words}"
     else:
-        solution.message = f"{solution.message}; {verdict}: {words}"
+        solution.message = f"{solution.message}; {verdict.name}: {words}"
+    return verdict
 
 
 def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, compiler=None,

@@ -43,7 +43,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import derivatives_function
 from ...solution import Solution, Status
 from ...validation import check_real
-from ..accuracy.judgement import Level, apply_verdict, assess
+from ..accuracy.judgement import Level, assess, judge
 from ..exact.variational import flow_with_derivatives
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
@@ -272,17 +272,16 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
     stats = {"transfer_time": float(t[-1] - t[0]), "energy": span.energy, "residuals": worst,
              "limit": limit, "transfer": phase, "tau_min": float(np.min(tau)),
              "tau_max": float(np.max(tau))}
-    local_error = np.zeros(0)
+    report, local_error = None, np.zeros(0)
     if np.all(np.isfinite(x)):
-        stats["accuracy"], local_error, stats["exact"] = _judged(system, scheme, t, q, p, span,
+        report, local_error, stats["exact"] = _judged(system, scheme, t, q, p, span,
                                                                  theta, tolerance)
     solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                     energy_residual=energy_rows,
                     canonical_residual=np.max(np.abs(canonical), axis=1),
-                    newton_iterations=phase["iterations"], local_error=local_error,
+                    newton_iterations=phase["iterations"],
                     timing={"build_s": 0.0, "solve_s": phase["seconds"]}, stats=stats)
-    if np.all(np.isfinite(x)):
-        apply_verdict(solution, stats["accuracy"], tolerance, advice="try more nodes")
+    judge(solution, report, tolerance, local_error=local_error, advice="try more nodes")
     return solution
 
 

@@ -50,14 +50,14 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
 from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
-from ..accuracy.judgement import Judgement, Level, apply_verdict, motion_scales
+from ..accuracy.judgement import Judgement, Level, judge, motion_scales
 from ..columns import row_max_abs
 from ..compiler import find_compiler
 from ..dense import attach
 from ..exact.shooting import shoot
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest
-from ..options import Compilation, GridOptions, Output, Tolerance, answers_removed_keywords, coerce
+from ..options import Compilation, GridOptions, Output, answers_removed_keywords, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
 from .first_guess import Shooting, branch_obstacle, start_point
 from .interleaved import NodeLayout
@@ -388,22 +388,21 @@ def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
              if finite else math.nan,
              "energy_scale": mean_step(request), "tau_floor": request.tau_floor,
              "p_sign_changes": sign_changes, **checks}
-    local_error = np.zeros(0)
+    report, local_error = None, np.zeros(0)
     judged, judged_cpu = time.perf_counter(), time.process_time()
     if finite:
-        stats["accuracy"], local_error = _accuracy(request, t, q, p)
+        report, local_error = _accuracy(request, t, q, p)
     judged_cpu = time.process_time() - judged_cpu
     total = time.perf_counter() - started
     solution = Solution(
         t=t, q=q, p=p, status=status, message=message, scheme=request.scheme.rule,
         energy_residual=energy, canonical_residual=row_max_abs(canonical),
-        newton_iterations=stats["iterations_total"], local_error=local_error,
+        newton_iterations=stats["iterations_total"],
         timing={"build_s": request.build_s, "solve_s": total - request.build_s,
                 "accuracy_s": total - (judged - started), "accuracy_cpu_s": judged_cpu},
         stats=stats)
-    if finite:
-        apply_verdict(solution, stats["accuracy"], request.options.accuracy or Tolerance(),
-                      advice="try more nodes")
+    judge(solution, report, request.options.accuracy, local_error=local_error,
+          advice="try more nodes")
     return solution
 
 
@@ -417,7 +416,7 @@ def _accuracy(request: GridRequest, t, q, p):
     discrete solution can exist where no motion does: its end error, small beside a huge
     motion, says nothing then)."""
     system, scheme = request.system, request.scheme
-    tolerance = request.options.accuracy or Tolerance()
+    tolerance = request.options.accuracy
     level = None
     if scheme.variable_steps:
         value = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
@@ -425,14 +424,14 @@ def _accuracy(request: GridRequest, t, q, p):
         level = Level(value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
                                    else t[0]))
     compiler = find_compiler(request.compilation.compiler)
-    judge = Judgement(system, request.theta, tolerance, compiler=compiler,
+    check = Judgement(system, request.theta, tolerance, compiler=compiler,
                       cache_dir=request.compilation.cache_dir)
     z = np.hstack([q, p])
     shot = shoot(system, request.theta, t, z, q[-1], motion_scales(
         z.min(axis=0), z.max(axis=0), np.abs(z).max(axis=0), system.n), compiler=compiler,
         cache_dir=request.compilation.cache_dir)
     if shot.trajectory is None:
-        report, local = judge.report(t, z, level=level)
+        report, local = check.report(t, z, level=level)
         if report["verdict"] == "inaccurate":
             return report, local
         report["verdict"] = "inaccurate"
@@ -440,7 +439,7 @@ def _accuracy(request: GridRequest, t, q, p):
                                    "test": "continuous solution", "value": None,
                                    "limit": tolerance.global_tol, "detail": shot.reason}
         return report, local
-    report, local = judge.report(t, z, level=level, exact=shot.states)
+    report, local = check.report(t, z, level=level, exact=shot.states)
     report["estimate"] = (f"the continuous solution near this one (multiple shooting with the "
                           f"exact flow on {shot.cuts.size - 1} segments: p_0 = "
                           f"{shot.p0.tolist()})")

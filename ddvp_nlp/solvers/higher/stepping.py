@@ -22,7 +22,7 @@ from ...errors import InputError
 from ...physics.higher_order import HigherOrderSystem
 from ...solution import Solution, Status
 from ...validation import check_finite_array, check_integer, check_real
-from ..accuracy.judgement import apply_verdict
+from ..accuracy.judgement import judge
 from ..compiler import find_compiler
 from ..driver import Advance, Nodes, drive
 from ..grid.problem import GridRequest
@@ -122,7 +122,7 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
          "tau_floor": request.tau_floor})
     l = system.order  # noqa: E741 (l is the order, as in the paper)
     fixed = np.concatenate([np.arange(l), np.arange(nodes - l, nodes)])
-    _judge(solution, system, request.theta, request.options.accuracy or Tolerance(),
+    _judge(solution, system, request.theta, request.options.accuracy,
            data=fixed, compiler=find_compiler(request.compilation.compiler),
            cache_dir=request.compilation.cache_dir)
     return solution
@@ -130,7 +130,7 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
 
 def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cache_dir=None):
     """The accuracy check of a higher-order trajectory (``accuracy/positions.py``) into
-    ``solution.stats["accuracy"]`` and ``solution.local_error``, and its status."""
+    ``solution.verdict`` and ``solution.local_error``, and its status (`judge`)."""
     from ..accuracy.positions import judge_higher
 
     if not np.all(np.isfinite(solution.q)) and solution.t.size:
@@ -141,8 +141,7 @@ def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cach
         t, q = solution.t, solution.q
     report, local = judge_higher(system, t, q, theta, tolerance, data=data,
                                  exact=tolerance.exact, compiler=compiler, cache_dir=cache_dir)
-    solution.stats["accuracy"], solution.local_error = report, local
-    apply_verdict(solution, report, tolerance, advice="try a smaller tau0")
+    judge(solution, report, tolerance, local_error=local, advice="try a smaller tau0")
 
 
 def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, nodes: int,

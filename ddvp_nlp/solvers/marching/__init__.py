@@ -52,7 +52,7 @@ The contract of the march. An implementer changing it must keep:
 5. A Ctrl-C or a stop request ends the march with status ``interrupted`` and every node every
    monitor saw kept (a thinned march: every kept one, and its last). An interrupted march of
    more than ``INTERRUPTED_JUDGED`` nodes is returned without its final accuracy check
-   (``stats["accuracy_skipped"]`` says so), so that it ends at once.
+   (``Solution.accuracy_skipped`` says so), so that it ends at once.
 6. This package imports the core and ``options``; never a grid family or a baseline.
 7. Everything the loop carries from step to step that can change a node is in every node's
    ``Advance.values["carry"]`` (``resume.py``): a march continued from any of its nodes gives

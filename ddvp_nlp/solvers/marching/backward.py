@@ -154,14 +154,8 @@ def _forward(solution, system, t_end: float):
         solution.t_events = [-np.asarray(t) for t in solution.t_events]
         solution.z_events = [np.hstack([z[:, :n], -z[:, n:]]) if np.size(z) else z
                              for z in solution.z_events]
-    report = solution.stats.get("accuracy")
-    if isinstance(report, dict):
-        for key in ("t_drift", "error_max_t", "reference_until"):
-            if isinstance(report.get(key), (int, float)):
-                report[key] = -report[key]
-        failure = report.get("first_failure")
-        if isinstance(failure, dict) and isinstance(failure.get("t"), (int, float)):
-            failure["t"] = -failure["t"]
+    if solution.verdict is not None:
+        solution.verdict = solution.verdict.time_reversed()
     solution.stats["backward"] = True
     theta = np.asarray(solution.stats.get("theta", system.parameter_vector()), dtype=float)
     return attach(solution, system, theta, t_end)

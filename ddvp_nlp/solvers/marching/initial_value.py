@@ -36,7 +36,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
 from ...validation import check_span, check_state, check_step, check_times
-from ..accuracy.judgement import CheckStopped, Judgement, Level, apply_verdict
+from ..accuracy.judgement import CheckStopped, Judgement, Level, judge
 from ..accuracy.streaming import StreamingJudgement
 from ..columns import row_max_abs
 from ..compiler import buffered, find_compiler
@@ -110,7 +110,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             states its own error. The verdict is ``accurate``, ``drifted`` or ``inaccurate``;
             the first steps are judged as they come (the early verdict), so a march that
             plainly does not follow the motion ends there with status ``inaccurate`` (unless
-            ``Tolerance.stop`` is off); ``stats["accuracy"]`` and ``Solution.local_error`` hold
+            ``Tolerance.stop`` is off); ``Solution.verdict`` and ``Solution.local_error`` hold
             the figures. ``None`` leaves the check out (the comparison does, so that run times
             compare like with like, and judges afterwards against the same exact flow).
         compilation: compiled chunks of steps or the careful path, the compiler and its cache
@@ -263,14 +263,13 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
     if accuracy is not None:
         started = time.perf_counter()
         try:
-            report, solution.local_error = _judged(
+            report, local = _judged(
                 problem, solution, accuracy, compiler=judging, cache_dir=compilation.cache_dir,
                 stop=output.stop if _too_many_to_judge(outcome.t.size) else None)
         except CheckStopped:
             _left_unjudged(solution, outcome, output, asked=True)
             return _finished(solution, problem, events, output)
-        solution.stats["accuracy"] = report
-        apply_verdict(solution, report, accuracy)
+        judge(solution, report, accuracy, local_error=local)
         solution.timing["accuracy_s"] = time.perf_counter() - started
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
@@ -419,10 +418,10 @@ def _stopping(outcome, output: Output) -> bool:
 
 def _left_unjudged(solution: Solution, outcome, output: Output, asked: bool = False) -> bool:
     """`_stopping` (or ``asked``: a stop came during the check), said in
-    ``stats["accuracy_skipped"]``; the early verdict judged the run's first steps."""
+    ``Solution.accuracy_skipped``; the early verdict judged the run's first steps."""
     if not (asked or _stopping(outcome, output)):
         return False
-    solution.stats["accuracy_skipped"] = (
+    solution.accuracy_skipped = (
         f"the run was stopped after {outcome.t.size - 1} steps: the accuracy check (of stopped "
         f"runs over {INTERRUPTED_JUDGED} nodes) was left out; judge its nodes with "
         f"accuracy.assess, or keep fewer (Output(keep_every=k) judges every node as it goes)")
@@ -471,10 +470,7 @@ def _thinned(problem: MarchProblem, outcome, parts: _Parts, solvability, thinnin
                "kept": thinning.record(outcome.marched, int(t.size))})
     solution.stats["carried"] = carry.state()
     if accuracy is not None:
-        report = thinning.judge.report(float(t[-1]))
-        solution.stats["accuracy"] = report
-        solution.local_error = kept["local"]
-        apply_verdict(solution, report, accuracy)
+        judge(solution, thinning.judge.report(float(t[-1])), accuracy, local_error=kept["local"])
     solution.timing["finish_s"] = time.perf_counter() - started
     attach(solution, problem.system, problem.theta, problem.t_end)
     if events is not None:

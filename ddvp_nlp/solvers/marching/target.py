@@ -87,14 +87,13 @@ def march_to_error(run, system, z0, t0: float, t_end: float, tau0: float, theta,
     for attempt in range(2):
         cpu = time.process_time()
         solution = run(step, (t0, t_end), tolerance)
-        report = solution.stats.get("accuracy") or {}
-        verdict = report.get("verdict")
+        verdict = solution.verdict.name if solution.verdict is not None else None
         record["runs"].append({"tau0": step, "steps": solution.steps, "verdict": verdict,
                                "status": solution.status.code,
                                "cpu_s": time.process_time() - cpu})
         if verdict == "accurate" or attempt == 1:
             break
-        step = _retried(step, report, t0, t_end, target, beta)
+        step = _retried(step, solution.verdict, t0, t_end, target, beta)
     record["tau0"] = record["runs"][-1]["tau0"]
     record["cpu_s"] = time.process_time() - started
     solution.stats["target_error"] = record
@@ -135,11 +134,12 @@ def _scaled(tau0: float, target: float, predicted: float) -> float:
     return tau0 * min(factor, MAX_GROWTH)
 
 
-def _retried(step: float, report: dict, t0: float, t_end: float, target: float,
+def _retried(step: float, verdict, t0: float, t_end: float, target: float,
              beta: float) -> float:
-    """The step a second run takes after a verdict other than accurate."""
-    t_drift = report.get("t_drift")
-    if report.get("verdict") == "drifted" and t_drift is not None and t_drift > t0:
+    """The step a second run takes after a verdict other than accurate (``verdict``: the
+    run's `Verdict`, ``None`` if it was not judged)."""
+    t_drift = verdict.t_drift if verdict is not None else None
+    if verdict is not None and verdict.drifted and t_drift is not None and t_drift > t0:
         predicted = target * ((t_end - t0) / (t_drift - t0)) ** beta
         return _scaled(step, target, predicted)
     return step / 4

@@ -96,12 +96,12 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
 from ...validation import check_integer, check_real, check_state
-from ..accuracy.judgement import Judgement, Level, apply_verdict
+from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
-from ..options import GridOptions, Tolerance, answers_removed_keywords, coerce
+from ..options import GridOptions, answers_removed_keywords, coerce
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 from .first_orbit import (
     NoMotion,
@@ -455,7 +455,7 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
              "closure": float(np.max(np.abs(closing))), "section": abs(section)}
     limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
     status, message = _verdict(result, worst, limit, np.diff(t), orbit.start_note)
-    accuracy, local_error = ({}, np.zeros(0))
+    accuracy, local_error = None, np.zeros(0)
     if finite:
         accuracy, local_error = _accuracy(request, t, q, p)
     winding = np.round(np.asarray(closure.shift, float) / (2 * np.pi)) * np.ones(2 * n)
@@ -464,18 +464,16 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
              "integral_unfoldings": unfolding[1:].tolist(), "limit": limit,
              "winding": [int(winding[i]) for i in range(n)],
              "residuals": worst, "iterations": result.iterations, "outcome": result.outcome,
-             "accuracy": accuracy,
              "tau_min": float(np.min(np.diff(t))), "tau_max": float(np.max(np.diff(t)))}
     solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                         energy_residual=energy,
                         canonical_residual=np.max(np.abs(canonical), axis=1),
-                        newton_iterations=result.iterations, local_error=local_error,
+                        newton_iterations=result.iterations,
                         timing={"build_s": request.build_s,
                                 "solve_s": time.perf_counter() - started - request.build_s},
                         stats=stats)
-    if finite:
-        apply_verdict(solution, accuracy, request.options.accuracy or Tolerance(),
-                      advice="try more nodes")
+    judge(solution, accuracy, request.options.accuracy, local_error=local_error,
+          advice="try more nodes")
     return solution
 
 
@@ -485,11 +483,11 @@ def _accuracy(request: GridRequest[Orbit], t, q, p):
     the first node against the one prescribed, and the closure of the exact flow: the flow from
     the first node must stay within ``global_tol`` of the orbit over the whole period, or the
     orbit is refused (``inaccurate``: it is not an orbit of the exact flow)."""
-    judge = Judgement(request.system, request.theta, request.options.accuracy or Tolerance(),
+    check = Judgement(request.system, request.theta, request.options.accuracy,
                       compiler=find_compiler(request.compilation.compiler),
                       cache_dir=request.compilation.cache_dir)
     level = Level(request.data.energy, float(t[0] + (t[1] - t[0]) / 2))
-    report, local = judge.report(t, np.hstack([q, p]), level=level)
+    report, local = check.report(t, np.hstack([q, p]), level=level)
     if report["verdict"] == "drifted":
         report["verdict"] = "inaccurate"
         report["first_failure"] = {

@@ -77,9 +77,9 @@ UNITS = [Units(q=1e3, p=1e-2, t=10.0), Units(q=1e-3, p=1e-3, t=1e-2),
 def test_a_march_in_other_units_gets_the_same_verdict(scene_name, overrides, verdict, units):
     unit = march_in(scene_name, overrides, Units())
     other = march_in(scene_name, overrides, units)
-    assert unit.stats["accuracy"]["verdict"] == verdict
+    assert unit.verdict.name == verdict
     assert other.status == unit.status and other.steps == unit.steps
-    assert_same(unit.stats["accuracy"], other.stats["accuracy"], units, rel=1e-5)
+    assert_same(unit.verdict.as_dict(), other.verdict.as_dict(), units, rel=1e-5)
 
 
 @pytest.mark.slow(why="repetition")
@@ -96,7 +96,7 @@ def test_a_translated_chain_gets_the_same_verdict():
             first = solution
             continue
         assert solution.status == first.status and solution.steps == first.steps
-        assert_same(first.stats["accuracy"], solution.stats["accuracy"], units, rel=1e-5)
+        assert_same(first.verdict.as_dict(), solution.verdict.as_dict(), units, rel=1e-5)
 
 
 # -- the check alone, on the same trajectory in other units: random systems ---------------------
@@ -116,7 +116,7 @@ def test_the_check_gives_the_same_verdict_on_the_same_trajectory_in_other_units(
     t2 = units.t * t + units.t_shift
     z2 = np.hstack([units.q * z[:, :n] + units.shift, units.p * z[:, n:]])
     level = level2 = None
-    accuracy = solution.stats["accuracy"]
+    accuracy = solution.verdict.as_dict()
     if accuracy["level"] is not None:
         clock = t[0] + (t[1] - t[0]) / 2
         level = Level(accuracy["level"], clock)

@@ -89,7 +89,7 @@ def test_a_wrong_orbit_is_not_called_accurate():
     """kepler at e = 0.6 (tau0 = 0.01) ends 1.3 away from the exact orbit: the verdict, from
     the exact flow, is not accurate, and the drift is found early in the run."""
     scene, config, solution = _run("kepler", {"e": 0.6, "tau0": 0.01})
-    accuracy = solution.stats["accuracy"]
+    accuracy = solution.verdict.as_dict()
     z = np.hstack([solution.q, solution.p])
     true = np.max(np.abs(z - reference_for(scene, {"e": 0.6})(solution.t)), axis=1)
     assert true[-1] > 1.0
@@ -144,7 +144,7 @@ def test_known_wrong_trajectories_end_inaccurate(tmp_path, capsys, argv, step):
 
 def test_accept_inaccurate_keeps_the_status():
     _, _, solution = _run("kepler", {"e": 0.95, "tau0": 0.01}, accuracy=Tolerance(stop=False))
-    accuracy = solution.stats["accuracy"]
+    accuracy = solution.verdict.as_dict()
     assert solution.success and solution.t[-1] >= 20 * np.pi
     assert accuracy["verdict"] == "inaccurate" and accuracy["first_failure"]["step"] == 0
     assert accuracy["level"] == pytest.approx(-6.0615, abs=1e-3)
@@ -248,11 +248,11 @@ def test_a_gauge_term_marches_as_the_oscillator(tmp_path):
     gauge = load_scene(str(scene_file))
     solution = march(gauge.system, [1.0], [0.0], (0.0, 20.0), tau0=0.1)
     _, _, harmonic = _run("harmonic", {"tau0": 0.1})
-    assert solution.success and solution.stats["accuracy"]["verdict"] == "accurate"
+    assert solution.success and solution.verdict.name == "accurate"
     assert solution.t.size == harmonic.t.size
     assert np.allclose(solution.q, harmonic.q, rtol=0, atol=1e-9)
-    assert solution.stats["accuracy"]["level_error"] == pytest.approx(
-        harmonic.stats["accuracy"]["level_error"], rel=1e-3)
+    assert solution.verdict.level_error == pytest.approx(
+        harmonic.verdict.level_error, rel=1e-3)
 
 
 # -- the built-in scenes -------------------------------------------------------------------------
@@ -271,7 +271,7 @@ def test_every_built_in_scene_but_the_papers_is_accurate_at_its_defaults(name):
     else:
         _, _, solution = _run(name)
     assert solution.success, solution.message
-    assert solution.stats["accuracy"]["verdict"] == "accurate", solution.stats["accuracy"]
+    assert solution.verdict.name == "accurate", solution.verdict.as_dict()
 
 
 def test_the_paper_example_says_when_its_phase_drifted(capsys, tmp_path):
@@ -296,7 +296,7 @@ def test_compiled_and_careful_paths_give_the_same_verdict(name):
     # the two paths accept the same steps; their nodes agree to round-off
     assert runs[0].t.size == runs[1].t.size and np.allclose(runs[0].t, runs[1].t, rtol=1e-12)
     assert np.allclose(runs[0].local_error, runs[1].local_error, rtol=1e-6, atol=1e-14)
-    a, b = (run.stats["accuracy"] for run in runs)
+    a, b = (run.verdict.as_dict() for run in runs)
     assert a["verdict"] == b["verdict"] and a["t_drift"] == pytest.approx(b["t_drift"])
     for key in ("level_error", "energy_drift", "error_max", "energy_scale"):
         assert (a[key] is None and b[key] is None) or np.isclose(a[key], b[key], rtol=1e-6,
@@ -313,7 +313,7 @@ def test_the_verdicts_error_is_the_true_error(name, overrides):
     error (the reference flow holds its own error below a tenth of the tolerance, far below
     in these runs)."""
     scene, config, solution = _run(name, overrides)
-    accuracy = solution.stats["accuracy"]
+    accuracy = solution.verdict.as_dict()
     z = np.hstack([solution.q, solution.p])
     covered = solution.t <= accuracy["reference_until"]
     truth = reference_for(scene, overrides)(solution.t)
@@ -375,5 +375,5 @@ def test_a_scene_made_in_python_is_checked_too():
     scene = Scene(lambda q, p, t: (p[0] ** 2 + q[0] ** 2) / 2, n=1, q0=[1.0], p0=[0.0],
                   tau0=0.3, t_end=30.0)
     solution = march(scene.system, scene.q0, scene.p0, (0.0, 30.0), tau0=0.3)
-    assert solution.stats["accuracy"]["verdict"] == "drifted"
+    assert solution.verdict.name == "drifted"
     assert "drifted" in solution.message

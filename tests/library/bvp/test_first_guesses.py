@@ -183,7 +183,7 @@ def test_the_continuation_solves_what_newton_and_ipopt_miss_from_the_straight_li
     continued = phases[2]
     assert continued["phase"].startswith("continuation in q_end") and continued["converged"]
     assert continued["steps"] <= 300
-    assert solution.stats["accuracy"]["first_failure"] is None
+    assert solution.verdict.first_failure is None
 
 
 def test_newton_and_ipopt_return_the_same_kepler_nodes_from_the_same_start():

@@ -34,7 +34,7 @@ def truth(system, z0, t_span, times, theta):
 
 
 def relative_error(solution, exact):
-    scale = np.asarray(solution.stats["accuracy"]["scale"])
+    scale = np.asarray(solution.verdict.scale)
     return np.max(np.abs(np.hstack([solution.q, solution.p]) - exact) / scale)
 
 
@@ -49,7 +49,7 @@ def test_a_time_dependent_march_backwards_follows_the_exact_flow(system, scheme)
     solution = march(system, [0.4], [0.2], (6.0, 1.0), tau0=0.01, scheme=scheme)
     assert solution.success, solution.message
     assert solution.t[0] == 6.0 and solution.t[-1] <= 1.0 and np.all(solution.tau < 0)
-    report = solution.stats["accuracy"]
+    report = solution.verdict.as_dict()
     assert report["verdict"] == "accurate"
     exact = truth(system, [0.4, 0.2], (6.0, 0.5), solution.t, theta)
     assert relative_error(solution, exact) <= 1.5 * report["error_max"] + 1e-9
@@ -66,10 +66,10 @@ def test_forward_then_backward_returns_to_the_start():
     q1, p1 = forward.at_end()
     back = march(DRIVEN, q1, p1, (5.0, 0.0), tau0=0.01, scheme="lee")
     assert back.success and forward.success
-    scale = np.asarray(forward.stats["accuracy"]["scale"])
+    scale = np.asarray(forward.verdict.scale)
     q0, p0 = back.at_end()
     error = np.max(np.abs(np.concatenate([q0 - 0.4, p0 - 0.2])) / scale)
-    bound = forward.stats["accuracy"]["error_max"] + back.stats["accuracy"]["error_max"]
+    bound = forward.verdict.error_max + back.verdict.error_max
     assert error <= 1.5 * bound + 1e-9, (error, bound)
 
 
@@ -108,7 +108,7 @@ def test_random_backward_spans_on_the_exact_solution(t0, length, tau0):
     assert solution.success, solution.message
     assert solution.t[0] == t0 and solution.t[-1] <= t_end + 1e-12
     exact = np.column_stack([np.cos(solution.t - t0), -np.sin(solution.t - t0)])
-    report = solution.stats["accuracy"]
+    report = solution.verdict.as_dict()
     assert relative_error(solution, exact) <= 1.5 * report["error_max"] + 1e-9
     q, p = solution.at_end()
     assert abs(q[0] - np.cos(length)) < 1e-3 and abs(p[0] - np.sin(length)) < 1e-3

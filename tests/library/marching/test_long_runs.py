@@ -59,7 +59,7 @@ def test_keep_every_keeps_exactly_the_full_runs_nodes_and_its_verdict(small_wind
     assert kept["canonical_residual_max"] == np.max(full.canonical_residual)
     assert np.array_equal(full.local_error[idx[:-1]], thin.local_error)
     # the verdict on every node: the same, its figures to round-off
-    a, b = full.stats["accuracy"], thin.stats["accuracy"]
+    a, b = full.verdict.as_dict(), thin.verdict.as_dict()
     assert a["verdict"] == b["verdict"] == "drifted"
     assert a["t_drift"] == b["t_drift"] and a["drift_step"] == b["drift_step"]
     assert a["steps"] == b["steps"] and b["streamed"]
@@ -95,7 +95,7 @@ def test_keep_t_eval_keeps_the_states_and_events_only(small_windows):
     assert thin.t.size == 2 and thin.t[-1] == full.t[-1] and thin.t[0] == full.t[0]
     np.testing.assert_allclose(thin.z_eval, full.z_eval, rtol=0, atol=1e-14)
     assert np.array_equal(thin.t_events[0], full.t_events[0])
-    assert thin.stats["accuracy"]["verdict"] == full.stats["accuracy"]["verdict"]
+    assert thin.verdict.name == full.verdict.name
 
 
 def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, monkeypatch):
@@ -128,7 +128,7 @@ def test_an_interrupted_thinned_march_keeps_what_it_had(small_windows):
     full = _pendulum(t_end=5000.0)
     idx = _kept(marched, 10)
     assert np.array_equal(full.t[idx], thin.t) and np.array_equal(full.q[idx], thin.q)
-    assert thin.stats["accuracy"]["steps"] == marched - 1  # judged up to the last node
+    assert thin.verdict.steps == marched - 1  # judged up to the last node
 
 
 @pytest.mark.parametrize("options, words", [
@@ -197,7 +197,7 @@ def test_a_stopped_long_march_is_returned_without_the_work_over_every_node(monke
         return len(calls) > 3  # after 3 stepper calls (counts, no clock)
     run = _pendulum(t_end=5000.0, stop=stop)
     assert run.status.code == "interrupted" and run.t.size > 1000
-    assert "accuracy" not in run.stats and "left out" in run.stats["accuracy_skipped"]
+    assert run.verdict is None and "left out" in run.accuracy_skipped
     assert run.canonical_residual.size == 0 and run.energy_residual.size == 0
     short = _pendulum(t_end=5000.0, stop=lambda: len(calls) > 0)  # stopped at once: judged
-    assert short.t.size == 1 and "accuracy_skipped" not in short.stats
+    assert short.t.size == 1 and short.accuracy_skipped is None

@@ -3,7 +3,7 @@
 sensitivity is the derivative of the step's root in ``theta``, on drawn systems, points and
 schemes (the root solved by the careful path's own rootfinders)."""
 
-from functools import lru_cache
+from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -27,7 +27,7 @@ cases = st.fixed_dictionaries({
     "seed": st.integers(0, 2 ** 16)})
 
 
-@lru_cache(maxsize=None)
+@cache
 def _system(n: int) -> HamiltonianSystem:
     """``n`` degrees of freedom; ``H`` depends on both parameters ``k`` and ``c`` (one system per
     ``n``, so that its step functions are built once)."""

@@ -36,8 +36,8 @@ def test_the_run_is_accurate_at_the_error_asked_for(name, overrides, target):
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      tau0=config.tau0, params=config.params, target_error=target)
     record = solution.stats["target_error"]
-    assert solution.success and solution.stats["accuracy"]["verdict"] == "accurate"
-    assert solution.stats["accuracy"]["global_tol"] == target
+    assert solution.success and solution.verdict.name == "accurate"
+    assert solution.verdict.global_tol == target
     assert record["tau0"] == record["runs"][-1]["tau0"] and 1 <= len(record["runs"]) <= 2
     # an independent measure: within twice the target (the verdict study's margin)
     assert _true_error(scene, config, solution) <= 2 * target

@@ -54,7 +54,7 @@ def test_ipopt_finds_the_orbit_newton_finds(scene, energy, nodes, params, force,
         assert orbit.success, orbit.message
         assert orbit.stats["solver"] == solver and orbit.stats["attempts"][0]["solver"] == solver
         assert midpoint_residuals(orbit, force, hamiltonian, energy) < 1e-10
-        assert orbit.stats["accuracy"]["verdict"] == "accurate"
+        assert orbit.verdict.name == "accurate"
     assert orbits["ipopt"].stats["period"] == pytest.approx(orbits["newton"].stats["period"],
                                                             abs=1e-9)
     assert orbits["ipopt"].stats["iterations"] <= 10
@@ -169,9 +169,9 @@ def test_henon_heiles_families_through_x0_leave_the_invariant_plane(name, increa
     periods = []
     for _, orbit in family:
         assert orbit.success, orbit.message
-        assert orbit.stats["accuracy"]["verdict"] == "accurate"
+        assert orbit.verdict.name == "accurate"
         # the trajectory error of the exact flow from node 0, of the orbit's size: 1.2e-3 to 3.8e-3
-        assert orbit.stats["accuracy"]["error_max"] < 5e-3
+        assert orbit.verdict.error_max < 5e-3
         assert abs(orbit.stats["unfolding"]) < 1e-12
         assert np.ptp(orbit.q[:, 0]) > 0.2 and np.ptp(orbit.q[:, 1]) > 0.01  # both move
         periods.append(orbit.stats["period"])
