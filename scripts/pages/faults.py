@@ -1162,9 +1162,9 @@ def merge_cases() -> list[Case]:
     tool's own manifest, so only the merge's checks can catch them): refused by name, exit 2."""
     import numpy as np
 
-    from ddvp_nlp.io.atomic import output_folder
-    from ddvp_nlp.io.chaos_files import arrays_writer
-    from ddvp_nlp.studies.chaos_map import KEYS
+    from ddvp_nlp.io import output_folder
+    from ddvp_nlp.io.chaos_files import arrays_writer  # internal: the writer of a part
+    from ddvp_nlp.studies.chaos_map import KEYS  # internal: the arrays a part holds
 
     def parts(damage):
         def setup(folder):
