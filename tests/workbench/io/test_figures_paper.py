@@ -19,7 +19,7 @@ from ddvp_nlp.io.run_figure import plot_trajectory
 from ddvp_nlp.io.section_files import plot_section
 from ddvp_nlp.io.stress_figure import plot_stress
 from ddvp_nlp.io.work_precision_figure import plot_work_precision
-from ddvp_nlp.solution import Solution, Status
+from ddvp_nlp.solution import Solution, Status, Verdict
 
 
 def run(status=Status.SUCCESS, verdict="drifted", nodes=400):
@@ -29,7 +29,14 @@ def run(status=Status.SUCCESS, verdict="drifted", nodes=400):
     return Solution(t=t, q=np.cos(t)[:, None], p=-np.sin(t)[:, None], status=status,
                     message="", scheme="vddvp", energy_residual=np.zeros(nodes - 2),
                     canonical_residual=np.zeros(nodes - 1),
-                    stats={"accuracy": {"verdict": verdict, "t_drift": 3.0}})
+                    verdict=None if verdict is None else Verdict(
+                        name=verdict, first_failure=None, t_drift=3.0, drift_step=None,
+                        error_max=0.0, error_max_t=None, estimate="", reference_until=None,
+                        reference_error=None, reference_lost=None, scale=None,
+                        energy_scale=None, local_error_max=0.0, level=None,
+                        level_reference=None, level_error=None, energy_drift=None,
+                        steps=nodes - 1, rtol=1e-2, atol=None, energy_tol=0.1,
+                        global_tol=1e-2, require_accurate=False))
 
 
 def kept(draw) -> object:
