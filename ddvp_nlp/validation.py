@@ -10,6 +10,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from . import safe_files
 from .errors import InputError
 
 
@@ -281,16 +282,13 @@ def read_limited(path: str | os.PathLike, limit: int, *, what: str,
     """The bytes of a regular file of at most ``limit`` bytes, opened without following a
     link; anything else (a link, a folder, a device, a bigger file) is an `InputError`
     that names the file and the reason."""
-    import errno
     import stat
 
     try:
-        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK,
-                             dir_fd=dir_fd)
+        descriptor = safe_files.open_reading(path, dir_fd=dir_fd)
     except OSError as exc:
-        reason = ("it is a symbolic link, which ddvp does not follow" if exc.errno == errno.ELOOP
-                  else exc.strerror or str(exc))
-        raise InputError(f"{what} {str(path)!r} cannot be read: {reason}") from None
+        raise InputError(f"{what} {str(path)!r} cannot be read: "
+                         f"{safe_files.reason(exc)}") from None
     info = os.fstat(descriptor)
     if not stat.S_ISREG(info.st_mode):
         os.close(descriptor)

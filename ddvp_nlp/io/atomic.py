@@ -2,11 +2,11 @@
 
 What it promises, and how:
 
-- **No link is followed.** The folder is opened component by component with ``O_NOFOLLOW``
-  (the components ddvp chose: the last one of a folder the user named, ``runs/NAME`` of a
-  default one), and every file is created or opened relative to that descriptor with
-  ``O_NOFOLLOW`` (a planted symbolic link is refused by name, never written through); a new
-  file lands by ``rename``, which replaces a link itself rather than its target.
+- **No link is followed.** The folder is opened component by component without following a
+  link (the components ddvp chose: the last one of a folder the user named, ``runs/NAME`` of
+  a default one), and every file is created or opened relative to that descriptor the same
+  way (``safe_files.py``: a planted symbolic link is refused by name, never written through);
+  a new file lands by ``rename``, which replaces a link itself rather than its target.
 - **One writer at a time, and no reader while one writes.** Opening a folder takes an
   exclusive, non-blocking ``flock`` on ``FOLDER/.ddvp.lock`` (opened without following links)
   for as long as the command runs; a second ddvp process writing the same folder is refused
@@ -40,23 +40,21 @@ import errno
 import hashlib
 import json
 import os
-import secrets
 import stat
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
+from .. import safe_files
 from ..errors import InputError, OutputError
+from ..safe_files import Writer
 from ..validation import read_limited
 
 LOCK_NAME = ".ddvp.lock"
 MANIFEST = "meta.json"
-_DIRECTORY = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
-_NEW_FILE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
 # Largest manifest read back: a meta.json is a few kilobytes; a bigger one is not ours.
 MANIFEST_LIMIT = 16 << 20
 
-Writer = Callable[[object], None]  # writer(binary file object)
 
 
 class Written(str):
@@ -66,7 +64,7 @@ class Written(str):
 
 def sha256_of(path: str | os.PathLike, *, dir_fd: int | None = None) -> str:
     """The SHA-256 of a file's bytes, in hex (the file opened without following a link)."""
-    descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=dir_fd)
+    descriptor = safe_files.open_no_follow(path, os.O_RDONLY, dir_fd=dir_fd)
     digest = hashlib.sha256()
     with os.fdopen(descriptor, "rb") as handle:
         for block in iter(lambda: handle.read(1 << 20), b""):
@@ -82,13 +80,6 @@ def text(content: str) -> Writer:
 
 def previous_name(name: str) -> str:
     return f".{name}.previous"
-
-
-def _is_link(name: str, dir_fd: int) -> bool:
-    try:
-        return stat.S_ISLNK(os.stat(name, dir_fd=dir_fd, follow_symlinks=False).st_mode)
-    except OSError:
-        return False
 
 
 def _refusal(path, exc: OSError) -> OutputError:
@@ -119,8 +110,8 @@ class _Lock:
         self.path, self.folder_fd = path / LOCK_NAME, folder_fd
         for _ in range(100):  # the name may be removed by the holder between open and flock
             try:
-                descriptor = os.open(LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW
-                                     | os.O_CLOEXEC, 0o644, dir_fd=folder_fd)
+                descriptor = safe_files.open_no_follow(LOCK_NAME, os.O_RDWR | os.O_CREAT,
+                                                       0o644, dir_fd=folder_fd)
             except OSError as exc:
                 raise _refusal(self.path, exc) from None
             if not stat.S_ISREG(os.fstat(descriptor).st_mode):
@@ -257,21 +248,13 @@ class OutputFolder:
 
     def scratch(self, name: str, write: Writer) -> Written:
         """Write ``name``'s new content to a fresh scratch file, flushed to disk; its name."""
-        scratch = f".{name}.{os.getpid()}.{secrets.token_hex(6)}.tmp"
+        scratch = safe_files.scratch_name(name)
         try:
-            descriptor = os.open(scratch, _NEW_FILE, 0o644, dir_fd=self.fd)
+            safe_files.write_new(scratch, write, mode=0o644, dir_fd=self.fd)  # removed if it fails
+        except OutputError:
+            raise
         except OSError as exc:
             raise OutputError(self.path / name, exc) from None
-        try:
-            with os.fdopen(descriptor, "wb") as handle:
-                write(handle)
-                handle.flush()
-                os.fsync(handle.fileno())  # the bytes are on disk before a name points at them
-        except BaseException as exc:
-            self.unlink(scratch)
-            if isinstance(exc, OSError) and not isinstance(exc, OutputError):
-                raise OutputError(self.path / name, exc) from None
-            raise
         return Written(scratch)
 
     def commit(self, files: dict[str, Writer | None], meta: dict | None = None, *,
@@ -318,11 +301,11 @@ class OutputFolder:
     def replace(self, name: str, write: Writer) -> None:
         """Replace one file on its own (no manifest): scratch, flush, rename."""
         with self.guard:
-            scratch = self.scratch(name, write)
             try:
-                os.rename(scratch, name, src_dir_fd=self.fd, dst_dir_fd=self.fd)
+                safe_files.replace_file(name, write, mode=0o644, dir_fd=self.fd)
+            except OutputError:
+                raise
             except OSError as exc:
-                self.unlink(scratch)
                 raise OutputError(self.path / name, exc) from None
             self.committed = True
 
@@ -330,8 +313,7 @@ class OutputFolder:
     def journal(self, name: str) -> Iterator[object]:
         """A text file opened for appending (``O_APPEND``, no link followed)."""
         try:
-            descriptor = os.open(name, os.O_WRONLY | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC,
-                                 dir_fd=self.fd)
+            descriptor = safe_files.open_no_follow(name, os.O_WRONLY | os.O_APPEND, dir_fd=self.fd)
         except OSError as exc:
             raise _refusal(self.path / name, exc) from None
         try:
@@ -353,8 +335,7 @@ class OutputFolder:
     # -- housekeeping ----------------------------------------------------------------------
 
     def unlink(self, name: str) -> None:
-        with contextlib.suppress(OSError):
-            os.unlink(name, dir_fd=self.fd)
+        safe_files.remove(name, dir_fd=self.fd)
 
     def sync(self) -> None:
         with contextlib.suppress(OSError):
@@ -484,16 +465,14 @@ def _open_below(base: int, head: Path, names: list[str]) -> OutputFolder:
         for name in names:
             where = where / name
             try:
-                os.mkdir(name, 0o777, dir_fd=opened[-1])
-                created.append((opened[-1], name))
-            except FileExistsError:
-                pass
+                if safe_files.make_folder(name, 0o777, dir_fd=opened[-1]):
+                    created.append((opened[-1], name))
             except OSError as exc:
                 raise _refusal(where, exc) from None
             try:
-                opened.append(os.open(name, _DIRECTORY, dir_fd=opened[-1]))
+                opened.append(safe_files.open_folder(name, dir_fd=opened[-1]))
             except OSError as exc:
-                if _is_link(name, opened[-1]):
+                if safe_files.is_link(name, dir_fd=opened[-1]):
                     exc = OSError(errno.ELOOP, exc.strerror)
                 raise _refusal(where, exc) from None
     except BaseException:
@@ -544,7 +523,7 @@ def reading(folder: str | os.PathLike) -> Iterator[None]:
     import fcntl
 
     try:
-        descriptor = os.open(folder, _DIRECTORY)
+        descriptor = safe_files.open_folder(folder)
     except OSError:
         yield
         return
@@ -577,8 +556,8 @@ def _shared_lock(folder_fd: int, path: Path, fcntl) -> int | None:
     either). `FolderBusy` when a writer holds it."""
     for _ in range(100):  # the holder may remove the name between open and flock
         try:
-            descriptor = os.open(LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC,
-                                 0o644, dir_fd=folder_fd)
+            descriptor = safe_files.open_no_follow(LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644,
+                                                   dir_fd=folder_fd)
         except OSError as exc:
             if exc.errno == errno.ELOOP:
                 raise InputError(f"{path / LOCK_NAME} is a symbolic link; ddvp does not follow "
@@ -641,9 +620,9 @@ def read_set(folder: str | os.PathLike, *, manifest: str = MANIFEST,
 
 def _read_set(folder: Path, manifest: str, required: tuple[str, ...]):
     try:
-        descriptor = os.open(folder, _DIRECTORY)
+        descriptor = safe_files.open_folder(folder)
     except OSError as exc:
-        raise InputError(f"{folder} holds no readable run: {_reason(exc)}") from None
+        raise InputError(f"{folder} holds no readable run: {safe_files.reason(exc)}") from None
     try:
         try:
             meta = _load_manifest(descriptor, manifest, folder)
@@ -673,9 +652,9 @@ def vouched(folder: str | os.PathLike, name: str, *, manifest: str = MANIFEST) -
     folder = Path(folder)
     with reading(folder):
         try:
-            descriptor = os.open(folder, _DIRECTORY)
+            descriptor = safe_files.open_folder(folder)
         except OSError as exc:
-            raise InputError(f"{folder} cannot be read: {_reason(exc)}") from None
+            raise InputError(f"{folder} cannot be read: {safe_files.reason(exc)}") from None
         try:
             meta = _load_manifest(descriptor, manifest, folder)
             entries = meta.get("files")
@@ -694,7 +673,7 @@ def _matching(descriptor: int, folder: Path, name, entry) -> str:
         try:
             digest = sha256_of(candidate, dir_fd=descriptor)
         except OSError as exc:
-            reasons.append(f"{candidate}: {_reason(exc)}")
+            reasons.append(f"{candidate}: {safe_files.reason(exc)}")
             continue
         if digest == entry.get("sha256"):
             return candidate
@@ -702,12 +681,6 @@ def _matching(descriptor: int, folder: Path, name, entry) -> str:
     raise InputError(f"{folder / name} is not the file {folder / MANIFEST} describes "
                      f"({'; '.join(reasons)}): the set was cut while writing, or changed by "
                      "another tool")
-
-
-def _reason(exc: OSError) -> str:
-    if exc.errno == errno.ELOOP:
-        return "it is a symbolic link, which ddvp does not follow"
-    return exc.strerror or str(exc)
 
 
 def _json_default(value):

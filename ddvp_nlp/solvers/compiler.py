@@ -29,7 +29,6 @@ callers run CasADi's virtual machine instead, with one warning (`warn_once`).
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import functools
 import hashlib
@@ -48,6 +47,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from .. import safe_files
 from ..cache import cached
 from ..errors import InputError
 
@@ -186,8 +186,6 @@ SCRATCH_PREFIX = ".build-"
 # A scratch folder younger than this is never taken for a killed build's (its build may be
 # about to lock it).
 SCRATCH_GRACE_S = 60.0
-_DIRECTORY = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
-_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK
 _CLEANED: set[tuple] = set()  # cache folders whose stale scratch this process has removed
 _CLEAN_LOCK = threading.Lock()
 
@@ -250,7 +248,7 @@ class CacheFolder:
             entries = []
         for entry in entries:
             try:
-                descriptor = os.open(entry, _DIRECTORY, dir_fd=self.fd)
+                descriptor = safe_files.open_folder(entry, dir_fd=self.fd)
             except OSError:
                 continue
             try:
@@ -271,10 +269,9 @@ def open_cache(folder) -> CacheFolder:
     path = Path(folder)
     if not os.path.lexists(path):
         path.parent.mkdir(parents=True, exist_ok=True)
-        with contextlib.suppress(FileExistsError):
-            os.mkdir(path, 0o700)
+        safe_files.make_folder(path, 0o700)
     try:
-        descriptor = os.open(path, _DIRECTORY)
+        descriptor = safe_files.open_folder(path)
     except OSError as exc:
         if exc.errno in (errno.ELOOP, errno.ENOTDIR) and os.path.islink(path):
             raise CompileUnavailable(_unsafe(path, "it is a symbolic link, which the cache does "
@@ -333,7 +330,7 @@ def _check_above(path: Path) -> None:
 def _read_own(folder_fd: int, name: str, limit: int | None) -> bytes:
     """The bytes of ``name`` in the cache: a regular file of this user with one link, not
     writable by group or others, opened without following a link; ``OSError`` otherwise."""
-    descriptor = os.open(name, _READ, dir_fd=folder_fd)
+    descriptor = safe_files.open_reading(name, dir_fd=folder_fd)
     with os.fdopen(descriptor, "rb") as handle:
         info = os.fstat(descriptor)
         if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid() or \
@@ -360,14 +357,10 @@ def _private_key(folder_fd: int, path: Path) -> bytes:
             pass
         _remove(folder_fd, path, KEY_NAME)
         try:
-            descriptor = os.open(KEY_NAME, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
-                                 | os.O_CLOEXEC, 0o600, dir_fd=folder_fd)
+            safe_files.write_new(KEY_NAME, lambda handle: handle.write(secrets.token_bytes(32)),
+                                 mode=0o600, dir_fd=folder_fd)
         except FileExistsError:
             continue  # another process made it meanwhile: read theirs
-        with os.fdopen(descriptor, "wb") as handle:
-            handle.write(secrets.token_bytes(32))
-            handle.flush()
-            os.fsync(handle.fileno())
     raise CompileUnavailable(_unsafe(path, f"its key file {KEY_NAME} keeps changing"))
 
 
@@ -390,7 +383,7 @@ def _build(code: str, name: str, compiler: str, cache: CacheFolder, library: str
 
     scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{socket.gethostname()[:20]}-"
                                            f"{os.getpid()}-", dir=cache.path))
-    lock = os.open(scratch, _DIRECTORY)
+    lock = safe_files.open_folder(scratch)
     try:
         fcntl.flock(lock, fcntl.LOCK_EX)  # a live build: the cleaning of others leaves it
         c_file = scratch / "chunk.c"

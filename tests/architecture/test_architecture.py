@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "ddvp_nlp"
 
 # The library: the model of its field. The workbench: what is built on it.
-BASE = {"errors", "validation", "cache", "blocks", "solution", "startup", "progress"}
+BASE = {"errors", "validation", "cache", "blocks", "safe_files", "solution", "startup",
+        "progress"}
 LIBRARY = {"base", "physics", "discrete", "solvers"}
 WORKBENCH = {"scenes", "io", "runner", "studies", "cli"}
 # What each part may import (besides itself), bottom to top.

@@ -9,12 +9,13 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ...blocks import copied, evaluate_in_blocks
 from ...cache import cached
 from ...discrete.runge_kutta import rk4
 from ..compiler import FunctionBuffer, RentedBuffer
 from ..exact.flow import flow_field
 
-BLOCK = 512  # nodes per call of a compiled block (the last block is padded)
+BLOCK = 512  # nodes per call of a compiled block (the last block padded: blocks.py)
 
 
 def look_function(system) -> ca.Function:
@@ -71,15 +72,10 @@ class NodeValues:
         the vector field and ``H`` at every node (as `at_nodes`)."""
         look = self._compiled("look")
         d, f, H = np.empty((t.size - 1, z.shape[1])), np.empty_like(z), np.empty(t.size)
-        tau = np.diff(t)
-        for first in range(0, tau.size, BLOCK):
-            last = min(first + BLOCK, tau.size)
-            count = last - first
-            out_d, out_f, out_H = look(_padded(z[first:last]), _padded(z[first + 1:last + 1]),
-                                       _padded(t[first:last]), _padded(tau[first:last]),
-                                       self.theta if first == 0 else None)  # kept after
-            d[first:last], f[first:last], H[first:last] = (out_d[:count], out_f[:count],
-                                                           out_H[:count, 0])
+        look.inputs[4][:] = self.theta  # kept for every block
+        evaluate_in_blocks(copied(lambda *block: look(*block, None)),
+                           [z[:-1], z[1:], t[:-1], np.diff(t)], [d, f[:-1], H[:-1]],
+                           count=t.size - 1, width=BLOCK)
         f[-1:], H[-1:] = self.at_nodes(t[-1:], z[-1:])
         return d, f, H
 
@@ -87,22 +83,7 @@ class NodeValues:
         """The vector field ``f`` (rows) and ``H`` at the nodes ``(t_k, z_k)``."""
         nodes = self._compiled("node")
         f, H = np.empty_like(z), np.empty(t.size)
-        for first in range(0, t.size, BLOCK):
-            last = min(first + BLOCK, t.size)
-            count = last - first
-            out_f, out_H = nodes(_padded(z[first:last]), _padded(t[first:last]),
-                                 self.theta if first == 0 else None)
-            f[first:last], H[first:last] = out_f[:count], out_H[:count, 0]
+        nodes.inputs[2][:] = self.theta
+        evaluate_in_blocks(copied(lambda *block: nodes(*block, None)), [z, t], [f, H],
+                           count=t.size, width=BLOCK)
         return f, H
-
-
-def _padded(values: np.ndarray) -> np.ndarray:
-    """``values`` (rows) repeated from its last row up to ``BLOCK`` rows (``np.pad`` took
-    0.1 ms a call, more than the block's compiled work)."""
-    rows = values.shape[0]
-    if rows == BLOCK:
-        return values
-    out = np.empty((BLOCK, *values.shape[1:]))
-    out[:rows] = values
-    out[rows:] = values[rows - 1]
-    return out

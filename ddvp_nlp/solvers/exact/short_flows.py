@@ -8,6 +8,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ...blocks import evaluate_in_blocks
 from ...cache import cached
 from ..columns import row_max_ratio
 from ..compiler import RentedBuffer
@@ -15,7 +16,7 @@ from .attempt import combination, dop853_step
 from .flow import flow_field
 from .tableau import dop853
 
-BLOCK = 4096  # intervals per call (the last block is padded)
+BLOCK = 4096  # intervals per call (the last block padded: blocks.py)
 MAX_SUBSTEPS = 256
 # The embedded estimate is no bound of the order-8 result's error: on the pendulum (H = 0.25
 # and 1.999), Kepler e = 0.9 and Henon-Heiles' chaotic orbit with steps 0.05 .. 1 the error
@@ -64,19 +65,17 @@ class LocalFlows:
         the substeps' estimates (M, d)."""
         t, h = np.asarray(t, float), np.asarray(h, float) / substeps
         out, bound = np.array(z, float, copy=True), np.zeros((t.size, self.d))
-        B = self.block
         self._buffer.inputs[3][:] = np.asarray(theta, float)
-        for first in range(0, t.size, B):
-            last = min(first + B, t.size)
-            count = last - first
-            state = out[first:last]
+
+        def evaluate(inputs, outputs):
+            state, start, step = inputs
+            end, total = outputs
+            total[...] = 0.0
             for j in range(substeps):
-                z_new, estimate = self._buffer(_padded(state, B),
-                                               _padded(t[first:last] + j * h[first:last], B),
-                                               _padded(h[first:last], B), None)
-                state = z_new[:count].copy()
-                bound[first:last] += estimate[:count]
-            out[first:last] = state
+                state, estimate = self._buffer(state, start + j * step, step, None)
+                total += estimate
+            end[...] = state
+        evaluate_in_blocks(evaluate, [out, t, h], [out, bound], count=t.size, width=self.block)
         return out, bound
 
     def __call__(self, t, z, tau, theta, budget, max_substeps: int = MAX_SUBSTEPS):
@@ -115,13 +114,6 @@ class LocalFlows:
             m *= 2
         used[todo] = 0
         return phi, ratio[:, None] * budget, used
-
-
-def _padded(values: np.ndarray, rows: int) -> np.ndarray:
-    extra = rows - values.shape[0]
-    if extra == 0:
-        return values
-    return np.pad(values, [(0, extra)] + [(0, 0)] * (values.ndim - 1), mode="edge")
 
 
 def short_flows(system, *, compiler: str | None = "auto", cache_dir=None) -> LocalFlows:

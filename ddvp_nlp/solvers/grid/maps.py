@@ -16,6 +16,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from ...blocks import Sink, evaluate_in_blocks, through_buffer
 from ...cache import cached
 from ..compiler import CompileUnavailable, cache_folder, compile_function, find_compiler, warn_once
 from ..options import Compilation
@@ -63,14 +64,8 @@ class ChunkedMap:
         buffer, evaluate = self._window(size)
         shared = np.ascontiguousarray(np.tile(np.asarray(theta, float), size))
         buffer.set_arg(len(blocks), memoryview(shared))
-        for first in range(0, count, size):
-            first = min(first, count - size)
-            held = [np.ascontiguousarray(b[first:first + size]) for b in blocks]
-            for j, part in enumerate(held):
-                buffer.set_arg(j, memoryview(part))
-            for j, out in enumerate(outputs):
-                buffer.set_res(j, memoryview(out[first:first + size]))
-            evaluate()
+        evaluate_in_blocks(through_buffer(buffer, evaluate), blocks, outputs, count=count,
+                           width=size, last="shift")
         return outputs
 
 
@@ -125,35 +120,11 @@ class WindowMap:
         size, (buffer, trigger) = self._window(count)
         tiled = np.tile(np.asarray(shared, float), (size, 1))
         buffer.set_arg(len(inputs), memoryview(tiled))
-        scratch = [np.empty((size, f.nnz_out(j))) if out is None or count < size else None
-                   for j, out in enumerate(outputs)]
-        if count < size:  # a compiled window wider than the grid: pad, then keep count rows
-            padded = [np.empty((size, block.shape[1])) for block in inputs]
-            for j, (block, held) in enumerate(zip(inputs, padded, strict=True)):
-                held[:count], held[count:] = block, block[-1]
-                buffer.set_arg(j, memoryview(held))  # CasADi keeps the address only: keep
-            for j, held in enumerate(scratch):
-                buffer.set_res(j, memoryview(held))
-            trigger()
-            for out, held in zip(outputs, scratch, strict=True):
-                if out is not None:
-                    out[:] = held[:count]
-            if sink is not None:
-                sink(0, scratch[-1][:count])
-            return
-        for j, held in enumerate(scratch):
-            if held is not None:
-                buffer.set_res(j, memoryview(held))
-        for first in range(0, count, size):
-            first = min(first, count - size)
-            for j, block in enumerate(inputs):
-                buffer.set_arg(j, memoryview(block[first:first + size]))
-            for j, out in enumerate(outputs):
-                if out is not None:
-                    buffer.set_res(j, memoryview(out[first:first + size]))
-            trigger()
-            if sink is not None:
-                sink(first, scratch[-1])
+        kept = [out if out is not None else
+                Sink((f.nnz_out(j),), sink if sink is not None else lambda first, rows: None)
+                for j, out in enumerate(outputs)]
+        evaluate_in_blocks(through_buffer(buffer, trigger), inputs, kept, count=count,
+                           width=size, last="shift")
 
 
 def window_map(system, key, function: ca.Function, compilation: Compilation) -> WindowMap:

@@ -148,7 +148,7 @@ def test_a_long_chains_compiled_recheck_gives_the_virtual_machines_bits(tmp_path
     (three shifted views of the nodes): the same bits as the separate mapped functions."""
     from ddvp_nlp.discrete import equations
     from ddvp_nlp.solvers.compiler import find_compiler
-    from ddvp_nlp.solvers.marching.recheck import WIDE_PIECE, grid_residuals
+    from ddvp_nlp.solvers.marching.recheck import WIDE_PIECE, recheck_residuals
 
     compiler = find_compiler("auto")
     if compiler is None:
@@ -160,7 +160,7 @@ def test_a_long_chains_compiled_recheck_gives_the_virtual_machines_bits(tmp_path
     q, p = rng.uniform(-1, 1, (1300, n)), rng.uniform(-1, 1, (1300, n))
     theta = scene.system.parameter_vector(scene.params)
     expected = equations.grid_residuals(scene.system, VDDVP, t, q, p, theta)
-    found = grid_residuals(scene.system, VDDVP, t, q, p, theta, compiler=compiler,
+    found = recheck_residuals(scene.system, VDDVP, t, q, p, theta, compiler=compiler,
                            cache_dir=tmp_path)
     for a, b in zip(found, expected, strict=True):
         assert np.array_equal(a, b)

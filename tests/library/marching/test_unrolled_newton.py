@@ -11,7 +11,7 @@ from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.compiler import compile_function, find_compiler
 from ddvp_nlp.solvers.marching.chunk import MEDIUM_UNROLL, SMALL_UNROLL
-from ddvp_nlp.solvers.marching.recheck import grid_residuals
+from ddvp_nlp.solvers.marching.recheck import recheck_residuals
 from ddvp_nlp.solvers.marching.step_newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
 from ddvp_nlp.solvers.marching.steps import step_functions
 
@@ -157,7 +157,7 @@ def test_compiled_recheck_equals_the_virtual_machine(tmp_path, name, rule):
     q, p = rng.uniform(-1, 1, (1500, n)), rng.uniform(-1, 1, (1500, n))
     theta = system.parameter_vector(scene.resolve({}).params)
     expected = equations.grid_residuals(system, scheme, t, q, p, theta)
-    found = grid_residuals(system, scheme, t, q, p, theta, compiler=compiler,
+    found = recheck_residuals(system, scheme, t, q, p, theta, compiler=compiler,
                            cache_dir=tmp_path)
     for a, b in zip(found, expected, strict=True):
         assert np.array_equal(a, b)
