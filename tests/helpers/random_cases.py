@@ -52,3 +52,18 @@ def cases(draw):
     tau0 = 10 ** draw(st.floats(-2.5, 0.0))
     t_end = min(draw(st.floats(2.0, 20.0)), 2000 * tau0)
     return DrawnCase(case.system, case.Q0, case.P0, tau0, max(t_end, tau0), case.scheme, units)
+
+
+def random_pair(rng, name: str = "random_pair"):
+    """A random two-degree-of-freedom system whose ``H`` depends on both of its parameters
+    ``k`` and ``c`` (drawn in [0.5, 1.5)): what the derivative tests differentiate in."""
+    import casadi as ca
+
+    from ddvp_nlp import HamiltonianSystem
+
+    k, c = 0.5 + rng.random(2)
+
+    def H(q, p, t, k, c):
+        return (p[0] ** 2 + p[1] ** 2) / 2 + k * q[0] ** 2 / 2 + c * q[0] * q[1] ** 2 \
+            + ca.cos(q[1]) * k * c
+    return HamiltonianSystem(H, 2, {"k": k, "c": c}, name=name)

@@ -5,8 +5,9 @@ import casadi as ca
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from helpers.random_cases import random_pair
 
-from ddvp_nlp import Compilation, HamiltonianSystem
+from ddvp_nlp import Compilation
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.bvp.interleaved import Ends, GridAssembly
 from ddvp_nlp.solvers.grid.linear import Factorization
@@ -16,13 +17,7 @@ EPS = np.finfo(float).eps
 
 
 def _system(rng):
-    """A random two-degree-of-freedom system whose ``H`` depends on both parameters."""
-    k, c = 0.5 + rng.random(2)
-
-    def H(q, p, t, k, c):
-        return (p[0] ** 2 + p[1] ** 2) / 2 + k * q[0] ** 2 / 2 + c * q[0] * q[1] ** 2 \
-            + ca.cos(q[1]) * k * c
-    return HamiltonianSystem(H, 2, {"k": k, "c": c}, name="random_pair")
+    return random_pair(rng, "random_pair")
 
 
 def _periodic(seed: int):

@@ -1,11 +1,11 @@
 """The march's one-step problem (``StepProblem``): its Jacobians in the new unknowns, the old
 nodes and ``theta`` against central differences of its residual, on random systems and points."""
 
-import casadi as ca
 import numpy as np
 import pytest
+from helpers.random_cases import random_pair
 
-from ddvp_nlp import HamiltonianSystem, InputError
+from ddvp_nlp import InputError
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.marching import StepProblem
 
@@ -13,12 +13,7 @@ EPS = np.finfo(float).eps
 
 
 def _system(rng):
-    k, c = 0.5 + rng.random(2)
-
-    def H(q, p, t, k, c):
-        return (p[0] ** 2 + p[1] ** 2) / 2 + k * q[0] ** 2 / 2 + c * q[0] * q[1] ** 2 \
-            + ca.cos(q[1]) * k * c
-    return HamiltonianSystem(H, 2, {"k": k, "c": c}, name="random_step")
+    return random_pair(rng, "random_step")
 
 
 def _difference(function, point, j):
