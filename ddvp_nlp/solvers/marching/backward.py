@@ -70,14 +70,12 @@ def march_backward(march, system, q0, p0, t_span, *, v0, output, **options):
                              checkpoint_interval=output.checkpoint_interval, stop=output.stop,
                              t_eval=_reversed_times(output.t_eval, t0, t_end),
                              events=[_reversed_event(event) for event in output.events] or None)
-    def flip(x):
-        return None if x is None else -np.asarray(x, dtype=float)
     accuracy = options.get("accuracy")
     if isinstance(accuracy, Tolerance) and accuracy.exact is not None:
         options["accuracy"] = replace(accuracy, exact=_reversed_exact(accuracy.exact, system.n))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        solution = march(time_reversed(system), q0, flip(p0), (-t0, -t_end), v0=flip(v0),
+        solution = march(time_reversed(system), q0, _flipped(p0), (-t0, -t_end), v0=_flipped(v0),
                          output=reversed_output, **options)
     for warning in caught:  # the monitors' warnings name times of the reversed march
         warnings.warn_explicit(_TIME.sub(_negated, str(warning.message)), warning.category,
@@ -95,11 +93,16 @@ def run_time_reversed(run, system, config, *args, **options):
     t0, t_end = float(config.t0), float(config.t_end)
     flipped = copy.copy(config)
     flipped.t0, flipped.t_end = -t0, -t_end
-    for name in ("p0", "v0"):
-        if getattr(config, name, None) is not None:
-            setattr(flipped, name, -np.asarray(getattr(config, name), dtype=float))
+    flipped.p0 = _flipped(config.p0)
+    if hasattr(config, "v0"):
+        flipped.v0 = _flipped(config.v0)
     solution = run(time_reversed(system), flipped, *args, **options)
     return _forward(solution, system, t_end)
+
+
+def _flipped(momentum):
+    """``p0`` or ``v0`` of the time-reversed system: its sign changed (``None`` stays)."""
+    return None if momentum is None else -np.asarray(momentum, dtype=float)
 
 
 def _reversed_times(t_eval, t0: float, t_end: float):
