@@ -15,7 +15,9 @@ by a second run at a tenth of the tolerance, never assumed), and gets one of thr
 
 **Scales come from the motion, never from 1.** ``S_i``, the size of component ``i`` of
 ``z = (q, p)``, is its range over the run (the nodes and the reference's states), at least a
-tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). The energy
+tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). A cyclic coordinate
+(one ``H`` does not depend on: an azimuth that winds) keeps its own range but sets no floor for
+the others, and its conserved momentum does not enter the energy scale. The energy
 scale ``E_s`` is the time average of ``|S * grad H(z_k, t_k)|_2``, how much ``H`` changes when
 the state moves by ``S`` (`energy_scale`): an energy error ``dE`` puts some node at least
 ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
@@ -65,6 +67,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from ...solution import Status, Verdict
@@ -143,42 +146,73 @@ def exact_nodes(system, z0, t0: float, t_end: float, theta, *, rtol: float, atte
                     max_attempts=attempts).nodes()
 
 
-def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int) -> np.ndarray:
+def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int,
+                  free: np.ndarray | None = None) -> np.ndarray:
     """``S_i`` of each component of ``z = (q, p)`` from its least and greatest values over the
     motion and its largest magnitude: its range ``high - low``, at least ``BLOCK_FLOOR`` times
     the largest range of its block (``q`` or ``p``: a coordinate that barely moves is measured
     against the motion of the others, not against round-off) and at least ``ROUND_OFF`` times
-    its magnitude (a block that does not move at all)."""
+    its magnitude (a block that does not move at all). A component marked in ``free`` (a
+    cyclic coordinate, `free_components`) keeps its own range but sets no floor for the others:
+    a winding angle's secular growth says nothing of how far the other coordinates move."""
     span = np.asarray(high, float) - np.asarray(low, float)
     scale = span.copy()
+    feeding = span if free is None else np.where(free, 0.0, span)
     for block in (slice(0, n), slice(n, 2 * n)):
-        scale[block] = np.maximum(scale[block], BLOCK_FLOOR * np.max(span[block]))
+        scale[block] = np.maximum(scale[block], BLOCK_FLOOR * np.max(feeding[block]))
     scale = np.maximum(scale, ROUND_OFF * np.asarray(largest, float))
     return np.maximum(scale, np.finfo(float).tiny)
+
+
+def free_components(system) -> np.ndarray | None:
+    """The components of ``z = (q, p)`` whose range sets no floor for the others (see
+    `motion_scales`): the cyclic coordinates, those ``H`` does not depend on (found on its
+    symbols, so exactly and whatever the units: an azimuth, a polar angle of a central force,
+    a free direction). Their range grows without bound on a long run while the rest of the
+    motion stays put. ``None`` for a system without a Hamiltonian expression."""
+    H, q = getattr(system, "H", None), getattr(system, "q", None)
+    if H is None or q is None:
+        return None
+    n = int(system.n)
+    cyclic = [not ca.depends_on(H, q[i]) for i in range(n)]
+    return np.array(cyclic + [False] * n, dtype=bool) if any(cyclic) else None
 
 
 class Extent:
     """The least and greatest value and the largest magnitude of each component over the rows
     seen so far (the march's nodes, then the reference's, block by block)."""
 
-    def __init__(self, rows: np.ndarray):
+    def __init__(self, rows: np.ndarray, free: np.ndarray | None = None):
         self.low, self.high, self.largest = column_extremes(rows)
+        self.free = free  # components that set no floor (`motion_scales`)
 
     def scales(self, n: int) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, n)
+        return motion_scales(self.low, self.high, self.largest, n, self.free)
+
+
+def gradient_weights(scale: np.ndarray, n: int, free: np.ndarray | None = None) -> np.ndarray:
+    """The weights of the columns of the vector field ``f = (H_p, -H_q)`` in ``|S * grad H|``:
+    ``grad H = (H_q, H_p) = (-f_p, f_q)``, so column ``j`` of ``f`` weighs with ``S`` of the
+    other block. The momentum of a cyclic coordinate (``free``) weighs nothing: it is
+    conserved by the motion and by the schemes alike, so no energy error can move a node
+    along it, and ``H_p`` there (a winding rate) says nothing of how far off the level set a
+    node lies."""
+    weights = np.concatenate([scale[n:], scale[:n]])
+    if free is not None:
+        weights[:n][free[:n]] = 0.0
+    return weights
 
 
 def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndarray,
-                 n: int) -> float:
+                 n: int, free: np.ndarray | None = None) -> float:
     """``E_s``, the time average over the run of ``|S * grad H(z_k, t_k)|_2`` (from the vector
-    field ``f = (H_p, -H_q)`` at the nodes, rows, and ``H`` there): how much ``H`` changes when
-    the state moves by the motion's own size ``S`` in each component, typically over the
-    motion. An energy error ``dE`` puts the nodes ``dE / |S * grad H|`` (in units of ``S``) off
-    the exact level set, so wherever the gradient is at most its average (somewhere it is) at
-    least ``dE / E_s``: a displacement, free of units and of constants added to ``H``. At
-    least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
-    # grad H = (H_q, H_p) = (-f_p, f_q): column j of f weighs with S of the other block
-    norm = row_norm(field * np.concatenate([scale[n:], scale[:n]]))
+    field ``f = (H_p, -H_q)`` at the nodes, rows, and ``H`` there; `gradient_weights`): how
+    much ``H`` changes when the state moves by the motion's own size ``S`` in each component,
+    typically over the motion. An energy error ``dE`` puts the nodes ``dE / |S * grad H|`` (in
+    units of ``S``) off the exact level set, so wherever the gradient is at most its average
+    (somewhere it is) at least ``dE / E_s``: a displacement, free of units and of constants
+    added to ``H``. At least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
+    norm = row_norm(field * gradient_weights(scale, n, free))
     weights = np.zeros(t.size)  # each node stands for half of each step beside it
     weights[:-1] += np.diff(t) / 2
     weights[1:] += np.diff(t) / 2
@@ -229,6 +263,7 @@ class Judgement:
         self.system, self.theta, self.tolerance = system, np.asarray(theta, float), tolerance
         self.compiler, self.cache_dir = compiler, cache_dir
         self.values = NodeValues(system, theta, compiler=compiler, cache_dir=cache_dir)
+        self.free = free_components(system)
 
     def flow(self):
         """The exact flow (``exact/flow.py``), compiled once per system."""
@@ -254,7 +289,7 @@ class Judgement:
         look = self.values.first_look(t, z) if screen else None
         self._poll()
         field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
-        energy = energy_scale(t, field, H, scale, n)
+        energy = energy_scale(t, field, H, scale, n, self.free)
         local, local_error, local_max = self._local(t, z, scale, look)
         energies = self.energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
@@ -280,7 +315,7 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        extent = Extent(z)  # every node's, whichever window is measured
+        extent = Extent(z, self.free)  # every node's, whichever window is measured
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
@@ -423,6 +458,7 @@ class Scan:
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
         self.largest = extent.largest.copy()
+        self.free = extent.free
         self.column_max, self.column_node = np.zeros(d), np.ones(d, dtype=int)
         self.claim_max = 0.0
         self.drift: int | None = None  # node indices
@@ -437,7 +473,7 @@ class Scan:
         return self.drift is not None or self.lost is not None
 
     def scales(self) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, self.n)
+        return motion_scales(self.low, self.high, self.largest, self.n, self.free)
 
     def measure(self, t, z, start: int, end: int, states, claim, offset: int = 0) -> None:
         """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
@@ -461,7 +497,7 @@ class Scan:
                 break
             seen = column_extremes(states[:stop])  # finite: the rows before a lost one
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
-                                np.maximum(self.largest, seen[2]), self.n)
+                                np.maximum(self.largest, seen[2]), self.n, self.free)
             if np.array_equal(new, scale):
                 break
             scale = new
