@@ -90,6 +90,9 @@ CANDIDATE = 0.5
 # The reference's own error may use this fraction of global_tol (and the short flows' of the
 # local bound).
 REFERENCE_SHARE = 0.1
+# The smallest global_tol the trajectory error can be judged against: the finest reference's
+# own error (DOP853 at FLOOR_RTOL) must stay within its share of it.
+SMALLEST_GLOBAL_TOL = FLOOR_RTOL / REFERENCE_SHARE
 # The exact flow's tolerance to the first interval's clock (a fraction of a step).
 LEVEL_RTOL = 1e-12
 # The reference's first tolerance (the coarse run's; the reference is the run at a tenth of it):
@@ -249,7 +252,7 @@ def unjudged(t, z, tol: Tolerance) -> dict:
             "estimate": "none (no step)", "reference_until": None, "reference_error": None,
             "reference_lost": None, "scale": None, "energy_scale": None,
             "local_error_max": 0.0, "level": None, "level_reference": None,
-            "level_error": None, "energy_drift": None,
+            "level_error": None, "level_round_off": None, "energy_drift": None,
             "steps": max(t.size - 1, 0), "rtol": tol.rtol, "atol": tol.atol,
             "energy_tol": tol.energy_tol, "global_tol": tol.global_tol,
             "require_accurate": tol.require_accurate}
@@ -303,6 +306,17 @@ class Judgement:
     def _poll(self) -> None:
         if self.stop is not None and self.stop():
             raise CheckStopped
+
+    def constant_terms(self, z0, t0) -> float:
+        """The terms of ``H`` that depend on none of the state and the clock (``H + c``: ``c``),
+        which the node values leave out (`physics.hamiltonian.varying_part`)."""
+        system = self.system
+        varying = getattr(system, "H_varying_function", None)
+        if varying is None or varying is system.H_function:
+            return 0.0
+        n = system.n
+        return float(system.H_function(z0[:n], z0[n:], t0, self.theta)) - float(
+            varying(z0[:n], z0[n:], t0, self.theta))
 
     # -- the trajectory's error ---------------------------------------------------------------
     def _trajectory(self, t, z, exact) -> dict:
@@ -410,9 +424,9 @@ class Judgement:
         against ``H`` of the exact flow at the first interval's clock, and (autonomous ``H``)
         the nodal ``H`` against ``H(z_0, t_0)``."""
         system, tol = self.system, self.tolerance
-        H0 = float(H[0])
+        H0 = float(H[0])  # H here is without its constant terms (`NodeValues`)
         figures = {"level": None, "level_reference": None, "level_error": None,
-                   "energy_drift": None}
+                   "level_round_off": None, "energy_drift": None}
         failures = []
         if level is not None:
             reference = H0
@@ -421,9 +435,15 @@ class Judgement:
                                       atol=LEVEL_RTOL * scale)
                 _, at_clock = self.values.at_nodes(np.array([level.clock]), run.z_end[None, :])
                 reference = float(at_clock[0])
+            # the level is a value of the whole H (a march's first interval, a prescribed
+            # energy): its constant terms come back in, and with them their round-off, stated
+            constant = self.constant_terms(z[0], t[0])
+            reference += constant
             error = abs(level.value - reference) / energy
+            round_off = 2 * np.finfo(float).eps * max(abs(level.value), abs(reference)) / energy
             figures.update(level=float(level.value), level_reference=reference,
-                           level_error=finite_or_none(error))
+                           level_error=finite_or_none(error),
+                           level_round_off=finite_or_none(round_off))
             if not error <= tol.energy_tol:
                 failures.append({"step": 0, "t": float(t[0]),
                                  "test": "energy level of the first step",
@@ -573,6 +593,12 @@ def judge(solution, report: dict | Verdict | None, tolerance: Tolerance, *,
     ``tolerance.require_accurate`` asks for an accurate trajectory; either way the message says
     what the check found (and, for a failed test, ``advice``)."""
     verdict = report if report is None or isinstance(report, Verdict) else Verdict.of(report)
+    if verdict is not None and verdict.steps == 0 and verdict.first_failure is None:
+        # a run stopped before its first step (interrupted, a failed first step): nothing was
+        # judged, and "accurate" would be a verdict on work not done
+        solution.verdict = None
+        solution.accuracy_skipped = "the run made no step: there is nothing to judge"
+        return None
     solution.verdict = verdict
     if local_error is not None:
         solution.local_error = local_error
