@@ -75,7 +75,7 @@ from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_
 from ..exact.flow import exact_flow
 from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
-from ..options import Tolerance
+from ..options import EXACT_TOLERANCE, Tolerance
 from .node_values import NodeValues
 
 ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-squares step "
@@ -94,10 +94,10 @@ REFERENCE_SHARE = 0.1
 # own error (DOP853 at FLOOR_RTOL) must stay within its share of it.
 SMALLEST_GLOBAL_TOL = FLOOR_RTOL / REFERENCE_SHARE
 # The exact flow's tolerance to the first interval's clock (a fraction of a step).
-LEVEL_RTOL = 1e-12
+LEVEL_RTOL = EXACT_TOLERANCE.flow_rtol
 # The reference's first tolerance (the coarse run's; the reference is the run at a tenth of it):
 # tighter by 100 while its own error passes its share before t_drift.
-REFERENCE_RTOL = 1e-9
+REFERENCE_RTOL = EXACT_TOLERANCE.reference_rtol
 
 
 def finite_or_none(value) -> float | None:

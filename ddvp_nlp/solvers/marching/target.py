@@ -38,6 +38,7 @@ from ...errors import InputError
 from ...validation import check_real
 from ..accuracy.judgement import SMALLEST_GLOBAL_TOL, exact_states, motion_scales
 from ..columns import column_extremes, row_max_ratio
+from ..options import EXACT_TOLERANCE
 
 __all__ = ["march_to_error"]
 
@@ -46,7 +47,7 @@ PILOT_STEPS = 256  # at least this many pilot steps (if the span has them)
 SAFETY = 0.5  # the predicted error aimed at, as a share of the target
 MAX_GROWTH = 8.0  # the chosen step at most this many times the pilot's
 ORDER = 2  # every scheme of the march is of second order
-REFERENCE_RTOL = 1e-12
+REFERENCE_RTOL = EXACT_TOLERANCE.flow_rtol  # the pilot measured against the exact flow
 # past this trajectory error (units of the motion's size) the error saturates (a phase that has
 # gone round): the pilot's growth is read below it
 LINEAR_LIMIT = 0.1
