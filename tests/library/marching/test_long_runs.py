@@ -199,5 +199,6 @@ def test_a_stopped_long_march_is_returned_without_the_work_over_every_node(monke
     assert run.status.code == "interrupted" and run.t.size > 1000
     assert run.verdict is None and "left out" in run.accuracy_skipped
     assert run.canonical_residual.size == 0 and run.energy_residual.size == 0
-    short = _pendulum(t_end=5000.0, stop=lambda: len(calls) > 0)  # stopped at once: judged
-    assert short.t.size == 1 and short.accuracy_skipped is None
+    short = _pendulum(t_end=5000.0, stop=lambda: len(calls) > 0)  # stopped at once
+    # no step: nothing to judge, and no verdict claimed for work not done
+    assert short.t.size == 1 and short.verdict is None and "no step" in short.accuracy_skipped
