@@ -37,7 +37,7 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution
-from ...validation import check_times
+from ...validation import check_memory, check_times
 from ..options import (
     DEFAULT_TOLERANCE,
     Compilation,
@@ -136,6 +136,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         if v0 is not None:
             raise InputError("target_error needs p0: with v0 the start itself depends on tau0")
     # the options first: the start (p0 from v0, H0) already builds CasADi functions
+    check_output_memory(output, system)
     problem = check_problem(system, scheme, q0, p0, v0, t_span, tau0, steps, params)
     check_times(output.t_eval, (problem.t0, problem.t_end))
     if target is not None:
@@ -176,6 +177,7 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
         raise InputError(f"continue_march keeps every node (it goes on from consecutive "
                          f"nodes): give output without keep_every = {output.keep_every!r} or "
                          f"keep = {output.keep!r}")
+    check_output_memory(output, system)
     n = state.z.shape[1] // 2
     t_end = state.t_end if t_end is None else t_end
     problem = check_problem(system, scheme, state.z[0, :n], state.z[0, n:], None,
@@ -183,3 +185,15 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
     check_resume(state, problem, scheme.variable_steps)
     check_times(output.t_eval, (problem.t0, problem.t_end))
     return MarchSession(problem, accuracy, compilation, output, start=state).run()
+
+
+def check_output_memory(output: Output, system) -> None:
+    """``t_eval`` refused by name where its states (and the dense output's work arrays: the
+    two nodes, their slopes and the Hermite weights of every time) would not fit in memory,
+    before anything is built (``Output(t_eval=10**8 times)`` ended in a ``MemoryError`` after
+    half a minute)."""
+    if output.t_eval is None:
+        return
+    count = output.t_eval.size
+    per_time = 8.0 * (8 + 8 * 2 * int(system.n))
+    check_memory("len(t_eval)", count, count * per_time, f"the states at {count} output times")
