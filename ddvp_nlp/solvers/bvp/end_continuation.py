@@ -9,9 +9,10 @@ a continuation in ``s`` itself stops (tried: on the pendulum from 0.5 to -0.3 in
 it stopped at ``s = 0.61``, on Henon-Heiles at ``s = 0.02-0.88``). Here the unknowns are
 ``y = (x, s)`` and each step moves a length ``h`` along the path's tangent ``T``:
 
-- predictor ``y + h T``; corrector: Newton on ``F(x, s) = 0`` together with
-  ``<T, y - y_pred> = 0`` (the hyperplane through the prediction across the path), solved by
-  bordering with the banded LU of ``F_x``: ``dx = z_1 + ds z_2`` with ``F_x z_1 = -F`` and
+- predictor ``y + h T``; corrector: the grid's Newton (``grid/newton.py``, full steps) on
+  ``F(x, s) = 0`` together with ``<T, y - y_pred> = 0`` (the hyperplane through the prediction
+  across the path; `_Path` is that grid problem), each step solved by bordering with the banded
+  LU of ``F_x`` (`Bordered`): ``dx = z_1 + ds z_2`` with ``F_x z_1 = -F`` and
   ``F_x z_2 = -F_s`` (``F_s = -d`` on the end rows), which stays well posed at a fold where
   ``F_x`` alone is singular;
 - the tangent is the secant of the last two points (its orientation kept), ``h`` grows by half

@@ -17,9 +17,10 @@ Released directly from uniform times, Newton diverged at N = 1e5 on the pendulum
 predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
 
 ``guess="march"`` replaces phase 1 by shooting: march ``fixed`` steps on the uniform grid from
-``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by Newton's method with a
-finite-difference Jacobian (``n + 1`` marches an iteration), from ``p_start`` if given, else from
-the straight line's momentum. The fixed-endpoint problem can have
+``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by the grid's Newton
+(``grid/newton.py``) on `ShootingProblem`, a grid problem of ``n`` unknowns with a
+finite-difference Jacobian (``n + 1`` marches an iteration), a least-squares solve and steps of its
+own (`ShootingSteps`), from ``p_start`` if given, else from the straight line's momentum. The fixed-endpoint problem can have
 several solutions (a pendulum that swings once or twice between the same positions); shooting
 from the straight line's momentum picks the one the march from that momentum reaches, which
 the straight-line start, a trajectory that never turns, can miss. A Kepler orbit over three
