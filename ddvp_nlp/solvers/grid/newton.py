@@ -207,7 +207,6 @@ class FullSteps(NaturalMonotonicity):
 
 MONOTONICITY = NaturalMonotonicity()
 DECREASE_OR_MONOTONICITY = DecreaseOrMonotonicity()
-FULL_STEPS = FullSteps()
 
 
 def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
