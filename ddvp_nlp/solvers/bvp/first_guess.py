@@ -20,13 +20,13 @@ predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
 ``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by the grid's Newton
 (``grid/newton.py``) on `ShootingProblem`, a grid problem of ``n`` unknowns with a
 finite-difference Jacobian (``n + 1`` marches an iteration), a least-squares solve and steps of its
-own (`ShootingSteps`), from ``p_start`` if given, else from the straight line's momentum. The fixed-endpoint problem can have
-several solutions (a pendulum that swings once or twice between the same positions); shooting
-from the straight line's momentum picks the one the march from that momentum reaches, which
-the straight-line start, a trajectory that never turns, can miss. A Kepler orbit over three
-periods is one: the straight line between two points near the pericentre leads to the radial
-branch (out to r = 4.2 and back), on which the energy rules have no solution (``w < 0`` for
-``r < 2``, docs/theory.md section 7); ``p_start`` near the orbit's momentum selects the three
+own (`ShootingSteps`), from ``p_start`` if given, else from the straight line's momentum. The
+fixed-endpoint problem can have several solutions (a pendulum that swings once or twice between the
+same positions); shooting from the straight line's momentum picks the one the march from that
+momentum reaches, which the straight-line start, a trajectory that never turns, can miss. A Kepler
+orbit over three periods is one: the straight line between two points near the pericentre leads to
+the radial branch (out to r = 4.2 and back), on which the energy rules have no solution (``w < 0``
+for ``r < 2``, docs/theory.md section 7); ``p_start`` near the orbit's momentum selects the three
 revolutions.
 
 A node guess (a march, a file) of another rule is first moved to the predicted times and solved

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+import ddvp_nlp
 from ddvp_nlp import (
     Compilation,
     GridOptions,
@@ -20,7 +21,6 @@ from ddvp_nlp import (
     solve_bvp_higher,
     solve_periodic,
 )
-import ddvp_nlp
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.bvp.end_continuation import Hyperplane, _Path
 from ddvp_nlp.solvers.bvp.first_guess import Aim, ShootingProblem
@@ -83,7 +83,7 @@ def test_every_grid_problem_of_the_package_is_in_the_contract_sample():
 
 @pytest.mark.parametrize("seed", range(2))
 def test_every_grid_problem_has_every_method_of_the_protocol(seed):
-    for name, problem, x, data in _assemblies(seed):
+    for name, problem, x, _data in _assemblies(seed):
         layout = problem.layout
         for member in LAYOUT:
             assert hasattr(layout, member), (name, member)
