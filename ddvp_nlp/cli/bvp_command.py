@@ -27,7 +27,7 @@ def _bvp(args, scene, config, scheme):
     progress = args.progress if args.progress is not None else (
         config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else (
-        getattr(args, "guess_data", None) or read_guess(args.guess, scene.system.n))
+        args.guess_data or read_guess(args.guess, scene.system.n))
     span = config.t_span
     if args.energy is not None:  # the scene's span is the transfer time's guess
         span = AtEnergy(args.energy, t0=span[0], duration=span[1] - span[0])

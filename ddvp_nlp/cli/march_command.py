@@ -17,7 +17,7 @@ from ..io.run_folder import read_run
 from ..scenes import is_builtin, load_scene, scene_digest, scene_fingerprint
 from ..solvers import MarchState, continue_march, find_compiler, march
 from . import arguments as options
-from .arguments import check_numbers
+from .arguments import check_options
 from .interrupts import INTERRUPTS
 from .one_run import (
     RESUME_OPTIONS,
@@ -43,7 +43,7 @@ def run_march(args) -> int:
             raise InputError("--keep-every and --keep apply to a march from its start: a "
                              "thinned run cannot be continued with --resume")
         return run_resume(args)
-    if getattr(args, "keep", "nodes") == "t_eval" and args.t_eval is None and not args.events:
+    if args.keep == "t_eval" and args.t_eval is None and not args.events:
         raise InputError("--keep t_eval keeps only the --t-eval states and the --event "
                          "crossings: give --t-eval or --event")
     return run_one(args, {False: _march, True: _march_higher})
@@ -68,7 +68,7 @@ def run_resume(args) -> int:
         record = resume_record_of(folder, meta)
         scene = resume_scene(args, folder, record)
         args = args.but(**record["options"])  # the options the run was made with
-        check_numbers(args)
+        check_options(args)
         if args.scheme not in RULES:
             raise InputError(f"--resume: the resume record of {folder} gives the scheme "
                              f"{args.scheme!r}; a march continues with one of {', '.join(RULES)}")
@@ -250,8 +250,7 @@ def _march(args, scene, config, scheme):
 
 def _thinned(args) -> bool:
     """Whether ``--keep-every`` or ``--keep t_eval`` was given."""
-    return getattr(args, "keep_every", None) is not None or \
-        getattr(args, "keep", "nodes") != "nodes"
+    return args.keep_every is not None or args.keep != "nodes"
 
 
 def _all_residuals(stats: dict) -> dict:

@@ -22,6 +22,7 @@ from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest, chec
 from ..validation import check_real
 from . import arguments as options
 from .arguments import check_distinct
+from .flags import flags
 from .folders import default_or
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
@@ -108,8 +109,7 @@ def _compare_horizons(args, scene, out) -> int:
             options=CompareOptions(methods=args.methods, halvings=args.halvings,
                                    repeats=args.repeats, max_steps=args.max_steps),
             compilation=options.compiled_or_not(args), workers=options.workers(args),
-            run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
-            reference_span=check_real("--reference-span", args.reference_span, positive=True),
+            run_budget_s=args.run_budget, reference_span=args.reference_span,
             progress=args.progress is not False)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
@@ -176,7 +176,8 @@ def _sweep_spec(args):
     if args.file:
         if args.scene or args.grid:
             raise InputError("give either --file or SCENE with --grid, not both")
-        spec = load_grid_file(args.file, allowed=args.allow_scene)
+        with flags("load_grid_file"):
+            spec = load_grid_file(args.file, allowed=args.allow_scene)
     else:
         if not args.scene or not args.grid:
             raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
@@ -211,7 +212,8 @@ def _grid_axes(items: list[str]) -> dict:
         name = name.strip()
         if name in axes:
             raise InputError(f"--grid {name} is given twice; give each axis once")
-        values = parse_axis(name, text)
+        with flags("parse_axis"):
+            values = parse_axis(name, text)
         for value in values:
             check_real(f"--grid {name}", value)
         check_distinct(f"--grid {name}", values)

@@ -23,7 +23,7 @@ CASES = [
     (["march", "./pyproject.toml"], "scene file './pyproject.toml' is not a Python file (.py)"),
     (["march", "missing/scene.py"], "scene file 'missing/scene.py' does not exist"),
     (["compare", "harmonic", "--methods", "rk4", "--halvings", "100000"],
-     "halvings must be at most 40, got 100000"),
+     "--halvings must be at most 40, got 100000"),
     (["compare", "pendulum", "--workers", "0"], "--workers must be a positive integer, got 0"),
     (["sweep", "kepler", "--grid", "tau0=0,0.01"], "tau0 must be > 0, got 0.0"),
     (["sweep", "harmonic", "--grid", "tau0=-0.1", "--methods", "rk4"],
