@@ -216,7 +216,6 @@ def test_every_command_line_default_is_the_apis():
 def test_the_options_a_command_builds_by_default_are_the_apis():
     from ddvp_nlp import Compilation, GridOptions, Output, StepControl, Tolerance
     from ddvp_nlp.cli import arguments
-
     from ddvp_nlp.cli.request import Request
 
     def request(*words):
