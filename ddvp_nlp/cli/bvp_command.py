@@ -11,12 +11,12 @@ from ..io.run_folder import read_guess
 from ..scenes import Endpoints
 from ..solvers import AtEnergy, Output, Shooting, solve_bvp
 from . import arguments as options
-from .one_run import run_one
+from .one_run import run_scene
 
 
 def run_bvp(args) -> int:
     """``ddvp bvp SCENE``."""
-    return run_one(args, {False: _bvp, True: _bvp_higher})
+    return run_scene(args, {False: _bvp, True: _bvp_higher})
 
 
 def _bvp(args, scene, config, scheme):

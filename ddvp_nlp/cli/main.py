@@ -29,7 +29,7 @@ from .summary import format_warning
 
 # Each command: the module of this package that runs it and its function, imported when the
 # command runs (`ddvp march` loads nothing of the studies, `ddvp scenes` nothing of a solver).
-COMMANDS = {"scenes": "scenes_command:run_scenes", "march": "march_command:run_march",
+COMMANDS = {"scenes": "scenes_command:run_scenes", "march": "march_command:run_march_command",
             "bvp": "bvp_command:run_bvp", "compare": "study_commands:run_compare",
             "stress": "study_commands:run_stress", "sweep": "study_commands:run_sweep",
             "reproduce": "study_commands:run_reproduce",

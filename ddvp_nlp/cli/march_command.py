@@ -24,15 +24,15 @@ from .one_run import (
     checkpoint_saver,
     requested_meta,
     resume_record,
-    run_one,
-    save_run,
+    run_scene,
     scheme_of,
+    write_whole,
 )
 from .parser import parse_settings
 from .summary import print_summary
 
 
-def run_march(args) -> int:
+def run_march_command(args) -> int:
     """``ddvp march SCENE`` or ``ddvp march --resume FOLDER``."""
     if args.resume:
         if args.t_eval is not None or args.events:
@@ -46,7 +46,7 @@ def run_march(args) -> int:
     if args.keep == "t_eval" and args.t_eval is None and not args.events:
         raise InputError("--keep t_eval keeps only the --t-eval states and the --event "
                          "crossings: give --t-eval or --event")
-    return run_one(args, {False: _march, True: _march_higher})
+    return run_scene(args, {False: _march, True: _march_higher})
 
 
 def run_resume(args) -> int:
@@ -98,7 +98,7 @@ def run_resume(args) -> int:
         extra = {"carried": solution.stats["carried"], "resume": record,
                  "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
                  "overrides": record["overrides"]}
-        meta = save_run(args, out, scene, config, scheme, solution, extra)
+        meta = write_whole(args, out, scene, config, scheme, solution, extra)
     print_summary(meta, out.path)
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
@@ -212,7 +212,7 @@ def checked_carried(folder, carried):
 
 
 def _march(args, scene, config, scheme):
-    times, events = args.requested  # checked by run_one before the folder was made
+    times, events = args.requested  # checked by run_scene before the folder was made
     if args.scheme not in RULES:
         if _thinned(args):
             raise InputError(f"--keep-every and --keep thin a march of this package's schemes; "

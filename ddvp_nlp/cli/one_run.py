@@ -20,7 +20,7 @@ from .parser import parse_settings
 from .summary import print_summary
 
 
-def run_one(args, solvers: dict) -> int:
+def run_scene(args, solvers: dict) -> int:
     """``ddvp march`` or ``ddvp bvp`` on a scene: resolve, solve, write the run folder, print
     its summary. ``solvers[higher]`` is the solve ``(args, scene, config, scheme) ->
     (solution, extra)`` of a first-order (``False``) or higher-order (``True``) scene."""
@@ -47,7 +47,7 @@ def run_one(args, solvers: dict) -> int:
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) before the run had a "
                           f"node to keep; nothing new was written: {holds(out)}") from None
-        meta = save_run(args, out, scene, config, scheme, solution,
+        meta = write_whole(args, out, scene, config, scheme, solution,
                         {**(extra or {}), "overrides": overrides})
     print_summary(meta, out.path)
     print_requested(meta, solution)
@@ -58,7 +58,7 @@ def run_one(args, solvers: dict) -> int:
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
 
-def save_run(args, out, scene, config, scheme, solution, extra) -> dict:
+def write_whole(args, out, scene, config, scheme, solution, extra) -> dict:
     """The run's set written with interrupts held (only the figure may be cut short); on a
     write failure, what the folder holds is said."""
     try:

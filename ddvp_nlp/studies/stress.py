@@ -167,7 +167,7 @@ def case_tasks(case: StressCase, *, compiler, cache_dir=None, max_steps: int = 2
         # Larger first: the longest runs start early, so the workers finish together.
         cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
         tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
-                          function="ddvp_nlp.studies.stress:run_one",
+                          function="ddvp_nlp.studies.stress:stress_run",
                           kwargs={"group": case.group, "case": case.name,
                                   "scene": _portable(case.scene),
                                   "scene_digest": scene_digest(case.scene),
@@ -184,7 +184,7 @@ def _portable(scene: str) -> str:
     return str(scene_file(scene).resolve()) if scene.endswith(".py") or "/" in scene else scene
 
 
-def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
+def stress_run(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
             time_limit, scene_digest=None) -> dict:
     """One method on one case: its row (a grid task; runs in any process). ``scene_digest``:
     the file this process loads must be the one the grid was planned with."""
@@ -364,4 +364,4 @@ def status_counts(rows) -> dict:
 
 __all__ = ["COLUMNS", "DEFAULT_METHODS", "ROWS", "Breakdown", "StressCase", "StressPlan",
            "StressResult", "breakdowns", "case_tasks", "default_cases", "plan_stress",
-           "run_one", "run_stress", "status_counts"]
+           "run_stress", "status_counts", "stress_run"]

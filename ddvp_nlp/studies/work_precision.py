@@ -365,7 +365,7 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
     reference = reference_for(scene, plan.overrides, plan.reference)
     where = scene.source or scene  # a scene made in Python runs in this process only
     tasks = [Task(key=f"{method.name}|{'target=' if aims else ''}{value!r}",
-                  function="ddvp_nlp.studies.work_precision:run_one",
+                  function="ddvp_nlp.studies.work_precision:timed_run",
                   kwargs={"scene": where, "overrides": plan.overrides,
                           "method": method.name, "value": value, "repeats": plan.repeats,
                           "budget_s": plan.budget_s, "compiler": plan.compiler,
@@ -379,7 +379,7 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
                          plan.repeats, plan.budget_s)
 
 
-def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
+def timed_run(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
             max_steps, reference: str = "auto", aims: bool = False) -> dict:
     """One run of the comparison, timed and measured: its row (a grid task); with ``aims``
     the method aims at the trajectory error ``value`` from a pilot at the scene's ``tau0``."""
