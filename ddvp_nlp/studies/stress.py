@@ -167,7 +167,7 @@ def case_tasks(case: StressCase, *, compiler, cache_dir=None, max_steps: int = 2
         # Larger first: the longest runs start early, so the workers finish together.
         cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
         tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
-                          function="ddvp_nlp.studies.stress:stress_run",
+                          function=TASK_FUNCTION,
                           kwargs={"group": case.group, "case": case.name,
                                   "scene": _portable(case.scene),
                                   "scene_digest": scene_digest(case.scene),
@@ -221,6 +221,13 @@ def stress_run(*, group, case, scene, settings, method, value, compiler, cache_d
         row["predicted_breaks"] = prediction["breaks"]
         row["w_ratio"] = prediction["w_ratio"]
     return row
+
+
+# The task's function as journals name it: every row's fingerprint hashes this path, so a
+# journal written before `stress_run` had its own name (it was `run_one`, the name of the
+# command line's run too) is resumed, not run again; `run_one` stays for it.
+run_one = stress_run
+TASK_FUNCTION = "ddvp_nlp.studies.stress:run_one"
 
 
 def failure_row(task: Task, error: str) -> dict:
