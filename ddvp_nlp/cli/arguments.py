@@ -238,9 +238,9 @@ def _given(request, names) -> dict:
 
 def _comparison(request):
     from ..studies.work_precision import CompareOptions
-
     return CompareOptions(halvings=request.halvings, repeats=request.repeats,
-                          max_steps=request.max_steps)
+                          max_steps=request.max_steps,
+                          target_errors=target_errors(request.target_errors))
 
 
 def _continuation(request):
@@ -306,6 +306,18 @@ def _check_lists(args) -> None:
     horizons = args.horizons
     if horizons is not None:
         check_values("--horizons", horizons, positive=True)
+
+
+def target_errors(text: str | None) -> list[float] | None:
+    """``--target-errors E1,E2,...`` as numbers (`CompareOptions` checks them)."""
+    if text is None:
+        return None
+    try:
+        errors = [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
+            from None
+    return errors
 
 
 def check_values(flag: str, text: str, *, positive: bool = False) -> list[float]:

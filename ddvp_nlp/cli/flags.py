@@ -31,7 +31,7 @@ FLAGS = {
     # Scheme (march, bvp)
     "alpha": "--alpha",
     # CompareOptions (compare)
-    "halvings": "--halvings", "repeats": "--repeats",
+    "halvings": "--halvings", "repeats": "--repeats", "target_errors": "--target-errors",
     # Continuation (periodic)
     "Continuation.tol": "--stability-tol", "Continuation.step": "--step",
     "Continuation.max_orbits": "--max-orbits",
@@ -42,6 +42,8 @@ FLAGS = {
     "merge_shards.shard": "--shard", "merge_shards.out": "--out",
     # a sweep's axes and grid file (studies/sweep.py, studies/sweep_file.py)
     "parse_axis.grid": "--grid", "load_grid_file.allowed": "--allow-scene",
+    # a comparison's scene settings (studies/comparable.py)
+    "comparison.settings": "--set",
 }
 
 _LEADING = re.compile(r"[a-z_][a-z0-9_]*(?=[ :])")

@@ -18,7 +18,7 @@ from ..studies.reproduce import reproduce
 from ..studies.stress_report import stress
 from ..studies.sweep import SweepSpec, parse_axis, sweep_cases
 from ..studies.sweep_file import load_grid_file
-from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest, check_target_errors
+from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
 from ..validation import check_real
 from . import arguments as options
 from .arguments import check_distinct
@@ -49,7 +49,7 @@ def run_compare(args) -> int:
     settings = parse_settings(args.settings)
     scene.resolve(settings)  # every name and value checked before a folder is made
     checked = CompareOptions(methods=args.methods, halvings=args.halvings, repeats=args.repeats,
-                             target_errors=_target_errors(args.target_errors))
+                             target_errors=options.target_errors(args.target_errors))
     if checked.methods is not None:
         get_methods(checked.methods)
     named = {"settings": settings, "methods": args.methods, "halvings": args.halvings,
@@ -61,10 +61,10 @@ def run_compare(args) -> int:
                                options=[name for name in named if name != "settings"],
                                defaults={"settings": {}}, scene=scene)
     if args.horizons:
-        with output_folder(target, owned=owned) as out:
+        with output_folder(target, owned=owned) as out, flags("comparison"):
             return _compare_horizons(args, scene, out)
     try:
-        with output_folder(target, owned=owned) as out:
+        with output_folder(target, owned=owned) as out, flags("comparison"):
             # the Python compare itself, into the command's folder
             result = compare(scene, params=settings, options=checked,
                              compilation=options.compiled_or_not(args),
@@ -85,19 +85,6 @@ def run_compare(args) -> int:
                       f"({'at most ' if bound else ''}{seconds * 1e3:.3g} ms)")
     print(f"  written to {out.path}/ (work_precision.csv, work_precision.png, summary.md)")
     return _grid_ended("compare", rows)
-
-
-def _target_errors(text: str | None) -> list[float] | None:
-    """``--target-errors E1,E2,...`` as numbers, checked as CompareOptions checks them, under the
-    option's name."""
-    if text is None:
-        return None
-    try:
-        errors = [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
-            from None
-    return list(check_target_errors(errors, "--target-errors"))
 
 
 def _compare_horizons(args, scene, out) -> int:
@@ -153,7 +140,8 @@ def run_sweep(args) -> int:
     scene = load_scene(spec.scene)
     target, owned = default_or(args, f"{scene.name}-sweep", named, scene=scene)
     try:
-        with output_folder(target, owned=owned) as out, warnings.catch_warnings():
+        with output_folder(target, owned=owned) as out, warnings.catch_warnings(), \
+                flags("comparison"):
             warnings.simplefilter("ignore", RuntimeWarning)
             rows = stress(out, cases=cases,
                           steps=StepControl(max_steps=spec.max_steps,

@@ -121,8 +121,7 @@ class CompareOptions:
 
 
 def check_target_errors(values, name: str = "target_errors") -> tuple[float, ...]:
-    """Target errors: a non-empty list of distinct numbers in (0, 1), refused under ``name``
-    (the command line's ``--target-errors``)."""
+    """Target errors: a non-empty list of distinct numbers in (0, 1), refused under ``name``."""
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
         raise InputError(f"{name} must be a non-empty list of errors in (0, 1), "
                          f"got {values!r}")

@@ -92,6 +92,9 @@ def test_every_flag_in_the_table_is_an_option_of_the_command_line():
     ("folder 'p': no shard-K-of-N folder in it (run the shards with `shard` K/N `out` there "
      "first)", "merge_shards", "--merge 'p': no shard-K-of-N folder in it (run the shards "
      "with --shard K/N --out there first)"),
+    ("scene 'lag' starts from v0; the comparison needs p0 (`settings` p0=...)", "comparison",
+     "scene 'lag' starts from v0; the comparison needs p0 (--set p0=...)"),
+    ("target_errors gives 0.5 twice", None, "--target-errors gives 0.5 twice"),
     ("keep must be one of nodes, t_eval, got 'x'", None,
      "keep must be one of nodes, t_eval, got 'x'"),
 ])
