@@ -212,7 +212,7 @@ def workers(args, *, default: int | None = 1) -> Workers:
 # (`check_options`).
 NUMBERS = {
     "nodes": "count", "energy": "finite", "orbits": "count", "t_end": "finite",
-    "tau0": "positive", "seed": "natural", "workers": "count", "time_unit": "positive",
+    "tau0": "positive", "seed": "natural", "time_unit": "positive",
     "run_budget": "positive", "reference_span": "positive",
 }
 # Seeds numpy takes: below 2**63 (a larger one was taken, and a negative one a traceback).
@@ -255,6 +255,15 @@ def _bounds(request) -> StepControl:
     return StepControl(**_given(request, ("max_steps", "time_limit")))
 
 
+def _workers(request) -> None:
+    """``--workers``: a count the runner's `Workers` takes (and whose processes fit in
+    memory); ``None``, the command's own default."""
+    from ..runner.tasks import Workers
+
+    if request.workers is not None:
+        Workers(count=request.workers)
+
+
 def _march_output(request) -> Output:
     """The fields of a march's `Output` the command line gives as numbers."""
     return Output(checkpoint_interval=request.checkpoint_every,
@@ -268,10 +277,12 @@ OPTION_OBJECTS = {
               (None, lambda request: Scheme(alpha=request.alpha))),
     "bvp": ((None, grid_options), (None, lambda request: Scheme(alpha=request.alpha))),
     "periodic": ((None, grid_options), ("Continuation", _continuation)),
-    "poincare": ((None, tolerance),),
-    "compare": ((None, _comparison),),
-    "stress": ((None, _bounds),),
-    "sweep": ((None, _bounds),),
+    "poincare": ((None, tolerance), (None, _workers)),
+    "chaos": ((None, _workers),),
+    "compare": ((None, _comparison), (None, _workers)),
+    "stress": ((None, _bounds), (None, _workers)),
+    "sweep": ((None, _bounds), (None, _workers)),
+    "reproduce": ((None, _workers),),
 }
 
 

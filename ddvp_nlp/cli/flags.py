@@ -35,6 +35,8 @@ FLAGS = {
     # Continuation (periodic)
     "Continuation.tol": "--stability-tol", "Continuation.step": "--step",
     "Continuation.max_orbits": "--max-orbits",
+    # Workers (the commands that run many tasks)
+    "workers": "--workers",
     # the chaos map and its shards (studies/chaos_map.py)
     "chaos_map.energy": "--energy", "chaos_map.grid": "--grid",
     "chaos_map.section": "--section", "chaos_map.shard": "--shard",
