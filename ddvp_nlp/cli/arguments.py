@@ -162,7 +162,7 @@ def grid_options(args) -> GridOptions:
 def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:
     """A march's progress (on unless ``--no-progress``), checkpoints, stop request, output
     times and events (``cli/events.py``)."""
-    keep_every = args.keep_every or 1
+    keep_every = 1 if args.keep_every is None else args.keep_every
     thinned = keep_every > 1 or args.keep != "nodes"
     return Output(progress=args.progress is not False,
                   checkpoint=None if thinned else checkpoint,
@@ -267,7 +267,7 @@ def _workers(request) -> None:
 def _march_output(request) -> Output:
     """The fields of a march's `Output` the command line gives as numbers."""
     return Output(checkpoint_interval=request.checkpoint_every,
-                  keep_every=request.keep_every or 1)
+                  keep_every=1 if request.keep_every is None else request.keep_every)
 
 
 # The option objects each command's numbers stand for: (the object whose fields the messages

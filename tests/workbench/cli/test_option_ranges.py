@@ -57,6 +57,27 @@ def test_a_bad_positive_option_is_refused_by_its_flag(case, value):
     assert ("finite" if not math.isfinite(value) else "> 0") in str(refused.value)
 
 
+# Every count of an option object, as (command, the words before it, option, least value).
+COUNTS = [("march", ["harmonic"], "keep-every", 1), ("march", ["harmonic"], "max-steps", 1),
+          ("periodic", ["harmonic"], "max-orbits", 2), ("compare", ["harmonic"], "halvings", 0),
+          ("compare", ["harmonic"], "repeats", 1), ("compare", ["harmonic"], "max-steps", 1),
+          ("stress", [], "max-steps", 1), ("stress", [], "workers", 1),
+          ("poincare", ["henon_heiles", "--energy", "0.1"], "workers", 1)]
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(st.sampled_from(COUNTS), st.integers(-10**6, 1))
+def test_a_count_below_its_least_is_refused_by_its_flag(case, value):
+    command, words, option, least = case
+    request = _request(command, [*words, f"--{option}={value}"])
+    if value >= least:
+        check_options(request)
+        return
+    with pytest.raises(InputError) as refused:
+        check_options(request)
+    assert str(refused.value).startswith(f"--{option} must be "), str(refused.value)
+
+
 FIELDS = [(StepControl, name) for name in ("tol", "tau_min", "tau_max", "max_step_ratio",
                                            "time_limit", "energy_guard")] + \
     [(Tolerance, name) for name in ("rtol", "atol", "energy_tol", "global_tol")] + \
