@@ -51,7 +51,7 @@ ROWS = RowSchema(
 COLUMNS = list(ROWS.columns)
 # Methods of the registry a case leaves out unless asked for by name, and why.
 _LATER = ("joined the registry after the stress grid was laid out; kept out of the default "
-          "grid so its cost and table stay as they were (ask for it with --methods)")
+          "grid so its cost and table stay as they were (ask for it by name among the methods)")
 NOT_BY_DEFAULT = {name: _LATER for name in ("lee_left", "leapfrog", "verlet_adaptive", "avf")}
 DEFAULT_METHODS = tuple(name for name in METHODS if name not in NOT_BY_DEFAULT)
 DOP853_RTOL = 1e-10
