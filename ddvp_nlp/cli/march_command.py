@@ -17,22 +17,22 @@ from ..io.run_folder import read_run
 from ..scenes import is_builtin, load_scene, scene_digest, scene_fingerprint
 from ..solvers import MarchState, continue_march, find_compiler, march
 from . import arguments as options
-from .arguments import check_numbers
+from .arguments import check_options
 from .interrupts import INTERRUPTS
 from .one_run import (
     RESUME_OPTIONS,
     checkpoint_saver,
     requested_meta,
     resume_record,
-    run_one,
-    save_run,
+    run_scene,
     scheme_of,
+    write_whole,
 )
 from .parser import parse_settings
 from .summary import print_summary
 
 
-def run_march(args) -> int:
+def run_march_command(args) -> int:
     """``ddvp march SCENE`` or ``ddvp march --resume FOLDER``."""
     if args.resume:
         if args.t_eval is not None or args.events:
@@ -43,10 +43,10 @@ def run_march(args) -> int:
             raise InputError("--keep-every and --keep apply to a march from its start: a "
                              "thinned run cannot be continued with --resume")
         return run_resume(args)
-    if getattr(args, "keep", "nodes") == "t_eval" and args.t_eval is None and not args.events:
+    if args.keep == "t_eval" and args.t_eval is None and not args.events:
         raise InputError("--keep t_eval keeps only the --t-eval states and the --event "
                          "crossings: give --t-eval or --event")
-    return run_one(args, {False: _march, True: _march_higher})
+    return run_scene(args, {False: _march, True: _march_higher})
 
 
 def run_resume(args) -> int:
@@ -68,7 +68,7 @@ def run_resume(args) -> int:
         record = resume_record_of(folder, meta)
         scene = resume_scene(args, folder, record)
         args = args.but(**record["options"])  # the options the run was made with
-        check_numbers(args)
+        check_options(args)
         if args.scheme not in RULES:
             raise InputError(f"--resume: the resume record of {folder} gives the scheme "
                              f"{args.scheme!r}; a march continues with one of {', '.join(RULES)}")
@@ -98,7 +98,7 @@ def run_resume(args) -> int:
         extra = {"carried": solution.stats["carried"], "resume": record,
                  "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
                  "overrides": record["overrides"]}
-        meta = save_run(args, out, scene, config, scheme, solution, extra)
+        meta = write_whole(args, out, scene, config, scheme, solution, extra)
     print_summary(meta, out.path)
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
@@ -212,7 +212,7 @@ def checked_carried(folder, carried):
 
 
 def _march(args, scene, config, scheme):
-    times, events = args.requested  # checked by run_one before the folder was made
+    times, events = args.requested  # checked by run_scene before the folder was made
     if args.scheme not in RULES:
         if _thinned(args):
             raise InputError(f"--keep-every and --keep thin a march of this package's schemes; "
@@ -250,8 +250,7 @@ def _march(args, scene, config, scheme):
 
 def _thinned(args) -> bool:
     """Whether ``--keep-every`` or ``--keep t_eval`` was given."""
-    return getattr(args, "keep_every", None) is not None or \
-        getattr(args, "keep", "nodes") != "nodes"
+    return args.keep_every is not None or args.keep != "nodes"
 
 
 def _all_residuals(stats: dict) -> dict:

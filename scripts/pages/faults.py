@@ -1132,6 +1132,28 @@ def periodic_cases() -> list[Case]:
                  expect_text="not finite anywhere")]
 
 
+# Options of `ddvp periodic` that only --stability or --follow used: each had been taken
+# unchecked without them (--stability-tol nan ran the orbit and exited 0, issue 45); now the
+# option object (Continuation) checks them, whichever path runs, and names the flag.
+RANGES = [
+    (["--stability-tol", "nan"], "--stability-tol must be finite, got nan"),
+    (["--stability-tol", "inf"], "--stability-tol must be finite, got inf"),
+    (["--stability-tol", "-1"], "--stability-tol must be > 0, got -1.0"),
+    (["--stability-tol", "nan", "--stability"], "--stability-tol must be finite, got nan"),
+    (["--step", "nan"], "--step must be finite, got nan"),
+    (["--step", "0"], "--step must be > 0, got 0.0"),
+    (["--max-orbits", "1"], "--max-orbits must be an integer >= 2, got 1"),
+]
+
+
+def range_cases() -> list[Case]:
+    """Every positive option of ``ddvp periodic`` refused by its flag when it is not finite
+    or not positive, before any orbit is solved (exit 2, nothing written)."""
+    return [Case("ranges", " ".join(option), ["periodic", "harmonic", "--nodes", "40",
+                                               "--no-plot", *option, "--out", "out"], (2,),
+                 expect_text=text) for option, text in RANGES]
+
+
 def backward_cases() -> list[Case]:
     """Every method told to run backwards (t_end < t0): it marches to t_end with steps, or
     fails by name; a success with no step taken, t left at t0, is a lie (issue 45)."""
@@ -1397,7 +1419,8 @@ def main() -> int:
               "files": hostile_file_cases, "scenes": scene_cases, "numbers": number_cases,
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
-              "cluster": cluster_cases, "periodic": periodic_cases, "backward": backward_cases,
+              "cluster": cluster_cases, "periodic": periodic_cases, "ranges": range_cases,
+              "backward": backward_cases,
               "merges": merge_cases,
               "load": load_cases}
     only = set(args.only.split(",")) if args.only else None

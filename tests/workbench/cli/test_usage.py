@@ -216,15 +216,20 @@ def test_every_command_line_default_is_the_apis():
 def test_the_options_a_command_builds_by_default_are_the_apis():
     from ddvp_nlp import Compilation, GridOptions, Output, StepControl, Tolerance
     from ddvp_nlp.cli import arguments
+    from ddvp_nlp.cli.request import Request
 
-    march = build_parser("march").parse_args(["march", "pendulum"])
+    def request(*words):
+        parser = build_parser(words[0])
+        return Request.read(parser.parse_args(list(words)), parser.commands[words[0]])
+
+    march = request("march", "pendulum")
     assert arguments.step_control(march) == StepControl()
     assert arguments.tolerance(march) == Tolerance()
     assert arguments.compilation(march) == Compilation()
     assert arguments.march_output(march).checkpoint_interval == Output().checkpoint_interval
-    bvp = build_parser("bvp").parse_args(["bvp", "pendulum"])
+    bvp = request("bvp", "pendulum")
     assert arguments.grid_options(bvp) == GridOptions()
-    periodic = build_parser("periodic").parse_args(["periodic", "pendulum"])
+    periodic = request("periodic", "pendulum")
     assert arguments.grid_options(periodic) == GridOptions()
 
 
