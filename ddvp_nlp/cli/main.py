@@ -51,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         from . import supervisor
 
+        _stdout_usable()  # before the supervisor flushes them (``ddvp scenes >&-``)
         if supervisor.available():
             return supervisor.supervise(lambda: main(sys.argv[1:]))
     original_format = warnings.formatwarning

@@ -46,6 +46,11 @@ def run_march_command(args) -> int:
     if args.keep == "t_eval" and args.t_eval is None and not args.events:
         raise InputError("--keep t_eval keeps only the --t-eval states and the --event "
                          "crossings: give --t-eval or --event")
+    if _thinned(args) and args.changed(["checkpoint_every"]):
+        # asked for, the checkpoints would otherwise be left out without a word
+        raise InputError(f"--checkpoint-every {args.checkpoint_every:g} does not apply to a "
+                         "thinned march (--keep-every or --keep t_eval): a checkpoint is for "
+                         "--resume, which needs every node; give one or the other")
     return run_scene(args, {False: _march, True: _march_higher})
 
 

@@ -13,7 +13,8 @@ from ddvp_nlp import InputError, load_scene, march, solve_bvp
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
 PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
-          "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+          "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
+          "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
           "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "Verdict",

@@ -262,3 +262,19 @@ def test_the_guides_synopsis_is_the_parsers():
         assert not missing, f"ddvp {name}: {missing} missing from the guide's synopsis"
     unknown = set(re.findall(r"--[a-z][a-z0-9-]*", synopsis)) - known
     assert not unknown, f"the guide's synopsis names options the parser lacks: {unknown}"
+
+
+def test_a_command_started_with_stdout_closed_shows_no_traceback():
+    """``ddvp scenes >&-`` (descriptor 1 closed before the command starts): the supervised
+    command flushed a missing stdout and showed a traceback (issue 45)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    ddvp = shutil.which("ddvp", path=os.path.dirname(sys.executable))
+    assert ddvp is not None
+    done = subprocess.run(f"'{ddvp}' scenes >&-", shell=True, capture_output=True,
+                          text=True, timeout=120)
+    assert "Traceback" not in done.stderr
+    assert done.returncode == 0, done.stderr
