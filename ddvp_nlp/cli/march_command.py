@@ -4,6 +4,7 @@ with ``--method``), and ``--resume``, its continuation from a run folder."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import math
 import os
@@ -16,6 +17,7 @@ from ..io.atomic import FolderBusy, open_folder
 from ..io.run_folder import read_run
 from ..scenes import is_builtin, load_scene, scene_digest, scene_fingerprint
 from ..solvers import MarchState, continue_march, find_compiler, march
+from ..validation import check_real
 from . import arguments as options
 from .arguments import check_options
 from .interrupts import INTERRUPTS
@@ -93,9 +95,10 @@ def run_resume(args) -> int:
         state = MarchState.of(arrays["t"], arrays["q"], arrays["p"], config.t_end,
                               checked_carried(folder, meta.get("carried")))
         saver = checkpoint_saver(args, scene, out, record)
+        tau0, accuracy = _resumed_step(folder, meta, config.tau0, options.tolerance(args))
         solution = continue_march(
-            scene.system, state, t_end, tau0=config.tau0, scheme=scheme, params=config.params,
-            steps=options.step_control(args), accuracy=options.tolerance(args),
+            scene.system, state, t_end, tau0=tau0, scheme=scheme, params=config.params,
+            steps=options.step_control(args), accuracy=accuracy,
             compilation=options.compilation(args),
             output=options.march_output(args, checkpoint=saver,
                                         stop=INTERRUPTS.stop_requested))
@@ -251,6 +254,23 @@ def _march(args, scene, config, scheme):
                       "resume": resume_record(args, scene, config,
                                               parse_settings(args.settings)),
                       **requested_meta(solution, events)}
+
+
+def _resumed_step(folder, meta: dict, tau0: float, accuracy):
+    """``(tau0, accuracy)`` a resumed march goes on with: the scene's, or for a run that chose
+    its own first step for a target error (``--target-error``) the step it chose and the
+    tolerance it was judged by (the scene's ``tau0`` did not make its first step)."""
+    chosen = meta.get("target_error")
+    if not isinstance(chosen, dict) or "target" not in chosen:
+        return tau0, accuracy
+    if chosen.get("tau0") is None:
+        raise InputError(f"--resume {folder}: this --target-error run chose no step (its pilot "
+                         "march ended before a run was made): start a new march")
+    step = check_real("the run's chosen tau0 (meta.json target_error)", chosen["tau0"],
+                      positive=True)
+    target = check_real("the run's target error (meta.json target_error)", chosen["target"],
+                        positive=True)
+    return step, dataclasses.replace(accuracy, global_tol=target)
 
 
 def _thinned(args) -> bool:
