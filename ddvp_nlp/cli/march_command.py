@@ -75,7 +75,12 @@ def run_resume(args) -> int:
         record = resume_record_of(folder, meta)
         scene = resume_scene(args, folder, record)
         args = args.but(**record["options"])  # the options the run was made with
-        check_options(args)
+        try:
+            check_options(args)
+        except InputError as exc:  # the folder's value, not one the user typed: say so
+            raise InputError(f"--resume {folder}: the run's recorded options are refused "
+                             f"(meta.json resume.options; not a value given on this command "
+                             f"line): {exc}") from None
         if args.scheme not in RULES:
             raise InputError(f"--resume: the resume record of {folder} gives the scheme "
                              f"{args.scheme!r}; a march continues with one of {', '.join(RULES)}")
