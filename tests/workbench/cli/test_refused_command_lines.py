@@ -46,6 +46,10 @@ CASES = [
      "--stability-tol must be finite, got -inf"),
     (["periodic", "harmonic", "--step", "nan"], "--step must be finite, got nan"),
     (["periodic", "harmonic", "--max-orbits", "1"], "--max-orbits must be an integer >= 2, got 1"),
+    # issue 45: a 6000-character path was answered as an output error (exit 1)
+    (["march", "a/" * 3000 + "scene.py"],
+     "scene file " + repr(("a/" * 3000)[:120]) + "..." + repr(("a/" * 3000 + "scene.py")[-60:])
+     + " (6008 characters) cannot be looked up: File name too long"),
     # issue 45: the checkpoints asked for were left out without a word
     (["march", "harmonic", "--keep-every", "10", "--checkpoint-every", "1"],
      "--checkpoint-every 1 does not apply to a thinned march (--keep-every or --keep t_eval): "
