@@ -278,3 +278,21 @@ def test_a_command_started_with_stdout_closed_shows_no_traceback():
                           text=True, timeout=120)
     assert "Traceback" not in done.stderr
     assert done.returncode == 0, done.stderr
+
+
+def test_a_failed_runs_verdict_says_what_it_covers(tmp_path, capsys):
+    """A failed run was printed ``accurate`` beside its failed status (the verdict of the part
+    kept, not said so): it says where the run ended and that the verdict covers up to there
+    (issue 45)."""
+    import re
+
+    from ddvp_nlp.cli import main
+
+    code = main(["march", "pendulum", "--set", "p0=2.2", "--max-steps", "500", "--no-plot",
+                 "--no-progress", "--out", str(tmp_path / "run")])
+    out = capsys.readouterr().out
+    assert code == 1
+    verdict = next(line for line in out.splitlines() if "verdict:" in line)
+    assert re.search(r"no verdict on the whole run \(it ended \w+ at t = [-\d.e+]+\); the \d+ "
+                     r"steps kept up to there are (accurate|drifted from t = )", verdict), verdict
+    assert not verdict.strip().endswith("verdict: accurate")
