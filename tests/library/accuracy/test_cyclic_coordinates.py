@@ -95,3 +95,30 @@ def test_a_winding_coordinate_added_leaves_the_verdict_and_the_scales(drawn):
     # below the verdict's thresholds (1e-2)
     assert np.asarray(b.scale)[old] == pytest.approx(np.asarray(a.scale), rel=1e-6, abs=1e-12)
     assert b.energy_scale == pytest.approx(a.energy_scale, rel=1e-6)
+
+
+def rotor_pair():
+    """A pendulum coupled to a rotor: ``H`` is ``2 pi``-periodic in both angles, neither is
+    cyclic, and the rotor's angle winds (its range grows with the horizon)."""
+    return HamiltonianSystem(lambda q, p, t: (p[0] ** 2 + p[1] ** 2) / 2 + (1 - ca.cos(q[0]))
+                             + 0.3 * (1 - ca.cos(q[0] - q[1])), 2, name="rotor_pair")
+
+
+def test_a_winding_angle_counts_one_turn_for_itself_and_the_others():
+    """Before, the pendulum's angle was judged against a tenth of the rotor's winding (14 rad
+    at t = 50, 116 rad at t = 400) and the energy against 28-225 for |H| about 5."""
+    system = rotor_pair()
+    runs = [march(system, [0.3, 0.0], [0.0, 3.0], (0.0, t_end), tau0=0.02, scheme="fixed",
+                  compilation=VM, accuracy=CHECK) for t_end in (50.0, 400.0)]
+    for run in runs:
+        scale = run.verdict.scale
+        assert np.ptp(run.q[:, 1]) > 100 and scale[1] == pytest.approx(2 * np.pi)
+        assert scale[0] == pytest.approx(np.ptp(run.q[:, 0]), rel=0.05)
+    assert runs[1].verdict.energy_scale == pytest.approx(runs[0].verdict.energy_scale,
+                                                         rel=0.05)
+    # a whole turn added to the rotor's start changes nothing of the verdict
+    shifted = march(system, [0.3, 2 * np.pi], [0.0, 3.0], (0.0, 50.0), tau0=0.02,
+                    scheme="fixed", compilation=VM, accuracy=CHECK)
+    assert shifted.verdict.name == runs[0].verdict.name
+    assert np.asarray(shifted.verdict.scale) == pytest.approx(np.asarray(runs[0].verdict.scale),
+                                                              rel=1e-6)
