@@ -191,17 +191,25 @@ def free_components(system) -> np.ndarray | None:
 
 def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
                    free: np.ndarray | None) -> np.ndarray | None:
-    """The coordinates that wind as angles over the run: ``H`` is ``2 pi``-periodic in them
-    (``H(q + 2 pi e_j) = H(q)`` to round-off at the first, middle and last node) and their
-    range passes a turn. A cyclic coordinate (``free``) is left to `motion_scales`' own rule.
-    ``None`` if there is none."""
+    """The coordinates that wind as angles over the run: their range passes a turn, and they
+    are declared angles (``HamiltonianSystem(angles=...)``, a scene's ``periodic`` angles) or
+    ``H`` is ``2 pi``-periodic in them (``H(q + 2 pi e_j) = H(q)`` to round-off at the first,
+    middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
+    a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
+    none."""
     picks = np.unique([0, t.size // 2, t.size - 1])
     rows = z[picks]
     _, H = values.at_nodes(t[picks], rows)
     turns = np.zeros(2 * n, dtype=bool)
     span = np.ptp(z[:, :n], axis=0)
+    declared = getattr(values.system, "angle_indices", ())
     for j in range(n):
-        if span[j] <= 2 * np.pi or (free is not None and free[j]):
+        if span[j] <= 2 * np.pi:
+            continue
+        if j in declared:  # the user's word: an angle (a cyclic azimuth too)
+            turns[j] = True
+            continue
+        if free is not None and free[j]:
             continue
         shifted = rows.copy()
         shifted[:, j] += 2 * np.pi

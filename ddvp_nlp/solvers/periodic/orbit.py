@@ -95,7 +95,7 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import Solution, Status
-from ...validation import check_integer, check_real, check_state
+from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..grid.newton import newton
@@ -387,18 +387,8 @@ def check_integrals(integrals) -> tuple:
 
 def parse_angles(angles, n: int) -> tuple[int, ...]:
     """Indices into ``z = (q, p)`` (from 0) of the angle coordinates named ``"q1"`` ..
-    ``"qn"``."""
-    try:
-        names = (angles,) if isinstance(angles, str) else tuple(angles)
-    except TypeError:
-        raise InputError(f"angles must name coordinates q1..q{n}, got {angles!r}") from None
-    indices = []
-    for name in names:
-        match = re.fullmatch(r"q(\d+)", name) if isinstance(name, str) else None
-        if match is None or not 1 <= int(match.group(1)) <= n:
-            raise InputError(f"angles must name coordinates q1..q{n}, got {angles!r}")
-        indices.append(int(match.group(1)) - 1)
-    return tuple(sorted(set(indices)))
+    ``"qn"`` (`validation.check_angles`)."""
+    return check_angles(angles, n)
 
 
 def _start_nodes(request: GridRequest[Orbit], intervals: int):

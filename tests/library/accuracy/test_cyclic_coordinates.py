@@ -122,3 +122,29 @@ def test_a_winding_angle_counts_one_turn_for_itself_and_the_others():
     assert shifted.verdict.name == runs[0].verdict.name
     assert np.asarray(shifted.verdict.scale) == pytest.approx(np.asarray(runs[0].verdict.scale),
                                                               rel=1e-6)
+
+
+def test_a_declared_azimuth_is_judged_within_a_turn():
+    """The spherical pendulum's azimuth, declared an angle: judged within a turn (2 pi), not
+    against the hundreds of radians it winds; undeclared, a cyclic coordinate keeps its own
+    range (it may as well be a free direction, in any units)."""
+    def H(q, p, t):
+        return p[0] ** 2 / 2 + p[1] ** 2 / (2 * ca.sin(q[0]) ** 2) - ca.cos(q[0])
+    declared = HamiltonianSystem(H, 2, name="spherical", angles=("q2",))
+    run = march(declared, [2.0, 0.0], [0.0, 1.2], (0.0, 100.0), tau0=0.05, accuracy=CHECK)
+    assert np.ptp(run.q[:, 1]) > 100
+    assert run.verdict.scale[1] == pytest.approx(2 * np.pi)
+    plain = march(spherical_pendulum(), [2.0, 0.0], [0.0, 1.2], (0.0, 100.0), tau0=0.05,
+                  accuracy=CHECK)
+    assert plain.verdict.scale[1] >= np.ptp(plain.q[:, 1])
+    # stricter on the azimuth, the same on the rest
+    assert run.verdict.scale[0] == pytest.approx(plain.verdict.scale[0], rel=1e-9)
+    assert run.verdict.t_drift <= plain.verdict.t_drift
+
+
+@pytest.mark.parametrize("angles", [("q3",), ("x",), (1,), "q0"])
+def test_bad_angles_are_refused_by_name(angles):
+    from ddvp_nlp import InputError
+
+    with pytest.raises(InputError, match=r"angles must name coordinates q1\.\.q2"):
+        HamiltonianSystem(lambda q, p, t: p[0] ** 2 + p[1] ** 2, 2, angles=angles)
