@@ -186,6 +186,36 @@ _REPORTED = tuple(f for f in Verdict.__dataclass_fields__
                   if f not in ("name", "first_failure", "streamed"))
 
 
+@dataclass(frozen=True)
+class OrbitRecord:
+    """What a periodic solve found (``Solution.orbit``; ``solvers/periodic/orbit.py``).
+
+    Attributes:
+        period: ``T = t_N - t_0``.
+        energy: the prescribed energy ``E``.
+        section: the section's label (``"q1=0"``, ...).
+        unfolding: the unfolding parameter ``lambda`` of ``H``.
+        integral_unfoldings: the unfolding parameter ``mu`` of each first integral.
+        residual_limit: the limit the unscaled residuals were verified against.
+        winding: the turns ``w`` of each coordinate (``q_N = q_0 + 2 pi w``; zero off an
+            angle).
+        residuals: the largest unscaled residual of each kind (``canonical``, ``energy``,
+            ``prescribed_energy``, ``closure``, ``section``).
+        tau_min, tau_max: the shortest and longest step.
+    """
+
+    period: float
+    energy: float
+    section: str
+    unfolding: float
+    integral_unfoldings: tuple
+    residual_limit: float
+    winding: tuple
+    residuals: dict
+    tau_min: float
+    tau_max: float
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
@@ -209,6 +239,7 @@ class Solution:
         verdict: the accuracy check's `Verdict` (``solvers/accuracy/judgement.py`` sets it, once,
             in ``judge``), or ``None`` where no check was made (``accuracy=None``, a point that
             is not finite, a stopped long march: ``accuracy_skipped`` says why).
+        orbit: what a periodic solve found (`OrbitRecord`), else ``None``.
         accuracy_skipped: why a march's check was left out, else ``None``.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
@@ -242,6 +273,7 @@ class Solution:
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     verdict: Verdict | None = None
+    orbit: OrbitRecord | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
@@ -417,5 +449,5 @@ class SolverStatistics:
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
 
-__all__ = ["Failure", "Solution", "SolverStatistics", "Status", "Verdict", "bound_reached",
-           "hermite"]
+__all__ = ["Failure", "OrbitRecord", "Solution", "SolverStatistics", "Status", "Verdict",
+           "bound_reached", "hermite"]
