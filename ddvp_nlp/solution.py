@@ -217,6 +217,48 @@ class OrbitRecord:
 
 
 @dataclass
+class MarchRecord:
+    """What a march found besides its nodes (``Solution.march``; ``solvers/marching``), filled
+    in as the run goes; `as_stats` gives it under the keys ``meta.json`` has always used.
+
+    Attributes:
+        theta: the parameter values the march used.
+        solvability_warning: where the energy step's solvability weight changed sign (the
+            node, time and weights), else ``None``.
+        least_squares: the steps replaced by the least-squares step, one record each.
+        kept: a thinned march's record of what it kept (``keep_every``, ``keep``, the nodes
+            marched, the largest residuals over every step), else ``None``.
+        carried: what a continued march needs besides the last nodes (`MarchState`).
+        checkpoints, checkpoints_landed_s: the checkpoints written and when each landed
+            (seconds), where the run saved any.
+        target_error: the choice of ``tau0`` for a target error and its cost (the runs
+            tried), where one was asked for.
+        backward: the march ran backwards in time (``t_end < t_0``).
+    """
+
+    theta: list
+    solvability_warning: dict | None = None
+    least_squares: list = field(default_factory=list)
+    kept: dict | None = None
+    carried: dict | None = None
+    checkpoints: int | None = None
+    checkpoints_landed_s: list | None = None
+    target_error: dict | None = None
+    backward: bool = False
+
+    def as_stats(self) -> dict:
+        """The record under the keys of the run's ``stats`` (a key that was never set is
+        left out, as before: ``kept``, ``carried``, the checkpoints, ``target_error``,
+        ``backward``)."""
+        found = {"theta": self.theta, "solvability_warning": self.solvability_warning,
+                 "least_squares": self.least_squares}
+        optional = {"kept": self.kept, "carried": self.carried, "checkpoints": self.checkpoints,
+                    "checkpoints_landed_s": self.checkpoints_landed_s,
+                    "target_error": self.target_error, "backward": self.backward or None}
+        return {**found, **{key: value for key, value in optional.items() if value is not None}}
+
+
+@dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
 
@@ -240,6 +282,7 @@ class Solution:
             in ``judge``), or ``None`` where no check was made (``accuracy=None``, a point that
             is not finite, a stopped long march: ``accuracy_skipped`` says why).
         orbit: what a periodic solve found (`OrbitRecord`), else ``None``.
+        march: what a march found besides its nodes (`MarchRecord`), else ``None``.
         accuracy_skipped: why a march's check was left out, else ``None``.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
@@ -274,6 +317,7 @@ class Solution:
     stats: dict = field(default_factory=dict)
     verdict: Verdict | None = None
     orbit: OrbitRecord | None = None
+    march: MarchRecord | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
@@ -292,6 +336,11 @@ class Solution:
     def statistics(self) -> SolverStatistics:
         """The solver's counts in named fields (`SolverStatistics`)."""
         return SolverStatistics.of(self)
+
+    def written_stats(self) -> dict:
+        """``stats`` with what the solve found (`MarchRecord`) under the keys run files have
+        always used: the one mapping from the typed records to those keys."""
+        return {**self.stats, **(self.march.as_stats() if self.march is not None else {})}
 
     @property
     def tau(self) -> np.ndarray:
@@ -361,7 +410,7 @@ class Solution:
     def energy(self, system=None, params=None) -> np.ndarray:
         """``H(q_k, p_k, t_k)`` at every node, for the ``system`` that was solved (default: the
         one the solver remembered, or after pickling its dense field's ``H``; ``params``: its
-        parameter values; default the values the solve used, ``stats["theta"]``, else the
+        parameter values; default the values the solve used, ``march.theta``, else the
         system's defaults)."""
         system = system if system is not None else self.system
         if system is None and params is None and hasattr(self.vector_field, "energy"):
@@ -369,10 +418,10 @@ class Solution:
         if system is None:
             raise InputError("energy() needs the solved system: this solution does not hold it "
                              "(pass energy(system))")
-        if params is not None or "theta" not in self.stats:
+        if params is not None or self.march is None:
             theta = system.parameter_vector(params)
         else:
-            theta = np.asarray(self.stats["theta"], dtype=float)
+            theta = np.asarray(self.march.theta, dtype=float)
         return system.energy(self.q, self.p, self.t, theta)
 
     def _slopes(self, z: np.ndarray) -> np.ndarray:
@@ -445,9 +494,9 @@ class SolverStatistics:
                    function_evaluations=None if evaluations is None else int(evaluations),
                    fast_steps=int(stats.get("fast_steps", 0)), careful_steps=careful,
                    retries=int(stats.get("retries", 0)),
-                   least_squares_steps=len(stats.get("least_squares") or []),
+                   least_squares_steps=len(solution.march.least_squares) if solution.march else 0,
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
 
-__all__ = ["Failure", "OrbitRecord", "Solution", "SolverStatistics", "Status", "Verdict",
-           "bound_reached", "hermite"]
+__all__ = ["Failure", "MarchRecord", "OrbitRecord", "Solution", "SolverStatistics", "Status",
+           "Verdict", "bound_reached", "hermite"]

@@ -95,7 +95,7 @@ def run_resume(args) -> int:
             output=options.march_output(args, checkpoint=saver,
                                         stop=INTERRUPTS.stop_requested))
         config.t_end = t_end
-        extra = {"carried": solution.stats["carried"], "resume": record,
+        extra = {"carried": solution.march.carried, "resume": record,
                  "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
                  "overrides": record["overrides"]}
         meta = save_run(args, out, scene, config, scheme, solution, extra)
@@ -232,7 +232,7 @@ def _march(args, scene, config, scheme):
                                                  stop=INTERRUPTS.stop_requested,
                                                  t_eval=times, events=events),
                      target_error=args.target_error)
-    stats = solution.stats
+    stats = solution.written_stats()
     return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                      "fallbacks", "first_fallback",
                                                      "target_error",

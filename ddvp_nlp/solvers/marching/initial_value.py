@@ -34,7 +34,7 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
-from ...solution import Solution, Status
+from ...solution import MarchRecord, Solution, Status
 from ...validation import check_span, check_state, check_step, check_times
 from ..accuracy.judgement import CheckStopped, Judgement, Level, judge
 from ..accuracy.streaming import StreamingJudgement
@@ -120,7 +120,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         target_error: the trajectory error asked for, relative to the motion's size: the
             march chooses its own first step from a pilot march at ``tau0`` over the start of
             the span, so that the run is ``accurate`` at ``global_tol = target_error``, with
-            one second try where it is not (``target.py``); ``stats["target_error"]`` holds
+            one second try where it is not (``target.py``); ``march.target_error`` holds
             the choice and what it cost.
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
@@ -130,7 +130,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     The solvability monitor (energy rules): at every node the site-density weight
     ``w = f' H_zz f = -8 c(z)`` (docs/theory.md section 7). A positive step needs ``c`` to keep its
     sign and the step to be short against the change of ``w``; the march warns (a
-    ``RuntimeWarning`` and ``stats["solvability_warning"]``) at the first node where ``w``
+    ``RuntimeWarning`` and ``march.solvability_warning``) at the first node where ``w``
     changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT`` (``monitors.py``).
     ``Solution.solvability`` holds ``c(z_k)`` at every node.
 
@@ -257,7 +257,7 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
                          compiler=compiler if compiled else None,
                          cache_dir=compilation.cache_dir, timing=timing,
                          recheck=not _stopping(outcome, output))
-    solution.stats["carried"] = carry.state()
+    solution.march.carried = carry.state()
     if accuracy is not None and _left_unjudged(solution, outcome, output):
         accuracy = None
     if accuracy is not None:
@@ -273,8 +273,8 @@ def run_march(problem: MarchProblem, accuracy, compilation: Compilation, output:
         solution.timing["accuracy_s"] = time.perf_counter() - started
     if saver:
         solution.timing["checkpoint_s"] = saver.seconds
-        solution.stats["checkpoints"] = saver.saves
-        solution.stats["checkpoints_landed_s"] = [round(t, 3) for t in saver.landed]
+        solution.march.checkpoints = saver.saves
+        solution.march.checkpoints_landed_s = [round(t, 3) for t in saver.landed]
     return _finished(solution, problem, events, output)
 
 
@@ -461,14 +461,15 @@ def _thinned(problem: MarchProblem, outcome, parts: _Parts, solvability, thinnin
         canonical_residual=kept["canonical"], newton_iterations=parts.newton.newton_iterations,
         timing={**timing, "compile_s": fast_chunk.compile_s if fast_chunk else 0.0},
         solvability=solvability.solvability(outcome.marched) if solvability else np.zeros(0),
-        stats={"retries": parts.newton.retries, "theta": problem.theta.tolist(),
+        stats={"retries": parts.newton.retries,
                "path": fast_chunk.path if fast_chunk else "careful",
                "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
-               "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback,
-               "solvability_warning": solvability.warning if solvability else None,
-               "least_squares": tally.least_squares,
-               "kept": thinning.record(outcome.marched, int(t.size))})
-    solution.stats["carried"] = carry.state()
+               "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback},
+        march=MarchRecord(theta=problem.theta.tolist(),
+               solvability_warning=solvability.warning if solvability else None,
+               least_squares=tally.least_squares,
+               kept=thinning.record(outcome.marched, int(t.size))))
+    solution.march.carried = carry.state()
     if accuracy is not None:
         judge(solution, thinning.judge.report(float(t[-1])), accuracy, local_error=kept["local"])
     solution.timing["finish_s"] = time.perf_counter() - started
@@ -544,9 +545,10 @@ def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, com
         timing={**timing, "compile_s": fast_chunk.compile_s if fast_chunk else 0.0,
                 "verify_s": verified - started},
         solvability=solvability.solvability(t.size) if solvability else np.zeros(0),
-        stats={"retries": parts.newton.retries, "theta": theta.tolist(),
+        stats={"retries": parts.newton.retries,
                "path": fast_chunk.path if fast_chunk else "careful",
                "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
-               "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback,
-               "solvability_warning": solvability.warning if solvability else None,
-               "least_squares": tally.least_squares})
+               "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback},
+        march=MarchRecord(theta=theta.tolist(),
+               solvability_warning=solvability.warning if solvability else None,
+               least_squares=tally.least_squares))

@@ -45,7 +45,7 @@ class MarchState:
 
     @classmethod
     def of(cls, t, q, p, t_end: float, carried: dict | None) -> MarchState:
-        """From a run's arrays and its ``carried`` record (``Solution.stats["carried"]``,
+        """From a run's arrays and its ``carried`` record (``Solution.march.carried``,
         ``meta.json``'s ``carried``); an `InputError` says what is missing."""
         if not isinstance(carried, dict) or not {"drift", "careful_left", "phase"} <= set(
                 carried):

@@ -35,7 +35,7 @@ def test_the_run_is_accurate_at_the_error_asked_for(name, overrides, target):
     config = scene.resolve(overrides)
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      tau0=config.tau0, params=config.params, target_error=target)
-    record = solution.stats["target_error"]
+    record = solution.march.target_error
     assert solution.success and solution.verdict.name == "accurate"
     assert solution.verdict.global_tol == target
     assert record["tau0"] == record["runs"][-1]["tau0"] and 1 <= len(record["runs"]) <= 2
@@ -62,7 +62,7 @@ def test_the_choice_does_not_depend_on_units():
         config = scene.resolve({})
         solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                          tau0=config.tau0, target_error=1e-3)
-        chosen.append(solution.stats["target_error"]["tau0"])
+        chosen.append(solution.march.target_error["tau0"])
     assert chosen[1] == pytest.approx(chosen[0], rel=1e-3)
 
 
