@@ -207,10 +207,10 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         A `Solution` with ``N + 1`` nodes; ``orbit`` (`OrbitRecord`) holds ``period``,
         ``energy``, ``unfolding`` (``lambda``), ``winding`` and the largest residuals of each
         kind, ``verdict`` the accuracy check (against RK4 steps of the exact flow) and
-        ``stats`` the solver's counts and ``attempts``; ``energy_residual`` holds the scheme's energy equation at nodes ``1 ..
-        N`` (node ``N`` the wrap-around). No orbit found is a failure status with the
-        residuals in the message; an orbit whose steps do not follow the exact flow is
-        ``inaccurate``.
+        ``stats`` the solver's counts and ``attempts``; ``energy_residual`` holds the
+        scheme's energy equation at nodes ``1 .. N`` (node ``N`` the wrap-around). No orbit
+        found is a failure status with the residuals in the message; an orbit whose steps
+        do not follow the exact flow is ``inaccurate``.
     """
     integrals = check_integrals(integrals)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
