@@ -258,6 +258,48 @@ class MarchRecord:
         return {**found, **{key: value for key, value in optional.items() if value is not None}}
 
 
+@dataclass(frozen=True)
+class EndsRecord:
+    """What a fixed-endpoint solve found (``Solution.ends``; ``solvers/bvp/fixed_ends.py``).
+
+    Attributes:
+        stages: the solver runs in order (``Stage``: the first guess's, each continuation's,
+            the last solve's), their records as ``meta.json`` keeps them (``phases``).
+        action: the discrete action of the point (``nan`` for a point that is not finite).
+        p_sign_changes: the sign changes of each momentum along the trajectory (which of the
+            solutions through the two ends this one is).
+        canonical_limit, energy_limit: the limits of the unscaled residuals.
+        canonical_residual_max, energy_residual_max: the largest unscaled residuals (``None``
+            for a point that is not finite).
+        tau_min: the shortest step (``None`` for a point that is not finite).
+    """
+
+    stages: tuple
+    action: float
+    p_sign_changes: tuple
+    canonical_limit: float
+    energy_limit: float
+    canonical_residual_max: float | None = None
+    energy_residual_max: float | None = None
+    tau_min: float | None = None
+
+    def as_stats(self, stats: dict) -> dict:
+        """The solve's ``stats`` with the record under the keys and in the order the run
+        file's ``solver`` has always had."""
+        checks = {"canonical_limit": self.canonical_limit, "energy_limit": self.energy_limit}
+        if self.tau_min is not None:
+            checks.update(canonical_residual_max=self.canonical_residual_max,
+                          energy_residual_max=self.energy_residual_max, tau_min=self.tau_min)
+        counts = dict(stats)
+        first = {"solver": counts.pop("solver"),
+                 "phases": [stage.record() for stage in self.stages]}
+        first.update((key, counts.pop(key)) for key in ("return_status", "iterations",
+                                                        "iterations_total"))
+        first["action"] = self.action
+        first.update((key, counts.pop(key)) for key in ("energy_scale", "tau_floor"))
+        return {**first, "p_sign_changes": list(self.p_sign_changes), **checks, **counts}
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
@@ -283,6 +325,7 @@ class Solution:
             is not finite, a stopped long march: ``accuracy_skipped`` says why).
         orbit: what a periodic solve found (`OrbitRecord`), else ``None``.
         march: what a march found besides its nodes (`MarchRecord`), else ``None``.
+        ends: what a fixed-endpoint solve found (`EndsRecord`), else ``None``.
         accuracy_skipped: why a march's check was left out, else ``None``.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
@@ -318,6 +361,7 @@ class Solution:
     verdict: Verdict | None = None
     orbit: OrbitRecord | None = None
     march: MarchRecord | None = None
+    ends: EndsRecord | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
@@ -338,8 +382,11 @@ class Solution:
         return SolverStatistics.of(self)
 
     def written_stats(self) -> dict:
-        """``stats`` with what the solve found (`MarchRecord`) under the keys run files have
-        always used: the one mapping from the typed records to those keys."""
+        """``stats`` with what the solve found (`MarchRecord`, `EndsRecord`) under the keys
+        and in the order run files have always used: the one mapping from the typed records
+        to those keys."""
+        if self.ends is not None:
+            return self.ends.as_stats(self.stats)
         return {**self.stats, **(self.march.as_stats() if self.march is not None else {})}
 
     @property
@@ -498,5 +545,5 @@ class SolverStatistics:
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
 
-__all__ = ["Failure", "MarchRecord", "OrbitRecord", "Solution", "SolverStatistics", "Status",
-           "Verdict", "bound_reached", "hermite"]
+__all__ = ["EndsRecord", "Failure", "MarchRecord", "OrbitRecord", "Solution", "SolverStatistics",
+           "Status", "Verdict", "bound_reached", "hermite"]

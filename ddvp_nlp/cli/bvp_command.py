@@ -45,7 +45,7 @@ def solver_record(solution) -> dict:
     """``meta.json``'s ``solver``: the solve's stats with its verdict (``accuracy``) where
     the file has always had it, before what the solve added after judging (``exact``,
     ``fixed_time_start``)."""
-    stats = dict(solution.stats)
+    stats = solution.written_stats()
     if solution.verdict is None:
         return stats
     later = {key: stats.pop(key) for key in ("exact", "fixed_time_start") if key in stats}
