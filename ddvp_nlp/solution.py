@@ -300,6 +300,43 @@ class EndsRecord:
         return {**first, "p_sign_changes": list(self.p_sign_changes), **checks, **counts}
 
 
+@dataclass(frozen=True)
+class TransferRecord:
+    """What a transfer at a prescribed energy found (``Solution.transfer``;
+    ``solvers/bvp/at_energy.py``).
+
+    Attributes:
+        transfer_time: ``t_N-1 - t_0``, the time the transfer takes.
+        energy: the prescribed energy ``E``.
+        residuals: the largest unscaled residual of each kind (``canonical``, ``energy``,
+            ``prescribed_energy``, ``q_end``).
+        residual_limit: the limit they were verified against.
+        tau_min, tau_max: the shortest and longest step.
+        exact: the exact flow's shooting from this transfer (its time, the differences in
+            time and path, whether it converged), where the point was finite.
+        fixed_time_start: the fixed-time solves the transfer started from (their durations
+            and the last one's message), where ``solve_bvp`` made them.
+    """
+
+    transfer_time: float
+    energy: float
+    residuals: dict
+    residual_limit: float
+    tau_min: float
+    tau_max: float
+    exact: dict | None = None
+    fixed_time_start: dict | None = None
+
+    def as_stats(self, stats: dict) -> dict:
+        """The solve's ``stats`` with the record under the keys and in the order the run
+        file's ``solver`` has always had."""
+        found = {"transfer_time": self.transfer_time, "energy": self.energy,
+                 "residuals": self.residuals, "limit": self.residual_limit, **stats,
+                 "tau_min": self.tau_min, "tau_max": self.tau_max}
+        later = {"exact": self.exact, "fixed_time_start": self.fixed_time_start}
+        return {**found, **{key: value for key, value in later.items() if value is not None}}
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
@@ -326,6 +363,8 @@ class Solution:
         orbit: what a periodic solve found (`OrbitRecord`), else ``None``.
         march: what a march found besides its nodes (`MarchRecord`), else ``None``.
         ends: what a fixed-endpoint solve found (`EndsRecord`), else ``None``.
+        transfer: what a transfer at a prescribed energy found (`TransferRecord`), else
+            ``None``.
         accuracy_skipped: why a march's check was left out, else ``None``.
         stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
@@ -362,6 +401,7 @@ class Solution:
     orbit: OrbitRecord | None = None
     march: MarchRecord | None = None
     ends: EndsRecord | None = None
+    transfer: TransferRecord | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
@@ -382,11 +422,12 @@ class Solution:
         return SolverStatistics.of(self)
 
     def written_stats(self) -> dict:
-        """``stats`` with what the solve found (`MarchRecord`, `EndsRecord`) under the keys
-        and in the order run files have always used: the one mapping from the typed records
-        to those keys."""
-        if self.ends is not None:
-            return self.ends.as_stats(self.stats)
+        """``stats`` with what the solve found (`MarchRecord`, `EndsRecord`, `TransferRecord`)
+        under the keys and in the order run files have always used: the one mapping from the
+        typed records to those keys."""
+        for record in (self.ends, self.transfer):
+            if record is not None:
+                return record.as_stats(self.stats)
         return {**self.stats, **(self.march.as_stats() if self.march is not None else {})}
 
     @property
@@ -546,4 +587,4 @@ class SolverStatistics:
                    solve_s=float(timing.get("solve_s", 0.0)))
 
 __all__ = ["EndsRecord", "Failure", "MarchRecord", "OrbitRecord", "Solution", "SolverStatistics",
-           "Status", "Verdict", "bound_reached", "hermite"]
+           "Status", "TransferRecord", "Verdict", "bound_reached", "hermite"]

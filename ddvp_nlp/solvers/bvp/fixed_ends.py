@@ -225,7 +225,8 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
                                 max_iter=resolved.max_iter,
                                 compilation=coerce(compilation, Compilation, "compilation"),
                                 accuracy=options.accuracy)
-    solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
+    solution.transfer = replace(solution.transfer, fixed_time_start={"durations": durations,
+                                                                     "message": fixed.message})
     return attach(solution, system, theta, solution.t[-1])
 
 
