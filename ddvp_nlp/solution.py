@@ -337,6 +337,21 @@ class TransferRecord:
         return {**found, **{key: value for key, value in later.items() if value is not None}}
 
 
+@dataclass(frozen=True)
+class HigherRecord:
+    """What a solve of a system with higher derivatives found besides its nodes
+    (``Solution.higher``; ``solvers/higher``).
+
+    Attributes:
+        energy: the discrete energy ``E^(k)`` at each node where the recursion defines it.
+        p_defined: the nodes ``[lo, hi)`` where ``p`` (the multiplier ``lambda_1``) is
+            defined; the others repeat the nearest defined value.
+    """
+
+    energy: np.ndarray
+    p_defined: tuple
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
@@ -360,13 +375,11 @@ class Solution:
         verdict: the accuracy check's `Verdict` (``solvers/accuracy/judgement.py`` sets it, once,
             in ``judge``), or ``None`` where no check was made (``accuracy=None``, a point that
             is not finite, a stopped long march: ``accuracy_skipped`` says why).
-        orbit: what a periodic solve found (`OrbitRecord`), else ``None``.
-        march: what a march found besides its nodes (`MarchRecord`), else ``None``.
-        ends: what a fixed-endpoint solve found (`EndsRecord`), else ``None``.
-        transfer: what a transfer at a prescribed energy found (`TransferRecord`), else
-            ``None``.
+        orbit, march, ends, transfer, higher: what the solve found besides its nodes, typed
+            by family (`OrbitRecord`, `MarchRecord`, `EndsRecord`, `TransferRecord`,
+            `HigherRecord`); ``None`` for the other families.
         accuracy_skipped: why a march's check was left out, else ``None``.
-        stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
+        stats: the solver's counts (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
             counts the steps tried on the careful path, including one that failed or that a
             monitor then cut (so the two can add up to one more than the steps).
@@ -402,6 +415,7 @@ class Solution:
     march: MarchRecord | None = None
     ends: EndsRecord | None = None
     transfer: TransferRecord | None = None
+    higher: HigherRecord | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
@@ -586,5 +600,5 @@ class SolverStatistics:
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
 
-__all__ = ["EndsRecord", "Failure", "MarchRecord", "OrbitRecord", "Solution", "SolverStatistics",
-           "Status", "TransferRecord", "Verdict", "bound_reached", "hermite"]
+__all__ = ["EndsRecord", "Failure", "HigherRecord", "MarchRecord", "OrbitRecord", "Solution",
+           "SolverStatistics", "Status", "TransferRecord", "Verdict", "bound_reached", "hermite"]

@@ -241,8 +241,8 @@ def _march(args, scene, config, scheme):
                          if key in stats},
                       **({"accuracy_skipped": solution.accuracy_skipped}
                          if solution.accuracy_skipped is not None else {}),
-                      **_all_residuals(stats),
-                      "carried": stats["carried"],
+                      **_all_residuals(solution.march.kept),
+                      "carried": solution.march.carried,
                       "resume": resume_record(args, scene, config,
                                               parse_settings(args.settings)),
                       **requested_meta(solution, events)}
@@ -254,9 +254,8 @@ def _thinned(args) -> bool:
         getattr(args, "keep", "nodes") != "nodes"
 
 
-def _all_residuals(stats: dict) -> dict:
+def _all_residuals(kept: dict | None) -> dict:
     """A thinned march's largest residuals over every step, not only the kept ones."""
-    kept = stats.get("kept")
     if not kept:
         return {}
     return {"canonical_residual_max": kept["canonical_residual_max"],

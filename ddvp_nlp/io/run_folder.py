@@ -371,7 +371,7 @@ def _checks(scene: Scene, config, solution: Solution) -> dict:
 def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution,
                    interruptible=None):
     """Arrays, metadata and figure of a run of a scene with higher derivatives."""
-    energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
+    energy = np.asarray(solution.higher.energy if solution.higher else np.zeros(0))
     exact = scene.exact_motion(solution.t, config.params)
     meta = {"command": command, "scene": scene.name, "scheme": solution.scheme,
             "order": scene.order, "params": {**config.params, "t0": config.t0,

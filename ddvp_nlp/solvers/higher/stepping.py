@@ -20,7 +20,7 @@ from ...discrete.higher_order_action import action, check_rule
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.higher_order import HigherOrderSystem
-from ...solution import Solution, Status
+from ...solution import HigherRecord, Solution, Status
 from ...validation import check_finite_array, check_integer, check_real
 from ..accuracy.judgement import judge
 from ..compiler import find_compiler
@@ -172,7 +172,7 @@ def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, 
 def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
     """A `Solution` whose ``p`` is the multiplier ``lambda_1`` (the momentum conjugate to
     ``q``) at the nodes where the recursion defines it (``k = l-1 .. N-1-l``; the others repeat
-    the nearest defined value and are listed in ``stats["p_defined"]``)."""
+    the nearest defined value and are listed in ``higher.p_defined``)."""
     first, E = grid_energies(system, t, q, theta) if t.size > 2 * system.order else (
         np.zeros((0, system.n)), np.zeros(0))
     p = np.zeros_like(q)
@@ -184,7 +184,7 @@ def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
     return Solution(t=t, q=q, p=p, status=status, message=message, scheme=rule,
                     energy_residual=np.diff(E) if E.size else np.zeros(0),
                     canonical_residual=np.zeros(0), timing=timing,
-                    stats={**stats, "energy": E, "p_defined": [lo, lo + first.shape[0]]})
+                    stats=dict(stats), higher=HigherRecord(E, (lo, lo + first.shape[0])))
 
 
 
