@@ -378,6 +378,8 @@ class Solution:
         orbit, march, ends, transfer, higher: what the solve found besides its nodes, typed
             by family (`OrbitRecord`, `MarchRecord`, `EndsRecord`, `TransferRecord`,
             `HigherRecord`); ``None`` for the other families.
+        own_residual_max: a compared method's largest residual of its own equation
+            (``studies/methods.py``), ``None`` where it has none or was not checked.
         accuracy_skipped: why a march's check was left out, else ``None``.
         stats: the solver's counts (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
@@ -416,6 +418,7 @@ class Solution:
     ends: EndsRecord | None = None
     transfer: TransferRecord | None = None
     higher: HigherRecord | None = None
+    own_residual_max: float | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)

@@ -274,7 +274,7 @@ def _march_method(args, scene, config):
                           max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
                           tolerance=options.tolerance(args, exact=scene.exact_states(config)))
     extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
-             "own_residual_max": solution.stats.get("own_residual_max"),
+             "own_residual_max": solution.own_residual_max,
              "path": solution.stats.get("path")}
     if not scene.system.time_dependent and solution.t.size:
         # a compared method keeps no interval energy: its energy error is H's drift at the nodes
