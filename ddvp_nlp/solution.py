@@ -346,10 +346,15 @@ class HigherRecord:
         energy: the discrete energy ``E^(k)`` at each node where the recursion defines it.
         p_defined: the nodes ``[lo, hi)`` where ``p`` (the multiplier ``lambda_1``) is
             defined; the others repeat the nearest defined value.
+        stages: a fixed-endpoint solve's solver runs in order (``Stage``), else empty.
+        residuals: a fixed-endpoint solve's verified residuals (``euler_lagrange_residual``,
+            ``energy_equation_residual``) and their limits, else ``None``.
     """
 
     energy: np.ndarray
     p_defined: tuple
+    stages: tuple = ()
+    residuals: dict | None = None
 
 
 @dataclass
