@@ -466,9 +466,9 @@ def _thinned(problem: MarchProblem, outcome, parts: _Parts, solvability, thinnin
                "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
                "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback},
         march=MarchRecord(theta=problem.theta.tolist(),
-               solvability_warning=solvability.warning if solvability else None,
-               least_squares=tally.least_squares,
-               kept=thinning.record(outcome.marched, int(t.size))))
+                          solvability_warning=solvability.warning if solvability else None,
+                          least_squares=tally.least_squares,
+                          kept=thinning.record(outcome.marched, int(t.size))))
     solution.march.carried = carry.state()
     if accuracy is not None:
         judge(solution, thinning.judge.report(float(t[-1])), accuracy, local_error=kept["local"])
@@ -550,5 +550,5 @@ def _solution(problem: MarchProblem, outcome, parts: _Parts, solvability, *, com
                "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
                "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback},
         march=MarchRecord(theta=theta.tolist(),
-               solvability_warning=solvability.warning if solvability else None,
-               least_squares=tally.least_squares))
+                          solvability_warning=solvability.warning if solvability else None,
+                          least_squares=tally.least_squares))
