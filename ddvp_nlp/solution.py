@@ -98,6 +98,8 @@ class Verdict:
         local_error_max: the largest local error, relative to ``S``.
         level, level_reference, level_error: the energy level the first step set, ``H`` of
             the exact motion at its clock, their difference relative to ``E_s``.
+        level_round_off: the round-off floor of ``level_error`` (``2 eps max |H| / E_s``): a
+            large constant in ``H`` puts the level test's resolution there, not at 0.
         energy_drift: the largest nodal ``|H - H_0| / E_s`` (autonomous ``H``).
         steps: the steps judged.
         rtol, atol, energy_tol, global_tol, require_accurate: the `Tolerance` it was judged by.
@@ -128,6 +130,7 @@ class Verdict:
     global_tol: float
     require_accurate: bool
     streamed: bool = False
+    level_round_off: float | None = None
 
     def __post_init__(self):
         if self.name not in VERDICTS:

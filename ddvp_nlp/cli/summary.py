@@ -89,8 +89,13 @@ def _accuracy_lines(meta: dict) -> list[str]:
     steps = (f"    steps: local error <= {accuracy['local_error_max']:.3e} of S (limit "
              f"{accuracy['rtol']:g})")
     if accuracy.get("level") is not None:
+        floor = accuracy.get("level_round_off")
+        error = accuracy["level_error"]
+        # a large constant in H: the two values agree to their round-off, no closer
+        measured = (f"below its round-off floor {floor:.1e} of E_s" if floor is not None
+                    and error is not None and error <= floor else f"{error:.3e} of E_s")
         steps += (f"; energy level of the first step {accuracy['level']:.10g} against "
-                  f"{accuracy['level_reference']:.10g} ({accuracy['level_error']:.3e} of E_s, "
+                  f"{accuracy['level_reference']:.10g} ({measured}, "
                   f"limit {accuracy['energy_tol']:g})")
     if accuracy.get("energy_drift") is not None:
         steps += f"; nodal energy drift {accuracy['energy_drift']:.3e} of E_s"

@@ -22,8 +22,12 @@ From those, the same code for every form derives (this module):
       vddvp:  E(interval k at clock s_{k-1}) - E(interval k-1 at clock s_{k-1}) = 0
       lee:    dS_D/dt_k = d(S_{k-1} + S_k)/dt_k = 0   (by automatic differentiation)
 
-  Both are differences of energies and have the units of ``H``. With the midpoint clock and a
-  Hamiltonian the ``lee`` residual is ``H_k - H_{k-1} - (tau_k dH/dt_k + tau_{k-1} dH/dt_{k-1})/2``.
+  Both are differences of energies and have the units of ``H``. They are formed with
+  ``varying=True``: ``H`` (or ``L``) without the terms that depend on none of the state and the
+  clock (`physics.hamiltonian.varying_part`), which cancel in the difference; left in, their
+  round-off would enter it (``H + 1e12``: the steps would follow the round-off of ``1e12``).
+  With the midpoint clock and a Hamiltonian the ``lee`` residual is
+  ``H_k - H_{k-1} - (tau_k dH/dt_k + tau_{k-1} dH/dt_{k-1})/2``.
 """
 
 from __future__ import annotations
@@ -57,13 +61,13 @@ class IntervalAction:
     def arguments(self, t_a, t_b, q_a, p_a, q_b, p_b):
         return interval_arguments(self.scheme, t_a, t_b, q_a, p_a, q_b, p_b)
 
-    def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
+    def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta, varying: bool = False):
         raise NotImplementedError
 
     def interval_equations(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
         raise NotImplementedError
 
-    def energy_at(self, t_a, t_b, q_a, p_a, q_b, p_b, clock, theta):
+    def energy_at(self, t_a, t_b, q_a, p_a, q_b, p_b, clock, theta, varying: bool = False):
         raise NotImplementedError
 
     def interval_energy(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
@@ -77,13 +81,15 @@ class IntervalAction:
         interval ``k`` (mid, next)."""
         if rule == "vddvp":
             _, _, s_prev, _ = self.arguments(t_prev, t_mid, q_prev, p_prev, q_mid, p_mid)
-            return (self.energy_at(t_mid, t_next, q_mid, p_mid, q_next, p_next, s_prev, theta)
-                    - self.energy_at(t_prev, t_mid, q_prev, p_prev, q_mid, p_mid, s_prev, theta))
+            return (self.energy_at(t_mid, t_next, q_mid, p_mid, q_next, p_next, s_prev, theta,
+                                   varying=True)
+                    - self.energy_at(t_prev, t_mid, q_prev, p_prev, q_mid, p_mid, s_prev, theta,
+                                     varying=True))
         if rule == "lee":
             # Differentiate with respect to a fresh symbol standing in for t_mid, so that t_mid
             # may itself be an expression (for example t_next - tau in the march).
             t_k = ca.SX.sym("t_k")
-            action = (self.action(t_prev, t_k, q_prev, p_prev, q_mid, p_mid, theta)
-                      + self.action(t_k, t_next, q_mid, p_mid, q_next, p_next, theta))
+            action = (self.action(t_prev, t_k, q_prev, p_prev, q_mid, p_mid, theta, True)
+                      + self.action(t_k, t_next, q_mid, p_mid, q_next, p_next, theta, True))
             return ca.substitute(ca.gradient(action, t_k), t_k, t_mid)
         raise ValueError(f"rule {rule!r} has no energy equation")

@@ -19,15 +19,18 @@ from .action import IntervalAction
 
 
 class HamiltonianAction(IntervalAction):
-    def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
+    def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta, varying: bool = False):
         Q, P, s, tau = self.arguments(t_a, t_b, q_a, p_a, q_b, p_b)
-        return ca.dot(P, q_b - q_a) - tau * self.system.H_function(Q, P, s, theta)
+        return ca.dot(P, q_b - q_a) - tau * self._H(varying)(Q, P, s, theta)
 
     def interval_equations(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
         Q, P, s, tau = self.arguments(t_a, t_b, q_a, p_a, q_b, p_b)
         _, H_q, H_p, _ = derivatives_function(self.system)(Q, P, s, theta)
         return ca.vertcat(q_b - q_a - tau * H_p, p_b - p_a + tau * H_q)
 
-    def energy_at(self, t_a, t_b, q_a, p_a, q_b, p_b, clock, theta):
+    def energy_at(self, t_a, t_b, q_a, p_a, q_b, p_b, clock, theta, varying: bool = False):
         Q, P, _, _ = self.arguments(t_a, t_b, q_a, p_a, q_b, p_b)
-        return self.system.H_function(Q, P, clock, theta)
+        return self._H(varying)(Q, P, clock, theta)
+
+    def _H(self, varying: bool):
+        return self.system.H_varying_function if varying else self.system.H_function

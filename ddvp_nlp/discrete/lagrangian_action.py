@@ -24,9 +24,9 @@ from .action import IntervalAction, interval_arguments
 
 
 class LagrangianAction(IntervalAction):
-    def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
+    def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta, varying: bool = False):
         Q, _, s, tau = self.arguments(t_a, t_b, q_a, p_a, q_b, p_b)
-        return tau * self.system.L_function(Q, (q_b - q_a) / tau, s, theta)
+        return tau * self._L(varying)(Q, (q_b - q_a) / tau, s, theta)
 
     def interval_equations(self, t_a, t_b, q_a, p_a, q_b, p_b, theta):
         Q, _, s, tau = self.arguments(t_a, t_b, q_a, q_a, q_b, q_b)
@@ -35,11 +35,14 @@ class LagrangianAction(IntervalAction):
         p_right = L_v + tau * self.scheme.beta * L_q
         return ca.vertcat(p_a - p_left, p_b - p_right)
 
-    def energy_at(self, t_a, t_b, q_a, p_a, q_b, p_b, clock, theta):
+    def energy_at(self, t_a, t_b, q_a, p_a, q_b, p_b, clock, theta, varying: bool = False):
         Q, _, _, tau = self.arguments(t_a, t_b, q_a, p_a, q_b, p_b)
         v = (q_b - q_a) / tau
         _, L_v = _partials(self.system, Q, v, clock, theta)
-        return ca.dot(v, L_v) - self.system.L_function(Q, v, clock, theta)
+        return ca.dot(v, L_v) - self._L(varying)(Q, v, clock, theta)
+
+    def _L(self, varying: bool):
+        return self.system.L_varying_function if varying else self.system.L_function
 
 
 def _partials(system: LagrangianSystem, Q, v, s, theta):

@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import InputError
-from .hamiltonian import HamiltonianSystem
+from .hamiltonian import HamiltonianSystem, varying_part
 
 LEGENDRE_NEWTON_STEPS = 6
 
@@ -66,6 +66,10 @@ class LagrangianSystem(HamiltonianSystem):
         self._finish()
         self.L_function = ca.Function("L", [self.q, self.v, self.t, self.theta], [self.L],
                                       ["q", "v", "t", "theta"], ["L"])
+        varying = varying_part(self.L, ca.vertcat(self.q, self.v, self.t))
+        self.L_varying_function = self.L_function if varying is self.L else ca.Function(
+            "L_varying", [self.q, self.v, self.t, self.theta], [varying],
+            ["q", "v", "t", "theta"], ["L"])
 
     def __repr__(self):
         return f"LagrangianSystem(name={self.name!r}, n={self.n}, params={self.params})"

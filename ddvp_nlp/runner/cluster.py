@@ -1,6 +1,6 @@
 """From one machine to a batch-scheduled cluster: a Dask cluster described on the command line
-or in a file, started here, its scheduler's address handed to the grid and ensemble runners
-(``grid.run_tasks``), which already run on any Dask scheduler.
+or in a file, started here, its scheduler's address handed to the table and ensemble runners
+(``tasks.run_tasks``), which already run on any Dask scheduler.
 
 A description is ``KIND`` with ``NAME=VALUE`` settings, given as ``--cluster
 "slurm:cores=8,memory=16GB,walltime=01:00:00,jobs=4"`` or ``--cluster FILE.toml`` with a table

@@ -28,7 +28,7 @@ __all__ = ["JournalInterrupted", "JournalWarning", "RowSchema", "commit_journal"
 
 @dataclass(frozen=True)
 class RowSchema:
-    """A grid's table: its columns and which of them hold numbers or flags. `parse` is
+    """A task table's columns and which of them hold numbers or flags. `parse` is
     the one place a row read back from the result file gets its types again."""
 
     columns: tuple[str, ...]
@@ -53,12 +53,12 @@ class RowSchema:
 
 
 class JournalWarning(UserWarning):
-    """A row of a grid file that is not reused (and why): shown even where the runs'
+    """A row of a table file that is not reused (and why): shown even where the runs'
     numerical warnings are silenced."""
 
 
 class JournalInterrupted(KeyboardInterrupt):
-    """A grid stopped by Ctrl-C or SIGTERM; the message says what was kept and where."""
+    """A task table stopped by Ctrl-C or SIGTERM; the message says what was kept and where."""
 
 
 def run_journalled(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequence[str], *,
@@ -67,9 +67,9 @@ def run_journalled(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequ
              progress: bool = False, commit: bool = True,
              finite: Sequence[str] = ()) -> tuple[list[dict], int]:
     """Run the tasks that have no valid row yet and journal each row as it arrives; return all
-    rows of this grid in task order and how many tasks ran.
+    rows of this table in task order and how many tasks ran.
 
-    The result file ``path`` (``NAME.csv``) holds the last complete grid; rows of a grid under
+    The result file ``path`` (``NAME.csv``) holds the last complete table; rows of a table under
     way go to the journal ``NAME.partial.csv`` beside it, appended and flushed one by one (an
     interrupt or a kill keeps every finished row there). With ``commit`` the rows are then
     written to ``NAME.csv`` (through the output layer, with a manifest) and the journal is
@@ -79,16 +79,16 @@ def run_journalled(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequ
     Each task returns a row (a dict over ``columns``, ``key`` included); a task that fails
     gives ``failure_row(task, error)`` instead. Every row carries the task's ``fingerprint``
     and a checksum of its own values. ``resume``: rows already in ``NAME.csv`` or the journal
-    are reused after they are checked (`read_rows_back`: checksum, this grid's key and
+    are reused after they are checked (`read_rows_back`: checksum, this table's key and
     fingerprint, a known status, ``finite`` columns finite on a success); rows of another
-    grid are refused, not overwritten (``InputError``); ``resume=False`` ignores them (they
-    are replaced when this grid commits).
+    table are refused, not overwritten (``InputError``); ``resume=False`` ignores them (they
+    are replaced when this table commits).
     """
     from ..io import atomic
 
     keys = [task.key for task in tasks]
     if len(set(keys)) != len(keys):
-        raise InputError("the grid has two tasks with the same key")
+        raise InputError("the table has two tasks with the same key")
     columns = _with_checks(columns)
     path = Path(path)
     journal = journal_path(path)
@@ -111,8 +111,8 @@ def run_journalled(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequ
         except KeyboardInterrupt:
             raise JournalInterrupted(
                 f"interrupted; {len(done)} of {len(tasks)} rows are finished and kept in "
-                f"{journal} (running the same grid again goes on from them); {path} still "
-                "holds the last complete grid, if there was one") from None
+                f"{journal} (running the same table again goes on from them); {path} still "
+                "holds the last complete table, if there was one") from None
         rows = [done[key] for key in keys]
         if commit:
             commit_journal(path, columns, rows)
@@ -120,7 +120,7 @@ def run_journalled(tasks: Sequence[Task], path: str | os.PathLike, columns: Sequ
 
 
 def journal_path(path) -> Path:
-    """``NAME.partial.csv`` beside ``NAME.csv``: the rows of a grid under way."""
+    """``NAME.partial.csv`` beside ``NAME.csv``: the rows of a table under way."""
     path = Path(path)
     return path.with_name(path.stem + ".partial" + path.suffix)
 
@@ -143,7 +143,7 @@ def commit_journal(path, columns: Sequence[str], rows: list[dict], files: dict |
     return written
 
 
-RETRIED = ("task_failed", "worker_died", "not_run")  # statuses a resumed grid runs again
+RETRIED = ("task_failed", "worker_died", "not_run")  # statuses a resumed table runs again
 
 
 CHECKSUM = "row_sha256"
@@ -191,16 +191,16 @@ def row_lines(columns: Sequence[str], rows, *, header: bool = False) -> str:
 
 
 def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
-    """The rows of ``NAME.csv`` and of its journal that a resumed grid keeps, by key.
+    """The rows of ``NAME.csv`` and of its journal that a resumed table keeps, by key.
 
     ``NAME.csv`` is read only as the manifest ``meta.json`` beside it vouches for it (its
-    SHA-256 recorded when the grid was committed, `ddvp_nlp.io.atomic.vouched`): a file
+    SHA-256 recorded when the table was committed, `ddvp_nlp.io.atomic.vouched`): a file
     edited since, cut, or without a manifest gives no row (one warning; its tasks run again).
-    The journal ``NAME.partial.csv`` (rows of a grid under way, appended by the writer that
-    held the folder) is read row by row. A file that is not a grid file ddvp wrote (not UTF-8
+    The journal ``NAME.partial.csv`` (rows of a table under way, appended by the writer that
+    held the folder) is read row by row. A file that is not a table file ddvp wrote (not UTF-8
     text, another header, a field past the CSV limit, a link, a folder, bigger than the memory
-    allows) is refused, naming it and the reason (``InputError``); so is a row of another grid
-    (a key this grid does not have: other points, methods or cases): it is not overwritten;
+    allows) is refused, naming it and the reason (``InputError``); so is a row of another table
+    (a key this table does not have: other points, methods or cases): it is not overwritten;
     so is a key given twice in one file (which of the two is meant cannot be told). A row cut
     short by a kill, whose checksum does not match, computed with other settings (its task's
     fingerprint changed), with an unknown status, or a success with a number that is not
@@ -208,7 +208,7 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
     (``RETRIED``). A journal row replaces ``NAME.csv``'s of the same key (it is newer)."""
     fingerprints = {task.key: task.fingerprint() for task in tasks}
     kept, foreign = {}, 0
-    complete, reused = _vouched_grid(Path(path))
+    complete, reused = _vouched_table(Path(path))
     for source, reuse in ((complete, reused), (journal_path(path), True)):
         seen: dict[str, int] = {}
         for number, row in _file_rows(source, columns):
@@ -220,8 +220,8 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
                 continue
             if reason is None and row["key"] in seen:
                 raise InputError(
-                    f"grid file {str(source)!r} gives the key {row['key'][:80]!r} twice (lines "
-                    f"{seen[row['key']]} and {number}): not a file ddvp wrote; start the grid "
+                    f"table file {str(source)!r} gives the key {row['key'][:80]!r} twice (lines "
+                    f"{seen[row['key']]} and {number}): not a file ddvp wrote; start the table "
                     "afresh to replace it")
             seen[row["key"]] = number
             if reason is None:
@@ -236,17 +236,17 @@ def read_rows_back(path, tasks, columns, parse, finite=()) -> dict:
             if row.get("status") not in RETRIED:
                 kept[row["key"]] = parsed
     if foreign:
-        raise InputError(f"{path} holds {foreign} rows of another grid (points, methods or "
-                         "cases this grid does not have); they are not overwritten: start this "
-                         "grid afresh to replace them (sweep --fresh, stress without --resume) "
+        raise InputError(f"{path} holds {foreign} rows of another table (points, methods or "
+                         "cases this table does not have); they are not overwritten: start this "
+                         "table afresh to replace them (sweep --fresh, stress without --resume) "
                          "or give another --out")
     return kept
 
 
-def _vouched_grid(path: Path) -> tuple[Path, bool]:
-    """``(file to read, whether its rows may be reused)`` for a grid's ``NAME.csv``: the file
+def _vouched_table(path: Path) -> tuple[Path, bool]:
+    """``(file to read, whether its rows may be reused)`` for a table's ``NAME.csv``: the file
     the manifest vouches for; one that it does not vouch for is still read (for the rows of
-    another grid, which are not overwritten) but gives no row, with one warning."""
+    another table, which are not overwritten) but gives no row, with one warning."""
     from ..io import atomic
 
     if not os.path.lexists(path):
@@ -260,7 +260,7 @@ def _vouched_grid(path: Path) -> tuple[Path, bool]:
 
 
 def _row_problem(row: dict, columns, fingerprints: dict, finite) -> str | None:
-    """Why a row read back cannot be reused (``"foreign"``: another grid's), or ``None``."""
+    """Why a row read back cannot be reused (``"foreign"``: another table's), or ``None``."""
     if None in row or any(row.get(c) is None for c in columns):
         return "is incomplete (a run cut short?)"
     if row[CHECKSUM] != row_checksum(row, columns):
@@ -269,7 +269,7 @@ def _row_problem(row: dict, columns, fingerprints: dict, finite) -> str | None:
         return "foreign"
     if fingerprints[row["key"]] != row["fingerprint"]:
         return "was computed with other settings or another scene file"
-    if "status" not in row:  # a grid whose rows have no status (a plain table of results)
+    if "status" not in row:  # a table whose rows have no status (a plain table of results)
         return None
     if row["status"] not in STATUSES:
         return f"has an unknown status {row['status'][:40]!r}"
@@ -284,12 +284,12 @@ def _row_problem(row: dict, columns, fingerprints: dict, finite) -> str | None:
     return None
 
 
-# Largest grid file read back: a row is a few hundred bytes; a grid has at most a million.
+# Largest table file read back: a row is a few hundred bytes; a table has at most a million.
 JOURNAL_LIMIT = 1 << 30
 
 
 def _file_rows(path: Path, columns) -> Iterator[tuple[int, dict]]:
-    """``(line number, row)`` of a grid file (none if it does not exist); ``InputError`` for a
+    """``(line number, row)`` of a table file (none if it does not exist); ``InputError`` for a
     file that is not one (module docstring of `read_rows_back`)."""
     import csv
     import io
@@ -298,31 +298,31 @@ def _file_rows(path: Path, columns) -> Iterator[tuple[int, dict]]:
 
     if not os.path.lexists(path):
         return
-    if path.is_symlink():  # never followed; the grid's commit replaces the link itself
+    if path.is_symlink():  # never followed; the table's commit replaces the link itself
         warnings.warn(f"{path} is a symbolic link: not read (ddvp follows no link); its rows, "
                       "if any, run again", JournalWarning, stacklevel=4)
         return
-    data = read_limited(path, JOURNAL_LIMIT, what="grid file")
+    data = read_limited(path, JOURNAL_LIMIT, what="table file")
     check_file_size(str(path), len(data))
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise InputError(f"grid file {str(path)!r} is not UTF-8 text (byte {exc.start}): not a "
-                         "file ddvp wrote; start the grid afresh to replace it") from None
+        raise InputError(f"table file {str(path)!r} is not UTF-8 text (byte {exc.start}): not a "
+                         "file ddvp wrote; start the table afresh to replace it") from None
     if "\0" in text:
-        raise InputError(f"grid file {str(path)!r} holds NUL bytes: not a file ddvp wrote; "
-                         "start the grid afresh to replace it")
+        raise InputError(f"table file {str(path)!r} holds NUL bytes: not a file ddvp wrote; "
+                         "start the table afresh to replace it")
     reader = csv.DictReader(io.StringIO(text, newline=""))
     try:
         header = reader.fieldnames or []
         if text.strip() and list(header) != list(columns):
-            raise InputError(f"grid file {str(path)!r} has other columns than this grid's "
-                             f"({', '.join(header[:4])}...): not written for it; start the grid "
+            raise InputError(f"table file {str(path)!r} has other columns than this table's "
+                             f"({', '.join(header[:4])}...): not written for it; start the table "
                              "afresh to replace it")
         yield from enumerate(reader, start=2)
     except csv.Error as exc:
-        raise InputError(f"grid file {str(path)!r} is not a CSV ddvp wrote ({exc}); start the "
-                         "grid afresh to replace it") from None
+        raise InputError(f"table file {str(path)!r} is not a CSV ddvp wrote ({exc}); start the "
+                         "table afresh to replace it") from None
 
 
 def read_csv(path: str | os.PathLike, *, missing_ok: bool = True) -> list[dict]:

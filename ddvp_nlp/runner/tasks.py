@@ -43,7 +43,7 @@ SCHEDULER_VARIABLE = "DDVP_SCHEDULER"
 @dataclass(frozen=True)
 class Task:
     """``function(*args, **kwargs)``, where ``function`` is ``"module:name"``; ``key`` is unique
-    within a grid and stable across runs (resume matches on it); ``priority``: larger first."""
+    within a table and stable across runs (resume matches on it); ``priority``: larger first."""
 
     key: str
     function: str
@@ -54,7 +54,7 @@ class Task:
     def fingerprint(self) -> str:
         """A hash of everything the task's row depends on: the function and every argument
         (for a stress or sweep run: scene and the scene file's digest, settings, method, knob,
-        bounds). A resumed grid reuses a row only under the same fingerprint."""
+        bounds). A resumed table reuses a row only under the same fingerprint."""
         text = json.dumps([self.function, list(self.args), self.kwargs], sort_keys=True,
                           default=repr)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -111,7 +111,7 @@ def check_workers(workers) -> int | None:
 
 @dataclass(frozen=True)
 class Workers:
-    """Where the runs of a grid go.
+    """Where the runs of a table go.
 
     Attributes:
         count: local worker processes (``1``, the default: one after the other in this
@@ -119,7 +119,7 @@ class Workers:
             cores).
         scheduler: the address of a Dask scheduler (``tcp://host:8786``) whose workers run the
             tasks instead; default ``$DDVP_SCHEDULER``, else local. Whether anyone answers
-            there is checked when the grid is planned.
+            there is checked when the table is planned.
     """
 
     count: int | None = 1
@@ -163,7 +163,7 @@ def _run_here(task, retries):
     for attempt in range(retries + 1):
         try:
             return task, execute(task), None
-        except Exception as exc:  # a task's failure is a row, not the end of the grid
+        except Exception as exc:  # a task's failure is a row, not the end of the table
             if attempt == retries:
                 return task, None, f"task_failed: {type(exc).__name__}: {exc}"
     raise AssertionError("unreachable")

@@ -243,14 +243,39 @@ class Scene:
             return None
         q0, p0, t0, params = config.q0, config.p0, config.t0, config.params
         try:
-            self.exact(np.array([t0]), q0, p0, t0, **params)
+            probe = self.exact(np.array([t0, t0]), q0, p0, t0, **params)
         except ValueError:
             return None
+        except Exception as exc:  # the scene's own code: say whose it is
+            raise InputError(f"scene {self.name!r}: exact(t, q0, p0, t0, **params) failed: "
+                             f"{type(exc).__name__}: {exc}") from None
+        self._check_exact(probe, 2)
 
         def exact(t):
-            q, p = self.exact(np.asarray(t, float), q0, p0, t0, **params)
-            return np.hstack([np.reshape(q, (np.size(t), -1)), np.reshape(p, (np.size(t), -1))])
+            t = np.asarray(t, float)
+            found = self.exact(t, q0, p0, t0, **params)
+            q, p = self._check_exact(found, t.size)
+            return np.hstack([q, p])
         return exact
+
+    def _check_exact(self, found, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """``exact``'s answer at ``count`` times as ``(q, p)`` rows ``(count, n)`` each, or an
+        `InputError` naming the scene and the shape it gave (it was an internal error)."""
+        n = self.n
+        try:
+            if not isinstance(found, (tuple, list)) or len(found) != 2:
+                raise TypeError("not a pair")
+            q, p = found
+            q = np.asarray(q, float).reshape(count, n)
+            p = np.asarray(p, float).reshape(count, n)
+        except (TypeError, ValueError):
+            shapes = (tuple(np.shape(part)) for part in found) if isinstance(found, tuple) \
+                else (np.shape(found),)
+            raise InputError(
+                f"scene {self.name!r}: exact(t, ...) must return (q, p), each of shape "
+                f"(len(t), {n}) = ({count}, {n}); it returned shapes "
+                f"{', '.join(map(str, shapes))}") from None
+        return q, p
 
     def march(self, t_end: float | None = None, *, overrides: Mapping[str, object] | None = None,
               **options):

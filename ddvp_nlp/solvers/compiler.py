@@ -186,6 +186,8 @@ SCRATCH_PREFIX = ".build-"
 # A scratch folder younger than this is never taken for a killed build's (its build may be
 # about to lock it).
 SCRATCH_GRACE_S = 60.0
+# A library larger than this is damaged (the largest compiled chunks are a few MB): rebuilt.
+LIBRARY_LIMIT = 512 * 2 ** 20
 _CLEANED: set[tuple] = set()  # cache folders whose stale scratch this process has removed
 _CLEAN_LOCK = threading.Lock()
 
@@ -211,19 +213,29 @@ class CacheFolder:
         stamp = name + ".sha256"
         try:
             expected = _read_own(self.fd, stamp, 256).decode("ascii").strip()
-            data = _read_own(self.fd, name, None)
+            found = self._file_stamp(name)
         except FileNotFoundError:  # not built yet (or a build is renaming it into place)
             return False
         except (OSError, UnicodeDecodeError):
-            self.discard(name)  # a link, another user's file, a folder, ...: rebuilt
+            self.discard(name)  # a link, another user's file, a folder, too large, ...: rebuilt
             return False
-        if not hmac.compare_digest(expected, self.stamp(name, data)):
+        if not hmac.compare_digest(expected, found):
             self.discard(name)
             return False
         return True
 
     def stamp(self, name: str, data: bytes) -> str:
         return hmac.new(self.key, name.encode() + b"\0" + data, hashlib.sha256).hexdigest()
+
+    def _file_stamp(self, name: str) -> str:
+        """`stamp` of the library ``name``'s bytes, read a block at a time (never the whole
+        file in memory: a damaged library may be a 10 GB sparse file); ``OSError`` where it is
+        not a private regular file of this user or is larger than ``LIBRARY_LIMIT``."""
+        mac = hmac.new(self.key, name.encode() + b"\0", hashlib.sha256)
+        with _open_own(self.fd, name, LIBRARY_LIMIT) as handle:
+            for block in iter(lambda: handle.read(1 << 20), b""):
+                mac.update(block)
+        return mac.hexdigest()
 
     def discard(self, name: str) -> None:
         """The library ``name`` and its stamp removed (a link is removed, not followed)."""
@@ -268,7 +280,7 @@ def open_cache(folder) -> CacheFolder:
     ``OSError`` if it cannot be made or opened."""
     path = Path(folder)
     if not os.path.lexists(path):
-        path.parent.mkdir(parents=True, exist_ok=True)
+        _make_parents(path.parent)
         safe_files.make_folder(path, 0o700)
     try:
         descriptor = safe_files.open_folder(path)
@@ -286,6 +298,18 @@ def open_cache(folder) -> CacheFolder:
         raise
     cache.clean_scratch()
     return cache
+
+
+def _make_parents(folder: Path) -> None:
+    """The missing folders above the cache made private (``0700``), whatever the umask: made
+    with the umask's mode they could be writable by others (``umask 000``), and the cache below
+    them would then be refused as unsafe (`_check_above`) by the very command that made them."""
+    missing = []
+    while not os.path.lexists(folder) and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    for made in reversed(missing):
+        safe_files.make_folder(made, 0o700)  # the umask only takes bits away
 
 
 def _unsafe(path: Path, reason: str) -> str:
@@ -327,17 +351,28 @@ def _check_above(path: Path) -> None:
                                                    "anyone could replace the cache"))
 
 
-def _read_own(folder_fd: int, name: str, limit: int | None) -> bytes:
-    """The bytes of ``name`` in the cache: a regular file of this user with one link, not
-    writable by group or others, opened without following a link; ``OSError`` otherwise."""
+def _open_own(folder_fd: int, name: str, limit: int):
+    """``name`` in the cache opened for reading (binary): a regular file of this user with one
+    link, not writable by group or others, at most ``limit`` bytes, opened without following a
+    link; ``OSError`` otherwise."""
     descriptor = safe_files.open_reading(name, dir_fd=folder_fd)
-    with os.fdopen(descriptor, "rb") as handle:
+    handle = os.fdopen(descriptor, "rb")
+    try:
         info = os.fstat(descriptor)
         if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid() or \
                 info.st_nlink != 1 or info.st_mode & 0o022:
             raise OSError(errno.EPERM, f"{name} is not a private regular file of this user")
-        if limit is not None and info.st_size > limit:
+        if info.st_size > limit:
             raise OSError(errno.EFBIG, f"{name} is too large")
+    except BaseException:
+        handle.close()
+        raise
+    return handle
+
+
+def _read_own(folder_fd: int, name: str, limit: int) -> bytes:
+    """The bytes of ``name`` in the cache (`_open_own`)."""
+    with _open_own(folder_fd, name, limit) as handle:
         return handle.read()
 
 

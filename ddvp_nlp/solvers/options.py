@@ -12,6 +12,9 @@ span, the grid) and then at most a few of these:
 - `Compilation`: which compiled code runs (every solver that generates C);
 - `Output`: progress, checkpoints and stop requests (``march``, ``solve_bvp``).
 
+`ExactTolerance` (``EXACT_TOLERANCE``) is no user's option but the library's one tolerance
+policy of the exact flow, kept here where every family may read it.
+
 Each object checks its fields when it is made: a bad value is an `InputError` that names
 the field and the value, raised before any solver is built. Checks that need the problem (a
 ``tau_min`` against ``tau0``, a ``tau_floor`` against the mean step) are made by the solver,
@@ -160,6 +163,40 @@ class Tolerance:
 # has one meaning wherever it is taken: no check (`march`, `continue_march`, `march_ensemble`,
 # `march_higher`); a grid solution is always checked, so `GridOptions` refuses it.
 DEFAULT_TOLERANCE = Tolerance()
+
+
+@dataclass(frozen=True)
+class ExactTolerance:
+    """The exact flow's one tolerance policy (not a user's option: how tightly the library
+    integrates the flow its verdicts are measured against, and how closely the Newton on that
+    flow, ``exact/flow_newton.py``, solves its equations). Every module that runs the exact
+    flow for a solve or a verdict reads it here, named for what each number is for, so the
+    policy is changed once; it lives in the core because ``marching/`` reads it too and may not
+    import ``exact/`` (``exact/tolerance.py`` re-exports it).
+
+    Attributes:
+        flow_rtol: the flow's relative tolerance inside a Newton on it (shooting, closure,
+            transfer, fit), for the level of a verdict and wherever a trajectory is measured
+            against the flow at one fixed tolerance (the pilot of ``march(target_error=E)``):
+            its error is then far below the Newton's own ``newton_tol`` of the motion's size.
+        reference_rtol: the first tolerance of a reference trajectory that states its own
+            error (tightened by 100 while it must be).
+        newton_tol: the residual, relative to the motion's size, a Newton on the exact flow
+            stops at (continuity, end positions, closure, fit).
+        newton_tight_tol: where the exact transfer at an energy stops (its residual relative
+            to the scales of the end positions and of the energy): a tenth of ``newton_tol``.
+        newton_accept_tol: the residual at which the exact transfer is still accepted when
+            its iterations run out before ``newton_tight_tol``: ten times ``newton_tol``.
+    """
+
+    flow_rtol: float = 1e-12
+    reference_rtol: float = 1e-9
+    newton_tol: float = 1e-10
+    newton_tight_tol: float = 1e-11
+    newton_accept_tol: float = 1e-9
+
+
+EXACT_TOLERANCE = ExactTolerance()
 
 
 @dataclass(frozen=True)

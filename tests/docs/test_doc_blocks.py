@@ -152,3 +152,32 @@ def test_the_extraction_finds_the_blocks():
         build_parser().parse_args(["march", "kepler", "--no-such-option"])
     assert any(page.name == "README.md" for page, *_ in
                (p.values for p in python_pages()))
+
+
+# The fault pages quote refused command lines on purpose (a scheme given as a method, ...).
+QUOTES_REFUSALS = ("docs/reliability/",)
+
+
+def test_every_scheme_and_method_named_in_the_docs_is_one_the_command_takes():
+    """``--scheme X`` names an energy rule and ``--method X`` a compared method, in every
+    page, prose and usage lines included (argparse checks ``--method``'s choices in the
+    command blocks, not ``--scheme``'s, nor anything in prose: the guide once said
+    ``--scheme METHOD``, which the command refuses)."""
+    from ddvp_nlp.discrete import RULES
+    from ddvp_nlp.studies.methods import METHODS
+
+    takes = {"scheme": set(RULES), "method": {m for m in METHODS if m not in RULES}}
+    placeholders = {"METHOD", "NAME", "RULE", "SCHEME"}
+    wrong, seen = [], 0
+    for page in PAGES:
+        where = str(page.relative_to(ROOT))
+        if where.startswith(QUOTES_REFUSALS):
+            continue
+        for flag, value in re.findall(r"--(scheme|method)[ =]([A-Za-z_0-9|]+)",
+                                      page.read_text()):
+            for name in value.split("|"):
+                seen += 1
+                if name not in placeholders and name not in takes[flag]:
+                    wrong.append(f"{where}: --{flag} {name}")
+    assert seen > 10
+    assert not wrong, wrong

@@ -175,6 +175,50 @@ def test_a_missing_cache_folder_is_made_private(tmp_path):
     assert ((cache / ".ddvp-cache-key").stat().st_mode & 0o777) == 0o600
 
 
+def test_a_cache_made_under_umask_000_is_private_and_used(tmp_path):
+    """Under ``umask 000`` the folders made above a new cache came out ``0777`` and the cache
+    was then refused as unsafe by the command that made them (issue 45)."""
+    cache = tmp_path / "made" / "under" / "cache"
+    old = os.umask(0)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a refused cache would warn and fall back
+            assert loads_and_works(cache)
+    finally:
+        os.umask(old)
+    for folder in (tmp_path / "made", tmp_path / "made" / "under", cache):
+        assert folder.stat().st_mode & 0o022 == 0, folder
+    assert build_count() >= 1
+
+
+def test_a_huge_sparse_library_is_rebuilt_without_reading_it_into_memory(tmp_path):
+    """A damaged library the size of 10 GB (sparse: it takes no disk) was read whole into
+    memory to check its stamp (issue 45): it is now measured first and rebuilt."""
+    import tracemalloc
+
+    cache = tmp_path / "cache"
+    name = entry_name(cache)
+    with open(cache / name, "r+b") as handle:
+        handle.truncate(10 * 2 ** 30)
+    before = build_count()
+    tracemalloc.start()
+    try:
+        assert loads_and_works(cache)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert build_count() == before + 1
+    assert peak < 64 * 2 ** 20  # the library's size was never read into memory
+    assert (cache / name).stat().st_size < compiler.LIBRARY_LIMIT
+
+
+def test_the_stamp_read_a_block_at_a_time_is_the_stamp_of_the_bytes(tmp_path):
+    cache = tmp_path / "cache"
+    name = entry_name(cache)
+    with open_cache(cache) as opened:
+        assert opened._file_stamp(name) == opened.stamp(name, (cache / name).read_bytes())
+
+
 def test_the_scratch_of_a_killed_build_is_removed_by_the_next_run(tmp_path):
     """A build killed mid-compile left its scratch folder for good. Scratch folders are
     locked by their build; one that is unlocked and older than the grace is a dead build's."""

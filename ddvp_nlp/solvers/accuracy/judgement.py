@@ -15,7 +15,9 @@ by a second run at a tenth of the tolerance, never assumed), and gets one of thr
 
 **Scales come from the motion, never from 1.** ``S_i``, the size of component ``i`` of
 ``z = (q, p)``, is its range over the run (the nodes and the reference's states), at least a
-tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). The energy
+tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). A cyclic coordinate
+(one ``H`` does not depend on: an azimuth that winds) keeps its own range but sets no floor for
+the others, and its conserved momentum does not enter the energy scale. The energy
 scale ``E_s`` is the time average of ``|S * grad H(z_k, t_k)|_2``, how much ``H`` changes when
 the state moves by ``S`` (`energy_scale`): an energy error ``dE`` puts some node at least
 ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
@@ -65,6 +67,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from ...solution import Status, Verdict
@@ -72,7 +75,7 @@ from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_
 from ..exact.flow import exact_flow
 from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
-from ..options import Tolerance
+from ..options import EXACT_TOLERANCE, Tolerance
 from .node_values import NodeValues
 
 ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-squares step "
@@ -87,11 +90,14 @@ CANDIDATE = 0.5
 # The reference's own error may use this fraction of global_tol (and the short flows' of the
 # local bound).
 REFERENCE_SHARE = 0.1
+# The smallest global_tol the trajectory error can be judged against: the finest reference's
+# own error (DOP853 at FLOOR_RTOL) must stay within its share of it.
+SMALLEST_GLOBAL_TOL = FLOOR_RTOL / REFERENCE_SHARE
 # The exact flow's tolerance to the first interval's clock (a fraction of a step).
-LEVEL_RTOL = 1e-12
+LEVEL_RTOL = EXACT_TOLERANCE.flow_rtol
 # The reference's first tolerance (the coarse run's; the reference is the run at a tenth of it):
 # tighter by 100 while its own error passes its share before t_drift.
-REFERENCE_RTOL = 1e-9
+REFERENCE_RTOL = EXACT_TOLERANCE.reference_rtol
 
 
 def finite_or_none(value) -> float | None:
@@ -143,42 +149,73 @@ def exact_nodes(system, z0, t0: float, t_end: float, theta, *, rtol: float, atte
                     max_attempts=attempts).nodes()
 
 
-def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int) -> np.ndarray:
+def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int,
+                  free: np.ndarray | None = None) -> np.ndarray:
     """``S_i`` of each component of ``z = (q, p)`` from its least and greatest values over the
     motion and its largest magnitude: its range ``high - low``, at least ``BLOCK_FLOOR`` times
     the largest range of its block (``q`` or ``p``: a coordinate that barely moves is measured
     against the motion of the others, not against round-off) and at least ``ROUND_OFF`` times
-    its magnitude (a block that does not move at all)."""
+    its magnitude (a block that does not move at all). A component marked in ``free`` (a
+    cyclic coordinate, `free_components`) keeps its own range but sets no floor for the others:
+    a winding angle's secular growth says nothing of how far the other coordinates move."""
     span = np.asarray(high, float) - np.asarray(low, float)
     scale = span.copy()
+    feeding = span if free is None else np.where(free, 0.0, span)
     for block in (slice(0, n), slice(n, 2 * n)):
-        scale[block] = np.maximum(scale[block], BLOCK_FLOOR * np.max(span[block]))
+        scale[block] = np.maximum(scale[block], BLOCK_FLOOR * np.max(feeding[block]))
     scale = np.maximum(scale, ROUND_OFF * np.asarray(largest, float))
     return np.maximum(scale, np.finfo(float).tiny)
+
+
+def free_components(system) -> np.ndarray | None:
+    """The components of ``z = (q, p)`` whose range sets no floor for the others (see
+    `motion_scales`): the cyclic coordinates, those ``H`` does not depend on (found on its
+    symbols, so exactly and whatever the units: an azimuth, a polar angle of a central force,
+    a free direction). Their range grows without bound on a long run while the rest of the
+    motion stays put. ``None`` for a system without a Hamiltonian expression."""
+    H, q = getattr(system, "H", None), getattr(system, "q", None)
+    if H is None or q is None:
+        return None
+    n = int(system.n)
+    cyclic = [not ca.depends_on(H, q[i]) for i in range(n)]
+    return np.array(cyclic + [False] * n, dtype=bool) if any(cyclic) else None
 
 
 class Extent:
     """The least and greatest value and the largest magnitude of each component over the rows
     seen so far (the march's nodes, then the reference's, block by block)."""
 
-    def __init__(self, rows: np.ndarray):
+    def __init__(self, rows: np.ndarray, free: np.ndarray | None = None):
         self.low, self.high, self.largest = column_extremes(rows)
+        self.free = free  # components that set no floor (`motion_scales`)
 
     def scales(self, n: int) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, n)
+        return motion_scales(self.low, self.high, self.largest, n, self.free)
+
+
+def gradient_weights(scale: np.ndarray, n: int, free: np.ndarray | None = None) -> np.ndarray:
+    """The weights of the columns of the vector field ``f = (H_p, -H_q)`` in ``|S * grad H|``:
+    ``grad H = (H_q, H_p) = (-f_p, f_q)``, so column ``j`` of ``f`` weighs with ``S`` of the
+    other block. The momentum of a cyclic coordinate (``free``) weighs nothing: it is
+    conserved by the motion and by the schemes alike, so no energy error can move a node
+    along it, and ``H_p`` there (a winding rate) says nothing of how far off the level set a
+    node lies."""
+    weights = np.concatenate([scale[n:], scale[:n]])
+    if free is not None:
+        weights[:n][free[:n]] = 0.0
+    return weights
 
 
 def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndarray,
-                 n: int) -> float:
+                 n: int, free: np.ndarray | None = None) -> float:
     """``E_s``, the time average over the run of ``|S * grad H(z_k, t_k)|_2`` (from the vector
-    field ``f = (H_p, -H_q)`` at the nodes, rows, and ``H`` there): how much ``H`` changes when
-    the state moves by the motion's own size ``S`` in each component, typically over the
-    motion. An energy error ``dE`` puts the nodes ``dE / |S * grad H|`` (in units of ``S``) off
-    the exact level set, so wherever the gradient is at most its average (somewhere it is) at
-    least ``dE / E_s``: a displacement, free of units and of constants added to ``H``. At
-    least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
-    # grad H = (H_q, H_p) = (-f_p, f_q): column j of f weighs with S of the other block
-    norm = row_norm(field * np.concatenate([scale[n:], scale[:n]]))
+    field ``f = (H_p, -H_q)`` at the nodes, rows, and ``H`` there; `gradient_weights`): how
+    much ``H`` changes when the state moves by the motion's own size ``S`` in each component,
+    typically over the motion. An energy error ``dE`` puts the nodes ``dE / |S * grad H|`` (in
+    units of ``S``) off the exact level set, so wherever the gradient is at most its average
+    (somewhere it is) at least ``dE / E_s``: a displacement, free of units and of constants
+    added to ``H``. At least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
+    norm = row_norm(field * gradient_weights(scale, n, free))
     weights = np.zeros(t.size)  # each node stands for half of each step beside it
     weights[:-1] += np.diff(t) / 2
     weights[1:] += np.diff(t) / 2
@@ -215,7 +252,7 @@ def unjudged(t, z, tol: Tolerance) -> dict:
             "estimate": "none (no step)", "reference_until": None, "reference_error": None,
             "reference_lost": None, "scale": None, "energy_scale": None,
             "local_error_max": 0.0, "level": None, "level_reference": None,
-            "level_error": None, "energy_drift": None,
+            "level_error": None, "level_round_off": None, "energy_drift": None,
             "steps": max(t.size - 1, 0), "rtol": tol.rtol, "atol": tol.atol,
             "energy_tol": tol.energy_tol, "global_tol": tol.global_tol,
             "require_accurate": tol.require_accurate}
@@ -229,6 +266,7 @@ class Judgement:
         self.system, self.theta, self.tolerance = system, np.asarray(theta, float), tolerance
         self.compiler, self.cache_dir = compiler, cache_dir
         self.values = NodeValues(system, theta, compiler=compiler, cache_dir=cache_dir)
+        self.free = free_components(system)
 
     def flow(self):
         """The exact flow (``exact/flow.py``), compiled once per system."""
@@ -254,7 +292,7 @@ class Judgement:
         look = self.values.first_look(t, z) if screen else None
         self._poll()
         field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
-        energy = energy_scale(t, field, H, scale, n)
+        energy = energy_scale(t, field, H, scale, n, self.free)
         local, local_error, local_max = self._local(t, z, scale, look)
         energies = self.energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
@@ -269,6 +307,17 @@ class Judgement:
         if self.stop is not None and self.stop():
             raise CheckStopped
 
+    def constant_terms(self, z0, t0) -> float:
+        """The terms of ``H`` that depend on none of the state and the clock (``H + c``: ``c``),
+        which the node values leave out (`physics.hamiltonian.varying_part`)."""
+        system = self.system
+        varying = getattr(system, "H_varying_function", None)
+        if varying is None or varying is system.H_function:
+            return 0.0
+        n = system.n
+        return float(system.H_function(z0[:n], z0[n:], t0, self.theta)) - float(
+            varying(z0[:n], z0[n:], t0, self.theta))
+
     # -- the trajectory's error ---------------------------------------------------------------
     def _trajectory(self, t, z, exact) -> dict:
         """The trajectory error at every node against the reference states: the exact solution
@@ -280,7 +329,7 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        extent = Extent(z)  # every node's, whichever window is measured
+        extent = Extent(z, self.free)  # every node's, whichever window is measured
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
@@ -375,9 +424,9 @@ class Judgement:
         against ``H`` of the exact flow at the first interval's clock, and (autonomous ``H``)
         the nodal ``H`` against ``H(z_0, t_0)``."""
         system, tol = self.system, self.tolerance
-        H0 = float(H[0])
+        H0 = float(H[0])  # H here is without its constant terms (`NodeValues`)
         figures = {"level": None, "level_reference": None, "level_error": None,
-                   "energy_drift": None}
+                   "level_round_off": None, "energy_drift": None}
         failures = []
         if level is not None:
             reference = H0
@@ -386,9 +435,15 @@ class Judgement:
                                       atol=LEVEL_RTOL * scale)
                 _, at_clock = self.values.at_nodes(np.array([level.clock]), run.z_end[None, :])
                 reference = float(at_clock[0])
+            # the level is a value of the whole H (a march's first interval, a prescribed
+            # energy): its constant terms come back in, and with them their round-off, stated
+            constant = self.constant_terms(z[0], t[0])
+            reference += constant
             error = abs(level.value - reference) / energy
+            round_off = 2 * np.finfo(float).eps * max(abs(level.value), abs(reference)) / energy
             figures.update(level=float(level.value), level_reference=reference,
-                           level_error=finite_or_none(error))
+                           level_error=finite_or_none(error),
+                           level_round_off=finite_or_none(round_off))
             if not error <= tol.energy_tol:
                 failures.append({"step": 0, "t": float(t[0]),
                                  "test": "energy level of the first step",
@@ -423,6 +478,7 @@ class Scan:
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
         self.largest = extent.largest.copy()
+        self.free = extent.free
         self.column_max, self.column_node = np.zeros(d), np.ones(d, dtype=int)
         self.claim_max = 0.0
         self.drift: int | None = None  # node indices
@@ -437,7 +493,7 @@ class Scan:
         return self.drift is not None or self.lost is not None
 
     def scales(self) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, self.n)
+        return motion_scales(self.low, self.high, self.largest, self.n, self.free)
 
     def measure(self, t, z, start: int, end: int, states, claim, offset: int = 0) -> None:
         """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
@@ -461,7 +517,7 @@ class Scan:
                 break
             seen = column_extremes(states[:stop])  # finite: the rows before a lost one
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
-                                np.maximum(self.largest, seen[2]), self.n)
+                                np.maximum(self.largest, seen[2]), self.n, self.free)
             if np.array_equal(new, scale):
                 break
             scale = new
@@ -537,6 +593,12 @@ def judge(solution, report: dict | Verdict | None, tolerance: Tolerance, *,
     ``tolerance.require_accurate`` asks for an accurate trajectory; either way the message says
     what the check found (and, for a failed test, ``advice``)."""
     verdict = report if report is None or isinstance(report, Verdict) else Verdict.of(report)
+    if verdict is not None and verdict.steps == 0 and verdict.first_failure is None:
+        # a run stopped before its first step (interrupted, a failed first step): nothing was
+        # judged, and "accurate" would be a verdict on work not done
+        solution.verdict = None
+        solution.accuracy_skipped = "the run made no step: there is nothing to judge"
+        return None
     solution.verdict = verdict
     if local_error is not None:
         solution.local_error = local_error

@@ -19,17 +19,18 @@ BLOCK = 512  # nodes per call of a compiled block (the last block padded: blocks
 
 
 def look_function(system) -> ca.Function:
-    """``(z_a, z_b, t, h, theta) -> (z_b - RK4(z_a), f(z_a), H(z_a))``: a step's local error
-    against one classical Runge-Kutta step of the exact flow, component by component (the cheap
-    first look of a second-order march's steps), with the vector field and ``H`` at its first
-    node (the RK4 step's first stage: computed once)."""
+    """``(z_a, z_b, t, h, theta) -> (z_b - RK4(z_a), f(z_a), H(z_a))`` (``H`` without its
+    constant terms, `physics.hamiltonian.varying_part`: the energy tests take differences of
+    it): a step's local error against one classical Runge-Kutta step of the exact flow,
+    component by component (the cheap first look of a second-order march's steps), with the
+    vector field and ``H`` at its first node (the RK4 step's first stage: computed once)."""
     def build():
         field, n2 = flow_field(system)
         theta = ca.SX.sym("theta", system.theta.numel())
         z_a, z_b = ca.SX.sym("z_a", n2), ca.SX.sym("z_b", n2)
         t, h = ca.SX.sym("t"), ca.SX.sym("h")
         step = rk4(lambda z, time: field(z, time, theta), z_a, t, h)
-        H = system.H_function(z_a[:system.n], z_a[system.n:], t, theta)
+        H = system.H_varying_function(z_a[:system.n], z_a[system.n:], t, theta)
         return ca.Function("accuracy_look", [z_a, z_b, t, h, theta],
                            [z_b - step, field(z_a, t, theta), H],
                            ["z_a", "z_b", "t", "h", "theta"], ["d", "f", "H"], {"cse": True})
@@ -37,12 +38,13 @@ def look_function(system) -> ca.Function:
 
 
 def node_function(system) -> ca.Function:
-    """``(z, t, theta) -> (f, H)``: the vector field and ``H`` at one node."""
+    """``(z, t, theta) -> (f, H)``: the vector field and ``H`` (without its constant terms) at
+    one node."""
     def build():
         field, n2 = flow_field(system)
         theta = ca.SX.sym("theta", system.theta.numel())
         z, t = ca.SX.sym("z", n2), ca.SX.sym("t")
-        H = system.H_function(z[:system.n], z[system.n:], t, theta)
+        H = system.H_varying_function(z[:system.n], z[system.n:], t, theta)
         return ca.Function("accuracy_node", [z, t, theta], [field(z, t, theta), H],
                            ["z", "t", "theta"], ["f", "H"], {"cse": True})
     return cached(system, "accuracy_node", build)

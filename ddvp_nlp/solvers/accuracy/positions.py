@@ -28,11 +28,12 @@ import numpy as np
 
 from ..columns import row_max, row_max_ratio
 from ..exact.flow import exact_flow
+from ..exact.flow_newton import exact_newton
 from ..exact.reference import FACTOR, FLOOR_RTOL, reference
 from ..exact.short_flows import short_flows
 from ..exact.tolerance import EXACT_TOLERANCE
 
-NEWTON_ITERATIONS = 30
+NEWTON_ITERATIONS = 30  # evaluations of the fit's Newton
 FIT_TOLERANCE = EXACT_TOLERANCE.newton_tol  # of the motion's size
 FIT_RTOL = EXACT_TOLERANCE.flow_rtol  # the flow's tolerance while fitting the start
 SHARE = 0.1  # of global_tol: the reference's own error
@@ -78,18 +79,31 @@ def fit_start(system, theta, t, data_index, q, order, scale, *, compiler=None,
     target = FIT_TOLERANCE * scale
     flow = exact_flow(system, tangent=y.size, compiler=compiler, cache_dir=cache_dir)
     times = t[data_index]
-    for _ in range(NEWTON_ITERATIONS):
+
+    def evaluate(y_value):
         with np.errstate(all="ignore"):
-            run = flow.run(y, t[0], times[-1], theta, rtol=FIT_RTOL, atol=FIT_RTOL * weights)
+            run = flow.run(y_value, t[0], times[-1], theta, rtol=FIT_RTOL,
+                           atol=FIT_RTOL * weights)
             states = run.z(times) if run.success else np.full((times.size, y.size), np.nan)
         residual = (states[:, :n] - q[data_index]).ravel()
-        if not np.all(np.isfinite(residual)):
-            return None, "the exact flow from the nodes' own start does not stay finite"
-        if np.all(np.abs(residual.reshape(-1, n)) <= target):
-            return y, ""
+        return (residual if np.all(np.isfinite(residual)) else None), run
+
+    def step(_y, residual, run):  # least squares: more positions than unknowns
         jacobian = run.Y(times)[:, :n, :].reshape(-1, y.size)
-        step = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
-        y = y + step
+        return np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
+
+    def scaled(values, sizes):  # the largest |v_i| / s_i (inf past the largest float)
+        with np.errstate(over="ignore"):
+            return float(np.max(np.abs(values) / sizes))
+
+    result = exact_newton(
+        evaluate, step, y, size=lambda residual: scaled(residual.reshape(-1, n), scale),
+        converged=lambda residual, _run: bool(np.all(np.abs(residual.reshape(-1, n)) <= target)),
+        max_iterations=NEWTON_ITERATIONS - 1, step_size=lambda dy: scaled(dy, weights))
+    if result.failed_evaluation:
+        return None, "the exact flow from the nodes' own start does not stay finite"
+    if result.converged:
+        return result.x, ""
     return None, ("no motion of the exact flow passes through the given nodes (Newton on its "
                   "initial state did not converge)")
 

@@ -41,6 +41,7 @@ from .judgement import (
     Level,
     Scan,
     finite_or_none,
+    gradient_weights,
     unjudged,
     verdict_report,
 )
@@ -88,7 +89,7 @@ class StreamingJudgement:
         judge = self.judge
         if self.extent is None:
             self.t0, self.z0 = float(t[0]), z[0].copy()
-            self.extent = Extent(z)
+            self.extent = Extent(z, judge.free)
             self.level = self.level_of(t, z) if self.level_of else None
         else:
             low, high, largest = column_extremes(z)
@@ -112,7 +113,7 @@ class StreamingJudgement:
         n = self.n
         if self.H0 is None:
             self.H0 = float(H[0])
-        norm = row_norm(field * np.concatenate([scale[n:], scale[:n]]))
+        norm = row_norm(field * gradient_weights(scale, n, self.judge.free))
         weights = np.zeros(t.size)  # each node stands for half of each step beside it
         weights[:-1] += np.diff(t) / 2
         weights[1:] += np.diff(t) / 2

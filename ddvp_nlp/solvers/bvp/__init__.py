@@ -14,7 +14,8 @@ Where things are:
 - ``ends_nlp.py``: IPOPT fed by the banded assembly through callbacks (the grid's IPOPT build);
 - ``first_guess.py``: the starts (straight line or shooting, fixed steps on uniform and on
   predicted times); ``end_continuation.py``: the continuation in the end position, the start of
-  last resort;
+  last resort (shooting and the continuation's corrector are grid problems solved by the grid's
+  Newton);
 - ``exact/shooting.py``: the continuous problem near a solution, by multiple shooting with the
   reference flow: what the accuracy check measures the grid against, or why there is none.
 - ``at_energy.py``: transfers at a prescribed energy (``AtEnergy``): the end time an unknown, the

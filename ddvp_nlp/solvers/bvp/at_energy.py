@@ -44,6 +44,8 @@ from ...physics.hamiltonian import derivatives_function
 from ...solution import Solution, Status, TransferRecord
 from ...validation import check_real
 from ..accuracy.judgement import Level, assess, judge
+from ..exact.flow_newton import exact_newton
+from ..exact.tolerance import EXACT_TOLERANCE
 from ..exact.variational import flow_with_derivatives
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
@@ -65,7 +67,11 @@ STEP_ITERATIONS = 60
 SECANT_STEPS = 12
 SECANT_TOL = 1e-3
 SECANT_REACH = 0.1
+# The exact flow's transfer (`shoot_transfer`): Newton's evaluations, and the residual (relative
+# to the scales of the positions and the energy) it stops at and the transfer is accepted at.
 SHOOTING_ITERATIONS = 15
+SHOOTING_STOP = EXACT_TOLERANCE.newton_tight_tol
+SHOOTING_ACCEPT = EXACT_TOLERANCE.newton_accept_tol
 
 
 @dataclass(frozen=True)
@@ -317,42 +323,65 @@ def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance
 
 def shoot_transfer(system, theta, t, q, p, energy: float) -> dict:
     """The exact flow's transfer near the grid: Newton on ``(p_0, T)`` for ``q(T) = q_end`` and
-    ``H(q_start, p_0) = E`` (the exact flow with its variational equations), from the grid's ``p_0``
-    and transfer time; the differences of the transfer time and of the path at the grid's
-    node times (largest over ``z``) and the exact path there (``path``, ``None`` unless the
-    shooting converged; its residuals relative to the end positions' scale and the energy's)."""
+    ``H(q_start, p_0) = E`` (the exact flow with its variational equations; the one Newton on
+    it, ``exact/flow_newton.py``, undamped), from the grid's ``p_0`` and transfer time; the
+    differences of the transfer time and of the path at the grid's node times (largest over
+    ``z``) and the exact path there (``path``, ``None`` unless the shooting converged; its
+    residuals relative to the end positions' scale and the energy's).
+
+    Newton stops at ``SHOOTING_STOP`` of those scales or where the flow fails, and the transfer
+    counts as found at ``SHOOTING_ACCEPT``. Where ``SHOOTING_ITERATIONS`` evaluations do not
+    reach the stop, one more step is taken and not evaluated: the transfer time and the path
+    are then those of that step, accepted on the residual before it."""
     n = system.n
     q_start, q_end = q[0], q[-1]
-    momentum, duration = p[0].copy(), float(t[-1] - t[0])
     # Scales of the residuals from the problem, none from 1: positions by the end positions
     # and the distance between them, the energy by |E| (its round-off) and by H_p . p, the
     # energy a momentum of this size carries.
     span = max(float(np.max(np.abs(q_end - q_start))), float(np.max(np.abs(q_end))),
                float(np.max(np.abs(q_start))), np.finfo(float).tiny)
-    history, worst = [], []
-    for _ in range(SHOOTING_ITERATIONS):
-        z0 = np.concatenate([q_start, momentum])
-        flow = flow_with_derivatives(system, theta, z0, duration)
+
+    def evaluate(x):  # x = (p_0, T)
+        momentum, duration = x[:n], x[n]
+        flow = flow_with_derivatives(system, theta, np.concatenate([q_start, momentum]),
+                                     duration)
         H0, _, H_p, _ = derivatives_function(system)(q_start, momentum, 0.0, theta)
         residual = np.r_[flow.z[:n] - q_end, float(H0) - energy]
         scale = np.r_[np.full(n, span), max(abs(energy), float(np.abs(np.asarray(H_p).ravel())
                                                                 @ np.abs(momentum)),
                                              np.finfo(float).tiny)]
-        history.append(float(np.max(np.abs(residual))))
-        worst.append(float(np.max(np.abs(residual) / scale)))
-        if worst[-1] <= 1e-11 or not flow.success:
-            break
         jacobian = np.vstack([np.hstack([flow.monodromy[:n, n:], flow.field[:n, None]]),
                               np.r_[np.asarray(H_p).ravel(), 0.0]])
-        correction = np.linalg.solve(jacobian, -residual)
-        momentum, duration = momentum + correction[:n], duration + correction[n]
-    converged = bool(worst[-1] <= 1e-9)
+        scaled = np.abs(residual) / scale
+        return (scaled if flow.success else None), (residual, scaled, jacobian)
+
+    def step(_x, _scaled, payload):
+        return np.linalg.solve(payload[2], -payload[0])
+
+    start = np.r_[p[0], float(t[-1] - t[0])]
+    weights = np.r_[np.full(n, max(float(np.max(np.abs(p[0]))), np.finfo(float).tiny)),
+                    start[n]]
+    result = exact_newton(evaluate, step, start, size=lambda scaled: float(np.max(scaled)),
+                          tolerance=SHOOTING_STOP, max_iterations=SHOOTING_ITERATIONS - 1,
+                          step_size=lambda dx: _largest_ratio(dx, weights))
+    residual, scaled, _ = result.payload
+    x = result.x
+    if not result.converged and not result.failed_evaluation:
+        x = x + step(x, scaled, result.payload)
+    momentum, duration = x[:n], (float(x[n]) if x is start else x[n])
+    converged = bool(float(np.max(scaled)) <= SHOOTING_ACCEPT)
     path = flow_with_derivatives(system, theta, np.concatenate([q_start, momentum]), duration,
                                  times=np.clip(t - t[0], 0.0, duration)).path if converged \
         else None
     return {"converged": converged, "transfer_time": duration,
             "time_difference": float(t[-1] - t[0] - duration),
-            "momentum": momentum.tolist(), "iterations": len(history) - 1,
-            "residual": history[-1],
+            "momentum": momentum.tolist(), "iterations": result.iterations,
+            "residual": float(np.max(np.abs(residual))),
             "path_difference": None if path is None else float(
                 np.max(np.abs(np.hstack([q, p]) - path))), "path": path}
+
+
+def _largest_ratio(values, sizes) -> float:
+    """The largest ``|v_i| / s_i`` (``inf`` past the largest float)."""
+    with np.errstate(over="ignore"):
+        return float(np.max(np.abs(values) / sizes))

@@ -9,9 +9,10 @@ a continuation in ``s`` itself stops (tried: on the pendulum from 0.5 to -0.3 in
 it stopped at ``s = 0.61``, on Henon-Heiles at ``s = 0.02-0.88``). Here the unknowns are
 ``y = (x, s)`` and each step moves a length ``h`` along the path's tangent ``T``:
 
-- predictor ``y + h T``; corrector: Newton on ``F(x, s) = 0`` together with
-  ``<T, y - y_pred> = 0`` (the hyperplane through the prediction across the path), solved by
-  bordering with the banded LU of ``F_x``: ``dx = z_1 + ds z_2`` with ``F_x z_1 = -F`` and
+- predictor ``y + h T``; corrector: the grid's Newton (``grid/newton.py``, full steps) on
+  ``F(x, s) = 0`` together with ``<T, y - y_pred> = 0`` (the hyperplane through the prediction
+  across the path; `_Path` is that grid problem), each step solved by bordering with the banded
+  LU of ``F_x`` (`Bordered`): ``dx = z_1 + ds z_2`` with ``F_x z_1 = -F`` and
   ``F_x z_2 = -F_s`` (``F_s = -d`` on the end rows), which stays well posed at a fold where
   ``F_x`` alone is singular;
 - the tangent is the secant of the last two points (its orientation kept), ``h`` grows by half
@@ -28,10 +29,13 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..grid.linear import Factorization, band_kernel
+from ..grid.newton import FullSteps, newton
 from ..grid.policy import Stage
 from ..grid.problem import GridRequest
 from .interleaved import Ends, NodeLayout
@@ -106,13 +110,56 @@ def _walk(request, path, y, record):
     return None
 
 
+@dataclass(frozen=True)
+class Hyperplane:
+    """The data of one corrector solve: the prediction ``y_pred`` and the tangent ``T`` of the
+    hyperplane ``<T, y - y_pred> = 0`` the corrected point lies on."""
+
+    prediction: np.ndarray
+    tangent: np.ndarray
+
+
+@dataclass(frozen=True)
+class _PathLayout:
+    """``y = (x, s)``: the fixed-step problem's unknowns, then ``s``."""
+
+    base: object
+
+    @property
+    def size(self) -> int:
+        return self.base.size + 1
+
+    @property
+    def bandwidth(self) -> int:
+        """The bordered Jacobian's last row and column are full: not banded."""
+        return self.size
+
+    def time_index(self) -> np.ndarray:
+        return self.base.time_index()
+
+
+class _CorrectorSteps(FullSteps):
+    """The corrector's Newton: full steps, converged when every ``|F_i|`` of the fixed-step
+    problem (not the hyperplane's row) is below ``CORRECTOR_TOL max(1, |x|_inf)``."""
+
+    def converged(self, F, y, target) -> bool:
+        return bool(np.max(np.abs(F[:-1]))
+                    <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))))
+
+
+CORRECTOR_STEPS = _CorrectorSteps()
+
+
 class _Path:
     """The path of solutions ``F(x, s) = 0`` with the end position ``a + s d``: its tangent and
-    corrector by bordering (module docstring)."""
+    corrector by bordering (module docstring). A ``grid.GridProblem`` in ``y = (x, s)`` (its
+    data a `Hyperplane`): ``(F(x, s), <T, y - y_pred>)``, solved by the grid's Newton with
+    full steps and the bordered solve (`Bordered`)."""
 
     def __init__(self, request, grid, times, a):
         self.grid, self.request = grid, request
         size = grid.layout.size
+        self.layout = _PathLayout(grid.layout)
         self.times, self.a, self.d = np.asarray(times, float), a, request.data.q_end - a
         self.F_s = np.zeros(size)
         self.F_s[-request.system.n:] = -self.d
@@ -138,27 +185,76 @@ class _Path:
         tangent = np.concatenate([z, [1.0]])
         return tangent / self.norm(tangent)
 
+    def evaluate(self, y: np.ndarray, plane: Hyperplane, jacobian: bool = True):
+        """``(F(x, s), <T, y - y_pred>)`` and, if asked, the Jacobian ``(blocks, plane)``."""
+        F, blocks = self.grid.evaluate(y[:-1], self.ends(y[-1]), jacobian=jacobian)
+        g = float(np.sum(self.weight * plane.tangent * (y - plane.prediction)))
+        return np.r_[F, g], ((blocks, plane) if jacobian else None)
+
+    def bordered(self, jacobian) -> Bordered:
+        """The solve of the bordered Jacobian by the LU of ``F_x`` (grid Newton's ``factor``)."""
+        blocks, plane = jacobian
+        return Bordered(self.factor(blocks), self.F_s, self.weight * plane.tangent)
+
+    def sparse(self, jacobian) -> sp.csc_matrix:
+        blocks, plane = jacobian
+        row = self.weight * plane.tangent
+        return sp.bmat([[self.grid.sparse(blocks), sp.csc_matrix(self.F_s[:, None])],
+                        [sp.csr_matrix(row[None, :-1]), sp.csr_matrix(row[None, -1:])]],
+                       format="csc")
+
+    def parameter_jacobian(self, y: np.ndarray, plane: Hyperplane) -> sp.csc_matrix:
+        """``dF/dtheta``: the fixed-step problem's at ``s`` (``GridAssembly``'s, from its CasADi
+        blocks), and a zero row for the hyperplane."""
+        rows = self.grid.parameter_jacobian(y[:-1], self.ends(y[-1]))
+        return sp.vstack([rows, sp.csc_matrix((1, rows.shape[1]))], format="csc")
+
+    def release(self) -> None:
+        """Nothing: the band store serves every corrector of the walk, and
+        `continue_in_end_position` releases the assembly's when the walk ends."""
+
     def correct(self, prediction, tangent):
-        """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` by bordering:
-        ``(y, iterations)``, ``y`` ``None`` if it did not converge."""
-        y, weight = prediction.copy(), self.weight
-        for iteration in range(1, CORRECTOR_ITERATIONS + 1):
-            F, blocks = self.grid.evaluate(y[:-1], self.ends(y[-1]), jacobian=True)
-            if not np.all(np.isfinite(F)):
-                return None, iteration
-            if np.max(np.abs(F)) <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))):
-                return y, iteration - 1
-            lu = self.factor(blocks)
-            z1 = lu.solve(-F)
-            z2 = lu.solve(-self.F_s.copy())
-            if not (np.all(np.isfinite(z1)) and np.all(np.isfinite(z2))):
-                return None, iteration
-            g = float(np.sum(weight * tangent * (y - prediction)))
-            wx = weight[:-1] * tangent[:-1]
-            denominator = float(wx @ z2) + weight[-1] * tangent[-1]
-            if denominator == 0.0:
-                return None, iteration
-            ds = (-g - float(wx @ z1)) / denominator
-            y[:-1] += z1 + ds * z2
-            y[-1] += ds
-        return None, CORRECTOR_ITERATIONS
+        """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` (the grid's Newton,
+        full steps, bordered solve): ``(y, iterations)``, ``y`` ``None`` if it did not
+        converge (then ``iterations`` counts the one it stopped in)."""
+        result = newton(self, prediction, Hyperplane(prediction, tangent),
+                        np.full(prediction.size, CORRECTOR_TOL), tau_floor=-np.inf,
+                        max_iter=CORRECTOR_ITERATIONS, test=CORRECTOR_STEPS,
+                        factor=self.bordered)
+        if result.converged:
+            return result.x, result.iterations
+        return None, result.last_iteration
+
+
+class Bordered:
+    """``[[F_x, F_s], [r_x^T, r_s]] (dx, ds) = (b, beta)`` by bordering with the factors of
+    ``F_x``: ``dx = z_1 + ds z_2``, ``F_x z_1 = b``, ``F_x z_2 = -F_s``,
+    ``ds = (beta - r_x . z_1) / (r_x . z_2 + r_s)``; well posed at a fold, where ``F_x``
+    alone is singular. ``nan`` where a solve is not finite or the denominator is zero."""
+
+    def __init__(self, lu: Factorization, F_s: np.ndarray, row: np.ndarray):
+        self.lu, self.F_s, self.row = lu, F_s, row
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        z1 = self.lu.solve(rhs[:-1].copy())
+        z2 = self.lu.solve(-self.F_s.copy())
+        wx = self.row[:-1]
+        if not (np.all(np.isfinite(z1)) and np.all(np.isfinite(z2))):
+            return np.full_like(rhs, np.nan)
+        denominator = float(wx @ z2) + self.row[-1]
+        if denominator == 0.0:
+            return np.full_like(rhs, np.nan)
+        ds = (rhs[-1] - float(wx @ z1)) / denominator
+        return np.r_[z1 + ds * z2, ds]
+
+    def solve_transposed(self, rhs: np.ndarray) -> np.ndarray:
+        """The transpose ``[[F_x^T, r_x], [F_s^T, r_s]]`` by the same bordering:
+        ``u = w_1 - v w_2``, ``F_x^T w_1 = b``, ``F_x^T w_2 = r_x``,
+        ``v = (beta - F_s . w_1) / (r_s - F_s . w_2)``."""
+        w1 = self.lu.solve_transposed(rhs[:-1].copy())
+        w2 = self.lu.solve_transposed(self.row[:-1].copy())
+        denominator = self.row[-1] - float(self.F_s @ w2)
+        if not (np.all(np.isfinite(w1)) and np.all(np.isfinite(w2))) or denominator == 0.0:
+            return np.full_like(rhs, np.nan)
+        v = (rhs[-1] - float(self.F_s @ w1)) / denominator
+        return np.r_[w1 - v * w2, v]

@@ -17,15 +17,16 @@ Released directly from uniform times, Newton diverged at N = 1e5 on the pendulum
 predicted times it took 3-4 iterations at N = 1e3, 1e4 and 1e5 (measured).
 
 ``guess="march"`` replaces phase 1 by shooting: march ``fixed`` steps on the uniform grid from
-``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by Newton's method with a
-finite-difference Jacobian (``n + 1`` marches an iteration), from ``p_start`` if given, else from
-the straight line's momentum. The fixed-endpoint problem can have
-several solutions (a pendulum that swings once or twice between the same positions); shooting
-from the straight line's momentum picks the one the march from that momentum reaches, which
-the straight-line start, a trajectory that never turns, can miss. A Kepler orbit over three
-periods is one: the straight line between two points near the pericentre leads to the radial
-branch (out to r = 4.2 and back), on which the energy rules have no solution (``w < 0`` for
-``r < 2``, docs/theory.md section 7); ``p_start`` near the orbit's momentum selects the three
+``(q_start, p_0)`` and solve ``q_{N-1}(p_0) = q_end`` for ``p_0`` by the grid's Newton
+(``grid/newton.py``) on `ShootingProblem`, a grid problem of ``n`` unknowns with a
+finite-difference Jacobian (``n + 1`` marches an iteration), a least-squares solve and steps of its
+own (`ShootingSteps`), from ``p_start`` if given, else from the straight line's momentum. The
+fixed-endpoint problem can have several solutions (a pendulum that swings once or twice between the
+same positions); shooting from the straight line's momentum picks the one the march from that
+momentum reaches, which the straight-line start, a trajectory that never turns, can miss. A Kepler
+orbit over three periods is one: the straight line between two points near the pericentre leads to
+the radial branch (out to r = 4.2 and back), on which the energy rules have no solution (``w < 0``
+for ``r < 2``, docs/theory.md section 7); ``p_start`` near the orbit's momentum selects the three
 revolutions.
 
 A node guess (a march, a file) of another rule is first moved to the predicted times and solved
@@ -37,10 +38,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from ...discrete.scheme import Scheme
 from ...physics.hamiltonian import site_density_weight_function
 from ..grid.maps import evaluate_blocks
+from ..grid.newton import NaturalMonotonicity, newton
 from ..grid.policy import Stage
 from ..grid.problem import GridRequest
 from ..options import Compilation, StepControl
@@ -61,7 +64,7 @@ class Shooting:
 
 
 SHOOTING_ITERATIONS = 30
-# Relative singular-value cut of the shooting Jacobian (_shooting_step).
+# Relative singular-value cut of the shooting Jacobian (LeastSquares).
 SHOOTING_RCOND = 1e-6
 # Halvings of a shooting step before the iteration gives up.
 SHOOTING_HALVINGS = 8
@@ -190,12 +193,13 @@ def _continued(request: GridRequest[Boundary], fixed: Scheme, times, base, solve
                         "fixed steps, uniform times (after the continuation)", solver)
 
 
-def _march(request: GridRequest[Boundary], fixed: Scheme, p0):
+def _march(request: GridRequest[Boundary], fixed: Scheme, p0, theta=None):
     """The march of ``fixed`` steps on the uniform grid of ``request.nodes`` nodes from
-    ``(q_start, p0)``."""
+    ``(q_start, p0)`` (with the parameters ``theta``, default the request's)."""
     from ..marching import march
 
-    params = dict(zip(request.system.params, request.theta.tolist(), strict=True))
+    theta = request.theta if theta is None else np.asarray(theta, float)
+    params = dict(zip(request.system.params, theta.tolist(), strict=True))
     return march(request.system, request.data.q_start, p0, (request.data.t0, request.data.t1),
                  tau0=mean_step(request), scheme=fixed, params=params,
                  steps=StepControl(tol=min(request.tol, 1e-10), max_steps=request.nodes),
@@ -217,88 +221,222 @@ def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict
     """``(march, reached)``: the march of ``fixed`` steps from ``(q_start, p_0)`` that ends on
     ``q_end`` to ``tol`` (module docstring), or, when the iteration stops short, the march that
     came closest (``reached`` False: the fixed-step solve then starts from it, on its branch);
-    ``None`` if not even the first march succeeds."""
-    def shoot(p0):
-        return _march(request, fixed, p0)
-
+    ``None`` if not even the first march succeeds. The iteration is the grid's Newton on
+    `ShootingProblem` with its own steps (`ShootingSteps`) and least-squares solve."""
     p0 = straight_line(request, times)["p"][0] if request.data.p_start is None \
         else request.data.p_start.copy()
     record = Stage("shooting (march)", "newton (finite differences)")
     request.phases.append(record)
-    run = shoot(p0)
+    problem, aim = ShootingProblem(request, fixed), Aim(request.data.q_end, request.theta)
+    run = problem.run(p0, aim)
     if not _whole(request, run):
         record.said = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
         return None, False
-    best, stalled = (np.linalg.norm(run.q[-1] - request.data.q_end), run), 0
     close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.data.q_end))))
-    for iteration in range(1, SHOOTING_ITERATIONS + 1):
-        miss = run.q[-1] - request.data.q_end
-        record.iterations = iteration
-        if np.max(np.abs(miss)) <= request.tol:
-            record.converged, record.said = True, f"q_end reached, p_0 = {p0.tolist()}"
-            return {"t": run.t, "q": run.q, "p": run.p}, True
-        step = _shooting_step(shoot, p0, run.q[-1], miss)
-        if step is None:
-            record.said = "a march of the finite differences failed"
-            break
-        # The longest of the halved steps whose march succeeds and comes closer to q_end; if
-        # none comes closer, the longest whose march succeeds (the end can depend on p_0 so
-        # unevenly, a swinging pendulum, that full steps converge where every shorter step
-        # first moves away; measured); the closest march seen is kept.
-        taken = None
-        for halving in range(SHOOTING_HALVINGS + 1):
-            trial = p0 - step / 2 ** halving
-            candidate = shoot(trial)
-            if not _whole(request, candidate):
-                continue
-            taken = taken or (trial, candidate)
-            if np.linalg.norm(candidate.q[-1] - request.data.q_end) < np.linalg.norm(miss):
-                taken = (trial, candidate)
-                break
-        if taken is None:
-            record.said = (f"every march along the step from p_0 = {p0.tolist()} "
-                                       f"fails (miss {np.linalg.norm(miss):.3e})")
-            break
-        p0, run = taken
-        distance = np.linalg.norm(run.q[-1] - request.data.q_end)
-        if distance < 0.5 * best[0]:
-            stalled = 0
-        else:
-            stalled += 1
-        best = min(best, (distance, run), key=lambda b: b[0])
-        if stalled >= SHOOTING_STALL and best[0] <= close:
-            record.said = (f"the miss has not halved in {SHOOTING_STALL} "
-                                       f"iterations")
-            break
+    result = newton(problem, p0, aim, np.full(p0.size, request.tol), tau_floor=-np.inf,
+                    max_iter=SHOOTING_ITERATIONS, test=ShootingSteps(problem, aim, close),
+                    factor=LeastSquares)
+    record.iterations = result.last_iteration
+    if result.converged:
+        record.converged, record.said = True, f"q_end reached, p_0 = {result.x.tolist()}"
+        run = problem.run(result.x, aim)
     else:
-        record.said = f"q_end not reached in {SHOOTING_ITERATIONS} iterations"
-    run = best[1]
-    record.said += (f"; the closest march (miss {best[0]:.3e}) starts the "
-                                f"fixed-step solve")
-    return {"t": run.t, "q": run.q, "p": run.p}, False
+        record.said, run = result.outcome, problem.closest[1]
+    return {"t": run.t, "q": run.q, "p": run.p}, bool(result.converged)
 
 
-def _shooting_step(shoot, p0, q_last, miss) -> np.ndarray | None:
-    """Newton step ``J^-1 miss`` on ``q_{N-1}(p_0)``, ``J`` by forward differences, its length
-    capped at ``max(1, |p_0|)``; ``None`` if a march fails."""
-    n = p0.size
-    J = np.empty((n, n))
-    for i in range(n):
-        h = 1e-7 * max(1.0, abs(p0[i]))
-        bumped = p0.copy()
-        bumped[i] += h
-        run = shoot(bumped)
-        if not run.success:
-            return None
-        J[:, i] = (run.q[-1] - q_last) / h
-    # Directions the end barely depends on are left alone (rcond): over whole periods of a
-    # Kepler orbit every direction of p_0 with the same |p_0| returns to the start, and
-    # the minimum-norm step along that near-null direction sent p_0 into the centre
-    # (measured).
-    step = np.linalg.lstsq(J, miss, rcond=SHOOTING_RCOND)[0]
-    # a step larger than the momentum itself leaves the march's basin: cap it
-    scale = max(1.0, float(np.max(np.abs(p0))))
-    return step * min(1.0, scale / max(float(np.max(np.abs(step))), 1e-300))
+@dataclass(frozen=True)
+class Aim:
+    """The data of a `ShootingProblem`: the end position the march must reach and the
+    parameters it runs with."""
+
+    q_end: np.ndarray
+    theta: np.ndarray
+
+
+@dataclass(frozen=True)
+class _MomentumLayout:
+    """The unknowns of shooting: ``p_0`` alone, no node times."""
+
+    n: int
+
+    @property
+    def size(self) -> int:
+        return self.n
+
+    @property
+    def bandwidth(self) -> int:
+        return max(self.n - 1, 0)
+
+    def time_index(self) -> np.ndarray:
+        return np.zeros(0, int)
+
+
+class ShootingProblem:
+    """``F(p_0) = q_{N-1}(p_0) - q_end``, ``q_{N-1}`` the last position of the march of fixed
+    steps from ``(q_start, p_0)`` on the grid's ``N`` nodes (``nan`` where that march does not
+    reach ``t_end`` in ``N`` nodes): a ``grid.GridProblem`` of ``n`` unknowns whose Jacobians
+    are forward differences (``n + 1`` marches; ``None`` if a march of the differences fails),
+    step ``1e-7 max(1, |p_0,i|)``.
+
+    The marches of the residuals are kept until the next Jacobian (a line search's trials, the
+    step is one of them); `closest` is the march that came closest to ``q_end`` (2-norm; the
+    first of equals), the start shooting falls back on."""
+
+    def __init__(self, request: GridRequest[Boundary], fixed: Scheme):
+        self.request, self.fixed = request, fixed
+        self.layout = _MomentumLayout(request.system.n)
+        self._runs: dict = {}
+        self.closest = (np.inf, None)
+
+    def run(self, p0: np.ndarray, aim: Aim):
+        """The march from ``p0`` (kept)."""
+        key = (p0.tobytes(), np.asarray(aim.theta, float).tobytes())
+        run = self._runs.get(key)
+        if run is None:
+            run = self._runs[key] = _march(self.request, self.fixed, p0, aim.theta)
+        return run
+
+    def forget(self, p0: np.ndarray, aim: Aim) -> None:
+        """Drop the march from ``p0`` (a trial the line search does not take)."""
+        self._runs.pop((p0.tobytes(), np.asarray(aim.theta, float).tobytes()), None)
+
+    def evaluate(self, p0: np.ndarray, aim: Aim, jacobian: bool = True):
+        run = self.run(p0, aim)
+        if not _whole(self.request, run):
+            return np.full(self.layout.size, np.nan), None
+        F = run.q[-1] - aim.q_end
+        if not jacobian:
+            distance = np.linalg.norm(F)
+            if distance < self.closest[0]:
+                self.closest = (distance, run)
+            return F, None
+        self._runs = {key: kept for key, kept in self._runs.items() if kept is run}
+        return F, self._differences(p0, aim, run)
+
+    def _differences(self, p0, aim, run) -> np.ndarray | None:
+        n = p0.size
+        J = np.empty((n, n))
+        for i in range(n):
+            h = 1e-7 * max(1.0, abs(p0[i]))
+            bumped = p0.copy()
+            bumped[i] += h
+            moved = _march(self.request, self.fixed, bumped, aim.theta)
+            if not moved.success:
+                return None
+            J[:, i] = (moved.q[-1] - run.q[-1]) / h
+        return J
+
+    def parameter_jacobian(self, p0: np.ndarray, aim: Aim) -> sp.csc_matrix:
+        """``dF/dtheta`` by forward differences of marches (step ``1e-7 max(1, |theta_j|)``):
+        a march has no expression to differentiate; ``nan`` columns where a march fails."""
+        theta = np.asarray(aim.theta, float)
+        run = _march(self.request, self.fixed, p0, theta)
+        columns = np.full((p0.size, theta.size), np.nan)
+        for j in range(theta.size):
+            h = 1e-7 * max(1.0, abs(theta[j]))
+            bumped = theta.copy()
+            bumped[j] += h
+            moved = _march(self.request, self.fixed, p0, bumped)
+            if moved.success and run.success:
+                columns[:, j] = (moved.q[-1] - run.q[-1]) / h
+        return sp.csc_matrix(columns)
+
+    def sparse(self, jacobian) -> sp.csc_matrix:
+        return sp.csc_matrix(jacobian)
+
+    def banded(self, jacobian) -> np.ndarray:
+        """The dense ``n x n`` Jacobian in LAPACK band storage (bandwidth ``n - 1``)."""
+        n, w = self.layout.size, self.layout.bandwidth
+        ab = np.zeros((3 * w + 1, n), order="F")
+        rows, cols = np.indices((n, n))
+        ab[2 * w + rows - cols, cols] = jacobian
+        return ab
+
+    def release(self) -> None:
+        """Nothing to drop until shooting ends: it reads `closest` after the solve."""
+
+
+class LeastSquares:
+    """The solve of shooting's Newton step: the least-squares ``J^+ rhs`` with the singular
+    values below ``SHOOTING_RCOND`` times the largest cut, ``nan`` without a ``J`` (a march
+    of the differences failed). Directions the end barely depends on are left alone: over
+    whole periods of a Kepler orbit every direction of ``p_0`` with the same ``|p_0|`` returns
+    to the start, and the minimum-norm step along that near-null direction sent ``p_0`` into
+    the centre (measured)."""
+
+    def __init__(self, jacobian):
+        self.jacobian = jacobian
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        if self.jacobian is None:
+            return np.full_like(rhs, np.nan)
+        return np.linalg.lstsq(self.jacobian, rhs, rcond=SHOOTING_RCOND)[0]
+
+    def solve_transposed(self, rhs: np.ndarray) -> np.ndarray:
+        if self.jacobian is None:
+            return np.full_like(rhs, np.nan)
+        return np.linalg.lstsq(self.jacobian.T, rhs, rcond=SHOOTING_RCOND)[0]
+
+
+class ShootingSteps(NaturalMonotonicity):
+    """How shooting steps along ``dx = -J^+ F`` (grid Newton's step test): the step is capped
+    at ``max(1, |p_0|)`` (a step larger than the momentum itself leaves the march's basin),
+    then halved ``SHOOTING_HALVINGS`` times at most; the longest of the halved steps whose march
+    succeeds and comes closer to ``q_end`` is taken, and if none comes closer, the longest whose
+    march succeeds (the end can depend on ``p_0`` so unevenly, a swinging pendulum, that full
+    steps converge where every shorter step first moves away; measured). The iteration stops
+    when the closest miss, below ``close``, has not halved in ``SHOOTING_STALL`` steps; the
+    closest march seen is returned."""
+
+    keep_best = True
+
+    def __init__(self, problem: ShootingProblem, aim: Aim, close: float):
+        self.problem, self.aim, self.close = problem, aim, close
+        self.start, self.unhalved = None, 0
+
+    def norm(self, F, weight) -> float:
+        return np.linalg.norm(F)
+
+    def search(self, residual, problem, lu, x, dx, tau_floor, norm, weight, near_floor):
+        self.start = x
+        scale = max(1.0, float(np.max(np.abs(x))))
+        cap = min(1.0, scale / max(float(np.max(np.abs(dx))), 1e-300))
+        step, taken = dx * cap, None
+        for halving in range(SHOOTING_HALVINGS + 1):
+            trial = x + step / 2 ** halving
+            F, _ = residual(trial, False)
+            if not np.all(np.isfinite(F)):
+                continue
+            if np.linalg.norm(F) < norm:
+                return trial, F, cap / 2 ** halving
+            if taken is None:
+                taken = (trial, F, cap / 2 ** halving)
+            else:
+                self.problem.forget(trial, self.aim)
+        return taken
+
+    def singular(self, iteration: int) -> str:
+        return "a march of the finite differences failed"
+
+    def stalled(self, F, target, norm: float, iteration: int) -> tuple[str, bool]:
+        return (f"every march along the step from p_0 = {self.start.tolist()} fails (miss "
+                f"{norm:.3e})"), False
+
+    def halted(self, norm: float, best_norm: float) -> str | None:
+        self.unhalved = 0 if norm < 0.5 * best_norm else self.unhalved + 1
+        if self.unhalved >= SHOOTING_STALL and min(best_norm, norm) <= self.close:
+            return f"the miss has not halved in {SHOOTING_STALL} iterations"
+        return None
+
+    def finish(self, result, best, target, max_iter: int, norm: float) -> None:
+        """The closest iterate, never converged (a last step that reaches ``q_end`` is not
+        checked: the closest march starts the fixed-step solve)."""
+        if not result.outcome:
+            result.outcome = f"q_end not reached in {max_iter} iterations"
+        result.outcome += (f"; the closest march (miss {best[0]:.3e}) starts the fixed-step "
+                           f"solve")
+        result.x, result.converged = best[1], False
 
 
 def interpolate(times, t, values) -> np.ndarray:

@@ -12,6 +12,9 @@ The contract of the exact flow. An implementer must keep:
 3. Its derivatives (the variational equations) are those of the same flow, so a shooting
    Newton and a monodromy matrix agree with the trajectory they belong to.
 4. This package imports only the core (``options``, ``compiler``) and the base modules.
+5. A Newton on the flow (shooting, closure, and outside this package the transfer at an energy
+   and the higher-order fit) is the one ``flow_newton.exact_newton``, its tolerances read from
+   the one policy (``options.ExactTolerance``), its result carrying the bound of its own error.
 """
 
 from typing import TYPE_CHECKING

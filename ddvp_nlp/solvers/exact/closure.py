@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
+from .flow_newton import exact_newton
 from .tolerance import EXACT_TOLERANCE
 from .variational import RTOL, flow_with_derivatives
 
@@ -39,7 +40,8 @@ class ExactOrbit:
     largest ``|phi_T(z_0) - z_0 - shift|`` relative to the orbit's size, ``iterations``);
     ``start_return`` is the same measure of the start (the discrete orbit's node 0 after its
     own period), ``distance`` the largest ``|z_0 - z_0(start)|``, ``period_derivative`` the
-    exact family's ``dT/dE``."""
+    exact family's ``dT/dE``, ``error_bound`` Newton's bound of its own error (its last step,
+    relative to the orbit's size, the period or energy, and 1 for the unfolding)."""
 
     z0: np.ndarray
     period: float
@@ -54,6 +56,7 @@ class ExactOrbit:
     energy: float
     period_derivative: float
     history: list = field(default_factory=list)
+    error_bound: float = np.inf
 
     def as_dict(self) -> dict:
         return {"converged": self.converged, "period": self.period, "energy": self.energy,
@@ -68,66 +71,85 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
                 section_value: float, integrals=(), shift=0.0, rtol: float = RTOL,
                 fixed_period: bool = False) -> ExactOrbit:
     """The exact periodic orbit near ``(z_0, T)`` by Newton on the shooting equations (module
-    docstring). ``section_index`` counts ``t`` as 0 (as the discrete layouts do), so
-    ``z_0[section_index - 1]`` is fixed; the integrals' phase conditions are taken at the
-    start's ``z_0``. The orbit's ``period_derivative`` (``dT/dE`` along the exact family, at
-    fixed section and phases) comes from the last Newton matrix. With ``fixed_period`` the
-    period is held and the energy is the unknown (``energy`` its start): regular through a
-    fold in ``E``, where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
+    docstring; the one Newton on the exact flow, ``flow_newton.py``, undamped). ``section_index``
+    counts ``t`` as 0 (as the discrete layouts do), so ``z_0[section_index - 1]`` is fixed; the
+    integrals' phase conditions are taken at the start's ``z_0``. It stops where the closure and
+    the energy equation are both within ``CLOSURE_TARGET`` of their scales (the orbit's size,
+    ``max(1, |E|)``), or where the flow fails. The orbit's ``period_derivative`` (``dT/dE``
+    along the exact family, at fixed section and phases) comes from the last Newton matrix. With
+    ``fixed_period`` the period is held and the energy is the unknown (``energy`` its start):
+    regular through a fold in ``E``, where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
-    z = np.array(z0, float)
-    reference = z.copy()
+    reference = np.array(z0, float)
     shift = np.broadcast_to(np.asarray(shift, float), (k,))
     gradient = _gradients_function(system, integrals)
     generators = _generators(np.asarray(gradient(reference, theta))[:, 1:]) if r else \
         np.zeros((0, k))
     section_row = np.zeros(k)
     section_row[section_index - 1] = 1.0
-    T, u = float(period), np.zeros(1 + r)
-    scale = max(float(np.max(np.abs(z))), 1.0)
+    scale = max(float(np.max(np.abs(reference))), 1.0)
     history = []
-    for iteration in range(MAX_SHOOTING_ITERATIONS + 1):
+
+    def evaluate(x):  # x = (z_0, T or E, u)
+        z, u = x[:k], x[k + 1:]
+        T, level = (period, x[k]) if fixed_period else (x[k], energy)
         flow = flow_with_derivatives(system, theta, z, T, integrals=integrals, unfolding=u,
                                      rtol=rtol)
         closing = flow.z - z - shift
         H = float(system.energy(z[None, :k // 2], z[None, k // 2:], [0.0], theta)[0])
-        F = np.concatenate([closing, [H - energy, z[section_index - 1] - section_value],
+        F = np.concatenate([closing, [H - level, z[section_index - 1] - section_value],
                             generators @ (z - reference)])
         history.append(float(np.max(np.abs(closing))) / scale)
-        rows = np.vstack([np.hstack([flow.monodromy - np.eye(k), flow.field[:, None],
-                                     flow.unfolding]),
-                          np.r_[np.asarray(gradient(z, theta))[:, 0], 0.0, np.zeros(1 + r)],
-                          np.r_[section_row, 0.0, np.zeros(1 + r)],
-                          np.hstack([generators, np.zeros((r, 2 + r))])])
-        if fixed_period:  # the column of E instead of T's
-            rows[:, k] = 0.0
-            rows[k, k] = -1.0
+        rows = _newton_matrix(flow, np.asarray(gradient(z, theta))[:, 0], section_row,
+                              generators, fixed_period)
         closed = history[-1] <= CLOSURE_TARGET and \
-            abs(F[k]) <= CLOSURE_TARGET * max(1.0, abs(energy))
-        if closed or iteration == MAX_SHOOTING_ITERATIONS or not flow.success \
-                or not np.all(np.isfinite(F)):
-            break
-        step = np.linalg.solve(rows, -F)
-        z, u = z + step[:k], u + step[k + 1:]
-        if fixed_period:
-            energy += step[k]
-        else:
-            T += step[k]
+            abs(F[k]) <= CLOSURE_TARGET * max(1.0, abs(level))
+        failed = not flow.success or not np.all(np.isfinite(F))
+        return (None if failed and not closed else F), (flow, rows, closed)
+
+    weights = np.r_[np.full(k, scale), max(1.0, abs(energy if fixed_period else period)),
+                    np.ones(1 + r)]
+    result = exact_newton(
+        evaluate, lambda _x, F, payload: np.linalg.solve(payload[1], -F),
+        np.concatenate([reference, [energy if fixed_period else period], np.zeros(1 + r)]),
+        size=lambda F: float(np.max(np.abs(F[:k]))) / scale,
+        converged=lambda _F, payload: payload[2], max_iterations=MAX_SHOOTING_ITERATIONS,
+        step_size=lambda dx: float(np.max(np.abs(dx) / weights)))
+    flow, rows, _ = result.payload
+    z, u = result.x[:k], result.x[k + 1:]
     if fixed_period:  # dE/dT: the closure's derivative in T is the field at the return
+        T, energy = float(period), result.x[k]
         derivative = np.linalg.solve(rows, -np.r_[flow.field, np.zeros(2 + r)])
         period_derivative = 1.0 / derivative[k] if derivative[k] != 0 else np.inf
     else:
+        T = result.x[k] if result.iterations else float(period)
         energy_row = np.zeros(k + 2 + r)
         energy_row[k] = 1.0
         period_derivative = float(np.linalg.solve(rows, energy_row)[k])
     # an orbit of the Hamiltonian flow: the unfolding at the integrator's accuracy
-    converged = bool(closed and flow.success and np.max(np.abs(u)) <= 1e3 * rtol)
+    converged = bool(result.converged and flow.success and np.max(np.abs(u)) <= 1e3 * rtol)
     return ExactOrbit(z0=z, period=T, unfolding=u, monodromy=flow.monodromy, field=flow.field,
                       converged=converged, closure=history[-1], iterations=len(history) - 1,
                       start_return=history[0], distance=float(np.max(np.abs(z - z0))),
                       energy=float(energy), period_derivative=float(period_derivative),
-                      history=history)
+                      history=history, error_bound=result.error_bound)
+
+
+def _newton_matrix(flow, energy_gradient, section_row, generators, fixed_period):
+    """The shooting equations' Jacobian in ``(z_0, T, u)`` (in ``(z_0, E, u)`` with
+    ``fixed_period``): the monodromy minus ``I``, the field and the unfolding's columns, then
+    the rows of the energy, the section and the phases."""
+    k, r = flow.monodromy.shape[0], generators.shape[0]
+    rows = np.vstack([np.hstack([flow.monodromy - np.eye(k), flow.field[:, None],
+                                 flow.unfolding]),
+                      np.r_[energy_gradient, 0.0, np.zeros(1 + r)],
+                      np.r_[section_row, 0.0, np.zeros(1 + r)],
+                      np.hstack([generators, np.zeros((r, 2 + r))])])
+    if fixed_period:  # the column of E instead of T's
+        rows[:, k] = 0.0
+        rows[k, k] = -1.0
+    return rows
 
 
 def _gradients_function(system, integrals) -> ca.Function:

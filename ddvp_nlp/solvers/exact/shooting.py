@@ -154,6 +154,12 @@ def _none(system, theta, t, z, q_end, cuts, iterations, size, tangents, flow, at
     n = z.shape[1] // 2
     run = flow.run(z[0], float(t[0]), float(t[-1]), theta, rtol=RTOL, atol=atol)
     end = run.z_end if run.success else np.full(2 * n, np.nan)
+    if not np.all(np.isfinite(end)):  # an escape, not a conjugate point: say so
+        return Shot(None, None, cuts, iterations, size,
+                    "no motion of the exact flow near this solution goes from q_start to "
+                    f"q_end: the flow from its first node escapes (it stops at t = "
+                    f"{run.t_reached:.6g} of [{float(t[0]):.6g}, {float(t[-1]):.6g}], last "
+                    f"|z| = {float(np.max(np.abs(run.z_end))):.3g}: {run.status})")
     reason = ("no motion of the exact flow near this solution goes from q_start to q_end: the "
               f"flow from its first node ends at q = {end[:n].tolist()} against q_end = "
               f"{np.asarray(q_end).tolist()}")

@@ -31,6 +31,15 @@ solution nearby), and returns a `GridResult` with what
 happened in words. Whether that point solves the problem is the caller's verification to decide.
 
 ``offset``: solve ``F(x) = offset`` instead (a stage of a Newton homotopy).
+
+The same loop serves Newtons whose globalisation is their own (the fixed-endpoint start by
+shooting, ``bvp/first_guess.py``; the corrector of the continuation in the end position,
+``bvp/end_continuation.py``): a step test may also decide when the iteration has converged
+(``converged``), search along the Newton direction its own way (``search``; `FullSteps` takes
+every step whole), name a singular solve (``singular``) and stop after a step (``halted``); its
+defaults are those above. ``factor`` replaces the LU of ``F'(x)`` by another solve of it (a
+bordered one, a least-squares one). An iterate whose residual is not finite ends the iteration
+(only a search that takes steps untested can reach one).
 """
 
 from __future__ import annotations
@@ -89,11 +98,42 @@ class StepTest(Protocol):
     def finish(self, result: GridResult, best, target, max_iter: int, norm: float) -> None:
         """The returned iterate and words after ``max_iter`` iterations."""
 
+    def converged(self, F, x, target) -> bool:
+        """Whether ``x`` (residual ``F``) ends the iteration as converged."""
+
+    def search(self, residual, problem, lu, x, dx, tau_floor: float, norm: float, weight,
+               near_floor: bool):
+        """``(x_new, F_new, alpha)`` along ``dx``, or ``None`` if no step is taken."""
+
+    def singular(self, iteration: int) -> str:
+        """What happened when the linear solve gave a non-finite ``dx``."""
+
+    def halted(self, norm: float, best_norm: float) -> str | None:
+        """After a step to residual norm ``norm`` (the best before it ``best_norm``): why the
+        iteration stops there, or ``None`` to go on."""
+
 
 class NaturalMonotonicity:
-    """Deuflhard's natural monotonicity test (module docstring); the last iterate is returned."""
+    """Deuflhard's natural monotonicity test (module docstring); the last iterate is returned.
+    Its `converged`, `search`, `singular` and `halted` are every test's defaults."""
 
     keep_best = False
+
+    def converged(self, F, x, target) -> bool:
+        """Every ``|F_i|`` at its ``target_i``."""
+        return bool(np.all(np.abs(F) <= target))
+
+    def search(self, residual, problem, lu, x, dx, tau_floor: float, norm: float, weight,
+               near_floor: bool):
+        """The backtracking line search of the module docstring (`_line_search`)."""
+        return _line_search(residual, problem, lu, x, dx, tau_floor, self, norm, weight,
+                            near_floor)
+
+    def singular(self, iteration: int) -> str:
+        return f"singular Jacobian at iteration {iteration}"
+
+    def halted(self, norm: float, best_norm: float) -> str | None:
+        return None
 
     def norm(self, F, weight) -> float:
         return _norm(F)
@@ -149,6 +189,22 @@ class DecreaseOrMonotonicity(NaturalMonotonicity):
                           else f"{result.outcome}, largest |F_i| / target = {ratio:.3g}")
 
 
+class FullSteps(NaturalMonotonicity):
+    """Newton's method undamped: every step taken whole (``alpha = 1``) and untested (a
+    non-finite residual ends the iteration at the next one); the last iterate is returned, and
+    ``max_iter`` iterations without convergence are a failure."""
+
+    def search(self, residual, problem, lu, x, dx, tau_floor: float, norm: float, weight,
+               near_floor: bool):
+        trial = x + dx
+        F, _ = residual(trial, False)
+        return trial, F, 1.0
+
+    def finish(self, result: GridResult, best, target, max_iter: int, norm: float) -> None:
+        result.outcome = f"max_iter = {max_iter} reached, residual norm {norm:.3e}"
+        result.converged = False
+
+
 MONOTONICITY = NaturalMonotonicity()
 DECREASE_OR_MONOTONICITY = DecreaseOrMonotonicity()
 
@@ -157,7 +213,7 @@ def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
            tau_floor: float, max_iter: int = 50, linear: str = "auto",
            kernel: band.BandKernel | None = None, deadline: float | None = None,
            progress=None, test: StepTest = MONOTONICITY,
-           offset: np.ndarray | None = None) -> GridResult:
+           offset: np.ndarray | None = None, factor=None) -> GridResult:
     """Newton's method with safeguard and line search (module docstring) from ``x0``.
 
     Args:
@@ -172,17 +228,23 @@ def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
         progress: called as ``progress(iteration, residual_norm, alpha)`` after each iteration.
         test: the step test, and with it which iterate is returned.
         offset: solve ``F(x) = offset``.
+        factor: ``factor(J)``, the solve of ``F'(x) dx = -F`` from the problem's Jacobian ``J``
+            (an object with ``solve(rhs)``, ``nan`` where it is singular); default the banded or
+            sparse LU (`Factorization`) of ``linear`` and ``kernel``.
     """
+    if factor is None:
+        def factor(jacobian):
+            return Factorization(problem, jacobian, linear, kernel)
     try:
         return _newton(problem, x0, data, target, tau_floor=tau_floor, max_iter=max_iter,
-                       linear=linear, kernel=kernel, deadline=deadline, progress=progress,
-                       test=test, offset=offset)
+                       deadline=deadline, progress=progress, test=test, offset=offset,
+                       factor=factor)
     finally:
         problem.release()  # the band store (312 MB at N = 1e6): not kept by the cache
 
 
-def _newton(problem, x0, data, target, *, tau_floor, max_iter, linear, kernel, deadline,
-            progress, test, offset):
+def _newton(problem, x0, data, target, *, tau_floor, max_iter, deadline, progress, test, offset,
+            factor):
     def residual(x, jacobian):
         F, J = problem.evaluate(x, data, jacobian=jacobian)
         return (F if offset is None else F - offset), J
@@ -191,17 +253,21 @@ def _newton(problem, x0, data, target, *, tau_floor, max_iter, linear, kernel, d
     x = np.array(x0, float)
     F, _ = residual(x, False)
     norm = test.norm(F, weight)
-    result = GridResult(x, False, "", 0, [norm])
+    result = GridResult(x, False, "", 0, [norm], last_iteration=1)
     if not np.isfinite(norm):
         result.outcome = "the start has non-finite residuals"
         return result
     best = (norm, x, F)
     for iteration in range(1, max_iter + 1):
-        if np.all(np.abs(F) <= target):
+        result.last_iteration = iteration
+        if test.converged(F, x, target):
             result.x, result.converged = x, True
             result.outcome = f"converged: every residual at its target after {iteration - 1} " \
                              f"iterations"
             return result
+        if not np.all(np.isfinite(F)):
+            result.outcome = f"non-finite residuals at iteration {iteration}"
+            return _ended(test, result, best, target, max_iter, norm)
         if deadline is not None and time.perf_counter() > deadline:
             result.outcome = f"time limit reached after {iteration - 1} iterations"
             return result
@@ -209,18 +275,18 @@ def _newton(problem, x0, data, target, *, tau_floor, max_iter, linear, kernel, d
         # step is needed: a converged solve evaluates none (F is the same with and without J:
         # the grid contract's rule 3)
         F, J = residual(x, True)
-        lu = Factorization(problem, J, linear, kernel)
+        lu = factor(J)
         dx = lu.solve(-F)
         if not np.all(np.isfinite(dx)):
-            result.outcome = f"singular Jacobian at iteration {iteration}"
+            result.outcome = test.singular(iteration)
             return _ended(test, result, best, target, max_iter, norm)
-        step = _line_search(residual, problem, lu, x, dx, tau_floor, test, norm, weight,
-                            near_floor=bool(np.all(np.abs(F) <= FLOOR_FACTOR * target)))
+        step = test.search(residual, problem, lu, x, dx, tau_floor, norm, weight,
+                           near_floor=bool(np.all(np.abs(F) <= FLOOR_FACTOR * target)))
         if step is None:
             result.outcome, result.converged = test.stalled(F, target, norm, iteration)
             return _ended(test, result, best, target, max_iter, norm)
         x, F, alpha = step
-        norm = test.norm(F, weight)
+        norm, best_before = test.norm(F, weight), best[0]
         if norm < best[0] or not test.keep_best:
             best = (norm, x, F)
         result.x, result.iterations = x, iteration
@@ -228,6 +294,10 @@ def _newton(problem, x0, data, target, *, tau_floor, max_iter, linear, kernel, d
         result.step_lengths.append(alpha)
         if progress is not None:
             progress(iteration, norm, alpha)
+        halted = test.halted(norm, best_before)
+        if halted is not None:
+            result.outcome = halted
+            return _ended(test, result, best, target, max_iter, norm)
     test.finish(result, best, target, max_iter, norm)
     return result
 

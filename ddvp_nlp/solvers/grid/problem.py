@@ -92,7 +92,12 @@ def parameter_blocks(function: ca.Function, shared: int, grid, theta: np.ndarray
 class GridResult:
     """What a grid solver returns: the point it ended on, whether it says it converged, what
     happened in words, and its iteration history. Whether the point solves the problem is the
-    caller's verification to decide."""
+    caller's verification to decide.
+
+    ``iterations`` counts the steps taken; ``last_iteration`` (the grid Newton's) is the
+    iteration the solve ended in: ``k`` when iteration ``k``'s test, solve or step stopped it
+    (``k - 1`` steps taken, or ``k`` for a step test that halts after its step; 1 for a start
+    that is refused), ``max_iter`` when it ran out."""
 
     x: np.ndarray
     converged: bool
@@ -100,6 +105,7 @@ class GridResult:
     iterations: int
     residual_norms: list = field(default_factory=list)
     step_lengths: list = field(default_factory=list)
+    last_iteration: int = 0
 
 
 def timed_out(said: str) -> bool:

@@ -7,8 +7,13 @@ canonical equations on uniform steps that end on ``t_end`` (docs/theory.md secti
 
 Where things are:
 
-- ``initial_value.py``: ``march``: the checks (``check_problem``), the build, the driver call, the
-  ``Solution``;
+- ``initial_value.py``: ``march`` and ``continue_march``: the options, then a session;
+- ``march_problem.py``: the march's problem (``MarchProblem``), every input checked
+  (``check_problem``);
+- ``session.py``: ``MarchSession``, one march: its parts built, its monitors made from the
+  options (``MONITORS``: each a ``MarchMonitor`` made by ``from_options`` that adds what it
+  found to the ``Solution`` with ``finish``; a new one plugs in without editing the session),
+  the driver run, every equation rechecked, the verdict;
 - ``steps.py``: one step as CasADi functions (residual, predictor, check), from ``discrete/``;
 - ``step_newton.py``: the march's Newton: the option set of both paths, the careful solve with
   retries (``NewtonSteps``), the compiled path's unrolled ``fast_newton``, and one step as a
@@ -20,7 +25,8 @@ Where things are:
 - ``chunk.py``: many steps per call in compiled CasADi code; ``stepper.py``: the careful,
   compiled and composite steppers the driver runs;
 - ``least_squares.py``: the step of Kane, Marsden and Ortiz where an energy step has no root;
-- ``monitors.py``: energy guard, solvability, checkpoints, stop requests;
+- ``monitors.py``: energy guard, solvability, early verdict, events, stop requests,
+  checkpoints;
 - ``recheck.py``: every equation recomputed on the returned grid;
 - ``ensemble.py``: ``march_ensemble``, many starts on worker processes, with ``Collect``'s
   per-orbit output and reduction run on the workers;
@@ -38,7 +44,7 @@ The contract of the march. An implementer changing it must keep:
 1. Every input is checked by ``check_problem`` (and the option objects' own checks) before
    anything is built; ``march_ensemble`` checks every start the same way first.
 2. Both paths solve the same step functions (``steps.StepFunctions``) with the same Newton
-   options (``newton.NEWTON_OPTIONS``) and accept a step by the same test
+   options (``step_newton.NEWTON_OPTIONS``) and accept a step by the same test
    (``acceptance.Acceptance``): finite values, ``tau > 0``, the step's unscaled residuals under
    ``StepControl.tol``, the step bounds. The compiled path never changes what is accepted: a
    step that fails its check inside a chunk is redone by the careful path from the last good
@@ -57,11 +63,17 @@ The contract of the march. An implementer changing it must keep:
 7. Everything the loop carries from step to step that can change a node is in every node's
    ``Advance.values["carry"]`` (``resume.py``): a march continued from any of its nodes gives
    the nodes of an uninterrupted one bit for bit.
+8. Whatever watches the nodes as they come is a monitor (``session.py``): made from the options
+   by its kind's ``from_options``, listed in ``MONITORS`` in the order it watches, adding to the
+   ``Solution`` only in its ``finish``. ``MarchSession.run`` names no monitor.
 """
 
 from .ensemble import Collect, march_ensemble
 from .initial_value import continue_march, march
+from .march_problem import MarchProblem, check_problem
 from .resume import MarchState
+from .session import MONITORS, MarchMonitor, MarchSession
 from .step_newton import StepProblem
 
-__all__ = ["Collect", "MarchState", "StepProblem", "continue_march", "march", "march_ensemble"]
+__all__ = ["MONITORS", "Collect", "MarchMonitor", "MarchProblem", "MarchSession", "MarchState",
+           "StepProblem", "check_problem", "continue_march", "march", "march_ensemble"]

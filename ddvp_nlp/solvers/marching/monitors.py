@@ -1,8 +1,11 @@
-"""The march's monitors (driver rule 5): the energy guard and the solvability monitor.
+"""The march's monitors (driver rule 5), each a `MarchMonitor`: made from the options by its
+``from_options``, watching every accepted node, adding what it found to the `Solution` at the
+end (``finish``; the protocol: ``session.py``).
 
-Both read per-node values the steppers computed with each step (``Advance.values``): ``"H"``,
-the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H_zz f = -8 c(z)``
-(docs/theory.md section 7), so watching costs no extra CasADi call.
+The energy guard and the solvability monitor read per-node values the steppers computed with
+each step (``Advance.values``): ``"H"``, the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the
+site-density weight ``w = f' H_zz f = -8 c(z)`` (docs/theory.md section 7), so watching costs no
+extra CasADi call.
 
 - `EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
   ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are
@@ -12,6 +15,8 @@ the Hamiltonian ``H(z_k, t_k)``, and ``"w"``, the site-density weight ``w = f' H
   where ``w`` changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT``.
 - `EarlyVerdict` ends a march whose first steps plainly do not follow the motion (status
   ``INACCURATE``), instead of marching on to a verdict made at the end.
+- `Events` (``Output.events``, ``dense.py``) locates the events and ends the run at a terminal
+  one; `StopRequest` ends it when asked; `Checkpoint` saves the nodes so far.
 """
 
 from __future__ import annotations
@@ -25,13 +30,39 @@ import warnings
 import numpy as np
 
 from ...solution import Status
-from ..accuracy.judgement import ADVICE, motion_scales
+from ..accuracy.judgement import ADVICE, Judgement, motion_scales
 from ..columns import column_extremes
+from ..compiler import buffered
+from ..dense import DenseField, EventMonitor
 
 # The solvability monitor warns once |ln(w_k / w_{k-1})| passes this. Measured on kepler
 # (tau0 = 0.01): at most 0.36 per step for e = 0.7 (which runs), 0.6-0.9 in the 3-4 steps before
 # the breakdown at e = 0.78 and 0.8; rotating pendulum (p0 = 2): 0.74 two steps before.
 MONITOR_LIMIT = 0.5
+
+
+class MarchMonitor:
+    """What a monitor of a march session is (``session.py``): made by `from_options` from
+    the session (``None``: the options do not ask for it), watching every accepted node
+    (``watch``, driver rule 5), told when the loop is over (`close`) and adding what it found
+    to the `Solution` (`finish`). ``rewatch``: whether it also watches the earlier nodes of a
+    continued march (``resume.py``), to rebuild its state."""
+
+    rewatch = True
+
+    @classmethod
+    def from_options(cls, session) -> MarchMonitor | None:
+        """The monitor ``session``'s options ask for, or ``None``."""
+        raise NotImplementedError
+
+    def watch(self, nodes, first, advance):
+        return None
+
+    def close(self) -> None:
+        """The loop has ended (or raised)."""
+
+    def finish(self, solution, outcome) -> None:
+        """What the monitor adds to ``solution`` (``outcome``: how the drive ended)."""
 
 
 # The early verdict: the first EARLY_STEPS steps are judged as they come (once EARLY_NODES nodes
@@ -45,7 +76,7 @@ EARLY_STEPS = 4096
 EARLY_FACTOR = 10.0
 
 
-class EarlyVerdict:
+class EarlyVerdict(MarchMonitor):
     """Ends the march at the first of its first ``EARLY_STEPS`` steps whose local error against
     the exact flow passes ``EARLY_FACTOR`` times the accuracy check's bound, with the scales of
     the nodes so far (``judge``: the run's `Judgement`; ``screen``: a second-order scheme's
@@ -54,6 +85,15 @@ class EarlyVerdict:
     def __init__(self, judge, *, screen: bool):
         self.judge, self.screen = judge, screen
         self.checked = 0  # the steps judged so far
+
+    @classmethod
+    def from_options(cls, session):
+        """With an accuracy check that may stop the march (``Tolerance.stop``)."""
+        accuracy, problem = session.accuracy, session.problem
+        if accuracy is None or not accuracy.stop:
+            return None
+        return cls(Judgement(problem.system, problem.theta, accuracy, compiler=session.judging,
+                             cache_dir=session.compilation.cache_dir), screen=True)
 
     def watch(self, nodes, first, advance):
         count = nodes.count
@@ -80,12 +120,18 @@ class EarlyVerdict:
             max(0, k + 2 - first)
 
 
-class EnergyGuard:
+class EnergyGuard(MarchMonitor):
     """Ends the run at the first node whose ``H`` leaves ``H0 +- guard * max(1, |H0|)``."""
 
     def __init__(self, guard: float, H0: float):
         self.H0 = H0
         self.limit = guard * max(1.0, abs(H0))
+
+    @classmethod
+    def from_options(cls, session):
+        """With ``StepControl.energy_guard``."""
+        guard = session.problem.steps.energy_guard
+        return None if guard is None else cls(guard, session.problem.H0)
 
     def watch(self, nodes, first, advance):
         if not advance.count:  # a failed step brings no node
@@ -100,7 +146,7 @@ class EnergyGuard:
             f"energy_guard * max(1, |H0|) = {self.limit:.3e}"), i
 
 
-class SolvabilityMonitor:
+class SolvabilityMonitor(MarchMonitor):
     """Keeps ``w`` at every node and warns (``RuntimeWarning``) at the first alarming node.
 
     ``warning`` is ``None`` or ``{"step", "t", "c", "reason"}``; `solvability` gives
@@ -116,6 +162,23 @@ class SolvabilityMonitor:
         self.selector = selector
         self._recent: list = []  # (first node, w) of the newest blocks
         self._observe(np.array([w0]), np.array([t0]))
+
+    @classmethod
+    def from_options(cls, session):
+        """For the energy rules, from the weight at node 0 (a thinned march's: only at the
+        kept nodes)."""
+        problem, functions = session.problem, session.parts.functions
+        if not problem.scheme.variable_steps:
+            return None
+        monitor = buffered(functions.node_monitor, "node_monitor", owner=functions)
+        t0 = np.float64(problem.t0)
+        _, w_first = monitor(problem.z0, t0, problem.theta)
+        return cls(float(t0), float(w_first[0, 0]), session.thinning)
+
+    def finish(self, solution, outcome):
+        """``Solution.solvability`` at the kept nodes and ``march.solvability_warning``."""
+        solution.solvability = self.solvability(outcome.marched)
+        solution.march.solvability_warning = self.warning
 
     @property
     def weights(self) -> list[float]:
@@ -216,7 +279,7 @@ def _caller_level() -> int:
     return level
 
 
-class Checkpoint:
+class Checkpoint(MarchMonitor):
     """Never ends the run: hands the nodes kept so far to ``save(t, z)`` so that they land
     about every ``interval`` seconds of stepping (at ``interval``, ``2 interval``, ... after the
     start; a killed march loses at most one interval).
@@ -233,6 +296,7 @@ class Checkpoint:
     # Until a save has been timed: seconds per byte written (a disk of about 100 MB/s with
     # its fsync and the checksum).
     FIRST_GUESS_S_PER_BYTE = 1e-8
+    rewatch = False  # a continued march's earlier nodes are saved with its first checkpoint
 
     def __init__(self, save, interval: float, clock=time.perf_counter, state=None):
         self.save = save
@@ -247,6 +311,16 @@ class Checkpoint:
         self.landed: list[float] = []
         self.thread = None
         self.failure = None
+
+    @classmethod
+    def from_options(cls, session):
+        """With ``Output.checkpoint``: the save gets the carried state (``session.carry``)
+        where it takes it."""
+        output = session.output
+        if output.checkpoint is None:
+            return None
+        save, state = with_state(output.checkpoint, session.carry)
+        return cls(save, output.checkpoint_interval, state=state)
 
     def watch(self, nodes, first, advance):
         if self.save is None or (self.thread is not None and self.thread.is_alive()):
@@ -292,22 +366,66 @@ class Checkpoint:
             warnings.warn(f"checkpoints stopped: {self.failure}", RuntimeWarning, stacklevel=3)
             self.failure, self.save = None, None
 
-    def finish(self):
+    def close(self):
         """Wait for a save in flight (the final write must come after it), then report a
         failure."""
         if self.thread is not None:
             self.thread.join()
         self._report_failure()
 
+    def finish(self, solution, outcome):
+        """What the checkpoints cost (``timing["checkpoint_s"]``), how many there were and
+        when each landed."""
+        solution.timing["checkpoint_s"] = self.seconds
+        solution.march.checkpoints = self.saves
+        solution.march.checkpoints_landed_s = [round(t, 3) for t in self.landed]
 
-class StopRequest:
+
+def with_state(save, carry):
+    """``(save, state)`` for the `Checkpoint`: the user's ``save`` called with the carried
+    state (``carry``: the `CarryTracker`, ``resume.py``) as a third argument where it takes one
+    (``save(t, z, carried)``), else ``save(t, z)``; ``state`` snapshots it."""
+    try:
+        takes = len(inspect.signature(save).parameters) >= 3
+    except (TypeError, ValueError):
+        takes = False
+    return (lambda t, z, state: save(t, z, state)) if takes else (
+        lambda t, z, state: save(t, z)), carry.state
+
+
+class StopRequest(MarchMonitor):
     """Ends the run (status ``INTERRUPTED``, every new node kept) once ``stop()`` is true: an
     interrupt noted by a signal handler, acted on between two stepper calls."""
 
+    rewatch = False  # a stop asked for before the loop is the driver's (``drive(stop=...)``)
+
     def __init__(self, stop):
         self.stop = stop
+
+    @classmethod
+    def from_options(cls, session):
+        """With ``Output.stop``."""
+        return cls(session.output.stop) if session.output.stop else None
 
     def watch(self, nodes, first, advance):
         if self.stop():
             return Status.INTERRUPTED, "", advance.count
         return None
+
+
+class Events(EventMonitor, MarchMonitor):
+    """The events of ``Output.events`` (`EventMonitor`, ``dense.py``): located as the march
+    goes, a terminal one ends it; their times and states go on the solution."""
+
+    @classmethod
+    def from_options(cls, session):
+        """With ``Output.events``, from the start's values of ``g``."""
+        output, problem = session.output, session.problem
+        if not output.events:
+            return None
+        return cls(output.events, DenseField.of(problem.system, problem.theta), problem.t_end,
+                   np.float64(problem.t0), problem.z0)
+
+    def finish(self, solution, outcome):
+        """``Solution.t_events`` and ``z_events``."""
+        self.report(solution)

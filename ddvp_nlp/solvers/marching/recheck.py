@@ -116,8 +116,3 @@ def recheck_residuals(system, scheme, t, q, p, theta, *, compiler=None, cache_di
     block.inputs[2][:] = np.asarray(theta, float)  # kept for every block
     return equations.grid_residuals(system, scheme, t, q, p, theta,
                                     block=lambda T, Z: block(T, Z, None), block_width=BLOCK)
-
-
-# The name marching/initial_value.py imports (its two calls become `recheck_residuals` when
-# that module is next edited).
-grid_residuals = recheck_residuals

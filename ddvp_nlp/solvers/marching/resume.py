@@ -21,13 +21,13 @@ path (the batch sizes, which are not carried, only change how many steps a call 
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 
 import numpy as np
 
 from ...errors import InputError
 from ..driver import Advance, Nodes
+from .monitors import MarchMonitor
 
 
 @dataclass(frozen=True)
@@ -85,12 +85,25 @@ class MarchState:
         return nodes
 
 
-class CarryTracker:
-    """A monitor that keeps the carried state of the newest kept node (never ends the run);
-    made after `MarchState.restore`, it starts from the restored state."""
+class CarryTracker(MarchMonitor):
+    """A monitor that keeps the carried state of the newest kept node (never ends the run),
+    from the state a continued march starts with (`of`); the session's own (``session.carry``:
+    a `Checkpoint` saves it), ``march.carried`` at the end."""
 
-    def __init__(self, tally, careful_left: int = 0, phase: int = 0):
-        self.last = np.array([tally.drift, float(careful_left), float(phase)])
+    rewatch = False  # it starts from the earlier run's carried state
+
+    def __init__(self, drift: float = 0.0, careful_left: int = 0, phase: int = 0):
+        self.last = np.array([drift, float(careful_left), float(phase)])
+
+    @classmethod
+    def of(cls, start: MarchState | None) -> CarryTracker:
+        """From the state ``start`` carried at its last node (a new march: nothing carried)."""
+        return cls() if start is None else cls(start.drift, start.careful_left, start.phase)
+
+    @classmethod
+    def from_options(cls, session):
+        """Every march's: ``session.carry``."""
+        return session.carry
 
     def watch(self, nodes, first, advance):
         carry = advance.values.get("carry")
@@ -104,17 +117,9 @@ class CarryTracker:
         return {"drift": float(self.last[0]), "careful_left": int(self.last[1]),
                 "phase": int(self.last[2])}
 
-
-def with_state(save, carry: CarryTracker):
-    """``(save, state)`` for the `Checkpoint`: the
-    user's ``save`` called with the carried state as a third argument where it takes one
-    (``save(t, z, carried)``), else ``save(t, z)``; ``state`` snapshots it."""
-    try:
-        takes = len(inspect.signature(save).parameters) >= 3
-    except (TypeError, ValueError):
-        takes = False
-    return (lambda t, z, state: save(t, z, state)) if takes else (
-        lambda t, z, state: save(t, z)), carry.state
+    def finish(self, solution, outcome):
+        """``march.carried``, for `MarchState.of`."""
+        solution.march.carried = self.state()
 
 
 def check_resume(state: MarchState, problem, variable_steps: bool) -> None:

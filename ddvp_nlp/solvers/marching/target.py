@@ -36,8 +36,9 @@ import numpy as np
 
 from ...errors import InputError
 from ...validation import check_real
-from ..accuracy.judgement import exact_states, motion_scales
+from ..accuracy.judgement import SMALLEST_GLOBAL_TOL, exact_states, motion_scales
 from ..columns import column_extremes, row_max_ratio
+from ..options import EXACT_TOLERANCE
 
 __all__ = ["march_to_error"]
 
@@ -46,19 +47,24 @@ PILOT_STEPS = 256  # at least this many pilot steps (if the span has them)
 SAFETY = 0.5  # the predicted error aimed at, as a share of the target
 MAX_GROWTH = 8.0  # the chosen step at most this many times the pilot's
 ORDER = 2  # every scheme of the march is of second order
-REFERENCE_RTOL = 1e-12
+REFERENCE_RTOL = EXACT_TOLERANCE.flow_rtol  # the pilot measured against the exact flow
 # past this trajectory error (units of the motion's size) the error saturates (a phase that has
 # gone round): the pilot's growth is read below it
 LINEAR_LIMIT = 0.1
 
 
 def check_target(target_error, accuracy) -> float:
-    """``target_error``: a trajectory error relative to the motion's size, in (0, 1); the
-    accuracy check must be on to judge it."""
+    """``target_error``: a trajectory error relative to the motion's size, in
+    ``[SMALLEST_GLOBAL_TOL, 1)`` (below it the exact-flow reference cannot measure the error:
+    no run could be judged to reach it); the accuracy check must be on to judge it."""
     value = check_real("target_error", target_error, positive=True)
     if not value < 1:
         raise InputError(f"target_error is relative to the motion's size and must be below 1, "
                          f"got {value!r}")
+    if not value >= SMALLEST_GLOBAL_TOL:
+        raise InputError(f"target_error = {value!r} is below what the check can measure: the "
+                         f"exact-flow reference's own error floor puts the smallest judgeable "
+                         f"trajectory error at {SMALLEST_GLOBAL_TOL:g} of the motion's size")
     if accuracy is None:
         raise InputError("target_error needs the accuracy check (accuracy=None turns it off)")
     return value
@@ -76,8 +82,8 @@ def march_to_error(run, system, z0, t0: float, t_end: float, tau0: float, theta,
     pilot_cpu = time.process_time() - cpu
     record = {"target": target, "pilot": {"t_end": pilot_end, "steps": pilot.steps,
                                           "tau0": tau0, "cpu_s": pilot_cpu}, "runs": []}
-    if not pilot.success or pilot.steps < 2:
-        raise_pilot_failure(pilot, tau0)
+    if not pilot.success or pilot.steps < 1:  # the pilot's nodes and status are the result
+        return _pilot_failed(pilot, tau0, record, started)
     error, reach, beta = _pilot_error(system, theta, pilot)
     predicted = error * (span / (reach - t0)) ** beta
     record["pilot"].update(error=error, measured_to=reach, growth=beta, predicted=predicted)
@@ -91,8 +97,8 @@ def march_to_error(run, system, z0, t0: float, t_end: float, tau0: float, theta,
         record["runs"].append({"tau0": step, "steps": solution.steps, "verdict": verdict,
                                "status": solution.status.code,
                                "cpu_s": time.process_time() - cpu})
-        if verdict == "accurate" or attempt == 1:
-            break
+        if verdict == "accurate" or attempt == 1 or solution.status.code == "interrupted":
+            break  # an interrupted run is not retried: its stop was asked for
         step = _retried(step, solution.verdict, t0, t_end, target, beta)
     record["tau0"] = record["runs"][-1]["tau0"]
     record["cpu_s"] = time.process_time() - started
@@ -100,9 +106,17 @@ def march_to_error(run, system, z0, t0: float, t_end: float, tau0: float, theta,
     return solution
 
 
-def raise_pilot_failure(pilot, tau0):
-    raise InputError(f"target_error: the pilot march at tau0 = {tau0:g} ended "
-                     f"{pilot.status.code} ({pilot.message}); give a smaller tau0 to start from")
+def _pilot_failed(pilot, tau0: float, record: dict, started: float):
+    """The pilot's own solution, its failure status kept (a breakdown, an interrupt): no run
+    was chosen, so no verdict is claimed for the span; the message says so."""
+    pilot.message = (f"target_error: the pilot march at tau0 = {tau0:g} ended "
+                     f"{pilot.status.code} ({pilot.message}); no run was made"
+                     + ("" if pilot.status.code == "interrupted" else
+                        "; give a smaller tau0 to start from"))
+    record["tau0"] = None
+    record["cpu_s"] = time.process_time() - started
+    pilot.march.target_error = record
+    return pilot
 
 
 def _pilot_error(system, theta, pilot) -> tuple[float, float, float]:

@@ -210,6 +210,14 @@ class ArclengthSystem:
     def release(self) -> None:
         self.base.release()
 
+    def parameter_jacobian(self, y: np.ndarray, arc: _Arc) -> sp.csc_matrix:
+        """``dF/dtheta`` at ``y``, ``(size + 1, len(theta))``: the periodic rows' at the energy
+        ``y[-1]`` (``PeriodicAssembly.parameter_jacobian``, from the same CasADi rows as
+        ``F``), then the arclength row's, zero (it does not depend on ``theta``)."""
+        closure = replace(arc.closure, energy=float(y[-1]))
+        rows = self.base.parameter_jacobian(y[:-1], closure)
+        return sp.vstack([rows, sp.csc_matrix((1, rows.shape[1]))], format="csc")
+
     def tangent(self, y: np.ndarray, closure: Closure, previous: np.ndarray) -> np.ndarray:
         """The unit tangent at ``y`` oriented along ``previous`` (``<t, previous> > 0``)."""
         _, blocks = self.base.evaluate(y[:-1], replace(closure, energy=float(y[-1])), True)

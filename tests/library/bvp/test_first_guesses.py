@@ -227,3 +227,119 @@ def test_cli_runs_with_other_starts_get_folders_of_their_own(tmp_path, capsys, m
              for name in folders]
     assert sorted(m["overrides"].get("guess", "straight") for m in metas) == ["march",
                                                                              "straight"]
+
+
+def _end_map(end, fails=lambda p, k: False, differences_fail=lambda k: False):
+    """A march stand-in whose last position is ``end(p_0)``: a march ``k`` (counted from 0)
+    fails to reach the end when ``fails(p_0, k)``, or fails outright (a march of the finite
+    differences) when ``differences_fail(k)``."""
+    from types import SimpleNamespace
+    marches = []
+
+    def fake(request, fixed, p0, theta=None):
+        k = len(marches)
+        marches.append(np.array(p0, float))
+        p = np.asarray(p0, float)
+        whole = not fails(p, k)
+        q = np.zeros((5, p.size))
+        q[-1] = end(p)
+        return SimpleNamespace(success=whole and not differences_fail(k),
+                               t=np.zeros(5 if whole else 3), q=q, p=q,
+                               message=f"march {k} failed")
+    return fake, marches
+
+
+SHOT = {
+    # a fold (q = p^2 never reaches -1e-4): the closest miss stops halving
+    "fold": ((lambda p: p ** 2), [-1e-4], [1.0], {}, False, 10, 34,
+             "the miss has not halved in 3 iterations; the closest march (miss 1.001e-04) "
+             "starts the fixed-step solve"),
+    "differences": ((lambda p: np.array([p[0] + 0.1 * p[1] ** 3, p[1] - 0.2 * p[0] ** 2])),
+                    [1.0, 2.0], [0.0, 0.0], {"differences_fail": lambda k: k == 5}, False, 2,
+                    6, "a march of the finite differences failed; the closest march (miss "
+                       "1.124e+00) starts the fixed-step solve"),
+    "every trial": ((lambda p: p), [1.0], [0.0], {"fails": lambda p, k: p[0] > 1e-6}, False,
+                    1, 11, "every march along the step from p_0 = [0.0] fails (miss 1.000e+00); "
+                           "the closest march (miss 1.000e+00) starts the fixed-step solve"),
+    "start": ((lambda p: p), [1.0], [0.0], {"fails": lambda p, k: True}, None, 0, 1,
+              "the march from p_0 = [0.0] failed: march 0 failed"),
+    "no root": ((lambda p: np.abs(p) + 1.0), [0.5], [2.0], {}, False, 30, 157,
+                "q_end not reached in 30 iterations; the closest march (miss 5.000e-01) starts "
+                "the fixed-step solve"),
+    "longest": ((lambda p: np.sin(7 * p) + 0.3 * p), [0.9], [0.1],
+                {"fails": lambda p, k: abs(p[0]) > 3}, True, 5, 9,
+                "q_end reached, p_0 = [0.14677423710835516]"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SHOT))
+def test_shooting_says_why_it_stops_and_starts_from_its_closest_march(case, monkeypatch):
+    """Shooting (the grid's Newton on its end map) on end maps of known shape: its words, its
+    iterations and the marches it asked for (pinned from before it ran on the grid's Newton)."""
+    from ddvp_nlp.discrete.scheme import Scheme
+    from ddvp_nlp.solvers.bvp import first_guess
+    from ddvp_nlp.solvers.bvp.phases import Boundary
+    from ddvp_nlp.solvers.grid.problem import GridRequest
+    end, q_end, p_start, failing, reached, iterations, marches, said = SHOT[case]
+    fake, asked = _end_map(end, **failing)
+    monkeypatch.setattr(first_guess, "_march", fake)
+    n = len(q_end)
+    request = GridRequest(
+        type("System", (), {"n": n, "params": ()})(), Scheme("fixed"), 5, np.zeros(0),
+        Boundary(np.zeros(n), np.array(q_end), 0.0, 1.0, np.linspace(0, 1, 5),
+                 np.array(p_start)), GridOptions(tol=1e-10))
+    start, got = first_guess.shooting(request, Scheme("fixed"), np.linspace(0, 1, 5))
+    stage = request.phases[0]
+    assert (stage.said, stage.iterations, len(asked)) == (said, iterations, marches)
+    if reached is None:
+        assert start is None and not got
+        return
+    assert got is reached and stage.converged is reached
+    miss = np.linalg.norm(start["q"][-1] - q_end)
+    assert miss <= request.tol if reached else f"closest march (miss {miss:.3e})" in said
+
+
+def test_shootings_least_squares_solve_leaves_the_directions_the_end_ignores_alone():
+    from ddvp_nlp.solvers.bvp.first_guess import SHOOTING_RCOND, LeastSquares
+    J = np.array([[2.0, 0.0], [0.0, 0.1 * SHOOTING_RCOND]])
+    solve = LeastSquares(J)
+    assert np.array_equal(solve.solve(np.array([1.0, 1.0])), [0.5, 0.0])
+    A = np.array([[2.0, 1.0], [0.5, 3.0]])
+    b = np.array([1.0, -2.0])
+    assert np.allclose(A.T @ LeastSquares(A).solve_transposed(b), b, rtol=0, atol=1e-15)
+    assert np.all(np.isnan(LeastSquares(None).solve(b)))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_continuations_bordered_solve_and_its_transpose_solve_the_bordered_jacobian(seed):
+    """``Bordered``: the corrector's solve by the LU of ``F_x`` alone, against the whole
+    bordered matrix (``_Path.sparse``), to the backward error of LU."""
+    from ddvp_nlp import Compilation
+    from ddvp_nlp.discrete.scheme import Scheme
+    from ddvp_nlp.solvers.bvp.end_continuation import Hyperplane, _Path
+    from ddvp_nlp.solvers.bvp.interleaved import GridAssembly
+    from ddvp_nlp.solvers.bvp.phases import Boundary
+    from ddvp_nlp.solvers.grid.problem import GridRequest
+    rng = np.random.default_rng(seed)
+    system = load_scene("pendulum").system
+    nodes = int(rng.integers(5, 30))
+    times = np.linspace(0.0, 3.0, nodes)
+    request = GridRequest(system, Scheme("fixed"), nodes, np.zeros(0),
+                          Boundary(np.array([0.5]), np.array([-0.2]), 0.0, 3.0, times),
+                          GridOptions())
+    grid = GridAssembly(system, Scheme("fixed"), nodes, Compilation(compiler=None))
+    path = _Path(request, grid, times, np.array([0.1]))
+    y = np.r_[grid.layout.pack(times, rng.normal(size=(nodes, 1)),
+                               rng.normal(size=(nodes, 1))), rng.random()]
+    plane = Hyperplane(y + rng.normal(size=y.size), rng.normal(size=y.size))
+    b = rng.normal(size=y.size)
+    for transposed in (False, True):
+        _, jacobian = path.evaluate(y, plane)
+        matrix = path.sparse(jacobian).toarray()
+        solver = path.bordered(jacobian)
+        x = solver.solve_transposed(b.copy()) if transposed else solver.solve(b.copy())
+        operator = matrix.T if transposed else matrix
+        eps = np.finfo(float).eps
+        bound = 100 * y.size ** 2 * eps * np.max(np.abs(matrix)) * np.max(np.abs(x))
+        assert np.max(np.abs(operator @ x - b)) <= bound
+        assert np.max(np.abs((matrix if transposed else matrix.T) @ x - b)) > bound

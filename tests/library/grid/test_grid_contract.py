@@ -1,9 +1,16 @@
-"""The contract of a grid problem (``solvers/grid/__init__.py``), checked on every assembly, and
-the grid options reaching every family that takes them."""
+"""The contract of a grid problem (``solvers/grid/__init__.py``), checked on every implementation
+of ``grid.problem.GridProblem`` in the package (found in the source, checked for every method the
+protocol class declares), and the grid options reaching every family that takes them."""
+
+import ast
+import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
+import ddvp_nlp
 from ddvp_nlp import (
     Compilation,
     GridOptions,
@@ -15,15 +22,122 @@ from ddvp_nlp import (
     solve_periodic,
 )
 from ddvp_nlp.discrete.scheme import Scheme
+from ddvp_nlp.solvers.bvp.end_continuation import Hyperplane, _Path
+from ddvp_nlp.solvers.bvp.first_guess import Aim, ShootingProblem
 from ddvp_nlp.solvers.bvp.interleaved import Ends, GridAssembly
+from ddvp_nlp.solvers.bvp.phases import Boundary
+from ddvp_nlp.solvers.grid.linear import Factorization
+from ddvp_nlp.solvers.grid.problem import GridLayout, GridProblem, GridRequest
 from ddvp_nlp.solvers.higher.windows import HigherAssembly, HigherEnds
+from ddvp_nlp.solvers.periodic.arclength import ArclengthSystem, _Arc
 from ddvp_nlp.solvers.periodic.closed_grid import Closure, PeriodicAssembly
 
-PROTOCOL = ("evaluate", "sparse", "release")
+
+def _members(protocol) -> set:
+    """The public methods and attributes a protocol class declares (read from the class)."""
+    names = {name for name, value in vars(protocol).items()
+             if not name.startswith("_") and (callable(value) or isinstance(value, property))}
+    return names | set(getattr(protocol, "__annotations__", {}))
+
+
+PROTOCOL = _members(GridProblem)
+LAYOUT = _members(GridLayout)
+# The protocol's docstring of `banded`: an assembly whose Jacobian is not banded (its layout's
+# bandwidth is its size) need not have it.
+BANDED_ONLY = {"banded"}
+
+
+def _implementations() -> set:
+    """``(module, class name)`` of every class of the package with an ``evaluate(self, x, data,
+    jacobian)``: the grid problems, whatever they call themselves."""
+    found = set()
+    root = Path(ddvp_nlp.__file__).parent
+    for path in root.rglob("*.py"):
+        module = ".".join(("ddvp_nlp", *path.relative_to(root).with_suffix("").parts))
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ClassDef):
+                continue
+            for item in node.body:
+                if isinstance(item, ast.FunctionDef) and item.name == "evaluate" \
+                        and "jacobian" in [a.arg for a in item.args.args]:
+                    found.add((module, node.name))
+    found.discard((GridProblem.__module__, GridProblem.__name__))
+    return found
+
+
+def test_the_protocol_is_read_from_its_class():
+    assert PROTOCOL >= {"layout", "evaluate", "sparse", "release", "parameter_jacobian", "banded"}
+    assert LAYOUT >= {"size", "bandwidth", "time_index"}
+
+
+def test_every_grid_problem_of_the_package_is_in_the_contract_sample():
+    """A new implementation must join `_assemblies`, so that every check below runs on it."""
+    sampled = {(type(problem).__module__, type(problem).__name__)
+               for _, problem, _, _ in _assemblies(0)}
+    found = _implementations()
+    assert len(found) >= 6
+    assert found == sampled, found ^ sampled
+    for module, name in found:
+        assert hasattr(importlib.import_module(module), name), (module, name)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_every_grid_problem_has_every_method_of_the_protocol(seed):
+    for name, problem, x, _data in _assemblies(seed):
+        layout = problem.layout
+        for member in LAYOUT:
+            assert hasattr(layout, member), (name, member)
+        banded = layout.bandwidth < layout.size
+        for member in PROTOCOL - (set() if banded else BANDED_ONLY):
+            assert hasattr(problem, member), (name, member)
+            if member != "layout":
+                assert callable(getattr(problem, member)), (name, member)
+        assert np.all(np.diff(x[layout.time_index()]) > 0), name
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_every_grid_problem_gives_its_derivatives_and_a_transposed_solve(seed):
+    """``dF/dtheta`` is ``(size, len(theta))`` and sparse; the band storage is the sparse
+    Jacobian's band; ``J^T y = b`` is solved beside ``J y = b`` from the same factors, to the
+    backward error of LU."""
+    eps = np.finfo(float).eps
+    rng = np.random.default_rng(seed)
+    for name, problem, x, data in _assemblies(seed):
+        size = problem.layout.size
+        F, jacobian = problem.evaluate(x, data, jacobian=True)
+        matrix = problem.sparse(jacobian).toarray()
+        derivative = problem.parameter_jacobian(x, data)
+        assert sp.issparse(derivative) and derivative.shape[0] == size, name
+        w = problem.layout.bandwidth
+        if w < size:
+            ab = problem.banded(jacobian)
+            rows, cols = np.nonzero(np.abs(np.subtract.outer(np.arange(size),
+                                                             np.arange(size))) <= w)
+            assert np.array_equal(ab[2 * w + rows - cols, cols], matrix[rows, cols]), name
+            F, jacobian = problem.evaluate(x, data, jacobian=True)  # banded may be factored
+        factors = Factorization(problem, jacobian, "sparse")
+        b = rng.normal(size=size)
+        for solve, operator in ((factors.solve, matrix), (factors.solve_transposed, matrix.T)):
+            y = solve(b.copy())
+            bound = 10 * size * eps * np.max(np.abs(matrix)) * np.max(np.abs(y)) * size
+            assert np.max(np.abs(operator @ y - b)) <= bound, name
+        problem.release()
+
+
+def _with_parameters(name: str):
+    system = load_scene(name).system
+    return system, np.asarray(system.parameter_vector({}), float)
+
+
+def _request(system, theta, nodes, q_start, q_end, t1):
+    times = np.linspace(0.0, t1, nodes)
+    return GridRequest(system, Scheme("fixed"), nodes, theta,
+                       Boundary(np.asarray(q_start, float), np.asarray(q_end, float), 0.0, t1,
+                                times), GridOptions())
 
 
 def _assemblies(seed: int):
-    """``(name, assembly, x, data)`` of each family's assembly at a random point."""
+    """``(name, problem, x, data)`` of every grid problem of the package at a random point."""
     rng = np.random.default_rng(seed)
     found = []
     for name, rule, compiler in (("kepler", "vddvp", "auto"), ("pendulum", "fixed", None),
@@ -52,11 +166,31 @@ def _assemblies(seed: int):
     x[higher.layout.time_index()] = np.sort(rng.random(nodes)) + np.arange(nodes)
     found.append(("higher spline", higher, x, HigherEnds(x + rng.normal(size=x.size),
                                                           np.zeros(0))))
-    return found
+    arc = ArclengthSystem(periodic)
+    y = np.r_[found[-2][2], 0.1 + rng.normal()]
+    found.append(("periodic arclength", arc, y,
+                  _Arc(found[-2][3], rng.normal(size=y.size), y + rng.normal(size=y.size), 0.2)))
+    return found + _bvp_problems(rng)
+
+
+def _bvp_problems(rng):
+    """The fixed-endpoint start's problems: the continuation's path in ``(x, s)`` and the end
+    map of shooting (harmonic: a parameter to differentiate in)."""
+    system, theta = _with_parameters("harmonic")
+    nodes = int(rng.integers(5, 30))
+    request = _request(system, theta, nodes, [1.0], [0.5], 3.0)
+    grid = GridAssembly(system, Scheme("fixed"), nodes, Compilation(compiler=None))
+    path = _Path(request, grid, request.data.grid_times, np.array([0.2]))
+    q, p = rng.normal(size=(nodes, 1)), rng.normal(size=(nodes, 1))
+    y = np.r_[grid.layout.pack(request.data.grid_times, q, p), rng.random()]
+    plane = Hyperplane(y + rng.normal(size=y.size), rng.normal(size=y.size))
+    shooting = ShootingProblem(request, Scheme("fixed"))
+    return [("bvp continuation path", path, y, plane),
+            ("bvp shooting", shooting, rng.normal(size=1), Aim(np.array([0.5]), theta))]
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_every_assembly_gives_the_same_residual_with_and_without_its_jacobian(seed):
+def test_every_grid_problem_gives_the_same_residual_with_and_without_its_jacobian(seed):
     """Rule 3: the grid's Newton takes F from the Jacobian's evaluation and from the line
     search's, so the two must be the same numbers."""
     for name, assembly, x, data in _assemblies(seed):
@@ -67,8 +201,6 @@ def test_every_assembly_gives_the_same_residual_with_and_without_its_jacobian(se
         assert with_jacobian.shape == (assembly.layout.size,), name
         matrix = assembly.sparse(jacobian)
         assert matrix.shape == (assembly.layout.size,) * 2, name
-        for method in PROTOCOL:
-            assert callable(getattr(assembly, method)), (name, method)
         assembly.release()
 
 

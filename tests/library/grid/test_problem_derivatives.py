@@ -44,14 +44,14 @@ def _bvp(seed: int, compiler, rule="vddvp"):
     return grid, grid.layout.pack(t, q, p), Ends(q[0] + 0.1, q[-1], times, theta, 0.7)
 
 
-def _agrees_with_difference_quotient(assembly, x, data, with_theta):
+def _agrees_with_difference_quotient(assembly, x, data, with_theta, theta=None):
     """Central difference with step ``h``: truncation ``O(h^2 |F^(3)|)`` plus round-off
     ``eps |F| / h``; ``h = eps^(1/3) max(1, |theta|)`` balances them, so the agreement is
     ``~ eps^(2/3)`` times the residual's scale (factor 100 for the third derivative)."""
     derivative = assembly.parameter_jacobian(x, data)
     assert sp.issparse(derivative)
     derivative = derivative.toarray()
-    theta = data.theta
+    theta = data.theta if theta is None else theta
     assert derivative.shape == (assembly.layout.size, theta.size)
     for j in range(theta.size):
         h = EPS ** (1 / 3) * max(1.0, abs(theta[j]))
@@ -64,6 +64,7 @@ def _agrees_with_difference_quotient(assembly, x, data, with_theta):
         scale = max(1.0, np.max(np.abs(F_up)), np.max(np.abs(derivative[:, j])))
         assert np.max(np.abs(derivative[:, j] - quotient)) <= 100 * EPS ** (2 / 3) * scale
     assert np.any(derivative != 0.0)
+    return derivative
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -79,6 +80,27 @@ def test_periodic_parameter_jacobian_is_the_difference_quotient_of_the_residual(
     assembly, x, closure = _periodic(seed)
     _agrees_with_difference_quotient(assembly, x, closure,
                                      lambda theta: Closure(-0.4, 2, 0.0, theta))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_arclength_parameter_jacobian_is_the_difference_quotient_of_the_residual(seed):
+    """The family's system ``F(x; E) = 0`` with ``E`` an unknown and the arclength row, which
+    does not depend on ``theta`` (its row of ``dF/dtheta`` is zero)."""
+    from dataclasses import replace
+
+    from ddvp_nlp.solvers.periodic.arclength import ArclengthSystem, _Arc
+    assembly, x, closure = _periodic(seed)
+    rng = np.random.default_rng(seed + 100)
+    system = ArclengthSystem(assembly)
+    y = np.r_[x, closure.energy + rng.normal()]
+    row, origin = rng.normal(size=y.size), y + 0.1 * rng.normal(size=y.size)
+    arc = _Arc(closure, row, origin, 0.3)
+    derivative = _agrees_with_difference_quotient(
+        system, y, arc, lambda theta: _Arc(replace(closure, theta=theta), row, origin, 0.3),
+        theta=closure.theta)
+    assert np.all(derivative[-1] == 0.0)
+    base = assembly.parameter_jacobian(x, replace(closure, energy=float(y[-1]))).toarray()
+    assert np.array_equal(derivative[:-1], base)
 
 
 def _check_transposed(assembly, x, data, linear, kernel=None):

@@ -187,9 +187,9 @@ def test_the_command_writes_what_it_keeps_and_refuses_to_resume_it(tmp_path, cap
 def test_a_stopped_long_march_is_returned_without_the_work_over_every_node(monkeypatch):
     """Ctrl-C on a march of millions of nodes: no recheck or whole-run check after it (they
     had taken 8 s of the 10.7 s from the signal to the exit); here 'millions' is 1000."""
-    from ddvp_nlp.solvers.marching import initial_value
+    from ddvp_nlp.solvers.marching import session
 
-    monkeypatch.setattr(initial_value, "_too_many_to_judge", lambda nodes: nodes > 1000)
+    monkeypatch.setattr(session, "_too_many_to_judge", lambda nodes: nodes > 1000)
     calls = []
 
     def stop():
@@ -199,5 +199,6 @@ def test_a_stopped_long_march_is_returned_without_the_work_over_every_node(monke
     assert run.status.code == "interrupted" and run.t.size > 1000
     assert run.verdict is None and "left out" in run.accuracy_skipped
     assert run.canonical_residual.size == 0 and run.energy_residual.size == 0
-    short = _pendulum(t_end=5000.0, stop=lambda: len(calls) > 0)  # stopped at once: judged
-    assert short.t.size == 1 and short.accuracy_skipped is None
+    short = _pendulum(t_end=5000.0, stop=lambda: len(calls) > 0)  # stopped at once
+    # no step: nothing to judge, and no verdict claimed for work not done
+    assert short.t.size == 1 and short.verdict is None and "no step" in short.accuracy_skipped

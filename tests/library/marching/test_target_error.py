@@ -66,8 +66,10 @@ def test_the_choice_does_not_depend_on_units():
     assert chosen[1] == pytest.approx(chosen[0], rel=1e-3)
 
 
-@pytest.mark.parametrize("value", [0.0, -1e-3, 1.0, 5.0, float("nan"), "x"])
+@pytest.mark.parametrize("value", [0.0, -1e-3, 1.0, 5.0, float("nan"), "x", 1e-300, 1e-13])
 def test_a_bad_target_is_refused_by_name(value):
+    """Below the exact-flow reference's floor no run can be judged to reach the target: it
+    is refused up front (``1e-300`` ran 250 s before failing, issue 45)."""
     scene = load_scene("harmonic")
     with pytest.raises(InputError, match="target_error"):
         march(scene.system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, target_error=value)
@@ -94,3 +96,35 @@ def test_the_command_line_says_what_it_chose(tmp_path, capsys):
     assert main(["march", "pendulum", "--method", "rk4", "--target-error", "1e-3",
                  "--no-plot", "--out", str(tmp_path / "m")]) == 2
     assert "compared method" in capsys.readouterr().err
+
+
+def test_a_pilot_that_breaks_down_is_a_status_with_its_nodes_not_an_input_error():
+    """The pilot's breakdown is a failed solve (issue 45: it raised `InputError`, and the
+    command line exited 2, the bad-input code)."""
+    scene = load_scene("kepler")
+    config = scene.resolve({"e": 0.9})
+    solution = march(scene.system, config.q0, config.p0, (0.0, 50.0), tau0=0.5,
+                     target_error=1e-3)
+    assert not solution.success and solution.steps >= 1
+    assert solution.verdict is None  # no run was chosen: nothing claimed for the span
+    assert "pilot march" in solution.message and "no run was made" in solution.message
+    assert solution.march.target_error["tau0"] is None
+
+
+def test_a_run_stopped_before_its_first_step_carries_no_verdict_and_is_not_retried():
+    """Ctrl-C during the tries wrote status interrupted, 0 steps and verdict accurate."""
+    from ddvp_nlp import Output
+
+    scene = load_scene("pendulum")
+    config = scene.resolve({})
+    polls = []
+
+    def stop():  # the pilot runs unwatched; the chosen run is stopped at its first poll
+        polls.append(1)
+        return True
+    solution = march(scene.system, config.q0, config.p0, (0.0, 200.0), tau0=0.05,
+                     target_error=1e-3, output=Output(stop=stop))
+    assert solution.status.code == "interrupted"
+    if solution.steps == 0:
+        assert solution.verdict is None and solution.accuracy_skipped
+    assert len(solution.march.target_error["runs"]) == 1

@@ -188,7 +188,7 @@ def test_a_forged_success_row_is_run_again(tmp_path, capsys):
 @pytest.mark.parametrize("content, reason", [
     (b"\xff\xfe" + bytes(range(256)) * 8, "not UTF-8 text"),
     ("clé,été\n".encode("latin-1"), "not UTF-8 text"),
-    (b"key,x\n" + b"a" * 300_000 + b",1\n", "start the grid afresh"),
+    (b"key,x\n" + b"a" * 300_000 + b",1\n", "start the table afresh"),
     (b"other,columns\n1,2\n", "other columns"),
 ])
 def test_a_damaged_grid_file_is_refused_by_name(tmp_path, capsys, content, reason):
@@ -209,7 +209,7 @@ def test_a_second_grid_never_wipes_another_grids_rows(tmp_path, capsys):
     kept = (out / "sweep.csv").read_text()
     other = [*SWEEP[:3], "tau0=0.2,0.3", *SWEEP[4:]]
     assert main([*other, "--out", str(out)]) == 2
-    assert "rows of another grid" in capsys.readouterr().err
+    assert "rows of another table" in capsys.readouterr().err
     assert (out / "sweep.csv").read_text() == kept
     # the default folders of two grids differ
     os.chdir(tmp_path)
