@@ -30,7 +30,7 @@ from .scenes import (
     list_scenes,
     load_scene,
 )
-from .solution import Solution, Status
+from .solution import Failure, Solution, Status, Verdict
 from .solvers import Compilation, GridOptions, Output, StepControl, Tolerance
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
@@ -149,10 +149,10 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
 
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
-           "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
+           "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",
-           "StepControl", "Tolerance", "__version__", "chaos_indicators", "compare",
+           "StepControl", "Tolerance", "Verdict", "__version__", "chaos_indicators", "compare",
            "continue_march", "follow_periodic_family", "list_scenes", "load_scene",
            "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "periodic_stability",
            "plot", "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

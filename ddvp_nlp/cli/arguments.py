@@ -14,6 +14,7 @@ from ..discrete import Scheme
 from ..errors import InputError
 from ..scenes import PeriodicSettings
 from ..solvers import Compilation, GridOptions, Output, StepControl, Tolerance
+from .flags import flags
 
 if TYPE_CHECKING:  # the task runner loads with the commands that run tasks, not with a march
     from ..runner.tasks import Workers
@@ -138,39 +139,35 @@ def step_control(args) -> StepControl:
 
 def tolerance(args, exact=None) -> Tolerance:
     """The accuracy check's tolerances (``--rtol``, ``--atol``, ``--energy-tol``,
-    ``--global-tol``, ``--require-accurate``, ``--accept-inaccurate``; their defaults where a
-    command has none) and the motion's ``exact`` states, if known."""
-    defaults = Tolerance()
-    return Tolerance(rtol=getattr(args, "rtol", defaults.rtol),
-                     atol=getattr(args, "atol", defaults.atol),
-                     energy_tol=getattr(args, "energy_tol", defaults.energy_tol),
-                     global_tol=getattr(args, "global_tol", defaults.global_tol),
-                     require_accurate=getattr(args, "require_accurate", False),
-                     stop=not getattr(args, "accept_inaccurate", False), exact=exact)
+    ``--global-tol``, ``--require-accurate``, ``--accept-inaccurate``) and the motion's
+    ``exact`` states, if known."""
+    return Tolerance(rtol=args.rtol, atol=args.atol, energy_tol=args.energy_tol,
+                     global_tol=args.global_tol, require_accurate=args.require_accurate,
+                     stop=not args.accept_inaccurate, exact=exact)
 
 
 def compilation(args) -> Compilation:
     """``--careful`` turns the compiled chunks off (the march's careful per-step path)."""
-    return Compilation(fast=not getattr(args, "careful", False))
+    return Compilation(fast=not args.careful)
 
 
 def grid_options(args) -> GridOptions:
     """A grid solve's options (``--solver``, ``--tol``, ``--time-limit``, ``--verbose``; the
-    object's defaults where a command has none) and the accuracy check's (`tolerance`)."""
-    given = {name: getattr(args, name) for name in ("solver", "tol", "time_limit", "verbose")
-             if hasattr(args, name)}
-    return GridOptions(**given, accuracy=tolerance(args))
+    object's defaults where a command has none, ``request.ABSENT``) and the accuracy check's
+    (`tolerance`)."""
+    return GridOptions(solver=args.solver, tol=args.tol, time_limit=args.time_limit,
+                       verbose=args.verbose, accuracy=tolerance(args))
 
 
 def march_output(args, *, checkpoint=None, stop=None, t_eval=None, events=None) -> Output:
     """A march's progress (on unless ``--no-progress``), checkpoints, stop request, output
     times and events (``cli/events.py``)."""
-    keep_every, keep = getattr(args, "keep_every", None) or 1, getattr(args, "keep", "nodes")
-    thinned = keep_every > 1 or keep != "nodes"
+    keep_every = 1 if args.keep_every is None else args.keep_every
+    thinned = keep_every > 1 or args.keep != "nodes"
     return Output(progress=args.progress is not False,
                   checkpoint=None if thinned else checkpoint,
                   checkpoint_interval=args.checkpoint_every, stop=stop, t_eval=t_eval,
-                  events=events or None, keep_every=keep_every, keep=keep)
+                  events=events or None, keep_every=keep_every, keep=args.keep)
 
 
 def compiled_or_not(args) -> Compilation:
@@ -184,7 +181,7 @@ def on_cluster(args):
     the cluster started for the command (``runner/cluster.py``) and its scheduler's address the
     new request's ``scheduler``, where the grids and the Poincare ensemble already send their
     tasks; closed at the end. Without it, ``args`` as it is."""
-    text = getattr(args, "cluster", None)
+    text = args.cluster
     if text is None:
         yield args
         return
@@ -208,56 +205,104 @@ def workers(args, *, default: int | None = 1) -> Workers:
                    scheduler=args.scheduler)
 
 
-# Every numeric option of every command, by its name on the command line: what it must be.
-# "positive": a finite number > 0; "finite": any finite number; "ratio": > 1; "unit": in
-# [0, 1] (alpha = 0 and 1 are the symplectic Euler schemes, docs/theory.md); "count": an
-# integer >= 1; "natural": an integer >= 0.
+# The numbers of the command line that stand for no field of an option object (the sizes,
+# counts, seeds and times of a run, by option name): what each must be. "positive": a finite
+# number > 0; "finite": any finite number; "count": an integer >= 1; "natural": an integer
+# >= 0. Every other number is a field of an option object, checked by the object
+# (`check_options`).
 NUMBERS = {
-    "tol": "positive", "alpha": "unit", "tau_min": "positive", "tau_max": "positive",
-    "max_step_ratio": "ratio", "time_limit": "positive", "energy_guard": "positive",
-    "rtol": "positive", "atol": "positive", "energy_tol": "positive",
-    "global_tol": "positive", "checkpoint_every": "positive", "max_steps": "count",
     "nodes": "count", "energy": "finite", "orbits": "count", "t_end": "finite",
-    "tau0": "positive", "seed": "natural", "workers": "count", "halvings": "natural",
-    "repeats": "count", "time_unit": "positive", "run_budget": "positive",
-    "reference_span": "positive", "keep_every": "count",
+    "tau0": "positive", "seed": "natural", "time_unit": "positive",
+    "run_budget": "positive", "reference_span": "positive",
 }
 # Seeds numpy takes: below 2**63 (a larger one was taken, and a negative one a traceback).
 MAX_SEED = 2**63 - 1
 
 
-def check_numbers(args) -> None:
-    """Every numeric option the command has, checked by name and range before anything is
-    loaded (``InputError`` naming the option: ``--time-limit nan`` and ``--alpha 0`` had
-    passed)."""
-    from ..errors import InputError
+def check_options(request) -> None:
+    """Every number the command has, checked before anything is loaded: its option objects
+    made (each checks its own fields; their messages said with the flags, ``cli/flags.py``),
+    then the command line's own numbers (`NUMBERS`) and lists (``--time-limit nan`` and
+    ``--alpha 0`` had passed)."""
+    for owner, make in OPTION_OBJECTS.get(request.command, ()):
+        with flags(owner):
+            make(request)
+    _check_numbers(request)
+    _check_lists(request)
+
+
+def _given(request, names) -> dict:
+    """The options among ``names`` the command has and that are given (not ``None``)."""
+    return {name: value for name, value in request.having(names).items() if value is not None}
+
+
+def _comparison(request):
+    from ..studies.work_precision import CompareOptions
+    return CompareOptions(halvings=request.halvings, repeats=request.repeats,
+                          max_steps=request.max_steps,
+                          target_errors=target_errors(request.target_errors))
+
+
+def _continuation(request):
+    from ..solvers import Continuation
+
+    return Continuation(step=request.step, tol=request.stability_tol,
+                        max_orbits=request.max_orbits)
+
+
+def _bounds(request) -> StepControl:
+    """The per-run bounds of a grid of runs (``None``: the grid file's)."""
+    return StepControl(**_given(request, ("max_steps", "time_limit")))
+
+
+def _workers(request) -> None:
+    """``--workers``: a count the runner's `Workers` takes (and whose processes fit in
+    memory); ``None``, the command's own default."""
+    from ..runner.tasks import Workers
+
+    if request.workers is not None:
+        Workers(count=request.workers)
+
+
+def _march_output(request) -> Output:
+    """The fields of a march's `Output` the command line gives as numbers."""
+    return Output(checkpoint_interval=request.checkpoint_every,
+                  keep_every=1 if request.keep_every is None else request.keep_every)
+
+
+# The option objects each command's numbers stand for: (the object whose fields the messages
+# name, how it is made from the request).
+OPTION_OBJECTS = {
+    "march": ((None, step_control), (None, tolerance), (None, _march_output),
+              (None, lambda request: Scheme(alpha=request.alpha))),
+    "bvp": ((None, grid_options), (None, lambda request: Scheme(alpha=request.alpha))),
+    "periodic": ((None, grid_options), ("Continuation", _continuation)),
+    "poincare": ((None, tolerance), (None, _workers)),
+    "chaos": ((None, _workers),),
+    "compare": ((None, _comparison), (None, _workers)),
+    "stress": ((None, _bounds), (None, _workers)),
+    "sweep": ((None, _bounds), (None, _workers)),
+    "reproduce": ((None, _workers),),
+}
+
+
+def _check_numbers(request) -> None:
     from ..validation import check_integer, check_real
 
-    for dest, rule in NUMBERS.items():
-        value = getattr(args, dest, None)
-        if value is None:
-            continue
-        flag = "--" + dest.replace("_", "-")
+    for dest, value in _given(request, NUMBERS).items():
+        rule, flag = NUMBERS[dest], "--" + dest.replace("_", "-")
         if rule in ("count", "natural"):
             check_integer(flag, value, minimum=1 if rule == "count" else 0,
                           maximum=MAX_SEED if dest == "seed" else None)
-            continue
-        value = check_real(flag, value, positive=rule in ("positive", "ratio"))
-        if rule == "ratio" and not value > 1:
-            raise InputError(f"{flag} must be > 1, got {value!r}")
-        if rule == "unit" and not 0 <= value <= 1:
-            raise InputError(f"{flag} must lie in [0, 1], got {value!r}")
-    tau_min, tau_max = getattr(args, "tau_min", None), getattr(args, "tau_max", None)
-    if tau_min is not None and tau_max is not None and not tau_min < tau_max:
-        raise InputError(f"--tau-min must be < --tau-max = {tau_max!r}, got {tau_min!r}")
-    _check_lists(args)
+        else:
+            check_real(flag, value, positive=rule == "positive")
 
 
 def _check_lists(args) -> None:
-    """``--methods``, ``--section``, ``--horizons`` and ``--family``: not empty, no repeats."""
+    """``--methods``, ``--section`` and ``--horizons``: not empty, no repeats."""
     from ..errors import InputError
 
-    methods = getattr(args, "methods", None)
+    methods = args.methods
     if methods is not None:
         names = [name.strip() for name in methods.split(",")]
         if not any(names) or "" in names:
@@ -266,12 +311,24 @@ def _check_lists(args) -> None:
         repeated = sorted({name for name in names if names.count(name) > 1})
         if repeated:
             raise InputError(f"--methods names {repeated[0]!r} twice")
-    section = getattr(args, "section", None)
+    section = args.section
     if section is not None and (not section.strip() or "=" not in section):
         raise InputError(f"--section must be NAME=VALUE (e.g. q1=0), got {section!r}")
-    horizons = getattr(args, "horizons", None)
+    horizons = args.horizons
     if horizons is not None:
         check_values("--horizons", horizons, positive=True)
+
+
+def target_errors(text: str | None) -> list[float] | None:
+    """``--target-errors E1,E2,...`` as numbers (`CompareOptions` checks them)."""
+    if text is None:
+        return None
+    try:
+        errors = [float(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
+            from None
+    return errors
 
 
 def check_values(flag: str, text: str, *, positive: bool = False) -> list[float]:

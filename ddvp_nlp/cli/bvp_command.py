@@ -11,12 +11,12 @@ from ..io.run_folder import read_guess
 from ..scenes import Endpoints
 from ..solvers import AtEnergy, Output, Shooting, solve_bvp
 from . import arguments as options
-from .one_run import run_one
+from .one_run import run_scene
 
 
 def run_bvp(args) -> int:
     """``ddvp bvp SCENE``."""
-    return run_one(args, {False: _bvp, True: _bvp_higher})
+    return run_scene(args, {False: _bvp, True: _bvp_higher})
 
 
 def _bvp(args, scene, config, scheme):
@@ -27,7 +27,7 @@ def _bvp(args, scene, config, scheme):
     progress = args.progress if args.progress is not None else (
         config.nodes >= AUTO_PROGRESS_NODES and sys.stderr.isatty())
     guess = Shooting(p_start) if p_start is not None else (
-        getattr(args, "guess_data", None) or read_guess(args.guess, scene.system.n))
+        args.guess_data or read_guess(args.guess, scene.system.n))
     span = config.t_span
     if args.energy is not None:  # the scene's span is the transfer time's guess
         span = AtEnergy(args.energy, t0=span[0], duration=span[1] - span[0])

@@ -24,6 +24,7 @@ from ..studies.chaos_map import (
     parse_shard,
     shard_folder,
 )
+from .flags import flags
 from .folders import default_or, holds
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
@@ -41,8 +42,9 @@ def run_chaos(args) -> int:
     params = parse_settings(args.settings)
     config = scene.resolve({k: v for k, v in params.items() if k in scene.params})
     tau0 = args.tau0 if args.tau0 is not None else config.tau0
-    parse_grid(args.grid, args.section, scene.system.n)  # before any folder is made
-    shard = parse_shard(args.shard)
+    with flags("chaos_map"):  # the study names its fields (grid, section, shard)
+        parse_grid(args.grid, args.section, scene.system.n)  # before any folder is made
+        shard = parse_shard(args.shard)
     named = {"energy": args.energy, "grid": args.grid, "section": args.section,
              "t_end": args.t_end, "tau0": args.tau0, "params": params}
     target, owned = default_or(args, f"{scene.name}-chaos-E{args.energy:g}", named,
@@ -51,11 +53,12 @@ def run_chaos(args) -> int:
     folder = Path(target) / shard_folder(*shard) if shard else target
     try:
         with output_folder(folder, owned=owned + (1 if shard else 0)) as out:
-            result, journal, rows = chaos_map(
-                scene.system, args.energy, args.grid, out, scene=args.scene, tau0=tau0,
-                section=args.section, t_end=args.t_end, params=params, workers=args.workers,
-                scheduler=args.scheduler, shard=args.shard, resume=not args.fresh,
-                progress=args.progress is not False)
+            with flags("chaos_map"):  # its inputs are checked before any cell runs
+                result, journal, rows = chaos_map(
+                    scene.system, args.energy, args.grid, out, scene=args.scene, tau0=tau0,
+                    section=args.section, t_end=args.t_end, params=params,
+                    workers=args.workers, scheduler=args.scheduler, shard=args.shard,
+                    resume=not args.fresh, progress=args.progress is not False)
             arrays = map_arrays(result, scene.system, scene.system.parameter_vector(params))
             meta = _meta(args, scene, tau0, params, result)
             with INTERRUPTS.saving():
@@ -114,7 +117,8 @@ def _merge(args) -> int:
     if given:
         raise InputError(f"--merge DIR takes the settings from the shards' parts: drop "
                          f"{', '.join(given)}")
-    arrays, parts = merge_shards(args.merge)
+    with flags("merge_shards"):
+        arrays, parts = merge_shards(args.merge)
     meta = {"command": "chaos", "merged": sorted(parts),
             "settings": next(iter(parts.values())).get("settings"),
             "cells": int(arrays["status"].size),

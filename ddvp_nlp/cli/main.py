@@ -21,7 +21,7 @@ import warnings
 from importlib import import_module
 
 from ..errors import InputError, OutputError
-from .arguments import check_numbers, on_cluster
+from .arguments import check_options, on_cluster
 from .interrupts import INTERRUPTS, Stopped
 from .parser import build_parser, command_in, parse_arguments
 from .request import Request
@@ -29,7 +29,7 @@ from .summary import format_warning
 
 # Each command: the module of this package that runs it and its function, imported when the
 # command runs (`ddvp march` loads nothing of the studies, `ddvp scenes` nothing of a solver).
-COMMANDS = {"scenes": "scenes_command:run_scenes", "march": "march_command:run_march",
+COMMANDS = {"scenes": "scenes_command:run_scenes", "march": "march_command:run_march_command",
             "bvp": "bvp_command:run_bvp", "compare": "study_commands:run_compare",
             "stress": "study_commands:run_stress", "sweep": "study_commands:run_sweep",
             "reproduce": "study_commands:run_reproduce",
@@ -51,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         from . import supervisor
 
+        _stdout_usable()  # before the supervisor flushes them (``ddvp scenes >&-``)
         if supervisor.available():
             return supervisor.supervise(lambda: main(sys.argv[1:]))
     original_format = warnings.formatwarning
@@ -84,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(request: Request) -> int:
     label = f"ddvp {request.command}"
     try:
-        check_numbers(request)
+        check_options(request)
         with on_cluster(request) as request:
             code = command(request.command)(request)
         sys.stdout.flush()  # a full disk behind stdout fails here, not at the exit

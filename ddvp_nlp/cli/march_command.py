@@ -4,6 +4,7 @@ with ``--method``), and ``--resume``, its continuation from a run folder."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import math
 import os
@@ -16,23 +17,24 @@ from ..io.atomic import FolderBusy, open_folder
 from ..io.run_folder import read_run
 from ..scenes import is_builtin, load_scene, scene_digest, scene_fingerprint
 from ..solvers import MarchState, continue_march, find_compiler, march
+from ..validation import check_real
 from . import arguments as options
-from .arguments import check_numbers
+from .arguments import check_options
 from .interrupts import INTERRUPTS
 from .one_run import (
     RESUME_OPTIONS,
     checkpoint_saver,
     requested_meta,
     resume_record,
-    run_one,
-    save_run,
+    run_scene,
     scheme_of,
+    write_whole,
 )
 from .parser import parse_settings
 from .summary import print_summary
 
 
-def run_march(args) -> int:
+def run_march_command(args) -> int:
     """``ddvp march SCENE`` or ``ddvp march --resume FOLDER``."""
     if args.resume:
         if args.t_eval is not None or args.events:
@@ -43,10 +45,15 @@ def run_march(args) -> int:
             raise InputError("--keep-every and --keep apply to a march from its start: a "
                              "thinned run cannot be continued with --resume")
         return run_resume(args)
-    if getattr(args, "keep", "nodes") == "t_eval" and args.t_eval is None and not args.events:
+    if args.keep == "t_eval" and args.t_eval is None and not args.events:
         raise InputError("--keep t_eval keeps only the --t-eval states and the --event "
                          "crossings: give --t-eval or --event")
-    return run_one(args, {False: _march, True: _march_higher})
+    if _thinned(args) and args.changed(["checkpoint_every"]):
+        # asked for, the checkpoints would otherwise be left out without a word
+        raise InputError(f"--checkpoint-every {args.checkpoint_every:g} does not apply to a "
+                         "thinned march (--keep-every or --keep t_eval): a checkpoint is for "
+                         "--resume, which needs every node; give one or the other")
+    return run_scene(args, {False: _march, True: _march_higher})
 
 
 def run_resume(args) -> int:
@@ -68,7 +75,12 @@ def run_resume(args) -> int:
         record = resume_record_of(folder, meta)
         scene = resume_scene(args, folder, record)
         args = args.but(**record["options"])  # the options the run was made with
-        check_numbers(args)
+        try:
+            check_options(args)
+        except InputError as exc:  # the folder's value, not one the user typed: say so
+            raise InputError(f"--resume {folder}: the run's recorded options are refused "
+                             f"(meta.json resume.options; not a value given on this command "
+                             f"line): {exc}") from None
         if args.scheme not in RULES:
             raise InputError(f"--resume: the resume record of {folder} gives the scheme "
                              f"{args.scheme!r}; a march continues with one of {', '.join(RULES)}")
@@ -88,9 +100,10 @@ def run_resume(args) -> int:
         state = MarchState.of(arrays["t"], arrays["q"], arrays["p"], config.t_end,
                               checked_carried(folder, meta.get("carried")))
         saver = checkpoint_saver(args, scene, out, record)
+        tau0, accuracy = _resumed_step(folder, meta, config.tau0, options.tolerance(args))
         solution = continue_march(
-            scene.system, state, t_end, tau0=config.tau0, scheme=scheme, params=config.params,
-            steps=options.step_control(args), accuracy=options.tolerance(args),
+            scene.system, state, t_end, tau0=tau0, scheme=scheme, params=config.params,
+            steps=options.step_control(args), accuracy=accuracy,
             compilation=options.compilation(args),
             output=options.march_output(args, checkpoint=saver,
                                         stop=INTERRUPTS.stop_requested))
@@ -98,7 +111,7 @@ def run_resume(args) -> int:
         extra = {"carried": solution.march.carried, "resume": record,
                  "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
                  "overrides": record["overrides"]}
-        meta = save_run(args, out, scene, config, scheme, solution, extra)
+        meta = write_whole(args, out, scene, config, scheme, solution, extra)
     print_summary(meta, out.path)
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
@@ -212,7 +225,7 @@ def checked_carried(folder, carried):
 
 
 def _march(args, scene, config, scheme):
-    times, events = args.requested  # checked by run_one before the folder was made
+    times, events = args.requested  # checked by run_scene before the folder was made
     if args.scheme not in RULES:
         if _thinned(args):
             raise InputError(f"--keep-every and --keep thin a march of this package's schemes; "
@@ -248,10 +261,26 @@ def _march(args, scene, config, scheme):
                       **requested_meta(solution, events)}
 
 
+def _resumed_step(folder, meta: dict, tau0: float, accuracy):
+    """``(tau0, accuracy)`` a resumed march goes on with: the scene's, or for a run that chose
+    its own first step for a target error (``--target-error``) the step it chose and the
+    tolerance it was judged by (the scene's ``tau0`` did not make its first step)."""
+    chosen = meta.get("target_error")
+    if not isinstance(chosen, dict) or "target" not in chosen:
+        return tau0, accuracy
+    if chosen.get("tau0") is None:
+        raise InputError(f"--resume {folder}: this --target-error run chose no step (its pilot "
+                         "march ended before a run was made): start a new march")
+    step = check_real("the run's chosen tau0 (meta.json target_error)", chosen["tau0"],
+                      positive=True)
+    target = check_real("the run's target error (meta.json target_error)", chosen["target"],
+                        positive=True)
+    return step, dataclasses.replace(accuracy, global_tol=target)
+
+
 def _thinned(args) -> bool:
     """Whether ``--keep-every`` or ``--keep t_eval`` was given."""
-    return getattr(args, "keep_every", None) is not None or \
-        getattr(args, "keep", "nodes") != "nodes"
+    return args.keep_every is not None or args.keep != "nodes"
 
 
 def _all_residuals(kept: dict | None) -> dict:

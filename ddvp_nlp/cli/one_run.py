@@ -20,14 +20,14 @@ from .parser import parse_settings
 from .summary import print_summary
 
 
-def run_one(args, solvers: dict) -> int:
+def run_scene(args, solvers: dict) -> int:
     """``ddvp march`` or ``ddvp bvp`` on a scene: resolve, solve, write the run folder, print
     its summary. ``solvers[higher]`` is the solve ``(args, scene, config, scheme) ->
     (solution, extra)`` of a first-order (``False``) or higher-order (``True``) scene."""
     if args.scene is None:
         raise InputError(f"ddvp {args.command} needs a scene (a name from `ddvp scenes` or a "
                          ".py file)" + (", or --resume FOLDER" if args.command == "march" else ""))
-    if getattr(args, "t_end", None) is not None:  # ran silently to the scene's t_end before
+    if args.t_end is not None:  # ran silently to the scene's t_end before
         args = args.but(settings=[*args.settings, f"t_end={args.t_end!r}"])
     scene = load_scene(args.scene)
     higher = isinstance(scene, HigherOrderScene)
@@ -47,7 +47,7 @@ def run_one(args, solvers: dict) -> int:
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) before the run had a "
                           f"node to keep; nothing new was written: {holds(out)}") from None
-        meta = save_run(args, out, scene, config, scheme, solution,
+        meta = write_whole(args, out, scene, config, scheme, solution,
                         {**(extra or {}), "overrides": overrides})
     print_summary(meta, out.path)
     print_requested(meta, solution)
@@ -58,7 +58,7 @@ def run_one(args, solvers: dict) -> int:
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
 
-def save_run(args, out, scene, config, scheme, solution, extra) -> dict:
+def write_whole(args, out, scene, config, scheme, solution, extra) -> dict:
     """The run's set written with interrupts held (only the figure may be cut short); on a
     write failure, what the folder holds is said."""
     try:
@@ -85,12 +85,10 @@ def run_folder(args, scene, config, overrides):
     if args.command == "bvp":
         if args.nodes is not None:
             overrides["nodes"] = args.nodes
-        for name in BVP_CHOICES:
-            value = getattr(args, name)
-            if value != args.default(name):
-                overrides[name] = resolved[name] = value
+        for name, value in args.changed(BVP_CHOICES).items():
+            overrides[name] = resolved[name] = value
     options = {**result_options(args), **requested_options(args),
-               **content_inputs(scene, getattr(args, "guess_data", None))}
+               **content_inputs(scene, args.guess_data)}
     resolved.update(options)
     if args.out is not None:
         return args.out, 1, overrides
@@ -110,17 +108,16 @@ RESULT_OPTIONS = ("alpha", "clock", "tol", "tau_min", "tau_max", "max_step_ratio
 def requested_options(args) -> dict:
     """``--t-eval`` and ``--event`` as given, when given: they add arrays to the run."""
     found = {}
-    if getattr(args, "t_eval", None) is not None:
+    if args.t_eval is not None:
         found["t_eval"] = args.t_eval
-    if getattr(args, "events", None):
+    if args.events:
         found["events"] = list(args.events)
     return found
 
 
 def result_options(args) -> dict:
     """The options of ``args`` in `RESULT_OPTIONS` whose value is not their default."""
-    return {name: getattr(args, name) for name in RESULT_OPTIONS
-            if hasattr(args, name) and getattr(args, name) != args.default(name)}
+    return args.changed(RESULT_OPTIONS)
 
 
 def checkpoint_saver(args, scene, out, record: dict):
@@ -149,13 +146,13 @@ def resume_record(args, scene, config, overrides: dict) -> dict:
     against), the ``--set`` overrides and the march's options."""
     return {"scene": scene.source or scene.name, "scene_sha256": scene.digest,
             "fingerprint": scene_fingerprint(scene, config.as_dict()), "overrides": overrides,
-            "options": {name: getattr(args, name, None) for name in RESUME_OPTIONS}}
+            "options": {**dict.fromkeys(RESUME_OPTIONS), **args.having(RESUME_OPTIONS)}}
 
 
 def scheme_name(args, scene) -> str:
     """``--method``, else ``--scheme``, else the scheme the scene declares, else the paper's
     ``vddvp``; a scene's declared name is checked here, where the names are known."""
-    method = getattr(args, "method", None)
+    method = args.method
     if args.scheme is not None and args.scheme not in RULES:
         if args.scheme in method_names():
             raise InputError(f"--scheme {args.scheme}: {args.scheme} is a compared method, not an "
@@ -206,7 +203,7 @@ def requested_output(args, scene, config, higher: bool):
     """``(t_eval, events)`` of ``--t-eval`` and ``--event`` (``cli/events.py``), checked
     against the scene's names and the run's span, before a folder is made or anything is
     built; ``(None, [])`` when neither is given."""
-    t_eval, texts = getattr(args, "t_eval", None), getattr(args, "events", None) or []
+    t_eval, texts = args.t_eval, list(args.events)
     if t_eval is None and not texts:
         return None, []
     if higher:

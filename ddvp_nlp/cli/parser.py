@@ -140,7 +140,7 @@ def parse_arguments(parser: argparse.ArgumentParser, argv: list[str] | None):
     the commands). Exits 2 with the message, as argparse does."""
     args, extra = parser.parse_known_args(argv)
     if extra:
-        command = getattr(parser, "commands", {}).get(getattr(args, "command", None), parser)
+        command = getattr(parser, "commands", {}).get(vars(args).get("command"), parser)
         hint = setting_hint(command, args, extra)
         if hint is not None:  # one line, not the usage: the user knows the command
             command.exit(2, f"{command.prog}: error: {hint}\n")
@@ -183,7 +183,7 @@ def _scene_parameters(args) -> tuple:
     file, whose code is not run to make a message, or an unknown name)."""
     from ..scenes import list_scenes, load_scene
 
-    scene = getattr(args, "scene", None)
+    scene = vars(args).get("scene")  # the parsed words: a command may have no scene
     if not isinstance(scene, str) or scene not in list_scenes():
         return ()
     try:

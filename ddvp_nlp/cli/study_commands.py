@@ -18,10 +18,11 @@ from ..studies.reproduce import reproduce
 from ..studies.stress_report import stress
 from ..studies.sweep import SweepSpec, parse_axis, sweep_cases
 from ..studies.sweep_file import load_grid_file
-from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest, check_target_errors
+from ..studies.work_precision import ERROR_KINDS, CompareOptions, cheapest
 from ..validation import check_real
 from . import arguments as options
 from .arguments import check_distinct
+from .flags import flags
 from .folders import default_or
 from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
@@ -48,7 +49,7 @@ def run_compare(args) -> int:
     settings = parse_settings(args.settings)
     scene.resolve(settings)  # every name and value checked before a folder is made
     checked = CompareOptions(methods=args.methods, halvings=args.halvings, repeats=args.repeats,
-                             target_errors=_target_errors(args.target_errors))
+                             target_errors=options.target_errors(args.target_errors))
     if checked.methods is not None:
         get_methods(checked.methods)
     named = {"settings": settings, "methods": args.methods, "halvings": args.halvings,
@@ -60,10 +61,10 @@ def run_compare(args) -> int:
                                options=[name for name in named if name != "settings"],
                                defaults={"settings": {}}, scene=scene)
     if args.horizons:
-        with output_folder(target, owned=owned) as out:
+        with output_folder(target, owned=owned) as out, flags("comparison"):
             return _compare_horizons(args, scene, out)
     try:
-        with output_folder(target, owned=owned) as out:
+        with output_folder(target, owned=owned) as out, flags("comparison"):
             # the Python compare itself, into the command's folder
             result = compare(scene, params=settings, options=checked,
                              compilation=options.compiled_or_not(args),
@@ -86,19 +87,6 @@ def run_compare(args) -> int:
     return _grid_ended("compare", rows)
 
 
-def _target_errors(text: str | None) -> list[float] | None:
-    """``--target-errors E1,E2,...`` as numbers, checked as CompareOptions checks them, under the
-    option's name."""
-    if text is None:
-        return None
-    try:
-        errors = [float(part) for part in text.split(",") if part.strip()]
-    except ValueError:
-        raise InputError(f"--target-errors expects numbers separated by commas, got {text!r}") \
-            from None
-    return list(check_target_errors(errors, "--target-errors"))
-
-
 def _compare_horizons(args, scene, out) -> int:
 
     try:
@@ -108,8 +96,7 @@ def _compare_horizons(args, scene, out) -> int:
             options=CompareOptions(methods=args.methods, halvings=args.halvings,
                                    repeats=args.repeats, max_steps=args.max_steps),
             compilation=options.compiled_or_not(args), workers=options.workers(args),
-            run_budget_s=check_real("--run-budget", args.run_budget, positive=True),
-            reference_span=check_real("--reference-span", args.reference_span, positive=True),
+            run_budget_s=args.run_budget, reference_span=args.reference_span,
             progress=args.progress is not False)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
@@ -153,7 +140,8 @@ def run_sweep(args) -> int:
     scene = load_scene(spec.scene)
     target, owned = default_or(args, f"{scene.name}-sweep", named, scene=scene)
     try:
-        with output_folder(target, owned=owned) as out, warnings.catch_warnings():
+        with output_folder(target, owned=owned) as out, warnings.catch_warnings(), \
+                flags("comparison"):
             warnings.simplefilter("ignore", RuntimeWarning)
             rows = stress(out, cases=cases,
                           steps=StepControl(max_steps=spec.max_steps,
@@ -176,7 +164,8 @@ def _sweep_spec(args):
     if args.file:
         if args.scene or args.grid:
             raise InputError("give either --file or SCENE with --grid, not both")
-        spec = load_grid_file(args.file, allowed=args.allow_scene)
+        with flags("load_grid_file"):
+            spec = load_grid_file(args.file, allowed=args.allow_scene)
     else:
         if not args.scene or not args.grid:
             raise InputError("sweep needs SCENE and at least one --grid NAME=SPEC (or --file)")
@@ -211,7 +200,8 @@ def _grid_axes(items: list[str]) -> dict:
         name = name.strip()
         if name in axes:
             raise InputError(f"--grid {name} is given twice; give each axis once")
-        values = parse_axis(name, text)
+        with flags("parse_axis"):
+            values = parse_axis(name, text)
         for value in values:
             check_real(f"--grid {name}", value)
         check_distinct(f"--grid {name}", values)

@@ -130,9 +130,11 @@ def _verdict_words(meta: dict, accuracy: dict) -> str:
             and not accuracy["steps"]:
         return f"no verdict: the run ended {meta['status']} before its first step"
     if meta.get("status") not in ("success", "event", "drifted"):
-        return (f"no verdict on the whole run (it ended {meta['status']}); the "
-                f"{accuracy['steps']} steps kept are "
-                + ("within the tolerance" if verdict == "accurate" else
+        reached = meta.get("t_reached")
+        at = "" if reached is None else f" at t = {reached:.6g}"
+        return (f"no verdict on the whole run (it ended {meta['status']}{at}); the "
+                f"{accuracy['steps']} steps kept up to there are "
+                + ("accurate" if verdict == "accurate" else
                    f"drifted from t = {accuracy['t_drift']:.6g}"))
     if verdict == "drifted":
         return (f"drifted from t = {accuracy['t_drift']:.6g}: every step follows the flow and "

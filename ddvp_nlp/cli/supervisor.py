@@ -22,7 +22,11 @@ and reads the child's `SceneWatch` (``scenes/guard.py``):
   from the terminal reaches both already and is not passed twice); if the child then sleeps
   ``STOP_ASLEEP_S`` (or computes ``STOP_CPU_S``) without ending, it is ended, exit 1. A child
   killed by a signal ends the parent by the same signal, and a SIGKILLed parent takes the
-  child with it (``PR_SET_PDEATHSIG``).
+  child with it (``PR_SET_PDEATHSIG``);
+- **processes left behind**: this process is a subreaper (``PR_SET_CHILD_SUBREAPER``), so a
+  process the command started and left running (a scene's subprocess or daemon, however it
+  detached) comes to it as an orphan; once the child has ended, every such process is ended
+  (SIGKILL) and named in one warning: nothing a scene starts outlives the command.
 
 Only the command is supervised (``main()`` with no arguments, as the console script and
 ``python -m ddvp_nlp.cli`` call it); ``main(argv)`` from Python runs in its caller's process,
@@ -49,6 +53,8 @@ STOP_ASLEEP_S, STOP_CPU_S = 20.0, 120.0
 # A child done with its work that sleeps this long without ending is ended.
 EXIT_ASLEEP_S = 10.0
 POLL_S = 0.1
+# Rounds of ending what the command left running (each round its leftovers' own children).
+LEFTOVER_ROUNDS = 20
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 SI_KERNEL = 0x80  # si_code of a signal the kernel sent (the terminal's Ctrl-C), not kill()
 
@@ -67,6 +73,7 @@ def supervise(work: Callable[[], int]) -> int:
     sys.stderr.flush()
     held = set(FORWARDED) | {signal.SIGCHLD}
     before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    _adopt_orphans()
     child = os.fork()
     if child == 0:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
@@ -99,6 +106,54 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     return code
 
 
+def _adopt_orphans() -> None:
+    """``prctl(PR_SET_CHILD_SUBREAPER)``: a process the command leaves behind (a scene's
+    subprocess or daemon, however it detached) becomes this process's child when its own
+    parent ends, so that `_end_leftovers` can end it with the command."""
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0)
+
+
+def _end_leftovers() -> None:
+    """The processes the command left running (module docstring) ended, and said so: a
+    scene's processes end with the command, none outlives it."""
+    ended = []
+    for _ in range(LEFTOVER_ROUNDS):  # a leftover's own children come to us as it ends
+        found = _children()
+        if not found:
+            break
+        for pid, name in found:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            ended.append(f"{pid} ({name})")
+        for pid, _ in found:
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
+    if ended:
+        _say(f"ddvp: warning: ended {len(ended)} process(es) the command's scene left running: "
+             f"{', '.join(ended[:5])}{' ...' if len(ended) > 5 else ''}")
+
+
+def _children() -> list[tuple[int, str]]:
+    """``(pid, name)`` of this process's children, from ``/proc``."""
+    me, found = os.getpid(), []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as handle:
+                text = handle.read().decode("ascii", "replace")
+        except OSError:
+            continue
+        name, _, rest = text.partition("(")[2].rpartition(")")
+        fields = rest.split()
+        if len(fields) > 1 and fields[1] == str(me):
+            found.append((int(entry), name))
+    return found
+
+
 def _die_with_parent() -> None:
     """``prctl(PR_SET_PDEATHSIG, SIGKILL)``: a SIGKILLed parent takes the child along."""
     with contextlib.suppress(Exception):
@@ -122,6 +177,7 @@ class Parent:
             self._signals()
             ended, status = os.waitpid(self.child, os.WNOHANG)
             if ended:
+                _end_leftovers()  # first: a child killed by a signal ends this process too
                 return self._end(status)
             self._watch()
 

@@ -178,7 +178,7 @@ class _ProcessState:
     after: the exits it may not call, the timers' and the command's signal handlers, the
     signal mask, the working folder and the umask."""
 
-    SIGNALS = ("SIGALRM", "SIGPROF", "SIGINT", "SIGTERM")
+    SIGNALS = ("SIGALRM", "SIGPROF", "SIGINT", "SIGTERM", "SIGHUP")
 
     @classmethod
     def save(cls) -> _ProcessState:

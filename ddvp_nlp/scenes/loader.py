@@ -39,8 +39,13 @@ def scene_file(name_or_path: str) -> Path:
         raise InputError(f"scene must be a name or a path, got {name_or_path!r}")
     if _looks_like_path(name_or_path):
         path = Path(name_or_path)
-        if not path.is_file():
-            raise InputError(f"scene file {name_or_path!r} does not exist")
+        try:
+            found = path.is_file()
+        except OSError as exc:  # a name too long, ...: the argument's fault, not the output's
+            raise InputError(f"scene file {_shown(name_or_path)} cannot be looked up: "
+                             f"{exc.strerror or exc}") from None
+        if not found:
+            raise InputError(f"scene file {_shown(name_or_path)} does not exist")
         if path.suffix != ".py":
             raise InputError(f"scene file {name_or_path!r} is not a Python file (.py)")
         return path
@@ -53,6 +58,12 @@ def scene_file(name_or_path: str) -> Path:
         raise InputError(f"unknown scene {name_or_path!r}{hint} (built-in scenes: "
                          f"{', '.join(known)}; or a .py file)")
     return scene_folder() / f"{name_or_path}.py"
+
+
+def _shown(path: str) -> str:
+    """``path`` quoted for a message, its middle left out past 200 characters."""
+    return repr(path) if len(path) <= 200 else \
+        f"{path[:120]!r}...{path[-60:]!r} ({len(path)} characters)"
 
 
 def is_builtin(name_or_path) -> bool:

@@ -65,15 +65,15 @@ class ChaosGrid:
 def parse_grid(text: str, section: str, n: int) -> ChaosGrid:
     """``"q2=A:B:N,p2=C:D:M"`` for the section ``section`` of an ``n = 2`` system: the other
     coordinate and its momentum, each ``FROM:TO:COUNT`` (``COUNT >= 2``, ``FROM < TO``); an
-    ``InputError`` naming ``--grid`` or ``--section`` and the value otherwise."""
+    ``InputError`` naming ``grid`` or ``section`` and the value otherwise."""
     if n != 2:
         raise InputError(f"a chaos map needs a scene of two degrees of freedom, got n = {n}")
     try:
         index, value, _ = parse_section(section, n)
     except InputError as exc:
-        raise InputError(f"--section {section!r}: {exc}") from None
+        raise InputError(f"section {section!r}: {exc}") from None
     if index > n:
-        raise InputError(f"--section must fix a coordinate q1 or q2, got {section!r}")
+        raise InputError(f"section must fix a coordinate q1 or q2, got {section!r}")
     other = 2 - index  # 0-based index of the free coordinate
     wanted = (f"q{other + 1}", f"p{other + 1}")
     parts = [part.strip() for part in str(text).split(",")]
@@ -81,17 +81,17 @@ def parse_grid(text: str, section: str, n: int) -> ChaosGrid:
     for part in parts:
         match = re.fullmatch(r"([qp]\d+)=([^:]+):([^:]+):([^:]+)", part)
         if not match:
-            raise InputError(f"--grid must be '{wanted[0]}=A:B:N,{wanted[1]}=C:D:M', got "
+            raise InputError(f"grid must be '{wanted[0]}=A:B:N,{wanted[1]}=C:D:M', got "
                              f"{text!r}")
         name = match.group(1)
         if name not in wanted or name in found:
-            raise InputError(f"--grid must give {wanted[0]} and {wanted[1]} once each (the "
+            raise InputError(f"grid must give {wanted[0]} and {wanted[1]} once each (the "
                              f"section {section} fixes q{index}), got {text!r}")
         found[name] = _axis(name, *match.group(2, 3, 4))
     if set(found) != set(wanted):
-        raise InputError(f"--grid must give {wanted[0]} and {wanted[1]}, got {text!r}")
+        raise InputError(f"grid must give {wanted[0]} and {wanted[1]}, got {text!r}")
     cells = found[wanted[0]].size * found[wanted[1]].size
-    check_memory("--grid", cells, cells * 400.0, "the map's cells")
+    check_memory("grid", cells, cells * 400.0, "the map's cells")
     return ChaosGrid(section, index - 1, value, wanted, (found[wanted[0]], found[wanted[1]]),
                      text)
 
@@ -100,20 +100,20 @@ def _axis(name: str, first: str, last: str, count: str) -> np.ndarray:
     try:
         a, b, k = float(first), float(last), int(count)
     except ValueError:
-        raise InputError(f"--grid {name}={first}:{last}:{count}: FROM and TO must be numbers "
+        raise InputError(f"grid {name}={first}:{last}:{count}: FROM and TO must be numbers "
                          "and COUNT an integer") from None
-    check_real(f"--grid {name} FROM", a)
-    check_real(f"--grid {name} TO", b)
-    check_integer(f"--grid {name} COUNT", k, minimum=2, maximum=MAX_CELLS)
+    check_real(f"grid {name} FROM", a)
+    check_real(f"grid {name} TO", b)
+    check_integer(f"grid {name} COUNT", k, minimum=2, maximum=MAX_CELLS)
     if not a < b:
-        raise InputError(f"--grid {name}: FROM must be < TO, got {first}:{last}")
+        raise InputError(f"grid {name}: FROM must be < TO, got {first}:{last}")
     return np.linspace(a, b, k)
 
 
 def place_cells(system, theta, energy: float, grid: ChaosGrid) -> ChaosGrid:
     """Every cell's start ``z = (q, p)`` on the section at ``H = E`` and whether it has one
     (module docstring); NaN starts where not."""
-    energy = check_real("--energy", energy)
+    energy = check_real("energy", energy)
     n, i = 2, grid.index
     a, b = np.meshgrid(grid.axes[0], grid.axes[1])  # rows: second axis
     z, (c, slope, curve) = _on_section(system, theta, grid, a, b)
@@ -202,7 +202,7 @@ def parse_shard(text: str | None) -> tuple[int, int] | None:
         return None
     match = re.fullmatch(r"\s*(\d+)\s*/\s*(\d+)\s*", str(text))
     if not match or not 1 <= int(match.group(1)) <= int(match.group(2)):
-        raise InputError(f"--shard must be K/N with 1 <= K <= N, got {text!r}")
+        raise InputError(f"shard must be K/N with 1 <= K <= N, got {text!r}")
     return int(match.group(1)), int(match.group(2))
 
 
@@ -218,7 +218,7 @@ def run_map(system, scene: str, energy: float, grid: ChaosGrid, out, *, t_end: f
     ``other_shard``), the journal's path and its rows, for `commit_journal` with the map's
     files."""
     if not t_end > 0:
-        raise InputError(f"--t-end must be > 0 (the cells start at t = 0), got {t_end!r}")
+        raise InputError(f"t_end must be > 0 (the cells start at t = 0), got {t_end!r}")
     tasks = map_tasks(grid, scene, t_end=t_end, tau0=tau0, params=params)
     if shard is not None:
         tasks = tasks[shard[0] - 1::shard[1]]
@@ -295,7 +295,7 @@ def merge_shards(folder) -> tuple[dict, dict]:
     from ..io.chaos_files import read_arrays
 
     folder = Path(folder)
-    where = f"--merge {str(folder)!r}"
+    where = f"folder {str(folder)!r}"
     count = _shard_count(folder, where)
     parts, merged, settings, owner = {}, None, None, None
     for k in range(1, count + 1):
@@ -341,11 +341,11 @@ def _shard_count(folder, where: str) -> int:
     found = sorted(p.name for p in folder.glob("shard-*") if p.is_dir())
     if not found:
         raise InputError(f"{where}: no shard-K-of-N folder in it (run the "
-                         "shards with --shard K/N --out there first)")
+                         "shards with `shard` K/N `out` there first)")
     stray = [name for name in found if not SHARD_NAME.fullmatch(name)]
     if stray:
         raise InputError(f"{where}: {stray[0]!r} is not a shard folder (shard-K-of-N, as "
-                         "--shard K/N writes them); move it out before merging")
+                         "`shard` K/N writes them); move it out before merging")
     pairs = [tuple(map(int, SHARD_NAME.fullmatch(name).groups())) for name in found]
     counts = {n for _, n in pairs}
     if len(counts) != 1:
@@ -390,7 +390,7 @@ def chaos_map(system, energy: float, grid: str, out, *, scene: str, tau0: float,
     input is checked before any cell runs."""
     theta = system.parameter_vector(params)
     cells = place_cells(system, theta, energy, parse_grid(grid, section, system.n))
-    t_end = check_real("--t-end", t_end)
+    t_end = check_real("t_end", t_end)
     return run_map(system, scene, energy, cells, out, t_end=t_end, tau0=tau0, params=params,
                    workers=workers, scheduler=scheduler, shard=parse_shard(shard),
                    resume=resume, progress=progress)

@@ -28,7 +28,7 @@ def check_starts_from_p0(scene, config: RunConfig) -> None:
     """The compared methods all start from (q0, p0); a march from v0 has a p0 of its own."""
     if config.p0 is None:
         raise InputError(f"scene {scene.name!r} starts from v0; the comparison needs p0 "
-                         "(--set p0=...)")
+                         "(`settings` p0=...)")
 
 
 REFERENCE_KINDS = ("auto", "exact", "flow", "none")

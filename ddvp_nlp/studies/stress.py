@@ -51,7 +51,7 @@ ROWS = RowSchema(
 COLUMNS = list(ROWS.columns)
 # Methods of the registry a case leaves out unless asked for by name, and why.
 _LATER = ("joined the registry after the stress grid was laid out; kept out of the default "
-          "grid so its cost and table stay as they were (ask for it with --methods)")
+          "grid so its cost and table stay as they were (ask for it by name among the methods)")
 NOT_BY_DEFAULT = {name: _LATER for name in ("lee_left", "leapfrog", "verlet_adaptive", "avf")}
 DEFAULT_METHODS = tuple(name for name in METHODS if name not in NOT_BY_DEFAULT)
 DOP853_RTOL = 1e-10
@@ -167,7 +167,7 @@ def case_tasks(case: StressCase, *, compiler, cache_dir=None, max_steps: int = 2
         # Larger first: the longest runs start early, so the workers finish together.
         cost = (config.t_end - config.t0) / (case.tau if method.knob != "rtol" else 0.05)
         tasks.append(Task(key=f"{case.group}|{case.name}|{name}|{value!r}",
-                          function="ddvp_nlp.studies.stress:run_one",
+                          function=TASK_FUNCTION,
                           kwargs={"group": case.group, "case": case.name,
                                   "scene": _portable(case.scene),
                                   "scene_digest": scene_digest(case.scene),
@@ -184,7 +184,7 @@ def _portable(scene: str) -> str:
     return str(scene_file(scene).resolve()) if scene.endswith(".py") or "/" in scene else scene
 
 
-def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
+def stress_run(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
             time_limit, scene_digest=None) -> dict:
     """One method on one case: its row (a grid task; runs in any process). ``scene_digest``:
     the file this process loads must be the one the grid was planned with."""
@@ -221,6 +221,13 @@ def run_one(*, group, case, scene, settings, method, value, compiler, cache_dir,
         row["predicted_breaks"] = prediction["breaks"]
         row["w_ratio"] = prediction["w_ratio"]
     return row
+
+
+# The task's function as journals name it: every row's fingerprint hashes this path, so a
+# journal written before `stress_run` had its own name (it was `run_one`, the name of the
+# command line's run too) is resumed, not run again; `run_one` stays for it.
+run_one = stress_run
+TASK_FUNCTION = "ddvp_nlp.studies.stress:run_one"
 
 
 def failure_row(task: Task, error: str) -> dict:
@@ -364,4 +371,4 @@ def status_counts(rows) -> dict:
 
 __all__ = ["COLUMNS", "DEFAULT_METHODS", "ROWS", "Breakdown", "StressCase", "StressPlan",
            "StressResult", "breakdowns", "case_tasks", "default_cases", "plan_stress",
-           "run_one", "run_stress", "status_counts"]
+           "run_stress", "status_counts", "stress_run"]

@@ -37,7 +37,7 @@ class SweepSpec:
 
 def parse_axis(name: str, text: str) -> list[float]:
     """``FROM:TO:COUNT`` (evenly spaced, both ends included) or ``V1,V2,...``."""
-    where = f"--grid {name}"
+    where = f"grid {name}"
     try:
         if ":" in text:
             start, stop, count = text.split(":")

@@ -37,7 +37,7 @@ BOUND_KEYS = ("max_steps", "time_limit")
 
 def load_grid_file(path: str | Path, *, allowed: str | None = None) -> SweepSpec:
     """Read a TOML grid; an unknown key is an error that gives the key's path. Its scene must
-    be a built-in name, or the scene file ``allowed`` names (``--allow-scene``): a grid file
+    be a built-in name, or the scene file ``allowed`` names: a grid file
     runs no code the command line did not name (a ``scene = "/path/evil.py"`` had been
     imported and run before any check)."""
     path = Path(path)
@@ -92,7 +92,7 @@ def _check_scene_allowed(where: str, scene: str, allowed: str | None) -> None:
             pass
     raise InputError(f"{where}: scene {scene!r} is not a built-in scene; a grid file runs "
                      "no code the command line does not name: allow the file with "
-                     f"--allow-scene {scene}")
+                     f"`allowed` {scene}")
 
 
 def _read_toml(path: Path) -> dict:

@@ -121,8 +121,7 @@ class CompareOptions:
 
 
 def check_target_errors(values, name: str = "target_errors") -> tuple[float, ...]:
-    """Target errors: a non-empty list of distinct numbers in (0, 1), refused under ``name``
-    (the command line's ``--target-errors``)."""
+    """Target errors: a non-empty list of distinct numbers in (0, 1), refused under ``name``."""
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
         raise InputError(f"{name} must be a non-empty list of errors in (0, 1), "
                          f"got {values!r}")
@@ -365,7 +364,7 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
     reference = reference_for(scene, plan.overrides, plan.reference)
     where = scene.source or scene  # a scene made in Python runs in this process only
     tasks = [Task(key=f"{method.name}|{'target=' if aims else ''}{value!r}",
-                  function="ddvp_nlp.studies.work_precision:run_one",
+                  function=TASK_FUNCTION,
                   kwargs={"scene": where, "overrides": plan.overrides,
                           "method": method.name, "value": value, "repeats": plan.repeats,
                           "budget_s": plan.budget_s, "compiler": plan.compiler,
@@ -379,7 +378,7 @@ def run_work_precision(plan: WorkPrecisionPlan, rows_path, *,
                          plan.repeats, plan.budget_s)
 
 
-def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
+def timed_run(*, scene, overrides, method, value, repeats, budget_s, compiler, cache_dir,
             max_steps, reference: str = "auto", aims: bool = False) -> dict:
     """One run of the comparison, timed and measured: its row (a grid task); with ``aims``
     the method aims at the trajectory error ``value`` from a pilot at the scene's ``tau0``."""
@@ -389,6 +388,13 @@ def run_one(*, scene, overrides, method, value, repeats, budget_s, compiler, cac
                     reference_for(scene, overrides, reference),
                     repeats=repeats, budget_s=budget_s, compiler=compiler,
                     cache_dir=cache_dir, max_steps=max_steps, aims=aims)
+
+
+# The task's function as journals name it: every row's fingerprint hashes this path, so a
+# journal written before `timed_run` had its own name (it was `run_one`, the name of the
+# command line's run too) is resumed, not run again; `run_one` stays for it.
+run_one = timed_run
+TASK_FUNCTION = "ddvp_nlp.studies.work_precision:run_one"
 
 
 _NOT_MEASURED = {"trajectory_error": math.nan, "energy_error": math.nan,

@@ -21,7 +21,11 @@ The groups of issue 39 try what the tool wrote (``resume``, ``grids``, ``folders
 folder, a grid file and a default folder name are data, never code or authority), the compiled
 code ``cache``, the ``events`` evaluator, the ``bounds`` of a scene's code (defeated timers, a
 process ended by a scene, threads left behind), the ``cluster`` file and the ``load`` group;
-each with cases no issue names.
+each with cases no issue names. Issue 45 adds ``backward`` (every method run backwards),
+``merges`` (chaos parts that do not belong), ``ranges`` (non-finite options), ``target``
+(``--target-error`` failures are statuses, a resumed target run keeps its step), ``thinned``
+(``--keep-every`` where it cannot keep its promise) and ``supervision`` (what a scene starts
+ends with the command; a scene deaf to SIGTERM does not keep the march from saving).
 
 A full disk and a read-only one are a real tmpfs mounted for the run (root); where mounting is
 refused, a file-size limit (EFBIG, as a full disk) stands in and the page says so.
@@ -1132,6 +1136,28 @@ def periodic_cases() -> list[Case]:
                  expect_text="not finite anywhere")]
 
 
+# Options of `ddvp periodic` that only --stability or --follow used: each had been taken
+# unchecked without them (--stability-tol nan ran the orbit and exited 0, issue 45); now the
+# option object (Continuation) checks them, whichever path runs, and names the flag.
+RANGES = [
+    (["--stability-tol", "nan"], "--stability-tol must be finite, got nan"),
+    (["--stability-tol", "inf"], "--stability-tol must be finite, got inf"),
+    (["--stability-tol", "-1"], "--stability-tol must be > 0, got -1.0"),
+    (["--stability-tol", "nan", "--stability"], "--stability-tol must be finite, got nan"),
+    (["--step", "nan"], "--step must be finite, got nan"),
+    (["--step", "0"], "--step must be > 0, got 0.0"),
+    (["--max-orbits", "1"], "--max-orbits must be an integer >= 2, got 1"),
+]
+
+
+def range_cases() -> list[Case]:
+    """Every positive option of ``ddvp periodic`` refused by its flag when it is not finite
+    or not positive, before any orbit is solved (exit 2, nothing written)."""
+    return [Case("ranges", " ".join(option), ["periodic", "harmonic", "--nodes", "40",
+                                               "--no-plot", *option, "--out", "out"], (2,),
+                 expect_text=text) for option, text in RANGES]
+
+
 def backward_cases() -> list[Case]:
     """Every method told to run backwards (t_end < t0): it marches to t_end with steps, or
     fails by name; a success with no step taken, t left at t0, is a lie (issue 45)."""
@@ -1190,6 +1216,116 @@ def merge_cases() -> list[Case]:
                  expect_text="both hold"),
             Case("merges", "a success cell with megno NaN", argv, (2,), parts("nan"),
                  expect_text="a success with megno = nan")]
+
+
+def _meta_of(folder, name="out"):
+    import json
+
+    meta = folder / name / "meta.json"
+    return json.loads(meta.read_text()) if meta.exists() else None
+
+
+def target_cases() -> list[Case]:
+    """``--target-error``: its failures are statuses, never a verdict for steps not taken,
+    never the bad-input code for a breakdown, and a run resumes at the step it chose
+    (issue 45)."""
+    def no_verdict_without_steps(folder, result):
+        meta = _meta_of(folder)
+        if meta is None:
+            return []
+        verdict = (meta.get("accuracy") or {}).get("verdict")
+        if (meta.get("steps") or 0) < 1 and verdict is not None:
+            return [f"verdict {verdict!r} with {meta.get('steps')} steps"]
+        return []
+
+    def pilot_said(folder, result):
+        meta = _meta_of(folder)
+        said = meta is not None and "pilot march" in str(meta.get("message"))
+        return no_verdict_without_steps(folder, result) + ([] if said else
+                                                          ["the message does not say the pilot"])
+
+    def resumed(folder, result):
+        meta = _meta_of(folder)
+        if meta is None or "resumed_from" not in meta:
+            return ["not resumed"]
+        return [] if meta.get("accuracy", {}).get("global_tol") == 1e-3 else \
+            ["resumed without the target's tolerance"]
+    base = ["march", "kepler", "--no-plot", "--no-progress", "--out", "out"]
+    first = ["march", "pendulum", "--set", "t_end=20", "--target-error", "1e-3", "--no-plot",
+             "--no-progress", "--out", "out"]
+    return [
+        Case("target", "a pilot that breaks down (kepler e = 0.9, tau0 = 0.5): a status",
+             [*base, "--set", "e=0.9", "--set", "tau0=0.5", "--set", "t_end=50",
+              "--target-error", "1e-3"], (1,), check=pilot_said),
+        Case("target", "a target of 1e-300: refused up front", [*base, "--target-error",
+                                                                "1e-300"], (2,),
+             expect_text="below what the check can measure", timeout=30.0),
+        Case("target", "SIGINT during the tries: interrupted, no verdict for steps not taken",
+             ["march", "pendulum", "--set", "t_end=1e6", "--target-error", "1e-6",
+              "--no-plot", "--no-progress", "--out", "out"], (1,),
+             signals=[(3.0, signal.SIGINT)], check=no_verdict_without_steps),
+        Case("target", "--resume of a finished target-error run: at the chosen step",
+             ["march", "--resume", "out", "--t-end", "30", "--no-plot", "--no-progress"], (0,),
+             setup=lambda folder: _ddvp(folder, *first), check=resumed),
+    ]
+
+
+def thinned_cases() -> list[Case]:
+    """``--keep-every``: refused where it cannot keep its promise (checkpoints, resume, a
+    keep_every past 2**62), by name (issue 45)."""
+    march = ["march", "harmonic", "--set", "t_end=5", "--no-plot", "--no-progress", "--out",
+             "out"]
+    return [
+        Case("thinned", "--keep-every 10 --checkpoint-every 1", [*march, "--keep-every", "10",
+                                                                "--checkpoint-every", "1"],
+             (2,), expect_text="does not apply to a thinned march"),
+        Case("thinned", "--keep-every 99999999999999999999999",
+             [*march, "--keep-every", "99999999999999999999999"], (2,),
+             expect_text="--keep-every"),
+        Case("thinned", "--keep-every 10 then --resume", ["march", "--resume", "out",
+                                                           "--keep-every", "10", "--no-plot",
+                                                           "--no-progress"], (2,),
+             setup=lambda folder: _ddvp(folder, *march), expect_text="--keep-every"),
+        Case("thinned", "--keep-every 7 (a thinned run, whole)", [*march, "--keep-every", "7"],
+             (0,)),
+    ]
+
+
+SPAWNING_SCENE = ("import subprocess\nfrom ddvp_nlp import Scene\n"
+                  "child = subprocess.Popen(['sleep', '300'])\n"
+                  "open('pid', 'w').write(str(child.pid))\n"
+                  "def H(q, p, t):\n    return p[0]**2/2 + q[0]**2/2\n"
+                  "scene = Scene(H, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=1)\n")
+
+
+def supervision_cases() -> list[Case]:
+    """What a scene starts ends with the command; a scene that ignores SIGTERM at import
+    still lets the march stop on SIGTERM and save (issue 45)."""
+    def write(text, name="scene.py"):
+        return lambda folder: (folder / name).write_text(text)
+
+    def gone(folder, result):
+        pid_file = folder / "pid"
+        if not pid_file.exists():
+            return ["the scene did not start its process"]
+        try:
+            os.kill(int(pid_file.read_text()), 0)
+        except ProcessLookupError:
+            return []
+        return ["the scene's process outlived the command"]
+    deaf = ("import signal\nfrom ddvp_nlp import Scene\n"
+            "signal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+            "def H(q, p, t):\n    return p[0]**2/2 - __import__('casadi').cos(q[0])\n"
+            "scene = Scene(H, n=1, q0=[0.5], p0=[0.0], tau0=0.001, t_end=1e7)\n")
+    return [
+        Case("supervision", "a scene's subprocess", ["march", "scene.py", "--no-plot",
+                                                     "--no-progress", "--out", "out"], (0,),
+             setup=write(SPAWNING_SCENE), check=gone, expect_text="left running"),
+        Case("supervision", "a scene that ignores SIGTERM, then SIGTERM",
+             ["march", "scene.py", "--no-plot", "--no-progress", "--max-steps", "100000000",
+              "--out", "out"], (1,), setup=write(deaf), signals=[(4.0, signal.SIGTERM)],
+             check=_march_kept),
+    ]
 
 
 LOAD_SCENES = ["pendulum", "harmonic", "kepler", "henon_heiles", "paper_pendulum", "cr3bp",
@@ -1397,8 +1533,10 @@ def main() -> int:
               "files": hostile_file_cases, "scenes": scene_cases, "numbers": number_cases,
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
-              "cluster": cluster_cases, "periodic": periodic_cases, "backward": backward_cases,
-              "merges": merge_cases,
+              "cluster": cluster_cases, "periodic": periodic_cases, "ranges": range_cases,
+              "backward": backward_cases,
+              "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
+              "supervision": supervision_cases,
               "load": load_cases}
     only = set(args.only.split(",")) if args.only else None
     unknown = sorted((only or set()) - set(groups))

@@ -13,10 +13,12 @@ from ddvp_nlp import InputError, load_scene, march, solve_bvp
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
 PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
-          "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem", "InputError",
+          "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
+          "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
           "PeriodicSettings", "Scene", "Shooting",
-          "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "__version__",
+          "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "Verdict",
+          "__version__",
           "chaos_indicators", "compare", "continue_march", "lyapunov_spectrum",
           "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",

@@ -99,7 +99,12 @@ def test_resume_refuses_settings_changed_in_the_record(tmp_path, capsys):
 @pytest.mark.parametrize("change, message", [
     (lambda m: m["resume"]["options"].update(out="/tmp/elsewhere"), "names the option 'out'"),
     (lambda m: m["resume"]["options"].update(tol="1e-3"), "gives tol = '1e-3'"),
-    (lambda m: m["resume"]["options"].update(alpha=7.0), "--alpha must lie in [0, 1]"),
+    (lambda m: m["resume"]["options"].update(alpha=7.0),
+     "--alpha must be a number in [0, 1], got 7.0"),
+    # the folder's value, not a flag the user gave: said so (issue 45)
+    (lambda m: m["resume"]["options"].update(tau_min=float("nan")),
+     "the run's recorded options are refused (meta.json resume.options; not a value given on "
+     "this command line): --tau-min must be finite, got nan"),
     (lambda m: m["resume"]["options"].update(scheme="rk4"), "gives the scheme 'rk4'"),
     (lambda m: m["resume"]["overrides"].update(w="__import__('os')"), "not a number"),
     (lambda m: m["resume"].pop("fingerprint"), "records no fingerprint"),

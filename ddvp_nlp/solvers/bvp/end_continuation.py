@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from ..grid.linear import Factorization, band_kernel
 from ..grid.newton import FullSteps, newton
 from ..grid.policy import Stage
-from ..grid.problem import GridRequest
+from ..grid.problem import BorderedLayout, GridRequest
 from .interleaved import Ends, NodeLayout
 from .phases import Boundary, assembly
 
@@ -119,25 +119,6 @@ class Hyperplane:
     tangent: np.ndarray
 
 
-@dataclass(frozen=True)
-class _PathLayout:
-    """``y = (x, s)``: the fixed-step problem's unknowns, then ``s``."""
-
-    base: object
-
-    @property
-    def size(self) -> int:
-        return self.base.size + 1
-
-    @property
-    def bandwidth(self) -> int:
-        """The bordered Jacobian's last row and column are full: not banded."""
-        return self.size
-
-    def time_index(self) -> np.ndarray:
-        return self.base.time_index()
-
-
 class _CorrectorSteps(FullSteps):
     """The corrector's Newton: full steps, converged when every ``|F_i|`` of the fixed-step
     problem (not the hyperplane's row) is below ``CORRECTOR_TOL max(1, |x|_inf)``."""
@@ -159,7 +140,7 @@ class _Path:
     def __init__(self, request, grid, times, a):
         self.grid, self.request = grid, request
         size = grid.layout.size
-        self.layout = _PathLayout(grid.layout)
+        self.layout = BorderedLayout(grid.layout)
         self.times, self.a, self.d = np.asarray(times, float), a, request.data.q_end - a
         self.F_s = np.zeros(size)
         self.F_s[-request.system.n:] = -self.d

@@ -88,6 +88,26 @@ def parameter_blocks(function: ca.Function, shared: int, grid, theta: np.ndarray
     return values[:, :, :width if columns is None else columns]
 
 
+@dataclass(frozen=True)
+class BorderedLayout:
+    """The layout of a problem bordered by one more unknown (a continuation's parameter or
+    arclength): ``base``'s unknowns, then one; its Jacobian's last row and column are full, so
+    it is not banded."""
+
+    base: object
+
+    @property
+    def size(self) -> int:
+        return self.base.size + 1
+
+    @property
+    def bandwidth(self) -> int:
+        return self.size
+
+    def time_index(self) -> np.ndarray:
+        return self.base.time_index()
+
+
 @dataclass
 class GridResult:
     """What a grid solver returns: the point it ended on, whether it says it converged, what

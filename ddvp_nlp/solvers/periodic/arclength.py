@@ -48,6 +48,7 @@ from ...errors import InputError
 from ...solution import Solution
 from ...validation import check_integer, check_real
 from ..grid.newton import newton
+from ..grid.problem import BorderedLayout
 from ..options import GridOptions, coerce
 from .bifurcation import KINDS, confirm, tests
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
@@ -160,29 +161,13 @@ class _Arc:
     length: float
 
 
-@dataclass(frozen=True)
-class _ArcLayout:
-    base: object
-
-    @property
-    def size(self) -> int:
-        return self.base.size + 1
-
-    @property
-    def bandwidth(self) -> int:
-        return self.size
-
-    def time_index(self) -> np.ndarray:
-        return self.base.time_index()
-
-
 class ArclengthSystem:
     """``F(x; E)`` with ``E`` the last unknown, and the arclength row (module docstring): a
     ``grid.GridProblem`` for the grid's Newton (sparse LU)."""
 
     def __init__(self, assembly: PeriodicAssembly):
         self.base = assembly
-        self.layout = _ArcLayout(assembly.layout)
+        self.layout = BorderedLayout(assembly.layout)
         N, m, h = assembly.layout.intervals, assembly.layout.m, assembly.header
         rows = h + np.arange(N) * m + m - 1  # the rows H(Q_k, P_k) - E
         self.energy_column = sp.csc_matrix((-np.ones(N), (rows, np.zeros(N, int))),

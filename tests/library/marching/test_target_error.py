@@ -128,3 +128,26 @@ def test_a_run_stopped_before_its_first_step_carries_no_verdict_and_is_not_retri
     if solution.steps == 0:
         assert solution.verdict is None and solution.accuracy_skipped
     assert len(solution.march.target_error["runs"]) == 1
+
+
+def test_a_target_error_run_resumes_at_the_step_it_chose(tmp_path, capsys):
+    """``--resume`` of a ``--target-error`` run was refused ("tau0 did not make the run's
+    first step"): it goes on at the chosen step, judged at the target, and its nodes are those
+    of an uninterrupted march at that step, bit for bit (issue 45)."""
+    import numpy as np
+
+    out = tmp_path / "run"
+    assert main(["march", "pendulum", "--set", "t_end=20", "--target-error", "1e-3",
+                 "--no-plot", "--no-progress", "--out", str(out)]) == 0
+    chosen = json.loads((out / "meta.json").read_text())["target_error"]["tau0"]
+    assert main(["march", "--resume", str(out), "--t-end", "30", "--no-plot",
+                 "--no-progress"]) == 0
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["accuracy"]["global_tol"] == 1e-3
+    whole = tmp_path / "whole"
+    assert main(["march", "pendulum", "--set", "t_end=30", "--set", f"tau0={chosen!r}",
+                 "--no-plot", "--no-progress", "--out", str(whole)]) == 0
+    resumed, direct = (np.load(folder / "result.npz") for folder in (out, whole))
+    assert np.array_equal(resumed["t"], direct["t"])
+    assert np.array_equal(resumed["q"], direct["q"])
+    capsys.readouterr()

@@ -23,7 +23,7 @@ CASES = [
     (["march", "./pyproject.toml"], "scene file './pyproject.toml' is not a Python file (.py)"),
     (["march", "missing/scene.py"], "scene file 'missing/scene.py' does not exist"),
     (["compare", "harmonic", "--methods", "rk4", "--halvings", "100000"],
-     "halvings must be at most 40, got 100000"),
+     "--halvings must be at most 40, got 100000"),
     (["compare", "pendulum", "--workers", "0"], "--workers must be a positive integer, got 0"),
     (["sweep", "kepler", "--grid", "tau0=0,0.01"], "tau0 must be > 0, got 0.0"),
     (["sweep", "harmonic", "--grid", "tau0=-0.1", "--methods", "rk4"],
@@ -32,6 +32,28 @@ CASES = [
      "--set tau0 is given twice ('tau0=0.1' and 'tau0=0.2'); give each setting once"),
     (["march", "harmonic", "--out", ""], "output folder must be a non-empty path, got ''"),
     (["march", "harmonic", "--checkpoint-every", "0"], "--checkpoint-every must be > 0, got 0.0"),
+    # the option objects check, the command line names the flags (cli/flags.py)
+    (["march", "harmonic", "--tau-min", "0.1", "--tau-max", "0.01"],
+     "--tau-min must be < --tau-max = 0.01, got 0.1"),
+    (["march", "harmonic", "--checkpoint-every", "0.001"],
+     "--checkpoint-every must be at least 0.01 s (a checkpoint writes every node so far), got "
+     "0.001"),
+    # issue 45: taken unchecked unless --stability or --follow was given
+    (["periodic", "harmonic", "--stability-tol", "nan"], "--stability-tol must be finite, got nan"),
+    (["periodic", "harmonic", "--stability-tol", "inf"], "--stability-tol must be finite, got inf"),
+    (["periodic", "harmonic", "--stability-tol", "0"], "--stability-tol must be > 0, got 0.0"),
+    (["periodic", "harmonic", "--stability", "--stability-tol=-inf"],
+     "--stability-tol must be finite, got -inf"),
+    (["periodic", "harmonic", "--step", "nan"], "--step must be finite, got nan"),
+    (["periodic", "harmonic", "--max-orbits", "1"], "--max-orbits must be an integer >= 2, got 1"),
+    # issue 45: a 6000-character path was answered as an output error (exit 1)
+    (["march", "a/" * 3000 + "scene.py"],
+     "scene file " + repr(("a/" * 3000)[:120]) + "..." + repr(("a/" * 3000 + "scene.py")[-60:])
+     + " (6008 characters) cannot be looked up: File name too long"),
+    # issue 45: the checkpoints asked for were left out without a word
+    (["march", "harmonic", "--keep-every", "10", "--checkpoint-every", "1"],
+     "--checkpoint-every 1 does not apply to a thinned march (--keep-every or --keep t_eval): "
+     "a checkpoint is for --resume, which needs every node; give one or the other"),
 ]
 
 

@@ -216,15 +216,20 @@ def test_every_command_line_default_is_the_apis():
 def test_the_options_a_command_builds_by_default_are_the_apis():
     from ddvp_nlp import Compilation, GridOptions, Output, StepControl, Tolerance
     from ddvp_nlp.cli import arguments
+    from ddvp_nlp.cli.request import Request
 
-    march = build_parser("march").parse_args(["march", "pendulum"])
+    def request(*words):
+        parser = build_parser(words[0])
+        return Request.read(parser.parse_args(list(words)), parser.commands[words[0]])
+
+    march = request("march", "pendulum")
     assert arguments.step_control(march) == StepControl()
     assert arguments.tolerance(march) == Tolerance()
     assert arguments.compilation(march) == Compilation()
     assert arguments.march_output(march).checkpoint_interval == Output().checkpoint_interval
-    bvp = build_parser("bvp").parse_args(["bvp", "pendulum"])
+    bvp = request("bvp", "pendulum")
     assert arguments.grid_options(bvp) == GridOptions()
-    periodic = build_parser("periodic").parse_args(["periodic", "pendulum"])
+    periodic = request("periodic", "pendulum")
     assert arguments.grid_options(periodic) == GridOptions()
 
 
@@ -257,3 +262,37 @@ def test_the_guides_synopsis_is_the_parsers():
         assert not missing, f"ddvp {name}: {missing} missing from the guide's synopsis"
     unknown = set(re.findall(r"--[a-z][a-z0-9-]*", synopsis)) - known
     assert not unknown, f"the guide's synopsis names options the parser lacks: {unknown}"
+
+
+def test_a_command_started_with_stdout_closed_shows_no_traceback():
+    """``ddvp scenes >&-`` (descriptor 1 closed before the command starts): the supervised
+    command flushed a missing stdout and showed a traceback (issue 45)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    ddvp = shutil.which("ddvp", path=os.path.dirname(sys.executable))
+    assert ddvp is not None
+    done = subprocess.run(f"'{ddvp}' scenes >&-", shell=True, capture_output=True,
+                          text=True, timeout=120)
+    assert "Traceback" not in done.stderr
+    assert done.returncode == 0, done.stderr
+
+
+def test_a_failed_runs_verdict_says_what_it_covers(tmp_path, capsys):
+    """A failed run was printed ``accurate`` beside its failed status (the verdict of the part
+    kept, not said so): it says where the run ended and that the verdict covers up to there
+    (issue 45)."""
+    import re
+
+    from ddvp_nlp.cli import main
+
+    code = main(["march", "pendulum", "--set", "p0=2.2", "--max-steps", "500", "--no-plot",
+                 "--no-progress", "--out", str(tmp_path / "run")])
+    out = capsys.readouterr().out
+    assert code == 1
+    verdict = next(line for line in out.splitlines() if "verdict:" in line)
+    assert re.search(r"no verdict on the whole run \(it ended \w+ at t = [-\d.e+]+\); the \d+ "
+                     r"steps kept up to there are (accurate|drifted from t = )", verdict), verdict
+    assert not verdict.strip().endswith("verdict: accurate")

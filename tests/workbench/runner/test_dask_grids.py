@@ -131,9 +131,12 @@ def test_workers_share_the_compiled_cache(tmp_path, cluster):
 def test_grid_axes_from_the_command_line():
     assert parse_axis("e", "0.5:0.9:5") == pytest.approx([0.5, 0.6, 0.7, 0.8, 0.9])
     assert parse_axis("tau0", "0.01,0.005") == [0.01, 0.005]
-    with pytest.raises(InputError, match=r"^--grid e: expected FROM:TO:COUNT or V1,V2,..., "
-                                         r"got '0.5:x'$"):
+    with pytest.raises(InputError, match=r"^grid e: expected FROM:TO:COUNT or V1,V2,..., "
+                                         r"got '0.5:x'$") as refused:  # the study's field
         parse_axis("e", "0.5:x")
+    from ddvp_nlp.cli.flags import in_flags  # the command line's words for it
+
+    assert in_flags(str(refused.value), "parse_axis").startswith("--grid e: expected")
 
 
 GRID = """

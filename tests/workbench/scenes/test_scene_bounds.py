@@ -151,3 +151,25 @@ def test_sigterm_still_ends_a_supervised_march_after_saving(tmp_path):
     assert process.returncode == 1, err
     assert "interrupted (SIGTERM); the run was written whole" in err
     assert json.loads(meta.read_text())["status"] == "interrupted"
+
+
+@pytest.mark.parametrize("how", ["subprocess", "daemon"])
+def test_the_processes_a_scene_starts_end_with_the_command(tmp_path, how):
+    """A scene's subprocess, or a daemon it detaches (double fork, new session), outlived the
+    command (issue 45): the supervisor adopts what is left behind and ends it, and says so."""
+    start = {
+        "subprocess": "import subprocess\nchild = subprocess.Popen(['sleep', '300'])\n"
+                      "open('pid', 'w').write(str(child.pid))\n",
+        "daemon": "import os\nif os.fork() == 0:\n    os.setsid()\n    if os.fork() == 0:\n"
+                  "        open('pid', 'w').write(str(os.getpid()))\n"
+                  "        os.execvp('sleep', ['sleep', '300'])\n    os._exit(0)\n"
+                  "os.wait()\n",
+    }[how]
+    scene(tmp_path, start)
+    code, out, err = command(tmp_path, "march", "scene.py", "--no-plot", "--no-progress",
+                             "--out", "run")
+    assert code == 0, err
+    pid = int((tmp_path / "pid").read_text())
+    with pytest.raises(ProcessLookupError):  # ended and reaped: no such process left
+        os.kill(pid, 0)
+    assert "left running" in err and f"{pid} (sleep)" in err
