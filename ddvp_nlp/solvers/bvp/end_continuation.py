@@ -22,7 +22,7 @@ it stopped at ``s = 0.61``, on Henon-Heiles at ``s = 0.02-0.88``). Here the unkn
 
 When a step crosses ``s = 1`` the point at ``s = 1`` is interpolated and handed back; the caller
 solves the problem there (``first_guess.py``). The solution found is the one connected to
-the march by the path: ``stats["p_sign_changes"]`` of the result says which it is.
+the march by the path: ``ends.p_sign_changes`` of the result says which it is.
 """
 
 from __future__ import annotations

@@ -129,7 +129,7 @@ class Bifurcation:
     def as_dict(self) -> dict:
         indices = self.stability.indices
         return {"kind": self.kind, "energy": self.energy, "bracket": list(self.bracket),
-                "after_member": self.after, "period": self.orbit.stats["period"],
+                "after_member": self.after, "period": self.orbit.orbit.period,
                 "indices": [[float(k.real), float(k.imag)] for k in indices],
                 "status": self.orbit.status.code, **self.extra}
 
@@ -303,20 +303,20 @@ class _Walker:
 
     def _closure(self, orbit: Solution) -> Closure:
         n = self.system.n
-        index, value, _ = parse_section(orbit.stats["section"], n)
+        index, value, _ = parse_section(orbit.orbit.section, n)
         z = np.hstack([orbit.q, orbit.p])
         generators = np.zeros((len(self.integrals), 2 * n))
         if self.integrals:
             gradients = np.asarray(integral_gradients(self.system, self.integrals)(
                 z[0, :n], z[0, n:], self.theta))[:, 1:].T
             generators = np.hstack([gradients[:, n:], -gradients[:, :n]])
-        angles = tuple(i for i, w in enumerate(orbit.stats["winding"]) if w)
-        return Closure(float(orbit.stats["energy"]), index, value, self.theta, z[0].copy(),
+        angles = tuple(i for i, w in enumerate(orbit.orbit.winding) if w)
+        return Closure(float(orbit.orbit.energy), index, value, self.theta, z[0].copy(),
                        generators, closing_shift(z[0], z[-1], angles))
 
     def _point(self, orbit: Solution) -> np.ndarray:
         x = self.assembly.layout.pack(orbit.t - orbit.t[0], orbit.q, orbit.p)
-        return np.r_[x, float(orbit.stats["energy"])]
+        return np.r_[x, float(orbit.orbit.energy)]
 
     def _accept(self, orbit: Solution, tangent_before, arclength: float) -> None:
         y = self._point(orbit)

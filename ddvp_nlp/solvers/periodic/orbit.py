@@ -94,7 +94,7 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
-from ...solution import Solution, Status
+from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
@@ -204,13 +204,13 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             either solver (default 100) and IPOPT's log (`GridOptions`).
 
     Returns:
-        A `Solution` with ``N + 1`` nodes; ``stats`` holds ``period``, ``energy``,
-        ``unfolding`` (``lambda``), ``winding``, the largest residuals of each kind, the
-        accuracy estimate (``accuracy``: against RK4 steps of the exact flow) and the solver's
-        ``attempts``; ``energy_residual`` holds the scheme's energy equation at nodes ``1 ..
-        N`` (node ``N`` the wrap-around). No orbit found is a failure status with the
-        residuals in the message; an orbit whose steps do not follow the exact flow is
-        ``inaccurate``.
+        A `Solution` with ``N + 1`` nodes; ``orbit`` (`OrbitRecord`) holds ``period``,
+        ``energy``, ``unfolding`` (``lambda``), ``winding`` and the largest residuals of each
+        kind, ``verdict`` the accuracy check (against RK4 steps of the exact flow) and
+        ``stats`` the solver's counts and ``attempts``; ``energy_residual`` holds the
+        scheme's energy equation at nodes ``1 .. N`` (node ``N`` the wrap-around). No orbit
+        found is a failure status with the residuals in the message; an orbit whose steps
+        do not follow the exact flow is ``inaccurate``.
     """
     integrals = check_integrals(integrals)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
@@ -449,19 +449,20 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     if finite:
         accuracy, local_error = _accuracy(request, t, q, p)
     winding = np.round(np.asarray(closure.shift, float) / (2 * np.pi)) * np.ones(2 * n)
-    stats = {"period": float(t[-1] - t[0]), "energy": orbit.energy,
-             "section": orbit.label, "unfolding": float(unfolding[0]),
-             "integral_unfoldings": unfolding[1:].tolist(), "limit": limit,
-             "winding": [int(winding[i]) for i in range(n)],
-             "residuals": worst, "iterations": result.iterations, "outcome": result.outcome,
-             "tau_min": float(np.min(np.diff(t))), "tau_max": float(np.max(np.diff(t)))}
+    found = OrbitRecord(period=float(t[-1] - t[0]), energy=orbit.energy, section=orbit.label,
+                        unfolding=float(unfolding[0]),
+                        integral_unfoldings=tuple(unfolding[1:].tolist()),
+                        residual_limit=limit, winding=tuple(int(winding[i]) for i in range(n)),
+                        residuals=worst, tau_min=float(np.min(np.diff(t))),
+                        tau_max=float(np.max(np.diff(t))))
     solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                         energy_residual=energy,
                         canonical_residual=np.max(np.abs(canonical), axis=1),
                         newton_iterations=result.iterations,
                         timing={"build_s": request.build_s,
                                 "solve_s": time.perf_counter() - started - request.build_s},
-                        stats=stats)
+                        stats={"iterations": result.iterations, "outcome": result.outcome},
+                        orbit=found)
     judge(solution, accuracy, request.options.accuracy, local_error=local_error,
           advice="try more nodes")
     return solution

@@ -144,7 +144,7 @@ def test_an_orbit_and_a_family_of_constant_steps_and_periods(success):
 def test_a_family_without_nontrivial_multipliers_draws_its_trivial_pair():
     solution = run()
     members = [NS(energy=e, orbit=NS(q=solution.q, p=solution.p, steps=200,
-                                     stats={"period": 2 * np.pi}),
+                                     orbit=NS(period=2 * np.pi)),
                   stability=NS(verdict="stable", indices=np.zeros(0),
                                trivial=np.array([1.0, 1.0])))
                for e in (0.5, 0.7, 0.9)]
