@@ -12,11 +12,17 @@ hamiltonian=H, tau0=...)``.
   ``(H_p, -H_q)`` at ``(t0, y0)`` (``|fun - f|_inf <= FUN_AGREEMENT max(|fun|_inf, |f|_inf)``,
   else a ``ValueError`` naming ``fun`` and ``hamiltonian``), and never called again: no
   Jacobian is used (``njev = nlu = 0``; ``nfev = 1``).
-- **The march runs the whole span at the first step** and its nodes are handed out one per
-  ``_step_impl``: the cost of the march is paid by the first step (a terminal event does not
-  save it). The nodes are `march`'s bit for bit (the same ``tau0`` and options); the march's
-  last node lies up to one step past ``t_bound``, so the last step handed out ends on
-  ``t_bound`` with the state of the dense output there (``Solution.at_end``).
+- **The march runs a chunk at a time** and its nodes are handed out one per ``_step_impl``:
+  about ``chunk_steps`` steps (default ``CHUNK_STEPS``: a span of ``chunk_steps`` times the
+  last chunk's mean step, the first chunk's ``tau0``), the next chunk continued from the last
+  two nodes with what the loop carried (``continue_march``, ``resume.py``), so that the nodes
+  are one uninterrupted `march`'s bit for bit (the same ``tau0`` and options) and a terminal
+  event ends the work within a chunk. Each chunk's accuracy check judges it from its own
+  first node (the trajectory error over the whole span is a `march`'s verdict). A march that
+  cannot be continued runs the whole span at the first step: ``fixed`` steps (their length
+  is the span's), a backward span and a target error. The march's last node lies up to one
+  step past ``t_bound``, so the last step handed out ends on ``t_bound`` with the state of
+  the dense output there (``Solution.at``).
 - **Dense output** is ``Solution.at``'s: on each interval the cubic Hermite polynomial through
   the two march nodes with the exact slopes ``f(t_k, z_k)`` (``solution.hermite``).
 - **The first step** ``tau0`` (it sets the energy level and so every step of an energy rule):
@@ -48,7 +54,8 @@ from ...validation import check_integer, check_real
 from ..accuracy.judgement import SMALLEST_GLOBAL_TOL
 from ..dense import DenseField
 from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance
-from .initial_value import march
+from .initial_value import continue_march, march
+from .resume import MarchState
 
 __all__ = ["DDVP", "derived_tau0"]
 
@@ -56,6 +63,7 @@ FUN_AGREEMENT = 1e-8  # fun(t0, y0) against (H_p, -H_q), relative to the larger 
 TAU0_FRACTION = 1e-2  # the derived first step: this share of the start's time scale |y| / |f|
 MIN_STEPS = 4  # the derived first step: at most this share of the span
 SCIPY_RTOL, SCIPY_ATOL = 1e-3, 1e-6  # scipy's defaults, for the one of rtol/atol not given
+CHUNK_STEPS = 10_000  # steps per chunk of a continued march (about: the chunk is a time span)
 
 
 class DDVP(OdeSolver):
@@ -69,17 +77,20 @@ class DDVP(OdeSolver):
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` (or a `Scheme`), as in `march`.
         params: the system's parameter values.
         steps, accuracy, compilation: as in `march`.
+        chunk_steps: about how many steps each chunk of the march takes (module docstring).
         rtol, atol: mapped to ``target_error`` where ``tau0`` is not given (module docstring).
 
     Attributes:
-        solution: the march's `Solution` once the first step was taken (its verdict, stats).
+        solutions: the march's `Solution` of each chunk so far (verdicts, stats);
+            ``solution`` the newest.
     """
 
     def __init__(self, fun, t0, y0, t_bound, vectorized=False, *, hamiltonian=None, n=None,
                  tau0=None, scheme: str | Scheme = "vddvp",
                  params: Mapping[str, float] | None = None, steps: StepControl | None = None,
                  accuracy: Tolerance | None = DEFAULT_TOLERANCE,
-                 compilation: Compilation | None = None, **extraneous):
+                 compilation: Compilation | None = None, chunk_steps: int = CHUNK_STEPS,
+                 **extraneous):
         tolerances = {name: extraneous.pop(name) for name in ("rtol", "atol")
                       if name in extraneous}
         if extraneous:  # as scipy's own methods say it (common.warn_extraneous)
@@ -91,37 +102,96 @@ class DDVP(OdeSolver):
         self.theta = self.system.parameter_vector(params)
         self.params = params
         self.options = {"steps": steps, "accuracy": accuracy, "compilation": compilation}
+        self.chunk_steps = check_integer("chunk_steps", chunk_steps, minimum=2)
         field = DenseField.of(self.system, self.theta)
         slope = check_fun(self.fun, field, float(t0), self.y)
         self.tau0, self.target_error = first_step(tau0, tolerances, self.y, slope,
                                                   float(t_bound) - float(t0))
-        self.solution: Solution | None = None
-        self._field, self._nodes, self._next = field, None, 0
+        self.solutions: list[Solution] = []
+        self._field, self._chunk = field, None
+
+    @property
+    def solution(self) -> Solution | None:
+        """The newest chunk's `Solution` (``None`` before the first step)."""
+        return self.solutions[-1] if self.solutions else None
 
     def _step_impl(self):
-        if self._nodes is None:
-            self._nodes = self._march()
-        t, z = self._nodes["t"], self._nodes["z"]
-        if self._next + 1 >= t.size:  # every node handed out: the march stopped short
-            return False, self.solution.message
-        k = self._next
-        self._next += 1
-        self.t, self.y = float(t[k + 1]), z[k + 1].copy()
+        chunk = self._chunk
+        if chunk is None or chunk.used_up() and chunk.continues:
+            self._chunk = chunk = self._next_chunk(chunk)
+        if chunk.used_up():  # every node handed out: the march stopped short of t_bound
+            return False, chunk.solution.message
+        chunk.k += 1
+        t, z = chunk.t[chunk.k], chunk.z[chunk.k]
+        past = self.direction * (t - self.t_bound) >= 0
+        if past or chunk.final and chunk.used_up() and chunk.solution.success:
+            q, p = chunk.solution.at_end() if chunk.final else chunk.solution.at(self.t_bound)
+            t, z = self.t_bound, np.concatenate([q, p])
+        self.t, self.y = float(t), np.array(z, dtype=float)
         return True, None
 
     def _dense_output_impl(self):
-        k, nodes = self._next - 1, self._nodes
-        return HermiteStep(self.t_old, self.t, nodes["march_t"][k:k + 2],
-                           nodes["march_z"][k:k + 2], nodes["slopes"][k:k + 2])
+        chunk = self._chunk
+        k = chunk.k
+        return HermiteStep(self.t_old, self.t, chunk.t[k - 1:k + 1], chunk.z[k - 1:k + 1],
+                           chunk.slopes[k - 1:k + 1])
 
-    def _march(self) -> dict:
-        """The march over the whole span (module docstring) and the nodes handed out."""
+    def _next_chunk(self, previous: Chunk | None) -> Chunk:
+        """The march from the start (``previous`` is ``None``) or on from the last two nodes of
+        ``previous`` with what its loop carried (``continue_march``), to the next chunk's end
+        (module docstring)."""
+        options = {"scheme": self.scheme, "params": self.params, **self.options}
         size = self.n // 2
-        self.solution = solution = march(
-            self.system, self.y[:size], self.y[size:], (self.t, self.t_bound), tau0=self.tau0,
-            scheme=self.scheme, params=self.params, target_error=self.target_error,
-            **self.options)
-        return handed_out(solution, self.t_bound, self._field)
+        if previous is None:
+            end = self._chunk_end(self.t, self.tau0)
+            solution = march(self.system, self.y[:size], self.y[size:], (self.t, end),
+                             tau0=self.tau0, target_error=self.target_error, **options)
+            first = 0
+        else:
+            last = previous.solution
+            mean_step = (last.t[-1] - last.t[0]) / (last.t.size - 1)
+            end = self._chunk_end(float(last.t[-1]), mean_step)
+            state = MarchState.of(last.t[-2:], last.q[-2:], last.p[-2:], float(last.t[-1]),
+                                  last.stats["carried"])
+            solution = continue_march(self.system, state, end, tau0=last_step(last.t), **options)
+            first = 1  # its first two nodes are the earlier chunk's last two
+        self.solutions.append(solution)
+        return Chunk.of(solution, self._field, final=end == self.t_bound, first=first)
+
+    def _chunk_end(self, t: float, step: float) -> float:
+        """``t_bound`` for a march that cannot be continued (``fixed`` steps, a backward span,
+        a target error), or when less than half a chunk of ``step``s would be left after the
+        next one; else ``chunk_steps`` steps of ``step`` on from ``t``."""
+        chunked = self.scheme.variable_steps and self.direction > 0 and \
+            self.target_error is None
+        end = t + self.chunk_steps * step
+        if not chunked or end + self.chunk_steps * step / 2 >= self.t_bound:
+            return self.t_bound
+        return end
+
+
+class Chunk:
+    """The nodes of one chunk's march (``t``, ``z = (q, p)``, the exact slopes ``slopes``), its
+    `Solution`, whether it marched to ``t_bound`` (``final``) and the node handed out last
+    (``k``)."""
+
+    def __init__(self, solution: Solution, t, z, slopes, final: bool, k: int):
+        self.solution, self.t, self.z, self.slopes = solution, t, z, slopes
+        self.final, self.k = final, k
+
+    @classmethod
+    def of(cls, solution: Solution, field, *, final: bool, first: int) -> Chunk:
+        z = np.hstack([solution.q, solution.p])
+        return cls(solution, solution.t, z, field(solution.t, z), final, first)
+
+    @property
+    def continues(self) -> bool:
+        """Whether a next chunk follows this one (it succeeded short of ``t_bound``)."""
+        return self.solution.success and not self.final
+
+    def used_up(self) -> bool:
+        """Whether every node was handed out."""
+        return self.k + 1 >= self.t.size
 
 
 class HermiteStep(DenseOutput):
@@ -139,21 +209,15 @@ class HermiteStep(DenseOutput):
         return values[:, 0] if np.ndim(t) == 0 else values
 
 
-def handed_out(solution: Solution, t_bound: float, field) -> dict:
-    """The march's nodes ``march_t``, ``march_z`` with their exact slopes, and the nodes handed
-    out (``t``, ``z``): a march that reached ``t_end`` (its last node at or up to one step past
-    it; ``fixed`` steps: on it up to round-off) hands out every node but its last and then
-    ``t_bound`` with the dense output's state there (``Solution.at_end``); a failed one every
-    node it accepted."""
-    march_t = solution.t
-    march_z = np.hstack([solution.q, solution.p])
-    t, z = march_t, march_z
-    if solution.success:
-        q, p = solution.at_end()
-        t = np.append(march_t[:-1], t_bound)
-        z = np.vstack([march_z[:-1], np.concatenate([q, p])[None, :]])
-    return {"t": t, "z": z, "march_t": march_t, "march_z": march_z,
-            "slopes": field(march_t, march_z)}
+def last_step(t: np.ndarray) -> float:
+    """The last step ``t[-1] - t[-2]`` as the ``tau0`` that makes it from ``t[-2]`` (what
+    ``continue_march`` checks): the difference, or a neighbouring float where adding it back
+    rounds differently (nodes on either side of ``t = 0``)."""
+    step = float(t[-1] - t[-2])
+    for candidate in (step, np.nextafter(step, np.inf), np.nextafter(step, -np.inf)):
+        if t[-2] + candidate == t[-1]:
+            return float(candidate)
+    return step
 
 
 def as_system(hamiltonian, n, size: int) -> HamiltonianSystem:
