@@ -41,8 +41,10 @@ hamiltonian=H, tau0=...)``.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 
 import numpy as np
 from scipy.integrate import DenseOutput, OdeSolver
@@ -53,7 +55,7 @@ from ...solution import Solution, hermite
 from ...validation import check_integer, check_real
 from ..accuracy.judgement import SMALLEST_GLOBAL_TOL
 from ..dense import DenseField
-from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance
+from ..options import DEFAULT_TOLERANCE, Compilation, StepControl, Tolerance, coerce
 from .initial_value import continue_march, march
 from .resume import MarchState
 
@@ -63,6 +65,9 @@ FUN_AGREEMENT = 1e-8  # fun(t0, y0) against (H_p, -H_q), relative to the larger 
 TAU0_FRACTION = 1e-2  # the derived first step: this share of the start's time scale |y| / |f|
 MIN_STEPS = 4  # the derived first step: at most this share of the span
 SCIPY_RTOL, SCIPY_ATOL = 1e-3, 1e-6  # scipy's defaults, for the one of rtol/atol not given
+# the step count in a failure's sentence (solvers/driver.py, message): a continued chunk counts
+# from its first node, the march from its start
+STEP_COUNT = re.compile(r"\bstep (\d+) from t = ")
 CHUNK_STEPS = 10_000  # steps per chunk of a continued march (about: the chunk is a time span)
 
 
@@ -146,17 +151,25 @@ class DDVP(OdeSolver):
             end = self._chunk_end(self.t, self.tau0)
             solution = march(self.system, self.y[:size], self.y[size:], (self.t, end),
                              tau0=self.tau0, target_error=self.target_error, **options)
-            first = 0
+            first = base = 0
         else:
-            last = previous.solution
+            last, base = previous.solution, previous.base + previous.t.size - 2
             mean_step = (last.t[-1] - last.t[0]) / (last.t.size - 1)
             end = self._chunk_end(float(last.t[-1]), mean_step)
             state = MarchState.of(last.t[-2:], last.q[-2:], last.p[-2:], float(last.t[-1]),
                                   last.stats["carried"])
-            solution = continue_march(self.system, state, end, tau0=last_step(last.t), **options)
+            asked = coerce(options.pop("steps"), StepControl, "steps")
+            # max_steps counts the march's steps: this chunk's node j is the march's base + j
+            steps = replace(asked, max_steps=max(asked.max_steps - base, 1))
+            solution = continue_march(self.system, state, end, tau0=last_step(last.t),
+                                      steps=steps, **options)
+            solution.message = STEP_COUNT.sub(
+                lambda found: f"step {int(found[1]) + base} from t = ", solution.message, 1
+            ).replace(f"max_steps = {steps.max_steps}", f"max_steps = {asked.max_steps}")
             first = 1  # its first two nodes are the earlier chunk's last two
         self.solutions.append(solution)
-        return Chunk.of(solution, self._field, final=end == self.t_bound, first=first)
+        return Chunk.of(solution, self._field, final=end == self.t_bound, first=first,
+                        base=base)
 
     def _chunk_end(self, t: float, step: float) -> float:
         """``t_bound`` for a march that cannot be continued (``fixed`` steps, a backward span,
@@ -173,16 +186,16 @@ class DDVP(OdeSolver):
 class Chunk:
     """The nodes of one chunk's march (``t``, ``z = (q, p)``, the exact slopes ``slopes``), its
     `Solution`, whether it marched to ``t_bound`` (``final``) and the node handed out last
-    (``k``)."""
+    (``k``); its node ``j`` is the march's node ``base + j``."""
 
-    def __init__(self, solution: Solution, t, z, slopes, final: bool, k: int):
+    def __init__(self, solution: Solution, t, z, slopes, final: bool, k: int, base: int):
         self.solution, self.t, self.z, self.slopes = solution, t, z, slopes
-        self.final, self.k = final, k
+        self.final, self.k, self.base = final, k, base
 
     @classmethod
-    def of(cls, solution: Solution, field, *, final: bool, first: int) -> Chunk:
+    def of(cls, solution: Solution, field, *, final: bool, first: int, base: int) -> Chunk:
         z = np.hstack([solution.q, solution.p])
-        return cls(solution, solution.t, z, field(solution.t, z), final, first)
+        return cls(solution, solution.t, z, field(solution.t, z), final, first, base)
 
     @property
     def continues(self) -> bool:
