@@ -72,18 +72,29 @@ CHUNK_STEPS = 10_000  # steps per chunk of a continued march (about: the chunk i
 
 
 class DDVP(OdeSolver):
-    """The march of ``hamiltonian`` as a ``solve_ivp`` method (module docstring).
+    """The march of ``hamiltonian`` as a ``solve_ivp`` method: ``solve_ivp(fun, t_span, y0,
+    method=DDVP, hamiltonian=H, tau0=...)`` (the module docstring says what differs from
+    scipy's own methods).
 
-    Args (beside scipy's ``fun, t0, y0, t_bound, vectorized``, passed by ``solve_ivp``):
+    Args:
+        fun: ``f(t, y)`` as scipy asks for it, checked once against ``(H_p, -H_q)`` at the
+            start and not called again.
+        t0: the start time (``t_span[0]``).
+        y0: ``(q0, p0)`` stacked, length ``2n``.
+        t_bound: the end time (``t_span[1]``; below ``t0``: backwards).
+        vectorized: whether ``fun`` is vectorized (scipy's meaning).
         hamiltonian: a `HamiltonianSystem`, or a function ``H(q, p, t, **params)`` on CasADi
             symbols (then ``n``, default ``len(y0) / 2``).
         n: the degrees of freedom of a function ``hamiltonian``.
-        tau0: the first step (module docstring for its default).
+        tau0: the first step (default: from ``rtol``/``atol`` or the start's time scale).
         scheme: ``"vddvp"``, ``"lee"``, ``"fixed"`` (or a `Scheme`), as in `march`.
         params: the system's parameter values.
-        steps, accuracy, compilation: as in `march`.
-        chunk_steps: about how many steps each chunk of the march takes (module docstring).
-        rtol, atol: mapped to ``target_error`` where ``tau0`` is not given (module docstring).
+        steps: as in `march`.
+        accuracy: as in `march`.
+        compilation: as in `march`.
+        chunk_steps: about how many steps each chunk of the march takes.
+        **extraneous: ``rtol``, ``atol`` (a target error where ``tau0`` is not given, else
+            unused with a warning); any other option is warned about as having no effect.
 
     Attributes:
         solutions: the march's `Solution` of each chunk so far (verdicts, stats);
