@@ -133,17 +133,17 @@ class DDVP(OdeSolver):
 
     def _step_impl(self):
         chunk = self._chunk
-        if chunk is None or chunk.used_up() and chunk.continues:
+        if chunk is None or chunk.k + 1 >= chunk.size and chunk.continues:
             self._chunk = chunk = self._next_chunk(chunk)
-        if chunk.used_up():  # every node handed out: the march stopped short of t_bound
+        k = chunk.k + 1
+        if k >= chunk.size:  # every node handed out: the march stopped short of t_bound
             return False, chunk.solution.message
-        chunk.k += 1
-        t, z = chunk.t[chunk.k], chunk.z[chunk.k]
-        past = self.direction * (t - self.t_bound) >= 0
-        if past or chunk.final and chunk.used_up() and chunk.solution.success:
-            q, p = chunk.solution.at_end() if chunk.final else chunk.solution.at(self.t_bound)
-            t, z = self.t_bound, np.concatenate([q, p])
-        self.t, self.y = float(t), np.array(z, dtype=float)
+        chunk.k = k
+        if k < chunk.inside:  # a node before t_bound, as the march gave it (rows not copied)
+            self.t, self.y = chunk.times[k], chunk.z[k]
+            return True, None
+        q, p = chunk.solution.at_end() if chunk.final else chunk.solution.at(self.t_bound)
+        self.t, self.y = self.t_bound, np.concatenate([q, p])
         return True, None
 
     def _dense_output_impl(self):
@@ -179,8 +179,8 @@ class DDVP(OdeSolver):
             ).replace(f"max_steps = {steps.max_steps}", f"max_steps = {asked.max_steps}")
             first = 1  # its first two nodes are the earlier chunk's last two
         self.solutions.append(solution)
-        return Chunk.of(solution, self._field, final=end == self.t_bound, first=first,
-                        base=base)
+        return Chunk.of(solution, self._field, final=end == self.t_bound, k=first, base=base,
+                        t_bound=self.t_bound, direction=self.direction)
 
     def _chunk_end(self, t: float, step: float) -> float:
         """``t_bound`` for a march that cannot be continued (``fixed`` steps, a backward span,
@@ -197,25 +197,30 @@ class DDVP(OdeSolver):
 class Chunk:
     """The nodes of one chunk's march (``t``, ``z = (q, p)``, the exact slopes ``slopes``), its
     `Solution`, whether it marched to ``t_bound`` (``final``) and the node handed out last
-    (``k``); its node ``j`` is the march's node ``base + j``."""
+    (``k``); its node ``j`` is the march's node ``base + j``. The nodes from ``inside`` on are
+    handed out as the state at ``t_bound`` (the first at or past it, and a final march's last
+    node, which ``fixed`` steps put on ``t_bound`` up to round-off)."""
 
-    def __init__(self, solution: Solution, t, z, slopes, final: bool, k: int, base: int):
-        self.solution, self.t, self.z, self.slopes = solution, t, z, slopes
+    def __init__(self, solution: Solution, z, slopes, *, final: bool, k: int, base: int,
+                 t_bound: float, direction: float):
+        self.solution, self.t, self.z, self.slopes = solution, solution.t, z, slopes
         self.final, self.k, self.base = final, k, base
+        self.size = int(self.t.size)
+        self.times = self.t.tolist()  # Python floats: scipy's loop reads one per step
+        past = np.flatnonzero(direction * (self.t - t_bound) >= 0)
+        self.inside = int(past[0]) if past.size else self.size
+        if final and solution.success:
+            self.inside = min(self.inside, self.size - 1)
 
     @classmethod
-    def of(cls, solution: Solution, field, *, final: bool, first: int, base: int) -> Chunk:
+    def of(cls, solution: Solution, field, **where) -> Chunk:
         z = np.hstack([solution.q, solution.p])
-        return cls(solution, solution.t, z, field(solution.t, z), final, first, base)
+        return cls(solution, z, field(solution.t, z), **where)
 
     @property
     def continues(self) -> bool:
         """Whether a next chunk follows this one (it succeeded short of ``t_bound``)."""
         return self.solution.success and not self.final
-
-    def used_up(self) -> bool:
-        """Whether every node was handed out."""
-        return self.k + 1 >= self.t.size
 
 
 class HermiteStep(DenseOutput):
