@@ -17,8 +17,10 @@ hamiltonian=H, tau0=...)``.
   last chunk's mean step, the first chunk's ``tau0``), the next chunk continued from the last
   two nodes with what the loop carried (``continue_march``, ``resume.py``), so that the nodes
   are one uninterrupted `march`'s bit for bit (the same ``tau0`` and options) and a terminal
-  event ends the work within a chunk. Each chunk's accuracy check judges it from its own
-  first node (the trajectory error over the whole span is a `march`'s verdict). A march that
+  event ends the work within a chunk. What a march measures from its start is measured from
+  each chunk's first node: the accuracy check (the trajectory error over the whole span is a
+  `march`'s verdict), ``StepControl.time_limit`` and the energy guard's band;
+  ``max_steps`` and a failure's sentence count the steps of the whole march. A march that
   cannot be continued runs the whole span at the first step: ``fixed`` steps (their length
   is the span's), a backward span and a target error. The march's last node lies up to one
   step past ``t_bound``, so the last step handed out ends on ``t_bound`` with the state of
