@@ -206,7 +206,9 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
     Returns:
         A `Solution` with ``N + 1`` nodes; ``orbit`` (`OrbitRecord`) holds ``period``,
         ``energy``, ``unfolding`` (``lambda``), ``winding`` and the largest residuals of each
-        kind, ``verdict`` the accuracy check (against RK4 steps of the exact flow) and
+        kind, ``verdict`` the accuracy check (every interval against the exact flow, the
+        orbit's energy against the one prescribed, and the exact flow from the first node
+        closing on the orbit over the period: `_accuracy`) and
         ``stats`` the solver's counts and ``attempts``; ``energy_residual`` holds the
         scheme's energy equation at nodes ``1 .. N`` (node ``N`` the wrap-around). No orbit
         found is a failure status with the residuals in the message; an orbit whose steps
