@@ -170,7 +170,7 @@ class DDVP(OdeSolver):
             mean_step = (last.t[-1] - last.t[0]) / (last.t.size - 1)
             end = self._chunk_end(float(last.t[-1]), mean_step)
             state = MarchState.of(last.t[-2:], last.q[-2:], last.p[-2:], float(last.t[-1]),
-                                  last.stats["carried"])
+                                  last.march.carried)
             asked = coerce(options.pop("steps"), StepControl, "steps")
             # max_steps counts the march's steps: this chunk's node j is the march's base + j
             steps = replace(asked, max_steps=max(asked.max_steps - base, 1))
