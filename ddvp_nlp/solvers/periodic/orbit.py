@@ -218,12 +218,13 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
                        coerce(options, GridOptions, "options"))
     started = request.start_clock()
-    intervals = request.nodes  # a closed grid's request counts its intervals
+    intervals = request.intervals
     levels = node_levels(intervals) if request.data.guess is None else [intervals]
     t, z = _start_nodes(request, levels[0])
 
     def solve_level(intervals, t, z):
-        return _solve_on(replace(request, nodes=intervals, phases=[]), t, z, integrals, started)
+        return _solve_on(replace(request, nodes=intervals + 1, phases=[]), t, z, integrals,
+                         started)
 
     solution, records = continue_in_nodes(solve_level, t, z, levels, request.data.angles)
     if solution.status not in (Status.SUCCESS, Status.INACCURATE) \
@@ -240,12 +241,12 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
 
 
 def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution:
-    """The orbit on ``request.nodes`` intervals from the nodes ``(t, z)``: each solver of the
-    request's option in turn until one's point holds the equations."""
-    system, nodes = request.system, request.nodes
+    """The orbit on ``request.intervals`` intervals from the nodes ``(t, z)``: each solver of
+    the request's option in turn until one's point holds the equations."""
+    system, intervals = request.system, request.intervals
     closure = _closure(request, z, integrals)
     began = time.perf_counter()
-    assembly = PeriodicAssembly(system, request.scheme, nodes, integrals)
+    assembly = PeriodicAssembly(system, request.scheme, intervals, integrals)
     request.build_s += time.perf_counter() - began
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
     scale = max(1.0, float(np.max(np.abs(x0))), abs(request.data.energy))
@@ -282,7 +283,7 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integr
         result.outcome = f"newton: {result.outcome}"
         return result
     began = time.perf_counter()  # the build (or the cache's answer) counts as build time
-    problem = periodic_ipopt(request.system, request.scheme, request.nodes, integrals,
+    problem = periodic_ipopt(request.system, request.scheme, request.intervals, integrals,
                              request.data.index, tol=request.tol, max_iter=request.max_iter,
                              verbose=request.verbose, time_limit=request.remaining())
     request.build_s += time.perf_counter() - began
@@ -292,10 +293,10 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integr
 def _tau_floor(request: GridRequest, period: float) -> float:
     """``options.tau_floor`` if given (below the start's mean step), else a thousandth of the
     start's mean step."""
-    mean = period / request.nodes
+    mean = period / request.intervals
     floor = request.options.tau_floor
     if floor is None:
-        return 1e-3 * period / request.nodes
+        return 1e-3 * period / request.intervals
     if floor >= mean:
         raise InputError(f"tau_floor must be < the start's mean step {mean!r}, got {floor!r}")
     return floor
@@ -372,7 +373,7 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
             raise
     else:
         orbit.guess = guess_nodes(guess, n, intervals, angle_indices)
-    return GridRequest(system, scheme, intervals, theta, orbit,
+    return GridRequest(system, scheme, intervals + 1, theta, orbit,
                        options.resolved(max_iter=DEFAULT_MAX_ITER))
 
 
@@ -434,7 +435,7 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     system, scheme, orbit = request.system, request.scheme, request.data
     t, q, p, unfolding = assembly.layout.unpack(result.x)
     finite = bool(np.all(np.isfinite(result.x)))
-    N, n = request.nodes, system.n
+    N, n = request.intervals, system.n
     if finite:
         canonical, energy, prescribed, closing = periodic_residuals(
             system, scheme, t, q, p, request.theta, orbit.energy, closure.shift)
