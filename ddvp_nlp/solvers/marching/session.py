@@ -70,6 +70,7 @@ from ..dense import DenseField, attach, evaluate_at
 from ..driver import Nodes, drive
 from ..options import Compilation, Output, Tolerance
 from .chunk import FastChunk
+from .derivatives import Sensitivity
 from .march_problem import MarchProblem
 from .monitors import (
     Checkpoint,
@@ -92,7 +93,7 @@ __all__ = ["MONITORS", "MarchMonitor", "MarchSession", "make_monitors"]
 # The monitor kinds of every march, in the order they watch (module docstring).
 MONITORS: tuple[type[MarchMonitor], ...] = (
     EnergyGuard, SolvabilityMonitor, EarlyVerdict, Events, StopRequest, CarryTracker,
-    Checkpoint)
+    Sensitivity, Checkpoint)
 
 # An interrupted march of more nodes than this is returned without its final accuracy check.
 INTERRUPTED_JUDGED = 1_000_000
@@ -109,12 +110,14 @@ class MarchSession:
     """One march of ``problem`` (a `MarchProblem`) with the accuracy check ``accuracy`` (a
     `Tolerance`, or ``None``: none), ``compilation`` and ``output``, from its start or from
     ``start`` (a `MarchState`: the nodes of an earlier run of the same problem and what its
-    loop carried, ``resume.py``); ``kinds``: the monitor kinds (module docstring)."""
+    loop carried, ``resume.py``); ``kinds``: the monitor kinds (module docstring);
+    ``derivatives``: the inputs `Sensitivity` differentiates in (``derivatives.py``)."""
 
     def __init__(self, problem: MarchProblem, accuracy: Tolerance | None,
                  compilation: Compilation, output: Output, *, start: MarchState | None = None,
-                 kinds=MONITORS):
+                 kinds=MONITORS, derivatives: tuple[str, ...] = ()):
         self.problem, self.accuracy = problem, accuracy
+        self.derivatives = tuple(derivatives)
         self.compilation, self.output = compilation, output
         self.start, self.kinds = start, tuple(kinds)
         self.carry = CarryTracker.of(start)  # what the loop carries; a checkpoint saves it
