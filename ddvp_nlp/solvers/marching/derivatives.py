@@ -39,6 +39,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
+from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
 from .monitors import MarchMonitor
@@ -121,6 +122,7 @@ def march_derivatives(system, scheme, theta, t, z, t_eval, names=DERIVATIVES, *,
     """``d(q, p)(t_eval) / d(input)`` for each input of ``names`` of the march whose nodes are
     ``t`` (N,), ``z`` (N, 2n) at parameters ``theta`` (module docstring): ``{"q0": (M, 2n, n),
     "p0": (M, 2n, n), "params": (M, 2n, m)}``. ``frozen_steps``: every step length held."""
+    scheme = Scheme.coerce(scheme)
     n, m = system.n, np.size(theta)
     theta = np.asarray(theta, float).ravel()
     seed_z, seed_theta, widths = _seeds(n, m, names)
