@@ -42,6 +42,7 @@ from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
+from ..compiler import FunctionBuffer
 from .monitors import MarchMonitor
 from .steps import step_functions
 
@@ -177,22 +178,29 @@ def _jacobian_function(system, scheme, kind: str) -> ca.Function:
     return cached(system, ("march_step_jacobians", scheme, kind), build)
 
 
-def _mapped(function: ca.Function, count: int, *columns) -> list[np.ndarray]:
-    """``function`` on ``count`` columns of inputs, each output as ``(count, rows, cols)``."""
-    outputs = function.map(count)(*columns)
-    outputs = outputs if isinstance(outputs, (list, tuple)) else [outputs]
+def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
+    """``function`` on ``count`` evaluations, the inputs given as rows ``(count, size)``, each
+    output as ``(count, rows, cols)``: one mapped call through numpy buffers (``compiler.py``'s
+    `FunctionBuffer`: no DM conversions, which cost more than the Jacobians) of a power-of-two
+    width up to ``CHUNK``, the last evaluation repeated to fill it."""
+    width = min(CHUNK, 1 << max(count - 1, 0).bit_length())
+    buffer = cached(function, ("derivatives_map", width),
+                    lambda: FunctionBuffer(function.map(width)))
+    filled = [np.concatenate([value, np.repeat(value[-1:], width - count, 0)])
+              for value in (np.asarray(row, float).reshape(count, -1) for row in rows)]
+    outputs = buffer(*filled)
     shapes = [function.size_out(i) for i in range(function.n_out())]
-    return [np.asarray(value).reshape(rows, count, cols).transpose(1, 0, 2)
-            for value, (rows, cols) in zip(outputs, shapes, strict=True)]
+    return [value.reshape(width, cols, rows_)[:count].transpose(0, 2, 1).copy()
+            for value, (rows_, cols) in zip(outputs, shapes, strict=True)]
 
 
 def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray):
     """For the fixed-length steps ``k`` of ``steps``: ``(dz_{k+1}/dz_k, dz_{k+1}/dtheta)``
     with the node times held, ``(K, 2n, 2n)`` and ``(K, 2n, m)``."""
     n2 = z.shape[1]
-    w = np.vstack([t[steps], t[steps + 1], z[steps].T, np.repeat(theta[:, None], steps.size, 1)])
-    J_x, J_w = _mapped(_jacobian_function(system, scheme, "fixed"), steps.size,
-                       z[steps + 1].T, w)
+    w = np.hstack([t[steps, None], t[steps + 1, None], z[steps],
+                   np.repeat(theta[None, :], steps.size, 0)])
+    J_x, J_w = _mapped(_jacobian_function(system, scheme, "fixed"), steps.size, z[steps + 1], w)
     gains = -np.linalg.solve(J_x, J_w[:, :, 2:])
     return gains[:, :, :n2], gains[:, :, n2:]
 
@@ -201,70 +209,93 @@ def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray):
     """For the energy steps ``k`` of ``steps`` (``k >= 1``): ``-F_x^-1 F_w``, ``(K, 2n + 1,
     2 + 4n + m)``, columns ``[t_{k-1}, t_k, z_{k-1}, z_k, theta]`` (the drift's dropped)."""
     tau = t[steps + 1] - t[steps]
-    x = np.vstack([z[steps + 1].T, tau[None, :]])
-    w = np.vstack([t[steps - 1], t[steps], z[steps - 1].T, z[steps].T,
-                   np.repeat(theta[:, None], steps.size, 1), np.zeros(steps.size)])
+    x = np.hstack([z[steps + 1], tau[:, None]])
+    w = np.hstack([t[steps - 1, None], t[steps, None], z[steps - 1], z[steps],
+                   np.repeat(theta[None, :], steps.size, 0), np.zeros((steps.size, 1))])
     J_x, J_w = _mapped(_jacobian_function(system, scheme, "energy"), steps.size, x, w)
     return -np.linalg.solve(J_x, J_w[:, :, :-1])
 
 
 def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps):
     """``S_k = (dz_k, dt_k)`` (2n + 1, d) at the nodes ``needed`` (sorted), by the recursion
-    over every step (module docstring, 2-3), ``CHUNK`` steps' Jacobians at a time."""
+    over every step (module docstring, 2-3), ``CHUNK`` steps' Jacobians at a time. The carried
+    state is ``Y_k = [S_{k-1}; S_k]``, and each step an affine map ``Y_{k+1} = M_k Y_k + C_k``
+    (`_affine_maps`), applied a block at a time (`_scan`)."""
     n2, d = seed_z.shape
     energy = scheme.variable_steps and not frozen_steps
-    previous = np.zeros((n2 + 1, d))  # S_{k-1}; unused before step 1
-    current = np.vstack([seed_z, np.zeros((1, d))])
-    kept, next_needed = {}, 0
-    if needed[0] == 0:
-        kept[0], next_needed = current.copy(), 1
+    state = np.vstack([np.zeros((n2 + 1, d)), seed_z, np.zeros((1, d))])
+    kept = {0: state[n2 + 1:].copy()} if needed[0] == 0 else {}
     last = int(needed[-1])
     for start in range(0, last, CHUNK):
         steps = np.arange(start, min(start + CHUNK, last))
-        advance = _chunk_steps(system, scheme, theta, t, z, steps, seed_theta, energy)
-        for k, step in zip(steps, advance, strict=True):
-            previous, current = current, step(previous, current)
-            if next_needed < needed.size and needed[next_needed] == k + 1:
-                kept[k + 1] = current
-                next_needed += 1
+        maps = _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy)
+        state = _scan(maps, state, start, needed, kept)
     return kept
 
 
-def _chunk_steps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
-    """One function per step of ``steps``: ``(S_{k-1}, S_k) -> S_{k+1}``."""
-    n2 = z.shape[1]
-    fixed = steps if not energy else steps[steps == 0]
-    made = {}
-    if fixed.size:
-        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, fixed)
-        forcing = in_theta @ seed_theta
-        for i, k in enumerate(fixed):
-            made[int(k)] = _fixed_step(in_z[i], forcing[i], n2)
-    moving = steps[steps > 0] if energy else steps[:0]
-    if moving.size:
-        gains = _energy_gains(system, scheme, theta, t, z, moving)
-        forcing = gains[:, :, 2 + 2 * n2:] @ seed_theta
-        for i, k in enumerate(moving):
-            made[int(k)] = _energy_step(gains[i], forcing[i], n2)
-    return [made[int(k)] for k in steps]
+def _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
+    """``(M, C)``, ``(K, 2r, 2r)`` and ``(K, 2r, d)`` (``r = 2n + 1``), of the steps ``steps``:
+    a fixed-length step ``dz_{k+1} = G_z dz_k + G_theta dtheta`` (``dt`` held), an energy step
+    ``d(z_{k+1}, tau_k) = G [dt_{k-1}; dt_k; dz_{k-1}; dz_k] + G_theta dtheta`` and
+    ``dt_{k+1} = dt_k + dtau_k``."""
+    n2, d = z.shape[1], seed_theta.shape[1]
+    r = n2 + 1
+    M, C = np.zeros((steps.size, 2 * r, 2 * r)), np.zeros((steps.size, 2 * r, d))
+    M[:, :r, r:] = np.eye(r)  # S_{k-1} <- S_k
+    M[:, 2 * r - 1, 2 * r - 1] = 1.0  # dt_{k+1} = dt_k (+ dtau_k)
+    fixed = np.ones(steps.size, bool) if not energy else steps == 0
+    if fixed.any():
+        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, steps[fixed])
+        M[np.ix_(fixed, range(r, r + n2), range(r, r + n2))] = in_z
+        C[fixed, r:r + n2] = in_theta @ seed_theta
+    if not fixed.all():
+        moving = ~fixed
+        gains = _energy_gains(system, scheme, theta, t, z, steps[moving])
+        # gains' columns [t_{k-1}, t_k, z_{k-1}, z_k, theta] onto Y's [z_{k-1}, t_{k-1}, z_k, t_k]
+        columns = [n2, 2 * r - 1, *range(n2), *range(r, r + n2)]
+        block = np.zeros((gains.shape[0], r, 2 * r))
+        block[:, :, columns] = gains[:, :, :2 + 2 * n2]
+        block[:, n2, 2 * r - 1] += 1.0
+        M[moving, r:] = block
+        C[moving, r:] = gains[:, :, 2 + 2 * n2:] @ seed_theta
+    return M, C
 
 
-def _fixed_step(in_z, forcing, n2):
-    def step(previous, current):
-        return np.vstack([in_z @ current[:n2] + forcing, current[n2:]])
-    return step
+# Steps composed per block in `_scan`: the Python loop runs over 2 BLOCK + K / BLOCK steps.
+BLOCK = 32
 
 
-def _energy_step(gains, forcing, n2):
-    """``d(z_{k+1}, tau_k) = G [dt_{k-1}; dt_k; dz_{k-1}; dz_k] + G_theta dtheta``."""
-    in_t_prev, in_t, in_z_prev = gains[:, 0:1], gains[:, 1:2], gains[:, 2:2 + n2]
-    in_z = gains[:, 2 + n2:2 + 2 * n2]
-
-    def step(previous, current):
-        solved = (in_t_prev @ previous[n2:] + in_t @ current[n2:] + in_z_prev @ previous[:n2]
-                  + in_z @ current[:n2] + forcing)
-        return np.vstack([solved[:n2], current[n2:] + solved[n2:]])
-    return step
+def _scan(maps, state, start: int, needed, kept: dict) -> np.ndarray:
+    """``Y`` after the steps of ``maps`` from ``state`` (the steps from ``start``), the
+    ``S_{k+1}`` of the nodes ``needed`` put in ``kept``: each block's maps composed (all
+    blocks at once), the blocks' starts in order, then the steps again, every block at once."""
+    M, C = maps
+    K, width = M.shape[0], M.shape[1]
+    r = width // 2
+    count = -(-K // BLOCK)
+    pad = count * BLOCK - K
+    if pad:
+        M = np.concatenate([M, np.repeat(np.eye(width)[None], pad, 0)])
+        C = np.concatenate([C, np.zeros((pad, *C.shape[1:]))])
+    M = M.reshape(count, BLOCK, width, width)
+    C = C.reshape(count, BLOCK, *C.shape[1:])
+    whole_M, whole_C = M[:, 0], C[:, 0]
+    for j in range(1, BLOCK):
+        whole_M, whole_C = M[:, j] @ whole_M, M[:, j] @ whole_C + C[:, j]
+    starts = np.empty((count, *state.shape))
+    for b in range(count):
+        starts[b] = state
+        state = whole_M[b] @ state + whole_C[b]
+    wanted = needed[(needed > start) & (needed <= start + K)] - start - 1
+    if wanted.size:
+        blocks = np.unique(wanted // BLOCK)
+        Y, wanted = starts[blocks], set(wanted.tolist())
+        for j in range(BLOCK):
+            Y = M[blocks, j] @ Y + C[blocks, j]
+            for i, b in enumerate(blocks):
+                if b * BLOCK + j in wanted:
+                    kept[start + b * BLOCK + j + 1] = Y[i, r:].copy()
+    return state
 
 
 def _field_jacobian_function(system) -> ca.Function:
@@ -283,9 +314,8 @@ def _dense(system, theta, t, z, t_eval, interval, carried, seed_theta) -> np.nda
     """``d z(T)`` (M, 2n, d) through the Hermite interpolant (module docstring, 4)."""
     n2 = z.shape[1]
     nodes = np.unique(np.concatenate([interval, interval + 1]))
-    f, f_z, f_t, f_theta = _mapped(_field_jacobian_function(system), nodes.size, z[nodes].T,
-                                   t[nodes][None, :],
-                                   np.repeat(theta[:, None], nodes.size, 1))
+    f, f_z, f_t, f_theta = _mapped(_field_jacobian_function(system), nodes.size, z[nodes],
+                                   t[nodes], np.repeat(theta[None, :], nodes.size, 0))
     at = {int(k): i for i, k in enumerate(nodes)}
     rows = []
     for T, k in zip(t_eval, interval, strict=True):
