@@ -36,6 +36,9 @@ Where things are:
   for the trajectory error asked for;
 - ``thinning.py``: ``Output(keep_every=k)`` and ``Output(keep="t_eval")``: a march that keeps
   some of its nodes, rechecked and judged a window at a time as it goes.
+- ``derivatives.py``: ``march(..., derivatives=...)``, the exact derivatives of the states at
+  ``t_eval`` in ``q0``, ``p0`` and the parameters, step lengths included (the ``Sensitivity``
+  monitor);
 - ``backward.py``: a march with ``t_end < t0``, backwards in time, as the forward march of the
   time-reversed ``H(q, -p, -t)`` mapped back node by node.
 

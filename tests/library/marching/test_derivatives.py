@@ -294,3 +294,39 @@ def test_continue_march_refuses_derivatives():
     with expect("derivatives are not supported by continue_march yet: march the whole span "
                 "with march(..., derivatives=...)"):
         continue_march(PENDULUM, None, 2.0, tau0=0.05, derivatives=("q0",))
+
+
+# --- the study: towards the exact flow's sensitivity --------------------------------------------
+
+def _exact_sensitivity(w, q0, p0, times):
+    """``d(q, p)(times) / d(q0, p0, w)`` of the exact pendulum flow ``q' = p``, ``p' = -w^2
+    sin q``: DOP853 on the variational equations at tolerances far below the errors fitted."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(t, y):
+        q, p, S = y[0], y[1], y[2:].reshape(2, 3)
+        jacobian = np.array([[0.0, 1.0], [-w ** 2 * np.cos(q), 0.0]])
+        forcing = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -2 * w * np.sin(q)]])
+        return np.concatenate([[p, -w ** 2 * np.sin(q)], (jacobian @ S + forcing).ravel()])
+    start = np.concatenate([[q0, p0], np.eye(2, 3).ravel()])
+    solved = solve_ivp(rhs, (0.0, times[-1]), start, method="DOP853", t_eval=times,
+                       rtol=1e-13, atol=1e-13)
+    return solved.y[2:].T.reshape(-1, 2, 3)
+
+
+@pytest.mark.slow(why="study")
+@pytest.mark.parametrize("scheme", ["vddvp", "fixed"])
+def test_the_derivative_converges_to_the_exact_sensitivity_at_order_two(scheme):
+    """The discrete solution's derivative at fixed times converges to the exact flow's
+    sensitivity at the scheme's order: the fitted slope of its error against ``tau0`` over
+    four halvings is 2 +- 0.2."""
+    w, q0, p0, times = 1.3, 1.0, 0.0, np.array([1.0, 4.0, 7.5])
+    exact = _exact_sensitivity(w, q0, p0, times)
+    steps, errors = [0.08, 0.04, 0.02, 0.01, 0.005], []
+    for tau0 in steps:
+        solution = Case(PENDULUM, [q0], [p0], {"w": w}, scheme, tau0, 8.0, times).march(
+            derivatives=NAMES)
+        found = np.concatenate([solution.derivatives[name] for name in NAMES], axis=2)
+        errors.append(np.max(np.abs(found - exact)) / np.max(np.abs(exact)))
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert abs(slope - 2.0) <= 0.2, (slope, errors)
