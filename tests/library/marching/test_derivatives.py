@@ -319,7 +319,8 @@ def _exact_sensitivity(w, q0, p0, times):
 def test_the_derivative_converges_to_the_exact_sensitivity_at_order_two(scheme):
     """The discrete solution's derivative at fixed times converges to the exact flow's
     sensitivity at the scheme's order: the fitted slope of its error against ``tau0`` over
-    four halvings is 2 +- 0.2."""
+    four halvings is 2 +- 0.1 (measured: 1.9988 vddvp, 1.9992 fixed; relative errors 4.2e-3 at
+    tau0 = 0.08 to 1.6e-5 at 0.005)."""
     w, q0, p0, times = 1.3, 1.0, 0.0, np.array([1.0, 4.0, 7.5])
     exact = _exact_sensitivity(w, q0, p0, times)
     steps, errors = [0.08, 0.04, 0.02, 0.01, 0.005], []
@@ -329,4 +330,4 @@ def test_the_derivative_converges_to_the_exact_sensitivity_at_order_two(scheme):
         found = np.concatenate([solution.derivatives[name] for name in NAMES], axis=2)
         errors.append(np.max(np.abs(found - exact)) / np.max(np.abs(exact)))
     slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
-    assert abs(slope - 2.0) <= 0.2, (slope, errors)
+    assert abs(slope - 2.0) <= 0.1, (slope, errors)
