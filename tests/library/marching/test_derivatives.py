@@ -29,13 +29,16 @@ CAREFUL = Compilation(fast=False)
 # The finite difference's relative step (issue 47) and the agreement asked for.
 #
 # Why 1e-6 holds: the stencil is the fourth-order central one, (8 (z(+h) - z(-h)) - (z(+2h) -
-# z(-2h))) / 12 h, whose truncation h^4 |z^(5)| / 30 is below 1e-20 of the derivative's size
-# here; what is left is noise. Each march's nodes solve their equations to Newton's tolerance
-# eps_N = 1e-14 (step_newton.NEWTON_OPTIONS, relative to the state's size); an error at one node
+# z(-2h))) / 12 h, whose truncation h^4 |z^(5)| / 30 is below the noise here (the two-point
+# stencil's h^2 |z'''| / 6 was 5e-5 of the derivative at e = 0.9, through the pericentre: the
+# reason for the fourth-order one); what is left is noise. Each march's nodes solve their
+# equations to Newton's tolerance eps_N = 1e-14 (step_newton.NEWTON_OPTIONS, relative to the
+# state's size); an error at one node
 # reaches the output times multiplied by a derivative at most of the size |D| of the one
 # measured, and N independent ones add up like sqrt(N). The stencil's weights sum to 18 / 12,
 # so its noise is at most 1.5 eps_N sqrt(N) |D| / h_rel = 1.5e-8 sqrt(N) |D|: below 1e-6 |D| for
-# the N <= 4000 steps of these marches (`_check` asserts that). Measured: 1e-9 to 2e-11.
+# the N <= 4000 steps of these marches (`_check` asserts that). Measured: 2.7e-9 (Kepler e =
+# 0.3, vddvp) to 1.6e-8 (e = 0.9, fixed, 2000 steps).
 RELATIVE_STEP = 1e-6
 TOLERANCE = 1e-6
 MAX_STEPS = 4000
