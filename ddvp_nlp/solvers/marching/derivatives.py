@@ -128,6 +128,8 @@ def march_derivatives(system, scheme, theta, t, z, t_eval, names=DERIVATIVES, *,
     theta = np.asarray(theta, float).ravel()
     seed_z, seed_theta, widths = _seeds(n, m, names)
     t_eval = np.asarray(t_eval, float).ravel()
+    if t_eval.size == 0:  # a march that stopped before the first output time
+        return _split(np.zeros((0, 2 * n, seed_z.shape[1])), names, widths)
     if t.size < 2:
         rows = np.repeat(np.vstack([seed_z])[None], t_eval.size, axis=0)
         return _split(rows, names, widths)
