@@ -255,6 +255,8 @@ def test_relabelled_coordinates_permute_the_derivative_blocks():
 
 # --- drawn systems ---------------------------------------------------------------------------
 
+# drawn systems' energy steps may come near a breakdown: the monitor's warning is expected
+@pytest.mark.filterwarnings("ignore:solvability monitor:RuntimeWarning")
 @settings(max_examples=6, deadline=None, derandomize=True)
 @given(seed=st.integers(0, 2 ** 16), scheme=st.sampled_from(["vddvp", "lee", "fixed"]),
        amplitude=st.floats(0.1, 0.6))
