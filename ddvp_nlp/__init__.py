@@ -6,12 +6,13 @@ docs/guide.md for a user guide.
 
 The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``solve_bvp``,
 ``solve_periodic``, ``solve_periodic_family``, ``follow_periodic_family``, ``march_higher``,
-``solve_bvp_higher``), the stability of a periodic orbit (``periodic_stability``), chaos
-indicators on the march's tangent map (``chaos_indicators``, ``lyapunov_spectrum``), their
-options (``StepControl``, ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``,
-``Continuation``, ``AtEnergy`` for a transfer at a prescribed energy), their
-result (``Solution``, ``Status``) and its figure (``plot``), systems and schemes, scenes, and
-the work-precision comparison of integrators (``compare``).
+``solve_bvp_higher``), the march as a method of scipy's ``solve_ivp`` (``DDVP``), the
+stability of a periodic orbit (``periodic_stability``), chaos indicators on the march's
+tangent map (``chaos_indicators``, ``lyapunov_spectrum``), their options (``StepControl``,
+``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``, ``Continuation``, ``AtEnergy``
+for a transfer at a prescribed energy), their result (``Solution``, ``Status``) and its
+figure (``plot``), systems and schemes, scenes, and the work-precision comparison of
+integrators (``compare``).
 Everything else is reached through its module and may change.
 """
 
@@ -35,6 +36,7 @@ from .solvers import Compilation, GridOptions, Output, StepControl, Tolerance
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
     from .solvers import (
+        DDVP,
         AtEnergy,
         ChaosIndicators,
         Collect,
@@ -64,7 +66,7 @@ _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
     "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher",
-    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum")})
+    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP")})
 
 
 # The version, written here and in pyproject.toml (tests/docs/test_links.py: they and CHANGELOG.md's
@@ -148,7 +150,8 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
                           compilation=compilation, workers=workers, out=out, progress=progress)
 
 
-__all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
+__all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
+           "Endpoints",
            "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",

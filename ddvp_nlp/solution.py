@@ -189,6 +189,177 @@ _REPORTED = tuple(f for f in Verdict.__dataclass_fields__
                   if f not in ("name", "first_failure", "streamed"))
 
 
+@dataclass(frozen=True)
+class OrbitRecord:
+    """What a periodic solve found (``Solution.orbit``; ``solvers/periodic/orbit.py``).
+
+    Attributes:
+        period: ``T = t_N - t_0``.
+        energy: the prescribed energy ``E``.
+        section: the section's label (``"q1=0"``, ...).
+        unfolding: the unfolding parameter ``lambda`` of ``H``.
+        integral_unfoldings: the unfolding parameter ``mu`` of each first integral.
+        residual_limit: the limit the unscaled residuals were verified against.
+        winding: the turns ``w`` of each coordinate (``q_N = q_0 + 2 pi w``; zero off an
+            angle).
+        residuals: the largest unscaled residual of each kind (``canonical``, ``energy``,
+            ``prescribed_energy``, ``closure``, ``section``).
+        tau_min, tau_max: the shortest and longest step.
+    """
+
+    period: float
+    energy: float
+    section: str
+    unfolding: float
+    integral_unfoldings: tuple
+    residual_limit: float
+    winding: tuple
+    residuals: dict
+    tau_min: float
+    tau_max: float
+
+
+@dataclass
+class MarchRecord:
+    """What a march found besides its nodes (``Solution.march``; ``solvers/marching``), filled
+    in as the run goes; `as_stats` gives it under the keys ``meta.json`` has always used.
+
+    Attributes:
+        theta: the parameter values the march used.
+        solvability_warning: where the energy step's solvability weight changed sign (the
+            node, time and weights), else ``None``.
+        least_squares: the steps replaced by the least-squares step, one record each.
+        kept: a thinned march's record of what it kept (``keep_every``, ``keep``, the nodes
+            marched, the largest residuals over every step), else ``None``.
+        carried: what a continued march needs besides the last nodes (`MarchState`).
+        checkpoints, checkpoints_landed_s: the checkpoints written and when each landed
+            (seconds), where the run saved any.
+        target_error: the choice of ``tau0`` for a target error and its cost (the runs
+            tried), where one was asked for.
+        backward: the march ran backwards in time (``t_end < t_0``).
+    """
+
+    theta: list
+    solvability_warning: dict | None = None
+    least_squares: list = field(default_factory=list)
+    kept: dict | None = None
+    carried: dict | None = None
+    checkpoints: int | None = None
+    checkpoints_landed_s: list | None = None
+    target_error: dict | None = None
+    backward: bool = False
+
+    def as_stats(self) -> dict:
+        """The record under the keys of the run's ``stats`` (a key that was never set is
+        left out, as before: ``kept``, ``carried``, the checkpoints, ``target_error``,
+        ``backward``)."""
+        found = {"theta": self.theta, "solvability_warning": self.solvability_warning,
+                 "least_squares": self.least_squares}
+        optional = {"kept": self.kept, "carried": self.carried, "checkpoints": self.checkpoints,
+                    "checkpoints_landed_s": self.checkpoints_landed_s,
+                    "target_error": self.target_error, "backward": self.backward or None}
+        return {**found, **{key: value for key, value in optional.items() if value is not None}}
+
+
+@dataclass(frozen=True)
+class EndsRecord:
+    """What a fixed-endpoint solve found (``Solution.ends``; ``solvers/bvp/fixed_ends.py``).
+
+    Attributes:
+        stages: the solver runs in order (``Stage``: the first guess's, each continuation's,
+            the last solve's), their records as ``meta.json`` keeps them (``phases``).
+        action: the discrete action of the point (``nan`` for a point that is not finite).
+        p_sign_changes: the sign changes of each momentum along the trajectory (which of the
+            solutions through the two ends this one is).
+        canonical_limit, energy_limit: the limits of the unscaled residuals.
+        canonical_residual_max, energy_residual_max: the largest unscaled residuals (``None``
+            for a point that is not finite).
+        tau_min: the shortest step (``None`` for a point that is not finite).
+    """
+
+    stages: tuple
+    action: float
+    p_sign_changes: tuple
+    canonical_limit: float
+    energy_limit: float
+    canonical_residual_max: float | None = None
+    energy_residual_max: float | None = None
+    tau_min: float | None = None
+
+    def as_stats(self, stats: dict) -> dict:
+        """The solve's ``stats`` with the record under the keys and in the order the run
+        file's ``solver`` has always had."""
+        checks = {"canonical_limit": self.canonical_limit, "energy_limit": self.energy_limit}
+        if self.tau_min is not None:
+            checks.update(canonical_residual_max=self.canonical_residual_max,
+                          energy_residual_max=self.energy_residual_max, tau_min=self.tau_min)
+        counts = dict(stats)
+        first = {"solver": counts.pop("solver"),
+                 "phases": [stage.record() for stage in self.stages]}
+        first.update((key, counts.pop(key)) for key in ("return_status", "iterations",
+                                                        "iterations_total"))
+        first["action"] = self.action
+        first.update((key, counts.pop(key)) for key in ("energy_scale", "tau_floor"))
+        return {**first, "p_sign_changes": list(self.p_sign_changes), **checks, **counts}
+
+
+@dataclass(frozen=True)
+class TransferRecord:
+    """What a transfer at a prescribed energy found (``Solution.transfer``;
+    ``solvers/bvp/at_energy.py``).
+
+    Attributes:
+        transfer_time: ``t_N-1 - t_0``, the time the transfer takes.
+        energy: the prescribed energy ``E``.
+        residuals: the largest unscaled residual of each kind (``canonical``, ``energy``,
+            ``prescribed_energy``, ``q_end``).
+        residual_limit: the limit they were verified against.
+        tau_min, tau_max: the shortest and longest step.
+        exact: the exact flow's shooting from this transfer (its time, the differences in
+            time and path, whether it converged), where the point was finite.
+        fixed_time_start: the fixed-time solves the transfer started from (their durations
+            and the last one's message), where ``solve_bvp`` made them.
+    """
+
+    transfer_time: float
+    energy: float
+    residuals: dict
+    residual_limit: float
+    tau_min: float
+    tau_max: float
+    exact: dict | None = None
+    fixed_time_start: dict | None = None
+
+    def as_stats(self, stats: dict) -> dict:
+        """The solve's ``stats`` with the record under the keys and in the order the run
+        file's ``solver`` has always had."""
+        found = {"transfer_time": self.transfer_time, "energy": self.energy,
+                 "residuals": self.residuals, "limit": self.residual_limit, **stats,
+                 "tau_min": self.tau_min, "tau_max": self.tau_max}
+        later = {"exact": self.exact, "fixed_time_start": self.fixed_time_start}
+        return {**found, **{key: value for key, value in later.items() if value is not None}}
+
+
+@dataclass(frozen=True)
+class HigherRecord:
+    """What a solve of a system with higher derivatives found besides its nodes
+    (``Solution.higher``; ``solvers/higher``).
+
+    Attributes:
+        energy: the discrete energy ``E^(k)`` at each node where the recursion defines it.
+        p_defined: the nodes ``[lo, hi)`` where ``p`` (the multiplier ``lambda_1``) is
+            defined; the others repeat the nearest defined value.
+        stages: a fixed-endpoint solve's solver runs in order (``Stage``), else empty.
+        residuals: a fixed-endpoint solve's verified residuals (``euler_lagrange_residual``,
+            ``energy_equation_residual``) and their limits, else ``None``.
+    """
+
+    energy: np.ndarray
+    p_defined: tuple
+    stages: tuple = ()
+    residuals: dict | None = None
+
+
 @dataclass
 class Solution:
     """Nodes ``t`` (N,), ``q`` and ``p`` (N, n), steps ``tau`` (N-1,) and how the solve went.
@@ -212,8 +383,13 @@ class Solution:
         verdict: the accuracy check's `Verdict` (``solvers/accuracy/judgement.py`` sets it, once,
             in ``judge``), or ``None`` where no check was made (``accuracy=None``, a point that
             is not finite, a stopped long march: ``accuracy_skipped`` says why).
+        orbit, march, ends, transfer, higher: what the solve found besides its nodes, typed
+            by family (`OrbitRecord`, `MarchRecord`, `EndsRecord`, `TransferRecord`,
+            `HigherRecord`); ``None`` for the other families.
+        own_residual_max: a compared method's largest residual of its own equation
+            (``studies/methods.py``), ``None`` where it has none or was not checked.
         accuracy_skipped: why a march's check was left out, else ``None``.
-        stats: solver-specific statistics (IPOPT's, the march's retries, ...). A march's
+        stats: the solver's counts (IPOPT's, the march's retries, ...). A march's
             ``fast_steps`` counts the nodes it kept from compiled chunks; ``careful_steps``
             counts the steps tried on the careful path, including one that failed or that a
             monitor then cut (so the two can add up to one more than the steps).
@@ -247,6 +423,12 @@ class Solution:
     timing: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     verdict: Verdict | None = None
+    orbit: OrbitRecord | None = None
+    march: MarchRecord | None = None
+    ends: EndsRecord | None = None
+    transfer: TransferRecord | None = None
+    higher: HigherRecord | None = None
+    own_residual_max: float | None = None
     accuracy_skipped: str | None = None
     t_end: float | None = None
     vector_field: Callable | None = field(default=None, repr=False, compare=False)
@@ -266,6 +448,15 @@ class Solution:
     def statistics(self) -> SolverStatistics:
         """The solver's counts in named fields (`SolverStatistics`)."""
         return SolverStatistics.of(self)
+
+    def written_stats(self) -> dict:
+        """``stats`` with what the solve found (`MarchRecord`, `EndsRecord`, `TransferRecord`)
+        under the keys and in the order run files have always used: the one mapping from the
+        typed records to those keys."""
+        for record in (self.ends, self.transfer):
+            if record is not None:
+                return record.as_stats(self.stats)
+        return {**self.stats, **(self.march.as_stats() if self.march is not None else {})}
 
     @property
     def tau(self) -> np.ndarray:
@@ -335,7 +526,7 @@ class Solution:
     def energy(self, system=None, params=None) -> np.ndarray:
         """``H(q_k, p_k, t_k)`` at every node, for the ``system`` that was solved (default: the
         one the solver remembered, or after pickling its dense field's ``H``; ``params``: its
-        parameter values; default the values the solve used, ``stats["theta"]``, else the
+        parameter values; default the values the solve used, ``march.theta``, else the
         system's defaults)."""
         system = system if system is not None else self.system
         if system is None and params is None and hasattr(self.vector_field, "energy"):
@@ -343,10 +534,10 @@ class Solution:
         if system is None:
             raise InputError("energy() needs the solved system: this solution does not hold it "
                              "(pass energy(system))")
-        if params is not None or "theta" not in self.stats:
+        if params is not None or self.march is None:
             theta = system.parameter_vector(params)
         else:
-            theta = np.asarray(self.stats["theta"], dtype=float)
+            theta = np.asarray(self.march.theta, dtype=float)
         return system.energy(self.q, self.p, self.t, theta)
 
     def _slopes(self, z: np.ndarray) -> np.ndarray:
@@ -419,9 +610,9 @@ class SolverStatistics:
                    function_evaluations=None if evaluations is None else int(evaluations),
                    fast_steps=int(stats.get("fast_steps", 0)), careful_steps=careful,
                    retries=int(stats.get("retries", 0)),
-                   least_squares_steps=len(stats.get("least_squares") or []),
+                   least_squares_steps=len(solution.march.least_squares) if solution.march else 0,
                    build_s=float(timing.get("build_s", 0.0)),
                    solve_s=float(timing.get("solve_s", 0.0)))
 
-__all__ = ["Failure", "Solution", "SolverStatistics", "Status", "Verdict", "bound_reached",
-           "hermite"]
+__all__ = ["EndsRecord", "Failure", "HigherRecord", "MarchRecord", "OrbitRecord", "Solution",
+           "SolverStatistics", "Status", "TransferRecord", "Verdict", "bound_reached", "hermite"]

@@ -339,3 +339,21 @@ __all__ = ["available_memory", "check_cache_folder", "check_count", "check_degre
            "check_in_range", "check_integer", "check_memory", "check_parameter_ranges",
            "check_parameter_values", "check_real", "check_span", "check_state",
            "check_step", "check_unique_settings", "parse_range", "read_limited"]
+
+
+def check_angles(angles, n: int, *, name: str = "angles") -> tuple[int, ...]:
+    """Indices (from 0) of the angle coordinates named ``"q1"`` .. ``"qn"`` (``H`` is
+    ``2 pi``-periodic in each); ``name`` is the argument the message names."""
+    import re
+
+    try:
+        names = (angles,) if isinstance(angles, str) else tuple(angles)
+    except TypeError:
+        raise InputError(f"{name} must name coordinates q1..q{n}, got {angles!r}") from None
+    indices = []
+    for entry in names:
+        match = re.fullmatch(r"q(\d+)", entry) if isinstance(entry, str) else None
+        if match is None or not 1 <= int(match.group(1)) <= n:
+            raise InputError(f"{name} must name coordinates q1..q{n}, got {angles!r}")
+        indices.append(int(match.group(1)) - 1)
+    return tuple(sorted(set(indices)))

@@ -10,6 +10,6 @@ system = load_scene("pendulum").system
 solution = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181, scheme="vddvp")
 
 print(solution)
-changes = solution.stats["p_sign_changes"]  # which of several solutions this is
+changes = solution.ends.p_sign_changes  # which of several solutions this is
 print(f"p(0) = {solution.p[0, 0]:.6f}, sign changes of p per component {changes}")
 print(f"steps from {solution.tau.min():.4f} to {solution.tau.max():.4f}")

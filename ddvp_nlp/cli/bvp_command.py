@@ -36,8 +36,8 @@ def _bvp(args, scene, config, scheme):
                          options=options.grid_options(args),
                          output=Output(progress=progress))
     extra = {"solver": solver_record(solution)}
-    if args.energy is not None and "transfer_time" in solution.stats:
-        extra["note"] = transfer_note(solution.stats)
+    if args.energy is not None and solution.transfer is not None:
+        extra["note"] = transfer_note(solution.transfer)
     return solution, extra
 
 
@@ -45,7 +45,7 @@ def solver_record(solution) -> dict:
     """``meta.json``'s ``solver``: the solve's stats with its verdict (``accuracy``) where
     the file has always had it, before what the solve added after judging (``exact``,
     ``fixed_time_start``)."""
-    stats = dict(solution.stats)
+    stats = solution.written_stats()
     if solution.verdict is None:
         return stats
     later = {key: stats.pop(key) for key in ("exact", "fixed_time_start") if key in stats}
@@ -86,10 +86,10 @@ def _bvp_higher(args, scene, config, scheme):
                             ), None
 
 
-def transfer_note(stats: dict) -> str:
+def transfer_note(transfer) -> str:
     """One line on a transfer at a prescribed energy and its check by shooting."""
-    exact = stats.get("exact") or {}
-    text = f"transfer time {stats['transfer_time']:.12g} at energy {stats['energy']:.10g}"
+    exact = transfer.exact or {}
+    text = f"transfer time {transfer.transfer_time:.12g} at energy {transfer.energy:.10g}"
     if exact.get("converged"):
         text += (f"; the exact flow's shooting: {exact['transfer_time']:.12g} (difference "
                  f"{exact['time_difference']:.2e}), path difference {exact['path_difference']:.2e}")

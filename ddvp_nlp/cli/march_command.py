@@ -108,7 +108,7 @@ def run_resume(args) -> int:
             output=options.march_output(args, checkpoint=saver,
                                         stop=INTERRUPTS.stop_requested))
         config.t_end = t_end
-        extra = {"carried": solution.stats["carried"], "resume": record,
+        extra = {"carried": solution.march.carried, "resume": record,
                  "resumed_from": {"nodes": int(state.t.size), "t": float(state.t[-1])},
                  "overrides": record["overrides"]}
         meta = write_whole(args, out, scene, config, scheme, solution, extra)
@@ -245,7 +245,7 @@ def _march(args, scene, config, scheme):
                                                  stop=INTERRUPTS.stop_requested,
                                                  t_eval=times, events=events),
                      target_error=args.target_error)
-    stats = solution.stats
+    stats = solution.written_stats()
     return solution, {**{key: stats[key] for key in ("path", "fast_steps", "careful_steps",
                                                      "fallbacks", "first_fallback",
                                                      "target_error",
@@ -254,8 +254,8 @@ def _march(args, scene, config, scheme):
                          if key in stats},
                       **({"accuracy_skipped": solution.accuracy_skipped}
                          if solution.accuracy_skipped is not None else {}),
-                      **_all_residuals(stats),
-                      "carried": stats["carried"],
+                      **_all_residuals(solution.march.kept),
+                      "carried": solution.march.carried,
                       "resume": resume_record(args, scene, config,
                                               parse_settings(args.settings)),
                       **requested_meta(solution, events)}
@@ -283,9 +283,8 @@ def _thinned(args) -> bool:
     return args.keep_every is not None or args.keep != "nodes"
 
 
-def _all_residuals(stats: dict) -> dict:
+def _all_residuals(kept: dict | None) -> dict:
     """A thinned march's largest residuals over every step, not only the kept ones."""
-    kept = stats.get("kept")
     if not kept:
         return {}
     return {"canonical_residual_max": kept["canonical_residual_max"],
@@ -304,7 +303,7 @@ def _march_method(args, scene, config):
                           max_steps=args.max_steps, time_limit=args.time_limit, tol=args.tol,
                           tolerance=options.tolerance(args, exact=scene.exact_states(config)))
     extra = {"scheme": args.scheme, "method": method.description, "knob": {method.knob: value},
-             "own_residual_max": solution.stats.get("own_residual_max"),
+             "own_residual_max": solution.own_residual_max,
              "path": solution.stats.get("path")}
     if not scene.system.time_dependent and solution.t.size:
         # a compared method keeps no interval energy: its energy error is H's drift at the nodes

@@ -248,7 +248,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
                                   write_orbit=write_orbit)
     for member in family.members:
         exact = member.stability.exact
-        print(f"E = {member.energy:<14.10g} T = {member.orbit.stats['period']:<14.10g} "
+        print(f"E = {member.energy:<14.10g} T = {member.orbit.orbit.period:<14.10g} "
               f"{member.stability.verdict:9s} indices "
               f"{', '.join(f'{k.real:.6g}' for k in member.stability.indices) or '-'}"
               + (f" (exact flow: {exact.verdict}, difference {member.stability.index_error:.1e})"

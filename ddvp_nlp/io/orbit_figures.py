@@ -37,7 +37,7 @@ def _draw_family(fig, family) -> None:
     orbits.set_aspect("equal", adjustable="datalim")
     orbits.set_title("orbits")
     energy = np.array([m.energy for m in members])
-    period = np.array([m.orbit.stats["period"] for m in members])
+    period = np.array([m.orbit.orbit.period for m in members])
     periods.plot(energy, period, "-", color="0.7", lw=0.8, zorder=1)
     for verdict, colour in COLOURS.items():
         chosen = [j for j, m in enumerate(members) if m.stability.verdict == verdict]
@@ -46,7 +46,7 @@ def _draw_family(fig, family) -> None:
     _indices(indices, members)
     for bifurcation in family.bifurcations:
         marker = MARKERS[bifurcation.kind]
-        periods.plot(bifurcation.energy, bifurcation.orbit.stats["period"], marker, ms=9,
+        periods.plot(bifurcation.energy, bifurcation.orbit.orbit.period, marker, ms=9,
                      mfc="none", mec="k", mew=1.4)
         indices.axvline(bifurcation.energy, color="k", ls=":", lw=0.8)
     for kind, marker in MARKERS.items():

@@ -19,18 +19,18 @@ FAMILY_COLUMNS = ("energy", "status", "period", "nodes", "canonical", "energy_eq
 
 def periodic_meta(scene, solution: Solution, params: dict) -> dict:
     """What ``meta.json`` holds: the orbit's period and energy, the residuals, the status."""
-    stats = solution.stats
+    stats, orbit = solution.stats, solution.orbit
     return {"command": "periodic", "scene": scene.name, "scheme": solution.scheme,
             "status": solution.status.code, "message": solution.message,
-            "period": stats["period"], "energy": stats["energy"], "section": stats["section"],
-            "nodes": solution.t.size, "params": params, "residuals": stats["residuals"],
-            "residual_limit": stats["limit"], "unfolding": stats["unfolding"],
-            "integral_unfoldings": stats["integral_unfoldings"],
+            "period": orbit.period, "energy": orbit.energy, "section": orbit.section,
+            "nodes": solution.t.size, "params": params, "residuals": orbit.residuals,
+            "residual_limit": orbit.residual_limit, "unfolding": orbit.unfolding,
+            "integral_unfoldings": list(orbit.integral_unfoldings),
             "solver": stats.get("solver"), "outcome": stats["outcome"],
             "iterations": stats["iterations"], "attempts": stats.get("attempts", []),
-            "winding": stats["winding"],
+            "winding": list(orbit.winding),
             "accuracy": solution.verdict.as_dict() if solution.verdict is not None else {},
-            "tau_min": stats["tau_min"], "tau_max": stats["tau_max"],
+            "tau_min": orbit.tau_min, "tau_max": orbit.tau_max,
             "timing": solution.timing}
 
 
@@ -93,12 +93,12 @@ def plot_orbit(solution: Solution, title: str, path: Path, fmt: str = "png") -> 
 
 
 def family_row(energy: float, solution: Solution) -> dict:
-    stats = solution.stats
-    residuals = stats["residuals"]
-    return {"energy": energy, "status": solution.status.code, "period": stats["period"],
+    orbit = solution.orbit
+    residuals = orbit.residuals
+    return {"energy": energy, "status": solution.status.code, "period": orbit.period,
             "nodes": solution.t.size, "canonical": residuals["canonical"],
             "energy_equation": residuals["energy"], "closure": residuals["closure"],
-            "unfolding": stats["unfolding"], "iterations": stats["iterations"]}
+            "unfolding": orbit.unfolding, "iterations": solution.stats["iterations"]}
 
 
 def write_family(out, scene, family: list, params: dict, plot: bool = True,

@@ -48,12 +48,34 @@ def plot_trajectory(solution, scene, scheme, path, *, energies, fmt: str = "png"
     ``fixed_ends``: a fixed-endpoint run, its two prescribed ends marked. The title says the
     verdict (`verdict_text`)."""
     energy = _energy_panel(solution, scene.system, scheme, energies)
-    title = (f"{scene.name}: {scheme.rule}, {solution.steps} steps, "
+    kept = _kept(solution)
+    title = (f"{scene.name}: {scheme.rule}, {_steps_words(solution, kept)}, "
              f"{verdict_text(solution)}")
     with figures.styled():
-        fig = _figure(solution, _rows(solution, scheme.variable_steps, energy), title,
-                      fixed_ends=fixed_ends)
+        # a thinned run's node spacing is not its step: the step row is left out (the title
+        # gives the steps' range)
+        fig = _figure(solution, _rows(solution, scheme.variable_steps and kept is None,
+                                      energy), title, fixed_ends=fixed_ends,
+                      dots=kept is not None)
         figures.save(fig, path, fmt)
+
+
+def _kept(solution) -> dict | None:
+    """A thinned march's record of what it kept (``Solution.march.kept``), else ``None``."""
+    record = getattr(solution, "march", None)
+    return getattr(record, "kept", None) if record is not None else None
+
+
+def _steps_words(solution, kept: dict | None) -> str:
+    """The steps a run took: its intervals, or for a thinned march the steps it marched,
+    the nodes it kept and the steps' range (its kept nodes are ``keep_every`` steps apart)."""
+    if kept is None:
+        return f"{solution.steps} steps"
+    steps = max(int(kept["nodes_marched"]) - 1, 0)
+    words = f"{steps} steps ({kept['nodes_kept']} nodes kept"
+    if kept.get("tau_min") is not None:
+        words += f", tau in [{kept['tau_min']:.3g}, {kept['tau_max']:.3g}]"
+    return words + ")"
 
 
 def verdict_text(solution) -> str:
@@ -143,7 +165,7 @@ def _rows(solution, steps: bool, energy) -> list:
     return rows
 
 
-def _figure(solution, rows, title: str, *, fixed_ends: bool = False):
+def _figure(solution, rows, title: str, *, fixed_ends: bool = False, dots: bool = False):
     """The figure: the rows against ``t`` over the whole run (and over its first
     ``ZOOM_STEPS`` steps, for long runs) and the state-space panels on the right, filling the
     column's height (one degree of freedom: the phase portrait, larger, centred).
@@ -174,7 +196,7 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False):
             ax = fig.add_axes(box, sharex=first)
             first = first or ax
             _time_panel(ax, span, curves, log, legend=column == 0,
-                        ends=ends if row == 0 else None)
+                        ends=ends if row == 0 else None, dots=dots)
             if column == 0:
                 ax.set_ylabel(label)
             if row < len(rows) - 1:
@@ -188,15 +210,18 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False):
         side = min(widths[-1], cell - 0.7)
         lowest = top + index * cell + 0.5 * (cell - side) + 0.1
         box = [x / width, 1 - (lowest + side) / height, widths[-1] / width, side / height]
-        _state_panel(fig.add_axes(box), solution.q, solution.p, kind, fixed_ends=fixed_ends)
+        _state_panel(fig.add_axes(box), solution.q, solution.p, kind, fixed_ends=fixed_ends,
+                     dots=dots)
     fig.suptitle(title, y=1 - 0.12 / height)
     return fig
 
 
-def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None) -> None:
+def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None,
+                dots: bool = False) -> None:
     """One panel against ``t`` over ``span``: each curve reduced to its min/max envelope per
-    pixel column (``figures.decimate``); the names of the curves, if ``legend``, in a band
-    left free above the data (never over them); ``ends``: the two fixed ends' times, marked."""
+    pixel column (``figures.decimate``), or with ``dots`` (a thinned march: samples of the
+    motion, not its path) its points unjoined; the names of the curves, if ``legend``, in a
+    band left free above the data (never over them); ``ends``: the two fixed ends' times."""
     start, stop = span
     bins = figures.bins_for(ax)
     names = [name for name, _, _ in curves]
@@ -206,8 +231,11 @@ def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None) -> None
         if times.size > 1 and times[-1] < times[0]:  # a backward march: the envelope's bins
             times, values = times[::-1], values[::-1]  # want increasing times
         shown = figures.positive(values) if log else values
-        figures.envelope_band(ax, times, shown, bins, lw=0.7, label=name or None,
-                              color=f"C{index % 8}")
+        if dots:
+            ax.plot(times, shown, ".", ms=3, label=name or None, color=f"C{index % 8}")
+        else:
+            figures.envelope_band(ax, times, shown, bins, lw=0.7, label=name or None,
+                                  color=f"C{index % 8}")
         if ends is not None:
             fixed = np.isin(times, ends) & chosen
             ax.plot(times[fixed], values[fixed], **FIXED_END, clip_on=False,
@@ -239,7 +267,8 @@ FIXED_END = {"marker": "s", "color": "black", "mfc": "none", "ms": 5, "mew": 1.0
              "linestyle": "none", "zorder": 4}
 
 
-def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False) -> None:
+def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
+                 dots: bool = False) -> None:
     """The phase portrait ``(q_1, p_1)`` or the configuration plane ``(q_1, q_2)``: the line
     through the nodes (the nodes as dots for long runs, thinned to one per half pixel for very
     long ones), the start as a red dot (a fixed-endpoint run: both ends as squares); equal
@@ -252,7 +281,9 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False) -> None:
     else:
         x, y = q[:, 0], q[:, 1]
         labels = ("$q_1$", "$q_2$")
-    if x.size <= DOTS_FROM_NODES:
+    if dots and x.size <= DOTS_FROM_NODES:  # a thinned march's samples: not a path
+        ax.plot(x, y, ".", ms=3, color="C0")
+    elif x.size <= DOTS_FROM_NODES:
         ax.plot(x, y, lw=0.6, color="C0")
     else:
         shown = (figures.thin_points(x, y, 2 * figures.bins_for(ax))

@@ -75,7 +75,7 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta, energ
         return report
     report["H0"] = float(nodes[0])
     report["node_energy_error"] = _max_abs(nodes - nodes[0]) / max(1.0, abs(float(nodes[0])))
-    kept = solution.stats.get("kept")
+    kept = solution.march.kept if solution.march is not None else None
     if thinned(solution):
         # a thinned march keeps no consecutive intervals: its largest energy residual over
         # every step, which the march recomputed as it went (and H's drift at the kept nodes)
@@ -95,7 +95,7 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta, energ
 
 def thinned(solution: Solution) -> bool:
     """Whether a march kept only some of its nodes (``Output(keep_every=k)``)."""
-    kept = solution.stats.get("kept")
+    kept = solution.march.kept if solution.march is not None else None
     return bool(kept) and (kept["keep_every"] > 1 or kept["keep"] != "nodes")
 
 
@@ -253,7 +253,7 @@ def _steps_meta(solution: Solution) -> dict:
              "tau_min": float(tau.min()) if tau.size else None,
              "tau_max": float(tau.max()) if tau.size else None}
     if thinned(solution):  # every step marched, not the intervals between kept nodes
-        kept = solution.stats["kept"]
+        kept = solution.march.kept
         found.update(steps=kept["nodes_marched"] - 1, tau_min=kept["tau_min"],
                      tau_max=kept["tau_max"], kept_every=kept["keep_every"],
                      nodes_marched=kept["nodes_marched"], nodes_kept=kept["nodes_kept"])
@@ -300,7 +300,7 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
     if solution.solvability.size:
         arrays["solvability"] = solution.solvability
     arrays.update(requested_arrays(solution))
-    flagged = solution.stats.get("least_squares") or []
+    flagged = solution.march.least_squares if solution.march is not None else []
     if flagged:
         arrays["least_squares_step"] = np.array([e["step"] for e in flagged], dtype=int)
         arrays["least_squares_defect"] = np.array([e["energy_defect"] for e in flagged])
@@ -363,15 +363,15 @@ def _checks(scene: Scene, config, solution: Solution) -> dict:
             found["exact_solution"] = f"not compared: {reason}"
         else:
             found["error_vs_exact"] = float(error)
-    if solution.stats.get("solvability_warning"):
-        found["solvability_warning"] = solution.stats["solvability_warning"]
+    if solution.march is not None and solution.march.solvability_warning:
+        found["solvability_warning"] = solution.march.solvability_warning
     return found
 
 
 def _higher_record(command, scene: HigherOrderScene, config: dict, scheme, solution: Solution,
                    interruptible=None):
     """Arrays, metadata and figure of a run of a scene with higher derivatives."""
-    energy = np.asarray(solution.stats.get("energy", np.zeros(0)))
+    energy = np.asarray(solution.higher.energy if solution.higher else np.zeros(0))
     exact = scene.exact_motion(solution.t, config.params)
     meta = {"command": command, "scene": scene.name, "scheme": solution.scheme,
             "order": scene.order, "params": {**config.params, "t0": config.t0,

@@ -56,7 +56,7 @@ def _numbers(values) -> str:
 def stability_row(energy: float, orbit, stability) -> dict:
     """One orbit's row of ``stability.csv`` / a followed ``family.csv``."""
     row = {"energy": energy, "status": orbit.status.code,
-           "period": orbit.stats.get("period")}
+           "period": orbit.orbit.period if orbit.orbit is not None else None}
     if stability is None:
         return row
     exact, closed = stability.exact, stability.exact_orbit

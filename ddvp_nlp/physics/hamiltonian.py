@@ -27,7 +27,7 @@ import numpy as np
 from ..blocks import evaluate_columns
 from ..cache import cached
 from ..errors import InputError
-from ..validation import check_integer, check_parameter_values
+from ..validation import check_angles, check_integer, check_parameter_values
 
 
 @dataclass(eq=False)
@@ -39,12 +39,16 @@ class HamiltonianSystem:
         n: number of degrees of freedom.
         params: parameter names and default values.
         name: a label for reports.
+        angles: the coordinates that are angles (``("q2",)``: ``H`` is ``2 pi``-periodic in
+            them): the accuracy check judges one that winds within a turn, not against the
+            turns it made (an azimuth).
     """
 
     hamiltonian: Callable[..., object]
     n: int
     params: Mapping[str, float] = field(default_factory=dict)
     name: str = "system"
+    angles: tuple = ()
 
     lagrangian_form = False  # the discrete equations come from H (LagrangianSystem: from L)
 
@@ -55,6 +59,7 @@ class HamiltonianSystem:
 
     def _symbols(self):
         self.n = check_integer("n", self.n)
+        self.angle_indices = check_angles(self.angles, self.n)
         self.params = check_parameter_values(self.params, {k: 0.0 for k in self.params},
                                              owner=f"system {self.name!r}")
         self.q = ca.SX.sym("q", self.n)

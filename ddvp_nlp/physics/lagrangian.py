@@ -43,12 +43,14 @@ class LagrangianSystem(HamiltonianSystem):
     lagrangian_form = True
 
     def __init__(self, lagrangian: Callable[..., object], n: int,
-                 params: Mapping[str, float] | None = None, name: str = "system"):
+                 params: Mapping[str, float] | None = None, name: str = "system",
+                 angles: tuple = ()):
         self.lagrangian = lagrangian
         self.hamiltonian = None
         self.n = n
         self.params = dict(params or {})
         self.name = name
+        self.angles = angles
         self._symbols()
         self.v = ca.SX.sym("v", self.n)
         self.L = self._user_expression("lagrangian", lagrangian, self.v)

@@ -219,10 +219,13 @@ class Scene:
 
     @cached_property
     def system(self) -> HamiltonianSystem:
+        """The scene's system; its angles are those of ``periodic`` (the check's too)."""
+        angles = self.periodic.angles if self.periodic is not None else ()
         if isinstance(self.hamiltonian, Lagrangian):
             return LagrangianSystem(self.hamiltonian.function, self.n, dict(self.params),
-                                    name=self.name)
-        return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name)
+                                    name=self.name, angles=angles)
+        return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name,
+                                 angles=angles)
 
     def resolve_boundary(self, overrides: Mapping[str, object] | None = None,
                          nodes: int | None = None) -> BoundaryConfig:

@@ -45,6 +45,7 @@ PUBLIC = {
     "march": "marching.initial_value", "continue_march": "marching.initial_value",
     "MarchState": "marching.resume", "march_ensemble": "marching.ensemble",
     "Collect": "marching.ensemble", "end_with_parent": "marching.ensemble",
+    "DDVP": "marching.scipy_method",  # the march as scipy's solve_ivp method
     # fixed ends
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
     # periodic orbits
@@ -92,6 +93,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .marching.ensemble import Collect, end_with_parent, march_ensemble
     from .marching.initial_value import continue_march, march
     from .marching.resume import MarchState
+    from .marching.scipy_method import DDVP
     from .options import Compilation, GridOptions, Output, StepControl, Tolerance, coerce
     from .periodic.arclength import Continuation, follow_periodic_family
     from .periodic.family import solve_periodic_family
@@ -100,7 +102,8 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
-__all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Event",
+__all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
+           "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
            "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
            "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",

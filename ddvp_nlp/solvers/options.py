@@ -80,7 +80,7 @@ class StepControl:
         breakdown: what an energy rule does when a step has no admissible root: ``"stop"``
             (status ``no_admissible_step``) or ``"least_squares"``, the step of Kane, Marsden
             and Ortiz (the ``tau`` that minimises the energy residual subject to the canonical
-            equations; each such step is listed in ``stats["least_squares"]``).
+            equations; each such step is listed in ``march.least_squares``).
         max_steps: bound on the number of steps (status ``max_steps``).
         time_limit: optional bound in seconds on the stepping (status ``time_limit``).
         energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(1, |H(z_0, t_0)|)``
@@ -324,7 +324,7 @@ class Output:
             window at a time (``accuracy/streaming.py`` says what it keeps and where its
             figures differ from the check of a whole run). A thinned march takes no
             checkpoints and cannot be continued (``continue_march`` needs consecutive nodes).
-            ``Solution.stats["kept"]`` records ``keep_every``, ``keep``, the nodes marched and
+            ``Solution.march.kept`` records ``keep_every``, ``keep``, the nodes marched and
             the nodes kept. Default 1: every node, as before.
         keep: ``"nodes"`` (default: every ``keep_every``-th node) or ``"t_eval"``: only the
             first and the last node are kept besides the ``t_eval`` states and the events

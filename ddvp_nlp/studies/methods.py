@@ -95,7 +95,7 @@ def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, c
     """Method ``name`` of the registry on ``scene`` at knob ``value``, then its own residual
     check: a step whose residual passes ``tol max(1, |z_k+1|_inf)`` turns a success into
     ``RESIDUAL_TOO_LARGE``. Returns the solution, with ``canonical_residual`` the per-step
-    residuals (empty where the method has no equation) and ``stats["own_residual_max"]``."""
+    residuals (empty where the method has no equation) and ``own_residual_max``."""
     method = get_methods([name])[0]
     reason = method.applies(scene.system)
     if reason:
@@ -107,12 +107,12 @@ def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, c
                     cache_dir=cache_dir)
     residual = own_residuals(scene.system, name, solution, theta)
     if residual is None:
-        solution.stats["own_residual_max"] = None
+        solution.own_residual_max = None
         return solution
     solution.canonical_residual = residual
     scale = np.maximum(1.0, np.max(np.abs(np.hstack([solution.q, solution.p])[1:]), axis=1))
     worst = float(np.max(residual / scale[:residual.size])) if residual.size else 0.0
-    solution.stats["own_residual_max"] = float(np.max(residual)) if residual.size else 0.0
+    solution.own_residual_max = float(np.max(residual)) if residual.size else 0.0
     if solution.success and worst > tol:
         step = int(np.argmax(residual / scale[:residual.size]))
         solution.status = Status.RESIDUAL_TOO_LARGE

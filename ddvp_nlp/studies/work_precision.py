@@ -437,7 +437,7 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
         return {**row, **_NOT_MEASURED, "status": "not_run", "message": str(exc),
                 "t_reached": config.t0}
     if aims:
-        row["chosen_tau0"] = solution.stats["target_error"]["tau0"]
+        row["chosen_tau0"] = solution.march.target_error["tau0"]
     trajectory, energy = errors(system, reference, solution,
                                 Compilation(compiler=compiler, cache_dir=cache_dir))
     residual = (float(np.max(np.abs(solution.energy_residual)))

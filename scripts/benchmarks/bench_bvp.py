@@ -106,14 +106,14 @@ def one(case: str, nodes: int, solver: str) -> dict:
         compilation=compilation,
         **start,
     )
-    phases = solution.stats["phases"]
+    phases, ends = solution.ends.stages, solution.ends
     return {"case": case, "N": nodes, "solver": label, "status": solution.status.code,
             "path": _path(system, solution.stats["solver"], compilation),
             "build_s": solution.timing["build_s"], "solve_s": solution.timing["solve_s"],
             "cpu_s": time.process_time() - cpu,
-            "iterations": [ph["iterations"] for ph in phases],
-            "canonical": solution.stats.get("canonical_residual_max", float("nan")),
-            "energy": solution.stats.get("energy_residual_max", float("nan")),
+            "iterations": [ph.iterations for ph in phases],
+            "canonical": ends.canonical_residual_max if ends.tau_min is not None else np.nan,
+            "energy": ends.energy_residual_max if ends.tau_min is not None else np.nan,
             "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 

@@ -128,8 +128,8 @@ def solvers(repeats: int) -> None:
             measured[solver] = (cpu, wall)
             print(f"| {name} | {nodes} | {solver} | {orbit.status.code} | "
                   f"{orbit.stats['iterations']} | {wall:.3f} | {cpu:.3f} | {first:.2f} | "
-                  f"{orbit.stats['period']:.10f} | "
-                  f"{max(orbit.stats['residuals'].values()):.1e} |", flush=True)
+                  f"{orbit.orbit.period:.10f} | "
+                  f"{max(orbit.orbit.residuals.values()):.1e} |", flush=True)
         (n_cpu, n_wall), (i_cpu, i_wall) = measured["newton"], measured["ipopt"]
         print(f"| {name} | {nodes} | ipopt / newton | | | {i_wall / n_wall:.1f}x | "
               f"{i_cpu / n_cpu:.1f}x | | | |", flush=True)

@@ -77,7 +77,7 @@ def main():
         cpu, wall, solution = timed(lambda scene=scene, config=config, target=target: march(
             scene.system, config.q0, config.p0, (config.t0, config.t_end), tau0=config.tau0,
             params=config.params, target_error=target))
-        record = solution.stats["target_error"]
+        record = solution.march.target_error
         chosen = record["tau0"]
         best, best_cpu, _, _ = just_meets(scene, config, target, chosen, args.bisections)
         label = name + "".join(f", {k} = {v:g}" for k, v in overrides.items())

@@ -63,11 +63,11 @@ def convergence_rows(name, sizes, exact, label=None, **options):
     rows, previous = [], None
     for N in sizes:
         solution = solve_periodic(scene.system, nodes=N + 1, **options)
-        error = solution.stats["period"] - exact
+        error = solution.orbit.period - exact
         order = np.log2(abs(previous / error)) if previous is not None else np.nan
-        worst = max(solution.stats["residuals"].values())
+        worst = max(solution.orbit.residuals.values())
         rows.append(f"| {label or name} | {N} | {solution.status.code} "
-                    f"| {solution.stats['solver']} | {solution.stats['period']:.10f} "
+                    f"| {solution.stats['solver']} | {solution.orbit.period:.10f} "
                     f"| {error:.3e} | {'' if np.isnan(order) else f'{order:.3f}'} "
                     f"| {worst:.1e} |")
         previous = error
@@ -129,15 +129,15 @@ def henon_heiles_rows(out: Path, energies, sizes):
         for (energy, a), (_, b) in zip(coarse, fine, strict=True):
             if name.startswith("x = 0"):
                 continue
-            extrapolated = b.stats["period"] + (b.stats["period"] - a.stats["period"]) / 3
+            extrapolated = b.orbit.period + (b.orbit.period - a.orbit.period) / 3
             accuracy = b.verdict.as_dict()
             rows.append(f"| {name} | {energy:.2f} | {a.status.code}, {b.status.code} | "
-                        f"{a.stats['period']:.8f} | {b.stats['period']:.8f} | "
+                        f"{a.orbit.period:.8f} | {b.orbit.period:.8f} | "
                         f"{extrapolated:.8f} | {accuracy['verdict']} | "
                         f"{accuracy['local_error_max']:.1e} | "
                         f"{accuracy['error_max']:.1e} | "
                         f"{exact_return(b, extrapolated):.1e} | "
-                        f"{max(b.stats['residuals'].values()):.1e} |")
+                        f"{max(b.orbit.residuals.values()):.1e} |")
     plot_henon_heiles(found, out / "henon_heiles.png")
     return rows
 
@@ -155,7 +155,7 @@ def _henon_heiles_panels(left, right, found: dict) -> None:
         for energy, orbit in family:
             if orbit.success and round(energy, 3) in (0.04, 0.1, 0.16):
                 left.plot(orbit.q[:, 0], orbit.q[:, 1], "-", color=colour, lw=0.9)
-        ok = [(e, o.stats["period"]) for e, o in family if o.success]
+        ok = [(e, o.orbit.period) for e, o in family if o.success]
         right.plot(*zip(*ok, strict=True), "o-", color=colour, ms=4, label=name)
     x, y = np.meshgrid(np.linspace(-1, 1, 400), np.linspace(-0.6, 1.1, 400))
     left.contour(x, y, (x * x + y * y) / 2 + x * x * y - y ** 3 / 3, levels=[1 / 6],
@@ -216,7 +216,7 @@ def build(out: Path, scratch: Path, grids: dict) -> str:
                "integrals": data.integrals}
     orbit = solve_periodic(eight.system, nodes=grids["eight"] + 1, **options)
     plot_orbit(orbit, f"figure-eight, E = {data.energy}, N = {grids['eight']}, "
-                      f"T = {orbit.stats['period']:.8f}", out / "figure_eight.png")
+                      f"T = {orbit.orbit.period:.8f}", out / "figure_eight.png")
     # the reference of the convergence table: the exact flow's orbit at the energy solved,
     # closed by DOP853 shooting from the finest discrete orbit
     eight_exact = periodic_stability(
@@ -242,7 +242,7 @@ def build(out: Path, scratch: Path, grids: dict) -> str:
     return PAGE.format(family="\n".join(family_table), table="\n".join(table),
                        rotations="\n".join(rotations), henon="\n".join(henon),
                        solvers=solvers,
-                       eight=orbit.message, eight_period=orbit.stats["period"],
+                       eight=orbit.message, eight_period=orbit.orbit.period,
                        eight_exact=eight_exact.period, eight_closure=eight_exact.closure,
                        simo_energy=simo_energy, simo_period=SIMO_PERIOD, machine=machine())
 

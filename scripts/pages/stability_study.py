@@ -474,13 +474,13 @@ def transfer_rows(scene_name, q_start, q_end, span, sizes):
     for N in sizes:
         with Clock() as clock:
             run = solve_bvp(scene.system, q_start, q_end, span, nodes=N)
-        exact = run.stats["exact"]
+        exact = run.transfer.exact
         times.append(abs(exact["time_difference"]))
         paths.append(exact["path_difference"])
-        rows.append([N, run.status.code, f"{run.stats['transfer_time']:.12f}",
+        rows.append([N, run.status.code, f"{run.transfer.transfer_time:.12f}",
                      f"{exact['transfer_time']:.12f}", f"{exact['time_difference']:.3e}", "",
                      f"{exact['path_difference']:.3e}", "",
-                     f"{run.stats['residuals']['prescribed_energy']:.1e}",
+                     f"{run.transfer.residuals['prescribed_energy']:.1e}",
                      run.stats["transfer"]["iterations"], str(clock)])
         last = (scene, run)
     for row, t_order, p_order in zip(rows, orders(times), orders(paths), strict=True):
@@ -517,7 +517,7 @@ def transfer_page(out: Path, grids: dict) -> str:
 
 def transfer_path_figure(last, path: Path) -> None:
     scene, run = last
-    exact = run.stats["exact"]
+    exact = run.transfer.exact
     times = np.linspace(0.0, exact["transfer_time"], 400)
     flow = flow_with_derivatives(scene.system, np.zeros(0),
                                  np.concatenate([run.q[0], exact["momentum"]]),
@@ -533,7 +533,7 @@ def transfer_path_figure(last, path: Path) -> None:
         ax.set_ylabel("$q_2$")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_title(f"Henon-Heiles transfer at $E = 0.12$, "
-                     f"$T = {run.stats['transfer_time']:.6f}$")
+                     f"$T = {run.transfer.transfer_time:.6f}$")
         ax.legend()
         save(fig, path)
 

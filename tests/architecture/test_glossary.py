@@ -60,3 +60,12 @@ def test_the_march_has_one_loop_function_name():
                if isinstance(node, ast.FunctionDef) and node.name == "run_march"]
     assert len(defined) <= 1, defined
     assert all(path.startswith("ddvp_nlp/cli/") for path in defined)
+
+
+def test_a_grid_request_counts_nodes_in_every_family():
+    """``nodes`` counts nodes everywhere (the glossary): the periodic family's request had
+    counted its intervals under that name; it now says ``request.intervals`` where it means
+    them."""
+    text = (PACKAGE / "solvers" / "periodic" / "orbit.py").read_text()
+    assert "request.nodes" not in text
+    assert "request.intervals" in text

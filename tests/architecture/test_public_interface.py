@@ -12,7 +12,8 @@ from ddvp_nlp import InputError, load_scene, march, solve_bvp
 
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
-PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "Endpoints",
+PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
+          "Endpoints",
           "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
           "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",

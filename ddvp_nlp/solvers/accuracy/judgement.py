@@ -17,7 +17,9 @@ by a second run at a tenth of the tolerance, never assumed), and gets one of thr
 ``z = (q, p)``, is its range over the run (the nodes and the reference's states), at least a
 tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). A cyclic coordinate
 (one ``H`` does not depend on: an azimuth that winds) keeps its own range but sets no floor for
-the others, and its conserved momentum does not enter the energy scale. The energy
+the others, and its conserved momentum does not enter the energy scale; an angle that winds
+(``H`` is ``2 pi``-periodic in it, its range passes a turn) counts at most one turn, for itself
+and for the others (`winding_angles`; not for a streamed check). The energy
 scale ``E_s`` is the time average of ``|S * grad H(z_k, t_k)|_2``, how much ``H`` changes when
 the state moves by ``S`` (`energy_scale`): an energy error ``dE`` puts some node at least
 ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
@@ -150,15 +152,21 @@ def exact_nodes(system, z0, t0: float, t_end: float, theta, *, rtol: float, atte
 
 
 def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int,
-                  free: np.ndarray | None = None) -> np.ndarray:
+                  free: np.ndarray | None = None,
+                  turns: np.ndarray | None = None) -> np.ndarray:
     """``S_i`` of each component of ``z = (q, p)`` from its least and greatest values over the
     motion and its largest magnitude: its range ``high - low``, at least ``BLOCK_FLOOR`` times
     the largest range of its block (``q`` or ``p``: a coordinate that barely moves is measured
     against the motion of the others, not against round-off) and at least ``ROUND_OFF`` times
     its magnitude (a block that does not move at all). A component marked in ``free`` (a
     cyclic coordinate, `free_components`) keeps its own range but sets no floor for the others:
-    a winding angle's secular growth says nothing of how far the other coordinates move."""
+    a winding angle's secular growth says nothing of how far the other coordinates move. A
+    component marked in ``turns`` (an angle ``H`` is ``2 pi``-periodic in, `winding_angles`)
+    counts at most one turn, for itself and for the others: an angle that winds is judged by
+    how far it is off within a turn, not against the turns it made."""
     span = np.asarray(high, float) - np.asarray(low, float)
+    if turns is not None:
+        span = np.where(turns, np.minimum(span, 2 * np.pi), span)
     scale = span.copy()
     feeding = span if free is None else np.where(free, 0.0, span)
     for block in (slice(0, n), slice(n, 2 * n)):
@@ -181,16 +189,49 @@ def free_components(system) -> np.ndarray | None:
     return np.array(cyclic + [False] * n, dtype=bool) if any(cyclic) else None
 
 
+def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
+                   free: np.ndarray | None) -> np.ndarray | None:
+    """The coordinates that wind as angles over the run: their range passes a turn, and they
+    are declared angles (``HamiltonianSystem(angles=...)``, a scene's ``periodic`` angles) or
+    ``H`` is ``2 pi``-periodic in them (``H(q + 2 pi e_j) = H(q)`` to round-off at the first,
+    middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
+    a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
+    none."""
+    picks = np.unique([0, t.size // 2, t.size - 1])
+    rows = z[picks]
+    _, H = values.at_nodes(t[picks], rows)
+    turns = np.zeros(2 * n, dtype=bool)
+    span = np.ptp(z[:, :n], axis=0)
+    declared = getattr(values.system, "angle_indices", ())
+    for j in range(n):
+        if span[j] <= 2 * np.pi:
+            continue
+        if j in declared:  # the user's word: an angle (a cyclic azimuth too)
+            turns[j] = True
+            continue
+        if free is not None and free[j]:
+            continue
+        shifted = rows.copy()
+        shifted[:, j] += 2 * np.pi
+        field, moved = values.at_nodes(t[picks], shifted)
+        # round-off of H's value and of its change along the shift (|H_q_j| 2 pi)
+        size = np.abs(H) + np.abs(moved) + 2 * np.pi * np.abs(field[:, n + j])
+        turns[j] = bool(np.all(np.abs(moved - H) <= 1e-9 * size) and np.all(size > 0))
+    return turns if np.any(turns) else None
+
+
 class Extent:
     """The least and greatest value and the largest magnitude of each component over the rows
     seen so far (the march's nodes, then the reference's, block by block)."""
 
-    def __init__(self, rows: np.ndarray, free: np.ndarray | None = None):
+    def __init__(self, rows: np.ndarray, free: np.ndarray | None = None,
+                 turns: np.ndarray | None = None):
         self.low, self.high, self.largest = column_extremes(rows)
         self.free = free  # components that set no floor (`motion_scales`)
+        self.turns = turns  # winding angles, counted at most one turn
 
     def scales(self, n: int) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, n, self.free)
+        return motion_scales(self.low, self.high, self.largest, n, self.free, self.turns)
 
 
 def gradient_weights(scale: np.ndarray, n: int, free: np.ndarray | None = None) -> np.ndarray:
@@ -329,7 +370,8 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        extent = Extent(z, self.free)  # every node's, whichever window is measured
+        turns = winding_angles(self.values, self.system.n, t, z, self.free)
+        extent = Extent(z, self.free, turns)  # every node's, whichever window is measured
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
@@ -478,7 +520,7 @@ class Scan:
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
         self.largest = extent.largest.copy()
-        self.free = extent.free
+        self.free, self.turns = extent.free, extent.turns
         self.column_max, self.column_node = np.zeros(d), np.ones(d, dtype=int)
         self.claim_max = 0.0
         self.drift: int | None = None  # node indices
@@ -493,7 +535,7 @@ class Scan:
         return self.drift is not None or self.lost is not None
 
     def scales(self) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, self.n, self.free)
+        return motion_scales(self.low, self.high, self.largest, self.n, self.free, self.turns)
 
     def measure(self, t, z, start: int, end: int, states, claim, offset: int = 0) -> None:
         """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
@@ -517,7 +559,8 @@ class Scan:
                 break
             seen = column_extremes(states[:stop])  # finite: the rows before a lost one
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
-                                np.maximum(self.largest, seen[2]), self.n, self.free)
+                                np.maximum(self.largest, seen[2]), self.n, self.free,
+                                self.turns)
             if np.array_equal(new, scale):
                 break
             scale = new

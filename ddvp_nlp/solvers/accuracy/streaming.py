@@ -89,7 +89,7 @@ class StreamingJudgement:
         judge = self.judge
         if self.extent is None:
             self.t0, self.z0 = float(t[0]), z[0].copy()
-            self.extent = Extent(z, judge.free)
+            self.extent = Extent(z, judge.free)  # winding angles: whole runs only (not streamed)
             self.level = self.level_of(t, z) if self.level_of else None
         else:
             low, high, largest = column_extremes(z)

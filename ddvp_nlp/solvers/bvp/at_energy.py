@@ -24,7 +24,7 @@ The solve (``fixed_ends.py`` calls these in order):
    shooting on the exact flow (``solvers/exact/variational.py``) for ``(p_0, T)`` with
    ``q(T) = q_end``, ``H(q_start, p_0) = E`` from the grid's ``p_0`` and ``t_end - t_0``, whose
    transfer time and path (at the grid's node times) the grid's are compared with
-   (``stats["exact"]``).
+   (``transfer.exact``).
 
 Only autonomous ``H`` and the energy rules; Newton only (IPOPT's build has no free end time).
 """
@@ -41,7 +41,7 @@ from ...cache import PROBLEMS
 from ...discrete import equations
 from ...errors import InputError
 from ...physics.hamiltonian import derivatives_function
-from ...solution import Solution, Status
+from ...solution import Solution, Status, TransferRecord
 from ...validation import check_real
 from ..accuracy.judgement import Level, assess, judge
 from ..exact.flow_newton import exact_newton
@@ -275,18 +275,19 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
             f"{t[-1] - t[0]:.12g}; largest residuals {listed} (limit {limit:.1e}); newton: "
             f"{phase['iterations']} iterations from the fixed-time grid at energy "
             f"{phase['start_energy']:.8g}")
-    stats = {"transfer_time": float(t[-1] - t[0]), "energy": span.energy, "residuals": worst,
-             "limit": limit, "transfer": phase, "tau_min": float(np.min(tau)),
-             "tau_max": float(np.max(tau))}
-    report, local_error = None, np.zeros(0)
+    report, local_error, exact = None, np.zeros(0), None
     if np.all(np.isfinite(x)):
-        report, local_error, stats["exact"] = _judged(system, scheme, t, q, p, span,
+        report, local_error, exact = _judged(system, scheme, t, q, p, span,
                                                                  theta, tolerance)
+    found = TransferRecord(transfer_time=float(t[-1] - t[0]), energy=span.energy,
+                           residuals=worst, residual_limit=limit, tau_min=float(np.min(tau)),
+                           tau_max=float(np.max(tau)), exact=exact)
     solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                     energy_residual=energy_rows,
                     canonical_residual=np.max(np.abs(canonical), axis=1),
                     newton_iterations=phase["iterations"],
-                    timing={"build_s": 0.0, "solve_s": phase["seconds"]}, stats=stats)
+                    timing={"build_s": 0.0, "solve_s": phase["seconds"]},
+                    stats={"transfer": phase}, transfer=found)
     judge(solution, report, tolerance, local_error=local_error, advice="try more nodes")
     return solution
 

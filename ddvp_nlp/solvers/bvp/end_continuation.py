@@ -22,7 +22,7 @@ it stopped at ``s = 0.61``, on Henon-Heiles at ``s = 0.02-0.88``). Here the unkn
 
 When a step crosses ``s = 1`` the point at ``s = 1`` is interpolated and handed back; the caller
 solves the problem there (``first_guess.py``). The solution found is the one connected to
-the march by the path: ``stats["p_sign_changes"]`` of the result says which it is.
+the march by the path: ``ends.p_sign_changes`` of the result says which it is.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from ..grid.linear import Factorization, band_kernel
 from ..grid.newton import FullSteps, newton
 from ..grid.policy import Stage
-from ..grid.problem import GridRequest
+from ..grid.problem import BorderedLayout, GridRequest
 from .interleaved import Ends, NodeLayout
 from .phases import Boundary, assembly
 
@@ -119,25 +119,6 @@ class Hyperplane:
     tangent: np.ndarray
 
 
-@dataclass(frozen=True)
-class _PathLayout:
-    """``y = (x, s)``: the fixed-step problem's unknowns, then ``s``."""
-
-    base: object
-
-    @property
-    def size(self) -> int:
-        return self.base.size + 1
-
-    @property
-    def bandwidth(self) -> int:
-        """The bordered Jacobian's last row and column are full: not banded."""
-        return self.size
-
-    def time_index(self) -> np.ndarray:
-        return self.base.time_index()
-
-
 class _CorrectorSteps(FullSteps):
     """The corrector's Newton: full steps, converged when every ``|F_i|`` of the fixed-step
     problem (not the hyperplane's row) is below ``CORRECTOR_TOL max(1, |x|_inf)``."""
@@ -159,7 +140,7 @@ class _Path:
     def __init__(self, request, grid, times, a):
         self.grid, self.request = grid, request
         size = grid.layout.size
-        self.layout = _PathLayout(grid.layout)
+        self.layout = BorderedLayout(grid.layout)
         self.times, self.a, self.d = np.asarray(times, float), a, request.data.q_end - a
         self.F_s = np.zeros(size)
         self.F_s[-request.system.n:] = -self.d

@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
+from dataclasses import replace
 
 import numpy as np
 
@@ -48,7 +49,7 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
-from ...solution import Solution, Status
+from ...solution import EndsRecord, Solution, Status
 from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
 from ..accuracy.judgement import Judgement, Level, judge, motion_scales
 from ..columns import row_max_abs
@@ -121,9 +122,10 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         output: ``progress`` reports each Newton iteration (and IPOPT's log) on stderr.
 
     Returns:
-        A `Solution` whose ``stats`` hold each phase's solver verdict, the largest
+        A `Solution` whose ``ends`` (`EndsRecord`) holds each stage's solver run, the largest
         residuals, the action and the number of sign changes of each ``p`` component (which of
-        several solutions it is); failures are a status on it.
+        several solutions it is), and whose ``stats`` hold the solver's counts; failures are a
+        status on it.
     """
     output = coerce(output, Output, "output")
     if output.checkpoint is not None or output.stop is not None:
@@ -223,7 +225,8 @@ def _transfer(system, q_start, q_end, span: AtEnergy, *, nodes, scheme, params, 
                                 max_iter=resolved.max_iter,
                                 compilation=coerce(compilation, Compilation, "compilation"),
                                 accuracy=options.accuracy)
-    solution.stats["fixed_time_start"] = {"durations": durations, "message": fixed.message}
+    solution.transfer = replace(solution.transfer, fixed_time_start={"durations": durations,
+                                                                     "message": fixed.message})
     return attach(solution, system, theta, solution.t[-1])
 
 
@@ -381,13 +384,13 @@ def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
         else:
             message += "; sign changes of " + ", ".join(
                 f"p{i + 1}: {count}" for i, count in enumerate(sign_changes))
-    stats = {"solver": phase.solver, "phases": [stage.record() for stage in phases],
-             "return_status": phase.said, "iterations": phase.iterations,
+    stats = {"solver": phase.solver, "return_status": phase.said,
+             "iterations": phase.iterations,
              "iterations_total": sum(stage.iterations for stage in phases),
-             "action": assembly(request, request.scheme).action(x, request.theta)
-             if finite else math.nan,
-             "energy_scale": mean_step(request), "tau_floor": request.tau_floor,
-             "p_sign_changes": sign_changes, **checks}
+             "energy_scale": mean_step(request), "tau_floor": request.tau_floor}
+    found = EndsRecord(stages=tuple(replace(stage) for stage in phases),
+                       action=assembly(request, request.scheme).action(x, request.theta)
+                       if finite else math.nan, p_sign_changes=tuple(sign_changes), **checks)
     report, local_error = None, np.zeros(0)
     judged, judged_cpu = time.perf_counter(), time.process_time()
     if finite:
@@ -400,7 +403,7 @@ def _solution(request: GridRequest, x, phase, outcome, started) -> Solution:
         newton_iterations=stats["iterations_total"],
         timing={"build_s": request.build_s, "solve_s": total - request.build_s,
                 "accuracy_s": total - (judged - started), "accuracy_cpu_s": judged_cpu},
-        stats=stats)
+        stats=stats, ends=found)
     judge(solution, report, request.options.accuracy, local_error=local_error,
           advice="try more nodes")
     return solution

@@ -49,7 +49,7 @@ class Stage:
         return f"{self.solver}: {self.said}"
 
     def record(self) -> dict:
-        """The stage as ``stats["phases"]`` and ``meta.json`` keep it."""
+        """The stage as ``meta.json`` keeps it (``phases``)."""
         record = {"phase": self.name, "solver": self.solver, "converged": self.converged,
                   "return_status": self.said, "iterations": self.iterations,
                   "seconds": self.seconds}

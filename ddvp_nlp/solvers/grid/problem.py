@@ -88,6 +88,26 @@ def parameter_blocks(function: ca.Function, shared: int, grid, theta: np.ndarray
     return values[:, :, :width if columns is None else columns]
 
 
+@dataclass(frozen=True)
+class BorderedLayout:
+    """The layout of a problem bordered by one more unknown (a continuation's parameter or
+    arclength): ``base``'s unknowns, then one; its Jacobian's last row and column are full, so
+    it is not banded."""
+
+    base: object
+
+    @property
+    def size(self) -> int:
+        return self.base.size + 1
+
+    @property
+    def bandwidth(self) -> int:
+        return self.size
+
+    def time_index(self) -> np.ndarray:
+        return self.base.time_index()
+
+
 @dataclass
 class GridResult:
     """What a grid solver returns: the point it ended on, whether it says it converged, what
@@ -122,8 +142,8 @@ class GridRequest(Generic[Data]):
 
     Attributes:
         system, scheme: the system and the scheme whose equations are solved.
-        nodes: the grid's size as the family's function was given it (nodes, or intervals of a
-            closed grid).
+        nodes: the grid's nodes, ``nodes=`` of the family's function (a closed orbit of ``N``
+            intervals has ``N + 1`` nodes, its last the first's image; `intervals`).
         theta: the parameter vector.
         data: the family's problem data (``bvp.Boundary``, ``periodic.Orbit``,
             ``higher.problem.FixedNodes``).
@@ -148,6 +168,11 @@ class GridRequest(Generic[Data]):
     deadline: float | None = None
     build_s: float = 0.0
     phases: list = field(default_factory=list)
+
+    @property
+    def intervals(self) -> int:
+        """The grid's intervals, ``nodes - 1``."""
+        return self.nodes - 1
 
     @property
     def solver(self) -> str:

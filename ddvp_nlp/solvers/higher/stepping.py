@@ -10,6 +10,7 @@ verified in ``window_solve.py``.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from types import MappingProxyType
 
 import casadi as ca
@@ -20,7 +21,7 @@ from ...discrete.higher_order_action import action, check_rule
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.higher_order import HigherOrderSystem
-from ...solution import Solution, Status
+from ...solution import HigherRecord, Solution, Status
 from ...validation import check_finite_array, check_integer, check_real
 from ..accuracy.judgement import judge
 from ..compiler import find_compiler
@@ -115,11 +116,11 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     solution = _higher_solution(
         system, z[:, 0].copy(), z[:, 1:].copy(), request.theta, status, message, rule,
         {"build_s": request.build_s, "solve_s": total - request.build_s},
-        {**residuals, "iterations": phase.iterations,
+        {"iterations": phase.iterations,
          "iterations_total": sum(stage.iterations for stage in request.phases),
          "solver": phase.solver, "return_status": phase.said,
-         "phases": [stage.record() for stage in request.phases],
-         "tau_floor": request.tau_floor})
+         "tau_floor": request.tau_floor},
+        stages=tuple(replace(stage) for stage in request.phases), residuals=residuals)
     l = system.order  # noqa: E741 (l is the order, as in the paper)
     fixed = np.concatenate([np.arange(l), np.arange(nodes - l, nodes)])
     _judge(solution, system, request.theta, request.options.accuracy,
@@ -169,10 +170,10 @@ def bvp_request(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop, *, 
     return request
 
 
-def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
+def _higher_solution(system, t, q, theta, status, message, rule, timing, stats, **found):
     """A `Solution` whose ``p`` is the multiplier ``lambda_1`` (the momentum conjugate to
     ``q``) at the nodes where the recursion defines it (``k = l-1 .. N-1-l``; the others repeat
-    the nearest defined value and are listed in ``stats["p_defined"]``)."""
+    the nearest defined value and are listed in ``higher.p_defined``)."""
     first, E = grid_energies(system, t, q, theta) if t.size > 2 * system.order else (
         np.zeros((0, system.n)), np.zeros(0))
     p = np.zeros_like(q)
@@ -184,7 +185,8 @@ def _higher_solution(system, t, q, theta, status, message, rule, timing, stats):
     return Solution(t=t, q=q, p=p, status=status, message=message, scheme=rule,
                     energy_residual=np.diff(E) if E.size else np.zeros(0),
                     canonical_residual=np.zeros(0), timing=timing,
-                    stats={**stats, "energy": E, "p_defined": [lo, lo + first.shape[0]]})
+                    stats=dict(stats),
+                    higher=HigherRecord(E, (lo, lo + first.shape[0]), **found))
 
 
 

@@ -39,6 +39,9 @@ Where things are:
 - ``derivatives.py``: ``march(..., derivatives=...)``, the exact derivatives of the states at
   ``t_eval`` in ``q0``, ``p0`` and the parameters, step lengths included (the ``Sensitivity``
   monitor);
+- ``scipy_method.py``: ``DDVP``, the march as a method of scipy's ``solve_ivp`` (an
+  ``OdeSolver`` handing out the march's nodes one step at a time, with its Hermite dense
+  output); not imported here, so that a march loads no ``scipy.integrate``;
 - ``backward.py``: a march with ``t_end < t0``, backwards in time, as the forward march of the
   time-reversed ``H(q, -p, -t)`` mapped back node by node.
 

@@ -159,6 +159,8 @@ def _forward(solution, system, t_end: float):
                              for z in solution.z_events]
     if solution.verdict is not None:
         solution.verdict = solution.verdict.time_reversed()
-    solution.stats["backward"] = True
-    theta = np.asarray(solution.stats.get("theta", system.parameter_vector()), dtype=float)
+    if solution.march is not None:  # a compared method keeps no march record
+        solution.march.backward = True
+    theta = solution.march.theta if solution.march is not None else system.parameter_vector()
+    theta = np.asarray(theta, dtype=float)
     return attach(solution, system, theta, t_end)

@@ -108,7 +108,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         target_error: the trajectory error asked for, relative to the motion's size: the
             march chooses its own first step from a pilot march at ``tau0`` over the start of
             the span, so that the run is ``accurate`` at ``global_tol = target_error``, with
-            one second try where it is not (``target.py``); ``stats["target_error"]`` holds
+            one second try where it is not (``target.py``); ``march.target_error`` holds
             the choice and what it cost.
         derivatives: inputs to differentiate the states at ``output.t_eval`` in, any of
             ``"q0"``, ``"p0"``, ``"params"``: ``Solution.derivatives`` then holds
@@ -125,7 +125,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     The solvability monitor (energy rules): at every node the site-density weight
     ``w = f' H_zz f = -8 c(z)`` (docs/theory.md section 7). A positive step needs ``c`` to keep its
     sign and the step to be short against the change of ``w``; the march warns (a
-    ``RuntimeWarning`` and ``stats["solvability_warning"]``) at the first node where ``w``
+    ``RuntimeWarning`` and ``march.solvability_warning``) at the first node where ``w``
     changes sign or ``|ln(w_k / w_{k-1})|`` exceeds ``MONITOR_LIMIT`` (``monitors.py``).
     ``Solution.solvability`` holds ``c(z_k)`` at every node.
 

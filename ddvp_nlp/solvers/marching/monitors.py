@@ -176,9 +176,9 @@ class SolvabilityMonitor(MarchMonitor):
         return cls(float(t0), float(w_first[0, 0]), session.thinning)
 
     def finish(self, solution, outcome):
-        """``Solution.solvability`` at the kept nodes and ``stats["solvability_warning"]``."""
+        """``Solution.solvability`` at the kept nodes and ``march.solvability_warning``."""
         solution.solvability = self.solvability(outcome.marched)
-        solution.stats["solvability_warning"] = self.warning
+        solution.march.solvability_warning = self.warning
 
     @property
     def weights(self) -> list[float]:
@@ -377,8 +377,8 @@ class Checkpoint(MarchMonitor):
         """What the checkpoints cost (``timing["checkpoint_s"]``), how many there were and
         when each landed."""
         solution.timing["checkpoint_s"] = self.seconds
-        solution.stats["checkpoints"] = self.saves
-        solution.stats["checkpoints_landed_s"] = [round(t, 3) for t in self.landed]
+        solution.march.checkpoints = self.saves
+        solution.march.checkpoints_landed_s = [round(t, 3) for t in self.landed]
 
 
 def with_state(save, carry):

@@ -45,7 +45,7 @@ class MarchState:
 
     @classmethod
     def of(cls, t, q, p, t_end: float, carried: dict | None) -> MarchState:
-        """From a run's arrays and its ``carried`` record (``Solution.stats["carried"]``,
+        """From a run's arrays and its ``carried`` record (``Solution.march.carried``,
         ``meta.json``'s ``carried``); an `InputError` says what is missing."""
         if not isinstance(carried, dict) or not {"drift", "careful_left", "phase"} <= set(
                 carried):
@@ -88,7 +88,7 @@ class MarchState:
 class CarryTracker(MarchMonitor):
     """A monitor that keeps the carried state of the newest kept node (never ends the run),
     from the state a continued march starts with (`of`); the session's own (``session.carry``:
-    a `Checkpoint` saves it), ``stats["carried"]`` at the end."""
+    a `Checkpoint` saves it), ``march.carried`` at the end."""
 
     rewatch = False  # it starts from the earlier run's carried state
 
@@ -118,8 +118,8 @@ class CarryTracker(MarchMonitor):
                 "phase": int(self.last[2])}
 
     def finish(self, solution, outcome):
-        """``stats["carried"]``, for `MarchState.of`."""
-        solution.stats["carried"] = self.state()
+        """``march.carried``, for `MarchState.of`."""
+        solution.march.carried = self.state()
 
 
 def check_resume(state: MarchState, problem, variable_steps: bool) -> None:

@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...cache import cached
-from ...solution import Solution, Status
+from ...solution import MarchRecord, Solution, Status
 from ..accuracy.judgement import CheckStopped, Judgement, judge
 from ..accuracy.streaming import StreamingJudgement
 from ..columns import row_max_abs
@@ -174,11 +174,11 @@ class MarchSession:
             message=outcome.message, scheme=problem.scheme.rule, energy_residual=energy,
             canonical_residual=canonical, newton_iterations=parts.newton.newton_iterations,
             timing={**timing, "compile_s": fast_chunk.compile_s if fast_chunk else 0.0},
-            stats={"retries": parts.newton.retries, "theta": problem.theta.tolist(),
+            stats={"retries": parts.newton.retries,
                    "path": fast_chunk.path if fast_chunk else "careful",
                    "fast_steps": tally.fast_steps, "careful_steps": tally.careful_steps,
-                   "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback,
-                   "solvability_warning": None, "least_squares": tally.least_squares})
+                   "fallbacks": tally.fallbacks, "first_fallback": tally.first_fallback},
+            march=MarchRecord(theta=problem.theta.tolist(), least_squares=tally.least_squares))
 
     def _rechecked(self, outcome, timing) -> Solution:
         """The `Solution` with every equation recomputed on the returned grid (compiled with
@@ -241,12 +241,12 @@ class MarchSession:
 
     def _thinned(self, outcome, timing) -> Solution:
         """The `Solution` of a thinned march: the kept nodes and what `Thinning` kept of the
-        rest (``stats["kept"]``, the ``t_eval`` states); the verdict of the streamed check."""
+        rest (``march.kept``, the ``t_eval`` states); the verdict of the streamed check."""
         started = time.perf_counter()
         thinning, t = self.thinning, outcome.t
         kept = thinning.arrays(outcome.z.shape[1])
         solution = self._solution(outcome, timing, kept["canonical"], kept["energy"])
-        solution.stats["kept"] = thinning.record(outcome.marched, int(t.size))
+        solution.march.kept = thinning.record(outcome.marched, int(t.size))
         if self.accuracy is not None:
             judge(solution, thinning.judge.report(float(t[-1])), self.accuracy,
                   local_error=kept["local"])

@@ -22,7 +22,7 @@ behaves like ``C(T) tau0^2``. The choice:
    the step the verdict asks for: from a drift at ``t_drift`` the same growth law to the end,
    from a failed local or energy test a quarter of the step.
 
-The solution carries the choice and its cost in ``stats["target_error"]``: the pilot (span,
+The solution carries the choice and its cost in ``march.target_error``: the pilot (span,
 steps, error, fitted growth, CPU), each run (``tau0``, verdict, steps, CPU) and the total CPU.
 """
 
@@ -102,7 +102,7 @@ def march_to_error(run, system, z0, t0: float, t_end: float, tau0: float, theta,
         step = _retried(step, solution.verdict, t0, t_end, target, beta)
     record["tau0"] = record["runs"][-1]["tau0"]
     record["cpu_s"] = time.process_time() - started
-    solution.stats["target_error"] = record
+    solution.march.target_error = record
     return solution
 
 
@@ -115,7 +115,7 @@ def _pilot_failed(pilot, tau0: float, record: dict, started: float):
                         "; give a smaller tau0 to start from"))
     record["tau0"] = None
     record["cpu_s"] = time.process_time() - started
-    pilot.stats["target_error"] = record
+    pilot.march.target_error = record
     return pilot
 
 

@@ -8,7 +8,7 @@ The driver (rule 7) hands `Thinning` the nodes every monitor has seen once more 
   node;
 - feeds every step to the accuracy check (``accuracy/streaming.py``), which keeps bounded state;
 - recomputes every equation (``recheck.py``): the largest residuals of all steps go to
-  ``stats["kept"]``, and the residual of the step from each kept node (canonical), at each kept
+  ``march.kept``, and the residual of the step from each kept node (canonical), at each kept
   interior node (energy), is kept as the `Solution`'s arrays;
 - reads the ``t_eval`` states that fall in it from the dense output of its nodes (the same
   Hermite interpolant `Solution.at` reads from all nodes).
@@ -130,7 +130,7 @@ class Thinning:
                 "z_eval": np.vstack(self.eval_z) if self.eval_z else np.zeros((0, width))}
 
     def record(self, marched: int, kept: int) -> dict:
-        """``stats["kept"]``: what was kept of how much."""
+        """``march.kept``: what was kept of how much."""
         return {"keep_every": self.every, "keep": self.keep, "nodes_marched": marched,
                 "nodes_kept": kept, "windows": self.windows,
                 "tau_min": self.tau_min if self.windows else None,

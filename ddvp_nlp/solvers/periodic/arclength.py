@@ -48,6 +48,7 @@ from ...errors import InputError
 from ...solution import Solution
 from ...validation import check_integer, check_real
 from ..grid.newton import newton
+from ..grid.problem import BorderedLayout
 from ..options import GridOptions, coerce
 from .bifurcation import KINDS, confirm, tests
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
@@ -128,7 +129,7 @@ class Bifurcation:
     def as_dict(self) -> dict:
         indices = self.stability.indices
         return {"kind": self.kind, "energy": self.energy, "bracket": list(self.bracket),
-                "after_member": self.after, "period": self.orbit.stats["period"],
+                "after_member": self.after, "period": self.orbit.orbit.period,
                 "indices": [[float(k.real), float(k.imag)] for k in indices],
                 "status": self.orbit.status.code, **self.extra}
 
@@ -160,29 +161,13 @@ class _Arc:
     length: float
 
 
-@dataclass(frozen=True)
-class _ArcLayout:
-    base: object
-
-    @property
-    def size(self) -> int:
-        return self.base.size + 1
-
-    @property
-    def bandwidth(self) -> int:
-        return self.size
-
-    def time_index(self) -> np.ndarray:
-        return self.base.time_index()
-
-
 class ArclengthSystem:
     """``F(x; E)`` with ``E`` the last unknown, and the arclength row (module docstring): a
     ``grid.GridProblem`` for the grid's Newton (sparse LU)."""
 
     def __init__(self, assembly: PeriodicAssembly):
         self.base = assembly
-        self.layout = _ArcLayout(assembly.layout)
+        self.layout = BorderedLayout(assembly.layout)
         N, m, h = assembly.layout.intervals, assembly.layout.m, assembly.header
         rows = h + np.arange(N) * m + m - 1  # the rows H(Q_k, P_k) - E
         self.energy_column = sp.csc_matrix((-np.ones(N), (rows, np.zeros(N, int))),
@@ -318,20 +303,20 @@ class _Walker:
 
     def _closure(self, orbit: Solution) -> Closure:
         n = self.system.n
-        index, value, _ = parse_section(orbit.stats["section"], n)
+        index, value, _ = parse_section(orbit.orbit.section, n)
         z = np.hstack([orbit.q, orbit.p])
         generators = np.zeros((len(self.integrals), 2 * n))
         if self.integrals:
             gradients = np.asarray(integral_gradients(self.system, self.integrals)(
                 z[0, :n], z[0, n:], self.theta))[:, 1:].T
             generators = np.hstack([gradients[:, n:], -gradients[:, :n]])
-        angles = tuple(i for i, w in enumerate(orbit.stats["winding"]) if w)
-        return Closure(float(orbit.stats["energy"]), index, value, self.theta, z[0].copy(),
+        angles = tuple(i for i, w in enumerate(orbit.orbit.winding) if w)
+        return Closure(float(orbit.orbit.energy), index, value, self.theta, z[0].copy(),
                        generators, closing_shift(z[0], z[-1], angles))
 
     def _point(self, orbit: Solution) -> np.ndarray:
         x = self.assembly.layout.pack(orbit.t - orbit.t[0], orbit.q, orbit.p)
-        return np.r_[x, float(orbit.stats["energy"])]
+        return np.r_[x, float(orbit.orbit.energy)]
 
     def _accept(self, orbit: Solution, tangent_before, arclength: float) -> None:
         y = self._point(orbit)

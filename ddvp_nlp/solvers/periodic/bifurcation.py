@@ -69,9 +69,9 @@ def confirm(system, theta, orbit, kind: str, *, section_index: int, section_valu
     `Solution` at the located energy), or ``None`` if the exact test function does not
     change sign within the widest bracket."""
     integrals = tuple(integrals)
-    energy = float(orbit.stats["energy"])
-    start = (np.concatenate([orbit.q[0], orbit.p[0]]), float(orbit.stats["period"]))
-    shift = np.concatenate([2 * np.pi * np.asarray(orbit.stats["winding"], float),
+    energy = float(orbit.orbit.energy)
+    start = (np.concatenate([orbit.q[0], orbit.p[0]]), float(orbit.orbit.period))
+    shift = np.concatenate([2 * np.pi * np.asarray(orbit.orbit.winding, float),
                             np.zeros(system.n)])
     seen = {"count": 0, "closure": 0.0}
 
@@ -125,7 +125,7 @@ def _fold(closed, orbit, energy: float, seen: dict) -> Confirmation | None:
     """The exact fold: the zero of ``dE/dT`` along the exact family parametrised by its period
     (module docstring), bracketed around the discrete orbit's period and located by Brent's
     method; each exact orbit starts from the last one found."""
-    period = float(orbit.stats["period"])
+    period = float(orbit.orbit.period)
     state = {"start": (np.concatenate([orbit.q[0], orbit.p[0]]), period), "energy": energy}
 
     def slope(level_period):

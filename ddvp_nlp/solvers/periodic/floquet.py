@@ -335,7 +335,7 @@ def orbit_stability(system, solution: Solution, *, params=None, integrals=(),
 
     Args:
         system: the system the orbit was solved for.
-        solution: the orbit (its ``stats`` give the energy and the section).
+        solution: the orbit (its ``orbit`` gives the energy and the section).
         params: the system's parameter values.
         integrals: the first integrals given to ``solve_periodic``.
         tol: the tolerance on the stability indices for the verdict.
@@ -346,16 +346,16 @@ def orbit_stability(system, solution: Solution, *, params=None, integrals=(),
         discrete orbit's defect) and ``monodromy_norm``.
     """
     tol = check_real("tol", tol, positive=True)
-    if not isinstance(solution, Solution) or "period" not in solution.stats:
+    if not isinstance(solution, Solution) or solution.orbit is None:
         raise InputError("solution must be a periodic orbit returned by solve_periodic")
     integrals = tuple(integrals)
-    solved_with = len(solution.stats.get("integral_unfoldings", []))
+    solved_with = len(solution.orbit.integral_unfoldings)
     if len(integrals) != solved_with:
         raise InputError(f"integrals: the orbit was solved with {solved_with} integrals, got "
                          f"{len(integrals)}")
-    index, _, _ = parse_section(solution.stats["section"], system.n)
+    index, _, _ = parse_section(solution.orbit.section, system.n)
     return discrete_stability(system, Scheme.coerce(solution.scheme), solution.t, solution.q,
-                              solution.p, energy=float(solution.stats["energy"]),
+                              solution.p, energy=float(solution.orbit.energy),
                               section_index=index, theta=system.parameter_vector(params),
                               integrals=integrals, tol=tol)
 
@@ -392,11 +392,11 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
     stability = orbit_stability(system, orbit, params=params, integrals=integrals, tol=tol)
     if exact:
         theta = system.parameter_vector(params)
-        index, value, _ = parse_section(orbit.stats["section"], system.n)
-        shift = np.concatenate([2 * np.pi * np.asarray(orbit.stats["winding"], float),
+        index, value, _ = parse_section(orbit.orbit.section, system.n)
+        shift = np.concatenate([2 * np.pi * np.asarray(orbit.orbit.winding, float),
                                 np.zeros(system.n)])
         closed = close_exact(system, theta, np.concatenate([orbit.q[0], orbit.p[0]]),
-                             float(orbit.stats["period"]), energy=float(orbit.stats["energy"]),
+                             float(orbit.orbit.period), energy=float(orbit.orbit.energy),
                              section_index=index, section_value=value,
                              integrals=tuple(integrals), shift=shift)
         stability.exact_orbit = closed

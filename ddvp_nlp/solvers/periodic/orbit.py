@@ -94,8 +94,8 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
-from ...solution import Solution, Status
-from ...validation import check_integer, check_real, check_state
+from ...solution import OrbitRecord, Solution, Status
+from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..grid.newton import newton
@@ -204,24 +204,27 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             either solver (default 100) and IPOPT's log (`GridOptions`).
 
     Returns:
-        A `Solution` with ``N + 1`` nodes; ``stats`` holds ``period``, ``energy``,
-        ``unfolding`` (``lambda``), ``winding``, the largest residuals of each kind, the
-        accuracy estimate (``accuracy``: against RK4 steps of the exact flow) and the solver's
-        ``attempts``; ``energy_residual`` holds the scheme's energy equation at nodes ``1 ..
-        N`` (node ``N`` the wrap-around). No orbit found is a failure status with the
-        residuals in the message; an orbit whose steps do not follow the exact flow is
-        ``inaccurate``.
+        A `Solution` with ``N + 1`` nodes; ``orbit`` (`OrbitRecord`) holds ``period``,
+        ``energy``, ``unfolding`` (``lambda``), ``winding`` and the largest residuals of each
+        kind, ``verdict`` the accuracy check (every interval against the exact flow, the
+        orbit's energy against the one prescribed, and the exact flow from the first node
+        closing on the orbit over the period: `_accuracy`) and
+        ``stats`` the solver's counts and ``attempts``; ``energy_residual`` holds the
+        scheme's energy equation at nodes ``1 .. N`` (node ``N`` the wrap-around). No orbit
+        found is a failure status with the residuals in the message; an orbit whose steps
+        do not follow the exact flow is ``inaccurate``.
     """
     integrals = check_integrals(integrals)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
                        coerce(options, GridOptions, "options"))
     started = request.start_clock()
-    intervals = request.nodes  # a closed grid's request counts its intervals
+    intervals = request.intervals
     levels = node_levels(intervals) if request.data.guess is None else [intervals]
     t, z = _start_nodes(request, levels[0])
 
     def solve_level(intervals, t, z):
-        return _solve_on(replace(request, nodes=intervals, phases=[]), t, z, integrals, started)
+        return _solve_on(replace(request, nodes=intervals + 1, phases=[]), t, z, integrals,
+                         started)
 
     solution, records = continue_in_nodes(solve_level, t, z, levels, request.data.angles)
     if solution.status not in (Status.SUCCESS, Status.INACCURATE) \
@@ -238,12 +241,12 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
 
 
 def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution:
-    """The orbit on ``request.nodes`` intervals from the nodes ``(t, z)``: each solver of the
-    request's option in turn until one's point holds the equations."""
-    system, nodes = request.system, request.nodes
+    """The orbit on ``request.intervals`` intervals from the nodes ``(t, z)``: each solver of
+    the request's option in turn until one's point holds the equations."""
+    system, intervals = request.system, request.intervals
     closure = _closure(request, z, integrals)
     began = time.perf_counter()
-    assembly = PeriodicAssembly(system, request.scheme, nodes, integrals)
+    assembly = PeriodicAssembly(system, request.scheme, intervals, integrals)
     request.build_s += time.perf_counter() - began
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
     scale = max(1.0, float(np.max(np.abs(x0))), abs(request.data.energy))
@@ -280,7 +283,7 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integr
         result.outcome = f"newton: {result.outcome}"
         return result
     began = time.perf_counter()  # the build (or the cache's answer) counts as build time
-    problem = periodic_ipopt(request.system, request.scheme, request.nodes, integrals,
+    problem = periodic_ipopt(request.system, request.scheme, request.intervals, integrals,
                              request.data.index, tol=request.tol, max_iter=request.max_iter,
                              verbose=request.verbose, time_limit=request.remaining())
     request.build_s += time.perf_counter() - began
@@ -290,10 +293,10 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integr
 def _tau_floor(request: GridRequest, period: float) -> float:
     """``options.tau_floor`` if given (below the start's mean step), else a thousandth of the
     start's mean step."""
-    mean = period / request.nodes
+    mean = period / request.intervals
     floor = request.options.tau_floor
     if floor is None:
-        return 1e-3 * period / request.nodes
+        return 1e-3 * period / request.intervals
     if floor >= mean:
         raise InputError(f"tau_floor must be < the start's mean step {mean!r}, got {floor!r}")
     return floor
@@ -370,7 +373,7 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
             raise
     else:
         orbit.guess = guess_nodes(guess, n, intervals, angle_indices)
-    return GridRequest(system, scheme, intervals, theta, orbit,
+    return GridRequest(system, scheme, intervals + 1, theta, orbit,
                        options.resolved(max_iter=DEFAULT_MAX_ITER))
 
 
@@ -387,18 +390,8 @@ def check_integrals(integrals) -> tuple:
 
 def parse_angles(angles, n: int) -> tuple[int, ...]:
     """Indices into ``z = (q, p)`` (from 0) of the angle coordinates named ``"q1"`` ..
-    ``"qn"``."""
-    try:
-        names = (angles,) if isinstance(angles, str) else tuple(angles)
-    except TypeError:
-        raise InputError(f"angles must name coordinates q1..q{n}, got {angles!r}") from None
-    indices = []
-    for name in names:
-        match = re.fullmatch(r"q(\d+)", name) if isinstance(name, str) else None
-        if match is None or not 1 <= int(match.group(1)) <= n:
-            raise InputError(f"angles must name coordinates q1..q{n}, got {angles!r}")
-        indices.append(int(match.group(1)) - 1)
-    return tuple(sorted(set(indices)))
+    ``"qn"`` (`validation.check_angles`)."""
+    return check_angles(angles, n)
 
 
 def _start_nodes(request: GridRequest[Orbit], intervals: int):
@@ -442,7 +435,7 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     system, scheme, orbit = request.system, request.scheme, request.data
     t, q, p, unfolding = assembly.layout.unpack(result.x)
     finite = bool(np.all(np.isfinite(result.x)))
-    N, n = request.nodes, system.n
+    N, n = request.intervals, system.n
     if finite:
         canonical, energy, prescribed, closing = periodic_residuals(
             system, scheme, t, q, p, request.theta, orbit.energy, closure.shift)
@@ -459,19 +452,20 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     if finite:
         accuracy, local_error = _accuracy(request, t, q, p)
     winding = np.round(np.asarray(closure.shift, float) / (2 * np.pi)) * np.ones(2 * n)
-    stats = {"period": float(t[-1] - t[0]), "energy": orbit.energy,
-             "section": orbit.label, "unfolding": float(unfolding[0]),
-             "integral_unfoldings": unfolding[1:].tolist(), "limit": limit,
-             "winding": [int(winding[i]) for i in range(n)],
-             "residuals": worst, "iterations": result.iterations, "outcome": result.outcome,
-             "tau_min": float(np.min(np.diff(t))), "tau_max": float(np.max(np.diff(t)))}
+    found = OrbitRecord(period=float(t[-1] - t[0]), energy=orbit.energy, section=orbit.label,
+                        unfolding=float(unfolding[0]),
+                        integral_unfoldings=tuple(unfolding[1:].tolist()),
+                        residual_limit=limit, winding=tuple(int(winding[i]) for i in range(n)),
+                        residuals=worst, tau_min=float(np.min(np.diff(t))),
+                        tau_max=float(np.max(np.diff(t))))
     solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                         energy_residual=energy,
                         canonical_residual=np.max(np.abs(canonical), axis=1),
                         newton_iterations=result.iterations,
                         timing={"build_s": request.build_s,
                                 "solve_s": time.perf_counter() - started - request.build_s},
-                        stats=stats)
+                        stats={"iterations": result.iterations, "outcome": result.outcome},
+                        orbit=found)
     judge(solution, accuracy, request.options.accuracy, local_error=local_error,
           advice="try more nodes")
     return solution

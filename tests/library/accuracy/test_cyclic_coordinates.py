@@ -95,3 +95,56 @@ def test_a_winding_coordinate_added_leaves_the_verdict_and_the_scales(drawn):
     # below the verdict's thresholds (1e-2)
     assert np.asarray(b.scale)[old] == pytest.approx(np.asarray(a.scale), rel=1e-6, abs=1e-12)
     assert b.energy_scale == pytest.approx(a.energy_scale, rel=1e-6)
+
+
+def rotor_pair():
+    """A pendulum coupled to a rotor: ``H`` is ``2 pi``-periodic in both angles, neither is
+    cyclic, and the rotor's angle winds (its range grows with the horizon)."""
+    return HamiltonianSystem(lambda q, p, t: (p[0] ** 2 + p[1] ** 2) / 2 + (1 - ca.cos(q[0]))
+                             + 0.3 * (1 - ca.cos(q[0] - q[1])), 2, name="rotor_pair")
+
+
+def test_a_winding_angle_counts_one_turn_for_itself_and_the_others():
+    """Before, the pendulum's angle was judged against a tenth of the rotor's winding (14 rad
+    at t = 50, 116 rad at t = 400) and the energy against 28-225 for |H| about 5."""
+    system = rotor_pair()
+    runs = [march(system, [0.3, 0.0], [0.0, 3.0], (0.0, t_end), tau0=0.02, scheme="fixed",
+                  compilation=VM, accuracy=CHECK) for t_end in (50.0, 400.0)]
+    for run in runs:
+        scale = run.verdict.scale
+        assert np.ptp(run.q[:, 1]) > 100 and scale[1] == pytest.approx(2 * np.pi)
+        assert scale[0] == pytest.approx(np.ptp(run.q[:, 0]), rel=0.05)
+    assert runs[1].verdict.energy_scale == pytest.approx(runs[0].verdict.energy_scale,
+                                                         rel=0.05)
+    # a whole turn added to the rotor's start changes nothing of the verdict
+    shifted = march(system, [0.3, 2 * np.pi], [0.0, 3.0], (0.0, 50.0), tau0=0.02,
+                    scheme="fixed", compilation=VM, accuracy=CHECK)
+    assert shifted.verdict.name == runs[0].verdict.name
+    assert np.asarray(shifted.verdict.scale) == pytest.approx(np.asarray(runs[0].verdict.scale),
+                                                              rel=1e-6)
+
+
+def test_a_declared_azimuth_is_judged_within_a_turn():
+    """The spherical pendulum's azimuth, declared an angle: judged within a turn (2 pi), not
+    against the hundreds of radians it winds; undeclared, a cyclic coordinate keeps its own
+    range (it may as well be a free direction, in any units)."""
+    def H(q, p, t):
+        return p[0] ** 2 / 2 + p[1] ** 2 / (2 * ca.sin(q[0]) ** 2) - ca.cos(q[0])
+    declared = HamiltonianSystem(H, 2, name="spherical", angles=("q2",))
+    run = march(declared, [2.0, 0.0], [0.0, 1.2], (0.0, 100.0), tau0=0.05, accuracy=CHECK)
+    assert np.ptp(run.q[:, 1]) > 100
+    assert run.verdict.scale[1] == pytest.approx(2 * np.pi)
+    plain = march(spherical_pendulum(), [2.0, 0.0], [0.0, 1.2], (0.0, 100.0), tau0=0.05,
+                  accuracy=CHECK)
+    assert plain.verdict.scale[1] >= np.ptp(plain.q[:, 1])
+    # stricter on the azimuth, the same on the rest
+    assert run.verdict.scale[0] == pytest.approx(plain.verdict.scale[0], rel=1e-9)
+    assert run.verdict.t_drift <= plain.verdict.t_drift
+
+
+@pytest.mark.parametrize("angles", [("q3",), ("x",), (1,), "q0"])
+def test_bad_angles_are_refused_by_name(angles):
+    from ddvp_nlp import InputError
+
+    with pytest.raises(InputError, match=r"angles must name coordinates q1\.\.q2"):
+        HamiltonianSystem(lambda q, p, t: p[0] ** 2 + p[1] ** 2, 2, angles=angles)

@@ -168,7 +168,7 @@ def test_compiled_and_vm_newton_return_the_same_nodes(cache, name, nodes, most):
     vm = _solve(name, NOTHING_COMPILED, nodes)
     for solution in (compiled, vm):
         assert solution.success, solution.message
-    counts = [[ph["iterations"] for ph in s.stats["phases"]] for s in (compiled, vm)]
+    counts = [[ph.iterations for ph in s.ends.stages] for s in (compiled, vm)]
     assert len(counts[0]) == len(counts[1])
     assert all(abs(a - b) <= 1 for a, b in zip(*counts, strict=True))
     assert sum(counts[0]) <= most

@@ -41,9 +41,9 @@ def test_a_fixed_step_march_as_guess_is_moved_to_the_predicted_times_first():
     solution = solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
                          params={"e": E}, guess=marched, options=GridOptions(solver="newton"))
     assert solution.success, solution.message
-    names = [ph["phase"] for ph in solution.stats["phases"]]
+    names = [ph.name for ph in solution.ends.stages]
     assert names == ["fixed steps, predicted times (from the guess)", "vddvp equations"]
-    assert solution.stats["phases"][-1]["iterations"] <= 8
+    assert solution.ends.stages[-1].iterations <= 8
     assert revolutions(solution) == pytest.approx(3.0, abs=0.05)
 
 
@@ -62,7 +62,7 @@ def test_a_guess_that_already_solves_the_equations_is_taken_as_it_is():
         options=GridOptions(solver="newton"),
     )
     assert solution.success, solution.message
-    assert [ph["phase"] for ph in solution.stats["phases"]] == ["vddvp equations"]
+    assert [ph.name for ph in solution.ends.stages] == ["vddvp equations"]
     assert np.max(np.abs(solution.t - marched.t)) < 1e-10
 
 
@@ -94,7 +94,7 @@ def test_the_straight_start_reaches_a_branch_without_solution_and_says_so():
     assert not solution.success
     assert "w = f' H_zz f <= 0 on" in solution.message
     assert "IPOPT not tried from this start" in solution.message
-    assert all(ph["solver"] == "newton" for ph in solution.stats["phases"])
+    assert all(ph.solver == "newton" for ph in solution.ends.stages)
     assert abs(revolutions(solution)) < 0.05  # out and back, not round
     assert np.isfinite(solution.canonical_residual).all()
 
@@ -107,10 +107,10 @@ def test_shooting_from_the_orbits_momentum_finds_the_three_revolutions():
     solution = solve_bvp(system, Q0, marched.q[-1], (0.0, marched.t[-1]), nodes=1000,
                          params={"e": E}, guess=Shooting([0.0, 1.7320508]))
     assert solution.success, solution.message
-    assert solution.stats["phases"][0]["phase"] == "shooting (march)"
+    assert solution.ends.stages[0].name == "shooting (march)"
     assert revolutions(solution) == pytest.approx(3.0, abs=0.05)
-    assert solution.stats["p_sign_changes"] == [6, 6]
-    assert sum(ph["iterations"] for ph in solution.stats["phases"][1:]) <= 25
+    assert solution.ends.p_sign_changes == (6, 6)
+    assert sum(ph.iterations for ph in solution.ends.stages[1:]) <= 25
 
 
 def test_p_start_is_checked():
@@ -158,7 +158,7 @@ def test_auto_retries_a_fixed_phase_with_ipopt_where_newton_stalls():
     assert marched.success
     auto = solve_bvp(system, [0.0, 0.1], marched.q[-1], (0.0, marched.t[-1]), nodes=marched.t.size)
     assert auto.success, auto.message
-    phases = [(ph["phase"], ph["solver"], ph["converged"]) for ph in auto.stats["phases"]]
+    phases = [(ph.name, ph.solver, ph.converged) for ph in auto.ends.stages]
     assert phases[:2] == [("fixed steps, uniform times", "newton", False),
                           ("fixed steps, uniform times", "ipopt", True)]
     assert phases[-1] == ("vddvp equations", "newton", True)
@@ -177,12 +177,12 @@ def test_the_continuation_solves_what_newton_and_ipopt_miss_from_the_straight_li
         system, [0.0, 0.1], marched.q[-1], (0.0, marched.t[-1]), nodes=marched.t.size
     )
     assert solution.success, solution.message
-    phases = solution.stats["phases"]
-    assert [(ph["solver"], ph["converged"]) for ph in phases[:2]] == [("newton", False),
-                                                                      ("ipopt", False)]
+    phases = solution.ends.stages
+    assert [(ph.solver, ph.converged) for ph in phases[:2]] == [("newton", False),
+                                                                ("ipopt", False)]
     continued = phases[2]
-    assert continued["phase"].startswith("continuation in q_end") and continued["converged"]
-    assert continued["steps"] <= 300
+    assert continued.name.startswith("continuation in q_end") and continued.converged
+    assert continued.steps <= 300
     assert solution.verdict.first_failure is None
 
 

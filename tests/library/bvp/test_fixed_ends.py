@@ -100,7 +100,7 @@ def test_unreachable_endpoints_end_with_a_status_and_residuals(rule, solver):
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED,
                                Status.NO_ADMISSIBLE_STEP)
     assert solution.t.size == M + 1 and solution.q.shape == (M + 1, 1)
-    assert solution.stats["canonical_residual_max"] > 1e-3
+    assert solution.ends.canonical_residual_max > 1e-3
     assert solution.canonical_residual.shape == (M,)
 
 

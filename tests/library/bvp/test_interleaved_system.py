@@ -137,7 +137,7 @@ def test_newton_iterations_stay_few_and_repeat_at_twenty_thousand_nodes():
         for _ in range(2)
     ]
     assert all(r.success for r in runs), runs[0].message
-    counts = [[ph["iterations"] for ph in r.stats["phases"]] for r in runs]
+    counts = [[ph.iterations for ph in r.ends.stages] for r in runs]
     assert counts[0] == counts[1]
     assert counts[0][-1] <= 3 and max(counts[0]) <= 8, counts
 
@@ -150,7 +150,7 @@ def test_a_harmonic_problem_solved_to_round_off_is_a_success():
         system, [1.0], [0.5], (0.0, 3.0), nodes=121, options=GridOptions(solver="newton")
     )
     assert solution.success, solution.message
-    assert solution.stats["canonical_residual_max"] < 1e-13
+    assert solution.ends.canonical_residual_max < 1e-13
     assert "(newton: converged" in solution.message
 
 
@@ -173,11 +173,11 @@ def test_guess_march_finds_the_branch_the_straight_line_misses():
         for guess in ("straight", "march")
     )
     assert straight.success and shot.success, (straight.message, shot.message)
-    assert straight.stats["phases"][0]["converged"] is False
-    assert "continuation" in straight.stats["phases"][1]["phase"]
-    assert straight.stats["p_sign_changes"] == [2]
-    assert shot.stats["phases"][0]["phase"] == "shooting (march)"
-    assert shot.stats["p_sign_changes"] == [3]
+    assert straight.ends.stages[0].converged is False
+    assert "continuation" in straight.ends.stages[1].name
+    assert straight.ends.p_sign_changes == (2,)
+    assert shot.ends.stages[0].name == "shooting (march)"
+    assert shot.ends.p_sign_changes == (3,)
     assert "p changes sign 3 times" in shot.message
     assert np.max(np.abs(straight.q - shot.q)) > 0.1
 

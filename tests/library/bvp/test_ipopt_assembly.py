@@ -96,7 +96,7 @@ def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes(
     runs = [solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
                       options=GridOptions(solver="ipopt")) for _ in range(2)]
     assert all(r.success for r in runs), runs[0].message
-    counts = [[ph["iterations"] for ph in r.stats["phases"]] for r in runs]
+    counts = [[ph.iterations for ph in r.ends.stages] for r in runs]
     assert counts[0] == counts[1]
     assert counts[0][-1] <= 6 and max(counts[0]) <= 8, counts
     assert runs[0].stats["return_status"] in ("Solve_Succeeded",
@@ -116,10 +116,10 @@ def test_ipopt_is_not_run_from_a_start_that_passes_the_verification():
         assert solution.success, solution.message
         assert all(key[1] == Scheme("vddvp") for key in PROBLEMS.keys(system)
                    if key[0] == "bvp_ipopt")
-    assert coarse.stats["phases"][-1]["iterations"] > 0
+    assert coarse.ends.stages[-1].iterations > 0
     assert coarse.stats["return_status"] == "Solve_Succeeded"
-    assert fine.stats["phases"][-1]["iterations"] == 0
-    assert fine.stats["energy_residual_max"] <= fine.stats["energy_limit"]
+    assert fine.ends.stages[-1].iterations == 0
+    assert fine.ends.energy_residual_max <= fine.ends.energy_limit
     assert "not run: the start passes the verification" in fine.message
 
 

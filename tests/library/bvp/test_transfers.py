@@ -24,9 +24,9 @@ def test_pendulum_transfer_time_and_path_converge_at_order_two_to_shooting():
     times, paths = [], []
     for run in runs:
         assert run.success, run.message
-        residuals = run.stats["residuals"]
+        residuals = run.transfer.residuals
         assert residuals["prescribed_energy"] < 1e-13 and residuals["canonical"] < 1e-13
-        exact = run.stats["exact"]
+        exact = run.transfer.exact
         assert exact["converged"] and abs(exact["transfer_time"] - 9.62726042) < 1e-6
         times.append(abs(exact["time_difference"]))
         paths.append(exact["path_difference"])
@@ -44,7 +44,7 @@ def test_henon_heiles_transfer_from_the_straight_line_guess():
     differences = []
     for run in runs:
         assert run.success, run.message
-        exact = run.stats["exact"]
+        exact = run.transfer.exact
         assert exact["converged"]
         differences.append((abs(exact["time_difference"]), exact["path_difference"]))
     ratios = np.array(differences[0]) / np.array(differences[1])

@@ -243,7 +243,7 @@ def test_a_time_limit_reaches_every_grid_family(family, solver):
 
 def test_a_periodic_orbit_keeps_its_tau_floor_and_refuses_a_banded_lu():
     solution = FAMILIES["periodic"](GridOptions(tau_floor=0.02))
-    assert solution.success and solution.stats["tau_min"] >= 0.02
+    assert solution.success and solution.orbit.tau_min >= 0.02
     with pytest.raises(InputError, match="^tau_floor must be < the start's mean step"):
         FAMILIES["periodic"](GridOptions(tau_floor=1.0))
     with pytest.raises(InputError, match="^linear must be 'auto' or 'sparse' for a periodic"):

@@ -123,10 +123,10 @@ def test_a_problem_with_no_solution_ends_in_failure_with_its_residuals():
     assert solution.status is Status.SOLVER_FAILED
     assert "Euler-Lagrange residual" in solution.message
     assert "the IPOPT fallback failed too (solver_failed: ipopt: " in solution.message
-    assert [p["solver"] for p in solution.stats["phases"]] == ["newton", "ipopt"]
-    assert solution.stats["phases"][0]["return_status"].startswith(
+    assert [p.solver for p in solution.higher.stages] == ["newton", "ipopt"]
+    assert solution.higher.stages[0].said.startswith(
         "not converged: the homotopy reached lambda = ")
-    assert solution.stats["euler_lagrange_residual"].max() > 1e-3
+    assert solution.higher.residuals["euler_lagrange_residual"].max() > 1e-3
     assert solution.stats["iterations_total"] <= 600
 
 
@@ -137,7 +137,7 @@ def test_auto_falls_back_to_ipopt_when_newtons_point_fails(monkeypatch):
     monkeypatch.setattr(phase, "newton", nowhere)
     _, _, solution = _solve("pais_uhlenbeck", 41, "fixed", "auto")
     assert solution.success and solution.stats["solver"] == "ipopt"
-    assert [p["solver"] for p in solution.stats["phases"]] == ["newton", "ipopt"]
+    assert [p.solver for p in solution.higher.stages] == ["newton", "ipopt"]
     _, _, alone = _solve("pais_uhlenbeck", 41, "fixed", "newton")
     assert alone.status is Status.SOLVER_FAILED and "stalled (forced)" in alone.message
 

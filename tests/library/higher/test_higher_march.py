@@ -63,14 +63,14 @@ def test_energy_is_conserved_along_a_variable_step_solution(pais_uhlenbeck):
     solution = solve_bvp_higher(pais_uhlenbeck.system, t_a, q_a, t_b, q_b, nodes=41,
                                 scheme="vddvp", params=config.params)
     assert solution.success, solution.message
-    energy = solution.stats["energy"]
+    energy = solution.higher.energy
     assert energy.size == 41 - 2 * 2 + 1
     assert np.ptp(energy) < 1e-11
     assert solution.tau.max() / solution.tau.min() > 2
     # fixed steps on the same data do not conserve it
     fixed = solve_bvp_higher(pais_uhlenbeck.system, t_a, q_a, t_b, q_b, nodes=41,
                              scheme="fixed", params=config.params)
-    assert np.ptp(fixed.stats["energy"]) > 1e-3
+    assert np.ptp(fixed.higher.energy) > 1e-3
 
 
 def test_energy_march_conserves_energy_while_it_runs(pais_uhlenbeck):
@@ -81,7 +81,7 @@ def test_energy_march_conserves_energy_while_it_runs(pais_uhlenbeck):
     solution = march_higher(pais_uhlenbeck.system, t_init, q_init, 3.7, scheme="vddvp",
                             params=config.params)
     assert solution.steps > 10 and np.all(solution.tau > 0)
-    assert np.ptp(solution.stats["energy"]) < 1e-10
+    assert np.ptp(solution.higher.energy) < 1e-10
     assert np.all(np.isfinite(solution.q))
     if not solution.success:
         assert "step" in solution.message and "from t = " in solution.message

@@ -124,7 +124,7 @@ def test_solvability_monitor_warns_before_the_kepler_breakdown():
         _, _, solution = run_scene("kepler", {"e": 0.8})
     assert solution.status in (Status.NEWTON_FAILED, Status.NO_ADMISSIBLE_STEP,
                                Status.RESIDUAL_TOO_LARGE)
-    warning = solution.stats["solvability_warning"]
+    warning = solution.march.solvability_warning
     assert 0 < warning["step"] < solution.steps
     assert warning["t"] == solution.t[warning["step"]]
     assert solution.solvability.shape == solution.t.shape
@@ -136,7 +136,7 @@ def test_solvability_monitor_is_quiet_where_the_scheme_is_fine():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _, _, solution = run_scene("kepler", {"e": 0.6})
-    assert solution.success and solution.stats["solvability_warning"] is None
+    assert solution.success and solution.march.solvability_warning is None
     assert np.all(solution.solvability < 0)  # c = -(p.V''p + |V'|^2)/8 keeps its sign
     _, _, fixed = run_scene("harmonic", scheme="fixed")
     assert fixed.solvability.size == 0  # no energy equation, nothing to monitor
@@ -154,7 +154,7 @@ def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged
     assert not stopped.success
     assert carried.success, carried.message
     _clean(carried)
-    flagged = carried.stats["least_squares"]
+    flagged = carried.march.least_squares
     assert len(flagged) > 0
     assert np.all(carried.tau >= 0.02 * (1 - 1e-9))  # t_k differences round
     # the march is the same as the plain one up to the breakdown
@@ -256,5 +256,5 @@ def test_rotating_pendulum_breakdowns_by_status(tau0, status, steps, prefix, fas
         )
     assert solution.status is status and solution.steps == steps
     assert solution.message.startswith(prefix)
-    assert solution.stats["solvability_warning"]["step"] < steps
+    assert solution.march.solvability_warning["step"] < steps
     _clean(solution)

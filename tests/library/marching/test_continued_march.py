@@ -42,7 +42,7 @@ def test_a_march_cut_anywhere_continues_bit_for_bit(fast):
         part = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      steps=StepControl(**steps, max_steps=cut), **common)
         assert part.steps == cut
-        state = MarchState.of(part.t, part.q, part.p, config.t_end, part.stats["carried"])
+        state = MarchState.of(part.t, part.q, part.p, config.t_end, part.march.carried)
         continued = continue_march(scene.system, state, steps=StepControl(**steps), **common)
         assert _same(continued, whole), cut
 
@@ -52,7 +52,7 @@ def test_a_finished_march_extends_to_a_later_end_bit_for_bit():
     c = scene.resolve()
     whole = march(scene.system, c.q0, c.p0, (0.0, 120.0), tau0=c.tau0)
     half = march(scene.system, c.q0, c.p0, (0.0, 60.0), tau0=c.tau0)
-    state = MarchState.of(half.t, half.q, half.p, 60.0, half.stats["carried"])
+    state = MarchState.of(half.t, half.q, half.p, 60.0, half.march.carried)
     assert _same(continue_march(scene.system, state, 120.0, tau0=c.tau0), whole)
 
 
@@ -60,7 +60,7 @@ def test_a_continuation_refuses_what_would_not_be_the_same_run():
     scene = load_scene("henon_heiles")
     c = scene.resolve()
     half = march(scene.system, c.q0, c.p0, (0.0, 10.0), tau0=c.tau0)
-    state = MarchState.of(half.t, half.q, half.p, 10.0, half.stats["carried"])
+    state = MarchState.of(half.t, half.q, half.p, 10.0, half.march.carried)
     with pytest.raises(InputError, match="t_end must be at least"):
         continue_march(scene.system, state, 5.0, tau0=c.tau0)
     other = 2.5 * c.tau0  # not the first step the run took
@@ -69,7 +69,7 @@ def test_a_continuation_refuses_what_would_not_be_the_same_run():
     with pytest.raises(InputError, match="carried state"):
         MarchState.of(half.t, half.q, half.p, 10.0, None)
     fixed = march(scene.system, c.q0, c.p0, (0.0, 10.0), tau0=c.tau0, scheme="fixed")
-    state = MarchState.of(fixed.t, fixed.q, fixed.p, 10.0, fixed.stats["carried"])
+    state = MarchState.of(fixed.t, fixed.q, fixed.p, 10.0, fixed.march.carried)
     with pytest.raises(InputError, match="fixed-step march cannot be extended"):
         continue_march(scene.system, state, 20.0, tau0=c.tau0, scheme="fixed")
 

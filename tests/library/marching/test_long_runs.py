@@ -49,7 +49,7 @@ def test_keep_every_keeps_exactly_the_full_runs_nodes_and_its_verdict(small_wind
     # the same steps: the kept nodes are the full run's, bit for bit
     assert np.array_equal(full.t[idx], thin.t)
     assert np.array_equal(full.q[idx], thin.q) and np.array_equal(full.p[idx], thin.p)
-    kept = thin.stats["kept"]
+    kept = thin.march.kept
     assert kept["nodes_marched"] == full.t.size and kept["nodes_kept"] == idx.size
     assert kept["windows"] >= full.t.size // WINDOW
     # the residuals and local errors of the steps from the kept nodes, the largest of all
@@ -74,7 +74,7 @@ def test_keep_every_keeps_exactly_the_full_runs_nodes_and_its_verdict(small_wind
 
 def test_memory_is_proportional_to_what_is_kept(small_windows):
     thin = _pendulum(t_end=2000.0, keep_every=1000)
-    marched = thin.stats["kept"]["nodes_marched"]
+    marched = thin.march.kept["nodes_marched"]
     assert marched > 10 * WINDOW
     k = thin.t.size
     assert k == len(range(0, marched - 1, 1000)) + 1
@@ -109,7 +109,7 @@ def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, monke
     full = march(scene.system, config.q0, config.p0, (config.t0, config.t_end), **common)
     thin = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                  output=Output(keep_every=5, window=100), **common)
-    assert full.stats["careful_steps"] > 10 and thin.stats["kept"]["windows"] > 5
+    assert full.stats["careful_steps"] > 10 and thin.march.kept["windows"] > 5
     idx = _kept(full.t.size, 5)
     assert np.array_equal(full.t[idx], thin.t) and np.array_equal(full.q[idx], thin.q)
     assert thin.stats["careful_steps"] == full.stats["careful_steps"]
@@ -123,8 +123,8 @@ def test_an_interrupted_thinned_march_keeps_what_it_had(small_windows):
         return len(calls) > 12  # after 12 stepper calls (no clock: counts)
     thin = _pendulum(t_end=5000.0, keep_every=10, stop=stop)
     assert thin.status.code == "interrupted"
-    marched = thin.stats["kept"]["nodes_marched"]
-    assert thin.stats["kept"]["windows"] >= 2
+    marched = thin.march.kept["nodes_marched"]
+    assert thin.march.kept["windows"] >= 2
     full = _pendulum(t_end=5000.0)
     idx = _kept(marched, 10)
     assert np.array_equal(full.t[idx], thin.t) and np.array_equal(full.q[idx], thin.q)
@@ -149,7 +149,7 @@ def test_continue_march_refuses_a_thinned_output():
     config = scene.resolve({})
     run = march(scene.system, config.q0, config.p0, (config.t0, 1.0), tau0=config.tau0,
                 params=config.params, accuracy=None)
-    state = MarchState.of(run.t, run.q, run.p, 1.0, run.stats["carried"])
+    state = MarchState.of(run.t, run.q, run.p, 1.0, run.march.carried)
     with pytest.raises(InputError, match="continue_march keeps every node"):
         continue_march(scene.system, state, 2.0, tau0=config.tau0, params=config.params,
                        output=Output(keep_every=2))

@@ -62,7 +62,7 @@ def test_a_new_monitor_plugs_in_through_kinds_and_changes_nothing_else():
 def test_a_continued_session_has_its_monitor_watch_the_earlier_nodes_again():
     problem = _problem()
     first = MarchSession(_problem(t_end=1.0), None, CAREFUL, Output()).run()
-    state = MarchState.of(first.t, first.q, first.p, 1.0, first.stats["carried"])
+    state = MarchState.of(first.t, first.q, first.p, 1.0, first.march.carried)
     continued = MarchSession(problem, None, CAREFUL, Output(), start=state,
                              kinds=(*MONITORS, StepCounter)).run()
     assert continued.t[first.t.size - 1] == first.t[-1]

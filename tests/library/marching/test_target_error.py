@@ -35,7 +35,7 @@ def test_the_run_is_accurate_at_the_error_asked_for(name, overrides, target):
     config = scene.resolve(overrides)
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      tau0=config.tau0, params=config.params, target_error=target)
-    record = solution.stats["target_error"]
+    record = solution.march.target_error
     assert solution.success and solution.verdict.name == "accurate"
     assert solution.verdict.global_tol == target
     assert record["tau0"] == record["runs"][-1]["tau0"] and 1 <= len(record["runs"]) <= 2
@@ -62,7 +62,7 @@ def test_the_choice_does_not_depend_on_units():
         config = scene.resolve({})
         solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                          tau0=config.tau0, target_error=1e-3)
-        chosen.append(solution.stats["target_error"]["tau0"])
+        chosen.append(solution.march.target_error["tau0"])
     assert chosen[1] == pytest.approx(chosen[0], rel=1e-3)
 
 
@@ -108,7 +108,7 @@ def test_a_pilot_that_breaks_down_is_a_status_with_its_nodes_not_an_input_error(
     assert not solution.success and solution.steps >= 1
     assert solution.verdict is None  # no run was chosen: nothing claimed for the span
     assert "pilot march" in solution.message and "no run was made" in solution.message
-    assert solution.stats["target_error"]["tau0"] is None
+    assert solution.march.target_error["tau0"] is None
 
 
 def test_a_run_stopped_before_its_first_step_carries_no_verdict_and_is_not_retried():
@@ -127,7 +127,7 @@ def test_a_run_stopped_before_its_first_step_carries_no_verdict_and_is_not_retri
     assert solution.status.code == "interrupted"
     if solution.steps == 0:
         assert solution.verdict is None and solution.accuracy_skipped
-    assert len(solution.stats["target_error"]["runs"]) == 1
+    assert len(solution.march.target_error["runs"]) == 1
 
 
 def test_a_target_error_run_resumes_at_the_step_it_chose(tmp_path, capsys):

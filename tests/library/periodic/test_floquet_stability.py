@@ -134,7 +134,7 @@ def test_indices_and_verdicts_do_not_change_with_the_units():
         orbit = solve_periodic(system, energy=0.1 * c / (a * b), nodes=301,
                                section="q1=0", guess=guess)
         assert orbit.success, orbit.message
-        assert abs(orbit.stats["period"] * c / reference_orbit.stats["period"] - 1) < 1e-10
+        assert abs(orbit.orbit.period * c / reference_orbit.orbit.period - 1) < 1e-10
         stability = periodic_stability(system, orbit, exact=False)
         assert stability.verdict == reference.verdict
         np.testing.assert_allclose(stability.indices, reference.indices, rtol=0, atol=1e-7)

@@ -55,7 +55,7 @@ def test_ipopt_finds_the_orbit_newton_finds(scene, energy, nodes, params, force,
         assert orbit.stats["solver"] == solver and orbit.stats["attempts"][0]["solver"] == solver
         assert midpoint_residuals(orbit, force, hamiltonian, energy) < 1e-10
         assert orbit.verdict.name == "accurate"
-    assert orbits["ipopt"].stats["period"] == pytest.approx(orbits["newton"].stats["period"],
+    assert orbits["ipopt"].orbit.period == pytest.approx(orbits["newton"].orbit.period,
                                                             abs=1e-9)
     assert orbits["ipopt"].stats["iterations"] <= 10
     assert orbits["newton"].stats["iterations"] <= 10
@@ -90,11 +90,11 @@ def test_rotation_period_converges_at_order_two(rotations):
     for N in sizes:
         orbit = rotations[N]
         assert orbit.success, orbit.message
-        assert orbit.stats["winding"] == [1]
+        assert orbit.orbit.winding == (1,)
         assert midpoint_residuals(orbit, np.sin, pendulum_h, 2.5, turn=2 * np.pi) < 1e-10
         assert np.all(orbit.p[:, 0] > 0)  # a rotation: q only increases
         assert sum(a["iterations"] for a in orbit.stats["attempts"]) <= 200
-    errors = [rotations[N].stats["period"] - exact for N in sizes]
+    errors = [rotations[N].orbit.period - exact for N in sizes]
     assert fitted_order(sizes, errors) == pytest.approx(2.0, abs=0.05)
     assert abs(errors[-1]) < 2e-5
 
@@ -172,9 +172,9 @@ def test_henon_heiles_families_through_x0_leave_the_invariant_plane(name, increa
         assert orbit.verdict.name == "accurate"
         # the trajectory error of the exact flow from node 0, of the orbit's size: 1.2e-3 to 3.8e-3
         assert orbit.verdict.error_max < 5e-3
-        assert abs(orbit.stats["unfolding"]) < 1e-12
+        assert abs(orbit.orbit.unfolding) < 1e-12
         assert np.ptp(orbit.q[:, 0]) > 0.2 and np.ptp(orbit.q[:, 1]) > 0.01  # both move
-        periods.append(orbit.stats["period"])
+        periods.append(orbit.orbit.period)
     assert (np.diff(periods) > 0).all() if increasing else (np.diff(periods) < 0).all()
 
 

@@ -31,7 +31,7 @@ def test_pendulum_period_converges_at_order_two(pendulum_orbits):
     exact = pendulum_period(0.5)
     assert exact == pytest.approx(6.7430014192503, abs=1e-12)
     sizes = sorted(pendulum_orbits)
-    errors = [pendulum_orbits[N].stats["period"] - exact for N in sizes]
+    errors = [pendulum_orbits[N].orbit.period - exact for N in sizes]
     assert all(pendulum_orbits[N].success for N in sizes)
     assert fitted_order(sizes, errors) == pytest.approx(2.0, abs=0.05)
     assert abs(errors[-1]) < 2e-4
@@ -52,14 +52,14 @@ def test_pendulum_equations_hold_when_recomputed_with_numpy(pendulum_orbits):
         assert np.max(np.abs(H - 0.5)) < 1e-10
         assert np.max(np.abs(np.diff(np.append(H, H[0])))) < 1e-10
         assert abs(q[-1] - q[0]) < 1e-10 and abs(p[-1] - p[0]) < 1e-10 and abs(p[0]) < 1e-10
-        assert solution.stats["residuals"]["canonical"] < 1e-12
+        assert solution.orbit.residuals["canonical"] < 1e-12
         assert solution.energy_residual.shape == (solution.steps,)
 
 
 def test_harmonic_period_error_at_order_two():
     system = load_scene("harmonic").system
     sizes = (40, 80, 160)
-    periods = [solve_periodic(system, energy=0.3, nodes=N + 1, params={"w": 2.0}).stats["period"]
+    periods = [solve_periodic(system, energy=0.3, nodes=N + 1, params={"w": 2.0}).orbit.period
                for N in sizes]
     errors = np.array(periods) - np.pi
     assert fitted_order(sizes, errors) == pytest.approx(2.0, abs=0.05)
@@ -70,7 +70,7 @@ def test_the_section_may_be_any_coordinate_value_the_orbit_crosses():
     on_turning_point = solve_periodic(system, energy=0.5, nodes=61, section="p1=0")
     elsewhere = solve_periodic(system, energy=0.5, nodes=61, section="q1=0.3")
     assert elsewhere.success and elsewhere.q[0, 0] == pytest.approx(0.3, abs=1e-14)
-    assert elsewhere.stats["period"] == pytest.approx(on_turning_point.stats["period"],
+    assert elsewhere.orbit.period == pytest.approx(on_turning_point.orbit.period,
                                                       abs=1e-9)
 
 
@@ -99,7 +99,7 @@ def test_no_orbit_found_is_a_failure_status_with_residuals():
     solution = solve_periodic(load_scene("henon_heiles").system, energy=0.1, nodes=101,
                               section="q1=0", options=GridOptions(max_iter=20))
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED)
-    assert "canonical" in solution.message and solution.stats["residuals"]["canonical"] > 1e-6
+    assert "canonical" in solution.message and solution.orbit.residuals["canonical"] > 1e-6
     # auto: Newton, then IPOPT from the same start; neither is passed off as an orbit
     assert [a["solver"] for a in solution.stats["attempts"]] == ["newton", "ipopt"]
     assert all(a["status"] != "success" for a in solution.stats["attempts"])
@@ -116,9 +116,9 @@ def test_figure_eight_closes_with_simos_period_and_one_curve():
                               section=data.section, start=data.start,
                               integrals=data.integrals)
     assert solution.success, solution.message
-    period = solution.stats["period"]
+    period = solution.orbit.period
     assert abs(period - 6.32591398) < 1e-3
-    assert np.max(np.abs(solution.stats["integral_unfoldings"])) < 1e-12
+    assert np.max(np.abs(solution.orbit.integral_unfoldings)) < 1e-12
     # The choreography, node by node (600 intervals: a third is 200 of them): body i + 1 is
     # where body i was a third of the period earlier, and a third of the nodes spans T / 3.
     t, q = solution.t[:-1], solution.q[:-1]

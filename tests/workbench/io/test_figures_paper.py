@@ -144,7 +144,7 @@ def test_an_orbit_and_a_family_of_constant_steps_and_periods(success):
 def test_a_family_without_nontrivial_multipliers_draws_its_trivial_pair():
     solution = run()
     members = [NS(energy=e, orbit=NS(q=solution.q, p=solution.p, steps=200,
-                                     stats={"period": 2 * np.pi}),
+                                     orbit=NS(period=2 * np.pi)),
                   stability=NS(verdict="stable", indices=np.zeros(0),
                                trivial=np.array([1.0, 1.0])))
                for e in (0.5, 0.7, 0.9)]
@@ -207,3 +207,25 @@ def test_a_section_has_visible_dots_and_its_energy_boundary():
     (ax,) = fig.axes
     assert ax.lines[0].get_markersize() >= 1.5 and ax.collections  # the boundary's contour
     assert ax.get_xlim()[1] < 0.6  # limits of the curve, not of the contour's grid
+
+
+def test_a_thinned_march_figure_counts_its_steps_and_draws_samples_not_a_path():
+    """A ``--keep-every`` march's figure counted kept nodes as steps and plotted the kept
+    nodes' spacing (4.3) as the step length (really 0.035-0.05) (issue 45): its title gives the
+    steps marched, the nodes kept and the steps' range, it has no step row, and the kept nodes
+    are dots."""
+    from ddvp_nlp.solution import MarchRecord
+
+    solution = run(nodes=22)
+    solution.march = MarchRecord(theta=[], kept={
+        "keep_every": 100, "keep": "nodes", "nodes_marched": 2013, "nodes_kept": 22,
+        "windows": 3, "tau_min": 0.0484, "tau_max": 0.0505, "canonical_residual_max": 0.0,
+        "energy_residual_max": 0.0})
+    fig = run_figure(solution)
+    title = fig._suptitle.get_text()
+    assert "2012 steps (22 nodes kept, tau in [0.0484, 0.0505])" in title
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert not any("tau" in label for label in labels)
+    lines = [line for ax in fig.axes for line in ax.get_lines() if line.get_xdata().size > 2]
+    assert lines and all(line.get_linestyle() in ("None", "none", "") for line in lines)
+    check(fig)
