@@ -405,6 +405,8 @@ class Solution:
             and states ``(K, 2n)`` of its crossings, located to round-off on ``at``'s
             interpolant; else ``None``.
         system: the solved system (``energy()`` and ``plot()`` use it); not pickled.
+        derivatives: a march's ``d(q, p)(t_eval)`` by input (``march(..., derivatives=...)``:
+            ``"q0"``, ``"p0"`` ``(M, 2n, n)``, ``"params"`` ``(M, 2n, m)``); else ``None``.
     """
 
     t: np.ndarray
@@ -435,6 +437,7 @@ class Solution:
     t_events: list | None = None
     z_events: list | None = None
     system: object = field(default=None, repr=False, compare=False)
+    derivatives: dict | None = field(default=None, repr=False, compare=False)
 
     @property
     def success(self) -> bool:

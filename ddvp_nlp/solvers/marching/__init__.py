@@ -36,6 +36,9 @@ Where things are:
   for the trajectory error asked for;
 - ``thinning.py``: ``Output(keep_every=k)`` and ``Output(keep="t_eval")``: a march that keeps
   some of its nodes, rechecked and judged a window at a time as it goes.
+- ``derivatives.py``: ``march(..., derivatives=...)``, the exact derivatives of the states at
+  ``t_eval`` in ``q0``, ``p0`` and the parameters, step lengths included (the ``Sensitivity``
+  monitor);
 - ``scipy_method.py``: ``DDVP``, the march as a method of scipy's ``solve_ivp`` (an
   ``OdeSolver`` handing out the march's nodes one step at a time, with its Hermite dense
   output); not imported here, so that a march loads no ``scipy.integrate``;

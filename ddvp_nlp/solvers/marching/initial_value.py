@@ -48,6 +48,7 @@ from ..options import (
     coerce,
 )
 from .backward import is_backward, march_backward
+from .derivatives import check_derivatives, refuse_unsupported
 from .march_problem import check_problem
 from .resume import MarchState, check_resume
 from .session import MarchSession
@@ -68,7 +69,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
           compilation: Compilation | None = None, output: Output | None = None,
-          target_error: float | None = None) -> Solution:
+          target_error: float | None = None, derivatives=None) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -109,6 +110,13 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             the span, so that the run is ``accurate`` at ``global_tol = target_error``, with
             one second try where it is not (``target.py``); ``march.target_error`` holds
             the choice and what it cost.
+        derivatives: inputs to differentiate the states at ``output.t_eval`` in, any of
+            ``"q0"``, ``"p0"``, ``"params"``: ``Solution.derivatives`` then holds
+            ``d(q, p)(t_eval) / d q0`` (``(M, 2n, n)``), ``/ d p0`` (``(M, 2n, n)``) and ``/ d
+            theta`` (``(M, 2n, m)``, columns in ``system.params`` order) of the discrete
+            solution read through its dense output, every step length's dependence included
+            (``derivatives.py``; docs/gradients.md). Needs ``t_eval``; not yet with ``v0``, a
+            backward span, ``target_error``, thinned output or least-squares breakdown steps.
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -124,12 +132,18 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     Returns:
         A `Solution`; failures are a status on it, never an exception.
     """
+    names = check_derivatives(derivatives)  # before anything, also a backward march's
+    if names and is_backward(t_span):
+        refuse_unsupported(names, v0=v0, backward=True, target_error=target_error,
+                           output=coerce(output, Output, "output"), steps=None)
     if is_backward(t_span):  # t_end < t0: the forward march of H(q, -p, -t) (backward.py)
         return march_backward(march, system, q0, p0, t_span, tau0=tau0, v0=v0, scheme=scheme,
                               params=params, steps=steps, accuracy=accuracy,
                               compilation=compilation, output=output,
                               target_error=target_error)
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
+    refuse_unsupported(names, v0=v0, backward=False, target_error=target_error, output=output,
+                       steps=steps)
     target = None
     if target_error is not None:
         target = check_target(target_error, accuracy)
@@ -148,7 +162,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         return march_to_error(run, system, np.concatenate([problem.q0, problem.p0]),
                               problem.t0, problem.t_end, problem.tau0, problem.theta, target,
                               accuracy)
-    return MarchSession(problem, accuracy, compilation, output).run()
+    return MarchSession(problem, accuracy, compilation, output, derivatives=names).run()
 
 
 @answers_removed_keywords
@@ -157,7 +171,7 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
                    params: Mapping[str, float] | None = None, steps: StepControl | None = None,
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
                    compilation: Compilation | None = None,
-                   output: Output | None = None) -> Solution:
+                   output: Output | None = None, derivatives=None) -> Solution:
     """Continue the march whose nodes and carried state are ``state`` (a killed run's last
     checkpoint, or a finished run) to ``t_end`` (default: the one it was asked for; the same or
     later), with the options it ran with (``tau0``, ``scheme``, ``params``, ``steps``,
@@ -166,10 +180,14 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
     The loop goes on as if it had never stopped (``resume.py``): the returned nodes are the
     earlier ones followed by those an uninterrupted `march` to ``t_end`` gives, bit for
     bit, on the compiled and the careful path. A fixed-step march keeps its ``t_end``.
+    ``derivatives`` are not supported yet (refused by name).
 
     Returns:
         A `Solution` of the whole run, from the first node.
     """
+    if check_derivatives(derivatives):
+        raise InputError("derivatives are not supported by continue_march yet: march the "
+                         "whole span with march(..., derivatives=...)")
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     if not isinstance(state, MarchState):
         raise InputError(f"state must be a MarchState, got {type(state).__name__}")

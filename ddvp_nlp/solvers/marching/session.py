@@ -19,38 +19,26 @@ The monitors. Everything a march watches node by node is a `MarchMonitor` (``mon
 listed in `MONITORS`, in the order they watch (a monitor that ends the run cuts the nodes the
 ones after it see): the energy guard (``StepControl.energy_guard``), the solvability monitor
 (energy rules), the early verdict (``Tolerance.stop``), the events (``Output.events``), the
-stop request (``Output.stop``), the carried state (``resume.py``) and the checkpoints
+stop request (``Output.stop``), the carried state (``resume.py``), the derivatives
+(``derivatives.py``) and the checkpoints
 (``Output.checkpoint``, last: it saves what the others kept). Each kind knows how it is made
 and what it adds to the solution:
 
 - ``Kind.from_options(session)`` makes it from the session's ``problem``, ``accuracy`` (a
   `Tolerance` or ``None``), ``output``, ``compilation``, ``parts``, ``judging`` (the compiler
-  of the checks), ``thinning`` and ``carry``, or returns ``None`` when the options do not
-  ask for it;
+  of the checks), ``thinning``, ``carry`` and ``derivatives``, or returns ``None`` when the
+  options do not ask for it;
 - ``watch(nodes, first, advance)`` sees every accepted node once (driver rule 5);
 - ``rewatch``: whether it also watches a continued march's earlier nodes (to rebuild its state);
 - ``close()`` runs when the loop has ended (or raised); ``finish(solution, outcome)`` puts what
   it found on the `Solution`, after the recheck and the verdict.
 
-A new feature is one monitor, and this module is not edited for it. A forward sensitivity
-(issue 47) would carry ``S_{k+1} = A_k S_k + B_k`` with ``(A_k, B_k)`` from
-``StepProblem.sensitivity`` (``step_newton.py``) at each new node::
-
-    class Sensitivity(MarchMonitor):
-        @classmethod
-        def from_options(cls, session):
-            problem = session.problem
-            return cls(StepProblem(problem.system, problem.scheme, problem.theta))
-
-        def watch(self, nodes, first, advance):
-            ...  # S = A @ S + B for each node of advance
-            return None
-
-        def finish(self, solution, outcome):
-            solution.stats["sensitivity"] = self.S
-
-and is marched with ``MarchSession(problem, ..., kinds=(*MONITORS, Sensitivity)).run()`` (or
-listed in `MONITORS` once an option asks for it).
+A new feature is one monitor, and this module is not edited for it. The forward derivatives
+(issue 47, ``march(..., derivatives=...)``) are one: `Sensitivity` (``derivatives.py``) is made
+when the session's ``derivatives`` name inputs, watches nothing as the loop runs, and in its
+``finish`` carries ``S_{k+1} = A_k S_k + B_k`` over the kept nodes (the step Jacobians that
+``StepProblem``, ``step_newton.py``, is built from) into ``Solution.derivatives``. A monitor
+not listed here is marched with ``MarchSession(problem, ..., kinds=(*MONITORS, Kind)).run()``.
 """
 
 from __future__ import annotations
@@ -70,6 +58,7 @@ from ..dense import DenseField, attach, evaluate_at
 from ..driver import Nodes, drive
 from ..options import Compilation, Output, Tolerance
 from .chunk import FastChunk
+from .derivatives import Sensitivity
 from .march_problem import MarchProblem
 from .monitors import (
     Checkpoint,
@@ -92,7 +81,7 @@ __all__ = ["MONITORS", "MarchMonitor", "MarchSession", "make_monitors"]
 # The monitor kinds of every march, in the order they watch (module docstring).
 MONITORS: tuple[type[MarchMonitor], ...] = (
     EnergyGuard, SolvabilityMonitor, EarlyVerdict, Events, StopRequest, CarryTracker,
-    Checkpoint)
+    Sensitivity, Checkpoint)
 
 # An interrupted march of more nodes than this is returned without its final accuracy check.
 INTERRUPTED_JUDGED = 1_000_000
@@ -109,12 +98,14 @@ class MarchSession:
     """One march of ``problem`` (a `MarchProblem`) with the accuracy check ``accuracy`` (a
     `Tolerance`, or ``None``: none), ``compilation`` and ``output``, from its start or from
     ``start`` (a `MarchState`: the nodes of an earlier run of the same problem and what its
-    loop carried, ``resume.py``); ``kinds``: the monitor kinds (module docstring)."""
+    loop carried, ``resume.py``); ``kinds``: the monitor kinds (module docstring);
+    ``derivatives``: the inputs `Sensitivity` differentiates in (``derivatives.py``)."""
 
     def __init__(self, problem: MarchProblem, accuracy: Tolerance | None,
                  compilation: Compilation, output: Output, *, start: MarchState | None = None,
-                 kinds=MONITORS):
+                 kinds=MONITORS, derivatives: tuple[str, ...] = ()):
         self.problem, self.accuracy = problem, accuracy
+        self.derivatives = tuple(derivatives)
         self.compilation, self.output = compilation, output
         self.start, self.kinds = start, tuple(kinds)
         self.carry = CarryTracker.of(start)  # what the loop carries; a checkpoint saves it

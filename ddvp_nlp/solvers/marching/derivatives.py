@@ -1,0 +1,338 @@
+"""Exact forward derivatives of a march's states at fixed physical times (issue 47):
+``march(..., output=Output(t_eval=ts), derivatives=("q0", "p0", "params"))``.
+
+What is differentiated: the discrete solution read through its dense output at the fixed
+times ``t_eval``, as a function of the inputs ``q0``, ``p0`` and the parameters ``theta``, with
+every step length included. A node ``k`` is not a fixed point of the motion (an energy rule's
+node times ``t_k`` move with the inputs, and the count of nodes jumps), so no derivative of
+"node ``k``" is offered.
+
+The chain (the implicit-function theorem on each accepted step, then the interpolant):
+
+1. The carried derivative ``S_k = d(z_k, t_k)/d(inputs)`` starts at ``S_0``: the identity in
+   the initial state's columns, ``dt_0 = 0``.
+2. A fixed-length step (the ``fixed`` rule's every step, an energy rule's step 0 of length
+   ``tau0``) solves ``F(z_{k+1}; t_k, t_{k+1}, z_k, theta) = 0`` with node times that do not
+   move with the inputs: ``dz_{k+1} = -F_x^-1 (F_{z_k} dz_k + F_theta dtheta)``.
+3. An energy step solves ``F(z_{k+1}, tau_k; t_{k-1}, t_k, z_{k-1}, z_k, theta) = 0`` (the
+   canonical equations of interval ``k`` and the energy row): ``d(z_{k+1}, tau_k) = -F_x^-1
+   F_w dw``, ``dw`` gathered from ``S_{k-1}``, ``S_k`` and ``dtheta``; the energy row gives
+   ``dtau_k`` exactly, and ``dt_{k+1} = dt_k + dtau_k``. (The drift the march adds to the
+   energy row is round-off and is held.)
+4. At ``T`` in ``[t_k, t_{k+1}]`` the dense output is the cubic Hermite polynomial
+   ``z(T) = h00 z_k + h10 tau f_k + h01 z_{k+1} + h11 tau f_{k+1}`` (``Solution.at``), with
+   ``s = (T - t_k) / tau``: ``dz(T) = h00 dz_k + h01 dz_{k+1} + h10 (dtau f_k + tau df_k) +
+   h11 (dtau f_{k+1} + tau df_{k+1}) - z'(T) (dt_k + s dtau)``, where ``df_k = f_z dz_k + f_t
+   dt_k + f_theta dtheta`` (the vector field's Jacobian) and ``z'(T)`` the interpolant's slope.
+
+The step Jacobians are CasADi functions of the step equations the march solved
+(``steps.StepFunctions``, as `StepProblem` uses them), evaluated after the march on the
+accepted nodes in mapped calls of ``CHUNK`` steps; the recursion ``S_{k+1} = A_k S_k + B_k``
+runs over them and keeps only the nodes the ``t_eval`` intervals read. No step is solved again.
+With ``frozen_steps`` every step is differentiated as a fixed-length step on its own interval
+(``dtau = 0``): the derivative peers report, which misses the step lengths' share.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ...cache import cached
+from ...discrete.scheme import Scheme
+from ...errors import InputError
+from ...physics.hamiltonian import vector_field_function
+from ..compiler import FunctionBuffer
+from .monitors import MarchMonitor
+from .steps import step_functions
+
+__all__ = ["DERIVATIVES", "Sensitivity", "check_derivatives", "march_derivatives",
+           "refuse_unsupported"]
+
+# The inputs a march differentiates in, in the order of the derivative's columns.
+DERIVATIVES = ("q0", "p0", "params")
+# Steps whose Jacobians are evaluated in one mapped call (bounds the work arrays' memory).
+CHUNK = 4096
+
+
+def check_derivatives(derivatives) -> tuple[str, ...]:
+    """``derivatives`` (``None``, a name, or a sequence of names from `DERIVATIVES`) as a tuple
+    of distinct names in `DERIVATIVES`' order; an ``InputError`` names a wrong one."""
+    if derivatives is None:
+        return ()
+    names = (derivatives,) if isinstance(derivatives, str) else derivatives
+    try:
+        names = tuple(names)
+    except TypeError:
+        raise InputError(f"derivatives must be a sequence of names from {DERIVATIVES}, got "
+                         f"{derivatives!r}") from None
+    for name in names:
+        if not isinstance(name, str) or name not in DERIVATIVES:
+            raise InputError(f"derivatives: unknown name {name!r} in {derivatives!r} (choose "
+                             f"from {', '.join(DERIVATIVES)})")
+    return tuple(name for name in DERIVATIVES if name in names)
+
+
+def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps) -> None:
+    """Refuse by name what ``derivatives`` does not support yet, before anything is built."""
+    if not names:
+        return
+    if output.t_eval is None:
+        raise InputError("derivatives are of the states at fixed times: give "
+                         "output=Output(t_eval=...)")
+    refusals = (
+        (v0 is not None, "v0 (the start then depends on tau0): give p0"),
+        (backward, "a backward t_span (t_end < t0)"),
+        (target_error is not None, "target_error (its first step is chosen by a pilot march)"),
+        (output.thinned, f"thinned output (keep_every={output.keep_every!r}, "
+                         f"keep={output.keep!r})"),
+        (steps is not None and getattr(steps, "breakdown", None) == "least_squares",
+         "steps.breakdown='least_squares' (a replaced step solves no step equations)"))
+    for refused, what in refusals:
+        if refused:
+            raise InputError(f"derivatives are not supported with {what}")
+
+
+class Sensitivity(MarchMonitor):
+    """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
+    differentiates the kept nodes at the end (`march_derivatives`) into
+    ``Solution.derivatives``."""
+
+    rewatch = False
+
+    def __init__(self, problem, t_eval, names):
+        self.problem, self.t_eval, self.names = problem, t_eval, names
+
+    @classmethod
+    def from_options(cls, session):
+        names = getattr(session, "derivatives", ())
+        if not names:
+            return None
+        return cls(session.problem, session.output.t_eval, names)
+
+    def finish(self, solution, outcome) -> None:
+        problem = self.problem
+        t, z = solution.t, np.hstack([solution.q, solution.p])
+        kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
+        solution.derivatives = march_derivatives(
+            problem.system, problem.scheme, problem.theta, t, z, kept, self.names)
+
+
+def march_derivatives(system, scheme, theta, t, z, t_eval, names=DERIVATIVES, *,
+                      frozen_steps: bool = False) -> dict[str, np.ndarray]:
+    """``d(q, p)(t_eval) / d(input)`` for each input of ``names`` of the march whose nodes are
+    ``t`` (N,), ``z`` (N, 2n) at parameters ``theta`` (module docstring): ``{"q0": (M, 2n, n),
+    "p0": (M, 2n, n), "params": (M, 2n, m)}``. ``frozen_steps``: every step length held."""
+    scheme = Scheme.coerce(scheme)
+    n, m = system.n, np.size(theta)
+    theta = np.asarray(theta, float).ravel()
+    seed_z, seed_theta, widths = _seeds(n, m, names)
+    t_eval = np.asarray(t_eval, float).ravel()
+    if t_eval.size == 0:  # a march that stopped before the first output time
+        return _split(np.zeros((0, 2 * n, seed_z.shape[1])), names, widths)
+    if t.size < 2:
+        rows = np.repeat(np.vstack([seed_z])[None], t_eval.size, axis=0)
+        return _split(rows, names, widths)
+    interval = np.clip(np.searchsorted(t, t_eval, side="right") - 1, 0, t.size - 2)
+    needed = np.unique(np.concatenate([interval, interval + 1]))
+    carried = _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps)
+    rows = _dense(system, theta, t, z, t_eval, interval, carried, seed_theta)
+    return _split(rows, names, widths)
+
+
+def _seeds(n: int, m: int, names):
+    """``dz_0/d(inputs)`` (2n, d), ``dtheta/d(inputs)`` (m, d) and each input's width."""
+    widths = {"q0": n, "p0": n, "params": m}
+    d = sum(widths[name] for name in names)
+    seed_z, seed_theta = np.zeros((2 * n, d)), np.zeros((m, d))
+    column = 0
+    for name in names:
+        width = widths[name]
+        block = np.eye(width)
+        if name == "q0":
+            seed_z[:n, column:column + width] = block
+        elif name == "p0":
+            seed_z[n:, column:column + width] = block
+        else:
+            seed_theta[:, column:column + width] = block
+        column += width
+    return seed_z, seed_theta, widths
+
+
+def _split(rows: np.ndarray, names, widths) -> dict[str, np.ndarray]:
+    """The columns of ``rows`` (M, 2n, d) by input name."""
+    out, column = {}, 0
+    for name in names:
+        out[name] = rows[:, :, column:column + widths[name]].copy()
+        column += widths[name]
+    return out
+
+
+def _jacobian_function(system, scheme, kind: str) -> ca.Function:
+    """``(x, w) -> (dF/dx, dF/dw)`` of the step residual of ``kind`` (dense), cached."""
+    def build():
+        functions = step_functions(system, scheme)
+        residual = functions.fixed_residual if kind == "fixed" else functions.energy_residual
+        x, w = residual.sx_in()
+        F = residual.call([x, w])[0]
+        return ca.Function(f"{kind}_step_jacobians", [x, w], [
+            ca.densify(ca.jacobian(F, x)), ca.densify(ca.jacobian(F, w))])
+    return cached(system, ("march_step_jacobians", scheme, kind), build)
+
+
+def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
+    """``function`` on ``count`` evaluations, the inputs given as rows ``(count, size)``, each
+    output as ``(count, rows, cols)``: one mapped call through numpy buffers (``compiler.py``'s
+    `FunctionBuffer`: no DM conversions, which cost more than the Jacobians) of a power-of-two
+    width up to ``CHUNK``, the last evaluation repeated to fill it."""
+    width = min(CHUNK, 1 << max(count - 1, 0).bit_length())
+    buffer = cached(function, ("derivatives_map", width),
+                    lambda: FunctionBuffer(function.map(width)))
+    filled = [np.concatenate([value, np.repeat(value[-1:], width - count, 0)])
+              for value in (np.asarray(row, float).reshape(count, -1) for row in rows)]
+    outputs = buffer(*filled)
+    shapes = [function.size_out(i) for i in range(function.n_out())]
+    return [value.reshape(width, cols, rows_)[:count].transpose(0, 2, 1).copy()
+            for value, (rows_, cols) in zip(outputs, shapes, strict=True)]
+
+
+def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray):
+    """For the fixed-length steps ``k`` of ``steps``: ``(dz_{k+1}/dz_k, dz_{k+1}/dtheta)``
+    with the node times held, ``(K, 2n, 2n)`` and ``(K, 2n, m)``."""
+    n2 = z.shape[1]
+    w = np.hstack([t[steps, None], t[steps + 1, None], z[steps],
+                   np.repeat(theta[None, :], steps.size, 0)])
+    J_x, J_w = _mapped(_jacobian_function(system, scheme, "fixed"), steps.size, z[steps + 1], w)
+    gains = -np.linalg.solve(J_x, J_w[:, :, 2:])
+    return gains[:, :, :n2], gains[:, :, n2:]
+
+
+def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray):
+    """For the energy steps ``k`` of ``steps`` (``k >= 1``): ``-F_x^-1 F_w``, ``(K, 2n + 1,
+    2 + 4n + m)``, columns ``[t_{k-1}, t_k, z_{k-1}, z_k, theta]`` (the drift's dropped)."""
+    tau = t[steps + 1] - t[steps]
+    x = np.hstack([z[steps + 1], tau[:, None]])
+    w = np.hstack([t[steps - 1, None], t[steps, None], z[steps - 1], z[steps],
+                   np.repeat(theta[None, :], steps.size, 0), np.zeros((steps.size, 1))])
+    J_x, J_w = _mapped(_jacobian_function(system, scheme, "energy"), steps.size, x, w)
+    return -np.linalg.solve(J_x, J_w[:, :, :-1])
+
+
+def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps):
+    """``S_k = (dz_k, dt_k)`` (2n + 1, d) at the nodes ``needed`` (sorted), by the recursion
+    over every step (module docstring, 2-3), ``CHUNK`` steps' Jacobians at a time. The carried
+    state is ``Y_k = [S_{k-1}; S_k]``, and each step an affine map ``Y_{k+1} = M_k Y_k + C_k``
+    (`_affine_maps`), applied a block at a time (`_scan`)."""
+    n2, d = seed_z.shape
+    energy = scheme.variable_steps and not frozen_steps
+    state = np.vstack([np.zeros((n2 + 1, d)), seed_z, np.zeros((1, d))])
+    kept = {0: state[n2 + 1:].copy()} if needed[0] == 0 else {}
+    last = int(needed[-1])
+    for start in range(0, last, CHUNK):
+        steps = np.arange(start, min(start + CHUNK, last))
+        maps = _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy)
+        state = _scan(maps, state, start, needed, kept)
+    return kept
+
+
+def _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
+    """``(M, C)``, ``(K, 2r, 2r)`` and ``(K, 2r, d)`` (``r = 2n + 1``), of the steps ``steps``:
+    a fixed-length step ``dz_{k+1} = G_z dz_k + G_theta dtheta`` (``dt`` held), an energy step
+    ``d(z_{k+1}, tau_k) = G [dt_{k-1}; dt_k; dz_{k-1}; dz_k] + G_theta dtheta`` and
+    ``dt_{k+1} = dt_k + dtau_k``."""
+    n2, d = z.shape[1], seed_theta.shape[1]
+    r = n2 + 1
+    M, C = np.zeros((steps.size, 2 * r, 2 * r)), np.zeros((steps.size, 2 * r, d))
+    M[:, :r, r:] = np.eye(r)  # S_{k-1} <- S_k
+    M[:, 2 * r - 1, 2 * r - 1] = 1.0  # dt_{k+1} = dt_k (+ dtau_k)
+    fixed = np.ones(steps.size, bool) if not energy else steps == 0
+    if fixed.any():
+        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, steps[fixed])
+        M[np.ix_(fixed, range(r, r + n2), range(r, r + n2))] = in_z
+        C[fixed, r:r + n2] = in_theta @ seed_theta
+    if not fixed.all():
+        moving = ~fixed
+        gains = _energy_gains(system, scheme, theta, t, z, steps[moving])
+        # gains' columns [t_{k-1}, t_k, z_{k-1}, z_k, theta] onto Y's [z_{k-1}, t_{k-1}, z_k, t_k]
+        columns = [n2, 2 * r - 1, *range(n2), *range(r, r + n2)]
+        block = np.zeros((gains.shape[0], r, 2 * r))
+        block[:, :, columns] = gains[:, :, :2 + 2 * n2]
+        block[:, n2, 2 * r - 1] += 1.0
+        M[moving, r:] = block
+        C[moving, r:] = gains[:, :, 2 + 2 * n2:] @ seed_theta
+    return M, C
+
+
+# Steps composed per block in `_scan`: the Python loop runs over 2 BLOCK + K / BLOCK steps.
+BLOCK = 32
+
+
+def _scan(maps, state, start: int, needed, kept: dict) -> np.ndarray:
+    """``Y`` after the steps of ``maps`` from ``state`` (the steps from ``start``), the
+    ``S_{k+1}`` of the nodes ``needed`` put in ``kept``: each block's maps composed (all
+    blocks at once), the blocks' starts in order, then the steps again, every block at once."""
+    M, C = maps
+    K, width = M.shape[0], M.shape[1]
+    r = width // 2
+    count = -(-K // BLOCK)
+    pad = count * BLOCK - K
+    if pad:
+        M = np.concatenate([M, np.repeat(np.eye(width)[None], pad, 0)])
+        C = np.concatenate([C, np.zeros((pad, *C.shape[1:]))])
+    M = M.reshape(count, BLOCK, width, width)
+    C = C.reshape(count, BLOCK, *C.shape[1:])
+    whole_M, whole_C = M[:, 0], C[:, 0]
+    for j in range(1, BLOCK):
+        whole_M, whole_C = M[:, j] @ whole_M, M[:, j] @ whole_C + C[:, j]
+    starts = np.empty((count, *state.shape))
+    for b in range(count):
+        starts[b] = state
+        state = whole_M[b] @ state + whole_C[b]
+    wanted = needed[(needed > start) & (needed <= start + K)] - start - 1
+    if wanted.size:
+        blocks = np.unique(wanted // BLOCK)
+        Y, wanted = starts[blocks], set(wanted.tolist())
+        for j in range(BLOCK):
+            Y = M[blocks, j] @ Y + C[blocks, j]
+            for i, b in enumerate(blocks):
+                if b * BLOCK + j in wanted:
+                    kept[start + b * BLOCK + j + 1] = Y[i, r:].copy()
+    return state
+
+
+def _field_jacobian_function(system) -> ca.Function:
+    """``(z, t, theta) -> (f, df/dz, df/dt, df/dtheta)`` of Hamilton's vector field, cached."""
+    def build():
+        field = vector_field_function(system)
+        z, t, theta = field.sx_in()
+        f = field.call([z, t, theta])[0]
+        return ca.Function("field_jacobians", [z, t, theta], [
+            f, ca.densify(ca.jacobian(f, z)), ca.densify(ca.jacobian(f, t)),
+            ca.densify(ca.jacobian(f, theta))])
+    return cached(system, "field_jacobians", build)
+
+
+def _dense(system, theta, t, z, t_eval, interval, carried, seed_theta) -> np.ndarray:
+    """``d z(T)`` (M, 2n, d) through the Hermite interpolant (module docstring, 4)."""
+    n2 = z.shape[1]
+    nodes = np.unique(np.concatenate([interval, interval + 1]))
+    f, f_z, f_t, f_theta = _mapped(_field_jacobian_function(system), nodes.size, z[nodes],
+                                   t[nodes], np.repeat(theta[None, :], nodes.size, 0))
+    at = {int(k): i for i, k in enumerate(nodes)}
+    rows = []
+    for T, k in zip(t_eval, interval, strict=True):
+        a, b = at[int(k)], at[int(k) + 1]
+        S_a, S_b = carried[int(k)], carried[int(k) + 1]
+        tau = t[k + 1] - t[k]
+        s = (T - t[k]) / tau
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, 3 * s**2 - 2 * s**3, \
+            s**3 - s**2
+        slope = ((6 * s**2 - 6 * s) * z[k] + (3 * s**2 - 4 * s + 1) * tau * f[a, :, 0]
+                 + (6 * s - 6 * s**2) * z[k + 1] + (3 * s**2 - 2 * s) * tau * f[b, :, 0]) / tau
+        d_tau = S_b[n2:] - S_a[n2:]
+        df_a = f_z[a] @ S_a[:n2] + f_t[a] @ S_a[n2:] + f_theta[a] @ seed_theta
+        df_b = f_z[b] @ S_b[:n2] + f_t[b] @ S_b[n2:] + f_theta[b] @ seed_theta
+        rows.append(h00 * S_a[:n2] + h01 * S_b[:n2]
+                    + h10 * (f[a] @ d_tau + tau * df_a) + h11 * (f[b] @ d_tau + tau * df_b)
+                    - slope[:, None] * (S_a[n2:] + s * d_tau))
+    return np.stack(rows) if rows else np.zeros((0, n2, seed_theta.shape[1]))
