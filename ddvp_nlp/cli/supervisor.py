@@ -95,6 +95,10 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
         code = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
         if stop.code is not None and not isinstance(stop.code, int):
             print(stop.code, file=sys.stderr)
+    except KeyboardInterrupt:  # a signal past the command's own handling (as it ended): an
+        # interrupted command, exit 1, not the interpreter's death by SIGINT (exit -2)
+        _say("ddvp: interrupted as the command ended; every file it wrote is whole")
+        code = 1
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
