@@ -53,8 +53,10 @@ def run_scene(args, solvers: dict) -> int:
     print_requested(meta, solution)
     if INTERRUPTS.requested:
         kept = f"{meta['nodes']} nodes, up to t = {meta['t_reached']:.10g}"
+        again = (f"; `ddvp march --resume {out.path}` goes on from there"
+                 if args.command == "march" and meta.get("resume") else "")
         print(f"ddvp {args.command}: interrupted ({INTERRUPTS.name}); the run was written whole "
-              f"to {out.path}/ ({kept})", file=sys.stderr)
+              f"to {out.path}/ ({kept}){again}", file=sys.stderr)
     return 0 if solution.success and not INTERRUPTS.requested else 1
 
 

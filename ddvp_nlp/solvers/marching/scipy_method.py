@@ -36,6 +36,9 @@ hamiltonian=H, tau0=...)``.
   ``UserWarning`` says so.
 - **A failed march** (its status not a success) hands out its accepted nodes, then fails the
   next step with the march's message: ``solve_ivp`` returns ``success=False`` and that message.
+  A march that succeeds but whose check finds it ``drifted`` (a phase error past
+  ``global_tol``) is said once as a ``RuntimeWarning`` with its ``t_drift``: the scipy result
+  has no verdict, and its success alone would hide it.
 - Other keyword options (``first_step``, ``max_step``, ``jac``, ...) have no effect and are
   warned about as scipy's own methods warn (``UserWarning``).
 """
@@ -126,6 +129,7 @@ class DDVP(OdeSolver):
         self.tau0, self.target_error = first_step(tau0, tolerances, self.y, slope,
                                                   float(t_bound) - float(t0))
         self.solutions: list[Solution] = []
+        self._verdict_said = False  # a check that was not accurate is said once
         self._field, self._chunk = field, None
 
     @property
@@ -181,8 +185,27 @@ class DDVP(OdeSolver):
             ).replace(f"max_steps = {steps.max_steps}", f"max_steps = {asked.max_steps}")
             first = 1  # its first two nodes are the earlier chunk's last two
         self.solutions.append(solution)
+        self._say_verdict(solution, previous is None)
         return Chunk.of(solution, self._field, final=end == self.t_bound, k=first, base=base,
                         t_bound=self.t_bound, direction=self.direction)
+
+    def _say_verdict(self, solution, first: bool) -> None:
+        """A chunk whose accuracy check did not find it ``accurate`` is said once, as a
+        ``RuntimeWarning``: ``solve_ivp``'s result has no verdict, and its success would
+        otherwise hide a trajectory that drifted (a failed check of an ``inaccurate`` march is
+        already its failure)."""
+        verdict = solution.verdict
+        if self._verdict_said or verdict is None or verdict.accurate or not solution.success:
+            return
+        self._verdict_said = True
+        where = "" if verdict.t_drift is None else f" from t = {verdict.t_drift:.6g}"
+        judged = "" if first else (f", judged from the chunk that starts at t = "
+                                   f"{solution.t[0]:.6g}")
+        warnings.warn(f"DDVP: the accuracy check finds the trajectory {verdict.name}{where}"
+                      f"{judged}: its error passes global_tol = {verdict.global_tol:g} of the "
+                      "motion's size there (a phase error: every step follows the flow); "
+                      "a smaller tau0 keeps it accurate longer, and march(...) gives the whole "
+                      "run's verdict", RuntimeWarning, stacklevel=2)
 
     def _chunk_end(self, t: float, step: float) -> float:
         """``t_bound`` for a march that cannot be continued (``fixed`` steps, a backward span,

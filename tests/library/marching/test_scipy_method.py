@@ -273,3 +273,20 @@ def test_the_same_motion_in_another_time_unit_is_the_same_trajectory(a):
     assert other.t.size == one.t.size
     np.testing.assert_allclose(other.t / a, one.t, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(other.y, one.y, rtol=0, atol=1e-8)
+
+
+def test_a_drifted_trajectory_is_said_not_hidden_behind_success():
+    """``solve_ivp(method=DDVP)`` returned plain success on a spherical pendulum whose march
+    the check finds drifted at t = 11.48 (a new user's trial): the drift is a warning with its
+    time."""
+    system = HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 + p[1] ** 2 / (2 * ca.sin(q[0]) ** 2)
+                               - ca.cos(q[0]), 2, angles=("q2",))
+    y0 = [2.0, 0.0, 0.0, 1.2]
+
+    def field(t, y):
+        theta, _, p_theta, p_phi = y
+        s = math.sin(theta)
+        return [p_theta, p_phi / s**2, p_phi**2 * math.cos(theta) / s**3 - s, 0.0]
+    with pytest.warns(RuntimeWarning, match=r"drifted from t = 11\.48"):
+        result = solve_ivp(field, (0.0, 50.0), y0, method=DDVP, hamiltonian=system, tau0=0.05)
+    assert result.success
