@@ -25,8 +25,9 @@ and reads the child's `SceneWatch` (``scenes/guard.py``):
   child with it (``PR_SET_PDEATHSIG``);
 - **processes left behind**: this process is a subreaper (``PR_SET_CHILD_SUBREAPER``), so a
   process the command started and left running (a scene's subprocess or daemon, however it
-  detached) comes to it as an orphan; once the child has ended, every such process is ended
-  (SIGKILL) and named in one warning: nothing a scene starts outlives the command.
+  detached) comes to it as an orphan; once the child has ended, such a process gets a second
+  to end by itself (multiprocessing's resource tracker does), then SIGTERM, then SIGKILL, and
+  the ended ones are named in one warning: nothing a scene starts outlives the command.
 
 Only the command is supervised (``main()`` with no arguments, as the console script and
 ``python -m ddvp_nlp.cli`` call it); ``main(argv)`` from Python runs in its caller's process,
@@ -55,6 +56,8 @@ EXIT_ASLEEP_S = 10.0
 POLL_S = 0.1
 # Rounds of ending what the command left running (each round its leftovers' own children).
 LEFTOVER_ROUNDS = 20
+# Seconds a process left behind gets to end by itself, and again after SIGTERM.
+LEFTOVER_GRACE_S = 1.0
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 SI_KERNEL = 0x80  # si_code of a signal the kernel sent (the terminal's Ctrl-C), not kill()
 
@@ -121,23 +124,44 @@ def _adopt_orphans() -> None:
 
 
 def _end_leftovers() -> None:
-    """The processes the command left running (module docstring) ended, and said so: a
-    scene's processes end with the command, none outlives it."""
+    """The processes the command left running (module docstring) ended, and said so: none
+    outlives the command. A process on its way out by itself (multiprocessing's resource
+    tracker, a worker finishing its exit) gets ``LEFTOVER_GRACE_S`` to end, then SIGTERM and
+    ``LEFTOVER_GRACE_S`` more, then SIGKILL; only a process that had to be ended is named."""
     ended = []
     for _ in range(LEFTOVER_ROUNDS):  # a leftover's own children come to us as it ends
-        found = _children()
+        found = _reaped_within(LEFTOVER_GRACE_S)
         if not found:
             break
-        for pid, name in found:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
-            ended.append(f"{pid} ({name})")
-        for pid, _ in found:
-            with contextlib.suppress(ChildProcessError):
-                os.waitpid(pid, 0)
+        for how in (signal.SIGTERM, signal.SIGKILL):
+            for pid, _ in found:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, how)
+            ended += [f"{pid} ({name})" for pid, name in found if how == signal.SIGTERM]
+            found = _reaped_within(LEFTOVER_GRACE_S if how == signal.SIGTERM else None)
+            if not found:
+                break
     if ended:
-        _say(f"ddvp: warning: ended {len(ended)} process(es) the command's scene left running: "
+        _say(f"ddvp: warning: ended {len(ended)} process(es) the command left running: "
              f"{', '.join(ended[:5])}{' ...' if len(ended) > 5 else ''}")
+
+
+def _reaped_within(seconds: float | None) -> list[tuple[int, str]]:
+    """This process's children that have not ended within ``seconds`` (``None``: waited for
+    as long as they take, after SIGKILL), the ended ones reaped."""
+    deadline = None if seconds is None else time.monotonic() + seconds
+    while True:
+        with contextlib.suppress(ChildProcessError):
+            while os.waitpid(-1, os.WNOHANG)[0] > 0:
+                pass
+        found = _children()
+        if not found or (deadline is not None and time.monotonic() >= deadline):
+            return found
+        if deadline is None:
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(-1, 0)
+            continue
+        time.sleep(0.02)
 
 
 def _children() -> list[tuple[int, str]]:
