@@ -520,7 +520,6 @@ class Scan:
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
         self.largest = extent.largest.copy()
-        self.free, self.turns = extent.free, extent.turns
         self.column_max, self.column_node = np.zeros(d), np.ones(d, dtype=int)
         self.claim_max = 0.0
         self.drift: int | None = None  # node indices
@@ -535,7 +534,8 @@ class Scan:
         return self.drift is not None or self.lost is not None
 
     def scales(self) -> np.ndarray:
-        return motion_scales(self.low, self.high, self.largest, self.n, self.free, self.turns)
+        return motion_scales(self.low, self.high, self.largest, self.n, self.extent.free,
+                             self.extent.turns)
 
     def measure(self, t, z, start: int, end: int, states, claim, offset: int = 0) -> None:
         """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
@@ -559,8 +559,8 @@ class Scan:
                 break
             seen = column_extremes(states[:stop])  # finite: the rows before a lost one
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
-                                np.maximum(self.largest, seen[2]), self.n, self.free,
-                                self.turns)
+                                np.maximum(self.largest, seen[2]), self.n, self.extent.free,
+                                self.extent.turns)
             if np.array_equal(new, scale):
                 break
             scale = new

@@ -44,7 +44,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
 from ..compiler import FunctionBuffer
 from .monitors import MarchMonitor
-from .steps import step_functions
+from .step_newton import step_jacobian_function
 
 __all__ = ["DERIVATIVES", "Sensitivity", "check_derivatives", "march_derivatives",
            "refuse_unsupported"]
@@ -168,18 +168,6 @@ def _split(rows: np.ndarray, names, widths) -> dict[str, np.ndarray]:
     return out
 
 
-def _jacobian_function(system, scheme, kind: str) -> ca.Function:
-    """``(x, w) -> (dF/dx, dF/dw)`` of the step residual of ``kind`` (dense), cached."""
-    def build():
-        functions = step_functions(system, scheme)
-        residual = functions.fixed_residual if kind == "fixed" else functions.energy_residual
-        x, w = residual.sx_in()
-        F = residual.call([x, w])[0]
-        return ca.Function(f"{kind}_step_jacobians", [x, w], [
-            ca.densify(ca.jacobian(F, x)), ca.densify(ca.jacobian(F, w))])
-    return cached(system, ("march_step_jacobians", scheme, kind), build)
-
-
 def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
     """``function`` on ``count`` evaluations, the inputs given as rows ``(count, size)``, each
     output as ``(count, rows, cols)``: one mapped call through numpy buffers (``compiler.py``'s
@@ -202,7 +190,7 @@ def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray):
     n2 = z.shape[1]
     w = np.hstack([t[steps, None], t[steps + 1, None], z[steps],
                    np.repeat(theta[None, :], steps.size, 0)])
-    J_x, J_w = _mapped(_jacobian_function(system, scheme, "fixed"), steps.size, z[steps + 1], w)
+    J_x, J_w = _mapped(step_jacobian_function(system, scheme, "fixed"), steps.size, z[steps + 1], w)
     gains = -np.linalg.solve(J_x, J_w[:, :, 2:])
     return gains[:, :, :n2], gains[:, :, n2:]
 
@@ -214,7 +202,7 @@ def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray):
     x = np.hstack([z[steps + 1], tau[:, None]])
     w = np.hstack([t[steps - 1, None], t[steps, None], z[steps - 1], z[steps],
                    np.repeat(theta[None, :], steps.size, 0), np.zeros((steps.size, 1))])
-    J_x, J_w = _mapped(_jacobian_function(system, scheme, "energy"), steps.size, x, w)
+    J_x, J_w = _mapped(step_jacobian_function(system, scheme, "energy"), steps.size, x, w)
     return -np.linalg.solve(J_x, J_w[:, :, :-1])
 
 

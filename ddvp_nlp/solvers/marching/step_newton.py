@@ -130,10 +130,7 @@ class StepProblem:
         old = 2 * n if kind == "fixed" else 4 * n
         self._old = slice(2, 2 + old)
         self._parameters = slice(2 + old, 2 + old + self.theta.size)
-        x, w = self._residual.sx_in()
-        F = self._residual.call([x, w])[0]
-        self._jacobians = ca.Function("step_jacobians", [x, w], [
-            ca.densify(ca.jacobian(F, x)), ca.densify(ca.jacobian(F, w))])
+        self._jacobians = step_jacobian_function(system, scheme, kind)
 
     def parameters(self, times, old_nodes, drift: float = 0.0) -> np.ndarray:
         """``w`` from the old times ``(t_a, t_b)`` or ``(t_{k-1}, t_k)``, the old node values
@@ -165,6 +162,20 @@ class StepProblem:
         in_x, in_old, in_theta = self.jacobians(x, w)
         solved = _lu_solve(in_x, np.hstack([in_old, in_theta]), 0)
         return -solved[:, :in_old.shape[1]], -solved[:, in_old.shape[1]:]
+
+
+def step_jacobian_function(system, scheme, kind: str) -> ca.Function:
+    """``(x, w) -> (dF/dx, dF/dw)`` (dense) of the step residual of ``kind`` (``"fixed"`` or
+    ``"energy"``, `StepProblem`), built once per system and scheme: what `StepProblem` and the
+    march's derivatives (``derivatives.py``) differentiate."""
+    def build():
+        functions = step_functions(system, scheme)
+        residual = functions.fixed_residual if kind == "fixed" else functions.energy_residual
+        x, w = residual.sx_in()
+        F = residual.call([x, w])[0]
+        return ca.Function(f"{kind}_step_jacobians", [x, w], [
+            ca.densify(ca.jacobian(F, x)), ca.densify(ca.jacobian(F, w))])
+    return cached(system, ("march_step_jacobians", scheme, kind), build)
 
 
 def _lu_solve(matrix: np.ndarray, rhs: np.ndarray, trans: int) -> np.ndarray:

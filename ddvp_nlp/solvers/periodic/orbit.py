@@ -350,7 +350,7 @@ def _checked(system, energy, nodes, section, guess, scheme, params, start, angle
     intervals = check_integer("nodes", nodes, minimum=4) - 1
     index, value, label = parse_section(section, system.n)
     n = system.n
-    angle_indices = parse_angles(angles, n)
+    angle_indices = check_angles(angles, n)
     direction = np.ones(2 * n)
     if start is not None:
         try:
@@ -386,12 +386,6 @@ def check_integrals(integrals) -> tuple:
     if not all(callable(integral) for integral in integrals):
         raise InputError(f"integrals must be functions I(q, p), got {integrals!r}")
     return integrals
-
-
-def parse_angles(angles, n: int) -> tuple[int, ...]:
-    """Indices into ``z = (q, p)`` (from 0) of the angle coordinates named ``"q1"`` ..
-    ``"qn"`` (`validation.check_angles`)."""
-    return check_angles(angles, n)
 
 
 def _start_nodes(request: GridRequest[Orbit], intervals: int):
