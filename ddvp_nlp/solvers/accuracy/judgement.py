@@ -247,6 +247,19 @@ def gradient_weights(scale: np.ndarray, n: int, free: np.ndarray | None = None) 
     return weights
 
 
+def gradient_sizes(t: np.ndarray, field: np.ndarray, scale: np.ndarray, n: int,
+                   free: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(weights, |S * grad H|)`` at the nodes: each node's share of the time (half of each
+    step beside it) and how much ``H`` changes there when the state moves by ``S``
+    (`gradient_weights`); `energy_scale` averages the one over the other, for a whole run or
+    window by window (``streaming.py``)."""
+    norm = row_norm(field * gradient_weights(scale, n, free))
+    weights = np.zeros(t.size)
+    weights[:-1] += np.diff(t) / 2
+    weights[1:] += np.diff(t) / 2
+    return weights, norm
+
+
 def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndarray,
                  n: int, free: np.ndarray | None = None) -> float:
     """``E_s``, the time average over the run of ``|S * grad H(z_k, t_k)|_2`` (from the vector
@@ -256,10 +269,7 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
     units of ``S``) off the exact level set, so wherever the gradient is at most its average
     (somewhere it is) at least ``dE / E_s``: a displacement, free of units and of constants
     added to ``H``. At least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
-    norm = row_norm(field * gradient_weights(scale, n, free))
-    weights = np.zeros(t.size)  # each node stands for half of each step beside it
-    weights[:-1] += np.diff(t) / 2
-    weights[1:] += np.diff(t) / 2
+    weights, norm = gradient_sizes(t, field, scale, n, free)
     typical = float(np.sum(weights * norm) / np.sum(weights)) if t.size > 1 else \
         float(norm[0]) if norm.size else 0.0
     if not math.isfinite(typical):

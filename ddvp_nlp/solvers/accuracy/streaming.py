@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..columns import column_extremes, row_norm
+from ..columns import column_extremes
 from ..exact.reference import FACTOR, GrowingReference
 from .judgement import (
     REFERENCE_RTOL,
@@ -41,7 +41,7 @@ from .judgement import (
     Level,
     Scan,
     finite_or_none,
-    gradient_weights,
+    gradient_sizes,
     unjudged,
     verdict_report,
 )
@@ -113,10 +113,7 @@ class StreamingJudgement:
         n = self.n
         if self.H0 is None:
             self.H0 = float(H[0])
-        norm = row_norm(field * gradient_weights(scale, n, self.judge.free))
-        weights = np.zeros(t.size)  # each node stands for half of each step beside it
-        weights[:-1] += np.diff(t) / 2
-        weights[1:] += np.diff(t) / 2
+        weights, norm = gradient_sizes(t, field, scale, n, self.judge.free)
         self.energy_sum += float(np.sum(weights * norm))
         self.weight_sum += float(np.sum(weights))
         self.H_abs_max = max(self.H_abs_max, float(np.max(np.abs(H))))
