@@ -120,21 +120,30 @@ def varying_part(expression: ca.SX, symbols: ca.SX) -> ca.SX:
     ``symbols`` (a constant, a function of the parameters alone): ``H + c`` gives ``H``,
     formed on the symbols, so that a difference of two values (the energy equation of the
     discrete schemes, the verdict's energy tests) is free of the round-off of ``c``. The
-    same object where there is no such term (then every value is bit for bit the same)."""
-    found = []
+    same object where there is no such term (then every value is bit for bit the same).
 
-    def strip(e: ca.SX) -> ca.SX:
-        if not ca.depends_on(e, symbols):
-            found.append(e)
-            return ca.SX(0)
-        if e.is_op(ca.OP_ADD):
-            return strip(e.dep(0)) + strip(e.dep(1))
-        if e.is_op(ca.OP_SUB):
-            return strip(e.dep(0)) - strip(e.dep(1))
-        return e
-
-    stripped = strip(expression)
-    return stripped if found else expression
+    The sum is walked without recursion (a lattice's ``H`` is a chain of thousands of
+    additions) and each of its terms is asked once whether it depends on the symbols, so the
+    cost is that of one pass over the expression."""
+    wanted = {symbol.element_hash() for symbol in ca.symvar(symbols)}
+    pending, done, found = [(expression, False)], [], False
+    while pending:
+        node, children_done = pending.pop()
+        if not (node.is_op(ca.OP_ADD) or node.is_op(ca.OP_SUB)):
+            if any(symbol.element_hash() in wanted for symbol in ca.symvar(node)):
+                done.append((node, True))
+            else:
+                found = True
+                done.append((ca.SX(0), False))
+        elif not children_done:
+            pending += [(node, True), (node.dep(1), False), (node.dep(0), False)]
+        else:
+            (right, right_varies), (left, left_varies) = done.pop(), done.pop()
+            if not (left_varies or right_varies):
+                done.append((ca.SX(0), False))
+            else:
+                done.append((left + right if node.is_op(ca.OP_ADD) else left - right, True))
+    return done[0][0] if found else expression
 
 
 # CasADi's own warning when numpy's functions meet its symbols (20 lines about its numpy mode)

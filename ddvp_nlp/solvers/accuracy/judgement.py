@@ -72,6 +72,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from ...cache import cached
 from ...solution import Status, Verdict
 from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_norm
 from ..exact.flow import exact_flow
@@ -184,9 +185,13 @@ def free_components(system) -> np.ndarray | None:
     H, q = getattr(system, "H", None), getattr(system, "q", None)
     if H is None or q is None:
         return None
-    n = int(system.n)
-    cyclic = [not ca.depends_on(H, q[i]) for i in range(n)]
-    return np.array(cyclic + [False] * n, dtype=bool) if any(cyclic) else None
+
+    def build():  # one pass over H's symbols (n calls of depends_on were n passes over H)
+        present = {symbol.element_hash() for symbol in ca.symvar(H)}
+        n = int(system.n)
+        cyclic = [q[i].element_hash() not in present for i in range(n)]
+        return np.array(cyclic + [False] * n, dtype=bool) if any(cyclic) else None
+    return cached(system, "cyclic_components", build)
 
 
 def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,

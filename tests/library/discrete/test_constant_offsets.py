@@ -82,3 +82,18 @@ def test_any_offset_gives_the_steps_of_the_plain_h(offset, tau0, speed):
     assert shifted.status == plain.status
     assert shifted.t.size == plain.t.size
     assert np.max(np.abs(shifted.t - plain.t)) <= 1e-12 * 3.0
+
+
+def test_the_varying_part_of_a_long_chain_of_sums_is_found_without_recursion():
+    """A lattice's H is a chain of thousands of additions: the first version recursed once per
+    addition and ended in RecursionError at 2048 sites."""
+    q = ca.SX.sym("q", 5000)
+    chain = 0
+    for i in range(5000):
+        chain = chain + q[i] ** 2
+    expression = chain + 7.0
+    stripped = varying_part(expression, q)
+    probe = np.linspace(-1.0, 1.0, 5000)
+    value = float(ca.Function("f", [q], [stripped])(probe))
+    assert value == pytest.approx(float(np.sum(probe ** 2)), rel=1e-12)
+    assert varying_part(chain, q) is chain
