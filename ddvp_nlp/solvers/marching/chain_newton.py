@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from .step_newton import norm_inf
+from .step_newton import norm_inf, small_update
 
 __all__ = ["SparseLU", "chain_newton", "fill_reducing_order"]
 
@@ -204,7 +204,8 @@ def chain_newton(name: str, residual: ca.Function, options: dict, *, border: int
                       [g_in[i] for i in range(n)])
     update = ca.Function(name + "_update", [x, w, g_in],
                          [ca.vertcat(*[x[i] + (-1.0) * dx[i] for i in range(n)]),
-                          norm_inf(dx) <= abstol_step], {"cse": True})
+                          small_update(dx, [x[i] for i in range(n)], abstol_step)],
+                         {"cse": True})
     # the chain on MX: level k = (x, w) -> (x, *values) from iteration k on
     xm, wm = ca.MX.sym("x", x.sparsity()), ca.MX.sym("w", w.sparsity())
     gm = ca.MX.sym("g", n)

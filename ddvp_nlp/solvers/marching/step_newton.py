@@ -276,6 +276,24 @@ class NewtonSteps:
 
 # --- the compiled path: fast_newton unrolled --------------------------------------------------
 
+# An update is small when each component is at most ``abstolStep`` or at most this many units
+# of round-off of the iterate's own component: ``|dx_i| <= max(abstolStep, ROUNDOFF_STEPS * eps
+# * |x_i|)``. ``fast_newton`` tests ``|dx|_inf <= abstolStep`` alone, which an iterate whose
+# components exceed ``abstolStep / eps`` (about 45 here: a winding azimuth, a coordinate offset
+# by a constant) cannot pass: its updates stay at its round-off, and every step ran all
+# ``max_iter`` iterations (a spherical pendulum in angles: 7-13 us a step against 1.8 before its
+# azimuth passed 1000 rad, issue 49). Below ``abstolStep / (ROUNDOFF_STEPS * eps)`` (11.3) the
+# test is ``fast_newton``'s, to the bit.
+ROUNDOFF_STEPS = 4.0
+
+
+def small_update(dx, x, abstol_step: float) -> ca.SX:
+    """Whether the update ``dx`` of the iterate ``x`` (lists of SX) is small:
+    ``|dx|_inf <= max(abstol_step, ROUNDOFF_STEPS * eps * |x|_inf)``."""
+    unit = ROUNDOFF_STEPS * float(np.finfo(float).eps)
+    return norm_inf(dx) <= ca.fmax(abstol_step, unit * norm_inf(x))
+
+
 def norm_inf(values) -> ca.SX:
     """``casadi_norm_inf``: ``fmax`` from 0 over ``|v_i|`` (``fmax`` ignores a NaN)."""
     result = ca.SX(0)
@@ -436,7 +454,7 @@ def newton_iteration(qr: SparseQR | DenseLU, *, abstol: float,
     dx = qr.solve(qr.factor([J.nz[k] for k in range(J.nnz())]), [g[i] for i in range(n)])
     update = ca.logic_and(ca.logic_not(stopped), ca.logic_not(small_residual))
     x_next = [ca.if_else(update, x[i] + (-1.0) * dx[i], x[i]) for i in range(n)]
-    small_step = norm_inf(dx) <= abstol_step
+    small_step = small_update(dx, [x[i] for i in range(n)], abstol_step)
     stopped_next = ca.logic_or(stopped, ca.logic_or(small_residual, small_step))
     return ca.Function("newton_iteration", [J, g, x, stopped],
                        [ca.vertcat(*x_next), stopped_next])
@@ -445,7 +463,7 @@ def newton_iteration(qr: SparseQR | DenseLU, *, abstol: float,
 def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
                     iterations: int, check_after: bool = False,
                     inline: bool = False, linear: str = "qr",
-                    at_root: ca.Function | None = None) -> ca.Function:
+                    at_root: ca.Function | None = None, border: int = 0) -> ca.Function:
     """``fast_newton`` on ``residual(x, w)`` with ``options`` (``abstol``, ``abstolStep``,
     ``max_iter``) as ``iterations`` unrolled iterations, then, only where those did not stop,
     ``fast_newton`` itself for the iterations left: ``(x0, w) -> x``, the same result.
@@ -502,13 +520,17 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
         x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
         w = ca.MX.sym("w", jacobian.sparsity_in(1))
         x, stopped, *values = unrolled.call([x0, w])
-    rest = ca.rootfinder(name + "_rest", "fast_newton", residual,
-                         {**options, "max_iter": options["max_iter"] - done})
+    left = {**options, "max_iter": options["max_iter"] - done}
     x_sym, w_sym = ca.MX.sym("x", x0.sparsity()), ca.MX.sym("w", w.sparsity())
     v_syms = [ca.MX.sym(f"v{i}", value.sparsity()) for i, value in enumerate(values)]
     finish_done = ca.Function("done", [x_sym, w_sym, *v_syms], [x_sym, *v_syms])
-    x_rest = rest(x_sym, w_sym)
-    again = at_root.call([x_rest, w_sym]) if values else []
+    if linear == "qr":  # fast_newton's bits: its own loop goes on
+        x_rest = ca.rootfinder(name + "_rest", "fast_newton", residual, left)(x_sym, w_sym)
+        again = at_root.call([x_rest, w_sym]) if values else []
+    else:  # its tests with the round-off-relative step test (ROUNDOFF_STEPS), as unrolled
+        from .chain_newton import chain_newton  # chain_newton builds on this module
+        x_rest, *again = chain_newton(name + "_rest", residual, left, border=border,
+                                      at_root=at_root if values else None)(x_sym, w_sym)
     # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
     # both branches. The rest runs only where the unrolled iterations did not stop.
     finish = ca.Function.if_else(name + "_finish", finish_done,
