@@ -22,8 +22,14 @@ goes on with ``fast_newton`` from that iterate, so the result is the one ``fast_
 to the last bit (the chunk compiles with ``-ffp-contract=off``).
 
 The march's chunk asks for a cheaper linear solve on small systems (``linear="lu"``,
-`DenseLU`): the same iterations and tests, each update by elimination; the result is then
-``fast_newton``'s root to round-off, not its bits.
+`DenseLU`): the same iterations and tests, each update by elimination, and where the unrolled
+iterations did not stop, `chain_newton`'s loop goes on in place of ``fast_newton``; the result
+is then ``fast_newton``'s root to round-off, not its bits.
+
+One test differs from ``fast_newton``'s everywhere: an update is small when it is below
+``abstolStep`` *or* within a few units of round-off of the iterate (`small_update`,
+`ROUNDOFF_STEPS`). For iterates below 11.3 in size this is ``fast_newton``'s test to the bit;
+above, ``fast_newton``'s absolute test cannot pass and ran every step to ``max_iter``.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ import numpy as np
 from ...cache import cached
 from ...errors import InputError
 from ...solution import Status
+from .chain_newton import chain_newton, norm_inf, small_update
 from .steps import EnergyCheck, FixedCheck, StepFunctions, step_functions
 
 # The options of both paths' rootfinders (``newton`` careful, ``fast_newton`` compiled).
@@ -276,32 +283,6 @@ class NewtonSteps:
 
 # --- the compiled path: fast_newton unrolled --------------------------------------------------
 
-# An update is small when each component is at most ``abstolStep`` or at most this many units
-# of round-off of the iterate's own component: ``|dx_i| <= max(abstolStep, ROUNDOFF_STEPS * eps
-# * |x_i|)``. ``fast_newton`` tests ``|dx|_inf <= abstolStep`` alone, which an iterate whose
-# components exceed ``abstolStep / eps`` (about 45 here: a winding azimuth, a coordinate offset
-# by a constant) cannot pass: its updates stay at its round-off, and every step ran all
-# ``max_iter`` iterations (a spherical pendulum in angles: 7-13 us a step against 1.8 before its
-# azimuth passed 1000 rad, issue 49). Below ``abstolStep / (ROUNDOFF_STEPS * eps)`` (11.3) the
-# test is ``fast_newton``'s, to the bit.
-ROUNDOFF_STEPS = 4.0
-
-
-def small_update(dx, x, abstol_step: float) -> ca.SX:
-    """Whether the update ``dx`` of the iterate ``x`` (lists of SX) is small:
-    ``|dx|_inf <= max(abstol_step, ROUNDOFF_STEPS * eps * |x|_inf)``."""
-    unit = ROUNDOFF_STEPS * float(np.finfo(float).eps)
-    return norm_inf(dx) <= ca.fmax(abstol_step, unit * norm_inf(x))
-
-
-def norm_inf(values) -> ca.SX:
-    """``casadi_norm_inf``: ``fmax`` from 0 over ``|v_i|`` (``fmax`` ignores a NaN)."""
-    result = ca.SX(0)
-    for value in values:
-        result = ca.fmax(result, ca.fabs(value))
-    return result
-
-
 def _reflect(x: list, nz_v: list, rows: list, entries: range, beta) -> None:
     """``x -= beta (v . x) v`` for the Householder vector ``v`` stored in ``nz_v[entries]`` at
     rows ``rows[entries]`` (in place), in ``casadi_qr``'s order of operations."""
@@ -528,9 +509,9 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
         x_rest = ca.rootfinder(name + "_rest", "fast_newton", residual, left)(x_sym, w_sym)
         again = at_root.call([x_rest, w_sym]) if values else []
     else:  # its tests with the round-off-relative step test (ROUNDOFF_STEPS), as unrolled
-        from .chain_newton import chain_newton  # chain_newton builds on this module
         x_rest, *again = chain_newton(name + "_rest", residual, left, border=border,
-                                      at_root=at_root if values else None)(x_sym, w_sym)
+                                      at_root=at_root if values else None
+                                      ).call([x_sym, w_sym])
     # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
     # both branches. The rest runs only where the unrolled iterations did not stop.
     finish = ca.Function.if_else(name + "_finish", finish_done,
