@@ -1,0 +1,188 @@
+"""Derivatives of a verified grid solution by the implicit-function theorem (issue 47): what the
+fixed-end and periodic families' ``derivatives=`` share.
+
+A grid solution ``x`` solves ``F(x, v) = 0``, ``v`` the problem's inputs (ends, energy,
+parameters). Where ``F_x`` is regular, ``x(v)`` is smooth and
+
+    ``F_x dx/dv = -F_v``
+
+gives its derivative: one more factorisation of the Jacobian the grid's Newton factors at every
+iteration, at the solution, then one solve per input column (forward; `Linearisation.forward`),
+or one transposed solve per output (reverse; `Linearisation.adjoint`). Every node time is a
+component of ``x``, so the derivative includes the steps' own (``d tau_k / dv``): nothing is
+frozen.
+
+Honesty: each input's derivative is checked by a central finite difference of the discrete
+solve itself along one random direction (`directional_check`: two Newton solves of the same
+assembly from ``x``, a step of ``CHECK_STEP`` of the input's scale), and the verdict
+(``"agrees"`` within ``AGREEMENT`` relative, else ``"disagrees"``) is returned beside the
+numbers with the Jacobian's 1-norm condition estimate (Hager-Higham, a few solves with the same
+factors); an estimate above ``ILL_CONDITIONED / eps`` marks the derivative ill-conditioned (fewer
+than about six digits of it can be trusted).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from ...errors import InputError
+from .linear import Factorization
+from .newton import newton
+from .problem import GridProblem
+
+EPS = float(np.finfo(float).eps)
+# The directional check's step, relative to the input's scale: central differences lose
+# about h^2 to truncation and eps/h to round-off, balanced near eps^(1/3) ~ 6e-6.
+CHECK_STEP = 1e-5
+# The check agrees when the finite difference and the derivative differ by at most this,
+# relative to the derivative's largest entry.
+AGREEMENT = 1e-6
+# eps * condition above this: the derivative is flagged ill-conditioned.
+ILL_CONDITIONED = 1e-6
+# The check's Newton solves: a target of this many round-offs of each row.
+CHECK_ROUND_OFFS = 16
+SEED = 47
+
+
+class DerivativesRefused(KeyError):
+    """Derivatives asked of a solve that did not find a verified solution."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class Refused(dict):
+    """``Solution.derivatives`` of a failed solve: empty; any key raises `DerivativesRefused`
+    with the reason (the solve's status), so that no number is read from it."""
+
+    def __init__(self, reason: str):
+        super().__init__()
+        self.reason = reason
+
+    def __missing__(self, key):
+        raise DerivativesRefused(f"no derivatives ({key!r} asked): {self.reason}")
+
+
+def check_names(derivatives, allowed: tuple, what: str) -> tuple[str, ...]:
+    """``derivatives`` (``None``, a name, or a sequence of names from ``allowed``) as a tuple
+    of distinct names in ``allowed``'s order; an ``InputError`` names a wrong one and lists the
+    allowed ones (``what``: the function, for the message)."""
+    if derivatives is None:
+        return ()
+    names = (derivatives,) if isinstance(derivatives, str) else derivatives
+    try:
+        names = tuple(names)
+    except TypeError:
+        raise InputError(f"derivatives of {what} must be a sequence of names from "
+                         f"{', '.join(allowed)}, got {derivatives!r}") from None
+    for name in names:
+        if not isinstance(name, str) or name not in allowed:
+            raise InputError(f"derivatives of {what}: unknown name {name!r} in "
+                             f"{derivatives!r} (choose from {', '.join(allowed)})")
+    return tuple(name for name in allowed if name in names)
+
+
+class Linearisation:
+    """``F_x`` at a solution, factored once: forward and adjoint solves and its condition."""
+
+    def __init__(self, problem: GridProblem, x: np.ndarray, data, linear: str = "auto",
+                 kernel=None):
+        _, jacobian = problem.evaluate(x, data, jacobian=True)
+        matrix = problem.sparse(jacobian)
+        self.norm = float(abs(matrix).sum(axis=0).max())
+        self.size = matrix.shape[0]
+        self.factors = Factorization(problem, jacobian, linear, kernel)
+        self.singular = self.factors.singular
+        self._condition = None
+
+    def forward(self, columns: np.ndarray) -> np.ndarray:
+        """``dx = -F_x^-1 F_v``, ``columns`` ``(size, k)`` the ``F_v`` of ``k`` inputs."""
+        columns = np.asarray(columns, float).reshape(self.size, -1)
+        out = np.empty_like(columns)
+        for j in range(columns.shape[1]):
+            out[:, j] = -self.factors.solve(np.array(columns[:, j], order="F"))
+        return out
+
+    def adjoint(self, cotangent: np.ndarray) -> np.ndarray:
+        """``F_x^-T g``: with it ``g . dx/dv = -(F_x^-T g) . F_v`` for every input at once."""
+        return self.factors.solve_transposed(np.array(cotangent, float, order="F"))
+
+    @property
+    def condition(self) -> float:
+        """The 1-norm condition estimate ``|F_x|_1 |F_x^-1|_1`` (``inf`` if singular)."""
+        if self._condition is None:
+            if self.singular:
+                self._condition = np.inf
+            else:
+                inverse = spla.LinearOperator(
+                    (self.size, self.size), dtype=float,
+                    matvec=lambda v: self.factors.solve(np.array(v, float).ravel()),
+                    rmatvec=lambda v: self.factors.solve_transposed(
+                        np.array(v, float).ravel()))
+                self._condition = float(self.norm * spla.onenormest(inverse))
+        return self._condition
+
+    def conditioning(self) -> dict:
+        condition = self.condition
+        return {"condition": condition,
+                "ill_conditioned": bool(not np.isfinite(condition)
+                                        or EPS * condition > ILL_CONDITIONED)}
+
+
+def step_scales(values: np.ndarray, fallback: float) -> np.ndarray:
+    """Per-entry scales of an input for its check's step: ``|v_i|``; a zero entry takes the
+    largest ``|v|`` of the same input, or ``fallback`` (a magnitude of the solution) if all are
+    zero."""
+    values = np.abs(np.atleast_1d(np.asarray(values, float)))
+    largest = float(np.max(values, initial=0.0))
+    return np.where(values > 0, values, largest if largest > 0 else fallback)
+
+
+def directional_check(resolve, dx: np.ndarray, scales: np.ndarray, rng) -> dict:
+    """Central finite difference of the discrete solve along a random direction ``d`` of one
+    input (``dx`` ``(size, k)`` its derivative, ``scales`` ``(k,)`` its step scales):
+    ``resolve(delta)`` is the solution at the input moved by ``delta`` (``None``: not solved).
+    Returns the relative error, its verdict, the step and the check's CPU seconds."""
+    began = time.process_time()
+    direction = rng.standard_normal(dx.shape[1])
+    direction /= np.linalg.norm(direction)
+    delta = CHECK_STEP * scales * direction
+    plus, minus = resolve(delta), resolve(-delta)
+    record = {"step": float(CHECK_STEP * np.max(scales)), "direction": direction.tolist()}
+    if plus is None or minus is None:
+        record.update(relative_error=None, verdict="not checked",
+                      reason="a perturbed solve did not converge")
+    else:
+        predicted = dx @ (CHECK_STEP * scales * direction)
+        differenced = (plus - minus) / 2.0
+        size = float(np.max(np.abs(predicted)))
+        error = float(np.max(np.abs(differenced - predicted)))
+        relative = error / size if size > 0 else error
+        record.update(relative_error=relative,
+                      verdict="agrees" if relative <= AGREEMENT else "disagrees")
+    record["cpu_s"] = time.process_time() - began
+    return record
+
+
+def resolver(problem: GridProblem, x: np.ndarray, data_at, *, tau_floor: float,
+             linear: str = "auto", kernel=None):
+    """``resolve(delta)`` for `directional_check`: the grid's Newton on ``problem`` from ``x``
+    with the data ``data_at(delta)``, to ``CHECK_ROUND_OFFS`` round-offs of ``max(1, |x|)``
+    per row; ``None`` if it does not converge."""
+    target = np.full(x.size, CHECK_ROUND_OFFS * EPS * max(1.0, float(np.max(np.abs(x)))))
+
+    def resolve(delta):
+        result = newton(problem, x.copy(), data_at(delta), target, tau_floor=tau_floor,
+                        max_iter=20, linear=linear, kernel=kernel)
+        if not result.converged or not np.all(np.isfinite(result.x)):
+            return None
+        return result.x
+    return resolve
+
+
+def new_rng():
+    """The checks' random directions: seeded, so that a run repeats."""
+    return np.random.default_rng(SEED)
