@@ -41,6 +41,9 @@ from ..grid.sensitivity import (
 )
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 
+EPS = float(np.finfo(float).eps)
+# The orbit solve's Newton target, in round-offs of the rows' magnitudes (orbit.py's).
+TARGET_ROUND_OFFS = 64
 # The inputs a periodic orbit differentiates in, in the order of the derivative's columns.
 PERIODIC_DERIVATIVES = ("energy", "params")
 
@@ -82,9 +85,11 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
         result["nodes"][name] = nodes[:, :, 0] if name == "energy" else nodes
     rng = new_rng()
     fallback = float(np.max(np.abs(x)))
+    # the orbit solve's own targets (orbit.py)
+    target = np.full(x.size, TARGET_ROUND_OFFS * EPS * max(1.0, fallback, abs(closure.energy)))
     for name in names:
         values = closure.energy if name == "energy" else closure.theta
-        resolve = resolver(assembly, x, _data_at(closure, name), tau_floor=0.0,
+        resolve = resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,
                            linear="sparse")
         result["checks"][name] = directional_check(resolve, dx[name],
                                                    step_scales(values, fallback), rng)
