@@ -60,6 +60,7 @@ from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver
 from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, answers_removed_keywords, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
+from .end_derivatives import bvp_derivatives, check_derivatives
 from .first_guess import Shooting, branch_obstacle, start_point
 from .interleaved import NodeLayout
 from .phases import (
@@ -72,7 +73,6 @@ from .phases import (
     round_off_scales,
     run_phase,
 )
-from .sensitivity import bvp_derivatives, check_derivatives
 
 GUESSES = ("straight", "march")
 # What a failed solve from a built-in start suggests: over a long horizon the problem has many
@@ -123,7 +123,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         output: ``progress`` reports each Newton iteration (and IPOPT's log) on stderr.
         derivatives: names from ``("q_start", "q_end", "params")``: the derivatives of the
             discrete solution (the end momenta, every node) in them, by the implicit-function
-            theorem on the verified solution (``sensitivity.py``), into
+            theorem on the verified solution (``end_derivatives.py``), into
             ``Solution.derivatives``.
 
     Returns:

@@ -111,9 +111,9 @@ from .first_orbit import (
     predicted_grid,
     section_point,
 )
+from .orbit_derivatives import check_derivatives, orbit_derivatives
 from .orbit_nlp import periodic_ipopt
 from .refinement import continue_in_nodes, node_levels
-from .sensitivity import check_derivatives, orbit_derivatives
 
 EPS = float(np.finfo(float).eps)
 # Newton's per-row target and the verification's round-off allowance, in round-offs of the
@@ -205,7 +205,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             either solver (default 100) and IPOPT's log (`GridOptions`).
         derivatives: names from ``("energy", "params")``: the derivatives of the discrete
             orbit (its period and nodes) in them, by the implicit-function theorem on the
-            verified orbit (``sensitivity.py``), into ``Solution.derivatives``.
+            verified orbit (``orbit_derivatives.py``), into ``Solution.derivatives``.
 
     Returns:
         A `Solution` with ``N + 1`` nodes; ``orbit`` (`OrbitRecord`) holds ``period``,

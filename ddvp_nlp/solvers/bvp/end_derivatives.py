@@ -3,7 +3,8 @@ parameters (issue 47): ``solve_bvp(..., derivatives=("q_start", "q_end", "params
 
 The solution ``x`` (every node's ``(t, q, p)``) solves the interleaved rows ``F(x, v) = 0``
 (``interleaved.py``) of ``v = (q_start, q_end, theta)``; the implicit-function theorem
-(``grid/sensitivity.py``) gives ``dx/dv`` from one factorisation of ``F_x`` at the solution, on
+(``grid/implicit_derivatives.py``) gives ``dx/dv`` from one factorisation of ``F_x`` at the
+solution, on
 the band the grid's Newton factors, and one band solve per input column. The ends enter only
 their pin rows (``q_0 - q_start``, ``q_{N-1} - q_end``: ``F_v = -I`` there), the parameters
 every block's rows (``GridAssembly.parameter_jacobian``). The interior node times are
@@ -20,7 +21,7 @@ unknowns, so their derivatives (the steps') are included.
 The discrete action ``S_D(q_start, q_end)`` of the solution has ``dS_D/dq_end = p_end`` and
 ``dS_D/dq_start = -p_start`` (the discrete Hamilton-Jacobi relations; tested): the momenta are
 the action's gradient, and ``d p_end / d q_end`` its Hessian. A solve that found no verified
-solution gets a ``grid.sensitivity.Refused`` in their place.
+solution gets a ``grid.implicit_derivatives.Refused`` in their place.
 """
 
 from __future__ import annotations
@@ -32,8 +33,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...solution import Solution, Status
-from ..grid.linear import band_kernel
-from ..grid.sensitivity import (
+from ..grid.implicit_derivatives import (
     Linearisation,
     Refused,
     check_names,
@@ -42,6 +42,7 @@ from ..grid.sensitivity import (
     resolver,
     step_scales,
 )
+from ..grid.linear import band_kernel
 from .phases import assembly, ends, newton_targets
 
 # The inputs a fixed-end problem differentiates in, in the order of the derivative's columns.
@@ -49,7 +50,7 @@ BVP_DERIVATIVES = ("q_start", "q_end", "params")
 
 
 def check_derivatives(system, derivatives, t_span=None) -> tuple[str, ...]:
-    """``derivatives=`` of `solve_bvp` read (``grid.sensitivity.check_names``); ``"params"`` of
+    """``derivatives=`` of `solve_bvp` read (``implicit_derivatives.check_names``); ``"params"`` of
     a system without parameters, and a transfer at an energy (its end time an unknown of
     another system), are refused by name."""
     names = check_names(derivatives, BVP_DERIVATIVES, "solve_bvp")

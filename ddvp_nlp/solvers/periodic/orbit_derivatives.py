@@ -3,7 +3,8 @@ parameters (issue 47): ``solve_periodic(..., derivatives=("energy", "params"))``
 
 The orbit ``x`` (node times and states, the unfoldings) solves the closed grid's rows
 ``F(x, E, theta) = 0`` (``closed_grid.py``); the implicit-function theorem on them
-(``grid/sensitivity.py``) gives ``dx/dE`` and ``dx/dtheta`` from one factorisation of ``F_x`` at
+(``grid/implicit_derivatives.py``) gives ``dx/dE`` and ``dx/dtheta`` from one factorisation of
+``F_x`` at
 the orbit and one sparse solve per input column. The energy enters only the rows
 ``H(Q_k, P_k) - E`` (``F_E = -1`` there), the parameters every interval's rows
 (``PeriodicAssembly.parameter_jacobian``). The period ``T = t_N - t_0`` is two components of
@@ -19,7 +20,7 @@ length's derivative included; it converges to the exact period's at the scheme's
 
 The grid's nodes are fixed quantities of a solve on ``N`` intervals (their count does not
 jump, unlike a march's), so their derivatives are offered. A solve that found no orbit gets a
-``grid.sensitivity.Refused`` in their place.
+``grid.implicit_derivatives.Refused`` in their place.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...solution import Solution, Status
-from ..grid.sensitivity import (
+from ..grid.implicit_derivatives import (
     Linearisation,
     Refused,
     check_names,
@@ -49,7 +50,8 @@ PERIODIC_DERIVATIVES = ("energy", "params")
 
 
 def check_derivatives(system, derivatives, params=None) -> tuple[str, ...]:
-    """``derivatives=`` of `solve_periodic` read (``grid.sensitivity.check_names``); ``"params"``
+    """``derivatives=`` of `solve_periodic` read (``implicit_derivatives.check_names``);
+    ``"params"``
     of a system without parameters is refused by name."""
     names = check_names(derivatives, PERIODIC_DERIVATIVES, "solve_periodic")
     if "params" in names and not getattr(system, "params", None):
