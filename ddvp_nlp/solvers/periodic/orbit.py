@@ -219,7 +219,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         do not follow the exact flow is ``inaccurate``.
     """
     integrals = check_integrals(integrals)
-    names = check_derivatives(system, derivatives, params)
+    names = check_derivatives(system, derivatives)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
                        coerce(options, GridOptions, "options"))
     started = request.start_clock()

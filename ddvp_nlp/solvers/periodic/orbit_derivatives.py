@@ -16,7 +16,9 @@ length's derivative included; it converges to the exact period's at the scheme's
     "period": {"energy": float, "params": (m,)}       (the names asked)
     "nodes":  {"energy": (N+1, 2n+1), "params": (N+1, 2n+1, m)}   rows (t, q, p) of node k
     "checks": {name: directional finite difference of the discrete solve and its verdict}
-    "condition", "ill_conditioned", "cpu_s", "wall_s"
+    "condition", "error_estimate", "nodes_error_estimate", "ill_conditioned",
+    "nodes_ill_conditioned"
+    "derivatives_cpu_s", "derivatives_wall_s" (factorisation and solves), "cpu_s", "wall_s" (all)
 
 The grid's nodes are fixed quantities of a solve on ``N`` intervals (their count does not
 jump, unlike a march's), so their derivatives are offered. A solve that found no orbit gets a
@@ -37,6 +39,7 @@ from ..grid.implicit_derivatives import (
     check_names,
     directional_check,
     new_rng,
+    relative,
     resolver,
     step_scales,
 )
@@ -49,10 +52,9 @@ TARGET_ROUND_OFFS = 64
 PERIODIC_DERIVATIVES = ("energy", "params")
 
 
-def check_derivatives(system, derivatives, params=None) -> tuple[str, ...]:
+def check_derivatives(system, derivatives) -> tuple[str, ...]:
     """``derivatives=`` of `solve_periodic` read (``implicit_derivatives.check_names``);
-    ``"params"``
-    of a system without parameters is refused by name."""
+    ``"params"`` of a system without parameters is refused by name."""
     names = check_names(derivatives, PERIODIC_DERIVATIVES, "solve_periodic")
     if "params" in names and not getattr(system, "params", None):
         raise InputError(f"derivatives: 'params' asked, but system "
@@ -76,15 +78,22 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     closure = _closure(request, solution, integrals)
     linear = Linearisation(assembly, x, closure, "sparse")
     columns = {name: _columns(assembly, x, closure, name) for name in names}
-    dx = {name: linear.forward(columns[name]) for name in names}
+    solved = {name: linear.forward(columns[name]) for name in names}
+    dx = {name: solved[name][0] for name in names}
     times = assembly.layout.time_index()
     m = assembly.layout.m
+
+    def project(v):
+        return v[times[-1]] - v[times[0]]
     result = {"period": {}, "nodes": {}, "checks": {}}
     for name in names:
         period = dx[name][times[-1]] - dx[name][times[0]]
         nodes = dx[name][:(N + 1) * m].reshape(N + 1, m, -1)
         result["period"][name] = float(period[0]) if name == "energy" else period
         result["nodes"][name] = nodes[:, :, 0] if name == "energy" else nodes
+    # the derivatives themselves (factorisation and forward solves), before their checks
+    result["derivatives_cpu_s"] = time.process_time() - cpu
+    result["derivatives_wall_s"] = time.perf_counter() - wall
     rng = new_rng()
     fallback = float(np.max(np.abs(x)))
     # the orbit solve's own targets (orbit.py)
@@ -94,8 +103,10 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
         resolve = resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,
                            linear="sparse")
         result["checks"][name] = directional_check(resolve, dx[name],
-                                                   step_scales(values, fallback), rng)
-    result.update(linear.conditioning())
+                                                   step_scales(values, fallback), rng, project)
+    result.update(linear.conditioning(
+        max(relative(project(c), project(d)) for d, c in solved.values()),
+        max(relative(c, d) for d, c in solved.values())))
     result["cpu_s"] = time.process_time() - cpu
     result["wall_s"] = time.perf_counter() - wall
     return result
