@@ -16,8 +16,7 @@ unknowns, so their derivatives (the steps') are included.
     "p_end":   {name: (n, k)}   d p_{N-1} / d input
     "nodes":   {name: (N, 2n+1, k)}                   rows (t, q, p) of node k
     "checks":  {name: directional finite difference of the discrete solve and its verdict}
-    "condition", "error_estimate", "nodes_error_estimate", "ill_conditioned",
-    "nodes_ill_conditioned"
+    "error_estimate", "nodes_error_estimate", "ill_conditioned", "nodes_ill_conditioned"
     "derivatives_cpu_s", "derivatives_wall_s" (factorisation and solves), "cpu_s", "wall_s" (all)
 
 The discrete action ``S_D(q_start, q_end)`` of the solution has ``dS_D/dq_end = p_end`` and

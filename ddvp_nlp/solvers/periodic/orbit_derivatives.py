@@ -16,8 +16,7 @@ length's derivative included; it converges to the exact period's at the scheme's
     "period": {"energy": float, "params": (m,)}       (the names asked)
     "nodes":  {"energy": (N+1, 2n+1), "params": (N+1, 2n+1, m)}   rows (t, q, p) of node k
     "checks": {name: directional finite difference of the discrete solve and its verdict}
-    "condition", "error_estimate", "nodes_error_estimate", "ill_conditioned",
-    "nodes_ill_conditioned"
+    "error_estimate", "nodes_error_estimate", "ill_conditioned", "nodes_ill_conditioned"
     "derivatives_cpu_s", "derivatives_wall_s" (factorisation and solves), "cpu_s", "wall_s" (all)
 
 The grid's nodes are fixed quantities of a solve on ``N`` intervals (their count does not
