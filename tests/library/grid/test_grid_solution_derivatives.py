@@ -126,6 +126,25 @@ def test_discrete_hamilton_jacobi_and_the_action_hessian():
     assert d["nodes"]["q_end"].shape == (101, 3, 1)
 
 
+def test_relabelled_coordinates_permute_the_end_derivatives():
+    def H(q, p, t, a, b):
+        return (p[0] ** 2 + p[1] ** 2) / 2 + a * q[0] ** 2 / 2 + b * q[1] ** 2 / 2 \
+            + 0.1 * q[0] ** 2 * q[1]
+
+    def swapped(q, p, t, a, b):
+        return H(q[::-1], p[::-1], t, a, b)
+    one = HamiltonianSystem(H, 2, {"a": 1.0, "b": 2.0}, name="coupled")
+    two = HamiltonianSystem(swapped, 2, {"a": 1.0, "b": 2.0}, name="coupled_swapped")
+    names = ("q_start", "q_end", "params")
+    first = solve_bvp(one, [0.1, 0.2], [0.3, -0.1], (0.0, 1.0), nodes=41, derivatives=names)
+    second = solve_bvp(two, [0.2, 0.1], [-0.1, 0.3], (0.0, 1.0), nodes=41, derivatives=names)
+    d, e = first.derivatives, second.derivatives
+    for end in ("p_start", "p_end"):
+        for name in ("q_start", "q_end"):
+            assert np.allclose(e[end][name], d[end][name][::-1, ::-1], rtol=1e-8, atol=1e-11)
+        assert np.allclose(e[end]["params"], d[end]["params"][::-1], rtol=1e-8, atol=1e-11)
+
+
 def test_bad_names_are_refused_listing_the_allowed_ones():
     with pytest.raises(InputError, match="choose from q_start, q_end, params"):
         solved_ends(derivatives=("q_end", "p_end"))
