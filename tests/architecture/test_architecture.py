@@ -527,6 +527,7 @@ INTERNALS_FOR_SCRIPTS = {
     # damaged shard parts written through the tool's own writer, for the merge's checks
     "scripts/pages/faults.py": {"io.chaos_files", "studies.chaos_map"},
     "scripts/pages/stability_study.py": {"solvers.exact.variational"},
+    "scripts/pages/gradients_page.py": {"solvers.marching.derivatives"},
 }
 
 

@@ -29,7 +29,7 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
 # the inputs to differentiate in (derivatives, issue 47 names it so): each asks for an answer
 # rather than tuning a group, so it is not an option object's field.
 MOST_PARAMETERS = 12
-MORE = {"march": 2}
+MORE = {"march": 2, "solve_bvp": 1}  # solve_bvp: derivatives= (issue 47)
 
 
 def test_public_names_are_stable_and_importable():
