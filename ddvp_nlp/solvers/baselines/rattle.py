@@ -1,6 +1,6 @@
-"""RATTLE and SHAKE, the fixed-step methods of constrained mechanics, as compared methods: their
-steps (``discrete/rattle.py``) in compiled chunks on uniform steps that end on ``t_end``, as the
-other fixed-step baselines.
+"""RATTLE and SHAKE, the fixed-step methods of constrained mechanics, as compared methods:
+their steps (``discrete/constrained_verlet.py``) in compiled chunks on uniform steps that end
+on ``t_end``, as the other fixed-step baselines.
 
 The constraint solves stop at ``tol`` in the units of ``g``; by default
 ``tol = DEFAULT_TOL * c``, ``c = max_i |G_q,i(q_0, t_0)|_2 |q_0|_inf``, the size of the terms
@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
-from ...discrete.rattle import METHODS, constrained_separable, rattle_step
+from ...discrete.constrained_verlet import METHODS, constrained_separable, rattle_step
 from ...errors import InputError
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, describe_phase_space, drive

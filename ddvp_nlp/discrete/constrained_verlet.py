@@ -93,13 +93,14 @@ def rattle_step(system: HamiltonianSystem, method: str = "rattle",
         lam, taken = _newton(lambda lam: g(position(lam), t1, theta), jac_position,
                              ca.SX.zeros(k), tol, iterations)
         q1, p_half = position(lam), half(lam)
-        p_end = p_half - tau / 2 * V_q(q1, t1, theta)
+        kicked = p_half - tau / 2 * V_q(q1, t1, theta)
+        p_end = kicked
         residual = ca.mmax(ca.fabs(g(q1, t1, theta)))
         if method == "rattle":
             G1 = Gq(q1, t1, theta)
 
             def momentum(mu):
-                return p_end - tau / 2 * ca.mtimes(G1.T, mu)
+                return kicked - tau / 2 * ca.mtimes(G1.T, mu)
 
             def hidden(mu):
                 return tau * (ca.mtimes(G1, T_p(momentum(mu), theta)) + gt(q1, t1, theta))
