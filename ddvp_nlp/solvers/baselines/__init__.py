@@ -30,8 +30,9 @@ Modules: ``integrator.py`` (the traits), ``chunks.py`` (what every compiled base
 ``paper_schemes.py`` (vddvp, lee, midpoint: the march), ``fixed_step.py`` (Stormer-Verlet,
 leapfrog, RK4, AVF on uniform steps; ``avf_stepper.py`` the AVF step), ``verlet_adaptive.py``
 (reversible adaptive Stormer-Verlet), ``lee_left_stepper.py`` (T.D. Lee's left-point scheme),
-``rattle.py`` (RATTLE and SHAKE, constrained systems only), ``dop853.py`` (scipy's DOP853, the method users would pick instead; the studies' reference is
-the exact flow of ``solvers/exact/``).
+``rattle.py`` (RATTLE and SHAKE, constrained systems only), ``dop853.py`` (scipy's DOP853,
+the method users would pick instead; the studies' reference is the exact flow of
+``solvers/exact/``).
 """
 
 from . import dop853, fixed_step, paper_schemes, rattle, verlet_adaptive
