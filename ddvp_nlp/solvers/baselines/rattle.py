@@ -108,10 +108,11 @@ def rattle_run(system, q0, p0, *, tau: float, t_end: float, t0: float = 0.0, the
     ``g``'s terms (module docstring). ``stats["newton"]``: iterations of every step."""
     constrained_separable(system, method)
     q0, p0 = np.asarray(q0, float).ravel(), np.asarray(p0, float).ravel()
-    theta = np.asarray(theta, float).reshape(system.theta.numel())
-    for name, value in (("q0", q0), ("p0", p0)):
-        if value.size != system.n or not np.all(np.isfinite(value)):
-            raise InputError(f"{name} must be {system.n} finite numbers, got {value.tolist()}")
+    theta = np.asarray(theta, float).ravel()
+    for name, value in (("q0", q0), ("p0", p0), ("theta", theta)):
+        size = system.theta.numel() if name == "theta" else system.n
+        if value.size != size or not np.all(np.isfinite(value)):
+            raise InputError(f"{name} must be {size} finite numbers, got {value.tolist()}")
     if not (np.isfinite(tau) and tau > 0):
         raise InputError(f"tau must be positive and finite, got {tau!r}")
     if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
