@@ -29,7 +29,8 @@ reference's own error is that of DOP853 at its tolerance (Hairer, Lubich and Wan
 **Its error bound** is the one of ``reference.py`` (two runs, ``rtol`` and ``rtol / 10``, their
 difference as the envelope): measured on the Cartesian planar pendulum against the elliptic
 solution and the spherical pendulum against its equations in angles (scipy DOP853 at rtol
-1e-13): see ``docs/accuracy/README.md`` ("Constrained motions") for the figures.
+1e-13): see ``docs/accuracy/constrained.md`` for the figures (the reference within
+``10 rtol`` of the exact motion, its claim above the true error at every time).
 
 The multipliers are solved symbolically (CasADi SX): meant for a few constraints (a pendulum,
 a linkage, a short chain); ``k`` in the tens makes the expressions large.
