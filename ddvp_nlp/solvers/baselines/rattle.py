@@ -166,6 +166,7 @@ RATTLE = Integrator("rattle", "RATTLE: Stormer-Verlet with the position and mome
                     symplectic=True, energy_conserving=False, knob="tau", run=_run_of("rattle"),
                     applies=not_constrained)
 SHAKE = Integrator("shake", "SHAKE: Stormer-Verlet with the position constraint solved by "
-                   "Newton (constrained systems, separable H)", order=2, symplectic=False,
+                   "its classical iteration (constrained systems, separable H); positions of "
+                   "order 2, node momenta not projected (order 1)", order=1, symplectic=False,
                    energy_conserving=False, knob="tau", run=_run_of("shake"),
                    applies=not_constrained)
