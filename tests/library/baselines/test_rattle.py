@@ -197,3 +197,23 @@ def test_spherical_pendulum_keeps_its_angular_momentum():
     z = nodes(solution)
     Lz = z[:, 0] * z[:, 4] - z[:, 1] * z[:, 3]
     assert np.max(np.abs(Lz / Lz[0] - 1)) <= 1e-12
+
+
+def test_a_moving_pivot_is_the_pendulum_seen_from_a_moving_frame():
+    # time-dependent constraint g = (x - c t)^2 + y^2 - 1: RATTLE's nodes are the pendulum's
+    # shifted by the frame (RATTLE commutes with a Galilean boost), its hidden constraint kept
+    from helpers.constrained import with_constraints
+    c = 0.3
+
+    def H(q, p, t):
+        return (p[0] ** 2 + p[1] ** 2) / 2 + q[1]
+    moving = with_constraints(HamiltonianSystem(H, 2, name="moving_pivot"),
+                              lambda q, t: (q[0] - c * t) ** 2 + q[1] ** 2 - 1)
+    z0 = pendulum_start(1.0)
+    still = run(tau=0.05, t_end=20.0)
+    solution = rattle_run(moving, z0[:2], z0[2:] + [c, 0.0], tau=0.05, t_end=20.0, theta=[])
+    boost = np.column_stack([c * solution.t, 0 * solution.t, c + 0 * solution.t,
+                             0 * solution.t])
+    assert np.max(np.abs(nodes(solution) - boost - nodes(still))) <= 1e-11
+    _, h = constraint_residuals(moving, solution.t, nodes(solution), [])
+    assert h.max() <= 1e-12

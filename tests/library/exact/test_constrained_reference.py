@@ -244,3 +244,18 @@ def test_scaled_units_scale_the_motion():
     expected = np.hstack([unit[:, :2] * length, unit[:, 2:] * mass * length / clock])
     assert np.max(np.abs(big - expected) / np.array([length] * 2 + [mass * length / clock] * 2)) \
         <= 1e-9
+
+
+def test_a_pivot_moving_at_constant_velocity_is_the_pendulum_seen_from_a_moving_frame():
+    # g(q, t) = (x - c t)^2 + y^2 - 1: time-dependent (g_t, h_t); a Galilean change of frame
+    c = 0.3
+
+    def H(q, p, t):
+        return (p[0] ** 2 + p[1] ** 2) / 2 + q[1]
+    moving = with_constraints(HamiltonianSystem(H, 2, name="moving_pivot"),
+                              lambda q, t: (q[0] - c * t) ** 2 + q[1] ** 2 - 1)
+    z0 = pendulum_start(1.0) + [0.0, 0.0, c, 0.0]
+    t = np.linspace(0, 30, 301)
+    z = constrained_reference(moving, z0, 0.0, 30.0, [], rtol=1e-11).states(t)
+    exact = elliptic_pendulum(t, 1.0) + np.column_stack([c * t, 0 * t, c + 0 * t, 0 * t])
+    assert np.max(np.abs(z - exact)) <= 1e-9
