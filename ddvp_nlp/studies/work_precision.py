@@ -279,9 +279,14 @@ def _timed(call, repeats: int, budget_s: float):
 
 def default_methods(system) -> tuple[list[Method], list[str]]:
     """Every method that applies and does not repeat another on this system, and the reasons
-    for the ones left out."""
+    for the ones left out (a method of constrained systems only is left out of a system
+    without constraints without a reason: the report does not list what the scene does not
+    need)."""
     chosen, left_out = [], []
+    constrained = getattr(system, "n_constraints", 0) > 0
     for method in METHODS.values():
+        if method.constrained_only and not constrained:
+            continue
         reason = method.applies(system) or method.redundant(system)
         if reason:
             left_out.append(f"`{method.name}`: {reason}")

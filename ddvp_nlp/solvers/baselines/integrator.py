@@ -50,6 +50,9 @@ class Integrator:
             paper's schemes: the march does). Otherwise ``run`` is given a backward run as
             the forward run of the time-reversed system, mapped back
             (``marching/backward.run_time_reversed``), so every method runs either way.
+        constrained_only: a method of systems with holonomic constraints (RATTLE, SHAKE):
+            a default comparison of a system without constraints leaves it out without a
+            word, as it leaves out what the scene does not need.
     """
 
     name: str
@@ -64,6 +67,7 @@ class Integrator:
     aims: bool = False
     limitation: str = ""
     reverses_itself: bool = False
+    constrained_only: bool = False
 
     def __post_init__(self):
         if not (self.reverses_itself or getattr(self.run, "either_way", False)):
