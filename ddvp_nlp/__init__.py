@@ -66,7 +66,8 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
-    "follow_periodic_family", "Continuation", "linearised_orbit", "march_higher", "solve_bvp_higher",
+    "follow_periodic_family", "Continuation", "linearised_orbit", "march_higher",
+    "solve_bvp_higher",
     "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP")})
 
 

@@ -188,7 +188,8 @@ class _Shooting:
 
     def period_column(self, flows) -> np.ndarray:
         """The closures' derivative in ``T``: each segment's end field times its fraction."""
-        return np.concatenate([flow.field * s for flow, s in zip(flows, self.fractions)])
+        return np.concatenate([flow.field * s for flow, s in zip(flows, self.fractions,
+                                                                strict=True)])
 
     def matrix(self, flows, energy_gradient, T):
         """The Jacobian (module docstring): block ``j`` of the continuity rows holds ``Y_j`` in

@@ -52,7 +52,7 @@ def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float) 
     n = system.n
     J = np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
     cuts, inverse = [0.0], np.eye(k)
-    for t, w in zip(times[1:-1], states[1:-1]):
+    for t, w in zip(times[1:-1], states[1:-1], strict=True):
         Y = w[d:].reshape(d, d).T[:k, :k]
         if not np.all(np.isfinite(Y)):
             break

@@ -97,8 +97,8 @@ from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
-from ..exact.closure import nearest_exact_orbit
 from ..compiler import find_compiler
+from ..exact.closure import nearest_exact_orbit
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
