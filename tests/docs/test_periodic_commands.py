@@ -72,11 +72,21 @@ def _henon_heiles_follow(out: str, folder: Path) -> None:
     assert "unstable" not in out
 
 
+def _hill_family(out: str, folder: Path) -> None:
+    """The guide: "Hill's Lyapunov family: 42 orbits, index ~1970" (N = 400, the scene's)."""
+    assert "left the energy range after 42 orbits" in out
+    first = re.search(r"^E = -2.14 +T = ([\d.]+) +unstable +indices ([\d.]+)", out, flags=re.M)
+    assert first and abs(float(first.group(1)) - 3.0396555) < 1e-4
+    assert abs(float(first.group(2)) - 1970.3) < 2
+    assert out.count("(exact flow: unstable") == 42
+
+
 CLAIMS = {
     "ddvp periodic henon_heiles --stability": _henon_heiles_stability,
     "ddvp periodic figure_eight --stability": _figure_eight,
     "ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005": _halo_birth,
     "ddvp periodic henon_heiles --energy 0.02 --follow 0.1 --step 0.01": _henon_heiles_follow,
+    "ddvp periodic hill --energy -2.14 --follow -1.90": _hill_family,
 }
 
 

@@ -1,18 +1,27 @@
 """The exact flow's side of a periodic orbit: its monodromy and the exact orbit near a discrete
 one, both from the variational equations integrated by the one exact flow (``variational.py``,
 compiled DOP853 with the tangent carried along; no equation of the scheme is used here).
-``Y(T)`` of ``flow_with_derivatives`` on a periodic orbit is its monodromy matrix.
+The product of the segments' ``Y`` on a periodic orbit is its monodromy matrix.
 
-Closing the exact flow (`close_exact`): Newton's method on the shooting equations::
+Closing the exact flow (`close_exact`): Newton's method on the multiple-shooting equations, on
+``S`` segments cut at fractions ``0 = s_0 < .. < s_S = 1`` of the period where the flow has grown
+(``segments.py``; ``S = 1`` on an orbit whose flow never stretches anything ``GROWTH`` times)::
 
-    phi_T(z_0; u) - z_0 - shift = 0      (2n)
+    phi_{(s_{j+1} - s_j) T}(z_j; u) - z_{j+1} = 0   (j < S - 1),
+    phi_{(1 - s_{S-1}) T}(z_{S-1}; u) - z_0 - shift = 0          (S 2n)
     H(z_0) - E = 0,  z_0[section] - value = 0,  g_i . (z_0 - z_ref) = 0   (2 + r)
 
-in ``(z_0, T, u)`` (``2n + 2 + r`` unknowns): the unfolding parameters make the count square as
-they do for the discrete orbit (``periodic/orbit.py``), and come out at the integrator's
-accuracy on an orbit of the Hamiltonian flow. Started from a discrete orbit's node 0 and period, its
-convergence shows that an exact orbit is there; the distance between the two is the discrete
-orbit's error at node 0.
+in ``(z_0, .., z_{S-1}, T, u)`` (``S 2n + 2 + r`` unknowns; the Jacobian holds each segment's
+``Y_j`` and ``-I`` beside it, the period's column ``(s_{j+1} - s_j) f`` at each segment's end,
+and the unfolding's): the unfolding parameters make the count square as they do for the
+discrete orbit (``periodic/orbit.py``), and come out at the integrator's accuracy on an orbit of
+the Hamiltonian flow. The same Newton (``flow_newton.py``) on a larger system: on one segment
+it is single shooting, whose start must be within about ``1/mu`` of the orbit (``mu`` the
+largest multiplier); each segment's linearisation is good over a growth of ``GROWTH`` only, so
+an orbit of any instability closes (Hill's Lyapunov orbit run twice, ``mu = 3.9e6``: 8 segments,
+2 iterations; single shooting diverges). Started from a discrete orbit's node 0 and period (and
+its nodes at the cuts), its convergence shows that an exact orbit is there; the distance
+between the two is the discrete orbit's error at node 0.
 """
 
 from __future__ import annotations
@@ -24,7 +33,7 @@ import numpy as np
 
 from ...cache import cached
 from .flow_newton import exact_newton
-from .segments import exact_path, growth_cuts, starts_from_path
+from .segments import GROWTH, exact_path, growth_cuts, starts_from_path
 from .tolerance import EXACT_TOLERANCE
 from .variational import RTOL, flow_with_derivatives
 
@@ -78,12 +87,13 @@ class ExactOrbit:
 
 def close_exact(system, theta, z0, period: float, *, energy: float, section_index: int,
                 section_value: float, integrals=(), shift=0.0, rtol: float = RTOL,
-                fixed_period: bool = False, path=None) -> ExactOrbit:
+                fixed_period: bool = False, path=None, growth: float = GROWTH) -> ExactOrbit:
     """The exact periodic orbit near ``(z_0, T)`` by Newton on the shooting equations (module
     docstring; the one Newton on the exact flow, ``flow_newton.py``, undamped), on segments cut
     where the flow grows (``segments.py``: one segment, single shooting, on an orbit whose flow
     never stretches anything ``GROWTH`` times). ``path = (t, z)``: the discrete orbit's nodes,
-    read at the cuts for the segments' starts (default: the pilot run's states there).
+    read at the cuts for the segments' starts (default: the pilot run's states there);
+    ``growth``: the flow's growth at which a segment ends (``inf``: single shooting).
     ``section_index`` counts ``t`` as 0 (as the discrete layouts do), so
     ``z_0[section_index - 1]`` is fixed; the integrals' phase conditions are taken at the
     start's ``z_0``. It stops where every segment's continuity and the energy equation are
@@ -99,7 +109,8 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
     gradient = _gradients_function(system, integrals)
     generators = _generators(np.asarray(gradient(reference, theta))[:, 1:]) if r else \
         np.zeros((0, k))
-    cuts = growth_cuts(system, theta, reference, period, integrals=integrals, rtol=rtol)
+    cuts = growth_cuts(system, theta, reference, period, integrals=integrals, rtol=rtol,
+                       growth=growth)
     S = cuts.size - 1
     starts = starts_from_path(*path, cuts) if path is not None and S > 1 else \
         _pilot_starts(system, theta, reference, period, cuts, rtol)

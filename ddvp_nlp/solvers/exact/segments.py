@@ -32,9 +32,11 @@ GROWTH = 10.0
 MAX_SEGMENTS = 64
 
 
-def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float) -> np.ndarray:
+def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float,
+                growth: float = GROWTH) -> np.ndarray:
     """The cuts ``0 = s_0 < ... < s_S = 1`` (fractions of ``period``) of the orbit through
-    ``z0`` (module docstring); ``[0, 1]`` where the pilot run fails."""
+    ``z0`` where the flow has grown ``growth`` times since the last (module docstring);
+    ``[0, 1]`` where the pilot run fails or ``growth`` is infinite."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
     flow = variational_flow(system, integrals)
@@ -44,7 +46,7 @@ def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float) 
     with np.errstate(all="ignore"):
         run = flow.run(np.concatenate([z0, np.zeros(1 + r)]), 0.0, float(period),
                        np.asarray(theta, float), rtol=rtol, atol=atol)
-    if not run.success or run.steps < 2:
+    if not run.success or run.steps < 2 or not np.isfinite(growth):
         return np.array([0.0, 1.0])
     d = k + 1 + r
     times = np.r_[run.t_old, run.t_end]
@@ -56,7 +58,7 @@ def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float) 
         Y = w[d:].reshape(d, d).T[:k, :k]
         if not np.all(np.isfinite(Y)):
             break
-        if np.linalg.norm(Y @ inverse, 2) >= GROWTH:
+        if np.linalg.norm(Y @ inverse, 2) >= growth:
             cuts.append(float(t) / float(period))
             inverse = -J @ Y.T @ J
     cuts = _spaced(np.asarray(cuts + [1.0]))
