@@ -187,3 +187,19 @@ def test_a_multiplier_of_millions_closes_on_segments(lyapunov):
     single = (INDEX + np.sqrt(INDEX ** 2 - 4)) / 2
     assert largest > 1e4 and abs(largest - single ** 2) < 1e-4 * single ** 2
     assert not close(np.inf).converged
+
+
+def test_linearised_orbit_about_the_mirrored_point_is_the_mirrored_orbit(hill):
+    """``H`` is even under ``z -> -z`` (a half turn of the plane): the linearised orbit about
+    the libration point at ``-x`` is the one about ``+x`` turned, half a period on (node 0 must
+    cross ``y = 0`` upwards), with the same period; its amplitude differs at the nonlinear
+    order (node 0, where ``H = E`` is set, is on the other side), its shape does not."""
+    right = linearised_orbit(hill.system, energy=-2.15, equilibrium=EQUILIBRIUM,
+                             section="q2=0", samples=201)
+    left = linearised_orbit(hill.system, energy=-2.15, equilibrium=[-v for v in EQUILIBRIUM],
+                            section="q2=0", samples=201)
+    assert left["t"][-1] == pytest.approx(right["t"][-1], rel=1e-12)
+    turned = -(np.hstack([right["q"], right["p"]]) - EQUILIBRIUM)
+    mirrored = np.hstack([left["q"], left["p"]]) + EQUILIBRIUM
+    turned, mirrored = turned / np.max(np.abs(turned)), mirrored / np.max(np.abs(mirrored))
+    assert np.allclose(np.roll(turned[:-1], -100, axis=0), mirrored[:-1], atol=1e-9)
