@@ -59,10 +59,10 @@ def _draw_family(fig, family) -> None:
 
 
 def _indices(axes, members) -> None:
-    """The stability indices (real parts) against the energy with the lines ``k = +-2``;
-    on a symmetric log scale when some index passes 10 (an unstable pair's grows like its
-    multiplier). A family with no nontrivial multiplier (one degree of freedom) shows what
-    there is, its trivial pair (``mu = 1``, ``k = 2``), and says so."""
+    """The stability indices (real parts) against the energy with the lines ``k = +-2``,
+    the axis scaled to the indices (`_index_limits`). A family with no nontrivial multiplier
+    (one degree of freedom) shows what there is, its trivial pair (``mu = 1``, ``k = 2``), and
+    says so."""
     values = [member.stability.indices.real for member in members]
     for member, k in zip(members, values, strict=True):
         colour = COLOURS[member.stability.verdict]
@@ -70,10 +70,7 @@ def _indices(axes, members) -> None:
     for level in (-2, 2):
         axes.axhline(level, color="0.5", lw=0.8, ls="--")
     largest = max((float(np.max(np.abs(k))) for k in values if k.size), default=0.0)
-    if largest > 10:
-        axes.set_yscale("symlog", linthresh=3.0)
-    else:
-        axes.set_ylim(-max(3.0, 1.1 * largest), max(3.0, 1.1 * largest))
+    _index_limits(axes, values, largest)
     if largest == 0.0 and members:
         trivial = [(m.energy, np.asarray(m.stability.trivial)) for m in members]
         energies = [e for e, mu in trivial for _ in range(mu.size)]
@@ -86,3 +83,23 @@ def _indices(axes, members) -> None:
     axes.set_xlabel("energy $E$")
     axes.set_ylabel(r"stability index $k = \mu + 1/\mu$")
     axes.set_title(r"stability indices ($|k| < 2$: stable)", fontsize="medium")
+
+
+def _index_limits(axes, values, largest: float) -> None:
+    """The index axis from the data and the lines ``k = +-2``: linear while every index is
+    within 10, else a symmetric log scale (linear within 3; an unstable pair's index grows like
+    its multiplier, and the indices of one orbit may span decades), the limits the data's with
+    a margin in the scale's own terms (a factor on the log part), so no marker sits on an
+    edge; the side of zero no index reaches shows no more than the line ``k = -2`` or ``2``."""
+    if largest == 0.0:
+        axes.set_ylim(-3.0, 3.0)
+        return
+    data = np.concatenate([k for k in values if k.size])
+    top, bottom = max(float(np.max(data)), 2.0), min(float(np.min(data)), -2.0)
+    if max(top, -bottom) <= 10:
+        pad = 0.08 * (top - bottom)
+        axes.set_ylim(bottom - pad, top + pad)
+        return
+    axes.set_yscale("symlog", linthresh=3.0)
+    axes.set_ylim(bottom * 2.0 if bottom < -3 else bottom - 0.6,
+                  top * 2.0 if top > 3 else top + 0.6)

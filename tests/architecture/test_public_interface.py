@@ -21,7 +21,8 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
           "Scheme", "Solution", "Spectrum", "Status", "StepControl", "Tolerance", "Verdict",
           "__version__",
           "chaos_indicators", "compare", "continue_march", "lyapunov_spectrum",
-          "follow_periodic_family", "list_scenes", "load_scene", "march", "march_ensemble",
+          "follow_periodic_family", "linearised_orbit", "list_scenes", "load_scene", "march",
+          "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
           "solve_periodic", "solve_periodic_family"}
 # No public function takes more than this many parameters: the rest are option objects. march

@@ -1,18 +1,27 @@
 """The exact flow's side of a periodic orbit: its monodromy and the exact orbit near a discrete
 one, both from the variational equations integrated by the one exact flow (``variational.py``,
 compiled DOP853 with the tangent carried along; no equation of the scheme is used here).
-``Y(T)`` of ``flow_with_derivatives`` on a periodic orbit is its monodromy matrix.
+The product of the segments' ``Y`` on a periodic orbit is its monodromy matrix.
 
-Closing the exact flow (`close_exact`): Newton's method on the shooting equations::
+Closing the exact flow (`close_exact`): Newton's method on the multiple-shooting equations, on
+``S`` segments cut at fractions ``0 = s_0 < .. < s_S = 1`` of the period where the flow has grown
+(``segments.py``; ``S = 1`` on an orbit whose flow never stretches anything ``GROWTH`` times)::
 
-    phi_T(z_0; u) - z_0 - shift = 0      (2n)
+    phi_{(s_{j+1} - s_j) T}(z_j; u) - z_{j+1} = 0   (j < S - 1),
+    phi_{(1 - s_{S-1}) T}(z_{S-1}; u) - z_0 - shift = 0          (S 2n)
     H(z_0) - E = 0,  z_0[section] - value = 0,  g_i . (z_0 - z_ref) = 0   (2 + r)
 
-in ``(z_0, T, u)`` (``2n + 2 + r`` unknowns): the unfolding parameters make the count square as
-they do for the discrete orbit (``periodic/orbit.py``), and come out at the integrator's
-accuracy on an orbit of the Hamiltonian flow. Started from a discrete orbit's node 0 and period, its
-convergence shows that an exact orbit is there; the distance between the two is the discrete
-orbit's error at node 0.
+in ``(z_0, .., z_{S-1}, T, u)`` (``S 2n + 2 + r`` unknowns; the Jacobian holds each segment's
+``Y_j`` and ``-I`` beside it, the period's column ``(s_{j+1} - s_j) f`` at each segment's end,
+and the unfolding's): the unfolding parameters make the count square as they do for the
+discrete orbit (``periodic/orbit.py``), and come out at the integrator's accuracy on an orbit of
+the Hamiltonian flow. The same Newton (``flow_newton.py``) on a larger system: on one segment
+it is single shooting, whose start must be within about ``1/mu`` of the orbit (``mu`` the
+largest multiplier); each segment's linearisation is good over a growth of ``GROWTH`` only, so
+an orbit of any instability closes (Hill's Lyapunov orbit run twice, ``mu = 3.9e6``: 8 segments,
+2 iterations; single shooting diverges). Started from a discrete orbit's node 0 and period (and
+its nodes at the cuts), its convergence shows that an exact orbit is there; the distance
+between the two is the discrete orbit's error at node 0.
 """
 
 from __future__ import annotations
@@ -24,6 +33,7 @@ import numpy as np
 
 from ...cache import cached
 from .flow_newton import exact_newton
+from .segments import GROWTH, exact_path, growth_cuts, starts_from_path
 from .tolerance import EXACT_TOLERANCE
 from .variational import RTOL, flow_with_derivatives
 
@@ -57,6 +67,14 @@ class ExactOrbit:
     period_derivative: float
     history: list = field(default_factory=list)
     error_bound: float = np.inf
+    cuts: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
+    starts: np.ndarray | None = None
+
+    def states(self, system, theta, times, rtol: float = RTOL) -> np.ndarray:
+        """The exact orbit at ``times`` (from node 0's time, up to a little past the period),
+        rows ``(q, p)``, from its segments' starts."""
+        starts = self.z0[None, :] if self.starts is None else self.starts
+        return exact_path(system, theta, starts, self.cuts, self.period, times, rtol=rtol)
 
     def as_dict(self) -> dict:
         return {"converged": self.converged, "period": self.period, "energy": self.energy,
@@ -69,16 +87,21 @@ class ExactOrbit:
 
 def close_exact(system, theta, z0, period: float, *, energy: float, section_index: int,
                 section_value: float, integrals=(), shift=0.0, rtol: float = RTOL,
-                fixed_period: bool = False) -> ExactOrbit:
+                fixed_period: bool = False, path=None, growth: float = GROWTH) -> ExactOrbit:
     """The exact periodic orbit near ``(z_0, T)`` by Newton on the shooting equations (module
-    docstring; the one Newton on the exact flow, ``flow_newton.py``, undamped). ``section_index``
-    counts ``t`` as 0 (as the discrete layouts do), so ``z_0[section_index - 1]`` is fixed; the
-    integrals' phase conditions are taken at the start's ``z_0``. It stops where the closure and
-    the energy equation are both within ``CLOSURE_TARGET`` of their scales (the orbit's size,
-    ``max(1, |E|)``), or where the flow fails. The orbit's ``period_derivative`` (``dT/dE``
-    along the exact family, at fixed section and phases) comes from the last Newton matrix. With
-    ``fixed_period`` the period is held and the energy is the unknown (``energy`` its start):
-    regular through a fold in ``E``, where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
+    docstring; the one Newton on the exact flow, ``flow_newton.py``, undamped), on segments cut
+    where the flow grows (``segments.py``: one segment, single shooting, on an orbit whose flow
+    never stretches anything ``GROWTH`` times). ``path = (t, z)``: the discrete orbit's nodes,
+    read at the cuts for the segments' starts (default: the pilot run's states there);
+    ``growth``: the flow's growth at which a segment ends (``inf``: single shooting).
+    ``section_index`` counts ``t`` as 0 (as the discrete layouts do), so
+    ``z_0[section_index - 1]`` is fixed; the integrals' phase conditions are taken at the
+    start's ``z_0``. It stops where every segment's continuity and the energy equation are
+    within ``CLOSURE_TARGET`` of their scales (the orbit's size, ``max(1, |E|)``), or where the
+    flow fails. The orbit's ``period_derivative`` (``dT/dE`` along the exact family, at fixed
+    section and phases) comes from the last Newton matrix. With ``fixed_period`` the period is
+    held and the energy is the unknown (``energy`` its start): regular through a fold in ``E``,
+    where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
     reference = np.array(z0, float)
@@ -86,70 +109,121 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
     gradient = _gradients_function(system, integrals)
     generators = _generators(np.asarray(gradient(reference, theta))[:, 1:]) if r else \
         np.zeros((0, k))
-    section_row = np.zeros(k)
-    section_row[section_index - 1] = 1.0
+    cuts = growth_cuts(system, theta, reference, period, integrals=integrals, rtol=rtol,
+                       growth=growth)
+    S = cuts.size - 1
+    starts = starts_from_path(*path, cuts) if path is not None and S > 1 else \
+        _pilot_starts(system, theta, reference, period, cuts, rtol)
+    shooting = _Shooting(system, theta, integrals, gradient, generators, cuts, shift,
+                         section_index, section_value, reference, rtol, fixed_period)
     scale = max(float(np.max(np.abs(reference))), 1.0)
-    history = []
-
-    def evaluate(x):  # x = (z_0, T or E, u)
-        z, u = x[:k], x[k + 1:]
-        T, level = (period, x[k]) if fixed_period else (x[k], energy)
-        flow = flow_with_derivatives(system, theta, z, T, integrals=integrals, unfolding=u,
-                                     rtol=rtol)
-        closing = flow.z - z - shift
-        H = float(system.energy(z[None, :k // 2], z[None, k // 2:], [0.0], theta)[0])
-        F = np.concatenate([closing, [H - level, z[section_index - 1] - section_value],
-                            generators @ (z - reference)])
-        history.append(float(np.max(np.abs(closing))) / scale)
-        rows = _newton_matrix(flow, np.asarray(gradient(z, theta))[:, 0], section_row,
-                              generators, fixed_period)
-        closed = history[-1] <= CLOSURE_TARGET and \
-            abs(F[k]) <= CLOSURE_TARGET * max(1.0, abs(level))
-        failed = not flow.success or not np.all(np.isfinite(F))
-        return (None if failed and not closed else F), (flow, rows, closed)
-
-    weights = np.r_[np.full(k, scale), max(1.0, abs(energy if fixed_period else period)),
-                    np.ones(1 + r)]
+    level0 = energy if fixed_period else period
+    weights = np.r_[np.full(S * k, scale), max(1.0, abs(level0)), np.ones(1 + r)]
     result = exact_newton(
-        evaluate, lambda _x, F, payload: np.linalg.solve(payload[1], -F),
-        np.concatenate([reference, [energy if fixed_period else period], np.zeros(1 + r)]),
-        size=lambda F: float(np.max(np.abs(F[:k]))) / scale,
+        lambda x: shooting.evaluate(x, period, energy, scale),
+        lambda _x, F, payload: np.linalg.solve(payload[1], -F),
+        np.concatenate([starts.ravel(), [level0], np.zeros(1 + r)]),
+        size=lambda F: float(np.max(np.abs(F[:S * k]))) / scale,
         converged=lambda _F, payload: payload[2], max_iterations=MAX_SHOOTING_ITERATIONS,
         step_size=lambda dx: float(np.max(np.abs(dx) / weights)))
-    flow, rows, _ = result.payload
-    z, u = result.x[:k], result.x[k + 1:]
-    if fixed_period:  # dE/dT: the closure's derivative in T is the field at the return
-        T, energy = float(period), result.x[k]
-        derivative = np.linalg.solve(rows, -np.r_[flow.field, np.zeros(2 + r)])
-        period_derivative = 1.0 / derivative[k] if derivative[k] != 0 else np.inf
+    flows, rows, _ = result.payload
+    z, u = result.x[:k], result.x[S * k + 1:]
+    monodromy = np.eye(k)
+    for flow in flows:
+        monodromy = flow.monodromy @ monodromy
+    success = all(flow.success for flow in flows)
+    if fixed_period:  # dE/dT: the closures' derivative in T is each segment's end field
+        T, energy = float(period), result.x[S * k]
+        derivative = np.linalg.solve(rows, -np.r_[shooting.period_column(flows),
+                                                  np.zeros(2 + r)])
+        period_derivative = 1.0 / derivative[S * k] if derivative[S * k] != 0 else np.inf
     else:
-        T = result.x[k] if result.iterations else float(period)
-        energy_row = np.zeros(k + 2 + r)
-        energy_row[k] = 1.0
-        period_derivative = float(np.linalg.solve(rows, energy_row)[k])
+        T = result.x[S * k] if result.iterations else float(period)
+        energy_row = np.zeros(S * k + 2 + r)
+        energy_row[S * k] = 1.0
+        period_derivative = float(np.linalg.solve(rows, energy_row)[S * k])
     # an orbit of the Hamiltonian flow: the unfolding at the integrator's accuracy
-    converged = bool(result.converged and flow.success and np.max(np.abs(u)) <= 1e3 * rtol)
-    return ExactOrbit(z0=z, period=T, unfolding=u, monodromy=flow.monodromy, field=flow.field,
+    converged = bool(result.converged and success and np.max(np.abs(u)) <= 1e3 * rtol)
+    history = shooting.history
+    return ExactOrbit(z0=z, period=T, unfolding=u, monodromy=monodromy, field=flows[-1].field,
                       converged=converged, closure=history[-1], iterations=len(history) - 1,
                       start_return=history[0], distance=float(np.max(np.abs(z - z0))),
                       energy=float(energy), period_derivative=float(period_derivative),
-                      history=history, error_bound=result.error_bound)
+                      history=history, error_bound=result.error_bound, cuts=cuts,
+                      starts=result.x[:S * k].reshape(S, k).copy())
 
 
-def _newton_matrix(flow, energy_gradient, section_row, generators, fixed_period):
-    """The shooting equations' Jacobian in ``(z_0, T, u)`` (in ``(z_0, E, u)`` with
-    ``fixed_period``): the monodromy minus ``I``, the field and the unfolding's columns, then
-    the rows of the energy, the section and the phases."""
-    k, r = flow.monodromy.shape[0], generators.shape[0]
-    rows = np.vstack([np.hstack([flow.monodromy - np.eye(k), flow.field[:, None],
-                                 flow.unfolding]),
-                      np.r_[energy_gradient, 0.0, np.zeros(1 + r)],
-                      np.r_[section_row, 0.0, np.zeros(1 + r)],
-                      np.hstack([generators, np.zeros((r, 2 + r))])])
-    if fixed_period:  # the column of E instead of T's
-        rows[:, k] = 0.0
-        rows[k, k] = -1.0
-    return rows
+def _pilot_starts(system, theta, z0, period, cuts, rtol) -> np.ndarray:
+    """The segments' starts from one run of the flow from ``z0`` (row 0 is ``z0``)."""
+    if cuts.size == 2:
+        return np.asarray(z0, float)[None, :]
+    return exact_path(system, theta, np.asarray(z0, float)[None, :], np.array([0.0, 1.0]),
+                      period, cuts[:-1] * period, rtol=rtol)
+
+
+class _Shooting:
+    """The multiple-shooting equations of `close_exact` and their Jacobian, in ``x = (z_0, ..,
+    z_{S-1}, T or E, u)``; ``history``: every evaluation's largest continuity defect relative to
+    the orbit's size."""
+
+    def __init__(self, system, theta, integrals, gradient, generators, cuts, shift,
+                 section_index, section_value, reference, rtol, fixed_period):
+        self.system, self.theta, self.integrals = system, theta, integrals
+        self.gradient, self.generators, self.cuts = gradient, generators, cuts
+        self.fractions = np.diff(cuts)
+        self.shift, self.section_index, self.section_value = shift, section_index, section_value
+        self.reference, self.rtol, self.fixed_period = reference, rtol, fixed_period
+        self.k = 2 * system.n
+        self.history = []
+
+    def evaluate(self, x, period, energy, scale):
+        k, S = self.k, self.fractions.size
+        starts, u = x[:S * k].reshape(S, k), x[S * k + 1:]
+        T, level = (period, x[S * k]) if self.fixed_period else (x[S * k], energy)
+        flows = [flow_with_derivatives(self.system, self.theta, starts[j],
+                                       self.fractions[j] * T, integrals=self.integrals,
+                                       unfolding=u, rtol=self.rtol) for j in range(S)]
+        following = np.vstack([starts[1:], starts[:1] + self.shift])
+        closing = np.concatenate([flows[j].z - following[j] for j in range(S)])
+        z = starts[0]
+        n = k // 2
+        H = float(self.system.energy(z[None, :n], z[None, n:], [0.0], self.theta)[0])
+        F = np.concatenate([closing, [H - level, z[self.section_index - 1] - self.section_value],
+                            self.generators @ (z - self.reference)])
+        self.history.append(float(np.max(np.abs(closing))) / scale)
+        rows = self.matrix(flows, np.asarray(self.gradient(z, self.theta))[:, 0], T)
+        closed = self.history[-1] <= CLOSURE_TARGET and \
+            abs(F[S * k]) <= CLOSURE_TARGET * max(1.0, abs(level))
+        failed = not all(f.success for f in flows) or not np.all(np.isfinite(F))
+        return (None if failed and not closed else F), (flows, rows, closed)
+
+    def period_column(self, flows) -> np.ndarray:
+        """The closures' derivative in ``T``: each segment's end field times its fraction."""
+        return np.concatenate([flow.field * s for flow, s in zip(flows, self.fractions,
+                                                                strict=True)])
+
+    def matrix(self, flows, energy_gradient, T):
+        """The Jacobian (module docstring): block ``j`` of the continuity rows holds ``Y_j`` in
+        its own start's columns and ``-I`` in the next one's (segment ``S-1``: node 0's), the
+        period's column and the unfolding's; then the energy, section and phase rows on
+        ``z_0``. With ``fixed_period`` the column of ``E`` instead of ``T``'s."""
+        k, S, r = self.k, self.fractions.size, self.generators.shape[0]
+        size = S * k + 2 + r
+        rows = np.zeros((size, size))
+        for j, flow in enumerate(flows):
+            block = slice(j * k, (j + 1) * k)
+            rows[block, block] += flow.monodromy
+            following = (j + 1) % S
+            rows[block, following * k:(following + 1) * k] -= np.eye(k)
+            rows[block, S * k + 1:] = flow.unfolding
+        if self.fixed_period:
+            rows[S * k, S * k] = -1.0
+        else:
+            rows[:S * k, S * k] = self.period_column(flows)
+        rows[S * k, :k] = energy_gradient
+        rows[S * k + 1, self.section_index - 1] = 1.0
+        rows[S * k + 2:, :k] = self.generators
+        return rows
 
 
 def _gradients_function(system, integrals) -> ca.Function:
@@ -174,3 +248,15 @@ def exact_field_directions(system, theta, z0, integrals=()) -> np.ndarray:
     gradients = np.asarray(_gradients_function(system, tuple(integrals))(
         np.asarray(z0, float), np.asarray(theta, float)))
     return _generators(gradients).T
+
+
+def nearest_exact_orbit(system, theta, t, z, *, energy: float, section_index: int,
+                        section_value: float, integrals=(), shift=0.0) -> ExactOrbit:
+    """The exact periodic orbit nearest a discrete one (nodes ``t``, ``z``: one period, the
+    last node the first shifted by ``shift``) by `close_exact` from its node 0 and period, the
+    segments' starts read from its nodes: whether the discrete orbit is near an orbit of the
+    flow however unstable (``ExactOrbit.states`` reads the exact one at its times)."""
+    t, z = np.asarray(t, float), np.asarray(z, float)
+    return close_exact(system, theta, z[0], float(t[-1] - t[0]), energy=energy,
+                       section_index=section_index, section_value=section_value,
+                       integrals=integrals, shift=shift, path=(t, z))

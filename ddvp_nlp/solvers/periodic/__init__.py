@@ -17,6 +17,7 @@ Where things are:
 - ``refinement.py``: continuation in the number of intervals (``continue_in_nodes``: a
   coarse grid first, each finer one from the last refined by node index), the walk
   ``solve_periodic`` takes from its default start and any closed-grid solve can take;
+- ``linearised.py``: the linearised orbit about an equilibrium at an energy (a start);
 - ``family.py``: orbits along a range of energies, each from the last;
 - ``floquet.py``: the discrete monodromy (the step maps' derivatives by implicit
   differentiation), its reduction by the trivial directions, the stability indices and the
@@ -51,13 +52,16 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
     from .arclength import Continuation, follow_periodic_family
     from .family import solve_periodic_family
     from .floquet import Stability, periodic_stability
+    from .linearised import linearised_orbit
     from .orbit import solve_periodic
 
 # loaded when first asked for: importing one module of the family loads only what it needs
 __getattr__, __dir__ = lazy_exports(__name__, {
     "solve_periodic": "orbit", "solve_periodic_family": "family",
     "Continuation": "arclength", "follow_periodic_family": "arclength",
-    "Stability": "floquet", "periodic_stability": "floquet"})
+    "Stability": "floquet", "periodic_stability": "floquet",
+    "linearised_orbit": "linearised"})
 
-__all__ = ["Continuation", "Stability", "follow_periodic_family", "periodic_stability",
+__all__ = ["Continuation", "Stability", "follow_periodic_family", "linearised_orbit",
+           "periodic_stability",
            "solve_periodic", "solve_periodic_family"]

@@ -368,8 +368,9 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
     The discrete orbit's monodromy (the step maps' derivatives, node times included, multiplied
     along the orbit) is reduced by its trivial directions; the nontrivial multipliers give one
     stability index per pair and the verdict. With ``exact``, the exact periodic orbit near
-    this one is found by shooting on the exact flow (``exact/closure.py``: variational equations at
-    ``rtol = 1e-12``) and its monodromy analysed the same way: the indices' difference is the
+    this one is found by shooting on the exact flow (``exact/closure.py``: variational
+    equations at ``rtol = 1e-12``, on segments cut where the flow grows, started from this
+    orbit's nodes) and its monodromy analysed the same way: the indices' difference is the
     discretisation error of the multipliers (``O(N^-2)``), and an exact orbit that does not
     close says the discrete one is not near an orbit of the flow.
 
@@ -398,7 +399,8 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
         closed = close_exact(system, theta, np.concatenate([orbit.q[0], orbit.p[0]]),
                              float(orbit.orbit.period), energy=float(orbit.orbit.energy),
                              section_index=index, section_value=value,
-                             integrals=tuple(integrals), shift=shift)
+                             integrals=tuple(integrals), shift=shift,
+                             path=(orbit.t, np.hstack([orbit.q, orbit.p])))
         stability.exact_orbit = closed
         if closed.converged:
             stability.exact = exact_stability(system, theta, closed.z0, closed.monodromy,

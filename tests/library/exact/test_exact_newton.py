@@ -111,7 +111,9 @@ def test_the_bound_holds_for_the_closure(monkeypatch):
     orbit = closure.close_exact(_rotation(), np.zeros(0), [0.0, 1.05], 6.0, energy=0.25,
                                 section_index=1, section_value=0.0)
     assert orbit.converged and orbit.error_bound == calls[0][0].error_bound
-    _holds(calls, np.array([0.0, 1.0, 2 * np.pi, 0.0]))
+    phases = 2 * np.pi * orbit.cuts[:-1]  # each segment's start on the circle (sin, cos)
+    _holds(calls, np.concatenate([np.column_stack([np.sin(phases), np.cos(phases)]).ravel(),
+                                  [2 * np.pi, 0.0]]))
 
 
 def test_the_bound_holds_for_the_transfer_at_an_energy(monkeypatch):
