@@ -110,7 +110,7 @@ def plot(solution: Solution, path=None, *, system=None, params=None, title: str 
 
 def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None,
             target_errors=None, options=None, compilation=None, workers=None, out=None,
-            progress: bool = False, horizons=None, time_unit: float = 1.0):
+            progress: bool = False, horizons=None):
     """Compare integrators on one problem, as ``ddvp compare`` does (the command calls this):
     each method over a sweep of its accuracy knob, every run timed and measured against the
     exact motion.
@@ -137,8 +137,9 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
         out: a folder to write ``work_precision.csv``, ``.png`` and ``summary.md`` to (with
             ``horizons``: a report per horizon, ``horizons.md`` and the figures).
         progress: a progress bar on stderr.
-        horizons: horizons ``T`` (a list or ``"1e2,1e3,1e4"``): the comparison is made to each
-            ``t_end = t0 + T * time_unit``, the sweeps cut to what each affords.
+        horizons: horizons ``T`` in the problem's time units (a list or ``"1e2,1e3,1e4"``): the
+            comparison is made to each ``t_end = t0 + T``, the sweeps cut to what each
+            affords (``ddvp compare --horizons``' machinery).
 
     Returns:
         A ``WorkPrecision``: ``rows`` (one dict per run, failed runs kept with ``status`` and
@@ -155,7 +156,7 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
     return run_comparison(problem, methods, q0=q0, p0=p0, t_span=t_span, params=params,
                           target_errors=target_errors, options=options,
                           compilation=compilation, workers=workers, out=out, progress=progress,
-                          horizons=horizons, time_unit=time_unit)
+                          horizons=horizons)
 
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",

@@ -9,8 +9,8 @@ from .work_precision_figure import (
     axis_label,
     figure_legend,
     log_ticks,
-    panel_title,
     methods_of,
+    panel_title,
     plot_method,
 )
 
