@@ -55,11 +55,11 @@ def _panel(ax, levels, methods, horizons) -> set:
             if index:
                 ax.plot([start], [error], marker="|", color="black", markersize=BAND_WIDTH + 3,
                         markeredgewidth=1.0, linestyle="none")
-    for horizon in horizons:
-        ax.axvline(horizon, color="0.5", linewidth=0.5, linestyle=":")
     if levels:
         errors = [e for e, _ in levels]
         ax.set_ylim(min(errors) / 3, max(errors) * 3)
+    for horizon in horizons:
+        ax.axvline(horizon, color="0.5", linewidth=0.5, linestyle=":")
     ax.set_xlim(min(horizons) / 1.3, max(horizons) * 1.3)
     ax.minorticks_off()
     return shown

@@ -149,13 +149,23 @@ class HorizonComparison:
 
     def crossover_words(self, errors=None, kind: str | None = None,
                         cost: str = "run_s") -> list[str]:
-        """The crossovers in words, one line per error level and kind."""
+        """The crossovers in words: per error kind, one line per run of error levels with the
+        same cheapest methods along the horizons."""
         lines = []
         for each in ([kind] if kind else list(ERROR_KINDS)):
             fronts = self.fronts(each, cost)
-            for error in (self.levels(each) if errors is None else errors):
-                lines.append(f"- {ERROR_KINDS[each].split(' max')[0]} <= {error:.0e}: "
-                             + in_words(fronts, error, each, self.unit))
+            said = [(error, in_words(fronts, error, each, self.unit))
+                    for error in (self.levels(each) if errors is None else errors)]
+            groups = []
+            for error, text in said:
+                if groups and groups[-1][2] == text:
+                    groups[-1][1] = error
+                else:
+                    groups.append([error, error, text])
+            name = ERROR_KINDS[each].split(" max")[0]
+            lines += [f"- {name} <= {hi:.0e}: {text}" if hi == lo else
+                      f"- {name} <= {hi:.0e} down to <= {lo:.0e}: {text}"
+                      for hi, lo, text in groups]
         return lines or ["- No error level is reached at two horizons: no crossover to look "
                          "for."]
 
@@ -200,7 +210,8 @@ class HorizonComparison:
 
 def _time_dependent(study) -> bool:
     first = next(iter(study.results.values()), None)
-    return bool(first is not None and first.scene.system.time_dependent)
+    scene = getattr(first, "scene", None)
+    return bool(scene is not None and scene.system.time_dependent)
 
 
 def _drawn(draw, path):
@@ -238,6 +249,7 @@ def front(rows, method, kind, cost) -> list[tuple[float, float]]:
 def costs_at(fronts: dict, error: float, horizon: float) -> tuple[dict, str]:
     """``{method: (cost, upper_bound)}`` at ``horizon`` by the rule, and how it was read."""
     measured = sorted(fronts)
+    horizon = next((h for h in measured if abs(h - horizon) <= 1e-12 * h), horizon)
     if horizon in fronts:
         return ({m: hit for m, f in fronts[horizon].items()
                  if (hit := time_to_reach(f, error)) is not None},
@@ -327,5 +339,9 @@ def in_words(fronts, error, kind, unit: float = 1.0) -> str:
             f"none reaches it at T = {measured[0]:g}")
     for change in changes:
         who = f"`{change.after}`" if change.after else "none reaches it"
-        text += f"; {who} from T = {change.horizon:.3g}"
+        low = change.between[0]
+        if change.horizon <= low * (1 + 2 * CROSSOVER_RTOL):  # a method that stops at `low`
+            text += f"; {who} from just above T = {low:g}"
+        else:
+            text += f"; {who} from T = {change.horizon:.3g}"
     return text + f" (up to T = {measured[-1]:g}{units})."
