@@ -43,6 +43,9 @@ def _panel(ax, levels, methods, horizons) -> set:
     """The bands of one error kind; returns the winners drawn (``None`` for no method)."""
     ax.set_xscale("log")
     ax.set_yscale("log")
+    if levels:  # the limits first: a single level autoscaled to an empty interval
+        errors = [e for e, _ in levels]
+        ax.set_ylim(min(errors) / 3, max(errors) * 3)
     shown = set()
     for error, winners in levels:
         runs = _runs(winners)
@@ -55,9 +58,6 @@ def _panel(ax, levels, methods, horizons) -> set:
             if index:
                 ax.plot([start], [error], marker="|", color="black", markersize=BAND_WIDTH + 3,
                         markeredgewidth=1.0, linestyle="none")
-    if levels:
-        errors = [e for e, _ in levels]
-        ax.set_ylim(min(errors) / 3, max(errors) * 3)
     for horizon in horizons:
         ax.axvline(horizon, color="0.5", linewidth=0.5, linestyle=":")
     ax.set_xlim(min(horizons) / 1.3, max(horizons) * 1.3)
