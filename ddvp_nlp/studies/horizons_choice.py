@@ -26,7 +26,7 @@ between), the crossover is that measured horizon.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..errors import InputError
 from ..validation import check_real
@@ -107,7 +107,13 @@ class HorizonComparison:
         error, kind, cost = _checked(error, kind, cost)
         horizon = check_real("horizon", horizon, positive=True)
         costs, why = costs_at(self.fronts(kind, cost), error, horizon)
-        return choose(costs, error, horizon, kind, cost, why)
+        choice = choose(costs, error, horizon, kind, cost, why)
+        if choice and cost == "run_s":  # the CPU time beside the wall time, by the same rule
+            cpu, _ = costs_at(self.fronts(kind, "cpu_s"), error, horizon)
+            if choice.method in cpu:
+                choice = replace(choice, why=choice.why.replace(
+                    " s (", f" s wall, {cpu[choice.method][0]:.3g} s CPU (", 1))
+        return choice
 
     def fronts(self, kind: str = "trajectory_error", cost: str = "run_s") -> dict:
         """``{horizon: {method: Pareto front [(cost, error), ...]}}``."""
