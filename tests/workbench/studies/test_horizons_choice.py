@@ -209,3 +209,13 @@ def test_the_crossover_figure_fits_a_column_and_writes_pdf_and_svg(tmp_path):
         result.plot_crossover(tmp_path / f"crossover.{suffix}", errors=[1e-4])
         head = (tmp_path / f"crossover.{suffix}").read_bytes()[:200]
         assert {"pdf": b"%PDF", "svg": b"<svg", "png": b"PNG"}[suffix] in head
+
+
+def test_target_errors_run_the_march_at_each_horizon_and_the_others_sweep():
+    result = compare("harmonic", ["vddvp", "rk4"], horizons=[10.0, 20.0], target_errors=[1e-2],
+                     options=CompareOptions(halvings=1, repeats=1, budget_s=0.1))
+    for horizon, found in result.results.items():
+        marched = [r for r in found.rows if r["method"] == "vddvp"]
+        assert [(r["knob"], r["value"]) for r in marched] == [("target_error", 1e-2)]
+        assert marched[0]["chosen_tau0"] > 0 and marched[0]["t_reached"] >= horizon
+        assert [r["knob"] for r in found.rows if r["method"] == "rk4"] == ["tau", "tau"]
