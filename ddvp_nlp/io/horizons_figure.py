@@ -10,9 +10,12 @@ from .work_precision_figure import (
     figure_legend,
     log_ticks,
     methods_of,
-    panel_title,
     plot_method,
 )
+
+# Each row's quantity, above its formula on the first column's axis.
+SHORT_NAMES = {"trajectory_error": "trajectory error (absolute)",
+               "energy_error": "energy error (absolute)"}
 
 
 def plot_horizons(results: dict, path, *, title: str, unit: float,
@@ -36,11 +39,14 @@ def _horizon_panels(axes, results: dict, unit: float, time_dependent: bool = Fal
             ax = axes[row_index][column]
             for method in methods_of(rows):
                 plot_method(ax, rows, method, kind, names.index(method))
-            ax.set_title(f"{panel_title(kind).split(' (')[0]}, $T = {horizon:g}$"
-                         + (rf"$\,\times\,{unit:.4g}$" if unit != 1 else ""))
+            if row_index == 0:
+                ax.set_title(f"$T = {horizon:g}$" + (rf"$\,\times\,{unit:.4g}$"
+                                                     if unit != 1 else ""),
+                             pad=7)  # clear of the failure crosses on the top edge
             log_ticks(ax, "x")
             ax.set_xlabel("wall time [s]" if row_index == len(kinds) - 1 else "")
-            ax.set_ylabel(axis_label(kind, time_dependent) if column == 0 else "")
+            ax.set_ylabel(f"{SHORT_NAMES[kind]}\n{axis_label(kind, time_dependent)}"
+                          if column == 0 else "")
             ax.grid(True, which="major")
 
 

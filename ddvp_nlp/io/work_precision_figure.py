@@ -87,7 +87,7 @@ def plot_work_precision(rows, path, *, title, fmt: str = "png", width: str = "co
             for i, method in enumerate(methods):
                 plot_method(ax, rows, method, kind, i)
             ax.set_ylabel(axis_label(kind, time_dependent))
-            ax.set_title(panel_title(kind))
+            ax.set_title(panel_title(kind), pad=7)  # clear of the failure crosses
             ax.grid(True, which="major")
             log_ticks(ax, "x")
         for ax in (axes[-1:] if column else axes):

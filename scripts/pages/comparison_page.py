@@ -12,7 +12,8 @@ cheapest at which error and horizon on the built-in scenes.
     python scripts/pages/comparison_page.py [--out docs/comparison] [--t-end 100] [--quick]
 
 Parts 1-2 take seconds and show no timing; part 3 some minutes of runs on a quiet machine
-(``--quick``: the double well to t = 20 and horizons 10 and 100 only).
+(``--quick``: the double well to t = 20 and horizons 10 and 100 only; ``--from-runs``: part 3
+redrawn from the ``runs.csv`` files on disk, in seconds).
 """
 
 from __future__ import annotations
@@ -30,7 +31,9 @@ from ddvp_nlp.solvers import find_compiler
 # an internal, named explicitly: one fixed-step run of a baseline (not a workbench name)
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
 from ddvp_nlp.studies import CompareOptions
+from ddvp_nlp.studies.horizons_choice import CROSSOVER_RTOL, HorizonComparison
 from ddvp_nlp.studies.methods import METHODS
+from ddvp_nlp.studies.work_precision import ADDED, ROWS
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -105,8 +108,23 @@ def double_well_table(t_end: float) -> list[str]:
     return lines
 
 
-def horizons_section(out: Path, horizons) -> list[str]:
-    """Part 3: per scene, the crossovers in words and the figures (module docstring)."""
+def read_study(path: Path) -> HorizonComparison:
+    """The study of an earlier run from its ``runs.csv`` (rows with their horizon)."""
+    import csv
+    from types import SimpleNamespace
+
+    results: dict[float, list[dict]] = {}
+    with open(path, newline="") as handle:
+        for row in csv.DictReader(handle):
+            horizon = float(row.pop("horizon"))
+            results.setdefault(horizon, []).append(ROWS.parse({**ADDED, **row}))
+    return HorizonComparison({h: SimpleNamespace(rows=rows)
+                              for h, rows in sorted(results.items())})
+
+
+def horizons_section(out: Path, horizons, from_runs: bool = False) -> list[str]:
+    """Part 3: per scene, the crossovers in words and the figures (module docstring); with
+    ``from_runs`` from the ``runs.csv`` an earlier run wrote (no run, no new timing)."""
     lines = ["## Which method is cheapest, by error and horizon", "",
              f"`compare(scene, \"{METHODS_COMPARED}\", horizons={horizons})`, every run timed "
              f"{TIMING.repeats} times after a warm-up (cost: the best wall time; the figures "
@@ -120,17 +138,31 @@ def horizons_section(out: Path, horizons) -> list[str]:
     for name, settings in CASES.items():
         folder = out / name
         folder.mkdir(parents=True, exist_ok=True)
-        study = compare(name, METHODS_COMPARED, params=settings or None, options=TIMING,
-                        horizons=horizons)
-        study.to_csv(folder / "runs.csv")
+        if from_runs:
+            study = read_study(folder / "runs.csv")
+        else:
+            study = compare(name, METHODS_COMPARED, params=settings or None, options=TIMING,
+                            horizons=horizons)
+            study.to_csv(folder / "runs.csv")
         study.plot_crossover(folder / "crossover.png", title=f"{name}: cheapest method")
         study.plot(folder / "horizons.png", title=f"{name}: error against run time")
         lines += [f"### `{name}`", "", *study.crossover_words(), "",
                   *conserving_words(study), "",
                   f"![{name} crossover]({name}/crossover.png)", "",
                   f"![{name} work-precision]({name}/horizons.png)", ""]
-    lines += [f"Measured on: {machine()}", ""]
+    measured = (out / "measured_on.txt")
+    if not from_runs:
+        measured.write_text(machine() + "\n")
+    lines += [f"Measured on: {measured.read_text().strip()}", ""]
     return lines
+
+
+def _from(crossing) -> str:
+    """Where a crossover lies, as `HorizonComparison.crossover_words` says it."""
+    low = crossing.between[0]
+    if crossing.horizon <= low * (1 + 2 * CROSSOVER_RTOL):
+        return f"just above T = {low:g}"
+    return f"T = {crossing.horizon:.3g}"
 
 
 def conserving_words(study) -> list[str]:
@@ -138,7 +170,7 @@ def conserving_words(study) -> list[str]:
     wall time and by CPU time."""
     found = []
     for kind in ("energy_error", "trajectory_error"):
-        cpu = {(c.error, c.before, c.after): c.horizon
+        cpu = {(c.error, c.before, c.after): c
                for c in study.crossovers(kind=kind, cost="cpu_s")}
         for crossing in study.crossovers(kind=kind):
             after = crossing.after
@@ -147,8 +179,8 @@ def conserving_words(study) -> list[str]:
                 before = f"`{crossing.before}`" if crossing.before else "none reached it"
                 by_cpu = cpu.get((crossing.error, crossing.before, after))
                 found.append(f"{kind.replace('_', ' ')} <= {crossing.error:.0e}: `{after}` "
-                             f"from T = {crossing.horizon:.3g} by wall time"
-                             + (f", {by_cpu:.3g} by CPU time" if by_cpu else
+                             f"from {_from(crossing)} by wall time"
+                             + (f", from {_from(by_cpu)} by CPU time" if by_cpu else
                                 ", no such crossover by CPU time")
                              + f" (before it {before})")
     if not found:
@@ -163,6 +195,9 @@ def main() -> None:
     parser.add_argument("--t-end", type=float, default=100.0)
     parser.add_argument("--quick", action="store_true",
                         help="the double well to t = 20, horizons 10 and 100 only")
+    parser.add_argument("--from-runs", action="store_true",
+                        help="part 3 from the runs.csv files of an earlier run (no new runs): "
+                             "its words and figures redrawn")
     args = parser.parse_args()
     if args.quick:
         args.t_end = 20.0
@@ -185,7 +220,8 @@ def main() -> None:
         "Sharma's columns are as reported; the fixed-step comparison uses our number of "
         "energy-rule steps.", "",
         *double_well_table(args.t_end), "",
-        *horizons_section(Path(args.out), QUICK_HORIZONS if args.quick else HORIZONS)])
+        *horizons_section(Path(args.out), QUICK_HORIZONS if args.quick else HORIZONS,
+                          from_runs=args.from_runs)])
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "README.md").write_text(text)
