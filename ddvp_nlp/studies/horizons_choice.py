@@ -73,6 +73,14 @@ class Crossover:
     horizon: float
     between: tuple[float, float]
 
+    def where(self) -> str:
+        """``T = 446``, or ``just above T = 10`` where ``before`` reaches the error at the
+        measured horizon ``10`` and not at the next (it has no cost between)."""
+        low = self.between[0]
+        if self.horizon <= low * (1 + 2 * CROSSOVER_RTOL):
+            return f"just above T = {low:g}"
+        return f"T = {self.horizon:.3g}"
+
 
 @dataclass
 class HorizonComparison:
@@ -200,6 +208,22 @@ class HorizonComparison:
         return _drawn(lambda target: plot_crossover(
             maps, methods, self.horizons, target, title=title or "cheapest method",
             unit=self.unit, cost=cost, time_dependent=_time_dependent(self)), path)
+
+    @classmethod
+    def read_csv(cls, path, unit: float = 1.0) -> HorizonComparison:
+        """The comparison `to_csv` wrote, for its rankings, crossovers and figures (its
+        ``results`` hold the rows only: no scene, no reference)."""
+        import csv
+        from types import SimpleNamespace
+
+        from .work_precision import ADDED, ROWS
+
+        found: dict[float, list[dict]] = {}
+        with open(path, newline="") as handle:
+            for row in csv.DictReader(handle):
+                horizon = float(row.pop("horizon"))
+                found.setdefault(horizon, []).append(ROWS.parse({**ADDED, **row}))
+        return cls({h: SimpleNamespace(rows=rows) for h, rows in sorted(found.items())}, unit)
 
     def to_csv(self, path) -> None:
         """Every run with its ``horizon``, as ``work_precision.csv`` with a first column."""
@@ -345,9 +369,5 @@ def in_words(fronts, error, kind, unit: float = 1.0) -> str:
             f"none reaches it at T = {measured[0]:g}")
     for change in changes:
         who = f"`{change.after}`" if change.after else "none reaches it"
-        low = change.between[0]
-        if change.horizon <= low * (1 + 2 * CROSSOVER_RTOL):  # a method that stops at `low`
-            text += f"; {who} from just above T = {low:g}"
-        else:
-            text += f"; {who} from T = {change.horizon:.3g}"
+        text += f"; {who} from {change.where()}"
     return text + f" (up to T = {measured[-1]:g}{units})."

@@ -25,15 +25,12 @@ import numpy as np
 
 from ddvp_nlp import Output, Scene, compare, load_scene, march
 from ddvp_nlp.discrete import Scheme, interval_energies
-from ddvp_nlp.io.markdown import machine
+from ddvp_nlp.io import machine
 from ddvp_nlp.solvers import find_compiler
 
 # an internal, named explicitly: one fixed-step run of a baseline (not a workbench name)
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
-from ddvp_nlp.studies import CompareOptions
-from ddvp_nlp.studies.horizons_choice import CROSSOVER_RTOL, HorizonComparison
-from ddvp_nlp.studies.methods import METHODS
-from ddvp_nlp.studies.work_precision import ADDED, ROWS
+from ddvp_nlp.studies import CompareOptions, HorizonComparison
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -108,20 +105,6 @@ def double_well_table(t_end: float) -> list[str]:
     return lines
 
 
-def read_study(path: Path) -> HorizonComparison:
-    """The study of an earlier run from its ``runs.csv`` (rows with their horizon)."""
-    import csv
-    from types import SimpleNamespace
-
-    results: dict[float, list[dict]] = {}
-    with open(path, newline="") as handle:
-        for row in csv.DictReader(handle):
-            horizon = float(row.pop("horizon"))
-            results.setdefault(horizon, []).append(ROWS.parse({**ADDED, **row}))
-    return HorizonComparison({h: SimpleNamespace(rows=rows)
-                              for h, rows in sorted(results.items())})
-
-
 def horizons_section(out: Path, horizons, from_runs: bool = False) -> list[str]:
     """Part 3: per scene, the crossovers in words and the figures (module docstring); with
     ``from_runs`` from the ``runs.csv`` an earlier run wrote (no run, no new timing)."""
@@ -139,7 +122,7 @@ def horizons_section(out: Path, horizons, from_runs: bool = False) -> list[str]:
         folder = out / name
         folder.mkdir(parents=True, exist_ok=True)
         if from_runs:
-            study = read_study(folder / "runs.csv")
+            study = HorizonComparison.read_csv(folder / "runs.csv")
         else:
             study = compare(name, METHODS_COMPARED, params=settings or None, options=TIMING,
                             horizons=horizons)
@@ -157,30 +140,23 @@ def horizons_section(out: Path, horizons, from_runs: bool = False) -> list[str]:
     return lines
 
 
-def _from(crossing) -> str:
-    """Where a crossover lies, as `HorizonComparison.crossover_words` says it."""
-    low = crossing.between[0]
-    if crossing.horizon <= low * (1 + 2 * CROSSOVER_RTOL):
-        return f"just above T = {low:g}"
-    return f"T = {crossing.horizon:.3g}"
-
-
 def conserving_words(study) -> list[str]:
     """The horizons from which an energy-conserving method becomes the cheapest, in words, by
     wall time and by CPU time."""
+    conserving = {r["method"]: r["energy_conserving"] for r in study.rows}
     found = []
     for kind in ("energy_error", "trajectory_error"):
         cpu = {(c.error, c.before, c.after): c
                for c in study.crossovers(kind=kind, cost="cpu_s")}
         for crossing in study.crossovers(kind=kind):
             after = crossing.after
-            if after and METHODS[after].energy_conserving and not (
-                    crossing.before and METHODS[crossing.before].energy_conserving):
+            if after and conserving[after] and not (
+                    crossing.before and conserving[crossing.before]):
                 before = f"`{crossing.before}`" if crossing.before else "none reached it"
                 by_cpu = cpu.get((crossing.error, crossing.before, after))
                 found.append(f"{kind.replace('_', ' ')} <= {crossing.error:.0e}: `{after}` "
-                             f"from {_from(crossing)} by wall time"
-                             + (f", from {_from(by_cpu)} by CPU time" if by_cpu else
+                             f"from {crossing.where()} by wall time"
+                             + (f", from {by_cpu.where()} by CPU time" if by_cpu else
                                 ", no such crossover by CPU time")
                              + f" (before it {before})")
     if not found:
