@@ -112,7 +112,7 @@ def plot(solution: Solution, path=None, *, system=None, params=None, title: str 
 
 def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None,
             target_errors=None, options=None, compilation=None, workers=None, out=None,
-            progress: bool = False):
+            progress: bool = False, horizons=None):
     """Compare integrators on one problem, as ``ddvp compare`` does (the command calls this):
     each method over a sweep of its accuracy knob, every run timed and measured against the
     exact motion.
@@ -136,12 +136,20 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
             ``repeats``, ``knobs``, ``reference``, ...).
         compilation: for the compiled methods, as in `march`.
         workers: where the runs go (``runner.Workers``; default one after the other here).
-        out: a folder to write ``work_precision.csv``, ``.png`` and ``summary.md`` to.
+        out: a folder to write ``work_precision.csv``, ``.png`` and ``summary.md`` to (with
+            ``horizons``: a report per horizon, ``horizons.md`` and the figures).
         progress: a progress bar on stderr.
+        horizons: horizons ``T`` in the problem's time units (a list or ``"1e2,1e3,1e4"``): the
+            comparison is made to each ``t_end = t0 + T``, the sweeps cut to what each
+            affords (``ddvp compare --horizons``' machinery).
 
     Returns:
         A ``WorkPrecision``: ``rows`` (one dict per run, failed runs kept with ``status`` and
         ``message``), ``failed``, ``best(error)``, ``to_csv(path)``, ``plot(path=None)``.
+        With ``horizons``, a ``HorizonComparison``: ``results`` (horizon to
+        ``WorkPrecision``), ``best(error, horizon)`` (the cheapest method, its rule and why,
+        or ``None`` and why), ``crossovers()``, ``plot_crossover(path=None)``, ``plot``,
+        ``to_csv``.
     """
     # The second facade (docs/architecture.md): the comparison is a study of the workbench,
     # imported here and not at the top so that `import ddvp_nlp` loads none of it.
@@ -149,7 +157,8 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
 
     return run_comparison(problem, methods, q0=q0, p0=p0, t_span=t_span, params=params,
                           target_errors=target_errors, options=options,
-                          compilation=compilation, workers=workers, out=out, progress=progress)
+                          compilation=compilation, workers=workers, out=out, progress=progress,
+                          horizons=horizons)
 
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",

@@ -12,7 +12,8 @@ from ..runner.journal import JournalInterrupted
 from ..scenes import load_scene
 from ..solvers import StepControl
 from ..studies.comparison import compare
-from ..studies.horizons_report import work_precision_horizons
+from ..studies.horizons import check_horizons, parse_horizons
+from ..studies.horizons_report import horizons_study
 from ..studies.methods import get_methods
 from ..studies.reproduce import reproduce
 from ..studies.stress_report import stress
@@ -47,7 +48,9 @@ def run_compare(args) -> int:
 
     scene = load_scene(args.scene)
     settings = parse_settings(args.settings)
-    scene.resolve(settings)  # every name and value checked before a folder is made
+    config = scene.resolve(settings)  # every name and value checked before a folder is made
+    if args.horizons is not None:
+        check_horizons(parse_horizons(args.horizons), args.time_unit, config)
     checked = CompareOptions(methods=args.methods, halvings=args.halvings, repeats=args.repeats,
                              target_errors=options.target_errors(args.target_errors))
     if checked.methods is not None:
@@ -90,22 +93,29 @@ def run_compare(args) -> int:
 def _compare_horizons(args, scene, out) -> int:
 
     try:
-        results = work_precision_horizons(
+        study = horizons_study(
             scene, args.horizons, out=out, unit=args.time_unit,
             overrides=parse_settings(args.settings),
             options=CompareOptions(methods=args.methods, halvings=args.halvings,
-                                   repeats=args.repeats, max_steps=args.max_steps),
+                                   repeats=args.repeats, max_steps=args.max_steps,
+                                   target_errors=options.target_errors(args.target_errors)),
             compilation=options.compiled_or_not(args), workers=options.workers(args),
             run_budget_s=args.run_budget, reference_span=args.reference_span,
             progress=args.progress is not False)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
-    for horizon, rows in results.items():
+    for horizon, result in study.results.items():
+        rows = result.rows
         failed = sum(r["status"] != "success" for r in rows)
         print(f"{scene.name} compare, T = {horizon:g}: {len(rows)} runs, {failed} did not reach "
               "t_end")
-    print(f"  written to {out.path}/ (horizons.png, growth.png, horizons.md, horizon_T/)")
-    return _grid_ended("compare", [r for rows in results.values() for r in rows])
+    if len(study.results) > 1:
+        print("  cheapest method along the horizons (wall time, best of repeats):")
+        for line in study.crossover_words():
+            print("   " + line.removeprefix("-"))
+    print(f"  written to {out.path}/ (horizons.png, crossover.png, growth.png, horizons.md, "
+          "horizon_T/)")
+    return _grid_ended("compare", study.rows)
 
 
 def run_stress(args) -> int:

@@ -4,22 +4,34 @@
 from __future__ import annotations
 
 from . import figures
-from .work_precision_figure import AXIS_LABELS, figure_legend, methods_of, plot_method
+from .work_precision_figure import (
+    AXIS_LABELS,
+    axis_label,
+    figure_legend,
+    log_ticks,
+    methods_of,
+    plot_method,
+)
+
+# Each row's quantity, above its formula on the first column's axis.
+SHORT_NAMES = {"trajectory_error": "trajectory error (absolute)",
+               "energy_error": "energy error (absolute)"}
 
 
-def plot_horizons(results: dict, path, *, title: str, unit: float) -> None:
+def plot_horizons(results: dict, path, *, title: str, unit: float,
+                  time_dependent: bool = False, fmt: str = "png") -> None:
     """A column per horizon, a row per error kind, every method's runs as in the single
-    report."""
+    report (each at the median of its timed calls, a bar from the fastest to the slowest)."""
     with figures.styled():
-        fig = figures.new_figure(2.6 * len(results) + 1.0, 5.9)
-        axes = fig.subplots(len(AXIS_LABELS), len(results), squeeze=False)
-        _horizon_panels(axes, results, unit)
+        fig = figures.new_figure(min(figures.TEXT_WIDTH, 2.1 * len(results) + 1.0), 5.2)
+        axes = fig.subplots(len(AXIS_LABELS), len(results), squeeze=False, sharey="row")
+        _horizon_panels(axes, results, unit, time_dependent)
         figure_legend(fig, axes.ravel())
-        fig.suptitle(title)
-        figures.save(fig, path)
+        fig.suptitle(f"{title} (errors absolute; run time: median, bar min-max)")
+        figures.save(fig, path, fmt)
 
 
-def _horizon_panels(axes, results: dict, unit: float) -> None:
+def _horizon_panels(axes, results: dict, unit: float, time_dependent: bool = False) -> None:
     kinds = list(AXIS_LABELS)
     names = list(dict.fromkeys(m for rows in results.values() for m in methods_of(rows)))
     for column, (horizon, rows) in enumerate(results.items()):
@@ -27,10 +39,14 @@ def _horizon_panels(axes, results: dict, unit: float) -> None:
             ax = axes[row_index][column]
             for method in methods_of(rows):
                 plot_method(ax, rows, method, kind, names.index(method))
-            ax.set_title(f"$T = {horizon:g}$" + (rf"$\,\times\,{unit:.4g}$"
-                                                   if unit != 1 else ""))
-            ax.set_xlabel("run time [s]")
-            ax.set_ylabel(AXIS_LABELS[kind] if column == 0 else "")
+            if row_index == 0:
+                ax.set_title(f"$T = {horizon:g}$" + (rf"$\,\times\,{unit:.4g}$"
+                                                     if unit != 1 else ""),
+                             pad=7)  # clear of the failure crosses on the top edge
+            log_ticks(ax, "x")
+            ax.set_xlabel("wall time [s]" if row_index == len(kinds) - 1 else "")
+            ax.set_ylabel(f"{SHORT_NAMES[kind]}\n{axis_label(kind, time_dependent)}"
+                          if column == 0 else "")
             ax.grid(True, which="major")
 
 

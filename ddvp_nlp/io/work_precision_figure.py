@@ -1,44 +1,112 @@
 """The work-precision figure of ``ddvp compare`` (``work_precision.png``): error against run
 time, one panel per error kind, from the rows of the comparison (plain dicts with ``method``,
-``status``, ``run_s`` and one column per error kind)."""
+``status``, ``run_s`` and one column per error kind; ``run_s_median`` and ``run_s_max``, the
+spread of the timed calls, where measured).
+
+Drawn for a journal's column by default (`figures.COLUMN_WIDTH`, the panels stacked, the
+house style's 8-9 pt fonts at print size); ``width="text"`` puts them side by side across a
+page. Each run is drawn at the median of its timed calls, with a bar from the fastest call to
+the slowest: the spread a single number hides (one call per run zig-zags).
+"""
 
 from __future__ import annotations
 
+import math
+
 from . import figures
 
-# The axis labels of the figure: what is measured, and that it is absolute (the summary's
-# header says against what: the DOP853 reference, the first node's energy).
-AXIS_LABELS = {"trajectory_error": r"trajectory error $\max_k |z_k - z_{\mathrm{ref}}(t_k)|$",
-               "energy_error": r"energy error $\max_k |H_k - H_0|$ (absolute)"}
+# The axis labels: exactly what the comparison measures (studies/work_precision.py's
+# `errors`), the formula on the axis and its name above the panel. Both errors are absolute,
+# in the units of z = (q, p) and of H: no scale divides them (the target errors of a march,
+# by contrast, are relative to the motion's size).
+AXIS_LABELS = {"trajectory_error": r"$\max_{k,i}\, |z_{k,i} - z_{\mathrm{ref},i}(t_k)|$",
+               "energy_error": r"$\max_k\, |H(z_k) - H(z_0)|$"}
+PANEL_TITLES = {"trajectory_error": "trajectory error (absolute, units of $q$, $p$)",
+                "energy_error": "energy error (absolute, units of $H$)"}
+# The energy error of a time-dependent H: against the reference's H at the same time.
+TIME_DEPENDENT_ENERGY = r"$\max_k\, |H(z_k, t_k) - H(z_{\mathrm{ref}}(t_k), t_k)|$"
+RUN_TIME_LABEL = "wall time [s], median (bar: min-max)"
 
 # One colour per method for up to a dozen methods (the house cycle, then four of Paul Tol's
 # "muted" colours): with the cycle's eight, a ninth method took the first one's colour, and
 # its failure crosses could not be told from the first's.
 METHOD_COLOURS = ("C0", "C1", "C2", "C3", "C4", "C5", "C6", "C7",
                   "#332288", "#44AA99", "#882255", "#999933")
+MARKERS = "os^vD<>ph*"
+# The figure's size in inches: a column (panels stacked) or the text width (side by side).
+WIDTHS = ("column", "text")
+PANEL_HEIGHT = {"column": 2.0, "text": 2.9}
 
 
-def plot_work_precision(rows, path, *, title, fmt: str = "png"):
+def panel_title(kind: str) -> str:
+    """The name of an error axis' quantity and that it is absolute, for its panel's title."""
+    return PANEL_TITLES.get(kind, kind)
+
+
+def log_ticks(ax, axis: str = "x") -> None:
+    """Ticks at 1, 2 and 5 of each decade, each labelled, on a log axis whose data span less
+    than two decades: a column-wide panel of one decade had a single labelled tick."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator
+
+    low, high = getattr(ax.dataLim, f"interval{axis}")
+    if not (0 < low < high < 100 * low):
+        return
+    target = getattr(ax, f"{axis}axis")
+    target.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    target.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+
+
+def axis_label(kind: str, time_dependent: bool = False) -> str:
+    """The label of an error axis: its formula (`panel_title` names it)."""
+    if kind == "energy_error" and time_dependent:
+        return TIME_DEPENDENT_ENERGY
+    return AXIS_LABELS.get(kind, kind)
+
+
+def plot_work_precision(rows, path, *, title, fmt: str = "png", width: str = "column",
+                        time_dependent: bool = False):
     """Error against run time, one panel per error kind, one legend for both below them
     (never over the data): each method's successful runs as a line; a run that failed before
     ``t_end`` has no error to show (its partial run's error would flatter it) and is marked by
     a cross in its method's colour on the panel's top edge at its run time, named in the
-    legend."""
+    legend. ``width``: ``column`` (3.4 in, stacked panels) or ``text`` (7 in, side by
+    side)."""
+    if width not in WIDTHS:
+        raise ValueError(f"width must be one of {', '.join(WIDTHS)}, got {width!r}")
+    column = width == "column"
+    methods = methods_of(rows)
     with figures.styled():
-        fig = figures.new_figure(figures.TEXT_WIDTH, 3.9)
-        axes = fig.subplots(1, len(AXIS_LABELS))
+        legend_rows = math.ceil(len(_legend_labels(rows)) / (2 if column else 4))
+        height = (PANEL_HEIGHT[width] * (len(AXIS_LABELS) if column else 1)
+                  + 0.35 + 0.16 * legend_rows)
+        fig = figures.new_figure(figures.COLUMN_WIDTH if column else figures.TEXT_WIDTH,
+                                 height)
+        axes = fig.subplots(len(AXIS_LABELS), 1, sharex=True) if column else \
+            fig.subplots(1, len(AXIS_LABELS))
         for ax, kind in zip(axes, AXIS_LABELS, strict=True):
-            for i, method in enumerate(methods_of(rows)):
+            for i, method in enumerate(methods):
                 plot_method(ax, rows, method, kind, i)
-            ax.set_xlabel("run time [s] (best of repeats, build excluded)")
-            ax.set_ylabel(AXIS_LABELS.get(kind, kind))
+            ax.set_ylabel(axis_label(kind, time_dependent))
+            ax.set_title(panel_title(kind), pad=7)  # clear of the failure crosses
             ax.grid(True, which="major")
-        figure_legend(fig, axes)
+            log_ticks(ax, "x")
+        for ax in (axes[-1:] if column else axes):
+            ax.set_xlabel(RUN_TIME_LABEL)
+        figure_legend(fig, axes, ncol=2 if column else 4)
         fig.suptitle(title)
         figures.save(fig, path, fmt)
 
 
-def figure_legend(fig, axes) -> None:
+def _legend_labels(rows) -> list[str]:
+    labels = []
+    for method in methods_of(rows):
+        mine = [r for r in rows if r["method"] == method]
+        labels += [method] if any(r["status"] == "success" for r in mine) else []
+        labels += [f"{method} failed"] if any(r["status"] != "success" for r in mine) else []
+    return labels
+
+
+def figure_legend(fig, axes, ncol: int = 4) -> None:
     """One legend for the figure below its panels (outside every panel, so it covers no
     data), each entry once: the methods, then each method's failures."""
     entries = {}
@@ -48,22 +116,34 @@ def figure_legend(fig, axes) -> None:
     if entries:
         labels = sorted(entries, key=lambda label: "failed" in label)
         fig.legend([entries[label] for label in labels], labels, loc="outside lower center",
-                   ncol=min(4, len(labels)), fontsize="small")
+                   ncol=min(ncol, len(labels)), fontsize="small")
+
+
+def _spread(rows) -> tuple[list[float], list[list[float]] | None]:
+    """Where to draw each run (the median of its timed calls, else its best) and its bar
+    (from the fastest call to the slowest), ``None`` where no spread was measured."""
+    medians = [r.get("run_s_median", math.nan) for r in rows]
+    if not all(math.isfinite(m) for m in medians):
+        return [r["run_s"] for r in rows], None
+    return medians, [[m - r["run_s"] for m, r in zip(medians, rows, strict=True)],
+                     [r["run_s_max"] - m for m, r in zip(medians, rows, strict=True)]]
 
 
 def plot_method(ax, rows, method, kind, index):
-    """One method on one panel: its successful runs as a line, its failures as crosses in
-    its colour on the top edge (x: run time; y: the axes' top, not an error), named
-    ``METHOD failed`` in the legend."""
-    markers = "os^vD<>ph*"
+    """One method on one panel: its successful runs as a line with their timing bars, its
+    failures as crosses in its colour on the top edge (x: run time; y: the axes' top, not an
+    error), named ``METHOD failed`` in the legend."""
     good = [r for r in rows if r["method"] == method and r["status"] == "success"
             and r[kind] > 0]
     failed = [r for r in rows if r["method"] == method and r["status"] != "success"
               and r["run_s"] > 0]
     colour = METHOD_COLOURS[index % len(METHOD_COLOURS)]
     if good:
-        ax.loglog([r["run_s"] for r in good], [r[kind] for r in good],
-                  marker=markers[index % len(markers)], label=method, color=colour)
+        x, bars = _spread(good)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.errorbar(x, [r[kind] for r in good], xerr=bars, marker=MARKERS[index % len(MARKERS)],
+                    label=method, color=colour, elinewidth=0.6, capsize=0)
     if failed:
         ax.set_xscale("log")
         ax.plot([r["run_s"] for r in failed], [1.0] * len(failed),

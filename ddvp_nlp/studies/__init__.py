@@ -21,6 +21,7 @@ PUBLIC = {
     "cheapest": "work_precision", "methods_in": "work_precision",
     "winner_spans": "work_precision", "work_precision_horizons": "horizons_report",
     "compare": "comparison", "WorkPrecision": "work_precision",
+    "HorizonComparison": "horizons_choice",
     # Poincare sections
     "poincare_section": "poincare", "section_starts": "poincare",
     "SectionOutput": "poincare",
@@ -30,6 +31,7 @@ PUBLIC = {
 
 if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .comparison import compare
+    from .horizons_choice import HorizonComparison
     from .horizons_report import work_precision_horizons
     from .poincare import SectionOutput, poincare_section, section_starts
     from .verdict_study import MARGIN, draw_case, judge_case
@@ -45,7 +47,8 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
-__all__ = ["CompareOptions", "ERROR_KINDS", "MARGIN", "SectionOutput", "WorkPrecision",
+__all__ = ["CompareOptions", "ERROR_KINDS", "HorizonComparison", "MARGIN", "SectionOutput",
+           "WorkPrecision",
            "cheapest", "compare",
            "draw_case", "in_words", "judge_case", "methods_in", "poincare_section",
            "read_rows", "section_starts", "winner_spans", "work_precision_horizons"]

@@ -1,10 +1,13 @@
 """``compare``: the work-precision comparison from Python, the one ``ddvp compare`` runs.
 
 It takes a scene name or file, a `Scene`, or a `HamiltonianSystem` with its start and span,
-checks everything (the problem, the methods, the knobs, the target errors) before any solver is
-built, runs the plan of ``studies/work_precision.py`` and returns its `WorkPrecision`: the
-rows, failed runs with their reasons, ``plot``, ``to_csv``, ``best``. With ``out`` it also
-writes ``work_precision.csv``, ``.png`` and ``summary.md`` there, as the command does.
+checks everything (the problem, the methods, the knobs, the target errors, the horizons) before
+any solver is built, runs the plan of ``studies/work_precision.py`` and returns its
+`WorkPrecision`: the rows, failed runs with their reasons, ``plot``, ``to_csv``, ``best``. With
+``out`` it also writes ``work_precision.csv``, ``.png`` and ``summary.md`` there, as the command
+does. With ``horizons`` it compares at each horizon (``studies/horizons_report.py``, the
+machinery of ``ddvp compare --horizons``) and returns a `HorizonComparison`, whose
+``best(error, horizon)`` and ``crossovers()`` say which method is cheapest where.
 
 A system has no first step of its own: its sweeps start from a step derived from the motion
 (`motion_time`: the time the fastest coordinate of the exact flow takes to cross its range at
@@ -24,7 +27,11 @@ from ..physics import HamiltonianSystem, LagrangianSystem
 from ..runner.tasks import Workers
 from ..scenes import HigherOrderScene, Scene, load_scene
 from ..solvers import Compilation, exact_reference
+from ..validation import check_real
 from .comparable import check_comparable
+from .horizons import parse_horizons
+from .horizons_choice import HorizonComparison
+from .horizons_report import horizons_study
 from .methods import get_methods
 from .work_precision import CompareOptions, WorkPrecision, plan_work_precision, run_work_precision
 from .work_precision_report import write_work_precision
@@ -42,13 +49,22 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None,
             params: Mapping[str, object] | None = None, target_errors=None,
             options: CompareOptions | None = None, compilation: Compilation | None = None,
             workers: Workers | None = None, out: str | os.PathLike | None = None,
-            progress: bool = False, interruptible=None) -> WorkPrecision:
+            progress: bool = False, interruptible=None, horizons=None,
+            time_unit: float = 1.0) -> WorkPrecision | HorizonComparison:
     """The comparison of ``ddvp_nlp.compare`` (its docstring has the arguments);
-    ``interruptible`` is the command's (a figure an interrupt may skip)."""
+    ``interruptible`` is the command's (a figure an interrupt may skip). With ``horizons``
+    the comparison at each (`horizons_study`), a `HorizonComparison`."""
     options = _options(options, methods, target_errors)
     if options.methods is not None:  # names checked before the system's flow is built
         get_methods(options.methods)
+    if horizons is not None:
+        horizons = parse_horizons(horizons)
+        check_real("time_unit", time_unit, positive=True)
     scene, overrides = _scene_of(problem, q0, p0, t_span, params)
+    if horizons is not None:
+        return horizons_study(scene, horizons, out=out, unit=time_unit, overrides=overrides,
+                              options=options, compilation=compilation, workers=workers,
+                              progress=progress)
     plan = plan_work_precision(scene, overrides=overrides, options=options,
                                compilation=compilation, workers=workers)
     if out is not None:

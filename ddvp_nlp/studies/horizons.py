@@ -34,18 +34,39 @@ from .work_precision import succeeded
 
 
 def parse_horizons(text: str | list) -> list[float]:
-    """``"10,1000,100000"`` (or a list) as positive horizons, in order."""
-    values = text if isinstance(text, list | tuple) else [v for v in str(text).split(",")
-                                                           if v.strip()]
+    """``"10,1000,100000"`` (or a list) as positive, finite horizons, shortest first (each
+    horizon's sweeps are cut by what the shorter one measured); a horizon given twice is
+    refused."""
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        text = [text]
+    values = list(text) if isinstance(text, list | tuple) else \
+        [v for v in str(text).split(",") if v.strip()]
     try:
         horizons = [float(v) for v in values]
-    except ValueError:
+    except (TypeError, ValueError):
         raise InputError(f"horizons must be comma-separated numbers, got {text!r}") from None
     if not horizons:
-        raise InputError("horizons must name at least one horizon")
+        raise InputError(f"horizons must name at least one horizon, got {text!r}")
     for value in horizons:
         check_real("horizon", value, positive=True)
-    return horizons
+    seen = set()
+    for value in horizons:
+        if value in seen:
+            raise InputError(f"horizons give {value:g} twice; give each horizon once")
+        seen.add(value)
+    return sorted(horizons)
+
+
+def check_horizons(horizons, unit: float, config) -> None:
+    """Each horizon ``T`` (``t_end = t0 + T unit``) must hold at least one of the scene's
+    first steps ``tau0``: a shorter one is not a run of that scene, its sweep's every step
+    would be cut to fit it."""
+    unit = check_real("time unit", unit, positive=True)
+    for horizon in horizons:
+        if horizon * unit < config.tau0:
+            raise InputError(f"horizon {horizon:g} (t_end - t0 = {horizon * unit:g}) is shorter "
+                             f"than the scene's first step tau0 = {config.tau0:g}; give "
+                             f"horizons of at least {config.tau0 / unit:g}")
 
 
 def affordable_knobs(methods, config, t_end: float, halvings: int, max_steps: int, *,

@@ -57,14 +57,20 @@ ROWS = RowSchema(
     columns=("key", "scene", "method", "knob", "value", "status", "steps", "t_reached", "run_s",
              "build_s", "repeats", "trajectory_error", "energy_error", "scheme_energy_residual",
              "order", "symplectic", "energy_conserving", "reference", *ACCURACY_COLUMNS,
-             "cpu_s", "chosen_tau0", "message", "fingerprint", "row_sha256"),
+             "cpu_s", "chosen_tau0", "run_s_median", "run_s_max", "cpu_s_median", "cpu_s_max",
+             "message", "fingerprint", "row_sha256"),
     floats=("value", "t_reached", "run_s", "build_s", "trajectory_error", "energy_error",
-            "scheme_energy_residual", "error_estimate", "cpu_s", "chosen_tau0"),
+            "scheme_energy_residual", "error_estimate", "cpu_s", "chosen_tau0",
+            "run_s_median", "run_s_max", "cpu_s_median", "cpu_s_max"),
     integers=("steps", "repeats", "order"),
     flags=("symplectic", "energy_conserving"))
 COLUMNS = list(ROWS.columns)
 # Columns added since the first files were written: what a file without them reads as.
-ADDED = {"cpu_s": "nan", "chosen_tau0": "nan"}
+ADDED = {"cpu_s": "nan", "chosen_tau0": "nan", "run_s_median": "nan", "run_s_max": "nan",
+         "cpu_s_median": "nan", "cpu_s_max": "nan"}
+# The spread of a run's timed calls (wall and CPU), beside the best: what the figures' bars
+# show.
+SPREAD = ("run_s_median", "run_s_max", "cpu_s_median", "cpu_s_max")
 ERROR_KINDS = {"trajectory_error": "trajectory error max |z - z_ref|",
                "energy_error": "energy error"}
 # Error levels the summary ranks: decades from 1e-1 down to this; below it errors are round-off
@@ -220,18 +226,21 @@ class WorkPrecision:
             writer.writeheader()
             writer.writerows(self.rows)
 
-    def plot(self, path=None, *, title: str | None = None):
+    def plot(self, path=None, *, title: str | None = None, width: str = "column"):
         """The work-precision figure of ``ddvp compare`` (error against run time, a panel per
-        error kind, failed runs marked). Returns the ``matplotlib.figure.Figure``; with
-        ``path`` (PNG, SVG or PDF by its suffix) it is also written there."""
-        from ..io.figures import Keep, format_of, save
+        error kind, failed runs marked; ``width``: ``column``, 3.4 in, or ``text``, 7 in).
+        Returns the ``matplotlib.figure.Figure``; with ``path`` (PNG, SVG or PDF by its
+        suffix) it is also written there."""
+        from ..io.figures import Keep, format_of, save, styled
         from ..io.work_precision_figure import plot_work_precision
 
         keep = Keep()
         plot_work_precision(self.rows, keep,
-                            title=title or f"{self.scene.name}: error against run time")
+                            title=title or f"{self.scene.name}: error against run time",
+                            width=width, time_dependent=self.scene.system.time_dependent)
         if path is not None:
-            save(keep.figure, path, format_of(path))
+            with styled():  # the house style's resolution (savefig.dpi), not matplotlib's
+                save(keep.figure, path, format_of(path))
         return keep.figure
 
 
@@ -264,17 +273,20 @@ def errors(system, reference: ComparisonReference, solution,
 def _timed(call, repeats: int, budget_s: float):
     """Warm-up call, then the best of up to ``repeats`` timed calls, stopping once they add up to
     ``budget_s``. Returns (solution of the warm-up, best wall seconds, the CPU seconds of that
-    call, number of timed calls)."""
+    call, number of timed calls, the spread: `SPREAD`'s medians and maxima of the calls' wall
+    and CPU seconds)."""
     first = call()
-    best, best_cpu, spent, count = math.inf, math.inf, 0.0, 0
-    while count < repeats and (count == 0 or spent < budget_s):
+    walls, cpus, spent = [], [], 0.0
+    while len(walls) < repeats and (not walls or spent < budget_s):
         started, cpu = time.perf_counter(), time.process_time()
         call()
-        elapsed = time.perf_counter() - started
-        if elapsed < best:
-            best, best_cpu = elapsed, time.process_time() - cpu
-        spent, count = spent + elapsed, count + 1
-    return first, best, best_cpu, count
+        walls.append(time.perf_counter() - started)
+        cpus.append(time.process_time() - cpu)
+        spent += walls[-1]
+    best = int(np.argmin(walls))
+    spread = dict(zip(SPREAD, (float(np.median(walls)), max(walls), float(np.median(cpus)),
+                               max(cpus)), strict=True))
+    return first, walls[best], cpus[best], len(walls), spread
 
 
 def default_methods(system) -> tuple[list[Method], list[str]]:
@@ -404,7 +416,8 @@ TASK_FUNCTION = "ddvp_nlp.studies.work_precision:run_one"
 
 _NOT_MEASURED = {"trajectory_error": math.nan, "energy_error": math.nan,
                  "scheme_energy_residual": math.nan, "run_s": math.nan, "build_s": math.nan,
-                 "cpu_s": math.nan, "repeats": 0, "steps": 0, **NOT_MADE}
+                 "cpu_s": math.nan, "repeats": 0, "steps": 0, **NOT_MADE,
+                 **dict.fromkeys(SPREAD, math.nan)}
 
 
 def _traits(method: Method, aims: bool = False) -> dict:
@@ -437,7 +450,7 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
     row = {"scene": scene.name, **_traits(method, aims), "value": value,
            "reference": reference.kind, "chosen_tau0": math.nan}
     try:
-        solution, best, cpu, count = _timed(call, repeats, budget_s)
+        solution, best, cpu, count, spread = _timed(call, repeats, budget_s)
     except InputError as exc:  # e.g. a step that needs more than max_steps, a failed pilot
         return {**row, **_NOT_MEASURED, "status": "not_run", "message": str(exc),
                 "t_reached": config.t0}
@@ -449,7 +462,8 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
                 if method.energy_conserving and solution.energy_residual.size else math.nan)
     return {**row, "status": solution.status.code, "message": solution.message,
             "steps": solution.steps, "t_reached": float(solution.t[-1]), "run_s": best,
-            "cpu_s": cpu, "build_s": solution.timing.get("build_s", 0.0), "repeats": count,
+            "cpu_s": cpu, **spread, "build_s": solution.timing.get("build_s", 0.0),
+            "repeats": count,
             "trajectory_error": trajectory, "energy_error": energy,
             "scheme_energy_residual": residual,
             **accuracy_columns(system, config, method, solution, compiler=compiler,

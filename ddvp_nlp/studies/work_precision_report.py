@@ -72,7 +72,8 @@ def write_work_precision(plan: WorkPrecisionPlan, out, *, progress: bool = False
         result = run_work_precision(plan, folder / "work_precision.csv", progress=progress,
                                     commit=False)
         figure = figure_writer(folder, "work_precision.png", lambda handle: plot_work_precision(
-            result.rows, handle, title=f"{scene.name}: error against run time"), interruptible)
+            result.rows, handle, title=f"{scene.name}: error against run time",
+            time_dependent=scene.system.time_dependent), interruptible)
         commit_journal(folder / "work_precision.csv", ROWS.columns, result.rows,
                     {"work_precision.png": figure, "summary.md": atomic.text(summary(result))},
                     {"command": "compare", "scene": scene.name,

@@ -43,7 +43,7 @@ class Builder:
 
 BUILDERS = [
     Builder("comparison", PAGES / "comparison_page.py", "comparison", (), ("--quick",),
-            "seconds"),
+            "about 8 minutes (the horizons' runs)"),
     Builder("reproduce", PAGES / "reproduce_page.py", "reproduce", (), ("--quick",),
             "a few minutes"),
     Builder("accuracy", PAGES / "accuracy_study.py", "accuracy", (), ("--quick",),

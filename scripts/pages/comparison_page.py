@@ -1,13 +1,19 @@
-"""Regenerate docs/comparison/README.md: published numbers beside ours.
+"""Regenerate docs/comparison/README.md: published numbers beside ours, and which method is
+cheapest at which error and horizon on the built-in scenes.
 
 1. SUNDIALS' ark_kepler example (leapfrog, e = 0.6) to T = 50: H(T) - H0 per step.
 2. Kane, Marsden and Ortiz's double well as redone by Sharma (2020): H = p^2/2 + (q^4 - q^2)/2,
    p(0) = 0, the midpoint scheme with the energy rule (vddvp) at h0 = 0.1 and 0.01, against
    fixed-step midpoint over the same number of steps.
+3. ``compare(scene, methods, horizons=HORIZONS)`` on the built-in scenes of `CASES`: the
+   crossover horizons in words (measured numbers only), ``SCENE/crossover.png``,
+   ``SCENE/horizons.png`` and every run in ``SCENE/runs.csv``.
 
     python scripts/pages/comparison_page.py [--out docs/comparison] [--t-end 100] [--quick]
 
-Seconds (``--quick``: the double well to t = 20). No timing is shown.
+Parts 1-2 take seconds and show no timing; part 3 some minutes of runs on a quiet machine
+(``--quick``: the double well to t = 20 and horizons 10 and 100 only; ``--from-runs``: part 3
+redrawn from the ``runs.csv`` files on disk, in seconds).
 """
 
 from __future__ import annotations
@@ -17,12 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ddvp_nlp import Output, Scene, load_scene, march
+from ddvp_nlp import Output, Scene, compare, load_scene, march
 from ddvp_nlp.discrete import Scheme, interval_energies
+from ddvp_nlp.io import machine
 from ddvp_nlp.solvers import find_compiler
 
 # an internal, named explicitly: one fixed-step run of a baseline (not a workbench name)
 from ddvp_nlp.solvers.baselines.fixed_step import fixed_step_run
+from ddvp_nlp.studies import CompareOptions, HorizonComparison
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -31,6 +39,14 @@ ARK_KEPLER = {1e-3: -1.0321e-7, 5e-4: -2.583e-8, 2.5e-4: -6.460e-9, 1.25e-4: -1.
 SHARMA = {(0.74, 0.1): "0.100-0.107", (0.995, 0.1): "0.10-0.45",
           (0.74, 0.01): "near 0.01", (0.995, 0.01): "grows about 4-fold"}
 SHARMA_FIXED = {0.74: "about 1e-8", 0.995: "about 1e-6"}
+# Part 3: the scenes, the methods compared on each (an energy-conserving pair, a symplectic
+# one, an explicit fourth-order one and adaptive DOP853) and the horizons, in the scene's time
+# units.
+METHODS_COMPARED = "vddvp,avf,stormer_verlet,rk4,dop853"
+CASES = {"harmonic": {}, "pendulum": {}}
+HORIZONS = [10.0, 100.0, 1000.0, 10000.0]
+QUICK_HORIZONS = [10.0, 100.0]
+TIMING = CompareOptions(halvings=3, repeats=5, budget_s=1.0, max_steps=2_000_000)
 
 
 def double_well(q, p, t):
@@ -89,17 +105,82 @@ def double_well_table(t_end: float) -> list[str]:
     return lines
 
 
+def horizons_section(out: Path, horizons, from_runs: bool = False) -> list[str]:
+    """Part 3: per scene, the crossovers in words and the figures (module docstring); with
+    ``from_runs`` from the ``runs.csv`` an earlier run wrote (no run, no new timing)."""
+    lines = ["## Which method is cheapest, by error and horizon", "",
+             f"`compare(scene, \"{METHODS_COMPARED}\", horizons={horizons})`, every run timed "
+             f"{TIMING.repeats} times after a warm-up (cost: the best wall time; the figures "
+             "show the median with a bar from the fastest to the slowest call, and every run's "
+             "CPU time is in `runs.csv`). Both errors are absolute: the trajectory error "
+             "max_k max_i |z_k,i - z_ref,i(t_k)| against the exact solution, the energy error "
+             "max_k |H(z_k) - H(z_0)|. The rule (`studies/horizons_choice.py`): a method's cost "
+             "at an error is read off its Pareto front, interpolated in log cost against log "
+             "error, and between two measured horizons in log cost against log T; a crossover "
+             "is the horizon from which another method is cheapest.", ""]
+    for name, settings in CASES.items():
+        folder = out / name
+        folder.mkdir(parents=True, exist_ok=True)
+        if from_runs:
+            study = HorizonComparison.read_csv(folder / "runs.csv")
+        else:
+            study = compare(name, METHODS_COMPARED, params=settings or None, options=TIMING,
+                            horizons=horizons)
+            study.to_csv(folder / "runs.csv")
+        study.plot_crossover(folder / "crossover.png", title=f"{name}: cheapest method")
+        study.plot(folder / "horizons.png", title=f"{name}: error against run time")
+        lines += [f"### `{name}`", "", *study.crossover_words(), "",
+                  *conserving_words(study), "",
+                  f"![{name} crossover]({name}/crossover.png)", "",
+                  f"![{name} work-precision]({name}/horizons.png)", ""]
+    measured = (out / "measured_on.txt")
+    if not from_runs:
+        measured.write_text(machine() + "\n")
+    lines += [f"Measured on: {measured.read_text().strip()}", ""]
+    return lines
+
+
+def conserving_words(study) -> list[str]:
+    """The horizons from which an energy-conserving method becomes the cheapest, in words, by
+    wall time and by CPU time."""
+    conserving = {r["method"]: r["energy_conserving"] for r in study.rows}
+    found = []
+    for kind in ("energy_error", "trajectory_error"):
+        cpu = {(c.error, c.before, c.after): c
+               for c in study.crossovers(kind=kind, cost="cpu_s")}
+        for crossing in study.crossovers(kind=kind):
+            after = crossing.after
+            if after and conserving[after] and not (
+                    crossing.before and conserving[crossing.before]):
+                before = f"`{crossing.before}`" if crossing.before else "none reached it"
+                by_cpu = cpu.get((crossing.error, crossing.before, after))
+                found.append(f"{kind.replace('_', ' ')} <= {crossing.error:.0e}: `{after}` "
+                             f"from {crossing.where()} by wall time"
+                             + (f", from {by_cpu.where()} by CPU time" if by_cpu else
+                                ", no such crossover by CPU time")
+                             + f" (before it {before})")
+    if not found:
+        return ["No energy-conserving method takes over from another kind of method between "
+                "the horizons measured."]
+    return ["An energy-conserving method becomes the cheapest at: " + "; ".join(found) + "."]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(ROOT / "docs" / "comparison"))
     parser.add_argument("--t-end", type=float, default=100.0)
-    parser.add_argument("--quick", action="store_true", help="the double well to t = 20")
+    parser.add_argument("--quick", action="store_true",
+                        help="the double well to t = 20, horizons 10 and 100 only")
+    parser.add_argument("--from-runs", action="store_true",
+                        help="part 3 from the runs.csv files of an earlier run (no new runs): "
+                             "its words and figures redrawn")
     args = parser.parse_args()
     if args.quick:
         args.t_end = 20.0
     text = "\n".join([
         "# Published numbers, reproduced", "",
-        "Regenerate: `python scripts/pages/comparison_page.py` (seconds). Tests: "
+        "Regenerate: `python scripts/pages/comparison_page.py` (minutes: the horizons' runs). "
+        "Tests: "
         "`tests/library/baselines/test_alternatives.py` (the SUNDIALS numbers to 1%). "
         "Which method is cheapest "
         "over 10 to 10^5 periods: [../work_precision/horizons/README.md]"
@@ -114,7 +195,9 @@ def main() -> None:
         f"rule (`vddvp`), to t = {args.t_end:g} (the last, cut step left out of the range). "
         "Sharma's columns are as reported; the fixed-step comparison uses our number of "
         "energy-rule steps.", "",
-        *double_well_table(args.t_end), ""])
+        *double_well_table(args.t_end), "",
+        *horizons_section(Path(args.out), QUICK_HORIZONS if args.quick else HORIZONS,
+                          from_runs=args.from_runs)])
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "README.md").write_text(text)

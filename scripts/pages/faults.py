@@ -1291,6 +1291,42 @@ def thinned_cases() -> list[Case]:
     ]
 
 
+def compare_cases() -> list[Case]:
+    """``ddvp compare --horizons`` (issue 49): bad horizons refused by name before a folder is
+    made (exit 2, no traceback); unsorted horizons run shortest first, with the crossover
+    figure and its words."""
+    base = ["compare", "harmonic", "--methods", "rk4,avf", "--halvings", "1", "--repeats", "1",
+            "--no-progress", "--out", "out"]
+
+    def no_folder(folder, result):
+        return ["a folder was made for refused input"] if (folder / "out").exists() else []
+
+    def shortest_first(folder, result):
+        summary = folder / "out" / "horizons.md"
+        if not summary.exists() or not (folder / "out" / "crossover.png").exists():
+            return ["horizons.md or crossover.png missing"]
+        text = summary.read_text()
+        problems = [] if text.index("## T = 10") < text.index("## T = 100") else \
+            ["the horizons were not run shortest first"]
+        return problems + ([] if "## Crossovers" in text else ["no crossovers in words"])
+    bad = [("a negative horizon", "--horizons=-1,10", "--horizons must be > 0"),
+           ("NaN", "--horizons=nan", "--horizons must be finite"),
+           ("infinity", "--horizons=10,inf", "--horizons must be finite"),
+           ("empty", "--horizons=", "--horizons must be comma-separated numbers"),
+           ("an empty item", "--horizons=10,,100", "--horizons must be comma-separated"),
+           ("unsorted duplicates", "--horizons=100,10,100", "has the value 100.0 twice"),
+           ("a horizon shorter than a step", "--horizons=0.01,10",
+            "horizon 0.01 (t_end - t0 = 0.01) is shorter than the scene's first step"),
+           ("a time unit of zero", "--time-unit=0", "--time-unit must be > 0")]
+    cases = [Case("compare", f"--horizons: {name}", [*base, flag] if "horizons" in flag
+                  else [*base, "--horizons=10,100", flag], (2,), expect_text=text,
+                  check=no_folder, timeout=60.0)
+             for name, flag, text in bad]
+    cases.append(Case("compare", "--horizons 100,10 (unsorted): run shortest first",
+                      [*base, "--horizons=100,10"], (0,), check=shortest_first))
+    return cases
+
+
 SPAWNING_SCENE = ("import subprocess\nfrom ddvp_nlp import Scene\n"
                   "child = subprocess.Popen(['sleep', '300'])\n"
                   "open('pid', 'w').write(str(child.pid))\n"
@@ -1536,7 +1572,7 @@ def main() -> int:
               "cluster": cluster_cases, "periodic": periodic_cases, "ranges": range_cases,
               "backward": backward_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
-              "supervision": supervision_cases,
+              "supervision": supervision_cases, "compare": compare_cases,
               "load": load_cases}
     only = set(args.only.split(",")) if args.only else None
     unknown = sorted((only or set()) - set(groups))
