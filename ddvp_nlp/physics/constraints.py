@@ -26,19 +26,18 @@ from ..errors import InputError
 RANK_TOLERANCE = 1e-10
 
 
-def constraint_column(system, function) -> ca.SX:
+def constraint_column(system, function, guard) -> ca.SX:
     """``g(q, t, **params)`` on the system's symbols as an SX column, checked: a CasADi (or
     numeric) vector of ``1 .. n-1`` rows, each depending on ``q``, on no symbol but ``q``,
-    ``t`` and the parameters."""
+    ``t`` and the parameters. ``guard(whose)``: the context the user's function runs in
+    (``hamiltonian.numpy_on_symbols``)."""
     name = system.name
     if not callable(function):
         raise InputError(f"constraints of {name!r} must be a function g(q, t, ...), got "
                          f"{function!r}")
     symbols = {key: system.theta[i] for i, key in enumerate(system.params)}
-    from .hamiltonian import numpy_on_symbols
-
     try:
-        with numpy_on_symbols(f"constraints of {name!r}"):
+        with guard(f"constraints of {name!r}"):
             value = function(system.q, system.t, **symbols)
     except InputError:
         raise
@@ -124,4 +123,16 @@ def check_start_constraints(system, q, t, theta, *, what: str = "q0") -> None:
             f"{system.n_constraints} rows (a row is a combination of others); drop one")
 
 
-__all__ = ["check_start_constraints", "constraint_column", "constraint_function"]
+
+
+def refuse_constrained(system, solver: str) -> None:
+    """``InputError`` where ``solver`` has not learned constraints yet and ``system`` has some:
+    an unconstrained solver never runs on a constrained system silently."""
+    if getattr(system, "n_constraints", 0):
+        raise InputError(f"{solver} does not support constrained systems yet "
+                         f"({getattr(system, 'name', 'system')!r} has "
+                         f"{system.n_constraints} constraints); march it with march(...)")
+
+
+__all__ = ["check_start_constraints", "constraint_column", "constraint_function",
+           "refuse_constrained"]

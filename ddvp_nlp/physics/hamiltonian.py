@@ -105,10 +105,10 @@ class HamiltonianSystem:
 
     def _constrain(self):
         """``G`` and ``n_constraints`` from ``constraints`` (checked, ``constraints.py``)."""
-        from .constraints import constraint_column
+        from .constraints import constraint_column  # loaded by a system that has some
 
         self.G = ca.SX(0, 1) if self.constraints is None else \
-            constraint_column(self, self.constraints)
+            constraint_column(self, self.constraints, numpy_on_symbols)
         self.n_constraints = int(self.G.size1())
 
     def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:

@@ -49,6 +49,9 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None,
     if options.methods is not None:  # names checked before the system's flow is built
         get_methods(options.methods)
     scene, overrides = _scene_of(problem, q0, p0, t_span, params)
+    if scene.system.n_constraints:  # the compared methods do not know constraints yet
+        raise InputError(f"compare does not support constrained systems yet "
+                         f"({scene.name!r} has {scene.system.n_constraints} constraints)")
     plan = plan_work_precision(scene, overrides=overrides, options=options,
                                compilation=compilation, workers=workers)
     if out is not None:

@@ -63,7 +63,7 @@ def consistent_start(system, q0, p0, t0: float, theta, *, warn: bool = True) -> 
     q, p = np.array(q0, float), np.array(p0, float)
     scale_q = max(np.abs(q).max(), np.finfo(float).tiny)
     iterations = 0
-    for iterations in range(1, MAX_PROJECTION_STEPS + 1):
+    for iterations in range(1, MAX_PROJECTION_STEPS + 1):  # noqa: B007 (reported)
         g, G, _ = (np.asarray(v, float) for v in constraints(q, t0, theta))
         G = G.reshape(m, n)
         dq = G.T @ np.linalg.solve(G @ G.T, g.ravel())

@@ -16,7 +16,7 @@ Jacobian as a bordered system: the block of ``(z, lambda, mu)`` by a sparse QR (
 not their cube. The chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the
 constrained field, the previous multipliers) and its acceptance test ``chunk`` times per call
 (``mapaccum``), compiled where a C compiler is found; a step that fails its test freezes the
-rest of the chunk, and the march (``constrained.py``) retries it from other step guesses.
+rest of the chunk, and the march (``constrained_march.py``) retries it from other step guesses.
 """
 
 from __future__ import annotations
@@ -28,8 +28,7 @@ import numpy as np
 
 from ...discrete import constrained as equations
 from ...discrete.runge_kutta import rk4
-from ..compiler import CompileUnavailable, FunctionBuffer, cache_folder, compile_function, \
-    warn_once
+from ..compiler import CompileUnavailable, FunctionBuffer, cache_folder, compile_function, warn_once
 
 __all__ = ["ConstrainedChunk", "newton_function"]
 

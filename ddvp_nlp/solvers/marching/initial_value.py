@@ -133,8 +133,8 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         A `Solution`; failures are a status on it, never an exception.
     """
     names = check_derivatives(derivatives)  # before anything, also a backward march's
-    if getattr(system, "n_constraints", 0):  # constrained.py: its own march, for now
-        from .constrained import march_constrained
+    if getattr(system, "n_constraints", 0):  # constrained_march.py: its own march, for now
+        from .constrained_march import march_constrained
 
         scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation,
                                                      output)

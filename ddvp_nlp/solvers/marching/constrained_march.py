@@ -39,6 +39,7 @@ from ...discrete.constrained import (
 )
 from ...errors import InputError
 from ...solution import MarchRecord, Solution, Status
+from ...validation import check_memory, check_span, check_state, check_step, check_times
 from ..compiler import find_compiler
 from ..dense import DenseField, EventMonitor, check_events, evaluate_at
 from ..driver import Advance, Nodes, describe_phase_space, drive
@@ -71,7 +72,6 @@ def refuse_unsupported(system, *, v0, backward, target_error, derivatives, outpu
     asked = [(v0 is not None, "v0 (give p0)"), (backward, "a backward span (t_end < t0)"),
              (target_error is not None, "target_error"), (bool(derivatives), "derivatives"),
              (output.thinned, "thinned output (keep_every / keep)"),
-             (output.checkpoint is not None, "checkpoints"),
              (steps.breakdown == "least_squares", "breakdown='least_squares'"),
              (steps.energy_guard is not None, "energy_guard")]
     refused = [words for present, words in asked if present]
@@ -181,18 +181,22 @@ class ConstrainedStepper:
 def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps, accuracy,
                       compilation, output, target_error, derivatives) -> Solution:
     """`march` of a constrained system (module docstring): the options are already objects."""
-    from .initial_value import check_output_memory
-    from .march_problem import _check_state, _check_times
-
     backward = t_span is not None and len(tuple(t_span)) == 2 and \
         float(tuple(t_span)[1]) < float(tuple(t_span)[0])
     refuse_unsupported(system, v0=v0, backward=backward, target_error=target_error,
                        derivatives=derivatives, output=output, steps=steps)
-    check_output_memory(output, system)
-    q0, p0, _ = _check_state(system, q0, p0, None)
-    t0, t_end, tau0 = _check_times(t_span, tau0)
-    from ...validation import check_times
-
+    if output.t_eval is not None:
+        count = output.t_eval.size
+        check_memory("len(t_eval)", count, count * 8.0 * (8 + 16 * system.n),
+                     f"the states at {count} output times")
+    q0 = check_state("q0", q0, system.n)
+    if p0 is None:
+        raise InputError("give p0")
+    p0 = check_state("p0", p0, system.n)
+    t0, t_end = check_span(t_span)
+    tau0 = check_step(tau0, t0, t_end)
+    if tau0 > t_end - t0:
+        raise InputError(f"tau0 must not exceed |t_end - t0| = {t_end - t0!r}, got {tau0!r}")
     check_times(output.t_eval, (t0, t_end))
     theta = system.parameter_vector(params)
     H0 = float(system.energy(q0[None, :], p0[None, :], np.array([t0]), theta)[0])
@@ -211,10 +215,14 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
     field = DenseField(constrained_field_function(system), system.H_function, theta,
                        system.name)
     z0 = np.concatenate([start.q0, start.p0])
-    monitors = [EventMonitor(events, field, t_end, np.float64(t0), z0)] if events else []
-    outcome = drive(stepper, Nodes(t0, z0), t_end=t_end, max_steps=steps.max_steps,
-                    time_limit=steps.time_limit, monitors=monitors, progress=output.progress,
-                    catch_interrupt=True, stop=output.stop)
+    monitors = _monitors(output, events, field, t_end, t0, z0)
+    try:
+        outcome = drive(stepper, Nodes(t0, z0), t_end=t_end, max_steps=steps.max_steps,
+                        time_limit=steps.time_limit, monitors=monitors,
+                        progress=output.progress, catch_interrupt=True, stop=output.stop)
+    finally:
+        for monitor in monitors:
+            getattr(monitor, "close", lambda: None)()
     solved = time.perf_counter()
     solution = _solution(system, scheme, theta, outcome, stepper, start)
     solution.timing = {"build_s": built - started, "solve_s": solved - built,
@@ -222,11 +230,30 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
                            stepper.energy.compile_s if stepper.energy else 0.0),
                        "verify_s": time.perf_counter() - solved}
     for monitor in monitors:
-        monitor.report(solution)
+        if isinstance(monitor, EventMonitor):
+            monitor.report(solution)
     solution.t_end, solution.vector_field, solution.system = t_end, field, system
     evaluate_at(solution, output.t_eval)
     solution.accuracy_skipped = UNJUDGED if accuracy is not None else None
     return solution
+
+
+def _monitors(output, events, field, t_end, t0, z0) -> list:
+    """The events, the stop request and the checkpoints (no carried state: a constrained
+    march is not continued yet, so a save that takes one gets ``None``)."""
+    from .monitors import Checkpoint, StopRequest, with_state
+
+    monitors = [EventMonitor(events, field, t_end, np.float64(t0), z0)] if events else []
+    if output.stop is not None:
+        monitors.append(StopRequest(output.stop))
+    if output.checkpoint is not None:
+        save, _ = with_state(output.checkpoint, _NoCarry())
+        monitors.append(Checkpoint(save, output.checkpoint_interval, state=None))
+    return monitors
+
+
+class _NoCarry:
+    state = None
 
 
 def _solution(system, scheme, theta, outcome, stepper, start) -> Solution:
@@ -252,7 +279,7 @@ def recheck(system, scheme, theta, t, z, multipliers) -> dict:
     """Every equation of a constrained grid, unscaled: the interval rows (largest per step),
     ``|g|`` and the hidden residual per node, the energy rows (the scheme's, ``lee`` for
     ``fixed`` steps) at the inner nodes."""
-    n, m, N = system.n, system.n_constraints, t.size
+    m, N = system.n_constraints, t.size
     functions = _recheck_functions(system, scheme)
     nodes = np.asarray(functions["node"].map(N)(z.T, t[None, :], theta[:, None]))
     result = {"constraint": np.abs(nodes[:m]).max(axis=0),
