@@ -41,7 +41,7 @@ from ...errors import InputError
 from ...solution import MarchRecord, Solution, Status
 from ...validation import check_memory, check_span, check_state, check_step, check_times
 from ..compiler import find_compiler
-from ..dense import DenseField, EventMonitor, check_events, evaluate_at
+from ..dense import DenseField, EventMonitor, evaluate_at
 from ..driver import Advance, Nodes, describe_phase_space, drive
 from .acceptance import Acceptance
 from .constrained_start import StartProjection, consistent_start
@@ -204,7 +204,7 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
         raise InputError(f"H is not finite at the initial state q0={q0.tolist()}, "
                          f"p0={p0.tolist()}, t0={t0!r}: H = {H0!r}")
     start = consistent_start(system, q0, p0, t0, theta)
-    events = check_events(output.events) if output.events else ()
+    events = tuple(output.events or ())  # already checked by Output
     started = time.perf_counter()
     compiler = find_compiler(compilation.compiler) if compilation.fast else None
     acceptance = Acceptance(steps.tol, steps.tau_min, steps.tau_max, steps.max_step_ratio)
