@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from ddvp_nlp import HamiltonianSystem, InputError, LagrangianSystem, Output, load_scene, march
+from ddvp_nlp import HamiltonianSystem, LagrangianSystem, Output, load_scene, march
 from ddvp_nlp.discrete.constrained import solvability_function
 from ddvp_nlp.solution import Status
 
