@@ -5,8 +5,8 @@ The step equations are those of ``discrete/constrained.py``. Unknowns and parame
 - *fixed-length* step (every step of ``fixed``, step 0 of the energy rules): ``x = [z_b,
   lambda, mu]`` (``2n + 2m``): the ``2n`` interval rows and the ``2m`` node rows at ``b``;
 - *energy* step: ``x = [z_{k+1}, lambda_k, mu_k, tau_k]`` (``2n + 2m + 1``): the same rows and
-  the energy row at node ``k`` (divided by ``tau_{k-1}``, as for the unconstrained march,
-  with the drift of the accepted energy residuals added so that their sum stays at round-off).
+  the energy row at node ``k`` (divided by ``tau_{k-1} max(1, |E_{k-1}|)``, with the drift
+  of the accepted energy residuals added so that their sum stays at round-off).
 
 Newton (`newton_function`) runs as a chain of conditional calls (a step pays for the
 iterations it takes) and returns the number of updates it made. Each update solves the
@@ -33,7 +33,7 @@ from ..compiler import CompileUnavailable, FunctionBuffer, cache_folder, compile
 __all__ = ["ConstrainedChunk", "newton_function"]
 
 MAX_ITER = 12
-ABSTOL = 1e-14  # Newton's residual test (absolute), as NEWTON_OPTIONS
+ABSTOL = 1e-14  # Newton's residual test, relative to max(1, |x|) (NEWTON_OPTIONS' abstol)
 STEP_TOL = 1e-12  # the update's test, relative to max(1, |x|): the next iterate is at round-off
 
 
@@ -58,26 +58,38 @@ def step_residual(system, scheme, kind: str) -> ca.Function:
     rows = [equations.interval_expression(system, scheme, t_a, t_b, z_a[:n], z_a[n:], z_b[:n],
                                           z_b[n:], lam, mu, theta),
             equations.node_expression(system, z_b[:n], z_b[n:], t_b, theta)]
+    scale = ca.SX(1)
     if kind == "energy":
         energy = equations.energy_expression(
             system, scheme, scheme.rule,
             (t_prev, t_a, t_b, z_prev[:n], z_prev[n:], z_a[:n], z_a[n:], z_b[:n], z_b[n:]),
             (lam0, mu0, lam, mu), theta)
-        rows.append((energy + drift) / (t_a - t_prev))
-    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows)])
+        # the row's round-off is that of the energies (a chain of N links: |H| ~ N^2), and
+        # its derivative in tau is O(tau): divided by both, Newton's tests read it like the
+        # other rows
+        previous = equations.interval_energy_expression(
+            system, scheme, t_prev, t_a, z_prev[:n], z_prev[n:], z_a[:n], z_a[n:], lam0, mu0,
+            theta)
+        scale = (t_a - t_prev) * ca.fmax(1, ca.fabs(previous))
+        rows.append((energy + drift) / scale)
+    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale])
 
 
 def newton_function(residual: ca.Function, border: int) -> ca.Function:
     """``(x0, w) -> (x, updates)``: Newton on ``residual`` from ``x0``, at most ``MAX_ITER``
-    updates, stopping where ``|R|_inf <= ABSTOL`` or an update is below ``STEP_TOL max(1,
-    |x|)``; each update by a sparse QR of the leading block and the Schur complement of the
+    updates, stopping where ``|R|_inf <= ABSTOL max(1, |x|)`` or an update is below
+    ``STEP_TOL max(1, |x|)``; each update by a sparse QR of the leading block and the Schur complement of the
     last ``border`` unknowns (0 or 1)."""
     x, w = residual.sx_in()
     R = residual.call([x, w])[0]
+    residual = ca.Function("residual", [x, w], [R])
     size = x.numel()
     lead = size - border
     J = ca.jacobian(R, x)
-    test = ca.Function("test", [x, w], [R, ca.norm_inf(R) <= ABSTOL])
+    # the residual's round-off grows with the size of the unknowns (a chain of 50 links: its
+    # far end at 50, its tensions near 25), so the test is relative to it
+    small = ca.norm_inf(R) <= ABSTOL * ca.fmax(1, ca.norm_inf(x))
+    test = ca.Function("test", [x, w], [R, small])
     xm, wm, gm = ca.MX.sym("x", size), ca.MX.sym("w", w.numel()), ca.MX.sym("g", size)
     if border:
         blocks = ca.Function("blocks", [x, w], [J[:lead, :lead], J[:lead, lead:],
@@ -151,15 +163,15 @@ class ConstrainedChunk:
         n, m, theta = system.n, system.n_constraints, system.theta
         residual = step_residual(system, scheme, kind)
         x, w = residual.sx_in()
-        R = residual.call([x, w])[0]
+        R, scale = residual.call([x, w])
         if kind == "fixed":
             t_a, t_b, z_a = w[0], w[1], w[2:2 + 2 * n]
             energy, tau = ca.SX(0), t_b - t_a
         else:
-            t_prev, t_a, z_a = w[0], w[1], w[2 + 2 * n:2 + 4 * n]
+            t_a, z_a = w[1], w[2 + 2 * n:2 + 4 * n]
             tau = x[-1]
             drift = w[-1]
-            energy = R[-1] * (t_a - t_prev) - drift
+            energy = R[-1] * scale - drift
             t_b = t_a + tau
         z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
         H_k = equations.interval_energy_expression(system, scheme, t_a, t_b, z_a[:n], z_a[n:],
