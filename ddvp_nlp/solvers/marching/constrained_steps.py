@@ -78,8 +78,8 @@ def step_residual(system, scheme, kind: str) -> ca.Function:
 def newton_function(residual: ca.Function, border: int) -> ca.Function:
     """``(x0, w) -> (x, updates)``: Newton on ``residual`` from ``x0``, at most ``MAX_ITER``
     updates, stopping where ``|R|_inf <= ABSTOL max(1, |x|)`` or an update is below
-    ``STEP_TOL max(1, |x|)``; each update by a sparse QR of the leading block and the Schur complement of the
-    last ``border`` unknowns (0 or 1)."""
+    ``STEP_TOL max(1, |x|)``; each update by a sparse QR of the leading block and the Schur
+    complement of the last ``border`` unknowns (0 or 1)."""
     x, w = residual.sx_in()
     R = residual.call([x, w])[0]
     residual = ca.Function("residual", [x, w], [R])
