@@ -99,8 +99,8 @@ def test_unknown_scene_names_the_built_in_ones():
         load_scene("pendulm")
     with pytest.raises(InputError, match=re.escape(
             "(built-in scenes: cartesian_pendulum, cr3bp, figure_eight, fpu, harmonic, "
-            "henon_heiles, kepler, pais_uhlenbeck, paper_pendulum, pendulum, pendulum_lagrangian, spline; or a "
-            ".py file)")):
+            "henon_heiles, kepler, pais_uhlenbeck, paper_pendulum, pendulum, "
+            "pendulum_lagrangian, spline; or a .py file)")):
         load_scene("pendulm")
     with pytest.raises(InputError) as far:  # nothing close: no guess
         load_scene("zzzz")
