@@ -229,3 +229,38 @@ def test_a_time_dependent_constraint_is_kept():
 def test_the_built_in_scene_has_its_constraint():
     scene = load_scene("cartesian_pendulum")
     assert scene.system.n_constraints == 1 and scene.constraints is not None
+
+
+def test_lee_is_vddvp_for_an_autonomous_system():
+    """For autonomous H and g the lee balance dS/dt_k = 0 is the change of the interval energy
+    (theory section 12): the same steps up to round-off."""
+    q0, p0 = [0.0, -1.0], [3.0, 0.0]
+    vddvp = march(pendulum(), q0, p0, (0, 3), tau0=0.01)
+    lee = march(pendulum(), q0, p0, (0, 3), tau0=0.01, scheme="lee")
+    assert lee.success and lee.t.size == vddvp.t.size
+    assert np.abs(lee.t - vddvp.t).max() <= 1e-9
+
+
+def chain(links):
+    def hamiltonian(q, p, t):
+        return ca.dot(p, p) / 2 + ca.sum1(q[1::2])
+
+    def rods(q, t):
+        rows = [q[0] ** 2 + q[1] ** 2 - 1]
+        rows += [(q[2 * i] - q[2 * i - 2]) ** 2 + (q[2 * i + 1] - q[2 * i - 1]) ** 2 - 1
+                 for i in range(1, links)]
+        return ca.vertcat(*rows)
+    q0 = np.ravel([[(i + 1) * np.sin(0.3), -(i + 1) * np.cos(0.3)] for i in range(links)])
+    return HamiltonianSystem(hamiltonian, 2 * links, name=f"chain{links}", constraints=rods), q0
+
+
+def test_a_chain_of_links_takes_few_newton_updates_per_step():
+    """bench_constraints.py measures 10, 50 and 128 links (2 updates per step each)."""
+    system, q0 = chain(10)
+    with pytest.warns(RuntimeWarning, match="projected"):
+        solution = march(system, q0, np.tile([0.2, 0.0], 10), (0, 1), tau0=0.01,
+                         scheme="fixed")
+    assert solution.success
+    assert solution.constraints.newton_updates.max() <= 5
+    assert solution.constraints.constraint_residual.max() <= 1e-12
+    assert solution.constraints.hidden_residual.max() <= 1e-12
