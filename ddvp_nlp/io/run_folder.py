@@ -50,7 +50,9 @@ def run_energies(system, scheme: Scheme, solution: Solution, theta):
     if system.time_dependent:
         return system.energy(solution.q[:1], solution.p[:1], solution.t[:1], theta), None
     nodes = system.energy(solution.q, solution.p, solution.t, theta)
-    if thinned(solution):  # the kept nodes are not consecutive: no interval between them
+    if thinned(solution) or system.n_constraints:
+        # the kept nodes are not consecutive: no interval between them; a constrained
+        # interval's energy needs its multipliers (the march's energy residual says it)
         return nodes, None
     return nodes, interval_energies(system, scheme, solution.t, solution.q,
                                               solution.p, theta)
@@ -76,6 +78,12 @@ def energy_report(scene: Scene, scheme: Scheme, solution: Solution, theta, energ
     report["H0"] = float(nodes[0])
     report["node_energy_error"] = _max_abs(nodes - nodes[0]) / max(1.0, abs(float(nodes[0])))
     kept = solution.march.kept if solution.march is not None else None
+    if system.n_constraints:
+        report["energy_error"] = report["energy_residual_max"]
+        report["energy_error_kind"] = ("largest residual of the energy equation (a "
+                                       "constrained interval's energy uses its own momenta)")
+        report["node_energy_drift"] = _max_abs(nodes - nodes[0])
+        return report
     if thinned(solution):
         # a thinned march keeps no consecutive intervals: its largest energy residual over
         # every step, which the march recomputed as it went (and H's drift at the kept nodes)

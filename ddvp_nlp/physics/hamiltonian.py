@@ -42,6 +42,9 @@ class HamiltonianSystem:
         angles: the coordinates that are angles (``("q2",)``: ``H`` is ``2 pi``-periodic in
             them): the accuracy check judges one that winds within a turn, not against the
             turns it made (an azimuth).
+        constraints: holonomic constraints ``g(q, t, **params)`` returning a CasADi vector
+            (``physics/constraints.py``), or ``None``; the system then has ``G`` (the SX
+            column of ``g`` in ``q, t, theta``) and ``n_constraints``.
     """
 
     hamiltonian: Callable[..., object]
@@ -49,6 +52,7 @@ class HamiltonianSystem:
     params: Mapping[str, float] = field(default_factory=dict)
     name: str = "system"
     angles: tuple = ()
+    constraints: Callable[..., object] | None = None
 
     lagrangian_form = False  # the discrete equations come from H (LagrangianSystem: from L)
 
@@ -56,6 +60,7 @@ class HamiltonianSystem:
         self._symbols()
         self.H = self._user_expression("hamiltonian", self.hamiltonian, self.p)
         self._finish()
+        self._constrain()
 
     def _symbols(self):
         self.n = check_integer("n", self.n)
@@ -97,6 +102,14 @@ class HamiltonianSystem:
         self.H_varying_function = self.H_function if varying is self.H else ca.Function(
             "H_varying", [self.q, self.p, self.t, self.theta], [varying],
             ["q", "p", "t", "theta"], ["H"])
+
+    def _constrain(self):
+        """``G`` and ``n_constraints`` from ``constraints`` (checked, ``constraints.py``)."""
+        from .constraints import constraint_column  # loaded by a system that has some
+
+        self.G = ca.SX(0, 1) if self.constraints is None else \
+            constraint_column(self, self.constraints, numpy_on_symbols)
+        self.n_constraints = int(self.G.size1())
 
     def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:
         """Numeric ``theta`` in declaration order, defaults filled in, names checked."""

@@ -36,7 +36,7 @@ class LagrangianSystem(HamiltonianSystem):
 
     Attributes:
         lagrangian: ``L(q, v, t, **params)`` returning a scalar CasADi expression.
-        n, params, name: as for `HamiltonianSystem`.
+        n, params, name, angles, constraints: as for `HamiltonianSystem`.
         v: the velocity symbols; ``L`` the expression.
     """
 
@@ -44,13 +44,14 @@ class LagrangianSystem(HamiltonianSystem):
 
     def __init__(self, lagrangian: Callable[..., object], n: int,
                  params: Mapping[str, float] | None = None, name: str = "system",
-                 angles: tuple = ()):
+                 angles: tuple = (), constraints: Callable[..., object] | None = None):
         self.lagrangian = lagrangian
         self.hamiltonian = None
         self.n = n
         self.params = dict(params or {})
         self.name = name
         self.angles = angles
+        self.constraints = constraints
         self._symbols()
         self.v = ca.SX.sym("v", self.n)
         self.L = self._user_expression("lagrangian", lagrangian, self.v)
@@ -72,6 +73,7 @@ class LagrangianSystem(HamiltonianSystem):
         self.L_varying_function = self.L_function if varying is self.L else ca.Function(
             "L_varying", [self.q, self.v, self.t, self.theta], [varying],
             ["q", "v", "t", "theta"], ["L"])
+        self._constrain()
 
     def __repr__(self):
         return f"LagrangianSystem(name={self.name!r}, n={self.n}, params={self.params})"

@@ -183,6 +183,9 @@ class Scene:
         ranges: optional intervals of the parameters where the scene means something, e.g.
             ``{"e": "[0, 1)"}`` for an eccentricity; a value outside is refused by name before
             anything is built.
+        constraints: optional holonomic constraints ``g(q, t, **params)`` returning a CasADi
+            vector (``physics/constraints.py``): the scene's system carries them, and the march
+            keeps ``g = 0`` and its hidden constraint at every node (docs/constraints.md).
     """
 
     hamiltonian: Callable[..., object]
@@ -204,6 +207,7 @@ class Scene:
     periodic: PeriodicSettings | None = None
     scheme: str | None = None
     ranges: Mapping[str, str] = field(default_factory=dict)
+    constraints: Callable[..., object] | None = None
 
     def __post_init__(self):
         _check_common(self)
@@ -223,9 +227,10 @@ class Scene:
         angles = self.periodic.angles if self.periodic is not None else ()
         if isinstance(self.hamiltonian, Lagrangian):
             return LagrangianSystem(self.hamiltonian.function, self.n, dict(self.params),
-                                    name=self.name, angles=angles)
+                                    name=self.name, angles=angles,
+                                    constraints=self.constraints)
         return HamiltonianSystem(self.hamiltonian, self.n, dict(self.params), name=self.name,
-                                 angles=angles)
+                                 angles=angles, constraints=self.constraints)
 
     def resolve_boundary(self, overrides: Mapping[str, object] | None = None,
                          nodes: int | None = None) -> BoundaryConfig:

@@ -61,6 +61,9 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None,
         horizons = parse_horizons(horizons)
         check_real("time_unit", time_unit, positive=True)
     scene, overrides = _scene_of(problem, q0, p0, t_span, params)
+    if scene.system.n_constraints:  # the compared methods do not know constraints yet
+        raise InputError(f"compare does not support constrained systems yet "
+                         f"({scene.name!r} has {scene.system.n_constraints} constraints)")
     if horizons is not None:
         return horizons_study(scene, horizons, out=out, unit=time_unit, overrides=overrides,
                               options=options, compilation=compilation, workers=workers,

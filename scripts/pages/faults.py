@@ -1183,6 +1183,67 @@ def backward_cases() -> list[Case]:
               "--no-progress", "--out", "out"], (1,), check=reached)]
 
 
+CONSTRAINED_SCENE = """import casadi as ca
+from ddvp_nlp import Scene
+
+
+def H(q, p, t):
+    return (p[0] ** 2 + p[1] ** 2) / 2 + q[1]
+
+
+def g(q, t):
+    {body}
+
+
+scene = Scene(H, n=2, q0={q0}, p0={p0}, tau0=0.01, t_end=0.5, constraints=g)
+"""
+
+CONSTRAINTS = [  # (name, g's body, q0, p0, exit code, text on stderr)
+    ("a broken constraint (raises)", "return q[7]", "[0.0, -1.0]", "[1.0, 0.0]", (2,),
+     "constraints"),
+    ("a wrong shape (a 2x2 matrix)", "return ca.SX.eye(2) * q[0]", "[0.0, -1.0]",
+     "[1.0, 0.0]", (2,), "vector"),
+    ("no q in it", "return ca.sin(t)", "[0.0, -1.0]", "[1.0, 0.0]", (2,), "depend on q"),
+    ("as many rows as coordinates", "return ca.vertcat(q[0], q[1])", "[0.0, -1.0]",
+     "[1.0, 0.0]", (2,), "n - 1"),
+    ("redundant rows", "return ca.vertcat(q[0]**2 + q[1]**2 - 1, 2*(q[0]**2 + q[1]**2 - 1))",
+     "[0.0, -1.0]", "[1.0, 0.0]", (2,), "n - 1"),
+    ("singular Jacobian at the start", "return q[0]**2 + q[1]**2", "[0.0, 0.0]",
+     "[1.0, 0.0]", (2,), "singular"),
+    ("a start that cannot be made consistent", "return q[0]**2 + q[1]**2 + 1",
+     "[0.3, 0.2]", "[1.0, 0.0]", (2,), "consistent"),
+    ("non-finite at the start", "return ca.log(q[0]) + q[1]", "[-1.0, 0.0]", "[1.0, 0.0]",
+     (2,), "finite"),
+    ("an inconsistent start, projected (warned, marched)", "return q[0]**2 + q[1]**2 - 1",
+     "[0.1, -1.05]", "[1.0, 0.3]", (0,), "projected"),
+]
+
+
+def constraint_cases() -> list[Case]:
+    """A scene file whose constraint is broken, of the wrong shape, singular, redundant or
+    unreachable from its start: exit 2 naming it before anything is built; an inconsistent but
+    reachable start is projected, said, and marched; the solvers that do not know constraints
+    refuse them (issue 48)."""
+    cases = []
+    for name, body, q0, p0, codes, text in CONSTRAINTS:
+        scene = CONSTRAINED_SCENE.format(body=body, q0=q0, p0=p0)
+
+        def setup(folder, scene=scene):
+            (folder / "scene.py").write_text(scene)
+        cases.append(Case("constraints", f"march: {name}", ["march", "scene.py", "--no-plot",
+                                                           "--no-progress", "--out", "out"],
+                          codes, setup, expect_text=text))
+    for command, extra in (("bvp", ["--set", "q_start=0,-1", "--set", "q_end=1,0", "--set",
+                                    "t0=0", "--set", "t_end=1", "--nodes", "11"]),
+                           ("periodic", ["--energy", "0.5", "--nodes", "20"]),
+                           ("compare", ["--methods", "rk4", "--halvings", "0", "--repeats",
+                                        "1", "--no-progress"])):
+        cases.append(Case("constraints", f"{command}: the Cartesian pendulum is refused",
+                          [command, "cartesian_pendulum", *extra, "--out", "out"], (2,),
+                          expect_text="constrain"))
+    return cases
+
+
 def merge_cases() -> list[Case]:
     """``ddvp chaos --merge`` on parts that are not one job's whole parts (written through the
     tool's own manifest, so only the merge's checks can catch them): refused by name, exit 2."""
@@ -1570,7 +1631,7 @@ def main() -> int:
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
               "cluster": cluster_cases, "periodic": periodic_cases, "ranges": range_cases,
-              "backward": backward_cases,
+              "backward": backward_cases, "constraints": constraint_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
               "supervision": supervision_cases, "compare": compare_cases,
               "load": load_cases}

@@ -48,6 +48,7 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import refuse_constrained
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import EndsRecord, Solution, Status
 from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
@@ -132,6 +133,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         several solutions it is), and whose ``stats`` hold the solver's counts; failures are a
         status on it.
     """
+    refuse_constrained(system, "solve_bvp")
     output = coerce(output, Output, "output")
     names = check_derivatives(system, derivatives, t_span)
     if output.checkpoint is not None or output.stop is not None:

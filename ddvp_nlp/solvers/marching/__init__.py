@@ -42,6 +42,9 @@ Where things are:
 - ``scipy_method.py``: ``DDVP``, the march as a method of scipy's ``solve_ivp`` (an
   ``OdeSolver`` handing out the march's nodes one step at a time, with its Hermite dense
   output); not imported here, so that a march loads no ``scipy.integrate``;
+- ``constrained_march.py``, ``constrained_steps.py``, ``constrained_start.py``: the march of
+  a system with holonomic constraints (``discrete/constrained.py``), its step and chunk, and
+  its start made consistent; ``march`` hands a constrained system there;
 - ``backward.py``: a march with ``t_end < t0``, backwards in time, as the forward march of the
   time-reversed ``H(q, -p, -t)`` mapped back node by node.
 

@@ -133,6 +133,15 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         A `Solution`; failures are a status on it, never an exception.
     """
     names = check_derivatives(derivatives)  # before anything, also a backward march's
+    if getattr(system, "n_constraints", 0):  # constrained_march.py: its own march, for now
+        from .constrained_march import march_constrained
+
+        scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation,
+                                                     output)
+        return march_constrained(system, q0, p0, t_span, tau0=tau0, v0=v0, scheme=scheme,
+                                 params=params, steps=steps, accuracy=accuracy,
+                                 compilation=compilation, output=output,
+                                 target_error=target_error, derivatives=names)
     if names and is_backward(t_span):
         refuse_unsupported(names, v0=v0, backward=True, target_error=target_error,
                            output=coerce(output, Output, "output"), steps=None)
@@ -188,6 +197,9 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
     if check_derivatives(derivatives):
         raise InputError("derivatives are not supported by continue_march yet: march the "
                          "whole span with march(..., derivatives=...)")
+    if getattr(system, "n_constraints", 0):
+        raise InputError(f"continue_march does not support constrained systems yet "
+                         f"({system.name!r} has constraints): march the whole span")
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     if not isinstance(state, MarchState):
         raise InputError(f"state must be a MarchState, got {type(state).__name__}")

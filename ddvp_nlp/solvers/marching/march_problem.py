@@ -18,6 +18,7 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import refuse_constrained
 from ...physics.hamiltonian import HamiltonianSystem
 from ...validation import check_span, check_state, check_step
 from ..accuracy.judgement import Level
@@ -74,6 +75,7 @@ def check_problem(system, scheme: Scheme, q0, p0, v0, t_span, tau0, steps: StepC
     ``march_ensemble`` checks each of its starts with it."""
     if not isinstance(system, HamiltonianSystem):
         raise InputError(f"system must be a HamiltonianSystem, got {type(system).__name__}")
+    refuse_constrained(system, "this solver (march's problem check)")
     q0, p0, v0 = _check_state(system, q0, p0, v0)
     t0, t_end, tau0 = _check_times(t_span, tau0)
     if (steps.tau_min is not None and tau0 < steps.tau_min) or \

@@ -93,6 +93,7 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import refuse_constrained
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_angles, check_integer, check_real, check_state
@@ -219,6 +220,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         found is a failure status with the residuals in the message; an orbit whose steps
         do not follow the exact flow is ``inaccurate``.
     """
+    refuse_constrained(system, "solve_periodic")
     integrals = check_integrals(integrals)
     names = check_derivatives(system, derivatives)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,

@@ -1,0 +1,130 @@
+"""The discrete equations of a system with holonomic constraints ``g(q, t) = 0`` (docs/theory.md,
+"Holonomic constraints"): the interval action augmented with multipliers at the nodes, in the
+form of RATTLE.
+
+Interval ``k`` joins node ``k`` and node ``k+1``. Each node carries one momentum ``p_k`` on the
+constraint's cotangent manifold (``g(q_k, t_k) = 0`` and the hidden constraint
+``G(q_k, t_k) H_p(q_k, p_k, t_k) + g_t(q_k, t_k) = 0``), and each interval sees its own two
+momenta, the node momenta moved by half a constraint impulse::
+
+    p_k^+     = p_k     - (tau_k / 2) G(q_k, t_k)^T         lambda_k
+    p_{k+1}^- = p_{k+1} + (tau_k / 2) G(q_{k+1}, t_{k+1})^T mu_k
+
+The interval's ``2n`` equations are those of the unconstrained form (``action.py``) on
+``(q_k, p_k^+)`` and ``(q_{k+1}, p_{k+1}^-)``; the node rows at ``k+1`` are ``g = 0`` and the
+hidden constraint. ``lambda_k`` (``m``) is fixed by the position constraint at ``k+1``,
+``mu_k`` (``m``) by the hidden one. Between two intervals the momentum jumps by
+``G^T Lambda_k`` with ``Lambda_k = -(tau_k lambda_k + tau_{k-1} mu_{k-1}) / 2``: the
+stationarity of ``S_D + sum_k Lambda_k . g(q_k, t_k)`` in ``q_k``, so the positions are those
+of the augmented discrete action. The energy rules read the interval energies with the
+interval's own momenta (``vddvp``), or differentiate the augmented action in ``t_k``
+(``lee``: the term ``Lambda_k . g_t`` joins the unconstrained balance).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from ..cache import cached
+from ..physics.constraints import constraint_function
+from ..physics.hamiltonian import derivatives_function
+from .equations import action_for
+from .scheme import Scheme
+
+
+def interval_momenta(system, t_a, t_b, q_a, p_a, q_b, p_b, lam, mu, theta):
+    """``(p_a^+, p_b^-)``: the node momenta moved by half of each node's constraint
+    impulse."""
+    constraints = constraint_function(system)
+    tau = t_b - t_a
+    _, G_a, _ = constraints(q_a, t_a, theta)
+    _, G_b, _ = constraints(q_b, t_b, theta)
+    return p_a - tau / 2 * ca.mtimes(G_a.T, lam), p_b + tau / 2 * ca.mtimes(G_b.T, mu)
+
+
+def interval_expression(system, scheme: Scheme, t_a, t_b, q_a, p_a, q_b, p_b, lam, mu, theta):
+    """The ``2n`` interval equations of interval ``a -> b`` with its multipliers."""
+    plus, minus = interval_momenta(system, t_a, t_b, q_a, p_a, q_b, p_b, lam, mu, theta)
+    return action_for(system, scheme).interval_equations(t_a, t_b, q_a, plus, q_b, minus, theta)
+
+
+def node_expression(system, q, p, t, theta):
+    """The ``2m`` node rows: ``g(q, t)`` and the hidden constraint ``G H_p + g_t``."""
+    g, G, g_t = constraint_function(system)(q, t, theta)
+    _, _, H_p, _ = derivatives_function(system)(q, p, t, theta)
+    return ca.vertcat(g, ca.mtimes(G, H_p) + g_t)
+
+
+def interval_energy_expression(system, scheme, t_a, t_b, q_a, p_a, q_b, p_b, lam, mu, theta):
+    """``E_k``: the interval's energy at its own clock, with its own momenta."""
+    plus, minus = interval_momenta(system, t_a, t_b, q_a, p_a, q_b, p_b, lam, mu, theta)
+    return action_for(system, scheme).interval_energy(t_a, t_b, q_a, plus, q_b, minus, theta)
+
+
+def energy_expression(system, scheme: Scheme, rule: str, nodes, multipliers, theta):
+    """The energy row at the middle of ``nodes = (t_prev, t_mid, t_next, q_prev, p_prev, q_mid,
+    p_mid, q_next, p_next)`` with ``multipliers = (lam_prev, mu_prev, lam, mu)`` of the
+    intervals before and after it."""
+    t0, t1, t2, q0, p0, q1, p1, q2, p2 = nodes
+    lam0, mu0, lam1, mu1 = multipliers
+    action = action_for(system, scheme)
+    plus0, minus1 = interval_momenta(system, t0, t1, q0, p0, q1, p1, lam0, mu0, theta)
+    plus1, minus2 = interval_momenta(system, t1, t2, q1, p1, q2, p2, lam1, mu1, theta)
+    if rule == "vddvp":
+        _, _, s_prev, _ = action.arguments(t0, t1, q0, plus0, q1, minus1)
+        return (action.energy_at(t1, t2, q1, plus1, q2, minus2, s_prev, theta, varying=True)
+                - action.energy_at(t0, t1, q0, plus0, q1, minus1, s_prev, theta, varying=True))
+    if rule == "lee":
+        t_k = ca.SX.sym("t_k")
+        total = (action.action(t0, t_k, q0, plus0, q1, minus1, theta, True)
+                 + action.action(t_k, t2, q1, plus1, q2, minus2, theta, True))
+        balance = ca.substitute(ca.gradient(total, t_k), t_k, t1)
+        _, _, g_t = constraint_function(system)(q1, t1, theta)
+        impulse = -((t2 - t1) * lam1 + (t1 - t0) * mu0) / 2
+        return balance + ca.dot(impulse, g_t)
+    raise ValueError(f"rule {rule!r} has no energy equation")
+
+
+def constrained_field_function(system) -> ca.Function:
+    """``f(z, t, theta) = (H_p, -H_q - G^T nu)``: the constrained flow, ``nu`` from the
+    twice-differentiated constraint (``d/dt (G H_p + g_t) = 0`` along the flow, an ``m x m``
+    solve). The dense output's slopes and the march's predictor."""
+    def build():
+        n = system.n
+        z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
+        q, p = z[:n], z[n:]
+        _, H_q, H_p, _ = derivatives_function(system)(q, p, t, system.theta)
+        _, G, _ = constraint_function(system)(q, t, system.theta)
+        hidden = node_expression(system, q, p, t, system.theta)[system.n_constraints:]
+        r_q, r_p, r_t = (ca.jacobian(hidden, s) for s in (q, p, t))
+        nu = ca.solve(ca.mtimes(r_p, G.T), ca.mtimes(r_q, H_p) - ca.mtimes(r_p, H_q) + r_t)
+        return ca.Function("f_constrained", [z, t, system.theta],
+                           [ca.vertcat(H_p, -H_q - ca.mtimes(G.T, nu))], ["z", "t", "theta"],
+                           ["f"])
+    return cached(system, "constrained_field", build)
+
+
+def solvability_function(system) -> ca.Function:
+    """``c(z, t, theta)``, the coefficient of ``tau^2`` in the midpoint interval energy of a
+    constrained step from ``z`` (``alpha = 1/2``, ``g`` independent of ``t``):
+    ``c = (nu' G H_pp G' nu - f' H_zz f) / 8`` with ``f = (H_p, -H_q)`` the unconstrained field
+    and ``nu`` the multiplier of the constrained flow (docs/theory.md). An energy step keeps a
+    positive root while ``c`` keeps its sign along the orbit."""
+    def build():
+        n = system.n
+        z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
+        q, p = z[:n], z[n:]
+        H = system.H_function(q, p, t, system.theta)
+        f = ca.vertcat(ca.gradient(H, p), -ca.gradient(H, q))
+        f_c = constrained_field_function(system)(z, t, system.theta)
+        force = f[n:] - f_c[n:]  # G' nu
+        H_pp = ca.hessian(H, p)[0]
+        w = ca.mtimes([f.T, ca.hessian(H, z)[0], f])
+        c = (ca.mtimes([force.T, H_pp, force]) - w) / 8
+        return ca.Function("constrained_solvability", [z, t, system.theta], [c],
+                           ["z", "t", "theta"], ["c"])
+    return cached(system, "constrained_solvability", build)
+
+
+__all__ = ["constrained_field_function", "energy_expression", "interval_energy_expression",
+           "interval_expression", "interval_momenta", "node_expression", "solvability_function"]

@@ -1,0 +1,246 @@
+"""One step of a constrained march as CasADi functions, and the chunk that repeats it.
+
+The step equations are those of ``discrete/constrained.py``. Unknowns and parameters:
+
+- *fixed-length* step (every step of ``fixed``, step 0 of the energy rules): ``x = [z_b,
+  lambda, mu]`` (``2n + 2m``): the ``2n`` interval rows and the ``2m`` node rows at ``b``;
+- *energy* step: ``x = [z_{k+1}, lambda_k, mu_k, tau_k]`` (``2n + 2m + 1``): the same rows and
+  the energy row at node ``k`` (divided by ``tau_{k-1} max(1, |E_{k-1}|)``, with the drift
+  of the accepted energy residuals added so that their sum stays at round-off).
+
+Newton (`newton_function`) runs as a chain of conditional calls (a step pays for the
+iterations it takes) and returns the number of updates it made. Each update solves the
+Jacobian as a bordered system: the block of ``(z, lambda, mu)`` by a sparse QR (CasADi's
+``qr``, whose column order keeps a chain's band), the ``tau`` border by its Schur complement
+(two right-hand sides, one factorisation): the cost of a chain of links grows with the links,
+not their cube. The chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the
+constrained field, the previous multipliers) and its acceptance test ``chunk`` times per call
+(``mapaccum``), compiled where a C compiler is found; a step that fails its test freezes the
+rest of the chunk, and the march (``constrained_march.py``) retries it from other step guesses.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from ...discrete import constrained as equations
+from ...discrete.runge_kutta import rk4
+from ..compiler import CompileUnavailable, FunctionBuffer, cache_folder, compile_function, warn_once
+
+__all__ = ["ConstrainedChunk", "newton_function"]
+
+MAX_ITER = 12
+ABSTOL = 1e-14  # Newton's residual test, relative to max(1, |x|) (NEWTON_OPTIONS' abstol)
+STEP_TOL = 1e-12  # the update's test, relative to max(1, |x|): the next iterate is at round-off
+
+
+def step_residual(system, scheme, kind: str) -> ca.Function:
+    """``R(x, w)`` of one step of ``kind`` (module docstring); ``w = [t_prev, t_a, z_prev, z_a,
+    lam_prev, mu_prev, theta, drift]`` for an energy step, ``[t_a, t_b, z_a, theta]`` for a
+    fixed one."""
+    n, m, theta = system.n, system.n_constraints, system.theta
+    z_a = ca.SX.sym("z_a", 2 * n)
+    z_b = ca.SX.sym("z_b", 2 * n)
+    lam, mu = ca.SX.sym("lam", m), ca.SX.sym("mu", m)
+    if kind == "fixed":
+        t_a, t_b = ca.SX.sym("t_a"), ca.SX.sym("t_b")
+        x, w = ca.vertcat(z_b, lam, mu), ca.vertcat(t_a, t_b, z_a, theta)
+    else:
+        t_prev, t_a, tau = ca.SX.sym("t_prev"), ca.SX.sym("t_a"), ca.SX.sym("tau")
+        z_prev, drift = ca.SX.sym("z_prev", 2 * n), ca.SX.sym("drift")
+        lam0, mu0 = ca.SX.sym("lam_prev", m), ca.SX.sym("mu_prev", m)
+        t_b = t_a + tau
+        x = ca.vertcat(z_b, lam, mu, tau)
+        w = ca.vertcat(t_prev, t_a, z_prev, z_a, lam0, mu0, theta, drift)
+    rows = [equations.interval_expression(system, scheme, t_a, t_b, z_a[:n], z_a[n:], z_b[:n],
+                                          z_b[n:], lam, mu, theta),
+            equations.node_expression(system, z_b[:n], z_b[n:], t_b, theta)]
+    scale = ca.SX(1)
+    if kind == "energy":
+        energy = equations.energy_expression(
+            system, scheme, scheme.rule,
+            (t_prev, t_a, t_b, z_prev[:n], z_prev[n:], z_a[:n], z_a[n:], z_b[:n], z_b[n:]),
+            (lam0, mu0, lam, mu), theta)
+        # the row's round-off is that of the energies (a chain of N links: |H| ~ N^2), and
+        # its derivative in tau is O(tau): divided by both, Newton's tests read it like the
+        # other rows
+        previous = equations.interval_energy_expression(
+            system, scheme, t_prev, t_a, z_prev[:n], z_prev[n:], z_a[:n], z_a[n:], lam0, mu0,
+            theta)
+        scale = (t_a - t_prev) * ca.fmax(1, ca.fabs(previous))
+        rows.append((energy + drift) / scale)
+    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale])
+
+
+def newton_function(residual: ca.Function, border: int) -> ca.Function:
+    """``(x0, w) -> (x, updates)``: Newton on ``residual`` from ``x0``, at most ``MAX_ITER``
+    updates, stopping where ``|R|_inf <= ABSTOL max(1, |x|)`` or an update is below
+    ``STEP_TOL max(1, |x|)``; each update by a sparse QR of the leading block and the Schur
+    complement of the last ``border`` unknowns (0 or 1)."""
+    x, w = residual.sx_in()
+    R = residual.call([x, w])[0]
+    residual = ca.Function("residual", [x, w], [R])
+    size = x.numel()
+    lead = size - border
+    J = ca.jacobian(R, x)
+    # the residual's round-off grows with the size of the unknowns (a chain of 50 links: its
+    # far end at 50, its tensions near 25), so the test is relative to it
+    small = ca.norm_inf(R) <= ABSTOL * ca.fmax(1, ca.norm_inf(x))
+    test = ca.Function("test", [x, w], [R, small])
+    xm, wm, gm = ca.MX.sym("x", size), ca.MX.sym("w", w.numel()), ca.MX.sym("g", size)
+    if border:
+        blocks = ca.Function("blocks", [x, w], [J[:lead, :lead], J[:lead, lead:],
+                                                J[lead:, :lead], J[lead:, lead:]])
+        A, b, c, d = blocks(xm, wm)
+        solved = ca.solve(A, ca.horzcat(gm[:lead], b), "qr")
+        u, v = solved[:, 0], solved[:, 1]
+        d_tau = (gm[lead:] - ca.mtimes(c, u)) / (d - ca.mtimes(c, v))
+        dx = ca.vertcat(u - v * d_tau, d_tau)
+    else:
+        jacobian = ca.Function("jacobian", [x, w], [J])
+        dx = ca.solve(jacobian(xm, wm), gm, "qr")
+    x_next = xm - dx
+    small_step = ca.norm_inf(dx) <= STEP_TOL * ca.fmax(1, ca.norm_inf(xm))
+    update = ca.Function("update", [xm, wm, gm], [x_next, small_step])
+    level = ca.Function("final", [xm, wm], [xm, MAX_ITER])
+    for k in range(MAX_ITER, 0, -1):
+        stop_after = ca.Function(f"stop{k}", [xm, wm], [xm, k])
+        new, small = update(xm, wm, gm)
+        after = ca.Function.if_else(f"after{k}", stop_after, level)
+        go_on = ca.Function(f"go_on{k}", [xm, wm, gm], after.call([small, new, wm]))
+        done = ca.Function(f"done{k}", [xm, wm, gm], [xm, k - 1])
+        branch = ca.Function.if_else(f"branch{k}", done, go_on)
+        g_k, converged = test(xm, wm)
+        level = ca.Function(f"iteration{k}", [xm, wm], branch.call([converged, xm, wm, g_k]))
+    x0 = ca.MX.sym("x0", size)
+    solved, updates = level.call([x0, wm])
+    return ca.Function("constrained_newton", [x0, wm], [solved, updates],
+                       {"never_inline": True})
+
+
+class ConstrainedChunk:
+    """``chunk`` steps of one kind per call (module docstring), compiled with ``compiler``
+    (a path, or ``None``: CasADi's virtual machine).
+
+    Energy kind: state ``[t_prev, t_a, z_prev, z_a, lam_prev, mu_prev, drift, alive]``,
+    constants ``[theta, tol, tau_factor]``. Fixed kind: state ``[k, z_a, lam_prev, mu_prev,
+    alive]``, constants ``[t0, h, t_end, total, theta, tol]``. Each step's output row:
+    ``[t_b, z_b, lam, mu, tau, updates, canonical, constraint, hidden, energy, H_k, size,
+    good]``."""
+
+    def __init__(self, system, scheme, kind: str, *, chunk: int, compiler, cache_dir):
+        started = time.perf_counter()
+        self.n, self.m, self.kind = system.n, system.n_constraints, kind
+        residual = step_residual(system, scheme, kind)
+        self.newton = newton_function(residual, 1 if kind == "energy" else 0)
+        self.check = self._check(system, scheme, kind)
+        self.field = equations.constrained_field_function(system)
+        step = self._step(system, kind)
+        self.step = step
+        self.width = step.numel_out(1)
+        function = step.mapaccum("constrained_chunk", chunk)
+        self.chunk, self.path, self.compile_s = chunk, "vm", 0.0
+        if compiler is not None:
+            compiled_at = time.perf_counter()
+            try:
+                function = compile_function(function, compiler, cache_folder(cache_dir),
+                                            prefix="constrained")
+                self.path = "compiled"
+            except CompileUnavailable as exc:
+                warn_once(exc)
+            self.compile_s = time.perf_counter() - compiled_at
+        self.function = function
+        self._buffer = FunctionBuffer(function)
+        self.build_s = time.perf_counter() - started
+
+    @staticmethod
+    def _check(system, scheme, kind) -> ca.Function:
+        """``(x, w) -> (canonical, constraint, hidden, energy, H_k, size)``: the step's
+        unscaled residuals (the energy row without its scaling and drift) and the scales."""
+        n, m, theta = system.n, system.n_constraints, system.theta
+        residual = step_residual(system, scheme, kind)
+        x, w = residual.sx_in()
+        R, scale = residual.call([x, w])
+        if kind == "fixed":
+            t_a, t_b, z_a = w[0], w[1], w[2:2 + 2 * n]
+            energy, tau = ca.SX(0), t_b - t_a
+        else:
+            t_a, z_a = w[1], w[2 + 2 * n:2 + 4 * n]
+            tau = x[-1]
+            drift = w[-1]
+            energy = R[-1] * scale - drift
+            t_b = t_a + tau
+        z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
+        H_k = equations.interval_energy_expression(system, scheme, t_a, t_b, z_a[:n], z_a[n:],
+                                                   z_b[:n], z_b[n:], lam, mu, theta)
+        return ca.Function("check", [x, w], [
+            ca.norm_inf(R[:2 * n]), ca.norm_inf(R[2 * n:2 * n + m]),
+            ca.norm_inf(R[2 * n + m:2 * n + 2 * m]), energy, ca.fabs(H_k),
+            ca.fmax(ca.norm_inf(z_a), ca.norm_inf(z_b))])
+
+    def _step(self, system, kind) -> ca.Function:
+        n, m = self.n, self.m
+        p = system.theta.numel()
+        theta = ca.MX.sym("theta", p)
+        if kind == "energy":
+            state = ca.MX.sym("state", 4 * n + 2 * m + 4)
+            t_prev, t_a = state[0], state[1]
+            z_prev, z_a = state[2:2 + 2 * n], state[2 + 2 * n:2 + 4 * n]
+            lam0 = state[2 + 4 * n:2 + 4 * n + m]
+            mu0 = state[2 + 4 * n + m:2 + 4 * n + 2 * m]
+            drift, alive = state[-2], state[-1]
+            constants = ca.MX.sym("constants", p + 2)
+            theta, tol, factor = constants[:p], constants[p], constants[p + 1]
+            tau_guess = factor * (t_a - t_prev)
+            z_guess = rk4(lambda z, t: self.field(z, t, theta), z_a, t_a, tau_guess)
+            w = ca.vertcat(t_prev, t_a, z_prev, z_a, lam0, mu0, theta, drift)
+            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0, tau_guess), w)
+            tau = x[-1]
+            t_b = t_a + tau
+        else:
+            state = ca.MX.sym("state", 2 * n + 2 * m + 2)
+            k, z_a = state[0], state[1:1 + 2 * n]
+            lam0, mu0 = state[1 + 2 * n:1 + 2 * n + m], state[1 + 2 * n + m:1 + 2 * n + 2 * m]
+            alive = state[-1]
+            constants = ca.MX.sym("constants", p + 5)
+            t0, h, t_end, total = constants[0], constants[1], constants[2], constants[3]
+            theta, tol = constants[4:4 + p], constants[4 + p]
+            t_a = t0 + k * h
+            t_b = ca.if_else(k + 1 >= total, t_end, t0 + (k + 1) * h)
+            tau = t_b - t_a
+            z_guess = rk4(lambda z, t: self.field(z, t, theta), z_a, t_a, tau)
+            w = ca.vertcat(t_a, t_b, z_a, theta)
+            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0), w)
+        z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
+        canonical, constraint, hidden, energy, H_k, size = self.check(x, w)
+        scale = ca.fmax(1, size)
+        # |sum| <= DBL_MAX is false for a NaN or an infinity anywhere in x
+        finite = ca.fabs(ca.sum1(x)) <= np.finfo(float).max
+        good = ca.logic_and(alive, finite)
+        good = ca.logic_and(good, tau > 0)
+        good = ca.logic_and(good, canonical <= tol * scale)
+        good = ca.logic_and(good, constraint <= tol * scale)
+        good = ca.logic_and(good, hidden <= tol * scale)
+        good = ca.logic_and(good, ca.fabs(energy) <= tol * ca.fmax(1, H_k))
+        if kind == "energy":
+            after = ca.vertcat(t_a, t_b, z_a, z_b, lam, mu, drift + energy, 1)
+        else:
+            after = ca.vertcat(k + 1, z_b, lam, mu, 1)
+        frozen = ca.vertcat(state[:-1], 0)
+        out = ca.vertcat(t_b, z_b, lam, mu, tau, updates, canonical, constraint, hidden,
+                         energy, H_k, size, good)
+        return ca.Function(f"constrained_{kind}_step", [state, constants],
+                           [ca.if_else(good, after, frozen), out])
+
+    def __call__(self, state: np.ndarray, constants: np.ndarray) -> np.ndarray:
+        """The output rows ``(chunk, width)`` of one call from ``state``; the rows after the
+        first bad one are not steps."""
+        outputs = self._buffer(state, np.tile(constants, self.chunk))
+        return outputs[1].reshape(self.chunk, self.width).copy()
+
+    def one(self, state: np.ndarray, constants: np.ndarray) -> np.ndarray:
+        """One step on the virtual machine (a retry, a first step)."""
+        return np.asarray(self.step(state, constants)[1], float).ravel()

@@ -1,0 +1,195 @@
+"""Constrained marches (issue 48): the Cartesian pendulum and the spherical pendulum over many
+steps (constraint, hidden constraint, energy row, angular momentum), and chains of N rigid
+links (Newton updates per step, CPU per step at N = 128 against N = 10).
+
+    python scripts/benchmarks/bench_constraints.py               # 1e6 steps, N = 10, 50, 128
+    python scripts/benchmarks/bench_constraints.py --steps 20000 --links 10,50   # quick
+
+Each march's CPU and wall time are printed side by side, warm (the compiled chunk is built
+first by a short march of the same system, and its build time is printed apart).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+from functools import partial
+
+import casadi as ca
+import numpy as np
+
+from ddvp_nlp import HamiltonianSystem, march
+
+
+def timed(function):
+    cpu, wall = time.process_time(), time.perf_counter()
+    result = function()
+    return result, time.process_time() - cpu, time.perf_counter() - wall
+
+
+def pendulum_system():
+    return HamiltonianSystem(lambda q, p, t: (p[0] ** 2 + p[1] ** 2) / 2 + q[1], 2,
+                             name="cartesian_pendulum",
+                             constraints=lambda q, t: q[0] ** 2 + q[1] ** 2 - 1)
+
+
+def trend(values) -> str:
+    """The largest value of each tenth of the run: a drift shows as a growing row."""
+    parts = np.array_split(np.asarray(values), 10)
+    return " ".join(f"{part.max():.1e}" for part in parts)
+
+
+def pendulum(steps: int):
+    system = pendulum_system()
+    print(f"## Cartesian pendulum, {steps} steps (g = x^2 + y^2 - 1, H = |p|^2/2 + y)")
+    print("| scheme | start | steps | max abs g | max hidden | max energy row | updates "
+          "max/mean | CPU s | wall s | us per step (CPU) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    cases = [("fixed", "libration th0 = 1", [np.sin(1.0), -np.cos(1.0)], [0.0, 0.0], 0.01),
+             ("vddvp", "rotation E = 3.5", [0.0, -1.0], [3.0, 0.0], 0.01)]
+    records = {}
+    for scheme, label, q0, p0, tau0 in cases:
+        march(system, q0, p0, (0, 1), tau0=tau0, scheme=scheme, accuracy=None)  # warm
+        span = steps * tau0 * (1.0 if scheme == "fixed" else 1.317)  # mean step 0.01317
+        solution, cpu, wall = timed(lambda q0=q0, p0=p0, span=span, tau0=tau0, scheme=scheme:
+                                    march(system, q0, p0, (0, span), tau0=tau0, scheme=scheme,
+                                          accuracy=None))
+        record = solution.constraints
+        marched = solution.t.size - 1
+        print(f"| {scheme} | {label} | {marched} | {record.constraint_residual.max():.2e} | "
+              f"{record.hidden_residual.max():.2e} | "
+              f"{np.abs(solution.energy_residual).max():.2e} | "
+              f"{record.newton_updates.max()}/{record.newton_updates.mean():.2f} | "
+              f"{cpu:.2f} | {wall:.2f} | {1e6 * cpu / max(marched, 1):.2f} |")
+        records[scheme] = record
+    for scheme, record in records.items():
+        print(f"\n{scheme}: max |g| per tenth of the run: {trend(record.constraint_residual)}")
+        print(f"{scheme}: max hidden per tenth: {trend(record.hidden_residual)}")
+
+
+def order():
+    """The error against the exact pendulum (the angle by DOP853 at rtol = atol = 1e-13,
+    put on the circle) at every node up to t = 6 (fixed) or 3 (vddvp), and the order
+    fitted to it."""
+    from scipy.integrate import solve_ivp
+
+    system = pendulum_system()
+    print("\n## Convergence to the exact pendulum (largest |q - q_exact| over the nodes)")
+    print("| scheme | start | mean step | error | fitted order |")
+    print("|---|---|---|---|---|")
+    cases = [("fixed", "libration th0 = 1", [np.sin(1.0), -np.cos(1.0)], [0.0, 0.0], 1.0, 0.0,
+              6.0), ("vddvp", "rotation E = 3.5", [0.0, -1.0], [3.0, 0.0], 0.0, 3.0, 3.0)]
+    for scheme, label, q0, p0, angle0, omega0, span in cases:
+        exact = solve_ivp(lambda t, y: [y[1], -np.sin(y[0])], (0, span + 0.1),
+                          [angle0, omega0], method="DOP853", rtol=1e-13, atol=1e-13,
+                          dense_output=True)
+        steps, errors = [], []
+        for tau0 in (0.02, 0.01, 0.005, 0.0025):
+            solution = march(system, q0, p0, (0, span), tau0=tau0, scheme=scheme,
+                             accuracy=None)
+            angle = exact.sol(solution.t)[0]
+            errors.append(np.abs(solution.q - np.column_stack([np.sin(angle),
+                                                               -np.cos(angle)])).max())
+            steps.append(np.diff(solution.t).mean())
+        fitted = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+        for step, error in zip(steps, errors, strict=True):
+            print(f"| {scheme} | {label} | {step:.5f} | {error:.3e} | {fitted:.3f} |")
+
+
+def spherical(steps: int):
+    system = HamiltonianSystem(lambda q, p, t: ca.dot(p, p) / 2 + q[2], 3, name="spherical",
+                               constraints=lambda q, t: ca.dot(q, q) - 1)
+    q0, p0 = [0.0, np.sin(0.1), -np.cos(0.1)], [0.06, 0.0, 0.0]
+    print(f"\n## Spherical pendulum, {steps} steps, q0 = (0, sin 0.1, -cos 0.1), "
+          "p0 = (0.06, 0, 0), fixed steps 0.05")
+    march(system, q0, p0, (0, 1), tau0=0.05, scheme="fixed", accuracy=None)
+    solution, cpu, wall = timed(lambda: march(system, q0, p0, (0, steps * 0.05), tau0=0.05,
+                                              scheme="fixed", accuracy=None))
+    L = solution.q[:, 0] * solution.p[:, 1] - solution.q[:, 1] * solution.p[:, 0]
+    relative = np.abs(L - L[0]) / abs(L[0])
+    print(f"steps {solution.t.size - 1}: max |L_z - L_z(0)| / |L_z(0)| = {relative.max():.2e} "
+          f"(per tenth: {trend(relative)}); max |g| "
+          f"{solution.constraints.constraint_residual.max():.2e}, max hidden "
+          f"{solution.constraints.hidden_residual.max():.2e}; CPU {cpu:.2f} s, wall "
+          f"{wall:.2f} s")
+
+
+def chain_system(links: int):
+    def hamiltonian(q, p, t):
+        return ca.dot(p, p) / 2 + ca.sum1(q[1::2])
+
+    def rods(q, t):
+        rows = [q[0] ** 2 + q[1] ** 2 - 1]
+        rows += [(q[2 * i] - q[2 * i - 2]) ** 2 + (q[2 * i + 1] - q[2 * i - 1]) ** 2 - 1
+                 for i in range(1, links)]
+        return ca.vertcat(*rows)
+    return HamiltonianSystem(hamiltonian, 2 * links, name=f"chain{links}", constraints=rods)
+
+
+def chain_start(links: int):
+    """Links hanging at 0.3 rad from the vertical, each joint pushed sideways: the start is
+    projected onto the hidden constraint by the march (a warning, silenced here)."""
+    angle = 0.3
+    q = np.zeros(2 * links)
+    for i in range(links):
+        q[2 * i] = (i + 1) * np.sin(angle)
+        q[2 * i + 1] = -(i + 1) * np.cos(angle)
+    return q, np.tile([0.2, 0.0], links)
+
+
+def chains(sizes, steps: int, scheme: str):
+    """CPU per step as the difference of two marches (``steps`` and ``steps / 5`` steps) over
+    the difference of their steps: what building the march costs cancels."""
+    short = max(steps // 5, 2)
+    print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps of 0.01: {steps} steps "
+          f"against {short}")
+    print("| N | unknowns per step | first march CPU s (build, gcc not counted) | updates "
+          "max/mean | CPU s | wall s | us per step (CPU) | us per step (wall) | max g | "
+          "max hidden |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    per_step = {}
+    for links in sizes:
+        system = chain_system(links)
+        q0, p0 = chain_start(links)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            run = partial(march, system, q0, p0, tau0=0.01, scheme=scheme, accuracy=None)
+            _, build_cpu, _ = timed(partial(run, (0, 0.02)))
+            first, cpu0, wall0 = timed(partial(run, (0, short * 0.01)))
+            solution, cpu, wall = timed(partial(run, (0, steps * 0.01)))
+        record = solution.constraints
+        extra = solution.t.size - first.t.size
+        per_step[links] = (cpu - cpu0) / max(extra, 1)
+        print(f"| {links} | {6 * links + (scheme != 'fixed')} | {build_cpu:.1f} "
+              f"| {record.newton_updates.max()}/{record.newton_updates.mean():.2f} | "
+              f"{cpu:.2f} | {wall:.2f} | {1e6 * per_step[links]:.1f} | "
+              f"{1e6 * (wall - wall0) / max(extra, 1):.1f} | "
+              f"{record.constraint_residual.max():.1e} | {record.hidden_residual.max():.1e} |"
+              + ("" if solution.success else f" {solution.message[:80]}"))
+    if len(per_step) > 1:
+        small, large = min(per_step), max(per_step)
+        print(f"\nCPU per step at N = {large} / at N = {small}: "
+              f"{per_step[large] / per_step[small]:.1f}x")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=1_000_000)
+    parser.add_argument("--chain-steps", type=int, default=2000)
+    parser.add_argument("--links", default="10,50,128")
+    parser.add_argument("--only", choices=["pendulum", "spherical", "chains"])
+    args = parser.parse_args()
+    if args.only in (None, "pendulum"):
+        pendulum(args.steps)
+        order()
+    if args.only in (None, "spherical"):
+        spherical(args.steps)
+    if args.only in (None, "chains"):
+        chains([int(v) for v in args.links.split(",")], args.chain_steps, "fixed")
+    from ddvp_nlp.io import machine
+    print("\n" + machine())
+
+
+if __name__ == "__main__":
+    main()
