@@ -1,8 +1,9 @@
 """The constrained exact flow and RATTLE/SHAKE, measured (issue 48), side by side in one run:
 
-1. the constrained reference (``solvers/exact/constrained.py``) against the Cartesian pendulum's
-   elliptic solution and the spherical pendulum in angles (scipy DOP853 at rtol 1e-13): its
-   true error, its claimed bound, their ratio, the constraints at its nodes, per tolerance;
+1. the constrained reference (``solvers/exact/constrained_flow.py``) against the Cartesian
+   pendulum's elliptic solution and the spherical pendulum in angles (scipy DOP853 at rtol
+   1e-13): its true error, its claimed bound, their ratio, the constraints at its nodes, per
+   tolerance;
 2. RATTLE over ``--steps`` steps of the Cartesian pendulum: ``|g|`` and the hidden constraint
    at every node (largest, and first against last tenth for a trend); the spherical pendulum's
    angular momentum about the vertical;
@@ -33,7 +34,7 @@ from ddvp_nlp.solvers import find_compiler
 
 # internals measured here (tests/architecture lists them): the steppers and the reference
 from ddvp_nlp.solvers.baselines.rattle import rattle_run  # internal: measured
-from ddvp_nlp.solvers.exact.constrained import constraint_residuals  # internal: measured
+from ddvp_nlp.solvers.exact.constrained_flow import constraint_residuals  # internal: measured
 from ddvp_nlp.solvers.exact.constrained_reference import constrained_reference  # internal
 
 TOLERANCES = (1e-8, 1e-10, 1e-12, 1e-14)

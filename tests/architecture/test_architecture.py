@@ -522,7 +522,8 @@ def test_every_face_lists_only_names_it_has():
 INTERNALS_FOR_SCRIPTS = {
     "scripts/benchmarks/bench_bvp.py": {"solvers.grid.linear"},
     "scripts/benchmarks/bench_periodic.py": {"solvers.periodic.first_orbit"},
-    "scripts/benchmarks/bench_rattle.py": {"solvers.baselines.rattle", "solvers.exact.constrained",
+    "scripts/benchmarks/bench_rattle.py": {"solvers.baselines.rattle",
+                                           "solvers.exact.constrained_flow",
                                            "solvers.exact.constrained_reference"},
     "scripts/pages/chaos_page.py": {"solvers.chaos.exact_indicators"},
     "scripts/pages/comparison_page.py": {"solvers.baselines.fixed_step"},

@@ -1,9 +1,9 @@
-"""Constrained systems for the tests of the constrained exact flow and RATTLE/SHAKE.
+"""Constrained systems for the tests of the constrained exact flow and RATTLE/SHAKE, made with
+``HamiltonianSystem(..., constraints=g)``.
 
-STAND-IN until ``HamiltonianSystem(..., constraints=g)`` lands (branch constraints-core):
-`with_constraints` attaches ``constraints``, ``n_constraints`` and ``G`` (the CasADi column
-``g(q, t, theta)`` in the system's own symbols) to an existing `HamiltonianSystem`, the
-interface the core adds. After the merge, replace each call by the real constructor.
+`attach_constraints` puts ``constraints``, ``n_constraints`` and ``G`` on an existing system
+without the constructor's checks: only for the tests of what the exact flow itself refuses (a
+constraint the constructor would refuse first).
 """
 
 import casadi as ca
@@ -13,7 +13,14 @@ from ddvp_nlp import HamiltonianSystem
 
 
 def with_constraints(system, constraints):
-    """``system`` with ``g = constraints(q, t, **params)`` attached (the core's interface)."""
+    """``system`` rebuilt with ``g = constraints(q, t, **params)`` (the real constructor, all
+    its checks)."""
+    return HamiltonianSystem(system.hamiltonian, system.n, dict(system.params), name=system.name,
+                             angles=system.angles, constraints=constraints)
+
+
+def attach_constraints(system, constraints):
+    """``system`` with ``g`` attached as the constructor would, but unchecked."""
     symbols = {name: system.theta[i] for i, name in enumerate(system.params)}
     G = ca.vec(ca.SX(constraints(system.q, system.t, **symbols)))
     system.constraints, system.n_constraints, system.G = constraints, int(G.numel()), G

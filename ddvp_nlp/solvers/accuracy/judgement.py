@@ -73,7 +73,6 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
-from ...physics.constraints import refuse_constrained
 from ...solution import Status, Verdict
 from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_norm
 from ..exact.flow import exact_flow
@@ -685,6 +684,5 @@ def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, compiler=No
     the report of `Judgement.report` and the local error of every step. ``level`` is the
     energy level the method keeps, if it keeps one (a `Level`); ``exact``, the motion's
     exact states at given times, if known (``exact(t) -> (N, 2n)``)."""
-    refuse_constrained(system, "the accuracy check (assess)")
     return Judgement(system, theta, tolerance, compiler=compiler, cache_dir=cache_dir).report(
         t, z, level=level, exact=exact)

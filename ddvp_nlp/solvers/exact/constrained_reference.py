@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import InputError
-from .constrained import check_consistent, check_constrained
+from .constrained_flow import check_consistent, check_constrained
 from .reference import Reference, exact_reference
 
 

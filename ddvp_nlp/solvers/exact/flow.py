@@ -45,7 +45,7 @@ def flow_field(system) -> tuple[ca.Function, int]:
     if isinstance(system, HigherOrderSystem):
         return euler_lagrange_field(system), 2 * system.order * system.n
     if getattr(system, "n_constraints", 0) > 0:  # index-reduced, with its constraint forces
-        from .constrained import constrained_field
+        from .constrained_flow import constrained_field
         return constrained_field(system), 2 * system.n
     return vector_field_function(system), 2 * system.n
 
@@ -177,7 +177,7 @@ def exact_flow(system, *, tangent: int = 0, dense: bool = True, slots: int = SLO
     key = ("exact_flow", int(tangent), bool(dense), int(slots), compiler, str(cache_dir))
     project = None
     if getattr(system, "n_constraints", 0) > 0 and not tangent:  # onto g = 0 every step
-        from .constrained import projection_function
+        from .constrained_flow import projection_function
         project = projection_function(system)
     return cached(system, key, lambda: AdaptiveFlow(
         flow_field(system)[0], tangent=tangent, dense=dense, slots=slots, compiler=compiler,

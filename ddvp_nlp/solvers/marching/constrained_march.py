@@ -40,6 +40,7 @@ from ...discrete.constrained import (
 from ...errors import InputError
 from ...solution import MarchRecord, Solution, Status
 from ...validation import check_memory, check_span, check_state, check_step, check_times
+from ..accuracy.judgement import Judgement, judge
 from ..compiler import find_compiler
 from ..dense import DenseField, EventMonitor, evaluate_at
 from ..driver import Advance, Nodes, describe_phase_space, drive
@@ -47,10 +48,8 @@ from .acceptance import Acceptance
 from .constrained_start import StartProjection, consistent_start
 from .constrained_steps import ConstrainedChunk
 
-__all__ = ["ConstraintRecord", "march_constrained", "refuse_unsupported", "UNJUDGED"]
+__all__ = ["ConstraintRecord", "march_constrained", "refuse_unsupported"]
 
-UNJUDGED = ("not judged: the exact flow the accuracy check compares with does not know "
-            "constraints yet, so a constrained march is never called accurate")
 RETRY_FACTORS = (0.5, 2.0, 0.25)
 
 
@@ -234,8 +233,25 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
             monitor.report(solution)
     solution.t_end, solution.vector_field, solution.system = t_end, field, system
     evaluate_at(solution, output.t_eval)
-    solution.accuracy_skipped = UNJUDGED if accuracy is not None else None
+    _judged(solution, system, theta, accuracy, compiler, compilation.cache_dir)
     return solution
+
+
+def _judged(solution, system, theta, accuracy, compiler, cache_dir) -> None:
+    """The accuracy check of a constrained march, as of every march: against the constrained
+    exact flow (index-reduced, projected onto the constraints inside its error control,
+    ``exact/constrained_flow.py``), which the check's exact flow becomes for a system with
+    constraints; the RK4 screen of the local test runs on the index-reduced field. No level
+    test: the march's energy row holds the interval energies, which the constraints' forces
+    do not change."""
+    if accuracy is None:
+        return
+    started = time.perf_counter()
+    report, local = Judgement(system, theta, accuracy, compiler=compiler,
+                              cache_dir=cache_dir).report(
+        solution.t, np.hstack([solution.q, solution.p]), screen=True, exact=accuracy.exact)
+    judge(solution, report, accuracy, local_error=local)
+    solution.timing["accuracy_s"] = time.perf_counter() - started
 
 
 def _monitors(output, events, field, t_end, t0, z0) -> list:

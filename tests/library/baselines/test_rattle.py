@@ -17,7 +17,7 @@ from scipy.special import ellipj, ellipk
 from ddvp_nlp import HamiltonianSystem, InputError
 from ddvp_nlp.solvers import INTEGRATORS, Tolerance, assess
 from ddvp_nlp.solvers.baselines.rattle import RATTLE, SHAKE, rattle_run
-from ddvp_nlp.solvers.exact.constrained import constraint_residuals
+from ddvp_nlp.solvers.exact.constrained_flow import constraint_residuals
 
 THETA = [1.0, 1.0]
 

@@ -1,8 +1,8 @@
 """The march of a constrained system (solvers/marching/constrained_march.py): the Cartesian
 pendulum and the spherical pendulum keep g = 0 and the hidden constraint at round-off, the
 energy rule's row at round-off, the angular momentum about the vertical; the trajectory
-converges at order 2 to the exact pendulum; the start is made consistent; nothing is called
-accurate; metamorphic relations (rotated frame, time offset, length units)."""
+converges at order 2 to the exact pendulum; the start is made consistent; the verdict holds
+against the exact pendulum; metamorphic relations (rotated frame, time offset, length units)."""
 
 import warnings
 
@@ -70,10 +70,30 @@ def test_energy_steps_conserve_the_interval_energy_in_a_rotation():
     assert tau.max() / tau.min() > 1.5  # the steps follow the motion
 
 
-def test_nothing_constrained_is_called_accurate():
-    solution = march(pendulum(), [0.0, -1.0], [3.0, 0.0], (0, 1), tau0=0.01)
-    assert solution.verdict is None
-    assert "not judged" in solution.accuracy_skipped
+@pytest.mark.parametrize("tau0", [0.1, 0.002])
+def test_the_verdict_holds_against_the_exact_pendulum(tau0):
+    """A constrained march is judged against the constrained exact flow like any march; the
+    verdict is tested here against an independent reference, the pendulum's angle equation
+    by DOP853: a run called accurate is within the tolerance of it (relative to the motion's
+    size, which the verdict states), a run whose error passes the tolerance is not called
+    accurate, and the time the verdict says it drifted is when the error passes."""
+    theta0 = 1.0
+    solution = march(pendulum(), [np.sin(theta0), -np.cos(theta0)], [0.0, 0.0], (0, 30),
+                     tau0=tau0, scheme="fixed")
+    verdict = solution.verdict
+    assert verdict is not None and verdict.steps == solution.t.size - 1
+    angle = exact_angle(theta0, 0.0, solution.t)
+    error = np.abs(np.column_stack([np.sin(angle), -np.cos(angle)]) - solution.q)
+    relative = (error / np.asarray(verdict.scale)[:2]).max(axis=1)
+    tolerance = 0.01  # the default Tolerance's global_tol
+    if verdict.accurate:
+        assert relative.max() <= tolerance
+    else:
+        assert relative.max() > 0.5 * tolerance
+    if verdict.drifted:
+        passes = solution.t[np.argmax(relative > tolerance)]
+        assert abs(passes - verdict.t_drift) <= 0.1 * verdict.t_drift + 2 * tau0
+    assert (tau0 == 0.002) == verdict.accurate
 
 
 def test_a_libration_has_no_positive_energy_step_where_c_changes_sign():

@@ -1,4 +1,4 @@
-"""The exact flow of a constrained system (``solvers/exact/constrained.py``): the Cartesian
+"""The exact flow of a constrained system (``solvers/exact/constrained_flow.py``): the Cartesian
 pendulum against its elliptic-function solution, the spherical pendulum against its equations
 in angles (scipy's DOP853 at rtol 1e-13), the stated error bound, the named errors, random
 pendulums (hypothesis) and the metamorphic relations (rotated frame, time offset, units).
@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 from helpers.constrained import (
+    attach_constraints,
     cartesian_pendulum,
     pendulum_start,
     spherical_pendulum,
@@ -22,7 +23,7 @@ from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk
 
 from ddvp_nlp import HamiltonianSystem, InputError
-from ddvp_nlp.solvers.exact.constrained import (
+from ddvp_nlp.solvers.exact.constrained_flow import (
     constrained_field,
     constraint_residuals,
     projection_function,
@@ -166,7 +167,7 @@ def test_bad_constraints_are_named():
     system.n_constraints, system.G = 2, ca.vertcat(system.q[0])  # count and column disagree
     with pytest.raises(InputError, match="n_constraints = 2"):
         constrained_field(system)
-    clock = with_constraints(HamiltonianSystem(H, 2), lambda q, t: t - 1)
+    clock = attach_constraints(HamiltonianSystem(H, 2), lambda q, t: t - 1)
     with pytest.raises(InputError, match="do not depend on q"):
         projection_function(clock)
 
