@@ -47,6 +47,7 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
         chaos_indicators,
         continue_march,
         follow_periodic_family,
+        gradient,
         lyapunov_spectrum,
         march,
         march_ensemble,
@@ -66,7 +67,8 @@ _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
     "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher",
-    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP")})
+    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP",
+    "gradient")})
 
 
 # The version, written here and in pyproject.toml (tests/docs/test_links.py: they and CHANGELOG.md's
@@ -156,6 +158,6 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",
            "StepControl", "Tolerance", "Verdict", "__version__", "chaos_indicators", "compare",
-           "continue_march", "follow_periodic_family", "list_scenes", "load_scene",
+           "continue_march", "follow_periodic_family", "gradient", "list_scenes", "load_scene",
            "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "periodic_stability",
            "plot", "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

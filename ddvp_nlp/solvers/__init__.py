@@ -46,6 +46,7 @@ PUBLIC = {
     "MarchState": "marching.resume", "march_ensemble": "marching.ensemble",
     "Collect": "marching.ensemble", "end_with_parent": "marching.ensemble",
     "DDVP": "marching.scipy_method",  # the march as scipy's solve_ivp method
+    "gradient": "marching.adjoint",  # reverse mode of a march's derivatives
     # fixed ends
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
     # periodic orbits
@@ -90,6 +91,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .exact.reference import exact_reference
     from .grid.maps import evaluate_blocks
     from .higher.stepping import march_higher, solve_bvp_higher
+    from .marching.adjoint import gradient
     from .marching.ensemble import Collect, end_with_parent, march_ensemble
     from .marching.initial_value import continue_march, march
     from .marching.resume import MarchState
@@ -108,7 +110,8 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
            "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",
            "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",
-           "flow_callable", "follow_periodic_family", "locate", "lyapunov_spectrum", "march",
+           "flow_callable", "follow_periodic_family", "gradient", "locate", "lyapunov_spectrum",
+           "march",
            "march_ensemble", "march_higher", "motion_scales", "parse_section",
            "periodic_stability", "solve_bvp", "solve_bvp_higher", "solve_periodic",
            "solve_periodic_family", "step_residuals"]

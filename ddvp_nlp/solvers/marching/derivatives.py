@@ -43,11 +43,18 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
 from ..compiler import FunctionBuffer
+from .derivative_check import (
+    DerivativeCheck,
+    Derivatives,
+    check_record,
+    conditioning,
+    remarch_function,
+)
 from .monitors import MarchMonitor
 from .step_newton import step_jacobian_function
 
-__all__ = ["DERIVATIVES", "Sensitivity", "check_derivatives", "march_derivatives",
-           "refuse_unsupported"]
+__all__ = ["DERIVATIVES", "MODES", "Sensitivity", "check_derivatives", "check_mode",
+           "choose_mode", "march_derivatives", "readout", "refuse_unsupported"]
 
 # The inputs a march differentiates in, in the order of the derivative's columns.
 DERIVATIVES = ("q0", "p0", "params")
@@ -95,27 +102,74 @@ def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps
 
 class Sensitivity(MarchMonitor):
     """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
-    differentiates the kept nodes at the end (`march_derivatives`) into
-    ``Solution.derivatives``."""
+    differentiates the kept nodes at the end (`march_derivatives` forward, or
+    ``adjoint.reverse_derivatives``; `choose_mode`) into ``Solution.derivatives``, a
+    `Derivatives` with its `DerivativeCheck` (``derivative_check.py``)."""
 
     rewatch = False
 
-    def __init__(self, problem, t_eval, names):
+    def __init__(self, problem, t_eval, names, mode="auto", compilation=None):
         self.problem, self.t_eval, self.names = problem, t_eval, names
+        self.mode, self.compilation = mode, compilation
 
     @classmethod
     def from_options(cls, session):
         names = getattr(session, "derivatives", ())
         if not names:
             return None
-        return cls(session.problem, session.output.t_eval, names)
+        return cls(session.problem, session.output.t_eval, names,
+                   getattr(session, "derivatives_mode", "auto"), session.compilation)
 
     def finish(self, solution, outcome) -> None:
+        from .adjoint import reverse_derivatives
         problem = self.problem
         t, z = solution.t, np.hstack([solution.q, solution.p])
         kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
-        solution.derivatives = march_derivatives(
-            problem.system, problem.scheme, problem.theta, t, z, kept, self.names)
+        mode = choose_mode(self.mode, self.names, problem.system, kept.size)
+        differentiate = march_derivatives if mode == "forward" else reverse_derivatives
+        values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept,
+                               self.names)
+        solution.derivatives = Derivatives(values, mode=mode,
+                                           check=self._check(solution, values, kept))
+
+    def _check(self, solution, values, kept):
+        """The derivative's `DerivativeCheck`: one pair of marches (``derivative_check.py``)."""
+        problem, t = self.problem, solution.t
+        interval = np.clip(np.searchsorted(t, kept, side="right") - 1, 0, max(t.size - 2, 0))
+        last = int(interval.max()) + 1 if kept.size and t.size > 1 else 0
+        conditioned = conditioning(solution.solvability, last,
+                                   solution.march.solvability_warning)
+        base = {"q0": problem.q0, "p0": problem.p0, "params": problem.theta}
+        if kept.size == 0:
+            return DerivativeCheck("not checked", np.nan, np.nan, 0.0, {}, *conditioned,
+                                   "no output time was reached")
+        remarch = remarch_function(problem.system, problem.scheme, (problem.t0, problem.t_end),
+                                   problem.tau0, problem.steps, self.compilation, kept)
+        return check_record(
+            remarch, base, self.names,
+            lambda v: sum(values[name] @ v[name] for name in self.names),
+            solution.q[:last + 1], solution.p[:last + 1], problem.theta, last + 1, conditioned)
+
+
+MODES = ("auto", "forward", "reverse")
+
+
+def check_mode(mode) -> str:
+    """``derivatives_mode``: one of `MODES`, else an ``InputError`` naming it."""
+    if not isinstance(mode, str) or mode not in MODES:
+        raise InputError(f"derivatives_mode must be one of {', '.join(MODES)}, got {mode!r}")
+    return mode
+
+
+def choose_mode(mode: str, names, system, outputs: int) -> str:
+    """``auto``: reverse where the outputs (``2n`` per output time reached) are fewer than the
+    inputs (the columns of ``names``), else forward (a sweep per output entry against one
+    carried column per input, on the same Jacobians)."""
+    if mode != "auto":
+        return mode
+    widths = {"q0": system.n, "p0": system.n, "params": len(system.params)}
+    inputs = sum(widths[name] for name in names)
+    return "reverse" if 2 * system.n * outputs < inputs else "forward"
 
 
 def march_derivatives(system, scheme, theta, t, z, t_eval, names=DERIVATIVES, *,
