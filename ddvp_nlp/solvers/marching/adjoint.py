@@ -85,7 +85,7 @@ def check_cotangent(cotangent, count: int, n2: int) -> np.ndarray:
     bad = np.argwhere(~np.isfinite(value))
     if bad.size:
         i, j = bad[0]
-        raise InputError(f"cotangent must be finite, got {value[i, j]!r} at [{i}, {j}]")
+        raise InputError(f"cotangent must be finite, got {float(value[i, j])!r} at [{i}, {j}]")
     return value
 
 

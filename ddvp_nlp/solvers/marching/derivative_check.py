@@ -87,15 +87,17 @@ class Derivatives(dict):
 
 
 def conditioning(solvability, last_node: int, warning) -> tuple[bool, float]:
-    """``(ill_conditioned, largest |ln(w_k / w_{k-1})|)`` over the nodes ``0..last_node``."""
+    """``(ill_conditioned, largest |ln(w_k / w_{k-1})|)`` over the nodes ``0..last_node``
+    (``warning``: the monitor's, counted where its step is one of them)."""
     c = np.asarray(solvability, float)[:last_node + 1]
+    warned = warning is not None and int(warning.get("step", 0)) <= last_node
     if c.size < 2:
-        return warning is not None, math.nan
+        return warned, math.nan
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = c[1:] / c[:-1]
         jump = float(np.max(np.where(ratio > 0, np.abs(np.log(np.where(ratio > 0, ratio, 1))),
                                      np.inf)))
-    return warning is not None or not jump <= NEAR * MONITOR_LIMIT, jump
+    return warned or not jump <= NEAR * MONITOR_LIMIT, jump
 
 
 def random_direction(inputs: dict, scales: dict, seed: int = 0) -> tuple[dict, str]:
