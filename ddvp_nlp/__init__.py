@@ -41,6 +41,7 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
         ChaosIndicators,
         Collect,
         Continuation,
+        DerivativeOptions,
         MarchState,
         Shooting,
         Spectrum,
@@ -68,7 +69,7 @@ _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
     "follow_periodic_family", "Continuation", "march_higher", "solve_bvp_higher",
     "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP",
-    "gradient")})
+    "gradient", "DerivativeOptions")})
 
 
 # The version, written here and in pyproject.toml (tests/docs/test_links.py: they and CHANGELOG.md's
@@ -153,7 +154,7 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
 
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
-           "Endpoints",
+           "DerivativeOptions", "Endpoints",
            "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",

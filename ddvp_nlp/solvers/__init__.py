@@ -46,7 +46,8 @@ PUBLIC = {
     "MarchState": "marching.resume", "march_ensemble": "marching.ensemble",
     "Collect": "marching.ensemble", "end_with_parent": "marching.ensemble",
     "DDVP": "marching.scipy_method",  # the march as scipy's solve_ivp method
-    "gradient": "marching.adjoint",  # reverse mode of a march's derivatives
+    "gradient": "marching.gradient",  # reverse mode of a march's derivatives
+    "DerivativeOptions": "marching.derivatives",
     # fixed ends
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
     # periodic orbits
@@ -91,8 +92,9 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .exact.reference import exact_reference
     from .grid.maps import evaluate_blocks
     from .higher.stepping import march_higher, solve_bvp_higher
-    from .marching.adjoint import gradient
+    from .marching.derivatives import DerivativeOptions
     from .marching.ensemble import Collect, end_with_parent, march_ensemble
+    from .marching.gradient import gradient
     from .marching.initial_value import continue_march, march
     from .marching.resume import MarchState
     from .marching.scipy_method import DDVP
@@ -105,7 +107,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
-           "Event",
+           "DerivativeOptions", "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
            "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
            "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",

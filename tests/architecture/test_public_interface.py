@@ -13,7 +13,7 @@ from ddvp_nlp import InputError, load_scene, march, solve_bvp
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
 PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
-          "Endpoints",
+          "DerivativeOptions", "Endpoints", "gradient",
           "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
           "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
@@ -29,7 +29,7 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
 # the inputs to differentiate in (derivatives, issue 47 names it so): each asks for an answer
 # rather than tuning a group, so it is not an option object's field.
 MOST_PARAMETERS = 12
-MORE = {"march": 2}
+MORE = {"march": 2, "march_ensemble": 2}  # march_ensemble: t_eval and derivatives (issue 47)
 
 
 def test_public_names_are_stable_and_importable():

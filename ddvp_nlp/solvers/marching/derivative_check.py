@@ -36,10 +36,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .monitors import MONITOR_LIMIT
+from ..options import Output
+from .adjoint import reverse_derivatives
+from .derivatives import choose_mode, march_derivatives
+from .monitors import MONITOR_LIMIT, MarchMonitor
 
-__all__ = ["DerivativeCheck", "Derivatives", "conditioning", "directional_check",
-           "random_direction"]
+__all__ = ["DerivativeCheck", "Derivatives", "Sensitivity", "check_record", "conditioning",
+           "directional_check", "input_scales", "random_direction", "remarch_function"]
 
 # The finite difference's relative step, and the quotient's truncation allowance (docstring).
 STEP = 1e-6
@@ -146,12 +149,11 @@ def directional_check(remarch, inputs: dict, direction: dict, predicted: np.ndar
     return ("agrees" if error <= tolerance else "disagrees"), error, tolerance, ""
 
 
-def remarch_function(system, scheme, t_span, tau0: float, steps, compilation, t_eval):
+def remarch_function(march, system, scheme, t_span, tau0: float, steps, compilation, t_eval):
     """``inputs -> z_eval`` (``(M, 2n)``, ``None`` where the march does not reach the ``M``
     output times) of the march from ``inputs["q0"]``, ``["p0"]`` at ``["params"]``, without
-    the accuracy check."""
-    from ..options import Output
-    from .initial_value import march
+    the accuracy check (``march``: the function `march`, given by its caller: this module is
+    below it)."""
 
     def run(inputs):
         theta = inputs["params"]
@@ -174,3 +176,56 @@ def check_record(remarch, base: dict, names, predicted_along, q, p, theta, nodes
         remarch, base, full, predicted_along(direction), nodes, reduce=reduce)
     return DerivativeCheck(verdict, error, tolerance, STEP, direction, conditioned[0],
                            conditioned[1], "; ".join(part for part in (reason, note) if part))
+
+
+class Sensitivity(MarchMonitor):
+    """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
+    differentiates the kept nodes at the end (`march_derivatives` forward, or
+    ``adjoint.reverse_derivatives``; `choose_mode`) into ``Solution.derivatives``, a
+    `Derivatives` with its `DerivativeCheck`."""
+
+    rewatch = False
+
+    def __init__(self, problem, t_eval, names, mode="auto", compilation=None, march=None):
+        self.problem, self.t_eval, self.names = problem, t_eval, names
+        self.mode, self.compilation, self.march = mode, compilation, march
+
+    @classmethod
+    def from_options(cls, session):
+        names = getattr(session, "derivatives", ())
+        if not names:
+            return None
+        return cls(session.problem, session.output.t_eval, names,
+                   getattr(session, "derivatives_mode", "auto"), session.compilation,
+                   getattr(session, "march", None))
+
+    def finish(self, solution, outcome) -> None:
+        problem = self.problem
+        t, z = solution.t, np.hstack([solution.q, solution.p])
+        kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
+        mode = choose_mode(self.mode, self.names, problem.system, kept.size)
+        differentiate = march_derivatives if mode == "forward" else reverse_derivatives
+        values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept,
+                               self.names)
+        solution.derivatives = Derivatives(values, mode=mode,
+                                           check=self._check(solution, values, kept))
+
+    def _check(self, solution, values, kept):
+        """The derivative's `DerivativeCheck`: one pair of marches (module docstring)."""
+        problem, t = self.problem, solution.t
+        interval = np.clip(np.searchsorted(t, kept, side="right") - 1, 0, max(t.size - 2, 0))
+        last = int(interval.max()) + 1 if kept.size and t.size > 1 else 0
+        conditioned = conditioning(solution.solvability, last,
+                                   solution.march.solvability_warning)
+        base = {"q0": problem.q0, "p0": problem.p0, "params": problem.theta}
+        if kept.size == 0 or self.march is None:
+            return DerivativeCheck("not checked", np.nan, np.nan, 0.0, {}, *conditioned,
+                                   "no output time was reached" if kept.size == 0 else
+                                   "no march to run again (a session without march)")
+        remarch = remarch_function(self.march, problem.system, problem.scheme,
+                                   (problem.t0, problem.t_end), problem.tau0, problem.steps,
+                                   self.compilation, kept)
+        return check_record(
+            remarch, base, self.names,
+            lambda v: sum(values[name] @ v[name] for name in self.names),
+            solution.q[:last + 1], solution.p[:last + 1], problem.theta, last + 1, conditioned)

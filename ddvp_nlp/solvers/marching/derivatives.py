@@ -35,6 +35,8 @@ With ``frozen_steps`` every step is differentiated as a fixed-length step on its
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
 import numpy as np
 
@@ -43,23 +45,39 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
 from ..compiler import FunctionBuffer
-from .derivative_check import (
-    DerivativeCheck,
-    Derivatives,
-    check_record,
-    conditioning,
-    remarch_function,
-)
-from .monitors import MarchMonitor
 from .step_newton import step_jacobian_function
 
-__all__ = ["DERIVATIVES", "MODES", "Sensitivity", "check_derivatives", "check_mode",
-           "choose_mode", "march_derivatives", "readout", "refuse_unsupported"]
+__all__ = ["DERIVATIVES", "MODES", "DerivativeOptions", "affine_maps", "check_derivatives",
+           "check_mode", "choose_mode", "derivative_request", "march_derivatives", "readout",
+           "refuse_unsupported"]
 
 # The inputs a march differentiates in, in the order of the derivative's columns.
 DERIVATIVES = ("q0", "p0", "params")
 # Steps whose Jacobians are evaluated in one mapped call (bounds the work arrays' memory).
 CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class DerivativeOptions:
+    """What ``march(..., derivatives=...)`` differentiates and how: ``inputs``, names from
+    ``("q0", "p0", "params")``; ``mode``: ``"forward"`` (a tangent column per input),
+    ``"reverse"`` (an adjoint sweep per output entry, ``adjoint.py``) or ``"auto"`` (reverse
+    where the ``2n len(t_eval)`` outputs are fewer than the inputs). Same values either way.
+    A plain name or sequence of names is ``DerivativeOptions(inputs=names)``."""
+
+    inputs: tuple = DERIVATIVES
+    mode: str = "auto"
+
+    def __post_init__(self):
+        object.__setattr__(self, "inputs", check_derivatives(self.inputs))
+        check_mode(self.mode)
+
+
+def derivative_request(derivatives) -> tuple[tuple[str, ...], str]:
+    """``derivatives`` (``None``, names, or `DerivativeOptions`) as ``(names, mode)``."""
+    if isinstance(derivatives, DerivativeOptions):
+        return derivatives.inputs, derivatives.mode
+    return check_derivatives(derivatives), "auto"
 
 
 def check_derivatives(derivatives) -> tuple[str, ...]:
@@ -100,64 +118,13 @@ def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps
             raise InputError(f"derivatives are not supported with {what}")
 
 
-class Sensitivity(MarchMonitor):
-    """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
-    differentiates the kept nodes at the end (`march_derivatives` forward, or
-    ``adjoint.reverse_derivatives``; `choose_mode`) into ``Solution.derivatives``, a
-    `Derivatives` with its `DerivativeCheck` (``derivative_check.py``)."""
-
-    rewatch = False
-
-    def __init__(self, problem, t_eval, names, mode="auto", compilation=None):
-        self.problem, self.t_eval, self.names = problem, t_eval, names
-        self.mode, self.compilation = mode, compilation
-
-    @classmethod
-    def from_options(cls, session):
-        names = getattr(session, "derivatives", ())
-        if not names:
-            return None
-        return cls(session.problem, session.output.t_eval, names,
-                   getattr(session, "derivatives_mode", "auto"), session.compilation)
-
-    def finish(self, solution, outcome) -> None:
-        from .adjoint import reverse_derivatives
-        problem = self.problem
-        t, z = solution.t, np.hstack([solution.q, solution.p])
-        kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
-        mode = choose_mode(self.mode, self.names, problem.system, kept.size)
-        differentiate = march_derivatives if mode == "forward" else reverse_derivatives
-        values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept,
-                               self.names)
-        solution.derivatives = Derivatives(values, mode=mode,
-                                           check=self._check(solution, values, kept))
-
-    def _check(self, solution, values, kept):
-        """The derivative's `DerivativeCheck`: one pair of marches (``derivative_check.py``)."""
-        problem, t = self.problem, solution.t
-        interval = np.clip(np.searchsorted(t, kept, side="right") - 1, 0, max(t.size - 2, 0))
-        last = int(interval.max()) + 1 if kept.size and t.size > 1 else 0
-        conditioned = conditioning(solution.solvability, last,
-                                   solution.march.solvability_warning)
-        base = {"q0": problem.q0, "p0": problem.p0, "params": problem.theta}
-        if kept.size == 0:
-            return DerivativeCheck("not checked", np.nan, np.nan, 0.0, {}, *conditioned,
-                                   "no output time was reached")
-        remarch = remarch_function(problem.system, problem.scheme, (problem.t0, problem.t_end),
-                                   problem.tau0, problem.steps, self.compilation, kept)
-        return check_record(
-            remarch, base, self.names,
-            lambda v: sum(values[name] @ v[name] for name in self.names),
-            solution.q[:last + 1], solution.p[:last + 1], problem.theta, last + 1, conditioned)
-
-
 MODES = ("auto", "forward", "reverse")
 
 
 def check_mode(mode) -> str:
     """``derivatives_mode``: one of `MODES`, else an ``InputError`` naming it."""
     if not isinstance(mode, str) or mode not in MODES:
-        raise InputError(f"derivatives_mode must be one of {', '.join(MODES)}, got {mode!r}")
+        raise InputError(f"DerivativeOptions.mode must be one of {', '.join(MODES)}, got {mode!r}")
     return mode
 
 
@@ -264,7 +231,7 @@ def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps
     """``S_k = (dz_k, dt_k)`` (2n + 1, d) at the nodes ``needed`` (sorted), by the recursion
     over every step (module docstring, 2-3), ``CHUNK`` steps' Jacobians at a time. The carried
     state is ``Y_k = [dz_k - dz_{k-1}; dtau_{k-1}; S_k]``, and each step an affine map
-    ``Y_{k+1} = M_k Y_k + C_k`` (`_affine_maps`), applied a block at a time (`_scan`)."""
+    ``Y_{k+1} = M_k Y_k + C_k`` (`affine_maps`), applied a block at a time (`_scan`)."""
     n2, d = seed_z.shape
     energy = scheme.variable_steps and not frozen_steps
     state = np.vstack([np.zeros((n2 + 1, d)), seed_z, np.zeros((1, d))])
@@ -272,12 +239,12 @@ def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps
     last = int(needed[-1])
     for start in range(0, last, CHUNK):
         steps = np.arange(start, min(start + CHUNK, last))
-        maps = _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy)
+        maps = affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy)
         state = _scan(maps, state, start, needed, kept)
     return kept
 
 
-def _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
+def affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
     """``(M, C)``, ``(K, 2r, 2r)`` and ``(K, 2r, d)`` (``r = 2n + 1``), of the steps ``steps``
     on the carried ``Y_k = [dz_k - dz_{k-1}; dtau_{k-1}; dz_k; dt_k]``: a fixed-length step
     ``dz_{k+1} = G_z dz_k + G_theta dtheta`` (``dt`` held, ``dtau_k = 0``), an energy step

@@ -50,7 +50,7 @@ from ..options import (
     answers_removed_keywords,
     coerce,
 )
-from .derivatives import check_derivatives, check_mode
+from .derivatives import DerivativeOptions, derivative_request
 from .initial_value import check_problem, march
 
 # Blocks per worker: orbits differ in length (a failing orbit is short), so each worker takes
@@ -107,8 +107,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
                    steps: StepControl | None = None,
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
                    compilation: Compilation | None = None, workers: int = 2,
-                   collect: Collect | None = None, t_eval=None, derivatives=None,
-                   derivatives_mode: str = "auto"):
+                   collect: Collect | None = None, t_eval=None, derivatives=None):
     """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as `march` would;
     the arguments after them are `march`'s (with ``compilation.fast``, the default, the
     workers share the compiled chunk built here).
@@ -123,11 +122,10 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     returned 725 MB of pickled solutions; their Poincare crossings 3.1 MB, measured by
     ``scripts/benchmarks/bench_ensemble_bytes.py``).
 
-    ``t_eval``, ``derivatives``, ``derivatives_mode``: each orbit's states at ``t_eval``
+    ``t_eval``, ``derivatives`` (names or `DerivativeOptions`): each orbit's states at ``t_eval``
     (``Solution.z_eval``) and their derivatives, as `march` gives them with
     ``output=Output(t_eval=t_eval)`` and the same ``derivatives`` (``derivatives.py``)."""
-    names = check_derivatives(derivatives)
-    mode = check_mode(derivatives_mode)
+    names, mode = derivative_request(derivatives)
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
     if q0s.ndim == 2 and q0s.shape == p0s.shape and (q0s.shape[0] == 0 or q0s.size == 0):
@@ -154,7 +152,8 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
         # build (or load from the on-disk cache) what every march shares, here, once
         march(system, q0s[0], p0s[0], (t0, t0 + min(3 * tau0, t_end - t0)), **options)
     if output is not None:
-        options.update(output=output, derivatives=names or None, derivatives_mode=mode)
+        options.update(output=output, derivatives=DerivativeOptions(names, mode) if names
+                       else None)
     job = _Job(system, q0s, p0s, (t0, t_end), options, collect)
     blocks = _blocks(q0s.shape[0], workers)
     if workers == 1 or len(blocks) == 1 or not _can_fork():

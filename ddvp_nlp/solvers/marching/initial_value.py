@@ -48,7 +48,7 @@ from ..options import (
     coerce,
 )
 from .backward import is_backward, march_backward
-from .derivatives import check_derivatives, check_mode, refuse_unsupported
+from .derivatives import check_derivatives, derivative_request, refuse_unsupported
 from .march_problem import check_problem
 from .resume import MarchState, check_resume
 from .session import MarchSession
@@ -69,8 +69,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
           scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
           steps: StepControl | None = None, accuracy: Tolerance | None = DEFAULT_TOLERANCE,
           compilation: Compilation | None = None, output: Output | None = None,
-          target_error: float | None = None, derivatives=None,
-          derivatives_mode: str = "auto") -> Solution:
+          target_error: float | None = None, derivatives=None) -> Solution:
     """March ``z_0 = (q0, p0)`` from ``t0`` until the first node at or past ``t_end``.
 
     Args:
@@ -121,9 +120,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             ``Solution.derivatives.check`` holds their own check (a directional finite
             difference, one pair of marches more, and whether the energy row is close to
             losing its root; ``derivative_check.py``).
-        derivatives_mode: ``"forward"`` (a tangent column per input), ``"reverse"`` (an
-            adjoint sweep per output entry, ``adjoint.py``) or ``"auto"``: reverse where the
-            ``2n len(t_eval)`` outputs are fewer than the inputs. Same values either way.
+            ``DerivativeOptions(inputs, mode)`` chooses forward or reverse mode (``"auto"``,
+            the default: reverse where the ``2n len(t_eval)`` outputs are fewer than the
+            inputs; the same values either way).
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -139,8 +138,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     Returns:
         A `Solution`; failures are a status on it, never an exception.
     """
-    names = check_derivatives(derivatives)  # before anything, also a backward march's
-    mode = check_mode(derivatives_mode)
+    names, mode = derivative_request(derivatives)  # before anything, also a backward march's
     if names and is_backward(t_span):
         refuse_unsupported(names, v0=v0, backward=True, target_error=target_error,
                            output=coerce(output, Output, "output"), steps=None)
@@ -171,7 +169,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                               problem.t0, problem.t_end, problem.tau0, problem.theta, target,
                               accuracy)
     session = MarchSession(problem, accuracy, compilation, output, derivatives=names)
-    session.derivatives_mode = mode  # Sensitivity reads it (derivatives.py)
+    session.derivatives_mode, session.march = mode, march  # for Sensitivity's check
     return session.run()
 
 

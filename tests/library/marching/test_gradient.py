@@ -14,7 +14,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from ddvp_nlp import HamiltonianSystem, InputError, Output, StepControl, gradient, march
+from ddvp_nlp import (
+    DerivativeOptions,
+    HamiltonianSystem,
+    InputError,
+    Output,
+    StepControl,
+    gradient,
+    march,
+)
 from ddvp_nlp.solvers.marching import march_ensemble
 from ddvp_nlp.solvers.marching.adjoint import check_cotangent, reverse_derivatives
 from ddvp_nlp.solvers.marching.derivative_check import (
@@ -63,12 +71,12 @@ KEPLER_CASES = {
 }
 
 
-def kepler_march(name, derivatives=NAMES, **options):
+def kepler_march(name, derivatives=NAMES, mode=None):
     e, scheme, tau0, t_end, t_eval = KEPLER_CASES[name]
     q0, p0 = kepler_start(e)
     return march(KEPLER, q0, p0, (0.0, t_end), tau0=tau0, scheme=scheme, params={"mu": 1.0},
-                 accuracy=None, output=Output(t_eval=t_eval), derivatives=derivatives,
-                 **options)
+                 accuracy=None, output=Output(t_eval=t_eval),
+                 derivatives=derivatives if mode is None else DerivativeOptions(derivatives, mode))
 
 
 def contracted(cotangent, derivatives):
@@ -125,8 +133,8 @@ def test_a_march_without_derivatives_has_the_same_gradient(pendulum_solution):
 
 @pytest.mark.parametrize("mode", ["forward", "reverse", "auto"])
 def test_the_modes_give_the_same_derivatives(mode):
-    forward = kepler_march("e=0.3 vddvp", derivatives_mode="forward")
-    other = kepler_march("e=0.3 vddvp", derivatives_mode=mode)
+    forward = kepler_march("e=0.3 vddvp", mode="forward")
+    other = kepler_march("e=0.3 vddvp", mode=mode)
     # auto: 4 times x 4 rows = 16 outputs against 5 inputs: forward
     assert other.derivatives.mode == ("reverse" if mode == "reverse" else "forward")
     assert relative_gap(other.derivatives, forward.derivatives) <= AGREEMENT
@@ -138,7 +146,8 @@ def test_auto_chooses_reverse_for_few_outputs():
                      output=Output(t_eval=[2.5]), derivatives=NAMES)
     assert solution.derivatives.mode == "reverse"
     forward = march(KEPLER, *kepler_start(0.3), (0.0, 3.0), tau0=0.01, accuracy=None,
-                    output=Output(t_eval=[2.5]), derivatives=NAMES, derivatives_mode="forward")
+                    output=Output(t_eval=[2.5]),
+                    derivatives=DerivativeOptions(NAMES, "forward"))
     assert relative_gap(solution.derivatives, forward.derivatives) <= AGREEMENT
 
 
@@ -162,7 +171,7 @@ def test_the_check_catches_the_frozen_step_derivative():
     frozen = march_derivatives(PENDULUM, solution.scheme, [1.3], solution.t,
                                np.hstack([solution.q, solution.p]), solution.t_eval, NAMES,
                                frozen_steps=True)
-    remarch = remarch_function(PENDULUM, solution.scheme, (0.0, 10.0), 0.25, StepControl(),
+    remarch = remarch_function(march, PENDULUM, solution.scheme, (0.0, 10.0), 0.25, StepControl(),
                                None, solution.t_eval)
     base = {"q0": np.array([1.0]), "p0": np.array([0.0]), "params": np.array([1.3])}
     record = check_record(remarch, base, NAMES,
@@ -316,12 +325,13 @@ def test_an_ensemble_refuses_derivatives_without_times():
     with expect("derivatives are of the states at fixed times: give t_eval"):
         march_ensemble(KEPLER, [[1.0, 0.0]], [[0.0, 1.0]], (0.0, 1.0), tau0=0.01,
                        derivatives=NAMES)
-    with expect("derivatives_mode must be one of auto, forward, reverse, got 'sideways'"):
+    with expect("derivatives: unknown name 'mu' in ('mu',) (choose from q0, p0, params)"):
         march_ensemble(KEPLER, [[1.0, 0.0]], [[0.0, 1.0]], (0.0, 1.0), tau0=0.01,
-                       t_eval=[0.5], derivatives=NAMES, derivatives_mode="sideways")
+                       t_eval=[0.5], derivatives=("mu",))
 
 
-def test_march_refuses_a_bad_mode():
-    with expect("derivatives_mode must be one of auto, forward, reverse, got 3"):
-        march(PENDULUM, [0.5], [0.1], (0.0, 1.0), tau0=0.05, output=Output(t_eval=[0.5]),
-              derivatives=NAMES, derivatives_mode=3)
+def test_a_bad_mode_is_refused():
+    with expect("DerivativeOptions.mode must be one of auto, forward, reverse, got 3"):
+        DerivativeOptions(NAMES, 3)
+    with expect("derivatives: unknown name 'x' in ('x',) (choose from q0, p0, params)"):
+        DerivativeOptions(("x",))
