@@ -44,7 +44,7 @@ from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
-from ..compiler import FunctionBuffer
+from ..compiler import RentedBuffer
 from .step_newton import step_jacobian_function
 
 __all__ = ["DERIVATIVES", "MODES", "DerivativeOptions", "affine_maps", "check_derivatives",
@@ -193,10 +193,13 @@ def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
     """``function`` on ``count`` evaluations, the inputs given as rows ``(count, size)``, each
     output as ``(count, rows, cols)``: one mapped call through numpy buffers (``compiler.py``'s
     `FunctionBuffer`: no DM conversions, which cost more than the Jacobians) of a power-of-two
-    width up to ``CHUNK``, the last evaluation repeated to fill it."""
+    width up to ``CHUNK``, the last evaluation repeated to fill it. The map is compiled once its
+    calls have cost `RentedBuffer`'s share of CPU (the same arithmetic; the step Jacobians of a
+    64-parameter potential took 57 us a step in CasADi's virtual machine, twice the march's
+    own step)."""
     width = min(CHUNK, 1 << max(count - 1, 0).bit_length())
     buffer = cached(function, ("derivatives_map", width),
-                    lambda: FunctionBuffer(function.map(width)))
+                    lambda: RentedBuffer(function.map(width), "auto", prefix="derivatives"))
     filled = [np.concatenate([value, np.repeat(value[-1:], width - count, 0)])
               for value in (np.asarray(row, float).reshape(count, -1) for row in rows)]
     outputs = buffer(*filled)
@@ -205,26 +208,28 @@ def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
             for value, (rows_, cols) in zip(outputs, shapes, strict=True)]
 
 
-def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray):
+def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray, in_theta: bool = True):
     """For the fixed-length steps ``k`` of ``steps``: ``(dz_{k+1}/dz_k, dz_{k+1}/dtheta)``
-    with the node times held, ``(K, 2n, 2n)`` and ``(K, 2n, m)``."""
+    with the node times held, ``(K, 2n, 2n)`` and ``(K, 2n, m)`` (``(K, 2n, 0)`` unless
+    ``in_theta``: the solve is then on the state's columns alone)."""
     n2 = z.shape[1]
     w = np.hstack([t[steps, None], t[steps + 1, None], z[steps],
                    np.repeat(theta[None, :], steps.size, 0)])
     J_x, J_w = _mapped(step_jacobian_function(system, scheme, "fixed"), steps.size, z[steps + 1], w)
-    gains = -np.linalg.solve(J_x, J_w[:, :, 2:])
+    gains = -np.linalg.solve(J_x, J_w[:, :, 2:] if in_theta else J_w[:, :, 2:2 + n2])
     return gains[:, :, :n2], gains[:, :, n2:]
 
 
-def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray):
+def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray, in_theta: bool = True):
     """For the energy steps ``k`` of ``steps`` (``k >= 1``): ``-F_x^-1 F_w``, ``(K, 2n + 1,
-    2 + 4n + m)``, columns ``[t_{k-1}, t_k, z_{k-1}, z_k, theta]`` (the drift's dropped)."""
+    2 + 4n + m)``, columns ``[t_{k-1}, t_k, z_{k-1}, z_k, theta]`` (the drift's dropped; the
+    theta columns too unless ``in_theta``)."""
     tau = t[steps + 1] - t[steps]
     x = np.hstack([z[steps + 1], tau[:, None]])
     w = np.hstack([t[steps - 1, None], t[steps, None], z[steps - 1], z[steps],
                    np.repeat(theta[None, :], steps.size, 0), np.zeros((steps.size, 1))])
     J_x, J_w = _mapped(step_jacobian_function(system, scheme, "energy"), steps.size, x, w)
-    return -np.linalg.solve(J_x, J_w[:, :, :-1])
+    return -np.linalg.solve(J_x, J_w[:, :, :-1] if in_theta else J_w[:, :, :2 + 2 * z.shape[1]])
 
 
 def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps):
@@ -263,15 +268,17 @@ def affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
     M, C = np.zeros((steps.size, 2 * r, 2 * r)), np.zeros((steps.size, 2 * r, d))
     M[:, 2 * r - 1, 2 * r - 1] = 1.0  # dt_{k+1} = dt_k (+ dtau_k)
     fixed = np.ones(steps.size, bool) if not energy else steps == 0
+    moves = bool(np.any(seed_theta))  # else the parameters' columns are left out of the solves
     if fixed.any():
-        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, steps[fixed])
+        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, steps[fixed], moves)
         square = np.ix_(fixed, range(n2), range(r, r + n2))
         M[square] = in_z - np.eye(n2)
         M[np.ix_(fixed, range(r, r + n2), range(r, r + n2))] = in_z
-        C[fixed, :n2] = C[fixed, r:r + n2] = in_theta @ seed_theta
+        if moves:
+            C[fixed, :n2] = C[fixed, r:r + n2] = in_theta @ seed_theta
     if not fixed.all():
         moving = ~fixed
-        gains = _energy_gains(system, scheme, theta, t, z, steps[moving])
+        gains = _energy_gains(system, scheme, theta, t, z, steps[moving], moves)
         # gains' columns [t_{k-1}, t_k, z_{k-1}, z_k] onto Y's [dz_k - dz_{k-1}, dtau_{k-1},
         # dz_k, dt_k]: dz_{k-1} = dz_k - (dz_k - dz_{k-1}), dt_{k-1} = dt_k - dtau_{k-1}
         G_tp, G_t = gains[:, :, 0], gains[:, :, 1]
@@ -279,7 +286,7 @@ def affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
         block = np.zeros((gains.shape[0], r, 2 * r))
         block[:, :, :n2], block[:, :, n2] = -G_zp, -G_tp
         block[:, :, r:r + n2], block[:, :, 2 * r - 1] = G_zp + G_z, G_tp + G_t
-        offset = gains[:, :, 2 + 2 * n2:] @ seed_theta
+        offset = gains[:, :, 2 + 2 * n2:] @ seed_theta if moves else 0.0
         first, second = block.copy(), block
         first[:, :n2, r:r + n2] -= np.eye(n2)
         second[:, n2, 2 * r - 1] += 1.0
