@@ -335,3 +335,25 @@ def test_a_bad_mode_is_refused():
         DerivativeOptions(NAMES, 3)
     with expect("derivatives: unknown name 'x' in ('x',) (choose from q0, p0, params)"):
         DerivativeOptions(("x",))
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("least_squares", [{"step": 3}], "gradient is not supported for replaced (least-squares) "
+                                     "steps (1 of them)"),
+    ("target_error", {"tau0": 0.05}, "gradient is not supported for target_error (its first "
+                                     "step is chosen by a pilot march)"),
+])
+def test_a_march_with_replaced_steps_or_a_pilot_is_refused(field, value, message):
+    """The records such marches carry (their own tests make them: test_breakdown.py,
+    test_target_error.py), set on a plain march's record."""
+    solution = _plain(output=Output(t_eval=[1.0]))
+    setattr(solution.march, field, value)
+    with expect(message):
+        gradient(solution, np.ones((1, 2)))
+
+
+def test_the_gradient_check_runs_the_fixed_rule_again_with_its_step_count():
+    solution = march(KEPLER, *kepler_start(0.5), (0.0, 3.0), tau0=0.01, scheme="fixed",
+                     accuracy=None, output=Output(t_eval=[1.0, 2.9]))
+    found = gradient(solution, np.ones((2, 4)))
+    assert found.check.verdict == "agrees" and found.check.error <= 1e-7, found.check
