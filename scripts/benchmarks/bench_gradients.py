@@ -10,11 +10,11 @@ that is not counted), and the ratios of the medians.
 2. Forward mode in the ``2n`` initial values: ``march(..., derivatives=DerivativeOptions(("q0",
    "p0"), "forward"))``, its check included, against the plain march (target: at most ``2n +
    2``), on the Fourier pendulum (2n = 2) and on Kepler (2n = 4).
-3. Memory: a march of ``--memory-steps`` steps (default 1e6) and the reverse sweep over it, each
-   in its own child process (peak resident memory, ``VmHWM``, above the child's after a warm
-   first march of a few steps): the sweep's peak above what it started from (the march's nodes
-   are kept; the sweep holds one chunk of Jacobians) against the march's own (target: at most
-   2x).
+3. Memory: a march of ``--memory-steps`` steps (default 1e6) and the reverse sweep over it, on
+   the plain pendulum (one parameter) and on the Fourier pendulum, each in its own child
+   process (peak resident memory, ``VmHWM``, above the child's after a warm first march of a
+   few steps): the sweep's peak above what it started from (the march's nodes are kept; the
+   sweep holds one chunk of Jacobians) against the march's own (target: at most 2x).
 
 Every march runs without the accuracy check (``accuracy=None``, as the derivative's check runs
 its marches), so that the ratios compare like with like.
@@ -111,7 +111,7 @@ def cost_rows(repeats: int):
 CHILD = r"""
 import json, sys, time, numpy as np
 sys.path.insert(0, {root!r})
-from scripts.benchmarks.bench_gradients import fourier_pendulum
+from scripts.benchmarks.bench_gradients import fourier_pendulum, pendulum
 from ddvp_nlp import Output, march, gradient
 
 def status(key):
@@ -121,7 +121,7 @@ def status(key):
 def reset_peak():
     with open("/proc/self/clear_refs", "w") as f:
         f.write("5")
-system = fourier_pendulum()
+system = {system}()
 steps, sweep = {steps}, {sweep}
 tau0 = 0.01
 march(system, [0.8], [0.0], (0.0, 5 * tau0), tau0=tau0, accuracy=None,
@@ -145,10 +145,17 @@ print(json.dumps(dict(steps=int(sol.t.size - 1), base=base, march_peak=march_pea
 """
 
 
-def memory_row(steps: int):
+def pendulum() -> HamiltonianSystem:
+    def H(q, p, t, w):
+        return p[0] ** 2 / 2 + w ** 2 * (1 - ca.cos(q[0]))
+    return HamiltonianSystem(H, 1, {"w": 1.0}, name="pendulum_w")
+
+
+def memory_row(steps: int, system: str):
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    out = subprocess.run([sys.executable, "-c", CHILD.format(root=root, steps=steps, sweep=True)],
-                         capture_output=True, text=True, check=True)
+    code = CHILD.format(root=root, steps=steps, sweep=True, system=system)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -168,13 +175,15 @@ def main():
                   f"{wall / wall0:5.2f}   {target}")
         print(f"  checks: reverse {checked.verdict} ({checked.error:.1e}), forward "
               f"{forward_check.verdict} ({forward_check.error:.1e})")
-    row = memory_row(args.memory_steps)
-    mib = 2 ** 20
-    march_mem = (row["march_peak"] - row["base"]) / mib
-    sweep_mem = (row["sweep_peak"] - row["before"]) / mib
-    print(f"\nmemory, {row['steps']} steps: march peak +{march_mem:.0f} MiB above the warm "
-          f"process; reverse sweep peak +{sweep_mem:.0f} MiB above its start (the nodes kept); "
-          f"ratio {sweep_mem / march_mem:.2f} (target <= 2); sweep CPU {row['sweep_cpu']:.1f} s")
+    for system in ("pendulum", "fourier_pendulum"):
+        row = memory_row(args.memory_steps, system)
+        mib = 2 ** 20
+        march_mem = (row["march_peak"] - row["base"]) / mib
+        sweep_mem = (row["sweep_peak"] - row["before"]) / mib
+        print(f"\nmemory, {system}, {row['steps']} steps: march peak +{march_mem:.0f} MiB above "
+              f"the warm process; reverse sweep peak +{sweep_mem:.0f} MiB above its start (the "
+              f"nodes kept); ratio {sweep_mem / march_mem:.2f} (target <= 2); sweep CPU "
+              f"{row['sweep_cpu']:.1f} s")
 
 
 if __name__ == "__main__":
