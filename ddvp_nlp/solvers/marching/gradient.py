@@ -31,7 +31,8 @@ def gradient(sol, cotangent, *, check: bool = True, steps=None, compilation=None
 
     Args:
         sol: the march's `Solution`; its accepted nodes are the whole input (a thinned,
-            backward, least-squares or ``target_error`` march is refused by name).
+            backward, least-squares or ``target_error`` march is refused by name; a march
+            started from ``v0`` is differentiated as the march from its ``p0 = sol.p[0]``).
         cotangent: ``(len(sol.t_eval), 2n)``, finite, rows ``(q, p)``.
         check: the gradient's own check (``derivative_check.py``): ``L`` along a random
             direction by a central difference of two marches again from the perturbed
