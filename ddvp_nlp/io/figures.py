@@ -316,11 +316,16 @@ def decimate(t: np.ndarray, values: np.ndarray, bins: int):
     return np.repeat(t[starts], 2), np.column_stack(shown).reshape(-1, *values.shape[1:])
 
 
+BAND_ALPHA = 0.3  # the envelope's fill; its edges are drawn opaque
+
+
 def envelope_band(ax, t, values, bins: int, **style) -> None:
     """One series on ``ax`` as it would look drawn whole: the line itself while it has at most
     ``2 * bins`` points, else the band between the minimum and the maximum of each bin
-    (`decimate`) filled, its edges as wide as the line. Filling the band costs a polygon
-    where the zigzag through the extremes cost a full-height stroke per pixel column."""
+    (`decimate`) filled in a light shade of the line's colour, its edges as wide as the line:
+    a fast oscillation over a long run reads as its envelope, not as a solid block. Filling
+    the band costs a polygon where the zigzag through the extremes cost a full-height stroke
+    per pixel column."""
     t = np.asarray(t, dtype=float)
     values = np.asarray(values, dtype=float)
     x, y = decimate(t, values, bins)
@@ -329,7 +334,7 @@ def envelope_band(ax, t, values, bins: int, **style) -> None:
         return
     line = ax.plot(x[::2], y[::2], **style)[0]  # legend entry, colour; the minima
     ax.plot(x[1::2], y[1::2], color=line.get_color(), lw=line.get_linewidth())
-    ax.fill_between(x[::2], y[::2], y[1::2], color=line.get_color(), lw=0, alpha=1.0)
+    ax.fill_between(x[::2], y[::2], y[1::2], color=line.get_color(), lw=0, alpha=BAND_ALPHA)
 
 
 def thin_points(x: np.ndarray, y: np.ndarray, cells: int) -> np.ndarray:

@@ -202,7 +202,7 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False, dots: bool 
             if row < len(rows) - 1:
                 ax.tick_params(labelbottom=False)
         first.set_title(f"first {ZOOM_STEPS} steps" if column else
-                        ("whole run" if zoom else ""))
+                        ("whole run (min-max envelope)" if zoom else ""))
         ax.set_xlabel("$t$")
         x += widths[column] + gaps[column]
     cell = (height - top - bottom) / len(kinds)

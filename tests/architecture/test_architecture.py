@@ -522,11 +522,14 @@ def test_every_face_lists_only_names_it_has():
 INTERNALS_FOR_SCRIPTS = {
     "scripts/benchmarks/bench_bvp.py": {"solvers.grid.linear"},
     "scripts/benchmarks/bench_periodic.py": {"solvers.periodic.first_orbit"},
+    "scripts/benchmarks/bench_rattle.py": {"solvers.baselines.rattle", "solvers.exact.constrained",
+                                           "solvers.exact.constrained_reference"},
     "scripts/pages/chaos_page.py": {"solvers.chaos.exact_indicators"},
     "scripts/pages/comparison_page.py": {"solvers.baselines.fixed_step"},
     # damaged shard parts written through the tool's own writer, for the merge's checks
     "scripts/pages/faults.py": {"io.chaos_files", "studies.chaos_map"},
     "scripts/pages/stability_study.py": {"solvers.exact.variational"},
+    "scripts/pages/gradients_page.py": {"solvers.marching.derivatives"},
 }
 
 

@@ -29,7 +29,8 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
 # the inputs to differentiate in (derivatives, issue 47 names it so): each asks for an answer
 # rather than tuning a group, so it is not an option object's field.
 MOST_PARAMETERS = 12
-MORE = {"march": 2, "march_ensemble": 2}  # march_ensemble: t_eval and derivatives (issue 47)
+# solve_bvp: derivatives=; march_ensemble: t_eval and derivatives (issue 47)
+MORE = {"march": 2, "solve_bvp": 1, "march_ensemble": 2}
 
 
 def test_public_names_are_stable_and_importable():

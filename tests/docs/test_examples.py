@@ -9,6 +9,7 @@ import pytest
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 # A line each script's output must hold: it ran its solve, not only its imports.
 EXPECTED = {"march.py": "accuracy check: drifted from t = 2", "own_scene.py": "status=success",
+            "fit_parameters.py": "kepler: mu = ", "orbit_design.py": "arrival mismatch",
             "fixed_endpoint.py": "status=success", "compare.py": "fixed ",
             "dense_output.py": "at t_end:"}
 

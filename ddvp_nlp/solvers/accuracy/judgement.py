@@ -187,7 +187,9 @@ def free_components(system) -> np.ndarray | None:
         return None
 
     def build():  # one pass over H's symbols (n calls of depends_on were n passes over H)
-        present = {symbol.element_hash() for symbol in ca.symvar(H)}
+        # a coordinate the constraints hold is not free (the Cartesian pendulum's x)
+        held = ca.vertcat(H, ca.vec(system.G)) if getattr(system, "n_constraints", 0) else H
+        present = {symbol.element_hash() for symbol in ca.symvar(held)}
         n = int(system.n)
         cyclic = [q[i].element_hash() not in present for i in range(n)]
         return np.array(cyclic + [False] * n, dtype=bool) if any(cyclic) else None

@@ -30,11 +30,12 @@ Modules: ``integrator.py`` (the traits), ``chunks.py`` (what every compiled base
 ``paper_schemes.py`` (vddvp, lee, midpoint: the march), ``fixed_step.py`` (Stormer-Verlet,
 leapfrog, RK4, AVF on uniform steps; ``avf_stepper.py`` the AVF step), ``verlet_adaptive.py``
 (reversible adaptive Stormer-Verlet), ``lee_left_stepper.py`` (T.D. Lee's left-point scheme),
-``dop853.py`` (scipy's DOP853, the method users would pick instead; the studies' reference is
-the exact flow of ``solvers/exact/``).
+``rattle.py`` (RATTLE and SHAKE, constrained systems only), ``dop853.py`` (scipy's DOP853,
+the method users would pick instead; the studies' reference is the exact flow of
+``solvers/exact/``).
 """
 
-from . import dop853, fixed_step, paper_schemes, verlet_adaptive
+from . import dop853, fixed_step, paper_schemes, rattle, verlet_adaptive
 from . import lee_left_stepper as lee_left
 from .integrator import Integrator
 
@@ -49,6 +50,8 @@ INTEGRATORS: tuple[Integrator, ...] = (
     fixed_step.RK4,
     dop853.DOP853,
     lee_left.LEE_LEFT,
+    rattle.RATTLE,
+    rattle.SHAKE,
 )
 
 __all__ = ["INTEGRATORS", "Integrator"]

@@ -60,6 +60,7 @@ from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver
 from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, answers_removed_keywords, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
+from .end_derivatives import bvp_derivatives, check_derivatives
 from .first_guess import Shooting, branch_obstacle, start_point
 from .interleaved import NodeLayout
 from .phases import (
@@ -94,7 +95,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
               scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
               guess: Solution | Mapping | Shooting | str | None = None, times=None,
               options: GridOptions | None = None, compilation: Compilation | None = None,
-              output: Output | None = None) -> Solution:
+              output: Output | None = None, derivatives=None) -> Solution:
     """Solve the fixed-endpoint problem ``q(t_0) = q_start``, ``q(t_end) = q_end`` on ``nodes``.
 
     Args:
@@ -120,6 +121,10 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
             linear solver, a ``time_limit`` and IPOPT's log (`GridOptions`).
         compilation: which compiled code the assembly and the band LU run.
         output: ``progress`` reports each Newton iteration (and IPOPT's log) on stderr.
+        derivatives: names from ``("q_start", "q_end", "params")``: the derivatives of the
+            discrete solution (the end momenta, every node) in them, by the implicit-function
+            theorem on the verified solution (``end_derivatives.py``), into
+            ``Solution.derivatives``.
 
     Returns:
         A `Solution` whose ``ends`` (`EndsRecord`) holds each stage's solver run, the largest
@@ -128,6 +133,7 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         status on it.
     """
     output = coerce(output, Output, "output")
+    names = check_derivatives(system, derivatives, t_span)
     if output.checkpoint is not None or output.stop is not None:
         raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
                          "and stop belong to a march")
@@ -172,6 +178,8 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
             and outcome[0] is not Status.TIME_LIMIT:
         outcome = (outcome[0], f"{outcome[1]}; {START_HINT[start_kind]}", outcome[2])
     solution = _solution(request, x, phase, outcome, started)
+    if names:
+        solution.derivatives = bvp_derivatives(request, x, solution, names)
     return attach(solution, system, request.theta, solution.t[-1] if solution.t.size else None)
 
 

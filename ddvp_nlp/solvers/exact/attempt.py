@@ -102,14 +102,18 @@ def combination(stages, coefficients):
     return total
 
 
-def dop853_step(rhs, w, f0, t, h):
+def dop853_step(rhs, w, f0, t, h, project=None):
     """The order-8 step from ``w`` (with ``f0 = rhs(w, t)``): ``(w_new, K)``, ``K`` the 13
-    stages (``K[12] = rhs(w_new, t + h)``, the next step's first stage)."""
+    stages (``K[12] = rhs(w_new, t + h)``, the next step's first stage). ``project(w, t)``, if
+    given, maps the order-8 result onto a manifold before ``K[12]`` is taken there (the
+    constrained flow, ``constrained.py``)."""
     tab = dop853()
     K = [f0]
     for s in range(1, tab.stages):
         K.append(rhs(w + h * combination(K, tab.A[s, :s]), t + float(tab.C[s]) * h))
     w_new = w + h * combination(K, tab.B)
+    if project is not None:
+        w_new = project(w_new, t + h)
     K.append(rhs(w_new, t + h))
     return w_new, K
 
@@ -146,7 +150,8 @@ def dense_coefficients(rhs, K, w, w_new, t, h):
     return F
 
 
-def slot_function(field: ca.Function, layout: AttemptLayout, *, inline: bool = True) -> ca.Function:
+def slot_function(field: ca.Function, layout: AttemptLayout, *, inline: bool = True,
+                  project: ca.Function | None = None) -> ca.Function:
     """``(state, params) -> (state_next, record)``: one attempt of adaptive DOP853 (module
     docstring; ``AttemptLayout`` for the vectors). No-op handling of finished slots is left to the
     caller (`chunk_function`); this function always attempts.
@@ -155,7 +160,8 @@ def slot_function(field: ca.Function, layout: AttemptLayout, *, inline: bool = T
     out (fastest for small fields); else an MX graph that calls the field function 16 times
     and combines the stages with vector operations (generated code of the field's size, not
     16 times it: for large systems with tangents, where the inlined code reaches megabytes
-    and gcc minutes)."""
+    and gcc minutes). ``project`` ``(z, t, theta) -> z``: every attempted step's result
+    projected (`dop853_step`) before its error is estimated and its dense output built."""
     L = layout
     rhs_function = augmented_field(field, L.m)
     kind = ca.SX if inline else ca.MX
@@ -180,7 +186,8 @@ def slot_function(field: ca.Function, layout: AttemptLayout, *, inline: bool = T
     h = t_new - t
     h_abs = ca.fabs(h)
 
-    w_new, K = dop853_step(rhs, w, f0, t, h)
+    onto = None if project is None else (lambda x, time: project(x, time, theta))
+    w_new, K = dop853_step(rhs, w, f0, t, h, onto)
     err = error_norm(K, h, w, w_new, rtol, atol, L.control)
     finite = ca.sum1(ca.fabs(w_new[L.control])) < np.inf  # false for inf and NaN
     err = ca.if_else(finite, err, np.inf)  # NaN or inf -> inf: rejected, shrinks, then fails
@@ -213,12 +220,13 @@ def skip_function(layout: AttemptLayout) -> ca.Function:
 
 
 def chunk_function(field: ca.Function, layout: AttemptLayout, slots: int, *,
-                   skip: bool = True, inline: bool = True) -> ca.Function:
+                   skip: bool = True, inline: bool = True,
+                   project: ca.Function | None = None) -> ca.Function:
     """``(state, params[P x slots]) -> (states[S x slots], records[R x slots])``: ``slots``
     attempts in a row (``mapaccum``), each `slot_function`. With ``skip``, a slot whose
     state is DONE or FAILED runs `skip_function` instead (an MX switch: only one branch is
     evaluated, so the slots after t_end cost a copy, not a step)."""
-    slot = slot_function(field, layout, inline=inline)
+    slot = slot_function(field, layout, inline=inline, project=project)
     if skip:
         state = ca.MX.sym("state", layout.state_size)
         params = ca.MX.sym("params", layout.param_size)

@@ -44,6 +44,9 @@ def flow_field(system) -> tuple[ca.Function, int]:
     Euler-Lagrange equation in Ostrogradsky's variables for a higher-order ``L``."""
     if isinstance(system, HigherOrderSystem):
         return euler_lagrange_field(system), 2 * system.order * system.n
+    if getattr(system, "n_constraints", 0) > 0:  # index-reduced, with its constraint forces
+        from .constrained import constrained_field
+        return constrained_field(system), 2 * system.n
     return vector_field_function(system), 2 * system.n
 
 
@@ -54,7 +57,8 @@ class AdaptiveFlow:
 
     def __init__(self, field: ca.Function, *, tangent: int = 0, dense: bool = True,
                  slots: int = SLOTS, compiler: str | None = "auto", cache_dir=None,
-                 inline: bool | None = None, tangent_control: bool = False):
+                 inline: bool | None = None, tangent_control: bool = False,
+                 project: ca.Function | None = None):
         self.field = field
         d, p = field.size1_in(0), field.size1_in(2)
         self.layout = AttemptLayout(d=d, m=int(tangent), p=p, dense=dense,
@@ -63,7 +67,10 @@ class AdaptiveFlow:
         started = time.perf_counter()
         if inline is None:  # write the stages out unless the field with its tangents is large
             inline = augmented_field(field, self.layout.m).n_instructions() <= INLINE_LIMIT
-        symbolic = chunk_function(field, self.layout, self.slots, inline=inline)
+        if project is not None and tangent:
+            raise ValueError("a projected flow carries no tangent columns")
+        symbolic = chunk_function(field, self.layout, self.slots, inline=inline,
+                                  project=project)
         self.build_s = time.perf_counter() - started
         # compiled when in the cache, else once its calls have cost a compile (RentedBuffer)
         self._buffer = RentedBuffer(symbolic, compiler, cache_dir, prefix="exact")
@@ -168,6 +175,10 @@ def exact_flow(system, *, tangent: int = 0, dense: bool = True, slots: int = SLO
     """The `AdaptiveFlow` of ``system``'s exact flow (`flow_field`), built and compiled once
     per system, shape and compiler and kept with the system."""
     key = ("exact_flow", int(tangent), bool(dense), int(slots), compiler, str(cache_dir))
+    project = None
+    if getattr(system, "n_constraints", 0) > 0 and not tangent:  # onto g = 0 every step
+        from .constrained import projection_function
+        project = projection_function(system)
     return cached(system, key, lambda: AdaptiveFlow(
         flow_field(system)[0], tangent=tangent, dense=dense, slots=slots, compiler=compiler,
-        cache_dir=cache_dir))
+        cache_dir=cache_dir, project=project))

@@ -35,10 +35,34 @@ n = 64 (8.4 times n = 8); the chunk's C 228 kB at n = 8, 877 kB at n = 64, gcc 1
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 
-from .step_newton import norm_inf
+__all__ = ["SparseLU", "chain_newton", "fill_reducing_order", "norm_inf", "small_update"]
 
-__all__ = ["SparseLU", "chain_newton", "fill_reducing_order"]
+# An update is small when each component is at most ``abstolStep`` or at most this many units
+# of round-off of the iterate's own component: ``|dx_i| <= max(abstolStep, ROUNDOFF_STEPS * eps
+# * |x_i|)``. ``fast_newton`` tests ``|dx|_inf <= abstolStep`` alone, which an iterate whose
+# components exceed ``abstolStep / eps`` (about 45 here: a winding azimuth, a coordinate offset
+# by a constant) cannot pass: its updates stay at its round-off, and every step ran all
+# ``max_iter`` iterations (a spherical pendulum in angles: 7-13 us a step against 1.8 before its
+# azimuth passed 1000 rad, issue 49). Below ``abstolStep / (ROUNDOFF_STEPS * eps)`` (11.3) the
+# test is ``fast_newton``'s, to the bit.
+ROUNDOFF_STEPS = 4.0
+
+
+def small_update(dx, x, abstol_step: float) -> ca.SX:
+    """Whether the update ``dx`` of the iterate ``x`` (lists of SX) is small:
+    ``|dx|_inf <= max(abstol_step, ROUNDOFF_STEPS * eps * |x|_inf)``."""
+    unit = ROUNDOFF_STEPS * float(np.finfo(float).eps)
+    return norm_inf(dx) <= ca.fmax(abstol_step, unit * norm_inf(x))
+
+
+def norm_inf(values) -> ca.SX:
+    """``casadi_norm_inf``: ``fmax`` from 0 over ``|v_i|`` (``fmax`` ignores a NaN)."""
+    result = ca.SX(0)
+    for value in values:
+        result = ca.fmax(result, ca.fabs(value))
+    return result
 
 # "auto" ordering: AMD when its elimination needs less than this share of the natural order's
 AMD_GAIN = 0.75
@@ -204,7 +228,8 @@ def chain_newton(name: str, residual: ca.Function, options: dict, *, border: int
                       [g_in[i] for i in range(n)])
     update = ca.Function(name + "_update", [x, w, g_in],
                          [ca.vertcat(*[x[i] + (-1.0) * dx[i] for i in range(n)]),
-                          norm_inf(dx) <= abstol_step], {"cse": True})
+                          small_update(dx, [x[i] for i in range(n)], abstol_step)],
+                         {"cse": True})
     # the chain on MX: level k = (x, w) -> (x, *values) from iteration k on
     xm, wm = ca.MX.sym("x", x.sparsity()), ca.MX.sym("w", w.sparsity())
     gm = ca.MX.sym("g", n)

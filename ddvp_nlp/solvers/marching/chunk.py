@@ -88,7 +88,8 @@ def step_newton(name: str, residual: ca.Function, at_root: ca.Function, *,
     options = unroll_options(residual.numel_in(0))
     if options.pop("chain", False):
         return chain_newton(name, residual, NEWTON_OPTIONS, at_root=at_root, border=border)
-    return unrolled_newton(name, residual, NEWTON_OPTIONS, at_root=at_root, **options)
+    return unrolled_newton(name, residual, NEWTON_OPTIONS, at_root=at_root, border=border,
+                           **options)
 
 
 class ChunkLayout:

@@ -22,8 +22,14 @@ goes on with ``fast_newton`` from that iterate, so the result is the one ``fast_
 to the last bit (the chunk compiles with ``-ffp-contract=off``).
 
 The march's chunk asks for a cheaper linear solve on small systems (``linear="lu"``,
-`DenseLU`): the same iterations and tests, each update by elimination; the result is then
-``fast_newton``'s root to round-off, not its bits.
+`DenseLU`): the same iterations and tests, each update by elimination, and where the unrolled
+iterations did not stop, `chain_newton`'s loop goes on in place of ``fast_newton``; the result
+is then ``fast_newton``'s root to round-off, not its bits.
+
+One test differs from ``fast_newton``'s everywhere: an update is small when it is below
+``abstolStep`` *or* within a few units of round-off of the iterate (`small_update`,
+`ROUNDOFF_STEPS`). For iterates below 11.3 in size this is ``fast_newton``'s test to the bit;
+above, ``fast_newton``'s absolute test cannot pass and ran every step to ``max_iter``.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ import numpy as np
 from ...cache import cached
 from ...errors import InputError
 from ...solution import Status
+from .chain_newton import chain_newton, norm_inf, small_update
 from .steps import EnergyCheck, FixedCheck, StepFunctions, step_functions
 
 # The options of both paths' rootfinders (``newton`` careful, ``fast_newton`` compiled).
@@ -276,14 +283,6 @@ class NewtonSteps:
 
 # --- the compiled path: fast_newton unrolled --------------------------------------------------
 
-def norm_inf(values) -> ca.SX:
-    """``casadi_norm_inf``: ``fmax`` from 0 over ``|v_i|`` (``fmax`` ignores a NaN)."""
-    result = ca.SX(0)
-    for value in values:
-        result = ca.fmax(result, ca.fabs(value))
-    return result
-
-
 def _reflect(x: list, nz_v: list, rows: list, entries: range, beta) -> None:
     """``x -= beta (v . x) v`` for the Householder vector ``v`` stored in ``nz_v[entries]`` at
     rows ``rows[entries]`` (in place), in ``casadi_qr``'s order of operations."""
@@ -436,7 +435,7 @@ def newton_iteration(qr: SparseQR | DenseLU, *, abstol: float,
     dx = qr.solve(qr.factor([J.nz[k] for k in range(J.nnz())]), [g[i] for i in range(n)])
     update = ca.logic_and(ca.logic_not(stopped), ca.logic_not(small_residual))
     x_next = [ca.if_else(update, x[i] + (-1.0) * dx[i], x[i]) for i in range(n)]
-    small_step = norm_inf(dx) <= abstol_step
+    small_step = small_update(dx, [x[i] for i in range(n)], abstol_step)
     stopped_next = ca.logic_or(stopped, ca.logic_or(small_residual, small_step))
     return ca.Function("newton_iteration", [J, g, x, stopped],
                        [ca.vertcat(*x_next), stopped_next])
@@ -445,7 +444,7 @@ def newton_iteration(qr: SparseQR | DenseLU, *, abstol: float,
 def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
                     iterations: int, check_after: bool = False,
                     inline: bool = False, linear: str = "qr",
-                    at_root: ca.Function | None = None) -> ca.Function:
+                    at_root: ca.Function | None = None, border: int = 0) -> ca.Function:
     """``fast_newton`` on ``residual(x, w)`` with ``options`` (``abstol``, ``abstolStep``,
     ``max_iter``) as ``iterations`` unrolled iterations, then, only where those did not stop,
     ``fast_newton`` itself for the iterations left: ``(x0, w) -> x``, the same result.
@@ -502,13 +501,17 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
         x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
         w = ca.MX.sym("w", jacobian.sparsity_in(1))
         x, stopped, *values = unrolled.call([x0, w])
-    rest = ca.rootfinder(name + "_rest", "fast_newton", residual,
-                         {**options, "max_iter": options["max_iter"] - done})
+    left = {**options, "max_iter": options["max_iter"] - done}
     x_sym, w_sym = ca.MX.sym("x", x0.sparsity()), ca.MX.sym("w", w.sparsity())
     v_syms = [ca.MX.sym(f"v{i}", value.sparsity()) for i, value in enumerate(values)]
     finish_done = ca.Function("done", [x_sym, w_sym, *v_syms], [x_sym, *v_syms])
-    x_rest = rest(x_sym, w_sym)
-    again = at_root.call([x_rest, w_sym]) if values else []
+    if linear == "qr":  # fast_newton's bits: its own loop goes on
+        x_rest = ca.rootfinder(name + "_rest", "fast_newton", residual, left)(x_sym, w_sym)
+        again = at_root.call([x_rest, w_sym]) if values else []
+    else:  # its tests with the round-off-relative step test (ROUNDOFF_STEPS), as unrolled
+        x_rest, *again = chain_newton(name + "_rest", residual, left, border=border,
+                                      at_root=at_root if values else None
+                                      ).call([x_sym, w_sym])
     # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
     # both branches. The rest runs only where the unrolled iterations did not stop.
     finish = ca.Function.if_else(name + "_finish", finish_done,

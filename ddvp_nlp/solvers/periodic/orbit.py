@@ -111,6 +111,7 @@ from .first_orbit import (
     predicted_grid,
     section_point,
 )
+from .orbit_derivatives import check_derivatives, orbit_derivatives
 from .orbit_nlp import periodic_ipopt
 from .refinement import continue_in_nodes, node_levels
 
@@ -168,7 +169,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
                    section="p1=0", guess: Solution | Mapping | None = None,
                    scheme: str | Scheme = "vddvp", params: Mapping[str, float] | None = None,
                    start=None, integrals=(), angles=(),
-                   options: GridOptions | None = None) -> Solution:
+                   options: GridOptions | None = None, derivatives=None) -> Solution:
     """A periodic orbit of ``system`` at energy ``E`` on a closed grid of ``nodes`` nodes,
     ``N = nodes - 1`` intervals (module docstring).
 
@@ -202,6 +203,9 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
             fails the verification of its residuals), the verification tolerance ``tol``
             (default 1e-10) of the unscaled residuals above their round-off, ``max_iter`` of
             either solver (default 100) and IPOPT's log (`GridOptions`).
+        derivatives: names from ``("energy", "params")``: the derivatives of the discrete
+            orbit (its period and nodes) in them, by the implicit-function theorem on the
+            verified orbit (``orbit_derivatives.py``), into ``Solution.derivatives``.
 
     Returns:
         A `Solution` with ``N + 1`` nodes; ``orbit`` (`OrbitRecord`) holds ``period``,
@@ -215,6 +219,7 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         do not follow the exact flow is ``inaccurate``.
     """
     integrals = check_integrals(integrals)
+    names = check_derivatives(system, derivatives)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
                        coerce(options, GridOptions, "options"))
     started = request.start_clock()
@@ -237,6 +242,8 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         solution = fallback
     solution.stats["levels"] = records
     solution.stats["iterations_total"] = sum(r["iterations"] for r in records)
+    if names:
+        solution.derivatives = orbit_derivatives(request, solution, integrals, names)
     return solution
 
 

@@ -180,3 +180,56 @@ def test_values_at_the_root_are_those_of_the_returned_iterate(options):
         assert len(values) == check.n_out()
         for value, want in zip(values, expected, strict=True):
             assert float(value) == float(want)
+
+
+def _azimuth_steps(offset: float):
+    """A spherical pendulum in angles, ``H = p_1^2/2 + p_2^2 / (2 sin^2 q_1) - cos q_1``,
+    whose azimuth ``q_2`` is cyclic: the step inputs of a short careful march from
+    ``q_2 = offset``."""
+    from ddvp_nlp import HamiltonianSystem
+
+    def H(q, p, t):
+        return p[0] ** 2 / 2 + p[1] ** 2 / (2 * ca.sin(q[0]) ** 2) - ca.cos(q[0])
+
+    system = HamiltonianSystem(H, 2, name="spherical_angles")
+    solution = march(system, [2.0, offset], [0.0, 1.2], (0.0, 1.0), tau0=0.05, accuracy=None,
+                     compilation=Compilation(fast=False))
+    z = np.column_stack([solution.q, solution.p])
+    functions = step_functions(system, Scheme.coerce("vddvp"))
+    cases = []
+    for k in range(2, solution.t.size - 1, 3):
+        w = np.concatenate([solution.t[k - 1:k + 1], z[k - 1], z[k], [0.0]])
+        guess = np.asarray(functions.energy_predict(w, solution.t[k] - solution.t[k - 1]))
+        cases.append((w, guess.ravel()))
+    return functions, cases
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e3, 1e5])
+def test_the_update_test_is_relative_to_the_iterates_round_off(offset):
+    """A cyclic coordinate far from zero (a winding azimuth, an offset) puts the Newton updates'
+    floor at its round-off, above ``abstolStep``: the absolute test alone never passed there and
+    every step ran all ``max_iter`` iterations (7-13 us a step against 1.8, issue 49). The
+    unrolled iterations stop within four updates from the predictor at every offset, and the
+    root is the same motion: the step lengths agree with those at offset 0 to round-off."""
+    from ddvp_nlp.solvers.marching.step_newton import newton_iteration
+
+    functions, cases = _azimuth_steps(offset)
+    _, at_zero = _azimuth_steps(0.0)
+    jacobian = ca.rootfinder("r", "fast_newton", functions.energy_residual,
+                             dict(NEWTON_OPTIONS)).get_function("jac_g_x")
+    iteration = newton_iteration(DenseLU(jacobian.sparsity_out(0)),
+                                 abstol=NEWTON_OPTIONS["abstol"],
+                                 abstol_step=NEWTON_OPTIONS["abstolStep"])
+    unrolled = unrolled_newton("unrolled", functions.energy_residual, NEWTON_OPTIONS,
+                               **SMALL_UNROLL, border=1)
+    assert len(cases) >= 5
+    for (w, guess), (w0, guess0) in zip(cases, at_zero, strict=True):
+        x, stopped, updates = guess, 0.0, 0
+        while not stopped and updates < 5:
+            x, stopped = iteration(*jacobian(x, w), x, stopped)
+            stopped, updates = float(stopped), updates + 1
+        assert stopped, f"no stop after {updates} updates at offset {offset}"
+        tau = float(np.asarray(unrolled(guess, w)).ravel()[-1])
+        tau0 = float(np.asarray(unrolled(guess0, w0)).ravel()[-1])
+        # the inputs differ by the offset's round-off: tau agrees to a few units of it
+        assert abs(tau - tau0) <= 1e-12 * max(1.0, offset) * tau0

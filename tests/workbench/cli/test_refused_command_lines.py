@@ -167,6 +167,8 @@ def fuzz_argv(rng: random.Random) -> list[str]:
     return argv
 
 
+# drawn starts may sit at rest, where the solvability monitor warns
+@pytest.mark.filterwarnings("ignore:solvability monitor:RuntimeWarning")
 def test_fuzz_command_line(tmp_path, capsys):
     rng = random.Random(15)
     clean = 0
@@ -208,6 +210,8 @@ def _fuzzed_march(system, name, value):
                  tau0=values["tau0"], **extra, **options)
 
 
+# drawn starts may sit at rest, where the solvability monitor warns
+@pytest.mark.filterwarnings("ignore:solvability monitor:RuntimeWarning")
 def test_fuzz_library_calls():
     """Random bad values for every argument and option field: each is refused with an
     InputError (never a traceback from inside), or, where it is harmless, solved."""

@@ -280,6 +280,8 @@ def test_a_command_started_with_stdout_closed_shows_no_traceback():
     assert done.returncode == 0, done.stderr
 
 
+# the breakdown (and the monitor's warning before it) is the point
+@pytest.mark.filterwarnings("ignore:solvability monitor:RuntimeWarning")
 def test_a_failed_runs_verdict_says_what_it_covers(tmp_path, capsys):
     """A failed run was printed ``accurate`` beside its failed status (the verdict of the part
     kept, not said so): it says where the run ended and that the verdict covers up to there

@@ -184,9 +184,13 @@ def test_methods_that_do_not_apply_are_left_out_with_the_reason():
     assert left_out == [
         "`lee`: for autonomous H its energy equation is the vddvp one (H_k = H_{k-1})",
         f"`stormer_verlet`: {not_separable}", f"`leapfrog`: {not_separable}",
-        f"`verlet_adaptive`: {not_separable}", f"`lee_left`: {not_separable}"]
+        f"`verlet_adaptive`: {not_separable}", f"`lee_left`: {not_separable}",
+        "`rattle`: needs a system with holonomic constraints; 'bent' has none",
+        "`shake`: needs a system with holonomic constraints; 'bent' has none"]
     paper = load_scene("paper_pendulum").system
-    assert [m.name for m in default_methods(paper)[0]] == list(METHODS)
+    constrained_only = ("rattle", "shake")
+    assert [m.name for m in default_methods(paper)[0]] == \
+        [name for name in METHODS if name not in constrained_only]
     with pytest.raises(InputError, match="method 'stormer_verlet' does not apply to scene "
                                          "'bent': dH/dp depends on q or t"):
         work_precision(scene, out="unused", options=CompareOptions(methods=["stormer_verlet"]))
@@ -202,7 +206,7 @@ def test_quartic_kinetic_energy_is_refused_by_lee_left_only():
 @pytest.mark.parametrize("kwargs, message", [
     ({"methods": "rk4,euler"}, "unknown method 'euler' (choose from vddvp, lee, midpoint, "
                                "stormer_verlet, leapfrog, verlet_adaptive, avf, rk4, dop853, "
-                               "lee_left)"),
+                               "lee_left, rattle, shake)"),
     ({"methods": []}, "methods must name at least one method"),
     ({"methods": "rk4", "knobs": {"vddvp": [0.1]}},
      "knobs given for method 'vddvp', which is not compared"),

@@ -137,7 +137,8 @@ def test_every_method_runs_at_its_middle_knob_on_a_smooth_bound_orbit(well):
     V = _well(kind, coefficients)
     energy = level * coefficients[0] if kind == "morse" else level
     system = HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 + V(q[0]), 1, name=kind)
-    result = compare(system, list(METHODS), q0=[0.0], p0=[math.sqrt(2 * energy)],
+    methods = [name for name in METHODS if METHODS[name].applies(system) is None]
+    result = compare(system, methods, q0=[0.0], p0=[math.sqrt(2 * energy)],
                      t_span=(0.0, 12.0), options=CompareOptions(halvings=2, repeats=1,
                                                                 reference="none"),
                      compilation=VM)
