@@ -41,12 +41,14 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
         ChaosIndicators,
         Collect,
         Continuation,
+        DerivativeOptions,
         MarchState,
         Shooting,
         Spectrum,
         chaos_indicators,
         continue_march,
         follow_periodic_family,
+        gradient,
         linearised_orbit,
         lyapunov_spectrum,
         march,
@@ -68,7 +70,8 @@ _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
     "follow_periodic_family", "Continuation", "linearised_orbit", "march_higher",
     "solve_bvp_higher",
-    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP")})
+    "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP",
+    "gradient", "DerivativeOptions")})
 
 
 # The version, written here and in pyproject.toml (tests/docs/test_links.py: they and CHANGELOG.md's
@@ -162,12 +165,12 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
 
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
-           "Endpoints",
+           "DerivativeOptions", "Endpoints",
            "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
            "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",
            "StepControl", "Tolerance", "Verdict", "__version__", "chaos_indicators", "compare",
-           "continue_march", "follow_periodic_family", "linearised_orbit", "list_scenes",
-           "load_scene",
+           "continue_march", "follow_periodic_family", "gradient", "linearised_orbit",
+           "list_scenes", "load_scene",
            "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "periodic_stability",
            "plot", "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

@@ -46,6 +46,8 @@ PUBLIC = {
     "MarchState": "marching.resume", "march_ensemble": "marching.ensemble",
     "Collect": "marching.ensemble", "end_with_parent": "marching.ensemble",
     "DDVP": "marching.scipy_method",  # the march as scipy's solve_ivp method
+    "gradient": "marching.gradient",  # reverse mode of a march's derivatives
+    "DerivativeOptions": "marching.derivatives",
     # fixed ends
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
     # periodic orbits
@@ -91,7 +93,9 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .exact.reference import exact_reference
     from .grid.maps import evaluate_blocks
     from .higher.stepping import march_higher, solve_bvp_higher
+    from .marching.derivatives import DerivativeOptions
     from .marching.ensemble import Collect, end_with_parent, march_ensemble
+    from .marching.gradient import gradient
     from .marching.initial_value import continue_march, march
     from .marching.resume import MarchState
     from .marching.scipy_method import DDVP
@@ -105,12 +109,12 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
-           "Event",
+           "DerivativeOptions", "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
            "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
            "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",
            "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",
-           "flow_callable", "follow_periodic_family", "linearised_orbit", "locate",
+           "flow_callable", "follow_periodic_family", "gradient", "linearised_orbit", "locate",
            "lyapunov_spectrum", "march",
            "march_ensemble", "march_higher", "motion_scales", "parse_section",
            "periodic_stability", "solve_bvp", "solve_bvp_higher", "solve_periodic",

@@ -13,7 +13,7 @@ from ddvp_nlp import InputError, load_scene, march, solve_bvp
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
 PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
-          "Endpoints",
+          "DerivativeOptions", "Endpoints", "gradient",
           "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
           "InputError",
           "Lagrangian", "LagrangianSystem", "MarchState", "Output",
@@ -30,9 +30,9 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
 # the inputs to differentiate in (derivatives, issue 47 names it so): each asks for an answer
 # rather than tuning a group, so it is not an option object's field.
 MOST_PARAMETERS = 12
-# solve_bvp: derivatives= (issue 47); compare: its horizons, the comparison's second axis
-# (issue 49)
-MORE = {"march": 2, "solve_bvp": 1, "compare": 1}
+# solve_bvp: derivatives= (issue 47); march_ensemble: t_eval and derivatives (issue 47);
+# compare: its horizons, the comparison's second axis (issue 49)
+MORE = {"march": 2, "solve_bvp": 1, "march_ensemble": 2, "compare": 1}
 
 
 def test_public_names_are_stable_and_importable():

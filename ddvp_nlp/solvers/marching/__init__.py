@@ -39,6 +39,12 @@ Where things are:
 - ``derivatives.py``: ``march(..., derivatives=...)``, the exact derivatives of the states at
   ``t_eval`` in ``q0``, ``p0`` and the parameters, step lengths included (the ``Sensitivity``
   monitor);
+- ``adjoint.py``: reverse mode, a discrete adjoint sweep backwards over the accepted steps,
+  the step Jacobians recomputed a chunk at a time; ``gradient.py``: ``gradient(sol,
+  cotangent)``, the sweep on a march with its own check;
+- ``derivative_check.py``: a derivative's own check (a directional central difference of the
+  discrete map, one pair of marches) and its conditioning (the solvability monitor's weights),
+  and the ``Sensitivity`` monitor that puts both on ``Solution.derivatives``;
 - ``scipy_method.py``: ``DDVP``, the march as a method of scipy's ``solve_ivp`` (an
   ``OdeSolver`` handing out the march's nodes one step at a time, with its Hermite dense
   output); not imported here, so that a march loads no ``scipy.integrate``;

@@ -35,6 +35,8 @@ With ``frozen_steps`` every step is differentiated as a fixed-length step on its
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import casadi as ca
 import numpy as np
 
@@ -42,17 +44,40 @@ from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
-from ..compiler import FunctionBuffer
-from .monitors import MarchMonitor
+from ..compiler import RentedBuffer
 from .step_newton import step_jacobian_function
 
-__all__ = ["DERIVATIVES", "Sensitivity", "check_derivatives", "march_derivatives",
+__all__ = ["DERIVATIVES", "MODES", "DerivativeOptions", "affine_maps", "check_derivatives",
+           "check_mode", "choose_mode", "derivative_request", "march_derivatives", "readout",
            "refuse_unsupported"]
 
 # The inputs a march differentiates in, in the order of the derivative's columns.
 DERIVATIVES = ("q0", "p0", "params")
 # Steps whose Jacobians are evaluated in one mapped call (bounds the work arrays' memory).
 CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class DerivativeOptions:
+    """What ``march(..., derivatives=...)`` differentiates and how: ``inputs``, names from
+    ``("q0", "p0", "params")``; ``mode``: ``"forward"`` (a tangent column per input),
+    ``"reverse"`` (an adjoint sweep per output entry, ``adjoint.py``) or ``"auto"`` (reverse
+    where the ``2n len(t_eval)`` outputs are fewer than the inputs). Same values either way.
+    A plain name or sequence of names is ``DerivativeOptions(inputs=names)``."""
+
+    inputs: tuple = DERIVATIVES
+    mode: str = "auto"
+
+    def __post_init__(self):
+        object.__setattr__(self, "inputs", check_derivatives(self.inputs))
+        check_mode(self.mode)
+
+
+def derivative_request(derivatives) -> tuple[tuple[str, ...], str]:
+    """``derivatives`` (``None``, names, or `DerivativeOptions`) as ``(names, mode)``."""
+    if isinstance(derivatives, DerivativeOptions):
+        return derivatives.inputs, derivatives.mode
+    return check_derivatives(derivatives), "auto"
 
 
 def check_derivatives(derivatives) -> tuple[str, ...]:
@@ -93,29 +118,25 @@ def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps
             raise InputError(f"derivatives are not supported with {what}")
 
 
-class Sensitivity(MarchMonitor):
-    """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
-    differentiates the kept nodes at the end (`march_derivatives`) into
-    ``Solution.derivatives``."""
+MODES = ("auto", "forward", "reverse")
 
-    rewatch = False
 
-    def __init__(self, problem, t_eval, names):
-        self.problem, self.t_eval, self.names = problem, t_eval, names
+def check_mode(mode) -> str:
+    """``derivatives_mode``: one of `MODES`, else an ``InputError`` naming it."""
+    if not isinstance(mode, str) or mode not in MODES:
+        raise InputError(f"DerivativeOptions.mode must be one of {', '.join(MODES)}, got {mode!r}")
+    return mode
 
-    @classmethod
-    def from_options(cls, session):
-        names = getattr(session, "derivatives", ())
-        if not names:
-            return None
-        return cls(session.problem, session.output.t_eval, names)
 
-    def finish(self, solution, outcome) -> None:
-        problem = self.problem
-        t, z = solution.t, np.hstack([solution.q, solution.p])
-        kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
-        solution.derivatives = march_derivatives(
-            problem.system, problem.scheme, problem.theta, t, z, kept, self.names)
+def choose_mode(mode: str, names, system, outputs: int) -> str:
+    """``auto``: reverse where the outputs (``2n`` per output time reached) are fewer than the
+    inputs (the columns of ``names``), else forward (a sweep per output entry against one
+    carried column per input, on the same Jacobians)."""
+    if mode != "auto":
+        return mode
+    widths = {"q0": system.n, "p0": system.n, "params": len(system.params)}
+    inputs = sum(widths[name] for name in names)
+    return "reverse" if 2 * system.n * outputs < inputs else "forward"
 
 
 def march_derivatives(system, scheme, theta, t, z, t_eval, names=DERIVATIVES, *,
@@ -172,10 +193,13 @@ def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
     """``function`` on ``count`` evaluations, the inputs given as rows ``(count, size)``, each
     output as ``(count, rows, cols)``: one mapped call through numpy buffers (``compiler.py``'s
     `FunctionBuffer`: no DM conversions, which cost more than the Jacobians) of a power-of-two
-    width up to ``CHUNK``, the last evaluation repeated to fill it."""
+    width up to ``CHUNK``, the last evaluation repeated to fill it. The map is compiled once its
+    calls have cost `RentedBuffer`'s share of CPU (the same arithmetic; the step Jacobians of a
+    64-parameter potential took 57 us a step in CasADi's virtual machine, twice the march's
+    own step)."""
     width = min(CHUNK, 1 << max(count - 1, 0).bit_length())
     buffer = cached(function, ("derivatives_map", width),
-                    lambda: FunctionBuffer(function.map(width)))
+                    lambda: RentedBuffer(function.map(width), "auto", prefix="derivatives"))
     filled = [np.concatenate([value, np.repeat(value[-1:], width - count, 0)])
               for value in (np.asarray(row, float).reshape(count, -1) for row in rows)]
     outputs = buffer(*filled)
@@ -184,33 +208,35 @@ def _mapped(function: ca.Function, count: int, *rows) -> list[np.ndarray]:
             for value, (rows_, cols) in zip(outputs, shapes, strict=True)]
 
 
-def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray):
+def _fixed_gains(system, scheme, theta, t, z, steps: np.ndarray, in_theta: bool = True):
     """For the fixed-length steps ``k`` of ``steps``: ``(dz_{k+1}/dz_k, dz_{k+1}/dtheta)``
-    with the node times held, ``(K, 2n, 2n)`` and ``(K, 2n, m)``."""
+    with the node times held, ``(K, 2n, 2n)`` and ``(K, 2n, m)`` (``(K, 2n, 0)`` unless
+    ``in_theta``: the solve is then on the state's columns alone)."""
     n2 = z.shape[1]
     w = np.hstack([t[steps, None], t[steps + 1, None], z[steps],
                    np.repeat(theta[None, :], steps.size, 0)])
     J_x, J_w = _mapped(step_jacobian_function(system, scheme, "fixed"), steps.size, z[steps + 1], w)
-    gains = -np.linalg.solve(J_x, J_w[:, :, 2:])
+    gains = -np.linalg.solve(J_x, J_w[:, :, 2:] if in_theta else J_w[:, :, 2:2 + n2])
     return gains[:, :, :n2], gains[:, :, n2:]
 
 
-def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray):
+def _energy_gains(system, scheme, theta, t, z, steps: np.ndarray, in_theta: bool = True):
     """For the energy steps ``k`` of ``steps`` (``k >= 1``): ``-F_x^-1 F_w``, ``(K, 2n + 1,
-    2 + 4n + m)``, columns ``[t_{k-1}, t_k, z_{k-1}, z_k, theta]`` (the drift's dropped)."""
+    2 + 4n + m)``, columns ``[t_{k-1}, t_k, z_{k-1}, z_k, theta]`` (the drift's dropped; the
+    theta columns too unless ``in_theta``)."""
     tau = t[steps + 1] - t[steps]
     x = np.hstack([z[steps + 1], tau[:, None]])
     w = np.hstack([t[steps - 1, None], t[steps, None], z[steps - 1], z[steps],
                    np.repeat(theta[None, :], steps.size, 0), np.zeros((steps.size, 1))])
     J_x, J_w = _mapped(step_jacobian_function(system, scheme, "energy"), steps.size, x, w)
-    return -np.linalg.solve(J_x, J_w[:, :, :-1])
+    return -np.linalg.solve(J_x, J_w[:, :, :-1] if in_theta else J_w[:, :, :2 + 2 * z.shape[1]])
 
 
 def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps):
     """``S_k = (dz_k, dt_k)`` (2n + 1, d) at the nodes ``needed`` (sorted), by the recursion
     over every step (module docstring, 2-3), ``CHUNK`` steps' Jacobians at a time. The carried
-    state is ``Y_k = [S_{k-1}; S_k]``, and each step an affine map ``Y_{k+1} = M_k Y_k + C_k``
-    (`_affine_maps`), applied a block at a time (`_scan`)."""
+    state is ``Y_k = [dz_k - dz_{k-1}; dtau_{k-1}; S_k]``, and each step an affine map
+    ``Y_{k+1} = M_k Y_k + C_k`` (`affine_maps`), applied a block at a time (`_scan`)."""
     n2, d = seed_z.shape
     energy = scheme.variable_steps and not frozen_steps
     state = np.vstack([np.zeros((n2 + 1, d)), seed_z, np.zeros((1, d))])
@@ -218,36 +244,54 @@ def _carry(system, scheme, theta, t, z, seed_z, seed_theta, needed, frozen_steps
     last = int(needed[-1])
     for start in range(0, last, CHUNK):
         steps = np.arange(start, min(start + CHUNK, last))
-        maps = _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy)
+        maps = affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy)
         state = _scan(maps, state, start, needed, kept)
     return kept
 
 
-def _affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
-    """``(M, C)``, ``(K, 2r, 2r)`` and ``(K, 2r, d)`` (``r = 2n + 1``), of the steps ``steps``:
-    a fixed-length step ``dz_{k+1} = G_z dz_k + G_theta dtheta`` (``dt`` held), an energy step
-    ``d(z_{k+1}, tau_k) = G [dt_{k-1}; dt_k; dz_{k-1}; dz_k] + G_theta dtheta`` and
-    ``dt_{k+1} = dt_k + dtau_k``."""
+def affine_maps(system, scheme, theta, t, z, steps, seed_theta, energy: bool):
+    """``(M, C)``, ``(K, 2r, 2r)`` and ``(K, 2r, d)`` (``r = 2n + 1``), of the steps ``steps``
+    on the carried ``Y_k = [dz_k - dz_{k-1}; dtau_{k-1}; dz_k; dt_k]``: a fixed-length step
+    ``dz_{k+1} = G_z dz_k + G_theta dtheta`` (``dt`` held, ``dtau_k = 0``), an energy step
+    ``d(z_{k+1}, tau_k) = G [dt_{k-1}; dt_k; dz_{k-1}; dz_k] + G_theta dtheta`` and ``dt_{k+1} =
+    dt_k + dtau_k``.
+
+    Why differences and not ``[S_{k-1}; S_k]``: an energy step reads the previous interval
+    through ``(z_k - z_{k-1}) / tau_{k-1}`` and ``t_k - t_{k-1}``, so its gains in ``z_{k-1}``
+    and ``z_k`` (and in ``t_{k-1}``, ``t_k``) are large and nearly opposite. Applied one step at
+    a time that costs a few digits; composed over a block of steps (`_scan`) the products'
+    cancellations lost up to 1.5e-5 of the derivative on a 11000-step Kepler march. On the
+    differences ``dz_k - dz_{k-1}``, ``dtau_{k-1}`` the gains are those of the differences and
+    ``G_{z_{k-1}} + G_{z_k}`` (``G_{t_{k-1}} + G_{t_k}``), each formed once per step."""
     n2, d = z.shape[1], seed_theta.shape[1]
     r = n2 + 1
     M, C = np.zeros((steps.size, 2 * r, 2 * r)), np.zeros((steps.size, 2 * r, d))
-    M[:, :r, r:] = np.eye(r)  # S_{k-1} <- S_k
     M[:, 2 * r - 1, 2 * r - 1] = 1.0  # dt_{k+1} = dt_k (+ dtau_k)
     fixed = np.ones(steps.size, bool) if not energy else steps == 0
+    moves = bool(np.any(seed_theta))  # else the parameters' columns are left out of the solves
     if fixed.any():
-        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, steps[fixed])
+        in_z, in_theta = _fixed_gains(system, scheme, theta, t, z, steps[fixed], moves)
+        square = np.ix_(fixed, range(n2), range(r, r + n2))
+        M[square] = in_z - np.eye(n2)
         M[np.ix_(fixed, range(r, r + n2), range(r, r + n2))] = in_z
-        C[fixed, r:r + n2] = in_theta @ seed_theta
+        if moves:
+            C[fixed, :n2] = C[fixed, r:r + n2] = in_theta @ seed_theta
     if not fixed.all():
         moving = ~fixed
-        gains = _energy_gains(system, scheme, theta, t, z, steps[moving])
-        # gains' columns [t_{k-1}, t_k, z_{k-1}, z_k, theta] onto Y's [z_{k-1}, t_{k-1}, z_k, t_k]
-        columns = [n2, 2 * r - 1, *range(n2), *range(r, r + n2)]
+        gains = _energy_gains(system, scheme, theta, t, z, steps[moving], moves)
+        # gains' columns [t_{k-1}, t_k, z_{k-1}, z_k] onto Y's [dz_k - dz_{k-1}, dtau_{k-1},
+        # dz_k, dt_k]: dz_{k-1} = dz_k - (dz_k - dz_{k-1}), dt_{k-1} = dt_k - dtau_{k-1}
+        G_tp, G_t = gains[:, :, 0], gains[:, :, 1]
+        G_zp, G_z = gains[:, :, 2:2 + n2], gains[:, :, 2 + n2:2 + 2 * n2]
         block = np.zeros((gains.shape[0], r, 2 * r))
-        block[:, :, columns] = gains[:, :, :2 + 2 * n2]
-        block[:, n2, 2 * r - 1] += 1.0
-        M[moving, r:] = block
-        C[moving, r:] = gains[:, :, 2 + 2 * n2:] @ seed_theta
+        block[:, :, :n2], block[:, :, n2] = -G_zp, -G_tp
+        block[:, :, r:r + n2], block[:, :, 2 * r - 1] = G_zp + G_z, G_tp + G_t
+        offset = gains[:, :, 2 + 2 * n2:] @ seed_theta if moves else 0.0
+        first, second = block.copy(), block
+        first[:, :n2, r:r + n2] -= np.eye(n2)
+        second[:, n2, 2 * r - 1] += 1.0
+        M[moving, :r], M[moving, r:] = first, second
+        C[moving, :r], C[moving, r:] = offset, offset
     return M, C
 
 
@@ -300,27 +344,42 @@ def _field_jacobian_function(system) -> ca.Function:
     return cached(system, "field_jacobians", build)
 
 
-def _dense(system, theta, t, z, t_eval, interval, carried, seed_theta) -> np.ndarray:
-    """``d z(T)`` (M, 2n, d) through the Hermite interpolant (module docstring, 4)."""
-    n2 = z.shape[1]
+def readout(system, theta, t, z, t_eval, interval):
+    """The dense output's linear map (module docstring, 4): ``dz(T_i) = P_a[i] S_a + P_b[i] S_b
+    + R[i] dtheta`` with ``S_a``, ``S_b`` the carried derivatives at the nodes ``k_i``,
+    ``k_i + 1`` of ``T_i``'s interval: ``P_a``, ``P_b`` ``(M, 2n, 2n + 1)``, ``R`` ``(M, 2n,
+    m)``. Forward mode applies it, reverse mode its transpose (``adjoint.py``)."""
+    n2, r = z.shape[1], z.shape[1] + 1
     nodes = np.unique(np.concatenate([interval, interval + 1]))
     f, f_z, f_t, f_theta = _mapped(_field_jacobian_function(system), nodes.size, z[nodes],
                                    t[nodes], np.repeat(theta[None, :], nodes.size, 0))
-    at = {int(k): i for i, k in enumerate(nodes)}
-    rows = []
-    for T, k in zip(t_eval, interval, strict=True):
-        a, b = at[int(k)], at[int(k) + 1]
-        S_a, S_b = carried[int(k)], carried[int(k) + 1]
-        tau = t[k + 1] - t[k]
-        s = (T - t[k]) / tau
-        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, 3 * s**2 - 2 * s**3, \
-            s**3 - s**2
-        slope = ((6 * s**2 - 6 * s) * z[k] + (3 * s**2 - 4 * s + 1) * tau * f[a, :, 0]
-                 + (6 * s - 6 * s**2) * z[k + 1] + (3 * s**2 - 2 * s) * tau * f[b, :, 0]) / tau
-        d_tau = S_b[n2:] - S_a[n2:]
-        df_a = f_z[a] @ S_a[:n2] + f_t[a] @ S_a[n2:] + f_theta[a] @ seed_theta
-        df_b = f_z[b] @ S_b[:n2] + f_t[b] @ S_b[n2:] + f_theta[b] @ seed_theta
-        rows.append(h00 * S_a[:n2] + h01 * S_b[:n2]
-                    + h10 * (f[a] @ d_tau + tau * df_a) + h11 * (f[b] @ d_tau + tau * df_b)
-                    - slope[:, None] * (S_a[n2:] + s * d_tau))
-    return np.stack(rows) if rows else np.zeros((0, n2, seed_theta.shape[1]))
+    at = np.searchsorted(nodes, interval)
+    a, b = at, at + 1
+    k = interval
+    tau = t[k + 1] - t[k]
+    s = (t_eval - t[k]) / tau
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, 3 * s**2 - 2 * s**3, \
+        s**3 - s**2
+    f_a, f_b = f[a, :, 0], f[b, :, 0]
+    slope = (((6 * s**2 - 6 * s)[:, None] * z[k] + ((3 * s**2 - 4 * s + 1) * tau)[:, None] * f_a
+              + (6 * s - 6 * s**2)[:, None] * z[k + 1]
+              + ((3 * s**2 - 2 * s) * tau)[:, None] * f_b) / tau[:, None])
+    count, eye = t_eval.size, np.eye(n2)
+    P_a, P_b = np.zeros((count, n2, r)), np.zeros((count, n2, r))
+    w10, w11 = (h10 * tau)[:, None, None], (h11 * tau)[:, None, None]
+    P_a[:, :, :n2] = h00[:, None, None] * eye + w10 * f_z[a]
+    P_b[:, :, :n2] = h01[:, None, None] * eye + w11 * f_z[b]
+    P_a[:, :, n2] = (-(h10[:, None] * f_a + h11[:, None] * f_b) + w10[:, :, 0] * f_t[a, :, 0]
+                     - (1 - s)[:, None] * slope)
+    P_b[:, :, n2] = (h10[:, None] * f_a + h11[:, None] * f_b + w11[:, :, 0] * f_t[b, :, 0]
+                     - s[:, None] * slope)
+    R = w10 * f_theta[a] + w11 * f_theta[b]
+    return P_a, P_b, R
+
+
+def _dense(system, theta, t, z, t_eval, interval, carried, seed_theta) -> np.ndarray:
+    """``d z(T)`` (M, 2n, d) through the Hermite interpolant (module docstring, 4)."""
+    P_a, P_b, R = readout(system, theta, t, z, t_eval, interval)
+    S_a = np.stack([carried[int(k)] for k in interval])
+    S_b = np.stack([carried[int(k) + 1] for k in interval])
+    return P_a @ S_a + P_b @ S_b + R @ seed_theta

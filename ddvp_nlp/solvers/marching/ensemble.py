@@ -38,17 +38,19 @@ import numpy as np
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution
-from ...validation import check_integer, check_memory, check_span
+from ...validation import check_integer, check_memory, check_span, check_times
 from ..compiler import build_count, find_compiler
 from ..dense import attach
 from ..options import (
     DEFAULT_TOLERANCE,
     Compilation,
+    Output,
     StepControl,
     Tolerance,
     answers_removed_keywords,
     coerce,
 )
+from .derivatives import DerivativeOptions, derivative_request
 from .initial_value import check_problem, march
 
 # Blocks per worker: orbits differ in length (a failing orbit is short), so each worker takes
@@ -105,7 +107,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
                    steps: StepControl | None = None,
                    accuracy: Tolerance | None = DEFAULT_TOLERANCE,
                    compilation: Compilation | None = None, workers: int = 2,
-                   collect: Collect | None = None):
+                   collect: Collect | None = None, t_eval=None, derivatives=None):
     """March each ``(q0s[i], p0s[i])`` (arrays of shape ``(M, n)``) as `march` would;
     the arguments after them are `march`'s (with ``compilation.fast``, the default, the
     workers share the compiled chunk built here).
@@ -118,7 +120,12 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     ``collect``: a `Collect` whose ``output`` (per orbit) and ``reduction`` run on the
     workers; the ensemble then returns only what they give (100 Henon-Heiles orbits to t = 5000
     returned 725 MB of pickled solutions; their Poincare crossings 3.1 MB, measured by
-    ``scripts/benchmarks/bench_ensemble_bytes.py``)."""
+    ``scripts/benchmarks/bench_ensemble_bytes.py``).
+
+    ``t_eval``, ``derivatives`` (names or `DerivativeOptions`): each orbit's states at ``t_eval``
+    (``Solution.z_eval``) and their derivatives, as `march` gives them with
+    ``output=Output(t_eval=t_eval)`` and the same ``derivatives`` (``derivatives.py``)."""
+    names, mode = derivative_request(derivatives)
     scheme = Scheme.coerce(scheme)
     q0s, p0s = np.atleast_2d(_numbers("q0s", q0s)), np.atleast_2d(_numbers("p0s", p0s))
     if q0s.ndim == 2 and q0s.shape == p0s.shape and (q0s.shape[0] == 0 or q0s.size == 0):
@@ -135,6 +142,7 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     compilation = coerce(compilation, Compilation, "compilation")
     collect = coerce(collect, Collect, "collect")
     t0, t_end = check_span(t_span)
+    output = _output(t_eval, names, (t0, t_end))
     theta = _check_all(system, scheme, q0s, p0s, (t0, t_end), tau0, steps, params)
     compilation = replace(compilation, compiler=find_compiler(compilation.compiler))
     options = dict(tau0=tau0, scheme=scheme, params=params, steps=steps, accuracy=accuracy,
@@ -143,6 +151,9 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
         warnings.simplefilter("ignore")
         # build (or load from the on-disk cache) what every march shares, here, once
         march(system, q0s[0], p0s[0], (t0, t0 + min(3 * tau0, t_end - t0)), **options)
+    if output is not None:
+        options.update(output=output, derivatives=DerivativeOptions(names, mode) if names
+                       else None)
     job = _Job(system, q0s, p0s, (t0, t_end), options, collect)
     blocks = _blocks(q0s.shape[0], workers)
     if workers == 1 or len(blocks) == 1 or not _can_fork():
@@ -163,6 +174,18 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
             if isinstance(value, Solution):
                 attach(value, system, theta, t_end)
     return collect.merge(parts)
+
+
+def _output(t_eval, names, t_span) -> Output | None:
+    """The orbits' `Output` for ``t_eval`` (``None`` without), checked before anything runs;
+    ``derivatives`` need ``t_eval``, refused by name otherwise."""
+    if t_eval is None:
+        if names:
+            raise InputError("derivatives are of the states at fixed times: give t_eval")
+        return None
+    if t_span[1] < t_span[0] and names:
+        raise InputError("derivatives are not supported with a backward t_span (t_end < t0)")
+    return Output(t_eval=check_times(t_eval, t_span))
 
 
 def _numbers(name: str, value) -> np.ndarray:

@@ -48,7 +48,7 @@ from ..options import (
     coerce,
 )
 from .backward import is_backward, march_backward
-from .derivatives import check_derivatives, refuse_unsupported
+from .derivatives import check_derivatives, derivative_request, refuse_unsupported
 from .march_problem import check_problem
 from .resume import MarchState, check_resume
 from .session import MarchSession
@@ -117,6 +117,12 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             solution read through its dense output, every step length's dependence included
             (``derivatives.py``; docs/gradients.md). Needs ``t_eval``; not yet with ``v0``, a
             backward span, ``target_error``, thinned output or least-squares breakdown steps.
+            ``Solution.derivatives.check`` holds their own check (a directional finite
+            difference, one pair of marches more, and whether the energy row is close to
+            losing its root; ``derivative_check.py``).
+            ``DerivativeOptions(inputs, mode)`` chooses forward or reverse mode (``"auto"``,
+            the default: reverse where the ``2n len(t_eval)`` outputs are fewer than the
+            inputs; the same values either way).
 
     A step is accepted only if Newton converged, every value is finite, ``tau_k > 0``, its own
     unscaled residuals are below ``steps.tol`` and the step bounds hold (``acceptance.py``).
@@ -132,7 +138,7 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
     Returns:
         A `Solution`; failures are a status on it, never an exception.
     """
-    names = check_derivatives(derivatives)  # before anything, also a backward march's
+    names, mode = derivative_request(derivatives)  # before anything, also a backward march's
     if getattr(system, "n_constraints", 0):  # constrained_march.py: its own march, for now
         from .constrained_march import march_constrained
 
@@ -171,7 +177,9 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
         return march_to_error(run, system, np.concatenate([problem.q0, problem.p0]),
                               problem.t0, problem.t_end, problem.tau0, problem.theta, target,
                               accuracy)
-    return MarchSession(problem, accuracy, compilation, output, derivatives=names).run()
+    session = MarchSession(problem, accuracy, compilation, output, derivatives=names)
+    session.derivatives_mode, session.march = mode, march  # for Sensitivity's check
+    return session.run()
 
 
 @answers_removed_keywords

@@ -34,7 +34,7 @@ and what it adds to the solution:
   it found on the `Solution`, after the recheck and the verdict.
 
 A new feature is one monitor, and this module is not edited for it. The forward derivatives
-(issue 47, ``march(..., derivatives=...)``) are one: `Sensitivity` (``derivatives.py``) is made
+(issue 47, ``march(..., derivatives=...)``) are one: `Sensitivity` (``derivative_check.py``) is made
 when the session's ``derivatives`` name inputs, watches nothing as the loop runs, and in its
 ``finish`` carries ``S_{k+1} = A_k S_k + B_k`` over the kept nodes (the step Jacobians that
 ``StepProblem``, ``step_newton.py``, is built from) into ``Solution.derivatives``. A monitor
@@ -58,7 +58,7 @@ from ..dense import DenseField, attach, evaluate_at
 from ..driver import Nodes, drive
 from ..options import Compilation, Output, Tolerance
 from .chunk import FastChunk
-from .derivatives import Sensitivity
+from .derivative_check import Sensitivity
 from .march_problem import MarchProblem
 from .monitors import (
     Checkpoint,

@@ -1,0 +1,231 @@
+"""A march's derivative carries its own check (issue 47): one directional finite difference of
+the discrete map, and the solvability monitor's word on the energy row.
+
+The check: a random direction ``v`` in the inputs differentiated (``q0``, ``p0``, the
+parameters), each component scaled by its input's own size in the problem (a position by the
+largest ``|q_i|`` the march reached, a momentum by the largest ``|p_i|``, a parameter by its
+value, a zero one by the largest parameter's; an input with no size is left out of ``v`` and
+the record says so); the march run again from ``x + h v`` and ``x - h v`` (``h = STEP``, no
+accuracy check, the same scheme, first step, step control and compilation), and the central
+difference ``(z(x + h v) - z(x - h v)) / 2h`` at ``t_eval`` compared with the derivative along
+``v``. Cost: one pair of marches.
+
+The verdict's tolerance, relative to the largest entry of the difference quotient: the
+quotient's own error, which is not the derivative's. Truncation ``h^2 |z'''| / 6``: measured up
+to 5e-5 of the derivative at ``h = 1e-6`` (Kepler, ``e = 0.9``, through the pericentre), so
+``TRUNCATION = 1e-4``; round-off: each march's nodes solve their equations to Newton's
+tolerance (1e-14 of the state's size), ``N`` independent errors add like ``sqrt(N)``, and the
+quotient divides by ``2h``: ``1e-14 sqrt(N) / h``. A derivative wrong by more than both (the
+frozen-step derivative is off by 1e-3 at ``tau0 = 0.25`` on the pendulum) ``disagrees``;
+smaller errors pass this check (the test suite's fourth-order differences hold them to 1e-6).
+
+Ill-conditioned: where the energy row is close to losing its root. The solvability monitor
+(``monitors.py``) watches ``w = -8 c(z_k)`` at every node and warns where it changes sign or
+``|ln(w_k / w_{k-1})|`` passes ``MONITOR_LIMIT`` (0.5; 0.6-0.9 measured in the steps before a
+breakdown, 0.36 at most on a Kepler march at ``e = 0.7`` that runs). The derivative is flagged
+where the march warned, or where the largest jump on the nodes the outputs depend on passes
+``NEAR = 0.8`` of the limit: there ``dtau_k`` (the energy row's root's derivative) grows
+without bound as the root is lost.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..options import Output
+from .adjoint import reverse_derivatives
+from .derivatives import choose_mode, march_derivatives
+from .monitors import MONITOR_LIMIT, MarchMonitor
+
+__all__ = ["DerivativeCheck", "Derivatives", "Sensitivity", "check_record", "conditioning",
+           "directional_check", "input_scales", "random_direction", "remarch_function"]
+
+# The finite difference's relative step, and the quotient's truncation allowance (docstring).
+STEP = 1e-6
+TRUNCATION = 1e-4
+# Newton's relative tolerance on a node (step_newton.NEWTON_OPTIONS), for the round-off bound.
+NEWTON_RELATIVE = 1e-14
+# The fraction of the monitor's limit from which a derivative is flagged ill-conditioned.
+NEAR = 0.8
+
+
+@dataclass(frozen=True)
+class DerivativeCheck:
+    """The check of a derivative (module docstring).
+
+    Attributes:
+        verdict: ``"agrees"``, ``"disagrees"`` or ``"not checked"`` (``reason`` says why).
+        error: ``max |D v - Q| / max |Q|``, ``D v`` the derivative along ``v``, ``Q`` the
+            central difference quotient (``nan`` if not checked).
+        tolerance: the quotient's own error bound the verdict uses.
+        step: the relative step ``h``; ``direction``: ``v`` by input name.
+        ill_conditioned: the energy row is close to losing its root (module docstring);
+            ``solvability_jump`` the largest ``|ln(w_k / w_{k-1})|`` on the nodes used
+            (``nan`` for the fixed rule, ``inf`` for a change of sign).
+        reason: why not checked, or what was left out of the direction; else ``""``.
+    """
+
+    verdict: str
+    error: float
+    tolerance: float
+    step: float
+    direction: dict = field(repr=False)
+    ill_conditioned: bool
+    solvability_jump: float
+    reason: str = ""
+
+
+class Derivatives(dict):
+    """``d(q, p)(t_eval) / d(input)`` by input name (``"q0"``, ``"p0"``, ``"params"``), as
+    ``Solution.derivatives`` holds them; ``mode``: ``"forward"`` or ``"reverse"`` (how they
+    were computed); ``check``: their `DerivativeCheck`."""
+
+    def __init__(self, values, *, mode: str, check: DerivativeCheck | None = None):
+        super().__init__(values)
+        self.mode, self.check = mode, check
+
+
+def conditioning(solvability, last_node: int, warning) -> tuple[bool, float]:
+    """``(ill_conditioned, largest |ln(w_k / w_{k-1})|)`` over the nodes ``0..last_node``
+    (``warning``: the monitor's, counted where its step is one of them)."""
+    c = np.asarray(solvability, float)[:last_node + 1]
+    warned = warning is not None and int(warning.get("step", 0)) <= last_node
+    if c.size < 2:
+        return warned, math.nan
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = c[1:] / c[:-1]
+        jump = float(np.max(np.where(ratio > 0, np.abs(np.log(np.where(ratio > 0, ratio, 1))),
+                                     np.inf)))
+    return warned or not jump <= NEAR * MONITOR_LIMIT, jump
+
+
+def random_direction(inputs: dict, scales: dict, seed: int = 0) -> tuple[dict, str]:
+    """A random ``v`` by input name, each component drawn from ``N(0, 1 / d)`` times its scale;
+    components without a scale (zero) are left out, named in the returned note."""
+    rng = np.random.default_rng(seed)
+    d = sum(np.size(value) for value in inputs.values())
+    direction, left = {}, []
+    for name, value in inputs.items():
+        scale = np.asarray(scales[name], float)
+        direction[name] = rng.normal(size=np.shape(value)) / math.sqrt(d) * scale
+        left += [f"{name}[{j}]" for j in np.flatnonzero(scale == 0)]
+    note = f"left out of the direction (no size): {', '.join(left)}" if left else ""
+    return direction, note
+
+
+def input_scales(q, p, theta) -> dict:
+    """Each input's size in the problem (module docstring)."""
+    theta = np.abs(np.asarray(theta, float))
+    largest = float(theta.max()) if theta.size else 0.0
+    return {"q0": np.max(np.abs(q), axis=0), "p0": np.max(np.abs(p), axis=0),
+            "params": np.where(theta > 0, theta, largest)}
+
+
+def directional_check(remarch, inputs: dict, direction: dict, predicted: np.ndarray,
+                      nodes: int, *, reduce=None) -> tuple[str, float, float, str]:
+    """``(verdict, error, tolerance, reason)``: ``remarch(inputs) -> z_eval or None`` at ``x
+    +- STEP v``; ``reduce`` maps ``z_eval`` to what ``predicted`` is (a cotangent's scalar)."""
+    values = []
+    for sign in (1.0, -1.0):
+        moved = {name: np.asarray(inputs[name], float) + sign * STEP * direction[name]
+                 for name in inputs}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            found = remarch(moved)
+        if found is None:
+            return "not checked", math.nan, math.nan, \
+                "a perturbed march did not reach the output times"
+        values.append(found if reduce is None else reduce(found))
+    quotient = (values[0] - values[1]) / (2 * STEP)
+    size = float(np.max(np.abs(quotient)))
+    tolerance = TRUNCATION + NEWTON_RELATIVE * math.sqrt(max(nodes, 1)) / STEP
+    if size == 0.0:
+        return "not checked", math.nan, tolerance, "the difference quotient is zero"
+    error = float(np.max(np.abs(np.asarray(predicted) - quotient))) / size
+    return ("agrees" if error <= tolerance else "disagrees"), error, tolerance, ""
+
+
+def remarch_function(march, system, scheme, t_span, tau0: float, steps, compilation, t_eval):
+    """``inputs -> z_eval`` (``(M, 2n)``, ``None`` where the march does not reach the ``M``
+    output times) of the march from ``inputs["q0"]``, ``["p0"]`` at ``["params"]``, without
+    the accuracy check (``march``: the function `march`, given by its caller: this module is
+    below it)."""
+
+    def run(inputs):
+        theta = inputs["params"]
+        solution = march(system, inputs["q0"], inputs["p0"], t_span, tau0=tau0, scheme=scheme,
+                         params=dict(zip(system.params, theta, strict=True)), steps=steps,
+                         accuracy=None, compilation=compilation, output=Output(t_eval=t_eval))
+        z = solution.z_eval
+        return z if z is not None and z.shape[0] == np.size(t_eval) else None
+    return run
+
+
+def check_record(remarch, base: dict, names, predicted_along, q, p, theta, nodes: int,
+                 conditioned: tuple[bool, float], *, reduce=None) -> DerivativeCheck:
+    """The `DerivativeCheck` of a derivative in the inputs ``names`` at ``base`` (all three
+    inputs): ``predicted_along(direction) -> D v``."""
+    scales = input_scales(q, p, theta)
+    direction, note = random_direction({name: base[name] for name in names}, scales)
+    full = {name: direction.get(name, np.zeros_like(base[name])) for name in base}
+    verdict, error, tolerance, reason = directional_check(
+        remarch, base, full, predicted_along(direction), nodes, reduce=reduce)
+    return DerivativeCheck(verdict, error, tolerance, STEP, direction, conditioned[0],
+                           conditioned[1], "; ".join(part for part in (reason, note) if part))
+
+
+class Sensitivity(MarchMonitor):
+    """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
+    differentiates the kept nodes at the end (`march_derivatives` forward, or
+    ``adjoint.reverse_derivatives``; `choose_mode`) into ``Solution.derivatives``, a
+    `Derivatives` with its `DerivativeCheck`."""
+
+    rewatch = False
+
+    def __init__(self, problem, t_eval, names, mode="auto", compilation=None, march=None):
+        self.problem, self.t_eval, self.names = problem, t_eval, names
+        self.mode, self.compilation, self.march = mode, compilation, march
+
+    @classmethod
+    def from_options(cls, session):
+        names = getattr(session, "derivatives", ())
+        if not names:
+            return None
+        return cls(session.problem, session.output.t_eval, names,
+                   getattr(session, "derivatives_mode", "auto"), session.compilation,
+                   getattr(session, "march", None))
+
+    def finish(self, solution, outcome) -> None:
+        problem = self.problem
+        t, z = solution.t, np.hstack([solution.q, solution.p])
+        kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
+        mode = choose_mode(self.mode, self.names, problem.system, kept.size)
+        differentiate = march_derivatives if mode == "forward" else reverse_derivatives
+        values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept,
+                               self.names)
+        solution.derivatives = Derivatives(values, mode=mode,
+                                           check=self._check(solution, values, kept))
+
+    def _check(self, solution, values, kept):
+        """The derivative's `DerivativeCheck`: one pair of marches (module docstring)."""
+        problem, t = self.problem, solution.t
+        interval = np.clip(np.searchsorted(t, kept, side="right") - 1, 0, max(t.size - 2, 0))
+        last = int(interval.max()) + 1 if kept.size and t.size > 1 else 0
+        conditioned = conditioning(solution.solvability, last,
+                                   solution.march.solvability_warning)
+        base = {"q0": problem.q0, "p0": problem.p0, "params": problem.theta}
+        if kept.size == 0 or self.march is None:
+            return DerivativeCheck("not checked", np.nan, np.nan, 0.0, {}, *conditioned,
+                                   "no output time was reached" if kept.size == 0 else
+                                   "no march to run again (a session without march)")
+        remarch = remarch_function(self.march, problem.system, problem.scheme,
+                                   (problem.t0, problem.t_end), problem.tau0, problem.steps,
+                                   self.compilation, kept)
+        return check_record(
+            remarch, base, self.names,
+            lambda v: sum(values[name] @ v[name] for name in self.names),
+            solution.q[:last + 1], solution.p[:last + 1], problem.theta, last + 1, conditioned)
