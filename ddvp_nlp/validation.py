@@ -334,7 +334,8 @@ def check_parameter_ranges(ranges, params, *, owner: str) -> dict:
         parse_range(name, text)
     return dict(ranges)
 
-__all__ = ["available_memory", "check_cache_folder", "check_count", "check_degrees", "check_times",
+__all__ = ["available_memory", "check_cache_folder", "check_count", "check_degrees",
+           "check_names", "check_times",
            "check_file_size", "check_finite_array", "check_in_interval",
            "check_in_range", "check_integer", "check_memory", "check_parameter_ranges",
            "check_parameter_values", "check_real", "check_span", "check_state",
@@ -357,3 +358,22 @@ def check_angles(angles, n: int, *, name: str = "angles") -> tuple[int, ...]:
             raise InputError(f"{name} must name coordinates q1..q{n}, got {angles!r}")
         indices.append(int(match.group(1)) - 1)
     return tuple(sorted(set(indices)))
+
+
+def check_names(value, allowed: tuple, what: str = "derivatives") -> tuple[str, ...]:
+    """``value`` (``None``, a name, or a sequence of names from ``allowed``) as a tuple of
+    distinct names in ``allowed``'s order; an ``InputError`` says ``what`` was read, names a
+    wrong entry and lists the allowed ones."""
+    if value is None:
+        return ()
+    names = (value,) if isinstance(value, str) else value
+    try:
+        names = tuple(names)
+    except TypeError:
+        raise InputError(f"{what} must be a sequence of names from {', '.join(allowed)}, got "
+                         f"{value!r}") from None
+    for name in names:
+        if not isinstance(name, str) or name not in allowed:
+            raise InputError(f"{what}: unknown name {name!r} in {value!r} (choose from "
+                             f"{', '.join(allowed)})")
+    return tuple(name for name in allowed if name in names)

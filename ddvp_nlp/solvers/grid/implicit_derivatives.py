@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from ...errors import InputError
+from ... import validation
 from .linear import Factorization
 from .newton import FullSteps, newton
 from .problem import GridProblem
@@ -71,22 +71,8 @@ class Refused(dict):
 
 
 def check_names(derivatives, allowed: tuple, what: str) -> tuple[str, ...]:
-    """``derivatives`` (``None``, a name, or a sequence of names from ``allowed``) as a tuple
-    of distinct names in ``allowed``'s order; an ``InputError`` names a wrong one and lists the
-    allowed ones (``what``: the function, for the message)."""
-    if derivatives is None:
-        return ()
-    names = (derivatives,) if isinstance(derivatives, str) else derivatives
-    try:
-        names = tuple(names)
-    except TypeError:
-        raise InputError(f"derivatives of {what} must be a sequence of names from "
-                         f"{', '.join(allowed)}, got {derivatives!r}") from None
-    for name in names:
-        if not isinstance(name, str) or name not in allowed:
-            raise InputError(f"derivatives of {what}: unknown name {name!r} in "
-                             f"{derivatives!r} (choose from {', '.join(allowed)})")
-    return tuple(name for name in allowed if name in names)
+    """``derivatives`` of the function ``what`` read by `validation.check_names`."""
+    return validation.check_names(derivatives, allowed, f"derivatives of {what}")
 
 
 class Linearisation:

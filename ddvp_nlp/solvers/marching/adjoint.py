@@ -37,7 +37,7 @@ import numpy as np
 
 from ...discrete.scheme import Scheme
 from ...errors import InputError
-from .derivatives import BLOCK, CHUNK, affine_maps, readout
+from .derivatives import BLOCK, CHUNK, affine_maps, in_blocks, readout
 
 __all__ = ["check_cotangent", "check_solution", "reverse_derivatives", "reverse_sweep"]
 
@@ -147,15 +147,8 @@ def _scan_back(M, N, adjoint, g_theta, start: int, inject: dict):
     """The adjoint from the chunk's last node back to its first (node ``start``), ``g_theta``
     with the chunk's share: blocks of ``BLOCK`` steps composed (all at once), then crossed
     from the last, step by step where a cotangent enters at an interior node."""
-    K, width = M.shape[0], M.shape[1]
-    r = width // 2
-    count = -(-K // BLOCK)
-    pad = count * BLOCK - K
-    if pad:
-        M = np.concatenate([M, np.repeat(np.eye(width)[None], pad, 0)])
-        N = np.concatenate([N, np.zeros((pad, *N.shape[1:]))])
-    M = M.reshape(count, BLOCK, width, width)
-    N = N.reshape(count, BLOCK, *N.shape[1:])
+    K, r = M.shape[0], M.shape[1] // 2
+    M, N, count = in_blocks(M, N)
     inside = {node - start for node in inject if start < node < start + K}
     plain = [b for b in range(count)
              if not any(b * BLOCK < j < (b + 1) * BLOCK for j in inside)]

@@ -44,6 +44,7 @@ from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import vector_field_function
+from ...validation import check_names
 from ..compiler import RentedBuffer
 from .step_newton import step_jacobian_function
 
@@ -82,20 +83,8 @@ def derivative_request(derivatives) -> tuple[tuple[str, ...], str]:
 
 def check_derivatives(derivatives) -> tuple[str, ...]:
     """``derivatives`` (``None``, a name, or a sequence of names from `DERIVATIVES`) as a tuple
-    of distinct names in `DERIVATIVES`' order; an ``InputError`` names a wrong one."""
-    if derivatives is None:
-        return ()
-    names = (derivatives,) if isinstance(derivatives, str) else derivatives
-    try:
-        names = tuple(names)
-    except TypeError:
-        raise InputError(f"derivatives must be a sequence of names from {DERIVATIVES}, got "
-                         f"{derivatives!r}") from None
-    for name in names:
-        if not isinstance(name, str) or name not in DERIVATIVES:
-            raise InputError(f"derivatives: unknown name {name!r} in {derivatives!r} (choose "
-                             f"from {', '.join(DERIVATIVES)})")
-    return tuple(name for name in DERIVATIVES if name in names)
+    of distinct names in `DERIVATIVES`' order (`validation.check_names`)."""
+    return check_names(derivatives, DERIVATIVES)
 
 
 def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps) -> None:
@@ -303,16 +292,8 @@ def _scan(maps, state, start: int, needed, kept: dict) -> np.ndarray:
     """``Y`` after the steps of ``maps`` from ``state`` (the steps from ``start``), the
     ``S_{k+1}`` of the nodes ``needed`` put in ``kept``: each block's maps composed (all
     blocks at once), the blocks' starts in order, then the steps again, every block at once."""
-    M, C = maps
-    K, width = M.shape[0], M.shape[1]
-    r = width // 2
-    count = -(-K // BLOCK)
-    pad = count * BLOCK - K
-    if pad:
-        M = np.concatenate([M, np.repeat(np.eye(width)[None], pad, 0)])
-        C = np.concatenate([C, np.zeros((pad, *C.shape[1:]))])
-    M = M.reshape(count, BLOCK, width, width)
-    C = C.reshape(count, BLOCK, *C.shape[1:])
+    K, r = maps[0].shape[0], maps[0].shape[1] // 2
+    M, C, count = in_blocks(*maps)
     whole_M, whole_C = M[:, 0], C[:, 0]
     for j in range(1, BLOCK):
         whole_M, whole_C = M[:, j] @ whole_M, M[:, j] @ whole_C + C[:, j]
@@ -330,6 +311,21 @@ def _scan(maps, state, start: int, needed, kept: dict) -> np.ndarray:
                 if b * BLOCK + j in wanted:
                     kept[start + b * BLOCK + j + 1] = Y[i, r:].copy()
     return state
+
+
+def in_blocks(M: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The step maps ``z_{k+1} = M_k z_k + C_k`` (``M``: (K, w, w), ``C``: (K, w, ...)) padded
+    with identity steps to whole blocks of `BLOCK` and shaped ``(blocks, BLOCK, ...)``, and the
+    number of blocks: the forward recursion and the adjoint sweep compose them a block at a
+    time."""
+    K, width = M.shape[0], M.shape[1]
+    count = -(-K // BLOCK)
+    pad = count * BLOCK - K
+    if pad:
+        M = np.concatenate([M, np.repeat(np.eye(width)[None], pad, 0)])
+        C = np.concatenate([C, np.zeros((pad, *C.shape[1:]))])
+    return (M.reshape(count, BLOCK, width, width), C.reshape(count, BLOCK, *C.shape[1:]),
+            count)
 
 
 def _field_jacobian_function(system) -> ca.Function:

@@ -285,7 +285,7 @@ def expect(message):
 @pytest.mark.parametrize("kwargs, message", [
     ({"derivatives": ("q0", "mu")},
      "derivatives: unknown name 'mu' in ('q0', 'mu') (choose from q0, p0, params)"),
-    ({"derivatives": 3}, "derivatives must be a sequence of names from ('q0', 'p0', 'params'), "
+    ({"derivatives": 3}, "derivatives must be a sequence of names from q0, p0, params, "
                          "got 3"),
     ({"derivatives": ("q0",), "output": None},
      "derivatives are of the states at fixed times: give output=Output(t_eval=...)"),
