@@ -42,6 +42,9 @@ def run_periodic(args) -> int:
     guess = read_guess(args.guess, scene.system.n) if args.guess else None
     named = {"nodes": nodes, "section": settings["section"], "scheme": args.scheme,
              "solver": args.solver, "params": params, "guess": args.guess}
+    if getattr(args, "search", False):
+        from .search_command import run_search
+        return run_search(args, scene, params, nodes, defaults)
     if args.follow is not None or args.stability:
 
         return run_periodic_stability(args, scene, settings, nodes, guess, params, named)

@@ -370,6 +370,17 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
     most = api_default("periodic", "max_orbits")
     periodic.add_argument("--max-orbits", type=int, default=most,
                           help=f"with --follow: at most this many orbits (default {most})")
+    periodic.add_argument("--search", action="store_true",
+                          help="search the section (--section q1=V or q2=V) at --energy for "
+                               "periodic orbits from seeds over the region the energy allows "
+                               "(two degrees of freedom): orbits.csv, orbits.png")
+    periodic.add_argument("--seeds", type=int, default=200,
+                          help="with --search: how many seeds (default 200)")
+    periodic.add_argument("--max-returns", type=int, default=2,
+                          help="with --search: orbits up to this many returns (default 2)")
+    periodic.add_argument("--reversing", default=None, metavar="NAMES",
+                          help="with --search: the coordinates a reversing symmetry flips, "
+                               "e.g. q2,p1 for the section q2=0: half-orbit shots")
 
 
 def _march_command(march: argparse.ArgumentParser) -> None:
