@@ -262,6 +262,13 @@ def _window(geometry: SectionAtEnergy, window) -> tuple:
         if not lo < hi:
             raise InputError(f"window must have lo < hi, got {window!r}")
     else:
+        if not np.any(np.isfinite(V) & (V <= geometry.energy)):
+            finite = V[np.isfinite(V)]
+            raise NoMotionOnSection(
+                f"no motion at this energy on the section: energy {geometry.energy!r} is below "
+                f"the least energy on the section {geometry.section.label} "
+                f"({np.min(finite) if finite.size else np.nan:.6g}, over the other position "
+                f"from {_SCAN[0]:.0e} to {_SCAN[-1]:.0e})")
         inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
         critical = _SCAN[1:-1][inner & np.isfinite(V[1:-1])]
         allowed = _SCAN[np.isfinite(V) & (V <= geometry.energy)]
@@ -475,7 +482,7 @@ def _map_search(geometry, window, seeds: int, max_returns: int):
     return found, failures, region
 
 
-def _grid_minima(gap: np.ndarray, threshold: float = 0.1):
+def _grid_minima(gap: np.ndarray, threshold: float = 0.5):
     """Cells of ``gap`` below ``threshold`` that are the least of their 3 x 3 neighbours."""
     padded = np.pad(np.where(np.isfinite(gap), gap, np.inf), 1, constant_values=np.inf)
     rows, cols = gap.shape
