@@ -1154,12 +1154,12 @@ SEARCHES = [
 
 def search_cases() -> list[Case]:
     def plane(folder):
-        (folder / "plane.py").write_text(
+        (folder / "harmonic.py").write_text(
             "import casadi as ca\nfrom ddvp_nlp import Scene\ndef H(q, p, t):\n"
             "    return ca.sumsqr(p)/2 + ca.sumsqr(q)/2\n"
             "scene = Scene(H, n=2, q0=[1.0, 0.0], p0=[0.0, 1.0], tau0=0.01, t_end=1)\n")
     return [Case("search", " ".join(option) or "no section",
-                 ["periodic", "plane.py", "--search", "--energy", "0.5", *option, "--no-plot",
+                 ["periodic", "harmonic.py", "--search", "--energy", "0.5", *option, "--no-plot",
                   "--out", "out"], codes, plane, expect_text=text)
             for option, codes, text in SEARCHES]
 

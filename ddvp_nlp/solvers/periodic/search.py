@@ -37,7 +37,6 @@ from ...errors import InputError
 from ...validation import check_integer, check_real
 from ..exact.flow import exact_flow
 from ..exact.flow_newton import exact_newton
-from ..exact.variational import flow_with_derivatives
 from .section_map import (
     RTOL,
     SEED_ATTEMPTS,
@@ -87,7 +86,8 @@ class SearchRegion:
 class FoundOrbit:
     """One periodic orbit: ``period``, ``start`` (a point of it on the section crossing upwards),
     ``returns`` (upward crossings per period), ``symmetric`` (found by the half-orbit shot),
-    the exact flow's ``multipliers`` and stability ``index`` (``tr M - 2``), ``closure`` (its
+    its nontrivial ``multipliers`` and stability ``index`` (their sum) from the derivative of the
+    return map over one period on the exact flow (``section_map.py``), ``closure`` (its
     relative closure on the exact flow), ``crossings`` (its upward crossings, rows ``u``),
     ``path`` (``z`` at 400 equal times of one period), how many ``seeds`` reached it, the refined
     ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``)."""
@@ -235,15 +235,19 @@ def parse_reversing(reversing, system, theta, section: SearchSection):
 
 
 def _least_energy(geometry: SectionAtEnergy, q_other: np.ndarray) -> np.ndarray:
-    """The least ``H`` over both momenta at each ``q_o`` of the section's line."""
+    """The least ``H`` over both momenta at each ``q_o`` of the section's line (each a
+    parabola's vertex; the other momentum's probe on the scale of ``H`` there)."""
     def least_over_ps(p_other):
-        u = np.column_stack([q_other, np.full(q_other.size, p_other)])
+        u = np.column_stack([q_other, p_other])
         a, b, c = geometry.quadratic(u)
         with np.errstate(all="ignore"):
             return c - b * b / (4 * a)
-    minus, zero, plus = (least_over_ps(m) for m in (-1.0, 0.0, 1.0))
-    a, b = (plus + minus) / 2 - zero, (plus - minus) / 2
+    zero = least_over_ps(np.zeros(q_other.size))
+    size = np.abs(np.where(np.isfinite(zero), zero, 0.0))
+    step = np.sqrt(size + (np.median(size[size > 0]) if np.any(size > 0) else 1.0))
+    minus, plus = least_over_ps(-step), least_over_ps(step)
     with np.errstate(all="ignore"):
+        a, b = ((plus + minus) / 2 - zero) / step ** 2, (plus - minus) / (2 * step)
         return np.where(a > 0, zero - b * b / (4 * a), np.nan)
 
 
@@ -422,11 +426,16 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     shift = 0.0 if np.allclose(start, z0) else float(seen.t[ups[0]])
     if shift:
         start = run.z([shift])[0]
-    exact = flow_with_derivatives(geometry.system, geometry.theta, start, period)
-    multipliers = np.linalg.eigvals(exact.monodromy)
+    # the map's derivative from the slowest crossing: started near a close approach the
+    # monodromy has entries of 1e7 and its trace loses digits (measured on Hill's mirror pairs)
+    gentle = starts[np.argmin([np.linalg.norm(geometry.velocity(row)) for row in starts])]
+    _, derivative = return_derivative(geometry, gentle, period, atol)
+    if derivative is None:
+        return "the return map's derivative over the period could not be computed"
     crossings = _unique_rows(starts[:, geometry.section.free], size)
     return FoundOrbit(period=period, start=start, returns=len(crossings), symmetric=symmetric,
-                      multipliers=multipliers, index=float(np.trace(exact.monodromy) - 2),
+                      multipliers=np.linalg.eigvals(derivative),
+                      index=float(np.trace(derivative)),
                       closure=closure, crossings=crossings,
                       path=run.z(np.linspace(0.0, period, 400)))
 
@@ -444,10 +453,13 @@ def _map_search(geometry, window, seeds: int, max_returns: int):
     section (module docstring)."""
     reach, escape = _scales(window)
     atol = RTOL * reach
-    side = max(int(np.sqrt(seeds)), 3)
-    line = np.linspace(window[0], window[1], side)
-    z_line = geometry.points(np.column_stack([line, np.zeros(side)]))
+    probe = np.linspace(window[0], window[1], 101)
+    z_line = geometry.points(np.column_stack([probe, np.zeros(probe.size)]))
     top = float(np.nanmax(np.abs(z_line[:, 2:]))) if np.any(np.isfinite(z_line)) else reach
+    fine = np.array([(x, p) for x in probe for p in np.linspace(-top, top, 101)])
+    share = max(float(np.mean(np.all(np.isfinite(geometry.points(fine)), axis=1))), 1e-3)
+    side = max(int(np.sqrt(seeds / share)), 3)  # about `seeds` of the grid's points accessible
+    line = np.linspace(window[0], window[1], side)
     momenta = np.linspace(-top, top, side)
     U = np.array([(x, p) for x in line for p in momenta])
     Z = geometry.points(U)

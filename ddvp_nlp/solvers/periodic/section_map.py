@@ -88,21 +88,38 @@ class SectionAtEnergy:
         z[:, 2 + self.section.index] = momentum
         return z
 
+    def _probe(self, u) -> np.ndarray:
+        """A momentum step per row on the scale of ``H`` there (``sqrt |H(p_s = 0)|``), so
+        that the differences below do not cancel where ``H`` is large."""
+        zero = np.abs(self._H(self._on_section(u, 0.0)))
+        typical = np.median(zero[np.isfinite(zero) & (zero > 0)]) if np.any(zero > 0) else 1.0
+        return np.sqrt(np.where(np.isfinite(zero), zero, 0.0) + typical)
+
+    def _at(self, u, momenta) -> np.ndarray:
+        z = self._on_section(u, 0.0)
+        z[:, 2 + self.section.index] = momenta
+        return self._H(z)
+
     def quadratic(self, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(a, b, c)`` of ``H = a p_s^2 + b p_s + c`` at each row of ``u``."""
-        minus, zero, plus = (self._H(self._on_section(u, m)) for m in (-1.0, 0.0, 1.0))
+        u = np.atleast_2d(np.asarray(u, float))
+        step = self._probe(u)
+        minus, zero, plus = (self._at(u, m * step) for m in (-1.0, 0.0, 1.0))
         with np.errstate(all="ignore"):  # a singular point of H: NaN, not accessible
-            return (plus + minus) / 2 - zero, (plus - minus) / 2, zero
+            return ((plus + minus) / 2 - zero) / step ** 2, (plus - minus) / (2 * step), zero
 
     def check_quadratic(self, u) -> None:
         """Refuse an ``H`` that is not quadratic in the section's momentum (on rows ``u``)."""
+        u = np.atleast_2d(np.asarray(u, float))
         a, b, c = self.quadratic(u)
+        step = self._probe(u)
         for m in (2.0, -3.0):
-            H = self._H(self._on_section(u, m))
-            ok = np.isfinite(H)
-            scale = np.abs(a * m * m) + np.abs(b * m) + np.abs(c)
-            if np.any(np.abs(H - (a * m * m + b * m + c))[ok] > 1e-8 * scale[ok]) or \
-                    np.any(a[ok] <= 0):
+            momenta = m * step
+            H = self._at(u, momenta)
+            fit = a * momenta ** 2 + b * momenta + c
+            ok = np.isfinite(H) & np.isfinite(fit)
+            scale = np.abs(a * momenta ** 2) + np.abs(b * momenta) + np.abs(c)
+            if np.any(np.abs(H - fit)[ok] > 1e-8 * scale[ok]) or np.any(a[ok] <= 0):
                 raise InputError(
                     f"section {self.section.label}: H is not a convex quadratic in p"
                     f"{self.section.index + 1}, so its root at the energy is not computed "
