@@ -76,12 +76,16 @@ def plot_search(search, title: str, path, fmt: str = "png") -> None:
     with figures.styled():
         fig = figures.new_figure(figures.TEXT_WIDTH, 3.0)
         plane, table = fig.subplots(1, 2)
+        labels: dict = {}  # mirror images share a point: one label "3,4"
         for j, orbit in enumerate(search.orbits):
             colour = COLOURS.get(orbit.verdict, "0.4")
             plane.plot(orbit.path[:, 0], orbit.path[:, 1], "-", lw=0.7, color=colour)
             table.plot(orbit.index, orbit.period, "o", ms=4, color=colour)
-            table.annotate(str(j + 1), (orbit.index, orbit.period), fontsize="x-small",
-                           xytext=(3, 3), textcoords="offset points")
+            key = (f"{orbit.index:.3g}", f"{orbit.period:.4g}")
+            labels.setdefault(key, ((orbit.index, orbit.period), []))[1].append(str(j + 1))
+        for point, numbers in labels.values():
+            table.annotate(",".join(numbers), point, fontsize="x-small", xytext=(3, 3),
+                           textcoords="offset points")
         for verdict, colour in COLOURS.items():
             if any(o.verdict == verdict for o in search.orbits):
                 table.plot([], [], "o", ms=4, color=colour, label=verdict)
