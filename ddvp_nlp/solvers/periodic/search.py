@@ -324,11 +324,19 @@ def _follow(geometry, z0, count: int, first: float, atol, escape):
     return found, horizon
 
 
+def _cells(window, count: int) -> np.ndarray:
+    """``count`` seeds at the centres of equal cells of the window: none on its middle, where a
+    symmetric problem's singularity sits (Hill's Moon at ``q_o = 0``)."""
+    count += count % 2
+    edges = np.linspace(window[0], window[1], count + 1)
+    return (edges[:-1] + edges[1:]) / 2
+
+
 def _symmetric_search(geometry, window, seeds: int, max_returns: int):
     """Half-orbit shots from seeds on the fixed line ``p_o = 0`` (module docstring)."""
     reach, escape = _scales(window)
     atol = RTOL * reach
-    line = np.linspace(window[0], window[1], max(seeds // 2, 2))
+    line = _cells(window, max(seeds // 2, 2))
     u = np.column_stack([line, np.zeros(line.size)])
     found, failures, accessible, horizons = [], [], 0, []
     half = 2 * max_returns  # crossings of the section in half an orbit of max_returns returns
@@ -455,11 +463,14 @@ def _map_search(geometry, window, seeds: int, max_returns: int):
     atol = RTOL * reach
     probe = np.linspace(window[0], window[1], 101)
     z_line = geometry.points(np.column_stack([probe, np.zeros(probe.size)]))
-    top = float(np.nanmax(np.abs(z_line[:, 2:]))) if np.any(np.isfinite(z_line)) else reach
+    # the momenta's reach: most of the line's (its largest is a singularity's, 1e7 near Hill's
+    # Moon, and would leave every seed of the grid but a column inaccessible)
+    top = 1.25 * float(np.nanpercentile(np.abs(z_line[:, 2:]), 90)) \
+        if np.any(np.isfinite(z_line)) else reach
     fine = np.array([(x, p) for x in probe for p in np.linspace(-top, top, 101)])
     share = max(float(np.mean(np.all(np.isfinite(geometry.points(fine)), axis=1))), 1e-3)
     side = max(int(np.sqrt(seeds / share)), 3)  # about `seeds` of the grid's points accessible
-    line = np.linspace(window[0], window[1], side)
+    line = _cells(window, side)
     momenta = np.linspace(-top, top, side)
     U = np.array([(x, p) for x in line for p in momenta])
     Z = geometry.points(U)
