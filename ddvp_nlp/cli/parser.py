@@ -378,9 +378,11 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                           help="with --search: how many seeds (default 200)")
     periodic.add_argument("--max-returns", type=int, default=2,
                           help="with --search: orbits up to this many returns (default 2)")
-    periodic.add_argument("--reversing", default=None, metavar="NAMES",
+    periodic.add_argument("--reversing", default="auto", metavar="NAMES|auto|none",
                           help="with --search: the coordinates a reversing symmetry flips, "
-                               "e.g. q2,p1 for the section q2=0: half-orbit shots")
+                               "e.g. q2,p1 for the section q2=0: half-orbit shots (default "
+                               "auto: that symmetry where H is unchanged by it; none: the "
+                               "whole return map)")
 
 
 def _march_command(march: argparse.ArgumentParser) -> None:

@@ -60,7 +60,7 @@ _SCAN = np.concatenate([-np.geomspace(1e6, 1e-6, 1200), [0.0], np.geomspace(1e-6
 class SearchRegion:
     """What was searched: the energy, the section, the window of ``q_o``, the box of ``p_o``
     (``None`` on the symmetric line ``p_o = 0``), the seeds spread and how many the energy
-    allowed, the reversing symmetry (``None``: none declared), the largest number of upward
+    allowed, the reversing symmetry used (``None``: none), the largest number of upward
     returns, and the longest time a seed was followed."""
 
     energy: float
@@ -74,8 +74,9 @@ class SearchRegion:
     horizon: float
 
     def describe(self) -> str:
-        box = "on the symmetric line" if self.momentum is None else \
-            f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}]"
+        box = (f"on the line fixed by the reversing symmetry flipping "
+               f"{', '.join(self.reversing)}") if self.momentum is None else \
+            f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}] (no symmetry)"
         return (f"E = {self.energy:.10g}, section {self.section}, other position in "
                 f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
                 f"which {self.accessible} accessible, up to {self.max_returns} returns, seeds "
@@ -147,7 +148,7 @@ class NoMotionOnSection(InputError):
     """The energy allows no motion anywhere on the section's window."""
 
 
-def find_periodic_orbits(system, *, energy: float, section, reversing=None,
+def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
                          seeds: int = SEEDS, max_returns: int = MAX_RETURNS, window=None,
                          nodes: int = 201, params=None, refine: bool = True) -> OrbitSearch:
     """Periodic orbits of ``system`` at energy ``E`` that cross ``section`` (module docstring).
@@ -159,8 +160,9 @@ def find_periodic_orbits(system, *, energy: float, section, reversing=None,
         section: ``"q2=0"``: the position coordinate the orbits cross and its value.
         reversing: the coordinates a reversing symmetry flips (with ``t -> -t``), e.g.
             ``("q2", "p1")``: it must flip the section's coordinate and the other momentum, the
-            section's value must be 0, and ``H`` must be unchanged by it (checked). ``None``:
-            the full return map is searched.
+            section's value must be 0, and ``H`` must be unchanged by it (checked).
+            ``"auto"`` (default): that symmetry wherever ``H`` is unchanged by it (half-orbit
+            shots), else the full return map. ``None`` or ``"none"``: the full return map.
         seeds: how many seeds (on the symmetric line, both crossing directions; else about as
             many on a square grid).
         max_returns: orbits up to this many upward crossings of the section per period.
@@ -192,24 +194,31 @@ def find_periodic_orbits(system, *, energy: float, section, reversing=None,
     if refine:
         for orbit in orbits:
             _refine(system, orbit, energy, sec, nodes, params)
-    region = SearchRegion(reversing=None if flipped is None else tuple(reversing), **region)
+    region = SearchRegion(reversing=flipped, **region)
     return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
                        time.process_time() - started)
 
 
 def parse_reversing(reversing, system, theta, section: SearchSection):
-    """The indices into ``z`` a reversing symmetry flips, checked (`find_periodic_orbits`), or
-    ``None``."""
-    if reversing is None:
-        return None
+    """The names of the coordinates a reversing symmetry flips (`find_periodic_orbits`),
+    checked, or ``None`` (no symmetry used). ``"auto"``: the one that flips the section's
+    coordinate and the other momentum, where ``H`` is unchanged by it and the section's value
+    is 0."""
     names = [f"q{i + 1}" for i in range(2)] + [f"p{i + 1}" for i in range(2)]
+    wanted = sorted([section.index, 2 + section.other])
+    if reversing is None or reversing is False or reversing == "none":
+        return None
+    if isinstance(reversing, str) and reversing == "auto":
+        if section.value != 0 or _symmetry_gap(system, theta, wanted) is not None:
+            return None
+        return tuple(names[i] for i in wanted)
     items = reversing.split(",") if isinstance(reversing, str) else reversing
     try:
         flipped = sorted({names.index(str(name).strip()) for name in items})
     except (ValueError, TypeError):
         raise InputError(f"reversing must name coordinates among {', '.join(names)} (those "
-                         f"the symmetry flips), got {reversing!r}") from None
-    wanted = sorted([section.index, 2 + section.other])
+                         f"the symmetry flips), or be 'auto' or 'none', got {reversing!r}") \
+            from None
     if flipped != wanted:
         raise InputError(
             f"reversing {reversing!r}: the half-orbit shot needs the symmetry that flips the "
@@ -218,6 +227,16 @@ def parse_reversing(reversing, system, theta, section: SearchSection):
     if section.value != 0:
         raise InputError(f"reversing {reversing!r}: the section {section.label} is not mapped "
                          "to itself by the symmetry (its value must be 0)")
+    worst = _symmetry_gap(system, theta, flipped)
+    if worst is not None:
+        raise InputError(f"reversing {reversing!r} is not a symmetry of H: H changes by up to "
+                         f"{worst:.3g} under it")
+    return tuple(names[i] for i in flipped)
+
+
+def _symmetry_gap(system, theta, flipped) -> float | None:
+    """``None`` where ``H`` is unchanged (to round-off of its values) when the coordinates
+    ``flipped`` change sign, at 16 random points; else the largest change."""
     rng = np.random.default_rng(0)
     z = rng.normal(size=(16, 4)) + 0.5
     image = z.copy()
@@ -226,12 +245,11 @@ def parse_reversing(reversing, system, theta, section: SearchSection):
         H = system.energy(z[:, :2], z[:, 2:], np.zeros(16), theta)
         H_image = system.energy(image[:, :2], image[:, 2:], np.zeros(16), theta)
     ok = np.isfinite(H) & np.isfinite(H_image)
+    if not ok.any():
+        return float("nan")
     gap = np.abs(H - H_image)[ok]
-    if not ok.any() or np.any(gap > 1e-12 * (1 + np.abs(H[ok]))):
-        worst = float(np.max(gap)) if gap.size else float("nan")
-        raise InputError(f"reversing {reversing!r} is not a symmetry of H: H changes by up to "
-                         f"{worst:.3g} under it")
-    return flipped
+    size = np.maximum(np.abs(H[ok]), np.abs(H_image[ok]))
+    return None if np.all(gap <= 1e-12 * size) else float(np.max(gap))
 
 
 def _least_energy(geometry: SectionAtEnergy, q_other: np.ndarray) -> np.ndarray:

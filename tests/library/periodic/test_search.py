@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ddvp_nlp import HamiltonianSystem, InputError, find_periodic_orbits
-from ddvp_nlp.solvers.periodic.search import NoMotionOnSection
+from ddvp_nlp.solvers.periodic.search import NoMotionOnSection, parse_reversing
 from ddvp_nlp.solvers.periodic.section_map import parse_search_section
 
 REVERSING = ("q2", "p1")
@@ -29,9 +29,11 @@ def periods(search):
 
 
 def test_retrograde_orbit_from_the_section_alone():
-    """Issue 46: the retrograde orbit at E = -1.663, period 0.6471579, index 1.57498915."""
-    search = find_periodic_orbits(HILL, energy=-1.663, section="q2=0", reversing=REVERSING,
-                                  seeds=120, refine=False)
+    """Issue 46: the retrograde orbit at E = -1.663, period 0.6471579, index 1.57498915, from
+    the energy and the section alone (the reversing symmetry found in H)."""
+    search = find_periodic_orbits(HILL, energy=-1.663, section="q2=0", seeds=120,
+                                  refine=False)
+    assert search.searched.reversing == REVERSING
     retrograde = [o for o in search.orbits if abs(o.period - 0.6471579) < 1e-6]
     assert len(retrograde) == 1, periods(search)
     assert abs(retrograde[0].index - 1.57498915) < 1e-6
@@ -65,7 +67,8 @@ def test_the_full_return_map_finds_the_normal_modes():
     plane = HamiltonianSystem(lambda q, p, t: ca.sumsqr(p) / 2 + q[0] ** 2 / 2 + 2 * q[1] ** 2,
                               n=2)
     search = find_periodic_orbits(plane, energy=0.5, section="q2=0", seeds=64, max_returns=1,
-                                  window=(-1.5, 1.5), refine=False)
+                                  window=(-1.5, 1.5), reversing="none", refine=False)
+    assert search.searched.reversing is None
     assert any(abs(o.period - np.pi) < 1e-8 for o in search.orbits), periods(search)
 
 
@@ -91,6 +94,11 @@ def test_a_reversing_map_that_is_not_a_symmetry_is_refused():
                                + q[0] * q[1], n=2)
     with pytest.raises(InputError, match="is not a symmetry of H"):
         find_periodic_orbits(tilted, energy=0.1, section="q2=0", reversing=REVERSING)
+    section = parse_search_section("q2=0", tilted)
+    assert parse_reversing("auto", tilted, [], section) is None  # auto: the whole map
+    assert parse_reversing("auto", HILL, [0.0, 1.0], section) == REVERSING
+    assert parse_reversing("auto", HILL, [0.0, 1.0], parse_search_section("q2=0.1", HILL)) \
+        is None
 
 
 @settings(max_examples=60, derandomize=True, deadline=None, database=None)
