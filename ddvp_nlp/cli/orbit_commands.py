@@ -96,6 +96,9 @@ def _period_line(solution, meta) -> str:
     if solution.success:
         return (f"period {meta['period']:.12g} at E = {meta['energy']:.10g}, {meta['nodes']} "
                 "nodes")
+    if meta["status"] in ("inaccurate", "drifted"):  # a discrete orbit, off the motion
+        return (f"period {meta['period']:.12g} of a discrete orbit that does not follow the "
+                f"motion, at E = {meta['energy']:.10g}, {meta['nodes']} nodes")
     return (f"no period: no orbit was found at E = {meta['energy']:.10g} ({meta['nodes']} "
             "nodes); --search --section qK=V looks for the orbits that cross a section")
 
