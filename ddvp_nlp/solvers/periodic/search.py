@@ -47,7 +47,7 @@ from .section_map import (
     returns,
 )
 
-SEEDS = 200  # default seeds (on the symmetric line; a square grid of about as many otherwise)
+SEEDS = 400  # default seeds (on the symmetric line; a square grid of about as many otherwise)
 MAX_RETURNS = 2  # default: orbits crossing the section upwards at most this many times
 RESIDUAL = 1e-8  # a shot orbit's residual, relative to its size, to be kept
 CLOSURE = 1e-6  # the whole orbit's closure on the exact flow, relative to its size
@@ -406,7 +406,11 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
         z0 = geometry.points([[x, 0.0]], direction)[0]
         if not np.all(np.isfinite(z0)):
             raise _NoShot(f"the energy allows no motion at q_o = {x:.6g}")
-        run = returns(geometry, z0, horizon, atol, attempts=10 * SEED_ATTEMPTS, escape=escape)
+        for stretch in (1, 2, 4):  # near a root the crossing can come later than at the ends
+            run = returns(geometry, z0, stretch * horizon, atol, attempts=10 * SEED_ATTEMPTS,
+                          escape=escape)
+            if run.t.size >= k or run.reason:
+                break
         if run.t.size < k:
             raise _NoShot(f"shooting did not converge: crossing {k} lost at q_o = {x:.6g} "
                           f"({run.reason or 'not reached'})")
