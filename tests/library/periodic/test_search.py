@@ -44,7 +44,7 @@ def test_retrograde_orbit_from_the_section_alone():
 @pytest.fixture(scope="module")
 def lyapunov_search():
     return find_periodic_orbits(HILL, energy=-2.14, section="q2=0", reversing=REVERSING,
-                                refine=False)
+                                seeds=200, refine=False)
 
 
 def test_lyapunov_orbits_about_both_libration_points(lyapunov_search):
@@ -117,7 +117,7 @@ def test_the_section_parser_names_what_is_wrong(text):
 
 
 def _lyapunov_periods(system, energy, **kwargs):
-    search = find_periodic_orbits(system, energy=energy, refine=False, **kwargs)
+    search = find_periodic_orbits(system, energy=energy, seeds=200, refine=False, **kwargs)
     return np.sort(periods(search))
 
 
