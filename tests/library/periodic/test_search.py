@@ -148,3 +148,12 @@ def test_relabelled_coordinates_find_the_same_orbits(reference_periods):
     system = HamiltonianSystem(swapped, n=2, name="hill-swapped")
     relabelled = _lyapunov_periods(system, -2.14, section="q1=0", reversing=("q1", "p2"))
     np.testing.assert_allclose(relabelled, reference_periods, rtol=1e-8)
+
+
+def test_the_section_point_is_looked_for_off_the_ray():
+    """Issue 46: E = -1.663 meets the section q2 = 0 of Hill's problem (the orbits above cross
+    it), though not along the start's ray (its H tops out at -1.89): not refused."""
+    from ddvp_nlp.solvers import check_periodic
+
+    check_periodic(HILL, energy=-1.663, nodes=101, section="q2=0")
+
