@@ -126,7 +126,7 @@ def main() -> None:
     args = parser.parse_args()
     system = HamiltonianSystem(hamiltonian, n=2, name="henon_heiles")
     ours, costs = {}, {}
-    for reversing in ("none", "auto"):  # the whole return map; half orbits (x -> -x symmetric)
+    for reversing in ("none", "auto"):  # the whole map; + half orbits (x -> -x is a symmetry)
         wall, cpu = time.perf_counter(), time.process_time()
         search = find_periodic_orbits(system, energy=ENERGY, section="q1=0", seeds=args.seeds,
                                       max_returns=args.returns, reversing=reversing,
@@ -140,7 +140,8 @@ def main() -> None:
     print(f"Henon-Heiles, E = 1/8, section x = 0 (x' > 0), up to {args.returns} returns, "
           f"period <= {args.period:g}")
     print(f"{'search':44s} {'orbits':>6s} {'CPU s':>8s} {'wall s':>8s}")
-    for reversing, label in (("none", "whole return map"), ("auto", "half orbits, symmetric")):
+    for reversing, label in (("none", "whole return map"),
+                             ("auto", "half orbits and the whole map")):
         print(f"{f'find_periodic_orbits, {label}':44s} {len(ours[reversing]):6d} "
               f"{costs[reversing][1]:8.1f} {costs[reversing][0]:8.1f}")
     print(f"{'scipy DOP853 + root (' + str(args.grid) + '^2 grid)':44s} {len(dense):6d} "

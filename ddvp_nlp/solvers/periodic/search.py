@@ -74,9 +74,14 @@ class SearchRegion:
     horizon: float
 
     def describe(self) -> str:
-        box = (f"on the line fixed by the reversing symmetry flipping "
-               f"{', '.join(self.reversing)}") if self.momentum is None else \
-            f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}] (no symmetry)"
+        parts = []
+        if self.reversing is not None:
+            parts.append(f"on the line fixed by the reversing symmetry flipping "
+                         f"{', '.join(self.reversing)}")
+        if self.momentum is not None:
+            parts.append(f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}] (the "
+                         "whole return map)")
+        box = " and ".join(parts)
         return (f"E = {self.energy:.10g}, section {self.section}, other position in "
                 f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
                 f"which {self.accessible} accessible, up to {self.max_returns} returns, seeds "
@@ -161,10 +166,12 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
         reversing: the coordinates a reversing symmetry flips (with ``t -> -t``), e.g.
             ``("q2", "p1")``: it must flip the section's coordinate and the other momentum, the
             section's value must be 0, and ``H`` must be unchanged by it (checked).
-            ``"auto"`` (default): that symmetry wherever ``H`` is unchanged by it (half-orbit
-            shots), else the full return map. ``None`` or ``"none"``: the full return map.
-        seeds: how many seeds (on the symmetric line, both crossing directions; else about as
-            many on a square grid).
+            ``"auto"`` (default): that symmetry's half-orbit shots wherever ``H`` is unchanged
+            by it, and the whole return map besides (for the orbits that are not their own
+            mirror images). ``None`` or ``"none"``: the whole return map only; a declared
+            symmetry: its half-orbit shots only.
+        seeds: how many seeds (on the symmetric line, both crossing directions; about as many
+            accessible ones on a square grid for the whole return map).
         max_returns: orbits up to this many upward crossings of the section per period.
         window: ``(lo, hi)`` of the other position coordinate; default from the critical points
             of the least energy along the section's line (each edge their spread beyond).
@@ -186,10 +193,16 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     flipped = parse_reversing(reversing, system, theta, sec)
     geometry = SectionAtEnergy(system, theta, sec, energy)
     window = _window(geometry, window)
+    found, failures, region = [], [], None
     if flipped is not None:
         found, failures, region = _symmetric_search(geometry, window, seeds, max_returns)
-    else:
-        found, failures, region = _map_search(geometry, window, seeds, max_returns)
+    if flipped is None or reversing == "auto":  # a found symmetry: its orbits and all others
+        more, failed, box = _map_search(geometry, window, seeds, max_returns)
+        found, failures = found + more, failures + failed
+        region = box if region is None else {
+            **box, "seeds": region["seeds"] + box["seeds"],
+            "accessible": region["accessible"] + box["accessible"],
+            "horizon": max(region["horizon"], box["horizon"])}
     orbits = _distinct(found)
     if refine:
         for orbit in orbits:
@@ -493,6 +506,7 @@ def _map_search(geometry, window, seeds: int, max_returns: int):
     share = max(float(np.mean(np.all(np.isfinite(geometry.points(fine)), axis=1))), 1e-3)
     side = max(int(np.sqrt(seeds / share)), 3)  # about `seeds` of the grid's points accessible
     line = _cells(window, side)
+    side = line.size
     momenta = np.linspace(-top, top, side)
     U = np.array([(x, p) for x in line for p in momenta])
     Z = geometry.points(U)
