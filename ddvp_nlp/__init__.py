@@ -6,7 +6,8 @@ docs/guide.md for a user guide.
 
 The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``solve_bvp``,
 ``solve_periodic``, ``solve_periodic_family``, ``follow_periodic_family``, ``march_higher``,
-``solve_bvp_higher``), the march as a method of scipy's ``solve_ivp`` (``DDVP``), the
+``solve_bvp_higher``, ``find_periodic_orbits``: orbits at an energy from a section alone), the
+march as a method of scipy's ``solve_ivp`` (``DDVP``), the
 stability of a periodic orbit (``periodic_stability``), chaos indicators on the march's
 tangent map (``chaos_indicators``, ``lyapunov_spectrum``), their options (``StepControl``,
 ``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``, ``Continuation``, ``AtEnergy``
@@ -43,10 +44,12 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
         Continuation,
         DerivativeOptions,
         MarchState,
+        OrbitSearch,
         Shooting,
         Spectrum,
         chaos_indicators,
         continue_march,
+        find_periodic_orbits,
         follow_periodic_family,
         gradient,
         linearised_orbit,
@@ -68,8 +71,8 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
-    "follow_periodic_family", "Continuation", "linearised_orbit", "march_higher",
-    "solve_bvp_higher",
+    "follow_periodic_family", "Continuation", "find_periodic_orbits", "OrbitSearch",
+    "linearised_orbit", "march_higher", "solve_bvp_higher",
     "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP",
     "gradient", "DerivativeOptions")})
 
@@ -167,10 +170,10 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None, params=None
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
            "DerivativeOptions", "Endpoints",
            "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
-           "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "Output",
-           "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum", "Status",
-           "StepControl", "Tolerance", "Verdict", "__version__", "chaos_indicators", "compare",
-           "continue_march", "follow_periodic_family", "gradient", "linearised_orbit",
-           "list_scenes", "load_scene",
-           "lyapunov_spectrum", "march", "march_ensemble", "march_higher", "periodic_stability",
-           "plot", "solve_bvp", "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]
+           "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "OrbitSearch",
+           "Output", "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum",
+           "Status", "StepControl", "Tolerance", "Verdict", "__version__", "chaos_indicators",
+           "compare", "continue_march", "find_periodic_orbits", "follow_periodic_family",
+           "gradient", "linearised_orbit", "list_scenes", "load_scene", "lyapunov_spectrum",
+           "march", "march_ensemble", "march_higher", "periodic_stability", "plot", "solve_bvp",
+           "solve_bvp_higher", "solve_periodic", "solve_periodic_family"]

@@ -42,6 +42,9 @@ def run_periodic(args) -> int:
     guess = read_guess(args.guess, scene.system.n) if args.guess else None
     named = {"nodes": nodes, "section": settings["section"], "scheme": args.scheme,
              "solver": args.solver, "params": params, "guess": args.guess}
+    if getattr(args, "search", False):
+        from .search_command import run_search
+        return run_search(args, scene, params, nodes, defaults)
     if args.follow is not None or args.stability:
 
         return run_periodic_stability(args, scene, settings, nodes, guess, params, named)
@@ -81,11 +84,23 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
             meta = write_periodic(out, scene, solution, settings["params"],
                                   plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
-          f"  period {meta['period']:.12g} at E = {meta['energy']:.10g}, {meta['nodes']} nodes; "
-          f"written to {out.path}/")
+          f"  {_period_line(solution, meta)}; written to {out.path}/")
     if solution.verdict is not None:
         print(f"  accuracy check: {solution.verdict.name} ({describe(solution.verdict)})")
     return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+def _period_line(solution, meta) -> str:
+    """The period of a found orbit; none for an orbit not found (its last iterate's period is
+    no orbit's: a search of the section, --search, says which orbits exist there)."""
+    if solution.success:
+        return (f"period {meta['period']:.12g} at E = {meta['energy']:.10g}, {meta['nodes']} "
+                "nodes")
+    if meta["status"] in ("inaccurate", "drifted"):  # a discrete orbit, off the motion
+        return (f"period {meta['period']:.12g} of a discrete orbit that does not follow the "
+                f"motion, at E = {meta['energy']:.10g}, {meta['nodes']} nodes")
+    return (f"no period: no orbit was found at E = {meta['energy']:.10g} ({meta['nodes']} "
+            "nodes); --search --section qK=V looks for the orbits that cross a section")
 
 
 def _periodic_family(args, scene, energies, nodes, guess, settings, named) -> int:
@@ -169,8 +184,7 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
             meta = write_periodic(out, scene, solution, params, plot=not args.no_plot,
                                   interruptible=INTERRUPTS.interruptible)
         print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}"
-              f"\n  period {meta['period']:.12g} at E = {meta['energy']:.10g}, "
-              f"{meta['nodes']} nodes")
+              f"\n  {_period_line(solution, meta)}")
         if not solution.success:
             print(f"  no stability: the orbit was not found; written to {out.path}/")
             return 1

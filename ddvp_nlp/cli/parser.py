@@ -370,6 +370,22 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
     most = api_default("periodic", "max_orbits")
     periodic.add_argument("--max-orbits", type=int, default=most,
                           help=f"with --follow: at most this many orbits (default {most})")
+    periodic.add_argument("--search", action="store_true",
+                          help="search the section (--section q1=V or q2=V) at --energy for "
+                               "periodic orbits from seeds over the region the energy allows "
+                               "(two degrees of freedom): orbits.csv, orbits.png")
+    value = {name: api_default("periodic", name) for name in ("seeds", "max_returns",
+                                                               "reversing")}
+    periodic.add_argument("--seeds", type=int, default=value["seeds"],
+                          help=f"with --search: how many seeds (default {value['seeds']})")
+    periodic.add_argument("--max-returns", type=int, default=value["max_returns"],
+                          help=f"with --search: orbits up to this many returns (default "
+                               f"{value['max_returns']})")
+    periodic.add_argument("--reversing", default=value["reversing"], metavar="NAMES|auto|none",
+                          help="with --search: the coordinates a reversing symmetry flips, "
+                               "e.g. q2,p1 for the section q2=0: half-orbit shots (default "
+                               f"{value['reversing']}: that symmetry where H is unchanged by "
+                               "it; none: the whole return map)")
 
 
 def _march_command(march: argparse.ArgumentParser) -> None:

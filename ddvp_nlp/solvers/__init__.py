@@ -56,6 +56,7 @@ PUBLIC = {
     "follow_periodic_family": "periodic.arclength", "Continuation": "periodic.arclength",
     "periodic_stability": "periodic.floquet", "Stability": "periodic.floquet",
     "linearised_orbit": "periodic.linearised",
+    "find_periodic_orbits": "periodic.search", "OrbitSearch": "periodic.search",
     # higher-order Lagrangians
     "march_higher": "higher.stepping", "solve_bvp_higher": "higher.stepping",
     # the compared integrators
@@ -105,16 +106,19 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .periodic.floquet import Stability, periodic_stability
     from .periodic.linearised import linearised_orbit
     from .periodic.orbit import check_periodic, parse_section, solve_periodic
+    from .periodic.search import OrbitSearch, find_periodic_orbits
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
 __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation", "DDVP",
            "DerivativeOptions", "Event",
-           "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "Output", "Shooting",
+           "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "OrbitSearch",
+           "Output", "Shooting",
            "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
            "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",
            "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",
-           "flow_callable", "follow_periodic_family", "gradient", "linearised_orbit", "locate",
+           "find_periodic_orbits", "flow_callable", "follow_periodic_family", "gradient",
+           "linearised_orbit", "locate",
            "lyapunov_spectrum", "march",
            "march_ensemble", "march_higher", "motion_scales", "parse_section",
            "periodic_stability", "solve_bvp", "solve_bvp_higher", "solve_periodic",

@@ -1136,6 +1136,34 @@ def periodic_cases() -> list[Case]:
                  expect_text="not finite anywhere")]
 
 
+# `ddvp periodic --search` (issue 46): each bad input named by its flag before a flow runs
+# (exit 2), an energy with no motion on the section said so (exit 2, no period), and a search
+# that finds nothing exits 1 saying what was searched.
+SEARCHES = [
+    (["--section", "x=0"], (2,), "section must be NAME=VALUE"),
+    (["--section", "q3=0"], (2,), "section names no coordinate"),
+    (["--section", "p1=0"], (2,), "section must fix a position coordinate"),
+    ([], (2,), "--section is needed with --search"),
+    (["--section", "q1=0", "--seeds", "0"], (2,), "--seeds must be a positive integer"),
+    (["--section", "q1=0", "--max-returns", "0"], (2,), "--max-returns must be"),
+    (["--section", "q1=0", "--reversing", "q9"], (2,), "reversing must name coordinates"),
+    (["--section", "q1=0", "--energy", "nan"], (2,), "--energy must be finite"),
+    (["--section", "q1=0", "--energy", "-1"], (2,), "no motion at this energy on the section"),
+]
+
+
+def search_cases() -> list[Case]:
+    def plane(folder):
+        (folder / "harmonic.py").write_text(
+            "import casadi as ca\nfrom ddvp_nlp import Scene\ndef H(q, p, t):\n"
+            "    return ca.sumsqr(p)/2 + ca.sumsqr(q)/2\n"
+            "scene = Scene(H, n=2, q0=[1.0, 0.0], p0=[0.0, 1.0], tau0=0.01, t_end=1)\n")
+    return [Case("search", " ".join(option) or "no section",
+                 ["periodic", "harmonic.py", "--search", "--energy", "0.5", *option, "--no-plot",
+                  "--out", "out"], codes, plane, expect_text=text)
+            for option, codes, text in SEARCHES]
+
+
 # Options of `ddvp periodic` that only --stability or --follow used: each had been taken
 # unchecked without them (--stability-tol nan ran the orbit and exited 0, issue 45); now the
 # option object (Continuation) checks them, whichever path runs, and names the flag.
@@ -1631,6 +1659,7 @@ def main() -> int:
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
               "cluster": cluster_cases, "periodic": periodic_cases, "ranges": range_cases,
+              "search": search_cases,
               "backward": backward_cases, "constraints": constraint_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
               "supervision": supervision_cases, "compare": compare_cases,

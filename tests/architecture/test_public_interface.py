@@ -24,7 +24,7 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
           "follow_periodic_family", "linearised_orbit", "list_scenes", "load_scene", "march",
           "march_ensemble",
           "march_higher", "periodic_stability", "plot", "solve_bvp", "solve_bvp_higher",
-          "solve_periodic", "solve_periodic_family"}
+          "solve_periodic", "solve_periodic_family", "find_periodic_orbits", "OrbitSearch"}
 # No public function takes more than this many parameters: the rest are option objects. march
 # has two more, the target_error a user asks for instead of tau0 (issue 40 names it so) and
 # the inputs to differentiate in (derivatives, issue 47 names it so): each asks for an answer

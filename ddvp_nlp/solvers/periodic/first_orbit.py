@@ -4,9 +4,12 @@ it to its return to the section, and the resampling of any start onto ``N`` inte
 The point: the section fixes one coordinate of ``z = (q, p)``; the others are those of a start
 direction ``d`` (default all ones) scaled by ``s > 0``, ``z(s) = (s d with z[section] =
 value)``, and ``s`` is the first root of ``H(z(s)) = E`` on ``(0, S_MAX]`` (a scan for the first
-sign change, then Brent's method). No root means that ``E`` is outside the range where the
-section, along that ray, meets the energy surface: an input error (which says so also when
-``H`` is not finite anywhere on the ray).
+sign change, then Brent's method). Where the ray does not meet ``E``, the ray's point whose ``H``
+is nearest ``E`` has its momenta scaled (``H(q, mu p)``, the kinetic energy's parabola in ``mu``):
+whether the section meets the energy is a property of the whole section, not of one ray (Hill's
+problem at ``E = -1.663`` on ``q2 = 0`` was refused along the ray, whose ``H`` tops out at
+-1.89). Only where neither meets ``E`` is it an input error (which says so also when ``H`` is not
+finite anywhere on the ray).
 
 The march: ``solvers/marching`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
@@ -71,6 +74,9 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
                 f"no motion exists at energy {energy!r}: H is at least {least[0]:.6g} (its "
                 f"minimum, at q = {np.round(least[1][:n], 6).tolist()}, p = "
                 f"{np.round(least[1][n:], 6).tolist()}); give an energy above it")
+        off_ray = _momentum_scaled_point(system, theta, energy, points, H, n)
+        if off_ray is not None:  # the section meets E off the ray: the ray was no range
+            return off_ray
         raise InputError(
             f"energy {energy!r} is outside the range where the section {label} meets the "
             f"energy surface (along the start's ray H runs from {np.min(finite):.6g} to "
@@ -85,6 +91,37 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
     root = s[k] if H[k] == 0 else brentq(excess, s[k], s[k + 1], xtol=1e-15, rtol=1e-15)
     z = root * direction
     z[index - 1] = value
+    return z
+
+
+def _momentum_scaled_point(system, theta, energy, points, H, n):
+    """A point of the section at ``energy`` off the start's ray: the ray's point whose ``H`` is
+    nearest ``E`` with its momenta scaled by ``mu >= 0`` (``H(q, mu p)`` is the kinetic energy's
+    parabola in ``mu``, so the section meets ``E`` at this ``q`` when some ``mu`` crosses it;
+    whether the section meets ``E`` is a property of the whole section, not of one ray), or
+    ``None``."""
+    finite = np.flatnonzero(np.isfinite(H))
+    if finite.size == 0:
+        return None
+    base = points[finite[np.argmin(np.abs(H[finite]))]].copy()
+    mu = np.linspace(0.0, S_MAX, SCAN_POINTS)
+    scaled = np.repeat(base[None, :], mu.size, axis=0)
+    scaled[:, n:] *= mu[:, None]
+    with np.errstate(all="ignore"):
+        excess = system.energy(scaled[:, :n], scaled[:, n:], np.zeros(mu.size), theta) - energy
+    change = np.flatnonzero((np.sign(excess[:-1]) * np.sign(excess[1:]) < 0)
+                            & np.isfinite(excess[:-1]) & np.isfinite(excess[1:]))
+    if change.size == 0:
+        return None
+    k = int(change[-1])  # the larger momentum: the crossing that moves through the section
+
+    def at(m):
+        z = base.copy()
+        z[n:] *= m
+        return float(system.energy(z[None, :n], z[None, n:], [0.0], theta)[0]) - energy
+    root = brentq(at, mu[k], mu[k + 1], xtol=1e-15, rtol=1e-15)
+    z = base.copy()
+    z[n:] *= root
     return z
 
 

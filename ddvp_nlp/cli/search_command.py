@@ -1,0 +1,62 @@
+"""``ddvp periodic SCENE --search --energy E --section q2=0``: the periodic orbits at an energy
+found from a section alone (``find_periodic_orbits``), written as ``orbits.csv``,
+``failures.csv`` and ``orbits.png`` and listed on stdout; "none found in the region searched"
+with what was searched when there are none (exit 1)."""
+
+from __future__ import annotations
+
+from ..errors import InputError
+from ..io.atomic import output_folder
+from ..io.search_files import write_search
+from ..solvers import find_periodic_orbits
+from ..validation import check_integer, check_real
+from .folders import default_or
+from .interrupts import INTERRUPTS, Stopped
+
+
+def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
+    """The search (module docstring); every input checked before a flow runs."""
+    for flag in ("family", "follow", "guess"):
+        if getattr(args, flag, None) is not None:
+            raise InputError(f"--search finds orbits from the section alone: --{flag} does not "
+                             "go with it")
+    energy = args.energy if args.energy is not None else defaults.energy
+    if energy is None:
+        raise InputError(f"--energy is needed: scene {scene.name!r} declares no default energy")
+    check_real("--energy", energy)
+    section = args.section
+    if section is None:
+        raise InputError("--section is needed with --search: the position coordinate the "
+                         "orbits cross, e.g. --section q2=0")
+    seeds = check_integer("--seeds", args.seeds)
+    max_returns = check_integer("--max-returns", args.max_returns)
+    named = {"energy": energy, "section": section, "seeds": seeds, "max_returns": max_returns,
+             "reversing": args.reversing, "nodes": nodes, "params": params}
+    target, owned = default_or(args, f"{scene.name}-search", named, scene=scene)
+    with output_folder(target, owned=owned) as out:
+        try:
+            search = find_periodic_orbits(scene.system, energy=energy, section=section,
+                                          reversing=args.reversing, seeds=seeds,
+                                          max_returns=max_returns, nodes=nodes, params=params,
+                                          refine=True)
+        except KeyboardInterrupt:
+            raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while searching; "
+                          "nothing was written") from None
+        with INTERRUPTS.saving():
+            rows = write_search(out, scene.name, search, plot=not args.no_plot,
+                                interruptible=INTERRUPTS.interruptible)
+    print(f"{scene.name} periodic search: {search.summary()}")
+    for j, row in enumerate(rows):
+        grid = (f"; grid T = {row['grid_period']:.10g}, index {row['grid_index']:.8g}"
+                if row["grid_period"] == row["grid_period"] else f"; {row['note'][:90]}")
+        print(f"  {j + 1:2d}. T = {row['period']:.10g}  index {row['index']:.8g}  "
+              f"{row['verdict']:8s} returns {row['returns']}{grid}")
+    reasons: dict = {}
+    for failed in search.failures:
+        key = failed.reason.split(" (")[0].split(":")[0]
+        reasons[key] = reasons.get(key, 0) + 1
+    if reasons:
+        print("  failed seeds: " + "; ".join(f"{n} {why}" for why, n in reasons.items()))
+    print(f"  {search.seconds:.1f} s CPU; written to {out.path}/ (orbits.csv, failures.csv"
+          f"{', orbits.png' if rows and not args.no_plot else ''})")
+    return 0 if search.found and not INTERRUPTS.requested else 1

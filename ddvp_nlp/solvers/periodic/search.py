@@ -1,0 +1,636 @@
+"""Periodic orbits at a prescribed energy found from a section alone: ``find_periodic_orbits``.
+
+For a system of two degrees of freedom, the section ``q_s = v`` at energy ``E`` is a plane of
+points ``u = (q_o, p_o)`` (``section_map.py``: ``p_s`` from ``H = E``, where that has a real root;
+the accessible region is computed from ``H``). A periodic orbit crossing the section is a fixed
+point of a power ``P^k`` of the return map. Seeds are spread over the accessible region, each is
+carried by the exact flow to its returns, and the fixed points are shot for on the exact flow:
+
+- with a declared reversing symmetry ``R`` (an involution flipping ``q_s`` and ``p_o``, e.g. Hill's
+  ``(x, y, px, py, t) -> (x, -y, -px, py, -t)``, section ``y = 0``), an orbit that is its own image
+  crosses the fixed line ``p_o = 0`` of the section at right angles twice, half a period apart.
+  Seeds on that line are shot half an orbit: the residual is ``p_o`` at the ``k``-th crossing,
+  one unknown and one equation, bracketed between seeds where it changes sign and solved by
+  Brent's method on the flow. Half an orbit: half the work and the square root of the growth of
+  errors along it (a multiplier of 2000 per period is 45 over the half);
+- without one, seeds fill a box of the plane, and from each grid minimum of ``|P^k(u) - u|``
+  Newton solves ``P^k(u) = u`` with the map's derivative from the variational equations
+  (``exact_newton``, damped).
+
+Every orbit found is checked by closing it on the exact flow over its whole period; the same
+orbit reached from several seeds, or as a multiple cover, is kept once (compared by its period
+and its upward crossings of the section); each is refined on the discrete grid by
+``solve_periodic`` (the orbit as its guess) with its multipliers and verdict
+(``periodic_stability``), beside the exact flow's own monodromy. Seeds run one after another in
+this process (each is a few milliseconds of the compiled flow; the ensemble's workers would cost
+more to start than they save at these sizes).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...errors import InputError
+from ...validation import check_integer, check_real
+from ..exact.flow import exact_flow
+from ..exact.flow_newton import exact_newton
+from .section_map import (
+    RTOL,
+    SEED_ATTEMPTS,
+    SearchSection,
+    SectionAtEnergy,
+    parse_search_section,
+    return_derivative,
+    returns,
+)
+
+SEEDS = 400  # default seeds (on the symmetric line; a square grid of about as many otherwise)
+MAX_RETURNS = 2  # default: orbits crossing the section upwards at most this many times
+RESIDUAL = 1e-8  # a shot orbit's residual, relative to its size, to be kept
+CLOSURE = 1e-6  # the whole orbit's closure on the exact flow, relative to its size
+SAME = 1e-6  # two orbits are one when periods and crossings agree to this (relative)
+ESCAPE = 4.0  # |q| beyond this many times the window's reach: the motion has left
+_SCAN = np.concatenate([-np.geomspace(1e6, 1e-6, 1200), [0.0], np.geomspace(1e-6, 1e6, 1200)])
+
+
+@dataclass(frozen=True)
+class SearchRegion:
+    """What was searched: the energy, the section, the window of ``q_o``, the box of ``p_o``
+    (``None`` on the symmetric line ``p_o = 0``), the seeds spread and how many the energy
+    allowed, the reversing symmetry used (``None``: none), the largest number of upward
+    returns, and the longest time a seed was followed."""
+
+    energy: float
+    section: str
+    window: tuple
+    momentum: tuple | None
+    seeds: int
+    accessible: int
+    reversing: tuple | None
+    max_returns: int
+    horizon: float
+
+    def describe(self) -> str:
+        parts = []
+        if self.reversing is not None:
+            parts.append(f"on the line fixed by the reversing symmetry flipping "
+                         f"{', '.join(self.reversing)}")
+        if self.momentum is not None:
+            parts.append(f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}] (the "
+                         "whole return map)")
+        box = " and ".join(parts)
+        return (f"E = {self.energy:.10g}, section {self.section}, other position in "
+                f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
+                f"which {self.accessible} accessible, up to {self.max_returns} returns, seeds "
+                f"followed to t = {self.horizon:.4g}")
+
+
+@dataclass
+class FoundOrbit:
+    """One periodic orbit: ``period``, ``start`` (a point of it on the section crossing upwards),
+    ``returns`` (upward crossings per period), ``symmetric`` (found by the half-orbit shot),
+    its nontrivial ``multipliers`` and stability ``index`` (their sum) from the derivative of the
+    return map over one period on the exact flow (``section_map.py``), ``closure`` (its
+    relative closure on the exact flow), ``crossings`` (its upward crossings, rows ``u``),
+    ``path`` (``z`` at 400 equal times of one period), how many ``seeds`` reached it, the refined
+    ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``)."""
+
+    period: float
+    start: np.ndarray
+    returns: int
+    symmetric: bool
+    multipliers: np.ndarray
+    index: float
+    closure: float
+    crossings: np.ndarray
+    path: np.ndarray
+    seeds: int = 1
+    solution: object = None
+    stability: object = None
+    note: str = ""
+
+    @property
+    def verdict(self) -> str:
+        """The grid's verdict where refined, else the exact flow's (``|index| < 2``)."""
+        if self.stability is not None:
+            return self.stability.verdict
+        return "stable" if abs(self.index) < 2 else "unstable"
+
+
+@dataclass(frozen=True)
+class FailedSeed:
+    """A seed ``u = (q_o, p_o)`` (or a bracket of them) and why it gave no orbit."""
+
+    seed: tuple
+    reason: str
+
+
+@dataclass
+class OrbitSearch:
+    """The result of `find_periodic_orbits`: ``orbits`` (distinct, by period), ``searched``
+    (a `SearchRegion`), ``failures`` (each failed seed or bracket with its reason), ``seconds``."""
+
+    orbits: list
+    searched: SearchRegion
+    failures: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def found(self) -> bool:
+        return bool(self.orbits)
+
+    def summary(self) -> str:
+        if not self.orbits:
+            return f"none found in the region searched ({self.searched.describe()})"
+        return (f"{len(self.orbits)} periodic orbit(s) found ({self.searched.describe()}); "
+                f"{len(self.failures)} seeds or brackets failed")
+
+
+class NoMotionOnSection(InputError):
+    """The energy allows no motion anywhere on the section's window."""
+
+
+def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
+                         seeds: int = SEEDS, max_returns: int = MAX_RETURNS, window=None,
+                         nodes: int = 201, params=None, refine: bool = True) -> OrbitSearch:
+    """Periodic orbits of ``system`` at energy ``E`` that cross ``section`` (module docstring).
+
+    Args:
+        system: an autonomous Hamiltonian system of two degrees of freedom, quadratic in the
+            section's momentum.
+        energy: the prescribed energy ``E``.
+        section: ``"q2=0"``: the position coordinate the orbits cross and its value.
+        reversing: the coordinates a reversing symmetry flips (with ``t -> -t``), e.g.
+            ``("q2", "p1")``: it must flip the section's coordinate and the other momentum, the
+            section's value must be 0, and ``H`` must be unchanged by it (checked).
+            ``"auto"`` (default): that symmetry's half-orbit shots wherever ``H`` is unchanged
+            by it, and the whole return map besides (for the orbits that are not their own
+            mirror images). ``None`` or ``"none"``: the whole return map only; a declared
+            symmetry: its half-orbit shots only.
+        seeds: how many seeds (on the symmetric line, both crossing directions; about as many
+            accessible ones on a square grid for the whole return map).
+        max_returns: orbits up to this many upward crossings of the section per period.
+        window: ``(lo, hi)`` of the other position coordinate; default from the critical points
+            of the least energy along the section's line (each edge their spread beyond).
+        nodes: the grid of the refinement (``solve_periodic``).
+        params: the system's parameter values.
+        refine: refine each orbit on the grid and compute its stability there.
+
+    Returns:
+        An `OrbitSearch`. An energy with no motion on the section is refused
+        (`NoMotionOnSection`, an `InputError`), before any flow is run.
+    """
+    started = time.process_time()
+    sec = parse_search_section(section, system)
+    energy = check_real("energy", energy)
+    seeds = check_integer("seeds", seeds)
+    max_returns = check_integer("max_returns", max_returns)
+    nodes = check_integer("nodes", nodes, minimum=4)
+    theta = system.parameter_vector(params)
+    flipped = parse_reversing(reversing, system, theta, sec)
+    geometry = SectionAtEnergy(system, theta, sec, energy)
+    window = _window(geometry, window)
+    found, failures, region = [], [], None
+    if flipped is not None:
+        found, failures, region = _symmetric_search(geometry, window, seeds, max_returns)
+    if flipped is None or reversing == "auto":  # a found symmetry: its orbits and all others
+        more, failed, box = _map_search(geometry, window, seeds, max_returns)
+        found, failures = found + more, failures + failed
+        region = box if region is None else {
+            **box, "seeds": region["seeds"] + box["seeds"],
+            "accessible": region["accessible"] + box["accessible"],
+            "horizon": max(region["horizon"], box["horizon"])}
+    orbits = _distinct(found)
+    if refine:
+        for orbit in orbits:
+            _refine(system, orbit, energy, sec, nodes, params)
+    region = SearchRegion(reversing=flipped, **region)
+    return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
+                       time.process_time() - started)
+
+
+def parse_reversing(reversing, system, theta, section: SearchSection):
+    """The names of the coordinates a reversing symmetry flips (`find_periodic_orbits`),
+    checked, or ``None`` (no symmetry used). ``"auto"``: the one that flips the section's
+    coordinate and the other momentum, where ``H`` is unchanged by it and the section's value
+    is 0."""
+    names = [f"q{i + 1}" for i in range(2)] + [f"p{i + 1}" for i in range(2)]
+    wanted = sorted([section.index, 2 + section.other])
+    if reversing is None or reversing is False or reversing == "none":
+        return None
+    if isinstance(reversing, str) and reversing == "auto":
+        if section.value != 0 or _symmetry_gap(system, theta, wanted) is not None:
+            return None
+        return tuple(names[i] for i in wanted)
+    items = reversing.split(",") if isinstance(reversing, str) else reversing
+    try:
+        flipped = sorted({names.index(str(name).strip()) for name in items})
+    except (ValueError, TypeError):
+        raise InputError(f"reversing must name coordinates among {', '.join(names)} (those "
+                         f"the symmetry flips), or be 'auto' or 'none', got {reversing!r}") \
+            from None
+    if flipped != wanted:
+        raise InputError(
+            f"reversing {reversing!r}: the half-orbit shot needs the symmetry that flips the "
+            f"section's coordinate and the other momentum ({names[wanted[0]]}, "
+            f"{names[wanted[1]]}) for the section {section.label}")
+    if section.value != 0:
+        raise InputError(f"reversing {reversing!r}: the section {section.label} is not mapped "
+                         "to itself by the symmetry (its value must be 0)")
+    worst = _symmetry_gap(system, theta, flipped)
+    if worst is not None:
+        raise InputError(f"reversing {reversing!r} is not a symmetry of H: H changes by up to "
+                         f"{worst:.3g} under it")
+    return tuple(names[i] for i in flipped)
+
+
+def _symmetry_gap(system, theta, flipped) -> float | None:
+    """``None`` where ``H`` is unchanged (to round-off of its values) when the coordinates
+    ``flipped`` change sign, at 16 random points; else the largest change."""
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=(16, 4)) + 0.5
+    image = z.copy()
+    image[:, flipped] *= -1
+    with np.errstate(all="ignore"):
+        H = system.energy(z[:, :2], z[:, 2:], np.zeros(16), theta)
+        H_image = system.energy(image[:, :2], image[:, 2:], np.zeros(16), theta)
+    ok = np.isfinite(H) & np.isfinite(H_image)
+    if not ok.any():
+        return float("nan")
+    gap = np.abs(H - H_image)[ok]
+    size = np.maximum(np.abs(H[ok]), np.abs(H_image[ok]))
+    return None if np.all(gap <= 1e-12 * size) else float(np.max(gap))
+
+
+def _least_energy(geometry: SectionAtEnergy, q_other: np.ndarray) -> np.ndarray:
+    """The least ``H`` over both momenta at each ``q_o`` of the section's line (each a
+    parabola's vertex; the other momentum's probe on the scale of ``H`` there)."""
+    def least_over_ps(p_other):
+        u = np.column_stack([q_other, p_other])
+        a, b, c = geometry.quadratic(u)
+        with np.errstate(all="ignore"):
+            return c - b * b / (4 * a)
+    zero = least_over_ps(np.zeros(q_other.size))
+    size = np.abs(np.where(np.isfinite(zero), zero, 0.0))
+    step = np.sqrt(size + (np.median(size[size > 0]) if np.any(size > 0) else 1.0))
+    minus, plus = least_over_ps(-step), least_over_ps(step)
+    with np.errstate(all="ignore"):
+        a, b = ((plus + minus) / 2 - zero) / step ** 2, (plus - minus) / (2 * step)
+        return np.where(a > 0, zero - b * b / (4 * a), np.nan)
+
+
+def _window(geometry: SectionAtEnergy, window) -> tuple:
+    """The window of ``q_o`` searched: given, or from the critical points of the least
+    energy along the line (their span beyond each end; the edge where the energy stops motion
+    when there is only one); refused when the energy allows no motion in it."""
+    geometry.check_quadratic(np.column_stack([_SCAN[::97], np.zeros(_SCAN[::97].size)]))
+    V = _least_energy(geometry, _SCAN)
+    if window is not None:
+        try:
+            lo, hi = (check_real("window", float(w)) for w in window)
+        except (TypeError, ValueError):
+            raise InputError(f"window must be (lo, hi), two real numbers, got {window!r}") \
+                from None
+        if not lo < hi:
+            raise InputError(f"window must have lo < hi, got {window!r}")
+    else:
+        if not np.any(np.isfinite(V) & (V <= geometry.energy)):
+            finite = V[np.isfinite(V)]
+            raise NoMotionOnSection(
+                f"no motion at this energy on the section: energy {geometry.energy!r} is below "
+                f"the least energy on the section {geometry.section.label} "
+                f"({np.min(finite) if finite.size else np.nan:.6g}, over the other position "
+                f"from {_SCAN[0]:.0e} to {_SCAN[-1]:.0e})")
+        inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
+        critical = _SCAN[1:-1][inner & np.isfinite(V[1:-1])]
+        allowed = _SCAN[np.isfinite(V) & (V <= geometry.energy)]
+        if critical.size >= 2:
+            span = critical.max() - critical.min()
+            lo, hi = critical.min() - span, critical.max() + span
+        elif critical.size == 1 and allowed.size:
+            span = 2 * np.max(np.abs(allowed - critical[0])[
+                np.abs(allowed - critical[0]) < 1e5])
+            lo, hi = critical[0] - span, critical[0] + span
+        else:
+            raise InputError(f"window: the least energy along the section {geometry.section.label}"
+                             " has no critical point to size a window by; give window=(lo, hi)")
+    grid = np.linspace(lo, hi, 4001)
+    V = _least_energy(geometry, grid)
+    if not np.any(np.isfinite(V) & (V <= geometry.energy)):
+        finite = V[np.isfinite(V)]
+        raise NoMotionOnSection(
+            f"no motion at this energy on the section: energy {geometry.energy!r} is below the "
+            f"least energy on the section {geometry.section.label} "
+            f"({np.min(finite) if finite.size else np.nan:.6g} over the other position in "
+            f"[{lo:.4g}, {hi:.4g}])")
+    return float(lo), float(hi)
+
+
+def _scales(window) -> tuple[float, float]:
+    reach = max(abs(window[0]), abs(window[1]))
+    return reach, ESCAPE * reach
+
+
+def _time_scale(geometry: SectionAtEnergy, z: np.ndarray) -> float:
+    """A time for the seeds' first horizon: the median of ``|q| / |q'|`` over them."""
+    speeds = np.array([np.linalg.norm(geometry.velocity(row)[:2]) for row in z])
+    sizes = np.linalg.norm(z[:, :2], axis=1)
+    ratio = sizes / speeds
+    ratio = ratio[np.isfinite(ratio) & (ratio > 0)]
+    return float(np.median(ratio)) if ratio.size else 1.0
+
+
+def _follow(geometry, z0, count: int, first: float, atol, escape):
+    """The returns of ``z0`` until ``count`` crossings (doubling the horizon from ``first``,
+    at most eight times), or why there are fewer."""
+    horizon = first
+    for _ in range(9):
+        found = returns(geometry, z0, horizon, atol, escape=escape)
+        if found.t.size >= count or found.reason:
+            return found, horizon
+        horizon *= 2
+    return found, horizon
+
+
+def _cells(window, count: int) -> np.ndarray:
+    """``count`` seeds at the centres of equal cells of the window: none on its middle, where a
+    symmetric problem's singularity sits (Hill's Moon at ``q_o = 0``)."""
+    count += count % 2
+    edges = np.linspace(window[0], window[1], count + 1)
+    return (edges[:-1] + edges[1:]) / 2
+
+
+def _symmetric_search(geometry, window, seeds: int, max_returns: int):
+    """Half-orbit shots from seeds on the fixed line ``p_o = 0`` (module docstring)."""
+    reach, escape = _scales(window)
+    atol = RTOL * reach
+    line = _cells(window, max(seeds // 2, 2))
+    u = np.column_stack([line, np.zeros(line.size)])
+    found, failures, accessible, horizons = [], [], 0, []
+    half = 2 * max_returns  # crossings of the section in half an orbit of max_returns returns
+    for direction in (1, -1):
+        z = geometry.points(u, direction)
+        ok = np.all(np.isfinite(z), axis=1)
+        accessible += int(ok.sum())
+        if not ok.any():
+            continue
+        first = 4 * _time_scale(geometry, z[ok])
+        residual = np.full((line.size, half), np.nan)
+        times = np.full((line.size, half), np.nan)
+        for i in np.flatnonzero(ok):
+            run, horizon = _follow(geometry, z[i], half, first, atol, escape)
+            horizons.append(horizon)
+            k = min(run.t.size, half)
+            residual[i, :k] = run.z[:k, 2 + geometry.section.other]
+            times[i, :k] = run.t[:k]
+            if k == 0:
+                failures.append(FailedSeed((float(line[i]), 0.0), run.reason or
+                                           f"did not return to the section by t = {horizon:.4g}"))
+        for k in range(half):
+            for i in np.flatnonzero(residual[:-1, k] * residual[1:, k] <= 0):
+                shot = _shoot_half(geometry, line[i], line[i + 1], k + 1, direction,
+                                   np.nanmax(times[i:i + 2, k]), atol, escape)
+                if isinstance(shot, FoundOrbit):
+                    found.append(shot)
+                else:
+                    failures.append(FailedSeed((float(line[i]), float(line[i + 1])), shot))
+    region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
+                  momentum=None, seeds=2 * line.size, accessible=accessible,
+                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
+    return found, failures, region
+
+
+class _NoShot(Exception):
+    """A shooting evaluation without the crossing it needs."""
+
+
+def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: float, atol,
+                escape):
+    """The orbit from the fixed line between ``q_o = a`` and ``b`` whose ``k``-th crossing is
+    at right angles (Brent's method on ``p_o`` there), closed and checked on the exact flow; or
+    why not, in words."""
+    other = 2 + geometry.section.other
+    horizon = 1.5 * t_guess
+
+    def crossing(x):
+        z0 = geometry.points([[x, 0.0]], direction)[0]
+        if not np.all(np.isfinite(z0)):
+            raise _NoShot(f"the energy allows no motion at q_o = {x:.6g}")
+        for stretch in (1, 2, 4):  # near a root the crossing can come later than at the ends
+            run = returns(geometry, z0, stretch * horizon, atol, attempts=10 * SEED_ATTEMPTS,
+                          escape=escape)
+            if run.t.size >= k or run.reason:
+                break
+        if run.t.size < k:
+            raise _NoShot(f"shooting did not converge: crossing {k} lost at q_o = {x:.6g} "
+                          f"({run.reason or 'not reached'})")
+        return z0, run.t[k - 1], run.z[k - 1]
+
+    from scipy.optimize import brentq
+    try:
+        root = brentq(lambda x: crossing(x)[2][other], a, b, xtol=1e-14 * max(abs(a), abs(b)),
+                      rtol=1e-15, maxiter=200)
+        z0, t_half, end = crossing(root)
+    except _NoShot as why:
+        return str(why)
+    size = float(np.max(np.abs(z0)))
+    if abs(end[other]) > RESIDUAL * size:
+        return (f"shooting did not converge: the crossing's momentum jumps between q_o = "
+                f"{a:.6g} and {b:.6g} (|p_o| = {abs(end[other]):.2e} at the bracket's root)")
+    return _closed(geometry, z0, 2 * t_half, atol, escape, symmetric=True)
+
+
+def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
+    """The orbit from ``z0`` over ``period`` checked to close on the exact flow, with its upward
+    crossings and exact monodromy (a `FoundOrbit`), or why not."""
+    flow = exact_flow(geometry.system)
+    with np.errstate(all="ignore"):
+        run = flow.run(z0, 0.0, period, geometry.theta, rtol=RTOL, atol=atol,
+                       max_attempts=10 * SEED_ATTEMPTS)
+    size = float(np.max(np.abs(z0)))
+    closure = float(np.max(np.abs(run.z_end - z0))) / size if run.success else np.inf
+    if not closure <= CLOSURE:
+        return f"the orbit does not close on the exact flow (closure {closure:.2e} of its size)"
+    seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
+    again = [j for j in range(seen.t.size) if seen.t[j] < period * (1 - 1e-9)
+             and np.max(np.abs(seen.z[j] - z0)) <= 1e3 * SAME * size]
+    if again:  # a multiple cover: its primitive orbit (found from this seed all the same)
+        period = float(seen.t[again[0]])
+        seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
+    ups = [j for j in range(seen.t.size) if seen.direction[j] > 0
+           and seen.t[j] < period * (1 - 1e-9)]
+    starts = seen.z[ups] if ups else z0[None, :]
+    if geometry.velocity(z0)[geometry.section.index] > 0:
+        starts = np.vstack([z0[None, :], starts])
+    start = starts[0]
+    shift = 0.0 if np.allclose(start, z0) else float(seen.t[ups[0]])
+    if shift:
+        start = run.z([shift])[0]
+    # the map's derivative from the slowest crossing: started near a close approach the
+    # monodromy has entries of 1e7 and its trace loses digits (measured on Hill's mirror pairs)
+    gentle = starts[np.argmin([np.linalg.norm(geometry.velocity(row)) for row in starts])]
+    _, derivative = return_derivative(geometry, gentle, period, atol)
+    if derivative is None:
+        return "the return map's derivative over the period could not be computed"
+    crossings = _unique_rows(starts[:, geometry.section.free], size)
+    return FoundOrbit(period=period, start=start, returns=len(crossings), symmetric=symmetric,
+                      multipliers=np.linalg.eigvals(derivative),
+                      index=float(np.trace(derivative)),
+                      closure=closure, crossings=crossings,
+                      path=run.z(np.linspace(0.0, period, 400)))
+
+
+def _unique_rows(rows: np.ndarray, size: float) -> np.ndarray:
+    kept = []
+    for row in rows:
+        if not any(np.max(np.abs(row - other)) <= SAME * size for other in kept):
+            kept.append(row)
+    return np.array(kept)
+
+
+def _map_search(geometry, window, seeds: int, max_returns: int):
+    """Newton on ``P^k(u) = u`` from the grid minima of ``|P^k(u) - u|`` over a box of the
+    section (module docstring)."""
+    reach, escape = _scales(window)
+    atol = RTOL * reach
+    probe = np.linspace(window[0], window[1], 101)
+    z_line = geometry.points(np.column_stack([probe, np.zeros(probe.size)]))
+    # the momenta's reach: most of the line's (its largest is a singularity's, 1e7 near Hill's
+    # Moon, and would leave every seed of the grid but a column inaccessible)
+    top = 1.25 * float(np.nanpercentile(np.abs(z_line[:, 2:]), 90)) \
+        if np.any(np.isfinite(z_line)) else reach
+    fine = np.array([(x, p) for x in probe for p in np.linspace(-top, top, 101)])
+    share = max(float(np.mean(np.all(np.isfinite(geometry.points(fine)), axis=1))), 1e-3)
+    side = max(int(np.sqrt(seeds / share)), 3)  # about `seeds` of the grid's points accessible
+    line = _cells(window, side)
+    side = line.size
+    momenta = np.linspace(-top, top, side)
+    U = np.array([(x, p) for x in line for p in momenta])
+    Z = geometry.points(U)
+    ok = np.all(np.isfinite(Z), axis=1)
+    first = 4 * _time_scale(geometry, Z[ok]) if ok.any() else 1.0
+    images = np.full((U.shape[0], max_returns, 2), np.nan)
+    times = np.full((U.shape[0], max_returns), np.nan)
+    found, failures, horizons = [], [], []
+    for i in np.flatnonzero(ok):
+        run, horizon = _follow(geometry, Z[i], 2 * max_returns, first, atol, escape)
+        horizons.append(horizon)
+        up = np.flatnonzero(run.direction > 0)[:max_returns]
+        images[i, :up.size] = run.z[up][:, geometry.section.free]
+        times[i, :up.size] = run.t[up]
+        if up.size == 0:
+            failures.append(FailedSeed(tuple(U[i]), run.reason or
+                                       f"did not return to the section by t = {horizon:.4g}"))
+    scale = np.array([reach, top])
+    for k in range(max_returns):
+        gap = np.max(np.abs(images[:, k] - U) / scale, axis=1).reshape(side, side)
+        for i, j in _grid_minima(gap):
+            index = i * side + j
+            result = _newton_map(geometry, U[index], k + 1, times[index, k], scale, atol,
+                                 escape)
+            if isinstance(result, FoundOrbit):
+                found.append(result)
+            else:
+                failures.append(FailedSeed(tuple(U[index]), result))
+    region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
+                  momentum=(-top, top), seeds=U.shape[0], accessible=int(ok.sum()),
+                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
+    return found, failures, region
+
+
+def _grid_minima(gap: np.ndarray, threshold: float = 0.5):
+    """Cells of ``gap`` below ``threshold`` that are the least of their 3 x 3 neighbours."""
+    padded = np.pad(np.where(np.isfinite(gap), gap, np.inf), 1, constant_values=np.inf)
+    rows, cols = gap.shape
+    for i in range(rows):
+        for j in range(cols):
+            value = padded[i + 1, j + 1]
+            if value < threshold and value <= padded[i:i + 3, j:j + 3].min():
+                yield i, j
+
+
+def _newton_map(geometry, u0, k: int, t_guess: float, scale, atol, escape):
+    """Newton on ``P^k(u) - u = 0`` from ``u0`` (derivative of the map from the variational
+    equations), the orbit closed and checked; or why not."""
+    def evaluate(u):
+        z0 = geometry.points([u])[0]
+        if not np.all(np.isfinite(z0)):
+            return None, None
+        run = returns(geometry, z0, 1.5 * t_guess, atol, attempts=10 * SEED_ATTEMPTS,
+                      escape=escape)
+        up = np.flatnonzero(run.direction > 0)
+        if up.size < k:
+            return None, None
+        z_k, D = return_derivative(geometry, z0, run.t[up[k - 1]], atol)
+        if z_k is None:
+            return None, None
+        return z_k[geometry.section.free] - u, (D, run.t[up[k - 1]], z0)
+
+    def step(_u, residual, payload):
+        return -np.linalg.lstsq(payload[0] - np.eye(2), residual, rcond=None)[0]
+
+    result = exact_newton(evaluate, step, np.asarray(u0, float),
+                          size=lambda r: float(np.max(np.abs(r) / scale)), tolerance=1e-11,
+                          max_iterations=25, halvings=12)
+    if not result.converged:
+        why = "an evaluation left the region or lost the return" if result.failed_evaluation \
+            else f"residual {result.residual:.2e} after {result.iterations} iterations"
+        return f"shooting did not converge ({why})"
+    _, period, z0 = result.payload
+    return _closed(geometry, z0, period, atol, escape, symmetric=False)
+
+
+def _distinct(found: list) -> list:
+    """Each orbit once: the same period and a shared upward crossing (module docstring);
+    multiple covers (a crossing repeated within the period) are not kept."""
+    kept = []
+    for orbit in found:
+        size = float(np.max(np.abs(orbit.start)))
+        if _covers(orbit, size):
+            continue
+        same = next((other for other in kept
+                     if abs(other.period - orbit.period) <= SAME * other.period and any(
+                         np.max(np.abs(row - orbit.crossings[0])) <= 1e3 * SAME * size
+                         for row in other.crossings)), None)
+        if same is None:
+            kept.append(orbit)
+        else:
+            same.seeds += 1
+    return kept
+
+
+def _covers(orbit: FoundOrbit, size: float) -> bool:
+    """Whether the orbit repeats its start before its period (a multiple cover)."""
+    return len(orbit.crossings) < orbit.returns or any(
+        np.max(np.abs(row - orbit.crossings[0])) <= 1e3 * SAME * size
+        for row in orbit.crossings[1:])
+
+
+def _refine(system, orbit: FoundOrbit, energy: float, section: SearchSection, nodes: int,
+            params) -> None:
+    """The orbit on the discrete grid (``solve_periodic`` from it) and its stability there."""
+    from .floquet import periodic_stability
+    from .orbit import solve_periodic
+
+    theta = system.parameter_vector(params)
+    flow = exact_flow(system)
+    run = flow.run(orbit.start, 0.0, orbit.period, theta, rtol=RTOL)
+    t = np.linspace(0.0, orbit.period, 4 * nodes)
+    z = run.z(t)
+    z[-1] = z[0]
+    guess = {"t": t, "q": z[:, :2], "p": z[:, 2:]}
+    label = f"q{section.index + 1}={section.value:g}"
+    try:
+        solution = solve_periodic(system, energy=energy, nodes=nodes, section=label,
+                                  guess=guess, params=params)
+    except InputError as error:
+        orbit.note = f"not refined on the grid: {error}"
+        return
+    orbit.solution = solution
+    if not solution.success:
+        orbit.note = f"the grid's refinement failed: {solution.message[:200]}"
+        return
+    orbit.stability = periodic_stability(system, solution, params=params)

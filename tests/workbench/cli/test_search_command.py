@@ -1,0 +1,30 @@
+"""`ddvp periodic --search` on Hill's problem (tests/library/periodic/hill_scene.py): the orbit
+list written and printed; a failed orbit of `ddvp periodic` prints no period."""
+
+from pathlib import Path
+
+from ddvp_nlp.cli.main import main
+
+
+def test_the_command_writes_the_orbit_list(tmp_path, capsys):
+    scene = Path(__file__).resolve().parents[2] / "library" / "periodic" / "hill_scene.py"
+    code = main(["periodic", str(scene), "--search", "--energy", "-1.663", "--section", "q2=0",
+                 "--seeds", "120", "--max-returns", "1", "--no-plot", "--out",
+                 str(tmp_path / "out")])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    rows = (tmp_path / "out" / "orbits.csv").read_text().splitlines()
+    assert rows[0].startswith("period,index,verdict")
+    assert any(abs(float(row.split(",")[0]) - 0.6471579) < 1e-6 for row in rows[1:]), rows
+    assert "T = 0.6471579313" in printed
+
+
+def test_an_orbit_not_found_prints_no_period(tmp_path, capsys):
+    """Henon-Heiles below its well's bottom on the section x = 0: the default start escapes,
+    no orbit is found, and no period is printed (issue 46: one was)."""
+    code = main(["periodic", "henon_heiles", "--energy", "-0.01", "--section", "q1=0",
+                 "--nodes", "41", "--solver", "newton", "--no-plot", "--out",
+                 str(tmp_path / "out")])
+    printed = capsys.readouterr().out
+    assert code == 1
+    assert "no period: no orbit was found at E = -0.01" in printed
