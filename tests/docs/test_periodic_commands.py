@@ -81,12 +81,22 @@ def _hill_family(out: str, folder: Path) -> None:
     assert out.count("(exact flow: unstable") == 42
 
 
+def _hill_search(out: str, folder: Path) -> None:
+    """docs/periodic/search.md: 13 orbits at E = -2.14, the Lyapunov pair (T = 3.039655464,
+    index 1970.2952) refined on the grid, the retrograde orbit (T = 0.4993825627)."""
+    assert "13 periodic orbit(s) found" in out
+    assert out.count("T = 3.039655464  index 1970.2952") == 2
+    assert "T = 0.4993825627  index 1.7424598" in out
+    assert out.count("grid T = 3.0397") == 2
+
+
 CLAIMS = {
     "ddvp periodic henon_heiles --stability": _henon_heiles_stability,
     "ddvp periodic figure_eight --stability": _figure_eight,
     "ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005": _halo_birth,
     "ddvp periodic henon_heiles --energy 0.02 --follow 0.1 --step 0.01": _henon_heiles_follow,
     "ddvp periodic hill --energy -2.14 --follow -1.90": _hill_family,
+    "ddvp periodic hill --search --energy -2.14 --section q2=0": _hill_search,
 }
 
 
