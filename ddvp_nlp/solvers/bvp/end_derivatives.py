@@ -61,7 +61,8 @@ def check_derivatives(system, derivatives, t_span=None) -> tuple[str, ...]:
                          f"{getattr(system, 'name', system)!r} has no parameters")
     if names and t_span is not None and not isinstance(t_span, (tuple, list, np.ndarray)):
         raise InputError(f"derivatives are not supported for a transfer at an energy "
-                         f"(t_span={t_span!r}): give a fixed (t0, t_end)")
+                         f"(t_span={t_span!r}): give a fixed (t0, t_end), or call "
+                         f"transfer_derivatives(sol) on the transfer")
     return names
 
 
