@@ -50,6 +50,8 @@ PUBLIC = {
     "DerivativeOptions": "marching.derivatives",
     # fixed ends
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
+    "bvp_gradient": "bvp.end_gradient",  # reverse mode of a fixed-end solution's derivatives
+    "transfer_derivatives": "bvp.transfer_derivatives",  # a transfer at an energy's
     # periodic orbits
     "solve_periodic": "periodic.orbit", "check_periodic": "periodic.orbit",
     "parse_section": "periodic.orbit", "solve_periodic_family": "periodic.family",
@@ -57,6 +59,7 @@ PUBLIC = {
     "periodic_stability": "periodic.floquet", "Stability": "periodic.floquet",
     "linearised_orbit": "periodic.linearised",
     "find_periodic_orbits": "periodic.search", "OrbitSearch": "periodic.search",
+    "orbit_gradient": "periodic.orbit_gradient",  # reverse mode of an orbit's derivatives
     # higher-order Lagrangians
     "march_higher": "higher.stepping", "solve_bvp_higher": "higher.stepping",
     # the compared integrators
@@ -85,8 +88,10 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .baselines.dop853 import dop853, flow_callable
     from .baselines.fixed_step import step_residuals
     from .bvp.at_energy import AtEnergy
+    from .bvp.end_gradient import bvp_gradient
     from .bvp.first_guess import Shooting
     from .bvp.fixed_ends import solve_bvp
+    from .bvp.transfer_derivatives import transfer_derivatives
     from .chaos.indicators import ChaosIndicators, chaos_indicators
     from .chaos.spectrum import Spectrum, lyapunov_spectrum
     from .compiler import find_compiler
@@ -106,6 +111,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .periodic.floquet import Stability, periodic_stability
     from .periodic.linearised import linearised_orbit
     from .periodic.orbit import check_periodic, parse_section, solve_periodic
+    from .periodic.orbit_gradient import orbit_gradient
     from .periodic.search import OrbitSearch, find_periodic_orbits
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
@@ -115,11 +121,12 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "OrbitSearch",
            "Output", "Shooting",
            "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
-           "chaos_indicators", "check_periodic", "coerce", "continue_march", "describe", "dop853",
+           "bvp_gradient", "chaos_indicators", "check_periodic", "coerce", "continue_march",
+           "describe", "dop853",
            "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",
            "find_periodic_orbits", "flow_callable", "follow_periodic_family", "gradient",
            "linearised_orbit", "locate",
            "lyapunov_spectrum", "march",
-           "march_ensemble", "march_higher", "motion_scales", "parse_section",
+           "march_ensemble", "march_higher", "motion_scales", "orbit_gradient", "parse_section",
            "periodic_stability", "solve_bvp", "solve_bvp_higher", "solve_periodic",
-           "solve_periodic_family", "step_residuals"]
+           "solve_periodic_family", "step_residuals", "transfer_derivatives"]

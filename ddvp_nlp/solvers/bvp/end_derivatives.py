@@ -61,7 +61,8 @@ def check_derivatives(system, derivatives, t_span=None) -> tuple[str, ...]:
                          f"{getattr(system, 'name', system)!r} has no parameters")
     if names and t_span is not None and not isinstance(t_span, (tuple, list, np.ndarray)):
         raise InputError(f"derivatives are not supported for a transfer at an energy "
-                         f"(t_span={t_span!r}): give a fixed (t0, t_end)")
+                         f"(t_span={t_span!r}): give a fixed (t0, t_end), or call "
+                         f"transfer_derivatives(sol) on the transfer")
     return names
 
 
@@ -80,7 +81,8 @@ def bvp_derivatives(request, x: np.ndarray, solution: Solution, names) -> dict:
     result = {"p_start": {}, "p_end": {}, "nodes": {}, "checks": {}}
     dx, corrections = {}, {}
     for name in names:
-        dx[name], corrections[name] = linear.forward(_columns(grid, x, data, name, n, N * m))
+        dx[name], corrections[name] = linear.forward(
+            input_columns(grid, x, data, name, n, N * m))
         nodes = dx[name].reshape(N, m, -1)
         result["nodes"][name] = nodes
         result["p_start"][name] = nodes[0, n + 1:].copy()
@@ -112,7 +114,7 @@ def bvp_derivatives(request, x: np.ndarray, solution: Solution, names) -> dict:
     return result
 
 
-def _columns(grid, x, data, name: str, n: int, size: int) -> np.ndarray:
+def input_columns(grid, x, data, name: str, n: int, size: int) -> np.ndarray:
     """``F_v`` of one input: ``-I`` on the pin rows of an end, the parameter Jacobian."""
     if name == "params":
         return grid.parameter_jacobian(x, data).toarray()

@@ -35,6 +35,7 @@ import time
 import numpy as np
 
 from ... import validation
+from ...errors import InputError
 from .linear import Factorization
 from .newton import FullSteps, newton
 from .problem import GridProblem
@@ -187,3 +188,59 @@ def resolver(problem: GridProblem, x: np.ndarray, data_at, target: np.ndarray, *
 def new_rng():
     """The checks' random directions: seeded, so that a run repeats."""
     return np.random.default_rng(SEED)
+
+
+class GridGradient(dict):
+    """A grid solution's reverse-mode gradient by input name, with ``error_estimate`` (the
+    transposed solve's residual solved once more, relative to the adjoint: `reverse`) and
+    ``ill_conditioned`` (singular ``F_x``, or the estimate above ``ILL_CONDITIONED``)."""
+
+    def __init__(self, values, *, error_estimate: float, ill_conditioned: bool):
+        super().__init__(values)
+        self.error_estimate, self.ill_conditioned = error_estimate, ill_conditioned
+
+
+def check_grid_cotangent(cotangent, shapes: dict, what: str) -> dict:
+    """``cotangent`` (a mapping from some names of ``shapes`` to arrays of those shapes, finite)
+    as float arrays by name; an ``InputError`` names a wrong key, shape or entry (``what``:
+    the solve, for the message)."""
+    if not hasattr(cotangent, "items"):
+        raise InputError(f"cotangent of {what} must be a mapping from names in "
+                         f"{', '.join(shapes)} to arrays, got {cotangent!r:.80}")
+    if not cotangent:
+        raise InputError(f"cotangent of {what} is empty: give one of {', '.join(shapes)}")
+    found = {}
+    for name, value in cotangent.items():
+        if name not in shapes:
+            raise InputError(f"cotangent of {what}: unknown name {name!r} (choose from "
+                             f"{', '.join(shapes)})")
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"cotangent[{name!r}] must be real numbers of shape "
+                             f"{shapes[name]}, got {value!r:.80}") from None
+        if array.shape != shapes[name]:
+            raise InputError(f"cotangent[{name!r}] must have shape {shapes[name]}, got "
+                             f"{array.shape}")
+        bad = np.argwhere(~np.isfinite(np.atleast_1d(array)))
+        if bad.size:
+            raise InputError(f"cotangent[{name!r}] must be finite, got "
+                             f"{float(np.atleast_1d(array)[tuple(bad[0])])!r} at "
+                             f"{list(map(int, bad[0]))}")
+        found[name] = array
+    return found
+
+
+def reverse(linear: Linearisation, c: np.ndarray, columns: dict) -> GridGradient:
+    """``dL/dv = -(F_x^-T c) . F_v`` for each input's ``F_v`` in ``columns`` (name -> (size,
+    k)), ``L = c . x``: one transposed solve on ``linear``'s factors, and one more of its
+    residual for the error estimate."""
+    lam = linear.adjoint(c)
+    correction = linear.adjoint(c - linear.matrix.T @ lam)
+    values = {}
+    for name, F_v in columns.items():
+        values[name] = -(np.asarray(F_v, float).T @ lam)
+    estimate = relative(correction, lam)
+    return GridGradient(values, error_estimate=estimate,
+                        ill_conditioned=bool(linear.singular or not np.isfinite(estimate)
+                                             or estimate > ILL_CONDITIONED))

@@ -36,9 +36,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..dense import DenseField
 from ..options import Output
 from .adjoint import reverse_derivatives
 from .derivatives import choose_mode, march_derivatives
+from .event_derivatives import event_derivatives
 from .monitors import MONITOR_LIMIT, MarchMonitor
 
 __all__ = ["DerivativeCheck", "Derivatives", "Sensitivity", "check_record", "conditioning",
@@ -82,11 +84,14 @@ class DerivativeCheck:
 class Derivatives(dict):
     """``d(q, p)(t_eval) / d(input)`` by input name (``"q0"``, ``"p0"``, ``"params"``), as
     ``Solution.derivatives`` holds them; ``mode``: ``"forward"`` or ``"reverse"`` (how they
-    were computed); ``check``: their `DerivativeCheck`."""
+    were computed); ``check``: their `DerivativeCheck`; ``events``: one
+    ``event_derivatives.EventDerivatives`` per event function of ``Output(events=...)`` (the
+    crossing times' derivatives), ``None`` without events."""
 
-    def __init__(self, values, *, mode: str, check: DerivativeCheck | None = None):
+    def __init__(self, values, *, mode: str, check: DerivativeCheck | None = None,
+                 events: list | None = None):
         super().__init__(values)
-        self.mode, self.check = mode, check
+        self.mode, self.check, self.events = mode, check, events
 
 
 def conditioning(solvability, last_node: int, warning) -> tuple[bool, float]:
@@ -186,9 +191,12 @@ class Sensitivity(MarchMonitor):
 
     rewatch = False
 
-    def __init__(self, problem, t_eval, names, mode="auto", compilation=None, march=None):
-        self.problem, self.t_eval, self.names = problem, t_eval, names
+    def __init__(self, problem, t_eval, names, mode="auto", compilation=None, march=None,
+                 events=()):
+        self.problem, self.names = problem, names
+        self.t_eval = np.zeros(0) if t_eval is None else np.asarray(t_eval, float)
         self.mode, self.compilation, self.march = mode, compilation, march
+        self.events = tuple(events or ())
 
     @classmethod
     def from_options(cls, session):
@@ -197,7 +205,7 @@ class Sensitivity(MarchMonitor):
             return None
         return cls(session.problem, session.output.t_eval, names,
                    getattr(session, "derivatives_mode", "auto"), session.compilation,
-                   getattr(session, "march", None))
+                   getattr(session, "march", None), session.output.events)
 
     def finish(self, solution, outcome) -> None:
         problem = self.problem
@@ -208,7 +216,20 @@ class Sensitivity(MarchMonitor):
         values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept,
                                self.names)
         solution.derivatives = Derivatives(values, mode=mode,
-                                           check=self._check(solution, values, kept))
+                                           check=self._check(solution, values, kept),
+                                           events=self._events(solution, t, z))
+
+    def _events(self, solution, t, z):
+        """The crossing times' derivatives (``event_derivatives.py``), or ``None``."""
+        if not self.events or solution.t_events is None:
+            return None
+        problem = self.problem
+        f = DenseField.of(problem.system, problem.theta)(t, z) if t.size else z.copy()
+        warning = solution.march.solvability_warning if solution.march is not None else None
+        return event_derivatives(
+            problem.system, problem.scheme, problem.theta, t, z, f, self.events,
+            solution.t_events, self.names,
+            conditioned=lambda last: conditioning(solution.solvability, last, warning)[0])
 
     def _check(self, solution, values, kept):
         """The derivative's `DerivativeCheck`: one pair of marches (module docstring)."""

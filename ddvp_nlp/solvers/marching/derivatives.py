@@ -91,9 +91,9 @@ def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps
     """Refuse by name what ``derivatives`` does not support yet, before anything is built."""
     if not names:
         return
-    if output.t_eval is None:
-        raise InputError("derivatives are of the states at fixed times: give "
-                         "output=Output(t_eval=...)")
+    if output.t_eval is None and not output.events:
+        raise InputError("derivatives are of the states at fixed times or of event times: "
+                         "give output=Output(t_eval=...) or Output(events=...)")
     refusals = (
         (v0 is not None, "v0 (the start then depends on tau0): give p0"),
         (backward, "a backward t_span (t_end < t0)"),

@@ -74,9 +74,9 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     x = assembly.layout.pack(solution.t, solution.q, solution.p)
     x[assembly.layout.nodes * assembly.layout.m:] = [orbit.unfolding,
                                                       *orbit.integral_unfoldings]
-    closure = _closure(request, solution, integrals)
+    closure = orbit_closure(request, solution, integrals)
     linear = Linearisation(assembly, x, closure, "sparse")
-    columns = {name: _columns(assembly, x, closure, name) for name in names}
+    columns = {name: input_columns(assembly, x, closure, name) for name in names}
     solved = {name: linear.forward(columns[name]) for name in names}
     dx = {name: solved[name][0] for name in names}
     times = assembly.layout.time_index()
@@ -111,7 +111,7 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     return result
 
 
-def _closure(request, solution: Solution, integrals) -> Closure:
+def orbit_closure(request, solution: Solution, integrals) -> Closure:
     """The orbit's `Closure`, with the integrals' phase conditions referred to the orbit's own
     node 0 (their rows vanish there; the symmetries they fix are exact symmetries of the
     discrete rows, which the period does not see)."""
@@ -129,7 +129,7 @@ def _closure(request, solution: Solution, integrals) -> Closure:
                    z0, generators, shift)
 
 
-def _columns(assembly: PeriodicAssembly, x, closure: Closure, name: str) -> np.ndarray:
+def input_columns(assembly: PeriodicAssembly, x, closure: Closure, name: str) -> np.ndarray:
     """``F_v`` of one input: ``-1`` on every interval's energy row for ``"energy"``, the
     parameter Jacobian for ``"params"``."""
     if name == "params":

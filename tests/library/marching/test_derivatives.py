@@ -288,7 +288,8 @@ def expect(message):
     ({"derivatives": 3}, "derivatives must be a sequence of names from q0, p0, params, "
                          "got 3"),
     ({"derivatives": ("q0",), "output": None},
-     "derivatives are of the states at fixed times: give output=Output(t_eval=...)"),
+     "derivatives are of the states at fixed times or of event times: give "
+     "output=Output(t_eval=...) or Output(events=...)"),
     ({"derivatives": "q0", "output": Output(t_eval=[1.0], keep_every=2)},
      "derivatives are not supported with thinned output (keep_every=2, keep='nodes')"),
     ({"derivatives": "q0", "t_span": (2.0, 0.0), "output": Output(t_eval=[1.0])},

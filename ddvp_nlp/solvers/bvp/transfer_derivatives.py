@@ -1,0 +1,141 @@
+"""Derivatives of a transfer at a prescribed energy (issue 47):
+``transfer_derivatives(sol)`` for ``sol = solve_bvp(system, q_start, q_end, AtEnergy(E), ...)``.
+
+The transfer ``x`` (every node's ``(t, q, p)``, the end time ``t_{N-1}`` among them) solves the
+rows ``F(x, v) = 0`` of ``at_energy.py``: the canonical equations, the interior energy
+equations, the pins of ``t_0``, ``q_start``, ``q_end``, and in place of ``t_{N-1}``'s pin the
+last interval's energy ``H(Q_{N-2}, P_{N-2}) - E``. The implicit-function theorem
+(``grid/implicit_derivatives.py``) gives ``dx/dv`` for ``v = (q_start, q_end, E, theta)`` from
+one band factorisation of ``F_x`` at the transfer and one solve per input column: the ends'
+columns are ``-I`` on their pins, the energy's ``-1`` on that last row (``F`` is affine in
+``E``: the column is ``F(E + 1) - F(E)``, exact), the parameters' the assembly's
+``parameter_jacobian`` (its last block included). The transfer time ``T = t_{N-1} - t_0`` is a
+component of ``x``, so ``dT/dv`` is the derivative of the discrete transfer time, every step
+length's included.
+
+Returns::
+
+    "transfer_time": {name: (k,)}   dT / d input   (k = n for an end, 1 for "energy", m)
+    "p_start", "p_end": {name: (n, k)}
+    "nodes": {name: (N, 2n+1, k)}   rows (t, q, p) of node k
+    "checks": {name: directional finite difference of the discrete solve, its verdict}
+    "error_estimate", "nodes_error_estimate", "ill_conditioned", "nodes_ill_conditioned"
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...discrete.scheme import Scheme
+from ...errors import InputError
+from ...solution import Solution, Status
+from ..grid.implicit_derivatives import (
+    Linearisation,
+    check_names,
+    directional_check,
+    new_rng,
+    relative,
+    resolver,
+    step_scales,
+)
+from ..grid.linear import band_kernel
+from ..options import Compilation, coerce
+from .end_derivatives import input_columns
+from .interleaved import Ends, GridAssembly, prescribed_energy_block
+
+__all__ = ["TRANSFER_DERIVATIVES", "transfer_derivatives"]
+
+TRANSFER_DERIVATIVES = ("q_start", "q_end", "energy", "params")
+EPS = float(np.finfo(float).eps)
+# The check's re-solves' Newton target, in round-offs of the nodes' size: the verification's
+# allowance (at_energy.py's ROUND_OFF_ALLOWANCE). 64 stalled at 1e-12 when q_start moved (the
+# transfer itself holds its rows to 1.1e-13 there: pendulum, 61 nodes, measured); against the
+# check's step of 1e-5 it costs 2e-8 of the difference quotient.
+TARGET_ROUND_OFFS = 1024
+
+
+def transfer_derivatives(sol: Solution, derivatives=TRANSFER_DERIVATIVES, *,
+                         compilation=None) -> dict:
+    """The derivatives ``derivatives`` (names from `TRANSFER_DERIVATIVES`) of the verified
+    transfer ``sol`` at its prescribed energy (module docstring)."""
+    if not isinstance(sol, Solution) or sol.transfer is None:
+        raise InputError(f"sol must be a transfer at an energy (solve_bvp(..., AtEnergy(E))), "
+                         f"got {type(sol).__name__}")
+    if sol.status not in (Status.SUCCESS, Status.INACCURATE):
+        raise InputError(f"sol is not a verified transfer (status {sol.status.code!r}): no "
+                         f"derivative to take")
+    system = sol.system
+    if system is None or sol.vector_field is None:
+        raise InputError("sol has no system (an unpickled Solution): solve again")
+    names = check_names(derivatives, TRANSFER_DERIVATIVES, "transfer_derivatives")
+    if "params" in names and not system.params:
+        raise InputError(f"derivatives: 'params' asked, but system {system.name!r} has no "
+                         f"parameters")
+    compilation = coerce(compilation, Compilation, "compilation")
+    scheme = Scheme.coerce(sol.scheme)
+    n, N, m = system.n, sol.t.size, 2 * system.n + 1
+    theta = np.asarray(sol.vector_field.theta, float)
+    grid = GridAssembly(system, scheme, N, compilation,
+                        last=prescribed_energy_block(system, scheme))
+    x = grid.layout.pack(sol.t, sol.q, sol.p)
+    ends = Ends(sol.q[0].copy(), sol.q[-1].copy(), np.array([sol.t[0], sol.t[-1]]), theta,
+                (sol.t[-1] - sol.t[0]) / (N - 1), energy=float(sol.transfer.energy))
+    kernel = band_kernel(compilation)
+    linear = Linearisation(grid, x, ends, "auto", kernel)
+    result = {"transfer_time": {}, "p_start": {}, "p_end": {}, "nodes": {}, "checks": {}}
+    dx, corrections = {}, {}
+    for name in names:
+        dx[name], corrections[name] = linear.forward(_columns(grid, x, ends, name, n, N * m))
+        nodes = dx[name].reshape(N, m, -1)
+        result["nodes"][name] = nodes
+        result["transfer_time"][name] = nodes[-1, 0] - nodes[0, 0]
+        result["p_start"][name] = nodes[0, n + 1:].copy()
+        result["p_end"][name] = nodes[-1, n + 1:].copy()
+    watched = np.r_[(N - 1) * m, n + 1:m, (N - 1) * m + n + 1:N * m]
+
+    def project(v):
+        return v[watched]
+    inputs = {"q_start": ends.q_start, "q_end": ends.q_end, "energy": [ends.energy],
+              "params": theta}
+    fallback = float(np.max(np.abs(x)))
+    target = np.full(x.size, TARGET_ROUND_OFFS * EPS * max(1.0, fallback, abs(ends.energy)))
+    rng = new_rng()
+    for name in names:
+        resolve = resolver(grid, x, _data_at(ends, name), target, tau_floor=-np.inf,
+                           kernel=kernel)
+        result["checks"][name] = directional_check(resolve, dx[name],
+                                                   step_scales(inputs[name], fallback), rng,
+                                                   project)
+    result.update(linear.conditioning(
+        max(relative(project(corrections[k]), project(dx[k])) for k in names),
+        max(relative(corrections[k], dx[k]) for k in names)))
+    grid.release()
+    return result
+
+
+def _columns(grid, x, ends: Ends, name: str, n: int, size: int) -> np.ndarray:
+    """``F_v`` of one input (module docstring)."""
+    if name != "energy":
+        return input_columns(grid, x, ends, name, n, size)
+    moved = Ends(ends.q_start, ends.q_end, ends.times, ends.theta, ends.energy_scale,
+                 energy=ends.energy + 1.0)
+    high = np.array(grid.evaluate(x, moved, jacobian=False)[0], float)
+    low = np.array(grid.evaluate(x, ends, jacobian=False)[0], float)
+    return (high - low)[:, None]
+
+
+def _data_at(ends: Ends, name: str):
+    """``delta -> Ends`` with the input ``name`` moved by ``delta``."""
+    def moved(delta):
+        delta = np.asarray(delta, float)
+        q_start, q_end, theta, energy = ends.q_start, ends.q_end, ends.theta, ends.energy
+        if name == "q_start":
+            q_start = q_start + delta
+        elif name == "q_end":
+            q_end = q_end + delta
+        elif name == "params":
+            theta = theta + delta
+        else:
+            energy = energy + float(delta[0])
+        return Ends(q_start, q_end, ends.times, theta, ends.energy_scale, energy=energy)
+    return moved

@@ -1,0 +1,74 @@
+"""Derivatives of a transfer at a prescribed energy (``bvp/transfer_derivatives.py``): the
+transfer time's and end momenta's derivatives in the ends, the energy and the parameters
+against central differences of whole transfers solved again, each input's own check, a time
+offset; bad inputs refused by name."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from ddvp_nlp import AtEnergy, HamiltonianSystem, InputError, solve_bvp
+from ddvp_nlp.solvers import transfer_derivatives
+
+NAMES = ("q_start", "q_end", "energy", "params")
+# Central differences of whole transfers at a relative step of 1e-5: truncation about 1e-10
+# of the derivative, and each transfer's verification allows its rows 2e-13, /1e-5 of the
+# step: about 1e-7 of the quotient. Measured: agreement to 2e-9 or better.
+STEP = 1e-5
+AGREEMENT = 1e-6
+
+
+def _swing():
+    def H(q, p, t, w):
+        return p[0] ** 2 / 2 + w ** 2 * (1 - ca.cos(q[0]))
+    return HamiltonianSystem(H, 1, {"w": 1.0}, name="pendulum_swing_transfer")
+
+
+SWING = _swing()
+
+
+def _transfer(q_start=0.1, q_end=0.5, energy=1.0, w=1.0, t0=0.0):
+    return solve_bvp(SWING, [q_start], [q_end], AtEnergy(energy, t0=t0), nodes=41,
+                     params={"w": w})
+
+
+def test_transfer_derivatives_match_resolved_transfers():
+    sol = _transfer()
+    D = transfer_derivatives(sol)
+    assert sol.status.code == "success"
+    base = {"q_start": 0.1, "q_end": 0.5, "energy": 1.0, "w": 1.0}
+    for name, key in zip(NAMES, ("q_start", "q_end", "energy", "w"), strict=True):
+        h = STEP * abs(base[key])
+        plus, minus = _transfer(**{**base, key: base[key] + h}), \
+            _transfer(**{**base, key: base[key] - h})
+        dT = (plus.transfer.transfer_time - minus.transfer.transfer_time) / (2 * h)
+        dp = (plus.p[-1] - minus.p[-1]) / (2 * h)
+        assert abs(D["transfer_time"][name][0] - dT) <= AGREEMENT * abs(dT), name
+        assert np.max(np.abs(D["p_end"][name][:, 0] - dp)) <= AGREEMENT * np.max(np.abs(dp))
+        assert D["checks"][name]["verdict"] == "agrees", name
+    assert not D["ill_conditioned"]
+    assert D["nodes"]["energy"].shape == (41, 3, 1) and D["p_start"]["q_end"].shape == (1, 1)
+
+
+def test_a_time_offset_leaves_the_derivatives():
+    a = transfer_derivatives(_transfer(), ("q_end", "energy"))
+    b = transfer_derivatives(_transfer(t0=4.2), ("q_end", "energy"))
+    for name in ("q_end", "energy"):
+        size = abs(a["transfer_time"][name][0])
+        assert abs(a["transfer_time"][name][0] - b["transfer_time"][name][0]) <= 1e-8 * size
+
+
+def test_refusals_name_the_argument():
+    fixed = solve_bvp(SWING, [0.1], [0.5], (0.0, 1.0), nodes=21)
+    with pytest.raises(InputError, match="sol must be a transfer at an energy"):
+        transfer_derivatives(fixed)
+    sol = _transfer()
+    with pytest.raises(InputError, match="unknown name 'period'"):
+        transfer_derivatives(sol, ("period",))
+
+    def H(q, p, t):
+        return p[0] ** 2 / 2 + q[0] ** 2 / 2
+    plain = HamiltonianSystem(H, 1, name="oscillator_transfer")
+    other = solve_bvp(plain, [0.1], [0.5], AtEnergy(1.0), nodes=41)
+    with pytest.raises(InputError, match="'params' asked, but system"):
+        transfer_derivatives(other, ("params",))
