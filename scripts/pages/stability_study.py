@@ -434,6 +434,19 @@ crosses 2 (a multiplier pair through +1): the halo family's birth, a branch poin
 
 {cr3bp}
 
+The guide's command `ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005` runs on
+the scene's 201 nodes: it is the N = 200 row (16 orbits, the branch point at E = -1.58717681169,
+6.6 s CPU); with `--nodes 401` it is the N = 400 row (29 orbits, -1.58717618566, 25.7 s CPU;
+measured for issue 46). From the merge of the accuracy verdicts (issue 27, commit 99333c0,
+2026-11-25) to issue 46 the command found no orbit: every orbit of this family has a multiplier
+of about 2600, which carries the discrete orbit's error at node 0 to 1e-2 of the orbit's size
+within the period, so the accuracy check's single run of the exact flow from node 0 refused the
+first orbit as `inaccurate` (with `--nodes 401`, 9 orbits and a stop at E = -1.59299). This
+table was measured with the verdict recorded, not enforced, and kept its numbers. The check now
+measures such an orbit against the exact periodic orbit nearest it, found by multiple shooting
+on segments cut where the flow grows (`solvers/exact/segments.py`), and every `ddvp periodic`
+line of the docs runs in the slow tier (`tests/docs/test_periodic_commands.py`).
+
 Target of issue 32: located to 1e-4 in the energy. Measured: within 3.4e-6 at N = 100 and
 8.3e-7 at N = 200 of the exact flow's bifurcation, E = -1.58717597704 (C = 3.17435195; the
 literature's 3.1743), which the exact monodromy confirms (its index crosses 2 there).
