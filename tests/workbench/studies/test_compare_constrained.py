@@ -86,3 +86,44 @@ def test_what_a_constrained_comparison_does_not_do_yet_is_refused():
     with pytest.raises(InputError, match="has 1 constraint; compare does not take a "
                                          "backward span"):
         compare("cartesian_pendulum", t_span=(0, -1), options=SMALL)
+
+
+def _swapped_pendulum(swap):
+    """The Cartesian pendulum with its coordinates in either order (height last or first)."""
+    from ddvp_nlp import HamiltonianSystem
+
+    up = 0 if swap else 1
+
+    def hamiltonian(q, p, t):
+        return (p[0] ** 2 + p[1] ** 2) / 2 + q[up]
+
+    def rod(q, t):
+        return q[0] ** 2 + q[1] ** 2 - 1
+    return HamiltonianSystem(hamiltonian, 2, name="swapped" if swap else "plain",
+                             constraints=rod)
+
+
+@pytest.mark.parametrize("swap, t0", [(True, 0.0), (False, 3.0)])
+def test_a_system_compared_relabelled_or_shifted_in_time_gives_the_same_errors(swap, t0):
+    """A constrained HamiltonianSystem compared from a start over a span (its first step from
+    the constrained exact flow's time scale): its coordinates swapped, or its span shifted,
+    leave every run's errors and verdict as they were."""
+    q0, p0 = np.array([0.0, -1.0]), np.array([3.0, 0.0])
+    options = CompareOptions(methods=["rattle", "midpoint"], halvings=1, repeats=1)
+    base = compare(_swapped_pendulum(False), q0=q0, p0=p0, t_span=(0, 4), options=options)
+    other = compare(_swapped_pendulum(swap), q0=q0[::-1] if swap else q0,
+                    p0=p0[::-1] if swap else p0, t_span=(t0, t0 + 4), options=options)
+    assert len(base.rows) == len(other.rows) == 4
+    for a, b in zip(base.rows, other.rows, strict=True):
+        assert (a["method"], a["status"], a["steps"]) == (b["method"], b["status"], b["steps"])
+        assert a["value"] == pytest.approx(b["value"], rel=1e-9)
+        assert b["trajectory_error"] == pytest.approx(a["trajectory_error"], rel=1e-6)
+        assert _verdict(b["accuracy"], t0) == pytest.approx(_verdict(a["accuracy"], 0.0))
+
+
+def _verdict(accuracy: str, t0: float):
+    """A row's verdict with its drift time counted from the start of the span."""
+    if " from t = " not in accuracy:
+        return (accuracy, 0.0)
+    name, when = accuracy.split(" from t = ")
+    return (name, float(when) - t0)
