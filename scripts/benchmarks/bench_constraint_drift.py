@@ -26,7 +26,7 @@ import numpy as np
 
 from ddvp_nlp import HamiltonianSystem, march
 from ddvp_nlp.io import new_figure, save, styled
-from ddvp_nlp.solvers.baselines.rattle import rattle_run
+from ddvp_nlp.solvers.baselines.rattle import rattle_run  # internal: measured
 
 ROOT = Path(__file__).resolve().parents[2]
 FLOOR = 1e-17  # exact zeros on a log axis
