@@ -21,12 +21,13 @@ import argparse
 import time
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from ddvp_nlp import HamiltonianSystem, march
 from ddvp_nlp.io import new_figure, save, styled
-from ddvp_nlp.solvers.baselines.rattle import rattle_run  # internal: measured
+from ddvp_nlp.solvers import INTEGRATORS
 
 ROOT = Path(__file__).resolve().parents[2]
 FLOOR = 1e-17  # exact zeros on a log axis
@@ -88,10 +89,14 @@ def run_all(steps: int, tau0: float):
     interval = np.zeros(vddvp.t.size)
     interval[vddvp.t.size - rows.size:] = np.cumsum(rows)
     for method in ("rattle", "shake"):
-        rattle_run(system, q0, p0, tau=tau, t_end=20 * tau, method=method)  # warm
-        solution, cpu, wall = timed(lambda method=method: rattle_run(
-            system, q0, p0, tau=tau, t_end=vddvp.t[-1], method=method,
-            max_steps=10 * steps))
+        run = next(m for m in INTEGRATORS if m.name == method).run  # compare's method
+
+        def call(t_end, run=run):
+            config = SimpleNamespace(q0=q0, p0=p0, t0=0.0, t_end=t_end, params={})
+            return run(system, config, tau, compiler=None, cache_dir=None,
+                       max_steps=10 * steps)
+        call(20 * tau)  # warm
+        solution, cpu, wall = timed(lambda call=call: call(float(vddvp.t[-1])))
         runs[method] = (solution.t, solution.q, solution.p, cpu, wall)
         tol = solution.stats["tol"]
     return runs, interval, tau, tol
