@@ -85,9 +85,7 @@ class Integrator:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
-KNOWS_NO_CONSTRAINTS = ("it does not know holonomic constraints: it would march the motion "
-                        "without their forces, off g = 0 (constrained systems are compared "
-                        "with the paper's schemes, rattle and shake)")
+KNOWS_NO_CONSTRAINTS = "it does not know holonomic constraints (it would leave g = 0)"
 
 
 def knows_no_constraints(system) -> str | None:
