@@ -61,9 +61,8 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None,
         horizons = parse_horizons(horizons)
         check_real("time_unit", time_unit, positive=True)
     scene, overrides = _scene_of(problem, q0, p0, t_span, params)
-    if scene.system.n_constraints:  # the compared methods do not know constraints yet
-        raise InputError(f"compare does not support constrained systems yet "
-                         f"({scene.name!r} has {scene.system.n_constraints} constraints)")
+    if scene.system.n_constraints:
+        _constrained_comparable(scene, overrides, options)
     if horizons is not None:
         return horizons_study(scene, horizons, out=out, unit=time_unit, overrides=overrides,
                               options=options, compilation=compilation, workers=workers,
@@ -75,6 +74,22 @@ def compare(problem, methods=None, *, q0=None, p0=None, t_span=None,
     with tempfile.TemporaryDirectory(prefix="ddvp-compare-") as scratch:
         return run_work_precision(plan, os.path.join(scratch, "work_precision.csv"),
                                   progress=progress)
+
+
+def _constrained_comparable(scene, overrides, options) -> None:
+    """What a comparison of a constrained scene cannot do yet, refused by name: target errors
+    (the constrained march does not aim at an error) and a backward span (it marches
+    forwards only)."""
+    m = scene.system.n_constraints
+    what = f"scene {scene.name!r} has {m} constraint{'s' if m > 1 else ''}"
+    if options.target_errors is not None:
+        raise InputError(f"{what}; compare does not take target_errors on a constrained "
+                         f"scene yet (its march does not aim at an error): give knobs or "
+                         f"let the sweeps run")
+    config = scene.resolve(overrides)
+    if config.t_end < config.t0:
+        raise InputError(f"{what}; compare does not take a backward span on a constrained "
+                         f"scene yet (t_end = {config.t_end!r} < t0 = {config.t0!r})")
 
 
 def _options(options, methods, target_errors) -> CompareOptions:

@@ -1263,12 +1263,19 @@ def constraint_cases() -> list[Case]:
                           codes, setup, expect_text=text))
     for command, extra in (("bvp", ["--set", "q_start=0,-1", "--set", "q_end=1,0", "--set",
                                     "t0=0", "--set", "t_end=1", "--nodes", "11"]),
-                           ("periodic", ["--energy", "0.5", "--nodes", "20"]),
-                           ("compare", ["--methods", "rk4", "--halvings", "0", "--repeats",
-                                        "1", "--no-progress"])):
+                           ("periodic", ["--energy", "0.5", "--nodes", "20"])):
         cases.append(Case("constraints", f"{command}: the Cartesian pendulum is refused",
                           [command, "cartesian_pendulum", *extra, "--out", "out"], (2,),
                           expect_text="constrain"))
+    small = ["--halvings", "0", "--repeats", "1", "--no-progress", "--out", "out"]
+    for method in ("rk4", "dop853"):  # compare runs the methods that know constraints only
+        cases.append(Case("constraints", f"compare: {method} on the Cartesian pendulum is "
+                          "refused by name", ["compare", "cartesian_pendulum", "--methods",
+                                              method, *small], (2,),
+                          expect_text="does not know holonomic constraints"))
+    cases.append(Case("constraints", "compare: target errors on the Cartesian pendulum",
+                      ["compare", "cartesian_pendulum", "--target-errors", "1e-3", *small],
+                      (2,), expect_text="target_errors"))
     return cases
 
 

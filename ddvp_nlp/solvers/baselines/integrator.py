@@ -53,6 +53,10 @@ class Integrator:
         constrained_only: a method of systems with holonomic constraints (RATTLE, SHAKE):
             a default comparison of a system without constraints leaves it out without a
             word, as it leaves out what the scene does not need.
+        constrained: ``run`` marches a system with holonomic constraints on ``g = 0`` (the
+            paper's schemes, RATTLE, SHAKE). A method without it refuses such a system by
+            its ``applies``, with the reason (`knows_no_constraints`): it would march the
+            motion without the constraint forces, off ``g = 0``.
     """
 
     name: str
@@ -68,14 +72,34 @@ class Integrator:
     limitation: str = ""
     reverses_itself: bool = False
     constrained_only: bool = False
+    constrained: bool = False
 
     def __post_init__(self):
         if not (self.reverses_itself or getattr(self.run, "either_way", False)):
             object.__setattr__(self, "run", _either_way(self.run))
+        if not (self.constrained or getattr(self.applies, "knows_constraints", False)):
+            object.__setattr__(self, "applies", _refusing_constraints(self.applies))
 
     def traits(self) -> dict:
         """Every field by name (to build a richer view of the same integrator)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+KNOWS_NO_CONSTRAINTS = "it does not know holonomic constraints (it would leave g = 0)"
+
+
+def knows_no_constraints(system) -> str | None:
+    """Why a method without constraints does not apply to ``system`` (it has some), or
+    ``None``."""
+    return KNOWS_NO_CONSTRAINTS if getattr(system, "n_constraints", 0) else None
+
+
+def _refusing_constraints(applies):
+    """``applies`` of a method without constraints: a constrained system refused first."""
+    def refusing(system):
+        return knows_no_constraints(system) or applies(system)
+    refusing.__wrapped__, refusing.knows_constraints = applies, True
+    return refusing
 
 
 def _either_way(run):

@@ -52,18 +52,21 @@ def _same_as_vddvp(system) -> str | None:
 ENERGY_RULE_LIMITATION = (
     "the energy step keeps a positive root only while the site-density weight w = f' H_zz f "
     "keeps its sign over a step; where it changes sign along the orbit (an inflection of the "
-    "potential crossed at speed, a turning point) a step longer than that change has no "
-    "admissible root and the march stops there (no_admissible_step, or a step whose Newton "
-    "does not converge); a smaller tau0, --least-squares or fixed steps pass")
+    "potential crossed at speed, a turning point; on a constrained system, where the "
+    "coefficient c of theory section 12 changes sign, as on every libration of a Cartesian "
+    "pendulum) a step longer than that change has no admissible root and the march stops "
+    "there (no_admissible_step, or a step whose Newton does not converge); a smaller tau0, "
+    "--least-squares or fixed steps pass (on a constrained system, fixed steps only)")
 
 VDDVP = Integrator("vddvp", "the paper's variable-step midpoint scheme (energy of interval k at "
                    "the previous clock)", order=2, symplectic=True, energy_conserving=True,
                    knob="tau0", run=_march("vddvp"), aims=True, reverses_itself=True,
-                   limitation=ENERGY_RULE_LIMITATION)
+                   limitation=ENERGY_RULE_LIMITATION, constrained=True)
 LEE = Integrator("lee", "same action, node-time variation dS_D/dt_k = 0", order=2,
                  symplectic=True, energy_conserving=True, knob="tau0", run=_march("lee"),
                  reverses_itself=True, redundant=_same_as_vddvp, aims=True,
-                 limitation=ENERGY_RULE_LIMITATION)
+                 limitation=ENERGY_RULE_LIMITATION, constrained=True)
 MIDPOINT = Integrator("midpoint", "fixed-step implicit midpoint (the paper's DDVP with fixed "
                       "steps)", order=2, symplectic=True, energy_conserving=False, knob="tau",
-                      run=_march("fixed"), aims=True, reverses_itself=True)
+                      run=_march("fixed"), aims=True, reverses_itself=True,
+                      constrained=True)

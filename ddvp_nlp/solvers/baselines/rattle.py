@@ -164,9 +164,9 @@ def not_constrained(system) -> str | None:
 RATTLE = Integrator("rattle", "RATTLE: Stormer-Verlet with the position and momentum "
                     "constraints solved by Newton (constrained systems, separable H)", order=2,
                     symplectic=True, energy_conserving=False, knob="tau", run=_run_of("rattle"),
-                    applies=not_constrained, constrained_only=True)
+                    applies=not_constrained, constrained_only=True, constrained=True)
 SHAKE = Integrator("shake", "SHAKE: Stormer-Verlet with the position constraint solved by "
                    "its classical iteration (constrained systems, separable H); positions of "
                    "order 2, node momenta not projected (order 1)", order=1, symplectic=False,
                    energy_conserving=False, knob="tau", run=_run_of("shake"),
-                   applies=not_constrained, constrained_only=True)
+                   applies=not_constrained, constrained_only=True, constrained=True)
