@@ -52,6 +52,7 @@ PUBLIC = {
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",
     "bvp_gradient": "bvp.end_gradient",  # reverse mode of a fixed-end solution's derivatives
     "transfer_derivatives": "bvp.transfer_derivatives",  # a transfer at an energy's
+    "transfer_gradient": "bvp.transfer_derivatives",
     # periodic orbits
     "solve_periodic": "periodic.orbit", "check_periodic": "periodic.orbit",
     "parse_section": "periodic.orbit", "solve_periodic_family": "periodic.family",
@@ -91,7 +92,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .bvp.end_gradient import bvp_gradient
     from .bvp.first_guess import Shooting
     from .bvp.fixed_ends import solve_bvp
-    from .bvp.transfer_derivatives import transfer_derivatives
+    from .bvp.transfer_derivatives import transfer_derivatives, transfer_gradient
     from .chaos.indicators import ChaosIndicators, chaos_indicators
     from .chaos.spectrum import Spectrum, lyapunov_spectrum
     from .compiler import find_compiler
@@ -129,4 +130,5 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "lyapunov_spectrum", "march",
            "march_ensemble", "march_higher", "motion_scales", "orbit_gradient", "parse_section",
            "periodic_stability", "solve_bvp", "solve_bvp_higher", "solve_periodic",
-           "solve_periodic_family", "step_residuals", "transfer_derivatives"]
+           "solve_periodic_family", "step_residuals", "transfer_derivatives",
+           "transfer_gradient"]

@@ -20,6 +20,10 @@ Returns::
     "nodes": {name: (N, 2n+1, k)}   rows (t, q, p) of node k
     "checks": {name: directional finite difference of the discrete solve, its verdict}
     "error_estimate", "nodes_error_estimate", "ill_conditioned", "nodes_ill_conditioned"
+
+Reverse mode, ``transfer_gradient(sol, cotangent)``: for a scalar ``L = c . (T, p_start, p_end,
+nodes)`` the gradient in every input from one transposed solve on the same factorisation,
+``dL/dv = -(F_x^-T c) . F_v`` (``grid/implicit_derivatives.reverse``).
 """
 
 from __future__ import annotations
@@ -30,12 +34,15 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution, Status
 from ..grid.implicit_derivatives import (
+    GridGradient,
     Linearisation,
+    check_grid_cotangent,
     check_names,
     directional_check,
     new_rng,
     relative,
     resolver,
+    reverse,
     step_scales,
 )
 from ..grid.linear import band_kernel
@@ -43,7 +50,7 @@ from ..options import Compilation, coerce
 from .end_derivatives import input_columns
 from .interleaved import Ends, GridAssembly, prescribed_energy_block
 
-__all__ = ["TRANSFER_DERIVATIVES", "transfer_derivatives"]
+__all__ = ["TRANSFER_DERIVATIVES", "transfer_derivatives", "transfer_gradient"]
 
 TRANSFER_DERIVATIVES = ("q_start", "q_end", "energy", "params")
 EPS = float(np.finfo(float).eps)
@@ -58,30 +65,16 @@ def transfer_derivatives(sol: Solution, derivatives=TRANSFER_DERIVATIVES, *,
                          compilation=None) -> dict:
     """The derivatives ``derivatives`` (names from `TRANSFER_DERIVATIVES`) of the verified
     transfer ``sol`` at its prescribed energy (module docstring)."""
-    if not isinstance(sol, Solution) or sol.transfer is None:
-        raise InputError(f"sol must be a transfer at an energy (solve_bvp(..., AtEnergy(E))), "
-                         f"got {type(sol).__name__}")
-    if sol.status not in (Status.SUCCESS, Status.INACCURATE):
-        raise InputError(f"sol is not a verified transfer (status {sol.status.code!r}): no "
-                         f"derivative to take")
-    system = sol.system
-    if system is None or sol.vector_field is None:
-        raise InputError("sol has no system (an unpickled Solution): solve again")
+    system = _transfer_system(sol)
     names = check_names(derivatives, TRANSFER_DERIVATIVES, "transfer_derivatives")
     if "params" in names and not system.params:
         raise InputError(f"derivatives: 'params' asked, but system {system.name!r} has no "
                          f"parameters")
     compilation = coerce(compilation, Compilation, "compilation")
-    scheme = Scheme.coerce(sol.scheme)
     n, N, m = system.n, sol.t.size, 2 * system.n + 1
     theta = np.asarray(sol.vector_field.theta, float)
-    grid = GridAssembly(system, scheme, N, compilation,
-                        last=prescribed_energy_block(system, scheme))
-    x = grid.layout.pack(sol.t, sol.q, sol.p)
-    ends = Ends(sol.q[0].copy(), sol.q[-1].copy(), np.array([sol.t[0], sol.t[-1]]), theta,
-                (sol.t[-1] - sol.t[0]) / (N - 1), energy=float(sol.transfer.energy))
+    grid, x, ends, linear = _linearised(sol, compilation)
     kernel = band_kernel(compilation)
-    linear = Linearisation(grid, x, ends, "auto", kernel)
     result = {"transfer_time": {}, "p_start": {}, "p_end": {}, "nodes": {}, "checks": {}}
     dx, corrections = {}, {}
     for name in names:
@@ -111,6 +104,59 @@ def transfer_derivatives(sol: Solution, derivatives=TRANSFER_DERIVATIVES, *,
         max(relative(corrections[k], dx[k]) for k in names)))
     grid.release()
     return result
+
+
+def transfer_gradient(sol: Solution, cotangent, *, compilation=None) -> GridGradient:
+    """``dL/d(q_start, q_end, energy, params)`` of ``L = sum c . (transfer_time, p_start,
+    p_end, nodes)`` of the verified transfer ``sol`` (``cotangent``: any of
+    ``"transfer_time"`` (a number), ``"p_start"``, ``"p_end"`` ``(n,)``, ``"nodes"``
+    ``(N, 2n+1)``, rows ``(t, q, p)``): one transposed solve (module docstring); a
+    `GridGradient` with its error estimate and ``ill_conditioned`` flag."""
+    system = _transfer_system(sol)
+    n, N, m = system.n, sol.t.size, 2 * system.n + 1
+    c = check_grid_cotangent(cotangent, {"transfer_time": (), "p_start": (n,), "p_end": (n,),
+                                         "nodes": (N, m)}, "a transfer")
+    compilation = coerce(compilation, Compilation, "compilation")
+    grid, x, ends, linear = _linearised(sol, compilation)
+    weights = np.zeros((N, m))
+    weights += c.get("nodes", 0.0)
+    weights[0, n + 1:] += c.get("p_start", 0.0)
+    weights[-1, n + 1:] += c.get("p_end", 0.0)
+    T = float(c.get("transfer_time", 0.0))
+    weights[-1, 0] += T
+    weights[0, 0] -= T
+    names = [name for name in TRANSFER_DERIVATIVES if name != "params" or system.params]
+    found = reverse(linear, weights.ravel(),
+                    {name: _columns(grid, x, ends, name, n, N * m) for name in names})
+    grid.release()
+    return found
+
+
+def _transfer_system(sol):
+    """The system of the verified transfer ``sol``; an ``InputError`` for anything else."""
+    if not isinstance(sol, Solution) or sol.transfer is None:
+        raise InputError(f"sol must be a transfer at an energy (solve_bvp(..., AtEnergy(E))), "
+                         f"got {type(sol).__name__}")
+    if sol.status not in (Status.SUCCESS, Status.INACCURATE):
+        raise InputError(f"sol is not a verified transfer (status {sol.status.code!r}): no "
+                         f"derivative to take")
+    if sol.system is None or sol.vector_field is None:
+        raise InputError("sol has no system (an unpickled Solution): solve again")
+    return sol.system
+
+
+def _linearised(sol, compilation):
+    """The transfer's rows rebuilt at its nodes and ``F_x`` factored: ``(grid, x, ends,
+    linear)``."""
+    system, N = sol.system, sol.t.size
+    theta = np.asarray(sol.vector_field.theta, float)
+    scheme = Scheme.coerce(sol.scheme)
+    grid = GridAssembly(system, scheme, N, compilation,
+                        last=prescribed_energy_block(system, scheme))
+    x = grid.layout.pack(sol.t, sol.q, sol.p)
+    ends = Ends(sol.q[0].copy(), sol.q[-1].copy(), np.array([sol.t[0], sol.t[-1]]), theta,
+                (sol.t[-1] - sol.t[0]) / (N - 1), energy=float(sol.transfer.energy))
+    return grid, x, ends, Linearisation(grid, x, ends, "auto", band_kernel(compilation))
 
 
 def _columns(grid, x, ends: Ends, name: str, n: int, size: int) -> np.ndarray:

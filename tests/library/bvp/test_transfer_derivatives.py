@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ddvp_nlp import AtEnergy, HamiltonianSystem, InputError, solve_bvp
-from ddvp_nlp.solvers import transfer_derivatives
+from ddvp_nlp.solvers import transfer_derivatives, transfer_gradient
 
 NAMES = ("q_start", "q_end", "energy", "params")
 # Central differences of whole transfers at a relative step of 1e-5: truncation about 1e-10
@@ -72,3 +72,33 @@ def test_refusals_name_the_argument():
     other = solve_bvp(plain, [0.1], [0.5], AtEnergy(1.0), nodes=41)
     with pytest.raises(InputError, match="'params' asked, but system"):
         transfer_derivatives(other, ("params",))
+
+
+def test_reverse_equals_forward_contracted():
+    """``transfer_gradient(sol, c)`` (one transposed solve) equals ``c`` contracted with the
+    forward derivatives, for a random cotangent on the transfer time, the end momenta and every
+    node, to 1e-10 of its size."""
+    sol = _transfer()
+    D = transfer_derivatives(sol)
+    rng = np.random.default_rng(47)
+    c = {"transfer_time": rng.normal(), "p_start": rng.normal(size=1),
+         "p_end": rng.normal(size=1), "nodes": rng.normal(size=(41, 3))}
+    g = transfer_gradient(sol, c)
+    for name in NAMES:
+        forward = (c["transfer_time"] * D["transfer_time"][name]
+                   + c["p_start"] @ D["p_start"][name] + c["p_end"] @ D["p_end"][name]
+                   + np.einsum("ij,ijk->k", c["nodes"], D["nodes"][name]))
+        assert np.max(np.abs(g[name] - forward)) <= 1e-10 * np.max(np.abs(forward)), name
+    assert not g.ill_conditioned
+
+
+@pytest.mark.parametrize("cotangent, message", [
+    ({}, "is empty"),
+    ({"period": 1.0}, "unknown name 'period'"),
+    ({"p_end": [1.0, 2.0]}, "must have shape"),
+    ({"transfer_time": float("nan")}, "must be finite"),
+    ([1.0], "must be a mapping"),
+])
+def test_a_bad_cotangent_is_refused_by_name(cotangent, message):
+    with pytest.raises(InputError, match=message):
+        transfer_gradient(_transfer(), cotangent)
