@@ -39,14 +39,16 @@ import numpy as np
 
 __all__ = ["SparseLU", "chain_newton", "fill_reducing_order", "norm_inf", "small_update"]
 
-# An update is small when each component is at most ``abstolStep`` or at most this many units
-# of round-off of the iterate's own component: ``|dx_i| <= max(abstolStep, ROUNDOFF_STEPS * eps
-# * |x_i|)``. ``fast_newton`` tests ``|dx|_inf <= abstolStep`` alone, which an iterate whose
-# components exceed ``abstolStep / eps`` (about 45 here: a winding azimuth, a coordinate offset
-# by a constant) cannot pass: its updates stay at its round-off, and every step ran all
-# ``max_iter`` iterations (a spherical pendulum in angles: 7-13 us a step against 1.8 before its
-# azimuth passed 1000 rad, issue 49). Below ``abstolStep / (ROUNDOFF_STEPS * eps)`` (11.3) the
-# test is ``fast_newton``'s, to the bit.
+# An update is small when it is at most ``abstolStep`` or at most this many units of round-off
+# of the iterate: ``|dx|_inf <= max(abstolStep, ROUNDOFF_STEPS * eps * |x|_inf)``, norm-wise
+# because the round-off of the large components reaches the others through ``J^-1`` (a
+# component-wise test left the step length's updates above its own round-off). ``fast_newton``
+# tests ``|dx|_inf <= abstolStep`` alone, which an iterate larger than ``abstolStep / eps``
+# (about 45 here: a winding azimuth, a coordinate offset by a constant) cannot pass: its updates
+# stay at its round-off, and every such step ran all ``max_iter`` iterations (a spherical
+# pendulum in angles: 7-13 us a step against 1.8 before its azimuth passed 1000 rad, issue 49).
+# For iterates below ``abstolStep / (ROUNDOFF_STEPS * eps)`` (11.3) the test is
+# ``fast_newton``'s, to the bit.
 ROUNDOFF_STEPS = 4.0
 
 
