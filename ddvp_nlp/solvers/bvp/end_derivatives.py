@@ -38,11 +38,8 @@ from ..grid.implicit_derivatives import (
     Linearisation,
     Refused,
     check_names,
-    directional_check,
-    new_rng,
-    relative,
+    checked,
     resolver,
-    step_scales,
 )
 from ..grid.linear import band_kernel
 from .phases import assembly, ends, newton_targets
@@ -94,20 +91,14 @@ def bvp_derivatives(request, x: np.ndarray, solution: Solution, names) -> dict:
 
     def project(v):
         return v[ends_rows]
-    rng = new_rng()
-    fallback = float(np.max(np.abs(x)))
     inputs = {"q_start": data.q_start, "q_end": data.q_end, "params": data.theta}
     target = newton_targets(request, grid, x, data)
-    floor = -np.inf  # a nearby solve: no step approaches the floor
-    for name in names:
-        resolve = resolver(grid, x, _data_at(data, name), target, tau_floor=floor,
-                           linear=request.linear, kernel=kernel)
-        result["checks"][name] = directional_check(resolve, dx[name],
-                                                   step_scales(inputs[name], fallback), rng,
-                                                   project)
-    result.update(linear.conditioning(
-        max(relative(project(corrections[k]), project(dx[k])) for k in names),
-        max(relative(corrections[k], dx[k]) for k in names)))
+
+    def resolve_of(name):  # a nearby solve: no step approaches the floor
+        return resolver(grid, x, _data_at(data, name), target, tau_floor=-np.inf,
+                        linear=request.linear, kernel=kernel)
+    result.update(checked(linear, dx, corrections, resolve_of, inputs,
+                          float(np.max(np.abs(x))), project))
     grid.release()
     result["cpu_s"] = time.process_time() - cpu
     result["wall_s"] = time.perf_counter() - wall

@@ -38,12 +38,9 @@ from ..grid.implicit_derivatives import (
     Linearisation,
     check_grid_cotangent,
     check_names,
-    directional_check,
-    new_rng,
-    relative,
+    checked,
     resolver,
     reverse,
-    step_scales,
 )
 from ..grid.linear import band_kernel
 from ..options import Compilation, coerce
@@ -92,16 +89,11 @@ def transfer_derivatives(sol: Solution, derivatives=TRANSFER_DERIVATIVES, *,
               "params": theta}
     fallback = float(np.max(np.abs(x)))
     target = np.full(x.size, TARGET_ROUND_OFFS * EPS * max(1.0, fallback, abs(ends.energy)))
-    rng = new_rng()
-    for name in names:
-        resolve = resolver(grid, x, _data_at(ends, name), target, tau_floor=-np.inf,
-                           kernel=kernel)
-        result["checks"][name] = directional_check(resolve, dx[name],
-                                                   step_scales(inputs[name], fallback), rng,
-                                                   project)
-    result.update(linear.conditioning(
-        max(relative(project(corrections[k]), project(dx[k])) for k in names),
-        max(relative(corrections[k], dx[k]) for k in names)))
+
+    def resolve_of(name):
+        return resolver(grid, x, _data_at(ends, name), target, tau_floor=-np.inf,
+                        kernel=kernel)
+    result.update(checked(linear, dx, corrections, resolve_of, inputs, fallback, project))
     grid.release()
     return result
 

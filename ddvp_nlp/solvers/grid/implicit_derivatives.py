@@ -163,6 +163,21 @@ def directional_check(resolve, dx: np.ndarray, scales: np.ndarray, rng, project)
     return record
 
 
+def checked(linear: Linearisation, dx: dict, corrections: dict, resolve_of, inputs: dict,
+            fallback: float, project) -> dict:
+    """Each input's `directional_check` (inputs in ``dx``'s order, one seeded generator, the
+    step scales of ``inputs[name]``, ``resolve_of(name)`` its `resolver`) and the forward
+    solves' `Linearisation.conditioning`: ``{"checks": {name: record}, "error_estimate", ...}``
+    for a family's result (``project``: the outputs it reports)."""
+    rng = new_rng()
+    checks = {name: directional_check(resolve_of(name), dx[name],
+                                      step_scales(inputs[name], fallback), rng, project)
+              for name in dx}
+    return {"checks": checks, **linear.conditioning(
+        max(relative(project(corrections[k]), project(dx[k])) for k in dx),
+        max(relative(corrections[k], dx[k]) for k in dx))}
+
+
 def resolver(problem: GridProblem, x: np.ndarray, data_at, target: np.ndarray, *,
              tau_floor: float, linear: str = "auto", kernel=None):
     """``resolve(delta)`` for `directional_check`: the grid's Newton on ``problem`` from ``x``

@@ -36,11 +36,8 @@ from ..grid.implicit_derivatives import (
     Linearisation,
     Refused,
     check_names,
-    directional_check,
-    new_rng,
-    relative,
+    checked,
     resolver,
-    step_scales,
 )
 from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 
@@ -93,19 +90,16 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     # the derivatives themselves (factorisation and forward solves), before their checks
     result["derivatives_cpu_s"] = time.process_time() - cpu
     result["derivatives_wall_s"] = time.perf_counter() - wall
-    rng = new_rng()
     fallback = float(np.max(np.abs(x)))
     # the orbit solve's own targets (orbit.py)
     target = np.full(x.size, TARGET_ROUND_OFFS * EPS * max(1.0, fallback, abs(closure.energy)))
-    for name in names:
-        values = closure.energy if name == "energy" else closure.theta
-        resolve = resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,
-                           linear="sparse")
-        result["checks"][name] = directional_check(resolve, dx[name],
-                                                   step_scales(values, fallback), rng, project)
-    result.update(linear.conditioning(
-        max(relative(project(c), project(d)) for d, c in solved.values()),
-        max(relative(c, d) for d, c in solved.values())))
+
+    def resolve_of(name):
+        return resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,
+                        linear="sparse")
+    result.update(checked(linear, dx, {name: solved[name][1] for name in names}, resolve_of,
+                          {"energy": closure.energy, "params": closure.theta}, fallback,
+                          project))
     result["cpu_s"] = time.process_time() - cpu
     result["wall_s"] = time.perf_counter() - wall
     return result
