@@ -26,11 +26,12 @@ from ..errors import InputError
 RANK_TOLERANCE = 1e-10
 
 
-def constraint_column(system, function, guard) -> ca.SX:
+def constraint_column(system, function, guard, as_sx) -> ca.SX:
     """``g(q, t, **params)`` on the system's symbols as an SX column, checked: a CasADi (or
     numeric) vector of ``1 .. n-1`` rows, each depending on ``q``, on no symbol but ``q``,
     ``t`` and the parameters. ``guard(whose)``: the context the user's function runs in
-    (``hamiltonian.numpy_on_symbols``)."""
+    (``hamiltonian.numpy_on_symbols``); ``as_sx``: how its value is read as SX, as ``H``'s is
+    (``hamiltonian.as_sx``; both passed in: ``hamiltonian.py`` imports this module)."""
     name = system.name
     if not callable(function):
         raise InputError(f"constraints of {name!r} must be a function g(q, t, ...), got "
@@ -44,7 +45,7 @@ def constraint_column(system, function, guard) -> ca.SX:
     except Exception as exc:  # the user's function; say whose it was
         raise InputError(f"constraints of {name!r} failed on symbolic input: "
                          f"{type(exc).__name__}: {exc}") from exc
-    column = _as_column(value, name)
+    column = _as_column(value, name, as_sx)
     m = column.size1()
     if m == 0:
         raise InputError(f"constraints of {name!r} returned an empty vector: give None for a "
@@ -64,7 +65,7 @@ def constraint_column(system, function, guard) -> ca.SX:
     return column
 
 
-def _as_column(value, name: str) -> ca.SX:
+def _as_column(value, name: str, as_sx) -> ca.SX:
     if isinstance(value, (list, tuple)):
         try:
             value = ca.vertcat(*[ca.SX(v) if isinstance(v, (int, float)) else v
@@ -72,15 +73,7 @@ def _as_column(value, name: str) -> ca.SX:
         except Exception as exc:
             raise InputError(f"constraints of {name!r} returned a list that is not a vector of "
                              f"CasADi expressions: {exc}") from exc
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        value = ca.SX(float(value))
-    if isinstance(value, ca.MX):
-        raise InputError(f"constraints of {name!r} returned an MX expression; use the SX "
-                         "symbols it is given")
-    if not isinstance(value, (ca.SX, ca.DM)):
-        raise InputError(f"constraints of {name!r} must return a CasADi vector, got "
-                         f"{type(value).__name__}")
-    value = ca.SX(value)
+    value = as_sx(value, name, "constraints", "a CasADi vector")
     if value.size2() != 1 and value.size1() == 1:
         value = value.T
     if value.size2() != 1:

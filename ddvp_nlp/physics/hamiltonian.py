@@ -108,7 +108,7 @@ class HamiltonianSystem:
         from .constraints import constraint_column  # loaded by a system that has some
 
         self.G = ca.SX(0, 1) if self.constraints is None else \
-            constraint_column(self, self.constraints, numpy_on_symbols)
+            constraint_column(self, self.constraints, numpy_on_symbols, as_sx)
         self.n_constraints = int(self.G.size1())
 
     def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:
@@ -205,16 +205,23 @@ def _numpy_call_site() -> str:
     return f"{where}: {', '.join('np.' + name for name in names) or 'numpy'}"
 
 
-def as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
+def as_sx(value, name: str, kind: str, wanted: str = "a CasADi expression") -> ca.SX:
+    """What a user's function of the system's symbols returned (``kind`` of system ``name``),
+    as SX: a number taken as a constant; an MX expression, or anything that is not ``wanted``
+    (SX or DM), refused by name."""
     if isinstance(value, (int, float, np.integer, np.floating)):
         value = ca.SX(float(value))
     if isinstance(value, ca.MX):
         raise InputError(f"{kind} of {name!r} returned an MX expression; use the SX "
                          "symbols it is given (ca.sin, ca.cos, ... work on them)")
     if not isinstance(value, (ca.SX, ca.DM)):
-        raise InputError(f"{kind} of {name!r} must return a CasADi expression, got "
+        raise InputError(f"{kind} of {name!r} must return {wanted}, got "
                          f"{type(value).__name__}")
-    value = ca.SX(value)
+    return ca.SX(value)
+
+
+def as_scalar_expression(value, name: str, kind: str = "hamiltonian") -> ca.SX:
+    value = as_sx(value, name, kind)
     if value.shape != (1, 1):
         raise InputError(f"{kind} of {name!r} must be scalar, got shape "
                          f"{value.shape[0]}x{value.shape[1]}")
