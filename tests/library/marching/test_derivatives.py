@@ -9,6 +9,7 @@ import re
 import casadi as ca
 import numpy as np
 import pytest
+from helpers.parametrized import kepler_mu, pendulum_w
 from helpers.random_cases import random_pair
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
@@ -44,19 +45,9 @@ TOLERANCE = 1e-6
 MAX_STEPS = 4000
 
 
-def _pendulum_w():
-    def H(q, p, t, w):
-        return p[0] ** 2 / 2 + w ** 2 * (1 - ca.cos(q[0]))
-    return HamiltonianSystem(H, 1, {"w": 1.0}, name="pendulum_w")
 
 
-def _kepler_mu():
-    def H(q, p, t, mu):
-        return ca.sumsqr(p) / 2 - mu / ca.norm_2(q)
-    return HamiltonianSystem(H, 2, {"mu": 1.0}, name="kepler_mu")
-
-
-PENDULUM, KEPLER = _pendulum_w(), _kepler_mu()
+PENDULUM, KEPLER = pendulum_w(), kepler_mu()
 
 
 class Case:

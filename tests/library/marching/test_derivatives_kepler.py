@@ -5,11 +5,11 @@ frozen-step derivative beside it, shown not to match; and the convergence at ord
 exact flow's sensitivity (DOP853 on the variational equations, ``solvers/exact/variational.py``)
 (slow)."""
 
-import casadi as ca
 import numpy as np
 import pytest
+from helpers.parametrized import kepler_mu
 
-from ddvp_nlp import HamiltonianSystem, Output, StepControl, march
+from ddvp_nlp import Output, StepControl, march
 from ddvp_nlp.solvers.exact.variational import flow_with_derivatives
 from ddvp_nlp.solvers.marching.derivative_check import check_record, remarch_function
 from ddvp_nlp.solvers.marching.derivatives import march_derivatives
@@ -18,13 +18,8 @@ NAMES = ("q0", "p0", "params")
 RELATIVE_STEP, TOLERANCE = 1e-6, 1e-6  # issue 47; why 1e-6 holds: test_derivatives.py
 
 
-def _kepler_mu():
-    def H(q, p, t, mu):
-        return ca.sumsqr(p) / 2 - mu / ca.norm_2(q)
-    return HamiltonianSystem(H, 2, {"mu": 1.0}, name="kepler_mu")
 
-
-KEPLER = _kepler_mu()
+KEPLER = kepler_mu()
 
 
 def start(e):

@@ -10,6 +10,7 @@ import warnings
 import casadi as ca
 import numpy as np
 import pytest
+from helpers.parametrized import kepler_mu, pendulum_w
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -41,19 +42,9 @@ NAMES = ("q0", "p0", "params")
 AGREEMENT = 1e-10
 
 
-def _pendulum_w():
-    def H(q, p, t, w):
-        return p[0] ** 2 / 2 + w ** 2 * (1 - ca.cos(q[0]))
-    return HamiltonianSystem(H, 1, {"w": 1.0}, name="pendulum_w")
 
 
-def _kepler_mu():
-    def H(q, p, t, mu):
-        return ca.sumsqr(p) / 2 - mu / ca.norm_2(q)
-    return HamiltonianSystem(H, 2, {"mu": 1.0}, name="kepler_mu")
-
-
-PENDULUM, KEPLER = _pendulum_w(), _kepler_mu()
+PENDULUM, KEPLER = pendulum_w(), kepler_mu()
 
 
 def kepler_start(e):
