@@ -297,13 +297,8 @@ def _window(geometry: SectionAtEnergy, window) -> tuple:
         if not lo < hi:
             raise InputError(f"window must have lo < hi, got {window!r}")
     else:
-        if not np.any(np.isfinite(V) & (V <= geometry.energy)):
-            finite = V[np.isfinite(V)]
-            raise NoMotionOnSection(
-                f"no motion at this energy on the section: energy {geometry.energy!r} is below "
-                f"the least energy on the section {geometry.section.label} "
-                f"({np.min(finite) if finite.size else np.nan:.6g}, over the other position "
-                f"from {_SCAN[0]:.0e} to {_SCAN[-1]:.0e})")
+        _refuse_no_motion(geometry, V, f", over the other position from {_SCAN[0]:.0e} to "
+                                       f"{_SCAN[-1]:.0e}")
         inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
         critical = _SCAN[1:-1][inner & np.isfinite(V[1:-1])]
         allowed = _SCAN[np.isfinite(V) & (V <= geometry.energy)]
@@ -319,14 +314,20 @@ def _window(geometry: SectionAtEnergy, window) -> tuple:
                              " has no critical point to size a window by; give window=(lo, hi)")
     grid = np.linspace(lo, hi, 4001)
     V = _least_energy(geometry, grid)
-    if not np.any(np.isfinite(V) & (V <= geometry.energy)):
-        finite = V[np.isfinite(V)]
-        raise NoMotionOnSection(
-            f"no motion at this energy on the section: energy {geometry.energy!r} is below the "
-            f"least energy on the section {geometry.section.label} "
-            f"({np.min(finite) if finite.size else np.nan:.6g} over the other position in "
-            f"[{lo:.4g}, {hi:.4g}])")
+    _refuse_no_motion(geometry, V, f" over the other position in [{lo:.4g}, {hi:.4g}]")
     return float(lo), float(hi)
+
+
+def _refuse_no_motion(geometry, V: np.ndarray, over: str) -> None:
+    """`NoMotionOnSection` where the least energy ``V`` along the section's other position
+    (``over``: the range it was taken on, in words) is nowhere at or below the energy."""
+    if np.any(np.isfinite(V) & (V <= geometry.energy)):
+        return
+    finite = V[np.isfinite(V)]
+    raise NoMotionOnSection(
+        f"no motion at this energy on the section: energy {geometry.energy!r} is below the "
+        f"least energy on the section {geometry.section.label} "
+        f"({np.min(finite) if finite.size else np.nan:.6g}{over})")
 
 
 def _scales(window) -> tuple[float, float]:
