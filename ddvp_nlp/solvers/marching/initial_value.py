@@ -117,7 +117,8 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             solution read through its dense output, every step length's dependence included
             (``derivatives.py``; docs/gradients.md). Needs ``t_eval`` or events; a march
             from ``v0`` is differentiated in ``"v0"`` (and ``q0``, ``params`` at fixed
-            ``v0``; ``velocity_start.py``) in place of ``"p0"``. Not yet with a backward span, ``target_error``, thinned output or least-squares breakdown steps.
+            ``v0``; ``velocity_start.py``) in place of ``"p0"``. Not yet with a backward span,
+            ``target_error``, thinned output or least-squares breakdown steps.
             ``Solution.derivatives.check`` holds their own check (a directional finite
             difference, one pair of marches more, and whether the energy row is close to
             losing its root; ``derivative_check.py``).
