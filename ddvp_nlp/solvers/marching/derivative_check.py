@@ -102,12 +102,14 @@ class Derivatives(dict):
     ``Solution.derivatives`` holds them; ``mode``: ``"forward"`` or ``"reverse"`` (how they
     were computed); ``check``: their `DerivativeCheck`; ``events``: one
     ``event_derivatives.EventDerivatives`` per event function of ``Output(events=...)`` (the
-    crossing times' derivatives), ``None`` without events."""
+    crossing times' derivatives), ``None`` without events; ``event_functions``: the event
+    functions themselves (``gradient``'s check locates their crossings again)."""
 
     def __init__(self, values, *, mode: str, check: DerivativeCheck | None = None,
-                 events: list | None = None):
+                 events: list | None = None, event_functions: list | None = None):
         super().__init__(values)
         self.mode, self.check, self.events = mode, check, events
+        self.event_functions = event_functions
 
 
 def conditioning(solvability, last_node: int, warning) -> tuple[bool, float]:
@@ -308,7 +310,9 @@ class Sensitivity(MarchMonitor):
                 record.times = to_velocity(record.times, jacobians, self.names)
                 record.states = to_velocity(record.states, jacobians, self.names)
         check = self._check(solution, values, kept, events)
-        solution.derivatives = Derivatives(values, mode=mode, check=check, events=events)
+        solution.derivatives = Derivatives(
+            values, mode=mode, check=check, events=events,
+            event_functions=[event.g for event in self.events] if events else None)
 
     def _events(self, solution, t, z, names):
         """The crossing times' derivatives (``event_derivatives.py``), or ``None``."""
