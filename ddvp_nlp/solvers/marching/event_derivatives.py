@@ -50,7 +50,7 @@ from ...solution import hermite
 from .derivatives import march_derivatives
 
 __all__ = ["EVENT_STEP", "GRAZING", "TANGENCY", "EventDerivatives", "event_derivatives",
-           "event_partials", "hermite_slope"]
+           "event_partials", "hermite_slope", "transversality_of"]
 
 # The relative step of g's fourth-order differences, and the transversality below which a
 # crossing's derivative is refused (module docstring): 1e-3 amplifies the partials' 1e-12
@@ -137,7 +137,7 @@ def event_derivatives(system, scheme, theta, t, z, f, events, t_events, names,
             np.zeros((times.size, n2))
         g_t, g_z = event_partials(event, times, states, scales)
         rate = g_t + np.einsum("kj,kj->k", g_z, slope)
-        transversality = _transversality(g_t, g_z, slope, rate, scales[1:])
+        transversality = transversality_of(g_t, g_z, slope, rate, scales[1:])
         refused = ~(transversality >= TANGENCY)
         weights = -g_z / np.where(refused, 1.0, rate)[:, None]
         weights[refused] = np.nan
@@ -155,7 +155,7 @@ def event_derivatives(system, scheme, theta, t, z, f, events, t_events, names,
     return found
 
 
-def _transversality(g_t, g_z, slope, rate, scales):
+def transversality_of(g_t, g_z, slope, rate, scales):
     """``|dg/dt| / (|g_t| + |s g_z| |z' / s|)`` over the components with a scale, plus
     ``|g_z_j z'_j|`` for each one without (module docstring); 0 where every part is 0."""
     sized = scales > 0

@@ -69,6 +69,10 @@ __all__ = ["Continuation", "Stability", "follow_periodic_family", "linearised_or
 
 
 def _orbit_gradient(sol, cotangent, **options):
+    if "system" not in options:
+        from ...errors import InputError
+        raise InputError("gradient of a periodic orbit needs system= (and params=, integrals= "
+                         "if the solve had them): a periodic Solution does not keep them")
     from .orbit_gradient import orbit_gradient
     return orbit_gradient(sol, cotangent, **options)
 
