@@ -64,9 +64,10 @@ CHUNK = 4096
 @dataclass(frozen=True)
 class DerivativeOptions:
     """What ``march(..., derivatives=...)`` differentiates and how: ``inputs``, names from
-    ``("q0", "p0", "params")``; ``mode``: ``"forward"`` (a tangent column per input),
-    ``"reverse"`` (an adjoint sweep per output entry, ``adjoint.py``) or ``"auto"`` (reverse
-    where the ``2n len(t_eval)`` outputs are fewer than the inputs). Same values either way.
+    ``("q0", "p0", "params")`` (``"v0"`` in place of ``"p0"`` for a march from ``v0``);
+    ``mode``: ``"forward"`` (a tangent column per input), ``"reverse"`` (an adjoint sweep per
+    output entry, ``adjoint.py``) or ``"auto"`` (reverse where the ``2n len(t_eval)`` outputs
+    are fewer than the inputs). Same values either way.
     A plain name or sequence of names is ``DerivativeOptions(inputs=names)``."""
 
     inputs: tuple = DERIVATIVES
