@@ -57,13 +57,13 @@ def _coupled(swap=False):
                              name="coupled_events_gradient" + ("_swapped" if swap else ""))
 
 
-def _lagrangian(swap=False):
+def _lagrangian(swap=False, c=1.0):
     def L(q, v, t, w, k):
         x, y, vx, vy = (q[1], q[0], v[1], v[0]) if swap else (q[0], q[1], v[0], v[1])
-        return (vx ** 2 + 2 * vy ** 2) / 2 + 0.3 * vx * vy * ca.cos(y) \
-            - w ** 2 * (1 - ca.cos(x)) - k * y ** 2 / 2
-    return LagrangianSystem(L, 2, {"w": 1.3, "k": 0.7},
-                            name="lagrangian_v0" + ("_swapped" if swap else ""))
+        return c * ((vx ** 2 + 2 * vy ** 2) / 2 + 0.3 * vx * vy * ca.cos(y)
+                    - w ** 2 * (1 - ca.cos(x)) - k * y ** 2 / 2)
+    return LagrangianSystem(L, 2, {"w": 1.3, "k": 0.7}, name="lagrangian_v0" + (
+        "_swapped" if swap else "") + ("" if c == 1.0 else "_scaled"))
 
 
 PENDULUM, COUPLED, LAGRANGIAN = _pendulum(), _coupled(), _lagrangian()
@@ -413,6 +413,22 @@ def test_v0_derivatives_relabelled_and_offset_in_time():
     for name in V_NAMES:
         assert np.max(np.abs(later.derivatives[name] - sol.derivatives[name])) <= \
             1e-9 * np.max(np.abs(sol.derivatives[name])), name
+
+
+def test_v0_derivatives_in_scaled_units_of_the_action():
+    """L scaled by c = 3: the same motion (the discrete Euler-Lagrange and energy equations are
+    homogeneous in L), momenta times c: the q rows of every derivative unchanged, the p rows
+    times c; the crossing times' derivatives unchanged."""
+    c = 3.0
+    sol, other = _lagrangian_march(), _v0_march(_lagrangian(c=c))
+    assert np.allclose(other.t_events[0], sol.t_events[0], rtol=0, atol=1e-12)
+    for name in V_NAMES:
+        a, b = sol.derivatives[name], other.derivatives[name]
+        size = np.max(np.abs(a))
+        assert np.max(np.abs(b[:, :2] - a[:, :2])) <= 1e-9 * size, name
+        assert np.max(np.abs(b[:, 2:] - c * a[:, 2:])) <= 1e-9 * c * size, name
+        a, b = sol.derivatives.events[0].times[name], other.derivatives.events[0].times[name]
+        assert np.max(np.abs(b - a)) <= 1e-9 * np.max(np.abs(a)), name
 
 
 def test_v0_and_p0_refused_where_they_are_not_the_start():
