@@ -167,10 +167,20 @@ def _event_rows(sol, event_times):
     values = []
     for j, value in enumerate(event_times):
         count = np.size(sol.t_events[j])
-        if np.ndim(value) != 1 or np.size(value) != count:
-            raise InputError(f"cotangent['event_times'][{j}] must have shape ({count},) (one "
-                             f"entry per crossing of event {j}), got {value!r:.60}")
-        values.append(check_cotangent(np.reshape(value, (count, 1)), count, 1)[:, 0])
+        name = f"cotangent['event_times'][{j}]"
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{name} must be {count} real numbers (one per crossing of event "
+                             f"{j}), got {value!r:.60}") from None
+        if array.shape != (count,):
+            raise InputError(f"{name} must have shape ({count},) (one entry per crossing of "
+                             f"event {j}), got shape {array.shape}")
+        bad = np.flatnonzero(~np.isfinite(array))
+        if bad.size:
+            raise InputError(f"{name} must be finite, got {float(array[bad[0]])!r} at "
+                             f"[{int(bad[0])}]")
+        values.append(array)
     return [np.asarray(t, float) for t in sol.t_events], values, records
 
 

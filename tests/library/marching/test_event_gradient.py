@@ -282,7 +282,9 @@ def test_bad_event_cotangents_are_refused_by_name():
         ({"event_times": np.zeros(3)}, r"must be a list of 1 arrays"),
         ({"event_times": [np.zeros(3), np.zeros(3)]}, r"must be a list of 1 arrays"),
         ({"event_times": [np.zeros(2)]}, r"\[0\] must have shape \(3,\)"),
-        ({"event_times": [[0.0, np.inf, 0.0]]}, r"must be finite, got inf"),
+        ({"event_times": [[0.0, np.inf, 0.0]]},
+         r"cotangent\['event_times'\]\[0\] must be finite, got inf at \[1\]"),
+        ({"event_times": [["a", "b", "c"]]}, r"\[0\] must be 3 real numbers"),
         ({"states": np.zeros((3, 2))}, r"must have shape \(len\(sol.t_eval\), 2n\)"),
     ]
     for cotangent, message in cases:
@@ -294,6 +296,29 @@ def test_bad_event_cotangents_are_refused_by_name():
         gradient(plain, {"event_times": [np.zeros(plain.t_events[0].size)]})
     with pytest.raises(InputError, match="takes check, steps, compilation, got system="):
         gradient(sol, np.zeros((2, 2)), system=PENDULUM)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.one_of(
+    st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=2)),
+             max_size=4),
+    st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=3, max_size=3),
+    st.lists(st.text(max_size=2), min_size=3, max_size=3)), max_size=3))
+def test_the_event_cotangent_reader_answers_any_value(drawn):
+    """Whatever is given as ``event_times``: a gradient when it is one list of 3 finite
+    numbers (as numpy reads them), else an InputError naming ``cotangent['event_times']``, never another error."""
+    sol = _pendulum_march()
+    try:  # what numpy reads as 3 finite numbers ("1" included) is a valid cotangent
+        valid = len(drawn) == 1 and bool(np.all(np.isfinite(np.asarray(drawn[0], float)))) \
+            and len(drawn[0]) == 3
+    except ValueError:
+        valid = False
+    try:
+        g = gradient(sol, {"event_times": drawn}, check=False)
+    except InputError as error:
+        assert not valid and "cotangent['event_times']" in str(error)
+    else:
+        assert valid and all(np.all(np.isfinite(value)) for value in g.values())
 
 
 def test_a_cotangent_on_a_tangent_crossing_gives_nan_not_a_number():
