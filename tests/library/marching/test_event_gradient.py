@@ -306,7 +306,8 @@ def test_bad_event_cotangents_are_refused_by_name():
     st.lists(st.text(max_size=2), min_size=3, max_size=3)), max_size=3))
 def test_the_event_cotangent_reader_answers_any_value(drawn):
     """Whatever is given as ``event_times``: a gradient when it is one list of 3 finite
-    numbers (as numpy reads them), else an InputError naming ``cotangent['event_times']``, never another error."""
+    numbers (as numpy reads them), else an InputError naming ``cotangent['event_times']``,
+    never another error."""
     sol = _pendulum_march()
     try:  # what numpy reads as 3 finite numbers ("1" included) is a valid cotangent
         valid = len(drawn) == 1 and bool(np.all(np.isfinite(np.asarray(drawn[0], float)))) \
