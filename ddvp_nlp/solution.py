@@ -237,6 +237,8 @@ class MarchRecord:
         target_error: the choice of ``tau0`` for a target error and its cost (the runs
             tried), where one was asked for.
         backward: the march ran backwards in time (``t_end < t_0``).
+        start_velocity: a march started from ``v0``: ``{"v0": [...], "tau0": ...}`` (its
+            derivatives are in ``v0``, ``marching/velocity_start.py``), else ``None``.
     """
 
     theta: list
@@ -248,6 +250,7 @@ class MarchRecord:
     checkpoints_landed_s: list | None = None
     target_error: dict | None = None
     backward: bool = False
+    start_velocity: dict | None = None
 
     def as_stats(self) -> dict:
         """The record under the keys of the run's ``stats`` (a key that was never set is

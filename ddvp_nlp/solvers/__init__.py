@@ -46,7 +46,7 @@ PUBLIC = {
     "MarchState": "marching.resume", "march_ensemble": "marching.ensemble",
     "Collect": "marching.ensemble", "end_with_parent": "marching.ensemble",
     "DDVP": "marching.scipy_method",  # the march as scipy's solve_ivp method
-    "gradient": "marching.gradient",  # reverse mode of a march's derivatives
+    "gradient": "marching.gradient",  # reverse mode of any solution's derivatives
     "DerivativeOptions": "marching.derivatives",
     # fixed ends
     "solve_bvp": "bvp.fixed_ends", "Shooting": "bvp.first_guess", "AtEnergy": "bvp.at_energy",

@@ -39,6 +39,7 @@ The contract, on top of the grid's (``grid/__init__.py``):
 from typing import TYPE_CHECKING
 
 from ...cache import lazy_exports
+from ..marching.gradient import register_gradient
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
     from .at_energy import AtEnergy
@@ -51,3 +52,19 @@ __getattr__, __dir__ = lazy_exports(__name__, {
     "AtEnergy": "at_energy"})
 
 __all__ = ["AtEnergy", "Shooting", "predicted_times", "solve_bvp"]
+
+
+def _transfer_gradient(sol, cotangent, **options):
+    from .transfer_derivatives import transfer_gradient
+    return transfer_gradient(sol, cotangent, **options)
+
+
+def _ends_gradient(sol, cotangent, **options):
+    from .end_gradient import bvp_gradient
+    return bvp_gradient(sol, cotangent, **options)
+
+
+# gradient(sol, ...) of this family's solutions (marching/gradient.py: marching/ may not
+# import this package, so the family says what its reverse mode is)
+register_gradient("transfer", _transfer_gradient, ("compilation",), "a transfer at an energy")
+register_gradient("ends", _ends_gradient, ("compilation",), "a fixed-end solution")

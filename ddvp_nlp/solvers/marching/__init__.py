@@ -41,10 +41,14 @@ Where things are:
   monitor);
 - ``adjoint.py``: reverse mode, a discrete adjoint sweep backwards over the accepted steps,
   the step Jacobians recomputed a chunk at a time; ``gradient.py``: ``gradient(sol,
-  cotangent)``, the sweep on a march with its own check;
+  cotangent)``, the sweep on a march with its own check, and a grid solution's reverse mode
+  as its family registered it (``register_gradient``);
 - ``derivative_check.py``: a derivative's own check (a directional central difference of the
   discrete map, one pair of marches) and its conditioning (the solvability monitor's weights),
   and the ``Sensitivity`` monitor that puts both on ``Solution.derivatives``;
+- ``event_derivatives.py``: the crossing times' derivatives and what reverse mode needs of
+  them; ``velocity_start.py``: a march from ``v0`` differentiated in ``v0`` (the discrete
+  Legendre map's Jacobians);
 - ``scipy_method.py``: ``DDVP``, the march as a method of scipy's ``solve_ivp`` (an
   ``OdeSolver`` handing out the march's nodes one step at a time, with its Hermite dense
   output); not imported here, so that a march loads no ``scipy.integrate``;

@@ -45,16 +45,19 @@ __all__ = ["check_cotangent", "check_solution", "reverse_derivatives", "reverse_
 COLUMNS = 256
 
 
-def check_solution(sol) -> None:
-    """Refuse by name a solution whose derivative is not the chain of its kept nodes."""
+def check_solution(sol, *, needs_times: bool = True) -> None:
+    """Refuse by name a solution whose derivative is not the chain of its kept nodes (and,
+    ``needs_times``, one without ``t_eval``)."""
     from ...solution import Solution
     if not isinstance(sol, Solution):
-        raise InputError(f"sol must be a Solution of march, got {type(sol).__name__}")
+        raise InputError(f"sol must be a Solution of march, solve_bvp or solve_periodic, got "
+                         f"{type(sol).__name__}")
     record = sol.march
     if record is None or sol.system is None:
         raise InputError("gradient needs a Solution of march (its nodes, system and "
-                         "parameters); this one is of another solver")
-    if sol.t_eval is None:
+                         "parameters), solve_bvp or solve_periodic; this one is of another "
+                         "solver")
+    if needs_times and sol.t_eval is None:
         raise InputError("gradient is of the states at fixed times: march with "
                          "output=Output(t_eval=...)")
     refusals = (

@@ -26,6 +26,20 @@ breakdown, 0.36 at most on a Kepler march at ``e = 0.7`` that runs). The derivat
 where the march warned, or where the largest jump on the nodes the outputs depend on passes
 ``NEAR = 0.8`` of the limit: there ``dtau_k`` (the energy row's root's derivative) grows
 without bound as the root is lost.
+
+Event times (``event_derivatives.py``) have their own check on the same two marches: their
+crossings located again, ``(t*(x + h v) - t*(x - h v)) / 2h`` against ``dt* . v`` crossing by
+crossing (`event_check`; a crossing refused at a tangency is left out, a count of crossings
+that changed is not checked). The quotient's round-off there: a node error ``delta z`` moves a
+crossing by ``w . delta z`` (``w = -g_z / (dg/dt)``, the record's weights), at most
+``1e-14 sqrt(N) |s w|`` with ``s`` the state's scales, and the bisection leaves a bracket of
+adjacent numbers, ``eps |t*|``: both over ``h``, relative to the quotient. Ill-conditioned:
+any crossing the record flags (grazing, ``event_derivatives.GRAZING``, or the march's own flag
+on the nodes the crossing reads).
+
+A march from ``v0`` is checked in ``v0`` (``velocity_start.py``): its direction's ``v0`` part
+is scaled by the largest node-to-node velocity ``|q_{k+1} - q_k| / tau_k`` the march reached,
+and the perturbed marches start from ``v0`` again.
 """
 
 from __future__ import annotations
@@ -42,9 +56,11 @@ from .adjoint import reverse_derivatives
 from .derivatives import choose_mode, march_derivatives
 from .event_derivatives import event_derivatives
 from .monitors import MONITOR_LIMIT, MarchMonitor
+from .velocity_start import march_names, start_jacobians, to_velocity
 
 __all__ = ["DerivativeCheck", "Derivatives", "Sensitivity", "check_record", "conditioning",
-           "directional_check", "input_scales", "random_direction", "remarch_function"]
+           "directional_check", "event_check", "input_scales", "random_direction",
+           "remarch_function"]
 
 # The finite difference's relative step, and the quotient's truncation allowance (docstring).
 STEP = 1e-6
@@ -86,12 +102,14 @@ class Derivatives(dict):
     ``Solution.derivatives`` holds them; ``mode``: ``"forward"`` or ``"reverse"`` (how they
     were computed); ``check``: their `DerivativeCheck`; ``events``: one
     ``event_derivatives.EventDerivatives`` per event function of ``Output(events=...)`` (the
-    crossing times' derivatives), ``None`` without events."""
+    crossing times' derivatives), ``None`` without events; ``event_functions``: the event
+    functions themselves (``gradient``'s check locates their crossings again)."""
 
     def __init__(self, values, *, mode: str, check: DerivativeCheck | None = None,
-                 events: list | None = None):
+                 events: list | None = None, event_functions: list | None = None):
         super().__init__(values)
         self.mode, self.check, self.events = mode, check, events
+        self.event_functions = event_functions
 
 
 def conditioning(solvability, last_node: int, warning) -> tuple[bool, float]:
@@ -122,12 +140,18 @@ def random_direction(inputs: dict, scales: dict, seed: int = 0) -> tuple[dict, s
     return direction, note
 
 
-def input_scales(q, p, theta) -> dict:
-    """Each input's size in the problem (module docstring)."""
+def input_scales(q, p, theta, t=None) -> dict:
+    """Each input's size in the problem (module docstring); ``"v0"`` too where the node times
+    ``t`` are given (the largest node-to-node velocity)."""
     theta = np.abs(np.asarray(theta, float))
     largest = float(theta.max()) if theta.size else 0.0
-    return {"q0": np.max(np.abs(q), axis=0), "p0": np.max(np.abs(p), axis=0),
-            "params": np.where(theta > 0, theta, largest)}
+    scales = {"q0": np.max(np.abs(q), axis=0), "p0": np.max(np.abs(p), axis=0),
+              "params": np.where(theta > 0, theta, largest)}
+    if t is not None:
+        q = np.asarray(q, float)
+        scales["v0"] = (np.max(np.abs(np.diff(q, axis=0) / np.diff(t)[:, None]), axis=0)
+                        if len(t) > 1 else np.zeros(q.shape[1]))
+    return scales
 
 
 def directional_check(remarch, inputs: dict, direction: dict, predicted: np.ndarray,
@@ -154,27 +178,41 @@ def directional_check(remarch, inputs: dict, direction: dict, predicted: np.ndar
     return ("agrees" if error <= tolerance else "disagrees"), error, tolerance, ""
 
 
-def remarch_function(march, system, scheme, t_span, tau0: float, steps, compilation, t_eval):
+def remarch_function(march, system, scheme, t_span, tau0: float, steps, compilation, t_eval,
+                     events=None):
     """``inputs -> z_eval`` (``(M, 2n)``, ``None`` where the march does not reach the ``M``
-    output times) of the march from ``inputs["q0"]``, ``["p0"]`` at ``["params"]``, without
-    the accuracy check (``march``: the function `march`, given by its caller: this module is
-    below it)."""
+    output times) of the march from ``inputs["q0"]``, ``["p0"]`` (or ``["v0"]``) at
+    ``["params"]``, without the accuracy check (``march``: the function `march`, given by its
+    caller: this module is below it). With ``events`` (the user's functions): ``inputs ->
+    (z_eval or None, t_events)``, the crossings located again; each march run once for a given
+    ``inputs`` (kept, so that the states' and the events' checks share the two marches)."""
+    times = None if t_eval is None or np.size(t_eval) == 0 else t_eval
+    done = {}
 
     def run(inputs):
-        theta = inputs["params"]
-        solution = march(system, inputs["q0"], inputs["p0"], t_span, tau0=tau0, scheme=scheme,
-                         params=dict(zip(system.params, theta, strict=True)), steps=steps,
-                         accuracy=None, compilation=compilation, output=Output(t_eval=t_eval))
-        z = solution.z_eval
-        return z if z is not None and z.shape[0] == np.size(t_eval) else None
+        key = tuple((name, np.asarray(value, float).tobytes())
+                    for name, value in sorted(inputs.items()))
+        if key not in done:
+            start = {"v0": inputs["v0"]} if "v0" in inputs else {"p0": inputs["p0"]}
+            solution = march(system, inputs["q0"], t_span=t_span, tau0=tau0, scheme=scheme,
+                             params=dict(zip(system.params, inputs["params"], strict=True)),
+                             steps=steps, accuracy=None, compilation=compilation,
+                             output=Output(t_eval=times, events=events or None), **start)
+            z = solution.z_eval
+            reached = z if z is not None and z.shape[0] == np.size(t_eval) else None
+            if len(done) >= 2:  # two marches kept at most: the pair of one direction
+                done.pop(next(iter(done)))
+            done[key] = reached if events is None else (reached, solution.t_events)
+        return done[key]
     return run
 
 
 def check_record(remarch, base: dict, names, predicted_along, q, p, theta, nodes: int,
-                 conditioned: tuple[bool, float], *, reduce=None) -> DerivativeCheck:
+                 conditioned: tuple[bool, float], *, reduce=None, t=None) -> DerivativeCheck:
     """The `DerivativeCheck` of a derivative in the inputs ``names`` at ``base`` (all three
-    inputs): ``predicted_along(direction) -> D v``."""
-    scales = input_scales(q, p, theta)
+    inputs, ``v0`` in place of ``p0`` for a march from ``v0``, whose node times ``t`` then
+    scale it): ``predicted_along(direction) -> D v``."""
+    scales = input_scales(q, p, theta, t)
     direction, note = random_direction({name: base[name] for name in names}, scales)
     full = {name: direction.get(name, np.zeros_like(base[name])) for name in base}
     verdict, error, tolerance, reason = directional_check(
@@ -183,20 +221,66 @@ def check_record(remarch, base: dict, names, predicted_along, q, p, theta, nodes
                            conditioned[1], "; ".join(part for part in (reason, note) if part))
 
 
+def event_check(run, base: dict, direction: dict, record, index: int, times, t, scales,
+                conditioned) -> DerivativeCheck:
+    """The crossing times' `DerivativeCheck` of event ``index`` (module docstring): ``run(x)
+    -> (z_eval, t_events)`` at ``x +- STEP v`` (``direction`` ``v`` by input name, the states'
+    check's), ``record`` its `EventDerivatives` at the crossings ``times`` of the march with
+    nodes ``t``, state scales ``scales`` (2n,); ``conditioned``: ``(flag, jump)`` on the nodes
+    the crossings read."""
+    predicted = sum(record.times[name] @ direction[name] for name in record.times)
+    predicted = np.zeros(np.size(times)) if np.isscalar(predicted) else predicted
+    ill = bool(np.any(record.ill_conditioned)) or conditioned[0]
+
+    def unchecked(reason, tolerance=math.nan):
+        return DerivativeCheck("not checked", math.nan, tolerance, STEP, direction, ill,
+                               conditioned[1], reason)
+    rows = np.isfinite(predicted)
+    if not rows.any():
+        return unchecked("no crossing" if predicted.size == 0 else
+                         "every crossing is at a tangency (its derivative is nan)")
+    moved = []
+    for sign in (1.0, -1.0):
+        inputs = {name: np.asarray(base[name], float) + sign * STEP * direction.get(
+            name, np.zeros(np.shape(base[name]))) for name in base}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            moved.append(np.asarray(run(inputs)[1][index], float))
+    if any(found.size != predicted.size for found in moved):
+        return unchecked(f"the perturbed marches crossed {moved[0].size} and "
+                         f"{moved[1].size} times, against {predicted.size}")
+    quotient = (moved[0] - moved[1])[rows] / (2 * STEP)
+    size = float(np.max(np.abs(quotient)))
+    nodes = np.clip(np.searchsorted(t, np.asarray(times)[rows], side="right") + 1, 1, None)
+    moves = np.linalg.norm(record.weights[rows] * scales, axis=1)
+    roundoff = NEWTON_RELATIVE * np.sqrt(nodes) * moves \
+        + np.finfo(float).eps * np.abs(np.asarray(times)[rows])
+    if size == 0.0:
+        return unchecked("the difference quotient is zero")
+    tolerance = TRUNCATION + float(np.max(roundoff)) / (STEP * size)
+    error = float(np.max(np.abs(predicted[rows] - quotient))) / size
+    return DerivativeCheck("agrees" if error <= tolerance else "disagrees", error, tolerance,
+                           STEP, direction, ill, conditioned[1],
+                           "" if rows.all() else f"{int((~rows).sum())} crossing(s) at a "
+                                                 f"tangency left out")
+
+
 class Sensitivity(MarchMonitor):
     """The monitor of ``march(..., derivatives=...)``: watches nothing while the loop runs and
     differentiates the kept nodes at the end (`march_derivatives` forward, or
     ``adjoint.reverse_derivatives``; `choose_mode`) into ``Solution.derivatives``, a
-    `Derivatives` with its `DerivativeCheck`."""
+    `Derivatives` with its `DerivativeCheck` (and each event's, on the same two marches); a
+    march from ``v0`` in ``v0`` (``velocity_start.py``)."""
 
     rewatch = False
 
     def __init__(self, problem, t_eval, names, mode="auto", compilation=None, march=None,
-                 events=()):
+                 events=(), velocity=None):
         self.problem, self.names = problem, names
         self.t_eval = np.zeros(0) if t_eval is None else np.asarray(t_eval, float)
         self.mode, self.compilation, self.march = mode, compilation, march
         self.events = tuple(events or ())
+        self.velocity = None if velocity is None else np.asarray(velocity, float)
 
     @classmethod
     def from_options(cls, session):
@@ -205,21 +289,32 @@ class Sensitivity(MarchMonitor):
             return None
         return cls(session.problem, session.output.t_eval, names,
                    getattr(session, "derivatives_mode", "auto"), session.compilation,
-                   getattr(session, "march", None), session.output.events)
+                   getattr(session, "march", None), session.output.events,
+                   getattr(session, "start_velocity", None))
 
     def finish(self, solution, outcome) -> None:
         problem = self.problem
         t, z = solution.t, np.hstack([solution.q, solution.p])
         kept = self.t_eval[self.t_eval <= t[-1]] if t.size else self.t_eval[:0]
-        mode = choose_mode(self.mode, self.names, problem.system, kept.size)
+        inner = march_names(self.names, self.velocity is not None)
+        mode = choose_mode(self.mode, inner, problem.system, kept.size)
         differentiate = march_derivatives if mode == "forward" else reverse_derivatives
-        values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept,
-                               self.names)
-        solution.derivatives = Derivatives(values, mode=mode,
-                                           check=self._check(solution, values, kept),
-                                           events=self._events(solution, t, z))
+        values = differentiate(problem.system, problem.scheme, problem.theta, t, z, kept, inner)
+        events = self._events(solution, t, z, inner)
+        if self.velocity is not None:  # d/d(q0, v0, params) by the Legendre map's Jacobians
+            jacobians = start_jacobians(problem.system, problem.scheme, problem.q0,
+                                        self.velocity, problem.p0, t0=problem.t0,
+                                        tau0=problem.tau0, theta=problem.theta)
+            values = to_velocity(values, jacobians, self.names)
+            for record in events or ():
+                record.times = to_velocity(record.times, jacobians, self.names)
+                record.states = to_velocity(record.states, jacobians, self.names)
+        check = self._check(solution, values, kept, events)
+        solution.derivatives = Derivatives(
+            values, mode=mode, check=check, events=events,
+            event_functions=[event.g for event in self.events] if events else None)
 
-    def _events(self, solution, t, z):
+    def _events(self, solution, t, z, names):
         """The crossing times' derivatives (``event_derivatives.py``), or ``None``."""
         if not self.events or solution.t_events is None:
             return None
@@ -228,25 +323,52 @@ class Sensitivity(MarchMonitor):
         warning = solution.march.solvability_warning if solution.march is not None else None
         return event_derivatives(
             problem.system, problem.scheme, problem.theta, t, z, f, self.events,
-            solution.t_events, self.names,
+            solution.t_events, names,
             conditioned=lambda last: conditioning(solution.solvability, last, warning)[0])
 
-    def _check(self, solution, values, kept):
-        """The derivative's `DerivativeCheck`: one pair of marches (module docstring)."""
+    def _check(self, solution, values, kept, events):
+        """The derivative's `DerivativeCheck`: one pair of marches (module docstring); each
+        event's on the same pair, put on its record."""
         problem, t = self.problem, solution.t
         interval = np.clip(np.searchsorted(t, kept, side="right") - 1, 0, max(t.size - 2, 0))
         last = int(interval.max()) + 1 if kept.size and t.size > 1 else 0
         conditioned = conditioning(solution.solvability, last,
                                    solution.march.solvability_warning)
-        base = {"q0": problem.q0, "p0": problem.p0, "params": problem.theta}
-        if kept.size == 0 or self.march is None:
+        start = {"v0": self.velocity} if self.velocity is not None else {"p0": problem.p0}
+        base = {"q0": problem.q0, **start, "params": problem.theta}
+        if self.march is None:
             return DerivativeCheck("not checked", np.nan, np.nan, 0.0, {}, *conditioned,
-                                   "no output time was reached" if kept.size == 0 else
                                    "no march to run again (a session without march)")
-        remarch = remarch_function(self.march, problem.system, problem.scheme,
-                                   (problem.t0, problem.t_end), problem.tau0, problem.steps,
-                                   self.compilation, kept)
-        return check_record(
-            remarch, base, self.names,
-            lambda v: sum(values[name] @ v[name] for name in self.names),
-            solution.q[:last + 1], solution.p[:last + 1], problem.theta, last + 1, conditioned)
+        run = remarch_function(self.march, problem.system, problem.scheme,
+                               (problem.t0, problem.t_end), problem.tau0, problem.steps,
+                               self.compilation, kept,
+                               [event.g for event in self.events] if events else None)
+        remarch = run if not events else (lambda inputs: run(inputs)[0])
+        velocity_t = t if self.velocity is not None else None
+        if kept.size == 0:
+            scales = input_scales(solution.q, solution.p, problem.theta, velocity_t)
+            direction, note = random_direction({name: base[name] for name in self.names},
+                                               scales)
+            check = DerivativeCheck("not checked", np.nan, np.nan, 0.0, direction,
+                                    *conditioned, "no output time was reached")
+        else:
+            check = check_record(
+                remarch, base, self.names,
+                lambda v: sum(values[name] @ v[name] for name in self.names),
+                solution.q[:last + 1], solution.p[:last + 1], problem.theta, last + 1,
+                conditioned, t=None if velocity_t is None else t[:last + 1])
+        for index, record in enumerate(events or ()):
+            record.check = self._event_check(solution, run, base, check.direction, record,
+                                             index)
+        return check
+
+    def _event_check(self, solution, run, base, direction, record, index):
+        """Event ``index``'s `DerivativeCheck` (`event_check`) on the march's two marches."""
+        t, times = solution.t, np.asarray(solution.t_events[index], float)
+        reads = int(np.searchsorted(t, times[-1], side="right")) if times.size else 0
+        conditioned = conditioning(solution.solvability, min(reads, t.size - 1),
+                                   solution.march.solvability_warning)
+        scales = np.concatenate([np.max(np.abs(solution.q), axis=0),
+                                 np.max(np.abs(solution.p), axis=0)])
+        full = {name: direction.get(name, np.zeros(np.shape(base[name]))) for name in base}
+        return event_check(run, base, full, record, index, times, t, scales, conditioned)

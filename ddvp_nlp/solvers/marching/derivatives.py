@@ -47,13 +47,16 @@ from ...physics.hamiltonian import vector_field_function
 from ...validation import check_names
 from ..compiler import RentedBuffer
 from .step_newton import step_jacobian_function
+from .velocity_start import refuse_start_names
 
 __all__ = ["DERIVATIVES", "MODES", "DerivativeOptions", "affine_maps", "check_derivatives",
            "check_mode", "choose_mode", "derivative_request", "march_derivatives", "readout",
            "refuse_unsupported"]
 
-# The inputs a march differentiates in, in the order of the derivative's columns.
+# The inputs a march differentiates in, in the order of the derivative's columns; a march from
+# v0 takes "v0" in place of "p0" (velocity_start.py).
 DERIVATIVES = ("q0", "p0", "params")
+INPUTS = ("q0", "p0", "v0", "params")
 # Steps whose Jacobians are evaluated in one mapped call (bounds the work arrays' memory).
 CHUNK = 4096
 
@@ -61,9 +64,10 @@ CHUNK = 4096
 @dataclass(frozen=True)
 class DerivativeOptions:
     """What ``march(..., derivatives=...)`` differentiates and how: ``inputs``, names from
-    ``("q0", "p0", "params")``; ``mode``: ``"forward"`` (a tangent column per input),
-    ``"reverse"`` (an adjoint sweep per output entry, ``adjoint.py``) or ``"auto"`` (reverse
-    where the ``2n len(t_eval)`` outputs are fewer than the inputs). Same values either way.
+    ``("q0", "p0", "params")`` (``"v0"`` in place of ``"p0"`` for a march from ``v0``);
+    ``mode``: ``"forward"`` (a tangent column per input), ``"reverse"`` (an adjoint sweep per
+    output entry, ``adjoint.py``) or ``"auto"`` (reverse where the ``2n len(t_eval)`` outputs
+    are fewer than the inputs). Same values either way.
     A plain name or sequence of names is ``DerivativeOptions(inputs=names)``."""
 
     inputs: tuple = DERIVATIVES
@@ -82,9 +86,9 @@ def derivative_request(derivatives) -> tuple[tuple[str, ...], str]:
 
 
 def check_derivatives(derivatives) -> tuple[str, ...]:
-    """``derivatives`` (``None``, a name, or a sequence of names from `DERIVATIVES`) as a tuple
-    of distinct names in `DERIVATIVES`' order (`validation.check_names`)."""
-    return check_names(derivatives, DERIVATIVES)
+    """``derivatives`` (``None``, a name, or a sequence of names from `INPUTS`) as a tuple
+    of distinct names in `INPUTS`' order (`validation.check_names`)."""
+    return check_names(derivatives, INPUTS)
 
 
 def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps) -> None:
@@ -94,8 +98,8 @@ def refuse_unsupported(names, *, v0, backward: bool, target_error, output, steps
     if output.t_eval is None and not output.events:
         raise InputError("derivatives are of the states at fixed times or of event times: "
                          "give output=Output(t_eval=...) or Output(events=...)")
+    refuse_start_names(names, from_velocity=v0 is not None)
     refusals = (
-        (v0 is not None, "v0 (the start then depends on tau0): give p0"),
         (backward, "a backward t_span (t_end < t0)"),
         (target_error is not None, "target_error (its first step is chosen by a pilot march)"),
         (output.thinned, f"thinned output (keep_every={output.keep_every!r}, "
@@ -123,7 +127,7 @@ def choose_mode(mode: str, names, system, outputs: int) -> str:
     carried column per input, on the same Jacobians)."""
     if mode != "auto":
         return mode
-    widths = {"q0": system.n, "p0": system.n, "params": len(system.params)}
+    widths = {"q0": system.n, "p0": system.n, "v0": system.n, "params": len(system.params)}
     inputs = sum(widths[name] for name in names)
     return "reverse" if 2 * system.n * outputs < inputs else "forward"
 

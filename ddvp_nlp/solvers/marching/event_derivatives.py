@@ -24,7 +24,20 @@ Ill-conditioned: a crossing at a tangency, where ``dg/dt`` is small against its 
 that it does not depend on the units of ``q`` and ``p``); at most 1 (Cauchy-Schwarz), 0 at a
 tangency, where ``dt*`` has no finite value (``g = q_0 - c`` crossed near a turning point of
 ``q_0``: there ``q_0'`` is small and ``p_0'`` is not). Below ``TANGENCY`` the crossing's derivatives
-are ``nan`` and ``ill_conditioned`` says so: no number is passed off there.
+are ``nan`` and ``ill_conditioned`` says so: no number is passed off there. Between
+``TANGENCY`` and ``GRAZING`` the numbers are kept and flagged: near a tangency ``t*`` moves like
+the square root of the inputs' distance to it, so in scaled units its first derivative grows
+like ``1 / transversality`` and its third like the fifth power of that, and a difference
+quotient of relative step ``h`` is off by ``h^2 / transversality^4`` of the derivative: at the
+check's ``h = 1e-6`` (``derivative_check.STEP``) that passes the check's allowance ``1e-4``
+below ``GRAZING = 1e-2``. A state component whose scale is zero (it never moved from 0) enters
+the transversality's size by its own ``|g_z_j z'_j|``, not by a made-up unit scale.
+
+Reverse mode (``gradient(sol, {"event_times": ...})``, ``gradient.py``): ``dt* = w . D(t*)``
+with ``w = -g_z / (dg/dt)`` (`EventDerivatives.weights`), so a cotangent ``c`` on the crossing
+times is the cotangent ``c w`` on the states at the fixed times ``t*``: the adjoint sweep of
+``adjoint.py`` at those times, nothing else. The record keeps ``w`` and the `Solution` keeps
+``t_events``: the event functions are not needed again.
 """
 
 from __future__ import annotations
@@ -36,14 +49,16 @@ import numpy as np
 from ...solution import hermite
 from .derivatives import march_derivatives
 
-__all__ = ["EVENT_STEP", "TANGENCY", "EventDerivatives", "event_derivatives",
-           "event_partials", "hermite_slope"]
+__all__ = ["EVENT_STEP", "GRAZING", "TANGENCY", "EventDerivatives", "event_derivatives",
+           "event_partials", "hermite_slope", "transversality_of"]
 
 # The relative step of g's fourth-order differences, and the transversality below which a
 # crossing's derivative is refused (module docstring): 1e-3 amplifies the partials' 1e-12
 # error to 1e-9 of dt*, at most.
 EVENT_STEP = 1e-3
 TANGENCY = 1e-3
+# The transversality below which a crossing's derivative is flagged (kept): module docstring.
+GRAZING = 1e-2
 
 
 @dataclass
@@ -55,14 +70,22 @@ class EventDerivatives:
             ``(K, m)``, rows in the order of ``Solution.t_events[i]``.
         states: ``dz(t*)/d(input)``, ``(K, 2n, n)`` / ``(K, 2n, m)``, rows ``(q, p)``.
         transversality: ``(K,)``, ``|dg/dt| / (|g_t| + |s g_z| |z' / s|)`` (module docstring).
-        ill_conditioned: ``(K,)``, where ``transversality < TANGENCY`` (those rows are ``nan``)
-            or the march's derivative was flagged on the nodes the crossing reads.
+        ill_conditioned: ``(K,)``, where ``transversality < GRAZING`` (below ``TANGENCY``
+            those rows are ``nan``) or the march's derivative was flagged on the nodes the
+            crossing reads.
+        weights: ``(K, 2n)``, ``dt*/dz(T)`` at the fixed time ``T = t*``: ``-g_z / (dg/dt)``
+            (``nan`` where refused); reverse mode's cotangent on the states (module docstring).
+        check: the crossing times' own `DerivativeCheck` (``derivative_check.py``: the two
+            perturbed marches of the states' check, their crossings located again), or
+            ``None`` where none was made.
     """
 
     times: dict
     states: dict
     transversality: np.ndarray
     ill_conditioned: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    weights: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    check: object = None
 
 
 def hermite_slope(t: np.ndarray, z: np.ndarray, f: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -114,23 +137,35 @@ def event_derivatives(system, scheme, theta, t, z, f, events, t_events, names,
             np.zeros((times.size, n2))
         g_t, g_z = event_partials(event, times, states, scales)
         rate = g_t + np.einsum("kj,kj->k", g_z, slope)
-        size = np.abs(g_t) + np.linalg.norm(g_z * scales[1:], axis=1) * np.linalg.norm(
-            slope / np.where(scales[1:] > 0, scales[1:], 1.0), axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            transversality = np.where(size > 0, np.abs(rate) / size, 0.0)
+        transversality = transversality_of(g_t, g_z, slope, rate, scales[1:])
         refused = ~(transversality >= TANGENCY)
+        weights = -g_z / np.where(refused, 1.0, rate)[:, None]
+        weights[refused] = np.nan
         time_rows, state_rows = {}, {}
         for name in names:
-            dt = -np.einsum("kj,kjd->kd", g_z, D[name]) / np.where(refused, 1.0, rate)[:, None]
+            dt = np.einsum("kj,kjd->kd", np.where(refused[:, None], 0.0, weights), D[name])
             dz = D[name] + slope[:, :, None] * dt[:, None, :]
             dt[refused], dz[refused] = np.nan, np.nan
             time_rows[name], state_rows[name] = dt, dz
-        flagged = refused.copy()
+        flagged = ~(transversality >= GRAZING)
         if conditioned is not None and t.size > 1:
             reads = np.clip(np.searchsorted(t, times, side="right"), 1, t.size - 1)
             flagged |= np.array([bool(conditioned(int(last))) for last in reads], bool)
-        found.append(EventDerivatives(time_rows, state_rows, transversality, flagged))
+        found.append(EventDerivatives(time_rows, state_rows, transversality, flagged, weights))
     return found
+
+
+def transversality_of(g_t, g_z, slope, rate, scales):
+    """``|dg/dt| / (|g_t| + |s g_z| |z' / s|)`` over the components with a scale, plus
+    ``|g_z_j z'_j|`` for each one without (module docstring); 0 where every part is 0."""
+    sized = scales > 0
+    s = scales[sized]
+    size = (np.abs(g_t)
+            + np.linalg.norm(g_z[:, sized] * s, axis=1)
+            * np.linalg.norm(slope[:, sized] / s, axis=1)
+            + np.sum(np.abs(g_z[:, ~sized] * slope[:, ~sized]), axis=1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(size > 0, np.abs(rate) / size, 0.0)
 
 
 def _states(t, z, f, times):

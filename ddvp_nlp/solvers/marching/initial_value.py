@@ -115,8 +115,10 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
             ``d(q, p)(t_eval) / d q0`` (``(M, 2n, n)``), ``/ d p0`` (``(M, 2n, n)``) and ``/ d
             theta`` (``(M, 2n, m)``, columns in ``system.params`` order) of the discrete
             solution read through its dense output, every step length's dependence included
-            (``derivatives.py``; docs/gradients.md). Needs ``t_eval``; not yet with ``v0``, a
-            backward span, ``target_error``, thinned output or least-squares breakdown steps.
+            (``derivatives.py``; docs/gradients.md). Needs ``t_eval`` or events; a march
+            from ``v0`` is differentiated in ``"v0"`` (and ``q0``, ``params`` at fixed
+            ``v0``; ``velocity_start.py``) in place of ``"p0"``. Not yet with a backward span,
+            ``target_error``, thinned output or least-squares breakdown steps.
             ``Solution.derivatives.check`` holds their own check (a directional finite
             difference, one pair of marches more, and whether the energy row is close to
             losing its root; ``derivative_check.py``).
@@ -179,7 +181,12 @@ def march(system: HamiltonianSystem, q0, p0=None, t_span=None, *, tau0: float, v
                               accuracy)
     session = MarchSession(problem, accuracy, compilation, output, derivatives=names)
     session.derivatives_mode, session.march = mode, march  # for Sensitivity's check
-    return session.run()
+    session.start_velocity = None if v0 is None else np.asarray(v0, float)
+    solution = session.run()
+    if v0 is not None and solution.march is not None:  # gradient() differentiates in v0
+        solution.march.start_velocity = {"v0": np.asarray(v0, float).tolist(),
+                                         "tau0": problem.tau0}
+    return solution
 
 
 @answers_removed_keywords

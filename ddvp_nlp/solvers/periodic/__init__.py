@@ -47,6 +47,7 @@ The contract, on top of the grid's (``grid/__init__.py``):
 from typing import TYPE_CHECKING
 
 from ...cache import lazy_exports
+from ..marching.gradient import register_gradient
 
 if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on first use below
     from .arclength import Continuation, follow_periodic_family
@@ -65,3 +66,18 @@ __getattr__, __dir__ = lazy_exports(__name__, {
 __all__ = ["Continuation", "Stability", "follow_periodic_family", "linearised_orbit",
            "periodic_stability",
            "solve_periodic", "solve_periodic_family"]
+
+
+def _orbit_gradient(sol, cotangent, **options):
+    if "system" not in options:
+        from ...errors import InputError
+        raise InputError("gradient of a periodic orbit needs system= (and params=, integrals= "
+                         "if the solve had them): a periodic Solution does not keep them")
+    from .orbit_gradient import orbit_gradient
+    return orbit_gradient(sol, cotangent, **options)
+
+
+# gradient(sol, ...) of a periodic orbit (marching/gradient.py: marching/ may not import this
+# package, so the family says what its reverse mode is)
+register_gradient("orbit", _orbit_gradient, ("system", "params", "integrals"),
+                  "a periodic orbit")

@@ -275,8 +275,8 @@ def expect(message):
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"derivatives": ("q0", "mu")},
-     "derivatives: unknown name 'mu' in ('q0', 'mu') (choose from q0, p0, params)"),
-    ({"derivatives": 3}, "derivatives must be a sequence of names from q0, p0, params, "
+     "derivatives: unknown name 'mu' in ('q0', 'mu') (choose from q0, p0, v0, params)"),
+    ({"derivatives": 3}, "derivatives must be a sequence of names from q0, p0, v0, params, "
                          "got 3"),
     ({"derivatives": ("q0",), "output": None},
      "derivatives are of the states at fixed times or of event times: give "
@@ -299,13 +299,15 @@ def test_march_refuses_what_it_cannot_differentiate(kwargs, message):
 
 
 def test_a_bad_name_is_refused_before_anything_is_built():
-    with expect("derivatives: unknown name 'x' in ['x'] (choose from q0, p0, params)"):
+    with expect("derivatives: unknown name 'x' in ['x'] (choose from q0, p0, v0, params)"):
         march(PENDULUM, [np.nan], [0.1], (0.0, 1.0), tau0=0.05, derivatives=["x"])
 
 
-def test_a_start_from_v0_is_refused():
-    with expect("derivatives are not supported with v0 (the start then depends on tau0): give "
-                "p0"):
+def test_a_start_from_v0_is_differentiated_in_v0_not_p0():
+    """A march from v0 takes "v0" in place of "p0" (test_event_gradient.py checks its
+    values); "p0" is refused by name, before anything is built."""
+    with expect("derivatives: 'p0' is not an input of a march started from v0 (its p0 is the "
+                "discrete Legendre transform of q0, v0): ask for 'v0'"):
         march(PENDULUM, [0.5], v0=[0.1], t_span=(0.0, 1.0), tau0=0.05,
               output=Output(t_eval=[0.5]), derivatives="p0")
 

@@ -253,7 +253,7 @@ def test_a_solution_it_cannot_differentiate_is_refused(options, message):
 
 
 def test_a_solution_must_be_a_march():
-    with expect("sol must be a Solution of march, got dict"):
+    with expect("sol must be a Solution of march, solve_bvp or solve_periodic, got dict"):
         gradient({"t": [0.0]}, np.ones((1, 2)))
 
 
@@ -316,7 +316,7 @@ def test_an_ensemble_refuses_derivatives_without_times():
     with expect("derivatives are of the states at fixed times: give t_eval"):
         march_ensemble(KEPLER, [[1.0, 0.0]], [[0.0, 1.0]], (0.0, 1.0), tau0=0.01,
                        derivatives=NAMES)
-    with expect("derivatives: unknown name 'mu' in ('mu',) (choose from q0, p0, params)"):
+    with expect("derivatives: unknown name 'mu' in ('mu',) (choose from q0, p0, v0, params)"):
         march_ensemble(KEPLER, [[1.0, 0.0]], [[0.0, 1.0]], (0.0, 1.0), tau0=0.01,
                        t_eval=[0.5], derivatives=("mu",))
 
@@ -324,7 +324,7 @@ def test_an_ensemble_refuses_derivatives_without_times():
 def test_a_bad_mode_is_refused():
     with expect("DerivativeOptions.mode must be one of auto, forward, reverse, got 3"):
         DerivativeOptions(NAMES, 3)
-    with expect("derivatives: unknown name 'x' in ('x',) (choose from q0, p0, params)"):
+    with expect("derivatives: unknown name 'x' in ('x',) (choose from q0, p0, v0, params)"):
         DerivativeOptions(("x",))
 
 
