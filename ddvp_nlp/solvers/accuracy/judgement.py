@@ -467,14 +467,15 @@ class Judgement:
         tol = self.tolerance
         limit = tol.rtol * scale + (tol.atol or 0.0)
         steps = t.size - 1
-        local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
-        d_all = np.full((steps, z.shape[1]), np.inf)
         if look is not None:
             d = np.abs(look[0])
             d_all = d
             local = row_max(d)
             relative = row_max_ratio(d, scale)
             ratio = row_max_ratio(d, limit)
+        else:
+            local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
+            d_all = np.full((steps, z.shape[1]), np.inf)
         todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
             np.arange(steps)
         if todo.size:

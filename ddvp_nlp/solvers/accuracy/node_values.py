@@ -116,25 +116,27 @@ class NodeValues:
         the vector field and ``H`` at every node (as `at_nodes`). The rows a look of this
         thread kept (`Kept`: the early verdict's first steps of the same march) are not
         evaluated again where the nodes are the same bits."""
+        d, f, H = np.empty((t.size - 1, z.shape[1])), np.empty_like(z), np.empty(t.size)
         kept = Kept.of(self)
         reused = kept.prefix(self.theta[0], t, z)
-        if reused is None:
-            d, f, H = self._look(t, z)
+        m = 0 if reused is None else reused[0].shape[0]  # steps read back
+        if m:
+            d[:m], f[:m], H[:m] = reused[0], reused[1][:m], reused[2][:m]
+        self._look(t[m:], z[m:], d[m:], f[m:], H[m:])  # node m again, as the first
+        if not m:
             kept.keep(self.theta[0], t, z, d, f, H)
-            return d, f, H
-        m = reused[0].shape[0]  # steps reused; node m is evaluated again, as the first
-        d, f, H = self._look(t[m:], z[m:])
-        return (np.concatenate([reused[0], d]), np.concatenate([reused[1][:m], f]),
-                np.concatenate([reused[2][:m], H]))
-
-    def _look(self, t, z):
-        """`first_look` evaluated: one pass over the nodes, the last node's row a step of
-        length 0 onto itself (its ``d``, zero, is not kept)."""
-        d, f, H = np.empty((t.size - 1, z.shape[1])), np.empty_like(z), np.empty(t.size)
-        self.looks += t.size
-        ends, steps = np.concatenate([z[1:], z[-1:]]), np.append(np.diff(t), 0.0)
-        self._evaluate("look", [z, ends, t, steps], [d, f, H], t.size)
         return d, f, H
+
+    def _look(self, t, z, d, f, H) -> None:
+        """`first_look` evaluated into ``d``, ``f``, ``H``: the steps in blocks, then the last
+        node alone (a step of length 0 onto itself; its ``d`` is not kept)."""
+        self.looks += t.size
+        steps = t.size - 1
+        if steps:
+            self._evaluate("look", [z[:-1], z[1:], t[:-1], np.diff(t)], [d, f[:-1], H[:-1]],
+                           steps)
+        self._evaluate("look", [z[-1:], z[-1:], t[-1:], np.zeros(1)], [d[:0], f[-1:], H[-1:]],
+                       1)
 
     def at_nodes(self, t: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The vector field ``f`` (rows) and ``H`` at the nodes ``(t_k, z_k)``."""
