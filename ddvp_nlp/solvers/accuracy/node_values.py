@@ -19,6 +19,10 @@ from ..exact.flow import flow_field
 
 BLOCK = 512  # nodes per call of a compiled block (the last block padded: blocks.py)
 FEW = 16  # fewer rows than this are evaluated one at a time, not in a padded block
+# Rows per call of a compiled block map called from CasADi (a map of WIDE // BLOCK calls of the
+# compiled block): each call from Python took about 35 us besides its work (setting the
+# arrays of seven inputs and outputs), a fifth of the compiled look at a block of 512.
+WIDE = 8 * BLOCK
 # Steps whose looks are kept for the check of the finished march (`Kept`): the early verdict's
 # (``marching/monitors.py``, ``EARLY_STEPS``).
 KEPT_STEPS = 4096
@@ -56,12 +60,16 @@ def node_function(system) -> ca.Function:
     return cached(system, "accuracy_node", build)
 
 
-def _direct(system, function: ca.Function):
-    """This thread's ``Function.buffer()`` of the compiled block ``function``, for
-    `blocks.through_buffer` (its own, not a `FunctionBuffer`'s: that one's arrays stay bound)."""
-    local = cached(system, ("accuracy", "direct", function.name()), threading.local)
+def _direct(system, function: ca.Function, calls: int = 1):
+    """This thread's ``Function.buffer()`` of the compiled block ``function`` (``calls`` > 1:
+    of a map calling it that many times in a row, from CasADi rather than from Python), for
+    `blocks.through_buffer` (its own, not a `FunctionBuffer`'s: that one's arrays stay
+    bound)."""
+    local = cached(system, ("accuracy", "direct", function.name(), calls), threading.local)
     if getattr(local, "function", None) is not function:
-        local.function, local.buffer = function, function.buffer()
+        wide = function if calls == 1 else function.map(f"{function.name()}_{calls}",
+                                                        "serial", calls, [], [])
+        local.function, local.buffer = function, wide.buffer()
     return local.buffer
 
 
@@ -85,6 +93,12 @@ class NodeValues:
         return cached(self.system, ("accuracy", kind, self.compiler, str(self.cache_dir)),
                       build)
 
+    def _theta(self, rows: int) -> np.ndarray:
+        """``theta`` in each of ``rows`` rows (C-ordered: a compiled call reads it in place)."""
+        if self.theta.shape[0] != rows and getattr(self, "_wide", None) is None:
+            self._wide = np.broadcast_to(self.theta[0], (rows, self.theta.shape[1])).copy()
+        return self.theta if self.theta.shape[0] == rows else self._wide
+
     def _single(self, kind: str) -> FunctionBuffer:
         """The unmapped function of ``kind``, for a few rows (a block of `BLOCK` rows for
         three nodes cost 0.15-0.2 ms on the virtual machine; a row alone, a few us)."""
@@ -102,10 +116,15 @@ class NodeValues:
             return
         function = self._compiled(kind)
         if function.compiled:  # the nodes' own memory handed to the library, block by block
-            buffer, trigger = _direct(self.system, function.function)
-            buffer.set_arg(len(inputs), memoryview(self.theta))
-            evaluate_in_blocks(through_buffer(buffer, trigger), inputs, outputs, count=count,
-                               width=BLOCK)
+            wide = count // WIDE * WIDE  # in calls of WIDE rows, the rest in blocks
+            for first, stop, width in ((0, wide, WIDE), (wide, count, BLOCK)):
+                if stop > first:
+                    buffer, trigger = _direct(self.system, function.function, width // BLOCK)
+                    buffer.set_arg(len(inputs), memoryview(self._theta(width)))
+                    evaluate_in_blocks(through_buffer(buffer, trigger),
+                                       [values[first:stop] for values in inputs],
+                                       [values[first:stop] for values in outputs],
+                                       count=stop - first, width=width)
             return
         function.inputs[-1][:] = self.theta  # kept for every block
         evaluate_in_blocks(copied(lambda *block: function(*block, None)), inputs, outputs,
