@@ -216,7 +216,8 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
     a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
     none."""
-    picks = np.unique([0, t.size // 2, t.size - 1])
+    # not np.unique: its first call imports numpy.ma (30-70 ms of a short march's process)
+    picks = np.array(sorted({0, t.size // 2, t.size - 1}))
     rows = z[picks]
     _, H = values.at_nodes(t[picks], rows)
     turns = np.zeros(2 * n, dtype=bool)

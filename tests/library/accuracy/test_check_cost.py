@@ -148,3 +148,24 @@ def test_the_column_reductions_are_numpys(values):
     with np.errstate(invalid="ignore"):  # inf - inf: NaN in both
         np.testing.assert_array_equal(column_span(values), np.ptp(values, axis=0))
     np.testing.assert_array_equal(column_argmax(values), np.argmax(values, axis=0))
+
+
+def test_the_check_of_a_march_imports_nothing_the_march_does_not():
+    """In a fresh process, a checked march leaves the modules an unchecked one leaves but its
+    own: np.unique's first call imported numpy.ma (30-70 ms of a short march's process)."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "from ddvp_nlp import load_scene, march\n"
+            "scene = load_scene('harmonic')\n"
+            "config = scene.resolve({'t_end': 5.0})\n"
+            "before = set(sys.modules)\n"
+            "solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),\n"
+            "                 tau0=config.tau0, params=config.params)\n"
+            "assert solution.verdict is not None\n"
+            "print(sorted(m for m in set(sys.modules) - before\n"
+            "             if not m.startswith('ddvp_nlp')))\n")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout
+    assert "numpy.ma" not in out and "scipy" not in out, out
