@@ -83,6 +83,7 @@ class NodeValues:
                                      (BLOCK, system.theta.numel())).copy()
         self.compiler, self.cache_dir = compiler, cache_dir
         self.looks = 0  # nodes `first_look` evaluated (the tests count them)
+        self._wide = None  # theta in WIDE rows, made on first use
 
     def _compiled(self, kind: str) -> FunctionBuffer:
         def build():
@@ -95,9 +96,11 @@ class NodeValues:
 
     def _theta(self, rows: int) -> np.ndarray:
         """``theta`` in each of ``rows`` rows (C-ordered: a compiled call reads it in place)."""
-        if self.theta.shape[0] != rows and getattr(self, "_wide", None) is None:
+        if self.theta.shape[0] == rows:
+            return self.theta
+        if self._wide is None or self._wide.shape[0] != rows:
             self._wide = np.broadcast_to(self.theta[0], (rows, self.theta.shape[1])).copy()
-        return self.theta if self.theta.shape[0] == rows else self._wide
+        return self._wide
 
     def _single(self, kind: str) -> FunctionBuffer:
         """The unmapped function of ``kind``, for a few rows (a block of `BLOCK` rows for

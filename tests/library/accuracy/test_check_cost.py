@@ -73,7 +73,9 @@ def test_a_run_that_drifts_early_is_not_integrated_a_call_past_it(monkeypatch):
     first = run().verdict
     assert first.name == "drifted"
     assert 0 < sum(attempts) < 1024
-    monkeypatch.setattr(judgement, "FIRST_NODES", 10**9)  # no first piece
+    grown = judgement.GrowingReference  # grown a compiled call at a time from the start
+    monkeypatch.setattr(judgement, "GrowingReference",
+                        lambda *args, first=None, **options: grown(*args, **options))
     attempts.clear()
     whole = run().verdict
     assert sum(attempts) > 1024
