@@ -68,25 +68,55 @@ NOT_STYLE = frozenset({
 def load_matplotlib(*, help_tables: bool | None = None) -> None:
     """Import what every figure uses, ``matplotlib.figure`` and the Agg canvas, if not yet
     imported. Without ``help_tables`` (the default in the ``ddvp`` command's own process,
-    `started_as_command`; kept anywhere else), the table of settable properties that
+    `started_as_command`; kept anywhere else), what only help and introspection read is left
+    out of the import (`_without_help_tables`): the table of settable properties that
     matplotlib writes into each artist class's ``set`` and into its plotting methods'
-    docstrings as their modules load (``matplotlib.artist.kwdoc``) is left empty: a third of
-    the import's CPU (0.13 s of 0.45 s), help text that a process which draws its figure and
-    exits never shows, and nothing a figure reads."""
+    docstrings as their modules load (``matplotlib.artist.kwdoc``; a third of the import's
+    CPU, 0.13 s of 0.45 s when it was measured), the signatures of those ``set`` methods and
+    the 3-D toolkit: nothing a figure reads."""
     if "matplotlib.figure" in sys.modules:
         return
     if help_tables is None:
         help_tables = not started_as_command()
-    import matplotlib.artist
-
-    tables = matplotlib.artist.kwdoc
-    if not help_tables:
-        matplotlib.artist.kwdoc = lambda artist: ""
-    try:
+    if help_tables:
         import matplotlib.figure  # noqa: F401 - loads every artist class
         from matplotlib.backends import backend_agg  # noqa: F401
+        return
+    with _without_help_tables():
+        import matplotlib.figure  # noqa: F401 - loads every artist class
+        from matplotlib.backends import backend_agg  # noqa: F401
+
+
+@contextlib.contextmanager
+def _without_help_tables():
+    """What a process that draws its figures and exits never reads, left out of matplotlib's
+    import (`load_matplotlib`): the tables of settable properties in the artists' docstrings
+    (``kwdoc``) and the keyword signature of each artist class's ``set`` (both from
+    ``ArtistInspector``, which inspects every ``set_*`` method of every class; ``set`` itself
+    works as before), and the 3-D axes toolkit that ``matplotlib.projections`` imports to
+    register them (no figure of the package is 3-D). Everything is put back after the
+    import."""
+    import warnings
+
+    import matplotlib.artist
+
+    inspector = matplotlib.artist.ArtistInspector
+    tables, setters = matplotlib.artist.kwdoc, inspector.get_setters
+    matplotlib.artist.kwdoc = lambda artist: ""
+    inspector.get_setters = lambda self: []
+    toolkit = "mpl_toolkits.mplot3d"
+    blocked = toolkit not in sys.modules
+    if blocked:
+        sys.modules[toolkit] = None  # its import fails: matplotlib warns and goes on
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", "Unable to import Axes3D")
+            yield
     finally:
         matplotlib.artist.kwdoc = tables
+        inspector.get_setters = setters
+        if blocked and sys.modules.get(toolkit, 0) is None:
+            del sys.modules[toolkit]
 
 
 @functools.cache

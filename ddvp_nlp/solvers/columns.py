@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["column_extremes", "row_max", "row_max_abs", "row_max_ratio", "row_norm"]
+__all__ = ["column_argmax", "column_extremes", "column_span", "row_max", "row_max_abs",
+           "row_max_ratio", "row_norm"]
 
 WIDE = 16  # columns past which numpy's reduction along an axis is the faster
 
@@ -70,3 +71,16 @@ def column_extremes(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     low = np.array([c.min() for c in columns])
     high = np.array([c.max() for c in columns])
     return low, high, np.maximum(np.abs(low), np.abs(high))
+
+
+def column_span(values: np.ndarray) -> np.ndarray:
+    """``np.ptp(values, axis=0)``."""
+    low, high, _ = column_extremes(values)
+    return high - low
+
+
+def column_argmax(values: np.ndarray) -> np.ndarray:
+    """``np.argmax(values, axis=0)``."""
+    if values.shape[1] > WIDE or values.shape[0] == 0:
+        return np.argmax(values, axis=0)
+    return np.array([np.argmax(values[:, j]) for j in range(values.shape[1])], dtype=np.intp)

@@ -42,6 +42,7 @@ import tempfile
 import threading
 import time
 import warnings
+import weakref
 from pathlib import Path
 
 import casadi as ca
@@ -132,6 +133,14 @@ def _compile_code(function: ca.Function, code: str, compiler: str, folder: Path,
                           load=lambda library: ca.external(function.name(), str(library)))
 
 
+def library_name(code: str, compiler: str, *, prefix: str, salt=()) -> str:
+    """``PREFIX_HASH.so``: the cache's name of the library compiled from ``code`` (a hash of
+    the code, the compiler, its flags and ``salt``)."""
+    key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, *salt])
+                         .encode()).hexdigest()[:24]
+    return f"{prefix}_{key}.so"
+
+
 def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
                    salt=(), load=None, build: bool = True):
     """``PREFIX_HASH.so`` in ``folder``, compiled from the C ``code`` (once per hash of the
@@ -140,9 +149,7 @@ def compile_source(code: str, name: str, compiler: str, folder, *, prefix: str,
     library that fails to load is removed and rebuilt once). Raises `CompileUnavailable` if
     the folder (module docstring) or the compiler fails; ``name`` is what a compiler error
     names. With ``build=False`` a library not in the cache is not built: ``None``."""
-    key = hashlib.sha256("\0".join([code, compiler, *COMPILE_FLAGS, *salt])
-                         .encode()).hexdigest()[:24]
-    library = Path(folder) / f"{prefix}_{key}.so"
+    library = Path(folder) / library_name(code, compiler, prefix=prefix, salt=salt)
     try:
         cache = open_cache(folder)
     except OSError as exc:
@@ -501,22 +508,94 @@ class FunctionBuffer:
 # accuracy check's functions costs (gcc, 0.3-0.6 s), so a short check never pays for a compile
 # and a long one pays at most about twice the least it could (the rent-or-buy rule).
 COMPILE_AFTER_S = 0.25
+# Rent not yet written to the ledger is written once it reaches this (and when the buffer is
+# collected or the process exits): a write for about every 10 ms of virtual machine.
+LEDGER_EVERY_S = 0.01
+LEDGER_LIMIT = 64  # bytes: a ledger is one number
+
+
+class RentLedger:
+    """The CPU seconds the virtual machine has spent on one function, summed over the
+    processes that used it, kept in the compiled-code cache beside where its library would be
+    (``PREFIX_HASH.so.rent``): a short march spends milliseconds of rent per process and never
+    reached `COMPILE_AFTER_S` in one, so its check ran on the virtual machine on every run;
+    summed over runs, the rent buys the compile as it would in one long process. The file only
+    decides when to compile (nothing is loaded from it): one that cannot be read or holds no
+    finite number counts as no rent; concurrent processes may lose each other's last
+    increments (later, not never)."""
+
+    def __init__(self, folder: Path, library: str):
+        self.folder, self.name = Path(folder), library + ".rent"
+        self.unsaved = 0.0
+        self.saved = self._read()  # what the ledger held (plus what this process wrote)
+
+    def _read(self) -> float:
+        try:
+            with open_cache(self.folder) as cache:
+                return self._value(cache)
+        except (OSError, CompileUnavailable):
+            return 0.0
+
+    def _value(self, cache: CacheFolder) -> float:
+        try:
+            value = float(_read_own(cache.fd, self.name, LEDGER_LIMIT).decode("ascii"))
+        except (OSError, ValueError, UnicodeDecodeError):
+            return 0.0
+        return value if np.isfinite(value) and value > 0 else 0.0
+
+    @property
+    def spent(self) -> float:
+        return self.saved + self.unsaved
+
+    def close(self) -> None:
+        """The rent is paid (the library is built): the ledger removed."""
+        self.unsaved = 0.0
+        try:
+            with open_cache(self.folder) as cache:
+                _remove(cache.fd, cache.path, self.name)
+        except (OSError, CompileUnavailable):
+            pass
+
+    def add(self, seconds: float) -> None:
+        self.unsaved += seconds
+        if self.unsaved >= LEDGER_EVERY_S:
+            self.save()
+
+    def save(self) -> None:
+        """The unsaved rent added to the ledger's (read again: another process may have
+        added to it); a write that fails is dropped (rent only decides when to compile)."""
+        if self.unsaved <= 0:
+            return
+        unsaved, self.unsaved = self.unsaved, 0.0
+        try:
+            with open_cache(self.folder) as cache:
+                total = self._value(cache) + unsaved
+                scratch = safe_files.scratch_name(self.name)
+                descriptor = safe_files.open_no_follow(
+                    scratch, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600, dir_fd=cache.fd)
+                with os.fdopen(descriptor, "w") as handle:
+                    handle.write(f"{total!r}\n")
+                os.rename(scratch, self.name, src_dir_fd=cache.fd, dst_dir_fd=cache.fd)
+                self.saved = total
+        except (OSError, CompileUnavailable):
+            pass
 
 
 class RentedBuffer(FunctionBuffer):
     """A `FunctionBuffer` of ``function`` compiled only when that pays: loaded at once if the
     compiled-code cache holds its library; otherwise evaluated by CasADi's virtual machine
     (the same arithmetic, bit for bit: the library is built without contraction to FMA) until
-    its calls have taken `COMPILE_AFTER_S` of CPU, then compiled and called compiled from the
-    next call on. Inputs set once (a run's parameters) carry over to the compiled function,
-    per thread. ``compiler=None``: the virtual machine always."""
+    its calls have taken `COMPILE_AFTER_S` of CPU, summed over the processes that ran it
+    (`RentLedger`), then compiled and called compiled from the next call on. Inputs set once
+    (a run's parameters) carry over to the compiled function, per thread. ``compiler=None``:
+    the virtual machine always."""
 
     def __init__(self, function: ca.Function, compiler: str | None, cache_dir=None, *,
                  prefix: str = "chunk", compile_after: float = COMPILE_AFTER_S):
         self.symbolic = function
         self.compile_after = float(compile_after)
         self._rent = None  # (code, compiler, folder, prefix) while not compiled
-        self._spent = 0.0
+        self.ledger: RentLedger | None = None  # the rent of every process, while not compiled
         self._lock = threading.Lock()
         found = None
         compiler = find_compiler(compiler) if compiler is not None else None
@@ -527,9 +606,15 @@ class RentedBuffer(FunctionBuffer):
                                       build=False)
                 if found is None:  # the code is kept: generated once, compiled if it pays
                     self._rent = (code, compiler, folder, prefix)
+                    self.ledger = RentLedger(folder, library_name(
+                        code, compiler, prefix=prefix, salt=(ca.__version__,)))
+                    weakref.finalize(self, self.ledger.save)
             except CompileUnavailable as reason:  # the virtual machine computes the same
                 warn_once(reason)
         super().__init__(found if found is not None else function)
+        if self.ledger is not None and self.ledger.saved > 0 and \
+                self.ledger.saved >= self.compile_after:
+            self._buy()  # earlier processes have paid the rent
 
     @property
     def compiled(self) -> bool:
@@ -553,8 +638,8 @@ class RentedBuffer(FunctionBuffer):
             return super().__call__(*values)
         started = time.process_time()
         outputs = super().__call__(*values)
-        self._spent += time.process_time() - started
-        if self._spent >= self.compile_after:
+        self.ledger.add(time.process_time() - started)
+        if self.ledger.spent >= self.compile_after:
             self._buy()
         return outputs
 
@@ -569,6 +654,9 @@ class RentedBuffer(FunctionBuffer):
                                               prefix=prefix)
             except CompileUnavailable as reason:
                 warn_once(reason)
+                return
+            if self.ledger is not None:
+                self.ledger.close()
 
 
 def buffered(function: ca.Function, *key, owner) -> FunctionBuffer:

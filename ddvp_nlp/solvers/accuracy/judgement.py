@@ -74,7 +74,15 @@ import numpy as np
 
 from ...cache import cached
 from ...solution import Status, Verdict
-from ..columns import column_extremes, row_max, row_max_abs, row_max_ratio, row_norm
+from ..columns import (
+    column_argmax,
+    column_extremes,
+    column_span,
+    row_max,
+    row_max_abs,
+    row_max_ratio,
+    row_norm,
+)
 from ..exact.flow import exact_flow
 from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
@@ -98,6 +106,10 @@ REFERENCE_SHARE = 0.1
 SMALLEST_GLOBAL_TOL = FLOOR_RTOL / REFERENCE_SHARE
 # The exact flow's tolerance to the first interval's clock (a fraction of a step).
 LEVEL_RTOL = EXACT_TOLERANCE.flow_rtol
+# The reference's first piece covers the first this many nodes (then a compiled call of
+# attempts a piece): a run that drifts within them is integrated that far only (the paper's
+# pendulum drifts at its 4th node; the first call took 1024 attempts of each run, to t = 218).
+FIRST_NODES = 64
 # The reference's first tolerance (the coarse run's; the reference is the run at a tenth of it):
 # tighter by 100 while its own error passes its share before t_drift.
 REFERENCE_RTOL = EXACT_TOLERANCE.reference_rtol
@@ -204,11 +216,12 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
     a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
     none."""
-    picks = np.unique([0, t.size // 2, t.size - 1])
+    # not np.unique: its first call imports numpy.ma (30-70 ms of a short march's process)
+    picks = np.array(sorted({0, t.size // 2, t.size - 1}))
     rows = z[picks]
     _, H = values.at_nodes(t[picks], rows)
     turns = np.zeros(2 * n, dtype=bool)
-    span = np.ptp(z[:, :n], axis=0)
+    span = column_span(z[:, :n])
     declared = getattr(values.system, "angle_indices", ())
     for j in range(n):
         if span[j] <= 2 * np.pi:
@@ -400,7 +413,7 @@ class Judgement:
         while True:
             scan = Scan(extent, self.system.n, tol)
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
-                                       rtol=rtol)
+                                       rtol=rtol, first=t[min(FIRST_NODES, last)])
             start = 0
             while True:
                 piece = growing.advance()
@@ -455,14 +468,15 @@ class Judgement:
         tol = self.tolerance
         limit = tol.rtol * scale + (tol.atol or 0.0)
         steps = t.size - 1
-        local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
-        d_all = np.full((steps, z.shape[1]), np.inf)
         if look is not None:
             d = np.abs(look[0])
             d_all = d
             local = row_max(d)
             relative = row_max_ratio(d, scale)
             ratio = row_max_ratio(d, limit)
+        else:
+            local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
+            d_all = np.full((steps, z.shape[1]), np.inf)
         todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
             np.arange(steps)
         if todo.size:
@@ -595,7 +609,7 @@ class Scan:
             np.maximum(self.high, seen[1], out=self.high)
             np.maximum(self.largest, seen[2], out=self.largest)
             seen = difference[:stop]
-            node = np.argmax(seen, axis=0)
+            node = column_argmax(seen)
             value = seen[node, np.arange(seen.shape[1])]
             better = value > self.column_max
             self.column_max[better] = value[better]

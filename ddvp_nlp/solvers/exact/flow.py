@@ -7,8 +7,9 @@ The vector field is Hamilton's ``(H_p, -H_q)`` for a system with ``H`` (or a fir
 ``L``), the Euler-Lagrange equation in Ostrogradsky's variables for a higher-order ``L``
 (`flow_field`); a flow is built once per system, compiler and shape (`exact_flow`, cached on
 the system), and compiled when that pays: loaded at once from the compiled-code cache, else run
-by CasADi's virtual machine until its calls have cost about half a compile (a short check of a
-new system never waits for gcc), then compiled (``compiler.RentedBuffer``).
+by CasADi's virtual machine until its calls have cost about half a compile, summed over the
+processes that ran it (a short check of a new system never waits for gcc; once short checks
+together have paid that much, the next one compiles it; ``compiler.RentedBuffer``).
 
 Measured against scipy's DOP853 (the same tableau, estimator and controller, in Python) at
 ``rtol`` 1e-10: the same steps, 114 (Kepler), 218 (Henon-Heiles) and 275 (the paper's pendulum

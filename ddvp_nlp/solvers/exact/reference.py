@@ -108,10 +108,14 @@ class GrowingReference:
     needs."""
 
     def __init__(self, flow: AdaptiveFlow, z0, t0: float, t_end: float, theta, scale, *,
-                 rtol: float = 1e-10):
+                 rtol: float = 1e-10, first: float | None = None):
         self.flow, self.theta = flow, np.asarray(theta, float)
         self.rtol, self.scale = rtol, np.asarray(scale, float)
         self.t_end = float(t_end)
+        # the first piece ends at ``first`` (a time between t0 and t_end) if given: a run that
+        # drifts within it is integrated that far, not a whole call of attempts past it
+        self.first = None if first is None or not _between(float(t0), float(first), self.t_end) \
+            else float(first)
         z0 = np.asarray(z0, float)
         self._ends = {"coarse": (float(t0), z0, None), "fine": (float(t0), z0, None)}
         self.floor = 0.0  # the running maximum of |coarse - fine| / scale so far
@@ -124,22 +128,27 @@ class GrowingReference:
         """The next piece: the fine run one call on (or to ``t_end``), the coarse to where the
         fine one stopped."""
         t, z, h = self._ends["fine"]
-        fine = self.flow.run(z, t, self.t_end, self.theta, rtol=self.rtol / FACTOR,
+        until = self.t_end if self.first is None else self.first
+        self.first = None
+        fine = self.flow.run(z, t, until, self.theta, rtol=self.rtol / FACTOR,
                              atol=self.rtol / FACTOR * self.scale, h0=h,
                              max_attempts=self.flow.slots)
         t, z, h = self._ends["coarse"]
         coarse = self.flow.run(z, t, fine.t_reached, self.theta, rtol=self.rtol,
                                atol=self.rtol * self.scale, h0=h)
+        paused = until != self.t_end and fine.success  # the first piece, ended at `first`
         for name, part in (("fine", fine), ("coarse", coarse)):
-            last = abs(float(part.h[-1])) if part.steps else self._ends[name][2]
+            # the next piece starts with the last step (not one cut short to land on `first`)
+            back = 2 if name == "fine" and paused and part.steps > 1 else 1
+            last = abs(float(part.h[-back])) if part.steps else self._ends[name][2]
             self._ends[name] = (part.t_reached, part.z_end, last)
         forward = self.t_end >= fine.t0
         self.reached = min(fine.t_reached, coarse.t_reached) if forward else \
             max(fine.t_reached, coarse.t_reached)
         self.done = self.reached == self.t_end
         limit = "attempt limit reached"
-        self.failed = not self.done and (not coarse.success or fine.status != limit or
-                                         fine.steps == 0)
+        self.failed = not self.done and (not coarse.success or fine.steps == 0 or
+                                         not (fine.status == limit or paused))
         self.steps += fine.steps
         return Reference(fine=fine, coarse=coarse, rtol=self.rtol / FACTOR, floor=self.floor)
 
@@ -149,6 +158,11 @@ class GrowingReference:
         states, claim = piece.at(np.asarray(times, float), self.scale)
         self.floor = piece.end_envelope
         return states, claim
+
+
+def _between(t0: float, t: float, t_end: float) -> bool:
+    """``t`` strictly between ``t0`` and ``t_end`` (either direction)."""
+    return t0 < t < t_end or t_end < t < t0
 
 
 def exact_reference(system, z0, t0: float, t_end: float, theta, *, rtol: float = 1e-12,

@@ -1,0 +1,173 @@
+"""What the accuracy check of a march costs, counted, never timed: the nodes its RK4 look
+evaluates, the attempts of its reference flow, the compiles its rent buys; and that what it
+skips changes no figure of its report."""
+
+from __future__ import annotations
+
+import os
+
+import casadi as ca
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from ddvp_nlp import load_scene, march
+from ddvp_nlp.solvers import compiler as compiled_code
+from ddvp_nlp.solvers.accuracy import judgement, node_values
+from ddvp_nlp.solvers.columns import column_argmax, column_span
+from ddvp_nlp.solvers.exact.flow import AdaptiveFlow
+
+
+def _pendulum(t_end=3000.0):
+    scene = load_scene("paper_pendulum")
+    config = scene.resolve({"t_end": t_end})
+    return lambda: march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                         tau0=config.tau0, params=config.params)
+
+
+def _counting(monkeypatch, cls, name, count):
+    original = getattr(cls, name)
+
+    def counted(self, *args, **kwargs):
+        result = original(self, *args, **kwargs)
+        count(args, result)
+        return result
+    monkeypatch.setattr(cls, name, counted)
+
+
+def test_the_first_steps_are_looked_at_once_and_the_report_is_the_same(monkeypatch):
+    """The early verdict looks at the first 4096 steps while the march runs; the check of the
+    finished march reads those rows back (the same bits in, so the same bits out: the report
+    is compared exactly) and evaluates each other node once."""
+    run = _pendulum()
+    run()  # compiled or loaded once
+    looked = []
+    _counting(monkeypatch, node_values.NodeValues, "_look",
+              lambda args, _: looked.append(args[0].size))
+    solution = run()
+    nodes = solution.t.size
+    assert nodes > node_values.KEPT_STEPS + 1000
+    # the early verdict's windows share their end nodes; the final check starts again at the
+    # last kept node, and the last node is evaluated alone (at most a row each)
+    assert nodes <= sum(looked) <= nodes + 8
+    looked.clear()
+    monkeypatch.setattr(node_values.Kept, "prefix", lambda *args: None)
+    again = run()
+    assert sum(looked) >= nodes + node_values.KEPT_STEPS  # read back before, not now
+    assert again.verdict.as_dict() == solution.verdict.as_dict()
+
+
+def test_a_run_that_drifts_early_is_not_integrated_a_call_past_it(monkeypatch):
+    """The paper's pendulum drifts at its fourth node (t = 2): the reference's first piece
+    ends at the 64th node, so the reference flow makes fewer attempts than one compiled call
+    holds (it made a whole call of 1024 fine attempts and the coarse run to their end, t =
+    218); the verdict and its figures are those of a reference grown without the first piece,
+    to the reference's own claimed error."""
+    run = _pendulum()
+    run()
+    attempts = []
+    _counting(monkeypatch, AdaptiveFlow, "run", lambda _, trajectory:
+              attempts.append(trajectory.attempts))
+    first = run().verdict
+    assert first.name == "drifted"
+    assert 0 < sum(attempts) < 1024
+    grown = judgement.GrowingReference  # grown a compiled call at a time from the start
+    monkeypatch.setattr(judgement, "GrowingReference",
+                        lambda *args, first=None, **options: grown(*args, **options))
+    attempts.clear()
+    whole = run().verdict
+    assert sum(attempts) > 1024
+    assert (whole.name, whole.t_drift, whole.drift_step) == \
+        (first.name, first.t_drift, first.drift_step)
+    claimed = max(first.reference_error, whole.reference_error)
+    assert abs(whole.error_max - first.error_max) <= claimed
+
+
+def _rented_function():
+    x = ca.SX.sym("x", 2)
+    a = ca.SX.sym("a")
+    return ca.Function("rent_ledger_case", [x, a], [ca.cos(a * x) * x[0] + a])
+
+
+@pytest.fixture
+def cache(tmp_path):
+    if compiled_code.find_compiler("auto") is None:
+        pytest.skip("no C compiler")
+    return tmp_path / "cache"
+
+
+def test_rent_is_summed_over_processes_and_buys_the_compile_once(cache):
+    """A buffer not in the cache pays rent on the virtual machine; what one process paid is
+    in the cache's ledger for the next (each `RentedBuffer` here stands for a process), and
+    once the sum reaches ``compile_after`` the next buffer compiles at once: one build."""
+    function = _rented_function()
+    first = compiled_code.RentedBuffer(function, "auto", cache, compile_after=1e9)
+    assert not first.compiled and first.ledger.spent == 0.0
+    first.ledger.add(0.004)  # below LEDGER_EVERY_S: kept in memory
+    first.ledger.save()  # what a process's exit or its buffer's collection does
+    second = compiled_code.RentedBuffer(function, "auto", cache, compile_after=1e9)
+    assert second.ledger.saved == pytest.approx(0.004)
+    second.ledger.add(compiled_code.LEDGER_EVERY_S)  # written at once
+    assert compiled_code.RentedBuffer(function, "auto", cache, compile_after=1e9).ledger.saved \
+        == pytest.approx(0.004 + compiled_code.LEDGER_EVERY_S)
+    builds = compiled_code.build_count()
+    paid = compiled_code.RentedBuffer(function, "auto", cache, compile_after=0.01)
+    assert paid.compiled and compiled_code.build_count() == builds + 1
+    assert paid.ledger is not None and not os.path.exists(cache / paid.ledger.name)
+    assert paid(np.array([0.5, -1.0]), 0.3)[0].shape == (1, 2)
+    # now in the cache: loaded, no ledger, no build
+    assert compiled_code.RentedBuffer(function, "auto", cache).ledger is None
+    assert compiled_code.build_count() == builds + 1
+
+
+@pytest.mark.parametrize("planted", [b"nan\n", b"not a number", b"-5", b"1e400"])
+def test_a_ledger_that_holds_no_finite_rent_counts_none(cache, planted):
+    function = _rented_function()
+    ledger = compiled_code.RentedBuffer(function, "auto", cache, compile_after=1e9).ledger
+    path = cache / ledger.name
+    path.write_bytes(planted)
+    os.chmod(path, 0o600)
+    again = compiled_code.RentedBuffer(function, "auto", cache, compile_after=1e-9)
+    assert again.ledger.saved == 0.0 and not again.compiled  # rent only from its own calls
+
+
+def test_a_ledger_behind_a_link_is_not_read(cache, tmp_path):
+    function = _rented_function()
+    ledger = compiled_code.RentedBuffer(function, "auto", cache, compile_after=1e9).ledger
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.write_text("100.0\n")
+    os.symlink(elsewhere, cache / ledger.name)
+    assert compiled_code.RentedBuffer(function, "auto", cache,
+                                      compile_after=1e9).ledger.saved == 0.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(arrays(np.float64, st.tuples(st.integers(1, 30), st.integers(1, 20)),
+              elements=st.floats(allow_nan=True, allow_infinity=True, width=64)))
+def test_the_column_reductions_are_numpys(values):
+    with np.errstate(invalid="ignore"):  # inf - inf: NaN in both
+        np.testing.assert_array_equal(column_span(values), np.ptp(values, axis=0))
+    np.testing.assert_array_equal(column_argmax(values), np.argmax(values, axis=0))
+
+
+def test_the_check_of_a_march_imports_nothing_the_march_does_not():
+    """In a fresh process, a checked march leaves the modules an unchecked one leaves but its
+    own: np.unique's first call imported numpy.ma (30-70 ms of a short march's process)."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "from ddvp_nlp import load_scene, march\n"
+            "scene = load_scene('harmonic')\n"
+            "config = scene.resolve({'t_end': 5.0})\n"
+            "before = set(sys.modules)\n"
+            "solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),\n"
+            "                 tau0=config.tau0, params=config.params)\n"
+            "assert solution.verdict is not None\n"
+            "print(sorted(m for m in set(sys.modules) - before\n"
+            "             if not m.startswith('ddvp_nlp')))\n")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout
+    assert "numpy.ma" not in out and "scipy" not in out, out
