@@ -140,7 +140,8 @@ class Family:
     and how the continuation ended (``message``; ``complete`` when it left the energy range).
     ``unlocated``: sign changes of a test function whose location failed (the corrector lost
     the family inside the bracket), each ``{"kind", "after_member", "energies"}``: reported,
-    not dropped."""
+    not dropped. ``branches``: the new branches followed from a branch point when asked
+    (``switching.Branch``), ``switched`` what the switch found or why it found none."""
 
     members: list
     bifurcations: list
@@ -148,6 +149,8 @@ class Family:
     message: str
     seconds: float = 0.0
     unlocated: list = field(default_factory=list)
+    branches: list = field(default_factory=list)
+    switched: str = ""
 
 
 @dataclass
@@ -216,7 +219,8 @@ class ArclengthSystem:
 def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", guess=None,
                            scheme="vddvp", params=None, start=None, integrals=(), angles=(),
                            options: GridOptions | None = None,
-                           continuation: Continuation | None = None) -> Family:
+                           continuation: Continuation | None = None,
+                           switch=None) -> Family:
     """The family of periodic orbits through the orbit at ``energies[0]``, followed by
     pseudo-arclength continuation until its energy leaves ``[min(energies), max(energies)]``
     (or ``max_orbits``), with every member's stability and the bifurcations between them
@@ -230,6 +234,8 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
             `solve_periodic` (``guess`` and ``start`` for the first orbit).
         continuation: the steps, the stopping rules and the tolerances
             (`Continuation`).
+        switch: a `Switch` (or ``True`` for its defaults): at a located branch point, the new
+            branch's two halves followed too (``switching.py``), in ``Family.branches``.
 
     Returns:
         A `Family`; a first orbit that is not found raises no error: the family is
@@ -238,6 +244,9 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
     started = time.perf_counter()
     settings = _checked(system, energies, nodes, section, guess, scheme, params, start, angles,
                         options, continuation)
+    if switch is not None:
+        from .switching import checked_switch, follow_branches  # it builds on this module
+        switch = checked_switch(switch)
     first_energy, last_energy, options, walk = settings
     common = {"section": section, "scheme": scheme, "params": params, "integrals": integrals,
               "angles": angles, "options": options}
@@ -253,8 +262,11 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
         message += (f"; {len(unlocated)} sign change(s) of a test function not located: "
                     + ", ".join(f"{u['kind']} after member {u['after_member']}"
                                 for u in unlocated))
-    return Family(members, bifurcations, complete, message, time.perf_counter() - started,
-                  unlocated)
+    family = Family(members, bifurcations, complete, message, 0.0, unlocated)
+    if switch is not None:
+        family.branches, family.switched = follow_branches(walker, bifurcations, switch)
+    family.seconds = time.perf_counter() - started
+    return family
 
 
 def _checked(system, energies, nodes, section, guess, scheme, params, start, angles, options,
@@ -283,7 +295,7 @@ class _Walker:
     """The continuation's state: the assembly, the closure, the members and their tangents."""
 
     def __init__(self, system, first: Solution, nodes: int, common: dict, walk: Continuation,
-                 energies):
+                 energies, previous=None):
         # nodes of the closed grid (as solve_periodic takes them) and its intervals
         self.system, self.nodes, self.common, self.settings = system, nodes, common, walk
         self.intervals = nodes - 1
@@ -299,7 +311,7 @@ class _Walker:
                                          self.integrals)
         self.arc = ArclengthSystem(self.assembly)
         self.members, self.points, self.tangents, self.steps = [], [], [], []
-        self._accept(first, None, 0.0)
+        self._accept(first, previous, 0.0)
 
     def _closure(self, orbit: Solution) -> Closure:
         n = self.system.n
@@ -334,7 +346,11 @@ class _Walker:
     def correct(self, i: int, length: float):
         """The point at arclength ``length`` from member ``i`` along its tangent, or
         ``None``; with the corrector's iterations."""
-        y, t = self.points[i], self.tangents[i]
+        return self.correct_from(self.points[i], self.tangents[i], length)
+
+    def correct_from(self, y: np.ndarray, t: np.ndarray, length: float):
+        """The point at arclength ``length`` from ``y`` along ``t``, or ``None``; with the
+        corrector's iterations."""
         arc = _Arc(self.closure, self.arc.weights * t, y, length)
         guess = y + length * t
         scale = max(1.0, float(np.max(np.abs(guess))))
@@ -352,11 +368,13 @@ class _Walker:
         return solve_periodic(self.system, energy=float(y[-1]), nodes=self.nodes,
                               guess={"t": t, "q": q, "p": p}, **self.common)
 
-    def walk(self):
+    def walk(self, ds: float | None = None, longest: float | None = None):
         """Members until the energy leaves the range, ``max_orbits``, or a step fails below
-        ``min_step``: ``(members, message, complete)``."""
-        ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
-        longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
+        ``min_step``: ``(members, message, complete)``; the first and the longest step in the
+        arclength are given (a branch) or from the energy steps and the first slope."""
+        if ds is None:
+            ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
+            longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
         smallest = self.settings.min_step * ds
         arclength = 0.0
         while len(self.members) < self.settings.max_orbits:
