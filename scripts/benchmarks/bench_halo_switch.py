@@ -79,7 +79,7 @@ def main(argv=None) -> int:
                   f"{row['C_dc']:.9f} | {row['dC']:+.2e} | {row['iterations']} |")
     if len(family.branches) == 2:
         a, b = (br.family.members for br in family.branches)
-        pairs = list(zip(a, b))
+        pairs = list(zip(a, b, strict=False))
         mirror = np.array([1.0, 1.0, -1.0])
         print(f"\nmirror images (z -> -z), {len(pairs)} pairs: largest |E+ - E-| "
               f"{max(abs(u.energy - v.energy) for u, v in pairs):.1e}, |T+ - T-| "

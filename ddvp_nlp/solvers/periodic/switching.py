@@ -22,8 +22,9 @@ family's, with its stability and the bifurcations between members located. A hal
 be followed says why; no orbit that was not verified is reported.
 
 Each half is named by the coordinate that moves most along its direction at some node (a
-position if any moves; ``+q3``: that node's ``q3`` grows); for the CR3BP's halo birth the kernel is out of the plane and the two halves are
-each other's images under ``z -> -z`` (the northern and southern halo families).
+position if any moves; ``+q3``: that node's ``q3`` grows). At the CR3BP's halo birth the kernel
+is out of the plane and the two halves are each other's images under ``z -> -z`` (the northern
+and southern halo families).
 
 Period doubling (a pair through -1) needs the doubled period's grid; switching there is not
 done and says so.
