@@ -1,7 +1,7 @@
 """Branch switching onto the CR3BP's halo families, checked against an independent differential
 correction, side by side in one run.
 
-    python scripts/benchmarks/bench_halo_switch.py [--orbits 20] [--nodes 201]
+    python scripts/benchmarks/bench_halo_switch.py [--orbits 20] [--nodes 401] [--figure PATH]
 
 The Earth-Moon L1 Lyapunov family is followed from E = -1.5935 towards -1.585 (step 0.0005, the
 guide's command) to its branch point, where ``follow_periodic_family(..., switch=Switch(orbits))``
@@ -56,10 +56,47 @@ def compared(member, mu) -> dict:
             "iterations": (at_energy.iterations, at_height.iterations)}
 
 
+def draw(family, path) -> None:
+    """The followed family (grey) and both halves of the new branch: ``x-y`` and ``x-z``
+    projections, the period against the energy."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (plane, height, periods) = plt.subplots(1, 3, figsize=(10, 3.2))
+    for member in family.members:
+        plane.plot(member.orbit.q[:, 0], member.orbit.q[:, 1], color="0.6", lw=0.6)
+    periods.plot([m.energy for m in family.members],
+                 [m.orbit.orbit.period for m in family.members], "o-", color="0.5", ms=3,
+                 label="followed family")
+    for branch, colour in zip(family.branches, ("tab:blue", "tab:red"), strict=False):
+        members = branch.family.members
+        for member in members:
+            q = member.orbit.q
+            plane.plot(q[:, 0], q[:, 1], color=colour, lw=0.5)
+            height.plot(q[:, 0], q[:, 2], color=colour, lw=0.5)
+        periods.plot([m.energy for m in members], [m.orbit.orbit.period for m in members],
+                     ".", color=colour, ms=4, label=f"half {branch.label}")
+    for point in family.bifurcations:
+        periods.axvline(point.energy, color="k", lw=0.6, ls=":")
+    plane.set(xlabel="x", ylabel="y", title="x-y")
+    height.set(xlabel="x", ylabel="z", title="x-z")
+    periods.set(xlabel="E", ylabel="period", title="period")
+    periods.legend(fontsize=7)
+    for axis in (plane, height):
+        axis.set_aspect("equal", adjustable="datalim")
+    fig.suptitle("CR3BP Earth-Moon: L1 Lyapunov family, switched onto the halo branch")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--orbits", type=int, default=20)
-    parser.add_argument("--nodes", type=int, default=201)
+    parser.add_argument("--nodes", type=int, default=401)
+    parser.add_argument("--figure", default=None, metavar="PATH",
+                        help="draw the family and both halves (x-y, x-z, period against E)")
     args = parser.parse_args(argv)
     family, mu, cpu, wall = switched(args.orbits, args.nodes)
     print(f"{family.message}; {len(family.members)} orbits")
@@ -86,7 +123,9 @@ def main(argv=None) -> int:
               f"{max(abs(u.orbit.orbit.period - v.orbit.orbit.period) for u, v in pairs):.1e}, "
               f"nodes {max(np.max(np.abs(u.orbit.q - v.orbit.q * mirror)) for u, v in pairs):.1e}")
     print(f"\nlargest |T - T_dc|, |C - C_dc|: {worst:.2e} (target 1e-4)")
-    print(machine.describe())
+    if args.figure:
+        draw(family, args.figure)
+    print(f"machine: {machine()}")
     return 0 if worst < 1e-4 and all(br.family.complete for br in family.branches) else 1
 
 

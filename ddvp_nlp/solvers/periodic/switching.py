@@ -21,10 +21,10 @@ tangent oriented along ``+-t_2``) for ``orbits`` members in all, every member ve
 family's, with its stability and the bifurcations between members located. A half that cannot
 be followed says why; no orbit that was not verified is reported.
 
-Each half is named by the coordinate that moves most along its direction at some node (a
-position if any moves; ``+q3``: that node's ``q3`` grows). At the CR3BP's halo birth the kernel
-is out of the plane and the two halves are each other's images under ``z -> -z`` (the northern
-and southern halo families).
+Each half is named by the coordinate that moves most along its direction (a position if any
+moves; ``+q3``: ``q3`` grows at the first node where it moves most). At the CR3BP's halo birth
+the kernel is out of the plane and the two halves are each other's images under ``z -> -z``
+(the northern and southern halo families).
 
 Period doubling (a pair through -1) needs the doubled period's grid; switching there is not
 done and says so.
@@ -160,11 +160,13 @@ def kernel_direction(walker, y: np.ndarray, along: np.ndarray) -> tuple[np.ndarr
 
 
 def _label(direction: np.ndarray, n: int, layout) -> str:
-    """``+q3`` / ``-p1``: the coordinate that moves most along ``direction`` at some node (a
-    position if any moves, else a momentum), with the sign it moves by there."""
+    """``+q3`` / ``-p1``: the coordinate that moves most along ``direction`` (a position if
+    any moves, else a momentum), with the sign it moves by at the first node where it moves
+    most (to a part in 1e6: a tie between nodes goes to the first)."""
     nodes = direction[:layout.nodes * layout.m].reshape(layout.nodes, layout.m)[:, 1:]
     part, kind = (nodes[:, :n], "q") if np.max(np.abs(nodes[:, :n])) > 0 else (nodes[:, n:], "p")
-    k, j = np.unravel_index(np.argmax(np.abs(part)), part.shape)
+    j = int(np.argmax(np.max(np.abs(part), axis=0)))
+    k = int(np.argmax(np.abs(part[:, j]) >= (1 - 1e-6) * np.max(np.abs(part[:, j]))))
     return ("+" if part[k, j] > 0 else "-") + f"{kind}{j + 1}"
 
 
