@@ -248,11 +248,11 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
         raise InputError(f"--energy is needed with --follow: scene {scene.name!r} declares no "
                          f"default energy")
     check_real("--follow", args.follow)
-    continuation = Continuation(step=args.step, tol=tol,
+    switch = Switch(orbits=args.switch) if args.switch is not None else None
+    continuation = Continuation(step=args.step, tol=tol, switch=switch,
                                 max_orbits=check_integer("--max-orbits", args.max_orbits,
                                                          minimum=2))
     guess = guess or scene_guess(scene, energy, params)
-    switch = Switch(orbits=args.switch) if args.switch is not None else None
     check_grid_memory("--nodes", nodes, scene.system.n,
                       continuation.max_orbits + 2 * (args.switch or 0))
     target, owned = default_or(args, f"{scene.name}-follow", {
@@ -263,7 +263,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
         try:
             family = follow_periodic_family(scene.system, (energy, args.follow), nodes=nodes,
                                             guess=guess, continuation=continuation,
-                                            switch=switch, **settings)
+                                            **settings)
         except KeyboardInterrupt:
             raise _interrupted(out, "following the family") from None
         with INTERRUPTS.saving():

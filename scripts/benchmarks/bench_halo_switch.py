@@ -4,8 +4,9 @@ correction, side by side in one run.
     python scripts/benchmarks/bench_halo_switch.py [--orbits 20] [--nodes 401] [--figure PATH]
 
 The Earth-Moon L1 Lyapunov family is followed from E = -1.5935 towards -1.585 (step 0.0005, the
-guide's command) to its branch point, where ``follow_periodic_family(..., switch=Switch(orbits))``
-takes the kernel direction of the extended system and follows both halves of the new branch
+guide's command) to its branch point, where ``follow_periodic_family`` with
+``Continuation(step=0.0005, switch=Switch(orbits))`` takes the kernel direction of the extended
+system and follows both halves of the new branch
 (``solvers/periodic/switching.py``). Every orbit of both halves is then corrected by Howell's
 differential correction (``halo_correction.py``: scipy's DOP853 and the variational equations,
 nothing of the package) from the orbit's node 0 on ``y = 0``: once at the orbit's energy (its
@@ -38,8 +39,8 @@ def switched(orbits: int, nodes: int):
     cpu, wall = time.process_time(), time.perf_counter()
     family = follow_periodic_family(
         scene.system, (-1.5935, -1.585), nodes=nodes, section="q2=0",
-        guess=scene.periodic.guess(-1.5935, mu=mu), continuation=Continuation(step=0.0005),
-        switch=Switch(orbits=orbits))
+        guess=scene.periodic.guess(-1.5935, mu=mu),
+        continuation=Continuation(step=0.0005, switch=Switch(orbits=orbits)))
     return family, mu, time.process_time() - cpu, time.perf_counter() - wall
 
 
@@ -70,14 +71,16 @@ def draw(family, path) -> None:
     periods.plot([m.energy for m in family.members],
                  [m.orbit.orbit.period for m in family.members], "o-", color="0.5", ms=3,
                  label="followed family")
-    for branch, colour in zip(family.branches, ("tab:blue", "tab:red"), strict=False):
+    looks = (("tab:blue", "o", 6, "none"), ("tab:red", ".", 3, "tab:red"))
+    for branch, (colour, marker, size, face) in zip(family.branches, looks, strict=False):
         members = branch.family.members
         for member in members:
             q = member.orbit.q
-            plane.plot(q[:, 0], q[:, 1], color=colour, lw=0.5)
+            plane.plot(q[:, 0], q[:, 1], color=colour, lw=0.5, alpha=0.6)
             height.plot(q[:, 0], q[:, 2], color=colour, lw=0.5)
         periods.plot([m.energy for m in members], [m.orbit.orbit.period for m in members],
-                     ".", color=colour, ms=4, label=f"half {branch.label}")
+                     marker, color=colour, ms=size, mfc=face, ls="none",
+                     label=f"half {branch.label}")
     for point in family.bifurcations:
         periods.axvline(point.energy, color="k", lw=0.6, ls=":")
     plane.set(xlabel="x", ylabel="y", title="x-y")

@@ -55,6 +55,7 @@ from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 from .first_orbit import closing_shift
 from .floquet import DEFAULT_TOL, Stability, discrete_stability, periodic_stability
 from .orbit import EPS, TARGET_ROUND_OFFS, check_periodic, parse_section, solve_periodic
+from .switching import Switch, checked_switch, follow_branches
 
 # Corrector: iterations, and those at most of which the step grows.
 CORRECTOR_ITERATIONS = 15
@@ -77,6 +78,8 @@ class Continuation:
         exact: close the exact flow at every member and analyse its monodromy
             (`periodic_stability`; about 0.1-1 s an orbit).
         confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
+        switch: a `Switch` (or ``True`` for its defaults): at a located branch point, both
+            halves of the new branch followed too (``switching.py``), in ``Family.branches``.
     """
 
     step: float | None = None
@@ -87,6 +90,7 @@ class Continuation:
     locate_tol: float = 1e-10
     exact: bool = True
     confirm: bool = True
+    switch: Switch | bool | None = None
 
     def __post_init__(self):
         for name in ("step", "max_step"):
@@ -97,6 +101,7 @@ class Continuation:
                                                              minimum=2))
         for name in ("min_step", "tol", "locate_tol"):
             object.__setattr__(self, name, check_real(name, getattr(self, name), positive=True))
+        object.__setattr__(self, "switch", checked_switch(self.switch))
 
 
 @dataclass
@@ -219,8 +224,7 @@ class ArclengthSystem:
 def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", guess=None,
                            scheme="vddvp", params=None, start=None, integrals=(), angles=(),
                            options: GridOptions | None = None,
-                           continuation: Continuation | None = None,
-                           switch=None) -> Family:
+                           continuation: Continuation | None = None) -> Family:
     """The family of periodic orbits through the orbit at ``energies[0]``, followed by
     pseudo-arclength continuation until its energy leaves ``[min(energies), max(energies)]``
     (or ``max_orbits``), with every member's stability and the bifurcations between them
@@ -232,10 +236,8 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
             (the continuation heads towards it).
         nodes, section, guess, scheme, params, start, integrals, angles, options: as for
             `solve_periodic` (``guess`` and ``start`` for the first orbit).
-        continuation: the steps, the stopping rules and the tolerances
+        continuation: the steps, the stopping rules, the tolerances and the branch switch
             (`Continuation`).
-        switch: a `Switch` (or ``True`` for its defaults): at a located branch point, the new
-            branch's two halves followed too (``switching.py``), in ``Family.branches``.
 
     Returns:
         A `Family`; a first orbit that is not found raises no error: the family is
@@ -244,9 +246,6 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
     started = time.perf_counter()
     settings = _checked(system, energies, nodes, section, guess, scheme, params, start, angles,
                         options, continuation)
-    if switch is not None:
-        from .switching import checked_switch, follow_branches  # it builds on this module
-        switch = checked_switch(switch)
     first_energy, last_energy, options, walk = settings
     common = {"section": section, "scheme": scheme, "params": params, "integrals": integrals,
               "angles": angles, "options": options}
@@ -263,8 +262,9 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
                     + ", ".join(f"{u['kind']} after member {u['after_member']}"
                                 for u in unlocated))
     family = Family(members, bifurcations, complete, message, 0.0, unlocated)
-    if switch is not None:
-        family.branches, family.switched = follow_branches(walker, bifurcations, switch)
+    if walk.switch is not None:
+        family.branches, family.switched = follow_branches(walker, bifurcations, walk.switch,
+                                                           Family)
     family.seconds = time.perf_counter() - started
     return family
 
@@ -326,12 +326,12 @@ class _Walker:
         return Closure(float(orbit.orbit.energy), index, value, self.theta, z[0].copy(),
                        generators, closing_shift(z[0], z[-1], angles))
 
-    def _point(self, orbit: Solution) -> np.ndarray:
+    def point(self, orbit: Solution) -> np.ndarray:
         x = self.assembly.layout.pack(orbit.t - orbit.t[0], orbit.q, orbit.p)
         return np.r_[x, float(orbit.orbit.energy)]
 
     def _accept(self, orbit: Solution, tangent_before, arclength: float) -> None:
-        y = self._point(orbit)
+        y = self.point(orbit)
         previous = tangent_before if tangent_before is not None else np.r_[
             np.zeros(y.size - 1), self.direction]
         tangent = self.arc.tangent(y, self.closure, previous)

@@ -47,7 +47,7 @@ KERNEL_SOLVES = 3
 
 @dataclass(frozen=True)
 class Switch:
-    """How `follow_periodic_family` switches branches.
+    """How `follow_periodic_family` switches branches (``Continuation(switch=Switch(...))``).
 
     Attributes:
         orbits: members of each half of the new branch (the first, next to the branch point,
@@ -95,14 +95,15 @@ def checked_switch(switch) -> Switch | None:
     return switch
 
 
-def follow_branches(walker, bifurcations: list, switch: Switch) -> tuple[list, str]:
+def follow_branches(walker, bifurcations: list, switch: Switch, family) -> tuple[list, str]:
     """``(branches, message)``: both halves of the new branch at the chosen branch point
-    (module docstring), or none and why."""
+    (module docstring), or none and why; ``family``: the class a half is returned as
+    (``arclength.Family``)."""
     chosen = _chosen(bifurcations, switch)
     if isinstance(chosen, str):
         return [], chosen
     number, point = chosen
-    y = walker._point(point.orbit)
+    y = walker.point(point.orbit)
     along = walker.tangents[point.after]
     direction, residual = kernel_direction(walker, y, along)
     if residual > KERNEL_TOL:
@@ -114,7 +115,7 @@ def follow_branches(walker, bifurcations: list, switch: Switch) -> tuple[list, s
     branches = []
     for sign in (1, -1):
         label = _label(direction * sign, walker.system.n, walker.assembly.layout)
-        half = _follow_half(walker, y, along, sign * direction, ds, longest, switch)
+        half = _follow_half(walker, y, along, sign * direction, (ds, longest), switch, family)
         branches.append(Branch(sign, label, number, residual, half))
     counts = ", ".join(f"{b.label}: {len(b.family.members)} orbits" for b in branches)
     return branches, (f"switched at bifurcation {number} ({point.kind} at E = "
@@ -170,12 +171,12 @@ def _label(direction: np.ndarray, n: int, layout) -> str:
     return ("+" if part[k, j] > 0 else "-") + f"{kind}{j + 1}"
 
 
-def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray, ds: float,
-                 longest: float, switch: Switch):
-    """One half: its first orbit off the branch point, then the walk (module docstring); an
-    ``arclength.Family``, empty with the reason when the first orbit is not found."""
-    from .arclength import Family
-
+def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray, steps,
+                 switch: Switch, Family):  # noqa: N803 - the class, passed in
+    """One half: its first orbit off the branch point, then the walk (module docstring), as a
+    ``Family`` (``arclength.Family``), empty with the reason when the first orbit is not found;
+    ``steps``: the first and the longest step in the arclength."""
+    ds, longest = steps
     first, step, why = None, ds, "no step tried"
     smallest = walker.settings.min_step * ds
     while first is None and step >= smallest:
@@ -185,7 +186,7 @@ def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray
     if first is None:
         return Family([], [], False, f"the first orbit off the branch point was not found: a "
                                      f"step below {smallest:.3g} failed ({why})")
-    settings = replace(walker.settings, max_orbits=switch.orbits)
+    settings = replace(walker.settings, max_orbits=switch.orbits, switch=None)
     half = type(walker)(walker.system, first, walker.nodes, walker.common, settings,
                         (-np.inf, np.inf), previous=direction)
     members, message, _ = half.walk(ds=step, longest=longest)

@@ -51,7 +51,7 @@ def _follow(swap: bool = False, offset: float = 0.0, energies=(0.1, 0.3), switch
     return follow_periodic_family(
         _oscillators(swap, offset), (energies[0] + offset, energies[1] + offset), nodes=NODES,
         section=f"p{a + 1}=0", guess={"t": t, "q": q, "p": p},
-        continuation=Continuation(step=0.05), switch=switch or Switch(orbits=HALF))
+        continuation=Continuation(step=0.05, switch=switch or Switch(orbits=HALF)))
 
 
 @pytest.fixture(scope="module")
@@ -145,7 +145,9 @@ def test_a_bad_bifurcation_number_is_refused_by_name(at):
 
 def test_a_switch_that_is_not_one_is_refused_before_any_orbit():
     with pytest.raises(InputError, match="switch must be a Switch, True or None"):
-        follow_periodic_family(_oscillators(), (0.1, 0.2), nodes=NODES, switch="yes")
+        Continuation(switch="yes")
+    assert Continuation(switch=True).switch == Switch()
+    assert Continuation(switch=False).switch is None
 
 
 @pytest.mark.parametrize("argv, text", [
@@ -187,8 +189,8 @@ def test_halo_branches_match_an_independent_differential_correction():
     mu = scene.params["mu"]
     family = follow_periodic_family(
         scene.system, (-1.5935, -1.585), nodes=401, section="q2=0",
-        guess=scene.periodic.guess(-1.5935, mu=mu), continuation=Continuation(step=0.0005),
-        switch=Switch(orbits=20))
+        guess=scene.periodic.guess(-1.5935, mu=mu),
+        continuation=Continuation(step=0.0005, switch=Switch(orbits=20)))
     assert [b.label for b in family.branches] in (["+q3", "-q3"], ["-q3", "+q3"])
     halves = {b.label: b.family.members for b in family.branches}
     for label, members in halves.items():
