@@ -319,7 +319,8 @@ def _report_switch(family) -> int:
     print(family.switched)
     for j, branch in enumerate(family.branches):
         half = branch.family
-        print(f"branch {j + 1} ({branch.label}, {len(half.members)} orbits): {half.message}")
+        print(f"branch {j + 1} ({branch.label}): {half.message}; {len(half.members)} orbits in "
+              f"{half.seconds:.1f} s; written to branch-{j + 1}/")
         _print_members(half.members, "  ")
         _print_bifurcations(half.bifurcations, "  ")
     whole = family.complete and all(b.family.complete for b in family.branches)

@@ -146,7 +146,8 @@ class Family:
     ``unlocated``: sign changes of a test function whose location failed (the corrector lost
     the family inside the bracket), each ``{"kind", "after_member", "energies"}``: reported,
     not dropped. ``branches``: the new branches followed from a branch point when asked
-    (``switching.Branch``), ``switched`` what the switch found or why it found none."""
+    (``switching.Branch``, each half a `Family` with its own ``seconds``), ``switched`` what
+    the switch found or why it found none; ``seconds``: the family's own, without them."""
 
     members: list
     bifurcations: list
@@ -261,11 +262,11 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
         message += (f"; {len(unlocated)} sign change(s) of a test function not located: "
                     + ", ".join(f"{u['kind']} after member {u['after_member']}"
                                 for u in unlocated))
-    family = Family(members, bifurcations, complete, message, 0.0, unlocated)
+    family = Family(members, bifurcations, complete, message, time.perf_counter() - started,
+                    unlocated)
     if walk.switch is not None:
         family.branches, family.switched = follow_branches(walker, bifurcations, walk.switch,
                                                            Family)
-    family.seconds = time.perf_counter() - started
     return family
 
 

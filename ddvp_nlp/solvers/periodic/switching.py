@@ -32,6 +32,7 @@ done and says so.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -177,6 +178,7 @@ def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray
     ``Family`` (``arclength.Family``), empty with the reason when the first orbit is not found;
     ``steps``: the first and the longest step in the arclength."""
     ds, longest = steps
+    started = time.perf_counter()
     first, step, why = None, ds, "no step tried"
     smallest = walker.settings.min_step * ds
     while first is None and step >= smallest:
@@ -185,16 +187,18 @@ def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray
             step /= 2
     if first is None:
         return Family([], [], False, f"the first orbit off the branch point was not found: a "
-                                     f"step below {smallest:.3g} failed ({why})")
+                                     f"step below {smallest:.3g} failed ({why})",
+                      time.perf_counter() - started)
     settings = replace(walker.settings, max_orbits=switch.orbits, switch=None)
     half = type(walker)(walker.system, first, walker.nodes, walker.common, settings,
                         (-np.inf, np.inf), previous=direction)
     members, message, _ = half.walk(ds=step, longest=longest)
     complete = len(members) == switch.orbits
     if complete:
-        message = f"{len(members)} orbits followed"
+        message = f"orbits = {switch.orbits} reached"
     bifurcations, unlocated = half.locate_all()
-    return Family(members, bifurcations, complete, message, 0.0, unlocated)
+    return Family(members, bifurcations, complete, message, time.perf_counter() - started,
+                  unlocated)
 
 
 def _first_orbit(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray,
