@@ -42,7 +42,8 @@ def _oscillators(swap: bool = False, offset: float = 0.0) -> HamiltonianSystem:
     return HamiltonianSystem(hamiltonian, 2, name=f"pitchfork_{int(swap)}_{offset}")
 
 
-def _follow(swap: bool = False, offset: float = 0.0, energies=(0.1, 0.3), switch=None):
+def _follow(swap: bool = False, offset: float = 0.0, energies=(0.1, 0.3), switch=None,
+            min_step: float = 1e-4):
     a = 1 if swap else 0
     t = np.linspace(0.0, 2 * np.pi, NODES)
     amplitude = np.sqrt(2 * energies[0])
@@ -51,7 +52,8 @@ def _follow(swap: bool = False, offset: float = 0.0, energies=(0.1, 0.3), switch
     return follow_periodic_family(
         _oscillators(swap, offset), (energies[0] + offset, energies[1] + offset), nodes=NODES,
         section=f"p{a + 1}=0", guess={"t": t, "q": q, "p": p},
-        continuation=Continuation(step=0.05, switch=switch or Switch(orbits=HALF)))
+        continuation=Continuation(step=0.05, switch=switch or Switch(orbits=HALF),
+                                  min_step=min_step))
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +109,18 @@ def test_a_family_without_a_branch_point_says_there_is_nothing_to_switch_onto():
     family = _follow(energies=(0.02, 0.06), switch=Switch(orbits=2))
     assert family.complete and not family.bifurcations and family.branches == []
     assert "no branch point was located on the family" in family.switched
+
+
+def test_a_half_that_cannot_be_started_says_why_and_reports_no_orbit():
+    """A first step of 1000 in the arclength, halved once (``min_step`` 0.5): the corrector
+    finds no orbit there; each half is empty, incomplete, and says why."""
+    family = _follow(switch=Switch(orbits=3, step=1000.0), min_step=0.5)
+    assert len(family.branches) == 2
+    for branch in family.branches:
+        assert branch.family.members == [] and not branch.family.complete
+        assert branch.family.message.startswith(
+            "the first orbit off the branch point was not found: a step below 500 failed")
+    assert "-q2: 0 orbits" in family.switched and "+q2: 0 orbits" in family.switched
 
 
 def test_the_bifurcation_to_switch_at_is_chosen_or_refused_by_name():
