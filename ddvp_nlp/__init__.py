@@ -10,7 +10,8 @@ The public interface is ``__all__``: solvers (``march``, ``march_ensemble``, ``s
 march as a method of scipy's ``solve_ivp`` (``DDVP``), the
 stability of a periodic orbit (``periodic_stability``), chaos indicators on the march's
 tangent map (``chaos_indicators``, ``lyapunov_spectrum``), their options (``StepControl``,
-``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``, ``Continuation``, ``AtEnergy``
+``Tolerance``, ``GridOptions``, ``Compilation``, ``Output``, ``Continuation``, ``Switch``
+(branch switching at a branch point of a followed family), ``AtEnergy``
 for a transfer at a prescribed energy), their result (``Solution``, ``Status``) and its
 figure (``plot``), systems and schemes, scenes, and the work-precision comparison of
 integrators (``compare``).
@@ -47,6 +48,7 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
         OrbitSearch,
         Shooting,
         Spectrum,
+        Switch,
         chaos_indicators,
         continue_march,
         find_periodic_orbits,
@@ -71,7 +73,7 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
 _solver, _names = lazy_exports(__name__, {name: "solvers" for name in (
     "march", "march_ensemble", "Collect", "MarchState", "continue_march", "solve_bvp",
     "Shooting", "AtEnergy", "solve_periodic", "solve_periodic_family", "periodic_stability",
-    "follow_periodic_family", "Continuation", "find_periodic_orbits", "OrbitSearch",
+    "follow_periodic_family", "Continuation", "Switch", "find_periodic_orbits", "OrbitSearch",
     "linearised_orbit", "march_higher", "solve_bvp_higher",
     "chaos_indicators", "lyapunov_spectrum", "ChaosIndicators", "Spectrum", "DDVP",
     "gradient", "DerivativeOptions")})
@@ -172,7 +174,8 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "Failure", "GridOptions", "HamiltonianSystem", "HigherOrderScene", "HigherOrderSystem",
            "InputError", "Lagrangian", "LagrangianSystem", "MarchState", "OrbitSearch",
            "Output", "PeriodicSettings", "Scene", "Scheme", "Shooting", "Solution", "Spectrum",
-           "Status", "StepControl", "Tolerance", "Verdict", "__version__", "chaos_indicators",
+           "Status", "StepControl", "Switch", "Tolerance", "Verdict", "__version__",
+           "chaos_indicators",
            "compare", "continue_march", "find_periodic_orbits", "follow_periodic_family",
            "gradient", "linearised_orbit", "list_scenes", "load_scene", "lyapunov_spectrum",
            "march", "march_ensemble", "march_higher", "periodic_stability", "plot", "solve_bvp",

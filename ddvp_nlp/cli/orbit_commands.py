@@ -1,9 +1,11 @@
 """``ddvp periodic``: a periodic orbit at a prescribed energy, a family over energies
 (``--family``), their stability (``--stability``) and a family followed by pseudo-arclength
-continuation with its bifurcations (``--follow``), written to the run folder and summed up on
-stdout."""
+continuation with its bifurcations (``--follow``) and, at a branch point, both halves of the new
+branch (``--switch``), written to the run folder and summed up on stdout."""
 
 from __future__ import annotations
+
+import sys
 
 from ..errors import InputError
 from ..io.atomic import output_folder
@@ -13,6 +15,7 @@ from ..io.stability_files import write_family_stability, write_followed_family, 
 from ..scenes import PeriodicSettings, load_scene
 from ..solvers import (
     Continuation,
+    Switch,
     check_periodic,
     describe,
     follow_periodic_family,
@@ -31,6 +34,11 @@ from .parser import parse_settings
 def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
+    if getattr(args, "switch", None) is not None:
+        if args.follow is None:
+            raise InputError(f"--switch {args.switch} needs --follow E_END: branches are "
+                             f"switched onto at a branch point located on a followed family")
+        check_integer("--switch", args.switch, minimum=2)
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
     params = parse_settings(args.settings)
@@ -240,40 +248,80 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
         raise InputError(f"--energy is needed with --follow: scene {scene.name!r} declares no "
                          f"default energy")
     check_real("--follow", args.follow)
-    continuation = Continuation(step=args.step, tol=tol,
+    switch = Switch(orbits=args.switch) if args.switch is not None else None
+    continuation = Continuation(step=args.step, tol=tol, switch=switch,
                                 max_orbits=check_integer("--max-orbits", args.max_orbits,
                                                          minimum=2))
     guess = guess or scene_guess(scene, energy, params)
-    check_grid_memory("--nodes", nodes, scene.system.n, continuation.max_orbits)
+    check_grid_memory("--nodes", nodes, scene.system.n,
+                      continuation.max_orbits + 2 * (args.switch or 0))
     target, owned = default_or(args, f"{scene.name}-follow", {
         **named, "energy": energy, "step": args.step, "max_orbits": args.max_orbits,
-        "stability": tol}, scene=scene, guess=guess if args.guess else None)
+        "stability": tol, **({"switch": args.switch} if switch else {})},
+        scene=scene, guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:
             family = follow_periodic_family(scene.system, (energy, args.follow), nodes=nodes,
-                                            guess=guess, continuation=continuation, **settings)
+                                            guess=guess, continuation=continuation,
+                                            **settings)
         except KeyboardInterrupt:
             raise _interrupted(out, "following the family") from None
-
-        def write_orbit(folder, scene, solution, params):
-            write_periodic(folder, scene, solution, params, plot=False)
         with INTERRUPTS.saving():
-            write_followed_family(out, scene, family, params, plot=not args.no_plot,
+            _write_follow(out, scene, family, params, not args.no_plot)
+    _print_members(family.members, "")
+    _print_bifurcations(family.bifurcations, "")
+    print(f"{family.message}; {len(family.members)} orbits in {family.seconds:.1f} s; written "
+          f"to {out.path}/ (family.csv, bifurcations.csv, bifurcations.json, family.png"
+          + (", branch-1/, branch-2/)" if family.branches else ")"))
+    if switch is None:
+        return 0 if family.members and family.complete and not INTERRUPTS.requested else 1
+    return _report_switch(family)
+
+
+def _write_follow(out, scene, family, params, plot: bool) -> None:
+    """The family's files, and each half of a new branch in ``branch-J/`` (the same files)."""
+    def write_orbit(folder, scene, solution, params):
+        write_periodic(folder, scene, solution, params, plot=False)
+    write_followed_family(out, scene, family, params, plot=plot, write_orbit=write_orbit)
+    for j, branch in enumerate(family.branches):
+        with out.subfolder(f"branch-{j + 1}") as folder:
+            write_followed_family(folder, scene, branch.family, params, plot=plot,
                                   write_orbit=write_orbit)
-    for member in family.members:
+
+
+def _print_members(members, indent: str) -> None:
+    for member in members:
         exact = member.stability.exact
-        print(f"E = {member.energy:<14.10g} T = {member.orbit.orbit.period:<14.10g} "
+        print(f"{indent}E = {member.energy:<14.10g} T = {member.orbit.orbit.period:<14.10g} "
               f"{member.stability.verdict:9s} indices "
               f"{', '.join(f'{k.real:.6g}' for k in member.stability.indices) or '-'}"
               + (f" (exact flow: {exact.verdict}, difference {member.stability.index_error:.1e})"
                  if exact is not None else ""))
-    for j, found in enumerate(family.bifurcations):
+
+
+def _print_bifurcations(bifurcations, indent: str) -> None:
+    for j, found in enumerate(bifurcations):
         exact = found.extra.get("exact_energy")
-        print(f"bifurcation {j + 1}: {found.kind} at E = {found.energy:.12g} (bracket "
+        print(f"{indent}bifurcation {j + 1}: {found.kind} at E = {found.energy:.12g} (bracket "
               f"{found.bracket[0]:.12g} .. {found.bracket[1]:.12g})"
               + (f"; exact flow: E = {exact:.12g}, difference "
                  f"{found.extra['discrete_minus_exact']:.2e}" if exact is not None
                  else "; not confirmed on the exact flow"))
-    print(f"{family.message}; {len(family.members)} orbits in {family.seconds:.1f} s; written "
-          f"to {out.path}/ (family.csv, bifurcations.csv, bifurcations.json, family.png)")
-    return 0 if family.members and family.complete and not INTERRUPTS.requested else 1
+
+
+def _report_switch(family) -> int:
+    """Each half of the new branch, its orbits and bifurcations; the exit code: 2 when the
+    family had no branch point to switch at (``--switch`` asked for what is not there), 1 when
+    a half stopped short (it says why), else 0."""
+    if not family.branches:
+        print(f"ddvp periodic: --switch: {family.switched}", file=sys.stderr)
+        return 2
+    print(family.switched)
+    for j, branch in enumerate(family.branches):
+        half = branch.family
+        print(f"branch {j + 1} ({branch.label}): {half.message}; {len(half.members)} orbits in "
+              f"{half.seconds:.1f} s; written to branch-{j + 1}/")
+        _print_members(half.members, "  ")
+        _print_bifurcations(half.bifurcations, "  ")
+    whole = family.complete and all(b.family.complete for b in family.branches)
+    return 0 if whole and not INTERRUPTS.requested else 1

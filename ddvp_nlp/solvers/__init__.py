@@ -57,6 +57,7 @@ PUBLIC = {
     "solve_periodic": "periodic.orbit", "check_periodic": "periodic.orbit",
     "parse_section": "periodic.orbit", "solve_periodic_family": "periodic.family",
     "follow_periodic_family": "periodic.arclength", "Continuation": "periodic.arclength",
+    "Switch": "periodic.switching",
     "periodic_stability": "periodic.floquet", "Stability": "periodic.floquet",
     "linearised_orbit": "periodic.linearised",
     "find_periodic_orbits": "periodic.search", "OrbitSearch": "periodic.search",
@@ -114,6 +115,7 @@ if TYPE_CHECKING:  # for readers and static tools; loaded on first use below
     from .periodic.orbit import check_periodic, parse_section, solve_periodic
     from .periodic.orbit_gradient import orbit_gradient
     from .periodic.search import OrbitSearch, find_periodic_orbits
+    from .periodic.switching import Switch
 
 __getattr__, __dir__ = lazy_exports(__name__, PUBLIC)
 
@@ -121,7 +123,7 @@ __all__ = ["AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuatio
            "DerivativeOptions", "Event",
            "GridOptions", "INTEGRATORS", "Integrator", "Level", "MarchState", "OrbitSearch",
            "Output", "Shooting",
-           "Spectrum", "Stability", "StepControl", "Tolerance", "assess", "judge",
+           "Spectrum", "Stability", "StepControl", "Switch", "Tolerance", "assess", "judge",
            "bvp_gradient", "chaos_indicators", "check_periodic", "coerce", "continue_march",
            "describe", "dop853",
            "end_with_parent", "evaluate_blocks", "find_compiler", "exact_reference",

@@ -1186,6 +1186,36 @@ def range_cases() -> list[Case]:
                  expect_text=text) for option, text in RANGES]
 
 
+# `ddvp periodic --follow ... --switch` (issue 46): a bad count or a --switch without --follow
+# refused by its flag before any orbit is solved; a followed family with no branch point says
+# there is nothing to switch onto (exit 2, after the family is written).
+SWITCHES = [
+    (["--energy", "0.5", "--switch", "3"], "--switch 3 needs --follow"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "1"],
+     "--switch must be an integer >= 2, got 1"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "-4"],
+     "--switch must be an integer >= 2, got -4"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "x"],
+     "argument --switch: invalid int value"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "2.5"],
+     "argument --switch: invalid int value"),
+    (["--energy", "0.5", "--family", "0.5:0.6:3", "--switch"], "--switch 20 needs --follow"),
+]
+
+
+def switch_cases() -> list[Case]:
+    """Branch switching's refusals (``SWITCHES``, on the harmonic scene) and a family with no
+    branch point (Henon-Heiles from E = 0.02 to 0.04)."""
+    cases = [Case("switch", " ".join(option), ["periodic", "harmonic", "--nodes", "40",
+                                                "--no-plot", *option, "--out", "out"], (2,),
+                  expect_text=text) for option, text in SWITCHES]
+    cases.append(Case("switch", "no branch point on the family",
+                      ["periodic", "henon_heiles", "--energy", "0.02", "--follow", "0.04",
+                       "--step", "0.01", "--nodes", "41", "--switch", "--no-plot", "--out",
+                       "out"], (2,), expect_text="no branch point was located on the family"))
+    return cases
+
+
 def backward_cases() -> list[Case]:
     """Every method told to run backwards (t_end < t0): it marches to t_end with steps, or
     fails by name; a success with no step taken, t left at t0, is a lie (issue 45)."""
@@ -1666,7 +1696,7 @@ def main() -> int:
               "resume": resume_cases, "grids": grid_cases, "folders": folder_cases,
               "cache": cache_cases, "events": lambda: event_cases(rng), "bounds": bound_cases,
               "cluster": cluster_cases, "periodic": periodic_cases, "ranges": range_cases,
-              "search": search_cases,
+              "search": search_cases, "switch": switch_cases,
               "backward": backward_cases, "constraints": constraint_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
               "supervision": supervision_cases, "compare": compare_cases,

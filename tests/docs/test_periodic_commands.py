@@ -64,6 +64,23 @@ def _halo_birth(out: str, folder: Path) -> None:
     assert found and abs(float(found.group(1)) - row["energy"]) < 1e-9
 
 
+def _halo_switch(out: str, folder: Path) -> None:
+    """bifurcations.md, "Switching onto the halo branches": the N = 200 row's branch point,
+    both halves of 20 orbits, mirror images (equal energies and periods, to 1e-8)."""
+    row = bifurcation_row(200)
+    found = re.search(r"switched at bifurcation 1 \(branch point at E = (-[\d.]+); kernel "
+                      r"residual ([\d.e+-]+)\): ([+-]q3): 20 orbits, ([+-]q3): 20 orbits", out)
+    assert found and abs(float(found.group(1)) - row["energy"]) < 1e-9
+    assert float(found.group(2)) < 1e-6 and {found.group(3), found.group(4)} == {"+q3", "-q3"}
+    assert out.count("orbits = 20 reached; 20 orbits in") == 2
+    halves = out.split("\nbranch ")[1:]
+    first = [re.search(r"^  E = (-[\d.]+) +T = ([\d.]+)", h, flags=re.M) for h in halves]
+    assert abs(float(first[0].group(1)) - -1.587129814) < 1e-8
+    assert abs(float(first[0].group(2)) - 2.743293584) < 1e-8
+    assert abs(float(first[0].group(1)) - float(first[1].group(1))) < 1e-8
+    assert (folder / "runs").is_dir()
+
+
 def _henon_heiles_follow(out: str, folder: Path) -> None:
     """The README: the family followed from E = 0.02 to 0.1 (its orbits stable)."""
     assert re.search(r"left the energy range after \d+ orbits", out)
@@ -94,6 +111,7 @@ CLAIMS = {
     "ddvp periodic henon_heiles --stability": _henon_heiles_stability,
     "ddvp periodic figure_eight --stability": _figure_eight,
     "ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005": _halo_birth,
+    "ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005 --switch": _halo_switch,
     "ddvp periodic henon_heiles --energy 0.02 --follow 0.1 --step 0.01": _henon_heiles_follow,
     "ddvp periodic hill --energy -2.14 --follow -1.90": _hill_family,
     "ddvp periodic hill --search --energy -2.14 --section q2=0": _hill_search,

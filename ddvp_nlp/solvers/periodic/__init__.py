@@ -25,7 +25,8 @@ Where things are:
   ``solvers/exact/closure.py`` (the exact flow's variational equations);
 - ``arclength.py``: pseudo-arclength continuation in the energy, the bifurcations between
   members located; ``bifurcation.py``: their test functions and their confirmation on the exact
-  flow.
+  flow; ``switching.py``: at a branch point, the new branch's direction from the kernel of the
+  extended system and both its halves followed.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 
@@ -55,15 +56,16 @@ if TYPE_CHECKING:  # for readers and static tools (the API pages); loaded on fir
     from .floquet import Stability, periodic_stability
     from .linearised import linearised_orbit
     from .orbit import solve_periodic
+    from .switching import Switch
 
 # loaded when first asked for: importing one module of the family loads only what it needs
 __getattr__, __dir__ = lazy_exports(__name__, {
     "solve_periodic": "orbit", "solve_periodic_family": "family",
     "Continuation": "arclength", "follow_periodic_family": "arclength",
     "Stability": "floquet", "periodic_stability": "floquet",
-    "linearised_orbit": "linearised"})
+    "linearised_orbit": "linearised", "Switch": "switching"})
 
-__all__ = ["Continuation", "Stability", "follow_periodic_family", "linearised_orbit",
+__all__ = ["Continuation", "Stability", "Switch", "follow_periodic_family", "linearised_orbit",
            "periodic_stability",
            "solve_periodic", "solve_periodic_family"]
 

@@ -55,6 +55,7 @@ from .closed_grid import Closure, PeriodicAssembly, integral_gradients
 from .first_orbit import closing_shift
 from .floquet import DEFAULT_TOL, Stability, discrete_stability, periodic_stability
 from .orbit import EPS, TARGET_ROUND_OFFS, check_periodic, parse_section, solve_periodic
+from .switching import Switch, checked_switch, follow_branches
 
 # Corrector: iterations, and those at most of which the step grows.
 CORRECTOR_ITERATIONS = 15
@@ -77,6 +78,8 @@ class Continuation:
         exact: close the exact flow at every member and analyse its monodromy
             (`periodic_stability`; about 0.1-1 s an orbit).
         confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
+        switch: a `Switch` (or ``True`` for its defaults): at a located branch point, both
+            halves of the new branch followed too (``switching.py``), in ``Family.branches``.
     """
 
     step: float | None = None
@@ -87,6 +90,7 @@ class Continuation:
     locate_tol: float = 1e-10
     exact: bool = True
     confirm: bool = True
+    switch: Switch | bool | None = None
 
     def __post_init__(self):
         for name in ("step", "max_step"):
@@ -97,6 +101,7 @@ class Continuation:
                                                              minimum=2))
         for name in ("min_step", "tol", "locate_tol"):
             object.__setattr__(self, name, check_real(name, getattr(self, name), positive=True))
+        object.__setattr__(self, "switch", checked_switch(self.switch))
 
 
 @dataclass
@@ -140,7 +145,9 @@ class Family:
     and how the continuation ended (``message``; ``complete`` when it left the energy range).
     ``unlocated``: sign changes of a test function whose location failed (the corrector lost
     the family inside the bracket), each ``{"kind", "after_member", "energies"}``: reported,
-    not dropped."""
+    not dropped. ``branches``: the new branches followed from a branch point when asked
+    (``switching.Branch``, each half a `Family` with its own ``seconds``), ``switched`` what
+    the switch found or why it found none; ``seconds``: the family's own, without them."""
 
     members: list
     bifurcations: list
@@ -148,6 +155,8 @@ class Family:
     message: str
     seconds: float = 0.0
     unlocated: list = field(default_factory=list)
+    branches: list = field(default_factory=list)
+    switched: str = ""
 
 
 @dataclass
@@ -228,7 +237,7 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
             (the continuation heads towards it).
         nodes, section, guess, scheme, params, start, integrals, angles, options: as for
             `solve_periodic` (``guess`` and ``start`` for the first orbit).
-        continuation: the steps, the stopping rules and the tolerances
+        continuation: the steps, the stopping rules, the tolerances and the branch switch
             (`Continuation`).
 
     Returns:
@@ -253,8 +262,12 @@ def follow_periodic_family(system, energies, *, nodes: int, section="p1=0", gues
         message += (f"; {len(unlocated)} sign change(s) of a test function not located: "
                     + ", ".join(f"{u['kind']} after member {u['after_member']}"
                                 for u in unlocated))
-    return Family(members, bifurcations, complete, message, time.perf_counter() - started,
-                  unlocated)
+    family = Family(members, bifurcations, complete, message, time.perf_counter() - started,
+                    unlocated)
+    if walk.switch is not None:
+        family.branches, family.switched = follow_branches(walker, bifurcations, walk.switch,
+                                                           Family)
+    return family
 
 
 def _checked(system, energies, nodes, section, guess, scheme, params, start, angles, options,
@@ -283,7 +296,7 @@ class _Walker:
     """The continuation's state: the assembly, the closure, the members and their tangents."""
 
     def __init__(self, system, first: Solution, nodes: int, common: dict, walk: Continuation,
-                 energies):
+                 energies, previous=None):
         # nodes of the closed grid (as solve_periodic takes them) and its intervals
         self.system, self.nodes, self.common, self.settings = system, nodes, common, walk
         self.intervals = nodes - 1
@@ -299,7 +312,7 @@ class _Walker:
                                          self.integrals)
         self.arc = ArclengthSystem(self.assembly)
         self.members, self.points, self.tangents, self.steps = [], [], [], []
-        self._accept(first, None, 0.0)
+        self._accept(first, previous, 0.0)
 
     def _closure(self, orbit: Solution) -> Closure:
         n = self.system.n
@@ -314,12 +327,12 @@ class _Walker:
         return Closure(float(orbit.orbit.energy), index, value, self.theta, z[0].copy(),
                        generators, closing_shift(z[0], z[-1], angles))
 
-    def _point(self, orbit: Solution) -> np.ndarray:
+    def point(self, orbit: Solution) -> np.ndarray:
         x = self.assembly.layout.pack(orbit.t - orbit.t[0], orbit.q, orbit.p)
         return np.r_[x, float(orbit.orbit.energy)]
 
     def _accept(self, orbit: Solution, tangent_before, arclength: float) -> None:
-        y = self._point(orbit)
+        y = self.point(orbit)
         previous = tangent_before if tangent_before is not None else np.r_[
             np.zeros(y.size - 1), self.direction]
         tangent = self.arc.tangent(y, self.closure, previous)
@@ -334,7 +347,11 @@ class _Walker:
     def correct(self, i: int, length: float):
         """The point at arclength ``length`` from member ``i`` along its tangent, or
         ``None``; with the corrector's iterations."""
-        y, t = self.points[i], self.tangents[i]
+        return self.correct_from(self.points[i], self.tangents[i], length)
+
+    def correct_from(self, y: np.ndarray, t: np.ndarray, length: float):
+        """The point at arclength ``length`` from ``y`` along ``t``, or ``None``; with the
+        corrector's iterations."""
         arc = _Arc(self.closure, self.arc.weights * t, y, length)
         guess = y + length * t
         scale = max(1.0, float(np.max(np.abs(guess))))
@@ -352,11 +369,13 @@ class _Walker:
         return solve_periodic(self.system, energy=float(y[-1]), nodes=self.nodes,
                               guess={"t": t, "q": q, "p": p}, **self.common)
 
-    def walk(self):
+    def walk(self, ds: float | None = None, longest: float | None = None):
         """Members until the energy leaves the range, ``max_orbits``, or a step fails below
-        ``min_step``: ``(members, message, complete)``."""
-        ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
-        longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
+        ``min_step``: ``(members, message, complete)``; the first and the longest step in the
+        arclength are given (a branch) or from the energy steps and the first slope."""
+        if ds is None:
+            ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
+            longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
         smallest = self.settings.min_step * ds
         arclength = 0.0
         while len(self.members) < self.settings.max_orbits:
