@@ -451,6 +451,9 @@ Target of issue 32: located to 1e-4 in the energy. Measured: within 3.4e-6 at N 
 8.3e-7 at N = 200 of the exact flow's bifurcation, E = -1.58717597704 (C = 3.17435195; the
 literature's 3.1743), which the exact monodromy confirms (its index crosses 2 there).
 
+Past the branch point, `--switch` follows both halves of the new branch: see
+[switching onto the halo branches](switching.md).
+
 ## Henon-Heiles: the orbit on the axis x = 0, up to the escape energy
 
 The straight-line orbit on the invariant line `x = 0` changes stability again and again as `E`

@@ -65,7 +65,7 @@ def _halo_birth(out: str, folder: Path) -> None:
 
 
 def _halo_switch(out: str, folder: Path) -> None:
-    """bifurcations.md, "Switching onto the halo branches": the N = 200 row's branch point,
+    """switching.md: bifurcations.md's N = 200 row's branch point,
     both halves of 20 orbits, mirror images (equal energies and periods, to 1e-8)."""
     row = bifurcation_row(200)
     found = re.search(r"switched at bifurcation 1 \(branch point at E = (-[\d.]+); kernel "
