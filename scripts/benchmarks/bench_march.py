@@ -192,6 +192,10 @@ def c_march_library(folder):
     lib.c_march_checks.argtypes = [ctypes.c_int, ctypes.c_int, pointer, ctypes.c_int, pointer,
                                    pointer, *[pointer] * 6]
     lib.c_march_checks.restype = None
+    lib.c_march_sphere.argtypes = [pointer, *[ctypes.c_double] * 3, ctypes.c_int,
+                                   ctypes.c_double, ctypes.c_int, pointer, pointer, pointer,
+                                   ctypes.POINTER(ctypes.c_long)]
+    lib.c_march_sphere.restype = ctypes.c_int
     return lib
 
 
