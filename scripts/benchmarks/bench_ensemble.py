@@ -98,6 +98,7 @@ def main():
     parser.add_argument("--scale-to", default=None, metavar="MxSTEPS",
                         help="also print the times extrapolated to M orbits of STEPS steps")
     args = parser.parse_args()
+    print(f"machine: {machine()}")
     system = load_scene("henon_heiles").system
     theta = system.parameter_vector(None)
     starts = section_starts(system, theta, 1 / 8, "q1=0", args.orbits)
@@ -121,8 +122,12 @@ def main():
           f"{c_cpu / loop[1]:.2f} | {c_wall / loop[2]:.2f} |")
     checked = next(row for row in found if row[0] == "march_ensemble(workers=1)")
     print(f"\n- march_ensemble(workers=1) with the accuracy check against the sequential C "
-          f"march: CPU ratio {checked[1] / c_cpu:.2f} (issue 37's target <= 1.5); without the "
-          f"check {found[-1][1] / c_cpu:.2f}")
+          f"march: CPU ratio {checked[1] / c_cpu:.2f}, wall {checked[2] / c_wall:.2f} (issue "
+          f"37's and 49's target <= 1.5); without the check {found[-1][1] / c_cpu:.2f}")
+    for label, cpu, wall, _ in found[1:]:
+        if "workers=1" not in label:
+            print(f"- {label} against the sequential C march: CPU ratio {cpu / c_cpu:.2f}, "
+                  f"wall {wall / c_wall:.2f}")
     for label, _, _, solutions in found[1:]:
         if "accuracy=None" in label:
             continue

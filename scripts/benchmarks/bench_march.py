@@ -192,6 +192,10 @@ def c_march_library(folder):
     lib.c_march_checks.argtypes = [ctypes.c_int, ctypes.c_int, pointer, ctypes.c_int, pointer,
                                    pointer, *[pointer] * 6]
     lib.c_march_checks.restype = None
+    lib.c_march_sphere.argtypes = [pointer, *[ctypes.c_double] * 3, ctypes.c_int,
+                                   ctypes.c_double, ctypes.c_int, pointer, pointer, pointer,
+                                   ctypes.POINTER(ctypes.c_long)]
+    lib.c_march_sphere.restype = ctypes.c_int
     return lib
 
 
@@ -315,6 +319,12 @@ def bench_against_c(name, overrides, repeats, folder):
     per_step = ", ".join(f"{C_PREDICTORS[p]} {iterations[p] / c_steps:.2f}"
                          for p in C_PREDICTORS)
     print(f"- c_march_fast's Newton iterations per step by predictor: {per_step}")
+    off = found["march(), accuracy=None"]
+    rk4 = found[f"C march, fast (c_march_fast, {C_PREDICTORS[0]} predictor)"]
+    print(f"- issue 49's target, march() with the check off <= 1.3x the C march: CPU "
+          f"{off[0] / c_cpu:.2f}x the fastest C march (wall {off[1] / c_wall:.2f}x), "
+          f"{off[0] / rk4[0]:.2f}x the C march from the library's own predictor, RK4 "
+          f"(wall {off[1] / rk4[1]:.2f}x)")
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -322,10 +332,12 @@ def main():
     parser.add_argument("--c-only", action="store_true",
                         help="only the comparison with the C march")
     args = parser.parse_args()
+    print(f"machine: {machine()}")
     with tempfile.TemporaryDirectory() as folder:
         bench_against_c("paper_pendulum", {}, args.repeats, folder)
         bench_against_c("fpu", {"t_end": 200.0, "tau0": 0.01}, args.repeats, folder)
     if args.c_only:
+        print(f"\nmachine: {machine()}")
         return
     bench("paper_pendulum", {}, args.repeats)
     bench("fpu", {"t_end": 200.0, "tau0": 0.01}, args.repeats)

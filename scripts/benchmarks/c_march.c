@@ -510,3 +510,168 @@ void c_march_checks(int kind, int n, const double* theta, int steps, const doubl
     w[steps] = ww;
   }
 }
+
+/* ---------------------------------------------------------------------------------------------
+ * c_march_sphere: the spherical pendulum in angles (q = (theta, phi), issue 49's 2-dof system
+ * with trigonometric terms), H = p1^2/2 + p2^2/(2 sin^2 q1) - cos q1, marched by the same
+ * vddvp equations (midpoint, autonomous: interval k's energy at its midpoint equals interval
+ * k-1's, plus the drift), the same Newton as the library's chunk (at most 30 iterations; stop
+ * when |g|_inf <= 1e-14, or after an update with |dx|_inf <= max(1e-14, 4 eps |x|_inf), the
+ * library's test relative to the iterate's round-off, chain_newton.small_update) and the same
+ * acceptance (finite, tau > 0, unscaled residuals against tol, H at every new node), written
+ * for speed:
+ * - one sincos of the midpoint angle per residual, H's derivatives in closed form, the new
+ *   interval's H sharing the canonical rows' terms; the previous interval's H once per step;
+ * - the 5 x 5 Newton system (4 x 4 for step 0) solved by its pattern (sphere_solve: p2's row
+ *   and q2's column eliminated by hand, a 3 x 3 system by Cramer's rule); the residual after
+ *   the last update without the Jacobian;
+ * - predictor 0: RK4 over the previous step (as the library), 2: extrapolation from the last
+ *   three nodes (no evaluation).
+ * Returns the number of steps taken, or -(step + 1) where a step failed; iterations (if not
+ * NULL) gets the Newton updates in all.
+ * ------------------------------------------------------------------------------------------- */
+
+/* H of the spherical pendulum at (q1, p1, p2) given sin and cos of q1. */
+static inline double sphere_energy(double s, double c, double p1, double p2) {
+  return p1 * p1 / 2 + p2 * p2 / (2 * s * s) - c;
+}
+
+/* The Hamiltonian vector field at z = (q1, q2, p1, p2). */
+static inline void sphere_field(const double* z, double* dz) {
+  double s, c, u;
+  sincos(z[0], &s, &c);
+  u = 1 / (s * s);
+  dz[0] = z[2]; dz[1] = z[3] * u;
+  dz[2] = z[3] * z[3] * c * u / s - s; dz[3] = 0;
+}
+
+/* One step's residual (and Jacobian, row-major m x m, if J != NULL) from za; x = (z_b, tau)
+ * with the energy row (energy != 0), else x = z_b with tau given. */
+static inline void sphere_residual(const double* za, const double* x, double tau, int energy,
+                                   double E_prev, double drift, double tau_prev, double* g,
+                                   double* J) {
+  double Q1 = (za[0] + x[0]) / 2, P1 = (za[2] + x[2]) / 2, P2 = (za[3] + x[3]) / 2;
+  double s, c, u, Hq1, Hp2;
+  int m = energy ? 5 : 4;
+  if (energy) tau = x[4];
+  sincos(Q1, &s, &c);
+  u = 1 / (s * s);
+  Hp2 = P2 * u;
+  Hq1 = s - P2 * Hp2 * c / s;  /* -p2^2 cos / sin^3 + sin */
+  g[0] = x[0] - za[0] - tau * P1;
+  g[1] = x[1] - za[1] - tau * Hp2;
+  g[2] = x[2] - za[2] + tau * Hq1;
+  g[3] = x[3] - za[3];
+  if (energy) g[4] = (P1 * P1 / 2 + P2 * Hp2 / 2 - c - E_prev + drift) / tau_prev;
+  if (!J) return;
+  {
+    double Hq1q1 = P2 * P2 * u * (1 + 3 * c * c * u) + c, Hq1p2 = -2 * Hp2 * c / s,
+           Hp2q1 = -2 * Hp2 * c / s, h = tau / 2;
+    memset(J, 0, sizeof(double) * m * m);
+    J[0] = 1; J[2] = -h;
+    J[m + 0] = -h * Hp2q1; J[m + 1] = 1; J[m + 3] = -h * u;
+    J[2 * m + 0] = h * Hq1q1; J[2 * m + 2] = 1; J[2 * m + 3] = h * Hq1p2;
+    J[3 * m + 3] = 1;
+    if (energy) {
+      J[4] = -P1; J[m + 4] = -Hp2; J[2 * m + 4] = Hq1;
+      J[4 * m + 0] = Hq1 / 2 / tau_prev; J[4 * m + 2] = P1 / 2 / tau_prev;
+      J[4 * m + 3] = Hp2 / 2 / tau_prev;
+    }
+  }
+}
+
+static void sphere_predict(int predictor, const double* t, const double* z, int k, double h,
+                           double* x) {
+  const double* za = z + 4 * k;
+  int i;
+  if (predictor == 2 && k >= 2) {  /* quadratic through nodes k-2, k-1, k at t_k + h */
+    const double *z0 = za - 8, *z1 = za - 4;
+    double t0 = t[k - 2], t1 = t[k - 1], t2 = t[k], T = t2 + h;
+    double l0 = (T - t1) * (T - t2) / ((t0 - t1) * (t0 - t2));
+    double l1 = (T - t0) * (T - t2) / ((t1 - t0) * (t1 - t2));
+    double l2 = (T - t0) * (T - t1) / ((t2 - t0) * (t2 - t1));
+    for (i = 0; i < 4; ++i) x[i] = l0 * z0[i] + l1 * z1[i] + l2 * za[i];
+    return;
+  }
+  {
+    double k1[4], k2[4], k3[4], k4[4], y[4];
+    sphere_field(za, k1);
+    for (i = 0; i < 4; ++i) y[i] = za[i] + h / 2 * k1[i];
+    sphere_field(y, k2);
+    for (i = 0; i < 4; ++i) y[i] = za[i] + h / 2 * k2[i];
+    sphere_field(y, k3);
+    for (i = 0; i < 4; ++i) y[i] = za[i] + h * k3[i];
+    sphere_field(y, k4);
+    for (i = 0; i < 4; ++i) x[i] = za[i] + h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+  }
+}
+
+/* g <- J^-1 g for the Jacobian of sphere_residual, by its pattern: row 3 gives dp2; column 1
+ * (q2) has one entry, so dq2 is solved last; rows 0, 2, 4 leave a 3 x 3 system in (q1, p1,
+ * tau) (2 x 2 in (q1, p1) without the energy row), solved by Cramer's rule. */
+static inline void sphere_solve(int energy, const double* J, double* g) {
+  int m = energy ? 5 : 4;
+  double dp2 = g[3], b0 = g[0], b2 = g[2] - J[2 * m + 3] * dp2, dq1, dp1, dtau = 0;
+  if (energy) {
+    double A[9] = {J[0], J[2], J[4], J[2 * m + 0], J[2 * m + 2], J[2 * m + 4],
+                   J[4 * m + 0], J[4 * m + 2], 0}, b[3] = {b0, b2, g[4] - J[4 * m + 3] * dp2};
+    solve3(A, b);
+    dq1 = b[0]; dp1 = b[1]; dtau = b[2];
+  } else {
+    double det = J[0] * J[2 * m + 2] - J[2] * J[2 * m + 0];
+    dq1 = (b0 * J[2 * m + 2] - J[2] * b2) / det;
+    dp1 = (J[0] * b2 - J[2 * m + 0] * b0) / det;
+  }
+  g[1] = g[1] - J[m + 0] * dq1 - J[m + 3] * dp2 - (energy ? J[m + 4] * dtau : 0);
+  g[0] = dq1; g[2] = dp1; g[3] = dp2;
+  if (energy) g[4] = dtau;
+}
+
+int c_march_sphere(const double* z0, double t0, double tau0, double t_end, int max_steps,
+                   double tol, int predictor, double* t, double* z, double* H,
+                   long* iterations) {
+  int k, i, it;
+  double g[5], J[25], x[5], drift = 0, unit = 4 * 2.220446049250313e-16;
+  long total = 0;
+  double s0, c0;
+  t[0] = t0; memcpy(z, z0, sizeof(double) * 4);
+  sincos(z0[0], &s0, &c0);
+  H[0] = sphere_energy(s0, c0, z0[2], z0[3]);
+  for (k = 0; k < max_steps && t[k] < t_end; ++k) {
+    const double* za = z + 4 * k;
+    int energy = k > 0, m = energy ? 5 : 4, updated = 0;
+    double tau_prev = energy ? t[k] - t[k - 1] : tau0, E_prev = 0, size = fmax(1.0, norm_inf(4, za));
+    if (energy) {  /* the previous interval's energy at its midpoint: once per step */
+      const double* zp = za - 4;
+      double s, c;
+      sincos((zp[0] + za[0]) / 2, &s, &c);
+      E_prev = sphere_energy(s, c, (zp[2] + za[2]) / 2, (zp[3] + za[3]) / 2);
+    }
+    sphere_predict(predictor, t, z, k, tau_prev, x);
+    x[4] = tau_prev;
+    for (it = 0; it < 30; ++it) {
+      sphere_residual(za, x, tau0, energy, E_prev, drift, tau_prev, g, J);
+      updated = 0;
+      if (norm_inf(m, g) <= 1e-14) break;
+      {
+        double before = norm_inf(m, x);
+        sphere_solve(energy, J, g);
+        for (i = 0; i < m; ++i) x[i] -= g[i];
+        updated = 1;
+        if (norm_inf(m, g) <= fmax(1e-14, unit * before)) { ++it; break; }
+      }
+    }
+    if (updated) sphere_residual(za, x, tau0, energy, E_prev, drift, tau_prev, g, 0);
+    total += it;
+    {
+      double tau = energy ? x[4] : tau0, s, c;
+      if (!accept(m, 4, x, g, tau, tol, size, energy, tau_prev, E_prev, &drift)) return -(k + 1);
+      t[k + 1] = t[k] + tau;
+      memcpy(z + 4 * (k + 1), x, sizeof(double) * 4);
+      sincos(x[0], &s, &c);
+      H[k + 1] = sphere_energy(s, c, x[2], x[3]);
+    }
+  }
+  if (iterations) *iterations = total;
+  return k;
+}

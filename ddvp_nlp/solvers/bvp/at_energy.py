@@ -35,7 +35,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ...cache import PROBLEMS
 from ...discrete import equations
@@ -128,6 +127,8 @@ def duration_guess(system, theta, q_start, q_end, energy: float, guess=None) -> 
         raise InputError(f"no duration guess for the transfer at energy {energy!r}: give "
                          f"AtEnergy(energy, duration=...) (along the straight line's midpoint "
                          f"H(q, s d) - E has no root for s in (0, 1000])")
+    from scipy.optimize import brentq  # loaded here: 0.3-0.7 s that every `ddvp bvp` paid
+
     k = int(change[0])
     s = brentq(lambda a: float(system.energy(middle[None], a * direction[None], [0.0], theta)[0])
                - energy, scale[k], scale[k + 1]) if H[k] != 0 else scale[k]

@@ -197,7 +197,8 @@ class SparseLU:
 
 
 def chain_newton(name: str, residual: ca.Function, options: dict, *, border: int,
-                 at_root: ca.Function | None = None, ordering: str = "auto") -> ca.Function:
+                 at_root: ca.Function | None = None, ordering: str = "auto",
+                 tested: bool = False) -> ca.Function:
     """``fast_newton`` on ``residual(x, w)`` with ``options`` (``abstol``, ``abstolStep``,
     ``max_iter``): ``(x0, w) -> (x, *at_root(x, w))``, each update solved by `SparseLU`
     (``border``: the unknowns eliminated last, 1 for the energy step's ``tau``, 0 for a fixed
@@ -212,7 +213,12 @@ def chain_newton(name: str, residual: ca.Function, options: dict, *, border: int
     step runs the iterations it needs: 1-3 updates on the alpha-FPU chain, where the unrolled
     form computes four Jacobians and factorisations on every step. ``at_root``'s outputs come
     from the test that stopped the chain (sharing the residual's terms); where the chain stops
-    on a small update or at ``max_iter``, the test runs once more at the result for them."""
+    on a small update or at ``max_iter``, the test runs once more at the result for them.
+
+    ``tested``: the caller has already made iteration 1's test and it failed (`unrolled_newton`
+    after its ``check_after`` test): the function is ``(x0, w, g) -> ...`` with ``g`` that
+    test's residual at ``x0``, and iteration 1 begins with its update (the same bits: the test
+    would compute the same ``g`` and fail again)."""
     abstol, abstol_step = options["abstol"], options["abstolStep"]
     jacobian = ca.rootfinder(name, "fast_newton", residual, dict(options)).get_function("jac_g_x")
     solver = SparseLU(jacobian.sparsity_out(0), border, ordering)
@@ -243,9 +249,14 @@ def chain_newton(name: str, residual: ca.Function, options: dict, *, border: int
     for k in range(options["max_iter"], 0, -1):
         x_next, small_step = update(xm, wm, gm)
         after = ca.Function.if_else(f"{name}_after{k}", final, level)
-        go_on = ca.Function(f"{name}_update{k}", [xm, wm, gm, *vm],
+        go_on = ca.Function(f"{name}_update{k}", [xm, wm, gm],
                             after.call([small_step, x_next, wm]))
-        branch = ca.Function.if_else(f"{name}_branch{k}", done, go_on)
+        if k == 1 and tested:  # iteration 1 from its update (its test failed in the caller)
+            solved, *out = go_on.call([xm, wm, gm])
+            return ca.Function(name, [xm, wm, gm], [solved, *out], {"never_inline": True})
+        branch = ca.Function.if_else(
+            f"{name}_branch{k}", done,
+            ca.Function(f"{name}_go_on{k}", [xm, wm, gm, *vm], go_on.call([xm, wm, gm])))
         g_k, small, *v_k = test(xm, wm)
         level = ca.Function(f"{name}_iteration{k}", [xm, wm],
                             branch.call([small, xm, wm, g_k, *v_k]))

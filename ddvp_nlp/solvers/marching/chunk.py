@@ -326,9 +326,13 @@ class FastChunk:
         tiled = np.broadcast_to(parameters, (self.chunk, parameters.size))
         return self._buffer(state, tiled)
 
-    def _decode(self, outputs: np.ndarray, states: np.ndarray, *, copy=True) -> ChunkSteps:
+    def _carried(self, states: np.ndarray) -> dict:
+        """The state's columns a `ChunkSteps` keeps (the drift after each energy step), views
+        of ``states``."""
         carried = self.state.columns(states)
-        extra = {name: carried[name] for name in ("drift",) if name in carried}
+        return {name: carried[name] for name in ("drift",) if name in carried}
+
+    def _decode(self, outputs: np.ndarray, extra: dict, *, copy=True) -> ChunkSteps:
         if copy:  # the buffers are overwritten by the next call
             outputs = outputs.copy()
             extra = {name: value.copy() for name, value in extra.items()}
@@ -362,16 +366,19 @@ class FastChunk:
         numbers: the node times, states and drift are outputs of the chunk)."""
         if calls == 1:
             after, outputs = self._call(state, parameters)
-            return self._decode(outputs, after)
+            return self._decode(outputs, self._carried(after))
         c = self.chunk
         outputs = np.empty((calls * c, self.output.size))
-        states = np.empty((calls * c, self.state.size))
+        extra = {name: np.empty((calls * c, *np.shape(value)[1:]))
+                 for name, value in self._carried(np.empty((1, self.state.size))).items()}
         for i in range(calls):
             # the parameters stay in the buffer from the first call (no tiling and copy again)
             after, out = self._call(state, parameters) if i == 0 else self._buffer(state, None)
-            outputs[i * c:(i + 1) * c], states[i * c:(i + 1) * c] = out, after
-            state = states[(i + 1) * c - 1]
-        return self._decode(outputs, states, copy=False)
+            outputs[i * c:(i + 1) * c] = out
+            for name, value in self._carried(after).items():  # only what is kept is copied
+                extra[name][i * c:(i + 1) * c] = value
+            state = after[c - 1]  # copied into the input buffer at the start of the next call
+        return self._decode(outputs, extra, copy=False)
 
     def energy_steps(self, t_prev, t_mid, z_prev, z_mid, drift, theta,
                      acceptance) -> ChunkSteps:

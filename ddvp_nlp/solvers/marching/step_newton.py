@@ -486,6 +486,11 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
         J, g = jacobian(x, w)
         x, stopped = iteration(J, g, x, stopped)
     done = iterations
+    # inline, lu, check_after: the rest begins with the update of the iteration whose test
+    # failed here, from this test's residual (chain_newton(tested=True)), not with that test
+    # again: the same bits, one residual and check fewer where the rest runs
+    tested = inline and check_after and linear == "lu"
+    carried = []  # the last test's residual, carried through the switch when tested
     if check_after:
         _, g = jacobian(x, w)  # inline: J unused, only g's expressions stay
         g_sym = ca.SX.sym("g", g.sparsity())
@@ -493,31 +498,34 @@ def unrolled_newton(name: str, residual: ca.Function, options: dict, *,
                             [norm_inf([g_sym[i] for i in range(g.numel())])
                              <= options["abstol"]])
         stopped = ca.logic_or(stopped, small(g))
+        carried = [g] if tested else []
     values = []  # at_root's outputs at the unrolled iterate, carried through the switch
     if inline:
         values = at_root.call([x, w]) if at_root is not None else []
-        unrolled = ca.Function(name + "_unrolled", [x0, w], [x, stopped, *values],
+        unrolled = ca.Function(name + "_unrolled", [x0, w], [x, stopped, *carried, *values],
                                {"cse": True})
         x0 = ca.MX.sym("x0", jacobian.sparsity_in(0))
         w = ca.MX.sym("w", jacobian.sparsity_in(1))
         x, stopped, *values = unrolled.call([x0, w])
+        carried, values = values[:len(carried)], values[len(carried):]
     left = {**options, "max_iter": options["max_iter"] - done}
     x_sym, w_sym = ca.MX.sym("x", x0.sparsity()), ca.MX.sym("w", w.sparsity())
+    g_syms = [ca.MX.sym("g", g.sparsity()) for g in carried]
     v_syms = [ca.MX.sym(f"v{i}", value.sparsity()) for i, value in enumerate(values)]
-    finish_done = ca.Function("done", [x_sym, w_sym, *v_syms], [x_sym, *v_syms])
+    finish_done = ca.Function("done", [x_sym, w_sym, *g_syms, *v_syms], [x_sym, *v_syms])
     if linear == "qr":  # fast_newton's bits: its own loop goes on
         x_rest = ca.rootfinder(name + "_rest", "fast_newton", residual, left)(x_sym, w_sym)
         again = at_root.call([x_rest, w_sym]) if values else []
     else:  # its tests with the round-off-relative step test (ROUNDOFF_STEPS), as unrolled
         x_rest, *again = chain_newton(name + "_rest", residual, left, border=border,
-                                      at_root=at_root if values else None
-                                      ).call([x_sym, w_sym])
+                                      at_root=at_root if values else None, tested=tested
+                                      ).call([x_sym, w_sym, *g_syms])
     # A switch on functions of (x, w) only: ca.if_else would put the unrolled iterations into
     # both branches. The rest runs only where the unrolled iterations did not stop.
     finish = ca.Function.if_else(name + "_finish", finish_done,
-                                 ca.Function("go_on", [x_sym, w_sym, *v_syms],
+                                 ca.Function("go_on", [x_sym, w_sym, *g_syms, *v_syms],
                                              [x_rest, *again]))
-    solved, *values = finish.call([stopped, x, w, *values])
+    solved, *values = finish.call([stopped, x, w, *carried, *values])
     if at_root is not None and not inline:
         values = at_root.call([solved, w])
     return ca.Function(name, [x0, w], [solved, *values], {"never_inline": True})

@@ -97,3 +97,38 @@ def test_c_checks_compute_what_the_march_checks(library, name, kind, overrides):
     np.testing.assert_allclose(w, -8 * solution.solvability, rtol=1e-9,
                                atol=1e-12 * np.max(np.abs(w)))
     assert np.all(np.isfinite(error))
+
+
+@pytest.mark.parametrize("azimuth", [0.0, 1e5])
+def test_c_sphere_march_solves_the_same_equations(library, azimuth):
+    """c_march_sphere (bench_step_cost.py's C row) marches the spherical pendulum in angles by
+    the library's equations: the careful march's number of steps, its nodes up to accumulated
+    round-off, H at every node, and few Newton updates per step from either predictor,
+    also with the azimuth offset by 1e5 (the round-off-relative step test)."""
+    import casadi as ca
+
+    from ddvp_nlp import Compilation, HamiltonianSystem, march
+
+    def spherical(q, p, t):
+        return p[0] ** 2 / 2 + p[1] ** 2 / (2 * ca.sin(q[0]) ** 2) - ca.cos(q[0])
+
+    sphere = HamiltonianSystem(spherical, 2, name="spherical_pendulum_angles")
+    z0 = np.array([2.0, azimuth, 0.0, 1.2])
+    solution = march(sphere, z0[:2], z0[2:], (0.0, 10.0), tau0=0.05, accuracy=None,
+                     compilation=Compilation(fast=False))
+    capacity = 1000
+    bound = 1e-9 * max(1.0, azimuth)  # round-off of the iterate, accumulated over 253 steps
+    for predictor in (0, 2):
+        t, z, H = np.empty(capacity + 1), np.empty((capacity + 1, 4)), np.empty(capacity + 1)
+        count = ctypes.c_long(0)
+        steps = library.c_march_sphere(z0, 0.0, 0.05, 10.0, capacity, 1e-10, predictor, t, z,
+                                       H, ctypes.byref(count))
+        assert steps == solution.steps
+        assert np.max(np.abs(t[:steps + 1] - solution.t)) < bound
+        assert np.max(np.abs(z[:steps + 1, :2] - solution.q)) < bound
+        assert np.max(np.abs(z[:steps + 1, 2:] - solution.p)) < bound
+        s = np.sin(z[:steps + 1, 0])
+        H_here = (z[:steps + 1, 2] ** 2 / 2 + z[:steps + 1, 3] ** 2 / (2 * s**2)
+                  - np.cos(z[:steps + 1, 0]))
+        assert np.max(np.abs(H[:steps + 1] - H_here)) < 1e-13
+        assert count.value <= 4.5 * steps  # Newton updates in all
