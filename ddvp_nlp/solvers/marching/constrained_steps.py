@@ -35,6 +35,10 @@ __all__ = ["ConstrainedChunk", "newton_function"]
 MAX_ITER = 12
 ABSTOL = 1e-14  # Newton's residual test, relative to max(1, |x|) (NEWTON_OPTIONS' abstol)
 STEP_TOL = 1e-12  # the update's test, relative to max(1, |x|): the next iterate is at round-off
+# the step's SX functions merge their common subexpressions (the energy row repeats the
+# interval momenta and the constraints' Jacobians; the same values, computed once): the
+# chunk's C code shrinks by a third and the compiler's time with it
+SX_OPTIONS = {"cse": True}
 
 
 def step_residual(system, scheme, kind: str) -> ca.Function:
@@ -72,7 +76,8 @@ def step_residual(system, scheme, kind: str) -> ca.Function:
             theta)
         scale = (t_a - t_prev) * ca.fmax(1, ca.fabs(previous))
         rows.append((energy + drift) / scale)
-    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale])
+    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale],
+                       SX_OPTIONS)
 
 
 def newton_function(residual: ca.Function, border: int) -> ca.Function:
@@ -82,25 +87,27 @@ def newton_function(residual: ca.Function, border: int) -> ca.Function:
     complement of the last ``border`` unknowns (0 or 1)."""
     x, w = residual.sx_in()
     R = residual.call([x, w])[0]
-    residual = ca.Function("residual", [x, w], [R])
     size = x.numel()
     lead = size - border
     J = ca.jacobian(R, x)
-    # the residual's round-off grows with the size of the unknowns (a chain of 50 links: its
-    # far end at 50, its tensions near 25), so the test is relative to it
-    small = ca.norm_inf(R) <= ABSTOL * ca.fmax(1, ca.norm_inf(x))
-    test = ca.Function("test", [x, w], [R, small])
     xm, wm, gm = ca.MX.sym("x", size), ca.MX.sym("w", w.numel()), ca.MX.sym("g", size)
+    # the residual's round-off grows with the size of the unknowns (a chain of 50 links: its
+    # far end at 50, its tensions near 25), so the test is relative to it; a call of
+    # ``residual`` (its code once in the chunk, shared with the step's check)
+    R_m = residual(xm, wm)[0]
+    test = ca.Function("test", [xm, wm],
+                       [R_m, ca.norm_inf(R_m) <= ABSTOL * ca.fmax(1, ca.norm_inf(xm))])
     if border:
         blocks = ca.Function("blocks", [x, w], [J[:lead, :lead], J[:lead, lead:],
-                                                J[lead:, :lead], J[lead:, lead:]])
+                                                J[lead:, :lead], J[lead:, lead:]],
+                             SX_OPTIONS)
         A, b, c, d = blocks(xm, wm)
         solved = ca.solve(A, ca.horzcat(gm[:lead], b), "qr")
         u, v = solved[:, 0], solved[:, 1]
         d_tau = (gm[lead:] - ca.mtimes(c, u)) / (d - ca.mtimes(c, v))
         dx = ca.vertcat(u - v * d_tau, d_tau)
     else:
-        jacobian = ca.Function("jacobian", [x, w], [J])
+        jacobian = ca.Function("jacobian", [x, w], [J], SX_OPTIONS)
         dx = ca.solve(jacobian(xm, wm), gm, "qr")
     x_next = xm - dx
     small_step = ca.norm_inf(dx) <= STEP_TOL * ca.fmax(1, ca.norm_inf(xm))
@@ -136,8 +143,8 @@ class ConstrainedChunk:
         self.n, self.m, self.kind = system.n, system.n_constraints, kind
         residual = step_residual(system, scheme, kind)
         self.newton = newton_function(residual, 1 if kind == "energy" else 0)
-        self.check = self._check(system, scheme, kind)
-        self.field = equations.constrained_field_function(system)
+        self.check = self._check(system, scheme, kind, residual)
+        self.field = equations.constrained_field_sparse_function(system)
         step = self._step(system, kind)
         self.step = step
         self.width = step.numel_out(1)
@@ -157,29 +164,28 @@ class ConstrainedChunk:
         self.build_s = time.perf_counter() - started
 
     @staticmethod
-    def _check(system, scheme, kind) -> ca.Function:
+    def _check(system, scheme, kind, residual) -> ca.Function:
         """``(x, w) -> (canonical, constraint, hidden, energy, H_k, size)``: the step's
-        unscaled residuals (the energy row without its scaling and drift) and the scales."""
+        unscaled residuals (the energy row without its scaling and drift) and the scales;
+        ``residual`` is called, not copied (its code once in the chunk)."""
         n, m, theta = system.n, system.n_constraints, system.theta
-        residual = step_residual(system, scheme, kind)
         x, w = residual.sx_in()
-        R, scale = residual.call([x, w])
         if kind == "fixed":
             t_a, t_b, z_a = w[0], w[1], w[2:2 + 2 * n]
-            energy, tau = ca.SX(0), t_b - t_a
         else:
             t_a, z_a = w[1], w[2 + 2 * n:2 + 4 * n]
-            tau = x[-1]
-            drift = w[-1]
-            energy = R[-1] * scale - drift
-            t_b = t_a + tau
+            t_b = t_a + x[-1]
         z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
         H_k = equations.interval_energy_expression(system, scheme, t_a, t_b, z_a[:n], z_a[n:],
                                                    z_b[:n], z_b[n:], lam, mu, theta)
-        return ca.Function("check", [x, w], [
+        energy_scale = ca.Function("interval_energy", [x, w], [
+            ca.fabs(H_k), ca.fmax(ca.norm_inf(z_a), ca.norm_inf(z_b))], SX_OPTIONS)
+        xm, wm = ca.MX.sym("x", x.numel()), ca.MX.sym("w", w.numel())
+        R, scale = residual(xm, wm)
+        energy = R[-1] * scale - wm[-1] if kind == "energy" else ca.MX(0)
+        return ca.Function("check", [xm, wm], [
             ca.norm_inf(R[:2 * n]), ca.norm_inf(R[2 * n:2 * n + m]),
-            ca.norm_inf(R[2 * n + m:2 * n + 2 * m]), energy, ca.fabs(H_k),
-            ca.fmax(ca.norm_inf(z_a), ca.norm_inf(z_b))])
+            ca.norm_inf(R[2 * n + m:2 * n + 2 * m]), energy, *energy_scale(xm, wm)])
 
     def _step(self, system, kind) -> ca.Function:
         n, m = self.n, self.m
