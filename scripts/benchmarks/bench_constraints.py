@@ -168,7 +168,7 @@ def children_cpu() -> float:
 
 def sign_changes(system, solution, theta) -> float:
     """The fraction of nodes where the energy row's c <= 0 (no positive root of the step)."""
-    from ddvp_nlp.discrete.constrained import solvability_function
+    from ddvp_nlp.discrete.constrained import solvability_function  # internal: measured
 
     z = np.hstack([solution.q, solution.p])
     c = np.asarray(solvability_function(system).map(z.shape[0])(
