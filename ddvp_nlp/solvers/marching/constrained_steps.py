@@ -13,10 +13,14 @@ iterations it takes) and returns the number of updates it made. Each update solv
 Jacobian as a bordered system: the block of ``(z, lambda, mu)`` by a sparse QR (CasADi's
 ``qr``, whose column order keeps a chain's band), the ``tau`` border by its Schur complement
 (two right-hand sides, one factorisation): the cost of a chain of links grows with the links,
-not their cube. The chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the
-constrained field, the previous multipliers) and its acceptance test ``chunk`` times per call
-(``mapaccum``), compiled where a C compiler is found; a step that fails its test freezes the
-rest of the chunk, and the march (``constrained_march.py``) retries it from other step guesses.
+not their cube. It stops where the residual is at most ``StepControl.tol / 1e4`` (relative to
+``max(1, |x|)``) or an update at most ``tol / 1e2`` (1e-14 and 1e-12 at the default ``tol``),
+read at run time: a study of the energy error against the Newton tolerance sets ``tol``. The
+chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the constrained field
+with the multipliers by a sparse QR at run time, the previous multipliers) and its acceptance
+test ``chunk`` times per call (``mapaccum``), compiled where a C compiler is found; a step that
+fails its test freezes the rest of the chunk, and the march (``constrained_march.py``) retries
+it from other step guesses.
 """
 
 from __future__ import annotations
