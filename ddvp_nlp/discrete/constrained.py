@@ -104,6 +104,35 @@ def constrained_field_function(system) -> ca.Function:
     return cached(system, "constrained_field", build)
 
 
+def constrained_field_sparse_function(system) -> ca.Function:
+    """The constrained flow of `constrained_field_function` with ``nu`` from a sparse QR at run
+    time (CasADi's ``qr`` linear solver) instead of a symbolic solve: the symbolic solve of the
+    ``m x m`` system grows faster than ``m`` (a chain of 128 links: 91,000 lines of C for the
+    field alone, most of what the compiler spends on a march's chunk), the factorisation's code
+    grows with the nonzeros. The march's predictor; an MX function (it takes MX or numbers,
+    not SX)."""
+    def build():
+        n, m = system.n, system.n_constraints
+        z, t, nu = ca.SX.sym("z", 2 * n), ca.SX.sym("t"), ca.SX.sym("nu", m)
+        q, p = z[:n], z[n:]
+        _, H_q, H_p, _ = derivatives_function(system)(q, p, t, system.theta)
+        _, G, _ = constraint_function(system)(q, t, system.theta)
+        hidden = node_expression(system, q, p, t, system.theta)[m:]
+        r_q, r_p, r_t = (ca.jacobian(hidden, s) for s in (q, p, t))
+        parts = ca.Function("constrained_field_parts", [z, t, system.theta],
+                            [ca.mtimes(r_p, G.T),
+                             ca.mtimes(r_q, H_p) - ca.mtimes(r_p, H_q) + r_t])
+        finish = ca.Function("constrained_field_finish", [z, t, system.theta, nu],
+                             [ca.vertcat(H_p, -H_q - ca.mtimes(G.T, nu))])
+        zm, tm = ca.MX.sym("z", 2 * n), ca.MX.sym("t")
+        thm = ca.MX.sym("theta", system.theta.numel())
+        A, b = parts(zm, tm, thm)
+        return ca.Function("f_constrained_sparse", [zm, tm, thm],
+                           [finish(zm, tm, thm, ca.solve(A, b, "qr"))], ["z", "t", "theta"],
+                           ["f"])
+    return cached(system, "constrained_field_sparse", build)
+
+
 def solvability_function(system) -> ca.Function:
     """``c(z, t, theta)``, the coefficient of ``tau^2`` in the midpoint interval energy of a
     constrained step from ``z`` (``alpha = 1/2``, ``g`` independent of ``t``):
@@ -126,5 +155,6 @@ def solvability_function(system) -> ca.Function:
     return cached(system, "constrained_solvability", build)
 
 
-__all__ = ["constrained_field_function", "energy_expression", "interval_energy_expression",
+__all__ = ["constrained_field_function", "constrained_field_sparse_function",
+           "energy_expression", "interval_energy_expression",
            "interval_expression", "interval_momenta", "node_expression", "solvability_function"]

@@ -4,6 +4,7 @@ links (Newton updates per step, CPU per step at N = 128 against N = 10).
 
     python scripts/benchmarks/bench_constraints.py               # 1e6 steps, N = 10, 50, 128
     python scripts/benchmarks/bench_constraints.py --steps 20000 --links 10,50   # quick
+    python scripts/benchmarks/bench_constraints.py --only chains --gravity 0     # free space
 
 Each march's CPU and wall time are printed side by side, warm (the compiled chunk is built
 first by a short march of the same system, and its build time is printed apart).
@@ -12,6 +13,8 @@ first by a short march of the same system, and its build time is printed apart).
 from __future__ import annotations
 
 import argparse
+import os
+import tempfile
 import time
 import warnings
 from functools import partial
@@ -19,7 +22,7 @@ from functools import partial
 import casadi as ca
 import numpy as np
 
-from ddvp_nlp import HamiltonianSystem, march
+from ddvp_nlp import Compilation, HamiltonianSystem, march
 
 
 def timed(function):
@@ -116,20 +119,24 @@ def spherical(steps: int):
 
 
 def chain_system(links: int):
-    def hamiltonian(q, p, t):
-        return ca.dot(p, p) / 2 + ca.sum1(q[1::2])
+    """N unit masses on unit rods from a pivot at the origin, in the vertical plane, under
+    gravity ``grav`` (a parameter: one compiled chunk for every gravity)."""
+    def hamiltonian(q, p, t, grav):
+        return ca.dot(p, p) / 2 + grav * ca.sum1(q[1::2])
 
-    def rods(q, t):
+    def rods(q, t, grav):
         rows = [q[0] ** 2 + q[1] ** 2 - 1]
         rows += [(q[2 * i] - q[2 * i - 2]) ** 2 + (q[2 * i + 1] - q[2 * i - 1]) ** 2 - 1
                  for i in range(1, links)]
         return ca.vertcat(*rows)
-    return HamiltonianSystem(hamiltonian, 2 * links, name=f"chain{links}", constraints=rods)
+    return HamiltonianSystem(hamiltonian, 2 * links, {"grav": 1.0}, name=f"chain{links}",
+                             constraints=rods)
 
 
 def chain_start(links: int):
     """Links hanging at 0.3 rad from the vertical, each joint pushed sideways: the start is
-    projected onto the hidden constraint by the march (a warning, silenced here)."""
+    projected onto the hidden constraint by the march (a warning, silenced here). A hanging
+    chain librates: the energy row's c changes sign, so only ``fixed`` steps march it."""
     angle = 0.3
     q = np.zeros(2 * links)
     for i in range(links):
@@ -138,35 +145,79 @@ def chain_start(links: int):
     return q, np.tile([0.2, 0.0], links)
 
 
-def chains(sizes, steps: int, scheme: str):
+def whirl_start(links: int, omega: float = 2.0, bend: float = 0.3):
+    """A bent chain (link ``i`` at ``0.3 + bend sin i`` rad from the downward vertical) turning
+    as a rigid body about the pivot at ``omega`` rad/s: consistent as it stands (each rod's
+    relative velocity is normal to it), and not a relative equilibrium (it flails). Its
+    tensions keep c = (nu' G H_pp G' nu - f' H_zz f) / 8 > 0 (measured below), so the energy
+    rules march it."""
+    angles = 0.3 + bend * np.sin(np.arange(links))
+    q = np.zeros(2 * links)
+    q[0::2] = np.cumsum(np.sin(angles))
+    q[1::2] = -np.cumsum(np.cos(angles))
+    p = np.zeros(2 * links)
+    p[0::2], p[1::2] = -omega * q[1::2], omega * q[0::2]
+    return q, p
+
+
+def children_cpu() -> float:
+    """CPU seconds of the finished child processes (the C compiler)."""
+    times = os.times()
+    return times.children_user + times.children_system
+
+
+def sign_changes(system, solution, theta) -> float:
+    """The fraction of nodes where the energy row's c <= 0 (no positive root of the step)."""
+    from ddvp_nlp.discrete.constrained import solvability_function  # internal: measured
+
+    z = np.hstack([solution.q, solution.p])
+    c = np.asarray(solvability_function(system).map(z.shape[0])(
+        z.T, solution.t[None, :], np.tile(theta[:, None], (1, z.shape[0])))).ravel()
+    return float(np.mean(c <= 0))
+
+
+def chains(sizes, steps: int, scheme: str, gravity: float = 1.0):
     """CPU per step as the difference of two marches (``steps`` and ``steps / 5`` steps) over
-    the difference of their steps: what building the march costs cancels."""
+    the difference of their steps: what building the march costs cancels. ``fixed`` steps
+    march the hanging chain; the energy rules a whirling one (`whirl_start`). The first
+    march of each size builds and compiles its chunks in a fresh cache folder: its CPU (this
+    process) and the compiler's (child processes) are printed apart."""
     short = max(steps // 5, 2)
-    print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps of 0.01: {steps} steps "
-          f"against {short}")
-    print("| N | unknowns per step | first march CPU s (build, gcc not counted) | updates "
-          "max/mean | CPU s | wall s | us per step (CPU) | us per step (wall) | max g | "
-          "max hidden |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    start = chain_start if scheme == "fixed" else whirl_start
+    print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps from tau0 = 0.01, gravity "
+          f"{gravity}, {start.__name__}: to t = {steps * 0.01:g} against {short * 0.01:g}")
+    print("| N | unknowns per step | build CPU s | compiler CPU s | build wall s | updates "
+          "max/mean | retries | c <= 0 | CPU s | wall s | us per step (CPU) | us per step "
+          "(wall) | max g | max hidden | max energy residual / max abs H (fixed: lee's balance, "
+          "not solved) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     per_step = {}
     for links in sizes:
         system = chain_system(links)
-        q0, p0 = chain_start(links)
-        with warnings.catch_warnings():
+        theta = system.parameter_vector({"grav": gravity})
+        q0, p0 = start(links)
+        with warnings.catch_warnings(), tempfile.TemporaryDirectory() as cache:
             warnings.simplefilter("ignore", RuntimeWarning)
-            run = partial(march, system, q0, p0, tau0=0.01, scheme=scheme, accuracy=None)
-            _, build_cpu, _ = timed(partial(run, (0, 0.02)))
+            run = partial(march, system, q0, p0, tau0=0.01, scheme=scheme, accuracy=None,
+                          params={"grav": gravity}, compilation=Compilation(cache_dir=cache))
+            gcc = children_cpu()
+            _, build_cpu, build_wall = timed(partial(run, (0, 0.02)))
+            gcc = children_cpu() - gcc
             first, cpu0, wall0 = timed(partial(run, (0, short * 0.01)))
             solution, cpu, wall = timed(partial(run, (0, steps * 0.01)))
         record = solution.constraints
         extra = solution.t.size - first.t.size
         per_step[links] = (cpu - cpu0) / max(extra, 1)
-        print(f"| {links} | {6 * links + (scheme != 'fixed')} | {build_cpu:.1f} "
-              f"| {record.newton_updates.max()}/{record.newton_updates.mean():.2f} | "
-              f"{cpu:.2f} | {wall:.2f} | {1e6 * per_step[links]:.1f} | "
-              f"{1e6 * (wall - wall0) / max(extra, 1):.1f} | "
-              f"{record.constraint_residual.max():.1e} | {record.hidden_residual.max():.1e} |"
-              + ("" if solution.success else f" {solution.message[:80]}"))
+        marched = solution.t.size - 1
+        H = np.abs(system.energy(solution.q, solution.p, solution.t, theta)).max()
+        energy = np.abs(solution.energy_residual).max(initial=0.0) / H
+        print(f"| {links} | {6 * links + (scheme != 'fixed')} | {build_cpu:.1f} | {gcc:.1f} | "
+              f"{build_wall:.1f} | {record.newton_updates.max()}/"
+              f"{record.newton_updates.mean():.2f} | {record.retries} of {marched} | "
+              f"{sign_changes(system, solution, theta):.3f} | {cpu:.2f} | {wall:.2f} | "
+              f"{1e6 * per_step[links]:.1f} | {1e6 * (wall - wall0) / max(extra, 1):.1f} | "
+              f"{record.constraint_residual.max():.1e} | {record.hidden_residual.max():.1e} | "
+              f"{energy:.1e} |" + ("" if solution.success else f" {solution.message[:80]}"))
     if len(per_step) > 1:
         small, large = min(per_step), max(per_step)
         print(f"\nCPU per step at N = {large} / at N = {small}: "
@@ -178,6 +229,9 @@ def main():
     parser.add_argument("--steps", type=int, default=1_000_000)
     parser.add_argument("--chain-steps", type=int, default=2000)
     parser.add_argument("--links", default="10,50,128")
+    parser.add_argument("--chain-schemes", default="fixed,vddvp")
+    parser.add_argument("--gravity", type=float, default=1.0,
+                        help="gravity of the chains (0: a chain in free space)")
     parser.add_argument("--only", choices=["pendulum", "spherical", "chains"])
     args = parser.parse_args()
     if args.only in (None, "pendulum"):
@@ -186,7 +240,9 @@ def main():
     if args.only in (None, "spherical"):
         spherical(args.steps)
     if args.only in (None, "chains"):
-        chains([int(v) for v in args.links.split(",")], args.chain_steps, "fixed")
+        for scheme in args.chain_schemes.split(","):
+            chains([int(v) for v in args.links.split(",")], args.chain_steps, scheme,
+                   args.gravity)
     from ddvp_nlp.io import machine
     print("\n" + machine())
 

@@ -13,10 +13,14 @@ iterations it takes) and returns the number of updates it made. Each update solv
 Jacobian as a bordered system: the block of ``(z, lambda, mu)`` by a sparse QR (CasADi's
 ``qr``, whose column order keeps a chain's band), the ``tau`` border by its Schur complement
 (two right-hand sides, one factorisation): the cost of a chain of links grows with the links,
-not their cube. The chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the
-constrained field, the previous multipliers) and its acceptance test ``chunk`` times per call
-(``mapaccum``), compiled where a C compiler is found; a step that fails its test freezes the
-rest of the chunk, and the march (``constrained_march.py``) retries it from other step guesses.
+not their cube. It stops where the residual is at most ``StepControl.tol / 1e4`` (relative to
+``max(1, |x|)``) or an update at most ``tol / 1e2`` (1e-14 and 1e-12 at the default ``tol``),
+read at run time: a study of the energy error against the Newton tolerance sets ``tol``. The
+chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the constrained field
+with the multipliers by a sparse QR at run time, the previous multipliers) and its acceptance
+test ``chunk`` times per call (``mapaccum``), compiled where a C compiler is found; a step that
+fails its test freezes the rest of the chunk, and the march (``constrained_march.py``) retries
+it from other step guesses.
 """
 
 from __future__ import annotations
@@ -35,6 +39,14 @@ __all__ = ["ConstrainedChunk", "newton_function"]
 MAX_ITER = 12
 ABSTOL = 1e-14  # Newton's residual test, relative to max(1, |x|) (NEWTON_OPTIONS' abstol)
 STEP_TOL = 1e-12  # the update's test, relative to max(1, |x|): the next iterate is at round-off
+# in a march, the two tests follow the acceptance tolerance ``StepControl.tol`` (a step's
+# residuals at most ``tol``): the residual's at ``tol / RESIDUAL_SHARE``, the update's at
+# ``tol / UPDATE_SHARE``; at the default ``tol = 1e-10`` they are ABSTOL and STEP_TOL
+RESIDUAL_SHARE, UPDATE_SHARE = 1e4, 1e2
+# the step's SX functions merge their common subexpressions (the energy row repeats the
+# interval momenta and the constraints' Jacobians; the same values, computed once): the
+# chunk's C code shrinks by a third and the compiler's time with it
+SX_OPTIONS = {"cse": True}
 
 
 def step_residual(system, scheme, kind: str) -> ca.Function:
@@ -72,52 +84,65 @@ def step_residual(system, scheme, kind: str) -> ca.Function:
             theta)
         scale = (t_a - t_prev) * ca.fmax(1, ca.fabs(previous))
         rows.append((energy + drift) / scale)
-    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale])
+    return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale],
+                       SX_OPTIONS)
 
 
-def newton_function(residual: ca.Function, border: int) -> ca.Function:
+def newton_function(residual: ca.Function, border: int, *,
+                    tolerance_input: bool = False) -> ca.Function:
     """``(x0, w) -> (x, updates)``: Newton on ``residual`` from ``x0``, at most ``MAX_ITER``
     updates, stopping where ``|R|_inf <= ABSTOL max(1, |x|)`` or an update is below
     ``STEP_TOL max(1, |x|)``; each update by a sparse QR of the leading block and the Schur
-    complement of the last ``border`` unknowns (0 or 1)."""
+    complement of the last ``border`` unknowns (0 or 1). With ``tolerance_input``: ``(x0, w,
+    tol) -> (x, updates)``, the tests at ``tol / RESIDUAL_SHARE`` and ``tol / UPDATE_SHARE``."""
     x, w = residual.sx_in()
     R = residual.call([x, w])[0]
-    residual = ca.Function("residual", [x, w], [R])
     size = x.numel()
     lead = size - border
     J = ca.jacobian(R, x)
+    extra = 1 if tolerance_input else 0
+    # the chain below carries [w, tol] (``carried``): each step of it reads w from it
+    xm, gm = ca.MX.sym("x", size), ca.MX.sym("g", size)
+    carried = ca.MX.sym("w", w.numel() + extra)
+    wm = carried[:w.numel()]
+    abstol, step_tol = (carried[-1] / RESIDUAL_SHARE, carried[-1] / UPDATE_SHARE) \
+        if tolerance_input else (ABSTOL, STEP_TOL)
     # the residual's round-off grows with the size of the unknowns (a chain of 50 links: its
-    # far end at 50, its tensions near 25), so the test is relative to it
-    small = ca.norm_inf(R) <= ABSTOL * ca.fmax(1, ca.norm_inf(x))
-    test = ca.Function("test", [x, w], [R, small])
-    xm, wm, gm = ca.MX.sym("x", size), ca.MX.sym("w", w.numel()), ca.MX.sym("g", size)
+    # far end at 50, its tensions near 25), so the test is relative to it; a call of
+    # ``residual`` (its code once in the chunk, shared with the step's check)
+    R_m = residual(xm, wm)[0]
+    test = ca.Function("test", [xm, carried],
+                       [R_m, ca.norm_inf(R_m) <= abstol * ca.fmax(1, ca.norm_inf(xm))])
     if border:
         blocks = ca.Function("blocks", [x, w], [J[:lead, :lead], J[:lead, lead:],
-                                                J[lead:, :lead], J[lead:, lead:]])
+                                                J[lead:, :lead], J[lead:, lead:]],
+                             SX_OPTIONS)
         A, b, c, d = blocks(xm, wm)
         solved = ca.solve(A, ca.horzcat(gm[:lead], b), "qr")
         u, v = solved[:, 0], solved[:, 1]
         d_tau = (gm[lead:] - ca.mtimes(c, u)) / (d - ca.mtimes(c, v))
         dx = ca.vertcat(u - v * d_tau, d_tau)
     else:
-        jacobian = ca.Function("jacobian", [x, w], [J])
+        jacobian = ca.Function("jacobian", [x, w], [J], SX_OPTIONS)
         dx = ca.solve(jacobian(xm, wm), gm, "qr")
     x_next = xm - dx
-    small_step = ca.norm_inf(dx) <= STEP_TOL * ca.fmax(1, ca.norm_inf(xm))
-    update = ca.Function("update", [xm, wm, gm], [x_next, small_step])
-    level = ca.Function("final", [xm, wm], [xm, MAX_ITER])
+    small_step = ca.norm_inf(dx) <= step_tol * ca.fmax(1, ca.norm_inf(xm))
+    update = ca.Function("update", [xm, carried, gm], [x_next, small_step])
+    level = ca.Function("final", [xm, carried], [xm, MAX_ITER])
     for k in range(MAX_ITER, 0, -1):
-        stop_after = ca.Function(f"stop{k}", [xm, wm], [xm, k])
-        new, small = update(xm, wm, gm)
+        stop_after = ca.Function(f"stop{k}", [xm, carried], [xm, k])
+        new, small = update(xm, carried, gm)
         after = ca.Function.if_else(f"after{k}", stop_after, level)
-        go_on = ca.Function(f"go_on{k}", [xm, wm, gm], after.call([small, new, wm]))
-        done = ca.Function(f"done{k}", [xm, wm, gm], [xm, k - 1])
+        go_on = ca.Function(f"go_on{k}", [xm, carried, gm], after.call([small, new, carried]))
+        done = ca.Function(f"done{k}", [xm, carried, gm], [xm, k - 1])
         branch = ca.Function.if_else(f"branch{k}", done, go_on)
-        g_k, converged = test(xm, wm)
-        level = ca.Function(f"iteration{k}", [xm, wm], branch.call([converged, xm, wm, g_k]))
-    x0 = ca.MX.sym("x0", size)
-    solved, updates = level.call([x0, wm])
-    return ca.Function("constrained_newton", [x0, wm], [solved, updates],
+        g_k, converged = test(xm, carried)
+        level = ca.Function(f"iteration{k}", [xm, carried],
+                            branch.call([converged, xm, carried, g_k]))
+    x0, w_in, tol_in = ca.MX.sym("x0", size), ca.MX.sym("w", w.numel()), ca.MX.sym("tol")
+    inputs = [x0, w_in, tol_in] if tolerance_input else [x0, w_in]
+    solved, updates = level.call([x0, ca.vertcat(w_in, tol_in) if tolerance_input else w_in])
+    return ca.Function("constrained_newton", inputs, [solved, updates],
                        {"never_inline": True})
 
 
@@ -135,9 +160,10 @@ class ConstrainedChunk:
         started = time.perf_counter()
         self.n, self.m, self.kind = system.n, system.n_constraints, kind
         residual = step_residual(system, scheme, kind)
-        self.newton = newton_function(residual, 1 if kind == "energy" else 0)
-        self.check = self._check(system, scheme, kind)
-        self.field = equations.constrained_field_function(system)
+        self.newton = newton_function(residual, 1 if kind == "energy" else 0,
+                                      tolerance_input=True)
+        self.check = self._check(system, scheme, kind, residual)
+        self.field = equations.constrained_field_sparse_function(system)
         step = self._step(system, kind)
         self.step = step
         self.width = step.numel_out(1)
@@ -157,29 +183,28 @@ class ConstrainedChunk:
         self.build_s = time.perf_counter() - started
 
     @staticmethod
-    def _check(system, scheme, kind) -> ca.Function:
+    def _check(system, scheme, kind, residual) -> ca.Function:
         """``(x, w) -> (canonical, constraint, hidden, energy, H_k, size)``: the step's
-        unscaled residuals (the energy row without its scaling and drift) and the scales."""
+        unscaled residuals (the energy row without its scaling and drift) and the scales;
+        ``residual`` is called, not copied (its code once in the chunk)."""
         n, m, theta = system.n, system.n_constraints, system.theta
-        residual = step_residual(system, scheme, kind)
         x, w = residual.sx_in()
-        R, scale = residual.call([x, w])
         if kind == "fixed":
             t_a, t_b, z_a = w[0], w[1], w[2:2 + 2 * n]
-            energy, tau = ca.SX(0), t_b - t_a
         else:
             t_a, z_a = w[1], w[2 + 2 * n:2 + 4 * n]
-            tau = x[-1]
-            drift = w[-1]
-            energy = R[-1] * scale - drift
-            t_b = t_a + tau
+            t_b = t_a + x[-1]
         z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
         H_k = equations.interval_energy_expression(system, scheme, t_a, t_b, z_a[:n], z_a[n:],
                                                    z_b[:n], z_b[n:], lam, mu, theta)
-        return ca.Function("check", [x, w], [
+        energy_scale = ca.Function("interval_energy", [x, w], [
+            ca.fabs(H_k), ca.fmax(ca.norm_inf(z_a), ca.norm_inf(z_b))], SX_OPTIONS)
+        xm, wm = ca.MX.sym("x", x.numel()), ca.MX.sym("w", w.numel())
+        R, scale = residual(xm, wm)
+        energy = R[-1] * scale - wm[-1] if kind == "energy" else ca.MX(0)
+        return ca.Function("check", [xm, wm], [
             ca.norm_inf(R[:2 * n]), ca.norm_inf(R[2 * n:2 * n + m]),
-            ca.norm_inf(R[2 * n + m:2 * n + 2 * m]), energy, ca.fabs(H_k),
-            ca.fmax(ca.norm_inf(z_a), ca.norm_inf(z_b))])
+            ca.norm_inf(R[2 * n + m:2 * n + 2 * m]), energy, *energy_scale(xm, wm)])
 
     def _step(self, system, kind) -> ca.Function:
         n, m = self.n, self.m
@@ -197,7 +222,7 @@ class ConstrainedChunk:
             tau_guess = factor * (t_a - t_prev)
             z_guess = rk4(lambda z, t: self.field(z, t, theta), z_a, t_a, tau_guess)
             w = ca.vertcat(t_prev, t_a, z_prev, z_a, lam0, mu0, theta, drift)
-            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0, tau_guess), w)
+            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0, tau_guess), w, tol)
             tau = x[-1]
             t_b = t_a + tau
         else:
@@ -213,7 +238,7 @@ class ConstrainedChunk:
             tau = t_b - t_a
             z_guess = rk4(lambda z, t: self.field(z, t, theta), z_a, t_a, tau)
             w = ca.vertcat(t_a, t_b, z_a, theta)
-            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0), w)
+            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0), w, tol)
         z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
         canonical, constraint, hidden, energy, H_k, size = self.check(x, w)
         scale = ca.fmax(1, size)
