@@ -72,6 +72,7 @@ class SearchRegion:
     reversing: tuple | None
     max_returns: int
     horizon: float
+    jitter: int | None = None
 
     def describe(self) -> str:
         parts = []
@@ -82,10 +83,12 @@ class SearchRegion:
             parts.append(f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}] (the "
                          "whole return map)")
         box = " and ".join(parts)
+        placed = "" if self.jitter is None else \
+            f" (each at random in its cell, generator seed {self.jitter})"
         return (f"E = {self.energy:.10g}, section {self.section}, other position in "
                 f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
-                f"which {self.accessible} accessible, up to {self.max_returns} returns, seeds "
-                f"followed to t = {self.horizon:.4g}")
+                f"which {self.accessible} accessible{placed}, up to {self.max_returns} returns, "
+                f"seeds followed to t = {self.horizon:.4g}")
 
 
 @dataclass
@@ -213,7 +216,7 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     if refine:
         for orbit in orbits:
             _refine(system, orbit, energy, sec, nodes, params)
-    region = SearchRegion(reversing=flipped, **region)
+    region = SearchRegion(reversing=flipped, jitter=jitter, **region)
     return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
                        time.process_time() - started)
 
@@ -401,13 +404,13 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
                 failures.append(FailedSeed((float(line[i]), 0.0), run.reason or
                                            f"did not return to the section by t = {horizon:.4g}"))
         for k in range(half):
-            for i in np.flatnonzero(residual[:-1, k] * residual[1:, k] <= 0):
-                shot = _shoot_half(geometry, line[i], line[i + 1], k + 1, direction,
-                                   np.nanmax(times[i:i + 2, k]), atol, escape)
+            for a, b, t_guess in _brackets(geometry, line, residual[:, k], times[:, k], k + 1,
+                                           direction, atol, escape):
+                shot = _shoot_half(geometry, a, b, k + 1, direction, t_guess, atol, escape)
                 if isinstance(shot, FoundOrbit):
                     found.append(shot)
                 else:
-                    failures.append(FailedSeed((float(line[i]), float(line[i + 1])), shot))
+                    failures.append(FailedSeed((float(a), float(b)), shot))
     region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
                   momentum=None, seeds=2 * line.size, accessible=accessible,
                   max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
@@ -416,6 +419,23 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
 
 class _NoShot(Exception):
     """A shooting evaluation without the crossing it needs."""
+
+
+def _half_crossing(geometry, x: float, k: int, direction: int, horizon: float, atol, escape):
+    """``(z0, t_k, z_k)``: the seed at ``q_o = x`` on the fixed line and its ``k``-th crossing,
+    or `_NoShot` saying why there is none."""
+    z0 = geometry.points([[x, 0.0]], direction)[0]
+    if not np.all(np.isfinite(z0)):
+        raise _NoShot(f"the energy allows no motion at q_o = {x:.6g}")
+    for stretch in (1, 2, 4):  # near a root the crossing can come later than at the ends
+        run = returns(geometry, z0, stretch * horizon, atol, attempts=10 * SEED_ATTEMPTS,
+                      escape=escape)
+        if run.t.size >= k or run.reason:
+            break
+    if run.t.size < k:
+        raise _NoShot(f"shooting did not converge: crossing {k} lost at q_o = {x:.6g} "
+                      f"({run.reason or 'not reached'})")
+    return z0, run.t[k - 1], run.z[k - 1]
 
 
 def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: float, atol,
@@ -427,18 +447,7 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
     horizon = 1.5 * t_guess
 
     def crossing(x):
-        z0 = geometry.points([[x, 0.0]], direction)[0]
-        if not np.all(np.isfinite(z0)):
-            raise _NoShot(f"the energy allows no motion at q_o = {x:.6g}")
-        for stretch in (1, 2, 4):  # near a root the crossing can come later than at the ends
-            run = returns(geometry, z0, stretch * horizon, atol, attempts=10 * SEED_ATTEMPTS,
-                          escape=escape)
-            if run.t.size >= k or run.reason:
-                break
-        if run.t.size < k:
-            raise _NoShot(f"shooting did not converge: crossing {k} lost at q_o = {x:.6g} "
-                          f"({run.reason or 'not reached'})")
-        return z0, run.t[k - 1], run.z[k - 1]
+        return _half_crossing(geometry, x, k, direction, horizon, atol, escape)
 
     from scipy.optimize import brentq
     try:
@@ -454,6 +463,35 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
     return _closed(geometry, z0, 2 * t_half, atol, escape, symmetric=True)
 
 
+def _brackets(geometry, line, residual, times, k: int, direction: int, atol, escape):
+    """Brackets ``(a, b, t)`` of the residual's roots along the fixed line: its sign changes
+    between neighbouring seeds, and the pairs of roots within one dip of ``|residual|``
+    (three seeds of one sign whose parabola dips to or through zero: the residual at its
+    vertex, on the flow, has the other sign), which no sign change shows and which a shifted
+    layout of the seeds would see."""
+    found = [(line[i], line[i + 1], np.nanmax(times[i:i + 2]))
+             for i in np.flatnonzero(residual[:-1] * residual[1:] <= 0)]
+    other = 2 + geometry.section.other
+    for i in range(1, line.size - 1):
+        r = residual[i - 1:i + 2]
+        if not (np.all(np.isfinite(r)) and np.all(np.sign(r) == np.sign(r[1]))
+                and abs(r[1]) < min(abs(r[0]), abs(r[2]))):
+            continue
+        c2, c1, c0 = np.polyfit(line[i - 1:i + 2] - line[i], r * np.sign(r[1]), 2)
+        vertex = -c1 / (2 * c2)
+        if not (c2 > 0 and c0 - c1 * c1 / (4 * c2) < 0.25 * abs(r[1])):
+            continue
+        x = line[i] + vertex
+        horizon = 1.5 * np.nanmax(times[i - 1:i + 2])
+        try:
+            value = _half_crossing(geometry, x, k, direction, horizon, atol, escape)[2][other]
+        except _NoShot:
+            continue
+        if value * r[1] < 0:
+            found += [(line[i - 1], x, horizon / 1.5), (x, line[i + 1], horizon / 1.5)]
+    return found
+
+
 def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     """The orbit from ``z0`` over ``period`` checked to close on the exact flow, with its upward
     crossings and exact monodromy (a `FoundOrbit`), or why not."""
@@ -466,11 +504,14 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     if not closure <= CLOSURE:
         return f"the orbit does not close on the exact flow (closure {closure:.2e} of its size)"
     seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
+    # a start on the section to round-off can be met again at t ~ 0: not a return
+    seen = _after(seen, 1e-9 * period)
     again = [j for j in range(seen.t.size) if seen.t[j] < period * (1 - 1e-9)
              and np.max(np.abs(seen.z[j] - z0)) <= 1e3 * SAME * size]
     if again:  # a multiple cover: its primitive orbit (found from this seed all the same)
         period = float(seen.t[again[0]])
-        seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
+        seen = _after(returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape,
+                              run=run), 1e-9 * period)
     ups = [j for j in range(seen.t.size) if seen.direction[j] > 0
            and seen.t[j] < period * (1 - 1e-9)]
     starts = seen.z[ups] if ups else z0[None, :]
@@ -492,6 +533,13 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
                       index=float(np.trace(derivative)),
                       closure=closure, crossings=crossings,
                       path=run.z(np.linspace(0.0, period, 400)))
+
+
+def _after(seen, start: float):
+    """The crossings of ``seen`` after ``start``."""
+    keep = seen.t > start
+    return type(seen)(seen.t[keep], seen.z[keep], seen.direction[keep], seen.reason,
+                      seen.reached)
 
 
 def _unique_rows(rows: np.ndarray, size: float) -> np.ndarray:
