@@ -578,14 +578,18 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
                                        f"did not return to the section by t = {horizon:.4g}"))
     scale = np.array([reach, top])
     for k in range(max_returns):
-        residuals = (images[0, :, k] - U, images[1, :, k])
-        for two_sided, residual in enumerate(residuals):
-            gap = np.max(np.abs(residual) / scale, axis=1).reshape(side, side)
-            for i, j in _grid_minima(gap):
+        gaps = [np.max(np.abs(residual) / scale, axis=1)
+                for residual in (images[0, :, k] - U, images[1, :, k])]
+        # where the map stretches, |P^k(u) - u| ~ mu d outgrows |F_k - B_k| ~ sqrt(mu) d
+        stretched = ~(gaps[1] >= 0.5 * gaps[0])
+        for two_sided, gap in enumerate(gaps):
+            for i, j in _grid_minima(gap.reshape(side, side)):
                 index = i * side + j
+                if two_sided and not stretched[index]:
+                    continue  # the return map's own minima serve there
                 result = None if two_sided else _newton_map(
                     geometry, U[index], k + 1, times[0, index, k], scale, atol, escape)
-                if not isinstance(result, FoundOrbit):  # the map stretches: multiple shooting
+                if result is None or (stretched[index] and not isinstance(result, FoundOrbit)):
                     result = _two_sided(geometry, U[index], times[1:, index, k], atol, escape)
                 if isinstance(result, FoundOrbit):
                     found.append(result)
