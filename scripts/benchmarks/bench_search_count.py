@@ -65,18 +65,16 @@ BARBANIS = Potential(
     lambda x, y: (x - y * y, y - 2 * x * y))
 
 
-def crossing(_t, z):
-    return z[0]
-
-
-crossing.direction = 1.0
-
-
 def returns(system: Potential, u, count: int, horizon: float):
-    """(times, points u) of the first ``count`` upward crossings of x = 0 from ``u``."""
+    """(times, points u) of the first ``count`` upward crossings of x = 0 from ``u`` (the run
+    stops at the last one)."""
     z0 = system.start(u)
     if z0 is None:
         return None
+
+    def crossing(_t, z):
+        return z[0]
+    crossing.direction, crossing.terminal = 1.0, count + 1  # + 1: one at t = 0 is dropped
     run = solve_ivp(system.field, (0, horizon), z0, method="DOP853", rtol=1e-12, atol=1e-12,
                     events=crossing)
     t, z = run.t_events[0], run.y_events[0]

@@ -7,7 +7,7 @@ The system: a double well in x times an anharmonic oscillator in y,
     H = |p|^2 / 2 - 9 x^2 / 8 + x^4 / 4 + y^2 / 2 + y^3 / 10,
 
 has the invariant line x = p_x = 0; the oscillation along it is a periodic orbit whose transverse
-motion is x'' = (9/4) x exactly, so its nontrivial multipliers are exp(+-3 T / 2) (about 1.6e4 at
+motion is x'' = (9/4) x exactly, so its nontrivial multipliers are exp(+-3 T / 2) (about 1.9e4 at
 E = 1/2). The y^3 term leaves H unchanged by no reflection of y: the section y = 0 has no
 reversing symmetry.
 """
