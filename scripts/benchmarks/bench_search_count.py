@@ -13,8 +13,8 @@ points are closed over their period, covers cut to their primitive orbit and dup
 period, a shared crossing) kept once. The package's search is run with its defaults (and the
 whole return map alone, ``reversing="none"``) to the same number of returns.
 
-Run: python scripts/benchmarks/bench_search_count.py [--grid 60] [--period 15]
-     [--only henon_heiles] (quick: --grid 24)
+Run: python scripts/benchmarks/bench_search_count.py [--grid 60] [--period 15] [--returns 2]
+     [--only henon_heiles] (quick: --grid 24 --returns 2)
 """
 
 from __future__ import annotations
@@ -82,14 +82,15 @@ def returns(system: Potential, u, count: int, horizon: float):
     return t[keep][:count], z[keep][:count][:, [1, 3]]
 
 
-def dense_search(system: Potential, grid: int, bound: float):
+def dense_search(system: Potential, grid: int, bound: float, count: int | None):
     """The orbits of period <= ``bound`` (module docstring): (period, crossings) pairs, the
-    number of returns searched and the shortest first return."""
+    number of returns searched (``count``, or as many as the bound allows) and the shortest
+    first return."""
     (lo, hi), top = system.box()
     ys, pys = np.linspace(lo, hi, grid), np.linspace(-top, top, grid)
     first = [returns(system, (y, py), 1, 4 * bound) for y in ys for py in pys]
     shortest = min(f[0][0] for f in first if f is not None and f[0].size)
-    count = max(int(bound // shortest), 1)
+    count = count or max(int(bound // shortest), 1)
     images = np.full((grid, grid, count, 2), np.nan)
     times = np.full((grid, grid, count), np.nan)
     for i, y in enumerate(ys):
@@ -157,17 +158,17 @@ def package_search(name: str, energy: float, returns_: int, reversing: str):
     return orbits, cost
 
 
-def compare(system: Potential, grid: int, bound: float) -> None:
+def compare(system: Potential, grid: int, bound: float, count: int | None) -> None:
     wall, cpu = time.perf_counter(), time.process_time()
-    dense, count, shortest = dense_search(system, grid, bound)
+    dense, count, shortest = dense_search(system, grid, bound, count)
     dense_cost = time.perf_counter() - wall, time.process_time() - cpu
     rows = [(f"scipy DOP853 + root ({grid} x {grid} grid)", dense, dense_cost)]
     for reversing, label in (("auto", "defaults"), ("none", "whole return map alone")):
         orbits, cost = package_search(system.name, system.energy, count, reversing)
         rows.insert(len(rows) - 1, (f"find_periodic_orbits, {label}",
                                     [o for o in orbits if o[0] <= bound], cost))
-    print(f"\n{system.name}, E = {system.energy:g}, section x = 0 (x' > 0), period <= {bound:g} "
-          f"(up to {count} returns: the shortest first return on the grid is {shortest:.4g})")
+    print(f"\n{system.name}, E = {system.energy:g}, section x = 0 (x' > 0), period <= {bound:g}, "
+          f"up to {count} returns (the shortest first return on the grid is {shortest:.4g})")
     print(f"{'search':48s} {'orbits':>6s} {'CPU s':>8s} {'wall s':>8s}")
     for label, orbits, cost in rows:
         print(f"{label:48s} {len(orbits):6d} {cost[1]:8.1f} {cost[0]:8.1f}")
@@ -183,12 +184,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--grid", type=int, default=60, help="dense grid side (default 60)")
     parser.add_argument("--period", type=float, default=15.0, help="period bound (default 15)")
+    parser.add_argument("--returns", type=int, default=None,
+                        help="upward returns searched (default: the bound over the shortest "
+                             "first return on the grid)")
     parser.add_argument("--only", default="henon_heiles,barbanis",
                         help="systems, comma-separated (default both)")
     args = parser.parse_args()
     systems = {s.name: s for s in (HENON_HEILES, BARBANIS)}
     for name in args.only.split(","):
-        compare(systems[name.strip()], args.grid, args.period)
+        compare(systems[name.strip()], args.grid, args.period, args.returns)
     print(f"\nmachine: {machine()}")
 
 
