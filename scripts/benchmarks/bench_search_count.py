@@ -46,7 +46,7 @@ class Potential:
         """``(0, y, px, py)`` at the energy with ``px > 0``, or None."""
         y, py = u
         kinetic = 2 * (self.energy - self.V(0.0, y)) - py * py
-        return None if kinetic < 0 else np.array([0.0, y, math.sqrt(kinetic), py])
+        return None if not kinetic >= 0 else np.array([0.0, y, math.sqrt(kinetic), py])
 
     def box(self):
         """The ``y`` range about the well (roots of ``V(0, y) = E``) and ``max |p_y|``."""
