@@ -393,6 +393,10 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                                "e.g. q2,p1 for the section q2=0: half-orbit shots (default "
                                f"{value['reversing']}: that symmetry where H is unchanged by "
                                "it; none: the whole return map)")
+    periodic.add_argument("--jitter", type=int, default=None, metavar="SEED",
+                          help="with --search: each seed at a random point of its cell "
+                               "(numpy's generator seeded SEED, an integer >= 0) instead of its "
+                               "centre, to see whether the orbits found depend on the layout")
 
 
 def _march_command(march: argparse.ArgumentParser) -> None:

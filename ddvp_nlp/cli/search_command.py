@@ -30,15 +30,18 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
                          "orbits cross, e.g. --section q2=0")
     seeds = check_integer("--seeds", args.seeds)
     max_returns = check_integer("--max-returns", args.max_returns)
+    jitter = getattr(args, "jitter", None)
+    if jitter is not None:
+        jitter = check_integer("--jitter", jitter, minimum=0)
     named = {"energy": energy, "section": section, "seeds": seeds, "max_returns": max_returns,
-             "reversing": args.reversing, "nodes": nodes, "params": params}
+             "reversing": args.reversing, "nodes": nodes, "params": params, "jitter": jitter}
     target, owned = default_or(args, f"{scene.name}-search", named, scene=scene)
     with output_folder(target, owned=owned) as out:
         try:
             search = find_periodic_orbits(scene.system, energy=energy, section=section,
                                           reversing=args.reversing, seeds=seeds,
                                           max_returns=max_returns, nodes=nodes, params=params,
-                                          refine=True)
+                                          refine=True, jitter=jitter)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while searching; "
                           "nothing was written") from None
@@ -50,7 +53,7 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
         grid = (f"; grid T = {row['grid_period']:.10g}, index {row['grid_index']:.8g}"
                 if row["grid_period"] == row["grid_period"] else f"; {row['note'][:90]}")
         print(f"  {j + 1:2d}. T = {row['period']:.10g}  index {row['index']:.8g}  "
-              f"{row['verdict']:8s} returns {row['returns']}{grid}")
+              f"{row['verdict']:8s} returns {row['returns']}, {row['seeds']} seed(s){grid}")
     reasons: dict = {}
     for failed in search.failures:
         key = failed.reason.split(" (")[0].split(":")[0]

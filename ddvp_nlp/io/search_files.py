@@ -56,7 +56,7 @@ def write_search(out, scene_name: str, search, *, plot: bool = True,
             "section": searched.section, "window": list(searched.window),
             "seeds": searched.seeds, "accessible": searched.accessible,
             "reversing": None if searched.reversing is None else list(searched.reversing),
-            "max_returns": searched.max_returns}
+            "max_returns": searched.max_returns, "jitter": getattr(searched, "jitter", None)}
     with atomic.output_folder(out) as folder:
         def draw(handle):
             plot_search(search, f"{scene_name}: periodic orbits at E = {searched.energy:.8g} "

@@ -1149,6 +1149,9 @@ SEARCHES = [
     (["--section", "q1=0", "--reversing", "q9"], (2,), "reversing must name coordinates"),
     (["--section", "q1=0", "--energy", "nan"], (2,), "--energy must be finite"),
     (["--section", "q1=0", "--energy", "-1"], (2,), "no motion at this energy on the section"),
+    (["--section", "q1=0", "--jitter", "-1"], (2,), "--jitter must be an integer >= 0"),
+    (["--section", "q1=0", "--jitter", "x"], (2,), "argument --jitter: invalid int value"),
+    (["--section", "q1=0", "--jitter", "1.5"], (2,), "argument --jitter: invalid int value"),
 ]
 
 

@@ -98,7 +98,8 @@ def test_unknown_scene_names_the_built_in_ones():
                                                    "'pendulum'")):
         load_scene("pendulm")
     with pytest.raises(InputError, match=re.escape(
-            "(built-in scenes: cartesian_pendulum, cr3bp, figure_eight, four_bar, fpu, harmonic, "
+            "(built-in scenes: barbanis, cartesian_pendulum, cr3bp, figure_eight, four_bar, fpu, "
+            "harmonic, "
             "henon_heiles, hill, kepler, pais_uhlenbeck, paper_pendulum, pendulum, "
             "pendulum_lagrangian, spline; or a .py file)")):
         load_scene("pendulm")

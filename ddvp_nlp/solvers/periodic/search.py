@@ -72,6 +72,7 @@ class SearchRegion:
     reversing: tuple | None
     max_returns: int
     horizon: float
+    jitter: int | None = None
 
     def describe(self) -> str:
         parts = []
@@ -82,10 +83,12 @@ class SearchRegion:
             parts.append(f"momentum in [{self.momentum[0]:.4g}, {self.momentum[1]:.4g}] (the "
                          "whole return map)")
         box = " and ".join(parts)
+        placed = "" if self.jitter is None else \
+            f" (each at random in its cell, generator seed {self.jitter})"
         return (f"E = {self.energy:.10g}, section {self.section}, other position in "
                 f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
-                f"which {self.accessible} accessible, up to {self.max_returns} returns, seeds "
-                f"followed to t = {self.horizon:.4g}")
+                f"which {self.accessible} accessible{placed}, up to {self.max_returns} returns, "
+                f"seeds followed to t = {self.horizon:.4g}")
 
 
 @dataclass
@@ -155,7 +158,8 @@ class NoMotionOnSection(InputError):
 
 def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
                          seeds: int = SEEDS, max_returns: int = MAX_RETURNS, window=None,
-                         nodes: int = 201, params=None, refine: bool = True) -> OrbitSearch:
+                         nodes: int = 201, params=None, refine: bool = True,
+                         jitter=None) -> OrbitSearch:
     """Periodic orbits of ``system`` at energy ``E`` that cross ``section`` (module docstring).
 
     Args:
@@ -178,6 +182,10 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
         nodes: the grid of the refinement (``solve_periodic``).
         params: the system's parameter values.
         refine: refine each orbit on the grid and compute its stability there.
+        jitter: ``None`` (default): each seed at the centre of its cell of the region; an
+            integer ``>= 0``: each at a random point of its cell (a stratified layout, numpy's
+            generator seeded with it), to check that the orbits found do not hang on where the
+            seeds fall.
 
     Returns:
         An `OrbitSearch`. An energy with no motion on the section is refused
@@ -189,15 +197,16 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     seeds = check_integer("seeds", seeds)
     max_returns = check_integer("max_returns", max_returns)
     nodes = check_integer("nodes", nodes, minimum=4)
+    jitter = None if jitter is None else check_integer("jitter", jitter, minimum=0)
     theta = system.parameter_vector(params)
     flipped = parse_reversing(reversing, system, theta, sec)
     geometry = SectionAtEnergy(system, theta, sec, energy)
     window = _window(geometry, window)
     found, failures, region = [], [], None
     if flipped is not None:
-        found, failures, region = _symmetric_search(geometry, window, seeds, max_returns)
+        found, failures, region = _symmetric_search(geometry, window, seeds, max_returns, jitter)
     if flipped is None or reversing == "auto":  # a found symmetry: its orbits and all others
-        more, failed, box = _map_search(geometry, window, seeds, max_returns)
+        more, failed, box = _map_search(geometry, window, seeds, max_returns, jitter)
         found, failures = found + more, failures + failed
         region = box if region is None else {
             **box, "seeds": region["seeds"] + box["seeds"],
@@ -207,7 +216,7 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     if refine:
         for orbit in orbits:
             _refine(system, orbit, energy, sec, nodes, params)
-    region = SearchRegion(reversing=flipped, **region)
+    region = SearchRegion(reversing=flipped, jitter=jitter, **region)
     return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
                        time.process_time() - started)
 
@@ -356,19 +365,23 @@ def _follow(geometry, z0, count: int, first: float, atol, escape):
     return found, horizon
 
 
-def _cells(window, count: int) -> np.ndarray:
+def _cells(window, count: int, jitter=None) -> np.ndarray:
     """``count`` seeds at the centres of equal cells of the window: none on its middle, where a
-    symmetric problem's singularity sits (Hill's Moon at ``q_o = 0``)."""
+    symmetric problem's singularity sits (Hill's Moon at ``q_o = 0``); with ``jitter`` (a
+    generator's seed), each at a random point of its cell instead (a stratified layout)."""
     count += count % 2
     edges = np.linspace(window[0], window[1], count + 1)
-    return (edges[:-1] + edges[1:]) / 2
+    if jitter is None:
+        return (edges[:-1] + edges[1:]) / 2
+    where = np.random.default_rng(jitter).uniform(0.02, 0.98, count)
+    return edges[:-1] + where * np.diff(edges)
 
 
-def _symmetric_search(geometry, window, seeds: int, max_returns: int):
+def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=None):
     """Half-orbit shots from seeds on the fixed line ``p_o = 0`` (module docstring)."""
     reach, escape = _scales(window)
     atol = RTOL * reach
-    line = _cells(window, max(seeds // 2, 2))
+    line = _cells(window, max(seeds // 2, 2), jitter)
     u = np.column_stack([line, np.zeros(line.size)])
     found, failures, accessible, horizons = [], [], 0, []
     half = 2 * max_returns  # crossings of the section in half an orbit of max_returns returns
@@ -391,13 +404,13 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int):
                 failures.append(FailedSeed((float(line[i]), 0.0), run.reason or
                                            f"did not return to the section by t = {horizon:.4g}"))
         for k in range(half):
-            for i in np.flatnonzero(residual[:-1, k] * residual[1:, k] <= 0):
-                shot = _shoot_half(geometry, line[i], line[i + 1], k + 1, direction,
-                                   np.nanmax(times[i:i + 2, k]), atol, escape)
+            for a, b, t_guess in _brackets(geometry, line, residual[:, k], times[:, k], k + 1,
+                                           direction, atol, escape):
+                shot = _shoot_half(geometry, a, b, k + 1, direction, t_guess, atol, escape)
                 if isinstance(shot, FoundOrbit):
                     found.append(shot)
                 else:
-                    failures.append(FailedSeed((float(line[i]), float(line[i + 1])), shot))
+                    failures.append(FailedSeed((float(a), float(b)), shot))
     region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
                   momentum=None, seeds=2 * line.size, accessible=accessible,
                   max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
@@ -406,6 +419,23 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int):
 
 class _NoShot(Exception):
     """A shooting evaluation without the crossing it needs."""
+
+
+def _half_crossing(geometry, x: float, k: int, direction: int, horizon: float, atol, escape):
+    """``(z0, t_k, z_k)``: the seed at ``q_o = x`` on the fixed line and its ``k``-th crossing,
+    or `_NoShot` saying why there is none."""
+    z0 = geometry.points([[x, 0.0]], direction)[0]
+    if not np.all(np.isfinite(z0)):
+        raise _NoShot(f"the energy allows no motion at q_o = {x:.6g}")
+    for stretch in (1, 2, 4):  # near a root the crossing can come later than at the ends
+        run = returns(geometry, z0, stretch * horizon, atol, attempts=10 * SEED_ATTEMPTS,
+                      escape=escape)
+        if run.t.size >= k or run.reason:
+            break
+    if run.t.size < k:
+        raise _NoShot(f"shooting did not converge: crossing {k} lost at q_o = {x:.6g} "
+                      f"({run.reason or 'not reached'})")
+    return z0, run.t[k - 1], run.z[k - 1]
 
 
 def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: float, atol,
@@ -417,18 +447,7 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
     horizon = 1.5 * t_guess
 
     def crossing(x):
-        z0 = geometry.points([[x, 0.0]], direction)[0]
-        if not np.all(np.isfinite(z0)):
-            raise _NoShot(f"the energy allows no motion at q_o = {x:.6g}")
-        for stretch in (1, 2, 4):  # near a root the crossing can come later than at the ends
-            run = returns(geometry, z0, stretch * horizon, atol, attempts=10 * SEED_ATTEMPTS,
-                          escape=escape)
-            if run.t.size >= k or run.reason:
-                break
-        if run.t.size < k:
-            raise _NoShot(f"shooting did not converge: crossing {k} lost at q_o = {x:.6g} "
-                          f"({run.reason or 'not reached'})")
-        return z0, run.t[k - 1], run.z[k - 1]
+        return _half_crossing(geometry, x, k, direction, horizon, atol, escape)
 
     from scipy.optimize import brentq
     try:
@@ -444,6 +463,35 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
     return _closed(geometry, z0, 2 * t_half, atol, escape, symmetric=True)
 
 
+def _brackets(geometry, line, residual, times, k: int, direction: int, atol, escape):
+    """Brackets ``(a, b, t)`` of the residual's roots along the fixed line: its sign changes
+    between neighbouring seeds, and the pairs of roots within one dip of ``|residual|``
+    (three seeds of one sign whose parabola dips to or through zero: the residual at its
+    vertex, on the flow, has the other sign), which no sign change shows and which a shifted
+    layout of the seeds would see."""
+    found = [(line[i], line[i + 1], np.nanmax(times[i:i + 2]))
+             for i in np.flatnonzero(residual[:-1] * residual[1:] <= 0)]
+    other = 2 + geometry.section.other
+    for i in range(1, line.size - 1):
+        r = residual[i - 1:i + 2]
+        if not (np.all(np.isfinite(r)) and np.all(np.sign(r) == np.sign(r[1]))
+                and abs(r[1]) < min(abs(r[0]), abs(r[2]))):
+            continue
+        c2, c1, c0 = np.polyfit(line[i - 1:i + 2] - line[i], r * np.sign(r[1]), 2)
+        vertex = -c1 / (2 * c2)
+        if not (c2 > 0 and c0 - c1 * c1 / (4 * c2) < 0.25 * abs(r[1])):
+            continue
+        x = line[i] + vertex
+        horizon = 1.5 * np.nanmax(times[i - 1:i + 2])
+        try:
+            value = _half_crossing(geometry, x, k, direction, horizon, atol, escape)[2][other]
+        except _NoShot:
+            continue
+        if value * r[1] < 0:
+            found += [(line[i - 1], x, horizon / 1.5), (x, line[i + 1], horizon / 1.5)]
+    return found
+
+
 def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     """The orbit from ``z0`` over ``period`` checked to close on the exact flow, with its upward
     crossings and exact monodromy (a `FoundOrbit`), or why not."""
@@ -456,11 +504,14 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     if not closure <= CLOSURE:
         return f"the orbit does not close on the exact flow (closure {closure:.2e} of its size)"
     seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
+    # a start on the section to round-off can be met again at t ~ 0: not a return
+    seen = _after(seen, 1e-9 * period)
     again = [j for j in range(seen.t.size) if seen.t[j] < period * (1 - 1e-9)
              and np.max(np.abs(seen.z[j] - z0)) <= 1e3 * SAME * size]
     if again:  # a multiple cover: its primitive orbit (found from this seed all the same)
         period = float(seen.t[again[0]])
-        seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
+        seen = _after(returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape,
+                              run=run), 1e-9 * period)
     ups = [j for j in range(seen.t.size) if seen.direction[j] > 0
            and seen.t[j] < period * (1 - 1e-9)]
     starts = seen.z[ups] if ups else z0[None, :]
@@ -484,6 +535,13 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
                       path=run.z(np.linspace(0.0, period, 400)))
 
 
+def _after(seen, start: float):
+    """The crossings of ``seen`` after ``start``."""
+    keep = seen.t > start
+    return type(seen)(seen.t[keep], seen.z[keep], seen.direction[keep], seen.reason,
+                      seen.reached)
+
+
 def _unique_rows(rows: np.ndarray, size: float) -> np.ndarray:
     kept = []
     for row in rows:
@@ -492,11 +550,62 @@ def _unique_rows(rows: np.ndarray, size: float) -> np.ndarray:
     return np.array(kept)
 
 
-def _map_search(geometry, window, seeds: int, max_returns: int):
+def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
     """Newton on ``P^k(u) = u`` from the grid minima of ``|P^k(u) - u|`` over a box of the
-    section (module docstring)."""
+    section, and multiple shooting from the grid minima of the two-sided residual (module
+    docstring)."""
     reach, escape = _scales(window)
     atol = RTOL * reach
+    U, side, top = _map_grid(geometry, window, seeds, jitter)
+    Z = geometry.points(U)
+    ok = np.all(np.isfinite(Z), axis=1)
+    first = 4 * _time_scale(geometry, Z[ok]) if ok.any() else 1.0
+    images = np.full((2, U.shape[0], max_returns, 2), np.nan)  # P^k(u); then F_k(u) - B_k(u)
+    times = np.full((3, U.shape[0], max_returns), np.nan)  # t of P^k, F_k and B_k (> 0)
+    found, failures, horizons = [], [], []
+    for i in np.flatnonzero(ok):
+        run, horizon = _follow(geometry, Z[i], 2 * max_returns, first, atol, escape)
+        back, _ = _follow(geometry, Z[i], max_returns, -first, atol, escape)
+        horizons.append(horizon)
+        up = np.flatnonzero(run.direction > 0)[:max_returns]
+        images[0, i, :up.size] = run.z[up][:, geometry.section.free]
+        times[0, i, :up.size] = run.t[up]
+        k = min(run.t.size, back.t.size, max_returns)
+        images[1, i, :k] = (run.z[:k] - back.z[:k])[:, geometry.section.free]
+        times[1, i, :k], times[2, i, :k] = run.t[:k], -back.t[:k]
+        if up.size == 0:
+            failures.append(FailedSeed(tuple(U[i]), run.reason or
+                                       f"did not return to the section by t = {horizon:.4g}"))
+    scale = np.array([reach, top])
+    for k in range(max_returns):
+        gaps = [np.max(np.abs(residual) / scale, axis=1)
+                for residual in (images[0, :, k] - U, images[1, :, k])]
+        # where the map stretches, |P^k(u) - u| ~ mu d outgrows |F_k - B_k| ~ sqrt(mu) d
+        stretched = ~(gaps[1] >= 0.5 * gaps[0])
+        for two_sided, gap in enumerate(gaps):
+            for i, j in _grid_minima(gap.reshape(side, side)):
+                index = i * side + j
+                if two_sided and not stretched[index]:
+                    continue  # the return map's own minima serve there
+                result = None if two_sided else _newton_map(
+                    geometry, U[index], k + 1, times[0, index, k], scale, atol, escape)
+                if result is None or (stretched[index] and not isinstance(result, FoundOrbit)):
+                    result = _two_sided(geometry, U[index], times[1:, index, k], atol, escape)
+                if isinstance(result, FoundOrbit):
+                    found.append(result)
+                else:
+                    failures.append(FailedSeed(tuple(U[index]), result))
+    region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
+                  momentum=(-top, top), seeds=U.shape[0], accessible=int(ok.sum()),
+                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
+    return found, failures, region
+
+
+def _map_grid(geometry, window, seeds: int, jitter):
+    """The seeds of the whole map: a ``side x side`` grid of cells over the window and the
+    momenta's box ``[-top, top]``, about ``seeds`` of them accessible; each seed at its cell's
+    centre, or (``jitter``: a generator's seed) at a random point of its cell."""
+    reach = max(abs(window[0]), abs(window[1]))
     probe = np.linspace(window[0], window[1], 101)
     z_line = geometry.points(np.column_stack([probe, np.zeros(probe.size)]))
     # the momenta's reach: most of the line's (its largest is a singularity's, 1e7 near Hill's
@@ -506,40 +615,14 @@ def _map_search(geometry, window, seeds: int, max_returns: int):
     fine = np.array([(x, p) for x in probe for p in np.linspace(-top, top, 101)])
     share = max(float(np.mean(np.all(np.isfinite(geometry.points(fine)), axis=1))), 1e-3)
     side = max(int(np.sqrt(seeds / share)), 3)  # about `seeds` of the grid's points accessible
-    line = _cells(window, side)
+    line = _cells(window, side, jitter)
     side = line.size
     momenta = np.linspace(-top, top, side)
+    if jitter is not None:  # each within its spacing about the grid's momentum
+        spread = np.random.default_rng([jitter, 1]).uniform(-0.48, 0.48, side)
+        momenta = momenta + spread * (2 * top / (side - 1))
     U = np.array([(x, p) for x in line for p in momenta])
-    Z = geometry.points(U)
-    ok = np.all(np.isfinite(Z), axis=1)
-    first = 4 * _time_scale(geometry, Z[ok]) if ok.any() else 1.0
-    images = np.full((U.shape[0], max_returns, 2), np.nan)
-    times = np.full((U.shape[0], max_returns), np.nan)
-    found, failures, horizons = [], [], []
-    for i in np.flatnonzero(ok):
-        run, horizon = _follow(geometry, Z[i], 2 * max_returns, first, atol, escape)
-        horizons.append(horizon)
-        up = np.flatnonzero(run.direction > 0)[:max_returns]
-        images[i, :up.size] = run.z[up][:, geometry.section.free]
-        times[i, :up.size] = run.t[up]
-        if up.size == 0:
-            failures.append(FailedSeed(tuple(U[i]), run.reason or
-                                       f"did not return to the section by t = {horizon:.4g}"))
-    scale = np.array([reach, top])
-    for k in range(max_returns):
-        gap = np.max(np.abs(images[:, k] - U) / scale, axis=1).reshape(side, side)
-        for i, j in _grid_minima(gap):
-            index = i * side + j
-            result = _newton_map(geometry, U[index], k + 1, times[index, k], scale, atol,
-                                 escape)
-            if isinstance(result, FoundOrbit):
-                found.append(result)
-            else:
-                failures.append(FailedSeed(tuple(U[index]), result))
-    region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
-                  momentum=(-top, top), seeds=U.shape[0], accessible=int(ok.sum()),
-                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
-    return found, failures, region
+    return U, side, top
 
 
 def _grid_minima(gap: np.ndarray, threshold: float = 0.5):
@@ -582,6 +665,49 @@ def _newton_map(geometry, u0, k: int, t_guess: float, scale, atol, escape):
         return f"shooting did not converge ({why})"
     _, period, z0 = result.payload
     return _closed(geometry, z0, period, atol, escape, symmetric=False)
+
+
+def _two_sided(geometry, u, times, atol, escape):
+    """Multiple shooting from a seed ``u`` whose ``k``-th crossing forwards, after
+    ``times[0]``, nearly meets its ``k``-th crossing backwards, ``times[1]`` before: the
+    orbit's guess is the forward run up to there and the backward run after it (the seed's
+    error grows over half the orbit each way, the square root of its multiplier), closed by
+    Newton on the exact flow's shooting equations on segments cut where the flow has grown
+    tenfold (``exact/closure.py``; one segment, single shooting, where it never does); the
+    orbit closed and checked; or why not."""
+    from ..exact.closure import close_exact
+
+    forward, backward = float(times[0]), float(times[1])
+    if not (np.isfinite(forward) and np.isfinite(backward)):
+        return "shooting did not converge (the crossing was lost on one side)"
+    z0 = geometry.points([u])[0]
+    flow = exact_flow(geometry.system)
+    period = forward + backward
+    with np.errstate(all="ignore"):
+        ahead = flow.run(z0, 0.0, forward, geometry.theta, rtol=RTOL, atol=atol,
+                         max_attempts=10 * SEED_ATTEMPTS)
+        behind = flow.run(z0, 0.0, -backward, geometry.theta, rtol=RTOL, atol=atol,
+                          max_attempts=10 * SEED_ATTEMPTS)
+    if not (ahead.success and behind.success):
+        return "shooting did not converge (the seed's run stopped)"
+    t = np.linspace(0.0, period, 801)
+    first = t <= forward
+    path = np.vstack([ahead.z(t[first]), behind.z(t[~first] - period)])
+    section = geometry.section
+    try:
+        with np.errstate(all="ignore"):
+            orbit = close_exact(geometry.system, geometry.theta, z0, period,
+                                energy=geometry.energy, section_index=section.index + 1,
+                                section_value=section.value, path=(t, path))
+    except np.linalg.LinAlgError:
+        return "shooting did not converge (multiple shooting: a singular Newton matrix)"
+    if not orbit.converged or not np.all(np.isfinite(orbit.z0)):
+        return (f"shooting did not converge (multiple shooting on {orbit.cuts.size - 1} "
+                f"segments: closure {orbit.closure:.2e} after {orbit.iterations} iterations)")
+    if not orbit.period > 0.1 * period:  # T -> 0 closes every point: not an orbit
+        return (f"shooting did not converge (multiple shooting went to the period "
+                f"{orbit.period:.3g} from {period:.4g})")
+    return _closed(geometry, orbit.z0, orbit.period, atol, escape, symmetric=False)
 
 
 def _distinct(found: list) -> list:

@@ -166,7 +166,8 @@ class Returns:
 def returns(geometry: SectionAtEnergy, z0, horizon: float, atol, *,
             attempts: int = SEED_ATTEMPTS, escape: float = np.inf, run=None) -> Returns:
     """Every crossing of the section by the exact flow from ``z0`` over ``(0, horizon]``
-    (module docstring); ``escape``: the size of ``q`` beyond which the motion has left."""
+    (module docstring; a negative ``horizon``: backwards in time, the crossings in the order
+    met); ``escape``: the size of ``q`` beyond which the motion has left."""
     section = geometry.section
     flow = exact_flow(geometry.system)
     with np.errstate(all="ignore"):
@@ -189,9 +190,9 @@ def returns(geometry: SectionAtEnergy, z0, horizon: float, atol, *,
     for k in where:
         def offset(time):
             return float(run.z([time])[0, section.index]) - section.value
-        a, b = t[k], t[k + 1]
-        time = b if c[k + 1] == 0 else brentq(offset, a, b, xtol=1e-15 * max(abs(b), 1e-300),
-                                               rtol=1e-15)
+        a, b = sorted((t[k], t[k + 1]))  # a backward run's times decrease
+        time = t[k + 1] if c[k + 1] == 0 else brentq(
+            offset, a, b, xtol=1e-15 * max(abs(a), abs(b), 1e-300), rtol=1e-15)
         times.append(time)
         states.append(run.z([time])[0])
     states = np.reshape(states, (-1, 4))
