@@ -34,6 +34,8 @@ from .parser import parse_settings
 def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
+    if not getattr(args, "search", False):
+        refuse_search_flags(args)
     if getattr(args, "switch", None) is not None:
         if args.follow is None:
             raise InputError(f"--switch {args.switch} needs --follow E_END: branches are "
@@ -325,3 +327,16 @@ def _report_switch(family) -> int:
         _print_bifurcations(half.bifurcations, "  ")
     whole = family.complete and all(b.family.complete for b in family.branches)
     return 0 if whole and not INTERRUPTS.requested else 1
+
+
+# The flags only the search reads: given without --search they would be ignored unsaid.
+SEARCH_ONLY = ("seeds", "max_returns", "reversing", "jitter")
+
+
+def refuse_search_flags(args) -> None:
+    """A search-only flag given without ``--search`` is refused by name (exit 2)."""
+    given = [f"--{dest.replace('_', '-')} {getattr(args, dest)}" for dest in SEARCH_ONLY
+             if getattr(args, dest, None) is not None]
+    if given:
+        raise InputError(f"{given[0]}: read with --search only (the search of a section for "
+                         f"orbits); without --search it would be ignored")

@@ -383,12 +383,12 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                                "(two degrees of freedom): orbits.csv, orbits.png")
     value = {name: api_default("periodic", name) for name in ("seeds", "max_returns",
                                                                "reversing")}
-    periodic.add_argument("--seeds", type=int, default=value["seeds"],
+    periodic.add_argument("--seeds", type=int, default=None,
                           help=f"with --search: how many seeds (default {value['seeds']})")
-    periodic.add_argument("--max-returns", type=int, default=value["max_returns"],
+    periodic.add_argument("--max-returns", type=int, default=None,
                           help=f"with --search: orbits up to this many returns (default "
                                f"{value['max_returns']})")
-    periodic.add_argument("--reversing", default=value["reversing"], metavar="NAMES|auto|none",
+    periodic.add_argument("--reversing", default=None, metavar="NAMES|auto|none",
                           help="with --search: the coordinates a reversing symmetry flips, "
                                "e.g. q2,p1 for the section q2=0: half-orbit shots (default "
                                f"{value['reversing']}: that symmetry where H is unchanged by "

@@ -10,6 +10,7 @@ from ..io.atomic import output_folder
 from ..io.search_files import write_search
 from ..solvers import find_periodic_orbits
 from ..validation import check_integer, check_real
+from .arguments import api_default
 from .folders import default_or
 from .interrupts import INTERRUPTS, Stopped
 
@@ -28,18 +29,19 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
     if section is None:
         raise InputError("--section is needed with --search: the position coordinate the "
                          "orbits cross, e.g. --section q2=0")
-    seeds = check_integer("--seeds", args.seeds)
-    max_returns = check_integer("--max-returns", args.max_returns)
+    seeds = check_integer("--seeds", default_of("seeds", args.seeds))
+    max_returns = check_integer("--max-returns", default_of("max_returns", args.max_returns))
+    reversing = default_of("reversing", args.reversing)
     jitter = getattr(args, "jitter", None)
     if jitter is not None:
         jitter = check_integer("--jitter", jitter, minimum=0)
     named = {"energy": energy, "section": section, "seeds": seeds, "max_returns": max_returns,
-             "reversing": args.reversing, "nodes": nodes, "params": params, "jitter": jitter}
+             "reversing": reversing, "nodes": nodes, "params": params, "jitter": jitter}
     target, owned = default_or(args, f"{scene.name}-search", named, scene=scene)
     with output_folder(target, owned=owned) as out:
         try:
             search = find_periodic_orbits(scene.system, energy=energy, section=section,
-                                          reversing=args.reversing, seeds=seeds,
+                                          reversing=reversing, seeds=seeds,
                                           max_returns=max_returns, nodes=nodes, params=params,
                                           refine=True, jitter=jitter)
         except KeyboardInterrupt:
@@ -63,3 +65,8 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
     print(f"  {search.seconds:.1f} s CPU; written to {out.path}/ (orbits.csv, failures.csv"
           f"{', orbits.png' if rows and not args.no_plot else ''})")
     return 0 if search.found and not INTERRUPTS.requested else 1
+
+
+def default_of(dest: str, value):
+    """``value``, or the API's default of the search's option ``dest`` when not given."""
+    return api_default("periodic", dest) if value is None else value

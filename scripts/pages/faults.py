@@ -1178,6 +1178,10 @@ RANGES = [
     (["--step", "nan"], "--step must be finite, got nan"),
     (["--step", "0"], "--step must be > 0, got 0.0"),
     (["--max-orbits", "1"], "--max-orbits must be an integer >= 2, got 1"),
+    # the search's own flags without --search had been ignored unsaid
+    (["--seeds", "5"], "--seeds 5: read with --search only"),
+    (["--jitter", "1"], "--jitter 1: read with --search only"),
+    (["--reversing", "none", "--follow", "0.6"], "--reversing none: read with --search only"),
 ]
 
 

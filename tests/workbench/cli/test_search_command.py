@@ -28,3 +28,15 @@ def test_an_orbit_not_found_prints_no_period(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert code == 1
     assert "no period: no orbit was found at E = -0.01" in printed
+
+
+def test_the_searchs_flags_without_search_are_refused_by_name(tmp_path, capsys):
+    """--seeds, --max-returns, --reversing and --jitter are read by the search only; without
+    --search they had been ignored unsaid. Refused (exit 2) before the scene is loaded."""
+    for flag, value in (("--seeds", "5"), ("--max-returns", "2"), ("--reversing", "none"),
+                        ("--jitter", "0")):
+        code = main(["periodic", "no_such_scene", "--energy", "0.5", flag, value, "--out",
+                     str(tmp_path / "out")])
+        err = capsys.readouterr().err
+        assert code == 2 and f"{flag} {value}: read with --search only" in err, err
+        assert not (tmp_path / "out").exists()
