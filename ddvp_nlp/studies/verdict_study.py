@@ -31,6 +31,13 @@ How a verdict is judged (`classify`, ``MARGIN = 2``):
 - between ``global_tol / MARGIN`` and ``MARGIN * global_tol`` either verdict is consistent (the
   band is where the check's reference, held to a tenth of the tolerance, and the truth's own
   error could swap them).
+
+The true error judged is the larger of the trajectory's and, for an energy rule, the first
+step's energy level against ``H`` of the truth at the level's clock in units of the state's
+tolerance (``true_level * global_tol / energy_tol``, `true_level_error`): the check refuses a
+run whose level is off by more than ``energy_tol`` however close its first nodes are, and the
+truth measures that test too (a Lee march of a time-dependent ``H`` whose first step set a
+level 14 % off, then failed, had been counted a false refusal by its trajectory alone).
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ from dataclasses import asdict, dataclass, field
 import casadi as ca
 import numpy as np
 
+from ..discrete import Scheme
 from ..physics import HamiltonianSystem
 from ..solvers import Compilation, StepControl, Tolerance, march, motion_scales
 
@@ -304,6 +312,38 @@ def judge_case(case: DrawnCase, **options) -> dict:
            "scheme": case.scheme, "time_dependent": case.system.time_dependent,
            "t_drift": verdict.t_drift,
            "failure": verdict.first_failure.test if verdict.first_failure else ""}
-    row["class"] = classify(verdict.name, truth["error_all"], tol) if trusted \
-        else "untrusted"
+    # the energy level's test measured against the truth too, in units of the state's
+    # tolerance: a refusal for an energy level the truth confirms is not a false one
+    level = true_level_error(system, solution, case.scheme)
+    row["true_level"] = level
+    judged = truth["error_all"] if level is None else \
+        max(truth["error_all"], level * tol / verdict.energy_tol)
+    row["class"] = classify(verdict.name, judged, tol) if trusted else "untrusted"
     return row
+
+
+def true_level_error(system, solution, scheme: str) -> float | None:
+    """The energy level the first step of an energy rule sets (``verdict.level``) against
+    ``H`` of scipy's truth at the level's clock, relative to the verdict's energy scale: the
+    check's "energy level of the first step" measured by a reference that shares nothing with
+    it but ``H``; ``None`` for fixed steps or a run without a step."""
+    from ..solvers import flow_callable
+
+    verdict, t = solution.verdict, solution.t
+    if verdict.level is None or not verdict.energy_scale or t.size < 2:
+        return None
+    clock = float(t[0] + (t[1] - t[0]) / 2) if Scheme.coerce(scheme).clock == "midpoint" \
+        else float(t[0])
+    theta = system.parameter_vector({})
+    z0 = np.concatenate([solution.q[0], solution.p[0]])
+    z = z0
+    if clock != t[0]:
+        size = np.maximum(np.abs(z0), np.max(np.abs(np.hstack([solution.q, solution.p])), 0))
+        path = _dense_truth(flow_callable(system, theta), np.array([t[0], clock]), z0,
+                            TRUTH_RTOL, TRUTH_RTOL * 1e-2 * np.where(size > 0, size, 1e-300))
+        if path is None:
+            return None
+        z = path[-1]
+    n = system.n
+    exact = float(system.energy(z[None, :n], z[None, n:], np.array([clock]), theta)[0])
+    return abs(verdict.level - exact) / verdict.energy_scale
