@@ -48,7 +48,6 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
-from ...physics.constraints import refuse_constrained
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import EndsRecord, Solution, Status
 from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
@@ -133,8 +132,14 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         several solutions it is), and whose ``stats`` hold the solver's counts; failures are a
         status on it.
     """
-    refuse_constrained(system, "solve_bvp")
     output = coerce(output, Output, "output")
+    if getattr(system, "n_constraints", 0):  # constrained_ends.py: the rows of g = 0 too
+        from .constrained_ends import solve_constrained_bvp
+        return solve_constrained_bvp(
+            system, q_start, q_end, t_span, nodes=nodes, scheme=scheme, params=params,
+            guess=guess, times=times, options=coerce(options, GridOptions, "options"),
+            compilation=coerce(compilation, Compilation, "compilation"), output=output,
+            derivatives=derivatives)
     names = check_derivatives(system, derivatives, t_span)
     if output.checkpoint is not None or output.stop is not None:
         raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
