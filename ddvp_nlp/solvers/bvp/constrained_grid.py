@@ -34,7 +34,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...cache import cached
-from ...discrete.constrained import energy_expression, interval_expression, node_expression
+from ...discrete.constrained import (
+    energy_expression,
+    interval_expression,
+    interval_momenta,
+    node_expression,
+)
+from ...discrete.equations import action_for
 from ...discrete.scheme import Scheme
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
 from ..grid.problem import GridResult
@@ -123,6 +129,21 @@ def block_functions(system, scheme: Scheme):
     return cached(system, ("constrained_bvp_blocks", scheme), build)
 
 
+def action_function(system, scheme: Scheme) -> ca.Function:
+    """``S_k(w_a, w_b)``: the interval's action with its own momenta (the augmented action's
+    multiplier terms vanish on ``g = 0``)."""
+    def build():
+        n, m, theta = system.n, system.n_constraints, system.theta
+        w = [ca.SX.sym(f"w{j}", 1 + 2 * n + 2 * m) for j in range(2)]
+        t_a, q_a, p_a = w[0][0], w[0][1:n + 1], w[0][n + 1:2 * n + 1]
+        t_b, q_b, p_b = w[1][0], w[1][1:n + 1], w[1][n + 1:2 * n + 1]
+        lam, mu = w[0][2 * n + 1:2 * n + 1 + m], w[0][2 * n + 1 + m:]
+        plus, minus = interval_momenta(system, t_a, t_b, q_a, p_a, q_b, p_b, lam, mu, theta)
+        S = action_for(system, scheme).action(t_a, t_b, q_a, plus, q_b, minus, theta)
+        return ca.Function("constrained_action", [w[0], w[1], theta], [S])
+    return cached(system, ("constrained_bvp_action", scheme), build)
+
+
 def _rows(system, scheme: Scheme, layout: ConstrainedLayout, x, P):
     """The rows (module docstring) as an MX column and the slices of its groups."""
     n, m, N, M = layout.n, layout.m, layout.nodes, layout.width
@@ -196,6 +217,13 @@ class ConstrainedGrid:
             result["energy"] = np.asarray(energy.map(N - 2)(w[:, :-2], w[:, 1:-1], w[:, 2:],
                                                             data.theta)).ravel()
         return result
+
+    def action(self, x: np.ndarray, theta: np.ndarray) -> float:
+        """The discrete action ``sum_k S_k`` of ``x`` (`action_function`)."""
+        N = self.layout.nodes
+        w = np.asarray(x, float).reshape(N, self.layout.width).T
+        return float(np.sum(np.asarray(action_function(self.system, self.scheme).map(N - 1)(
+            w[:, :-1], w[:, 1:], theta))))
 
     def pinned(self) -> np.ndarray:
         """Which values are pinned (end times and positions, every time of ``fixed``, the
