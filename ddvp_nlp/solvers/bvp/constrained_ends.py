@@ -389,8 +389,9 @@ def _solution(request: GridRequest, chosen: Attempt, started: float) -> Solution
              "tau_floor": request.tau_floor}
     sign_changes = tuple(int(np.count_nonzero(np.diff(np.sign(p[:, i])) != 0))
                          for i in range(n))
-    record = EndsRecord(stages=tuple(replace(s) for s in request.phases), action=grid.action(chosen.x, request.theta)
-                        if np.all(np.isfinite(chosen.x)) else float("nan"),
+    finite = bool(np.all(np.isfinite(chosen.x)))
+    record = EndsRecord(stages=tuple(replace(s) for s in request.phases),
+                        action=grid.action(chosen.x, request.theta) if finite else float("nan"),
                         p_sign_changes=sign_changes,
                         canonical_limit=limits.get("canonical", np.nan),
                         energy_limit=limits.get("energy", np.nan),
