@@ -49,7 +49,7 @@ from ..exact.constrained_flow import multipliers_function, projection_function
 from ..exact.shooting import shoot
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
-from ..grid.problem import GridRequest
+from ..grid.problem import GridRequest, GridResult
 from .constrained_grid import (
     ConstrainedData,
     ConstrainedGrid,
@@ -65,6 +65,9 @@ DEFAULT_MAX_ITER = 200
 # farther, refused.
 END_TOLERANCE = 1e-6
 PROJECTION_ROUNDS = 20
+# The homotopy of an energy rule's Newton: iterations per stage, smallest stage.
+HOMOTOPY_ITER = 30
+SMALLEST_HOMOTOPY_STEP = 2.0 ** -12
 # An energy rule's start on more nodes than this comes from its solution on about half as many.
 COARSEST = 41
 
@@ -279,10 +282,11 @@ def _solve(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str) -> A
     def attempt(solver: str) -> Attempt:
         started = time.perf_counter()
         grid, data = grid_of(request, scheme), data_of(request, scheme)
-        if solver == "newton":
+        if solver == "newton" and scheme.variable_steps:
+            result = _homotopy(request, grid, x0, data)
+        elif solver == "newton":
             result = newton(grid, x0, data, _targets(request, grid, x0, data),
-                            tau_floor=request.tau_floor if scheme.variable_steps else -np.inf,
-                            max_iter=request.max_iter, linear="sparse",
+                            tau_floor=-np.inf, max_iter=request.max_iter, linear="sparse",
                             deadline=request.deadline)
         else:
             problem = request.built(
@@ -299,6 +303,37 @@ def _solve(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str) -> A
 
     chosen, _, _ = solve_in_order(solver_order(request.solver), attempt)
     return chosen
+
+
+def _homotopy(request: GridRequest, grid: ConstrainedGrid, x0: np.ndarray,
+              data: ConstrainedData) -> GridResult:
+    """Newton on an energy rule's rows through the homotopy ``F(x) = (1 - s) F(x_0)``, ``s``
+    from 0 (``x_0`` solves it) to 1: the whole step first, a quarter of it after a stage that
+    fails, twice the last after one that converges; ``request.max_iter`` iterations in all.
+    From fixed steps on uniform times Newton alone stalled at N = 32 on a rotation of the
+    Cartesian pendulum, and took two stages with it (measured)."""
+    F0, _ = grid.evaluate(x0, data, jacobian=False)
+    x, reached, step, iterations, stages = np.array(x0, float), 0.0, 1.0, 0, 0
+    said = ""
+    while reached < 1.0 and step >= SMALLEST_HOMOTOPY_STEP and iterations < request.max_iter:
+        s = min(1.0, reached + step)
+        result = newton(grid, x, data, _targets(request, grid, x, data),
+                        tau_floor=request.tau_floor, max_iter=min(HOMOTOPY_ITER, max(
+                            1, request.max_iter - iterations)), linear="sparse",
+                        deadline=request.deadline, offset=None if s == 1.0 else (1 - s) * F0)
+        iterations, stages, said = iterations + result.iterations, stages + 1, result.outcome
+        if result.converged:
+            x, reached, step = result.x, s, 2 * step
+        elif "time limit" in said:
+            break
+        else:
+            step /= 4
+    if reached == 1.0:
+        return GridResult(x, True, f"{said} (homotopy in the rows' start residual: {stages} "
+                          f"stages)", iterations)
+    return GridResult(x, False, f"the homotopy in the rows' start residual stopped at s = "
+                      f"{reached:.4g} after {stages} stages, {iterations} iterations; last "
+                      f"stage: {said}", iterations)
 
 
 def _scales(request: GridRequest, x: np.ndarray) -> dict:
