@@ -119,8 +119,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     """The `GridRequest` (data a `ConstrainedBoundary`) and the start's nodes (``None``: the
     straight line); named errors before anything is built."""
     from .at_energy import AtEnergy
-    from .first_guess import Shooting
-    from .fixed_ends import _check_guess, _check_times
+    from .first_guess import Shooting, check_guess, check_times
 
     name = system.name
     if output.checkpoint is not None or output.stop is not None:
@@ -153,9 +152,9 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     if tau_floor >= mean:
         raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
                          f"got {tau_floor!r}")
-    grid_times = _check_times(times, nodes, t0, t1)
+    grid_times = check_times(times, nodes, t0, t1)
     start = None if guess is None or isinstance(guess, str) else \
-        _check_guess(guess, nodes, n, t0, t1)
+        check_guess(guess, nodes, n, t0, t1)
     theta = system.parameter_vector(params)
     moved = {}
     q_start, moved["q_start"] = on_constraint(system, q_start, t0, theta, "q_start")
