@@ -234,3 +234,19 @@ def test_two_constraints_double_pendulum():
     assert solution.constraints.hidden_residual.max() <= 1e-13
     assert solution.constraints.multipliers.shape == (40, 4)
     assert solution.verdict.name == "accurate"
+
+
+def test_a_lagrangian_system_gives_the_hamiltonian_solution():
+    from ddvp_nlp import LagrangianSystem
+
+    def lagrangian(q, v, t, a, b, L):
+        return (v[0] ** 2 + v[1] ** 2) / 2 - a * q[0] - b * q[1]
+
+    system = LagrangianSystem(lagrangian, 2, {"a": 0.0, "b": 1.0, "L": 1.0}, name="lagrangian",
+                              constraints=rod)
+    a0, a1, T = LIBRATION
+    solution = solve_bvp(system, point(a0), point(a1), (0.0, T), nodes=41, scheme="fixed")
+    base = solve(LIBRATION, 41, scheme="fixed")
+    assert solution.status is Status.SUCCESS and solution.verdict.name == "accurate"
+    np.testing.assert_allclose(solution.q, base.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(solution.p, base.p, rtol=0, atol=1e-10)
