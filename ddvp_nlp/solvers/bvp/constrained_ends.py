@@ -29,6 +29,7 @@ an unconstrained fixed-end solution is.
 
 from __future__ import annotations
 
+import sys
 import time
 import warnings
 from dataclasses import dataclass, replace
@@ -286,7 +287,8 @@ def _solve(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str) -> A
         elif solver == "newton":
             result = newton(grid, x0, data, _targets(request, grid, x0, data),
                             tau_floor=-np.inf, max_iter=request.max_iter, linear="sparse",
-                            deadline=request.deadline)
+                            deadline=request.deadline,
+                            progress=_reporter(name) if request.progress else None)
         else:
             problem = request.built(
                 ("constrained_bvp_ipopt", scheme, request.nodes, request.tol,
@@ -319,7 +321,8 @@ def _homotopy(request: GridRequest, grid: ConstrainedGrid, x0: np.ndarray,
         result = newton(grid, x, data, _targets(request, grid, x, data),
                         tau_floor=request.tau_floor, max_iter=min(HOMOTOPY_ITER, max(
                             1, request.max_iter - iterations)), linear="sparse",
-                        deadline=request.deadline, offset=None if s == 1.0 else (1 - s) * F0)
+                        deadline=request.deadline, offset=None if s == 1.0 else (1 - s) * F0,
+                        progress=_reporter(f"s = {s:.4g}") if request.progress else None)
         iterations, stages, said = iterations + result.iterations, stages + 1, result.outcome
         if result.converged:
             x, reached, step = result.x, s, 2 * step
@@ -333,6 +336,13 @@ def _homotopy(request: GridRequest, grid: ConstrainedGrid, x0: np.ndarray,
     return GridResult(x, False, f"the homotopy in the rows' start residual stopped at s = "
                       f"{reached:.4g} after {stages} stages, {iterations} iterations; last "
                       f"stage: {said}", iterations)
+
+
+def _reporter(name: str):
+    def report(iteration, norm, alpha):
+        print(f"constrained bvp [{name}]: iteration {iteration}, |F| = {norm:.3e}, step "
+              f"{alpha:.3g}", file=sys.stderr, flush=True)
+    return report
 
 
 def _scales(request: GridRequest, x: np.ndarray) -> dict:
