@@ -186,22 +186,32 @@ class ConstrainedGrid:
         self._J = ca.Function("constrained_jacobian", [x, P], [F, J])
         colind, row = J.sparsity().get_ccs()
         self._pattern = (np.asarray(row), np.asarray(colind), J.shape)
+        self._dtheta = ca.Function("constrained_rows_theta", [x, P], [
+            ca.jacobian(F, P)[:, :system.theta.numel()]])
         assert J.shape[0] == J.shape[1] == self.layout.size, "the constrained grid is square"
 
     def evaluate(self, x: np.ndarray, data: ConstrainedData, jacobian: bool = True):
         P = data.vector(self.layout.nodes)
         if not jacobian:
             return np.asarray(self._F(x, P), float).ravel(), None
-        F, J = self._J(x, P)
+        _, J = self._J(x, P)
         row, colind, shape = self._pattern
         values = np.asarray(J.nonzeros(), float)  # the output's sparsity is J's
-        return np.asarray(F, float).ravel(), sp.csc_matrix((values, row, colind), shape=shape)
+        # F from the same function with and without J: the same bits (the grid contract)
+        return np.asarray(self._F(x, P), float).ravel(), sp.csc_matrix((values, row, colind),
+                                                                      shape=shape)
 
     def sparse(self, jacobian):
         return jacobian
 
     def release(self) -> None:
         pass
+
+    def parameter_jacobian(self, x: np.ndarray, data: ConstrainedData):
+        """``dF/dtheta`` at ``x``, ``(size, len(theta))``, sparse (the rows' own derivative)."""
+        D = self._dtheta(x, data.vector(self.layout.nodes))
+        return sp.csc_matrix(D.sparse()) if hasattr(D, "sparse") else sp.csc_matrix(
+            np.asarray(D, float))
 
     def parts(self, x: np.ndarray, data: ConstrainedData) -> dict:
         """The unscaled rows of ``x``: ``interval`` (N-1, 2n), ``g`` and ``hidden`` (N, m) at
