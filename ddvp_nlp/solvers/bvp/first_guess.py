@@ -35,13 +35,17 @@ with fixed steps there (``_from_nodes``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
 from ...discrete.scheme import Scheme
+from ...errors import InputError
 from ...physics.hamiltonian import site_density_weight_function
+from ...solution import Solution
+from ...validation import check_finite_array
 from ..grid.maps import evaluate_blocks
 from ..grid.newton import NaturalMonotonicity, newton
 from ..grid.policy import Stage
@@ -489,3 +493,48 @@ def branch_obstacle(request: GridRequest[Boundary], start: dict) -> str | None:
             f"(t in [{t[bad[0]]:.6g}, {t[bad[-1] + 1]:.6g}]), where the energy rules have no "
             f"positive step: this branch probably has no {request.scheme.rule} solution; give "
             f"a start on another branch (guess='march' with p_start, or nodes)")
+
+
+def check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
+    """The fixed rule's node times: uniform by default, else ``nodes`` increasing values from
+    ``t0`` to ``t1``."""
+    if times is None:
+        return np.linspace(t0, t1, nodes)
+    try:
+        grid_times = np.asarray(times, float)
+    except (TypeError, ValueError):
+        grid_times = np.zeros(0)
+    if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
+            or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
+        raise InputError(f"times must be {nodes} increasing finite values from t_0 to "
+                         f"t_end, got {times!r}")
+    return grid_times
+
+
+def check_guess(guess, nodes, n, t0, t1) -> dict:
+    """The guess's ``t``, ``q``, ``p`` on ``nodes`` rows: as given, or resampled by node index
+    (linear interpolation between the guess's rows, so that its step distribution is kept) with
+    the times mapped affinely onto ``[t0, t1]``."""
+    if isinstance(guess, Solution):
+        guess = {"t": guess.t, "q": guess.q, "p": guess.p}
+    if not isinstance(guess, Mapping) or not {"t", "q", "p"} <= set(guess):
+        raise InputError("guess must be a Solution or a mapping with t, q and p")
+    rows = np.shape(guess["t"])[0] if np.ndim(guess["t"]) == 1 else -1
+    if rows < 2:
+        raise InputError(f"guess['t'] must be a vector of at least 2 times, got shape "
+                         f"{np.shape(guess['t'])}")
+    shapes = {"t": (rows,), "q": (rows, n), "p": (rows, n)}
+    result = {}
+    for key, shape in shapes.items():
+        result[key] = check_finite_array(f"guess[{key!r}]", guess[key], shape)
+    if np.any(np.diff(result["t"]) <= 0):
+        raise InputError("guess['t'] must increase")
+    if rows == nodes:
+        return result
+    index = np.linspace(0.0, rows - 1, nodes)
+    old = np.arange(rows)
+    t = np.interp(index, old, result["t"])
+    t = t0 + (t - t[0]) * (t1 - t0) / (t[-1] - t[0])
+    t[0], t[-1] = t0, t1
+    return {"t": t, **{key: np.column_stack([np.interp(index, old, c) for c in result[key].T])
+                       for key in ("q", "p")}}

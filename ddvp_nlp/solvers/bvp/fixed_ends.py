@@ -48,10 +48,9 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
-from ...physics.constraints import refuse_constrained
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import EndsRecord, Solution, Status
-from ...validation import check_finite_array, check_integer, check_real, check_span, check_state
+from ...validation import check_integer, check_real, check_span, check_state
 from ..accuracy.judgement import Judgement, Level, judge, motion_scales
 from ..columns import row_max_abs
 from ..compiler import find_compiler
@@ -62,7 +61,7 @@ from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, answers_removed_keywords, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
 from .end_derivatives import bvp_derivatives, check_derivatives
-from .first_guess import Shooting, branch_obstacle, start_point
+from .first_guess import Shooting, branch_obstacle, check_guess, check_times, start_point
 from .interleaved import NodeLayout
 from .phases import (
     EPS,
@@ -133,8 +132,14 @@ def solve_bvp(system: HamiltonianSystem, q_start, q_end, t_span=None, *, nodes: 
         several solutions it is), and whose ``stats`` hold the solver's counts; failures are a
         status on it.
     """
-    refuse_constrained(system, "solve_bvp")
     output = coerce(output, Output, "output")
+    if getattr(system, "n_constraints", 0):  # constrained_ends.py: the rows of g = 0 too
+        from .constrained_ends import solve_constrained_bvp
+        return solve_constrained_bvp(
+            system, q_start, q_end, t_span, nodes=nodes, scheme=scheme, params=params,
+            guess=guess, times=times, options=coerce(options, GridOptions, "options"),
+            compilation=coerce(compilation, Compilation, "compilation"), output=output,
+            derivatives=derivatives)
     names = check_derivatives(system, derivatives, t_span)
     if output.checkpoint is not None or output.stop is not None:
         raise InputError("solve_bvp reports progress only (Output(progress=...)); checkpoint "
@@ -260,7 +265,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     if tau_floor >= mean:
         raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
                          f"got {tau_floor!r}")
-    grid_times = _check_times(times, nodes, t0, t1)
+    grid_times = check_times(times, nodes, t0, t1)
     p_start = None
     if isinstance(guess, Shooting):
         start = "march"
@@ -272,7 +277,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
         raise InputError(f"unknown guess {guess!r} (choose from {', '.join(GUESSES)}, or give "
                          f"Shooting(p_start), a Solution or a mapping with t, q and p)")
     else:
-        start = _check_guess(guess, nodes, n, t0, t1)
+        start = check_guess(guess, nodes, n, t0, t1)
     request = GridRequest(system, scheme, nodes, system.parameter_vector(params),
                           Boundary(q_start, q_end, t0, t1, grid_times, p_start), options,
                           compilation, tau_floor=tau_floor, progress=output.progress)
@@ -457,48 +462,3 @@ def _accuracy(request: GridRequest, t, q, p):
                           f"exact flow on {shot.cuts.size - 1} segments: p_0 = "
                           f"{shot.p0.tolist()})")
     return report, local
-
-
-def _check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:
-    """The fixed rule's node times: uniform by default, else ``nodes`` increasing values from
-    ``t0`` to ``t1``."""
-    if times is None:
-        return np.linspace(t0, t1, nodes)
-    try:
-        grid_times = np.asarray(times, float)
-    except (TypeError, ValueError):
-        grid_times = np.zeros(0)
-    if grid_times.shape != (nodes,) or not np.all(np.isfinite(grid_times)) \
-            or grid_times[0] != t0 or grid_times[-1] != t1 or np.any(np.diff(grid_times) <= 0):
-        raise InputError(f"times must be {nodes} increasing finite values from t_0 to "
-                         f"t_end, got {times!r}")
-    return grid_times
-
-
-def _check_guess(guess, nodes, n, t0, t1) -> dict:
-    """The guess's ``t``, ``q``, ``p`` on ``nodes`` rows: as given, or resampled by node index
-    (linear interpolation between the guess's rows, so that its step distribution is kept) with
-    the times mapped affinely onto ``[t0, t1]``."""
-    if isinstance(guess, Solution):
-        guess = {"t": guess.t, "q": guess.q, "p": guess.p}
-    if not isinstance(guess, Mapping) or not {"t", "q", "p"} <= set(guess):
-        raise InputError("guess must be a Solution or a mapping with t, q and p")
-    rows = np.shape(guess["t"])[0] if np.ndim(guess["t"]) == 1 else -1
-    if rows < 2:
-        raise InputError(f"guess['t'] must be a vector of at least 2 times, got shape "
-                         f"{np.shape(guess['t'])}")
-    shapes = {"t": (rows,), "q": (rows, n), "p": (rows, n)}
-    result = {}
-    for key, shape in shapes.items():
-        result[key] = check_finite_array(f"guess[{key!r}]", guess[key], shape)
-    if np.any(np.diff(result["t"]) <= 0):
-        raise InputError("guess['t'] must increase")
-    if rows == nodes:
-        return result
-    index = np.linspace(0.0, rows - 1, nodes)
-    old = np.arange(rows)
-    t = np.interp(index, old, result["t"])
-    t = t0 + (t - t[0]) * (t1 - t0) / (t[-1] - t[0])
-    t[0], t[-1] = t0, t1
-    return {"t": t, **{key: np.column_stack([np.interp(index, old, c) for c in result[key].T])
-                       for key in ("q", "p")}}

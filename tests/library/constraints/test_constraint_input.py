@@ -15,7 +15,6 @@ from ddvp_nlp import (
     continue_march,
     march,
     march_ensemble,
-    solve_bvp,
     solve_periodic,
 )
 
@@ -79,7 +78,6 @@ def circle(q, t):
 
 
 @pytest.mark.parametrize("call, words", [
-    (lambda s: solve_bvp(s, [0.0, -1.0], [1.0, 0.0], (0, 1), nodes=11), "solve_bvp"),
     (lambda s: solve_periodic(s, energy=0.0, nodes=11), "solve_periodic"),
     (lambda s: march_ensemble(s, [[0.0, -1.0]], [[1.0, 0.0]], (0, 1), tau0=0.1), "constrain"),
     (lambda s: march(s, [0.0, -1.0], None, (0, 1), tau0=0.1, v0=[1.0, 0.0]), "v0"),

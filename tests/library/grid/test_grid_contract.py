@@ -170,7 +170,28 @@ def _assemblies(seed: int):
     y = np.r_[found[-2][2], 0.1 + rng.normal()]
     found.append(("periodic arclength", arc, y,
                   _Arc(found[-2][3], rng.normal(size=y.size), y + rng.normal(size=y.size), 0.2)))
-    return found + _bvp_problems(rng)
+    return found + _bvp_problems(rng) + [_constrained(rng)]
+
+
+def _constrained(rng):
+    """The constrained fixed ends' grid (``bvp/constrained_grid.py``) on the Cartesian pendulum
+    with its gravity and length as parameters."""
+    from ddvp_nlp import HamiltonianSystem
+    from ddvp_nlp.solvers.bvp.constrained_grid import ConstrainedData, ConstrainedGrid
+
+    def H(q, p, t, b, L):
+        return (p[0] ** 2 + p[1] ** 2) / 2 + b * q[1]
+
+    def rod(q, t, b, L):
+        return q[0] ** 2 + q[1] ** 2 - L ** 2
+    system = HamiltonianSystem(H, 2, {"b": 1.0, "L": 1.0}, name="rod", constraints=rod)
+    nodes = int(rng.integers(5, 30))
+    grid = ConstrainedGrid(system, Scheme("vddvp"), nodes)
+    x = rng.normal(size=grid.layout.size)
+    x[grid.layout.time_index()] = np.sort(rng.random(nodes)) + np.arange(nodes)
+    data = ConstrainedData(rng.normal(size=2), rng.normal(size=2), np.array([0.0, 1.0]),
+                           np.array([1.0, 1.2]), 0.7)
+    return ("bvp constrained", grid, x, data)
 
 
 def _bvp_problems(rng):
