@@ -34,7 +34,9 @@ SHELL = {"bash", "sh", "console", "shell"}
 # on this 2-core machine under load)
 CPU_SECONDS = 600
 # pages whose python blocks cost more than a few seconds: run with -m slow
-SLOW_PAGES = {"README.md", "docs/guide.md"}
+# (the search and gradient pages repeat what tests/library/periodic/test_search*.py and
+# tests/library/marching/test_*gradient*.py check in the default run)
+SLOW_PAGES = {"README.md", "docs/guide.md", "docs/periodic/search.md", "docs/gradients.md"}
 
 
 def blocks(page: Path, kinds: set[str]):

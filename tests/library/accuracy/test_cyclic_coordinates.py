@@ -104,6 +104,7 @@ def rotor_pair():
                              + 0.3 * (1 - ca.cos(q[0] - q[1])), 2, name="rotor_pair")
 
 
+@pytest.mark.slow(why="repetition")
 def test_a_winding_angle_counts_one_turn_for_itself_and_the_others():
     """Before, the pendulum's angle was judged against a tenth of the rotor's winding (14 rad
     at t = 50, 116 rad at t = 400) and the energy against 28-225 for |H| about 5."""

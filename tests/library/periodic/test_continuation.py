@@ -125,6 +125,7 @@ def test_the_continuation_passes_a_fold_located_against_the_closed_form():
     assert abs(np.log2(errors[0] / errors[1]) - 2) < 0.2, errors
 
 
+@pytest.mark.slow(why="study")
 def test_period_doubling_on_the_henon_heiles_axis_family():
     """The orbit on the axis x = 0 loses stability through -1 at E = 0.135286 (exact flow);
     at N = 100 the continuation finds the period doubling within 3e-4 of it, confirmed."""

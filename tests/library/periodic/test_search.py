@@ -46,6 +46,7 @@ def lyapunov_search():
                                 seeds=200, refine=False)
 
 
+@pytest.mark.slow(why="study")
 def test_lyapunov_orbits_about_both_libration_points(lyapunov_search):
     """Issue 46: the Lyapunov orbits at E = -2.14 (period 3.0396555) about L1 and L2."""
     lyapunov = [o for o in lyapunov_search.orbits if abs(o.period - 3.0396555) < 1e-6]
@@ -125,6 +126,7 @@ def reference_periods(lyapunov_search):
     return np.sort(periods(lyapunov_search))
 
 
+@pytest.mark.slow(why="repetition")
 def test_an_energy_offset_finds_the_same_orbits(reference_periods):
     shifted = _lyapunov_periods(HILL, -2.14 + 0.75, section="q2=0", reversing=REVERSING,
                                 params={"shift": 0.75})

@@ -52,6 +52,7 @@ def test_the_same_ensemble_on_a_local_cluster_gives_the_same_crossings():
     assert alone.statuses == spread.statuses
 
 
+@pytest.mark.slow(why="processes")
 def test_the_command_line_runs_the_section_on_a_cluster_it_starts(tmp_path, capsys):
     """``ddvp poincare --cluster local:workers=2``: the cluster started for the run, the
     orbits marched on its workers, the crossings those of one process (``--workers 1``)."""

@@ -87,6 +87,7 @@ def test_a_scene_is_put_back_where_it_was_found(tmp_path, monkeypatch):
     assert mask != 0
 
 
+@pytest.mark.slow(why="processes")
 def test_a_scene_that_defeats_the_timers_is_ended_from_outside(tmp_path):
     """It ignores the timers' signals and loops: only another process can end it."""
     scene(tmp_path, "import signal\nfor s in (signal.SIGALRM, signal.SIGPROF):\n"

@@ -125,6 +125,7 @@ wells = st.one_of(
               st.floats(0.05, 1.0)))
 
 
+@pytest.mark.slow(why="repetition")
 @settings(max_examples=3, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(wells)
