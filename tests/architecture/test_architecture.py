@@ -5,6 +5,7 @@ only the parts below it; the workbench and the scripts use only public names (a 
 every module once; no function or class grows past the size a reader can hold."""
 
 import ast
+import functools
 import importlib
 import re
 from pathlib import Path
@@ -43,6 +44,12 @@ MAX_FUNCTION_LINES = 80
 MAX_CLASS_LINES = 200
 
 
+@functools.cache
+def parsed(path: Path) -> ast.Module:
+    """``path``'s syntax tree, parsed once for all the tests of this file (they only read it)."""
+    return ast.parse(path.read_text())
+
+
 def modules() -> dict[str, Path]:
     found = {}
     for path in PACKAGE.rglob("*.py"):
@@ -72,7 +79,7 @@ def imports(name: str, path: Path) -> set[str]:
         if not names:
             result.add(target)
 
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.ImportFrom) and node.level:
             base = package[:len(package) - node.level + 1]
             add(".".join(base + ([node.module] if node.module else [])),
@@ -188,7 +195,7 @@ def sizes():
     """``(kind, qualified name, lines)`` of every function and class in the package, counted
     from the ``def`` to the last line, without the docstring (a long Args list is welcome)."""
     for name, path in modules().items():
-        tree = ast.parse(path.read_text())
+        tree = parsed(path)
         for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
                 kind = "class" if isinstance(node, ast.ClassDef) else "function"
@@ -296,7 +303,7 @@ def private_uses(path: Path) -> list[str]:
     """Private names (``_x``) this module takes from another one: imported by name, or read as
     an attribute of anything but ``self`` and ``cls``."""
     found = []
-    tree = ast.parse(path.read_text())
+    tree = parsed(path)
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "")
                                                   .startswith("ddvp_nlp")):
@@ -370,7 +377,7 @@ def foreign_assignments(path: Path, package: list[str] | None = None) -> list[st
     """Assignments into another package module's namespace (``module.NAME = ...``,
     ``module.TABLE[key] = ...``): a registry filled by an import's side effect, or a global
     switched from outside."""
-    tree = ast.parse(path.read_text())
+    tree = parsed(path)
     bound = bound_modules(tree, package or [])
     found = []
     for node in ast.walk(tree):
@@ -424,7 +431,7 @@ def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
     root = PACKAGE.parent
     switched = []
     for path in [*(root / "tests").rglob("*.py"), *(root / "scripts").rglob("*.py")]:
-        tree = ast.parse(path.read_text())
+        tree = parsed(path)
         for node in ast.walk(tree):
             if isinstance(node, ast.Call) and _switches_a_setting(node):
                 switched.append(f"{path.name}: {ast.unparse(node)}")
@@ -453,7 +460,7 @@ def public_name_violations(path: Path, package: list[str] | None, faces: dict) -
     not in the face's ``__all__``. ``faces``: face module -> its ``__all__``; ``package``: the
     importing module's package (``None`` outside ddvp_nlp)."""
     wrong = []
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Import):
             wrong += [f"import {a.name} (line {node.lineno})" for a in node.names
                       if a.name.startswith("ddvp_nlp.") and
@@ -617,7 +624,7 @@ def test_every_slow_mark_says_why_in_its_own_file():
     for file in sorted((ROOT / "tests").rglob("*.py")):
         if file.name == "conftest.py":  # marks the cases its predicates chose, why= passed on
             continue
-        tree = ast.parse(file.read_text())
+        tree = parsed(file)
         calls = {id(c.func): c for c in ast.walk(tree) if isinstance(c, ast.Call)}
         for node in filter(is_slow_mark, ast.walk(tree)):
             marks += 1

@@ -137,6 +137,7 @@ def test_without_a_compiler_the_virtual_machine_is_used(monkeypatch, tmp_path):
     np.testing.assert_allclose(fast.q, careful.q, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow(why="processes")
 def test_two_processes_building_one_cache_entry_at_once(tmp_path):
     import subprocess
     import sys
