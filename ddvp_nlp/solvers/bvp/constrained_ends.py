@@ -42,12 +42,10 @@ from ...physics.constraints import check_start_constraints, constraint_function
 from ...physics.hamiltonian import derivatives_function
 from ...solution import EndsRecord, Solution, Status
 from ...validation import check_integer, check_real, check_span, check_state
-from ..accuracy.judgement import Judgement, judge, motion_scales
+from ..accuracy.judgement import judge
 from ..columns import row_max_abs
-from ..compiler import find_compiler
 from ..dense import attach
 from ..exact.constrained_flow import multipliers_function, projection_function
-from ..exact.shooting import shoot
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, GridResult
@@ -57,6 +55,7 @@ from .constrained_grid import (
     ConstrainedIpopt,
     ConstrainedLayout,
 )
+from .continuous_check import judged_against_shooting
 
 EPS = np.finfo(float).eps
 TARGET_ULPS = 16
@@ -469,28 +468,7 @@ def _accuracy(request: GridRequest, t, q, p):
     grid's by multiple shooting (``exact/shooting.py``, the flow index-reduced and projected),
     each interval against the exact flow, the nodal energy; no level test (the constraint
     forces do not change the interval energies the energy rows hold, as for the march)."""
-    system, tolerance = request.system, request.options.accuracy
-    compiler = find_compiler(request.compilation.compiler)
-    check = Judgement(system, request.theta, tolerance, compiler=compiler,
-                      cache_dir=request.compilation.cache_dir)
-    z = np.hstack([q, p])
-    shot = shoot(system, request.theta, t, z, q[-1], motion_scales(
-        z.min(axis=0), z.max(axis=0), np.abs(z).max(axis=0), system.n), compiler=compiler,
-        cache_dir=request.compilation.cache_dir)
-    if shot.trajectory is None:
-        report, local = check.report(t, z)
-        if report["verdict"] == "inaccurate":
-            return report, local
-        report["verdict"] = "inaccurate"
-        report["first_failure"] = {"step": t.size - 2, "t": float(t[-2]),
-                                   "test": "continuous solution", "value": None,
-                                   "limit": tolerance.global_tol, "detail": shot.reason}
-        return report, local
-    report, local = check.report(t, z, exact=shot.states)
-    report["estimate"] = (f"the continuous constrained solution near this one (multiple "
-                          f"shooting with the constrained exact flow on {shot.cuts.size - 1} "
-                          f"segments: p_0 = {shot.p0.tolist()})")
-    return report, local
+    return judged_against_shooting(request, t, q, p, flow="constrained exact flow")
 
 
 __all__ = ["ConstrainedEndsRecord", "on_constraint", "solve_constrained_bvp", "verify"]

@@ -51,15 +51,14 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import EndsRecord, Solution, Status
 from ...validation import check_integer, check_real, check_span, check_state
-from ..accuracy.judgement import Judgement, Level, judge, motion_scales
+from ..accuracy.judgement import Level, judge
 from ..columns import row_max_abs
-from ..compiler import find_compiler
 from ..dense import attach
-from ..exact.shooting import shoot
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, answers_removed_keywords, coerce
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
+from .continuous_check import judged_against_shooting
 from .end_derivatives import bvp_derivatives, check_derivatives
 from .first_guess import Shooting, branch_obstacle, check_guess, check_times, start_point
 from .interleaved import NodeLayout
@@ -434,31 +433,12 @@ def _accuracy(request: GridRequest, t, q, p):
     discrete solution can exist where no motion does: its end error, small beside a huge
     motion, says nothing then)."""
     system, scheme = request.system, request.scheme
-    tolerance = request.options.accuracy
     level = None
     if scheme.variable_steps:
         value = float(equations.interval_energies(system, scheme, t[:2], q[:2], p[:2],
                                                   request.theta)[0])
         level = Level(value, float(t[0] + (t[1] - t[0]) / 2 if scheme.clock == "midpoint"
                                    else t[0]))
-    compiler = find_compiler(request.compilation.compiler)
-    check = Judgement(system, request.theta, tolerance, compiler=compiler,
-                      cache_dir=request.compilation.cache_dir)
-    z = np.hstack([q, p])
-    shot = shoot(system, request.theta, t, z, q[-1], motion_scales(
-        z.min(axis=0), z.max(axis=0), np.abs(z).max(axis=0), system.n), compiler=compiler,
-        cache_dir=request.compilation.cache_dir)
-    if shot.trajectory is None:
-        report, local = check.report(t, z, level=level)
-        if report["verdict"] == "inaccurate":
-            return report, local
-        report["verdict"] = "inaccurate"
-        report["first_failure"] = {"step": t.size - 2, "t": float(t[-2]),
-                                   "test": "continuous solution", "value": None,
-                                   "limit": tolerance.global_tol, "detail": shot.reason}
-        return report, local
-    report, local = check.report(t, z, level=level, exact=shot.states)
-    report["estimate"] = (f"the continuous solution near this one (multiple shooting with the "
-                          f"exact flow on {shot.cuts.size - 1} segments: p_0 = "
-                          f"{shot.p0.tolist()})")
-    return report, local
+    return judged_against_shooting(request, t, q, p, level=level)
+
+
