@@ -38,8 +38,8 @@ def run_periodic(args) -> int:
         refuse_search_flags(args)
     if getattr(args, "switch", None) is not None:
         if args.follow is None:
-            raise InputError(f"--switch {args.switch} needs --follow E_END: branches are "
-                             f"switched onto at a branch point located on a followed family")
+            raise InputError("--switch needs --follow E_END: branches are "
+                             "switched onto at a branch point located on a followed family")
         check_integer("--switch", args.switch, minimum=2)
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()

@@ -1197,7 +1197,7 @@ def range_cases() -> list[Case]:
 # refused by its flag before any orbit is solved; a followed family with no branch point says
 # there is nothing to switch onto (exit 2, after the family is written).
 SWITCHES = [
-    (["--energy", "0.5", "--switch", "3"], "--switch 3 needs --follow"),
+    (["--energy", "0.5", "--switch", "3"], "--switch needs --follow"),
     (["--energy", "0.5", "--follow", "0.6", "--switch", "1"],
      "--switch must be an integer >= 2, got 1"),
     (["--energy", "0.5", "--follow", "0.6", "--switch", "-4"],
@@ -1206,7 +1206,7 @@ SWITCHES = [
      "argument --switch: invalid int value"),
     (["--energy", "0.5", "--follow", "0.6", "--switch", "2.5"],
      "argument --switch: invalid int value"),
-    (["--energy", "0.5", "--family", "0.5:0.6:3", "--switch"], "--switch 20 needs --follow"),
+    (["--energy", "0.5", "--family", "0.5:0.6:3", "--switch"], "--switch needs --follow"),
 ]
 
 

@@ -165,7 +165,7 @@ def test_a_switch_that_is_not_one_is_refused_before_any_orbit():
 
 
 @pytest.mark.parametrize("argv, text", [
-    (["--energy", "0.5", "--switch", "3"], "--switch 3 needs --follow E_END"),
+    (["--energy", "0.5", "--switch", "3"], "--switch needs --follow E_END"),
     (["--energy", "0.5", "--follow", "0.6", "--switch", "1"],
      "--switch must be an integer >= 2, got 1"),
     (["--energy", "0.5", "--follow", "0.6", "--switch", "x"],
