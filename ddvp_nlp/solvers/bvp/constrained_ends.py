@@ -41,7 +41,7 @@ from ...errors import InputError
 from ...physics.constraints import check_start_constraints, constraint_function
 from ...physics.hamiltonian import derivatives_function
 from ...solution import EndsRecord, Solution, Status
-from ...validation import check_integer, check_real, check_span, check_state
+from ...validation import check_integer, check_span, check_state
 from ..accuracy.judgement import judge
 from ..columns import row_max_abs
 from ..dense import attach
@@ -119,7 +119,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     """The `GridRequest` (data a `ConstrainedBoundary`) and the start's nodes (``None``: the
     straight line); named errors before anything is built."""
     from .at_energy import AtEnergy
-    from .first_guess import Shooting, check_guess, check_times
+    from .first_guess import Shooting, check_guess, check_tau_floor, check_times
 
     name = system.name
     if output.checkpoint is not None or output.stop is not None:
@@ -146,12 +146,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     t0, t1 = check_span(t_span)
     nodes = check_integer("nodes", nodes, minimum=3)
     options = options.resolved(max_iter=DEFAULT_MAX_ITER)
-    mean = (t1 - t0) / (nodes - 1)
-    tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None
-                           else options.tau_floor, positive=True)
-    if tau_floor >= mean:
-        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
-                         f"got {tau_floor!r}")
+    tau_floor = check_tau_floor(options.tau_floor, t0, t1, nodes)
     grid_times = check_times(times, nodes, t0, t1)
     start = None if guess is None or isinstance(guess, str) else \
         check_guess(guess, nodes, n, t0, t1)

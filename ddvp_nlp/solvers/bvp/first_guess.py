@@ -45,7 +45,7 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import site_density_weight_function
 from ...solution import Solution
-from ...validation import check_finite_array
+from ...validation import check_finite_array, check_real
 from ..grid.maps import evaluate_blocks
 from ..grid.newton import NaturalMonotonicity, newton
 from ..grid.policy import Stage
@@ -493,6 +493,18 @@ def branch_obstacle(request: GridRequest[Boundary], start: dict) -> str | None:
             f"(t in [{t[bad[0]]:.6g}, {t[bad[-1] + 1]:.6g}]), where the energy rules have no "
             f"positive step: this branch probably has no {request.scheme.rule} solution; give "
             f"a start on another branch (guess='march' with p_start, or nodes)")
+
+
+def check_tau_floor(tau_floor, t0: float, t1: float, nodes: int) -> float:
+    """The fixed-end grid's least step: ``tau_floor`` (default a thousandth of the mean step
+    ``(t1 - t0) / (nodes - 1)``), positive and below the mean step, or refused by name."""
+    mean = (t1 - t0) / (nodes - 1)
+    floor = check_real("tau_floor", 1e-3 * mean if tau_floor is None else tau_floor,
+                       positive=True)
+    if floor >= mean:
+        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
+                         f"got {floor!r}")
+    return floor
 
 
 def check_times(times, nodes: int, t0: float, t1: float) -> np.ndarray:

@@ -50,7 +50,7 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import EndsRecord, Solution, Status
-from ...validation import check_integer, check_real, check_span, check_state
+from ...validation import check_integer, check_span, check_state
 from ..accuracy.judgement import Level, judge
 from ..columns import row_max_abs
 from ..dense import attach
@@ -60,7 +60,14 @@ from ..options import Compilation, GridOptions, Output, answers_removed_keywords
 from .at_energy import AtEnergy, check_transfer, duration_guess, fixed_time_start, release_end_time
 from .continuous_check import judged_against_shooting
 from .end_derivatives import bvp_derivatives, check_derivatives
-from .first_guess import Shooting, branch_obstacle, check_guess, check_times, start_point
+from .first_guess import (
+    Shooting,
+    branch_obstacle,
+    check_guess,
+    check_tau_floor,
+    check_times,
+    start_point,
+)
 from .interleaved import NodeLayout
 from .phases import (
     EPS,
@@ -258,12 +265,7 @@ def _checked(system, q_start, q_end, t_span, *, nodes, scheme, params, guess, ti
     nodes = check_integer("nodes", nodes, minimum=3)
     options = options.resolved(max_iter=DEFAULT_MAX_ITER)
     _check_memory(nodes, n, options.solver)
-    mean = (t1 - t0) / (nodes - 1)
-    tau_floor = check_real("tau_floor", 1e-3 * mean if options.tau_floor is None
-                           else options.tau_floor, positive=True)
-    if tau_floor >= mean:
-        raise InputError(f"tau_floor must be < (t_end - t_0)/(nodes - 1) = {mean!r}, "
-                         f"got {tau_floor!r}")
+    tau_floor = check_tau_floor(options.tau_floor, t0, t1, nodes)
     grid_times = check_times(times, nodes, t0, t1)
     p_start = None
     if isinstance(guess, Shooting):
