@@ -56,8 +56,23 @@ def time_reversed(system: HamiltonianSystem) -> HamiltonianSystem:
                 else ca.SX(0, 1)
             return ca.substitute(expression, old, ca.vertcat(q, -second_new, -t, theta))
         kind = LagrangianSystem if lagrangian else HamiltonianSystem
-        return kind(reversed_function, system.n, dict(system.params), name=system.name)
+        return kind(reversed_function, system.n, dict(system.params), name=system.name,
+                    constraints=_reversed_constraints(system))
     return cached(system, "time_reversed", build)
+
+
+def _reversed_constraints(system):
+    """``g(q, -t)`` of a system with holonomic constraints (``None`` without): the reversed
+    march keeps the same positions on the same constraint surfaces, met at ``s = -t``."""
+    if not getattr(system, "n_constraints", 0):
+        return None
+    old = ca.vertcat(system.q, system.t, system.theta)
+
+    def reversed_g(q, t, **params):
+        theta = ca.vertcat(*[params[name] for name in system.params]) if system.params \
+            else ca.SX(0, 1)
+        return ca.substitute(system.G, old, ca.vertcat(q, -t, theta))
+    return reversed_g
 
 
 def march_backward(march, system, q0, p0, t_span, *, v0, output, **options):
@@ -163,4 +178,8 @@ def _forward(solution, system, t_end: float):
         solution.march.backward = True
     theta = solution.march.theta if solution.march is not None else system.parameter_vector()
     theta = np.asarray(theta, dtype=float)
+    if getattr(system, "n_constraints", 0):  # Solution.at on the constrained field
+        from .constrained_march import attach_constrained
+
+        return attach_constrained(solution, system, theta, t_end)
     return attach(solution, system, theta, t_end)
