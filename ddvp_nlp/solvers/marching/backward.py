@@ -6,7 +6,11 @@ dp/dt = -H_q = -K_Q``. So a backward march of ``H`` from ``t0`` to ``t_end`` is 
 of ``K`` from ``-t0`` to ``-t_end`` from ``(q0, -p0)``, mapped back node by node: every equation
 the scheme solves, the accuracy check against the exact flow (of ``K``, which is ``H``'s flow
 run backwards) and the step bounds are the forward march's own. A Lagrangian ``L(q, v, t)``
-becomes ``L(Q, -V, -s)`` likewise, and ``v0`` becomes ``-v0``. The returned `Solution` is in
+becomes ``L(Q, -V, -s)`` likewise, and ``v0`` becomes ``-v0``. Holonomic constraints
+``g(q, t)`` become ``g(Q, -s)``: the same positions on the same surfaces, so the reversed
+march keeps ``g(q_k, t_k) = 0`` in the original time; its hidden constraint is the original's
+with the sign of ``p`` and ``t`` changed, and the record's multipliers are the reversed
+march's, step by step in the order of the returned nodes. The returned `Solution` is in
 ``t``: decreasing times, negative steps ``tau = diff(t)``, ``p`` and the states at ``t_eval``
 and events in the original signs, the verdict's times (``t_drift``, ...) negated, and its
 dense output on ``H``'s own vector field.
@@ -178,8 +182,4 @@ def _forward(solution, system, t_end: float):
         solution.march.backward = True
     theta = solution.march.theta if solution.march is not None else system.parameter_vector()
     theta = np.asarray(theta, dtype=float)
-    if getattr(system, "n_constraints", 0):  # Solution.at on the constrained field
-        from .constrained_march import attach_constrained
-
-        return attach_constrained(solution, system, theta, t_end)
     return attach(solution, system, theta, t_end)

@@ -11,11 +11,14 @@ other guesses of ``tau``). The one step loop (``solvers/driver.py``) runs it, so
 ``time_limit``, Ctrl-C, ``Output.events`` and the cut at ``t_end`` are the march's own; ``t_eval``
 and ``Solution.at`` interpolate with the constrained field's slopes.
 
+A backward span (``t_end < t0``) is the forward march of the time-reversed system, which
+carries the constraint ``g(q, -t)`` (``backward.py``), mapped back. `continue_constrained`
+(`continue_march`) goes on from a `MarchState` with the carried drift and last multipliers;
+the earlier steps' multipliers are recovered from their interval rows (`recover_multipliers`).
+`march_ensemble` checks and projects every start first (`check_ensemble_starts`).
 What it does not do yet is refused by name before anything is built (`refuse_unsupported`):
-a backward span, ``v0``, ``target_error``, ``derivatives``, thinned output, checkpoints,
-least-squares breakdown steps, step bounds. The accuracy check is not made: the exact flow does
-not know constraints yet, so the run is returned unjudged (``Solution.verdict`` is ``None`` and
-``accuracy_skipped`` says why), never called accurate.
+``v0``, ``target_error``, ``derivatives``, thinned output, least-squares breakdown steps, an
+energy guard. The accuracy check is made against the constrained exact flow (`_judged`).
 
 ``Solution.constraints`` (a `ConstraintRecord`) holds, per node, ``|g|`` and the hidden
 constraint's residual, the multipliers of every step, its Newton updates and what the
@@ -274,11 +277,11 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
     refuse_unsupported(system, v0=v0, target_error=target_error,
                        derivatives=derivatives, output=output, steps=steps)
     if is_backward(t_span):  # the forward march of H(q, -p, -t) on g(q, -t), mapped back
-        from .initial_value import march
-
-        return march_backward(march, system, q0, p0, t_span, tau0=tau0, v0=None,
-                              scheme=scheme, params=params, steps=steps, accuracy=accuracy,
-                              compilation=compilation, output=output)
+        solution = march_backward(_reversed_march, system, q0, p0, t_span, tau0=tau0, v0=None,
+                                  scheme=scheme, params=params, steps=steps,
+                                  accuracy=accuracy, compilation=compilation, output=output)
+        theta = np.asarray(solution.march.theta, float)
+        return attach_constrained(solution, system, theta, solution.t_end)
     if output.t_eval is not None:
         count = output.t_eval.size
         check_memory("len(t_eval)", count, count * 8.0 * (8 + 16 * system.n),
@@ -356,6 +359,13 @@ def continue_constrained(system, state, t_end, *, tau0, scheme, params, steps, a
                              tau0=tau0, v0=None, scheme=scheme, params=params, steps=steps,
                              accuracy=accuracy, compilation=compilation, output=output,
                              target_error=None, derivatives=(), start=state)
+
+
+def _reversed_march(system, q0, p0, t_span, *, v0, output, **options) -> Solution:
+    """`march_constrained` as ``backward.march_backward`` calls a march (the options are
+    objects already)."""
+    return march_constrained(system, q0, p0, t_span, v0=v0, output=output, target_error=None,
+                             derivatives=(), **options)
 
 
 def attach_constrained(solution: Solution, system, theta, t_end) -> Solution:
