@@ -229,3 +229,17 @@ def test_the_edges_on_the_compiled_path_and_forked_workers(scheme):
                              tau0=0.01, scheme=scheme, workers=2)
     assert np.abs(members[0].q - forward.q).max() <= newton_bound(forward, forward.t.size)
     assert all(m.verdict.name == "accurate" for m in members)
+
+
+@pytest.mark.slow(why="study")
+def test_a_drifted_backward_march_says_when_in_its_own_time():
+    """Released at rest at 1 rad, q(-t) = q(t) (the pendulum is reversible), so a coarse
+    backward march drifts where the forward one does, at -t."""
+    start = [np.sin(1.0), -np.cos(1.0)]
+    forward = march(pendulum(), start, [0.0, 0.0], (0, 30), tau0=0.1, scheme="fixed")
+    back = march(pendulum(), start, [0.0, 0.0], (0, -30), tau0=0.1, scheme="fixed")
+    assert forward.verdict.name == back.verdict.name == "drifted"
+    assert forward.verdict.t_drift > 0
+    assert abs(back.verdict.t_drift + forward.verdict.t_drift) <= 0.1 + 1e-9
+    assert np.abs(back.q - forward.q).max() <= 1e-12  # q(-t) = q(t), p(-t) = -p(t)
+    assert np.abs(back.p + forward.p).max() <= 1e-12
