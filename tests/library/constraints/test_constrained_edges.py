@@ -243,3 +243,22 @@ def test_a_drifted_backward_march_says_when_in_its_own_time():
     assert abs(back.verdict.t_drift + forward.verdict.t_drift) <= 0.1 + 1e-9
     assert np.abs(back.q - forward.q).max() <= 1e-12  # q(-t) = q(t), p(-t) = -p(t)
     assert np.abs(back.p + forward.p).max() <= 1e-12
+
+
+@pytest.mark.slow(why="repetition")
+def test_a_checkpoint_of_a_constrained_march_continues_as_the_whole_march():
+    """The checkpoint's third argument is the carried state (drift, last multipliers) at its
+    last node; a march continued from any checkpoint is the whole march."""
+    saved = []
+
+    def save(t, z, carried):
+        saved.append((t.copy(), z.copy(), carried))
+    whole = march(pendulum(), Q0, P0, (0, 30), tau0=0.01, compilation=Compilation(chunk=16),
+                  output=Output(checkpoint=save, checkpoint_interval=0.01))
+    assert saved and whole.success
+    t, z, carried = saved[len(saved) // 2]
+    assert len(carried["multipliers"]) == 2
+    state = MarchState.of(t, z[:, :2], z[:, 2:], 30.0, carried)
+    go_on = continue_march(pendulum(), state, 30.0, tau0=0.01, compilation=Compilation(chunk=16))
+    assert go_on.t.size == whole.t.size
+    assert np.abs(go_on.q - whole.q).max() <= newton_bound(whole, whole.t.size - t.size)
