@@ -14,6 +14,8 @@ import warnings
 import casadi as ca
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ddvp_nlp import (
     Compilation,
@@ -262,3 +264,25 @@ def test_a_checkpoint_of_a_constrained_march_continues_as_the_whole_march():
     go_on = continue_march(pendulum(), state, 30.0, tau0=0.01, compilation=Compilation(chunk=16))
     assert go_on.t.size == whole.t.size
     assert np.abs(go_on.q - whole.q).max() <= newton_bound(whole, whole.t.size - t.size)
+
+
+JSON_VALUES = st.recursive(
+    st.none() | st.booleans() | st.floats(allow_nan=True) | st.integers() | st.text(max_size=5),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=3), inner,
+                                                                max_size=3),
+    max_leaves=8)
+
+
+@settings(max_examples=60, deadline=None)
+@given(value=JSON_VALUES)
+def test_carried_multipliers_are_read_as_finite_numbers_or_refused_by_name(value):
+    """What a run folder's meta.json may hold under carried.multipliers: a tuple of finite
+    numbers (its length checked against the system later) or an InputError naming it."""
+    carried = {"drift": 0.0, "careful_left": 0, "phase": 0, "multipliers": value}
+    t, q = np.array([0.0]), np.array([Q0])
+    try:
+        state = MarchState.of(t, q, np.array([P0]), 1.0, carried)
+    except InputError as exc:
+        assert "multipliers" in str(exc)
+        return
+    assert value is None or all(np.isfinite(state.multipliers))
