@@ -91,10 +91,11 @@ def _multipliers(value) -> tuple | None:
     against the system by `continue_march`)."""
     if value is None:
         return None
-    try:
-        array = np.asarray(value, float)
-    except (TypeError, ValueError):
-        array = None
+    numbers = (isinstance(value, np.ndarray) and value.dtype.kind in "iuf") or (
+        isinstance(value, (list, tuple)) and all(
+            isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+            for x in value))  # a boolean is no multiplier, though numpy reads it as one
+    array = np.asarray(value, float) if numbers else None
     if array is None or array.ndim != 1 or not np.all(np.isfinite(array)):
         raise InputError(f"the carried multipliers must be a list of finite numbers, got "
                          f"{value!r:.200}")

@@ -286,3 +286,4 @@ def test_carried_multipliers_are_read_as_finite_numbers_or_refused_by_name(value
         assert "multipliers" in str(exc)
         return
     assert value is None or all(np.isfinite(state.multipliers))
+    assert "True" not in repr(value) and "False" not in repr(value)  # booleans are refused
