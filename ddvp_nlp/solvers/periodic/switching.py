@@ -293,11 +293,12 @@ def _follow_doubled(walker, number: int, point, switch: Switch, Family):  # noqa
     branches = []
     for sign in signs:
         first = firsts[sign]
+        same = len(signs) == 1 and len(firsts) == 2
         label = _label(direction * sign, walker.system.n, grid.assembly.layout)
+        label = "+-" + label[1:] if same else label
         half = _walk_on(walker, first.orbit, grid.nodes, sign * direction,
                         (first.step, longest), switch, Family, started)
-        branches.append(Branch(sign, label, number, residual, half, "period doubling",
-                               len(signs) == 1 and len(firsts) == 2))
+        branches.append(Branch(sign, label, number, residual, half, "period doubling", same))
     counts = ", ".join(f"{b.label}: {len(b.family.members)} orbits of twice the period"
                        for b in branches)
     return branches, f"{said}{note}: {counts}"
