@@ -16,7 +16,8 @@ the followed family's tangent across the point, doubled); its relative residual 
 Each sign of ``t_2`` starts with the corrector on the ``2N`` grid at arclength ``ds`` from
 ``y2*`` (the walker's corrector, on the doubled grid), the step halved on failure; the orbit
 found must lie off the doubled family (its component along ``t_1`` below half the step), pass
-`solve_periodic`'s verification with the exact flow's check, and must not be the old orbit
+`solve_periodic`'s verification with the exact flow's check, have a period within
+``NEAR_DOUBLED`` of ``2T`` (relative), and must not be the old orbit
 traversed twice: its *half mismatch* ``d = max_k max_i |z_{k+N,i} - z_{k,i}| / S_i`` (``S`` the
 accuracy check's scales of the motion) must exceed both twice the exact flow's largest distance
 from it (``Verdict.error_max``: the exact orbit within that of the grid's is then not of period
@@ -44,6 +45,8 @@ from .orbit import solve_periodic
 # Two orbits are one when re-solved at one energy they differ by less than this part of their
 # distance before the shift by T.
 SAME_ORBIT = 1e-3
+# The first orbit's period is within this part of twice the period at the doubling.
+NEAR_DOUBLED = 0.25
 
 
 @dataclass
@@ -134,6 +137,10 @@ def first_orbit(walker, grid: DoubledGrid, direction: np.ndarray, step: float):
     orbit = _solved(walker, grid, point)
     if not orbit.success:
         return None, orbit.message
+    doubled = float(grid.y[grid.assembly.layout.time_index()[-1]])
+    if abs(orbit.orbit.period - doubled) > NEAR_DOUBLED * doubled:
+        return None, (f"the orbit found has the period {orbit.orbit.period:.10g}, not near twice "
+                      f"the doubling's {doubled / 2:.10g}")
     scale = orbit_scale(orbit)
     mismatch = half_mismatch(orbit, grid, scale)
     exact = 0.0 if orbit.verdict is None else float(orbit.verdict.error_max)

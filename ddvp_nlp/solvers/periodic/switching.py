@@ -262,7 +262,7 @@ def _follow_doubled(walker, number: int, point, switch: Switch, Family):  # noqa
     ds = switch.step or walker.steps[point.after]
     longest = max(max(walker.steps), ds)
     started = time.perf_counter()
-    firsts, whys = {}, {}
+    firsts, whys = {}, {1: "no step tried", -1: "no step tried"}
     for sign in (1, -1):
         step = ds
         while sign not in firsts and step >= walker.settings.min_step * ds:
