@@ -270,8 +270,8 @@ def _follow_doubled(walker, number: int, point, switch: Switch, Family):  # noqa
             if found is not None:
                 firsts[sign] = found
             step /= 2
-    said = (f"switched at {where}; kernel residual {residual:.1e}, its two periods opposite "
-            f"to {odd:.1e}")
+    said = (f"switched at {where}; kernel residual {residual:.1e}, antisymmetric over the two "
+            f"periods to {odd:.1e}")
     if not firsts:
         return [], (f"{said}: no orbit of the doubled period was found off it (+: {whys[1]}; "
                     f"-: {whys[-1]})")
@@ -299,6 +299,7 @@ def _follow_doubled(walker, number: int, point, switch: Switch, Family):  # noqa
         half = _walk_on(walker, first.orbit, grid.nodes, sign * direction,
                         (first.step, longest), switch, Family, started)
         branches.append(Branch(sign, label, number, residual, half, "period doubling", same))
+        started = time.perf_counter()  # a second branch's seconds are its own
     counts = ", ".join(f"{b.label}: {len(b.family.members)} orbits of twice the period"
                        for b in branches)
     return branches, f"{said}{note}: {counts}"
