@@ -1211,8 +1211,9 @@ SWITCHES = [
 
 
 def switch_cases() -> list[Case]:
-    """Branch switching's refusals (``SWITCHES``, on the harmonic scene) and a family with no
-    branch point (Henon-Heiles from E = 0.02 to 0.04)."""
+    """Branch switching's refusals (``SWITCHES``, on the harmonic scene), a family with no
+    branch point (Henon-Heiles from E = 0.02 to 0.04), Henon-Heiles' axis family switched at
+    its period doubling (one branch) and stopped before it (exit 2)."""
     cases = [Case("switch", " ".join(option), ["periodic", "harmonic", "--nodes", "40",
                                                 "--no-plot", *option, "--out", "out"], (2,),
                   expect_text=text) for option, text in SWITCHES]
@@ -1220,7 +1221,31 @@ def switch_cases() -> list[Case]:
                       ["periodic", "henon_heiles", "--energy", "0.02", "--follow", "0.04",
                        "--step", "0.01", "--nodes", "41", "--switch", "--no-plot", "--out",
                        "out"], (2,), expect_text="no branch point was located on the family"))
+    doubling = ["periodic", "henon_heiles", "--energy", "0.13", "--follow", "0.14", "--step",
+                "0.005", "--nodes", "61", "--no-plot", "--out", "out"]
+    cases.append(Case("switch", "a period doubling: one branch of twice the period",
+                      [*doubling, "--switch", "2"], (0,), check=_one_doubled_branch))
+    cases.append(Case("switch", "the family stops before its period doubling",
+                      [*doubling, "--max-orbits", "2", "--switch", "2"], (2,),
+                      expect_text="no branch point was located on the family, nor a period "
+                                  "doubling"))
     return cases
+
+
+def _one_doubled_branch(folder, result) -> list[str]:
+    """At Henon-Heiles' period doubling: the two signs said to be one orbit, one branch written
+    (``branch-1/``, none beside it), its orbits of twice the nodes."""
+    problems = []
+    if "the two signs give one orbit shifted by half its period" not in result.stdout:
+        problems.append("the two signs of the doubling direction were not found to be one orbit")
+    branch = folder / "out" / "branch-1" / "family.csv"
+    if not branch.exists():
+        problems.append("no branch-1/family.csv written")
+    if (folder / "out" / "branch-2").exists():
+        problems.append("a second branch written for one orbit shifted by half its period")
+    if "2 orbits of twice the period" not in result.stdout:
+        problems.append("the branch did not reach its 2 orbits")
+    return problems
 
 
 def backward_cases() -> list[Case]:
