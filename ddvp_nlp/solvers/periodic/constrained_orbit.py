@@ -35,7 +35,6 @@ orbit (else ``inaccurate``).
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import casadi as ca
@@ -66,6 +65,8 @@ ALLOWANCE_ROUND_OFFS = 4096
 DEFAULT_MAX_ITER = 100
 TRACE_RTOL = 1e-11
 TRACE_DOUBLINGS = 8  # the trace's span doubled at most this often looking for the return
+# the traced state must return to within this fraction of its size (the trace's rtol is 1e-11)
+RETURN = 1e-6
 # a symmetry generator within this angle (sine) of the flow at node 0 repeats the section
 PARALLEL = 1e-6
 
@@ -123,6 +124,9 @@ def solve_constrained_periodic(system, *, energy, nodes, section, guess, scheme,
     chosen, tried, _ = solve_in_order(solver_order(request.solver), attempt,
                                       enough=(Status.SUCCESS, Status.INACCURATE,
                                               Status.TIME_LIMIT))
+    # an orbit that holds the equations but not the motion says more than a solver's failure
+    chosen = next((a for a in tried if a.status is Status.SUCCESS),
+                  next((a for a in tried if a.status is Status.INACCURATE), chosen))
     solution = chosen.outcome[2]
     solution.stats["attempts"] = [{"solver": a.stage.solver, "status": a.status.code,
                                    "iterations": a.stage.iterations, "said": a.stage.said}
@@ -201,12 +205,13 @@ def at_energy(system, theta, q, p, energy: float):
 
 def _traced_nodes(request: GridRequest):
     """``(t, z)`` of ``N + 1`` nodes: one period of the exact flow from the section's first
-    crossing to its next in the same direction, at uniform times (module docstring)."""
+    crossing to the first later crossing in the same direction where the whole state returns
+    (within ``RETURN`` of its size; a section may be crossed more often than once a period),
+    at uniform times (module docstring)."""
     system, orbit, theta = request.system, request.data, request.theta
     flow = exact_flow(system, compiler=find_compiler(request.compilation.compiler),
                       cache_dir=request.compilation.cache_dir)
-    z0 = orbit.z
-    n = system.n
+    z0, n = orbit.z, system.n
     _, _, H_p, _ = derivatives_function(system)(z0[:n], z0[n:], 0.0, theta)
     speed = float(np.max(np.abs(np.asarray(H_p, float))))
     span = 2 * np.pi * float(np.max(np.abs(z0[:n]))) / speed
@@ -214,37 +219,42 @@ def _traced_nodes(request: GridRequest):
     for _ in range(TRACE_DOUBLINGS):
         run = flow.run(z0, 0.0, span, theta, rtol=TRACE_RTOL, atol=TRACE_RTOL * size)
         crossings = _crossings(run, orbit.index - 1, orbit.value)
-        if len(crossings) >= 2 or not run.success:
+        if crossings:
+            first = run.z([crossings[0]])[0]
+            returns = [c for c in crossings[1:]
+                       if np.max(np.abs(run.z([c])[0] - first)) <= RETURN * size]
+            if returns:
+                t = np.linspace(crossings[0], returns[0], request.intervals + 1)
+                return t - t[0], run.z(t)
+        if not run.success:
             break
         span *= 2
-    if len(crossings) < 2:
-        raise InputError(f"the exact flow from start does not cross the section {orbit.label} "
-                         f"twice in the same direction within t = {span:.6g} at E = "
-                         f"{orbit.energy!r}: choose a section the orbit through start crosses")
-    t = np.linspace(crossings[0], crossings[1], request.intervals + 1)
-    return t - t[0], run.z(t)
+    said = "does not cross the section" if not crossings else \
+        (f"crosses the section {len(crossings)} times in one direction but its state does not "
+         "return (the motion through start at this energy is not periodic, or its period is "
+         "longer)")
+    raise InputError(f"the constrained exact flow from start at E = {orbit.energy!r} {said} "
+                     f"{orbit.label} within t = {span:.6g}: give a start on a periodic orbit "
+                     "and a section it crosses")
 
 
 def _crossings(run, component: int, value: float) -> list:
     """The times the traced run crosses ``z[component] = value`` in the direction of its first
-    crossing (the first two)."""
+    crossing (a start on the section counts as its first crossing)."""
     t, z = run.nodes()
     f = z[:, component] - value
     found, direction = [], 0.0
     if abs(f[0]) <= 64 * EPS * max(float(np.max(np.abs(z[:, component]))), EPS):
         found, direction = [0.0], np.sign(f[1])
     for k in range(t.size - 1):
-        if f[k] * f[k + 1] < 0 or (f[k + 1] == 0 and k + 1 < t.size - 1):
+        if f[k] * f[k + 1] < 0:
             sign = np.sign(f[k + 1] - f[k])
             if direction and sign != direction:
                 continue
             direction = sign
-            root = brentq(lambda s: float(run.z([s])[0, component] - value), t[k], t[k + 1],
-                          xtol=4 * EPS * max(abs(t[k + 1]), EPS), rtol=4 * EPS)
-            if not found or root > found[-1] + 1e-9 * max(t[-1], EPS):
-                found.append(root)
-        if len(found) == 2:
-            break
+            found.append(brentq(lambda s: float(run.z([s])[0, component] - value), t[k],
+                                t[k + 1], xtol=4 * EPS * max(abs(t[k + 1]), EPS),
+                                rtol=4 * EPS))
     return found
 
 

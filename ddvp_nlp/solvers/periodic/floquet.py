@@ -60,6 +60,7 @@ from numpy.polynomial import chebyshev
 from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import refuse_constrained
 from ...solution import Solution
 from ...validation import check_real
 from ..exact.closure import ExactOrbit, close_exact, exact_field_directions
@@ -387,6 +388,7 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
         A `Stability`: ``multipliers``, ``indices``, ``verdict``, ``trivial`` and,
         with ``exact``, ``exact`` and ``exact_orbit``; ``summary()`` says it in one line.
     """
+    refuse_constrained(system, "periodic_stability")  # its monodromy is the unconstrained map's
     if isinstance(orbit, Solution) and not orbit.success:
         raise InputError(f"orbit: a failed solve has no monodromy to trust ({orbit.status.code}:"
                          f" {orbit.message[:120]})")
