@@ -48,7 +48,11 @@ from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
-from ..exact.constrained_flow import multipliers_function, projection_function
+from ..exact.constrained_flow import (
+    constrained_field,
+    multipliers_function,
+    projection_function,
+)
 from ..exact.flow import exact_flow
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
 from ..grid.newton import newton
@@ -268,7 +272,8 @@ def _closure(request: GridRequest, z0: np.ndarray, integrals) -> ConstrainedClos
         gradients = np.asarray(integral_gradients(system, integrals)(z0[:n], z0[n:],
                                                                      request.theta))
         rotated = np.vstack([gradients[n:], -gradients[:n]]).T  # J grad, one row each
-        flow = rotated[0] / np.linalg.norm(rotated[0])
+        flow = np.asarray(constrained_field(system)(z0, 0.0, request.theta), float).ravel()
+        flow = flow / np.linalg.norm(flow)  # the constrained motion, on the manifold
         for i, row in enumerate(rotated[1:]):
             along = abs(float(row @ flow)) / np.linalg.norm(row)
             if np.sqrt(max(0.0, 1 - along ** 2)) <= PARALLEL:
