@@ -1298,9 +1298,6 @@ def constraint_cases() -> list[Case]:
         cases.append(Case("constraints", f"march: {name}", ["march", "scene.py", "--no-plot",
                                                            "--no-progress", "--out", "out"],
                           codes, setup, expect_text=text))
-    cases.append(Case("constraints", "periodic: the Cartesian pendulum is refused",
-                      ["periodic", "cartesian_pendulum", "--energy", "0.5", "--nodes", "20",
-                       "--out", "out"], (2,), expect_text="constrain"))
     small = ["--halvings", "0", "--repeats", "1", "--no-progress", "--out", "out"]
     for method in ("rk4", "dop853"):  # compare runs the methods that know constraints only
         cases.append(Case("constraints", f"compare: {method} on the Cartesian pendulum is "
@@ -1337,6 +1334,37 @@ def constrained_bvp_cases() -> list[Case]:
                                          "0.5"], "AtEnergy")):
         cases.append(Case("constrained_bvp", f"refused: {name}",
                           ["bvp", "cartesian_pendulum", *extra, *CONSTRAINED_ENDS], (2,),
+                          expect_text=text))
+    return cases
+
+
+CONSTRAINED_PERIODIC = ["--no-plot", "--no-progress", "--out", "out"]
+
+
+def constrained_periodic_cases() -> list[Case]:
+    """``ddvp periodic`` on constrained scenes (``solvers/periodic/constrained_orbit.py``): the
+    spherical pendulum's conical orbit and the Cartesian pendulum's libration found (exit 0);
+    an energy with no motion at the start, a section the orbit does not cross, a bad
+    section, too few nodes and the stability of a constrained orbit
+    refused by name, exit 2 (issue 48)."""
+    cases = [Case("constrained_periodic", "the conical orbit of the spherical pendulum",
+                  ["periodic", "spherical_pendulum", "--nodes", "41", *CONSTRAINED_PERIODIC],
+                  (0,)),
+             Case("constrained_periodic", "the libration of the Cartesian pendulum",
+                  ["periodic", "cartesian_pendulum", "--energy", "-0.5", "--nodes", "81",
+                   *CONSTRAINED_PERIODIC], (0,))]
+    for scene, name, extra, text in (
+            ("cartesian_pendulum", "an energy below the start's potential",
+             ["--energy", "-1.5"], "no motion"),
+            ("spherical_pendulum", "a section the conical orbit never crosses",
+             ["--section", "q3=0.9"], "does not cross the section"),
+            ("spherical_pendulum", "a section on no coordinate", ["--section", "q4=0"],
+             "section"),
+            ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes"),
+            ("spherical_pendulum", "the stability of a constrained orbit", ["--stability"],
+             "periodic_stability")):
+        cases.append(Case("constrained_periodic", f"refused: {name}",
+                          ["periodic", scene, *extra, *CONSTRAINED_PERIODIC], (2,),
                           expect_text=text))
     return cases
 
@@ -1731,6 +1759,7 @@ def main() -> int:
               "search": search_cases, "switch": switch_cases,
               "backward": backward_cases, "constraints": constraint_cases,
               "constrained_bvp": constrained_bvp_cases,
+              "constrained_periodic": constrained_periodic_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
               "supervision": supervision_cases, "compare": compare_cases,
               "load": load_cases}

@@ -142,9 +142,8 @@ def solve_constrained_periodic(system, *, energy, nodes, section, guess, scheme,
 def checked_request(system, energy, nodes, section, guess, scheme, params, start, integrals,
                     angles, options: GridOptions, derivatives) -> GridRequest:
     """Every argument checked (``InputError`` naming it) and the start made consistent at
-    ``E``, before any grid is built."""
-    from .orbit import parse_section
-
+    ``E``, before any grid is built; ``section`` comes parsed (``orbit.parse_section``'s
+    ``(index, value, label)``)."""
     name = system.name
     scheme = Scheme.coerce(scheme)
     check_energy_problem(system, scheme, "a periodic orbit at a prescribed energy")
@@ -169,7 +168,7 @@ def checked_request(system, energy, nodes, section, guess, scheme, params, start
                          "traced")
     energy = check_real("energy", energy)
     intervals = check_integer("nodes", nodes, minimum=4) - 1
-    index, value, label = parse_section(section, system.n)
+    index, value, label = section
     try:
         q, p = start
     except (TypeError, ValueError):

@@ -222,7 +222,8 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
     if getattr(system, "n_constraints", 0):  # constrained_orbit.py
         from .constrained_orbit import solve_constrained_periodic
         return solve_constrained_periodic(
-            system, energy=energy, nodes=nodes, section=section, guess=guess, scheme=scheme,
+            system, energy=energy, nodes=nodes, section=parse_section(section, system.n),
+            guess=guess, scheme=scheme,
             params=params, start=start, integrals=check_integrals(integrals), angles=angles,
             options=coerce(options, GridOptions, "options"), derivatives=derivatives)
     integrals = check_integrals(integrals)
@@ -332,8 +333,9 @@ def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", par
     integrals = check_integrals(integrals)
     if getattr(system, "n_constraints", 0):
         from .constrained_orbit import checked_request
-        checked_request(system, energy, nodes, section, None, scheme, params, start, integrals,
-                        angles, coerce(options, GridOptions, "options"), None)
+        checked_request(system, energy, nodes, parse_section(section, system.n), None, scheme,
+                        params, start, integrals, angles, coerce(options, GridOptions, "options"),
+                        None)
         return
     _checked(system, energy, nodes, section, None, scheme, params, start, angles,
              coerce(options, GridOptions, "options"))
