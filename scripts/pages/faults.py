@@ -1343,15 +1343,17 @@ CONSTRAINED_PERIODIC = ["--no-plot", "--no-progress", "--out", "out"]
 
 def constrained_periodic_cases() -> list[Case]:
     """``ddvp periodic`` on constrained scenes (``solvers/periodic/constrained_orbit.py``): the
-    spherical pendulum's conical orbit and the Cartesian pendulum's libration found (exit 0);
-    an energy with no motion at the start, a section the orbit does not cross, a bad
-    section, too few nodes and the stability of a constrained orbit
-    refused by name, exit 2 (issue 48)."""
+    spherical pendulum's conical orbit (and its multipliers) and the Cartesian pendulum's
+    libration found (exit 0); an energy with no motion at the start, a section the orbit
+    does not cross, a bad section and too few nodes refused by name, exit 2 (issue 48)."""
     cases = [Case("constrained_periodic", "the conical orbit of the spherical pendulum",
                   ["periodic", "spherical_pendulum", "--nodes", "41", *CONSTRAINED_PERIODIC],
                   (0,)),
              Case("constrained_periodic", "the libration of the Cartesian pendulum",
                   ["periodic", "cartesian_pendulum", "--energy", "-0.5", "--nodes", "81",
+                   *CONSTRAINED_PERIODIC], (0,)),
+             Case("constrained_periodic", "the conical orbit's multipliers (exact flow)",
+                  ["periodic", "spherical_pendulum", "--nodes", "41", "--stability",
                    *CONSTRAINED_PERIODIC], (0,))]
     for scene, name, extra, text in (
             ("cartesian_pendulum", "an energy below the start's potential",
@@ -1360,9 +1362,7 @@ def constrained_periodic_cases() -> list[Case]:
              ["--section", "q3=0.9"], "does not cross the section"),
             ("spherical_pendulum", "a section on no coordinate", ["--section", "q4=0"],
              "section"),
-            ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes"),
-            ("spherical_pendulum", "the stability of a constrained orbit", ["--stability"],
-             "periodic_stability")):
+            ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes")):
         cases.append(Case("constrained_periodic", f"refused: {name}",
                           ["periodic", scene, *extra, *CONSTRAINED_PERIODIC], (2,),
                           expect_text=text))
