@@ -1343,9 +1343,10 @@ CONSTRAINED_PERIODIC = ["--no-plot", "--no-progress", "--out", "out"]
 
 def constrained_periodic_cases() -> list[Case]:
     """``ddvp periodic`` on constrained scenes (``solvers/periodic/constrained_orbit.py``): the
-    spherical pendulum's conical orbit (and its multipliers) and the Cartesian pendulum's
-    libration found (exit 0); an energy with no motion at the start, a section the orbit
-    does not cross, a bad section and too few nodes refused by name, exit 2 (issue 48)."""
+    spherical pendulum's conical orbit (its multipliers, a family of them) and the Cartesian
+    pendulum's libration found (exit 0); an energy with no motion at the start, a section the
+    orbit does not cross, a bad section, too few nodes and a followed family refused by name,
+    exit 2 (issue 48)."""
     cases = [Case("constrained_periodic", "the conical orbit of the spherical pendulum",
                   ["periodic", "spherical_pendulum", "--nodes", "41", *CONSTRAINED_PERIODIC],
                   (0,)),
@@ -1354,15 +1355,20 @@ def constrained_periodic_cases() -> list[Case]:
                    *CONSTRAINED_PERIODIC], (0,)),
              Case("constrained_periodic", "the conical orbit's multipliers (exact flow)",
                   ["periodic", "spherical_pendulum", "--nodes", "41", "--stability",
-                   *CONSTRAINED_PERIODIC], (0,))]
+                   *CONSTRAINED_PERIODIC], (0,)),
+             Case("constrained_periodic", "a family of cones (each orbit the next's guess)",
+                  ["periodic", "spherical_pendulum", "--nodes", "41",
+                   "--family=-0.64:-0.6:3", *CONSTRAINED_PERIODIC], (0,))]
     for scene, name, extra, text in (
             ("cartesian_pendulum", "an energy below the start's potential",
              ["--energy", "-1.5"], "no motion"),
-            ("spherical_pendulum", "a section the conical orbit never crosses",
-             ["--section", "q3=0.9"], "does not cross the section"),
+            ("cartesian_pendulum", "a section the libration never crosses",
+             ["--section", "q2=0.5"], "does not cross the section"),
             ("spherical_pendulum", "a section on no coordinate", ["--section", "q4=0"],
              "section"),
-            ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes")):
+            ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes"),
+            ("spherical_pendulum", "a followed family (its predictor is unconstrained)",
+             ["--energy", "-0.63", "--follow=-0.6"], "follow_periodic_family")):
         cases.append(Case("constrained_periodic", f"refused: {name}",
                           ["periodic", scene, *extra, *CONSTRAINED_PERIODIC], (2,),
                           expect_text=text))

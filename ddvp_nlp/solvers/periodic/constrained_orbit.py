@@ -21,8 +21,10 @@ dependent closure row, which the section and ``lambda`` take; measured in the do
 that ``H = E`` (``H`` quadratic in ``p``; an energy at or below the potential there has no
 motion at that point and is refused by name). The exact constrained flow from it is traced to
 the section twice in the same direction: one period, sampled at ``N + 1`` uniform times, the
-multipliers those of the exact motion. A guess of nodes, angle coordinates and derivatives are
-refused by name (not handled for constrained systems).
+multipliers those of the exact motion. Or ``guess`` nodes of one period (a `Solution` or a
+mapping with ``t``, ``q``, ``p``; a neighbour in a family), resampled to ``N + 1`` nodes,
+projected onto the constraints, with the exact motion's multipliers. Angle coordinates and
+derivatives are refused by name (not handled for constrained systems).
 
 **The verdict.** The point is verified by its own unscaled residuals with the unfolding
 parameters set to zero (interval equations, ``g`` and the hidden constraint at every node, the
@@ -62,6 +64,7 @@ from ..marching.constrained_start import consistent_start
 from ..options import GridOptions
 from .closed_grid import integral_gradients
 from .constrained_closed import ConstrainedClosedGrid, ConstrainedClosure
+from .first_orbit import guess_nodes
 
 EPS = float(np.finfo(float).eps)
 TARGET_ROUND_OFFS = 64
@@ -78,14 +81,15 @@ PARALLEL = 1e-6
 @dataclass
 class ConstrainedOrbit:
     """The data of one constrained periodic problem: energy, section, the consistent start at
-    ``E`` (``z``), what projecting it moved."""
+    ``E`` (``z``) and what projecting it moved, or the user's ``guess`` nodes ``(t, z)``."""
 
     energy: float
     index: int
     value: float
     label: str
-    z: np.ndarray
+    z: np.ndarray | None
     moved: tuple
+    guess: tuple | None = None
 
 
 @dataclass
@@ -106,7 +110,7 @@ def solve_constrained_periodic(system, *, energy, nodes, section, guess, scheme,
     request = checked_request(system, energy, nodes, section, guess, scheme, params, start,
                               integrals, angles, options, derivatives)
     started = request.start_clock()
-    t, z = _traced_nodes(request)
+    t, z = _traced_nodes(request) if request.data.guess is None else request.data.guess
     grid = request.built(("constrained_closed", request.scheme, request.intervals, integrals),
                          lambda: ConstrainedClosedGrid(system, request.scheme,
                                                        request.intervals, integrals))
@@ -140,19 +144,18 @@ def solve_constrained_periodic(system, *, energy, nodes, section, guess, scheme,
 
 
 def checked_request(system, energy, nodes, section, guess, scheme, params, start, integrals,
-                    angles, options: GridOptions, derivatives) -> GridRequest:
+                    angles, options: GridOptions, derivatives,
+                    start_required: bool = True) -> GridRequest | None:
     """Every argument checked (``InputError`` naming it) and the start made consistent at
     ``E``, before any grid is built; ``section`` comes parsed (``orbit.parse_section``'s
-    ``(index, value, label)``)."""
+    ``(index, value, label)``). ``start_required=False`` (`check_periodic`, whose caller may
+    pass a guess later): no start and no guess check the rest and return ``None``."""
     name = system.name
     scheme = Scheme.coerce(scheme)
     check_energy_problem(system, scheme, "a periodic orbit at a prescribed energy")
     if ca.depends_on(ca.vec(system.G), system.t):
         raise InputError(f"system {name!r} has constraints that depend on t: a periodic orbit "
                          "at a prescribed energy needs autonomous constraints")
-    if guess is not None:
-        raise InputError(f"system {name!r} has constraints: solve_periodic takes no guess of "
-                         "nodes for a constrained system yet; give start=(q, p)")
     if tuple(angles):
         raise InputError(f"system {name!r} has constraints: angles={tuple(angles)!r} (rotations"
                          " closing with whole turns) are not supported for a constrained system")
@@ -162,19 +165,26 @@ def checked_request(system, energy, nodes, section, guess, scheme, params, start
     if options.linear == "banded":
         raise InputError("linear must be 'auto' or 'sparse' for a periodic orbit of a "
                          "constrained system, got 'banded'")
-    if start is None:
-        raise InputError(f"system {name!r} has constraints: solve_periodic needs start=(q, p), "
-                         "a point near the constraints from which the orbit at the energy is "
-                         "traced")
     energy = check_real("energy", energy)
     intervals = check_integer("nodes", nodes, minimum=4) - 1
     index, value, label = section
+    theta = system.parameter_vector(params)
+    if start is None and guess is None:
+        if not start_required:
+            return None
+        raise InputError(f"system {name!r} has constraints: solve_periodic needs start=(q, p), "
+                         "a point near the constraints from which the orbit at the energy is "
+                         "traced, or a guess of nodes")
+    if guess is not None:  # nodes of one period (a neighbour in a family): projected later
+        orbit = ConstrainedOrbit(energy, index, value, label, None, (0.0, 0.0),
+                                 guess_nodes(guess, system.n, intervals))
+        return GridRequest(system, scheme, intervals + 1, theta, orbit,
+                           options.resolved(max_iter=DEFAULT_MAX_ITER))
     try:
         q, p = start
     except (TypeError, ValueError):
         raise InputError(f"start must be a pair (q, p), got {start!r}") from None
     q, p = check_state("start q", q, system.n), check_state("start p", p, system.n)
-    theta = system.parameter_vector(params)
     z, moved = at_energy(system, theta, q, p, energy)
     orbit = ConstrainedOrbit(energy, index, value, label, z, moved)
     return GridRequest(system, scheme, intervals + 1, theta, orbit,
@@ -338,9 +348,12 @@ def _solution(request: GridRequest, grid, result, closure, scale, started) -> So
     t, q, p, multipliers, unfolding = grid.layout.unpack(result.x)
     finite = bool(np.all(np.isfinite(result.x)))
     parts = grid.parts(result.x, closure) if finite else None
-    names = ("interval", "g", "hidden", "energy", "prescribed", "closure", "section", "unused")
-    worst = {name: (float(np.max(np.abs(parts[name]))) if finite else np.nan)
-             for name in names}
+    # the names of an unconstrained orbit's residuals (OrbitRecord), then the constraints'
+    names = {"canonical": "interval", "energy": "energy", "prescribed_energy": "prescribed",
+             "closure": "closure", "section": "section", "g": "g", "hidden": "hidden",
+             "unused_multipliers": "unused"}
+    worst = {name: (float(np.max(np.abs(parts[part]))) if finite else np.nan)
+             for name, part in names.items()}
     limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
     status, message = _verdict(result, worst, limit, np.diff(t))
     report, local = (None, np.zeros(0))

@@ -335,7 +335,7 @@ def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", par
         from .constrained_orbit import checked_request
         checked_request(system, energy, nodes, parse_section(section, system.n), None, scheme,
                         params, start, integrals, angles, coerce(options, GridOptions, "options"),
-                        None)
+                        None, start_required=False)  # a family's caller may give a guess
         return
     _checked(system, energy, nodes, section, None, scheme, params, start, angles,
              coerce(options, GridOptions, "options"))

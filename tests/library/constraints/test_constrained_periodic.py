@@ -65,7 +65,7 @@ def test_the_conical_period_converges_at_order_two(theta0):
     for N in counts:
         solution = solve_periodic(SPHERICAL, energy=energy, nodes=N + 1, section="q2=0",
                                   start=start)
-        assert solution.orbit.residuals["interval"] < 1e-12, solution.message
+        assert solution.orbit.residuals["canonical"] < 1e-12, solution.message
         errors.append(abs(solution.orbit.period - period) / period)
     assert abs(_slope(counts, errors) - 2) < 0.05, errors
 
@@ -174,7 +174,7 @@ def test_the_start_is_put_on_the_constraints_at_the_energy(polar, azimuth, off, 
     ({"start": None}, "needs start=\\(q, p\\)"),
     ({"start": ([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])}, "singular Jacobian"),
     ({"start": ([0.6, 0.0, -0.8], [0.6, 0.0, -0.8])}, "no kinetic energy"),
-    ({"guess": {"t": [0, 1], "q": [[0, 0, -1]] * 2, "p": [[0, 0, 0]] * 2}}, "no guess"),
+    ({"guess": {"t": [0, 1], "q": [[0, 0, -1]] * 2, "p": [[0, 0, 0]] * 2}}, "at least 3"),
     ({"angles": ("q1",)}, "angles"),
     ({"derivatives": "energy"}, "derivatives"),
     ({"nodes": 3}, "nodes"),
@@ -223,6 +223,31 @@ def test_the_conical_orbits_multipliers_are_the_polar_oscillation():
     assert stability.verdict == "stable"
     assert stability.extra["exact_period"] == pytest.approx(period, rel=1e-10)
     assert np.allclose(np.abs(stability.multipliers), 1, atol=1e-7)
+
+
+@pytest.mark.slow(why="study")
+def test_a_family_in_the_energy_follows_the_cones():
+    """Each orbit the guess of the next (solve_periodic_family): the periods follow 2 pi / w
+    of the cone at each energy to the discretisation error."""
+    from ddvp_nlp import solve_periodic_family
+
+    angles = [0.6, 0.65, 0.7]
+    energies = [conical(a)[0] for a in angles]
+    family = solve_periodic_family(SPHERICAL, energies, nodes=81, section="q2=0",
+                                   start=conical(0.6)[2])
+    for angle, (energy, orbit) in zip(angles, family, strict=True):
+        period = conical(angle)[1]
+        assert energy == conical(angle)[0] and orbit.success
+        assert abs(orbit.orbit.period - period) / period < 3e-4
+
+
+def test_following_a_family_is_refused_by_name():
+    from ddvp_nlp import follow_periodic_family
+
+    energy, _, start = conical(0.6)
+    with pytest.raises(InputError, match="follow_periodic_family"):
+        follow_periodic_family(SPHERICAL, (energy, energy + 0.1), nodes=41, section="q2=0",
+                               start=start)
 
 
 def test_the_discrete_monodromy_of_a_constrained_orbit_is_refused_by_name():
