@@ -211,6 +211,18 @@ class ConstrainedClosedGrid:
     def sparse(self, jacobian):
         return jacobian
 
+    def parameter_jacobian(self, x: np.ndarray, data: ConstrainedClosure) -> sp.csc_matrix:
+        """``dF/dtheta`` at ``x`` (``(size, len(theta))``, sparse), from the same rows."""
+        k = self.system.theta.numel()
+        key = ("theta", data.section_index)
+        if key not in self._built:
+            F = self.rows_expression(data.section_index)
+            self._built[key] = ca.Function("constrained_closed_theta", [self.x, self.P],
+                                           [ca.jacobian(F, self.P)[:, :k]])
+        D = self._built[key](x, data.vector())
+        return sp.csc_matrix(D.sparse()) if hasattr(D, "sparse") else sp.csc_matrix(
+            np.asarray(D, float))
+
     def release(self) -> None:
         pass
 
