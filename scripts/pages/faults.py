@@ -1323,9 +1323,6 @@ def constraint_cases() -> list[Case]:
         cases.append(Case("constraints", f"march: {name}", ["march", "scene.py", "--no-plot",
                                                            "--no-progress", "--out", "out"],
                           codes, setup, expect_text=text))
-    cases.append(Case("constraints", "periodic: the Cartesian pendulum is refused",
-                      ["periodic", "cartesian_pendulum", "--energy", "0.5", "--nodes", "20",
-                       "--out", "out"], (2,), expect_text="constrain"))
     small = ["--halvings", "0", "--repeats", "1", "--no-progress", "--out", "out"]
     for method in ("rk4", "dop853"):  # compare runs the methods that know constraints only
         cases.append(Case("constraints", f"compare: {method} on the Cartesian pendulum is "
@@ -1426,6 +1423,42 @@ def constrained_march_cases() -> list[Case]:
         Case("constrained_march", "resumed to an earlier end", [*RESUME, "--t-end", "1"], (2,),
              _constrained_run(), expect_text="t_end"),
     ]
+
+CONSTRAINED_PERIODIC = ["--no-plot", "--no-progress", "--out", "out"]
+
+
+def constrained_periodic_cases() -> list[Case]:
+    """``ddvp periodic`` on constrained scenes (``solvers/periodic/constrained_orbit.py``): the
+    spherical pendulum's conical orbit (its multipliers, a family of them) and the Cartesian
+    pendulum's libration found (exit 0); an energy with no motion at the start, a section the
+    orbit does not cross, a bad section, too few nodes and a followed family refused by name,
+    exit 2 (issue 48)."""
+    cases = [Case("constrained_periodic", "the conical orbit of the spherical pendulum",
+                  ["periodic", "spherical_pendulum", "--nodes", "41", *CONSTRAINED_PERIODIC],
+                  (0,)),
+             Case("constrained_periodic", "the libration of the Cartesian pendulum",
+                  ["periodic", "cartesian_pendulum", "--energy", "-0.5", "--nodes", "81",
+                   *CONSTRAINED_PERIODIC], (0,)),
+             Case("constrained_periodic", "the conical orbit's multipliers (exact flow)",
+                  ["periodic", "spherical_pendulum", "--nodes", "41", "--stability",
+                   *CONSTRAINED_PERIODIC], (0,)),
+             Case("constrained_periodic", "a family of cones (each orbit the next's guess)",
+                  ["periodic", "spherical_pendulum", "--nodes", "41",
+                   "--family=-0.64:-0.6:3", *CONSTRAINED_PERIODIC], (0,))]
+    for scene, name, extra, text in (
+            ("cartesian_pendulum", "an energy below the start's potential",
+             ["--energy", "-1.5"], "no motion"),
+            ("cartesian_pendulum", "a section the libration never crosses",
+             ["--section", "q2=0.5"], "does not cross the section"),
+            ("spherical_pendulum", "a section on no coordinate", ["--section", "q4=0"],
+             "section"),
+            ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes"),
+            ("spherical_pendulum", "a followed family (its predictor is unconstrained)",
+             ["--energy", "-0.63", "--follow=-0.6"], "follow_periodic_family")):
+        cases.append(Case("constrained_periodic", f"refused: {name}",
+                          ["periodic", scene, *extra, *CONSTRAINED_PERIODIC], (2,),
+                          expect_text=text))
+    return cases
 
 
 def merge_cases() -> list[Case]:
@@ -1819,6 +1852,7 @@ def main() -> int:
               "backward": backward_cases, "constraints": constraint_cases,
               "constrained_bvp": constrained_bvp_cases,
               "constrained_march": constrained_march_cases,
+              "constrained_periodic": constrained_periodic_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
               "supervision": supervision_cases, "compare": compare_cases,
               "load": load_cases}

@@ -101,7 +101,7 @@ def test_unknown_scene_names_the_built_in_ones():
             "(built-in scenes: barbanis, cartesian_pendulum, cr3bp, figure_eight, four_bar, fpu, "
             "harmonic, "
             "henon_heiles, hill, kepler, pais_uhlenbeck, paper_pendulum, pendulum, "
-            "pendulum_lagrangian, spline; or a .py file)")):
+            "pendulum_lagrangian, spherical_pendulum, spline; or a .py file)")):
         load_scene("pendulm")
     with pytest.raises(InputError) as far:  # nothing close: no guess
         load_scene("zzzz")

@@ -45,6 +45,7 @@ from scipy.optimize import brentq
 
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import refuse_constrained
 from ...solution import Solution
 from ...validation import check_integer, check_real
 from ..grid.newton import newton
@@ -275,6 +276,7 @@ def _checked(system, energies, nodes, section, guess, scheme, params, start, ang
     """The energies, options and continuation settings, checked before anything is built (the
     first orbit's arguments by `check_periodic`, its section point included when no
     guess is given)."""
+    refuse_constrained(system, "follow_periodic_family")  # its predictor's rows are unconstrained
     try:
         first_energy, last_energy = (float(e) for e in energies)
     except (TypeError, ValueError):

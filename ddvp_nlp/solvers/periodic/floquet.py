@@ -60,10 +60,12 @@ from numpy.polynomial import chebyshev
 from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import refuse_constrained
 from ...solution import Solution
 from ...validation import check_real
 from ..exact.closure import ExactOrbit, close_exact, exact_field_directions
 from .closed_grid import interval_rows
+from .constrained_stability import constrained_monodromy
 from .orbit import parse_section
 
 VERDICTS = ("stable", "marginal", "unstable")
@@ -345,6 +347,7 @@ def orbit_stability(system, solution: Solution, *, params=None, integrals=(),
         discrete family at this ``N``), ``section_unfolding`` (``du/dc``, zero up to the
         discrete orbit's defect) and ``monodromy_norm``.
     """
+    refuse_constrained(system, "orbit_stability")  # the discrete map is the unconstrained one
     tol = check_real("tol", tol, positive=True)
     if not isinstance(solution, Solution) or solution.orbit is None:
         raise InputError("solution must be a periodic orbit returned by solve_periodic")
@@ -387,6 +390,11 @@ def periodic_stability(system, orbit: Solution, *, params=None, integrals=(),
         A `Stability`: ``multipliers``, ``indices``, ``verdict``, ``trivial`` and,
         with ``exact``, ``exact`` and ``exact_orbit``; ``summary()`` says it in one line.
     """
+    if getattr(system, "n_constraints", 0):  # on the constrained exact flow
+        M, fixed, extra = constrained_monodromy(system, orbit, params=params,
+                                                integrals=integrals)
+        return analyse(M, fixed, tol=check_real("tol", tol, positive=True), kind="exact",
+                       extra=extra)
     if isinstance(orbit, Solution) and not orbit.success:
         raise InputError(f"orbit: a failed solve has no monodromy to trust ({orbit.status.code}:"
                          f" {orbit.message[:120]})")

@@ -93,7 +93,6 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
-from ...physics.constraints import refuse_constrained
 from ...physics.hamiltonian import HamiltonianSystem
 from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_angles, check_integer, check_real, check_state
@@ -220,7 +219,13 @@ def solve_periodic(system: HamiltonianSystem, *, energy: float, nodes: int,
         found is a failure status with the residuals in the message; an orbit whose steps
         do not follow the exact flow is ``inaccurate``.
     """
-    refuse_constrained(system, "solve_periodic")
+    if getattr(system, "n_constraints", 0):  # constrained_orbit.py
+        from .constrained_orbit import solve_constrained_periodic
+        return solve_constrained_periodic(
+            system, energy=energy, nodes=nodes, section=parse_section(section, system.n),
+            guess=guess, scheme=scheme,
+            params=params, start=start, integrals=check_integrals(integrals), angles=angles,
+            options=coerce(options, GridOptions, "options"), derivatives=derivatives)
     integrals = check_integrals(integrals)
     names = check_derivatives(system, derivatives)
     request = _checked(system, energy, nodes, section, guess, scheme, params, start, angles,
@@ -325,7 +330,13 @@ def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", par
                    start=None, integrals=(), angles=(), options=None) -> None:
     """Raise the ``InputError`` `solve_periodic` would raise for these arguments without
     a guess (the section's point at ``energy`` included), and build nothing."""
-    check_integrals(integrals)
+    integrals = check_integrals(integrals)
+    if getattr(system, "n_constraints", 0):
+        from .constrained_orbit import checked_request
+        checked_request(system, energy, nodes, parse_section(section, system.n), None, scheme,
+                        params, start, integrals, angles, coerce(options, GridOptions, "options"),
+                        None, start_required=False)  # a family's caller may give a guess
+        return
     _checked(system, energy, nodes, section, None, scheme, params, start, angles,
              coerce(options, GridOptions, "options"))
 

@@ -170,7 +170,7 @@ def _assemblies(seed: int):
     y = np.r_[found[-2][2], 0.1 + rng.normal()]
     found.append(("periodic arclength", arc, y,
                   _Arc(found[-2][3], rng.normal(size=y.size), y + rng.normal(size=y.size), 0.2)))
-    return found + _bvp_problems(rng) + [_constrained(rng)]
+    return found + _bvp_problems(rng) + [_constrained(rng), _constrained_closed(rng)]
 
 
 def _constrained(rng):
@@ -192,6 +192,31 @@ def _constrained(rng):
     data = ConstrainedData(rng.normal(size=2), rng.normal(size=2), np.array([0.0, 1.0]),
                            np.array([1.0, 1.2]), 0.7)
     return ("bvp constrained", grid, x, data)
+
+
+def _constrained_closed(rng):
+    """The closed grid of a constrained system (``periodic/constrained_closed.py``) on the
+    spherical pendulum, with one first integral (an unfolding column and a phase row)."""
+    from ddvp_nlp import HamiltonianSystem
+    from ddvp_nlp.solvers.periodic.constrained_closed import (
+        ConstrainedClosedGrid,
+        ConstrainedClosure,
+    )
+
+    def H(q, p, t, b):
+        return (p[0] ** 2 + p[1] ** 2 + p[2] ** 2) / 2 + b * q[2]
+
+    def rod(q, t, b):
+        return q[0] ** 2 + q[1] ** 2 + q[2] ** 2 - 1
+    system = HamiltonianSystem(H, 3, {"b": 1.0}, name="sphere", constraints=rod)
+    intervals = int(rng.integers(4, 30))
+    grid = ConstrainedClosedGrid(system, Scheme("vddvp"), intervals,
+                                 (lambda q, p: q[0] * p[1] - q[1] * p[0],))
+    x = rng.normal(size=grid.layout.size)
+    x[grid.layout.time_index()] = np.sort(rng.random(intervals + 1)) + np.arange(intervals + 1)
+    data = ConstrainedClosure(-0.5, 2, 0.0, np.array([1.2]), rng.normal(size=6),
+                              rng.normal(size=(1, 6)))
+    return ("periodic constrained", grid, x, data)
 
 
 def _bvp_problems(rng):
