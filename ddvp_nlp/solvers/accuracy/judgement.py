@@ -216,12 +216,14 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
     a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
     none."""
+    span = column_span(z[:, :n])
+    if not np.any(span > 2 * np.pi):  # no coordinate passes a turn: H is not evaluated
+        return None
     # not np.unique: its first call imports numpy.ma (30-70 ms of a short march's process)
     picks = np.array(sorted({0, t.size // 2, t.size - 1}))
     rows = z[picks]
     _, H = values.at_nodes(t[picks], rows)
     turns = np.zeros(2 * n, dtype=bool)
-    span = column_span(z[:, :n])
     declared = getattr(values.system, "angle_indices", ())
     for j in range(n):
         if span[j] <= 2 * np.pi:
