@@ -209,14 +209,15 @@ def free_components(system) -> np.ndarray | None:
 
 
 def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
-                   free: np.ndarray | None) -> np.ndarray | None:
+                   free: np.ndarray | None, span: np.ndarray | None = None
+                   ) -> np.ndarray | None:
     """The coordinates that wind as angles over the run: their range passes a turn, and they
     are declared angles (``HamiltonianSystem(angles=...)``, a scene's ``periodic`` angles) or
     ``H`` is ``2 pi``-periodic in them (``H(q + 2 pi e_j) = H(q)`` to round-off at the first,
     middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
     a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
     none."""
-    span = column_span(z[:, :n])
+    span = column_span(z[:, :n]) if span is None else span  # ``span``: the range of q
     if not np.any(span > 2 * np.pi):  # no coordinate passes a turn: H is not evaluated
         return None
     # not np.unique: its first call imports numpy.ma (30-70 ms of a short march's process)
@@ -247,8 +248,10 @@ class Extent:
     seen so far (the march's nodes, then the reference's, block by block)."""
 
     def __init__(self, rows: np.ndarray, free: np.ndarray | None = None,
-                 turns: np.ndarray | None = None):
-        self.low, self.high, self.largest = column_extremes(rows)
+                 turns: np.ndarray | None = None, extremes=None):
+        # ``extremes``: `column_extremes` of ``rows``, where the caller has them
+        self.low, self.high, self.largest = column_extremes(rows) if extremes is None else \
+            (extremes[0].copy(), extremes[1].copy(), extremes[2].copy())
         self.free = free  # components that set no floor (`motion_scales`)
         self.turns = turns  # winding angles, counted at most one turn
 
@@ -402,8 +405,12 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        turns = winding_angles(self.values, self.system.n, t, z, self.free)
-        extent = Extent(z, self.free, turns)  # every node's, whichever window is measured
+        n = self.system.n
+        extremes = column_extremes(z)  # one pass for the winding test and the extent
+        turns = winding_angles(self.values, n, t, z, self.free,
+                               span=extremes[1][:n] - extremes[0][:n])
+        # every node's, whichever window is measured
+        extent = Extent(z, self.free, turns, extremes=extremes)
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
@@ -576,10 +583,11 @@ class Scan:
         rows = z[start + 1:end + 1]
         with np.errstate(invalid="ignore", over="ignore"):
             difference = np.abs(rows - states)
-        finite = np.isfinite(row_max_abs(states))
+        # one pass over every entry where all are finite (as a row maximum: 2d passes)
+        finite = np.True_ if np.isfinite(states).all() else np.isfinite(row_max_abs(states))
         lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * self.tol))
         lost_at = int(lost[0]) if lost.size else None
-        scale, over_at, seen = self.scales(), None, None
+        scale, over_at, seen, seen_stop = self.scales(), None, None, None
         for _ in range(8):
             with np.errstate(invalid="ignore"):
                 error = row_max_ratio(difference, scale)
@@ -591,6 +599,7 @@ class Scan:
             if stop == 0:
                 break
             seen = column_extremes(states[:stop])  # finite: the rows before a lost one
+            seen_stop = stop
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
                                 np.maximum(self.largest, seen[2]), self.n, self.extent.free,
                                 self.extent.turns)
@@ -606,7 +615,8 @@ class Scan:
             if over_at is not None:
                 self.times["drift"] = float(t[start + 1 + over_at])
         if stop:
-            seen = column_extremes(states[:stop])
+            if seen_stop != stop:  # the loop's last pass read these rows already
+                seen = column_extremes(states[:stop])
             np.minimum(self.low, seen[0], out=self.low)
             np.maximum(self.high, seen[1], out=self.high)
             np.maximum(self.largest, seen[2], out=self.largest)
