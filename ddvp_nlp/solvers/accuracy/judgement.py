@@ -84,7 +84,7 @@ from ..columns import (
     row_norm,
 )
 from ..exact.flow import exact_flow
-from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
+from ..exact.reference import FACTOR, FIRST_SLOTS, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
 from ..options import EXACT_TOLERANCE, Tolerance
 from .node_values import NodeValues
@@ -348,6 +348,22 @@ class Judgement:
         """The exact flow (``exact/flow.py``), compiled once per system."""
         return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
 
+    def first_flow(self):
+        """The exact flow with `FIRST_SLOTS` attempts a call, for the reference's first piece
+        (`GrowingReference`), or ``None`` (the full flow then): from the second check of the
+        system in this process on (its build, 15-20 ms, is not paid by a one-shot march),
+        compiled once the full flow is (whose rent the system's checks have paid)."""
+        checks = cached(self.system, ("accuracy", "checks", self.compiler,
+                                      str(self.cache_dir)), lambda: [0])
+        checks[0] += 1
+        if checks[0] < 2:
+            return None
+        small = exact_flow(self.system, slots=FIRST_SLOTS, compiler=self.compiler,
+                           cache_dir=self.cache_dir)
+        if not small.compiled and self.flow().compiled:
+            small.buy()
+        return small
+
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
         """The report (`judge` makes it ``Solution.verdict``) and the local error of every step,
@@ -419,10 +435,12 @@ class Judgement:
         scale = extent.scales(self.system.n)
         last = t.size - 1
         rtol = REFERENCE_RTOL
+        small = self.first_flow()
         while True:
             scan = Scan(extent, self.system.n, tol)
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
-                                       rtol=rtol, first=t[min(FIRST_NODES, last)])
+                                       rtol=rtol, first=t[min(FIRST_NODES, last)],
+                                       first_flow=small)
             start = 0
             while True:
                 piece = growing.advance()
