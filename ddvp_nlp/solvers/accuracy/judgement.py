@@ -243,6 +243,14 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     return turns if np.any(turns) else None
 
 
+def run_extent(values: NodeValues, n: int, t, z, free) -> Extent:
+    """The `Extent` of a whole run's nodes with its winding angles (`winding_angles`), from one
+    pass over the nodes: every node's, whichever window is then measured."""
+    extremes = column_extremes(z)
+    turns = winding_angles(values, n, t, z, free, span=extremes[1][:n] - extremes[0][:n])
+    return Extent(z, free, turns, extremes=extremes)
+
+
 class Extent:
     """The least and greatest value and the largest magnitude of each component over the rows
     seen so far (the march's nodes, then the reference's, block by block)."""
@@ -305,6 +313,22 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
 
 # -- the verdict ----------------------------------------------------------------------------
 
+def first_flow(system, compiler, cache_dir):
+    """The exact flow with `FIRST_SLOTS` attempts a call, for the reference's first piece
+    (`GrowingReference`), or ``None`` (the full flow then): from the second check of the system
+    in this process on (its build, 15-20 ms, is not paid by a one-shot march), compiled once
+    the full flow is (whose rent the system's checks have paid)."""
+    checks = cached(system, ("accuracy", "checks", compiler, str(cache_dir)), lambda: [0])
+    checks[0] += 1
+    if checks[0] < 2:
+        return None
+    small = exact_flow(system, slots=FIRST_SLOTS, compiler=compiler, cache_dir=cache_dir)
+    if not small.compiled and exact_flow(system, compiler=compiler,
+                                         cache_dir=cache_dir).compiled:
+        small.buy()
+    return small
+
+
 class CheckStopped(Exception):
     """A check given ``stop`` (`Judgement.report`) was asked to stop: no report."""
 
@@ -347,22 +371,6 @@ class Judgement:
     def flow(self):
         """The exact flow (``exact/flow.py``), compiled once per system."""
         return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
-
-    def first_flow(self):
-        """The exact flow with `FIRST_SLOTS` attempts a call, for the reference's first piece
-        (`GrowingReference`), or ``None`` (the full flow then): from the second check of the
-        system in this process on (its build, 15-20 ms, is not paid by a one-shot march),
-        compiled once the full flow is (whose rent the system's checks have paid)."""
-        checks = cached(self.system, ("accuracy", "checks", self.compiler,
-                                      str(self.cache_dir)), lambda: [0])
-        checks[0] += 1
-        if checks[0] < 2:
-            return None
-        small = exact_flow(self.system, slots=FIRST_SLOTS, compiler=self.compiler,
-                           cache_dir=self.cache_dir)
-        if not small.compiled and self.flow().compiled:
-            small.buy()
-        return small
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
@@ -421,21 +429,15 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        n = self.system.n
-        extremes = column_extremes(z)  # one pass for the winding test and the extent
-        turns = winding_angles(self.values, n, t, z, self.free,
-                               span=extremes[1][:n] - extremes[0][:n])
-        # every node's, whichever window is measured
-        extent = Extent(z, self.free, turns, extremes=extremes)
+        extent = run_extent(self.values, self.system.n, t, z, self.free)
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
             scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
             return scan.figures(t[0], "exact solution")
-        scale = extent.scales(self.system.n)
-        last = t.size - 1
+        scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
-        small = self.first_flow()
+        small = first_flow(self.system, self.compiler, self.cache_dir)
         while True:
             scan = Scan(extent, self.system.n, tol)
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
