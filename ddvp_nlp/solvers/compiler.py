@@ -649,6 +649,11 @@ class RentedBuffer(FunctionBuffer):
             self._buy()
         return outputs
 
+    def buy(self) -> None:
+        """Compile now: the rent was paid by another function of the same work (the exact
+        flow's first-piece chunk, once its full chunk is compiled)."""
+        self._buy()
+
     def _buy(self) -> None:
         with self._lock:
             if self._rent is None:

@@ -12,7 +12,7 @@ on a drifted run it covers only the nodes before it; an accurate run is measured
 them.
 
     python scripts/benchmarks/bench_accuracy.py [--repeats 7]
-        [--out docs/benchmarks/bench_accuracy.md]
+        [--out docs/benchmarks/bench_accuracy.md] [--only RUN ...]
 """
 
 from __future__ import annotations
@@ -121,6 +121,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--out", default=str(ROOT / "docs" / "benchmarks" / "bench_accuracy.md"))
+    parser.add_argument("--only", nargs="+", metavar="RUN", choices=[n for n, _ in CASES],
+                        help="only these runs (the page is then not written)")
     args = parser.parse_args()
     lines = ["# The accuracy check's cost", "",
              f"`python scripts/benchmarks/bench_accuracy.py --repeats {args.repeats}`: each "
@@ -132,11 +134,15 @@ def main():
              "no check | wall ms, check | wall ratio | measured against |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for name, overrides in CASES:
+        if args.only and name not in args.only:
+            continue
         solution, times = bench(name, overrides, args.repeats)
         lines.append(row(name, overrides, solution, times))
         print(lines[-1], flush=True)
     end = os.getloadavg()
     lines += ["", f"Load average at the end {end[0]:.2f}, {end[1]:.2f}, {end[2]:.2f}.", ""]
+    if args.only:
+        return
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text("\n".join(lines))
     print(f"written to {args.out}")

@@ -84,7 +84,7 @@ from ..columns import (
     row_norm,
 )
 from ..exact.flow import exact_flow
-from ..exact.reference import FACTOR, FLOOR_RTOL, GrowingReference
+from ..exact.reference import FACTOR, FIRST_SLOTS, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
 from ..options import EXACT_TOLERANCE, Tolerance
 from .node_values import NodeValues
@@ -209,19 +209,22 @@ def free_components(system) -> np.ndarray | None:
 
 
 def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
-                   free: np.ndarray | None) -> np.ndarray | None:
+                   free: np.ndarray | None, span: np.ndarray | None = None
+                   ) -> np.ndarray | None:
     """The coordinates that wind as angles over the run: their range passes a turn, and they
     are declared angles (``HamiltonianSystem(angles=...)``, a scene's ``periodic`` angles) or
     ``H`` is ``2 pi``-periodic in them (``H(q + 2 pi e_j) = H(q)`` to round-off at the first,
     middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
     a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
     none."""
+    span = column_span(z[:, :n]) if span is None else span  # ``span``: the range of q
+    if not np.any(span > 2 * np.pi):  # no coordinate passes a turn: H is not evaluated
+        return None
     # not np.unique: its first call imports numpy.ma (30-70 ms of a short march's process)
     picks = np.array(sorted({0, t.size // 2, t.size - 1}))
     rows = z[picks]
     _, H = values.at_nodes(t[picks], rows)
     turns = np.zeros(2 * n, dtype=bool)
-    span = column_span(z[:, :n])
     declared = getattr(values.system, "angle_indices", ())
     for j in range(n):
         if span[j] <= 2 * np.pi:
@@ -240,13 +243,23 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     return turns if np.any(turns) else None
 
 
+def run_extent(values: NodeValues, n: int, t, z, free) -> Extent:
+    """The `Extent` of a whole run's nodes with its winding angles (`winding_angles`), from one
+    pass over the nodes: every node's, whichever window is then measured."""
+    extremes = column_extremes(z)
+    turns = winding_angles(values, n, t, z, free, span=extremes[1][:n] - extremes[0][:n])
+    return Extent(z, free, turns, extremes=extremes)
+
+
 class Extent:
     """The least and greatest value and the largest magnitude of each component over the rows
     seen so far (the march's nodes, then the reference's, block by block)."""
 
     def __init__(self, rows: np.ndarray, free: np.ndarray | None = None,
-                 turns: np.ndarray | None = None):
-        self.low, self.high, self.largest = column_extremes(rows)
+                 turns: np.ndarray | None = None, extremes=None):
+        # ``extremes``: `column_extremes` of ``rows``, where the caller has them
+        self.low, self.high, self.largest = column_extremes(rows) if extremes is None else \
+            (extremes[0].copy(), extremes[1].copy(), extremes[2].copy())
         self.free = free  # components that set no floor (`motion_scales`)
         self.turns = turns  # winding angles, counted at most one turn
 
@@ -299,6 +312,22 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
 
 
 # -- the verdict ----------------------------------------------------------------------------
+
+def first_flow(system, compiler, cache_dir):
+    """The exact flow with `FIRST_SLOTS` attempts a call, for the reference's first piece
+    (`GrowingReference`), or ``None`` (the full flow then): from the second check of the system
+    in this process on (its build, 15-20 ms, is not paid by a one-shot march), compiled once
+    the full flow is (whose rent the system's checks have paid)."""
+    checks = cached(system, ("accuracy", "checks", compiler, str(cache_dir)), lambda: [0])
+    checks[0] += 1
+    if checks[0] < 2:
+        return None
+    small = exact_flow(system, slots=FIRST_SLOTS, compiler=compiler, cache_dir=cache_dir)
+    if not small.compiled and exact_flow(system, compiler=compiler,
+                                         cache_dir=cache_dir).compiled:
+        small.buy()
+    return small
+
 
 class CheckStopped(Exception):
     """A check given ``stop`` (`Judgement.report`) was asked to stop: no report."""
@@ -400,20 +429,20 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        turns = winding_angles(self.values, self.system.n, t, z, self.free)
-        extent = Extent(z, self.free, turns)  # every node's, whichever window is measured
+        extent = run_extent(self.values, self.system.n, t, z, self.free)
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
             scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
             return scan.figures(t[0], "exact solution")
-        scale = extent.scales(self.system.n)
-        last = t.size - 1
+        scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
+        small = first_flow(self.system, self.compiler, self.cache_dir)
         while True:
             scan = Scan(extent, self.system.n, tol)
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
-                                       rtol=rtol, first=t[min(FIRST_NODES, last)])
+                                       rtol=rtol, first=t[min(FIRST_NODES, last)],
+                                       first_flow=small)
             start = 0
             while True:
                 piece = growing.advance()
@@ -574,10 +603,11 @@ class Scan:
         rows = z[start + 1:end + 1]
         with np.errstate(invalid="ignore", over="ignore"):
             difference = np.abs(rows - states)
-        finite = np.isfinite(row_max_abs(states))
+        # one pass over every entry where all are finite (as a row maximum: 2d passes)
+        finite = np.True_ if np.isfinite(states).all() else np.isfinite(row_max_abs(states))
         lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * self.tol))
         lost_at = int(lost[0]) if lost.size else None
-        scale, over_at, seen = self.scales(), None, None
+        scale, over_at, seen, seen_stop = self.scales(), None, None, None
         for _ in range(8):
             with np.errstate(invalid="ignore"):
                 error = row_max_ratio(difference, scale)
@@ -589,6 +619,7 @@ class Scan:
             if stop == 0:
                 break
             seen = column_extremes(states[:stop])  # finite: the rows before a lost one
+            seen_stop = stop
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
                                 np.maximum(self.largest, seen[2]), self.n, self.extent.free,
                                 self.extent.turns)
@@ -604,7 +635,8 @@ class Scan:
             if over_at is not None:
                 self.times["drift"] = float(t[start + 1 + over_at])
         if stop:
-            seen = column_extremes(states[:stop])
+            if seen_stop != stop:  # the loop's last pass read these rows already
+                seen = column_extremes(states[:stop])
             np.minimum(self.low, seen[0], out=self.low)
             np.maximum(self.high, seen[1], out=self.high)
             np.maximum(self.largest, seen[2], out=self.largest)

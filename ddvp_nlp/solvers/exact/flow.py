@@ -83,6 +83,10 @@ class AdaptiveFlow:
         """Whether the chunk runs compiled now (it may start in the virtual machine)."""
         return self._buffer.compiled
 
+    def buy(self) -> None:
+        """Compile the chunk now (a flow of the same system has paid the rent)."""
+        self._buffer.buy()
+
     def initial_step(self, z0, t0, t_end, theta, rtol, atol) -> float:
         """Hairer's starting step (scipy's ``select_initial_step``, order 7), on ``z``."""
         def f(z, t):

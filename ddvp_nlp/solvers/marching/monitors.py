@@ -104,7 +104,8 @@ class EarlyVerdict(MarchMonitor):
         z = nodes.z[:count]
         scale = motion_scales(*column_extremes(z), z.shape[1] // 2)
         t, z = nodes.t[start:end + 1], z[start:end + 1]
-        look = self.judge.values.first_look(t, z) if self.screen else None
+        # the steps alone: no node values at the window's last node
+        look = self.judge.values.first_look(t, z, last=False) if self.screen else None
         _, relative, ratio = self.judge.step_errors(t, z, scale, look)
         self.checked = end
         over = np.flatnonzero(~(ratio <= EARLY_FACTOR))

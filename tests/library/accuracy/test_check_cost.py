@@ -17,6 +17,7 @@ from ddvp_nlp import load_scene, march
 from ddvp_nlp.solvers import compiler as compiled_code
 from ddvp_nlp.solvers.accuracy import judgement, node_values
 from ddvp_nlp.solvers.columns import column_argmax, column_span
+from ddvp_nlp.solvers.exact import reference
 from ddvp_nlp.solvers.exact.flow import AdaptiveFlow
 
 
@@ -83,6 +84,28 @@ def test_a_run_that_drifts_early_is_not_integrated_a_call_past_it(monkeypatch):
         (first.name, first.t_drift, first.drift_step)
     claimed = max(first.reference_error, whole.reference_error)
     assert abs(whole.error_max - first.error_max) <= claimed
+
+
+def test_the_first_piece_on_a_short_chunk_gives_the_same_report(monkeypatch):
+    """From the second check of a system in a process, the reference's first piece runs on the
+    flow of `FIRST_SLOTS` attempts a call (its skipped slots are what a 1024-slot call costs
+    there): the same attempts, so the same report, bit for bit, as on the full flow."""
+    run = _pendulum(t_end=200.0)
+    run()  # the first check of the system in this process
+    slots = []
+    original = AdaptiveFlow.run
+
+    def counted(self, *args, **kwargs):
+        slots.append(self.slots)
+        return original(self, *args, **kwargs)
+    monkeypatch.setattr(AdaptiveFlow, "run", counted)
+    short = run().verdict
+    assert slots[:2] == [reference.FIRST_SLOTS] * 2  # the first piece's fine and coarse runs
+    slots.clear()
+    monkeypatch.setattr(judgement, "first_flow", lambda *args: None)
+    full = run().verdict
+    assert reference.FIRST_SLOTS not in slots
+    assert short.as_dict() == full.as_dict()
 
 
 def _rented_function():
