@@ -222,6 +222,77 @@ def plain_tick_labels(fig) -> None:
                     formatter.__class__ = plain[type(formatter)]
 
 
+# What `unicode_math` writes for mathtext's letters, subscripts and symbols: mathematical
+# italic letters (U+1D434..; the italic small h is Planck's constant, U+210E), subscript
+# characters, upright Greek (the serif has no italic Greek of its own), a true minus sign.
+ITALIC = {**{c: chr(0x1D434 + i) for i, c in enumerate("ABCDEFGHIJKLMNOPQRSTUVWXYZ")},
+          **{c: chr(0x1D44E + i) for i, c in enumerate("abcdefghijklmnopqrstuvwxyz")},
+          "h": "\N{PLANCK CONSTANT}"}
+SUBSCRIPTS = dict(zip("0123456789+-=()aehijklmnoprstuvx", "₀₁₂₃₄₅₆₇₈₉₊₋₌₍₎ₐₑₕᵢⱼₖₗₘₙₒₚᵣₛₜᵤᵥₓ",
+                      strict=True))
+GREEK = {"tau": "τ", "omega": "ω", "theta": "θ", "phi": "φ", "alpha": "α", "beta": "β",
+         "epsilon": "ε", "lambda": "λ", "mu": "μ", "sigma": "σ", "Delta": "Δ"}
+_MATH_TOKEN = re.compile(r"\\([A-Za-z]+)|_\{([^{}]*)\}|_(.)|([A-Za-z])|([0-9 .,()|/+=])|(-)")
+
+
+def unicode_math(label: str) -> str:
+    """A label whose mathtext is a few letters, digits, Greek, subscripts and ``+ - = ( ) ,
+    | /`` (``$q$``, ``step $\\tau_k$``, ``$|H - H_0|$``, ``node $H(q_k, p_k)$``) written
+    as the same text in Unicode: italic letters, subscript characters, a minus sign
+    (``𝑞``, ``step τₖ``, ``|𝐻 − 𝐻₀|``), drawn as plain text (mathtext parsed each label
+    and built its grammar once per process: about a tenth of a second of the run figure).
+    A label holding anything else (a fraction, a superscript, an unknown command) is returned
+    as it is, for mathtext to typeset."""
+    parts = label.split("$")
+    if len(parts) % 2 == 0 or len(parts) == 1:
+        return label  # no mathtext, or an unpaired $ (mathtext's own error then)
+    for index in range(1, len(parts), 2):
+        converted = _unicode_segment(parts[index])
+        if converted is None:
+            return label
+        parts[index] = converted
+    return "".join(parts)
+
+
+def _unicode_segment(math: str) -> str | None:
+    """One ``$...$`` segment of `unicode_math` in Unicode, or ``None`` if it holds anything
+    that has no plain form."""
+    out, position = [], 0
+    for match in _MATH_TOKEN.finditer(math):
+        if match.start() != position:
+            return None
+        position = match.end()
+        command, braced, single, letter, plain, minus = match.groups()
+        if command is not None:
+            if command not in GREEK:
+                return None
+            out.append(GREEK[command])
+        elif braced is not None or single is not None:
+            text = braced if braced is not None else single
+            if not text or any(c not in SUBSCRIPTS for c in text):
+                return None
+            out.append("".join(SUBSCRIPTS[c] for c in text))
+        else:
+            out.append(ITALIC[letter] if letter else plain if plain else "\N{MINUS SIGN}")
+    return "".join(out) if position == len(math) else None
+
+
+def unicode_labels(fig) -> None:
+    """The titles, axis labels, legend entries and annotations of ``fig`` whose mathtext has
+    a plain form written in Unicode (`unicode_math`); numeric tick labels are
+    `plain_tick_labels`' part."""
+    texts = [fig._suptitle] if getattr(fig, "_suptitle", None) is not None else []
+    for ax in fig.axes:
+        texts += [ax.xaxis.label, ax.yaxis.label, ax.title, *ax.texts]
+        legend = ax.get_legend()
+        if legend is not None:
+            texts += legend.get_texts()
+    for text in texts:
+        label = text.get_text()
+        if "$" in label:
+            text.set_text(unicode_math(label))
+
+
 @functools.cache
 def plain_formatters() -> dict:
     """``{matplotlib formatter class: its subclass with plain-text labels}``, built on first

@@ -165,6 +165,25 @@ def test_tick_labels_written_as_mathtext_become_the_same_plain_text(mathtext, pl
     assert figures.plain_text(mathtext) == plain
 
 
+@pytest.mark.parametrize(("mathtext", "plain"), [
+    ("$q$", "\U0001d45e"),
+    ("$h$", "\N{PLANCK CONSTANT}"),
+    (r"step $\tau_k$", "step \u03c4\u2096"),
+    ("$|H - H_0|$ / $|H_0|$", "|\U0001d43b \N{MINUS SIGN} \U0001d43b\u2080| / |\U0001d43b\u2080|"),
+    ("node $H(q_k, p_k)$", "node \U0001d43b(\U0001d45e\u2096, \U0001d45d\u2096)"),
+    ("$q_{12}$", "\U0001d45e\u2081\u2082"),
+    ("drifted from $t = 1.5$", "drifted from \U0001d461 = 1.5"),
+    (r"$E^{(k)} - E^{(l-1)}$", r"$E^{(k)} - E^{(l-1)}$"),  # a superscript: left to mathtext
+    (r"$\frac{1}{2}$", r"$\frac{1}{2}$"),  # a command without a plain form
+    ("$q_{y}$", "$q_{y}$"),  # no subscript y in Unicode
+    ("a $ b", "a $ b"),  # unpaired
+    ("no math", "no math"),
+])
+def test_labels_whose_mathtext_is_letters_and_subscripts_become_the_same_unicode_text(
+        mathtext, plain):
+    assert figures.unicode_math(mathtext) == plain
+
+
 def test_a_saved_figure_has_plain_text_ticks_with_superscripts_on_a_log_axis(tmp_path):
     with figures.styled():
         fig = figures.new_figure(3, 2)
