@@ -197,3 +197,32 @@ def test_a_saved_figure_has_plain_text_ticks_with_superscripts_on_a_log_axis(tmp
     assert len(set(texts)) == len(texts)
     offset = twin.yaxis.get_offset_text().get_text()
     assert offset and "$" not in offset
+
+
+@pytest.mark.parametrize("transparent", [False, True])
+def test_a_png_holds_the_canvas_pixels_and_its_resolution(tmp_path, transparent):
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image
+
+    with figures.styled():
+        fig = figures.new_figure(1.2, 0.8, layout=None)
+        ax = fig.add_axes([0.2, 0.2, 0.7, 0.7])
+        ax.plot([0, 1, 2], [0, 1, 0.5])
+        if transparent:  # a face that is not opaque keeps its alpha channel
+            fig.patch.set_alpha(0.5)
+        dpi = float(figures.house_style()["savefig.dpi"])
+        figures.save(fig, tmp_path / "f.png")
+        in_memory = io.BytesIO()
+        figures.save(fig, in_memory)
+        fig.dpi = dpi
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        expected = np.asarray(canvas.buffer_rgba())
+    for source in (tmp_path / "f.png", io.BytesIO(in_memory.getvalue())):
+        image = Image.open(source)
+        assert image.mode == ("RGBA" if transparent else "RGB")
+        assert np.allclose(image.info["dpi"], dpi, rtol=1e-4)
+        pixels = np.asarray(image.convert("RGBA"))
+        assert pixels.shape == expected.shape and np.array_equal(pixels, expected)
