@@ -37,13 +37,13 @@ with the in-process limits only.
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import NoReturn
 
 from ..scenes.guard import SceneWatch
 
@@ -85,10 +85,10 @@ def supervise(work: Callable[[], int]) -> int:
     return Parent(child, watch).wait()
 
 
-def _child(work: Callable[[], int], watch: SceneWatch) -> NoReturn:
+def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     """The command itself, in the child: it dies with its parent, reports to the watch, and
-    once done leaves at once (`_leave`), without waiting for threads that would keep it
-    alive."""
+    once done leaves without waiting for threads that would keep it alive, nor for the
+    cycle collector (`_leave_uncollected`)."""
     parent = os.getppid()
     _die_with_parent()
     if os.getppid() != parent:  # the parent died before the request took effect
@@ -112,23 +112,20 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> NoReturn:
                  if t is not threading.main_thread() and not t.daemon and t.is_alive()]
     if lingering:  # a scene's (or a library's) thread: the run is saved, nothing waits for it
         os._exit(code)
-    _leave(code)
+    _leave_uncollected()
+    return code
 
 
-def _leave(code: int) -> NoReturn:
-    """End the child with ``code`` once its exit hooks have run (``atexit``: a compile
-    ledger's last rent, temporary folders, logging) and its streams are flushed, without
-    tearing the interpreter down: freeing every module and object of matplotlib and CasADi
-    one by one cost 0.19 s of CPU of the 1.15 s of ``ddvp march paper_pendulum`` with its
-    figure (measured; ``scripts/benchmarks/bench_startup.py``), and nothing the command
-    wrote waits on it (its files are closed as they are written)."""
-    import atexit
-
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    os._exit(code)
+def _leave_uncollected() -> None:
+    """Turn the cycle collector off for the child's exit (``gc.freeze``: what is alive now
+    is never traversed again): the interpreter's teardown then frees modules and objects by
+    their counts alone, where its collections over every object of matplotlib and CasADi
+    cost 0.19 s of CPU of the 1.15 s of ``ddvp march paper_pendulum`` with its figure
+    (measured; ``scripts/benchmarks/bench_startup.py``). The exit hooks (``atexit``) and
+    the streams' flushing run as before; the command's files are closed as they are
+    written."""
+    gc.disable()
+    gc.freeze()
 
 
 def _adopt_orphans() -> None:

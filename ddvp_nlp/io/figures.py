@@ -326,10 +326,10 @@ def _unicode_segment(math: str) -> str | None:
 
 
 def unicode_labels(fig) -> None:
-    """The titles, axis labels, legend entries and annotations of ``fig`` whose mathtext has
-    a plain form written in Unicode (`unicode_math`); numeric tick labels are
-    `plain_tick_labels`' part."""
-    texts = [fig._suptitle] if getattr(fig, "_suptitle", None) is not None else []
+    """The axes' titles, axis labels, legend entries and annotations of ``fig`` whose
+    mathtext has a plain form written in Unicode (`unicode_math`; a figure's own title is
+    written so where it is set); numeric tick labels are `plain_tick_labels`' part."""
+    texts = []
     for ax in fig.axes:
         texts += [ax.xaxis.label, ax.yaxis.label, ax.title, *ax.texts]
         legend = ax.get_legend()

@@ -214,7 +214,7 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False, dots: bool 
         box = [x / width, 1 - (lowest + side) / height, widths[-1] / width, side / height]
         _state_panel(fig.add_axes(box), solution.q, solution.p, kind, fixed_ends=fixed_ends,
                      dots=dots)
-    fig.suptitle(title, y=1 - 0.12 / height)
+    fig.suptitle(figures.unicode_math(title), y=1 - 0.12 / height)
     return fig
 
 
