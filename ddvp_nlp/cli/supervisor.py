@@ -82,7 +82,9 @@ def supervise(work: Callable[[], int]) -> int:
     if child == 0:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
         return _child(work, watch)
-    return Parent(child, watch).wait()
+    code = Parent(child, watch).wait()
+    _leave_uncollected()  # the parent too: it exits next
+    return code
 
 
 def _child(work: Callable[[], int], watch: SceneWatch) -> int:
@@ -117,7 +119,7 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
 
 
 def _leave_uncollected() -> None:
-    """Turn the cycle collector off for the child's exit (``gc.freeze``: what is alive now
+    """Turn the cycle collector off for the process's exit (``gc.freeze``: what is alive now
     is never traversed again): the interpreter's teardown then frees modules and objects by
     their counts alone, where its collections over every object of matplotlib and CasADi
     cost 0.19 s of CPU of the 1.15 s of ``ddvp march paper_pendulum`` with its figure
