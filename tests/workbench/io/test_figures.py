@@ -8,6 +8,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
@@ -226,3 +228,14 @@ def test_a_png_holds_the_canvas_pixels_and_its_resolution(tmp_path, transparent)
         assert np.allclose(image.info["dpi"], dpi, rtol=1e-4)
         pixels = np.asarray(image.convert("RGBA"))
         assert pixels.shape == expected.shape and np.array_equal(pixels, expected)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(alphabet="$qpHtk_{}()|-+= ,.01\\tau^", max_size=24))
+def test_a_label_is_either_converted_whole_or_left_to_mathtext(label):
+    converted = figures.unicode_math(label)
+    assert converted == label or "$" not in converted
+    if label.count("$") in (0, 1) or label.count("$") % 2:
+        assert converted == label  # no pair of $: nothing is mathtext
+    # converting twice changes nothing more
+    assert figures.unicode_math(converted) == converted
