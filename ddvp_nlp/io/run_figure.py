@@ -57,6 +57,7 @@ def plot_trajectory(solution, scene, scheme, path, *, energies, fmt: str = "png"
         fig = _figure(solution, _rows(solution, scheme.variable_steps and kept is None,
                                       energy), title, fixed_ends=fixed_ends,
                       dots=kept is not None)
+        figures.unicode_labels(fig)
         figures.save(fig, path, fmt)
 
 
@@ -118,6 +119,7 @@ def plot_solution(solution, path=None, *, system=None, params=None, title: str |
     title = title or f"{solution.scheme}: {solution.steps} steps, {verdict_text(solution)}"
     with figures.styled():
         fig = _figure(solution, _rows(solution, varies, energy), title)
+        figures.unicode_labels(fig)
         if path is None:
             figures.save(fig, figures.Keep())  # the same finish as a saved figure, drawn
             return fig
@@ -193,7 +195,7 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False, dots: bool 
         for row, (label, curves, log) in enumerate(rows):
             box = [x / width, 1 - (top + (row + 1) * ROW_HEIGHT - 0.12) / height,
                    widths[column] / width, (ROW_HEIGHT - 0.24) / height]
-            ax = fig.add_axes(box, sharex=first)
+            ax = fig.add_axes(box)
             first = first or ax
             _time_panel(ax, span, curves, log, legend=column == 0,
                         ends=ends if row == 0 else None, dots=dots)
@@ -212,7 +214,7 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False, dots: bool 
         box = [x / width, 1 - (lowest + side) / height, widths[-1] / width, side / height]
         _state_panel(fig.add_axes(box), solution.q, solution.p, kind, fixed_ends=fixed_ends,
                      dots=dots)
-    fig.suptitle(title, y=1 - 0.12 / height)
+    fig.suptitle(figures.unicode_math(title), y=1 - 0.12 / height)
     return fig
 
 

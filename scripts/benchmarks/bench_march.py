@@ -174,12 +174,18 @@ C_SOURCE = Path(__file__).with_name("c_march.c")
 C_KINDS = {"paper_pendulum": 0, "fpu": 1, "henon_heiles": 2}
 
 
+# The flags the library compiles its chunks with (ddvp_nlp/solvers/compiler.py), so that the C
+# march gets what the compiled chunk gets: no FMA contraction, sincos merged, sin and cos called
+# without the PLT.
+C_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno", "-fno-plt",
+           "-fno-semantic-interposition")
+
+
 def c_march_library(folder):
     """``c_march.c`` (beside this script) compiled with the library's own flags
-    (``-ffp-contract=off``)."""
+    (``C_FLAGS``)."""
     library = Path(folder) / "c_march.so"
-    subprocess.run(["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", str(C_SOURCE), "-o",
-                    str(library), "-lm"], check=True)
+    subprocess.run(["gcc", *C_FLAGS, str(C_SOURCE), "-o", str(library), "-lm"], check=True)
     lib = ctypes.CDLL(str(library))
     pointer = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
     lib.c_march.argtypes = [ctypes.c_int, ctypes.c_int, pointer, pointer, ctypes.c_double,

@@ -8,6 +8,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ddvp_nlp import load_scene, march
 from ddvp_nlp.discrete.scheme import Scheme
@@ -165,6 +167,25 @@ def test_tick_labels_written_as_mathtext_become_the_same_plain_text(mathtext, pl
     assert figures.plain_text(mathtext) == plain
 
 
+@pytest.mark.parametrize(("mathtext", "plain"), [
+    ("$q$", "\U0001d45e"),
+    ("$h$", "\N{PLANCK CONSTANT}"),
+    (r"step $\tau_k$", "step \u03c4\u2096"),
+    ("$|H - H_0|$ / $|H_0|$", "|\U0001d43b \N{MINUS SIGN} \U0001d43b\u2080| / |\U0001d43b\u2080|"),
+    ("node $H(q_k, p_k)$", "node \U0001d43b(\U0001d45e\u2096, \U0001d45d\u2096)"),
+    ("$q_{12}$", "\U0001d45e\u2081\u2082"),
+    ("drifted from $t = 1.5$", "drifted from \U0001d461 = 1.5"),
+    (r"$E^{(k)} - E^{(l-1)}$", r"$E^{(k)} - E^{(l-1)}$"),  # a superscript: left to mathtext
+    (r"$\frac{1}{2}$", r"$\frac{1}{2}$"),  # a command without a plain form
+    ("$q_{y}$", "$q_{y}$"),  # no subscript y in Unicode
+    ("a $ b", "a $ b"),  # unpaired
+    ("no math", "no math"),
+])
+def test_labels_whose_mathtext_is_letters_and_subscripts_become_the_same_unicode_text(
+        mathtext, plain):
+    assert figures.unicode_math(mathtext) == plain
+
+
 def test_a_saved_figure_has_plain_text_ticks_with_superscripts_on_a_log_axis(tmp_path):
     with figures.styled():
         fig = figures.new_figure(3, 2)
@@ -178,3 +199,43 @@ def test_a_saved_figure_has_plain_text_ticks_with_superscripts_on_a_log_axis(tmp
     assert len(set(texts)) == len(texts)
     offset = twin.yaxis.get_offset_text().get_text()
     assert offset and "$" not in offset
+
+
+@pytest.mark.parametrize("transparent", [False, True])
+def test_a_png_holds_the_canvas_pixels_and_its_resolution(tmp_path, transparent):
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image
+
+    with figures.styled():
+        fig = figures.new_figure(1.2, 0.8, layout=None)
+        ax = fig.add_axes([0.2, 0.2, 0.7, 0.7])
+        ax.plot([0, 1, 2], [0, 1, 0.5])
+        if transparent:  # a face that is not opaque keeps its alpha channel
+            fig.patch.set_alpha(0.5)
+        dpi = float(figures.house_style()["savefig.dpi"])
+        figures.save(fig, tmp_path / "f.png")
+        in_memory = io.BytesIO()
+        figures.save(fig, in_memory)
+        fig.dpi = dpi
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        expected = np.asarray(canvas.buffer_rgba())
+    for source in (tmp_path / "f.png", io.BytesIO(in_memory.getvalue())):
+        image = Image.open(source)
+        assert image.mode == ("RGBA" if transparent else "RGB")
+        assert np.allclose(image.info["dpi"], dpi, rtol=1e-4)
+        pixels = np.asarray(image.convert("RGBA"))
+        assert pixels.shape == expected.shape and np.array_equal(pixels, expected)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.text(alphabet="$qpHtk_{}()|-+= ,.01\\tau^", max_size=24))
+def test_a_label_is_either_converted_whole_or_left_to_mathtext(label):
+    converted = figures.unicode_math(label)
+    assert converted == label or "$" not in converted
+    if label.count("$") in (0, 1) or label.count("$") % 2:
+        assert converted == label  # no pair of $: nothing is mathtext
+    # converting twice changes nothing more
+    assert figures.unicode_math(converted) == converted

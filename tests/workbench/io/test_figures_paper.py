@@ -111,13 +111,17 @@ def test_the_run_figure_says_its_verdict_and_draws_constant_steps_as_constant(
     check(fig)
     title = fig._suptitle.get_text()
     assert said in title and (status is not Status.SUCCESS or "success" not in title)
-    constant_axis(next(ax for ax in fig.axes if "tau" in ax.get_ylabel()))
+    constant_axis(next(ax for ax in fig.axes if "τ" in ax.get_ylabel()))
+    # every label of the run figure is plain text (figures.unicode_labels): no mathtext
+    labels = [title, *(text.get_text() for ax in fig.axes for text in
+                       (ax.xaxis.label, ax.yaxis.label, ax.title, *ax.texts))]
+    assert not any("$" in label for label in labels), labels
 
 
 def test_a_fixed_end_run_marks_both_ends():
     fig = run_figure(run(verdict="accurate"), fixed_ends=True)
     check(fig)
-    q = next(ax for ax in fig.axes if ax.get_ylabel() == "$q$")
+    q = next(ax for ax in fig.axes if ax.get_ylabel() == figures.unicode_math("$q$"))
     phase = next(ax for ax in fig.axes if ax.get_title() == "phase portrait")
     for ax in (q, phase):
         (ends,) = [line for line in ax.lines if line.get_marker() == "s"]
