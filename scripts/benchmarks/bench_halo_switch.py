@@ -32,7 +32,7 @@ from ddvp_nlp import Continuation, Switch, follow_periodic_family, load_scene  #
 from ddvp_nlp.io import machine  # noqa: E402
 
 
-def switched(orbits: int, nodes: int):
+def switched(orbits: int, nodes: int, tol=None):
     """The followed family with both halves of its halo branch, and the CPU and wall seconds."""
     scene = load_scene("cr3bp")
     mu = scene.params["mu"]
@@ -40,7 +40,8 @@ def switched(orbits: int, nodes: int):
     family = follow_periodic_family(
         scene.system, (-1.5935, -1.585), nodes=nodes, section="q2=0",
         guess=scene.periodic.guess(-1.5935, mu=mu),
-        continuation=Continuation(step=0.0005, switch=Switch(orbits=orbits)))
+        continuation=Continuation(step=0.0005, switch=Switch(orbits=orbits, **(
+            {} if tol is None else {"tol": tol or None}))))
     return family, mu, time.process_time() - cpu, time.perf_counter() - wall
 
 
@@ -97,26 +98,34 @@ def draw(family, path) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--orbits", type=int, default=20)
-    parser.add_argument("--nodes", type=int, default=401)
+    parser.add_argument("--nodes", type=int, default=201)
+    parser.add_argument("--tol", type=float, default=None,
+                        help="Switch(tol=...): the halves' relative period target (default: "
+                             "Switch's; 0: none, the halves on the family's grid)")
     parser.add_argument("--figure", default=None, metavar="PATH",
                         help="draw the family and both halves (x-y, x-z, period against E)")
     args = parser.parse_args(argv)
-    family, mu, cpu, wall = switched(args.orbits, args.nodes)
+    family, mu, cpu, wall = switched(args.orbits, args.nodes, args.tol)
     print(f"{family.message}; {len(family.members)} orbits")
     print(f"{family.switched}")
-    print(f"follow and switch: {cpu:.1f} s CPU, {wall:.1f} s wall (N = {args.nodes - 1})")
+    print(f"follow and switch: {cpu:.1f} s CPU, {wall:.1f} s wall (family: N = "
+          f"{args.nodes - 1}, {family.seconds:.1f} s wall; halves: "
+          + ", ".join(f"{b.label} {b.family.seconds:.1f} s wall" for b in family.branches) + ")")
     worst = 0.0
     for branch in family.branches:
         print(f"\nhalf {branch.label}: {branch.family.message}")
-        print("| # | E | z0 | max abs z | T | T_dc (same E) | T - T_dc | C | C_dc (same z0) "
-              "| C - C_dc | DC iterations |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        errors = branch.family.grid.get("errors") or [None] * len(branch.family.members)
+        print("| # | N | E | z0 | max abs z | T | T_dc (same E) | T - T_dc | estimate of it "
+              "| C | C_dc (same z0) | C - C_dc | DC iterations |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for j, member in enumerate(branch.family.members):
             row = compared(member, mu)
             worst = max(worst, abs(row["dT"]), abs(row["dC"]))
-            print(f"| {j + 1} | {row['E']:.9f} | {row['z0']:+.6f} | {row['zmax']:.6f} | "
-                  f"{row['T']:.9f} | {row['T_dc']:.9f} | {row['dT']:+.2e} | {row['C']:.9f} | "
-                  f"{row['C_dc']:.9f} | {row['dC']:+.2e} | {row['iterations']} |")
+            said = "-" if errors[j] is None else f"{errors[j] * row['T']:.2e}"
+            print(f"| {j + 1} | {member.orbit.t.size - 1} | {row['E']:.9f} | {row['z0']:+.6f} | "
+                  f"{row['zmax']:.6f} | {row['T']:.9f} | {row['T_dc']:.9f} | {row['dT']:+.2e} | "
+                  f"{said} | {row['C']:.9f} | {row['C_dc']:.9f} | {row['dC']:+.2e} | "
+                  f"{row['iterations']} |")
     if len(family.branches) == 2:
         a, b = (br.family.members for br in family.branches)
         pairs = list(zip(a, b, strict=False))

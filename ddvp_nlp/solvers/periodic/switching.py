@@ -40,10 +40,13 @@ import scipy.sparse.linalg as spla
 
 from ...errors import InputError
 from ...validation import check_integer, check_real
+from .branch_grid import GROWTH, TURNING, checked_half, half_walker
 
 # The largest relative residual of a kernel direction; inverse iteration's solves.
 KERNEL_TOL = 1e-6
 KERNEL_SOLVES = 3
+# The halves' period error target, relative (branch_grid.py): 8.2e-5 on the halo's T = 2.74.
+DEFAULT_TOL = 3e-5
 
 
 @dataclass(frozen=True)
@@ -57,11 +60,15 @@ class Switch:
             step across the branch point).
         at: the number of the bifurcation to switch at (``1`` for the first located, as the
             command line prints them); default the first branch point.
+        tol: the halves' periods' error target, relative to the period: each half is followed
+            on the grid chosen for it and every orbit's error estimated (``branch_grid.py``);
+            ``None``: on the family's grid, unchecked.
     """
 
     orbits: int = 20
     step: float | None = None
     at: int | None = None
+    tol: float | None = DEFAULT_TOL
 
     def __post_init__(self):
         object.__setattr__(self, "orbits", check_integer("orbits", self.orbits, minimum=2))
@@ -69,6 +76,8 @@ class Switch:
             object.__setattr__(self, "step", check_real("step", self.step, positive=True))
         if self.at is not None:
             object.__setattr__(self, "at", check_integer("at", self.at, minimum=1))
+        if self.tol is not None:
+            object.__setattr__(self, "tol", check_real("tol", self.tol, positive=True))
 
 
 @dataclass
@@ -190,15 +199,17 @@ def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray
                                      f"step below {smallest:.3g} failed ({why})",
                       time.perf_counter() - started)
     settings = replace(walker.settings, max_orbits=switch.orbits, switch=None)
-    half = type(walker)(walker.system, first, walker.nodes, walker.common, settings,
-                        (-np.inf, np.inf), previous=direction)
-    members, message, _ = half.walk(ds=step, longest=longest)
+    half, grid, why = half_walker(walker, first, direction, settings, switch.tol)
+    if half is None:
+        return Family([], [], False, why, time.perf_counter() - started)
+    members, message, _ = half.walk(ds=step, longest=longest * GROWTH, turning=TURNING)
     complete = len(members) == switch.orbits
     if complete:
         message = f"orbits = {switch.orbits} reached"
+    complete, message = checked_half(half, grid, members, complete, message)
     bifurcations, unlocated = half.locate_all()
     return Family(members, bifurcations, complete, message, time.perf_counter() - started,
-                  unlocated)
+                  unlocated, grid=grid.as_dict() if grid is not None else {})
 
 
 def _first_orbit(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray,
