@@ -648,12 +648,12 @@ def _equilibrium_orbits(geometry, window, params):
 def _equilibrium(geometry, x: float, iterations: int = 30) -> np.ndarray:
     """Newton on ``grad H = 0`` from the section's line at ``q_o = x``, the momenta zero (the
     point reached: `linearised_orbit` refuses it when it is no equilibrium)."""
-    from .linearised import _derivatives
+    from .linearised import equilibrium_derivatives
 
     section = geometry.section
     z = np.zeros(4)
     z[section.index], z[section.other] = section.value, x
-    derivatives = _derivatives(geometry.system)
+    derivatives = equilibrium_derivatives(geometry.system)
     with np.errstate(all="ignore"):
         for _ in range(iterations):
             _, gradient, hessian = (np.asarray(a, float) for a in derivatives(z, geometry.theta))
