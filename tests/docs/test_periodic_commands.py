@@ -72,11 +72,14 @@ def _halo_switch(out: str, folder: Path) -> None:
                       r"residual ([\d.e+-]+)\): ([+-]q3): 20 orbits, ([+-]q3): 20 orbits", out)
     assert found and abs(float(found.group(1)) - row["energy"]) < 1e-9
     assert float(found.group(2)) < 1e-6 and {found.group(3), found.group(4)} == {"+q3", "-q3"}
-    assert out.count("orbits = 20 reached; 20 orbits in") == 2
+    # each half on the grid its period target asks for (switching.md: 380 intervals)
+    assert out.count("orbits = 20 reached; 380 intervals for relative period error 3e-05 "
+                     "(estimated 8.2e-05 on 200; largest along the half 2.3e-05); 20 orbits "
+                     "in") == 2
     halves = out.split("\nbranch ")[1:]
     first = [re.search(r"^  E = (-[\d.]+) +T = ([\d.]+)", h, flags=re.M) for h in halves]
     assert abs(float(first[0].group(1)) - -1.587129814) < 1e-8
-    assert abs(float(first[0].group(2)) - 2.743293584) < 1e-8
+    assert abs(float(first[0].group(2)) - 2.743130274) < 1e-8
     assert abs(float(first[0].group(1)) - float(first[1].group(1))) < 1e-8
     assert (folder / "runs").is_dir()
 
@@ -120,6 +123,15 @@ def _hill_search(out: str, folder: Path) -> None:
     assert out.count("grid T = 3.0397") == 2
 
 
+def _hill_search_none(out: str, folder: Path) -> None:
+    """docs/periodic/search.md step 5: without the symmetry, 5 orbits, the Lyapunov pair among
+    them from the libration points' linearised orbits."""
+    assert "5 periodic orbit(s) found" in out
+    assert "the linearised orbits about 3 critical points of the line" in out
+    assert out.count("T = 3.039655464  index 1970.2952") == 2
+    assert "T = 0.4993825627  index 1.7424598" in out
+
+
 CLAIMS = {
     "ddvp periodic henon_heiles --stability": _henon_heiles_stability,
     "ddvp periodic figure_eight --stability": _figure_eight,
@@ -130,6 +142,8 @@ CLAIMS = {
         _doubling_switch,
     "ddvp periodic hill --energy -2.14 --follow -1.90": _hill_family,
     "ddvp periodic hill --search --energy -2.14 --section q2=0": _hill_search,
+    "ddvp periodic hill --search --energy -2.14 --section q2=0 --reversing none":
+        _hill_search_none,
 }
 
 

@@ -148,7 +148,9 @@ class Family:
     the family inside the bracket), each ``{"kind", "after_member", "energies"}``: reported,
     not dropped. ``branches``: the new branches followed from a branch point when asked
     (``switching.Branch``, each half a `Family` with its own ``seconds``), ``switched`` what
-    the switch found or why it found none; ``seconds``: the family's own, without them."""
+    the switch found or why it found none; ``seconds``: the family's own, without them.
+    ``grid``: a half's grid and its orbits' period error estimates (``branch_grid.BranchGrid``
+    as a dict), empty on the family's grid."""
 
     members: list
     bifurcations: list
@@ -158,6 +160,7 @@ class Family:
     unlocated: list = field(default_factory=list)
     branches: list = field(default_factory=list)
     switched: str = ""
+    grid: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -371,10 +374,15 @@ class _Walker:
         return solve_periodic(self.system, energy=float(y[-1]), nodes=self.nodes,
                               guess={"t": t, "q": q, "p": p}, **self.common)
 
-    def walk(self, ds: float | None = None, longest: float | None = None):
+    def walk(self, ds: float | None = None, longest: float | None = None,
+             turning: float | None = None):
         """Members until the energy leaves the range, ``max_orbits``, or a step fails below
         ``min_step``: ``(members, message, complete)``; the first and the longest step in the
-        arclength are given (a branch) or from the energy steps and the first slope."""
+        arclength are given (a branch) or from the energy steps and the first slope. The step
+        grows by 1.5 after an easy corrector (``EASY_ITERATIONS``); with ``turning`` (a
+        branch's halves), after a corrector of at most twice as many iterations, by at most what
+        keeps the predictor's miss ``|y - (y_i + ds t_i)| / ds`` (about half the tangent's turn
+        over the step) near ``turning``, and it shrinks when the miss is over twice that."""
         if ds is None:
             ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
             longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
@@ -395,10 +403,18 @@ class _Walker:
                                       f"orbits"), True
             arclength += ds
             self.steps.append(ds)
+            growth = 1.5 if turning is None else self._growth(y, ds, turning)
             self._accept(orbit, self.tangents[-1], arclength)
-            if iterations <= EASY_ITERATIONS:
-                ds = min(1.5 * ds, longest)
+            easy = EASY_ITERATIONS if turning is None else 2 * EASY_ITERATIONS
+            if iterations <= easy or growth < 1:
+                ds = min(growth * ds, longest)
         return self.members, f"max_orbits = {self.settings.max_orbits} reached", False
+
+    def _growth(self, y: np.ndarray, ds: float, turning: float) -> float:
+        """The step's factor from the predictor's miss (`walk`): between 1/2 and 3/2."""
+        miss = y - (self.points[-1] + ds * self.tangents[-1])
+        relative = float(np.sqrt(np.sum(self.arc.weights * miss * miss))) / ds
+        return float(np.clip(turning / max(relative, EPS), 0.5, 1.5))
 
     def locate_all(self):
         """``(located, unlocated)``: every sign change between neighbours (module

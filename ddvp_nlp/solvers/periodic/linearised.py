@@ -37,8 +37,8 @@ AMPLITUDE_STEPS = 40
 AMPLITUDE_TOL = 1e-13
 
 
-def _derivatives(system) -> ca.Function:
-    """``(z, theta) -> (H, grad H, Hess H)``."""
+def equilibrium_derivatives(system) -> ca.Function:
+    """``(z, theta) -> (H, grad H, Hess H)`` (also the search's Newton on ``grad H = 0``)."""
     def build():
         z = ca.vertcat(system.q, system.p)
         hessian, gradient = ca.hessian(system.H, z)
@@ -73,7 +73,8 @@ def linearised_orbit(system, *, energy: float, equilibrium, section="p1=0", para
     if index == 0:
         raise InputError(f"section: a linearised orbit needs a section on q or p, got {label!r}")
     theta = np.asarray(system.parameter_vector(params), float)
-    H_e, gradient, hessian = (np.asarray(x, float) for x in _derivatives(system)(z_e, theta))
+    H_e, gradient, hessian = (np.asarray(x, float)
+                              for x in equilibrium_derivatives(system)(z_e, theta))
     H_e = float(H_e.ravel()[0])
     J = np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
     field = J @ gradient.ravel()

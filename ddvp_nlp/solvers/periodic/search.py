@@ -15,7 +15,11 @@ carried by the exact flow to its returns, and the fixed points are shot for on t
   errors along it (a multiplier of 2000 per period is 45 over the half);
 - without one, seeds fill a box of the plane, and from each grid minimum of ``|P^k(u) - u|``
   Newton solves ``P^k(u) = u`` with the map's derivative from the variational equations
-  (``exact_newton``, damped).
+  (``exact_newton``, damped). Seeds near a strongly unstable orbit leave before they return
+  (Hill's Lyapunov orbits, a multiplier of 2000 per period), so the equilibria on the section's
+  line (critical points of the least energy along it, polished by Newton on ``grad H = 0``) are
+  seeds too: the linearised orbit of the centre mode at the energy (``linearised.py``) is a
+  whole period, closed by multiple shooting on the exact flow.
 
 Every orbit found is checked by closing it on the exact flow over its whole period; the same
 orbit reached from several seeds, or as a multiple cover, is kept once (compared by its period
@@ -73,6 +77,7 @@ class SearchRegion:
     max_returns: int
     horizon: float
     jitter: int | None = None
+    equilibria: int = 0
 
     def describe(self) -> str:
         parts = []
@@ -85,10 +90,12 @@ class SearchRegion:
         box = " and ".join(parts)
         placed = "" if self.jitter is None else \
             f" (each at random in its cell, generator seed {self.jitter})"
+        linearised = "" if not self.equilibria else \
+            f", the linearised orbits about {self.equilibria} critical points of the line"
         return (f"E = {self.energy:.10g}, section {self.section}, other position in "
                 f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
-                f"which {self.accessible} accessible{placed}, up to {self.max_returns} returns, "
-                f"seeds followed to t = {self.horizon:.4g}")
+                f"which {self.accessible} accessible{placed}{linearised}, up to "
+                f"{self.max_returns} returns, seeds followed to t = {self.horizon:.4g}")
 
 
 @dataclass
@@ -212,6 +219,9 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
             **box, "seeds": region["seeds"] + box["seeds"],
             "accessible": region["accessible"] + box["accessible"],
             "horizon": max(region["horizon"], box["horizon"])}
+    if flipped is None:  # no half-orbit shots: the equilibria's linearised orbits too
+        more, failed, region["equilibria"] = _equilibrium_orbits(geometry, window, params)
+        found, failures = found + more, failures + failed
     orbits = _distinct(found)
     if refine:
         for orbit in orbits:
@@ -601,6 +611,64 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
     return found, failures, region
 
 
+def _equilibrium_orbits(geometry, window, params):
+    """``(found, failures, count)``: the orbits closed from the linearised orbits about the
+    equilibria on the section's line (``linearised.py``): each critical point of the least
+    energy along the line in the window is polished into an equilibrium by Newton on
+    ``grad H = 0`` (momenta from zero), its centre mode crossing the section taken at the
+    energy, and that orbit closed by multiple shooting on the exact flow (``_close_path``).
+    Seeds of the whole map near a strongly unstable orbit (Hill's Lyapunov orbits: a multiplier
+    of 2000) leave before they return; the linearised orbit is a whole period already."""
+    from .linearised import linearised_orbit
+
+    grid = np.linspace(window[0], window[1], 4001)
+    V = _least_energy(geometry, grid)
+    inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
+    critical = grid[1:-1][inner & np.isfinite(V[1:-1])]
+    reach, escape = _scales(window)
+    atol = RTOL * reach
+    found, failures = [], []
+    for x in critical:
+        z_e = _equilibrium(geometry, x)
+        seed = (float(x), 0.0)
+        try:
+            guess = linearised_orbit(geometry.system, energy=geometry.energy, equilibrium=z_e,
+                                     section=geometry.section.label, params=params)
+        except InputError as why:
+            failures.append(FailedSeed(seed, f"no linearised orbit about the critical point at "
+                                             f"q_o = {x:.6g}: {why}"))
+            continue
+        t, path = guess["t"], np.hstack([guess["q"], guess["p"]])
+        result = _close_path(geometry, path[0], (t, path), atol, escape)
+        (found if isinstance(result, FoundOrbit) else failures).append(
+            result if isinstance(result, FoundOrbit) else FailedSeed(seed, result))
+    return found, failures, int(critical.size)
+
+
+def _equilibrium(geometry, x: float, iterations: int = 30) -> np.ndarray:
+    """Newton on ``grad H = 0`` from the section's line at ``q_o = x``, the momenta zero (the
+    point reached: `linearised_orbit` refuses it when it is no equilibrium)."""
+    from .linearised import equilibrium_derivatives
+
+    section = geometry.section
+    z = np.zeros(4)
+    z[section.index], z[section.other] = section.value, x
+    derivatives = equilibrium_derivatives(geometry.system)
+    with np.errstate(all="ignore"):
+        for _ in range(iterations):
+            _, gradient, hessian = (np.asarray(a, float) for a in derivatives(z, geometry.theta))
+            try:
+                step = np.linalg.solve(hessian, gradient.ravel())
+            except np.linalg.LinAlgError:
+                break
+            if not np.all(np.isfinite(step)):
+                break
+            z = z - step
+            if np.max(np.abs(step)) <= 4 * np.finfo(float).eps * max(np.max(np.abs(z)), 1e-300):
+                break
+    return z
+
+
 def _map_grid(geometry, window, seeds: int, jitter):
     """The seeds of the whole map: a ``side x side`` grid of cells over the window and the
     momenta's box ``[-top, top]``, about ``seeds`` of them accessible; each seed at its cell's
@@ -675,8 +743,6 @@ def _two_sided(geometry, u, times, atol, escape):
     Newton on the exact flow's shooting equations on segments cut where the flow has grown
     tenfold (``exact/closure.py``; one segment, single shooting, where it never does); the
     orbit closed and checked; or why not."""
-    from ..exact.closure import close_exact
-
     forward, backward = float(times[0]), float(times[1])
     if not (np.isfinite(forward) and np.isfinite(backward)):
         return "shooting did not converge (the crossing was lost on one side)"
@@ -693,12 +759,22 @@ def _two_sided(geometry, u, times, atol, escape):
     t = np.linspace(0.0, period, 801)
     first = t <= forward
     path = np.vstack([ahead.z(t[first]), behind.z(t[~first] - period)])
+    return _close_path(geometry, z0, (t, path), atol, escape)
+
+
+def _close_path(geometry, z0, path, atol, escape):
+    """The orbit through ``path = (t, z)`` (one period, ``z0`` its start) closed by Newton on the
+    exact flow's shooting equations on segments cut where the flow has grown tenfold
+    (``exact/closure.py``), then checked (`_closed`); or why not."""
+    from ..exact.closure import close_exact
+
     section = geometry.section
+    period = float(path[0][-1])
     try:
         with np.errstate(all="ignore"):
             orbit = close_exact(geometry.system, geometry.theta, z0, period,
                                 energy=geometry.energy, section_index=section.index + 1,
-                                section_value=section.value, path=(t, path))
+                                section_value=section.value, path=path)
     except np.linalg.LinAlgError:
         return "shooting did not converge (multiple shooting: a singular Newton matrix)"
     if not orbit.converged or not np.all(np.isfinite(orbit.z0)):

@@ -42,12 +42,15 @@ import scipy.sparse.linalg as spla
 from ...errors import InputError
 from ...validation import check_integer, check_real
 from . import doubling
+from .branch_grid import GROWTH, TURNING, checked_half, half_walker
 
 # The largest relative residual of a kernel direction; inverse iteration's solves.
 KERNEL_TOL = 1e-6
 KERNEL_SOLVES = 3
 # The bifurcations a branch is switched onto.
 SWITCHED = ("branch point", "period doubling")
+# The halves' period error target, relative (branch_grid.py): 8.2e-5 on the halo's T = 2.74.
+DEFAULT_TOL = 3e-5
 
 
 @dataclass(frozen=True)
@@ -61,11 +64,16 @@ class Switch:
             step across the branch point).
         at: the number of the bifurcation to switch at (``1`` for the first located, as the
             command line prints them); default the first branch point or period doubling.
+        tol: at a branch point, the halves' periods' error target, relative to the period:
+            each half is followed on the grid chosen for it and every orbit's error estimated
+            (``branch_grid.py``); ``None``: on the family's grid, unchecked. A period
+            doubling's branch keeps the doubled grid.
     """
 
     orbits: int = 20
     step: float | None = None
     at: int | None = None
+    tol: float | None = DEFAULT_TOL
 
     def __post_init__(self):
         object.__setattr__(self, "orbits", check_integer("orbits", self.orbits, minimum=2))
@@ -73,6 +81,8 @@ class Switch:
             object.__setattr__(self, "step", check_real("step", self.step, positive=True))
         if self.at is not None:
             object.__setattr__(self, "at", check_integer("at", self.at, minimum=1))
+        if self.tol is not None:
+            object.__setattr__(self, "tol", check_real("tol", self.tol, positive=True))
 
 
 @dataclass
@@ -218,15 +228,23 @@ def _walk_on(walker, first, nodes: int, direction: np.ndarray, steps, switch: Sw
     bifurcations along it, as a ``Family``; ``steps``: the first and the longest arclength."""
     step, longest = steps
     settings = replace(walker.settings, max_orbits=switch.orbits, switch=None)
-    half = type(walker)(walker.system, first, nodes, walker.common, settings,
-                        (-np.inf, np.inf), previous=direction)
-    members, message, _ = half.walk(ds=step, longest=longest)
+    if nodes == walker.nodes:  # a branch point: the halves' grid and step (branch_grid.py)
+        half, grid, why = half_walker(walker, first, direction, settings, switch.tol)
+        if half is None:
+            return Family([], [], False, why, time.perf_counter() - started)
+        members, message, _ = half.walk(ds=step, longest=longest * GROWTH, turning=TURNING)
+    else:
+        grid = None
+        half = type(walker)(walker.system, first, nodes, walker.common, settings,
+                            (-np.inf, np.inf), previous=direction)
+        members, message, _ = half.walk(ds=step, longest=longest)
     complete = len(members) == switch.orbits
     if complete:
         message = f"orbits = {switch.orbits} reached"
+    complete, message = checked_half(half, grid, members, complete, message)
     bifurcations, unlocated = half.locate_all()
     return Family(members, bifurcations, complete, message, time.perf_counter() - started,
-                  unlocated)
+                  unlocated, grid=grid.as_dict() if grid is not None else {})
 
 
 def _first_orbit(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray,

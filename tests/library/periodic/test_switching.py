@@ -52,7 +52,7 @@ def _follow(swap: bool = False, offset: float = 0.0, energies=(0.1, 0.3), switch
     return follow_periodic_family(
         _oscillators(swap, offset), (energies[0] + offset, energies[1] + offset), nodes=NODES,
         section=f"p{a + 1}=0", guess={"t": t, "q": q, "p": p},
-        continuation=Continuation(step=0.05, switch=switch or Switch(orbits=HALF),
+        continuation=Continuation(step=0.05, switch=switch or Switch(orbits=HALF, tol=None),
                                   min_step=min_step))
 
 
