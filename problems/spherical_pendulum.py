@@ -23,6 +23,9 @@ def rod(q, t):
 
 def cone(energy):
     """One period of the conical orbit at ``energy`` (41 points), starting on ``y = 0``."""
+    if not energy > -1.0:
+        raise ValueError(f"no conical orbit at E = {energy!r}: the least energy is -1, the "
+                         "pendulum at rest at the bottom; a cone needs E > -1")
     theta0 = brentq(lambda a: np.sin(a) ** 2 / (2 * np.cos(a)) - np.cos(a) - energy,
                     0.0, np.pi / 2 - 1e-9)
     w = 1 / np.sqrt(np.cos(theta0))

@@ -1450,6 +1450,8 @@ def constrained_periodic_cases() -> list[Case]:
              ["--energy", "-1.5"], "no motion"),
             ("cartesian_pendulum", "a section the libration never crosses",
              ["--section", "q2=0.5"], "does not cross the section"),
+            ("spherical_pendulum", "an energy below the pendulum at rest (no cone)",
+             ["--energy", "-2"], "least energy is -1"),
             ("spherical_pendulum", "a section on no coordinate", ["--section", "q4=0"],
              "section"),
             ("spherical_pendulum", "too few nodes", ["--nodes", "3"], "nodes"),
