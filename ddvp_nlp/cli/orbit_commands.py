@@ -31,6 +31,25 @@ from .interrupts import INTERRUPTS, Stopped
 from .parser import parse_settings
 
 
+def switch_tol(args) -> dict:
+    """``--switch-tol``'s ``Switch`` keyword: ``{}`` when not given, ``{"tol": None}`` for
+    'none', else a positive number; refused by name without ``--switch``."""
+    text = getattr(args, "switch_tol", None)
+    if text is None:
+        return {}
+    if getattr(args, "switch", None) is None:
+        raise InputError(f"--switch-tol {text} needs --switch: it is the halves' error target")
+    if str(text).strip().lower() == "none":
+        return {"tol": None}
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value is None or not (value > 0 and value < float("inf")):
+        raise InputError(f"--switch-tol must be a positive number or 'none', got {text!r}")
+    return {"tol": value}
+
+
 def run_periodic(args) -> int:
     """``ddvp periodic``: one orbit (a run folder) or a family (``family.csv``, a folder per
     energy); every input checked before anything is built."""
@@ -41,6 +60,7 @@ def run_periodic(args) -> int:
             raise InputError("--switch needs --follow E_END: branches are "
                              "switched onto at a branch point located on a followed family")
         check_integer("--switch", args.switch, minimum=2)
+    switch_tol(args)  # refused without --switch, or not a positive number nor 'none'
     scene = load_scene(args.scene)
     defaults = getattr(scene, "periodic", None) or PeriodicSettings()
     params = parse_settings(args.settings)
@@ -250,7 +270,8 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
         raise InputError(f"--energy is needed with --follow: scene {scene.name!r} declares no "
                          f"default energy")
     check_real("--follow", args.follow)
-    switch = Switch(orbits=args.switch) if args.switch is not None else None
+    switch = (Switch(orbits=args.switch, **switch_tol(args)) if args.switch is not None
+              else None)
     continuation = Continuation(step=args.step, tol=tol, switch=switch,
                                 max_orbits=check_integer("--max-orbits", args.max_orbits,
                                                          minimum=2))
@@ -259,7 +280,8 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
                       continuation.max_orbits + 2 * (args.switch or 0))
     target, owned = default_or(args, f"{scene.name}-follow", {
         **named, "energy": energy, "step": args.step, "max_orbits": args.max_orbits,
-        "stability": tol, **({"switch": args.switch} if switch else {})},
+        "stability": tol, **({"switch": args.switch} if switch else {}),
+        **({"switch_tol": switch.tol} if switch and args.switch_tol is not None else {})},
         scene=scene, guess=guess if args.guess else None)
     with output_folder(target, owned=owned) as out:
         try:

@@ -378,6 +378,12 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                                "ORBITS orbits each (default 20), every orbit verified on the "
                                "exact flow (branch-1/, branch-2/); at a period doubling the two "
                                "halves are one orbit of twice the period, followed once")
+    switch_tol = api_default("periodic", "switch_tol")
+    periodic.add_argument("--switch-tol", default=None, metavar="TOL",
+                          help="with --switch: at a branch point, the halves' periods' error "
+                               "target relative to the period (each half followed on a grid "
+                               f"chosen for it, every orbit's error estimated; default "
+                               f"{switch_tol:g}); 'none': on the family's grid, unchecked")
     periodic.add_argument("--search", action="store_true",
                           help="search the section (--section q1=V or q2=V) at --energy for "
                                "periodic orbits from seeds over the region the energy allows "

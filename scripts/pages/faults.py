@@ -1207,6 +1207,12 @@ SWITCHES = [
     (["--energy", "0.5", "--follow", "0.6", "--switch", "2.5"],
      "argument --switch: invalid int value"),
     (["--energy", "0.5", "--family", "0.5:0.6:3", "--switch"], "--switch needs --follow"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch-tol", "1e-4"],
+     "--switch-tol 1e-4 needs --switch"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "--switch-tol", "0"],
+     "--switch-tol must be a positive number or 'none', got '0'"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "--switch-tol", "nan"],
+     "--switch-tol must be a positive number or 'none', got 'nan'"),
 ]
 
 

@@ -170,6 +170,10 @@ def test_a_switch_that_is_not_one_is_refused_before_any_orbit():
      "--switch must be an integer >= 2, got 1"),
     (["--energy", "0.5", "--follow", "0.6", "--switch", "x"],
      "argument --switch: invalid int value"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch-tol", "1e-4"],
+     "--switch-tol 1e-4 needs --switch"),
+    (["--energy", "0.5", "--follow", "0.6", "--switch", "--switch-tol", "-0.5"],
+     "--switch-tol must be a positive number or 'none', got '-0.5'"),
 ])
 def test_the_command_line_refuses_a_bad_switch_by_its_flag(argv, text, tmp_path, capsys):
     try:
@@ -221,3 +225,20 @@ def test_halo_branches_match_an_independent_differential_correction():
     for a, b in zip(halves["+q3"], halves["-q3"], strict=True):
         assert abs(a.energy - b.energy) < 1e-7
         assert np.max(np.abs(a.orbit.q * [1, 1, -1] - b.orbit.q)) < 1e-6
+
+
+@settings(max_examples=80, deadline=None)
+@given(text=st.text(max_size=8) | st.floats(allow_nan=True).map(repr) | st.just("None"))
+def test_any_switch_tol_is_a_positive_number_none_or_refused_by_its_flag(text):
+    from types import SimpleNamespace
+
+    from ddvp_nlp.cli.orbit_commands import switch_tol
+
+    try:
+        got = switch_tol(SimpleNamespace(switch=20, switch_tol=text))
+    except InputError as exc:
+        assert str(exc).startswith("--switch-tol must be")
+        return
+    tol = got["tol"]
+    assert tol is None and text.strip().lower() == "none" or 0 < tol < np.inf
+    assert Switch(tol=tol).tol == tol  # what the command hands on, the API takes
