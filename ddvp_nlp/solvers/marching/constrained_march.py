@@ -47,6 +47,7 @@ from ..driver import Advance, Nodes, describe_phase_space, drive
 from .acceptance import Acceptance
 from .constrained_start import StartProjection, consistent_start
 from .constrained_steps import ConstrainedChunk
+from .null_space_steps import NullSpaceChunk, check_constraint_method
 
 __all__ = ["ConstraintRecord", "march_constrained", "refuse_unsupported"]
 
@@ -84,15 +85,15 @@ class ConstrainedStepper:
     multipliers and the Newton updates of every step it returns."""
 
     def __init__(self, system, scheme, theta, acceptance: Acceptance, *, t0, t_end, tau0,
-                 chunk, compiler, cache_dir):
+                 chunk, compiler, cache_dir, chunk_class=ConstrainedChunk):
         self.n, self.m = system.n, system.n_constraints
         self.variable = scheme.variable_steps
         self.theta, self.tol = np.asarray(theta, float), float(acceptance.tol)
         self.acceptance, self.tau_prev = acceptance, None
-        self.fixed = ConstrainedChunk(system, scheme, "fixed", chunk=chunk, compiler=compiler,
-                                      cache_dir=cache_dir)
-        self.energy = ConstrainedChunk(system, scheme, "energy", chunk=chunk,
-                                       compiler=compiler, cache_dir=cache_dir) \
+        self.fixed = chunk_class(system, scheme, "fixed", chunk=chunk, compiler=compiler,
+                                 cache_dir=cache_dir)
+        self.energy = chunk_class(system, scheme, "energy", chunk=chunk, compiler=compiler,
+                                  cache_dir=cache_dir) \
             if self.variable else None
         total = 1 if self.variable else max(1, math.ceil((t_end - t0) / tau0 * (1 - 1e-12)))
         self.grid = (t0, tau0 if self.variable else (t_end - t0) / total, t_end, total)
@@ -184,6 +185,7 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
         float(tuple(t_span)[1]) < float(tuple(t_span)[0])
     refuse_unsupported(system, v0=v0, backward=backward, target_error=target_error,
                        derivatives=derivatives, output=output, steps=steps)
+    check_constraint_method(system, scheme, steps.constraint_method)
     if output.t_eval is not None:
         count = output.t_eval.size
         check_memory("len(t_eval)", count, count * 8.0 * (8 + 16 * system.n),
@@ -209,7 +211,9 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
     acceptance = Acceptance(steps.tol, steps.tau_min, steps.tau_max, steps.max_step_ratio)
     stepper = ConstrainedStepper(system, scheme, theta, acceptance, t0=t0, t_end=t_end,
                                  tau0=tau0, chunk=compilation.chunk, compiler=compiler,
-                                 cache_dir=compilation.cache_dir)
+                                 cache_dir=compilation.cache_dir,
+                                 chunk_class=NullSpaceChunk if
+                                 steps.constraint_method == "null_space" else ConstrainedChunk)
     built = time.perf_counter()
     field = DenseField(constrained_field_function(system), system.H_function, theta,
                        system.name)

@@ -160,8 +160,7 @@ class ConstrainedChunk:
         started = time.perf_counter()
         self.n, self.m, self.kind = system.n, system.n_constraints, kind
         residual = step_residual(system, scheme, kind)
-        self.newton = newton_function(residual, 1 if kind == "energy" else 0,
-                                      tolerance_input=True)
+        self.newton = self._build_newton(system, scheme, kind, residual)
         self.check = self._check(system, scheme, kind, residual)
         self.field = equations.constrained_field_sparse_function(system)
         step = self._step(system, kind)
@@ -181,6 +180,16 @@ class ConstrainedChunk:
         self.function = function
         self._buffer = FunctionBuffer(function)
         self.build_s = time.perf_counter() - started
+
+    def _build_newton(self, system, scheme, kind, residual) -> ca.Function:
+        """The step's Newton (`newton_function` on the multiplier form; the null-space form,
+        ``null_space_steps.py``, builds its own)."""
+        return newton_function(residual, 1 if kind == "energy" else 0, tolerance_input=True)
+
+    def _solve(self, x0, w, tol, kind):
+        """``(x, updates)``: the step's unknowns ``[z_b, lam, mu(, tau)]`` from the guess
+        ``x0`` (the null-space form solves its reduced rows and recovers them)."""
+        return self.newton(x0, w, tol)
 
     @staticmethod
     def _check(system, scheme, kind, residual) -> ca.Function:
@@ -222,7 +231,7 @@ class ConstrainedChunk:
             tau_guess = factor * (t_a - t_prev)
             z_guess = rk4(lambda z, t: self.field(z, t, theta), z_a, t_a, tau_guess)
             w = ca.vertcat(t_prev, t_a, z_prev, z_a, lam0, mu0, theta, drift)
-            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0, tau_guess), w, tol)
+            x, updates = self._solve(ca.vertcat(z_guess, lam0, mu0, tau_guess), w, tol, kind)
             tau = x[-1]
             t_b = t_a + tau
         else:
@@ -238,7 +247,7 @@ class ConstrainedChunk:
             tau = t_b - t_a
             z_guess = rk4(lambda z, t: self.field(z, t, theta), z_a, t_a, tau)
             w = ca.vertcat(t_a, t_b, z_a, theta)
-            x, updates = self.newton(ca.vertcat(z_guess, lam0, mu0), w, tol)
+            x, updates = self._solve(ca.vertcat(z_guess, lam0, mu0), w, tol, kind)
         z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
         canonical, constraint, hidden, energy, H_k, size = self.check(x, w)
         scale = ca.fmax(1, size)
