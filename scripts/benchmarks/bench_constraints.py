@@ -132,7 +132,7 @@ def double_pendulum_system():
 def methods_table(methods, steps: int, repeats: int):
     """The constraint methods side by side on the small systems: CPU per step
     (`per_step_cpu`), Newton updates, and how far apart their nodes are."""
-    print(f"\n## Constraint methods side by side, {steps} steps against {max(steps // 5, 2)}, "
+    print(f"\n## Constraint methods side by side, {steps} steps (stepping and after-check), "
           f"median of {repeats}")
     print("| system | scheme | method | unknowns per step | updates max/mean | us per step "
           "(CPU) | us per step (wall) | max abs g | max energy row | max node difference "
@@ -227,36 +227,66 @@ def sign_changes(system, solution, theta) -> float:
     return float(np.mean(c <= 0))
 
 
+class PhaseClock:
+    """CPU and wall seconds of a constrained march's stepping (the driver's loop over the
+    compiled chunks) and of its after-check (every equation recomputed on the kept nodes),
+    read by wrapping the two internal functions (internal: measured); building the march's
+    functions, which a warm march in a new process pays once, is left out."""
+
+    def __init__(self):
+        from ddvp_nlp.solvers.marching import constrained_march  # internal: measured
+
+        self.module, self.last = constrained_march, {}
+        for name in ("drive", "recheck"):
+            setattr(constrained_march, name, self._wrapped(name, getattr(constrained_march,
+                                                                          name)))
+
+    def _wrapped(self, name, function):
+        def timed_phase(*args, **kwargs):
+            result, cpu, wall = timed(partial(function, *args, **kwargs))
+            self.last[name] = (cpu, wall)
+            return result
+        return timed_phase
+
+
+CLOCK = None
+
+
 def per_step_cpu(run, steps: int, repeats: int):
-    """CPU and wall seconds per step: the difference of a march of ``steps`` steps and one of
-    ``steps / 5`` over the difference of their steps (what building a march costs cancels),
-    ``repeats`` times; the medians, and the longer march."""
-    cpu, wall, solution = [], [], None
+    """CPU and wall seconds per step of a march of ``steps`` steps: its stepping and its
+    after-check (`PhaseClock`) over its steps, medians of ``repeats`` marches; the march's
+    whole CPU per step beside (its functions built again by every march)."""
+    global CLOCK
+    CLOCK = CLOCK or PhaseClock()
+    cpu, wall, whole, solution = [], [], [], None
     for _ in range(repeats):
-        short, cpu0, wall0 = timed(partial(run, max(steps // 5, 2)))
-        solution, cpu1, wall1 = timed(partial(run, steps))
-        extra = max(solution.t.size - short.t.size, 1)
-        cpu.append((cpu1 - cpu0) / extra)
-        wall.append((wall1 - wall0) / extra)
+        solution, whole_cpu, _ = timed(partial(run, steps))
+        count = max(solution.t.size - 1, 1)
+        cpu.append(sum(CLOCK.last[k][0] for k in ("drive", "recheck")) / count)
+        wall.append(sum(CLOCK.last[k][1] for k in ("drive", "recheck")) / count)
+        whole.append(whole_cpu / count)
+    solution.whole_cpu_per_step = float(np.median(whole))
+    solution.recheck_share = CLOCK.last["recheck"][0] / max(
+        CLOCK.last["recheck"][0] + CLOCK.last["drive"][0], 1e-300)
     return float(np.median(cpu)), float(np.median(wall)), solution
 
 
 def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
            methods=("multipliers",), repeats: int = 3):
-    """CPU per step (`per_step_cpu`: ``steps`` against ``steps / 5`` steps, the same counts
-    at every size, medians of ``repeats``) of each constraint method side by side. ``fixed``
-    steps march the hanging chain; the energy rules a whirling one (`whirl_start`). The first
-    march of each size and method builds and compiles its chunks in a fresh cache folder: its
-    CPU (this process) and the compiler's (child processes) are printed apart."""
+    """CPU per step (`per_step_cpu`: the stepping and the after-check of ``steps`` steps, the
+    same count at every size, medians of ``repeats``) of each constraint method side by
+    side. ``fixed`` steps march the hanging chain; the energy rules a whirling one
+    (`whirl_start`). The first march of each size and method builds and compiles its chunks
+    in a fresh cache folder: its CPU (this process) and the compiler's (child processes) are
+    printed apart."""
     start = chain_start if scheme == "fixed" else whirl_start
     print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps from tau0 = 0.01, gravity "
-          f"{gravity}, {start.__name__}: {steps} steps against {max(steps // 5, 2)}, median of "
-          f"{repeats}")
+          f"{gravity}, {start.__name__}: {steps} steps, median of {repeats}")
     print("| N | method | unknowns per step | build CPU s | compiler CPU s | build wall s | "
           "updates max/mean | retries | c <= 0 | us per step (CPU) | us per step (wall) | "
-          "max g | max hidden | max energy residual / max abs H (fixed: lee's balance, "
-          "not solved) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "after-check share | whole march CPU us per step (builds included) | max g | "
+          "max hidden | max energy residual / max abs H (fixed: lee's balance, not solved) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     per_step = {}
     for links in sizes:
         system = chain_system(links)
@@ -305,7 +335,8 @@ def _chain_row(links, method, scheme, build, cpu, wall, solution, system, theta)
     print(f"| {links} | {method} | {unknowns} | {build[0]:.1f} | {build[1]:.1f} | "
           f"{build[2]:.1f} | {record.newton_updates.max()}/{record.newton_updates.mean():.2f} | "
           f"{record.retries} of {marched} | {sign_changes(system, solution, theta):.3f} | "
-          f"{1e6 * cpu:.1f} | {1e6 * wall:.1f} | {record.constraint_residual.max():.1e} | "
+          f"{1e6 * cpu:.1f} | {1e6 * wall:.1f} | {solution.recheck_share:.2f} | "
+          f"{1e6 * solution.whole_cpu_per_step:.0f} | {record.constraint_residual.max():.1e} | "
           f"{record.hidden_residual.max():.1e} | {energy:.1e} |"
           + ("" if ok else f" {solution.message[:80]}"))
 

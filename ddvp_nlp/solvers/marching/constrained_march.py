@@ -46,7 +46,7 @@ from ..dense import DenseField, EventMonitor, evaluate_at
 from ..driver import Advance, Nodes, describe_phase_space, drive
 from .acceptance import Acceptance
 from .constrained_start import StartProjection, consistent_start
-from .constrained_steps import ConstrainedChunk
+from .constrained_steps import ConstrainedChunk, constrained_chunk
 from .null_space_steps import NullSpaceChunk, check_constraint_method
 
 __all__ = ["ConstraintRecord", "march_constrained", "refuse_unsupported"]
@@ -90,10 +90,10 @@ class ConstrainedStepper:
         self.variable = scheme.variable_steps
         self.theta, self.tol = np.asarray(theta, float), float(acceptance.tol)
         self.acceptance, self.tau_prev = acceptance, None
-        self.fixed = chunk_class(system, scheme, "fixed", chunk=chunk, compiler=compiler,
-                                 cache_dir=cache_dir)
-        self.energy = chunk_class(system, scheme, "energy", chunk=chunk, compiler=compiler,
-                                  cache_dir=cache_dir) \
+        built = {"chunk": chunk, "compiler": compiler, "cache_dir": cache_dir,
+                 "chunk_class": chunk_class}
+        self.fixed = constrained_chunk(system, scheme, "fixed", **built)
+        self.energy = constrained_chunk(system, scheme, "energy", **built) \
             if self.variable else None
         total = 1 if self.variable else max(1, math.ceil((t_end - t0) / tau0 * (1 - 1e-12)))
         self.grid = (t0, tau0 if self.variable else (t_end - t0) / total, t_end, total)
