@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import tempfile
 import time
 import warnings
@@ -235,8 +236,11 @@ class PhaseClock:
     functions, which a warm march in a new process pays once, is left out."""
 
     def __init__(self):
-        from ddvp_nlp.solvers.marching import constrained_march  # internal: measured
+        from ddvp_nlp.solvers.marching.constrained_march import (  # internal: measured
+            march_constrained,
+        )
 
+        constrained_march = sys.modules[march_constrained.__module__]
         self.module, self.last = constrained_march, {}
         for name in ("drive", "recheck"):
             setattr(constrained_march, name, self._wrapped(name, getattr(constrained_march,
