@@ -277,13 +277,13 @@ def per_step_cpu(run, steps: int, repeats: int):
 
 
 def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
-           methods=("multipliers",), repeats: int = 3):
+           methods=("multipliers",), repeats: int = 3, cache_dir=None):
     """CPU per step (`per_step_cpu`: the stepping and the after-check of ``steps`` steps, the
     same count at every size, medians of ``repeats``) of each constraint method side by
     side. ``fixed`` steps march the hanging chain; the energy rules a whirling one
     (`whirl_start`). The first march of each size and method builds and compiles its chunks
-    in a fresh cache folder: its CPU (this process) and the compiler's (child processes) are
-    printed apart."""
+    in a fresh cache folder (or ``cache_dir``, where compiled chunks are reused): its CPU
+    (this process) and the compiler's (child processes) are printed apart."""
     start = chain_start if scheme == "fixed" else whirl_start
     print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps from tau0 = 0.01, gravity "
           f"{gravity}, {start.__name__}: {steps} steps, median of {repeats}")
@@ -297,7 +297,8 @@ def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
         system = chain_system(links)
         theta = system.parameter_vector({"grav": gravity})
         q0, p0 = start(links)
-        with warnings.catch_warnings(), tempfile.TemporaryDirectory() as cache:
+        with warnings.catch_warnings(), tempfile.TemporaryDirectory() as fresh:
+            cache = cache_dir or fresh
             warnings.simplefilter("ignore", RuntimeWarning)
             runs = {}
             for method in methods:
@@ -356,6 +357,8 @@ def main():
                         help="constraint methods of the chains and --only methods, side by "
                              "side: multipliers,null_space")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cache-dir", default=None,
+                        help="the chains' compile cache (default: a fresh folder per size)")
     parser.add_argument("--method-steps", type=int, default=20000,
                         help="steps of each march of --only methods")
     parser.add_argument("--gravity", type=float, default=1.0,
@@ -372,7 +375,7 @@ def main():
     if args.only in (None, "chains"):
         for scheme in args.chain_schemes.split(","):
             chains([int(v) for v in args.links.split(",")], args.chain_steps, scheme,
-                   args.gravity, tuple(args.methods.split(",")), args.repeats)
+                   args.gravity, tuple(args.methods.split(",")), args.repeats, args.cache_dir)
     from ddvp_nlp.io import machine
     print("\n" + machine())
 
