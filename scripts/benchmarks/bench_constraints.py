@@ -277,16 +277,19 @@ def per_step_cpu(run, steps: int, repeats: int):
 
 
 def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
-           methods=("multipliers",), repeats: int = 3, cache_dir=None):
+           methods=("multipliers",), repeats: int = 3, cache_dir=None, vm: bool = False):
     """CPU per step (`per_step_cpu`: the stepping and the after-check of ``steps`` steps, the
     same count at every size, medians of ``repeats``) of each constraint method side by
     side. ``fixed`` steps march the hanging chain; the energy rules a whirling one
     (`whirl_start`). The first march of each size and method builds and compiles its chunks
     in a fresh cache folder (or ``cache_dir``, where compiled chunks are reused): its CPU
-    (this process) and the compiler's (child processes) are printed apart."""
+    (this process) and the compiler's (child processes) are printed apart. ``vm``: on
+    CasADi's virtual machine, nothing compiled (its cost follows the operations a step
+    evaluates, where the compiled chunk of the null-space form takes long to compile)."""
     start = chain_start if scheme == "fixed" else whirl_start
     print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps from tau0 = 0.01, gravity "
-          f"{gravity}, {start.__name__}: {steps} steps, median of {repeats}")
+          f"{gravity}, {start.__name__}: {steps} steps, median of {repeats}"
+          + (", on the virtual machine" if vm else ""))
     print("| N | method | unknowns per step | build CPU s | compiler CPU s | build wall s | "
           "updates max/mean | retries | c <= 0 | us per step (CPU) | us per step (wall) | "
           "after-check share | whole march CPU us per step (builds included) | max g | "
@@ -302,8 +305,8 @@ def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
             warnings.simplefilter("ignore", RuntimeWarning)
             runs = {}
             for method in methods:
-                runs[method] = partial(_chain_march, system, q0, p0, scheme, gravity, cache,
-                                       method)
+                runs[method] = partial(_chain_march, system, q0, p0, scheme, gravity,
+                                       Compilation(cache_dir=cache, fast=not vm), method)
                 gcc = children_cpu()
                 _, build_cpu, build_wall = timed(partial(runs[method], 2))
                 runs[method].build = (build_cpu, children_cpu() - gcc, build_wall)
@@ -324,9 +327,9 @@ def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
                                     for m in methods[1:]) for n in sizes))
 
 
-def _chain_march(system, q0, p0, scheme, gravity, cache, method, steps):
+def _chain_march(system, q0, p0, scheme, gravity, compilation, method, steps):
     return march(system, q0, p0, (0, 1e6), tau0=0.01, scheme=scheme, accuracy=None,
-                 params={"grav": gravity}, compilation=Compilation(cache_dir=cache),
+                 params={"grav": gravity}, compilation=compilation,
                  steps=StepControl(max_steps=steps, constraint_method=method))
 
 
@@ -357,6 +360,8 @@ def main():
                         help="constraint methods of the chains and --only methods, side by "
                              "side: multipliers,null_space")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--vm", action="store_true",
+                        help="the chains on CasADi's virtual machine (nothing compiled)")
     parser.add_argument("--cache-dir", default=None,
                         help="the chains' compile cache (default: a fresh folder per size)")
     parser.add_argument("--method-steps", type=int, default=20000,
@@ -375,7 +380,8 @@ def main():
     if args.only in (None, "chains"):
         for scheme in args.chain_schemes.split(","):
             chains([int(v) for v in args.links.split(",")], args.chain_steps, scheme,
-                   args.gravity, tuple(args.methods.split(",")), args.repeats, args.cache_dir)
+                   args.gravity, tuple(args.methods.split(",")), args.repeats, args.cache_dir,
+                   args.vm)
     from ddvp_nlp.io import machine
     print("\n" + machine())
 
