@@ -156,3 +156,16 @@ def test_the_null_space_basis_is_orthonormal_and_annihilated(m, extra, seed):
     assert N.shape == (n, n - m)
     assert np.abs(G @ N).max() <= 1e-12 * max(1.0, np.abs(G).max())
     assert np.abs(N.T @ N - np.eye(n - m)).max() <= 1e-12
+
+
+def test_a_time_dependent_constraint_in_both_forms():
+    """A rod whose length changes in time (``g_t != 0`` in the hidden constraint and the
+    projection of ``p_b``): the same nodes, fixed steps."""
+    system = HamiltonianSystem(lambda q, p, t: (p[0] ** 2 + p[1] ** 2) / 2 + q[1], 2,
+                               name="ns_breathing",
+                               constraints=lambda q, t: q[0] ** 2 + q[1] ** 2
+                               - (1 + 0.1 * ca.sin(t)) ** 2)
+    radial = np.array([np.sin(1.0), -np.cos(1.0)])  # the rod grows at 0.1 at t = 0
+    multipliers, null_space = both(system, radial, 0.1 * radial, (0, 1.0), "fixed")
+    assert_same(multipliers, null_space)
+    assert null_space.constraints.hidden_residual.max() <= 1e-13
