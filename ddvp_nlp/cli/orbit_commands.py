@@ -274,7 +274,7 @@ def _follow(args, scene, settings, nodes, guess, params, tol, defaults, named) -
     _print_bifurcations(family.bifurcations, "")
     print(f"{family.message}; {len(family.members)} orbits in {family.seconds:.1f} s; written "
           f"to {out.path}/ (family.csv, bifurcations.csv, bifurcations.json, family.png"
-          + (", branch-1/, branch-2/)" if family.branches else ")"))
+          + "".join(f", branch-{j + 1}/" for j in range(len(family.branches))) + ")")
     if switch is None:
         return 0 if family.members and family.complete and not INTERRUPTS.requested else 1
     return _report_switch(family)

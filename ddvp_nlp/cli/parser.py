@@ -372,11 +372,12 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                           help=f"with --follow: at most this many orbits (default {most})")
     periodic.add_argument("--switch", type=int, nargs="?", const=20, default=None,
                           metavar="ORBITS",
-                          help="with --follow: at the first branch point located, switch onto "
-                               "the new branch (its direction from the kernel of the extended "
-                               "system) and follow both its halves for ORBITS orbits each "
-                               "(default 20), every orbit verified on the exact flow "
-                               "(branch-1/, branch-2/)")
+                          help="with --follow: at the first branch point or period doubling "
+                               "located, switch onto the new branch (its direction from the "
+                               "kernel of the extended system) and follow both its halves for "
+                               "ORBITS orbits each (default 20), every orbit verified on the "
+                               "exact flow (branch-1/, branch-2/); at a period doubling the two "
+                               "halves are one orbit of twice the period, followed once")
     periodic.add_argument("--search", action="store_true",
                           help="search the section (--section q1=V or q2=V) at --energy for "
                                "periodic orbits from seeds over the region the energy allows "

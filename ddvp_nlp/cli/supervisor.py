@@ -214,7 +214,9 @@ class Parent:
             info = signal.sigtimedwait(set(FORWARDED) | {signal.SIGCHLD}, POLL_S)
         except InterruptedError:
             return
-        if info is None or info.si_signo == signal.SIGCHLD:
+        if info is None or info.si_signo not in FORWARDED:
+            # SIGCHLD, or a wait cut short by a stop and continue (SIGSTOP, SIGCONT) past its
+            # timeout: CPython then returns the unfilled siginfo, whose number is garbage
             return
         if info.si_code != SI_KERNEL:  # kill() to this process: the child has not had it
             with contextlib.suppress(ProcessLookupError):

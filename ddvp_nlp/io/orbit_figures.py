@@ -101,5 +101,24 @@ def _index_limits(axes, values, largest: float) -> None:
         axes.set_ylim(bottom - pad, top + pad)
         return
     axes.set_yscale("symlog", linthresh=3.0)
-    axes.set_ylim(bottom * 2.0 if bottom < -3 else bottom - 0.6,
-                  top * 2.0 if top > 3 else top + 0.6)
+    low, high = (bottom * 2.0 if bottom < -3 else bottom - 0.6,
+                 top * 2.0 if top > 3 else top + 0.6)
+    axes.set_ylim(low, high)
+    _index_ticks(axes, low, high)
+
+
+def _index_ticks(axes, low: float, high: float) -> None:
+    """The symmetric log axis's ticks: -2, 0 and 2 (the stability bounds) in its linear part,
+    then the decades the limits hold, each labelled (the default labelled 1 and 0 but left the
+    negative side bare)."""
+    from matplotlib.ticker import FixedFormatter, FixedLocator
+
+    ticks, labels = [-2.0, 0.0, 2.0], ["$-2$", "$0$", "$2$"]
+    for sign, reach in ((1.0, high), (-1.0, -low)):
+        for decade in range(1, int(np.floor(np.log10(reach))) + 1 if reach >= 10 else 1):
+            ticks.append(sign * 10.0 ** decade)
+            labels.append(("$-10^{%d}$" if sign < 0 else "$10^{%d}$") % decade)
+    order = np.argsort(ticks)
+    axes.yaxis.set_major_locator(FixedLocator([ticks[i] for i in order]))
+    axes.yaxis.set_major_formatter(FixedFormatter([labels[i] for i in order]))
+    axes.yaxis.set_minor_locator(FixedLocator([]))

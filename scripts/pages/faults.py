@@ -1211,8 +1211,9 @@ SWITCHES = [
 
 
 def switch_cases() -> list[Case]:
-    """Branch switching's refusals (``SWITCHES``, on the harmonic scene) and a family with no
-    branch point (Henon-Heiles from E = 0.02 to 0.04)."""
+    """Branch switching's refusals (``SWITCHES``, on the harmonic scene), a family with no
+    branch point (Henon-Heiles from E = 0.02 to 0.04), Henon-Heiles' axis family switched at
+    its period doubling (one branch) and stopped before it (exit 2)."""
     cases = [Case("switch", " ".join(option), ["periodic", "harmonic", "--nodes", "40",
                                                 "--no-plot", *option, "--out", "out"], (2,),
                   expect_text=text) for option, text in SWITCHES]
@@ -1220,7 +1221,31 @@ def switch_cases() -> list[Case]:
                       ["periodic", "henon_heiles", "--energy", "0.02", "--follow", "0.04",
                        "--step", "0.01", "--nodes", "41", "--switch", "--no-plot", "--out",
                        "out"], (2,), expect_text="no branch point was located on the family"))
+    doubling = ["periodic", "henon_heiles", "--energy", "0.13", "--follow", "0.14", "--step",
+                "0.005", "--nodes", "61", "--no-plot", "--out", "out"]
+    cases.append(Case("switch", "a period doubling: one branch of twice the period",
+                      [*doubling, "--switch", "2"], (0,), check=_one_doubled_branch))
+    cases.append(Case("switch", "the family stops before its period doubling",
+                      [*doubling, "--max-orbits", "2", "--switch", "2"], (2,),
+                      expect_text="no branch point was located on the family, nor a period "
+                                  "doubling"))
     return cases
+
+
+def _one_doubled_branch(folder, result) -> list[str]:
+    """At Henon-Heiles' period doubling: the two signs said to be one orbit, one branch written
+    (``branch-1/``, none beside it), its orbits of twice the nodes."""
+    problems = []
+    if "the two signs give one orbit shifted by half its period" not in result.stdout:
+        problems.append("the two signs of the doubling direction were not found to be one orbit")
+    branch = folder / "out" / "branch-1" / "family.csv"
+    if not branch.exists():
+        problems.append("no branch-1/family.csv written")
+    if (folder / "out" / "branch-2").exists():
+        problems.append("a second branch written for one orbit shifted by half its period")
+    if "2 orbits of twice the period" not in result.stdout:
+        problems.append("the branch did not reach its 2 orbits")
+    return problems
 
 
 def backward_cases() -> list[Case]:
@@ -1339,6 +1364,68 @@ def constrained_bvp_cases() -> list[Case]:
                           ["bvp", "cartesian_pendulum", *extra, *CONSTRAINED_ENDS], (2,),
                           expect_text=text))
     return cases
+
+
+CONSTRAINED_RUN = ["--no-plot", "--no-progress"]
+
+
+def _constrained_run(edit=None):
+    """Set-up: a vddvp march of the Cartesian pendulum to t = 2 in run/, then ``edit(meta)``
+    of its meta.json."""
+    def setup(folder):
+        _ddvp(folder, "march", "cartesian_pendulum", "--t-end", "2", *CONSTRAINED_RUN, "--out",
+              "run")
+        if edit is not None:
+            import json
+
+            meta = json.loads((folder / "run" / "meta.json").read_text())
+            edit(meta)
+            (folder / "run" / "meta.json").write_text(json.dumps(meta))
+    return setup
+
+
+def _reached(name, low, high):
+    """A check: the run in ``name`` succeeded and its last node lies in ``[low, high]``."""
+    def check(folder, result):
+        import numpy as np
+
+        meta = _meta_of(folder, name)
+        if meta is None:
+            return [f"{name} has no meta.json"]
+        with np.load(folder / name / "result.npz") as arrays:  # read_run takes forward runs
+            t = float(arrays["t"][-1])
+        problems = [] if meta["status"] == "success" else [f"status {meta['status']}"]
+        return problems + ([] if low <= t <= high else [f"last node at t = {t}"])
+    return check
+
+
+def constrained_march_cases() -> list[Case]:
+    """``ddvp march`` of a constrained scene backwards in time and continued with --resume
+    (issue 48): a backward march with energy and fixed steps (exit 0, its last node at the
+    asked-for end or one step past it), a run continued to a later end (exit 0), and a run
+    folder whose carried multipliers were damaged or do not fit the scene, refused by name
+    (exit 2)."""
+    def multipliers(value):
+        return lambda meta: meta["carried"].update(multipliers=value)
+
+    march_to = ["march", "cartesian_pendulum", *CONSTRAINED_RUN, "--out", "out"]
+    return [
+        Case("constrained_march", "backward, vddvp steps", [*march_to, "--t-end", "-5"], (0,),
+             check=_reached("out", -5.03, -5.0)),
+        Case("constrained_march", "backward, fixed steps",
+             [*march_to, "--t-end", "-3", "--scheme", "fixed"], (0,),
+             check=_reached("out", -3.0, -3.0)),
+        Case("constrained_march", "a backward run to t_end = t0",
+             [*march_to, "--t-end", "0"], (2,), expect_text="t_end"),
+        Case("constrained_march", "resumed to a later end", [*RESUME, "--t-end", "5"], (0,),
+             _constrained_run(), check=_reached("run", 5.0, 5.03)),
+        Case("constrained_march", "resumed: the carried multipliers a text", RESUME, (2,),
+             _constrained_run(multipliers("nan")), expect_text="multipliers"),
+        Case("constrained_march", "resumed: three carried multipliers for one rod", RESUME,
+             (2,), _constrained_run(multipliers([1.0, 2.0, 3.0])), expect_text="multipliers"),
+        Case("constrained_march", "resumed to an earlier end", [*RESUME, "--t-end", "1"], (2,),
+             _constrained_run(), expect_text="t_end"),
+    ]
 
 
 def merge_cases() -> list[Case]:
@@ -1731,6 +1818,7 @@ def main() -> int:
               "search": search_cases, "switch": switch_cases,
               "backward": backward_cases, "constraints": constraint_cases,
               "constrained_bvp": constrained_bvp_cases,
+              "constrained_march": constrained_march_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
               "supervision": supervision_cases, "compare": compare_cases,
               "load": load_cases}

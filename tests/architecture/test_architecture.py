@@ -533,6 +533,7 @@ INTERNALS_FOR_SCRIPTS = {
                                                 "solvers.marching.constrained_march"},
     "scripts/benchmarks/bench_double_pendulum.py": {"discrete.constrained",
                                                     "solvers.baselines.rattle"},
+    "scripts/benchmarks/bench_shake_tolerance.py": {"solvers.baselines.rattle"},
     "scripts/benchmarks/bench_rattle.py": {"solvers.baselines.rattle",
                                            "solvers.exact.constrained_flow",
                                            "solvers.exact.constrained_reference"},

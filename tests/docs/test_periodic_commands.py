@@ -81,6 +81,19 @@ def _halo_switch(out: str, folder: Path) -> None:
     assert (folder / "runs").is_dir()
 
 
+def _doubling_switch(out: str, folder: Path) -> None:
+    """switching.md: the period doubling at E = 0.135339915726, one branch of 20 orbits (the two
+    signs one orbit shifted by half its period), its first orbit's energy and period."""
+    assert "period doubling at E = 0.135339915726" in out
+    assert "the two signs give one orbit shifted by half its period" in out
+    assert "+-q1: 20 orbits of twice the period" in out
+    assert out.count("orbits = 20 reached; 20 orbits in") == 1
+    first = re.search(r"^  E = ([\d.]+) +T = ([\d.]+)", out.split("\nbranch 1 ")[1], flags=re.M)
+    assert abs(float(first.group(1)) - 0.1356536225) < 1e-8
+    assert abs(float(first.group(2)) - 15.62564765) < 1e-6
+    assert list(folder.glob("runs/*/branch-1")) and not list(folder.glob("runs/*/branch-2"))
+
+
 def _henon_heiles_follow(out: str, folder: Path) -> None:
     """The README: the family followed from E = 0.02 to 0.1 (its orbits stable)."""
     assert re.search(r"left the energy range after \d+ orbits", out)
@@ -113,6 +126,8 @@ CLAIMS = {
     "ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005": _halo_birth,
     "ddvp periodic cr3bp --energy -1.5935 --follow -1.585 --step 0.0005 --switch": _halo_switch,
     "ddvp periodic henon_heiles --energy 0.02 --follow 0.1 --step 0.01": _henon_heiles_follow,
+    "ddvp periodic henon_heiles --energy 0.13 --follow 0.14 --step 0.005 --switch":
+        _doubling_switch,
     "ddvp periodic hill --energy -2.14 --follow -1.90": _hill_family,
     "ddvp periodic hill --search --energy -2.14 --section q2=0": _hill_search,
 }

@@ -6,7 +6,11 @@ dp/dt = -H_q = -K_Q``. So a backward march of ``H`` from ``t0`` to ``t_end`` is 
 of ``K`` from ``-t0`` to ``-t_end`` from ``(q0, -p0)``, mapped back node by node: every equation
 the scheme solves, the accuracy check against the exact flow (of ``K``, which is ``H``'s flow
 run backwards) and the step bounds are the forward march's own. A Lagrangian ``L(q, v, t)``
-becomes ``L(Q, -V, -s)`` likewise, and ``v0`` becomes ``-v0``. The returned `Solution` is in
+becomes ``L(Q, -V, -s)`` likewise, and ``v0`` becomes ``-v0``. Holonomic constraints
+``g(q, t)`` become ``g(Q, -s)``: the same positions on the same surfaces, so the reversed
+march keeps ``g(q_k, t_k) = 0`` in the original time; its hidden constraint is the original's
+with the sign of ``p`` and ``t`` changed, and the record's multipliers are the reversed
+march's, step by step in the order of the returned nodes. The returned `Solution` is in
 ``t``: decreasing times, negative steps ``tau = diff(t)``, ``p`` and the states at ``t_eval``
 and events in the original signs, the verdict's times (``t_drift``, ...) negated, and its
 dense output on ``H``'s own vector field.
@@ -56,8 +60,23 @@ def time_reversed(system: HamiltonianSystem) -> HamiltonianSystem:
                 else ca.SX(0, 1)
             return ca.substitute(expression, old, ca.vertcat(q, -second_new, -t, theta))
         kind = LagrangianSystem if lagrangian else HamiltonianSystem
-        return kind(reversed_function, system.n, dict(system.params), name=system.name)
+        return kind(reversed_function, system.n, dict(system.params), name=system.name,
+                    constraints=_reversed_constraints(system))
     return cached(system, "time_reversed", build)
+
+
+def _reversed_constraints(system):
+    """``g(q, -t)`` of a system with holonomic constraints (``None`` without): the reversed
+    march keeps the same positions on the same constraint surfaces, met at ``s = -t``."""
+    if not getattr(system, "n_constraints", 0):
+        return None
+    old = ca.vertcat(system.q, system.t, system.theta)
+
+    def reversed_g(q, t, **params):
+        theta = ca.vertcat(*[params[name] for name in system.params]) if system.params \
+            else ca.SX(0, 1)
+        return ca.substitute(system.G, old, ca.vertcat(q, -t, theta))
+    return reversed_g
 
 
 def march_backward(march, system, q0, p0, t_span, *, v0, output, **options):

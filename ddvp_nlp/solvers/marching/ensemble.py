@@ -172,8 +172,18 @@ def march_ensemble(system, q0s, p0s, t_span=None, *, tau0: float, scheme="vddvp"
     for part in parts:  # the live system stays behind in the worker
         for value in part:
             if isinstance(value, Solution):
-                attach(value, system, theta, t_end)
+                _attach(value, system, theta, t_end)
     return collect.merge(parts)
+
+
+def _attach(solution, system, theta, t_end) -> None:
+    """`attach`, on the constrained field for a constrained system."""
+    if getattr(system, "n_constraints", 0):
+        from .constrained_march import attach_constrained
+
+        attach_constrained(solution, system, theta, t_end)
+    else:
+        attach(solution, system, theta, t_end)
 
 
 def _output(t_eval, names, t_span) -> Output | None:
@@ -201,6 +211,10 @@ def _numbers(name: str, value) -> np.ndarray:
 def _check_all(system, scheme, q0s, p0s, t_span, tau0, steps, params) -> np.ndarray:
     """Every start, checked as `march` checks it, before any march; returns
     ``theta``."""
+    if getattr(system, "n_constraints", 0):  # each start projected as its march projects it
+        from .constrained_march import check_ensemble_starts
+
+        return check_ensemble_starts(system, q0s, p0s, t_span, tau0, params)
     theta = None
     for i, (q0, p0) in enumerate(zip(q0s, p0s, strict=True)):
         try:

@@ -212,9 +212,6 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
     if check_derivatives(derivatives):
         raise InputError("derivatives are not supported by continue_march yet: march the "
                          "whole span with march(..., derivatives=...)")
-    if getattr(system, "n_constraints", 0):
-        raise InputError(f"continue_march does not support constrained systems yet "
-                         f"({system.name!r} has constraints): march the whole span")
     scheme, steps, compilation, output = coerced(scheme, steps, accuracy, compilation, output)
     if not isinstance(state, MarchState):
         raise InputError(f"state must be a MarchState, got {type(state).__name__}")
@@ -222,6 +219,12 @@ def continue_march(system: HamiltonianSystem, state: MarchState, t_end: float | 
         raise InputError(f"continue_march keeps every node (it goes on from consecutive "
                          f"nodes): give output without keep_every = {output.keep_every!r} or "
                          f"keep = {output.keep!r}")
+    if getattr(system, "n_constraints", 0):  # constrained_march.py: its own continuation
+        from .constrained_march import continue_constrained
+
+        return continue_constrained(system, state, t_end, tau0=tau0, scheme=scheme,
+                                    params=params, steps=steps, accuracy=accuracy,
+                                    compilation=compilation, output=output)
     check_output_memory(output, system)
     n = state.z.shape[1] // 2
     t_end = state.t_end if t_end is None else t_end

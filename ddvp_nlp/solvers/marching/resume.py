@@ -42,6 +42,7 @@ class MarchState:
     drift: float = 0.0
     careful_left: int = 0
     phase: int = 0
+    multipliers: tuple | None = None  # a constrained march's last (lambda, mu)
 
     @classmethod
     def of(cls, t, q, p, t_end: float, carried: dict | None) -> MarchState:
@@ -58,7 +59,7 @@ class MarchState:
             raise InputError(f"a march state needs t (N,) and q, p (N, n), got {t.shape} and "
                              f"{z.shape}")
         return cls(t, z, float(t_end), float(carried["drift"]), int(carried["careful_left"]),
-                   int(carried["phase"]))
+                   int(carried["phase"]), _multipliers(carried.get("multipliers")))
 
     def restore(self, stepper, tally, monitors, functions, theta) -> Nodes:
         """The nodes as the driver's `Nodes`, the loop's carried state put back into
@@ -83,6 +84,22 @@ class MarchState:
                 raise InputError(f"the earlier nodes end the march again ({verdict[0].code}: "
                                  f"{verdict[1]}): continue it with the options it ran with")
         return nodes
+
+
+def _multipliers(value) -> tuple | None:
+    """A constrained march's carried multipliers: finite numbers (its length is checked
+    against the system by `continue_march`)."""
+    if value is None:
+        return None
+    numbers = (isinstance(value, np.ndarray) and value.dtype.kind in "iuf") or (
+        isinstance(value, (list, tuple)) and all(
+            isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+            for x in value))  # a boolean is no multiplier, though numpy reads it as one
+    array = np.asarray(value, float) if numbers else None
+    if array is None or array.ndim != 1 or not np.all(np.isfinite(array)):
+        raise InputError(f"the carried multipliers must be a list of finite numbers, got "
+                         f"{value!r:.200}")
+    return tuple(array.tolist())
 
 
 class CarryTracker(MarchMonitor):

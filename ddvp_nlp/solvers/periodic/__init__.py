@@ -26,7 +26,8 @@ Where things are:
 - ``arclength.py``: pseudo-arclength continuation in the energy, the bifurcations between
   members located; ``bifurcation.py``: their test functions and their confirmation on the exact
   flow; ``switching.py``: at a branch point, the new branch's direction from the kernel of the
-  extended system and both its halves followed.
+  extended system and both its halves followed; ``doubling.py``: at a period doubling, the same
+  on the grid of the orbit traversed twice.
 
 The contract, on top of the grid's (``grid/__init__.py``):
 

@@ -26,8 +26,9 @@ moves; ``+q3``: ``q3`` grows at the first node where it moves most). At the CR3B
 the kernel is out of the plane and the two halves are each other's images under ``z -> -z``
 (the northern and southern halo families).
 
-Period doubling (a pair through -1) needs the doubled period's grid; switching there is not
-done and says so.
+At a period doubling (a pair through -1) the new branch's orbits have twice the period: the
+direction is found on the grid of the orbit traversed twice, and the two signs of it give one
+orbit shifted by half its period (``doubling.py``); that branch is followed once.
 """
 
 from __future__ import annotations
@@ -40,10 +41,13 @@ import scipy.sparse.linalg as spla
 
 from ...errors import InputError
 from ...validation import check_integer, check_real
+from . import doubling
 
 # The largest relative residual of a kernel direction; inverse iteration's solves.
 KERNEL_TOL = 1e-6
 KERNEL_SOLVES = 3
+# The bifurcations a branch is switched onto.
+SWITCHED = ("branch point", "period doubling")
 
 
 @dataclass(frozen=True)
@@ -56,7 +60,7 @@ class Switch:
         step: the first step off the branch point, in the arclength (default: the family's
             step across the branch point).
         at: the number of the bifurcation to switch at (``1`` for the first located, as the
-            command line prints them); default the first branch point.
+            command line prints them); default the first branch point or period doubling.
     """
 
     orbits: int = 20
@@ -76,13 +80,18 @@ class Branch:
     """One half of a new branch: its sign along the kernel direction, its name (the node value
     that moves most, ``+q3``), the bifurcation it starts at (its number), the kernel
     direction's relative residual and the followed half (an ``arclength.Family``, its first
-    member next to the branch point)."""
+    member next to the branch point). At a period doubling ``kind`` says so, the half's
+    orbits have twice the nodes and period, and ``same`` says whether the other sign's orbit
+    was found to be this one shifted by half its period (then this is the one branch
+    followed)."""
 
     sign: int
     label: str
     at: int
     residual: float
     family: object
+    kind: str = "branch point"
+    same: bool = False
 
 
 def checked_switch(switch) -> Switch | None:
@@ -104,6 +113,8 @@ def follow_branches(walker, bifurcations: list, switch: Switch, family) -> tuple
     if isinstance(chosen, str):
         return [], chosen
     number, point = chosen
+    if point.kind == "period doubling":
+        return _follow_doubled(walker, number, point, switch, family)
     y = walker.point(point.orbit)
     along = walker.tangents[point.after]
     direction, residual = kernel_direction(walker, y, along)
@@ -126,28 +137,35 @@ def follow_branches(walker, bifurcations: list, switch: Switch, family) -> tuple
 def _chosen(bifurcations: list, switch: Switch):
     """``(number, bifurcation)`` to switch at, or the message why there is none."""
     if switch.at is None:
-        found = [(j + 1, b) for j, b in enumerate(bifurcations) if b.kind == "branch point"]
+        found = [(j + 1, b) for j, b in enumerate(bifurcations) if b.kind in SWITCHED]
         if not found:
             kinds = ", ".join(b.kind for b in bifurcations) or "none"
-            return (f"no branch point was located on the family (bifurcations located: "
-                    f"{kinds}): no branch to switch onto")
+            return (f"no branch point was located on the family, nor a period doubling "
+                    f"(bifurcations located: {kinds}): no branch to switch onto")
         return found[0]
     if switch.at > len(bifurcations):
         return (f"at = {switch.at}, but {len(bifurcations)} bifurcation(s) were located: no "
                 f"branch to switch onto")
     point = bifurcations[switch.at - 1]
-    if point.kind != "branch point":
+    if point.kind not in SWITCHED:
         return (f"bifurcation {switch.at} is a {point.kind}: switching is done at branch "
-                f"points only (a period doubling's branch needs the doubled period's grid)")
+                f"points and period doublings (the family turns back at a fold: no new "
+                f"branch)")
     return switch.at, point
 
 
 def kernel_direction(walker, y: np.ndarray, along: np.ndarray) -> tuple[np.ndarray, float]:
     """The unit (``W``-norm) kernel direction of the extended Jacobian at ``y`` that is
     ``W``-orthogonal to ``along``, and its relative residual (module docstring)."""
-    arc, weights = walker.arc, walker.arc.weights
-    closure = replace(walker.closure, energy=float(y[-1]))
-    _, blocks = walker.assembly.evaluate(y[:-1], closure, True)
+    return kernel(walker.arc, walker.closure, y, along)
+
+
+def kernel(arc, closure, y: np.ndarray, along: np.ndarray) -> tuple[np.ndarray, float]:
+    """`kernel_direction` of the system ``arc`` (an ``arclength.ArclengthSystem``) with the
+    data ``closure``: of the followed family's grid or of the doubled one."""
+    weights = arc.weights
+    closure = replace(closure, energy=float(y[-1]))
+    _, blocks = arc.base.evaluate(y[:-1], closure, True)
     matrix = arc.bordered(blocks, weights * along)
     factor = spla.splu(matrix)
     v = np.cos(np.arange(y.size) * 0.7 + 0.3)  # a fixed start with no symmetry of its own
@@ -189,8 +207,18 @@ def _follow_half(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray
         return Family([], [], False, f"the first orbit off the branch point was not found: a "
                                      f"step below {smallest:.3g} failed ({why})",
                       time.perf_counter() - started)
+    return _walk_on(walker, first, walker.nodes, direction, (step, longest), switch, Family,
+                    started)
+
+
+def _walk_on(walker, first, nodes: int, direction: np.ndarray, steps, switch: Switch,
+             Family, started: float):  # noqa: N803 - the class, passed in
+    """The half from its verified ``first`` orbit (of ``nodes`` nodes) on: the walker's walk,
+    its first tangent oriented along ``direction``, for ``switch.orbits`` members, and the
+    bifurcations along it, as a ``Family``; ``steps``: the first and the longest arclength."""
+    step, longest = steps
     settings = replace(walker.settings, max_orbits=switch.orbits, switch=None)
-    half = type(walker)(walker.system, first, walker.nodes, walker.common, settings,
+    half = type(walker)(walker.system, first, nodes, walker.common, settings,
                         (-np.inf, np.inf), previous=direction)
     members, message, _ = half.walk(ds=step, longest=longest)
     complete = len(members) == switch.orbits
@@ -217,3 +245,61 @@ def _first_orbit(walker, y: np.ndarray, along: np.ndarray, direction: np.ndarray
     if not orbit.success:
         return None, orbit.message
     return orbit, None
+
+
+def _follow_doubled(walker, number: int, point, switch: Switch, Family):  # noqa: N803
+    """``(branches, message)`` at the period doubling ``point`` (``doubling.py``): the kernel
+    direction on the doubled grid, the first orbit of each sign, whether they are one orbit
+    shifted by half its period, and the branch followed (once if they are)."""
+    along = walker.tangents[point.after]
+    grid = doubling.doubled_grid(walker, walker.point(point.orbit), along)
+    direction, residual = kernel(grid.arc, grid.closure, grid.y, grid.along)
+    where = f"bifurcation {number} (period doubling at E = {point.energy:.12g})"
+    if residual > KERNEL_TOL:
+        return [], (f"no branch direction at {where}: the doubled period's extended system is "
+                    f"not singular there (kernel residual {residual:.1e} > {KERNEL_TOL:g})")
+    odd = doubling.antisymmetry(direction, grid)
+    ds = switch.step or walker.steps[point.after]
+    longest = max(max(walker.steps), ds)
+    started = time.perf_counter()
+    firsts, whys = {}, {1: "no step tried", -1: "no step tried"}
+    for sign in (1, -1):
+        step = ds
+        while sign not in firsts and step >= walker.settings.min_step * ds:
+            found, whys[sign] = doubling.first_orbit(walker, grid, sign * direction, step)
+            if found is not None:
+                firsts[sign] = found
+            step /= 2
+    said = (f"switched at {where}; kernel residual {residual:.1e}, antisymmetric over the two "
+            f"periods to {odd:.1e}")
+    if not firsts:
+        return [], (f"{said}: no orbit of the doubled period was found off it (+: {whys[1]}; "
+                    f"-: {whys[-1]})")
+    signs = sorted(firsts, reverse=True)
+    note = ""
+    if len(firsts) == 2:
+        gap, apart = doubling.same_orbit(walker, grid, firsts[1].orbit, firsts[-1].orbit)
+        if gap < doubling.SAME_ORBIT * apart:
+            signs, note = [1], (f"; the two signs give one orbit shifted by half its period "
+                                f"(re-solved at equal energy {gap:.1e} apart, against {apart:.1e} "
+                                f"before the shift): followed once")
+        else:
+            note = (f"; the two signs' orbits are not one orbit shifted by half its period "
+                    f"({gap:.1e} apart at equal energy, {apart:.1e} before the shift): both "
+                    f"followed")
+    else:
+        missing = -signs[0]
+        note = f"; the other sign found no orbit ({whys[missing]})"
+    branches = []
+    for sign in signs:
+        first = firsts[sign]
+        same = len(signs) == 1 and len(firsts) == 2
+        label = _label(direction * sign, walker.system.n, grid.assembly.layout)
+        label = "+-" + label[1:] if same else label
+        half = _walk_on(walker, first.orbit, grid.nodes, sign * direction,
+                        (first.step, longest), switch, Family, started)
+        branches.append(Branch(sign, label, number, residual, half, "period doubling", same))
+        started = time.perf_counter()  # a second branch's seconds are its own
+    counts = ", ".join(f"{b.label}: {len(b.family.members)} orbits of twice the period"
+                       for b in branches)
+    return branches, f"{said}{note}: {counts}"

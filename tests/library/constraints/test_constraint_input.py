@@ -14,7 +14,6 @@ from ddvp_nlp import (
     Scene,
     continue_march,
     march,
-    march_ensemble,
     solve_periodic,
 )
 
@@ -79,16 +78,14 @@ def circle(q, t):
 
 @pytest.mark.parametrize("call, words", [
     (lambda s: solve_periodic(s, energy=0.0, nodes=11), "solve_periodic"),
-    (lambda s: march_ensemble(s, [[0.0, -1.0]], [[1.0, 0.0]], (0, 1), tau0=0.1), "constrain"),
     (lambda s: march(s, [0.0, -1.0], None, (0, 1), tau0=0.1, v0=[1.0, 0.0]), "v0"),
-    (lambda s: march(s, [0.0, -1.0], [1.0, 0.0], (1, 0), tau0=0.1), "backward"),
     (lambda s: march(s, [0.0, -1.0], [1.0, 0.0], (0, 1), tau0=0.1, target_error=1e-6),
      "target_error"),
     (lambda s: march(s, [0.0, -1.0], [1.0, 0.0], (0, 1), tau0=0.1, derivatives="q0",
                      output=Output(t_eval=[0.5])), "derivatives"),
     (lambda s: march(s, [0.0, -1.0], [1.0, 0.0], (0, 1), tau0=0.1,
                      output=Output(keep_every=2)), "thinned"),
-    (lambda s: continue_march(s, None, 1.0, tau0=0.1), "continue_march"),
+    (lambda s: continue_march(s, None, 1.0, tau0=0.1), "MarchState"),
 ])
 def test_solvers_that_do_not_know_constraints_refuse_them(call, words):
     system = HamiltonianSystem(kinetic, 2, name="cp", constraints=circle)

@@ -43,6 +43,7 @@ def test_the_orbits_close_and_are_kept_once(reference):
             assert np.max(np.abs(other.start - orbit.start)) > 1e-3
 
 
+@pytest.mark.slow(why="repetition")  # the time unit runs by default; a third search
 def test_an_energy_offset_finds_the_same_orbits(reference):
     shifted = find_periodic_orbits(BARBANIS, energy=ENERGY + 0.75, section="q1=0",
                                    params={"shift": 0.75}, **CHEAP)
@@ -56,6 +57,7 @@ def test_a_time_unit_scales_the_periods(reference):
     np.testing.assert_allclose(_periods(scaled), _periods(reference) / 3, rtol=1e-8)
 
 
+@pytest.mark.slow(why="repetition")  # the time unit runs by default; a third search
 def test_relabelled_coordinates_find_the_same_orbits(reference):
     """x and y exchanged: the section is q2 = 0."""
     def swapped(q, p, t):

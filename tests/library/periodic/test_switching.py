@@ -127,12 +127,12 @@ def test_the_bifurcation_to_switch_at_is_chosen_or_refused_by_name():
     fold = SimpleNamespace(kind="fold", energy=0.1)
     doubling = SimpleNamespace(kind="period doubling", energy=0.2)
     branch = SimpleNamespace(kind="branch point", energy=0.3)
-    assert _chosen([fold, doubling, branch], Switch()) == (3, branch)
+    assert _chosen([fold, doubling, branch], Switch()) == (2, doubling)
     assert _chosen([fold, branch], Switch(at=2)) == (2, branch)
-    assert "is a period doubling: switching is done at branch points only" in _chosen(
-        [fold, doubling], Switch(at=2))
-    assert "(bifurcations located: fold, period doubling)" in _chosen([fold, doubling],
-                                                                      Switch())
+    assert _chosen([fold, doubling], Switch(at=2)) == (2, doubling)
+    assert "is a fold: switching is done at branch points and period doublings" in _chosen(
+        [fold, doubling], Switch(at=1))
+    assert "(bifurcations located: fold)" in _chosen([fold], Switch())
     assert "at = 3, but 2 bifurcation(s)" in _chosen([fold, branch], Switch(at=3))
 
 

@@ -229,3 +229,24 @@ def test_a_thinned_march_figure_counts_its_steps_and_draws_samples_not_a_path():
     lines = [line for ax in fig.axes for line in ax.get_lines() if line.get_xdata().size > 2]
     assert lines and all(line.get_linestyle() in ("None", "none", "") for line in lines)
     check(fig)
+
+
+@pytest.mark.parametrize("values", [[-1.9, 0.5, 32.7], [-2500.0, -30.0, 1.2, 1970.0]])
+def test_a_log_index_axis_labels_the_stability_bounds_and_every_decade_it_shows(values):
+    """The symmetric log scale had labelled 1 and 0 and left the negative side bare."""
+    import matplotlib.pyplot as plt
+
+    from ddvp_nlp.io import orbit_figures
+
+    fig, axes = plt.subplots()
+    data = np.array(values)
+    orbit_figures._index_limits(axes, [data], float(np.max(np.abs(data))))
+    low, high = axes.get_ylim()
+    ticks = axes.get_yticks()
+    labels = [label.get_text() for label in axes.get_yticklabels()]
+    plt.close(fig)
+    assert {-2.0, 0.0, 2.0} <= set(ticks) and all(labels)
+    assert all(low <= t <= high for t in ticks)
+    for sign, reach in ((1, high), (-1, -low)):  # every decade inside the limits, no other
+        decades = {t for t in ticks if sign * t >= 10}
+        assert len(decades) == (int(np.floor(np.log10(reach))) if reach >= 10 else 0)

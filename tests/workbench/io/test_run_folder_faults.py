@@ -193,3 +193,26 @@ def test_a_study_told_to_stop_never_exits_0(tmp_path):
     out, err = process.communicate(timeout=600)
     assert process.returncode == 1, (out, err)
     assert "interrupted" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("signo", [0, 1234, int(signal.SIGCONT)])
+def test_a_wait_for_signals_cut_short_forwards_nothing_it_was_not_sent(monkeypatch, signo):
+    """CPython's ``sigtimedwait`` interrupted by a stop and continue after its timeout returns
+    an unfilled siginfo (garbage number): forwarding it had ended the command with a traceback
+    ('os.kill: Invalid argument') when a run was frozen and continued."""
+    from types import SimpleNamespace
+
+    from ddvp_nlp.cli import supervisor
+
+    sent = []
+    fake = SimpleNamespace(si_signo=signo, si_code=0)
+    monkeypatch.setattr(supervisor.signal, "sigtimedwait", lambda *_: fake)
+    monkeypatch.setattr(supervisor.os, "kill", lambda *a: sent.append(a))
+    parent = supervisor.Parent.__new__(supervisor.Parent)
+    parent.child, parent.stop = 12345, None
+    parent._signals()
+    assert sent == [] and parent.stop is None
+    fake.si_signo = int(signal.SIGINT)
+    monkeypatch.setattr(parent, "_sample", lambda: "sampled", raising=False)
+    parent._signals()
+    assert sent == [(12345, int(signal.SIGINT))] and parent.stop == "sampled"
