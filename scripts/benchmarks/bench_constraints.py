@@ -260,8 +260,8 @@ CLOCK = None
 def per_step_cpu(run, steps: int, repeats: int):
     """CPU and wall seconds per step of a march of ``steps`` steps: its stepping and its
     after-check (`PhaseClock`) over its steps, medians of ``repeats`` marches; the march's
-    whole CPU per step beside (its functions built again by every march). A compiled chunk
-    computes ``Compilation.chunk`` (1024) steps per call whatever the march keeps, so a
+    whole CPU per step beside (its start, its functions where not cached, its result). A
+    compiled chunk computes ``Compilation.chunk`` (1024) steps per call whatever the march keeps, so a
     ``steps`` below it, or not about a multiple of it, counts steps computed and dropped: use
     1024 (the first step is made apart, then one call of 1024)."""
     global CLOCK
@@ -295,7 +295,7 @@ def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
           + (", on the virtual machine" if vm else ""))
     print("| N | method | unknowns per step | build CPU s | compiler CPU s | build wall s | "
           "updates max/mean | retries | c <= 0 | us per step (CPU) | us per step (wall) | "
-          "after-check share | whole march CPU us per step (builds included) | max g | "
+          "after-check share | whole march CPU us per step | max g | "
           "max hidden | max energy residual / max abs H (fixed: lee's balance, not solved) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     per_step = {}
@@ -356,7 +356,7 @@ def _chain_row(links, method, scheme, build, cpu, wall, solution, system, theta)
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1_000_000)
-    parser.add_argument("--chain-steps", type=int, default=2000)
+    parser.add_argument("--chain-steps", type=int, default=1024)
     parser.add_argument("--links", default="10,50,128")
     parser.add_argument("--chain-schemes", default="fixed,vddvp")
     parser.add_argument("--methods", default="multipliers",
