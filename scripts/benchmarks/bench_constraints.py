@@ -261,9 +261,9 @@ def per_step_cpu(run, steps: int, repeats: int):
     """CPU and wall seconds per step of a march of ``steps`` steps: its stepping and its
     after-check (`PhaseClock`) over its steps, medians of ``repeats`` marches; the march's
     whole CPU per step beside (its start, its functions where not cached, its result). A
-    compiled chunk computes ``Compilation.chunk`` (1024) steps per call whatever the march keeps, so a
-    ``steps`` below it, or not about a multiple of it, counts steps computed and dropped: use
-    1024 (the first step is made apart, then one call of 1024)."""
+    compiled chunk computes ``Compilation.chunk`` (1024) steps per call whatever the march
+    keeps, so a ``steps`` below it, or not about a multiple of it, counts steps computed and
+    dropped: use 1024 (the first step is made apart, then one call of 1024)."""
     global CLOCK
     CLOCK = CLOCK or PhaseClock()
     cpu, wall, whole, solution = [], [], [], None
