@@ -169,3 +169,26 @@ def test_a_time_dependent_constraint_in_both_forms():
     multipliers, null_space = both(system, radial, 0.1 * radial, (0, 1.0), "fixed")
     assert_same(multipliers, null_space)
     assert null_space.constraints.hidden_residual.max() <= 1e-13
+
+
+@pytest.mark.parametrize("method", ["multipliers", "null_space"])
+def test_a_later_march_reuses_the_chunks_and_reports_no_build(method):
+    """The chunks are built once per system, scheme, size, compiler and cache folder
+    (``constrained_steps.constrained_chunk``): a reused one shares the built function and
+    reports no build or compile time; the second march is the first's, node for node."""
+    from ddvp_nlp.discrete.scheme import Scheme
+    from ddvp_nlp.solvers.marching.constrained_steps import constrained_chunk
+    from ddvp_nlp.solvers.marching.null_space_steps import NullSpaceChunk
+
+    system = pendulum()
+    kind = NullSpaceChunk if method == "null_space" else None
+    options = {"chunk": 16, "compiler": None, "cache_dir": None}
+    if kind is not None:
+        options["chunk_class"] = kind
+    first = constrained_chunk(system, Scheme.coerce("fixed"), "fixed", **options)
+    again = constrained_chunk(system, Scheme.coerce("fixed"), "fixed", **options)
+    assert again.function is first.function and first.build_s > 0
+    assert again.build_s == 0 and again.compile_s == 0
+    q0, p0 = PENDULUM["fixed"]
+    a, b = (run(system, q0, p0, (0, 0.3), "fixed", method) for _ in range(2))
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.p, b.p)  # the same code, same bits
