@@ -33,6 +33,7 @@ from ..errors import InputError
 from ..validation import check_cache_folder, check_integer, check_real
 
 # What a march does when an energy step has no admissible root (StepControl.breakdown).
+CONSTRAINT_METHODS = ("multipliers", "null_space")
 BREAKDOWNS = ("stop", "least_squares")
 # Steps per compiled call: past this the chunk's generated code and its output buffer grow to
 # gigabytes (chunk = 10**9 took two minutes and 4.7 GB for a ten-step march) for no speed gained.
@@ -85,6 +86,11 @@ class StepControl:
         time_limit: optional bound in seconds on the stepping (status ``time_limit``).
         energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(1, |H(z_0, t_0)|)``
             at every node (status ``energy_guard``).
+        constraint_method: how a system with constraints solves its steps: ``"multipliers"``
+            (the RATTLE-form rows with their multipliers) or ``"null_space"`` (the same
+            equations with the multipliers eliminated by a null-space matrix of the
+            constraints' Jacobian, ``fixed`` and ``vddvp``; docs/constraints.md). Read only
+            for systems with constraints.
     """
 
     tol: float = 1e-10
@@ -95,6 +101,7 @@ class StepControl:
     max_steps: int = 10_000_000
     time_limit: float | None = None
     energy_guard: float | None = None
+    constraint_method: str = "multipliers"
 
     def __post_init__(self):
         _set(self, "tol", check_real("tol", self.tol, positive=True))
@@ -117,6 +124,9 @@ class StepControl:
         if self.breakdown not in BREAKDOWNS:
             raise InputError(f"breakdown must be one of {', '.join(BREAKDOWNS)}, got "
                              f"{self.breakdown!r}")
+        if self.constraint_method not in CONSTRAINT_METHODS:
+            raise InputError(f"constraint_method must be one of {', '.join(CONSTRAINT_METHODS)}"
+                             f", got {self.constraint_method!r}")
 
 
 @dataclass(frozen=True)

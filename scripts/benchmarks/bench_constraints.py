@@ -5,6 +5,9 @@ links (Newton updates per step, CPU per step at N = 128 against N = 10).
     python scripts/benchmarks/bench_constraints.py               # 1e6 steps, N = 10, 50, 128
     python scripts/benchmarks/bench_constraints.py --steps 20000 --links 10,50   # quick
     python scripts/benchmarks/bench_constraints.py --only chains --gravity 0     # free space
+    python scripts/benchmarks/bench_constraints.py --only methods --methods multipliers,null_space
+    python scripts/benchmarks/bench_constraints.py --only chains --chain-schemes vddvp \
+        --methods multipliers,null_space --links 10,50                      # side by side
 
 Each march's CPU and wall time are printed side by side, warm (the compiled chunk is built
 first by a short march of the same system, and its build time is printed apart).
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import tempfile
 import time
 import warnings
@@ -22,7 +26,7 @@ from functools import partial
 import casadi as ca
 import numpy as np
 
-from ddvp_nlp import Compilation, HamiltonianSystem, march
+from ddvp_nlp import Compilation, HamiltonianSystem, StepControl, march
 
 
 def timed(function):
@@ -118,6 +122,55 @@ def spherical(steps: int):
           f"{wall:.2f} s")
 
 
+def double_pendulum_system():
+    """Two unit masses on unit rods from a pivot, coordinates ``(x1, y1, x2, y2)``."""
+    return HamiltonianSystem(
+        lambda q, p, t: ca.dot(p, p) / 2 + q[1] + q[3], 4, name="double_pendulum",
+        constraints=lambda q, t: ca.vertcat(q[0] ** 2 + q[1] ** 2 - 1,
+                                            (q[2] - q[0]) ** 2 + (q[3] - q[1]) ** 2 - 1))
+
+
+def methods_table(methods, steps: int, repeats: int):
+    """The constraint methods side by side on the small systems: CPU per step
+    (`per_step_cpu`), Newton updates, and how far apart their nodes are."""
+    print(f"\n## Constraint methods side by side, {steps} steps (stepping and after-check), "
+          f"median of {repeats}")
+    print("| system | scheme | method | unknowns per step | updates max/mean | us per step "
+          "(CPU) | us per step (wall) | max abs g | max energy row | max node difference "
+          "from the first method (first 500 steps / all) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    cases = [("pendulum", pendulum_system(), "fixed", [np.sin(1.0), -np.cos(1.0)], [0.0, 0.0]),
+             ("pendulum", pendulum_system(), "vddvp", [0.0, -1.0], [3.0, 0.0]),
+             ("double pendulum E = 10", double_pendulum_system(), "fixed",
+              [0.0, -1.0, 0.0, -2.0], [5.0, 0.0, 1.0, 0.0]),
+             ("double pendulum E = 10", double_pendulum_system(), "vddvp",
+              [0.0, -1.0, 0.0, -2.0], [5.0, 0.0, 1.0, 0.0])]
+    for label, system, scheme, q0, p0 in cases:
+        first, ratios = None, []
+        for method in methods:
+            def run(count, method=method, system=system, scheme=scheme, q0=q0, p0=p0):
+                return march(system, q0, p0, (0, 1e6), tau0=0.005, scheme=scheme,
+                             accuracy=None, steps=StepControl(max_steps=count,
+                                                              constraint_method=method))
+            run(2)  # build and compile
+            cpu, wall, solution = per_step_cpu(run, steps, repeats)
+            first = first or (solution, cpu)
+            ratios.append(cpu / first[1])
+            k = min(first[0].t.size, solution.t.size)
+            gaps = np.abs(np.hstack([first[0].q[:k], first[0].p[:k]])
+                          - np.hstack([solution.q[:k], solution.p[:k]])).max(axis=1)
+            m = system.n_constraints
+            record = solution.constraints
+            print(f"| {label} | {scheme} | {method} | "
+                  f"{2 * system.n + (0 if method == 'null_space' else 2 * m) + (scheme != 'fixed')}"
+                  f" | {record.newton_updates.max()}/{record.newton_updates.mean():.2f} | "
+                  f"{1e6 * cpu:.2f} | {1e6 * wall:.2f} | {record.constraint_residual.max():.1e} | "
+                  f"{np.abs(solution.energy_residual).max(initial=0.0):.1e} | "
+                  f"{gaps[:501].max():.1e} / {gaps.max():.1e} |")
+        print(f"<!-- {label} {scheme}: CPU per step over {methods[0]}: "
+              f"{' '.join(f'{r:.2f}' for r in ratios)} -->")
+
+
 def chain_system(links: int):
     """N unit masses on unit rods from a pivot at the origin, in the vertical plane, under
     gravity ``grav`` (a parameter: one compiled chunk for every gravity)."""
@@ -176,73 +229,162 @@ def sign_changes(system, solution, theta) -> float:
     return float(np.mean(c <= 0))
 
 
-def chains(sizes, steps: int, scheme: str, gravity: float = 1.0):
-    """CPU per step as the difference of two marches (``steps`` and ``steps / 5`` steps) over
-    the difference of their steps: what building the march costs cancels. ``fixed`` steps
-    march the hanging chain; the energy rules a whirling one (`whirl_start`). The first
-    march of each size builds and compiles its chunks in a fresh cache folder: its CPU (this
-    process) and the compiler's (child processes) are printed apart."""
-    short = max(steps // 5, 2)
+class PhaseClock:
+    """CPU and wall seconds of a constrained march's stepping (the driver's loop over the
+    compiled chunks) and of its after-check (every equation recomputed on the kept nodes),
+    read by wrapping the two internal functions (internal: measured); building the march's
+    functions, which a warm march in a new process pays once, is left out."""
+
+    def __init__(self):
+        from ddvp_nlp.solvers.marching.constrained_march import (  # internal: measured
+            march_constrained,
+        )
+
+        constrained_march = sys.modules[march_constrained.__module__]
+        self.module, self.last = constrained_march, {}
+        for name in ("drive", "recheck"):
+            setattr(constrained_march, name, self._wrapped(name, getattr(constrained_march,
+                                                                          name)))
+
+    def _wrapped(self, name, function):
+        def timed_phase(*args, **kwargs):
+            result, cpu, wall = timed(partial(function, *args, **kwargs))
+            self.last[name] = (cpu, wall)
+            return result
+        return timed_phase
+
+
+CLOCK = None
+
+
+def per_step_cpu(run, steps: int, repeats: int):
+    """CPU and wall seconds per step of a march of ``steps`` steps: its stepping and its
+    after-check (`PhaseClock`) over its steps, medians of ``repeats`` marches; the march's
+    whole CPU per step beside (its start, its functions where not cached, its result). A
+    compiled chunk computes ``Compilation.chunk`` (1024) steps per call whatever the march
+    keeps, so a ``steps`` below it, or not about a multiple of it, counts steps computed and
+    dropped: use 1024 (the first step is made apart, then one call of 1024)."""
+    global CLOCK
+    CLOCK = CLOCK or PhaseClock()
+    cpu, wall, whole, solution = [], [], [], None
+    for _ in range(repeats):
+        solution, whole_cpu, _ = timed(partial(run, steps))
+        count = max(solution.t.size - 1, 1)
+        cpu.append(sum(CLOCK.last[k][0] for k in ("drive", "recheck")) / count)
+        wall.append(sum(CLOCK.last[k][1] for k in ("drive", "recheck")) / count)
+        whole.append(whole_cpu / count)
+    solution.whole_cpu_per_step = float(np.median(whole))
+    solution.recheck_share = CLOCK.last["recheck"][0] / max(
+        CLOCK.last["recheck"][0] + CLOCK.last["drive"][0], 1e-300)
+    return float(np.median(cpu)), float(np.median(wall)), solution
+
+
+def chains(sizes, steps: int, scheme: str, gravity: float = 1.0,
+           methods=("multipliers",), repeats: int = 3, cache_dir=None, vm: bool = False):
+    """CPU per step (`per_step_cpu`: the stepping and the after-check of ``steps`` steps, the
+    same count at every size, medians of ``repeats``) of each constraint method side by
+    side. ``fixed`` steps march the hanging chain; the energy rules a whirling one
+    (`whirl_start`). The first march of each size and method builds and compiles its chunks
+    in a fresh cache folder (or ``cache_dir``, where compiled chunks are reused): its CPU
+    (this process) and the compiler's (child processes) are printed apart. ``vm``: on
+    CasADi's virtual machine, nothing compiled (its cost follows the operations a step
+    evaluates, where the compiled chunk of the null-space form takes long to compile)."""
     start = chain_start if scheme == "fixed" else whirl_start
     print(f"\n## Chains of N links (n = 2N, m = N), {scheme} steps from tau0 = 0.01, gravity "
-          f"{gravity}, {start.__name__}: to t = {steps * 0.01:g} against {short * 0.01:g}")
-    print("| N | unknowns per step | build CPU s | compiler CPU s | build wall s | updates "
-          "max/mean | retries | c <= 0 | CPU s | wall s | us per step (CPU) | us per step "
-          "(wall) | max g | max hidden | max energy residual / max abs H (fixed: lee's balance, "
-          "not solved) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          f"{gravity}, {start.__name__}: {steps} steps, median of {repeats}"
+          + (", on the virtual machine" if vm else ""))
+    print("| N | method | unknowns per step | build CPU s | compiler CPU s | build wall s | "
+          "updates max/mean | retries | c <= 0 | us per step (CPU) | us per step (wall) | "
+          "after-check share | whole march CPU us per step | max g | "
+          "max hidden | max energy residual / max abs H (fixed: lee's balance, not solved) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     per_step = {}
     for links in sizes:
         system = chain_system(links)
         theta = system.parameter_vector({"grav": gravity})
         q0, p0 = start(links)
-        with warnings.catch_warnings(), tempfile.TemporaryDirectory() as cache:
+        with warnings.catch_warnings(), tempfile.TemporaryDirectory() as fresh:
+            cache = cache_dir or fresh
             warnings.simplefilter("ignore", RuntimeWarning)
-            run = partial(march, system, q0, p0, tau0=0.01, scheme=scheme, accuracy=None,
-                          params={"grav": gravity}, compilation=Compilation(cache_dir=cache))
-            gcc = children_cpu()
-            _, build_cpu, build_wall = timed(partial(run, (0, 0.02)))
-            gcc = children_cpu() - gcc
-            first, cpu0, wall0 = timed(partial(run, (0, short * 0.01)))
-            solution, cpu, wall = timed(partial(run, (0, steps * 0.01)))
-        record = solution.constraints
-        extra = solution.t.size - first.t.size
-        per_step[links] = (cpu - cpu0) / max(extra, 1)
-        marched = solution.t.size - 1
-        H = np.abs(system.energy(solution.q, solution.p, solution.t, theta)).max()
-        energy = np.abs(solution.energy_residual).max(initial=0.0) / H
-        print(f"| {links} | {6 * links + (scheme != 'fixed')} | {build_cpu:.1f} | {gcc:.1f} | "
-              f"{build_wall:.1f} | {record.newton_updates.max()}/"
-              f"{record.newton_updates.mean():.2f} | {record.retries} of {marched} | "
-              f"{sign_changes(system, solution, theta):.3f} | {cpu:.2f} | {wall:.2f} | "
-              f"{1e6 * per_step[links]:.1f} | {1e6 * (wall - wall0) / max(extra, 1):.1f} | "
-              f"{record.constraint_residual.max():.1e} | {record.hidden_residual.max():.1e} | "
-              f"{energy:.1e} |" + ("" if solution.success else f" {solution.message[:80]}"))
-    if len(per_step) > 1:
-        small, large = min(per_step), max(per_step)
-        print(f"\nCPU per step at N = {large} / at N = {small}: "
-              f"{per_step[large] / per_step[small]:.1f}x")
+            runs = {}
+            for method in methods:
+                runs[method] = partial(_chain_march, system, q0, p0, scheme, gravity,
+                                       Compilation(cache_dir=cache, fast=not vm), method)
+                gcc = children_cpu()
+                _, build_cpu, build_wall = timed(partial(runs[method], 2))
+                runs[method].build = (build_cpu, children_cpu() - gcc, build_wall)
+            for method in methods:  # after every build: the same machine state for each
+                cpu, wall, solution = per_step_cpu(runs[method], steps, repeats)
+                per_step[links, method] = cpu
+                _chain_row(links, method, scheme, runs[method].build, cpu, wall, solution,
+                           system, theta)
+    for method in methods:
+        sizes_run = [n for n in sizes if (n, method) in per_step]
+        if len(sizes_run) > 1:
+            small, large = min(sizes_run), max(sizes_run)
+            print(f"\n{method}: CPU per step at N = {large} / at N = {small}: "
+                  f"{per_step[large, method] / per_step[small, method]:.1f}x")
+    if len(methods) > 1:
+        print("\nCPU per step, " + " / ".join(methods[1:]) + f" over {methods[0]}: " + ", ".join(
+            f"N = {n}: " + " ".join(f"{per_step[n, m] / per_step[n, methods[0]]:.2f}"
+                                    for m in methods[1:]) for n in sizes))
+
+
+def _chain_march(system, q0, p0, scheme, gravity, compilation, method, steps):
+    return march(system, q0, p0, (0, 1e6), tau0=0.01, scheme=scheme, accuracy=None,
+                 params={"grav": gravity}, compilation=compilation,
+                 steps=StepControl(max_steps=steps, constraint_method=method))
+
+
+def _chain_row(links, method, scheme, build, cpu, wall, solution, system, theta):
+    record = solution.constraints
+    marched = solution.t.size - 1
+    H = np.abs(system.energy(solution.q, solution.p, solution.t, theta)).max()
+    energy = np.abs(solution.energy_residual).max(initial=0.0) / H
+    m = system.n_constraints
+    unknowns = 2 * system.n + (0 if method == "null_space" else 2 * m) + (scheme != "fixed")
+    ok = solution.status.name == "MAX_STEPS"  # marched every step asked for
+    print(f"| {links} | {method} | {unknowns} | {build[0]:.1f} | {build[1]:.1f} | "
+          f"{build[2]:.1f} | {record.newton_updates.max()}/{record.newton_updates.mean():.2f} | "
+          f"{record.retries} of {marched} | {sign_changes(system, solution, theta):.3f} | "
+          f"{1e6 * cpu:.1f} | {1e6 * wall:.1f} | {solution.recheck_share:.2f} | "
+          f"{1e6 * solution.whole_cpu_per_step:.0f} | {record.constraint_residual.max():.1e} | "
+          f"{record.hidden_residual.max():.1e} | {energy:.1e} |"
+          + ("" if ok else f" {solution.message[:80]}"))
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1_000_000)
-    parser.add_argument("--chain-steps", type=int, default=2000)
+    parser.add_argument("--chain-steps", type=int, default=1024)
     parser.add_argument("--links", default="10,50,128")
     parser.add_argument("--chain-schemes", default="fixed,vddvp")
+    parser.add_argument("--methods", default="multipliers",
+                        help="constraint methods of the chains and --only methods, side by "
+                             "side: multipliers,null_space")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--vm", action="store_true",
+                        help="the chains on CasADi's virtual machine (nothing compiled)")
+    parser.add_argument("--cache-dir", default=None,
+                        help="the chains' compile cache (default: a fresh folder per size)")
+    parser.add_argument("--method-steps", type=int, default=20000,
+                        help="steps of each march of --only methods")
     parser.add_argument("--gravity", type=float, default=1.0,
                         help="gravity of the chains (0: a chain in free space)")
-    parser.add_argument("--only", choices=["pendulum", "spherical", "chains"])
+    parser.add_argument("--only", choices=["pendulum", "spherical", "chains", "methods"])
     args = parser.parse_args()
     if args.only in (None, "pendulum"):
         pendulum(args.steps)
         order()
     if args.only in (None, "spherical"):
         spherical(args.steps)
+    if args.only in (None, "methods"):
+        methods_table(tuple(args.methods.split(",")), args.method_steps, args.repeats)
     if args.only in (None, "chains"):
         for scheme in args.chain_schemes.split(","):
             chains([int(v) for v in args.links.split(",")], args.chain_steps, scheme,
-                   args.gravity)
+                   args.gravity, tuple(args.methods.split(",")), args.repeats, args.cache_dir,
+                   args.vm)
     from ddvp_nlp.io import machine
     print("\n" + machine())
 

@@ -529,7 +529,8 @@ def test_every_face_lists_only_names_it_has():
 INTERNALS_FOR_SCRIPTS = {
     "scripts/benchmarks/bench_bvp.py": {"solvers.grid.linear"},
     "scripts/benchmarks/bench_periodic.py": {"solvers.periodic.first_orbit"},
-    "scripts/benchmarks/bench_constraints.py": {"discrete.constrained"},
+    "scripts/benchmarks/bench_constraints.py": {"discrete.constrained",
+                                                "solvers.marching.constrained_march"},
     "scripts/benchmarks/bench_double_pendulum.py": {"discrete.constrained",
                                                     "solvers.baselines.rattle"},
     "scripts/benchmarks/bench_shake_tolerance.py": {"solvers.baselines.rattle"},

@@ -58,7 +58,8 @@ from ..driver import Advance, Nodes, describe_phase_space, drive
 from .acceptance import Acceptance
 from .backward import is_backward, march_backward
 from .constrained_start import StartProjection, consistent_start
-from .constrained_steps import ConstrainedChunk
+from .constrained_steps import ConstrainedChunk, constrained_chunk
+from .null_space_steps import NullSpaceChunk, check_constraint_method
 
 __all__ = ["ConstraintRecord", "attach_constrained", "check_ensemble_starts", "checked_start",
            "continue_constrained", "march_constrained", "refuse_unsupported"]
@@ -99,15 +100,15 @@ class ConstrainedStepper:
     multipliers and the Newton updates of every step it returns."""
 
     def __init__(self, system, scheme, theta, acceptance: Acceptance, *, t0, t_end, tau0,
-                 chunk, compiler, cache_dir):
+                 chunk, compiler, cache_dir, chunk_class=ConstrainedChunk):
         self.n, self.m = system.n, system.n_constraints
         self.variable = scheme.variable_steps
         self.theta, self.tol = np.asarray(theta, float), float(acceptance.tol)
         self.acceptance, self.tau_prev = acceptance, None
-        self.fixed = ConstrainedChunk(system, scheme, "fixed", chunk=chunk, compiler=compiler,
-                                      cache_dir=cache_dir)
-        self.energy = ConstrainedChunk(system, scheme, "energy", chunk=chunk,
-                                       compiler=compiler, cache_dir=cache_dir) \
+        built = {"chunk": chunk, "compiler": compiler, "cache_dir": cache_dir,
+                 "chunk_class": chunk_class}
+        self.fixed = constrained_chunk(system, scheme, "fixed", **built)
+        self.energy = constrained_chunk(system, scheme, "energy", **built) \
             if self.variable else None
         total = 1 if self.variable else max(1, math.ceil((t_end - t0) / tau0 * (1 - 1e-12)))
         self.grid = (t0, tau0 if self.variable else (t_end - t0) / total, t_end, total)
@@ -276,6 +277,7 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
     node)."""
     refuse_unsupported(system, v0=v0, target_error=target_error,
                        derivatives=derivatives, output=output, steps=steps)
+    check_constraint_method(system, scheme, steps.constraint_method)
     if is_backward(t_span):  # the forward march of H(q, -p, -t) on g(q, -t), mapped back
         solution = march_backward(_reversed_march, system, q0, p0, t_span, tau0=tau0, v0=None,
                                   scheme=scheme, params=params, steps=steps,
@@ -295,7 +297,9 @@ def march_constrained(system, q0, p0, t_span, *, tau0, v0, scheme, params, steps
     acceptance = Acceptance(steps.tol, steps.tau_min, steps.tau_max, steps.max_step_ratio)
     stepper = ConstrainedStepper(system, scheme, theta, acceptance, t0=t0, t_end=t_end,
                                  tau0=tau0, chunk=compilation.chunk, compiler=compiler,
-                                 cache_dir=compilation.cache_dir)
+                                 cache_dir=compilation.cache_dir,
+                                 chunk_class=NullSpaceChunk if
+                                 steps.constraint_method == "null_space" else ConstrainedChunk)
     built = time.perf_counter()
     field = DenseField(constrained_field_function(system), system.H_function, theta,
                        system.name)
