@@ -370,20 +370,7 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
     most = api_default("periodic", "max_orbits")
     periodic.add_argument("--max-orbits", type=int, default=most,
                           help=f"with --follow: at most this many orbits (default {most})")
-    periodic.add_argument("--switch", type=int, nargs="?", const=20, default=None,
-                          metavar="ORBITS",
-                          help="with --follow: at the first branch point or period doubling "
-                               "located, switch onto the new branch (its direction from the "
-                               "kernel of the extended system) and follow both its halves for "
-                               "ORBITS orbits each (default 20), every orbit verified on the "
-                               "exact flow (branch-1/, branch-2/); at a period doubling the two "
-                               "halves are one orbit of twice the period, followed once")
-    switch_tol = api_default("periodic", "switch_tol")
-    periodic.add_argument("--switch-tol", default=None, metavar="TOL",
-                          help="with --switch: at a branch point, the halves' periods' error "
-                               "target relative to the period (each half followed on a grid "
-                               f"chosen for it, every orbit's error estimated; default "
-                               f"{switch_tol:g}); 'none': on the family's grid, unchecked")
+    _switch_options(periodic)
     periodic.add_argument("--search", action="store_true",
                           help="search the section (--section q1=V or q2=V) at --energy for "
                                "periodic orbits from seeds over the region the energy allows "
@@ -404,6 +391,24 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                           help="with --search: each seed at a random point of its cell "
                                "(numpy's generator seeded SEED, an integer >= 0) instead of its "
                                "centre, to see whether the orbits found depend on the layout")
+
+
+def _switch_options(periodic: argparse.ArgumentParser) -> None:
+    """``ddvp periodic``'s branch switching: ``--switch`` and its error target."""
+    periodic.add_argument("--switch", type=int, nargs="?", const=20, default=None,
+                          metavar="ORBITS",
+                          help="with --follow: at the first branch point or period doubling "
+                               "located, switch onto the new branch (its direction from the "
+                               "kernel of the extended system) and follow both its halves for "
+                               "ORBITS orbits each (default 20), every orbit verified on the "
+                               "exact flow (branch-1/, branch-2/); at a period doubling the two "
+                               "halves are one orbit of twice the period, followed once")
+    switch_tol = api_default("periodic", "switch_tol")
+    periodic.add_argument("--switch-tol", default=None, metavar="TOL",
+                          help="with --switch: at a branch point, the halves' periods' error "
+                               "target relative to the period (each half followed on a grid "
+                               f"chosen for it, every orbit's error estimated; default "
+                               f"{switch_tol:g}); 'none': on the family's grid, unchecked")
 
 
 def _march_command(march: argparse.ArgumentParser) -> None:

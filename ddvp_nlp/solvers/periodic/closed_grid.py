@@ -35,6 +35,13 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.maps import chunked
 
+EPS = float(np.finfo(float).eps)
+# A closed grid's Newton per-row target and the verification's round-off allowance, in
+# round-offs of the rows' magnitudes (the orbit solves, constrained or not, and their
+# derivatives' solves share them).
+TARGET_ROUND_OFFS = 64
+ALLOWANCE_ROUND_OFFS = 4096
+
 
 @dataclass(frozen=True)
 class ClosedLayout:

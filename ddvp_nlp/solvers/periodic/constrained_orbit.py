@@ -62,13 +62,10 @@ from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
 from ..marching.constrained_start import consistent_start
 from ..options import GridOptions
-from .closed_grid import integral_gradients
+from .closed_grid import ALLOWANCE_ROUND_OFFS, EPS, TARGET_ROUND_OFFS, integral_gradients
 from .constrained_closed import ConstrainedClosedGrid, ConstrainedClosure
 from .first_orbit import guess_nodes
 
-EPS = float(np.finfo(float).eps)
-TARGET_ROUND_OFFS = 64
-ALLOWANCE_ROUND_OFFS = 4096
 DEFAULT_MAX_ITER = 100
 TRACE_RTOL = 1e-11
 TRACE_DOUBLINGS = 8  # the trace's span doubled at most this often looking for the return

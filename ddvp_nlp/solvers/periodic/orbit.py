@@ -103,7 +103,14 @@ from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, answers_removed_keywords, coerce
-from .closed_grid import Closure, PeriodicAssembly, integral_gradients
+from .closed_grid import (
+    ALLOWANCE_ROUND_OFFS,
+    EPS,
+    TARGET_ROUND_OFFS,
+    Closure,
+    PeriodicAssembly,
+    integral_gradients,
+)
 from .first_orbit import (
     NoMotion,
     closing_shift,
@@ -116,11 +123,6 @@ from .orbit_derivatives import check_derivatives, orbit_derivatives
 from .orbit_nlp import periodic_ipopt
 from .refinement import continue_in_nodes, node_levels
 
-EPS = float(np.finfo(float).eps)
-# Newton's per-row target and the verification's round-off allowance, in round-offs of the
-# rows' magnitudes.
-TARGET_ROUND_OFFS = 64
-ALLOWANCE_ROUND_OFFS = 4096
 # The defaults of GridOptions' None fields for this problem.
 DEFAULT_MAX_ITER = 100
 SECTION = re.compile(r"^\s*([qp])(\d+)\s*=\s*(.+?)\s*$")

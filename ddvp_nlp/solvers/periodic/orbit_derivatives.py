@@ -39,11 +39,8 @@ from ..grid.implicit_derivatives import (
     checked,
     resolver,
 )
-from .closed_grid import Closure, PeriodicAssembly, integral_gradients
+from .closed_grid import EPS, TARGET_ROUND_OFFS, Closure, PeriodicAssembly, integral_gradients
 
-EPS = float(np.finfo(float).eps)
-# The orbit solve's Newton target, in round-offs of the rows' magnitudes (orbit.py's).
-TARGET_ROUND_OFFS = 64
 # The inputs a periodic orbit differentiates in, in the order of the derivative's columns.
 PERIODIC_DERIVATIVES = ("energy", "params")
 
