@@ -110,6 +110,10 @@ class HamiltonianSystem:
         self.G = ca.SX(0, 1) if self.constraints is None else \
             constraint_column(self, self.constraints, numpy_on_symbols, as_sx)
         self.n_constraints = int(self.G.size1())
+        # H is not conserved where the constraints move (a rotating hoop, a rod whose length
+        # changes): the accuracy check's energy tests read `energy_varies`
+        self.energy_varies = self.time_dependent or bool(
+            self.n_constraints and ca.depends_on(self.G, self.t))
 
     def parameter_vector(self, values: Mapping[str, object] | None = None) -> np.ndarray:
         """Numeric ``theta`` in declaration order, defaults filled in, names checked."""

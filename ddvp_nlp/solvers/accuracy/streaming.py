@@ -40,6 +40,7 @@ from .judgement import (
     Judgement,
     Level,
     Scan,
+    energy_varies,
     finite_or_none,
     gradient_sizes,
     unjudged,
@@ -117,7 +118,7 @@ class StreamingJudgement:
         self.energy_sum += float(np.sum(weights * norm))
         self.weight_sum += float(np.sum(weights))
         self.H_abs_max = max(self.H_abs_max, float(np.max(np.abs(H))))
-        if self.judge.system.time_dependent:
+        if energy_varies(self.judge.system):
             return
         drift = np.abs(H - self.H0)
         self.H_drift_max = max(self.H_drift_max, float(np.max(drift)))
@@ -197,7 +198,7 @@ class StreamingJudgement:
         energies = self.judge.energies(np.array([self.t0]), self.z0[None, :],
                                         np.array([self.H0]), energy, self.level, scale)
         figures, failures = energies["figures"], energies["failures"]
-        if not self.judge.system.time_dependent:
+        if not energy_varies(self.judge.system):
             figures["energy_drift"] = finite_or_none(self.H_drift_max / energy)
             over = [c for c in self.energy_candidates if not c[2] / energy <= tol.energy_tol]
             if over or not self.H_drift_max / energy <= tol.energy_tol:

@@ -274,12 +274,26 @@ class ConstrainedChunk:
     def __call__(self, state: np.ndarray, constants: np.ndarray) -> np.ndarray:
         """The output rows ``(chunk, width)`` of one call from ``state``; the rows after the
         first bad one are not steps."""
-        outputs = self._buffer(state, np.tile(constants, self.chunk))
+        try:
+            outputs = self._buffer(state, np.tile(constants, self.chunk))
+        except RuntimeError:  # a linear solve inside a step failed: no row is a step
+            return np.tile(self._no_step(), (self.chunk, 1))
         return outputs[1].reshape(self.chunk, self.width).copy()
 
     def one(self, state: np.ndarray, constants: np.ndarray) -> np.ndarray:
         """One step on the virtual machine (a retry, a first step)."""
-        return np.asarray(self.step(state, constants)[1], float).ravel()
+        try:
+            return np.asarray(self.step(state, constants)[1], float).ravel()
+        except RuntimeError:  # e.g. the null-space form's QR solves on a NaN iterate
+            return self._no_step()
+
+    def _no_step(self) -> np.ndarray:
+        """The row of a step whose evaluation failed (a linear solve on non-finite or
+        singular input raises where the multiplier form's gives NaN): non-finite, not good,
+        so the march retries it, then ends with the non-finite status."""
+        row = np.full(self.width, np.nan)
+        row[-1] = 0.0
+        return row
 
 
 def constrained_chunk(system, scheme, kind: str, *, chunk: int, compiler, cache_dir,
