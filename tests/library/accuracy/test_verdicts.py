@@ -268,8 +268,8 @@ def test_every_built_in_scene_but_the_papers_is_accurate_at_its_defaults(name):
         t_init, q_init = scene.start(config)
         solution = march_higher(scene.system, t_init, q_init, t_end=config.t_end,
                                 scheme=scene.scheme, params=config.params)
-    else:
-        _, _, solution = _run(name)
+    else:  # the scheme the scene declares, as `ddvp march` runs it
+        _, _, solution = _run(name, **({"scheme": scene.scheme} if scene.scheme else {}))
     assert solution.success, solution.message
     assert solution.verdict.name == "accurate", solution.verdict.as_dict()
 
