@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import InputError
-from ...validation import check_integer, check_real
+from ...validation import check_integer, check_memory, check_real
 from ..exact.flow import exact_flow
 from ..exact.flow_newton import exact_newton
 from .section_map import (
@@ -211,6 +211,7 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     nodes = check_integer("nodes", nodes, minimum=4)
     jitter = None if jitter is None else check_integer("jitter", jitter, minimum=0)
     workers = check_integer("workers", workers)
+    check_memory("workers", workers, workers * _worker_bytes(), "the seeds' worker processes")
     theta = system.parameter_vector(params)
     flipped = parse_reversing(reversing, system, theta, sec)
     geometry = SectionAtEnergy(system, theta, sec, energy)
@@ -237,6 +238,13 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     region = SearchRegion(reversing=flipped, jitter=jitter, **region)
     return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
                        _cpu_seconds() - started)
+
+
+def _worker_bytes() -> float:
+    """The memory bound of one forked worker (the ensemble's, ``marching/ensemble.py``)."""
+    from ..marching.ensemble import WORKER_BYTES
+
+    return WORKER_BYTES
 
 
 def _cpu_seconds() -> float:
