@@ -222,8 +222,10 @@ def return_derivative(geometry: SectionAtEnergy, z0, t_return: float, atol):
 
 
 # Blocks of seeds per worker: the seeds' runs differ in length (one escapes at once, another
-# makes its returns), so each worker takes several blocks, the next as soon as it is free.
-SEED_BLOCKS_PER_WORKER = 4
+# makes its returns) and a shot takes from milliseconds to a second (Hill at E = -2.14: 30
+# shots from the whole map's minima, 9 s), so each worker takes many small blocks, the next as
+# soon as it is free (30 shots: one a block; 400 seeds' runs: 13 a block).
+SEED_BLOCKS_PER_WORKER = 16
 
 
 class SeedPool:
