@@ -25,9 +25,22 @@ Every orbit found is checked by closing it on the exact flow over its whole peri
 orbit reached from several seeds, or as a multiple cover, is kept once (compared by its period
 and its upward crossings of the section); each is refined on the discrete grid by
 ``solve_periodic`` (the orbit as its guess) with its multipliers and verdict
-(``periodic_stability``), beside the exact flow's own monodromy. Seeds run one after another in
-this process (each is a few milliseconds of the compiled flow; the ensemble's workers would cost
-more to start than they save at these sizes).
+(``periodic_stability``), beside the exact flow's own monodromy.
+
+Where the seeds run: in this process by default (``workers=1``, one after another). With
+``workers=N`` the seeds' runs to their returns and the shots (one per bracket or grid minimum)
+run on ``N`` processes forked from this one (``section_map.SeedPool``: the exact flows built
+here first, the work sent in blocks of consecutive items and merged back in order), the same
+calls on the same arguments, so the same orbits, failures and region; the window, the
+brackets, the equilibria's orbits, the distinct orbits and the refinement on the grid stay
+here. ``seconds`` counts the workers' CPU too. It pays only where a second core is free:
+Hill's problem at ``E = -2.14``, 400 seeds, the search alone (``refine=False``), on 2 cores
+shared with other jobs (``scripts/benchmarks/bench_search_workers.py``, best of 2): one worker
+10.9 s CPU, 11.3 s wall; two 12.5 s CPU (with the workers), 9.1 s wall, at a load average of
+3.3 to 3.8; an earlier run at a load of 2.4: 10.8 s CPU, 10.3 s wall against 11.8 s CPU, 6.0 s
+wall; with a test run sharing the cores, two were slower (18.4 s wall against 11.8 s). The whole
+``ddvp periodic --search`` is mostly the grid's refinements (about 30 of 43 s CPU at that
+energy), which stay in this process.
 """
 
 from __future__ import annotations
