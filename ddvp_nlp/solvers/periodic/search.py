@@ -39,8 +39,9 @@ shared with other jobs (``scripts/benchmarks/bench_search_workers.py``, best of 
 10.9 s CPU, 11.3 s wall; two 12.5 s CPU (with the workers), 9.1 s wall, at a load average of
 3.3 to 3.8; an earlier run at a load of 2.4: 10.8 s CPU, 10.3 s wall against 11.8 s CPU, 6.0 s
 wall; with a test run sharing the cores, two were slower (18.4 s wall against 11.8 s). The whole
-``ddvp periodic --search`` is mostly the grid's refinements (about 30 of 43 s CPU at that
-energy), which stay in this process.
+``ddvp periodic --search`` is mostly the grid's refinements (about 30 of 40 s CPU at that
+energy), which stay in this process: two workers saved it 1.5 s of 32 s wall (3.5 s more CPU) at
+a load of 2, and doubled its wall time at a load of 5 (docs/periodic/search.md).
 """
 
 from __future__ import annotations
