@@ -60,6 +60,7 @@ API_DEFAULTS = {
                  "max_returns": lambda: _argument(_solvers().find_periodic_orbits,
                                                   "max_returns"),
                  "reversing": lambda: _argument(_solvers().find_periodic_orbits, "reversing"),
+                 "workers": lambda: _argument(_solvers().find_periodic_orbits, "workers"),
                  "switch_tol": lambda: _field(_solvers().Switch, "tol")},
     "poincare": {"workers": lambda: _argument(_solvers().march_ensemble, "workers"),
                  "orbits": lambda: _argument(_poincare_section(), "orbits"),

@@ -352,7 +352,7 @@ def _report_switch(family) -> int:
 
 
 # The flags only the search reads: given without --search they would be ignored unsaid.
-SEARCH_ONLY = ("seeds", "max_returns", "reversing", "jitter")
+SEARCH_ONLY = ("seeds", "max_returns", "reversing", "jitter", "workers")
 
 
 def refuse_search_flags(args) -> None:

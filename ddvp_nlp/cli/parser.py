@@ -376,7 +376,7 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                                "periodic orbits from seeds over the region the energy allows "
                                "(two degrees of freedom): orbits.csv, orbits.png")
     value = {name: api_default("periodic", name) for name in ("seeds", "max_returns",
-                                                               "reversing")}
+                                                               "reversing", "workers")}
     periodic.add_argument("--seeds", type=int, default=None,
                           help=f"with --search: how many seeds (default {value['seeds']})")
     periodic.add_argument("--max-returns", type=int, default=None,
@@ -391,6 +391,9 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
                           help="with --search: each seed at a random point of its cell "
                                "(numpy's generator seeded SEED, an integer >= 0) instead of its "
                                "centre, to see whether the orbits found depend on the layout")
+    periodic.add_argument("--workers", type=int, default=None,
+                          help="with --search: local processes the seeds' returns and shots "
+                               f"run on (default {value['workers']}: in this process)")
 
 
 def _switch_options(periodic: argparse.ArgumentParser) -> None:

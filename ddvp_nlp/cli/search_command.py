@@ -35,6 +35,7 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
     jitter = getattr(args, "jitter", None)
     if jitter is not None:
         jitter = check_integer("--jitter", jitter, minimum=0)
+    workers = check_integer("--workers", default_of("workers", args.workers))
     named = {"energy": energy, "section": section, "seeds": seeds, "max_returns": max_returns,
              "reversing": reversing, "nodes": nodes, "params": params, "jitter": jitter}
     target, owned = default_or(args, f"{scene.name}-search", named, scene=scene)
@@ -43,7 +44,7 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
             search = find_periodic_orbits(scene.system, energy=energy, section=section,
                                           reversing=reversing, seeds=seeds,
                                           max_returns=max_returns, nodes=nodes, params=params,
-                                          refine=True, jitter=jitter)
+                                          refine=True, jitter=jitter, workers=workers)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while searching; "
                           "nothing was written") from None

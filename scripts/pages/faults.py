@@ -1152,6 +1152,15 @@ SEARCHES = [
     (["--section", "q1=0", "--jitter", "-1"], (2,), "--jitter must be an integer >= 0"),
     (["--section", "q1=0", "--jitter", "x"], (2,), "argument --jitter: invalid int value"),
     (["--section", "q1=0", "--jitter", "1.5"], (2,), "argument --jitter: invalid int value"),
+    (["--section", "q1=0", "--workers", "0"], (2,), "--workers must be a positive integer"),
+    (["--section", "q1=0", "--workers", "-2"], (2,), "--workers must be a positive integer"),
+    (["--section", "q1=0", "--workers", "x"], (2,), "argument --workers: invalid int value"),
+    (["--section", "q1=0", "--workers", "1000000000"], (2,), "is more than this machine can"),
+]
+# --workers without --search (the seeds' processes): it would be ignored unsaid.
+SEARCH_ONLY_WORKERS = [
+    (["--workers", "2"], "--workers 2: read with --search only"),
+    (["--workers", "2", "--follow", "0.6"], "--workers 2: read with --search only"),
 ]
 
 
@@ -1164,7 +1173,10 @@ def search_cases() -> list[Case]:
     return [Case("search", " ".join(option) or "no section",
                  ["periodic", "harmonic.py", "--search", "--energy", "0.5", *option, "--no-plot",
                   "--out", "out"], codes, plane, expect_text=text)
-            for option, codes, text in SEARCHES]
+            for option, codes, text in SEARCHES] + [
+        Case("search", " ".join(option) + " (no --search)",
+             ["periodic", "harmonic.py", "--energy", "0.5", *option, "--no-plot", "--out",
+              "out"], (2,), plane, expect_text=text) for option, text in SEARCH_ONLY_WORKERS]
 
 
 # Options of `ddvp periodic` that only --stability or --follow used: each had been taken

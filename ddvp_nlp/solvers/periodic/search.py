@@ -25,20 +25,35 @@ Every orbit found is checked by closing it on the exact flow over its whole peri
 orbit reached from several seeds, or as a multiple cover, is kept once (compared by its period
 and its upward crossings of the section); each is refined on the discrete grid by
 ``solve_periodic`` (the orbit as its guess) with its multipliers and verdict
-(``periodic_stability``), beside the exact flow's own monodromy. Seeds run one after another in
-this process (each is a few milliseconds of the compiled flow; the ensemble's workers would cost
-more to start than they save at these sizes).
+(``periodic_stability``), beside the exact flow's own monodromy.
+
+Where the seeds run: in this process by default (``workers=1``, one after another). With
+``workers=N`` the seeds' runs to their returns and the shots (one per bracket or grid minimum)
+run on ``N`` processes forked from this one (``section_map.SeedPool``: the exact flows built
+here first, the work sent in blocks of consecutive items and merged back in order), the same
+calls on the same arguments, so the same orbits, failures and region; the window, the
+brackets, the equilibria's orbits, the distinct orbits and the refinement on the grid stay
+here. ``seconds`` counts the workers' CPU too. It pays only where a second core is free:
+Hill's problem at ``E = -2.14``, 400 seeds, the search alone (``refine=False``), on 2 cores
+shared with other jobs (``scripts/benchmarks/bench_search_workers.py``, best of 2): one worker
+10.9 s CPU, 11.3 s wall; two 12.5 s CPU (with the workers), 9.1 s wall, at a load average of
+3.3 to 3.8; an earlier run at a load of 2.4: 10.8 s CPU, 10.3 s wall against 11.8 s CPU, 6.0 s
+wall; with a test run sharing the cores, two were slower (18.4 s wall against 11.8 s). The whole
+``ddvp periodic --search`` is mostly the grid's refinements (about 30 of 40 s CPU at that
+energy), which stay in this process: two workers saved it 1.5 s of 32 s wall (3.5 s more CPU) at
+a load of 2, and doubled its wall time at a load of 5 (docs/periodic/search.md).
 """
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...errors import InputError
-from ...validation import check_integer, check_real
+from ...validation import check_integer, check_memory, check_real
 from ..exact.flow import exact_flow
 from ..exact.flow_newton import exact_newton
 from .section_map import (
@@ -46,6 +61,7 @@ from .section_map import (
     SEED_ATTEMPTS,
     SearchSection,
     SectionAtEnergy,
+    SeedPool,
     parse_search_section,
     return_derivative,
     returns,
@@ -166,7 +182,7 @@ class NoMotionOnSection(InputError):
 def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
                          seeds: int = SEEDS, max_returns: int = MAX_RETURNS, window=None,
                          nodes: int = 201, params=None, refine: bool = True,
-                         jitter=None) -> OrbitSearch:
+                         jitter=None, workers: int = 1) -> OrbitSearch:
     """Periodic orbits of ``system`` at energy ``E`` that cross ``section`` (module docstring).
 
     Args:
@@ -193,32 +209,39 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
             integer ``>= 0``: each at a random point of its cell (a stratified layout, numpy's
             generator seeded with it), to check that the orbits found do not hang on where the
             seeds fall.
+        workers: processes the seeds' work runs on (their returns and the shooting from each
+            seed or bracket), forked from this one; ``1`` (default): all in this process. The
+            same orbits either way (the same calls, merged back in order).
 
     Returns:
         An `OrbitSearch`. An energy with no motion on the section is refused
         (`NoMotionOnSection`, an `InputError`), before any flow is run.
     """
-    started = time.process_time()
+    started = _cpu_seconds()
     sec = parse_search_section(section, system)
     energy = check_real("energy", energy)
     seeds = check_integer("seeds", seeds)
     max_returns = check_integer("max_returns", max_returns)
     nodes = check_integer("nodes", nodes, minimum=4)
     jitter = None if jitter is None else check_integer("jitter", jitter, minimum=0)
+    workers = check_integer("workers", workers)
+    check_memory("workers", workers, workers * _worker_bytes(), "the seeds' worker processes")
     theta = system.parameter_vector(params)
     flipped = parse_reversing(reversing, system, theta, sec)
     geometry = SectionAtEnergy(system, theta, sec, energy)
     window = _window(geometry, window)
     found, failures, region = [], [], None
-    if flipped is not None:
-        found, failures, region = _symmetric_search(geometry, window, seeds, max_returns, jitter)
-    if flipped is None or reversing == "auto":  # a found symmetry: its orbits and all others
-        more, failed, box = _map_search(geometry, window, seeds, max_returns, jitter)
-        found, failures = found + more, failures + failed
-        region = box if region is None else {
-            **box, "seeds": region["seeds"] + box["seeds"],
-            "accessible": region["accessible"] + box["accessible"],
-            "horizon": max(region["horizon"], box["horizon"])}
+    with SeedPool(geometry, workers) as pool:
+        if flipped is not None:
+            found, failures, region = _symmetric_search(geometry, window, seeds, max_returns,
+                                                        jitter, pool)
+        if flipped is None or reversing == "auto":  # a found symmetry: its orbits and others
+            more, failed, box = _map_search(geometry, window, seeds, max_returns, jitter, pool)
+            found, failures = found + more, failures + failed
+            region = box if region is None else {
+                **box, "seeds": region["seeds"] + box["seeds"],
+                "accessible": region["accessible"] + box["accessible"],
+                "horizon": max(region["horizon"], box["horizon"])}
     if flipped is None:  # no half-orbit shots: the equilibria's linearised orbits too
         more, failed, region["equilibria"] = _equilibrium_orbits(geometry, window, params)
         found, failures = found + more, failures + failed
@@ -228,7 +251,20 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
             _refine(system, orbit, energy, sec, nodes, params)
     region = SearchRegion(reversing=flipped, jitter=jitter, **region)
     return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
-                       time.process_time() - started)
+                       _cpu_seconds() - started)
+
+
+def _worker_bytes() -> float:
+    """The memory bound of one forked worker (the ensemble's, ``marching/ensemble.py``)."""
+    from ..marching.ensemble import WORKER_BYTES
+
+    return WORKER_BYTES
+
+
+def _cpu_seconds() -> float:
+    """This process's CPU time and its finished children's (the seeds' workers)."""
+    times = os.times()
+    return time.process_time() + times.children_user + times.children_system
 
 
 def parse_reversing(reversing, system, theta, section: SearchSection):
@@ -387,8 +423,11 @@ def _cells(window, count: int, jitter=None) -> np.ndarray:
     return edges[:-1] + where * np.diff(edges)
 
 
-def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=None):
-    """Half-orbit shots from seeds on the fixed line ``p_o = 0`` (module docstring)."""
+def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=None,
+                      pool=None):
+    """Half-orbit shots from seeds on the fixed line ``p_o = 0`` (module docstring); the
+    seeds' runs and the shots on ``pool`` (a `SeedPool`; ``None``: here)."""
+    pool = pool or SeedPool(geometry)
     reach, escape = _scales(window)
     atol = RTOL * reach
     line = _cells(window, max(seeds // 2, 2), jitter)
@@ -404,8 +443,9 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
         first = 4 * _time_scale(geometry, z[ok])
         residual = np.full((line.size, half), np.nan)
         times = np.full((line.size, half), np.nan)
-        for i in np.flatnonzero(ok):
-            run, horizon = _follow(geometry, z[i], half, first, atol, escape)
+        indices = np.flatnonzero(ok)
+        runs = pool.map(_follow, [(z[i], half, first, atol, escape) for i in indices])
+        for i, (run, horizon) in zip(indices, runs, strict=True):
             horizons.append(horizon)
             k = min(run.t.size, half)
             residual[i, :k] = run.z[:k, 2 + geometry.section.other]
@@ -413,14 +453,14 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
             if k == 0:
                 failures.append(FailedSeed((float(line[i]), 0.0), run.reason or
                                            f"did not return to the section by t = {horizon:.4g}"))
-        for k in range(half):
-            for a, b, t_guess in _brackets(geometry, line, residual[:, k], times[:, k], k + 1,
-                                           direction, atol, escape):
-                shot = _shoot_half(geometry, a, b, k + 1, direction, t_guess, atol, escape)
-                if isinstance(shot, FoundOrbit):
-                    found.append(shot)
-                else:
-                    failures.append(FailedSeed((float(a), float(b)), shot))
+        shots = [(a, b, k + 1, direction, t_guess, atol, escape) for k in range(half)
+                 for a, b, t_guess in _brackets(geometry, line, residual[:, k], times[:, k],
+                                                k + 1, direction, atol, escape)]
+        for (a, b, *_), shot in zip(shots, pool.map(_shoot_half, shots), strict=True):
+            if isinstance(shot, FoundOrbit):
+                found.append(shot)
+            else:
+                failures.append(FailedSeed((float(a), float(b)), shot))
     region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
                   momentum=None, seeds=2 * line.size, accessible=accessible,
                   max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
@@ -560,10 +600,11 @@ def _unique_rows(rows: np.ndarray, size: float) -> np.ndarray:
     return np.array(kept)
 
 
-def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
+def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None, pool=None):
     """Newton on ``P^k(u) = u`` from the grid minima of ``|P^k(u) - u|`` over a box of the
     section, and multiple shooting from the grid minima of the two-sided residual (module
-    docstring)."""
+    docstring); the seeds' runs and the shots on ``pool`` (a `SeedPool`; ``None``: here)."""
+    pool = pool or SeedPool(geometry)
     reach, escape = _scales(window)
     atol = RTOL * reach
     U, side, top = _map_grid(geometry, window, seeds, jitter)
@@ -573,9 +614,9 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
     images = np.full((2, U.shape[0], max_returns, 2), np.nan)  # P^k(u); then F_k(u) - B_k(u)
     times = np.full((3, U.shape[0], max_returns), np.nan)  # t of P^k, F_k and B_k (> 0)
     found, failures, horizons = [], [], []
-    for i in np.flatnonzero(ok):
-        run, horizon = _follow(geometry, Z[i], 2 * max_returns, first, atol, escape)
-        back, _ = _follow(geometry, Z[i], max_returns, -first, atol, escape)
+    indices = np.flatnonzero(ok)
+    runs = pool.map(_both_ways, [(Z[i], max_returns, first, atol, escape) for i in indices])
+    for i, (run, horizon, back) in zip(indices, runs, strict=True):
         horizons.append(horizon)
         up = np.flatnonzero(run.direction > 0)[:max_returns]
         images[0, i, :up.size] = run.z[up][:, geometry.section.free]
@@ -587,6 +628,7 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
             failures.append(FailedSeed(tuple(U[i]), run.reason or
                                        f"did not return to the section by t = {horizon:.4g}"))
     scale = np.array([reach, top])
+    shots = []
     for k in range(max_returns):
         gaps = [np.max(np.abs(residual) / scale, axis=1)
                 for residual in (images[0, :, k] - U, images[1, :, k])]
@@ -597,18 +639,37 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None):
                 index = i * side + j
                 if two_sided and not stretched[index]:
                     continue  # the return map's own minima serve there
-                result = None if two_sided else _newton_map(
-                    geometry, U[index], k + 1, times[0, index, k], scale, atol, escape)
-                if result is None or (stretched[index] and not isinstance(result, FoundOrbit)):
-                    result = _two_sided(geometry, U[index], times[1:, index, k], atol, escape)
-                if isinstance(result, FoundOrbit):
-                    found.append(result)
-                else:
-                    failures.append(FailedSeed(tuple(U[index]), result))
+                shots.append((U[index], k + 1, times[:, index, k], bool(stretched[index]),
+                              bool(two_sided), scale, atol, escape))
+    for shot, result in zip(shots, pool.map(_map_shot, shots), strict=True):
+        if isinstance(result, FoundOrbit):
+            found.append(result)
+        else:
+            failures.append(FailedSeed(tuple(shot[0]), result))
     region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
                   momentum=(-top, top), seeds=U.shape[0], accessible=int(ok.sum()),
                   max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
     return found, failures, region
+
+
+def _both_ways(geometry, z0, max_returns: int, first: float, atol, escape):
+    """A seed of the whole map followed forwards to ``2 max_returns`` crossings and backwards
+    to ``max_returns``: ``(forward, horizon, backward)``."""
+    run, horizon = _follow(geometry, z0, 2 * max_returns, first, atol, escape)
+    back, _ = _follow(geometry, z0, max_returns, -first, atol, escape)
+    return run, horizon, back
+
+
+def _map_shot(geometry, u, k: int, times, stretched: bool, two_sided: bool, scale, atol,
+              escape):
+    """From a grid minimum ``u`` of the ``k``-th return: Newton on the return map (not
+    ``two_sided``), and where the map stretches and that failed, or for a minimum of the
+    two-sided residual, multiple shooting (`_two_sided`); ``times``: the map's and the
+    two-sided crossing times there. A `FoundOrbit` or why not."""
+    result = None if two_sided else _newton_map(geometry, u, k, times[0], scale, atol, escape)
+    if result is None or (stretched and not isinstance(result, FoundOrbit)):
+        result = _two_sided(geometry, u, times[1:], atol, escape)
+    return result
 
 
 def _equilibrium_orbits(geometry, window, params):

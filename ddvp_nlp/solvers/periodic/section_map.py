@@ -17,6 +17,10 @@ by its variational equations, ``dz/du`` the section's parametrisation: ``dp_s/du
 
 from __future__ import annotations
 
+import math
+import multiprocessing
+import os
+import signal
 from dataclasses import dataclass
 
 import casadi as ca
@@ -215,3 +219,72 @@ def return_derivative(geometry: SectionAtEnergy, z0, t_return: float, atol):
     s = geometry.section.index
     moved = Y - np.outer(f, Y[s]) / f[s]
     return z, moved[geometry.section.free]
+
+
+# Blocks of seeds per worker: the seeds' runs differ in length (one escapes at once, another
+# makes its returns) and a shot takes from milliseconds to a second (Hill at E = -2.14: 30
+# shots from the whole map's minima, 9 s), so each worker takes many small blocks, the next as
+# soon as it is free (30 shots: one a block; 400 seeds' runs: 13 a block).
+SEED_BLOCKS_PER_WORKER = 16
+
+
+class SeedPool:
+    """Where the seeds' work runs (``search.py``): in this process (``workers=1``), or on
+    ``workers`` processes forked from this one when the pool is entered, which inherit the
+    section's geometry and its exact flows (built here first: nothing is compiled in a
+    worker). ``map(function, items)`` is ``[function(geometry, *item) for item in items]``,
+    the items sent in blocks of consecutive ones and the results merged back in order: the
+    same calls with the same arguments either way, so the same results. ``function`` must be
+    a module-level function (it is sent by name) and its results picklable."""
+
+    def __init__(self, geometry: SectionAtEnergy, workers: int = 1):
+        self.geometry, self.workers, self.pool = geometry, workers, None
+
+    def __enter__(self):
+        if self.workers > 1 and "fork" in multiprocessing.get_all_start_methods() \
+                and not multiprocessing.current_process().daemon:
+            exact_flow(self.geometry.system)
+            exact_flow(self.geometry.system, tangent=2, dense=False)
+            context = multiprocessing.get_context("fork")
+            self.pool = context.Pool(self.workers, initializer=_install_seeds,
+                                     initargs=(self.geometry, os.getpid()))
+        return self
+
+    def __exit__(self, kind, value, traceback):
+        if self.pool is None:
+            return
+        if kind is None:
+            self.pool.close()
+        else:  # Ctrl-C, SIGTERM, a failed block: no worker outlives the search
+            self.pool.terminate()
+        self.pool.join()
+        self.pool = None
+
+    def map(self, function, items) -> list:
+        items = list(items)
+        if self.pool is None or len(items) < 2:
+            return [function(self.geometry, *item) for item in items]
+        size = max(1, math.ceil(len(items) / (self.workers * SEED_BLOCKS_PER_WORKER)))
+        blocks = [(function, items[i:i + size]) for i in range(0, len(items), size)]
+        return [result for part in self.pool.imap(_run_seeds, blocks) for result in part]
+
+
+_GEOMETRY: SectionAtEnergy | None = None
+
+
+def _install_seeds(geometry: SectionAtEnergy, parent: int) -> None:
+    """A worker's initializer: the geometry inherited through ``fork`` (nothing pickled), the
+    parent's Ctrl-C handling undone and the worker tied to its parent's life (as the
+    ensemble's workers, ``marching/ensemble.py``)."""
+    from ..marching.ensemble import end_with_parent
+
+    global _GEOMETRY
+    _GEOMETRY = geometry
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    end_with_parent(parent)
+
+
+def _run_seeds(block) -> list:
+    function, items = block
+    return [function(_GEOMETRY, *item) for item in items]

@@ -31,10 +31,11 @@ def test_an_orbit_not_found_prints_no_period(tmp_path, capsys):
 
 
 def test_the_searchs_flags_without_search_are_refused_by_name(tmp_path, capsys):
-    """--seeds, --max-returns, --reversing and --jitter are read by the search only; without
-    --search they had been ignored unsaid. Refused (exit 2) before the scene is loaded."""
+    """--seeds, --max-returns, --reversing, --jitter and --workers are read by the search only;
+    without --search they had been ignored unsaid. Refused (exit 2) before the scene is
+    loaded."""
     for flag, value in (("--seeds", "5"), ("--max-returns", "2"), ("--reversing", "none"),
-                        ("--jitter", "0")):
+                        ("--jitter", "0"), ("--workers", "2")):
         code = main(["periodic", "no_such_scene", "--energy", "0.5", flag, value, "--out",
                      str(tmp_path / "out")])
         err = capsys.readouterr().err
