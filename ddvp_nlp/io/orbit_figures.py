@@ -60,7 +60,7 @@ def _draw_family(fig, family) -> None:
 
 def _indices(axes, members) -> None:
     """The stability indices (real parts) against the energy with the lines ``k = +-2``,
-    the axis scaled to the indices (`_index_limits`). A family with no nontrivial multiplier
+    the axis scaled to the indices (`index_limits`). A family with no nontrivial multiplier
     (one degree of freedom) shows what there is, its trivial pair (``mu = 1``, ``k = 2``), and
     says so."""
     values = [member.stability.indices.real for member in members]
@@ -70,7 +70,7 @@ def _indices(axes, members) -> None:
     for level in (-2, 2):
         axes.axhline(level, color="0.5", lw=0.8, ls="--")
     largest = max((float(np.max(np.abs(k))) for k in values if k.size), default=0.0)
-    _index_limits(axes, values, largest)
+    index_limits(axes, values, largest)
     if largest == 0.0 and members:
         trivial = [(m.energy, np.asarray(m.stability.trivial)) for m in members]
         energies = [e for e, mu in trivial for _ in range(mu.size)]
@@ -85,29 +85,31 @@ def _indices(axes, members) -> None:
     axes.set_title(r"stability indices ($|k| < 2$: stable)", fontsize="medium")
 
 
-def _index_limits(axes, values, largest: float) -> None:
-    """The index axis from the data and the lines ``k = +-2``: linear while every index is
-    within 10, else a symmetric log scale (linear within 3; an unstable pair's index grows like
-    its multiplier, and the indices of one orbit may span decades), the limits the data's with
-    a margin in the scale's own terms (a factor on the log part), so no marker sits on an
-    edge; the side of zero no index reaches shows no more than the line ``k = -2`` or ``2``."""
+def index_limits(axes, values, largest: float, axis: str = "y") -> None:
+    """The index axis (``axis``, "y" or "x") from the data and the lines ``k = +-2``: linear
+    while every index is within 10, else a symmetric log scale (linear within 3; an unstable
+    pair's index grows like its multiplier, and the indices of one orbit may span decades), the
+    limits the data's with a margin in the scale's own terms (a factor on the log part), so no
+    marker sits on an edge; the side of zero no index reaches shows no more than the line
+    ``k = -2`` or ``2``."""
+    set_limits = getattr(axes, f"set_{axis}lim")
     if largest == 0.0:
-        axes.set_ylim(-3.0, 3.0)
+        set_limits(-3.0, 3.0)
         return
     data = np.concatenate([k for k in values if k.size])
     top, bottom = max(float(np.max(data)), 2.0), min(float(np.min(data)), -2.0)
     if max(top, -bottom) <= 10:
         pad = 0.08 * (top - bottom)
-        axes.set_ylim(bottom - pad, top + pad)
+        set_limits(bottom - pad, top + pad)
         return
-    axes.set_yscale("symlog", linthresh=3.0)
+    getattr(axes, f"set_{axis}scale")("symlog", linthresh=3.0)
     low, high = (bottom * 2.0 if bottom < -3 else bottom - 0.6,
                  top * 2.0 if top > 3 else top + 0.6)
-    axes.set_ylim(low, high)
-    _index_ticks(axes, low, high)
+    set_limits(low, high)
+    _index_ticks(getattr(axes, f"{axis}axis"), low, high)
 
 
-def _index_ticks(axes, low: float, high: float) -> None:
+def _index_ticks(axis, low: float, high: float) -> None:
     """The symmetric log axis's ticks: -2, 0 and 2 (the stability bounds) in its linear part,
     then the decades the limits hold, each labelled (the default labelled 1 and 0 but left the
     negative side bare)."""
@@ -119,6 +121,6 @@ def _index_ticks(axes, low: float, high: float) -> None:
             ticks.append(sign * 10.0 ** decade)
             labels.append(("$-10^{%d}$" if sign < 0 else "$10^{%d}$") % decade)
     order = np.argsort(ticks)
-    axes.yaxis.set_major_locator(FixedLocator([ticks[i] for i in order]))
-    axes.yaxis.set_major_formatter(FixedFormatter([labels[i] for i in order]))
-    axes.yaxis.set_minor_locator(FixedLocator([]))
+    axis.set_major_locator(FixedLocator([ticks[i] for i in order]))
+    axis.set_major_formatter(FixedFormatter([labels[i] for i in order]))
+    axis.set_minor_locator(FixedLocator([]))

@@ -8,8 +8,10 @@ from __future__ import annotations
 import csv
 import io
 
+import numpy as np
+
 from . import atomic, figures
-from .orbit_figures import COLOURS
+from .orbit_figures import COLOURS, index_limits
 from .run_folder import figure_writer
 
 COLUMNS = ("period", "index", "verdict", "returns", "symmetric", "seeds", "q1", "q2", "p1", "p2",
@@ -95,10 +97,9 @@ def plot_search(search, title: str, path, fmt: str = "png") -> None:
         plane.set_title(f"{len(search.orbits)} orbits")
         for level in (-2, 2):
             table.axvline(level, color="0.5", lw=0.8, ls="--")
-        largest = max((abs(o.index) for o in search.orbits), default=0.0)
-        if largest > 10:
-            table.set_xscale("symlog", linthresh=3.0)
-        table.margins(x=0.15)
+        indices = np.array([o.index for o in search.orbits], float)
+        indices = indices[np.isfinite(indices)]
+        index_limits(table, [indices], float(np.max(np.abs(indices), initial=0.0)), "x")
         table.set_xlabel(r"stability index $k = \mu + 1/\mu$")
         table.set_ylabel("period $T$")
         table.set_ylim(0, 1.1 * max((o.period for o in search.orbits), default=1.0))

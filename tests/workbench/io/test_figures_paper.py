@@ -244,7 +244,7 @@ def test_a_log_index_axis_labels_the_stability_bounds_and_every_decade_it_shows(
 
     fig, axes = plt.subplots()
     data = np.array(values)
-    orbit_figures._index_limits(axes, [data], float(np.max(np.abs(data))))
+    orbit_figures.index_limits(axes, [data], float(np.max(np.abs(data))))
     low, high = axes.get_ylim()
     ticks = axes.get_yticks()
     labels = [label.get_text() for label in axes.get_yticklabels()]
