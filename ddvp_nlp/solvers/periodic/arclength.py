@@ -52,10 +52,16 @@ from ..grid.newton import newton
 from ..grid.problem import BorderedLayout
 from ..options import GridOptions, coerce
 from .bifurcation import KINDS, confirm, tests
-from .closed_grid import Closure, PeriodicAssembly, integral_gradients
+from .closed_grid import (
+    EPS,
+    TARGET_ROUND_OFFS,
+    Closure,
+    PeriodicAssembly,
+    integral_gradients,
+)
 from .first_orbit import closing_shift
 from .floquet import DEFAULT_TOL, Stability, discrete_stability, periodic_stability
-from .orbit import EPS, TARGET_ROUND_OFFS, check_periodic, parse_section, solve_periodic
+from .orbit import check_periodic, parse_section, solve_periodic
 from .switching import Switch, checked_switch, follow_branches
 
 # Corrector: iterations, and those at most of which the step grows.

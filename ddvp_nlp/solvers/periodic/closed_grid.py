@@ -34,6 +34,7 @@ from ...cache import cached
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.maps import chunked
+from ..grid.newton import newton
 
 EPS = float(np.finfo(float).eps)
 # A closed grid's Newton per-row target and the verification's round-off allowance, in
@@ -41,6 +42,17 @@ EPS = float(np.finfo(float).eps)
 # derivatives' solves share them).
 TARGET_ROUND_OFFS = 64
 ALLOWANCE_ROUND_OFFS = 4096
+
+
+def closed_newton(grid, x0, closure, request, scale: float):
+    """The grid's sparse Newton on a closed grid (an orbit, constrained or not) from ``x0``,
+    every row to ``TARGET_ROUND_OFFS`` round-offs of ``scale``, within ``request``'s step
+    floor, iterations and deadline; its outcome named ``newton: ...``."""
+    target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
+    result = newton(grid, x0, closure, target, tau_floor=request.tau_floor,
+                    max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
+    result.outcome = f"newton: {result.outcome}"
+    return result
 
 
 @dataclass(frozen=True)

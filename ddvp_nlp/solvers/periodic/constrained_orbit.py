@@ -57,12 +57,11 @@ from ..exact.constrained_flow import (
 )
 from ..exact.flow import exact_flow
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
-from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
 from ..marching.constrained_start import consistent_start
 from ..options import GridOptions
-from .closed_grid import ALLOWANCE_ROUND_OFFS, EPS, TARGET_ROUND_OFFS, integral_gradients
+from .closed_grid import ALLOWANCE_ROUND_OFFS, EPS, closed_newton, integral_gradients
 from .constrained_closed import ConstrainedClosedGrid, ConstrainedClosure
 from .first_orbit import guess_nodes
 
@@ -311,11 +310,7 @@ def _scale(x0, grid: ConstrainedClosedGrid, energy: float) -> float:
 
 def _run(solver, request: GridRequest, grid, x0, closure, scale) -> GridResult:
     if solver == "newton":
-        target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
-        result = newton(grid, x0, closure, target, tau_floor=request.tau_floor,
-                        max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
-        result.outcome = f"newton: {result.outcome}"
-        return result
+        return closed_newton(grid, x0, closure, request, scale)
     began = time.perf_counter()
     problem = request.built(("constrained_closed_ipopt", request.intervals, closure.section_index,
                              request.tol, request.max_iter, request.verbose),

@@ -99,16 +99,15 @@ from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..exact.closure import nearest_exact_orbit
-from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, answers_removed_keywords, coerce
 from .closed_grid import (
     ALLOWANCE_ROUND_OFFS,
     EPS,
-    TARGET_ROUND_OFFS,
     Closure,
     PeriodicAssembly,
+    closed_newton,
     integral_gradients,
 )
 from .first_orbit import (
@@ -294,11 +293,7 @@ def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution
 def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integrals):
     """One solver from ``x0``: the grid's Newton, or IPOPT, as a ``GridResult``."""
     if name == "newton":
-        target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
-        result = newton(assembly, x0, closure, target, tau_floor=request.tau_floor,
-                        max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
-        result.outcome = f"newton: {result.outcome}"
-        return result
+        return closed_newton(assembly, x0, closure, request, scale)
     began = time.perf_counter()  # the build (or the cache's answer) counts as build time
     problem = periodic_ipopt(request.system, request.scheme, request.intervals, integrals,
                              request.data.index, tol=request.tol, max_iter=request.max_iter,
