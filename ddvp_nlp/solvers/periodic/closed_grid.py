@@ -33,8 +33,10 @@ import scipy.sparse as sp
 from ...cache import cached
 from ...discrete import equations
 from ...discrete.scheme import Scheme
+from ...solution import Status
 from ..grid.maps import chunked
 from ..grid.newton import newton
+from ..grid.policy import Stage, failure_status
 
 EPS = float(np.finfo(float).eps)
 # A closed grid's Newton per-row target and the verification's round-off allowance, in
@@ -53,6 +55,29 @@ def closed_newton(grid, x0, closure, request, scale: float):
                     max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
     result.outcome = f"newton: {result.outcome}"
     return result
+
+
+def closed_verdict(result, worst: dict, limit: float, tau: np.ndarray, note=None, *,
+                   found: str = "periodic orbit"):
+    """A closed grid's status and message from its largest residuals (``worst``, by row
+    family) against ``limit`` and its steps ``tau``; the solver's word is quoted, with
+    ``note`` (the start's) after it."""
+    listed = ", ".join(f"{name} {value:.3e}" for name, value in worst.items())
+    said = result.outcome + (f"; {note}" if note else "")
+    if not all(np.isfinite(v) for v in worst.values()):
+        return Status.NON_FINITE, f"the iteration produced non-finite values ({said})"
+    if np.min(tau) <= 0:
+        k = int(np.argmin(tau))
+        return Status.NO_ADMISSIBLE_STEP, f"step {k} is not positive: tau = {tau[k]:.6g} ({said})"
+    failed = [name for name, value in worst.items() if value > limit]
+    if not failed:
+        return Status.SUCCESS, (f"{found} found and verified: largest residuals {listed} "
+                                f"(limit {limit:.1e}); {said}")
+    detail = f"largest residuals {listed}, limit {limit:.1e}, above it: {', '.join(failed)}"
+    status = failure_status(Stage("periodic orbit", "", result.converged, result.outcome), tau)
+    if status is Status.SOLVER_FAILED:
+        return status, f"no periodic orbit found: {detail} ({said})"
+    return status, f"{status.value}: {detail} ({said})"
 
 
 @dataclass(frozen=True)

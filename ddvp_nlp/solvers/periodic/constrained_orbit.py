@@ -57,11 +57,17 @@ from ..exact.constrained_flow import (
 )
 from ..exact.flow import exact_flow
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
-from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
+from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
 from ..marching.constrained_start import consistent_start
 from ..options import GridOptions
-from .closed_grid import ALLOWANCE_ROUND_OFFS, EPS, closed_newton, integral_gradients
+from .closed_grid import (
+    ALLOWANCE_ROUND_OFFS,
+    EPS,
+    closed_newton,
+    closed_verdict,
+    integral_gradients,
+)
 from .constrained_closed import ConstrainedClosedGrid, ConstrainedClosure
 from .first_orbit import guess_nodes
 
@@ -347,7 +353,8 @@ def _solution(request: GridRequest, grid, result, closure, scale, started) -> So
     worst = {name: (float(np.max(np.abs(parts[part]))) if finite else np.nan)
              for name, part in names.items()}
     limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
-    status, message = _verdict(result, worst, limit, np.diff(t))
+    status, message = closed_verdict(result, worst, limit, np.diff(t),
+                                     found="periodic orbit of a constrained system")
     report, local = (None, np.zeros(0))
     if finite:
         report, local = _accuracy(request, t, np.hstack([q, p]))
@@ -372,26 +379,6 @@ def _solution(request: GridRequest, grid, result, closure, scale, started) -> So
     judge(solution, report, request.options.accuracy, local_error=local,
           advice="try more nodes")
     return solution
-
-
-def _verdict(result, worst: dict, limit: float, tau: np.ndarray):
-    listed = ", ".join(f"{name} {value:.3e}" for name, value in worst.items())
-    if not all(np.isfinite(v) for v in worst.values()):
-        return Status.NON_FINITE, f"the iteration produced non-finite values ({result.outcome})"
-    if np.min(tau) <= 0:
-        k = int(np.argmin(tau))
-        return (Status.NO_ADMISSIBLE_STEP,
-                f"step {k} is not positive: tau = {tau[k]:.6g} ({result.outcome})")
-    failed = [name for name, value in worst.items() if value > limit]
-    if not failed:
-        return Status.SUCCESS, (f"periodic orbit of a constrained system found and verified: "
-                                f"largest residuals {listed} (limit {limit:.1e}); "
-                                f"{result.outcome}")
-    detail = f"largest residuals {listed}, limit {limit:.1e}, above it: {', '.join(failed)}"
-    status = failure_status(Stage("periodic orbit", "", result.converged, result.outcome), tau)
-    if status is Status.SOLVER_FAILED:
-        return status, f"no periodic orbit found: {detail} ({result.outcome})"
-    return status, f"{status.value}: {detail} ({result.outcome})"
 
 
 def _accuracy(request: GridRequest, t, z):

@@ -99,7 +99,7 @@ from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..exact.closure import nearest_exact_orbit
-from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
+from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, answers_removed_keywords, coerce
 from .closed_grid import (
@@ -108,6 +108,7 @@ from .closed_grid import (
     Closure,
     PeriodicAssembly,
     closed_newton,
+    closed_verdict,
     integral_gradients,
 )
 from .first_orbit import (
@@ -459,7 +460,7 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
              "energy": float(np.max(np.abs(energy))), "prescribed_energy": abs(prescribed),
              "closure": float(np.max(np.abs(closing))), "section": abs(section)}
     limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
-    status, message = _verdict(result, worst, limit, np.diff(t), orbit.start_note)
+    status, message = closed_verdict(result, worst, limit, np.diff(t), orbit.start_note)
     accuracy, local_error = None, np.zeros(0)
     if finite:
         accuracy, local_error = _accuracy(request, t, q, p, closure, integrals)
@@ -533,21 +534,3 @@ def _against_nearest(check, request, t, z, level, closure, integrals, single):
     return report, local
 
 
-def _verdict(result, worst: dict, limit: float, tau: np.ndarray, note):
-    """Status and message from the residuals; Newton's word is quoted."""
-    listed = ", ".join(f"{name} {value:.3e}" for name, value in worst.items())
-    said = result.outcome + (f"; {note}" if note else "")
-    if not all(np.isfinite(v) for v in worst.values()):
-        return Status.NON_FINITE, f"the iteration produced non-finite values ({said})"
-    if np.min(tau) <= 0:
-        k = int(np.argmin(tau))
-        return Status.NO_ADMISSIBLE_STEP, f"step {k} is not positive: tau = {tau[k]:.6g} ({said})"
-    failed = [name for name, value in worst.items() if value > limit]
-    if not failed:
-        return Status.SUCCESS, (f"periodic orbit found and verified: largest residuals {listed} "
-                                f"(limit {limit:.1e}); {said}")
-    detail = f"largest residuals {listed}, limit {limit:.1e}, above it: {', '.join(failed)}"
-    status = failure_status(Stage("periodic orbit", "", result.converged, result.outcome), tau)
-    if status is Status.SOLVER_FAILED:
-        return status, f"no periodic orbit found: {detail} ({said})"
-    return status, f"{status.value}: {detail} ({said})"
