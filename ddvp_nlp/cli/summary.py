@@ -46,7 +46,12 @@ def print_summary(meta: dict, out) -> None:
                      f"of q and p)")
     path = f" ({meta['path']} path)" if "path" in meta else ""
     target = meta.get("target_error")
-    if target:
+    if target and target.get("tau0") is None:
+        pilot = target["pilot"]
+        lines.append(f"  target error {target['target']:g}: no step chosen (the pilot at tau0 "
+                     f"{pilot['tau0']:g} did not end in success; no run was made); "
+                     f"{target['cpu_s']:.2f} s CPU in all")
+    elif target:
         pilot, runs = target["pilot"], target["runs"]
         tries = "; ".join(f"tau0 {r['tau0']:.4g}: {r['verdict']} in {r['steps']} steps, "
                           f"{r['cpu_s']:.2f} s CPU" for r in runs)

@@ -151,3 +151,14 @@ def test_a_target_error_run_resumes_at_the_step_it_chose(tmp_path, capsys):
     assert np.array_equal(resumed["t"], direct["t"])
     assert np.array_equal(resumed["q"], direct["q"])
     capsys.readouterr()
+
+
+def test_the_command_line_says_a_pilot_failed_instead_of_crashing(tmp_path, capsys):
+    """Found by a user: the summary formatted the chosen tau0 (None after a failed pilot) and the
+    command ended in 'internal error: TypeError'; it prints the pilot's failure and exits 1."""
+    code = main(["march", "kepler", "--set", "e=0.9", "--set", "t_end=50", "--set", "tau0=0.5",
+                 "--target-error", "1e-3", "--no-plot", "--out", str(tmp_path / "run")])
+    out = capsys.readouterr()
+    assert code == 1
+    assert "no step chosen" in out.out and "no run was made" in out.out
+    assert "internal error" not in out.err + out.out
