@@ -5,13 +5,14 @@ content), the solve, the run written whole (interrupts held), the summary printe
 
 from __future__ import annotations
 
+import shlex
 import sys
 
 from ..discrete import RULES, Scheme
 from ..errors import InputError, OutputError
 from ..io.atomic import output_folder
 from ..io.run_folder import default_folder, read_guess, write_checkpoint, write_run
-from ..scenes import HigherOrderScene, load_scene, scene_fingerprint
+from ..scenes import HigherOrderScene, is_builtin, load_scene, scene_fingerprint
 from ..solution import Status
 from .events import parse_event, parse_times
 from .folders import content_inputs, holds
@@ -52,12 +53,24 @@ def run_scene(args, solvers: dict) -> int:
     print_summary(meta, out.path)
     print_requested(meta, solution)
     if INTERRUPTS.requested:
-        kept = f"{meta['nodes']} nodes, up to t = {meta['t_reached']:.10g}"
-        again = (f"; `ddvp march --resume {out.path}` goes on from there"
-                 if args.command == "march" and meta.get("resume") else "")
         print(f"ddvp {args.command}: interrupted ({INTERRUPTS.name}); the run was written whole "
-              f"to {out.path}/ ({kept}){again}", file=sys.stderr)
+              f"to {out.path}/ ({interrupted_words(args, meta, solution, out.path)})",
+              file=sys.stderr)
     return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+def interrupted_words(args, meta: dict, solution, path) -> str:
+    """What an interrupted run kept and how to go on: the command that resumes it (the scene
+    file named, since a run folder never runs the file it names), or, when the interrupt came
+    after the run had reached its end, that there is nothing to resume."""
+    kept = f"{meta['nodes']} nodes, up to t = {meta['t_reached']:.10g}"
+    if solution.success:
+        return f"{kept}; the run had reached its end before the interrupt: nothing to resume"
+    if args.command != "march" or not meta.get("resume"):
+        return kept
+    named = args.scene or meta.get("scene", "")
+    scene = "" if is_builtin(named) else f" {shlex.quote(str(named))}"
+    return f"{kept}; `ddvp march{scene} --resume {path}` goes on from there"
 
 
 def write_whole(args, out, scene, config, scheme, solution, extra) -> dict:

@@ -165,7 +165,7 @@ def message(status: Status, *, steps: int, t_end: float, t: float, state: str,
             detail: str = "") -> str:
     """The one place a status becomes a sentence (rule 6)."""
     if status is Status.SUCCESS:
-        return f"reached t_end = {t_end:.6g} in {steps} steps"
+        return f"reached t_end = {t_end:.12g} in {steps} steps"
     return (f"{status.value}: step {steps} from t = {t:.10g}, {state}"
             + (f"; {detail}" if detail else ""))
 

@@ -84,7 +84,7 @@ def exact_indicators(system, q0, p0, t_end: float, *, params=None, tangent0=None
     atol = np.concatenate([np.full(n2, rtol * size), np.full(n2 + 3, rtol)])
     marks = sorted({float(s) for s in snapshots if 0 < s < t_end}) + [float(t_end)]
     t, fli, rows, status = 0.0, 0.0, [], Status.SUCCESS
-    message = f"reached t_end = {t_end:g}"
+    message = f"reached t_end = {t_end:.12g}"
     for mark in marks:
         run = flow.run(w, t, mark, theta, rtol=rtol, atol=atol)
         if not run.success:
@@ -135,7 +135,7 @@ def exact_spectrum(system, q0, p0, t_end: float, *, params=None, segment: float 
 
     Q = _energy_frame(f(z), g(z))
     size = max(float(np.max(np.abs(z))), 1.0)
-    total, t, status, message = np.zeros(n2), 0.0, Status.SUCCESS, f"reached t_end = {t_end:g}"
+    total, t, status, message = np.zeros(n2), 0.0, Status.SUCCESS, f"reached t_end = {t_end:.12g}"
     while t < t_end:
         h = min(segment, t_end - t)
         run = flow.run(z, t, t + h, theta, rtol=rtol, atol=rtol * size, Y0=Q)

@@ -94,7 +94,7 @@ class TangentMarch:
                         f"{float(t_next[kept - 1]) if kept else t1:.6g} (the march would redo "
                         "it carefully; the indicators stop there)")
             if ends.size and kept == limit == int(ends[0]) + 1:
-                return Status.SUCCESS, f"reached t_end = {p.t_end:g} in {done} steps"
+                return Status.SUCCESS, f"reached t_end = {p.t_end:.12g} in {done} steps"
             if done >= p.steps.max_steps:
                 return Status.MAX_STEPS, f"max_steps = {p.steps.max_steps}"
             if p.steps.time_limit is not None and \
