@@ -25,6 +25,7 @@ def print_summary(meta: dict, out) -> None:
     if meta.get("tau_min") is not None:
         lines.append(f"  tau in [{meta['tau_min']:.6g}, {meta['tau_max']:.6g}]")
     lines.extend(_accuracy_lines(meta))
+    lines.extend(_energy_step_advice(meta))
     if "own_residual_max" in meta:
         own = meta["own_residual_max"]
         lines.append("  own residual check: " + ("none (no equation on its nodes)" if own is None
@@ -70,6 +71,25 @@ def print_summary(meta: dict, out) -> None:
     lines.append(f"  build {meta['timing']['build_s']:.3f} s, solve {meta['timing']['solve_s']:.3f}"
                  f" s{path}; written to {out}/")
     print("\n".join(lines))
+
+
+# The statuses by which an energy rule's step equation can end a march: where its positive root
+# is lost (c(z) changes sign, a time-dependent H), which fixed steps do not have
+ENERGY_STEP_ENDS = ("no_admissible_step", "newton_failed", "step_ratio", "step_below_min",
+                    "residual_too_large")
+
+
+def _energy_step_advice(meta: dict) -> list[str]:
+    """Where a march by an energy rule ended in its step equation, what to try: the rule's
+    positive root exists only while c(z) keeps its sign (docs/theory.md, sections 7 and 8);
+    fixed steps have no such root to lose."""
+    if (meta.get("command") != "march" or meta.get("scheme") not in ("vddvp", "lee")
+            or meta.get("status") not in ENERGY_STEP_ENDS):
+        return []
+    return [f"  the {meta['scheme']} step has a positive root only while c(z) = -f.H_zz.f / 8 "
+            "keeps its sign along the orbit, and a time-dependent H can drive it to zero "
+            "(docs/theory.md, sections 7-8); `--scheme fixed` marches this system with fixed "
+            "steps, judged by the same check"]
 
 
 # The motion's sizes printed one by one up to this many components (a chain's 128 are a range)

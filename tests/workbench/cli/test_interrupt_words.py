@@ -1,6 +1,7 @@
 """What an interrupted command says about going on (found by a user): the resume hint named no
 scene file, so the command it printed was refused; an interrupt that came after the run had
-reached its end offered to resume a finished run."""
+reached its end offered to resume a finished run; a march whose energy step failed gave no
+hint of the fixed steps that march it."""
 
 from __future__ import annotations
 
@@ -68,3 +69,17 @@ def test_the_printed_command_resumes_a_scene_file_run(tmp_path):
                            cwd=tmp_path, capture_output=True, text=True)
     assert again.returncode == 0, again.stderr
     assert json.loads(meta.read_text())["status"] == "success"
+
+
+@pytest.mark.parametrize("scheme, status, advised", [
+    ("vddvp", "newton_failed", True), ("lee", "no_admissible_step", True),
+    ("vddvp", "step_ratio", True), ("fixed", "newton_failed", False),
+    ("vddvp", "success", False), ("vddvp", "interrupted", False), ("vddvp", "max_steps", False)])
+def test_an_energy_step_that_ends_a_march_points_to_fixed_steps(scheme, status, advised):
+    """A user's double-well Duffing ended newton_failed with no hint that --scheme fixed
+    marches it (where c(z) changes sign the energy rules have no positive root)."""
+    from ddvp_nlp.cli.summary import _energy_step_advice
+
+    lines = _energy_step_advice({"command": "march", "scheme": scheme, "status": status})
+    assert bool(lines) == advised
+    assert not lines or "--scheme fixed" in lines[0]
