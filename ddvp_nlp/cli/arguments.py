@@ -221,6 +221,10 @@ NUMBERS = {
     "tau0": "positive", "seed": "natural", "time_unit": "positive",
     "run_budget": "positive", "reference_span": "positive",
 }
+# The least --nodes each command's grid takes (the solvers' own rule, said with the flag: `--nodes
+# -5` had read "a positive integer" where `--nodes 1` read "an integer >= 3"); a higher-order
+# scene's larger least is its solver's to say.
+LEAST_NODES = {"bvp": 3, "periodic": 4}
 # Seeds numpy takes: below 2**63 (a larger one was taken, and a negative one a traceback).
 MAX_SEED = 2**63 - 1
 
@@ -298,7 +302,8 @@ def _check_numbers(request) -> None:
     for dest, value in _given(request, NUMBERS).items():
         rule, flag = NUMBERS[dest], "--" + dest.replace("_", "-")
         if rule in ("count", "natural"):
-            check_integer(flag, value, minimum=1 if rule == "count" else 0,
+            least = LEAST_NODES.get(request.command, 1) if dest == "nodes" else 1
+            check_integer(flag, value, minimum=least if rule == "count" else 0,
                           maximum=MAX_SEED if dest == "seed" else None)
         else:
             check_real(flag, value, positive=rule == "positive")

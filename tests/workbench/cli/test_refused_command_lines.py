@@ -32,6 +32,11 @@ CASES = [
      "--set tau0 is given twice ('tau0=0.1' and 'tau0=0.2'); give each setting once"),
     (["march", "harmonic", "--out", ""], "output folder must be a non-empty path, got ''"),
     (["march", "harmonic", "--checkpoint-every", "0"], "--checkpoint-every must be > 0, got 0.0"),
+    # one rule for every bad --nodes, the command's own least (a user met "a positive integer"
+    # for -5 and "an integer >= 3" for 1)
+    (["bvp", "pendulum", "--nodes", "-5"], "--nodes must be an integer >= 3, got -5"),
+    (["bvp", "pendulum", "--nodes", "1"], "--nodes must be an integer >= 3, got 1"),
+    (["periodic", "pendulum", "--nodes", "3"], "--nodes must be an integer >= 4, got 3"),
     # the option objects check, the command line names the flags (cli/flags.py)
     (["march", "harmonic", "--tau-min", "0.1", "--tau-max", "0.01"],
      "--tau-min must be < --tau-max = 0.01, got 0.1"),
