@@ -273,7 +273,8 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
                  dots: bool = False) -> None:
     """The phase portrait ``(q_1, p_1)`` or the configuration plane ``(q_1, q_2)``: the line
     through the nodes (the nodes as dots for long runs, thinned to one per half pixel for very
-    long ones), the start as a red dot (a fixed-endpoint run: both ends as squares); equal
+    long ones), the start as a red dot (a fixed-endpoint run: both ends, as squares where they
+    are prescribed (the configuration plane), as dots in the phase plane, whose p is not); equal
     aspect in the configuration plane always, in the phase plane unless the ranges are of
     unrelated scales (``EQUAL_ASPECT_RATIO``)."""
     several = q.shape[1] > 1
@@ -291,11 +292,16 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
         shown = (figures.thin_points(x, y, 2 * figures.bins_for(ax))
                  if x.size >= THIN_FROM_NODES else slice(None))
         ax.plot(x[shown], y[shown], ",", color="C0", rasterized=True)
-    if fixed_ends:
+    if fixed_ends and kind == "configuration":
         ax.plot(x[[0, -1]], y[[0, -1]], **FIXED_END, clip_on=False)
         for index, name in ((0, "start"), (-1, "end")):
             ax.annotate(name, (x[index], y[index]), xytext=(5, 4), textcoords="offset points",
                         fontsize="small")
+    elif fixed_ends:  # the phase plane: q is prescribed at the ends, p is solved for
+        ax.plot(x[[0, -1]], y[[0, -1]], "o", color="C1", ms=4, clip_on=False, zorder=3)
+        for index, name in ((0, "start"), (-1, "end")):
+            ax.annotate(name, (x[index], y[index]), xytext=(4, 4), textcoords="offset points",
+                        fontsize="small", color="C1")
     else:
         ax.plot(x[:1], y[:1], "o", color="C1", ms=4, clip_on=False, zorder=3)
         ax.annotate("start", (x[0], y[0]), xytext=(4, 4), textcoords="offset points",

@@ -118,15 +118,22 @@ def test_the_run_figure_says_its_verdict_and_draws_constant_steps_as_constant(
     assert not any("$" in label for label in labels), labels
 
 
-def test_a_fixed_end_run_marks_both_ends():
+def test_a_fixed_end_run_marks_both_ends_and_claims_no_fixed_momentum():
+    """q is prescribed at the ends, p is solved for: the squares (the legend's "fixed ends")
+    mark q only; the phase plane's ends are plain dots (a user read its squares as fixed p)."""
     fig = run_figure(run(verdict="accurate"), fixed_ends=True)
     check(fig)
     q = next(ax for ax in fig.axes if ax.get_ylabel() == figures.unicode_math("$q$"))
     phase = next(ax for ax in fig.axes if ax.get_title() == "phase portrait")
-    for ax in (q, phase):
-        (ends,) = [line for line in ax.lines if line.get_marker() == "s"]
-        assert ends.get_xdata().size == 2
+    (ends,) = [line for line in q.lines if line.get_marker() == "s"]
+    assert ends.get_xdata().size == 2
     assert "fixed ends" in [t.get_text() for t in q.get_legend().get_texts()]
+    assert not [line for line in phase.lines if line.get_marker() == "s"]
+    (dots,) = [line for line in phase.lines if line.get_marker() == "o"]
+    assert dots.get_xdata().size == 2
+    assert [t.get_text() for t in phase.texts] == ["start", "end"]
+    p = next(ax for ax in fig.axes if ax.get_ylabel() == figures.unicode_math("$p$"))
+    assert not [line for line in p.lines if line.get_marker() == "s"]
 
 
 @pytest.mark.slow_when(lambda success, **_: success, why="repetition")
