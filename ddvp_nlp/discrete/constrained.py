@@ -162,10 +162,14 @@ def constrained_field_sparse_function(system) -> ca.Function:
 
 def solvability_function(system) -> ca.Function:
     """``c(z, t, theta)``, the coefficient of ``tau^2`` in the midpoint interval energy of a
-    constrained step from ``z`` (``alpha = 1/2``, ``g`` independent of ``t``):
+    constrained step from ``z`` (``alpha = 1/2``, ``H`` autonomous):
     ``c = (nu' G H_pp G' nu - f' H_zz f) / 8`` with ``f = (H_p, -H_q)`` the unconstrained field
     and ``nu`` the multiplier of the constrained flow (docs/theory.md). An energy step keeps a
-    positive root while ``c`` keeps its sign along the orbit."""
+    positive root while ``c`` keeps its sign along the orbit. For a constraint that moves the
+    interval energies gain ``(tau / 2) lambda . g_t`` terms, and the row's `constraint_work`
+    takes them away to second order in the steps, leaving the same ``c`` with the moving
+    flow's ``nu`` (docs/constraints.md, "Constraints that move": a turning hoop's steps keep
+    ``tau^3 c`` constant to O(tau), and its libration stops where this ``c`` changes sign)."""
     def build():
         n = system.n
         z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")

@@ -5,7 +5,9 @@ the multipliers recovered after it, and every step judged by the multiplier form
 
 Unknowns of a step: ``[q_b, P]`` (fixed steps, ``2n``) or ``[q_b, P, tau]`` (the energy step
 of ``vddvp``, ``2n + 1``), against ``2n + 2m`` (``+ 1``) of the multiplier form. Per step, once:
-the null-space matrix of ``G(q_a, t_a)`` (Householder, ``discrete/null_space.py``); after the
+the null-space matrix of ``G(q_a, t_a)`` (Householder, ``discrete/null_space.py``) and, for
+an energy step on constraints that move, ``(G_a G_a^T)^{-1} g_t(q_a, t_a)`` (the energy row's
+work term, `_moving_work`); after the
 Newton: ``lambda`` from ``G_a G_a^T lambda = -(2/tau) G_a (p_a^+ - p_a)`` and ``mu`` by
 ``HIDDEN_UPDATES`` Newton updates of the hidden constraint (``m x m`` sparse QR each). The
 Newton updates a step reports are those of the reduced solve.
