@@ -166,10 +166,11 @@ def solvability_function(system) -> ca.Function:
     ``c = (nu' G H_pp G' nu - f' H_zz f) / 8`` with ``f = (H_p, -H_q)`` the unconstrained field
     and ``nu`` the multiplier of the constrained flow (docs/theory.md). An energy step keeps a
     positive root while ``c`` keeps its sign along the orbit. For a constraint that moves the
-    interval energies gain ``(tau / 2) lambda . g_t`` terms, and the row's `constraint_work`
-    takes them away to second order in the steps, leaving the same ``c`` with the moving
-    flow's ``nu`` (docs/constraints.md, "Constraints that move": a turning hoop's steps keep
-    ``tau^3 c`` constant to O(tau), and its libration stops where this ``c`` changes sign)."""
+    interval energies gain ``(tau_k / 2) lambda_k . g_t`` and ``(tau_{k-1} / 2) mu_{k-1} .
+    g_t``, which are the row's `constraint_work`: the row is again ``c (tau_k^2 -
+    tau_{k-1}^2) + O(tau^3)``, with the moving flow's ``nu`` (docs/constraints.md,
+    "Constraints that move": a turning hoop's steps keep ``tau^3 c`` constant to O(tau), and
+    its libration stops where this ``c`` changes sign)."""
     def build():
         n = system.n
         z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
