@@ -18,7 +18,12 @@ hidden constraint. ``lambda_k`` (``m``) is fixed by the position constraint at `
 stationarity of ``S_D + sum_k Lambda_k . g(q_k, t_k)`` in ``q_k``, so the positions are those
 of the augmented discrete action. The energy rules read the interval energies with the
 interval's own momenta (``vddvp``), or differentiate the augmented action in ``t_k``
-(``lee``: the term ``Lambda_k . g_t`` joins the unconstrained balance).
+(``lee``). Both take the node time's derivative of the multiplier term,
+``Lambda_k . g_t(q_k, t_k)``: a constraint imposed at the node sees ``t_k`` directly. Where
+the constraints move (``g_t != 0``: a turning hoop, a rod whose length changes) it is the work
+the constraint does over the half intervals around node ``k``, ``W_k = -Lambda_k . g_t``, and
+the row says ``E_k - E_{k-1} = W_k`` (`constraint_work`); for constraints fixed in time it is
+zero and the ``vddvp`` row is ``E_k = E_{k-1}``.
 """
 
 from __future__ import annotations
@@ -72,8 +77,12 @@ def energy_expression(system, scheme: Scheme, rule: str, nodes, multipliers, the
     plus1, minus2 = interval_momenta(system, t1, t2, q1, p1, q2, p2, lam1, mu1, theta)
     if rule == "vddvp":
         _, _, s_prev, _ = action.arguments(t0, t1, q0, plus0, q1, minus1)
-        return (action.energy_at(t1, t2, q1, plus1, q2, minus2, s_prev, theta, varying=True)
-                - action.energy_at(t0, t1, q0, plus0, q1, minus1, s_prev, theta, varying=True))
+        change = (action.energy_at(t1, t2, q1, plus1, q2, minus2, s_prev, theta, varying=True)
+                  - action.energy_at(t0, t1, q0, plus0, q1, minus1, s_prev, theta,
+                                     varying=True))
+        if not constraints_move(system):  # W_k = 0: the expression as it always was
+            return change
+        return change - constraint_work(system, (t0, t1, t2), q1, lam1, mu0, theta)
     if rule == "lee":
         t_k = ca.SX.sym("t_k")
         total = (action.action(t0, t_k, q0, plus0, q1, minus1, theta, True)
@@ -83,6 +92,24 @@ def energy_expression(system, scheme: Scheme, rule: str, nodes, multipliers, the
         impulse = -((t2 - t1) * lam1 + (t1 - t0) * mu0) / 2
         return balance + ca.dot(impulse, g_t)
     raise ValueError(f"rule {rule!r} has no energy equation")
+
+
+def constraints_move(system) -> bool:
+    """Whether ``g`` depends on ``t`` (then ``g_t != 0`` and the constraint does work)."""
+    return bool(system.n_constraints) and bool(ca.depends_on(ca.vec(system.G), system.t))
+
+
+def constraint_work(system, times, q_mid, lam, mu_prev, theta):
+    """``W_k = -Lambda_k . g_t(q_k, t_k) = ((tau_k lambda_k + tau_{k-1} mu_{k-1}) / 2) .
+    g_t(q_k, t_k)`` at the middle node of ``times = (t_prev, t_mid, t_next)``: the node time's
+    derivative of the multiplier term ``Lambda_k . g(q_k, t_k)`` of the augmented action, with
+    its sign turned. Along the exact motion ``dH/dt = H_t + nu . g_t`` (the constraint force
+    ``-G^T nu`` on the hidden constraint ``G H_p = -g_t``), and each half impulse is ``(tau /
+    2)`` times a multiplier equal to ``nu`` to ``O(tau)``: ``W_k`` is the constraint's work
+    over ``[s_{k-1}, s_k]`` to ``O(tau^3)`` where the step varies smoothly."""
+    t0, t1, t2 = times
+    _, _, g_t = constraint_function(system)(q_mid, t1, theta)
+    return ca.dot(((t2 - t1) * lam + (t1 - t0) * mu_prev) / 2, g_t)
 
 
 def constrained_field_function(system) -> ca.Function:
@@ -135,10 +162,15 @@ def constrained_field_sparse_function(system) -> ca.Function:
 
 def solvability_function(system) -> ca.Function:
     """``c(z, t, theta)``, the coefficient of ``tau^2`` in the midpoint interval energy of a
-    constrained step from ``z`` (``alpha = 1/2``, ``g`` independent of ``t``):
+    constrained step from ``z`` (``alpha = 1/2``, ``H`` autonomous):
     ``c = (nu' G H_pp G' nu - f' H_zz f) / 8`` with ``f = (H_p, -H_q)`` the unconstrained field
     and ``nu`` the multiplier of the constrained flow (docs/theory.md). An energy step keeps a
-    positive root while ``c`` keeps its sign along the orbit."""
+    positive root while ``c`` keeps its sign along the orbit. For a constraint that moves the
+    interval energies gain ``(tau_k / 2) lambda_k . g_t`` and ``(tau_{k-1} / 2) mu_{k-1} .
+    g_t``, which are the row's `constraint_work`: the row is again ``c (tau_k^2 -
+    tau_{k-1}^2) + O(tau^3)``, with the moving flow's ``nu`` (docs/constraints.md,
+    "Constraints that move": a turning hoop's steps keep ``tau^3 c`` constant to O(tau), and
+    its libration stops where this ``c`` changes sign)."""
     def build():
         n = system.n
         z, t = ca.SX.sym("z", 2 * n), ca.SX.sym("t")
@@ -156,5 +188,5 @@ def solvability_function(system) -> ca.Function:
 
 
 __all__ = ["constrained_field_function", "constrained_field_sparse_function",
-           "energy_expression", "interval_energy_expression",
+           "constraint_work", "constraints_move", "energy_expression", "interval_energy_expression",
            "interval_expression", "interval_momenta", "node_expression", "solvability_function"]

@@ -20,7 +20,9 @@ momenta ``p_a^+ = p_a - (tau/2) G_a^T lambda`` and ``p_b^- = p_b + (tau/2) G_b^T
 
 The rows are ``q_b - q_a - tau H_p(Q, P, s)`` (``n``), ``N_a^T (p_a^+ - p_a)`` (``n - m``),
 ``g(q_b, t_b)`` (``m``) and, for ``vddvp``, the energy row of ``constrained.py`` (the interval
-energies read only the interval momenta): ``2n`` unknowns (``2n + 1``) where the multiplier
+energies read only the interval momenta; where the constraints move, its work term reads
+``lambda`` through ``p_a^+ - p_a``: ``solvers/marching/null_space_steps.py``): ``2n`` unknowns
+(``2n + 1``) where the multiplier
 form has ``2n + 2m`` (``2n + 2m + 1``). Every solution of one is a solution of the other, so
 the two forms march the same nodes to the solver's tolerance; ``lambda`` is recovered from
 ``G_a (p_a^+ - p_a)`` and the multiplier form's own residual judges every step.

@@ -46,8 +46,11 @@ def test_the_trajectory_test_still_judges_a_march_on_a_moving_constraint():
 
 @pytest.mark.parametrize("method", ["multipliers", "null_space"])
 def test_a_step_that_cannot_be_taken_ends_the_march_with_a_status(method):
-    """Energy steps on the turning hoop find only tau < 0 after the first step; the
-    null-space form's QR solves had raised on the NaN iterate of a retry."""
+    """Energy steps on this libration of the turning hoop lose their root where the
+    coefficient c of docs/theory.md section 12 changes sign, a quarter swing in
+    (test_moving_energy_steps.py; before the energy row carried the hoop's work they found
+    only tau < 0 after the first step); the null-space form's QR solves had raised on the NaN
+    iterate of a retry."""
     run = march(hoop(), *START, (0.0, 20.0), tau0=0.01, scheme="vddvp",
                 steps=StepControl(constraint_method=method))
     assert run.status is not Status.SUCCESS and run.message
