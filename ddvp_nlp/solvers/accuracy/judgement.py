@@ -372,6 +372,11 @@ class Judgement:
         """The exact flow (``exact/flow.py``), compiled once per system."""
         return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
 
+    def kernel(self):
+        """The check's compiled passes (``exact/kernel.py``) once the exact flow is compiled,
+        else ``None`` (numpy, the same numbers)."""
+        return self.flow().kernel()
+
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
         """The report (`judge` makes it ``Solution.verdict``) and the local error of every step,
@@ -431,7 +436,7 @@ class Judgement:
         tol = self.tolerance.global_tol
         extent = run_extent(self.values, self.system.n, t, z, self.free)
         if exact is not None:
-            scan = Scan(extent, self.system.n, tol)
+            scan = Scan(extent, self.system.n, tol, self.kernel())
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
             scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
             return scan.figures(t[0], "exact solution")
@@ -439,7 +444,7 @@ class Judgement:
         rtol = REFERENCE_RTOL
         small = first_flow(self.system, self.compiler, self.cache_dir)
         while True:
-            scan = Scan(extent, self.system.n, tol)
+            scan = Scan(extent, self.system.n, tol, self.kernel())
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
                                        rtol=rtol, first=t[min(FIRST_NODES, last)],
                                        first_flow=small)
@@ -581,8 +586,9 @@ class Scan:
     ``tol`` only moves later as they grow). Per component, the largest difference and its node
     are kept, so the largest error in the final scales needs no second look at the nodes."""
 
-    def __init__(self, extent: Extent, n: int, tol: float):
+    def __init__(self, extent: Extent, n: int, tol: float, kernel=None):
         self.extent, self.n, self.tol = extent, n, tol
+        self.kernel = kernel  # the compiled passes (``exact/kernel.py``), or None: numpy
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
         self.largest = extent.largest.copy()
@@ -607,48 +613,33 @@ class Scan:
         """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
         (``offset``: the index in the run of row 0 of ``t`` and ``z``)."""
         rows = z[start + 1:end + 1]
-        with np.errstate(invalid="ignore", over="ignore"):
-            difference = np.abs(rows - states)
         # one pass over every entry where all are finite (as a row maximum: 2d passes)
         finite = np.True_ if np.isfinite(states).all() else np.isfinite(row_max_abs(states))
         lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * self.tol))
         lost_at = int(lost[0]) if lost.size else None
-        scale, over_at, seen, seen_stop = self.scales(), None, None, None
-        for _ in range(8):
-            with np.errstate(invalid="ignore"):
-                error = row_max_ratio(difference, scale)
-            over = np.flatnonzero(~(error <= self.tol))
-            over_at = int(over[0]) if over.size else None
-            stop = over_at + 1 if over_at is not None else error.size
-            if lost_at is not None:
-                stop = min(stop, lost_at)
-            if stop == 0:
-                break
-            seen = column_extremes(states[:stop])  # finite: the rows before a lost one
-            seen_stop = stop
-            new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
-                                np.maximum(self.largest, seen[2]), self.n, self.extent.free,
-                                self.extent.turns)
-            if np.array_equal(new, scale):
-                break
-            scale = new
+        kernel = self.kernel if self.kernel is not None and \
+            self.kernel.rows_readable(rows, states) else None
+        difference = None
+        if kernel is None:
+            with np.errstate(invalid="ignore", over="ignore"):
+                difference = np.abs(rows - states)
+        over_at, stop, seen, peak = self._over(rows, states, difference, lost_at, kernel)
         if lost_at is not None and (over_at is None or lost_at <= over_at):
             stop, self.lost = lost_at, offset + start + 1 + lost_at
             self.times["lost"] = float(t[start + 1 + lost_at])
         else:
-            stop = over_at + 1 if over_at is not None else error.size
             self.drift = None if over_at is None else offset + start + 1 + over_at
             if over_at is not None:
                 self.times["drift"] = float(t[start + 1 + over_at])
         if stop:
-            if seen_stop != stop:  # the loop's last pass read these rows already
-                seen = column_extremes(states[:stop])
             np.minimum(self.low, seen[0], out=self.low)
             np.maximum(self.high, seen[1], out=self.high)
             np.maximum(self.largest, seen[2], out=self.largest)
-            seen = difference[:stop]
-            node = column_argmax(seen)
-            value = seen[node, np.arange(seen.shape[1])]
+            if peak is not None:  # the compiled pass's, over the same rows
+                node, value = peak
+            else:
+                node = column_argmax(difference[:stop])
+                value = difference[node, np.arange(difference.shape[1])]
             better = value > self.column_max
             self.column_max[better] = value[better]
             self.column_node[better] = offset + start + 1 + node[better]
@@ -656,6 +647,42 @@ class Scan:
             self.claim_max = max(self.claim_max, float(np.max(claim[:stop])))
         self.until = offset + start + stop  # the last node measured
         self.times["until"] = float(t[start + stop])
+
+    def _over(self, rows, states, difference, lost_at, kernel):
+        """``(over_at, stop, seen, peak)``: the first row whose error passes ``tol`` in the
+        scales grown by the states up to it (or ``None``), the rows measured (to it, or to the
+        lost one), `column_extremes` of their states and, from the compiled pass
+        (``exact/kernel.py``, the same numbers; ``None`` from numpy's), `column_argmax` of
+        their ``|rows - states|`` with its values. The scales are found by a few passes (the
+        first row past ``tol`` only moves later as they grow); the compiled pass reads the
+        rows only up to the first over, the numpy one (``difference``: ``|rows - states|``)
+        all of them."""
+        scale, over_at, seen, stop, peak = self.scales(), None, None, rows.shape[0], None
+        limit = rows.shape[0] if lost_at is None else lost_at
+        for _ in range(8):
+            if kernel is not None:
+                over_at, extremes = kernel.scan_rows(rows, states, scale, self.tol, limit)
+                stop = limit if over_at is None else over_at + 1
+                if stop == 0:
+                    break
+                low, high, *peak = extremes
+                seen = (low, high, np.maximum(np.abs(low), np.abs(high)))
+            else:
+                with np.errstate(invalid="ignore"):
+                    error = row_max_ratio(difference, scale)
+                over = np.flatnonzero(~(error <= self.tol))
+                over_at = int(over[0]) if over.size else None
+                stop = min(over_at + 1 if over_at is not None else error.size, limit)
+                if stop == 0:
+                    break
+                seen = column_extremes(states[:stop])  # finite: the rows before a lost one
+            new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
+                                np.maximum(self.largest, seen[2]), self.n, self.extent.free,
+                                self.extent.turns)
+            if np.array_equal(new, scale):
+                break
+            scale = new
+        return over_at, stop, seen, peak
 
     def figures(self, t0: float, estimate: str) -> dict:
         """The scan's figures (``t0``: the time of node 0); ``drift`` is a node index, with

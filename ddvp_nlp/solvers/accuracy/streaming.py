@@ -135,7 +135,7 @@ class StreamingJudgement:
     def _trajectory(self, t, z, offset):
         """The window's nodes against the exact solution or the growing reference."""
         if self.scan is None:
-            self.scan = Scan(self.extent, self.n, self.tol.global_tol)
+            self.scan = Scan(self.extent, self.n, self.tol.global_tol, self.judge.kernel())
             if self.exact is None:
                 self.rtol = REFERENCE_RTOL
                 self.growing = GrowingReference(self.judge.flow(), z[0], t[0], t[-1],

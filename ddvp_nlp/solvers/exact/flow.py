@@ -152,19 +152,19 @@ class AdaptiveFlow:
             calls += 1
             state = states[-1].copy()
             accepted = record[:, 0] == 1.0
-            records.append(record[accepted].copy())
+            records.append(record[accepted])  # a copy: the arrays are the next call's
             attempts += self._attempts(states, state)
             if state[2] != RUNNING or attempts >= max_attempts:
                 break
         status = {DONE: "done", FAILED: "the step fell below 10 ulp of t"}.get(
             state[2], "attempt limit reached")
-        rows = np.vstack(records)
+        rows = records[0] if len(records) == 1 else np.vstack(records)
         D = L.D
         F = None
-        if L.dense:
-            F = rows[:, 4 + D:].reshape(-1, POWER, D).transpose(1, 0, 2).copy()
+        if L.dense:  # views of the records' rows (each step's F_0 .. F_6 side by side)
+            F = rows[:, 4 + D:].reshape(-1, POWER, D).transpose(1, 0, 2)
         return Trajectory(t0=t0, t_end=t_end, t_old=rows[:, 1].copy(), h=rows[:, 2].copy(),
-                          w_old=rows[:, 4:4 + D].copy(), F=F, w_end=state[L.w].copy(),
+                          w_old=rows[:, 4:4 + D], F=F, w_end=state[L.w].copy(),
                           d=L.d, attempts=attempts, calls=calls, status=status,
                           t_reached=float(state[0]), kernel=self.kernel())
 

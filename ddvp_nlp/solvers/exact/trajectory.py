@@ -83,9 +83,8 @@ class Trajectory:
             return out.reshape(*shape, width)
         direction = 1.0 if self.t_end >= self.t0 else -1.0
         picked = range(self.w_end.size)[cols]
-        if self.kernel is not None and picked.step == 1 and all(
-                a.flags.c_contiguous and a.dtype == np.float64
-                for a in (self.F, self.w_old, self.t_old, self.h)):
+        if self.kernel is not None and picked.step == 1 and \
+                self.kernel.readable(self.t_old, self.h, self.w_old, self.F):
             self.kernel.dense_values(self.t_old, self.h, self.w_old, self.F, direction,
                                      np.ascontiguousarray(times), picked.start, picked.stop,
                                      out)

@@ -194,3 +194,53 @@ def test_the_check_of_a_march_imports_nothing_the_march_does_not():
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True).stdout
     assert "numpy.ma" not in out and "scipy" not in out, out
+
+
+@pytest.fixture(scope="module")
+def check_kernel():
+    from ddvp_nlp.solvers.exact import kernel
+
+    found = kernel.kernel("auto", build=True)
+    if found is None:
+        pytest.skip("no C compiler: the check runs numpy")
+    return found
+
+
+def _scan_state(scan):
+    return (scan.low, scan.high, scan.largest, scan.column_max, scan.column_node, scan.column_t,
+            scan.claim_max, scan.drift, scan.lost, scan.until, scan.times)
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.integers(1, 60), d=st.sampled_from([2, 4, 6, 18, 34]),
+       seed=st.integers(0, 2**32 - 1),
+       drift_at=st.integers(0, 80), lost_at=st.integers(0, 80), claim_at=st.integers(0, 80),
+       growth=st.floats(0.0, 3.0))
+def test_the_compiled_scan_is_numpys(check_kernel, rows, d, seed, drift_at, lost_at, claim_at,
+                                     growth):
+    """`Scan.measure` through the compiled pass (``exact/kernel.py``) leaves every figure as
+    the numpy pass does, to the bit: windows that pass, drift, lose their reference (a
+    non-finite state, a claim over its share) or grow the scales, narrow and wide (the
+    column reductions switch to numpy's own past 16 columns)."""
+    rng = np.random.default_rng(seed)
+    n = d // 2
+    t = np.cumsum(rng.uniform(0.1, 1.0, rows + 1))
+    z = rng.normal(size=(rows + 1, d))
+    states = z[1:] + 1e-4 * rng.normal(size=(rows, d))
+    states[drift_at:] += 0.05 * growth  # the error passes the tolerance from there
+    states[rows // 2:] *= 1.0 + growth  # the reference's states widen the scales
+    claim = np.full(rows, 1e-6)
+    claim[claim_at:] = 1.0
+    if lost_at < rows:
+        states[lost_at, rng.integers(d)] = [np.nan, np.inf][lost_at % 2]
+    found = []
+    for kernel in (None, check_kernel):
+        scan = judgement.Scan(judgement.Extent(z), n, 1e-2, kernel)
+        with np.errstate(invalid="ignore", over="ignore"):
+            scan.measure(t, z, 0, rows, states.copy(), claim)
+        found.append(_scan_state(scan))
+    for numpy_value, compiled_value in zip(*found, strict=True):
+        if isinstance(numpy_value, np.ndarray):
+            np.testing.assert_array_equal(compiled_value, numpy_value)
+        else:
+            assert compiled_value == numpy_value
