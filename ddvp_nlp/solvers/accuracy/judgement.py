@@ -74,6 +74,7 @@ import numpy as np
 
 from ...cache import cached
 from ...solution import Status, Verdict
+from ..columns import WIDE as COLUMNS_WIDE
 from ..columns import (
     column_argmax,
     column_extremes,
@@ -243,10 +244,12 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     return turns if np.any(turns) else None
 
 
-def run_extent(values: NodeValues, n: int, t, z, free) -> Extent:
+def run_extent(values: NodeValues, n: int, t, z, free, kernel=None) -> Extent:
     """The `Extent` of a whole run's nodes with its winding angles (`winding_angles`), from one
-    pass over the nodes: every node's, whichever window is then measured."""
-    extremes = column_extremes(z)
+    pass over the nodes: every node's, whichever window is then measured (``kernel``: in one
+    compiled pass, ``exact/kernel.py``, the same numbers)."""
+    extremes = kernel.column_extremes(z) if kernel is not None and \
+        kernel.table_readable(z) else column_extremes(z)
     turns = winding_angles(values, n, t, z, free, span=extremes[1][:n] - extremes[0][:n])
     return Extent(z, free, turns, extremes=extremes)
 
@@ -281,11 +284,15 @@ def gradient_weights(scale: np.ndarray, n: int, free: np.ndarray | None = None) 
 
 
 def gradient_sizes(t: np.ndarray, field: np.ndarray, scale: np.ndarray, n: int,
-                   free: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   free: np.ndarray | None = None, kernel=None) -> tuple[np.ndarray, np.ndarray]:
     """``(weights, |S * grad H|)`` at the nodes: each node's share of the time (half of each
     step beside it) and how much ``H`` changes there when the state moves by ``S``
     (`gradient_weights`); `energy_scale` averages the one over the other, for a whole run or
-    window by window (``streaming.py``)."""
+    window by window (``streaming.py``). ``kernel``: the compiled pass (``exact/kernel.py``,
+    the same numbers; up to ``columns.WIDE`` columns, where ``row_norm`` sums in order)."""
+    if kernel is not None and field.shape[1] <= COLUMNS_WIDE and t.size == field.shape[0] \
+            and kernel.table_readable(field):
+        return kernel.gradient_sizes(t, field, gradient_weights(scale, n, free))
     norm = row_norm(field * gradient_weights(scale, n, free))
     weights = np.zeros(t.size)
     weights[:-1] += np.diff(t) / 2
@@ -294,7 +301,7 @@ def gradient_sizes(t: np.ndarray, field: np.ndarray, scale: np.ndarray, n: int,
 
 
 def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndarray,
-                 n: int, free: np.ndarray | None = None) -> float:
+                 n: int, free: np.ndarray | None = None, kernel=None) -> float:
     """``E_s``, the time average over the run of ``|S * grad H(z_k, t_k)|_2`` (from the vector
     field ``f = (H_p, -H_q)`` at the nodes, rows, and ``H`` there; `gradient_weights`): how
     much ``H`` changes when the state moves by the motion's own size ``S`` in each component,
@@ -302,7 +309,7 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
     units of ``S``) off the exact level set, so wherever the gradient is at most its average
     (somewhere it is) at least ``dE / E_s``: a displacement, free of units and of constants
     added to ``H``. At least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
-    weights, norm = gradient_sizes(t, field, scale, n, free)
+    weights, norm = gradient_sizes(t, field, scale, n, free, kernel)
     typical = float(np.sum(weights * norm) / np.sum(weights)) if t.size > 1 else \
         float(norm[0]) if norm.size else 0.0
     if not math.isfinite(typical):
@@ -397,7 +404,7 @@ class Judgement:
         look = self.values.first_look(t, z) if screen else None
         self._poll()
         field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
-        energy = energy_scale(t, field, H, scale, n, self.free)
+        energy = energy_scale(t, field, H, scale, n, self.free, self.kernel())
         local, local_error, local_max = self._local(t, z, scale, look)
         energies = self.energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
@@ -407,6 +414,7 @@ class Judgement:
         return report, local_error
 
     stop = None  # report(stop=...): asked between the parts of a check
+    small = None  # the flow of the reference's first piece (`first_flow`), once asked for
 
     def _poll(self) -> None:
         if self.stop is not None and self.stop():
@@ -434,7 +442,7 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        extent = run_extent(self.values, self.system.n, t, z, self.free)
+        extent = run_extent(self.values, self.system.n, t, z, self.free, self.kernel())
         if exact is not None:
             scan = Scan(extent, self.system.n, tol, self.kernel())
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
@@ -442,7 +450,7 @@ class Judgement:
             return scan.figures(t[0], "exact solution")
         scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
-        small = first_flow(self.system, self.compiler, self.cache_dir)
+        small = self.small = first_flow(self.system, self.compiler, self.cache_dir)
         while True:
             scan = Scan(extent, self.system.n, tol, self.kernel())
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
@@ -538,8 +546,11 @@ class Judgement:
         if level is not None:
             reference = H0
             if energy_varies(system):  # H of the exact motion at the level's own clock
-                run = self.flow().run(z[0], t[0], level.clock, self.theta, rtol=LEVEL_RTOL,
-                                      atol=LEVEL_RTOL * scale)
+                # a few attempts: on the flow of the first piece where there is one (the
+                # same attempts, so the same state, as on the full flow; its 1024 slots cost
+                # a copy each)
+                run = (self.small or self.flow()).run(z[0], t[0], level.clock, self.theta,
+                                                      rtol=LEVEL_RTOL, atol=LEVEL_RTOL * scale)
                 _, at_clock = self.values.at_nodes(np.array([level.clock]), run.z_end[None, :])
                 reference = float(at_clock[0])
             # the level is a value of the whole H (a march's first interval, a prescribed

@@ -114,7 +114,7 @@ class StreamingJudgement:
         n = self.n
         if self.H0 is None:
             self.H0 = float(H[0])
-        weights, norm = gradient_sizes(t, field, scale, n, self.judge.free)
+        weights, norm = gradient_sizes(t, field, scale, n, self.judge.free, self.judge.kernel())
         self.energy_sum += float(np.sum(weights * norm))
         self.weight_sum += float(np.sum(weights))
         self.H_abs_max = max(self.H_abs_max, float(np.max(np.abs(H))))

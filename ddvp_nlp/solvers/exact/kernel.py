@@ -1,8 +1,11 @@
 """The accuracy check's passes over every node in C, written as numpy computes them, operation
 for operation: the continuous extension of an adaptive run read at many times (`Trajectory`),
-and the scan of the nodes against the reference's states (``accuracy/judgement.py``,
-``Scan.measure``: each row's error in the motion's scales up to the first one over the
-tolerance, the columns' least and greatest states and largest differences, in one pass).
+the running envelope of a reference's claimed error (``reference.py``, ``Reference.at``: the
+two runs read at the samples and compared), the scan of the nodes against the reference's
+states (``accuracy/judgement.py``, ``Scan.measure``: each row's error in the motion's scales
+up to the first one over the tolerance, the columns' least and greatest states and largest
+differences, in one pass), the sizes of ``|S * grad H|`` with each node's share of the time
+(the energy scale) and the columns' extremes of a table.
 
 Why: numpy reads a run's dense output at ``N`` times in about 22 passes over an ``(N, d)``
 table (eight gathers, seven products and seven sums of the Horner scheme), and scans the nodes
@@ -12,11 +15,13 @@ alone was 1.4 ms of a check of 4 ms, for a march of 4.9 ms. One loop in C reads 
 
 The same numbers to the bit: each value is the same sequence of IEEE operations as numpy's
 (``x = (s - t_old) / h``, Horner alternating ``x`` and ``1 - x``, ``+ w_old``; ``|z - state| /
-S`` and its maximum, NaN propagating), compiled without contraction to FMA
+S`` and its maximum, NaN propagating; a row's squares summed column after column), compiled without contraction to FMA
 (``compiler.COMPILE_FLAGS``); the step holding a time is numpy's ``searchsorted(...,
 side="right") - 1`` clipped to the steps; minima, maxima and the first largest are exact
 whatever the order (``tests/library/exact/test_kernel.py``,
-``tests/library/accuracy/test_check_cost.py`` compare the two).
+``tests/library/accuracy/test_check_cost.py`` compare the two). Passes whose work is a
+division per entry (the steps' local figures) stay numpy's: its divisions run in vector
+registers, and a scalar loop in C measured no faster.
 
 Built once per compiler and source by ``compiler.py``'s build and cache (``check_HASH.so``,
 checksummed), and only once the work pays for it: `kernel` loads a library already in the
@@ -128,6 +133,99 @@ long scan_rows(long limit, long d, const double *restrict rows, long stride,
   }
   return -1;
 }
+
+/* numpy's maximum: NaN if either is */
+static double greater(double a, double b) { return (a >= b || a != a) ? a : b; }
+
+/* A run as dense_values reads it, and the step of the last time read */
+typedef struct {
+  long steps, row, plane, row_F, k;
+  const double *t_old, *h, *w_old, *F;
+  double direction, x, one_minus;
+} run_t;
+
+/* The run's step holding time s and x = (s - t_old) / h there, as dense_values finds them */
+static void seek(run_t *run, double s) {
+  run->k = step_of(run->direction * s, run->direction, run->t_old, run->steps, run->k);
+  double x = s - run->t_old[run->k];
+  x /= run->h[run->k];
+  run->x = x;
+  run->one_minus = 1.0 - x;
+}
+
+/* Component c of the run's continuous extension at the time `seek` found, as dense_values */
+static double value_at(const run_t *run, long c) {
+  const double *f = run->F + run->k * run->row_F + c;
+  double x = run->x, one_minus = run->one_minus, y = f[6 * run->plane] * x;
+  y += f[5 * run->plane]; y *= one_minus;
+  y += f[4 * run->plane]; y *= x;
+  y += f[3 * run->plane]; y *= one_minus;
+  y += f[2 * run->plane]; y *= x;
+  y += f[run->plane]; y *= one_minus;
+  y += f[0]; y *= x;
+  return y + run->w_old[run->k * run->row + c];
+}
+
+/* The running envelope of a reference's claim (exact/reference.py, Reference.at): at each of
+   the n sample times, max_j |coarse_j - fine_j| / scale_j of the two runs' continuous
+   extensions (row_max_ratio's numbers, NaN if any term is), then the running maximum of its
+   maximum with `floor` (numpy's maximum.accumulate of maximum(difference, floor)), into
+   `running`. Each run as dense_values takes it: steps, t_old, h, w_old, row, F, plane, row_F,
+   direction. */
+void claim_envelope(long n, const double *samples, long d, const double *scale, double floor_,
+                    long fs, const double *ft, const double *fh, const double *fw, long frow,
+                    const double *fF, long fplane, long frowF, double fdirection,
+                    long cs, const double *ct, const double *ch, const double *cw, long crow,
+                    const double *cF, long cplane, long crowF, double cdirection,
+                    double *running) {
+  run_t fine = {fs, frow, fplane, frowF, 0, ft, fh, fw, fF, fdirection, 0.0, 0.0};
+  run_t coarse = {cs, crow, cplane, crowF, 0, ct, ch, cw, cF, cdirection, 0.0, 0.0};
+  double envelope = 0.0;
+  for (long i = 0; i < n; ++i) {
+    seek(&fine, samples[i]);
+    seek(&coarse, samples[i]);
+    double error = 0.0;
+    for (long c = 0; c < d; ++c) {
+      double q = fabs(value_at(&coarse, c) - value_at(&fine, c)) / scale[c];
+      error = c ? greater(error, q) : q;
+    }
+    double bounded = greater(error, floor_);
+    envelope = i ? greater(envelope, bounded) : bounded;
+    running[i] = envelope;
+  }
+}
+
+/* |S * grad H| at each node, sqrt(sum_j (field_j w_j)^2) summed column after column
+   (columns.row_norm, at most 16 columns), and each node's share of the time (half of each
+   step beside it), as accuracy/judgement.py's gradient_sizes computes them. */
+void gradient_sizes(long nodes, long m, const double *restrict field, long stride,
+                    const double *restrict w, const double *restrict t,
+                    double *restrict norm, double *restrict share) {
+  for (long k = 0; k < nodes; ++k) {
+    const double *row = field + k * stride;
+    double v = row[0] * w[0], sum = v * v;
+    for (long j = 1; j < m; ++j) { v = row[j] * w[j]; sum += v * v; }
+    norm[k] = sqrt(sum);
+    double before = k ? (t[k] - t[k - 1]) / 2 : 0.0;
+    double after = k + 1 < nodes ? (t[k + 1] - t[k]) / 2 : 0.0;
+    share[k] = k + 1 < nodes ? (k ? 0.0 + after + before : 0.0 + after) : 0.0 + before;
+  }
+}
+
+/* The least and greatest value of each column of `values` (rows x m, row stride), numpy's
+   min and max (NaN if any is). */
+void column_extremes(long rows, long m, const double *restrict values, long stride,
+                     double *restrict low, double *restrict high) {
+  for (long j = 0; j < m; ++j) { low[j] = values[j]; high[j] = values[j]; }
+  for (long k = 1; k < rows; ++k) {
+    const double *row = values + k * stride;
+    for (long j = 0; j < m; ++j) {
+      double v = row[j];
+      low[j] = (v < low[j] || v != v) ? v : low[j];
+      high[j] = (v > high[j] || v != v) ? v : high[j];
+    }
+  }
+}
 """
 
 _LOADED: dict = {}  # (compiler, folder) -> the kernel, or None (not in the cache, or failed)
@@ -149,6 +247,18 @@ class CheckKernel:
         self._scan.argtypes = [size, size, pointer, size, pointer, pointer, ctypes.c_double,
                                pointer, pointer, pointer, pointer]
         self._scan.restype = size
+        self._claim = lib.claim_envelope
+        run = [size, pointer, pointer, pointer, size, pointer, size, size, ctypes.c_double]
+        self._claim.argtypes = [size, pointer, size, pointer, ctypes.c_double, *run, *run,
+                                pointer]
+        self._claim.restype = None
+        self._gradient = lib.gradient_sizes
+        self._gradient.argtypes = [size, size, pointer, size, pointer, pointer, pointer,
+                                   pointer]
+        self._gradient.restype = None
+        self._extremes = lib.column_extremes
+        self._extremes.argtypes = [size, size, pointer, size, pointer, pointer]
+        self._extremes.restype = None
 
     def dense_values(self, t_old: np.ndarray, h: np.ndarray, w_old: np.ndarray,
                      F: np.ndarray, direction: float, times: np.ndarray, c0: int, c1: int,
@@ -182,6 +292,59 @@ class CheckKernel:
                           states.ctypes.data, scale.ctypes.data, float(tol), low.ctypes.data,
                           high.ctypes.data, node.ctypes.data, value.ctypes.data)
         return (None if over < 0 else int(over)), (low, high, node.astype(np.intp), value)
+
+    def claim_envelope(self, fine, coarse, samples: np.ndarray, scale: np.ndarray,
+                       floor: float) -> np.ndarray:
+        """The running maximum, from ``floor``, of ``max_j |coarse_j - fine_j| / scale_j`` of
+        two runs (`Trajectory`, each with a step, `run_readable`) at ``samples``
+        (``Reference.at``'s numbers)."""
+        samples = np.ascontiguousarray(samples, float)
+        scale = np.ascontiguousarray(scale, float)
+        running = np.empty(samples.size)
+        self._claim(samples.size, samples.ctypes.data, fine.d, scale.ctypes.data,
+                    float(floor), *self._run(fine), *self._run(coarse), running.ctypes.data)
+        return running
+
+    @staticmethod
+    def _run(run) -> tuple:
+        item = run.F.itemsize
+        return (run.t_old.size, run.t_old.ctypes.data, run.h.ctypes.data,
+                run.w_old.ctypes.data, run.w_old.strides[0] // item, run.F.ctypes.data,
+                run.F.strides[0] // item, run.F.strides[1] // item,
+                1.0 if run.t_end >= run.t0 else -1.0)
+
+    def run_readable(self, run) -> bool:
+        """Whether the kernel reads ``run`` (`Trajectory`) as it is: dense, with a step."""
+        return run.F is not None and run.steps > 0 and \
+            self.readable(run.t_old, run.h, run.w_old, run.F)
+
+    def gradient_sizes(self, t: np.ndarray, field: np.ndarray, weights: np.ndarray):
+        """``(share, norm)``: each node's share of the time and ``|field * weights|_2``
+        summed column after column (``columns.row_norm``'s numbers up to its 16 columns)."""
+        nodes, m = field.shape
+        t = np.ascontiguousarray(t, float)
+        weights = np.ascontiguousarray(weights, float)
+        norm, share = np.empty(nodes), np.empty(nodes)
+        self._gradient(nodes, m, field.ctypes.data, field.strides[0] // field.itemsize,
+                       weights.ctypes.data, t.ctypes.data, norm.ctypes.data,
+                       share.ctypes.data)
+        return share, norm
+
+    def column_extremes(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`columns.column_extremes`' numbers of ``values`` (rows, each contiguous, at least
+        one): the least, the greatest and the largest magnitude of each column."""
+        rows, m = values.shape
+        low, high = np.empty(m), np.empty(m)
+        self._extremes(rows, m, values.ctypes.data, values.strides[0] // values.itemsize,
+                       low.ctypes.data, high.ctypes.data)
+        return low, high, np.maximum(np.abs(low), np.abs(high))
+
+    @staticmethod
+    def table_readable(values: np.ndarray) -> bool:
+        """Whether a table (rows, each contiguous) is read as it is: float64, 2-d, a row."""
+        return values.dtype == np.float64 and values.ndim == 2 and values.shape[0] > 0 and \
+            values.shape[1] > 0 and values.strides[1] == values.itemsize and \
+            values.strides[0] % values.itemsize == 0
 
     @staticmethod
     def rows_readable(*arrays) -> bool:

@@ -244,3 +244,25 @@ def test_the_compiled_scan_is_numpys(check_kernel, rows, d, seed, drift_at, lost
             np.testing.assert_array_equal(compiled_value, numpy_value)
         else:
             assert compiled_value == numpy_value
+
+
+@pytest.mark.parametrize("name, overrides", [("paper_pendulum", {"t_end": 300.0}),
+                                             ("kepler", {}), ("henon_heiles", {"t_end": 60.0})])
+def test_the_compiled_passes_change_no_figure(check_kernel, monkeypatch, name, overrides):
+    """The check of a march through the compiled passes (``exact/kernel.py``: the reference
+    read at the nodes, its claim, the scan, the steps' figures, the energy scale, the
+    extremes) reports what numpy's passes report, to the bit: every figure of the verdict and
+    the local error of every step."""
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+
+    def run():
+        return march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0, params=config.params)
+    run()  # the early verdict's kept looks: the same for both
+    monkeypatch.setattr(AdaptiveFlow, "kernel", lambda self: check_kernel)
+    compiled = run()
+    monkeypatch.setattr(AdaptiveFlow, "kernel", lambda self: None)
+    plain = run()
+    assert compiled.verdict.as_dict() == plain.verdict.as_dict()
+    np.testing.assert_array_equal(compiled.local_error, plain.local_error)
