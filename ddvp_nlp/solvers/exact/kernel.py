@@ -14,11 +14,11 @@ every node, and on Henon-Heiles (9 650 nodes and 2 x 2 865 samples of the claim)
 alone was 1.4 ms of a check of 4 ms, for a march of 4.9 ms. One loop in C reads each row once.
 
 The same numbers to the bit: each value is the same sequence of IEEE operations as numpy's
-(``x = (s - t_old) / h``, Horner alternating ``x`` and ``1 - x``, ``+ w_old``; ``|z - state| /
-S`` and its maximum, NaN propagating; a row's squares summed column after column), compiled without contraction to FMA
-(``compiler.COMPILE_FLAGS``); the step holding a time is numpy's ``searchsorted(...,
-side="right") - 1`` clipped to the steps; minima, maxima and the first largest are exact
-whatever the order (``tests/library/exact/test_kernel.py``,
+(``x = (s - t_old) / h``, Horner alternating ``x`` and ``1 - x``, ``+ w_old``; ``|z - state|
+/ S`` and its maximum, NaN propagating; a row's squares summed column after column), compiled
+without contraction to FMA (``compiler.COMPILE_FLAGS``); the step holding a time is numpy's
+``searchsorted(..., side="right") - 1`` clipped to the steps; minima, maxima and the first
+largest are exact whatever the order (``tests/library/exact/test_kernel.py`` and
 ``tests/library/accuracy/test_check_cost.py`` compare the two). Passes whose work is a
 division per entry (the steps' local figures) stay numpy's: its divisions run in vector
 registers, and a scalar loop in C measured no faster.
