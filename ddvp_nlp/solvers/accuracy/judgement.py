@@ -85,6 +85,7 @@ from ..columns import (
     row_norm,
 )
 from ..exact.flow import exact_flow
+from ..exact.kernel import kernel as check_kernel
 from ..exact.reference import FACTOR, FIRST_SLOTS, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
 from ..options import EXACT_TOLERANCE, Tolerance
@@ -377,12 +378,18 @@ class Judgement:
 
     def flow(self):
         """The exact flow (``exact/flow.py``), compiled once per system."""
-        return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+        self._flow = exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+        return self._flow
+
+    _flow = None  # the exact flow, once asked for
 
     def kernel(self):
-        """The check's compiled passes (``exact/kernel.py``) once the exact flow is compiled,
-        else ``None`` (numpy, the same numbers)."""
-        return self.flow().kernel()
+        """The check's compiled passes (``exact/kernel.py``): loaded if in the cache, built
+        once the exact flow this check asked for is compiled (its rent paid), else ``None``
+        (numpy, the same numbers). Never builds the flow itself (an early verdict, a check
+        against an exact solution need none)."""
+        found = check_kernel(self.compiler, self.cache_dir)
+        return found if found is not None or self._flow is None else self._flow.kernel()
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
@@ -484,17 +491,60 @@ class Judgement:
     # -- the steps ----------------------------------------------------------------------------
     def _local(self, t, z, scale, look):
         """The local error test: ``|z_{k+1} - Phi_{tau_k}(z_k)|_i <= rtol S_i (+ atol)`` for every
-        step (`step_errors`). Returns the first failure (or None), ``|d_k|_inf`` and the largest
-        ``max_i |d_k,i| / S_i``."""
+        step (`screened_errors`). Returns the first failure (or None), ``|d_k|_inf`` and the
+        largest ``max_i |d_k,i| / S_i``."""
         tol = self.tolerance
-        local, relative, ratio = self.step_errors(t, z, scale, look)
+        local, relative_max, steps, relative, ratio = self.screened_errors(t, z, scale, look)
         bad = np.flatnonzero(~(ratio <= 1.0))
         failure = None
         if bad.size:
-            k = int(bad[0])
+            k = int(steps[bad[0]])
             failure = {"step": k, "t": float(t[k]), "test": "local error",
-                       "value": float(relative[k]), "limit": tol.rtol}
-        return failure, local, float(np.max(relative, initial=0.0))
+                       "value": float(relative[bad[0]]), "limit": tol.rtol}
+        return failure, local, relative_max
+
+    def screened_errors(self, t, z, scale, look=None):
+        """`step_errors` as its callers read it: ``(local, relative_max, steps, relative,
+        ratio)``, ``local`` every step's ``|d_k|_inf``, ``relative_max`` the largest
+        ``max_i |d_k,i| / S_i`` and ``relative``, ``ratio`` those of the ``steps`` (indices)
+        whose ratio may pass ``CANDIDATE`` times the bound; every other step's ratio is at
+        most ``CANDIDATE`` (it passes any test against a bound at or above it). With the
+        compiled pass (``exact/kernel.py``) the screen is read without a division per entry:
+        ``|d| <= CANDIDATE * bound`` (a step past it is measured as `step_errors` measures
+        it), and the largest ratio to ``S`` is the largest column maximum over ``S``
+        (rounding is monotone: the same number, whichever order); the same figures."""
+        kernel = self.kernel() if look is not None else None
+        if kernel is None or not kernel.table_readable(look[0]):
+            local, relative, ratio = self.step_errors(t, z, scale, look)
+            return local, float(np.max(relative, initial=0.0)), np.arange(ratio.size), \
+                relative, ratio
+        tol = self.tolerance
+        limit = tol.rtol * scale + (tol.atol or 0.0)
+        # a step within it has ratio <= CANDIDATE (one ulp below: never a step past it)
+        local, colmax, steps = kernel.screen_steps(look[0], np.nextafter(CANDIDATE * limit, 0))
+        d = np.abs(look[0][steps])
+        with np.errstate(invalid="ignore"):
+            relative, ratio = row_max_ratio(d, scale), row_max_ratio(d, limit)
+        todo = np.flatnonzero(~(ratio <= CANDIDATE))
+        if todo.size:  # past the screen: against the exact flow, as `step_differences`
+            k = steps[todo]
+            flows = short_flows(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+            phi, _, _ = flows(t[k], z[k], t[k + 1] - t[k], self.theta,
+                              REFERENCE_SHARE * limit)
+            d = np.abs(z[k + 1] - phi)
+            with np.errstate(invalid="ignore"):
+                local[k] = row_max(d)
+                relative[todo] = row_max_ratio(d, scale)
+                ratio[todo] = row_max_ratio(d, limit)
+        relative_max = float(np.max(np.concatenate([colmax / scale, relative]), initial=0.0))
+        return local, relative_max, steps, relative, ratio
+
+    def column_extremes(self, values):
+        """`columns.column_extremes` of a table, in one compiled pass where there is one."""
+        kernel = self.kernel()
+        if kernel is not None and kernel.table_readable(values):
+            return kernel.column_extremes(values)
+        return column_extremes(values)
 
     def step_errors(self, t, z, scale, look=None):
         """Every step's local error against the exact flow (``exact/short_flows.py``, its own

@@ -226,6 +226,37 @@ void column_extremes(long rows, long m, const double *restrict values, long stri
     }
   }
 }
+
+/* The RK4 screen's differences d of each step (steps x m, row stride), read without a
+   division: local[k] = max_j |d_kj| (columns.row_max's numbers, NaN if any is); flag[k] = 1
+   where some |d_kj| is not <= bound_j (a NaN too), else 0; colmax_j the largest |d_kj| over
+   the unflagged steps (0 if none). Returns the number of flagged steps. */
+long screen_steps(long steps, long m, const double *restrict d, long stride,
+                  const double *restrict bound, double *restrict local,
+                  double *restrict colmax, unsigned char *restrict flag) {
+  long flagged = 0;
+  for (long j = 0; j < m; ++j) colmax[j] = 0.0;
+  for (long k = 0; k < steps; ++k) {
+    const double *row = d + k * stride;
+    double top = fabs(row[0]);
+    int nan = top != top, over = !(top <= bound[0]);
+    for (long j = 1; j < m; ++j) {
+      double v = fabs(row[j]);
+      nan |= v != v;
+      over |= !(v <= bound[j]);
+      top = v > top ? v : top;
+    }
+    local[k] = nan ? NAN : top;
+    flag[k] = (unsigned char)over;
+    flagged += over;
+    if (!over)
+      for (long j = 0; j < m; ++j) {
+        double v = fabs(row[j]);
+        colmax[j] = v > colmax[j] ? v : colmax[j];
+      }
+  }
+  return flagged;
+}
 """
 
 _LOADED: dict = {}  # (compiler, folder) -> the kernel, or None (not in the cache, or failed)
@@ -252,6 +283,9 @@ class CheckKernel:
         self._claim.argtypes = [size, pointer, size, pointer, ctypes.c_double, *run, *run,
                                 pointer]
         self._claim.restype = None
+        self._screen = lib.screen_steps
+        self._screen.argtypes = [size, size, pointer, size, pointer, pointer, pointer, pointer]
+        self._screen.restype = size
         self._gradient = lib.gradient_sizes
         self._gradient.argtypes = [size, size, pointer, size, pointer, pointer, pointer,
                                    pointer]
@@ -317,6 +351,20 @@ class CheckKernel:
         """Whether the kernel reads ``run`` (`Trajectory`) as it is: dense, with a step."""
         return run.F is not None and run.steps > 0 and \
             self.readable(run.t_old, run.h, run.w_old, run.F)
+
+    def screen_steps(self, d: np.ndarray, bound: np.ndarray):
+        """``(local, colmax, flagged)`` of the steps' screen differences ``d`` (rows, each
+        contiguous): ``max_j |d_kj|`` of each step (``columns.row_max``'s numbers), the
+        largest ``|d_kj|`` of each column over the steps with every ``|d_kj| <= bound_j``, and
+        the indices of the others (a NaN among them)."""
+        steps, m = d.shape
+        bound = np.ascontiguousarray(np.broadcast_to(bound, (m,)), float)
+        local, colmax = np.empty(steps), np.empty(m)
+        flag = np.empty(steps, dtype=np.uint8)
+        flagged = self._screen(steps, m, d.ctypes.data, d.strides[0] // d.itemsize,
+                               bound.ctypes.data, local.ctypes.data, colmax.ctypes.data,
+                               flag.ctypes.data)
+        return local, colmax, (np.flatnonzero(flag) if flagged else np.zeros(0, np.intp))
 
     def gradient_sizes(self, t: np.ndarray, field: np.ndarray, weights: np.ndarray):
         """``(share, norm)``: each node's share of the time and ``|field * weights|_2``

@@ -246,23 +246,71 @@ def test_the_compiled_scan_is_numpys(check_kernel, rows, d, seed, drift_at, lost
             assert compiled_value == numpy_value
 
 
-@pytest.mark.parametrize("name, overrides", [("paper_pendulum", {"t_end": 300.0}),
-                                             ("kepler", {}), ("henon_heiles", {"t_end": 60.0})])
-def test_the_compiled_passes_change_no_figure(check_kernel, monkeypatch, name, overrides):
+@pytest.mark.parametrize("name, overrides, stop", [
+    ("paper_pendulum", {"t_end": 300.0}, True), ("kepler", {}, True),
+    ("henon_heiles", {"t_end": 60.0}, True),
+    # wrong from its first step: the early verdict stops it, or (not stopping) the final
+    # check finds the local error past the screen, against the exact flow
+    ("kepler", {"e": 0.95, "tau0": 0.01, "t_end": 4.0}, True),
+    ("kepler", {"e": 0.95, "tau0": 0.01, "t_end": 4.0}, False)])
+def test_the_compiled_passes_change_no_figure(check_kernel, monkeypatch, name, overrides,
+                                              stop):
     """The check of a march through the compiled passes (``exact/kernel.py``: the reference
-    read at the nodes, its claim, the scan, the steps' figures, the energy scale, the
-    extremes) reports what numpy's passes report, to the bit: every figure of the verdict and
-    the local error of every step."""
+    read at the nodes, its claim, the scan, the screen read without divisions, the energy
+    scale, the extremes) reports what numpy's passes report, to the bit: the status and
+    message, every figure of the verdict and the local error of every step."""
+    from ddvp_nlp import Tolerance
+
     scene = load_scene(name)
     config = scene.resolve(overrides)
 
     def run():
         return march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
-                     tau0=config.tau0, params=config.params)
+                     tau0=config.tau0, params=config.params, accuracy=Tolerance(stop=stop))
     run()  # the early verdict's kept looks: the same for both
-    monkeypatch.setattr(AdaptiveFlow, "kernel", lambda self: check_kernel)
-    compiled = run()
-    monkeypatch.setattr(AdaptiveFlow, "kernel", lambda self: None)
-    plain = run()
+    found = []
+    for kernel in (check_kernel, None):
+        monkeypatch.setattr(AdaptiveFlow, "kernel", lambda self, kernel=kernel: kernel)
+        monkeypatch.setattr(judgement.Judgement, "kernel", lambda self, kernel=kernel: kernel)
+        found.append(run())
+    compiled, plain = found
+    assert (compiled.status, compiled.message) == (plain.status, plain.message)
     assert compiled.verdict.as_dict() == plain.verdict.as_dict()
     np.testing.assert_array_equal(compiled.local_error, plain.local_error)
+    if overrides.get("e") == 0.95:
+        assert compiled.verdict.inaccurate
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_the_screen_read_without_divisions_is_step_errors(check_kernel, monkeypatch, seed):
+    """`Judgement.screened_errors` (the compiled screen: ``|d| <= CANDIDATE * bound`` without
+    a division) gives `step_errors`' figures where its callers read them: every step's local
+    error, the largest relative one, and the ratio and relative error of every step whose
+    ratio may pass ``CANDIDATE``; every other step's ratio is at most ``CANDIDATE``. Screens
+    drawn around the bound, NaN among them (those steps go to the exact flow)."""
+    scene = load_scene("harmonic")
+    config = scene.resolve({"t_end": 5.0})
+    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0, params=config.params, accuracy=None)
+    t, z = solution.t, np.hstack([solution.q, solution.p])
+    rng = np.random.default_rng(seed)
+    check = judgement.Judgement(scene.system, scene.system.parameter_vector(config.params),
+                                judgement.Tolerance(), compiler="auto")
+    scale = column_span(z) * rng.uniform(0.5, 2.0, z.shape[1])
+    limit = check.tolerance.rtol * scale
+    d = limit * judgement.CANDIDATE * rng.choice([0.5, 1.0, np.nextafter(1.0, 2.0), 1.1, 3.0],
+                                                 size=(t.size - 1, z.shape[1]))
+    d *= rng.choice([-1.0, 1.0], size=d.shape)
+    d[rng.integers(d.shape[0], size=3), rng.integers(d.shape[1], size=3)] = np.nan
+    look = (d, None, None)
+    monkeypatch.setattr(judgement.Judgement, "kernel", lambda self: None)
+    local, relative, ratio = check.step_errors(t, z, scale, look)
+    monkeypatch.setattr(judgement.Judgement, "kernel", lambda self: check_kernel)
+    local_c, relative_max, steps, relative_c, ratio_c = check.screened_errors(t, z, scale, look)
+    np.testing.assert_array_equal(local_c, local)
+    assert relative_max == float(np.max(relative, initial=0.0))
+    np.testing.assert_array_equal(ratio_c, ratio[steps])
+    np.testing.assert_array_equal(relative_c, relative[steps])
+    others = np.setdiff1d(np.arange(ratio.size), steps)
+    assert np.all(ratio[others] <= judgement.CANDIDATE)
+    assert 0 < steps.size < ratio.size
