@@ -34,6 +34,7 @@ numpy, which gives the same numbers.
 from __future__ import annotations
 
 import ctypes
+import os
 import threading
 import warnings
 
@@ -257,10 +258,44 @@ long screen_steps(long steps, long m, const double *restrict d, long stride,
   }
   return flagged;
 }
+
+/* The claim at each of the n times from the running envelope at the m samples (increasing
+   in the run's direction): SAFETY * max(running[i], rtol) at the first sample i at or after
+   the time (numpy's searchsorted(keys, times, side="left") clipped to the samples, keys and
+   times multiplied by the direction; a NaN time after every sample), as Reference.at. */
+void claim_at(long n, const double *times, double direction, long m, const double *samples,
+              const double *running, double safety, double rtol, double *claim) {
+  long i = 0;  /* the sample of the time before: increasing times find theirs a few on */
+  for (long k = 0; k < n; ++k) {
+    double key = direction * times[k];
+    long at = m;
+    if (key == key) {
+      long lo, hi;
+      if (i < m && !(direction * samples[i] < key)) {  /* at sample i or before it */
+        lo = (i > 0 && direction * samples[i - 1] < key) ? i : 0;
+        hi = i;
+      } else {  /* past sample i (or anywhere): a few samples on, else bisection */
+        lo = i < m ? i + 1 : 0;
+        hi = m;
+        long ahead = lo + 8 < m ? lo + 8 : m;
+        while (lo < ahead && direction * samples[lo] < key) ++lo;
+        if (lo < ahead) hi = lo;
+      }
+      while (lo < hi) {
+        long mid = lo + (hi - lo) / 2;
+        if (direction * samples[mid] < key) lo = mid + 1; else hi = mid;
+      }
+      at = i = lo;
+    }
+    double r = running[at < m ? at : m - 1];
+    claim[k] = safety * ((r >= rtol || r != r) ? r : rtol);
+  }
+}
 """
 
 _LOADED: dict = {}  # (compiler, folder) -> the kernel, or None (not in the cache, or failed)
 _FAILED: set = set()  # (compiler, folder) whose build failed: not tried again
+_RESOLVED: dict = {}  # the arguments of `kernel` (and the environment) -> (compiler, folder)
 _LOCK = threading.Lock()
 
 
@@ -283,6 +318,10 @@ class CheckKernel:
         self._claim.argtypes = [size, pointer, size, pointer, ctypes.c_double, *run, *run,
                                 pointer]
         self._claim.restype = None
+        self._claim_at = lib.claim_at
+        self._claim_at.argtypes = [size, pointer, ctypes.c_double, size, pointer, pointer,
+                                   ctypes.c_double, ctypes.c_double, pointer]
+        self._claim_at.restype = None
         self._screen = lib.screen_steps
         self._screen.argtypes = [size, size, pointer, size, pointer, pointer, pointer, pointer]
         self._screen.restype = size
@@ -338,6 +377,19 @@ class CheckKernel:
         self._claim(samples.size, samples.ctypes.data, fine.d, scale.ctypes.data,
                     float(floor), *self._run(fine), *self._run(coarse), running.ctypes.data)
         return running
+
+    def claim_at(self, times: np.ndarray, forward: bool, samples: np.ndarray,
+                 running: np.ndarray, safety: float, rtol: float) -> np.ndarray:
+        """``safety * max(running[i], rtol)`` at the first sample ``i`` at or after each time
+        (``Reference.at``'s numbers: ``searchsorted(..., side="left")`` clipped to the
+        samples, in the run's direction); ``samples`` and ``running`` C-ordered, at least
+        one."""
+        times = np.ascontiguousarray(times, float)
+        claim = np.empty(times.size)
+        self._claim_at(times.size, times.ctypes.data, 1.0 if forward else -1.0, samples.size,
+                       samples.ctypes.data, running.ctypes.data, float(safety), float(rtol),
+                       claim.ctypes.data)
+        return claim
 
     @staticmethod
     def _run(run) -> tuple:
@@ -416,11 +468,15 @@ def kernel(compiler: str | None = "auto", cache_dir=None, *,
     """The compiled kernel, loaded from the cache, or built there if ``build`` (the caller's
     work has paid for it: module docstring); ``None`` if not in the cache and not to be
     built, without a compiler, or if the build fails (one warning): numpy then."""
-    found = find_compiler(compiler) if compiler is not None else None
+    asked = (compiler, None if cache_dir is None else str(cache_dir),
+             os.environ.get("DDVP_NLP_CACHE"), os.environ.get("CC"), os.environ.get("PATH"))
+    key = _RESOLVED.get(asked)
+    if key is None:  # the compiler and the folder, looked up once (10 us a call: paths)
+        found = find_compiler(compiler) if compiler is not None else None
+        key = _RESOLVED[asked] = (found, None if found is None else str(cache_folder(cache_dir)))
+    found, folder = key
     if found is None:
         return None
-    folder = cache_folder(cache_dir)
-    key = (found, str(folder))
     loaded = _LOADED.get(key)
     if loaded is not None or key in _FAILED or (key in _LOADED and not build):
         return loaded

@@ -83,10 +83,14 @@ class Reference:
                     difference = row_max_ratio(np.abs(self.coarse.z(samples) -
                                                       self.fine.z(samples)), scale)
                     running = np.maximum.accumulate(np.maximum(difference, self.floor))
-                keys = samples if forward else -samples
-                index = np.searchsorted(keys, times if forward else -times, side="left")
-                np.clip(index, 0, samples.size - 1, out=index)
-                claim = SAFETY * np.maximum(np.take(running, index), self.rtol)
+                if kernel is not None:
+                    claim = kernel.claim_at(times, forward, samples, running, SAFETY,
+                                            self.rtol)
+                else:
+                    keys = samples if forward else -samples
+                    index = np.searchsorted(keys, times if forward else -times, side="left")
+                    np.clip(index, 0, samples.size - 1, out=index)
+                    claim = SAFETY * np.maximum(np.take(running, index), self.rtol)
         self.end_envelope = float(running[-1]) if running.size else self.floor
         # past where either run stopped (a failed run): no claim
         reached = min(self.fine.t_reached, self.coarse.t_reached) if forward else \

@@ -59,3 +59,25 @@ def test_kernel_is_built_only_when_paid_for(tmp_path):
     assert check.kernel(None, tmp_path, build=True) is None  # no compiler: numpy
     assert check.kernel("auto", tmp_path) is None  # not in this cache, not paid for: not built
     assert not list(tmp_path.glob("check_*.so"))
+
+
+def test_the_claim_at_given_times_is_numpys(compiled):
+    """The claim read at the nodes from the envelope at the samples (``Reference.at``):
+    numpy's ``searchsorted(side="left")``, clipped, in either direction, times in any order,
+    before, between, on and after the samples, NaN among them."""
+    rng = np.random.default_rng(3)
+    samples = np.sort(rng.uniform(0.0, 10.0, 300))
+    running = np.maximum.accumulate(rng.uniform(0.0, 1.0, samples.size))
+    running[200:210] = np.nan
+    sorted_times = np.sort(np.concatenate([rng.uniform(-1.0, 11.0, 2000), samples[::7]]))
+    for times in (sorted_times, sorted_times[::-1], rng.permutation(sorted_times),
+                  np.array([np.nan, 5.0, np.nan, -3.0, 20.0, 5.0])):
+        for forward in (True, False):
+            keys = samples if forward else -samples[::-1]
+            envelope = running if forward else running[::-1].copy()
+            index = np.searchsorted(keys, times if forward else -times, side="left")
+            np.clip(index, 0, keys.size - 1, out=index)
+            expected = 2.0 * np.maximum(np.take(envelope, index), 0.3)
+            got = compiled.claim_at(times, forward, samples if forward else samples[::-1]
+                                    .copy(), envelope, 2.0, 0.3)
+            assert np.array_equal(got, expected, equal_nan=True)
