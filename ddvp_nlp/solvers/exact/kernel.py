@@ -295,7 +295,7 @@ void claim_at(long n, const double *times, double direction, long m, const doubl
 
 _LOADED: dict = {}  # (compiler, folder) -> the kernel, or None (not in the cache, or failed)
 _FAILED: set = set()  # (compiler, folder) whose build failed: not tried again
-_RESOLVED: dict = {}  # the arguments of `kernel` (and the environment) -> (compiler, folder)
+_RESOLVED: dict = {}  # the arguments of `kernel` (and the cache's variable) -> (compiler, folder)
 _LOCK = threading.Lock()
 
 
@@ -468,8 +468,8 @@ def kernel(compiler: str | None = "auto", cache_dir=None, *,
     """The compiled kernel, loaded from the cache, or built there if ``build`` (the caller's
     work has paid for it: module docstring); ``None`` if not in the cache and not to be
     built, without a compiler, or if the build fails (one warning): numpy then."""
-    asked = (compiler, None if cache_dir is None else str(cache_dir),
-             os.environ.get("DDVP_NLP_CACHE"), os.environ.get("CC"), os.environ.get("PATH"))
+    asked = (compiler, cache_dir if cache_dir is not None else
+             os.environ.get("DDVP_NLP_CACHE"))
     key = _RESOLVED.get(asked)
     if key is None:  # the compiler and the folder, looked up once (10 us a call: paths)
         found = find_compiler(compiler) if compiler is not None else None
