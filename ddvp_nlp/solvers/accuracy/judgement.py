@@ -737,6 +737,11 @@ class Scan:
                 if stop == 0:
                     break
                 seen = column_extremes(states[:stop])  # finite: the rows before a lost one
+            if over_at is None:
+                # no row over: the grown scales (never smaller, `motion_scales`) make every
+                # error smaller or equal (rounding is monotone), so another pass finds the
+                # same rows and the same extremes
+                break
             new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
                                 np.maximum(self.largest, seen[2]), self.n, self.extent.free,
                                 self.extent.turns)
