@@ -40,7 +40,13 @@ import warnings
 
 import numpy as np
 
+from ..columns import column_extremes
 from ..compiler import CompileUnavailable, cache_folder, compile_source, find_compiler
+
+# Columns from which the compiled pass over a table's columns is the faster: numpy reduces a
+# column or two in vector registers (20 151 x 2: 0.03 ms against the loop's 0.07), a dozen in
+# as many strided passes (99 899 x 12: 2.6 ms against 0.8-1.0).
+FEW_COLUMNS = 8
 
 SOURCE = r"""
 #include <math.h>
@@ -217,15 +223,19 @@ void gradient_sizes(long nodes, long m, const double *restrict field, long strid
    min and max (NaN if any is). */
 void column_extremes(long rows, long m, const double *restrict values, long stride,
                      double *restrict low, double *restrict high) {
-  for (long j = 0; j < m; ++j) { low[j] = values[j]; high[j] = values[j]; }
+  int nan[m];
+  for (long j = 0; j < m; ++j) { low[j] = values[j]; high[j] = values[j]; nan[j] = 0; }
   for (long k = 1; k < rows; ++k) {
     const double *row = values + k * stride;
-    for (long j = 0; j < m; ++j) {
+    for (long j = 0; j < m; ++j) {  /* no branch on the data */
       double v = row[j];
-      low[j] = (v < low[j] || v != v) ? v : low[j];
-      high[j] = (v > high[j] || v != v) ? v : high[j];
+      nan[j] |= v != v;
+      low[j] = v < low[j] ? v : low[j];
+      high[j] = v > high[j] ? v : high[j];
     }
   }
+  for (long j = 0; j < m; ++j)
+    if (nan[j] || low[j] != low[j]) { low[j] = NAN; high[j] = NAN; }
 }
 
 /* The RK4 screen's differences d of each step (steps x m, row stride), read without a
@@ -434,6 +444,8 @@ class CheckKernel:
         """`columns.column_extremes`' numbers of ``values`` (rows, each contiguous, at least
         one): the least, the greatest and the largest magnitude of each column."""
         rows, m = values.shape
+        if m < FEW_COLUMNS:  # numpy's reductions of a few columns are the faster
+            return column_extremes(values)
         low, high = np.empty(m), np.empty(m)
         self._extremes(rows, m, values.ctypes.data, values.strides[0] // values.itemsize,
                        low.ctypes.data, high.ctypes.data)
