@@ -522,6 +522,9 @@ class Judgement:
         limit = tol.rtol * scale + (tol.atol or 0.0)
         # a step within it has ratio <= CANDIDATE (one ulp below: never a step past it)
         local, colmax, steps = kernel.screen_steps(look[0], np.nextafter(CANDIDATE * limit, 0))
+        if not steps.size:  # every step within the screen's bound (the usual case)
+            return local, float(np.max(colmax / scale, initial=0.0)), steps, \
+                np.zeros(0), np.zeros(0)
         d = np.abs(look[0][steps])
         with np.errstate(invalid="ignore"):
             relative, ratio = row_max_ratio(d, scale), row_max_ratio(d, limit)
