@@ -98,6 +98,7 @@ ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-square
 BLOCK_FLOOR = 0.1
 # ... and at least this fraction of its own magnitude (a block that does not move at all).
 ROUND_OFF = 1e-12
+TINY = np.finfo(float).tiny  # the least a scale is (a constant: np.finfo took 2-5 us a call)
 # Steps whose first look is below this fraction of the local bound pass without a second look.
 CANDIDATE = 0.5
 # The reference's own error may use this fraction of global_tol (and the short flows' of the
@@ -185,9 +186,9 @@ def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int
     scale = span.copy()
     feeding = span if free is None else np.where(free, 0.0, span)
     for block in (slice(0, n), slice(n, 2 * n)):
-        scale[block] = np.maximum(scale[block], BLOCK_FLOOR * np.max(feeding[block]))
-    scale = np.maximum(scale, ROUND_OFF * np.asarray(largest, float))
-    return np.maximum(scale, np.finfo(float).tiny)
+        np.maximum(scale[block], BLOCK_FLOOR * feeding[block].max(), out=scale[block])
+    np.maximum(scale, ROUND_OFF * np.asarray(largest, float), out=scale)
+    return np.maximum(scale, TINY, out=scale)
 
 
 def free_components(system) -> np.ndarray | None:
