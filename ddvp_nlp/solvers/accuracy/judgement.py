@@ -379,18 +379,12 @@ class Judgement:
 
     def flow(self):
         """The exact flow (``exact/flow.py``), compiled once per system."""
-        self._flow = exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
-        return self._flow
-
-    _flow = None  # the exact flow, once asked for
+        self.asked_flow = exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+        return self.asked_flow
 
     def kernel(self):
-        """The check's compiled passes (``exact/kernel.py``): loaded if in the cache, built
-        once the exact flow this check asked for is compiled (its rent paid), else ``None``
-        (numpy, the same numbers). Never builds the flow itself (an early verdict, a check
-        against an exact solution need none)."""
-        found = check_kernel(self.compiler, self.cache_dir)
-        return found if found is not None or self._flow is None else self._flow.kernel()
+        """`check_passes` of this check."""
+        return check_passes(self)
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
@@ -422,7 +416,7 @@ class Judgement:
         return report, local_error
 
     stop = None  # report(stop=...): asked between the parts of a check
-    small = None  # the flow of the reference's first piece (`first_flow`), once asked for
+    small = asked_flow = None  # the first piece's flow (`first_flow`), the flow, once asked
 
     def _poll(self) -> None:
         if self.stop is not None and self.stop():
@@ -495,7 +489,7 @@ class Judgement:
         step (`screened_errors`). Returns the first failure (or None), ``|d_k|_inf`` and the
         largest ``max_i |d_k,i| / S_i``."""
         tol = self.tolerance
-        local, relative_max, steps, relative, ratio = self.screened_errors(t, z, scale, look)
+        local, relative_max, steps, relative, ratio = screened_errors(self, t, z, scale, look)
         bad = np.flatnonzero(~(ratio <= 1.0))
         failure = None
         if bad.size:
@@ -504,89 +498,13 @@ class Judgement:
                        "value": float(relative[bad[0]]), "limit": tol.rtol}
         return failure, local, relative_max
 
-    def screened_errors(self, t, z, scale, look=None):
-        """`step_errors` as its callers read it: ``(local, relative_max, steps, relative,
-        ratio)``, ``local`` every step's ``|d_k|_inf``, ``relative_max`` the largest
-        ``max_i |d_k,i| / S_i`` and ``relative``, ``ratio`` those of the ``steps`` (indices)
-        whose ratio may pass ``CANDIDATE`` times the bound; every other step's ratio is at
-        most ``CANDIDATE`` (it passes any test against a bound at or above it). With the
-        compiled pass (``exact/kernel.py``) the screen is read without a division per entry:
-        ``|d| <= CANDIDATE * bound`` (a step past it is measured as `step_errors` measures
-        it), and the largest ratio to ``S`` is the largest column maximum over ``S``
-        (rounding is monotone: the same number, whichever order); the same figures."""
-        kernel = self.kernel() if look is not None else None
-        if kernel is None or not kernel.table_readable(look[0]):
-            local, relative, ratio = self.step_errors(t, z, scale, look)
-            return local, float(np.max(relative, initial=0.0)), np.arange(ratio.size), \
-                relative, ratio
-        tol = self.tolerance
-        limit = tol.rtol * scale + (tol.atol or 0.0)
-        # a step within it has ratio <= CANDIDATE (one ulp below: never a step past it)
-        local, colmax, steps = kernel.screen_steps(look[0], np.nextafter(CANDIDATE * limit, 0))
-        if not steps.size:  # every step within the screen's bound (the usual case)
-            return local, float(np.max(colmax / scale, initial=0.0)), steps, \
-                np.zeros(0), np.zeros(0)
-        d = np.abs(look[0][steps])
-        with np.errstate(invalid="ignore"):
-            relative, ratio = row_max_ratio(d, scale), row_max_ratio(d, limit)
-        todo = np.flatnonzero(~(ratio <= CANDIDATE))
-        if todo.size:  # past the screen: against the exact flow, as `step_differences`
-            k = steps[todo]
-            flows = short_flows(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
-            phi, _, _ = flows(t[k], z[k], t[k + 1] - t[k], self.theta,
-                              REFERENCE_SHARE * limit)
-            d = np.abs(z[k + 1] - phi)
-            with np.errstate(invalid="ignore"):
-                local[k] = row_max(d)
-                relative[todo] = row_max_ratio(d, scale)
-                ratio[todo] = row_max_ratio(d, limit)
-        relative_max = float(np.max(np.concatenate([colmax / scale, relative]), initial=0.0))
-        return local, relative_max, steps, relative, ratio
-
-    def column_extremes(self, values):
-        """`columns.column_extremes` of a table, in one compiled pass where there is one."""
-        kernel = self.kernel()
-        if kernel is not None and kernel.table_readable(values):
-            return kernel.column_extremes(values)
-        return column_extremes(values)
-
     def step_errors(self, t, z, scale, look=None):
         """Every step's local error against the exact flow (``exact/short_flows.py``, its own
         error held below a tenth of the bound ``rtol S_i (+ atol)``): ``|d_k|_inf``,
         ``max_i |d_k,i| / S_i`` and ``max_i |d_k,i| / bound_i``. With a first look (a
         second-order march's RK4 screen, `NodeValues.first_look`), the steps whose screen is
         below ``CANDIDATE`` times the bound in every component pass without the exact flow."""
-        return self.step_differences(t, z, scale, look)[1:]
-
-    def step_differences(self, t, z, scale, look=None):
-        """`step_errors` and, first, ``|d_k,i|`` of every step and component (rows; the
-        screen's where it passed)."""
-        tol = self.tolerance
-        limit = tol.rtol * scale + (tol.atol or 0.0)
-        steps = t.size - 1
-        if look is not None:
-            d = np.abs(look[0])
-            d_all = d
-            local = row_max(d)
-            relative = row_max_ratio(d, scale)
-            ratio = row_max_ratio(d, limit)
-        else:
-            local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
-            d_all = np.full((steps, z.shape[1]), np.inf)
-        todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
-            np.arange(steps)
-        if todo.size:
-            flows = short_flows(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
-            phi, _, _ = flows(t[todo], z[todo], t[todo + 1] - t[todo], self.theta,
-                              REFERENCE_SHARE * limit)
-            d = np.abs(z[todo + 1] - phi)
-            d_all = d_all.copy() if look is not None else d_all
-            d_all[todo] = d
-            with np.errstate(invalid="ignore"):
-                local[todo] = row_max(d)
-                relative[todo] = row_max_ratio(d, scale)
-                ratio[todo] = row_max_ratio(d, limit)
-        return d_all, local, relative, ratio
+        return step_differences(self, t, z, scale, look)[1:]
 
     def energies(self, t, z, H, energy: float, level: Level | None, scale) -> dict:
         """The energy tests, relative to the energy scale: the level the first step sets
@@ -600,9 +518,7 @@ class Judgement:
         if level is not None:
             reference = H0
             if energy_varies(system):  # H of the exact motion at the level's own clock
-                # a few attempts: on the flow of the first piece where there is one (the
-                # same attempts, so the same state, as on the full flow; its 1024 slots cost
-                # a copy each)
+                # (on the first piece's flow where there is one: the same attempts)
                 run = (self.small or self.flow()).run(z[0], t[0], level.clock, self.theta,
                                                       rtol=LEVEL_RTOL, atol=LEVEL_RTOL * scale)
                 _, at_clock = self.values.at_nodes(np.array([level.clock]), run.z_end[None, :])
@@ -630,6 +546,95 @@ class Judgement:
                                  "test": "nodal energy drift", "value": float(drift[k]),
                                  "limit": tol.energy_tol})
         return {"figures": figures, "failures": failures}
+
+
+def check_passes(check: Judgement):
+    """The check's compiled passes (``exact/kernel.py``): loaded if in the cache, built once
+    the exact flow the check asked for is compiled (its rent paid), else ``None`` (numpy, the
+    same numbers). Never builds the flow itself (an early verdict, a check against an exact
+    solution need none)."""
+    found = check_kernel(check.compiler, check.cache_dir)
+    return found if found is not None or check.asked_flow is None else \
+        check.asked_flow.kernel()
+
+
+def step_differences(check: Judgement, t, z, scale, look=None):
+    """`Judgement.step_errors` and, first, ``|d_k,i|`` of every step and component (rows; the
+    screen's where it passed)."""
+    tol = check.tolerance
+    limit = tol.rtol * scale + (tol.atol or 0.0)
+    steps = t.size - 1
+    if look is not None:
+        d = np.abs(look[0])
+        d_all = d
+        local = row_max(d)
+        relative = row_max_ratio(d, scale)
+        ratio = row_max_ratio(d, limit)
+    else:
+        local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
+        d_all = np.full((steps, z.shape[1]), np.inf)
+    todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
+        np.arange(steps)
+    if todo.size:
+        flows = short_flows(check.system, compiler=check.compiler, cache_dir=check.cache_dir)
+        phi, _, _ = flows(t[todo], z[todo], t[todo + 1] - t[todo], check.theta,
+                          REFERENCE_SHARE * limit)
+        d = np.abs(z[todo + 1] - phi)
+        d_all = d_all.copy() if look is not None else d_all
+        d_all[todo] = d
+        with np.errstate(invalid="ignore"):
+            local[todo] = row_max(d)
+            relative[todo] = row_max_ratio(d, scale)
+            ratio[todo] = row_max_ratio(d, limit)
+    return d_all, local, relative, ratio
+
+
+def screened_errors(check: Judgement, t, z, scale, look=None):
+    """`Judgement.step_errors` as its callers read it: ``(local, relative_max, steps, relative,
+    ratio)``, ``local`` every step's ``|d_k|_inf``, ``relative_max`` the largest
+    ``max_i |d_k,i| / S_i`` and ``relative``, ``ratio`` those of the ``steps`` (indices)
+    whose ratio may pass ``CANDIDATE`` times the bound; every other step's ratio is at
+    most ``CANDIDATE`` (it passes any test against a bound at or above it). With the
+    compiled pass (``exact/kernel.py``) the screen is read without a division per entry:
+    ``|d| <= CANDIDATE * bound`` (a step past it is measured as `step_errors` measures
+    it), and the largest ratio to ``S`` is the largest column maximum over ``S``
+    (rounding is monotone: the same number, whichever order); the same figures."""
+    kernel = check.kernel() if look is not None else None
+    if kernel is None or not kernel.table_readable(look[0]):
+        local, relative, ratio = check.step_errors(t, z, scale, look)
+        return local, float(np.max(relative, initial=0.0)), np.arange(ratio.size), \
+            relative, ratio
+    tol = check.tolerance
+    limit = tol.rtol * scale + (tol.atol or 0.0)
+    # a step within it has ratio <= CANDIDATE (one ulp below: never a step past it)
+    local, colmax, steps = kernel.screen_steps(look[0], np.nextafter(CANDIDATE * limit, 0))
+    if not steps.size:  # every step within the screen's bound (the usual case)
+        return local, float(np.max(colmax / scale, initial=0.0)), steps, \
+            np.zeros(0), np.zeros(0)
+    d = np.abs(look[0][steps])
+    with np.errstate(invalid="ignore"):
+        relative, ratio = row_max_ratio(d, scale), row_max_ratio(d, limit)
+    todo = np.flatnonzero(~(ratio <= CANDIDATE))
+    if todo.size:  # past the screen: against the exact flow, as `step_differences`
+        k = steps[todo]
+        flows = short_flows(check.system, compiler=check.compiler, cache_dir=check.cache_dir)
+        phi, _, _ = flows(t[k], z[k], t[k + 1] - t[k], check.theta,
+                          REFERENCE_SHARE * limit)
+        d = np.abs(z[k + 1] - phi)
+        with np.errstate(invalid="ignore"):
+            local[k] = row_max(d)
+            relative[todo] = row_max_ratio(d, scale)
+            ratio[todo] = row_max_ratio(d, limit)
+    relative_max = float(np.max(np.concatenate([colmax / scale, relative]), initial=0.0))
+    return local, relative_max, steps, relative, ratio
+
+
+def table_extremes(check: Judgement, values):
+    """`columns.column_extremes` of a table, in one compiled pass where there is one."""
+    kernel = check.kernel()
+    if kernel is not None and kernel.table_readable(values):
+        return kernel.column_extremes(values)
+    return column_extremes(values)
 
 
 def energy_varies(system) -> bool:

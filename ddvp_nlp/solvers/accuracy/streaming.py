@@ -43,6 +43,7 @@ from .judgement import (
     energy_varies,
     finite_or_none,
     gradient_sizes,
+    step_differences,
     unjudged,
     verdict_report,
 )
@@ -101,7 +102,7 @@ class StreamingJudgement:
         scale = self.scan.scales()
         look = judge.values.first_look(t, z) if self.screen else None
         field, H = look[1:] if look is not None else judge.values.at_nodes(t, z)
-        d, local, _, ratio = judge.step_differences(t, z, scale, look)
+        d, local, _, ratio = step_differences(judge, t, z, scale, look)
         seen = np.max(d, axis=0)
         self.column_max = seen if self.column_max is None else np.fmax(self.column_max, seen)
         for k in np.flatnonzero(~(ratio <= 1.0))[:CANDIDATES - len(self.local_candidates)]:

@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 
 from ...solution import Status
-from ..accuracy.judgement import ADVICE, Judgement, motion_scales
+from ..accuracy.judgement import ADVICE, Judgement, motion_scales, screened_errors, table_extremes
 from ..compiler import buffered
 from ..dense import DenseField, EventMonitor
 
@@ -101,11 +101,11 @@ class EarlyVerdict(MarchMonitor):
             return None
         start, end = self.checked, min(count - 1, EARLY_STEPS)
         z = nodes.z[:count]
-        scale = motion_scales(*self.judge.column_extremes(z), z.shape[1] // 2)
+        scale = motion_scales(*table_extremes(self.judge, z), z.shape[1] // 2)
         t, z = nodes.t[start:end + 1], z[start:end + 1]
         # the steps alone: no node values at the window's last node
         look = self.judge.values.first_look(t, z, last=False) if self.screen else None
-        _, _, steps, relative, ratio = self.judge.screened_errors(t, z, scale, look)
+        _, _, steps, relative, ratio = screened_errors(self.judge, t, z, scale, look)
         self.checked = end
         over = np.flatnonzero(~(ratio <= EARLY_FACTOR))
         if not over.size:

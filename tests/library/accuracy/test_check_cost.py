@@ -283,7 +283,7 @@ def test_the_compiled_passes_change_no_figure(check_kernel, monkeypatch, name, o
 
 @pytest.mark.parametrize("seed", range(2))
 def test_the_screen_read_without_divisions_is_step_errors(check_kernel, monkeypatch, seed):
-    """`Judgement.screened_errors` (the compiled screen: ``|d| <= CANDIDATE * bound`` without
+    """`judgement.screened_errors` (the compiled screen: ``|d| <= CANDIDATE * bound`` without
     a division) gives `step_errors`' figures where its callers read them: every step's local
     error, the largest relative one, and the ratio and relative error of every step whose
     ratio may pass ``CANDIDATE``; every other step's ratio is at most ``CANDIDATE``. Screens
@@ -306,7 +306,8 @@ def test_the_screen_read_without_divisions_is_step_errors(check_kernel, monkeypa
     monkeypatch.setattr(judgement.Judgement, "kernel", lambda self: None)
     local, relative, ratio = check.step_errors(t, z, scale, look)
     monkeypatch.setattr(judgement.Judgement, "kernel", lambda self: check_kernel)
-    local_c, relative_max, steps, relative_c, ratio_c = check.screened_errors(t, z, scale, look)
+    local_c, relative_max, steps, relative_c, ratio_c = judgement.screened_errors(
+        check, t, z, scale, look)
     np.testing.assert_array_equal(local_c, local)
     assert relative_max == float(np.max(relative, initial=0.0))
     np.testing.assert_array_equal(ratio_c, ratio[steps])
