@@ -40,6 +40,11 @@ class Trajectory:
     # numbers)
     kernel: object = field(default=None, repr=False, compare=False)
 
+    def __getstate__(self) -> dict:
+        """Pickled without the compiled kernel (a library of this process): read with numpy
+        where it is unpickled, the same numbers."""
+        return {**self.__dict__, "kernel": None}
+
     @property
     def steps(self) -> int:
         return self.t_old.size

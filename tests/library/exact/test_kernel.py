@@ -81,3 +81,15 @@ def test_the_claim_at_given_times_is_numpys(compiled):
             got = compiled.claim_at(times, forward, samples if forward else samples[::-1]
                                     .copy(), envelope, 2.0, 0.3)
             assert np.array_equal(got, expected, equal_nan=True)
+
+
+def test_a_run_read_through_the_kernel_pickles(compiled):
+    """A run carrying the compiled kernel pickles without it (a library of this process) and
+    reads the same numbers after."""
+    import pickle
+
+    run = dataclasses.replace(_runs("kepler")[0], kernel=compiled)
+    again = pickle.loads(pickle.dumps(run))
+    assert again.kernel is None
+    times = np.linspace(run.t0, run.t_end, 101)
+    assert np.array_equal(again.z(times), run.z(times))
