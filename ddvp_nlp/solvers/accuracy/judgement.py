@@ -74,6 +74,7 @@ import numpy as np
 
 from ...cache import cached
 from ...solution import Status, Verdict
+from ..columns import WIDE as COLUMNS_WIDE
 from ..columns import (
     column_argmax,
     column_extremes,
@@ -84,6 +85,7 @@ from ..columns import (
     row_norm,
 )
 from ..exact.flow import exact_flow
+from ..exact.kernel import kernel as check_kernel
 from ..exact.reference import FACTOR, FIRST_SLOTS, FLOOR_RTOL, GrowingReference
 from ..exact.short_flows import short_flows
 from ..options import EXACT_TOLERANCE, Tolerance
@@ -96,6 +98,7 @@ ADVICE = ("try a smaller tau0, fixed steps (--scheme fixed), or the least-square
 BLOCK_FLOOR = 0.1
 # ... and at least this fraction of its own magnitude (a block that does not move at all).
 ROUND_OFF = 1e-12
+TINY = np.finfo(float).tiny  # the least a scale is (a constant: np.finfo took 2-5 us a call)
 # Steps whose first look is below this fraction of the local bound pass without a second look.
 CANDIDATE = 0.5
 # The reference's own error may use this fraction of global_tol (and the short flows' of the
@@ -183,9 +186,9 @@ def motion_scales(low: np.ndarray, high: np.ndarray, largest: np.ndarray, n: int
     scale = span.copy()
     feeding = span if free is None else np.where(free, 0.0, span)
     for block in (slice(0, n), slice(n, 2 * n)):
-        scale[block] = np.maximum(scale[block], BLOCK_FLOOR * np.max(feeding[block]))
-    scale = np.maximum(scale, ROUND_OFF * np.asarray(largest, float))
-    return np.maximum(scale, np.finfo(float).tiny)
+        np.maximum(scale[block], BLOCK_FLOOR * feeding[block].max(), out=scale[block])
+    np.maximum(scale, ROUND_OFF * np.asarray(largest, float), out=scale)
+    return np.maximum(scale, TINY, out=scale)
 
 
 def free_components(system) -> np.ndarray | None:
@@ -243,10 +246,12 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
     return turns if np.any(turns) else None
 
 
-def run_extent(values: NodeValues, n: int, t, z, free) -> Extent:
+def run_extent(values: NodeValues, n: int, t, z, free, kernel=None) -> Extent:
     """The `Extent` of a whole run's nodes with its winding angles (`winding_angles`), from one
-    pass over the nodes: every node's, whichever window is then measured."""
-    extremes = column_extremes(z)
+    pass over the nodes: every node's, whichever window is then measured (``kernel``: in one
+    compiled pass, ``exact/kernel.py``, the same numbers)."""
+    extremes = kernel.column_extremes(z) if kernel is not None and \
+        kernel.table_readable(z) else column_extremes(z)
     turns = winding_angles(values, n, t, z, free, span=extremes[1][:n] - extremes[0][:n])
     return Extent(z, free, turns, extremes=extremes)
 
@@ -281,11 +286,15 @@ def gradient_weights(scale: np.ndarray, n: int, free: np.ndarray | None = None) 
 
 
 def gradient_sizes(t: np.ndarray, field: np.ndarray, scale: np.ndarray, n: int,
-                   free: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   free: np.ndarray | None = None, kernel=None) -> tuple[np.ndarray, np.ndarray]:
     """``(weights, |S * grad H|)`` at the nodes: each node's share of the time (half of each
     step beside it) and how much ``H`` changes there when the state moves by ``S``
     (`gradient_weights`); `energy_scale` averages the one over the other, for a whole run or
-    window by window (``streaming.py``)."""
+    window by window (``streaming.py``). ``kernel``: the compiled pass (``exact/kernel.py``,
+    the same numbers; up to ``columns.WIDE`` columns, where ``row_norm`` sums in order)."""
+    if kernel is not None and field.shape[1] <= COLUMNS_WIDE and t.size == field.shape[0] \
+            and kernel.table_readable(field):
+        return kernel.gradient_sizes(t, field, gradient_weights(scale, n, free))
     norm = row_norm(field * gradient_weights(scale, n, free))
     weights = np.zeros(t.size)
     weights[:-1] += np.diff(t) / 2
@@ -294,7 +303,7 @@ def gradient_sizes(t: np.ndarray, field: np.ndarray, scale: np.ndarray, n: int,
 
 
 def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndarray,
-                 n: int, free: np.ndarray | None = None) -> float:
+                 n: int, free: np.ndarray | None = None, kernel=None) -> float:
     """``E_s``, the time average over the run of ``|S * grad H(z_k, t_k)|_2`` (from the vector
     field ``f = (H_p, -H_q)`` at the nodes, rows, and ``H`` there; `gradient_weights`): how
     much ``H`` changes when the state moves by the motion's own size ``S`` in each component,
@@ -302,7 +311,7 @@ def energy_scale(t: np.ndarray, field: np.ndarray, H: np.ndarray, scale: np.ndar
     units of ``S``) off the exact level set, so wherever the gradient is at most its average
     (somewhere it is) at least ``dE / E_s``: a displacement, free of units and of constants
     added to ``H``. At least ``ROUND_OFF`` times ``max |H|`` (a motion at rest)."""
-    weights, norm = gradient_sizes(t, field, scale, n, free)
+    weights, norm = gradient_sizes(t, field, scale, n, free, kernel)
     typical = float(np.sum(weights * norm) / np.sum(weights)) if t.size > 1 else \
         float(norm[0]) if norm.size else 0.0
     if not math.isfinite(typical):
@@ -370,7 +379,12 @@ class Judgement:
 
     def flow(self):
         """The exact flow (``exact/flow.py``), compiled once per system."""
-        return exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+        self.asked_flow = exact_flow(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
+        return self.asked_flow
+
+    def kernel(self):
+        """`check_passes` of this check."""
+        return check_passes(self)
 
     def report(self, t, z, *, level: Level | None = None, screen: bool = False,
                exact=None, stop=None) -> tuple[dict, np.ndarray]:
@@ -392,7 +406,7 @@ class Judgement:
         look = self.values.first_look(t, z) if screen else None
         self._poll()
         field, H = look[1:] if look is not None else self.values.at_nodes(t, z)
-        energy = energy_scale(t, field, H, scale, n, self.free)
+        energy = energy_scale(t, field, H, scale, n, self.free, self.kernel())
         local, local_error, local_max = self._local(t, z, scale, look)
         energies = self.energies(t, z, H, energy, level, scale)
         failures = [f for f in (local, *energies["failures"]) if f is not None]
@@ -402,6 +416,7 @@ class Judgement:
         return report, local_error
 
     stop = None  # report(stop=...): asked between the parts of a check
+    small = asked_flow = None  # the first piece's flow (`first_flow`), the flow, once asked
 
     def _poll(self) -> None:
         if self.stop is not None and self.stop():
@@ -429,17 +444,17 @@ class Judgement:
         ``t_drift`` and integrated one call past it (the paper's pendulum drifts at ``t = 2``
         of ``10^4``)."""
         tol = self.tolerance.global_tol
-        extent = run_extent(self.values, self.system.n, t, z, self.free)
+        extent = run_extent(self.values, self.system.n, t, z, self.free, self.kernel())
         if exact is not None:
-            scan = Scan(extent, self.system.n, tol)
+            scan = Scan(extent, self.system.n, tol, self.kernel())
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
             scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
             return scan.figures(t[0], "exact solution")
         scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
-        small = first_flow(self.system, self.compiler, self.cache_dir)
+        small = self.small = first_flow(self.system, self.compiler, self.cache_dir)
         while True:
-            scan = Scan(extent, self.system.n, tol)
+            scan = Scan(extent, self.system.n, tol, self.kernel())
             growing = GrowingReference(self.flow(), z[0], t[0], t[-1], self.theta, scale,
                                        rtol=rtol, first=t[min(FIRST_NODES, last)],
                                        first_flow=small)
@@ -471,17 +486,17 @@ class Judgement:
     # -- the steps ----------------------------------------------------------------------------
     def _local(self, t, z, scale, look):
         """The local error test: ``|z_{k+1} - Phi_{tau_k}(z_k)|_i <= rtol S_i (+ atol)`` for every
-        step (`step_errors`). Returns the first failure (or None), ``|d_k|_inf`` and the largest
-        ``max_i |d_k,i| / S_i``."""
+        step (`screened_errors`). Returns the first failure (or None), ``|d_k|_inf`` and the
+        largest ``max_i |d_k,i| / S_i``."""
         tol = self.tolerance
-        local, relative, ratio = self.step_errors(t, z, scale, look)
+        local, relative_max, steps, relative, ratio = screened_errors(self, t, z, scale, look)
         bad = np.flatnonzero(~(ratio <= 1.0))
         failure = None
         if bad.size:
-            k = int(bad[0])
+            k = int(steps[bad[0]])
             failure = {"step": k, "t": float(t[k]), "test": "local error",
-                       "value": float(relative[k]), "limit": tol.rtol}
-        return failure, local, float(np.max(relative, initial=0.0))
+                       "value": float(relative[bad[0]]), "limit": tol.rtol}
+        return failure, local, relative_max
 
     def step_errors(self, t, z, scale, look=None):
         """Every step's local error against the exact flow (``exact/short_flows.py``, its own
@@ -489,37 +504,7 @@ class Judgement:
         ``max_i |d_k,i| / S_i`` and ``max_i |d_k,i| / bound_i``. With a first look (a
         second-order march's RK4 screen, `NodeValues.first_look`), the steps whose screen is
         below ``CANDIDATE`` times the bound in every component pass without the exact flow."""
-        return self.step_differences(t, z, scale, look)[1:]
-
-    def step_differences(self, t, z, scale, look=None):
-        """`step_errors` and, first, ``|d_k,i|`` of every step and component (rows; the
-        screen's where it passed)."""
-        tol = self.tolerance
-        limit = tol.rtol * scale + (tol.atol or 0.0)
-        steps = t.size - 1
-        if look is not None:
-            d = np.abs(look[0])
-            d_all = d
-            local = row_max(d)
-            relative = row_max_ratio(d, scale)
-            ratio = row_max_ratio(d, limit)
-        else:
-            local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
-            d_all = np.full((steps, z.shape[1]), np.inf)
-        todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
-            np.arange(steps)
-        if todo.size:
-            flows = short_flows(self.system, compiler=self.compiler, cache_dir=self.cache_dir)
-            phi, _, _ = flows(t[todo], z[todo], t[todo + 1] - t[todo], self.theta,
-                              REFERENCE_SHARE * limit)
-            d = np.abs(z[todo + 1] - phi)
-            d_all = d_all.copy() if look is not None else d_all
-            d_all[todo] = d
-            with np.errstate(invalid="ignore"):
-                local[todo] = row_max(d)
-                relative[todo] = row_max_ratio(d, scale)
-                ratio[todo] = row_max_ratio(d, limit)
-        return d_all, local, relative, ratio
+        return step_differences(self, t, z, scale, look)[1:]
 
     def energies(self, t, z, H, energy: float, level: Level | None, scale) -> dict:
         """The energy tests, relative to the energy scale: the level the first step sets
@@ -533,8 +518,9 @@ class Judgement:
         if level is not None:
             reference = H0
             if energy_varies(system):  # H of the exact motion at the level's own clock
-                run = self.flow().run(z[0], t[0], level.clock, self.theta, rtol=LEVEL_RTOL,
-                                      atol=LEVEL_RTOL * scale)
+                # (on the first piece's flow where there is one: the same attempts)
+                run = (self.small or self.flow()).run(z[0], t[0], level.clock, self.theta,
+                                                      rtol=LEVEL_RTOL, atol=LEVEL_RTOL * scale)
                 _, at_clock = self.values.at_nodes(np.array([level.clock]), run.z_end[None, :])
                 reference = float(at_clock[0])
             # the level is a value of the whole H (a march's first interval, a prescribed
@@ -562,6 +548,95 @@ class Judgement:
         return {"figures": figures, "failures": failures}
 
 
+def check_passes(check: Judgement):
+    """The check's compiled passes (``exact/kernel.py``): loaded if in the cache, built once
+    the exact flow the check asked for is compiled (its rent paid), else ``None`` (numpy, the
+    same numbers). Never builds the flow itself (an early verdict, a check against an exact
+    solution need none)."""
+    found = check_kernel(check.compiler, check.cache_dir)
+    return found if found is not None or check.asked_flow is None else \
+        check.asked_flow.kernel()
+
+
+def step_differences(check: Judgement, t, z, scale, look=None):
+    """`Judgement.step_errors` and, first, ``|d_k,i|`` of every step and component (rows; the
+    screen's where it passed)."""
+    tol = check.tolerance
+    limit = tol.rtol * scale + (tol.atol or 0.0)
+    steps = t.size - 1
+    if look is not None:
+        d = np.abs(look[0])
+        d_all = d
+        local = row_max(d)
+        relative = row_max_ratio(d, scale)
+        ratio = row_max_ratio(d, limit)
+    else:
+        local, relative, ratio = np.full(steps, np.inf), np.zeros(steps), np.zeros(steps)
+        d_all = np.full((steps, z.shape[1]), np.inf)
+    todo = np.flatnonzero(~(ratio <= CANDIDATE)) if look is not None else \
+        np.arange(steps)
+    if todo.size:
+        flows = short_flows(check.system, compiler=check.compiler, cache_dir=check.cache_dir)
+        phi, _, _ = flows(t[todo], z[todo], t[todo + 1] - t[todo], check.theta,
+                          REFERENCE_SHARE * limit)
+        d = np.abs(z[todo + 1] - phi)
+        d_all = d_all.copy() if look is not None else d_all
+        d_all[todo] = d
+        with np.errstate(invalid="ignore"):
+            local[todo] = row_max(d)
+            relative[todo] = row_max_ratio(d, scale)
+            ratio[todo] = row_max_ratio(d, limit)
+    return d_all, local, relative, ratio
+
+
+def screened_errors(check: Judgement, t, z, scale, look=None):
+    """`Judgement.step_errors` as its callers read it: ``(local, relative_max, steps, relative,
+    ratio)``, ``local`` every step's ``|d_k|_inf``, ``relative_max`` the largest
+    ``max_i |d_k,i| / S_i`` and ``relative``, ``ratio`` those of the ``steps`` (indices)
+    whose ratio may pass ``CANDIDATE`` times the bound; every other step's ratio is at
+    most ``CANDIDATE`` (it passes any test against a bound at or above it). With the
+    compiled pass (``exact/kernel.py``) the screen is read without a division per entry:
+    ``|d| <= CANDIDATE * bound`` (a step past it is measured as `step_errors` measures
+    it), and the largest ratio to ``S`` is the largest column maximum over ``S``
+    (rounding is monotone: the same number, whichever order); the same figures."""
+    kernel = check.kernel() if look is not None else None
+    if kernel is None or not kernel.table_readable(look[0]):
+        local, relative, ratio = check.step_errors(t, z, scale, look)
+        return local, float(np.max(relative, initial=0.0)), np.arange(ratio.size), \
+            relative, ratio
+    tol = check.tolerance
+    limit = tol.rtol * scale + (tol.atol or 0.0)
+    # a step within it has ratio <= CANDIDATE (one ulp below: never a step past it)
+    local, colmax, steps = kernel.screen_steps(look[0], np.nextafter(CANDIDATE * limit, 0))
+    if not steps.size:  # every step within the screen's bound (the usual case)
+        return local, float(np.max(colmax / scale, initial=0.0)), steps, \
+            np.zeros(0), np.zeros(0)
+    d = np.abs(look[0][steps])
+    with np.errstate(invalid="ignore"):
+        relative, ratio = row_max_ratio(d, scale), row_max_ratio(d, limit)
+    todo = np.flatnonzero(~(ratio <= CANDIDATE))
+    if todo.size:  # past the screen: against the exact flow, as `step_differences`
+        k = steps[todo]
+        flows = short_flows(check.system, compiler=check.compiler, cache_dir=check.cache_dir)
+        phi, _, _ = flows(t[k], z[k], t[k + 1] - t[k], check.theta,
+                          REFERENCE_SHARE * limit)
+        d = np.abs(z[k + 1] - phi)
+        with np.errstate(invalid="ignore"):
+            local[k] = row_max(d)
+            relative[todo] = row_max_ratio(d, scale)
+            ratio[todo] = row_max_ratio(d, limit)
+    relative_max = float(np.max(np.concatenate([colmax / scale, relative]), initial=0.0))
+    return local, relative_max, steps, relative, ratio
+
+
+def table_extremes(check: Judgement, values):
+    """`columns.column_extremes` of a table, in one compiled pass where there is one."""
+    kernel = check.kernel()
+    if kernel is not None and kernel.table_readable(values):
+        return kernel.column_extremes(values)
+    return column_extremes(values)
+
+
 def energy_varies(system) -> bool:
     """Whether ``H`` changes along the exact motion: it depends on ``t``, or the constraints
     do (then they do work on the system); the nodal drift test is for the others."""
@@ -581,8 +656,9 @@ class Scan:
     ``tol`` only moves later as they grow). Per component, the largest difference and its node
     are kept, so the largest error in the final scales needs no second look at the nodes."""
 
-    def __init__(self, extent: Extent, n: int, tol: float):
+    def __init__(self, extent: Extent, n: int, tol: float, kernel=None):
         self.extent, self.n, self.tol = extent, n, tol
+        self.kernel = kernel  # the compiled passes (``exact/kernel.py``), or None: numpy
         d = extent.low.size
         self.low, self.high = extent.low.copy(), extent.high.copy()
         self.largest = extent.largest.copy()
@@ -607,48 +683,33 @@ class Scan:
         """Nodes ``start + 1 .. end`` against ``states`` (rows) with the claim ``claim``
         (``offset``: the index in the run of row 0 of ``t`` and ``z``)."""
         rows = z[start + 1:end + 1]
-        with np.errstate(invalid="ignore", over="ignore"):
-            difference = np.abs(rows - states)
         # one pass over every entry where all are finite (as a row maximum: 2d passes)
         finite = np.True_ if np.isfinite(states).all() else np.isfinite(row_max_abs(states))
         lost = np.flatnonzero(~finite | ~(claim <= REFERENCE_SHARE * self.tol))
         lost_at = int(lost[0]) if lost.size else None
-        scale, over_at, seen, seen_stop = self.scales(), None, None, None
-        for _ in range(8):
-            with np.errstate(invalid="ignore"):
-                error = row_max_ratio(difference, scale)
-            over = np.flatnonzero(~(error <= self.tol))
-            over_at = int(over[0]) if over.size else None
-            stop = over_at + 1 if over_at is not None else error.size
-            if lost_at is not None:
-                stop = min(stop, lost_at)
-            if stop == 0:
-                break
-            seen = column_extremes(states[:stop])  # finite: the rows before a lost one
-            seen_stop = stop
-            new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
-                                np.maximum(self.largest, seen[2]), self.n, self.extent.free,
-                                self.extent.turns)
-            if np.array_equal(new, scale):
-                break
-            scale = new
+        kernel = self.kernel if self.kernel is not None and \
+            self.kernel.rows_readable(rows, states) else None
+        difference = None
+        if kernel is None:
+            with np.errstate(invalid="ignore", over="ignore"):
+                difference = np.abs(rows - states)
+        over_at, stop, seen, peak = self._over(rows, states, difference, lost_at, kernel)
         if lost_at is not None and (over_at is None or lost_at <= over_at):
             stop, self.lost = lost_at, offset + start + 1 + lost_at
             self.times["lost"] = float(t[start + 1 + lost_at])
         else:
-            stop = over_at + 1 if over_at is not None else error.size
             self.drift = None if over_at is None else offset + start + 1 + over_at
             if over_at is not None:
                 self.times["drift"] = float(t[start + 1 + over_at])
         if stop:
-            if seen_stop != stop:  # the loop's last pass read these rows already
-                seen = column_extremes(states[:stop])
             np.minimum(self.low, seen[0], out=self.low)
             np.maximum(self.high, seen[1], out=self.high)
             np.maximum(self.largest, seen[2], out=self.largest)
-            seen = difference[:stop]
-            node = column_argmax(seen)
-            value = seen[node, np.arange(seen.shape[1])]
+            if peak is not None:  # the compiled pass's, over the same rows
+                node, value = peak
+            else:
+                node = column_argmax(difference[:stop])
+                value = difference[node, np.arange(difference.shape[1])]
             better = value > self.column_max
             self.column_max[better] = value[better]
             self.column_node[better] = offset + start + 1 + node[better]
@@ -656,6 +717,47 @@ class Scan:
             self.claim_max = max(self.claim_max, float(np.max(claim[:stop])))
         self.until = offset + start + stop  # the last node measured
         self.times["until"] = float(t[start + stop])
+
+    def _over(self, rows, states, difference, lost_at, kernel):
+        """``(over_at, stop, seen, peak)``: the first row whose error passes ``tol`` in the
+        scales grown by the states up to it (or ``None``), the rows measured (to it, or to the
+        lost one), `column_extremes` of their states and, from the compiled pass
+        (``exact/kernel.py``, the same numbers; ``None`` from numpy's), `column_argmax` of
+        their ``|rows - states|`` with its values. The scales are found by a few passes (the
+        first row past ``tol`` only moves later as they grow); the compiled pass reads the
+        rows only up to the first over, the numpy one (``difference``: ``|rows - states|``)
+        all of them."""
+        scale, over_at, seen, stop, peak = self.scales(), None, None, rows.shape[0], None
+        limit = rows.shape[0] if lost_at is None else lost_at
+        for _ in range(8):
+            if kernel is not None:
+                over_at, extremes = kernel.scan_rows(rows, states, scale, self.tol, limit)
+                stop = limit if over_at is None else over_at + 1
+                if stop == 0:
+                    break
+                low, high, *peak = extremes
+                seen = (low, high, np.maximum(np.abs(low), np.abs(high)))
+            else:
+                with np.errstate(invalid="ignore"):
+                    error = row_max_ratio(difference, scale)
+                over = np.flatnonzero(~(error <= self.tol))
+                over_at = int(over[0]) if over.size else None
+                stop = min(over_at + 1 if over_at is not None else error.size, limit)
+                if stop == 0:
+                    break
+                seen = column_extremes(states[:stop])  # finite: the rows before a lost one
+            if over_at is None:
+                # no row over: the grown scales (never smaller, `motion_scales`) make every
+                # error smaller or equal (rounding is monotone), so another pass finds the
+                # same rows and the same extremes
+                break
+            new = motion_scales(np.minimum(self.low, seen[0]), np.maximum(self.high, seen[1]),
+                                np.maximum(self.largest, seen[2]), self.n, self.extent.free,
+                                self.extent.turns)
+            if np.array_equal(new, scale):
+                break
+            scale = new
+        return over_at, stop, seen, peak
 
     def figures(self, t0: float, estimate: str) -> dict:
         """The scan's figures (``t0``: the time of node 0); ``drift`` is a node index, with

@@ -188,7 +188,12 @@ class Kept:
     computed from."""
 
     def __init__(self):
-        self.rows = None  # (theta, t, z, d, f, H) of consecutive nodes from a first one
+        # (theta, t, z, d, f, H) of consecutive nodes from a first one: views of the first
+        # `count` rows of buffers of KEPT_STEPS + 1 rows, filled window by window (a window
+        # appended in place, not the kept rows copied again for each)
+        self.rows = None
+        self._buffers = None
+        self.count = 0
 
     @staticmethod
     def of(values: NodeValues) -> Kept:
@@ -215,12 +220,27 @@ class Kept:
         """The look at ``t``, ``z`` kept: after the kept rows where it starts at their last
         node (the next window of the same march), else in their place; at most
         `KEPT_STEPS` steps."""
-        rows = self.rows
-        if rows is not None and rows[1].size + t.size - 1 <= KEPT_STEPS + 1 and \
+        rows, count = self.rows, self.count
+        if rows is not None and count + t.size - 1 <= KEPT_STEPS + 1 and \
+                self._buffers[2].shape[1] == z.shape[1] and \
                 np.array_equal(rows[0], theta) and rows[1][-1] == t[0] and \
                 np.array_equal(rows[2][-1], z[0]):
-            self.rows = (rows[0], np.concatenate([rows[1], t[1:]]),
-                         np.concatenate([rows[2], z[1:]]), np.concatenate([rows[3], d]),
-                         np.concatenate([rows[4][:-1], f]), np.concatenate([rows[5][:-1], H]))
+            first = count - 1  # the shared node: its f and H evaluated again, as given
         elif t.size <= KEPT_STEPS + 1:
-            self.rows = (np.array(theta), t.copy(), z.copy(), d.copy(), f.copy(), H.copy())
+            first = 0
+            if self._buffers is None or self._buffers[2].shape[1] != z.shape[1]:
+                size = KEPT_STEPS + 1
+                self._buffers = (np.empty(size), np.empty((size, z.shape[1])),
+                                 np.empty((size - 1, z.shape[1])),
+                                 np.empty((size, z.shape[1])), np.empty(size))
+            theta = np.array(theta)
+        else:
+            return
+        end = first + t.size
+        bt, bz, bd, bf, bH = self._buffers
+        skip = 1 if first else 0  # the shared node's t and z stay the kept ones
+        bt[first + skip:end], bz[first + skip:end] = t[skip:], z[skip:]
+        bd[first:end - 1], bf[first:end], bH[first:end] = d, f, H
+        self.count = end
+        self.rows = (theta if first == 0 else rows[0], bt[:end], bz[:end], bd[:end - 1],
+                     bf[:end], bH[:end])

@@ -43,6 +43,7 @@ from .judgement import (
     energy_varies,
     finite_or_none,
     gradient_sizes,
+    step_differences,
     unjudged,
     verdict_report,
 )
@@ -101,7 +102,7 @@ class StreamingJudgement:
         scale = self.scan.scales()
         look = judge.values.first_look(t, z) if self.screen else None
         field, H = look[1:] if look is not None else judge.values.at_nodes(t, z)
-        d, local, _, ratio = judge.step_differences(t, z, scale, look)
+        d, local, _, ratio = step_differences(judge, t, z, scale, look)
         seen = np.max(d, axis=0)
         self.column_max = seen if self.column_max is None else np.fmax(self.column_max, seen)
         for k in np.flatnonzero(~(ratio <= 1.0))[:CANDIDATES - len(self.local_candidates)]:
@@ -114,7 +115,7 @@ class StreamingJudgement:
         n = self.n
         if self.H0 is None:
             self.H0 = float(H[0])
-        weights, norm = gradient_sizes(t, field, scale, n, self.judge.free)
+        weights, norm = gradient_sizes(t, field, scale, n, self.judge.free, self.judge.kernel())
         self.energy_sum += float(np.sum(weights * norm))
         self.weight_sum += float(np.sum(weights))
         self.H_abs_max = max(self.H_abs_max, float(np.max(np.abs(H))))
@@ -135,7 +136,7 @@ class StreamingJudgement:
     def _trajectory(self, t, z, offset):
         """The window's nodes against the exact solution or the growing reference."""
         if self.scan is None:
-            self.scan = Scan(self.extent, self.n, self.tol.global_tol)
+            self.scan = Scan(self.extent, self.n, self.tol.global_tol, self.judge.kernel())
             if self.exact is None:
                 self.rtol = REFERENCE_RTOL
                 self.growing = GrowingReference(self.judge.flow(), z[0], t[0], t[-1],

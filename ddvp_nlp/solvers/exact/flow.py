@@ -28,6 +28,7 @@ from ...cache import cached
 from ...physics import HigherOrderSystem, euler_lagrange_field, vector_field_function
 from ..compiler import FunctionBuffer, RentedBuffer
 from .attempt import DONE, FAILED, POWER, RUNNING, AttemptLayout, augmented_field, chunk_function
+from .kernel import kernel as check_kernel
 from .trajectory import Trajectory
 
 SLOTS = 1024  # attempted steps per call (a finished chunk's slots cost a copy each)
@@ -65,6 +66,8 @@ class AdaptiveFlow:
         self.layout = AttemptLayout(d=d, m=int(tangent), p=p, dense=dense,
                              tangent_control=tangent_control)
         self.slots = int(slots)
+        self.compiler, self.cache_dir = compiler, cache_dir
+        self._kernel = None  # the compiled reading of the dense output, once found
         started = time.perf_counter()
         if inline is None:  # write the stages out unless the field with its tangents is large
             inline = augmented_field(field, self.layout.m).n_instructions() <= INLINE_LIMIT
@@ -86,6 +89,15 @@ class AdaptiveFlow:
     def buy(self) -> None:
         """Compile the chunk now (a flow of the same system has paid the rent)."""
         self._buffer.buy()
+
+    def kernel(self):
+        """The compiled reading of the dense output (``kernel.py``) for the runs of this flow:
+        loaded from the cache, or built once this flow's chunk is compiled (its rent paid by
+        the runs before); ``None`` until then, and without a compiler (numpy: the same
+        numbers)."""
+        if self._kernel is None and self.layout.dense:
+            self._kernel = check_kernel(self.compiler, self.cache_dir, build=self.compiled)
+        return self._kernel
 
     def initial_step(self, z0, t0, t_end, theta, rtol, atol) -> float:
         """Hairer's starting step (scipy's ``select_initial_step``, order 7), on ``z``."""
@@ -140,21 +152,21 @@ class AdaptiveFlow:
             calls += 1
             state = states[-1].copy()
             accepted = record[:, 0] == 1.0
-            records.append(record[accepted].copy())
+            records.append(record[accepted])  # a copy: the arrays are the next call's
             attempts += self._attempts(states, state)
             if state[2] != RUNNING or attempts >= max_attempts:
                 break
         status = {DONE: "done", FAILED: "the step fell below 10 ulp of t"}.get(
             state[2], "attempt limit reached")
-        rows = np.vstack(records)
+        rows = records[0] if len(records) == 1 else np.vstack(records)
         D = L.D
         F = None
-        if L.dense:
-            F = rows[:, 4 + D:].reshape(-1, POWER, D).transpose(1, 0, 2).copy()
+        if L.dense:  # views of the records' rows (each step's F_0 .. F_6 side by side)
+            F = rows[:, 4 + D:].reshape(-1, POWER, D).transpose(1, 0, 2)
         return Trajectory(t0=t0, t_end=t_end, t_old=rows[:, 1].copy(), h=rows[:, 2].copy(),
-                          w_old=rows[:, 4:4 + D].copy(), F=F, w_end=state[L.w].copy(),
+                          w_old=rows[:, 4:4 + D], F=F, w_end=state[L.w].copy(),
                           d=L.d, attempts=attempts, calls=calls, status=status,
-                          t_reached=float(state[0]))
+                          t_reached=float(state[0]), kernel=self.kernel())
 
     def _attempts(self, states, last) -> int:
         """Attempts made in the last chunk: every slot up to the one that finished."""

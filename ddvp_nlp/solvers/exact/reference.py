@@ -61,20 +61,36 @@ class Reference:
         scale = np.asarray(scale, float)
         forward = self.fine.t_end >= self.fine.t0
         states = self.fine.z(times)
+        kernel = self.fine.kernel  # the compiled envelope (``kernel.py``, the same numbers)
+        if kernel is not None and not (kernel.run_readable(self.fine) and
+                                       kernel.run_readable(self.coarse)):
+            kernel = None
         with np.errstate(invalid="ignore"):  # NaN (a run that failed) stays NaN: lost
             if times.size <= SAMPLES * self.fine.steps or not self.fine.steps:
-                difference = row_max_ratio(np.abs(self.coarse.z(times) - states), scale)
-                running = np.maximum.accumulate(np.maximum(difference, self.floor))
+                if kernel is not None:
+                    running = kernel.claim_envelope(self.fine, self.coarse, times, scale,
+                                                    self.floor)
+                else:
+                    difference = row_max_ratio(np.abs(self.coarse.z(times) - states), scale)
+                    running = np.maximum.accumulate(np.maximum(difference, self.floor))
                 claim = SAFETY * np.maximum(running, self.rtol)
             else:
                 samples = self._samples()
-                difference = row_max_ratio(np.abs(self.coarse.z(samples) -
-                                                  self.fine.z(samples)), scale)
-                running = np.maximum.accumulate(np.maximum(difference, self.floor))
-                keys = samples if forward else -samples
-                index = np.searchsorted(keys, times if forward else -times, side="left")
-                np.clip(index, 0, samples.size - 1, out=index)
-                claim = SAFETY * np.maximum(np.take(running, index), self.rtol)
+                if kernel is not None:
+                    running = kernel.claim_envelope(self.fine, self.coarse, samples, scale,
+                                                    self.floor)
+                else:
+                    difference = row_max_ratio(np.abs(self.coarse.z(samples) -
+                                                      self.fine.z(samples)), scale)
+                    running = np.maximum.accumulate(np.maximum(difference, self.floor))
+                if kernel is not None:
+                    claim = kernel.claim_at(times, forward, samples, running, SAFETY,
+                                            self.rtol)
+                else:
+                    keys = samples if forward else -samples
+                    index = np.searchsorted(keys, times if forward else -times, side="left")
+                    np.clip(index, 0, samples.size - 1, out=index)
+                    claim = SAFETY * np.maximum(np.take(running, index), self.rtol)
         self.end_envelope = float(running[-1]) if running.size else self.floor
         # past where either run stopped (a failed run): no claim
         reached = min(self.fine.t_reached, self.coarse.t_reached) if forward else \

@@ -30,8 +30,7 @@ import warnings
 import numpy as np
 
 from ...solution import Status
-from ..accuracy.judgement import ADVICE, Judgement, motion_scales
-from ..columns import column_extremes
+from ..accuracy.judgement import ADVICE, Judgement, motion_scales, screened_errors, table_extremes
 from ..compiler import buffered
 from ..dense import DenseField, EventMonitor
 
@@ -102,20 +101,21 @@ class EarlyVerdict(MarchMonitor):
             return None
         start, end = self.checked, min(count - 1, EARLY_STEPS)
         z = nodes.z[:count]
-        scale = motion_scales(*column_extremes(z), z.shape[1] // 2)
+        scale = motion_scales(*table_extremes(self.judge, z), z.shape[1] // 2)
         t, z = nodes.t[start:end + 1], z[start:end + 1]
         # the steps alone: no node values at the window's last node
         look = self.judge.values.first_look(t, z, last=False) if self.screen else None
-        _, relative, ratio = self.judge.step_errors(t, z, scale, look)
+        _, _, steps, relative, ratio = screened_errors(self.judge, t, z, scale, look)
         self.checked = end
         over = np.flatnonzero(~(ratio <= EARLY_FACTOR))
         if not over.size:
             return None
-        i = int(over[0])
+        j = int(over[0])
+        i = int(steps[j])
         k = start + i
         rtol = self.judge.tolerance.rtol
         return Status.INACCURATE, (
-            f"the local error of step {k} (from t = {t[i]:.10g}) is {relative[i]:.3e} of the "
+            f"the local error of step {k} (from t = {t[i]:.10g}) is {relative[j]:.3e} of the "
             f"motion's size so far, more than {EARLY_FACTOR:g} times the bound {rtol:g}: the "
             f"march stopped there; {ADVICE}"), \
             max(0, k + 2 - first)

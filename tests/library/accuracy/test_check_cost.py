@@ -194,3 +194,124 @@ def test_the_check_of_a_march_imports_nothing_the_march_does_not():
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True).stdout
     assert "numpy.ma" not in out and "scipy" not in out, out
+
+
+@pytest.fixture(scope="module")
+def check_kernel():
+    from ddvp_nlp.solvers.exact import kernel
+
+    found = kernel.kernel("auto", build=True)
+    if found is None:
+        pytest.skip("no C compiler: the check runs numpy")
+    return found
+
+
+def _scan_state(scan):
+    return (scan.low, scan.high, scan.largest, scan.column_max, scan.column_node, scan.column_t,
+            scan.claim_max, scan.drift, scan.lost, scan.until, scan.times)
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.integers(1, 60), d=st.sampled_from([2, 4, 6, 18, 34]),
+       seed=st.integers(0, 2**32 - 1),
+       drift_at=st.integers(0, 80), lost_at=st.integers(0, 80), claim_at=st.integers(0, 80),
+       growth=st.floats(0.0, 3.0))
+def test_the_compiled_scan_is_numpys(check_kernel, rows, d, seed, drift_at, lost_at, claim_at,
+                                     growth):
+    """`Scan.measure` through the compiled pass (``exact/kernel.py``) leaves every figure as
+    the numpy pass does, to the bit: windows that pass, drift, lose their reference (a
+    non-finite state, a claim over its share) or grow the scales, narrow and wide (the
+    column reductions switch to numpy's own past 16 columns)."""
+    rng = np.random.default_rng(seed)
+    n = d // 2
+    t = np.cumsum(rng.uniform(0.1, 1.0, rows + 1))
+    z = rng.normal(size=(rows + 1, d))
+    states = z[1:] + 1e-4 * rng.normal(size=(rows, d))
+    states[drift_at:] += 0.05 * growth  # the error passes the tolerance from there
+    states[rows // 2:] *= 1.0 + growth  # the reference's states widen the scales
+    claim = np.full(rows, 1e-6)
+    claim[claim_at:] = 1.0
+    if lost_at < rows:
+        states[lost_at, rng.integers(d)] = [np.nan, np.inf][lost_at % 2]
+    found = []
+    for kernel in (None, check_kernel):
+        scan = judgement.Scan(judgement.Extent(z), n, 1e-2, kernel)
+        with np.errstate(invalid="ignore", over="ignore"):
+            scan.measure(t, z, 0, rows, states.copy(), claim)
+        found.append(_scan_state(scan))
+    for numpy_value, compiled_value in zip(*found, strict=True):
+        if isinstance(numpy_value, np.ndarray):
+            np.testing.assert_array_equal(compiled_value, numpy_value)
+        else:
+            assert compiled_value == numpy_value
+
+
+@pytest.mark.parametrize("name, overrides, stop", [
+    ("paper_pendulum", {"t_end": 300.0}, True), ("kepler", {}, True),
+    ("henon_heiles", {"t_end": 60.0}, True),
+    # wrong from its first step: the early verdict stops it, or (not stopping) the final
+    # check finds the local error past the screen, against the exact flow
+    ("kepler", {"e": 0.95, "tau0": 0.01, "t_end": 4.0}, True),
+    ("kepler", {"e": 0.95, "tau0": 0.01, "t_end": 4.0}, False)])
+def test_the_compiled_passes_change_no_figure(check_kernel, monkeypatch, name, overrides,
+                                              stop):
+    """The check of a march through the compiled passes (``exact/kernel.py``: the reference
+    read at the nodes, its claim, the scan, the screen read without divisions, the energy
+    scale, the extremes) reports what numpy's passes report, to the bit: the status and
+    message, every figure of the verdict and the local error of every step."""
+    from ddvp_nlp import Tolerance
+
+    scene = load_scene(name)
+    config = scene.resolve(overrides)
+
+    def run():
+        return march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0, params=config.params, accuracy=Tolerance(stop=stop))
+    run()  # the early verdict's kept looks: the same for both
+    found = []
+    for kernel in (check_kernel, None):
+        monkeypatch.setattr(AdaptiveFlow, "kernel", lambda self, kernel=kernel: kernel)
+        monkeypatch.setattr(judgement.Judgement, "kernel", lambda self, kernel=kernel: kernel)
+        found.append(run())
+    compiled, plain = found
+    assert (compiled.status, compiled.message) == (plain.status, plain.message)
+    assert compiled.verdict.as_dict() == plain.verdict.as_dict()
+    np.testing.assert_array_equal(compiled.local_error, plain.local_error)
+    if overrides.get("e") == 0.95:
+        assert compiled.verdict.inaccurate
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_the_screen_read_without_divisions_is_step_errors(check_kernel, monkeypatch, seed):
+    """`judgement.screened_errors` (the compiled screen: ``|d| <= CANDIDATE * bound`` without
+    a division) gives `step_errors`' figures where its callers read them: every step's local
+    error, the largest relative one, and the ratio and relative error of every step whose
+    ratio may pass ``CANDIDATE``; every other step's ratio is at most ``CANDIDATE``. Screens
+    drawn around the bound, NaN among them (those steps go to the exact flow)."""
+    scene = load_scene("harmonic")
+    config = scene.resolve({"t_end": 5.0})
+    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0, params=config.params, accuracy=None)
+    t, z = solution.t, np.hstack([solution.q, solution.p])
+    rng = np.random.default_rng(seed)
+    check = judgement.Judgement(scene.system, scene.system.parameter_vector(config.params),
+                                judgement.Tolerance(), compiler="auto")
+    scale = column_span(z) * rng.uniform(0.5, 2.0, z.shape[1])
+    limit = check.tolerance.rtol * scale
+    d = limit * judgement.CANDIDATE * rng.choice([0.5, 1.0, np.nextafter(1.0, 2.0), 1.1, 3.0],
+                                                 size=(t.size - 1, z.shape[1]))
+    d *= rng.choice([-1.0, 1.0], size=d.shape)
+    d[rng.integers(d.shape[0], size=3), rng.integers(d.shape[1], size=3)] = np.nan
+    look = (d, None, None)
+    monkeypatch.setattr(judgement.Judgement, "kernel", lambda self: None)
+    local, relative, ratio = check.step_errors(t, z, scale, look)
+    monkeypatch.setattr(judgement.Judgement, "kernel", lambda self: check_kernel)
+    local_c, relative_max, steps, relative_c, ratio_c = judgement.screened_errors(
+        check, t, z, scale, look)
+    np.testing.assert_array_equal(local_c, local)
+    assert relative_max == float(np.max(relative, initial=0.0))
+    np.testing.assert_array_equal(ratio_c, ratio[steps])
+    np.testing.assert_array_equal(relative_c, relative[steps])
+    others = np.setdiff1d(np.arange(ratio.size), steps)
+    assert np.all(ratio[others] <= judgement.CANDIDATE)
+    assert 0 < steps.size < ratio.size
