@@ -266,7 +266,7 @@ class FastChunk:
             compiled_at = time.perf_counter()
             folder = cache_folder(cache_dir)
             try:
-                function = compile_function(function, compiler, folder)
+                function = compile_function(function, compiler, folder, steps=chunk)
                 self.compile = lambda f: _compiled_or_vm(f, compiler, folder)
                 use_compiler(system, self.compile)
                 self.path = "compiled"
