@@ -3,8 +3,11 @@
 One march step (predictor, Newton on the step equations, its check) is one CasADi ``Function``
 built from the public step functions of the careful path (``steps.StepFunctions``), with
 CasADi's ``fast_newton`` in place of ``newton`` because it can be code-generated. ``mapaccum``
-repeats it ``chunk`` times per call. Where a C compiler is present the chunk is generated as C,
-compiled and cached; elsewhere CasADi's virtual machine runs the same function.
+repeats it ``chunk`` times per call. Where a C compiler is present the chunk is generated as C
+(its entry a plain loop over the step, ``compiler.looped_mapaccum``), compiled and cached;
+elsewhere CasADi's virtual machine runs the same function. An energy step hands the next one
+the vector field at the node it made (`carried_layout`), the first stage of the next step's RK4
+predictor, computed beside that node's ``H`` and ``w``.
 
 ``fast_newton`` never raises and never says whether it converged, so every step of a chunk is
 checked (finite values, ``tau > 0``, its unscaled residuals against the tolerance, the step
