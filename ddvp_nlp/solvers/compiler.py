@@ -34,6 +34,7 @@ import functools
 import hashlib
 import hmac
 import os
+import re
 import secrets
 import shutil
 import stat
@@ -119,20 +120,98 @@ def warn_once(reason: Exception) -> None:
 
 
 def compile_function(function: ca.Function, compiler: str, folder: Path, *,
-                     prefix: str = "chunk", build: bool = True) -> ca.Function | None:
+                     prefix: str = "chunk", build: bool = True,
+                     steps: int | None = None) -> ca.Function | None:
     """Generate, compile (once per hash; again if the cached library fails its checks) and
     load ``function`` as ``PREFIX_HASH.so``; with ``build=False`` only a library already in
-    the cache is loaded, else ``None``. Raises `CompileUnavailable` if the folder or compiler
-    fails."""
-    return _compile_code(function, generated_code(function), compiler, folder, prefix=prefix,
-                         build=build)
+    the cache is loaded, else ``None``. ``steps``: ``function`` is a step ``(state, p) ->
+    (state, out)`` repeated ``steps`` times by ``mapaccum``, generated as a loop
+    (`looped_mapaccum`). Raises `CompileUnavailable` if the folder or compiler fails."""
+    code = generated_code(function)
+    if steps is not None:
+        code = looped_mapaccum(code, function, steps)
+    return _compile_code(function, code, compiler, folder, prefix=prefix, build=build)
+
+
+def looped_mapaccum(code: str, function: ca.Function, steps: int) -> str:
+    """The generated ``code`` of ``function = step.mapaccum(name, steps)`` (``step: (state,
+    p) -> (state, out)``, dense columns) with its exported entry calling a loop over ``step``
+    in place of mapaccum's tree: step ``k`` reads the state step ``k - 1`` wrote into column
+    ``k - 1`` of output 0 (the initial state for ``k = 0``) and column ``k`` of input 1, and
+    writes column ``k`` of both outputs. The same calls of the same step function, so the
+    same outputs to the bit; what goes is mapaccum's copying of the states and outputs
+    between the levels of its tree (about 5% of the march's chunk, perf). Where CasADi's code
+    does not have the expected shape (an entry ``return casadi_fN(arg, res, iw, w, mem);``
+    whose function first calls the step as ``casadi_fM(arg1, res1, iw, w, 0)``), or where
+    any argument or result is absent, mapaccum's own code runs."""
+    name = function.name()
+    entry = re.search(r"CASADI_SYMBOL_EXPORT int " + re.escape(name) + r"\(const casadi_real\*\* "
+                      r"arg, casadi_real\*\* res, casadi_int\* iw, casadi_real\* w, int mem\)"
+                      r"\{\n  return (casadi_f\d+)\(arg, res, iw, w, mem\);\n\}", code)
+    if entry is None:
+        return code
+    top = entry.group(1)
+    body = re.search(r"\nstatic int " + top + r"\(.*?\n\}\n", code, re.S)
+    step = re.search(r"if \((casadi_f\d+)\(arg1, res1, iw, w, 0\)\) return 1;",
+                     body.group(0)) if body is not None else None
+    if step is None or function.n_in() != 2 or function.n_out() != 2:
+        return code
+    state, parameters = function.size1_in(0), function.size1_in(1)
+    outputs = function.size1_out(1)
+    loop = LOOP.format(top=top, step=step.group(1), steps=steps, state=state,
+                       parameters=parameters, outputs=outputs)
+    return (code[:entry.start()] + loop + code[entry.start():entry.end()].replace(
+        f"return {top}(", "return ddvp_looped(") + code[entry.end():])
+
+
+LOOP = """/* mapaccum's steps as one loop (ddvp_nlp.solvers.compiler.looped_mapaccum) */
+static int ddvp_looped(const casadi_real** arg, casadi_real** res, casadi_int* iw,
+                       casadi_real* w, int mem) {{
+  const casadi_real **arg1 = arg + 2;
+  casadi_real **res1 = res + 2;
+  casadi_int k;
+  if (!arg[0] || !arg[1] || !res[0] || !res[1]) return {top}(arg, res, iw, w, mem);
+  for (k = 0; k < {steps}; ++k) {{
+    arg1[0] = k ? res[0] + {state} * (k - 1) : arg[0];
+    arg1[1] = arg[1] + {parameters} * k;
+    res1[0] = res[0] + {state} * k;
+    res1[1] = res[1] + {outputs} * k;
+    if ({step}(arg1, res1, iw, w, 0)) return 1;
+  }}
+  return 0;
+}}
+
+"""
 
 
 def generated_code(function: ca.Function) -> str:
-    """The C code CasADi generates for ``function`` (what the cache is keyed by)."""
+    """The C code CasADi generates for ``function`` (what the cache is keyed by), its
+    ``casadi_fmax`` written without the call to libm (`INLINE_FMAX`)."""
     source = ca.CodeGenerator("ddvp_chunk.c", {"with_header": False})
     source.add(function)
-    return source.dump()
+    return source.dump().replace(CASADI_FMAX, INLINE_FMAX)
+
+
+# CasADi's fmax helper as it generates it (3.8), and what replaces it. gcc keeps fmax a call
+# into libm without -ffinite-math-only (about 5 ns each, 40-70 per march step: 5-8% of the
+# chunk's time, perf). The replacement is branch-free (maxsd, then a blend where y is NaN) and
+# returns what glibc's x86-64 fmax returns for every pair of doubles, signed zeros and NaNs
+# included (tests/library/test_compiled_code_cache.py); a C library whose fmax returns x for
+# fmax(0, -0) differs only in the sign of a zero, which no comparison sees. If CasADi writes
+# its helper differently, the text is not found and the call stays.
+CASADI_FMAX = """casadi_real casadi_fmax(casadi_real x, casadi_real y) {
+/* Pre-c99 compatibility */
+#if __STDC_VERSION__ < 199901L
+  return x>y ? x : y;
+#else
+  return fmax(x, y);
+#endif
+}"""
+INLINE_FMAX = """casadi_real casadi_fmax(casadi_real x, casadi_real y) {
+  /* fmax(x, y) inline: the larger (y where x > y is false), x where y is NaN */
+  casadi_real larger = x > y ? x : y;
+  return y != y ? x : larger;
+}"""
 
 
 def _compile_code(function: ca.Function, code: str, compiler: str, folder: Path, *,

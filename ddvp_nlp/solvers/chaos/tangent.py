@@ -183,7 +183,7 @@ class TangentChunk(FastChunk):
                          cache_dir=cache_dir)
 
     def _energy_step(self, functions, theta):
-        plain = super()._energy_step(functions, theta)
+        plain = self.energy_step(functions, theta)
         self.plain_state, self.plain_output = self.state, self.output
         m = self.vectors
         self.state = ChunkLayout(("plain", self.plain_state.size),

@@ -3,8 +3,11 @@
 One march step (predictor, Newton on the step equations, its check) is one CasADi ``Function``
 built from the public step functions of the careful path (``steps.StepFunctions``), with
 CasADi's ``fast_newton`` in place of ``newton`` because it can be code-generated. ``mapaccum``
-repeats it ``chunk`` times per call. Where a C compiler is present the chunk is generated as C,
-compiled and cached; elsewhere CasADi's virtual machine runs the same function.
+repeats it ``chunk`` times per call. Where a C compiler is present the chunk is generated as C
+(its entry a plain loop over the step, ``compiler.looped_mapaccum``), compiled and cached;
+elsewhere CasADi's virtual machine runs the same function. An energy step hands the next one
+the vector field at the node it made (`carried_layout`), the first stage of the next step's RK4
+predictor, computed beside that node's ``H`` and ``w``.
 
 ``fast_newton`` never raises and never says whether it converged, so every step of a chunk is
 checked (finite values, ``tau > 0``, its unscaled residuals against the tolerance, the step
@@ -32,6 +35,8 @@ import casadi as ca
 import numpy as np
 
 from ...blocks import use_compiler
+from ...discrete.runge_kutta import rk4
+from ...physics.hamiltonian import vector_field_function
 from ..compiler import (
     CompileUnavailable,
     FunctionBuffer,
@@ -159,6 +164,18 @@ def energy_layouts(n2: int) -> tuple[ChunkLayout, ChunkLayout]:
     return state, output
 
 
+def carried_layout(state: ChunkLayout, n2: int) -> ChunkLayout:
+    """The state a chunk of energy steps carries from step to step: ``state`` and the vector
+    field at the newest node, ``field = f(z_mid, t_mid)`` (`FastChunk.steps` appends it to a
+    state given by its nodes)."""
+    return ChunkLayout(*((name, _width(state, name)) for name in state.names), ("field", n2))
+
+
+def _width(layout: ChunkLayout, name: str) -> int:
+    part = layout.slices[name]
+    return 1 if isinstance(part, int) else part.stop - part.start
+
+
 def fixed_layouts(n2: int) -> tuple[ChunkLayout, ChunkLayout, ChunkLayout]:
     """State, constants and per-step output of a chunk of fixed-length steps."""
     state = ChunkLayout(("k", 1), ("z", n2))
@@ -233,8 +250,10 @@ def _residuals(check: ca.Function) -> ca.Function:
 class FastChunk:
     """``chunk`` march steps per call, compiled or on the virtual machine.
 
-    Energy rules: the state is ``energy_layouts``' first layout; `energy_steps` runs from
-    ``(t_prev, t_mid, z_prev, z_mid, drift)``. Fixed rule: state ``[k, z]`` and constants
+    Energy rules: `energy_state` packs ``energy_layouts``' first layout from the nodes
+    (``entry``), ``(t_prev, t_mid, z_prev, z_mid, drift)``; the chunk carries
+    `carried_layout`'s (the vector field at the newest node too), which `steps` completes;
+    `energy_steps` runs from the nodes. Fixed rule: state ``[k, z]`` and constants
     ``[t0, tau, t_end, total]``; `fixed_steps` runs from node ``k``. Either way the
     parameters end with the acceptance test's numbers (``LIMITS``): each step's verdict comes
     out of the chunk. ``H_node`` and the
@@ -251,8 +270,13 @@ class FastChunk:
         n2 = 2 * system.n
         theta = ca.SX.sym("theta", system.theta.numel())
         self.variable = scheme.variable_steps
+        self.n2, self.ntheta = n2, system.theta.numel()
+        self.field = vector_field_function(system)
+        self._field = FunctionBuffer(self.field)  # a carried state's field, from its nodes
         if self.variable:
             self.state, self.output = energy_layouts(n2)
+            self.entry = self.state  # the state from the nodes (energy_state)
+            self.carries = False  # whether the state carries the field (_energy_step)
             step = self._energy_step(functions, theta)
         else:
             self.state, self.constants, self.output = fixed_layouts(n2)
@@ -266,7 +290,7 @@ class FastChunk:
             compiled_at = time.perf_counter()
             folder = cache_folder(cache_dir)
             try:
-                function = compile_function(function, compiler, folder)
+                function = compile_function(function, compiler, folder, steps=chunk)
                 self.compile = lambda f: _compiled_or_vm(f, compiler, folder)
                 use_compiler(system, self.compile)
                 self.path = "compiled"
@@ -278,19 +302,45 @@ class FastChunk:
         self.build_s = time.perf_counter() - started
 
     def _energy_step(self, functions, theta):
-        state = ca.SX.sym("state", self.state.size)
-        s = self.state.split(state)
+        """The chunk's energy step: `energy_step` of the state that carries the vector field
+        at the newest node (`carried_layout`); `energy_state` still packs the state from the
+        nodes alone (``entry``), and `steps` adds the field to it."""
+        self.entry, self.state = self.state, carried_layout(self.state, self.n2)
+        self.carries = True
+        return self.energy_step(functions, theta, carried=True)
+
+    def energy_step(self, functions, theta, *, carried: bool = False) -> ca.Function:
+        """One energy step ``(state, [theta, limits]) -> (state after, output)`` of
+        `energy_layouts`' state, or with ``carried`` of `carried_layout`'s (what
+        ``chaos.tangent.TangentChunk`` extends is the first). The predictor is
+        ``StepFunctions.energy_predict``'s RK4 over the previous step; carried, its first
+        stage is the state's ``field``, computed where the step before made the node, beside
+        that node's ``H`` and ``w`` (whose sines and cosines it shares: paper_pendulum two
+        sines a step fewer), and the field at the new node goes into the state after. The same
+        numbers either way (the field of the same node from the same expression)."""
+        layout = carried_layout(self.entry, self.n2) if carried else self.entry
+        state = ca.SX.sym("state", layout.size)
+        s = layout.split(state)
         limit = ca.SX.sym("limits", LIMITS.size)
         w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
         # the step's residuals come out of the Newton, where they share the last residual
         # test's terms
         newton = step_newton("fast_energy_step", functions.energy_residual,
                              _residuals(functions.energy_check), border=1)
-        x, *residuals = newton(functions.energy_predict(w, s["t_mid"] - s["t_prev"]), w)
+        tau_guess = s["t_mid"] - s["t_prev"]
+        if carried:
+            guess = ca.vertcat(rk4(lambda z, t: self.field(z, t, theta), s["z_mid"], s["t_mid"],
+                                   tau_guess, k1=s["field"]), tau_guess)
+        else:
+            guess = functions.energy_predict(w, tau_guess)
+        x, *residuals = newton(guess, w)
         t_next = s["t_mid"] + x[-1]
         check = EnergyCheck(*residuals, *functions.node_monitor(x[:-1], t_next, theta))
-        after = self.state.stack(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"],
-                                 z_mid=x[:-1], drift=s["drift"] + check.energy)
+        moved = dict(t_prev=s["t_mid"], t_mid=t_next, z_prev=s["z_mid"], z_mid=x[:-1],
+                     drift=s["drift"] + check.energy)
+        if carried:
+            moved["field"] = self.field(x[:-1], t_next, theta)
+        after = layout.stack(**moved)
         # the step lengths as the march computes them from the node times
         good = step_verdict([t_next, *ca.vertsplit(x[:-1]), *check], check, LIMITS.split(limit),
                             tau=_STEP_LENGTH(t_next, s["t_mid"]),
@@ -341,9 +391,20 @@ class FastChunk:
         return ChunkSteps(**columns, **extra)
 
     def energy_state(self, t_prev, t_mid, z_prev, z_mid, drift) -> np.ndarray:
-        """The state of energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``."""
-        return self.state.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
+        """The state of energy steps from nodes ``k - 1`` (``t_prev``, ``z_prev``) and ``k``
+        (`energy_layouts`' state; `steps` adds what the chunk carries)."""
+        return self.entry.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
                                drift=drift)
+
+    def _carrying(self, state: np.ndarray, parameters: np.ndarray) -> np.ndarray:
+        """``state`` as the chunk carries it: a state from the nodes (`energy_state`) with the
+        vector field at its newest node appended (computed on the virtual machine: the numbers
+        the compiled step computes, tested); a carried state as it is."""
+        if not (self.variable and self.carries) or state.size == self.state.size:
+            return state
+        parts = self.entry.split(state)
+        field = self._field(parts["z_mid"], parts["t_mid"], parameters[:self.ntheta])[0]
+        return np.concatenate([state, field.ravel()])
 
     def fixed_state(self, k: int, z) -> np.ndarray:
         """The state of fixed-length steps from node ``k`` (state ``z``)."""
@@ -364,6 +425,7 @@ class FastChunk:
         ``calls`` calls, each from the state the previous one ended in, which is the state the
         march builds from the nodes for its next call when it kept every step (the same
         numbers: the node times, states and drift are outputs of the chunk)."""
+        state = self._carrying(state, parameters)
         if calls == 1:
             after, outputs = self._call(state, parameters)
             return self._decode(outputs, self._carried(after))
