@@ -60,11 +60,10 @@ class Acceptance:
     H_scale: float = 0.0
 
     @classmethod
-    def at_start(cls, steps, system, scheme, q0, p0, t0: float, tau0: float,
-                 theta) -> Acceptance:
+    def at_start(cls, steps, system, q0, p0, t0: float, tau0: float, theta) -> Acceptance:
         """The acceptance test of a march of ``steps`` (a `StepControl`) from ``(q0, p0)`` at
         ``t0`` with first step ``tau0``: its bounds and the scales of `start_scales`."""
-        z_scale, H_scale = start_scales(system, scheme, q0, p0, t0, tau0, theta)
+        z_scale, H_scale = start_scales(system, q0, p0, t0, tau0, theta)
         return cls(steps.tol, steps.tau_min, steps.tau_max, steps.max_step_ratio, z_scale,
                    H_scale)
 
@@ -100,24 +99,30 @@ class Acceptance:
                                    f"{ratio:.4g} > max_step_ratio {self.max_step_ratio})")
 
 
-def start_scales(system, scheme, q0, p0, t0: float, tau0: float, theta) -> tuple[float, float]:
+def start_scales(system, q0, p0, t0: float, tau0: float, theta) -> tuple[float, float]:
     """``(Z, E)``, the run's scales of the canonical and the energy residual (module
     docstring), from the start ``(q0, p0)`` at ``t0``, the first step ``tau0`` and the
-    parameters ``theta``: one RK4 step and one evaluation of the vector field."""
+    parameters ``theta``: four evaluations of the vector field (one RK4 step, the march's
+    predictor), whatever the scheme."""
+    from ...discrete.runge_kutta import rk4
     from ...physics.hamiltonian import vector_field_function
-    from .steps import step_functions
 
     q0, p0 = np.asarray(q0, float).ravel(), np.asarray(p0, float).ravel()
     theta = np.asarray(theta, float).ravel()
     n = q0.size
     z0 = np.concatenate([q0, p0])
-    w = np.concatenate([[t0, t0 + tau0], z0, theta])
-    moved = np.asarray(step_functions(system, scheme).fixed_predict(w), float).ravel() - z0
-    field = np.asarray(vector_field_function(system)(z0, t0, theta), float).ravel()
+    f = vector_field_function(system)
+
+    def field(z, t):
+        return np.asarray(f(z, t, theta), float).ravel()
+
+    with np.errstate(all="ignore"):
+        moved = rk4(field, z0, t0, tau0) - z0
+    slope = field(z0, t0)
     Q = max(_largest(q0), _largest(moved[:n]))
     P = max(_largest(p0), _largest(moved[n:]))
     # f = (H_p, -H_q): |dH/dq_i| = |f_{n+i}|, |dH/dp_i| = |f_i|
-    energy = Q * _total(field[n:]) + P * _total(field[:n])
+    energy = Q * _total(slope[n:]) + P * _total(slope[:n])
     return max(Q, P), energy if np.isfinite(energy) else 0.0
 
 

@@ -15,7 +15,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ddvp_nlp import Compilation, HamiltonianSystem, StepControl, march
-from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.marching.acceptance import Acceptance, start_scales
 
 VM = Compilation(compiler=None)  # the chunk's path on CasADi's virtual machine: no compiler
@@ -92,11 +91,10 @@ def test_the_scales_follow_the_units_and_ignore_a_constant_in_H():
     """``(Z, E)`` of a start at ``q = 0`` with ``H = 0`` (the pendulum at its bottom, ``H``
     offset by ``-p0^2/2``): both positive, ``E = p0 |H_p| = p0^2`` (twice the kinetic energy),
     scaled by ``s`` in units ``s``, unchanged by the constant."""
-    scheme = Scheme.coerce("vddvp")
     unit = None
     for s, offset in ((1.0, 0.0), (1.0, -P0 ** 2 / 2), (1e-6, -1e-6 * P0 ** 2 / 2), (1e6, 7e6)):
         system = pendulum(s, offset)
-        Z, E = start_scales(system, scheme, [0.0], [s * P0], 0.0, s * TAU0,
+        Z, E = start_scales(system, [0.0], [s * P0], 0.0, s * TAU0,
                             system.parameter_vector(None))
         unit = unit or (Z, E)
         assert Z == pytest.approx(s * unit[0], rel=1e-12)
@@ -110,7 +108,7 @@ def test_an_energy_residual_at_H_zero_is_judged_against_the_motion():
     micrometres, where ``E = 9e-8``)."""
     for s in (1.0, 1e-6):
         system = pendulum(s, -s * P0 ** 2 / 2)
-        Z, E = start_scales(system, Scheme.coerce("vddvp"), [0.0], [s * P0], 0.0, s * TAU0,
+        Z, E = start_scales(system, [0.0], [s * P0], 0.0, s * TAU0,
                             system.parameter_vector(None))
         acceptance = Acceptance(1e-10, z_scale=Z, H_scale=E)
         assert not acceptance.residuals_ok(0.0, 0.0, 1e-3 * E, 0.0)
@@ -122,7 +120,7 @@ def test_a_state_at_rest_at_an_equilibrium_marches(scheme):
     """``Z = E = 0``: the exact motion is the state itself, every residual is exactly zero and
     passes; the march reaches its end with every node at the equilibrium."""
     system = pendulum()
-    assert start_scales(system, Scheme.coerce(scheme), [0.0], [0.0], 0.0, TAU0,
+    assert start_scales(system, [0.0], [0.0], 0.0, TAU0,
                         system.parameter_vector(None)) == (0.0, 0.0)
     solution = march_in(q0=0.0, p0=0.0, scheme=scheme)
     assert solution.success and solution.t[-1] >= T_END and solution.steps >= 49
