@@ -102,28 +102,35 @@ class Acceptance:
 def start_scales(system, q0, p0, t0: float, tau0: float, theta) -> tuple[float, float]:
     """``(Z, E)``, the run's scales of the canonical and the energy residual (module
     docstring), from the start ``(q0, p0)`` at ``t0``, the first step ``tau0`` and the
-    parameters ``theta``: four evaluations of the vector field (one RK4 step, the march's
-    predictor), whatever the scheme."""
-    from ...discrete.runge_kutta import rk4
-    from ...physics.hamiltonian import vector_field_function
-
+    parameters ``theta``: one call of a function built once per system (the march's RK4
+    predictor over ``tau0`` and the vector field at the start), whatever the scheme."""
     q0, p0 = np.asarray(q0, float).ravel(), np.asarray(p0, float).ravel()
-    theta = np.asarray(theta, float).ravel()
     n = q0.size
     z0 = np.concatenate([q0, p0])
-    f = vector_field_function(system)
-
-    def field(z, t):
-        return np.asarray(f(z, t, theta), float).ravel()
-
-    with np.errstate(all="ignore"):
-        moved = rk4(field, z0, t0, tau0) - z0
-    slope = field(z0, t0)
+    moved, slope = (np.asarray(v, float).ravel() for v in _start_motion(system)(
+        z0, t0, tau0, np.asarray(theta, float).ravel()))
     Q = max(_largest(q0), _largest(moved[:n]))
     P = max(_largest(p0), _largest(moved[n:]))
     # f = (H_p, -H_q): |dH/dq_i| = |f_{n+i}|, |dH/dp_i| = |f_i|
     energy = Q * _total(slope[n:]) + P * _total(slope[:n])
     return max(Q, P), energy if np.isfinite(energy) else 0.0
+
+
+def _start_motion(system):
+    """``(z0, t0, tau0, theta) -> (RK4 step - z0, f(z0, t0))``, built once per system."""
+    import casadi as ca
+
+    from ...cache import cached
+    from ...discrete.runge_kutta import rk4
+    from ...physics.hamiltonian import vector_field_function
+
+    def build():
+        f = vector_field_function(system)
+        z, t, tau = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t"), ca.SX.sym("tau")
+        theta = ca.SX.sym("theta", system.theta.numel())
+        step = rk4(lambda y, s: f(y, s, theta), z, t, tau)
+        return ca.Function("start_motion", [z, t, tau, theta], [step - z, f(z, t, theta)])
+    return cached(system, "start_motion", build)
 
 
 def _largest(values: np.ndarray) -> float:
