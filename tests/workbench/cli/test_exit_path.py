@@ -1,0 +1,89 @@
+"""The command's edges in time: a signal while a cluster starts or closes is acted on only
+once it has (``runner/tasks.py``, ``held_signals``), and the supervised child leaves without
+the interpreter's finalization, where a daemon thread still holding a stream had aborted it
+(exit -6, "Python runtime state: finalizing"; ``cli/supervisor.py``, ``_leave``)."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+
+import pytest
+
+from ddvp_nlp.cli import supervisor
+from ddvp_nlp.runner.tasks import held_signals
+
+needs_supervisor = pytest.mark.skipif(not supervisor.available(),
+                                      reason="the supervisor needs fork and /proc")
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="needs signal masks")
+def test_a_held_signal_taken_by_another_thread_waits_for_the_end_of_the_hold():
+    """Another thread (Dask's event loop) takes a SIGTERM the main thread blocks; its Python
+    handler had then run in the main thread inside the hold (a cluster's close cut short).
+    It runs once, after the hold."""
+    calls = []
+    quiet = threading.Event()
+    bystander = threading.Thread(target=quiet.wait, daemon=True)  # signals open in it
+    bystander.start()
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: calls.append(signum))
+    try:
+        with held_signals():
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(20):  # the main thread passes many points where handlers run
+                time.sleep(0.005)
+                sum(range(1000))
+            inside = list(calls)
+        for _ in range(20):
+            if calls:
+                break
+            time.sleep(0.005)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        quiet.set()
+    assert inside == []
+    assert calls == [signal.SIGTERM]
+
+
+def test_an_ignored_signal_stays_ignored_after_the_hold():
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with held_signals():
+            os.kill(os.getpid(), signal.SIGHUP)
+            time.sleep(0.01)
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, previous)
+
+
+LEAVING = textwrap.dedent("""
+    import atexit, ctypes, json, os, sys
+    from ddvp_nlp.cli import supervisor
+
+    class Teardown:
+        def __del__(self, write=os.write):  # freed by the interpreter's finalization
+            write(2, b"finalized\\n")
+
+    def work():
+        json.teardown_marker = Teardown()  # held by a module: freed only as modules are
+        atexit.register(lambda: print("exit hook ran"))
+        sys.stdout.write("python's buffer, ")  # a pipe: block-buffered
+        ctypes.CDLL(None).printf(b"C's buffer\\n")
+        return 7
+
+    sys.exit(supervisor.supervise(work))
+""")
+
+
+@needs_supervisor
+def test_the_child_runs_its_exit_hooks_flushes_and_skips_finalization(tmp_path):
+    result = subprocess.run([sys.executable, "-c", LEAVING], capture_output=True, text=True,
+                            cwd=tmp_path, timeout=120)
+    assert result.returncode == 7, result.stderr
+    assert "python's buffer, " in result.stdout
+    assert "C's buffer" in result.stdout
+    assert "exit hook ran" in result.stdout
+    assert "finalized" not in result.stderr
