@@ -109,6 +109,10 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
         # interrupted command, exit 1, not the interpreter's death by SIGINT (exit -2)
         _say("ddvp: interrupted as the command ended; every file it wrote is whole")
         code = 1
+    finally:  # the code is decided: a later signal changes nothing (the command's handling
+        # ignores them already; a child started otherwise would die by one, exit -15)
+        for signum in FORWARDED:
+            signal.signal(signum, signal.SIG_IGN)
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()

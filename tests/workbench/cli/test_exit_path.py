@@ -87,3 +87,31 @@ def test_the_child_runs_its_exit_hooks_flushes_and_skips_finalization(tmp_path):
     assert "C's buffer" in result.stdout
     assert "exit hook ran" in result.stdout
     assert "finalized" not in result.stderr
+
+
+SIGNALLED_AT_EXIT = textwrap.dedent("""
+    import atexit, os, signal, sys, time
+    from ddvp_nlp.cli import supervisor
+
+    def signalled():  # an exit hook during which the supervisor passes a signal on
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            os.kill(os.getppid(), signum)
+            time.sleep(0.2)
+
+    def work():
+        atexit.register(signalled)
+        return 3
+
+    sys.exit(supervisor.supervise(work))
+""")
+
+
+@needs_supervisor
+def test_a_signal_once_the_work_is_done_changes_no_exit_code(tmp_path):
+    """Once its work has returned, the child ignores the signals the parent passes on, however
+    it was started (not only through the command's own handling): the exit code is the
+    work's, not a death by SIGTERM (-15) or a KeyboardInterrupt in an exit hook."""
+    result = subprocess.run([sys.executable, "-c", SIGNALLED_AT_EXIT], capture_output=True,
+                            text=True, cwd=tmp_path, timeout=120)
+    assert result.returncode == 3, result.stderr
+    assert "Traceback" not in result.stderr
