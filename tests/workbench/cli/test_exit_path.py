@@ -115,3 +115,45 @@ def test_a_signal_once_the_work_is_done_changes_no_exit_code(tmp_path):
                             text=True, cwd=tmp_path, timeout=120)
     assert result.returncode == 3, result.stderr
     assert "Traceback" not in result.stderr
+
+
+SWEEP = ["sweep", "harmonic", "--grid", "tau0=0.1,0.05", "--grid", "w=1,2", "--set",
+         "t_end=20", "--methods", "vddvp,rk4", "--workers", "2", "--no-progress", "--out", "out"]
+
+
+def _sweep_signalled(tmp_path, ready) -> tuple[int, str]:
+    """The real ``ddvp sweep`` on a local cluster, SIGTERM to its supervising process as soon
+    as ``ready(out)`` holds (polled); its exit code and stderr."""
+    process = subprocess.Popen([sys.executable, "-m", "ddvp_nlp.cli", *SWEEP], cwd=tmp_path,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    while process.poll() is None and not ready(tmp_path / "out"):
+        time.sleep(0.002)
+    if process.poll() is None:
+        process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=300)
+    return process.returncode, err
+
+
+def _every_row_in(out) -> bool:
+    try:
+        return len((out / "sweep.partial.csv").read_text().splitlines()) >= 9
+    except OSError:
+        return False
+
+
+@needs_supervisor
+@pytest.mark.slow(why="processes")
+@pytest.mark.parametrize("ready", [_every_row_in, lambda out: (out / "sweep.csv").exists()],
+                         ids=["as-the-cluster-closes", "as-the-table-is-written"])
+def test_sigterm_at_the_end_of_a_sweep_ends_it_with_its_code(tmp_path, ready):
+    """A SIGTERM as the last row lands (the cluster closing) or as the table is written ends
+    the sweep with 0 or 1, no abort (exit -6 in the interpreter's finalization, once), no
+    traceback, its folder readable."""
+    from ddvp_nlp.io import read_set
+
+    code, err = _sweep_signalled(tmp_path, ready)
+    assert code in (0, 1), err
+    assert "Fatal Python error" not in err and "Traceback" not in err
+    assert "left running" not in err  # the cluster's workers ended with it
+    if (tmp_path / "out" / "meta.json").exists():
+        read_set(tmp_path / "out")
