@@ -119,16 +119,17 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     watch.done(code)
     lingering = [t for t in threading.enumerate()
                  if t is not threading.main_thread() and not t.daemon and t.is_alive()]
-    if lingering:  # a scene's (or a library's) thread: the run is saved, nothing waits for it
-        os._exit(code)
-    _leave(code)
+    # a scene's (or a library's) thread left running: the run is saved, nothing waits for it
+    # (the exit hooks would: concurrent.futures' joins its threads)
+    _leave(code, hooks=not lingering)
 
 
-def _leave(code: int) -> NoReturn:
+def _leave(code: int, *, hooks: bool = True) -> NoReturn:
     """The child's exit, without the interpreter's finalization: the exit hooks
     (``atexit``: Dask's, multiprocessing's, temporary folders') run as at any exit, the
     streams are flushed (Python's, then C's: a library's ``printf``), and the process ends
-    with ``code`` (``os._exit``).
+    with ``code`` (``os._exit``). ``hooks=False`` (a non-daemon thread left running): no exit
+    hook runs.
 
     Finalization is where a thread still running meets the interpreter being taken apart:
     a daemon thread (Dask's event loop, a scene's thread) stopped while it holds a stream's
@@ -142,8 +143,9 @@ def _leave(code: int) -> NoReturn:
     import atexit
 
     _leave_uncollected()
-    with contextlib.suppress(BaseException):  # a hook's error is printed, as at any exit
-        atexit._run_exitfuncs()
+    if hooks:
+        with contextlib.suppress(BaseException):  # a hook's error is printed, as at any exit
+            atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(BaseException):
             stream.flush()
