@@ -99,6 +99,7 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     if os.getppid() != parent:  # the parent died before the request took effect
         os._exit(1)
     watch.attach()
+    ending = _last_exit_hook()
     try:
         code = work()
     except SystemExit as stop:  # argparse's end (--help, a usage error), as it is
@@ -119,17 +120,34 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     watch.done(code)
     lingering = [t for t in threading.enumerate()
                  if t is not threading.main_thread() and not t.daemon and t.is_alive()]
-    # a scene's (or a library's) thread left running: the run is saved, nothing waits for it
-    # (the exit hooks would: concurrent.futures' joins its threads)
-    _leave(code, hooks=not lingering)
+    if lingering:  # a scene's (or a library's) thread: the run is saved, nothing waits for it
+        # (the exit hooks would: concurrent.futures' joins its threads)
+        _leave(code)
+    _leave_uncollected()
+    ending.append(code)  # the interpreter's exit runs the exit hooks, then `_leave`
+    return code
 
 
-def _leave(code: int, *, hooks: bool = True) -> NoReturn:
-    """The child's exit, without the interpreter's finalization: the exit hooks
-    (``atexit``: Dask's, multiprocessing's, temporary folders') run as at any exit, the
-    streams are flushed (Python's, then C's: a library's ``printf``), and the process ends
-    with ``code`` (``os._exit``). ``hooks=False`` (a non-daemon thread left running): no exit
-    hook runs.
+def _last_exit_hook() -> list:
+    """An exit hook (``atexit``) registered before any other of the child (none is before the
+    fork), so that it runs after all of them: once the child has put its exit code in the list
+    returned, it leaves there (`_leave`), before the interpreter's finalization."""
+    import atexit
+
+    code: list[int] = []
+
+    def last():
+        if code:
+            _leave(code[0])
+    atexit.register(last)
+    return code
+
+
+def _leave(code: int) -> NoReturn:
+    """The child's exit without the interpreter's finalization: the streams flushed (Python's,
+    then C's: a library's ``printf``) and the process ended with ``code`` (``os._exit``);
+    called by the last exit hook, after every other one (Dask's, multiprocessing's,
+    temporary folders'), or directly when a non-daemon thread is left running (no hook then).
 
     Finalization is where a thread still running meets the interpreter being taken apart:
     a daemon thread (Dask's event loop, a scene's thread) stopped while it holds a stream's
@@ -139,13 +157,7 @@ def _leave(code: int, *, hooks: bool = True) -> NoReturn:
     teardown of every module and object (0.19 s of CPU of ``ddvp march paper_pendulum``
     with its figure was the cycle collector's alone; ``scripts/benchmarks/bench_startup.py``).
     The command's files are closed as they are written; the signals are ignored from the
-    end of the command on (``interrupts.py``)."""
-    import atexit
-
-    _leave_uncollected()
-    if hooks:
-        with contextlib.suppress(BaseException):  # a hook's error is printed, as at any exit
-            atexit._run_exitfuncs()
+    end of the command on."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(BaseException):
             stream.flush()
