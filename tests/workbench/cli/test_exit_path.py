@@ -157,3 +157,39 @@ def test_sigterm_at_the_end_of_a_sweep_ends_it_with_its_code(tmp_path, ready):
     assert "left running" not in err  # the cluster's workers ended with it
     if (tmp_path / "out" / "meta.json").exists():
         read_set(tmp_path / "out")
+
+
+def _wait_for_interrupt(seconds: float) -> bool:
+    """Whether a KeyboardInterrupt reached this thread within ``seconds``."""
+    try:
+        for _ in range(int(seconds / 0.01)):
+            time.sleep(0.01)
+    except KeyboardInterrupt:
+        return True
+    return False
+
+
+def test_a_swallowed_interrupt_is_raised_again_while_the_command_runs():
+    """The first signal's KeyboardInterrupt, swallowed (a compared method's run failed with
+    it and the table went on: ``ddvp compare`` then ran every remaining run), is raised again
+    AGAIN_S later; not once the command is ending, nor once its handlers are gone."""
+    from ddvp_nlp.cli.interrupts import AGAIN_S, Interrupts
+
+    interrupts = Interrupts()
+    restore = interrupts.install()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            interrupts.handle(signal.SIGINT, None)
+        assert _wait_for_interrupt(3 * AGAIN_S)  # swallowed above: it comes again
+        interrupts.end()
+        assert not _wait_for_interrupt(1.5 * AGAIN_S)  # ending: noted only
+    finally:
+        restore()
+    interrupts = Interrupts()
+    restore = interrupts.install()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            interrupts.handle(signal.SIGTERM, None)
+    finally:
+        restore()
+    assert not _wait_for_interrupt(1.5 * AGAIN_S)  # the handlers are gone: nothing
