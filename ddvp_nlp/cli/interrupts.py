@@ -12,7 +12,9 @@ at every moment, alike.
   are noted, not raised again while the command is ending (a second Ctrl-C had surfaced as a
   traceback from inside the first one's handling); one arriving more than a second after a
   raised one that the program swallowed (a CasADi callback turns it into another error) raises
-  again.
+  again, and so does the first one itself, two seconds on, if the command has not
+  begun to end by then: a swallowed interrupt (a compared method's run failed with it, its
+  row written, the table went on) had left ``ddvp compare`` running every remaining run.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ import time
 SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
 # A signal this long after a raised one that did not end the command raises again.
 RAISE_AGAIN_S = 1.0
+# A raised interrupt that the command swallowed is raised again this long after.
+AGAIN_S = 2.0
 
 
 class Stopped(Exception):
@@ -46,6 +50,7 @@ class Interrupts:
         self.ending = False      # the command is unwinding: note only
         self.raised_at = None
         self.restore = lambda: None
+        self.again = None        # the timer that raises a swallowed interrupt again
 
     def install(self):
         """Set the handlers (main thread only) and release the signals the package held while
@@ -55,6 +60,7 @@ class Interrupts:
         a traceback)."""
         import threading
 
+        self._cancel_again()
         self.__init__()
         if threading.current_thread() is not threading.main_thread():
             return lambda: None  # handlers can only be set from the main thread
@@ -62,6 +68,7 @@ class Interrupts:
         held = SIGNALS & signal.pthread_sigmask(signal.SIG_BLOCK, set())
 
         def restore():
+            self._cancel_again()
             if held:  # the command: hold them again until the process is gone, and ignore
                 # them: the mask is this thread's, and a signal a worker or checkpoint thread
                 # took had ended the exiting interpreter with KeyboardInterrupt (exit -2)
@@ -88,7 +95,30 @@ class Interrupts:
         now = time.monotonic()
         if self.raised_at is None or now - self.raised_at > RAISE_AGAIN_S:
             self.raised_at = now
+            self._raise_again_later(signum)
             raise KeyboardInterrupt
+
+    def _raise_again_later(self, signum) -> None:
+        """``AGAIN_S`` from now, the signal handled again in the main thread (module
+        docstring): it raises again unless the command is ending, writing its files, or
+        marching (then it is only noted); nothing once the handlers are gone."""
+        import _thread
+        import threading
+
+        def again():
+            if self.again is timer and signal.getsignal(signum) == self.handle:
+                with contextlib.suppress(Exception):
+                    _thread.interrupt_main(signum)
+        self._cancel_again()
+        timer = threading.Timer(AGAIN_S, again)
+        timer.daemon = True
+        self.again = timer
+        timer.start()
+
+    def _cancel_again(self) -> None:
+        timer, self.again = getattr(self, "again", None), None
+        if timer is not None:
+            timer.cancel()
 
     def stop_requested(self) -> bool:
         """Polled by the march between stepper calls: whether to stop. From the first poll on,

@@ -189,10 +189,11 @@ def scheme_name(args, scene) -> str:
 
 
 def method_names() -> tuple:
-    """The compared methods ``ddvp march --method`` runs (every method but the energy rules)."""
-    from ..studies.methods import METHODS
+    """The compared methods ``ddvp march --method`` runs (every method but the energy rules;
+    ``parser.COMPARED_METHODS``, held equal to the registry by a test)."""
+    from .parser import COMPARED_METHODS
 
-    return tuple(name for name in METHODS if name not in RULES)
+    return COMPARED_METHODS
 
 
 def scheme_of(args, higher: bool) -> Scheme:

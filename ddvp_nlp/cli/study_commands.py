@@ -76,6 +76,11 @@ def run_compare(args) -> int:
                              interruptible=INTERRUPTS.interruptible)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
+    with INTERRUPTS.saving():  # written: a signal now ends it as interrupted (exit 1)
+        return _compare_summary(scene, result, out)
+
+
+def _compare_summary(scene, result, out) -> int:
     rows = result.rows
     failed = len(result.failed)
     print(f"{scene.name} compare: {len(rows)} runs, {failed} did not reach t_end")
@@ -136,8 +141,10 @@ def run_stress(args) -> int:
                           interruptible=INTERRUPTS.interruptible)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
-    status_summary("stress", rows, out.path, "stress")
-    return _grid_ended("stress", rows)
+    with INTERRUPTS.saving():  # written: a signal now ends it as interrupted (exit 1), the
+        # files whole, not "before anything was written"
+        status_summary("stress", rows, out.path, "stress")
+        return _grid_ended("stress", rows)
 
 
 def run_sweep(args) -> int:
@@ -163,8 +170,10 @@ def run_sweep(args) -> int:
                           interruptible=INTERRUPTS.interruptible)
     except JournalInterrupted as exc:
         raise _interrupted(exc) from None
-    status_summary("sweep", rows, out.path, "sweep")
-    return _grid_ended("sweep", rows)
+    with INTERRUPTS.saving():  # written: a signal now ends it as interrupted (exit 1), the
+        # files whole, not "before anything was written"
+        status_summary("sweep", rows, out.path, "sweep")
+        return _grid_ended("sweep", rows)
 
 
 def _sweep_spec(args):

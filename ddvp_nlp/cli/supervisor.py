@@ -16,8 +16,10 @@ and reads the child's `SceneWatch` (``scenes/guard.py``):
   before saying it is done (a scene's thread that ended the process mid-run) is exit 1, never
   the code it died with (an ``_exit(0)`` would have passed for a success);
 - **a process that does not end after its work**: once done, the child leaves at once where
-  non-daemon threads would keep the interpreter waiting for them; a child that still does
-  not end (an ``atexit`` hook that hangs) is ended after ``EXIT_ASLEEP_S`` of sleep;
+  non-daemon threads would keep the interpreter waiting for them, and otherwise runs its
+  exit hooks and leaves before the interpreter's finalization, where a daemon thread holding
+  a stream had aborted it (`_leave`); a child that still does not end (an ``atexit`` hook
+  that hangs) is ended after ``EXIT_ASLEEP_S`` of sleep;
 - **signals**: SIGINT, SIGTERM and SIGHUP sent to the parent are passed to the child (one
   from the terminal reaches both already and is not passed twice); if the child then sleeps
   ``STOP_ASLEEP_S`` (or computes ``STOP_CPU_S``) without ending, it is ended, exit 1. A child
@@ -44,6 +46,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from typing import NoReturn
 
 from ..scenes.guard import SceneWatch
 
@@ -90,12 +93,13 @@ def supervise(work: Callable[[], int]) -> int:
 def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     """The command itself, in the child: it dies with its parent, reports to the watch, and
     once done leaves without waiting for threads that would keep it alive, nor for the
-    cycle collector (`_leave_uncollected`)."""
+    interpreter's finalization (`_leave`)."""
     parent = os.getppid()
     _die_with_parent()
     if os.getppid() != parent:  # the parent died before the request took effect
         os._exit(1)
     watch.attach()
+    ending = _last_exit_hook()
     try:
         code = work()
     except SystemExit as stop:  # argparse's end (--help, a usage error), as it is
@@ -106,6 +110,10 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
         # interrupted command, exit 1, not the interpreter's death by SIGINT (exit -2)
         _say("ddvp: interrupted as the command ended; every file it wrote is whole")
         code = 1
+    finally:  # the code is decided: a later signal changes nothing (the command's handling
+        # ignores them already; a child started otherwise would die by one, exit -15)
+        for signum in FORWARDED:
+            signal.signal(signum, signal.SIG_IGN)
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
@@ -113,19 +121,58 @@ def _child(work: Callable[[], int], watch: SceneWatch) -> int:
     lingering = [t for t in threading.enumerate()
                  if t is not threading.main_thread() and not t.daemon and t.is_alive()]
     if lingering:  # a scene's (or a library's) thread: the run is saved, nothing waits for it
-        os._exit(code)
+        # (the exit hooks would: concurrent.futures' joins its threads)
+        _leave(code)
     _leave_uncollected()
+    ending.append(code)  # the interpreter's exit runs the exit hooks, then `_leave`
     return code
+
+
+def _last_exit_hook() -> list:
+    """An exit hook (``atexit``) registered before any other of the child (none is before the
+    fork), so that it runs after all of them: once the child has put its exit code in the list
+    returned, it leaves there (`_leave`), before the interpreter's finalization."""
+    import atexit
+
+    code: list[int] = []
+
+    def last():
+        if code:
+            _leave(code[0])
+    atexit.register(last)
+    return code
+
+
+def _leave(code: int) -> NoReturn:
+    """The child's exit without the interpreter's finalization: the streams flushed (Python's,
+    then C's: a library's ``printf``) and the process ended with ``code`` (``os._exit``);
+    called by the last exit hook, after every other one (Dask's, multiprocessing's,
+    temporary folders'), or directly when a non-daemon thread is left running (no hook then).
+
+    Finalization is where a thread still running meets the interpreter being taken apart:
+    a daemon thread (Dask's event loop, a scene's thread) stopped while it holds a stream's
+    lock makes the final flush abort the process ("Fatal Python error: ... Python runtime
+    state: finalizing", exit -6 where the command's code was due). Leaving before it, no
+    thread can end the command that way, whatever it runs or holds. It also spares the
+    teardown of every module and object (0.19 s of CPU of ``ddvp march paper_pendulum``
+    with its figure was the cycle collector's alone; ``scripts/benchmarks/bench_startup.py``).
+    The command's files are closed as they are written; the signals are ignored from the
+    end of the command on."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(BaseException):
+            stream.flush()
+    with contextlib.suppress(BaseException):
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    os._exit(code)
 
 
 def _leave_uncollected() -> None:
     """Turn the cycle collector off for the process's exit (``gc.freeze``: what is alive now
-    is never traversed again): the interpreter's teardown then frees modules and objects by
-    their counts alone, where its collections over every object of matplotlib and CasADi
-    cost 0.19 s of CPU of the 1.15 s of ``ddvp march paper_pendulum`` with its figure
-    (measured; ``scripts/benchmarks/bench_startup.py``). The exit hooks (``atexit``) and
-    the streams' flushing run as before; the command's files are closed as they are
-    written."""
+    is never traversed again): the parent's teardown frees modules and objects by their
+    counts alone, and the child's exit hooks run without a collection over every object of
+    matplotlib and CasADi."""
     gc.disable()
     gc.freeze()
 

@@ -208,10 +208,13 @@ def _run_on_dask(tasks, *, workers, scheduler, retries):
     from distributed.scheduler import KilledWorker
 
     _quiet_dask()
-    with held_signals():  # a cluster cut half-way through its start or its close cannot close
-        client, cluster = _start_dask(workers, scheduler)
+    client = cluster = None
     futures = {}
     try:
+        # a cluster cut half-way through its start or its close cannot close (its event loop
+        # and its workers' threads then ran on into the interpreter's exit): both are held
+        with held_signals():
+            client, cluster = _start_dask(workers, scheduler)
         run = uuid.uuid4().hex[:8]
         futures = {client.submit(execute, task, key=f"ddvp-{run}-{i}", pure=False,
                                  retries=retries, priority=task.priority): task
@@ -226,12 +229,14 @@ def _run_on_dask(tasks, *, workers, scheduler, retries):
                 yield task, None, f"task_failed: {type(exc).__name__}: {exc}"
             future.release()
     except BaseException:  # Ctrl-C included: stop the rest, keep what was yielded
-        with held_signals():
-            client.cancel(list(futures))
+        if client is not None:
+            with held_signals():
+                client.cancel(list(futures))
         raise
     finally:
         with held_signals():
-            client.close()
+            if client is not None:
+                client.close()
             if cluster is not None:
                 cluster.close()
 
@@ -254,18 +259,28 @@ def _start_dask(workers, scheduler):
         warnings.filterwarnings("ignore", message="Port .* is already in use")
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1,
                                threads_per_worker=1, processes=True, dashboard_address=None)
-    client = Client(cluster)
-    # the workers end with this process, even when it is killed (SIGKILL gives it no chance
-    # to close the cluster)
-    client.run(_watch_parent, os.getpid())
+    try:
+        client = Client(cluster)
+        # the workers end with this process, even when it is killed (SIGKILL gives it no
+        # chance to close the cluster)
+        client.run(_watch_parent, os.getpid())
+    except BaseException:
+        cluster.close()
+        raise
     return client, cluster
 
 
 @contextlib.contextmanager
 def held_signals():
-    """Ctrl-C and SIGTERM held (blocked, not lost) in the main thread for the duration: the
-    start and the close of a cluster are not cut half-way (Dask's exit hook then failed with
-    a traceback); a signal that came meanwhile is handled right after."""
+    """Ctrl-C, SIGTERM and SIGHUP held (noted, not acted on) for the duration, then acted on:
+    the start and the close of a cluster are not cut half-way (Dask's exit hook then failed
+    with a traceback, and a close cut short left its event loop and its workers' threads
+    running into the interpreter's exit). Blocking the signals in the main thread is not
+    enough: another thread (Dask's event loop) takes the signal, and the main thread then
+    runs its Python handler wherever it is; so the handlers are also replaced, for the
+    duration, by one that notes the signal. A signal that came meanwhile is raised again
+    right after, once for each kind, to the handler that was in place (a command's handler
+    raises ``KeyboardInterrupt`` there; an ignored signal stays ignored)."""
     import signal
     import threading
 
@@ -273,12 +288,22 @@ def held_signals():
             not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    wanted = {signal.SIGINT, signal.SIGTERM}
+    wanted = [getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+              if hasattr(signal, name)]
+    noted = []
     before = signal.pthread_sigmask(signal.SIG_BLOCK, wanted)
+    previous = {}
     try:
+        for sig in wanted:
+            if signal.getsignal(sig) is not None:  # None: a handler set outside Python
+                previous[sig] = signal.signal(sig, lambda signum, frame: noted.append(signum))
         yield
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        for sig in dict.fromkeys(noted):
+            signal.raise_signal(sig)
 
 
 def describe_error(error: str) -> tuple[str, str]:
