@@ -131,23 +131,27 @@ _OFFSETS = [(3, 3), (3, -9), (-3, 3), (-3, -9)] + [
 
 
 def place_labels(axes, labels) -> list:
-    """Each ``(text, (x, y))`` of ``labels`` annotated beside its point where its box meets no
-    label placed before it and no other labelled point; further out with a leader line where
-    the near places are taken (the search's points of nearly equal period and index: "6,7"
+    """Each ``(text, (x, y))`` of ``labels`` annotated beside its point where its box stays in
+    the axes and meets no label placed before it and no point's marker; further out with a
+    leader line where the near places are taken (the search's points of nearly equal period and index: "6,7"
     printed over "8,9"). Returns the annotations."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.text import Text
+    from matplotlib.transforms import Bbox
 
     figure = axes.figure
     if not hasattr(figure.canvas, "get_renderer"):
         FigureCanvasAgg(figure)
     figure.draw_without_rendering()  # the layout first: the points where they will be drawn
     renderer = figure.canvas.get_renderer()
-    points = [axes.transData.transform(point) for _, point in labels]
+    reach = 5 * figure.dpi / 72  # a marker's reach, in pixels (5 points)
+    markers = [Bbox.from_extents(x - reach, y - reach, x + reach, y + reach)
+               for x, y in (axes.transData.transform(point) for _, point in labels)]
+    inside = axes.get_window_extent(renderer)
     taken, placed = [], []
     for j, (text, point) in enumerate(labels):
-        others = [p for i, p in enumerate(points) if i != j]
-        for dx, dy in _OFFSETS:
+        others = markers[:j] + markers[j + 1:]
+        for dx, dy in _OFFSETS + [_OFFSETS[0]]:  # nowhere free: beside it after all
             far = abs(dx) > 3
             note = axes.annotate(text, point, fontsize="x-small", xytext=(dx, dy),
                                  textcoords="offset points",
@@ -155,12 +159,15 @@ def place_labels(axes, labels) -> list:
                                  arrowprops={"arrowstyle": "-", "lw": 0.5, "color": "0.4",
                                              "shrinkA": 0, "shrinkB": 2} if far else None)
             note.set_in_layout(False)  # the layout stays the one the places were chosen in
+            note.update_positions(renderer)  # the text where it will be drawn
             box = Text.get_window_extent(note, renderer).expanded(1.1, 1.2)
-            if not any(box.overlaps(other) for other in taken) and not any(
-                    box.contains(*p) for p in others):
+            within = inside.containsx(box.x0) and inside.containsx(box.x1) and \
+                inside.containsy(box.y0) and inside.containsy(box.y1)
+            if within and not any(box.overlaps(other) for other in taken + others):
                 break
-            if (dx, dy) != _OFFSETS[-1]:
-                note.remove()
+            note.remove()
+        else:
+            axes.add_artist(note)
         taken.append(box)
         placed.append(note)
     return placed
