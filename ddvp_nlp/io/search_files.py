@@ -133,8 +133,8 @@ _OFFSETS = [(3, 3), (3, -9), (-3, 3), (-3, -9)] + [
 def place_labels(axes, labels) -> list:
     """Each ``(text, (x, y))`` of ``labels`` annotated beside its point where its box stays in
     the axes and meets no label placed before it and no point's marker; further out with a
-    leader line where the near places are taken (the search's points of nearly equal period and index: "6,7"
-    printed over "8,9"). Returns the annotations."""
+    leader line where the near places are taken (the search's points of nearly equal period
+    and index: "6,7" was printed over "8,9"). Returns the annotations."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.text import Text
     from matplotlib.transforms import Bbox
