@@ -25,7 +25,13 @@ Every orbit found is checked by closing it on the exact flow over its whole peri
 orbit reached from several seeds, or as a multiple cover, is kept once (compared by its period
 and its upward crossings of the section); each is refined on the discrete grid by
 ``solve_periodic`` (the orbit as its guess) with its multipliers and verdict
-(``periodic_stability``), beside the exact flow's own monodromy.
+(``periodic_stability``), beside the exact flow's own monodromy, and compared with it
+(``search_grid.py``: a grid orbit further from it than the grid's own error is another orbit,
+said so, not this one's refinement). An orbit's verdict is its exact index's with the
+tolerance ``stability_tol``. ``max_returns`` bounds the upward crossings of the orbits listed
+(an orbit of ``R`` crosses ``R`` times in its half between the right-angle crossings, so the
+half-orbit shots go to the ``max_returns``-th crossing); a shot that closes on an orbit of more
+is a failed seed, said so.
 
 Where the seeds run: in this process by default (``workers=1``, one after another). With
 ``workers=N`` the seeds' runs to their returns and the shots (one per bracket or grid minimum)
@@ -136,7 +142,9 @@ class FoundOrbit:
     return map over one period on the exact flow (``section_map.py``), ``closure`` (its
     relative closure on the exact flow), ``crossings`` (its upward crossings, rows ``u``),
     ``path`` (``z`` at 400 equal times of one period), how many ``seeds`` reached it, the refined
-    ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``)."""
+    ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``), ``tol``
+    (the stability index's tolerance of the verdict) and ``grid`` (a
+    ``search_grid.GridRefinement``: whether the grid's orbit is this one; ``None`` unrefined)."""
 
     period: float
     start: np.ndarray
