@@ -91,7 +91,8 @@ def compare_grid(orbit, solution, section) -> GridRefinement:
     verdict = solution.verdict
     estimate = float(verdict.error_max) if verdict is not None else float("nan")
     name = verdict.name if verdict is not None else solution.status.code
-    far = not (max(period_gap, start_gap) <= GAP * estimate)
+    # no accuracy check made (none asked for): no estimate to compare with, nothing flagged
+    far = bool(np.isfinite(estimate)) and not (max(period_gap, start_gap) <= GAP * estimate)
     return GridRefinement(ANOTHER if far else name, period, period_gap, start_gap, estimate)
 
 

@@ -111,6 +111,14 @@ def test_a_failed_grid_is_said_failed():
     assert compare_grid(orbit, SimpleNamespace(success=False), SECTION).verdict == "failed"
 
 
+def test_a_grid_without_an_accuracy_check_is_not_flagged():
+    """No estimate (the accuracy check was not made): the gaps are given, nothing is claimed."""
+    solution = grid(1.5, (1.0, 0.0, 0.0, 1.0))
+    solution.verdict = None
+    check = compare_grid(found(), solution, SECTION)
+    assert check.verdict == "success" and abs(check.period_gap - 0.5) < 1e-12
+
+
 def test_the_orbit_the_grid_landed_on_is_named():
     """The trial's orbit 5 (T = 77.604, index 2 - 1e-11) whose grid went to 76.185: the double
     cover of orbit 2 (T = 38.080, its crossing at q1 = 1.1867)."""
