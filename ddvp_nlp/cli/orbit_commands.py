@@ -115,9 +115,14 @@ def _periodic_orbit(args, scene, energy, nodes, guess, settings, named, defaults
                                   plot=not args.no_plot, interruptible=INTERRUPTS.interruptible)
     print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}\n"
           f"  {_period_line(solution, meta)}; written to {out.path}/")
+    _print_accuracy(solution)
+    return 0 if solution.success and not INTERRUPTS.requested else 1
+
+
+def _print_accuracy(solution) -> None:
+    """The accuracy check's verdict line (as ``march`` and ``bvp`` print theirs)."""
     if solution.verdict is not None:
         print(f"  accuracy check: {solution.verdict.name} ({describe(solution.verdict)})")
-    return 0 if solution.success and not INTERRUPTS.requested else 1
 
 
 def _period_line(solution, meta) -> str:
@@ -215,6 +220,7 @@ def _orbit(args, scene, settings, nodes, guess, params, tol, energy, named) -> i
                                   interruptible=INTERRUPTS.interruptible)
         print(f"{scene.name} periodic [{meta['scheme']}]: {meta['status']} - {meta['message']}"
               f"\n  {_period_line(solution, meta)}")
+        _print_accuracy(solution)
         if not solution.success:
             print(f"  no stability: the orbit was not found; written to {out.path}/")
             return 1

@@ -386,10 +386,16 @@ def _periodic_command(periodic: argparse.ArgumentParser) -> None:
     value = {name: api_default("periodic", name) for name in ("seeds", "max_returns",
                                                                "reversing", "workers")}
     periodic.add_argument("--seeds", type=int, default=None,
-                          help=f"with --search: how many seeds (default {value['seeds']})")
+                          help="with --search: N seeds on the symmetric line (both crossing "
+                               "directions), and N on a grid of the whole map (about N of its "
+                               "points accessible, more in all); --reversing auto searches both "
+                               "where H has the symmetry, about 2N seeds or more; the header "
+                               f"counts each (default {value['seeds']})")
     periodic.add_argument("--max-returns", type=int, default=None,
-                          help=f"with --search: orbits up to this many returns (default "
-                               f"{value['max_returns']})")
+                          help="with --search: orbits of up to this many upward crossings "
+                               "of the section per period (the 'returns' listed); a shot that "
+                               "closes on an orbit of more is listed among the failed seeds "
+                               f"(default {value['max_returns']})")
     periodic.add_argument("--reversing", default=None, metavar="NAMES|auto|none",
                           help="with --search: the coordinates a reversing symmetry flips, "
                                "e.g. q2,p1 for the section q2=0: half-orbit shots (default "

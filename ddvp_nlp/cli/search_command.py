@@ -36,6 +36,7 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
     if jitter is not None:
         jitter = check_integer("--jitter", jitter, minimum=0)
     workers = check_integer("--workers", default_of("workers", args.workers))
+    tol = check_real("--stability-tol", args.stability_tol, positive=True)
     named = {"energy": energy, "section": section, "seeds": seeds, "max_returns": max_returns,
              "reversing": reversing, "nodes": nodes, "params": params, "jitter": jitter}
     target, owned = default_or(args, f"{scene.name}-search", named, scene=scene)
@@ -44,7 +45,8 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
             search = find_periodic_orbits(scene.system, energy=energy, section=section,
                                           reversing=reversing, seeds=seeds,
                                           max_returns=max_returns, nodes=nodes, params=params,
-                                          refine=True, jitter=jitter, workers=workers)
+                                          refine=True, jitter=jitter, workers=workers,
+                                          stability_tol=tol)
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) while searching; "
                           "nothing was written") from None
@@ -52,11 +54,12 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
             rows = write_search(out, scene.name, search, plot=not args.no_plot,
                                 interruptible=INTERRUPTS.interruptible)
     print(f"{scene.name} periodic search: {search.summary()}")
+    print(f"  verdict: the exact flow's stability index, marginal within {tol:g} of +-2; "
+          "grid: the orbit refined on the grid and its accuracy verdict")
     for j, row in enumerate(rows):
-        grid = (f"; grid T = {row['grid_period']:.10g}, index {row['grid_index']:.8g}"
-                if row["grid_period"] == row["grid_period"] else f"; {row['note'][:90]}")
         print(f"  {j + 1:2d}. T = {row['period']:.10g}  index {row['index']:.8g}  "
-              f"{row['verdict']:8s} returns {row['returns']}, {row['seeds']} seed(s){grid}")
+              f"{row['verdict']:8s} returns {row['returns']}, {row['seeds']} seed(s); "
+              f"{grid_said(row)}")
     reasons: dict = {}
     for failed in search.failures:
         key = failed.reason.split(" (")[0].split(":")[0]
@@ -66,6 +69,25 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
     print(f"  {search.seconds:.1f} s CPU; written to {out.path}/ (orbits.csv, failures.csv"
           f"{', orbits.png' if rows and not args.no_plot else ''})")
     return 0 if search.found and not INTERRUPTS.requested else 1
+
+
+def grid_said(row: dict) -> str:
+    """The grid's refinement of one orbit in words: its verdict, period and index where it
+    refines the orbit; where it landed on another orbit, that, with the gaps (not this orbit's
+    period); else why there is none."""
+    if row["grid_verdict"] == "another orbit":
+        landed = f"{row['grid_landed']}, " if row["grid_landed"] else ""
+        return (f"grid: landed on another orbit ({landed}T = {row['grid_period']:.10g}, "
+                f"{row['grid_period_gap']:.1e} of the period and start "
+                f"{row['grid_start_gap']:.1e} away, its own error {row['grid_error']:.1e}): "
+                "not refined")
+    if row["grid_period"] == row["grid_period"]:
+        off = (f" (the exact flow's differs by {row['grid_index_gap']:.2g} of it, far beyond "
+               f"the grid's error {row['grid_error']:.1e}: the grid's index is not this "
+               "orbit's)" if row["grid_index_off"] else "")
+        return (f"grid {row['grid_verdict']}: T = {row['grid_period']:.10g}, index "
+                f"{row['grid_index']:.8g}{off}")
+    return row["note"][:90]
 
 
 def default_of(dest: str, value):

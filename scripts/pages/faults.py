@@ -1156,6 +1156,10 @@ SEARCHES = [
     (["--section", "q1=0", "--workers", "-2"], (2,), "--workers must be a positive integer"),
     (["--section", "q1=0", "--workers", "x"], (2,), "argument --workers: invalid int value"),
     (["--section", "q1=0", "--workers", "1000000000"], (2,), "is more than this machine can"),
+    # the search's verdicts read --stability-tol (an index within it of +-2 is marginal)
+    (["--section", "q1=0", "--stability-tol", "nan"], (2,), "--stability-tol must be finite"),
+    (["--section", "q1=0", "--stability-tol", "-1"], (2,), "--stability-tol must be > 0"),
+    (["--section", "q1=0", "--stability-tol", "x"], (2,), "argument --stability-tol: invalid"),
 ]
 # --workers without --search (the seeds' processes): it would be ignored unsaid.
 SEARCH_ONLY_WORKERS = [

@@ -33,7 +33,8 @@ PUBLIC = {"AtEnergy", "ChaosIndicators", "Collect", "Compilation", "Continuation
 MOST_PARAMETERS = 12
 # solve_bvp: derivatives= (issue 47); march_ensemble: t_eval and derivatives (issue 47);
 # compare: its horizons, the comparison's second axis (issue 49)
-MORE = {"march": 2, "solve_bvp": 1, "march_ensemble": 2, "compare": 1}
+MORE = {"march": 2, "solve_bvp": 1, "march_ensemble": 2, "compare": 1,
+        "find_periodic_orbits": 1}
 
 
 def test_public_names_are_stable_and_importable():

@@ -25,7 +25,13 @@ Every orbit found is checked by closing it on the exact flow over its whole peri
 orbit reached from several seeds, or as a multiple cover, is kept once (compared by its period
 and its upward crossings of the section); each is refined on the discrete grid by
 ``solve_periodic`` (the orbit as its guess) with its multipliers and verdict
-(``periodic_stability``), beside the exact flow's own monodromy.
+(``periodic_stability``), beside the exact flow's own monodromy, and compared with it
+(``search_grid.py``: a grid orbit further from it than the grid's own error is another orbit,
+said so, not this one's refinement). An orbit's verdict is its exact index's with the
+tolerance ``stability_tol``. ``max_returns`` bounds the upward crossings of the orbits listed
+(an orbit of ``R`` crosses ``R`` times in its half between the right-angle crossings, so the
+half-orbit shots go to the ``max_returns``-th crossing); a shot that closes on an orbit of more
+is a failed seed, said so.
 
 Where the seeds run: in this process by default (``workers=1``, one after another). With
 ``workers=N`` the seeds' runs to their returns and the shots (one per bracket or grid minimum)
@@ -56,6 +62,9 @@ from ...errors import InputError
 from ...validation import check_integer, check_memory, check_real
 from ..exact.flow import exact_flow
 from ..exact.flow_newton import exact_newton
+from .floquet import DEFAULT_TOL
+from .floquet import verdict as stability_verdict
+from .search_grid import identify_landing, refine_found
 from .section_map import (
     RTOL,
     SEED_ATTEMPTS,
@@ -94,6 +103,7 @@ class SearchRegion:
     horizon: float
     jitter: int | None = None
     equilibria: int = 0
+    parts: tuple = ()
 
     def describe(self) -> str:
         parts = []
@@ -109,9 +119,19 @@ class SearchRegion:
         linearised = "" if not self.equilibria else \
             f", the linearised orbits about {self.equilibria} critical points of the line"
         return (f"E = {self.energy:.10g}, section {self.section}, other position in "
-                f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds} seeds of "
-                f"which {self.accessible} accessible{placed}{linearised}, up to "
-                f"{self.max_returns} returns, seeds followed to t = {self.horizon:.4g}")
+                f"[{self.window[0]:.4g}, {self.window[1]:.4g}] {box}, {self.seeds_said()}"
+                f"{placed}{linearised}, orbits of up to {self.max_returns} upward crossings "
+                f"per period, seeds followed to t = {self.horizon:.4g}")
+
+    def seeds_said(self) -> str:
+        """The seeds, each way of searching's apart: ``seeds`` asks for that many on the
+        symmetric line (both directions) and for about that many accessible on the whole
+        map's grid, so the total is about twice it, or more where little of the grid is
+        accessible."""
+        if len(self.parts) < 2:
+            return f"{self.seeds} seeds of which {self.accessible} accessible"
+        each = "; ".join(f"{n} {where} ({a} accessible)" for where, n, a in self.parts)
+        return f"{self.seeds} seeds of which {self.accessible} accessible: {each}"
 
 
 @dataclass
@@ -122,7 +142,9 @@ class FoundOrbit:
     return map over one period on the exact flow (``section_map.py``), ``closure`` (its
     relative closure on the exact flow), ``crossings`` (its upward crossings, rows ``u``),
     ``path`` (``z`` at 400 equal times of one period), how many ``seeds`` reached it, the refined
-    ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``)."""
+    ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``), ``tol``
+    (the stability index's tolerance of the verdict) and ``grid`` (a
+    ``search_grid.GridRefinement``: whether the grid's orbit is this one; ``None`` unrefined)."""
 
     period: float
     start: np.ndarray
@@ -137,13 +159,16 @@ class FoundOrbit:
     solution: object = None
     stability: object = None
     note: str = ""
+    tol: float = DEFAULT_TOL
+    grid: object = None
 
     @property
     def verdict(self) -> str:
-        """The grid's verdict where refined, else the exact flow's (``|index| < 2``)."""
-        if self.stability is not None:
-            return self.stability.verdict
-        return "stable" if abs(self.index) < 2 else "unstable"
+        """``stable``, ``marginal`` or ``unstable`` from the exact flow's ``index`` with the
+        tolerance ``tol`` (``floquet.verdict``: ``|index|`` within ``tol`` of 2 is
+        ``marginal``), whatever the grid gave: one classification for the list, the files and
+        the figure. The grid's own is ``stability.verdict``, told apart in ``grid``."""
+        return stability_verdict(np.array([self.index], complex), self.tol)
 
 
 @dataclass(frozen=True)
@@ -182,7 +207,8 @@ class NoMotionOnSection(InputError):
 def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
                          seeds: int = SEEDS, max_returns: int = MAX_RETURNS, window=None,
                          nodes: int = 201, params=None, refine: bool = True,
-                         jitter=None, workers: int = 1) -> OrbitSearch:
+                         jitter=None, workers: int = 1,
+                         stability_tol: float = DEFAULT_TOL) -> OrbitSearch:
     """Periodic orbits of ``system`` at energy ``E`` that cross ``section`` (module docstring).
 
     Args:
@@ -212,6 +238,8 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
         workers: processes the seeds' work runs on (their returns and the shooting from each
             seed or bracket), forked from this one; ``1`` (default): all in this process. The
             same orbits either way (the same calls, merged back in order).
+        stability_tol: an orbit's stability index within this of ``+-2`` is ``marginal``
+            (``floquet.verdict``), the exact flow's index and the grid's alike.
 
     Returns:
         An `OrbitSearch`. An energy with no motion on the section is refused
@@ -225,6 +253,7 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
     nodes = check_integer("nodes", nodes, minimum=4)
     jitter = None if jitter is None else check_integer("jitter", jitter, minimum=0)
     workers = check_integer("workers", workers)
+    stability_tol = check_real("stability_tol", stability_tol, positive=True)
     check_memory("workers", workers, workers * _worker_bytes(), "the seeds' worker processes")
     theta = system.parameter_vector(params)
     flipped = parse_reversing(reversing, system, theta, sec)
@@ -241,16 +270,21 @@ def find_periodic_orbits(system, *, energy: float, section, reversing="auto",
             region = box if region is None else {
                 **box, "seeds": region["seeds"] + box["seeds"],
                 "accessible": region["accessible"] + box["accessible"],
-                "horizon": max(region["horizon"], box["horizon"])}
+                "horizon": max(region["horizon"], box["horizon"]),
+                "parts": region["parts"] + box["parts"]}
     if flipped is None:  # no half-orbit shots: the equilibria's linearised orbits too
         more, failed, region["equilibria"] = _equilibrium_orbits(geometry, window, params)
         found, failures = found + more, failures + failed
-    orbits = _distinct(found)
-    if refine:
-        for orbit in orbits:
-            _refine(system, orbit, energy, sec, nodes, params)
+    orbits, beyond = _within_returns(_distinct(found), max_returns)
+    failures = failures + beyond
+    for orbit in orbits:
+        orbit.tol = stability_tol
+        if refine:
+            refine_found(system, orbit, energy, sec, nodes, params, stability_tol)
+    orbits = sorted(orbits, key=lambda o: o.period)
+    identify_landing(orbits, sec)
     region = SearchRegion(reversing=flipped, jitter=jitter, **region)
-    return OrbitSearch(sorted(orbits, key=lambda o: o.period), region, failures,
+    return OrbitSearch(orbits, region, failures,
                        _cpu_seconds() - started)
 
 
@@ -433,7 +467,9 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
     line = _cells(window, max(seeds // 2, 2), jitter)
     u = np.column_stack([line, np.zeros(line.size)])
     found, failures, accessible, horizons = [], [], 0, []
-    half = 2 * max_returns  # crossings of the section in half an orbit of max_returns returns
+    # the crossings alternate in direction, so an orbit of R upward crossings per period
+    # crosses 2 R times, R of them in the half from one right-angle crossing to the other
+    half = max_returns
     for direction in (1, -1):
         z = geometry.points(u, direction)
         ok = np.all(np.isfinite(z), axis=1)
@@ -463,7 +499,8 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
                 failures.append(FailedSeed((float(a), float(b)), shot))
     region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
                   momentum=None, seeds=2 * line.size, accessible=accessible,
-                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
+                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)),
+                  parts=(("on the symmetric line", 2 * line.size, accessible),))
     return found, failures, region
 
 
@@ -648,7 +685,9 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None, poo
             failures.append(FailedSeed(tuple(shot[0]), result))
     region = dict(energy=geometry.energy, section=geometry.section.label, window=window,
                   momentum=(-top, top), seeds=U.shape[0], accessible=int(ok.sum()),
-                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)))
+                  max_returns=max_returns, horizon=float(max(horizons, default=0.0)),
+                  parts=((f"on a {side} x {side} grid of the whole map", U.shape[0],
+                          int(ok.sum())),))
     return found, failures, region
 
 
@@ -866,35 +905,20 @@ def _distinct(found: list) -> list:
     return kept
 
 
+def _within_returns(orbits: list, max_returns: int) -> tuple[list, list]:
+    """``(kept, failures)``: the orbits of at most ``max_returns`` upward crossings, and a
+    `FailedSeed` for each other one (a shot can close on an orbit of more crossings than its
+    seed's: the option bounds what is listed, so it is said, not listed)."""
+    kept = [orbit for orbit in orbits if orbit.returns <= max_returns]
+    beyond = [FailedSeed(tuple(float(v) for v in orbit.crossings[0]),
+                         f"closed on an orbit of {orbit.returns} upward crossings, beyond "
+                         f"max_returns = {max_returns} (period {orbit.period:.10g})")
+              for orbit in orbits if orbit.returns > max_returns]
+    return kept, beyond
+
+
 def _covers(orbit: FoundOrbit, size: float) -> bool:
     """Whether the orbit repeats its start before its period (a multiple cover)."""
     return len(orbit.crossings) < orbit.returns or any(
         np.max(np.abs(row - orbit.crossings[0])) <= 1e3 * SAME * size
         for row in orbit.crossings[1:])
-
-
-def _refine(system, orbit: FoundOrbit, energy: float, section: SearchSection, nodes: int,
-            params) -> None:
-    """The orbit on the discrete grid (``solve_periodic`` from it) and its stability there."""
-    from .floquet import periodic_stability
-    from .orbit import solve_periodic
-
-    theta = system.parameter_vector(params)
-    flow = exact_flow(system)
-    run = flow.run(orbit.start, 0.0, orbit.period, theta, rtol=RTOL)
-    t = np.linspace(0.0, orbit.period, 4 * nodes)
-    z = run.z(t)
-    z[-1] = z[0]
-    guess = {"t": t, "q": z[:, :2], "p": z[:, 2:]}
-    label = f"q{section.index + 1}={section.value:g}"
-    try:
-        solution = solve_periodic(system, energy=energy, nodes=nodes, section=label,
-                                  guess=guess, params=params)
-    except InputError as error:
-        orbit.note = f"not refined on the grid: {error}"
-        return
-    orbit.solution = solution
-    if not solution.success:
-        orbit.note = f"the grid's refinement failed: {solution.message[:200]}"
-        return
-    orbit.stability = periodic_stability(system, solution, params=params)

@@ -1,6 +1,7 @@
 """`ddvp periodic --search` on Hill's problem (tests/library/periodic/hill_scene.py): the orbit
 list written and printed; a failed orbit of `ddvp periodic` prints no period."""
 
+import json
 from pathlib import Path
 
 from ddvp_nlp.cli.main import main
@@ -17,6 +18,28 @@ def test_the_command_writes_the_orbit_list(tmp_path, capsys):
     assert rows[0].startswith("period,index,verdict")
     assert any(abs(float(row.split(",")[0]) - 0.6471579) < 1e-6 for row in rows[1:]), rows
     assert "T = 0.6471579313" in printed
+    # the session-56 trial: a count that contradicts the option given is a defect
+    header = rows[0].split(",")
+    returns = [int(row.split(",")[header.index("returns")]) for row in rows[1:]]
+    assert max(returns) <= 1, returns
+    assert "orbits of up to 1 upward crossings per period" in printed
+    assert "on the symmetric line (" in printed
+    meta = json.loads((tmp_path / "out" / "meta.json").read_text())
+    assert sum(way["seeds"] for way in meta["seeds_by_way"]) == meta["seeds"]
+    assert len(meta["grid_verdicts"]) == len(rows) - 1
+    assert meta["verdicts"] == [row.split(",")[2] for row in rows[1:]]
+    assert "grid accurate: T = 0.647" in printed
+
+
+def test_periodic_stability_prints_its_accuracy_check(tmp_path, capsys):
+    """The trial: `ddvp periodic --stability` printed no accuracy verdict (march and bvp do)."""
+    code = main(["periodic", "pendulum", "--energy", "0.5", "--nodes", "41", "--stability",
+                 "--no-plot", "--out", str(tmp_path / "out")])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    meta = json.loads((tmp_path / "out" / "meta.json").read_text())
+    verdict = meta["accuracy"]["verdict"] if isinstance(meta["accuracy"], dict) else None
+    assert f"  accuracy check: {verdict or 'accurate'} (" in printed, printed
 
 
 def test_an_orbit_not_found_prints_no_period(tmp_path, capsys):
