@@ -21,13 +21,15 @@ SHORT_NAMES = {"trajectory_error": "trajectory error (absolute)",
 def plot_horizons(results: dict, path, *, title: str, unit: float,
                   time_dependent: bool = False, fmt: str = "png") -> None:
     """A column per horizon, a row per error kind, every method's runs as in the single
-    report (each at the median of its timed calls, a bar from the fastest to the slowest)."""
+    report (each at the fastest of its timed calls, the cost the rankings read, a bar to the
+    slowest, an open marker at its CPU time)."""
     with figures.styled():
         fig = figures.new_figure(min(figures.TEXT_WIDTH, 2.1 * len(results) + 1.0), 5.2)
         axes = fig.subplots(len(AXIS_LABELS), len(results), squeeze=False, sharey="row")
         _horizon_panels(axes, results, unit, time_dependent)
         figure_legend(fig, axes.ravel())
-        fig.suptitle(f"{title} (errors absolute; run time: median, bar min-max)")
+        fig.suptitle(f"{title} (errors absolute; run time: best call, bar to the worst; "
+                     "open: its CPU time)")
         figures.save(fig, path, fmt)
 
 
