@@ -32,8 +32,9 @@ PANEL_TITLES = {"trajectory_error": "trajectory error (absolute, units of $q$, $
 TIME_DEPENDENT_ENERGY = r"$\max_k\, |H(z_k, t_k) - H(z_{\mathrm{ref}}(t_k), t_k)|$"
 # The cost on the x axis: the column the rankings read (`work_precision.CLOCKS`) and its label.
 CLOCK_COLUMNS = {"wall": ("run_s", "run_s_max"), "cpu": ("cpu_s", "cpu_s_max")}
-CLOCK_LABELS = {"wall": "wall time [s]\nbest of {n} (bar: to the worst)",
-                "cpu": "CPU time [s] of the best of {n}\n(bar: to the worst)"}
+CLOCK_LABELS = {"wall": "wall time [s]\nbest of {n}{bar}",
+                "cpu": "CPU time [s] of the best of {n}\n{bar}"}
+BAR_NOTE = " (bar: to the worst)"
 PILOT_NOTE = "target error; time incl. pilot"
 CPU_MARKER = {"marker": "o", "mfc": "none", "ms": 3.5, "mew": 0.6, "linestyle": "none"}
 
@@ -44,7 +45,10 @@ def run_time_label(rows, clock: str = "wall") -> str:
     counts = {int(r["repeats"]) for r in rows if r.get("repeats", 0) and r["status"] == "success"}
     calls = (f"{counts.pop()} calls" if len(counts) == 1 and min(counts, default=0) > 1 else
              "1 call" if counts == {1} else "the timed calls")
-    return CLOCK_LABELS[clock].format(n=calls)
+    slowest = CLOCK_COLUMNS[clock][1]
+    spread = any(math.isfinite(r.get(slowest, math.nan)) for r in rows
+                 if r["status"] == "success")
+    return CLOCK_LABELS[clock].format(n=calls, bar=BAR_NOTE if spread else "").rstrip()
 
 # One colour per method for up to a dozen methods (the house cycle, then four of Paul Tol's
 # "muted" colours): with the cycle's eight, a ninth method took the first one's colour, and
