@@ -40,9 +40,10 @@ ROW_HEIGHT = 1.25  # inches per panel row
 # A thinned run's samples as dots of this size (points), edge-less: at 3 points the dots of
 # two components overlapped into one block.
 SAMPLE_DOT = 2.0
-# An equal-aspect state panel whose two ranges differ by more than this factor keeps its
-# square box and widens the shorter range's limits instead (``adjustable="datalim"``): the box
-# shrunk to a strip with its tick labels run together (a cart pendulum's q ranges 0.45 and 1).
+# An equal-aspect state panel whose vertical range exceeds its horizontal one by more than
+# this factor keeps its box and widens its x limits instead (``adjustable="datalim"``): the box
+# shrunk to a narrow strip with its x tick labels run together (a cart pendulum's q ranges 0.45
+# and 1). A wide, low box reads well and is kept.
 STRIP_RATIO = 2.0
 
 
@@ -303,7 +304,7 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
     are prescribed (the configuration plane), as dots in the phase plane, whose p is not); equal
     aspect in the configuration plane always, in the phase plane unless the ranges are of
     unrelated scales (``EQUAL_ASPECT_RATIO``), the box kept square where equal aspect would
-    make it a strip (``STRIP_RATIO``); a thinned run's title says its points are the kept
+    make it a narrow strip (``STRIP_RATIO``); a thinned run's title says its points are the kept
     nodes (samples, which can miss the loops between them)."""
     several = q.shape[1] > 1
     if kind == "phase":
@@ -345,7 +346,7 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
     spans = [float(np.ptp(v[np.isfinite(v)])) if np.isfinite(v).any() else 0.0 for v in (x, y)]
     if kind == "configuration" or (min(spans) > 0
                                    and max(spans) <= EQUAL_ASPECT_RATIO * min(spans)):
-        strip = min(spans) > 0 and max(spans) > STRIP_RATIO * min(spans)
+        strip = spans[0] > 0 and spans[1] > STRIP_RATIO * spans[0]  # tall: x ticks crowd
         ax.set_aspect("equal", adjustable="datalim" if strip else "box")
 
 
