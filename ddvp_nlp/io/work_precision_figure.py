@@ -36,6 +36,7 @@ CLOCK_LABELS = {"wall": "wall time [s]\nbest of {n}{bar}",
                 "cpu": "CPU time [s] of the best of {n}\n{bar}"}
 BAR_NOTE = " (bar: to the worst)"
 PILOT_NOTE = "target error; time incl. pilot"
+LONG_LABEL = 28  # characters of a legend entry two of which fit side by side in a column
 CPU_MARKER = {"marker": "o", "mfc": "none", "ms": 3.5, "mew": 0.6, "linestyle": "none"}
 
 
@@ -67,16 +68,23 @@ def panel_title(kind: str) -> str:
 
 
 def log_ticks(ax, axis: str = "x") -> None:
-    """Ticks at 1, 2 and 5 of each decade, each labelled, on a log axis whose data span less
-    than two decades: a column-wide panel of one decade had a single labelled tick."""
+    """Ticks at 1, 2 and 5 of each decade (1 and 3 beyond 1.3 decades), each labelled, on a
+    log axis whose data span less than two decades: a column-wide panel of one decade had a
+    single labelled tick."""
     from matplotlib.ticker import LogFormatterSciNotation, LogLocator
 
     low, high = getattr(ax.dataLim, f"interval{axis}")
     if not (0 < low < high < 100 * low):
         return
     target = getattr(ax, f"{axis}axis")
-    target.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-    target.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+    # 1, 2 and 5 of each decade over about a decade; 1 and 3 over two (six labels ran
+    # together across a column's panel)
+    subs = (1.0, 2.0, 5.0) if high < 20 * low else (1.0, 3.0)
+    target.set_major_locator(LogLocator(subs=subs))
+    # every tick labelled up to two decades (the formatter's default labels only the decades
+    # from one decade up: a 1.2-decade CPU axis had two labels)
+    target.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False,
+                                                       minor_thresholds=(2, 2)))
 
 
 def axis_label(kind: str, time_dependent: bool = False) -> str:
@@ -102,7 +110,12 @@ def plot_work_precision(rows, path, *, title, fmt: str = "png", width: str = "co
     column = width == "column"
     methods = methods_of(rows)
     with figures.styled():
-        legend_rows = math.ceil(len(_legend_labels(rows, clock)) / (2 if column else 4))
+        labels = _legend_labels(rows, clock)
+        # long entries (a target error's pilot note) one column fewer: two of them overran
+        # the column's width
+        ncol = (2 if column else 4) // (2 if max(map(len, labels), default=0)
+                                        > LONG_LABEL else 1)
+        legend_rows = math.ceil(len(labels) / ncol)
         height = (PANEL_HEIGHT[width] * (len(AXIS_LABELS) if column else 1)
                   + 0.35 + 0.16 * legend_rows)
         fig = figures.new_figure(figures.COLUMN_WIDTH if column else figures.TEXT_WIDTH,
@@ -118,7 +131,7 @@ def plot_work_precision(rows, path, *, title, fmt: str = "png", width: str = "co
             log_ticks(ax, "x")
         for ax in (axes[-1:] if column else axes):
             ax.set_xlabel(run_time_label(rows, clock))
-        figure_legend(fig, axes, ncol=2 if column else 4)
+        figure_legend(fig, axes, ncol=ncol)
         fig.suptitle(title)
         figures.save(fig, path, fmt)
 
