@@ -401,7 +401,9 @@ def steady_limits(ax, axis: str = "y") -> None:
 
 def offset_in_label(ax) -> None:
     """The y axis' offset and power of ten (matplotlib's ``x10^-4 +6.283`` drawn above the
-    panel, over its title) written into the axis label instead: ``(T - 6.283) / 10⁻⁴``."""
+    panel, over its title) written into the axis label instead: ``(T - 6.283) / 10⁻⁴``; a
+    label that was hidden (the run figure's second column names its axis only then) is shown
+    once it carries them."""
     axis = ax.yaxis
     formatter = axis.get_major_formatter()
     if not hasattr(formatter, "set_powerlimits") or ax.get_yscale() != "linear":
@@ -420,6 +422,7 @@ def offset_in_label(ax) -> None:
     if power:
         label = f"{label} / 10{str(power).translate(SUPERSCRIPTS)}"
     ax.set_ylabel(label)
+    ax.yaxis.label.set_visible(True)  # a label hidden until it carries an offset shows now
     # the same offset and power at the draw, whatever ticks the final layout gives
     formatter.set_useOffset(offset if offset else False)
     if power:
@@ -562,3 +565,56 @@ def distinct_tick_texts(ax, axis: str = "y") -> list[str]:
     return [f"{label.get_text()}{offset}" for tick, label in
             zip(target.get_majorticklocs(), target.get_majorticklabels(), strict=False)
             if low <= tick <= high and label.get_text()]
+
+
+# On a log axis that holds exact zeros, the decade they are drawn at (`zero_floor`) lies this
+# many decades below the smallest positive value, and no other tick is labelled closer to it
+# than this fraction of the axis' height (a "10⁻¹⁶" beside the "0" overlapped it).
+ZERO_FLOOR_DECADES = 1
+ZERO_TICK_CLEARANCE = 0.12
+
+
+def zero_floor(arrays) -> float | None:
+    """Where a log panel draws the exact zeros of ``arrays`` (non-finite entries ignored): the
+    decade `ZERO_FLOOR_DECADES` below their smallest positive value (1e-17 if none is
+    positive), or ``None`` if none of them is exactly zero (then nothing changes)."""
+    values = [np.asarray(a, dtype=float) for a in arrays]
+    if not any((v == 0).any() for v in values):
+        return None
+    found = [v[np.isfinite(v) & (v > 0)] for v in values]
+    positives = np.concatenate(found) if found else np.array([])
+    smallest = float(positives.min()) if positives.size else 1e-16
+    return 10.0 ** (math.floor(math.log10(smallest)) - ZERO_FLOOR_DECADES)
+
+
+def with_zeros_at(values, floor: float | None) -> np.ndarray:
+    """``values`` as a log axis shows them (`positive`), their exact zeros at ``floor``."""
+    shown = positive(values)
+    if floor is None:
+        return shown
+    return np.where(np.asarray(values, dtype=float) == 0, floor, shown)
+
+
+def zero_tick(ax, floor: float) -> None:
+    """The bottom of ``ax``'s log y axis at ``floor``, where `with_zeros_at` put the exact
+    zeros, with a tick there labelled ``0``; the usual decades above it, each label in plain
+    text as `plain_tick_labels` writes them, none crowding the ``0``."""
+    from matplotlib import ticker
+
+    class ZeroLocator(ticker.LogLocator):
+        def tick_values(self, vmin, vmax):
+            ticks = super().tick_values(vmin, vmax)
+            low, high = math.log10(max(min(vmin, vmax), floor)), math.log10(max(vmin, vmax))
+            clear = ZERO_TICK_CLEARANCE * max(high - low, 1e-12)
+            kept = [t for t in ticks if t > 0 and math.log10(t) - math.log10(floor) >= clear]
+            return np.array([floor, *kept])
+
+    class ZeroFormatter(ticker.LogFormatterSciNotation):
+        def __call__(self, x, pos=None):
+            if math.isclose(x, floor, rel_tol=1e-9):
+                return "0"
+            return plain_text(super().__call__(x, pos))
+
+    ax.set_ylim(bottom=floor)
+    ax.yaxis.set_major_locator(ZeroLocator())
+    ax.yaxis.set_major_formatter(ZeroFormatter())

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import math
+
 from . import figures
 from .work_precision_figure import (
     AXIS_LABELS,
@@ -21,14 +23,26 @@ SHORT_NAMES = {"trajectory_error": "trajectory error (absolute)",
 def plot_horizons(results: dict, path, *, title: str, unit: float,
                   time_dependent: bool = False, fmt: str = "png") -> None:
     """A column per horizon, a row per error kind, every method's runs as in the single
-    report (each at the median of its timed calls, a bar from the fastest to the slowest)."""
+    report (each at the fastest of its timed calls, the cost the rankings read, a bar to the
+    slowest, an open marker at its CPU time)."""
     with figures.styled():
         fig = figures.new_figure(min(figures.TEXT_WIDTH, 2.1 * len(results) + 1.0), 5.2)
         axes = fig.subplots(len(AXIS_LABELS), len(results), squeeze=False, sharey="row")
         _horizon_panels(axes, results, unit, time_dependent)
         figure_legend(fig, axes.ravel())
-        fig.suptitle(f"{title} (errors absolute; run time: median, bar min-max)")
+        fig.suptitle(f"{title}\n{_time_note(results)}")
         figures.save(fig, path, fmt)
+
+
+def _time_note(results: dict) -> str:
+    """What the panels' run time is: the best timed call (as the rankings read it), with
+    what the rows measured beside it (the slowest call's bar, the CPU time's open marker)."""
+    rows = [r for found in results.values() for r in found if r["status"] == "success"]
+    extras = [text for column, text in (("run_s_max", "bar: to the worst"),
+                                        ("cpu_s", "open: its CPU time"))
+              if any(math.isfinite(r.get(column, math.nan)) for r in rows)]
+    return f"(errors absolute; run time: the best call{'; ' if extras else ''}" \
+        f"{'; '.join(extras)})"
 
 
 def _horizon_panels(axes, results: dict, unit: float, time_dependent: bool = False) -> None:

@@ -37,6 +37,14 @@ DOTS_FROM_NODES = 2000
 # drawing them all costs no more (100000 nodes: 0.018 s either way) and is exact.
 THIN_FROM_NODES = 100_000
 ROW_HEIGHT = 1.25  # inches per panel row
+# A thinned run's samples as dots of this size (points), edge-less: at 3 points the dots of
+# two components overlapped into one block.
+SAMPLE_DOT = 2.0
+# An equal-aspect state panel whose vertical range exceeds its horizontal one by more than
+# this factor keeps its box and widens its x limits instead (``adjustable="datalim"``): the box
+# shrunk to a narrow strip with its x tick labels run together (a cart pendulum's q ranges 0.45
+# and 1). A wide, low box reads well and is kept.
+STRIP_RATIO = 2.0
 
 
 def plot_trajectory(solution, scene, scheme, path, *, energies, fmt: str = "png",
@@ -115,7 +123,7 @@ def plot_solution(solution, path=None, *, system=None, params=None, title: str |
                                                   np.abs(solution.energy_residual) / scale)])
         else:
             energy = (f"$|H - H_0|${kind}", [(r"node energy $H(q_k, p_k)$", solution.t,
-                                             np.abs(nodes - nodes[0]) / scale)])
+                                             _drift(nodes, scale))])
     title = title or f"{solution.scheme}: {solution.steps} steps, {verdict_text(solution)}"
     with figures.styled():
         fig = _figure(solution, _rows(solution, varies, energy), title)
@@ -145,12 +153,19 @@ def _energy_panel(solution, system, scheme, energies):
         rule = diagnostic_rule(scheme)
         return (f"|{rule} residual|{kind}",
                 [("", t[1:-1], np.abs(solution.energy_residual) / scale)])
-    node = (r"node $H(q_k, p_k)$", t, np.abs(nodes - nodes[0]) / scale)
+    node = (r"node $H(q_k, p_k)$", t, _drift(nodes, scale))
     if interval is None:  # a thinned march: no consecutive intervals
         return f"$|H - H_0|${kind}", [node]
     return (f"$|H - H_0|${kind}",
-            [(r"interval $H(Q_k, P_k)$", t[:-1], np.abs(interval - interval[0]) / scale),
-             node])
+            [(r"interval $H(Q_k, P_k)$", t[:-1], _drift(interval, scale)), node])
+
+
+def _drift(energies, scale) -> np.ndarray:
+    """``|H_k - H_0| / scale``, the first left out (zero by definition, it says nothing; on
+    the log panel it would be drawn at the tick of exact zeros, `figures.zero_tick`)."""
+    drift = np.abs(np.asarray(energies, dtype=float) - energies[0]) / scale
+    drift[:1] = np.nan
+    return drift
 
 
 def _rows(solution, steps: bool, energy) -> list:
@@ -199,8 +214,10 @@ def _figure(solution, rows, title: str, *, fixed_ends: bool = False, dots: bool 
             first = first or ax
             _time_panel(ax, span, curves, log, legend=column == 0,
                         ends=ends if row == 0 else None, dots=dots)
-            if column == 0:
-                ax.set_ylabel(label)
+            ax.set_ylabel(label)
+            if column:  # shown only if it carries the axis' offset (figures.offset_in_label):
+                ax.yaxis.set_label_position("right")  # then named as in the first column
+                ax.yaxis.label.set_visible(False)
             if row < len(rows) - 1:
                 ax.tick_params(labelbottom=False)
         first.set_title(f"first {ZOOM_STEPS} steps" if column else
@@ -222,20 +239,28 @@ def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None,
                 dots: bool = False) -> None:
     """One panel against ``t`` over ``span``: each curve reduced to its min/max envelope per
     pixel column (``figures.decimate``), or with ``dots`` (a thinned march: samples of the
-    motion, not its path) its points unjoined; the names of the curves, if ``legend``, in a
-    band left free above the data (never over them); ``ends``: the two fixed ends' times."""
+    motion, not its path) its points unjoined while they are fewer than two per pixel column
+    (denser samples merge into a block of overlapping dots: their envelope then); the names of
+    the curves, if ``legend``, in a band left free above the data (never over them);
+    ``ends``: the two fixed ends' times. On a log panel exact zeros are drawn at its bottom,
+    the tick there labelled 0 (``figures.zero_tick``), not left out as gaps."""
     start, stop = span
     bins = figures.bins_for(ax)
     names = [name for name, _, _ in curves]
+    inside = [(times >= min(start, stop)) & (times <= max(start, stop))
+              for _, times, _ in curves]
+    floor = (figures.zero_floor([values[chosen] for (_, _, values), chosen
+                                 in zip(curves, inside, strict=True)]) if log else None)
     for index, (name, times, values) in enumerate(curves):
-        chosen = (times >= min(start, stop)) & (times <= max(start, stop))
+        chosen = inside[index]
         times, values = times[chosen], values[chosen]
         if times.size > 1 and times[-1] < times[0]:  # a backward march: the envelope's bins
             times, values = times[::-1], values[::-1]  # want increasing times
-        shown = figures.positive(values) if log else values
-        if dots:
-            ax.plot(times, shown, ".", ms=3, label=name or None, color=f"C{index % 8}")
-        else:
+        shown = figures.with_zeros_at(values, floor) if log else values
+        if dots and times.size <= 2 * bins:  # samples a pixel or more apart: each visible
+            ax.plot(times, shown, ".", ms=SAMPLE_DOT, mew=0, label=name or None,
+                    color=f"C{index % 8}")
+        else:  # a thinned run's samples denser than the pixels merge: their envelope
             figures.envelope_band(ax, times, shown, bins, lw=0.7, label=name or None,
                                   color=f"C{index % 8}")
         if ends is not None:
@@ -244,6 +269,8 @@ def _time_panel(ax, span, curves, log: bool, *, legend: bool, ends=None,
                     label="fixed ends" if index == 0 else None)
     if log:
         ax.set_yscale("log")
+        if floor is not None:
+            figures.zero_tick(ax, floor)
     ax.set_xlim(start, stop)  # a backward march's axis runs from t0 down to t_end
     ax.minorticks_off()  # 40% of the drawing time of a run figure, and little to read
     labelled = 1 < len(names) <= LEGEND_COMPONENTS and all(names)
@@ -276,7 +303,9 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
     long ones), the start as a red dot (a fixed-endpoint run: both ends, as squares where they
     are prescribed (the configuration plane), as dots in the phase plane, whose p is not); equal
     aspect in the configuration plane always, in the phase plane unless the ranges are of
-    unrelated scales (``EQUAL_ASPECT_RATIO``)."""
+    unrelated scales (``EQUAL_ASPECT_RATIO``), the box kept square where equal aspect would
+    make it a narrow strip (``STRIP_RATIO``); a thinned run's title says its points are the kept
+    nodes (samples, which can miss the loops between them)."""
     several = q.shape[1] > 1
     if kind == "phase":
         x, y = q[:, 0], p[:, 0]
@@ -285,7 +314,7 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
         x, y = q[:, 0], q[:, 1]
         labels = ("$q_1$", "$q_2$")
     if dots and x.size <= DOTS_FROM_NODES:  # a thinned march's samples: not a path
-        ax.plot(x, y, ".", ms=3, color="C0")
+        ax.plot(x, y, ".", ms=SAMPLE_DOT, mew=0, color="C0")
     elif x.size <= DOTS_FROM_NODES:
         ax.plot(x, y, lw=0.6, color="C0")
     else:
@@ -304,17 +333,21 @@ def _state_panel(ax, q, p, kind: str, *, fixed_ends: bool = False,
                         fontsize="small", color="C1")
     else:
         ax.plot(x[:1], y[:1], "o", color="C1", ms=4, clip_on=False, zorder=3)
-        ax.annotate("start", (x[0], y[0]), xytext=(4, 4), textcoords="offset points",
-                    fontsize="small", color="C1")
+        finite = y[np.isfinite(y)]
+        high = finite.size and y[0] > finite.min() + 0.8 * np.ptp(finite)
+        ax.annotate("start", (x[0], y[0]), xytext=(4, -10 if high else 4),
+                    textcoords="offset points", fontsize="small", color="C1")
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
-    ax.set_title("phase portrait" if kind == "phase" else "configuration")
+    ax.set_title(("phase portrait" if kind == "phase" else "configuration")
+                 + (", kept nodes" if dots else ""))
     ax.minorticks_off()
     ax.margins(0.06)
     spans = [float(np.ptp(v[np.isfinite(v)])) if np.isfinite(v).any() else 0.0 for v in (x, y)]
     if kind == "configuration" or (min(spans) > 0
                                    and max(spans) <= EQUAL_ASPECT_RATIO * min(spans)):
-        ax.set_aspect("equal", adjustable="box")
+        strip = spans[0] > 0 and spans[1] > STRIP_RATIO * spans[0]  # tall: x ticks crowd
+        ax.set_aspect("equal", adjustable="datalim" if strip else "box")
 
 
 def _nodes(ax, t, values, **style) -> None:

@@ -123,7 +123,10 @@ def _header(result: WorkPrecision) -> list[str]:
             f"Reference: {reference.kind}" + reference_cost,
             "Energy error: " + energy,
             f"Run time: best of up to {result.repeats} calls after one warm-up (repeats stop "
-            f"after {result.budget_s:g} s); build and compile time excluded.", ""]
+            f"after {result.budget_s:g} s); build and compile time excluded; a run at a target "
+            "error includes its pilot run. work_precision.png draws the same time (open "
+            "markers: the CPU time of that call; `WorkPrecision.best(..., clock='cpu')` ranks "
+            "by it).", ""]
 
 
 def _methods_table(rows, methods) -> list[str]:

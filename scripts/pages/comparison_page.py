@@ -111,13 +111,13 @@ def horizons_section(out: Path, horizons, from_runs: bool = False) -> list[str]:
     lines = ["## Which method is cheapest, by error and horizon", "",
              f"`compare(scene, \"{METHODS_COMPARED}\", horizons={horizons})`, every run timed "
              f"{TIMING.repeats} times after a warm-up (cost: the best wall time; the figures "
-             "show the median with a bar from the fastest to the slowest call, and every run's "
-             "CPU time is in `runs.csv`). Both errors are absolute: the trajectory error "
-             "max_k max_i |z_k,i - z_ref,i(t_k)| against the exact solution, the energy error "
-             "max_k |H(z_k) - H(z_0)|. The rule (`studies/horizons_choice.py`): a method's cost "
-             "at an error is read off its Pareto front, interpolated in log cost against log "
-             "error, and between two measured horizons in log cost against log T; a crossover "
-             "is the horizon from which another method is cheapest.", ""]
+             "draw that same time with a bar to the slowest call and an open marker at its "
+             "CPU time, which is also in `runs.csv`). Both errors are absolute: the trajectory "
+             "error max_k max_i |z_k,i - z_ref,i(t_k)| against the exact solution, the energy "
+             "error max_k |H(z_k) - H(z_0)|. The rule (`studies/horizons_choice.py`): a "
+             "method's cost at an error is read off its Pareto front, interpolated in log cost "
+             "against log error, and between two measured horizons in log cost against log T; a "
+             "crossover is the horizon from which another method is cheapest.", ""]
     for name, settings in CASES.items():
         folder = out / name
         folder.mkdir(parents=True, exist_ok=True)
