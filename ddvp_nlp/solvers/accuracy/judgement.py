@@ -214,7 +214,7 @@ ROUND_OFF_ULPS = 1000.0
 # is this many times H's round-off there.
 DECISIVE = 100.0
 # The nodes at which H is shifted by a turn (spread over the run).
-ANGLE_NODES = 5
+ANGLE_NODES = 16
 
 
 def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
