@@ -19,7 +19,9 @@ tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). A cyc
 (one ``H`` does not depend on: an azimuth that winds) keeps its own range but sets no floor for
 the others, and its conserved momentum does not enter the energy scale; an angle that winds
 (``H`` is ``2 pi``-periodic in it, its range passes a turn) counts at most one turn, for itself
-and for the others (`winding_angles`; not for a streamed check). The energy
+and for the others (`winding_angles`; not for a streamed check). Periodic means free of units:
+a ``2 pi`` shift changes ``H`` by its round-off alone where a non-periodic ``H`` would change by
+far more (`periodic_in`; a position in metres is never an angle). The energy
 scale ``E_s`` is the time average of ``|S * grad H(z_k, t_k)|_2``, how much ``H`` changes when
 the state moves by ``S`` (`energy_scale`): an energy error ``dE`` puts some node at least
 ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
@@ -50,7 +52,10 @@ The tests, in the order the verdict reads them:
    reference's own error passes a tenth of ``global_tol`` before ``t_drift`` it is integrated
    again 100 times tighter; where even the tightest cannot hold it (a chaotic orbit past its
    horizon) the run is ``drifted`` from that time, and the report says the error could not be
-   measured further.
+   measured further. ``error_max`` of a drifted run is thus the error at ``t_drift``, not the
+   run's largest (`describe` says so); against an exact solution given at every node the whole
+   run is measured (`whole_run`). A solution with both ends fixed cannot drift: its trajectory
+   error past ``global_tol`` is a failed test (`fixed_ends_report`).
 
 ``inaccurate`` if test 1, 2 or 3 fails (the first failure is reported with its step, time,
 value and limit), else ``drifted`` if test 4 found a ``t_drift``, else ``accurate``. Why the
