@@ -468,8 +468,7 @@ class Judgement:
             scan = Scan(extent, self.system.n, tol)
             states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
             scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
-            found = scan.figures(t[0], "exact solution")
-            return whole_run(found, t, z, states) if scan.drift is not None else found
+            return whole_run(scan, t, z, states)
         scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
         small = first_flow(self.system, self.compiler, self.cache_dir)
@@ -711,11 +710,14 @@ class Scan:
                 "estimate": estimate}
 
 
-def whole_run(found: dict, t, z, states) -> dict:
-    """The figures of a drifted scan against an exact solution known at every node
-    (``states``, rows from node 1): the scan stops at the drift, but the largest error over the
-    whole run costs one more pass over the nodes, so ``error_max`` is that (in the scan's
-    scales) and the error is measured to the run's end."""
+def whole_run(scan: Scan, t, z, states) -> dict:
+    """The figures of a scan against an exact solution known at every node (``states``, rows
+    from node 1): where it drifted the scan stopped there, but the largest error over the whole
+    run costs one more pass over the nodes, so ``error_max`` is that (in the scan's scales) and
+    the error is measured to the run's end."""
+    found = scan.figures(t[0], "exact solution")
+    if scan.drift is None:
+        return found
     with np.errstate(invalid="ignore", over="ignore"):
         error = row_max_ratio(np.abs(z[1:] - states), found["scale"])
     if not np.all(np.isfinite(error)):
