@@ -466,8 +466,8 @@ class Judgement:
         extent = run_extent(self.values, self.system.n, t, z, self.free)
         if exact is not None:
             scan = Scan(extent, self.system.n, tol)
-            states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
-            scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
+            states = np.asarray(exact(t), float).reshape(t.size, -1)  # node 0 too: p_0 of
+            scan.measure(t, z, -1, t.size - 1, states, np.zeros(t.size))  # fixed ends is free
             return whole_run(scan, t, z, states)
         scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
@@ -712,19 +712,19 @@ class Scan:
 
 def whole_run(scan: Scan, t, z, states) -> dict:
     """The figures of a scan against an exact solution known at every node (``states``, rows
-    from node 1): where it drifted the scan stopped there, but the largest error over the whole
+    from node 0): where it drifted the scan stopped there, but the largest error over the whole
     run costs one more pass over the nodes, so ``error_max`` is that (in the scan's scales) and
     the error is measured to the run's end."""
     found = scan.figures(t[0], "exact solution")
     if scan.drift is None:
         return found
     with np.errstate(invalid="ignore", over="ignore"):
-        error = row_max_ratio(np.abs(z[1:] - states), found["scale"])
+        error = row_max_ratio(np.abs(z - states), found["scale"])
     if not np.all(np.isfinite(error)):
         return found
     k = int(np.argmax(error))
     if error[k] > found["error_max"]:
-        found.update(error_max=float(error[k]), error_max_t=float(t[k + 1]))
+        found.update(error_max=float(error[k]), error_max_t=float(t[k]))
     found["until"] = float(t[-1])
     return found
 
