@@ -88,7 +88,9 @@ class Verdict:
         first_failure: the first failed test (`Failure`), ``None`` unless ``inaccurate``.
         t_drift, drift_step: the time and node from which the trajectory error passes
             ``global_tol`` (or the reference was lost), else ``None``.
-        error_max, error_max_t: the largest trajectory error measured and its time.
+        error_max, error_max_t: the largest trajectory error measured (up to
+            ``reference_until``) and its time: for a ``drifted`` run against a reference flow,
+            the error at ``t_drift`` (the scan stops there), not the run's largest.
         estimate: what the trajectory error was measured against, in words.
         reference_until: the last time the error was measured to.
         reference_error: the reference's own largest claimed error.

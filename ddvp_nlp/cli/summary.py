@@ -138,8 +138,13 @@ def _trajectory_words(accuracy: dict) -> str:
                 f"{accuracy['reference_lost']:.6g}, not measurable past it (the reference's "
                 f"own error passed its share of the tolerance: the motion is too sensitive)")
     if accuracy.get("t_drift") is not None:
+        if accuracy.get("reference_until") not in (None, accuracy["t_drift"]):
+            return (f"trajectory error passes {tol:g} of S at t = {accuracy['t_drift']:.6g}; "
+                    f"largest {accuracy['error_max']:.3e} of S, at t = "
+                    f"{accuracy['error_max_t']:.6g}, over the whole run")
         return (f"trajectory error passes {tol:g} of S at t = {accuracy['t_drift']:.6g} "
-                f"(the scan stops there)")
+                f"({accuracy['error_max']:.3e} there; the scan stops there, so the error past "
+                f"it is not measured)")
     return (f"trajectory error <= {accuracy['error_max']:.3e} of S over the whole run (limit "
             f"{tol:g})")
 

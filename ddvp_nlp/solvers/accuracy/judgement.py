@@ -19,7 +19,9 @@ tenth of the largest range of its block (``q`` or ``p``; `motion_scales`). A cyc
 (one ``H`` does not depend on: an azimuth that winds) keeps its own range but sets no floor for
 the others, and its conserved momentum does not enter the energy scale; an angle that winds
 (``H`` is ``2 pi``-periodic in it, its range passes a turn) counts at most one turn, for itself
-and for the others (`winding_angles`; not for a streamed check). The energy
+and for the others (`winding_angles`; not for a streamed check). Periodic means free of units:
+a ``2 pi`` shift changes ``H`` by its round-off alone where a non-periodic ``H`` would change by
+far more (`periodic_in`; a position in metres is never an angle). The energy
 scale ``E_s`` is the time average of ``|S * grad H(z_k, t_k)|_2``, how much ``H`` changes when
 the state moves by ``S`` (`energy_scale`): an energy error ``dE`` puts some node at least
 ``dE / E_s`` (in units of ``S``) off the exact level set. Every figure below is relative to
@@ -50,7 +52,10 @@ The tests, in the order the verdict reads them:
    reference's own error passes a tenth of ``global_tol`` before ``t_drift`` it is integrated
    again 100 times tighter; where even the tightest cannot hold it (a chaotic orbit past its
    horizon) the run is ``drifted`` from that time, and the report says the error could not be
-   measured further.
+   measured further. ``error_max`` of a drifted run is thus the error at ``t_drift``, not the
+   run's largest (`describe` says so); against an exact solution given at every node the whole
+   run is measured (`whole_run`). A solution with both ends fixed cannot drift: its trajectory
+   error past ``global_tol`` is a failed test (`fixed_ends_report`).
 
 ``inaccurate`` if test 1, 2 or 3 fails (the first failure is reported with its step, time,
 value and limit), else ``drifted`` if test 4 found a ``t_drift``, else ``accurate``. Why the
@@ -211,22 +216,30 @@ def free_components(system) -> np.ndarray | None:
     return cached(system, "cyclic_components", build)
 
 
+# H's round-off, in units of eps times the sum of its inputs' contributions (`winding_angles`).
+ROUND_OFF_ULPS = 1000.0
+# A node decides a 2 pi shift when the change it would make to a non-periodic H (first order)
+# is this many times H's round-off there.
+DECISIVE = 100.0
+# The nodes at which H is shifted by a turn (spread over the run).
+ANGLE_NODES = 16
+
+
 def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
                    free: np.ndarray | None, span: np.ndarray | None = None
                    ) -> np.ndarray | None:
     """The coordinates that wind as angles over the run: their range passes a turn, and they
     are declared angles (``HamiltonianSystem(angles=...)``, a scene's ``periodic`` angles) or
-    ``H`` is ``2 pi``-periodic in them (``H(q + 2 pi e_j) = H(q)`` to round-off at the first,
-    middle and last node). An undeclared cyclic coordinate (``free``: an azimuth, but as well
-    a free direction in any units) is left to `motion_scales`' own rule. ``None`` if there is
-    none."""
+    ``H`` is ``2 pi``-periodic in them (`periodic_in`). An undeclared cyclic coordinate
+    (``free``: an azimuth, but as well a free direction in any units) is left to
+    `motion_scales`' own rule. ``None`` if there is none."""
     span = column_span(z[:, :n]) if span is None else span  # ``span``: the range of q
     if not np.any(span > 2 * np.pi):  # no coordinate passes a turn: H is not evaluated
         return None
     # not np.unique: its first call imports numpy.ma (30-70 ms of a short march's process)
-    picks = np.array(sorted({0, t.size // 2, t.size - 1}))
+    picks = np.array(sorted({int(k) for k in np.linspace(0, t.size - 1, ANGLE_NODES)}))
     rows = z[picks]
-    _, H = values.at_nodes(t[picks], rows)
+    field, H = values.at_nodes(t[picks], rows)
     turns = np.zeros(2 * n, dtype=bool)
     declared = getattr(values.system, "angle_indices", ())
     for j in range(n):
@@ -239,11 +252,32 @@ def winding_angles(values: NodeValues, n: int, t: np.ndarray, z: np.ndarray,
             continue
         shifted = rows.copy()
         shifted[:, j] += 2 * np.pi
-        field, moved = values.at_nodes(t[picks], shifted)
-        # round-off of H's value and of its change along the shift (|H_q_j| 2 pi)
-        size = np.abs(H) + np.abs(moved) + 2 * np.pi * np.abs(field[:, n + j])
-        turns[j] = bool(np.all(np.abs(moved - H) <= 1e-9 * size) and np.all(size > 0))
+        _, moved = values.at_nodes(t[picks], shifted)
+        turns[j] = periodic_in(j, n, rows, field, H, moved)
     return turns if np.any(turns) else None
+
+
+def periodic_in(j: int, n: int, rows: np.ndarray, field: np.ndarray, H: np.ndarray,
+                moved: np.ndarray) -> bool:
+    """Whether ``H`` is ``2 pi``-periodic in ``q_j``, from ``H`` at the nodes ``rows`` (their
+    vector field ``field = (H_p, -H_q)``) and at the nodes shifted by ``2 pi e_j``
+    (``moved``), free of units: the shift changes ``H`` by its round-off alone at every node
+    (``ROUND_OFF_ULPS`` eps times ``|H|`` and each input's contribution ``|z_i dH/dz_i|``,
+    ``q_j``'s rounding among them), and at some node a non-periodic ``H`` would have changed by
+    far more (``|dH/dq_j| 2 pi`` at least ``DECISIVE`` times that round-off). A coordinate in
+    metres on a planet's orbit fails the first (the shift moves ``H`` by its first-order change,
+    some 1e-11 of ``|H|``, far above round-off); where the shift is itself below round-off
+    (a coordinate far larger than a turn) nothing decides, and the coordinate is not an
+    angle."""
+    gradient = np.hstack([-field[:, n:], field[:, :n]])  # (H_q, H_p)
+    contributions = np.sum(np.abs(rows * gradient), axis=1)
+    round_off = ROUND_OFF_ULPS * np.finfo(float).eps * (
+        np.abs(H) + np.abs(moved) + contributions)
+    change = np.abs(moved - H)
+    first_order = 2 * np.pi * np.abs(gradient[:, j])
+    if not (np.all(np.isfinite(change)) and np.all(np.isfinite(round_off))):
+        return False
+    return bool(np.all(change <= round_off) and np.any(first_order > DECISIVE * round_off))
 
 
 def run_extent(values: NodeValues, n: int, t, z, free, kernel=None) -> Extent:
@@ -447,9 +481,9 @@ class Judgement:
         extent = run_extent(self.values, self.system.n, t, z, self.free, self.kernel())
         if exact is not None:
             scan = Scan(extent, self.system.n, tol, self.kernel())
-            states = np.asarray(exact(t), float).reshape(t.size, -1)[1:]
-            scan.measure(t, z, 0, t.size - 1, states, np.zeros(t.size - 1))
-            return scan.figures(t[0], "exact solution")
+            states = np.asarray(exact(t), float).reshape(t.size, -1)  # node 0 too: p_0 of
+            scan.measure(t, z, -1, t.size - 1, states, np.zeros(t.size))  # fixed ends is free
+            return whole_run(scan, t, z, states)
         scale, last = extent.scales(self.system.n), t.size - 1
         rtol = REFERENCE_RTOL
         small = self.small = first_flow(self.system, self.compiler, self.cache_dir)
@@ -778,6 +812,33 @@ class Scan:
                 "estimate": estimate}
 
 
+def whole_run(scan: Scan, t, z, states) -> dict:
+    """The figures of a scan against an exact solution known at every node (``states``, rows
+    from node 0): where it drifted the scan stopped there, but the largest error over the whole
+    run costs one more pass over the nodes, so ``error_max`` is that (in the scan's scales) and
+    the error is measured to the run's end."""
+    found = scan.figures(t[0], "exact solution")
+    if scan.drift is None:
+        return found
+    with np.errstate(invalid="ignore", over="ignore"):
+        error = row_max_ratio(np.abs(z - states), found["scale"])
+    if not np.all(np.isfinite(error)):
+        return found
+    k = int(np.argmax(error))
+    if error[k] > found["error_max"]:
+        found.update(error_max=float(error[k]), error_max_t=float(t[k]))
+    found["until"] = float(t[-1])
+    return found
+
+
+def measured_past_drift(verdict: Verdict) -> bool:
+    """Whether a drifted verdict's ``error_max`` is the largest over the whole run (an exact
+    solution known at every node, a higher-order run's reference) rather than the error where
+    the scan stopped, at ``t_drift`` (a reference flow is integrated only that far)."""
+    return verdict.reference_until is not None and verdict.t_drift is not None and \
+        verdict.reference_until != verdict.t_drift
+
+
 def describe(verdict: Verdict) -> str:
     """The verdict in words, with the figure that decided it."""
     if verdict.inaccurate:
@@ -791,8 +852,11 @@ def describe(verdict: Verdict) -> str:
             return (f"the trajectory error cannot be measured past t = "
                     f"{verdict.reference_lost:.6g} (the reference flow's own error passed "
                     f"its share of the tolerance there: the motion is too sensitive)")
+        figure = (f"largest {verdict.error_max:.3e}, at t = {verdict.error_max_t:.6g}"
+                  if measured_past_drift(verdict) else
+                  f"{verdict.error_max:.3e} there; not measured past it")
         return (f"the trajectory error passes {verdict.global_tol:g} of the motion's size at "
-                f"t = {verdict.t_drift:.6g} (largest {verdict.error_max:.3e})")
+                f"t = {verdict.t_drift:.6g} ({figure})")
     return (f"the trajectory error stays within {verdict.global_tol:g} of the motion's size "
             f"(largest {verdict.error_max:.3e})")
 
@@ -830,6 +894,29 @@ def judge(solution, report: dict | Verdict | None, tolerance: Tolerance, *,
     else:
         solution.message = f"{solution.message}; {verdict.name}: {words}"
     return verdict
+
+
+def fixed_ends_report(report: dict | None, t, advice: str = "try more nodes") -> dict | None:
+    """The report of a solution with both ends fixed (a boundary-value grid, a transfer, a
+    higher-order solve through fixed end nodes) judged against the continuous solution through
+    the same ends: a trajectory error past ``global_tol`` is not a phase lost over a long run
+    (nothing drifts between two fixed ends) but the grid off that solution, so ``drifted``
+    becomes ``inaccurate`` with the test ``trajectory error`` failed at the first step into the
+    first node past the tolerance; ``t`` the grid's times."""
+    if report is None or report["verdict"] != "drifted":
+        return report
+    node = int(report["drift_step"])
+    step = max(node - 1, 0)
+    where = ("" if report.get("error_max_t") is None else
+             f", largest at t = {report['error_max_t']:.6g}")
+    detail = (f"the grid is {report['error_max']:.3e} of the motion's size off the continuous "
+              f"solution through its ends{where} (limit {report['global_tol']:g}, passed from "
+              f"t = {report['t_drift']:.6g}): with both ends fixed nothing drifts, the grid is "
+              f"too coarse for the motion; {advice}")
+    return {**report, "verdict": "inaccurate", "first_failure": {
+        "step": step, "t": float(np.asarray(t, float)[step]), "test": "trajectory error",
+        "value": float(report["error_max"]), "limit": float(report["global_tol"]),
+        "detail": detail}}
 
 
 def assess(system, t, z, theta, tolerance: Tolerance, *, level=None, compiler=None,

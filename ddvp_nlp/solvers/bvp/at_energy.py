@@ -42,7 +42,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import derivatives_function
 from ...solution import Solution, Status, TransferRecord
 from ...validation import check_real
-from ..accuracy.judgement import Level, assess, judge
+from ..accuracy.judgement import Level, assess, fixed_ends_report, judge
 from ..exact.flow_newton import exact_newton
 from ..exact.tolerance import EXACT_TOLERANCE
 from ..exact.variational import flow_with_derivatives
@@ -317,6 +317,7 @@ def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance
         return report, local, exact
     report, local = assess(system, t, z, theta, tolerance, level=Level(span.energy, clock),
                            exact=lambda _: path)
+    report = fixed_ends_report(report, t)  # both ends fixed: off the transfer, not drifted
     report["estimate"] = ("the exact flow's transfer near this one (shooting on p_0 and the "
                           f"transfer time {exact['transfer_time']:.12g})")
     return report, local, exact

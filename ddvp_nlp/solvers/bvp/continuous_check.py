@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accuracy.judgement import Judgement, Level, motion_scales
+from ..accuracy.judgement import Judgement, Level, fixed_ends_report, motion_scales
 from ..compiler import find_compiler
 from ..exact.shooting import shoot
 from ..grid.problem import GridRequest
@@ -40,6 +40,7 @@ def judged_against_shooting(request: GridRequest, t, q, p, *, level: Level | Non
                                    "limit": tolerance.global_tol, "detail": shot.reason}
         return report, local
     report, local = check.report(t, z, level=level, exact=shot.states)
+    report = fixed_ends_report(report, t)  # both ends fixed: off the solution, not drifted
     solution = "continuous constrained solution" if flow != "exact flow" else \
         "continuous solution"
     report["estimate"] = (f"the {solution} near this one (multiple shooting with the {flow} on "

@@ -23,7 +23,7 @@ from ...errors import InputError
 from ...physics.higher_order import HigherOrderSystem
 from ...solution import HigherRecord, Solution, Status
 from ...validation import check_finite_array, check_integer, check_real
-from ..accuracy.judgement import judge
+from ..accuracy.judgement import fixed_ends_report, judge
 from ..compiler import find_compiler
 from ..driver import Advance, Nodes, drive
 from ..grid.problem import GridRequest
@@ -125,13 +125,16 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     fixed = np.concatenate([np.arange(l), np.arange(nodes - l, nodes)])
     _judge(solution, system, request.theta, request.options.accuracy,
            data=fixed, compiler=find_compiler(request.compilation.compiler),
-           cache_dir=request.compilation.cache_dir)
+           cache_dir=request.compilation.cache_dir, fixed_ends=True)
     return solution
 
 
-def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cache_dir=None):
+def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cache_dir=None,
+           fixed_ends: bool = False):
     """The accuracy check of a higher-order trajectory (``accuracy/positions.py``) into
-    ``solution.verdict`` and ``solution.local_error``, and its status (`judge`)."""
+    ``solution.verdict`` and ``solution.local_error``, and its status (`judge`).
+    ``fixed_ends``: a fixed-endpoint solve, whose trajectory error past the tolerance is
+    ``inaccurate`` (`fixed_ends_report`), never ``drifted``."""
     from ..accuracy.positions import judge_higher
 
     if not np.all(np.isfinite(solution.q)) and solution.t.size:
@@ -142,6 +145,8 @@ def _judge(solution, system, theta, tolerance, *, data=None, compiler=None, cach
         t, q = solution.t, solution.q
     report, local = judge_higher(system, t, q, theta, tolerance, data=data,
                                  exact=tolerance.exact, compiler=compiler, cache_dir=cache_dir)
+    if fixed_ends:
+        report = fixed_ends_report(report, t)
     judge(solution, report, tolerance, local_error=local, advice="try a smaller tau0")
 
 

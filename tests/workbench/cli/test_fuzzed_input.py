@@ -33,7 +33,7 @@ BASES = [
      ["--tol", "--alpha", "--tau-min", "--tau-max", "--max-step-ratio", "--time-limit",
       "--energy-guard", "--rtol", "--atol", "--energy-tol", "--global-tol", "--max-steps",
       "--checkpoint-every", "--set", "--clock", "--scheme"]),
-    (["bvp", "pendulum", "--nodes", "21", "--no-plot"],
+    (["bvp", "pendulum", "--nodes", "61", "--no-plot"],
      ["--nodes", "--tol", "--alpha", "--time-limit", "--p-start", "--guess", "--set",
       "--solver"]),
     (["periodic", "harmonic", "--nodes", "21", "--no-plot"],
@@ -115,7 +115,7 @@ def valid_files(tmp_path_factory):
     sweep = ["sweep", "harmonic", "--grid", "tau0=0.1,0.05", "--set", "t_end=0.5",
              "--methods", "rk4", "--no-progress", "--workers", "1", "--out", str(root / "sweep")]
     assert main(sweep) == 0
-    assert main(["bvp", "pendulum", "--nodes", "21", "--no-plot", "--out",
+    assert main(["bvp", "pendulum", "--nodes", "61", "--no-plot", "--out",
                  str(root / "run")]) == 0
     (root / "grid.toml").write_text('scene = "harmonic"\nmethods = ["rk4"]\n[settings]\n'
                                     't_end = 0.5\n[grid]\ntau0 = [0.1, 0.05]\n')
@@ -144,7 +144,7 @@ def test_fuzzed_input_files_are_refused_or_rebuilt(index, valid_files, tmp_path,
         name = "result.npz" if target == "guess" else "meta.json"
         path = tmp_path / "run" / name
         path.write_bytes(_mutated(path.read_bytes(), rng))
-        argv = ["bvp", "pendulum", "--nodes", "21", "--no-plot", "--guess",
+        argv = ["bvp", "pendulum", "--nodes", "61", "--no-plot", "--guess",
                 str(tmp_path / "run"), "--out", str(tmp_path / "out")]
     try:
         code = main(argv)

@@ -87,13 +87,13 @@ def test_default_folder_follows_the_settings(tmp_path, monkeypatch, capsys):
 
 def test_bvp_default_folder_follows_the_settings(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    assert main(["bvp", "pendulum", "--nodes", "41", "--no-plot"]) == 0
-    assert main(["bvp", "pendulum", "--nodes", "41", "--set", "q_end=0", "--no-plot"]) == 0
+    assert main(["bvp", "pendulum", "--nodes", "61", "--no-plot"]) == 0
+    assert main(["bvp", "pendulum", "--nodes", "61", "--set", "q_end=0", "--no-plot"]) == 0
     folders = sorted(p.name for p in (tmp_path / "runs").iterdir())
     assert len(folders) == 2 and all(f.startswith("pendulum-bvp-vddvp-") for f in folders)
     metas = [json.loads((tmp_path / "runs" / f / "meta.json").read_text()) for f in folders]
     assert sorted(json.dumps(m["overrides"], sort_keys=True) for m in metas) == [
-        '{"nodes": 41, "q_end": [0.0]}', '{"nodes": 41}']
+        '{"nodes": 61, "q_end": [0.0]}', '{"nodes": 61}']
     capsys.readouterr()
 
 
