@@ -88,8 +88,8 @@ def _energy_step_advice(meta: dict) -> list[str]:
         return []
     return [f"  the {meta['scheme']} step has a positive root only while c(z) = -f.H_zz.f / 8 "
             "keeps its sign along the orbit, and a time-dependent H can drive it to zero "
-            "(docs/theory.md, sections 7-8); `--scheme fixed` marches this system with fixed "
-            "steps, judged by the same check"]
+            "(docs/theory.md, sections 7-8); if that is where this run ended, `--scheme fixed` "
+            "marches the system with fixed steps, judged by the same check"]
 
 
 # The motion's sizes printed one by one up to this many components (a chain's 128 are a range)
