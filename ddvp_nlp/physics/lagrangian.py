@@ -92,8 +92,9 @@ def _check_regular(system: LagrangianSystem, L_vv) -> None:
 def is_regular(hessian: ca.Function, *, vectors: int, n: int, theta) -> bool:
     """Whether ``hessian(x_1, .., x_vectors, t, theta)`` (an ``n x n`` matrix) is invertible at
     three fixed pseudo-random points (``x_i`` in ``[-1, 1]^n``, ``t`` in ``[0, 1]``, ``theta``
-    the parameters' defaults): its smallest singular value, relative to ``max(1, max |entry|)``,
-    above 1e-12 at every finite point."""
+    the parameters' defaults): its smallest singular value, relative to its largest entry
+    ``max |entry|`` (no floor of 1: the same Lagrangian in other units is as regular; a zero
+    matrix is singular), above 1e-12 at every finite point."""
     generator = np.random.default_rng(20261121)
     theta = np.asarray(theta, dtype=float)
     worst = np.inf
@@ -102,8 +103,9 @@ def is_regular(hessian: ca.Function, *, vectors: int, n: int, theta) -> bool:
         t = float(generator.uniform(0, 1))
         matrix = np.asarray(hessian(*args, t, theta), dtype=float).reshape(n, n)
         if np.all(np.isfinite(matrix)):
-            worst = min(worst, np.linalg.svd(matrix, compute_uv=False)[-1]
-                        / max(1.0, np.abs(matrix).max()))
+            largest = np.abs(matrix).max()
+            worst = min(worst, np.linalg.svd(matrix, compute_uv=False)[-1] / largest
+                        if largest > 0 else 0.0)
     return worst > 1e-12
 
 
