@@ -319,7 +319,11 @@ def test_the_event_cotangent_reader_answers_any_value(drawn):
     except InputError as error:
         assert not valid and "cotangent['event_times']" in str(error)
     else:
-        assert valid and all(np.all(np.isfinite(value)) for value in g.values())
+        assert valid
+        # a finite cotangent near the largest double may overflow the product (IEEE's inf,
+        # drawn once from the replayed example [[0, 0, 2.58e305]]); below that, finite
+        if np.max(np.abs(np.asarray(drawn[0], float))) < 1e290:
+            assert all(np.all(np.isfinite(value)) for value in g.values())
 
 
 def test_a_cotangent_on_a_tangent_crossing_gives_nan_not_a_number():
