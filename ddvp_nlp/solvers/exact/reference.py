@@ -154,11 +154,15 @@ class GrowingReference:
         until = self.t_end if self.first is None else self.first
         flow = self.flow if self.first is None or self.first_flow is None else self.first_flow
         self.first = None
+        # a run's last attempts in calls of the first piece's flow (`AdaptiveFlow.run`'s
+        # ``tail``): the same attempts, without the skipped slots of a call of the full one
+        tail = self.first_flow if flow is self.flow else None
         fine = flow.run(z, t, until, self.theta, rtol=self.rtol / FACTOR,
-                        atol=self.rtol / FACTOR * self.scale, h0=h, max_attempts=self.flow.slots)
+                        atol=self.rtol / FACTOR * self.scale, h0=h, max_attempts=self.flow.slots,
+                        tail=tail)
         t, z, h = self._ends["coarse"]
         coarse = flow.run(z, t, fine.t_reached, self.theta, rtol=self.rtol,
-                          atol=self.rtol * self.scale, h0=h)
+                          atol=self.rtol * self.scale, h0=h, tail=tail)
         paused = until != self.t_end and fine.success  # the first piece, ended at `first`
         for name, part in (("fine", fine), ("coarse", coarse)):
             # the next piece starts with the last step (not one cut short to land on `first`)

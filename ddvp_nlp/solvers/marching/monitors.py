@@ -84,6 +84,10 @@ class EarlyVerdict(MarchMonitor):
     def __init__(self, judge, *, screen: bool):
         self.judge, self.screen = judge, screen
         self.checked = 0  # the steps judged so far
+        # (rows, low, high) of the nodes' columns seen so far: the nodes before a watch's first
+        # new one never change (a truncation ends the run), so each watch reads only the new
+        # rows (min and max are exact: the same numbers as a pass over all of them)
+        self._seen = None
 
     @classmethod
     def from_options(cls, session):
@@ -101,7 +105,7 @@ class EarlyVerdict(MarchMonitor):
             return None
         start, end = self.checked, min(count - 1, EARLY_STEPS)
         z = nodes.z[:count]
-        scale = motion_scales(*table_extremes(self.judge, z), z.shape[1] // 2)
+        scale = motion_scales(*self._extremes(z), z.shape[1] // 2)
         t, z = nodes.t[start:end + 1], z[start:end + 1]
         # the steps alone: no node values at the window's last node
         look = self.judge.values.first_look(t, z, last=False) if self.screen else None
@@ -119,6 +123,20 @@ class EarlyVerdict(MarchMonitor):
             f"motion's size so far, more than {EARLY_FACTOR:g} times the bound {rtol:g}: the "
             f"march stopped there; {ADVICE}"), \
             max(0, k + 2 - first)
+
+    def _extremes(self, z):
+        """`table_extremes` of the nodes ``z`` (rows), the rows seen by the watches before
+        not read again (``np.minimum``/``np.maximum`` carry a NaN on, as a pass over all)."""
+        seen = self._seen
+        if seen is None or not 0 < seen[0] <= z.shape[0]:
+            low, high, _ = table_extremes(self.judge, z)
+        elif seen[0] == z.shape[0]:
+            low, high = seen[1], seen[2]
+        else:
+            new_low, new_high, _ = table_extremes(self.judge, z[seen[0]:])
+            low, high = np.minimum(seen[1], new_low), np.maximum(seen[2], new_high)
+        self._seen = (z.shape[0], low, high)
+        return low, high, np.maximum(np.abs(low), np.abs(high))
 
 
 class EnergyGuard(MarchMonitor):

@@ -201,7 +201,8 @@ class MarchSession:
         started = time.perf_counter()
         try:
             report, local = self._judged(
-                solution, stop=output.stop if _too_many_to_judge(outcome.t.size) else None)
+                solution, outcome.z,
+                stop=output.stop if _too_many_to_judge(outcome.t.size) else None)
         except CheckStopped:
             _left_unjudged(solution, outcome, output, asked=True)
             return solution
@@ -209,13 +210,14 @@ class MarchSession:
         solution.timing["accuracy_s"] = time.perf_counter() - started
         return solution
 
-    def _judged(self, solution, *, stop=None):
+    def _judged(self, solution, z, *, stop=None):
         """The accuracy check of the march's nodes (``accuracy/judgement.py``), the exact flow
         compiled with ``judging``; for the energy rules the level the first step sets is tested
         too (`MarchProblem.level`). The RK4 screen of the local test suits a second-order
-        scheme."""
+        scheme. ``z``: the nodes ``(q, p)`` as the drive kept them (``solution.q`` and
+        ``solution.p`` are copies of its columns: not joined again)."""
         problem, tolerance = self.problem, self.accuracy
-        t, z = solution.t, np.hstack([solution.q, solution.p])
+        t = solution.t
         judgement = Judgement(problem.system, problem.theta, tolerance, compiler=self.judging,
                               cache_dir=self.compilation.cache_dir)
         return judgement.report(t, z, level=problem.level(t, z), screen=True,

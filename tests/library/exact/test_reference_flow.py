@@ -89,6 +89,25 @@ def test_chunks_and_the_virtual_machine_give_the_same_run():
         assert np.array_equal(big.w_end, other.w_end)
 
 
+def test_a_tail_of_smaller_calls_gives_the_same_run_and_stops_after_as_many_attempts():
+    """A run likely to end within part of a call makes its last attempts in calls of a flow
+    with fewer slots (`AdaptiveFlow.run`'s ``tail``): the same run bit for bit (the
+    documented invariant above), and a run cut by ``max_attempts`` stops after the same
+    attempts as with whole calls of its own slots."""
+    scene, config, theta, z0 = _problem("henon_heiles")
+    field = flow_field(scene.system)[0]
+    flow, tail = exact_flow(scene.system), AdaptiveFlow(field, slots=8)
+    for t_end, h0, limit in ((50.0, 0.5, 10_000_000), (2000.0, 5.0, flow.slots)):
+        whole = flow.run(z0, 0.0, t_end, theta, rtol=1e-9, h0=h0, max_attempts=limit)
+        cut = flow.run(z0, 0.0, t_end, theta, rtol=1e-9, h0=h0, max_attempts=limit, tail=tail)
+        assert whole.calls == 1 and cut.calls > 10
+        assert (whole.attempts, whole.status, whole.t_reached) == \
+            (cut.attempts, cut.status, cut.t_reached)
+        for name in ("t_old", "h", "w_old", "F", "w_end"):
+            assert np.array_equal(getattr(whole, name), getattr(cut, name))
+    assert not cut.success and cut.attempts == flow.slots  # the second: cut by max_attempts
+
+
 def test_a_blow_up_and_a_singular_start_end_as_failures_with_finite_states():
     z, t = ca.SX.sym("z", 2), ca.SX.sym("t")
     blow_up = ca.Function("f", [z, t, ca.SX.sym("theta", 0)], [ca.vertcat(z[0] ** 2, 0)])
