@@ -155,7 +155,7 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     t, z, first_residual = _first_step(functions, q0, p0, tau0, t0, theta)
     record = _Record("euler_lagrange", "energy")
     if np.all(np.isfinite(z)):
-        scales = start_scales(system, q0, p0, t0, tau0, theta)
+        scales = start_scales(system, q0, p0, t0, tau0, theta, tol)
         outcome = drive(_LeeLeftSteps(function, chunk, theta, n, tol, scales), Nodes(t, z),
                         t_end=t_end, max_steps=max_steps, time_limit=time_limit,
                         monitors=[record])

@@ -24,7 +24,10 @@ taken at its start:
   |dq_0|_inf)``, ``P = max(|p_0|_inf, |dp_0|_inf)``: how much ``H`` changes when the state moves
   by its own size (its kinetic part is ``|p . dH/dp|``, twice the kinetic energy of a natural
   system). It does not vanish when ``H_k`` happens to be 0 and does not change when a constant
-  is added to ``H``.
+  is added to ``H``. It is never below ``ROUNDOFF_ALLOWANCE * eps * e_H / tol``, ``e_H`` the
+  running error bound of ``H``'s own evaluation at the start (`physics.roundoff`): an energy
+  row cannot be asked for less than the round-off of the values of ``H`` it differences (the
+  pendulum's ``1 - cos q`` at small amplitude is computed from terms of size 1).
 
 Both scale with the state and ``H`` under a change of units of ``q``, ``p``, ``t`` and ``H`` by
 one factor, so the same motion in metres and in micrometres accepts the same steps; adding a
@@ -58,14 +61,46 @@ class Acceptance:
     max_step_ratio: float | None = None
     z_scale: float = 0.0
     H_scale: float = 0.0
+    H_motion: float = 0.0  # E from the motion alone, before the round-off floor
+    H_roundoff: float = 0.0  # eps e_H, the round-off bound of one evaluation of H
+    step_fraction: float = 0.0  # |dz_0|_inf / Z, how far the first step moves against Z
 
     @classmethod
     def at_start(cls, steps, system, q0, p0, t0: float, tau0: float, theta) -> Acceptance:
         """The acceptance test of a march of ``steps`` (a `StepControl`) from ``(q0, p0)`` at
         ``t0`` with first step ``tau0``: its bounds and the scales of `start_scales`."""
-        z_scale, H_scale = start_scales(system, q0, p0, t0, tau0, theta)
+        z_scale, H_motion, H_roundoff, step = start_values(system, q0, p0, t0, tau0, theta)
         return cls(steps.tol, steps.tau_min, steps.tau_max, steps.max_step_ratio, z_scale,
-                   H_scale)
+                   _energy_scale(H_motion, H_roundoff, steps.tol), H_motion, H_roundoff, step)
+
+    def residuals_refused(self, canonical, size, energy=None, H=0.0, *,
+                          newton_abstol: float = 0.0) -> str:
+        """Why a step's residuals fail `residuals_ok`, each beside what it was allowed, and
+        what the cause is where it is known: a canonical residual under Newton's absolute
+        stopping test ``newton_abstol`` (a motion so small that Newton stops at its first
+        guess), or energy rows of this motion at the round-off of ``H`` itself."""
+        allowed = self.tol * max(self.z_scale, size)
+        words = f"canonical residual {canonical:.3e} (allowed {allowed:.3e})"
+        if allowed < canonical <= newton_abstol:
+            words += (f"; Newton stops where the residual is below {newton_abstol:.0e} in "
+                      "absolute terms, which a motion of this size meets at its first guess, "
+                      "so its steps would not solve the scheme: state the motion in units "
+                      "where its size is of order 1")
+        if energy is None:
+            return words
+        words += (f", energy residual {energy:.3e} (allowed "
+                  f"{self.tol * max(self.H_scale, H):.3e})")
+        # The energy equation's dependence on the step length is second order in it (about
+        # E (|dz|/Z)^2 over a step, docs/theory.md section 7): where that is within the
+        # round-off of H, the step length it sets is round-off
+        sensitivity = self.H_motion * self.step_fraction ** 2
+        if self.H_roundoff and sensitivity < ROUNDOFF_ALLOWANCE * self.H_roundoff:
+            words += (f"; the energy equation changes by about {sensitivity:.2e} over a step, "
+                      f"within the round-off of evaluating H ({self.H_roundoff:.2e}), so "
+                      "round-off sets the step length: march with fixed steps (scheme "
+                      "'fixed'), or write H so that it is not a difference of large terms "
+                      "(2 sin(q/2)**2 for 1 - cos q)")
+        return words
 
     def residuals_ok(self, canonical, size, energy=0.0, H=0.0):
         """The residual test: canonical relative to ``max(|z_k|, Z)``, energy relative to
@@ -99,21 +134,51 @@ class Acceptance:
                                    f"{ratio:.4g} > max_step_ratio {self.max_step_ratio})")
 
 
-def start_scales(system, q0, p0, t0: float, tau0: float, theta) -> tuple[float, float]:
+def start_scales(system, q0, p0, t0: float, tau0: float, theta,
+                 tol: float | None = None) -> tuple[float, float]:
     """``(Z, E)``, the run's scales of the canonical and the energy residual (module
-    docstring), from the start ``(q0, p0)`` at ``t0``, the first step ``tau0`` and the
-    parameters ``theta``: one call of a function built once per system (the march's RK4
-    predictor over ``tau0`` and the vector field at the start), whatever the scheme."""
+    docstring; `start_values`). Given the tolerance ``tol``, ``E`` is at least
+    ``ROUNDOFF_ALLOWANCE * eps * e_H / tol``: no tolerance asks an energy row for less than
+    the round-off of the evaluations of ``H`` it is computed from."""
+    z_scale, H_motion, H_roundoff, _ = start_values(system, q0, p0, t0, tau0, theta)
+    return z_scale, _energy_scale(H_motion, H_roundoff, tol)
+
+
+def _energy_scale(H_motion: float, H_roundoff: float, tol: float | None) -> float:
+    """``E``: the motion's, floored at the round-off a tolerance ``tol`` may not ask below."""
+    if tol is None or not tol > 0:
+        return H_motion
+    return max(H_motion, ROUNDOFF_ALLOWANCE * H_roundoff / tol)
+
+
+def start_values(system, q0, p0, t0: float, tau0: float,
+                 theta) -> tuple[float, float, float, float]:
+    """``(Z, E_motion, eps e_H, |dz_0|_inf / Z)`` from the start ``(q0, p0)`` at ``t0``, the
+    first step ``tau0`` and the parameters ``theta`` (module docstring): one call of a function
+    built once per system (the march's RK4 predictor over ``tau0``, the vector field and the
+    round-off bound ``e_H`` of ``H`` at the start), whatever the scheme."""
     q0, p0 = np.asarray(q0, float).ravel(), np.asarray(p0, float).ravel()
     n = q0.size
     z0 = np.concatenate([q0, p0])
+    theta = np.asarray(theta, float).ravel()
     moved, slope = (np.asarray(v, float).ravel() for v in _start_motion(system)(
-        z0, t0, tau0, np.asarray(theta, float).ravel()))
+        z0, t0, tau0, theta))
+    bound = _H_roundoff(system)
+    roundoff = np.array([bound(q0, p0, t0, theta) if bound is not None else 0.0])
     Q = max(_largest(q0), _largest(moved[:n]))
     P = max(_largest(p0), _largest(moved[n:]))
     # f = (H_p, -H_q): |dH/dq_i| = |f_{n+i}|, |dH/dp_i| = |f_i|
     energy = Q * _total(slope[n:]) + P * _total(slope[:n])
-    return max(Q, P), energy if np.isfinite(energy) else 0.0
+    energy = energy if np.isfinite(energy) else 0.0
+    Z = max(Q, P)
+    return Z, energy, EPS * _largest(roundoff), _largest(moved) / Z if Z > 0 else 0.0
+
+
+# How many times the first-order round-off bound of one evaluation of H an energy row may hold:
+# the row differences a few evaluations of H (the interval energies of two steps) and Newton
+# leaves it at the round-off of its last evaluation
+ROUNDOFF_ALLOWANCE = 16.0
+EPS = float(np.finfo(float).eps)
 
 
 def _start_motion(system):
@@ -131,6 +196,21 @@ def _start_motion(system):
         step = rk4(lambda y, s: f(y, s, theta), z, t, tau)
         return ca.Function("start_motion", [z, t, tau, theta], [step - z, f(z, t, theta)])
     return cached(system, "start_motion", build)
+
+
+def _H_roundoff(system):
+    """The running error bound of ``H`` without its constant terms (the one the energy rows
+    difference), `physics.roundoff.roundoff_bound` in ``(q, p, t)``, read once per system;
+    ``None`` where ``H`` has an operation without a scalar rule."""
+    from ...cache import cached
+    from ...physics.roundoff import roundoff_bound
+
+    def build():
+        try:
+            return roundoff_bound(system.H_varying_function, (0, 1, 2))
+        except ValueError:
+            return None
+    return cached(system, "H_roundoff", build)
 
 
 def _largest(values: np.ndarray) -> float:
