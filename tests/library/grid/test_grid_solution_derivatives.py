@@ -18,7 +18,11 @@ from ddvp_nlp import (
     solve_periodic,
 )
 from ddvp_nlp.solvers.bvp.end_derivatives import BVP_DERIVATIVES
-from ddvp_nlp.solvers.grid.implicit_derivatives import DerivativesRefused, check_names
+from ddvp_nlp.solvers.grid.implicit_derivatives import (
+    ILL_CONDITIONED,
+    DerivativesRefused,
+    check_names,
+)
 
 
 def pendulum(scale=1.0, offset=0.0):
@@ -84,9 +88,13 @@ def test_kepler_period_derivative_in_mu_at_fixed_energy():
         assert orbit.success
         errors.append(abs(orbit.derivatives["period"]["params"][0] - exact) / exact)
         # near the eccentricity family the discrete orbit's nodes are barely determined (said,
-        # not hidden); the period does not see that direction
+        # not hidden); the period does not see that direction. The nodes' estimate is a
+        # round-off estimate near the flag's threshold (3.4e-7 at N = 100 on one machine, above
+        # 1e-6 on others), so the test holds the separation and the flag's agreement with it
         d = orbit.derivatives
-        assert d["nodes_ill_conditioned"] and not d["ill_conditioned"]
+        assert not d["ill_conditioned"]
+        assert d["nodes_error_estimate"] > 1e6 * d["error_estimate"]
+        assert d["nodes_ill_conditioned"] == (d["nodes_error_estimate"] > ILL_CONDITIONED)
         assert {c["verdict"] for c in d["checks"].values()} == {"agrees"}
     assert errors[0] < 1e-3 and 3.5 < errors[0] / errors[1] < 4.5
 
