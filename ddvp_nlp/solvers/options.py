@@ -72,7 +72,9 @@ class StepControl:
 
     Attributes:
         tol: acceptance tolerance of each step's unscaled residuals, relative to
-            ``max(1, |z|)`` (canonical equations) and ``max(1, |H|)`` (energy equation).
+            ``max(|z_k|, Z)`` (canonical equations) and ``max(|H_k|, E)`` (energy equation),
+            ``Z`` and ``E`` the run's scales from its start (``marching/acceptance.py``: the
+            start's size and first motion, how much ``H`` changes over it; no floor of 1).
         tau_min, tau_max: optional bounds on every step length.
         max_step_ratio: bound on ``max(tau_k/tau_{k-1}, tau_{k-1}/tau_k)`` (``None``: none).
             The default 10 stops a march whose energy equation jumped to a far root: on

@@ -93,7 +93,7 @@ def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, c
                max_steps: int, time_limit: float | None = None, tol: float = 1e-10,
                tolerance=None):
     """Method ``name`` of the registry on ``scene`` at knob ``value``, then its own residual
-    check: a step whose residual passes ``tol max(1, |z_k+1|_inf)`` turns a success into
+    check: a step whose residual passes ``tol max(|z_k+1|_inf, Z)`` turns a success into
     ``RESIDUAL_TOO_LARGE``. Returns the solution, with ``canonical_residual`` the per-step
     residuals (empty where the method has no equation) and ``own_residual_max``."""
     method = get_methods([name])[0]
@@ -110,12 +110,25 @@ def run_method(scene, config: RunConfig, name: str, value: float, *, compiler, c
         solution.own_residual_max = None
         return solution
     solution.canonical_residual = residual
-    scale = np.maximum(1.0, np.max(np.abs(np.hstack([solution.q, solution.p])[1:]), axis=1))
-    worst = float(np.max(residual / scale[:residual.size])) if residual.size else 0.0
+    z = np.hstack([solution.q, solution.p])
+    scale = np.maximum(_start_scale(z), np.max(np.abs(z[1:]), axis=1))
+    with np.errstate(invalid="ignore", divide="ignore"):  # 0 / 0 at rest: not a failure
+        relative = np.nan_to_num(residual / scale[:residual.size], nan=0.0)
+    worst = float(np.max(relative)) if residual.size else 0.0
     solution.own_residual_max = float(np.max(residual)) if residual.size else 0.0
     if solution.success and worst > tol:
-        step = int(np.argmax(residual / scale[:residual.size]))
+        step = int(np.argmax(relative))
         solution.status = Status.RESIDUAL_TOO_LARGE
         solution.message = (f"{Status.RESIDUAL_TOO_LARGE.value}: step {step + 1}, residual "
-                            f"{residual[step]:.3g} > {tol:g} max(1, |z|)")
+                            f"{residual[step]:.3g} > {tol:g} max(|z|, Z)")
     return solution
+
+
+def _start_scale(z: np.ndarray) -> float:
+    """``Z``, the run's scale of a residual (no floor of 1 in the units of the state; the
+    march's own test, ``solvers/marching/acceptance.py``): the start's ``|z_0|_inf`` joined
+    with its first step's motion ``|z_1 - z_0|_inf``, so a start at ``z = 0`` is still judged
+    against the size of its motion."""
+    motion = np.abs(z[1] - z[0]) if z.shape[0] > 1 else np.zeros(0)
+    values = np.concatenate([np.abs(z[0]), motion])
+    return float(np.max(values[np.isfinite(values)], initial=0.0))

@@ -1572,6 +1572,40 @@ def target_cases() -> list[Case]:
     ]
 
 
+def small_motion_cases() -> list[Case]:
+    """Motions far below the units (the acceptance's scales from the problem, with the round-off
+    bound of H): marched where the scheme can be solved, refused by cause where it cannot (a
+    floor of 1 used to return the RK4 guess of a motion of 1e-9 as a vddvp success)."""
+    def said(*words):
+        def check(folder, result):
+            meta = _meta_of(folder)
+            if meta is None:
+                return ["no meta.json"]
+            message = str(meta.get("message"))
+            problems = [f"the message does not say {w!r}" for w in words if w not in message]
+            if meta.get("status") == "success":
+                problems.append("called a success")
+            return problems
+        return check
+
+    def varied(folder, result):
+        meta = _meta_of(folder)
+        return [] if meta is not None and meta.get("status") == "success" else \
+            [f"status {None if meta is None else meta.get('status')!r}"]
+    march = ["march", "pendulum", "--set", "t_end=5", "--no-plot", "--no-progress", "--out",
+             "out"]
+    return [
+        Case("small", "the pendulum at amplitude 1e-4 (1 - cos q from terms of size 1)",
+             [*march, "--set", "q0=5e-5", "--set", "p0=5e-5"], (0,), check=varied),
+        Case("small", "the pendulum at amplitude 1e-6: the energy equation at H's round-off",
+             [*march, "--set", "q0=5e-7", "--set", "p0=5e-7"], (1,),
+             check=said("round-off sets the step length", "fixed")),
+        Case("small", "the pendulum at amplitude 1e-9, fixed steps: below Newton's stop",
+             [*march, "--set", "q0=5e-10", "--set", "p0=5e-10", "--scheme", "fixed"], (1,),
+             check=said("Newton stops", "units where its size is of order 1")),
+    ]
+
+
 def thinned_cases() -> list[Case]:
     """``--keep-every``: refused where it cannot keep its promise (checkpoints, resume, a
     keep_every past 2**62), by name (issue 45)."""
@@ -1878,6 +1912,7 @@ def main() -> int:
               "constrained_march": constrained_march_cases,
               "constrained_periodic": constrained_periodic_cases,
               "merges": merge_cases, "target": target_cases, "thinned": thinned_cases,
+              "small": small_motion_cases,
               "supervision": supervision_cases, "compare": compare_cases,
               "load": load_cases}
     only = set(args.only.split(",")) if args.only else None

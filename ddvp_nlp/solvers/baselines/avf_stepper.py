@@ -3,7 +3,7 @@ baseline of ``fixed_step.py``.
 
 Each step solves the AVF equation for ``z_{k+1}`` by CasADi's ``fast_newton`` from the RK4
 predictor, in the same compiled chunks as the explicit baselines; a step is kept while finite
-and while its equation holds to ``fixed_step.RESIDUAL_TOL max(1, |z|)``. Order 2,
+and while its equation holds to ``fixed_step.RESIDUAL_TOL max(|z|, Z)``. Order 2,
 symmetric, conserves autonomous ``H`` at the nodes (exactly, up to round-off, for polynomial
 ``H`` of degree at most 6; see ``discrete/avf.py`` for the others); not symplectic.
 """

@@ -28,6 +28,7 @@ from ...errors import InputError
 from ...physics.hamiltonian import HamiltonianSystem, not_separable
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, describe_phase_space, drive
+from ..marching.acceptance import start_scales
 from .avf_stepper import avf_step
 from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
@@ -101,29 +102,31 @@ def fixed_chunk(system: HamiltonianSystem, method: str, chunk: int, compiler, ca
 class _FixedSteps:
     """Stepper (``driver.py``) of a compiled fixed-step chunk on the grid ``t0 + k h``, whose
     step ``total`` lands on ``t_end`` exactly. A step is kept while its row is finite and its
-    residual at most ``tol max(1, |z_k+1|_inf)``."""
+    residual at most ``tol max(|z_k+1|_inf, Z)``, ``Z`` the run's scale from its start
+    (``marching/acceptance.py``, `start_scales`: no floor of 1 in the units of the state)."""
 
     describe = staticmethod(describe_phase_space)
 
-    def __init__(self, function, chunk: int, constants, total: int, t_end: float, n: int):
+    def __init__(self, function, chunk: int, constants, total: int, t_end: float, n: int,
+                 z_scale: float):
         self.function, self.chunk, self.constants = function, chunk, constants
-        self.total, self.t_end = total, t_end
+        self.total, self.t_end, self.z_scale = total, t_end, z_scale
         self.state, self.row = _fixed_layout(n)
 
     def advance(self, nodes: Nodes, budget: int) -> Advance:
         k = nodes.count - 1
         _, rows = self.function(self.state.join(k=k, z=nodes.z[k]), self.constants)
         rows = np.asarray(rows).T[:min(self.chunk, budget)]
-        return _kept(self.row, rows, self.total - k, self.t_end)
+        return _kept(self.row, rows, self.total - k, self.t_end, self.z_scale)
 
 
-def _kept(row: Columns, rows: np.ndarray, left: int, t_end: float) -> Advance:
-    """The leading rows that are finite and whose residual is small (``left``: steps to
-    ``t_end``, whose last node is put on ``t_end`` exactly)."""
+def _kept(row: Columns, rows: np.ndarray, left: int, t_end: float, z_scale: float) -> Advance:
+    """The leading rows that are finite and whose residual is small against ``max(|z_k+1|,
+    z_scale)`` (``left``: steps to ``t_end``, whose last node is put on ``t_end`` exactly)."""
     finite = np.all(np.isfinite(rows), axis=1)
     columns = row.unpack(rows)
-    scale = np.maximum(1.0, np.max(np.abs(np.where(np.isfinite(columns["z"]), columns["z"], 0)),
-                                   axis=1))
+    scale = np.maximum(z_scale, np.max(np.abs(np.where(np.isfinite(columns["z"]), columns["z"],
+                                                        0)), axis=1))
     solved = columns["residual"] <= RESIDUAL_TOL * scale
     good = finite & solved
     kept = int(np.argmin(good)) if not good.all() else rows.shape[0]
@@ -134,11 +137,13 @@ def _kept(row: Columns, rows: np.ndarray, left: int, t_end: float) -> Advance:
         return Advance(t, columns["z"][:kept])
     status = Status.NON_FINITE if not finite[kept] else Status.RESIDUAL_TOO_LARGE
     detail = ("" if not finite[kept] else
-              f"residual {columns['residual'][kept]:.3g} > {RESIDUAL_TOL:g} max(1, |z|)")
+              f"residual {columns['residual'][kept]:.3g} > {RESIDUAL_TOL:g} max(|z|, Z), "
+              f"Z = {z_scale:.3g}")
     return Advance(t, columns["z"][:kept], status, detail)
 
 
-# An implicit step is accepted when its equation holds to this, relative to max(1, |z|).
+# An implicit step is accepted when its equation holds to this, relative to max(|z|, Z) (Z from
+# the start: ``marching/acceptance.py``).
 RESIDUAL_TOL = 1e-10
 
 
@@ -154,7 +159,8 @@ def fixed_step_run(system: HamiltonianSystem, method: str, q0, p0, *, tau: float
     function, compile_s = fixed_chunk(system, method, chunk, compiler, cache_dir)
     built = time.perf_counter()
     constants = np.tile(np.concatenate([theta, [t0, (t_end - t0) / total]])[:, None], (1, chunk))
-    stepper = _FixedSteps(function, chunk, constants, total, t_end, system.n)
+    z_scale, _ = start_scales(system, q0, p0, t0, (t_end - t0) / total, theta)
+    stepper = _FixedSteps(function, chunk, constants, total, t_end, system.n, z_scale)
     outcome = drive(stepper, Nodes(t0, np.concatenate([q0, p0])), t_end=t_end, max_steps=total,
                     time_limit=time_limit)
     return solution_of(outcome.t, outcome.z, system.n, outcome.status, outcome.message, method,

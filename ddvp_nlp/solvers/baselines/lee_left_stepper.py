@@ -25,6 +25,7 @@ from ...discrete.lee_left import LeeLeftPointEquations
 from ...physics.hamiltonian import HamiltonianSystem, quadratic_kinetic_matrix
 from ...solution import Solution, Status
 from ..driver import Advance, Nodes, Outcome, describe_phase_space, drive, message
+from ..marching.acceptance import start_scales
 from ..marching.step_newton import NEWTON_OPTIONS
 from .chunks import CHUNK, Columns, load, solution_of
 from .integrator import Integrator
@@ -70,14 +71,17 @@ class _LeeLeftSteps:
     """Stepper (``driver.py``) of Lee's scheme in compiled chunks, from the last two nodes.
 
     A step is accepted if its row is finite, ``tau > 0``, the Euler-Lagrange residual is under
-    ``tol max(1, |q|_inf)`` and the energy residual under ``tol max(1, |E|)``; the first step that
-    is not ends the call with the status that says why. ``values`` carries each accepted step's
-    two residuals."""
+    ``tol max(|q|_inf, Z)`` and the energy residual under ``tol max(|E|, E_s)``, ``(Z, E_s)``
+    the run's scales from its start (``marching/acceptance.py``, `start_scales`: no floor of
+    1 in the units of the state); the first step that is not ends the call with the status
+    that says why. ``values`` carries each accepted step's two residuals."""
 
     describe = staticmethod(describe_phase_space)
 
-    def __init__(self, function, chunk: int, theta, n: int, tol: float):
+    def __init__(self, function, chunk: int, theta, n: int, tol: float,
+                 scales: tuple[float, float]):
         self.function, self.chunk, self.n, self.tol = function, chunk, n, tol
+        self.z_scale, self.H_scale = scales
         self.thetas = np.tile(np.asarray(theta, float)[:, None], (1, chunk))
         self.state, self.row = _layout(n)
 
@@ -92,8 +96,8 @@ class _LeeLeftSteps:
         el, en = row["euler_lagrange"], row["energy"]
         with np.errstate(invalid="ignore"):
             good = (np.all(np.isfinite(rows), axis=1) & (row["t"] > t_mid)
-                    & (el <= self.tol * np.maximum(1.0, row["q_scale"]))
-                    & (np.abs(en) <= self.tol * np.maximum(1, row["energy_scale"])))
+                    & (el <= self.tol * np.maximum(self.z_scale, row["q_scale"]))
+                    & (np.abs(en) <= self.tol * np.maximum(self.H_scale, row["energy_scale"])))
         bad = np.flatnonzero(~good)
         kept = int(bad[0]) if bad.size else rows.shape[0]
         status, detail = self._why(rows, row, t_mid, int(bad[0])) if bad.size else \
@@ -151,8 +155,10 @@ def lee_left_march(system: HamiltonianSystem, q0, p0, *, tau0: float, t_end: flo
     t, z, first_residual = _first_step(functions, q0, p0, tau0, t0, theta)
     record = _Record("euler_lagrange", "energy")
     if np.all(np.isfinite(z)):
-        outcome = drive(_LeeLeftSteps(function, chunk, theta, n, tol), Nodes(t, z), t_end=t_end,
-                        max_steps=max_steps, time_limit=time_limit, monitors=[record])
+        scales = start_scales(system, q0, p0, t0, tau0, theta, tol)
+        outcome = drive(_LeeLeftSteps(function, chunk, theta, n, tol, scales), Nodes(t, z),
+                        t_end=t_end, max_steps=max_steps, time_limit=time_limit,
+                        monitors=[record])
     else:  # the first step is not a driven step: the run ends before the driver starts
         outcome = Outcome(t, z, Status.NON_FINITE,
                           message(Status.NON_FINITE, steps=1, t_end=t_end, t=t[-1],

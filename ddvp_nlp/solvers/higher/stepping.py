@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
-from ...discrete.higher_order_action import action, check_rule
+from ...discrete.higher_order_action import action, check_rule, differences
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.higher_order import HigherOrderSystem
@@ -232,12 +232,19 @@ class _HigherSteps:
     With the energy rule the newest node is *pending*: only its difference
     ``u = (q_{k+l} - q_{k+l-1}) / tau`` is known, kept here with the step ``tau`` that produced
     it; the driver's nodes are the complete ones. A step is accepted only if finite, ``tau > 0``
-    and its residuals are under ``tol``."""
+    and its residuals are under ``tol`` relative to the magnitudes they are computed from (no
+    floor of 1 in the units of ``q`` or of ``L``): the Euler-Lagrange rows (in the units of
+    ``q``) against ``max(|q|_inf of the window, Z)``, ``Z`` the given nodes' ``|q|_inf`` joined
+    with their largest difference (a start at ``q = 0`` is judged against its motion); the
+    energy row against ``max(L_s, L_0)``, ``L_s`` the largest ``|L| + sum_j |v^(j) .
+    dL/dv^(j)|`` of the window's intervals (at least ``|E|`` of a natural Lagrangian, and
+    nonzero where ``L`` passes 0) and ``L_0`` that of the first step's window."""
 
     def __init__(self, system: HigherOrderSystem, rule: str, theta, tol: float, h: float,
-                 pending=None):
+                 pending=None, z_scale: float = 0.0):
         self.root, self.check = _step_functions(system, rule)
         self.l, self.n, self.theta, self.tol, self.h = system.order, system.n, theta, tol, h
+        self.z_scale, self.energy_scale = z_scale, None
         self.variable = rule != "fixed"
         self.u, self.tau = pending if pending is not None else (None, None)
 
@@ -276,8 +283,11 @@ class _HigherSteps:
             return Status.NON_FINITE, ""
         if step <= 0:
             return Status.NO_ADMISSIBLE_STEP, f"Newton found tau = {step:.6g}"
-        el, energy, size = (float(v) for v in self.check(x, w))
-        if el > self.tol * max(1.0, size) or abs(energy) > self.tol * max(1.0, size):
+        el, energy, size, energy_size = (float(v) for v in self.check(x, w))
+        if self.energy_scale is None:  # the first step's window: the run's scale of L
+            self.energy_scale = energy_size if np.isfinite(energy_size) else 0.0
+        if el > self.tol * max(size, self.z_scale) or \
+                abs(energy) > self.tol * max(energy_size, self.energy_scale):
             converged = self.root.stats().get("return_status") == "success"
             return (Status.RESIDUAL_TOO_LARGE if converged else Status.NEWTON_FAILED,
                     f"Euler-Lagrange residual {el:.3e}, energy residual {energy:.3e}")
@@ -322,11 +332,13 @@ def march_higher(system: HigherOrderSystem, t_init, q_init, t_end: float | None 
     theta = system.parameter_vector(params)
     started = time.perf_counter()
     h = t_init[-1] - t_init[-2]
+    z_scale = float(max(np.max(np.abs(q_init)), np.max(np.abs(np.diff(q_init, axis=0)))))
     if rule != "fixed":  # the last given node is pending: only its difference is kept
-        stepper = _HigherSteps(system, rule, theta, tol, h, ((q_init[-1] - q_init[-2]) / h, h))
+        stepper = _HigherSteps(system, rule, theta, tol, h, ((q_init[-1] - q_init[-2]) / h, h),
+                               z_scale)
         nodes = Nodes(t_init[:-1], q_init[:-1])
     else:
-        stepper = _HigherSteps(system, rule, theta, tol, h)
+        stepper = _HigherSteps(system, rule, theta, tol, h, z_scale=z_scale)
         nodes = Nodes(t_init, q_init)
     built = time.perf_counter()
     outcome = drive(stepper, nodes, t_end=t_end, max_steps=max_steps, time_limit=time_limit,
@@ -383,6 +395,26 @@ def _build_step_functions(system: HigherOrderSystem, rule: str):
     g = ca.vertcat(scaled, energy) if variable else scaled
     root = ca.rootfinder("higher_step", "newton", ca.Function("g", [x, w], [g]),
                          dict(HIGHER_STEP_NEWTON))
+    sizes = _energy_size(system, theta)
+    energy_size = 0
+    for k, v in enumerate(differences(l, q_nodes, t_nodes)):
+        energy_size = ca.fmax(energy_size, sizes(q_nodes[k], *v, t_nodes[k], theta))
+    energy_size = ca.substitute(energy_size, ca.vertcat(q_k, t_k), at)  # node l of the window
     check = ca.Function("check", [x, w], [ca.norm_inf(scaled),
-                                         energy if variable else ca.SX(0), ca.norm_inf(qw)])
+                                         energy if variable else ca.SX(0), ca.norm_inf(qw),
+                                         energy_size])
     return root, check
+
+
+def _energy_size(system: HigherOrderSystem, theta) -> ca.Function:
+    """``|L| + sum_j |v^(j) . dL/dv^(j)|`` at one interval: the magnitudes the energy row
+    (the action's derivative in a node time) is made of; for ``L = T - V`` with ``T``
+    quadratic in ``v^(1)`` it is ``|T - V| + 2T >= |T + V|``, the energy."""
+    n, l = system.n, system.order  # noqa: E741 (l is the order, as in the paper)
+    q, t = ca.SX.sym("q", n), ca.SX.sym("t")
+    vs = [ca.SX.sym(f"v{j + 1}", n) for j in range(l)]
+    L = system.L_function(q, *vs, t, theta)
+    size = ca.fabs(L)
+    for v in vs:
+        size = size + ca.fabs(ca.dot(v, ca.gradient(L, v)))
+    return ca.Function("energy_size", [q, *vs, t, theta], [size])

@@ -144,7 +144,8 @@ _STEP_LENGTH = _step_length()
 
 # The acceptance test's numbers (``acceptance.Acceptance``), a parameter of every chunk call: the
 # chunk computes each step's verdict (``good``) itself. A bound that is not set is infinite.
-LIMITS = ChunkLayout(("tol", 1), ("tau_min", 1), ("tau_max", 1), ("max_step_ratio", 1))
+LIMITS = ChunkLayout(("tol", 1), ("tau_min", 1), ("tau_max", 1), ("max_step_ratio", 1),
+                     ("z_scale", 1), ("H_scale", 1))
 
 
 def limits(acceptance) -> np.ndarray:
@@ -153,7 +154,8 @@ def limits(acceptance) -> np.ndarray:
         return missing if value is None else value
     return LIMITS.pack(tol=acceptance.tol, tau_min=bound(acceptance.tau_min, -np.inf),
                        tau_max=bound(acceptance.tau_max, np.inf),
-                       max_step_ratio=bound(acceptance.max_step_ratio, np.inf))
+                       max_step_ratio=bound(acceptance.max_step_ratio, np.inf),
+                       z_scale=acceptance.z_scale, H_scale=acceptance.H_scale)
 
 
 def energy_layouts(n2: int) -> tuple[ChunkLayout, ChunkLayout]:
@@ -228,11 +230,11 @@ def step_verdict(outputs: list, check, limit: dict, *, tau=None, tau_prev=None) 
     against ``tol``; for energy steps also ``tau > 0`` and the bounds on ``tau`` and on
     ``max(tau / tau_prev, tau_prev / tau)``. ``1`` where the step is accepted, else ``0``."""
     verdict = ca.logic_and(_finite(outputs),
-                           check.canonical <= limit["tol"] * ca.fmax(1.0, check.size))
+                           check.canonical <= limit["tol"] * ca.fmax(limit["z_scale"], check.size))
     if tau is None:
         return verdict
     verdict = ca.logic_and(verdict, ca.fabs(check.energy)
-                           <= limit["tol"] * ca.fmax(1.0, check.H_interval))
+                           <= limit["tol"] * ca.fmax(limit["H_scale"], check.H_interval))
     ratio = ca.fmax(tau / tau_prev, tau_prev / tau)
     for test in (tau > 0, tau >= limit["tau_min"], tau <= limit["tau_max"],
                  ratio <= limit["max_step_ratio"]):

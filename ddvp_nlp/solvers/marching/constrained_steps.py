@@ -5,8 +5,13 @@ The step equations are those of ``discrete/constrained.py``. Unknowns and parame
 - *fixed-length* step (every step of ``fixed``, step 0 of the energy rules): ``x = [z_b,
   lambda, mu]`` (``2n + 2m``): the ``2n`` interval rows and the ``2m`` node rows at ``b``;
 - *energy* step: ``x = [z_{k+1}, lambda_k, mu_k, tau_k]`` (``2n + 2m + 1``): the same rows and
-  the energy row at node ``k`` (divided by ``tau_{k-1} max(1, |E_{k-1}|)``, with the drift
-  of the accepted energy residuals added so that their sum stays at round-off).
+  the energy row at node ``k`` (divided by ``max(tau_{k-1} |E_{k-1}|, |p_k . (q_k - q_{k-1})|)``,
+  with the drift of the accepted energy residuals added so that their sum stays at round-off).
+  The acceptance test (`ConstrainedChunk`) holds each kind of row under ``tol`` times the
+  magnitudes it is computed from, no floor of 1: the interval rows under ``max(|z_a|, |z_b|)``,
+  the constraint and hidden rows under `_row_scales`, the energy residual under ``max(|E_k|,
+  |p_b . (q_b - q_a)| / tau)`` (twice the kinetic energy, which does not vanish where ``E_k``
+  does).
 
 Newton (`newton_function`) runs as a chain of conditional calls (a step pays for the
 iterations it takes) and returns the number of updates it made. Each update solves the
@@ -14,7 +19,7 @@ Jacobian as a bordered system: the block of ``(z, lambda, mu)`` by a sparse QR (
 ``qr``, whose column order keeps a chain's band), the ``tau`` border by its Schur complement
 (two right-hand sides, one factorisation): the cost of a chain of links grows with the links,
 not their cube. It stops where the residual is at most ``StepControl.tol / 1e4`` (relative to
-``max(1, |x|)``) or an update at most ``tol / 1e2`` (1e-14 and 1e-12 at the default ``tol``),
+``|x|``) or an update at most ``tol / 1e2`` (1e-14 and 1e-12 at the default ``tol``),
 read at run time: a study of the energy error against the Newton tolerance sets ``tol``. The
 chunk (`ConstrainedChunk`) repeats one step with its predictor (RK4 on the constrained field
 with the multipliers by a sparse QR at run time, the previous multipliers) and its acceptance
@@ -34,13 +39,14 @@ import numpy as np
 from ...cache import cached
 from ...discrete import constrained as equations
 from ...discrete.runge_kutta import rk4
+from ...physics.constraints import constraint_function
 from ..compiler import CompileUnavailable, FunctionBuffer, cache_folder, compile_function, warn_once
 
 __all__ = ["ConstrainedChunk", "constrained_chunk", "newton_function"]
 
 MAX_ITER = 12
-ABSTOL = 1e-14  # Newton's residual test, relative to max(1, |x|) (NEWTON_OPTIONS' abstol)
-STEP_TOL = 1e-12  # the update's test, relative to max(1, |x|): the next iterate is at round-off
+ABSTOL = 1e-14  # Newton's residual test, relative to |x| (NEWTON_OPTIONS' abstol)
+STEP_TOL = 1e-12  # the update's test, relative to |x|: the next iterate is at round-off
 # in a march, the two tests follow the acceptance tolerance ``StepControl.tol`` (a step's
 # residuals at most ``tol``): the residual's at ``tol / RESIDUAL_SHARE``, the update's at
 # ``tol / UPDATE_SHARE``; at the default ``tol = 1e-10`` they are ABSTOL and STEP_TOL
@@ -49,6 +55,7 @@ RESIDUAL_SHARE, UPDATE_SHARE = 1e4, 1e2
 # interval momenta and the constraints' Jacobians; the same values, computed once): the
 # chunk's C code shrinks by a third and the compiler's time with it
 SX_OPTIONS = {"cse": True}
+DBL_MIN = float(np.finfo(float).tiny)
 
 
 def step_residual(system, scheme, kind: str) -> ca.Function:
@@ -84,7 +91,10 @@ def step_residual(system, scheme, kind: str) -> ca.Function:
         previous = equations.interval_energy_expression(
             system, scheme, t_prev, t_a, z_prev[:n], z_prev[n:], z_a[:n], z_a[n:], lam0, mu0,
             theta)
-        scale = (t_a - t_prev) * ca.fmax(1, ca.fabs(previous))
+        # (no floor of 1: |E_{k-1}| joined with |p_k . dq| of the previous interval, tau times
+        # twice its kinetic energy, which does not vanish where E does; DBL_MIN only at rest)
+        scale = ca.fmax((t_a - t_prev) * ca.fabs(previous),
+                        ca.fmax(ca.fabs(ca.dot(z_a[n:], z_a[:n] - z_prev[:n])), DBL_MIN))
         rows.append((energy + drift) / scale)
     return ca.Function(f"constrained_{kind}_residual", [x, w], [ca.vertcat(*rows), scale],
                        SX_OPTIONS)
@@ -93,8 +103,8 @@ def step_residual(system, scheme, kind: str) -> ca.Function:
 def newton_function(residual: ca.Function, border: int, *,
                     tolerance_input: bool = False) -> ca.Function:
     """``(x0, w) -> (x, updates)``: Newton on ``residual`` from ``x0``, at most ``MAX_ITER``
-    updates, stopping where ``|R|_inf <= ABSTOL max(1, |x|)`` or an update is below
-    ``STEP_TOL max(1, |x|)``; each update by a sparse QR of the leading block and the Schur
+    updates, stopping where ``|R|_inf <= ABSTOL |x|_inf`` or an update is below
+    ``STEP_TOL |x|_inf``; each update by a sparse QR of the leading block and the Schur
     complement of the last ``border`` unknowns (0 or 1). With ``tolerance_input``: ``(x0, w,
     tol) -> (x, updates)``, the tests at ``tol / RESIDUAL_SHARE`` and ``tol / UPDATE_SHARE``."""
     x, w = residual.sx_in()
@@ -114,7 +124,7 @@ def newton_function(residual: ca.Function, border: int, *,
     # ``residual`` (its code once in the chunk, shared with the step's check)
     R_m = residual(xm, wm)[0]
     test = ca.Function("test", [xm, carried],
-                       [R_m, ca.norm_inf(R_m) <= abstol * ca.fmax(1, ca.norm_inf(xm))])
+                       [R_m, ca.norm_inf(R_m) <= abstol * ca.norm_inf(xm)])
     if border:
         blocks = ca.Function("blocks", [x, w], [J[:lead, :lead], J[:lead, lead:],
                                                 J[lead:, :lead], J[lead:, lead:]],
@@ -128,7 +138,7 @@ def newton_function(residual: ca.Function, border: int, *,
         jacobian = ca.Function("jacobian", [x, w], [J], SX_OPTIONS)
         dx = ca.solve(jacobian(xm, wm), gm, "qr")
     x_next = xm - dx
-    small_step = ca.norm_inf(dx) <= step_tol * ca.fmax(1, ca.norm_inf(xm))
+    small_step = ca.norm_inf(dx) <= step_tol * ca.norm_inf(xm)
     update = ca.Function("update", [xm, carried, gm], [x_next, small_step])
     level = ca.Function("final", [xm, carried], [xm, MAX_ITER])
     for k in range(MAX_ITER, 0, -1):
@@ -252,15 +262,17 @@ class ConstrainedChunk:
             x, updates = self._solve(ca.vertcat(z_guess, lam0, mu0), w, tol, kind)
         z_b, lam, mu = x[:2 * n], x[2 * n:2 * n + m], x[2 * n + m:2 * n + 2 * m]
         canonical, constraint, hidden, energy, H_k, size = self.check(x, w)
-        scale = ca.fmax(1, size)
+        scale = size  # max(|z_a|, |z_b|): the step's own state, its motion included
+        constraint_scale, hidden_scale = _row_scales(system, z_a, z_b, t_b, tau, theta)
         # |sum| <= DBL_MAX is false for a NaN or an infinity anywhere in x
         finite = ca.fabs(ca.sum1(x)) <= np.finfo(float).max
         good = ca.logic_and(alive, finite)
         good = ca.logic_and(good, tau > 0)
         good = ca.logic_and(good, canonical <= tol * scale)
-        good = ca.logic_and(good, constraint <= tol * scale)
-        good = ca.logic_and(good, hidden <= tol * scale)
-        good = ca.logic_and(good, ca.fabs(energy) <= tol * ca.fmax(1, H_k))
+        good = ca.logic_and(good, constraint <= tol * constraint_scale)
+        good = ca.logic_and(good, hidden <= tol * hidden_scale)
+        kinetic = ca.fabs(ca.dot(z_b[n:], z_b[:n] - z_a[:n]) / tau)  # |p . H_p|: 2T
+        good = ca.logic_and(good, ca.fabs(energy) <= tol * ca.fmax(H_k, kinetic))
         if kind == "energy":
             after = ca.vertcat(t_a, t_b, z_a, z_b, lam, mu, drift + energy, 1)
         else:
@@ -294,6 +306,20 @@ class ConstrainedChunk:
         row = np.full(self.width, np.nan)
         row[-1] = 0.0
         return row
+
+
+def _row_scales(system, z_a, z_b, t_b, tau, theta):
+    """The magnitudes the constraint rows at ``b`` are computed from (no floor of 1 in the units
+    of the state): ``g``'s against ``max_i sum_j |G_ij q_j|`` (for ``|q|^2 - L^2`` that is
+    ``2 |q|^2``; it grows with a translation whose round-off ``g`` carries), the hidden rows
+    ``G H_p + g_t`` (a velocity) against ``max_i sum_j |G_ij v_j| + |g_t,i|`` with ``v`` the
+    step's mean velocity ``(q_b - q_a) / tau``."""
+    n = system.n
+    _, G, g_t = constraint_function(system)(z_b[:n], t_b, theta)
+    velocity = (z_b[:n] - z_a[:n]) / tau
+    terms = ca.mtimes(ca.fabs(G), ca.fabs(z_b[:n]))
+    motion = ca.mtimes(ca.fabs(G), ca.fabs(velocity)) + ca.fabs(g_t)
+    return ca.mmax(terms), ca.mmax(motion)
 
 
 def constrained_chunk(system, scheme, kind: str, *, chunk: int, compiler, cache_dir,

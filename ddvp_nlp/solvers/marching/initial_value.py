@@ -8,8 +8,9 @@ canonical equations only, on uniform steps that end on ``t_end``.
 
 A step is accepted only if Newton converged, every value is finite, ``tau_k > 0`` (the
 time-reversed root ``(z_{k-1}, -tau_{k-1})`` solves the midpoint step equations for every state),
-the step's own unscaled residuals are below ``StepControl.tol`` (relative to ``max(1, |z|)``
-and ``max(1, |H|)``) and the optional step bounds hold (``acceptance.py``). The first step that
+the step's own unscaled residuals are below ``StepControl.tol`` (relative to ``max(|z_k|, Z)``
+and ``max(|H_k|, E)``, scales of the run from its start) and the optional step bounds hold
+(``acceptance.py``). The first step that
 fails ends the march with a status; every accepted node is kept.
 
 Where this is done: this module takes `march`'s and `continue_march`'s arguments (the option

@@ -88,8 +88,7 @@ def check_problem(system, scheme: Scheme, q0, p0, v0, t_span, tau0, steps: StepC
     theta = system.parameter_vector(params)
     p0, H0 = _start(system, scheme, q0, p0, v0, t0=t0, tau0=tau0, theta=theta)
     return MarchProblem(system, scheme, q0, p0, t0, t_end, tau0, theta, H0, steps,
-                        Acceptance(steps.tol, steps.tau_min, steps.tau_max,
-                                   steps.max_step_ratio))
+                        Acceptance.at_start(steps, system, q0, p0, t0, tau0, theta))
 
 
 def _check_state(system, q0, p0, v0):

@@ -30,7 +30,7 @@ from ...errors import InputError
 from ...physics.constraints import constraint_function
 from ...physics.lagrangian import LagrangianSystem
 from ..options import CONSTRAINT_METHODS
-from .constrained_steps import SX_OPTIONS, ConstrainedChunk, newton_function
+from .constrained_steps import DBL_MIN, SX_OPTIONS, ConstrainedChunk, newton_function
 
 __all__ = ["CONSTRAINT_METHODS", "NullSpaceChunk", "check_constraint_method",
            "null_space_residual"]
@@ -93,7 +93,9 @@ def null_space_residual(system, scheme, kind: str) -> ca.Function:
             energy = energy - _moving_work(system, (t_prev, t_a), z_a, plus, mu0, y_a, theta)
         previous = action.interval_energy(t_prev, t_a, z_prev[:n], plus0, z_a[:n], minus1,
                                           theta)
-        scale = (t_a - t_prev) * ca.fmax(1, ca.fabs(previous))
+        # the multiplier form's scale (constrained_steps.step_residual): no floor of 1
+        scale = ca.fmax((t_a - t_prev) * ca.fabs(previous),
+                        ca.fmax(ca.fabs(ca.dot(z_a[n:], z_a[:n] - z_prev[:n])), DBL_MIN))
         rows = ca.vertcat(rows, (energy + drift) / scale)
     return ca.Function(f"null_space_{kind}_residual", [x, w], [rows, scale], SX_OPTIONS)
 

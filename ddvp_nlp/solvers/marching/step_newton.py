@@ -228,7 +228,9 @@ class NewtonSteps:
             if not converged:
                 return StepResult.failed(Status.NEWTON_FAILED)
             return StepResult.failed(Status.RESIDUAL_TOO_LARGE,
-                                     f"canonical residual {check.canonical:.3e}")
+                                     self.acceptance.residuals_refused(
+                                         check.canonical, check.size,
+                                         newton_abstol=NEWTON_OPTIONS["abstol"]))
         return StepResult(Status.SUCCESS, t_next=t_b, z_next=z_b, H_node=check.H_node,
                           w_node=check.w_node)
 
@@ -263,9 +265,9 @@ class NewtonSteps:
             check = EnergyCheck(*(float(v) for v in f.energy_check(x, w)))
             if not self.acceptance.residuals_ok(check.canonical, check.size, check.energy,
                                                 check.H_interval):
-                worst, detail = Status.RESIDUAL_TOO_LARGE, (
-                    f"canonical residual {check.canonical:.3e}, energy residual "
-                    f"{check.energy:.3e}")
+                worst, detail = Status.RESIDUAL_TOO_LARGE, self.acceptance.residuals_refused(
+                    check.canonical, check.size, check.energy, check.H_interval,
+                    newton_abstol=NEWTON_OPTIONS["abstol"])
                 continue
             return StepResult(Status.SUCCESS, t_next=t_mid + tau, z_next=x[:-1], tau=tau,
                               energy=check.energy, H_node=check.H_node, w_node=check.w_node)
