@@ -34,19 +34,19 @@ from ...physics.hamiltonian import (
 # Newton's stopping test is absolute (``|g|_inf <= 1e-14``, ``step_newton.NEWTON_OPTIONS``),
 # which a motion far below the units meets at its first guess: at a node of size 1e-10 the RK4
 # guess passes it, though the step's residual is then 1e-5 of the node. The rows Newton is given
-# are therefore those of the step divided by ``s``, a power of two: 1 for a node of size
-# ``NEWTON_REFERENCE`` or more (the same bits as the rows themselves), else the largest power
-# of two at most ``|z|_inf / NEWTON_REFERENCE``; the energy row by ``s^2``, as an energy scales
-# with the square of the state. A power of two changes no iterate's bits, only where the test
-# stops: at ``1e-14 / NEWTON_REFERENCE`` (1e-12) of the node, a hundred times under the
+# are therefore those of the step divided by ``s = min(1, |z|_inf / NEWTON_REFERENCE)``: exactly
+# 1 for a node of size ``NEWTON_REFERENCE`` or more (the same bits as the rows themselves, at
+# the cost of a norm and a division a step), the energy row by ``s^2``, as an energy scales with
+# the square of the state. Newton's iterates do not depend on a scaling of its rows; where it
+# stops does: at ``1e-14 / NEWTON_REFERENCE`` (1e-12) of the node, a hundred times under the
 # default acceptance tolerance. The acceptance test itself reads the unscaled rows.
 NEWTON_REFERENCE = 1e-2
 
 
 def newton_scale(z) -> ca.SX:
-    """``s`` of the comment above for a node ``z`` (an SX column)."""
-    ratio = ca.fmin(1.0, ca.fmax(ca.norm_inf(z) / NEWTON_REFERENCE, 1e-300))
-    return ca.power(2.0, ca.fmax(ca.floor(ca.log(ratio) / ca.log(2.0)), -500.0))
+    """``s`` of the comment above for a node ``z`` (an SX column); at least 1e-150, so that
+    ``s^2`` is a normal number."""
+    return ca.fmin(1.0, ca.fmax(ca.norm_inf(z) / NEWTON_REFERENCE, 1e-150))
 
 
 class FixedCheck(NamedTuple):

@@ -8,7 +8,7 @@ alone refused the pendulum at amplitude 1e-3 after 2 steps. The energy rows are 
 round-off bound of ``H``'s own evaluation (``physics/roundoff.py``). Then, that Newton's
 absolute stopping test (1e-14) passed at the RK4 guess of a motion far below the units (a floor
 of 1 had called that guess a ``vddvp`` success with every step equal to ``tau0``); Newton's rows
-are now scaled by a power of two below a node size of 1e-2 (``steps.newton_scale``) and the
+are now divided by min(1, |z| / 1e-2) (``steps.newton_scale``) and the
 careful path polishes a root its ``newton`` left short.
 
 One limit is real and said: where the energy equation changes by less than ``H``'s round-off
