@@ -96,8 +96,9 @@ def _energy_step_advice(meta: dict) -> list[str]:
     positive root exists only while c(z) keeps its sign (docs/theory.md, sections 7 and 8);
     fixed steps have no such root to lose."""
     if (meta.get("command") != "march" or meta.get("scheme") not in ("vddvp", "lee")
-            or meta.get("status") not in ENERGY_STEP_ENDS):
-        return []
+            or meta.get("status") not in ENERGY_STEP_ENDS
+            or "round-off sets the step length" in str(meta.get("message"))):
+        return []  # (a step refused for H's round-off says its own cause and remedy)
     return [f"  the {meta['scheme']} step has a positive root only while c(z) = -f.H_zz.f / 8 "
             "keeps its sign along the orbit, and a time-dependent H can drive it to zero "
             "(docs/theory.md, sections 7-8); if that is where this run ended, `--scheme fixed` "

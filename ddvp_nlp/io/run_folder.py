@@ -112,6 +112,12 @@ def _max_abs(values) -> float:
     return float(np.max(np.abs(values))) if values.size else 0.0
 
 
+def _computed_max(values, steps: int) -> float | None:
+    """The largest ``|value|``, or ``None`` where a run of ``steps`` steps has none computed
+    (an interrupted run written without its residuals: 0.0 would read as residuals of 0)."""
+    return None if steps and not np.size(values) else _max_abs(values)
+
+
 def write_run(out: Path, *, command: str, scene: Scene | HigherOrderScene,
               config: RunConfig | BoundaryConfig | dict, solution: Solution,
               scheme: Scheme | None = None, extra: dict | None = None,
@@ -315,13 +321,14 @@ def _first_order_record(command, scene: Scene, config, scheme: Scheme, solution:
     energies = _optional(interruptible,
                          lambda: run_energies(scene.system, scheme, solution, theta), None)
     energy = energy_report(scene, scheme, solution, theta, energies) if energies else {
-        "energy_residual_max": _max_abs(solution.energy_residual),
+        "energy_residual_max": _computed_max(solution.energy_residual, solution.steps),
         "energy_error": float("nan"), "energy_error_kind": SKIPPED}
     meta = {"command": command, "scene": scene.name, "scheme": scheme.rule,
             "alpha": scheme.alpha, "clock": scheme.clock, "params": config.as_dict(),
             **_steps_meta(solution),
             "newton_iterations": solution.newton_iterations,
-            "canonical_residual_max": _max_abs(solution.canonical_residual),
+            "canonical_residual_max": _computed_max(solution.canonical_residual,
+                                                    solution.steps),
             "timing": solution.timing,
             **energy,
             **_optional(interruptible, lambda: _checks(scene, config, solution),

@@ -86,8 +86,9 @@ class StepControl:
             equations; each such step is listed in ``march.least_squares``).
         max_steps: bound on the number of steps (status ``max_steps``).
         time_limit: optional bound in seconds on the stepping (status ``time_limit``).
-        energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(1, |H(z_0, t_0)|)``
-            at every node (status ``energy_guard``).
+        energy_guard: optional bound on ``|H(z_k, t_k) - H(z_0, t_0)| / max(|H(z_0, t_0)|, E)``
+            at every node (status ``energy_guard``), ``E`` the motion's energy scale at the
+            start (how much ``H`` changes when the state moves by its own size).
         constraint_method: how a system with constraints solves its steps: ``"multipliers"``
             (the RATTLE-form rows with their multipliers) or ``"null_space"`` (the same
             equations with the multipliers eliminated by a null-space matrix of the

@@ -73,33 +73,26 @@ class Acceptance:
         return cls(steps.tol, steps.tau_min, steps.tau_max, steps.max_step_ratio, z_scale,
                    _energy_scale(H_motion, H_roundoff, steps.tol), H_motion, H_roundoff, step)
 
-    def residuals_refused(self, canonical, size, energy=None, H=0.0, *,
-                          newton_abstol: float = 0.0) -> str:
-        """Why a step's residuals fail `residuals_ok`, each beside what it was allowed, and
-        what the cause is where it is known: a canonical residual under Newton's absolute
-        stopping test ``newton_abstol`` (a motion so small that Newton stops at its first
-        guess), or energy rows of this motion at the round-off of ``H`` itself."""
+    def residuals_refused(self, canonical, size, energy=None, H=0.0) -> str:
+        """Why a step's residuals fail `residuals_ok`, each beside what it was allowed, and,
+        where the energy equation of this motion changes over a step by no more than the
+        round-off of ``H``, that round-off then sets the step length."""
         allowed = self.tol * max(self.z_scale, size)
         words = f"canonical residual {canonical:.3e} (allowed {allowed:.3e})"
-        if allowed < canonical <= newton_abstol:
-            words += (f"; Newton stops where the residual is below {newton_abstol:.0e} in "
-                      "absolute terms, which a motion of this size meets at its first guess, "
-                      "so its steps would not solve the scheme: state the motion in units "
-                      "where its size is of order 1")
         if energy is None:
             return words
         words += (f", energy residual {energy:.3e} (allowed "
                   f"{self.tol * max(self.H_scale, H):.3e})")
         # The energy equation's dependence on the step length is second order in it (about
         # E (|dz|/Z)^2 over a step, docs/theory.md section 7): where that is within the
-        # round-off of H, the step length it sets is round-off
+        # round-off of the evaluations of H it differences, the step length it sets is round-off
         sensitivity = self.H_motion * self.step_fraction ** 2
         if self.H_roundoff and sensitivity < ROUNDOFF_ALLOWANCE * self.H_roundoff:
             words += (f"; the energy equation changes by about {sensitivity:.2e} over a step, "
-                      f"within the round-off of evaluating H ({self.H_roundoff:.2e}), so "
-                      "round-off sets the step length: march with fixed steps (scheme "
-                      "'fixed'), or write H so that it is not a difference of large terms "
-                      "(2 sin(q/2)**2 for 1 - cos q)")
+                      f"less than {ROUNDOFF_ALLOWANCE:g} times the round-off bound of one "
+                      f"evaluation of H ({self.H_roundoff:.2e}), so round-off sets the step "
+                      "length: march with fixed steps (scheme 'fixed'), or write H so that it "
+                      "is not a difference of large terms (2 sin(q/2)**2 for 1 - cos q)")
         return words
 
     def residuals_ok(self, canonical, size, energy=0.0, H=0.0):

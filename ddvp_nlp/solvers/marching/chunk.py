@@ -327,7 +327,7 @@ class FastChunk:
         w = ca.vertcat(s["t_prev"], s["t_mid"], s["z_prev"], s["z_mid"], theta, s["drift"])
         # the step's residuals come out of the Newton, where they share the last residual
         # test's terms
-        newton = step_newton("fast_energy_step", functions.energy_residual,
+        newton = step_newton("fast_energy_step", functions.energy_newton_residual,
                              _residuals(functions.energy_check), border=1)
         tau_guess = s["t_mid"] - s["t_prev"]
         if carried:
@@ -361,7 +361,7 @@ class FastChunk:
         t_a = ca.if_else(k == 0, c["t0"], c["t0"] + k * c["tau"])
         t_b = ca.if_else(k + 1 == c["total"], c["t_end"], c["t0"] + (k + 1) * c["tau"])
         w = ca.vertcat(t_a, t_b, s["z"], theta)
-        newton = step_newton("fast_fixed_step", functions.fixed_residual,
+        newton = step_newton("fast_fixed_step", functions.fixed_newton_residual,
                              _residuals(functions.fixed_check), border=0)
         z_b, *residuals = newton(functions.fixed_predict(w), w)
         check = FixedCheck(*residuals, *functions.node_monitor(z_b, t_b, theta))

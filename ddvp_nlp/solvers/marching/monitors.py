@@ -8,7 +8,7 @@ site-density weight ``w = f' H_zz f = -8 c(z)`` (docs/theory.md section 7), so w
 extra CasADi call.
 
 - `EnergyGuard` ends the run (status ``ENERGY_GUARD``) at the first node with
-  ``|H(z_k, t_k) - H_0| > energy_guard * max(1, |H_0|)``; that node and the ones after it are
+  ``|H(z_k, t_k) - H_0| > energy_guard * max(|H_0|, E)``; that node and the ones after it are
   dropped.
 - `SolvabilityMonitor` (energy rules) only warns: a positive step needs ``c`` to keep its
   sign and the step to be short against the change of ``w``, so it warns once, at the first node
@@ -140,17 +140,21 @@ class EarlyVerdict(MarchMonitor):
 
 
 class EnergyGuard(MarchMonitor):
-    """Ends the run at the first node whose ``H`` leaves ``H0 +- guard * max(1, |H0|)``."""
+    """Ends the run at the first node whose ``H`` leaves ``H0 +- guard * max(|H0|, E)``, ``E``
+    the motion's energy scale from the start (``acceptance.start_values``: how much ``H``
+    changes when the state moves by its own size), not a floor of 1: the same motion in other
+    units stops at the same node."""
 
-    def __init__(self, guard: float, H0: float):
+    def __init__(self, guard: float, H0: float, energy_scale: float = 0.0):
         self.H0 = H0
-        self.limit = guard * max(1.0, abs(H0))
+        self.limit = guard * max(abs(H0), energy_scale)
 
     @classmethod
     def from_options(cls, session):
         """With ``StepControl.energy_guard``."""
         guard = session.problem.steps.energy_guard
-        return None if guard is None else cls(guard, session.problem.H0)
+        return None if guard is None else cls(guard, session.problem.H0,
+                                              session.problem.acceptance.H_motion)
 
     def watch(self, nodes, first, advance):
         if not advance.count:  # a failed step brings no node
@@ -162,7 +166,7 @@ class EnergyGuard(MarchMonitor):
         i = int(over[0])
         return Status.ENERGY_GUARD, (
             f"at t = {nodes.t[first + i]:.10g} |H - H0| = {abs(H[i] - self.H0):.3e} > "
-            f"energy_guard * max(1, |H0|) = {self.limit:.3e}"), i
+            f"energy_guard * max(|H0|, E) = {self.limit:.3e}"), i
 
 
 class SolvabilityMonitor(MarchMonitor):

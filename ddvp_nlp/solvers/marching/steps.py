@@ -31,6 +31,23 @@ from ...physics.hamiltonian import (
     vector_field_function,
 )
 
+# Newton's stopping test is absolute (``|g|_inf <= 1e-14``, ``step_newton.NEWTON_OPTIONS``),
+# which a motion far below the units meets at its first guess: at a node of size 1e-10 the RK4
+# guess passes it, though the step's residual is then 1e-5 of the node. The rows Newton is given
+# are therefore those of the step divided by ``s = min(1, |z|_inf / NEWTON_REFERENCE)``: exactly
+# 1 for a node of size ``NEWTON_REFERENCE`` or more (the same bits as the rows themselves, at
+# the cost of a norm and a division a step), the energy row by ``s^2``, as an energy scales with
+# the square of the state. Newton's iterates do not depend on a scaling of its rows; where it
+# stops does: at ``1e-14 / NEWTON_REFERENCE`` (1e-12) of the node, a hundred times under the
+# default acceptance tolerance. The acceptance test itself reads the unscaled rows.
+NEWTON_REFERENCE = 1e-2
+
+
+def newton_scale(z) -> ca.SX:
+    """``s`` of the comment above for a node ``z`` (an SX column); at least 1e-150, so that
+    ``s^2`` is a normal number."""
+    return ca.fmin(1.0, ca.fmax(ca.norm_inf(z) / NEWTON_REFERENCE, 1e-150))
+
 
 class FixedCheck(NamedTuple):
     """Outputs of ``StepFunctions.fixed_check(z_b, w)``, in order."""
@@ -57,7 +74,8 @@ class StepFunctions:
 
     Fixed-length step: unknown ``z_b``; parameters ``w = [t_a, t_b, z_a, theta]``.
     ``fixed_residual(z_b, w)``, ``fixed_predict(w)`` (RK4),
-    ``fixed_check(z_b, w)`` (see `FixedCheck`).
+    ``fixed_check(z_b, w)`` (see `FixedCheck`); ``fixed_newton_residual``, the rows Newton
+    solves (`newton_scale`; the same for energy steps).
 
     Energy step (energy rules only): unknown ``x = [z_{k+1}, tau_k]``; parameters
     ``w = [t_{k-1}, t_k, z_{k-1}, z_k, theta, drift]``. ``energy_residual(x, w)``,
@@ -81,6 +99,7 @@ class StepFunctions:
         w = ca.vertcat(t_a, t_b, z_a, theta)
         g = canonical(t_a, t_b, z_a[:n], z_a[n:], z_b[:n], z_b[n:], theta)
         self.fixed_residual = ca.Function("g", [z_b, w], [g])
+        self.fixed_newton_residual = ca.Function("g_newton", [z_b, w], [g / newton_scale(z_a)])
         self.fixed_predict = ca.Function("predict", [w], [rk4(flow, z_a, t_a, t_b - t_a)])
         # The checks return H and w of the new node for the energy guard and the solvability
         # monitor, so neither path pays an extra call per node.
@@ -116,6 +135,9 @@ class StepFunctions:
         # by the previous step makes its Newton tolerance an absolute tolerance on tau.
         g = ca.vertcat(g_canonical, (g_energy + drift) / (t_mid - t_prev))
         self.energy_residual = ca.Function("g", [x, w], [g])
+        scale = newton_scale(z_mid)
+        self.energy_newton_residual = ca.Function("g_newton", [x, w], [ca.vertcat(
+            g_canonical / scale, (g_energy + drift) / (t_mid - t_prev) / (scale * scale))])
         guess = ca.SX.sym("tau_guess")
         self.energy_predict = ca.Function(
             "predict", [w, guess], [ca.vertcat(rk4(flow, z_mid, t_mid, guess), guess)])

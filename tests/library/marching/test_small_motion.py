@@ -1,17 +1,19 @@
-"""Small oscillations march, or are refused for a cause the message names.
+"""Small motions march as the same motions in units of 1, or are refused for a cause the
+message names.
 
 Found when the step acceptance's scales were first taken from the motion alone: the pendulum's
 energy row evaluates ``1 - cos q``, whose round-off is ``eps`` of the terms' size (about 1),
 not of the motion's energy (``q^2/2``), and an acceptance test relative to the motion's energy
 alone refused the pendulum at amplitude 1e-3 after 2 steps. The energy rows are now allowed the
-round-off bound of ``H``'s own evaluation (``physics/roundoff.py``).
+round-off bound of ``H``'s own evaluation (``physics/roundoff.py``). Then, that Newton's
+absolute stopping test (1e-14) passed at the RK4 guess of a motion far below the units (a floor
+of 1 had called that guess a ``vddvp`` success with every step equal to ``tau0``); Newton's rows
+are now divided by min(1, |z| / 1e-2) (``steps.newton_scale``) and the
+careful path polishes a root its ``newton`` left short.
 
-Below that, two limits are real and said, not passed off as results: where the energy equation
-changes by less than ``H``'s round-off over a step, round-off sets an energy rule's step length
-(``1 - cos q`` at amplitude 1e-6; ``2 sin(q/2)^2``, the same function without the cancellation,
-marches there); and where the whole motion is below Newton's absolute stopping test, Newton stops
-at its RK4 guess, which the scheme's equations do not satisfy (a floor of 1 used to call that
-guess a ``vddvp`` success with every step equal to ``tau0``)."""
+One limit is real and said: where the energy equation changes by less than ``H``'s round-off
+over a step, round-off sets an energy rule's step length (``1 - cos q`` at amplitude 1e-6;
+``2 sin(q/2)^2``, the same function without the cancellation, marches there)."""
 
 from __future__ import annotations
 
@@ -59,10 +61,51 @@ def test_the_same_pendulum_without_the_cancellation_marches_by_energy_steps():
 
 
 @pytest.mark.parametrize("scheme", ["vddvp", "fixed"])
-def test_a_motion_below_newtons_stop_is_not_passed_off_as_the_scheme(scheme):
-    solution = march(_half_angle(), [5e-10], [5e-10], (0.0, 5.0), tau0=0.05, scheme=scheme)
-    if solution.success:  # then Newton solved the scheme, not stopped at the guess
-        assert scheme == "fixed" or np.ptp(np.diff(solution.t)) > 0
-    else:
-        assert "Newton stops" in solution.message
-        assert "units where its size is of order 1" in solution.message
+@pytest.mark.parametrize("size", [1e-5, 1e-10])
+def test_a_motion_far_below_the_units_marches_as_in_units_of_one(size, scheme):
+    """The Duffing oscillator with lengths by ``size`` (``b`` by ``size^-2``: the same
+    physics): the same steps and verdict as in units of 1."""
+    def run(L):
+        system = HamiltonianSystem(
+            lambda q, p, t, a, b: p[0] ** 2 / 2 + a * q[0] ** 2 / 2 + b * q[0] ** 4 / 4, n=1,
+            params={"a": 1.0, "b": 1.0 / L ** 2}, name="duffing")
+        return march(system, [L], [0.5 * L], (0.0, 20.0), tau0=0.05, scheme=scheme)
+    one, small = run(1.0), run(size)
+    assert small.success, small.message
+    assert small.steps == one.steps
+    assert small.verdict.name == one.verdict.name
+    # the node times agree to the rounding the acceptance allows (tol 1e-10 of the motion)
+    assert np.max(np.abs(np.asarray(small.t) - np.asarray(one.t))) <= 1e-6
+    if scheme == "vddvp":
+        assert np.ptp(np.diff(small.t)) > 0  # the energy equation set the steps
+
+
+def test_kepler_in_lengths_of_1e_minus_10_takes_the_steps_of_units_of_one():
+    """Found by a user: 5001 equal steps (its RK4 guess) called an accurate vddvp success,
+    where the same orbit in units of 1 takes 1259 steps and drifts."""
+    def run(L):
+        system = HamiltonianSystem(lambda q, p, t, k: ca.dot(p, p) / 2 - k / ca.norm_2(q),
+                                   n=2, params={"k": L ** 3}, name="kepler")
+        e = 0.6
+        return march(system, np.array([1 - e, 0.0]) * L,
+                     np.array([0.0, np.sqrt((1 + e) / (1 - e))]) * L, (0.0, 10.0), tau0=0.01)
+    one, small = run(1.0), run(1e-10)
+    assert small.success, small.message
+    assert small.steps == one.steps
+    assert small.verdict.name == one.verdict.name
+
+
+def test_the_energy_guard_stops_at_the_same_node_in_any_units():
+    """Found by a user: ``energy_guard`` read ``max(1, |H0|)``, so a Duffing oscillator in
+    millimetres passed a band the same motion in metres and kilometres left at step 3."""
+    from ddvp_nlp.solvers.options import StepControl
+
+    def run(L):
+        system = HamiltonianSystem(
+            lambda q, p, t, a, b: p[0] ** 2 / 2 + a * q[0] ** 2 / 2 + b * q[0] ** 4 / 4, n=1,
+            params={"a": 1.0, "b": 1.0 / L ** 2}, name="duffing")
+        return march(system, [L], [0.5 * L], (0.0, 20.0), tau0=0.2, scheme="fixed",
+                     steps=StepControl(energy_guard=1e-3))
+    runs = [run(L) for L in (1.0, 1e-3, 1e3)]
+    assert {r.status.name for r in runs} == {"ENERGY_GUARD"}
+    assert len({r.steps for r in runs}) == 1

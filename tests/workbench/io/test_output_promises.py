@@ -418,3 +418,33 @@ def test_a_run_stopped_by_the_user_is_written_without_its_optional_parts(tmp_pat
     assert arrays["t"].size == solution.t.size
     print_summary(meta, tmp_path / "run")
     assert "not computed: the run was interrupted" in capsys.readouterr().out
+
+
+def test_residuals_not_computed_are_written_as_none_not_as_zero(tmp_path):
+    """An interrupted march of 3.3 million steps is written without its residuals (found by a
+    user: meta.json read canonical_residual_max 0.0, residuals that were never computed)."""
+    import contextlib
+    import dataclasses
+
+    from ddvp_nlp import load_scene, march
+    from ddvp_nlp.discrete.scheme import Scheme
+    from ddvp_nlp.io.run_folder import write_run
+
+    scene = load_scene("pendulum")
+    config = scene.resolve({"t_end": 2.0})
+    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                     tau0=config.tau0)
+    unchecked = dataclasses.replace(solution, canonical_residual=np.zeros(0),
+                                    energy_residual=np.zeros(0))
+
+    @contextlib.contextmanager
+    def stopped():
+        raise KeyboardInterrupt
+        yield
+
+    meta = write_run(tmp_path / "run", command="march", scene=scene, config=config,
+                     scheme=Scheme(), solution=unchecked, interruptible=stopped)
+    assert unchecked.steps > 0
+    assert meta["canonical_residual_max"] is None and meta["energy_residual_max"] is None
+    assert json.loads((tmp_path / "run" / "meta.json").read_text())[
+        "canonical_residual_max"] is None
