@@ -391,28 +391,35 @@ def test_read_run_refuses_a_folder_without_a_manifest_naming_it(tmp_path):
         read_run(out)
 
 
-def test_a_run_stopped_by_the_user_is_written_without_its_optional_parts(tmp_path, capsys):
-    """What an interrupt leaves out while a run is written (energies at every node, the
-    scene's checks, the figure) is said in meta.json, and the summary still prints."""
+def _written_while_stopped(folder, edit=lambda solution: solution):
+    """A short pendulum march (``edit``ed) written by ``write_run`` with an interrupt at the
+    first optional part: ``(meta, solution)``."""
     import contextlib
 
     from ddvp_nlp import load_scene, march
-    from ddvp_nlp.cli.summary import print_summary
     from ddvp_nlp.discrete.scheme import Scheme
     from ddvp_nlp.io.run_folder import write_run
 
     scene = load_scene("pendulum")
     config = scene.resolve({"t_end": 2.0})
-    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
-                     tau0=config.tau0)
+    solution = edit(march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
+                          tau0=config.tau0))
 
     @contextlib.contextmanager
     def stopped():
         raise KeyboardInterrupt
         yield
 
-    meta = write_run(tmp_path / "run", command="march", scene=scene, config=config,
-                     scheme=Scheme(), solution=solution, interruptible=stopped)
+    return write_run(folder, command="march", scene=scene, config=config, scheme=Scheme(),
+                     solution=solution, interruptible=stopped), solution
+
+
+def test_a_run_stopped_by_the_user_is_written_without_its_optional_parts(tmp_path, capsys):
+    """What an interrupt leaves out while a run is written (energies at every node, the
+    scene's checks, the figure) is said in meta.json, and the summary still prints."""
+    from ddvp_nlp.cli.summary import print_summary
+
+    meta, solution = _written_while_stopped(tmp_path / "run")
     assert meta["checks"].startswith("not computed") and "trajectory.png" not in meta["files"]
     arrays, _ = read_run(tmp_path / "run")
     assert arrays["t"].size == solution.t.size
@@ -423,27 +430,11 @@ def test_a_run_stopped_by_the_user_is_written_without_its_optional_parts(tmp_pat
 def test_residuals_not_computed_are_written_as_none_not_as_zero(tmp_path):
     """An interrupted march of 3.3 million steps is written without its residuals (found by a
     user: meta.json read canonical_residual_max 0.0, residuals that were never computed)."""
-    import contextlib
     import dataclasses
 
-    from ddvp_nlp import load_scene, march
-    from ddvp_nlp.discrete.scheme import Scheme
-    from ddvp_nlp.io.run_folder import write_run
-
-    scene = load_scene("pendulum")
-    config = scene.resolve({"t_end": 2.0})
-    solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
-                     tau0=config.tau0)
-    unchecked = dataclasses.replace(solution, canonical_residual=np.zeros(0),
-                                    energy_residual=np.zeros(0))
-
-    @contextlib.contextmanager
-    def stopped():
-        raise KeyboardInterrupt
-        yield
-
-    meta = write_run(tmp_path / "run", command="march", scene=scene, config=config,
-                     scheme=Scheme(), solution=unchecked, interruptible=stopped)
+    meta, unchecked = _written_while_stopped(
+        tmp_path / "run", lambda solution: dataclasses.replace(
+            solution, canonical_residual=np.zeros(0), energy_residual=np.zeros(0)))
     assert unchecked.steps > 0
     assert meta["canonical_residual_max"] is None and meta["energy_residual_max"] is None
     assert json.loads((tmp_path / "run" / "meta.json").read_text())[
