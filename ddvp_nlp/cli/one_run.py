@@ -48,6 +48,11 @@ def run_scene(args, solvers: dict) -> int:
         except KeyboardInterrupt:
             raise Stopped(f"interrupted ({INTERRUPTS.name or 'SIGINT'}) before the run had a "
                           f"node to keep; nothing new was written: {holds(out)}") from None
+        if INTERRUPTS.requested and len(solution.t) < 2:
+            # its start alone is not a run (a run folder holds at least one step; the faults
+            # page found "written whole (1 nodes, up to t = 0)" beside an unreadable result)
+            raise Stopped(f"interrupted ({INTERRUPTS.name}) before the run's first step; "
+                          f"nothing new was written: {holds(out)}")
         meta = write_whole(args, out, scene, config, scheme, solution,
                         {**(extra or {}), "overrides": overrides})
     print_summary(meta, out.path)

@@ -83,3 +83,28 @@ def test_an_energy_step_that_ends_a_march_points_to_fixed_steps(scheme, status, 
     lines = _energy_step_advice({"command": "march", "scheme": scheme, "status": status})
     assert bool(lines) == advised
     assert not lines or "--scheme fixed" in lines[0]
+
+
+def test_a_march_interrupted_before_its_first_step_writes_no_run(tmp_path, monkeypatch, capsys):
+    """Found by the faults page: SIGTERM 0.74 s into a march said "the run was written whole
+    (1 nodes, up to t = 0) ... --resume goes on from there" beside a result.npz no reader
+    takes (a run needs two times). Its start alone is not a run: nothing is written."""
+    from ddvp_nlp.cli import march_command
+    from ddvp_nlp.cli.interrupts import INTERRUPTS
+    from ddvp_nlp.cli.main import main
+
+    real = march_command._march
+
+    def stopped_at_once(*args, **kwargs):  # the signal arrives before the first step
+        INTERRUPTS.requested, INTERRUPTS.name = True, "SIGTERM"
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(march_command, "_march", stopped_at_once)
+    try:
+        code = main(["march", "pendulum", "--no-plot", "--no-progress", "--out",
+                     str(tmp_path / "out")])
+    finally:
+        INTERRUPTS.requested, INTERRUPTS.name = False, ""
+    assert code == 1
+    assert "before the run's first step; nothing new was written" in capsys.readouterr().err
+    assert not (tmp_path / "out" / "result.npz").exists()
