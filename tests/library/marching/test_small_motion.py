@@ -11,9 +11,10 @@ of 1 had called that guess a ``vddvp`` success with every step equal to ``tau0``
 are now divided by min(1, |z| / 1e-2) (``steps.newton_scale``) and the
 careful path polishes a root its ``newton`` left short.
 
-One limit is real and said: where the energy equation changes by less than ``H``'s round-off
-over a step, round-off sets an energy rule's step length (``1 - cos q`` at amplitude 1e-6;
-``2 sin(q/2)^2``, the same function without the cancellation, marches there)."""
+Where the energy equation changes by less than ``H``'s round-off over a step, round-off sets an
+energy rule's step lengths (``1 - cos q`` at amplitude 1e-6: steps from 0.05 to 0.068); the run
+is then judged whole by the accuracy check, and a step refused there names that cause
+(``2 sin(q/2)^2``, the same function without the cancellation, has steps its energy sets)."""
 
 from __future__ import annotations
 
@@ -40,12 +41,35 @@ def test_a_pendulum_marches_its_small_oscillations(amplitude, scheme):
     assert solution.verdict.name == "accurate"
 
 
-def test_energy_rows_at_the_round_off_of_H_are_named_as_the_cause():
+def test_energy_rows_at_the_round_off_of_H_are_judged_or_named_as_the_cause():
     solution = _pendulum_march(1e-6, "vddvp")
-    if not solution.success:
+    if solution.success:  # the steps round-off sets still solve the scheme within it
+        assert solution.verdict.name == "accurate"
+        assert solution.steps >= 70
+    else:
         assert solution.status.name == "RESIDUAL_TOO_LARGE"
         assert "round-off sets the step length" in solution.message
         assert "2 sin(q/2)**2" in solution.message
+
+
+def test_a_refusal_at_the_round_off_of_H_names_the_cause():
+    """The message of a step refused where the energy equation changes by less than H's
+    round-off over a step (`Acceptance.residuals_refused` at the pendulum's start, 1e-6)."""
+    from ddvp_nlp.solvers.marching.acceptance import Acceptance
+    from ddvp_nlp.solvers.options import StepControl
+
+    scene = load_scene("pendulum")
+    config = scene.resolve({})
+    acceptance = Acceptance.at_start(StepControl(), scene.system,
+                                     np.asarray(config.q0) * 1e-6,
+                                     np.asarray(config.p0) * 1e-6, 0.0, 0.05, [])
+    words = acceptance.residuals_refused(5e-15, 6e-7, 0.0, 1e-13)
+    assert "round-off sets the step length" in words and "2 sin(q/2)**2" in words
+    # at amplitude 1e-2 the energy equation is far above H's round-off: no such words
+    acceptance = Acceptance.at_start(StepControl(), scene.system,
+                                     np.asarray(config.q0) * 1e-2,
+                                     np.asarray(config.p0) * 1e-2, 0.0, 0.05, [])
+    assert "round-off" not in acceptance.residuals_refused(5e-12, 6e-3, 0.0, 1e-5)
 
 
 def _half_angle():
