@@ -157,14 +157,15 @@ def start_values(system, q0, p0, t0: float, tau0: float,
     moved, slope = (np.asarray(v, float).ravel() for v in _start_motion(system)(
         z0, t0, tau0, theta))
     bound = _H_roundoff(system)
-    roundoff = np.array([bound(q0, p0, t0, theta) if bound is not None else 0.0])
+    roundoff = bound(q0, p0, t0, theta) if bound is not None else 0.0
     Q = max(_largest(q0), _largest(moved[:n]))
     P = max(_largest(p0), _largest(moved[n:]))
     # f = (H_p, -H_q): |dH/dq_i| = |f_{n+i}|, |dH/dp_i| = |f_i|
     energy = Q * _total(slope[n:]) + P * _total(slope[:n])
     energy = energy if np.isfinite(energy) else 0.0
     Z = max(Q, P)
-    return Z, energy, EPS * _largest(roundoff), _largest(moved) / Z if Z > 0 else 0.0
+    roundoff = EPS * roundoff if np.isfinite(roundoff) else 0.0
+    return Z, energy, roundoff, _largest(moved) / Z if Z > 0 else 0.0
 
 
 # How many times the first-order round-off bound of one evaluation of H an energy row may hold:

@@ -295,18 +295,18 @@ class NewtonSteps:
         residual = (self.functions.fixed_residual if kind == "fixed"
                     else self.functions.energy_residual)
         jacobian = step_jacobian_function(self.system, self.scheme, kind)
-        size = np.max(np.abs(np.asarray(residual(x, w)).ravel()), initial=0.0)
+        rows = np.asarray(residual(x, w)).ravel()
         for _ in range(POLISH_UPDATES):
             try:
-                moved = x - np.linalg.solve(np.asarray(jacobian(x, w)[0]),
-                                            np.asarray(residual(x, w)).ravel())
+                moved = x - np.linalg.solve(np.asarray(jacobian(x, w)[0]), rows)
             except np.linalg.LinAlgError:
                 break
-            moved_size = np.max(np.abs(np.asarray(residual(moved, w)).ravel()), initial=0.0)
-            if not (np.all(np.isfinite(moved)) and moved_size < size):
+            moved_rows = np.asarray(residual(moved, w)).ravel()
+            if not (np.all(np.isfinite(moved))
+                    and np.max(np.abs(moved_rows)) < np.max(np.abs(rows))):
                 break
             self.newton_iterations += 1
-            x, size = moved, moved_size
+            x, rows = moved, moved_rows
         return x
 
     def _passes(self, x, w) -> bool:

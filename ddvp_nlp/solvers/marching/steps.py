@@ -137,7 +137,7 @@ class StepFunctions:
         self.energy_residual = ca.Function("g", [x, w], [g])
         scale = newton_scale(z_mid)
         self.energy_newton_residual = ca.Function("g_newton", [x, w], [ca.vertcat(
-            g_canonical / scale, (g_energy + drift) / (t_mid - t_prev) / (scale * scale))])
+            g[:2 * n] / scale, g[2 * n] / (scale * scale))])
         guess = ca.SX.sym("tau_guess")
         self.energy_predict = ca.Function(
             "predict", [w, guess], [ca.vertcat(rk4(flow, z_mid, t_mid, guess), guess)])
