@@ -45,31 +45,6 @@ def _safe(function) -> float:
         return math.inf
 
 
-_PARTIALS: dict[int, Callable] = {
-    ca.OP_ASSIGN: lambda a, b, v: (1.0, 0.0),
-    ca.OP_ADD: lambda a, b, v: (1.0, 1.0),
-    ca.OP_SUB: lambda a, b, v: (1.0, 1.0),
-    ca.OP_MUL: lambda a, b, v: (abs(b), abs(a)),
-    ca.OP_DIV: lambda a, b, v: (_safe(lambda: 1.0 / b), _safe(lambda: a / (b * b))),
-    ca.OP_NEG: lambda a, b, v: (1.0, 0.0),
-    ca.OP_SQ: lambda a, b, v: (2.0 * abs(a), 0.0),
-    ca.OP_TWICE: lambda a, b, v: (2.0, 0.0),
-    ca.OP_INV: lambda a, b, v: (_safe(lambda: 1.0 / (a * a)), 0.0),
-    ca.OP_SQRT: lambda a, b, v: (_safe(lambda: 0.5 / v), 0.0),
-    ca.OP_SIN: lambda a, b, v: (abs(math.cos(a)), 0.0),
-    ca.OP_COS: lambda a, b, v: (abs(math.sin(a)), 0.0),
-    ca.OP_TAN: lambda a, b, v: (1.0 + v * v, 0.0),
-    ca.OP_EXP: lambda a, b, v: (abs(v), 0.0),
-    ca.OP_LOG: lambda a, b, v: (_safe(lambda: 1.0 / a), 0.0),
-    ca.OP_FABS: lambda a, b, v: (1.0, 0.0),
-    ca.OP_ATAN: lambda a, b, v: (1.0 / (1.0 + a * a), 0.0),
-    ca.OP_SINH: lambda a, b, v: (abs(math.cosh(a)) if abs(a) < 700 else math.inf, 0.0),
-    ca.OP_COSH: lambda a, b, v: (abs(math.sinh(a)) if abs(a) < 700 else math.inf, 0.0),
-    ca.OP_TANH: lambda a, b, v: (1.0 - v * v, 0.0),
-    ca.OP_POW: lambda a, b, v: (_safe(lambda: b * math.pow(a, b - 1)),
-                                _safe(lambda: v * math.log(a)) if a > 0 else 0.0),
-    ca.OP_CONSTPOW: lambda a, b, v: (_safe(lambda: b * math.pow(a, b - 1)), 0.0),
-}
 
 # Operations whose derivative is 0 where they are defined (comparisons, logic, rounding)
 _FLAT = {ca.OP_LT, ca.OP_LE, ca.OP_EQ, ca.OP_NE, ca.OP_NOT, ca.OP_AND, ca.OP_OR, ca.OP_FLOOR,
@@ -140,12 +115,12 @@ class RoundoffBound:
 def _step(op: int, arity: int, a: float, b: float, e_a: float,
           e_b: float) -> tuple[float, float]:
     """``(v, e(v))`` of one operation."""
-    partials = _PARTIALS.get(op)
-    if partials is None:
+    rule = _RULES.get(op)
+    if rule is None:
         value, d_a, d_b = _GENERIC(op, arity, a, b)
     else:
-        value = _VALUES[op](a, b)
-        d_a, d_b = partials(a, b, value)
+        value = rule[0](a, b)
+        d_a, d_b = rule[1](a, b, value)
     if op in _FLAT:
         return value, abs(value)
     bound = abs(value)
@@ -169,19 +144,56 @@ def _with_errors(function: Callable) -> Callable:
     return value
 
 
-_VALUES: dict[int, Callable] = {op: _with_errors(f) for op, f in {
-    ca.OP_ASSIGN: lambda a, b: a, ca.OP_ADD: lambda a, b: a + b,
-    ca.OP_SUB: lambda a, b: a - b, ca.OP_MUL: lambda a, b: a * b,
-    ca.OP_DIV: lambda a, b: a / b, ca.OP_NEG: lambda a, b: -a,
-    ca.OP_SQ: lambda a, b: a * a, ca.OP_TWICE: lambda a, b: 2.0 * a,
-    ca.OP_INV: lambda a, b: 1.0 / a, ca.OP_SQRT: lambda a, b: math.sqrt(a),
-    ca.OP_SIN: lambda a, b: math.sin(a), ca.OP_COS: lambda a, b: math.cos(a),
-    ca.OP_TAN: lambda a, b: math.tan(a), ca.OP_EXP: lambda a, b: math.exp(a),
-    ca.OP_LOG: lambda a, b: math.log(a), ca.OP_FABS: lambda a, b: abs(a),
-    ca.OP_ATAN: lambda a, b: math.atan(a), ca.OP_SINH: lambda a, b: math.sinh(a),
-    ca.OP_COSH: lambda a, b: math.cosh(a), ca.OP_TANH: lambda a, b: math.tanh(a),
-    ca.OP_POW: lambda a, b: math.pow(a, b), ca.OP_CONSTPOW: lambda a, b: math.pow(a, b),
-}.items()}
+# Each common operation: its value in double precision (IEEE's answers where Python raises,
+# `_with_errors`) and its partials ``(a, b, v) -> (|dv/da|, |dv/db|)``
+_RULES: dict[int, tuple[Callable, Callable]] = {
+    ca.OP_ASSIGN: (_with_errors(lambda a, b: a),
+        lambda a, b, v: (1.0, 0.0)),
+    ca.OP_ADD: (_with_errors(lambda a, b: a + b),
+        lambda a, b, v: (1.0, 1.0)),
+    ca.OP_SUB: (_with_errors(lambda a, b: a - b),
+        lambda a, b, v: (1.0, 1.0)),
+    ca.OP_MUL: (_with_errors(lambda a, b: a * b),
+        lambda a, b, v: (abs(b), abs(a))),
+    ca.OP_DIV: (_with_errors(lambda a, b: a / b),
+        lambda a, b, v: (_safe(lambda: 1.0 / b), _safe(lambda: a / (b * b)))),
+    ca.OP_NEG: (_with_errors(lambda a, b: -a),
+        lambda a, b, v: (1.0, 0.0)),
+    ca.OP_SQ: (_with_errors(lambda a, b: a * a),
+        lambda a, b, v: (2.0 * abs(a), 0.0)),
+    ca.OP_TWICE: (_with_errors(lambda a, b: 2.0 * a),
+        lambda a, b, v: (2.0, 0.0)),
+    ca.OP_INV: (_with_errors(lambda a, b: 1.0 / a),
+        lambda a, b, v: (_safe(lambda: 1.0 / (a * a)), 0.0)),
+    ca.OP_SQRT: (_with_errors(lambda a, b: math.sqrt(a)),
+        lambda a, b, v: (_safe(lambda: 0.5 / v), 0.0)),
+    ca.OP_SIN: (_with_errors(lambda a, b: math.sin(a)),
+        lambda a, b, v: (abs(math.cos(a)), 0.0)),
+    ca.OP_COS: (_with_errors(lambda a, b: math.cos(a)),
+        lambda a, b, v: (abs(math.sin(a)), 0.0)),
+    ca.OP_TAN: (_with_errors(lambda a, b: math.tan(a)),
+        lambda a, b, v: (1.0 + v * v, 0.0)),
+    ca.OP_EXP: (_with_errors(lambda a, b: math.exp(a)),
+        lambda a, b, v: (abs(v), 0.0)),
+    ca.OP_LOG: (_with_errors(lambda a, b: math.log(a)),
+        lambda a, b, v: (_safe(lambda: 1.0 / a), 0.0)),
+    ca.OP_FABS: (_with_errors(lambda a, b: abs(a)),
+        lambda a, b, v: (1.0, 0.0)),
+    ca.OP_ATAN: (_with_errors(lambda a, b: math.atan(a)),
+        lambda a, b, v: (1.0 / (1.0 + a * a), 0.0)),
+    ca.OP_SINH: (_with_errors(lambda a, b: math.sinh(a)),
+        lambda a, b, v: (abs(math.cosh(a)) if abs(a) < 700 else math.inf, 0.0)),
+    ca.OP_COSH: (_with_errors(lambda a, b: math.cosh(a)),
+        lambda a, b, v: (abs(math.sinh(a)) if abs(a) < 700 else math.inf, 0.0)),
+    ca.OP_TANH: (_with_errors(lambda a, b: math.tanh(a)),
+        lambda a, b, v: (1.0 - v * v, 0.0)),
+    ca.OP_POW: (_with_errors(lambda a, b: math.pow(a, b)),
+        lambda a, b, v: (_safe(lambda: b * math.pow(a, b - 1)),
+                         _safe(lambda: v * math.log(a)) if a > 0 else 0.0)),
+    ca.OP_CONSTPOW: (_with_errors(lambda a, b: math.pow(a, b)),
+        lambda a, b, v: (_safe(lambda: b * math.pow(a, b - 1)), 0.0)),
+}
+
 
 
 def roundoff_bound(function: ca.Function, unknowns: tuple[int, ...]) -> RoundoffBound:
