@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 
 import pytest
+from helpers.syntax import parsed, walk
 
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
@@ -45,12 +46,8 @@ MAX_CLASS_LINES = 200
 
 
 @functools.cache
-def parsed(path: Path) -> ast.Module:
-    """``path``'s syntax tree, parsed once for all the tests of this file (they only read it)."""
-    return ast.parse(path.read_text())
-
-
 def modules() -> dict[str, Path]:
+    """The package's modules by dotted name (listed once; callers only read it)."""
     found = {}
     for path in PACKAGE.rglob("*.py"):
         parts = path.relative_to(PACKAGE).with_suffix("").parts
@@ -79,7 +76,7 @@ def imports(name: str, path: Path) -> set[str]:
         if not names:
             result.add(target)
 
-    for node in ast.walk(parsed(path)):
+    for node in walk(parsed(path)):
         if isinstance(node, ast.ImportFrom) and node.level:
             base = package[:len(package) - node.level + 1]
             add(".".join(base + ([node.module] if node.module else [])),
@@ -110,7 +107,9 @@ def test_the_import_graph_sees_every_form_of_import(tmp_path, monkeypatch):
         "solvers.higher.window_solve"}
 
 
+@functools.cache
 def graph() -> dict[str, set[str]]:
+    """Each package module's imports of the package (computed once; callers only read it)."""
     return {name: imports(name, path) for name, path in modules().items()}
 
 
@@ -196,7 +195,7 @@ def sizes():
     from the ``def`` to the last line, without the docstring (a long Args list is welcome)."""
     for name, path in modules().items():
         tree = parsed(path)
-        for node in ast.walk(tree):
+        for node in walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
                 kind = "class" if isinstance(node, ast.ClassDef) else "function"
                 lines = node.end_lineno - node.lineno + 1 - _docstring_lines(node)
@@ -304,7 +303,7 @@ def private_uses(path: Path) -> list[str]:
     an attribute of anything but ``self`` and ``cls``."""
     found = []
     tree = parsed(path)
-    for node in ast.walk(tree):
+    for node in walk(tree):
         if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "")
                                                   .startswith("ddvp_nlp")):
             found += [f"import {alias.name} (line {node.lineno})" for alias in node.names
@@ -354,7 +353,7 @@ def bound_modules(tree, package: list[str]) -> set[str]:
     importing module's package, as a list of names (empty outside the package)."""
     known = modules()
     bound = set()
-    for node in ast.walk(tree):
+    for node in walk(tree):
         if isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package[:len(package) - node.level + 1] + \
@@ -380,7 +379,7 @@ def foreign_assignments(path: Path, package: list[str] | None = None) -> list[st
     tree = parsed(path)
     bound = bound_modules(tree, package or [])
     found = []
-    for node in ast.walk(tree):
+    for node in walk(tree):
         targets = node.targets if isinstance(node, ast.Assign) else \
             [node.target] if isinstance(node, ast.AugAssign) else []
         for target in targets:
@@ -424,6 +423,30 @@ def test_the_switch_check_finds_every_form():
     assert found == [True, True, True, True, False]
 
 
+# A file that holds neither form below (no setattr or setitem call, no assignment to an
+# attribute of an upper-case name: ``x.NAME = ``, ``x.NAME[k] = ``, ``x.NAME += ``) is not
+# parsed by the next test: of the tests' and scripts' 200-odd files, about fifty are.
+MAY_SWITCH = re.compile(r"set(?:attr|item)\s*\(|\.\s*[A-Z]\w*[\s\\]*(?:\[.*?\])?[\s\\]*"
+                        r"[-+*/%|&^@]?=(?!=)", re.S)
+
+
+def test_the_switch_filter_keeps_every_form_the_checks_find(tmp_path):
+    sources = ['monkeypatch.setattr(stepper, "MAX_CALLS", 1)',
+               'monkeypatch.setitem(cli_main.COMMANDS, "scenes", f)',
+               "from ddvp_nlp.solvers.baselines import fixed_step\nfixed_step.CHUNK = 3\n",
+               "from ddvp_nlp.solvers.baselines import fixed_step\n"
+               "fixed_step.IMPLICIT_STEPS['avf'] = 1\n",
+               "from ddvp_nlp.solvers.baselines import fixed_step\nfixed_step.CHUNK += 3\n",
+               "from ddvp_nlp.solvers.baselines import fixed_step\nfixed_step.CHUNK \\\n    = 3\n"]
+    for number, source in enumerate(sources):
+        path = tmp_path / f"m{number}.py"
+        path.write_text(source)
+        found = [n for n in walk(parsed(path)) if isinstance(n, ast.Call)
+                 and _switches_a_setting(n)] + foreign_assignments(path)
+        assert found and MAY_SWITCH.search(source), source
+    assert not MAY_SWITCH.search("x = module.CHUNK\nif a.B == 1: pass\n")
+
+
 def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
     """Solver choices are arguments or option fields: neither the tests nor the benchmarks
     assign a module's constants (``monkeypatch.setattr(module, "NAME", ...)`` or
@@ -431,8 +454,10 @@ def test_tests_and_scripts_pass_configuration_instead_of_switching_globals():
     root = PACKAGE.parent
     switched = []
     for path in [*(root / "tests").rglob("*.py"), *(root / "scripts").rglob("*.py")]:
+        if not MAY_SWITCH.search(path.read_text()):
+            continue
         tree = parsed(path)
-        for node in ast.walk(tree):
+        for node in walk(tree):
             if isinstance(node, ast.Call) and _switches_a_setting(node):
                 switched.append(f"{path.name}: {ast.unparse(node)}")
         switched += [f"{path.name}: {found}" for found in foreign_assignments(path)
@@ -460,7 +485,7 @@ def public_name_violations(path: Path, package: list[str] | None, faces: dict) -
     not in the face's ``__all__``. ``faces``: face module -> its ``__all__``; ``package``: the
     importing module's package (``None`` outside ddvp_nlp)."""
     wrong = []
-    for node in ast.walk(parsed(path)):
+    for node in walk(parsed(path)):
         if isinstance(node, ast.Import):
             wrong += [f"import {a.name} (line {node.lineno})" for a in node.names
                       if a.name.startswith("ddvp_nlp.") and
@@ -626,9 +651,11 @@ def test_every_slow_mark_says_why_in_its_own_file():
     for file in sorted((ROOT / "tests").rglob("*.py")):
         if file.name == "conftest.py":  # marks the cases its predicates chose, why= passed on
             continue
+        if "slow" not in file.read_text():  # no mark to read: not parsed
+            continue
         tree = parsed(file)
-        calls = {id(c.func): c for c in ast.walk(tree) if isinstance(c, ast.Call)}
-        for node in filter(is_slow_mark, ast.walk(tree)):
+        calls = {id(c.func): c for c in walk(tree) if isinstance(c, ast.Call)}
+        for node in filter(is_slow_mark, walk(tree)):
             marks += 1
             call = calls.get(id(node))
             why = {k.arg: k.value for k in (call.keywords if call else [])}.get("why")

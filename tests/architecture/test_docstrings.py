@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import pytest
+from helpers.syntax import parsed, walk
 
 import ddvp_nlp
 
@@ -18,8 +19,7 @@ ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|attr|data|obj|exc|ref|math|c
 
 
 def docstrings(path: Path):
-    tree = ast.parse(path.read_text(), filename=str(path))
-    for node in ast.walk(tree):
+    for node in walk(parsed(path)):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             text = ast.get_docstring(node, clean=False)
             if text:

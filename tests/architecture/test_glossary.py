@@ -5,14 +5,15 @@ names (identifiers, not prose)."""
 import ast
 from pathlib import Path
 
+from helpers.syntax import parsed, walk
+
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "ddvp_nlp"
 
 
 def identifiers(path: Path):
     """Every name a module defines or binds: functions, classes, arguments, assignments."""
-    tree = ast.parse(path.read_text())
-    for node in ast.walk(tree):
+    for node in walk(parsed(path)):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
             yield node.name
         elif isinstance(node, ast.arg):
@@ -56,7 +57,7 @@ def test_the_march_has_one_loop_function_name():
     """``run_march`` named two things (the library's loop and the command); the library's is
     the march session now."""
     defined = [f"{path.relative_to(ROOT)}" for path in sorted(PACKAGE.rglob("*.py"))
-               for node in ast.walk(ast.parse(path.read_text()))
+               for node in walk(parsed(path))
                if isinstance(node, ast.FunctionDef) and node.name == "run_march"]
     assert len(defined) <= 1, defined
     assert all(path.startswith("ddvp_nlp/cli/") for path in defined)
