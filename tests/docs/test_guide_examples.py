@@ -46,16 +46,35 @@ def test_the_python_examples_run_and_print_what_they_say(capsys):
     assert isinstance(worst, float) and 0 <= worst < 1e-2  # one number, the largest drift
 
 
+def commands(cluster: bool) -> list[list[str]]:
+    """The section's command lines that start a cluster (``--cluster``), or the others."""
+    lines = (shlex.split(line) for block in blocks("bash") for line in block.splitlines())
+    return [argv for argv in lines if ("--cluster" in argv) == cluster]
+
+
 def test_the_commands_run(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    for line in (line for block in blocks("bash") for line in block.splitlines()):
-        argv = shlex.split(line)
+    for argv in commands(cluster=False):
         assert argv[0] == "ddvp"
-        assert main(argv[1:]) == 0, line
+        assert main(argv[1:]) == 0, shlex.join(argv)
     out = capsys.readouterr().out
     assert "event 0 'q1' (up): 2 crossings" in out and "ended the march" in out
-    assert "6 orbits" in out and "0 orbits failed" in out
     resumed = np.load(tmp_path / "runs" / "resume-demo" / "result.npz")
     assert resumed["t"][-1] == pytest.approx(20.0)
     kept = np.load(tmp_path / "runs" / "kept-demo" / "result.npz")
     assert kept["t"][-1] >= 2e4 and 3900 <= kept["t"].size <= 4100  # every 100th of about 4e5
+
+
+# The section's two cluster lines start a local Dask cluster each (15 s of CPU of the 17 s the
+# section's commands took); the default run parses them with the real parser
+# (tests/docs/test_doc_blocks.py), and runs grids on a local cluster
+# (tests/workbench/runner/test_dask_grids.py).
+@pytest.mark.slow(why="processes")
+def test_the_cluster_commands_run(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    lines = commands(cluster=True)
+    assert len(lines) == 2
+    for argv in lines:
+        assert main(argv[1:]) == 0, shlex.join(argv)
+    out = capsys.readouterr().out
+    assert "6 orbits" in out and "0 orbits failed" in out
