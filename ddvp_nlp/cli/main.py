@@ -128,8 +128,11 @@ def _failure(command: str, exc: BaseException) -> int:
              "written; the output folder keeps what it held before")
         return 1
     if INTERRUPTS.requested:  # an interrupt that surfaced as another error (inside CasADi)
-        _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}); it ended with "
-             f"{type(exc).__name__}: {str(exc)[:200]}")
+        # CasADi's wrapper turns a signal inside a call into its own error (NotImplementedError
+        # "Wrong number or type of arguments for function 'Function_call'"): its words are not
+        # the user's news, which is the interrupt (the error's type stays, for a defect report)
+        _say(f"{command}: interrupted ({INTERRUPTS.name or 'SIGINT'}) inside a compiled call "
+             f"(which ended with {type(exc).__name__}); every file written before it is whole")
         return 1
     if isinstance(exc, SystemExit):
         return exc.code if isinstance(exc.code, int) else 1
