@@ -40,3 +40,14 @@ def test_the_version_is_there_when_asked_for(capsys):
         main(["--version"])
     assert stop.value.code == 0
     assert capsys.readouterr().out == f"ddvp {ddvp_nlp.__version__}\n"  # on stdout, as before
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["--help"], []])
+def test_the_command_without_a_command_loads_no_solver(argv):
+    """``ddvp --version``, ``ddvp --help`` and ``ddvp`` alone build no command's options, whose
+    defaults come from the solvers (it had loaded every family and scipy.interpolate)."""
+    modules = loaded("from ddvp_nlp.cli.main import main\n"
+                     f"try:\n    main({argv!r})\nexcept SystemExit:\n    pass")
+    core = {"ddvp_nlp.solvers.options"}  # the option types, loaded by `import ddvp_nlp`
+    assert [m for m in modules if m.startswith(("ddvp_nlp.solvers.", "ddvp_nlp.studies",
+                                                "scipy.interpolate")) and m not in core] == []
