@@ -57,19 +57,13 @@ def test_plain_lines_off_a_terminal():
     assert isinstance(progress(10, unit="task", enabled=False, stream=stream), Silent)
 
 
-# The grid's progress report is made and updated by this process whichever runs the tasks
-# (runner/tasks.py, run_tasks): in this process (workers=1) in the default run; on a local
-# cluster of worker processes (the default workers, seconds of CPU to start) in the slow tier.
-@pytest.mark.slow_when(lambda workers, **_: workers is None, why="processes")
-@pytest.mark.parametrize("workers", [1, None], ids=["in-process", "local-cluster"])
-def test_a_march_and_a_grid_write_no_carriage_return_into_a_redirected_stderr(capsys,
-                                                                             workers):
+def test_a_march_and_a_grid_write_no_carriage_return_into_a_redirected_stderr(capsys):
     system = load_scene("harmonic").system
     solution = march(system, [1.0], [0.0], (0.0, 20.0), tau0=0.01,
                      output=Output(progress=True))
     assert solution.success
     tasks = [Task(f"t{i}", "math:sqrt", (float(i),), {}) for i in range(4)]
-    results = sorted(r for _, r, _ in run_tasks(tasks, progress=True, workers=workers))
+    results = sorted(r for _, r, _ in run_tasks(tasks, progress=True))
     assert np.allclose(results, np.sqrt(np.arange(4)))
     assert "\r" not in capsys.readouterr().err
 
