@@ -253,7 +253,7 @@ def test_any_cluster_file_is_a_checked_description_or_refused(tmp_path, table, k
 
 @given(doc=st.dictionaries(st.sampled_from(["scene", "methods", "settings", "grid", "bounds",
                                             "other"]), _VALUES, max_size=5))
-@settings(max_examples=150, deadline=None, derandomize=True,
+@settings(max_examples=50, deadline=None, derandomize=True,  # 150 before the CPU budget
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_any_grid_file_is_a_checked_sweep_or_refused_and_runs_no_code(tmp_path, doc):
     from ddvp_nlp.studies.sweep_file import load_grid_file
@@ -338,7 +338,7 @@ _FILE_DAMAGE = ["none", "no result", "garbage result", "result a folder", "meta 
 @example(changes=[], damage="none", named="h.py")  # the run continued
 @example(changes=[], damage="previous twin only", named="h.py")  # cut between two renames
 @example(changes=[(("resume", "scene"), "evil.py")], damage="none", named=None)
-@settings(max_examples=60, deadline=None, derandomize=True,
+@settings(max_examples=25, deadline=None, derandomize=True,  # 60 before the CPU budget
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 def test_any_state_of_a_run_folder_is_resumed_checked_or_refused(tmp_path_factory, capsys,
                                                                  changes, damage, named):

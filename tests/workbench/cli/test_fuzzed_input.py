@@ -21,6 +21,10 @@ from ddvp_nlp.cli import main
 SEED = 28
 COMMAND_CASES = 90
 FILE_CASES = 40
+# The default run draws the first cases of each (every base command and every kind of file is
+# among them); the rest, the same property on more draws, are the slow tier's.
+DEFAULT_COMMAND_CASES = 30
+DEFAULT_FILE_CASES = 15
 
 HOSTILE = ["", " ", "nan", "inf", "-inf", "-1", "0", "-0", "1e308", "1e400", "5e-324",
            "4000000000", "100000000000", "abc", "1,2", "1:2", "0x10", "é", "x" * 300, "1e-320",
@@ -69,6 +73,8 @@ def _check(code, err: str, argv) -> None:
         assert "error" in err, (argv, err)
 
 
+@pytest.mark.slow_when(lambda index, **_: index >= DEFAULT_COMMAND_CASES,
+                       why="repetition")  # cases 0-29 of this test check it by default
 @pytest.mark.parametrize("index", range(COMMAND_CASES))
 def test_fuzzed_command_lines_end_cleanly(index, tmp_path, monkeypatch, capsys):
     rng = random.Random(SEED * 1000 + index)
@@ -122,6 +128,8 @@ def valid_files(tmp_path_factory):
     return root, sweep
 
 
+@pytest.mark.slow_when(lambda index, **_: index >= DEFAULT_FILE_CASES,
+                       why="repetition")  # cases 0-14 of this test check it by default
 @pytest.mark.parametrize("index", range(FILE_CASES))
 def test_fuzzed_input_files_are_refused_or_rebuilt(index, valid_files, tmp_path, capsys,
                                                    monkeypatch):

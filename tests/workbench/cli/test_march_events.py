@@ -176,7 +176,7 @@ def _expressions(draw, depth=0):
 
 
 @given(text=_expressions(), modifiers=st.sampled_from(["", ";up", ";down;terminal=2", ";x"]))
-@settings(max_examples=300, deadline=None, derandomize=True)
+@settings(max_examples=100, deadline=None, derandomize=True)  # 300 before the CPU budget
 def test_any_expression_is_refused_or_evaluates_to_one_number_per_time(text, modifiers):
     t = np.linspace(0.0, 1.0, 5)
     q = np.linspace(-1.0, 1.0, 10).reshape(5, 2)

@@ -97,6 +97,9 @@ def test_bvp_default_folder_follows_the_settings(tmp_path, monkeypatch, capsys):
     capsys.readouterr()
 
 
+# bvp is the march's repetition: both write through cli/one_run.write_run and
+# io/run_folder.save_run, which removes a figure not drawn; the march case keeps it by default.
+@pytest.mark.slow_when(lambda command, **_: command[0] == "bvp", why="repetition")
 @pytest.mark.parametrize("command", [
     ["march", "harmonic", "--no-progress"],
     ["bvp", "pendulum", "--nodes", "41"],

@@ -153,9 +153,17 @@ def matplotlib_help(help_tables: str) -> list[str]:
     return out.split()
 
 
-def test_the_figure_import_leaves_out_only_help_text_and_only_when_asked():
-    assert not started_as_command()  # pytest is not the ddvp command: the default keeps them
-    assert matplotlib_help("") == ["True"] * 5
-    assert matplotlib_help("help_tables=True") == ["True"] * 5
+# Each case is a fresh process that loads matplotlib (a second of CPU). Asking for the tables
+# is the default's repetition (slow tier): the default case keeps them, the False case shows
+# what leaving them out leaves out.
+@pytest.mark.slow_when(lambda help_tables, **_: help_tables == "help_tables=True",
+                       why="repetition")
+@pytest.mark.parametrize("help_tables, answers", [
+    ("", ["True"] * 5),  # pytest is not the ddvp command: the default keeps them
+    ("help_tables=True", ["True"] * 5),
     # without the tables, matplotlib's kwdoc is its own again once the import is done
-    assert matplotlib_help("help_tables=False") == ["False", "False", "True", "True", "True"]
+    ("help_tables=False", ["False", "False", "True", "True", "True"]),
+], ids=["default", "asked-for", "left-out"])
+def test_the_figure_import_leaves_out_only_help_text_and_only_when_asked(help_tables, answers):
+    assert not started_as_command()
+    assert matplotlib_help(help_tables) == answers

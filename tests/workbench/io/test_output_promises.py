@@ -144,7 +144,7 @@ def test_a_real_full_or_read_only_file_system(tmp_path, state):
     try:
         run = [sys.executable, "-m", "ddvp_nlp.cli", "march", "harmonic", "--no-progress",
                "--out", str(mount / "run")]
-        assert subprocess.run(run, capture_output=True).returncode == 0
+        assert main(run[3:]) == 0  # the earlier run, written in this process (one start less)
         before = read_run(mount / "run")[1]
         if state == "full":
             free = os.statvfs(mount).f_bavail * os.statvfs(mount).f_frsize
@@ -163,8 +163,10 @@ def test_a_real_full_or_read_only_file_system(tmp_path, state):
 
 # -- grid files read back --------------------------------------------------------------------
 
-SWEEP = ["sweep", "harmonic", "--grid", "tau0=0.1,0.05", "--set", "t_end=1", "--methods",
-         "vddvp,rk4", "--no-progress", "--workers", "1"]
+# One cheap run (a third of the CPU of two methods at two steps): what is read back here is the
+# table's file, whatever rows it holds.
+SWEEP = ["sweep", "harmonic", "--grid", "tau0=0.1", "--set", "t_end=1", "--methods", "rk4",
+         "--no-progress", "--workers", "1"]
 
 
 def test_a_forged_success_row_is_run_again(tmp_path, capsys):

@@ -46,6 +46,7 @@ def wait_for_checkpoint(out, process, *, after: float = 0.0) -> dict:
     raise AssertionError("no checkpoint was written")
 
 
+@pytest.mark.slow(why="repetition")  # test_sigkill_over_an_earlier_run_... checks it all too
 def test_sigkill_mid_run_keeps_the_last_checkpoint_whole(tmp_path):
     out = tmp_path / "run"
     process = ddvp([*ENDLESS, "--out", str(out)])
@@ -60,16 +61,19 @@ def test_sigkill_mid_run_keeps_the_last_checkpoint_whole(tmp_path):
 
 
 def test_sigkill_over_an_earlier_run_leaves_one_whole_run(tmp_path):
-    out = tmp_path / "run"
-    done = subprocess.run([sys.executable, "-m", "ddvp_nlp.cli", "march", "pendulum",
-                           "--no-progress", "--no-plot", "--out", str(out)], capture_output=True)
-    assert done.returncode == 0
+    from ddvp_nlp.cli import main
+
+    out = tmp_path / "run"  # the earlier run, written in this process (one start less)
+    assert main(["march", "pendulum", "--no-progress", "--no-plot", "--out", str(out)]) == 0
     process = ddvp([*ENDLESS, "--out", str(out)])
-    wait_for_checkpoint(out, process)
+    first = wait_for_checkpoint(out, process)  # over the earlier run
+    wait_for_checkpoint(out, process, after=(out / "meta.json").stat().st_mtime)  # over itself
     process.kill()
     process.wait()
     arrays, meta = read_run(out)  # the checkpoint, whole, never the old meta with a new npz
     assert meta["status"] == "running" and arrays["t"].size == meta["nodes"]
+    assert arrays["t"].size > first["nodes"] > 1
+    assert np.all(np.diff(arrays["t"]) > 0) and arrays["q"].shape == (arrays["t"].size, 1)
 
 
 @pytest.mark.slow_when(lambda signals, **_: len(signals) == 2, why="processes")
@@ -88,6 +92,7 @@ def test_interrupts_end_with_the_run_written(tmp_path, signals):
     arrays, meta = read_run(out)
     assert meta["status"] == "interrupted" and meta["nodes"] == arrays["t"].size > 1
     assert meta["message"].startswith("interrupted by the user")
+    assert f"interrupted ({signals[0].name}); the run was written whole" in stderr
 
 
 @pytest.mark.slow(why="processes")

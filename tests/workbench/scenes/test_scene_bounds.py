@@ -137,6 +137,10 @@ def test_a_process_ended_mid_run_by_a_scene_thread_never_exits_0(tmp_path):
     assert json.loads((tmp_path / "run" / "meta.json").read_text())["status"] == "running"
 
 
+# Every command is supervised: io/test_run_folder_faults.py's
+# test_interrupts_end_with_the_run_written[sigterm] checks the same (exit 1, these words, the
+# run written whole and "interrupted") by default.
+@pytest.mark.slow(why="repetition")
 def test_sigterm_still_ends_a_supervised_march_after_saving(tmp_path):
     process = subprocess.Popen([sys.executable, "-m", "ddvp_nlp.cli", "march", "pendulum",
                                 "--no-plot", "--no-progress", *LONG, "--out", "run"],
@@ -154,6 +158,10 @@ def test_sigterm_still_ends_a_supervised_march_after_saving(tmp_path):
     assert json.loads(meta.read_text())["status"] == "interrupted"
 
 
+# A scene's plain subprocess is the daemon's repetition: both are left to the supervisor (the
+# subprocess once its parent, the child, is gone; the daemon at once, in a session of its own,
+# out of the child's process group); the daemon case keeps the property by default.
+@pytest.mark.slow_when(lambda how, **_: how == "subprocess", why="processes")
 @pytest.mark.parametrize("how", ["subprocess", "daemon"])
 def test_the_processes_a_scene_starts_end_with_the_command(tmp_path, how):
     """A scene's subprocess, or a daemon it detaches (double fork, new session), outlived the

@@ -155,8 +155,15 @@ FIXED = ["rk4", "stormer_verlet", "avf"]
 OPTIONS = CompareOptions(halvings=2, repeats=1, budget_s=0.1)
 
 
-def test_horizons_times_errors_on_the_harmonic_oscillator():
-    result = compare(harmonic(), FIXED, horizons=[10.0, 40.0], options=OPTIONS)
+@pytest.fixture(scope="module")
+def harmonic_horizons():
+    """The harmonic comparison over horizons 10 and 40, made once: the next two tests read it
+    (and change nothing in it)."""
+    return compare(harmonic(), FIXED, horizons=[10.0, 40.0], options=OPTIONS)
+
+
+def test_horizons_times_errors_on_the_harmonic_oscillator(harmonic_horizons):
+    result = harmonic_horizons
     assert result.horizons == [10.0, 40.0]
     for horizon, found in result.results.items():
         assert len(found.rows) == 3 * 3 and not found.failed  # 3 methods x 3 steps
@@ -176,11 +183,11 @@ def test_horizons_times_errors_on_the_harmonic_oscillator():
     assert result.best(1e-14, 40.0).method is None  # no trajectory that exact
 
 
-def test_scaled_time_units_and_an_energy_offset_keep_the_winners():
+def test_scaled_time_units_and_an_energy_offset_keep_the_winners(harmonic_horizons):
     """The same motion in time units 1000 times shorter (horizons / 1000), and with 5 added
     to H: the same steps, the same trajectory errors (to the reference's error), the same
     winner by steps at every error and horizon, the crossovers scaled with the horizons."""
-    base = compare(harmonic(), FIXED, horizons=[10.0, 40.0], options=OPTIONS)
+    base = harmonic_horizons
     slow = compare(harmonic(scale=1e-3), FIXED, horizons=[1e-2, 4e-2], options=OPTIONS)
     lifted = compare(harmonic(offset=5.0), FIXED, horizons=[10.0, 40.0], options=OPTIONS)
     for other, factor in ((slow, 1e-3), (lifted, 1.0)):

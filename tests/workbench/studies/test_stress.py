@@ -93,10 +93,14 @@ def test_long_run_separates_symplectic_from_dissipative_energy_error(quick):
 def test_stress_command(tmp_path, capsys, monkeypatch):
     from ddvp_nlp.studies import stress as stress_module
 
-    # the command on a smaller set of cases (a function replaced, not a setting switched)
+    # the command on a smaller set of cases (a function replaced, not a setting switched), in
+    # this process (--workers 1): a local cluster's two workers cost more than the runs; the
+    # cluster ddvp starts is cli/test_seams.py's (a grid on the default workers), a cluster
+    # at a scheduler runner/test_dask_grids.py's (test_killing_a_worker_loses_no_...)
     cases = [c for c in stress_module.default_cases(quick=True) if c.group == "pendulum"]
     monkeypatch.setattr(stress_module, "default_cases", lambda quick=False: cases)
-    code = main(["stress", "--quick", "--no-compile", "--no-progress", "--out", str(tmp_path)])
+    code = main(["stress", "--quick", "--no-compile", "--no-progress", "--workers", "1",
+                 "--out", str(tmp_path)])
     assert code == 0
     out = capsys.readouterr().out
     assert out.startswith("stress: 10 runs")
