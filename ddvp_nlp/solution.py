@@ -106,6 +106,9 @@ class Verdict:
         steps: the steps judged.
         rtol, atol, energy_tol, global_tol, require_accurate: the `Tolerance` it was judged by.
         streamed: judged a window at a time (a thinned march).
+        partial: the solve failed (``Solution.status`` says how: a failed step,
+            ``max_steps``, an interrupt, a grid that did not converge); ``name`` is the verdict
+            on the nodes it kept (a march's accepted steps), not on the solve asked for.
     """
 
     name: str
@@ -133,6 +136,7 @@ class Verdict:
     require_accurate: bool
     streamed: bool = False
     level_round_off: float | None = None
+    partial: bool = False
 
     def __post_init__(self):
         if self.name not in VERDICTS:
@@ -163,7 +167,8 @@ class Verdict:
 
     def as_dict(self) -> dict:
         """The verdict as ``meta.json`` writes it (key ``accuracy``): ``verdict``, then the
-        fields in order (``streamed`` only for a streamed check)."""
+        fields in order (``streamed`` only for a streamed check, ``partial`` only for a solve
+        that did not reach its end)."""
         found = {"verdict": self.name,
                  "first_failure": None if self.first_failure is None else
                  self.first_failure.as_dict()}
@@ -173,6 +178,8 @@ class Verdict:
             found["scale"] = list(self.scale)
         if self.streamed:
             found["streamed"] = True
+        if self.partial:
+            found["partial"] = True
         return found
 
     def time_reversed(self) -> Verdict:
@@ -188,7 +195,7 @@ class Verdict:
 
 
 _REPORTED = tuple(f for f in Verdict.__dataclass_fields__
-                  if f not in ("name", "first_failure", "streamed"))
+                  if f not in ("name", "first_failure", "streamed", "partial"))
 
 
 @dataclass(frozen=True)

@@ -72,7 +72,7 @@ method, a fixed-endpoint or a periodic solution.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -877,6 +877,8 @@ def judge(solution, report: dict | Verdict | None, tolerance: Tolerance, *,
         solution.verdict = None
         solution.accuracy_skipped = "the run made no step: there is nothing to judge"
         return None
+    if verdict is not None and not solution.success:  # on the steps kept, said so
+        verdict = replace(verdict, partial=True)
     solution.verdict = verdict
     if local_error is not None:
         solution.local_error = local_error
