@@ -33,6 +33,12 @@ def _marched(name, tau0, t_end, rule):
 @pytest.mark.slow_when(
     lambda solver, name, tau0, **_: solver == "ipopt" and name == "paper_pendulum" and tau0 == 0.5,
     why="repetition")
+# IPOPT on the pendulum repeats IPOPT on paper_pendulum at tau0 = 0.1 (both rules) and Newton on
+# the pendulum (both rules), all in the default run; IPOPT's and Newton's nodes on the pendulum
+# are compared by test_ipopt_assembly.py's test_ipopt_and_newton_return_the_same_nodes (vddvp)
+# and test_interleaved_system.py's test_newton_and_ipopt_return_the_same_nodes (fixed)
+@pytest.mark.slow_when(lambda solver, name, **_: solver == "ipopt" and name == "pendulum",
+                       why="repetition")
 @pytest.mark.parametrize("name, tau0, t_end", [("paper_pendulum", 0.5, 9.0),
                                                 ("paper_pendulum", 0.1, 9.0),
                                                 ("pendulum", 0.05, 9.0)])
