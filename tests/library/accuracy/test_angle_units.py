@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_units import assert_same, march_in, scaled_scene_system
+from test_units import assert_same, march_in, march_in_own_units, scaled_scene_system
 
 from ddvp_nlp import Compilation, Tolerance, load_scene
 from ddvp_nlp.physics.hamiltonian import HamiltonianSystem
@@ -41,7 +41,7 @@ def test_kepler_in_au_km_metres_and_si_gets_one_verdict_and_the_same_errors():
     positions' scales are the orbit's size in each unit, never one turn (2 pi)."""
     scene = load_scene("kepler")
     config = scene.resolve(KEPLER)
-    run = march_in("kepler", KEPLER, Units())
+    run = march_in_own_units("kepler", tuple(sorted(KEPLER.items())))
     t, z, n = run.t, np.hstack([run.q, run.p]), 2
     clock = t[0] + (t[1] - t[0]) / 2
     reports, scales = {}, {}
@@ -67,7 +67,7 @@ def test_kepler_marched_in_si_units_drifts_like_in_its_own():
     """End to end: the march in SI units (metres, seconds) takes the same steps and gets the
     same verdict as in the scene's units (before: ``inaccurate``, its local error 6.8e3 of a
     2 pi m "turn")."""
-    own = march_in("kepler", KEPLER, Units())
+    own = march_in_own_units("kepler", tuple(sorted(KEPLER.items())))
     units = KEPLER_UNITS["SI"]
     si = march_in("kepler", KEPLER, units)
     assert own.verdict.name == si.verdict.name == "drifted"

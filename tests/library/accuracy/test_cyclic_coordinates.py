@@ -67,7 +67,10 @@ def with_winding(drawn, rate: float) -> HamiltonianSystem:
     return HamiltonianSystem(H, n + 1, name="with_winding")
 
 
-@settings(max_examples=8, derandomize=True, deadline=None, database=None,
+# five drawn systems (each marched twice; about as many more are drawn and left by the
+# assumption below): a winding coordinate that set the old components' scales would move them
+# on every system with a motion, so any one of them shows it
+@settings(max_examples=5, derandomize=True, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(cases_and_units())
 def test_a_winding_coordinate_added_leaves_the_verdict_and_the_scales(drawn):

@@ -30,9 +30,25 @@ needs_compiler = pytest.mark.skipif(compiler.find_compiler("auto") is None,
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    """A fresh compiled-code cache."""
+    """A fresh compiled-code cache: for the tests of what a cache holds or builds, and of a
+    compiler that fails."""
     monkeypatch.setenv("DDVP_NLP_CACHE", str(tmp_path))
     return tmp_path
+
+
+@pytest.fixture(scope="module")
+def module_cache(tmp_path_factory):
+    """One compiled-code cache, fresh for this module, for the tests that compare the compiled
+    path with the virtual machine or LAPACK: each system and rule compiles once here, not once
+    a test (a library's hash names its code, compiler and flags: what is loaded is what a fresh
+    cache would build)."""
+    return tmp_path_factory.mktemp("compiled")
+
+
+@pytest.fixture
+def shared_cache(module_cache, monkeypatch):
+    monkeypatch.setenv("DDVP_NLP_CACHE", str(module_cache))
+    return module_cache
 
 
 def _point(system, rule, nodes, seed=1):
@@ -61,7 +77,7 @@ def _both(system, rule, nodes, x, ends):
 @pytest.mark.parametrize("name", ["pendulum", "kepler"])
 @pytest.mark.parametrize("rule", ["vddvp", "fixed"])
 @pytest.mark.parametrize("nodes", [5, 300, WINDOW + 9])
-def test_compiled_and_vm_assemble_the_same_system(cache, name, rule, nodes):
+def test_compiled_and_vm_assemble_the_same_system(shared_cache, name, rule, nodes):
     """Grids shorter than a window (padded), and longer (a shifted last window): the residual,
     with and without the Jacobian, and every band entry agree to round-off."""
     system = load_scene(name).system
@@ -75,7 +91,7 @@ def test_compiled_and_vm_assemble_the_same_system(cache, name, rule, nodes):
     assert np.max(np.abs(band_c[w:] - band_v[w:])) <= 1e-12 * max(1.0, np.max(np.abs(band_v)))
 
 
-def test_the_band_store_is_rewritten_whole_after_an_in_place_factorisation(cache):
+def test_the_band_store_is_rewritten_whole_after_an_in_place_factorisation(shared_cache):
     """The store is reused: after ``gbtrf`` overwrote it, the next evaluation restores every
     entry of the band (LAPACK's fill-in rows aside, which it clears itself), so the second
     factorisation solves exactly as a fresh one."""
@@ -196,7 +212,7 @@ def _dense(ab: np.ndarray, w: int) -> np.ndarray:
 
 @needs_compiler
 @pytest.mark.parametrize("w", [4, 7, 31])
-def test_the_compiled_band_lu_is_lapacks(cache, w):
+def test_the_compiled_band_lu_is_lapacks(shared_cache, w):
     """Bandwidths of n = 1, 2 and 10: the same pivots as LAPACK's ``dgbtrf``/``dgbtrs``
     through scipy; factors and solutions that differ by no more than the two orders of
     operations can round apart (the loops are LAPACK's reference ones; OpenBLAS's kernels use
@@ -229,7 +245,7 @@ def test_the_compiled_band_lu_is_lapacks(cache, w):
 
 
 @needs_compiler
-def test_the_compiled_band_lu_reports_a_singular_matrix_as_lapack_does(cache):
+def test_the_compiled_band_lu_reports_a_singular_matrix_as_lapack_does(shared_cache):
     ab = _random_band(50, 4, seed=3)
     ab[:, 20] = 0.0  # a zero column
     _, _, info_lapack = lapack.dgbtrf(ab.copy(order="F"), 4, 4)
@@ -245,12 +261,14 @@ def test_without_a_compiler_the_band_lu_is_lapack(cache):
         warnings.simplefilter("always")
         assert band.kernel("false") is None
     assert any("LAPACK through scipy instead" in str(w.message) for w in caught)
-    solution = _solve("pendulum", NOTHING_COMPILED, 300)
+    # the swing of the solve below (its ends given: no march to compile in the fresh cache)
+    solution = solve_bvp(load_scene("pendulum").system, [0.5], [-0.036], (0.0, 9.0), nodes=300,
+                         options=GridOptions(solver="newton"), compilation=NOTHING_COMPILED)
     assert solution.success, solution.message
 
 
 @pytest.mark.parametrize("setting", ["auto", None])
-def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(cache, setting):
+def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(shared_cache, setting):
     """The helper offered to the starts (``site_weights``): the same values as the function
     mapped over the whole grid, compiled or not, for a grid longer than a window."""
     from ddvp_nlp.physics.hamiltonian import site_density_weight_function
@@ -271,7 +289,7 @@ def test_evaluate_blocks_gives_what_a_map_over_the_grid_gives(cache, setting):
     assert np.max(np.abs(got.ravel() - expected)) <= 1e-12 * np.max(np.abs(expected))
 
 
-def test_a_solve_leaves_no_band_store_in_the_cached_assemblies(cache):
+def test_a_solve_leaves_no_band_store_in_the_cached_assemblies(shared_cache):
     """The assemblies stay cached per system for the next solve; their band stores (the size
     of the band, 312 MB at N = 1e6) are dropped when Newton ends."""
     system = load_scene("pendulum").system

@@ -3,6 +3,7 @@ another rule or size, shooting from a given momentum, and the diagnosis of a bra
 energy rules have no solution. Kepler e = 0.5 over three periods from the pericentre: the
 straight line leads to the radial branch, the orbit's momentum to the three revolutions."""
 
+import functools
 import json
 
 import numpy as np
@@ -17,9 +18,10 @@ Q0 = [1 - E, 0.0]
 P0 = [0.0, np.sqrt((1 + E) / (1 - E))]
 
 
+@functools.cache
 def kepler(nodes):
     """The system, its fixed-step march over three periods on ``nodes`` nodes, and the march's
-    end (the fixed-endpoint data)."""
+    end (the fixed-endpoint data); marched once for every test of that size (read only)."""
     system = load_scene("kepler").system
     T = 2 * np.pi * PERIODS
     marched = march(system, Q0, P0, (0.0, T), tau0=T / (nodes - 1), scheme="fixed",
@@ -122,8 +124,10 @@ def test_p_start_is_checked():
 
 
 def test_cli_p_start(tmp_path, capsys):
+    # no figure: the option's reading and the solve are the claim (test_fixed_ends's
+    # test_cli_bvp_writes_the_same_outputs draws the bvp figure)
     args = ["bvp", "kepler", "--set", "q_start=0.5,0", "--set", "q_end=-0.5,0.5", "--set",
-            "t_end=2", "--nodes", "201"]
+            "t_end=2", "--nodes", "201", "--no-plot"]
     assert main([*args, "--guess", "march", "--p-start", "0,1.7", "--out",
                  str(tmp_path / "a")]) == 0
     assert "kepler bvp [vddvp]: success" in capsys.readouterr().out

@@ -1,5 +1,6 @@
 """Fixed-endpoint problems: one NLP over the whole grid, verified by its own residuals."""
 
+import functools
 import json
 import re
 
@@ -22,9 +23,22 @@ from ddvp_nlp import (
 from ddvp_nlp.cli import main
 
 
+@functools.cache
+def _marched(name, tau0, t_end, rule):
+    """The march whose ends and nodes both solvers are given: marched once for the two (read
+    only)."""
+    return march(load_scene(name).system, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule)
+
+
 @pytest.mark.slow_when(
     lambda solver, name, tau0, **_: solver == "ipopt" and name == "paper_pendulum" and tau0 == 0.5,
     why="repetition")
+# IPOPT on the pendulum repeats IPOPT on paper_pendulum at tau0 = 0.1 (both rules) and Newton on
+# the pendulum (both rules), all in the default run; IPOPT's and Newton's nodes on the pendulum
+# are compared by test_ipopt_assembly.py's test_ipopt_and_newton_return_the_same_nodes (vddvp)
+# and test_interleaved_system.py's test_newton_and_ipopt_return_the_same_nodes (fixed)
+@pytest.mark.slow_when(lambda solver, name, **_: solver == "ipopt" and name == "pendulum",
+                       why="repetition")
 @pytest.mark.parametrize("name, tau0, t_end", [("paper_pendulum", 0.5, 9.0),
                                                 ("paper_pendulum", 0.1, 9.0),
                                                 ("pendulum", 0.05, 9.0)])
@@ -37,7 +51,7 @@ def test_endpoints_of_a_march_give_back_its_nodes(name, tau0, t_end, rule, solve
     (the march from the same start is ``drifted``: it loses phase), so its verdict is recorded
     and the status kept (``stop=False``) to compare the nodes."""
     system = load_scene(name).system
-    marched = march(system, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule)
+    marched = _marched(name, tau0, t_end, rule)
     assert marched.success and 20 <= marched.t.size <= 300
     solved = solve_bvp(
         system,
@@ -102,6 +116,10 @@ def test_lee_and_vddvp_agree_on_an_autonomous_scene():
     assert np.max(np.abs(solutions[0].q - solutions[1].q)) < 1e-10
 
 
+# IPOPT on the fixed rule runs to its iteration limit as on vddvp (the default run's ipopt
+# case), and the fixed rule is refused as well by Newton (the default run's newton-fixed case)
+@pytest.mark.slow_when(lambda rule, solver, **_: rule == "fixed" and solver == "ipopt",
+                       why="repetition")
 @pytest.mark.parametrize("rule", ["fixed", "vddvp"])
 @pytest.mark.parametrize("solver", ["ipopt", "newton"])
 def test_unreachable_endpoints_end_with_a_status_and_residuals(rule, solver):

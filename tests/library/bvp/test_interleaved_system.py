@@ -26,6 +26,11 @@ def boundary(name):
     return (scene.system, *CASES[name])
 
 
+# pendulum on vddvp is the same solve and comparison as test_ipopt_assembly.py's
+# test_ipopt_and_newton_return_the_same_nodes (its boundary data, 181 nodes, 1e-10), in the
+# default run
+@pytest.mark.slow_when(lambda name, rule, **_: (name, rule) == ("pendulum", "vddvp"),
+                       why="repetition")
 @pytest.mark.parametrize("name, rule", [(name, rule) for name in sorted(CASES)
                                         for rule in ("vddvp", "fixed") if name != "kepler"])
 def test_newton_and_ipopt_return_the_same_nodes(name, rule):

@@ -88,13 +88,21 @@ def test_ipopt_and_newton_return_the_same_nodes():
             < 1e-10, key
 
 
-def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes():
+@pytest.fixture(scope="module")
+def twenty_thousand():
+    """The pendulum's swing on 20 000 nodes by IPOPT, solved twice on one system (the second
+    from the problems the first left cached): for the repeat test and the skipped-phase test
+    (read only)."""
+    system = load_scene("pendulum").system
+    return system, [solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
+                              options=GridOptions(solver="ipopt")) for _ in range(2)]
+
+
+def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes(twenty_thousand):
     """Bounded iteration counts (never time), the same in two runs, ending Solve_Succeeded (not
     "acceptable") or not run at all: the start phases' point already passes the verification
     here (5 + 1 + 0, measured)."""
-    system = load_scene("pendulum").system
-    runs = [solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
-                      options=GridOptions(solver="ipopt")) for _ in range(2)]
+    _, runs = twenty_thousand
     assert all(r.success for r in runs), runs[0].message
     counts = [[ph.iterations for ph in r.ends.stages] for r in runs]
     assert counts[0] == counts[1]
@@ -103,15 +111,13 @@ def test_assembly_ipopt_iterations_stay_few_and_repeat_at_twenty_thousand_nodes(
                                               "not run: the start passes the verification")
 
 
-def test_ipopt_is_not_run_from_a_start_that_passes_the_verification():
+def test_ipopt_is_not_run_from_a_start_that_passes_the_verification(twenty_thousand):
     """The released phase is skipped when its start already verifies (the point returned is
     that start, verified again by the same rule), run when it does not; the start phases'
     problems are dropped from the cache before the final phase."""
-    system = load_scene("pendulum").system
+    system, (fine, _) = twenty_thousand
     coarse = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=181,
                        options=GridOptions(solver="ipopt"))
-    fine = solve_bvp(system, [0.5], [-0.036], (0.0, 9.0), nodes=20_000,
-                     options=GridOptions(solver="ipopt"))
     for solution in (coarse, fine):
         assert solution.success, solution.message
         assert all(key[1] == Scheme("vddvp") for key in PROBLEMS.keys(system)

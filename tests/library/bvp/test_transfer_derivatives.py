@@ -3,6 +3,8 @@ transfer time's and end momenta's derivatives in the ends, the energy and the pa
 against central differences of whole transfers solved again, each input's own check, a time
 offset; bad inputs refused by name."""
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -27,7 +29,9 @@ def _swing():
 SWING = _swing()
 
 
+@functools.cache
 def _transfer(q_start=0.1, q_end=0.5, energy=1.0, w=1.0, t0=0.0):
+    """The swing's transfer, solved once per set of arguments for the module (read only)."""
     return solve_bvp(SWING, [q_start], [q_end], AtEnergy(energy, t0=t0), nodes=41,
                      params={"w": w})
 

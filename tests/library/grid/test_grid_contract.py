@@ -3,6 +3,7 @@ of ``grid.problem.GridProblem`` in the package (found in the source, checked for
 protocol class declares), and the grid options reaching every family that takes them."""
 
 import ast
+import functools
 import importlib
 from pathlib import Path
 
@@ -124,8 +125,15 @@ def test_every_grid_problem_gives_its_derivatives_and_a_transposed_solve(seed):
         problem.release()
 
 
+@functools.cache
+def _scene(name: str):
+    """A scene loaded once for the module: the problems sampled below are built anew at every
+    call, on systems whose compiled functions are then made once (no test changes a system)."""
+    return load_scene(name)
+
+
 def _with_parameters(name: str):
-    system = load_scene(name).system
+    system = _scene(name).system
     return system, np.asarray(system.parameter_vector({}), float)
 
 
@@ -142,7 +150,7 @@ def _assemblies(seed: int):
     found = []
     for name, rule, compiler in (("kepler", "vddvp", "auto"), ("pendulum", "fixed", None),
                                  ("henon_heiles", "lee", "auto")):
-        system = load_scene(name).system
+        system = _scene(name).system
         nodes = int(rng.integers(5, 40))
         grid = GridAssembly(system, Scheme(rule), nodes, Compilation(compiler=compiler))
         t = np.sort(rng.random(nodes)) + np.arange(nodes)
@@ -151,7 +159,7 @@ def _assemblies(seed: int):
         times = t[[0, -1]] if rule != "fixed" else t + 1e-3
         found.append((f"bvp {name} {rule}", grid, grid.layout.pack(t, q, p),
                       Ends(q[0] + 0.1, q[-1], times, theta, 0.7)))
-    henon = load_scene("henon_heiles").system
+    henon = _scene("henon_heiles").system
     intervals = int(rng.integers(4, 30))
     periodic = PeriodicAssembly(henon, Scheme("vddvp"), intervals)
     x = rng.normal(size=periodic.layout.size)
@@ -159,7 +167,7 @@ def _assemblies(seed: int):
         intervals + 1)
     found.append(("periodic henon_heiles", periodic, x,
                   Closure(0.1, 2, 0.0, np.zeros(0), shift=0.0)))
-    spline = load_scene("spline")
+    spline = _scene("spline")
     nodes = int(rng.integers(9, 40))
     higher = HigherAssembly(spline.system, "vddvp", nodes, 0.1)
     x = rng.normal(size=higher.layout.size)
@@ -235,6 +243,8 @@ def _bvp_problems(rng):
             ("bvp shooting", shooting, rng.normal(size=1), Aim(np.array([0.5]), theta))]
 
 
+# seeds 0 and 1 (other node counts and points, every problem) keep the rule in the default run
+@pytest.mark.slow_when(lambda seed, **_: seed >= 2, why="repetition")
 @pytest.mark.parametrize("seed", range(4))
 def test_every_grid_problem_gives_the_same_residual_with_and_without_its_jacobian(seed):
     """Rule 3: the grid's Newton takes F from the Jacobian's evaluation and from the line
@@ -270,11 +280,14 @@ def _higher(options):
                             options=options)
 
 
+# One pendulum for every family's solve below: its assemblies and IPOPT builds are made once and
+# kept with it, as in a session (a new system object builds them again); no test mutates it.
+PENDULUM = load_scene("pendulum").system
 FAMILIES = {
-    "bvp": lambda options: solve_bvp(load_scene("pendulum").system, [0.5], [-0.036], (0.0, 9.0),
-                                     nodes=181, options=options),
-    "periodic": lambda options: solve_periodic(load_scene("pendulum").system, energy=0.5,
-                                               nodes=101, options=options),
+    "bvp": lambda options: solve_bvp(PENDULUM, [0.5], [-0.036], (0.0, 9.0), nodes=181,
+                                     options=options),
+    "periodic": lambda options: solve_periodic(PENDULUM, energy=0.5, nodes=101,
+                                               options=options),
     "higher": _higher,
 }
 

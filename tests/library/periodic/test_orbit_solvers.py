@@ -70,11 +70,17 @@ def rotation_period(energy: float) -> float:
     return 4 * ellipk(2 / energy) / np.sqrt(2 * energy)
 
 
+def _rotation(N, system=None):
+    return solve_periodic(system or load_scene("pendulum").system, energy=2.5, nodes=N + 1,
+                          section="q1=0", angles=("q1",), options=GridOptions(solver="newton"))
+
+
 @pytest.fixture(scope="module")
 def rotations():
+    """The rotation at E = 2.5 on 100, 200 and 400 intervals, by Newton (what ``auto`` tries
+    first), for the tests of its period, its iterations and its refinement (read only)."""
     system = load_scene("pendulum").system
-    return {N: solve_periodic(system, energy=2.5, nodes=N + 1, section="q1=0", angles=("q1",))
-            for N in (100, 200, 400)}
+    return {N: _rotation(N, system) for N in (100, 200, 400)}
 
 
 def test_rotation_period_formula_agrees_with_a_quadrature():
@@ -99,16 +105,14 @@ def test_rotation_period_converges_at_order_two(rotations):
     assert abs(errors[-1]) < 2e-5
 
 
-def test_newton_converges_on_rotations_in_as_many_iterations_at_every_n():
+def test_newton_converges_on_rotations_in_as_many_iterations_at_every_n(rotations):
     """The rotation's steps have a spike where the level curve has an inflection (w = f' H_zz f
     changes sign). From the predicted grid (tau ~ |w|^(-1/3)) and then by continuation in N,
     Newton finds the orbit on every level in a number of iterations that does not grow with N
     (from uniform times it failed at every N, and IPOPT needed 13, 28, 69, 296 iterations)."""
-    system = load_scene("pendulum").system
     counts = {}
     for N in (100, 200, 400, 800):
-        orbit = solve_periodic(system, energy=2.5, nodes=N + 1, section="q1=0", angles=("q1",),
-                               options=GridOptions(solver="newton"))
+        orbit = rotations[N] if N in rotations else _rotation(N)
         assert orbit.success, orbit.message
         levels = orbit.stats["levels"]
         assert [level["intervals"] for level in levels] == [100, 200, 400, 800][:len(levels)]
@@ -120,11 +124,10 @@ def test_newton_converges_on_rotations_in_as_many_iterations_at_every_n():
     assert counts[800] <= counts[100] + 1
 
 
-def test_continuation_keeps_the_step_distribution():
+def test_continuation_keeps_the_step_distribution(rotations):
     """Refined by node index, an orbit's nodes keep its steps' shape: each old step is split
     in two halves, the spike included."""
-    orbit = solve_periodic(load_scene("pendulum").system, energy=2.5, nodes=101,
-                           section="q1=0", angles=("q1",))
+    orbit = rotations[100]
     t, z = refine_by_index(orbit.t, np.hstack([orbit.q, orbit.p]), 200, angles=(0,))
     assert t.size == 201 and z[-1, 0] == pytest.approx(z[0, 0] + 2 * np.pi, abs=1e-14)
     np.testing.assert_allclose(np.diff(t)[::2], np.diff(orbit.t) / 2, rtol=1e-12)

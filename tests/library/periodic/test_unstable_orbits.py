@@ -96,6 +96,9 @@ def _scaled_hill(c):
     return HamiltonianSystem(hamiltonian, 2, name=f"hill_times_{c}")
 
 
+# c = 1 (no change) closes the orbit as test_hill_lyapunov_multiplier_agrees_with_scipy_dop853
+# does (multiple shooting, the period, the index); c = 4 is the change of unit, in the default run
+@pytest.mark.slow_when(lambda c, **_: c == 1.0, why="repetition")
 @pytest.mark.parametrize("c", [1.0, 4.0])
 def test_closure_under_a_change_of_time_unit(lyapunov, c):
     """``H -> c H`` runs the same orbit ``c`` times faster: the period scales by ``1/c``, the
