@@ -9,7 +9,7 @@ import pytest
 from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.compiler import compile_function, find_compiler
+from ddvp_nlp.solvers.compiler import cache_folder, compile_function, find_compiler
 from ddvp_nlp.solvers.marching.chunk import MEDIUM_UNROLL, SMALL_UNROLL
 from ddvp_nlp.solvers.marching.recheck import recheck_residuals
 from ddvp_nlp.solvers.marching.step_newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
@@ -64,7 +64,7 @@ def test_unrolled_newton_is_fast_newton_bit_for_bit(iterations, check_after, inl
         assert np.array_equal(np.asarray(unrolled(guess, w)).ravel(), expected)
 
 
-def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
+def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton():
     """Compiled, the inlined iterations with merged subexpressions and the residual test after
     them give fast_newton's bits, on steps that stop inside the unrolled part and on steps that
     go on to fast_newton."""
@@ -73,14 +73,15 @@ def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
         pytest.skip("no C compiler")
     functions, cases = _steps("henon_heiles")
     root = ca.rootfinder("root", "fast_newton", functions.energy_residual, dict(NEWTON_OPTIONS))
+    # the default cache: a library is named by the hash of its code, compiler and flags
     x0 = ca.MX.sym("x0", functions.energy_residual.sparsity_in(0))
     w_sym = ca.MX.sym("w", functions.energy_residual.sparsity_in(1))
     reference = compile_function(ca.Function("fast_newton_step", [x0, w_sym],
-                                             [root(x0, w_sym)]), compiler, tmp_path)
+                                             [root(x0, w_sym)]), compiler, cache_folder())
     unrolled = compile_function(unrolled_newton("unrolled", functions.energy_residual,
                                                 NEWTON_OPTIONS,
                                                 **{**SMALL_UNROLL, "linear": "qr"}),
-                                compiler, tmp_path)
+                                compiler, cache_folder())
     for w, guess in cases:
         assert np.array_equal(np.asarray(unrolled(guess, w)).ravel(),
                               np.asarray(reference(guess, w)).ravel())
@@ -142,7 +143,7 @@ def test_dense_elimination_solves_like_numpy():
 @pytest.mark.parametrize("name, rule", [("pendulum", "vddvp"), ("paper_pendulum", "vddvp"),
                                         ("henon_heiles", "lee"), ("fpu", "fixed"),
                                         ("kepler", "vddvp")])
-def test_compiled_recheck_equals_the_virtual_machine(tmp_path, name, rule):
+def test_compiled_recheck_equals_the_virtual_machine(name, rule):
     """The compiled recheck (pieces of nodes with merged subexpressions) gives the bits of the
     separate mapped functions on the virtual machine, over several blocks and a partial one."""
     compiler = find_compiler("auto")
@@ -158,7 +159,7 @@ def test_compiled_recheck_equals_the_virtual_machine(tmp_path, name, rule):
     theta = system.parameter_vector(scene.resolve({}).params)
     expected = equations.grid_residuals(system, scheme, t, q, p, theta)
     found = recheck_residuals(system, scheme, t, q, p, theta, compiler=compiler,
-                           cache_dir=tmp_path)
+                           cache_dir=None)
     for a, b in zip(found, expected, strict=True):
         assert np.array_equal(a, b)
 
