@@ -27,8 +27,12 @@ def small_windows(monkeypatch):
     return rows
 
 
+# loaded once: a march's functions are built once per system (ddvp_nlp/cache.py)
+PENDULUM = load_scene("pendulum")
+
+
 def _pendulum(t_end=400.0, **output):
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     if "keep_every" in output or "keep" in output:
         output.setdefault("window", WINDOW)
@@ -145,7 +149,7 @@ def test_bad_values_are_refused_by_name(options, words):
 
 
 def test_continue_march_refuses_a_thinned_output():
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     run = march(scene.system, config.q0, config.p0, (config.t0, 1.0), tau0=config.tau0,
                 params=config.params, accuracy=None)

@@ -24,9 +24,12 @@ import pytest
 
 from ddvp_nlp import HamiltonianSystem, load_scene, march
 
+# loaded once: a march's functions are built once per system (ddvp_nlp/cache.py)
+PENDULUM = load_scene("pendulum")
+
 
 def _pendulum_march(amplitude, scheme):
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     return march(scene.system, np.asarray(config.q0) * amplitude,
                  np.asarray(config.p0) * amplitude, (0.0, 5.0), tau0=0.05, scheme=scheme)
@@ -58,7 +61,7 @@ def test_a_refusal_at_the_round_off_of_H_names_the_cause():
     from ddvp_nlp.solvers.marching.acceptance import Acceptance
     from ddvp_nlp.solvers.options import StepControl
 
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     acceptance = Acceptance.at_start(StepControl(), scene.system,
                                      np.asarray(config.q0) * 1e-6,
