@@ -2,6 +2,8 @@
 or not its unrolled iterations stop; with the elimination of the chunk's small systems it finds
 the same root; and the compiled recheck gives the virtual machine's residuals."""
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -20,6 +22,7 @@ from ddvp_nlp.solvers.marching.steps import step_functions
 MEASURED_AT = {"fpu": {"tau0": 0.01}, "henon_heiles": {"tau0": 0.05}, "kepler": {"tau0": 0.01}}
 
 
+@functools.cache  # once per scene for the module: its tests only read what it returns
 def _steps(name):
     """The step functions, theta and step inputs ``(w, guess)`` of ``name`` from the nodes of a
     short careful march: the predictor, and the predictor pushed off by 1e-3 .. 0.1, so that
@@ -183,6 +186,7 @@ def test_values_at_the_root_are_those_of_the_returned_iterate(options):
             assert float(value) == float(want)
 
 
+@functools.cache  # once per offset (offset 0 is every case's reference): only read
 def _azimuth_steps(offset: float):
     """A spherical pendulum in angles, ``H = p_1^2/2 + p_2^2 / (2 sin^2 q_1) - cos q_1``,
     whose azimuth ``q_2`` is cyclic: the step inputs of a short careful march from
