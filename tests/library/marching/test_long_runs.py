@@ -102,10 +102,10 @@ def test_keep_t_eval_keeps_the_states_and_events_only(small_windows):
     assert thin.verdict.name == full.verdict.name
 
 
-def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, monkeypatch):
+def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, scene_of):
     """Kepler with chunk steps refused and redone on the careful path: the index of a node in
     the run (not its row) decides the careful step's clock and the chunk's state."""
-    scene = load_scene("kepler")
+    scene = scene_of("kepler")
     config = scene.resolve({"e": 0.5, "t_end": 30.0})
     common = dict(tau0=0.01, params=config.params, accuracy=None,
                   compilation=Compilation(chunk=64),
