@@ -4,6 +4,8 @@ Their fitted orders, AVF's energy at the nodes, adaptive Verlet's bounded energy
 orbit, and SUNDIALS' published leapfrog numbers for Kepler reproduced to 1%.
 """
 
+import functools
+
 import numpy as np
 import pytest
 from helpers.common import fitted_order
@@ -15,9 +17,13 @@ from ddvp_nlp.solvers.compiler import find_compiler
 from ddvp_nlp.studies.methods import METHODS
 from ddvp_nlp.studies.work_precision import ComparisonReference, errors
 
+# each built-in scene loaded once for the module: a solver's functions are built once per
+# system (ddvp_nlp/cache.py), so the tests of one scene share them
+SCENES = functools.cache(load_scene)
+
 
 def _run(name, scene_name, value, overrides=None, compiler=None):
-    scene = load_scene(scene_name)
+    scene = SCENES(scene_name)
     config = scene.resolve(overrides or {})
     solution = METHODS[name].run(scene.system, config, value, compiler=compiler,
                                  cache_dir=None, max_steps=10**7)
@@ -82,7 +88,7 @@ ARK_KEPLER = {1e-3: -1.0321e-7, 5e-4: -2.583e-8, 2.5e-4: -6.460e-9, 1.25e-4: -1.
 
 
 def _ark_kepler(dt):
-    scene = load_scene("kepler")
+    scene = SCENES("kepler")
     theta = scene.system.parameter_vector({"e": 0.6})
     solution = fixed_step_run(scene.system, "leapfrog", np.array([0.4, 0.0]),
                               np.array([0.0, 2.0]), tau=dt, t_end=50.0, t0=0.0, theta=theta,
@@ -105,7 +111,7 @@ def test_leapfrog_reproduces_sundials_ark_kepler_fine_steps(dt):
 
 def test_kick_drift_kick_is_not_sundials_leapfrog():
     # the two Stormer-Verlet forms differ at T = 50 by a factor of about -31 in H(T) - H0
-    scene = load_scene("kepler")
+    scene = SCENES("kepler")
     theta = scene.system.parameter_vector({"e": 0.6})
     solution = fixed_step_run(scene.system, "stormer_verlet", np.array([0.4, 0.0]),
                               np.array([0.0, 2.0]), tau=1e-3, t_end=50.0, t0=0.0, theta=theta,
@@ -148,7 +154,7 @@ def test_a_step_that_fails_its_own_equation_turns_the_run_into_a_failure():
     from ddvp_nlp.solution import Status
     from ddvp_nlp.studies.methods import run_method
 
-    scene = load_scene("harmonic")
+    scene = SCENES("harmonic")
     config = scene.resolve({"t_end": 1.0})
     solution = run_method(scene, config, "rk4", 0.1, compiler=None, max_steps=100, tol=0.0)
     # rk4's own recheck is round-off, not zero: a tolerance of zero must catch it

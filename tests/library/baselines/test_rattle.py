@@ -22,6 +22,10 @@ from ddvp_nlp.solvers.exact.constrained_flow import constraint_residuals
 THETA = [1.0, 1.0]
 
 
+# the unit pendulum as one system for the module: what a run builds is kept per system
+PENDULUM = cartesian_pendulum()
+
+
 def elliptic(t, angle):
     """The unit pendulum released at rest at ``angle`` (see tests/library/exact/
     test_constrained_reference.py for the derivation's check)."""
@@ -35,7 +39,7 @@ def elliptic(t, angle):
 def run(method="rattle", tau=0.05, t_end=10.0, angle=1.0, **options):
     z0 = pendulum_start(angle)
     options.setdefault("theta", THETA)
-    return rattle_run(cartesian_pendulum(), z0[:2], z0[2:], tau=tau, t_end=t_end,
+    return rattle_run(PENDULUM, z0[:2], z0[2:], tau=tau, t_end=t_end,
                       method=method, **options)
 
 
@@ -65,7 +69,7 @@ def test_order_on_the_cartesian_pendulum(method, momentum_order):
 
 def test_rattle_keeps_both_constraints_at_its_newton_tolerance():
     solution = run(tau=0.05, t_end=500.0, tol=1e-14)  # 10^4 steps
-    g, h = constraint_residuals(cartesian_pendulum(), solution.t, nodes(solution), THETA)
+    g, h = constraint_residuals(PENDULUM, solution.t, nodes(solution), THETA)
     assert solution.success and solution.t.size == 10_001
     assert g.max() <= 1e-12 and h.max() <= 1e-12  # measured 4.4e-16, 2.2e-16
     assert np.max(solution.stats["newton"]) <= 2 * 5  # two solves, quadratic
@@ -73,7 +77,7 @@ def test_rattle_keeps_both_constraints_at_its_newton_tolerance():
 
 def test_shake_keeps_only_the_position_constraint():
     solution = run("shake", tau=0.05, t_end=50.0, tol=1e-14)
-    g, h = constraint_residuals(cartesian_pendulum(), solution.t, nodes(solution), THETA)
+    g, h = constraint_residuals(PENDULUM, solution.t, nodes(solution), THETA)
     assert g.max() <= 1e-14
     assert h.max() > 1e-3  # its node momenta are not projected (O(tau))
 
@@ -81,7 +85,7 @@ def test_shake_keeps_only_the_position_constraint():
 def test_shake_energy_error_follows_its_tolerance():
     # short version of bench_rattle.py: against SHAKE at tol 1e-15 with the same steps, the
     # energy difference grows over the run and scales with the tolerance
-    system = cartesian_pendulum()
+    system = PENDULUM
 
     def energy(tol):
         solution = run("shake", tau=0.05, t_end=1000.0, tol=tol)
@@ -100,7 +104,7 @@ def test_shake_energy_error_follows_its_tolerance():
 def test_verdicts_against_the_constrained_exact_flow():
     # a large step drifts where the elliptic solution says it leaves the tolerance; a small
     # one is accurate and its measured error is the true one
-    system = cartesian_pendulum()
+    system = PENDULUM
     for tau, verdict in ((0.1, "drifted"), (0.003, "accurate")):
         solution = run(tau=tau, t_end=100.0)
         z = nodes(solution)
@@ -122,7 +126,7 @@ def test_refused_on_unconstrained_systems():
     plain = HamiltonianSystem(lambda q, p, t: p[0] ** 2 / 2 + q[0] ** 2 / 2, 1, name="sho")
     for method in (RATTLE, SHAKE):
         assert "holonomic constraints" in method.applies(plain)
-        assert method.applies(cartesian_pendulum()) is None
+        assert method.applies(PENDULUM) is None
     with pytest.raises(InputError, match="shake needs a system with holonomic constraints"):
         rattle_run(plain, [1.0], [0.0], tau=0.1, t_end=1.0, method="shake")
 

@@ -4,6 +4,7 @@ against the continuous constrained solution, Newton and IPOPT on the same rows, 
 against an independently computed exact motion, bad input refused by name, and metamorphic
 relations (time offset, lengths and gravity scaled, coordinates swapped)."""
 
+import functools
 import warnings
 
 import casadi as ca
@@ -54,9 +55,16 @@ def solve(ends, nodes, **keywords):
     return solve_bvp(CARTESIAN, point(a0), point(a1), (0.0, T), nodes=nodes, **keywords)
 
 
+@functools.cache
+def solved(ends, nodes, scheme):
+    """``solve(ends, nodes, scheme=scheme)`` once for the module: the order, metamorphic and
+    verdict tests compare with the same solutions (they only read them)."""
+    return solve(ends, nodes, scheme=scheme)
+
+
 def test_fixed_ends_follow_the_angle_pendulum_and_keep_the_constraints():
     a0, a1, T = LIBRATION
-    cartesian = solve(LIBRATION, 81, scheme="fixed")
+    cartesian = solved(LIBRATION, 81, "fixed")
     angle = solve_bvp(ANGLE, [a0], [a1], (0.0, T), nodes=81, scheme="fixed")
     assert cartesian.status is Status.SUCCESS and angle.status is Status.SUCCESS
     assert cartesian.verdict.name == "accurate"
@@ -77,7 +85,7 @@ def test_fixed_ends_follow_the_angle_pendulum_and_keep_the_constraints():
 
 @pytest.mark.parametrize("scheme, ends", [("fixed", LIBRATION), ("vddvp", ROTATION)])
 def test_order_two_against_the_continuous_constrained_solution(scheme, ends):
-    errors = [solve(ends, nodes, scheme=scheme).verdict.error_max for nodes in (41, 81, 161)]
+    errors = [solved(ends, nodes, scheme).verdict.error_max for nodes in (41, 81, 161)]
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(np.abs(orders - 2) <= 0.05), orders
 
@@ -108,7 +116,7 @@ def exact_angle_motion(a0, a1, T, times):
 
 def test_the_verdict_measures_the_true_error():
     a0, a1, T = LIBRATION
-    solution = solve(LIBRATION, 41, scheme="fixed")
+    solution = solved(LIBRATION, 41, "fixed")
     theta, omega = exact_angle_motion(a0, a1, T, solution.t)
     exact = np.column_stack([np.sin(theta), -np.cos(theta), omega * np.cos(theta),
                              omega * np.sin(theta)])
@@ -175,7 +183,7 @@ def test_any_end_off_the_circle_beyond_rounding_is_refused(angle, offset, which)
 @pytest.mark.parametrize("scheme, ends", [("fixed", LIBRATION), ("vddvp", ROTATION)])
 def test_a_time_offset_moves_only_the_times(scheme, ends):
     a0, a1, T = ends
-    base = solve(ends, 41, scheme=scheme)
+    base = solved(ends, 41, scheme)
     shifted = solve_bvp(CARTESIAN, point(a0), point(a1), (7.0, 7.0 + T), nodes=41,
                         scheme=scheme)
     assert shifted.status is Status.SUCCESS
@@ -189,7 +197,7 @@ def test_lengths_and_gravity_scaled_together_scale_the_solution(scheme, ends):
     """L -> c L and gravity -> c g keep theta(t): q and p scale by c, H by c^2."""
     a0, a1, T = ends
     c = 3.0
-    base = solve(ends, 41, scheme=scheme)
+    base = solved(ends, 41, scheme)
     scaled = solve_bvp(CARTESIAN, point(a0, c), point(a1, c), (0.0, T), nodes=41,
                        scheme=scheme, params={"b": c, "L": c})
     assert scaled.status is Status.SUCCESS and scaled.verdict.name == base.verdict.name
@@ -202,7 +210,7 @@ def test_lengths_and_gravity_scaled_together_scale_the_solution(scheme, ends):
 def test_swapped_coordinates_swap_the_solution(scheme, ends):
     """Gravity along x instead of y and every point's x and y exchanged."""
     a0, a1, T = ends
-    base = solve(ends, 41, scheme=scheme)
+    base = solved(ends, 41, scheme)
     swapped = solve_bvp(CARTESIAN, point(a0)[::-1], point(a1)[::-1], (0.0, T), nodes=41,
                         scheme=scheme, params={"a": 1.0, "b": 0.0})
     assert swapped.status is Status.SUCCESS
@@ -246,7 +254,7 @@ def test_a_lagrangian_system_gives_the_hamiltonian_solution():
                               constraints=rod)
     a0, a1, T = LIBRATION
     solution = solve_bvp(system, point(a0), point(a1), (0.0, T), nodes=41, scheme="fixed")
-    base = solve(LIBRATION, 41, scheme="fixed")
+    base = solved(LIBRATION, 41, "fixed")
     assert solution.status is Status.SUCCESS and solution.verdict.name == "accurate"
     np.testing.assert_allclose(solution.q, base.q, rtol=0, atol=1e-10)
     np.testing.assert_allclose(solution.p, base.p, rtol=0, atol=1e-10)

@@ -4,6 +4,7 @@ energy rule's row at round-off, the angular momentum about the vertical; the tra
 converges at order 2 to the exact pendulum; the start is made consistent; the verdict holds
 against the exact pendulum; metamorphic relations (rotated frame, time offset, length units)."""
 
+import functools
 import warnings
 
 import casadi as ca
@@ -37,6 +38,19 @@ def pendulum_h_L(q, p, t, a, b, L):
     return pendulum_h(q, p, t, a, b)
 
 
+# One system for the module: a march's functions are built once per system (ddvp_nlp/cache.py),
+# so every test of the Cartesian pendulum reuses them; other gravities and lengths are params.
+PENDULUM = pendulum()
+Q0, P0 = np.array([0.0, -1.0]), np.array([3.0, 0.0])  # a rotation
+
+
+@functools.cache
+def rotation(scheme, t_end):
+    """The rotation from (Q0, P0) on (0, t_end) at tau0 = 0.01, marched once for the tests
+    that compare another march with it (a Solution; they only read it)."""
+    return march(PENDULUM, Q0, P0, (0, t_end), tau0=0.01, scheme=scheme)
+
+
 def exact_angle(theta0, omega0, times):
     """theta'' = -sin theta (g = L = 1) by DOP853 at tight tolerance."""
     solved = solve_ivp(lambda t, y: [y[1], -np.sin(y[0])], (0, times[-1]), [theta0, omega0],
@@ -45,7 +59,7 @@ def exact_angle(theta0, omega0, times):
 
 
 def test_fixed_steps_keep_the_constraints_at_round_off_with_no_trend():
-    solution = march(pendulum(), [np.sin(1.0), -np.cos(1.0)], [0.0, 0.0], (0, 100), tau0=0.01,
+    solution = march(PENDULUM, [np.sin(1.0), -np.cos(1.0)], [0.0, 0.0], (0, 100), tau0=0.01,
                      scheme="fixed")
     record = solution.constraints
     assert solution.success and solution.t.size == 10001
@@ -59,7 +73,7 @@ def test_fixed_steps_keep_the_constraints_at_round_off_with_no_trend():
 
 
 def test_energy_steps_conserve_the_interval_energy_in_a_rotation():
-    solution = march(pendulum(), [0.0, -1.0], [3.0, 0.0], (0, 50), tau0=0.01)
+    solution = march(PENDULUM, [0.0, -1.0], [3.0, 0.0], (0, 50), tau0=0.01)
     record = solution.constraints
     assert solution.success
     assert np.abs(solution.energy_residual).max() <= 1e-12
@@ -78,7 +92,7 @@ def test_the_verdict_holds_against_the_exact_pendulum(tau0):
     size, which the verdict states), a run whose error passes the tolerance is not called
     accurate, and the time the verdict says it drifted is when the error passes."""
     theta0 = 1.0
-    solution = march(pendulum(), [np.sin(theta0), -np.cos(theta0)], [0.0, 0.0], (0, 30),
+    solution = march(PENDULUM, [np.sin(theta0), -np.cos(theta0)], [0.0, 0.0], (0, 30),
                      tau0=tau0, scheme="fixed")
     verdict = solution.verdict
     assert verdict is not None and verdict.steps == solution.t.size - 1
@@ -99,7 +113,7 @@ def test_the_verdict_holds_against_the_exact_pendulum(tau0):
 def test_a_libration_has_no_positive_energy_step_where_c_changes_sign():
     """docs/theory.md: c = (nu' G H_pp G' nu - f' H_zz f)/8 changes sign on every libration
     of the Cartesian pendulum; the march stops there, saying so, and never accepts tau <= 0."""
-    system = pendulum()
+    system = PENDULUM
     solution = march(system, [np.sin(0.5), -np.cos(0.5)], [0.5 * np.cos(0.5),
                      0.5 * np.sin(0.5)], (0, 20), tau0=0.05)
     assert not solution.success
@@ -122,7 +136,7 @@ def test_the_trajectory_converges_at_order_two(scheme, start, span):
     theta0 = np.arctan2(q0[0], -q0[1])
     omega0 = (q0[0] * p0[1] * 0 + np.hypot(*p0)) * (1 if p0[0] >= 0 else -1)
     for tau in (0.02, 0.01, 0.005):
-        solution = march(pendulum(), q0, p0, (0, span), tau0=tau, scheme=scheme)
+        solution = march(PENDULUM, q0, p0, (0, span), tau0=tau, scheme=scheme)
         assert solution.success
         angle = exact_angle(theta0, omega0, solution.t)
         exact = np.column_stack([np.sin(angle), -np.cos(angle)])
@@ -152,7 +166,7 @@ def test_spherical_pendulum_keeps_the_angular_momentum_about_the_vertical():
 
 
 def test_an_inconsistent_start_is_projected_and_said():
-    system = pendulum()
+    system = PENDULUM
     with pytest.warns(RuntimeWarning, match="projected onto the constraints"):
         moved = march(system, [0.1, -1.05], [1.0, 0.3], (0, 2), tau0=0.01)
     start = moved.constraints.start
@@ -169,10 +183,9 @@ def test_an_inconsistent_start_is_projected_and_said():
 def test_a_rotated_frame_gives_the_same_motion_rotated(scheme):
     angle = 0.7
     R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-    q0, p0 = np.array([0.0, -1.0]), np.array([3.0, 0.0])
-    plain = march(pendulum(), q0, p0, (0, 5), tau0=0.01, scheme=scheme)
+    plain = rotation(scheme, 5)
     a, b = R @ np.array([0.0, 1.0])
-    turned = march(pendulum(a=a, b=b), R @ q0, R @ p0, (0, 5), tau0=0.01, scheme=scheme,
+    turned = march(PENDULUM, R @ Q0, R @ P0, (0, 5), tau0=0.01, scheme=scheme,
                    params={"a": a, "b": b})
     assert turned.t.size == plain.t.size
     assert np.abs(turned.t - plain.t).max() <= 1e-9
@@ -181,9 +194,8 @@ def test_a_rotated_frame_gives_the_same_motion_rotated(scheme):
 
 @pytest.mark.parametrize("scheme", ["fixed", "vddvp"])
 def test_a_time_offset_shifts_the_nodes(scheme):
-    q0, p0 = [0.0, -1.0], [3.0, 0.0]
-    plain = march(pendulum(), q0, p0, (0, 5), tau0=0.01, scheme=scheme)
-    later = march(pendulum(), q0, p0, (7, 12), tau0=0.01, scheme=scheme)
+    plain = rotation(scheme, 5)
+    later = march(PENDULUM, Q0, P0, (7, 12), tau0=0.01, scheme=scheme)
     assert later.t.size == plain.t.size
     assert np.abs(later.t - 7 - plain.t).max() <= 1e-10
     assert np.abs(later.q - plain.q).max() <= 1e-9
@@ -194,9 +206,8 @@ def test_length_units_scale_the_motion(scheme):
     """A rod of length L under gravity L (the same angular motion): q and p scale by L, H and
     g by L^2, the steps stay."""
     L = 3.0
-    q0, p0 = np.array([0.0, -1.0]), np.array([3.0, 0.0])
-    plain = march(pendulum(), q0, p0, (0, 5), tau0=0.01, scheme=scheme)
-    scaled = march(pendulum(), L * q0, L * p0, (0, 5), tau0=0.01, scheme=scheme,
+    plain = rotation(scheme, 5)
+    scaled = march(PENDULUM, L * Q0, L * P0, (0, 5), tau0=0.01, scheme=scheme,
                    params={"b": L, "L": L})
     assert scaled.t.size == plain.t.size
     assert np.abs(scaled.t - plain.t).max() <= 1e-10
@@ -215,9 +226,8 @@ def test_lagrangian_and_hamiltonian_forms_give_the_same_motion(scheme, bound):
 
     system = LagrangianSystem(lagrangian, 2, name="cartesian_l", constraints=circle)
     assert system.n_constraints == 1
-    q0, p0 = [0.0, -1.0], [3.0, 0.0]
-    from_l = march(system, q0, p0, (0, 3), tau0=0.01, scheme=scheme)
-    from_h = march(pendulum(), q0, p0, (0, 3), tau0=0.01, scheme=scheme)
+    from_l = march(system, Q0, P0, (0, 3), tau0=0.01, scheme=scheme)
+    from_h = rotation(scheme, 3)
     assert from_l.success and from_l.t.size == from_h.t.size
     assert np.abs(from_l.q - from_h.q).max() <= bound
 
@@ -226,7 +236,7 @@ def test_t_eval_and_events_on_the_constrained_interpolant():
     def crossing(t, q, p):
         return q[0]
     crossing.direction = 1
-    solution = march(pendulum(), [0.0, -1.0], [3.0, 0.0], (0, 5), tau0=0.01,
+    solution = march(PENDULUM, [0.0, -1.0], [3.0, 0.0], (0, 5), tau0=0.01,
                      output=Output(t_eval=np.linspace(0, 5, 11), events=(crossing,)))
     g = (solution.z_eval[:, :2] ** 2).sum(axis=1) - 1
     assert np.abs(g).max() <= 1e-7  # the Hermite interpolant between two nodes on the circle
@@ -254,9 +264,8 @@ def test_the_built_in_scene_has_its_constraint():
 def test_lee_is_vddvp_for_an_autonomous_system():
     """For autonomous H and g the lee balance dS/dt_k = 0 is the change of the interval energy
     (theory section 12): the same steps up to round-off."""
-    q0, p0 = [0.0, -1.0], [3.0, 0.0]
-    vddvp = march(pendulum(), q0, p0, (0, 3), tau0=0.01)
-    lee = march(pendulum(), q0, p0, (0, 3), tau0=0.01, scheme="lee")
+    vddvp = rotation("vddvp", 3)
+    lee = march(PENDULUM, Q0, P0, (0, 3), tau0=0.01, scheme="lee")
     assert lee.success and lee.t.size == vddvp.t.size
     assert np.abs(lee.t - vddvp.t).max() <= 1e-9
 

@@ -35,6 +35,11 @@ def linkage(order=(0, 1), name="four_bar"):
                              constraints=rods)
 
 
+# the linkage as one system for the module (other sizes are the parameter L): a march's
+# functions are built once per system (ddvp_nlp/cache.py)
+LINKAGE = linkage()
+
+
 def scene_start():
     scene = load_scene("four_bar")
     return scene, np.array(scene.q0), np.array(scene.p0)
@@ -70,7 +75,7 @@ def test_the_scene_is_the_linkage_of_the_parametrised_rods():
     scene, q0, p0 = scene_start()
     a = march(scene.system, q0, p0, (0, 1), tau0=0.01, scheme="fixed", accuracy=None,
               compilation=VM)
-    b = march(linkage(), q0, p0, (0, 1), tau0=0.01, scheme="fixed", accuracy=None,
+    b = march(LINKAGE, q0, p0, (0, 1), tau0=0.01, scheme="fixed", accuracy=None,
               compilation=VM)
     assert np.abs(a.q - b.q).max() <= 1e-13
 
@@ -128,10 +133,10 @@ def test_metamorphic_offset_scale_and_relabelling(scheme):
     and with joint C stored before joint B."""
     _, q0, p0 = scene_start()
     run = dict(tau0=0.01, scheme=scheme, accuracy=None, compilation=VM)
-    plain = march(linkage(), q0, p0, (0, 2), **run)
-    later = march(linkage(), q0, p0, (7, 9), **run)
+    plain = march(LINKAGE, q0, p0, (0, 2), **run)
+    later = march(LINKAGE, q0, p0, (7, 9), **run)
     L = 2.5
-    scaled = march(linkage(), L * q0, L * p0, (0, 2), params={"L": L}, **run)
+    scaled = march(LINKAGE, L * q0, L * p0, (0, 2), params={"L": L}, **run)
     swap = [2, 3, 0, 1]
     relabelled = march(linkage(order=(1, 0), name="four_bar_cb"), q0[swap], p0[swap], (0, 2),
                        **run)

@@ -24,11 +24,13 @@ def hoop() -> HamiltonianSystem:
                              constraints=constraints, name="turning hoop")
 
 
+# one turning hoop for the module: a march's functions are built once per system
+HOOP = hoop()
 START = ([np.sin(ANGLE), 0.0, -np.cos(ANGLE)], [0.0, SPIN * np.sin(ANGLE), 0.0])
 
 
 def test_a_moving_constraint_does_work_and_its_march_is_not_called_drifted_for_it():
-    system = hoop()
+    system = HOOP
     assert system.energy_varies and not system.time_dependent
     run = march(system, *START, (0.0, 20.0), tau0=0.01, scheme="fixed")
     H = system.energy(run.q, run.p, run.t, system.parameter_vector())
@@ -39,7 +41,7 @@ def test_a_moving_constraint_does_work_and_its_march_is_not_called_drifted_for_i
 
 
 def test_the_trajectory_test_still_judges_a_march_on_a_moving_constraint():
-    coarse = march(hoop(), *START, (0.0, 20.0), tau0=0.6, scheme="fixed")
+    coarse = march(HOOP, *START, (0.0, 20.0), tau0=0.6, scheme="fixed")
     assert coarse.verdict.name != "accurate"
     assert coarse.verdict.error_max > coarse.verdict.rtol
 
@@ -51,7 +53,7 @@ def test_a_step_that_cannot_be_taken_ends_the_march_with_a_status(method):
     (test_moving_energy_steps.py; before the energy row carried the hoop's work they found
     only tau < 0 after the first step); the null-space form's QR solves had raised on the NaN
     iterate of a retry."""
-    run = march(hoop(), *START, (0.0, 20.0), tau0=0.01, scheme="vddvp",
+    run = march(HOOP, *START, (0.0, 20.0), tau0=0.01, scheme="vddvp",
                 steps=StepControl(constraint_method=method))
     assert run.status is not Status.SUCCESS and run.message
     assert run.t.size >= 2  # the accepted first step is kept

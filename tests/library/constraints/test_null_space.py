@@ -28,6 +28,11 @@ def pendulum(**params):
                              constraints=lambda q, t, a, b: q[0] ** 2 + q[1] ** 2 - 1)
 
 
+# one system for the module's pendulum tests (gravity along another axis or scaled: params): a
+# march's functions are built once per system (ddvp_nlp/cache.py)
+NS_PENDULUM = pendulum()
+
+
 def double_pendulum(order=(0, 1, 2, 3)):
     """Two unit masses on unit rods, coordinates ``(x1, y1, x2, y2)`` stored in ``order``."""
     where = {name: order.index(k) for k, name in enumerate(("x1", "y1", "x2", "y2"))}
@@ -72,7 +77,7 @@ PENDULUM = {"fixed": ([np.sin(1.0), -np.cos(1.0)], [0.0, 0.0]),
 @pytest.mark.parametrize("scheme", ["fixed", "vddvp"])
 def test_the_null_space_form_marches_the_multiplier_forms_nodes(scheme):
     q0, p0 = PENDULUM[scheme]
-    multipliers, null_space = both(pendulum(), q0, p0, (0, 1.5), scheme)
+    multipliers, null_space = both(NS_PENDULUM, q0, p0, (0, 1.5), scheme)
     assert_same(multipliers, null_space)
     record = null_space.constraints
     assert record.constraint_residual.max() <= 1e-13
@@ -107,9 +112,9 @@ def test_time_unit_and_rotated_coordinates():
     """Time in units c times shorter: gravity c^2 g, momenta c p, steps tau / c, the same
     positions. Gravity along a rotated axis with rotated coordinates: the same motion rotated."""
     q0, p0 = PENDULUM["vddvp"]
-    base = run(pendulum(), q0, p0, (0, 1.0), "vddvp", "null_space")
+    base = run(NS_PENDULUM, q0, p0, (0, 1.0), "vddvp", "null_space")
     c = 3.0
-    scaled = run(pendulum(), q0, c * np.asarray(p0), (0, 1.0 / c), "vddvp", "null_space",
+    scaled = run(NS_PENDULUM, q0, c * np.asarray(p0), (0, 1.0 / c), "vddvp", "null_space",
                  tau0=0.01 / c, a=0.0, b=c ** 2)
     assert scaled.t.size == base.t.size
     assert np.abs(scaled.t * c - base.t).max() <= AGREE
@@ -117,7 +122,7 @@ def test_time_unit_and_rotated_coordinates():
     angle = 0.7
     R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
     a, b = R @ np.array([0.0, 1.0])
-    turned = run(pendulum(), R @ q0, R @ p0, (0, 1.0), "vddvp", "null_space", a=a, b=b)
+    turned = run(NS_PENDULUM, R @ q0, R @ p0, (0, 1.0), "vddvp", "null_space", a=a, b=b)
     assert turned.t.size == base.t.size
     assert np.abs(turned.t - base.t).max() <= AGREE
     assert np.abs(turned.q - base.q @ R.T).max() <= AGREE
@@ -136,7 +141,7 @@ def test_a_bad_constraint_method_is_refused_by_name(value):
 def test_where_the_null_space_form_does_not_apply_it_is_refused_before_the_march():
     q0, p0 = PENDULUM["vddvp"]
     with pytest.raises(InputError, match="constraint_method='null_space'.*'lee'"):
-        run(pendulum(), q0, p0, (0, 1.0), "lee", "null_space")
+        run(NS_PENDULUM, q0, p0, (0, 1.0), "lee", "null_space")
     lagrangian = LagrangianSystem(lambda q, v, t: (v[0] ** 2 + v[1] ** 2) / 2 - q[1], 2,
                                   name="ns_lagrangian",
                                   constraints=lambda q, t: q[0] ** 2 + q[1] ** 2 - 1)

@@ -1,5 +1,7 @@
 """First-order Lagrangian systems (the paper's case 2): the same solvers, the same results."""
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -18,6 +20,10 @@ from ddvp_nlp import (
 from ddvp_nlp.cli import main
 from ddvp_nlp.discrete.equations import interval_energies
 
+# each built-in scene loaded once for the module: a solver's functions are built once per
+# system (ddvp_nlp/cache.py), so the tests of one scene share them
+SCENES = functools.cache(load_scene)
+
 
 def _pendulum_l(q, v, t):
     return v[0] ** 2 / 2 - (1 - ca.cos(q[0]))
@@ -31,6 +37,10 @@ def _harmonic_l(q, v, t):
     return (v[0] ** 2 - q[0] ** 2) / 2
 
 
+# the pendulum's Lagrangian as one system for the module (its functions built once)
+PENDULUM_L = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
+
+
 def _same(a, b, tol):
     assert a.success and b.success and a.steps == b.steps
     for x, y in ((a.t, b.t), (a.q, b.q), (a.p, b.p)):
@@ -41,8 +51,8 @@ def _same(a, b, tol):
 @pytest.mark.parametrize("alpha", [0.0, 0.25, 0.5, 1.0])
 def test_fixed_steps_match_the_hamiltonian_scheme_for_every_alpha(alpha):
     """L = v^2/2 - V and H = p^2/2 + V: the same discrete trajectory (docs/theory.md section 4)."""
-    hamiltonian = load_scene("pendulum").system
-    lagrangian = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
+    hamiltonian = SCENES("pendulum").system
+    lagrangian = PENDULUM_L
     scheme = Scheme(rule="fixed", alpha=alpha)
     _same(march(hamiltonian, [0.5], [0.5], (0.0, 20.0), tau0=0.05, scheme=scheme),
           march(lagrangian, [0.5], [0.5], (0.0, 20.0), tau0=0.05, scheme=scheme), 1e-10)
@@ -58,7 +68,7 @@ def test_energy_rules_match_the_hamiltonian_scheme(rule, scene, function, params
     """Also with a time-dependent L, where vddvp and lee differ from each other. (Over longer
     runs the two forms part by round-off: the Lagrangian energy divides q differences by tau;
     measured 9e-10 in t after 403 pendulum steps.)"""
-    hamiltonian = load_scene(scene).system
+    hamiltonian = SCENES(scene).system
     lagrangian = LagrangianSystem(function, 1, params=params, name=f"{scene}_l")
     _same(march(hamiltonian, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule),
           march(lagrangian, [0.5], [0.5], (0.0, t_end), tau0=tau0, scheme=rule), 1e-10)
@@ -81,7 +91,7 @@ def test_fitted_order_by_alpha(alpha, order):
 
 
 def test_interval_energy_is_conserved_by_vddvp():
-    system = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
+    system = PENDULUM_L
     solution = march(system, [0.5], [0.5], (0.0, 50.0), tau0=0.05)
     E = interval_energies(system, Scheme(), solution.t, solution.q, solution.p, [])
     assert solution.success and np.ptp(E) < 1e-12
@@ -93,7 +103,7 @@ def test_interval_energy_is_conserved_by_vddvp():
 
 @pytest.mark.parametrize("alpha", [0.5, 0.25])
 def test_start_from_a_velocity(alpha):
-    system = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
+    system = PENDULUM_L
     scheme = Scheme(rule="fixed", alpha=alpha)
     solution = march(system, [0.5], t_span=(0.0, 1.0), v0=[0.4], tau0=0.05, scheme=scheme)
     assert solution.success
@@ -105,7 +115,7 @@ def test_start_from_a_velocity(alpha):
 
 
 def test_fixed_endpoint_problem_matches_the_hamiltonian_one():
-    hamiltonian, lagrangian = load_scene("pendulum"), load_scene("pendulum_lagrangian")
+    hamiltonian, lagrangian = SCENES("pendulum"), SCENES("pendulum_lagrangian")
     for rule in ("vddvp", "fixed"):
         data = hamiltonian.resolve_boundary()
         a = solve_bvp(
@@ -169,7 +179,7 @@ def test_bad_lagrangian(function, message):
     ({"v0": [np.nan]}, "v0 must be finite, got [nan]"),
 ])
 def test_bad_start(kwargs, message):
-    system = LagrangianSystem(_pendulum_l, 1, name="pendulum_l")
+    system = PENDULUM_L
     with pytest.raises(InputError, match="^" + message.replace("[", r"\[").replace("]", r"\]")):
         march(system, [0.5], t_span=(0.0, 1.0), tau0=0.05, **kwargs)
 
@@ -177,7 +187,7 @@ def test_bad_start(kwargs, message):
 def test_v0_needs_a_lagrangian():
     with pytest.raises(InputError, match="^v0 needs a Lagrangian system; 'pendulum' is "
                                          "Hamiltonian: give p0$"):
-        march(load_scene("pendulum").system, [0.5], t_span=(0.0, 1.0), v0=[0.4], tau0=0.05)
+        march(SCENES("pendulum").system, [0.5], t_span=(0.0, 1.0), v0=[0.4], tau0=0.05)
     with pytest.raises(InputError, match="^v0 is for a scene declared by Lagrangian"):
         Scene(lambda q, p, t: p[0] ** 2, n=1, q0=[0.0], v0=[1.0], tau0=0.1, t_end=1.0)
     scene = Scene(Lagrangian(_pendulum_l), n=1, q0=[0.5], v0=[0.4], tau0=0.05, t_end=1.0)

@@ -3,6 +3,8 @@ DOP853 (the same algorithm) and exact solutions, its dense output, its reference
 against the true error, the batched short flows, multiple shooting and the variational
 equations. Counted in steps and errors, never in seconds."""
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -15,9 +17,13 @@ from ddvp_nlp.solvers.exact.shooting import banded_solve, shoot
 from ddvp_nlp.solvers.exact.short_flows import LocalFlows, short_flows
 from ddvp_nlp.solvers.exact.variational import flow_with_derivatives
 
+# each built-in scene loaded once for the module: a solver's functions are built once per
+# system (ddvp_nlp/cache.py), so the tests of one scene share them
+SCENES = functools.cache(load_scene)
+
 
 def _problem(name, overrides=None):
-    scene = load_scene(name)
+    scene = SCENES(name)
     config = scene.resolve(overrides or {})
     theta = scene.system.parameter_vector(config.params)
     z0 = np.concatenate([config.q0, config.p0])
@@ -160,7 +166,7 @@ def test_short_flows_hold_their_bounds(rng):
 
 
 def test_shooting_finds_the_pendulums_continuous_solution_and_refuses_a_conjugate_point():
-    scene = load_scene("pendulum")
+    scene = SCENES("pendulum")
     data = scene.resolve_boundary()
     theta = scene.system.parameter_vector(data.params)
     t = np.linspace(*data.t_span, 2001)
@@ -171,7 +177,7 @@ def test_shooting_finds_the_pendulums_continuous_solution_and_refuses_a_conjugat
     end = exact_flow(scene.system).run(np.concatenate([data.q_start, shot.p0]), t[0], t[-1],
                                        theta, rtol=1e-13, atol=1e-15).z_end
     assert abs(end[0] - data.q_end[0]) < 1e-9 and shot.cuts.size > 2
-    harmonic = load_scene("harmonic")
+    harmonic = SCENES("harmonic")
     t = np.linspace(0.0, np.pi, 101)
     z = np.stack([np.cos(t) + 3 * np.sin(t), -np.sin(t) + 3 * np.cos(t)], axis=1)
     refused = shoot(harmonic.system, harmonic.system.parameter_vector({}), t, z, [0.5],

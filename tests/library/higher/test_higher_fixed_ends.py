@@ -2,6 +2,7 @@
 (``solvers/higher/windows.py``, ``solvers/higher/window_solve.py``): Newton against IPOPT, the
 verification that decides whatever the solver said, and the scale."""
 
+import functools
 import json
 from dataclasses import replace
 
@@ -19,9 +20,13 @@ from ddvp_nlp.solvers.higher.fixed_nodes import straight
 from ddvp_nlp.solvers.higher.stepping import bvp_request, solve_bvp_higher
 from ddvp_nlp.solvers.higher.windows import HigherAssembly, HigherEnds
 
+# each scene loaded once for the module: what the solvers build is kept per system
+# (ddvp_nlp/cache.py), so the tests of one scene share it
+SCENES = functools.cache(load_scene)
+
 
 def _solve(name, nodes, scheme, solver, **kwargs):
-    scene = load_scene(name)
+    scene = SCENES(name)
     config = scene.resolve()
     t_a, q_a, t_b, q_b = scene.ends(config, nodes, scene.boundary.t_span)
     return scene, config, solve_bvp_higher(scene.system, t_a, q_a, t_b, q_b, nodes=nodes,

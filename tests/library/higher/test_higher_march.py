@@ -43,8 +43,9 @@ def test_spline_reproduces_the_cubic_through_its_boundary_data(spline):
 
 def test_pais_uhlenbeck_fixed_steps_converge_at_second_order(pais_uhlenbeck):
     """Forward differences at the left node, yet second order on this problem (measured:
-    7.6e-4, 1.9e-4, 4.7e-5, 1.2e-5 at t = 5 for tau = 0.04 .. 0.005)."""
-    steps, errors = [0.04, 0.02, 0.01, 0.005], []
+    7.6e-4, 1.9e-4, 4.7e-5, 1.2e-5 at t = 5 for tau = 0.04 .. 0.005). Three halvings fit the
+    order as well as four (each ratio is 4.0 to 1%); tau = 0.005 was half of the test's cost."""
+    steps, errors = [0.04, 0.02, 0.01], []
     for tau in steps:
         config = pais_uhlenbeck.resolve({"tau0": tau, "t_end": 5.0})
         t_init, q_init = pais_uhlenbeck.start(config)

@@ -8,7 +8,6 @@ import warnings
 import casadi as ca
 import numpy as np
 import pytest
-from helpers.common import run_scene
 
 from ddvp_nlp import (
     Compilation,
@@ -60,15 +59,15 @@ def test_residual_above_the_tolerance(square_root):
     _clean(solution)
 
 
-def test_max_steps():
-    _, _, solution = run_scene("harmonic", steps=StepControl(max_steps=7))
+def test_max_steps(run_shared):
+    _, _, solution = run_shared("harmonic", steps=StepControl(max_steps=7))
     assert solution.status is Status.MAX_STEPS and solution.steps == 7
     assert solution.message.endswith("; max_steps = 7")
     _clean(solution)
 
 
-def test_time_limit_keeps_what_was_done():
-    _, _, solution = run_scene("harmonic", steps=StepControl(time_limit=1e-12))
+def test_time_limit_keeps_what_was_done(run_shared):
+    _, _, solution = run_shared("harmonic", steps=StepControl(time_limit=1e-12))
     assert solution.status is Status.TIME_LIMIT
     assert solution.message.endswith("; time_limit = 1e-12 s")
     assert solution.steps >= 0
@@ -76,8 +75,8 @@ def test_time_limit_keeps_what_was_done():
 
 
 @pytest.mark.parametrize("fast", [True, False])
-def test_energy_guard_stops_before_the_first_node_outside_the_band(fast):
-    scene, config, solution = run_scene(
+def test_energy_guard_stops_before_the_first_node_outside_the_band(fast, run_shared):
+    scene, config, solution = run_shared(
         "pendulum",
         {"tau0": 0.5},
         scheme="fixed",
@@ -106,11 +105,11 @@ def test_energy_guard_stops_before_the_first_node_outside_the_band(fast):
     _clean(solution)
 
 
-def test_fast_and_careful_paths_stop_at_the_same_node_under_the_guard():
-    _, _, fast = run_scene(
+def test_fast_and_careful_paths_stop_at_the_same_node_under_the_guard(run_shared):
+    _, _, fast = run_shared(
         "pendulum", {"tau0": 0.5}, scheme="fixed", steps=StepControl(energy_guard=1e-4)
     )
-    _, _, careful = run_scene(
+    _, _, careful = run_shared(
         "pendulum",
         {"tau0": 0.5},
         scheme="fixed",
@@ -120,10 +119,10 @@ def test_fast_and_careful_paths_stop_at_the_same_node_under_the_guard():
     assert fast.steps == careful.steps and fast.message == careful.message
 
 
-def test_solvability_monitor_warns_before_the_kepler_breakdown():
+def test_solvability_monitor_warns_before_the_kepler_breakdown(run_shared):
     """e = 0.8 > sqrt(5/8): the energy step breaks down in the first pass from perihelion."""
     with pytest.warns(RuntimeWarning, match="solvability monitor at step"):
-        _, _, solution = run_scene("kepler", {"e": 0.8})
+        _, _, solution = run_shared("kepler", {"e": 0.8})
     assert solution.status in (Status.NEWTON_FAILED, Status.NO_ADMISSIBLE_STEP,
                                Status.RESIDUAL_TOO_LARGE)
     warning = solution.march.solvability_warning
@@ -134,19 +133,19 @@ def test_solvability_monitor_warns_before_the_kepler_breakdown():
     _clean(solution)
 
 
-def test_solvability_monitor_is_quiet_where_the_scheme_is_fine():
+def test_solvability_monitor_is_quiet_where_the_scheme_is_fine(run_shared):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        _, _, solution = run_scene("kepler", {"e": 0.6})
+        _, _, solution = run_shared("kepler", {"e": 0.6})
     assert solution.success and solution.march.solvability_warning is None
     assert np.all(solution.solvability < 0)  # c = -(p.V''p + |V'|^2)/8 keeps its sign
-    _, _, fixed = run_scene("harmonic", scheme="fixed")
+    _, _, fixed = run_shared("harmonic", scheme="fixed")
     assert fixed.solvability.size == 0  # no energy equation, nothing to monitor
 
 
 @pytest.mark.slow(why="study")
-def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged():
-    scene = load_scene("pendulum")
+def test_least_squares_steps_carry_the_rotating_pendulum_through_and_are_flagged(scene_of):
+    scene = scene_of("pendulum")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         # H = 2.12 > 2: rotation
@@ -218,15 +217,15 @@ def test_bad_breakdown_options(steps, scheme, message):
               steps=StepControl(**steps))
 
 
-def test_default_step_ratio_refuses_a_jump_to_a_far_root():
+def test_default_step_ratio_refuses_a_jump_to_a_far_root(run_shared):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         # the accuracy check would stop both runs first (accuracy.py); this test is about the
         # step-ratio guard, so the check only records
         # tau0 = 0.01, kepler's default when this was measured (the default is 0.001 now)
-        _, _, guarded = run_scene("kepler", {"e": 0.99, "tau0": 0.01},
+        _, _, guarded = run_shared("kepler", {"e": 0.99, "tau0": 0.01},
                                   accuracy=Tolerance(stop=False))
-        _, _, unguarded = run_scene(
+        _, _, unguarded = run_shared(
             "kepler",
             {"e": 0.99, "tau0": 0.01},
             steps=StepControl(max_step_ratio=None),
@@ -248,9 +247,9 @@ def test_default_step_ratio_refuses_a_jump_to_a_far_root():
                                           "the previous step: step 37 from t = "),
 ])
 @pytest.mark.parametrize("fast", [True, False])
-def test_rotating_pendulum_breakdowns_by_status(tau0, status, steps, prefix, fast):
+def test_rotating_pendulum_breakdowns_by_status(tau0, status, steps, prefix, fast, scene_of):
     """H = 2.12 > 2: c(z) changes sign each turn; where the march stops depends on tau0."""
-    scene = load_scene("pendulum")
+    scene = scene_of("pendulum")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         solution = march(

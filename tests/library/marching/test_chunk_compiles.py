@@ -58,15 +58,17 @@ def test_the_chunk_size_does_not_change_the_nodes(tmp_path):
 
 
 @pytest.mark.parametrize("method", ["rk4", "stormer_verlet"])
-def test_a_baseline_through_buffers_is_its_chunk_called_with_dm(tmp_path, method):
+def test_a_baseline_through_buffers_is_its_chunk_called_with_dm(method):
     scene = load_scene("henon_heiles")
     system = scene.system
     config = scene.resolve({"t_end": 30.0})
     theta = system.parameter_vector(None)
     solution = fixed_step.fixed_step_run(system, method, config.q0, config.p0, tau=0.05,
                                         t_end=config.t_end, t0=0.0, theta=theta,
-                                        compiler=COMPILER, cache_dir=tmp_path)
-    function, _ = fixed_step.fixed_chunk(system, method, chunks.CHUNK, COMPILER, tmp_path)
+                                        compiler=COMPILER, cache_dir=None)
+    # the default cache (cache_dir=None): the compiled chunk is the property, not its build
+    # (test_a_short_and_a_long_run_of_a_scene_compile_once builds in a folder of its own)
+    function, _ = fixed_step.fixed_chunk(system, method, chunks.CHUNK, COMPILER, None)
     assert isinstance(function, chunks.Buffered) and solution.steps == 600
     constants = np.tile(np.concatenate([theta, [0.0, 0.05]])[:, None], (1, chunks.CHUNK))
     state = np.concatenate([[0.0], config.q0, config.p0])
@@ -87,7 +89,7 @@ def _same(a, b) -> bool:
 @pytest.mark.slow_when(lambda case, **_: case != "fixed", why="repetition")
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 @pytest.mark.parametrize("case", ["careful windows", "accuracy stop", "max_steps", "fixed"])
-def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, case):
+def test_batches_of_chunks_give_what_one_call_per_chunk_gives(case):
     """The compiled stepper checks up to ``batch`` chained chunks at once and hands them out
     one by one; nodes, status, message and every statistic are those of one call per chunk,
     also where chunk steps fail and the careful path takes windows in between."""
@@ -105,7 +107,7 @@ def test_batches_of_chunks_give_what_one_call_per_chunk_gives(tmp_path, case):
     found = []
     for calls in (1, stepper.MAX_CALLS):
         found.append(march(system, q0, p0, (0.0, t_end), tau0=0.05, **options,
-                           compilation=Compilation(cache_dir=tmp_path, chunk=64, batch=calls)))
+                           compilation=Compilation(chunk=64, batch=calls)))  # default cache
     one, batched = found
     assert one.stats["fast_steps"] > 3 * 64  # several chunks, so batches of several
     if case == "careful windows":

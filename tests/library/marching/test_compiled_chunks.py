@@ -10,8 +10,13 @@ from ddvp_nlp.solvers.compiler import find_compiler
 
 
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("chunks")
+def cache():
+    """The default compiled-code cache (``Compilation``'s ``cache_dir=None``): these tests are
+    about what a compiled chunk does, which a library loaded from the cache does as one just
+    built (its name is the hash of the generated code, compiler and flags); building and
+    loading it is test_compiled_chunks_are_cached's, in a folder of its own. A folder made
+    per run cost a C compile per scene (3-4 s of CPU each)."""
+    return None
 
 
 @pytest.mark.slow(why="repetition")

@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from ddvp_nlp import Compilation, InputError, StepControl, load_scene
+from ddvp_nlp import Compilation, InputError, StepControl
 from ddvp_nlp.solvers.marching import MarchState, continue_march, march
 
 
@@ -22,11 +22,11 @@ def _same(a, b) -> bool:
 
 @pytest.mark.slow_when(lambda fast, **_: not fast, why="repetition")
 @pytest.mark.parametrize("fast", [True, False])
-def test_a_march_cut_anywhere_continues_bit_for_bit(fast):
+def test_a_march_cut_anywhere_continues_bit_for_bit(fast, scene_of):
     """Kepler e = 0.5 with tau_max just under the free steps: chunk steps fail their check and
     the careful path's least-squares step takes the rest of each chunk's window, so where the
     run was inside a chunk decides which path takes which step."""
-    scene = load_scene("kepler")
+    scene = scene_of("kepler")
     config = scene.resolve({"e": 0.5, "t_end": 30.0 if fast else 8.0})
     # tau0 = 0.01 (the scene's default before it was made accurate at 0.001): the free steps
     # pass tau_max below, so chunk steps fail and the careful path takes over
@@ -47,8 +47,8 @@ def test_a_march_cut_anywhere_continues_bit_for_bit(fast):
         assert _same(continued, whole), cut
 
 
-def test_a_finished_march_extends_to_a_later_end_bit_for_bit():
-    scene = load_scene("henon_heiles")
+def test_a_finished_march_extends_to_a_later_end_bit_for_bit(scene_of):
+    scene = scene_of("henon_heiles")
     c = scene.resolve()
     whole = march(scene.system, c.q0, c.p0, (0.0, 120.0), tau0=c.tau0)
     half = march(scene.system, c.q0, c.p0, (0.0, 60.0), tau0=c.tau0)
@@ -56,8 +56,8 @@ def test_a_finished_march_extends_to_a_later_end_bit_for_bit():
     assert _same(continue_march(scene.system, state, 120.0, tau0=c.tau0), whole)
 
 
-def test_a_continuation_refuses_what_would_not_be_the_same_run():
-    scene = load_scene("henon_heiles")
+def test_a_continuation_refuses_what_would_not_be_the_same_run(scene_of):
+    scene = scene_of("henon_heiles")
     c = scene.resolve()
     half = march(scene.system, c.q0, c.p0, (0.0, 10.0), tau0=c.tau0)
     state = MarchState.of(half.t, half.q, half.p, 10.0, half.march.carried)

@@ -9,9 +9,12 @@ from hypothesis import strategies as st
 from ddvp_nlp import InputError, Output, load_scene
 from ddvp_nlp.solution import SolverStatistics
 
+# each scene loaded once: a march's functions are built once per system (ddvp_nlp/cache.py)
+SCENES = {name: load_scene(name) for name in ("henon_heiles", "harmonic")}
+
 
 def _march(scene="henon_heiles", t_end=60.0, **output):
-    return load_scene(scene).march(t_end, output=Output(**output))
+    return SCENES[scene].march(t_end, output=Output(**output))
 
 
 @settings(max_examples=8, deadline=None)
@@ -56,20 +59,20 @@ def test_bad_events_and_times_are_refused_by_name():
         Output(t_eval=[2.0, 1.0, 3.0])
     # decreasing times are a backward march's (t_end < t0); a forward one refuses them
     with pytest.raises(InputError, match="t_eval must be sorted in increasing order"):
-        load_scene("harmonic").march(5.0, output=Output(t_eval=[2.0, 1.0]))
+        SCENES["harmonic"].march(5.0, output=Output(t_eval=[2.0, 1.0]))
     with pytest.raises(InputError, match=r"t_eval must lie in t_span = \[0, 5\]"):
-        load_scene("harmonic").march(5.0, output=Output(t_eval=[6.0]))
+        SCENES["harmonic"].march(5.0, output=Output(t_eval=[6.0]))
 
 
 def test_the_span_error_states_plain_numbers():
-    solution = load_scene("harmonic").march(2.0)
+    solution = SCENES["harmonic"].march(2.0)
     with pytest.raises(InputError) as error:
         solution.at(-1.0)
     assert "np.float64" not in str(error.value) and "span [0, " in str(error.value)
 
 
 def test_named_statistics_beside_the_dict():
-    solution = load_scene("harmonic").march(2.0)
+    solution = SCENES["harmonic"].march(2.0)
     stats = solution.statistics
     assert isinstance(stats, SolverStatistics)
     assert stats.fast_steps + stats.careful_steps >= stats.steps == solution.steps

@@ -12,6 +12,7 @@ import pytest
 from ddvp_nlp import load_scene
 from ddvp_nlp.discrete.scheme import Scheme
 from ddvp_nlp.solvers.compiler import (
+    cache_folder,
     compile_function,
     find_compiler,
     generated_code,
@@ -31,7 +32,7 @@ def _bits(values) -> np.ndarray:
     return np.asarray(values, dtype=float).view(np.int64)
 
 
-def test_the_inline_fmax_returns_what_libm_returns_for_every_special_pair(tmp_path):
+def test_the_inline_fmax_returns_what_libm_returns_for_every_special_pair():
     """The same values as the C library's ``fmax`` (what the compiled code called before), NaN
     where it gives NaN; a zero's sign may differ from another C library's (glibc's x86-64
     fmax and the inline one return ``y`` for ``fmax(0, -0)``, CasADi's virtual machine ``x``):
@@ -43,7 +44,9 @@ def test_the_inline_fmax_returns_what_libm_returns_for_every_special_pair(tmp_pa
     function = ca.Function("fmax_pairs", [x, y], [ca.fmax(x, y)])
     code = generated_code(function)
     assert "return fmax(x, y);" not in code and "larger" in code  # the call replaced
-    compiled = compile_function(function, COMPILER, tmp_path)
+    # in the default cache: a library there is named by the hash of this code (the inline
+    # fmax in it), the compiler and its flags, so a loaded one is this code compiled
+    compiled = compile_function(function, COMPILER, cache_folder())
     a, b = np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
     found = np.asarray(compiled(a, b)).ravel()
     expected = np.array([libm.fmax(p, q) for p, q in pairs])
@@ -54,7 +57,7 @@ def test_the_inline_fmax_returns_what_libm_returns_for_every_special_pair(tmp_pa
     assert np.array_equal(_bits(found[~nan & ~zero]), _bits(expected[~nan & ~zero]))
 
 
-def test_a_mapaccum_generated_as_a_loop_gives_its_tree_s_outputs_to_the_bit(tmp_path):
+def test_a_mapaccum_generated_as_a_loop_gives_its_tree_s_outputs_to_the_bit():
     state, p = ca.SX.sym("state", 2), ca.SX.sym("p", 3)
     after = ca.vertcat(state[1] * p[0] + ca.sin(state[0]), state[0] - p[1] * state[1])
     step = ca.Function("step", [state, p], [after, ca.vertcat(ca.fmax(after[0], p[2]),
@@ -63,7 +66,7 @@ def test_a_mapaccum_generated_as_a_loop_gives_its_tree_s_outputs_to_the_bit(tmp_
     code = generated_code(function)
     looped = looped_mapaccum(code, function, 37)
     assert "ddvp_looped" in looped and looped != code
-    compiled = compile_function(function, COMPILER, tmp_path, steps=37)
+    compiled = compile_function(function, COMPILER, cache_folder(), steps=37)
     rng = np.random.default_rng(3)
     start, parameters = rng.normal(size=2), rng.normal(size=(3, 37))
     for found, expected in zip(compiled(start, parameters), function(start, parameters),

@@ -27,8 +27,12 @@ def small_windows(monkeypatch):
     return rows
 
 
+# loaded once: a march's functions are built once per system (ddvp_nlp/cache.py)
+PENDULUM = load_scene("pendulum")
+
+
 def _pendulum(t_end=400.0, **output):
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     if "keep_every" in output or "keep" in output:
         output.setdefault("window", WINDOW)
@@ -98,10 +102,10 @@ def test_keep_t_eval_keeps_the_states_and_events_only(small_windows):
     assert thin.verdict.name == full.verdict.name
 
 
-def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, monkeypatch):
+def test_the_careful_path_and_fallbacks_keep_the_same_nodes(small_windows, scene_of):
     """Kepler with chunk steps refused and redone on the careful path: the index of a node in
     the run (not its row) decides the careful step's clock and the chunk's state."""
-    scene = load_scene("kepler")
+    scene = scene_of("kepler")
     config = scene.resolve({"e": 0.5, "t_end": 30.0})
     common = dict(tau0=0.01, params=config.params, accuracy=None,
                   compilation=Compilation(chunk=64),
@@ -145,7 +149,7 @@ def test_bad_values_are_refused_by_name(options, words):
 
 
 def test_continue_march_refuses_a_thinned_output():
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     run = march(scene.system, config.q0, config.p0, (config.t0, 1.0), tau0=config.tau0,
                 params=config.params, accuracy=None)

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from helpers.common import fitted_order, run_scene
+from helpers.common import fitted_order
 
 from ddvp_nlp import HamiltonianSystem, Scheme, Status, StepControl, Tolerance, load_scene, march
 
@@ -53,7 +53,8 @@ def numpy_residuals(solution, scheme):
 @pytest.mark.parametrize("scheme", [Scheme("vddvp"), Scheme("lee"), Scheme("fixed"),
                                     Scheme("fixed", alpha=0.3), Scheme("lee", clock="left"),
                                     Scheme("vddvp", clock="left")])
-def test_equations_hold_when_recomputed_with_numpy(paper, scheme):
+def test_equations_hold_when_recomputed_with_numpy(scene_of, scheme):
+    paper = scene_of("paper_pendulum")
     config = paper.resolve({"t_end": 300.0})
     # alpha = 0.3 at tau0 = 0.5 is beyond the accuracy check's default tolerance (accuracy.py);
     # the equations, which this test is about, hold all the same
@@ -72,9 +73,9 @@ def test_equations_hold_when_recomputed_with_numpy(paper, scheme):
     assert np.all(solution.tau > 0)
 
 
-def test_paper_example_to_t_10000(paper):
+def test_paper_example_to_t_10000(run_shared):
     """docs/theory.md section 8: about 20150 steps, tau between 0.458 and 0.535."""
-    _, _, solution = run_scene("paper_pendulum")
+    _, _, solution = run_shared("paper_pendulum")
     assert solution.success
     assert 20100 <= solution.steps <= 20200
     assert 0.455 < solution.tau.min() < 0.461
@@ -84,8 +85,8 @@ def test_paper_example_to_t_10000(paper):
 
 
 @pytest.mark.parametrize("rule", ["vddvp", "lee", "fixed"])
-def test_midpoint_rule_is_second_order_on_harmonic(rule):
-    scene = load_scene("harmonic")
+def test_midpoint_rule_is_second_order_on_harmonic(scene_of, rule):
+    scene = scene_of("harmonic")
     config = scene.resolve()
     steps, errors = [], []
     for tau0 in (0.2, 0.1, 0.05, 0.025):
@@ -99,8 +100,8 @@ def test_midpoint_rule_is_second_order_on_harmonic(rule):
 @pytest.mark.slow_when(lambda rule, name, **_: rule == "vddvp" and name == "fpu", why="repetition")
 @pytest.mark.parametrize("name", ["pendulum", "harmonic", "kepler", "henon_heiles", "fpu"])
 @pytest.mark.parametrize("rule", ["vddvp", "lee"])
-def test_midpoint_energy_conserved_over_ten_thousand_steps(name, rule):
-    scene, config, solution = run_scene(
+def test_midpoint_energy_conserved_over_ten_thousand_steps(run_shared, name, rule):
+    scene, config, solution = run_shared(
         name, {"t_end": 1e9}, scheme=rule, steps=StepControl(max_steps=10_000)
     )
     assert solution.status is Status.MAX_STEPS and solution.steps == 10_000
@@ -111,21 +112,21 @@ def test_midpoint_energy_conserved_over_ten_thousand_steps(name, rule):
 
 
 @pytest.mark.parametrize("name", ["pendulum", "kepler", "henon_heiles"])
-def test_lee_and_vddvp_agree_on_autonomous_scenes(name):
-    _, _, vddvp = run_scene(name, {"t_end": 20.0}, scheme="vddvp")
-    _, _, lee = run_scene(name, {"t_end": 20.0}, scheme="lee")
+def test_lee_and_vddvp_agree_on_autonomous_scenes(run_shared, name):
+    _, _, vddvp = run_shared(name, {"t_end": 20.0}, scheme="vddvp")
+    _, _, lee = run_shared(name, {"t_end": 20.0}, scheme="lee")
     assert vddvp.success and lee.success and vddvp.steps == lee.steps
     assert np.max(np.abs(vddvp.t - lee.t)) < 1e-10
     assert np.max(np.abs(vddvp.q - lee.q)) < 1e-10
     assert np.max(np.abs(vddvp.p - lee.p)) < 1e-10
 
 
-def test_gauge_term_changes_lee_but_not_vddvp():
+def test_gauge_term_changes_lee_but_not_vddvp(scene_of):
     """Adding f(t) to H leaves the paper's equations unchanged (its energy equation compares both
     intervals at one clock) but not the lee rule (docs/theory.md sections 3 and 8)."""
     import casadi as ca
 
-    base = load_scene("paper_pendulum")
+    base = scene_of("paper_pendulum")
     gauged = HamiltonianSystem(
         lambda q, p, t, eps, omega: base.hamiltonian(q, p, t, eps, omega) + 0.05 * ca.sin(0.5 * t)
         + 0.01 * t, n=1, params=dict(base.params), name="gauged")
@@ -148,15 +149,15 @@ def test_time_dependence_is_found_out():
     assert not load_scene("pendulum").system.time_dependent
 
 
-def test_fixed_steps_end_on_t_end():
-    _, _, solution = run_scene("harmonic", {"t_end": 1.0, "tau0": 0.3}, scheme="fixed")
+def test_fixed_steps_end_on_t_end(run_shared):
+    _, _, solution = run_shared("harmonic", {"t_end": 1.0, "tau0": 0.3}, scheme="fixed")
     assert solution.success and solution.steps == 4 and solution.t[-1] == 1.0
     np.testing.assert_allclose(solution.tau, 0.25, rtol=1e-14)
 
 
-def test_breakdown_keeps_every_accepted_step_and_never_a_reversed_one():
+def test_breakdown_keeps_every_accepted_step_and_never_a_reversed_one(scene_of):
     """The rotating pendulum (H = 2.5) has no positive step once c(z) changes sign."""
-    scene = load_scene("pendulum")
+    scene = scene_of("pendulum")
     solution = march(scene.system, [0.0], [np.sqrt(5.0)], (0.0, 100.0), tau0=0.05)
     assert not solution.success
     assert solution.status in (Status.NEWTON_FAILED, Status.NO_ADMISSIBLE_STEP)
@@ -168,12 +169,12 @@ def test_breakdown_keeps_every_accepted_step_and_never_a_reversed_one():
     assert np.max(np.abs(solution.energy_residual)) < 1e-10
 
 
-def test_step_bounds_end_the_march_with_their_status():
-    _, _, low = run_scene("paper_pendulum", {"t_end": 50.0}, steps=StepControl(tau_min=0.49))
+def test_step_bounds_end_the_march_with_their_status(run_shared):
+    _, _, low = run_shared("paper_pendulum", {"t_end": 50.0}, steps=StepControl(tau_min=0.49))
     assert low.status is Status.STEP_BELOW_MIN and np.all(low.tau >= 0.49)
-    _, _, high = run_scene("paper_pendulum", {"t_end": 50.0}, steps=StepControl(tau_max=0.51))
+    _, _, high = run_shared("paper_pendulum", {"t_end": 50.0}, steps=StepControl(tau_max=0.51))
     assert high.status is Status.STEP_ABOVE_MAX and np.all(high.tau[1:] <= 0.51)
-    _, _, ratio = run_scene(
+    _, _, ratio = run_shared(
         "paper_pendulum", {"t_end": 50.0}, steps=StepControl(max_step_ratio=1.01)
     )
     assert ratio.status is Status.STEP_RATIO
@@ -181,13 +182,14 @@ def test_step_bounds_end_the_march_with_their_status():
     assert np.all(np.maximum(ratios, 1 / ratios) <= 1.01)
 
 
-def test_an_interrupt_inside_the_monitors_keeps_only_the_nodes_all_of_them_saw(monkeypatch):
+def test_an_interrupt_inside_the_monitors_keeps_only_the_nodes_all_of_them_saw(monkeypatch,
+                                                                            scene_of):
     """A Ctrl-C that lands while the driver's monitors look at a batch (here in the solvability
     monitor, before the accuracy check has seen it, on its third call) drops that batch: the
     nodes kept are those every monitor saw, and the per-node arrays agree with them."""
     from ddvp_nlp.solvers.marching import monitors
 
-    scene = load_scene("henon_heiles")
+    scene = scene_of("henon_heiles")
     watch = monitors.SolvabilityMonitor.watch
     calls = []
 

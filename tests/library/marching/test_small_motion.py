@@ -18,15 +18,20 @@ is then judged whole by the accuracy check, and a step refused there names that 
 
 from __future__ import annotations
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
 
 from ddvp_nlp import HamiltonianSystem, load_scene, march
 
+# loaded once: a march's functions are built once per system (ddvp_nlp/cache.py)
+PENDULUM = load_scene("pendulum")
+
 
 def _pendulum_march(amplitude, scheme):
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     return march(scene.system, np.asarray(config.q0) * amplitude,
                  np.asarray(config.p0) * amplitude, (0.0, 5.0), tau0=0.05, scheme=scheme)
@@ -58,7 +63,7 @@ def test_a_refusal_at_the_round_off_of_H_names_the_cause():
     from ddvp_nlp.solvers.marching.acceptance import Acceptance
     from ddvp_nlp.solvers.options import StepControl
 
-    scene = load_scene("pendulum")
+    scene = PENDULUM
     config = scene.resolve({})
     acceptance = Acceptance.at_start(StepControl(), scene.system,
                                      np.asarray(config.q0) * 1e-6,
@@ -84,17 +89,25 @@ def test_the_same_pendulum_without_the_cancellation_marches_by_energy_steps():
     assert np.ptp(np.diff(solution.t)) > 0  # the energy equation set the steps
 
 
+# The Duffing oscillator, one system for the module (lengths by L are the parameter b = L^-2):
+# a march's functions are built once per system (ddvp_nlp/cache.py)
+DUFFING = HamiltonianSystem(
+    lambda q, p, t, a, b: p[0] ** 2 / 2 + a * q[0] ** 2 / 2 + b * q[0] ** 4 / 4, n=1,
+    params={"a": 1.0, "b": 1.0}, name="duffing")
+
+
+@functools.cache  # the march in units of 1 is every size's reference: marched once a scheme
+def duffing_march(L, scheme):
+    return march(DUFFING, [L], [0.5 * L], (0.0, 20.0), tau0=0.05, scheme=scheme,
+                 params={"a": 1.0, "b": 1.0 / L ** 2})
+
+
 @pytest.mark.parametrize("scheme", ["vddvp", "fixed"])
 @pytest.mark.parametrize("size", [1e-5, 1e-10])
 def test_a_motion_far_below_the_units_marches_as_in_units_of_one(size, scheme):
     """The Duffing oscillator with lengths by ``size`` (``b`` by ``size^-2``: the same
     physics): the same steps and verdict as in units of 1."""
-    def run(L):
-        system = HamiltonianSystem(
-            lambda q, p, t, a, b: p[0] ** 2 / 2 + a * q[0] ** 2 / 2 + b * q[0] ** 4 / 4, n=1,
-            params={"a": 1.0, "b": 1.0 / L ** 2}, name="duffing")
-        return march(system, [L], [0.5 * L], (0.0, 20.0), tau0=0.05, scheme=scheme)
-    one, small = run(1.0), run(size)
+    one, small = duffing_march(1.0, scheme), duffing_march(size, scheme)
     assert small.success, small.message
     assert small.steps == one.steps
     assert small.verdict.name == one.verdict.name
@@ -107,12 +120,14 @@ def test_a_motion_far_below_the_units_marches_as_in_units_of_one(size, scheme):
 def test_kepler_in_lengths_of_1e_minus_10_takes_the_steps_of_units_of_one():
     """Found by a user: 5001 equal steps (its RK4 guess) called an accurate vddvp success,
     where the same orbit in units of 1 takes 1259 steps and drifts."""
+    system = HamiltonianSystem(lambda q, p, t, k: ca.dot(p, p) / 2 - k / ca.norm_2(q),
+                               n=2, params={"k": 1.0}, name="kepler")  # one system, k = L^3
+
     def run(L):
-        system = HamiltonianSystem(lambda q, p, t, k: ca.dot(p, p) / 2 - k / ca.norm_2(q),
-                                   n=2, params={"k": L ** 3}, name="kepler")
         e = 0.6
         return march(system, np.array([1 - e, 0.0]) * L,
-                     np.array([0.0, np.sqrt((1 + e) / (1 - e))]) * L, (0.0, 10.0), tau0=0.01)
+                     np.array([0.0, np.sqrt((1 + e) / (1 - e))]) * L, (0.0, 10.0), tau0=0.01,
+                     params={"k": L ** 3})
     one, small = run(1.0), run(1e-10)
     assert small.success, small.message
     assert small.steps == one.steps
@@ -125,11 +140,8 @@ def test_the_energy_guard_stops_at_the_same_node_in_any_units():
     from ddvp_nlp.solvers.options import StepControl
 
     def run(L):
-        system = HamiltonianSystem(
-            lambda q, p, t, a, b: p[0] ** 2 / 2 + a * q[0] ** 2 / 2 + b * q[0] ** 4 / 4, n=1,
-            params={"a": 1.0, "b": 1.0 / L ** 2}, name="duffing")
-        return march(system, [L], [0.5 * L], (0.0, 20.0), tau0=0.2, scheme="fixed",
-                     steps=StepControl(energy_guard=1e-3))
+        return march(DUFFING, [L], [0.5 * L], (0.0, 20.0), tau0=0.2, scheme="fixed",
+                     steps=StepControl(energy_guard=1e-3), params={"a": 1.0, "b": 1.0 / L ** 2})
     runs = [run(L) for L in (1.0, 1e-3, 1e3)]
     assert {r.status.name for r in runs} == {"ENERGY_GUARD"}
     assert len({r.steps for r in runs}) == 1

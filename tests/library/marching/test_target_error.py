@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import InputError, Scene, load_scene, march
+from ddvp_nlp import InputError, Scene, march
 from ddvp_nlp.cli import main
 from ddvp_nlp.solvers import exact_reference
 
@@ -30,8 +30,8 @@ def _true_error(scene, config, solution) -> float:
 @pytest.mark.parametrize("name, overrides, target", [("kepler", {"e": 0.6, "t_end": 20.0}, 1e-3),
                                                      ("henon_heiles", {"t_end": 100.0}, 1e-3),
                                                      ("pendulum", {"t_end": 50.0}, 1e-4)])
-def test_the_run_is_accurate_at_the_error_asked_for(name, overrides, target):
-    scene = load_scene(name)
+def test_the_run_is_accurate_at_the_error_asked_for(name, overrides, target, scene_of):
+    scene = scene_of(name)
     config = scene.resolve(overrides)
     solution = march(scene.system, config.q0, config.p0, (config.t0, config.t_end),
                      tau0=config.tau0, params=config.params, target_error=target)
@@ -67,20 +67,20 @@ def test_the_choice_does_not_depend_on_units():
 
 
 @pytest.mark.parametrize("value", [0.0, -1e-3, 1.0, 5.0, float("nan"), "x", 1e-300, 1e-13])
-def test_a_bad_target_is_refused_by_name(value):
+def test_a_bad_target_is_refused_by_name(value, scene_of):
     """Below the exact-flow reference's floor no run can be judged to reach the target: it
     is refused up front (``1e-300`` ran 250 s before failing, issue 45)."""
-    scene = load_scene("harmonic")
+    scene = scene_of("harmonic")
     with pytest.raises(InputError, match="target_error"):
         march(scene.system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, target_error=value)
 
 
-def test_a_target_needs_the_check_and_p0():
-    scene = load_scene("harmonic")
+def test_a_target_needs_the_check_and_p0(scene_of):
+    scene = scene_of("harmonic")
     with pytest.raises(InputError, match="accuracy check"):
         march(scene.system, [1.0], [0.0], (0.0, 1.0), tau0=0.1, target_error=1e-3,
               accuracy=None)
-    lagrangian = load_scene("pendulum_lagrangian")
+    lagrangian = scene_of("pendulum_lagrangian")
     with pytest.raises(InputError, match="p0"):
         march(lagrangian.system, [0.5], None, (0.0, 1.0), tau0=0.05, v0=[0.1],
               target_error=1e-3)
@@ -98,10 +98,10 @@ def test_the_command_line_says_what_it_chose(tmp_path, capsys):
     assert "compared method" in capsys.readouterr().err
 
 
-def test_a_pilot_that_breaks_down_is_a_status_with_its_nodes_not_an_input_error():
+def test_a_pilot_that_breaks_down_is_a_status_with_its_nodes_not_an_input_error(scene_of):
     """The pilot's breakdown is a failed solve (issue 45: it raised `InputError`, and the
     command line exited 2, the bad-input code)."""
-    scene = load_scene("kepler")
+    scene = scene_of("kepler")
     config = scene.resolve({"e": 0.9})
     solution = march(scene.system, config.q0, config.p0, (0.0, 50.0), tau0=0.5,
                      target_error=1e-3)
@@ -111,11 +111,11 @@ def test_a_pilot_that_breaks_down_is_a_status_with_its_nodes_not_an_input_error(
     assert solution.march.target_error["tau0"] is None
 
 
-def test_a_run_stopped_before_its_first_step_carries_no_verdict_and_is_not_retried():
+def test_a_run_stopped_before_its_first_step_carries_no_verdict_and_is_not_retried(scene_of):
     """Ctrl-C during the tries wrote status interrupted, 0 steps and verdict accurate."""
     from ddvp_nlp import Output
 
-    scene = load_scene("pendulum")
+    scene = scene_of("pendulum")
     config = scene.resolve({})
     polls = []
 

@@ -2,6 +2,8 @@
 or not its unrolled iterations stop; with the elimination of the chunk's small systems it finds
 the same root; and the compiled recheck gives the virtual machine's residuals."""
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -9,7 +11,7 @@ import pytest
 from ddvp_nlp import Compilation, load_scene, march
 from ddvp_nlp.discrete import equations
 from ddvp_nlp.discrete.scheme import Scheme
-from ddvp_nlp.solvers.compiler import compile_function, find_compiler
+from ddvp_nlp.solvers.compiler import cache_folder, compile_function, find_compiler
 from ddvp_nlp.solvers.marching.chunk import MEDIUM_UNROLL, SMALL_UNROLL
 from ddvp_nlp.solvers.marching.recheck import recheck_residuals
 from ddvp_nlp.solvers.marching.step_newton import NEWTON_OPTIONS, DenseLU, unrolled_newton
@@ -20,6 +22,7 @@ from ddvp_nlp.solvers.marching.steps import step_functions
 MEASURED_AT = {"fpu": {"tau0": 0.01}, "henon_heiles": {"tau0": 0.05}, "kepler": {"tau0": 0.01}}
 
 
+@functools.cache  # once per scene for the module: its tests only read what it returns
 def _steps(name):
     """The step functions, theta and step inputs ``(w, guess)`` of ``name`` from the nodes of a
     short careful march: the predictor, and the predictor pushed off by 1e-3 .. 0.1, so that
@@ -64,7 +67,7 @@ def test_unrolled_newton_is_fast_newton_bit_for_bit(iterations, check_after, inl
         assert np.array_equal(np.asarray(unrolled(guess, w)).ravel(), expected)
 
 
-def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
+def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton():
     """Compiled, the inlined iterations with merged subexpressions and the residual test after
     them give fast_newton's bits, on steps that stop inside the unrolled part and on steps that
     go on to fast_newton."""
@@ -73,14 +76,15 @@ def test_compiled_inlined_unrolled_newton_is_compiled_fast_newton(tmp_path):
         pytest.skip("no C compiler")
     functions, cases = _steps("henon_heiles")
     root = ca.rootfinder("root", "fast_newton", functions.energy_residual, dict(NEWTON_OPTIONS))
+    # the default cache: a library is named by the hash of its code, compiler and flags
     x0 = ca.MX.sym("x0", functions.energy_residual.sparsity_in(0))
     w_sym = ca.MX.sym("w", functions.energy_residual.sparsity_in(1))
     reference = compile_function(ca.Function("fast_newton_step", [x0, w_sym],
-                                             [root(x0, w_sym)]), compiler, tmp_path)
+                                             [root(x0, w_sym)]), compiler, cache_folder())
     unrolled = compile_function(unrolled_newton("unrolled", functions.energy_residual,
                                                 NEWTON_OPTIONS,
                                                 **{**SMALL_UNROLL, "linear": "qr"}),
-                                compiler, tmp_path)
+                                compiler, cache_folder())
     for w, guess in cases:
         assert np.array_equal(np.asarray(unrolled(guess, w)).ravel(),
                               np.asarray(reference(guess, w)).ravel())
@@ -142,7 +146,7 @@ def test_dense_elimination_solves_like_numpy():
 @pytest.mark.parametrize("name, rule", [("pendulum", "vddvp"), ("paper_pendulum", "vddvp"),
                                         ("henon_heiles", "lee"), ("fpu", "fixed"),
                                         ("kepler", "vddvp")])
-def test_compiled_recheck_equals_the_virtual_machine(tmp_path, name, rule):
+def test_compiled_recheck_equals_the_virtual_machine(name, rule):
     """The compiled recheck (pieces of nodes with merged subexpressions) gives the bits of the
     separate mapped functions on the virtual machine, over several blocks and a partial one."""
     compiler = find_compiler("auto")
@@ -158,7 +162,7 @@ def test_compiled_recheck_equals_the_virtual_machine(tmp_path, name, rule):
     theta = system.parameter_vector(scene.resolve({}).params)
     expected = equations.grid_residuals(system, scheme, t, q, p, theta)
     found = recheck_residuals(system, scheme, t, q, p, theta, compiler=compiler,
-                           cache_dir=tmp_path)
+                           cache_dir=None)
     for a, b in zip(found, expected, strict=True):
         assert np.array_equal(a, b)
 
@@ -182,6 +186,7 @@ def test_values_at_the_root_are_those_of_the_returned_iterate(options):
             assert float(value) == float(want)
 
 
+@functools.cache  # once per offset (offset 0 is every case's reference): only read
 def _azimuth_steps(offset: float):
     """A spherical pendulum in angles, ``H = p_1^2/2 + p_2^2 / (2 sin^2 q_1) - cos q_1``,
     whose azimuth ``q_2`` is cyclic: the step inputs of a short careful march from
