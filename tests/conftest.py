@@ -7,10 +7,18 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `from helpers... import`
 
 from ddvp_nlp import load_scene  # noqa: E402
+
+# Every hypothesis test draws the same examples on every run, with no time limit per example
+# (a deadline is a wall-clock bound, and a loaded machine passes it): the tests' own @settings
+# set the number of examples and keep these for what they do not set. Tests had set them one by
+# one, and a few dozen had not.
+settings.register_profile("ddvp", derandomize=True, deadline=None)
+settings.load_profile("ddvp")
 
 
 def pytest_sessionstart(session):
