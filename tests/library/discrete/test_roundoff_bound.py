@@ -12,6 +12,7 @@ from fractions import Fraction
 
 import casadi as ca
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -92,3 +93,37 @@ def test_parameters_and_constants_carry_no_round_off_of_their_own():
     function = ca.Function("f", [q, c], [q + c])
     assert float(roundoff_bound(function, (0,))(0.0, 1e9)) == 1e9  # the sum's own rounding
     assert float(roundoff_bound(ca.Function("g", [q, c], [c * 3.0]), (0,))(0.0, 2.0)) == 6.0
+
+
+def _bound_of(expression, inputs) -> float:
+    x = _SYMBOLS
+    return float(roundoff_bound(ca.Function("f", [x], [expression]), (0,))(inputs))
+
+
+_SYMBOLS = ca.SX.sym("x", 3)
+
+
+def test_each_rule_gives_the_bound_written_out_by_hand():
+    """The bound's value, not only its being a bound (the comparison with exact arithmetic above
+    is loose: a dropped partial or a halved rule still bounds it): each operation on inputs of
+    both signs, ``e(x_i) = |x_i|``, ``e(v) = |v| + |dv/da| e(a) + |dv/db| e(b)`` by hand."""
+    x = _SYMBOLS
+    a, b, c = -3.0, -2.0, 5.0
+    written = {
+        "a + b": (x[0] + x[1], abs(a + b) + abs(a) + abs(b)),
+        "a - b": (x[0] - x[1], abs(a - b) + abs(a) + abs(b)),
+        "a * b": (x[0] * x[1], abs(a * b) + abs(b) * abs(a) + abs(a) * abs(b)),
+        "a / b": (x[0] / x[1], abs(a / b) + abs(1 / b) * abs(a) + abs(a / b**2) * abs(b)),
+        "a^2": (x[0] ** 2, a * a + 2 * abs(a) * abs(a)),
+        "sin a": (ca.sin(x[0]), abs(np.sin(a)) + abs(np.cos(a)) * abs(a)),
+        "exp a": (ca.exp(x[0]), np.exp(a) + np.exp(a) * abs(a)),
+        "a * b + c": (x[0] * x[1] + x[2],
+                      abs(a * b + c) + (abs(a * b) + 2 * abs(a * b)) + abs(c)),
+    }
+    for name, (expression, expected) in written.items():
+        assert _bound_of(expression, [a, b, c]) == pytest.approx(expected, rel=4 * EPS), name
+    # a power with both arguments unknown, on a positive base: |b a^(b-1)| e(a) + |v ln a| e(b)
+    base, power = 2.0, -3.0
+    value = base ** power
+    expected = value + abs(power * base ** (power - 1)) * base + abs(value * np.log(base)) * 3
+    assert _bound_of(x[0] ** x[1], [base, power, c]) == pytest.approx(expected, rel=4 * EPS)
