@@ -11,6 +11,8 @@ from hypothesis import settings
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # `from helpers... import`
 
+from helpers.tiers import SLOW_REASONS  # noqa: E402
+
 from ddvp_nlp import load_scene  # noqa: E402
 
 # Every hypothesis test draws the same examples on every run, with no time limit per example
@@ -39,12 +41,8 @@ def paper():
 # scheme: under a minute), the default run (what CI runs: everything not slow) and
 # `python -m pytest -m slow` (scripts/checks/slow_tier.sh). A test is slow by a mark in its own
 # file that says why: `@pytest.mark.slow(why=...)`, or for some cases of a parametrized test
-# `@pytest.mark.slow_when(predicate, why=...)`, the predicate taking the case's parameters.
-SLOW_REASONS = {
-    "study": "a long study that measures a claim (orders, families, random systems)",
-    "repetition": "a costly repetition of a property a cheaper case of the default run checks",
-    "processes": "starts processes, clusters or file-system faults: seconds each",
-}
+# `@pytest.mark.slow_when(predicate, why=...)`, the predicate taking the case's parameters;
+# the reasons are helpers.tiers.SLOW_REASONS.
 
 
 def _slow_reason(mark, where):

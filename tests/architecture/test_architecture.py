@@ -641,7 +641,7 @@ def test_every_slow_mark_says_why_in_its_own_file():
     """The slow tier is marked by meaning in the test files (tests/conftest.py): every
     `pytest.mark.slow` and `pytest.mark.slow_when` is a call with a why= among the reasons the
     conftest knows; a bare mark, or one with another reason, is listed here."""
-    from conftest import SLOW_REASONS
+    from helpers.tiers import SLOW_REASONS
 
     def is_slow_mark(node):
         return (isinstance(node, ast.Attribute) and node.attr in {"slow", "slow_when"}
