@@ -17,6 +17,7 @@ The built-in scenes are the files of the top-level ``problems/`` folder (install
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -149,6 +150,10 @@ def as_settings(where: str, value, kind):
         raise InputError(f"{where}: {exc}") from None
 
 
+# `Scene.system` by what it is built from, held while a scene (or anything else) holds it.
+_SYSTEMS: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+
+
 @dataclass(eq=False)
 class Scene:
     """A mechanical system with its defaults.
@@ -223,8 +228,23 @@ class Scene:
 
     @cached_property
     def system(self) -> HamiltonianSystem:
-        """The scene's system; its angles are those of ``periodic`` (the check's too)."""
+        """The scene's system; its angles are those of ``periodic`` (the check's too). Scenes
+        made of the same function objects with the same ``n``, parameters, name, angles and
+        constraints share one system (a scene loaded again, ``loader.py``), and with it what
+        was built for it."""
         angles = self.periodic.angles if self.periodic is not None else ()
+        key = (self.hamiltonian, self.n, tuple(self.params.items()), self.name, tuple(angles),
+               self.constraints)
+        try:
+            shared = _SYSTEMS.get(key)
+        except TypeError:  # a parameter or function that cannot be hashed: not shared
+            return self._built(angles)
+        if shared is None:
+            shared = self._built(angles)
+            _SYSTEMS[key] = shared
+        return shared
+
+    def _built(self, angles) -> HamiltonianSystem:
         if isinstance(self.hamiltonian, Lagrangian):
             return LagrangianSystem(self.hamiltonian.function, self.n, dict(self.params),
                                     name=self.name, angles=angles,

@@ -16,7 +16,11 @@ def test_ensemble_is_each_march_alone_and_a_failing_orbit_does_not_stop_the_othe
     p0s = np.array([[0.35, 0.0], [0.0, 1.2], [0.3, 0.1]])  # the second: E = 0.72, escapes
     solutions = march_ensemble(scene.system, q0s, p0s, (0.0, 60.0), tau0=0.05)
     assert [s.success for s in solutions] == [True, False, True]
-    assert solutions[1].status is Status.NEWTON_FAILED and solutions[1].steps < 20
+    # the escape ends in a step Newton does not converge on, or one whose own residual is
+    # refused after it stopped: which, depends on whether the careful path's functions run
+    # compiled or in CasADi's virtual machine (a system whose functions an earlier run built)
+    assert solutions[1].status in (Status.NEWTON_FAILED, Status.RESIDUAL_TOO_LARGE)
+    assert solutions[1].steps < 20
     for solution, q0, p0 in zip(solutions, q0s, p0s, strict=True):
         alone = march(scene.system, q0, p0, (0.0, 60.0), tau0=0.05)
         assert alone.status is solution.status and alone.steps == solution.steps
