@@ -112,7 +112,11 @@ def load_scene(name_or_path: str, *, digest: str | None = None) -> Scene:
     ``GeneratorExit``, any ``BaseException`` but ``KeyboardInterrupt``), an ``os._exit``, or a
     run past the time limit is an `InputError` naming the file and the line; so is
     every later call of the scene's functions (``H`` or ``L``, ``exact``, the invariants, the
-    start functions), which are checked once on the scene's own defaults here."""
+    start functions), which are checked once on the scene's own defaults here.
+
+    A file loaded again in the same process with the same content is not run again: the
+    scene returned is a copy (its own parameters, start and settings to change) sharing the
+    functions, and so the system and what was built for it (`LOADED_SCENES` files kept)."""
     path = scene_file(name_or_path)
     name = path.stem
     source = read_limited(path, SCENE_FILE_LIMIT, what="scene file")
