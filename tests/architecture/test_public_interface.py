@@ -152,6 +152,7 @@ def test_plot_writes_a_figure_for_a_march_and_for_a_bvp_solution(tmp_path):
     from PIL import Image
 
     from ddvp_nlp import plot
+    from ddvp_nlp.io.figures import unicode_math
 
     scene = load_scene("pendulum")
     marched = march(scene.system, [0.5], [0.5], (0.0, 5.0), tau0=0.05)
@@ -171,7 +172,9 @@ def test_plot_writes_a_figure_for_a_march_and_for_a_bvp_solution(tmp_path):
         without = plot(solution)
         labels = [ax.get_ylabel() for ax in without.axes]
         assert len(without.axes) == len(with_energy.axes) - 1
-        assert "$q$" in labels and "$p$" in labels and not any("H_0" in s for s in labels)
+        # the labels' mathtext is drawn as Unicode text (io/figures.unicode_math)
+        q, p, h0 = (unicode_math(label) for label in ("$q$", "$p$", "$H_0$"))
+        assert q in labels and p in labels and not any(h0 in s for s in labels)
 
 
 @pytest.mark.parametrize("keyword, replacement", [
