@@ -21,7 +21,6 @@ and figure are written by `ddvp_nlp.studies.stress_report`. The methods are the 
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 import warnings
@@ -154,7 +153,7 @@ def predicted(system, config, dop853_solution) -> dict:
 def case_tasks(case: StressCase, *, compiler, cache_dir=None, max_steps: int = 2_000_000,
                time_limit: float = 60.0) -> list[Task]:
     """One task per method that applies to the case (``lee`` only where H depends on t)."""
-    scene = shared_scene(case.scene)
+    scene = load_scene(case.scene)
     check_comparable(scene)
     system = scene.system
     config = scene.resolve(case.settings)
@@ -185,24 +184,11 @@ def _portable(scene: str) -> str:
     return str(scene_file(scene).resolve()) if scene.endswith(".py") or "/" in scene else scene
 
 
-def shared_scene(scene: str, digest: str | None = None):
-    """The scene ``scene`` (name or file) whose file has the SHA-256 ``digest`` (the file as it
-    is now if ``None``), loaded once per process for that content: the rows of a grid on one
-    scene share its system, and with it what their runs build (the march's functions, the
-    check's exact flow), as `chaos_map.scene_system` does; a changed file is loaded anew."""
-    return _loaded(scene, scene_digest(scene) if digest is None else digest)
-
-
-@functools.lru_cache(maxsize=8)
-def _loaded(scene: str, digest: str):
-    return load_scene(scene, digest=digest)
-
-
 def stress_run(*, group, case, scene, settings, method, value, compiler, cache_dir, max_steps,
             time_limit, scene_digest=None) -> dict:
     """One method on one case: its row (a grid task; runs in any process). ``scene_digest``:
     the file this process loads must be the one the grid was planned with."""
-    loaded = shared_scene(scene, scene_digest)
+    loaded = load_scene(scene, digest=scene_digest)
     config = loaded.resolve(settings)
     system = loaded.system
     row = {"group": group, "case": case, "scene": scene, "settings": _settings_text(settings),

@@ -483,10 +483,7 @@ def _measure(scene, config, method, value, reference, *, repeats, budget_s, comp
             "repeats": count,
             "trajectory_error": trajectory, "energy_error": energy,
             "scheme_energy_residual": residual,
-            # judged with the reference's system: the same scene, loaded by the process's first
-            # run, whose exact flow is then built once, not once a run (each task loads the
-            # scene anew: 13 builds, 1.8 s of a constrained comparison's 4.2 s of CPU)
-            **accuracy_columns(reference.system, config, method, solution, compiler=compiler,
+            **accuracy_columns(system, config, method, solution, compiler=compiler,
                                cache_dir=cache_dir)}
 
 

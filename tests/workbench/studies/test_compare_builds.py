@@ -17,7 +17,6 @@ from ddvp_nlp.scenes import scene_file
 from ddvp_nlp.studies.work_precision import CompareOptions
 
 flow_module = importlib.import_module("ddvp_nlp.solvers.exact.flow")
-stress_module = importlib.import_module("ddvp_nlp.studies.stress")
 
 
 @pytest.mark.parametrize("scene", ["pendulum", "cartesian_pendulum"])
@@ -41,33 +40,15 @@ def test_the_verdicts_of_a_comparison_build_each_exact_flow_once(scene, monkeypa
     assert built and len(built) == len(set(built)), built
 
 
-def test_the_rows_of_a_sweep_load_their_scene_once(monkeypatch, tmp_path):
-    loads = []
-    original = stress_module.load_scene
-
-    def counted(scene, **options):
-        loads.append(scene)
-        return original(scene, **options)
-
-    monkeypatch.setattr(stress_module, "load_scene", counted)
-    stress_module._loaded.cache_clear()
-    assert main(["sweep", "harmonic", "--grid", "tau0=0.1,0.05,0.02", "--methods", "vddvp",
-                 "--workers", "1", "--no-progress",
-                 "--out", str(tmp_path / "sweep")]) == 0
-    rows = (tmp_path / "sweep" / "sweep.csv").read_text().splitlines()[1:]
-    assert len(rows) == 3 and loads == ["harmonic"]
-
-
-def test_a_scene_file_changed_is_loaded_anew(tmp_path):
+def test_the_rows_of_a_sweep_load_their_scene_once(tmp_path):
+    runs = tmp_path / "runs.txt"  # the scene file writes a line each time it runs
     path = tmp_path / "osc.py"
-    text = ("from ddvp_nlp import Scene\n"
-            "def hamiltonian(q, p, t):\n    return p[0]**2 / 2 + {k} * q[0]**2 / 2\n"
-            "scene = Scene(hamiltonian, n=1, q0=[1.0], p0=[0.0], tau0=0.01, t_end=1)\n")
-    path.write_text(text.format(k=1))
-    first = stress_module.shared_scene(str(path))
-    assert stress_module.shared_scene(str(path)) is first
-    path.write_text(text.format(k=2))
-    changed = stress_module.shared_scene(str(path))
-    assert changed is not first
-    assert changed.system.energy([[1.0]], [[0.0]], [0.0], []) == 2 * first.system.energy(
-        [[1.0]], [[0.0]], [0.0], [])
+    path.write_text("from ddvp_nlp import Scene\n"
+                    f"open({str(runs)!r}, 'a').write('ran\\n')\n"
+                    "def hamiltonian(q, p, t):\n    return p[0]**2 / 2 + q[0]**2 / 2\n"
+                    "scene = Scene(hamiltonian, n=1, q0=[1.0], p0=[0.0], tau0=0.1, t_end=5)\n")
+    assert main(["sweep", str(path), "--allow-scene", str(path), "--grid",
+                 "tau0=0.1,0.05,0.02", "--methods", "vddvp", "--workers", "1",
+                 "--no-progress", "--out", str(tmp_path / "sweep")]) == 0
+    rows = (tmp_path / "sweep" / "sweep.csv").read_text().splitlines()[1:]
+    assert len(rows) == 3 and runs.read_text() == "ran\n"
