@@ -21,11 +21,21 @@ family's birth (``docs/periodic/bifurcations.md``).
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import brentq
 
 from ddvp_nlp import PeriodicSettings, Scene
 
 EARTH_MOON = 0.01215058560962404
+
+
+def _root(f, a, b):
+    """The root of ``f`` in ``[a, b]`` (``f(a) < 0 < f(b)``) by bisection to the last bit: the
+    scene's two roots are of monotone functions, and bisection keeps scipy out of the file's
+    loading (``ddvp scenes`` loads every scene; scipy.optimize's import was 0.4 s of it)."""
+    while True:
+        middle = 0.5 * (a + b)
+        if middle in (a, b):
+            return middle
+        a, b = (middle, b) if f(middle) < 0 else (a, middle)
 
 
 def hamiltonian(q, p, t, mu):
@@ -48,7 +58,7 @@ def lagrange_point_l1(mu=EARTH_MOON) -> float:
     """``x`` of L1, the root of ``dOmega/dx = 0`` between the primaries."""
     def slope(x):
         return x - (1 - mu) * (x + mu) / abs(x + mu) ** 3 - mu * (x - 1 + mu) / abs(x - 1 + mu) ** 3
-    return brentq(slope, -mu + 1e-3, 1 - mu - 1e-3, xtol=1e-15, rtol=1e-15)
+    return _root(slope, -mu + 1e-3, 1 - mu - 1e-3)
 
 
 def l1_frequencies(mu=EARTH_MOON):
@@ -87,7 +97,7 @@ def lyapunov_guess(energy_level, mu=EARTH_MOON):
         raise ValueError(f"energy {energy_level!r} is not that of a linearised L1 Lyapunov orbit "
                          f"of amplitude 0 .. 0.2 (H from {excess(0.0) + energy_level:.8g} to "
                          f"{excess(0.2) + energy_level:.8g})")
-    t, q, p = linear_lyapunov(brentq(excess, 0.0, 0.2, xtol=1e-15), mu)
+    t, q, p = linear_lyapunov(_root(excess, 0.0, 0.2), mu)
     return {"t": t, "q": q, "p": p}
 
 

@@ -17,7 +17,8 @@ Periodic orbits (``ddvp periodic hill``): the Lyapunov family about the libratio
 
 import casadi as ca
 
-from ddvp_nlp import PeriodicSettings, Scene, linearised_orbit
+import ddvp_nlp
+from ddvp_nlp import PeriodicSettings, Scene
 
 LIBRATION = 3.0 ** (-1.0 / 3.0)
 
@@ -31,8 +32,10 @@ def hamiltonian(q, p, t):
 def lyapunov_guess(energy_level):
     """The linearised Lyapunov orbit about the libration point at ``x > 0`` whose node 0 on
     ``y = 0`` has ``H = energy_level`` (``{"t", "q", "p"}``)."""
-    return linearised_orbit(scene.system, energy=energy_level,
-                            equilibrium=[LIBRATION, 0.0, 0.0, LIBRATION], section="q2=0")
+    # ddvp_nlp.linearised_orbit, not imported at the top: the periodic solvers (and scipy) load
+    # when a guess is asked for, not when `ddvp scenes` lists this file
+    return ddvp_nlp.linearised_orbit(scene.system, energy=energy_level,
+                                     equilibrium=[LIBRATION, 0.0, 0.0, LIBRATION], section="q2=0")
 
 
 scene = Scene(hamiltonian, n=2, q0=[LIBRATION + 0.01, 0.0], p0=[0.0, LIBRATION], tau0=0.01,

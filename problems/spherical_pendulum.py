@@ -8,7 +8,6 @@ w^2 = 1 / cos theta0) and one period of it as the guess (docs/periodic/constrain
 """
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ddvp_nlp import PeriodicSettings, Scene
 
@@ -26,6 +25,8 @@ def cone(energy):
     if not energy > -1.0:
         raise ValueError(f"no conical orbit at E = {energy!r}: the least energy is -1, the "
                          "pendulum at rest at the bottom; a cone needs E > -1")
+    from scipy.optimize import brentq  # here, not at the top: `ddvp scenes` loads this file
+
     theta0 = brentq(lambda a: np.sin(a) ** 2 / (2 * np.cos(a)) - np.cos(a) - energy,
                     0.0, np.pi / 2 - 1e-9)
     w = 1 / np.sqrt(np.cos(theta0))

@@ -53,3 +53,15 @@ def test_every_public_solver_is_loaded_when_asked_for():
     modules = loaded("from ddvp_nlp import solve_bvp, solve_periodic, march_higher, Shooting")
     assert {"ddvp_nlp.solvers.bvp.fixed_ends", "ddvp_nlp.solvers.periodic.orbit",
             "ddvp_nlp.solvers.higher.stepping"} <= set(modules)
+
+
+def test_listing_the_scenes_loads_no_solver_family_and_no_heavy_scipy_part():
+    """``ddvp scenes`` runs every built-in scene file; a scene that uses a solver or scipy in a
+    guess or a root does so when asked, not as it loads (it took 1.38 s of CPU with
+    scipy.optimize, scipy.interpolate and the periodic solvers loaded; 0.87 s without).
+    scipy.special stays: the loader probes the pendulum's exact solution, which uses it."""
+    modules = loaded("import contextlib, io\nfrom ddvp_nlp.cli.main import main\n"
+                     "with contextlib.redirect_stdout(io.StringIO()):\n    main(['scenes'])")
+    assert "ddvp_nlp.cli.scenes_command" in modules
+    assert _under(modules, SOLVER_FAMILIES) == []
+    assert _under(modules, HEAVY) == []
