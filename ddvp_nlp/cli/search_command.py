@@ -58,8 +58,8 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
           "grid: the orbit refined on the grid and its accuracy verdict")
     for j, row in enumerate(rows):
         print(f"  {j + 1:2d}. T = {row['period']:.10g}  index {row['index']:.8g}  "
-              f"{row['verdict']:8s} returns {row['returns']}, {row['seeds']} seed(s); "
-              f"{grid_said(row)}")
+              f"{row['verdict']:8s} returns {row['returns']}, {row['seeds']} seed(s), "
+              f"{crossing_said(row, search.searched.section)}; {grid_said(row)}")
     reasons: dict = {}
     for failed in search.failures:
         key = failed.reason.split(" (")[0].split(":")[0]
@@ -69,6 +69,18 @@ def run_search(args, scene, params: dict, nodes: int, defaults) -> int:
     print(f"  {search.seconds:.1f} s CPU; written to {out.path}/ (orbits.csv, failures.csv"
           f"{', orbits.png' if rows and not args.no_plot else ''})")
     return 0 if search.found and not INTERRUPTS.requested else 1
+
+
+def crossing_said(row: dict, section: str) -> str:
+    """Where the orbit's listed start crosses the section upwards: the other position and its
+    momentum (``orbits.csv``'s columns of them). Orbits of one period, as mirror images under a
+    symmetry are, are told apart by it. A momentum below ``1e-9`` of the start's largest
+    component is round-off on the symmetric line and said as 0."""
+    other = "1" if section.lstrip().startswith("q2") else "2"
+    q, p = row[f"q{other}"], row[f"p{other}"]
+    size = max(abs(row[name]) for name in ("q1", "q2", "p1", "p2"))
+    p = 0.0 if abs(p) <= 1e-9 * size else p
+    return f"up through q{other} = {q:.7g}, p{other} = {p:.7g}"
 
 
 def grid_said(row: dict) -> str:

@@ -80,7 +80,9 @@ SEEDS = 400  # default seeds (on the symmetric line; a square grid of about as m
 MAX_RETURNS = 2  # default: orbits crossing the section upwards at most this many times
 RESIDUAL = 1e-8  # a shot orbit's residual, relative to its size, to be kept
 CLOSURE = 1e-6  # the whole orbit's closure on the exact flow, relative to its size
-SAME = 1e-6  # two orbits are one when periods and crossings agree to this (relative)
+# two orbits are one when their periods agree to this (relative) and a crossing to 1e3 times
+# it of the orbit's own size (`_own_size`)
+SAME = 1e-6
 ESCAPE = 4.0  # |q| beyond this many times the window's reach: the motion has left
 _SCAN = np.concatenate([-np.geomspace(1e6, 1e-6, 1200), [0.0], np.geomspace(1e-6, 1e6, 1200)])
 
@@ -593,8 +595,9 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
     # a start on the section to round-off can be met again at t ~ 0: not a return
     seen = _after(seen, 1e-9 * period)
+    own = _own_size(run.z(np.linspace(0.0, period, 400)))
     again = [j for j in range(seen.t.size) if seen.t[j] < period * (1 - 1e-9)
-             and np.max(np.abs(seen.z[j] - z0)) <= 1e3 * SAME * size]
+             and _near(seen.z[j], z0, own, 1e3 * SAME)]
     if again:  # a multiple cover: its primitive orbit (found from this seed all the same)
         period = float(seen.t[again[0]])
         seen = _after(returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape,
@@ -614,7 +617,7 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     _, derivative = return_derivative(geometry, gentle, period, atol)
     if derivative is None:
         return "the return map's derivative over the period could not be computed"
-    crossings = _unique_rows(starts[:, geometry.section.free], size)
+    crossings = _unique_rows(starts[:, geometry.section.free], own[geometry.section.free])
     return FoundOrbit(period=period, start=start, returns=len(crossings), symmetric=symmetric,
                       multipliers=np.linalg.eigvals(derivative),
                       index=float(np.trace(derivative)),
@@ -629,12 +632,31 @@ def _after(seen, start: float):
                       seen.reached)
 
 
-def _unique_rows(rows: np.ndarray, size: float) -> np.ndarray:
+def _unique_rows(rows: np.ndarray, scale: np.ndarray) -> np.ndarray:
     kept = []
     for row in rows:
-        if not any(np.max(np.abs(row - other)) <= SAME * size for other in kept):
+        if not any(_near(row, other, scale, SAME) for other in kept):
             kept.append(row)
     return np.array(kept)
+
+
+def _own_size(path: np.ndarray) -> np.ndarray:
+    """The orbit's own size for each component of ``z = (q1, q2, p1, p2)`` (rows of ``path``,
+    over at least one period): the largest range of a position over it for ``q1`` and ``q2``,
+    of a momentum for ``p1`` and ``p2``. Points of an orbit compared to a fraction of it are
+    one point or two whatever the origin of the coordinates and their units (of length, of
+    momentum, of time). ``max |z|`` at the start, used before, grew with the distance from the
+    origin: Hill's problem with ``x`` shifted by 2000 cut its orbits of period ``3.2102332`` to
+    half their period (the start and the crossing half a period on, 1.97 apart, were within
+    ``1e-3`` of 2000), and two orbits of one period a few of their sizes apart merged
+    (``tests/library/periodic/test_search_distinct.py``)."""
+    ranges = np.ptp(np.asarray(path, float), axis=0)
+    return np.repeat([ranges[:2].max(), ranges[2:].max()], 2)
+
+
+def _near(a: np.ndarray, b: np.ndarray, scale: np.ndarray, tol: float) -> bool:
+    """Whether ``a`` and ``b`` agree to ``tol`` of ``scale`` in every component."""
+    return bool(np.all(np.abs(a - b) <= tol * scale))
 
 
 def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None, pool=None):
@@ -891,12 +913,12 @@ def _distinct(found: list) -> list:
     multiple covers (a crossing repeated within the period) are not kept."""
     kept = []
     for orbit in found:
-        size = float(np.max(np.abs(orbit.start)))
-        if _covers(orbit, size):
+        scale = _own_size(orbit.path)[[0, 2]]  # of u = (q_o, p_o): a position, a momentum
+        if _covers(orbit, scale):
             continue
         same = next((other for other in kept
                      if abs(other.period - orbit.period) <= SAME * other.period and any(
-                         np.max(np.abs(row - orbit.crossings[0])) <= 1e3 * SAME * size
+                         _near(row, orbit.crossings[0], scale, 1e3 * SAME)
                          for row in other.crossings)), None)
         if same is None:
             kept.append(orbit)
@@ -917,8 +939,7 @@ def _within_returns(orbits: list, max_returns: int) -> tuple[list, list]:
     return kept, beyond
 
 
-def _covers(orbit: FoundOrbit, size: float) -> bool:
+def _covers(orbit: FoundOrbit, scale: np.ndarray) -> bool:
     """Whether the orbit repeats its start before its period (a multiple cover)."""
     return len(orbit.crossings) < orbit.returns or any(
-        np.max(np.abs(row - orbit.crossings[0])) <= 1e3 * SAME * size
-        for row in orbit.crossings[1:])
+        _near(row, orbit.crossings[0], scale, 1e3 * SAME) for row in orbit.crossings[1:])

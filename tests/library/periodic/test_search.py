@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ddvp_nlp import HamiltonianSystem, InputError, find_periodic_orbits
+from ddvp_nlp.solvers.exact.flow import exact_flow
 from ddvp_nlp.solvers.periodic.search import NoMotionOnSection, parse_reversing
 from ddvp_nlp.solvers.periodic.section_map import parse_search_section
 
@@ -54,6 +55,60 @@ def test_lyapunov_orbits_about_both_libration_points(lyapunov_search):
     sides = sorted(np.sign(np.mean(o.path[:, 0])) for o in lyapunov)
     assert sides == [-1.0, 1.0], periods(lyapunov_search)
     assert all(abs(o.index - 1970.2952) < 1e-3 for o in lyapunov)
+
+
+def test_mirror_images_of_one_period_are_listed_as_two():
+    """A user report: at E = -1.663 the search listed an orbit of period 3.21023318 twice. The
+    two are the Lyapunov orbits about the libration points x < 0 and x > 0, mirror images under
+    (q, p) -> (-q, -p), which keeps H, maps an orbit onto one of the same period and an upward
+    crossing onto a downward one: their upward crossings differ (q1 = -0.8217, 0.4705), and
+    step 6's merge rightly keeps both. Checked on the exact flow: the mirror of one's upward
+    crossing is the other's state half a period after its own upward crossing."""
+    search = find_periodic_orbits(HILL, energy=-1.663, section="q2=0", reversing=REVERSING,
+                                  seeds=120, max_returns=1, refine=False)
+    pair = sorted((o for o in search.orbits if abs(o.period - 3.2102332) < 1e-6),
+                  key=lambda o: o.start[0])
+    assert len(pair) == 2, periods(search)
+    left, right = pair
+    assert np.max(left.path[:, 0]) < 0 < np.min(right.path[:, 0])
+    assert abs(left.period - right.period) < 1e-10 * left.period
+    np.testing.assert_allclose([left.start[0], right.start[0]], [-0.8217168, 0.4704912],
+                               atol=1e-6)
+    flow = exact_flow(HILL)
+    theta = HILL.parameter_vector(None)
+    for one, other in ((left, right), (right, left)):
+        half = flow.run(other.start, 0.0, other.period / 2, theta, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(half.z_end, -one.start, atol=1e-8)
+
+
+def shifted_hill(q, p, t, c=0.0):
+    return hill(ca.vertcat(q[0] - c, q[1]), p, t)
+
+
+SHIFTED = HamiltonianSystem(shifted_hill, n=2, params={"c": 0.0}, name="hill_shifted")
+
+
+@pytest.mark.slow(why="repetition")  # 17 s CPU: the escape radius grows with the window's reach
+def test_a_shifted_origin_lists_the_same_orbits():
+    """The canonical translation q1 -> q1 + 2000 (the window moved with it: its sizing is not
+    what is checked): the same 4 orbits at E = -1.663, of the same periods, crossing where they
+    did. Whether two crossings were one was decided to 1e-3 of max |z| at the start, about 2000
+    here: the pair of period 3.2102332 was listed at half its period, its start and the crossing
+    half a period on (1.97 apart) taken for one point (now to the orbit's own size,
+    `search._own_size`; its cheap checks are test_search_distinct.py)."""
+    def listed(c):
+        window = (c - 2.0989011249876297, c + 2.0989011249876284)
+        search = find_periodic_orbits(SHIFTED, energy=-1.663, section="q2=0",
+                                      reversing=REVERSING, seeds=120, max_returns=1,
+                                      refine=False, window=window, params={"c": c})
+        # by the period to 1e-6, then the crossing: the mirror pair's periods agree to
+        # round-off, in either order
+        rows = sorted((round(o.period, 6), o.start[0] - c, o.period) for o in search.orbits)
+        return [(period, x) for _, x, period in rows]
+
+    there, here = listed(2000.0), listed(0.0)
+    assert len(here) == 4 and len(there) == len(here), (here, there)
+    np.testing.assert_allclose(there, here, rtol=1e-8, atol=1e-6)
 
 
 def test_no_motion_on_the_section_is_refused():

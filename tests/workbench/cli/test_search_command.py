@@ -29,6 +29,15 @@ def test_the_command_writes_the_orbit_list(tmp_path, capsys):
     assert len(meta["grid_verdicts"]) == len(rows) - 1
     assert meta["verdicts"] == [row.split(",")[2] for row in rows[1:]]
     assert "grid accurate: T = 0.647" in printed
+    # a reported duplicate: T = 3.21023318 listed twice. They are the Lyapunov orbits about the
+    # two libration points, mirror images under (q, p) -> (-q, -p) (test_search.py), so two
+    # orbits; the list printed both lines alike, told apart only in orbits.csv. Each line now
+    # says where the orbit crosses the section upwards.
+    pair = [line for line in printed.splitlines() if "T = 3.21023318 " in line]
+    assert len(pair) == 2, printed
+    assert all("up through " in line for line in pair), pair
+    assert sorted(line.split("up through ")[1].split(";")[0] for line in pair) == [
+        "q1 = -0.8217168, p1 = 0", "q1 = 0.4704912, p1 = 0"], pair
 
 
 def test_periodic_stability_prints_its_accuracy_check(tmp_path, capsys):
