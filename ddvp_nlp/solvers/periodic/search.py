@@ -78,8 +78,12 @@ from .section_map import (
 
 SEEDS = 400  # default seeds (on the symmetric line; a square grid of about as many otherwise)
 MAX_RETURNS = 2  # default: orbits crossing the section upwards at most this many times
-RESIDUAL = 1e-8  # a shot orbit's residual, relative to its size, to be kept
-CLOSURE = 1e-6  # the whole orbit's closure on the exact flow, relative to its size
+# a half-orbit shot's residual p_o at its right-angle crossing, relative to the orbit's own
+# range of a momentum (`_own_size`), to be kept
+RESIDUAL = 1e-8
+# the whole orbit's closure on the exact flow, each component relative to the orbit's own size
+# (`_own_size`: not max |z|, which grows with the distance from the coordinates' origin)
+CLOSURE = 1e-6
 # two orbits are one when their periods agree to this (relative) and a crossing to 1e3 times
 # it of the orbit's own size (`_own_size`)
 SAME = 1e-6
@@ -142,7 +146,8 @@ class FoundOrbit:
     ``returns`` (upward crossings per period), ``symmetric`` (found by the half-orbit shot),
     its nontrivial ``multipliers`` and stability ``index`` (their sum) from the derivative of the
     return map over one period on the exact flow (``section_map.py``), ``closure`` (its
-    relative closure on the exact flow), ``crossings`` (its upward crossings, rows ``u``),
+    closure on the exact flow over one period, each component relative to the orbit's own size,
+    `_own_size`), ``crossings`` (its upward crossings, rows ``u``),
     ``path`` (``z`` at 400 equal times of one period), how many ``seeds`` reached it, the refined
     ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``), ``tol``
     (the stability index's tolerance of the verdict) and ``grid`` (a
@@ -545,11 +550,13 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
         z0, t_half, end = crossing(root)
     except _NoShot as why:
         return str(why)
-    size = float(np.max(np.abs(z0)))
-    if abs(end[other]) > RESIDUAL * size:
+    run = _orbit_run(geometry, z0, 2 * t_half, atol)
+    # p_o there against the orbit's own range of a momentum (it was max |z0|, a position's
+    # distance from the origin among them)
+    if run.success and not abs(end[other]) <= RESIDUAL * _own_size(_path(run, 2 * t_half))[other]:
         return (f"shooting did not converge: the crossing's momentum jumps between q_o = "
                 f"{a:.6g} and {b:.6g} (|p_o| = {abs(end[other]):.2e} at the bracket's root)")
-    return _closed(geometry, z0, 2 * t_half, atol, escape, symmetric=True)
+    return _closed(geometry, z0, 2 * t_half, atol, escape, symmetric=True, run=run)
 
 
 def _brackets(geometry, line, residual, times, k: int, direction: int, atol, escape):
@@ -581,21 +588,34 @@ def _brackets(geometry, line, residual, times, k: int, direction: int, atol, esc
     return found
 
 
-def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
-    """The orbit from ``z0`` over ``period`` checked to close on the exact flow, with its upward
-    crossings and exact monodromy (a `FoundOrbit`), or why not."""
+def _orbit_run(geometry, z0, period: float, atol):
+    """The exact flow from ``z0`` over ``period`` (the run an orbit is checked on)."""
     flow = exact_flow(geometry.system)
     with np.errstate(all="ignore"):
-        run = flow.run(z0, 0.0, period, geometry.theta, rtol=RTOL, atol=atol,
-                       max_attempts=10 * SEED_ATTEMPTS)
-    size = float(np.max(np.abs(z0)))
-    closure = float(np.max(np.abs(run.z_end - z0))) / size if run.success else np.inf
+        return flow.run(z0, 0.0, period, geometry.theta, rtol=RTOL, atol=atol,
+                        max_attempts=10 * SEED_ATTEMPTS)
+
+
+def _path(run, period: float) -> np.ndarray:
+    """``z`` at 400 equal times of ``[0, period]`` on a run's dense output."""
+    return run.z(np.linspace(0.0, period, 400))
+
+
+def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool, run=None):
+    """The orbit from ``z0`` over ``period`` checked to close on the exact flow (``run``: the
+    flow's run from ``z0`` over ``period`` where the caller made it), with its upward
+    crossings and exact monodromy (a `FoundOrbit`), or why not. Its closure is
+    ``|phi_T(z0) - z0|`` per component over the orbit's own size (`_own_size`), at most
+    `CLOSURE`: the same verdict wherever the coordinates' origin and whatever their units."""
+    run = run or _orbit_run(geometry, z0, period, atol)
+    own = _own_size(_path(run, period)) if run.success else None
+    with np.errstate(all="ignore"):  # an orbit of no range (a point) does not close
+        closure = float(np.max(np.abs(run.z_end - z0) / own)) if run.success else np.inf
     if not closure <= CLOSURE:
         return f"the orbit does not close on the exact flow (closure {closure:.2e} of its size)"
     seen = returns(geometry, z0, period * (1 + 1e-9), atol, escape=escape, run=run)
     # a start on the section to round-off can be met again at t ~ 0: not a return
     seen = _after(seen, 1e-9 * period)
-    own = _own_size(run.z(np.linspace(0.0, period, 400)))
     again = [j for j in range(seen.t.size) if seen.t[j] < period * (1 - 1e-9)
              and _near(seen.z[j], z0, own, 1e3 * SAME)]
     if again:  # a multiple cover: its primitive orbit (found from this seed all the same)
@@ -621,8 +641,7 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool):
     return FoundOrbit(period=period, start=start, returns=len(crossings), symmetric=symmetric,
                       multipliers=np.linalg.eigvals(derivative),
                       index=float(np.trace(derivative)),
-                      closure=closure, crossings=crossings,
-                      path=run.z(np.linspace(0.0, period, 400)))
+                      closure=closure, crossings=crossings, path=_path(run, period))
 
 
 def _after(seen, start: float):
