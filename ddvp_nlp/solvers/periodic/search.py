@@ -88,7 +88,10 @@ CLOSURE = 1e-6
 # it of the orbit's own size (`_own_size`)
 SAME = 1e-6
 ESCAPE = 4.0  # |q| beyond this many times the window's reach: the motion has left
+# the scan of the section's line that sizes the window: offsets from the critical points' own
+# centre, in a unit of their own size (`_line_scan`)
 _SCAN = np.concatenate([-np.geomspace(1e6, 1e-6, 1200), [0.0], np.geomspace(1e-6, 1e6, 1200)])
+SCAN_PASSES = 6  # scans of the line at most, each about the centre the last one found
 
 
 @dataclass(frozen=True)
@@ -381,9 +384,9 @@ def _least_energy(geometry: SectionAtEnergy, q_other: np.ndarray) -> np.ndarray:
 def _window(geometry: SectionAtEnergy, window) -> tuple:
     """The window of ``q_o`` searched: given, or from the critical points of the least
     energy along the line (their span beyond each end; the edge where the energy stops motion
-    when there is only one); refused when the energy allows no motion in it."""
+    when there is only one), found on a scan of the line about their own centre
+    (`_line_scan`); refused when the energy allows no motion in it."""
     geometry.check_quadratic(np.column_stack([_SCAN[::97], np.zeros(_SCAN[::97].size)]))
-    V = _least_energy(geometry, _SCAN)
     if window is not None:
         try:
             lo, hi = (check_real("window", float(w)) for w in window)
@@ -393,17 +396,17 @@ def _window(geometry: SectionAtEnergy, window) -> tuple:
         if not lo < hi:
             raise InputError(f"window must have lo < hi, got {window!r}")
     else:
-        _refuse_no_motion(geometry, V, f", over the other position from {_SCAN[0]:.0e} to "
-                                       f"{_SCAN[-1]:.0e}")
-        inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
-        critical = _SCAN[1:-1][inner & np.isfinite(V[1:-1])]
-        allowed = _SCAN[np.isfinite(V) & (V <= geometry.energy)]
+        scan, V, unit = _line_scan(geometry)
+        _refuse_no_motion(geometry, V, f", over the other position from {scan[0]:.4g} to "
+                                       f"{scan[-1]:.4g}")
+        critical = scan[_critical_index(V)]
+        allowed = scan[np.isfinite(V) & (V <= geometry.energy)]
         if critical.size >= 2:
             span = critical.max() - critical.min()
             lo, hi = critical.min() - span, critical.max() + span
         elif critical.size == 1 and allowed.size:
             span = 2 * np.max(np.abs(allowed - critical[0])[
-                np.abs(allowed - critical[0]) < 1e5])
+                np.abs(allowed - critical[0]) < 1e5 * unit])
             lo, hi = critical[0] - span, critical[0] + span
         else:
             raise InputError(f"window: the least energy along the section {geometry.section.label}"
@@ -412,6 +415,87 @@ def _window(geometry: SectionAtEnergy, window) -> tuple:
     V = _least_energy(geometry, grid)
     _refuse_no_motion(geometry, V, f" over the other position in [{lo:.4g}, {hi:.4g}]")
     return float(lo), float(hi)
+
+
+def _line_scan(geometry: SectionAtEnergy) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(scan, V, unit)``: points of the section's line ``centre + unit * _SCAN`` and the least
+    energy ``V`` at them, the centre and the unit found from the problem. The first scan is about
+    the coordinates' origin in a unit of 1; each critical point of ``V`` on it is located within
+    its neighbours (`_refine_critical`), and the next scan is about their midpoint (the one
+    point, if one), in the power of ten nearest their span (the reach of the motion about the
+    one point, if it is bounded), until neither moves. ``_SCAN``'s points are 2.3% apart
+    relative to their distance from its centre: about the origin, critical points 2000 away
+    fell 46 apart, and Hill's libration points and Moon at ``x = 2000 +- 0.69`` and ``2000``
+    were one critical point; the window was ``[-197054, 201024]``. Scanned about their own
+    centre, the points the window is made of sit where they sit about the origin, so the window
+    moves with the coordinates' origin and scales with a unit of length that is a power of ten
+    (another unit places its critical points among the scan's points otherwise: the window's
+    edges move by up to the scan's spacing there, 2.3% of the span). At the origin a problem
+    whose critical points are centred on it and a span between 0.32 and 3.2 is scanned as
+    before, the same points (Hill's problem, Barbanis, Pullen-Edmonds)."""
+    centre, unit = 0.0, 1.0
+    for _ in range(SCAN_PASSES):
+        scan = centre + unit * _SCAN
+        V = _least_energy(geometry, scan)
+        index = _critical_index(V)
+        if not index.size:
+            break
+        found = _refine_critical(geometry, scan, V, index)
+        if found.size >= 2:
+            middle, size = (found.min() + found.max()) / 2, found.max() - found.min()
+        else:
+            middle, size = found[0], _reach_about(geometry, scan, V, index[0], found[0])
+        if np.isfinite(size) and size > 0:
+            moved_unit = 10.0 ** np.round(np.log10(size))
+        else:  # one critical point and no bounded motion about it: the unit stays
+            moved_unit, size = unit, float(np.max(scan[index + 1] - scan[index - 1]))
+        if moved_unit == unit and abs(middle - centre) <= 1e-6 * size:
+            break
+        centre, unit = float(middle), float(moved_unit)
+    return scan, V, unit
+
+
+def _critical_index(V: np.ndarray) -> np.ndarray:
+    """The points of a scan where the least energy ``V`` turns (finite there)."""
+    inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
+    return np.flatnonzero(inner & np.isfinite(V[1:-1])) + 1
+
+
+def _refine_critical(geometry, scan: np.ndarray, V: np.ndarray, index: np.ndarray,
+                     passes: int = 12) -> np.ndarray:
+    """Each critical point ``scan[index]`` of the least energy located between its neighbours
+    on the scan: the largest (a maximum) or least (a minimum) of 21 points spread between
+    them, and again between that point's neighbours (a tenth of the interval each pass; a
+    flat top stops it at the round-off of ``V``, about ``1e-8`` of the scan's distances)."""
+    lo, hi = scan[index - 1].astype(float), scan[index + 1].astype(float)
+    sign = np.where(V[index] > V[index - 1], 1.0, -1.0)
+    rows = np.arange(index.size)
+    for _ in range(passes):
+        x = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, 21)
+        value = sign[:, None] * _least_energy(geometry, x.ravel()).reshape(x.shape)
+        best = np.clip(np.argmax(np.where(np.isnan(value), -np.inf, value), axis=1), 1, 19)
+        lo, hi = x[rows, best - 1], x[rows, best + 1]
+    return (lo + hi) / 2
+
+
+def _reach_about(geometry, scan: np.ndarray, V: np.ndarray, i: int, point: float) -> float:
+    """How far the motion reaches along the line from ``point`` (the critical point at
+    ``scan[i]``): the larger distance to an edge of the stretch of the scan about it where
+    ``V <= E``, each edge located by bisection; ``nan`` where the energy stops no motion on one
+    side within the scan, or allows none at ``scan[i]``."""
+    allowed = np.isfinite(V) & (V <= geometry.energy)
+    if not allowed[i]:
+        return np.nan
+    left, right = np.flatnonzero(~allowed[:i]), np.flatnonzero(~allowed[i + 1:]) + i + 1
+    if not (left.size and right.size):
+        return np.nan
+    inside = np.array([scan[left[-1] + 1], scan[right[0] - 1]])
+    outside = np.array([scan[left[-1]], scan[right[0]]])
+    for _ in range(60):
+        middle = (inside + outside) / 2
+        within = _least_energy(geometry, middle) <= geometry.energy
+        inside, outside = np.where(within, middle, inside), np.where(within, outside, middle)
+    return float(max(point - inside[0], inside[1] - point))
 
 
 def _refuse_no_motion(geometry, V: np.ndarray, over: str) -> None:

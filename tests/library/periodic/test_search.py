@@ -88,25 +88,28 @@ def shifted_hill(q, p, t, c=0.0):
 SHIFTED = HamiltonianSystem(shifted_hill, n=2, params={"c": 0.0}, name="hill_shifted")
 
 
-@pytest.mark.slow(why="repetition")  # 17 s CPU: the escape radius grows with the window's reach
+@pytest.mark.slow(why="repetition")  # 15 s CPU: the escape radius grows with the window's reach
 def test_a_shifted_origin_lists_the_same_orbits():
-    """The canonical translation q1 -> q1 + 2000 (the window moved with it: its sizing is not
-    what is checked): the same 4 orbits at E = -1.663, of the same periods, crossing where they
-    did. Whether two crossings were one was decided to 1e-3 of max |z| at the start, about 2000
-    here: the pair of period 3.2102332 was listed at half its period, its start and the crossing
-    half a period on (1.97 apart) taken for one point (now to the orbit's own size,
-    `search._own_size`; its cheap checks are test_search_distinct.py)."""
+    """The canonical translation q1 -> q1 + 2000: the same 4 orbits at E = -1.663, of the same
+    periods, crossing where they did, in the window the search sizes itself. Whether two
+    crossings were one was decided to 1e-3 of max |z| at the start, about 2000 here: the pair of
+    period 3.2102332 was listed at half its period, its start and the crossing half a period on
+    (1.97 apart) taken for one point (now to the orbit's own size, `search._own_size`; its cheap
+    checks are test_search_distinct.py). The window, sized on a scan about the origin, was
+    [-197054, 201024] and nothing was found (now scanned about the libration points' own
+    centre; the window alone under offsets and units is test_search_scales.py)."""
     def listed(c):
-        window = (c - 2.0989011249876297, c + 2.0989011249876284)
         search = find_periodic_orbits(SHIFTED, energy=-1.663, section="q2=0",
                                       reversing=REVERSING, seeds=120, max_returns=1,
-                                      refine=False, window=window, params={"c": c})
+                                      refine=False, params={"c": c})
+        window = np.array(search.searched.window) - c
         # by the period to 1e-6, then the crossing: the mirror pair's periods agree to
         # round-off, in either order
         rows = sorted((round(o.period, 6), o.start[0] - c, o.period) for o in search.orbits)
-        return [(period, x) for _, x, period in rows]
+        return window, [(period, x) for _, x, period in rows]
 
-    there, here = listed(2000.0), listed(0.0)
+    (window_there, there), (window_here, here) = listed(2000.0), listed(0.0)
+    np.testing.assert_allclose(window_there, window_here, rtol=0, atol=1e-6)
     assert len(here) == 4 and len(there) == len(here), (here, there)
     np.testing.assert_allclose(there, here, rtol=1e-8, atol=1e-6)
 

@@ -87,3 +87,20 @@ def test_a_jump_of_the_crossings_momentum_is_refused_wherever_the_origin(frame, 
                               root + 0.1 * frame["length"], 1, 1, PERIOD,
                               _atol(frame["length"]), np.inf)
     assert isinstance(shot, str) and "momentum jumps" in shot, shot
+
+
+@pytest.fixture(scope="module")
+def window_at_the_origin():
+    return np.array(search._window(_geometry(0.0, 1.0), None))
+
+
+@pytest.mark.parametrize("frame", FRAMES[1:])
+def test_the_window_moves_with_the_origin_and_the_unit(frame, window_at_the_origin):
+    """The default window (the libration points' span beyond each) is the window at the origin,
+    moved and scaled. Scanned about the origin, the libration points and the Moon 2000 away fell
+    between two of the scan's points (46 apart there): the window was [-197054, 201024] and the
+    search found nothing."""
+    window = np.array(search._window(_geometry(**frame), None))
+    back = (window - frame["offset"]) / frame["length"]
+    width = window_at_the_origin[1] - window_at_the_origin[0]
+    np.testing.assert_allclose(back, window_at_the_origin, rtol=0, atol=1e-6 * width)
