@@ -68,6 +68,7 @@ from .search_grid import identify_landing, refine_found
 from .section_map import (
     RTOL,
     SEED_ATTEMPTS,
+    Escape,
     SearchSection,
     SectionAtEnergy,
     SeedPool,
@@ -87,7 +88,9 @@ CLOSURE = 1e-6
 # two orbits are one when their periods agree to this (relative) and a crossing to 1e3 times
 # it of the orbit's own size (`_own_size`)
 SAME = 1e-6
-ESCAPE = 4.0  # |q| beyond this many times the window's reach: the motion has left
+# a position further than this many times the window's half-width from its centre: the
+# motion has left (`_scales`)
+ESCAPE = 4.0
 # the scan of the section's line that sizes the window: offsets from the critical points' own
 # centre, in a unit of their own size (`_line_scan`)
 _SCAN = np.concatenate([-np.geomspace(1e6, 1e-6, 1200), [0.0], np.geomspace(1e-6, 1e6, 1200)])
@@ -510,15 +513,30 @@ def _refuse_no_motion(geometry, V: np.ndarray, over: str) -> None:
         f"({np.min(finite) if finite.size else np.nan:.6g}{over})")
 
 
-def _scales(window) -> tuple[float, float]:
-    reach = max(abs(window[0]), abs(window[1]))
-    return reach, ESCAPE * reach
+def _scales(geometry: SectionAtEnergy, window) -> tuple[np.ndarray, Escape, float]:
+    """``(atol, escape, length)``: the exact flow's absolute tolerance per component (``RTOL``
+    of the window's half-width ``length`` for the positions, of the momenta's size on the
+    section's line for the momenta, `_momentum_scale`), where a seed has left (`Escape`:
+    further than `ESCAPE` half-widths from the window's centre on the section), and
+    ``length``. The window's own centre and extent, not its reach ``max |q_o|`` from the
+    origin: with Hill's ``x`` shifted by 2000 the reach was 2002 for a half-width of 2.1, the
+    seeds that left were followed to ``|q| > 8008`` and the flow's ``atol`` was 1000 times
+    looser than at the origin (and a position's for the momenta, in another unit)."""
+    section = geometry.section
+    length = (window[1] - window[0]) / 2
+    centre = np.zeros(2)
+    centre[section.index], centre[section.other] = section.value, (window[0] + window[1]) / 2
+    momentum = _momentum_scale(geometry, window)
+    atol = RTOL * np.array([length, length, momentum, momentum])
+    return atol, Escape(tuple(float(c) for c in centre), ESCAPE * length), length
 
 
-def _time_scale(geometry: SectionAtEnergy, z: np.ndarray) -> float:
-    """A time for the seeds' first horizon: the median of ``|q| / |q'|`` over them."""
+def _time_scale(geometry: SectionAtEnergy, z: np.ndarray, escape: Escape) -> float:
+    """A time for the seeds' first horizon: the median of ``|q - q_c| / |q'|`` over them
+    (``q_c`` the window's centre, `_scales`; ``|q|``, from the origin, made it 800 times longer
+    with Hill's ``x`` shifted by 2000)."""
     speeds = np.array([np.linalg.norm(geometry.velocity(row)[:2]) for row in z])
-    sizes = np.linalg.norm(z[:, :2], axis=1)
+    sizes = np.linalg.norm(z[:, :2] - np.asarray(escape.centre), axis=1)
     ratio = sizes / speeds
     ratio = ratio[np.isfinite(ratio) & (ratio > 0)]
     return float(np.median(ratio)) if ratio.size else 1.0
@@ -553,8 +571,7 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
     """Half-orbit shots from seeds on the fixed line ``p_o = 0`` (module docstring); the
     seeds' runs and the shots on ``pool`` (a `SeedPool`; ``None``: here)."""
     pool = pool or SeedPool(geometry)
-    reach, escape = _scales(window)
-    atol = RTOL * reach
+    atol, escape, _ = _scales(geometry, window)
     line = _cells(window, max(seeds // 2, 2), jitter)
     u = np.column_stack([line, np.zeros(line.size)])
     found, failures, accessible, horizons = [], [], 0, []
@@ -567,7 +584,7 @@ def _symmetric_search(geometry, window, seeds: int, max_returns: int, jitter=Non
         accessible += int(ok.sum())
         if not ok.any():
             continue
-        first = 4 * _time_scale(geometry, z[ok])
+        first = 4 * _time_scale(geometry, z[ok], escape)
         residual = np.full((line.size, half), np.nan)
         times = np.full((line.size, half), np.nan)
         indices = np.flatnonzero(ok)
@@ -711,10 +728,7 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool, run=N
     starts = seen.z[ups] if ups else z0[None, :]
     if geometry.velocity(z0)[geometry.section.index] > 0:
         starts = np.vstack([z0[None, :], starts])
-    start = starts[0]
-    shift = 0.0 if np.allclose(start, z0) else float(seen.t[ups[0]])
-    if shift:
-        start = run.z([shift])[0]
+    start = starts[0]  # z0, or the run's state at its first upward crossing
     # the map's derivative from the slowest crossing: started near a close approach the
     # monodromy has entries of 1e7 and its trace loses digits (measured on Hill's mirror pairs)
     gentle = starts[np.argmin([np.linalg.norm(geometry.velocity(row)) for row in starts])]
@@ -767,12 +781,11 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None, poo
     section, and multiple shooting from the grid minima of the two-sided residual (module
     docstring); the seeds' runs and the shots on ``pool`` (a `SeedPool`; ``None``: here)."""
     pool = pool or SeedPool(geometry)
-    reach, escape = _scales(window)
-    atol = RTOL * reach
+    atol, escape, length = _scales(geometry, window)
     U, side, top = _map_grid(geometry, window, seeds, jitter)
     Z = geometry.points(U)
     ok = np.all(np.isfinite(Z), axis=1)
-    first = 4 * _time_scale(geometry, Z[ok]) if ok.any() else 1.0
+    first = 4 * _time_scale(geometry, Z[ok], escape) if ok.any() else 1.0
     images = np.full((2, U.shape[0], max_returns, 2), np.nan)  # P^k(u); then F_k(u) - B_k(u)
     times = np.full((3, U.shape[0], max_returns), np.nan)  # t of P^k, F_k and B_k (> 0)
     found, failures, horizons = [], [], []
@@ -789,7 +802,7 @@ def _map_search(geometry, window, seeds: int, max_returns: int, jitter=None, poo
         if up.size == 0:
             failures.append(FailedSeed(tuple(U[i]), run.reason or
                                        f"did not return to the section by t = {horizon:.4g}"))
-    scale = np.array([reach, top])
+    scale = np.array([length, top])  # the window's half-width, not its reach from the origin
     shots = []
     for k in range(max_returns):
         gaps = [np.max(np.abs(residual) / scale, axis=1)
@@ -850,8 +863,7 @@ def _equilibrium_orbits(geometry, window, params):
     V = _least_energy(geometry, grid)
     inner = (V[1:-1] - V[:-2]) * (V[2:] - V[1:-1]) < 0
     critical = grid[1:-1][inner & np.isfinite(V[1:-1])]
-    reach, escape = _scales(window)
-    atol = RTOL * reach
+    atol, escape, _ = _scales(geometry, window)
     found, failures = [], []
     for x in critical:
         z_e = _equilibrium(geometry, x)
@@ -898,13 +910,8 @@ def _map_grid(geometry, window, seeds: int, jitter):
     """The seeds of the whole map: a ``side x side`` grid of cells over the window and the
     momenta's box ``[-top, top]``, about ``seeds`` of them accessible; each seed at its cell's
     centre, or (``jitter``: a generator's seed) at a random point of its cell."""
-    reach = max(abs(window[0]), abs(window[1]))
     probe = np.linspace(window[0], window[1], 101)
-    z_line = geometry.points(np.column_stack([probe, np.zeros(probe.size)]))
-    # the momenta's reach: most of the line's (its largest is a singularity's, 1e7 near Hill's
-    # Moon, and would leave every seed of the grid but a column inaccessible)
-    top = 1.25 * float(np.nanpercentile(np.abs(z_line[:, 2:]), 90)) \
-        if np.any(np.isfinite(z_line)) else reach
+    top = 1.25 * _momentum_scale(geometry, window)
     fine = np.array([(x, p) for x in probe for p in np.linspace(-top, top, 101)])
     share = max(float(np.mean(np.all(np.isfinite(geometry.points(fine)), axis=1))), 1e-3)
     side = max(int(np.sqrt(seeds / share)), 3)  # about `seeds` of the grid's points accessible
@@ -916,6 +923,18 @@ def _map_grid(geometry, window, seeds: int, jitter):
         momenta = momenta + spread * (2 * top / (side - 1))
     U = np.array([(x, p) for x in line for p in momenta])
     return U, side, top
+
+
+def _momentum_scale(geometry, window) -> float:
+    """The momenta's size on the section's line (``p_o = 0``) in the window: most of the line's
+    ``|p|`` (its largest is a singularity's, 1e7 near Hill's Moon, and would leave every seed
+    of the whole map's grid but a column inaccessible); the window's half-width where the
+    energy allows no motion on the line."""
+    probe = np.linspace(window[0], window[1], 101)
+    z_line = geometry.points(np.column_stack([probe, np.zeros(probe.size)]))
+    if not np.any(np.isfinite(z_line)):
+        return (window[1] - window[0]) / 2
+    return float(np.nanpercentile(np.abs(z_line[:, 2:]), 90))
 
 
 def _grid_minima(gap: np.ndarray, threshold: float = 0.5):

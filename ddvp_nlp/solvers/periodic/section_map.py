@@ -154,6 +154,20 @@ class SectionAtEnergy:
         return np.asarray(self.field(z, 0.0, self.theta), float).ravel()
 
 
+@dataclass(frozen=True)
+class Escape:
+    """Where a run's motion has left: a position further than ``radius`` from ``centre`` (``q``,
+    one value per position; ``search._scales``: the window's middle on the section, four times
+    the window's half-width), in any of its components."""
+
+    centre: tuple
+    radius: float
+
+    def beyond(self, q: np.ndarray) -> np.ndarray:
+        """Whether each row of ``q`` has left."""
+        return np.max(np.abs(q - np.asarray(self.centre, float)), axis=1) > self.radius
+
+
 @dataclass
 class Returns:
     """The crossings of the section along a run: times ``t`` (k,), states ``z`` (k, 4) and
@@ -168,10 +182,10 @@ class Returns:
 
 
 def returns(geometry: SectionAtEnergy, z0, horizon: float, atol, *,
-            attempts: int = SEED_ATTEMPTS, escape: float = np.inf, run=None) -> Returns:
+            attempts: int = SEED_ATTEMPTS, escape: Escape | None = None, run=None) -> Returns:
     """Every crossing of the section by the exact flow from ``z0`` over ``(0, horizon]``
     (module docstring; a negative ``horizon``: backwards in time, the crossings in the order
-    met); ``escape``: the size of ``q`` beyond which the motion has left."""
+    met); ``escape``: where the motion has left (an `Escape`; ``None``: nowhere)."""
     section = geometry.section
     flow = exact_flow(geometry.system)
     with np.errstate(all="ignore"):
@@ -180,11 +194,13 @@ def returns(geometry: SectionAtEnergy, z0, horizon: float, atol, *,
     t, w = run.nodes()
     z = w[:, :4]
     reason = ""
-    far = np.flatnonzero(~np.all(np.isfinite(z), axis=1) |
-                         (np.max(np.abs(z[:, :2]), axis=1) > escape))
+    with np.errstate(invalid="ignore"):
+        far = np.flatnonzero(~np.all(np.isfinite(z), axis=1) |
+                             (escape.beyond(z[:, :2]) if escape else False))
     if far.size:
         t, z = t[:far[0]], z[:far[0]]
-        reason = f"escaped (|q| > {escape:.3g} at t = {run.t_old[min(far[0], run.steps - 1)]:.4g})"
+        reason = (f"escaped (|q - q_c| > {escape.radius if escape else np.inf:.3g}, q_c the "
+                  f"window's centre, at t = {run.t_old[min(far[0], run.steps - 1)]:.4g})")
     elif not run.success:
         reason = (f"the flow stopped at t = {run.t_reached:.4g} ({run.status}; a collision or a "
                   "near one)")

@@ -19,6 +19,7 @@ from ddvp_nlp import HamiltonianSystem
 from ddvp_nlp.solvers.periodic.search import _newton_map, _two_sided, parse_reversing
 from ddvp_nlp.solvers.periodic.section_map import (
     RTOL,
+    Escape,
     SectionAtEnergy,
     parse_search_section,
     returns,
@@ -47,7 +48,7 @@ def test_the_section_has_no_reversing_symmetry():
 
 def test_multiple_shooting_finds_the_orbit_single_shooting_does_not():
     geometry = _geometry()
-    atol, escape = RTOL * 2.0, 8.0
+    atol, escape = RTOL * 2.0, Escape((0.0, 0.0), 8.0)
     z0 = geometry.points([SEED])[0]
     ahead, behind = returns(geometry, z0, 20.0, atol), returns(geometry, z0, -20.0, atol)
     single = _newton_map(geometry, SEED, 1, ahead.t[ahead.direction > 0][0],
