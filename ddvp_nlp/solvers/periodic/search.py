@@ -64,7 +64,7 @@ from ..exact.flow import exact_flow
 from ..exact.flow_newton import exact_newton
 from .floquet import DEFAULT_TOL
 from .floquet import verdict as stability_verdict
-from .search_grid import identify_landing, refine_found
+from .search_grid import identify_landing, own_size, refine_found
 from .section_map import (
     RTOL,
     SEED_ATTEMPTS,
@@ -80,13 +80,13 @@ from .section_map import (
 SEEDS = 400  # default seeds (on the symmetric line; a square grid of about as many otherwise)
 MAX_RETURNS = 2  # default: orbits crossing the section upwards at most this many times
 # a half-orbit shot's residual p_o at its right-angle crossing, relative to the orbit's own
-# range of a momentum (`_own_size`), to be kept
+# range of a momentum (`own_size`), to be kept
 RESIDUAL = 1e-8
 # the whole orbit's closure on the exact flow, each component relative to the orbit's own size
-# (`_own_size`: not max |z|, which grows with the distance from the coordinates' origin)
+# (`own_size`: not max |z|, which grows with the distance from the coordinates' origin)
 CLOSURE = 1e-6
 # two orbits are one when their periods agree to this (relative) and a crossing to 1e3 times
-# it of the orbit's own size (`_own_size`)
+# it of the orbit's own size (`own_size`)
 SAME = 1e-6
 # a position further than this many times the window's half-width from its centre: the
 # motion has left (`_scales`)
@@ -153,7 +153,7 @@ class FoundOrbit:
     its nontrivial ``multipliers`` and stability ``index`` (their sum) from the derivative of the
     return map over one period on the exact flow (``section_map.py``), ``closure`` (its
     closure on the exact flow over one period, each component relative to the orbit's own size,
-    `_own_size`), ``crossings`` (its upward crossings, rows ``u``),
+    `own_size`), ``crossings`` (its upward crossings, rows ``u``),
     ``path`` (``z`` at 400 equal times of one period), how many ``seeds`` reached it, the refined
     ``solution`` with its ``stability`` (``None`` where the refinement failed: ``note``), ``tol``
     (the stability index's tolerance of the verdict) and ``grid`` (a
@@ -654,7 +654,7 @@ def _shoot_half(geometry, a: float, b: float, k: int, direction: int, t_guess: f
     run = _orbit_run(geometry, z0, 2 * t_half, atol)
     # p_o there against the orbit's own range of a momentum (it was max |z0|, a position's
     # distance from the origin among them)
-    if run.success and not abs(end[other]) <= RESIDUAL * _own_size(_path(run, 2 * t_half))[other]:
+    if run.success and not abs(end[other]) <= RESIDUAL * own_size(_path(run, 2 * t_half))[other]:
         return (f"shooting did not converge: the crossing's momentum jumps between q_o = "
                 f"{a:.6g} and {b:.6g} (|p_o| = {abs(end[other]):.2e} at the bracket's root)")
     return _closed(geometry, z0, 2 * t_half, atol, escape, symmetric=True, run=run)
@@ -706,10 +706,10 @@ def _closed(geometry, z0, period: float, atol, escape, *, symmetric: bool, run=N
     """The orbit from ``z0`` over ``period`` checked to close on the exact flow (``run``: the
     flow's run from ``z0`` over ``period`` where the caller made it), with its upward
     crossings and exact monodromy (a `FoundOrbit`), or why not. Its closure is
-    ``|phi_T(z0) - z0|`` per component over the orbit's own size (`_own_size`), at most
+    ``|phi_T(z0) - z0|`` per component over the orbit's own size (`own_size`), at most
     `CLOSURE`: the same verdict wherever the coordinates' origin and whatever their units."""
     run = run or _orbit_run(geometry, z0, period, atol)
-    own = _own_size(_path(run, period)) if run.success else None
+    own = own_size(_path(run, period)) if run.success else None
     with np.errstate(all="ignore"):  # an orbit of no range (a point) does not close
         closure = float(np.max(np.abs(run.z_end - z0) / own)) if run.success else np.inf
     if not closure <= CLOSURE:
@@ -755,20 +755,6 @@ def _unique_rows(rows: np.ndarray, scale: np.ndarray) -> np.ndarray:
         if not any(_near(row, other, scale, SAME) for other in kept):
             kept.append(row)
     return np.array(kept)
-
-
-def _own_size(path: np.ndarray) -> np.ndarray:
-    """The orbit's own size for each component of ``z = (q1, q2, p1, p2)`` (rows of ``path``,
-    over at least one period): the largest range of a position over it for ``q1`` and ``q2``,
-    of a momentum for ``p1`` and ``p2``. Points of an orbit compared to a fraction of it are
-    one point or two whatever the origin of the coordinates and their units (of length, of
-    momentum, of time). ``max |z|`` at the start, used before, grew with the distance from the
-    origin: Hill's problem with ``x`` shifted by 2000 cut its orbits of period ``3.2102332`` to
-    half their period (the start and the crossing half a period on, 1.97 apart, were within
-    ``1e-3`` of 2000), and two orbits of one period a few of their sizes apart merged
-    (``tests/library/periodic/test_search_distinct.py``)."""
-    ranges = np.ptp(np.asarray(path, float), axis=0)
-    return np.repeat([ranges[:2].max(), ranges[2:].max()], 2)
 
 
 def _near(a: np.ndarray, b: np.ndarray, scale: np.ndarray, tol: float) -> bool:
@@ -1035,7 +1021,7 @@ def _distinct(found: list) -> list:
     multiple covers (a crossing repeated within the period) are not kept."""
     kept = []
     for orbit in found:
-        scale = _own_size(orbit.path)[[0, 2]]  # of u = (q_o, p_o): a position, a momentum
+        scale = own_size(orbit.path)[[0, 2]]  # of u = (q_o, p_o): a position, a momentum
         if _covers(orbit, scale):
             continue
         same = next((other for other in kept

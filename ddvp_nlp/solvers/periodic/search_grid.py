@@ -76,6 +76,21 @@ class GridRefinement:
                 f"{self.start_gap:.1e} of the exact orbit's, its own error {self.estimate:.1e}")
 
 
+def own_size(path: np.ndarray) -> np.ndarray:
+    """The orbit's own size for each component of ``z = (q1, q2, p1, p2)`` (rows of ``path``,
+    over at least one period): the largest range of a position over it for ``q1`` and ``q2``,
+    of a momentum for ``p1`` and ``p2``. Points of an orbit compared to a fraction of it are
+    one point or two whatever the origin of the coordinates and their units (of length, of
+    momentum, of time). ``max |z|`` at the start, used before, grew with the distance from the
+    origin: Hill's problem with ``x`` shifted by 2000 cut its orbits of period ``3.2102332`` to
+    half their period (the start and the crossing half a period on, 1.97 apart, were within
+    ``1e-3`` of 2000), and two orbits of one period a few of their sizes apart merged
+    (``tests/library/periodic/test_search_distinct.py``); the search's closure and the
+    grid's start gap (`compare_grid`) are measured against it too."""
+    ranges = np.ptp(np.asarray(path, float), axis=0)
+    return np.repeat([ranges[:2].max(), ranges[2:].max()], 2)
+
+
 def compare_grid(orbit, solution, section) -> GridRefinement:
     """`GridRefinement` of the grid's ``solution`` (``solve_periodic``) against the exact
     ``orbit`` (a ``FoundOrbit``) on ``section`` (a ``SearchSection``; module docstring)."""
@@ -84,16 +99,25 @@ def compare_grid(orbit, solution, section) -> GridRefinement:
     period = float(solution.t[-1] - solution.t[0])
     period_gap = abs(period - orbit.period) / orbit.period
     z0 = np.concatenate([solution.q[0], solution.p[0]])
-    size = float(np.max(np.abs(orbit.start)))
-    u0 = z0[section.free]
-    crossings = np.atleast_2d(orbit.crossings)
-    start_gap = float(np.min(np.max(np.abs(crossings - u0), axis=1))) / size
+    start_gap = _start_gap(orbit, z0[section.free], section)
     verdict = solution.verdict
     estimate = float(verdict.error_max) if verdict is not None else float("nan")
     name = verdict.name if verdict is not None else solution.status.code
     # no accuracy check made (none asked for): no estimate to compare with, nothing flagged
     far = bool(np.isfinite(estimate)) and not (max(period_gap, start_gap) <= GAP * estimate)
     return GridRefinement(ANOTHER if far else name, period, period_gap, start_gap, estimate)
+
+
+def _start_gap(orbit, u0: np.ndarray, section) -> float:
+    """The distance of ``u0 = (q_o, p_o)`` from the orbit's nearest upward crossing, each
+    component over the orbit's own size (`own_size`: the grid's error estimate is relative to
+    the orbit's ranges too). It was over ``max |start|``, which grows with the distance from
+    the coordinates' origin: with the origin 2000 away a grid 0.2 of the orbit's size off its
+    start passed as within its error of 3e-3."""
+    scale = own_size(orbit.path)[section.free]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gaps = np.max(np.abs(np.atleast_2d(orbit.crossings) - u0) / scale, axis=1)
+    return float(np.min(gaps))
 
 
 def refine_found(system, orbit, energy: float, section, nodes: int, params,
@@ -149,10 +173,8 @@ def identify_landing(orbits: list, section) -> None:
             covers = round(check.period / other.period)
             if other is orbit or covers < 1:
                 continue
-            size = float(np.max(np.abs(other.start)))
             gap = max(abs(check.period - covers * other.period) / (covers * other.period),
-                      float(np.min(np.max(np.abs(np.atleast_2d(other.crossings) - u0), axis=1)))
-                      / size)
+                      _start_gap(other, u0, section))
             if gap <= GAP * check.estimate:
                 times = {1: "", 2: " covered twice"}.get(covers, f" covered {covers} times")
                 orbit.grid = replace(check, landed=f"the grid's orbit is orbit {j + 1}{times}")

@@ -95,7 +95,7 @@ def test_a_shifted_origin_lists_the_same_orbits():
     periods, crossing where they did, in the window the search sizes itself. Whether two
     crossings were one was decided to 1e-3 of max |z| at the start, about 2000 here: the pair of
     period 3.2102332 was listed at half its period, its start and the crossing half a period on
-    (1.97 apart) taken for one point (now to the orbit's own size, `search._own_size`; its cheap
+    (1.97 apart) taken for one point (now to the orbit's own size, `search_grid.own_size`; its cheap
     checks are test_search_distinct.py). The window, sized on a scan about the origin, was
     [-197054, 201024] and nothing was found (now scanned about the libration points' own
     centre; the window alone under offsets and units is test_search_scales.py). In the window

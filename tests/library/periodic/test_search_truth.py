@@ -28,12 +28,15 @@ SECTION = SearchSection(index=1, other=0, value=0.0, label="q2=0")
 
 
 def found(period=1.0, index=0.5, returns=1, start=(1.0, 0.0, 0.0, 1.0), crossings=None,
-          tol=DEFAULT_TOL):
+          tol=DEFAULT_TOL, size=1.0):
+    """A found orbit through ``start`` whose positions and momenta each range over ``size``
+    (its own size, `search_grid.own_size`)."""
     start = np.asarray(start, float)
     rows = np.atleast_2d(start[[0, 2]]) if crossings is None else np.asarray(crossings, float)
+    path = start + size * np.linspace(-0.5, 0.5, 3)[:, None] * np.ones(4)
     return FoundOrbit(period=period, start=start, returns=returns, symmetric=False,
                       multipliers=np.ones(2), index=index, closure=1e-12, crossings=rows,
-                      path=np.zeros((3, 4)), tol=tol)
+                      path=path, tol=tol)
 
 
 def grid(period, start, error=1e-3, name="accurate"):
@@ -82,27 +85,29 @@ def test_the_rows_and_the_figure_use_the_orbits_verdict(tmp_path):
 
 @settings(max_examples=60, derandomize=True, deadline=None, database=None)
 @given(st.floats(1e-3, 1e3), st.floats(-3, 3), st.floats(1e-6, 1e-2), st.floats(0.0, 5.0),
-       st.floats(0.0, 5.0), st.floats(1e-3, 1e3))
-def test_a_grid_further_than_its_own_error_is_another_orbit(period, u, error, dt, du, unit):
+       st.floats(0.0, 5.0), st.floats(1e-3, 1e3), st.sampled_from([0.0, 2000.0, -3e4]))
+def test_a_grid_further_than_its_own_error_is_another_orbit(period, u, error, dt, du, unit,
+                                                            offset):
     """The grid's orbit is this orbit's refinement exactly when its period and start are within
-    the grid's own error of the exact orbit's (GAP times it); the same in any unit of time (the
-    period scaled, the gaps relative)."""
+    the grid's own error of the exact orbit's (GAP times it; the start against the orbit's own
+    size); the same in any unit of time (the period scaled, the gaps relative) and wherever
+    the origin of q1 (the start moved by ``offset``). The start's gap was over ``max |start|``:
+    with the origin 2000 away a grid ``du`` errors off passed as within ``du / 2000``."""
     start = (1.0 + u * u, 0.0, 0.0, 1.0)
-    size = max(abs(v) for v in start)
-    moved = (start[0] + du * error * size, 0.0, 0.0, 1.0)
+    moved = (start[0] + du * error, 0.0, 0.0, 1.0)  # the orbit's own size is 1
+    # how far from GAP a verdict is certain: the round-off of the start's position, in errors
+    slack = 1e-9 + 8 * np.finfo(float).eps * (abs(offset) + start[0]) / error
     outcomes = []
-    for scale in (1.0, unit):
-        orbit = found(period=scale * period, start=start)
-        check = compare_grid(orbit, grid(scale * period * (1 + dt * error), moved, error),
-                             SECTION)
+    for scale, shift in ((1.0, 0.0), (unit, 0.0), (1.0, offset)):
+        orbit = found(period=scale * period, start=np.add(start, (shift, 0, 0, 0)))
+        check = compare_grid(orbit, grid(scale * period * (1 + dt * error),
+                                         np.add(moved, (shift, 0, 0, 0)), error), SECTION)
         outcomes.append(check.verdict)
-        inside = max(dt, du) <= GAP * (1 - 1e-9)
-        outside = max(dt, du) >= GAP * (1 + 1e-9)
-        if inside:
+        if max(dt, du) <= GAP * (1 - slack):
             assert check.verdict == "accurate" and check.refines
-        if outside:
+        if max(dt, du) >= GAP * (1 + slack):
             assert check.verdict == ANOTHER and not check.refines
-    assert outcomes[0] == outcomes[1] or not (max(dt, du) - GAP) ** 2 > 1e-12
+    assert len(set(outcomes)) == 1 or abs(max(dt, du) - GAP) < GAP * slack
 
 
 def test_a_failed_grid_is_said_failed():
