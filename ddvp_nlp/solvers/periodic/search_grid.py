@@ -129,7 +129,10 @@ def refine_found(system, orbit, energy: float, section, nodes: int, params,
 
     theta = system.parameter_vector(params)
     flow = exact_flow(system)
-    run = flow.run(orbit.start, 0.0, orbit.period, theta, rtol=RTOL)
+    # the guess's absolute tolerance from the orbit's own size (it was RTOL itself, absolute:
+    # 1e-12 of a unit of length or momentum whatever the units)
+    run = flow.run(orbit.start, 0.0, orbit.period, theta, rtol=RTOL,
+                   atol=RTOL * own_size(orbit.path))
     t = np.linspace(0.0, orbit.period, 4 * nodes)
     z = run.z(t)
     z[-1] = z[0]
