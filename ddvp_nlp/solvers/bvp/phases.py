@@ -27,10 +27,14 @@ from .ends_nlp import BvpIpopt
 from .interleaved import Ends, GridAssembly
 
 EPS = np.finfo(float).eps
-# Newton's target on each row: this many units of the row's round-off (module docstring of
-# grid/newton.py); verification allows ROUND_OFF_ALLOWANCE of them (fixed_ends.py).
+# Newton's target on a row whose round-off is known by its magnitude (a pin, a row whose
+# expression cannot be walked): this many units of it (module docstring of grid/newton.py);
+# verification allows ROUND_OFF_ALLOWANCE of them (fixed_ends.py). A row whose running error
+# bound is known (`row_round_offs`) has that bound, already a sum over its every operation, as
+# its target, and BOUNDS_ALLOWED of it in the verification: the same ratio.
 TARGET_ULPS = 16
 ROUND_OFF_ALLOWANCE = 1024
+BOUNDS_ALLOWED = ROUND_OFF_ALLOWANCE // TARGET_ULPS
 
 
 @dataclass
@@ -70,32 +74,126 @@ def assembly(request: GridRequest, scheme: Scheme) -> GridAssembly:
                                               compilation))
 
 
-def round_off_scales(request: GridRequest, x: np.ndarray, scheme: Scheme):
-    """``(canonical, energy)``: the magnitude whose round-off bounds a canonical row
-    (``max(1, |q|, |p|, |t|)``) and an unscaled energy row (``max(1, |E_k|)`` on up to 1000
-    sampled intervals)."""
-    m = 2 * request.system.n + 1
-    z = x.reshape(-1, m)
-    canonical = float(max(1.0, np.max(np.abs(z))))
-    if not scheme.variable_steps:
-        return canonical, 1.0
-    k = np.unique(np.linspace(0, request.nodes - 2, min(request.nodes - 1, 1000)).astype(int))
+# Intervals at which each row's round-off is read (`row_round_offs`): this many evenly spaced,
+# and those of the largest state, the fastest motion and the shortest step.
+ROUND_OFF_SAMPLES = 32
+
+
+@dataclass(frozen=True)
+class RowRoundOff:
+    """Each row's round-off bound in units of ``eps`` (`row_round_offs`): ``canonical`` per
+    canonical row ``(2n,)``, ``energy`` the unscaled energy row, ``pins`` the rows that pin a
+    node to the data (an end position, an end time: ``TARGET_ULPS`` of their magnitude)."""
+
+    canonical: np.ndarray
+    energy: float
+    pins: float
+
+
+def row_round_offs(request: GridRequest, x: np.ndarray, scheme: Scheme) -> RowRoundOff:
+    """Each row's round-off near ``x``, in units of ``eps`` and in the row's own units: the
+    running error bound of the row's expression (`physics.roundoff.roundoff_bound`) at sampled
+    intervals (`ROUND_OFF_SAMPLES`, with those of the largest state, the fastest motion and the
+    shortest step), the largest per row. It scales with the rows under any change of units and
+    grows where a coordinate is offset or a constant is added to ``H``, as the round-off does;
+    no floor of 1 (a pendulum in lengths of ``1e-8`` had its rows' targets at ``eps`` times the
+    end time, ``1e-6`` of its motion, and its energy rows' at ``eps``, ``1e17`` times its
+    energy). Where a row's expression has an operation without a scalar rule, the magnitudes of
+    its terms instead (`_row_magnitudes`)."""
+    n, N = request.system.n, request.nodes
+    z = x.reshape(N, 2 * n + 1)
+    pins = TARGET_ULPS * float(np.max(np.abs(z[[0, -1]]), initial=0.0))
+    bounds = _row_bounds(request.system, scheme)
+    if bounds is None or not np.all(np.isfinite(z)):
+        return _row_magnitudes(request, z, scheme, pins)
+    canonical_rows, energy_row = bounds
+    theta = np.asarray(request.theta, float).ravel()
+    k = _sampled_intervals(z)
+    canonical = np.array([max(row(z[j], z[j + 1], theta) for j in k) if row is not None
+                          else 0.0 for row in canonical_rows])
+    energy = 0.0
+    if energy_row is not None and N > 2:
+        energy = max(energy_row(z[j], z[j + 1], z[j + 2], theta)
+                     for j in np.minimum(k, N - 3))
+    return RowRoundOff(canonical, float(energy), pins)
+
+
+def _sampled_intervals(z: np.ndarray) -> np.ndarray:
+    """Evenly spaced intervals and those of the largest ``|z|``, the largest ``|dz| / tau``
+    and the shortest step."""
+    N = z.shape[0]
+    tau = np.diff(z[:, 0])
+    speed = np.max(np.abs(np.diff(z[:, 1:], axis=0)), axis=1) / np.where(tau != 0, np.abs(tau),
+                                                                         np.inf)
+    extremes = [min(int(np.argmax(np.max(np.abs(z), axis=1))), N - 2), int(np.argmax(speed)),
+                int(np.argmin(np.abs(tau)))]
+    spread = np.linspace(0, N - 2, min(N - 1, ROUND_OFF_SAMPLES)).astype(int)
+    return np.unique(np.concatenate([spread, extremes]))
+
+
+def _row_bounds(system, scheme: Scheme):
+    """``(canonical, energy)``: the running error bound of each canonical row as a callable of
+    ``(z_a, z_b, theta)`` (``None`` for a row that is structurally zero) and of the energy row
+    of ``(z_prev, z_mid, z_next, theta)`` (``None`` for ``fixed``), built once per system and
+    scheme; ``None`` where an operation has no scalar rule."""
+    import casadi as ca
+
+    from ...cache import cached
+    from ...physics.roundoff import roundoff_bound
+    from .interleaved import node_expressions
+
+    def build():
+        z, r, e = node_expressions(system, scheme)
+        theta = system.theta
+        try:
+            canonical = [roundoff_bound(ca.Function(f"row_{i}", [z[0], z[1], theta], [r[i]]),
+                                        (0, 1)) if r[i].nnz() else None
+                         for i in range(r.numel())]
+            energy = None if e is None else roundoff_bound(
+                ca.Function("energy_row", [z[0], z[1], z[2], theta], [e]), (0, 1, 2))
+        except ValueError:
+            return None
+        return canonical, energy
+    return cached(system, ("bvp_row_round_off", scheme), build)
+
+
+def _row_magnitudes(request: GridRequest, z: np.ndarray, scheme: Scheme,
+                    pins: float) -> RowRoundOff:
+    """``TARGET_ULPS`` of the rows' magnitudes where their expressions cannot be walked: a
+    canonical row's ``|z|`` at its nodes plus the end time's magnitude times its rate of change
+    (a step's round-off carried by the field), an energy row's ``|E_k|`` plus
+    ``|q| |H_q| + |p| |H_p|`` (the march's energy magnitude, `acceptance.start_values`), from
+    the nodes."""
     n = request.system.n
-    E = equations.interval_energies(request.system, scheme, z[np.r_[k, k[-1] + 1], 0],
-                                    z[np.r_[k, k[-1] + 1], 1:n + 1],
-                                    z[np.r_[k, k[-1] + 1], n + 1:], request.theta)
-    return canonical, float(max(1.0, np.max(np.abs(E[:-1]))) if E.size > 1 else 1.0)
+    finite = z[np.all(np.isfinite(z), axis=1)]
+    if finite.shape[0] < 2:
+        return RowRoundOff(np.zeros(2 * n), 0.0, pins)
+    tau = np.diff(finite[:, 0])
+    rate = np.abs(np.diff(finite[:, 1:], axis=0)) / np.where(tau != 0, np.abs(tau),
+                                                             np.inf)[:, None]
+    size = np.max(np.abs(finite[:, 1:]), axis=0)
+    times = float(np.max(np.abs(finite[:, 0])))
+    canonical = 2 * size + 2 * times * np.max(rate, axis=0)
+    energy = 0.0
+    if scheme.variable_steps:
+        E = equations.interval_energies(request.system, scheme, finite[:, 0],
+                                        finite[:, 1:n + 1], finite[:, n + 1:], request.theta)
+        flow = np.max(rate, axis=0)
+        energy = float(np.max(np.abs(E), initial=0.0)
+                       + np.sum(size[:n] * flow[n:] + size[n:] * flow[:n]))
+    return RowRoundOff(TARGET_ULPS * canonical, TARGET_ULPS * energy, pins)
 
 
 def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> np.ndarray:
-    """Per-row ``|F_i|`` targets: ``TARGET_ULPS`` round-offs of each row (the energy rows in
-    their scaled units)."""
+    """Per-row ``|F_i|`` targets: each row's round-off bound (`row_round_offs`; the energy
+    rows in their scaled units)."""
     n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
-    canonical, energy = round_off_scales(request, x, grid.scheme)
-    target = np.full(N * m, TARGET_ULPS * EPS * canonical)
+    rows = row_round_offs(request, x, grid.scheme)
+    target = np.full(N * m, EPS * rows.pins)
     body = target[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
+    body[:, :2 * n] = EPS * rows.canonical
     if grid.scheme.variable_steps:
-        body[:-1, 2 * n] = TARGET_ULPS * EPS * energy / data.energy_scale
+        body[:-1, 2 * n] = EPS * rows.energy / data.energy_scale
     return target
 
 
@@ -122,12 +220,13 @@ def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, s
 
 
 def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends) -> float:
-    """The round-off of the rows IPOPT sees near ``x``, ``TARGET_ULPS`` units of the largest:
-    the canonical rows' ``eps max(1, |q|, |p|, |t|)`` and (energy rules) the energy rows'
-    ``eps max(1, |E_k|)`` divided by the energy scale, the mean step (1e-11 at N = 1e6 on the
-    pendulum), rounded up to two digits so that nearby starts share a built problem."""
-    canonical, energy = round_off_scales(request, x, scheme)
-    floor = TARGET_ULPS * EPS * max(canonical, energy / data.energy_scale)
+    """The round-off of the rows IPOPT sees near ``x``, the largest bound
+    (`row_round_offs`: the canonical rows' and, for energy rules, the energy rows' divided by
+    the energy scale, the mean step; 1e-11 at N = 1e6 on the pendulum), rounded up to two
+    digits so that nearby starts share a built problem."""
+    rows = row_round_offs(request, x, scheme)
+    floor = EPS * max(float(np.max(rows.canonical, initial=0.0)), rows.pins,
+                                    rows.energy / data.energy_scale, np.finfo(float).tiny)
     digits = 10.0 ** (np.floor(np.log10(floor)) - 1)
     return float(np.ceil(floor / digits) * digits)
 
