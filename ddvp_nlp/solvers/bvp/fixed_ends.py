@@ -27,12 +27,16 @@ Starts: ``first_guess.py`` (straight line or shooting, then fixed steps on unifo
 times, then the times released).
 
 Every returned point is verified by its own unscaled residuals, whatever the solver said
-(IPOPT's default ``constr_viol_tol`` once accepted node times off by 3e-2): success means the
-largest canonical residual (increment form) is below ``max(tol, c)`` and the largest energy
-residual below ``max(tol (t_end - t_0)/(N-1), c_E)`` (the energy equation's derivative in a node
-time is ``O(tau)``, so this makes ``tol`` a tolerance on node times whatever ``N``), with ``c``,
-``c_E`` 1024 round-offs of the rows' magnitudes (``max(1, |q_start|, |q_end|, |t_0|, |t_end|)``
-and ``max(1, |E_k|)``: below those no solver can go), and every step is positive. The message says
+(IPOPT's default ``constr_viol_tol`` once accepted node times off by 3e-2): success means every
+canonical residual (increment form) is below ``max(tol S, c)``, ``S`` the motion's size in the
+row's units (the largest range of a position, or of a momentum, over the nodes), every energy
+residual below ``max(tol h W, c_E)``, ``h`` the mean step and ``W`` the rate at which the motion
+trades energy (so that ``tol`` bounds the node times relative to the motion's own time scale,
+whatever ``N``), with ``c``, ``c_E`` 64 times Newton's target on the row, which is twice the
+row's round-off read off the rows themselves at the point (`phases.row_round_offs`: below that
+no solver can go), and every step is positive (`verification_limits`). Every scale comes from the
+problem: the same solve in other units of length, momentum or time, or with the clock or the
+origin shifted, gives the same nodes (``tests/library/bvp/test_units.py``). The message says
 what the solver said.
 """
 
@@ -71,7 +75,6 @@ from .first_guess import (
 from .interleaved import NodeLayout
 from .phases import (
     BOUNDS_ALLOWED,
-    EPS,
     Boundary,
     assembly,
     ends,
@@ -318,32 +321,35 @@ def _available_memory() -> float | None:
 
 def _residuals(request: GridRequest, x: np.ndarray):
     """Canonical ``(N-1, 2n)`` and energy ``(N-2,)`` residuals of ``x``, unscaled (for ``fixed``
-    steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it)."""
+    steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it), and the
+    grid's ``F`` at ``x`` where it was evaluated (energy rules; else ``None``)."""
     if not request.scheme.variable_steps:
         t, q, p = NodeLayout(request.system.n, request.nodes).unpack(x)
-        return equations.grid_residuals(request.system, request.scheme, t, q, p, request.theta)
+        return (*equations.grid_residuals(request.system, request.scheme, t, q, p,
+                                          request.theta), None)
     grid = assembly(request, request.scheme)
     data = ends(request, request.scheme)
     F, _ = grid.evaluate(x, data, jacobian=False)
-    return grid.residuals(F, data)
+    return (*grid.residuals(F, data), F)
 
 
 def _outcome(request: GridRequest, x: np.ndarray, phase: Stage):
     """``(status, message, stats)`` of the point ``x`` that ``phase`` returned."""
     t = x.reshape(request.nodes, -1)[:, 0]
     finite = bool(np.all(np.isfinite(x)))
-    canonical, energy = _residuals(request, x) if finite else (None, None)
-    limits = verification_limits(request, x) if finite else (np.full(2 * request.system.n,
-                                                                      np.nan), np.nan)
+    canonical, energy, F = _residuals(request, x) if finite else (None, None, None)
+    limits = verification_limits(request, x, F) if finite else (np.full(2 * request.system.n,
+                                                                         np.nan), np.nan)
     stats = {"canonical": canonical, "energy": energy}
     status, message = _verify(phase, t, canonical, energy, request.scheme, limits, stats)
     return status, message, stats
 
 
-def verification_limits(request: GridRequest, x: np.ndarray) -> tuple[np.ndarray, float]:
+def verification_limits(request: GridRequest, x: np.ndarray,
+                        F: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """``(canonical (2n,), energy)``: the largest residual each row of the point ``x`` may have
     and pass. Each is ``tol`` relative to what the row measures, or ``BOUNDS_ALLOWED``
-    round-off bounds of the row (`phases.row_round_offs`), whichever is larger:
+    times Newton's target on the row (`phases.row_round_offs`), whichever is larger:
 
     - a canonical row: ``tol`` times the motion's size in the row's units, the largest range
       of a position over the nodes for a position row, of a momentum for a momentum row
@@ -357,20 +363,20 @@ def verification_limits(request: GridRequest, x: np.ndarray) -> tuple[np.ndarray
     Every scale comes from the problem: under a change of units of length, momentum or time,
     or a shift of the coordinates' origin, the limits follow the rows (a floor of 1 and ``tol``
     as an absolute number had passed a pendulum in lengths of ``1e-8`` whose energy rows were
-    not solved, ``1e-5`` of its energy off)."""
+    not solved, ``1e-5`` of its energy off). ``F``: the grid's rows at ``x``, if evaluated."""
     n, N = request.system.n, request.nodes
     z = x.reshape(N, 2 * n + 1)
-    rows = row_round_offs(request, x, request.scheme)
+    rows = row_round_offs(request, x, request.scheme, base=F)
     q, p, tau = z[:, 1:n + 1], z[:, n + 1:], np.diff(z[:, 0])
     ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
     units = equations.action_for(request.system, request.scheme).row_units
     size = np.repeat([ranges[units[0]], ranges[units[1]]], n)
-    canonical = np.maximum(request.tol * size, BOUNDS_ALLOWED * EPS * rows.canonical)
+    canonical = np.maximum(request.tol * size, BOUNDS_ALLOWED * rows.canonical)
     step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
     power = float(np.sum(np.max(np.abs(np.diff(q, axis=0)) / step, axis=0)
                          * np.max(np.abs(np.diff(p, axis=0)) / step, axis=0)))
     energy = max(request.tol * mean_step(request) * power,
-                 BOUNDS_ALLOWED * EPS * rows.energy)
+                 BOUNDS_ALLOWED * rows.energy)
     return canonical, energy
 
 
