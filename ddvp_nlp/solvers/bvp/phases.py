@@ -22,6 +22,7 @@ from ..grid.linear import band_kernel
 from ..grid.newton import newton
 from ..grid.policy import Stage
 from ..grid.problem import GridRequest
+from ..grid.round_off import row_noise
 from .ends_nlp import BvpIpopt
 from .interleaved import Ends, GridAssembly
 
@@ -70,12 +71,6 @@ def assembly(request: GridRequest, scheme: Scheme) -> GridAssembly:
                                               compilation))
 
 
-# Each row's round-off is read off the rows themselves (`row_round_offs`): the largest change of
-# the row, over the grid, when every unknown is moved by one unit in its last place, at up to
-# NOISE_DRAWS draws of the directions, fewer on a grid with more than NOISE_ROWS intervals (each
-# draw is one evaluation of the whole grid; a fixed seed: the same targets on every run).
-NOISE_DRAWS = 3
-NOISE_ROWS = 3000
 # Newton's target on a row: this many times that change (the residual Newton's last step leaves
 # was 0.4-0.75 of it on Kepler's vddvp rows); the verification allows ROUND_OFF_ALLOWANCE /
 # TARGET_ULPS of the target, as before.
@@ -98,8 +93,8 @@ def row_round_offs(request: GridRequest, x: np.ndarray, scheme: Scheme, grid=Non
                    data: Ends | None = None, base: np.ndarray | None = None) -> RowRoundOff:
     """Each kind of row's round-off near ``x``, in the row's own units: ``NOISE_TARGET`` times
     the largest change of the row over the grid when every unknown is moved by one unit in
-    its last place (``x (1 + eps s)``, ``s = +-1`` drawn ``NOISE_DRAWS`` times), which is how far
-    the rows' values are known at ``x``. It scales with the rows under any change of units and
+    its last place (`grid.round_off.row_noise`), which is how far the rows' values are known at
+    ``x``. It scales with the rows under any change of units and
     grows where a coordinate is offset or a constant is added to ``H``, as the round-off does,
     and it needs no floor of 1: with ``max(1, |q|, |p|, |t|)`` a pendulum in lengths of ``1e-8``
     had its canonical targets at ``eps`` times the end time, ``1e-6`` of its motion, and Newton
@@ -109,15 +104,7 @@ def row_round_offs(request: GridRequest, x: np.ndarray, scheme: Scheme, grid=Non
     grid = assembly(request, scheme) if grid is None else grid
     data = ends(request, scheme) if data is None else data
     n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
-    if base is None:
-        base, _ = grid.evaluate(x, data, jacobian=False)
-    draws = np.random.default_rng(20261207)
-    spread = np.zeros_like(base)
-    for _ in range(int(np.clip(np.ceil(NOISE_ROWS / N), 1, NOISE_DRAWS))):
-        moved = x * (1.0 + EPS * draws.choice([-1.0, 1.0], x.size))
-        F, _ = grid.evaluate(moved, data, jacobian=False)
-        np.maximum(spread, np.abs(F - base), out=spread)
-    spread = np.where(np.isfinite(spread), spread, 0.0)
+    spread = row_noise(grid, x, data, base)
     body = spread[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
     pins = np.concatenate([spread[:n + 1], spread[n + 1 + (N - 1) * m:], body[-1:, 2 * n]])
     energy = 0.0
