@@ -54,6 +54,11 @@ class IntervalAction:
     ``(t_a, t_b, q_a, p_a, q_b, p_b)`` and the parameters ``theta``.
     """
 
+    # The units of the interval equations' two blocks of n rows: a position's then a
+    # momentum's (the increment form of the canonical equations), or a momentum's twice (the
+    # discrete Legendre transform); a verification measures each row against its block's motion.
+    row_units: tuple[str, str] = ("q", "p")
+
     def __init__(self, system, scheme: Scheme):
         self.system = system
         self.scheme = scheme

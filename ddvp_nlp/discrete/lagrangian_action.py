@@ -24,6 +24,8 @@ from .action import IntervalAction, interval_arguments
 
 
 class LagrangianAction(IntervalAction):
+    row_units = ("p", "p")  # p_a - p_left, p_b - p_right
+
     def action(self, t_a, t_b, q_a, p_a, q_b, p_b, theta, varying: bool = False):
         Q, _, s, tau = self.arguments(t_a, t_b, q_a, p_a, q_b, p_b)
         return tau * self._L(varying)(Q, (q_b - q_a) / tau, s, theta)

@@ -27,9 +27,11 @@ The contract, on top of the grid's (``grid/__init__.py``):
    every step stays above ``tau_floor > 0`` (the time-reversed root is never approached).
 2. A phase that fails leaves the previous phase's point; the final solve starts from the best
    point the starts reached.
-3. Success is the returned point's own residuals: every canonical residual under ``max(tol,
-   1024 round-offs of the data)``, every energy residual under ``max(tol (t_end - t_0)/(N-1),
-   1024 round-offs of |E|)``, every step positive; the message quotes the solver.
+3. Success is the returned point's own residuals: every canonical residual under ``tol`` times
+   the motion's size in its units or 128 of its round-offs, every energy residual under ``tol``
+   times the mean step times the motion's rate of energy exchange or 128 of its round-offs (the
+   round-off read off the rows at the point), every step positive; the message quotes the
+   solver (``fixed_ends.verification_limits``).
 4. A verified point is then judged against the exact flow (``accuracy/judgement.py``): its
    intervals, its energy, and its trajectory against the continuous solution near it; a problem
    with no continuous solution near the discrete one ends ``inaccurate``, saying so.

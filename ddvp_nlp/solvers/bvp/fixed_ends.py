@@ -27,12 +27,16 @@ Starts: ``first_guess.py`` (straight line or shooting, then fixed steps on unifo
 times, then the times released).
 
 Every returned point is verified by its own unscaled residuals, whatever the solver said
-(IPOPT's default ``constr_viol_tol`` once accepted node times off by 3e-2): success means the
-largest canonical residual (increment form) is below ``max(tol, c)`` and the largest energy
-residual below ``max(tol (t_end - t_0)/(N-1), c_E)`` (the energy equation's derivative in a node
-time is ``O(tau)``, so this makes ``tol`` a tolerance on node times whatever ``N``), with ``c``,
-``c_E`` 1024 round-offs of the rows' magnitudes (``max(1, |q_start|, |q_end|, |t_0|, |t_end|)``
-and ``max(1, |E_k|)``: below those no solver can go), and every step is positive. The message says
+(IPOPT's default ``constr_viol_tol`` once accepted node times off by 3e-2): success means every
+canonical residual (increment form) is below ``max(tol S, c)``, ``S`` the motion's size in the
+row's units (the largest range of a position, or of a momentum, over the nodes), every energy
+residual below ``max(tol h W, c_E)``, ``h`` the mean step and ``W`` the rate at which the motion
+trades energy (so that ``tol`` bounds the node times relative to the motion's own time scale,
+whatever ``N``), with ``c``, ``c_E`` 64 times Newton's target on the row, which is twice the
+row's round-off read off the rows themselves at the point (`phases.row_round_offs`: below that
+no solver can go), and every step is positive (`verification_limits`). Every scale comes from the
+problem: the same solve in other units of length, momentum or time, or with the clock or the
+origin shifted, gives the same nodes (``tests/library/bvp/test_units.py``). The message says
 what the solver said.
 """
 
@@ -70,13 +74,12 @@ from .first_guess import (
 )
 from .interleaved import NodeLayout
 from .phases import (
-    EPS,
-    ROUND_OFF_ALLOWANCE,
+    BOUNDS_ALLOWED,
     Boundary,
     assembly,
     ends,
     mean_step,
-    round_off_scales,
+    row_round_offs,
     run_phase,
 )
 
@@ -318,57 +321,94 @@ def _available_memory() -> float | None:
 
 def _residuals(request: GridRequest, x: np.ndarray):
     """Canonical ``(N-1, 2n)`` and energy ``(N-2,)`` residuals of ``x``, unscaled (for ``fixed``
-    steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it)."""
+    steps the ``lee`` balance they do not enforce, as ``grid_residuals`` reports it), and the
+    grid's ``F`` at ``x`` where it was evaluated (energy rules; else ``None``)."""
     if not request.scheme.variable_steps:
         t, q, p = NodeLayout(request.system.n, request.nodes).unpack(x)
-        return equations.grid_residuals(request.system, request.scheme, t, q, p, request.theta)
+        return (*equations.grid_residuals(request.system, request.scheme, t, q, p,
+                                          request.theta), None)
     grid = assembly(request, request.scheme)
     data = ends(request, request.scheme)
     F, _ = grid.evaluate(x, data, jacobian=False)
-    return grid.residuals(F, data)
+    return (*grid.residuals(F, data), F)
 
 
 def _outcome(request: GridRequest, x: np.ndarray, phase: Stage):
     """``(status, message, stats)`` of the point ``x`` that ``phase`` returned."""
     t = x.reshape(request.nodes, -1)[:, 0]
     finite = bool(np.all(np.isfinite(x)))
-    canonical, energy = _residuals(request, x) if finite else (None, None)
-    # The canonical rows' round-off is measured on the data, not on the point: a diverged
-    # iterate's own magnitude would excuse any residual.
-    boundary = request.data
-    data = max(1.0, *np.abs(boundary.q_start), *np.abs(boundary.q_end), abs(boundary.t0),
-               abs(boundary.t1))
-    scales = (data, round_off_scales(request, x, request.scheme)[1]) if finite else (1.0, 1.0)
-    limits = (max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales[0]),
-              max(request.tol * mean_step(request), ROUND_OFF_ALLOWANCE * EPS * scales[1]))
-    stats = {"canonical_limit": limits[0], "energy_limit": limits[1],
-             "canonical": canonical, "energy": energy}
+    canonical, energy, F = _residuals(request, x) if finite else (None, None, None)
+    limits = verification_limits(request, x, F) if finite else (np.full(2 * request.system.n,
+                                                                         np.nan), np.nan)
+    stats = {"canonical": canonical, "energy": energy}
     status, message = _verify(phase, t, canonical, energy, request.scheme, limits, stats)
     return status, message, stats
 
 
+def verification_limits(request: GridRequest, x: np.ndarray,
+                        F: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """``(canonical (2n,), energy)``: the largest residual each row of the point ``x`` may have
+    and pass. Each is ``tol`` relative to what the row measures, or ``BOUNDS_ALLOWED``
+    times Newton's target on the row (`phases.row_round_offs`), whichever is larger:
+
+    - a canonical row: ``tol`` times the motion's size in the row's units, the largest range
+      of a position over the nodes for a position row, of a momentum for a momentum row
+      (``Scheme``'s ``row_units``: the increment form has one block of each, the discrete
+      Legendre transform two of momenta);
+    - an energy row: ``tol`` times the mean step times the rate at which the motion trades
+      energy, ``sum_i max |dq_i/dt| max |dp_i/dt|`` (energy per time, read off the nodes), so
+      that ``tol`` bounds the node times relative to the motion's own time scale whatever ``N``
+      (the row's derivative in a node time is ``O(tau)``).
+
+    Every scale comes from the problem: under a change of units of length, momentum or time,
+    or a shift of the coordinates' origin, the limits follow the rows (a floor of 1 and ``tol``
+    as an absolute number had passed a pendulum in lengths of ``1e-8`` whose energy rows were
+    not solved, ``1e-5`` of its energy off). ``F``: the grid's rows at ``x``, if evaluated."""
+    n, N = request.system.n, request.nodes
+    z = x.reshape(N, 2 * n + 1)
+    rows = row_round_offs(request, x, request.scheme, base=F)
+    q, p, tau = z[:, 1:n + 1], z[:, n + 1:], np.diff(z[:, 0])
+    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
+    units = equations.action_for(request.system, request.scheme).row_units
+    size = np.repeat([ranges[units[0]], ranges[units[1]]], n)
+    canonical = np.maximum(request.tol * size, BOUNDS_ALLOWED * rows.canonical)
+    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
+    power = float(np.sum(np.max(np.abs(np.diff(q, axis=0)) / step, axis=0)
+                         * np.max(np.abs(np.diff(p, axis=0)) / step, axis=0)))
+    energy = max(request.tol * mean_step(request) * power,
+                 BOUNDS_ALLOWED * rows.energy)
+    return canonical, energy
+
+
 def _verify(phase, t, canonical, energy, scheme, limits, stats):
-    """Status and message from the point's own residuals; the solver's verdict is quoted, and
-    decides only when the point fails (solver failure, time limit)."""
+    """Status and message from the point's own residuals against ``limits`` (per canonical
+    row, and the energy rows'); the solver's verdict is quoted, and decides only when the point
+    fails (solver failure, time limit)."""
     if canonical is None:
+        stats.update(canonical_limit=np.nan, energy_limit=np.nan)
         return Status.NON_FINITE, f"the solver returned non-finite values ({phase.quoted})"
     tau = np.diff(t)
     worst_canonical = float(np.max(np.abs(canonical)))
     worst_energy = float(np.max(np.abs(energy), initial=0.0))
-    stats.update(canonical_residual_max=worst_canonical, energy_residual_max=worst_energy,
+    row_limits, energy_limit = limits
+    # the limit beside the largest residual: of its row
+    column = int(np.argmax(np.max(np.abs(canonical), axis=0)))
+    stats.update(canonical_limit=float(row_limits[column]), energy_limit=float(energy_limit),
+                 canonical_residual_max=worst_canonical, energy_residual_max=worst_energy,
                  tau_min=float(np.min(tau)))
     problems = []
     if np.min(tau) <= 0:
         k = int(np.argmin(tau))
         problems.append(f"step {k} is not positive: tau = {tau[k]:.6g} (t = {t[k]:.10g})")
-    if worst_canonical > limits[0]:
-        k = int(np.argmax(np.max(np.abs(canonical), axis=1)))
-        problems.append(f"canonical residual {worst_canonical:.3e} on interval {k} "
-                        f"(t = {t[k]:.6g})")
-    if scheme.variable_steps and worst_energy > limits[1]:
+    over = np.abs(canonical) / row_limits
+    if np.max(over) > 1:
+        k, i = np.unravel_index(int(np.argmax(over)), over.shape)
+        problems.append(f"canonical residual {abs(canonical[k, i]):.3e} on interval {k} "
+                        f"(t = {t[k]:.6g}), tolerance {row_limits[i]:.3e}")
+    if scheme.variable_steps and worst_energy > energy_limit:
         k = int(np.argmax(np.abs(energy))) + 1
         problems.append(f"energy residual {worst_energy:.3e} at node {k} (t = {t[k]:.6g}), "
-                        f"tolerance {limits[1]:.3e}")
+                        f"tolerance {energy_limit:.3e}")
     said = phase.quoted
     if not problems:
         return Status.SUCCESS, (f"solved and verified: largest residuals canonical "

@@ -17,18 +17,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
 from ..grid.policy import Stage
 from ..grid.problem import GridRequest
+from ..grid.round_off import row_noise
 from .ends_nlp import BvpIpopt
 from .interleaved import Ends, GridAssembly
 
 EPS = np.finfo(float).eps
-# Newton's target on each row: this many units of the row's round-off (module docstring of
-# grid/newton.py); verification allows ROUND_OFF_ALLOWANCE of them (fixed_ends.py).
+# Newton's target on each row was TARGET_ULPS round-offs of its magnitude, and the verification
+# allowed ROUND_OFF_ALLOWANCE of them (module docstring of grid/newton.py; fixed_ends.py): the
+# ratio of the two is kept (BOUNDS_ALLOWED, below).
 TARGET_ULPS = 16
 ROUND_OFF_ALLOWANCE = 1024
 
@@ -70,32 +71,61 @@ def assembly(request: GridRequest, scheme: Scheme) -> GridAssembly:
                                               compilation))
 
 
-def round_off_scales(request: GridRequest, x: np.ndarray, scheme: Scheme):
-    """``(canonical, energy)``: the magnitude whose round-off bounds a canonical row
-    (``max(1, |q|, |p|, |t|)``) and an unscaled energy row (``max(1, |E_k|)`` on up to 1000
-    sampled intervals)."""
-    m = 2 * request.system.n + 1
-    z = x.reshape(-1, m)
-    canonical = float(max(1.0, np.max(np.abs(z))))
-    if not scheme.variable_steps:
-        return canonical, 1.0
-    k = np.unique(np.linspace(0, request.nodes - 2, min(request.nodes - 1, 1000)).astype(int))
-    n = request.system.n
-    E = equations.interval_energies(request.system, scheme, z[np.r_[k, k[-1] + 1], 0],
-                                    z[np.r_[k, k[-1] + 1], 1:n + 1],
-                                    z[np.r_[k, k[-1] + 1], n + 1:], request.theta)
-    return canonical, float(max(1.0, np.max(np.abs(E[:-1]))) if E.size > 1 else 1.0)
+# Newton's target on a row: this many times that change (the residual Newton's last step leaves
+# was 0.4-0.75 of it on Kepler's vddvp rows); the verification allows ROUND_OFF_ALLOWANCE /
+# TARGET_ULPS of the target, as before.
+NOISE_TARGET = 2.0
+BOUNDS_ALLOWED = ROUND_OFF_ALLOWANCE // TARGET_ULPS
+
+
+@dataclass(frozen=True)
+class RowRoundOff:
+    """Newton's target on each kind of row, unscaled (`row_round_offs`): ``canonical`` per
+    canonical row ``(2n,)``, ``energy`` the energy row (0 for ``fixed``), ``pins`` the rows that
+    pin a node to the data (an end position, an end time)."""
+
+    canonical: np.ndarray
+    energy: float
+    pins: float
+
+
+def row_round_offs(request: GridRequest, x: np.ndarray, scheme: Scheme, grid=None,
+                   data: Ends | None = None, base: np.ndarray | None = None) -> RowRoundOff:
+    """Each kind of row's round-off near ``x``, in the row's own units: ``NOISE_TARGET`` times
+    the largest change of the row over the grid when every unknown is moved by one unit in
+    its last place (`grid.round_off.row_noise`), which is how far the rows' values are known at
+    ``x``. It scales with the rows under any change of units and
+    grows where a coordinate is offset or a constant is added to ``H``, as the round-off does,
+    and it needs no floor of 1: with ``max(1, |q|, |p|, |t|)`` a pendulum in lengths of ``1e-8``
+    had its canonical targets at ``eps`` times the end time, ``1e-6`` of its motion, and Newton
+    stopped there (its solution ``1e-5`` off the one in lengths of 1). ``grid``, ``data``: the
+    assembly of ``scheme`` and its data (default the request's); ``base``: its rows at ``x``,
+    where already evaluated."""
+    grid = assembly(request, scheme) if grid is None else grid
+    data = ends(request, scheme) if data is None else data
+    n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
+    spread = row_noise(grid, x, data, base)
+    body = spread[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
+    pins = np.concatenate([spread[:n + 1], spread[n + 1 + (N - 1) * m:], body[-1:, 2 * n]])
+    energy = 0.0
+    if scheme.variable_steps and N > 2:
+        energy = float(np.max(body[:-1, 2 * n])) * data.energy_scale
+    else:
+        pins = np.concatenate([pins, body[:, 2 * n]])
+    return RowRoundOff(NOISE_TARGET * np.max(body[:, :2 * n], axis=0), NOISE_TARGET * energy,
+                       NOISE_TARGET * float(np.max(pins, initial=0.0)))
 
 
 def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> np.ndarray:
-    """Per-row ``|F_i|`` targets: ``TARGET_ULPS`` round-offs of each row (the energy rows in
-    their scaled units)."""
+    """Per-row ``|F_i|`` targets: each kind of row's round-off (`row_round_offs`; the energy
+    rows in their scaled units)."""
     n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
-    canonical, energy = round_off_scales(request, x, grid.scheme)
-    target = np.full(N * m, TARGET_ULPS * EPS * canonical)
+    rows = row_round_offs(request, x, grid.scheme, grid, data)
+    target = np.full(N * m, rows.pins)
     body = target[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
+    body[:, :2 * n] = rows.canonical
     if grid.scheme.variable_steps:
-        body[:-1, 2 * n] = TARGET_ULPS * EPS * energy / data.energy_scale
+        body[:-1, 2 * n] = rows.energy / data.energy_scale
     return target
 
 
@@ -122,12 +152,13 @@ def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, s
 
 
 def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends) -> float:
-    """The round-off of the rows IPOPT sees near ``x``, ``TARGET_ULPS`` units of the largest:
-    the canonical rows' ``eps max(1, |q|, |p|, |t|)`` and (energy rules) the energy rows'
-    ``eps max(1, |E_k|)`` divided by the energy scale, the mean step (1e-11 at N = 1e6 on the
-    pendulum), rounded up to two digits so that nearby starts share a built problem."""
-    canonical, energy = round_off_scales(request, x, scheme)
-    floor = TARGET_ULPS * EPS * max(canonical, energy / data.energy_scale)
+    """The round-off of the rows IPOPT sees near ``x``, the largest of Newton's targets
+    (`row_round_offs`: the canonical rows' and, for energy rules, the energy rows' divided by
+    the energy scale, the mean step; 1e-11 at N = 1e6 on the pendulum), rounded up to two
+    digits so that nearby starts share a built problem."""
+    rows = row_round_offs(request, x, scheme, data=data)
+    floor = max(float(np.max(rows.canonical, initial=0.0)), rows.pins,
+                rows.energy / data.energy_scale, np.finfo(float).tiny)
     digits = 10.0 ** (np.floor(np.log10(floor)) - 1)
     return float(np.ceil(floor / digits) * digits)
 

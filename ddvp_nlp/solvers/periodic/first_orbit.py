@@ -38,9 +38,12 @@ from ...physics.hamiltonian import site_density_weight_function, vector_field_fu
 from ...solution import Solution
 from ..marching.initial_value import march
 
-# Scale of the start direction scanned for the energy (|z| up to S_MAX |d|), and its grid.
-S_MAX = 20.0
-SCAN_POINTS = 8001
+# The scales of the start direction scanned for the energy, 0 and |z| from S_MIN |d| to S_MAX |d|
+# in geometric steps (SCAN_POINTS, 0.5 % apart): the first crossing of the energy is found in
+# the units the system is written in, whatever they are. A linear scan to 20 |d| missed every
+# crossing of a pendulum in lengths of 1e8 (and "the energy is outside the range" was said).
+S_MIN, S_MAX = 1e-12, 1e12
+SCAN_POINTS = 12001
 # March: first step as a fraction of the start's time scale |z| / |f(z)|, and the number of
 # such steps in the first horizon (multiplied by 4 up to MAX_HORIZONS times).
 MARCH_FRACTION = 2e-3
@@ -53,7 +56,7 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
     """``z = (q, p)`` on the section ``z[index - 1] = value`` at ``H(z) = energy`` (module
     docstring); ``index`` counts ``t`` as 0, as the layouts do."""
     direction = np.asarray(direction, float)
-    s = np.linspace(0.0, S_MAX, SCAN_POINTS)
+    s = _scales()
     points = s[:, None] * direction[None, :]
     points[:, index - 1] = value
     n = system.n
@@ -65,7 +68,8 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
         if finite.size == 0:  # a singular potential along the whole ray: no range to name
             raise InputError(
                 f"energy {energy!r}: H is not finite anywhere on the start's ray of the "
-                f"section {label} (|z| up to {S_MAX:g} |d|, {SCAN_POINTS} points), so no start "
+                f"section {label} (|z| from {S_MIN:g} |d| to {S_MAX:g} |d|, {SCAN_POINTS} points), "
+                "so no start "
                 "on it has that energy; give a start (--guess) or another section")
         least = least_energy(system, theta, points[np.argmin(np.where(np.isfinite(H), H,
                                                                         np.inf))])
@@ -88,10 +92,17 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
         z[index - 1] = value
         return float(system.energy(z[None, :n], z[None, n:], [0.0], theta)[0]) - energy
 
-    root = s[k] if H[k] == 0 else brentq(excess, s[k], s[k + 1], xtol=1e-15, rtol=1e-15)
+    # xtol relative to the bracket: an absolute 1e-15 left a root at s ~ 1e-8 to 1e-7 of itself
+    root = s[k] if H[k] == 0 else brentq(excess, s[k], s[k + 1], xtol=1e-15 * s[k + 1],
+                                         rtol=1e-15)
     z = root * direction
     z[index - 1] = value
     return z
+
+
+def _scales() -> np.ndarray:
+    """0, then ``S_MIN .. S_MAX`` in geometric steps: the scales a scan along a ray tries."""
+    return np.concatenate([[0.0], np.geomspace(S_MIN, S_MAX, SCAN_POINTS - 1)])
 
 
 def _momentum_scaled_point(system, theta, energy, points, H, n):
@@ -104,7 +115,7 @@ def _momentum_scaled_point(system, theta, energy, points, H, n):
     if finite.size == 0:
         return None
     base = points[finite[np.argmin(np.abs(H[finite]))]].copy()
-    mu = np.linspace(0.0, S_MAX, SCAN_POINTS)
+    mu = _scales()
     scaled = np.repeat(base[None, :], mu.size, axis=0)
     scaled[:, n:] *= mu[:, None]
     with np.errstate(all="ignore"):
@@ -119,7 +130,7 @@ def _momentum_scaled_point(system, theta, energy, points, H, n):
         z = base.copy()
         z[n:] *= m
         return float(system.energy(z[None, :n], z[None, n:], [0.0], theta)[0]) - energy
-    root = brentq(at, mu[k], mu[k + 1], xtol=1e-15, rtol=1e-15)
+    root = brentq(at, mu[k], mu[k + 1], xtol=1e-15 * mu[k + 1], rtol=1e-15)
     z = base.copy()
     z[n:] *= root
     return z

@@ -131,8 +131,9 @@ def test_ipopt_is_not_run_from_a_start_that_passes_the_verification(twenty_thous
 
 def test_ipopt_tolerance_sits_at_the_rows_round_off():
     """IPOPT's tolerance is 1e-2 tol, raised to the round-off of its rows (the energy rows
-    divided by the mean step carry eps |E| / h) and never above tol; the floor grows like 1/h
-    and scales with the energy."""
+    divided by the mean step carry a few eps |E| / h: read off the rows, `row_round_offs`) and
+    never above tol; the floor grows like 1/h and scales with the energy (to the 25 % that
+    where the last bits of p^2 fall moves it)."""
     assert solver_tolerance(1e-10) == pytest.approx(1e-12)
     assert solver_tolerance(1e-10, 3e-11) == pytest.approx(3e-11)
     assert solver_tolerance(1e-10, 5e-10) == pytest.approx(1e-10)
@@ -150,7 +151,6 @@ def test_ipopt_tolerance_sits_at_the_rows_round_off():
         data = ends(request, request.scheme)
         floors[nodes, level] = ipopt_floor(request, x, request.scheme, data)
         eps, h = np.finfo(float).eps, 9.0 / (nodes - 1)
-        assert floors[nodes, level] >= 16 * eps * level / h
-        assert floors[nodes, level] <= 1.1 * 16 * eps * max(9.0, level / h)
+        assert 2 * eps * level / h <= floors[nodes, level] <= 32 * eps * level / h
     assert floors[10_000, 1.0] / floors[1_000, 1.0] == pytest.approx(10.0, rel=0.15)
-    assert floors[10_000, 1e3] / floors[10_000, 1.0] == pytest.approx(1e3, rel=0.15)
+    assert floors[10_000, 1e3] / floors[10_000, 1.0] == pytest.approx(1e3, rel=0.3)
