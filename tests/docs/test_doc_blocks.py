@@ -4,7 +4,12 @@ command-line parser (ddvp_nlp/cli/parser.py), so an option that does not exist f
 
 The python blocks of one page run in order in one namespace and one scratch folder, as a reader
 following the page would, in a child process bounded by CPU seconds (RLIMIT_CPU: a count of the
-work, not a wall clock on this shared machine). Conventions in the pages:
+work, not a wall clock on this shared machine). The child's home is the scratch folder; its
+compiled-code cache is the one the rest of the tests use (``DDVP_NLP_CACHE``): with a cache of
+its own, each page compiled its marches' C code again on every run (from-scipy.md took 5.6 s of
+CPU, 2.2 with the shared cache; the cache itself is tested in
+tests/library/test_compiled_code_cache.py).
+Conventions in the pages:
 
 - a block whose first line is ``# not run`` (or fenced ```python no-run) is skipped: only for a
   block that needs a cluster or hours;
@@ -25,6 +30,7 @@ from pathlib import Path
 import pytest
 
 from ddvp_nlp.cli.parser import build_parser
+from ddvp_nlp.solvers.compiler import cache_folder
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
@@ -97,7 +103,8 @@ def test_python_blocks_run(page, found, tmp_path):
     import json
 
     env = {"PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin",
-           "HOME": str(tmp_path), "PYTHONDONTWRITEBYTECODE": "1"}
+           "HOME": str(tmp_path), "PYTHONDONTWRITEBYTECODE": "1",
+           "DDVP_NLP_CACHE": str(cache_folder())}
     done = subprocess.run([sys.executable, "-c", RUNNER], input=json.dumps(found),
                           cwd=tmp_path, env=env, capture_output=True, text=True,
                           preexec_fn=_limit_cpu)
