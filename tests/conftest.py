@@ -3,6 +3,7 @@ runs and holds together), library/ (physics, discrete and each family of solvers
 (scenes, io, runner, studies, cli) and helpers/ (shared code, not tests). See tests/README.md."""
 
 import compileall
+import gc
 import sys
 from pathlib import Path
 
@@ -46,6 +47,13 @@ def pytest_collection(session):
         return (yield)
     finally:
         sys.dont_write_bytecode = writes
+
+
+def pytest_collection_finish(session):
+    """What the collection built (modules, test functions, their parameters: alive for the
+    whole run) kept out of the cycle collector's passes (``gc.freeze``): each full pass walked
+    it again, a few dozen passes a run."""
+    gc.freeze()
 
 
 @pytest.fixture
