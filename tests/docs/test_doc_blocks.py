@@ -2,9 +2,14 @@
 run, and every `ddvp ...` line of their ```bash/```sh/```console blocks parses with the real
 command-line parser (ddvp_nlp/cli/parser.py), so an option that does not exist fails here.
 
-The python blocks of one page run in order in one namespace and one scratch folder, as a reader
-following the page would, in a child process bounded by CPU seconds (RLIMIT_CPU: a count of the
-work, not a wall clock on this shared machine). Conventions in the pages:
+The python blocks of one page run in order in one namespace and one scratch folder (its home
+too), as a reader following the page would, in a process of their own bounded by CPU seconds
+(RLIMIT_CPU: a count of the work, not a wall clock on this shared machine): a fork of a warm
+interpreter that has imported numpy, scipy, CasADi, matplotlib and the package once
+(tests/helpers/forked.py, the ``warm_python`` fixture of tests/docs/conftest.py; every page a
+fork of the same state, so no page can depend on another). A fresh interpreter per page spent
+about 2 s of CPU importing them again.
+Conventions in the pages:
 
 - a block whose first line is ``# not run`` (or fenced ```python no-run) is skipped: only for a
   block that needs a cluster or hours;
@@ -15,11 +20,7 @@ work, not a wall clock on this shared machine). Conventions in the pages:
 """
 
 import re
-import resource
 import shlex
-import subprocess
-import sys
-import textwrap
 from pathlib import Path
 
 import pytest
@@ -65,44 +66,11 @@ def python_pages():
             yield pytest.param(page, found, id=name, marks=marks)
 
 
-def _limit_cpu():
-    resource.setrlimit(resource.RLIMIT_CPU, (CPU_SECONDS, CPU_SECONDS + 5))
-
-
-RUNNER = textwrap.dedent("""
-    import json, shlex, sys, traceback
-    import matplotlib
-    matplotlib.use("Agg")
-    blocks = json.loads(sys.stdin.read())
-    namespace = {"__name__": "__doc_block__"}
-    for line, body in blocks:
-        first = body.lstrip().splitlines()[0] if body.strip() else ""
-        if first.startswith("# after: ddvp "):
-            from ddvp_nlp.cli import main
-            code = main(shlex.split(first[len("# after: ddvp "):]))
-            if code != 0:
-                print(f"line {line}: the command of '{first}' exited {code}")
-                sys.exit(1)
-        try:
-            exec(compile(body, f"<block at line {line}>", "exec"), namespace)
-        except Exception:
-            print(f"the block at line {line} failed:")
-            traceback.print_exc(file=sys.stdout)
-            sys.exit(1)
-""")
-
-
 @pytest.mark.parametrize("page, found", list(python_pages()))
-def test_python_blocks_run(page, found, tmp_path):
-    import json
-
-    env = {"PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin",
-           "HOME": str(tmp_path), "PYTHONDONTWRITEBYTECODE": "1"}
-    done = subprocess.run([sys.executable, "-c", RUNNER], input=json.dumps(found),
-                          cwd=tmp_path, env=env, capture_output=True, text=True,
-                          preexec_fn=_limit_cpu)
-    assert done.returncode == 0, (f"{page.relative_to(ROOT)}: "
-                                  f"{done.stdout[-3000:]}{done.stderr[-3000:]}")
+def test_python_blocks_run(page, found, tmp_path, warm_python):
+    code, out, err = warm_python.run("blocks", tmp_path, cpu=CPU_SECONDS, blocks=found,
+                                     env={"HOME": str(tmp_path)})
+    assert code == 0, f"{page.relative_to(ROOT)}: {out[-3000:]}{err[-3000:]}"
 
 
 def command_lines(body: str):

@@ -1,6 +1,7 @@
 """Syntax trees of the package's, the tests' and the scripts' files, parsed once per test run:
 the rules of tests/architecture/ read the same 400-odd files in several tests (parsing them
-was most of those tests' cost). Callers only read the trees."""
+was most of those tests' cost). Callers only read the trees; tests/architecture/conftest.py
+drops them when that folder's tests are done."""
 
 from __future__ import annotations
 

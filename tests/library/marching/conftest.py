@@ -12,8 +12,9 @@ def scene_of():
     """``load_scene``, once per built-in scene for the session: a march's functions are built
     once per system (ddvp_nlp/cache.py), so the tests that march the same scene share them
     instead of building them again (0.2-0.3 s of CPU a fresh scene). For tests that only read
-    the scene; a test that counts builds, replaces a builder or needs a fresh system loads its
-    own."""
+    the scene; a test that counts builds, replaces a builder or needs a fresh system makes its
+    own (``HamiltonianSystem(...)``: the scenes ``load_scene`` returns for one file share one
+    system while any of them lives)."""
     return functools.cache(load_scene)
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from helpers.common import run_scene
 
-from ddvp_nlp import Compilation, Status, StepControl, load_scene, march
+from ddvp_nlp import Compilation, HamiltonianSystem, Status, StepControl, load_scene, march
 from ddvp_nlp.solvers.compiler import find_compiler
 
 
@@ -122,8 +122,11 @@ def test_compiled_chunks_are_cached(tmp_path):
     libraries = list(tmp_path.glob("chunk_*.so"))
     assert len(libraries) == 1
     built = libraries[0].stat().st_mtime_ns
-    # a fresh system (new in-memory functions) loads the compiled file instead of rebuilding it
-    again = load_scene("harmonic").system
+    # a fresh system (new in-memory functions) loads the compiled file instead of rebuilding it;
+    # made here, as load_scene's copies of a scene share one system (and what was built for it)
+    scene = load_scene("harmonic")
+    again = HamiltonianSystem(scene.hamiltonian, scene.n, dict(scene.params), name=scene.name)
+    assert again is not system
     solution = march(
         again, [1.0], [0.0], (0.0, 5.0), tau0=0.1, compilation=Compilation(cache_dir=tmp_path)
     )
