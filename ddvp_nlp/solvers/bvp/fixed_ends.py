@@ -36,8 +36,8 @@ whatever ``N``), with ``c``, ``c_E`` 64 times Newton's target on the row, which 
 row's round-off read off the rows themselves at the point (`phases.row_round_offs`: below that
 no solver can go), and every step is positive (`verification_limits`). Every scale comes from the
 problem: the same solve in other units of length, momentum or time, or with the clock or the
-origin shifted, gives the same nodes (``tests/library/bvp/test_fixed_ends_units.py``). The message says
-what the solver said.
+origin shifted, gives the same nodes (``tests/library/bvp/test_fixed_ends_units.py``). The
+message says what the solver said.
 """
 
 from __future__ import annotations
