@@ -208,7 +208,9 @@ class OrbitRecord:
         section: the section's label (``"q1=0"``, ...).
         unfolding: the unfolding parameter ``lambda`` of ``H``.
         integral_unfoldings: the unfolding parameter ``mu`` of each first integral.
-        residual_limit: the limit the unscaled residuals were verified against.
+        residual_limit: the limit the unscaled residuals were verified against: one number
+            for every kind, or by kind (the keys of ``residuals``; each the limit of the row
+            of that kind furthest over or nearest it, in that row's units).
         winding: the turns ``w`` of each coordinate (``q_N = q_0 + 2 pi w``; zero off an
             angle).
         residuals: the largest unscaled residual of each kind (``canonical``, ``energy``,
@@ -221,7 +223,7 @@ class OrbitRecord:
     section: str
     unfolding: float
     integral_unfoldings: tuple
-    residual_limit: float
+    residual_limit: float | dict
     winding: tuple
     residuals: dict
     tau_min: float

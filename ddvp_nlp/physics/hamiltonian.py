@@ -273,6 +273,36 @@ def vector_field_function(system: HamiltonianSystem) -> ca.Function:
     return cached(system, "vector_field", build)
 
 
+def flow_jacobian_function(system: HamiltonianSystem) -> ca.Function:
+    """``(z, t, theta) -> (f, A)``: Hamilton's vector field and its Jacobian ``A = df/dz``."""
+    def build():
+        z, t = ca.SX.sym("z", 2 * system.n), ca.SX.sym("t")
+        f = vector_field_function(system)(z, t, system.theta)
+        return ca.Function("f_A", [z, t, system.theta], [f, ca.jacobian(f, z)],
+                           ["z", "t", "theta"], ["f", "A"])
+    return cached(system, "flow_jacobian", build)
+
+
+def flow_time_scale(system: HamiltonianSystem, z, t: float, theta) -> float:
+    """The time over which the flow turns near ``z``: ``1 / rho(A)``, ``rho`` the spectral
+    radius of ``A = df/dz`` (the linearised flow's fastest rate). Its eigenvalues do not change
+    under any linear change of coordinates (units of each coordinate, an offset of the origin),
+    so neither does this scale, which follows the units of time. Where ``A`` is nilpotent (a
+    turning point at an inflection of the potential has no rate of its own) the rate is
+    ``|A f| / |f|``, the rate at which the velocity turns; ``inf`` where ``f = 0``."""
+    f, A = (np.asarray(value, float) for value in
+            flow_jacobian_function(system)(np.asarray(z, float), t, theta))
+    f = f.ravel()
+    with np.errstate(all="ignore"):
+        rate = float(np.max(np.abs(np.linalg.eigvals(A)))) if np.all(np.isfinite(A)) \
+            else np.nan
+        turning = float(np.linalg.norm(A @ f) / np.linalg.norm(f))
+    # an eigenvalue at round-off of A's entries is the nilpotent case
+    if not rate > 1e-6 * turning:
+        rate = turning
+    return 1.0 / rate if rate > 0 else np.inf
+
+
 def separable_parts(system: HamiltonianSystem):
     """``(T_p, V_q)`` as functions if ``H = T(p) + V(q, t)``, else a reason string.
 

@@ -222,9 +222,11 @@ class GridOptions:
             IPOPT build, ``grid/ipopt.py``) or ``"auto"``: Newton, then IPOPT from the same
             start when Newton's point fails its verification.
         tol: verification tolerance of the returned point's own unscaled residuals (above
-            their round-off, which is always allowed). For fixed ends it is relative to the
-            motion's size in each row's units (``bvp/fixed_ends.verification_limits``); the
-            other grid families still read it in the rows' own units.
+            their round-off, which is always allowed). For fixed ends and periodic orbits it is
+            relative to the motion's size in each row's units
+            (``bvp/fixed_ends.verification_limits``, ``periodic/closed_grid.closed_limits``);
+            the other grid families (families of orbits, constrained orbits, higher order)
+            still read it in the rows' own units.
         max_iter: iteration limit of the solver, per phase (``None``: the family's own,
             given in its docstring).
         tau_floor: smallest step the iterates may take (energy rules).

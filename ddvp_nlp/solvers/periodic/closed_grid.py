@@ -37,6 +37,7 @@ from ...solution import Status
 from ..grid.maps import chunked
 from ..grid.newton import newton
 from ..grid.policy import Stage, failure_status
+from ..grid.round_off import row_noise
 
 EPS = float(np.finfo(float).eps)
 # A closed grid's Newton per-row target and the verification's round-off allowance, in
@@ -46,34 +47,129 @@ TARGET_ROUND_OFFS = 64
 ALLOWANCE_ROUND_OFFS = 4096
 
 
-def closed_newton(grid, x0, closure, request, scale: float):
+def closed_newton(grid, x0, closure, request, scale):
     """The grid's sparse Newton on a closed grid (an orbit, constrained or not) from ``x0``,
-    every row to ``TARGET_ROUND_OFFS`` round-offs of ``scale``, within ``request``'s step
+    every row to its target (``scale``: an array of per-row targets, `closed_targets`, or a
+    number whose ``TARGET_ROUND_OFFS`` round-offs are every row's), within ``request``'s step
     floor, iterations and deadline; its outcome named ``newton: ...``."""
-    target = np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
+    target = np.asarray(scale, float) if np.ndim(scale) else \
+        np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
     result = newton(grid, x0, closure, target, tau_floor=request.tau_floor,
                     max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
     result.outcome = f"newton: {result.outcome}"
     return result
 
 
-def closed_verdict(result, worst: dict, limit: float, tau: np.ndarray, note=None, *,
+# Newton's target on a row of a closed grid: this many times the row's change under a move of
+# every unknown by one unit in its last place (`closed_targets`, as fixed ends'
+# ``bvp/phases.NOISE_TARGET``); the verification allows BOUNDS_ALLOWED targets (the ratio of
+# ALLOWANCE_ROUND_OFFS to TARGET_ROUND_OFFS, kept).
+NOISE_TARGET = 2.0
+BOUNDS_ALLOWED = ALLOWANCE_ROUND_OFFS // TARGET_ROUND_OFFS
+
+
+def closed_targets(grid, x: np.ndarray, closure, sizes: np.ndarray) -> np.ndarray:
+    """Per-row Newton targets of an orbit's closed grid (`PeriodicAssembly`) near ``x``, in
+    each row's own units: ``NOISE_TARGET`` times the largest change of each kind of row (the
+    canonical rows of each coordinate, the energy rows, the closure row of each coordinate)
+    when every unknown moves by one unit in its last place (`grid.round_off.row_noise`), and
+    never below the round-off of what the row measures (a row that is exactly 0 at ``x``, the
+    ``t_0`` row at ``t_0 = 0`` or a section through the origin, changes by nothing): ``eps``
+    times the size of the motion in its coordinate (``sizes``, ``(2n,)``:
+    `grid.motion_size.motion_sizes`; the period for ``t_0``). No floor of 1: with targets of 64
+    round-offs of ``max(1, |x|, |E|)`` a swing in lengths of ``1e-8`` stopped Newton at ``1e-6``
+    of its size (its period ``1e-7`` off the one in lengths of 1)."""
+    layout = grid.layout
+    N, m, n, h = layout.intervals, layout.m, layout.n, grid.header
+    noise = row_noise(grid, x, closure)
+    z = np.asarray(x[:(N + 1) * m], float).reshape(N + 1, m)
+    span = EPS * np.r_[np.ptp(z[:, 0]), sizes]  # (t, q, p)
+    body = noise[h:h + N * m].reshape(N, m)
+    target = np.empty_like(noise)
+    target[0] = max(noise[0], span[0])
+    target[1] = max(noise[1], span[closure.section_index])
+    if h > 2:
+        target[2:h] = np.maximum(noise[2:h], np.abs(closure.generators) @ span[1:])
+    rows = target[h:h + N * m].reshape(N, m)
+    rows[:, :2 * n] = np.maximum(np.max(body[:, :2 * n], axis=0), span[1:])
+    rows[:, 2 * n] = max(float(np.max(body[:, 2 * n])), EPS * abs(closure.energy),
+                         np.finfo(float).tiny)
+    target[h + N * m:] = np.maximum(noise[h + N * m:], span[1:])
+    # a degenerate start (all nodes one point) has rows with nothing to measure: never 0
+    return NOISE_TARGET * np.maximum(target, np.finfo(float).tiny)
+
+
+def closed_limits(grid, x: np.ndarray, closure, targets: np.ndarray, tol: float,
+                  sizes: np.ndarray) -> dict:
+    """The largest residual each row of an orbit may have and pass, by kind (the keys of the
+    verification's residuals; arrays per coordinate for ``canonical`` and ``closure``): ``tol``
+    relative to what the row measures, or ``BOUNDS_ALLOWED`` times its Newton target,
+    whichever is larger:
+
+    - a canonical or closure row of a coordinate: ``tol`` times the orbit's size in that
+      coordinate (``sizes``: `grid.motion_size.motion_sizes`; the section's row: its
+      coordinate's);
+    - an energy row (the scheme's energy equations, and ``H_0 - E``): ``tol`` times the mean
+      step times the rate at which the orbit trades energy, ``sum_i max |dq_i/dt| max
+      |dp_i/dt|`` read off the nodes (as fixed ends', ``bvp/fixed_ends.verification_limits``).
+
+    Every scale is the orbit's: the limits follow the rows under a change of units of length,
+    momentum or time and a shift of the origin."""
+    layout = grid.layout
+    N, m, n, h = layout.intervals, layout.m, layout.n, grid.header
+    z = np.asarray(x[:(N + 1) * m], float).reshape(N + 1, m)
+    span = np.r_[np.ptp(z[:, 0]), sizes]
+    tau = np.diff(z[:, 0])
+    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
+    rates = np.max(np.abs(np.diff(z[:, 1:], axis=0)) / step, axis=0)
+    power = float(np.sum(rates[:n] * rates[n:]))
+    body = targets[h:h + N * m].reshape(N, m)
+    energy = max(tol * abs(z[-1, 0] - z[0, 0]) / N * power, BOUNDS_ALLOWED * float(body[0, 2 * n]))
+    return {"canonical": np.maximum(tol * span[1:], BOUNDS_ALLOWED * body[0, :2 * n]),
+            "energy": energy, "prescribed_energy": energy,
+            "closure": np.maximum(tol * span[1:], BOUNDS_ALLOWED * targets[h + N * m:]),
+            "section": max(tol * span[closure.section_index], BOUNDS_ALLOWED * targets[1])}
+
+
+def worst_against(residuals: dict, limits: dict) -> tuple[dict, dict]:
+    """``(worst, limit)`` by kind of row: the residual of the row of each kind furthest over
+    (or nearest) its own limit, and that limit (``residuals``: arrays by kind, ``(rows, k)``
+    against limits of shape ``(k,)`` or a number)."""
+    worst, limit = {}, {}
+    for name, values in residuals.items():
+        values = np.abs(np.atleast_1d(np.asarray(values, float)))
+        bound = np.broadcast_to(np.asarray(limits[name], float), values.shape[-1:])
+        if not np.all(np.isfinite(values)):
+            worst[name], limit[name] = float("nan"), float(np.max(bound))
+            continue
+        per_column = np.max(values.reshape(-1, bound.size), axis=0)
+        j = int(np.argmax(per_column / bound))
+        worst[name], limit[name] = float(per_column[j]), float(bound[j])
+    return worst, limit
+
+
+def closed_verdict(result, worst: dict, limit, tau: np.ndarray, note=None, *,
                    found: str = "periodic orbit"):
     """A closed grid's status and message from its largest residuals (``worst``, by row
-    family) against ``limit`` and its steps ``tau``; the solver's word is quoted, with
-    ``note`` (the start's) after it."""
-    listed = ", ".join(f"{name} {value:.3e}" for name, value in worst.items())
+    family) against ``limit`` (one number, or one per family: `worst_against`) and its steps
+    ``tau``; the solver's word is quoted, with ``note`` (the start's) after it."""
+    per_family = isinstance(limit, dict)
+    limits = limit if per_family else dict.fromkeys(worst, limit)
+    listed = ", ".join(f"{name} {value:.3e}" + (f" (limit {limits[name]:.1e})" if per_family
+                                                 else "") for name, value in worst.items())
     said = result.outcome + (f"; {note}" if note else "")
     if not all(np.isfinite(v) for v in worst.values()):
         return Status.NON_FINITE, f"the iteration produced non-finite values ({said})"
     if np.min(tau) <= 0:
         k = int(np.argmin(tau))
         return Status.NO_ADMISSIBLE_STEP, f"step {k} is not positive: tau = {tau[k]:.6g} ({said})"
-    failed = [name for name, value in worst.items() if value > limit]
+    failed = [name for name, value in worst.items() if value > limits[name]]
+    bound = "" if per_family else f" (limit {limit:.1e})"
     if not failed:
-        return Status.SUCCESS, (f"{found} found and verified: largest residuals {listed} "
-                                f"(limit {limit:.1e}); {said}")
-    detail = f"largest residuals {listed}, limit {limit:.1e}, above it: {', '.join(failed)}"
+        return Status.SUCCESS, (f"{found} found and verified: largest residuals {listed}"
+                                f"{bound}; {said}")
+    detail = (f"largest residuals {listed}{bound.replace(' (', ', ').rstrip(')')}, above it: "
+              f"{', '.join(failed)}")
     status = failure_status(Stage("periodic orbit", "", result.converged, result.outcome), tau)
     if status is Status.SOLVER_FAILED:
         return status, f"no periodic orbit found: {detail} ({said})"

@@ -34,7 +34,11 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from ...errors import InputError
-from ...physics.hamiltonian import site_density_weight_function, vector_field_function
+from ...physics.hamiltonian import (
+    flow_time_scale,
+    site_density_weight_function,
+    vector_field_function,
+)
 from ...solution import Solution
 from ..marching.initial_value import march
 
@@ -44,9 +48,18 @@ from ..marching.initial_value import march
 # crossing of a pendulum in lengths of 1e8 (and "the energy is outside the range" was said).
 S_MIN, S_MAX = 1e-12, 1e12
 SCAN_POINTS = 12001
-# March: first step as a fraction of the start's time scale |z| / |f(z)|, and the number of
-# such steps in the first horizon (multiplied by 4 up to MAX_HORIZONS times).
+# March: first step as a fraction of the start's time scale (``flow_time_scale``: the inverse
+# of the linearised flow's fastest rate, which follows the units of time whatever the units of
+# the coordinates and wherever their origin; |z| / |f(z)| with floors had put the first step
+# 1e5 times the swing's period in lengths of 1e-8, and 1e-4 of it in time units of 1e-4), and
+# the number of such steps in the first horizon (multiplied by 4 up to MAX_HORIZONS times).
 MARCH_FRACTION = 2e-3
+# A return in fewer steps than COARSEST_RETURN is marched again with STEPS_PER_RETURN steps to
+# the period it found (the start's time scale can be far from the orbit's: at a turning point
+# on an inflection of the potential the linearised flow has no rate of its own). The pendulum's
+# swing at E = 0.5 returns in 2400 steps of the first march.
+COARSEST_RETURN = 500
+STEPS_PER_RETURN = 2000
 FIRST_HORIZON = 4000
 MAX_HORIZONS = 4
 
@@ -178,12 +191,20 @@ def march_to_return(system, theta, z0: np.ndarray, index: int, value: float, sch
     heading = np.sign(f[index - 1])
     if heading == 0:
         return None  # the flow is tangent to the section here: no crossing to look for
-    tau0 = MARCH_FRACTION * max(np.linalg.norm(z0), 1e-3) / max(np.linalg.norm(f), 1e-12)
+    scale = flow_time_scale(system, z0, 0.0, theta)
+    if not 0 < scale < np.inf:
+        return None
+    tau0 = MARCH_FRACTION * scale
     for rule in dict.fromkeys((scheme, "fixed")):
         with warnings.catch_warnings():  # a breakdown of the start's march is handled here
             warnings.simplefilter("ignore", RuntimeWarning)
             traced = _march_until_return(system, theta, z0, index, value, rule, angle,
                                          heading, tau0)
+            if traced is not None and traced[0].size - 2 < COARSEST_RETURN:
+                # the time scale at the start was not the orbit's: march again on the period
+                again = _march_until_return(system, theta, z0, index, value, rule, angle,
+                                            heading, traced[0][-1] / STEPS_PER_RETURN)
+                traced = again if again is not None else traced
         if traced is not None:
             return traced
     return None

@@ -100,16 +100,19 @@ from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..exact.closure import nearest_exact_orbit
 from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
+from ..grid.motion_size import motion_sizes
+from ..grid.newton import newton
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, answers_removed_keywords, coerce
 from .closed_grid import (
-    ALLOWANCE_ROUND_OFFS,
-    EPS,
     Closure,
     PeriodicAssembly,
+    closed_limits,
     closed_newton,
+    closed_targets,
     closed_verdict,
     integral_gradients,
+    worst_against,
 )
 from .first_orbit import (
     NoMotion,
@@ -266,7 +269,8 @@ def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution
     assembly = PeriodicAssembly(system, request.scheme, intervals, integrals)
     request.build_s += time.perf_counter() - began
     x0 = assembly.layout.pack(t, z[:, :system.n], z[:, system.n:])
-    scale = max(1.0, float(np.max(np.abs(x0))), abs(request.data.energy))
+    sizes = _sizes(request, t, z)
+    scale = closed_targets(assembly, x0, closure, sizes)
     request.tau_floor = _tau_floor(request, t[-1])
     attempts = []
 
@@ -291,16 +295,43 @@ def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution
     return _noted(solution, attempts)
 
 
-def _run(name, request: GridRequest[Orbit], assembly, x0, closure, scale, integrals):
-    """One solver from ``x0``: the grid's Newton, or IPOPT, as a ``GridResult``."""
+def _run(name, request: GridRequest[Orbit], assembly, x0, closure, targets, integrals):
+    """One solver from ``x0``: the grid's Newton to the rows' ``targets``, or IPOPT then the
+    grid's Newton from IPOPT's point (`_polished`), as a ``GridResult``."""
     if name == "newton":
-        return closed_newton(assembly, x0, closure, request, scale)
+        return closed_newton(assembly, x0, closure, request, targets)
     began = time.perf_counter()  # the build (or the cache's answer) counts as build time
+    # IPOPT's tolerance is one number on rows of several units: never below the largest
+    # row's round-off (a decade up, so that nearby starts share the build)
+    floor = 10.0 ** np.ceil(np.log10(float(np.max(targets))))
     problem = periodic_ipopt(request.system, request.scheme, request.intervals, integrals,
-                             request.data.index, tol=request.tol, max_iter=request.max_iter,
-                             verbose=request.verbose, time_limit=request.remaining())
+                             request.data.index, tol=max(request.tol, floor),
+                             max_iter=request.max_iter, verbose=request.verbose,
+                             time_limit=request.remaining())
     request.build_s += time.perf_counter() - began
-    return problem.solve(x0, closure, request.tau_floor)
+    return _polished(problem.solve(x0, closure, request.tau_floor), request, assembly,
+                     closure, targets)
+
+
+# Newton's iterations from IPOPT's point: it is at or near a root, so a few full-size steps
+# bring every row to its own target.
+POLISH_ITERATIONS = 6
+
+
+def _polished(result, request, assembly, closure, targets):
+    """IPOPT's ``result`` taken on by the grid's Newton to each row's own target: IPOPT stops
+    at one tolerance for rows in several units (the canonical rows of each coordinate, the
+    energy rows), which cannot be every row's, so its point is finished where the rows are
+    judged. Newton's point is kept where it converges, IPOPT's otherwise."""
+    if not np.all(np.isfinite(result.x)):
+        return result
+    finish = newton(assembly, result.x, closure, targets, tau_floor=request.tau_floor,
+                    max_iter=POLISH_ITERATIONS, linear="sparse", deadline=request.deadline)
+    if finish.converged:
+        result.x, result.converged = finish.x, True
+    result.iterations += finish.iterations
+    result.outcome += f"; Newton from its point: {finish.outcome}"
+    return result
 
 
 def _tau_floor(request: GridRequest, period: float) -> float:
@@ -456,10 +487,13 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
         canonical, energy = np.full((N, 2 * n), np.nan), np.full(N, np.nan)
         prescribed, closing = np.nan, np.full(2 * n, np.nan)
     section = float(np.concatenate([[t[0]], q[0], p[0]])[orbit.index] - orbit.value)
-    worst = {"canonical": float(np.max(np.abs(canonical))),
-             "energy": float(np.max(np.abs(energy))), "prescribed_energy": abs(prescribed),
-             "closure": float(np.max(np.abs(closing))), "section": abs(section)}
-    limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
+    sizes = _sizes(request, t, np.hstack([q, p])) if finite else np.ones(2 * n)
+    if finite:  # the rows' round-off where the point is
+        scale = closed_targets(assembly, result.x, closure, sizes)
+    limits = closed_limits(assembly, result.x, closure, scale, request.tol, sizes)
+    worst, limit = worst_against({"canonical": canonical, "energy": energy,
+                                  "prescribed_energy": prescribed, "closure": closing,
+                                  "section": section}, limits)
     status, message = closed_verdict(result, worst, limit, np.diff(t), orbit.start_note)
     accuracy, local_error = None, np.zeros(0)
     if finite:
@@ -482,6 +516,12 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
     judge(solution, accuracy, request.options.accuracy, local_error=local_error,
           advice="try more nodes")
     return solution
+
+
+def _sizes(request: GridRequest[Orbit], t, z) -> np.ndarray:
+    """The orbit's size in each coordinate (`grid.motion_size.motion_sizes`, on the time
+    scale of a period over ``2 pi``)."""
+    return motion_sizes(request.system, request.theta, t, z, float(t[-1] - t[0]) / (2 * np.pi))
 
 
 def _accuracy(request: GridRequest[Orbit], t, q, p, closure: Closure, integrals=()):
