@@ -9,9 +9,12 @@ t_E = 0``, ``<t_i, t_i> = 1``; oriented as the previous one) the next member sol
     F(x; E) = 0,    <t_i, y - y_i> = ds          (Keller's pseudo-arclength)
 
 by the grid's Newton (sparse LU of the bordered Jacobian ``[[F_x, F_E], [W t_i^T, 0]]``) from
-the predictor ``y_i + ds t_i``. ``<a, b> = sum_j a_j b_j / K + a_E b_E`` (``K`` the number of
-node values): the nodes count by their mean square, so that a step is about as long in the
-orbit as in ``E``. At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
+the predictor ``y_i + ds t_i``. ``<a, b> = sum_j a_j b_j / (K s_j^2) + a_E b_E / S_E^2`` (``K``
+the number of node values, ``s_j`` the first orbit's size in node value ``j``'s coordinate, the
+period for a node time, ``S_E`` the energy range): the nodes count by their mean square in units
+of the orbit, so that a step is about as long in the orbit as in ``E`` in any units. (Unweighted,
+in lengths of ``1e-8`` the swing's family took 200 steps of ``1e-6`` of the range and stopped at
+``max_orbits``.) At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
 ``t_E`` changes sign and the bordered matrix stays regular: the continuation passes it. The step
 ``ds`` grows by 1.5 after a corrector that took at most 3 iterations and halves after one that
 failed; every member is then verified by `solve_periodic` (its residuals, its
@@ -48,15 +51,17 @@ from ...errors import InputError
 from ...physics.constraints import refuse_constrained
 from ...solution import Solution
 from ...validation import check_integer, check_real
+from ..grid.motion_size import motion_sizes
 from ..grid.newton import newton
 from ..grid.problem import BorderedLayout
 from ..options import GridOptions, coerce
 from .bifurcation import KINDS, confirm, tests
 from .closed_grid import (
     EPS,
-    TARGET_ROUND_OFFS,
+    NOISE_TARGET,
     Closure,
     PeriodicAssembly,
+    closed_targets,
     integral_gradients,
 )
 from .first_orbit import closing_shift
@@ -80,8 +85,9 @@ class Continuation:
         min_step: the continuation stops when a failed step has been halved below this
             fraction of the first step.
         tol: the tolerance of the stability verdicts, on the stability indices.
-        locate_tol: the located bifurcations' bracket in the energy, relative to
-            ``max(1, |E|)``.
+        locate_tol: the located bifurcations' bracket in the energy, relative to the
+            energy range (it was ``max(1, |E|)``, which a constant added to ``H`` or a change
+            of units moved).
         exact: close the exact flow at every member and analyse its monodromy
             (`periodic_stability`; about 0.1-1 s an orbit).
         confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
@@ -184,7 +190,8 @@ class ArclengthSystem:
     """``F(x; E)`` with ``E`` the last unknown, and the arclength row (module docstring): a
     ``grid.GridProblem`` for the grid's Newton (sparse LU)."""
 
-    def __init__(self, assembly: PeriodicAssembly):
+    def __init__(self, assembly: PeriodicAssembly, scales: np.ndarray | None = None,
+                 energy_scale: float = 1.0):
         self.base = assembly
         self.layout = BorderedLayout(assembly.layout)
         N, m, h = assembly.layout.intervals, assembly.layout.m, assembly.header
@@ -192,8 +199,14 @@ class ArclengthSystem:
         self.energy_column = sp.csc_matrix((-np.ones(N), (rows, np.zeros(N, int))),
                                            (assembly.layout.size, 1))
         count = assembly.layout.nodes * m
-        self.weights = np.r_[np.full(count, 1.0 / count), np.zeros(assembly.layout.unfoldings),
-                             1.0]
+        # every node value in units of its coordinate's size (scales: (t, q, p)), the energy in
+        # units of the family's range: the arclength has no units
+        self.scales = np.ones(assembly.layout.m) if scales is None else \
+            np.asarray(scales, float)  # (t, q, p); None: every value in the system's units
+        self.energy_scale = float(energy_scale)
+        node = np.tile(1.0 / self.scales ** 2, assembly.layout.nodes) / count
+        self.weights = np.r_[node, np.zeros(assembly.layout.unfoldings),
+                             1.0 / energy_scale ** 2]
 
     def evaluate(self, y: np.ndarray, arc: _Arc, jacobian: bool = True):
         closure = replace(arc.closure, energy=float(y[-1]))
@@ -315,13 +328,16 @@ class _Walker:
         self.integrals = tuple(common["integrals"])
         self.low, self.high = min(energies), max(energies)
         self.direction = np.sign(energies[1] - energies[0])
-        span = self.high - self.low
+        self.span = span = self.high - self.low
         self.first_step = walk.step or span / 20
         self.max_step = walk.max_step or span / 10
         self.closure = self._closure(first)
         self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), self.intervals,
                                          self.integrals)
-        self.arc = ArclengthSystem(self.assembly)
+        z = np.hstack([first.q, first.p])
+        period = float(first.t[-1] - first.t[0])
+        self.sizes = motion_sizes(system, self.theta, first.t, z, period / (2 * np.pi))
+        self.arc = ArclengthSystem(self.assembly, np.r_[period, self.sizes], span)
         self.members, self.points, self.tangents, self.steps = [], [], [], []
         self._accept(first, previous, 0.0)
 
@@ -365,8 +381,13 @@ class _Walker:
         corrector's iterations."""
         arc = _Arc(self.closure, self.arc.weights * t, y, length)
         guess = y + length * t
-        scale = max(1.0, float(np.max(np.abs(guess))))
-        target = np.full(guess.size, TARGET_ROUND_OFFS * EPS * scale)
+        rows = closed_targets(self.assembly, guess[:-1], replace(self.closure,
+                                                                 energy=float(guess[-1])),
+                              self.sizes)
+        # the arclength row: its round-off is that of every value it weighs (each known to
+        # eps of itself, not of its difference from the origin), a few round-offs of them
+        target = np.r_[rows, 4 * NOISE_TARGET * EPS * max(abs(length), float(
+            np.sum(np.abs(arc.row) * (np.abs(guess) + np.abs(y)))))]
         period = guess[self.assembly.layout.time_index()[-1]]
         result = newton(self.arc, guess, arc, target, tau_floor=1e-3 * period / self.intervals,
                         max_iter=CORRECTOR_ITERATIONS, linear="sparse")
@@ -390,8 +411,8 @@ class _Walker:
         keeps the predictor's miss ``|y - (y_i + ds t_i)| / ds`` (about half the tangent's turn
         over the step) near ``turning``, and it shrinks when the miss is over twice that."""
         if ds is None:
-            ds = self.first_step / max(abs(self.members[0].slope), 1e-12)
-            longest = self.max_step / max(abs(self.members[0].slope), 1e-12)
+            slope = max(abs(self.members[0].slope), 1e-12 * self.span)
+            ds, longest = self.first_step / slope, self.max_step / slope
         smallest = self.settings.min_step * ds
         arclength = 0.0
         while len(self.members) < self.settings.max_orbits:
@@ -459,7 +480,7 @@ class _Walker:
         """The bifurcation of ``kind`` between members ``i`` and ``i + 1`` (module
         docstring)."""
         a, b = self.members[i], self.members[i + 1]
-        tolerance = self.settings.locate_tol * max(1.0, abs(a.energy))
+        tolerance = self.settings.locate_tol * self.span
         points, values = {}, {}
 
         def test(length):
@@ -467,7 +488,7 @@ class _Walker:
             points[length], values[length] = y, value
             return value
         width = self.steps[i]
-        xtol = tolerance / max(abs(a.slope), abs(b.slope), 1e-12)
+        xtol = tolerance / max(abs(a.slope), abs(b.slope), 1e-12 * self.span)
         try:
             root = brentq(test, 0.0, width, xtol=xtol, rtol=4 * EPS, maxiter=100)
         except (_LostFamily, ValueError):

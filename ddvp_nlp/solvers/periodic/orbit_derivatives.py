@@ -39,7 +39,8 @@ from ..grid.implicit_derivatives import (
     checked,
     resolver,
 )
-from .closed_grid import EPS, TARGET_ROUND_OFFS, Closure, PeriodicAssembly, integral_gradients
+from ..grid.motion_size import motion_sizes
+from .closed_grid import Closure, PeriodicAssembly, closed_targets, integral_gradients
 
 # The inputs a periodic orbit differentiates in, in the order of the derivative's columns.
 PERIODIC_DERIVATIVES = ("energy", "params")
@@ -88,8 +89,11 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     result["derivatives_cpu_s"] = time.process_time() - cpu
     result["derivatives_wall_s"] = time.perf_counter() - wall
     fallback = float(np.max(np.abs(x)))
-    # the orbit solve's own targets (orbit.py)
-    target = np.full(x.size, TARGET_ROUND_OFFS * EPS * max(1.0, fallback, abs(closure.energy)))
+    # the orbit solve's own targets (orbit.py): each row's round-off, read off the rows
+    z = np.hstack([solution.q, solution.p])
+    sizes = motion_sizes(system, request.theta, solution.t, z,
+                         float(solution.t[-1] - solution.t[0]) / (2 * np.pi))
+    target = closed_targets(assembly, x, closure, sizes)
 
     def resolve_of(name):
         return resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,

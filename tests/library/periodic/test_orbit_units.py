@@ -114,3 +114,29 @@ def test_swapped_coordinates():
     (t0, z0), (t1, z1) = found
     assert abs(t1[-1] - t0[-1]) <= AGREE * t0[-1]
     np.testing.assert_allclose(z1, z0, atol=AGREE * np.max(np.ptp(z0, axis=0)))
+
+
+@pytest.fixture(scope="module")
+def family():
+    return _followed(1.0, 1.0)
+
+
+def _followed(length, time):
+    system, _ = swing(length, time)
+    unit = (length / time) ** 2
+    found = dn.follow_periodic_family(system, [0.3 * unit, 0.8 * unit], nodes=NODES,
+                                      continuation=dn.Continuation(exact=False, confirm=False))
+    assert found.complete, found.message
+    return [member.orbit.orbit.period / time for member in found.members]
+
+
+@pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5)])
+def test_a_family_is_followed_the_same_in_any_units(family, length, time):
+    """The arclength weighs every node value by the first orbit's size in its coordinate and
+    the energy by the family's range: the same members in any units. Unweighted, in lengths of
+    ``1e-8`` or time units of ``1e5`` the family crawled in steps of ``1e-6`` of the range and
+    stopped at ``max_orbits = 200``; with the unit-free metric but an absolute floor on the
+    slope, in lengths of ``1e-8`` its first step failed."""
+    periods = _followed(length, time)
+    assert len(periods) == len(family)
+    np.testing.assert_allclose(periods, family, rtol=AGREE)
