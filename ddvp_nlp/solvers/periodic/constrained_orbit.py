@@ -45,6 +45,7 @@ from scipy.optimize import brentq
 
 from ...discrete.scheme import Scheme
 from ...errors import InputError
+from ...physics.constraints import constraint_function
 from ...physics.hamiltonian import derivatives_function
 from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_integer, check_real, check_state
@@ -57,16 +58,20 @@ from ..exact.constrained_flow import (
 )
 from ..exact.flow import exact_flow
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
+from ..grid.motion_size import motion_sizes
 from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
+from ..grid.round_off import row_noise
 from ..marching.constrained_start import consistent_start
 from ..options import GridOptions
 from .closed_grid import (
-    ALLOWANCE_ROUND_OFFS,
+    BOUNDS_ALLOWED,
     EPS,
+    NOISE_TARGET,
     closed_newton,
     closed_verdict,
     integral_gradients,
+    worst_against,
 )
 from .constrained_closed import ConstrainedClosedGrid, ConstrainedClosure
 from .first_orbit import guess_nodes
@@ -97,13 +102,14 @@ class ConstrainedOrbit:
 @dataclass
 class ConstrainedOrbitRecord:
     """``Solution.constraints`` of a constrained orbit: ``|g|`` and the hidden constraint per
-    node, the multipliers of every interval, what projecting the start moved, the limits."""
+    node, the multipliers of every interval, what projecting the start moved, the limits (by
+    kind of residual, as ``OrbitRecord.residual_limit``)."""
 
     constraint_residual: np.ndarray
     hidden_residual: np.ndarray
     multipliers: np.ndarray
     start_moved: tuple
-    limit: float
+    limit: dict
 
 
 def solve_constrained_periodic(system, *, energy, nodes, section, guess, scheme, params, start,
@@ -118,7 +124,8 @@ def solve_constrained_periodic(system, *, energy, nodes, section, guess, scheme,
                                                        request.intervals, integrals))
     closure = _closure(request, z[0], integrals)
     x0 = _packed(request, grid, t, z)
-    scale = _scale(x0, grid, request.data.energy)
+    sizes = _sizes(request, grid, x0)
+    scale = _targets(request, grid, x0, closure, sizes)
     request.tau_floor = 1e-3 * (t[-1] - t[0]) / request.intervals
 
     def attempt(solver: str) -> Attempt:
@@ -307,11 +314,77 @@ def _packed(request: GridRequest, grid: ConstrainedClosedGrid, t, z) -> np.ndarr
     return grid.layout.pack(t, z[:, :system.n], z[:, system.n:], np.hstack([nu[:-1], nu[1:]]))
 
 
-def _scale(x0, grid: ConstrainedClosedGrid, energy: float) -> float:
-    """The magnitude whose round-off bounds the rows: the nodes' states and the energy."""
-    t, q, p, _, _ = grid.layout.unpack(x0)
-    return max(float(np.max(np.abs(q))), float(np.max(np.abs(p))), abs(energy),
-               float(t[-1] - t[0]) / grid.layout.intervals)
+def _sizes(request: GridRequest, grid: ConstrainedClosedGrid, x: np.ndarray) -> np.ndarray:
+    """The orbit's size in each coordinate of ``(q, p)`` (`grid.motion_size.motion_sizes`)."""
+    t, q, p, _, _ = grid.layout.unpack(x)
+    return motion_sizes(request.system, request.theta, t, np.hstack([q, p]),
+                        float(t[-1] - t[0]) / (2 * np.pi))
+
+
+def _targets(request: GridRequest, grid: ConstrainedClosedGrid, x: np.ndarray, closure,
+             sizes: np.ndarray) -> np.ndarray:
+    """Per-row Newton targets near ``x``, in each row's units (as an unconstrained orbit's,
+    ``closed_grid.closed_targets``): ``NOISE_TARGET`` times the largest change of each kind
+    of row (every column of the interval block: canonical rows, hidden constraints,
+    constraints, prescribed energy) under a move of every unknown by one unit in its last
+    place, never below ``eps`` times what the row measures (the coordinate's size for the
+    closure and section rows, the period for ``t_0``, the multipliers' own for the rows that
+    pin the unused ones). No floor of 1 and no mix of units: ``max(|q|, |p|, |E|, tau)`` put a
+    pendulum in lengths of ``1e-8`` at targets ``1e-7`` of its size."""
+    layout = grid.layout
+    n, m, N, M, r = layout.n, layout.m, layout.intervals, layout.width, layout.integrals
+    noise = row_noise(grid, x, closure)
+    W = np.asarray(x[:(N + 1) * M], float).reshape(N + 1, M)
+    eps = EPS * np.r_[np.ptp(W[:, 0]), sizes, np.max(np.abs(W[:, 2 * n + 1:]), axis=0)]
+    head, B = 2 + r, 2 * n + 2 * m + 1
+    body = noise[head:head + N * B].reshape(N, B)
+    target = np.empty_like(noise)
+    target[0] = max(noise[0], eps[0])
+    target[1] = max(noise[1], eps[closure.section_index])
+    if r:
+        target[2:head] = np.maximum(noise[2:head], np.abs(closure.generators) @ eps[1:2 * n + 1])
+    rows = target[head:head + N * B].reshape(N, B)
+    rows[:] = np.max(body, axis=0)
+    rows[:, :2 * n] = np.maximum(rows[:, :2 * n], eps[1:2 * n + 1])
+    end = head + N * B
+    target[end:end + 2 * n] = np.maximum(noise[end:end + 2 * n], eps[1:2 * n + 1])
+    target[end + 2 * n:] = np.maximum(noise[end + 2 * n:], eps[2 * n + 1:])
+    return NOISE_TARGET * np.maximum(target, np.finfo(float).tiny)
+
+
+def _limits(request: GridRequest, grid: ConstrainedClosedGrid, x: np.ndarray, closure,
+            targets: np.ndarray, sizes: np.ndarray) -> dict:
+    """The largest residual of each kind the point may have (the keys of the verification's
+    residuals), ``tol`` relative to what the row measures or ``BOUNDS_ALLOWED`` targets: the
+    orbit's size per coordinate (canonical, closure, section rows), ``tol h W`` (energy rows,
+    as ``closed_grid.closed_limits``), for a constraint row ``|dg/dq| s_q`` (how far ``g``
+    moves when the positions move by their sizes) and for a hidden constraint that over the
+    period's radian ``T / 2 pi``; the unused multipliers only their round-off."""
+    layout = grid.layout
+    n, m, N, r = layout.n, layout.m, layout.intervals, layout.integrals
+    t, q, p, _, _ = layout.unpack(x)
+    head, B = 2 + r, 2 * n + 2 * m + 1
+    body = targets[head:head + N * B].reshape(N, B)[0]
+    end = head + N * B
+    tol = request.tol
+    tau = np.diff(t)
+    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
+    rates_q = np.max(np.abs(np.diff(q, axis=0)) / step, axis=0)
+    rates_p = np.max(np.abs(np.diff(p, axis=0)) / step, axis=0)
+    energy = max(tol * abs(t[-1] - t[0]) / N * float(np.sum(rates_q * rates_p)),
+                 BOUNDS_ALLOWED * float(body[-1]))
+    G = np.asarray(constraint_function(request.system)(q[0], t[0], request.theta)[1], float)
+    g_size = np.abs(G).reshape(m, n) @ sizes[:n]
+    radian = abs(t[-1] - t[0]) / (2 * np.pi)
+    return {"canonical": np.maximum(tol * sizes, BOUNDS_ALLOWED * body[:2 * n]),
+            "energy": energy, "prescribed_energy": energy,
+            "closure": np.maximum(tol * sizes, BOUNDS_ALLOWED * targets[end:end + 2 * n]),
+            "section": max(tol * np.r_[abs(t[-1] - t[0]), sizes][closure.section_index],
+                           BOUNDS_ALLOWED * targets[1]),
+            "g": np.maximum(tol * g_size, BOUNDS_ALLOWED * body[2 * n + m:2 * n + 2 * m]),
+            "hidden": np.maximum(tol * g_size / radian if radian > 0 else 0.0,
+                                 BOUNDS_ALLOWED * body[2 * n:2 * n + m]),
+            "unused_multipliers": BOUNDS_ALLOWED * targets[end + 2 * n:]}
 
 
 def _run(solver, request: GridRequest, grid, x0, closure, scale) -> GridResult:
@@ -350,9 +423,15 @@ def _solution(request: GridRequest, grid, result, closure, scale, started) -> So
     names = {"canonical": "interval", "energy": "energy", "prescribed_energy": "prescribed",
              "closure": "closure", "section": "section", "g": "g", "hidden": "hidden",
              "unused_multipliers": "unused"}
-    worst = {name: (float(np.max(np.abs(parts[part]))) if finite else np.nan)
-             for name, part in names.items()}
-    limit = max(request.tol, ALLOWANCE_ROUND_OFFS * EPS * scale)
+    if finite:
+        sizes = _sizes(request, grid, result.x)
+        limits = _limits(request, grid, result.x, closure,
+                         _targets(request, grid, result.x, closure, sizes), sizes)
+        worst, limit = worst_against({name: parts[part] for name, part in names.items()},
+                                     limits)
+    else:
+        worst = dict.fromkeys(names, np.nan)
+        limit = dict.fromkeys(names, np.nan)
     status, message = closed_verdict(result, worst, limit, np.diff(t),
                                      found="periodic orbit of a constrained system")
     report, local = (None, np.zeros(0))

@@ -99,9 +99,9 @@ from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..exact.closure import nearest_exact_orbit
-from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.motion_size import motion_sizes
 from ..grid.newton import newton
+from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, answers_removed_keywords, coerce
 from .closed_grid import (
