@@ -175,6 +175,16 @@ class Family:
     grid: dict = field(default_factory=dict)
 
 
+def _corrector_targets(walker, arc, guess: np.ndarray) -> np.ndarray:
+    """The corrector's per-row targets at ``guess``: the orbit rows' round-offs
+    (``closed_grid.closed_targets``), then the arclength row's, that of every value it weighs
+    (each known to ``eps`` of itself, not of its difference from the origin)."""
+    rows = closed_targets(walker.assembly, guess[:-1],
+                          replace(walker.closure, energy=float(guess[-1])), walker.sizes)
+    return np.r_[rows, 4 * NOISE_TARGET * EPS * max(abs(arc.length), float(
+        np.sum(np.abs(arc.row) * (np.abs(guess) + np.abs(arc.origin)))))]
+
+
 @dataclass
 class _Arc:
     """The data of one corrector solve: the closure (its energy is replaced by the unknown),
@@ -381,13 +391,7 @@ class _Walker:
         corrector's iterations."""
         arc = _Arc(self.closure, self.arc.weights * t, y, length)
         guess = y + length * t
-        rows = closed_targets(self.assembly, guess[:-1], replace(self.closure,
-                                                                 energy=float(guess[-1])),
-                              self.sizes)
-        # the arclength row: its round-off is that of every value it weighs (each known to
-        # eps of itself, not of its difference from the origin), a few round-offs of them
-        target = np.r_[rows, 4 * NOISE_TARGET * EPS * max(abs(length), float(
-            np.sum(np.abs(arc.row) * (np.abs(guess) + np.abs(y)))))]
+        target = _corrector_targets(self, arc, guess)
         period = guess[self.assembly.layout.time_index()[-1]]
         result = newton(self.arc, guess, arc, target, tau_floor=1e-3 * period / self.intervals,
                         max_iter=CORRECTOR_ITERATIONS, linear="sparse")
