@@ -45,3 +45,15 @@ def motion_sizes(system, theta, t: np.ndarray, z: np.ndarray, time_scale: float)
     bridged[:n][live] = np.sqrt(action * ratio[live])
     bridged[n:][live] = np.sqrt(action / ratio[live])
     return np.maximum(span, bridged)
+
+
+def energy_traded(t: np.ndarray, z: np.ndarray, time_scale: float) -> float:
+    """The energy a motion ``(t, z)`` trades over ``time_scale``: ``sum_i max |dq_i/dt| max
+    |dp_i/dt|`` (read off the nodes' differences) times ``time_scale``, in the units of ``H``
+    whatever the coordinates' (an offset of ``H`` or of the origin leaves it as it is)."""
+    t, z = np.asarray(t, float), np.asarray(z, float)
+    n = z.shape[1] // 2
+    tau = np.diff(t)
+    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
+    rates = np.max(np.abs(np.diff(z, axis=0)) / step, axis=0)
+    return float(np.sum(rates[:n] * rates[n:])) * time_scale

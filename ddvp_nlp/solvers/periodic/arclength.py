@@ -11,10 +11,13 @@ t_E = 0``, ``<t_i, t_i> = 1``; oriented as the previous one) the next member sol
 by the grid's Newton (sparse LU of the bordered Jacobian ``[[F_x, F_E], [W t_i^T, 0]]``) from
 the predictor ``y_i + ds t_i``. ``<a, b> = sum_j a_j b_j / (K s_j^2) + a_E b_E / S_E^2`` (``K``
 the number of node values, ``s_j`` the first orbit's size in node value ``j``'s coordinate, the
-period for a node time, ``S_E`` the energy range): the nodes count by their mean square in units
-of the orbit, so that a step is about as long in the orbit as in ``E`` in any units. (Unweighted,
-in lengths of ``1e-8`` the swing's family took 200 steps of ``1e-6`` of the range and stopped at
-``max_orbits``.) At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
+period for a node time, ``S_E`` the energy the first orbit trades in a radian of its period,
+``grid.motion_size.energy_traded``): the nodes count by their mean square in units of the orbit,
+so that a step is about as long in the orbit as in ``E`` in any units. (Unweighted, in lengths
+of ``1e-8`` the swing's family took 200 steps of ``1e-6`` of the range and stopped at
+``max_orbits``; with ``S_E`` the energy range, 0.01 on Henon-Heiles' period doubling, the
+energy outweighed the orbit and the doubled branch's first orbit was not found.)
+At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
 ``t_E`` changes sign and the bordered matrix stays regular: the continuation passes it. The step
 ``ds`` grows by 1.5 after a corrector that took at most 3 iterations and halves after one that
 failed; every member is then verified by `solve_periodic` (its residuals, its
@@ -51,7 +54,7 @@ from ...errors import InputError
 from ...physics.constraints import refuse_constrained
 from ...solution import Solution
 from ...validation import check_integer, check_real
-from ..grid.motion_size import motion_sizes
+from ..grid.motion_size import energy_traded, motion_sizes
 from ..grid.newton import newton
 from ..grid.problem import BorderedLayout
 from ..options import GridOptions, coerce
@@ -175,13 +178,22 @@ class Family:
     grid: dict = field(default_factory=dict)
 
 
+# The corrector's targets in round-off targets of the orbit solve: every member is solved again
+# by `solve_periodic` from the corrector's point, so the corrector stops well short of round-off,
+# where its iteration count (which sets the next step) does not hang on the last digits: at
+# round-off the two mirror-image halves of the halo branch took different iteration counts,
+# different steps, and parted after 6 members.
+CORRECTOR_SLACK = 16.0
+
+
 def _corrector_targets(walker, arc, guess: np.ndarray) -> np.ndarray:
-    """The corrector's per-row targets at ``guess``: the orbit rows' round-offs
-    (``closed_grid.closed_targets``), then the arclength row's, that of every value it weighs
-    (each known to ``eps`` of itself, not of its difference from the origin)."""
-    rows = closed_targets(walker.assembly, guess[:-1],
-                          replace(walker.closure, energy=float(guess[-1])), walker.sizes)
-    return np.r_[rows, 4 * NOISE_TARGET * EPS * max(abs(arc.length), float(
+    """The corrector's per-row targets at ``guess``: ``CORRECTOR_SLACK`` times the orbit rows'
+    round-offs (``closed_grid.closed_targets``) and the arclength row's, that of every value
+    it weighs (each known to ``eps`` of itself, not of its difference from the origin)."""
+    rows = CORRECTOR_SLACK * closed_targets(walker.assembly, guess[:-1],
+                                            replace(walker.closure, energy=float(guess[-1])),
+                                            walker.sizes)
+    return np.r_[rows, CORRECTOR_SLACK * 4 * NOISE_TARGET * EPS * max(abs(arc.length), float(
         np.sum(np.abs(arc.row) * (np.abs(guess) + np.abs(arc.origin)))))]
 
 
@@ -347,7 +359,8 @@ class _Walker:
         z = np.hstack([first.q, first.p])
         period = float(first.t[-1] - first.t[0])
         self.sizes = motion_sizes(system, self.theta, first.t, z, period / (2 * np.pi))
-        self.arc = ArclengthSystem(self.assembly, np.r_[period, self.sizes], span)
+        self.arc = ArclengthSystem(self.assembly, np.r_[period, self.sizes],
+                                   energy_traded(first.t, z, period / (2 * np.pi)))
         self.members, self.points, self.tangents, self.steps = [], [], [], []
         self._accept(first, previous, 0.0)
 

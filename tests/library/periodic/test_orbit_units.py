@@ -133,7 +133,8 @@ def _followed(length, time):
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5)])
 def test_a_family_is_followed_the_same_in_any_units(family, length, time):
     """The arclength weighs every node value by the first orbit's size in its coordinate and
-    the energy by the family's range: the same members in any units. Unweighted, in lengths of
+    the energy by what that orbit trades in a radian of its period: the same members in any
+    units. Unweighted, in lengths of
     ``1e-8`` or time units of ``1e5`` the family crawled in steps of ``1e-6`` of the range and
     stopped at ``max_orbits = 200``; with the unit-free metric but an absolute floor on the
     slope, in lengths of ``1e-8`` its first step failed."""
