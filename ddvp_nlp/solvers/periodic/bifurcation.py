@@ -12,7 +12,8 @@ with ``R`` the reduced monodromy and ``k_j`` the stability indices (``floquet.py
 Confirmation by the exact flow (`confirm`): the same test function on the exact flow's
 orbits (``exact.close_exact`` from the discrete orbit at the located energy ``E_N``, then at
 each energy from the last exact orbit), its sign change bracketed around ``E_N`` (half-width
-``1e-6 max(1, |E_N|)``, quadrupled until the signs differ) and located by Brent's method: the
+``1e-6`` of the energy the orbit trades in a radian of its period, quadrupled until the signs
+differ) and located by Brent's method: the
 exact flow's bifurcation energy ``E_exact``, and ``E_N - E_exact`` the discrete error. A fold
 has exact orbits on one side only (two there, none beyond), so no sign change can be bracketed
 in ``E``; the exact family is followed in its period instead (``close_exact(...,
@@ -28,10 +29,13 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..exact.closure import close_exact
+from ..grid.motion_size import energy_traded
 from .floquet import Stability, exact_stability
 
 KINDS = ("fold", "branch point", "period doubling")
-# The first half-width of the exact bracket (relative to max(1, |E|)) and its expansions.
+# The first half-width of the exact bracket (relative to the energy the orbit trades in a radian
+# of its period, `grid.motion_size.energy_traded`, or to the period for a fold: ``max(1, |E|)``
+# moved with a constant added to H and with the units) and its expansions.
 FIRST_HALF_WIDTH = 1e-6
 EXPANSIONS = 12
 
@@ -96,8 +100,9 @@ def confirm(system, theta, orbit, kind: str, *, section_index: int, section_valu
         return _fold(closed, orbit, energy, seen)
 
     try:
-        found = _root_near(test, energy, FIRST_HALF_WIDTH * max(1.0, abs(energy)),
-                           1e-13 * max(1.0, abs(energy)))
+        scale = energy_traded(orbit.t, np.hstack([orbit.q, orbit.p]),
+                              float(orbit.orbit.period) / (2 * np.pi))
+        found = _root_near(test, energy, FIRST_HALF_WIDTH * scale, 1e-13 * scale)
     except _NotClosed:
         return None
     if found is None:
@@ -134,7 +139,7 @@ def _fold(closed, orbit, energy: float, seen: dict) -> Confirmation | None:
         return 1.0 / exact.period_derivative
 
     try:
-        found = _root_near(slope, period, FIRST_HALF_WIDTH * max(1.0, period), 1e-13 * period)
+        found = _root_near(slope, period, FIRST_HALF_WIDTH * period, 1e-13 * period)
         if found is None:
             return None
         slope(found[0])  # the exact fold's orbit, its energy in state
