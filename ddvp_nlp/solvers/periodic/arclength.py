@@ -9,15 +9,9 @@ t_E = 0``, ``<t_i, t_i> = 1``; oriented as the previous one) the next member sol
     F(x; E) = 0,    <t_i, y - y_i> = ds          (Keller's pseudo-arclength)
 
 by the grid's Newton (sparse LU of the bordered Jacobian ``[[F_x, F_E], [W t_i^T, 0]]``) from
-the predictor ``y_i + ds t_i``. ``<a, b> = sum_j a_j b_j / (K s_j^2) + a_E b_E / S_E^2`` (``K``
-the number of node values, ``s_j`` the first orbit's size in node value ``j``'s coordinate, the
-period for a node time, ``S_E`` the energy the first orbit trades in a radian of its period,
-``grid.motion_size.energy_traded``): the nodes count by their mean square in units of the orbit,
-so that a step is about as long in the orbit as in ``E`` in any units. (Unweighted, in lengths
-of ``1e-8`` the swing's family took 200 steps of ``1e-6`` of the range and stopped at
-``max_orbits``; with ``S_E`` the energy range, 0.01 on Henon-Heiles' period doubling, the
-energy outweighed the orbit and the doubled branch's first orbit was not found.)
-At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
+the predictor ``y_i + ds t_i``. ``<a, b> = sum_j a_j b_j / K + a_E b_E`` (``K`` the number of
+node values): the nodes count by their mean square, so that a step is about as long in the
+orbit as in ``E``. At a fold, where the family turns back in ``E`` and ``F_x`` is singular,
 ``t_E`` changes sign and the bordered matrix stays regular: the continuation passes it. The step
 ``ds`` grows by 1.5 after a corrector that took at most 3 iterations and halves after one that
 failed; every member is then verified by `solve_periodic` (its residuals, its
@@ -88,9 +82,10 @@ class Continuation:
         min_step: the continuation stops when a failed step has been halved below this
             fraction of the first step.
         tol: the tolerance of the stability verdicts, on the stability indices.
-        locate_tol: the located bifurcations' bracket in the energy, relative to the
-            energy range (it was ``max(1, |E|)``, which a constant added to ``H`` or a change
-            of units moved).
+        locate_tol: the located bifurcations' bracket in the energy, relative to the family's
+            energy range (a branch's: the energy its first orbit trades in a radian of its
+            period; it was ``max(1, |E|)``, which a constant added to ``H`` or a change of
+            units moved).
         exact: close the exact flow at every member and analyse its monodromy
             (`periodic_stability`; about 0.1-1 s an orbit).
         confirm: locate each bifurcation on the exact flow too (``bifurcation.confirm``).
@@ -178,23 +173,51 @@ class Family:
     grid: dict = field(default_factory=dict)
 
 
+# The first steps are at most this share of the first point's length in the arclength measure
+# (`_Walker._first_steps`); a bifurcation between members whose slopes are both 0 is located to
+# this share of the step between them.
+FIRST_SHARE = 0.1
+FLAT_XTOL = 1e-12
+
+
 # The corrector's targets in round-off targets of the orbit solve: every member is solved again
 # by `solve_periodic` from the corrector's point, so the corrector stops well short of round-off,
-# where its iteration count (which sets the next step) does not hang on the last digits: at
-# round-off the two mirror-image halves of the halo branch took different iteration counts,
-# different steps, and parted after 6 members.
+# where its iteration count (which sets the next step) does not hang on the last digits.
 CORRECTOR_SLACK = 16.0
 
 
 def _corrector_targets(walker, arc, guess: np.ndarray) -> np.ndarray:
     """The corrector's per-row targets at ``guess``: ``CORRECTOR_SLACK`` times the orbit rows'
-    round-offs (``closed_grid.closed_targets``) and the arclength row's, that of every value
-    it weighs (each known to ``eps`` of itself, not of its difference from the origin)."""
-    rows = CORRECTOR_SLACK * closed_targets(walker.assembly, guess[:-1],
-                                            replace(walker.closure, energy=float(guess[-1])),
-                                            walker.sizes)
-    return np.r_[rows, CORRECTOR_SLACK * 4 * NOISE_TARGET * EPS * max(abs(arc.length), float(
+    round-offs (``closed_grid.closed_targets``, read off the rows: ``64 eps max(1, |x|)`` put a
+    swing in lengths of ``1e-8`` at ``1e-6`` of its size) and the arclength row's, that of
+    every value it weighs (each known to ``eps`` of itself)."""
+    rows = closed_targets(walker.assembly, guess[:-1],
+                          replace(walker.closure, energy=float(guess[-1])), walker.sizes)
+    return CORRECTOR_SLACK * np.r_[rows, 4 * NOISE_TARGET * EPS * max(abs(arc.length), float(
         np.sum(np.abs(arc.row) * (np.abs(guess) + np.abs(arc.origin)))))]
+
+
+def _energy_scale(low: float, high: float, first: Solution) -> float:
+    """The energies' own scale: the range ``high - low``; a branch's, unbounded, what its first
+    orbit trades in a radian of its period. Never ``max(1, |E|)``: a constant added to ``H``
+    moved that, and in units of ``1e-16`` of energy it was ``1e16`` times the whole family."""
+    if np.isfinite(high - low):
+        return float(high - low)
+    return energy_traded(first.t, np.hstack([first.q, first.p]),
+                         float(first.t[-1] - first.t[0]) / (2 * np.pi))
+
+
+def _first_steps(walker) -> tuple[float, float]:
+    """The first and the longest step in the arclength from the energy steps and the first
+    member's slope ``dE/ds``, at most ``FIRST_SHARE`` of the first point's own length in the
+    arclength's measure (a fold at the start has no slope). A floor of ``1e-12`` on the slope
+    made a family in energy units of ``1e-16`` (a swing in lengths of ``1e-8``, slope ``3e-16``)
+    walk in steps of ``1e-6`` of its range until ``max_orbits``."""
+    slope = abs(walker.members[0].slope)
+    cap = FIRST_SHARE * float(np.sqrt(np.sum(walker.arc.weights * walker.points[0] ** 2)))
+    if slope == 0:
+        return cap, cap
+    return min(walker.first_step / slope, cap), min(walker.max_step / slope, cap)
 
 
 @dataclass
@@ -212,8 +235,7 @@ class ArclengthSystem:
     """``F(x; E)`` with ``E`` the last unknown, and the arclength row (module docstring): a
     ``grid.GridProblem`` for the grid's Newton (sparse LU)."""
 
-    def __init__(self, assembly: PeriodicAssembly, scales: np.ndarray | None = None,
-                 energy_scale: float = 1.0):
+    def __init__(self, assembly: PeriodicAssembly):
         self.base = assembly
         self.layout = BorderedLayout(assembly.layout)
         N, m, h = assembly.layout.intervals, assembly.layout.m, assembly.header
@@ -221,14 +243,8 @@ class ArclengthSystem:
         self.energy_column = sp.csc_matrix((-np.ones(N), (rows, np.zeros(N, int))),
                                            (assembly.layout.size, 1))
         count = assembly.layout.nodes * m
-        # every node value in units of its coordinate's size (scales: (t, q, p)), the energy in
-        # units of the family's range: the arclength has no units
-        self.scales = np.ones(assembly.layout.m) if scales is None else \
-            np.asarray(scales, float)  # (t, q, p); None: every value in the system's units
-        self.energy_scale = float(energy_scale)
-        node = np.tile(1.0 / self.scales ** 2, assembly.layout.nodes) / count
-        self.weights = np.r_[node, np.zeros(assembly.layout.unfoldings),
-                             1.0 / energy_scale ** 2]
+        self.weights = np.r_[np.full(count, 1.0 / count), np.zeros(assembly.layout.unfoldings),
+                             1.0]
 
     def evaluate(self, y: np.ndarray, arc: _Arc, jacobian: bool = True):
         closure = replace(arc.closure, energy=float(y[-1]))
@@ -349,18 +365,17 @@ class _Walker:
         self.theta = system.parameter_vector(common["params"])
         self.integrals = tuple(common["integrals"])
         self.low, self.high = min(energies), max(energies)
+        self.energy_scale = _energy_scale(self.low, self.high, first)
         self.direction = np.sign(energies[1] - energies[0])
-        self.span = span = self.high - self.low
+        span = self.high - self.low
         self.first_step = walk.step or span / 20
         self.max_step = walk.max_step or span / 10
         self.closure = self._closure(first)
         self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), self.intervals,
                                          self.integrals)
-        z = np.hstack([first.q, first.p])
-        period = float(first.t[-1] - first.t[0])
-        self.sizes = motion_sizes(system, self.theta, first.t, z, period / (2 * np.pi))
-        self.arc = ArclengthSystem(self.assembly, np.r_[period, self.sizes],
-                                   energy_traded(first.t, z, period / (2 * np.pi)))
+        self.arc = ArclengthSystem(self.assembly)
+        self.sizes = motion_sizes(system, self.theta, first.t, np.hstack([first.q, first.p]),
+                                  float(first.t[-1] - first.t[0]) / (2 * np.pi))
         self.members, self.points, self.tangents, self.steps = [], [], [], []
         self._accept(first, previous, 0.0)
 
@@ -428,8 +443,7 @@ class _Walker:
         keeps the predictor's miss ``|y - (y_i + ds t_i)| / ds`` (about half the tangent's turn
         over the step) near ``turning``, and it shrinks when the miss is over twice that."""
         if ds is None:
-            slope = max(abs(self.members[0].slope), 1e-12 * self.span)
-            ds, longest = self.first_step / slope, self.max_step / slope
+            ds, longest = _first_steps(self)
         smallest = self.settings.min_step * ds
         arclength = 0.0
         while len(self.members) < self.settings.max_orbits:
@@ -497,15 +511,16 @@ class _Walker:
         """The bifurcation of ``kind`` between members ``i`` and ``i + 1`` (module
         docstring)."""
         a, b = self.members[i], self.members[i + 1]
-        tolerance = self.settings.locate_tol * self.span
+        tolerance = self.settings.locate_tol * self.energy_scale
         points, values = {}, {}
 
         def test(length):
             value, y = self._test_at(i, length, kind)
             points[length], values[length] = y, value
             return value
+        slope = max(abs(a.slope), abs(b.slope))
         width = self.steps[i]
-        xtol = tolerance / max(abs(a.slope), abs(b.slope), 1e-12 * self.span)
+        xtol = min(tolerance / slope, width) if slope > 0 else FLAT_XTOL * width
         try:
             root = brentq(test, 0.0, width, xtol=xtol, rtol=4 * EPS, maxiter=100)
         except (_LostFamily, ValueError):

@@ -84,10 +84,7 @@ def doubled_grid(walker, y: np.ndarray, along: np.ndarray) -> DoubledGrid:
     shift = np.asarray(walker.closure.shift, float) * np.ones(2 * walker.system.n)
     closure = replace(walker.closure, shift=2 * shift)
     layout = walker.assembly.layout
-    arc = walker.arc
-    # the same orbit twice: each coordinate's size the same, the period twice as long
-    arc = type(arc)(assembly, np.r_[2 * arc.scales[0], arc.scales[1:]], arc.energy_scale)
-    return DoubledGrid(closure, arc, assembly, intervals, intervals + 1,
+    return DoubledGrid(closure, type(walker.arc)(assembly), assembly, intervals, intervals + 1,
                        twice(y, layout, shift), twice(along, layout, 0 * shift), walker.sizes)
 
 
