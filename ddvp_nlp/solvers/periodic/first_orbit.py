@@ -8,8 +8,10 @@ sign change, then Brent's method). Where the ray does not meet ``E``, the ray's 
 is nearest ``E`` has its momenta scaled (``H(q, mu p)``, the kinetic energy's parabola in ``mu``):
 whether the section meets the energy is a property of the whole section, not of one ray (Hill's
 problem at ``E = -1.663`` on ``q2 = 0`` was refused along the ray, whose ``H`` tops out at
--1.89). Only where neither meets ``E`` is it an input error (which says so also when ``H`` is not
-finite anywhere on the ray).
+-1.89). Where neither meets ``E``, the same from ``H``'s least value (the ray's origin then is
+no longer the coordinates': a well centred at ``q = -5`` was refused from theirs, "the section
+does not meet the energy"). Only where none meets ``E`` is it an input error (which says so also
+when ``H`` is not finite anywhere on the ray, and names the ray's origin).
 
 The march: ``solvers/marching`` from that point with a small first step (it sets the discrete
 energy level, within ``O(tau0^2)`` of ``E``) until the section coordinate crosses its value again
@@ -65,12 +67,15 @@ MAX_HORIZONS = 4
 
 
 def section_point(system, theta, energy: float, index: int, value: float, direction,
-                  label: str) -> np.ndarray:
+                  label: str, origin=None) -> np.ndarray:
     """``z = (q, p)`` on the section ``z[index - 1] = value`` at ``H(z) = energy`` (module
-    docstring); ``index`` counts ``t`` as 0, as the layouts do."""
+    docstring); ``index`` counts ``t`` as 0, as the layouts do. The ray starts at ``origin``
+    (default the coordinates' origin; where that ray does not meet ``E``, from ``H``'s least
+    value, found once)."""
     direction = np.asarray(direction, float)
+    base = np.zeros(direction.size) if origin is None else np.asarray(origin, float)
     s = _scales()
-    points = s[:, None] * direction[None, :]
+    points = base[None, :] + s[:, None] * direction[None, :]
     points[:, index - 1] = value
     n = system.n
     H = system.energy(points[:, :n], points[:, n:], np.zeros(s.size), theta) - energy
@@ -94,23 +99,36 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
         off_ray = _momentum_scaled_point(system, theta, energy, points, H, n)
         if off_ray is not None:  # the section meets E off the ray: the ray was no range
             return off_ray
+        if least is not None and origin is None:  # the ray from H's minimum: where the
+            # coordinates' origin is
+            # must not decide (a well centred at q = -5 was refused from the origin's ray)
+            return section_point(system, theta, energy, index, value, direction, label,
+                                 origin=least[1])
         raise InputError(
             f"energy {energy!r} is outside the range where the section {label} meets the "
-            f"energy surface (along the start's ray H runs from {np.min(finite):.6g} to "
-            f"{np.max(finite):.6g})")
+            f"energy surface along the start's ray (from {_origin_words(origin)} along "
+            f"{np.round(direction, 6).tolist()}, H runs from {np.min(finite):.6g} to "
+            f"{np.max(finite):.6g}); give a start near the orbit (start=(q, p) in Python, "
+            "--guess on the command line) or another section")
     k = int(change[0])
 
     def excess(scale):
-        z = scale * direction
+        z = base + scale * direction
         z[index - 1] = value
         return float(system.energy(z[None, :n], z[None, n:], [0.0], theta)[0]) - energy
 
     # xtol relative to the bracket: an absolute 1e-15 left a root at s ~ 1e-8 to 1e-7 of itself
     root = s[k] if H[k] == 0 else brentq(excess, s[k], s[k + 1], xtol=1e-15 * s[k + 1],
                                          rtol=1e-15)
-    z = root * direction
+    z = base + root * direction
     z[index - 1] = value
     return z
+
+
+def _origin_words(origin) -> str:
+    if origin is None:
+        return "the coordinates' origin"
+    return f"H's least value at z = {np.round(np.asarray(origin, float), 6).tolist()}"
 
 
 def _scales() -> np.ndarray:

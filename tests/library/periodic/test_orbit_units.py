@@ -140,3 +140,28 @@ def test_a_family_is_followed_through_its_range_in_any_units(length, time):
     for energy, period in members[::4]:
         same = dn.solve_periodic(system, energy=energy, nodes=NODES, section="p1=0")
         assert abs(period - same.orbit.period) <= AGREE * period  # measured 2.7e-16
+
+
+@pytest.mark.parametrize("centre", [-5.0, 40.0, -3e3])
+def test_the_default_start_does_not_depend_on_the_origin(centre):
+    """The section's point is sought along a ray from the coordinates' origin, then from ``H``'s
+    least value: a well away from the origin (a harmonic oscillator centred at ``q = -5``) was
+    refused with "energy 0.5 is outside the range where the section p1=0 meets the energy
+    surface", which is false (a helper's fresh look found it)."""
+    system = dn.HamiltonianSystem(lambda q, p, t=None: p[0] ** 2 / 2 + (q[0] - centre) ** 2 / 2,
+                                  1, name="well")
+    solution = dn.solve_periodic(system, energy=0.5, nodes=NODES, section="p1=0")
+    assert solution.status is dn.Status.SUCCESS, solution.message
+    # the swing about its own well: amplitude 1 either side of the centre (the nodes need not
+    # fall on the turning points: 1e-2 of it)
+    assert abs((solution.q.max() + solution.q.min()) / 2 - centre) < 1e-2
+    assert np.ptp(solution.q) == pytest.approx(2.0, rel=1e-2)
+    assert solution.orbit.period == pytest.approx(2 * np.pi, rel=1e-3)
+
+
+def test_a_section_that_misses_the_energy_says_where_the_ray_began():
+    system = dn.HamiltonianSystem(lambda q, p, t=None: p[0] ** 2 / 2 + (q[0] + 5) ** 2 / 2, 1,
+                                  name="well")
+    with pytest.raises(dn.InputError, match=r"section q1=3 .*from H's least value at z = "
+                                            r"\[-5\.0, 0\.0\].*give a start near the orbit"):
+        dn.solve_periodic(system, energy=0.5, nodes=NODES, section="q1=3")
