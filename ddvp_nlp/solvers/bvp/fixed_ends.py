@@ -58,6 +58,7 @@ from ...validation import check_integer, check_span, check_state
 from ..accuracy.judgement import Level, judge
 from ..columns import row_max_abs
 from ..dense import attach
+from ..grid.motion_size import energy_rate
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest
 from ..options import Compilation, GridOptions, Output, answers_removed_keywords, coerce
@@ -367,15 +368,12 @@ def verification_limits(request: GridRequest, x: np.ndarray,
     n, N = request.system.n, request.nodes
     z = x.reshape(N, 2 * n + 1)
     rows = row_round_offs(request, x, request.scheme, base=F)
-    q, p, tau = z[:, 1:n + 1], z[:, n + 1:], np.diff(z[:, 0])
+    q, p = z[:, 1:n + 1], z[:, n + 1:]
     ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
     units = equations.action_for(request.system, request.scheme).row_units
     size = np.repeat([ranges[units[0]], ranges[units[1]]], n)
     canonical = np.maximum(request.tol * size, BOUNDS_ALLOWED * rows.canonical)
-    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
-    power = float(np.sum(np.max(np.abs(np.diff(q, axis=0)) / step, axis=0)
-                         * np.max(np.abs(np.diff(p, axis=0)) / step, axis=0)))
-    energy = max(request.tol * mean_step(request) * power,
+    energy = max(request.tol * mean_step(request) * energy_rate(z[:, 0], z[:, 1:]),
                  BOUNDS_ALLOWED * rows.energy)
     return canonical, energy
 

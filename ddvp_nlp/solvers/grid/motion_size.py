@@ -32,7 +32,7 @@ def motion_sizes(system, theta, t: np.ndarray, z: np.ndarray, time_scale: float)
         return span
     f_A = flow_jacobian_function(system)
     picks = np.unique(np.linspace(0, z.shape[0] - 1, min(z.shape[0], 9)).astype(int))
-    mobility = np.zeros(n)  # |d2H/dp_i2| = |dq_i'/dp_i|, the median over a few nodes
+    # |d2H/dp_i2| = |dq_i'/dp_i|, the median over a few nodes
     with np.errstate(all="ignore"):
         samples = [np.abs(np.diagonal(np.asarray(f_A(z[k], float(np.asarray(t)[k]), theta)[1],
                                                  float)[:n, n:])) for k in picks]
@@ -47,13 +47,24 @@ def motion_sizes(system, theta, t: np.ndarray, z: np.ndarray, time_scale: float)
     return np.maximum(span, bridged)
 
 
-def energy_traded(t: np.ndarray, z: np.ndarray, time_scale: float) -> float:
-    """The energy a motion ``(t, z)`` trades over ``time_scale``: ``sum_i max |dq_i/dt| max
-    |dp_i/dt|`` (read off the nodes' differences) times ``time_scale``, in the units of ``H``
+def orbit_sizes(system, theta, t: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """`motion_sizes` of one period of an orbit, on the time scale of its period over
+    ``2 pi``."""
+    return motion_sizes(system, theta, t, z, float(t[-1] - t[0]) / (2 * np.pi))
+
+
+def energy_rate(t: np.ndarray, z: np.ndarray) -> float:
+    """The rate at which a motion ``(t, z)`` (nodes ``z = (q, p)``) trades energy: ``sum_i max
+    |dq_i/dt| max |dp_i/dt|``, read off the nodes' differences; in the units of ``H`` per time
     whatever the coordinates' (an offset of ``H`` or of the origin leaves it as it is)."""
     t, z = np.asarray(t, float), np.asarray(z, float)
     n = z.shape[1] // 2
     tau = np.diff(t)
     step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
     rates = np.max(np.abs(np.diff(z, axis=0)) / step, axis=0)
-    return float(np.sum(rates[:n] * rates[n:])) * time_scale
+    return float(np.sum(rates[:n] * rates[n:]))
+
+
+def energy_traded(t: np.ndarray, z: np.ndarray, time_scale: float) -> float:
+    """The energy a motion ``(t, z)`` trades over ``time_scale`` (`energy_rate` times it)."""
+    return energy_rate(t, z) * time_scale

@@ -48,7 +48,7 @@ from ...errors import InputError
 from ...physics.constraints import refuse_constrained
 from ...solution import Solution
 from ...validation import check_integer, check_real
-from ..grid.motion_size import energy_traded, motion_sizes
+from ..grid.motion_size import energy_traded, orbit_sizes
 from ..grid.newton import newton
 from ..grid.problem import BorderedLayout
 from ..options import GridOptions, coerce
@@ -374,8 +374,7 @@ class _Walker:
         self.assembly = PeriodicAssembly(system, Scheme.coerce(common["scheme"]), self.intervals,
                                          self.integrals)
         self.arc = ArclengthSystem(self.assembly)
-        self.sizes = motion_sizes(system, self.theta, first.t, np.hstack([first.q, first.p]),
-                                  float(first.t[-1] - first.t[0]) / (2 * np.pi))
+        self.sizes = orbit_sizes(system, self.theta, first.t, np.hstack([first.q, first.p]))
         self.members, self.points, self.tangents, self.steps = [], [], [], []
         self._accept(first, previous, 0.0)
 

@@ -35,25 +35,18 @@ from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...solution import Status
 from ..grid.maps import chunked
+from ..grid.motion_size import energy_rate
 from ..grid.newton import newton
 from ..grid.policy import Stage, failure_status
 from ..grid.round_off import row_noise
 
 EPS = float(np.finfo(float).eps)
-# A closed grid's Newton per-row target and the verification's round-off allowance, in
-# round-offs of the rows' magnitudes (the orbit solves, constrained or not, and their
-# derivatives' solves share them).
-TARGET_ROUND_OFFS = 64
-ALLOWANCE_ROUND_OFFS = 4096
 
 
-def closed_newton(grid, x0, closure, request, scale):
+def closed_newton(grid, x0, closure, request, target: np.ndarray):
     """The grid's sparse Newton on a closed grid (an orbit, constrained or not) from ``x0``,
-    every row to its target (``scale``: an array of per-row targets, `closed_targets`, or a
-    number whose ``TARGET_ROUND_OFFS`` round-offs are every row's), within ``request``'s step
-    floor, iterations and deadline; its outcome named ``newton: ...``."""
-    target = np.asarray(scale, float) if np.ndim(scale) else \
-        np.full(x0.size, TARGET_ROUND_OFFS * EPS * scale)
+    every row to its ``target`` (per row: `closed_targets`), within ``request``'s step floor,
+    iterations and deadline; its outcome named ``newton: ...``."""
     result = newton(grid, x0, closure, target, tau_floor=request.tau_floor,
                     max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
     result.outcome = f"newton: {result.outcome}"
@@ -63,9 +56,10 @@ def closed_newton(grid, x0, closure, request, scale):
 # Newton's target on a row of a closed grid: this many times the row's change under a move of
 # every unknown by one unit in its last place (`closed_targets`, as fixed ends'
 # ``bvp/phases.NOISE_TARGET``); the verification allows BOUNDS_ALLOWED targets (the ratio of
-# ALLOWANCE_ROUND_OFFS to TARGET_ROUND_OFFS, kept).
+# the allowance to the target when both were round-offs of max(1, |x|, |E|): 4096 and 64). The
+# orbit solves, constrained or not, and their derivatives' solves share them.
 NOISE_TARGET = 2.0
-BOUNDS_ALLOWED = ALLOWANCE_ROUND_OFFS // TARGET_ROUND_OFFS
+BOUNDS_ALLOWED = 64
 
 
 def closed_targets(grid, x: np.ndarray, closure, sizes: np.ndarray) -> np.ndarray:
@@ -119,12 +113,9 @@ def closed_limits(grid, x: np.ndarray, closure, targets: np.ndarray, tol: float,
     N, m, n, h = layout.intervals, layout.m, layout.n, grid.header
     z = np.asarray(x[:(N + 1) * m], float).reshape(N + 1, m)
     span = np.r_[np.ptp(z[:, 0]), sizes]
-    tau = np.diff(z[:, 0])
-    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
-    rates = np.max(np.abs(np.diff(z[:, 1:], axis=0)) / step, axis=0)
-    power = float(np.sum(rates[:n] * rates[n:]))
     body = targets[h:h + N * m].reshape(N, m)
-    energy = max(tol * abs(z[-1, 0] - z[0, 0]) / N * power, BOUNDS_ALLOWED * float(body[0, 2 * n]))
+    energy = max(tol * abs(z[-1, 0] - z[0, 0]) / N * energy_rate(z[:, 0], z[:, 1:]),
+                 BOUNDS_ALLOWED * float(body[0, 2 * n]))
     return {"canonical": np.maximum(tol * span[1:], BOUNDS_ALLOWED * body[0, :2 * n]),
             "energy": energy, "prescribed_energy": energy,
             "closure": np.maximum(tol * span[1:], BOUNDS_ALLOWED * targets[h + N * m:]),
@@ -148,15 +139,13 @@ def worst_against(residuals: dict, limits: dict) -> tuple[dict, dict]:
     return worst, limit
 
 
-def closed_verdict(result, worst: dict, limit, tau: np.ndarray, note=None, *,
+def closed_verdict(result, worst: dict, limits: dict, tau: np.ndarray, note=None, *,
                    found: str = "periodic orbit"):
     """A closed grid's status and message from its largest residuals (``worst``, by row
-    family) against ``limit`` (one number, or one per family: `worst_against`) and its steps
-    ``tau``; the solver's word is quoted, with ``note`` (the start's) after it."""
-    per_family = isinstance(limit, dict)
-    limits = limit if per_family else dict.fromkeys(worst, limit)
-    listed = ", ".join(f"{name} {value:.3e}" + (f" (limit {limits[name]:.1e})" if per_family
-                                                 else "") for name, value in worst.items())
+    family) against their ``limits`` (one per family: `worst_against`) and its steps ``tau``;
+    the solver's word is quoted, with ``note`` (the start's) after it."""
+    listed = ", ".join(f"{name} {value:.3e} (limit {limits[name]:.1e})"
+                       for name, value in worst.items())
     said = result.outcome + (f"; {note}" if note else "")
     if not all(np.isfinite(v) for v in worst.values()):
         return Status.NON_FINITE, f"the iteration produced non-finite values ({said})"
@@ -164,12 +153,9 @@ def closed_verdict(result, worst: dict, limit, tau: np.ndarray, note=None, *,
         k = int(np.argmin(tau))
         return Status.NO_ADMISSIBLE_STEP, f"step {k} is not positive: tau = {tau[k]:.6g} ({said})"
     failed = [name for name, value in worst.items() if value > limits[name]]
-    bound = "" if per_family else f" (limit {limit:.1e})"
     if not failed:
-        return Status.SUCCESS, (f"{found} found and verified: largest residuals {listed}"
-                                f"{bound}; {said}")
-    detail = (f"largest residuals {listed}{bound.replace(' (', ', ').rstrip(')')}, above it: "
-              f"{', '.join(failed)}")
+        return Status.SUCCESS, f"{found} found and verified: largest residuals {listed}; {said}"
+    detail = f"largest residuals {listed}, above it: {', '.join(failed)}"
     status = failure_status(Stage("periodic orbit", "", result.converged, result.outcome), tau)
     if status is Status.SOLVER_FAILED:
         return status, f"no periodic orbit found: {detail} ({said})"

@@ -58,7 +58,7 @@ from ..exact.constrained_flow import (
 )
 from ..exact.flow import exact_flow
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
-from ..grid.motion_size import motion_sizes
+from ..grid.motion_size import energy_rate, orbit_sizes
 from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
 from ..grid.round_off import row_noise
@@ -315,10 +315,9 @@ def _packed(request: GridRequest, grid: ConstrainedClosedGrid, t, z) -> np.ndarr
 
 
 def _sizes(request: GridRequest, grid: ConstrainedClosedGrid, x: np.ndarray) -> np.ndarray:
-    """The orbit's size in each coordinate of ``(q, p)`` (`grid.motion_size.motion_sizes`)."""
+    """The orbit's size in each coordinate of ``(q, p)`` (`grid.motion_size.orbit_sizes`)."""
     t, q, p, _, _ = grid.layout.unpack(x)
-    return motion_sizes(request.system, request.theta, t, np.hstack([q, p]),
-                        float(t[-1] - t[0]) / (2 * np.pi))
+    return orbit_sizes(request.system, request.theta, t, np.hstack([q, p]))
 
 
 def _targets(request: GridRequest, grid: ConstrainedClosedGrid, x: np.ndarray, closure,
@@ -367,11 +366,7 @@ def _limits(request: GridRequest, grid: ConstrainedClosedGrid, x: np.ndarray, cl
     body = targets[head:head + N * B].reshape(N, B)[0]
     end = head + N * B
     tol = request.tol
-    tau = np.diff(t)
-    step = np.where(tau != 0, np.abs(tau), np.inf)[:, None]
-    rates_q = np.max(np.abs(np.diff(q, axis=0)) / step, axis=0)
-    rates_p = np.max(np.abs(np.diff(p, axis=0)) / step, axis=0)
-    energy = max(tol * abs(t[-1] - t[0]) / N * float(np.sum(rates_q * rates_p)),
+    energy = max(tol * abs(t[-1] - t[0]) / N * energy_rate(t, np.hstack([q, p])),
                  BOUNDS_ALLOWED * float(body[-1]))
     G = np.asarray(constraint_function(request.system)(q[0], t[0], request.theta)[1], float)
     g_size = np.abs(G).reshape(m, n) @ sizes[:n]

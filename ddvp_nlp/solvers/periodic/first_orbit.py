@@ -99,9 +99,9 @@ def section_point(system, theta, energy: float, index: int, value: float, direct
         off_ray = _momentum_scaled_point(system, theta, energy, points, H, n)
         if off_ray is not None:  # the section meets E off the ray: the ray was no range
             return off_ray
-        if least is not None and origin is None:  # the ray from H's minimum: where the
-            # coordinates' origin is
-            # must not decide (a well centred at q = -5 was refused from the origin's ray)
+        if least is not None and origin is None:
+            # the ray from H's minimum: where the coordinates' origin is must not decide (a
+            # well centred at q = -5 was refused from the origin's ray)
             return section_point(system, theta, energy, index, value, direction, label,
                                  origin=least[1])
         raise InputError(

@@ -99,7 +99,7 @@ from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
 from ..compiler import find_compiler
 from ..exact.closure import nearest_exact_orbit
-from ..grid.motion_size import motion_sizes
+from ..grid.motion_size import orbit_sizes
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
 from ..grid.problem import GridRequest, check_energy_problem
@@ -519,9 +519,8 @@ def _solution(request: GridRequest[Orbit], assembly, result, scale, started,
 
 
 def _sizes(request: GridRequest[Orbit], t, z) -> np.ndarray:
-    """The orbit's size in each coordinate (`grid.motion_size.motion_sizes`, on the time
-    scale of a period over ``2 pi``)."""
-    return motion_sizes(request.system, request.theta, t, z, float(t[-1] - t[0]) / (2 * np.pi))
+    """The orbit's size in each coordinate (`grid.motion_size.orbit_sizes`)."""
+    return orbit_sizes(request.system, request.theta, t, z)
 
 
 def _accuracy(request: GridRequest[Orbit], t, q, p, closure: Closure, integrals=()):

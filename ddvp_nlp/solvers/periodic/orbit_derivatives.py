@@ -39,7 +39,7 @@ from ..grid.implicit_derivatives import (
     checked,
     resolver,
 )
-from ..grid.motion_size import motion_sizes
+from ..grid.motion_size import orbit_sizes
 from .closed_grid import Closure, PeriodicAssembly, closed_targets, integral_gradients
 
 # The inputs a periodic orbit differentiates in, in the order of the derivative's columns.
@@ -91,9 +91,8 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     fallback = float(np.max(np.abs(x)))
     # the orbit solve's own targets (orbit.py): each row's round-off, read off the rows
     z = np.hstack([solution.q, solution.p])
-    sizes = motion_sizes(system, request.theta, solution.t, z,
-                         float(solution.t[-1] - solution.t[0]) / (2 * np.pi))
-    target = closed_targets(assembly, x, closure, sizes)
+    target = closed_targets(assembly, x, closure,
+                            orbit_sizes(system, request.theta, solution.t, z))
 
     def resolve_of(name):
         return resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,
