@@ -39,7 +39,7 @@ import numpy as np
 from ...cache import PROBLEMS
 from ...discrete import equations
 from ...errors import InputError
-from ...physics.hamiltonian import derivatives_function
+from ...physics.hamiltonian import derivatives_function, flow_jacobian_function
 from ...solution import Solution, Status, TransferRecord
 from ...validation import check_real
 from ..accuracy.judgement import Level, assess, fixed_ends_report, judge
@@ -47,14 +47,15 @@ from ..exact.flow_newton import exact_newton
 from ..exact.tolerance import EXACT_TOLERANCE
 from ..exact.variational import flow_with_derivatives
 from ..grid.linear import band_kernel
+from ..grid.motion_size import energy_rate, energy_traded
 from ..grid.newton import newton
 from ..grid.problem import check_energy_problem
+from ..grid.round_off import row_noise
 from ..options import Tolerance
-from .interleaved import Ends, GridAssembly, NodeLayout, prescribed_energy_block
+from .interleaved import Ends, GridAssembly, prescribed_energy_block
+from .phases import BOUNDS_ALLOWED, NOISE_TARGET
 
 EPS = float(np.finfo(float).eps)
-TARGET_ULPS = 16
-ROUND_OFF_ALLOWANCE = 1024
 # The energy's continuation from the fixed-time grid's: a failed step halves (at most this many
 # times in all), a successful one doubles up to what remains.
 MAX_HALVINGS = 40
@@ -62,7 +63,7 @@ MAX_HALVINGS = 40
 # converges takes a few; one that does not is halved rather than iterated on.
 STEP_ITERATIONS = 60
 # The secant on the duration before the end time is released: steps, and the energy distance
-# (relative to max(1, |E|)) at which it stops.
+# (relative to the energy the motion trades over its duration) at which it stops.
 SECANT_STEPS = 12
 SECANT_TOL = 1e-3
 SECANT_REACH = 0.1
@@ -108,8 +109,9 @@ def check_transfer(system, scheme, options) -> None:
 def duration_guess(system, theta, q_start, q_end, energy: float, guess=None) -> float:
     """``AtEnergy.duration``'s default: the span of a guess with times, else ``|q_end -
     q_start| / |v . d|`` with ``d`` the straight line's direction and ``v = H_p(q_m, s d)`` at
-    its midpoint ``q_m``, ``s > 0`` the first root of ``H(q_m, s d) = E`` (``InputError`` when
-    there is none: then give the duration)."""
+    its midpoint ``q_m``, ``s > 0`` the first root of ``H(q_m, s d) = E``, sought up to a
+    thousand times the momentum `_momentum_scale` gives (``InputError`` when there is none:
+    then give the duration)."""
     times = getattr(guess, "t", None)
     if times is None and isinstance(guess, dict):
         times = guess.get("t")
@@ -119,14 +121,15 @@ def duration_guess(system, theta, q_start, q_end, energy: float, guess=None) -> 
     length = float(np.linalg.norm(chord))
     middle = (np.asarray(q_start, float) + np.asarray(q_end, float)) / 2
     direction = chord / length if length > 0 else np.eye(system.n)[0]
-    scale = np.linspace(0.0, 1e3, 20001)
+    scale = np.linspace(0.0, 1e3, 20001) * _momentum_scale(system, theta, middle, direction,
+                                                           energy)
     H = system.energy(np.tile(middle, (scale.size, 1)), scale[:, None] * direction,
                       np.zeros(scale.size), theta) - energy
     change = np.flatnonzero(np.sign(H[:-1]) * np.sign(H[1:]) <= 0)
     if length == 0 or change.size == 0:
         raise InputError(f"no duration guess for the transfer at energy {energy!r}: give "
                          f"AtEnergy(energy, duration=...) (along the straight line's midpoint "
-                         f"H(q, s d) - E has no root for s in (0, 1000])")
+                         f"H(q, s d) - E has no root for s in (0, {scale[-1]:.6g}])")
     from scipy.optimize import brentq  # loaded here: 0.3-0.7 s that every `ddvp bvp` paid
 
     k = int(change[0])
@@ -140,6 +143,22 @@ def duration_guess(system, theta, q_start, q_end, energy: float, guess=None) -> 
     return length / speed
 
 
+def _momentum_scale(system, theta, middle, direction, energy: float) -> float:
+    """The momentum along ``d`` at which ``H(q_m, s d)`` reaches ``E`` if ``H`` were quadratic
+    in it from ``s = 0``: ``sqrt(2 |E - H_0| / |d' H_pp d|)``, or ``|E - H_0| / |H_p . d|``
+    where ``H_pp`` is 0 along ``d``, or 1 where neither tells. It follows the units of the
+    momenta and of ``H``, and no constant added to ``H`` moves it (a scan of ``s`` in ``(0,
+    1000]`` found no root in lengths of ``1e6`` and time units of ``1e-3``)."""
+    n = system.n
+    f, A = flow_jacobian_function(system)(np.r_[middle, np.zeros(n)], 0.0, theta)
+    slope = abs(float(np.asarray(f, float).ravel()[:n] @ direction))
+    curvature = abs(float(direction @ np.asarray(A, float)[:n, n:] @ direction))
+    gap = abs(energy - float(system.energy(middle[None], np.zeros((1, n)), [0.0], theta)[0]))
+    with np.errstate(all="ignore"):
+        scale = np.sqrt(2 * gap / curvature) if curvature > 0 else gap / slope
+    return float(scale) if np.isfinite(scale) and scale > 0 else 1.0
+
+
 def fixed_time_start(solve_fixed, system, scheme, theta, duration: float, energy: float):
     """``(grid, durations)``: a fixed-endpoint grid whose energy is near ``E``, by a damped
     secant iteration on the duration. ``solve_fixed(D, guess)`` solves the fixed-time problem on
@@ -148,14 +167,19 @@ def fixed_time_start(solve_fixed, system, scheme, theta, duration: float, energy
     and halved while a solve fails or ends farther from ``E`` (``E(D)`` folds where the
     fixed-time solver changes branch: the pendulum's two-swing transfer jumped to a direct one
     at a 15 % longer duration), each solve from the last grid with its times stretched, until
-    ``|E(D) - E|`` is below ``SECANT_TOL max(1, |E|)``. The end time is then released from a
-    grid whose energy is close: the continuation in ``E`` that follows has little left."""
+    ``|E(D) - E|`` is below ``SECANT_TOL`` of the energy the first grid's motion trades over
+    its duration (`grid.motion_size.energy_traded`: in the units of ``H`` whatever the
+    coordinates', and blind to a constant added to ``H``; ``max(1, |E|)`` stopped the secant
+    at once in lengths of ``1e-8``, and the continuation from there failed). The end time is
+    then released from a grid whose energy is close: the continuation in ``E`` that follows
+    has little left."""
     grid = solve_fixed(duration, None)
     if not grid.success:
         return grid, [duration]
     tried = [(duration, _energy(system, scheme, grid, theta))]
+    close = SECANT_TOL * energy_traded(grid.t, np.hstack([grid.q, grid.p]), duration)
     for _ in range(SECANT_STEPS):
-        if abs(tried[-1][1] - energy) <= SECANT_TOL * max(1.0, abs(energy)):
+        if abs(tried[-1][1] - energy) <= close:
             break
         d1, e1 = tried[-1]
         if len(tried) == 1:
@@ -190,15 +214,64 @@ def _assembly(system, scheme, nodes, compilation) -> GridAssembly:
         system, scheme, nodes, compilation, last=prescribed_energy_block(system, scheme)))
 
 
-def _targets(layout: NodeLayout, x, energy: float, energy_scale: float) -> np.ndarray:
-    """Per-row targets: ``TARGET_ULPS`` round-offs of each row (the energy rows scaled)."""
+def newton_targets(system, grid: GridAssembly, x, ends: Ends) -> np.ndarray:
+    """Per-row targets near ``x``, in each row's own units, as the fixed-endpoint grid's
+    (``phases.newton_targets``): ``NOISE_TARGET`` times the largest change of each kind of row
+    (the canonical rows of each column, the scaled energy rows, the prescribed energy's row)
+    when every unknown moves by one unit in its last place (`grid.round_off.row_noise`); a
+    pin's row its own, never below eps times its column's magnitude. With ``16 eps max(1,
+    |x|, |E|)`` a pendulum in lengths of ``1e-8`` stopped with its prescribed energy
+    unreached (``inaccurate``), and in time units of ``1e5`` its transfer time ``4e-9`` off."""
+    layout = grid.layout
     n, N, m = layout.n, layout.nodes, layout.m
-    target = np.full(N * m, TARGET_ULPS * EPS * max(1.0, float(np.max(np.abs(x)))))
+    noise = row_noise(grid, x, ends)
+    columns = EPS * np.max(np.abs(np.asarray(x, float).reshape(N, m)), axis=0)
+    target = np.maximum(noise, np.r_[columns[:n + 1], np.zeros((N - 1) * m),
+                                     columns[1:n + 1]][:noise.size])
     body = target[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
-    level = TARGET_ULPS * EPS * max(1.0, abs(energy))
-    body[:-1, 2 * n] = level / energy_scale
-    body[-1, 2 * n] = level
-    return target
+    t, q, p = layout.unpack(x)
+    floor = EPS * _canonical_sizes(system, grid.scheme, q, p)
+    body[:, :2 * n] = np.maximum(body[:, :2 * n].max(axis=0), floor)
+    if N > 2:
+        body[:-1, 2 * n] = np.max(body[:-1, 2 * n])
+    # the prescribed energy's row alone: a move of one unit in the last place can round away
+    # in every term of H (the pendulum's at E = 0.5 did not change in three draws); its
+    # round-off is at least that of |E| and of the energy rows' H (unscaled)
+    unscaled = float(body[0, 2 * n]) * ends.energy_scale if N > 2 else 0.0
+    body[-1, 2 * n] = max(body[-1, 2 * n], EPS * abs(ends.energy), unscaled)
+    return NOISE_TARGET * np.maximum(target, np.finfo(float).tiny)
+
+
+def _canonical_sizes(system, scheme, q, p) -> np.ndarray:
+    """``(2n,)``: the motion's size in each canonical row's units (``Scheme``'s
+    ``row_units``), as the fixed-endpoint grid's verification (``fixed_ends``)."""
+    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
+    units = equations.action_for(system, scheme).row_units
+    return np.repeat([ranges[units[0]], ranges[units[1]]], q.shape[1])
+
+
+def _limits(system, grid: GridAssembly, x, ends: Ends, tol: float) -> dict:
+    """The largest residual of each kind the transfer may have and pass: ``tol`` relative to
+    what the row measures, or ``BOUNDS_ALLOWED`` of its Newton target (`newton_targets`), whichever
+    is larger: the motion's size in each canonical row's units; for the energy rows and the
+    prescribed energy (unscaled) ``tol`` times the mean step times the rate at which the motion
+    trades energy (`grid.motion_size.energy_rate`), as the fixed-endpoint grid's; for the end
+    position the motion's size in positions. A floor of 1 and ``tol`` as an absolute number
+    passed transfers in small units whose rows were not solved."""
+    layout = grid.layout
+    n, N, m = layout.n, layout.nodes, layout.m
+    targets = newton_targets(system, grid, x, ends)
+    body = targets[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
+    t, q, p = layout.unpack(x)
+    rate = energy_rate(t, np.hstack([q, p])) * (t[-1] - t[0]) / (N - 1)
+    energy = max(tol * rate, BOUNDS_ALLOWED * float(body[0, 2 * n]) * ends.energy_scale
+                 if N > 2 else 0.0)
+    return {"canonical": float(np.max(np.maximum(tol * _canonical_sizes(system, grid.scheme, q, p),
+                                                 BOUNDS_ALLOWED * body[0, :2 * n]))),
+            "energy": energy,
+            "prescribed_energy": max(tol * rate, BOUNDS_ALLOWED * float(body[-1, 2 * n])),
+            "q_end": max(tol * float(np.max(np.ptp(q, axis=0))),
+                         BOUNDS_ALLOWED * float(np.max(targets[-n:])))}
 
 
 def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, tol: float,
@@ -220,7 +293,7 @@ def release_end_time(system, scheme, fixed: Solution, span: AtEnergy, theta, *, 
         ends = Ends(fixed.q[0], fixed.q[-1], np.array([span.t0, x[-grid.layout.m]]), theta,
                     scale, energy=trial_level)
         start = x if secant is None else x + secant[0] * (step / secant[1])
-        result = newton(grid, start, ends, _targets(grid.layout, x, trial_level, scale),
+        result = newton(grid, start, ends, newton_targets(system, grid, x, ends),
                         tau_floor=1e-3 * scale, max_iter=min(max_iter, STEP_ITERATIONS),
                         linear="auto", kernel=band_kernel(compilation))
         iterations += result.iterations
@@ -255,25 +328,24 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
              "energy": float(np.max(np.abs(energy_rows), initial=0.0)),
              "prescribed_energy": float(np.max(np.abs(intervals - span.energy))),
              "q_end": float(np.max(np.abs(q[-1] - ends.q_end)))}
-    data = max(1.0, float(np.max(np.abs(x))), abs(span.energy))
-    limit = max(tol, ROUND_OFF_ALLOWANCE * EPS * data)
-    listed = ", ".join(f"{name} {value:.3e}" for name, value in worst.items())
+    limits = _limits(system, grid, x, ends, tol)
+    listed = _listed(worst)
     tau = np.diff(t)
     if not np.all(np.isfinite(x)):
         status, message = Status.NON_FINITE, f"non-finite values ({phase['outcome']})"
     elif np.min(tau) <= 0:
         status, message = Status.NO_ADMISSIBLE_STEP, (
             f"step {int(np.argmin(tau))} is not positive ({phase['outcome']})")
-    elif max(worst.values()) > limit or phase["reached_energy"] != span.energy:
+    elif any(worst[key] > limits[key] for key in worst) or \
+            phase["reached_energy"] != span.energy:
         status, message = Status.SOLVER_FAILED, (
             f"no transfer at energy {span.energy:.10g} found: reached "
             f"{phase['reached_energy']:.10g} from {phase['start_energy']:.10g}; largest "
-            f"residuals {listed} (limit "
-            f"{limit:.1e}; newton: {phase['outcome']})")
+            f"residuals {listed} (limits {_listed(limits)}; newton: {phase['outcome']})")
     else:
         status, message = Status.SUCCESS, (
             f"transfer at energy {span.energy:.10g} found and verified: transfer time "
-            f"{t[-1] - t[0]:.12g}; largest residuals {listed} (limit {limit:.1e}); newton: "
+            f"{t[-1] - t[0]:.12g}; largest residuals {listed} (limits {_listed(limits)}); newton: "
             f"{phase['iterations']} iterations from the fixed-time grid at energy "
             f"{phase['start_energy']:.8g}")
     report, local_error, exact = None, np.zeros(0), None
@@ -281,7 +353,7 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
         report, local_error, exact = _judged(system, scheme, t, q, p, span,
                                                                  theta, tolerance)
     found = TransferRecord(transfer_time=float(t[-1] - t[0]), energy=span.energy,
-                           residuals=worst, residual_limit=limit, tau_min=float(np.min(tau)),
+                           residuals=worst, residual_limit=limits, tau_min=float(np.min(tau)),
                            tau_max=float(np.max(tau)), exact=exact)
     solution = Solution(t=t, q=q, p=p, status=status, message=message, scheme=scheme.rule,
                     energy_residual=energy_rows,
@@ -291,6 +363,10 @@ def _verified(system, scheme, grid, x, ends, span, theta, tol, tolerance, phase)
                     stats={"transfer": phase}, transfer=found)
     judge(solution, report, tolerance, local_error=local_error, advice="try more nodes")
     return solution
+
+
+def _listed(values: dict) -> str:
+    return ", ".join(f"{name} {value:.3e}" for name, value in values.items())
 
 
 def _judged(system, scheme, t, q, p, span: AtEnergy, theta, tolerance: Tolerance):

@@ -18,10 +18,13 @@ motion through those states (``exact/constrained_flow.multipliers_function``); o
 nodes (a `Solution`, a mapping with ``t``, ``q``, ``p``), projected the same way. An energy
 rule first solves ``fixed`` steps on the uniform times, then releases the times.
 
-**The verdict.** Every returned point is checked by its own unscaled residuals: the interval
-rows under ``max(tol, 1024 round-offs of the data)``, ``|g|`` and the hidden constraint at every
-node under ``max(tol, 1024 round-offs)`` of their own terms, the energy rows (energy rules)
-under ``max(tol (t_end - t_0) / (N - 1), 1024 round-offs of |E|)``, every step positive; then
+**The verdict.** Every returned point is checked by its own unscaled residuals, each kind of
+row in its own units (`_limits`): ``tol`` relative to what the row measures (the motion's size
+for the interval rows, how far ``g`` and its time derivative move with the positions for the
+constraint and the hidden constraint, ``tol h W`` for the energy rows) or 64 of Newton's
+targets, which are each row's own round-off (`_targets`); every step positive. No scale is a
+floor of 1 and none is an absolute number, so the same motion in other units of length,
+momentum or time is the same solution with the same verdict. Then it is
 judged against the constrained exact flow (index-reduced, projected inside its error control)
 through the continuous solution near it found by multiple shooting (``exact/shooting.py``), as
 an unconstrained fixed-end solution is.
@@ -36,19 +39,21 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ...discrete.equations import action_for
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.constraints import check_start_constraints, constraint_function
-from ...physics.hamiltonian import derivatives_function
 from ...solution import EndsRecord, Solution, Status
 from ...validation import check_integer, check_span, check_state
 from ..accuracy.judgement import judge
 from ..columns import row_max_abs
 from ..dense import attach
 from ..exact.constrained_flow import multipliers_function, projection_function
+from ..grid.motion_size import energy_rate
 from ..grid.newton import newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest, GridResult
+from ..grid.round_off import row_noise
 from .constrained_grid import (
     ConstrainedData,
     ConstrainedGrid,
@@ -56,10 +61,9 @@ from .constrained_grid import (
     ConstrainedLayout,
 )
 from .continuous_check import judged_against_shooting
+from .phases import BOUNDS_ALLOWED, NOISE_TARGET
 
 EPS = np.finfo(float).eps
-TARGET_ULPS = 16
-ROUND_OFF_ALLOWANCE = 1024
 DEFAULT_MAX_ITER = 200
 # An end off g = 0 by at most this fraction of its size is projected onto it (with a warning);
 # farther, refused.
@@ -207,7 +211,10 @@ def _start_point(request: GridRequest, start) -> np.ndarray:
     theta = np.tile(request.theta[:, None], (1, N))
     for _ in range(PROJECTION_ROUNDS):
         moved = np.asarray(project(z, t[None, :], theta))
-        done = np.max(np.abs(moved - z)) <= 8 * EPS * max(1.0, np.max(np.abs(moved)))
+        # each coordinate against its own magnitude (no floor of 1: in lengths of 1e-8 the
+        # first round passed for converged)
+        done = bool(np.all(np.abs(moved - z) <= 8 * EPS * np.max(np.abs(moved), axis=1,
+                                                                  keepdims=True)))
         z = moved
         if done or not np.all(np.isfinite(z)):
             break
@@ -339,57 +346,109 @@ def _reporter(name: str):
     return report
 
 
-def _scales(request: GridRequest, x: np.ndarray) -> dict:
-    """The magnitudes whose round-off bounds each kind of row: the data's (``max(1, |q_ends|,
-    |t_ends|)``), ``g``'s terms ``sum_j |G_ij q_j|`` at the ends, the hidden constraint's
-    ``sum_j |G_ij H_p,j| + |g_t|`` at the nodes, and ``max(1, |H|)`` at the nodes."""
-    d, system = request.data, request.system
-    n, m, N = system.n, system.n_constraints, request.nodes
-    t, q, p, _ = ConstrainedLayout(n, m, N).unpack(x)
-    theta = np.tile(request.theta[:, None], (1, N))
-    _, G, g_t = (np.asarray(v, float) for v in
-                 constraint_function(system).map(N)(q.T, t[None, :], theta))
-    G = np.abs(G.reshape(m, N, n))  # the mapped Jacobians side by side
-    H, _, H_p, _ = (np.asarray(v, float) for v in
-                    derivatives_function(system).map(N)(q.T, p.T, t[None, :], theta))
-    ends = [0, N - 1]
-    terms_g = (G[:, ends] * np.abs(q[ends])[None]).sum(axis=2)
-    terms_h = (G * np.abs(H_p.T)[None]).sum(axis=2) + np.abs(g_t.reshape(m, N))
-    return {"data": max(1.0, *np.abs(d.q_start), *np.abs(d.q_end), abs(d.t0), abs(d.t1)),
-            "g": float(np.max(terms_g)), "hidden": float(np.nanmax(terms_h)),
-            "energy": float(max(1.0, np.nanmax(np.abs(H))))}
-
-
 def _targets(request, grid: ConstrainedGrid, x, data: ConstrainedData) -> np.ndarray:
-    """Newton's ``|F_i|`` targets: ``TARGET_ULPS`` round-offs of each row's magnitude (the
-    energy rows in their scaled units)."""
-    scales = _scales(request, x)
-    canonical = max(scales["data"], float(np.max(np.abs(grid.layout.unpack(x)[2]))))
-    target = np.full(grid.layout.size, TARGET_ULPS * EPS * max(canonical, scales["g"],
-                                                                 scales["hidden"]))
-    if grid.scheme.variable_steps:
-        s = grid.slices["time"]
-        target[s.start:s.stop - 1] = TARGET_ULPS * EPS * scales["energy"] / data.energy_scale
-    return target
+    """Newton's per-row ``|F_i|`` targets near ``x``, in each row's own units (as the
+    unconstrained grid's, ``phases.newton_targets``): ``NOISE_TARGET`` times the largest change
+    of each kind of row (every column of the interval block: the canonical rows and the hidden
+    constraint; the constraint rows; the scaled energy rows) when every unknown moves by one
+    unit in its last place (`grid.round_off.row_noise`); a pin's row (an end time or position,
+    an unused multiplier) its own. No floor of 1 and no mix of units: with ``64 eps max(1,
+    |q_ends|, |t_ends|)`` a pendulum in lengths of ``1e-8`` or in time units of ``1e5`` took
+    its start for a solution, 0 iterations, its energy rows ``1e-5`` of its energy off."""
+    layout, s = grid.layout, grid.slices
+    n, m, N, M = layout.n, layout.m, layout.nodes, layout.width
+    noise = row_noise(grid, x, data)
+    # a pin's round-off where its row is exactly 0 (t_0 = 0, an unused multiplier): eps times
+    # its column's magnitude; a tiny target there failed Newton's monotonicity test on the
+    # round-off of a linear row
+    size = EPS * np.max(np.abs(np.asarray(x, float).reshape(N, M)), axis=0)
+    q_size, t_size = size[1:n + 1], size[0]
+    target = noise.copy()
+    B = 2 * n + m
+    body = noise[s["intervals"]].reshape(N - 1, B).max(axis=0)
+    body[:2 * n] = np.maximum(body[:2 * n], EPS * _canonical_sizes(request, grid.scheme, x))
+    target[s["intervals"]] = np.tile(body, N - 1)
+    first = s["start"].start
+    target[first] = max(noise[first], t_size)
+    target[first + 1:first + n + 1] = np.maximum(noise[first + 1:first + n + 1], q_size)
+    target[first + n + 1:s["start"].stop] = np.maximum(noise[first + n + 1:s["start"].stop],
+                                                       body[2 * n:])
+    if N > 2:
+        target[s["constraint"]] = np.tile(noise[s["constraint"]].reshape(N - 2, m).max(axis=0),
+                                          N - 2)
+    times = np.maximum(noise[s["time"]], t_size)
+    if grid.scheme.variable_steps and N > 2:
+        times[:-1] = np.max(noise[s["time"]][:-1])
+    target[s["time"]] = times
+    target[s["end"]] = np.maximum(noise[s["end"]], q_size)
+    target[s["unused"]] = np.maximum(noise[s["unused"]], size[2 * n + 1:])
+    return NOISE_TARGET * np.maximum(target, np.finfo(float).tiny)
+
+
+def _canonical_sizes(request: GridRequest, scheme: Scheme, x) -> np.ndarray:
+    """``(2n,)``: the motion's size in each canonical row's units (``Scheme``'s ``row_units``:
+    the largest range of a position over the nodes for a position row, of a momentum for a
+    momentum row), as the unconstrained grid's verification (``fixed_ends``)."""
+    n = request.system.n
+    _, q, p, _ = ConstrainedLayout(n, request.system.n_constraints, request.nodes).unpack(x)
+    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
+    units = action_for(request.system, scheme).row_units
+    return np.repeat([ranges[units[0]], ranges[units[1]]], n)
+
+
+def _limits(request: GridRequest, grid: ConstrainedGrid, x, data: ConstrainedData) -> dict:
+    """The largest residual of each kind the point may have, per column: ``tol`` relative to
+    what the row measures, or ``BOUNDS_ALLOWED`` of its Newton target (`_targets`), whichever
+    is larger. A canonical row measures the motion's size in its units (`_canonical_sizes`);
+    a constraint row ``|dg/dq| s_q``, how far ``g`` moves when the positions move by their
+    ranges; the hidden constraint ``|dg/dq| v_q``, ``v_q`` the largest speed of each position
+    read off the nodes; an energy row (unscaled) ``tol`` times the mean step times the rate at
+    which the motion trades energy (`grid.motion_size.energy_rate`), as the unconstrained
+    grid's. Every scale follows the units of lengths, momenta and time, and none moves with a
+    shift of the origin or a constant added to ``H``: ``tol`` as an absolute number had passed
+    in lengths of ``1e-8`` energy rows that were not solved."""
+    layout, s = grid.layout, grid.slices
+    n, m, N = layout.n, layout.m, layout.nodes
+    targets = _targets(request, grid, x, data)
+    body = targets[s["intervals"]].reshape(N - 1, 2 * n + m)[0]
+    g_target = targets[s["constraint"]][:m] if N > 2 else body[2 * n:]
+    t, q, p, _ = layout.unpack(x)
+    theta = np.tile(request.theta[:, None], (1, N))
+    G = np.abs(np.asarray(constraint_function(request.system).map(N)(
+        q.T, t[None, :], theta)[1], float).reshape(m, N, n)).max(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speeds = np.abs(np.diff(q, axis=0)) / np.abs(np.diff(t))[:, None]
+    speed = np.nanmax(np.where(np.isfinite(speeds), speeds, np.nan), axis=0) \
+        if N > 1 else np.zeros(n)
+    tol = request.tol
+    energy = BOUNDS_ALLOWED * float(targets[s["time"].start]) * data.energy_scale \
+        if grid.scheme.variable_steps and N > 2 else 0.0
+    return {"canonical": np.maximum(tol * _canonical_sizes(request, grid.scheme, x),
+                                    BOUNDS_ALLOWED * body[:2 * n]),
+            "g": np.maximum(tol * G @ np.ptp(q, axis=0), BOUNDS_ALLOWED * g_target),
+            "hidden": np.maximum(tol * G @ np.nan_to_num(speed), BOUNDS_ALLOWED * body[2 * n:]),
+            "energy": max(tol * data.energy_scale * energy_rate(t, np.hstack([q, p])), energy)}
 
 
 def verify(request: GridRequest, scheme: Scheme, x: np.ndarray, stage: Stage):
-    """``(status, message, details)`` of ``x`` from its own unscaled residuals (module
-    docstring), the solver's words quoted."""
+    """``(status, message, details)`` of ``x`` from its own unscaled residuals against
+    `_limits` (per column of each kind), the solver's words quoted."""
     grid, data = grid_of(request, scheme), data_of(request, scheme)
     if not np.all(np.isfinite(x)):
         return Status.NON_FINITE, f"the solver returned non-finite values ({stage.quoted})", {}
     parts = grid.parts(x, data)
-    scales = _scales(request, x)
-    limits = {"canonical": max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales["data"]),
-              "g": max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales["g"]),
-              "hidden": max(request.tol, ROUND_OFF_ALLOWANCE * EPS * scales["hidden"]),
-              "energy": max(request.tol * data.energy_scale,
-                            ROUND_OFF_ALLOWANCE * EPS * scales["energy"])}
-    worst = {"canonical": float(np.max(np.abs(parts["interval"]))),
-             "g": float(np.max(np.abs(parts["g"]))),
-             "hidden": float(np.max(np.abs(parts["hidden"]))),
-             "energy": float(np.max(np.abs(parts["energy"]), initial=0.0))}
+    columns = _limits(request, grid, x, data)
+    rows = {"canonical": parts["interval"], "g": parts["g"], "hidden": parts["hidden"],
+            "energy": parts["energy"][:, None]}
+    worst, limits, over = {}, {}, {}
+    for key, values in rows.items():
+        column_worst = np.max(np.abs(values), axis=0, initial=0.0)
+        allowed = np.broadcast_to(np.asarray(columns[key], float), column_worst.shape)
+        j = int(np.argmax(column_worst / np.maximum(allowed, np.finfo(float).tiny))) \
+            if column_worst.size else 0
+        worst[key] = float(column_worst[j]) if column_worst.size else 0.0
+        limits[key] = float(allowed[j]) if column_worst.size else float(np.max(columns[key]))
+        over[key] = bool(column_worst.size and np.any(column_worst > allowed))
     t = grid.layout.unpack(x)[0]
     tau = np.diff(t)
     problems = [f"step {int(np.argmin(tau))} is not positive: tau = {tau.min():.6g}"] \
@@ -397,7 +456,7 @@ def verify(request: GridRequest, scheme: Scheme, x: np.ndarray, stage: Stage):
     words = {"canonical": "interval residual", "g": "constraint |g|",
              "hidden": "hidden constraint", "energy": "energy residual"}
     for key, said in words.items():
-        if worst[key] > limits[key] and (key != "energy" or scheme.variable_steps):
+        if over[key] and (key != "energy" or scheme.variable_steps):
             problems.append(f"{said} {worst[key]:.3e} above its limit {limits[key]:.3e}")
     details = {"parts": parts, "limits": limits, "worst": worst}
     if not problems:

@@ -40,6 +40,7 @@ from ..grid.implicit_derivatives import (
     check_names,
     checked,
     resolver,
+    step_scales,
 )
 from ..grid.linear import band_kernel
 from .phases import assembly, ends, newton_targets
@@ -91,18 +92,28 @@ def bvp_derivatives(request, x: np.ndarray, solution: Solution, names) -> dict:
 
     def project(v):
         return v[ends_rows]
-    inputs = {"q_start": data.q_start, "q_end": data.q_end, "params": data.theta}
+    scales = end_scales(x.reshape(N, m)[:, 1:n + 1], data.theta, float(np.max(np.abs(x))))
     target = newton_targets(request, grid, x, data)
 
     def resolve_of(name):  # a nearby solve: no step approaches the floor
         return resolver(grid, x, _data_at(data, name), target, tau_floor=-np.inf,
                         linear=request.linear, kernel=kernel)
-    result.update(checked(linear, dx, corrections, resolve_of, inputs,
-                          float(np.max(np.abs(x))), project))
+    values = {"q_start": data.q_start, "q_end": data.q_end, "params": data.theta}
+    result.update(checked(linear, dx, corrections, resolve_of, scales, project, values))
     grid.release()
     result["cpu_s"] = time.process_time() - cpu
     result["wall_s"] = time.perf_counter() - wall
     return result
+
+
+def end_scales(q: np.ndarray, theta: np.ndarray, fallback: float) -> dict:
+    """The derivative checks' step scales of the ends and the parameters of a motion with
+    positions ``q`` (``(N, n)`` nodes): an end moves by the motion's range in each coordinate
+    (offsets of the origin leave it), a parameter by its value (``fallback`` where all are
+    0)."""
+    q = np.asarray(q, float)
+    ranges = step_scales(np.ptp(q, axis=0), float(np.max(np.abs(q), initial=0.0)) or fallback)
+    return {"q_start": ranges, "q_end": ranges, "params": step_scales(theta, fallback)}
 
 
 def input_columns(grid, x, data, name: str, n: int, size: int) -> np.ndarray:

@@ -7,8 +7,8 @@ equations, the pins of ``t_0``, ``q_start``, ``q_end``, and in place of ``t_{N-1
 last interval's energy ``H(Q_{N-2}, P_{N-2}) - E``. The implicit-function theorem
 (``grid/implicit_derivatives.py``) gives ``dx/dv`` for ``v = (q_start, q_end, E, theta)`` from
 one band factorisation of ``F_x`` at the transfer and one solve per input column: the ends'
-columns are ``-I`` on their pins, the energy's ``-1`` on that last row (``F`` is affine in
-``E``: the column is ``F(E + 1) - F(E)``, exact), the parameters' the assembly's
+columns are ``-I`` on their pins, the energy's ``-1`` on that last row (written as it is:
+``F(E + 1) - F(E)`` is 0 where ``|E| >= 2^53``), the parameters' the assembly's
 ``parameter_jacobian`` (its last block included). The transfer time ``T = t_{N-1} - t_0`` is a
 component of ``x``, so ``dT/dv`` is the derivative of the discrete transfer time, every step
 length's included.
@@ -41,21 +41,19 @@ from ..grid.implicit_derivatives import (
     checked,
     resolver,
     reverse,
+    step_scales,
 )
 from ..grid.linear import band_kernel
+from ..grid.motion_size import energy_traded
 from ..options import Compilation, coerce
-from .end_derivatives import input_columns
+from .at_energy import newton_targets
+from .end_derivatives import end_scales, input_columns
 from .interleaved import Ends, GridAssembly, prescribed_energy_block
+from .phases import BOUNDS_ALLOWED
 
 __all__ = ["TRANSFER_DERIVATIVES", "transfer_derivatives", "transfer_gradient"]
 
 TRANSFER_DERIVATIVES = ("q_start", "q_end", "energy", "params")
-EPS = float(np.finfo(float).eps)
-# The check's re-solves' Newton target, in round-offs of the nodes' size: the verification's
-# allowance (at_energy.py's ROUND_OFF_ALLOWANCE). 64 stalled at 1e-12 when q_start moved (the
-# transfer itself holds its rows to 1.1e-13 there: pendulum, 61 nodes, measured); against the
-# check's step of 1e-5 it costs 2e-8 of the difference quotient.
-TARGET_ROUND_OFFS = 1024
 
 
 def transfer_derivatives(sol: Solution, derivatives=TRANSFER_DERIVATIVES, *,
@@ -85,15 +83,22 @@ def transfer_derivatives(sol: Solution, derivatives=TRANSFER_DERIVATIVES, *,
 
     def project(v):
         return v[watched]
-    inputs = {"q_start": ends.q_start, "q_end": ends.q_end, "energy": [ends.energy],
-              "params": theta}
     fallback = float(np.max(np.abs(x)))
-    target = np.full(x.size, TARGET_ROUND_OFFS * EPS * max(1.0, fallback, abs(ends.energy)))
+    scales = end_scales(sol.q, theta, fallback)
+    # the energy by that the motion trades over the transfer (|E| moves with a constant in H)
+    scales["energy"] = step_scales([energy_traded(sol.t, np.hstack([sol.q, sol.p]),
+                                                  sol.t[-1] - sol.t[0])], abs(ends.energy))
+    # the check's re-solves to the verification's allowance of each row's own round-off
+    # (at_energy.newton_targets, row by row: 64 round-offs of max(1, |x|, |E|) stalled at 1e-12
+    # when q_start moved, and in lengths of 1e-8 meant no target at all)
+    target = BOUNDS_ALLOWED * newton_targets(system, grid, x, ends)
 
     def resolve_of(name):
         return resolver(grid, x, _data_at(ends, name), target, tau_floor=-np.inf,
                         kernel=kernel)
-    result.update(checked(linear, dx, corrections, resolve_of, inputs, fallback, project))
+    result.update(checked(linear, dx, corrections, resolve_of, scales, project,
+                          {"q_start": ends.q_start, "q_end": ends.q_end,
+                           "energy": [ends.energy], "params": theta}))
     grid.release()
     return result
 
@@ -155,11 +160,11 @@ def _columns(grid, x, ends: Ends, name: str, n: int, size: int) -> np.ndarray:
     """``F_v`` of one input (module docstring)."""
     if name != "energy":
         return input_columns(grid, x, ends, name, n, size)
-    moved = Ends(ends.q_start, ends.q_end, ends.times, ends.theta, ends.energy_scale,
-                 energy=ends.energy + 1.0)
-    high = np.array(grid.evaluate(x, moved, jacobian=False)[0], float)
-    low = np.array(grid.evaluate(x, ends, jacobian=False)[0], float)
-    return (high - low)[:, None]
+    # -1 on the prescribed energy's row (the last block's energy row), exactly: F(E + 1) -
+    # F(E) was 0 where |E| >= 2^53 (a swing in lengths of 1e6 and time units of 1e-3)
+    column = np.zeros((size, 1))
+    column[n + 1 + (grid.layout.nodes - 2) * grid.layout.m + 2 * n, 0] = -1.0
+    return column
 
 
 def _data_at(ends: Ends, name: str):

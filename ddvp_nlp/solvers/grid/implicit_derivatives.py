@@ -128,21 +128,26 @@ def relative(change: np.ndarray, value: np.ndarray) -> float:
 
 
 def step_scales(values: np.ndarray, fallback: float) -> np.ndarray:
-    """Per-entry scales of an input for its check's step: ``|v_i|``; a zero entry takes the
-    largest ``|v|`` of the same input, or ``fallback`` (a magnitude of the solution) if all are
-    zero."""
+    """Per-entry scales of an input for its check's step: ``|v_i|`` (a parameter's value, or
+    the size of the motion in an end's coordinate); a zero entry takes the largest of the same
+    input, or ``fallback`` if all are zero."""
     values = np.abs(np.atleast_1d(np.asarray(values, float)))
     largest = float(np.max(values, initial=0.0))
     return np.where(values > 0, values, largest if largest > 0 else fallback)
 
 
-def directional_check(resolve, dx: np.ndarray, scales: np.ndarray, rng, project) -> dict:
+def directional_check(resolve, dx: np.ndarray, scales: np.ndarray, rng, project,
+                      values=None) -> dict:
     """Central finite difference of the discrete solve along a random direction ``d`` of one
     input (``dx`` ``(size, k)`` its derivative, ``scales`` ``(k,)`` its step scales):
     ``resolve(delta)`` is the solution at the input moved by ``delta`` (``None``: not solved),
-    ``project(x)`` the outputs a family reports of a solution-shaped vector. Returns the
-    outputs' relative error and its verdict, all nodes' relative error, the step and the
-    check's CPU seconds."""
+    ``project(x)`` the outputs a family reports of a solution-shaped vector; ``values``: the
+    input's own. The derivative predicts the change for the moves the re-solves were given
+    as floating point made them, ``(v + delta) - v``: an origin offset by ``1e6`` rounds a
+    move of ``5e-6`` of a pendulum's end by ``4e-5`` of itself, and a check blind to that said
+    "disagrees" of a derivative right to ``1e-15`` (with it they agree to ``3e-12``).
+    Returns the outputs' relative error and its verdict, all nodes' relative error, the step
+    and the check's CPU seconds."""
     began = time.process_time()
     direction = rng.standard_normal(dx.shape[1])
     direction /= np.linalg.norm(direction)
@@ -153,7 +158,10 @@ def directional_check(resolve, dx: np.ndarray, scales: np.ndarray, rng, project)
         record.update(relative_error=None, nodes_relative_error=None, verdict="not checked",
                       reason="a perturbed solve did not converge")
     else:
-        predicted = dx @ delta
+        # the moves the re-solves were given, as rounded (docstring)
+        base = np.zeros(dx.shape[1]) if values is None else np.asarray(values, float)
+        moved = ((base + delta) - base - ((base - delta) - base)) / 2.0
+        predicted = dx @ moved
         differenced = (plus - minus) / 2.0
         error = relative(project(differenced) - project(predicted), project(predicted))
         record.update(relative_error=error,
@@ -163,15 +171,22 @@ def directional_check(resolve, dx: np.ndarray, scales: np.ndarray, rng, project)
     return record
 
 
-def checked(linear: Linearisation, dx: dict, corrections: dict, resolve_of, inputs: dict,
-            fallback: float, project) -> dict:
-    """Each input's `directional_check` (inputs in ``dx``'s order, one seeded generator, the
-    step scales of ``inputs[name]``, ``resolve_of(name)`` its `resolver`) and the forward
-    solves' `Linearisation.conditioning`: ``{"checks": {name: record}, "error_estimate", ...}``
-    for a family's result (``project``: the outputs it reports)."""
+def checked(linear: Linearisation, dx: dict, corrections: dict, resolve_of, scales: dict,
+            project, values: dict | None = None) -> dict:
+    """Each input's `directional_check` (inputs in ``dx``'s order, one seeded generator,
+    ``scales[name]`` its per-entry step scales, ``values[name]`` its values,
+    ``resolve_of(name)`` its `resolver`) and the forward solves'
+    `Linearisation.conditioning`: ``{"checks": {name: record}, "error_estimate",
+    ...}`` for a family's result (``project``: the outputs it reports).
+
+    A family gives each input the size of a change the solution notices, in the input's own
+    units (`step_scales` of the motion's size in each coordinate for an end, of the energy the
+    motion trades for an energy): never ``|v|`` for an end or an energy, which an offset of
+    the origin or a constant added to ``H`` makes as large as it likes (a transfer's ends at
+    ``q = 1e4`` were moved by 0.1, a tenth of the motion, and its check said "disagrees")."""
     rng = new_rng()
-    checks = {name: directional_check(resolve_of(name), dx[name],
-                                      step_scales(inputs[name], fallback), rng, project)
+    checks = {name: directional_check(resolve_of(name), dx[name], scales[name], rng, project,
+                                      None if values is None else values[name])
               for name in dx}
     return {"checks": checks, **linear.conditioning(
         max(relative(project(corrections[k]), project(dx[k])) for k in dx),

@@ -3,19 +3,22 @@ the discrete map, and the solvability monitor's word on the energy row.
 
 The check: a random direction ``v`` in the inputs differentiated (``q0``, ``p0``, the
 parameters), each component scaled by its input's own size in the problem (a position by the
-largest ``|q_i|`` the march reached, a momentum by the largest ``|p_i|``, a parameter by its
-value, a zero one by the largest parameter's; an input with no size is left out of ``v`` and
-the record says so); the march run again from ``x + h v`` and ``x - h v`` (``h = STEP``, no
-accuracy check, the same scheme, first step, step control and compilation), and the central
-difference ``(z(x + h v) - z(x - h v)) / 2h`` at ``t_eval`` compared with the derivative along
-``v``. Cost: one pair of marches.
+range of ``q_i`` the march covered, a momentum by that of ``p_i``, either by its largest
+magnitude where the range is 0, a parameter by its value, a zero one by the largest
+parameter's; an input with no size is left out of ``v`` and the record says so); the march run
+again from ``x + h v`` and ``x - h v`` (``h = STEP``, no accuracy check, the same scheme, first
+step, step control and compilation), and the central difference ``(z(x + h v) - z(x - h v)) /
+2h`` at ``t_eval`` compared with the derivative along the moves as floating point made them
+(`rounded_moves`). Cost: one pair of marches.
 
 The verdict's tolerance, relative to the largest entry of the difference quotient: the
 quotient's own error, which is not the derivative's. Truncation ``h^2 |z'''| / 6``: measured up
 to 5e-5 of the derivative at ``h = 1e-6`` (Kepler, ``e = 0.9``, through the pericentre), so
 ``TRUNCATION = 1e-4``; round-off: each march's nodes solve their equations to Newton's
-tolerance (1e-14 of the state's size), ``N`` independent errors add like ``sqrt(N)``, and the
-quotient divides by ``2h``: ``1e-14 sqrt(N) / h``. A derivative wrong by more than both (the
+tolerance (1e-14 of the state's magnitude), ``N`` independent errors add like ``sqrt(N)``, and
+the quotient divides by ``2h``: ``1e-14 r sqrt(N) / h``, ``r`` how far the magnitudes exceed
+the sizes the steps are taken in (`offset_ratio`: 1 about the origin, ``1e6`` for a swing
+offset by ``1e6``). A derivative wrong by more than both (the
 frozen-step derivative is off by 1e-3 at ``tau0 = 0.25`` on the pendulum) ``disagrees``;
 smaller errors pass this check (the test suite's fourth-order differences hold them to 1e-6).
 
@@ -141,11 +144,14 @@ def random_direction(inputs: dict, scales: dict, seed: int = 0) -> tuple[dict, s
 
 
 def input_scales(q, p, theta, t=None) -> dict:
-    """Each input's size in the problem (module docstring); ``"v0"`` too where the node times
-    ``t`` are given (the largest node-to-node velocity)."""
+    """Each input's size in the problem (module docstring): a position's and a momentum's the
+    range the march covered in it (the largest ``|q_i|``, ``|p_i|`` where it covered none), a
+    parameter's its value; ``"v0"`` too where the node times ``t`` are given (the largest
+    node-to-node velocity). Ranges, not magnitudes: an origin offset by ``1e6`` made the step
+    ``1e6`` times the swing's own ``1e-6``."""
     theta = np.abs(np.asarray(theta, float))
     largest = float(theta.max()) if theta.size else 0.0
-    scales = {"q0": np.max(np.abs(q), axis=0), "p0": np.max(np.abs(p), axis=0),
+    scales = {"q0": _ranges(q), "p0": _ranges(p),
               "params": np.where(theta > 0, theta, largest)}
     if t is not None:
         q = np.asarray(q, float)
@@ -154,10 +160,42 @@ def input_scales(q, p, theta, t=None) -> dict:
     return scales
 
 
+def _ranges(values) -> np.ndarray:
+    values = np.asarray(values, float)
+    return np.where(np.ptp(values, axis=0) > 0, np.ptp(values, axis=0),
+                    np.max(np.abs(values), axis=0))
+
+
+def offset_ratio(q, p, scales: dict) -> float:
+    """How far the state's magnitudes exceed the sizes the check's steps are taken in,
+    ``max_i |z_i| / s_i`` (at least 1): the nodes' round-off is relative to the magnitudes,
+    the quotient to the sizes."""
+    z = np.hstack([np.asarray(q, float), np.asarray(p, float)])
+    size = np.concatenate([scales["q0"], scales["p0"]])
+    magnitude = np.max(np.abs(z), axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(size > 0, magnitude / size, 1.0)
+    return float(max(1.0, np.max(ratio, initial=1.0)))
+
+
+def rounded_moves(base: dict, direction: dict) -> dict:
+    """The moves ``x +- h v`` are made of, per unit step, as floating point rounds them:
+    ``((x + h v) - x - ((x - h v) - x)) / 2h``. The derivative predicts the quotient for
+    these (``x + h v`` keeps only ``x``'s last place: an end at ``1e6`` rounds a move of
+    ``1e-6`` by ``2e-4`` of itself)."""
+    moves = {}
+    for name, v in direction.items():
+        x, v = np.asarray(base[name], float), np.asarray(v, float)
+        moves[name] = ((x + STEP * v) - x - ((x - STEP * v) - x)) / (2 * STEP)
+    return moves
+
+
 def directional_check(remarch, inputs: dict, direction: dict, predicted: np.ndarray,
-                      nodes: int, *, reduce=None) -> tuple[str, float, float, str]:
+                      nodes: int, *, reduce=None, offset: float = 1.0
+                      ) -> tuple[str, float, float, str]:
     """``(verdict, error, tolerance, reason)``: ``remarch(inputs) -> z_eval or None`` at ``x
-    +- STEP v``; ``reduce`` maps ``z_eval`` to what ``predicted`` is (a cotangent's scalar)."""
+    +- STEP v``; ``reduce`` maps ``z_eval`` to what ``predicted`` is (a cotangent's scalar);
+    ``offset``: `offset_ratio`, which the nodes' round-off is multiplied by."""
     values = []
     for sign in (1.0, -1.0):
         moved = {name: np.asarray(inputs[name], float) + sign * STEP * direction[name]
@@ -171,7 +209,7 @@ def directional_check(remarch, inputs: dict, direction: dict, predicted: np.ndar
         values.append(found if reduce is None else reduce(found))
     quotient = (values[0] - values[1]) / (2 * STEP)
     size = float(np.max(np.abs(quotient)))
-    tolerance = TRUNCATION + NEWTON_RELATIVE * math.sqrt(max(nodes, 1)) / STEP
+    tolerance = TRUNCATION + NEWTON_RELATIVE * offset * math.sqrt(max(nodes, 1)) / STEP
     if size == 0.0:
         return "not checked", math.nan, tolerance, "the difference quotient is zero"
     error = float(np.max(np.abs(np.asarray(predicted) - quotient))) / size
@@ -215,8 +253,10 @@ def check_record(remarch, base: dict, names, predicted_along, q, p, theta, nodes
     scales = input_scales(q, p, theta, t)
     direction, note = random_direction({name: base[name] for name in names}, scales)
     full = {name: direction.get(name, np.zeros_like(base[name])) for name in base}
+    moves = rounded_moves(base, direction)
     verdict, error, tolerance, reason = directional_check(
-        remarch, base, full, predicted_along(direction), nodes, reduce=reduce)
+        remarch, base, full, predicted_along(moves), nodes, reduce=reduce,
+        offset=offset_ratio(q, p, scales))
     return DerivativeCheck(verdict, error, tolerance, STEP, direction, conditioned[0],
                            conditioned[1], "; ".join(part for part in (reason, note) if part))
 
@@ -228,7 +268,8 @@ def event_check(run, base: dict, direction: dict, record, index: int, times, t, 
     check's), ``record`` its `EventDerivatives` at the crossings ``times`` of the march with
     nodes ``t``, state scales ``scales`` (2n,); ``conditioned``: ``(flag, jump)`` on the nodes
     the crossings read."""
-    predicted = sum(record.times[name] @ direction[name] for name in record.times)
+    moves = rounded_moves(base, direction)
+    predicted = sum(record.times[name] @ moves[name] for name in record.times)
     predicted = np.zeros(np.size(times)) if np.isscalar(predicted) else predicted
     ill = bool(np.any(record.ill_conditioned)) or conditioned[0]
 

@@ -38,8 +38,9 @@ from ..grid.implicit_derivatives import (
     check_names,
     checked,
     resolver,
+    step_scales,
 )
-from ..grid.motion_size import orbit_sizes
+from ..grid.motion_size import energy_traded, orbit_sizes
 from .closed_grid import Closure, PeriodicAssembly, closed_targets, integral_gradients
 
 # The inputs a periodic orbit differentiates in, in the order of the derivative's columns.
@@ -97,9 +98,14 @@ def orbit_derivatives(request, solution: Solution, integrals, names) -> dict:
     def resolve_of(name):
         return resolver(assembly, x, _data_at(closure, name), target, tau_floor=0.0,
                         linear="sparse")
+    # the energy by what the orbit trades in a radian of its period (|E| moves with a
+    # constant added to H), a parameter by its value
+    traded = energy_traded(solution.t, z, float(solution.t[-1] - solution.t[0]) / (2 * np.pi))
+    scales = {"energy": step_scales([traded], abs(closure.energy)),
+              "params": step_scales(closure.theta, fallback)}
     result.update(checked(linear, dx, {name: solved[name][1] for name in names}, resolve_of,
-                          {"energy": closure.energy, "params": closure.theta}, fallback,
-                          project))
+                          scales, project,
+                          {"energy": [closure.energy], "params": closure.theta}))
     result["cpu_s"] = time.process_time() - cpu
     result["wall_s"] = time.perf_counter() - wall
     return result
