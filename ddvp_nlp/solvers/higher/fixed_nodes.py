@@ -50,8 +50,26 @@ def el_scale(request: GridRequest[FixedNodes]) -> float:
 
 
 def data_scale(request: GridRequest[FixedNodes]) -> float:
+    """The data's magnitude, ``max |q|`` over the fixed nodes, in the units of ``q`` (no floor
+    of 1: in lengths of ``1e-8`` it made every round-off bound ``1e8`` times the rows', and
+    Newton stopped ``3e-6`` of the motion short); 1 only where every fixed ``q`` is 0."""
     data = request.data
-    return float(max(1.0, np.max(np.abs(data.q_start)), np.max(np.abs(data.q_stop))))
+    scale = float(max(np.max(np.abs(data.q_start)), np.max(np.abs(data.q_stop))))
+    return scale if scale > 0 else 1.0
+
+
+def data_sizes(request: GridRequest[FixedNodes]) -> np.ndarray:
+    """``(N m,)``: the size of a change of each unknown the problem notices, taken from the
+    data (a diverged iterate does not excuse itself): a time's the mean step, a position's
+    the range of that coordinate over the fixed nodes (its magnitude where the ends agree)."""
+    data, m = request.data, request.system.n + 1
+    q = np.concatenate([data.q_start, data.q_stop])
+    ranges = np.ptp(q, axis=0)
+    ranges = np.where(ranges > 0, ranges, np.max(np.abs(q), axis=0))
+    sizes = np.empty((request.nodes, m))
+    sizes[:, 0] = mean_step(request)
+    sizes[:, 1:] = np.where(ranges > 0, ranges, data_scale(request))
+    return sizes.ravel()
 
 
 def straight(request: GridRequest[FixedNodes]) -> np.ndarray:

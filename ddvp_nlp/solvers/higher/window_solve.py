@@ -14,14 +14,18 @@ uniform times, or an energy rule with the interior times released) from a point 
 - ``"auto"``: Newton, then IPOPT from the same start if Newton's point fails the verification.
 
 Verification decides, whatever the solver said (`verify`): a point is a solution when every
-Euler-Lagrange row (scaled by the mean step to the power ``2l - 1``, in the units of ``q``) is
-below ``max(tol max(1, |q_data|), c_i)``, every energy row (the action's derivative in a node
-time) below ``max(tol max(1, tau_mean), c_i)``, and every step is positive. ``c_i`` is
+Euler-Lagrange row (scaled by the mean step to the power ``2l - 1``) and every energy row (the
+action's derivative in a node time) is below ``max(tol r_i, c_i)``, ``r_i = |F_i'(x)| s`` how
+far the row moves when the unknowns move by their sizes ``s`` in the data (a position by its
+coordinate's range over the fixed nodes, a time by the mean step: `fixed_nodes.data_sizes`), in
+the row's own units whatever those of ``q``, of time or of ``L``; and every step is positive
+(``max(1, |q_data|)`` and ``max(1, tau_mean)`` had stopped Pais-Uhlenbeck in lengths of ``1e-8``
+``3e-6`` of its motion short, verified). ``c_i`` is
 ``ROUND_OFF_BOUNDS`` times a bound on row ``i``'s round-off: machine epsilon times the sum of
 the terms added into the row plus ``|F'(x)|`` times the data's magnitudes (each input's rounding
 carried through the row's differences, whose ``1/tau`` factors amplify it: at N = 1e3 of the
 spline the energy rows' derivatives in the node times are ~1e9); the magnitudes are the data's
-(``max(1, |q_start|, |q_stop|)`` for positions, ``max |t|`` of the fixed nodes for times), not
+(``max(|q_start|, |q_stop|)`` for positions, ``max |t|`` of the fixed nodes for times), not
 the point's, so that a diverged iterate does not excuse itself. The message quotes what the
 solver said.
 """
@@ -38,7 +42,15 @@ from ..grid.maps import chunked
 from ..grid.newton import DECREASE_OR_MONOTONICITY, newton
 from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
 from ..grid.problem import GridRequest
-from .fixed_nodes import FixedNodes, data_scale, el_scale, ends, magnitudes, mean_step, order
+from .fixed_nodes import (
+    FixedNodes,
+    data_scale,
+    data_sizes,
+    el_scale,
+    ends,
+    magnitudes,
+    order,
+)
 from .window_nlp import higher_ipopt
 from .windows import HigherAssembly, HigherEnds
 
@@ -166,8 +178,7 @@ def verify(request: GridRequest[FixedNodes], rule: str, x: np.ndarray, phase: St
     F, _ = grid.evaluate(x, pinned, jacobian=False)
     values = magnitudes(request)
     allowance = ROUND_OFF_BOUNDS * EPS * grid.round_off(x, pinned, values)
-    limit = np.maximum(np.where(grid.free_q, request.tol * scale,
-                                request.tol * max(1.0, mean_step(request))), allowance)
+    limit = np.maximum(request.tol * grid.response(x, pinned, data_sizes(request)), allowance)
     el, energy = np.abs(F[grid.free_q]), np.abs(F[grid.free_t]) if rule != "fixed" else \
         np.zeros(0)
     residuals = {"euler_lagrange_residual": el, "energy_equation_residual": energy,

@@ -250,8 +250,17 @@ class HigherAssembly:
         g, H = self._blocks(x, ends.theta, True)
         terms = np.bincount(self._gradient_index, weights=np.abs(g.ravel()),
                             minlength=self.layout.size) * np.abs(self.row_scale)
+        return np.where(self.derived, terms + self._propagated(H, magnitudes), magnitudes)
+
+    def response(self, x, ends: HigherEnds, sizes: np.ndarray) -> np.ndarray:
+        """Per derived row, how far it moves when every unknown moves by its ``sizes``:
+        ``|F'(x)| sizes`` (0 on the pinned rows), in the row's own units whatever the units
+        of ``q``, of time or of the Lagrangian."""
+        _, H = self._blocks(x, ends.theta, True)
+        return np.where(self.derived, self._propagated(H, sizes), 0.0)
+
+    def _propagated(self, H, sizes: np.ndarray) -> np.ndarray:
         values = np.abs(H.ravel()[self._kept] * self._kept_scale)
         kept_rows, kept_columns = self.rows[:self._kept.size], self.columns[:self._kept.size]
-        propagated = np.bincount(kept_rows, weights=values * magnitudes[kept_columns],
-                                 minlength=self.layout.size)
-        return np.where(self.derived, terms + propagated, magnitudes)
+        return np.bincount(kept_rows, weights=values * sizes[kept_columns],
+                           minlength=self.layout.size)
