@@ -477,7 +477,8 @@ def _march_command(march: argparse.ArgumentParser) -> None:
                        help="stop after this many seconds of stepping, wall time (status "
                             f"time_limit; default: {shown(value['time_limit'])})")
     march.add_argument("--energy-guard", type=float, default=value["energy_guard"],
-                       help="stop when |H - H0| / max(1, |H0|) exceeds this at a node "
+                       help="stop when |H - H0| / max(|H0|, E) exceeds this at a node, E "
+                            "how much H changes when the start moves by its own size "
                             f"(default: {shown(value['energy_guard'])})")
     march.add_argument("--least-squares", action="store_true",
                        help="where the energy step has no admissible root, take the least-squares "
