@@ -67,6 +67,7 @@ def assert_same(length=1.0, time=1.0, centre=0.0, constant=0.0, digits=1e-9):
     assert np.max(np.abs(in_units(D, length, time) - expected) / np.abs(expected)) <= 1e3 * digits
 
 
+@pytest.mark.slow_when(lambda length, time: (length, time) != (1e-8, 1.0), why="repetition")
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5), (1e6, 1e-3)])
 def test_other_units_give_the_same_transfer_and_derivatives(length, time):
     assert_same(length, time)
@@ -79,7 +80,7 @@ def test_an_offset_origin_or_energy_gives_the_same_transfer_and_checks(centre, c
     assert_same(centre=centre, constant=constant, digits=1e-8)
 
 
-@settings(max_examples=3, deadline=None, derandomize=True)
+@settings(max_examples=2, deadline=None, derandomize=True)
 @given(length=st.floats(-9, 9), time=st.floats(-4, 4))
 def test_drawn_units(length, time):
     assert_same(10.0 ** length, 10.0 ** time)

@@ -65,6 +65,8 @@ def assert_same(other, length: float, time: float, scheme: str, centre: float = 
     assert np.max(np.abs(other.p * time / length - base.p)) <= digits * np.ptp(base.p)
 
 
+# lengths of 1e-8 stay in the default run; the other units repeat it
+@pytest.mark.slow_when(lambda length, time: (length, time) != (1e-8, 1.0), why="repetition")
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5), (1e8, 1.0), (1e6, 1e-3)])
 def test_the_energy_rule_in_other_units_is_the_same_solution(length, time):
     other = solved(length, time, "vddvp")
@@ -79,6 +81,7 @@ def test_the_energy_rule_in_other_units_is_the_same_solution(length, time):
     assert 0.25 <= ratio <= 4, ratio
 
 
+@pytest.mark.slow_when(lambda length, time: (length, time) != (1e-8, 1.0), why="repetition")
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5)])
 def test_fixed_steps_in_other_units_are_the_same_solution(length, time):
     assert_same(solved(length, time, "fixed"), length, time, "fixed")
@@ -92,7 +95,7 @@ def test_a_shifted_centre_and_clock_give_the_same_nodes():
     assert_same(other, 1.0, 1.0, "vddvp", centre=1e4, t0=1e3, digits=1e-6)
 
 
-@settings(max_examples=4, deadline=None, derandomize=True)
+@settings(max_examples=3, deadline=None, derandomize=True)
 @given(length=st.floats(-9, 9), time=st.floats(-4, 4))
 def test_drawn_units(length, time):
     length, time = 10.0 ** length, 10.0 ** time

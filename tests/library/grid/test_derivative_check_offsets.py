@@ -43,6 +43,7 @@ def test_an_orbit_with_a_constant_added_to_h():
     assert other == pytest.approx(base, rel=1e-6)
 
 
+@pytest.mark.slow_when(lambda centre: centre != 1e6, why="repetition")
 @pytest.mark.parametrize("centre", [1e4, 1e6])
 def test_a_march_far_from_the_origin(centre):
     runs = [march(swing(c), [0.5 + c], [0.0], (0.0, 10.0), tau0=0.05,

@@ -48,6 +48,7 @@ def assert_same(scheme, length=1.0, time=1.0, energy=1.0, centre=0.0, digits=1e-
     assert np.max(np.abs((other.q - centre) / length - base.q)) <= digits
 
 
+@pytest.mark.slow_when(lambda length, time, **_: (length, time) != (1e-8, 1.0), why="repetition")
 @pytest.mark.parametrize("scheme", ["fixed", "vddvp"])
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5), (1e8, 1.0)])
 def test_other_units_give_the_same_nodes(scheme, length, time):
