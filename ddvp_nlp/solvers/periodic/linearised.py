@@ -13,9 +13,10 @@ not). The phase puts node 0 on the section, the section's coordinate increasing;
 full ``H`` (the linearised orbit is not on one level of ``H``: node 0 carries the energy, as the
 grid's first interval does).
 
-Errors name the argument: an equilibrium that is not one (``|J grad H|`` above round-off of its
-scale), a section that does not pass through it, no centre pair, or an energy on the side of
-``H(z_e)`` the mode does not reach.
+Errors name the argument: an equilibrium that is not one (a rate of ``J grad H`` above ``1e-8``
+of what ``|A|`` makes of the point's magnitudes or the orbit's reach, in each coordinate's
+units), a section that does not pass through it (by ``1e-8`` of the same), no centre pair, or
+an energy on the side of ``H(z_e)`` the mode does not reach.
 """
 
 from __future__ import annotations
@@ -30,9 +31,13 @@ from .orbit import parse_section
 
 # Samples of the linearised period in the guess (solve_periodic resamples it on its grid).
 SAMPLES = 401
+# An equilibrium is one when its rates are below this fraction of what the linearised flow makes
+# of the point's magnitudes or the orbit's reach, and on the section when its distance is.
+AT_REST = 1e-8
 # An eigenvalue is a centre's when its real part is below this fraction of its modulus.
 CENTRE_TOL = 1e-8
-# Secant steps on the amplitude, and their tolerance on H relative to max(1, |E|).
+# Secant steps on the amplitude, and their tolerance on H relative to |E - H(z_e)| (|E| where
+# that is below E's own round-off).
 AMPLITUDE_STEPS = 40
 AMPLITUDE_TOL = 1e-13
 
@@ -78,22 +83,29 @@ def linearised_orbit(system, *, energy: float, equilibrium, section="p1=0", para
     H_e = float(H_e.ravel()[0])
     J = np.block([[np.zeros((n, n)), np.eye(n)], [-np.eye(n), np.zeros((n, n))]])
     field = J @ gradient.ravel()
-    size = max(1.0, float(np.max(np.abs(z_e))))
-    curvature = max(float(np.max(np.abs(hessian))), 1.0)
-    if not np.max(np.abs(field)) <= 1e-8 * curvature * size:
-        raise InputError(f"equilibrium: J grad H = {field.tolist()} at {z_e.tolist()}, not zero: "
-                         "give a point where the flow is at rest")
-    if abs(z_e[index - 1] - value) > 1e-12 * size:
-        raise InputError(f"section {label!r} does not pass through the equilibrium (its "
-                         f"coordinate there is {z_e[index - 1]!r}): use a section through it")
+    if not (np.all(np.isfinite(field)) and np.all(np.isfinite(hessian))):
+        raise InputError(f"equilibrium: H's derivatives at {z_e.tolist()} are not finite: give "
+                         "a point where the flow is at rest")
     omega, v = _centre_mode(J @ hessian, index, z_e)
     # phase: node 0 on the section, its coordinate |v_s| omega sin(omega t) there: increasing
     phase = np.angle(v[index - 1]) + np.pi / 2
     mode = np.real(np.exp(-1j * phase) * v)     # z(0) - z_e per unit amplitude
     form = 0.5 * float(mode @ hessian @ mode)   # H - H(z_e) per unit amplitude squared
     amplitude = _amplitude(system, theta, z_e, mode, energy, H_e, form, omega)
+    # at rest beside the flow on the point's magnitudes or the orbit's reach, whichever is
+    # larger, in each coordinate's units (max(1, |z_e|) and max(1, |Hess H|) judged the same
+    # point by its units; the reach lets an equilibrium at the origin be given to round-off)
+    reach = np.maximum(np.abs(z_e), amplitude * np.abs(v))
+    if not np.all(np.abs(field) <= AT_REST * (np.abs(J @ hessian) @ reach)):
+        raise InputError(f"equilibrium: J grad H = {field.tolist()} at {z_e.tolist()}, not zero: "
+                         "give a point where the flow is at rest")
+    if abs(z_e[index - 1] - value) > AT_REST * max(abs(z_e[index - 1]), abs(value),
+                                                   reach[index - 1]):
+        raise InputError(f"section {label!r} does not pass through the equilibrium (its "
+                         f"coordinate there is {z_e[index - 1]!r}): use a section through it")
     t = np.linspace(0.0, 2 * np.pi / omega, samples)
     states = z_e + amplitude * np.real(np.exp(1j * (omega * t[:, None] - phase)) * v[None, :])
+    states[0, index - 1] = value  # node 0 on the section, whatever the amplitude's round-off
     states[-1] = states[0]
     return {"t": t, "q": states[:, :n].copy(), "p": states[:, n:].copy()}
 
@@ -134,12 +146,13 @@ def _amplitude(system, theta, z_e, mode, energy: float, H_e: float, form: float,
     a0 = float(np.sqrt((energy - H_e) / form))
     a1 = 1.01 * a0
     f0, f1 = excess(a0), excess(a1)
+    above = abs(energy - H_e)  # the mode's energy: in H's units, blind to a constant in H
     for _ in range(AMPLITUDE_STEPS):
-        if not np.isfinite(f1) or abs(f1) <= AMPLITUDE_TOL * max(1.0, abs(energy)) \
+        if not np.isfinite(f1) or abs(f1) <= AMPLITUDE_TOL * max(above, abs(energy)) \
                 or f1 == f0:
             break
         a0, a1, f0 = a1, a1 - f1 * (a1 - a0) / (f1 - f0), f1
         f1 = excess(a1)
-    if np.isfinite(f1) and a1 > 0 and abs(f1) <= 1e-6 * max(1.0, abs(energy)):
+    if np.isfinite(f1) and a1 > 0 and abs(f1) <= 1e-6 * above:
         return a1
     return float(np.sqrt((energy - H_e) / form))  # the quadratic estimate: a start only
