@@ -22,15 +22,16 @@ from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...solution import Solution, Status
 from ..grid.implicit_derivatives import GridGradient, Linearisation, check_grid_cotangent, reverse
+from ..grid.motion_size import orbit_sizes
 from .closed_grid import PeriodicAssembly
 from .orbit import check_integrals, parse_section
 from .orbit_derivatives import PERIODIC_DERIVATIVES, input_columns, orbit_closure
 
 __all__ = ["HOLDS", "orbit_gradient"]
 
-# The largest row of the rebuilt equations at the orbit, relative to its nodes' size, that
-# says they are the solve's (the solve verifies them to 1e-10; a parameter moved by 1e-6
-# leaves rows of its size).
+# The largest row of the rebuilt equations at the orbit, relative to how far the row moves when
+# the nodes move by the orbit's size, that says they are the solve's (the solve verifies them
+# to 1e-10 of that size; a parameter moved by 1e-6 leaves rows of its size).
 HOLDS = 1e-8
 
 
@@ -66,11 +67,21 @@ def orbit_gradient(sol: Solution, cotangent, *, system, params=None,
     x[layout.nodes * layout.m:] = [orbit.unfolding, *orbit.integral_unfoldings]
     closure = orbit_closure(request, sol, integrals)
     rows = np.asarray(assembly.evaluate(x, closure, jacobian=False)[0], float)
-    if not np.max(np.abs(rows)) <= HOLDS * max(1.0, float(np.max(np.abs(x)))):
-        raise InputError(f"the orbit does not hold the equations of system={system.name!r} at "
-                         f"params={params!r} (largest row {float(np.max(np.abs(rows))):.3g}): "
-                         f"give the system, params and integrals it was solved with")
     linear = Linearisation(assembly, x, closure, "sparse")
+    # each row against how far it moves when the nodes move by the orbit's sizes (its period
+    # over N for a time), in its own units: max(1, |x|) passed any orbit in small units
+    sizes = np.empty((layout.nodes, layout.m))
+    sizes[:, 0] = (sol.t[-1] - sol.t[0]) / N
+    sizes[:, 1:] = orbit_sizes(system, theta, sol.t, np.hstack([sol.q, sol.p]))
+    scale = np.zeros(layout.size)
+    scale[:sizes.size] = sizes.ravel()
+    response = abs(linear.matrix) @ scale
+    if not np.all(np.abs(rows) <= HOLDS * response):
+        worst = int(np.argmax(np.abs(rows) / np.maximum(response, np.finfo(float).tiny)))
+        raise InputError(f"the orbit does not hold the equations of system={system.name!r} at "
+                         f"params={params!r} (row {worst}: {rows[worst]:.3g}, against "
+                         f"{HOLDS:g} of its response {response[worst]:.3g} to the orbit's "
+                         "size): give the system, params and integrals it was solved with")
     weights = np.zeros(layout.size)
     weights[:(N + 1) * layout.m] += np.ravel(c.get("nodes", np.zeros((N + 1, layout.m))))
     times = layout.time_index()
