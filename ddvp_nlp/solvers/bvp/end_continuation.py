@@ -39,15 +39,17 @@ from ..grid.newton import FullSteps, newton
 from ..grid.policy import Stage
 from ..grid.problem import BorderedLayout, GridRequest
 from .interleaved import Ends, NodeLayout
-from .phases import Boundary, assembly
+from .phases import Boundary, assembly, newton_targets
 
 FIRST_STEP = 0.05
 SMALLEST_STEP = 1e-5
 LARGEST_STEP = 0.5
 MAX_STEPS = 400
 CORRECTOR_ITERATIONS = 8
-# The corrector has converged when every |F_i| is below this times max(1, |x|_inf).
-CORRECTOR_TOL = 1e-10
+# The corrector has converged when every |F_i| is below this many of its row's round-off
+# (phases.newton_targets at the prediction): it follows the path, the point at s = 1 is solved
+# after. It was 1e-10 max(1, |x|), which took any point for converged in lengths of 1e-8.
+CORRECTOR_TARGETS = 1e4
 
 
 def continue_in_end_position(request: GridRequest[Boundary], fixed, times, base: dict):
@@ -121,11 +123,10 @@ class Hyperplane:
 
 class _CorrectorSteps(FullSteps):
     """The corrector's Newton: full steps, converged when every ``|F_i|`` of the fixed-step
-    problem (not the hyperplane's row) is below ``CORRECTOR_TOL max(1, |x|_inf)``."""
+    problem (not the hyperplane's row) is below its target."""
 
     def converged(self, F, y, target) -> bool:
-        return bool(np.max(np.abs(F[:-1]))
-                    <= CORRECTOR_TOL * max(1.0, float(np.max(np.abs(y[:-1])))))
+        return bool(np.all(np.abs(F[:-1]) <= target[:-1]))
 
 
 CORRECTOR_STEPS = _CorrectorSteps()
@@ -198,8 +199,10 @@ class _Path:
         """Newton on ``F(x, s) = 0``, ``<tangent, y - prediction> = 0`` (the grid's Newton,
         full steps, bordered solve): ``(y, iterations)``, ``y`` ``None`` if it did not
         converge (then ``iterations`` counts the one it stopped in)."""
+        rows = CORRECTOR_TARGETS * newton_targets(self.request, self.grid, prediction[:-1],
+                                                  self.ends(prediction[-1]))
         result = newton(self, prediction, Hyperplane(prediction, tangent),
-                        np.full(prediction.size, CORRECTOR_TOL), tau_floor=-np.inf,
+                        np.r_[rows, np.inf], tau_floor=-np.inf,
                         max_iter=CORRECTOR_ITERATIONS, test=CORRECTOR_STEPS,
                         factor=self.bordered)
         if result.converged:
