@@ -74,7 +74,8 @@ SHOOTING_RCOND = 1e-6
 SHOOTING_HALVINGS = 8
 # Iterations without halving the closest miss before shooting stops.
 SHOOTING_STALL = 3
-# ... once the closest miss is below this (relative to max(1, |q_end|)): close enough for
+# ... once the closest miss is below this (relative to the first march's range of positions,
+# `ShootingProblem.size_from`): close enough for
 # the fixed-step solve to start on the march's branch. Farther, shooting goes on (the swinging
 # pendulum of the tests leaves a local minimum of the miss, 0.049, at its 10th iteration).
 SHOOTING_CLOSE = 1e-3
@@ -236,8 +237,10 @@ def shooting(request: GridRequest[Boundary], fixed: Scheme, times) -> tuple[dict
     if not _whole(request, run):
         record.said = f"the march from p_0 = {p0.tolist()} failed: {run.message}"
         return None, False
-    close = SHOOTING_CLOSE * max(1.0, float(np.max(np.abs(request.data.q_end))))
-    result = newton(problem, p0, aim, np.full(p0.size, request.tol), tau_floor=-np.inf,
+    problem.size_from(run, p0)
+    close = SHOOTING_CLOSE * problem.q_size
+    result = newton(problem, p0, aim, np.full(p0.size, request.tol * problem.q_size),
+                    tau_floor=-np.inf,
                     max_iter=SHOOTING_ITERATIONS, test=ShootingSteps(problem, aim, close),
                     factor=LeastSquares)
     record.iterations = result.last_iteration
@@ -281,7 +284,7 @@ class ShootingProblem:
     steps from ``(q_start, p_0)`` on the grid's ``N`` nodes (``nan`` where that march does not
     reach ``t_end`` in ``N`` nodes): a ``grid.GridProblem`` of ``n`` unknowns whose Jacobians
     are forward differences (``n + 1`` marches; ``None`` if a march of the differences fails),
-    step ``1e-7 max(1, |p_0,i|)``.
+    step ``1e-7`` of the momentum's size (`size_from`).
 
     The marches of the residuals are kept until the next Jacobian (a line search's trials, the
     step is one of them); `closest` is the march that came closest to ``q_end`` (2-norm; the
@@ -292,6 +295,22 @@ class ShootingProblem:
         self.layout = _MomentumLayout(request.system.n)
         self._runs: dict = {}
         self.closest = (np.inf, None)
+        self.q_size, self.p_size = 1.0, np.ones(request.system.n)
+
+    def size_from(self, run, p0: np.ndarray) -> None:
+        """The sizes the iteration measures in, from the first march ``run`` from ``p0``: the
+        largest range of a position over it (the distance between the ends where it does not
+        move) for the miss, and each momentum's larger of ``|p_0,i|`` and its range for the
+        differences' steps and the step's cap. In the problem's own units, never ``max(1,
+        .)``: in lengths of ``1e-8`` a step of ``1e-7`` was ten times the momentum."""
+        data = self.request.data
+        q_size = float(np.max(np.ptp(run.q, axis=0)))
+        if not q_size > 0:
+            q_size = float(np.max(np.abs(data.q_end - data.q_start)))
+        self.q_size = q_size if q_size > 0 else float(np.max(np.abs(data.q_end))) or 1.0
+        p_size = np.maximum(np.abs(p0), np.ptp(run.p, axis=0))
+        largest = float(np.max(p_size))
+        self.p_size = np.where(p_size > 0, p_size, largest if largest > 0 else 1.0)
 
     def run(self, p0: np.ndarray, aim: Aim):
         """The march from ``p0`` (kept)."""
@@ -322,7 +341,7 @@ class ShootingProblem:
         n = p0.size
         J = np.empty((n, n))
         for i in range(n):
-            h = 1e-7 * max(1.0, abs(p0[i]))
+            h = 1e-7 * self.p_size[i]
             bumped = p0.copy()
             bumped[i] += h
             moved = _march(self.request, self.fixed, bumped, aim.theta)
@@ -385,7 +404,8 @@ class LeastSquares:
 
 class ShootingSteps(NaturalMonotonicity):
     """How shooting steps along ``dx = -J^+ F`` (grid Newton's step test): the step is capped
-    at ``max(1, |p_0|)`` (a step larger than the momentum itself leaves the march's basin),
+    at the momenta's size (`ShootingProblem.size_from`: a step larger than the momentum itself
+    leaves the march's basin),
     then halved ``SHOOTING_HALVINGS`` times at most; the longest of the halved steps whose march
     succeeds and comes closer to ``q_end`` is taken, and if none comes closer, the longest whose
     march succeeds (the end can depend on ``p_0`` so unevenly, a swinging pendulum, that full
@@ -404,8 +424,8 @@ class ShootingSteps(NaturalMonotonicity):
 
     def search(self, residual, problem, lu, x, dx, tau_floor, norm, weight, near_floor):
         self.start = x
-        scale = max(1.0, float(np.max(np.abs(x))))
-        cap = min(1.0, scale / max(float(np.max(np.abs(dx))), 1e-300))
+        scale = max(float(np.max(self.problem.p_size)), float(np.max(np.abs(x))))
+        cap = min(1.0, scale / max(float(np.max(np.abs(dx))), np.finfo(float).tiny))
         step, taken = dx * cap, None
         for halving in range(SHOOTING_HALVINGS + 1):
             trial = x + step / 2 ** halving

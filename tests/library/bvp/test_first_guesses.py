@@ -267,12 +267,12 @@ SHOT = {
                            "the closest march (miss 1.000e+00) starts the fixed-step solve"),
     "start": ((lambda p: p), [1.0], [0.0], {"fails": lambda p, k: True}, None, 0, 1,
               "the march from p_0 = [0.0] failed: march 0 failed"),
-    "no root": ((lambda p: np.abs(p) + 1.0), [0.5], [2.0], {}, False, 30, 157,
+    "no root": ((lambda p: np.abs(p) + 1.0), [0.5], [2.0], {}, False, 30, 187,
                 "q_end not reached in 30 iterations; the closest march (miss 5.000e-01) starts "
                 "the fixed-step solve"),
     "longest": ((lambda p: np.sin(7 * p) + 0.3 * p), [0.9], [0.1],
                 {"fails": lambda p, k: abs(p[0]) > 3}, True, 5, 9,
-                "q_end reached, p_0 = [0.14677423710835516]"),
+                "q_end reached, p_0 = [0.1467742371083065]"),
 }
 
 
