@@ -40,24 +40,34 @@ from ..exact.flow import AdaptiveFlow, exact_flow
 from ..exact.tolerance import EXACT_TOLERANCE
 from .indicators import ChaosIndicators
 from .spectrum import Spectrum
-from .tangent_march import start_tangent
+from .tangent_march import start_tangent, tangent_weights
 
 RTOL = EXACT_TOLERANCE.flow_rtol
 
 
 def megno_field(system) -> ca.Function:
-    """``(w, t, theta) -> w'`` for ``w = (z, v, L, S, M)`` (module docstring)."""
+    """``(w, t, theta) -> w'`` for ``w = (z, v, L, S, M, W)`` (module docstring): ``v`` the
+    tangent in the weighted coordinates ``W dz`` (the march's norm,
+    ``tangent_march.tangent_weights``), ``W`` carried unchanged."""
     n2 = 2 * system.n
-    w, t = ca.SX.sym("w", 2 * n2 + 3), ca.SX.sym("t")
+    w, t = ca.SX.sym("w", 3 * n2 + 3), ca.SX.sym("t")
     theta = ca.SX.sym("theta", system.theta.numel())
-    z, v, S = w[:n2], w[n2:2 * n2], w[2 * n2 + 1]
+    z, v, S, W = w[:n2], w[n2:2 * n2], w[2 * n2 + 1], w[2 * n2 + 3:]
     f = vector_field_function(system)(z, t, theta)
-    Dv = ca.jtimes(f, z, v)
+    Dv = W * ca.jtimes(f, z, v / W)
     r = ca.dot(v, Dv) / ca.dot(v, v)
     mean = ca.if_else(t > 0, 2 * S / t, 0)
     return ca.Function("megno_field", [w, t, theta],
-                       [ca.vertcat(f, Dv - r * v, r, t * r, mean)], ["w", "t", "theta"],
-                       ["dw"])
+                       [ca.vertcat(f, Dv - r * v, r, t * r, mean, ca.SX.zeros(n2))],
+                       ["w", "t", "theta"], ["dw"])
+
+
+def state_sizes(z0: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Each component's size for the flow's absolute tolerance, in its own units: the state's
+    largest magnitude in the weighted coordinates ``W z`` taken back to each (``1 / W_i``
+    where the state is 0); ``max(1, |z|)`` made the tolerance absolute in small units."""
+    largest = float(np.max(np.abs(weights * z0)))
+    return (largest if largest > 0 else 1.0) / weights
 
 
 def megno_flow(system, compiler="auto", cache_dir=None) -> AdaptiveFlow:
@@ -77,11 +87,12 @@ def exact_indicators(system, q0, p0, t_end: float, *, params=None, tangent0=None
     n2 = 2 * system.n
     theta = system.parameter_vector(params)
     z0 = np.concatenate([np.asarray(q0, float), np.asarray(p0, float)])
-    v0 = start_tangent(system.n, tangent0)[:, 0]
+    weights = tangent_weights(system, z0, 0.0, theta)
+    v0 = weights * start_tangent(system.n, tangent0, weights)[:, 0]  # unit in |W dz|
     flow = megno_flow(system, compiler, cache_dir)
-    w = np.concatenate([z0, v0, np.zeros(3)])
-    size = max(float(np.max(np.abs(z0))), 1.0)
-    atol = np.concatenate([np.full(n2, rtol * size), np.full(n2 + 3, rtol)])
+    w = np.concatenate([z0, v0, np.zeros(3), weights])
+    atol = np.concatenate([rtol * state_sizes(z0, weights), np.full(n2 + 3, rtol),
+                           rtol * weights])
     marks = sorted({float(s) for s in snapshots if 0 < s < t_end}) + [float(t_end)]
     t, fli, rows, status = 0.0, 0.0, [], Status.SUCCESS
     message = f"reached t_end = {t_end:.12g}"
@@ -94,7 +105,7 @@ def exact_indicators(system, q0, p0, t_end: float, *, params=None, tangent0=None
             fli = max(fli, float(np.max(run.w_old[:, 2 * n2])))
         w, t = run.w_end.copy(), mark
         fli = max(fli, float(w[2 * n2]))
-        L, S, M = w[2 * n2:]
+        L, S, M = w[2 * n2:2 * n2 + 3]
         rows.append((t, M / t, 2 * S / t, fli, L / t))
     keys = ("t", "megno", "megno_instant", "fli", "lyapunov")
     table = np.array(rows) if rows else np.full((1, 5), math.nan)
@@ -133,8 +144,11 @@ def exact_spectrum(system, q0, p0, t_end: float, *, params=None, segment: float 
     def g(point):
         return np.asarray(gradient(point, theta)).ravel()
 
-    Q = _energy_frame(f(z), g(z))
-    size = max(float(np.max(np.abs(z))), 1.0)
+    weights = tangent_weights(system, z, 0.0, theta)
+    # the frame orthonormal in the weighted coordinates W dz (the march's norm), a covector
+    # (grad H) taking 1 / W there
+    Q = _energy_frame(weights * f(z), g(z) / weights) / weights[:, None]
+    size = state_sizes(z, weights)
     total, t, status, message = np.zeros(n2), 0.0, Status.SUCCESS, f"reached t_end = {t_end:.12g}"
     while t < t_end:
         h = min(segment, t_end - t)
@@ -143,13 +157,13 @@ def exact_spectrum(system, q0, p0, t_end: float, *, params=None, segment: float 
             status, message = Status.NEWTON_FAILED, f"the exact flow stopped: {run.status}"
             break
         z_new, V = run.z_end.copy(), run.Y_end.copy()
-        V[:, 0] = f(z_new) / np.linalg.norm(f(z))
+        V[:, 0] = f(z_new) / np.linalg.norm(weights * f(z))
         dH = g(z_new) @ V
         for j in range(1, n2 - 1):
             V[:, j] -= dH[j] / dH[-1] * V[:, -1]
-        Q, R = np.linalg.qr(V)
+        Q, R = np.linalg.qr(weights[:, None] * V)
         total += np.log(np.abs(np.diag(R)))
-        Q = Q * np.sign(np.diag(R))
+        Q = Q * np.sign(np.diag(R)) / weights[:, None]
         z, t = z_new, t + h
     exponents = total / t if t > 0 else np.full(n2, np.nan)
     half = n2 // 2

@@ -3,7 +3,11 @@ and the largest Lyapunov exponent (and, on request, the full spectrum, ``spectru
 
 One synchronous tangent vector (``tangent.py``) is carried by the compiled chunk and
 renormalised every step; ``ell_k = ln(|w_{k+1}| / |w_k|)`` is its growth over step ``k``
-(``|w_0| = 1``). Times are counted from ``t_0``. The indicators at node ``N``:
+(``|w_0| = 1``). The norm is ``|W w|``, ``W`` a symplectic scaling of each pair ``(q_i,
+p_i)`` read off the flow at the start (``tangent_march.tangent_weights``), so that no
+indicator depends on the units of a coordinate or of time (with the plain norm a Henon-Heiles
+orbit's FLI in time units of ``1e5`` was ``ln 1e5`` above its FLI in units of 1). Times are
+counted from ``t_0``. The indicators at node ``N``:
 
 - MEGNO (Cincotta and Simo 2000). Continuously ``Y(t) = (2/t) int_0^t s d ln|delta(s)|`` and
   its mean ``<Y>(t) = (1/t) int_0^t Y(s) ds``. On the nodes, with the midpoint of each step as
@@ -120,7 +124,9 @@ def chaos_indicators(system, q0, p0, t_span, *, tau0: float, scheme: str | Schem
         system, q0, p0, t_span, tau0, scheme, params, steps, compilation: as for `march`
             (an energy rule; autonomous ``H``); the march stops at the first node at or past
             ``t_end``.
-        tangent0: the start's tangent ``dz_0`` (``2n`` numbers; default all ones), normalised.
+        tangent0: the start's tangent ``dz_0`` (``2n`` numbers; default all ones in the
+            weighted coordinates), normalised in the weighted norm
+            (``tangent_march.tangent_weights``: no coordinate's or time's units).
         snapshots: times at which the indicators are also kept (`ChaosIndicators.snapshots`).
         spectrum: also the full spectrum on the fixed-level map (`lyapunov_spectrum`, a
             second march with ``2n`` vectors: the same nodes).
@@ -132,7 +138,7 @@ def chaos_indicators(system, q0, p0, t_span, *, tau0: float, scheme: str | Schem
     run = TangentMarch.build(system, q0, p0, t_span, tau0=tau0, scheme=scheme, params=params,
                              steps=steps, compilation=compilation, vectors=1,
                              observation="sync")
-    dz0 = start_tangent(system.n, tangent0)
+    dz0 = start_tangent(system.n, tangent0, run.weights)
     times = np.sort(np.asarray(snapshots, float).reshape(-1))
     p = run.problem
     sums = MegnoSums()
@@ -142,7 +148,7 @@ def chaos_indicators(system, q0, p0, t_span, *, tau0: float, scheme: str | Schem
     if failure is None:
         t1, z0, z1 = start
         X1 = run.chunk.tangent.first_step(p.t0, t1, z0, z1, p.theta, dz0)
-        norm = float(np.linalg.norm(X1[-2 * system.n:, 0]))
+        norm = float(np.linalg.norm(run.weights * X1[-2 * system.n:, 0]))
         _take(sums, kept, times, np.array([t1 - p.t0]), np.array([math.log(norm)]), p.t0)
         status, message = yield_from(run.chunks(start, X1 / norm), sums, kept, times, p.t0)
     else:

@@ -106,7 +106,9 @@ def lyapunov_spectrum(system, q0, p0, t_span, *, tau0: float, scheme="vddvp", pa
     if failure is None:
         t1, _, z1 = start
         field = np.asarray(run.chunk.tangent.field(z1, t1, p.theta)).ravel()
-        frame = symplectic_flag(field)
+        # orthonormal and symplectic in the weighted coordinates (W dz: the norm the chunk
+        # measures in, itself a symplectic scaling), carried in the march's own
+        frame = symplectic_flag(run.weights * field) / run.weights[:, None]
         X1 = np.vstack([np.zeros((2, 2 * n)), -frame, frame])
         chunks = run.chunks(start, X1)
         t_last = t1

@@ -120,9 +120,11 @@ class TangentMap:
             ca.densify(ca.jacobian(g0, z_b)), ca.densify(ca.jacobian(g0, w_a[2:2 + 2 * n]))])
 
     def step(self, vectors: int, observation: str) -> ca.Function:
-        """``(X, t_prev, t_mid, t_next, z_prev, z_mid, z_next, theta, drift) -> (X', ell)``:
-        ``vectors`` tangent states (``X`` stacked column by column) carried over one accepted
-        step, renormalised on their ``observation``; ``ell`` the logs of the growth."""
+        """``(X, t_prev, t_mid, t_next, z_prev, z_mid, z_next, theta, drift, weights) -> (X',
+        ell)``: ``vectors`` tangent states (``X`` stacked column by column) carried over one
+        accepted step, renormalised on their ``observation`` weighted by ``weights``
+        (``tangent_march.tangent_weights``: ``|W w|``, the norm in no coordinate's units);
+        ``ell`` the logs of the growth."""
         if observation not in OBSERVATIONS:
             raise InputError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
         n, m = self.n, vectors
@@ -131,6 +133,7 @@ class TangentMap:
                                                                  "drift"))
         z_prev, z_mid, z_next = (ca.SX.sym(s, 2 * n) for s in ("z_prev", "z_mid", "z_next"))
         theta = ca.SX.sym("theta", self.ntheta)
+        weights = ca.SX.sym("weights", 2 * n)
         states = ca.reshape(X, self.width, m)
         A, B = self.jacobians(ca.vertcat(z_next, t_next - t_mid),
                               ca.vertcat(t_prev, t_mid, z_prev, z_mid, theta, drift))
@@ -143,13 +146,15 @@ class TangentMap:
             dt_next = dt_mid + dx[2 * n, :]
             after = ca.vertcat(dt_mid, dt_next, states[2 + 2 * n:, :], dz_next)
             seen = dz_next - ca.mtimes(self.field(z_next, t_next, theta), dt_next)
+        seen = seen * ca.repmat(weights, 1, m)
         if m == 1:
             norm = ca.norm_2(seen)
             after, logs = after / norm, ca.log(norm)
         else:
             after, logs = gram_schmidt(seen, after)
         return ca.Function("tangent_step", [X, t_prev, t_mid, t_next, z_prev, z_mid, z_next,
-                                            theta, drift], [ca.vec(after), logs], {"cse": True})
+                                            theta, drift, weights], [ca.vec(after), logs],
+                           {"cse": True})
 
     def first_step(self, t0: float, t1: float, z0, z1, theta, dz0: np.ndarray) -> np.ndarray:
         """``X_1`` (``width x m``) from ``dz_0`` (``2n x m``) over step 0 at fixed ``tau_0``
@@ -187,7 +192,8 @@ class TangentChunk(FastChunk):
         self.plain_state, self.plain_output = self.state, self.output
         m = self.vectors
         self.state = ChunkLayout(("plain", self.plain_state.size),
-                            ("tangent", self.tangent.width * m))
+                                 ("tangent", self.tangent.width * m),
+                                 ("weights", 2 * self.tangent.n))
         self.output = ChunkLayout(("plain", self.plain_output.size), ("ell", m))
         state = ca.SX.sym("state", self.state.size)
         parameters = ca.SX.sym("parameters", plain.size1_in(1))
@@ -196,17 +202,21 @@ class TangentChunk(FastChunk):
         before, out = self.plain_state.split(s["plain"]), self.plain_output.split(outputs)
         tangent, ell = self.tangent.step(m, self.observation)(
             s["tangent"], before["t_prev"], before["t_mid"], out["t_next"], before["z_prev"],
-            before["z_mid"], out["z_next"], parameters[:self.tangent.ntheta], before["drift"])
+            before["z_mid"], out["z_next"], parameters[:self.tangent.ntheta], before["drift"],
+            s["weights"])
         return ca.Function("step", [state, parameters],
-                           [ca.vertcat(after, tangent), ca.vertcat(outputs, ell)],
+                           [ca.vertcat(after, tangent, s["weights"]),
+                            ca.vertcat(outputs, ell)],
                            step_options(functions.energy_residual.numel_in(0)))
 
-    def tangent_state(self, t_prev, t_mid, z_prev, z_mid, drift, X: np.ndarray) -> np.ndarray:
-        """The chunk's state from nodes ``k - 1`` and ``k``, the drift and the tangent states
-        ``X`` (``width x vectors``)."""
+    def tangent_state(self, t_prev, t_mid, z_prev, z_mid, drift, X: np.ndarray,
+                      weights: np.ndarray) -> np.ndarray:
+        """The chunk's state from nodes ``k - 1`` and ``k``, the drift, the tangent states
+        ``X`` (``width x vectors``) and the norm's ``weights`` (carried unchanged)."""
         plain = self.plain_state.pack(t_prev=t_prev, t_mid=t_mid, z_prev=z_prev, z_mid=z_mid,
                                       drift=drift)
-        return self.state.pack(plain=plain, tangent=np.asarray(X, float).ravel(order="F"))
+        return self.state.pack(plain=plain, tangent=np.asarray(X, float).ravel(order="F"),
+                               weights=np.asarray(weights, float))
 
     def run(self, state: np.ndarray, parameters: np.ndarray) -> tuple[dict, np.ndarray]:
         """One call: ``chunk`` steps from ``state``. Returns the per-step columns by name
@@ -222,5 +232,5 @@ class TangentChunk(FastChunk):
         columns["ell"] = outputs[:, size:].reshape(self.chunk, self.vectors)
         plain = self.plain_state.size
         columns["drift"] = self.plain_state.columns(states[:, :plain])["drift"]
-        columns["tangent"] = states[:, plain:]
+        columns["tangent"] = states[:, plain:plain + self.tangent.width * self.vectors]
         return columns, states
