@@ -271,7 +271,7 @@ def _tail() -> list[str]:
             "- Without one (the common SLURM case): a job array, one shard per array task, "
             "each writing `DIR/shard-K-of-N/` with its own lock, journal and `part.npz`; then "
             "`ddvp chaos --merge DIR` once all are done. `docs/chaos/chaos_array.sbatch`:", "",
-            "```bash", (Path(__file__).resolve().parent.parent / "docs" / "chaos" /
+            "```bash", (Path(__file__).resolve().parents[2] / "docs" / "chaos" /
                         "chaos_array.sbatch").read_text().rstrip(), "```", "",
             "A killed shard (or map) run again with the same command goes on from its "
             "journal (`cells.partial.csv`): only the blocks not yet written run again "
