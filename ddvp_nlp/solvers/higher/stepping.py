@@ -10,7 +10,7 @@ verified in ``window_solve.py``.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import casadi as ca
@@ -242,7 +242,8 @@ class _HigherSteps:
 
     def __init__(self, system: HigherOrderSystem, rule: str, theta, tol: float, h: float,
                  pending=None, z_scale: float = 0.0):
-        self.root, self.check = _step_functions(system, rule)
+        self.functions = _step_functions(system, rule)
+        self.root, self.check = self.functions.root, self.functions.check
         self.l, self.n, self.theta, self.tol, self.h = system.order, system.n, theta, tol, h
         self.z_scale, self.energy_scale = z_scale, None
         self.variable = rule != "fixed"
@@ -270,11 +271,10 @@ class _HigherSteps:
         if self.variable:
             w = np.concatenate([t[-(2 * l - 1):], np.ravel(q[-(2 * l - 1):]), self.u,
                                 self.theta])
-            x = np.asarray(self.root(np.concatenate([self.u, [self.tau]]), w)).ravel()
+            x = self.functions.solve(np.concatenate([self.u, [self.tau]]), w)
             return x, w, x[-1]
         w = np.concatenate([t[-2 * l:], np.ravel(q[-2 * l:]), self.theta])
-        x = np.asarray(self.root(_extrapolate(t[-2 * l:], q[-2 * l:], t[-1] + self.h),
-                                 w)).ravel()
+        x = self.functions.solve(_extrapolate(t[-2 * l:], q[-2 * l:], t[-1] + self.h), w)
         return x, w, self.h
 
     def _failure(self, x, w, step) -> tuple[Status, str] | None:
@@ -359,6 +359,21 @@ def _extrapolate(t, q, t_new):
                      for i in range(q.shape[1])])
 
 
+@dataclass(frozen=True)
+class _StepFunctions:
+    """One march step's Newton in relative unknowns ``xi`` (``root(xi0, w) -> xi``), its
+    residual check on ``x`` and the maps between ``x`` and ``xi``."""
+
+    root: object
+    check: object
+    to_x: object
+    to_xi: object
+
+    def solve(self, x0: np.ndarray, w: np.ndarray) -> np.ndarray:
+        xi = self.root(np.asarray(self.to_xi(x0, w)).ravel(), w)
+        return np.asarray(self.to_x(xi, w)).ravel()
+
+
 def _step_functions(system: HigherOrderSystem, rule: str):
     """Newton for one march step (see `march_higher`) and its residual check."""
     return cached(system, ("higher_march", rule), lambda: _build_step_functions(system, rule))
@@ -391,19 +406,43 @@ def _build_step_functions(system: HigherOrderSystem, rule: str):
     S = action(system, q_nodes, t_nodes, theta)
     el = ca.substitute(ca.gradient(S, q_k), ca.vertcat(q_k, t_k), at)
     energy = ca.substitute(ca.gradient(S, t_k), ca.vertcat(q_k, t_k), at)
-    scaled = el * (tw[-1] - tw[-2]) ** (2 * l - 1)  # in the units of q, O(1) in tau
-    g = ca.vertcat(scaled, energy) if variable else scaled
-    root = ca.rootfinder("higher_step", "newton", ca.Function("g", [x, w], [g]),
-                         dict(HIGHER_STEP_NEWTON))
+    scaled = el * (tw[-1] - tw[-2]) ** (2 * l - 1)  # O(1) in tau
+    # ... in the units of q: divided by its largest derivative in the new node's unknowns (a
+    # number in the units of L per q^2 times powers of the step; a Lagrangian in other units of
+    # q, time or energy scales it), so that the rows read as a position whatever the units
+    reach = ca.norm_inf(ca.jacobian(scaled, x[:n]))
+    positions = scaled / reach
     sizes = _energy_size(system, theta)
     energy_size = 0
     for k, v in enumerate(differences(l, q_nodes, t_nodes)):
         energy_size = ca.fmax(energy_size, sizes(q_nodes[k], *v, t_nodes[k], theta))
     energy_size = ca.substitute(energy_size, ca.vertcat(q_k, t_k), at)  # node l of the window
-    check = ca.Function("check", [x, w], [ca.norm_inf(scaled),
+    # Newton's rows relative to the window's magnitudes (its |q| and the size of L), so that
+    # its absolute tolerance is a relative one: 1e-13 of 1 had stopped every step in lengths
+    # of 1e-8 or time units of 1e5 (RESIDUAL_TOO_LARGE at the fourth node)
+    magnitude = ca.fmax(ca.norm_inf(qw), ca.norm_inf(qw[n:] - qw[:-n]) if known > 1 else 0)
+    relative = positions / magnitude
+    g = ca.vertcat(relative, energy / energy_size) if variable else relative
+    # ... and its unknowns too, ``x = origin + scale xi`` (the last node, or the last difference
+    # and step; the window's magnitude, per step for a difference), so that its step tolerance
+    # (abstolStep, absolute) is a relative one as well
+    if variable:
+        h = tw[-1] - tw[-2]
+        origin = ca.vertcat(u_prev, h)
+        scale = ca.vertcat(ca.repmat(magnitude / h, n, 1), h)
+    else:
+        origin, scale = qw[-n:], ca.repmat(magnitude, n, 1)
+    xi = ca.SX.sym("xi", x.numel())
+    moved = origin + scale * xi
+    root = ca.rootfinder("higher_step", "newton",
+                         ca.Function("g", [xi, w], [ca.substitute(g, x, moved)]),
+                         dict(HIGHER_STEP_NEWTON))
+    check = ca.Function("check", [x, w], [ca.norm_inf(positions),
                                          energy if variable else ca.SX(0), ca.norm_inf(qw),
                                          energy_size])
-    return root, check
+    to_x = ca.Function("to_x", [xi, w], [moved])
+    to_xi = ca.Function("to_xi", [x, w], [(x - origin) / scale])
+    return _StepFunctions(root, check, to_x, to_xi)
 
 
 def _energy_size(system: HigherOrderSystem, theta) -> ca.Function:
