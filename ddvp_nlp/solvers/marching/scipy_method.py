@@ -31,7 +31,8 @@ hamiltonian=H, tau0=...)``.
   given, or with ``rtol``/``atol`` given and no ``tau0`` the march's ``target_error = rtol +
   atol / |y0|_inf`` (scipy's defaults ``1e-3``, ``1e-6`` for the one not given: a bound on the
   error ``atol + rtol |y|`` relative to the start's size, read as the whole trajectory's error,
-  ``target.py``), else `derived_tau0`: ``TAU0_FRACTION |y0|_inf / |f(t0, y0)|_inf``, at most a
+  ``target.py``), else `derived_tau0`: ``TAU0_FRACTION`` of the flow's time scale at the
+  start, ``1 / rho(df/dz)`` (``physics.hamiltonian.flow_time_scale``), at most a
   ``MIN_STEPS``-th of the span. ``rtol``/``atol`` given with ``tau0`` are not used, and a
   ``UserWarning`` says so.
 - **A failed march** (its status not a success) hands out its accepted nodes, then fails the
@@ -55,7 +56,7 @@ import numpy as np
 from scipy.integrate import DenseOutput, OdeSolver
 
 from ...discrete.scheme import Scheme
-from ...physics.hamiltonian import HamiltonianSystem
+from ...physics.hamiltonian import HamiltonianSystem, flow_time_scale
 from ...solution import Solution, hermite
 from ...validation import check_integer, check_real
 from ..accuracy.judgement import SMALLEST_GLOBAL_TOL
@@ -67,7 +68,7 @@ from .resume import MarchState
 __all__ = ["DDVP", "derived_tau0"]
 
 FUN_AGREEMENT = 1e-8  # fun(t0, y0) against (H_p, -H_q), relative to the larger of the two
-TAU0_FRACTION = 1e-2  # the derived first step: this share of the start's time scale |y| / |f|
+TAU0_FRACTION = 1e-2  # the derived first step: this share of the start's time scale
 MIN_STEPS = 4  # the derived first step: at most this share of the span
 SCIPY_RTOL, SCIPY_ATOL = 1e-3, 1e-6  # scipy's defaults, for the one of rtol/atol not given
 # the step count in a failure's sentence (solvers/driver.py, message): a continued chunk counts
@@ -126,8 +127,9 @@ class DDVP(OdeSolver):
         self.chunk_steps = check_integer("chunk_steps", chunk_steps, minimum=2)
         field = DenseField.of(self.system, self.theta)
         slope = check_fun(self.fun, field, float(t0), self.y)
+        scale = flow_time_scale(self.system, self.y, float(t0), self.theta)
         self.tau0, self.target_error = first_step(tau0, tolerances, self.y, slope,
-                                                  float(t_bound) - float(t0))
+                                                  float(t_bound) - float(t0), scale)
         self.solutions: list[Solution] = []
         self._verdict_said = False  # a check that was not accurate is said once
         self._field, self._chunk = field, None
@@ -315,7 +317,7 @@ def check_fun(fun: Callable, field, t0: float, y0: np.ndarray) -> np.ndarray:
 
 
 def first_step(tau0, tolerances: dict, y0: np.ndarray, slope: np.ndarray,
-               span: float) -> tuple[float, float | None]:
+               span: float, time_scale: float = math.inf) -> tuple[float, float | None]:
     """``(tau0, target_error)`` from the arguments (module docstring)."""
     if tau0 is not None:
         tau0 = check_real("tau0", tau0, positive=True)
@@ -324,7 +326,7 @@ def first_step(tau0, tolerances: dict, y0: np.ndarray, slope: np.ndarray,
                           f"sets every step through the energy level (give rtol/atol without "
                           f"tau0 to have the march aim at an error)", stacklevel=4)
         return tau0, None
-    tau0 = derived_tau0(y0, slope, span)
+    tau0 = derived_tau0(y0, slope, span, time_scale)
     if not tolerances:
         return tau0, None
     rtol = check_real("rtol", tolerances.get("rtol", SCIPY_RTOL), positive=True)
@@ -337,10 +339,17 @@ def first_step(tau0, tolerances: dict, y0: np.ndarray, slope: np.ndarray,
     return tau0, target
 
 
-def derived_tau0(y0: np.ndarray, slope: np.ndarray, span: float) -> float:
-    """``TAU0_FRACTION |y0|_inf / |f(t0, y0)|_inf`` (the start's time scale), at most
-    ``|span| / MIN_STEPS``; a ``ValueError`` asking for ``tau0`` where the start is at rest or
-    at the origin."""
+def derived_tau0(y0: np.ndarray, slope: np.ndarray, span: float,
+                 time_scale: float = math.inf) -> float:
+    """``TAU0_FRACTION`` of the start's time scale, at most ``|span| / MIN_STEPS``: the flow's
+    own, ``1 / rho(df/dz)`` (``time_scale``; it follows the units of time whatever those of
+    the coordinates, and no offset of the origin moves it), or where that is infinite (a flow
+    with no rate at the start) ``|y0|_inf / |f(t0, y0)|_inf``; a ``ValueError`` asking for
+    ``tau0`` where neither gives one. With ``|y0| / |f|`` alone a swing in time units of
+    ``1e5``, or offset by ``1e4``, took 5 steps for 20 of its periods, and in lengths of
+    ``1e6`` and time units of ``1e-3`` 2 million."""
+    if math.isfinite(time_scale) and time_scale > 0:
+        return min(TAU0_FRACTION * time_scale, abs(span) / MIN_STEPS)
     size, speed = float(np.max(np.abs(y0))), float(np.max(np.abs(slope)))
     if size == 0 or speed == 0 or not math.isfinite(size / speed):
         raise ValueError(f"tau0 cannot be derived from the start (|y0| = {size:g}, |f(t0, y0)| "
