@@ -87,6 +87,7 @@ class RowRoundOff:
     canonical: np.ndarray
     energy: float
     pins: float
+    pin_rows: np.ndarray | None = None  # (rows, targets) of each pin in its own units
 
 
 def row_round_offs(request: GridRequest, x: np.ndarray, scheme: Scheme, grid=None,
@@ -113,7 +114,32 @@ def row_round_offs(request: GridRequest, x: np.ndarray, scheme: Scheme, grid=Non
     else:
         pins = np.concatenate([pins, body[:, 2 * n]])
     return RowRoundOff(NOISE_TARGET * np.max(body[:, :2 * n], axis=0), NOISE_TARGET * energy,
-                       NOISE_TARGET * float(np.max(pins, initial=0.0)))
+                       NOISE_TARGET * float(np.max(pins, initial=0.0)),
+                       _pin_rows(spread, x, n, N, scheme.variable_steps and N > 2))
+
+
+def _pin_rows(spread: np.ndarray, x: np.ndarray, n: int, N: int, released: bool):
+    """``(rows, targets)``: the pins' targets by kind, ``NOISE_TARGET`` times the largest
+    change of the time pins' rows and of each coordinate's two end pins (never below eps times
+    that column's largest magnitude): the pins of a time and of a position are in different
+    units, and one target for all (their largest) held the end positions in lengths of
+    ``1e-7`` to the round-off of times of ``1e4``, so a derivative check's move of an end was
+    taken for converged before Newton's first step (its quotient 0: "disagrees")."""
+    m = 2 * n + 1
+    z = np.asarray(x, float).reshape(N, m)
+    # a pin is known to the round-off of its column (a time, coordinate i) over the grid:
+    # Newton's solve leaves it there, whatever row it pins
+    column = np.finfo(float).eps * np.max(np.abs(z), axis=0)
+    times = [N - 2] if released else list(range(N - 1))
+    time_rows = np.array([0, *(n + 1 + k * m + 2 * n for k in times)])
+    rows, targets = [time_rows], [np.full(time_rows.size, max(float(np.max(spread[time_rows])),
+                                                              column[0]))]
+    for i in range(n):
+        pair = np.array([1 + i, N * m - n + i])  # q_0,i and q_end,i
+        rows.append(pair)
+        targets.append(np.full(2, max(float(np.max(spread[pair])), column[1 + i])))
+    own = np.concatenate(targets)
+    return np.concatenate(rows), NOISE_TARGET * np.maximum(own, np.finfo(float).tiny)
 
 
 def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> np.ndarray:
@@ -126,6 +152,8 @@ def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> n
     body[:, :2 * n] = rows.canonical
     if grid.scheme.variable_steps:
         body[:-1, 2 * n] = rows.energy / data.energy_scale
+    pinned, own = rows.pin_rows
+    target[pinned] = own
     return target
 
 

@@ -93,9 +93,9 @@ def solve_bvp_higher(system: HigherOrderSystem, t_start, q_start, t_stop, q_stop
     said, and the message quotes the solver.
 
     Args:
-        options: ``tol``: verification tolerance (default 1e-10; Euler-Lagrange rows scaled by
-            the mean step to the power ``2l - 1``, in the units of ``q``; energy rows in units
-            of ``max(1, tau_mean)``), round-off of the rows' own scale always allowed;
+        options: ``tol``: verification tolerance (default 1e-10), relative to how far each
+            row moves when the unknowns move by their sizes in the data
+            (``window_solve.py``), round-off of the rows' own scale always allowed;
             ``max_iter``: iteration limit of each solve (default 500); ``tau_floor``: smallest
             step of an energy rule (default ``1e-3`` times the mean step); ``solver``;
             ``linear`` (the Newton's LU); ``time_limit`` (status ``time_limit``); ``verbose``

@@ -56,3 +56,25 @@ def test_a_march_far_from_the_origin(centre):
     # still holds a derivative to 2e-3
     base, other = (run.derivatives.check.tolerance for run in runs)
     assert other <= base + 1e-14 * 2 * centre * np.sqrt(runs[1].t.size) / 1e-6
+
+
+def units_swing(length: float, time: float):
+    def H(q, p, t, w):
+        return (length / time) ** 2 * ((p[0] * time / length) ** 2 / 2
+                                        + w ** 2 * (1 - ca.cos(q[0] / length)))
+    return HamiltonianSystem(H, 1, {"w": 1.0}, name=f"swing {length:g} {time:g}")
+
+
+@pytest.mark.parametrize("scheme", ["fixed", "vddvp"])
+def test_fixed_ends_in_small_lengths_and_long_times(scheme):
+    """Lengths of 1e-7 and time units of 1e4: the end positions' pins had Newton's target of
+    the times' pins (one target for every pin), so a check's move of an end was taken for
+    converged before the first step: quotient 0, "disagrees" (measured before)."""
+    names = ("q_start", "q_end", "params")
+    runs = [solve_bvp(units_swing(length, time), [0.1 * length], [0.5 * length],
+                      (0.0, 2.0 * time), nodes=101, scheme=scheme, derivatives=names)
+            for length, time in ((1.0, 1.0), (1e-7, 1e4))]
+    for run in runs:
+        assert run.success and verdicts(run.derivatives["checks"]) == {"agrees"}
+    base, other = (run.derivatives["p_end"]["q_start"] for run in runs)
+    assert other * 1e4 == pytest.approx(base, rel=1e-8)  # dp/dq in units 1 / time
