@@ -53,7 +53,7 @@ from ..grid.problem import check_energy_problem
 from ..grid.round_off import row_noise
 from ..options import Tolerance
 from .interleaved import Ends, GridAssembly, prescribed_energy_block
-from .phases import BOUNDS_ALLOWED, NOISE_TARGET
+from .phases import BOUNDS_ALLOWED, NOISE_TARGET, canonical_sizes
 
 EPS = float(np.finfo(float).eps)
 # The energy's continuation from the fixed-time grid's: a failed step halves (at most this many
@@ -230,7 +230,7 @@ def newton_targets(system, grid: GridAssembly, x, ends: Ends) -> np.ndarray:
                                      columns[1:n + 1]][:noise.size])
     body = target[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
     t, q, p = layout.unpack(x)
-    floor = EPS * _canonical_sizes(system, grid.scheme, q, p)
+    floor = EPS * canonical_sizes(system, grid.scheme, q, p)
     body[:, :2 * n] = np.maximum(body[:, :2 * n].max(axis=0), floor)
     if N > 2:
         body[:-1, 2 * n] = np.max(body[:-1, 2 * n])
@@ -240,14 +240,6 @@ def newton_targets(system, grid: GridAssembly, x, ends: Ends) -> np.ndarray:
     unscaled = float(body[0, 2 * n]) * ends.energy_scale if N > 2 else 0.0
     body[-1, 2 * n] = max(body[-1, 2 * n], EPS * abs(ends.energy), unscaled)
     return NOISE_TARGET * np.maximum(target, np.finfo(float).tiny)
-
-
-def _canonical_sizes(system, scheme, q, p) -> np.ndarray:
-    """``(2n,)``: the motion's size in each canonical row's units (``Scheme``'s
-    ``row_units``), as the fixed-endpoint grid's verification (``fixed_ends``)."""
-    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
-    units = equations.action_for(system, scheme).row_units
-    return np.repeat([ranges[units[0]], ranges[units[1]]], q.shape[1])
 
 
 def _limits(system, grid: GridAssembly, x, ends: Ends, tol: float) -> dict:
@@ -266,7 +258,7 @@ def _limits(system, grid: GridAssembly, x, ends: Ends, tol: float) -> dict:
     rate = energy_rate(t, np.hstack([q, p])) * (t[-1] - t[0]) / (N - 1)
     energy = max(tol * rate, BOUNDS_ALLOWED * float(body[0, 2 * n]) * ends.energy_scale
                  if N > 2 else 0.0)
-    return {"canonical": float(np.max(np.maximum(tol * _canonical_sizes(system, grid.scheme, q, p),
+    return {"canonical": float(np.max(np.maximum(tol * canonical_sizes(system, grid.scheme, q, p),
                                                  BOUNDS_ALLOWED * body[0, :2 * n]))),
             "energy": energy,
             "prescribed_energy": max(tol * rate, BOUNDS_ALLOWED * float(body[-1, 2 * n])),

@@ -39,7 +39,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...discrete.equations import action_for
 from ...discrete.scheme import Scheme
 from ...errors import InputError
 from ...physics.constraints import check_start_constraints, constraint_function
@@ -51,7 +50,14 @@ from ..dense import attach
 from ..exact.constrained_flow import multipliers_function, projection_function
 from ..grid.motion_size import energy_rate
 from ..grid.newton import newton
-from ..grid.policy import Attempt, Stage, failure_status, solve_in_order, solver_order
+from ..grid.policy import (
+    Attempt,
+    Stage,
+    failure_status,
+    solve_in_order,
+    solver_order,
+    worst_against,
+)
 from ..grid.problem import GridRequest, GridResult
 from ..grid.round_off import row_noise
 from .constrained_grid import (
@@ -61,7 +67,7 @@ from .constrained_grid import (
     ConstrainedLayout,
 )
 from .continuous_check import judged_against_shooting
-from .phases import BOUNDS_ALLOWED, NOISE_TARGET
+from .phases import BOUNDS_ALLOWED, NOISE_TARGET, canonical_sizes
 
 EPS = np.finfo(float).eps
 DEFAULT_MAX_ITER = 200
@@ -366,7 +372,7 @@ def _targets(request, grid: ConstrainedGrid, x, data: ConstrainedData) -> np.nda
     target = noise.copy()
     B = 2 * n + m
     body = noise[s["intervals"]].reshape(N - 1, B).max(axis=0)
-    body[:2 * n] = np.maximum(body[:2 * n], EPS * _canonical_sizes(request, grid.scheme, x))
+    body[:2 * n] = np.maximum(body[:2 * n], EPS * _sizes(request, grid, x))
     target[s["intervals"]] = np.tile(body, N - 1)
     first = s["start"].start
     target[first] = max(noise[first], t_size)
@@ -385,21 +391,16 @@ def _targets(request, grid: ConstrainedGrid, x, data: ConstrainedData) -> np.nda
     return NOISE_TARGET * np.maximum(target, np.finfo(float).tiny)
 
 
-def _canonical_sizes(request: GridRequest, scheme: Scheme, x) -> np.ndarray:
-    """``(2n,)``: the motion's size in each canonical row's units (``Scheme``'s ``row_units``:
-    the largest range of a position over the nodes for a position row, of a momentum for a
-    momentum row), as the unconstrained grid's verification (``fixed_ends``)."""
-    n = request.system.n
-    _, q, p, _ = ConstrainedLayout(n, request.system.n_constraints, request.nodes).unpack(x)
-    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
-    units = action_for(request.system, scheme).row_units
-    return np.repeat([ranges[units[0]], ranges[units[1]]], n)
+def _sizes(request: GridRequest, grid: ConstrainedGrid, x) -> np.ndarray:
+    """`phases.canonical_sizes` of the point ``x``."""
+    _, q, p, _ = grid.layout.unpack(x)
+    return canonical_sizes(request.system, grid.scheme, q, p)
 
 
 def _limits(request: GridRequest, grid: ConstrainedGrid, x, data: ConstrainedData) -> dict:
     """The largest residual of each kind the point may have, per column: ``tol`` relative to
     what the row measures, or ``BOUNDS_ALLOWED`` of its Newton target (`_targets`), whichever
-    is larger. A canonical row measures the motion's size in its units (`_canonical_sizes`);
+    is larger. A canonical row measures the motion's size in its units (`_sizes`);
     a constraint row ``|dg/dq| s_q``, how far ``g`` moves when the positions move by their
     ranges; the hidden constraint ``|dg/dq| v_q``, ``v_q`` the largest speed of each position
     read off the nodes; an energy row (unscaled) ``tol`` times the mean step times the rate at
@@ -423,7 +424,7 @@ def _limits(request: GridRequest, grid: ConstrainedGrid, x, data: ConstrainedDat
     tol = request.tol
     energy = BOUNDS_ALLOWED * float(targets[s["time"].start]) * data.energy_scale \
         if grid.scheme.variable_steps and N > 2 else 0.0
-    return {"canonical": np.maximum(tol * _canonical_sizes(request, grid.scheme, x),
+    return {"canonical": np.maximum(tol * _sizes(request, grid, x),
                                     BOUNDS_ALLOWED * body[:2 * n]),
             "g": np.maximum(tol * G @ np.ptp(q, axis=0), BOUNDS_ALLOWED * g_target),
             "hidden": np.maximum(tol * G @ np.nan_to_num(speed), BOUNDS_ALLOWED * body[2 * n:]),
@@ -437,18 +438,12 @@ def verify(request: GridRequest, scheme: Scheme, x: np.ndarray, stage: Stage):
     if not np.all(np.isfinite(x)):
         return Status.NON_FINITE, f"the solver returned non-finite values ({stage.quoted})", {}
     parts = grid.parts(x, data)
-    columns = _limits(request, grid, x, data)
-    rows = {"canonical": parts["interval"], "g": parts["g"], "hidden": parts["hidden"],
-            "energy": parts["energy"][:, None]}
-    worst, limits, over = {}, {}, {}
-    for key, values in rows.items():
-        column_worst = np.max(np.abs(values), axis=0, initial=0.0)
-        allowed = np.broadcast_to(np.asarray(columns[key], float), column_worst.shape)
-        j = int(np.argmax(column_worst / np.maximum(allowed, np.finfo(float).tiny))) \
-            if column_worst.size else 0
-        worst[key] = float(column_worst[j]) if column_worst.size else 0.0
-        limits[key] = float(allowed[j]) if column_worst.size else float(np.max(columns[key]))
-        over[key] = bool(column_worst.size and np.any(column_worst > allowed))
+    # the row of each kind furthest over (or nearest) its column's limit; a fixed-step grid
+    # has no energy rows: 0 against their limit
+    energy = parts["energy"] if parts["energy"].size else np.zeros(1)
+    worst, limits = worst_against({"canonical": parts["interval"], "g": parts["g"],
+                                   "hidden": parts["hidden"], "energy": energy},
+                                  _limits(request, grid, x, data))
     t = grid.layout.unpack(x)[0]
     tau = np.diff(t)
     problems = [f"step {int(np.argmin(tau))} is not positive: tau = {tau.min():.6g}"] \
@@ -456,7 +451,7 @@ def verify(request: GridRequest, scheme: Scheme, x: np.ndarray, stage: Stage):
     words = {"canonical": "interval residual", "g": "constraint |g|",
              "hidden": "hidden constraint", "energy": "energy residual"}
     for key, said in words.items():
-        if over[key] and (key != "energy" or scheme.variable_steps):
+        if worst[key] > limits[key] and (key != "energy" or scheme.variable_steps):
             problems.append(f"{said} {worst[key]:.3e} above its limit {limits[key]:.3e}")
     details = {"parts": parts, "limits": limits, "worst": worst}
     if not problems:

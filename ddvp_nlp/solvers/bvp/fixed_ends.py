@@ -78,6 +78,7 @@ from .phases import (
     BOUNDS_ALLOWED,
     Boundary,
     assembly,
+    canonical_sizes,
     ends,
     mean_step,
     row_round_offs,
@@ -369,9 +370,7 @@ def verification_limits(request: GridRequest, x: np.ndarray,
     z = x.reshape(N, 2 * n + 1)
     rows = row_round_offs(request, x, request.scheme, base=F)
     q, p = z[:, 1:n + 1], z[:, n + 1:]
-    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
-    units = equations.action_for(request.system, request.scheme).row_units
-    size = np.repeat([ranges[units[0]], ranges[units[1]]], n)
+    size = canonical_sizes(request.system, request.scheme, q, p)
     canonical = np.maximum(request.tol * size, BOUNDS_ALLOWED * rows.canonical)
     energy = max(request.tol * mean_step(request) * energy_rate(z[:, 0], z[:, 1:]),
                  BOUNDS_ALLOWED * rows.energy)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.linear import band_kernel
 from ..grid.newton import newton
@@ -140,6 +141,17 @@ def _pin_rows(spread: np.ndarray, x: np.ndarray, n: int, N: int, released: bool)
         targets.append(np.full(2, max(float(np.max(spread[pair])), column[1 + i])))
     own = np.concatenate(targets)
     return np.concatenate(rows), NOISE_TARGET * np.maximum(own, np.finfo(float).tiny)
+
+
+def canonical_sizes(system, scheme: Scheme, q: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``(2n,)``: the motion's size in each canonical row's units (``Scheme``'s ``row_units``:
+    the increment form has one block of positions and one of momenta, the discrete Legendre
+    transform two of momenta), the largest range of a position, or of a momentum, over the
+    nodes ``q``, ``p`` (``(N, n)``): what ``tol`` is relative to on every grid family's
+    canonical rows."""
+    ranges = {"q": float(np.max(np.ptp(q, axis=0))), "p": float(np.max(np.ptp(p, axis=0)))}
+    units = equations.action_for(system, scheme).row_units
+    return np.repeat([ranges[units[0]], ranges[units[1]]], np.shape(q)[1])
 
 
 def newton_targets(request: GridRequest, grid: GridAssembly, x, data: Ends) -> np.ndarray:

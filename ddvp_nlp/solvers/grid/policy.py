@@ -106,3 +106,20 @@ def failure_status(stage: Stage, tau: np.ndarray) -> Status:
     if tau.size and np.min(tau) <= 0:
         return Status.NO_ADMISSIBLE_STEP
     return Status.NOT_VERIFIED
+
+
+def worst_against(residuals: dict, limits: dict) -> tuple[dict, dict]:
+    """``(worst, limit)`` by kind of row: the residual of the row of each kind furthest over
+    (or nearest) its own limit, and that limit (``residuals``: arrays by kind, ``(rows, k)``
+    against limits of shape ``(k,)`` or a number)."""
+    worst, limit = {}, {}
+    for name, values in residuals.items():
+        values = np.abs(np.atleast_1d(np.asarray(values, float)))
+        bound = np.broadcast_to(np.asarray(limits[name], float), values.shape[-1:])
+        if not np.all(np.isfinite(values)):
+            worst[name], limit[name] = float("nan"), float(np.max(bound))
+            continue
+        per_column = np.max(values.reshape(-1, bound.size), axis=0)
+        j = int(np.argmax(per_column / bound))
+        worst[name], limit[name] = float(per_column[j]), float(bound[j])
+    return worst, limit

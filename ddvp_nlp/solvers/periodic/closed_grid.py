@@ -122,28 +122,11 @@ def closed_limits(grid, x: np.ndarray, closure, targets: np.ndarray, tol: float,
             "section": max(tol * span[closure.section_index], BOUNDS_ALLOWED * targets[1])}
 
 
-def worst_against(residuals: dict, limits: dict) -> tuple[dict, dict]:
-    """``(worst, limit)`` by kind of row: the residual of the row of each kind furthest over
-    (or nearest) its own limit, and that limit (``residuals``: arrays by kind, ``(rows, k)``
-    against limits of shape ``(k,)`` or a number)."""
-    worst, limit = {}, {}
-    for name, values in residuals.items():
-        values = np.abs(np.atleast_1d(np.asarray(values, float)))
-        bound = np.broadcast_to(np.asarray(limits[name], float), values.shape[-1:])
-        if not np.all(np.isfinite(values)):
-            worst[name], limit[name] = float("nan"), float(np.max(bound))
-            continue
-        per_column = np.max(values.reshape(-1, bound.size), axis=0)
-        j = int(np.argmax(per_column / bound))
-        worst[name], limit[name] = float(per_column[j]), float(bound[j])
-    return worst, limit
-
-
 def closed_verdict(result, worst: dict, limits: dict, tau: np.ndarray, note=None, *,
                    found: str = "periodic orbit"):
     """A closed grid's status and message from its largest residuals (``worst``, by row
-    family) against their ``limits`` (one per family: `worst_against`) and its steps ``tau``;
-    the solver's word is quoted, with ``note`` (the start's) after it."""
+    family) against their ``limits`` (one per family: `grid.policy.worst_against`) and its
+    steps ``tau``; the solver's word is quoted, with ``note`` (the start's) after it."""
     listed = ", ".join(f"{name} {value:.3e} (limit {limits[name]:.1e})"
                        for name, value in worst.items())
     said = result.outcome + (f"; {note}" if note else "")

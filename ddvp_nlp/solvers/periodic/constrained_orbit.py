@@ -59,7 +59,7 @@ from ..exact.constrained_flow import (
 from ..exact.flow import exact_flow
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
 from ..grid.motion_size import energy_rate, orbit_sizes
-from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
+from ..grid.policy import Attempt, Stage, solve_in_order, solver_order, worst_against
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
 from ..grid.round_off import row_noise
 from ..marching.constrained_start import consistent_start
@@ -71,7 +71,6 @@ from .closed_grid import (
     closed_newton,
     closed_verdict,
     integral_gradients,
-    worst_against,
 )
 from .constrained_closed import ConstrainedClosedGrid, ConstrainedClosure
 from .first_orbit import guess_nodes

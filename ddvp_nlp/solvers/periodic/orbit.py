@@ -101,7 +101,7 @@ from ..compiler import find_compiler
 from ..exact.closure import nearest_exact_orbit
 from ..grid.motion_size import orbit_sizes
 from ..grid.newton import newton
-from ..grid.policy import Attempt, Stage, solve_in_order, solver_order
+from ..grid.policy import Attempt, Stage, solve_in_order, solver_order, worst_against
 from ..grid.problem import GridRequest, check_energy_problem
 from ..options import GridOptions, answers_removed_keywords, coerce
 from .closed_grid import (
@@ -112,7 +112,6 @@ from .closed_grid import (
     closed_targets,
     closed_verdict,
     integral_gradients,
-    worst_against,
 )
 from .first_orbit import (
     NoMotion,
