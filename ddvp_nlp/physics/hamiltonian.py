@@ -303,6 +303,39 @@ def flow_time_scale(system: HamiltonianSystem, z, t: float, theta) -> float:
     return 1.0 / rate if rate > 0 else np.inf
 
 
+def symplectic_weights(system, z0, t0: float, theta) -> np.ndarray:
+    """``W = (a_1 .. a_n, 1/a_1 .. 1/a_n)``: a norm ``|W dz|`` of a state's change that does not
+    depend on the units of any coordinate or of time (the chaos indicators' tangent, the
+    growth of an orbit's flow, ``exact/segments.py``). ``a_i = r_i^(-1/2)``
+    with ``r_i`` the ratio of position to momentum the flow sets in degree of freedom ``i`` at
+    the start: ``sqrt(|H_pp,ii| / |H_qq,ii|)`` (the oscillation's amplitude ratio), or
+    ``T |H_pp,ii|`` where ``H`` is flat in ``q_i`` (``T`` the flow's time scale,
+    `physics.hamiltonian.flow_time_scale`), or ``1 / (T |H_qq,ii|)`` where it is flat in
+    ``p_i``. Each pair ``(q_i, p_i)`` is scaled by ``(a_i, 1/a_i)``, a symplectic map, so the
+    exponents still pair. With the plain norm the fast Lyapunov indicator of a Henon-Heiles
+    orbit was 2.76 in time units of 1 and 13.5 in time units of ``1e5`` (``ln 1e5`` more),
+    its MEGNO 1.58 and 2.06."""
+    n = system.n
+    z0 = np.asarray(z0, float)
+    _, A = flow_jacobian_function(system)(z0, t0, theta)
+    A = np.asarray(A, float)
+    mobility = np.abs(np.diagonal(A[:n, n:]))     # |H_pp,ii| = |dq_i'/dp_i|
+    stiffness = np.abs(np.diagonal(A[n:, :n]))    # |H_qq,ii| = |dp_i'/dq_i|
+    T = flow_time_scale(system, z0, t0, theta)
+    ratio = np.ones(n)
+    with np.errstate(all="ignore"):
+        both = (mobility > 0) & (stiffness > 0)
+        ratio[both] = np.sqrt(mobility[both] / stiffness[both])
+        if np.isfinite(T) and T > 0:
+            only_p = (mobility > 0) & ~(stiffness > 0)
+            only_q = ~(mobility > 0) & (stiffness > 0)
+            ratio[only_p] = T * mobility[only_p]
+            ratio[only_q] = 1.0 / (T * stiffness[only_q])
+    ratio = np.where(np.isfinite(ratio) & (ratio > 0), ratio, 1.0)
+    a = 1.0 / np.sqrt(ratio)
+    return np.concatenate([a, 1.0 / a])
+
+
 def separable_parts(system: HamiltonianSystem):
     """``(T_p, V_q)`` as functions if ``H = T(p) + V(q, t)``, else a reason string.
 

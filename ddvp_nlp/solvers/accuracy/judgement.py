@@ -414,11 +414,17 @@ class Level:
 
 
 def unjudged(t, z, tol: Tolerance) -> dict:
-    """The report of a run without a step (or with a non-finite node): nothing to measure."""
+    """The report of a run without a step, with a non-finite node, or whose node times do not
+    run one way (a grid solver's point with a step of length 0 or of the wrong sign is not a
+    trajectory): nothing to measure, and in the last two cases ``inaccurate``."""
     finite = bool(np.all(np.isfinite(z))) and bool(np.all(np.isfinite(t)))
     failure = None if finite else {"step": 0, "t": float(t[0]) if t.size else 0.0,
                                    "test": "finite nodes", "value": math.inf, "limit": 0.0}
-    return {"verdict": "accurate" if finite else "inaccurate", "first_failure": failure,
+    wrong = _wrong_step(t) if finite else None
+    if wrong is not None:
+        failure = {"step": wrong, "t": float(t[wrong]), "test": "node times run one way",
+                   "value": float(t[wrong + 1] - t[wrong]), "limit": 0.0}
+    return {"verdict": "accurate" if failure is None else "inaccurate", "first_failure": failure,
             "t_drift": None, "drift_step": None, "error_max": 0.0, "error_max_t": None,
             "estimate": "none (no step)", "reference_until": None, "reference_error": None,
             "reference_lost": None, "scale": None, "energy_scale": None,
@@ -427,6 +433,16 @@ def unjudged(t, z, tol: Tolerance) -> dict:
             "steps": max(t.size - 1, 0), "rtol": tol.rtol, "atol": tol.atol,
             "energy_tol": tol.energy_tol, "global_tol": tol.global_tol,
             "require_accurate": tol.require_accurate}
+
+
+def _wrong_step(t) -> int | None:
+    """The first step of ``t`` of length 0 or of the other sign than the first step's (the
+    times of a march run either way), or ``None``."""
+    steps = np.diff(np.asarray(t, float))
+    if not steps.size:
+        return None
+    wrong = np.flatnonzero(~(steps * np.sign(steps[0]) > 0))
+    return int(wrong[0]) if wrong.size else None
 
 
 class Judgement:
@@ -458,7 +474,8 @@ class Judgement:
         the exact flow)."""
         t, z = np.asarray(t, float), np.asarray(z, float)
         steps = t.size - 1
-        if steps < 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(t)):
+        if steps < 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(t)) or \
+                _wrong_step(t) is not None:
             return unjudged(t, z, self.tolerance), np.zeros(max(steps, 0))
         self.stop = stop
         trajectory = self._trajectory(t, z, exact)

@@ -422,7 +422,8 @@ class ShootingSteps(NaturalMonotonicity):
     def norm(self, F, weight) -> float:
         return np.linalg.norm(F)
 
-    def search(self, residual, problem, lu, x, dx, tau_floor, norm, weight, near_floor):
+    def search(self, residual, problem, lu, x, dx, tau_floor, norm, weight, near_floor,
+               unknowns=None):
         self.start = x
         scale = max(float(np.max(self.problem.p_size)), float(np.max(np.abs(x))))
         cap = min(1.0, scale / max(float(np.max(np.abs(dx))), np.finfo(float).tiny))

@@ -35,12 +35,13 @@ import numpy as np
 
 from ...cache import cached
 from ...physics import vector_field_function
+from ...physics.hamiltonian import symplectic_weights
 from ...solution import Status
 from ..exact.flow import AdaptiveFlow, exact_flow
 from ..exact.tolerance import EXACT_TOLERANCE
 from .indicators import ChaosIndicators
 from .spectrum import Spectrum
-from .tangent_march import start_tangent, tangent_weights
+from .tangent_march import start_tangent
 
 RTOL = EXACT_TOLERANCE.flow_rtol
 
@@ -48,7 +49,7 @@ RTOL = EXACT_TOLERANCE.flow_rtol
 def megno_field(system) -> ca.Function:
     """``(w, t, theta) -> w'`` for ``w = (z, v, L, S, M, W)`` (module docstring): ``v`` the
     tangent in the weighted coordinates ``W dz`` (the march's norm,
-    ``tangent_march.tangent_weights``), ``W`` carried unchanged."""
+    ``physics.hamiltonian.symplectic_weights``), ``W`` carried unchanged."""
     n2 = 2 * system.n
     w, t = ca.SX.sym("w", 3 * n2 + 3), ca.SX.sym("t")
     theta = ca.SX.sym("theta", system.theta.numel())
@@ -87,7 +88,7 @@ def exact_indicators(system, q0, p0, t_end: float, *, params=None, tangent0=None
     n2 = 2 * system.n
     theta = system.parameter_vector(params)
     z0 = np.concatenate([np.asarray(q0, float), np.asarray(p0, float)])
-    weights = tangent_weights(system, z0, 0.0, theta)
+    weights = symplectic_weights(system, z0, 0.0, theta)
     v0 = weights * start_tangent(system.n, tangent0, weights)[:, 0]  # unit in |W dz|
     flow = megno_flow(system, compiler, cache_dir)
     w = np.concatenate([z0, v0, np.zeros(3), weights])
@@ -144,7 +145,7 @@ def exact_spectrum(system, q0, p0, t_end: float, *, params=None, segment: float 
     def g(point):
         return np.asarray(gradient(point, theta)).ravel()
 
-    weights = tangent_weights(system, z, 0.0, theta)
+    weights = symplectic_weights(system, z, 0.0, theta)
     # the frame orthonormal in the weighted coordinates W dz (the march's norm), a covector
     # (grad H) taking 1 / W there
     Q = _energy_frame(weights * f(z), g(z) / weights) / weights[:, None]

@@ -4,7 +4,7 @@ and the largest Lyapunov exponent (and, on request, the full spectrum, ``spectru
 One synchronous tangent vector (``tangent.py``) is carried by the compiled chunk and
 renormalised every step; ``ell_k = ln(|w_{k+1}| / |w_k|)`` is its growth over step ``k``
 (``|w_0| = 1``). The norm is ``|W w|``, ``W`` a symplectic scaling of each pair ``(q_i,
-p_i)`` read off the flow at the start (``tangent_march.tangent_weights``), so that no
+p_i)`` read off the flow at the start (``physics.hamiltonian.symplectic_weights``), so that no
 indicator depends on the units of a coordinate or of time (with the plain norm a Henon-Heiles
 orbit's FLI in time units of ``1e5`` was ``ln 1e5`` above its FLI in units of 1). Times are
 counted from ``t_0``. The indicators at node ``N``:
@@ -126,7 +126,7 @@ def chaos_indicators(system, q0, p0, t_span, *, tau0: float, scheme: str | Schem
             ``t_end``.
         tangent0: the start's tangent ``dz_0`` (``2n`` numbers; default all ones in the
             weighted coordinates), normalised in the weighted norm
-            (``tangent_march.tangent_weights``: no coordinate's or time's units).
+            (``physics.hamiltonian.symplectic_weights``: no coordinate's or time's units).
         snapshots: times at which the indicators are also kept (`ChaosIndicators.snapshots`).
         spectrum: also the full spectrum on the fixed-level map (`lyapunov_spectrum`, a
             second march with ``2n`` vectors: the same nodes).

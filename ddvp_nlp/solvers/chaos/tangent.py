@@ -123,7 +123,7 @@ class TangentMap:
         """``(X, t_prev, t_mid, t_next, z_prev, z_mid, z_next, theta, drift, weights) -> (X',
         ell)``: ``vectors`` tangent states (``X`` stacked column by column) carried over one
         accepted step, renormalised on their ``observation`` weighted by ``weights``
-        (``tangent_march.tangent_weights``: ``|W w|``, the norm in no coordinate's units);
+        (``physics.hamiltonian.symplectic_weights``: ``|W w|``, the norm in no coordinate's units);
         ``ell`` the logs of the growth."""
         if observation not in OBSERVATIONS:
             raise InputError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")

@@ -15,7 +15,7 @@ import numpy as np
 from ...cache import cached
 from ...discrete.scheme import Scheme
 from ...errors import InputError
-from ...physics.hamiltonian import flow_jacobian_function, flow_time_scale
+from ...physics.hamiltonian import symplectic_weights
 from ...solution import Status
 from ..compiler import find_compiler
 from ..marching.initial_value import check_problem
@@ -33,7 +33,7 @@ class TangentMarch:
     problem: object
     newton: NewtonSteps
     chunk: TangentChunk
-    weights: np.ndarray  # the tangent norm's (`tangent_weights`)
+    weights: np.ndarray  # the tangent norm's (`physics.hamiltonian.symplectic_weights`)
 
     @classmethod
     def build(cls, system, q0, p0, t_span, *, tau0, scheme, params, steps, compilation,
@@ -57,7 +57,7 @@ class TangentMarch:
                                             observation=observation, chunk=compilation.chunk,
                                             compiler=compiler, cache_dir=cache_dir))
         newton = NewtonSteps(system, scheme, functions, problem.theta, problem.acceptance)
-        weights = tangent_weights(system, np.concatenate([problem.q0, problem.p0]), problem.t0,
+        weights = symplectic_weights(system, np.concatenate([problem.q0, problem.p0]), problem.t0,
                                   problem.theta)
         return cls(problem, newton, chunk, weights)
 
@@ -109,8 +109,8 @@ class TangentMarch:
 
 def start_tangent(n: int, tangent0, weights: np.ndarray | None = None) -> np.ndarray:
     """The start's tangent ``dz_0``, of unit length in the weighted norm ``|W dz|``
-    (`tangent_weights`; ``None``: the plain one): ``tangent0``, default all ones in the
-    weighted coordinates."""
+    (`physics.hamiltonian.symplectic_weights`; ``None``: the plain one): ``tangent0``, default
+    all ones in the weighted coordinates."""
     weights = np.ones(2 * n) if weights is None else np.asarray(weights, float)
     if tangent0 is None:
         return (np.full(2 * n, 1.0 / math.sqrt(2 * n)) / weights)[:, None]
@@ -121,33 +121,3 @@ def start_tangent(n: int, tangent0, weights: np.ndarray | None = None) -> np.nda
     return (v / np.linalg.norm(weights * v))[:, None]
 
 
-def tangent_weights(system, z0, t0: float, theta) -> np.ndarray:
-    """``W = (a_1 .. a_n, 1/a_1 .. 1/a_n)``: the tangent's norm is ``|W dz|``, so that the
-    indicators do not depend on the units of any coordinate or of time. ``a_i = r_i^(-1/2)``
-    with ``r_i`` the ratio of position to momentum the flow sets in degree of freedom ``i`` at
-    the start: ``sqrt(|H_pp,ii| / |H_qq,ii|)`` (the oscillation's amplitude ratio), or
-    ``T |H_pp,ii|`` where ``H`` is flat in ``q_i`` (``T`` the flow's time scale,
-    `physics.hamiltonian.flow_time_scale`), or ``1 / (T |H_qq,ii|)`` where it is flat in
-    ``p_i``. Each pair ``(q_i, p_i)`` is scaled by ``(a_i, 1/a_i)``, a symplectic map, so the
-    exponents still pair. With the plain norm the fast Lyapunov indicator of a Henon-Heiles
-    orbit was 2.76 in time units of 1 and 13.5 in time units of ``1e5`` (``ln 1e5`` more),
-    its MEGNO 1.58 and 2.06."""
-    n = system.n
-    z0 = np.asarray(z0, float)
-    _, A = flow_jacobian_function(system)(z0, t0, theta)
-    A = np.asarray(A, float)
-    mobility = np.abs(np.diagonal(A[:n, n:]))     # |H_pp,ii| = |dq_i'/dp_i|
-    stiffness = np.abs(np.diagonal(A[n:, :n]))    # |H_qq,ii| = |dp_i'/dq_i|
-    T = flow_time_scale(system, z0, t0, theta)
-    ratio = np.ones(n)
-    with np.errstate(all="ignore"):
-        both = (mobility > 0) & (stiffness > 0)
-        ratio[both] = np.sqrt(mobility[both] / stiffness[both])
-        if np.isfinite(T) and T > 0:
-            only_p = (mobility > 0) & ~(stiffness > 0)
-            only_q = ~(mobility > 0) & (stiffness > 0)
-            ratio[only_p] = T * mobility[only_p]
-            ratio[only_q] = 1.0 / (T * stiffness[only_q])
-    ratio = np.where(np.isfinite(ratio) & (ratio > 0), ratio, 1.0)
-    a = 1.0 / np.sqrt(ratio)
-    return np.concatenate([a, 1.0 / a])

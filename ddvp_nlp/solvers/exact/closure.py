@@ -35,7 +35,7 @@ from ...cache import cached
 from .flow_newton import exact_newton
 from .segments import GROWTH, exact_path, growth_cuts, starts_from_path
 from .tolerance import EXACT_TOLERANCE
-from .variational import RTOL, flow_with_derivatives
+from .variational import RTOL, flow_scales, flow_with_derivatives
 
 # Newton on the shooting equations: iterations, and the closure it stops at (relative to the
 # orbit's size, a few hundred of DOP853's rtol).
@@ -51,7 +51,8 @@ class ExactOrbit:
     ``start_return`` is the same measure of the start (the discrete orbit's node 0 after its
     own period), ``distance`` the largest ``|z_0 - z_0(start)|``, ``period_derivative`` the
     exact family's ``dT/dE``, ``error_bound`` Newton's bound of its own error (its last step,
-    relative to the orbit's size, the period or energy, and 1 for the unfolding)."""
+    relative to each coordinate's size, the period (or the energy's size) and the unfolding's
+    size, `_Shooting.unfolding_scale`)."""
 
     z0: np.ndarray
     period: float
@@ -69,12 +70,14 @@ class ExactOrbit:
     error_bound: float = np.inf
     cuts: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
     starts: np.ndarray | None = None
+    sizes: np.ndarray | None = None  # each coordinate's size (`variational.flow_scales`)
 
     def states(self, system, theta, times, rtol: float = RTOL) -> np.ndarray:
         """The exact orbit at ``times`` (from node 0's time, up to a little past the period),
         rows ``(q, p)``, from its segments' starts."""
         starts = self.z0[None, :] if self.starts is None else self.starts
-        return exact_path(system, theta, starts, self.cuts, self.period, times, rtol=rtol)
+        return exact_path(system, theta, starts, self.cuts, self.period, times, rtol=rtol,
+                          sizes=self.sizes)
 
     def as_dict(self) -> dict:
         return {"converged": self.converged, "period": self.period, "energy": self.energy,
@@ -97,11 +100,15 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
     ``section_index`` counts ``t`` as 0 (as the discrete layouts do), so
     ``z_0[section_index - 1]`` is fixed; the integrals' phase conditions are taken at the
     start's ``z_0``. It stops where every segment's continuity and the energy equation are
-    within ``CLOSURE_TARGET`` of their scales (the orbit's size, ``max(1, |E|)``), or where the
-    flow fails. The orbit's ``period_derivative`` (``dT/dE`` along the exact family, at fixed
-    section and phases) comes from the last Newton matrix. With ``fixed_period`` the period is
-    held and the energy is the unknown (``energy`` its start): regular through a fold in ``E``,
-    where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
+    within ``CLOSURE_TARGET`` of their scales, or where the flow fails: each coordinate's size
+    (`variational.flow_scales`, which also sets the flow's absolute tolerances) and the energy
+    ``H`` changes by over those sizes, ``|grad H(z_0)| . sizes``; the unfolding is an orbit of
+    the Hamiltonian flow's where its effect on the flow, ``|Y_u u|``, is within ``1e3 rtol`` of
+    the sizes. No scale is 1 or ``|z_0|``: the same orbit to the same share of its size in any
+    units and with the origin moved. The orbit's ``period_derivative`` (``dT/dE`` along the
+    exact family, at fixed section and phases) comes from the last Newton matrix. With
+    ``fixed_period`` the period is held and the energy is the unknown (``energy`` its start):
+    regular through a fold in ``E``, where ``dT/dE`` passes infinity and ``dE/dT`` zero."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
     reference = np.array(z0, float)
@@ -109,23 +116,25 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
     gradient = _gradients_function(system, integrals)
     generators = _generators(np.asarray(gradient(reference, theta))[:, 1:]) if r else \
         np.zeros((0, k))
+    sizes = flow_scales(system, theta, reference, period)
     cuts = growth_cuts(system, theta, reference, period, integrals=integrals, rtol=rtol,
-                       growth=growth)
+                       growth=growth, sizes=sizes)
     S = cuts.size - 1
     starts = starts_from_path(*path, cuts) if path is not None and S > 1 else \
-        _pilot_starts(system, theta, reference, period, cuts, rtol)
+        _pilot_starts(system, theta, reference, period, cuts, rtol, sizes)
     shooting = _Shooting(system, theta, integrals, gradient, generators, cuts, shift,
-                         section_index, section_value, reference, rtol, fixed_period)
-    scale = max(float(np.max(np.abs(reference))), 1.0)
+                         section_index, section_value, reference, rtol, fixed_period, sizes)
     level0 = energy if fixed_period else period
-    weights = np.r_[np.full(S * k, scale), max(1.0, abs(level0)), np.ones(1 + r)]
+    level_scale = shooting.energy_size(reference) if fixed_period else abs(float(period))
+    tiled = np.tile(sizes, S)
     result = exact_newton(
-        lambda x: shooting.evaluate(x, period, energy, scale),
+        lambda x: shooting.evaluate(x, period, energy),
         lambda _x, F, payload: np.linalg.solve(payload[1], -F),
         np.concatenate([starts.ravel(), [level0], np.zeros(1 + r)]),
-        size=lambda F: float(np.max(np.abs(F[:S * k]))) / scale,
+        size=lambda F: float(np.max(np.abs(F[:S * k]) / tiled)),
         converged=lambda _F, payload: payload[2], max_iterations=MAX_SHOOTING_ITERATIONS,
-        step_size=lambda dx: float(np.max(np.abs(dx) / weights)))
+        step_size=lambda dx: float(np.max(np.abs(dx) / np.r_[tiled, level_scale,
+                                                                 shooting.u_scale])))
     flows, rows, _ = result.payload
     z, u = result.x[:k], result.x[S * k + 1:]
     monodromy = np.eye(k)
@@ -142,23 +151,24 @@ def close_exact(system, theta, z0, period: float, *, energy: float, section_inde
         energy_row = np.zeros(S * k + 2 + r)
         energy_row[S * k] = 1.0
         period_derivative = float(np.linalg.solve(rows, energy_row)[S * k])
-    # an orbit of the Hamiltonian flow: the unfolding at the integrator's accuracy
-    converged = bool(result.converged and success and np.max(np.abs(u)) <= 1e3 * rtol)
+    # an orbit of the Hamiltonian flow: the unfolding's effect at the integrator's accuracy
+    converged = bool(result.converged and success
+                     and np.max(np.abs(u) / shooting.u_scale) <= 1e3 * rtol)
     history = shooting.history
     return ExactOrbit(z0=z, period=T, unfolding=u, monodromy=monodromy, field=flows[-1].field,
                       converged=converged, closure=history[-1], iterations=len(history) - 1,
                       start_return=history[0], distance=float(np.max(np.abs(z - z0))),
                       energy=float(energy), period_derivative=float(period_derivative),
                       history=history, error_bound=result.error_bound, cuts=cuts,
-                      starts=result.x[:S * k].reshape(S, k).copy())
+                      starts=result.x[:S * k].reshape(S, k).copy(), sizes=sizes)
 
 
-def _pilot_starts(system, theta, z0, period, cuts, rtol) -> np.ndarray:
+def _pilot_starts(system, theta, z0, period, cuts, rtol, sizes) -> np.ndarray:
     """The segments' starts from one run of the flow from ``z0`` (row 0 is ``z0``)."""
     if cuts.size == 2:
         return np.asarray(z0, float)[None, :]
     return exact_path(system, theta, np.asarray(z0, float)[None, :], np.array([0.0, 1.0]),
-                      period, cuts[:-1] * period, rtol=rtol)
+                      period, cuts[:-1] * period, rtol=rtol, sizes=sizes)
 
 
 class _Shooting:
@@ -167,22 +177,41 @@ class _Shooting:
     the orbit's size."""
 
     def __init__(self, system, theta, integrals, gradient, generators, cuts, shift,
-                 section_index, section_value, reference, rtol, fixed_period):
+                 section_index, section_value, reference, rtol, fixed_period, sizes):
         self.system, self.theta, self.integrals = system, theta, integrals
         self.gradient, self.generators, self.cuts = gradient, generators, cuts
         self.fractions = np.diff(cuts)
         self.shift, self.section_index, self.section_value = shift, section_index, section_value
         self.reference, self.rtol, self.fixed_period = reference, rtol, fixed_period
+        self.sizes = np.asarray(sizes, float)
         self.k = 2 * system.n
         self.history = []
+        # each unfolding parameter's size: the value whose effect on the flow over the period
+        # is each coordinate's size (`unfolding_scale`, set by every evaluation)
+        self.u_scale = np.ones(1 + len(integrals))
 
-    def evaluate(self, x, period, energy, scale):
+    def energy_size(self, z) -> float:
+        """What ``H`` changes by over the sizes at ``z``: ``|grad H(z)| . sizes``."""
+        grad = np.asarray(self.gradient(z, self.theta), float)[:, 0]
+        return max(float(np.abs(grad) @ self.sizes), np.finfo(float).tiny)
+
+    def unfolding_scale(self, flows) -> np.ndarray:
+        """Each unfolding parameter's size: ``1 / max_i |(Y_u)_i| / sizes_i`` over the
+        segments (``Y_u``: the flow's derivative in the parameter)."""
+        effect = np.max([np.max(np.abs(flow.unfolding) / self.sizes[:, None], axis=0)
+                         for flow in flows], axis=0)
+        with np.errstate(divide="ignore"):
+            scale = np.where(effect > 0, 1.0 / effect, np.inf)
+        return np.where(np.isfinite(scale), scale, self.u_scale)
+
+    def evaluate(self, x, period, energy):
         k, S = self.k, self.fractions.size
         starts, u = x[:S * k].reshape(S, k), x[S * k + 1:]
         T, level = (period, x[S * k]) if self.fixed_period else (x[S * k], energy)
         flows = [flow_with_derivatives(self.system, self.theta, starts[j],
                                        self.fractions[j] * T, integrals=self.integrals,
-                                       unfolding=u, rtol=self.rtol) for j in range(S)]
+                                       unfolding=u, rtol=self.rtol, sizes=self.sizes)
+                 for j in range(S)]
         following = np.vstack([starts[1:], starts[:1] + self.shift])
         closing = np.concatenate([flows[j].z - following[j] for j in range(S)])
         z = starts[0]
@@ -190,11 +219,13 @@ class _Shooting:
         H = float(self.system.energy(z[None, :n], z[None, n:], [0.0], self.theta)[0])
         F = np.concatenate([closing, [H - level, z[self.section_index - 1] - self.section_value],
                             self.generators @ (z - self.reference)])
-        self.history.append(float(np.max(np.abs(closing))) / scale)
+        self.history.append(float(np.max(np.abs(closing) / np.tile(self.sizes, S))))
         rows = self.matrix(flows, np.asarray(self.gradient(z, self.theta))[:, 0], T)
         closed = self.history[-1] <= CLOSURE_TARGET and \
-            abs(F[S * k]) <= CLOSURE_TARGET * max(1.0, abs(level))
+            abs(F[S * k]) <= CLOSURE_TARGET * self.energy_size(z)
         failed = not all(f.success for f in flows) or not np.all(np.isfinite(F))
+        if not failed:
+            self.u_scale = self.unfolding_scale(flows)
         return (None if failed and not closed else F), (flows, rows, closed)
 
     def period_column(self, flows) -> np.ndarray:

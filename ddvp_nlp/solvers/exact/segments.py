@@ -22,9 +22,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from ...physics.hamiltonian import symplectic_weights
 from .flow import exact_flow
 from .trajectory import concatenate
-from .variational import variational_flow
+from .variational import flow_scales, variational_flow
 
 # A segment ends where the flow has stretched something this much since its start.
 GROWTH = 10.0
@@ -33,16 +34,23 @@ MAX_SEGMENTS = 64
 
 
 def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float,
-                growth: float = GROWTH) -> np.ndarray:
+                growth: float = GROWTH, sizes=None) -> np.ndarray:
     """The cuts ``0 = s_0 < ... < s_S = 1`` (fractions of ``period``) of the orbit through
     ``z0`` where the flow has grown ``growth`` times since the last (module docstring);
-    ``[0, 1]`` where the pilot run fails or ``growth`` is infinite."""
+    ``[0, 1]`` where the pilot run fails or ``growth`` is infinite. The growth is measured in
+    the norm ``|W dz|`` (`physics.hamiltonian.symplectic_weights`), the same in any units of
+    length, momentum and time (in the plain norm, ``Y``'s blocks between positions and momenta
+    carry the time unit: Hill's Lyapunov orbit was cut into 5 segments in time units of 1 and
+    into 25 in time units of ``1e4``); ``sizes``: each coordinate's size for the pilot run's
+    tolerance (default `variational.flow_scales`)."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
     flow = variational_flow(system, integrals)
     z0 = np.asarray(z0, float)
-    size = max(float(np.max(np.abs(z0))), 1.0)
-    atol = np.concatenate([np.full(k, rtol * size), np.full(1 + r, rtol)])
+    if sizes is None:
+        sizes = flow_scales(system, theta, z0, period)
+    weights = symplectic_weights(system, z0, 0.0, np.asarray(theta, float))
+    atol = np.concatenate([rtol * np.asarray(sizes, float), np.full(1 + r, rtol)])
     with np.errstate(all="ignore"):
         run = flow.run(np.concatenate([z0, np.zeros(1 + r)]), 0.0, float(period),
                        np.asarray(theta, float), rtol=rtol, atol=atol)
@@ -58,7 +66,7 @@ def growth_cuts(system, theta, z0, period: float, *, integrals=(), rtol: float,
         Y = w[d:].reshape(d, d).T[:k, :k]
         if not np.all(np.isfinite(Y)):
             break
-        if np.linalg.norm(Y @ inverse, 2) >= growth:
+        if np.linalg.norm(weights[:, None] * (Y @ inverse) / weights[None, :], 2) >= growth:
             cuts.append(float(t) / float(period))
             inverse = -J @ Y.T @ J
     cuts = _spaced(np.asarray(cuts + [1.0]))
@@ -91,15 +99,18 @@ def starts_from_path(t, z, cuts: np.ndarray) -> np.ndarray:
 
 
 def exact_path(system, theta, starts: np.ndarray, cuts: np.ndarray, period: float, times,
-               *, rtol: float) -> np.ndarray:
+               *, rtol: float, sizes=None) -> np.ndarray:
     """The exact orbit from its segments' ``starts`` at ``times`` (from node 0's time, in
     ``[0, max(times)]``; the last segment runs on past the period where asked): rows
-    ``(q, p)``, from each segment's dense output."""
+    ``(q, p)``, from each segment's dense output, at ``rtol`` and ``atol = rtol sizes``
+    (default `variational.flow_scales` of the first start over the period)."""
     flow = exact_flow(system)
     times = np.asarray(times, float)
     ends = cuts * float(period)
     ends[-1] = max(ends[-1], float(np.max(times, initial=0.0)))
-    size = max(float(np.max(np.abs(starts))), 1.0)
+    if sizes is None:
+        sizes = flow_scales(system, theta, starts[0], period)
+    atol = rtol * np.asarray(sizes, float)
     parts = [flow.run(start, ends[j], ends[j + 1], np.asarray(theta, float), rtol=rtol,
-                      atol=rtol * size) for j, start in enumerate(starts)]
+                      atol=atol) for j, start in enumerate(starts)]
     return concatenate(parts).z(times)

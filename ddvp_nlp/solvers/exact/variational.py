@@ -23,11 +23,32 @@ import casadi as ca
 import numpy as np
 
 from ...cache import cached
+from ...physics.hamiltonian import flow_jacobian_function, symplectic_weights
 from .flow import AdaptiveFlow
 from .tolerance import EXACT_TOLERANCE
 
-# The references' relative tolerance (absolute: this times the start's largest component).
+# The references' relative tolerance (absolute: this times each coordinate's `flow_scales`).
 RTOL = EXACT_TOLERANCE.flow_rtol
+
+
+def flow_scales(system, theta, z0, duration: float) -> np.ndarray:
+    """Each coordinate's size on the motion through ``z0`` over ``duration`` (an orbit's
+    period, a transfer's time), ``(2n,)``: what the exact flow's absolute tolerances, an orbit's
+    closure and the unfolding's test are measured against. ``s / W_i``, with ``W`` the
+    symplectic weights (`physics.hamiltonian.symplectic_weights`: in ``W z`` every coordinate
+    has one unit) and ``s = |W f(z_0)|_inf |T| / (2 pi)`` (an oscillation of amplitude ``A``
+    moves at ``A omega`` and has period ``2 pi / omega``). Nothing is read off ``|z_0|`` (an
+    origin far away) and there is no floor of 1: the same sizes, each in its own units, in any
+    units of length, momentum or time and with the origin moved."""
+    z0 = np.asarray(z0, float)
+    theta = np.asarray(theta, float)
+    weights = symplectic_weights(system, z0, 0.0, theta)
+    f = np.asarray(flow_jacobian_function(system)(z0, 0.0, theta)[0], float).ravel()
+    with np.errstate(all="ignore"):
+        s = float(np.max(np.abs(weights * f))) * abs(float(duration)) / (2 * np.pi)
+    if not (np.isfinite(s) and s > 0):  # an equilibrium or a zero duration: relative alone
+        return np.full(z0.size, np.finfo(float).tiny)
+    return s / weights
 
 
 def _extended_field(system, integrals) -> ca.Function:
@@ -78,18 +99,20 @@ class Flow:
 
 
 def flow_with_derivatives(system, theta, z0, period: float, *, integrals=(), unfolding=None,
-                          rtol: float = RTOL, times=None) -> Flow:
+                          rtol: float = RTOL, times=None, sizes=None) -> Flow:
     """``phi_T(z_0; u)`` with its derivatives (module docstring) at ``rtol`` (and ``atol =
-    rtol`` times the largest ``|z_0|``, at least ``rtol``); with ``times`` (in ``[0, T]``) also
-    the states there (``path``, from the run's dense output)."""
+    rtol`` times each coordinate's size, ``sizes``, default `flow_scales` of ``z_0`` over
+    ``T``); with ``times`` (in ``[0, T]``) also the states there (``path``, from the run's
+    dense output)."""
     integrals = tuple(integrals)
     k, r = 2 * system.n, len(integrals)
     flow = variational_flow(system, integrals, dense=times is not None)
     u = np.zeros(1 + r) if unfolding is None else np.asarray(unfolding, float)
     z0 = np.asarray(z0, float)
     w0 = np.concatenate([z0, u])
-    size = max(float(np.max(np.abs(z0))), 1.0)
-    atol = np.concatenate([np.full(k, rtol * size), np.full(1 + r, rtol)])
+    if sizes is None:
+        sizes = flow_scales(system, theta, z0, period)
+    atol = np.concatenate([rtol * np.asarray(sizes, float), np.full(1 + r, rtol)])
     with np.errstate(all="ignore"):  # a diverging shooting iterate: non-finite, then refused
         run = flow.run(w0, 0.0, float(period), np.asarray(theta, float), rtol=rtol, atol=atol)
     path = None if times is None else run.z(np.asarray(times, float))[:, :k]

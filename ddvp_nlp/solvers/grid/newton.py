@@ -81,6 +81,20 @@ def _norm(v: np.ndarray, weight=None) -> float:
         return float(np.sqrt(np.einsum("i,i->", v, v)))
 
 
+def column_sizes(jacobian, target: np.ndarray) -> np.ndarray:
+    """Each unknown's size as the rows see it: ``1 / max_i |J_ij| / target_i``, the move of
+    unknown ``j`` that changes some row by its target (``jacobian``: scipy sparse). It carries
+    the unknown's units (``J_ij`` has the units of row ``i`` over those of unknown ``j``, the
+    target those of row ``i``), so a norm of ``dx`` weighted by its inverse is the same in any
+    units of length, momentum or time; an unknown no row depends on gets 1."""
+    A = abs(jacobian.tocsc())
+    reach = np.asarray(A.multiply(1.0 / np.asarray(target, float)[:, None]).max(axis=0)
+                       .todense()).ravel()
+    with np.errstate(divide="ignore"):
+        sizes = 1.0 / reach
+    return np.where(np.isfinite(sizes) & (sizes > 0), sizes, 1.0)
+
+
 class StepTest(Protocol):
     """What the line search asks of a step test, and which iterate the solve returns."""
 
@@ -89,8 +103,10 @@ class StepTest(Protocol):
     def norm(self, F, weight) -> float:
         """The residual norm the history records (and the test compares)."""
 
-    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight) -> bool:
-        """Whether ``x + alpha dx`` (residual ``F_trial``) is taken."""
+    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight,
+                unknowns=None) -> bool:
+        """Whether ``x + alpha dx`` (residual ``F_trial``) is taken; ``size``: ``|dx|`` in the
+        norm of the unknowns (``unknowns``: their weights, `newton`'s ``unknown_sizes``)."""
 
     def stalled(self, F, target, norm: float, iteration: int) -> tuple[str, bool]:
         """What happened, and whether it counts as converged, when no step passes."""
@@ -102,7 +118,7 @@ class StepTest(Protocol):
         """Whether ``x`` (residual ``F``) ends the iteration as converged."""
 
     def search(self, residual, problem, lu, x, dx, tau_floor: float, norm: float, weight,
-               near_floor: bool):
+               near_floor: bool, unknowns=None):
         """``(x_new, F_new, alpha)`` along ``dx``, or ``None`` if no step is taken."""
 
     def singular(self, iteration: int) -> str:
@@ -124,10 +140,10 @@ class NaturalMonotonicity:
         return bool(np.all(np.abs(F) <= target))
 
     def search(self, residual, problem, lu, x, dx, tau_floor: float, norm: float, weight,
-               near_floor: bool):
+               near_floor: bool, unknowns=None):
         """The backtracking line search of the module docstring (`_line_search`)."""
         return _line_search(residual, problem, lu, x, dx, tau_floor, self, norm, weight,
-                            near_floor)
+                            near_floor, unknowns)
 
     def singular(self, iteration: int) -> str:
         return f"singular Jacobian at iteration {iteration}"
@@ -138,8 +154,9 @@ class NaturalMonotonicity:
     def norm(self, F, weight) -> float:
         return _norm(F)
 
-    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight) -> bool:
-        correction = _norm(lu.solve(-F_trial))
+    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight,
+                unknowns=None) -> bool:
+        correction = _norm(lu.solve(-F_trial), unknowns)
         return bool(np.isfinite(correction) and correction <= (1 - alpha / 2) * size)
 
     def stalled(self, F, target, norm: float, iteration: int) -> tuple[str, bool]:
@@ -167,9 +184,10 @@ class DecreaseOrMonotonicity(NaturalMonotonicity):
     def norm(self, F, weight) -> float:
         return _norm(F, weight)
 
-    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight) -> bool:
+    def accepts(self, F_trial, lu, alpha: float, size: float, norm: float, weight,
+                unknowns=None) -> bool:
         return (_norm(F_trial, weight) <= (1 - 1e-4 * alpha) * norm
-                or _norm(lu.solve(-F_trial)) <= (1 - alpha / 2) * size)
+                or _norm(lu.solve(-F_trial), unknowns) <= (1 - alpha / 2) * size)
 
     def stalled(self, F, target, norm: float, iteration: int) -> tuple[str, bool]:
         return (f"stalled at iteration {iteration}: no step along the Newton direction "
@@ -195,7 +213,7 @@ class FullSteps(NaturalMonotonicity):
     ``max_iter`` iterations without convergence are a failure."""
 
     def search(self, residual, problem, lu, x, dx, tau_floor: float, norm: float, weight,
-               near_floor: bool):
+               near_floor: bool, unknowns=None):
         trial = x + dx
         F, _ = residual(trial, False)
         return trial, F, 1.0
@@ -213,7 +231,8 @@ def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
            tau_floor: float, max_iter: int = 50, linear: str = "auto",
            kernel: band.BandKernel | None = None, deadline: float | None = None,
            progress=None, test: StepTest = MONOTONICITY,
-           offset: np.ndarray | None = None, factor=None) -> GridResult:
+           offset: np.ndarray | None = None, factor=None,
+           unknown_sizes: str | None = None) -> GridResult:
     """Newton's method with safeguard and line search (module docstring) from ``x0``.
 
     Args:
@@ -231,6 +250,9 @@ def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
         factor: ``factor(J)``, the solve of ``F'(x) dx = -F`` from the problem's Jacobian ``J``
             (an object with ``solve(rhs)``, ``nan`` where it is singular); default the banded or
             sparse LU (`Factorization`) of ``linear`` and ``kernel``.
+        unknown_sizes: ``"columns"``: the step tests measure ``dx`` in units of each unknown's
+            size `column_sizes` read off the first Jacobian (then the monotonicity test is the
+            same in any units of the unknowns); ``None``: the plain 2-norm.
     """
     if factor is None:
         def factor(jacobian):
@@ -238,13 +260,13 @@ def newton(problem: GridProblem, x0: np.ndarray, data, target: np.ndarray, *,
     try:
         return _newton(problem, x0, data, target, tau_floor=tau_floor, max_iter=max_iter,
                        deadline=deadline, progress=progress, test=test, offset=offset,
-                       factor=factor)
+                       factor=factor, unknown_sizes=unknown_sizes)
     finally:
         problem.release()  # the band store (312 MB at N = 1e6): not kept by the cache
 
 
 def _newton(problem, x0, data, target, *, tau_floor, max_iter, deadline, progress, test, offset,
-            factor):
+            factor, unknown_sizes):
     def residual(x, jacobian):
         F, J = problem.evaluate(x, data, jacobian=jacobian)
         return (F if offset is None else F - offset), J
@@ -258,6 +280,7 @@ def _newton(problem, x0, data, target, *, tau_floor, max_iter, deadline, progres
         result.outcome = "the start has non-finite residuals"
         return result
     best = (norm, x, F)
+    unknowns = None  # the weights of the unknowns in the step tests' norm
     for iteration in range(1, max_iter + 1):
         result.last_iteration = iteration
         if test.converged(F, x, target):
@@ -275,13 +298,16 @@ def _newton(problem, x0, data, target, *, tau_floor, max_iter, deadline, progres
         # step is needed: a converged solve evaluates none (F is the same with and without J:
         # the grid contract's rule 3)
         F, J = residual(x, True)
+        if unknown_sizes == "columns" and unknowns is None:
+            unknowns = 1.0 / column_sizes(problem.sparse(J), target)
         lu = factor(J)
         dx = lu.solve(-F)
         if not np.all(np.isfinite(dx)):
             result.outcome = test.singular(iteration)
             return _ended(test, result, best, target, max_iter, norm)
         step = test.search(residual, problem, lu, x, dx, tau_floor, norm, weight,
-                           near_floor=bool(np.all(np.abs(F) <= FLOOR_FACTOR * target)))
+                           near_floor=bool(np.all(np.abs(F) <= FLOOR_FACTOR * target)),
+                           unknowns=unknowns)
         if step is None:
             result.outcome, result.converged = test.stalled(F, target, norm, iteration)
             return _ended(test, result, best, target, max_iter, norm)
@@ -310,16 +336,18 @@ def _ended(test, result: GridResult, best, target, max_iter: int, norm: float) -
     return result
 
 
-def _line_search(residual, problem, lu, x, dx, tau_floor, test, norm, weight, near_floor):
+def _line_search(residual, problem, lu, x, dx, tau_floor, test, norm, weight, near_floor,
+                 unknowns=None):
     """``(x_new, F_new, alpha)`` of the first ``alpha = a_0, a_0/2, ...`` that passes ``test``,
     with ``a_0 = min(1, 0.99 alpha_max)``; ``None`` if none down to ``SMALLEST_ALPHA``, or at
     once if the residual is already near its floor (below that, decreases are noise)."""
     alpha = min(1.0, 0.99 * largest_admissible_step(problem, x, dx, tau_floor))
-    size = _norm(dx)
+    size = _norm(dx, unknowns)
     while alpha >= SMALLEST_ALPHA:
         trial = x + alpha * dx
         F, _ = residual(trial, False)
-        if np.all(np.isfinite(F)) and test.accepts(F, lu, alpha, size, norm, weight):
+        if np.all(np.isfinite(F)) and test.accepts(F, lu, alpha, size, norm, weight,
+                                                   unknowns):
             return trial, F, alpha
         if near_floor:
             return None

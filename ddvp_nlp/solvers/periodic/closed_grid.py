@@ -48,7 +48,8 @@ def closed_newton(grid, x0, closure, request, target: np.ndarray):
     every row to its ``target`` (per row: `closed_targets`), within ``request``'s step floor,
     iterations and deadline; its outcome named ``newton: ...``."""
     result = newton(grid, x0, closure, target, tau_floor=request.tau_floor,
-                    max_iter=request.max_iter, linear="sparse", deadline=request.deadline)
+                    max_iter=request.max_iter, linear="sparse", deadline=request.deadline,
+                    unknown_sizes="columns")
     result.outcome = f"newton: {result.outcome}"
     return result
 

@@ -57,7 +57,7 @@ from ..exact.constrained_flow import (
     projection_function,
 )
 from ..exact.flow import exact_flow
-from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
+from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings, node_grid_sizes
 from ..grid.motion_size import energy_rate, orbit_sizes
 from ..grid.policy import Attempt, Stage, solve_in_order, solver_order, worst_against
 from ..grid.problem import GridRequest, GridResult, check_energy_problem
@@ -391,20 +391,25 @@ def _run(solver, request: GridRequest, grid, x0, closure, scale) -> GridResult:
     request.build_s += time.perf_counter() - began
     steps = request.intervals
     rows = grid.layout.size
+    _, jacobian = grid.evaluate(x0, closure, jacobian=True)
+    layout = grid.layout
+    sizes = node_grid_sizes(grid.sparse(jacobian), x0, layout.nodes, layout.width,
+                            1 + 2 * layout.n, steps)
     result = problem.solve(x0, p=closure.vector(),
                            lbg=np.r_[np.zeros(rows), np.full(steps, request.tau_floor)],
-                           ubg=np.r_[np.zeros(rows), np.full(steps, np.inf)])
+                           ubg=np.r_[np.zeros(rows), np.full(steps, np.inf)], sizes=sizes)
     result.outcome = f"ipopt: {result.outcome} after {result.iterations} iterations"
     return result
 
 
 def _ipopt(request, grid: ConstrainedClosedGrid, section_index: int) -> FeasibilityNlp:
-    """IPOPT on the same rows (objective 0, ``orbit_nlp.py``'s reasons), steps bounded below."""
+    """IPOPT on the same rows (objective 0, ``orbit_nlp.py``'s reasons), steps bounded below,
+    on the unknowns and rows divided by their sizes (`grid.ipopt.node_grid_sizes`)."""
     t = grid.x[:grid.layout.nodes * grid.layout.width:grid.layout.width]
     g = ca.vertcat(grid.rows_expression(section_index), t[1:] - t[:-1])
     settings = ipopt_settings(request.tol, request.max_iter, request.verbose,
                               request.remaining(), dict(DEFAULT_OPTIONS))
-    return FeasibilityNlp("constrained_periodic", grid.x, grid.P, g, settings)
+    return FeasibilityNlp("constrained_periodic", grid.x, grid.P, g, settings, scaled=True)
 
 
 def _solution(request: GridRequest, grid, result, closure, scale, started) -> Solution:

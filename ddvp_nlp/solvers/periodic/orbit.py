@@ -122,7 +122,7 @@ from .first_orbit import (
     section_point,
 )
 from .orbit_derivatives import check_derivatives, orbit_derivatives
-from .orbit_nlp import periodic_ipopt
+from .orbit_nlp import periodic_ipopt, scaled_sizes
 from .refinement import continue_in_nodes, node_levels
 
 # The defaults of GridOptions' None fields for this problem.
@@ -299,16 +299,20 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, targets, inte
     grid's Newton from IPOPT's point (`_polished`), as a ``GridResult``."""
     if name == "newton":
         return closed_newton(assembly, x0, closure, request, targets)
+    _, jacobian = assembly.evaluate(x0, closure, jacobian=True)
+    sizes = scaled_sizes(assembly.layout, assembly.sparse(jacobian), x0)
     began = time.perf_counter()  # the build (or the cache's answer) counts as build time
-    # IPOPT's tolerance is one number on rows of several units: never below the largest
-    # row's round-off (a decade up, so that nearby starts share the build)
-    floor = 10.0 ** np.ceil(np.log10(float(np.max(targets))))
+    # IPOPT works on the rows scaled by their sizes (`orbit_nlp.scaled_sizes`), and its
+    # tolerance is one number for all: never below the largest row's round-off in those
+    # units (a decade up, so that nearby starts share the build)
+    scaled = targets / sizes[1][:targets.size]
+    floor = 10.0 ** np.ceil(np.log10(float(np.max(scaled))))
     problem = periodic_ipopt(request.system, request.scheme, request.intervals, integrals,
                              request.data.index, tol=max(request.tol, floor),
                              max_iter=request.max_iter, verbose=request.verbose,
                              time_limit=request.remaining())
     request.build_s += time.perf_counter() - began
-    return _polished(problem.solve(x0, closure, request.tau_floor), request, assembly,
+    return _polished(problem.solve(x0, closure, request.tau_floor, sizes), request, assembly,
                      closure, targets)
 
 

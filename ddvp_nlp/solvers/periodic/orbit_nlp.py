@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from ...cache import PROBLEMS
-from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings
+from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings, node_grid_sizes
 from ..grid.problem import GridResult
 from .closed_grid import ClosedLayout, Closure, interval_rows
 
@@ -64,11 +64,13 @@ class PeriodicIpopt:
         settings = ipopt_settings(tol, max_iter, verbose, time_limit,
                                   {"ipopt.hessian_approximation": "exact", **DEFAULT_OPTIONS})
         parameters = ca.vertcat(theta, energy, value, reference, shift, ca.vec(generators))
-        self.problem = FeasibilityNlp("periodic", x, parameters, g, settings)
+        self.problem = FeasibilityNlp("periodic", x, parameters, g, settings, scaled=True)
 
-    def solve(self, x0: np.ndarray, closure: Closure, tau_floor: float) -> GridResult:
+    def solve(self, x0: np.ndarray, closure: Closure, tau_floor: float,
+              sizes: tuple[np.ndarray, np.ndarray]) -> GridResult:
         """IPOPT from ``x0`` (``converged`` is IPOPT's own success, the verification of
-        ``orbit.py`` comes after)."""
+        ``orbit.py`` comes after), in unknowns and rows scaled by their ``sizes``
+        (`scaled_sizes`)."""
         n = self.layout.n
         shift = np.broadcast_to(np.asarray(closure.shift, float), (2 * n,))
         reference = closure.reference if closure.reference.size else np.zeros(2 * n)
@@ -76,9 +78,19 @@ class PeriodicIpopt:
                                      reference, shift, np.ravel(closure.generators, "F")])
         lbg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, tau_floor)])
         ubg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, np.inf)])
-        result = self.problem.solve(x0, p=parameters, lbg=lbg, ubg=ubg)
+        d, r = sizes
+        result = self.problem.solve(x0, p=parameters, lbg=lbg, ubg=ubg, sizes=(d, r))
         result.outcome = f"ipopt: {result.outcome} after {result.iterations} iterations"
         return result
+
+
+def scaled_sizes(layout, jacobian, x0: np.ndarray):
+    """``(d, r)``: the sizes of the NLP's unknowns and rows (`grid.ipopt.node_grid_sizes`)
+    from the assembly's ``jacobian`` at ``x0`` (scipy sparse): each node's time by the period,
+    its ``q`` and ``p`` by their ranges, the unfolding by the rows; the step rows by the mean
+    step."""
+    return node_grid_sizes(jacobian, x0, layout.intervals + 1, layout.m, layout.m,
+                           layout.intervals)
 
 
 def periodic_ipopt(system, scheme, intervals: int, integrals, section_index: int, *,
