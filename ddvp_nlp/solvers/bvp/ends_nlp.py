@@ -28,6 +28,7 @@ pendulum at N = 1e3..1e5 (docs/benchmarks/bench_bvp.md).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from types import MappingProxyType
 
 import casadi as ca
@@ -83,6 +84,66 @@ def pinned_bounds(layout: NodeLayout, scheme: Scheme, ends: Ends):
     return lbx.ravel(), ubx.ravel()
 
 
+@dataclass(frozen=True)
+class EndScales:
+    """What IPOPT's unknowns and rows are divided by (`end_scales`): ``unknowns`` ``(m,)``,
+    each kind of a node's values ``(t, q_1.., p_1..)``; ``rows`` ``(m,)``, each kind of row of
+    node ``k + 1`` (interval ``k``'s ``2n`` canonical rows, then its energy row); ``steps``,
+    the rows ``(t_{k+1} - t_k) / h``."""
+
+    unknowns: np.ndarray
+    rows: np.ndarray
+    steps: float
+
+
+def end_scales(layout: NodeLayout, band: np.ndarray, sizes: np.ndarray,
+               energy_scale: float) -> EndScales:
+    """IPOPT's scales from the Jacobian at the start (``band``: LAPACK ``gbsv`` storage,
+    ``(3 w + 1, N m)``) and each kind of unknown's size (``sizes``, ``(m,)``: the span, each
+    coordinate's range; ``nan`` where the start has none, a momentum constant along a straight
+    line): a kind of row's size is the most its rows change when the sized unknowns move by
+    their sizes, ``max |J_ij| d_j``; an unsized kind of unknown's is the move that changes some
+    row by its size (`grid.ipopt.equilibrated_sizes`, by kind: one number per kind keeps the
+    scaling a table of ``m x (3 w + 1)`` factors on the band, no index per nonzero). The step
+    rows are divided by ``d_t / h``. Read off the motion alone, the scaled problem is the same
+    to round-off in any units of length, momentum and time: IPOPT on the raw rows, with one
+    absolute tolerance, ended ``not_verified`` on a swing in lengths of ``1e-8``, or in time
+    units of ``1e5``, and stopped at its straight-line start in lengths of ``1e-8`` with time
+    units of ``1e4`` (0 iterations)."""
+    n, N, m, w = layout.n, layout.nodes, layout.m, layout.bandwidth
+    B = 3 * w + 1
+    table = band.T.reshape(N, m, B)
+    kinds = row_kinds(layout)
+    first, last = n + 1, n + 1 + (N - 1) * m  # the body rows; the last energy row is a pin
+    reach = np.zeros((m, B))
+    inner = slice(min(N, -(-(2 * w + n + 1) // m) + 1), max(0, N - w // m - 3))
+    if inner.stop > inner.start:
+        reach = np.max(np.abs(table[inner]), axis=0)
+    offsets = np.arange(m)[:, None] + np.arange(B)[None, :] - 2 * w
+    for node in [*range(0, min(N, inner.start)), *range(max(inner.stop, inner.start), N)]:
+        row = node * m + offsets
+        body = (row >= first) & (row < last) & (row != last - 1)
+        reach = np.maximum(reach, np.where(body, np.abs(table[node]), 0.0))
+    d = np.asarray(sizes, float).copy()
+    known = np.isfinite(d) & (d > 0)
+    rows = np.zeros(m)
+    np.maximum.at(rows, kinds.ravel(), (reach * np.where(known, d, 0.0)[:, None]).ravel())
+    rows = np.where(rows > 0, rows, np.finfo(float).tiny)
+    with np.errstate(divide="ignore"):
+        moved = np.max(reach / rows[kinds], axis=1)
+        d = np.where(known, d, np.where(moved > 0, 1.0 / moved, np.nan))
+    d = np.where(np.isfinite(d) & (d > 0), d, np.nanmax(np.where(known, d, np.nan)))
+    return EndScales(d, rows, float(d[0] / energy_scale))
+
+
+def row_kinds(layout: NodeLayout) -> np.ndarray:
+    """``(m, 3 w + 1)``: the kind (`EndScales.rows`) of the row of each entry of the band's
+    table ``(node, kind of unknown, offset)``."""
+    n, m, w = layout.n, layout.m, layout.bandwidth
+    offsets = np.arange(m)[:, None] + np.arange(3 * w + 1)[None, :] - 2 * w
+    return (offsets - n - 1) % m
+
+
 def _sparsity(rows: np.ndarray, columns: np.ndarray, shape):
     """CasADi sparsity and the CSC order of the entries ``(rows, columns)`` (no duplicates).
 
@@ -92,6 +153,11 @@ def _sparsity(rows: np.ndarray, columns: np.ndarray, shape):
     colind = np.zeros(shape[1] + 1, dtype=np.int64)
     np.cumsum(np.bincount(columns, minlength=shape[1]), out=colind[1:])
     return ca.Sparsity(shape[0], shape[1], colind.tolist(), rows[order].tolist()), order
+
+
+def _small(index: np.ndarray, size: int) -> np.ndarray:
+    """``index`` into a table of ``size`` entries in the narrowest integers that hold it."""
+    return index.astype(np.int16 if size < 2 ** 15 else np.int32)
 
 
 def _narrow(index: np.ndarray) -> np.ndarray:
@@ -140,6 +206,28 @@ class GridNlp:
         self._jacobian_pattern(pinned)
         self._hessian_pattern()
         self._last = None
+        self.scales: EndScales | None = None  # set for each solve (`scale`)
+        self._band_kind = self._hessian_kind = None
+
+    def scale(self, scales: EndScales) -> None:
+        """IPOPT sees ``x / d`` and each row divided by its size (`end_scales`) from now on:
+        the unknowns' vector ``d`` over the grid, the rows', and the factors of the band's
+        and the Hessian store's entries."""
+        n, N, m, w = self.layout.n, self.layout.nodes, self.layout.m, self.layout.bandwidth
+        d, rows = scales.unknowns, scales.rows
+        self.scales = scales
+        self.x_sizes = np.tile(d, N)
+        self.row_sizes = np.concatenate([rows[(self.kept - n - 1) % m],
+                                         np.full(self.ng - self.kept.size, scales.steps)])
+        self._band_factors = (d[:, None] / rows[row_kinds(self.layout)]).ravel()
+        dd = np.arange(3 * m)
+        self._hessian_factors = (d[:, None] * d[(np.arange(m)[:, None] + dd) % m]).ravel()
+        if self._band_kind is None:  # each nonzero's entry in those tables, built once
+            source, B = self._band_source, 3 * w + 1
+            self._band_kind = _small((source // B % m) * B + source % B, m * B)
+            source = self._hessian_source
+            self._hessian_kind = _small((source // (3 * m) % m) * 3 * m + source % (3 * m),
+                                        3 * m * m)
 
     # --- patterns, built once -------------------------------------------------------------
 
@@ -237,22 +325,35 @@ class GridNlp:
         return F[self.kept]
 
     def g(self, x, parameters, out):
+        x = self._unscaled(x)
         out[:self.kept.size] = self._rows(x, parameters)
         if self.steps:
             out[self.kept.size:] = np.diff(x[::self.layout.m]) / parameters[self.n_theta]
+        if self.scales is not None:
+            out /= self.row_sizes
 
     def jacobian(self, x, parameters, out):
+        x = self._unscaled(x)
         _, blocks = self._evaluate(x, parameters)
         band = self.grid.banded(blocks).T.ravel()
         out[self._band_target] = band[self._band_source]
         out[self._constant_target] = self._constants / parameters[self.n_theta]
+        if self.scales is not None:  # diag(1 / r) J diag(d), by the kinds of row and unknown
+            out[self._band_target] *= self._band_factors[self._band_kind]
+            out[self._constant_target] *= self.scales.unknowns[0] / self.scales.steps
+
+    def _unscaled(self, x):
+        return x if self.scales is None else x * self.x_sizes
 
     def hessian(self, x, parameters, lam_g, out):
+        x = self._unscaled(x)
         n, N, m = self.layout.n, self.layout.nodes, self.layout.m
         z = np.ascontiguousarray(x).reshape(N, m)
         theta = np.ascontiguousarray(parameters[:self.n_theta])
         lam = np.zeros(N * m)
         lam[self.kept] = lam_g[:self.kept.size]
+        if self.scales is not None:  # the scaled rows' multipliers on the raw rows
+            lam[self.kept] /= self.row_sizes[:self.kept.size]
         body = lam[n + 1:n + 1 + (N - 1) * m].reshape(N - 1, m)
         interval, node = self._hessians
         values = [None, None]
@@ -263,6 +364,8 @@ class GridNlp:
             mu = np.ascontiguousarray(body[:-1, 2 * n:]) / parameters[self.n_theta]
             values[1] = node[0]([z[:-2], z[1:-1], z[2:], mu], theta, N - 2)[0]
         out[:] = self._hessian_band(values).ravel()[self._hessian_source]
+        if self.scales is not None:  # diag(d) H diag(d)
+            out *= self._hessian_factors[self._hessian_kind]
 
 
 class _Callback(ca.Callback):
@@ -337,13 +440,20 @@ class BvpIpopt:
                          "calc_lam_p": False})
         self.problem = FeasibilityNlp("bvp_grid", x, p, g(x, p), settings)
 
-    def solve(self, x0: np.ndarray, ends: Ends, tau_floor: float) -> GridResult:
-        """IPOPT from ``x0``, in the fields of a `GridResult`."""
+    def solve(self, x0: np.ndarray, ends: Ends, tau_floor: float,
+              scales: EndScales) -> GridResult:
+        """IPOPT from ``x0`` on the unknowns and rows divided by ``scales`` (`end_scales`), in
+        the fields of a `GridResult` (its point in the raw unknowns)."""
+        nlp = self.nlp
+        nlp.scale(scales)
         lbx, ubx = pinned_bounds(self.layout, self.scheme, ends)
-        steps = self.nlp.ng - self.nlp.kept.size
-        lbg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]
-        ubg = np.r_[np.zeros(self.nlp.kept.size), np.full(steps, np.inf)]
-        result = self.problem.solve(x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
+        steps = nlp.ng - nlp.kept.size
+        lbg = np.r_[np.zeros(nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]
+        ubg = np.r_[np.zeros(nlp.kept.size), np.full(steps, np.inf)]
+        result = self.problem.solve(x0 / nlp.x_sizes, lbx=lbx / nlp.x_sizes,
+                                    ubx=ubx / nlp.x_sizes, lbg=lbg / nlp.row_sizes,
+                                    ubg=ubg / nlp.row_sizes,
                                     p=np.concatenate([ends.theta, [ends.energy_scale]]))
-        self.nlp.forget()  # the last point's blocks: O(N) memory the cached problem need not hold
+        result.x = result.x * nlp.x_sizes
+        nlp.forget()  # the last point's blocks: O(N) memory the cached problem need not hold
         return result

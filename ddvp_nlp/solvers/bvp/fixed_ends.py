@@ -16,10 +16,11 @@ bandwidth ``3n + 1`` whatever ``N``. Two solvers take it:
   ``tau_floor`` safeguard (``grid/newton.py``; blocks compiled, band LU in C, ``grid/band.py``):
   ``O(N)`` time and memory per iteration;
 - ``"ipopt"``: IPOPT on the same assembly through callbacks (``ends_nlp.py``, the grid's IPOPT
-  build), the design's NLP solver. Its tolerance on the released times is the rows' round-off
-  where that is above ``1e-2 tol`` (``phase.ipopt_floor``: the energy rows divided by the mean
-  step carry ``eps |E| / h``, 1e-11 at N = 1e6), and it is not run from a start that already
-  passes the verification (the start phases' own point, at large N);
+  build), the design's NLP solver, on the unknowns and rows divided by their sizes
+  (``phases.ipopt_scales``: the same iterations in any units). Its tolerance on the released
+  times is the scaled rows' round-off where that is above ``1e-2 tol``, and it is not run
+  from a start that already passes the verification (the start phases' own point, at large
+  N);
 - ``"auto"`` (default): Newton, 6-80x faster on the benchmark (``docs/benchmarks/bench_bvp.md``),
   then IPOPT from the same start if Newton's point does not pass the verification.
 

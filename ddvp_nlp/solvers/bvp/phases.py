@@ -24,7 +24,7 @@ from ..grid.newton import newton
 from ..grid.policy import Stage
 from ..grid.problem import GridRequest
 from ..grid.round_off import row_noise
-from .ends_nlp import BvpIpopt
+from .ends_nlp import BvpIpopt, end_scales
 from .interleaved import Ends, GridAssembly
 
 EPS = np.finfo(float).eps
@@ -191,27 +191,40 @@ def run_phase(request: GridRequest, scheme: Scheme, x0: np.ndarray, name: str, s
     return x, stage
 
 
-def ipopt_floor(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends) -> float:
-    """The round-off of the rows IPOPT sees near ``x``, the largest of Newton's targets
-    (`row_round_offs`: the canonical rows' and, for energy rules, the energy rows' divided by
-    the energy scale, the mean step; 1e-11 at N = 1e6 on the pendulum), rounded up to two
-    digits so that nearby starts share a built problem."""
-    rows = row_round_offs(request, x, scheme, data=data)
-    floor = max(float(np.max(rows.canonical, initial=0.0)), rows.pins,
-                rows.energy / data.energy_scale, np.finfo(float).tiny)
+def ipopt_scales(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends):
+    """``(scales, floor)``: what IPOPT's unknowns and rows are divided by
+    (`ends_nlp.end_scales`: the span and each coordinate's range over the nodes ``x``, the
+    rows' sizes read off the Jacobian there) and the round-off of the scaled rows near ``x``,
+    the largest of Newton's targets over its row's size (`row_round_offs`), rounded up to two
+    digits so that nearby starts share a built problem: IPOPT's tolerance is one number for
+    every row, so it is only the same in any units on rows of one scale."""
+    grid = assembly(request, scheme)
+    n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
+    z = np.asarray(x, float).reshape(N, m)
+    ranges = np.ptp(z, axis=0)
+    sizes = np.where(ranges > 0, ranges, np.nan)
+    _, blocks = grid.evaluate(x, data, jacobian=True)
+    scales = end_scales(grid.layout, grid.banded(blocks), sizes, data.energy_scale)
+    grid.release()
+    rows = row_round_offs(request, x, scheme, grid, data)
+    scaled = np.asarray(rows.canonical, float) / scales.rows[:2 * n]
+    floor = float(np.max(scaled, initial=0.0))
+    if scheme.variable_steps:
+        floor = max(floor, rows.energy / data.energy_scale / scales.rows[2 * n])
+    floor = max(floor, np.finfo(float).tiny)
     digits = 10.0 ** (np.floor(np.log10(floor)) - 1)
-    return float(np.ceil(floor / digits) * digits)
+    return scales, float(np.ceil(floor / digits) * digits)
 
 
 def _ipopt(request: GridRequest, scheme: Scheme, x0: np.ndarray, data: Ends):
-    """IPOPT's solve of the system of ``scheme`` from ``x0``: the request's own system to
-    ``tol`` (but not below the rows' round-off, `ipopt_floor`), a start phase to that
-    round-off. Before a released problem is built the fixed-step ones are
-    dropped from the cache: at N = 1e6 the fixed-step one held about 3 GB while the released
-    one was built (measured)."""
+    """IPOPT's solve of the system of ``scheme`` from ``x0``, on unknowns and rows scaled by
+    their sizes (`ipopt_scales`): the request's own system to ``tol`` (but not below the rows'
+    round-off), a start phase to that round-off. Before a released problem is built the
+    fixed-step ones are dropped from the cache: at N = 1e6 the fixed-step one held about 3 GB
+    while the released one was built (measured)."""
     remaining = request.remaining()
     compilation = request.compilation
-    floor = ipopt_floor(request, x0, scheme, data)
+    scales, floor = ipopt_scales(request, x0, scheme, data)
     # A start phase (another scheme than the request's: fixed steps) ends where Newton's does,
     # at its rows' round-off: at 1e-2 tol = 1e-11 IPOPT took the predicted times' start as it
     # came at N = 1e6 (0 iterations), the released rows were then 2.5e-12 off, above the
@@ -226,7 +239,7 @@ def _ipopt(request: GridRequest, scheme: Scheme, x0: np.ndarray, data: Ends):
                                              verbose=request.verbose or request.progress,
                                              time_limit=remaining, compilation=compilation,
                                              floor=floor))
-    return problem.solve(x0, data, request.tau_floor)
+    return problem.solve(x0, data, request.tau_floor, scales)
 
 
 def _reporter(name: str):

@@ -136,7 +136,10 @@ def test_unreachable_endpoints_end_with_a_status_and_residuals(rule, solver):
     assert solution.status in (Status.SOLVER_FAILED, Status.NOT_VERIFIED,
                                Status.NO_ADMISSIBLE_STEP, Status.INACCURATE)
     assert solution.t.size == M + 1 and solution.q.shape == (M + 1, 1)
-    assert solution.ends.canonical_residual_max > 1e-3
+    # no point holds every row: the canonical or, with released times, the energy rows stay
+    # off (IPOPT on the scaled rows ends "Infeasible_Problem_Detected" with the energy rows off)
+    assert max(solution.ends.canonical_residual_max,
+               solution.ends.energy_residual_max or 0.0) > 1e-3
     assert solution.canonical_residual.shape == (M,)
 
 

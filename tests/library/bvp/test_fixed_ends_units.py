@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ddvp_nlp import HamiltonianSystem, solve_bvp
+from ddvp_nlp import GridOptions, HamiltonianSystem, solve_bvp
 
 NODES = 200
 SPAN = 5.0
@@ -61,3 +61,32 @@ def test_a_shifted_clock_or_origin_gives_the_same_nodes(reference, t0, q0):
     assert np.max(np.abs(other.t - t0 - reference.t)) <= 1e-10 * magnitude * SPAN
     assert np.max(np.abs(other.q - q0 - reference.q)) <= 1e-10 * magnitude * np.ptp(reference.q)
     assert np.max(np.abs(other.p - reference.p)) <= 1e-10 * magnitude * np.ptp(reference.p)
+
+
+def solved_by_ipopt(length: float, time: float):
+    return solve_bvp(swing(length, time), [0.5 * length], [0.3 * length],
+                     (0.0, SPAN * time), nodes=NODES, options=GridOptions(solver="ipopt"))
+
+
+@pytest.fixture(scope="module")
+def ipopt_reference():
+    return solved_by_ipopt(1.0, 1.0)
+
+
+@pytest.mark.slow_when(lambda length, time: length == 1e6, why="repetition")
+@pytest.mark.parametrize("length, time", [(1e-8, 1e4), (1e6, 1e-3)])
+def test_ipopt_takes_the_same_iterations_in_other_units(ipopt_reference, length, time):
+    """IPOPT works on the unknowns and rows divided by their sizes (``phases.ipopt_scales``):
+    the same iterations in every phase and the same nodes in any units. On the raw rows, with
+    one absolute tolerance, it ended ``not_verified`` in lengths of ``1e-8`` or time units of
+    ``1e5``, ``solver_failed`` after 200 iterations in lengths of ``1e6`` and time units of
+    ``1e-3``, and took the straight line as solved (0 iterations) in lengths of ``1e-8`` and
+    time units of ``1e4``."""
+    reference, other = ipopt_reference, solved_by_ipopt(length, time)
+    assert reference.success and other.success, other.message
+    assert [stage.iterations for stage in other.ends.stages] == \
+        [stage.iterations for stage in reference.ends.stages]
+    assert all(stage.solver == "ipopt" for stage in other.ends.stages)
+    assert np.max(np.abs(other.t / time - reference.t)) <= 1e-10 * SPAN
+    assert np.max(np.abs(other.q / length - reference.q)) <= 1e-10 * np.ptp(reference.q)
+    assert np.max(np.abs(other.p * time / length - reference.p)) <= 1e-10 * np.ptp(reference.p)

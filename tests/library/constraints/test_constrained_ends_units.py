@@ -116,3 +116,26 @@ def test_an_unsolved_point_is_refused_in_small_units():
                     options=GridOptions(max_iter=1, solver="newton"))
     assert run.status is not Status.SUCCESS, run.message
     assert "above its limit" in run.message
+
+
+def solved_by_ipopt(length: float, time: float):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return solve_bvp(pendulum(length, time), point(ANGLES[0], length),
+                         point(ANGLES[1], length), (0.0, SPAN * time), nodes=NODES,
+                         scheme="vddvp", options=GridOptions(solver="ipopt"))
+
+
+@pytest.mark.slow_when(lambda length, time: length == 1e6, why="repetition")
+@pytest.mark.parametrize("length, time", [(1e-8, 1e4), (1e6, 1e-3)])
+def test_ipopt_takes_the_same_iterations_in_other_units(length, time):
+    """IPOPT on the unknowns and rows divided by their sizes (``ConstrainedIpopt.sizes``):
+    the same iterations and nodes in any units. On the raw rows it ended ``not_verified`` in
+    lengths of ``1e-8`` with time units of ``1e4`` (1 iteration) and ``solver_failed`` in
+    lengths of ``1e6`` with time units of ``1e-3`` (200 iterations)."""
+    base, other = solved_by_ipopt(1.0, 1.0), solved_by_ipopt(length, time)
+    assert base.status is Status.SUCCESS and other.status is Status.SUCCESS, other.message
+    assert [s.iterations for s in other.ends.stages] == [s.iterations for s in base.ends.stages]
+    assert np.max(np.abs(other.t / time - base.t)) <= 1e-10 * SPAN
+    assert np.max(np.abs(other.q / length - base.q)) <= 1e-10
+    assert np.max(np.abs(other.p * time / length - base.p)) <= 1e-10 * np.ptp(base.p)

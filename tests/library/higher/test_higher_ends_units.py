@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ddvp_nlp import HigherOrderSystem
+from ddvp_nlp import GridOptions, HigherOrderSystem
 from ddvp_nlp.solvers.higher.stepping import solve_bvp_higher
 
 T_START, T_STOP = np.array([0.0, 0.1]), np.array([3.0, 3.1])
@@ -64,3 +64,23 @@ def test_a_lagrangian_in_other_units_of_energy_and_an_offset_origin():
 @given(length=st.floats(-9, 9), time=st.floats(-3, 3))
 def test_drawn_units(length, time):
     assert_same("vddvp", 10.0 ** length, 10.0 ** time)
+
+
+def solved_by_ipopt(scheme: str, length=1.0, time=1.0):
+    return solve_bvp_higher(pais_uhlenbeck(length, time), T_START * time,
+                            (length * np.cos(T_START))[:, None], T_STOP * time,
+                            (length * np.cos(T_STOP))[:, None], nodes=41, scheme=scheme,
+                            options=GridOptions(solver="ipopt"))
+
+
+@pytest.mark.parametrize("scheme, length, time", [("fixed", 1e6, 1e-3), ("vddvp", 1e-8, 1.0)])
+def test_ipopt_finds_the_same_grid_in_other_units(scheme, length, time):
+    """IPOPT on the unknowns and rows divided by their sizes (``window_nlp._sizes``). On the
+    raw rows the fixed-step problem was ``not_verified`` in lengths of ``1e6`` with time units
+    of ``1e-3`` and the energy rule ``solver_failed`` in lengths of ``1e-8``; units of 1 solve
+    both (the energy rule's grid at 41 nodes is ``inaccurate``, in every unit system alike)."""
+    base, other = solved_by_ipopt(scheme), solved_by_ipopt(scheme, length, time)
+    assert other.status is base.status, other.message
+    assert other.verdict.name == base.verdict.name
+    assert np.max(np.abs(other.t / time - base.t)) <= 1e-10 * T_STOP[-1]
+    assert np.max(np.abs(other.q / length - base.q)) <= 1e-10
