@@ -117,8 +117,9 @@ def end_scales(layout: NodeLayout, band: np.ndarray, sizes: np.ndarray,
     first, last = n + 1, n + 1 + (N - 1) * m  # the body rows; the last energy row is a pin
     reach = np.zeros((m, B))
     inner = slice(min(N, -(-(2 * w + n + 1) // m) + 1), max(0, N - w // m - 3))
-    if inner.stop > inner.start:
-        reach = np.max(np.abs(table[inner]), axis=0)
+    for first in range(inner.start, inner.stop, CHUNK_NODES):  # no copy of the whole band
+        chunk = table[first:min(first + CHUNK_NODES, inner.stop)]
+        reach = np.maximum(reach, np.max(np.abs(chunk), axis=0))
     offsets = np.arange(m)[:, None] + np.arange(B)[None, :] - 2 * w
     for node in [*range(0, min(N, inner.start)), *range(max(inner.stop, inner.start), N)]:
         row = node * m + offsets
@@ -134,6 +135,11 @@ def end_scales(layout: NodeLayout, band: np.ndarray, sizes: np.ndarray,
         d = np.where(known, d, np.where(moved > 0, 1.0 / moved, np.nan))
     d = np.where(np.isfinite(d) & (d > 0), d, np.nanmax(np.where(known, d, np.nan)))
     return EndScales(d, rows, float(d[0] / energy_scale))
+
+
+# Nodes of the band read at a time for the scales (`end_scales`): the band of 1e6 nodes is
+# 0.4 GB, and its absolute value at once was another.
+CHUNK_NODES = 65536
 
 
 def row_kinds(layout: NodeLayout) -> np.ndarray:
@@ -153,11 +159,6 @@ def _sparsity(rows: np.ndarray, columns: np.ndarray, shape):
     colind = np.zeros(shape[1] + 1, dtype=np.int64)
     np.cumsum(np.bincount(columns, minlength=shape[1]), out=colind[1:])
     return ca.Sparsity(shape[0], shape[1], colind.tolist(), rows[order].tolist()), order
-
-
-def _small(index: np.ndarray, size: int) -> np.ndarray:
-    """``index`` into a table of ``size`` entries in the narrowest integers that hold it."""
-    return index.astype(np.int16 if size < 2 ** 15 else np.int32)
 
 
 def _narrow(index: np.ndarray) -> np.ndarray:
@@ -207,27 +208,23 @@ class GridNlp:
         self._hessian_pattern()
         self._last = None
         self.scales: EndScales | None = None  # set for each solve (`scale`)
-        self._band_kind = self._hessian_kind = None
+        self._scaled_band = None  # the evaluation whose band is scaled in place
 
     def scale(self, scales: EndScales) -> None:
         """IPOPT sees ``x / d`` and each row divided by its size (`end_scales`) from now on:
         the unknowns' vector ``d`` over the grid, the rows', and the factors of the band's
         and the Hessian store's entries."""
-        n, N, m, w = self.layout.n, self.layout.nodes, self.layout.m, self.layout.bandwidth
+        n, N, m = self.layout.n, self.layout.nodes, self.layout.m
         d, rows = scales.unknowns, scales.rows
         self.scales = scales
         self.x_sizes = np.tile(d, N)
         self.row_sizes = np.concatenate([rows[(self.kept - n - 1) % m],
                                          np.full(self.ng - self.kept.size, scales.steps)])
-        self._band_factors = (d[:, None] / rows[row_kinds(self.layout)]).ravel()
+        # the factors of the band's table (node, kind of unknown, offset) and of the Hessian
+        # store's (node, kind, offset): applied in place, by broadcasting, before the gather
+        self._band_factors = d[:, None] / rows[row_kinds(self.layout)]
         dd = np.arange(3 * m)
-        self._hessian_factors = (d[:, None] * d[(np.arange(m)[:, None] + dd) % m]).ravel()
-        if self._band_kind is None:  # each nonzero's entry in those tables, built once
-            source, B = self._band_source, 3 * w + 1
-            self._band_kind = _small((source // B % m) * B + source % B, m * B)
-            source = self._hessian_source
-            self._hessian_kind = _small((source // (3 * m) % m) * 3 * m + source % (3 * m),
-                                        3 * m * m)
+        self._hessian_factors = d[:, None] * d[(np.arange(m)[:, None] + dd) % m]
 
     # --- patterns, built once -------------------------------------------------------------
 
@@ -335,12 +332,16 @@ class GridNlp:
     def jacobian(self, x, parameters, out):
         x = self._unscaled(x)
         _, blocks = self._evaluate(x, parameters)
-        band = self.grid.banded(blocks).T.ravel()
-        out[self._band_target] = band[self._band_source]
-        out[self._constant_target] = self._constants / parameters[self.n_theta]
+        band = self.grid.banded(blocks).T
+        constants = self._constants / parameters[self.n_theta]
         if self.scales is not None:  # diag(1 / r) J diag(d), by the kinds of row and unknown
-            out[self._band_target] *= self._band_factors[self._band_kind]
-            out[self._constant_target] *= self.scales.unknowns[0] / self.scales.steps
+            if self._scaled_band is not self._last:  # once per evaluation: in its own store
+                N, m = self.layout.nodes, self.layout.m
+                band.reshape(N, m, -1)[...] *= self._band_factors
+                self._scaled_band = self._last
+            constants = constants * (self.scales.unknowns[0] / self.scales.steps)
+        out[self._band_target] = band.ravel()[self._band_source]
+        out[self._constant_target] = constants
 
     def _unscaled(self, x):
         return x if self.scales is None else x * self.x_sizes
@@ -363,9 +364,10 @@ class GridNlp:
         if node is not None:
             mu = np.ascontiguousarray(body[:-1, 2 * n:]) / parameters[self.n_theta]
             values[1] = node[0]([z[:-2], z[1:-1], z[2:], mu], theta, N - 2)[0]
-        out[:] = self._hessian_band(values).ravel()[self._hessian_source]
+        store = self._hessian_band(values)
         if self.scales is not None:  # diag(d) H diag(d)
-            out *= self._hessian_factors[self._hessian_kind]
+            store.reshape(N, m, 3 * m)[...] *= self._hessian_factors
+        out[:] = store.ravel()[self._hessian_source]
 
 
 class _Callback(ca.Callback):
@@ -450,9 +452,10 @@ class BvpIpopt:
         steps = nlp.ng - nlp.kept.size
         lbg = np.r_[np.zeros(nlp.kept.size), np.full(steps, tau_floor / ends.energy_scale)]
         ubg = np.r_[np.zeros(nlp.kept.size), np.full(steps, np.inf)]
-        result = self.problem.solve(x0 / nlp.x_sizes, lbx=lbx / nlp.x_sizes,
-                                    ubx=ubx / nlp.x_sizes, lbg=lbg / nlp.row_sizes,
-                                    ubg=ubg / nlp.row_sizes,
+        for bound, size in ((lbx, nlp.x_sizes), (ubx, nlp.x_sizes), (lbg, nlp.row_sizes),
+                            (ubg, nlp.row_sizes)):
+            bound /= size  # in place: at N = 1e6 each copy is 24 MB held through the solve
+        result = self.problem.solve(x0 / nlp.x_sizes, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
                                     p=np.concatenate([ends.theta, [ends.energy_scale]]))
         result.x = result.x * nlp.x_sizes
         nlp.forget()  # the last point's blocks: O(N) memory the cached problem need not hold
