@@ -506,7 +506,9 @@ class Solution:
         rows = np.atleast_1d(times)
         if self.t.size == 0:
             raise InputError("the solution has no nodes to interpolate")
-        slack = 1e-12 * max(1.0, abs(self.t[0]), abs(self.t[-1]))
+        # the end times' round-off, in the run's own units (with a floor of 1, a run 1e-8 long
+        # answered for times 1e-4 of its span past its end)
+        slack = 1e-12 * max(abs(self.t[0]), abs(self.t[-1]))
         if rows.ndim != 1:
             raise InputError(f"t must be a number or a 1-d array of times, got shape "
                              f"{rows.shape}")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import ddvp_nlp
-from ddvp_nlp import InputError, load_scene, march, solve_bvp
+from ddvp_nlp import HamiltonianSystem, InputError, load_scene, march, solve_bvp
 
 pytestmark = pytest.mark.smoke  # the quick tier: tests/README.md
 
@@ -90,6 +90,23 @@ def test_dense_output_refuses_times_outside_the_run():
     _, solution = _harmonic_march(0.1)
     with pytest.raises(InputError, match="t must lie in the run's span"):
         solution.at(-0.5)
+
+
+def test_dense_output_refuses_times_outside_a_short_run():
+    """The span's slack is the end times' round-off in the run's own units: a run ``1e-8``
+    long refuses a time ``1e-6`` of its span past its end (a slack of ``1e-12`` absolute took
+    it)."""
+    T = 1e-8
+
+    def H(q, p, t):
+        return (p[0] ** 2 + q[0] ** 2) / (2 * T)
+    solution = march(HamiltonianSystem(H, n=1, name="fast oscillator"), [1.0], [0.0],
+                     (0.0, 5 * T), tau0=0.05 * T)
+    assert solution.success, solution.message
+    end = solution.t[-1]  # the energy steps' last node, at or past t_end
+    solution.at(end)
+    with pytest.raises(InputError, match="t must lie in the run's span"):
+        solution.at(end * (1 + 1e-6))
 
 
 def test_a_pickled_solution_interpolates_as_the_original():
