@@ -43,7 +43,7 @@ from ...discrete.constrained import (
 from ...discrete.equations import action_for
 from ...discrete.scheme import Scheme
 from ..grid.ipopt import DEFAULT_OPTIONS, FeasibilityNlp, ipopt_settings, node_grid_sizes
-from ..grid.motion_size import energy_rate
+from ..grid.motion_size import energy_rate, motion_sizes
 from ..grid.problem import GridResult
 
 
@@ -294,12 +294,16 @@ class ConstrainedIpopt:
         N, M, n = grid.layout.nodes, grid.layout.width, grid.layout.n
         _, jacobian = grid.evaluate(x0, data, jacobian=True)
         steps = N - 1 if grid.scheme.variable_steps else 0
-        d, r = node_grid_sizes(grid.sparse(jacobian)[self.kept, :], x0, N, M, 1 + 2 * n, steps)
+        z = np.asarray(x0, float).reshape(N, M)
+        span = float(np.ptp(z[:, 0]))
+        sizes = motion_sizes(grid.system, data.theta, z[:, 0], z[:, 1:1 + 2 * n],
+                             span / (2 * np.pi))
+        d, r = node_grid_sizes(grid.sparse(jacobian)[self.kept, :], x0, N, M, 1 + 2 * n, steps,
+                               sizes)
         if grid.scheme.variable_steps:
             energy = np.zeros(grid.layout.size, bool)
             energy[grid.slices["time"]] = True
             energy[grid.slices["time"].stop - 1] = False  # the end time's pin
-            z = np.asarray(x0, float).reshape(N, M)
             rate = energy_rate(z[:, 0], z[:, 1:1 + 2 * n])
             if rate > 0:
                 r[:self.kept.size][energy[self.kept]] = rate

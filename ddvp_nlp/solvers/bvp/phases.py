@@ -20,6 +20,7 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ..grid.linear import band_kernel
+from ..grid.motion_size import motion_sizes
 from ..grid.newton import newton
 from ..grid.policy import Stage
 from ..grid.problem import GridRequest
@@ -201,8 +202,10 @@ def ipopt_scales(request: GridRequest, x: np.ndarray, scheme: Scheme, data: Ends
     grid = assembly(request, scheme)
     n, N, m = request.system.n, request.nodes, 2 * request.system.n + 1
     z = np.asarray(x, float).reshape(N, m)
-    ranges = np.ptp(z, axis=0)
-    sizes = np.where(ranges > 0, ranges, np.nan)
+    span = float(np.ptp(z[:, 0]))
+    sizes = np.r_[span, motion_sizes(request.system, request.theta, z[:, 0], z[:, 1:],
+                                     span / (2 * np.pi))]
+    sizes = np.where(sizes > 0, sizes, np.nan)
     _, blocks = grid.evaluate(x, data, jacobian=True)
     scales = end_scales(grid.layout, grid.banded(blocks), sizes, data.energy_scale)
     grid.release()

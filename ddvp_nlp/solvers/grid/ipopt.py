@@ -189,16 +189,24 @@ def equilibrated_sizes(jacobian, sizes: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def node_grid_sizes(jacobian, x0: np.ndarray, nodes: int, width: int, sized: int,
-                    step_rows: int) -> tuple[np.ndarray, np.ndarray]:
+                    step_rows: int, sizes=None) -> tuple[np.ndarray, np.ndarray]:
     """`equilibrated_sizes` of a grid whose unknowns are ``nodes`` blocks of ``width`` values
     (then any others, unfolding parameters), the first ``sized`` of each block ``(t, q, p)``
-    sized by their ranges over ``x0`` (the span of the times, each coordinate's range; the
-    rest, multipliers and a coordinate that does not move, by the rows), followed by
-    ``step_rows`` rows ``t_{k+1} - t_k`` sized by the mean step. ``jacobian``: the rows'
-    Jacobian at ``x0`` (scipy sparse), without the step rows."""
+    sized by the span of the times and ``sizes`` (each coordinate's size over the motion,
+    `grid.motion_size.motion_sizes`: a coordinate that does not move, an orbit's in an
+    invariant plane, is sized by the motion's action, not by the round-off it carries; default
+    the coordinates' ranges over ``x0``), the rest (multipliers) by the rows, which see a node
+    time move by a mean step (by the span, the rows that hold the times were sized by far
+    more than they ever change, and IPOPT failed Duffing's orbit from its linearised start 12
+    times in 24 where it fails none); followed by ``step_rows`` rows ``t_{k+1} - t_k`` sized
+    by the mean step. ``jacobian``: the rows' Jacobian at ``x0`` (scipy sparse), without the
+    step rows."""
     z = np.asarray(x0, float)[:nodes * width].reshape(nodes, width)
     ranges = np.ptp(z, axis=0)
-    block = np.where(ranges > 0, ranges, np.nan)
+    block = ranges.copy()
+    if sizes is not None:
+        block[1:1 + np.size(sizes)] = np.asarray(sizes, float)
+    block = np.where(block > 0, block, np.nan)
     block[sized:] = np.nan
     mean = ranges[0] / max(nodes - 1, 1)
     local = block.copy()
@@ -207,4 +215,3 @@ def node_grid_sizes(jacobian, x0: np.ndarray, nodes: int, width: int, sized: int
     d, r = equilibrated_sizes(jacobian, np.concatenate([np.tile(local, nodes), tail]))
     d[:nodes * width].reshape(nodes, width)[:, 0] = ranges[0] if ranges[0] > 0 else 1.0
     return d, np.concatenate([r, np.full(step_rows, mean if mean > 0 else 1.0)])
-

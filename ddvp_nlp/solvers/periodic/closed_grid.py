@@ -206,6 +206,25 @@ class Closure:
     reference: np.ndarray = field(default_factory=lambda: np.zeros(0))
     generators: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     shift: np.ndarray | float = 0.0
+    # the unfolding's metric (`unfolding_metric`); None: ones
+    metric: np.ndarray | None = None
+
+    def unfolding_metric(self, n: int) -> np.ndarray:
+        """``(2n,)``: the metric ``G`` of the unfolding terms ``tau G grad I u``, ones if none
+        was given."""
+        return np.ones(2 * n) if self.metric is None else np.asarray(self.metric, float)
+
+
+def unfolding_metric(weights: np.ndarray, period: float) -> np.ndarray | None:
+    """``G_i = (T / 2 pi) / W_i^2`` (`interval_rows`): ``W`` the symplectic weights of the
+    orbit's start (`physics.hamiltonian.symplectic_weights`: in ``W z`` every coordinate has
+    one unit, that of the square root of an action) and ``T`` the period; ``None`` (ones)
+    where a weight or the period is not positive. A harmonic oscillator of unit frequency and
+    mass gets ones, the plain unfolding."""
+    weights = np.asarray(weights, float)
+    if not (np.all(np.isfinite(weights)) and np.all(weights > 0) and period > 0):
+        return None
+    return period / (2 * np.pi) / weights ** 2
 
 
 def integral_gradients(system, integrals) -> ca.Function:
@@ -222,13 +241,19 @@ def integral_gradients(system, integrals) -> ca.Function:
 
 
 def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
-    """``(z_a, z_b, u, E, theta) -> rows (m,)`` of one interval, with ``u`` the unfolding
-    parameters ``(lambda, mu_1, ..., mu_r)``: the Newton assembly differentiates it into blocks,
-    the IPOPT problem (``orbit_nlp.py``) maps it over the grid."""
+    """``(z_a, z_b, u, E, G, theta) -> rows (m,)`` of one interval, with ``u`` the unfolding
+    parameters ``(lambda, mu_1, ..., mu_r)`` and ``G`` (``2n``) the metric of the unfolding
+    terms: the Newton assembly differentiates it into blocks, the IPOPT problem
+    (``orbit_nlp.py``) maps it over the grid. The unfolding terms are ``tau G grad I_i u_i``:
+    a plain ``tau grad H lambda`` needs ``lambda`` in the units of ``q^2 / (E t)`` in a
+    position's row and of ``p^2 / (E t)`` in a momentum's, so its column changed its shape
+    with the time unit (IPOPT, scaled, then took another path); with ``G_i = S_i^2 / E_s``
+    (`unfolding_metric`) every ``u_i`` has one unit. At an orbit ``u = 0``, whatever ``G``."""
     def build():
         n, r = system.n, len(integrals)
         z_a, z_b = ca.SX.sym("z_a", 2 * n + 1), ca.SX.sym("z_b", 2 * n + 1)
         unfolding, level = ca.SX.sym("u", 1 + r), ca.SX.sym("E")
+        metric = ca.SX.sym("G", 2 * n)
         t_a, q_a, p_a = z_a[0], z_a[1:n + 1], z_a[n + 1:]
         t_b, q_b, p_b = z_b[0], z_b[1:n + 1], z_b[n + 1:]
         theta = system.theta
@@ -241,32 +266,33 @@ def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
         # The unfolding: increments z_b - z_a = tau (J grad H + lambda grad H + sum mu_i
         # grad I_i)(Q, P); the canonical rows are q_b - q_a - tau H_p and p_b - p_a + tau H_q.
         gradients = integral_gradients(system, integrals)(Q, P, theta)
-        rows = ca.vertcat(canonical - (t_b - t_a) * ca.mtimes(gradients, unfolding),
-                          energy - level)
-        return ca.Function("periodic_rows", [z_a, z_b, unfolding, level, theta], [rows])
+        unfolded = metric * ca.mtimes(gradients, unfolding)
+        rows = ca.vertcat(canonical - (t_b - t_a) * unfolded, energy - level)
+        return ca.Function("periodic_rows", [z_a, z_b, unfolding, level, metric, theta],
+                           [rows])
     return cached(system, ("periodic_rows", scheme, tuple(integrals)), build)
 
 
 def _parameter_function(system, scheme: Scheme, integrals) -> ca.Function:
-    """``(z_a, z_b, u, E, theta) -> d rows / d theta`` (``m x len(theta)``), from the same
+    """``(z_a, z_b, u, E, G, theta) -> d rows / d theta`` (``m x len(theta)``), from the same
     rows as `_interval_function`."""
     def build():
         rows = interval_rows(system, scheme, integrals)
-        z_a, z_b, unfolding, level, theta = rows.sx_in()
-        expression = rows(z_a, z_b, unfolding, level, theta)
-        return ca.Function("periodic_theta", [z_a, z_b, unfolding, level, theta],
+        z_a, z_b, unfolding, level, metric, theta = rows.sx_in()
+        expression = rows(z_a, z_b, unfolding, level, metric, theta)
+        return ca.Function("periodic_theta", [z_a, z_b, unfolding, level, metric, theta],
                            [ca.densify(ca.jacobian(expression, theta))])
     return cached(system, ("periodic_theta", scheme, tuple(integrals)), build)
 
 
 def _interval_function(system, scheme: Scheme, integrals) -> ca.Function:
-    """``(z_a, z_b, u, E, theta) -> (rows (m,), d rows / d(z_a, z_b, u))``."""
+    """``(z_a, z_b, u, E, G, theta) -> (rows (m,), d rows / d(z_a, z_b, u))``."""
     def build():
         rows = interval_rows(system, scheme, integrals)
-        z_a, z_b, unfolding, level, theta = rows.sx_in()
-        expression = rows(z_a, z_b, unfolding, level, theta)
+        z_a, z_b, unfolding, level, metric, theta = rows.sx_in()
+        expression = rows(z_a, z_b, unfolding, level, metric, theta)
         unknowns = ca.vertcat(z_a, z_b, unfolding)
-        return ca.Function("periodic_interval", [z_a, z_b, unfolding, level, theta],
+        return ca.Function("periodic_interval", [z_a, z_b, unfolding, level, metric, theta],
                            [expression, ca.densify(ca.jacobian(expression, unknowns))])
     return cached(system, ("periodic_interval", scheme, tuple(integrals)), build)
 
@@ -295,7 +321,8 @@ class PeriodicAssembly:
         z = np.ascontiguousarray(x[:(N + 1) * m], float).reshape(N + 1, m)
         unfolding = np.tile(x[(N + 1) * m:], (N, 1))
         level = np.full((N, 1), closure.energy)
-        rows, J = self._interval([z[:-1], z[1:], unfolding, level], closure.theta, N)
+        metric = np.tile(closure.unfolding_metric(self.layout.n), (N, 1))
+        rows, J = self._interval([z[:-1], z[1:], unfolding, level, metric], closure.theta, N)
         F = np.empty(self.layout.size)
         F[0] = z[0, 0]
         F[1] = z[0, closure.section_index] - closure.section_value
@@ -319,7 +346,8 @@ class PeriodicAssembly:
         if theta.size == 0:
             return sp.csc_matrix((self.layout.size, 0))
         mapped = self._theta_rows.map(N)
-        values = np.asarray(mapped(z[:-1].T, z[1:].T, unfolding.T, level.T, theta))
+        metric = np.tile(closure.unfolding_metric(self.layout.n)[:, None], (1, N))
+        values = np.asarray(mapped(z[:-1].T, z[1:].T, unfolding.T, level.T, metric, theta))
         blocks = values.reshape(m, N, theta.size).transpose(1, 0, 2)
         dense = np.zeros((self.layout.size, theta.size))
         dense[h:h + N * m] = blocks.reshape(N * m, theta.size)

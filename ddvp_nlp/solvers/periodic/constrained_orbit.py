@@ -394,7 +394,7 @@ def _run(solver, request: GridRequest, grid, x0, closure, scale) -> GridResult:
     _, jacobian = grid.evaluate(x0, closure, jacobian=True)
     layout = grid.layout
     sizes = node_grid_sizes(grid.sparse(jacobian), x0, layout.nodes, layout.width,
-                            1 + 2 * layout.n, steps)
+                            1 + 2 * layout.n, steps, _sizes(request, grid, x0))
     result = problem.solve(x0, p=closure.vector(),
                            lbg=np.r_[np.zeros(rows), np.full(steps, request.tau_floor)],
                            ubg=np.r_[np.zeros(rows), np.full(steps, np.inf)], sizes=sizes)

@@ -74,11 +74,12 @@ DEFAULT_TOL = 1e-6
 
 def _step_derivative_function(system, scheme, integrals) -> ca.Function:
     """``(z_a, z_b, u, E, theta) -> (G_b, [G_a, G_u, G_E])``: the Jacobians of an interval's
-    rows (``assembly.interval_rows``) in the later node and in the rest."""
+    rows (``assembly.interval_rows``, the unfolding's metric ones) in the later node and in
+    the rest."""
     def build():
         rows = interval_rows(system, scheme, integrals)
-        z_a, z_b, u, level, theta = rows.sx_in()
-        G = rows(z_a, z_b, u, level, theta)
+        z_a, z_b, u, level, _, theta = rows.sx_in()
+        G = rows(z_a, z_b, u, level, ca.DM.ones(2 * system.n), theta)
         rest = ca.jacobian(G, ca.vertcat(z_a, u, level))
         return ca.Function("periodic_step_derivatives", [z_a, z_b, u, level, theta],
                            [ca.densify(ca.jacobian(G, z_b)), ca.densify(rest)])

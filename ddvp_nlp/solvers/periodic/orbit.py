@@ -93,7 +93,7 @@ import numpy as np
 from ...discrete import equations
 from ...discrete.scheme import Scheme
 from ...errors import InputError
-from ...physics.hamiltonian import HamiltonianSystem
+from ...physics.hamiltonian import HamiltonianSystem, symplectic_weights
 from ...solution import OrbitRecord, Solution, Status
 from ...validation import check_angles, check_integer, check_real, check_state
 from ..accuracy.judgement import Judgement, Level, judge
@@ -112,6 +112,7 @@ from .closed_grid import (
     closed_targets,
     closed_verdict,
     integral_gradients,
+    unfolding_metric,
 )
 from .first_orbit import (
     NoMotion,
@@ -263,7 +264,7 @@ def _solve_on(request: GridRequest[Orbit], t, z, integrals, started) -> Solution
     """The orbit on ``request.intervals`` intervals from the nodes ``(t, z)``: each solver of
     the request's option in turn until one's point holds the equations."""
     system, intervals = request.system, request.intervals
-    closure = _closure(request, z, integrals)
+    closure = _closure(request, t, z, integrals)
     began = time.perf_counter()
     assembly = PeriodicAssembly(system, request.scheme, intervals, integrals)
     request.build_s += time.perf_counter() - began
@@ -300,7 +301,9 @@ def _run(name, request: GridRequest[Orbit], assembly, x0, closure, targets, inte
     if name == "newton":
         return closed_newton(assembly, x0, closure, request, targets)
     _, jacobian = assembly.evaluate(x0, closure, jacobian=True)
-    sizes = scaled_sizes(assembly.layout, assembly.sparse(jacobian), x0)
+    z = x0[:(request.intervals + 1) * assembly.layout.m].reshape(request.intervals + 1, -1)
+    sizes = scaled_sizes(assembly.layout, assembly.sparse(jacobian), x0,
+                         _sizes(request, z[:, 0], z[:, 1:]))
     began = time.perf_counter()  # the build (or the cache's answer) counts as build time
     # IPOPT works on the rows scaled by their sizes (`orbit_nlp.scaled_sizes`), and its
     # tolerance is one number for all: never below the largest row's round-off in those
@@ -373,9 +376,10 @@ def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", par
              coerce(options, GridOptions, "options"))
 
 
-def _closure(request: GridRequest[Orbit], z: np.ndarray, integrals) -> Closure:
+def _closure(request: GridRequest[Orbit], t: np.ndarray, z: np.ndarray, integrals) -> Closure:
     """The problem's data; the phase conditions of the integrals at the start's node 0, the
-    closure shift (turns of the angle coordinates) from the start's ends."""
+    closure shift (turns of the angle coordinates) from the start's ends, the unfolding's
+    metric from the start's sizes and period (`closed_grid.unfolding_metric`)."""
     system, orbit = request.system, request.data
     n = system.n
     reference = z[0]
@@ -385,7 +389,9 @@ def _closure(request: GridRequest[Orbit], z: np.ndarray, integrals) -> Closure:
             reference[:n], reference[n:], request.theta))[:, 1:].T
         generators = np.hstack([gradients[:, n:], -gradients[:, :n]])  # J grad I
     return Closure(orbit.energy, orbit.index, orbit.value, request.theta, reference.copy(),
-                   generators, closing_shift(z[0], z[-1], orbit.angles))
+                   generators, closing_shift(z[0], z[-1], orbit.angles),
+                   unfolding_metric(symplectic_weights(system, z[0], 0.0, request.theta),
+                                    float(t[-1] - t[0])))
 
 
 def _checked(system, energy, nodes, section, guess, scheme, params, start, angles,

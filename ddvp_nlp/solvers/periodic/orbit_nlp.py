@@ -52,10 +52,11 @@ class PeriodicIpopt:
         energy, value = ca.MX.sym("E"), ca.MX.sym("value")
         reference, shift = ca.MX.sym("reference", 2 * n), ca.MX.sym("shift", 2 * n)
         generators = ca.MX.sym("generators", r, 2 * n)
+        metric = ca.MX.sym("metric", 2 * n)
         Z = ca.reshape(x[:(N + 1) * m], m, N + 1)
         u = x[(N + 1) * m:]
         rows = interval_rows(system, scheme, integrals).map(N)(
-            Z[:, :-1], Z[:, 1:], ca.repmat(u, 1, N), energy, theta)
+            Z[:, :-1], Z[:, 1:], ca.repmat(u, 1, N), energy, ca.repmat(metric, 1, N), theta)
         g = ca.vertcat(Z[0, 0], Z[section_index, 0] - value,
                        ca.mtimes(generators, Z[1:, 0] - reference), ca.vec(rows),
                        Z[1:, N] - Z[1:, 0] - shift, ca.vec(Z[0, 1:] - Z[0, :-1]))
@@ -63,7 +64,8 @@ class PeriodicIpopt:
         self.steps = N
         settings = ipopt_settings(tol, max_iter, verbose, time_limit,
                                   {"ipopt.hessian_approximation": "exact", **DEFAULT_OPTIONS})
-        parameters = ca.vertcat(theta, energy, value, reference, shift, ca.vec(generators))
+        parameters = ca.vertcat(theta, energy, value, reference, shift, ca.vec(generators),
+                                metric)
         self.problem = FeasibilityNlp("periodic", x, parameters, g, settings, scaled=True)
 
     def solve(self, x0: np.ndarray, closure: Closure, tau_floor: float,
@@ -75,7 +77,8 @@ class PeriodicIpopt:
         shift = np.broadcast_to(np.asarray(closure.shift, float), (2 * n,))
         reference = closure.reference if closure.reference.size else np.zeros(2 * n)
         parameters = np.concatenate([closure.theta, [closure.energy, closure.section_value],
-                                     reference, shift, np.ravel(closure.generators, "F")])
+                                     reference, shift, np.ravel(closure.generators, "F"),
+                                     closure.unfolding_metric(n)])
         lbg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, tau_floor)])
         ubg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, np.inf)])
         d, r = sizes
@@ -84,13 +87,13 @@ class PeriodicIpopt:
         return result
 
 
-def scaled_sizes(layout, jacobian, x0: np.ndarray):
+def scaled_sizes(layout, jacobian, x0: np.ndarray, sizes: np.ndarray):
     """``(d, r)``: the sizes of the NLP's unknowns and rows (`grid.ipopt.node_grid_sizes`)
-    from the assembly's ``jacobian`` at ``x0`` (scipy sparse): each node's time by the period,
-    its ``q`` and ``p`` by their ranges, the unfolding by the rows; the step rows by the mean
-    step."""
+    from the assembly's ``jacobian`` at ``x0`` (scipy sparse) and the orbit's ``sizes``
+    (``(2n,)``, `grid.motion_size.orbit_sizes`): each node's time by the period, its ``q`` and
+    ``p`` by ``sizes``, the unfolding by the rows; the step rows by the mean step."""
     return node_grid_sizes(jacobian, x0, layout.intervals + 1, layout.m, layout.m,
-                           layout.intervals)
+                           layout.intervals, sizes)
 
 
 def periodic_ipopt(system, scheme, intervals: int, integrals, section_index: int, *,
