@@ -26,6 +26,7 @@ def shot(length: float):
                      guess="march")
 
 
+@pytest.mark.slow_when(lambda length: length == 1e6, why="repetition")
 @pytest.mark.parametrize("length", [1e-8, 1e6])
 def test_shooting_takes_the_same_steps_in_any_units(length):
     base, other = shot(1.0), shot(length)

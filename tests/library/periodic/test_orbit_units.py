@@ -60,6 +60,8 @@ def _same(found, reference):
     np.testing.assert_allclose(p, p0, rtol=0, atol=AGREE * np.ptp(p0))
 
 
+@pytest.mark.slow_when(lambda length, time, **_: (length, time) not in ((1e-8, 1.0), (1.0, 1e5)),
+                       why="repetition")
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1e8, 1.0), (1.0, 1e-4), (1.0, 1e5),
                                           (1e-6, 1e3)])
 def test_units(reference, length, time):
@@ -126,6 +128,7 @@ def _followed(length, time):
             for member in found.members]
 
 
+@pytest.mark.slow_when(lambda length, time: time != 1.0, why="repetition")
 @pytest.mark.parametrize("length, time", [(1e-8, 1.0), (1.0, 1e5)])
 def test_a_family_is_followed_through_its_range_in_any_units(length, time):
     """The family's first steps come from the energy steps and the first slope ``dE/ds`` with

@@ -146,6 +146,7 @@ def plane(L=1.0, T=1.0):
     return HamiltonianSystem(hamiltonian, 2, name="plane_in_units")
 
 
+@pytest.mark.slow_when(lambda L, T: L == 1.0, why="repetition")
 @pytest.mark.parametrize("L, T", [(1.0, 1.0), (1e6, 1e-3)])
 def test_an_orbit_in_an_invariant_plane_is_found_alike_in_any_units(L, T):
     """The orbit in the plane ``q1 = p1 = 0`` from its linearised start: Newton stalls, IPOPT

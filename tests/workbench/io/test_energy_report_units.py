@@ -26,6 +26,7 @@ def report(length: float, zero_at_start: bool = False):
                          run_energies(system, Scheme("fixed"), run, theta))
 
 
+@pytest.mark.slow_when(lambda length: length == 1e6, why="repetition")
 @pytest.mark.parametrize("length", [1e-8, 1e6])
 def test_the_relative_error_is_the_same_in_any_units(length):
     base, other = report(1.0), report(length)
