@@ -117,8 +117,8 @@ def end_scales(layout: NodeLayout, band: np.ndarray, sizes: np.ndarray,
     first, last = n + 1, n + 1 + (N - 1) * m  # the body rows; the last energy row is a pin
     reach = np.zeros((m, B))
     inner = slice(min(N, -(-(2 * w + n + 1) // m) + 1), max(0, N - w // m - 3))
-    for first in range(inner.start, inner.stop, CHUNK_NODES):  # no copy of the whole band
-        chunk = table[first:min(first + CHUNK_NODES, inner.stop)]
+    for begin in range(inner.start, inner.stop, CHUNK_NODES):  # no copy of the whole band
+        chunk = table[begin:min(begin + CHUNK_NODES, inner.stop)]
         reach = np.maximum(reach, np.max(np.abs(chunk), axis=0))
     offsets = np.arange(m)[:, None] + np.arange(B)[None, :] - 2 * w
     for node in [*range(0, min(N, inner.start)), *range(max(inner.stop, inner.start), N)]:

@@ -157,3 +157,36 @@ def test_ipopt_tolerance_sits_at_the_rows_round_off():
         assert eps <= floors[nodes, level] <= 32 * eps  # 3.6-4.0 eps measured
     assert floors[10_000, 1.0] / floors[1_000, 1.0] == pytest.approx(1.0, rel=0.5)
     assert floors[10_000, 1e3] / floors[10_000, 1.0] == pytest.approx(1.0, rel=0.5)
+
+
+@pytest.mark.parametrize("nodes", [6, 40])
+def test_the_scales_of_each_kind_of_row_are_read_off_the_band_as_off_the_matrix(nodes):
+    """`end_scales` reads each kind of row's size off the band's table by kinds (the interior
+    nodes at once, the first and last few with the pins' rows masked); the same sizes as a
+    pass over the Jacobian's body rows: ``max_i |J_ij| d_j`` over the rows of each kind. (A
+    loop variable had shadowed the first body row, and the first nodes' mask dropped the first
+    interval's rows where the interior was read in chunks.)"""
+    from ddvp_nlp.solvers.bvp.ends_nlp import end_scales, row_kinds  # noqa: F401
+    from ddvp_nlp.solvers.bvp.phases import assembly
+
+    system = load_scene("pendulum").system
+    request = GridRequest(system, Scheme("vddvp"), nodes, system.parameter_vector(None),
+                          Boundary(np.array([0.5]), np.array([-0.036]), 0.0, 9.0,
+                                   np.linspace(0.0, 9.0, nodes)),
+                          GridOptions(tol=1e-9).resolved(max_iter=5))
+    t = np.linspace(0.0, 9.0, nodes)
+    # the largest entries in the first interval's rows, which the first nodes' mask must keep
+    p = 0.5 * np.cos(t) + 5.0 * np.exp(-5.0 * t)
+    x = NodeLayout(1, nodes).pack(t, 0.5 * np.sin(t)[:, None], p[:, None])
+    data = ends(request, request.scheme)
+    grid = assembly(request, request.scheme)
+    _, blocks = grid.evaluate(x, data, jacobian=True)
+    sizes = np.array([9.0, 1.0, 1.0])
+    scales = end_scales(grid.layout, grid.banded(blocks), sizes, data.energy_scale)
+    J = abs(grid.sparse(blocks)).toarray()
+    m, n = 3, 1
+    body = np.arange(n + 1, n + 1 + (nodes - 1) * m - 1)  # the last energy row is a pin
+    weighted = J[body] * np.tile(sizes, nodes)[None, :]
+    expected = [np.max(weighted[(body - n - 1) % m == k]) for k in range(m)]
+    np.testing.assert_allclose(scales.rows, expected, rtol=1e-15)
+    grid.release()
