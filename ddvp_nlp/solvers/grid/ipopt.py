@@ -182,10 +182,14 @@ def equilibrated_sizes(jacobian, sizes: np.ndarray) -> tuple[np.ndarray, np.ndar
     known = np.isfinite(sizes) & (sizes > 0)
     d = np.where(known, sizes, 0.0)
     r = np.asarray((A @ sp.diags(d)).max(axis=1).todense()).ravel()
-    r = np.where(r > 0, r, 1.0)
     if not np.all(known):
-        d[~known] = column_sizes(A[:, np.flatnonzero(~known)], r)
-    return d, r
+        unsized = np.flatnonzero(~known)
+        # a row of unsized unknowns alone: sized by them once they are (below)
+        d[unsized] = column_sizes(A[:, unsized], np.where(r > 0, r, np.inf))
+        alone = np.flatnonzero(~(r > 0))
+        if alone.size:
+            r[alone] = np.asarray((A[alone] @ sp.diags(d)).max(axis=1).todense()).ravel()
+    return d, np.where(r > 0, r, 1.0)  # 1: a row of no unknown (a constant)
 
 
 def node_grid_sizes(jacobian, x0: np.ndarray, nodes: int, width: int, sized: int,
