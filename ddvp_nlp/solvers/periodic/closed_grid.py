@@ -247,8 +247,9 @@ def interval_rows(system, scheme: Scheme, integrals) -> ca.Function:
     (``orbit_nlp.py``) maps it over the grid. The unfolding terms are ``tau G grad I_i u_i``:
     a plain ``tau grad H lambda`` needs ``lambda`` in the units of ``q^2 / (E t)`` in a
     position's row and of ``p^2 / (E t)`` in a momentum's, so its column changed its shape
-    with the time unit (IPOPT, scaled, then took another path); with ``G_i = S_i^2 / E_s``
-    (`unfolding_metric`) every ``u_i`` has one unit. At an orbit ``u = 0``, whatever ``G``."""
+    with the time unit (IPOPT, scaled, then took another path); with ``G_i = (T / 2 pi) /
+    W_i^2`` (`unfolding_metric`) every ``u_i`` has one unit. At an orbit ``u = 0``, whatever
+    ``G``."""
     def build():
         n, r = system.n, len(integrals)
         z_a, z_b = ca.SX.sym("z_a", 2 * n + 1), ca.SX.sym("z_b", 2 * n + 1)

@@ -379,7 +379,8 @@ def check_periodic(system, *, energy, nodes, section="p1=0", scheme="vddvp", par
 def _closure(request: GridRequest[Orbit], t: np.ndarray, z: np.ndarray, integrals) -> Closure:
     """The problem's data; the phase conditions of the integrals at the start's node 0, the
     closure shift (turns of the angle coordinates) from the start's ends, the unfolding's
-    metric from the start's sizes and period (`closed_grid.unfolding_metric`)."""
+    metric from the symplectic weights at the start's node 0 and its period
+    (`closed_grid.unfolding_metric`)."""
     system, orbit = request.system, request.data
     n = system.n
     reference = z[0]

@@ -81,8 +81,7 @@ class PeriodicIpopt:
                                      closure.unfolding_metric(n)])
         lbg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, tau_floor)])
         ubg = np.concatenate([np.zeros(self.equalities), np.full(self.steps, np.inf)])
-        d, r = sizes
-        result = self.problem.solve(x0, p=parameters, lbg=lbg, ubg=ubg, sizes=(d, r))
+        result = self.problem.solve(x0, p=parameters, lbg=lbg, ubg=ubg, sizes=sizes)
         result.outcome = f"ipopt: {result.outcome} after {result.iterations} iterations"
         return result
 
